@@ -1,0 +1,184 @@
+# reflect.h + rast.h -- GNU make.
+#
+#   make            amalgamator, headers, C and C++ compile checks, tests, bench, examples
+#   make headers    regenerate rast.h (and reflect.h) from src/
+#   make test       install packages, check headers, run the tests (plain and ASan/UBSan)
+#   make bench      install packages, build and run the rasteriser benchmark -> out/
+#   make demo       install packages, render the examples -> out/
+#   make deps       install the Debian packages the project needs (tools/deps.sh)
+#   make clean
+#
+# Every object records what it includes (-MMD), so anything that includes
+# rast.h rebuilds when rast.h changes. rast.h itself is only rewritten by
+# `make headers` (and `make`, which runs it): the tests build against the
+# shipped header, and `make check-headers` tells when it is stale.
+
+SHELL := /bin/bash
+
+CC  ?= cc
+CXX ?= c++
+CFLAGS   = -std=c99 -O2 -g -Wall -Wextra -Werror -pthread
+CXXFLAGS = -std=c++11 -O2 -g -Wall -Wextra -Werror -pthread
+DEPFLAGS  = -MMD -MP
+LDLIBS    = -lm -pthread
+# Headless GL through EGL on Mesa (llvmpipe): libEGL (libegl-dev), desktop GL
+# (libGL, libgl-dev) and GLES2/3 (libGLESv2, libgles-dev). All are glvnd
+# dispatchers, so linking all three is harmless and serves either API.
+GL_LIBS   = -lEGL -lGL -lGLESv2
+TEST_LIBS = -lcriterion $(GL_LIBS) $(LDLIBS)
+
+ASAN_CFLAGS = -std=c99 -O1 -g -Wall -Wextra -Werror -pthread \
+              -fsanitize=address,undefined -fno-omit-frame-pointer
+ASAN_ENV = ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+CRITERION_FLAGS = --jobs 2
+# Seconds per test run (plain, then sanitized), so `make test` stays bounded.
+TEST_TIMEOUT = 300
+
+# ---- modules, in amalgamation order (edit here when adding a module) ----
+
+RAST_PUBLIC = src/rast/api.h
+RAST_IMPL   = src/rast/internal.h \
+              src/rast/threads.c \
+              src/rast/context.c \
+              src/rast/texture.c \
+              src/rast/setup.c \
+              src/rast/fragment.c \
+              src/rast/raster.c \
+              src/rast/bin.c
+
+# reflect.h gets the same treatment; it is skipped while src/reflect/api.h
+# does not exist. List its modules here, in order:
+REFLECT_PUBLIC = src/reflect/api.h
+REFLECT_IMPL   = # src/reflect/internal.h src/reflect/math.c ...
+HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
+
+AMALGAMATE = build/amalgamate
+# $(call amalgamate,OUT,NAME,PUBLIC,MACRO,IMPL)
+amalgamate = $(AMALGAMATE) -o $(1) --banner $(2) --public $(3) --impl $(4) $(5)
+
+# ---- what gets built ----
+
+TEST_SRCS      = $(sort $(wildcard tests/test_*.c)) tests/rast_impl.c
+TEST_BIN       = build/tests/rast_tests
+ASAN_TEST_BIN  = build/asan/rast_tests
+TEST_OBJS      = $(TEST_SRCS:tests/%.c=build/tests/%.o)
+ASAN_TEST_OBJS = $(TEST_SRCS:tests/%.c=build/asan/%.o)
+RAST_IMPL_OBJ  = build/tests/rast_impl.o
+
+BENCH_BIN  = build/bench/bench_rast
+BENCH_OBJS = build/bench/bench_rast.o $(RAST_IMPL_OBJ)
+
+# Each example is one self-contained program (it defines RAST_IMPLEMENTATION).
+EXAMPLES = $(patsubst examples/%.c,build/examples/%,$(sort $(wildcard examples/*.c)))
+
+COMPILE_CHECKS = build/check/compile_check.o build/check/compile_check_cpp.o
+
+.PHONY: all build-all headers check-headers compile-check deps test bench demo clean
+
+all: headers
+	@$(MAKE) --no-print-directory build-all
+
+build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(EXAMPLES)
+
+# ---- headers ----
+
+$(AMALGAMATE): tools/amalgamate.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) -o $@ $<
+
+headers: $(AMALGAMATE)
+	$(call amalgamate,rast.h,rast.h,$(RAST_PUBLIC),RAST_IMPLEMENTATION,$(RAST_IMPL))
+ifneq ($(HAVE_REFLECT),)
+	$(call amalgamate,reflect.h,reflect.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
+endif
+
+check-headers: $(AMALGAMATE)
+	@mkdir -p build/gen
+	@$(call amalgamate,build/gen/rast.h,rast.h,$(RAST_PUBLIC),RAST_IMPLEMENTATION,$(RAST_IMPL))
+	@cmp -s build/gen/rast.h rast.h || \
+	  { echo "rast.h differs from src/: run 'make headers' and commit it" >&2; exit 1; }
+ifneq ($(HAVE_REFLECT),)
+	@$(call amalgamate,build/gen/reflect.h,reflect.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
+	@cmp -s build/gen/reflect.h reflect.h || \
+	  { echo "reflect.h differs from src/: run 'make headers' and commit it" >&2; exit 1; }
+endif
+	@echo "headers match src/"
+
+# Only when rast.h is absent (a checkout always has it).
+rast.h:
+	@echo "rast.h is missing: run 'make headers'" >&2; exit 1
+
+# ---- compiling: every object records its includes in a .d file ----
+
+compile-check: $(COMPILE_CHECKS)
+
+build/check/compile_check.o: tests/compile_check.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/check/compile_check_cpp.o: tests/compile_check.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/tests/%.o: tests/%.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/asan/%.o: tests/%.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/bench/%.o: bench/%.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/examples/%: examples/%.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) $< -o $@ $(LDLIBS)
+
+$(TEST_BIN): $(TEST_OBJS)
+	$(CC) $(CFLAGS) $^ -o $@ $(TEST_LIBS)
+
+$(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
+	$(CC) $(ASAN_CFLAGS) $^ -o $@ $(TEST_LIBS)
+
+$(BENCH_BIN): $(BENCH_OBJS)
+	$(CC) $(CFLAGS) $^ -o $@ $(GL_LIBS) $(LDLIBS)
+
+DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) \
+           $(BENCH_OBJS:.o=.d) $(EXAMPLES:=.d)
+-include $(DEPFILES)
+
+# ---- packages ----
+
+deps:
+	@bash tools/deps.sh
+
+# ---- running ----
+
+# The sanitized run also fails on reports that do not fail a test by
+# themselves (leaks are found when a test's process exits).
+test: deps
+	@$(MAKE) --no-print-directory check-headers
+	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(ASAN_TEST_BIN)
+	timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
+	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) 2>&1 \
+	  | tee build/asan/rast_tests.log
+	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \
+	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
+	  exit 1; fi
+
+bench: deps
+	@$(MAKE) --no-print-directory $(BENCH_BIN)
+	@mkdir -p out
+	$(BENCH_BIN) --csv out/bench_rast.csv
+
+demo: deps
+	@$(MAKE) --no-print-directory build/examples/rast_demo
+	@mkdir -p out
+	build/examples/rast_demo out/rast_demo.ppm
+	oiiotool out/rast_demo.ppm -o out/rast_demo.png
+	@echo "wrote out/rast_demo.png"
+
+clean:
+	rm -rf build out

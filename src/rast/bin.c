@@ -1,0 +1,282 @@
+/* Running the queue: a flush cuts the queued commands into passes of
+   bounded memory. Each pass runs three parallel phases:
+     1. vertex jobs for indexed draws (each vertex once),
+     2. setup jobs, one per fixed range of primitives, each writing its own
+        chunk of records and binning them into tiles,
+     3. tile jobs, each walking every chunk in submission order.
+   Job boundaries depend only on the input, never on the thread count. */
+#include "internal.h"
+
+enum { RAST__PRIMS_PER_JOB = 2048 };
+
+typedef struct rast__job {
+    rast__cmd *cmd;
+    int p0, p1;
+} rast__job;
+
+typedef struct rast__pass {
+    rast_context *ctx;
+    rast__job *jobs;
+    rast__chunk *chunks;
+    int count;
+    rast__cmd **vertex_cmds;  /* vertex job i: command and job index within it */
+    int *vertex_jobs;
+} rast__pass;
+
+static void rast__parallel(rast_context *ctx, int count, rast_job_fn fn, void *arg) {
+    int i;
+    if (count <= 0) return;
+    if (ctx->parallel_for) {
+        ctx->parallel_for(ctx->parallel_for_user, count, fn, arg);
+        return;
+    }
+#ifndef RAST_NO_THREADS
+    if (ctx->pool && count > 1) {
+        rast__pool_run(ctx->pool, count, fn, arg);
+        return;
+    }
+#endif
+    for (i = 0; i < count; ++i) fn(arg, i);
+}
+
+static void rast__vertex_job_fn(void *arg, int i) {
+    rast__pass *ps = (rast__pass *)arg;
+    rast__vertex_job(ps->vertex_cmds[i], ps->vertex_jobs[i]);
+}
+
+/* Rectangle of a whole-target command: clears and accumulation ignore the
+   viewport and honour the scissor (GL); rectangles cover the viewport. */
+static void rast__command_rect(const rast_context *ctx, const rast__cmd *cmd, rast__rec *h) {
+    const rast__pipe *p = cmd->pipe;
+    if (cmd->kind == RAST__CMD_RECT) {
+        h->x0 = p->clip[0]; h->y0 = p->clip[1]; h->x1 = p->clip[2]; h->y1 = p->clip[3];
+        return;
+    }
+    h->x0 = 0; h->y0 = 0; h->x1 = ctx->fb.width; h->y1 = ctx->fb.height;
+    if (p->s.scissor_test) {
+        h->x0 = RAST__MAX(h->x0, p->s.scissor[0]);
+        h->y0 = RAST__MAX(h->y0, p->s.scissor[1]);
+        h->x1 = RAST__MIN(h->x1, p->s.scissor[0] + p->s.scissor[2]);
+        h->y1 = RAST__MIN(h->y1, p->s.scissor[1] + p->s.scissor[3]);
+    }
+}
+
+static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
+    const rast__cmd *cmd = ch->cmd;
+    rast__rec *h;
+    if (cmd->kind == RAST__CMD_CLEAR) {
+        rast__clear_rec *r = (rast__clear_rec *)rast__chunk_push(ch, rast__rec_size(RAST__REC_CLEAR, 0));
+        if (!r) return;
+        r->h.kind = RAST__REC_CLEAR;
+        r->c = cmd->clear;
+        h = &r->h;
+    } else if (cmd->kind == RAST__CMD_RECT) {
+        rast__rect *r = (rast__rect *)rast__chunk_push(ch, rast__rec_size(RAST__REC_RECT, 0));
+        if (!r) return;
+        r->h.kind = RAST__REC_RECT;
+        r->z = cmd->rect_z;
+        memcpy(r->rgba, cmd->rect_rgba, sizeof(r->rgba));
+        h = &r->h;
+    } else {
+        rast__accum_rec *r = (rast__accum_rec *)rast__chunk_push(ch, rast__rec_size(RAST__REC_ACCUM, 0));
+        if (!r) return;
+        r->h.kind = RAST__REC_ACCUM;
+        r->op = cmd->accum_op;
+        r->value = cmd->accum_value;
+        h = &r->h;
+    }
+    h->front = 1;
+    h->pad = 0;
+    rast__command_rect(ctx, cmd, h);
+    if (h->x0 >= h->x1 || h->y0 >= h->y1) { /* empty scissor: nothing to do */
+        ch->used = 0;
+        ch->nrec = 0;
+    }
+}
+
+/* Counts, then lists, the records touching each tile (a counting sort that
+   keeps submission order within every tile). */
+static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
+    int ntiles = ctx->tiles_x * ctx->tiles_y, T = ctx->tile_size, nvar;
+    size_t off;
+    uint32_t total = 0;
+    int t;
+    ch->bin_start = (uint32_t *)rast__calloc(ch->alloc, (size_t)ntiles + 1, sizeof(uint32_t));
+    if (!ch->bin_start) { ch->failed = 1; return; }
+    if (!ch->nrec) return;
+    nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
+    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+        const rast__rec *h = (const rast__rec *)(ch->recs + off);
+        int tx, ty;
+        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
+            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx) ch->bin_start[ty * ctx->tiles_x + tx + 1]++;
+    }
+    for (t = 0; t < ntiles; ++t) {
+        uint32_t n = ch->bin_start[t + 1];
+        ch->bin_start[t + 1] = total;
+        total += n;
+    }
+    /* bin_start[t + 1] is now the start of tile t; filling advances it to
+       the end of tile t, which is the start of tile t + 1 */
+    ch->bin_items = (uint32_t *)rast__alloc(ch->alloc, (size_t)total * sizeof(uint32_t) + 1);
+    if (!ch->bin_items) { ch->failed = 1; return; }
+    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+        const rast__rec *h = (const rast__rec *)(ch->recs + off);
+        int tx, ty;
+        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
+            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx)
+                ch->bin_items[ch->bin_start[ty * ctx->tiles_x + tx + 1]++] = (uint32_t)off;
+    }
+}
+
+static void rast__setup_job_fn(void *arg, int i) {
+    rast__pass *ps = (rast__pass *)arg;
+    rast__chunk *ch = &ps->chunks[i];
+    const rast__job *job = &ps->jobs[i];
+    if (job->cmd->kind == RAST__CMD_DRAW) rast__setup_range(ch, job->p0, job->p1);
+    else rast__setup_command(ps->ctx, ch);
+    if (!ch->failed) rast__bin_chunk(ps->ctx, ch);
+}
+
+static void rast__tile_job_fn(void *arg, int t) {
+    rast__pass *ps = (rast__pass *)arg;
+    const rast_context *ctx = ps->ctx;
+    int T = ctx->tile_size, i;
+    rast__tile tl;
+    tl.fb = &ctx->fb;
+    tl.x0 = (t % ctx->tiles_x) * T;
+    tl.y0 = (t / ctx->tiles_x) * T;
+    tl.x1 = RAST__MIN(tl.x0 + T, ctx->fb.width);
+    tl.y1 = RAST__MIN(tl.y0 + T, ctx->fb.height);
+    for (i = 0; i < ps->count; ++i) {
+        const rast__chunk *ch = &ps->chunks[i];
+        uint32_t b, e;
+        rast__draw_info di;
+        if (!ch->nrec) continue;
+        b = ch->bin_start[t];
+        e = ch->bin_start[t + 1];
+        if (b == e) continue;
+        di.pipe = ch->cmd->pipe;
+        di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
+        di.color = ch->cmd->d.color;
+        for (; b < e; ++b) rast__raster_record(&di, &tl, (const rast__rec *)(ch->recs + ch->bin_items[b]));
+    }
+}
+
+static size_t rast__prim_bytes(const rast__cmd *cmd) {
+    int kind = cmd->verts_per_prim == 3 ? RAST__REC_TRI : cmd->verts_per_prim == 2 ? RAST__REC_LINE
+                                                                                  : RAST__REC_POINT;
+    return (rast__rec_size(kind, cmd->d.num_varyings) + 2 * sizeof(uint32_t)) * (size_t)cmd->max_out;
+}
+
+static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
+    int i;
+    for (i = 0; i < ps->count; ++i) {
+        rast__free(&ctx->alloc, ps->chunks[i].recs);
+        rast__free(&ctx->alloc, ps->chunks[i].bin_start);
+        rast__free(&ctx->alloc, ps->chunks[i].bin_items);
+    }
+    rast__free(&ctx->alloc, ps->jobs);
+    rast__free(&ctx->alloc, ps->chunks);
+    rast__free(&ctx->alloc, ps->vertex_cmds);
+    rast__free(&ctx->alloc, ps->vertex_jobs);
+    memset(ps, 0, sizeof(*ps));
+}
+
+static void rast__free_vertex_outputs(rast_context *ctx, rast__cmd *cmd) {
+    rast__free(&ctx->alloc, cmd->vout);
+    rast__free(&ctx->alloc, cmd->vout_count);
+    cmd->vout = NULL;
+    cmd->vout_count = NULL;
+}
+
+/* Runs commands from (*ci, *cp) until the pass budget is used; advances them. */
+static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
+    rast__pass ps;
+    size_t budget = 0;
+    int njobs = 0, nvjobs = 0, c, p, i;
+    rast_result r = RAST_OK;
+    memset(&ps, 0, sizeof(ps));
+    ps.ctx = ctx;
+    /* plan: count jobs within the budget (always at least one) */
+    for (c = *ci, p = *cp; c < ctx->cmd_count && (njobs == 0 || budget < ctx->batch_bytes);) {
+        rast__cmd *cmd = &ctx->cmds[c];
+        if (cmd->kind != RAST__CMD_DRAW) {
+            ++njobs; ++c; p = 0;
+            continue;
+        }
+        if (p == 0 && cmd->d.indices && !cmd->vout)
+            nvjobs += (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
+        ++njobs;
+        budget += rast__prim_bytes(cmd) * (size_t)RAST__MIN(RAST__PRIMS_PER_JOB, cmd->prim_count - p);
+        p += RAST__PRIMS_PER_JOB;
+        if (p >= cmd->prim_count) { ++c; p = 0; }
+    }
+    ps.jobs = (rast__job *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__job));
+    ps.chunks = (rast__chunk *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__chunk));
+    ps.vertex_cmds = (rast__cmd **)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(rast__cmd *));
+    ps.vertex_jobs = (int *)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(int));
+    if (!ps.jobs || !ps.chunks || !ps.vertex_cmds || !ps.vertex_jobs) {
+        rast__free_pass(ctx, &ps);
+        return RAST_ERROR_OUT_OF_MEMORY;
+    }
+    /* fill the jobs, allocating vertex outputs of indexed draws */
+    nvjobs = 0;
+    for (i = 0, c = *ci, p = *cp; i < njobs; ++i) {
+        rast__cmd *cmd = &ctx->cmds[c];
+        ps.jobs[i].cmd = cmd;
+        ps.chunks[i].cmd = cmd;
+        ps.chunks[i].alloc = &ctx->alloc;
+        if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
+        if (p == 0 && cmd->d.indices && !cmd->vout) {
+            int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
+            cmd->vout = (float *)rast__alloc(&ctx->alloc, (size_t)cmd->d.vertex_count *
+                                                              (size_t)cmd->max_out *
+                                                              rast__vout_floats(cmd) * sizeof(float));
+            cmd->vout_count = (uint8_t *)rast__alloc(&ctx->alloc, (size_t)cmd->d.vertex_count);
+            if (!cmd->vout || !cmd->vout_count) r = RAST_ERROR_OUT_OF_MEMORY;
+            for (v = 0; v < nv; ++v) {
+                ps.vertex_cmds[nvjobs] = cmd;
+                ps.vertex_jobs[nvjobs++] = v;
+            }
+        }
+        ps.jobs[i].p0 = p;
+        ps.jobs[i].p1 = RAST__MIN(p + RAST__PRIMS_PER_JOB, cmd->prim_count);
+        p += RAST__PRIMS_PER_JOB;
+        if (p >= cmd->prim_count) { ++c; p = 0; }
+    }
+    ps.count = njobs;
+    if (r == RAST_OK) {
+        rast__parallel(ctx, nvjobs, rast__vertex_job_fn, &ps);
+        rast__parallel(ctx, njobs, rast__setup_job_fn, &ps);
+        for (i = 0; i < njobs; ++i)
+            if (ps.chunks[i].failed) r = RAST_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == RAST_OK) rast__parallel(ctx, ctx->tiles_x * ctx->tiles_y, rast__tile_job_fn, &ps);
+    /* vertex outputs of draws that this pass finished are no longer needed */
+    for (i = *ci; i < c; ++i) rast__free_vertex_outputs(ctx, &ctx->cmds[i]);
+    rast__free_pass(ctx, &ps);
+    *ci = c;
+    *cp = p;
+    return r;
+}
+
+static rast_result rast__flush(rast_context *ctx) {
+    rast_result r = RAST_OK;
+    int ci = 0, cp = 0, i;
+    while (r == RAST_OK && ci < ctx->cmd_count) r = rast__run_pass(ctx, &ci, &cp);
+    for (i = 0; i < ctx->cmd_count; ++i) rast__free_vertex_outputs(ctx, &ctx->cmds[i]);
+    ctx->cmd_count = 0;
+    /* keep the current pipe (state is unchanged); free the others */
+    {
+        rast__pipe *keep = ctx->pipe, *pp = ctx->pipes;
+        while (pp) {
+            rast__pipe *n = pp->next;
+            if (pp != keep) rast__free(&ctx->alloc, pp);
+            pp = n;
+        }
+        ctx->pipes = keep;
+        if (keep) keep->next = NULL;
+    }
+    return r;
+}

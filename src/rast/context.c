@@ -1,0 +1,318 @@
+/* The context: creation, targets, state, and the public calls that queue
+   work. Validation happens here, at the call, so the workers never see bad
+   input. */
+#include "internal.h"
+
+#if !defined(RAST_NO_THREADS) && !defined(_WIN32)
+#include <unistd.h>
+#endif
+
+RAST_API const char *rast_result_string(rast_result result) {
+    switch (result) {
+    case RAST_OK: return "ok";
+    case RAST_ERROR_INVALID_ARGUMENT: return "invalid argument";
+    case RAST_ERROR_INVALID_SIZE: return "invalid size (zero, negative, or too large)";
+    case RAST_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case RAST_ERROR_TARGET_MISMATCH: return "targets differ in size";
+    case RAST_ERROR_NO_TARGET: return "no target bound";
+    case RAST_ERROR_INDEX_RANGE: return "index out of range";
+    case RAST_ERROR_THREADS: return "could not start worker threads";
+    }
+    return "unknown rast_result";
+}
+
+static int rast__default_threads(void) {
+#if !defined(RAST_NO_THREADS) && !defined(_WIN32)
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : (n > RAST_MAX_THREADS ? RAST_MAX_THREADS : (int)n);
+#else
+    return 1;
+#endif
+}
+
+RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_context **out_ctx) {
+    rast_context *ctx;
+    rast_allocator alloc;
+    int threads, tile;
+    if (!out_ctx) return RAST_ERROR_INVALID_ARGUMENT;
+    *out_ctx = NULL;
+    if (!desc) return RAST_ERROR_INVALID_ARGUMENT;
+    if ((desc->allocator.alloc != NULL) != (desc->allocator.free != NULL))
+        return RAST_ERROR_INVALID_ARGUMENT;
+    if (desc->num_threads < 0 || desc->num_threads > RAST_MAX_THREADS) return RAST_ERROR_INVALID_ARGUMENT;
+    tile = desc->tile_size ? desc->tile_size : 64;
+    if (tile != 16 && tile != 32 && tile != 64 && tile != 128) return RAST_ERROR_INVALID_ARGUMENT;
+    threads = desc->num_threads ? desc->num_threads : rast__default_threads();
+    alloc = desc->allocator;
+    ctx = (rast_context *)rast__calloc(&alloc, 1, sizeof(rast_context));
+    if (!ctx) return RAST_ERROR_OUT_OF_MEMORY;
+    ctx->alloc = alloc;
+    ctx->tile_size = tile;
+    ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)8 << 20;
+    ctx->parallel_for = desc->parallel_for;
+    ctx->parallel_for_user = desc->parallel_for_user;
+    ctx->threads = threads;
+#ifndef RAST_NO_THREADS
+    if (threads > 1 && !ctx->parallel_for) {
+        ctx->pool = rast__pool_create(&ctx->alloc, threads - 1);
+        if (!ctx->pool) {
+            rast__free(&alloc, ctx);
+            return RAST_ERROR_THREADS;
+        }
+    }
+#else
+    if (!ctx->parallel_for) ctx->threads = 1;
+#endif
+    *out_ctx = ctx;
+    return RAST_OK;
+}
+
+static void rast__free_pipes(rast_context *ctx) {
+    rast__pipe *p = ctx->pipes;
+    while (p) {
+        rast__pipe *n = p->next;
+        rast__free(&ctx->alloc, p);
+        p = n;
+    }
+    ctx->pipes = NULL;
+    ctx->pipe = NULL;
+}
+
+RAST_API void rast_context_destroy(rast_context *ctx) {
+    rast_allocator alloc;
+    if (!ctx) return;
+    rast__flush(ctx);
+    rast__pool_destroy(ctx->pool);
+    rast__free_pipes(ctx);
+    alloc = ctx->alloc;
+    rast__free(&alloc, ctx->cmds);
+    rast__free(&alloc, ctx);
+}
+
+RAST_API int rast_context_threads(const rast_context *ctx) { return ctx ? ctx->threads : 0; }
+
+/* Checks one view; *size takes the first present view's size. */
+static rast_result rast__check_view(const rast_view *v, int bytes_per_pixel, int size[2]) {
+    if (!v->ptr) return RAST_OK;
+    if (v->width <= 0 || v->height <= 0 || v->width > RAST_MAX_TARGET_SIZE ||
+        v->height > RAST_MAX_TARGET_SIZE)
+        return RAST_ERROR_INVALID_SIZE;
+    if (v->stride < v->width * bytes_per_pixel) return RAST_ERROR_INVALID_SIZE;
+    if (size[0] == 0) { size[0] = v->width; size[1] = v->height; }
+    else if (size[0] != v->width || size[1] != v->height) return RAST_ERROR_TARGET_MISMATCH;
+    return RAST_OK;
+}
+
+RAST_API rast_result rast_set_targets(rast_context *ctx, const rast_targets *t) {
+    int size[2] = {0, 0};
+    rast_result r;
+    rast__fb *fb;
+    if (!ctx || !t) return RAST_ERROR_INVALID_ARGUMENT;
+    if (t->color_format < RAST_COLOR_DEFAULT || t->color_format > RAST_COLOR_RGBA32F)
+        return RAST_ERROR_INVALID_ARGUMENT;
+    if ((r = rast__check_view(&t->color, t->color_format == RAST_COLOR_RGBA32F ? 16 : 4, size)) ||
+        (r = rast__check_view(&t->depth, 4, size)) || (r = rast__check_view(&t->stencil, 1, size)) ||
+        (r = rast__check_view(&t->accum, 16, size)))
+        return r;
+    r = rast__flush(ctx);
+    ctx->targets = *t;
+    fb = &ctx->fb;
+    memset(fb, 0, sizeof(*fb));
+    fb->width = size[0];
+    fb->height = size[1];
+    fb->color = (uint8_t *)t->color.ptr;
+    fb->color_stride = t->color.stride;
+    fb->color_f32 = t->color_format == RAST_COLOR_RGBA32F;
+    fb->depth = (float *)t->depth.ptr;
+    fb->depth_stride = t->depth.stride;
+    fb->stencil = (uint8_t *)t->stencil.ptr;
+    fb->stencil_stride = t->stencil.stride;
+    fb->accum = (float *)t->accum.ptr;
+    fb->accum_stride = t->accum.stride;
+    ctx->has_target = size[0] > 0;
+    ctx->tiles_x = (size[0] + ctx->tile_size - 1) / ctx->tile_size;
+    ctx->tiles_y = (size[1] + ctx->tile_size - 1) / ctx->tile_size;
+    ctx->pipe = NULL; /* the clip rectangle depends on the target size */
+    return r;
+}
+
+#define RAST__ENUM_OK(v, hi) ((int)(v) >= 0 && (int)(v) <= (int)(hi))
+
+static int rast__stencil_face_ok(const rast_stencil_face *f) {
+    return RAST__ENUM_OK(f->func, RAST_ALWAYS) && RAST__ENUM_OK(f->fail, RAST_DECR_WRAP) &&
+           RAST__ENUM_OK(f->depth_fail, RAST_DECR_WRAP) && RAST__ENUM_OK(f->pass, RAST_DECR_WRAP) &&
+           f->read_mask <= 0x1FFu && f->write_mask <= 0x1FFu;
+}
+
+RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
+    if (!ctx || !s) return RAST_ERROR_INVALID_ARGUMENT;
+    if (!RAST__ENUM_OK(s->cull, RAST_CULL_FRONT_AND_BACK) || !RAST__ENUM_OK(s->front_face, RAST_CW) ||
+        !RAST__ENUM_OK(s->shading, RAST_FLAT) || !RAST__ENUM_OK(s->depth_func, RAST_ALWAYS) ||
+        !RAST__ENUM_OK(s->blend_src_rgb, RAST_SRC_ALPHA_SATURATE) ||
+        !RAST__ENUM_OK(s->blend_dst_rgb, RAST_SRC_ALPHA_SATURATE) ||
+        !RAST__ENUM_OK(s->blend_src_alpha, RAST_SRC_ALPHA_SATURATE) ||
+        !RAST__ENUM_OK(s->blend_dst_alpha, RAST_SRC_ALPHA_SATURATE) ||
+        !RAST__ENUM_OK(s->blend_eq_rgb, RAST_FUNC_MAX) || !RAST__ENUM_OK(s->blend_eq_alpha, RAST_FUNC_MAX) ||
+        !RAST__ENUM_OK(s->fog, RAST_FOG_EXP2) || !RAST__ENUM_OK(s->tex_env, RAST_REPLACE_COLOR) ||
+        !rast__stencil_face_ok(&s->stencil_front) || !rast__stencil_face_ok(&s->stencil_back) ||
+        s->color_write > 0x1FFu || s->viewport[2] < 0 || s->viewport[3] < 0 ||
+        (s->scissor_test && (s->scissor[2] < 0 || s->scissor[3] < 0)) ||
+        s->max_vertex_outputs < 0 || s->max_vertex_outputs > RAST_MAX_VERTEX_OUTPUTS ||
+        !(s->point_size >= 0.0f && s->point_size <= (float)RAST_MAX_POINT_SIZE) ||
+        !rast__isfinite(s->depth_offset) || s->fog_varying < 0 || s->fog_varying > RAST_MAX_VARYINGS ||
+        s->texcoord_varying < 0 || s->texcoord_varying >= RAST_MAX_VARYINGS)
+        return RAST_ERROR_INVALID_ARGUMENT;
+    ctx->state = *s;
+    ctx->pipe = NULL;
+    return RAST_OK;
+}
+
+static uint8_t rast__mask(unsigned m) { return m ? (uint8_t)(m & 0xFFu) : 0xFFu; }
+
+static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f) {
+    p->st_func[i] = (uint8_t)(f->func ? f->func : RAST_ALWAYS);
+    p->st_ref[i] = f->ref;
+    p->st_rmask[i] = rast__mask(f->read_mask);
+    p->st_wmask[i] = rast__mask(f->write_mask);
+    p->st_fail[i] = (uint8_t)f->fail;
+    p->st_zfail[i] = (uint8_t)f->depth_fail;
+    p->st_pass[i] = (uint8_t)f->pass;
+}
+
+/* The pipe for the current state and targets, made on first use. */
+static rast__pipe *rast__current_pipe(rast_context *ctx) {
+    const rast_state *s = &ctx->state;
+    const rast__fb *fb = &ctx->fb;
+    rast__pipe *p;
+    int vx, vy, vw, vh;
+    if (ctx->pipe) return ctx->pipe;
+    p = (rast__pipe *)rast__calloc(&ctx->alloc, 1, sizeof(rast__pipe));
+    if (!p) return NULL;
+    p->s = *s;
+    vw = s->viewport[2] ? s->viewport[2] : fb->width;
+    vh = s->viewport[3] ? s->viewport[3] : fb->height;
+    vx = s->viewport[2] ? s->viewport[0] : 0;
+    vy = s->viewport[3] ? s->viewport[1] : 0;
+    p->vp_sx = 0.5f * (float)vw;
+    p->vp_tx = (float)vx + 0.5f * (float)vw;
+    p->vp_sy = -0.5f * (float)vh;
+    p->vp_ty = (float)vy + 0.5f * (float)vh;
+    p->guard_x = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vw;
+    p->guard_y = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vh;
+    p->clip[0] = RAST__MAX(vx, 0);
+    p->clip[1] = RAST__MAX(vy, 0);
+    p->clip[2] = RAST__MIN(vx + vw, fb->width);
+    p->clip[3] = RAST__MIN(vy + vh, fb->height);
+    if (s->scissor_test) {
+        p->clip[0] = RAST__MAX(p->clip[0], s->scissor[0]);
+        p->clip[1] = RAST__MAX(p->clip[1], s->scissor[1]);
+        p->clip[2] = RAST__MIN(p->clip[2], s->scissor[0] + s->scissor[2]);
+        p->clip[3] = RAST__MIN(p->clip[3], s->scissor[1] + s->scissor[3]);
+    }
+    p->point_size = s->point_size > 0.0f ? (int)floorf(s->point_size + 0.5f) : 1;
+    p->point_size = RAST__CLAMP(p->point_size, 1, (int)RAST_MAX_POINT_SIZE);
+    p->cull_back = s->cull == RAST_CULL_BACK || s->cull == RAST_CULL_FRONT_AND_BACK;
+    p->cull_front = s->cull == RAST_CULL_FRONT || s->cull == RAST_CULL_FRONT_AND_BACK;
+    p->front_is_ccw = s->front_face != RAST_CW;
+    p->stencil_on = s->stencil_test && fb->stencil;
+    p->depth_on = s->depth_test && fb->depth;
+    p->depth_write = p->depth_on && !s->depth_write_disabled;
+    p->depth_func = s->depth_func ? (int)s->depth_func : RAST_LESS;
+    rast__resolve_face(p, 0, &s->stencil_front);
+    rast__resolve_face(p, 1, &s->stencil_back);
+    p->blend = s->blend != 0;
+    p->color_write = s->color_write ? (s->color_write & 0xFu) : (unsigned)RAST_WRITE_RGBA;
+    p->fog = s->fog != RAST_FOG_NONE;
+    p->fixed_texture = !s->fragment_fn && s->texture;
+    p->next = ctx->pipes;
+    ctx->pipes = p;
+    ctx->pipe = p;
+    return p;
+}
+
+static rast__cmd *rast__push_cmd(rast_context *ctx, int kind) {
+    rast__cmd *c;
+    if (!(ctx->pipe = rast__current_pipe(ctx))) return NULL;
+    if (ctx->cmd_count == ctx->cmd_cap) {
+        int cap = ctx->cmd_cap ? ctx->cmd_cap * 2 : 64;
+        rast__cmd *n = (rast__cmd *)rast__alloc(&ctx->alloc, (size_t)cap * sizeof(rast__cmd));
+        if (!n) return NULL;
+        if (ctx->cmd_count) memcpy(n, ctx->cmds, (size_t)ctx->cmd_count * sizeof(rast__cmd));
+        rast__free(&ctx->alloc, ctx->cmds);
+        ctx->cmds = n;
+        ctx->cmd_cap = cap;
+    }
+    c = &ctx->cmds[ctx->cmd_count++];
+    memset(c, 0, sizeof(*c));
+    c->kind = kind;
+    c->pipe = ctx->pipe;
+    return c;
+}
+
+RAST_API rast_result rast_draw(rast_context *ctx, const rast_draw_desc *desc) {
+    rast_draw_desc d;
+    rast__cmd *c;
+    int vpp, count, i, has_fn;
+    if (!ctx || !desc) return RAST_ERROR_INVALID_ARGUMENT;
+    if (!ctx->has_target) return RAST_ERROR_NO_TARGET;
+    d = *desc;
+    has_fn = ctx->state.vertex_fn != NULL;
+    if (!RAST__ENUM_OK(d.primitive, RAST_LINES) || d.vertex_count < 0 || d.index_count < 0 ||
+        d.num_varyings < 0 || d.num_varyings > RAST_MAX_VARYINGS || d.stride < 0)
+        return RAST_ERROR_INVALID_ARGUMENT;
+    if (!d.position_size) d.position_size = 4;
+    if (d.position_size != 3 && d.position_size != 4) return RAST_ERROR_INVALID_ARGUMENT;
+    if (!d.stride) d.stride = d.position_size + d.num_varyings;
+    if (!has_fn && (d.stride < d.position_size + d.num_varyings || (!d.vertices && d.vertex_count)))
+        return RAST_ERROR_INVALID_ARGUMENT;
+    if (d.indices) {
+        for (i = 0; i < d.index_count; ++i)
+            if (d.indices[i] >= (uint32_t)d.vertex_count) return RAST_ERROR_INDEX_RANGE;
+    } else if (d.index_count) {
+        return RAST_ERROR_INVALID_ARGUMENT;
+    }
+    vpp = d.primitive == RAST_POINTS ? 1 : d.primitive == RAST_LINES ? 2 : 3;
+    count = d.indices ? d.index_count : d.vertex_count;
+    if (count / vpp == 0) return RAST_OK;
+    if (!(c = rast__push_cmd(ctx, RAST__CMD_DRAW))) return RAST_ERROR_OUT_OF_MEMORY;
+    c->d = d;
+    c->verts_per_prim = vpp;
+    c->prim_count = count / vpp;
+    c->max_out = ctx->state.max_vertex_outputs ? ctx->state.max_vertex_outputs : 1;
+    return RAST_OK;
+}
+
+RAST_API rast_result rast_clear(rast_context *ctx, const rast_clear_desc *desc) {
+    rast__cmd *c;
+    if (!ctx || !desc || (desc->flags & ~15u)) return RAST_ERROR_INVALID_ARGUMENT;
+    if (!ctx->has_target) return RAST_ERROR_NO_TARGET;
+    if (!(c = rast__push_cmd(ctx, RAST__CMD_CLEAR))) return RAST_ERROR_OUT_OF_MEMORY;
+    c->clear = *desc;
+    return RAST_OK;
+}
+
+RAST_API rast_result rast_draw_fullscreen(rast_context *ctx, float z, const float rgba[4]) {
+    rast__cmd *c;
+    if (!ctx || !rgba || !rast__isfinite(z)) return RAST_ERROR_INVALID_ARGUMENT;
+    if (!ctx->has_target) return RAST_ERROR_NO_TARGET;
+    if (!(c = rast__push_cmd(ctx, RAST__CMD_RECT))) return RAST_ERROR_OUT_OF_MEMORY;
+    c->rect_z = z;
+    memcpy(c->rect_rgba, rgba, sizeof(c->rect_rgba));
+    return RAST_OK;
+}
+
+RAST_API rast_result rast_accum(rast_context *ctx, rast_accum_op op, float value) {
+    rast__cmd *c;
+    if (!ctx || op < RAST_ACCUM || op > RAST_ADD || !rast__isfinite(value))
+        return RAST_ERROR_INVALID_ARGUMENT;
+    if (!ctx->has_target) return RAST_ERROR_NO_TARGET;
+    if (!(c = rast__push_cmd(ctx, RAST__CMD_ACCUM))) return RAST_ERROR_OUT_OF_MEMORY;
+    c->accum_op = op;
+    c->accum_value = value;
+    return RAST_OK;
+}
+
+RAST_API rast_result rast_finish(rast_context *ctx) {
+    if (!ctx) return RAST_ERROR_INVALID_ARGUMENT;
+    return rast__flush(ctx);
+}

@@ -1,0 +1,239 @@
+/* Private declarations shared by the implementation modules (rast__ prefix).
+   The amalgamator puts this first inside the RAST_IMPLEMENTATION section. */
+#include "api.h"
+
+#include <math.h>
+#include <string.h>
+#include <float.h>
+#include <limits.h>
+
+#ifndef RAST_ASSERT
+#include <assert.h>
+#define RAST_ASSERT(c) assert(c)
+#endif
+
+#if defined(RAST_MALLOC) != defined(RAST_FREE)
+#error "define both RAST_MALLOC and RAST_FREE, or neither"
+#endif
+#ifndef RAST_MALLOC
+#include <stdlib.h>
+#define RAST_MALLOC(size, user) ((void)(user), malloc(size))
+#define RAST_FREE(ptr, user) ((void)(user), free(ptr))
+#endif
+
+#define RAST__MIN(a, b) ((a) < (b) ? (a) : (b))
+#define RAST__MAX(a, b) ((a) > (b) ? (a) : (b))
+#define RAST__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+
+/* ---- allocation: the desc's allocator when set, else RAST_MALLOC ---- */
+
+static void *rast__alloc(const rast_allocator *a, size_t size) {
+    if (size == 0) size = 1;
+    if (a && a->alloc) return a->alloc(size, a->user);
+    return RAST_MALLOC(size, a ? a->user : NULL);
+}
+
+static void rast__free(const rast_allocator *a, void *ptr) {
+    if (!ptr) return;
+    if (a && a->free) a->free(ptr, a->user);
+    else RAST_FREE(ptr, a ? a->user : NULL);
+}
+
+static void *rast__calloc(const rast_allocator *a, size_t count, size_t size) {
+    void *p;
+    if (size && count > (size_t)-1 / size) return NULL;
+    p = rast__alloc(a, count * size);
+    if (p) memset(p, 0, count * size);
+    return p;
+}
+
+static int rast__isfinite(float v) { return v - v == 0.0f; }
+
+/* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
+
+typedef struct rast__pipe {
+    rast_state s;             /* the caller's state, copied */
+    struct rast__pipe *next;  /* every pipe of the frame, for freeing */
+    /* viewport transform: window = ndc * scale + offset (image y is down) */
+    float vp_sx, vp_tx, vp_sy, vp_ty;
+    float guard_x, guard_y;   /* clip-space |x| <= guard_x * w keeps the guard band */
+    int clip[4];              /* x0, y0, x1, y1: viewport & scissor & target */
+    int point_size;
+    int cull_front, cull_back, front_is_ccw;
+    int stencil_on, depth_on, depth_write;
+    int depth_func;
+    uint8_t st_ref[2], st_rmask[2], st_wmask[2]; /* [0] front, [1] back */
+    uint8_t st_func[2], st_fail[2], st_zfail[2], st_pass[2];
+    int blend;
+    unsigned color_write;     /* RAST_WRITE_ bits actually written */
+    int fog;
+    int fixed_texture;        /* no fragment callback and a texture bound */
+} rast__pipe;
+
+/* ---- records: what setup leaves for the tile workers ---- */
+
+enum {
+    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_LINE,
+    RAST__REC_RECT, RAST__REC_CLEAR, RAST__REC_ACCUM
+};
+
+typedef struct rast__rec {
+    uint8_t kind;
+    uint8_t front;            /* front facing */
+    uint16_t pad;
+    int32_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip */
+} rast__rec;
+
+/* A triangle, oriented so the edge functions are positive inside.
+   Planes are relative to vertex 0 at absolute pixel centres, so a pixel
+   gets the same value whichever tile computes it. */
+typedef struct rast__tri {
+    rast__rec h;
+    int32_t fx[3], fy[3];     /* window position, RAST_SUBPIXEL_BITS fraction */
+    float ox, oy;             /* vertex 0 in pixels */
+    float z0, zdx, zdy;       /* window depth */
+    float iw0, iwdx, iwdy;    /* 1 / w */
+    float b10, b1dx, b1dy;    /* barycentric of vertex 1, divided by w */
+    float b20, b2dx, b2dy;    /* barycentric of vertex 2, divided by w */
+    /* then num_varyings * 3 floats: v0, v1 - v0, v2 - v0 */
+} rast__tri;
+
+typedef struct rast__point {
+    rast__rec h;
+    float z, w;
+    /* then num_varyings floats */
+} rast__point;
+
+typedef struct rast__line {
+    rast__rec h;
+    float x[2], y[2];         /* window position */
+    float z[2], iw[2];
+    /* then num_varyings * 2 floats, each divided by w */
+} rast__line;
+
+typedef struct rast__rect {
+    rast__rec h;
+    float z;
+    float rgba[4];
+} rast__rect;
+
+typedef struct rast__clear_rec {
+    rast__rec h;
+    rast_clear_desc c;
+} rast__clear_rec;
+
+typedef struct rast__accum_rec {
+    rast__rec h;
+    int op;
+    float value;
+} rast__accum_rec;
+
+/* The bound targets, resolved. */
+typedef struct rast__fb {
+    int width, height;
+    uint8_t *color; int color_stride; int color_f32;
+    float *depth; int depth_stride;     /* strides in bytes */
+    uint8_t *stencil; int stencil_stride;
+    float *accum; int accum_stride;
+} rast__fb;
+
+/* Scratch of one tile worker. */
+typedef struct rast__tile {
+    const rast__fb *fb;
+    int x0, y0, x1, y1;       /* the tile's pixels */
+    float var[RAST_MAX_VARYINGS];
+    float ddx[RAST_MAX_VARYINGS], ddy[RAST_MAX_VARYINGS];
+} rast__tile;
+
+static size_t rast__align(size_t n) { return (n + 7u) & ~(size_t)7u; }
+
+/* ---- the queue: draws and whole-target commands, run at flush ---- */
+
+enum { RAST__CMD_DRAW = 1, RAST__CMD_CLEAR, RAST__CMD_RECT, RAST__CMD_ACCUM };
+
+typedef struct rast__cmd {
+    int kind;
+    rast__pipe *pipe;
+    rast_draw_desc d;         /* DRAW: the caller's desc, with defaults resolved */
+    int prim_count, verts_per_prim, max_out;
+    float *vout;              /* indexed draws: vertex outputs, [vertex][layer] */
+    uint8_t *vout_count;      /* outputs per vertex */
+    rast_clear_desc clear;
+    float rect_z, rect_rgba[4];
+    int accum_op;
+    float accum_value;
+} rast__cmd;
+
+/* One setup job's output: records and, per tile, which of them touch it. */
+typedef struct rast__chunk {
+    const rast__cmd *cmd;
+    const rast_allocator *alloc;
+    uint8_t *recs;
+    size_t used, cap;
+    uint32_t nrec;
+    uint32_t *bin_start;      /* tiles + 1 offsets into bin_items */
+    uint32_t *bin_items;      /* byte offsets of records */
+    int failed;
+} rast__chunk;
+
+static size_t rast__rec_size(int kind, int nvar) {
+    switch (kind) {
+    case RAST__REC_TRI: return rast__align(sizeof(rast__tri) + (size_t)nvar * 3 * sizeof(float));
+    case RAST__REC_POINT: return rast__align(sizeof(rast__point) + (size_t)nvar * sizeof(float));
+    case RAST__REC_LINE: return rast__align(sizeof(rast__line) + (size_t)nvar * 2 * sizeof(float));
+    case RAST__REC_RECT: return rast__align(sizeof(rast__rect));
+    case RAST__REC_CLEAR: return rast__align(sizeof(rast__clear_rec));
+    default: return rast__align(sizeof(rast__accum_rec));
+    }
+}
+
+/* Room for one record of `size` bytes at the end of the chunk, or NULL. */
+static void *rast__chunk_push(rast__chunk *c, size_t size) {
+    void *p;
+    if (c->failed) return NULL;
+    if (c->used + size > c->cap) {
+        size_t cap = c->cap ? c->cap * 2 : 4096;
+        uint8_t *n;
+        while (cap < c->used + size) cap *= 2;
+        n = (uint8_t *)rast__alloc(c->alloc, cap);
+        if (!n) { c->failed = 1; return NULL; }
+        if (c->used) memcpy(n, c->recs, c->used);
+        rast__free(c->alloc, c->recs);
+        c->recs = n;
+        c->cap = cap;
+    }
+    p = c->recs + c->used;
+    c->used += size;
+    c->nrec++;
+    return p;
+}
+
+static int64_t rast__floordiv(int64_t a, int64_t b) {
+    int64_t q = a / b;
+    return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+}
+
+struct rast__pool;
+
+struct rast_context {
+    rast_allocator alloc;
+    int threads, tile_size;
+    size_t batch_bytes;
+    rast_parallel_for_fn parallel_for;
+    void *parallel_for_user;
+    struct rast__pool *pool;
+
+    rast_targets targets;
+    rast__fb fb;
+    int has_target;
+    int tiles_x, tiles_y;
+
+    rast_state state;
+    rast__pipe *pipe;         /* for state, NULL when it changed since */
+    rast__pipe *pipes;        /* every pipe the queue refers to */
+
+    rast__cmd *cmds;
+    int cmd_count, cmd_cap;
+};
+
+static rast_result rast__flush(rast_context *ctx);

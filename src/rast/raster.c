@@ -1,0 +1,198 @@
+/* Rasterisation of one record inside one tile: which pixels a triangle,
+   point, line or rectangle covers, and the values it carries there.
+   Coverage is decided in integer fixed point (RAST_SUBPIXEL_BITS) with the
+   top-left rule; every interpolated value is evaluated from its plane at the
+   absolute pixel centre, never stepped across tiles (determinism). */
+#include "internal.h"
+
+enum { RAST__ONE = 1 << RAST_SUBPIXEL_BITS, RAST__HALF = RAST__ONE / 2 };
+
+/* What a tile worker needs of the draw a record came from. */
+typedef struct rast__draw_info {
+    const rast__pipe *pipe;
+    int nvar;
+    const float *color;       /* the draw colour (num_varyings < 4) */
+} rast__draw_info;
+
+/* The fragment stage common to every primitive: shading (callback or fixed),
+   then the tests, then colour. `var` holds the varyings when known; for
+   triangles the caller computes them lazily through `tri`. */
+static void rast__fragment(const rast__draw_info *di, rast__tile *tl, int x, int y, float z,
+                           float w, int front, const float *var, const float *ddx,
+                           const float *ddy) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    float rgba[4];
+    int want_color = fb->color && p->color_write;
+    z += p->s.depth_offset;
+    z = RAST__CLAMP(z, 0.0f, 1.0f);
+    if (p->s.fragment_fn) {
+        rast_fragment_in in;
+        in.x = x; in.y = y; in.z = z; in.w = w; in.front_facing = front;
+        in.varyings = var;
+        in.ddx = p->s.fragment_derivatives ? ddx : NULL;
+        in.ddy = p->s.fragment_derivatives ? ddy : NULL;
+        rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+        if (!p->s.fragment_fn(p->s.fragment_user, &in, rgba)) return;
+        if (p->fog) {
+            int fv = p->s.fog_varying;
+            rast__apply_fog(p, fv > 0 && fv <= di->nvar ? var[fv - 1] : w, rgba);
+        }
+        if (!rast__depth_stencil(p, fb, x, y, z, !front)) return;
+    } else {
+        if (!rast__depth_stencil(p, fb, x, y, z, !front)) return;
+        if (!want_color) return;
+        rast__shade_fixed(p, var, di->nvar, di->color, ddx, ddy, w, rgba);
+    }
+    if (want_color) rast__color_out(p, fb, x, y, rgba);
+}
+
+static int rast__tri_needs_derivs(const rast__pipe *p) {
+    return (p->s.fragment_fn && p->s.fragment_derivatives) ||
+           (p->fixed_texture && p->s.texture);
+}
+
+static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const rast__tri *t) {
+    const rast__pipe *p = di->pipe;
+    const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
+    int nvar = di->nvar, k;
+    int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
+    int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
+    int64_t ea[3], eb[3], ec[3];
+    int x, y, i;
+    int derivs = rast__tri_needs_derivs(p);
+    /* varyings are needed before the tests with a callback, after otherwise */
+    int shade_first = p->s.fragment_fn != NULL;
+    int need_var = shade_first || (tl->fb->color && p->color_write) ;
+    if (x0 >= x1 || y0 >= y1) return;
+    /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
+       positive inside. Top-left edges keep E == 0, others need E > 0. */
+    for (i = 0; i < 3; ++i) {
+        int j = i == 2 ? 0 : i + 1;
+        int64_t dx = (int64_t)t->fx[j] - t->fx[i], dy = (int64_t)t->fy[j] - t->fy[i];
+        int top_left = dy < 0 || (dy == 0 && dx > 0);
+        ea[i] = -dy;
+        eb[i] = dx;
+        ec[i] = dy * t->fx[i] - dx * t->fy[i] - (top_left ? 0 : 1);
+    }
+    for (y = y0; y < y1; ++y) {
+        int64_t py = (int64_t)y * RAST__ONE + RAST__HALF;
+        int64_t px = (int64_t)x0 * RAST__ONE + RAST__HALF;
+        int64_t e0 = ea[0] * px + eb[0] * py + ec[0];
+        int64_t e1 = ea[1] * px + eb[1] * py + ec[1];
+        int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
+        int64_t s0 = ea[0] * RAST__ONE, s1 = ea[1] * RAST__ONE, s2 = ea[2] * RAST__ONE;
+        float fy = (float)y + 0.5f - t->oy;
+        float zrow = t->z0 + t->zdy * fy;
+        float iwrow = t->iw0 + t->iwdy * fy;
+        float b1row = t->b10 + t->b1dy * fy, b2row = t->b20 + t->b2dy * fy;
+        int inside_seen = 0;
+        for (x = x0; x < x1; ++x, e0 += s0, e1 += s1, e2 += s2) {
+            float fx, z, iw, w, b1, b2;
+            if ((e0 | e1 | e2) < 0) {
+                if (inside_seen) break; /* convex: the row's span has ended */
+                continue;
+            }
+            inside_seen = 1;
+            fx = (float)x + 0.5f - t->ox;
+            z = zrow + t->zdx * fx;
+            iw = iwrow + t->iwdx * fx;
+            w = 1.0f / iw;
+            if (need_var) {
+                b1 = (b1row + t->b1dx * fx) * w;
+                b2 = (b2row + t->b2dx * fx) * w;
+                for (k = 0; k < nvar; ++k)
+                    tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
+                if (derivs) {
+                    float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
+                    float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
+                    for (k = 0; k < nvar; ++k) {
+                        tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
+                        tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
+                    }
+                }
+            }
+            rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
+                           derivs ? tl->ddy : NULL);
+        }
+    }
+}
+
+static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const rast__point *pt) {
+    const float *var = (const float *)(pt + 1);
+    int x0 = RAST__MAX(pt->h.x0, tl->x0), x1 = RAST__MIN(pt->h.x1, tl->x1);
+    int y0 = RAST__MAX(pt->h.y0, tl->y0), y1 = RAST__MIN(pt->h.y1, tl->y1);
+    int x, y;
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x)
+            rast__fragment(di, tl, x, y, pt->z, pt->w, 1, var, NULL, NULL);
+}
+
+/* A 1-pixel line: along the major axis, one pixel per pixel centre whose
+   coordinate lies in [start, end) (GL's half-open diamond rule, simplified);
+   values interpolated perspective-correctly. */
+static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const rast__line *ln) {
+    const float *vw = (const float *)(ln + 1); /* v/w at both ends */
+    float dx = ln->x[1] - ln->x[0], dy = ln->y[1] - ln->y[0];
+    int xmajor = fabsf(dx) >= fabsf(dy);
+    float a0 = xmajor ? ln->x[0] : ln->y[0], a1 = xmajor ? ln->x[1] : ln->y[1];
+    float lo = RAST__MIN(a0, a1), hi = RAST__MAX(a0, a1);
+    float len = a1 - a0;
+    int i0 = (int)ceilf(lo - 0.5f), i1 = (int)ceilf(hi - 0.5f), i, k;
+    if (len == 0.0f) return;
+    for (i = i0; i < i1; ++i) {
+        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w;
+        int x, y;
+        if (u < 0.0f) u = 0.0f;
+        if (u > 1.0f) u = 1.0f;
+        o = xmajor ? ln->y[0] + u * dy : ln->x[0] + u * dx;
+        x = xmajor ? i : (int)floorf(o);
+        y = xmajor ? (int)floorf(o) : i;
+        if (x < tl->x0 || x >= tl->x1 || y < tl->y0 || y >= tl->y1) continue;
+        if (x < ln->h.x0 || x >= ln->h.x1 || y < ln->h.y0 || y >= ln->h.y1) continue;
+        z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
+        iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
+        w = 1.0f / iw;
+        for (k = 0; k < di->nvar; ++k)
+            tl->var[k] = (vw[2 * k] + u * (vw[2 * k + 1] - vw[2 * k])) * w;
+        rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
+    }
+}
+
+/* A constant rectangle through the tests and colour stages (no callbacks). */
+static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const rast__rect *r) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    int x0 = RAST__MAX(r->h.x0, tl->x0), x1 = RAST__MIN(r->h.x1, tl->x1);
+    int y0 = RAST__MAX(r->h.y0, tl->y0), y1 = RAST__MIN(r->h.y1, tl->y1);
+    int x, y, want_color = fb->color && p->color_write;
+    float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f);
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            float rgba[4];
+            if (!rast__depth_stencil(p, fb, x, y, z, 0) || !want_color) continue;
+            rgba[0] = r->rgba[0]; rgba[1] = r->rgba[1]; rgba[2] = r->rgba[2]; rgba[3] = r->rgba[3];
+            if (p->fog) rast__apply_fog(p, 1.0f, rgba);
+            rast__color_out(p, fb, x, y, rgba);
+        }
+}
+
+static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
+    int x0 = RAST__MAX(h->x0, tl->x0), x1 = RAST__MIN(h->x1, tl->x1);
+    int y0 = RAST__MAX(h->y0, tl->y0), y1 = RAST__MIN(h->y1, tl->y1);
+    switch (h->kind) {
+    case RAST__REC_TRI: rast__raster_tri(di, tl, (const rast__tri *)h); break;
+    case RAST__REC_POINT: rast__raster_point(di, tl, (const rast__point *)h); break;
+    case RAST__REC_LINE: rast__raster_line(di, tl, (const rast__line *)h); break;
+    case RAST__REC_RECT: rast__raster_rect(di, tl, (const rast__rect *)h); break;
+    case RAST__REC_CLEAR:
+        if (x0 < x1 && y0 < y1)
+            rast__run_clear(di->pipe, tl->fb, (const rast__clear_rec *)h, x0, y0, x1, y1);
+        break;
+    case RAST__REC_ACCUM:
+        if (x0 < x1 && y0 < y1)
+            rast__run_accum(di->pipe, tl->fb, (const rast__accum_rec *)h, x0, y0, x1, y1);
+        break;
+    default: break;
+    }
+}

@@ -1,0 +1,355 @@
+/* Vertex processing, primitive assembly, homogeneous clipping and setup:
+   turns a range of a draw's primitives into records (rast__tri, rast__point,
+   rast__line) in a chunk. Runs on workers, one chunk per job. */
+#include "internal.h"
+
+/* A clip-space vertex while clipping. */
+typedef struct rast__vtx {
+    float pos[4];
+    float var[RAST_MAX_VARYINGS];
+} rast__vtx;
+
+enum { RAST__MAX_POLY = 16 };
+
+/* The vertex program: the caller's callback or the default (optional
+   matrix, then varyings copied). Returns the number of outputs. */
+static int rast__vertex(const rast__cmd *cmd, int index, rast_vertex_out *out) {
+    const rast__pipe *p = cmd->pipe;
+    const rast_draw_desc *d = &cmd->d;
+    const float *v = d->vertices + (size_t)index * (size_t)d->stride;
+    int n, k;
+    if (p->s.vertex_fn) {
+        n = p->s.vertex_fn(p->s.vertex_user, v, index, out, cmd->max_out);
+        return RAST__CLAMP(n, 0, cmd->max_out);
+    }
+    {
+        float in[4];
+        in[0] = v[0]; in[1] = v[1]; in[2] = v[2];
+        in[3] = d->position_size == 4 ? v[3] : 1.0f;
+        if (d->matrix) {
+            const float *m = d->matrix;
+            for (k = 0; k < 4; ++k)
+                out->position[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
+        } else {
+            for (k = 0; k < 4; ++k) out->position[k] = in[k];
+        }
+        for (k = 0; k < d->num_varyings; ++k) out->varyings[k] = v[d->position_size + k];
+    }
+    return 1;
+}
+
+/* Indexed draws run the vertex program once per vertex, in jobs of this many. */
+enum { RAST__VERTEX_JOB = 4096 };
+
+static size_t rast__vout_floats(const rast__cmd *cmd) { return 4 + (size_t)cmd->d.num_varyings; }
+
+static void rast__vertex_job(rast__cmd *cmd, int job) {
+    int v0 = job * RAST__VERTEX_JOB, v1 = RAST__MIN(cmd->d.vertex_count, v0 + RAST__VERTEX_JOB);
+    size_t nf = rast__vout_floats(cmd);
+    int v, k;
+    for (v = v0; v < v1; ++v) {
+        rast_vertex_out out[RAST_MAX_VERTEX_OUTPUTS];
+        int n = rast__vertex(cmd, v, out);
+        cmd->vout_count[v] = (uint8_t)n;
+        for (k = 0; k < n; ++k) {
+            float *dst = cmd->vout + ((size_t)v * (size_t)cmd->max_out + (size_t)k) * nf;
+            memcpy(dst, out[k].position, 4 * sizeof(float));
+            memcpy(dst + 4, out[k].varyings, (size_t)cmd->d.num_varyings * sizeof(float));
+        }
+    }
+}
+
+static int rast__vtx_finite(const rast__vtx *v, int nvar) {
+    int k;
+    for (k = 0; k < 4; ++k)
+        if (!rast__isfinite(v->pos[k])) return 0;
+    for (k = 0; k < nvar; ++k)
+        if (!rast__isfinite(v->var[k])) return 0;
+    return 1;
+}
+
+/* Signed distance to clip plane `plane` (inside >= 0). */
+static float rast__plane_dist(const rast__pipe *p, int plane, const float *c) {
+    switch (plane) {
+    case 0: return c[2] + c[3];                 /* near */
+    case 1: return c[3] - c[2];                 /* far */
+    case 2: return p->guard_x * c[3] - c[0];    /* guard band */
+    case 3: return p->guard_x * c[3] + c[0];
+    case 4: return p->guard_y * c[3] - c[1];
+    default: return p->guard_y * c[3] + c[1];
+    }
+}
+
+static void rast__vtx_lerp(rast__vtx *o, const rast__vtx *a, const rast__vtx *b, float t, int nvar) {
+    int k;
+    for (k = 0; k < 4; ++k) o->pos[k] = a->pos[k] + t * (b->pos[k] - a->pos[k]);
+    for (k = 0; k < nvar; ++k) o->var[k] = a->var[k] + t * (b->var[k] - a->var[k]);
+}
+
+/* Window position of a clip-space point. */
+static void rast__to_window(const rast__pipe *p, const float *c, float *x, float *y, float *z, float *iw) {
+    float i = 1.0f / c[3];
+    *x = c[0] * i * p->vp_sx + p->vp_tx;
+    *y = c[1] * i * p->vp_sy + p->vp_ty;
+    *z = c[2] * i * 0.5f + 0.5f;
+    *iw = i;
+}
+
+/* Planes f = f0 + a * (x - x0) + b * (y - y0) through three window points. */
+static void rast__plane(double dx1, double dy1, double dx2, double dy2, double inv_det,
+                        double f0, double f1, double f2, float *a, float *b) {
+    *a = (float)(((f1 - f0) * dy2 - (f2 - f0) * dy1) * inv_det);
+    *b = (float)(((f2 - f0) * dx1 - (f1 - f0) * dx2) * inv_det);
+}
+
+/* Setup of a triangle that lies within the clip volume and the guard band. */
+static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb,
+                           const rast__vtx *vc, const float *flat) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast__pipe *p = cmd->pipe;
+    int nvar = cmd->d.num_varyings, i, k;
+    const rast__vtx *v[3];
+    float wx[3], wy[3], wz[3], iw[3];
+    int32_t fx[3], fy[3];
+    int64_t area, minx, maxx, miny, maxy;
+    int front, x0, y0, x1, y1;
+    rast__tri *t;
+    float *vd;
+    double dx1, dy1, dx2, dy2, inv_det;
+    v[0] = va; v[1] = vb; v[2] = vc;
+    for (i = 0; i < 3; ++i) {
+        if (!(v[i]->pos[3] > 0.0f)) return;
+        rast__to_window(p, v[i]->pos, &wx[i], &wy[i], &wz[i], &iw[i]);
+        if (!(fabsf(wx[i]) < 1e6f && fabsf(wy[i]) < 1e6f)) return;
+        fx[i] = (int32_t)lrintf(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+        fy[i] = (int32_t)lrintf(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+    }
+    area = ((int64_t)fx[1] - fx[0]) * ((int64_t)fy[2] - fy[0]) -
+           ((int64_t)fx[2] - fx[0]) * ((int64_t)fy[1] - fy[0]);
+    if (area == 0) return;
+    /* image y points down, so counter-clockwise in NDC has negative area */
+    front = p->front_is_ccw ? area < 0 : area > 0;
+    if ((front && p->cull_front) || (!front && p->cull_back)) return;
+    if (area < 0) { /* orient so that edge functions are positive inside */
+        const rast__vtx *tv = v[1]; float tf; int32_t ti;
+        v[1] = v[2]; v[2] = tv;
+        ti = fx[1]; fx[1] = fx[2]; fx[2] = ti;
+        ti = fy[1]; fy[1] = fy[2]; fy[2] = ti;
+        tf = wz[1]; wz[1] = wz[2]; wz[2] = tf;
+        tf = iw[1]; iw[1] = iw[2]; iw[2] = tf;
+        area = -area;
+    }
+    minx = RAST__MIN(fx[0], RAST__MIN(fx[1], fx[2]));
+    maxx = RAST__MAX(fx[0], RAST__MAX(fx[1], fx[2]));
+    miny = RAST__MIN(fy[0], RAST__MIN(fy[1], fy[2]));
+    maxy = RAST__MAX(fy[0], RAST__MAX(fy[1], fy[2]));
+    /* pixels whose centre (i + 1/2) can lie inside */
+    x0 = (int)rast__floordiv(minx + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    y0 = (int)rast__floordiv(miny + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    x1 = (int)rast__floordiv(maxx - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    y1 = (int)rast__floordiv(maxy - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
+    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
+    if (x0 >= x1 || y0 >= y1) return;
+
+    t = (rast__tri *)rast__chunk_push(ch, rast__rec_size(RAST__REC_TRI, nvar));
+    if (!t) return;
+    t->h.kind = RAST__REC_TRI;
+    t->h.front = (uint8_t)front;
+    t->h.pad = 0;
+    t->h.x0 = x0; t->h.y0 = y0; t->h.x1 = x1; t->h.y1 = y1;
+    for (i = 0; i < 3; ++i) { t->fx[i] = fx[i]; t->fy[i] = fy[i]; }
+    t->ox = (float)fx[0] / (float)(1 << RAST_SUBPIXEL_BITS);
+    t->oy = (float)fy[0] / (float)(1 << RAST_SUBPIXEL_BITS);
+    dx1 = (double)(fx[1] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
+    dy1 = (double)(fy[1] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
+    dx2 = (double)(fx[2] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
+    dy2 = (double)(fy[2] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
+    inv_det = 1.0 / (dx1 * dy2 - dx2 * dy1);
+    t->z0 = wz[0];
+    rast__plane(dx1, dy1, dx2, dy2, inv_det, wz[0], wz[1], wz[2], &t->zdx, &t->zdy);
+    t->iw0 = iw[0];
+    rast__plane(dx1, dy1, dx2, dy2, inv_det, iw[0], iw[1], iw[2], &t->iwdx, &t->iwdy);
+    t->b10 = 0.0f;
+    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, iw[1], 0.0, &t->b1dx, &t->b1dy);
+    t->b20 = 0.0f;
+    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, 0.0, iw[2], &t->b2dx, &t->b2dy);
+    vd = (float *)(t + 1);
+    for (k = 0; k < nvar; ++k) {
+        if (flat) {
+            vd[3 * k] = flat[k]; vd[3 * k + 1] = 0.0f; vd[3 * k + 2] = 0.0f;
+        } else {
+            vd[3 * k] = v[0]->var[k];
+            vd[3 * k + 1] = v[1]->var[k] - v[0]->var[k];
+            vd[3 * k + 2] = v[2]->var[k] - v[0]->var[k];
+        }
+    }
+}
+
+/* Clips a triangle against near, far and the guard band (Sutherland-Hodgman),
+   then emits the fan. An edge crossing a plane is always interpolated from
+   its inside end, so neighbours sharing the edge get the same new vertex. */
+static void rast__setup_tri(rast__chunk *ch, const rast__vtx *a, const rast__vtx *b,
+                            const rast__vtx *c) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast__pipe *p = cmd->pipe;
+    int nvar = cmd->d.num_varyings, plane, i, n = 3, outside_any = 0;
+    const float *flat = p->s.shading == RAST_FLAT ? c->var : NULL;
+    rast__vtx buf[2][RAST__MAX_POLY];
+    rast__vtx *in = buf[0], *out = buf[1];
+    if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar) || !rast__vtx_finite(c, nvar))
+        return;
+    for (plane = 0; plane < 6; ++plane) {
+        int oa = rast__plane_dist(p, plane, a->pos) < 0.0f;
+        int ob = rast__plane_dist(p, plane, b->pos) < 0.0f;
+        int oc = rast__plane_dist(p, plane, c->pos) < 0.0f;
+        if (oa && ob && oc) return; /* wholly outside one plane */
+        outside_any |= oa | ob | oc;
+    }
+    if (!outside_any) {
+        rast__emit_tri(ch, a, b, c, flat);
+        return;
+    }
+    in[0] = *a; in[1] = *b; in[2] = *c;
+    for (plane = 0; plane < 6 && n >= 3; ++plane) {
+        int m = 0;
+        for (i = 0; i < n; ++i) {
+            const rast__vtx *u = &in[i], *w = &in[i + 1 == n ? 0 : i + 1];
+            float du = rast__plane_dist(p, plane, u->pos), dw = rast__plane_dist(p, plane, w->pos);
+            if (du >= 0.0f) out[m++] = *u;
+            if ((du >= 0.0f) != (dw >= 0.0f) && m < RAST__MAX_POLY) {
+                if (du >= 0.0f) rast__vtx_lerp(&out[m++], u, w, du / (du - dw), nvar);
+                else rast__vtx_lerp(&out[m++], w, u, dw / (dw - du), nvar);
+            }
+        }
+        n = m;
+        { rast__vtx *t = in; in = out; out = t; }
+    }
+    for (i = 1; i + 1 < n; ++i) rast__emit_tri(ch, &in[0], &in[i], &in[i + 1], flat);
+}
+
+static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast__pipe *p = cmd->pipe;
+    int nvar = cmd->d.num_varyings, size = p->point_size;
+    float wx, wy, wz, iw;
+    int64_t fx, fy, left, top;
+    int x0, y0, x1, y1;
+    rast__point *pt;
+    if (!rast__vtx_finite(v, nvar)) return;
+    /* a point is clipped by its centre against near and far only: wide points
+       straddling the viewport edge still draw their visible part */
+    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3]) return;
+    rast__to_window(p, v->pos, &wx, &wy, &wz, &iw);
+    if (!(fabsf(wx) < 1e7f && fabsf(wy) < 1e7f)) return;
+    fx = lrintf(wx * (float)(1 << RAST_SUBPIXEL_BITS));
+    fy = lrintf(wy * (float)(1 << RAST_SUBPIXEL_BITS));
+    /* the N x N square centred on the point covers the pixels whose centres
+       lie in [left, left + N) x [top, top + N) */
+    left = fx - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
+    top = fy - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
+    x0 = (int)rast__floordiv(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    y0 = (int)rast__floordiv(top + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    x1 = x0 + size;
+    y1 = y0 + size;
+    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
+    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
+    if (x0 >= x1 || y0 >= y1) return;
+    pt = (rast__point *)rast__chunk_push(ch, rast__rec_size(RAST__REC_POINT, nvar));
+    if (!pt) return;
+    pt->h.kind = RAST__REC_POINT;
+    pt->h.front = 1;
+    pt->h.pad = 0;
+    pt->h.x0 = x0; pt->h.y0 = y0; pt->h.x1 = x1; pt->h.y1 = y1;
+    pt->z = wz;
+    pt->w = v->pos[3];
+    memcpy(pt + 1, v->var, (size_t)nvar * sizeof(float));
+}
+
+static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vtx *b) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast__pipe *p = cmd->pipe;
+    int nvar = cmd->d.num_varyings, plane, k;
+    rast__vtx e[2];
+    float *vw;
+    rast__line *ln;
+    float lo_x, hi_x, lo_y, hi_y;
+    if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar)) return;
+    e[0] = *a; e[1] = *b;
+    for (plane = 0; plane < 6; ++plane) {
+        float d0 = rast__plane_dist(p, plane, e[0].pos), d1 = rast__plane_dist(p, plane, e[1].pos);
+        if (d0 < 0.0f && d1 < 0.0f) return;
+        if (d0 < 0.0f) rast__vtx_lerp(&e[0], &e[1], &e[0], d1 / (d1 - d0), nvar);
+        else if (d1 < 0.0f) rast__vtx_lerp(&e[1], &e[0], &e[1], d0 / (d0 - d1), nvar);
+    }
+    if (!(e[0].pos[3] > 0.0f) || !(e[1].pos[3] > 0.0f)) return;
+    ln = (rast__line *)rast__chunk_push(ch, rast__rec_size(RAST__REC_LINE, nvar));
+    if (!ln) return;
+    for (k = 0; k < 2; ++k) rast__to_window(p, e[k].pos, &ln->x[k], &ln->y[k], &ln->z[k], &ln->iw[k]);
+    vw = (float *)(ln + 1);
+    for (k = 0; k < nvar; ++k) {
+        vw[2 * k] = e[0].var[k] * ln->iw[0];
+        vw[2 * k + 1] = e[1].var[k] * ln->iw[1];
+    }
+    lo_x = RAST__MIN(ln->x[0], ln->x[1]); hi_x = RAST__MAX(ln->x[0], ln->x[1]);
+    lo_y = RAST__MIN(ln->y[0], ln->y[1]); hi_y = RAST__MAX(ln->y[0], ln->y[1]);
+    ln->h.kind = RAST__REC_LINE;
+    ln->h.front = 1;
+    ln->h.pad = 0;
+    ln->h.x0 = RAST__MAX((int)floorf(lo_x) - 1, p->clip[0]);
+    ln->h.y0 = RAST__MAX((int)floorf(lo_y) - 1, p->clip[1]);
+    ln->h.x1 = RAST__MIN((int)floorf(hi_x) + 2, p->clip[2]);
+    ln->h.y1 = RAST__MIN((int)floorf(hi_y) + 2, p->clip[3]);
+    if (ln->h.x0 >= ln->h.x1 || ln->h.y0 >= ln->h.y1) { /* nothing visible: take it back */
+        ch->used -= rast__rec_size(RAST__REC_LINE, nvar);
+        ch->nrec--;
+    }
+}
+
+/* Fetches output `layer` of the vertex at position `i` of the draw into *v;
+   returns 0 when that vertex has no such output. */
+static int rast__fetch(const rast__cmd *cmd, int i, int layer, rast__vtx *v,
+                       rast_vertex_out *scratch, int *scratch_n, int *scratch_index) {
+    int index = cmd->d.indices ? (int)cmd->d.indices[i] : i;
+    int nvar = cmd->d.num_varyings;
+    if (cmd->vout) {
+        size_t nf = rast__vout_floats(cmd);
+        const float *src;
+        if (layer >= cmd->vout_count[index]) return 0;
+        src = cmd->vout + ((size_t)index * (size_t)cmd->max_out + (size_t)layer) * nf;
+        memcpy(v->pos, src, 4 * sizeof(float));
+        memcpy(v->var, src + 4, (size_t)nvar * sizeof(float));
+        return 1;
+    }
+    if (*scratch_index != index) {
+        *scratch_n = rast__vertex(cmd, index, scratch);
+        *scratch_index = index;
+    }
+    if (layer >= *scratch_n) return 0;
+    memcpy(v->pos, scratch[layer].position, 4 * sizeof(float));
+    memcpy(v->var, scratch[layer].varyings, (size_t)nvar * sizeof(float));
+    return 1;
+}
+
+/* Sets up primitives [p0, p1) of a draw into the chunk. */
+static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
+    const rast__cmd *cmd = ch->cmd;
+    int vpp = cmd->verts_per_prim, prim, layer, j;
+    /* non-indexed draws run the vertex program here, once per vertex */
+    rast_vertex_out scratch[3][RAST_MAX_VERTEX_OUTPUTS];
+    int scratch_n[3], scratch_index[3];
+    for (prim = p0; prim < p1 && !ch->failed; ++prim) {
+        rast__vtx v[3];
+        for (j = 0; j < vpp; ++j) scratch_index[j] = -1;
+        for (layer = 0; layer < cmd->max_out; ++layer) {
+            int ok = 1;
+            for (j = 0; j < vpp && ok; ++j)
+                ok = rast__fetch(cmd, prim * vpp + j, layer, &v[j], scratch[j], &scratch_n[j],
+                                 &scratch_index[j]);
+            if (!ok) break;
+            if (vpp == 3) rast__setup_tri(ch, &v[0], &v[1], &v[2]);
+            else if (vpp == 2) rast__setup_line(ch, &v[0], &v[1]);
+            else rast__setup_point(ch, &v[0]);
+        }
+    }
+}

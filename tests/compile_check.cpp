@@ -1,0 +1,30 @@
+// Compile check: the whole of rast.h, implementation included, as C++11 with
+// -Wall -Wextra -Werror. Built (never run) by `make` and `make test`.
+#define RAST_IMPLEMENTATION
+#include "../rast.h"
+
+// Touches the public API the way a C++ caller would.
+int rast_compile_check_cpp();
+int rast_compile_check_cpp() {
+    rast_context *ctx = nullptr;
+    rast_context_desc cd = {};
+    rast_state s = {};
+    rast_draw_desc d = {};
+    static const float tri[3 * 8] = {
+        -1, -1, 0, 1,  1, 0, 0, 1,
+         1, -1, 0, 1,  0, 1, 0, 1,
+         0,  1, 0, 1,  0, 0, 1, 1,
+    };
+    if (rast_context_create(&cd, &ctx) != RAST_OK) return 1;
+    s.depth_test = 1;
+    s.stencil_front.write_mask = RAST_MASK(0x0F);
+    rast_set_state(ctx, &s);
+    d.primitive = RAST_TRIANGLES;
+    d.vertices = tri;
+    d.vertex_count = 3;
+    d.num_varyings = 4;
+    rast_draw(ctx, &d);
+    rast_finish(ctx);
+    rast_context_destroy(ctx);
+    return rast_result_string(RAST_OK) != nullptr;
+}
