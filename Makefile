@@ -4,7 +4,7 @@
 #   make headers    regenerate rast.h (and reflect.h) from src/
 #   make test       install packages, check headers, run the tests (plain and ASan/UBSan)
 #   make bench      install packages, build and run the rasteriser benchmark -> out/
-#   make demo       install packages, render the examples -> out/
+#   make demo       install packages, render the demo picture -> out/
 #   make deps       install the Debian packages the project needs (tools/deps.sh)
 #   make clean
 #
@@ -21,10 +21,10 @@ CFLAGS   = -std=c99 -O2 -g -Wall -Wextra -Werror -pthread
 CXXFLAGS = -std=c++11 -O2 -g -Wall -Wextra -Werror -pthread
 DEPFLAGS  = -MMD -MP
 LDLIBS    = -lm -pthread
-# Headless GL through EGL on Mesa (llvmpipe): libEGL (libegl-dev), desktop GL
-# (libGL, libgl-dev) and GLES2/3 (libGLESv2, libgles-dev). All are glvnd
-# dispatchers, so linking all three is harmless and serves either API.
-GL_LIBS   = -lEGL -lGL -lGLESv2
+# Headless GL through EGL on Mesa's llvmpipe, for the GL peer in the tests and
+# the benchmark: libEGL (libegl-dev) and libGL (libgl-dev). Both are GLVND
+# dispatchers; libGL exports every desktop GL entry point.
+GL_LIBS   = -lEGL -lGL
 TEST_LIBS = -lcriterion $(GL_LIBS) $(LDLIBS)
 
 ASAN_CFLAGS = -std=c99 -O1 -g -Wall -Wextra -Werror -pthread \

@@ -500,6 +500,13 @@ static void *rast__calloc(const rast_allocator *a, size_t count, size_t size) {
 
 static int rast__isfinite(float v) { return v - v == 0.0f; }
 
+/* Round to nearest, ties to even, for |v| < 2^51: the double magic-number
+   trick, exact in IEEE arithmetic and much cheaper than a libm call. */
+static int64_t rast__round(float v) {
+    double d = (double)v + 6755399441055744.0;
+    return (int64_t)(d - 6755399441055744.0);
+}
+
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
 typedef struct rast__pipe {
@@ -519,6 +526,7 @@ typedef struct rast__pipe {
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;
     int fixed_texture;        /* no fragment callback and a texture bound */
+    int simple;               /* only depth test and colour writes: fast spans */
 } rast__pipe;
 
 /* ---- records: what setup leaves for the tile workers ---- */
@@ -559,7 +567,7 @@ typedef struct rast__line {
     rast__rec h;
     float x[2], y[2];         /* window position */
     float z[2], iw[2];
-    /* then num_varyings * 2 floats, each divided by w */
+    /* then num_varyings * 2 floats: v0, v1 - v0 */
 } rast__line;
 
 typedef struct rast__rect {
@@ -622,8 +630,11 @@ typedef struct rast__chunk {
     uint8_t *recs;
     size_t used, cap;
     uint32_t nrec;
-    uint32_t *bin_start;      /* tiles + 1 offsets into bin_items */
-    uint32_t *bin_items;      /* byte offsets of records */
+    size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
+                                 are recs[bin_start[t] .. bin_start[t + 1]) */
+    int bin_tiles;            /* tiles bin_start has room for */
+    uint8_t *spare;           /* the other buffer of the tile sort */
+    size_t spare_cap;
     int failed;
 } rast__chunk;
 
@@ -668,7 +679,7 @@ struct rast__pool;
 
 struct rast_context {
     rast_allocator alloc;
-    int threads, tile_size;
+    int threads, tile_size, tile_shift;
     size_t batch_bytes;
     rast_parallel_for_fn parallel_for;
     void *parallel_for_user;
@@ -685,9 +696,15 @@ struct rast_context {
 
     rast__cmd *cmds;
     int cmd_count, cmd_cap;
+
+    /* one chunk per setup job of a pass; buffers are kept between passes
+       so that steady-state frames do not allocate */
+    rast__chunk *chunks;
+    int chunk_cap;
 };
 
 static rast_result rast__flush(rast_context *ctx);
+static void rast__free_chunks(rast_context *ctx);
 /* ---- src/rast/threads.c ---- */
 /* The worker pool: a parallel-for over job indices. The calling thread
    works too. Jobs write disjoint outputs, so the order in which threads pick
@@ -848,6 +865,7 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     if (!ctx) return RAST_ERROR_OUT_OF_MEMORY;
     ctx->alloc = alloc;
     ctx->tile_size = tile;
+    while ((1 << ctx->tile_shift) < tile) ctx->tile_shift++;
     ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)8 << 20;
     ctx->parallel_for = desc->parallel_for;
     ctx->parallel_for_user = desc->parallel_for_user;
@@ -884,6 +902,7 @@ RAST_API void rast_context_destroy(rast_context *ctx) {
     rast__flush(ctx);
     rast__pool_destroy(ctx->pool);
     rast__free_pipes(ctx);
+    rast__free_chunks(ctx);
     alloc = ctx->alloc;
     rast__free(&alloc, ctx->cmds);
     rast__free(&alloc, ctx);
@@ -1024,6 +1043,8 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     p->color_write = s->color_write ? (s->color_write & 0xFu) : (unsigned)RAST_WRITE_RGBA;
     p->fog = s->fog != RAST_FOG_NONE;
     p->fixed_texture = !s->fragment_fn && s->texture;
+    p->simple = !p->stencil_on && !p->blend && !s->fragment_fn && !p->fixed_texture && !p->fog &&
+                p->color_write == RAST_WRITE_RGBA && s->depth_offset == 0.0f;
     p->next = ctx->pipes;
     ctx->pipes = p;
     ctx->pipe = p;
@@ -1627,8 +1648,8 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
         if (!(v[i]->pos[3] > 0.0f)) return;
         rast__to_window(p, v[i]->pos, &wx[i], &wy[i], &wz[i], &iw[i]);
         if (!(fabsf(wx[i]) < 1e6f && fabsf(wy[i]) < 1e6f)) return;
-        fx[i] = (int32_t)lrintf(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
-        fy[i] = (int32_t)lrintf(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+        fx[i] = (int32_t)rast__round(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+        fy[i] = (int32_t)rast__round(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
     }
     area = ((int64_t)fx[1] - fx[0]) * ((int64_t)fy[2] - fy[0]) -
            ((int64_t)fx[2] - fx[0]) * ((int64_t)fy[1] - fy[0]);
@@ -1743,19 +1764,23 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     int x0, y0, x1, y1;
     rast__point *pt;
     if (!rast__vtx_finite(v, nvar)) return;
-    /* a point is clipped by its centre against near and far only: wide points
-       straddling the viewport edge still draw their visible part */
-    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3]) return;
+    /* GL clips a point by its centre: outside the clip volume it is gone,
+       inside it draws whole (clipped to the viewport by pixels) */
+    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3] ||
+        v->pos[0] < -v->pos[3] || v->pos[0] > v->pos[3] || v->pos[1] < -v->pos[3] ||
+        v->pos[1] > v->pos[3])
+        return;
     rast__to_window(p, v->pos, &wx, &wy, &wz, &iw);
     if (!(fabsf(wx) < 1e7f && fabsf(wy) < 1e7f)) return;
-    fx = lrintf(wx * (float)(1 << RAST_SUBPIXEL_BITS));
-    fy = lrintf(wy * (float)(1 << RAST_SUBPIXEL_BITS));
+    fx = rast__round(wx * (float)(1 << RAST_SUBPIXEL_BITS));
+    fy = rast__round(wy * (float)(1 << RAST_SUBPIXEL_BITS));
     /* the N x N square centred on the point covers the pixels whose centres
-       lie in [left, left + N) x [top, top + N) */
+       lie in [left, left + N) x (top, top + N]: ties go left and down, as
+       in llvmpipe (GL leaves them to the implementation) */
     left = fx - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     top = fy - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     x0 = (int)rast__floordiv(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(top + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    y0 = (int)rast__floordiv(top - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
@@ -1782,6 +1807,7 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     float lo_x, hi_x, lo_y, hi_y;
     if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar)) return;
     e[0] = *a; e[1] = *b;
+    if (p->s.shading == RAST_FLAT) memcpy(e[0].var, b->var, (size_t)nvar * sizeof(float));
     for (plane = 0; plane < 6; ++plane) {
         float d0 = rast__plane_dist(p, plane, e[0].pos), d1 = rast__plane_dist(p, plane, e[1].pos);
         if (d0 < 0.0f && d1 < 0.0f) return;
@@ -1794,8 +1820,8 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     for (k = 0; k < 2; ++k) rast__to_window(p, e[k].pos, &ln->x[k], &ln->y[k], &ln->z[k], &ln->iw[k]);
     vw = (float *)(ln + 1);
     for (k = 0; k < nvar; ++k) {
-        vw[2 * k] = e[0].var[k] * ln->iw[0];
-        vw[2 * k + 1] = e[1].var[k] * ln->iw[1];
+        vw[2 * k] = e[0].var[k];
+        vw[2 * k + 1] = e[1].var[k] - e[0].var[k];
     }
     lo_x = RAST__MIN(ln->x[0], ln->x[1]); hi_x = RAST__MAX(ln->x[0], ln->x[1]);
     lo_y = RAST__MIN(ln->y[0], ln->y[1]); hi_y = RAST__MAX(ln->y[0], ln->y[1]);
@@ -1837,6 +1863,30 @@ static int rast__fetch(const rast__cmd *cmd, int i, int layer, rast__vtx *v,
     return 1;
 }
 
+/* Points straight from the caller's array: the default vertex program
+   inlined, no per-vertex copies (the C3RC method splats millions). */
+static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast_draw_desc *d = &cmd->d;
+    rast__vtx v;
+    int i, k;
+    for (i = p0; i < p1 && !ch->failed; ++i) {
+        const float *src = d->vertices + (size_t)i * (size_t)d->stride;
+        float in[4];
+        in[0] = src[0]; in[1] = src[1]; in[2] = src[2];
+        in[3] = d->position_size == 4 ? src[3] : 1.0f;
+        if (d->matrix) {
+            const float *m = d->matrix;
+            for (k = 0; k < 4; ++k)
+                v.pos[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
+        } else {
+            for (k = 0; k < 4; ++k) v.pos[k] = in[k];
+        }
+        for (k = 0; k < d->num_varyings; ++k) v.var[k] = src[d->position_size + k];
+        rast__setup_point(ch, &v);
+    }
+}
+
 /* Sets up primitives [p0, p1) of a draw into the chunk. */
 static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
     const rast__cmd *cmd = ch->cmd;
@@ -1844,6 +1894,10 @@ static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
     /* non-indexed draws run the vertex program here, once per vertex */
     rast_vertex_out scratch[3][RAST_MAX_VERTEX_OUTPUTS];
     int scratch_n[3], scratch_index[3];
+    if (vpp == 1 && !cmd->pipe->s.vertex_fn && !cmd->d.indices) {
+        rast__setup_points_direct(ch, p0, p1);
+        return;
+    }
     for (prim = p0; prim < p1 && !ch->failed; ++prim) {
         rast__vtx v[3];
         for (j = 0; j < vpp; ++j) scratch_index[j] = -1;
@@ -1971,11 +2025,12 @@ static float rast__blend_equation(int eq, float s, float sf, float d, float df) 
     }
 }
 
+/* Clamp and round to 8 bits; written so compilers emit min/max, not
+   branches. NaN fails both comparisons and lands on 0. */
 static uint8_t rast__to_unorm8(float v) {
-    /* NaN compares false and lands on 0 */
-    if (!(v > 0.0f)) return 0;
-    if (v >= 1.0f) return 255;
-    return (uint8_t)(v * 255.0f + 0.5f);
+    v = v > 0.0f ? v : 0.0f;
+    v = v < 1.0f ? v : 1.0f;
+    return (uint8_t)(int)(v * 255.0f + 0.5f);
 }
 
 /* Blending and the colour mask; writes one pixel of the colour target. */
@@ -2077,6 +2132,11 @@ static void rast__run_clear(const rast__pipe *p, const rast__fb *fb, const rast_
     int x, y, c;
     const rast_clear_desc *d = &r->c;
     unsigned smask = p->st_wmask[0];
+    uint8_t v8[4];
+    uint32_t v32;
+    float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
+    for (c = 0; c < 4; ++c) v8[c] = rast__to_unorm8(d->color[c]);
+    memcpy(&v32, v8, 4);
     for (y = y0; y < y1; ++y) {
         if ((d->flags & RAST_CLEAR_COLOR) && fb->color && p->color_write) {
             uint8_t *row = fb->color + (size_t)y * (size_t)fb->color_stride;
@@ -2085,23 +2145,23 @@ static void rast__run_clear(const rast__pipe *p, const rast__fb *fb, const rast_
                 for (x = x0; x < x1; ++x)
                     for (c = 0; c < 4; ++c)
                         if (p->color_write & (1u << c)) px[4 * x + c] = d->color[c];
+            } else if (p->color_write == RAST_WRITE_RGBA) {
+                for (x = x0; x < x1; ++x) memcpy(row + 4 * x, &v32, 4);
             } else {
-                uint8_t v[4];
-                for (c = 0; c < 4; ++c) v[c] = rast__to_unorm8(d->color[c]);
                 for (x = x0; x < x1; ++x)
                     for (c = 0; c < 4; ++c)
-                        if (p->color_write & (1u << c)) row[4 * x + c] = v[c];
+                        if (p->color_write & (1u << c)) row[4 * x + c] = v8[c];
             }
         }
         if ((d->flags & RAST_CLEAR_DEPTH) && fb->depth && !p->s.depth_write_disabled) {
             float *row = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride);
-            float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
             for (x = x0; x < x1; ++x) row[x] = z;
         }
         if ((d->flags & RAST_CLEAR_STENCIL) && fb->stencil) {
             uint8_t *row = fb->stencil + (size_t)y * (size_t)fb->stencil_stride;
-            for (x = x0; x < x1; ++x)
-                row[x] = (uint8_t)((row[x] & ~smask) | (d->stencil & smask));
+            if (smask == 0xFFu) memset(row + x0, d->stencil, (size_t)(x1 - x0));
+            else
+                for (x = x0; x < x1; ++x) row[x] = (uint8_t)((row[x] & ~smask) | (d->stencil & smask));
         }
         if ((d->flags & RAST_CLEAR_ACCUM) && fb->accum) {
             float *row = (float *)((uint8_t *)fb->accum + (size_t)y * (size_t)fb->accum_stride);
@@ -2195,23 +2255,92 @@ static void rast__fragment(const rast__draw_info *di, rast__tile *tl, int x, int
     if (want_color) rast__color_out(p, fb, x, y, rgba);
 }
 
-static int rast__tri_needs_derivs(const rast__pipe *p) {
-    return (p->s.fragment_fn && p->s.fragment_derivatives) ||
-           (p->fixed_texture && p->s.texture);
+/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
+static uint32_t rast__pack_rgba8(const float c[4]) {
+    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
+           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
+}
+
+static void rast__store_color(const rast__fb *fb, uint8_t *crow, int x, const float c[4]) {
+    if (fb->color_f32) {
+        float *px = (float *)crow + 4 * x;
+        px[0] = c[0]; px[1] = c[1]; px[2] = c[2]; px[3] = c[3];
+    } else {
+        uint32_t v = rast__pack_rgba8(c);
+        memcpy(crow + 4 * x, &v, 4);
+    }
+}
+
+/* Depth test and write for the simple path; nonzero when the pixel passes. */
+static int rast__depth_simple(const rast__pipe *p, float *drow, int x, float z) {
+    if (!drow) return 1;
+    if (!rast__compare_f(p->depth_func, z, drow[x])) return 0;
+    if (p->depth_write) drow[x] = z;
+    return 1;
+}
+
+/* A span of a triangle on a simple pipe: depth test, then the interpolated
+   colour (or the draw colour) straight into the target. */
+static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
+                                  int y, int xs, int xe, float zrow, float iwrow, float b1row,
+                                  float b2row) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    const float *vd = (const float *)(t + 1);
+    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+    uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+    int x;
+    for (x = xs; x < xe; ++x) {
+        float fx = (float)x + 0.5f - t->ox;
+        float z = zrow + t->zdx * fx, c[4];
+        z = RAST__CLAMP(z, 0.0f, 1.0f);
+        if (!rast__depth_simple(p, drow, x, z) || !crow) continue;
+        if (di->nvar >= 4) {
+            float w = 1.0f / (iwrow + t->iwdx * fx);
+            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            int k;
+            for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
+            rast__store_color(fb, crow, x, c);
+        } else {
+            rast__store_color(fb, crow, x, di->color);
+        }
+    }
+}
+
+/* A span of a triangle through the full fragment pipeline. */
+static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t, int y,
+                           int xs, int xe, float zrow, float iwrow, float b1row, float b2row) {
+    const rast__pipe *p = di->pipe;
+    const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
+    int nvar = di->nvar, k, x;
+    int derivs = (p->s.fragment_fn && p->s.fragment_derivatives) || p->fixed_texture;
+    int need_var = p->s.fragment_fn || (tl->fb->color && p->color_write);
+    for (x = xs; x < xe; ++x) {
+        float fx = (float)x + 0.5f - t->ox;
+        float z = zrow + t->zdx * fx;
+        float w = 1.0f / (iwrow + t->iwdx * fx);
+        if (need_var) {
+            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            for (k = 0; k < nvar; ++k) tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
+            if (derivs) { /* d(b/w * w): exact derivatives of the perspective division */
+                float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
+                float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
+                for (k = 0; k < nvar; ++k) {
+                    tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
+                    tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
+                }
+            }
+        }
+        rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
+                       derivs ? tl->ddy : NULL);
+    }
 }
 
 static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const rast__tri *t) {
-    const rast__pipe *p = di->pipe;
-    const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
-    int nvar = di->nvar, k;
     int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
     int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
     int64_t ea[3], eb[3], ec[3];
-    int x, y, i;
-    int derivs = rast__tri_needs_derivs(p);
-    /* varyings are needed before the tests with a callback, after otherwise */
-    int shade_first = p->s.fragment_fn != NULL;
-    int need_var = shade_first || (tl->fb->color && p->color_write) ;
+    int y, i;
     if (x0 >= x1 || y0 >= y1) return;
     /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
        positive inside. Top-left edges keep E == 0, others need E > 0. */
@@ -2231,38 +2360,15 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
         int64_t s0 = ea[0] * RAST__ONE, s1 = ea[1] * RAST__ONE, s2 = ea[2] * RAST__ONE;
         float fy = (float)y + 0.5f - t->oy;
-        float zrow = t->z0 + t->zdy * fy;
-        float iwrow = t->iw0 + t->iwdy * fy;
-        float b1row = t->b10 + t->b1dy * fy, b2row = t->b20 + t->b2dy * fy;
-        int inside_seen = 0;
-        for (x = x0; x < x1; ++x, e0 += s0, e1 += s1, e2 += s2) {
-            float fx, z, iw, w, b1, b2;
-            if ((e0 | e1 | e2) < 0) {
-                if (inside_seen) break; /* convex: the row's span has ended */
-                continue;
-            }
-            inside_seen = 1;
-            fx = (float)x + 0.5f - t->ox;
-            z = zrow + t->zdx * fx;
-            iw = iwrow + t->iwdx * fx;
-            w = 1.0f / iw;
-            if (need_var) {
-                b1 = (b1row + t->b1dx * fx) * w;
-                b2 = (b2row + t->b2dx * fx) * w;
-                for (k = 0; k < nvar; ++k)
-                    tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-                if (derivs) {
-                    float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
-                    float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
-                    for (k = 0; k < nvar; ++k) {
-                        tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
-                        tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
-                    }
-                }
-            }
-            rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
-                           derivs ? tl->ddy : NULL);
-        }
+        int xs = x0, xe;
+        /* the triangle is convex: its pixels on a row form one span */
+        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += s0; e1 += s1; e2 += s2; ++xs; }
+        if (xs == x1) continue;
+        xe = xs;
+        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += s0; e1 += s1; e2 += s2; ++xe; }
+        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(
+            di, tl, t, y, xs, xe, t->z0 + t->zdy * fy, t->iw0 + t->iwdy * fy,
+            t->b10 + t->b1dy * fy, t->b20 + t->b2dy * fy);
     }
 }
 
@@ -2271,6 +2377,19 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
     int x0 = RAST__MAX(pt->h.x0, tl->x0), x1 = RAST__MIN(pt->h.x1, tl->x1);
     int y0 = RAST__MAX(pt->h.y0, tl->y0), y1 = RAST__MIN(pt->h.y1, tl->y1);
     int x, y;
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    if (p->simple) {
+        float z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
+        const float *c = di->nvar >= 4 ? var : di->color;
+        for (y = y0; y < y1; ++y) {
+            float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+            uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+            for (x = x0; x < x1; ++x)
+                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(fb, crow, x, c);
+        }
+        return;
+    }
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x)
             rast__fragment(di, tl, x, y, pt->z, pt->w, 1, var, NULL, NULL);
@@ -2280,7 +2399,7 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
    coordinate lies in [start, end) (GL's half-open diamond rule, simplified);
    values interpolated perspective-correctly. */
 static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const rast__line *ln) {
-    const float *vw = (const float *)(ln + 1); /* v/w at both ends */
+    const float *vd = (const float *)(ln + 1); /* v0, v1 - v0 */
     float dx = ln->x[1] - ln->x[0], dy = ln->y[1] - ln->y[0];
     int xmajor = fabsf(dx) >= fabsf(dy);
     float a0 = xmajor ? ln->x[0] : ln->y[0], a1 = xmajor ? ln->x[1] : ln->y[1];
@@ -2289,7 +2408,7 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     int i0 = (int)ceilf(lo - 0.5f), i1 = (int)ceilf(hi - 0.5f), i, k;
     if (len == 0.0f) return;
     for (i = i0; i < i1; ++i) {
-        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w;
+        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w, up;
         int x, y;
         if (u < 0.0f) u = 0.0f;
         if (u > 1.0f) u = 1.0f;
@@ -2301,8 +2420,8 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
         z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
         iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
         w = 1.0f / iw;
-        for (k = 0; k < di->nvar; ++k)
-            tl->var[k] = (vw[2 * k] + u * (vw[2 * k + 1] - vw[2 * k])) * w;
+        up = u * ln->iw[1] * w; /* the perspective-correct parameter */
+        for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
         rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
     }
 }
@@ -2323,6 +2442,46 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
             if (p->fog) rast__apply_fog(p, 1.0f, rgba);
             rast__color_out(p, fb, x, y, rgba);
         }
+}
+
+/* All of a chunk's points in a tile, on a simple pipe. One-pixel points
+   (the common splat) take a branchless depth test: random depths would
+   mispredict a branch on every other point. */
+static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl,
+                                       const uint8_t *b, const uint8_t *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    size_t size = rast__rec_size(RAST__REC_POINT, di->nvar);
+    int depth = p->depth_on, write = p->depth_write, f32 = fb->color_f32;
+    for (; b < e; b += size) {
+        const rast__point *pt = (const rast__point *)b;
+        const float *c = di->nvar >= 4 ? (const float *)(pt + 1) : di->color;
+        int x = pt->h.x0, y = pt->h.y0;
+        float z, old, *dp;
+        uint8_t *cp;
+        int pass;
+        if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
+            y >= tl->y1 || f32 || !fb->color) {
+            rast__raster_point(di, tl, pt);
+            continue;
+        }
+        z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
+        cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
+        if (depth) {
+            dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
+            old = *dp;
+            pass = rast__compare_f(p->depth_func, z, old);
+            *dp = pass && write ? z : old;
+        } else {
+            pass = 1;
+        }
+        {
+            uint32_t now, packed = rast__pack_rgba8(c);
+            memcpy(&now, cp, 4);
+            now = pass ? packed : now;
+            memcpy(cp, &now, 4);
+        }
+    }
 }
 
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
@@ -2440,38 +2599,64 @@ static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
     }
 }
 
-/* Counts, then lists, the records touching each tile (a counting sort that
-   keeps submission order within every tile). */
+/* Sorts the chunk's records by tile: a counting sort by bytes that copies
+   each record into every tile it touches, keeping submission order within
+   a tile. Tile workers then read their records contiguously instead of
+   chasing them across the chunk (a cache miss per record). */
 static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
-    int ntiles = ctx->tiles_x * ctx->tiles_y, T = ctx->tile_size, nvar;
-    size_t off;
-    uint32_t total = 0;
+    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, nvar;
+    size_t off, total = 0, size;
+    uint8_t *sorted;
     int t;
-    ch->bin_start = (uint32_t *)rast__calloc(ch->alloc, (size_t)ntiles + 1, sizeof(uint32_t));
-    if (!ch->bin_start) { ch->failed = 1; return; }
+    if (ch->bin_tiles < ntiles) {
+        rast__free(ch->alloc, ch->bin_start);
+        ch->bin_start = (size_t *)rast__alloc(ch->alloc, ((size_t)ntiles + 1) * sizeof(size_t));
+        ch->bin_tiles = ch->bin_start ? ntiles : 0;
+        if (!ch->bin_start) { ch->failed = 1; return; }
+    }
+    memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
+    /* a chunk holds one kind of record (one draw or one command) */
     nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
-    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+    size = rast__rec_size(((const rast__rec *)ch->recs)->kind, nvar);
+    for (off = 0; off < ch->used; off += size) {
         const rast__rec *h = (const rast__rec *)(ch->recs + off);
         int tx, ty;
-        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
-            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx) ch->bin_start[ty * ctx->tiles_x + tx + 1]++;
+        for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
+            for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) ch->bin_start[ty * ctx->tiles_x + tx + 1] += size;
     }
     for (t = 0; t < ntiles; ++t) {
-        uint32_t n = ch->bin_start[t + 1];
+        size_t n = ch->bin_start[t + 1];
         ch->bin_start[t + 1] = total;
         total += n;
     }
     /* bin_start[t + 1] is now the start of tile t; filling advances it to
        the end of tile t, which is the start of tile t + 1 */
-    ch->bin_items = (uint32_t *)rast__alloc(ch->alloc, (size_t)total * sizeof(uint32_t) + 1);
-    if (!ch->bin_items) { ch->failed = 1; return; }
-    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+    if (ch->spare_cap < total) {
+        rast__free(ch->alloc, ch->spare);
+        ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
+        ch->spare_cap = ch->spare ? total : 0;
+        if (!ch->spare) { ch->failed = 1; return; }
+    }
+    sorted = ch->spare;
+    for (off = 0; off < ch->used; off += size) {
         const rast__rec *h = (const rast__rec *)(ch->recs + off);
         int tx, ty;
-        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
-            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx)
-                ch->bin_items[ch->bin_start[ty * ctx->tiles_x + tx + 1]++] = (uint32_t)off;
+        for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
+            for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) {
+                size_t *at = &ch->bin_start[ty * ctx->tiles_x + tx + 1], k;
+                /* records are whole 8-byte words: a word loop beats a memcpy call */
+                for (k = 0; k < size; k += 8) memcpy(sorted + *at + k, (const uint8_t *)h + k, 8);
+                *at += size;
+            }
+    }
+    {   /* the sorted buffer becomes the records; the old one the spare */
+        size_t cap = ch->spare_cap;
+        ch->spare = ch->recs;
+        ch->spare_cap = ch->cap;
+        ch->recs = sorted;
+        ch->cap = cap;
+        ch->used = total;
     }
 }
 
@@ -2484,6 +2669,31 @@ static void rast__setup_job_fn(void *arg, int i) {
     if (!ch->failed) rast__bin_chunk(ps->ctx, ch);
 }
 
+/* Records land on random pixels of a tile; asking for the tile's depth and
+   colour lines up front turns a cache miss per fragment into a stream. */
+static void rast__prefetch_tile(const rast_context *ctx, const rast__pass *ps, int t,
+                                const rast__tile *tl) {
+#if defined(__GNUC__) || defined(__clang__)
+    size_t bytes = 0;
+    int i, y, x;
+    for (i = 0; i < ps->count; ++i)
+        if (ps->chunks[i].nrec) bytes += ps->chunks[i].bin_start[t + 1] - ps->chunks[i].bin_start[t];
+    if (bytes < 4096) return; /* a few records: not worth it */
+    for (y = tl->y0; y < tl->y1; ++y) {
+        const rast__fb *fb = &ctx->fb;
+        if (fb->depth)
+            for (x = tl->x0; x < tl->x1; x += 16)
+                __builtin_prefetch((const uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride + 4 * (size_t)x, 1);
+        if (fb->color)
+            for (x = tl->x0; x < tl->x1; x += fb->color_f32 ? 4 : 16)
+                __builtin_prefetch(fb->color + (size_t)y * (size_t)fb->color_stride +
+                                   (size_t)x * (fb->color_f32 ? 16u : 4u), 1);
+    }
+#else
+    (void)ctx; (void)ps; (void)t; (void)tl;
+#endif
+}
+
 static void rast__tile_job_fn(void *arg, int t) {
     rast__pass *ps = (rast__pass *)arg;
     const rast_context *ctx = ps->ctx;
@@ -2494,9 +2704,10 @@ static void rast__tile_job_fn(void *arg, int t) {
     tl.y0 = (t / ctx->tiles_x) * T;
     tl.x1 = RAST__MIN(tl.x0 + T, ctx->fb.width);
     tl.y1 = RAST__MIN(tl.y0 + T, ctx->fb.height);
+    rast__prefetch_tile(ctx, ps, t, &tl);
     for (i = 0; i < ps->count; ++i) {
         const rast__chunk *ch = &ps->chunks[i];
-        uint32_t b, e;
+        size_t b, e, size;
         rast__draw_info di;
         if (!ch->nrec) continue;
         b = ch->bin_start[t];
@@ -2505,7 +2716,12 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        for (; b < e; ++b) rast__raster_record(&di, &tl, (const rast__rec *)(ch->recs + ch->bin_items[b]));
+        if (di.pipe->simple && ch->cmd->kind == RAST__CMD_DRAW && ch->cmd->verts_per_prim == 1) {
+            rast__raster_points_simple(&di, &tl, ch->recs + b, ch->recs + e);
+            continue;
+        }
+        size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
+        for (; b < e; b += size) rast__raster_record(&di, &tl, (const rast__rec *)(ch->recs + b));
     }
 }
 
@@ -2516,17 +2732,35 @@ static size_t rast__prim_bytes(const rast__cmd *cmd) {
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
-    int i;
-    for (i = 0; i < ps->count; ++i) {
-        rast__free(&ctx->alloc, ps->chunks[i].recs);
-        rast__free(&ctx->alloc, ps->chunks[i].bin_start);
-        rast__free(&ctx->alloc, ps->chunks[i].bin_items);
-    }
     rast__free(&ctx->alloc, ps->jobs);
-    rast__free(&ctx->alloc, ps->chunks);
     rast__free(&ctx->alloc, ps->vertex_cmds);
     rast__free(&ctx->alloc, ps->vertex_jobs);
     memset(ps, 0, sizeof(*ps));
+}
+
+/* Makes room for n chunks; their buffers persist across passes. */
+static int rast__reserve_chunks(rast_context *ctx, int n) {
+    rast__chunk *c;
+    if (n <= ctx->chunk_cap) return 1;
+    c = (rast__chunk *)rast__calloc(&ctx->alloc, (size_t)n, sizeof(rast__chunk));
+    if (!c) return 0;
+    if (ctx->chunk_cap) memcpy(c, ctx->chunks, (size_t)ctx->chunk_cap * sizeof(rast__chunk));
+    rast__free(&ctx->alloc, ctx->chunks);
+    ctx->chunks = c;
+    ctx->chunk_cap = n;
+    return 1;
+}
+
+static void rast__free_chunks(rast_context *ctx) {
+    int i;
+    for (i = 0; i < ctx->chunk_cap; ++i) {
+        rast__free(&ctx->alloc, ctx->chunks[i].recs);
+        rast__free(&ctx->alloc, ctx->chunks[i].spare);
+        rast__free(&ctx->alloc, ctx->chunks[i].bin_start);
+    }
+    rast__free(&ctx->alloc, ctx->chunks);
+    ctx->chunks = NULL;
+    ctx->chunk_cap = 0;
 }
 
 static void rast__free_vertex_outputs(rast_context *ctx, rast__cmd *cmd) {
@@ -2559,7 +2793,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.jobs = (rast__job *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__job));
-    ps.chunks = (rast__chunk *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__chunk));
+    ps.chunks = rast__reserve_chunks(ctx, njobs) ? ctx->chunks : NULL;
     ps.vertex_cmds = (rast__cmd **)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(rast__cmd *));
     ps.vertex_jobs = (int *)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(int));
     if (!ps.jobs || !ps.chunks || !ps.vertex_cmds || !ps.vertex_jobs) {
@@ -2573,6 +2807,9 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.jobs[i].cmd = cmd;
         ps.chunks[i].cmd = cmd;
         ps.chunks[i].alloc = &ctx->alloc;
+        ps.chunks[i].used = 0;
+        ps.chunks[i].nrec = 0;
+        ps.chunks[i].failed = 0;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

@@ -621,7 +621,7 @@ static void expect_face(float x, float y, float z, int face, float s, float t)
               face, (double)s, (double)t);
 }
 
-Test(cube, axis_directions)
+Test(texture_cube, axis_directions)
 {
     expect_face(1.0f, 0.0f, 0.0f, 0, 0.5f, 0.5f);
     expect_face(-1.0f, 0.0f, 0.0f, 1, 0.5f, 0.5f);
@@ -633,7 +633,7 @@ Test(cube, axis_directions)
     expect_face(3e20f, 0.0f, 0.0f, 0, 0.5f, 0.5f);
 }
 
-Test(cube, table_8_19_off_axis)
+Test(texture_cube, table_8_19_off_axis)
 {
     /* s = (sc/|ma| + 1) / 2, t = (tc/|ma| + 1) / 2 with, from the table:
        +X: sc = -z, tc = -y   -X: sc = +z, tc = -y
@@ -655,7 +655,7 @@ Test(cube, table_8_19_off_axis)
     expect_face(200.0f, 50.0f, -100.0f, 0, 0.75f, 0.375f);
 }
 
-Test(cube, ties_prefer_z_then_y)
+Test(texture_cube, ties_prefer_z_then_y)
 {
     /* llvmpipe's rule (GL leaves it open): z if |z| >= max(|x|, |y|),
        else y if |y| >= |x|, else x */
@@ -666,7 +666,7 @@ Test(cube, ties_prefer_z_then_y)
     expect_face(-1.0f, -1.0f, 0.5f, 3, 0.0f, 0.25f); /* -Y: sc = -1, tc = -0.5 */
 }
 
-Test(cube, degenerate_directions_are_defined)
+Test(texture_cube, degenerate_directions_are_defined)
 {
     float dir[3], s, t;
     int face;
@@ -731,7 +731,7 @@ static void expect_cube(const rast_texture *tex, float x, float y, float z, floa
               (double)c[0], (double)c[1], (double)face, (double)texel);
 }
 
-Test(cube, sample_reads_face_rows_top_first)
+Test(texture_cube, sample_reads_face_rows_top_first)
 {
     rast_texture *tex = make_cube2(RAST_FILTER_NEAREST);
     /* +X, (1, -0.5, 0.5): sc = -0.5, tc = 0.5 -> s 0.25, t 0.75 -> texel (0, 1) = 2 */
@@ -751,7 +751,7 @@ Test(cube, sample_reads_face_rows_top_first)
     rast_texture_destroy(tex);
 }
 
-Test(cube, linear_filtering_clamps_to_face_edge)
+Test(texture_cube, linear_filtering_clamps_to_face_edge)
 {
     rast_texture *tex = make_cube2(RAST_FILTER_LINEAR);
     /* +X, (1, -0.5, 0.99): s = 0.005, t = 0.75. u - 0.5 = -0.49 -> texels
@@ -763,7 +763,7 @@ Test(cube, linear_filtering_clamps_to_face_edge)
     rast_texture_destroy(tex);
 }
 
-Test(cube, mipmapped_faces_average_per_face)
+Test(texture_cube, mipmapped_faces_average_per_face)
 {
     /* 4x4 faces, face f texel i: red = f * 16 + i; level 2 = mean = 16f + 7.5 */
     static float px[6][16 * 4];
@@ -791,6 +791,8 @@ Test(cube, mipmapped_faces_average_per_face)
 }
 
 /* ---- validation ---- */
+
+static void count_free(void *ptr, void *user);
 
 static const uint8_t px_white[16 * 16 * 4] = { 255 };
 
@@ -840,7 +842,7 @@ Test(texture, create_rejects_bad_descs)
     expect_create_fails(&d, RAST_ERROR_INVALID_ARGUMENT);
     d = good_desc(); d.wrap_s = (rast_wrap)9;     expect_create_fails(&d, RAST_ERROR_INVALID_ARGUMENT);
     d = good_desc(); d.wrap_t = (rast_wrap)-3;    expect_create_fails(&d, RAST_ERROR_INVALID_ARGUMENT);
-    d = good_desc(); d.allocator.alloc = NULL; d.allocator.free = free; /* half an allocator */
+    d = good_desc(); d.allocator.alloc = NULL; d.allocator.free = count_free; /* half an allocator */
     expect_create_fails(&d, RAST_ERROR_INVALID_ARGUMENT);
 
     /* cube maps: six square faces */

@@ -94,38 +94,64 @@ static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
     }
 }
 
-/* Counts, then lists, the records touching each tile (a counting sort that
-   keeps submission order within every tile). */
+/* Sorts the chunk's records by tile: a counting sort by bytes that copies
+   each record into every tile it touches, keeping submission order within
+   a tile. Tile workers then read their records contiguously instead of
+   chasing them across the chunk (a cache miss per record). */
 static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
-    int ntiles = ctx->tiles_x * ctx->tiles_y, T = ctx->tile_size, nvar;
-    size_t off;
-    uint32_t total = 0;
+    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, nvar;
+    size_t off, total = 0, size;
+    uint8_t *sorted;
     int t;
-    ch->bin_start = (uint32_t *)rast__calloc(ch->alloc, (size_t)ntiles + 1, sizeof(uint32_t));
-    if (!ch->bin_start) { ch->failed = 1; return; }
+    if (ch->bin_tiles < ntiles) {
+        rast__free(ch->alloc, ch->bin_start);
+        ch->bin_start = (size_t *)rast__alloc(ch->alloc, ((size_t)ntiles + 1) * sizeof(size_t));
+        ch->bin_tiles = ch->bin_start ? ntiles : 0;
+        if (!ch->bin_start) { ch->failed = 1; return; }
+    }
+    memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
+    /* a chunk holds one kind of record (one draw or one command) */
     nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
-    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+    size = rast__rec_size(((const rast__rec *)ch->recs)->kind, nvar);
+    for (off = 0; off < ch->used; off += size) {
         const rast__rec *h = (const rast__rec *)(ch->recs + off);
         int tx, ty;
-        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
-            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx) ch->bin_start[ty * ctx->tiles_x + tx + 1]++;
+        for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
+            for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) ch->bin_start[ty * ctx->tiles_x + tx + 1] += size;
     }
     for (t = 0; t < ntiles; ++t) {
-        uint32_t n = ch->bin_start[t + 1];
+        size_t n = ch->bin_start[t + 1];
         ch->bin_start[t + 1] = total;
         total += n;
     }
     /* bin_start[t + 1] is now the start of tile t; filling advances it to
        the end of tile t, which is the start of tile t + 1 */
-    ch->bin_items = (uint32_t *)rast__alloc(ch->alloc, (size_t)total * sizeof(uint32_t) + 1);
-    if (!ch->bin_items) { ch->failed = 1; return; }
-    for (off = 0; off < ch->used; off += rast__rec_size(((rast__rec *)(ch->recs + off))->kind, nvar)) {
+    if (ch->spare_cap < total) {
+        rast__free(ch->alloc, ch->spare);
+        ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
+        ch->spare_cap = ch->spare ? total : 0;
+        if (!ch->spare) { ch->failed = 1; return; }
+    }
+    sorted = ch->spare;
+    for (off = 0; off < ch->used; off += size) {
         const rast__rec *h = (const rast__rec *)(ch->recs + off);
         int tx, ty;
-        for (ty = h->y0 / T; ty <= (h->y1 - 1) / T; ++ty)
-            for (tx = h->x0 / T; tx <= (h->x1 - 1) / T; ++tx)
-                ch->bin_items[ch->bin_start[ty * ctx->tiles_x + tx + 1]++] = (uint32_t)off;
+        for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
+            for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) {
+                size_t *at = &ch->bin_start[ty * ctx->tiles_x + tx + 1], k;
+                /* records are whole 8-byte words: a word loop beats a memcpy call */
+                for (k = 0; k < size; k += 8) memcpy(sorted + *at + k, (const uint8_t *)h + k, 8);
+                *at += size;
+            }
+    }
+    {   /* the sorted buffer becomes the records; the old one the spare */
+        size_t cap = ch->spare_cap;
+        ch->spare = ch->recs;
+        ch->spare_cap = ch->cap;
+        ch->recs = sorted;
+        ch->cap = cap;
+        ch->used = total;
     }
 }
 
@@ -138,6 +164,31 @@ static void rast__setup_job_fn(void *arg, int i) {
     if (!ch->failed) rast__bin_chunk(ps->ctx, ch);
 }
 
+/* Records land on random pixels of a tile; asking for the tile's depth and
+   colour lines up front turns a cache miss per fragment into a stream. */
+static void rast__prefetch_tile(const rast_context *ctx, const rast__pass *ps, int t,
+                                const rast__tile *tl) {
+#if defined(__GNUC__) || defined(__clang__)
+    size_t bytes = 0;
+    int i, y, x;
+    for (i = 0; i < ps->count; ++i)
+        if (ps->chunks[i].nrec) bytes += ps->chunks[i].bin_start[t + 1] - ps->chunks[i].bin_start[t];
+    if (bytes < 4096) return; /* a few records: not worth it */
+    for (y = tl->y0; y < tl->y1; ++y) {
+        const rast__fb *fb = &ctx->fb;
+        if (fb->depth)
+            for (x = tl->x0; x < tl->x1; x += 16)
+                __builtin_prefetch((const uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride + 4 * (size_t)x, 1);
+        if (fb->color)
+            for (x = tl->x0; x < tl->x1; x += fb->color_f32 ? 4 : 16)
+                __builtin_prefetch(fb->color + (size_t)y * (size_t)fb->color_stride +
+                                   (size_t)x * (fb->color_f32 ? 16u : 4u), 1);
+    }
+#else
+    (void)ctx; (void)ps; (void)t; (void)tl;
+#endif
+}
+
 static void rast__tile_job_fn(void *arg, int t) {
     rast__pass *ps = (rast__pass *)arg;
     const rast_context *ctx = ps->ctx;
@@ -148,9 +199,10 @@ static void rast__tile_job_fn(void *arg, int t) {
     tl.y0 = (t / ctx->tiles_x) * T;
     tl.x1 = RAST__MIN(tl.x0 + T, ctx->fb.width);
     tl.y1 = RAST__MIN(tl.y0 + T, ctx->fb.height);
+    rast__prefetch_tile(ctx, ps, t, &tl);
     for (i = 0; i < ps->count; ++i) {
         const rast__chunk *ch = &ps->chunks[i];
-        uint32_t b, e;
+        size_t b, e, size;
         rast__draw_info di;
         if (!ch->nrec) continue;
         b = ch->bin_start[t];
@@ -159,7 +211,12 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        for (; b < e; ++b) rast__raster_record(&di, &tl, (const rast__rec *)(ch->recs + ch->bin_items[b]));
+        if (di.pipe->simple && ch->cmd->kind == RAST__CMD_DRAW && ch->cmd->verts_per_prim == 1) {
+            rast__raster_points_simple(&di, &tl, ch->recs + b, ch->recs + e);
+            continue;
+        }
+        size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
+        for (; b < e; b += size) rast__raster_record(&di, &tl, (const rast__rec *)(ch->recs + b));
     }
 }
 
@@ -170,17 +227,35 @@ static size_t rast__prim_bytes(const rast__cmd *cmd) {
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
-    int i;
-    for (i = 0; i < ps->count; ++i) {
-        rast__free(&ctx->alloc, ps->chunks[i].recs);
-        rast__free(&ctx->alloc, ps->chunks[i].bin_start);
-        rast__free(&ctx->alloc, ps->chunks[i].bin_items);
-    }
     rast__free(&ctx->alloc, ps->jobs);
-    rast__free(&ctx->alloc, ps->chunks);
     rast__free(&ctx->alloc, ps->vertex_cmds);
     rast__free(&ctx->alloc, ps->vertex_jobs);
     memset(ps, 0, sizeof(*ps));
+}
+
+/* Makes room for n chunks; their buffers persist across passes. */
+static int rast__reserve_chunks(rast_context *ctx, int n) {
+    rast__chunk *c;
+    if (n <= ctx->chunk_cap) return 1;
+    c = (rast__chunk *)rast__calloc(&ctx->alloc, (size_t)n, sizeof(rast__chunk));
+    if (!c) return 0;
+    if (ctx->chunk_cap) memcpy(c, ctx->chunks, (size_t)ctx->chunk_cap * sizeof(rast__chunk));
+    rast__free(&ctx->alloc, ctx->chunks);
+    ctx->chunks = c;
+    ctx->chunk_cap = n;
+    return 1;
+}
+
+static void rast__free_chunks(rast_context *ctx) {
+    int i;
+    for (i = 0; i < ctx->chunk_cap; ++i) {
+        rast__free(&ctx->alloc, ctx->chunks[i].recs);
+        rast__free(&ctx->alloc, ctx->chunks[i].spare);
+        rast__free(&ctx->alloc, ctx->chunks[i].bin_start);
+    }
+    rast__free(&ctx->alloc, ctx->chunks);
+    ctx->chunks = NULL;
+    ctx->chunk_cap = 0;
 }
 
 static void rast__free_vertex_outputs(rast_context *ctx, rast__cmd *cmd) {
@@ -213,7 +288,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.jobs = (rast__job *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__job));
-    ps.chunks = (rast__chunk *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__chunk));
+    ps.chunks = rast__reserve_chunks(ctx, njobs) ? ctx->chunks : NULL;
     ps.vertex_cmds = (rast__cmd **)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(rast__cmd *));
     ps.vertex_jobs = (int *)rast__calloc(&ctx->alloc, (size_t)nvjobs + 1, sizeof(int));
     if (!ps.jobs || !ps.chunks || !ps.vertex_cmds || !ps.vertex_jobs) {
@@ -227,6 +302,9 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.jobs[i].cmd = cmd;
         ps.chunks[i].cmd = cmd;
         ps.chunks[i].alloc = &ctx->alloc;
+        ps.chunks[i].used = 0;
+        ps.chunks[i].nrec = 0;
+        ps.chunks[i].failed = 0;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

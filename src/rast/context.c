@@ -48,6 +48,7 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     if (!ctx) return RAST_ERROR_OUT_OF_MEMORY;
     ctx->alloc = alloc;
     ctx->tile_size = tile;
+    while ((1 << ctx->tile_shift) < tile) ctx->tile_shift++;
     ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)8 << 20;
     ctx->parallel_for = desc->parallel_for;
     ctx->parallel_for_user = desc->parallel_for_user;
@@ -84,6 +85,7 @@ RAST_API void rast_context_destroy(rast_context *ctx) {
     rast__flush(ctx);
     rast__pool_destroy(ctx->pool);
     rast__free_pipes(ctx);
+    rast__free_chunks(ctx);
     alloc = ctx->alloc;
     rast__free(&alloc, ctx->cmds);
     rast__free(&alloc, ctx);
@@ -224,6 +226,8 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     p->color_write = s->color_write ? (s->color_write & 0xFu) : (unsigned)RAST_WRITE_RGBA;
     p->fog = s->fog != RAST_FOG_NONE;
     p->fixed_texture = !s->fragment_fn && s->texture;
+    p->simple = !p->stencil_on && !p->blend && !s->fragment_fn && !p->fixed_texture && !p->fog &&
+                p->color_write == RAST_WRITE_RGBA && s->depth_offset == 0.0f;
     p->next = ctx->pipes;
     ctx->pipes = p;
     ctx->pipe = p;

@@ -110,11 +110,12 @@ static float rast__blend_equation(int eq, float s, float sf, float d, float df) 
     }
 }
 
+/* Clamp and round to 8 bits; written so compilers emit min/max, not
+   branches. NaN fails both comparisons and lands on 0. */
 static uint8_t rast__to_unorm8(float v) {
-    /* NaN compares false and lands on 0 */
-    if (!(v > 0.0f)) return 0;
-    if (v >= 1.0f) return 255;
-    return (uint8_t)(v * 255.0f + 0.5f);
+    v = v > 0.0f ? v : 0.0f;
+    v = v < 1.0f ? v : 1.0f;
+    return (uint8_t)(int)(v * 255.0f + 0.5f);
 }
 
 /* Blending and the colour mask; writes one pixel of the colour target. */
@@ -216,6 +217,11 @@ static void rast__run_clear(const rast__pipe *p, const rast__fb *fb, const rast_
     int x, y, c;
     const rast_clear_desc *d = &r->c;
     unsigned smask = p->st_wmask[0];
+    uint8_t v8[4];
+    uint32_t v32;
+    float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
+    for (c = 0; c < 4; ++c) v8[c] = rast__to_unorm8(d->color[c]);
+    memcpy(&v32, v8, 4);
     for (y = y0; y < y1; ++y) {
         if ((d->flags & RAST_CLEAR_COLOR) && fb->color && p->color_write) {
             uint8_t *row = fb->color + (size_t)y * (size_t)fb->color_stride;
@@ -224,23 +230,23 @@ static void rast__run_clear(const rast__pipe *p, const rast__fb *fb, const rast_
                 for (x = x0; x < x1; ++x)
                     for (c = 0; c < 4; ++c)
                         if (p->color_write & (1u << c)) px[4 * x + c] = d->color[c];
+            } else if (p->color_write == RAST_WRITE_RGBA) {
+                for (x = x0; x < x1; ++x) memcpy(row + 4 * x, &v32, 4);
             } else {
-                uint8_t v[4];
-                for (c = 0; c < 4; ++c) v[c] = rast__to_unorm8(d->color[c]);
                 for (x = x0; x < x1; ++x)
                     for (c = 0; c < 4; ++c)
-                        if (p->color_write & (1u << c)) row[4 * x + c] = v[c];
+                        if (p->color_write & (1u << c)) row[4 * x + c] = v8[c];
             }
         }
         if ((d->flags & RAST_CLEAR_DEPTH) && fb->depth && !p->s.depth_write_disabled) {
             float *row = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride);
-            float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
             for (x = x0; x < x1; ++x) row[x] = z;
         }
         if ((d->flags & RAST_CLEAR_STENCIL) && fb->stencil) {
             uint8_t *row = fb->stencil + (size_t)y * (size_t)fb->stencil_stride;
-            for (x = x0; x < x1; ++x)
-                row[x] = (uint8_t)((row[x] & ~smask) | (d->stencil & smask));
+            if (smask == 0xFFu) memset(row + x0, d->stencil, (size_t)(x1 - x0));
+            else
+                for (x = x0; x < x1; ++x) row[x] = (uint8_t)((row[x] & ~smask) | (d->stencil & smask));
         }
         if ((d->flags & RAST_CLEAR_ACCUM) && fb->accum) {
             float *row = (float *)((uint8_t *)fb->accum + (size_t)y * (size_t)fb->accum_stride);

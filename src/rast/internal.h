@@ -49,6 +49,13 @@ static void *rast__calloc(const rast_allocator *a, size_t count, size_t size) {
 
 static int rast__isfinite(float v) { return v - v == 0.0f; }
 
+/* Round to nearest, ties to even, for |v| < 2^51: the double magic-number
+   trick, exact in IEEE arithmetic and much cheaper than a libm call. */
+static int64_t rast__round(float v) {
+    double d = (double)v + 6755399441055744.0;
+    return (int64_t)(d - 6755399441055744.0);
+}
+
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
 typedef struct rast__pipe {
@@ -68,6 +75,7 @@ typedef struct rast__pipe {
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;
     int fixed_texture;        /* no fragment callback and a texture bound */
+    int simple;               /* only depth test and colour writes: fast spans */
 } rast__pipe;
 
 /* ---- records: what setup leaves for the tile workers ---- */
@@ -108,7 +116,7 @@ typedef struct rast__line {
     rast__rec h;
     float x[2], y[2];         /* window position */
     float z[2], iw[2];
-    /* then num_varyings * 2 floats, each divided by w */
+    /* then num_varyings * 2 floats: v0, v1 - v0 */
 } rast__line;
 
 typedef struct rast__rect {
@@ -171,8 +179,11 @@ typedef struct rast__chunk {
     uint8_t *recs;
     size_t used, cap;
     uint32_t nrec;
-    uint32_t *bin_start;      /* tiles + 1 offsets into bin_items */
-    uint32_t *bin_items;      /* byte offsets of records */
+    size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
+                                 are recs[bin_start[t] .. bin_start[t + 1]) */
+    int bin_tiles;            /* tiles bin_start has room for */
+    uint8_t *spare;           /* the other buffer of the tile sort */
+    size_t spare_cap;
     int failed;
 } rast__chunk;
 
@@ -217,7 +228,7 @@ struct rast__pool;
 
 struct rast_context {
     rast_allocator alloc;
-    int threads, tile_size;
+    int threads, tile_size, tile_shift;
     size_t batch_bytes;
     rast_parallel_for_fn parallel_for;
     void *parallel_for_user;
@@ -234,6 +245,12 @@ struct rast_context {
 
     rast__cmd *cmds;
     int cmd_count, cmd_cap;
+
+    /* one chunk per setup job of a pass; buffers are kept between passes
+       so that steady-state frames do not allocate */
+    rast__chunk *chunks;
+    int chunk_cap;
 };
 
 static rast_result rast__flush(rast_context *ctx);
+static void rast__free_chunks(rast_context *ctx);

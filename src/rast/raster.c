@@ -47,23 +47,92 @@ static void rast__fragment(const rast__draw_info *di, rast__tile *tl, int x, int
     if (want_color) rast__color_out(p, fb, x, y, rgba);
 }
 
-static int rast__tri_needs_derivs(const rast__pipe *p) {
-    return (p->s.fragment_fn && p->s.fragment_derivatives) ||
-           (p->fixed_texture && p->s.texture);
+/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
+static uint32_t rast__pack_rgba8(const float c[4]) {
+    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
+           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
+}
+
+static void rast__store_color(const rast__fb *fb, uint8_t *crow, int x, const float c[4]) {
+    if (fb->color_f32) {
+        float *px = (float *)crow + 4 * x;
+        px[0] = c[0]; px[1] = c[1]; px[2] = c[2]; px[3] = c[3];
+    } else {
+        uint32_t v = rast__pack_rgba8(c);
+        memcpy(crow + 4 * x, &v, 4);
+    }
+}
+
+/* Depth test and write for the simple path; nonzero when the pixel passes. */
+static int rast__depth_simple(const rast__pipe *p, float *drow, int x, float z) {
+    if (!drow) return 1;
+    if (!rast__compare_f(p->depth_func, z, drow[x])) return 0;
+    if (p->depth_write) drow[x] = z;
+    return 1;
+}
+
+/* A span of a triangle on a simple pipe: depth test, then the interpolated
+   colour (or the draw colour) straight into the target. */
+static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
+                                  int y, int xs, int xe, float zrow, float iwrow, float b1row,
+                                  float b2row) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    const float *vd = (const float *)(t + 1);
+    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+    uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+    int x;
+    for (x = xs; x < xe; ++x) {
+        float fx = (float)x + 0.5f - t->ox;
+        float z = zrow + t->zdx * fx, c[4];
+        z = RAST__CLAMP(z, 0.0f, 1.0f);
+        if (!rast__depth_simple(p, drow, x, z) || !crow) continue;
+        if (di->nvar >= 4) {
+            float w = 1.0f / (iwrow + t->iwdx * fx);
+            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            int k;
+            for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
+            rast__store_color(fb, crow, x, c);
+        } else {
+            rast__store_color(fb, crow, x, di->color);
+        }
+    }
+}
+
+/* A span of a triangle through the full fragment pipeline. */
+static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t, int y,
+                           int xs, int xe, float zrow, float iwrow, float b1row, float b2row) {
+    const rast__pipe *p = di->pipe;
+    const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
+    int nvar = di->nvar, k, x;
+    int derivs = (p->s.fragment_fn && p->s.fragment_derivatives) || p->fixed_texture;
+    int need_var = p->s.fragment_fn || (tl->fb->color && p->color_write);
+    for (x = xs; x < xe; ++x) {
+        float fx = (float)x + 0.5f - t->ox;
+        float z = zrow + t->zdx * fx;
+        float w = 1.0f / (iwrow + t->iwdx * fx);
+        if (need_var) {
+            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            for (k = 0; k < nvar; ++k) tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
+            if (derivs) { /* d(b/w * w): exact derivatives of the perspective division */
+                float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
+                float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
+                for (k = 0; k < nvar; ++k) {
+                    tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
+                    tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
+                }
+            }
+        }
+        rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
+                       derivs ? tl->ddy : NULL);
+    }
 }
 
 static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const rast__tri *t) {
-    const rast__pipe *p = di->pipe;
-    const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
-    int nvar = di->nvar, k;
     int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
     int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
     int64_t ea[3], eb[3], ec[3];
-    int x, y, i;
-    int derivs = rast__tri_needs_derivs(p);
-    /* varyings are needed before the tests with a callback, after otherwise */
-    int shade_first = p->s.fragment_fn != NULL;
-    int need_var = shade_first || (tl->fb->color && p->color_write) ;
+    int y, i;
     if (x0 >= x1 || y0 >= y1) return;
     /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
        positive inside. Top-left edges keep E == 0, others need E > 0. */
@@ -83,38 +152,15 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
         int64_t s0 = ea[0] * RAST__ONE, s1 = ea[1] * RAST__ONE, s2 = ea[2] * RAST__ONE;
         float fy = (float)y + 0.5f - t->oy;
-        float zrow = t->z0 + t->zdy * fy;
-        float iwrow = t->iw0 + t->iwdy * fy;
-        float b1row = t->b10 + t->b1dy * fy, b2row = t->b20 + t->b2dy * fy;
-        int inside_seen = 0;
-        for (x = x0; x < x1; ++x, e0 += s0, e1 += s1, e2 += s2) {
-            float fx, z, iw, w, b1, b2;
-            if ((e0 | e1 | e2) < 0) {
-                if (inside_seen) break; /* convex: the row's span has ended */
-                continue;
-            }
-            inside_seen = 1;
-            fx = (float)x + 0.5f - t->ox;
-            z = zrow + t->zdx * fx;
-            iw = iwrow + t->iwdx * fx;
-            w = 1.0f / iw;
-            if (need_var) {
-                b1 = (b1row + t->b1dx * fx) * w;
-                b2 = (b2row + t->b2dx * fx) * w;
-                for (k = 0; k < nvar; ++k)
-                    tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-                if (derivs) {
-                    float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
-                    float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
-                    for (k = 0; k < nvar; ++k) {
-                        tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
-                        tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
-                    }
-                }
-            }
-            rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
-                           derivs ? tl->ddy : NULL);
-        }
+        int xs = x0, xe;
+        /* the triangle is convex: its pixels on a row form one span */
+        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += s0; e1 += s1; e2 += s2; ++xs; }
+        if (xs == x1) continue;
+        xe = xs;
+        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += s0; e1 += s1; e2 += s2; ++xe; }
+        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(
+            di, tl, t, y, xs, xe, t->z0 + t->zdy * fy, t->iw0 + t->iwdy * fy,
+            t->b10 + t->b1dy * fy, t->b20 + t->b2dy * fy);
     }
 }
 
@@ -123,6 +169,19 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
     int x0 = RAST__MAX(pt->h.x0, tl->x0), x1 = RAST__MIN(pt->h.x1, tl->x1);
     int y0 = RAST__MAX(pt->h.y0, tl->y0), y1 = RAST__MIN(pt->h.y1, tl->y1);
     int x, y;
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    if (p->simple) {
+        float z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
+        const float *c = di->nvar >= 4 ? var : di->color;
+        for (y = y0; y < y1; ++y) {
+            float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+            uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+            for (x = x0; x < x1; ++x)
+                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(fb, crow, x, c);
+        }
+        return;
+    }
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x)
             rast__fragment(di, tl, x, y, pt->z, pt->w, 1, var, NULL, NULL);
@@ -132,7 +191,7 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
    coordinate lies in [start, end) (GL's half-open diamond rule, simplified);
    values interpolated perspective-correctly. */
 static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const rast__line *ln) {
-    const float *vw = (const float *)(ln + 1); /* v/w at both ends */
+    const float *vd = (const float *)(ln + 1); /* v0, v1 - v0 */
     float dx = ln->x[1] - ln->x[0], dy = ln->y[1] - ln->y[0];
     int xmajor = fabsf(dx) >= fabsf(dy);
     float a0 = xmajor ? ln->x[0] : ln->y[0], a1 = xmajor ? ln->x[1] : ln->y[1];
@@ -141,7 +200,7 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     int i0 = (int)ceilf(lo - 0.5f), i1 = (int)ceilf(hi - 0.5f), i, k;
     if (len == 0.0f) return;
     for (i = i0; i < i1; ++i) {
-        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w;
+        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w, up;
         int x, y;
         if (u < 0.0f) u = 0.0f;
         if (u > 1.0f) u = 1.0f;
@@ -153,8 +212,8 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
         z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
         iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
         w = 1.0f / iw;
-        for (k = 0; k < di->nvar; ++k)
-            tl->var[k] = (vw[2 * k] + u * (vw[2 * k + 1] - vw[2 * k])) * w;
+        up = u * ln->iw[1] * w; /* the perspective-correct parameter */
+        for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
         rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
     }
 }
@@ -175,6 +234,46 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
             if (p->fog) rast__apply_fog(p, 1.0f, rgba);
             rast__color_out(p, fb, x, y, rgba);
         }
+}
+
+/* All of a chunk's points in a tile, on a simple pipe. One-pixel points
+   (the common splat) take a branchless depth test: random depths would
+   mispredict a branch on every other point. */
+static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl,
+                                       const uint8_t *b, const uint8_t *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    size_t size = rast__rec_size(RAST__REC_POINT, di->nvar);
+    int depth = p->depth_on, write = p->depth_write, f32 = fb->color_f32;
+    for (; b < e; b += size) {
+        const rast__point *pt = (const rast__point *)b;
+        const float *c = di->nvar >= 4 ? (const float *)(pt + 1) : di->color;
+        int x = pt->h.x0, y = pt->h.y0;
+        float z, old, *dp;
+        uint8_t *cp;
+        int pass;
+        if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
+            y >= tl->y1 || f32 || !fb->color) {
+            rast__raster_point(di, tl, pt);
+            continue;
+        }
+        z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
+        cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
+        if (depth) {
+            dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
+            old = *dp;
+            pass = rast__compare_f(p->depth_func, z, old);
+            *dp = pass && write ? z : old;
+        } else {
+            pass = 1;
+        }
+        {
+            uint32_t now, packed = rast__pack_rgba8(c);
+            memcpy(&now, cp, 4);
+            now = pass ? packed : now;
+            memcpy(cp, &now, 4);
+        }
+    }
 }
 
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {

@@ -121,8 +121,8 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
         if (!(v[i]->pos[3] > 0.0f)) return;
         rast__to_window(p, v[i]->pos, &wx[i], &wy[i], &wz[i], &iw[i]);
         if (!(fabsf(wx[i]) < 1e6f && fabsf(wy[i]) < 1e6f)) return;
-        fx[i] = (int32_t)lrintf(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
-        fy[i] = (int32_t)lrintf(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+        fx[i] = (int32_t)rast__round(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
+        fy[i] = (int32_t)rast__round(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
     }
     area = ((int64_t)fx[1] - fx[0]) * ((int64_t)fy[2] - fy[0]) -
            ((int64_t)fx[2] - fx[0]) * ((int64_t)fy[1] - fy[0]);
@@ -237,19 +237,23 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     int x0, y0, x1, y1;
     rast__point *pt;
     if (!rast__vtx_finite(v, nvar)) return;
-    /* a point is clipped by its centre against near and far only: wide points
-       straddling the viewport edge still draw their visible part */
-    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3]) return;
+    /* GL clips a point by its centre: outside the clip volume it is gone,
+       inside it draws whole (clipped to the viewport by pixels) */
+    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3] ||
+        v->pos[0] < -v->pos[3] || v->pos[0] > v->pos[3] || v->pos[1] < -v->pos[3] ||
+        v->pos[1] > v->pos[3])
+        return;
     rast__to_window(p, v->pos, &wx, &wy, &wz, &iw);
     if (!(fabsf(wx) < 1e7f && fabsf(wy) < 1e7f)) return;
-    fx = lrintf(wx * (float)(1 << RAST_SUBPIXEL_BITS));
-    fy = lrintf(wy * (float)(1 << RAST_SUBPIXEL_BITS));
+    fx = rast__round(wx * (float)(1 << RAST_SUBPIXEL_BITS));
+    fy = rast__round(wy * (float)(1 << RAST_SUBPIXEL_BITS));
     /* the N x N square centred on the point covers the pixels whose centres
-       lie in [left, left + N) x [top, top + N) */
+       lie in [left, left + N) x (top, top + N]: ties go left and down, as
+       in llvmpipe (GL leaves them to the implementation) */
     left = fx - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     top = fy - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     x0 = (int)rast__floordiv(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(top + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
+    y0 = (int)rast__floordiv(top - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
@@ -276,6 +280,7 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     float lo_x, hi_x, lo_y, hi_y;
     if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar)) return;
     e[0] = *a; e[1] = *b;
+    if (p->s.shading == RAST_FLAT) memcpy(e[0].var, b->var, (size_t)nvar * sizeof(float));
     for (plane = 0; plane < 6; ++plane) {
         float d0 = rast__plane_dist(p, plane, e[0].pos), d1 = rast__plane_dist(p, plane, e[1].pos);
         if (d0 < 0.0f && d1 < 0.0f) return;
@@ -288,8 +293,8 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     for (k = 0; k < 2; ++k) rast__to_window(p, e[k].pos, &ln->x[k], &ln->y[k], &ln->z[k], &ln->iw[k]);
     vw = (float *)(ln + 1);
     for (k = 0; k < nvar; ++k) {
-        vw[2 * k] = e[0].var[k] * ln->iw[0];
-        vw[2 * k + 1] = e[1].var[k] * ln->iw[1];
+        vw[2 * k] = e[0].var[k];
+        vw[2 * k + 1] = e[1].var[k] - e[0].var[k];
     }
     lo_x = RAST__MIN(ln->x[0], ln->x[1]); hi_x = RAST__MAX(ln->x[0], ln->x[1]);
     lo_y = RAST__MIN(ln->y[0], ln->y[1]); hi_y = RAST__MAX(ln->y[0], ln->y[1]);
@@ -331,6 +336,30 @@ static int rast__fetch(const rast__cmd *cmd, int i, int layer, rast__vtx *v,
     return 1;
 }
 
+/* Points straight from the caller's array: the default vertex program
+   inlined, no per-vertex copies (the C3RC method splats millions). */
+static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
+    const rast__cmd *cmd = ch->cmd;
+    const rast_draw_desc *d = &cmd->d;
+    rast__vtx v;
+    int i, k;
+    for (i = p0; i < p1 && !ch->failed; ++i) {
+        const float *src = d->vertices + (size_t)i * (size_t)d->stride;
+        float in[4];
+        in[0] = src[0]; in[1] = src[1]; in[2] = src[2];
+        in[3] = d->position_size == 4 ? src[3] : 1.0f;
+        if (d->matrix) {
+            const float *m = d->matrix;
+            for (k = 0; k < 4; ++k)
+                v.pos[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
+        } else {
+            for (k = 0; k < 4; ++k) v.pos[k] = in[k];
+        }
+        for (k = 0; k < d->num_varyings; ++k) v.var[k] = src[d->position_size + k];
+        rast__setup_point(ch, &v);
+    }
+}
+
 /* Sets up primitives [p0, p1) of a draw into the chunk. */
 static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
     const rast__cmd *cmd = ch->cmd;
@@ -338,6 +367,10 @@ static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
     /* non-indexed draws run the vertex program here, once per vertex */
     rast_vertex_out scratch[3][RAST_MAX_VERTEX_OUTPUTS];
     int scratch_n[3], scratch_index[3];
+    if (vpp == 1 && !cmd->pipe->s.vertex_fn && !cmd->d.indices) {
+        rast__setup_points_direct(ch, p0, p1);
+        return;
+    }
     for (prim = p0; prim < p1 && !ch->failed; ++prim) {
         rast__vtx v[3];
         for (j = 0; j < vpp; ++j) scratch_index[j] = -1;
