@@ -1530,11 +1530,12 @@ static void rast__texture_sample_2d_grad(const rast_texture *tex, float s, float
    turns a range of a draw's primitives into records (rast__tri, rast__point,
    rast__line) in a chunk. Runs on workers, one chunk per job. */
 
-/* A clip-space vertex while clipping. */
-typedef struct rast__vtx {
-    float pos[4];
-    float var[RAST_MAX_VARYINGS];
-} rast__vtx;
+/* A clip-space vertex is a float array: x, y, z, w, then the varyings,
+   the layout of rast_vertex_out and of the vertex outputs of indexed draws,
+   so setup reads them in place. */
+enum { RAST__VTX_FLOATS = 4 + RAST_MAX_VARYINGS };
+typedef float rast__vtx;
+typedef char rast__vertex_out_is_packed[offsetof(rast_vertex_out, varyings) == 4 * sizeof(float) ? 1 : -1];
 
 enum { RAST__MAX_POLY = 16 };
 
@@ -1586,13 +1587,13 @@ static void rast__vertex_job(rast__cmd *cmd, int job) {
     }
 }
 
+/* Nonzero when every float is finite: v * 0 is 0 for finite v and NaN for
+   inf or NaN, and one NaN poisons the sum. */
 static int rast__vtx_finite(const rast__vtx *v, int nvar) {
+    float acc = 0.0f;
     int k;
-    for (k = 0; k < 4; ++k)
-        if (!rast__isfinite(v->pos[k])) return 0;
-    for (k = 0; k < nvar; ++k)
-        if (!rast__isfinite(v->var[k])) return 0;
-    return 1;
+    for (k = 0; k < 4 + nvar; ++k) acc += v[k] * 0.0f;
+    return acc == 0.0f;
 }
 
 /* Signed distance to clip plane `plane` (inside >= 0). */
@@ -1607,10 +1608,18 @@ static float rast__plane_dist(const rast__pipe *p, int plane, const float *c) {
     }
 }
 
+/* Bit `plane` set when the point is outside that plane. */
+static unsigned rast__outcode(const rast__pipe *p, const float *c) {
+    float gx = p->guard_x * c[3], gy = p->guard_y * c[3];
+    return (unsigned)(c[2] + c[3] < 0.0f) | (unsigned)(c[3] - c[2] < 0.0f) << 1 |
+           (unsigned)(gx - c[0] < 0.0f) << 2 | (unsigned)(gx + c[0] < 0.0f) << 3 |
+           (unsigned)(gy - c[1] < 0.0f) << 4 | (unsigned)(gy + c[1] < 0.0f) << 5;
+}
+
 static void rast__vtx_lerp(rast__vtx *o, const rast__vtx *a, const rast__vtx *b, float t, int nvar) {
     int k;
-    for (k = 0; k < 4; ++k) o->pos[k] = a->pos[k] + t * (b->pos[k] - a->pos[k]);
-    for (k = 0; k < nvar; ++k) o->var[k] = a->var[k] + t * (b->var[k] - a->var[k]);
+    for (k = 0; k < 4; ++k) o[k] = a[k] + t * (b[k] - a[k]);
+    for (k = 0; k < nvar; ++k) o[4 + k] = a[4 + k] + t * (b[4 + k] - a[4 + k]);
 }
 
 /* Window position of a clip-space point. */
@@ -1645,8 +1654,8 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     double dx1, dy1, dx2, dy2, inv_det;
     v[0] = va; v[1] = vb; v[2] = vc;
     for (i = 0; i < 3; ++i) {
-        if (!(v[i]->pos[3] > 0.0f)) return;
-        rast__to_window(p, v[i]->pos, &wx[i], &wy[i], &wz[i], &iw[i]);
+        if (!(v[i][3] > 0.0f)) return;
+        rast__to_window(p, (v[i]), &wx[i], &wy[i], &wz[i], &iw[i]);
         if (!(fabsf(wx[i]) < 1e6f && fabsf(wy[i]) < 1e6f)) return;
         fx[i] = (int32_t)rast__round(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
         fy[i] = (int32_t)rast__round(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
@@ -1706,9 +1715,9 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
         if (flat) {
             vd[3 * k] = flat[k]; vd[3 * k + 1] = 0.0f; vd[3 * k + 2] = 0.0f;
         } else {
-            vd[3 * k] = v[0]->var[k];
-            vd[3 * k + 1] = v[1]->var[k] - v[0]->var[k];
-            vd[3 * k + 2] = v[2]->var[k] - v[0]->var[k];
+            vd[3 * k] = v[0][4 + k];
+            vd[3 * k + 1] = v[1][4 + k] - v[0][4 + k];
+            vd[3 * k + 2] = v[2][4 + k] - v[0][4 + k];
         }
     }
 }
@@ -1721,38 +1730,38 @@ static void rast__setup_tri(rast__chunk *ch, const rast__vtx *a, const rast__vtx
     const rast__cmd *cmd = ch->cmd;
     const rast__pipe *p = cmd->pipe;
     int nvar = cmd->d.num_varyings, plane, i, n = 3, outside_any = 0;
-    const float *flat = p->s.shading == RAST_FLAT ? c->var : NULL;
-    rast__vtx buf[2][RAST__MAX_POLY];
-    rast__vtx *in = buf[0], *out = buf[1];
+    const float *flat = p->s.shading == RAST_FLAT ? c + 4 : NULL;
+    float buf[2][RAST__MAX_POLY][RAST__VTX_FLOATS];
+    float (*in)[RAST__VTX_FLOATS] = buf[0], (*out)[RAST__VTX_FLOATS] = buf[1];
     if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar) || !rast__vtx_finite(c, nvar))
         return;
-    for (plane = 0; plane < 6; ++plane) {
-        int oa = rast__plane_dist(p, plane, a->pos) < 0.0f;
-        int ob = rast__plane_dist(p, plane, b->pos) < 0.0f;
-        int oc = rast__plane_dist(p, plane, c->pos) < 0.0f;
-        if (oa && ob && oc) return; /* wholly outside one plane */
-        outside_any |= oa | ob | oc;
+    {
+        unsigned oa = rast__outcode(p, a), ob = rast__outcode(p, b), oc = rast__outcode(p, c);
+        if (oa & ob & oc) return; /* wholly outside one plane */
+        outside_any = (oa | ob | oc) != 0;
     }
     if (!outside_any) {
         rast__emit_tri(ch, a, b, c, flat);
         return;
     }
-    in[0] = *a; in[1] = *b; in[2] = *c;
+    memcpy(in[0], a, (size_t)(4 + nvar) * sizeof(float));
+    memcpy(in[1], b, (size_t)(4 + nvar) * sizeof(float));
+    memcpy(in[2], c, (size_t)(4 + nvar) * sizeof(float));
     for (plane = 0; plane < 6 && n >= 3; ++plane) {
         int m = 0;
         for (i = 0; i < n; ++i) {
-            const rast__vtx *u = &in[i], *w = &in[i + 1 == n ? 0 : i + 1];
-            float du = rast__plane_dist(p, plane, u->pos), dw = rast__plane_dist(p, plane, w->pos);
-            if (du >= 0.0f) out[m++] = *u;
+            const rast__vtx *u = in[i], *w = in[i + 1 == n ? 0 : i + 1];
+            float du = rast__plane_dist(p, plane, u), dw = rast__plane_dist(p, plane, w);
+            if (du >= 0.0f) memcpy(out[m++], u, (size_t)(4 + nvar) * sizeof(float));
             if ((du >= 0.0f) != (dw >= 0.0f) && m < RAST__MAX_POLY) {
-                if (du >= 0.0f) rast__vtx_lerp(&out[m++], u, w, du / (du - dw), nvar);
-                else rast__vtx_lerp(&out[m++], w, u, dw / (dw - du), nvar);
+                if (du >= 0.0f) rast__vtx_lerp(out[m++], u, w, du / (du - dw), nvar);
+                else rast__vtx_lerp(out[m++], w, u, dw / (dw - du), nvar);
             }
         }
         n = m;
-        { rast__vtx *t = in; in = out; out = t; }
+        { float (*t)[RAST__VTX_FLOATS] = in; in = out; out = t; }
     }
-    for (i = 1; i + 1 < n; ++i) rast__emit_tri(ch, &in[0], &in[i], &in[i + 1], flat);
+    for (i = 1; i + 1 < n; ++i) rast__emit_tri(ch, in[0], in[i], in[i + 1], flat);
 }
 
 static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
@@ -1766,11 +1775,11 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     if (!rast__vtx_finite(v, nvar)) return;
     /* GL clips a point by its centre: outside the clip volume it is gone,
        inside it draws whole (clipped to the viewport by pixels) */
-    if (!(v->pos[3] > 0.0f) || v->pos[2] < -v->pos[3] || v->pos[2] > v->pos[3] ||
-        v->pos[0] < -v->pos[3] || v->pos[0] > v->pos[3] || v->pos[1] < -v->pos[3] ||
-        v->pos[1] > v->pos[3])
+    if (!(v[3] > 0.0f) || v[2] < -v[3] || v[2] > v[3] ||
+        v[0] < -v[3] || v[0] > v[3] || v[1] < -v[3] ||
+        v[1] > v[3])
         return;
-    rast__to_window(p, v->pos, &wx, &wy, &wz, &iw);
+    rast__to_window(p, v, &wx, &wy, &wz, &iw);
     if (!(fabsf(wx) < 1e7f && fabsf(wy) < 1e7f)) return;
     fx = rast__round(wx * (float)(1 << RAST_SUBPIXEL_BITS));
     fy = rast__round(wy * (float)(1 << RAST_SUBPIXEL_BITS));
@@ -1793,35 +1802,36 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     pt->h.pad = 0;
     pt->h.x0 = x0; pt->h.y0 = y0; pt->h.x1 = x1; pt->h.y1 = y1;
     pt->z = wz;
-    pt->w = v->pos[3];
-    memcpy(pt + 1, v->var, (size_t)nvar * sizeof(float));
+    pt->w = v[3];
+    memcpy(pt + 1, (v + 4), (size_t)nvar * sizeof(float));
 }
 
 static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vtx *b) {
     const rast__cmd *cmd = ch->cmd;
     const rast__pipe *p = cmd->pipe;
     int nvar = cmd->d.num_varyings, plane, k;
-    rast__vtx e[2];
+    float e[2][RAST__VTX_FLOATS];
     float *vw;
     rast__line *ln;
     float lo_x, hi_x, lo_y, hi_y;
     if (!rast__vtx_finite(a, nvar) || !rast__vtx_finite(b, nvar)) return;
-    e[0] = *a; e[1] = *b;
-    if (p->s.shading == RAST_FLAT) memcpy(e[0].var, b->var, (size_t)nvar * sizeof(float));
+    memcpy(e[0], a, (size_t)(4 + nvar) * sizeof(float));
+    memcpy(e[1], b, (size_t)(4 + nvar) * sizeof(float));
+    if (p->s.shading == RAST_FLAT) memcpy(e[0] + 4, b + 4, (size_t)nvar * sizeof(float));
     for (plane = 0; plane < 6; ++plane) {
-        float d0 = rast__plane_dist(p, plane, e[0].pos), d1 = rast__plane_dist(p, plane, e[1].pos);
+        float d0 = rast__plane_dist(p, plane, e[0]), d1 = rast__plane_dist(p, plane, e[1]);
         if (d0 < 0.0f && d1 < 0.0f) return;
-        if (d0 < 0.0f) rast__vtx_lerp(&e[0], &e[1], &e[0], d1 / (d1 - d0), nvar);
-        else if (d1 < 0.0f) rast__vtx_lerp(&e[1], &e[0], &e[1], d0 / (d0 - d1), nvar);
+        if (d0 < 0.0f) rast__vtx_lerp(e[0], e[1], e[0], d1 / (d1 - d0), nvar);
+        else if (d1 < 0.0f) rast__vtx_lerp(e[1], e[0], e[1], d0 / (d0 - d1), nvar);
     }
-    if (!(e[0].pos[3] > 0.0f) || !(e[1].pos[3] > 0.0f)) return;
+    if (!(e[0][3] > 0.0f) || !(e[1][3] > 0.0f)) return;
     ln = (rast__line *)rast__chunk_push(ch, rast__rec_size(RAST__REC_LINE, nvar));
     if (!ln) return;
-    for (k = 0; k < 2; ++k) rast__to_window(p, e[k].pos, &ln->x[k], &ln->y[k], &ln->z[k], &ln->iw[k]);
+    for (k = 0; k < 2; ++k) rast__to_window(p, e[k], &ln->x[k], &ln->y[k], &ln->z[k], &ln->iw[k]);
     vw = (float *)(ln + 1);
     for (k = 0; k < nvar; ++k) {
-        vw[2 * k] = e[0].var[k];
-        vw[2 * k + 1] = e[1].var[k] - e[0].var[k];
+        vw[2 * k] = e[0][4 + k];
+        vw[2 * k + 1] = e[1][4 + k] - e[0][4 + k];
     }
     lo_x = RAST__MIN(ln->x[0], ln->x[1]); hi_x = RAST__MAX(ln->x[0], ln->x[1]);
     lo_y = RAST__MIN(ln->y[0], ln->y[1]); hi_y = RAST__MAX(ln->y[0], ln->y[1]);
@@ -1838,29 +1848,20 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     }
 }
 
-/* Fetches output `layer` of the vertex at position `i` of the draw into *v;
-   returns 0 when that vertex has no such output. */
-static int rast__fetch(const rast__cmd *cmd, int i, int layer, rast__vtx *v,
-                       rast_vertex_out *scratch, int *scratch_n, int *scratch_index) {
+/* Output `layer` of the vertex at position `i` of the draw, read in place,
+   or NULL when the vertex has no such output. */
+static const rast__vtx *rast__fetch(const rast__cmd *cmd, int i, int layer,
+                                    rast_vertex_out *scratch, int *scratch_n, int *scratch_index) {
     int index = cmd->d.indices ? (int)cmd->d.indices[i] : i;
-    int nvar = cmd->d.num_varyings;
     if (cmd->vout) {
-        size_t nf = rast__vout_floats(cmd);
-        const float *src;
-        if (layer >= cmd->vout_count[index]) return 0;
-        src = cmd->vout + ((size_t)index * (size_t)cmd->max_out + (size_t)layer) * nf;
-        memcpy(v->pos, src, 4 * sizeof(float));
-        memcpy(v->var, src + 4, (size_t)nvar * sizeof(float));
-        return 1;
+        if (layer >= cmd->vout_count[index]) return NULL;
+        return cmd->vout + ((size_t)index * (size_t)cmd->max_out + (size_t)layer) * rast__vout_floats(cmd);
     }
     if (*scratch_index != index) {
         *scratch_n = rast__vertex(cmd, index, scratch);
         *scratch_index = index;
     }
-    if (layer >= *scratch_n) return 0;
-    memcpy(v->pos, scratch[layer].position, 4 * sizeof(float));
-    memcpy(v->var, scratch[layer].varyings, (size_t)nvar * sizeof(float));
-    return 1;
+    return layer < *scratch_n ? scratch[layer].position : NULL;
 }
 
 /* Points straight from the caller's array: the default vertex program
@@ -1868,7 +1869,7 @@ static int rast__fetch(const rast__cmd *cmd, int i, int layer, rast__vtx *v,
 static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
     const rast__cmd *cmd = ch->cmd;
     const rast_draw_desc *d = &cmd->d;
-    rast__vtx v;
+    float v[RAST__VTX_FLOATS];
     int i, k;
     for (i = p0; i < p1 && !ch->failed; ++i) {
         const float *src = d->vertices + (size_t)i * (size_t)d->stride;
@@ -1878,12 +1879,12 @@ static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
         if (d->matrix) {
             const float *m = d->matrix;
             for (k = 0; k < 4; ++k)
-                v.pos[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
+                v[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
         } else {
-            for (k = 0; k < 4; ++k) v.pos[k] = in[k];
+            for (k = 0; k < 4; ++k) v[k] = in[k];
         }
-        for (k = 0; k < d->num_varyings; ++k) v.var[k] = src[d->position_size + k];
-        rast__setup_point(ch, &v);
+        for (k = 0; k < d->num_varyings; ++k) v[4 + k] = src[d->position_size + k];
+        rast__setup_point(ch, v);
     }
 }
 
@@ -1899,17 +1900,17 @@ static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
         return;
     }
     for (prim = p0; prim < p1 && !ch->failed; ++prim) {
-        rast__vtx v[3];
+        const rast__vtx *v[3];
         for (j = 0; j < vpp; ++j) scratch_index[j] = -1;
         for (layer = 0; layer < cmd->max_out; ++layer) {
             int ok = 1;
             for (j = 0; j < vpp && ok; ++j)
-                ok = rast__fetch(cmd, prim * vpp + j, layer, &v[j], scratch[j], &scratch_n[j],
-                                 &scratch_index[j]);
+                ok = (v[j] = rast__fetch(cmd, prim * vpp + j, layer, scratch[j], &scratch_n[j],
+                                         &scratch_index[j])) != NULL;
             if (!ok) break;
-            if (vpp == 3) rast__setup_tri(ch, &v[0], &v[1], &v[2]);
-            else if (vpp == 2) rast__setup_line(ch, &v[0], &v[1]);
-            else rast__setup_point(ch, &v[0]);
+            if (vpp == 3) rast__setup_tri(ch, v[0], v[1], v[2]);
+            else if (vpp == 2) rast__setup_line(ch, v[0], v[1]);
+            else rast__setup_point(ch, v[0]);
         }
     }
 }
