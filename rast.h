@@ -543,17 +543,16 @@ typedef struct rast__rec {
     int32_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip */
 } rast__rec;
 
-/* A triangle, oriented so the edge functions are positive inside.
-   Planes are relative to vertex 0 at absolute pixel centres, so a pixel
-   gets the same value whichever tile computes it. */
+/* A triangle, oriented so the edge functions are positive inside. The tile
+   worker gets its barycentrics from the integer edge functions at each pixel
+   centre, so a pixel gets the same values whichever tile computes it, and
+   setup computes no planes at all. */
 typedef struct rast__tri {
     rast__rec h;
     int32_t fx[3], fy[3];     /* window position, RAST_SUBPIXEL_BITS fraction */
-    float ox, oy;             /* vertex 0 in pixels */
-    float z0, zdx, zdy;       /* window depth */
-    float iw0, iwdx, iwdy;    /* 1 / w */
-    float b10, b1dx, b1dy;    /* barycentric of vertex 1, divided by w */
-    float b20, b2dx, b2dy;    /* barycentric of vertex 2, divided by w */
+    float inv_area;           /* 1 / the edge function of edge 0 at vertex 2 */
+    float z[3];               /* window depth */
+    float iw[3];              /* 1 / w */
     /* then num_varyings * 3 floats: v0, v1 - v0, v2 - v0 */
 } rast__tri;
 
@@ -1631,13 +1630,6 @@ static void rast__to_window(const rast__pipe *p, const float *c, float *x, float
     *iw = i;
 }
 
-/* Planes f = f0 + a * (x - x0) + b * (y - y0) through three window points. */
-static void rast__plane(double dx1, double dy1, double dx2, double dy2, double inv_det,
-                        double f0, double f1, double f2, float *a, float *b) {
-    *a = (float)(((f1 - f0) * dy2 - (f2 - f0) * dy1) * inv_det);
-    *b = (float)(((f2 - f0) * dx1 - (f1 - f0) * dx2) * inv_det);
-}
-
 /* Setup of a triangle that lies within the clip volume and the guard band. */
 static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb,
                            const rast__vtx *vc, const float *flat) {
@@ -1651,7 +1643,6 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     int front, x0, y0, x1, y1;
     rast__tri *t;
     float *vd;
-    double dx1, dy1, dx2, dy2, inv_det;
     v[0] = va; v[1] = vb; v[2] = vc;
     for (i = 0; i < 3; ++i) {
         if (!(v[i][3] > 0.0f)) return;
@@ -1694,22 +1685,13 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     t->h.front = (uint8_t)front;
     t->h.pad = 0;
     t->h.x0 = x0; t->h.y0 = y0; t->h.x1 = x1; t->h.y1 = y1;
-    for (i = 0; i < 3; ++i) { t->fx[i] = fx[i]; t->fy[i] = fy[i]; }
-    t->ox = (float)fx[0] / (float)(1 << RAST_SUBPIXEL_BITS);
-    t->oy = (float)fy[0] / (float)(1 << RAST_SUBPIXEL_BITS);
-    dx1 = (double)(fx[1] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dy1 = (double)(fy[1] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dx2 = (double)(fx[2] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dy2 = (double)(fy[2] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
-    inv_det = 1.0 / (dx1 * dy2 - dx2 * dy1);
-    t->z0 = wz[0];
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, wz[0], wz[1], wz[2], &t->zdx, &t->zdy);
-    t->iw0 = iw[0];
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, iw[0], iw[1], iw[2], &t->iwdx, &t->iwdy);
-    t->b10 = 0.0f;
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, iw[1], 0.0, &t->b1dx, &t->b1dy);
-    t->b20 = 0.0f;
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, 0.0, iw[2], &t->b2dx, &t->b2dy);
+    for (i = 0; i < 3; ++i) {
+        t->fx[i] = fx[i];
+        t->fy[i] = fy[i];
+        t->z[i] = wz[i];
+        t->iw[i] = iw[i];
+    }
+    t->inv_area = (float)(1.0 / (double)area);
     vd = (float *)(t + 1);
     for (k = 0; k < nvar; ++k) {
         if (flat) {
@@ -2280,25 +2262,34 @@ static int rast__depth_simple(const rast__pipe *p, float *drow, int x, float z) 
     return 1;
 }
 
+/* Where a span starts: the edge functions of edges 0 and 2 at its first
+   pixel and their steps, which give the barycentrics of vertices 2 and 1. */
+typedef struct rast__span {
+    int y, xs, xe;
+    int64_t e0, e2, s0, s2;
+} rast__span;
+
 /* A span of a triangle on a simple pipe: depth test, then the interpolated
    colour (or the draw colour) straight into the target. */
 static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
-                                  int y, int xs, int xe, float zrow, float iwrow, float b1row,
-                                  float b2row) {
+                                  const rast__span *sp) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
     const float *vd = (const float *)(t + 1);
-    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
-    uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)sp->y * (size_t)fb->depth_stride) : NULL;
+    uint8_t *crow = fb->color ? fb->color + (size_t)sp->y * (size_t)fb->color_stride : NULL;
+    float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
+    float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
+    int64_t e0 = sp->e0, e2 = sp->e2;
     int x;
-    for (x = xs; x < xe; ++x) {
-        float fx = (float)x + 0.5f - t->ox;
-        float z = zrow + t->zdx * fx, c[4];
+    for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+        float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+        float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];
         z = RAST__CLAMP(z, 0.0f, 1.0f);
         if (!rast__depth_simple(p, drow, x, z) || !crow) continue;
         if (di->nvar >= 4) {
-            float w = 1.0f / (iwrow + t->iwdx * fx);
-            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            float w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
+            float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
             rast__store_color(fb, crow, x, c);
@@ -2309,30 +2300,39 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
 }
 
 /* A span of a triangle through the full fragment pipeline. */
-static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t, int y,
-                           int xs, int xe, float zrow, float iwrow, float b1row, float b2row) {
+static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
+                           const rast__span *sp) {
     const rast__pipe *p = di->pipe;
     const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
     int nvar = di->nvar, k, x;
     int derivs = (p->s.fragment_fn && p->s.fragment_derivatives) || p->fixed_texture;
     int need_var = p->s.fragment_fn || (tl->fb->color && p->color_write);
-    for (x = xs; x < xe; ++x) {
-        float fx = (float)x + 0.5f - t->ox;
-        float z = zrow + t->zdx * fx;
-        float w = 1.0f / (iwrow + t->iwdx * fx);
+    float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
+    float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
+    /* screen derivatives of the linear barycentrics: one pixel steps the
+       edge functions by s in x and by the edge's dx in y */
+    float l1x = (float)sp->s2 * t->inv_area, l2x = (float)sp->s0 * t->inv_area;
+    float l1y = (float)(t->fx[0] - t->fx[2]) * (float)(1 << RAST_SUBPIXEL_BITS) * t->inv_area;
+    float l2y = (float)(t->fx[1] - t->fx[0]) * (float)(1 << RAST_SUBPIXEL_BITS) * t->inv_area;
+    int64_t e0 = sp->e0, e2 = sp->e2;
+    for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+        float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+        float z = t->z[0] + l1 * dz1 + l2 * dz2;
+        float iw = t->iw[0] + l1 * diw1 + l2 * diw2, w = 1.0f / iw;
         if (need_var) {
-            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             for (k = 0; k < nvar; ++k) tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-            if (derivs) { /* d(b/w * w): exact derivatives of the perspective division */
-                float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
-                float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
+            if (derivs) { /* derivatives of b = l * iw_vertex / iw, exact */
+                float iwx = l1x * diw1 + l2x * diw2, iwy = l1y * diw1 + l2y * diw2;
+                float b1x = (l1x * t->iw[1] - b1 * iwx) * w, b1y = (l1y * t->iw[1] - b1 * iwy) * w;
+                float b2x = (l2x * t->iw[2] - b2 * iwx) * w, b2y = (l2y * t->iw[2] - b2 * iwy) * w;
                 for (k = 0; k < nvar; ++k) {
                     tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
                     tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
                 }
             }
         }
-        rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
+        rast__fragment(di, tl, x, sp->y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
                        derivs ? tl->ddy : NULL);
     }
 }
@@ -2341,7 +2341,8 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
     int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
     int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
     int64_t ea[3], eb[3], ec[3];
-    int y, i;
+    int i;
+    rast__span sp;
     if (x0 >= x1 || y0 >= y1) return;
     /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
        positive inside. Top-left edges keep E == 0, others need E > 0. */
@@ -2353,23 +2354,26 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         eb[i] = dx;
         ec[i] = dy * t->fx[i] - dx * t->fy[i] - (top_left ? 0 : 1);
     }
-    for (y = y0; y < y1; ++y) {
-        int64_t py = (int64_t)y * RAST__ONE + RAST__HALF;
+    sp.s0 = ea[0] * RAST__ONE;
+    sp.s2 = ea[2] * RAST__ONE;
+    for (sp.y = y0; sp.y < y1; ++sp.y) {
+        int64_t py = (int64_t)sp.y * RAST__ONE + RAST__HALF;
         int64_t px = (int64_t)x0 * RAST__ONE + RAST__HALF;
         int64_t e0 = ea[0] * px + eb[0] * py + ec[0];
         int64_t e1 = ea[1] * px + eb[1] * py + ec[1];
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
-        int64_t s0 = ea[0] * RAST__ONE, s1 = ea[1] * RAST__ONE, s2 = ea[2] * RAST__ONE;
-        float fy = (float)y + 0.5f - t->oy;
+        int64_t s1 = ea[1] * RAST__ONE;
         int xs = x0, xe;
         /* the triangle is convex: its pixels on a row form one span */
-        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += s0; e1 += s1; e2 += s2; ++xs; }
+        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xs; }
         if (xs == x1) continue;
+        sp.xs = xs;
+        sp.e0 = e0;
+        sp.e2 = e2;
         xe = xs;
-        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += s0; e1 += s1; e2 += s2; ++xe; }
-        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(
-            di, tl, t, y, xs, xe, t->z0 + t->zdy * fy, t->iw0 + t->iwdy * fy,
-            t->b10 + t->b1dy * fy, t->b20 + t->b2dy * fy);
+        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xe; }
+        sp.xe = xe;
+        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
     }
 }
 

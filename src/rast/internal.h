@@ -92,17 +92,16 @@ typedef struct rast__rec {
     int32_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip */
 } rast__rec;
 
-/* A triangle, oriented so the edge functions are positive inside.
-   Planes are relative to vertex 0 at absolute pixel centres, so a pixel
-   gets the same value whichever tile computes it. */
+/* A triangle, oriented so the edge functions are positive inside. The tile
+   worker gets its barycentrics from the integer edge functions at each pixel
+   centre, so a pixel gets the same values whichever tile computes it, and
+   setup computes no planes at all. */
 typedef struct rast__tri {
     rast__rec h;
     int32_t fx[3], fy[3];     /* window position, RAST_SUBPIXEL_BITS fraction */
-    float ox, oy;             /* vertex 0 in pixels */
-    float z0, zdx, zdy;       /* window depth */
-    float iw0, iwdx, iwdy;    /* 1 / w */
-    float b10, b1dx, b1dy;    /* barycentric of vertex 1, divided by w */
-    float b20, b2dx, b2dy;    /* barycentric of vertex 2, divided by w */
+    float inv_area;           /* 1 / the edge function of edge 0 at vertex 2 */
+    float z[3];               /* window depth */
+    float iw[3];              /* 1 / w */
     /* then num_varyings * 3 floats: v0, v1 - v0, v2 - v0 */
 } rast__tri;
 

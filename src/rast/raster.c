@@ -71,25 +71,34 @@ static int rast__depth_simple(const rast__pipe *p, float *drow, int x, float z) 
     return 1;
 }
 
+/* Where a span starts: the edge functions of edges 0 and 2 at its first
+   pixel and their steps, which give the barycentrics of vertices 2 and 1. */
+typedef struct rast__span {
+    int y, xs, xe;
+    int64_t e0, e2, s0, s2;
+} rast__span;
+
 /* A span of a triangle on a simple pipe: depth test, then the interpolated
    colour (or the draw colour) straight into the target. */
 static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
-                                  int y, int xs, int xe, float zrow, float iwrow, float b1row,
-                                  float b2row) {
+                                  const rast__span *sp) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
     const float *vd = (const float *)(t + 1);
-    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
-    uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
+    float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)sp->y * (size_t)fb->depth_stride) : NULL;
+    uint8_t *crow = fb->color ? fb->color + (size_t)sp->y * (size_t)fb->color_stride : NULL;
+    float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
+    float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
+    int64_t e0 = sp->e0, e2 = sp->e2;
     int x;
-    for (x = xs; x < xe; ++x) {
-        float fx = (float)x + 0.5f - t->ox;
-        float z = zrow + t->zdx * fx, c[4];
+    for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+        float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+        float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];
         z = RAST__CLAMP(z, 0.0f, 1.0f);
         if (!rast__depth_simple(p, drow, x, z) || !crow) continue;
         if (di->nvar >= 4) {
-            float w = 1.0f / (iwrow + t->iwdx * fx);
-            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            float w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
+            float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
             rast__store_color(fb, crow, x, c);
@@ -100,30 +109,39 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
 }
 
 /* A span of a triangle through the full fragment pipeline. */
-static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t, int y,
-                           int xs, int xe, float zrow, float iwrow, float b1row, float b2row) {
+static void rast__tri_span(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
+                           const rast__span *sp) {
     const rast__pipe *p = di->pipe;
     const float *vd = (const float *)(t + 1); /* v0, v1 - v0, v2 - v0 per varying */
     int nvar = di->nvar, k, x;
     int derivs = (p->s.fragment_fn && p->s.fragment_derivatives) || p->fixed_texture;
     int need_var = p->s.fragment_fn || (tl->fb->color && p->color_write);
-    for (x = xs; x < xe; ++x) {
-        float fx = (float)x + 0.5f - t->ox;
-        float z = zrow + t->zdx * fx;
-        float w = 1.0f / (iwrow + t->iwdx * fx);
+    float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
+    float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
+    /* screen derivatives of the linear barycentrics: one pixel steps the
+       edge functions by s in x and by the edge's dx in y */
+    float l1x = (float)sp->s2 * t->inv_area, l2x = (float)sp->s0 * t->inv_area;
+    float l1y = (float)(t->fx[0] - t->fx[2]) * (float)(1 << RAST_SUBPIXEL_BITS) * t->inv_area;
+    float l2y = (float)(t->fx[1] - t->fx[0]) * (float)(1 << RAST_SUBPIXEL_BITS) * t->inv_area;
+    int64_t e0 = sp->e0, e2 = sp->e2;
+    for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+        float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+        float z = t->z[0] + l1 * dz1 + l2 * dz2;
+        float iw = t->iw[0] + l1 * diw1 + l2 * diw2, w = 1.0f / iw;
         if (need_var) {
-            float b1 = (b1row + t->b1dx * fx) * w, b2 = (b2row + t->b2dx * fx) * w;
+            float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             for (k = 0; k < nvar; ++k) tl->var[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-            if (derivs) { /* d(b/w * w): exact derivatives of the perspective division */
-                float b1x = (t->b1dx - b1 * t->iwdx) * w, b1y = (t->b1dy - b1 * t->iwdy) * w;
-                float b2x = (t->b2dx - b2 * t->iwdx) * w, b2y = (t->b2dy - b2 * t->iwdy) * w;
+            if (derivs) { /* derivatives of b = l * iw_vertex / iw, exact */
+                float iwx = l1x * diw1 + l2x * diw2, iwy = l1y * diw1 + l2y * diw2;
+                float b1x = (l1x * t->iw[1] - b1 * iwx) * w, b1y = (l1y * t->iw[1] - b1 * iwy) * w;
+                float b2x = (l2x * t->iw[2] - b2 * iwx) * w, b2y = (l2y * t->iw[2] - b2 * iwy) * w;
                 for (k = 0; k < nvar; ++k) {
                     tl->ddx[k] = b1x * vd[3 * k + 1] + b2x * vd[3 * k + 2];
                     tl->ddy[k] = b1y * vd[3 * k + 1] + b2y * vd[3 * k + 2];
                 }
             }
         }
-        rast__fragment(di, tl, x, y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
+        rast__fragment(di, tl, x, sp->y, z, w, t->h.front, tl->var, derivs ? tl->ddx : NULL,
                        derivs ? tl->ddy : NULL);
     }
 }
@@ -132,7 +150,8 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
     int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
     int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
     int64_t ea[3], eb[3], ec[3];
-    int y, i;
+    int i;
+    rast__span sp;
     if (x0 >= x1 || y0 >= y1) return;
     /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
        positive inside. Top-left edges keep E == 0, others need E > 0. */
@@ -144,23 +163,26 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         eb[i] = dx;
         ec[i] = dy * t->fx[i] - dx * t->fy[i] - (top_left ? 0 : 1);
     }
-    for (y = y0; y < y1; ++y) {
-        int64_t py = (int64_t)y * RAST__ONE + RAST__HALF;
+    sp.s0 = ea[0] * RAST__ONE;
+    sp.s2 = ea[2] * RAST__ONE;
+    for (sp.y = y0; sp.y < y1; ++sp.y) {
+        int64_t py = (int64_t)sp.y * RAST__ONE + RAST__HALF;
         int64_t px = (int64_t)x0 * RAST__ONE + RAST__HALF;
         int64_t e0 = ea[0] * px + eb[0] * py + ec[0];
         int64_t e1 = ea[1] * px + eb[1] * py + ec[1];
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
-        int64_t s0 = ea[0] * RAST__ONE, s1 = ea[1] * RAST__ONE, s2 = ea[2] * RAST__ONE;
-        float fy = (float)y + 0.5f - t->oy;
+        int64_t s1 = ea[1] * RAST__ONE;
         int xs = x0, xe;
         /* the triangle is convex: its pixels on a row form one span */
-        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += s0; e1 += s1; e2 += s2; ++xs; }
+        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xs; }
         if (xs == x1) continue;
+        sp.xs = xs;
+        sp.e0 = e0;
+        sp.e2 = e2;
         xe = xs;
-        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += s0; e1 += s1; e2 += s2; ++xe; }
-        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(
-            di, tl, t, y, xs, xe, t->z0 + t->zdy * fy, t->iw0 + t->iwdy * fy,
-            t->b10 + t->b1dy * fy, t->b20 + t->b2dy * fy);
+        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xe; }
+        sp.xe = xe;
+        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
     }
 }
 

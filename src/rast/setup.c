@@ -104,13 +104,6 @@ static void rast__to_window(const rast__pipe *p, const float *c, float *x, float
     *iw = i;
 }
 
-/* Planes f = f0 + a * (x - x0) + b * (y - y0) through three window points. */
-static void rast__plane(double dx1, double dy1, double dx2, double dy2, double inv_det,
-                        double f0, double f1, double f2, float *a, float *b) {
-    *a = (float)(((f1 - f0) * dy2 - (f2 - f0) * dy1) * inv_det);
-    *b = (float)(((f2 - f0) * dx1 - (f1 - f0) * dx2) * inv_det);
-}
-
 /* Setup of a triangle that lies within the clip volume and the guard band. */
 static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb,
                            const rast__vtx *vc, const float *flat) {
@@ -124,7 +117,6 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     int front, x0, y0, x1, y1;
     rast__tri *t;
     float *vd;
-    double dx1, dy1, dx2, dy2, inv_det;
     v[0] = va; v[1] = vb; v[2] = vc;
     for (i = 0; i < 3; ++i) {
         if (!(v[i][3] > 0.0f)) return;
@@ -167,22 +159,13 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     t->h.front = (uint8_t)front;
     t->h.pad = 0;
     t->h.x0 = x0; t->h.y0 = y0; t->h.x1 = x1; t->h.y1 = y1;
-    for (i = 0; i < 3; ++i) { t->fx[i] = fx[i]; t->fy[i] = fy[i]; }
-    t->ox = (float)fx[0] / (float)(1 << RAST_SUBPIXEL_BITS);
-    t->oy = (float)fy[0] / (float)(1 << RAST_SUBPIXEL_BITS);
-    dx1 = (double)(fx[1] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dy1 = (double)(fy[1] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dx2 = (double)(fx[2] - fx[0]) / (1 << RAST_SUBPIXEL_BITS);
-    dy2 = (double)(fy[2] - fy[0]) / (1 << RAST_SUBPIXEL_BITS);
-    inv_det = 1.0 / (dx1 * dy2 - dx2 * dy1);
-    t->z0 = wz[0];
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, wz[0], wz[1], wz[2], &t->zdx, &t->zdy);
-    t->iw0 = iw[0];
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, iw[0], iw[1], iw[2], &t->iwdx, &t->iwdy);
-    t->b10 = 0.0f;
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, iw[1], 0.0, &t->b1dx, &t->b1dy);
-    t->b20 = 0.0f;
-    rast__plane(dx1, dy1, dx2, dy2, inv_det, 0.0, 0.0, iw[2], &t->b2dx, &t->b2dy);
+    for (i = 0; i < 3; ++i) {
+        t->fx[i] = fx[i];
+        t->fy[i] = fy[i];
+        t->z[i] = wz[i];
+        t->iw[i] = iw[i];
+    }
+    t->inv_area = (float)(1.0 / (double)area);
     vd = (float *)(t + 1);
     for (k = 0; k < nvar; ++k) {
         if (flat) {
