@@ -353,7 +353,7 @@ typedef struct rast_state {
     rast_cull cull;
     rast_front_face front_face;
     rast_shading shading;
-    float point_size;          /* rounded to an integer in [1, 256]; 0: 1 */
+    float point_size;          /* rounded, clamped to [1, 256]; 0: 1; < 0 is an error */
 
     int stencil_test;
     rast_stencil_face stencil_front, stencil_back;
@@ -669,9 +669,11 @@ static void *rast__chunk_push(rast__chunk *c, size_t size) {
     return p;
 }
 
-static int64_t rast__floordiv(int64_t a, int64_t b) {
-    int64_t q = a / b;
-    return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+/* floor(a / 2^RAST_SUBPIXEL_BITS): pixel index of a fixed-point coordinate,
+   without a division or an implementation-defined shift of a negative. */
+static int64_t rast__floor_px(int64_t a) {
+    const int64_t mask = ((int64_t)1 << RAST_SUBPIXEL_BITS) - 1;
+    return a >= 0 ? a >> RAST_SUBPIXEL_BITS : -((-a + mask) >> RAST_SUBPIXEL_BITS);
 }
 
 struct rast__pool;
@@ -976,7 +978,7 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
         s->color_write > 0x1FFu || s->viewport[2] < 0 || s->viewport[3] < 0 ||
         (s->scissor_test && (s->scissor[2] < 0 || s->scissor[3] < 0)) ||
         s->max_vertex_outputs < 0 || s->max_vertex_outputs > RAST_MAX_VERTEX_OUTPUTS ||
-        !(s->point_size >= 0.0f && s->point_size <= (float)RAST_MAX_POINT_SIZE) ||
+        !(s->point_size >= 0.0f) || /* NaN too; sizes above the maximum clamp */
         !rast__isfinite(s->depth_offset) || s->fog_varying < 0 || s->fog_varying > RAST_MAX_VARYINGS ||
         s->texcoord_varying < 0 || s->texcoord_varying >= RAST_MAX_VARYINGS)
         return RAST_ERROR_INVALID_ARGUMENT;
@@ -1027,7 +1029,9 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
         p->clip[2] = RAST__MIN(p->clip[2], s->scissor[0] + s->scissor[2]);
         p->clip[3] = RAST__MIN(p->clip[3], s->scissor[1] + s->scissor[3]);
     }
-    p->point_size = s->point_size > 0.0f ? (int)floorf(s->point_size + 0.5f) : 1;
+    p->point_size = s->point_size > 0.0f
+                        ? (int)floorf(RAST__MIN(s->point_size, (float)RAST_MAX_POINT_SIZE) + 0.5f)
+                        : 1;
     p->point_size = RAST__CLAMP(p->point_size, 1, (int)RAST_MAX_POINT_SIZE);
     p->cull_back = s->cull == RAST_CULL_BACK || s->cull == RAST_CULL_FRONT_AND_BACK;
     p->cull_front = s->cull == RAST_CULL_FRONT || s->cull == RAST_CULL_FRONT_AND_BACK;
@@ -1671,10 +1675,10 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     miny = RAST__MIN(fy[0], RAST__MIN(fy[1], fy[2]));
     maxy = RAST__MAX(fy[0], RAST__MAX(fy[1], fy[2]));
     /* pixels whose centre (i + 1/2) can lie inside */
-    x0 = (int)rast__floordiv(minx + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(miny + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    x1 = (int)rast__floordiv(maxx - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
-    y1 = (int)rast__floordiv(maxy - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    x0 = (int)rast__floor_px(minx + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    y0 = (int)rast__floor_px(miny + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    x1 = (int)rast__floor_px(maxx - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
+    y1 = (int)rast__floor_px(maxy - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
     x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
     if (x0 >= x1 || y0 >= y1) return;
@@ -1770,8 +1774,8 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
        in llvmpipe (GL leaves them to the implementation) */
     left = fx - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     top = fy - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
-    x0 = (int)rast__floordiv(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(top - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    x0 = (int)rast__floor_px(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    y0 = (int)rast__floor_px(top - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
@@ -2400,34 +2404,36 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
             rast__fragment(di, tl, x, y, pt->z, pt->w, 1, var, NULL, NULL);
 }
 
-/* A 1-pixel line: along the major axis, one pixel per pixel centre whose
-   coordinate lies in [start, end) (GL's half-open diamond rule, simplified);
-   values interpolated perspective-correctly. */
+/* A 1-pixel line: one pixel per step along the major axis, from the pixel
+   holding the start to the one before the pixel holding the end (GL's
+   diamond-exit rule, simplified: the last pixel is left to the next line of
+   a strip). Values are interpolated perspective-correctly. */
 static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const rast__line *ln) {
     const float *vd = (const float *)(ln + 1); /* v0, v1 - v0 */
     float dx = ln->x[1] - ln->x[0], dy = ln->y[1] - ln->y[0];
     int xmajor = fabsf(dx) >= fabsf(dy);
     float a0 = xmajor ? ln->x[0] : ln->y[0], a1 = xmajor ? ln->x[1] : ln->y[1];
-    float lo = RAST__MIN(a0, a1), hi = RAST__MAX(a0, a1);
     float len = a1 - a0;
-    int i0 = (int)ceilf(lo - 0.5f), i1 = (int)ceilf(hi - 0.5f), i, k;
-    if (len == 0.0f) return;
-    for (i = i0; i < i1; ++i) {
-        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w, up;
+    int s0 = (int)floorf(a0), s1 = (int)floorf(a1), step = s1 >= s0 ? 1 : -1, i, k;
+    for (i = s0;; i += step) {
+        float c = (float)i + 0.5f, u, o, z, iw, w, up;
         int x, y;
-        if (u < 0.0f) u = 0.0f;
-        if (u > 1.0f) u = 1.0f;
+        if (i == s1 && s1 != s0) break;
+        u = len != 0.0f ? (c - a0) / len : 0.0f;
+        u = RAST__CLAMP(u, 0.0f, 1.0f);
         o = xmajor ? ln->y[0] + u * dy : ln->x[0] + u * dx;
         x = xmajor ? i : (int)floorf(o);
         y = xmajor ? (int)floorf(o) : i;
-        if (x < tl->x0 || x >= tl->x1 || y < tl->y0 || y >= tl->y1) continue;
-        if (x < ln->h.x0 || x >= ln->h.x1 || y < ln->h.y0 || y >= ln->h.y1) continue;
-        z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
-        iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
-        w = 1.0f / iw;
-        up = u * ln->iw[1] * w; /* the perspective-correct parameter */
-        for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
-        rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
+        if (x >= tl->x0 && x < tl->x1 && y >= tl->y0 && y < tl->y1 && x >= ln->h.x0 &&
+            x < ln->h.x1 && y >= ln->h.y0 && y < ln->h.y1) {
+            z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
+            iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
+            w = 1.0f / iw;
+            up = u * ln->iw[1] * w; /* the perspective-correct parameter */
+            for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
+            rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
+        }
+        if (i == s1) break;
     }
 }
 

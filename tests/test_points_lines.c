@@ -449,7 +449,9 @@ Test(lines, near_clipped_lines) {
         long count = 0;
         int k;
         if (c == 0) { P1[0] = 0.9 * 2; P1[1] = -0.7 * 2; P1[2] = -3.0; P1[3] = 2.0; }
-        else { P1[0] = 0.5; P1[1] = 0.8; P1[2] = -2.0; P1[3] = -1.0; }
+        else { P1[0] = 8.13; P1[1] = -7.54; P1[2] = -6.0; P1[3] = -1.0; } /* behind the eye;
+            its naive projection (-8.13, 7.54) lies up-left, the visible part runs
+            down-right to NDC (0.5, -0.4) */
         /* near plane: z + w = 0 along P0 + t (P1 - P0) */
         t = (P0[2] + P0[3]) / ((P0[2] + P0[3]) - (P1[2] + P1[3]));
         for (k = 0; k < 4; k++) Pc[k] = P0[k] + t * (P1[k] - P0[k]);

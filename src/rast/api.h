@@ -351,7 +351,7 @@ typedef struct rast_state {
     rast_cull cull;
     rast_front_face front_face;
     rast_shading shading;
-    float point_size;          /* rounded to an integer in [1, 256]; 0: 1 */
+    float point_size;          /* rounded, clamped to [1, 256]; 0: 1; < 0 is an error */
 
     int stencil_test;
     rast_stencil_face stencil_front, stencil_back;

@@ -160,7 +160,7 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
         s->color_write > 0x1FFu || s->viewport[2] < 0 || s->viewport[3] < 0 ||
         (s->scissor_test && (s->scissor[2] < 0 || s->scissor[3] < 0)) ||
         s->max_vertex_outputs < 0 || s->max_vertex_outputs > RAST_MAX_VERTEX_OUTPUTS ||
-        !(s->point_size >= 0.0f && s->point_size <= (float)RAST_MAX_POINT_SIZE) ||
+        !(s->point_size >= 0.0f) || /* NaN too; sizes above the maximum clamp */
         !rast__isfinite(s->depth_offset) || s->fog_varying < 0 || s->fog_varying > RAST_MAX_VARYINGS ||
         s->texcoord_varying < 0 || s->texcoord_varying >= RAST_MAX_VARYINGS)
         return RAST_ERROR_INVALID_ARGUMENT;
@@ -211,7 +211,9 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
         p->clip[2] = RAST__MIN(p->clip[2], s->scissor[0] + s->scissor[2]);
         p->clip[3] = RAST__MIN(p->clip[3], s->scissor[1] + s->scissor[3]);
     }
-    p->point_size = s->point_size > 0.0f ? (int)floorf(s->point_size + 0.5f) : 1;
+    p->point_size = s->point_size > 0.0f
+                        ? (int)floorf(RAST__MIN(s->point_size, (float)RAST_MAX_POINT_SIZE) + 0.5f)
+                        : 1;
     p->point_size = RAST__CLAMP(p->point_size, 1, (int)RAST_MAX_POINT_SIZE);
     p->cull_back = s->cull == RAST_CULL_BACK || s->cull == RAST_CULL_FRONT_AND_BACK;
     p->cull_front = s->cull == RAST_CULL_FRONT || s->cull == RAST_CULL_FRONT_AND_BACK;

@@ -218,9 +218,11 @@ static void *rast__chunk_push(rast__chunk *c, size_t size) {
     return p;
 }
 
-static int64_t rast__floordiv(int64_t a, int64_t b) {
-    int64_t q = a / b;
-    return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+/* floor(a / 2^RAST_SUBPIXEL_BITS): pixel index of a fixed-point coordinate,
+   without a division or an implementation-defined shift of a negative. */
+static int64_t rast__floor_px(int64_t a) {
+    const int64_t mask = ((int64_t)1 << RAST_SUBPIXEL_BITS) - 1;
+    return a >= 0 ? a >> RAST_SUBPIXEL_BITS : -((-a + mask) >> RAST_SUBPIXEL_BITS);
 }
 
 struct rast__pool;

@@ -209,34 +209,36 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
             rast__fragment(di, tl, x, y, pt->z, pt->w, 1, var, NULL, NULL);
 }
 
-/* A 1-pixel line: along the major axis, one pixel per pixel centre whose
-   coordinate lies in [start, end) (GL's half-open diamond rule, simplified);
-   values interpolated perspective-correctly. */
+/* A 1-pixel line: one pixel per step along the major axis, from the pixel
+   holding the start to the one before the pixel holding the end (GL's
+   diamond-exit rule, simplified: the last pixel is left to the next line of
+   a strip). Values are interpolated perspective-correctly. */
 static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const rast__line *ln) {
     const float *vd = (const float *)(ln + 1); /* v0, v1 - v0 */
     float dx = ln->x[1] - ln->x[0], dy = ln->y[1] - ln->y[0];
     int xmajor = fabsf(dx) >= fabsf(dy);
     float a0 = xmajor ? ln->x[0] : ln->y[0], a1 = xmajor ? ln->x[1] : ln->y[1];
-    float lo = RAST__MIN(a0, a1), hi = RAST__MAX(a0, a1);
     float len = a1 - a0;
-    int i0 = (int)ceilf(lo - 0.5f), i1 = (int)ceilf(hi - 0.5f), i, k;
-    if (len == 0.0f) return;
-    for (i = i0; i < i1; ++i) {
-        float c = (float)i + 0.5f, u = (c - a0) / len, o, z, iw, w, up;
+    int s0 = (int)floorf(a0), s1 = (int)floorf(a1), step = s1 >= s0 ? 1 : -1, i, k;
+    for (i = s0;; i += step) {
+        float c = (float)i + 0.5f, u, o, z, iw, w, up;
         int x, y;
-        if (u < 0.0f) u = 0.0f;
-        if (u > 1.0f) u = 1.0f;
+        if (i == s1 && s1 != s0) break;
+        u = len != 0.0f ? (c - a0) / len : 0.0f;
+        u = RAST__CLAMP(u, 0.0f, 1.0f);
         o = xmajor ? ln->y[0] + u * dy : ln->x[0] + u * dx;
         x = xmajor ? i : (int)floorf(o);
         y = xmajor ? (int)floorf(o) : i;
-        if (x < tl->x0 || x >= tl->x1 || y < tl->y0 || y >= tl->y1) continue;
-        if (x < ln->h.x0 || x >= ln->h.x1 || y < ln->h.y0 || y >= ln->h.y1) continue;
-        z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
-        iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
-        w = 1.0f / iw;
-        up = u * ln->iw[1] * w; /* the perspective-correct parameter */
-        for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
-        rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
+        if (x >= tl->x0 && x < tl->x1 && y >= tl->y0 && y < tl->y1 && x >= ln->h.x0 &&
+            x < ln->h.x1 && y >= ln->h.y0 && y < ln->h.y1) {
+            z = ln->z[0] + u * (ln->z[1] - ln->z[0]);
+            iw = ln->iw[0] + u * (ln->iw[1] - ln->iw[0]);
+            w = 1.0f / iw;
+            up = u * ln->iw[1] * w; /* the perspective-correct parameter */
+            for (k = 0; k < di->nvar; ++k) tl->var[k] = vd[2 * k] + up * vd[2 * k + 1];
+            rast__fragment(di, tl, x, y, z, w, 1, tl->var, NULL, NULL);
+        }
+        if (i == s1) break;
     }
 }
 

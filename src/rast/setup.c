@@ -145,10 +145,10 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     miny = RAST__MIN(fy[0], RAST__MIN(fy[1], fy[2]));
     maxy = RAST__MAX(fy[0], RAST__MAX(fy[1], fy[2]));
     /* pixels whose centre (i + 1/2) can lie inside */
-    x0 = (int)rast__floordiv(minx + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(miny + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    x1 = (int)rast__floordiv(maxx - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
-    y1 = (int)rast__floordiv(maxy - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    x0 = (int)rast__floor_px(minx + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    y0 = (int)rast__floor_px(miny + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    x1 = (int)rast__floor_px(maxx - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
+    y1 = (int)rast__floor_px(maxy - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
     x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
     if (x0 >= x1 || y0 >= y1) return;
@@ -244,8 +244,8 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
        in llvmpipe (GL leaves them to the implementation) */
     left = fx - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
     top = fy - (int64_t)size * ((1 << RAST_SUBPIXEL_BITS) / 2);
-    x0 = (int)rast__floordiv(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1), 1 << RAST_SUBPIXEL_BITS);
-    y0 = (int)rast__floordiv(top - (1 << RAST_SUBPIXEL_BITS) / 2, 1 << RAST_SUBPIXEL_BITS) + 1;
+    x0 = (int)rast__floor_px(left + ((1 << RAST_SUBPIXEL_BITS) / 2 - 1));
+    y0 = (int)rast__floor_px(top - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
