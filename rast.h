@@ -540,7 +540,8 @@ typedef struct rast__rec {
     uint8_t kind;
     uint8_t front;            /* front facing */
     uint16_t pad;
-    int32_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip */
+    int16_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip
+                                 (targets are at most 16384 pixels wide) */
 } rast__rec;
 
 /* A triangle, oriented so the edge functions are positive inside. The tile
@@ -603,7 +604,8 @@ typedef struct rast__tile {
     float ddx[RAST_MAX_VARYINGS], ddy[RAST_MAX_VARYINGS];
 } rast__tile;
 
-static size_t rast__align(size_t n) { return (n + 7u) & ~(size_t)7u; }
+/* Records are whole 4-byte words (every field is 4-byte aligned). */
+static size_t rast__align(size_t n) { return (n + 3u) & ~(size_t)3u; }
 
 /* ---- the queue: draws and whole-target commands, run at flush ---- */
 
@@ -1019,15 +1021,20 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     p->vp_ty = (float)vy + 0.5f * (float)vh;
     p->guard_x = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vw;
     p->guard_y = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vh;
-    p->clip[0] = RAST__MAX(vx, 0);
-    p->clip[1] = RAST__MAX(vy, 0);
-    p->clip[2] = RAST__MIN(vx + vw, fb->width);
-    p->clip[3] = RAST__MIN(vy + vh, fb->height);
-    if (s->scissor_test) {
-        p->clip[0] = RAST__MAX(p->clip[0], s->scissor[0]);
-        p->clip[1] = RAST__MAX(p->clip[1], s->scissor[1]);
-        p->clip[2] = RAST__MIN(p->clip[2], s->scissor[0] + s->scissor[2]);
-        p->clip[3] = RAST__MIN(p->clip[3], s->scissor[1] + s->scissor[3]);
+    {   /* 64-bit: viewport and scissor may be anywhere, even near INT_MAX */
+        int64_t c[4];
+        c[0] = RAST__MAX((int64_t)vx, 0);
+        c[1] = RAST__MAX((int64_t)vy, 0);
+        c[2] = RAST__MIN((int64_t)vx + vw, (int64_t)fb->width);
+        c[3] = RAST__MIN((int64_t)vy + vh, (int64_t)fb->height);
+        if (s->scissor_test) {
+            c[0] = RAST__MAX(c[0], (int64_t)s->scissor[0]);
+            c[1] = RAST__MAX(c[1], (int64_t)s->scissor[1]);
+            c[2] = RAST__MIN(c[2], (int64_t)s->scissor[0] + s->scissor[2]);
+            c[3] = RAST__MIN(c[3], (int64_t)s->scissor[1] + s->scissor[3]);
+        }
+        if (c[0] >= c[2] || c[1] >= c[3]) c[0] = c[1] = c[2] = c[3] = 0;
+        p->clip[0] = (int)c[0]; p->clip[1] = (int)c[1]; p->clip[2] = (int)c[2]; p->clip[3] = (int)c[3];
     }
     p->point_size = s->point_size > 0.0f
                         ? (int)floorf(RAST__MIN(s->point_size, (float)RAST_MAX_POINT_SIZE) + 0.5f)
@@ -1590,13 +1597,16 @@ static void rast__vertex_job(rast__cmd *cmd, int job) {
     }
 }
 
-/* Nonzero when every float is finite: v * 0 is 0 for finite v and NaN for
-   inf or NaN, and one NaN poisons the sum. */
+/* Nonzero when every float is finite (exponent bits not all ones); the
+   checks are independent, so this vectorises. */
 static int rast__vtx_finite(const rast__vtx *v, int nvar) {
-    float acc = 0.0f;
+    uint32_t bad = 0, bits;
     int k;
-    for (k = 0; k < 4 + nvar; ++k) acc += v[k] * 0.0f;
-    return acc == 0.0f;
+    for (k = 0; k < 4 + nvar; ++k) {
+        memcpy(&bits, &v[k], 4);
+        bad |= (uint32_t)((bits & 0x7F800000u) == 0x7F800000u);
+    }
+    return !bad;
 }
 
 /* Signed distance to clip plane `plane` (inside >= 0). */
@@ -1688,7 +1698,7 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     t->h.kind = RAST__REC_TRI;
     t->h.front = (uint8_t)front;
     t->h.pad = 0;
-    t->h.x0 = x0; t->h.y0 = y0; t->h.x1 = x1; t->h.y1 = y1;
+    t->h.x0 = (int16_t)x0; t->h.y0 = (int16_t)y0; t->h.x1 = (int16_t)x1; t->h.y1 = (int16_t)y1;
     for (i = 0; i < 3; ++i) {
         t->fx[i] = fx[i];
         t->fy[i] = fy[i];
@@ -1786,7 +1796,7 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     pt->h.kind = RAST__REC_POINT;
     pt->h.front = 1;
     pt->h.pad = 0;
-    pt->h.x0 = x0; pt->h.y0 = y0; pt->h.x1 = x1; pt->h.y1 = y1;
+    pt->h.x0 = (int16_t)x0; pt->h.y0 = (int16_t)y0; pt->h.x1 = (int16_t)x1; pt->h.y1 = (int16_t)y1;
     pt->z = wz;
     pt->w = v[3];
     memcpy(pt + 1, (v + 4), (size_t)nvar * sizeof(float));
@@ -1824,10 +1834,10 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     ln->h.kind = RAST__REC_LINE;
     ln->h.front = 1;
     ln->h.pad = 0;
-    ln->h.x0 = RAST__MAX((int)floorf(lo_x) - 1, p->clip[0]);
-    ln->h.y0 = RAST__MAX((int)floorf(lo_y) - 1, p->clip[1]);
-    ln->h.x1 = RAST__MIN((int)floorf(hi_x) + 2, p->clip[2]);
-    ln->h.y1 = RAST__MIN((int)floorf(hi_y) + 2, p->clip[3]);
+    ln->h.x0 = (int16_t)RAST__MAX((int)floorf(lo_x) - 1, p->clip[0]);
+    ln->h.y0 = (int16_t)RAST__MAX((int)floorf(lo_y) - 1, p->clip[1]);
+    ln->h.x1 = (int16_t)RAST__MIN((int)floorf(hi_x) + 2, p->clip[2]);
+    ln->h.y1 = (int16_t)RAST__MIN((int)floorf(hi_y) + 2, p->clip[3]);
     if (ln->h.x0 >= ln->h.x1 || ln->h.y0 >= ln->h.y1) { /* nothing visible: take it back */
         ch->used -= rast__rec_size(RAST__REC_LINE, nvar);
         ch->nrec--;
@@ -2564,17 +2574,20 @@ static void rast__vertex_job_fn(void *arg, int i) {
    viewport and honour the scissor (GL); rectangles cover the viewport. */
 static void rast__command_rect(const rast_context *ctx, const rast__cmd *cmd, rast__rec *h) {
     const rast__pipe *p = cmd->pipe;
+    int r[4];
     if (cmd->kind == RAST__CMD_RECT) {
-        h->x0 = p->clip[0]; h->y0 = p->clip[1]; h->x1 = p->clip[2]; h->y1 = p->clip[3];
-        return;
+        memcpy(r, p->clip, sizeof(r));
+    } else {
+        r[0] = 0; r[1] = 0; r[2] = ctx->fb.width; r[3] = ctx->fb.height;
+        if (p->s.scissor_test) {
+            r[0] = RAST__MAX(r[0], p->s.scissor[0]);
+            r[1] = RAST__MAX(r[1], p->s.scissor[1]);
+            r[2] = (int)RAST__MIN((int64_t)r[2], (int64_t)p->s.scissor[0] + p->s.scissor[2]);
+            r[3] = (int)RAST__MIN((int64_t)r[3], (int64_t)p->s.scissor[1] + p->s.scissor[3]);
+        }
     }
-    h->x0 = 0; h->y0 = 0; h->x1 = ctx->fb.width; h->y1 = ctx->fb.height;
-    if (p->s.scissor_test) {
-        h->x0 = RAST__MAX(h->x0, p->s.scissor[0]);
-        h->y0 = RAST__MAX(h->y0, p->s.scissor[1]);
-        h->x1 = RAST__MIN(h->x1, p->s.scissor[0] + p->s.scissor[2]);
-        h->y1 = RAST__MIN(h->y1, p->s.scissor[1] + p->s.scissor[3]);
-    }
+    if (r[0] >= r[2] || r[1] >= r[3]) r[0] = r[1] = r[2] = r[3] = 0;
+    h->x0 = (int16_t)r[0]; h->y0 = (int16_t)r[1]; h->x1 = (int16_t)r[2]; h->y1 = (int16_t)r[3];
 }
 
 static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
@@ -2656,8 +2669,8 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
         for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
             for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) {
                 size_t *at = &ch->bin_start[ty * ctx->tiles_x + tx + 1], k;
-                /* records are whole 8-byte words: a word loop beats a memcpy call */
-                for (k = 0; k < size; k += 8) memcpy(sorted + *at + k, (const uint8_t *)h + k, 8);
+                /* records are whole words: a word loop beats a memcpy call */
+                for (k = 0; k < size; k += 4) memcpy(sorted + *at + k, (const uint8_t *)h + k, 4);
                 *at += size;
             }
     }

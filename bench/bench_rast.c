@@ -217,6 +217,11 @@ static int rast_side_init(rast_side *r, int threads) {
     r->depth = xmalloc((size_t)BW * BH * sizeof(float));
     r->stencil = xmalloc((size_t)BW * BH);
     r->accum = xmalloc((size_t)BW * BH * 4 * sizeof(float));
+    /* touch every target so the peak RSS counts them, as an application's would */
+    memset(r->color, 0, (size_t)BW * BH * 4);
+    memset(r->depth, 0, (size_t)BW * BH * sizeof(float));
+    memset(r->stencil, 0, (size_t)BW * BH);
+    memset(r->accum, 0, (size_t)BW * BH * 4 * sizeof(float));
     memset(&t, 0, sizeof t);
     t.color.ptr = r->color; t.color.width = BW; t.color.height = BH; t.color.stride = BW * 4;
     t.depth.ptr = r->depth; t.depth.width = BW; t.depth.height = BH; t.depth.stride = BW * 4;

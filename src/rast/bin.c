@@ -48,17 +48,20 @@ static void rast__vertex_job_fn(void *arg, int i) {
    viewport and honour the scissor (GL); rectangles cover the viewport. */
 static void rast__command_rect(const rast_context *ctx, const rast__cmd *cmd, rast__rec *h) {
     const rast__pipe *p = cmd->pipe;
+    int r[4];
     if (cmd->kind == RAST__CMD_RECT) {
-        h->x0 = p->clip[0]; h->y0 = p->clip[1]; h->x1 = p->clip[2]; h->y1 = p->clip[3];
-        return;
+        memcpy(r, p->clip, sizeof(r));
+    } else {
+        r[0] = 0; r[1] = 0; r[2] = ctx->fb.width; r[3] = ctx->fb.height;
+        if (p->s.scissor_test) {
+            r[0] = RAST__MAX(r[0], p->s.scissor[0]);
+            r[1] = RAST__MAX(r[1], p->s.scissor[1]);
+            r[2] = (int)RAST__MIN((int64_t)r[2], (int64_t)p->s.scissor[0] + p->s.scissor[2]);
+            r[3] = (int)RAST__MIN((int64_t)r[3], (int64_t)p->s.scissor[1] + p->s.scissor[3]);
+        }
     }
-    h->x0 = 0; h->y0 = 0; h->x1 = ctx->fb.width; h->y1 = ctx->fb.height;
-    if (p->s.scissor_test) {
-        h->x0 = RAST__MAX(h->x0, p->s.scissor[0]);
-        h->y0 = RAST__MAX(h->y0, p->s.scissor[1]);
-        h->x1 = RAST__MIN(h->x1, p->s.scissor[0] + p->s.scissor[2]);
-        h->y1 = RAST__MIN(h->y1, p->s.scissor[1] + p->s.scissor[3]);
-    }
+    if (r[0] >= r[2] || r[1] >= r[3]) r[0] = r[1] = r[2] = r[3] = 0;
+    h->x0 = (int16_t)r[0]; h->y0 = (int16_t)r[1]; h->x1 = (int16_t)r[2]; h->y1 = (int16_t)r[3];
 }
 
 static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
@@ -140,8 +143,8 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
         for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
             for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) {
                 size_t *at = &ch->bin_start[ty * ctx->tiles_x + tx + 1], k;
-                /* records are whole 8-byte words: a word loop beats a memcpy call */
-                for (k = 0; k < size; k += 8) memcpy(sorted + *at + k, (const uint8_t *)h + k, 8);
+                /* records are whole words: a word loop beats a memcpy call */
+                for (k = 0; k < size; k += 4) memcpy(sorted + *at + k, (const uint8_t *)h + k, 4);
                 *at += size;
             }
     }

@@ -201,15 +201,20 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     p->vp_ty = (float)vy + 0.5f * (float)vh;
     p->guard_x = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vw;
     p->guard_y = 1.0f + 2.0f * (float)RAST_GUARD_BAND / (float)vh;
-    p->clip[0] = RAST__MAX(vx, 0);
-    p->clip[1] = RAST__MAX(vy, 0);
-    p->clip[2] = RAST__MIN(vx + vw, fb->width);
-    p->clip[3] = RAST__MIN(vy + vh, fb->height);
-    if (s->scissor_test) {
-        p->clip[0] = RAST__MAX(p->clip[0], s->scissor[0]);
-        p->clip[1] = RAST__MAX(p->clip[1], s->scissor[1]);
-        p->clip[2] = RAST__MIN(p->clip[2], s->scissor[0] + s->scissor[2]);
-        p->clip[3] = RAST__MIN(p->clip[3], s->scissor[1] + s->scissor[3]);
+    {   /* 64-bit: viewport and scissor may be anywhere, even near INT_MAX */
+        int64_t c[4];
+        c[0] = RAST__MAX((int64_t)vx, 0);
+        c[1] = RAST__MAX((int64_t)vy, 0);
+        c[2] = RAST__MIN((int64_t)vx + vw, (int64_t)fb->width);
+        c[3] = RAST__MIN((int64_t)vy + vh, (int64_t)fb->height);
+        if (s->scissor_test) {
+            c[0] = RAST__MAX(c[0], (int64_t)s->scissor[0]);
+            c[1] = RAST__MAX(c[1], (int64_t)s->scissor[1]);
+            c[2] = RAST__MIN(c[2], (int64_t)s->scissor[0] + s->scissor[2]);
+            c[3] = RAST__MIN(c[3], (int64_t)s->scissor[1] + s->scissor[3]);
+        }
+        if (c[0] >= c[2] || c[1] >= c[3]) c[0] = c[1] = c[2] = c[3] = 0;
+        p->clip[0] = (int)c[0]; p->clip[1] = (int)c[1]; p->clip[2] = (int)c[2]; p->clip[3] = (int)c[3];
     }
     p->point_size = s->point_size > 0.0f
                         ? (int)floorf(RAST__MIN(s->point_size, (float)RAST_MAX_POINT_SIZE) + 0.5f)

@@ -89,7 +89,8 @@ typedef struct rast__rec {
     uint8_t kind;
     uint8_t front;            /* front facing */
     uint16_t pad;
-    int32_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip */
+    int16_t x0, y0, x1, y1;   /* pixel bounds, x1/y1 exclusive, within clip
+                                 (targets are at most 16384 pixels wide) */
 } rast__rec;
 
 /* A triangle, oriented so the edge functions are positive inside. The tile
@@ -152,7 +153,8 @@ typedef struct rast__tile {
     float ddx[RAST_MAX_VARYINGS], ddy[RAST_MAX_VARYINGS];
 } rast__tile;
 
-static size_t rast__align(size_t n) { return (n + 7u) & ~(size_t)7u; }
+/* Records are whole 4-byte words (every field is 4-byte aligned). */
+static size_t rast__align(size_t n) { return (n + 3u) & ~(size_t)3u; }
 
 /* ---- the queue: draws and whole-target commands, run at flush ---- */
 

@@ -60,13 +60,16 @@ static void rast__vertex_job(rast__cmd *cmd, int job) {
     }
 }
 
-/* Nonzero when every float is finite: v * 0 is 0 for finite v and NaN for
-   inf or NaN, and one NaN poisons the sum. */
+/* Nonzero when every float is finite (exponent bits not all ones); the
+   checks are independent, so this vectorises. */
 static int rast__vtx_finite(const rast__vtx *v, int nvar) {
-    float acc = 0.0f;
+    uint32_t bad = 0, bits;
     int k;
-    for (k = 0; k < 4 + nvar; ++k) acc += v[k] * 0.0f;
-    return acc == 0.0f;
+    for (k = 0; k < 4 + nvar; ++k) {
+        memcpy(&bits, &v[k], 4);
+        bad |= (uint32_t)((bits & 0x7F800000u) == 0x7F800000u);
+    }
+    return !bad;
 }
 
 /* Signed distance to clip plane `plane` (inside >= 0). */
@@ -158,7 +161,7 @@ static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx
     t->h.kind = RAST__REC_TRI;
     t->h.front = (uint8_t)front;
     t->h.pad = 0;
-    t->h.x0 = x0; t->h.y0 = y0; t->h.x1 = x1; t->h.y1 = y1;
+    t->h.x0 = (int16_t)x0; t->h.y0 = (int16_t)y0; t->h.x1 = (int16_t)x1; t->h.y1 = (int16_t)y1;
     for (i = 0; i < 3; ++i) {
         t->fx[i] = fx[i];
         t->fy[i] = fy[i];
@@ -256,7 +259,7 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     pt->h.kind = RAST__REC_POINT;
     pt->h.front = 1;
     pt->h.pad = 0;
-    pt->h.x0 = x0; pt->h.y0 = y0; pt->h.x1 = x1; pt->h.y1 = y1;
+    pt->h.x0 = (int16_t)x0; pt->h.y0 = (int16_t)y0; pt->h.x1 = (int16_t)x1; pt->h.y1 = (int16_t)y1;
     pt->z = wz;
     pt->w = v[3];
     memcpy(pt + 1, (v + 4), (size_t)nvar * sizeof(float));
@@ -294,10 +297,10 @@ static void rast__setup_line(rast__chunk *ch, const rast__vtx *a, const rast__vt
     ln->h.kind = RAST__REC_LINE;
     ln->h.front = 1;
     ln->h.pad = 0;
-    ln->h.x0 = RAST__MAX((int)floorf(lo_x) - 1, p->clip[0]);
-    ln->h.y0 = RAST__MAX((int)floorf(lo_y) - 1, p->clip[1]);
-    ln->h.x1 = RAST__MIN((int)floorf(hi_x) + 2, p->clip[2]);
-    ln->h.y1 = RAST__MIN((int)floorf(hi_y) + 2, p->clip[3]);
+    ln->h.x0 = (int16_t)RAST__MAX((int)floorf(lo_x) - 1, p->clip[0]);
+    ln->h.y0 = (int16_t)RAST__MAX((int)floorf(lo_y) - 1, p->clip[1]);
+    ln->h.x1 = (int16_t)RAST__MIN((int)floorf(hi_x) + 2, p->clip[2]);
+    ln->h.y1 = (int16_t)RAST__MIN((int)floorf(hi_y) + 2, p->clip[3]);
     if (ln->h.x0 >= ln->h.x1 || ln->h.y0 >= ln->h.y1) { /* nothing visible: take it back */
         ch->used -= rast__rec_size(RAST__REC_LINE, nvar);
         ch->nrec--;
