@@ -414,10 +414,21 @@ static int child_time(const char *who, int threads, int runs) {
     return 0;
 }
 
+/* Resident set now, in kB (/proc/self/statm), or -1. */
+static long rss_now_kb(void) {
+    FILE *f = fopen("/proc/self/statm", "r");
+    long size = 0, resident = -1;
+    if (!f) return -1;
+    if (fscanf(f, "%ld %ld", &size, &resident) != 2) resident = -1;
+    fclose(f);
+    return resident < 0 ? -1 : resident * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
 static int child_rss(int row, int threads) {
     rast_side rs;
     geometry g;
     struct rusage ru;
+    long before;
     int i;
     make_row_geometry(row, &g);
     if (row == ROW_STENCIL) free_geometry(&g); /* rast draws rectangles only */
@@ -425,13 +436,15 @@ static int child_rss(int row, int threads) {
         printf("ERROR rast context\n");
         return 1;
     }
+    before = rss_now_kb(); /* process + caller's geometry + targets, before any draw */
     for (i = 0; i < 2; i++)
         if (rast_frame(&rs, row, &g) != 0) {
             printf("ERROR rast frame failed\n");
             return 1;
         }
     getrusage(RUSAGE_SELF, &ru);
-    printf("RSS %d %ld %ld\n", row, (long)ru.ru_maxrss, row_vertices(row, &g));
+    printf("RSS %d %ld %ld %ld %ld\n", row, (long)ru.ru_maxrss, row_vertices(row, &g), (long)g.ni,
+           before);
     rast_side_fini(&rs);
     free_geometry(&g);
     return 0;
@@ -607,22 +620,27 @@ int main(int argc, char **argv) {
 
     printf("\npeak RSS of a rast-only child per row (2 threads; RGBA8 + depth + stencil + accum "
            "targets at %dx%d = %.1f MB)\n", BW, BH, BW * BH * (4.0 + 4 + 1 + 16) / 1048576.0);
-    printf("%-18s %10s %12s %12s %6s\n", "row", "vertices", "rss_MB", "budget_MB", "ok");
+    printf("  vertices: vertex_count submitted per frame; budget_MB = 64 MB + 64 B x vertices;\n"
+           "  before_MB: resident before the first draw (process, caller's arrays, touched targets);\n"
+           "  idx_budget_MB: the budget if every index counted as a submitted vertex\n");
+    printf("%-18s %9s %9s %8s %10s %10s %5s %14s\n", "row", "vertices", "indices", "rss_MB",
+           "before_MB", "budget_MB", "ok", "idx_budget_MB");
     for (i = 0; i < NROWS; i++) {
         char rowstr[8], *args[6], *out, *l;
-        long rss_kb = -1, nvert = 0;
+        long rss_kb = -1, nvert = 0, nidx = 0, before_kb = 0;
         int row;
         snprintf(rowstr, sizeof rowstr, "%d", i);
         args[0] = argv[0]; args[1] = (char *)"--child"; args[2] = (char *)"rss"; args[3] = (char *)"2";
         args[4] = rowstr; args[5] = NULL;
         out = run_child(args);
         l = strstr(out, "RSS ");
-        if (!l || sscanf(l, "RSS %d %ld %ld", &row, &rss_kb, &nvert) != 3) {
+        if (!l || sscanf(l, "RSS %d %ld %ld %ld %ld", &row, &rss_kb, &nvert, &nidx, &before_kb) != 5) {
             printf("%-18s (failed)\n", row_names[i]);
         } else {
             double mb = rss_kb / 1024.0, budget = 64.0 + 64.0 * nvert / 1048576.0;
-            printf("%-18s %10ld %12.1f %12.1f %6s\n", row_names[i], nvert, mb, budget,
-                   mb <= budget ? "yes" : "OVER");
+            double ibudget = 64.0 + 64.0 * (nidx > nvert ? nidx : nvert) / 1048576.0;
+            printf("%-18s %9ld %9ld %8.1f %10.1f %10.1f %5s %14.1f\n", row_names[i], nvert, nidx, mb,
+                   before_kb / 1024.0, budget, mb <= budget ? "yes" : "OVER", ibudget);
         }
         free(out);
     }

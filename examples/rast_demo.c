@@ -195,11 +195,11 @@ int main(int argc, char **argv) {
     }
 
     /* 3. A disc into the stencil only (stencil := 1, no colour writes) ... */
-    disc[0] = 0.45f; disc[1] = 0.40f; disc[2] = 0.0f;
+    disc[0] = 0.15f; disc[1] = 0.45f; disc[2] = 0.0f;
     for (i = 0; i < DISC_SEGMENTS; i++) {
         float a = 2.0f * 3.14159265f * (float)i / (float)DISC_SEGMENTS;
-        disc[3 * (i + 1) + 0] = 0.45f + 0.35f * cosf(a) * (float)H / (float)W;
-        disc[3 * (i + 1) + 1] = 0.40f + 0.35f * sinf(a);
+        disc[3 * (i + 1) + 0] = 0.15f + 0.32f * cosf(a) * (float)H / (float)W;
+        disc[3 * (i + 1) + 1] = 0.45f + 0.32f * sinf(a);
         disc[3 * (i + 1) + 2] = 0.0f;
         disc_indices[3 * i + 0] = 0;
         disc_indices[3 * i + 1] = (uint32_t)(i + 1);

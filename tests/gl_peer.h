@@ -27,9 +27,9 @@
    ordinary GL calls while the context is current.
 
    Environment: before the display is created, gl_peer_init sets
-   LIBGL_ALWAYS_SOFTWARE=1 and GALLIUM_DRIVER=llvmpipe unless they are
-   already set, and refuses any renderer whose GL_RENDERER does not contain
-   "llvmpipe". llvmpipe reads LP_NUM_THREADS when its screen is created,
+   LIBGL_ALWAYS_SOFTWARE=1 and GALLIUM_DRIVER=llvmpipe (overriding the
+   caller's environment: the reference must be llvmpipe), and refuses any
+   renderer whose GL_RENDERER does not contain "llvmpipe". llvmpipe reads LP_NUM_THREADS when its screen is created,
    i.e. in gl_peer_init: set it before that (once per process). */
 #ifndef GL_PEER_H_INCLUDED
 #define GL_PEER_H_INCLUDED
@@ -247,8 +247,8 @@ static inline int gl_peer__init(gl_peer *p, int width, int height) {
     p->point_size = 1.0f;
     if (width <= 0 || height <= 0) return gl_peer__fail(p, "bad size");
 
-    setenv("LIBGL_ALWAYS_SOFTWARE", "1", 0);
-    setenv("GALLIUM_DRIVER", "llvmpipe", 0);
+    setenv("LIBGL_ALWAYS_SOFTWARE", "1", 1);
+    setenv("GALLIUM_DRIVER", "llvmpipe", 1);
 
     p->dpy = gl_peer__display(p);
     if (p->dpy == EGL_NO_DISPLAY) return -1;

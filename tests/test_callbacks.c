@@ -68,10 +68,10 @@ static void draw_cb(rast_context *ctx, rast_primitive prim, const float *v, int 
 }
 
 /* A 3x3 grid of vertices (ids 0..8) forming 8 triangles, indexed. The
-   callback emits 0 outputs for vertex 4 (the centre, shared by all 8
-   triangles... no: by 6 of them) and 1 for the rest: exactly the triangles
-   not using vertex 4 are drawn, compared per pixel with the fill-rule
-   reference. With 1 output everywhere, all 8 are drawn (sanity). */
+   callback emits 0 outputs for vertex 4 (the centre, used by 6 of the 8
+   triangles) and 1 for the rest: exactly the 2 triangles not using vertex
+   4 are drawn, compared per pixel with the fill-rule reference. With 1
+   output everywhere, all 8 are drawn (sanity). */
 Test(callbacks, vertex_zero_outputs_drop_primitives) {
     static const uint32_t idx[24] = {0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4,
                                      3, 4, 7, 3, 7, 6, 4, 5, 8, 4, 8, 7};
