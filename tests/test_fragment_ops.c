@@ -733,8 +733,8 @@ Test(fragment_ops, scissor_rectangles) {
 /* Clears honour the scissor, the colour mask, the depth write mask and the
    stencil write mask (GL uses the front mask; both are set equal here);
    the accumulation clear honours only the scissor. The viewport does not
-   limit clears (GL). */
-Test(fragment_ops, clears_honour_scissor_and_masks) {
+   limit clears (GL). On RGBA32F and RGBA8 colour targets. */
+static void check_clears(int rgba8) {
     enum { W = 16, H = 12 };
     rast_context *ctx = tu_ctx(1, 16);
     tu_fb fb;
@@ -742,10 +742,11 @@ Test(fragment_ops, clears_honour_scissor_and_masks) {
     rast_state s;
     rast_clear_desc cd;
     int x, y, c, sc;
-    tu_fb_init(&fb, W, H, TU_COLOR32F | TU_DEPTH | TU_STENCIL | TU_ACCUM);
+    tu_fb_init(&fb, W, H, (rgba8 ? TU_COLOR8 : TU_COLOR32F) | TU_DEPTH | TU_STENCIL | TU_ACCUM);
     tu_fb_bind(ctx, &fb);
     for (sc = 0; sc < 2; sc++) {
-        fill_f(fb.rgba32f, 4 * W * H, 0.25f);
+        if (rgba8) memset(fb.rgba8, 64, 4 * W * H);
+        else fill_f(fb.rgba32f, 4 * W * H, 0.25f);
         fill_f(fb.depth, W * H, 0.25f);
         memset(fb.stencil, 0xA5, W * H);
         fill_f(fb.accum, 4 * W * H, 0.25f);
@@ -780,12 +781,22 @@ Test(fragment_ops, clears_honour_scissor_and_masks) {
         for (y = 0; y < H; y++)
             for (x = 0; x < W; x++) {
                 int in = !sc || (x >= 4 && x < 10 && y >= 3 && y < 8);
-                const float *col = tu_pxf(&fb, x, y), *acc = tu_accum(&fb, x, y);
-                float ec[4] = {in ? 0.5f : 0.25f, 0.25f, 0.25f, in ? 0.75f : 0.25f};
+                const float *acc = tu_accum(&fb, x, y);
                 uint8_t es = in ? (uint8_t)((0xA5 & 0xF0) | (0x3C & 0x0F)) : 0xA5;
                 for (c = 0; c < 4; c++) {
-                    TU_CHECK(&chk, col[c] == ec[c], "scissor %d (%d,%d) colour[%d] = %g exp %g",
-                             sc, x, y, c, col[c], ec[c]);
+                    int on = in && (c == 0 || c == 3);
+                    if (rgba8) {
+                        /* 0.5 -> 127 or 128 (a tie), 0.75 -> 191 */
+                        int got = tu_px8(&fb, x, y)[c];
+                        int ok = !on ? got == 64 : c == 0 ? (got == 127 || got == 128) : got == 191;
+                        TU_CHECK(&chk, ok, "rgba8 scissor %d (%d,%d) colour[%d] = %d", sc, x, y,
+                                 c, got);
+                    } else {
+                        float ec = on ? (c == 0 ? 0.5f : 0.75f) : 0.25f;
+                        TU_CHECK(&chk, tu_pxf(&fb, x, y)[c] == ec,
+                                 "scissor %d (%d,%d) colour[%d] = %g exp %g", sc, x, y, c,
+                                 tu_pxf(&fb, x, y)[c], ec);
+                    }
                     TU_CHECK(&chk, acc[c] == (in ? cd.accum[c] : 0.25f),
                              "scissor %d (%d,%d) accum[%d] = %g", sc, x, y, c, acc[c]);
                 }
@@ -795,16 +806,49 @@ Test(fragment_ops, clears_honour_scissor_and_masks) {
                          "0x%02x", sc, x, y, *tu_sten(&fb, x, y), es);
             }
     }
-    /* and with default masks the depth clear does write, everywhere */
+    /* and with default masks the clears write everything, everywhere */
     memset(&s, 0, sizeof s);
     tu_set_state(ctx, &s);
-    tu_clear(ctx, RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL, 0, 0, 0, 0, 0.75f, 7);
+    tu_clear(ctx, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL, 0.25f, 0.5f, 0.75f,
+             1.0f, 0.75f, 7);
     tu_finish(ctx);
     for (y = 0; y < H; y++)
-        for (x = 0; x < W; x++)
+        for (x = 0; x < W; x++) {
             TU_CHECK(&chk, *tu_depth(&fb, x, y) == 0.75f && *tu_sten(&fb, x, y) == 7,
                      "default-mask clear at (%d,%d)", x, y);
+            if (rgba8)
+                TU_CHECK(&chk, tu_px8(&fb, x, y)[2] == 191 && tu_px8(&fb, x, y)[3] == 255,
+                         "default-mask colour clear at (%d,%d)", x, y);
+            else
+                TU_CHECK(&chk, tu_pxf(&fb, x, y)[2] == 0.75f && tu_pxf(&fb, x, y)[3] == 1.0f,
+                         "default-mask colour clear at (%d,%d)", x, y);
+        }
     TU_CHECK_DONE(&chk);
+    rast_context_destroy(ctx);
+    tu_fb_free(&fb);
+}
+
+Test(fragment_ops, clears_honour_scissor_and_masks_rgba32f) { check_clears(0); }
+Test(fragment_ops, clears_honour_scissor_and_masks_rgba8) { check_clears(1); }
+
+/* RGBA8 stores round(c * 255) (GL's conversion to the nearest
+   representable value), clamped: (k + 0.75)/255 gives k + 1 and
+   (k + 0.25)/255 gives k, exactly; out-of-range colours clamp. */
+Test(fragment_ops, rgba8_conversion_rounds_to_nearest) {
+    rast_context *ctx = tu_ctx(1, 16);
+    tu_fb fb;
+    int k;
+    tu_fb_init(&fb, 4, 4, TU_COLOR8);
+    tu_fb_bind(ctx, &fb);
+    for (k = 0; k < 255; k += 7) {
+        float c[4] = {(k + 0.75f) / 255.0f, (k + 0.25f) / 255.0f, -0.5f, 1.5f};
+        cr_assert_eq(rast_draw_fullscreen(ctx, 0.5f, c), RAST_OK);
+        tu_finish(ctx);
+        cr_assert_eq(tu_px8(&fb, 1, 2)[0], k + 1, "%g*255 must round up", c[0]);
+        cr_assert_eq(tu_px8(&fb, 1, 2)[1], k, "%g*255 must round down", c[1]);
+        cr_assert_eq(tu_px8(&fb, 1, 2)[2], 0);
+        cr_assert_eq(tu_px8(&fb, 1, 2)[3], 255);
+    }
     rast_context_destroy(ctx);
     tu_fb_free(&fb);
 }

@@ -32,7 +32,11 @@
                             rast_context_desc.allocator overrides at run time
 
    WHAT IT DRAWS
-       Points (integer size N, GL rules), lines (1 pixel, for debugging) and
+       Points (integer size N: the pixels whose centres lie in the N x N square
+       centred on the point, [x - N/2, x + N/2) across and (y - N/2, y + N/2]
+       down, which is llvmpipe's choice where GL leaves ties open; a point
+       whose centre is outside the clip volume is dropped, as in GL), lines
+       (1 pixel, for debugging) and
        triangles (homogeneous near/far clipping, a +-8192 pixel guard band,
        culling, 8 sub-pixel bits, the top-left fill rule, 16 perspective-correct
        varyings, flat or smooth shading). Each fragment then goes, in GL order,
@@ -159,6 +163,7 @@ typedef struct rast_context_desc {
     size_t batch_bytes;  /* setup memory before a flush; 0: 8 MiB */
 } rast_context_desc;
 
+/* On failure *out_ctx is NULL (as is *out_tex of rast_texture_create). */
 RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_context **out_ctx);
 RAST_API void rast_context_destroy(rast_context *ctx);
 RAST_API int rast_context_threads(const rast_context *ctx);
@@ -178,7 +183,9 @@ typedef enum rast_color_format {
 } rast_color_format;
 
 /* Any view with a NULL ptr is absent. Present views must share one size.
-   depth: float per pixel; stencil: uint8 per pixel; accum: 4 floats. */
+   depth: float per pixel; stencil: uint8 per pixel; accum: 4 floats.
+   Strides of float views are multiples of 4 bytes (RAST_ERROR_INVALID_SIZE
+   otherwise). Float targets are never clamped; RGBA8 ones clamp to [0, 1]. */
 typedef struct rast_targets {
     rast_view color;
     rast_color_format color_format;
@@ -337,8 +344,9 @@ typedef struct rast_fragment_in {
     float w;                   /* clip w (eye depth for perspective) */
     int front_facing;
     const float *varyings;     /* num_varyings perspective-correct values */
-    const float *ddx, *ddy;    /* their screen derivatives, when the state
-                                  asks (fragment_derivatives), else NULL */
+    const float *ddx, *ddy;    /* their derivatives per pixel rightwards and per
+                                  image row downwards, when the state asks
+                                  (fragment_derivatives), else NULL */
 } rast_fragment_in;
 
 /* Vertex program: reads vertex `index` (its floats at `vertex`), writes up to

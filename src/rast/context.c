@@ -100,6 +100,7 @@ static rast_result rast__check_view(const rast_view *v, int bytes_per_pixel, int
         v->height > RAST_MAX_TARGET_SIZE)
         return RAST_ERROR_INVALID_SIZE;
     if (v->stride < v->width * bytes_per_pixel) return RAST_ERROR_INVALID_SIZE;
+    if (bytes_per_pixel >= 4 && v->stride % 4) return RAST_ERROR_INVALID_SIZE; /* float alignment */
     if (size[0] == 0) { size[0] = v->width; size[1] = v->height; }
     else if (size[0] != v->width || size[1] != v->height) return RAST_ERROR_TARGET_MISMATCH;
     return RAST_OK;
