@@ -935,13 +935,14 @@ RAST_API void rast_context_destroy(rast_context *ctx) {
 RAST_API int rast_context_threads(const rast_context *ctx) { return ctx ? ctx->threads : 0; }
 
 /* Checks one view; *size takes the first present view's size. */
-static rast_result rast__check_view(const rast_view *v, int bytes_per_pixel, int size[2]) {
+static rast_result rast__check_view(const rast_view *v, int bytes_per_pixel, int is_float,
+                                    int size[2]) {
     if (!v->ptr) return RAST_OK;
     if (v->width <= 0 || v->height <= 0 || v->width > RAST_MAX_TARGET_SIZE ||
         v->height > RAST_MAX_TARGET_SIZE)
         return RAST_ERROR_INVALID_SIZE;
     if (v->stride < v->width * bytes_per_pixel) return RAST_ERROR_INVALID_SIZE;
-    if (bytes_per_pixel >= 4 && v->stride % 4) return RAST_ERROR_INVALID_SIZE; /* float alignment */
+    if (is_float && v->stride % 4) return RAST_ERROR_INVALID_SIZE; /* float alignment */
     if (size[0] == 0) { size[0] = v->width; size[1] = v->height; }
     else if (size[0] != v->width || size[1] != v->height) return RAST_ERROR_TARGET_MISMATCH;
     return RAST_OK;
@@ -954,9 +955,10 @@ RAST_API rast_result rast_set_targets(rast_context *ctx, const rast_targets *t) 
     if (!ctx || !t) return RAST_ERROR_INVALID_ARGUMENT;
     if (t->color_format < RAST_COLOR_DEFAULT || t->color_format > RAST_COLOR_RGBA32F)
         return RAST_ERROR_INVALID_ARGUMENT;
-    if ((r = rast__check_view(&t->color, t->color_format == RAST_COLOR_RGBA32F ? 16 : 4, size)) ||
-        (r = rast__check_view(&t->depth, 4, size)) || (r = rast__check_view(&t->stencil, 1, size)) ||
-        (r = rast__check_view(&t->accum, 16, size)))
+    int f32 = t->color_format == RAST_COLOR_RGBA32F;
+    if ((r = rast__check_view(&t->color, f32 ? 16 : 4, f32, size)) ||
+        (r = rast__check_view(&t->depth, 4, 1, size)) || (r = rast__check_view(&t->stencil, 1, 0, size)) ||
+        (r = rast__check_view(&t->accum, 16, 1, size)))
         return r;
     r = rast__flush(ctx);
     ctx->targets = *t;
