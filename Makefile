@@ -50,7 +50,13 @@ RAST_IMPL   = src/rast/internal.h \
 # reflect.h gets the same treatment; it is skipped while src/reflect/api.h
 # does not exist. List its modules here, in order:
 REFLECT_PUBLIC = src/reflect/api.h
-REFLECT_IMPL   = # src/reflect/internal.h src/reflect/math.c ...
+REFLECT_IMPL   = src/reflect/internal.h \
+                 src/reflect/math.c \
+                 src/reflect/mesh.c \
+                 src/reflect/shapes.c \
+                 src/reflect/scene.c \
+                 src/reflect/shade.c \
+                 src/reflect/render.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
 
 AMALGAMATE = build/amalgamate
@@ -59,7 +65,7 @@ amalgamate = $(AMALGAMATE) -o $(1) --banner $(2) --public $(3) --impl $(4) $(5)
 
 # ---- what gets built ----
 
-TEST_SRCS      = $(sort $(wildcard tests/test_*.c)) tests/rast_impl.c
+TEST_SRCS      = $(sort $(wildcard tests/test_*.c)) tests/rast_impl.c tests/reflect_impl.c
 TEST_BIN       = build/tests/rast_tests
 ASAN_TEST_BIN  = build/asan/rast_tests
 TEST_OBJS      = $(TEST_SRCS:tests/%.c=build/tests/%.o)
@@ -90,7 +96,7 @@ $(AMALGAMATE): tools/amalgamate.c
 headers: $(AMALGAMATE)
 	$(call amalgamate,rast.h,rast.h,$(RAST_PUBLIC),RAST_IMPLEMENTATION,$(RAST_IMPL))
 ifneq ($(HAVE_REFLECT),)
-	$(call amalgamate,reflect.h,reflect.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
+	$(call amalgamate,reflect.h,reflect.h --keep rast.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
 endif
 
 check-headers: $(AMALGAMATE)
@@ -99,7 +105,7 @@ check-headers: $(AMALGAMATE)
 	@cmp -s build/gen/rast.h rast.h || \
 	  { echo "rast.h differs from src/: run 'make headers' and commit it" >&2; exit 1; }
 ifneq ($(HAVE_REFLECT),)
-	@$(call amalgamate,build/gen/reflect.h,reflect.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
+	@$(call amalgamate,build/gen/reflect.h,reflect.h --keep rast.h,$(REFLECT_PUBLIC),REFL_IMPLEMENTATION,$(REFLECT_IMPL))
 	@cmp -s build/gen/reflect.h reflect.h || \
 	  { echo "reflect.h differs from src/: run 'make headers' and commit it" >&2; exit 1; }
 endif

@@ -448,16 +448,17 @@ static const float black[4] = { 0, 0, 0, 0 };
    Coverage uses the snapped vertices on both sides, but attribute and depth
    planes need not: llvmpipe builds them from the unsnapped float positions
    (lp_state_setup.c, calc_coef4: dx01/dy01 of the vertex floats, a0 at the
-   framebuffer origin), rast.h from the snapped ones (setup.c,
-   rast__emit_tri). GL leaves the precision of window coordinates to the
-   implementation (GL 4.6 core 13.8.1 / 14.6.1), so both are right. Moving
-   each vertex by at most 1/512 pixel per axis changes an attribute inside
-   the triangle by at most (|dc/dx| + |dc/dy|) / 512. Where vertices are off
-   the 1/256 grid, colours are therefore compared within 1/255 plus twice
-   that bound, computed per pixel from the exact gradient of the triangle
-   that covers it (found by an ID pass), and depth within 4e-6 plus twice
-   the depth bound. Where vertices are on the 1/256 grid no slack is given
-   for colours. */
+   framebuffer origin), rast.h from the snapped ones (barycentrics from the
+   integer edge functions: setup.c rast__emit_tri, raster.c). GL leaves the
+   sub-pixel precision of window coordinates to the implementation (GL 4.6
+   core 14.6.1 interpolates "with respect to the vertices" it rasterises),
+   so both are right. Moving each vertex by at most 1/512 pixel per axis
+   changes an attribute inside the triangle by at most
+   (|dc/dx| + |dc/dy|) / 512. Where vertices are off the 1/256 grid,
+   colours are therefore compared within 1/255 plus twice that bound,
+   computed per pixel from the exact gradient of the triangle that covers it
+   (found by an ID pass), and depth within 4e-6 plus twice the depth bound.
+   Where vertices are on the 1/256 grid no slack is given for colours. */
 
 typedef struct slack_map {
     uint32_t id[W * H];   /* triangle + 1 on top at the pixel (GL's), 0: none */
@@ -1082,7 +1083,10 @@ Test(gl_conformance, points_exact, .timeout = 120) {
 }
 
 /* GL: a point whose centre is outside the clip volume is discarded, even
-   when its square would reach into the viewport (GL 4.6 core 13.7.1). */
+   when its square would reach into the viewport (GL 4.6 core 13.7: "If the
+   primitive under consideration is a point, then clipping passes it
+   unchanged if it lies within the clip volume; otherwise, it is
+   discarded"). */
 Test(gl_conformance, points_centre_outside_discarded, .timeout = 60) {
     pair *p = pair_create();
     float v[64 * VF];

@@ -1,0 +1,393 @@
+/* reflect.h - accurate reflections and refractions on the CPU: the camera
+   models and methods of five research papers, drawn with rast.h.
+   Part of reflect.h + rast.h. Licence: MIT No Attribution (MIT-0), as in rast.h.
+
+   DO THIS in *one* C or C++ file, before including this file:
+
+       #define RAST_IMPLEMENTATION
+       #define REFL_IMPLEMENTATION
+       #include "reflect.h"          (it includes "rast.h" itself)
+
+   Other files include "reflect.h" without the defines.
+
+   OPTIONS (define before the implementation include)
+       REFL_STATIC          all functions static to the including file
+       REFL_API             decoration of every public function (default extern)
+       REFL_ASSERT(c)       contract checks (default assert)
+       REFL_MALLOC(size, user) / REFL_FREE(ptr, user)
+                            compile-time allocator (both or neither); every
+                            desc's allocator overrides at run time
+
+   WHAT IS HERE
+       math      vectors, 4x4 matrices (column-major, GL), quaternions, robust
+                 quadratic / cubic solvers, small dense least squares (QR)
+       meshes    indexed triangles, normals, subdivision, area-uniform points
+       shapes    the Utah teapot (Newell's 32 patches), sphere, torus, box, plane
+       scenes    objects, materials (diffuse, mirror, glass, partial), lights,
+                 environment; the built-in named scenes
+       views     pinhole camera
+       render    refl_render(scene, view, desc, frame) with one of the methods
+
+   STEP BY STEP
+       refl_scene *scene;
+       refl_builtin_desc bd = {0};
+       refl_scene_builtin("default", &bd, &scene);
+       refl_view view = scene->camera;             // or fill one in
+       view.width = 640; view.height = 480;
+       refl_frame *frame;
+       refl_frame_create(view.width, view.height, NULL, &frame);
+       refl_render_desc rd = {0};                   // method 0: DIRECT
+       refl_render(scene, &view, &rd, frame);       // frame->color is RGBA8
+       refl_frame_destroy(frame);
+       refl_scene_destroy(scene);
+
+   DETERMINISM
+       Same inputs, same build: same bytes, whatever the thread count. Random
+       sampling uses refl_rng (xorshift64*), seeded by the caller.
+*/
+#ifndef REFLECT_H_INCLUDED
+#define REFLECT_H_INCLUDED
+
+#include "rast.h"
+
+#define REFL_VERSION_MAJOR 0
+#define REFL_VERSION_MINOR 1
+#define REFL_VERSION_PATCH 0
+
+#ifndef REFL_API
+#ifdef REFL_STATIC
+#define REFL_API static
+#else
+#define REFL_API extern
+#endif
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum refl_result {
+    REFL_OK = 0,
+    REFL_ERROR_INVALID_ARGUMENT = -1, /* NULL pointer, bad enum, bad count */
+    REFL_ERROR_INVALID_SIZE = -2,     /* zero, negative or absurd sizes */
+    REFL_ERROR_OUT_OF_MEMORY = -3,
+    REFL_ERROR_BAD_MESH = -4,         /* indices out of range, NaN positions, no triangles */
+    REFL_ERROR_UNKNOWN_NAME = -5,     /* no built-in scene of that name */
+    REFL_ERROR_SINGULAR = -6,         /* ill-conditioned least squares, singular matrix */
+    REFL_ERROR_UNSUPPORTED = -7,      /* a method not built (yet) */
+    REFL_ERROR_RASTER = -8            /* rast.h failed; see the message */
+} refl_result;
+
+REFL_API const char *refl_result_string(refl_result result);
+
+typedef struct refl_allocator {
+    void *(*alloc)(size_t size, void *user);
+    void (*free)(void *ptr, void *user);
+    void *user;
+} refl_allocator;
+
+/* ---- math --------------------------------------------------------------- */
+
+typedef struct refl_vec3 { float x, y, z; } refl_vec3;
+typedef struct refl_mat4 { float m[16]; } refl_mat4; /* column-major: m[col * 4 + row] */
+typedef struct refl_quat { float x, y, z, w; } refl_quat;
+
+REFL_API refl_vec3 refl_v3(float x, float y, float z);
+REFL_API refl_vec3 refl_v3_add(refl_vec3 a, refl_vec3 b);
+REFL_API refl_vec3 refl_v3_sub(refl_vec3 a, refl_vec3 b);
+REFL_API refl_vec3 refl_v3_scale(refl_vec3 a, float s);
+REFL_API float refl_v3_dot(refl_vec3 a, refl_vec3 b);
+REFL_API refl_vec3 refl_v3_cross(refl_vec3 a, refl_vec3 b);
+REFL_API float refl_v3_length(refl_vec3 a);
+REFL_API refl_vec3 refl_v3_normalize(refl_vec3 a);   /* zero stays zero */
+/* Mirror direction d about unit normal n: d - 2 (d.n) n. */
+REFL_API refl_vec3 refl_v3_reflect(refl_vec3 d, refl_vec3 n);
+/* Refracts unit d through unit n (facing against d) with eta = n1 / n2;
+   returns 0 on total internal reflection (then *out is unchanged). */
+REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out);
+
+REFL_API refl_mat4 refl_mat4_identity(void);
+REFL_API refl_mat4 refl_mat4_mul(refl_mat4 a, refl_mat4 b);         /* a * b */
+REFL_API refl_mat4 refl_mat4_translate(refl_vec3 t);
+REFL_API refl_mat4 refl_mat4_scale(refl_vec3 s);
+REFL_API refl_mat4 refl_mat4_rotate(refl_vec3 axis, float radians);
+REFL_API refl_mat4 refl_mat4_from_quat(refl_quat q);
+/* 0 when singular (|det| tiny relative to the matrix scale); *out unchanged. */
+REFL_API int refl_mat4_invert(refl_mat4 a, refl_mat4 *out);
+REFL_API refl_mat4 refl_mat4_transpose(refl_mat4 a);
+REFL_API refl_vec3 refl_mat4_point(refl_mat4 a, refl_vec3 p);      /* w = 1, divided */
+REFL_API refl_vec3 refl_mat4_dir(refl_mat4 a, refl_vec3 d);        /* w = 0 */
+/* GL's gluPerspective and gluLookAt. */
+REFL_API refl_mat4 refl_mat4_perspective(float fovy_radians, float aspect, float znear, float zfar);
+REFL_API refl_mat4 refl_mat4_look_at(refl_vec3 eye, refl_vec3 target, refl_vec3 up);
+
+REFL_API refl_quat refl_quat_axis_angle(refl_vec3 axis, float radians);
+REFL_API refl_quat refl_quat_mul(refl_quat a, refl_quat b);
+REFL_API refl_quat refl_quat_normalize(refl_quat q);
+REFL_API refl_vec3 refl_quat_rotate(refl_quat q, refl_vec3 v);
+REFL_API refl_quat refl_quat_slerp(refl_quat a, refl_quat b, float t);
+
+/* Real roots of a x^2 + b x + c, ascending, a double root twice. Stable
+   (no cancellation), degrades to lower degree as leading coefficients
+   vanish. Returns the count, or -1 when every x is a root (all zero). */
+REFL_API int refl_solve_quadratic(double a, double b, double c, double roots[2]);
+/* Real roots of a x^3 + b x^2 + c x + d, ascending, with multiplicity. */
+REFL_API int refl_solve_cubic(double a, double b, double c, double d, double roots[3]);
+/* Least squares: x minimising |A x - b| for A rows x cols (row-major),
+   rows >= cols, cols <= 32, by Householder QR. REFL_ERROR_SINGULAR when
+   the estimated condition number exceeds 1e12 (x is then untouched).
+   *condition (optional) receives the estimate. */
+REFL_API refl_result refl_least_squares(const double *A, const double *b, int rows, int cols,
+                                        double *x, double *condition);
+
+/* Deterministic random numbers (xorshift64*): same sequence on every machine. */
+typedef struct refl_rng { uint64_t state; } refl_rng;
+REFL_API refl_rng refl_rng_seed(uint64_t seed);
+REFL_API uint32_t refl_rng_u32(refl_rng *rng);
+REFL_API float refl_rng_float(refl_rng *rng); /* [0, 1), 24 bits */
+
+/* ---- meshes ------------------------------------------------------------- */
+
+typedef struct refl_mesh {
+    int vertex_count, triangle_count;
+    float *positions;        /* 3 per vertex */
+    float *normals;          /* 3 per vertex, unit length */
+    float *texcoords;        /* 2 per vertex, or NULL */
+    float *colors;           /* 4 per vertex, or NULL */
+    uint32_t *indices;       /* 3 per triangle, counter-clockwise seen from outside */
+    refl_allocator allocator;
+} refl_mesh;
+
+typedef struct refl_mesh_desc {
+    const float *positions;  /* required */
+    const float *normals;    /* NULL: computed (angle-weighted face normals) */
+    const float *texcoords;
+    const float *colors;
+    const uint32_t *indices; /* NULL: vertices taken three at a time */
+    int vertex_count;
+    int index_count;         /* multiple of 3 */
+    refl_allocator allocator;
+} refl_mesh_desc;
+
+/* Copies the arrays. REFL_ERROR_BAD_MESH for out-of-range indices,
+   non-finite positions or no triangles; degenerate triangles are kept
+   (they draw nothing) but do not spoil normals. */
+REFL_API refl_result refl_mesh_create(const refl_mesh_desc *desc, refl_mesh **out_mesh);
+REFL_API void refl_mesh_destroy(refl_mesh *mesh);
+REFL_API void refl_mesh_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi);
+/* Splits every edge longer than max_edge at its midpoint until none is,
+   interpolating attributes: the surface is unchanged. Shared edges split
+   the same way on both sides (no T-junctions). */
+REFL_API refl_result refl_mesh_subdivide(const refl_mesh *mesh, float max_edge, refl_mesh **out_mesh);
+
+/* Points spread uniformly by area over a mesh (after `transform`, may be
+   NULL): on average `density` points per unit area, from `seed`; the same
+   points for the same inputs on every machine. */
+typedef struct refl_points {
+    int count;
+    float *positions;        /* 3 per point */
+    float *normals;          /* 3 per point */
+    uint32_t *triangles;     /* the triangle each point lies on */
+    refl_allocator allocator;
+} refl_points;
+REFL_API refl_result refl_mesh_sample_points(const refl_mesh *mesh, const refl_mat4 *transform,
+                                             float density, uint64_t seed,
+                                             const refl_allocator *allocator,
+                                             refl_points **out_points);
+REFL_API void refl_points_destroy(refl_points *points);
+
+/* ---- shapes (allocator may be NULL) --------------------------------------- */
+
+/* Newell's teapot: 32 bicubic patches, each a tess x tess grid (0: 8, giving
+   about 4k triangles; 4 about 1k, 16 about 16k); y up, base on y = 0. */
+REFL_API refl_result refl_mesh_teapot(int tess, const refl_allocator *a, refl_mesh **out);
+REFL_API refl_result refl_mesh_sphere(float radius, int slices, int stacks, const refl_allocator *a,
+                                      refl_mesh **out);
+REFL_API refl_result refl_mesh_torus(float major_radius, float minor_radius, int slices, int sides,
+                                     const refl_allocator *a, refl_mesh **out);
+REFL_API refl_result refl_mesh_box(refl_vec3 size, const refl_allocator *a, refl_mesh **out);
+/* A square in y = 0 of side `size`, facing +y, divisions x divisions quads. */
+REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_allocator *a, refl_mesh **out);
+
+/* ---- images ------------------------------------------------------------- */
+
+typedef struct refl_image {
+    int width, height;
+    float *pixels;           /* RGBA, linear, rows top first */
+} refl_image;
+
+/* ---- scenes ------------------------------------------------------------- */
+
+typedef enum refl_material_type {
+    REFL_DIFFUSE = 0,
+    REFL_MIRROR,             /* reflects: reflectance, optional Fresnel */
+    REFL_GLASS,              /* refracts and reflects: ior, tint, attenuation */
+    REFL_PARTIAL             /* diffuse blended with mirror by mirror_weight */
+} refl_material_type;
+
+typedef struct refl_material {
+    refl_material_type type;
+    float color[4];          /* diffuse colour (linear RGBA) */
+    int texture;             /* 0: none; k: scene texture k - 1, modulating color */
+    float reflectance;       /* mirror colour scale at normal incidence; 0: 1 */
+    int fresnel;             /* Schlick's Fresnel term on reflections */
+    float ior;               /* glass; 0: 1.5 */
+    float tint[3];           /* glass transmission colour; zero: white */
+    float attenuation;       /* glass absorption per unit length (Beer's law) */
+    float mirror_weight;     /* partial: 0 diffuse .. 1 mirror */
+    char name[32];
+} refl_material;
+
+typedef struct refl_object {
+    int mesh;                /* index into scene meshes */
+    int material;            /* index into scene materials */
+    refl_mat4 transform;     /* object to world */
+    char name[32];
+} refl_object;
+
+typedef enum refl_light_type { REFL_LIGHT_POINT = 0, REFL_LIGHT_DIRECTIONAL } refl_light_type;
+
+typedef struct refl_light {
+    refl_light_type type;
+    refl_vec3 position;      /* point lights */
+    refl_vec3 direction;     /* directional: the direction light travels */
+    float color[3];          /* intensity per channel */
+} refl_light;
+
+typedef enum refl_env_type {
+    REFL_ENV_COLOR = 0,      /* a constant colour */
+    REFL_ENV_EQUIRECT,       /* image: longitude across, +y at the top row */
+    REFL_ENV_CUBE            /* faces +X -X +Y -Y +Z -Z (GL's layout) */
+} refl_env_type;
+
+typedef struct refl_environment {
+    refl_env_type type;
+    float color[3];
+    refl_image image;        /* EQUIRECT */
+    refl_image faces[6];     /* CUBE */
+    float intensity;         /* 0: 1 */
+} refl_environment;
+
+/* A pinhole view. */
+typedef struct refl_view {
+    refl_vec3 eye, target, up;
+    float fovy_degrees;      /* vertical; 0: 45 */
+    int width, height;
+    float znear, zfar;       /* 0: from the scene's bounds */
+} refl_view;
+
+typedef struct refl_scene {
+    refl_mesh **meshes; int mesh_count;
+    refl_material *materials; int material_count;
+    refl_object *objects; int object_count;
+    refl_light *lights; int light_count;
+    refl_image *textures; int texture_count;
+    refl_environment environment;
+    refl_view camera;        /* the scene's own view */
+    int has_camera;
+    float ambient[3];        /* ambient light on diffuse surfaces */
+    refl_allocator allocator;
+} refl_scene;
+
+REFL_API refl_result refl_scene_create(const refl_allocator *a, refl_scene **out_scene);
+/* Frees the scene with its meshes, textures and environment images. */
+REFL_API void refl_scene_destroy(refl_scene *scene);
+/* The scene takes ownership of the mesh (also on failure). Index or error. */
+REFL_API int refl_scene_add_mesh(refl_scene *scene, refl_mesh *mesh);
+REFL_API int refl_scene_add_material(refl_scene *scene, const refl_material *m);
+REFL_API int refl_scene_add_object(refl_scene *scene, const refl_object *o);
+REFL_API int refl_scene_add_light(refl_scene *scene, const refl_light *l);
+/* Copies width x height RGBA floats; index or error. */
+REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, const float *rgba);
+/* Copies the images. */
+REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
+/* World-space bounds of every object. */
+REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
+/* Scales and moves every object (and the camera) so the scene's bounding
+   box is centred on the origin with a diagonal of `size`. */
+REFL_API void refl_scene_normalize(refl_scene *scene, float size);
+/* Total triangles over all objects. */
+REFL_API long long refl_scene_triangles(const refl_scene *scene);
+
+typedef struct refl_builtin_desc {
+    int teapot_tess;         /* 0: 8 */
+    refl_allocator allocator;
+} refl_builtin_desc;
+
+/* "default", "mirror-room", "concave", "glass"; NULL-terminated list. */
+REFL_API const char *const *refl_builtin_names(void);
+REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
+                                        refl_scene **out_scene);
+
+/* ---- shading, shared by every method ---------------------------------------- */
+
+/* Diffuse shading of a world point: ambient + Lambert from each light (no
+   shadows), times the material colour (and texture at uv, may be NULL).
+   Every method shades with this, so images differ only in reflection
+   geometry. */
+REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m, refl_vec3 p,
+                                 refl_vec3 n, const float *uv, float rgb[3]);
+/* The environment seen along a world direction. */
+REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]);
+
+/* ---- rendering -------------------------------------------------------------- */
+
+typedef enum refl_method {
+    REFL_METHOD_DEFAULT = 0, /* DIRECT */
+    REFL_DIRECT,             /* scene rasterised, reflectors only in the stencil */
+    REFL_RAYTRACE,           /* the reference */
+    REFL_ENVMAP,
+    REFL_PLANAR,             /* paper 002 */
+    REFL_SBC,                /* paper 003 */
+    REFL_C3RC,               /* paper 000 */
+    REFL_SPOC,               /* paper 004 */
+    REFL_GRAPHCAM,           /* paper 004 */
+    REFL_LAYERED_EM,         /* paper 001 */
+    REFL_AUTO,
+    REFL_METHOD_COUNT
+} refl_method;
+
+REFL_API const char *refl_method_name(refl_method m);          /* "direct", ... */
+REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown */
+
+typedef struct refl_stats {
+    double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
+    long long triangles, points, cameras, leaves, layers;
+    long long model_bytes;
+    int reflectors;          /* reflector objects on screen */
+} refl_stats;
+
+typedef struct refl_frame {
+    int width, height;
+    uint8_t *color;          /* RGBA8, rows top first */
+    float *depth;            /* window depth in [0, 1] */
+    uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
+    refl_stats stats;
+    refl_allocator allocator;
+} refl_frame;
+
+REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
+                                       refl_frame **out_frame);
+REFL_API void refl_frame_destroy(refl_frame *frame);
+
+typedef struct refl_render_desc {
+    refl_method method;
+    int threads;             /* 0: one per CPU */
+    void (*progress)(void *user, float done); /* optional, done in [0, 1] */
+    void *progress_user;
+} refl_render_desc;
+
+/* Renders one frame of the scene from the view into frame (its size must
+   match the view's). */
+REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
+                                 const refl_render_desc *desc, refl_frame *frame);
+
+/* View and projection matrices of a view (near/far resolved from the scene
+   when zero). */
+REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene, refl_mat4 *view_m,
+                                 refl_mat4 *proj_m);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* REFLECT_H_INCLUDED */

@@ -1,0 +1,60 @@
+/* Private declarations shared by the reflect.h modules (refl__ prefix).
+   The amalgamator puts this first inside the REFL_IMPLEMENTATION section. */
+#include "api.h"
+
+#include <math.h>
+#include <string.h>
+#include <float.h>
+#include <limits.h>
+
+#ifndef REFL_ASSERT
+#include <assert.h>
+#define REFL_ASSERT(c) assert(c)
+#endif
+
+#if defined(REFL_MALLOC) != defined(REFL_FREE)
+#error "define both REFL_MALLOC and REFL_FREE, or neither"
+#endif
+#ifndef REFL_MALLOC
+#include <stdlib.h>
+#define REFL_MALLOC(size, user) ((void)(user), malloc(size))
+#define REFL_FREE(ptr, user) ((void)(user), free(ptr))
+#endif
+
+#define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
+#define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
+#define REFL__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+#define REFL__PI 3.14159265358979323846
+
+/* ---- allocation: the given allocator when set, else REFL_MALLOC ---- */
+
+static void *refl__alloc(const refl_allocator *a, size_t size) {
+    if (size == 0) size = 1;
+    if (a && a->alloc) return a->alloc(size, a->user);
+    return REFL_MALLOC(size, a ? a->user : NULL);
+}
+
+static void refl__free(const refl_allocator *a, void *ptr) {
+    if (!ptr) return;
+    if (a && a->free) a->free(ptr, a->user);
+    else REFL_FREE(ptr, a ? a->user : NULL);
+}
+
+/* Zeroed array of count * size bytes, NULL on overflow or failure. */
+static void *refl__calloc(const refl_allocator *a, size_t count, size_t size) {
+    void *p;
+    if (size && count > (size_t)-1 / size) return NULL;
+    p = refl__alloc(a, count * size);
+    if (p) memset(p, 0, count * size);
+    return p;
+}
+
+/* A copy of an allocator pointer's contents (zero when NULL). */
+static refl_allocator refl__allocator(const refl_allocator *a) {
+    refl_allocator r;
+    if (a) return *a;
+    memset(&r, 0, sizeof r);
+    return r;
+}
+
+static int refl__isfinite(float v) { return v - v == 0.0f; }

@@ -1,0 +1,2 @@
+/* math: being written. */
+#include "internal.h"

@@ -1,0 +1,2 @@
+/* mesh: being written. */
+#include "internal.h"

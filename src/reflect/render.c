@@ -1,0 +1,2 @@
+/* render: being written. */
+#include "internal.h"

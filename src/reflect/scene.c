@@ -1,0 +1,2 @@
+/* scene: being written. */
+#include "internal.h"

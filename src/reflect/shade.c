@@ -1,0 +1,2 @@
+/* shade: being written. */
+#include "internal.h"

@@ -1,0 +1,2 @@
+/* shapes: being written. */
+#include "internal.h"

@@ -1,0 +1,3 @@
+/* The reflect.h implementation (rast.h is implemented in rast_impl.c). */
+#define REFL_IMPLEMENTATION
+#include "../reflect.h"
