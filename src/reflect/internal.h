@@ -28,20 +28,20 @@
 
 /* ---- allocation: the given allocator when set, else REFL_MALLOC ---- */
 
-static void *refl__alloc(const refl_allocator *a, size_t size) {
+static inline void *refl__alloc(const refl_allocator *a, size_t size) {
     if (size == 0) size = 1;
     if (a && a->alloc) return a->alloc(size, a->user);
     return REFL_MALLOC(size, a ? a->user : NULL);
 }
 
-static void refl__free(const refl_allocator *a, void *ptr) {
+static inline void refl__free(const refl_allocator *a, void *ptr) {
     if (!ptr) return;
     if (a && a->free) a->free(ptr, a->user);
     else REFL_FREE(ptr, a ? a->user : NULL);
 }
 
 /* Zeroed array of count * size bytes, NULL on overflow or failure. */
-static void *refl__calloc(const refl_allocator *a, size_t count, size_t size) {
+static inline void *refl__calloc(const refl_allocator *a, size_t count, size_t size) {
     void *p;
     if (size && count > (size_t)-1 / size) return NULL;
     p = refl__alloc(a, count * size);
@@ -50,11 +50,11 @@ static void *refl__calloc(const refl_allocator *a, size_t count, size_t size) {
 }
 
 /* A copy of an allocator pointer's contents (zero when NULL). */
-static refl_allocator refl__allocator(const refl_allocator *a) {
+static inline refl_allocator refl__allocator(const refl_allocator *a) {
     refl_allocator r;
     if (a) return *a;
     memset(&r, 0, sizeof r);
     return r;
 }
 
-static int refl__isfinite(float v) { return v - v == 0.0f; }
+static inline int refl__isfinite(float v) { return v - v == 0.0f; }
