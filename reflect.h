@@ -463,7 +463,463 @@ static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 /* ---- src/reflect/shapes.c ---- */
 /* shapes: being written. */
 /* ---- src/reflect/scene.c ---- */
-/* scene: being written. */
+/* Scenes: growable arrays of meshes, materials, objects, lights and
+   textures, the environment and the scene's own camera. The scene owns
+   everything added to it. */
+
+REFL_API const char *refl_result_string(refl_result result) {
+    switch (result) {
+    case REFL_OK: return "ok";
+    case REFL_ERROR_INVALID_ARGUMENT: return "invalid argument";
+    case REFL_ERROR_INVALID_SIZE: return "invalid size (zero, negative, or too large)";
+    case REFL_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case REFL_ERROR_BAD_MESH: return "bad mesh (indices out of range, non-finite positions or no triangles)";
+    case REFL_ERROR_UNKNOWN_NAME: return "unknown name";
+    case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
+    case REFL_ERROR_UNSUPPORTED: return "method not available";
+    case REFL_ERROR_RASTER: return "rasteriser error";
+    }
+    return "unknown refl_result";
+}
+
+REFL_API refl_result refl_scene_create(const refl_allocator *a, refl_scene **out_scene) {
+    refl_scene *s;
+    if (!out_scene) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_scene = NULL;
+    if (a && ((a->alloc != NULL) != (a->free != NULL))) return REFL_ERROR_INVALID_ARGUMENT;
+    s = (refl_scene *)refl__calloc(a, 1, sizeof(refl_scene));
+    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
+    s->allocator = refl__allocator(a);
+    s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.1f;
+    *out_scene = s;
+    return REFL_OK;
+}
+
+static void refl__image_free(const refl_allocator *a, refl_image *img) {
+    refl__free(a, img->pixels);
+    memset(img, 0, sizeof(*img));
+}
+
+static void refl__environment_free(const refl_allocator *a, refl_environment *env) {
+    int i;
+    refl__image_free(a, &env->image);
+    for (i = 0; i < 6; ++i) refl__image_free(a, &env->faces[i]);
+}
+
+REFL_API void refl_scene_destroy(refl_scene *s) {
+    refl_allocator a;
+    int i;
+    if (!s) return;
+    a = s->allocator;
+    for (i = 0; i < s->mesh_count; ++i) refl_mesh_destroy(s->meshes[i]);
+    for (i = 0; i < s->texture_count; ++i) refl__image_free(&a, &s->textures[i]);
+    refl__environment_free(&a, &s->environment);
+    refl__free(&a, s->meshes);
+    refl__free(&a, s->materials);
+    refl__free(&a, s->objects);
+    refl__free(&a, s->lights);
+    refl__free(&a, s->textures);
+    refl__free(&a, s);
+}
+
+/* Appends one element of `size` bytes to *array (count *count), growing by
+   doubling when the count reaches a power of two. Index or -1. */
+static int refl__push(const refl_allocator *a, void **array, int *count, size_t size, const void *elem) {
+    int n = *count;
+    if (n >= INT_MAX / 2) return -1;
+    if ((n & (n - 1)) == 0) { /* 0, 1, 2, 4 ...: full, grow */
+        size_t cap = n ? (size_t)n * 2 : 4;
+        void *grown = refl__alloc(a, cap * size);
+        if (!grown) return -1;
+        if (n) memcpy(grown, *array, (size_t)n * size);
+        refl__free(a, *array);
+        *array = grown;
+    }
+    memcpy((char *)*array + (size_t)n * size, elem, size);
+    *count = n + 1;
+    return n;
+}
+
+REFL_API int refl_scene_add_mesh(refl_scene *s, refl_mesh *mesh) {
+    int i;
+    if (!s || !mesh) {
+        refl_mesh_destroy(mesh);
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    i = refl__push(&s->allocator, (void **)&s->meshes, &s->mesh_count, sizeof(refl_mesh *), &mesh);
+    if (i < 0) {
+        refl_mesh_destroy(mesh);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    return i;
+}
+
+REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
+    int i;
+    if (!s || !m || (int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return REFL_ERROR_INVALID_ARGUMENT;
+    if (m->texture < 0 || m->texture > s->texture_count) return REFL_ERROR_INVALID_ARGUMENT;
+    i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
+    return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
+}
+
+REFL_API int refl_scene_add_object(refl_scene *s, const refl_object *o) {
+    int i, k;
+    if (!s || !o || o->mesh < 0 || o->mesh >= s->mesh_count || o->material < 0 ||
+        o->material >= s->material_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (k = 0; k < 16; ++k)
+        if (!refl__isfinite(o->transform.m[k])) return REFL_ERROR_INVALID_ARGUMENT;
+    i = refl__push(&s->allocator, (void **)&s->objects, &s->object_count, sizeof(refl_object), o);
+    return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
+}
+
+REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
+    int i;
+    if (!s || !l || (int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    i = refl__push(&s->allocator, (void **)&s->lights, &s->light_count, sizeof(refl_light), l);
+    return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
+}
+
+/* A copy of w x h RGBA floats, or an error. */
+static refl_result refl__image_copy(const refl_allocator *a, int w, int h, const float *rgba, refl_image *out) {
+    memset(out, 0, sizeof(*out));
+    if (w <= 0 || h <= 0 || w > 65536 || h > 65536) return REFL_ERROR_INVALID_SIZE;
+    if (!rgba) return REFL_ERROR_INVALID_ARGUMENT;
+    out->pixels = (float *)refl__calloc(a, (size_t)w * (size_t)h, 4 * sizeof(float));
+    if (!out->pixels) return REFL_ERROR_OUT_OF_MEMORY;
+    memcpy(out->pixels, rgba, (size_t)w * (size_t)h * 4 * sizeof(float));
+    out->width = w;
+    out->height = h;
+    return REFL_OK;
+}
+
+REFL_API int refl_scene_add_texture(refl_scene *s, int width, int height, const float *rgba) {
+    refl_image img;
+    refl_result r;
+    int i;
+    if (!s) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__image_copy(&s->allocator, width, height, rgba, &img)) != REFL_OK) return r;
+    i = refl__push(&s->allocator, (void **)&s->textures, &s->texture_count, sizeof(refl_image), &img);
+    if (i < 0) {
+        refl__image_free(&s->allocator, &img);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    return i;
+}
+
+REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_environment *env) {
+    refl_environment e;
+    refl_result r = REFL_OK;
+    int i;
+    if (!s || !env || (int)env->type < REFL_ENV_COLOR || (int)env->type > REFL_ENV_CUBE)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    e = *env;
+    memset(&e.image, 0, sizeof(e.image));
+    memset(e.faces, 0, sizeof(e.faces));
+    if (env->type == REFL_ENV_EQUIRECT)
+        r = refl__image_copy(&s->allocator, env->image.width, env->image.height, env->image.pixels, &e.image);
+    for (i = 0; env->type == REFL_ENV_CUBE && i < 6 && r == REFL_OK; ++i) {
+        if (env->faces[i].width != env->faces[0].width || env->faces[i].height != env->faces[i].width)
+            r = REFL_ERROR_INVALID_SIZE;
+        else
+            r = refl__image_copy(&s->allocator, env->faces[i].width, env->faces[i].height,
+                                 env->faces[i].pixels, &e.faces[i]);
+    }
+    if (r != REFL_OK) {
+        refl__environment_free(&s->allocator, &e);
+        return r;
+    }
+    refl__environment_free(&s->allocator, &s->environment);
+    s->environment = e;
+    return REFL_OK;
+}
+
+REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *hi) {
+    refl_vec3 l = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), h = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    int i, c;
+    for (i = 0; s && i < s->object_count; ++i) {
+        const refl_object *o = &s->objects[i];
+        refl_vec3 ml, mh;
+        refl_mesh_bounds(s->meshes[o->mesh], &ml, &mh);
+        for (c = 0; c < 8; ++c) { /* the corners of the mesh box, transformed */
+            refl_vec3 p = refl_v3(c & 1 ? mh.x : ml.x, c & 2 ? mh.y : ml.y, c & 4 ? mh.z : ml.z);
+            p = refl_mat4_point(o->transform, p);
+            l = refl_v3(REFL__MIN(l.x, p.x), REFL__MIN(l.y, p.y), REFL__MIN(l.z, p.z));
+            h = refl_v3(REFL__MAX(h.x, p.x), REFL__MAX(h.y, p.y), REFL__MAX(h.z, p.z));
+        }
+    }
+    if (l.x > h.x) l = h = refl_v3(0, 0, 0); /* empty scene */
+    if (lo) *lo = l;
+    if (hi) *hi = h;
+}
+
+REFL_API void refl_scene_normalize(refl_scene *s, float size) {
+    refl_vec3 lo, hi, c;
+    float diag, k;
+    refl_mat4 m;
+    int i;
+    if (!s || !(size > 0.0f) || !s->object_count) return;
+    refl_scene_bounds(s, &lo, &hi);
+    diag = refl_v3_length(refl_v3_sub(hi, lo));
+    if (!(diag > 0.0f)) return;
+    k = size / diag;
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    m = refl_mat4_mul(refl_mat4_scale(refl_v3(k, k, k)), refl_mat4_translate(refl_v3_scale(c, -1.0f)));
+    for (i = 0; i < s->object_count; ++i) s->objects[i].transform = refl_mat4_mul(m, s->objects[i].transform);
+    for (i = 0; i < s->light_count; ++i)
+        if (s->lights[i].type == REFL_LIGHT_POINT) s->lights[i].position = refl_mat4_point(m, s->lights[i].position);
+    if (s->has_camera) {
+        s->camera.eye = refl_mat4_point(m, s->camera.eye);
+        s->camera.target = refl_mat4_point(m, s->camera.target);
+        s->camera.znear *= k;
+        s->camera.zfar *= k;
+    }
+}
+
+REFL_API long long refl_scene_triangles(const refl_scene *s) {
+    long long n = 0;
+    int i;
+    for (i = 0; s && i < s->object_count; ++i) n += s->meshes[s->objects[i].mesh]->triangle_count;
+    return n;
+}
+
+/* ---- built-in scenes ------------------------------------------------------ */
+
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", NULL};
+
+REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
+
+/* Adds mesh (owned) with a material and transform; returns the object index
+   or a negative refl_result. Frees the mesh on failure. */
+static int refl__add(refl_scene *s, refl_result made, refl_mesh *mesh, const refl_material *m,
+                     refl_mat4 transform, const char *name) {
+    refl_object o;
+    int mi, mat;
+    if (made != REFL_OK) return made;
+    mi = refl_scene_add_mesh(s, mesh);
+    if (mi < 0) return mi;
+    mat = refl_scene_add_material(s, m);
+    if (mat < 0) return mat;
+    memset(&o, 0, sizeof o);
+    o.mesh = mi;
+    o.material = mat;
+    o.transform = transform;
+    strncpy(o.name, name, sizeof(o.name) - 1);
+    return refl_scene_add_object(s, &o);
+}
+
+static refl_material refl__material(refl_material_type type, float r, float g, float b, const char *name) {
+    refl_material m;
+    memset(&m, 0, sizeof m);
+    m.type = type;
+    m.color[0] = r; m.color[1] = g; m.color[2] = b; m.color[3] = 1.0f;
+    strncpy(m.name, name, sizeof(m.name) - 1);
+    return m;
+}
+
+static refl_mat4 refl__at(float x, float y, float z) { return refl_mat4_translate(refl_v3(x, y, z)); }
+
+/* A floor, a key and a fill light, a sky-coloured environment and a camera. */
+static refl_result refl__stage(refl_scene *s, const refl_allocator *a, float floor_size, refl_vec3 eye,
+                               refl_vec3 target) {
+    refl_material floor_m = refl__material(REFL_DIFFUSE, 0.55f, 0.55f, 0.5f, "floor");
+    refl_light key, fill;
+    refl_environment env;
+    refl_mesh *m = NULL;
+    int r = refl__add(s, refl_mesh_plane(floor_size, 16, a, &m), m, &floor_m, refl_mat4_identity(), "floor");
+    if (r < 0) return (refl_result)r;
+    memset(&key, 0, sizeof key);
+    key.type = REFL_LIGHT_POINT;
+    key.position = refl_v3(4.0f, 8.0f, 6.0f);
+    key.color[0] = key.color[1] = key.color[2] = 0.9f;
+    memset(&fill, 0, sizeof fill);
+    fill.type = REFL_LIGHT_DIRECTIONAL;
+    fill.direction = refl_v3_normalize(refl_v3(0.5f, -1.0f, -0.3f));
+    fill.color[0] = 0.25f; fill.color[1] = 0.27f; fill.color[2] = 0.3f;
+    if ((r = refl_scene_add_light(s, &key)) < 0 || (r = refl_scene_add_light(s, &fill)) < 0) return (refl_result)r;
+    memset(&env, 0, sizeof env);
+    env.type = REFL_ENV_COLOR;
+    env.color[0] = 0.45f; env.color[1] = 0.6f; env.color[2] = 0.85f;
+    if ((r = refl_scene_set_environment(s, &env)) != REFL_OK) return (refl_result)r;
+    s->camera.eye = eye;
+    s->camera.target = target;
+    s->camera.up = refl_v3(0, 1, 0);
+    s->camera.fovy_degrees = 45.0f;
+    s->camera.width = 640;
+    s->camera.height = 480;
+    s->has_camera = 1;
+    return REFL_OK;
+}
+
+/* default: a mirror teapot on a floor with diffuse objects close to it,
+   the torus touching it. */
+static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
+    refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
+    refl_material green = refl__material(REFL_DIFFUSE, 0.15f, 0.7f, 0.2f, "green");
+    refl_material blue = refl__material(REFL_DIFFUSE, 0.15f, 0.25f, 0.8f, "blue");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k;
+    if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 4.5f, 9.0f), refl_v3(0.0f, 1.2f, 0.0f))) != REFL_OK) return r;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &mirror, refl_mat4_identity(), "teapot")) < 0)
+        return (refl_result)k;
+    /* the torus rests against the teapot's body (radius 2 at y = 1.2) */
+    if ((k = refl__add(s, refl_mesh_torus(0.6f, 0.25f, 32, 16, a, &m), m, &red,
+                       refl_mat4_mul(refl__at(2.5f, 0.25f, 0.9f), refl_mat4_identity()), "torus")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), m, &green, refl__at(-2.6f, 0.7f, 1.4f),
+                       "sphere")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), m, &blue,
+                       refl_mat4_mul(refl__at(0.6f, 0.6f, -3.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 0.6f)),
+                       "box")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
+/* mirror-room: four facing planar mirrors around a few objects. */
+static refl_result refl__scene_mirror_room(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.92f, 0.92f, 0.95f, "mirror");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.5f, 0.1f, "orange");
+    refl_material teal = refl__material(REFL_DIFFUSE, 0.1f, 0.6f, 0.6f, "teal");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k, w;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(1.5f, 2.5f, 4.0f), refl_v3(0.0f, 1.0f, 0.0f))) != REFL_OK) return r;
+    mirror.reflectance = 0.9f;
+    for (w = 0; w < 4; ++w) { /* a wall mirror 6 wide, 3 high, facing the centre */
+        refl_mat4 t = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), (float)(w * REFL__PI / 2)),
+                                    refl_mat4_mul(refl__at(0.0f, 1.5f, -3.0f),
+                                                  refl_mat4_mul(refl_mat4_rotate(refl_v3(1, 0, 0), (float)(REFL__PI / 2)),
+                                                                refl_mat4_scale(refl_v3(1.0f, 1.0f, 0.5f)))));
+        if ((k = refl__add(s, refl_mesh_plane(6.0f, 1, a, &m), m, &mirror, t, "wall mirror")) < 0)
+            return (refl_result)k;
+    }
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &orange,
+                       refl_mat4_scale(refl_v3(0.4f, 0.4f, 0.4f)), "teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_sphere(0.4f, 24, 12, a, &m), m, &teal, refl__at(1.2f, 0.4f, 0.8f), "sphere")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
+/* The back half (z < 0) of a sphere seen from inside: normals inward and
+   winding flipped, a concave bowl opening towards +z. */
+static refl_result refl__bowl(float radius, const refl_allocator *a, refl_mesh **out) {
+    refl_mesh *sphere = NULL;
+    refl_mesh_desc d;
+    uint32_t *idx;
+    float *nrm;
+    int t, n = 0, v;
+    refl_result r = refl_mesh_sphere(radius, 64, 32, a, &sphere);
+    if (r != REFL_OK) return r;
+    idx = (uint32_t *)refl__alloc(a, (size_t)sphere->triangle_count * 3 * sizeof(uint32_t));
+    nrm = (float *)refl__alloc(a, (size_t)sphere->vertex_count * 3 * sizeof(float));
+    if (!idx || !nrm) {
+        refl__free(a, idx);
+        refl__free(a, nrm);
+        refl_mesh_destroy(sphere);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (t = 0; t < sphere->triangle_count; ++t) {
+        const uint32_t *tri = sphere->indices + 3 * t;
+        float z = sphere->positions[3 * tri[0] + 2] + sphere->positions[3 * tri[1] + 2] +
+                  sphere->positions[3 * tri[2] + 2];
+        if (z >= 0.0f) continue;
+        idx[3 * n] = tri[0];
+        idx[3 * n + 1] = tri[2];
+        idx[3 * n + 2] = tri[1];
+        ++n;
+    }
+    for (v = 0; v < 3 * sphere->vertex_count; ++v) nrm[v] = -sphere->normals[v];
+    memset(&d, 0, sizeof d);
+    d.positions = sphere->positions;
+    d.normals = nrm;
+    d.texcoords = sphere->texcoords;
+    d.indices = idx;
+    d.vertex_count = sphere->vertex_count;
+    d.index_count = 3 * n;
+    d.allocator = refl__allocator(a);
+    r = refl_mesh_create(&d, out);
+    refl__free(a, idx);
+    refl__free(a, nrm);
+    refl_mesh_destroy(sphere);
+    return r;
+}
+
+/* concave: the inside of a hemispherical mirror with an object near its
+   focus (half the radius from the mirror), where reflections converge. */
+static refl_result refl__scene_concave(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "concave mirror");
+    refl_material yellow = refl__material(REFL_DIFFUSE, 0.9f, 0.8f, 0.2f, "yellow");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k;
+    (void)tess;
+    if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 3.5f, 6.0f), refl_v3(0.0f, 3.0f, -1.5f))) != REFL_OK) return r;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl__bowl(3.0f, a, &m), m, &mirror, refl__at(0.0f, 3.0f, 0.0f), "concave mirror")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_sphere(0.3f, 24, 12, a, &m), m, &yellow, refl__at(0.0f, 3.0f, -1.5f),
+                       "ball at focus")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
+/* glass: a glass teapot and a glass slab over a checker of diffuse boxes. */
+static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material glass = refl__material(REFL_GLASS, 0.95f, 0.97f, 1.0f, "glass");
+    refl_material slab = refl__material(REFL_GLASS, 0.9f, 1.0f, 0.95f, "glass slab");
+    refl_material dark = refl__material(REFL_DIFFUSE, 0.1f, 0.1f, 0.12f, "dark");
+    refl_material light = refl__material(REFL_DIFFUSE, 0.85f, 0.85f, 0.8f, "light");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k, i, j;
+    if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 4.0f, 8.5f), refl_v3(0.0f, 1.2f, 0.0f))) != REFL_OK) return r;
+    glass.ior = 1.5f;
+    glass.fresnel = 1;
+    slab.ior = 1.5f;
+    slab.fresnel = 1;
+    slab.attenuation = 0.2f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), m, &slab, refl__at(2.2f, 0.75f, 1.0f),
+                       "glass slab")) < 0)
+        return (refl_result)k;
+    for (j = 0; j < 4; ++j) /* tiles behind the glass, so refraction shows */
+        for (i = 0; i < 8; ++i)
+            if ((k = refl__add(s, refl_mesh_box(refl_v3(1.0f, 0.05f, 1.0f), a, &m), m, (i + j) & 1 ? &dark : &light,
+                               refl__at(-3.5f + (float)i, 0.025f, -1.5f - (float)j), "tile")) < 0)
+                return (refl_result)k;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc, refl_scene **out_scene) {
+    refl_builtin_desc d;
+    refl_scene *s;
+    refl_result r;
+    if (!out_scene) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_scene = NULL;
+    if (!name) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc) d = *desc;
+    else memset(&d, 0, sizeof d);
+    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass"))
+        return REFL_ERROR_UNKNOWN_NAME;
+    if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
+    if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
+    else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
+    if (r != REFL_OK) {
+        refl_scene_destroy(s);
+        return r;
+    }
+    *out_scene = s;
+    return REFL_OK;
+}
 /* ---- src/reflect/shade.c ---- */
 /* shade: being written. */
 /* ---- src/reflect/render.c ---- */
