@@ -48,9 +48,11 @@
        Image row 0 is the TOP row, as in image files. Clip space and NDC are
        GL's: NDC y = +1 is the top of the viewport, z_ndc in [-1, 1] maps to
        depth [0, 1]. Pixel centres lie at (x + 0.5, y + 0.5). Front faces are
-       counter-clockwise in NDC (GL's default); the fill rule is top-left in
-       image coordinates, which is GL's lower-left-origin top-left rule seen
-       upside down, so images match a GL framebuffer read back and flipped.
+       counter-clockwise in NDC (GL's default). The fill rule is D3D's
+       top-left in image coordinates. GL leaves the rule to the implementation
+       (each shared edge drawn once); Mesa's llvmpipe, read back and flipped,
+       is bottom-left, so the two differ only at pixel centres lying exactly on
+       horizontal edges (tests/test_gl_conformance.c measures this).
 
    STEP BY STEP
        uint8_t rgba[W*H*4]; float depth[W*H];
