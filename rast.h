@@ -530,6 +530,60 @@ static int64_t rast__round(float v) {
     return (int64_t)(d - 6755399441055744.0);
 }
 
+/* ---- comparisons and stencil ops, GL semantics ---- */
+
+static int rast__compare_u8(int func, unsigned a, unsigned b) {
+    switch (func) {
+    case RAST_NEVER: return 0;
+    case RAST_LESS: return a < b;
+    case RAST_EQUAL: return a == b;
+    case RAST_LEQUAL: return a <= b;
+    case RAST_GREATER: return a > b;
+    case RAST_NOTEQUAL: return a != b;
+    case RAST_GEQUAL: return a >= b;
+    default: return 1; /* ALWAYS */
+    }
+}
+
+static int rast__compare_f(int func, float a, float b) {
+    switch (func) {
+    case RAST_NEVER: return 0;
+    case RAST_LESS: return a < b;
+    case RAST_EQUAL: return a == b;
+    case RAST_LEQUAL: return a <= b;
+    case RAST_GREATER: return a > b;
+    case RAST_NOTEQUAL: return a != b;
+    case RAST_GEQUAL: return a >= b;
+    default: return 1;
+    }
+}
+
+static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
+    switch (op) {
+    case RAST_ZERO: return 0;
+    case RAST_REPLACE: return ref;
+    case RAST_INCR: return s < 255 ? s + 1 : 255;
+    case RAST_DECR: return s > 0 ? s - 1 : 0;
+    case RAST_INVERT: return ~s & 0xFFu;
+    case RAST_INCR_WRAP: return (s + 1) & 0xFFu;
+    case RAST_DECR_WRAP: return (s - 1) & 0xFFu;
+    default: return s; /* KEEP */
+    }
+}
+
+/* One channel's blend: factor = base + sign * v[sel] over the values
+   v = {0, src[c], src[3], dst[c], dst[3], constant[c], constant[3]}, which
+   covers every GL factor but SRC_ALPHA_SATURATE (flagged); the equation is
+   src_term * src * sf + dst_term * dst * df, or min / max. */
+typedef struct rast__blend_channel {
+    float src_base, src_sign, dst_base, dst_sign;
+    uint8_t src_sel, dst_sel, saturate_src, saturate_dst;
+    float src_term, dst_term;
+    int minmax;               /* 0 none, 1 min, 2 max */
+} rast__blend_channel;
+
+enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
+
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
 typedef struct rast__pipe {
@@ -545,7 +599,11 @@ typedef struct rast__pipe {
     int depth_func;
     uint8_t st_ref[2], st_rmask[2], st_wmask[2]; /* [0] front, [1] back */
     uint8_t st_func[2], st_fail[2], st_zfail[2], st_pass[2];
+    uint8_t st_test[2][256];      /* stencil test result per stored value */
+    uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
     int blend;
+    rast__blend_channel blend_ch[4];
+    int plain_color;          /* no blending, every channel written */
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;
     int fixed_texture;        /* no fragment callback and a texture bound */
@@ -1018,6 +1076,8 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
 static uint8_t rast__mask(unsigned m) { return m ? (uint8_t)(m & 0xFFu) : 0xFFu; }
 
 static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f) {
+    unsigned v, w;
+    int k;
     p->st_func[i] = (uint8_t)(f->func ? f->func : RAST_ALWAYS);
     p->st_ref[i] = f->ref;
     p->st_rmask[i] = rast__mask(f->read_mask);
@@ -1025,6 +1085,53 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
     p->st_fail[i] = (uint8_t)f->fail;
     p->st_zfail[i] = (uint8_t)f->depth_fail;
     p->st_pass[i] = (uint8_t)f->pass;
+    /* every stencil outcome depends only on the stored value: tabulate */
+    w = p->st_wmask[i];
+    for (v = 0; v < 256; ++v) {
+        const uint8_t ops[3] = {p->st_fail[i], p->st_zfail[i], p->st_pass[i]};
+        p->st_test[i][v] = (uint8_t)rast__compare_u8(p->st_func[i], p->st_ref[i] & p->st_rmask[i],
+                                                     v & p->st_rmask[i]);
+        for (k = 0; k < 3; ++k)
+            p->st_next[i][k][v] = (uint8_t)((v & ~w) | (rast__stencil_op(ops[k], v, p->st_ref[i]) & w));
+    }
+}
+
+/* One blend factor as base + sign * v[sel] (see rast__blend_channel). */
+static void rast__resolve_factor(int f, int alpha, float *base, float *sign, uint8_t *sel, uint8_t *saturate) {
+    static const struct { float base, sign; uint8_t rgb_sel, alpha_sel; } table[] = {
+        {1, 0, 0, 0},  /* DEFAULT: resolved by the caller */
+        {0, 0, 0, 0},  /* ZERO */
+        {1, 0, 0, 0},  /* ONE */
+        {0, 1, 1, 2},  {1, -1, 1, 2}, /* SRC_COLOR, ONE_MINUS_SRC_COLOR */
+        {0, 1, 3, 4},  {1, -1, 3, 4}, /* DST_COLOR, ONE_MINUS_DST_COLOR */
+        {0, 1, 2, 2},  {1, -1, 2, 2}, /* SRC_ALPHA, ONE_MINUS_SRC_ALPHA */
+        {0, 1, 4, 4},  {1, -1, 4, 4}, /* DST_ALPHA, ONE_MINUS_DST_ALPHA */
+        {0, 1, 5, 6},  {1, -1, 5, 6}, /* CONSTANT_COLOR, ONE_MINUS_CONSTANT_COLOR */
+        {0, 1, 6, 6},  {1, -1, 6, 6}, /* CONSTANT_ALPHA, ONE_MINUS_CONSTANT_ALPHA */
+        {0, 0, 0, 0}   /* SRC_ALPHA_SATURATE: flagged */
+    };
+    *base = table[f].base;
+    *sign = table[f].sign;
+    *sel = alpha ? table[f].alpha_sel : table[f].rgb_sel;
+    *saturate = f == RAST_SRC_ALPHA_SATURATE;
+}
+
+static void rast__resolve_blend(rast__pipe *p, const rast_state *s) {
+    int c;
+    for (c = 0; c < 4; ++c) {
+        rast__blend_channel *b = &p->blend_ch[c];
+        int a = c == 3;
+        int sf = a ? (s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE)
+                   : (s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE);
+        int df = a ? (s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR)
+                   : (s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR);
+        int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
+        rast__resolve_factor(sf, a, &b->src_base, &b->src_sign, &b->src_sel, &b->saturate_src);
+        rast__resolve_factor(df, a, &b->dst_base, &b->dst_sign, &b->dst_sel, &b->saturate_dst);
+        b->src_term = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
+        b->dst_term = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
+        b->minmax = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+    }
 }
 
 /* The pipe for the current state and targets, made on first use. */
@@ -1076,11 +1183,13 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     rast__resolve_face(p, 0, &s->stencil_front);
     rast__resolve_face(p, 1, &s->stencil_back);
     p->blend = s->blend != 0;
+    rast__resolve_blend(p, s);
     p->color_write = s->color_write ? (s->color_write & 0xFu) : (unsigned)RAST_WRITE_RGBA;
+    p->plain_color = !p->blend && p->color_write == RAST_WRITE_RGBA;
     p->fog = s->fog != RAST_FOG_NONE;
     p->fixed_texture = !s->fragment_fn && s->texture;
-    p->simple = !p->stencil_on && !p->blend && !s->fragment_fn && !p->fixed_texture && !p->fog &&
-                p->color_write == RAST_WRITE_RGBA && s->depth_offset == 0.0f;
+    p->simple = !p->stencil_on && !s->fragment_fn && !p->fixed_texture && !p->fog &&
+                s->depth_offset == 0.0f;
     p->next = ctx->pipes;
     ctx->pipes = p;
     ctx->pipe = p;
@@ -1942,47 +2051,9 @@ static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
    clears, accumulation ops. Scissor and viewport are applied by the
    rasteriser, which only visits pixels inside pipe->clip. */
 
-static int rast__compare_u8(int func, unsigned a, unsigned b) {
-    switch (func) {
-    case RAST_NEVER: return 0;
-    case RAST_LESS: return a < b;
-    case RAST_EQUAL: return a == b;
-    case RAST_LEQUAL: return a <= b;
-    case RAST_GREATER: return a > b;
-    case RAST_NOTEQUAL: return a != b;
-    case RAST_GEQUAL: return a >= b;
-    default: return 1; /* ALWAYS */
-    }
-}
-
-static int rast__compare_f(int func, float a, float b) {
-    switch (func) {
-    case RAST_NEVER: return 0;
-    case RAST_LESS: return a < b;
-    case RAST_EQUAL: return a == b;
-    case RAST_LEQUAL: return a <= b;
-    case RAST_GREATER: return a > b;
-    case RAST_NOTEQUAL: return a != b;
-    case RAST_GEQUAL: return a >= b;
-    default: return 1;
-    }
-}
-
-static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
-    switch (op) {
-    case RAST_ZERO: return 0;
-    case RAST_REPLACE: return ref;
-    case RAST_INCR: return s < 255 ? s + 1 : 255;
-    case RAST_DECR: return s > 0 ? s - 1 : 0;
-    case RAST_INVERT: return ~s & 0xFFu;
-    case RAST_INCR_WRAP: return (s + 1) & 0xFFu;
-    case RAST_DECR_WRAP: return (s - 1) & 0xFFu;
-    default: return s; /* KEEP */
-    }
-}
-
 /* Stencil and depth tests with their side effects on one pixel.
-   face: 0 front, 1 back. Returns nonzero when the fragment survives. */
+   face: 0 front, 1 back. Returns nonzero when the fragment survives. The
+   stencil test and ops are table lookups prepared with the pipe. */
 static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, int y,
                                float z, int face) {
     uint8_t *sp = NULL;
@@ -1992,10 +2063,8 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
     if (p->stencil_on) {
         sp = fb->stencil + (size_t)y * (size_t)fb->stencil_stride + (size_t)x;
         s = *sp;
-        if (!rast__compare_u8(p->st_func[face], p->st_ref[face] & p->st_rmask[face],
-                              s & p->st_rmask[face])) {
-            unsigned n = rast__stencil_op(p->st_fail[face], s, p->st_ref[face]);
-            *sp = (uint8_t)((s & ~(unsigned)p->st_wmask[face]) | (n & p->st_wmask[face]));
+        if (!p->st_test[face][s]) {
+            *sp = p->st_next[face][RAST__ST_FAIL][s];
             return 0;
         }
     }
@@ -2003,49 +2072,10 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
         dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
         zpass = rast__compare_f(p->depth_func, z, *dp);
     }
-    if (sp) {
-        unsigned n = rast__stencil_op(zpass ? p->st_pass[face] : p->st_zfail[face], s,
-                                      p->st_ref[face]);
-        *sp = (uint8_t)((s & ~(unsigned)p->st_wmask[face]) | (n & p->st_wmask[face]));
-    }
+    if (sp) *sp = p->st_next[face][zpass ? RAST__ST_PASS : RAST__ST_ZFAIL][s];
     if (!zpass) return 0;
     if (dp && p->depth_write) *dp = z;
     return 1;
-}
-
-static float rast__blend_factor(int f, int alpha_channel, const float src[4],
-                                const float dst[4], const float k[4], int c) {
-    switch (f) {
-    case RAST_ZERO_FACTOR: return 0.0f;
-    case RAST_ONE: return 1.0f;
-    case RAST_SRC_COLOR: return src[c];
-    case RAST_ONE_MINUS_SRC_COLOR: return 1.0f - src[c];
-    case RAST_DST_COLOR: return dst[c];
-    case RAST_ONE_MINUS_DST_COLOR: return 1.0f - dst[c];
-    case RAST_SRC_ALPHA: return src[3];
-    case RAST_ONE_MINUS_SRC_ALPHA: return 1.0f - src[3];
-    case RAST_DST_ALPHA: return dst[3];
-    case RAST_ONE_MINUS_DST_ALPHA: return 1.0f - dst[3];
-    case RAST_CONSTANT_COLOR: return k[c];
-    case RAST_ONE_MINUS_CONSTANT_COLOR: return 1.0f - k[c];
-    case RAST_CONSTANT_ALPHA: return k[3];
-    case RAST_ONE_MINUS_CONSTANT_ALPHA: return 1.0f - k[3];
-    case RAST_SRC_ALPHA_SATURATE: {
-        float m = RAST__MIN(src[3], 1.0f - dst[3]);
-        return alpha_channel ? 1.0f : m;
-    }
-    default: return 1.0f;
-    }
-}
-
-static float rast__blend_equation(int eq, float s, float sf, float d, float df) {
-    switch (eq) {
-    case RAST_FUNC_SUBTRACT: return s * sf - d * df;
-    case RAST_FUNC_REVERSE_SUBTRACT: return d * df - s * sf;
-    case RAST_FUNC_MIN: return RAST__MIN(s, d);
-    case RAST_FUNC_MAX: return RAST__MAX(s, d);
-    default: return s * sf + d * df;
-    }
 }
 
 /* Clamp and round to 8 bits; written so compilers emit min/max, not
@@ -2075,17 +2105,21 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         }
     }
     if (p->blend) {
-        const rast_state *s = &p->s;
-        int srgb = s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE;
-        int drgb = s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR;
-        int sa = s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE;
-        int da = s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR;
         for (c = 0; c < 4; ++c) {
-            int a = c == 3;
-            int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
-            float sf = rast__blend_factor(a ? sa : srgb, a, src, dst, s->blend_color, c);
-            float df = rast__blend_factor(a ? da : drgb, a, src, dst, s->blend_color, c);
-            out[c] = rast__blend_equation(eq, src[c], sf, dst[c], df);
+            const rast__blend_channel *b = &p->blend_ch[c];
+            /* the values a factor may scale: see rast__blend_channel */
+            float v[7], sf, df;
+            v[0] = 0.0f; v[1] = src[c]; v[2] = src[3]; v[3] = dst[c]; v[4] = dst[3];
+            v[5] = p->s.blend_color[c]; v[6] = p->s.blend_color[3];
+            sf = b->src_base + b->src_sign * v[b->src_sel];
+            df = b->dst_base + b->dst_sign * v[b->dst_sel];
+            if (b->saturate_src) sf = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+            if (b->saturate_dst) df = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+            switch (b->minmax) {
+            case 1: out[c] = RAST__MIN(src[c], dst[c]); break;
+            case 2: out[c] = RAST__MAX(src[c], dst[c]); break;
+            default: out[c] = b->src_term * src[c] * sf + b->dst_term * dst[c] * df; break;
+            }
         }
     } else {
         for (c = 0; c < 4; ++c) out[c] = src[c];
@@ -2284,8 +2318,13 @@ static uint32_t rast__pack_rgba8(const float c[4]) {
            ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
 }
 
-static void rast__store_color(const rast__fb *fb, uint8_t *crow, int x, const float c[4]) {
-    if (fb->color_f32) {
+/* Writes a fragment colour on a simple pipe: straight in when there is
+   no blending or masking, else through blending and the mask. */
+static void rast__store_color(const rast__pipe *p, const rast__fb *fb, uint8_t *crow, int x, int y,
+                              const float c[4]) {
+    if (!p->plain_color) {
+        rast__color_out(p, fb, x, y, c);
+    } else if (fb->color_f32) {
         float *px = (float *)crow + 4 * x;
         px[0] = c[0]; px[1] = c[1]; px[2] = c[2]; px[3] = c[3];
     } else {
@@ -2332,9 +2371,9 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
             float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-            rast__store_color(fb, crow, x, c);
+            rast__store_color(p, fb, crow, x, sp->y, c);
         } else {
-            rast__store_color(fb, crow, x, di->color);
+            rast__store_color(p, fb, crow, x, sp->y, di->color);
         }
     }
 }
@@ -2431,7 +2470,7 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
             float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
             uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
             for (x = x0; x < x1; ++x)
-                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(fb, crow, x, c);
+                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(p, fb, crow, x, y, c);
         }
         return;
     }
@@ -2473,22 +2512,38 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* A constant rectangle through the tests and colour stages (no callbacks). */
+/* A constant rectangle through the tests and colour stages (no callbacks):
+   the stencil passes of the papers, so the loop is kept tight. */
 static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const rast__rect *r) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
     int x0 = RAST__MAX(r->h.x0, tl->x0), x1 = RAST__MIN(r->h.x1, tl->x1);
     int y0 = RAST__MAX(r->h.y0, tl->y0), y1 = RAST__MIN(r->h.y1, tl->y1);
     int x, y, want_color = fb->color && p->color_write;
-    float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f);
-    for (y = y0; y < y1; ++y)
+    float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f), rgba[4];
+    const uint8_t *test = p->st_test[0], *fail = p->st_next[0][RAST__ST_FAIL];
+    const uint8_t *zfail = p->st_next[0][RAST__ST_ZFAIL], *pass = p->st_next[0][RAST__ST_PASS];
+    memcpy(rgba, r->rgba, sizeof(rgba));
+    if (p->fog) rast__apply_fog(p, 1.0f, rgba);
+    for (y = y0; y < y1; ++y) {
+        uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
+        float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+        uint8_t *crow = want_color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
         for (x = x0; x < x1; ++x) {
-            float rgba[4];
-            if (!rast__depth_stencil(p, fb, x, y, z, 0) || !want_color) continue;
-            rgba[0] = r->rgba[0]; rgba[1] = r->rgba[1]; rgba[2] = r->rgba[2]; rgba[3] = r->rgba[3];
-            if (p->fog) rast__apply_fog(p, 1.0f, rgba);
-            rast__color_out(p, fb, x, y, rgba);
+            int zpass = drow ? rast__compare_f(p->depth_func, z, drow[x]) : 1;
+            if (srow) {
+                unsigned s = srow[x];
+                if (!test[s]) {
+                    srow[x] = fail[s];
+                    continue;
+                }
+                srow[x] = zpass ? pass[s] : zfail[s];
+            }
+            if (!zpass) continue;
+            if (drow && p->depth_write) drow[x] = z;
+            if (crow) rast__store_color(p, fb, crow, x, y, rgba);
         }
+    }
 }
 
 /* All of a chunk's points in a tile, on a simple pipe. One-pixel points
@@ -2508,7 +2563,7 @@ static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl
         uint8_t *cp;
         int pass;
         if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
-            y >= tl->y1 || f32 || !fb->color) {
+            y >= tl->y1 || f32 || !fb->color || !p->plain_color) {
             rast__raster_point(di, tl, pt);
             continue;
         }

@@ -175,6 +175,8 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
 static uint8_t rast__mask(unsigned m) { return m ? (uint8_t)(m & 0xFFu) : 0xFFu; }
 
 static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f) {
+    unsigned v, w;
+    int k;
     p->st_func[i] = (uint8_t)(f->func ? f->func : RAST_ALWAYS);
     p->st_ref[i] = f->ref;
     p->st_rmask[i] = rast__mask(f->read_mask);
@@ -182,6 +184,53 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
     p->st_fail[i] = (uint8_t)f->fail;
     p->st_zfail[i] = (uint8_t)f->depth_fail;
     p->st_pass[i] = (uint8_t)f->pass;
+    /* every stencil outcome depends only on the stored value: tabulate */
+    w = p->st_wmask[i];
+    for (v = 0; v < 256; ++v) {
+        const uint8_t ops[3] = {p->st_fail[i], p->st_zfail[i], p->st_pass[i]};
+        p->st_test[i][v] = (uint8_t)rast__compare_u8(p->st_func[i], p->st_ref[i] & p->st_rmask[i],
+                                                     v & p->st_rmask[i]);
+        for (k = 0; k < 3; ++k)
+            p->st_next[i][k][v] = (uint8_t)((v & ~w) | (rast__stencil_op(ops[k], v, p->st_ref[i]) & w));
+    }
+}
+
+/* One blend factor as base + sign * v[sel] (see rast__blend_channel). */
+static void rast__resolve_factor(int f, int alpha, float *base, float *sign, uint8_t *sel, uint8_t *saturate) {
+    static const struct { float base, sign; uint8_t rgb_sel, alpha_sel; } table[] = {
+        {1, 0, 0, 0},  /* DEFAULT: resolved by the caller */
+        {0, 0, 0, 0},  /* ZERO */
+        {1, 0, 0, 0},  /* ONE */
+        {0, 1, 1, 2},  {1, -1, 1, 2}, /* SRC_COLOR, ONE_MINUS_SRC_COLOR */
+        {0, 1, 3, 4},  {1, -1, 3, 4}, /* DST_COLOR, ONE_MINUS_DST_COLOR */
+        {0, 1, 2, 2},  {1, -1, 2, 2}, /* SRC_ALPHA, ONE_MINUS_SRC_ALPHA */
+        {0, 1, 4, 4},  {1, -1, 4, 4}, /* DST_ALPHA, ONE_MINUS_DST_ALPHA */
+        {0, 1, 5, 6},  {1, -1, 5, 6}, /* CONSTANT_COLOR, ONE_MINUS_CONSTANT_COLOR */
+        {0, 1, 6, 6},  {1, -1, 6, 6}, /* CONSTANT_ALPHA, ONE_MINUS_CONSTANT_ALPHA */
+        {0, 0, 0, 0}   /* SRC_ALPHA_SATURATE: flagged */
+    };
+    *base = table[f].base;
+    *sign = table[f].sign;
+    *sel = alpha ? table[f].alpha_sel : table[f].rgb_sel;
+    *saturate = f == RAST_SRC_ALPHA_SATURATE;
+}
+
+static void rast__resolve_blend(rast__pipe *p, const rast_state *s) {
+    int c;
+    for (c = 0; c < 4; ++c) {
+        rast__blend_channel *b = &p->blend_ch[c];
+        int a = c == 3;
+        int sf = a ? (s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE)
+                   : (s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE);
+        int df = a ? (s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR)
+                   : (s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR);
+        int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
+        rast__resolve_factor(sf, a, &b->src_base, &b->src_sign, &b->src_sel, &b->saturate_src);
+        rast__resolve_factor(df, a, &b->dst_base, &b->dst_sign, &b->dst_sel, &b->saturate_dst);
+        b->src_term = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
+        b->dst_term = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
+        b->minmax = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+    }
 }
 
 /* The pipe for the current state and targets, made on first use. */
@@ -233,11 +282,13 @@ static rast__pipe *rast__current_pipe(rast_context *ctx) {
     rast__resolve_face(p, 0, &s->stencil_front);
     rast__resolve_face(p, 1, &s->stencil_back);
     p->blend = s->blend != 0;
+    rast__resolve_blend(p, s);
     p->color_write = s->color_write ? (s->color_write & 0xFu) : (unsigned)RAST_WRITE_RGBA;
+    p->plain_color = !p->blend && p->color_write == RAST_WRITE_RGBA;
     p->fog = s->fog != RAST_FOG_NONE;
     p->fixed_texture = !s->fragment_fn && s->texture;
-    p->simple = !p->stencil_on && !p->blend && !s->fragment_fn && !p->fixed_texture && !p->fog &&
-                p->color_write == RAST_WRITE_RGBA && s->depth_offset == 0.0f;
+    p->simple = !p->stencil_on && !s->fragment_fn && !p->fixed_texture && !p->fog &&
+                s->depth_offset == 0.0f;
     p->next = ctx->pipes;
     ctx->pipes = p;
     ctx->pipe = p;

@@ -4,47 +4,9 @@
    rasteriser, which only visits pixels inside pipe->clip. */
 #include "internal.h"
 
-static int rast__compare_u8(int func, unsigned a, unsigned b) {
-    switch (func) {
-    case RAST_NEVER: return 0;
-    case RAST_LESS: return a < b;
-    case RAST_EQUAL: return a == b;
-    case RAST_LEQUAL: return a <= b;
-    case RAST_GREATER: return a > b;
-    case RAST_NOTEQUAL: return a != b;
-    case RAST_GEQUAL: return a >= b;
-    default: return 1; /* ALWAYS */
-    }
-}
-
-static int rast__compare_f(int func, float a, float b) {
-    switch (func) {
-    case RAST_NEVER: return 0;
-    case RAST_LESS: return a < b;
-    case RAST_EQUAL: return a == b;
-    case RAST_LEQUAL: return a <= b;
-    case RAST_GREATER: return a > b;
-    case RAST_NOTEQUAL: return a != b;
-    case RAST_GEQUAL: return a >= b;
-    default: return 1;
-    }
-}
-
-static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
-    switch (op) {
-    case RAST_ZERO: return 0;
-    case RAST_REPLACE: return ref;
-    case RAST_INCR: return s < 255 ? s + 1 : 255;
-    case RAST_DECR: return s > 0 ? s - 1 : 0;
-    case RAST_INVERT: return ~s & 0xFFu;
-    case RAST_INCR_WRAP: return (s + 1) & 0xFFu;
-    case RAST_DECR_WRAP: return (s - 1) & 0xFFu;
-    default: return s; /* KEEP */
-    }
-}
-
 /* Stencil and depth tests with their side effects on one pixel.
-   face: 0 front, 1 back. Returns nonzero when the fragment survives. */
+   face: 0 front, 1 back. Returns nonzero when the fragment survives. The
+   stencil test and ops are table lookups prepared with the pipe. */
 static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, int y,
                                float z, int face) {
     uint8_t *sp = NULL;
@@ -54,10 +16,8 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
     if (p->stencil_on) {
         sp = fb->stencil + (size_t)y * (size_t)fb->stencil_stride + (size_t)x;
         s = *sp;
-        if (!rast__compare_u8(p->st_func[face], p->st_ref[face] & p->st_rmask[face],
-                              s & p->st_rmask[face])) {
-            unsigned n = rast__stencil_op(p->st_fail[face], s, p->st_ref[face]);
-            *sp = (uint8_t)((s & ~(unsigned)p->st_wmask[face]) | (n & p->st_wmask[face]));
+        if (!p->st_test[face][s]) {
+            *sp = p->st_next[face][RAST__ST_FAIL][s];
             return 0;
         }
     }
@@ -65,49 +25,10 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
         dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
         zpass = rast__compare_f(p->depth_func, z, *dp);
     }
-    if (sp) {
-        unsigned n = rast__stencil_op(zpass ? p->st_pass[face] : p->st_zfail[face], s,
-                                      p->st_ref[face]);
-        *sp = (uint8_t)((s & ~(unsigned)p->st_wmask[face]) | (n & p->st_wmask[face]));
-    }
+    if (sp) *sp = p->st_next[face][zpass ? RAST__ST_PASS : RAST__ST_ZFAIL][s];
     if (!zpass) return 0;
     if (dp && p->depth_write) *dp = z;
     return 1;
-}
-
-static float rast__blend_factor(int f, int alpha_channel, const float src[4],
-                                const float dst[4], const float k[4], int c) {
-    switch (f) {
-    case RAST_ZERO_FACTOR: return 0.0f;
-    case RAST_ONE: return 1.0f;
-    case RAST_SRC_COLOR: return src[c];
-    case RAST_ONE_MINUS_SRC_COLOR: return 1.0f - src[c];
-    case RAST_DST_COLOR: return dst[c];
-    case RAST_ONE_MINUS_DST_COLOR: return 1.0f - dst[c];
-    case RAST_SRC_ALPHA: return src[3];
-    case RAST_ONE_MINUS_SRC_ALPHA: return 1.0f - src[3];
-    case RAST_DST_ALPHA: return dst[3];
-    case RAST_ONE_MINUS_DST_ALPHA: return 1.0f - dst[3];
-    case RAST_CONSTANT_COLOR: return k[c];
-    case RAST_ONE_MINUS_CONSTANT_COLOR: return 1.0f - k[c];
-    case RAST_CONSTANT_ALPHA: return k[3];
-    case RAST_ONE_MINUS_CONSTANT_ALPHA: return 1.0f - k[3];
-    case RAST_SRC_ALPHA_SATURATE: {
-        float m = RAST__MIN(src[3], 1.0f - dst[3]);
-        return alpha_channel ? 1.0f : m;
-    }
-    default: return 1.0f;
-    }
-}
-
-static float rast__blend_equation(int eq, float s, float sf, float d, float df) {
-    switch (eq) {
-    case RAST_FUNC_SUBTRACT: return s * sf - d * df;
-    case RAST_FUNC_REVERSE_SUBTRACT: return d * df - s * sf;
-    case RAST_FUNC_MIN: return RAST__MIN(s, d);
-    case RAST_FUNC_MAX: return RAST__MAX(s, d);
-    default: return s * sf + d * df;
-    }
 }
 
 /* Clamp and round to 8 bits; written so compilers emit min/max, not
@@ -137,17 +58,21 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         }
     }
     if (p->blend) {
-        const rast_state *s = &p->s;
-        int srgb = s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE;
-        int drgb = s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR;
-        int sa = s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE;
-        int da = s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR;
         for (c = 0; c < 4; ++c) {
-            int a = c == 3;
-            int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
-            float sf = rast__blend_factor(a ? sa : srgb, a, src, dst, s->blend_color, c);
-            float df = rast__blend_factor(a ? da : drgb, a, src, dst, s->blend_color, c);
-            out[c] = rast__blend_equation(eq, src[c], sf, dst[c], df);
+            const rast__blend_channel *b = &p->blend_ch[c];
+            /* the values a factor may scale: see rast__blend_channel */
+            float v[7], sf, df;
+            v[0] = 0.0f; v[1] = src[c]; v[2] = src[3]; v[3] = dst[c]; v[4] = dst[3];
+            v[5] = p->s.blend_color[c]; v[6] = p->s.blend_color[3];
+            sf = b->src_base + b->src_sign * v[b->src_sel];
+            df = b->dst_base + b->dst_sign * v[b->dst_sel];
+            if (b->saturate_src) sf = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+            if (b->saturate_dst) df = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+            switch (b->minmax) {
+            case 1: out[c] = RAST__MIN(src[c], dst[c]); break;
+            case 2: out[c] = RAST__MAX(src[c], dst[c]); break;
+            default: out[c] = b->src_term * src[c] * sf + b->dst_term * dst[c] * df; break;
+            }
         }
     } else {
         for (c = 0; c < 4; ++c) out[c] = src[c];

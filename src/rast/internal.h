@@ -56,6 +56,60 @@ static int64_t rast__round(float v) {
     return (int64_t)(d - 6755399441055744.0);
 }
 
+/* ---- comparisons and stencil ops, GL semantics ---- */
+
+static int rast__compare_u8(int func, unsigned a, unsigned b) {
+    switch (func) {
+    case RAST_NEVER: return 0;
+    case RAST_LESS: return a < b;
+    case RAST_EQUAL: return a == b;
+    case RAST_LEQUAL: return a <= b;
+    case RAST_GREATER: return a > b;
+    case RAST_NOTEQUAL: return a != b;
+    case RAST_GEQUAL: return a >= b;
+    default: return 1; /* ALWAYS */
+    }
+}
+
+static int rast__compare_f(int func, float a, float b) {
+    switch (func) {
+    case RAST_NEVER: return 0;
+    case RAST_LESS: return a < b;
+    case RAST_EQUAL: return a == b;
+    case RAST_LEQUAL: return a <= b;
+    case RAST_GREATER: return a > b;
+    case RAST_NOTEQUAL: return a != b;
+    case RAST_GEQUAL: return a >= b;
+    default: return 1;
+    }
+}
+
+static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
+    switch (op) {
+    case RAST_ZERO: return 0;
+    case RAST_REPLACE: return ref;
+    case RAST_INCR: return s < 255 ? s + 1 : 255;
+    case RAST_DECR: return s > 0 ? s - 1 : 0;
+    case RAST_INVERT: return ~s & 0xFFu;
+    case RAST_INCR_WRAP: return (s + 1) & 0xFFu;
+    case RAST_DECR_WRAP: return (s - 1) & 0xFFu;
+    default: return s; /* KEEP */
+    }
+}
+
+/* One channel's blend: factor = base + sign * v[sel] over the values
+   v = {0, src[c], src[3], dst[c], dst[3], constant[c], constant[3]}, which
+   covers every GL factor but SRC_ALPHA_SATURATE (flagged); the equation is
+   src_term * src * sf + dst_term * dst * df, or min / max. */
+typedef struct rast__blend_channel {
+    float src_base, src_sign, dst_base, dst_sign;
+    uint8_t src_sel, dst_sel, saturate_src, saturate_dst;
+    float src_term, dst_term;
+    int minmax;               /* 0 none, 1 min, 2 max */
+} rast__blend_channel;
+
+enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
+
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
 typedef struct rast__pipe {
@@ -71,7 +125,11 @@ typedef struct rast__pipe {
     int depth_func;
     uint8_t st_ref[2], st_rmask[2], st_wmask[2]; /* [0] front, [1] back */
     uint8_t st_func[2], st_fail[2], st_zfail[2], st_pass[2];
+    uint8_t st_test[2][256];      /* stencil test result per stored value */
+    uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
     int blend;
+    rast__blend_channel blend_ch[4];
+    int plain_color;          /* no blending, every channel written */
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;
     int fixed_texture;        /* no fragment callback and a texture bound */

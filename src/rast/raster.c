@@ -53,8 +53,13 @@ static uint32_t rast__pack_rgba8(const float c[4]) {
            ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
 }
 
-static void rast__store_color(const rast__fb *fb, uint8_t *crow, int x, const float c[4]) {
-    if (fb->color_f32) {
+/* Writes a fragment colour on a simple pipe: straight in when there is
+   no blending or masking, else through blending and the mask. */
+static void rast__store_color(const rast__pipe *p, const rast__fb *fb, uint8_t *crow, int x, int y,
+                              const float c[4]) {
+    if (!p->plain_color) {
+        rast__color_out(p, fb, x, y, c);
+    } else if (fb->color_f32) {
         float *px = (float *)crow + 4 * x;
         px[0] = c[0]; px[1] = c[1]; px[2] = c[2]; px[3] = c[3];
     } else {
@@ -101,9 +106,9 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
             float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
             int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
-            rast__store_color(fb, crow, x, c);
+            rast__store_color(p, fb, crow, x, sp->y, c);
         } else {
-            rast__store_color(fb, crow, x, di->color);
+            rast__store_color(p, fb, crow, x, sp->y, di->color);
         }
     }
 }
@@ -200,7 +205,7 @@ static void rast__raster_point(const rast__draw_info *di, rast__tile *tl, const 
             float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
             uint8_t *crow = fb->color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
             for (x = x0; x < x1; ++x)
-                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(fb, crow, x, c);
+                if (rast__depth_simple(p, drow, x, z) && crow) rast__store_color(p, fb, crow, x, y, c);
         }
         return;
     }
@@ -242,22 +247,38 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* A constant rectangle through the tests and colour stages (no callbacks). */
+/* A constant rectangle through the tests and colour stages (no callbacks):
+   the stencil passes of the papers, so the loop is kept tight. */
 static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const rast__rect *r) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
     int x0 = RAST__MAX(r->h.x0, tl->x0), x1 = RAST__MIN(r->h.x1, tl->x1);
     int y0 = RAST__MAX(r->h.y0, tl->y0), y1 = RAST__MIN(r->h.y1, tl->y1);
     int x, y, want_color = fb->color && p->color_write;
-    float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f);
-    for (y = y0; y < y1; ++y)
+    float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f), rgba[4];
+    const uint8_t *test = p->st_test[0], *fail = p->st_next[0][RAST__ST_FAIL];
+    const uint8_t *zfail = p->st_next[0][RAST__ST_ZFAIL], *pass = p->st_next[0][RAST__ST_PASS];
+    memcpy(rgba, r->rgba, sizeof(rgba));
+    if (p->fog) rast__apply_fog(p, 1.0f, rgba);
+    for (y = y0; y < y1; ++y) {
+        uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
+        float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+        uint8_t *crow = want_color ? fb->color + (size_t)y * (size_t)fb->color_stride : NULL;
         for (x = x0; x < x1; ++x) {
-            float rgba[4];
-            if (!rast__depth_stencil(p, fb, x, y, z, 0) || !want_color) continue;
-            rgba[0] = r->rgba[0]; rgba[1] = r->rgba[1]; rgba[2] = r->rgba[2]; rgba[3] = r->rgba[3];
-            if (p->fog) rast__apply_fog(p, 1.0f, rgba);
-            rast__color_out(p, fb, x, y, rgba);
+            int zpass = drow ? rast__compare_f(p->depth_func, z, drow[x]) : 1;
+            if (srow) {
+                unsigned s = srow[x];
+                if (!test[s]) {
+                    srow[x] = fail[s];
+                    continue;
+                }
+                srow[x] = zpass ? pass[s] : zfail[s];
+            }
+            if (!zpass) continue;
+            if (drow && p->depth_write) drow[x] = z;
+            if (crow) rast__store_color(p, fb, crow, x, y, rgba);
         }
+    }
 }
 
 /* All of a chunk's points in a tile, on a simple pipe. One-pixel points
@@ -277,7 +298,7 @@ static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl
         uint8_t *cp;
         int pass;
         if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
-            y >= tl->y1 || f32 || !fb->color) {
+            y >= tl->y1 || f32 || !fb->color || !p->plain_color) {
             rast__raster_point(di, tl, pt);
             continue;
         }
