@@ -571,16 +571,19 @@ static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
     }
 }
 
-/* One channel's blend: factor = base + sign * v[sel] over the values
-   v = {0, src[c], src[3], dst[c], dst[3], constant[c], constant[3]}, which
-   covers every GL factor but SRC_ALPHA_SATURATE (flagged); the equation is
-   src_term * src * sf + dst_term * dst * df, or min / max. */
-typedef struct rast__blend_channel {
-    float src_base, src_sign, dst_base, dst_sign;
-    uint8_t src_sel, dst_sel, saturate_src, saturate_dst;
-    float src_term, dst_term;
-    int minmax;               /* 0 none, 1 min, 2 max */
-} rast__blend_channel;
+/* Blending, resolved: every GL factor but SRC_ALPHA_SATURATE is linear in
+   the source and destination colours, factor[c] = base[c] + sc[c] * src[c]
+   + sa[c] * src[3] + dc[c] * dst[c] + da[c] * dst[3] (the constant colour
+   folded into base), and the equation is term_s[c] * src * sf + term_d[c] *
+   dst * df. Straight-line arithmetic over four channels, no branches. */
+typedef struct rast__blend {
+    float s_base[4], s_sc[4], s_sa[4], s_dc[4], s_da[4];
+    float d_base[4], d_sc[4], d_sa[4], d_dc[4], d_da[4];
+    float term_s[4], term_d[4];
+    int minmax[4];            /* 0 equation above, 1 min, 2 max */
+    int saturate_s[4], saturate_d[4];
+    int general;              /* min/max or saturate somewhere */
+} rast__blend;
 
 enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
 
@@ -602,7 +605,7 @@ typedef struct rast__pipe {
     uint8_t st_test[2][256];      /* stencil test result per stored value */
     uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
     int blend;
-    rast__blend_channel blend_ch[4];
+    rast__blend bl;
     int plain_color;          /* no blending, every channel written */
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;
@@ -1096,41 +1099,54 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
     }
 }
 
-/* One blend factor as base + sign * v[sel] (see rast__blend_channel). */
-static void rast__resolve_factor(int f, int alpha, float *base, float *sign, uint8_t *sel, uint8_t *saturate) {
-    static const struct { float base, sign; uint8_t rgb_sel, alpha_sel; } table[] = {
-        {1, 0, 0, 0},  /* DEFAULT: resolved by the caller */
-        {0, 0, 0, 0},  /* ZERO */
-        {1, 0, 0, 0},  /* ONE */
-        {0, 1, 1, 2},  {1, -1, 1, 2}, /* SRC_COLOR, ONE_MINUS_SRC_COLOR */
-        {0, 1, 3, 4},  {1, -1, 3, 4}, /* DST_COLOR, ONE_MINUS_DST_COLOR */
-        {0, 1, 2, 2},  {1, -1, 2, 2}, /* SRC_ALPHA, ONE_MINUS_SRC_ALPHA */
-        {0, 1, 4, 4},  {1, -1, 4, 4}, /* DST_ALPHA, ONE_MINUS_DST_ALPHA */
-        {0, 1, 5, 6},  {1, -1, 5, 6}, /* CONSTANT_COLOR, ONE_MINUS_CONSTANT_COLOR */
-        {0, 1, 6, 6},  {1, -1, 6, 6}, /* CONSTANT_ALPHA, ONE_MINUS_CONSTANT_ALPHA */
-        {0, 0, 0, 0}   /* SRC_ALPHA_SATURATE: flagged */
-    };
-    *base = table[f].base;
-    *sign = table[f].sign;
-    *sel = alpha ? table[f].alpha_sel : table[f].rgb_sel;
+/* Adds factor f of channel c (alpha when c == 3) to the linear form. */
+static void rast__resolve_factor(int f, int c, const float k[4], float *base, float *sc, float *sa,
+                                 float *dc, float *da, int *saturate) {
+    float one_minus = 0.0f, sign = 1.0f;
+    int a = c == 3;
+    *base = *sc = *sa = *dc = *da = 0.0f;
     *saturate = f == RAST_SRC_ALPHA_SATURATE;
+    switch (f) {
+    case RAST_ZERO_FACTOR: case RAST_SRC_ALPHA_SATURATE: return;
+    case RAST_ONE: *base = 1.0f; return;
+    case RAST_ONE_MINUS_SRC_COLOR: case RAST_ONE_MINUS_DST_COLOR: case RAST_ONE_MINUS_SRC_ALPHA:
+    case RAST_ONE_MINUS_DST_ALPHA: case RAST_ONE_MINUS_CONSTANT_COLOR: case RAST_ONE_MINUS_CONSTANT_ALPHA:
+        one_minus = 1.0f;
+        sign = -1.0f;
+        break;
+    default: break;
+    }
+    *base = one_minus;
+    switch (f) {
+    case RAST_SRC_COLOR: case RAST_ONE_MINUS_SRC_COLOR: if (a) *sa = sign; else *sc = sign; break;
+    case RAST_DST_COLOR: case RAST_ONE_MINUS_DST_COLOR: if (a) *da = sign; else *dc = sign; break;
+    case RAST_SRC_ALPHA: case RAST_ONE_MINUS_SRC_ALPHA: *sa = sign; break;
+    case RAST_DST_ALPHA: case RAST_ONE_MINUS_DST_ALPHA: *da = sign; break;
+    case RAST_CONSTANT_COLOR: case RAST_ONE_MINUS_CONSTANT_COLOR: *base += sign * k[c]; break;
+    case RAST_CONSTANT_ALPHA: case RAST_ONE_MINUS_CONSTANT_ALPHA: *base += sign * k[3]; break;
+    default: break;
+    }
 }
 
 static void rast__resolve_blend(rast__pipe *p, const rast_state *s) {
+    rast__blend *b = &p->bl;
     int c;
+    b->general = 0;
     for (c = 0; c < 4; ++c) {
-        rast__blend_channel *b = &p->blend_ch[c];
         int a = c == 3;
         int sf = a ? (s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE)
                    : (s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE);
         int df = a ? (s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR)
                    : (s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR);
         int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
-        rast__resolve_factor(sf, a, &b->src_base, &b->src_sign, &b->src_sel, &b->saturate_src);
-        rast__resolve_factor(df, a, &b->dst_base, &b->dst_sign, &b->dst_sel, &b->saturate_dst);
-        b->src_term = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
-        b->dst_term = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
-        b->minmax = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+        rast__resolve_factor(sf, c, s->blend_color, &b->s_base[c], &b->s_sc[c], &b->s_sa[c], &b->s_dc[c],
+                             &b->s_da[c], &b->saturate_s[c]);
+        rast__resolve_factor(df, c, s->blend_color, &b->d_base[c], &b->d_sc[c], &b->d_sa[c], &b->d_dc[c],
+                             &b->d_da[c], &b->saturate_d[c]);
+        b->term_s[c] = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
+        b->term_d[c] = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
+        b->minmax[c] = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+        b->general |= b->minmax[c] || b->saturate_s[c] || b->saturate_d[c];
     }
 }
 
@@ -2097,30 +2113,34 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         for (c = 0; c < 4; ++c) { src[c] = frag[c]; dst[c] = px[c]; }
     } else {
         uint8_t *px = row + 4 * x;
-        /* fixed-point buffers clamp the incoming colour (GL 4.6 §17.3.6) */
+        /* fixed-point buffers clamp the incoming colour (GL 4.6 §17.3.6);
+           NaN fails both comparisons and becomes 0 */
         for (c = 0; c < 4; ++c) {
-            src[c] = RAST__CLAMP(frag[c], 0.0f, 1.0f);
-            if (src[c] != src[c]) src[c] = 0.0f;
+            float v = frag[c] > 0.0f ? frag[c] : 0.0f;
+            src[c] = v < 1.0f ? v : 1.0f;
             dst[c] = px[c] * (1.0f / 255.0f);
         }
     }
     if (p->blend) {
+        const rast__blend *b = &p->bl;
         for (c = 0; c < 4; ++c) {
-            const rast__blend_channel *b = &p->blend_ch[c];
-            /* the values a factor may scale: see rast__blend_channel */
-            float v[7], sf, df;
-            v[0] = 0.0f; v[1] = src[c]; v[2] = src[3]; v[3] = dst[c]; v[4] = dst[3];
-            v[5] = p->s.blend_color[c]; v[6] = p->s.blend_color[3];
-            sf = b->src_base + b->src_sign * v[b->src_sel];
-            df = b->dst_base + b->dst_sign * v[b->dst_sel];
-            if (b->saturate_src) sf = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
-            if (b->saturate_dst) df = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
-            switch (b->minmax) {
-            case 1: out[c] = RAST__MIN(src[c], dst[c]); break;
-            case 2: out[c] = RAST__MAX(src[c], dst[c]); break;
-            default: out[c] = b->src_term * src[c] * sf + b->dst_term * dst[c] * df; break;
-            }
+            float sf = b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3] + b->s_dc[c] * dst[c] +
+                       b->s_da[c] * dst[3];
+            float df = b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3] + b->d_dc[c] * dst[c] +
+                       b->d_da[c] * dst[3];
+            out[c] = b->term_s[c] * src[c] * sf + b->term_d[c] * dst[c] * df;
         }
+        if (b->general)
+            for (c = 0; c < 4; ++c) {
+                float sat = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+                float sf = b->saturate_s[c] ? sat : b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3] +
+                                                    b->s_dc[c] * dst[c] + b->s_da[c] * dst[3];
+                float df = b->saturate_d[c] ? sat : b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3] +
+                                                    b->d_dc[c] * dst[c] + b->d_da[c] * dst[3];
+                out[c] = b->minmax[c] == 1   ? RAST__MIN(src[c], dst[c])
+                         : b->minmax[c] == 2 ? RAST__MAX(src[c], dst[c])
+                                             : b->term_s[c] * src[c] * sf + b->term_d[c] * dst[c] * df;
+            }
     } else {
         for (c = 0; c < 4; ++c) out[c] = src[c];
     }
@@ -2128,11 +2148,43 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         float *px = (float *)row + 4 * x;
         for (c = 0; c < 4; ++c)
             if (p->color_write & (1u << c)) px[c] = out[c];
+    } else if (p->color_write == RAST_WRITE_RGBA) {
+        uint8_t *px = row + 4 * x;
+        for (c = 0; c < 4; ++c) px[c] = rast__to_unorm8(out[c]);
     } else {
         uint8_t *px = row + 4 * x;
         for (c = 0; c < 4; ++c)
             if (p->color_write & (1u << c)) px[c] = rast__to_unorm8(out[c]);
     }
+}
+
+/* Blending a constant colour into RGBA8 when no factor reads the
+   destination (alpha blending, additive, constant factors ...) is, per
+   channel, out = k1 + k2 * dst. Fills k1, k2 and returns 1 when that holds
+   and every channel is written; spans and rectangles then skip the general
+   per-pixel blend. */
+static int rast__const_blend(const rast__pipe *p, const float frag[4], float k1[4], float k2[4]) {
+    const rast__blend *b = &p->bl;
+    float src[4];
+    int c;
+    if (!p->blend || b->general || p->color_write != RAST_WRITE_RGBA) return 0;
+    for (c = 0; c < 4; ++c) {
+        float v = frag[c] > 0.0f ? frag[c] : 0.0f;
+        src[c] = v < 1.0f ? v : 1.0f;
+        if (b->s_dc[c] != 0.0f || b->s_da[c] != 0.0f || b->d_dc[c] != 0.0f || b->d_da[c] != 0.0f) return 0;
+    }
+    for (c = 0; c < 4; ++c) {
+        float sf = b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3];
+        float df = b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3];
+        k1[c] = b->term_s[c] * src[c] * sf;
+        k2[c] = b->term_d[c] * df * (1.0f / 255.0f);
+    }
+    return 1;
+}
+
+static void rast__const_blend_px(uint8_t *px, const float k1[4], const float k2[4]) {
+    int c;
+    for (c = 0; c < 4; ++c) px[c] = rast__to_unorm8(k1[c] + k2[c] * (float)px[c]);
 }
 
 /* GL fixed-function fog on the fragment colour (alpha unchanged). */
@@ -2360,7 +2412,33 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
     float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
     float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
     int64_t e0 = sp->e0, e2 = sp->e2;
-    int x;
+    int x, k, flat = 1;
+    float k1[4], k2[4];
+    for (k = 0; k < 4 && di->nvar >= 4; ++k)
+        if (vd[3 * k + 1] != 0.0f || vd[3 * k + 2] != 0.0f) flat = 0;
+    if (flat && crow && !fb->color_f32) {
+        /* one colour over the whole triangle: pack or blend it once */
+        const float *c = di->nvar < 4 ? di->color : (const float *)vd;
+        float cc[4];
+        uint32_t packed;
+        int blend_k;
+        for (k = 0; k < 4; ++k) cc[k] = di->nvar < 4 ? c[k] : c[3 * k];
+        packed = rast__pack_rgba8(cc);
+        blend_k = rast__const_blend(p, cc, k1, k2);
+        if (p->plain_color || blend_k) {
+            for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+                if (drow) {
+                    float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+                    float z = t->z[0] + l1 * dz1 + l2 * dz2;
+                    z = RAST__CLAMP(z, 0.0f, 1.0f);
+                    if (!rast__depth_simple(p, drow, x, z)) continue;
+                }
+                if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
+                else memcpy(crow + 4 * x, &packed, 4);
+            }
+            return;
+        }
+    }
     for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
         float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
         float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];
@@ -2369,7 +2447,6 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         if (di->nvar >= 4) {
             float w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
             float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
-            int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
             rast__store_color(p, fb, crow, x, sp->y, c);
         } else {
@@ -2523,8 +2600,11 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f), rgba[4];
     const uint8_t *test = p->st_test[0], *fail = p->st_next[0][RAST__ST_FAIL];
     const uint8_t *zfail = p->st_next[0][RAST__ST_ZFAIL], *pass = p->st_next[0][RAST__ST_PASS];
+    float k1[4], k2[4];
+    int blend_k;
     memcpy(rgba, r->rgba, sizeof(rgba));
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
+    blend_k = !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     for (y = y0; y < y1; ++y) {
         uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
         float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
@@ -2541,7 +2621,8 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
             }
             if (!zpass) continue;
             if (drow && p->depth_write) drow[x] = z;
-            if (crow) rast__store_color(p, fb, crow, x, y, rgba);
+            if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
+            else if (crow) rast__store_color(p, fb, crow, x, y, rgba);
         }
     }
 }

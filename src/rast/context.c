@@ -195,41 +195,54 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
     }
 }
 
-/* One blend factor as base + sign * v[sel] (see rast__blend_channel). */
-static void rast__resolve_factor(int f, int alpha, float *base, float *sign, uint8_t *sel, uint8_t *saturate) {
-    static const struct { float base, sign; uint8_t rgb_sel, alpha_sel; } table[] = {
-        {1, 0, 0, 0},  /* DEFAULT: resolved by the caller */
-        {0, 0, 0, 0},  /* ZERO */
-        {1, 0, 0, 0},  /* ONE */
-        {0, 1, 1, 2},  {1, -1, 1, 2}, /* SRC_COLOR, ONE_MINUS_SRC_COLOR */
-        {0, 1, 3, 4},  {1, -1, 3, 4}, /* DST_COLOR, ONE_MINUS_DST_COLOR */
-        {0, 1, 2, 2},  {1, -1, 2, 2}, /* SRC_ALPHA, ONE_MINUS_SRC_ALPHA */
-        {0, 1, 4, 4},  {1, -1, 4, 4}, /* DST_ALPHA, ONE_MINUS_DST_ALPHA */
-        {0, 1, 5, 6},  {1, -1, 5, 6}, /* CONSTANT_COLOR, ONE_MINUS_CONSTANT_COLOR */
-        {0, 1, 6, 6},  {1, -1, 6, 6}, /* CONSTANT_ALPHA, ONE_MINUS_CONSTANT_ALPHA */
-        {0, 0, 0, 0}   /* SRC_ALPHA_SATURATE: flagged */
-    };
-    *base = table[f].base;
-    *sign = table[f].sign;
-    *sel = alpha ? table[f].alpha_sel : table[f].rgb_sel;
+/* Adds factor f of channel c (alpha when c == 3) to the linear form. */
+static void rast__resolve_factor(int f, int c, const float k[4], float *base, float *sc, float *sa,
+                                 float *dc, float *da, int *saturate) {
+    float one_minus = 0.0f, sign = 1.0f;
+    int a = c == 3;
+    *base = *sc = *sa = *dc = *da = 0.0f;
     *saturate = f == RAST_SRC_ALPHA_SATURATE;
+    switch (f) {
+    case RAST_ZERO_FACTOR: case RAST_SRC_ALPHA_SATURATE: return;
+    case RAST_ONE: *base = 1.0f; return;
+    case RAST_ONE_MINUS_SRC_COLOR: case RAST_ONE_MINUS_DST_COLOR: case RAST_ONE_MINUS_SRC_ALPHA:
+    case RAST_ONE_MINUS_DST_ALPHA: case RAST_ONE_MINUS_CONSTANT_COLOR: case RAST_ONE_MINUS_CONSTANT_ALPHA:
+        one_minus = 1.0f;
+        sign = -1.0f;
+        break;
+    default: break;
+    }
+    *base = one_minus;
+    switch (f) {
+    case RAST_SRC_COLOR: case RAST_ONE_MINUS_SRC_COLOR: if (a) *sa = sign; else *sc = sign; break;
+    case RAST_DST_COLOR: case RAST_ONE_MINUS_DST_COLOR: if (a) *da = sign; else *dc = sign; break;
+    case RAST_SRC_ALPHA: case RAST_ONE_MINUS_SRC_ALPHA: *sa = sign; break;
+    case RAST_DST_ALPHA: case RAST_ONE_MINUS_DST_ALPHA: *da = sign; break;
+    case RAST_CONSTANT_COLOR: case RAST_ONE_MINUS_CONSTANT_COLOR: *base += sign * k[c]; break;
+    case RAST_CONSTANT_ALPHA: case RAST_ONE_MINUS_CONSTANT_ALPHA: *base += sign * k[3]; break;
+    default: break;
+    }
 }
 
 static void rast__resolve_blend(rast__pipe *p, const rast_state *s) {
+    rast__blend *b = &p->bl;
     int c;
+    b->general = 0;
     for (c = 0; c < 4; ++c) {
-        rast__blend_channel *b = &p->blend_ch[c];
         int a = c == 3;
         int sf = a ? (s->blend_src_alpha ? (int)s->blend_src_alpha : RAST_ONE)
                    : (s->blend_src_rgb ? (int)s->blend_src_rgb : RAST_ONE);
         int df = a ? (s->blend_dst_alpha ? (int)s->blend_dst_alpha : RAST_ZERO_FACTOR)
                    : (s->blend_dst_rgb ? (int)s->blend_dst_rgb : RAST_ZERO_FACTOR);
         int eq = a ? (int)s->blend_eq_alpha : (int)s->blend_eq_rgb;
-        rast__resolve_factor(sf, a, &b->src_base, &b->src_sign, &b->src_sel, &b->saturate_src);
-        rast__resolve_factor(df, a, &b->dst_base, &b->dst_sign, &b->dst_sel, &b->saturate_dst);
-        b->src_term = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
-        b->dst_term = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
-        b->minmax = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+        rast__resolve_factor(sf, c, s->blend_color, &b->s_base[c], &b->s_sc[c], &b->s_sa[c], &b->s_dc[c],
+                             &b->s_da[c], &b->saturate_s[c]);
+        rast__resolve_factor(df, c, s->blend_color, &b->d_base[c], &b->d_sc[c], &b->d_sa[c], &b->d_dc[c],
+                             &b->d_da[c], &b->saturate_d[c]);
+        b->term_s[c] = eq == RAST_FUNC_REVERSE_SUBTRACT ? -1.0f : 1.0f;
+        b->term_d[c] = eq == RAST_FUNC_SUBTRACT ? -1.0f : 1.0f;
+        b->minmax[c] = eq == RAST_FUNC_MIN ? 1 : eq == RAST_FUNC_MAX ? 2 : 0;
+        b->general |= b->minmax[c] || b->saturate_s[c] || b->saturate_d[c];
     }
 }
 

@@ -50,30 +50,34 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         for (c = 0; c < 4; ++c) { src[c] = frag[c]; dst[c] = px[c]; }
     } else {
         uint8_t *px = row + 4 * x;
-        /* fixed-point buffers clamp the incoming colour (GL 4.6 §17.3.6) */
+        /* fixed-point buffers clamp the incoming colour (GL 4.6 §17.3.6);
+           NaN fails both comparisons and becomes 0 */
         for (c = 0; c < 4; ++c) {
-            src[c] = RAST__CLAMP(frag[c], 0.0f, 1.0f);
-            if (src[c] != src[c]) src[c] = 0.0f;
+            float v = frag[c] > 0.0f ? frag[c] : 0.0f;
+            src[c] = v < 1.0f ? v : 1.0f;
             dst[c] = px[c] * (1.0f / 255.0f);
         }
     }
     if (p->blend) {
+        const rast__blend *b = &p->bl;
         for (c = 0; c < 4; ++c) {
-            const rast__blend_channel *b = &p->blend_ch[c];
-            /* the values a factor may scale: see rast__blend_channel */
-            float v[7], sf, df;
-            v[0] = 0.0f; v[1] = src[c]; v[2] = src[3]; v[3] = dst[c]; v[4] = dst[3];
-            v[5] = p->s.blend_color[c]; v[6] = p->s.blend_color[3];
-            sf = b->src_base + b->src_sign * v[b->src_sel];
-            df = b->dst_base + b->dst_sign * v[b->dst_sel];
-            if (b->saturate_src) sf = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
-            if (b->saturate_dst) df = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
-            switch (b->minmax) {
-            case 1: out[c] = RAST__MIN(src[c], dst[c]); break;
-            case 2: out[c] = RAST__MAX(src[c], dst[c]); break;
-            default: out[c] = b->src_term * src[c] * sf + b->dst_term * dst[c] * df; break;
-            }
+            float sf = b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3] + b->s_dc[c] * dst[c] +
+                       b->s_da[c] * dst[3];
+            float df = b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3] + b->d_dc[c] * dst[c] +
+                       b->d_da[c] * dst[3];
+            out[c] = b->term_s[c] * src[c] * sf + b->term_d[c] * dst[c] * df;
         }
+        if (b->general)
+            for (c = 0; c < 4; ++c) {
+                float sat = c == 3 ? 1.0f : RAST__MIN(src[3], 1.0f - dst[3]);
+                float sf = b->saturate_s[c] ? sat : b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3] +
+                                                    b->s_dc[c] * dst[c] + b->s_da[c] * dst[3];
+                float df = b->saturate_d[c] ? sat : b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3] +
+                                                    b->d_dc[c] * dst[c] + b->d_da[c] * dst[3];
+                out[c] = b->minmax[c] == 1   ? RAST__MIN(src[c], dst[c])
+                         : b->minmax[c] == 2 ? RAST__MAX(src[c], dst[c])
+                                             : b->term_s[c] * src[c] * sf + b->term_d[c] * dst[c] * df;
+            }
     } else {
         for (c = 0; c < 4; ++c) out[c] = src[c];
     }
@@ -81,11 +85,43 @@ static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int 
         float *px = (float *)row + 4 * x;
         for (c = 0; c < 4; ++c)
             if (p->color_write & (1u << c)) px[c] = out[c];
+    } else if (p->color_write == RAST_WRITE_RGBA) {
+        uint8_t *px = row + 4 * x;
+        for (c = 0; c < 4; ++c) px[c] = rast__to_unorm8(out[c]);
     } else {
         uint8_t *px = row + 4 * x;
         for (c = 0; c < 4; ++c)
             if (p->color_write & (1u << c)) px[c] = rast__to_unorm8(out[c]);
     }
+}
+
+/* Blending a constant colour into RGBA8 when no factor reads the
+   destination (alpha blending, additive, constant factors ...) is, per
+   channel, out = k1 + k2 * dst. Fills k1, k2 and returns 1 when that holds
+   and every channel is written; spans and rectangles then skip the general
+   per-pixel blend. */
+static int rast__const_blend(const rast__pipe *p, const float frag[4], float k1[4], float k2[4]) {
+    const rast__blend *b = &p->bl;
+    float src[4];
+    int c;
+    if (!p->blend || b->general || p->color_write != RAST_WRITE_RGBA) return 0;
+    for (c = 0; c < 4; ++c) {
+        float v = frag[c] > 0.0f ? frag[c] : 0.0f;
+        src[c] = v < 1.0f ? v : 1.0f;
+        if (b->s_dc[c] != 0.0f || b->s_da[c] != 0.0f || b->d_dc[c] != 0.0f || b->d_da[c] != 0.0f) return 0;
+    }
+    for (c = 0; c < 4; ++c) {
+        float sf = b->s_base[c] + b->s_sc[c] * src[c] + b->s_sa[c] * src[3];
+        float df = b->d_base[c] + b->d_sc[c] * src[c] + b->d_sa[c] * src[3];
+        k1[c] = b->term_s[c] * src[c] * sf;
+        k2[c] = b->term_d[c] * df * (1.0f / 255.0f);
+    }
+    return 1;
+}
+
+static void rast__const_blend_px(uint8_t *px, const float k1[4], const float k2[4]) {
+    int c;
+    for (c = 0; c < 4; ++c) px[c] = rast__to_unorm8(k1[c] + k2[c] * (float)px[c]);
 }
 
 /* GL fixed-function fog on the fragment colour (alpha unchanged). */

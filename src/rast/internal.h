@@ -97,16 +97,19 @@ static unsigned rast__stencil_op(int op, unsigned s, unsigned ref) {
     }
 }
 
-/* One channel's blend: factor = base + sign * v[sel] over the values
-   v = {0, src[c], src[3], dst[c], dst[3], constant[c], constant[3]}, which
-   covers every GL factor but SRC_ALPHA_SATURATE (flagged); the equation is
-   src_term * src * sf + dst_term * dst * df, or min / max. */
-typedef struct rast__blend_channel {
-    float src_base, src_sign, dst_base, dst_sign;
-    uint8_t src_sel, dst_sel, saturate_src, saturate_dst;
-    float src_term, dst_term;
-    int minmax;               /* 0 none, 1 min, 2 max */
-} rast__blend_channel;
+/* Blending, resolved: every GL factor but SRC_ALPHA_SATURATE is linear in
+   the source and destination colours, factor[c] = base[c] + sc[c] * src[c]
+   + sa[c] * src[3] + dc[c] * dst[c] + da[c] * dst[3] (the constant colour
+   folded into base), and the equation is term_s[c] * src * sf + term_d[c] *
+   dst * df. Straight-line arithmetic over four channels, no branches. */
+typedef struct rast__blend {
+    float s_base[4], s_sc[4], s_sa[4], s_dc[4], s_da[4];
+    float d_base[4], d_sc[4], d_sa[4], d_dc[4], d_da[4];
+    float term_s[4], term_d[4];
+    int minmax[4];            /* 0 equation above, 1 min, 2 max */
+    int saturate_s[4], saturate_d[4];
+    int general;              /* min/max or saturate somewhere */
+} rast__blend;
 
 enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
 
@@ -128,7 +131,7 @@ typedef struct rast__pipe {
     uint8_t st_test[2][256];      /* stencil test result per stored value */
     uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
     int blend;
-    rast__blend_channel blend_ch[4];
+    rast__blend bl;
     int plain_color;          /* no blending, every channel written */
     unsigned color_write;     /* RAST_WRITE_ bits actually written */
     int fog;

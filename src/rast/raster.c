@@ -95,7 +95,33 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
     float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
     float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
     int64_t e0 = sp->e0, e2 = sp->e2;
-    int x;
+    int x, k, flat = 1;
+    float k1[4], k2[4];
+    for (k = 0; k < 4 && di->nvar >= 4; ++k)
+        if (vd[3 * k + 1] != 0.0f || vd[3 * k + 2] != 0.0f) flat = 0;
+    if (flat && crow && !fb->color_f32) {
+        /* one colour over the whole triangle: pack or blend it once */
+        const float *c = di->nvar < 4 ? di->color : (const float *)vd;
+        float cc[4];
+        uint32_t packed;
+        int blend_k;
+        for (k = 0; k < 4; ++k) cc[k] = di->nvar < 4 ? c[k] : c[3 * k];
+        packed = rast__pack_rgba8(cc);
+        blend_k = rast__const_blend(p, cc, k1, k2);
+        if (p->plain_color || blend_k) {
+            for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+                if (drow) {
+                    float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
+                    float z = t->z[0] + l1 * dz1 + l2 * dz2;
+                    z = RAST__CLAMP(z, 0.0f, 1.0f);
+                    if (!rast__depth_simple(p, drow, x, z)) continue;
+                }
+                if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
+                else memcpy(crow + 4 * x, &packed, 4);
+            }
+            return;
+        }
+    }
     for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
         float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
         float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];
@@ -104,7 +130,6 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         if (di->nvar >= 4) {
             float w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
             float b1 = l1 * t->iw[1] * w, b2 = l2 * t->iw[2] * w;
-            int k;
             for (k = 0; k < 4; ++k) c[k] = vd[3 * k] + b1 * vd[3 * k + 1] + b2 * vd[3 * k + 2];
             rast__store_color(p, fb, crow, x, sp->y, c);
         } else {
@@ -258,8 +283,11 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     float z = RAST__CLAMP(r->z + p->s.depth_offset, 0.0f, 1.0f), rgba[4];
     const uint8_t *test = p->st_test[0], *fail = p->st_next[0][RAST__ST_FAIL];
     const uint8_t *zfail = p->st_next[0][RAST__ST_ZFAIL], *pass = p->st_next[0][RAST__ST_PASS];
+    float k1[4], k2[4];
+    int blend_k;
     memcpy(rgba, r->rgba, sizeof(rgba));
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
+    blend_k = !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     for (y = y0; y < y1; ++y) {
         uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
         float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
@@ -276,7 +304,8 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
             }
             if (!zpass) continue;
             if (drow && p->depth_write) drow[x] = z;
-            if (crow) rast__store_color(p, fb, crow, x, y, rgba);
+            if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
+            else if (crow) rast__store_color(p, fb, crow, x, y, rgba);
         }
     }
 }
