@@ -197,6 +197,7 @@ static void rast__tile_job_fn(void *arg, int t) {
     const rast_context *ctx = ps->ctx;
     int T = ctx->tile_size, i;
     rast__tile tl;
+    tl.lut_valid = 0;
     tl.fb = &ctx->fb;
     tl.x0 = (t % ctx->tiles_x) * T;
     tl.y0 = (t / ctx->tiles_x) * T;

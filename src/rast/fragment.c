@@ -119,9 +119,19 @@ static int rast__const_blend(const rast__pipe *p, const float frag[4], float k1[
     return 1;
 }
 
-static void rast__const_blend_px(uint8_t *px, const float k1[4], const float k2[4]) {
-    int c;
-    for (c = 0; c < 4; ++c) px[c] = rast__to_unorm8(k1[c] + k2[c] * (float)px[c]);
+/* The table of out = k1 + k2 * dst for every destination byte, rebuilt
+   only when k1, k2 change: whole-screen blends then cost four lookups. */
+static const uint8_t (*rast__const_blend_lut(rast__tile *tl, const float k1[4], const float k2[4]))[256] {
+    int c, v;
+    if (!tl->lut_valid || memcmp(tl->lut_key, k1, 4 * sizeof(float)) ||
+        memcmp(tl->lut_key + 4, k2, 4 * sizeof(float))) {
+        for (c = 0; c < 4; ++c)
+            for (v = 0; v < 256; ++v) tl->lut[c][v] = rast__to_unorm8(k1[c] + k2[c] * (float)v);
+        memcpy(tl->lut_key, k1, 4 * sizeof(float));
+        memcpy(tl->lut_key + 4, k2, 4 * sizeof(float));
+        tl->lut_valid = 1;
+    }
+    return (const uint8_t (*)[256])tl->lut;
 }
 
 /* GL fixed-function fog on the fragment colour (alpha unchanged). */

@@ -212,6 +212,11 @@ typedef struct rast__tile {
     int x0, y0, x1, y1;       /* the tile's pixels */
     float var[RAST_MAX_VARYINGS];
     float ddx[RAST_MAX_VARYINGS], ddy[RAST_MAX_VARYINGS];
+    /* constant-colour blending as a table of every destination byte,
+       kept while the same k1, k2 come back (see rast__const_blend) */
+    float lut_key[8];
+    int lut_valid;
+    uint8_t lut[4][256];
 } rast__tile;
 
 /* Records are whole 4-byte words (every field is 4-byte aligned). */

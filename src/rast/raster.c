@@ -97,6 +97,7 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
     int64_t e0 = sp->e0, e2 = sp->e2;
     int x, k, flat = 1;
     float k1[4], k2[4];
+    const uint8_t (*lut)[256] = NULL;
     for (k = 0; k < 4 && di->nvar >= 4; ++k)
         if (vd[3 * k + 1] != 0.0f || vd[3 * k + 2] != 0.0f) flat = 0;
     if (flat && crow && !fb->color_f32) {
@@ -108,6 +109,8 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         for (k = 0; k < 4; ++k) cc[k] = di->nvar < 4 ? c[k] : c[3 * k];
         packed = rast__pack_rgba8(cc);
         blend_k = rast__const_blend(p, cc, k1, k2);
+        /* a table costs 1024 conversions: worth it for long spans only */
+        if (blend_k && sp->xe - sp->xs >= 64) lut = rast__const_blend_lut(tl, k1, k2);
         if (p->plain_color || blend_k) {
             for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
                 if (drow) {
@@ -116,8 +119,14 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
                     z = RAST__CLAMP(z, 0.0f, 1.0f);
                     if (!rast__depth_simple(p, drow, x, z)) continue;
                 }
-                if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
-                else memcpy(crow + 4 * x, &packed, 4);
+                if (lut) {
+                    uint8_t *px = crow + 4 * x;
+                    px[0] = lut[0][px[0]]; px[1] = lut[1][px[1]]; px[2] = lut[2][px[2]]; px[3] = lut[3][px[3]];
+                } else if (blend_k) {
+                    for (k = 0; k < 4; ++k) crow[4 * x + k] = rast__to_unorm8(k1[k] + k2[k] * (float)crow[4 * x + k]);
+                } else {
+                    memcpy(crow + 4 * x, &packed, 4);
+                }
             }
             return;
         }
@@ -284,10 +293,12 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     const uint8_t *test = p->st_test[0], *fail = p->st_next[0][RAST__ST_FAIL];
     const uint8_t *zfail = p->st_next[0][RAST__ST_ZFAIL], *pass = p->st_next[0][RAST__ST_PASS];
     float k1[4], k2[4];
+    const uint8_t (*lut)[256] = NULL;
     int blend_k;
     memcpy(rgba, r->rgba, sizeof(rgba));
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
     blend_k = !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
+    if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
     for (y = y0; y < y1; ++y) {
         uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
         float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
@@ -304,8 +315,12 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
             }
             if (!zpass) continue;
             if (drow && p->depth_write) drow[x] = z;
-            if (blend_k) rast__const_blend_px(crow + 4 * x, k1, k2);
-            else if (crow) rast__store_color(p, fb, crow, x, y, rgba);
+            if (lut) {
+                uint8_t *px = crow + 4 * x;
+                px[0] = lut[0][px[0]]; px[1] = lut[1][px[1]]; px[2] = lut[2][px[2]]; px[3] = lut[3][px[3]];
+            } else if (crow) {
+                rast__store_color(p, fb, crow, x, y, rgba);
+            }
         }
     }
 }
