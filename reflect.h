@@ -457,11 +457,1957 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 /* ---- src/reflect/math.c ---- */
-/* math: being written. */
+/* Math: vectors, column-major 4x4 matrices with GL's conventions,
+   quaternions, the robust quadratic and cubic solvers, least squares by
+   Householder QR, and the deterministic random numbers.
+
+   SOLVERS
+       Coefficients are rescaled by powers of two (exact) before anything is
+       squared, so 1e150 or 1e-150 coefficients neither overflow nor
+       underflow. The quadratic uses q = -(b + sign(b) sqrt(disc)) / 2 and
+       the roots q / a and c / q (no cancellation); its discriminant is
+       computed with exact products (Dekker's two-product), so a distinct
+       pair of close roots stays distinct. A negative discriminant that is
+       within rounding of zero is a double root. A vanishing leading
+       coefficient is no special case beyond a == 0: the near roots stay
+       accurate and the far root is returned while it is representable.
+       The cubic is Kahan's QBC: substitute x = 2^k y so every root has
+       |y| <= 1 (Fujiwara's bound; Horner never overflows), find one real
+       root by Newton's method from outside (monotone), deflate forwards or
+       backwards (whichever is stable for that root), solve the quadratic,
+       then polish every root with at most two guarded Newton steps.
+
+   LEAST SQUARES
+       Columns are equilibrated (scaled by a power of two close to their
+       norms), then Householder QR with column pivoting; the condition
+       estimate is max |r_ii| / min |r_ii| of the pivoted R, which with
+       pivoting is a cheap and usually tight estimate of cond(A D). */
+
+/* ---- vectors ---------------------------------------------------------- */
+
+REFL_API refl_vec3 refl_v3(float x, float y, float z) {
+    refl_vec3 v;
+    v.x = x; v.y = y; v.z = z;
+    return v;
+}
+
+REFL_API refl_vec3 refl_v3_add(refl_vec3 a, refl_vec3 b) { return refl_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+REFL_API refl_vec3 refl_v3_sub(refl_vec3 a, refl_vec3 b) { return refl_v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+REFL_API refl_vec3 refl_v3_scale(refl_vec3 a, float s) { return refl_v3(a.x * s, a.y * s, a.z * s); }
+REFL_API float refl_v3_dot(refl_vec3 a, refl_vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+REFL_API refl_vec3 refl_v3_cross(refl_vec3 a, refl_vec3 b) {
+    return refl_v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+
+/* In double: no overflow for large floats, and correctly rounded sqrt. */
+REFL_API float refl_v3_length(refl_vec3 a) {
+    double x = a.x, y = a.y, z = a.z;
+    return (float)sqrt(x * x + y * y + z * z);
+}
+
+REFL_API refl_vec3 refl_v3_normalize(refl_vec3 a) {
+    double x = a.x, y = a.y, z = a.z, l = sqrt(x * x + y * y + z * z);
+    if (!(l > 0.0) || l > DBL_MAX) return l > DBL_MAX ? a : refl_v3(0.0f, 0.0f, 0.0f);
+    return refl_v3((float)(x / l), (float)(y / l), (float)(z / l));
+}
+
+REFL_API refl_vec3 refl_v3_reflect(refl_vec3 d, refl_vec3 n) {
+    return refl_v3_sub(d, refl_v3_scale(n, 2.0f * refl_v3_dot(d, n)));
+}
+
+/* GLSL's refract(I, N, eta). */
+REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out) {
+    float c = refl_v3_dot(n, d);
+    float k = 1.0f - eta * eta * (1.0f - c * c);
+    if (k < 0.0f) return 0;
+    if (out) *out = refl_v3_sub(refl_v3_scale(d, eta), refl_v3_scale(n, eta * c + sqrtf(k)));
+    return 1;
+}
+
+/* ---- matrices ---------------------------------------------------------- */
+
+REFL_API refl_mat4 refl_mat4_identity(void) {
+    refl_mat4 r;
+    memset(&r, 0, sizeof r);
+    r.m[0] = r.m[5] = r.m[10] = r.m[15] = 1.0f;
+    return r;
+}
+
+REFL_API refl_mat4 refl_mat4_mul(refl_mat4 a, refl_mat4 b) {
+    refl_mat4 r;
+    int c, i, k;
+    for (c = 0; c < 4; ++c)
+        for (i = 0; i < 4; ++i) {
+            float s = 0.0f;
+            for (k = 0; k < 4; ++k) s += a.m[k * 4 + i] * b.m[c * 4 + k];
+            r.m[c * 4 + i] = s;
+        }
+    return r;
+}
+
+REFL_API refl_mat4 refl_mat4_translate(refl_vec3 t) {
+    refl_mat4 r = refl_mat4_identity();
+    r.m[12] = t.x; r.m[13] = t.y; r.m[14] = t.z;
+    return r;
+}
+
+REFL_API refl_mat4 refl_mat4_scale(refl_vec3 s) {
+    refl_mat4 r = refl_mat4_identity();
+    r.m[0] = s.x; r.m[5] = s.y; r.m[10] = s.z;
+    return r;
+}
+
+/* glRotate: counter-clockwise about the axis (normalised; a zero axis
+   gives the identity). */
+REFL_API refl_mat4 refl_mat4_rotate(refl_vec3 axis, float radians) {
+    refl_mat4 r = refl_mat4_identity();
+    refl_vec3 u = refl_v3_normalize(axis);
+    double c = cos((double)radians), s = sin((double)radians), t = 1.0 - c;
+    double x = u.x, y = u.y, z = u.z;
+    if (u.x == 0.0f && u.y == 0.0f && u.z == 0.0f) return r;
+    r.m[0] = (float)(x * x * t + c);
+    r.m[1] = (float)(y * x * t + z * s);
+    r.m[2] = (float)(x * z * t - y * s);
+    r.m[4] = (float)(x * y * t - z * s);
+    r.m[5] = (float)(y * y * t + c);
+    r.m[6] = (float)(y * z * t + x * s);
+    r.m[8] = (float)(x * z * t + y * s);
+    r.m[9] = (float)(y * z * t - x * s);
+    r.m[10] = (float)(z * z * t + c);
+    return r;
+}
+
+/* The rotation of q / |q| (2 / |q|^2 instead of 2); zero: identity. */
+REFL_API refl_mat4 refl_mat4_from_quat(refl_quat q) {
+    refl_mat4 r = refl_mat4_identity();
+    double x = q.x, y = q.y, z = q.z, w = q.w, n = x * x + y * y + z * z + w * w, s;
+    if (!(n > 0.0) || n > DBL_MAX) return r;
+    s = 2.0 / n;
+    r.m[0] = (float)(1.0 - s * (y * y + z * z));
+    r.m[1] = (float)(s * (x * y + z * w));
+    r.m[2] = (float)(s * (x * z - y * w));
+    r.m[4] = (float)(s * (x * y - z * w));
+    r.m[5] = (float)(1.0 - s * (x * x + z * z));
+    r.m[6] = (float)(s * (y * z + x * w));
+    r.m[8] = (float)(s * (x * z + y * w));
+    r.m[9] = (float)(s * (y * z - x * w));
+    r.m[10] = (float)(1.0 - s * (x * x + y * y));
+    return r;
+}
+
+/* Cofactor inverse in double. Singular when det is 0, not finite, or tiny
+   against Hadamard's bound (the product of the row norms, >= |det|): the
+   ratio is scale-free, so diag(1e-6, ...) inverts and a nearly dependent
+   row set does not. */
+REFL_API int refl_mat4_invert(refl_mat4 a, refl_mat4 *out) {
+    double m[16], inv[16], det, bound = 1.0;
+    int i, r;
+    for (i = 0; i < 16; ++i) m[i] = a.m[i];
+    for (r = 0; r < 4; ++r)
+        bound *= sqrt(m[r] * m[r] + m[4 + r] * m[4 + r] + m[8 + r] * m[8 + r] + m[12 + r] * m[12 + r]);
+    inv[0] = m[5] * m[10] * m[15] - m[5] * m[11] * m[14] - m[9] * m[6] * m[15] + m[9] * m[7] * m[14] +
+             m[13] * m[6] * m[11] - m[13] * m[7] * m[10];
+    inv[4] = -m[4] * m[10] * m[15] + m[4] * m[11] * m[14] + m[8] * m[6] * m[15] - m[8] * m[7] * m[14] -
+             m[12] * m[6] * m[11] + m[12] * m[7] * m[10];
+    inv[8] = m[4] * m[9] * m[15] - m[4] * m[11] * m[13] - m[8] * m[5] * m[15] + m[8] * m[7] * m[13] +
+             m[12] * m[5] * m[11] - m[12] * m[7] * m[9];
+    inv[12] = -m[4] * m[9] * m[14] + m[4] * m[10] * m[13] + m[8] * m[5] * m[14] - m[8] * m[6] * m[13] -
+              m[12] * m[5] * m[10] + m[12] * m[6] * m[9];
+    inv[1] = -m[1] * m[10] * m[15] + m[1] * m[11] * m[14] + m[9] * m[2] * m[15] - m[9] * m[3] * m[14] -
+             m[13] * m[2] * m[11] + m[13] * m[3] * m[10];
+    inv[5] = m[0] * m[10] * m[15] - m[0] * m[11] * m[14] - m[8] * m[2] * m[15] + m[8] * m[3] * m[14] +
+             m[12] * m[2] * m[11] - m[12] * m[3] * m[10];
+    inv[9] = -m[0] * m[9] * m[15] + m[0] * m[11] * m[13] + m[8] * m[1] * m[15] - m[8] * m[3] * m[13] -
+             m[12] * m[1] * m[11] + m[12] * m[3] * m[9];
+    inv[13] = m[0] * m[9] * m[14] - m[0] * m[10] * m[13] - m[8] * m[1] * m[14] + m[8] * m[2] * m[13] +
+              m[12] * m[1] * m[10] - m[12] * m[2] * m[9];
+    inv[2] = m[1] * m[6] * m[15] - m[1] * m[7] * m[14] - m[5] * m[2] * m[15] + m[5] * m[3] * m[14] +
+             m[13] * m[2] * m[7] - m[13] * m[3] * m[6];
+    inv[6] = -m[0] * m[6] * m[15] + m[0] * m[7] * m[14] + m[4] * m[2] * m[15] - m[4] * m[3] * m[14] -
+             m[12] * m[2] * m[7] + m[12] * m[3] * m[6];
+    inv[10] = m[0] * m[5] * m[15] - m[0] * m[7] * m[13] - m[4] * m[1] * m[15] + m[4] * m[3] * m[13] +
+              m[12] * m[1] * m[7] - m[12] * m[3] * m[5];
+    inv[14] = -m[0] * m[5] * m[14] + m[0] * m[6] * m[13] + m[4] * m[1] * m[14] - m[4] * m[2] * m[13] -
+              m[12] * m[1] * m[6] + m[12] * m[2] * m[5];
+    inv[3] = -m[1] * m[6] * m[11] + m[1] * m[7] * m[10] + m[5] * m[2] * m[11] - m[5] * m[3] * m[10] -
+             m[9] * m[2] * m[7] + m[9] * m[3] * m[6];
+    inv[7] = m[0] * m[6] * m[11] - m[0] * m[7] * m[10] - m[4] * m[2] * m[11] + m[4] * m[3] * m[10] +
+             m[8] * m[2] * m[7] - m[8] * m[3] * m[6];
+    inv[11] = -m[0] * m[5] * m[11] + m[0] * m[7] * m[9] + m[4] * m[1] * m[11] - m[4] * m[3] * m[9] -
+              m[8] * m[1] * m[7] + m[8] * m[3] * m[5];
+    inv[15] = m[0] * m[5] * m[10] - m[0] * m[6] * m[9] - m[4] * m[1] * m[10] + m[4] * m[2] * m[9] +
+              m[8] * m[1] * m[6] - m[8] * m[2] * m[5];
+    det = m[0] * inv[0] + m[1] * inv[4] + m[2] * inv[8] + m[3] * inv[12];
+    if (!(fabs(det) > 1e-10 * bound) || !(fabs(det) <= DBL_MAX) || !(bound <= DBL_MAX)) return 0;
+    {
+        refl_mat4 r;
+        for (i = 0; i < 16; ++i) {
+            double v = inv[i] / det;
+            if (!(fabs(v) <= FLT_MAX)) return 0; /* not representable in float */
+            r.m[i] = (float)v;
+        }
+        if (out) *out = r;
+    }
+    return 1;
+}
+
+REFL_API refl_mat4 refl_mat4_transpose(refl_mat4 a) {
+    refl_mat4 r;
+    int c, i;
+    for (c = 0; c < 4; ++c)
+        for (i = 0; i < 4; ++i) r.m[i * 4 + c] = a.m[c * 4 + i];
+    return r;
+}
+
+/* w = 1 in, divided by the resulting w unless it is 0 or 1. */
+REFL_API refl_vec3 refl_mat4_point(refl_mat4 a, refl_vec3 p) {
+    const float *m = a.m;
+    float x = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12];
+    float y = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+    float z = m[2] * p.x + m[6] * p.y + m[10] * p.z + m[14];
+    float w = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+    if (w != 1.0f && w != 0.0f) {
+        x /= w; y /= w; z /= w;
+    }
+    return refl_v3(x, y, z);
+}
+
+REFL_API refl_vec3 refl_mat4_dir(refl_mat4 a, refl_vec3 d) {
+    const float *m = a.m;
+    return refl_v3(m[0] * d.x + m[4] * d.y + m[8] * d.z, m[1] * d.x + m[5] * d.y + m[9] * d.z,
+                   m[2] * d.x + m[6] * d.y + m[10] * d.z);
+}
+
+/* gluPerspective: f = cot(fovy / 2). */
+REFL_API refl_mat4 refl_mat4_perspective(float fovy_radians, float aspect, float znear, float zfar) {
+    refl_mat4 r;
+    double f = 1.0 / tan(0.5 * (double)fovy_radians), nf = (double)znear - (double)zfar;
+    memset(&r, 0, sizeof r);
+    r.m[0] = (float)(f / aspect);
+    r.m[5] = (float)f;
+    r.m[10] = (float)(((double)zfar + znear) / nf);
+    r.m[11] = -1.0f;
+    r.m[14] = (float)(2.0 * zfar * znear / nf);
+    return r;
+}
+
+/* gluLookAt: rows s, u, -f, then the translation by -eye. */
+REFL_API refl_mat4 refl_mat4_look_at(refl_vec3 eye, refl_vec3 target, refl_vec3 up) {
+    refl_mat4 r = refl_mat4_identity();
+    refl_vec3 f = refl_v3_normalize(refl_v3_sub(target, eye));
+    refl_vec3 s = refl_v3_normalize(refl_v3_cross(f, up));
+    refl_vec3 u = refl_v3_cross(s, f);
+    r.m[0] = s.x; r.m[4] = s.y; r.m[8] = s.z;
+    r.m[1] = u.x; r.m[5] = u.y; r.m[9] = u.z;
+    r.m[2] = -f.x; r.m[6] = -f.y; r.m[10] = -f.z;
+    r.m[12] = -refl_v3_dot(s, eye);
+    r.m[13] = -refl_v3_dot(u, eye);
+    r.m[14] = refl_v3_dot(f, eye);
+    return r;
+}
+
+/* ---- quaternions -------------------------------------------------------- */
+
+static refl_quat refl__quat(double x, double y, double z, double w) {
+    refl_quat q;
+    q.x = (float)x; q.y = (float)y; q.z = (float)z; q.w = (float)w;
+    return q;
+}
+
+/* Zero axis: the identity. */
+REFL_API refl_quat refl_quat_axis_angle(refl_vec3 axis, float radians) {
+    refl_vec3 u = refl_v3_normalize(axis);
+    double s = sin(0.5 * (double)radians), c = cos(0.5 * (double)radians);
+    if (u.x == 0.0f && u.y == 0.0f && u.z == 0.0f) return refl__quat(0, 0, 0, 1);
+    return refl__quat(u.x * s, u.y * s, u.z * s, c);
+}
+
+/* Hamilton product: rotating by the result is rotating by b, then a. */
+REFL_API refl_quat refl_quat_mul(refl_quat a, refl_quat b) {
+    return refl__quat((double)a.w * b.x + (double)a.x * b.w + (double)a.y * b.z - (double)a.z * b.y,
+                      (double)a.w * b.y - (double)a.x * b.z + (double)a.y * b.w + (double)a.z * b.x,
+                      (double)a.w * b.z + (double)a.x * b.y - (double)a.y * b.x + (double)a.z * b.w,
+                      (double)a.w * b.w - (double)a.x * b.x - (double)a.y * b.y - (double)a.z * b.z);
+}
+
+/* Zero (or not finite) gives the identity. */
+REFL_API refl_quat refl_quat_normalize(refl_quat q) {
+    double x = q.x, y = q.y, z = q.z, w = q.w, n = sqrt(x * x + y * y + z * z + w * w);
+    if (!(n > 0.0) || n > DBL_MAX) return refl__quat(0, 0, 0, 1);
+    return refl__quat(x / n, y / n, z / n, w / n);
+}
+
+/* v + 2 w (u x v) + 2 u x (u x v) for the normalised q = (u, w). */
+REFL_API refl_vec3 refl_quat_rotate(refl_quat q, refl_vec3 v) {
+    double x = q.x, y = q.y, z = q.z, w = q.w, n = sqrt(x * x + y * y + z * z + w * w);
+    double tx, ty, tz;
+    if (!(n > 0.0) || n > DBL_MAX) return v;
+    x /= n; y /= n; z /= n; w /= n;
+    tx = 2.0 * (y * v.z - z * v.y);
+    ty = 2.0 * (z * v.x - x * v.z);
+    tz = 2.0 * (x * v.y - y * v.x);
+    return refl_v3((float)(v.x + w * tx + (y * tz - z * ty)), (float)(v.y + w * ty + (z * tx - x * tz)),
+                   (float)(v.z + w * tz + (x * ty - y * tx)));
+}
+
+/* The angle comes from atan2(|a - b|, |a + b|), accurate for nearly equal
+   quaternions where acos(dot) is not; below 1e-9 rad the weights are the
+   linear ones to double precision anyway. */
+REFL_API refl_quat refl_quat_slerp(refl_quat qa, refl_quat qb, float t) {
+    refl_quat na = refl_quat_normalize(qa), nb = refl_quat_normalize(qb);
+    double a[4], b[4], d = 0.0, dm = 0.0, ds = 0.0, theta, wa, wb, r[4];
+    int i;
+    a[0] = na.x; a[1] = na.y; a[2] = na.z; a[3] = na.w;
+    b[0] = nb.x; b[1] = nb.y; b[2] = nb.z; b[3] = nb.w;
+    for (i = 0; i < 4; ++i) d += a[i] * b[i];
+    if (d < 0.0) /* q and -q are the same rotation: take the short way */
+        for (i = 0; i < 4; ++i) b[i] = -b[i];
+    for (i = 0; i < 4; ++i) {
+        dm += (a[i] - b[i]) * (a[i] - b[i]);
+        ds += (a[i] + b[i]) * (a[i] + b[i]);
+    }
+    theta = 2.0 * atan2(sqrt(dm), sqrt(ds)); /* angle between a and b on the 4-sphere */
+    if (theta < 1e-9) {
+        wa = 1.0 - t;
+        wb = t;
+    } else {
+        double s = sin(theta);
+        wa = sin((1.0 - t) * theta) / s;
+        wb = sin(t * theta) / s;
+    }
+    for (i = 0; i < 4; ++i) r[i] = wa * a[i] + wb * b[i];
+    return refl_quat_normalize(refl__quat(r[0], r[1], r[2], r[3]));
+}
+
+/* ---- polynomial roots ------------------------------------------------------ */
+
+/* a * b = p + e exactly (Dekker), barring overflow and underflow. */
+static void refl__two_prod(double a, double b, double *p, double *e) {
+    const double split = 134217729.0; /* 2^27 + 1 */
+    double ca = split * a, cb = split * b;
+    double ah = ca - (ca - a), al = a - ah, bh = cb - (cb - b), bl = b - bh;
+    *p = a * b;
+    *e = ((ah * bh - *p) + ah * bl + al * bh) + al * bl;
+}
+
+static int refl__finite(double v) { return v - v == 0.0; }
+
+static void refl__sort(double *r, int n) {
+    int i, j;
+    for (i = 1; i < n; ++i)
+        for (j = i; j > 0 && r[j] < r[j - 1]; --j) {
+            double t = r[j];
+            r[j] = r[j - 1];
+            r[j - 1] = t;
+        }
+}
+
+/* Roots of a y^2 + b y + c with max(|a|, |b|, |c|) in [0.5, 1), a != 0,
+   c != 0, both of magnitude well above underflow. */
+static int refl__quadratic_scaled(double a, double b, double c, double r[2]) {
+    double bb, bbe, ac, ace, disc, q;
+    refl__two_prod(b, b, &bb, &bbe);
+    refl__two_prod(4.0 * a, c, &ac, &ace);
+    disc = (bb - ac) + (bbe - ace);
+    /* A negative discriminant within rounding of the coefficients is a
+       double root: they were computed, so their last bits are noise. */
+    if (disc < 0.0 && -disc > 8.0 * DBL_EPSILON * REFL__MAX(bb, fabs(ac))) return 0;
+    if (disc <= 0.0) {
+        r[0] = r[1] = -b / (2.0 * a);
+        return 2;
+    }
+    q = -0.5 * (b + (b < 0.0 ? -sqrt(disc) : sqrt(disc)));
+    r[0] = q / a;
+    r[1] = b == 0.0 ? -r[0] : c / q; /* symmetric roots exactly so */
+    refl__sort(r, 2);
+    return 2;
+}
+
+/* Keeps the finite entries of r[0..n), in order. */
+static int refl__keep_finite(double *r, int n) {
+    int i, k = 0;
+    for (i = 0; i < n; ++i)
+        if (refl__finite(r[i])) r[k++] = r[i];
+    return k;
+}
+
+REFL_API int refl_solve_quadratic(double a, double b, double c, double roots[2]) {
+    double r[2], ma, mb, mc, sa, sb, sc;
+    int ea, eb, ec, k, e, n;
+    if (!refl__finite(a) || !refl__finite(b) || !refl__finite(c)) return 0;
+    if (a == 0.0) {
+        if (b == 0.0) return c == 0.0 ? -1 : 0;
+        r[0] = -c / b;
+        if (!refl__finite(r[0])) return 0;
+        if (r[0] == 0.0) r[0] = 0.0; /* no -0 */
+        roots[0] = r[0];
+        return 1;
+    }
+    if (c == 0.0) {
+        r[0] = 0.0;
+        r[1] = -b / a;
+        if (r[1] == 0.0) r[1] = 0.0;
+        n = refl__keep_finite(r, 2);
+        refl__sort(r, n);
+        memcpy(roots, r, (size_t)n * sizeof(double));
+        return n;
+    }
+    /* x = 2^k y with k balancing |a| 2^2k against |c|, then every
+       coefficient divided by 2^e, the largest exponent: all exact. */
+    ma = frexp(a, &ea);
+    mb = b != 0.0 ? frexp(b, &eb) : 0.0;
+    mc = frexp(c, &ec);
+    if (b == 0.0) eb = INT_MIN / 4;
+    k = (ec - ea) / 2;
+    e = REFL__MAX(REFL__MAX(ea + 2 * k, eb + k), ec);
+    sa = ldexp(ma, ea + 2 * k - e);
+    sb = ldexp(mb, eb + k - e);
+    sc = ldexp(mc, ec - e);
+    if (fabs(sa) < 1e-270 || fabs(sc) < 1e-270) {
+        /* b outweighs a c by more than 1e270: the roots are -c/b and -b/a
+           to far better than double precision */
+        r[0] = ldexp(-mc / mb, ec - eb);
+        r[1] = ldexp(-mb / ma, eb - ea);
+        n = 2;
+    } else {
+        n = refl__quadratic_scaled(sa, sb, sc, r);
+        if (n == 2) {
+            r[0] = ldexp(r[0], k);
+            r[1] = ldexp(r[1], k);
+        }
+    }
+    n = refl__keep_finite(r, n);
+    refl__sort(r, n);
+    memcpy(roots, r, (size_t)n * sizeof(double));
+    return n;
+}
+
+/* Horner for a y^3 + b y^2 + c y + d at y: value, derivative and the
+   forward-deflated quadratic a y^2 + b1 y + c2. */
+static void refl__cubic_eval(double y, double a, double b, double c, double d, double *q, double *dq,
+                             double *b1, double *c2) {
+    double q0 = a * y;
+    *b1 = q0 + b;
+    *c2 = *b1 * y + c;
+    *dq = (q0 + *b1) * y + *c2;
+    *q = *c2 * y + d;
+}
+
+static int refl__ceil_div(int n, int d) { return n >= 0 ? (n + d - 1) / d : -((-n) / d); }
+
+static double refl__cubic_value(const double p[4], double y) {
+    return ((p[0] * y + p[1]) * y + p[2]) * y + p[3];
+}
+
+/* Newton steps that are kept only when they lower |p(y)|. */
+static double refl__cubic_polish(const double p[4], double y) {
+    int it;
+    double v = refl__cubic_value(p, y);
+    for (it = 0; it < 2 && v != 0.0; ++it) {
+        double dv = (3.0 * p[0] * y + 2.0 * p[1]) * y + p[2], yn, vn;
+        if (dv == 0.0 || !refl__finite(dv)) break;
+        yn = y - v / dv;
+        vn = refl__cubic_value(p, yn);
+        if (!(fabs(vn) < fabs(v))) break;
+        y = yn;
+        v = vn;
+    }
+    return y;
+}
+
+/* When the roots' magnitudes differ by more than about 2^330, a scaled
+   coefficient underflows; then, by the Newton polygon of the exponents,
+   either one root is at least 2^64 larger than the others (a is negligible
+   for them: they solve b x^2 + c x + d, the far one is -b/a + c/b, from the
+   sum of the roots) or one is 2^64 smaller (d is negligible for the others:
+   a x^2 + b x + c, the near one -d/c from the product). The relative
+   errors of dropping the term are below 2^-64. -1 when neither applies. */
+static int refl__cubic_split(const double co[4], const double m[4], const int ex[4], double r[3]) {
+    double gap_far = -1.0, gap_near = -1.0, la, lb, lc, ld;
+    int n;
+    la = ex[0] + log2(fabs(m[0]));
+    lb = m[1] != 0.0 ? ex[1] + log2(fabs(m[1])) : -1e9;
+    lc = m[2] != 0.0 ? ex[2] + log2(fabs(m[2])) : -1e9;
+    ld = ex[3] + log2(fabs(m[3]));
+    /* vertex of b on the upper hull: slope to a below both slopes to c, d */
+    if (m[1] != 0.0) gap_far = REFL__MIN(lb - lc, (lb - ld) / 2.0) - (la - lb);
+    /* vertex of c: slope from d above both slopes to b, a */
+    if (m[2] != 0.0) gap_near = (lc - ld) - REFL__MAX(lb - lc, (la - lc) / 2.0);
+    if (gap_far >= 64.0 && gap_far >= gap_near) {
+        double c_b = ldexp(m[2] / m[1], ex[2] - ex[1]);
+        n = refl_solve_quadratic(co[1], co[2], co[3], r);
+        r[n] = ldexp(-m[1] / m[0], ex[1] - ex[0]) + c_b;
+        return refl__keep_finite(r, n + 1);
+    }
+    if (gap_near >= 64.0) {
+        n = refl_solve_quadratic(co[0], co[1], co[2], r);
+        r[n] = ldexp(-m[3] / m[2], ex[3] - ex[2]);
+        return refl__keep_finite(r, n + 1);
+    }
+    return -1;
+}
+
+REFL_API int refl_solve_cubic(double a, double b, double c, double d, double roots[3]) {
+    double p[4], r[3], m[4], co[4], y, q, dq, b1, c2, t, rr, s, y0;
+    int ex[4], i, k, e, n, it;
+    if (!refl__finite(a) || !refl__finite(b) || !refl__finite(c) || !refl__finite(d)) return 0;
+    if (a == 0.0) return refl_solve_quadratic(b, c, d, roots);
+    if (d == 0.0) {
+        n = refl_solve_quadratic(a, b, c, r); /* a != 0: n >= 0 */
+        r[n++] = 0.0;
+        refl__sort(r, n);
+        memcpy(roots, r, (size_t)n * sizeof(double));
+        return n;
+    }
+    /* x = 2^k y with every |y| <= 1/2 (Fujiwara: |x| <= 2 max(|b/a|,
+       |c/a|^1/2, |d/2a|^1/3)), then coefficients divided by a 2^3k. */
+    co[0] = a; co[1] = b; co[2] = c; co[3] = d;
+    m[0] = frexp(a, &ex[0]);
+    m[1] = b != 0.0 ? frexp(b, &ex[1]) : 0.0;
+    m[2] = c != 0.0 ? frexp(c, &ex[2]) : 0.0;
+    m[3] = frexp(d, &ex[3]);
+    k = refl__ceil_div(ex[3] - ex[0] + 1, 3);
+    if (b != 0.0) k = REFL__MAX(k, ex[1] - ex[0] + 1);
+    if (c != 0.0) k = REFL__MAX(k, refl__ceil_div(ex[2] - ex[0] + 1, 2));
+    k += 2;
+    e = ex[0] + 3 * k;
+    for (i = 0; i < 4; ++i) p[i] = m[i] != 0.0 ? ldexp(m[i], ex[i] + (3 - i) * k - e) : 0.0;
+    for (i = 1; i < 4; ++i)
+        if (m[i] != 0.0 && fabs(p[i]) < 1e-300) break;
+    if (i < 4 && (n = refl__cubic_split(co, m, ex, r)) >= 0) {
+        /* roots too far apart for one scaling; the split is exact enough */
+        refl__sort(r, n);
+        memcpy(roots, r, (size_t)n * sizeof(double));
+        return n;
+    } else {
+        /* Kahan's QBC: from the inflection point, step out beyond a real
+           root, then Newton inwards (monotone: stop when it turns). */
+        y = -(p[1] / p[0]) / 3.0;
+        refl__cubic_eval(y, p[0], p[1], p[2], p[3], &q, &dq, &b1, &c2);
+        t = q / p[0];
+        rr = cbrt(fabs(t));
+        s = t < 0.0 ? -1.0 : 1.0;
+        t = -dq / p[0];
+        if (t > 0.0) rr = 1.324718 * REFL__MAX(rr, sqrt(t));
+        y0 = y - s * rr;
+        if (y0 != y) {
+            /* near a multiple root rounding noise in q can throw the last
+               step far past the root: keep the iterate of least |q| */
+            double best = y0, bq = DBL_MAX;
+            it = 0;
+            do {
+                y = y0;
+                refl__cubic_eval(y, p[0], p[1], p[2], p[3], &q, &dq, &b1, &c2);
+                if (fabs(q) < bq) { bq = fabs(q); best = y; }
+                y0 = dq == 0.0 ? y : y - (q / dq) / 1.000000000000001;
+            } while (s * y0 > s * y && ++it < 200);
+            if (best != y) {
+                y = best;
+                refl__cubic_eval(y, p[0], p[1], p[2], p[3], &q, &dq, &b1, &c2);
+            }
+            /* a root far from zero deflates stably backwards */
+            if (fabs(p[0]) * y * y > fabs(p[3] / y)) {
+                c2 = -p[3] / y;
+                b1 = (c2 - p[2]) / y;
+            }
+        }
+        r[0] = y;
+        n = 1 + refl_solve_quadratic(p[0], b1, c2, r + 1); /* p[0] != 0: >= 0 */
+    }
+    for (i = 0; i < n; ++i) r[i] = ldexp(refl__cubic_polish(p, r[i]), k);
+    n = refl__keep_finite(r, n);
+    refl__sort(r, n);
+    memcpy(roots, r, (size_t)n * sizeof(double));
+    return n;
+}
+
+/* ---- least squares ---------------------------------------------------------- */
+
+REFL_API refl_result refl_least_squares(const double *A, const double *b, int rows, int cols, double *x,
+                                        double *condition) {
+    double *w, z[32], cond, rmax = 0.0, rmin = DBL_MAX;
+    int perm[32], scale[32], i, j, k;
+    size_t n;
+    if (!A || !b || !x || cols < 1 || cols > 32 || rows < cols) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((size_t)rows > (size_t)-1 / sizeof(double) / (size_t)(cols + 1)) return REFL_ERROR_INVALID_SIZE;
+    n = (size_t)rows;
+    /* column-major working copy, b as the last column */
+    w = (double *)refl__alloc(NULL, n * (size_t)(cols + 1) * sizeof(double));
+    if (!w) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < rows; ++i) {
+        for (j = 0; j < cols; ++j) w[(size_t)j * n + (size_t)i] = A[(size_t)i * (size_t)cols + (size_t)j];
+        w[(size_t)cols * n + (size_t)i] = b[i];
+    }
+    for (i = 0; i <= cols; ++i) {
+        const double *c = w + (size_t)i * n;
+        size_t r;
+        for (r = 0; r < n; ++r)
+            if (!refl__finite(c[r])) {
+                refl__free(NULL, w);
+                return REFL_ERROR_INVALID_ARGUMENT;
+            }
+    }
+    /* equilibrate: column j times 2^-scale[j], close to unit norm (exact) */
+    for (j = 0; j < cols; ++j) {
+        double *c = w + (size_t)j * n, big = 0.0, s = 0.0;
+        size_t r;
+        perm[j] = j;
+        scale[j] = 0;
+        for (r = 0; r < n; ++r) big = REFL__MAX(big, fabs(c[r]));
+        if (big == 0.0) continue; /* zero column: r_jj = 0 below */
+        frexp(big, &scale[j]);
+        for (r = 0; r < n; ++r) c[r] = ldexp(c[r], -scale[j]);
+        for (r = 0; r < n; ++r) s += c[r] * c[r];
+        frexp(sqrt(s), &k);
+        scale[j] += k;
+        for (r = 0; r < n; ++r) c[r] = ldexp(c[r], -k);
+    }
+    /* Householder QR with column pivoting; R's upper triangle in place */
+    for (k = 0; k < cols; ++k) {
+        double best = -1.0, sigma, alpha, x0, vtv, *ck;
+        int p = k;
+        size_t r, kk = (size_t)k;
+        for (j = k; j < cols; ++j) {
+            const double *c = w + (size_t)j * n;
+            double s = 0.0;
+            for (r = kk; r < n; ++r) s += c[r] * c[r];
+            if (s > best) { best = s; p = j; }
+        }
+        if (p != k) {
+            double *cp = w + (size_t)p * n, *c = w + kk * n;
+            int t = perm[k];
+            for (r = 0; r < n; ++r) { double v = c[r]; c[r] = cp[r]; cp[r] = v; }
+            perm[k] = perm[p];
+            perm[p] = t;
+        }
+        ck = w + kk * n;
+        sigma = sqrt(best);
+        if (sigma == 0.0) { /* the rest is zero: rank deficient */
+            for (j = k; j < cols; ++j) w[(size_t)j * n + (size_t)j] = 0.0;
+            break;
+        }
+        x0 = ck[kk];
+        alpha = x0 >= 0.0 ? -sigma : sigma; /* no cancellation in v0 = x0 - alpha */
+        ck[kk] = x0 - alpha;                /* v = (x0 - alpha, x1, ...) */
+        vtv = 2.0 * sigma * (sigma + fabs(x0));
+        for (j = k + 1; j <= cols; ++j) {
+            double *c = w + (size_t)j * n, s = 0.0, f;
+            for (r = kk; r < n; ++r) s += ck[r] * c[r];
+            f = 2.0 * s / vtv;
+            for (r = kk; r < n; ++r) c[r] -= f * ck[r];
+        }
+        ck[kk] = alpha;
+    }
+    for (k = 0; k < cols; ++k) {
+        double d = fabs(w[(size_t)k * n + (size_t)k]);
+        rmax = REFL__MAX(rmax, d);
+        rmin = REFL__MIN(rmin, d);
+    }
+    cond = rmin > 0.0 ? rmax / rmin : INFINITY;
+    if (condition) *condition = cond;
+    if (!(cond <= 1e12)) {
+        refl__free(NULL, w);
+        return REFL_ERROR_SINGULAR;
+    }
+    for (i = cols - 1; i >= 0; --i) {
+        double s = w[(size_t)cols * n + (size_t)i];
+        for (j = i + 1; j < cols; ++j) s -= w[(size_t)j * n + (size_t)i] * z[j];
+        z[i] = s / w[(size_t)i * n + (size_t)i];
+    }
+    for (i = 0; i < cols; ++i) x[perm[i]] = ldexp(z[i], -scale[perm[i]]);
+    refl__free(NULL, w);
+    return REFL_OK;
+}
+
+/* ---- random numbers ---------------------------------------------------------- */
+
+REFL_API refl_rng refl_rng_seed(uint64_t seed) {
+    refl_rng r;
+    r.state = seed ? seed : 0x9E3779B97F4A7C15ull; /* xorshift never leaves 0 */
+    return r;
+}
+
+/* xorshift64*, the high half of the product (the better bits). */
+REFL_API uint32_t refl_rng_u32(refl_rng *rng) {
+    uint64_t s = rng->state;
+    s ^= s >> 12;
+    s ^= s << 25;
+    s ^= s >> 27;
+    rng->state = s;
+    return (uint32_t)((s * 0x2545F4914F6CDD1Dull) >> 32);
+}
+
+REFL_API float refl_rng_float(refl_rng *rng) {
+    return (float)(refl_rng_u32(rng) >> 8) * (1.0f / 16777216.0f);
+}
 /* ---- src/reflect/mesh.c ---- */
-/* mesh: being written. */
+/* Meshes: creation (validated copies, angle-weighted normals), bounds,
+   subdivision to a maximum edge length, and area-uniform point sampling.
+
+   NORMALS
+       Missing normals, and given ones that are zero or not finite, are the
+       angle-weighted average of the adjacent face normals (Thurmer and
+       Wuthrich), accumulated in double. Triangles whose sine of the largest
+       angle is below 1e-12 (collinear or repeated vertices) add nothing; a
+       vertex without any other triangle gets (0, 1, 0). The angles come
+       from a series, not libm, so the normals (and the sampled normals
+       after them) are the same bits on every machine.
+
+   SUBDIVISION
+       Rounds: every undirected edge longer than max_edge gets one midpoint
+       vertex (an edge map keyed by (min, max) index, so both triangles of
+       an edge agree and there are no T-junctions); each triangle is then
+       re-cut by how many of its edges split: 1 -> 2 triangles, 2 -> 3 (the
+       quad cut by its shorter diagonal), 3 -> 4. New vertices are numbered
+       in order of first appearance, so the result is deterministic.
+       Attributes are interpolated at midpoints (normals renormalised). More
+       than 2^26 triangles is REFL_ERROR_INVALID_SIZE, checked up front by a
+       lower bound and again every round.
+
+   SAMPLING
+       Count: floor(area * density), plus one with probability equal to the
+       fraction (the first draw of the stream): the expected count is exactly
+       area * density. Each point then takes two draws for a 53-bit uniform
+       that picks its triangle by binary search in the cumulative areas
+       (double, transformed triangles), and two floats r1, r2 for the point
+       (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). Only IEEE arithmetic and
+       sqrt: the same points on every machine. */
+
+#define REFL__MAX_TRIANGLES (1 << 26)
+
+/* ---- allocation ---------------------------------------------------------- */
+
+static void refl__mesh_free(refl_mesh *m) {
+    refl_allocator a;
+    if (!m) return;
+    a = m->allocator;
+    refl__free(&a, m->positions);
+    refl__free(&a, m->normals);
+    refl__free(&a, m->texcoords);
+    refl__free(&a, m->colors);
+    refl__free(&a, m->indices);
+    refl__free(&a, m);
+}
+
+/* A mesh with uninitialised arrays of the given sizes. */
+static refl_result refl__mesh_alloc(const refl_allocator *a, int vertex_count, int triangle_count, int tex,
+                                    int col, refl_mesh **out) {
+    refl_mesh *m;
+    size_t nv = (size_t)vertex_count, nt = (size_t)triangle_count;
+    *out = NULL;
+    if (nv > (size_t)-1 / (4 * sizeof(float)) || nt > (size_t)-1 / (3 * sizeof(uint32_t)))
+        return REFL_ERROR_INVALID_SIZE;
+    m = (refl_mesh *)refl__calloc(a, 1, sizeof(refl_mesh));
+    if (!m) return REFL_ERROR_OUT_OF_MEMORY;
+    m->allocator = refl__allocator(a);
+    m->vertex_count = vertex_count;
+    m->triangle_count = triangle_count;
+    m->positions = (float *)refl__alloc(a, nv * 3 * sizeof(float));
+    m->normals = (float *)refl__alloc(a, nv * 3 * sizeof(float));
+    m->indices = (uint32_t *)refl__alloc(a, nt * 3 * sizeof(uint32_t));
+    if (tex) m->texcoords = (float *)refl__alloc(a, nv * 2 * sizeof(float));
+    if (col) m->colors = (float *)refl__alloc(a, nv * 4 * sizeof(float));
+    if (!m->positions || !m->normals || !m->indices || (tex && !m->texcoords) || (col && !m->colors)) {
+        refl__mesh_free(m);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    *out = m;
+    return REFL_OK;
+}
+
+/* ---- normals ----------------------------------------------------------------- */
+
+/* atan t for |t| <= 1 by the series after one reduction to |t| <= tan(pi/8)
+   (error below 1e-11): plain arithmetic, the same bits everywhere. */
+static double refl__atan_unit(double t) {
+    double off = 0.0, t2, term, s;
+    int k;
+    if (t > 0.41421356237309503) {
+        off = REFL__PI / 4;
+        t = (t - 1.0) / (t + 1.0);
+    } else if (t < -0.41421356237309503) {
+        off = -REFL__PI / 4;
+        t = (t + 1.0) / (1.0 - t);
+    }
+    t2 = t * t;
+    term = t;
+    s = 0.0;
+    for (k = 0; k < 14; ++k) {
+        s += (k & 1 ? -term : term) / (double)(2 * k + 1);
+        term *= t2;
+    }
+    return off + s;
+}
+
+/* atan2(y, x) for y >= 0: an angle in [0, pi]. */
+static double refl__angle(double y, double x) {
+    if (x > 0.0 && x >= y) return refl__atan_unit(y / x);
+    if (x < 0.0 && -x >= y) return REFL__PI - refl__atan_unit(y / -x);
+    if (y == 0.0) return 0.0;
+    return REFL__PI / 2 - refl__atan_unit(x / y);
+}
+
+/* Fills m->normals: the given ones normalised where usable, the
+   angle-weighted ones elsewhere. */
+static refl_result refl__mesh_normals(refl_mesh *m, const float *given) {
+    const refl_allocator *a = &m->allocator;
+    double *acc;
+    int v, t, k, need = given == NULL;
+    if (given) {
+        for (v = 0; v < m->vertex_count; ++v) {
+            double x = given[3 * v], y = given[3 * v + 1], z = given[3 * v + 2], l = sqrt(x * x + y * y + z * z);
+            if (l > 0.0 && l <= DBL_MAX) {
+                m->normals[3 * v] = (float)(x / l);
+                m->normals[3 * v + 1] = (float)(y / l);
+                m->normals[3 * v + 2] = (float)(z / l);
+            } else {
+                m->normals[3 * v] = m->normals[3 * v + 1] = m->normals[3 * v + 2] = 0.0f;
+                need = 1; /* NaN lengths land here too */
+            }
+        }
+    }
+    if (!need) return REFL_OK;
+    if (!given) memset(m->normals, 0, (size_t)m->vertex_count * 3 * sizeof(float));
+    acc = (double *)refl__calloc(a, (size_t)m->vertex_count * 3, sizeof(double));
+    if (!acc) return REFL_ERROR_OUT_OF_MEMORY;
+    for (t = 0; t < m->triangle_count; ++t) {
+        const uint32_t *tri = m->indices + 3 * t;
+        double p[3][3], e[3][3], n[3], l2[3], c2, lmax, cl;
+        for (k = 0; k < 3; ++k) {
+            p[k][0] = m->positions[3 * tri[k]];
+            p[k][1] = m->positions[3 * tri[k] + 1];
+            p[k][2] = m->positions[3 * tri[k] + 2];
+        }
+        for (k = 0; k < 3; ++k) { /* e[k] = p[k+1] - p[k] */
+            int j = (k + 1) % 3;
+            e[k][0] = p[j][0] - p[k][0];
+            e[k][1] = p[j][1] - p[k][1];
+            e[k][2] = p[j][2] - p[k][2];
+            l2[k] = e[k][0] * e[k][0] + e[k][1] * e[k][1] + e[k][2] * e[k][2];
+        }
+        n[0] = e[0][1] * e[2][2] - e[0][2] * e[2][1];
+        n[1] = e[0][2] * e[2][0] - e[0][0] * e[2][2];
+        n[2] = e[0][0] * e[2][1] - e[0][1] * e[2][0];
+        n[0] = -n[0]; n[1] = -n[1]; n[2] = -n[2]; /* (p1 - p0) x (p2 - p0) */
+        c2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        lmax = REFL__MAX(REFL__MAX(l2[0], l2[1]), l2[2]);
+        if (!(c2 > 1e-24 * lmax * lmax)) continue; /* degenerate */
+        cl = sqrt(c2);
+        for (k = 0; k < 3; ++k) {
+            /* the corner at p[k], between e[k] and -e[k-1]; |cross| = cl */
+            const double *ea = e[k], *eb = e[(k + 2) % 3];
+            double dot = -(ea[0] * eb[0] + ea[1] * eb[1] + ea[2] * eb[2]);
+            double w = refl__angle(cl, dot) / cl;
+            double *o = acc + 3 * (size_t)tri[k];
+            o[0] += w * n[0];
+            o[1] += w * n[1];
+            o[2] += w * n[2];
+        }
+    }
+    for (v = 0; v < m->vertex_count; ++v) {
+        float *o = m->normals + 3 * v;
+        const double *s = acc + 3 * v;
+        double l = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        if (o[0] != 0.0f || o[1] != 0.0f || o[2] != 0.0f) continue; /* a usable given one */
+        if (l > 0.0 && l <= DBL_MAX) {
+            o[0] = (float)(s[0] / l);
+            o[1] = (float)(s[1] / l);
+            o[2] = (float)(s[2] / l);
+        } else {
+            o[0] = 0.0f; o[1] = 1.0f; o[2] = 0.0f;
+        }
+    }
+    refl__free(a, acc);
+    return REFL_OK;
+}
+
+/* ---- creation ------------------------------------------------------------------ */
+
+REFL_API refl_result refl_mesh_create(const refl_mesh_desc *desc, refl_mesh **out_mesh) {
+    refl_mesh *m;
+    refl_result r;
+    int nidx, v, i;
+    if (!out_mesh) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_mesh = NULL;
+    if (!desc || !desc->positions) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((desc->allocator.alloc != NULL) != (desc->allocator.free != NULL)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc->vertex_count < 0 || desc->index_count < 0) return REFL_ERROR_INVALID_SIZE;
+    if (!desc->indices && desc->index_count != 0) return REFL_ERROR_INVALID_ARGUMENT;
+    nidx = desc->indices ? desc->index_count : desc->vertex_count;
+    if (nidx % 3 != 0) return REFL_ERROR_INVALID_SIZE;
+    if (desc->vertex_count == 0 || nidx == 0) return REFL_ERROR_BAD_MESH;
+    for (i = 0; desc->indices && i < nidx; ++i)
+        if (desc->indices[i] >= (uint32_t)desc->vertex_count) return REFL_ERROR_BAD_MESH;
+    for (v = 0; v < 3 * desc->vertex_count; ++v)
+        if (!refl__isfinite(desc->positions[v])) return REFL_ERROR_BAD_MESH;
+    r = refl__mesh_alloc(&desc->allocator, desc->vertex_count, nidx / 3, desc->texcoords != NULL,
+                         desc->colors != NULL, &m);
+    if (r != REFL_OK) return r;
+    memcpy(m->positions, desc->positions, (size_t)desc->vertex_count * 3 * sizeof(float));
+    if (desc->texcoords) memcpy(m->texcoords, desc->texcoords, (size_t)desc->vertex_count * 2 * sizeof(float));
+    if (desc->colors) memcpy(m->colors, desc->colors, (size_t)desc->vertex_count * 4 * sizeof(float));
+    if (desc->indices) memcpy(m->indices, desc->indices, (size_t)nidx * sizeof(uint32_t));
+    else
+        for (i = 0; i < nidx; ++i) m->indices[i] = (uint32_t)i;
+    if ((r = refl__mesh_normals(m, desc->normals)) != REFL_OK) {
+        refl__mesh_free(m);
+        return r;
+    }
+    *out_mesh = m;
+    return REFL_OK;
+}
+
+REFL_API void refl_mesh_destroy(refl_mesh *mesh) { refl__mesh_free(mesh); }
+
+/* Empty or NULL meshes: both corners at the origin. */
+REFL_API void refl_mesh_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi) {
+    refl_vec3 l = refl_v3(0.0f, 0.0f, 0.0f), h = l;
+    int v;
+    if (mesh && mesh->positions && mesh->vertex_count > 0) {
+        const float *p = mesh->positions;
+        l = h = refl_v3(p[0], p[1], p[2]);
+        for (v = 1; v < mesh->vertex_count; ++v) {
+            const float *q = p + 3 * v;
+            l.x = REFL__MIN(l.x, q[0]); l.y = REFL__MIN(l.y, q[1]); l.z = REFL__MIN(l.z, q[2]);
+            h.x = REFL__MAX(h.x, q[0]); h.y = REFL__MAX(h.y, q[1]); h.z = REFL__MAX(h.z, q[2]);
+        }
+    }
+    if (lo) *lo = l;
+    if (hi) *hi = h;
+}
+
+/* ---- subdivision ------------------------------------------------------------------ */
+
+/* Open-addressing map from an undirected edge to its midpoint vertex. */
+typedef struct refl__edge_map {
+    uint64_t *keys; /* (min << 32 | max) + 1; 0: empty */
+    uint32_t *values;
+    size_t mask;
+} refl__edge_map;
+
+static size_t refl__edge_slot(const refl__edge_map *em, uint64_t key) {
+    uint64_t h = key * 0x9E3779B97F4A7C15ull;
+    size_t i = (size_t)(h >> 20) & em->mask;
+    while (em->keys[i] != 0 && em->keys[i] != key) i = (i + 1) & em->mask;
+    return i;
+}
+
+static uint64_t refl__edge_key(uint32_t u, uint32_t v) {
+    return u < v ? ((uint64_t)u << 32 | v) + 1 : ((uint64_t)v << 32 | u) + 1;
+}
+
+static double refl__dist2(const float *p, uint32_t u, uint32_t v) {
+    double dx = (double)p[3 * u] - p[3 * v], dy = (double)p[3 * u + 1] - p[3 * v + 1],
+           dz = (double)p[3 * u + 2] - p[3 * v + 2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* Midpoint vertex d of the edge (u, v), u < v. */
+static void refl__midpoint(refl_mesh *o, const refl_mesh *s, uint32_t u, uint32_t v, uint32_t d) {
+    double n[3], l;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        o->positions[3 * d + k] = (float)(0.5 * ((double)s->positions[3 * u + k] + s->positions[3 * v + k]));
+        n[k] = (double)s->normals[3 * u + k] + s->normals[3 * v + k];
+    }
+    l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (k = 0; k < 3; ++k) /* opposite normals: keep u's */
+        o->normals[3 * d + k] = l > 0.0 && l <= DBL_MAX ? (float)(n[k] / l) : s->normals[3 * u + k];
+    if (s->texcoords)
+        for (k = 0; k < 2; ++k)
+            o->texcoords[2 * d + k] = (float)(0.5 * ((double)s->texcoords[2 * u + k] + s->texcoords[2 * v + k]));
+    if (s->colors)
+        for (k = 0; k < 4; ++k)
+            o->colors[4 * d + k] = (float)(0.5 * ((double)s->colors[4 * u + k] + s->colors[4 * v + k]));
+}
+
+static uint32_t *refl__emit(uint32_t *o, uint32_t a, uint32_t b, uint32_t c) {
+    o[0] = a; o[1] = b; o[2] = c;
+    return o + 3;
+}
+
+/* One round: *out is NULL when no edge is longer than max_edge. */
+static refl_result refl__subdivide_round(const refl_mesh *s, double max2, refl_mesh **out) {
+    const refl_allocator *a = &s->allocator;
+    refl__edge_map em;
+    refl_mesh *o = NULL;
+    refl_result r;
+    size_t cap = 16, i;
+    long long splits = 0, tris = 0;
+    int t, k;
+    *out = NULL;
+    while (cap < (size_t)s->triangle_count * 6) cap *= 2;
+    em.mask = cap - 1;
+    em.keys = (uint64_t *)refl__calloc(a, cap, sizeof(uint64_t));
+    em.values = (uint32_t *)refl__alloc(a, cap * sizeof(uint32_t));
+    if (!em.keys || !em.values) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    for (t = 0; t < s->triangle_count; ++t) {
+        const uint32_t *tri = s->indices + 3 * t;
+        int n = 0;
+        for (k = 0; k < 3; ++k) {
+            uint32_t u = tri[k], v = tri[(k + 1) % 3];
+            uint64_t key = refl__edge_key(u, v);
+            if (u == v || !(refl__dist2(s->positions, REFL__MIN(u, v), REFL__MAX(u, v)) > max2)) continue;
+            ++n;
+            i = refl__edge_slot(&em, key);
+            if (em.keys[i] == 0) {
+                em.keys[i] = key;
+                em.values[i] = (uint32_t)(s->vertex_count + splits++);
+            }
+        }
+        tris += 1 + n;
+    }
+    r = REFL_OK;
+    if (splits == 0) goto done;
+    if (tris > REFL__MAX_TRIANGLES || s->vertex_count + splits > INT_MAX) {
+        r = REFL_ERROR_INVALID_SIZE;
+        goto done;
+    }
+    r = refl__mesh_alloc(a, (int)(s->vertex_count + splits), (int)tris, s->texcoords != NULL, s->colors != NULL, &o);
+    if (r != REFL_OK) goto done;
+    memcpy(o->positions, s->positions, (size_t)s->vertex_count * 3 * sizeof(float));
+    memcpy(o->normals, s->normals, (size_t)s->vertex_count * 3 * sizeof(float));
+    if (s->texcoords) memcpy(o->texcoords, s->texcoords, (size_t)s->vertex_count * 2 * sizeof(float));
+    if (s->colors) memcpy(o->colors, s->colors, (size_t)s->vertex_count * 4 * sizeof(float));
+    for (i = 0; i < cap; ++i)
+        if (em.keys[i]) {
+            uint64_t key = em.keys[i] - 1;
+            refl__midpoint(o, s, (uint32_t)(key >> 32), (uint32_t)key, em.values[i]);
+        }
+    {
+        uint32_t *dst = o->indices;
+        for (t = 0; t < s->triangle_count; ++t) {
+            const uint32_t *tri = s->indices + 3 * t;
+            uint32_t v[3], mid[3] = {0, 0, 0}, ms[3];
+            int split[3], n = 0, first = 0;
+            for (k = 0; k < 3; ++k) {
+                uint32_t u = tri[k], w = tri[(k + 1) % 3];
+                split[k] = 0;
+                if (u != w) {
+                    i = refl__edge_slot(&em, refl__edge_key(u, w));
+                    if (em.keys[i]) {
+                        split[k] = 1;
+                        mid[k] = em.values[i];
+                        ++n;
+                    }
+                }
+            }
+            /* rotate: the split edge first (n = 1), the unsplit one last (n = 2) */
+            for (k = 0; k < 3; ++k)
+                if ((n == 1 && split[k]) || (n == 2 && !split[(k + 2) % 3])) first = k;
+            for (k = 0; k < 3; ++k) {
+                int j = (first + k) % 3;
+                v[k] = tri[j];
+                ms[k] = split[j] ? mid[j] : 0;
+            }
+            if (n == 0) {
+                dst = refl__emit(dst, v[0], v[1], v[2]);
+            } else if (n == 1) { /* edge v0 v1 split */
+                dst = refl__emit(dst, v[0], ms[0], v[2]);
+                dst = refl__emit(dst, ms[0], v[1], v[2]);
+            } else if (n == 2) { /* v0 v1 and v1 v2 split; the quad v0 m0 m1 v2 */
+                dst = refl__emit(dst, ms[0], v[1], ms[1]);
+                if (refl__dist2(o->positions, v[0], ms[1]) <= refl__dist2(o->positions, ms[0], v[2])) {
+                    dst = refl__emit(dst, v[0], ms[0], ms[1]);
+                    dst = refl__emit(dst, v[0], ms[1], v[2]);
+                } else {
+                    dst = refl__emit(dst, v[0], ms[0], v[2]);
+                    dst = refl__emit(dst, ms[0], ms[1], v[2]);
+                }
+            } else {
+                dst = refl__emit(dst, v[0], ms[0], ms[2]);
+                dst = refl__emit(dst, ms[0], v[1], ms[1]);
+                dst = refl__emit(dst, ms[2], ms[1], v[2]);
+                dst = refl__emit(dst, ms[0], ms[1], ms[2]);
+            }
+        }
+    }
+    *out = o;
+done:
+    refl__free(a, em.keys);
+    refl__free(a, em.values);
+    return r;
+}
+
+/* A copy of a mesh (same allocator). */
+static refl_result refl__mesh_copy(const refl_mesh *s, refl_mesh **out) {
+    refl_mesh *o;
+    refl_result r = refl__mesh_alloc(&s->allocator, s->vertex_count, s->triangle_count, s->texcoords != NULL,
+                                     s->colors != NULL, &o);
+    size_t nv = (size_t)s->vertex_count;
+    *out = NULL;
+    if (r != REFL_OK) return r;
+    memcpy(o->positions, s->positions, nv * 3 * sizeof(float));
+    memcpy(o->normals, s->normals, nv * 3 * sizeof(float));
+    if (s->texcoords) memcpy(o->texcoords, s->texcoords, nv * 2 * sizeof(float));
+    if (s->colors) memcpy(o->colors, s->colors, nv * 4 * sizeof(float));
+    memcpy(o->indices, s->indices, (size_t)s->triangle_count * 3 * sizeof(uint32_t));
+    *out = o;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_mesh_subdivide(const refl_mesh *mesh, float max_edge, refl_mesh **out_mesh) {
+    refl_mesh *cur = NULL, *next;
+    double max2 = (double)max_edge * max_edge, bound = 0.0;
+    int t, round;
+    if (!out_mesh) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_mesh = NULL;
+    if (!mesh || !mesh->positions || !mesh->normals || !mesh->indices) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!(max_edge > 0.0f)) return REFL_ERROR_INVALID_ARGUMENT; /* NaN too */
+    /* Lower bound of the result: a triangle's longest edge ends up in at
+       least 2^j pieces, each on its own triangle, where j is how often it
+       halves while staying clearly above max_edge. */
+    for (t = 0; t < mesh->triangle_count && bound <= REFL__MAX_TRIANGLES; ++t) {
+        const uint32_t *tri = mesh->indices + 3 * t;
+        double l2 = REFL__MAX(REFL__MAX(refl__dist2(mesh->positions, tri[0], tri[1]),
+                                        refl__dist2(mesh->positions, tri[1], tri[2])),
+                              refl__dist2(mesh->positions, tri[2], tri[0]));
+        double pieces = 1.0;
+        while (l2 > max2 * 1.0001 && pieces <= REFL__MAX_TRIANGLES) {
+            pieces *= 2.0;
+            l2 *= 0.25;
+        }
+        bound += pieces;
+    }
+    if (bound > REFL__MAX_TRIANGLES) return REFL_ERROR_INVALID_SIZE;
+    /* Edges shrink towards max_edge geometrically; 200 rounds is far beyond
+       any mesh the bound lets through. */
+    for (round = 0; round < 200; ++round) {
+        refl_result r = refl__subdivide_round(cur ? cur : mesh, max2, &next);
+        if (r != REFL_OK) {
+            refl__mesh_free(cur);
+            return r;
+        }
+        if (!next) break;
+        refl__mesh_free(cur);
+        cur = next;
+    }
+    if (round == 200) {
+        refl__mesh_free(cur);
+        return REFL_ERROR_INVALID_SIZE;
+    }
+    if (!cur) return refl__mesh_copy(mesh, out_mesh);
+    *out_mesh = cur;
+    return REFL_OK;
+}
+
+/* ---- point sampling ------------------------------------------------------------------ */
+
+/* Uniform in [0, 1) with 53 bits, from two draws. */
+static double refl__rng_double(refl_rng *rng) {
+    uint32_t hi = refl_rng_u32(rng) >> 5, lo = refl_rng_u32(rng) >> 6;
+    return ((double)hi * 67108864.0 + (double)lo) * (1.0 / 9007199254740992.0);
+}
+
+REFL_API refl_result refl_mesh_sample_points(const refl_mesh *mesh, const refl_mat4 *transform, float density,
+                                             uint64_t seed, const refl_allocator *allocator,
+                                             refl_points **out_points) {
+    refl_allocator al = refl__allocator(allocator);
+    refl_points *pts = NULL;
+    refl_rng rng = refl_rng_seed(seed);
+    double *tp = NULL, *cum = NULL, m[16], cof[9], det, sgn, total = 0.0, expect;
+    long long count;
+    int v, t, i, k;
+    if (!out_points) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_points = NULL;
+    if (!mesh || !mesh->positions || !mesh->normals || !mesh->indices || mesh->vertex_count <= 0 ||
+        mesh->triangle_count <= 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if ((al.alloc != NULL) != (al.free != NULL)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!(density >= 0.0f) || !refl__isfinite(density)) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < 16; ++i) m[i] = transform ? transform->m[i] : (i % 5 == 0);
+    /* normals go through the cofactor matrix (det times the inverse
+       transpose) with det's sign: the inverse transpose up to scale, and
+       defined when the transform flattens */
+    cof[0] = m[5] * m[10] - m[6] * m[9];
+    cof[1] = m[6] * m[8] - m[4] * m[10];
+    cof[2] = m[4] * m[9] - m[5] * m[8];
+    cof[3] = m[9] * m[2] - m[10] * m[1];
+    cof[4] = m[10] * m[0] - m[8] * m[2];
+    cof[5] = m[8] * m[1] - m[9] * m[0];
+    cof[6] = m[1] * m[6] - m[2] * m[5];
+    cof[7] = m[2] * m[4] - m[0] * m[6];
+    cof[8] = m[0] * m[5] - m[1] * m[4];
+    det = m[0] * cof[0] + m[1] * cof[1] + m[2] * cof[2];
+    sgn = det < 0.0 ? -1.0 : 1.0;
+    tp = (double *)refl__alloc(&al, (size_t)mesh->vertex_count * 3 * sizeof(double));
+    cum = (double *)refl__alloc(&al, (size_t)mesh->triangle_count * sizeof(double));
+    if (!tp || !cum) {
+        refl__free(&al, tp);
+        refl__free(&al, cum);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (v = 0; v < mesh->vertex_count; ++v) { /* as refl_mat4_point, in double */
+        const float *p = mesh->positions + 3 * v;
+        double w = m[3] * p[0] + m[7] * p[1] + m[11] * p[2] + m[15];
+        for (k = 0; k < 3; ++k) {
+            double c = m[k] * p[0] + m[4 + k] * p[1] + m[8 + k] * p[2] + m[12 + k];
+            tp[3 * v + k] = w != 1.0 && w != 0.0 ? c / w : c;
+        }
+    }
+    for (t = 0; t < mesh->triangle_count; ++t) {
+        const uint32_t *tri = mesh->indices + 3 * t;
+        const double *a = tp + 3 * tri[0], *b = tp + 3 * tri[1], *c = tp + 3 * tri[2];
+        double e1[3], e2[3], n[3];
+        for (k = 0; k < 3; ++k) {
+            e1[k] = b[k] - a[k];
+            e2[k] = c[k] - a[k];
+        }
+        n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        total += 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        cum[t] = total;
+    }
+    if (!(total <= DBL_MAX)) { /* NaN or infinite: the transform */
+        refl__free(&al, tp);
+        refl__free(&al, cum);
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    expect = total * density;
+    if (!(expect <= (double)(1 << 28))) {
+        refl__free(&al, tp);
+        refl__free(&al, cum);
+        return REFL_ERROR_INVALID_SIZE;
+    }
+    count = (long long)expect;
+    if ((double)refl_rng_float(&rng) < expect - (double)count) ++count;
+    pts = (refl_points *)refl__calloc(&al, 1, sizeof(refl_points));
+    if (pts) {
+        pts->allocator = al;
+        pts->count = (int)count;
+        pts->positions = (float *)refl__alloc(&al, (size_t)count * 3 * sizeof(float));
+        pts->normals = (float *)refl__alloc(&al, (size_t)count * 3 * sizeof(float));
+        pts->triangles = (uint32_t *)refl__alloc(&al, (size_t)count * sizeof(uint32_t));
+    }
+    if (!pts || !pts->positions || !pts->normals || !pts->triangles) {
+        refl_points_destroy(pts);
+        refl__free(&al, tp);
+        refl__free(&al, cum);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < (int)count; ++i) {
+        double target = refl__rng_double(&rng) * total, r1, r2, s, bc[3], nn[3], no[3], l;
+        const uint32_t *tri;
+        int lo = 0, hi = mesh->triangle_count - 1;
+        while (lo < hi) { /* the first triangle with cum > target */
+            int mid = lo + (hi - lo) / 2;
+            if (cum[mid] > target) hi = mid;
+            else lo = mid + 1;
+        }
+        tri = mesh->indices + 3 * lo;
+        r1 = refl_rng_float(&rng);
+        r2 = refl_rng_float(&rng);
+        s = sqrt(r1);
+        bc[0] = 1.0 - s;
+        bc[1] = s * (1.0 - r2);
+        bc[2] = s * r2;
+        for (k = 0; k < 3; ++k) {
+            pts->positions[3 * i + k] =
+                (float)(bc[0] * tp[3 * tri[0] + k] + bc[1] * tp[3 * tri[1] + k] + bc[2] * tp[3 * tri[2] + k]);
+            no[k] = bc[0] * mesh->normals[3 * tri[0] + k] + bc[1] * mesh->normals[3 * tri[1] + k] +
+                    bc[2] * mesh->normals[3 * tri[2] + k];
+        }
+        for (k = 0; k < 3; ++k) nn[k] = sgn * (cof[k] * no[0] + cof[3 + k] * no[1] + cof[6 + k] * no[2]);
+        l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+        if (!(l > 0.0) || l > DBL_MAX) { /* the face normal */
+            const double *a = tp + 3 * tri[0], *b = tp + 3 * tri[1], *c = tp + 3 * tri[2];
+            nn[0] = sgn * ((b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]));
+            nn[1] = sgn * ((b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]));
+            nn[2] = sgn * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]));
+            l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+            if (!(l > 0.0) || l > DBL_MAX) {
+                nn[0] = 0.0; nn[1] = 1.0; nn[2] = 0.0;
+                l = 1.0;
+            }
+        }
+        for (k = 0; k < 3; ++k) pts->normals[3 * i + k] = (float)(nn[k] / l);
+        pts->triangles[i] = (uint32_t)lo;
+    }
+    refl__free(&al, tp);
+    refl__free(&al, cum);
+    *out_points = pts;
+    return REFL_OK;
+}
+
+REFL_API void refl_points_destroy(refl_points *points) {
+    refl_allocator a;
+    if (!points) return;
+    a = points->allocator;
+    refl__free(&a, points->positions);
+    refl__free(&a, points->normals);
+    refl__free(&a, points->triangles);
+    refl__free(&a, points);
+}
 /* ---- src/reflect/shapes.c ---- */
-/* shapes: being written. */
+/* Built-in shapes: Newell's teapot, sphere, torus, box and plane. */
+
+/* ---- shapes ------------------------------------------------------------------
+
+   Every shape builds its arrays here and hands them, with explicit normals,
+   to refl_mesh_create, which copies them; the temporaries are freed with
+   the same allocator. All triangles wind counter-clockwise seen from the
+   side the normals point to (outside). Sizes must be finite and positive
+   (REFL_ERROR_INVALID_SIZE), segment counts at least their minimum
+   (REFL_ERROR_INVALID_ARGUMENT), and no shape may exceed 2^24 vertices
+   (REFL_ERROR_INVALID_SIZE). On failure *out is NULL and nothing is held.
+
+   TEAPOT
+       Martin Newell's 1975 data as circulated in the teaset (306 control
+       points, 32 bicubic Bezier patches, 1-based indices as published: rim,
+       body, handle, spout, lid, and the bottom Frank Crow added). The data
+       is z-up; (x, y, z) -> (x, z, -y) makes it y-up with the base on y = 0,
+       original proportions (no 1.3 vertical stretch). Bounds: x -3 ..
+       3.434375, y 0 .. 3.15, z -2 .. 2.
+
+       Each patch is sampled on a (tess + 1)^2 grid in double. A patch is
+       P(u, v) = sum B_r(v) B_c(u) point[row r][column c]. The cubic de
+       Casteljau evaluation returns control points exactly at the ends and
+       keeps equal points equal, and evaluates a curve from whichever end
+       is nearer, so a boundary two patches share (in either direction, as
+       the body and bottom do) and the collapsed pole rows give
+       bit-identical positions on both sides.
+
+       Normals are Pu x Pv. At the poles (the lid knob's top, the bottom's
+       centre) a whole row collapses to a point and Pu = 0; there the normal
+       is the limit Puv x Pv, which for this data is exactly the axis.
+
+       The copies of the data do not orient every patch alike, so each
+       patch is oriented on its own: its normal at the centre (u = v = 1/2)
+       must point along a direction that is outward for its part (up on the
+       rim's curl, the lid and the spout's lip; away from the axis on the
+       body and the knob; away from the tube's middle plane on the handle
+       and the spout; down on the bottom). The centre is far from any
+       degenerate point, so the test is never close.
+
+       Vertices are welded where the positions are identical and the
+       normals agree to within REFL__TEAPOT_WELD_COS (the patches are
+       tangent-continuous where they meet, so their normals differ by
+       rounding only); the welded normal is the normalised sum. Triangles
+       with two coincident corners (one per grid cell at a pole) are
+       dropped: 32 tess^2 2 - 8 tess triangles remain. The teapot is not
+       closed: the pot's rim, the lid's edge, the spout's lip and the
+       handle's ends are open boundaries, and the handle and spout pass
+       through the body.
+*/
+
+enum { REFL__SHAPE_MAX_VERTICES = 1 << 24 };
+
+/* Hands the arrays to refl_mesh_create. */
+static refl_result refl__shape_finish(const float *positions, const float *normals, const float *texcoords,
+                                      long long vertex_count, const uint32_t *indices, long long index_count,
+                                      const refl_allocator *a, refl_mesh **out)
+{
+    refl_mesh_desc d;
+    memset(&d, 0, sizeof d);
+    d.positions = positions;
+    d.normals = normals;
+    d.texcoords = texcoords;
+    d.indices = indices;
+    d.vertex_count = (int)vertex_count;
+    d.index_count = (int)index_count;
+    d.allocator = refl__allocator(a);
+    return refl_mesh_create(&d, out);
+}
+
+/* One block for a shape's vertices (position, normal, texcoord) and
+   indices: a single allocation, so there is one failure to handle. */
+typedef struct refl__shape_arrays {
+    float *pos, *nrm, *uv;
+    uint32_t *idx;
+} refl__shape_arrays;
+
+static int refl__shape_alloc(const refl_allocator *a, long long nv, long long ni, refl__shape_arrays *s)
+{
+    float *block = (float *)refl__calloc(a, (size_t)(8 * nv + ni), sizeof(float));
+    if (!block) return 0;
+    s->pos = block;
+    s->nrm = block + 3 * nv;
+    s->uv = block + 6 * nv;
+    s->idx = (uint32_t *)(void *)(block + 8 * nv); /* uint32_t and float: same size and alignment */
+    return 1;
+}
+
+static int refl__shape_size_ok(float v) { return refl__isfinite(v) && v > 0.0f; }
+
+static void refl__shape_quad(uint32_t *idx, uint32_t a, uint32_t b, uint32_t c, uint32_t d)
+{
+    /* a b c d counter-clockwise: two triangles sharing the diagonal a-c */
+    idx[0] = a; idx[1] = b; idx[2] = c;
+    idx[3] = a; idx[4] = c; idx[5] = d;
+}
+
+/* ---- teapot ---------------------------------------------------------------- */
+
+static const double refl__teapot_points[306][3] = {
+    /* rim */
+    {1.4, 0.0, 2.4}, {1.4, -0.784, 2.4}, {0.784, -1.4, 2.4}, {0.0, -1.4, 2.4},
+    {1.3375, 0.0, 2.53125}, {1.3375, -0.749, 2.53125}, {0.749, -1.3375, 2.53125}, {0.0, -1.3375, 2.53125},
+    {1.4375, 0.0, 2.53125}, {1.4375, -0.805, 2.53125}, {0.805, -1.4375, 2.53125}, {0.0, -1.4375, 2.53125},
+    {1.5, 0.0, 2.4}, {1.5, -0.84, 2.4}, {0.84, -1.5, 2.4}, {0.0, -1.5, 2.4},
+    {-0.784, -1.4, 2.4}, {-1.4, -0.784, 2.4}, {-1.4, 0.0, 2.4}, {-0.749, -1.3375, 2.53125},
+    {-1.3375, -0.749, 2.53125}, {-1.3375, 0.0, 2.53125}, {-0.805, -1.4375, 2.53125}, {-1.4375, -0.805, 2.53125},
+    {-1.4375, 0.0, 2.53125}, {-0.84, -1.5, 2.4}, {-1.5, -0.84, 2.4}, {-1.5, 0.0, 2.4},
+    {-1.4, 0.784, 2.4}, {-0.784, 1.4, 2.4}, {0.0, 1.4, 2.4}, {-1.3375, 0.749, 2.53125},
+    {-0.749, 1.3375, 2.53125}, {0.0, 1.3375, 2.53125}, {-1.4375, 0.805, 2.53125}, {-0.805, 1.4375, 2.53125},
+    {0.0, 1.4375, 2.53125}, {-1.5, 0.84, 2.4}, {-0.84, 1.5, 2.4}, {0.0, 1.5, 2.4},
+    {0.784, 1.4, 2.4}, {1.4, 0.784, 2.4}, {0.749, 1.3375, 2.53125}, {1.3375, 0.749, 2.53125},
+    {0.805, 1.4375, 2.53125}, {1.4375, 0.805, 2.53125}, {0.84, 1.5, 2.4}, {1.5, 0.84, 2.4},
+    /* body (49) */
+    {1.75, 0.0, 1.875}, {1.75, -0.98, 1.875}, {0.98, -1.75, 1.875}, {0.0, -1.75, 1.875},
+    {2.0, 0.0, 1.35}, {2.0, -1.12, 1.35}, {1.12, -2.0, 1.35}, {0.0, -2.0, 1.35},
+    {2.0, 0.0, 0.9}, {2.0, -1.12, 0.9}, {1.12, -2.0, 0.9}, {0.0, -2.0, 0.9},
+    {-0.98, -1.75, 1.875}, {-1.75, -0.98, 1.875}, {-1.75, 0.0, 1.875}, {-1.12, -2.0, 1.35},
+    {-2.0, -1.12, 1.35}, {-2.0, 0.0, 1.35}, {-1.12, -2.0, 0.9}, {-2.0, -1.12, 0.9},
+    {-2.0, 0.0, 0.9}, {-1.75, 0.98, 1.875}, {-0.98, 1.75, 1.875}, {0.0, 1.75, 1.875},
+    {-2.0, 1.12, 1.35}, {-1.12, 2.0, 1.35}, {0.0, 2.0, 1.35}, {-2.0, 1.12, 0.9},
+    {-1.12, 2.0, 0.9}, {0.0, 2.0, 0.9}, {0.98, 1.75, 1.875}, {1.75, 0.98, 1.875},
+    {1.12, 2.0, 1.35}, {2.0, 1.12, 1.35}, {1.12, 2.0, 0.9}, {2.0, 1.12, 0.9},
+    {2.0, 0.0, 0.45}, {2.0, -1.12, 0.45}, {1.12, -2.0, 0.45}, {0.0, -2.0, 0.45},
+    {1.5, 0.0, 0.225}, {1.5, -0.84, 0.225}, {0.84, -1.5, 0.225}, {0.0, -1.5, 0.225},
+    {1.5, 0.0, 0.15}, {1.5, -0.84, 0.15}, {0.84, -1.5, 0.15}, {0.0, -1.5, 0.15},
+    {-1.12, -2.0, 0.45}, {-2.0, -1.12, 0.45}, {-2.0, 0.0, 0.45}, {-0.84, -1.5, 0.225},
+    {-1.5, -0.84, 0.225}, {-1.5, 0.0, 0.225}, {-0.84, -1.5, 0.15}, {-1.5, -0.84, 0.15},
+    {-1.5, 0.0, 0.15}, {-2.0, 1.12, 0.45}, {-1.12, 2.0, 0.45}, {0.0, 2.0, 0.45},
+    {-1.5, 0.84, 0.225}, {-0.84, 1.5, 0.225}, {0.0, 1.5, 0.225}, {-1.5, 0.84, 0.15},
+    {-0.84, 1.5, 0.15}, {0.0, 1.5, 0.15}, {1.12, 2.0, 0.45}, {2.0, 1.12, 0.45},
+    {0.84, 1.5, 0.225}, {1.5, 0.84, 0.225}, {0.84, 1.5, 0.15}, {1.5, 0.84, 0.15},
+    /* handle (121) */
+    {-1.6, 0.0, 2.025}, {-1.6, -0.3, 2.025}, {-1.5, -0.3, 2.25}, {-1.5, 0.0, 2.25},
+    {-2.3, 0.0, 2.025}, {-2.3, -0.3, 2.025}, {-2.5, -0.3, 2.25}, {-2.5, 0.0, 2.25},
+    {-2.7, 0.0, 2.025}, {-2.7, -0.3, 2.025}, {-3.0, -0.3, 2.25}, {-3.0, 0.0, 2.25},
+    {-2.7, 0.0, 1.8}, {-2.7, -0.3, 1.8}, {-3.0, -0.3, 1.8}, {-3.0, 0.0, 1.8},
+    {-1.5, 0.3, 2.25}, {-1.6, 0.3, 2.025}, {-2.5, 0.3, 2.25}, {-2.3, 0.3, 2.025},
+    {-3.0, 0.3, 2.25}, {-2.7, 0.3, 2.025}, {-3.0, 0.3, 1.8}, {-2.7, 0.3, 1.8},
+    {-2.7, 0.0, 1.575}, {-2.7, -0.3, 1.575}, {-3.0, -0.3, 1.35}, {-3.0, 0.0, 1.35},
+    {-2.5, 0.0, 1.125}, {-2.5, -0.3, 1.125}, {-2.65, -0.3, 0.9375}, {-2.65, 0.0, 0.9375},
+    {-2.0, -0.3, 0.9}, {-1.9, -0.3, 0.6}, {-1.9, 0.0, 0.6}, {-3.0, 0.3, 1.35},
+    {-2.7, 0.3, 1.575}, {-2.65, 0.3, 0.9375}, {-2.5, 0.3, 1.125}, {-1.9, 0.3, 0.6},
+    {-2.0, 0.3, 0.9},
+    /* spout (162) */
+    {1.7, 0.0, 1.425}, {1.7, -0.66, 1.425}, {1.7, -0.66, 0.6}, {1.7, 0.0, 0.6},
+    {2.6, 0.0, 1.425}, {2.6, -0.66, 1.425}, {3.1, -0.66, 0.825}, {3.1, 0.0, 0.825},
+    {2.3, 0.0, 2.1}, {2.3, -0.25, 2.1}, {2.4, -0.25, 2.025}, {2.4, 0.0, 2.025},
+    {2.7, 0.0, 2.4}, {2.7, -0.25, 2.4}, {3.3, -0.25, 2.4}, {3.3, 0.0, 2.4},
+    {1.7, 0.66, 0.6}, {1.7, 0.66, 1.425}, {3.1, 0.66, 0.825}, {2.6, 0.66, 1.425},
+    {2.4, 0.25, 2.025}, {2.3, 0.25, 2.1}, {3.3, 0.25, 2.4}, {2.7, 0.25, 2.4},
+    {2.8, 0.0, 2.475}, {2.8, -0.25, 2.475}, {3.525, -0.25, 2.49375}, {3.525, 0.0, 2.49375},
+    {2.9, 0.0, 2.475}, {2.9, -0.15, 2.475}, {3.45, -0.15, 2.5125}, {3.45, 0.0, 2.5125},
+    {2.8, 0.0, 2.4}, {2.8, -0.15, 2.4}, {3.2, -0.15, 2.4}, {3.2, 0.0, 2.4},
+    {3.525, 0.25, 2.49375}, {2.8, 0.25, 2.475}, {3.45, 0.15, 2.5125}, {2.9, 0.15, 2.475},
+    {3.2, 0.15, 2.4}, {2.8, 0.15, 2.4},
+    /* lid (204; 205, 206, 216 and 223 are unused in this version of the data) */
+    {0.0, 0.0, 3.15}, {0.0, -0.002, 3.15}, {0.002, 0.0, 3.15}, {0.8, 0.0, 3.15},
+    {0.8, -0.45, 3.15}, {0.45, -0.8, 3.15}, {0.0, -0.8, 3.15}, {0.0, 0.0, 2.85},
+    {0.2, 0.0, 2.7}, {0.2, -0.112, 2.7}, {0.112, -0.2, 2.7}, {0.0, -0.2, 2.7},
+    {-0.002, 0.0, 3.15}, {-0.45, -0.8, 3.15}, {-0.8, -0.45, 3.15}, {-0.8, 0.0, 3.15},
+    {-0.112, -0.2, 2.7}, {-0.2, -0.112, 2.7}, {-0.2, 0.0, 2.7}, {0.0, 0.002, 3.15},
+    {-0.8, 0.45, 3.15}, {-0.45, 0.8, 3.15}, {0.0, 0.8, 3.15}, {-0.2, 0.112, 2.7},
+    {-0.112, 0.2, 2.7}, {0.0, 0.2, 2.7}, {0.45, 0.8, 3.15}, {0.8, 0.45, 3.15},
+    {0.112, 0.2, 2.7}, {0.2, 0.112, 2.7}, {0.4, 0.0, 2.55}, {0.4, -0.224, 2.55},
+    {0.224, -0.4, 2.55}, {0.0, -0.4, 2.55}, {1.3, 0.0, 2.55}, {1.3, -0.728, 2.55},
+    {0.728, -1.3, 2.55}, {0.0, -1.3, 2.55}, {1.3, 0.0, 2.4}, {1.3, -0.728, 2.4},
+    {0.728, -1.3, 2.4}, {0.0, -1.3, 2.4}, {-0.224, -0.4, 2.55}, {-0.4, -0.224, 2.55},
+    {-0.4, 0.0, 2.55}, {-0.728, -1.3, 2.55}, {-1.3, -0.728, 2.55}, {-1.3, 0.0, 2.55},
+    {-0.728, -1.3, 2.4}, {-1.3, -0.728, 2.4}, {-1.3, 0.0, 2.4}, {-0.4, 0.224, 2.55},
+    {-0.224, 0.4, 2.55}, {0.0, 0.4, 2.55}, {-1.3, 0.728, 2.55}, {-0.728, 1.3, 2.55},
+    {0.0, 1.3, 2.55}, {-1.3, 0.728, 2.4}, {-0.728, 1.3, 2.4}, {0.0, 1.3, 2.4},
+    {0.224, 0.4, 2.55}, {0.4, 0.224, 2.55}, {0.728, 1.3, 2.55}, {1.3, 0.728, 2.55},
+    {0.728, 1.3, 2.4}, {1.3, 0.728, 2.4},
+    /* bottom (270) */
+    {0.0, 0.0, 0.0}, {1.5, 0.0, 0.15}, {1.5, 0.84, 0.15}, {0.84, 1.5, 0.15},
+    {0.0, 1.5, 0.15}, {1.5, 0.0, 0.075}, {1.5, 0.84, 0.075}, {0.84, 1.5, 0.075},
+    {0.0, 1.5, 0.075}, {1.425, 0.0, 0.0}, {1.425, 0.798, 0.0}, {0.798, 1.425, 0.0},
+    {0.0, 1.425, 0.0}, {-0.84, 1.5, 0.15}, {-1.5, 0.84, 0.15}, {-1.5, 0.0, 0.15},
+    {-0.84, 1.5, 0.075}, {-1.5, 0.84, 0.075}, {-1.5, 0.0, 0.075}, {-0.798, 1.425, 0.0},
+    {-1.425, 0.798, 0.0}, {-1.425, 0.0, 0.0}, {-1.5, -0.84, 0.15}, {-0.84, -1.5, 0.15},
+    {0.0, -1.5, 0.15}, {-1.5, -0.84, 0.075}, {-0.84, -1.5, 0.075}, {0.0, -1.5, 0.075},
+    {-1.425, -0.798, 0.0}, {-0.798, -1.425, 0.0}, {0.0, -1.425, 0.0}, {0.84, -1.5, 0.15},
+    {1.5, -0.84, 0.15}, {0.84, -1.5, 0.075}, {1.5, -0.84, 0.075}, {0.798, -1.425, 0.0},
+    {1.425, -0.798, 0.0}
+};
+
+/* 1-based, as published; row r of a patch is entries 4r .. 4r + 3. */
+static const unsigned short refl__teapot_patches[32][16] = {
+    /* rim */
+    {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16},
+    {4, 17, 18, 19, 8, 20, 21, 22, 12, 23, 24, 25, 16, 26, 27, 28},
+    {19, 29, 30, 31, 22, 32, 33, 34, 25, 35, 36, 37, 28, 38, 39, 40},
+    {31, 41, 42, 1, 34, 43, 44, 5, 37, 45, 46, 9, 40, 47, 48, 13},
+    /* body */
+    {13, 14, 15, 16, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60},
+    {16, 26, 27, 28, 52, 61, 62, 63, 56, 64, 65, 66, 60, 67, 68, 69},
+    {28, 38, 39, 40, 63, 70, 71, 72, 66, 73, 74, 75, 69, 76, 77, 78},
+    {40, 47, 48, 13, 72, 79, 80, 49, 75, 81, 82, 53, 78, 83, 84, 57},
+    {57, 58, 59, 60, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96},
+    {60, 67, 68, 69, 88, 97, 98, 99, 92, 100, 101, 102, 96, 103, 104, 105},
+    {69, 76, 77, 78, 99, 106, 107, 108, 102, 109, 110, 111, 105, 112, 113, 114},
+    {78, 83, 84, 57, 108, 115, 116, 85, 111, 117, 118, 89, 114, 119, 120, 93},
+    /* handle */
+    {121, 122, 123, 124, 125, 126, 127, 128, 129, 130, 131, 132, 133, 134, 135, 136},
+    {124, 137, 138, 121, 128, 139, 140, 125, 132, 141, 142, 129, 136, 143, 144, 133},
+    {133, 134, 135, 136, 145, 146, 147, 148, 149, 150, 151, 152, 69, 153, 154, 155},
+    {136, 143, 144, 133, 148, 156, 157, 145, 152, 158, 159, 149, 155, 160, 161, 69},
+    /* spout */
+    {162, 163, 164, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 175, 176, 177},
+    {165, 178, 179, 162, 169, 180, 181, 166, 173, 182, 183, 170, 177, 184, 185, 174},
+    {174, 175, 176, 177, 186, 187, 188, 189, 190, 191, 192, 193, 194, 195, 196, 197},
+    {177, 184, 185, 174, 189, 198, 199, 186, 193, 200, 201, 190, 197, 202, 203, 194},
+    /* lid: knob, then the lid proper */
+    {204, 204, 204, 204, 207, 208, 209, 210, 211, 211, 211, 211, 212, 213, 214, 215},
+    {204, 204, 204, 204, 210, 217, 218, 219, 211, 211, 211, 211, 215, 220, 221, 222},
+    {204, 204, 204, 204, 219, 224, 225, 226, 211, 211, 211, 211, 222, 227, 228, 229},
+    {204, 204, 204, 204, 226, 230, 231, 207, 211, 211, 211, 211, 229, 232, 233, 212},
+    {212, 213, 214, 215, 234, 235, 236, 237, 238, 239, 240, 241, 242, 243, 244, 245},
+    {215, 220, 221, 222, 237, 246, 247, 248, 241, 249, 250, 251, 245, 252, 253, 254},
+    {222, 227, 228, 229, 248, 255, 256, 257, 251, 258, 259, 260, 254, 261, 262, 263},
+    {229, 232, 233, 212, 257, 264, 265, 234, 260, 266, 267, 238, 263, 268, 269, 242},
+    /* bottom */
+    {270, 270, 270, 270, 279, 280, 281, 282, 275, 276, 277, 278, 271, 272, 273, 274},
+    {270, 270, 270, 270, 282, 289, 290, 291, 278, 286, 287, 288, 274, 283, 284, 285},
+    {270, 270, 270, 270, 291, 298, 299, 300, 288, 295, 296, 297, 285, 292, 293, 294},
+    {270, 270, 270, 270, 300, 305, 306, 279, 297, 303, 304, 275, 294, 301, 302, 271}
+};
+
+/* Outward reference per patch (data frame, z up), tested against the
+   normal at the patch centre p: */
+enum {
+    REFL__TP_UP,     /* +z: rim curl, lid, spout lip */
+    REFL__TP_DOWN,   /* -z: bottom */
+    REFL__TP_RADIAL, /* (p.x, p.y, 0): body, knob */
+    REFL__TP_SIDE    /* (0, p.y, 0): handle, spout tube (symmetric about y = 0) */
+};
+static const unsigned char refl__teapot_outward[32] = {
+    REFL__TP_UP, REFL__TP_UP, REFL__TP_UP, REFL__TP_UP,
+    REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL,
+    REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL,
+    REFL__TP_SIDE, REFL__TP_SIDE, REFL__TP_SIDE, REFL__TP_SIDE,
+    REFL__TP_SIDE, REFL__TP_SIDE, REFL__TP_UP, REFL__TP_UP,
+    REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL, REFL__TP_RADIAL,
+    REFL__TP_UP, REFL__TP_UP, REFL__TP_UP, REFL__TP_UP,
+    REFL__TP_DOWN, REFL__TP_DOWN, REFL__TP_DOWN, REFL__TP_DOWN
+};
+
+/* Normals closer than about 0.8 degrees weld; the tangent-continuous joins
+   of the data differ by rounding (about 1e-7), creases by far more. */
+#define REFL__TEAPOT_WELD_COS 0.9999
+
+static double refl__tp_lerp(double a, double b, double t)
+{
+    /* exact at t = 0 and t = 1, and for equal ends */
+    return a == b ? a : (1.0 - t) * a + t * b;
+}
+
+/* Cubic through p[0], p[stride], p[2 stride], p[3 stride] (3 doubles each)
+   at t = i / n: value and derivative. Evaluated from the end nearer to t,
+   with the parameter measured from that end, so the same curve given in
+   reverse order gives bit-identical results at the mirrored parameter (at
+   t = 1/2 the two orders agree because addition is commutative). */
+static void refl__tp_curve(const double *p, int stride, int i, int n, double value[3], double deriv[3])
+{
+    double q[4][3], t;
+    int k, c, reverse = 2 * i > n;
+    t = reverse ? (double)(n - i) / (double)n : (double)i / (double)n;
+    for (k = 0; k < 4; ++k)
+        for (c = 0; c < 3; ++c) q[k][c] = p[(reverse ? 3 - k : k) * stride + c];
+    for (c = 0; c < 3; ++c) {
+        double a = refl__tp_lerp(q[0][c], q[1][c], t), b = refl__tp_lerp(q[1][c], q[2][c], t);
+        double d = refl__tp_lerp(q[2][c], q[3][c], t);
+        double e = refl__tp_lerp(a, b, t), f = refl__tp_lerp(b, d, t);
+        value[c] = refl__tp_lerp(e, f, t);
+        deriv[c] = reverse ? 3.0 * (e - f) : 3.0 * (f - e);
+    }
+}
+
+static void refl__tp_cross(const double a[3], const double b[3], double r[3])
+{
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double refl__tp_dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Position and (unnormalised, possibly zero) normal of patch cp (16 points,
+   row-major) at u = i / n, v = j / n. */
+static void refl__tp_eval(const double cp[16][3], int i, int j, int n, double pos[3], double nrm[3])
+{
+    double c[4][3], cu[4][3], pu[3], pv[3], puv[3], dummy[3];
+    double lu, lv;
+    int r;
+    for (r = 0; r < 4; ++r) refl__tp_curve(cp[4 * r], 3, i, n, c[r], cu[r]);
+    refl__tp_curve(c[0], 3, j, n, pos, pv);
+    refl__tp_curve(cu[0], 3, j, n, pu, puv);
+    refl__tp_cross(pu, pv, nrm);
+    if (refl__tp_dot(nrm, nrm) > 0.0) return;
+    /* A collapsed row (v = 0 or 1) has Pu = 0 along it; near it
+       Pu ~ (v - v0) Puv, so the normal tends to +-(Puv x Pv). Likewise
+       for a collapsed column. */
+    lu = refl__tp_dot(pu, pu);
+    lv = refl__tp_dot(pv, pv);
+    if (lu <= lv) {
+        refl__tp_cross(puv, pv, nrm);
+        if (2 * j > n) { nrm[0] = -nrm[0]; nrm[1] = -nrm[1]; nrm[2] = -nrm[2]; }
+    } else {
+        /* Pv ~ (u - u0) Puv; the mixed derivative along u at this v */
+        double cv[4][3];
+        for (r = 0; r < 4; ++r) refl__tp_curve(cp[r], 12, j, n, dummy, cv[r]);
+        refl__tp_curve(cv[0], 3, i, n, dummy, puv);
+        refl__tp_cross(pu, puv, nrm);
+        if (2 * i > n) { nrm[0] = -nrm[0]; nrm[1] = -nrm[1]; nrm[2] = -nrm[2]; }
+    }
+}
+
+static uint32_t refl__tp_hash(const float p[3])
+{
+    uint32_t h = 2166136261u, w;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        memcpy(&w, &p[k], sizeof w);
+        h = (h ^ w) * 16777619u;
+        h ^= h >> 15;
+    }
+    return h;
+}
+
+REFL_API refl_result refl_mesh_teapot(int tess, const refl_allocator *a, refl_mesh **out)
+{
+    int n, side, patch, i, j, k, r;
+    long long grid, raw_count, welded = 0, index_count = 0;
+    size_t table_size = 1, bytes;
+    double cp[16][3];
+    unsigned char *block;
+    double *sum;               /* welded: normal sums */
+    float *raw_pos, *raw_nrm;  /* every patch's grid */
+    float *pos, *first;        /* welded: position, first normal */
+    int *map, *head, *next;
+    uint32_t *idx;
+    refl_result res;
+
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (tess == 0) tess = 8;
+    if (tess < 1 || tess > 64) return REFL_ERROR_INVALID_ARGUMENT;
+    n = tess;
+    side = n + 1;
+    grid = (long long)side * side;
+    raw_count = 32 * grid;
+    while (table_size < 2 * (size_t)raw_count) table_size *= 2;
+
+    /* one block: doubles first, then 4-byte arrays */
+    bytes = (size_t)raw_count * (3 * sizeof(double) + 12 * sizeof(float) + 2 * sizeof(int)) +
+            table_size * sizeof(int) + (size_t)(32 * n * n * 6) * sizeof(uint32_t);
+    block = (unsigned char *)refl__alloc(a, bytes);
+    if (!block) return REFL_ERROR_OUT_OF_MEMORY;
+    sum = (double *)(void *)block;
+    raw_pos = (float *)(void *)(sum + 3 * raw_count);
+    raw_nrm = raw_pos + 3 * raw_count;
+    pos = raw_nrm + 3 * raw_count;
+    first = pos + 3 * raw_count;
+    map = (int *)(void *)(first + 3 * raw_count);
+    next = map + raw_count;
+    head = next + raw_count;
+    idx = (uint32_t *)(void *)(head + table_size);
+
+    /* evaluate, orient (data frame), rotate to y-up */
+    for (patch = 0; patch < 32; ++patch) {
+        double p[3], nr[3], ref[3] = {0.0, 0.0, 0.0};
+        double flip;
+        for (k = 0; k < 16; ++k)
+            for (r = 0; r < 3; ++r) cp[k][r] = refl__teapot_points[refl__teapot_patches[patch][k] - 1][r];
+        refl__tp_eval((const double(*)[3])cp, 1, 1, 2, p, nr);
+        switch (refl__teapot_outward[patch]) {
+        case REFL__TP_UP: ref[2] = 1.0; break;
+        case REFL__TP_DOWN: ref[2] = -1.0; break;
+        case REFL__TP_RADIAL: ref[0] = p[0]; ref[1] = p[1]; break;
+        default: ref[1] = p[1]; break;
+        }
+        flip = refl__tp_dot(nr, ref) < 0.0 ? -1.0 : 1.0;
+        for (j = 0; j < side; ++j)
+            for (i = 0; i < side; ++i) {
+                long long v = patch * grid + (long long)j * side + i;
+                double len;
+                refl__tp_eval((const double(*)[3])cp, i, j, n, p, nr);
+                len = sqrt(refl__tp_dot(nr, nr));
+                if (!(len > 0.0)) { /* not in this data; the axis keeps it finite */
+                    nr[0] = 0.0; nr[1] = 0.0; nr[2] = 1.0; len = 1.0;
+                }
+                len = flip / len;
+                /* (x, y, z) -> (x, z, -y); + 0.0f makes -0 into +0 for the hash */
+                raw_pos[3 * v + 0] = (float)p[0] + 0.0f;
+                raw_pos[3 * v + 1] = (float)p[2] + 0.0f;
+                raw_pos[3 * v + 2] = (float)-p[1] + 0.0f;
+                raw_nrm[3 * v + 0] = (float)(nr[0] * len);
+                raw_nrm[3 * v + 1] = (float)(nr[2] * len);
+                raw_nrm[3 * v + 2] = (float)(-nr[1] * len);
+            }
+        /* winding follows the normal: cells (i, j) (i+1, j) (i+1, j+1)
+           (i, j+1) run counter-clockwise around Pu x Pv */
+        for (j = 0; j < n; ++j)
+            for (i = 0; i < n; ++i) {
+                long long v00 = patch * grid + (long long)j * side + i;
+                long long c[4];
+                int t;
+                c[0] = v00; c[1] = v00 + 1; c[2] = v00 + side + 1; c[3] = v00 + side;
+                if (flip < 0.0) { long long s = c[1]; c[1] = c[3]; c[3] = s; }
+                for (t = 0; t < 2; ++t) {
+                    long long tri[3];
+                    tri[0] = c[0]; tri[1] = c[1 + t]; tri[2] = c[2 + t];
+                    /* a pole cell has one triangle with two corners on the pole */
+                    if (!memcmp(raw_pos + 3 * tri[0], raw_pos + 3 * tri[1], 3 * sizeof(float)) ||
+                        !memcmp(raw_pos + 3 * tri[1], raw_pos + 3 * tri[2], 3 * sizeof(float)) ||
+                        !memcmp(raw_pos + 3 * tri[2], raw_pos + 3 * tri[0], 3 * sizeof(float)))
+                        continue;
+                    for (k = 0; k < 3; ++k) idx[index_count++] = (uint32_t)tri[k];
+                }
+            }
+    }
+
+    /* weld: same position bits, normals within REFL__TEAPOT_WELD_COS */
+    for (k = 0; k < (int)table_size; ++k) head[k] = -1;
+    for (k = 0; k < (int)raw_count; ++k) {
+        const float *p = raw_pos + 3 * k, *nr = raw_nrm + 3 * k;
+        uint32_t h = refl__tp_hash(p) & (uint32_t)(table_size - 1);
+        int w;
+        for (w = head[h]; w >= 0; w = next[w]) {
+            const float *f = first + 3 * w;
+            if (!memcmp(pos + 3 * w, p, 3 * sizeof(float)) &&
+                (double)f[0] * nr[0] + (double)f[1] * nr[1] + (double)f[2] * nr[2] > REFL__TEAPOT_WELD_COS)
+                break;
+        }
+        if (w < 0) {
+            w = (int)welded++;
+            memcpy(pos + 3 * w, p, 3 * sizeof(float));
+            memcpy(first + 3 * w, nr, 3 * sizeof(float));
+            sum[3 * w] = sum[3 * w + 1] = sum[3 * w + 2] = 0.0;
+            next[w] = head[h];
+            head[h] = w;
+        }
+        for (r = 0; r < 3; ++r) sum[3 * w + r] += nr[r];
+        map[k] = w;
+    }
+    for (k = 0; k < (int)welded; ++k) {
+        double len = sqrt(sum[3 * k] * sum[3 * k] + sum[3 * k + 1] * sum[3 * k + 1] + sum[3 * k + 2] * sum[3 * k + 2]);
+        /* the summed normals are within 0.8 degrees of each other */
+        for (r = 0; r < 3; ++r) first[3 * k + r] = (float)(sum[3 * k + r] / len);
+    }
+    for (k = 0; k < (int)index_count; ++k) idx[k] = (uint32_t)map[idx[k]];
+
+    res = refl__shape_finish(pos, first, NULL, welded, idx, index_count, a, out);
+    refl__free(a, block);
+    return res;
+}
+
+/* ---- sphere ------------------------------------------------------------------ */
+
+REFL_API refl_result refl_mesh_sphere(float radius, int slices, int stacks, const refl_allocator *a,
+                                      refl_mesh **out)
+{
+    refl__shape_arrays s;
+    long long nv, ni, v = 0;
+    uint32_t *ix;
+    int i, j, ring0;
+    refl_result res;
+
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (slices < 3 || stacks < 2) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__shape_size_ok(radius)) return REFL_ERROR_INVALID_SIZE;
+    /* a pole vertex per slice at each end (its own texcoord, so no
+       triangle is degenerate), and rings with a seam column */
+    nv = 2LL * slices + ((long long)stacks - 1) * ((long long)slices + 1);
+    if (nv > REFL__SHAPE_MAX_VERTICES) return REFL_ERROR_INVALID_SIZE;
+    ni = 6LL * slices * ((long long)stacks - 1);
+    if (!refl__shape_alloc(a, nv, ni, &s)) return REFL_ERROR_OUT_OF_MEMORY;
+
+    for (j = 0; j < slices; ++j, ++v) { /* top pole */
+        s.pos[3 * v + 1] = radius;
+        s.nrm[3 * v + 1] = 1.0f;
+        s.uv[2 * v] = (float)((j + 0.5) / slices);
+    }
+    ring0 = (int)v;
+    for (i = 1; i < stacks; ++i) {
+        double theta = REFL__PI * i / stacks, y = cos(theta), rr = sin(theta);
+        for (j = 0; j <= slices; ++j, ++v) {
+            /* the seam column repeats column 0's angle: identical positions */
+            double phi = 2.0 * REFL__PI * (j % slices) / slices;
+            double d[3];
+            int c;
+            d[0] = rr * cos(phi); d[1] = y; d[2] = -rr * sin(phi);
+            for (c = 0; c < 3; ++c) {
+                s.nrm[3 * v + c] = (float)d[c];
+                s.pos[3 * v + c] = (float)(radius * d[c]);
+            }
+            s.uv[2 * v] = (float)j / (float)slices;
+            s.uv[2 * v + 1] = (float)i / (float)stacks;
+        }
+    }
+    for (j = 0; j < slices; ++j, ++v) { /* bottom pole */
+        s.pos[3 * v + 1] = -radius;
+        s.nrm[3 * v + 1] = -1.0f;
+        s.uv[2 * v] = (float)((j + 0.5) / slices);
+        s.uv[2 * v + 1] = 1.0f;
+    }
+
+    /* phi grows from +x towards -z and theta downwards; (down, along)
+       is counter-clockwise seen from outside */
+    ix = s.idx;
+    for (j = 0; j < slices; ++j, ix += 3) {
+        ix[0] = (uint32_t)j;
+        ix[1] = (uint32_t)(ring0 + j);
+        ix[2] = (uint32_t)(ring0 + j + 1);
+    }
+    for (i = 0; i + 1 < stacks - 1; ++i)
+        for (j = 0; j < slices; ++j, ix += 6) {
+            uint32_t a0 = (uint32_t)(ring0 + i * (slices + 1) + j), b0 = a0 + (uint32_t)(slices + 1);
+            refl__shape_quad(ix, a0, b0, b0 + 1, a0 + 1);
+        }
+    for (j = 0; j < slices; ++j, ix += 3) {
+        uint32_t last = (uint32_t)(ring0 + (stacks - 2) * (slices + 1) + j);
+        ix[0] = last;
+        ix[1] = (uint32_t)(nv - slices + j);
+        ix[2] = last + 1;
+    }
+    res = refl__shape_finish(s.pos, s.nrm, s.uv, nv, s.idx, ni, a, out);
+    refl__free(a, s.pos);
+    return res;
+}
+
+/* ---- torus ------------------------------------------------------------------- */
+
+REFL_API refl_result refl_mesh_torus(float major_radius, float minor_radius, int slices, int sides,
+                                     const refl_allocator *a, refl_mesh **out)
+{
+    refl__shape_arrays s;
+    long long nv, ni, v = 0;
+    int i, j;
+    refl_result res;
+
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (slices < 3 || sides < 3) return REFL_ERROR_INVALID_ARGUMENT;
+    /* a ring torus: the tube may not reach the axis */
+    if (!refl__shape_size_ok(major_radius) || !refl__shape_size_ok(minor_radius) ||
+        !(minor_radius < major_radius))
+        return REFL_ERROR_INVALID_SIZE;
+    nv = ((long long)slices + 1) * ((long long)sides + 1);
+    if (nv > REFL__SHAPE_MAX_VERTICES) return REFL_ERROR_INVALID_SIZE;
+    ni = 6LL * slices * sides;
+    if (!refl__shape_alloc(a, nv, ni, &s)) return REFL_ERROR_OUT_OF_MEMORY;
+
+    for (i = 0; i <= slices; ++i) {
+        double phi = 2.0 * REFL__PI * (i % slices) / slices, cp = cos(phi), sp = sin(phi);
+        for (j = 0; j <= sides; ++j, ++v) {
+            double th = 2.0 * REFL__PI * (j % sides) / sides, ct = cos(th), st = sin(th);
+            double d[3], ring = major_radius + minor_radius * ct;
+            d[0] = ct * cp; d[1] = st; d[2] = -ct * sp;
+            s.nrm[3 * v + 0] = (float)d[0];
+            s.nrm[3 * v + 1] = (float)d[1];
+            s.nrm[3 * v + 2] = (float)d[2];
+            s.pos[3 * v + 0] = (float)(ring * cp);
+            s.pos[3 * v + 1] = (float)(minor_radius * st);
+            s.pos[3 * v + 2] = (float)(-ring * sp);
+            s.uv[2 * v] = (float)i / (float)slices;
+            s.uv[2 * v + 1] = (float)j / (float)sides;
+        }
+    }
+    /* phi (around y, from +x towards -z) then theta (around the tube,
+       outside first, then up): counter-clockwise seen from outside */
+    for (i = 0; i < slices; ++i)
+        for (j = 0; j < sides; ++j) {
+            uint32_t a0 = (uint32_t)(i * (sides + 1) + j), b0 = a0 + (uint32_t)(sides + 1);
+            refl__shape_quad(s.idx + 6 * ((long long)i * sides + j), a0, b0, b0 + 1, a0 + 1);
+        }
+    res = refl__shape_finish(s.pos, s.nrm, s.uv, nv, s.idx, ni, a, out);
+    refl__free(a, s.pos);
+    return res;
+}
+
+/* ---- box ----------------------------------------------------------------------- */
+
+REFL_API refl_result refl_mesh_box(refl_vec3 size, const refl_allocator *a, refl_mesh **out)
+{
+    /* faces +x -x +y -y +z -z: normal and the face's "up" (texcoord v = 0
+       edge); its right is up x normal */
+    static const float face[6][2][3] = {
+        {{1, 0, 0}, {0, 1, 0}},  {{-1, 0, 0}, {0, 1, 0}}, {{0, 1, 0}, {0, 0, -1}},
+        {{0, -1, 0}, {0, 0, 1}}, {{0, 0, 1}, {0, 1, 0}},  {{0, 0, -1}, {0, 1, 0}}};
+    static const float corner[4][2] = {{0, 0}, {0, 1}, {1, 1}, {1, 0}}; /* (u, v), CCW */
+    float pos[24 * 3], nrm[24 * 3], uv[24 * 2], h[3];
+    uint32_t idx[36];
+    int f, k, c;
+
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!refl__shape_size_ok(size.x) || !refl__shape_size_ok(size.y) || !refl__shape_size_ok(size.z))
+        return REFL_ERROR_INVALID_SIZE;
+    h[0] = 0.5f * size.x; h[1] = 0.5f * size.y; h[2] = 0.5f * size.z;
+    for (f = 0; f < 6; ++f) {
+        const float *nn = face[f][0], *up = face[f][1];
+        float right[3];
+        right[0] = up[1] * nn[2] - up[2] * nn[1];
+        right[1] = up[2] * nn[0] - up[0] * nn[2];
+        right[2] = up[0] * nn[1] - up[1] * nn[0];
+        for (k = 0; k < 4; ++k) {
+            int v = 4 * f + k;
+            float su = 2.0f * corner[k][0] - 1.0f, sv = 1.0f - 2.0f * corner[k][1];
+            for (c = 0; c < 3; ++c) {
+                pos[3 * v + c] = h[c] * (nn[c] + su * right[c] + sv * up[c]);
+                nrm[3 * v + c] = nn[c];
+            }
+            uv[2 * v] = corner[k][0];
+            uv[2 * v + 1] = corner[k][1];
+        }
+        /* top-left, bottom-left, bottom-right: (-up) x right = normal */
+        refl__shape_quad(idx + 6 * f, (uint32_t)(4 * f), (uint32_t)(4 * f + 1), (uint32_t)(4 * f + 2),
+                         (uint32_t)(4 * f + 3));
+    }
+    return refl__shape_finish(pos, nrm, uv, 24, idx, 36, a, out);
+}
+
+/* ---- plane ----------------------------------------------------------------------- */
+
+REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_allocator *a, refl_mesh **out)
+{
+    refl__shape_arrays s;
+    long long nv, ni, v = 0;
+    int i, j, d = divisions;
+    refl_result res;
+
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (divisions < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__shape_size_ok(size)) return REFL_ERROR_INVALID_SIZE;
+    nv = ((long long)d + 1) * ((long long)d + 1);
+    if (nv > REFL__SHAPE_MAX_VERTICES) return REFL_ERROR_INVALID_SIZE;
+    ni = 6LL * d * d;
+    if (!refl__shape_alloc(a, nv, ni, &s)) return REFL_ERROR_OUT_OF_MEMORY;
+
+    /* vertex (i, j): x from column i, z from row j; texcoords (i, j) / d,
+       so seen from above with -z up the image's top row is at -z */
+    for (j = 0; j <= d; ++j)
+        for (i = 0; i <= d; ++i, ++v) {
+            /* (2i - d) / 2d: symmetric about the centre, exactly 0 there */
+            s.pos[3 * v + 0] = (float)((double)(2 * i - d) / (2.0 * d) * size);
+            s.pos[3 * v + 2] = (float)((double)(2 * j - d) / (2.0 * d) * size);
+            s.nrm[3 * v + 1] = 1.0f;
+            s.uv[2 * v] = (float)i / (float)d;
+            s.uv[2 * v + 1] = (float)j / (float)d;
+        }
+    /* (i, j) (i, j+1) (i+1, j+1): +z then +x, counter-clockwise from +y */
+    for (j = 0; j < d; ++j)
+        for (i = 0; i < d; ++i) {
+            uint32_t a0 = (uint32_t)(j * (d + 1) + i), b0 = a0 + (uint32_t)(d + 1);
+            refl__shape_quad(s.idx + 6 * ((long long)j * d + i), a0, b0, b0 + 1, a0 + 1);
+        }
+    res = refl__shape_finish(s.pos, s.nrm, s.uv, nv, s.idx, ni, a, out);
+    refl__free(a, s.pos);
+    return res;
+}
 /* ---- src/reflect/scene.c ---- */
 /* Scenes: growable arrays of meshes, materials, objects, lights and
    textures, the environment and the scene's own camera. The scene owns

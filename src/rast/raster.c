@@ -299,6 +299,17 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
     blend_k = !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
+    if (p->stencil_on && !p->depth_on && !want_color) {
+        /* a pure stencil pass: one table lookup per pixel */
+        uint8_t next[256];
+        int v;
+        for (v = 0; v < 256; ++v) next[v] = test[v] ? pass[v] : fail[v];
+        for (y = y0; y < y1; ++y) {
+            uint8_t *srow = fb->stencil + (size_t)y * (size_t)fb->stencil_stride;
+            for (x = x0; x < x1; ++x) srow[x] = next[srow[x]];
+        }
+        return;
+    }
     for (y = y0; y < y1; ++y) {
         uint8_t *srow = p->stencil_on ? fb->stencil + (size_t)y * (size_t)fb->stencil_stride : NULL;
         float *drow = p->depth_on ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
