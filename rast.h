@@ -530,6 +530,20 @@ static int64_t rast__round(float v) {
     return (int64_t)(d - 6755399441055744.0);
 }
 
+/* Clamp and round to 8 bits; written so compilers emit min/max, not
+   branches. NaN fails both comparisons and lands on 0. */
+static uint8_t rast__to_unorm8(float v) {
+    v = v > 0.0f ? v : 0.0f;
+    v = v < 1.0f ? v : 1.0f;
+    return (uint8_t)(int)(v * 255.0f + 0.5f);
+}
+
+/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
+static uint32_t rast__pack_rgba8(const float c[4]) {
+    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
+           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
+}
+
 /* ---- comparisons and stencil ops, GL semantics ---- */
 
 static int rast__compare_u8(int func, unsigned a, unsigned b) {
@@ -616,7 +630,7 @@ typedef struct rast__pipe {
 /* ---- records: what setup leaves for the tile workers ---- */
 
 enum {
-    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_LINE,
+    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_SPLAT, RAST__REC_LINE,
     RAST__REC_RECT, RAST__REC_CLEAR, RAST__REC_ACCUM
 };
 
@@ -646,6 +660,14 @@ typedef struct rast__point {
     float z, w;
     /* then num_varyings floats */
 } rast__point;
+
+/* A point of a simple pipe drawn into RGBA8: only depth and the packed
+   colour travel to the tile (the C3RC method splats millions). */
+typedef struct rast__splat {
+    rast__rec h;
+    float z;                  /* clamped window depth */
+    uint32_t rgba;            /* bytes R, G, B, A in memory order */
+} rast__splat;
 
 typedef struct rast__line {
     rast__rec h;
@@ -723,6 +745,7 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
+    int splat;                /* points become rast__splat records */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
@@ -732,6 +755,7 @@ static size_t rast__rec_size(int kind, int nvar) {
     switch (kind) {
     case RAST__REC_TRI: return rast__align(sizeof(rast__tri) + (size_t)nvar * 3 * sizeof(float));
     case RAST__REC_POINT: return rast__align(sizeof(rast__point) + (size_t)nvar * sizeof(float));
+    case RAST__REC_SPLAT: return sizeof(rast__splat);
     case RAST__REC_LINE: return rast__align(sizeof(rast__line) + (size_t)nvar * 2 * sizeof(float));
     case RAST__REC_RECT: return rast__align(sizeof(rast__rect));
     case RAST__REC_CLEAR: return rast__align(sizeof(rast__clear_rec));
@@ -1947,6 +1971,17 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
     x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
     if (x0 >= x1 || y0 >= y1) return;
+    if (ch->splat) {
+        rast__splat *sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
+        if (!sp) return;
+        sp->h.kind = RAST__REC_SPLAT;
+        sp->h.front = 1;
+        sp->h.pad = 0;
+        sp->h.x0 = (int16_t)x0; sp->h.y0 = (int16_t)y0; sp->h.x1 = (int16_t)x1; sp->h.y1 = (int16_t)y1;
+        sp->z = RAST__CLAMP(wz, 0.0f, 1.0f);
+        sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
+        return;
+    }
     pt = (rast__point *)rast__chunk_push(ch, rast__rec_size(RAST__REC_POINT, nvar));
     if (!pt) return;
     pt->h.kind = RAST__REC_POINT;
@@ -2097,14 +2132,6 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
     if (!zpass) return 0;
     if (dp && p->depth_write) *dp = z;
     return 1;
-}
-
-/* Clamp and round to 8 bits; written so compilers emit min/max, not
-   branches. NaN fails both comparisons and lands on 0. */
-static uint8_t rast__to_unorm8(float v) {
-    v = v > 0.0f ? v : 0.0f;
-    v = v < 1.0f ? v : 1.0f;
-    return (uint8_t)(int)(v * 255.0f + 0.5f);
 }
 
 /* Blending and the colour mask; writes one pixel of the colour target. */
@@ -2377,12 +2404,6 @@ static void rast__fragment(const rast__draw_info *di, rast__tile *tl, int x, int
         rast__shade_fixed(p, var, di->nvar, di->color, ddx, ddy, w, rgba);
     }
     if (want_color) rast__color_out(p, fb, x, y, rgba);
-}
-
-/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
-static uint32_t rast__pack_rgba8(const float c[4]) {
-    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
-           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
 }
 
 /* Writes a fragment colour on a simple pipe: straight in when there is
@@ -2668,42 +2689,39 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* All of a chunk's points in a tile, on a simple pipe. One-pixel points
-   (the common splat) take a branchless depth test: random depths would
-   mispredict a branch on every other point. */
-static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl,
-                                       const uint8_t *b, const uint8_t *e) {
+/* Splats: points of a simple pipe whose colour was packed at setup. */
+static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const uint8_t *b,
+                                const uint8_t *e) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
-    size_t size = rast__rec_size(RAST__REC_POINT, di->nvar);
-    int depth = p->depth_on, write = p->depth_write, f32 = fb->color_f32;
-    for (; b < e; b += size) {
-        const rast__point *pt = (const rast__point *)b;
-        const float *c = di->nvar >= 4 ? (const float *)(pt + 1) : di->color;
-        int x = pt->h.x0, y = pt->h.y0;
-        float z, old, *dp;
-        uint8_t *cp;
-        int pass;
-        if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
-            y >= tl->y1 || f32 || !fb->color || !p->plain_color) {
-            rast__raster_point(di, tl, pt);
+    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
+    for (; b < e; b += sizeof(rast__splat)) {
+        const rast__splat *sp = (const rast__splat *)b;
+        int x = sp->h.x0, y = sp->h.y0, x1, y1;
+        if (sp->h.x1 - x == 1 && sp->h.y1 - y == 1) {
+            /* a one-pixel splat (the tile holds it: binning put it here) */
+            uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
+            uint32_t now;
+            int pass = 1;
+            if (depth) { /* branchless: random depths would mispredict half the time */
+                float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
+                float old = *dp;
+                pass = rast__compare_f(func, sp->z, old);
+                *dp = pass && write ? sp->z : old;
+            }
+            memcpy(&now, cp, 4);
+            now = pass ? sp->rgba : now;
+            memcpy(cp, &now, 4);
             continue;
         }
-        z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
-        cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
-        if (depth) {
-            dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
-            old = *dp;
-            pass = rast__compare_f(p->depth_func, z, old);
-            *dp = pass && write ? z : old;
-        } else {
-            pass = 1;
-        }
-        {
-            uint32_t now, packed = rast__pack_rgba8(c);
-            memcpy(&now, cp, 4);
-            now = pass ? packed : now;
-            memcpy(cp, &now, 4);
+        x = RAST__MAX(x, tl->x0); y = RAST__MAX(y, tl->y0);
+        x1 = RAST__MIN(sp->h.x1, tl->x1); y1 = RAST__MIN(sp->h.y1, tl->y1);
+        for (; y < y1; ++y) {
+            float *drow = depth ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+            uint8_t *crow = fb->color + (size_t)y * (size_t)fb->color_stride;
+            int xx;
+            for (xx = x; xx < x1; ++xx)
+                if (rast__depth_simple(p, drow, xx, sp->z)) memcpy(crow + 4 * xx, &sp->rgba, 4);
         }
     }
 }
@@ -2714,6 +2732,7 @@ static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const
     switch (h->kind) {
     case RAST__REC_TRI: rast__raster_tri(di, tl, (const rast__tri *)h); break;
     case RAST__REC_POINT: rast__raster_point(di, tl, (const rast__point *)h); break;
+    case RAST__REC_SPLAT: rast__raster_splats(di, tl, (const uint8_t *)h, (const uint8_t *)h + sizeof(rast__splat)); break;
     case RAST__REC_LINE: rast__raster_line(di, tl, (const rast__line *)h); break;
     case RAST__REC_RECT: rast__raster_rect(di, tl, (const rast__rect *)h); break;
     case RAST__REC_CLEAR:
@@ -2944,8 +2963,8 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        if (di.pipe->simple && ch->cmd->kind == RAST__CMD_DRAW && ch->cmd->verts_per_prim == 1) {
-            rast__raster_points_simple(&di, &tl, ch->recs + b, ch->recs + e);
+        if (ch->splat) {
+            rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
             continue;
         }
         size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
@@ -3038,6 +3057,8 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].used = 0;
         ps.chunks[i].nrec = 0;
         ps.chunks[i].failed = 0;
+        ps.chunks[i].splat = cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
+                             cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

@@ -215,8 +215,8 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        if (di.pipe->simple && ch->cmd->kind == RAST__CMD_DRAW && ch->cmd->verts_per_prim == 1) {
-            rast__raster_points_simple(&di, &tl, ch->recs + b, ch->recs + e);
+        if (ch->splat) {
+            rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
             continue;
         }
         size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
@@ -309,6 +309,8 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].used = 0;
         ps.chunks[i].nrec = 0;
         ps.chunks[i].failed = 0;
+        ps.chunks[i].splat = cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
+                             cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

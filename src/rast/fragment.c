@@ -31,14 +31,6 @@ static int rast__depth_stencil(const rast__pipe *p, const rast__fb *fb, int x, i
     return 1;
 }
 
-/* Clamp and round to 8 bits; written so compilers emit min/max, not
-   branches. NaN fails both comparisons and lands on 0. */
-static uint8_t rast__to_unorm8(float v) {
-    v = v > 0.0f ? v : 0.0f;
-    v = v < 1.0f ? v : 1.0f;
-    return (uint8_t)(int)(v * 255.0f + 0.5f);
-}
-
 /* Blending and the colour mask; writes one pixel of the colour target. */
 static void rast__color_out(const rast__pipe *p, const rast__fb *fb, int x, int y,
                             const float frag[4]) {

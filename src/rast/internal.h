@@ -56,6 +56,20 @@ static int64_t rast__round(float v) {
     return (int64_t)(d - 6755399441055744.0);
 }
 
+/* Clamp and round to 8 bits; written so compilers emit min/max, not
+   branches. NaN fails both comparisons and lands on 0. */
+static uint8_t rast__to_unorm8(float v) {
+    v = v > 0.0f ? v : 0.0f;
+    v = v < 1.0f ? v : 1.0f;
+    return (uint8_t)(int)(v * 255.0f + 0.5f);
+}
+
+/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
+static uint32_t rast__pack_rgba8(const float c[4]) {
+    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
+           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
+}
+
 /* ---- comparisons and stencil ops, GL semantics ---- */
 
 static int rast__compare_u8(int func, unsigned a, unsigned b) {
@@ -142,7 +156,7 @@ typedef struct rast__pipe {
 /* ---- records: what setup leaves for the tile workers ---- */
 
 enum {
-    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_LINE,
+    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_SPLAT, RAST__REC_LINE,
     RAST__REC_RECT, RAST__REC_CLEAR, RAST__REC_ACCUM
 };
 
@@ -172,6 +186,14 @@ typedef struct rast__point {
     float z, w;
     /* then num_varyings floats */
 } rast__point;
+
+/* A point of a simple pipe drawn into RGBA8: only depth and the packed
+   colour travel to the tile (the C3RC method splats millions). */
+typedef struct rast__splat {
+    rast__rec h;
+    float z;                  /* clamped window depth */
+    uint32_t rgba;            /* bytes R, G, B, A in memory order */
+} rast__splat;
 
 typedef struct rast__line {
     rast__rec h;
@@ -249,6 +271,7 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
+    int splat;                /* points become rast__splat records */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
@@ -258,6 +281,7 @@ static size_t rast__rec_size(int kind, int nvar) {
     switch (kind) {
     case RAST__REC_TRI: return rast__align(sizeof(rast__tri) + (size_t)nvar * 3 * sizeof(float));
     case RAST__REC_POINT: return rast__align(sizeof(rast__point) + (size_t)nvar * sizeof(float));
+    case RAST__REC_SPLAT: return sizeof(rast__splat);
     case RAST__REC_LINE: return rast__align(sizeof(rast__line) + (size_t)nvar * 2 * sizeof(float));
     case RAST__REC_RECT: return rast__align(sizeof(rast__rect));
     case RAST__REC_CLEAR: return rast__align(sizeof(rast__clear_rec));

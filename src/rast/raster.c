@@ -47,12 +47,6 @@ static void rast__fragment(const rast__draw_info *di, rast__tile *tl, int x, int
     if (want_color) rast__color_out(p, fb, x, y, rgba);
 }
 
-/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
-static uint32_t rast__pack_rgba8(const float c[4]) {
-    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
-           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
-}
-
 /* Writes a fragment colour on a simple pipe: straight in when there is
    no blending or masking, else through blending and the mask. */
 static void rast__store_color(const rast__pipe *p, const rast__fb *fb, uint8_t *crow, int x, int y,
@@ -336,42 +330,39 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* All of a chunk's points in a tile, on a simple pipe. One-pixel points
-   (the common splat) take a branchless depth test: random depths would
-   mispredict a branch on every other point. */
-static void rast__raster_points_simple(const rast__draw_info *di, rast__tile *tl,
-                                       const uint8_t *b, const uint8_t *e) {
+/* Splats: points of a simple pipe whose colour was packed at setup. */
+static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const uint8_t *b,
+                                const uint8_t *e) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
-    size_t size = rast__rec_size(RAST__REC_POINT, di->nvar);
-    int depth = p->depth_on, write = p->depth_write, f32 = fb->color_f32;
-    for (; b < e; b += size) {
-        const rast__point *pt = (const rast__point *)b;
-        const float *c = di->nvar >= 4 ? (const float *)(pt + 1) : di->color;
-        int x = pt->h.x0, y = pt->h.y0;
-        float z, old, *dp;
-        uint8_t *cp;
-        int pass;
-        if (pt->h.x1 - x != 1 || pt->h.y1 - y != 1 || x < tl->x0 || x >= tl->x1 || y < tl->y0 ||
-            y >= tl->y1 || f32 || !fb->color || !p->plain_color) {
-            rast__raster_point(di, tl, pt);
+    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
+    for (; b < e; b += sizeof(rast__splat)) {
+        const rast__splat *sp = (const rast__splat *)b;
+        int x = sp->h.x0, y = sp->h.y0, x1, y1;
+        if (sp->h.x1 - x == 1 && sp->h.y1 - y == 1) {
+            /* a one-pixel splat (the tile holds it: binning put it here) */
+            uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
+            uint32_t now;
+            int pass = 1;
+            if (depth) { /* branchless: random depths would mispredict half the time */
+                float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
+                float old = *dp;
+                pass = rast__compare_f(func, sp->z, old);
+                *dp = pass && write ? sp->z : old;
+            }
+            memcpy(&now, cp, 4);
+            now = pass ? sp->rgba : now;
+            memcpy(cp, &now, 4);
             continue;
         }
-        z = RAST__CLAMP(pt->z, 0.0f, 1.0f);
-        cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
-        if (depth) {
-            dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
-            old = *dp;
-            pass = rast__compare_f(p->depth_func, z, old);
-            *dp = pass && write ? z : old;
-        } else {
-            pass = 1;
-        }
-        {
-            uint32_t now, packed = rast__pack_rgba8(c);
-            memcpy(&now, cp, 4);
-            now = pass ? packed : now;
-            memcpy(cp, &now, 4);
+        x = RAST__MAX(x, tl->x0); y = RAST__MAX(y, tl->y0);
+        x1 = RAST__MIN(sp->h.x1, tl->x1); y1 = RAST__MIN(sp->h.y1, tl->y1);
+        for (; y < y1; ++y) {
+            float *drow = depth ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
+            uint8_t *crow = fb->color + (size_t)y * (size_t)fb->color_stride;
+            int xx;
+            for (xx = x; xx < x1; ++xx)
+                if (rast__depth_simple(p, drow, xx, sp->z)) memcpy(crow + 4 * xx, &sp->rgba, 4);
         }
     }
 }
@@ -382,6 +373,7 @@ static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const
     switch (h->kind) {
     case RAST__REC_TRI: rast__raster_tri(di, tl, (const rast__tri *)h); break;
     case RAST__REC_POINT: rast__raster_point(di, tl, (const rast__point *)h); break;
+    case RAST__REC_SPLAT: rast__raster_splats(di, tl, (const uint8_t *)h, (const uint8_t *)h + sizeof(rast__splat)); break;
     case RAST__REC_LINE: rast__raster_line(di, tl, (const rast__line *)h); break;
     case RAST__REC_RECT: rast__raster_rect(di, tl, (const rast__rect *)h); break;
     case RAST__REC_CLEAR:
