@@ -14,6 +14,9 @@
        REFL_STATIC          all functions static to the including file
        REFL_API             decoration of every public function (default extern)
        REFL_ASSERT(c)       contract checks (default assert)
+       REFL_NOW_MS()        wall-clock milliseconds for stats (default:
+                            clock_gettime, which needs _POSIX_C_SOURCE
+                            200809L before the first include in strict C)
        REFL_MALLOC(size, user) / REFL_FREE(ptr, user)
                             compile-time allocator (both or neither); every
                             desc's allocator overrides at run time

@@ -28,7 +28,10 @@
        that picks its triangle by binary search in the cumulative areas
        (double, transformed triangles), and two floats r1, r2 for the point
        (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). Only IEEE arithmetic and
-       sqrt: the same points on every machine. */
+       sqrt: the same points on every machine, provided the compiler does
+       not fuse multiply-adds (clang is told not to here; GCC fuses only
+       in GNU modes on FMA targets such as aarch64: build the
+       implementation with -ffp-contract=off there). */
 #include "internal.h"
 
 #define REFL__MAX_TRIANGLES (1 << 26)
@@ -78,6 +81,9 @@ static refl_result refl__mesh_alloc(const refl_allocator *a, int vertex_count, i
 /* atan t for |t| <= 1 by the series after one reduction to |t| <= tan(pi/8)
    (error below 1e-11): plain arithmetic, the same bits everywhere. */
 static double refl__atan_unit(double t) {
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
     double off = 0.0, t2, term, s;
     int k;
     if (t > 0.41421356237309503) {
@@ -108,6 +114,9 @@ static double refl__angle(double y, double x) {
 /* Fills m->normals: the given ones normalised where usable, the
    angle-weighted ones elsewhere. */
 static refl_result refl__mesh_normals(refl_mesh *m, const float *given) {
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
     const refl_allocator *a = &m->allocator;
     double *acc;
     int v, t, k, need = given == NULL;
@@ -463,6 +472,9 @@ static double refl__rng_double(refl_rng *rng) {
 REFL_API refl_result refl_mesh_sample_points(const refl_mesh *mesh, const refl_mat4 *transform, float density,
                                              uint64_t seed, const refl_allocator *allocator,
                                              refl_points **out_points) {
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
     refl_allocator al = refl__allocator(allocator);
     refl_points *pts = NULL;
     refl_rng rng = refl_rng_seed(seed);

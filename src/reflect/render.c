@@ -1,2 +1,293 @@
-/* render: being written. */
+/* Frames and the one entry point, refl_render: the base pass every method
+   shares (diffuse geometry shaded per pixel, reflectors into the stencil),
+   the environment behind everything, and the per-method middle step.
+   DIRECT is the base pass alone. */
 #include "internal.h"
+
+#include <time.h>
+
+static const char *const refl__method_names[REFL_METHOD_COUNT] = {
+    "direct", "direct", "raytrace", "envmap", "planar", "sbc", "c3rc", "spoc", "graphcam", "layered-em", "auto"};
+
+REFL_API const char *refl_method_name(refl_method m) {
+    return (int)m >= 0 && m < REFL_METHOD_COUNT ? refl__method_names[m] : "unknown";
+}
+
+REFL_API refl_method refl_method_from_name(const char *name) {
+    int i;
+    for (i = 1; name && i < REFL_METHOD_COUNT; ++i)
+        if (!strcmp(name, refl__method_names[i])) return (refl_method)i;
+    return REFL_METHOD_DEFAULT;
+}
+
+REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a, refl_frame **out_frame) {
+    refl_frame *f;
+    size_t n;
+    if (!out_frame) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_frame = NULL;
+    if (width <= 0 || height <= 0 || width > RAST_MAX_TARGET_SIZE || height > RAST_MAX_TARGET_SIZE)
+        return REFL_ERROR_INVALID_SIZE;
+    if (a && ((a->alloc != NULL) != (a->free != NULL))) return REFL_ERROR_INVALID_ARGUMENT;
+    n = (size_t)width * (size_t)height;
+    f = (refl_frame *)refl__calloc(a, 1, sizeof(refl_frame));
+    if (!f) return REFL_ERROR_OUT_OF_MEMORY;
+    f->allocator = refl__allocator(a);
+    f->width = width;
+    f->height = height;
+    f->color = (uint8_t *)refl__calloc(a, n, 4);
+    f->depth = (float *)refl__calloc(a, n, sizeof(float));
+    f->stencil = (uint8_t *)refl__calloc(a, n, 1);
+    if (!f->color || !f->depth || !f->stencil) {
+        refl_frame_destroy(f);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    *out_frame = f;
+    return REFL_OK;
+}
+
+REFL_API void refl_frame_destroy(refl_frame *f) {
+    refl_allocator a;
+    if (!f) return;
+    a = f->allocator;
+    refl__free(&a, f->color);
+    refl__free(&a, f->depth);
+    refl__free(&a, f->stencil);
+    refl__free(&a, f);
+}
+
+/* Milliseconds from a monotonic clock. Timings go into stats only, never
+   into images. Strict C99 has no such clock: define _POSIX_C_SOURCE
+   200809L before the implementation's includes, or REFL_NOW_MS(). */
+#ifdef REFL_NOW_MS
+static double refl__now_ms(void) { return REFL_NOW_MS(); }
+#else
+static double refl__now_ms(void) {
+#if defined(CLOCK_MONOTONIC)
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+#else
+    return 0.0;
+#endif
+}
+#endif
+
+REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
+                                 refl_mat4 *proj_m) {
+    float znear = v->znear, zfar = v->zfar;
+    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    if (!(znear > 0.0f) || !(zfar > znear)) {
+        /* from the scene's bounding sphere: far just beyond it, near a
+           fraction of far (24 bits of depth keep plenty of precision) */
+        refl_vec3 lo, hi, c;
+        float radius, dist;
+        refl_scene_bounds(scene, &lo, &hi);
+        c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+        radius = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+        dist = refl_v3_length(refl_v3_sub(v->eye, c));
+        zfar = REFL__MAX(dist + radius, 1e-3f) * 1.01f;
+        znear = REFL__MAX(dist - radius, zfar * 1e-3f);
+        znear = REFL__MAX(znear * 0.5f, zfar * 1e-4f);
+    }
+    if (view_m) *view_m = refl_mat4_look_at(v->eye, v->target, v->up);
+    if (proj_m) *proj_m = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, znear, zfar);
+}
+
+/* ---- the base pass ---------------------------------------------------------- */
+
+enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
+
+typedef struct refl__draw_ctx {
+    const refl_scene *scene;
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
+} refl__draw_ctx;
+
+/* The vertex program of the base pass: clip position and world-space
+   varyings, read from the mesh by index. */
+static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
+    const refl_mesh *m = d->mesh;
+    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
+    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
+    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
+    const float *mm = d->mvp.m;
+    int k;
+    (void)max_out;
+    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
+    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
+    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
+    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
+    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
+    return 1;
+}
+
+/* The fragment program of the base pass: the shared diffuse model. A
+   partially reflective surface shows its diffuse share here; the methods
+   add the mirror share. */
+static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
+    const float *v = in->varyings;
+    float rgb[3], k = 1.0f;
+    refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
+    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
+    rgba[0] = rgb[0] * k; rgba[1] = rgb[1] * k; rgba[2] = rgb[2] * k;
+    rgba[3] = 1.0f;
+    return 1;
+}
+
+static int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
+
+/* Draws every object: diffuse ones shaded, reflectors with their diffuse
+   share (partial) or black (mirror, glass), each writing its object id + 1
+   into the stencil. */
+static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_stats *st) {
+    refl__draw_ctx *dc;
+    int i;
+    rast_result rr = RAST_OK;
+    /* one draw context per object: rast runs the callbacks at rast_finish */
+    dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
+                                        sizeof(refl__draw_ctx));
+    if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *m = scene->meshes[o->mesh];
+        rast_state s;
+        rast_draw_desc d;
+        refl_mat4 inv;
+        dc[i].scene = scene;
+        dc[i].mesh = m;
+        dc[i].material = &scene->materials[o->material];
+        dc[i].model = o->transform;
+        dc[i].mvp = refl_mat4_mul(vp, o->transform);
+        dc[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        memset(&s, 0, sizeof s);
+        s.depth_test = 1;
+        s.stencil_test = 1;
+        s.stencil_front.func = RAST_ALWAYS;
+        s.stencil_front.pass = RAST_REPLACE;
+        s.stencil_front.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+        s.stencil_back = s.stencil_front;
+        s.vertex_fn = refl__base_vertex;
+        s.vertex_user = &dc[i];
+        if (dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL) {
+            s.fragment_fn = refl__base_fragment;
+            s.fragment_user = &dc[i];
+        }
+        if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
+        rr = rast_set_state(rc, &s);
+        memset(&d, 0, sizeof d);
+        d.primitive = RAST_TRIANGLES;
+        d.vertices = m->positions;
+        d.vertex_count = m->vertex_count;
+        d.stride = 3;
+        d.position_size = 3;
+        d.num_varyings = REFL__BASE_VARYINGS;
+        d.indices = m->indices;
+        d.index_count = 3 * m->triangle_count;
+        /* reflectors without a diffuse share show black until a method fills them */
+        if (rr == RAST_OK) rr = rast_draw(rc, &d);
+        st->triangles += m->triangle_count;
+    }
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    refl__free(&scene->allocator, dc);
+    return rr == RAST_OK ? REFL_OK : rr == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+}
+
+/* The environment behind the geometry: every pixel the base pass left at
+   the far plane shows the environment along its view ray. */
+static void refl__background(refl_frame *f, const refl_scene *scene, refl_mat4 view_m, refl_mat4 proj_m) {
+    refl_mat4 inv_vp;
+    int x, y;
+    if (!refl_mat4_invert(refl_mat4_mul(proj_m, view_m), &inv_vp)) return;
+    for (y = 0; y < f->height; ++y)
+        for (x = 0; x < f->width; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            float nx, ny, rgb[3];
+            refl_vec3 a, b;
+            int c;
+            if (f->depth[i] < 1.0f) continue;
+            nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
+            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
+            a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
+            b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
+            refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
+            for (c = 0; c < 3; ++c) {
+                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                f->color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
+            }
+            f->color[4 * i + 3] = 255;
+        }
+}
+
+static int refl__view_ok(const refl_view *v) {
+    refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
+    return refl__isfinite(v->eye.x) && refl__isfinite(v->eye.y) && refl__isfinite(v->eye.z) &&
+           refl_v3_length(fwd) > 0.0f && refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f &&
+           v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f;
+}
+
+REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                 refl_frame *frame) {
+    refl_render_desc d;
+    rast_context_desc cd;
+    rast_context *rc = NULL;
+    rast_targets t;
+    rast_clear_desc clear;
+    refl_mat4 view_m, proj_m;
+    refl_result r;
+    double t0 = refl__now_ms(), t1;
+    int i;
+    if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc) d = *desc;
+    else memset(&d, 0, sizeof d);
+    if ((int)d.method < 0 || d.method >= REFL_METHOD_COUNT || d.threads < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
+    if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    if (d.method != REFL_METHOD_DEFAULT && d.method != REFL_DIRECT) return REFL_ERROR_UNSUPPORTED;
+    memset(&frame->stats, 0, sizeof(frame->stats));
+
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = d.threads;
+    cd.allocator.alloc = scene->allocator.alloc;
+    cd.allocator.free = scene->allocator.free;
+    cd.allocator.user = scene->allocator.user;
+    switch (rast_context_create(&cd, &rc)) {
+    case RAST_OK: break;
+    case RAST_ERROR_OUT_OF_MEMORY: return REFL_ERROR_OUT_OF_MEMORY;
+    default: return REFL_ERROR_RASTER;
+    }
+    memset(&t, 0, sizeof t);
+    t.color.ptr = frame->color; t.color.width = frame->width; t.color.height = frame->height;
+    t.color.stride = 4 * frame->width;
+    t.depth.ptr = frame->depth; t.depth.width = frame->width; t.depth.height = frame->height;
+    t.depth.stride = (int)sizeof(float) * frame->width;
+    t.stencil.ptr = frame->stencil; t.stencil.width = frame->width; t.stencil.height = frame->height;
+    t.stencil.stride = frame->width;
+    memset(&clear, 0, sizeof clear);
+    clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
+    clear.depth = 1.0f;
+    if (rast_set_targets(rc, &t) != RAST_OK || rast_clear(rc, &clear) != RAST_OK) {
+        rast_context_destroy(rc);
+        return REFL_ERROR_RASTER;
+    }
+    refl_view_matrices(view, scene, &view_m, &proj_m);
+    if (d.progress) d.progress(d.progress_user, 0.0f);
+    r = refl__base_pass(rc, scene, refl_mat4_mul(proj_m, view_m), &frame->stats);
+    rast_context_destroy(rc);
+    if (r != REFL_OK) return r;
+    refl__background(frame, scene, view_m, proj_m);
+    t1 = refl__now_ms();
+    frame->stats.ms_base = t1 - t0;
+    frame->stats.ms_total = t1 - t0;
+    for (i = 0; i < scene->object_count; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
+    if (d.progress) d.progress(d.progress_user, 1.0f);
+    return REFL_OK;
+}

@@ -1,2 +1,85 @@
-/* shade: being written. */
+/* The one shading model every method uses: diffuse surfaces lit by ambient
+   and Lambert terms (no shadows), and the environment on a miss. Methods
+   differ only in where a reflected or refracted ray lands, never in how
+   that point is shaded, so their images compare fairly. */
 #include "internal.h"
+
+/* Bilinear sample of an RGBA float image at (u, v), repeat wrap, v = 0 the
+   top row (glTF's convention). */
+static void refl__image_sample(const refl_image *img, float u, float v, float rgba[4]) {
+    float x, y, fx, fy;
+    int x0, y0, x1, y1, c;
+    const float *p00, *p10, *p01, *p11;
+    if (!img->pixels || img->width <= 0 || img->height <= 0) {
+        rgba[0] = rgba[1] = rgba[2] = rgba[3] = 1.0f;
+        return;
+    }
+    if (!refl__isfinite(u)) u = 0.0f;
+    if (!refl__isfinite(v)) v = 0.0f;
+    x = (u - floorf(u)) * (float)img->width - 0.5f;
+    y = (v - floorf(v)) * (float)img->height - 0.5f;
+    fx = x - floorf(x);
+    fy = y - floorf(y);
+    x0 = (int)floorf(x);
+    y0 = (int)floorf(y);
+    /* wrap each tap into the image */
+    x1 = x0 + 1 >= img->width ? 0 : x0 + 1;
+    y1 = y0 + 1 >= img->height ? 0 : y0 + 1;
+    if (x0 < 0) x0 = img->width - 1;
+    if (y0 < 0) y0 = img->height - 1;
+    if (x0 >= img->width) x0 = img->width - 1;
+    if (y0 >= img->height) y0 = img->height - 1;
+    p00 = img->pixels + 4 * ((size_t)y0 * (size_t)img->width + (size_t)x0);
+    p10 = img->pixels + 4 * ((size_t)y0 * (size_t)img->width + (size_t)x1);
+    p01 = img->pixels + 4 * ((size_t)y1 * (size_t)img->width + (size_t)x0);
+    p11 = img->pixels + 4 * ((size_t)y1 * (size_t)img->width + (size_t)x1);
+    for (c = 0; c < 4; ++c)
+        rgba[c] = (p00[c] * (1.0f - fx) + p10[c] * fx) * (1.0f - fy) + (p01[c] * (1.0f - fx) + p11[c] * fx) * fy;
+}
+
+REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                 const float *uv, float rgb[3]) {
+    float base[4];
+    int i, c;
+    refl_vec3 nn = refl_v3_normalize(n);
+    for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
+    if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
+        float t[4];
+        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], t);
+        for (c = 0; c < 4; ++c) base[c] *= t[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
+    for (i = 0; scene && i < scene->light_count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                               : refl_v3_sub(l->position, p);
+        float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light));
+        if (lambert <= 0.0f) continue;
+        for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+}
+
+REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]) {
+    float k = env && env->intensity > 0.0f ? env->intensity : 1.0f, t[4];
+    int c;
+    refl_vec3 d = refl_v3_normalize(dir);
+    if (!env || env->type == REFL_ENV_COLOR || (d.x == 0.0f && d.y == 0.0f && d.z == 0.0f)) {
+        for (c = 0; c < 3; ++c) rgb[c] = env ? env->color[c] * k : 0.0f;
+        return;
+    }
+    if (env->type == REFL_ENV_EQUIRECT) {
+        /* longitude across (-z at the centre column), +y at the top row */
+        float u = 0.5f + atan2f(d.x, -d.z) * (float)(0.5 / REFL__PI);
+        float v = acosf(REFL__CLAMP(d.y, -1.0f, 1.0f)) * (float)(1.0 / REFL__PI);
+        refl__image_sample(&env->image, u, REFL__CLAMP(v, 0.0f, 0.99999f), t);
+    } else {
+        float dv[3], s, tt;
+        int face;
+        dv[0] = d.x; dv[1] = d.y; dv[2] = d.z;
+        face = rast_cube_face(dv, &s, &tt);
+        /* clamp inside the face: cube faces do not wrap */
+        refl__image_sample(&env->faces[face], REFL__CLAMP(s, 0.0f, 0.99999f), REFL__CLAMP(tt, 0.0f, 0.99999f), t);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = t[c] * k;
+}

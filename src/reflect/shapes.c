@@ -55,8 +55,7 @@ enum { REFL__SHAPE_MAX_VERTICES = 1 << 24 };
 /* Hands the arrays to refl_mesh_create. */
 static refl_result refl__shape_finish(const float *positions, const float *normals, const float *texcoords,
                                       long long vertex_count, const uint32_t *indices, long long index_count,
-                                      const refl_allocator *a, refl_mesh **out)
-{
+                                      const refl_allocator *a, refl_mesh **out) {
     refl_mesh_desc d;
     memset(&d, 0, sizeof d);
     d.positions = positions;
@@ -76,8 +75,7 @@ typedef struct refl__shape_arrays {
     uint32_t *idx;
 } refl__shape_arrays;
 
-static int refl__shape_alloc(const refl_allocator *a, long long nv, long long ni, refl__shape_arrays *s)
-{
+static int refl__shape_alloc(const refl_allocator *a, long long nv, long long ni, refl__shape_arrays *s) {
     float *block = (float *)refl__calloc(a, (size_t)(8 * nv + ni), sizeof(float));
     if (!block) return 0;
     s->pos = block;
@@ -89,8 +87,7 @@ static int refl__shape_alloc(const refl_allocator *a, long long nv, long long ni
 
 static int refl__shape_size_ok(float v) { return refl__isfinite(v) && v > 0.0f; }
 
-static void refl__shape_quad(uint32_t *idx, uint32_t a, uint32_t b, uint32_t c, uint32_t d)
-{
+static void refl__shape_quad(uint32_t *idx, uint32_t a, uint32_t b, uint32_t c, uint32_t d) {
     /* a b c d counter-clockwise: two triangles sharing the diagonal a-c */
     idx[0] = a; idx[1] = b; idx[2] = c;
     idx[3] = a; idx[4] = c; idx[5] = d;
@@ -251,8 +248,7 @@ static const unsigned char refl__teapot_outward[32] = {
    of the data differ by rounding (about 1e-7), creases by far more. */
 #define REFL__TEAPOT_WELD_COS 0.9999
 
-static double refl__tp_lerp(double a, double b, double t)
-{
+static double refl__tp_lerp(double a, double b, double t) {
     /* exact at t = 0 and t = 1, and for equal ends */
     return a == b ? a : (1.0 - t) * a + t * b;
 }
@@ -262,8 +258,7 @@ static double refl__tp_lerp(double a, double b, double t)
    with the parameter measured from that end, so the same curve given in
    reverse order gives bit-identical results at the mirrored parameter (at
    t = 1/2 the two orders agree because addition is commutative). */
-static void refl__tp_curve(const double *p, int stride, int i, int n, double value[3], double deriv[3])
-{
+static void refl__tp_curve(const double *p, int stride, int i, int n, double value[3], double deriv[3]) {
     double q[4][3], t;
     int k, c, reverse = 2 * i > n;
     t = reverse ? (double)(n - i) / (double)n : (double)i / (double)n;
@@ -278,8 +273,7 @@ static void refl__tp_curve(const double *p, int stride, int i, int n, double val
     }
 }
 
-static void refl__tp_cross(const double a[3], const double b[3], double r[3])
-{
+static void refl__tp_cross(const double a[3], const double b[3], double r[3]) {
     r[0] = a[1] * b[2] - a[2] * b[1];
     r[1] = a[2] * b[0] - a[0] * b[2];
     r[2] = a[0] * b[1] - a[1] * b[0];
@@ -289,8 +283,7 @@ static double refl__tp_dot(const double a[3], const double b[3]) { return a[0] *
 
 /* Position and (unnormalised, possibly zero) normal of patch cp (16 points,
    row-major) at u = i / n, v = j / n. */
-static void refl__tp_eval(const double cp[16][3], int i, int j, int n, double pos[3], double nrm[3])
-{
+static void refl__tp_eval(const double cp[16][3], int i, int j, int n, double pos[3], double nrm[3]) {
     double c[4][3], cu[4][3], pu[3], pv[3], puv[3], dummy[3];
     double lu, lv;
     int r;
@@ -317,8 +310,7 @@ static void refl__tp_eval(const double cp[16][3], int i, int j, int n, double po
     }
 }
 
-static uint32_t refl__tp_hash(const float p[3])
-{
+static uint32_t refl__tp_hash(const float p[3]) {
     uint32_t h = 2166136261u, w;
     int k;
     for (k = 0; k < 3; ++k) {
@@ -329,8 +321,7 @@ static uint32_t refl__tp_hash(const float p[3])
     return h;
 }
 
-REFL_API refl_result refl_mesh_teapot(int tess, const refl_allocator *a, refl_mesh **out)
-{
+REFL_API refl_result refl_mesh_teapot(int tess, const refl_allocator *a, refl_mesh **out) {
     int n, side, patch, i, j, k, r;
     long long grid, raw_count, welded = 0, index_count = 0;
     size_t table_size = 1, bytes;
@@ -460,8 +451,7 @@ REFL_API refl_result refl_mesh_teapot(int tess, const refl_allocator *a, refl_me
 /* ---- sphere ------------------------------------------------------------------ */
 
 REFL_API refl_result refl_mesh_sphere(float radius, int slices, int stacks, const refl_allocator *a,
-                                      refl_mesh **out)
-{
+                                      refl_mesh **out) {
     refl__shape_arrays s;
     long long nv, ni, v = 0;
     uint32_t *ix;
@@ -535,8 +525,7 @@ REFL_API refl_result refl_mesh_sphere(float radius, int slices, int stacks, cons
 /* ---- torus ------------------------------------------------------------------- */
 
 REFL_API refl_result refl_mesh_torus(float major_radius, float minor_radius, int slices, int sides,
-                                     const refl_allocator *a, refl_mesh **out)
-{
+                                     const refl_allocator *a, refl_mesh **out) {
     refl__shape_arrays s;
     long long nv, ni, v = 0;
     int i, j;
@@ -584,8 +573,7 @@ REFL_API refl_result refl_mesh_torus(float major_radius, float minor_radius, int
 
 /* ---- box ----------------------------------------------------------------------- */
 
-REFL_API refl_result refl_mesh_box(refl_vec3 size, const refl_allocator *a, refl_mesh **out)
-{
+REFL_API refl_result refl_mesh_box(refl_vec3 size, const refl_allocator *a, refl_mesh **out) {
     /* faces +x -x +y -y +z -z: normal and the face's "up" (texcoord v = 0
        edge); its right is up x normal */
     static const float face[6][2][3] = {
@@ -626,8 +614,7 @@ REFL_API refl_result refl_mesh_box(refl_vec3 size, const refl_allocator *a, refl
 
 /* ---- plane ----------------------------------------------------------------------- */
 
-REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_allocator *a, refl_mesh **out)
-{
+REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_allocator *a, refl_mesh **out) {
     refl__shape_arrays s;
     long long nv, ni, v = 0;
     int i, j, d = divisions;
