@@ -1777,7 +1777,9 @@ REFL_API void refl_points_destroy(refl_points *points) {
        body, handle, spout, lid, and the bottom Frank Crow added). The data
        is z-up; (x, y, z) -> (x, z, -y) makes it y-up with the base on y = 0,
        original proportions (no 1.3 vertical stretch). Bounds: x -3 ..
-       3.434375, y 0 .. 3.15, z -2 .. 2.
+       3.4340751 (the spout lip's cubic peaks between grid lines, so a
+       tessellation reaches up to 1.8 / (8 tess^2) less), y 0 .. 3.15,
+       z -2 .. 2.
 
        Each patch is sampled on a (tess + 1)^2 grid in double. A patch is
        P(u, v) = sum B_r(v) B_c(u) point[row r][column c]. The cubic de
@@ -1791,13 +1793,14 @@ REFL_API void refl_points_destroy(refl_points *points) {
        centre) a whole row collapses to a point and Pu = 0; there the normal
        is the limit Puv x Pv, which for this data is exactly the axis.
 
-       The copies of the data do not orient every patch alike, so each
-       patch is oriented on its own: its normal at the centre (u = v = 1/2)
+       Copies of the data do not all orient every patch alike (this one
+       does: no patch needs a flip), so each patch is oriented on its own,
+       without trusting the table: its normal at the centre (u = v = 1/2)
        must point along a direction that is outward for its part (up on the
        rim's curl, the lid and the spout's lip; away from the axis on the
        body and the knob; away from the tube's middle plane on the handle
        and the spout; down on the bottom). The centre is far from any
-       degenerate point, so the test is never close.
+       degenerate point, so the test is never close (cosines 0.70 and up).
 
        Vertices are welded where the positions are identical and the
        normals agree to within REFL__TEAPOT_WELD_COS (the patches are
@@ -2638,14 +2641,17 @@ static const char *const refl__builtin_names[] = {"default", "mirror-room", "con
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
-/* Adds mesh (owned) with a material and transform; returns the object index
-   or a negative refl_result. Frees the mesh on failure. */
-static int refl__add(refl_scene *s, refl_result made, refl_mesh *mesh, const refl_material *m,
+/* Adds the mesh a shape function just made (`made` is its result, *mesh
+   its output: read here, after the call, since argument evaluation order
+   is unspecified) with a material and transform. Returns the object index
+   or a negative refl_result; the scene owns the mesh either way. */
+static int refl__add(refl_scene *s, refl_result made, refl_mesh **mesh, const refl_material *m,
                      refl_mat4 transform, const char *name) {
     refl_object o;
     int mi, mat;
     if (made != REFL_OK) return made;
-    mi = refl_scene_add_mesh(s, mesh);
+    mi = refl_scene_add_mesh(s, *mesh);
+    *mesh = NULL;
     if (mi < 0) return mi;
     mat = refl_scene_add_material(s, m);
     if (mat < 0) return mat;
@@ -2675,7 +2681,7 @@ static refl_result refl__stage(refl_scene *s, const refl_allocator *a, float flo
     refl_light key, fill;
     refl_environment env;
     refl_mesh *m = NULL;
-    int r = refl__add(s, refl_mesh_plane(floor_size, 16, a, &m), m, &floor_m, refl_mat4_identity(), "floor");
+    int r = refl__add(s, refl_mesh_plane(floor_size, 16, a, &m), &m, &floor_m, refl_mat4_identity(), "floor");
     if (r < 0) return (refl_result)r;
     memset(&key, 0, sizeof key);
     key.type = REFL_LIGHT_POINT;
@@ -2700,8 +2706,20 @@ static refl_result refl__stage(refl_scene *s, const refl_allocator *a, float flo
     return REFL_OK;
 }
 
+/* How far the mesh reaches along +z near height y in the x = 0 plane: the
+   teapot's front, found from its vertices so objects can touch it. */
+static float refl__front_extent(const refl_mesh *m, float y) {
+    float best = 0.0f;
+    int v;
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *p = m->positions + 3 * v;
+        if (fabsf(p[0]) < 0.2f && fabsf(p[1] - y) < 0.2f && p[2] > best) best = p[2];
+    }
+    return best;
+}
+
 /* default: a mirror teapot on a floor with diffuse objects close to it,
-   the torus touching it. */
+   the sphere touching it (overlapping by 1% of its radius). */
 static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, int tess) {
     refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
     refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
@@ -2709,19 +2727,21 @@ static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, i
     refl_material blue = refl__material(REFL_DIFFUSE, 0.15f, 0.25f, 0.8f, "blue");
     refl_mesh *m = NULL;
     refl_result r;
-    int k;
+    int k, teapot;
     if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 4.5f, 9.0f), refl_v3(0.0f, 1.2f, 0.0f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &mirror, refl_mat4_identity(), "teapot")) < 0)
+    if ((teapot = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_identity(), "teapot")) < 0)
+        return (refl_result)teapot;
+    if ((k = refl__add(s, refl_mesh_torus(0.6f, 0.25f, 32, 16, a, &m), &m, &red, refl__at(2.6f, 0.25f, 1.6f),
+                       "torus")) < 0)
         return (refl_result)k;
-    /* the torus rests against the teapot's body (radius 2 at y = 1.2) */
-    if ((k = refl__add(s, refl_mesh_torus(0.6f, 0.25f, 32, 16, a, &m), m, &red,
-                       refl_mat4_mul(refl__at(2.5f, 0.25f, 0.9f), refl_mat4_identity()), "torus")) < 0)
-        return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), m, &green, refl__at(-2.6f, 0.7f, 1.4f),
-                       "sphere")) < 0)
-        return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), m, &blue,
+    {
+        float front = refl__front_extent(s->meshes[s->objects[teapot].mesh], 0.7f);
+        if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), &m, &green,
+                           refl__at(0.0f, 0.7f, front + 0.7f * 0.99f), "sphere")) < 0)
+            return (refl_result)k;
+    }
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), &m, &blue,
                        refl_mat4_mul(refl__at(0.6f, 0.6f, -3.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 0.6f)),
                        "box")) < 0)
         return (refl_result)k;
@@ -2736,20 +2756,20 @@ static refl_result refl__scene_mirror_room(refl_scene *s, const refl_allocator *
     refl_mesh *m = NULL;
     refl_result r;
     int k, w;
-    if ((r = refl__stage(s, a, 12.0f, refl_v3(1.5f, 2.5f, 4.0f), refl_v3(0.0f, 1.0f, 0.0f))) != REFL_OK) return r;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(1.8f, 2.2f, 2.4f), refl_v3(-1.0f, 1.0f, -1.5f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
     for (w = 0; w < 4; ++w) { /* a wall mirror 6 wide, 3 high, facing the centre */
         refl_mat4 t = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), (float)(w * REFL__PI / 2)),
                                     refl_mat4_mul(refl__at(0.0f, 1.5f, -3.0f),
                                                   refl_mat4_mul(refl_mat4_rotate(refl_v3(1, 0, 0), (float)(REFL__PI / 2)),
                                                                 refl_mat4_scale(refl_v3(1.0f, 1.0f, 0.5f)))));
-        if ((k = refl__add(s, refl_mesh_plane(6.0f, 1, a, &m), m, &mirror, t, "wall mirror")) < 0)
+        if ((k = refl__add(s, refl_mesh_plane(6.0f, 1, a, &m), &m, &mirror, t, "wall mirror")) < 0)
             return (refl_result)k;
     }
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &orange,
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
                        refl_mat4_scale(refl_v3(0.4f, 0.4f, 0.4f)), "teapot")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.4f, 24, 12, a, &m), m, &teal, refl__at(1.2f, 0.4f, 0.8f), "sphere")) < 0)
+    if ((k = refl__add(s, refl_mesh_sphere(0.4f, 24, 12, a, &m), &m, &teal, refl__at(1.2f, 0.4f, 0.8f), "sphere")) < 0)
         return (refl_result)k;
     return REFL_OK;
 }
@@ -2809,9 +2829,9 @@ static refl_result refl__scene_concave(refl_scene *s, const refl_allocator *a, i
     (void)tess;
     if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 3.5f, 6.0f), refl_v3(0.0f, 3.0f, -1.5f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
-    if ((k = refl__add(s, refl__bowl(3.0f, a, &m), m, &mirror, refl__at(0.0f, 3.0f, 0.0f), "concave mirror")) < 0)
+    if ((k = refl__add(s, refl__bowl(3.0f, a, &m), &m, &mirror, refl__at(0.0f, 3.0f, 0.0f), "concave mirror")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.3f, 24, 12, a, &m), m, &yellow, refl__at(0.0f, 3.0f, -1.5f),
+    if ((k = refl__add(s, refl_mesh_sphere(0.3f, 24, 12, a, &m), &m, &yellow, refl__at(0.0f, 3.0f, -1.5f),
                        "ball at focus")) < 0)
         return (refl_result)k;
     return REFL_OK;
@@ -2832,14 +2852,14 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     slab.ior = 1.5f;
     slab.fresnel = 1;
     slab.attenuation = 0.2f;
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), m, &slab, refl__at(2.2f, 0.75f, 1.0f),
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), &m, &slab, refl__at(2.2f, 0.75f, 1.0f),
                        "glass slab")) < 0)
         return (refl_result)k;
     for (j = 0; j < 4; ++j) /* tiles behind the glass, so refraction shows */
         for (i = 0; i < 8; ++i)
-            if ((k = refl__add(s, refl_mesh_box(refl_v3(1.0f, 0.05f, 1.0f), a, &m), m, (i + j) & 1 ? &dark : &light,
+            if ((k = refl__add(s, refl_mesh_box(refl_v3(1.0f, 0.05f, 1.0f), a, &m), &m, (i + j) & 1 ? &dark : &light,
                                refl__at(-3.5f + (float)i, 0.025f, -1.5f - (float)j), "tile")) < 0)
                 return (refl_result)k;
     return REFL_OK;
@@ -3093,6 +3113,13 @@ static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgb
     return 1;
 }
 
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    (void)user;
+    (void)in;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    return 1;
+}
+
 static int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* Draws every object: diffuse ones shaded, reflectors with their diffuse
@@ -3132,6 +3159,9 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
             s.fragment_user = &dc[i];
         }
         if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
+        /* mirrors and glass: transparent black until a method fills them */
+        if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
+            s.fragment_fn = refl__clear_fragment;
         rr = rast_set_state(rc, &s);
         memset(&d, 0, sizeof d);
         d.primitive = RAST_TRIANGLES;
@@ -3142,7 +3172,6 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
         d.num_varyings = REFL__BASE_VARYINGS;
         d.indices = m->indices;
         d.index_count = 3 * m->triangle_count;
-        /* reflectors without a diffuse share show black until a method fills them */
         if (rr == RAST_OK) rr = rast_draw(rc, &d);
         st->triangles += m->triangle_count;
     }

@@ -138,6 +138,13 @@ static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgb
     return 1;
 }
 
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    (void)user;
+    (void)in;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    return 1;
+}
+
 static int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* Draws every object: diffuse ones shaded, reflectors with their diffuse
@@ -177,6 +184,9 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
             s.fragment_user = &dc[i];
         }
         if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
+        /* mirrors and glass: transparent black until a method fills them */
+        if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
+            s.fragment_fn = refl__clear_fragment;
         rr = rast_set_state(rc, &s);
         memset(&d, 0, sizeof d);
         d.primitive = RAST_TRIANGLES;
@@ -187,7 +197,6 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
         d.num_varyings = REFL__BASE_VARYINGS;
         d.indices = m->indices;
         d.index_count = 3 * m->triangle_count;
-        /* reflectors without a diffuse share show black until a method fills them */
         if (rr == RAST_OK) rr = rast_draw(rc, &d);
         st->triangles += m->triangle_count;
     }

@@ -226,14 +226,17 @@ static const char *const refl__builtin_names[] = {"default", "mirror-room", "con
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
-/* Adds mesh (owned) with a material and transform; returns the object index
-   or a negative refl_result. Frees the mesh on failure. */
-static int refl__add(refl_scene *s, refl_result made, refl_mesh *mesh, const refl_material *m,
+/* Adds the mesh a shape function just made (`made` is its result, *mesh
+   its output: read here, after the call, since argument evaluation order
+   is unspecified) with a material and transform. Returns the object index
+   or a negative refl_result; the scene owns the mesh either way. */
+static int refl__add(refl_scene *s, refl_result made, refl_mesh **mesh, const refl_material *m,
                      refl_mat4 transform, const char *name) {
     refl_object o;
     int mi, mat;
     if (made != REFL_OK) return made;
-    mi = refl_scene_add_mesh(s, mesh);
+    mi = refl_scene_add_mesh(s, *mesh);
+    *mesh = NULL;
     if (mi < 0) return mi;
     mat = refl_scene_add_material(s, m);
     if (mat < 0) return mat;
@@ -263,7 +266,7 @@ static refl_result refl__stage(refl_scene *s, const refl_allocator *a, float flo
     refl_light key, fill;
     refl_environment env;
     refl_mesh *m = NULL;
-    int r = refl__add(s, refl_mesh_plane(floor_size, 16, a, &m), m, &floor_m, refl_mat4_identity(), "floor");
+    int r = refl__add(s, refl_mesh_plane(floor_size, 16, a, &m), &m, &floor_m, refl_mat4_identity(), "floor");
     if (r < 0) return (refl_result)r;
     memset(&key, 0, sizeof key);
     key.type = REFL_LIGHT_POINT;
@@ -288,8 +291,20 @@ static refl_result refl__stage(refl_scene *s, const refl_allocator *a, float flo
     return REFL_OK;
 }
 
+/* How far the mesh reaches along +z near height y in the x = 0 plane: the
+   teapot's front, found from its vertices so objects can touch it. */
+static float refl__front_extent(const refl_mesh *m, float y) {
+    float best = 0.0f;
+    int v;
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *p = m->positions + 3 * v;
+        if (fabsf(p[0]) < 0.2f && fabsf(p[1] - y) < 0.2f && p[2] > best) best = p[2];
+    }
+    return best;
+}
+
 /* default: a mirror teapot on a floor with diffuse objects close to it,
-   the torus touching it. */
+   the sphere touching it (overlapping by 1% of its radius). */
 static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, int tess) {
     refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
     refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
@@ -297,19 +312,21 @@ static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, i
     refl_material blue = refl__material(REFL_DIFFUSE, 0.15f, 0.25f, 0.8f, "blue");
     refl_mesh *m = NULL;
     refl_result r;
-    int k;
+    int k, teapot;
     if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 4.5f, 9.0f), refl_v3(0.0f, 1.2f, 0.0f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &mirror, refl_mat4_identity(), "teapot")) < 0)
+    if ((teapot = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_identity(), "teapot")) < 0)
+        return (refl_result)teapot;
+    if ((k = refl__add(s, refl_mesh_torus(0.6f, 0.25f, 32, 16, a, &m), &m, &red, refl__at(2.6f, 0.25f, 1.6f),
+                       "torus")) < 0)
         return (refl_result)k;
-    /* the torus rests against the teapot's body (radius 2 at y = 1.2) */
-    if ((k = refl__add(s, refl_mesh_torus(0.6f, 0.25f, 32, 16, a, &m), m, &red,
-                       refl_mat4_mul(refl__at(2.5f, 0.25f, 0.9f), refl_mat4_identity()), "torus")) < 0)
-        return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), m, &green, refl__at(-2.6f, 0.7f, 1.4f),
-                       "sphere")) < 0)
-        return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), m, &blue,
+    {
+        float front = refl__front_extent(s->meshes[s->objects[teapot].mesh], 0.7f);
+        if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), &m, &green,
+                           refl__at(0.0f, 0.7f, front + 0.7f * 0.99f), "sphere")) < 0)
+            return (refl_result)k;
+    }
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), &m, &blue,
                        refl_mat4_mul(refl__at(0.6f, 0.6f, -3.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 0.6f)),
                        "box")) < 0)
         return (refl_result)k;
@@ -324,20 +341,20 @@ static refl_result refl__scene_mirror_room(refl_scene *s, const refl_allocator *
     refl_mesh *m = NULL;
     refl_result r;
     int k, w;
-    if ((r = refl__stage(s, a, 12.0f, refl_v3(1.5f, 2.5f, 4.0f), refl_v3(0.0f, 1.0f, 0.0f))) != REFL_OK) return r;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(1.8f, 2.2f, 2.4f), refl_v3(-1.0f, 1.0f, -1.5f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
     for (w = 0; w < 4; ++w) { /* a wall mirror 6 wide, 3 high, facing the centre */
         refl_mat4 t = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), (float)(w * REFL__PI / 2)),
                                     refl_mat4_mul(refl__at(0.0f, 1.5f, -3.0f),
                                                   refl_mat4_mul(refl_mat4_rotate(refl_v3(1, 0, 0), (float)(REFL__PI / 2)),
                                                                 refl_mat4_scale(refl_v3(1.0f, 1.0f, 0.5f)))));
-        if ((k = refl__add(s, refl_mesh_plane(6.0f, 1, a, &m), m, &mirror, t, "wall mirror")) < 0)
+        if ((k = refl__add(s, refl_mesh_plane(6.0f, 1, a, &m), &m, &mirror, t, "wall mirror")) < 0)
             return (refl_result)k;
     }
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &orange,
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
                        refl_mat4_scale(refl_v3(0.4f, 0.4f, 0.4f)), "teapot")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.4f, 24, 12, a, &m), m, &teal, refl__at(1.2f, 0.4f, 0.8f), "sphere")) < 0)
+    if ((k = refl__add(s, refl_mesh_sphere(0.4f, 24, 12, a, &m), &m, &teal, refl__at(1.2f, 0.4f, 0.8f), "sphere")) < 0)
         return (refl_result)k;
     return REFL_OK;
 }
@@ -397,9 +414,9 @@ static refl_result refl__scene_concave(refl_scene *s, const refl_allocator *a, i
     (void)tess;
     if ((r = refl__stage(s, a, 20.0f, refl_v3(0.0f, 3.5f, 6.0f), refl_v3(0.0f, 3.0f, -1.5f))) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
-    if ((k = refl__add(s, refl__bowl(3.0f, a, &m), m, &mirror, refl__at(0.0f, 3.0f, 0.0f), "concave mirror")) < 0)
+    if ((k = refl__add(s, refl__bowl(3.0f, a, &m), &m, &mirror, refl__at(0.0f, 3.0f, 0.0f), "concave mirror")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_sphere(0.3f, 24, 12, a, &m), m, &yellow, refl__at(0.0f, 3.0f, -1.5f),
+    if ((k = refl__add(s, refl_mesh_sphere(0.3f, 24, 12, a, &m), &m, &yellow, refl__at(0.0f, 3.0f, -1.5f),
                        "ball at focus")) < 0)
         return (refl_result)k;
     return REFL_OK;
@@ -420,14 +437,14 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     slab.ior = 1.5f;
     slab.fresnel = 1;
     slab.attenuation = 0.2f;
-    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), m, &slab, refl__at(2.2f, 0.75f, 1.0f),
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), &m, &slab, refl__at(2.2f, 0.75f, 1.0f),
                        "glass slab")) < 0)
         return (refl_result)k;
     for (j = 0; j < 4; ++j) /* tiles behind the glass, so refraction shows */
         for (i = 0; i < 8; ++i)
-            if ((k = refl__add(s, refl_mesh_box(refl_v3(1.0f, 0.05f, 1.0f), a, &m), m, (i + j) & 1 ? &dark : &light,
+            if ((k = refl__add(s, refl_mesh_box(refl_v3(1.0f, 0.05f, 1.0f), a, &m), &m, (i + j) & 1 ? &dark : &light,
                                refl__at(-3.5f + (float)i, 0.025f, -1.5f - (float)j), "tile")) < 0)
                 return (refl_result)k;
     return REFL_OK;
