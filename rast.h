@@ -169,6 +169,7 @@ typedef struct rast_context_desc {
 
 /* On failure *out_ctx is NULL (as is *out_tex of rast_texture_create). */
 RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_context **out_ctx);
+/* Drops queued work (call rast_finish first to keep it). */
 RAST_API void rast_context_destroy(rast_context *ctx);
 RAST_API int rast_context_threads(const rast_context *ctx);
 
@@ -1014,8 +1015,13 @@ static void rast__free_pipes(rast_context *ctx) {
 
 RAST_API void rast_context_destroy(rast_context *ctx) {
     rast_allocator alloc;
+    int i;
     if (!ctx) return;
-    rast__flush(ctx);
+    /* queued work is dropped, not run: its callbacks' user data may be gone */
+    for (i = 0; i < ctx->cmd_count; ++i) {
+        rast__free(&ctx->alloc, ctx->cmds[i].vout);
+        rast__free(&ctx->alloc, ctx->cmds[i].vout_count);
+    }
     rast__pool_destroy(ctx->pool);
     rast__free_pipes(ctx);
     rast__free_chunks(ctx);

@@ -167,6 +167,7 @@ typedef struct rast_context_desc {
 
 /* On failure *out_ctx is NULL (as is *out_tex of rast_texture_create). */
 RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_context **out_ctx);
+/* Drops queued work (call rast_finish first to keep it). */
 RAST_API void rast_context_destroy(rast_context *ctx);
 RAST_API int rast_context_threads(const rast_context *ctx);
 

@@ -81,8 +81,13 @@ static void rast__free_pipes(rast_context *ctx) {
 
 RAST_API void rast_context_destroy(rast_context *ctx) {
     rast_allocator alloc;
+    int i;
     if (!ctx) return;
-    rast__flush(ctx);
+    /* queued work is dropped, not run: its callbacks' user data may be gone */
+    for (i = 0; i < ctx->cmd_count; ++i) {
+        rast__free(&ctx->alloc, ctx->cmds[i].vout);
+        rast__free(&ctx->alloc, ctx->cmds[i].vout_count);
+    }
     rast__pool_destroy(ctx->pool);
     rast__free_pipes(ctx);
     rast__free_chunks(ctx);

@@ -304,7 +304,7 @@ static float refl__front_extent(const refl_mesh *m, float y) {
 }
 
 /* default: a mirror teapot on a floor with diffuse objects close to it,
-   the sphere touching it (overlapping by 1% of its radius). */
+   the sphere touching it (overlapping by 3% of its radius). */
 static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, int tess) {
     refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
     refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
@@ -323,7 +323,7 @@ static refl_result refl__scene_default(refl_scene *s, const refl_allocator *a, i
     {
         float front = refl__front_extent(s->meshes[s->objects[teapot].mesh], 0.7f);
         if ((k = refl__add(s, refl_mesh_sphere(0.7f, 32, 16, a, &m), &m, &green,
-                           refl__at(0.0f, 0.7f, front + 0.7f * 0.99f), "sphere")) < 0)
+                           refl__at(0.0f, 0.7f, front + 0.7f * 0.97f), "sphere")) < 0)
             return (refl_result)k;
     }
     if ((k = refl__add(s, refl_mesh_box(refl_v3(1.2f, 1.2f, 1.2f), a, &m), &m, &blue,
