@@ -1,0 +1,341 @@
+/* reflect: the command-line face of reflect.h.
+
+     reflect render [SCENE.glb | --builtin NAME] [options]   render one frame
+     reflect info   [SCENE.glb | --builtin NAME]             describe a scene
+     reflect --help | reflect COMMAND --help
+
+   Scenes come from glTF files (tools/gltf_load) or the built-in scenes;
+   images go out through OpenImageIO (tools/image_io). */
+#define _POSIX_C_SOURCE 200809L
+#define RAST_IMPLEMENTATION
+#define REFL_IMPLEMENTATION
+#include "../reflect.h"
+#include "gltf_load.h"
+#include "image_io.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static const char *const usage_main =
+    "usage: reflect COMMAND [options]\n"
+    "\n"
+    "commands:\n"
+    "  render   render one frame of a scene with one method to an image\n"
+    "  info     list a scene's objects, materials, triangles and bounds\n"
+    "\n"
+    "'reflect COMMAND --help' describes each command.\n";
+
+static const char *const usage_render =
+    "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
+    "\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
+    "  --method M         direct (more methods arrive with later work)\n"
+    "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
+    "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
+    "  --target X,Y,Z     point looked at     } else one framing the scene\n"
+    "  --up X,Y,Z         up direction (default 0,1,0)\n"
+    "  --fov DEGREES      vertical field of view (default 45)\n"
+    "  --env FILE         environment: an equirectangular image, or a pattern\n"
+    "                     with %s for six faces px nx py ny pz nz\n"
+    "  --normalize SIZE   scale a glTF scene to this bounding-box diagonal\n"
+    "  --tess N           teapot patches N x N for built-in scenes (default 8)\n"
+    "  --threads N        worker threads (default: one per CPU)\n"
+    "  --out FILE         output image, format by extension (default out.png)\n"
+    "  --stats            print timings and model sizes\n";
+
+static const char *const usage_info =
+    "usage: reflect info [SCENE.glb | --builtin NAME] [--normalize SIZE] [--tess N]\n"
+    "\n"
+    "Prints the objects (mesh, triangles, material), the materials, the\n"
+    "lights, the camera and the scene's bounds.\n";
+
+typedef struct options {
+    const char *file, *builtin, *method, *env, *out;
+    int width, height, threads, tess, stats;
+    int has_eye, has_target, has_up;
+    refl_vec3 eye, target, up;
+    float fov, normalize;
+} options;
+
+static int fail(const char *fmt, const char *arg) {
+    fprintf(stderr, "reflect: ");
+    fprintf(stderr, fmt, arg);
+    fprintf(stderr, "\n");
+    return 2;
+}
+
+static int parse_vec3(const char *s, refl_vec3 *v) {
+    char extra;
+    return sscanf(s, "%f,%f,%f%c", &v->x, &v->y, &v->z, &extra) == 3 && refl__isfinite(v->x) &&
+           refl__isfinite(v->y) && refl__isfinite(v->z);
+}
+
+static int parse_int(const char *s, int lo, int hi, int *out) {
+    char *end;
+    long v = strtol(s, &end, 10);
+    if (*s == '\0' || *end != '\0' || v < lo || v > hi) return 0;
+    *out = (int)v;
+    return 1;
+}
+
+static int parse_float(const char *s, float lo, float hi, float *out) {
+    char *end;
+    double v = strtod(s, &end);
+    if (*s == '\0' || *end != '\0' || !(v >= lo && v <= hi)) return 0;
+    *out = (float)v;
+    return 1;
+}
+
+/* Parses argv[2..]; returns 0, 1 after --help, or 2 after an error. */
+static int parse(int argc, char **argv, int is_render, options *o) {
+    int i;
+    memset(o, 0, sizeof(*o));
+    o->out = "out.png";
+    for (i = 2; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats");
+        if (takes && !v) return fail("%s needs a value", a);
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            fputs(is_render ? usage_render : usage_info, stdout);
+            return 1;
+        } else if (!strcmp(a, "--builtin")) {
+            o->builtin = v;
+        } else if (!strcmp(a, "--normalize")) {
+            if (!parse_float(v, 1e-6f, 1e9f, &o->normalize)) return fail("--normalize: not a positive size: %s", v);
+        } else if (!strcmp(a, "--tess")) {
+            if (!parse_int(v, 1, 64, &o->tess)) return fail("--tess: expected 1..64, got %s", v);
+        } else if (!is_render) {
+            if (a[0] == '-') return fail("info: unknown option %s (see reflect info --help)", a);
+            if (o->file) return fail("info: more than one scene given (%s)", a);
+            o->file = a;
+            continue;
+        } else if (!strcmp(a, "--method")) {
+            o->method = v;
+        } else if (!strcmp(a, "--size")) {
+            char extra;
+            if (sscanf(v, "%dx%d%c", &o->width, &o->height, &extra) != 2 || o->width <= 0 || o->height <= 0 ||
+                o->width > RAST_MAX_TARGET_SIZE || o->height > RAST_MAX_TARGET_SIZE)
+                return fail("--size: expected WxH, each 1..16384, got %s", v);
+        } else if (!strcmp(a, "--eye")) {
+            if (!(o->has_eye = parse_vec3(v, &o->eye))) return fail("--eye: expected X,Y,Z, got %s", v);
+        } else if (!strcmp(a, "--target")) {
+            if (!(o->has_target = parse_vec3(v, &o->target))) return fail("--target: expected X,Y,Z, got %s", v);
+        } else if (!strcmp(a, "--up")) {
+            if (!(o->has_up = parse_vec3(v, &o->up))) return fail("--up: expected X,Y,Z, got %s", v);
+        } else if (!strcmp(a, "--fov")) {
+            if (!parse_float(v, 1.0f, 179.0f, &o->fov)) return fail("--fov: expected 1..179 degrees, got %s", v);
+        } else if (!strcmp(a, "--env")) {
+            o->env = v;
+        } else if (!strcmp(a, "--threads")) {
+            if (!parse_int(v, 1, RAST_MAX_THREADS, &o->threads)) return fail("--threads: expected 1..64, got %s", v);
+        } else if (!strcmp(a, "--out")) {
+            o->out = v;
+        } else if (!strcmp(a, "--stats")) {
+            o->stats = 1;
+            continue;
+        } else if (a[0] == '-') {
+            return fail("render: unknown option %s (see reflect render --help)", a);
+        } else {
+            if (o->file) return fail("render: more than one scene given (%s)", a);
+            o->file = a;
+            continue;
+        }
+        ++i; /* the option's value */
+    }
+    if (!o->file == !o->builtin) return fail("%s", "give one scene: a glTF file or --builtin NAME");
+    return 0;
+}
+
+/* Loads the scene the options name; prints why not and returns NULL. */
+static refl_scene *load_scene(const options *o) {
+    refl_scene *s = NULL;
+    refl_result r;
+    char err[1024] = "";
+    if (o->builtin) {
+        refl_builtin_desc bd;
+        memset(&bd, 0, sizeof bd);
+        bd.teapot_tess = o->tess;
+        r = refl_scene_builtin(o->builtin, &bd, &s);
+        if (r == REFL_ERROR_UNKNOWN_NAME) {
+            const char *const *n = refl_builtin_names();
+            fprintf(stderr, "reflect: no built-in scene '%s'; there are:", o->builtin);
+            for (; *n; ++n) fprintf(stderr, " %s", *n);
+            fprintf(stderr, "\n");
+            return NULL;
+        }
+        if (r != REFL_OK) {
+            fprintf(stderr, "reflect: built-in scene '%s': %s\n", o->builtin, refl_result_string(r));
+            return NULL;
+        }
+        if (o->normalize > 0.0f) refl_scene_normalize(s, o->normalize);
+        return s;
+    } else {
+        refl_gltf_options go;
+        memset(&go, 0, sizeof go);
+        go.normalize_size = o->normalize;
+        r = refl_gltf_load(o->file, &go, &s, err, sizeof err);
+        if (r != REFL_OK) {
+            fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
+            return NULL;
+        }
+        if (err[0]) fprintf(stderr, "reflect: warning: %s%s", err, err[strlen(err) - 1] == '\n' ? "" : "\n");
+    }
+    return s;
+}
+
+/* A scene from a file may have no lights or camera: add a key light from
+   above and behind the viewer, and a camera framing the bounds. */
+static void complete_scene(refl_scene *s) {
+    refl_vec3 lo, hi, c;
+    float diag;
+    refl_scene_bounds(s, &lo, &hi);
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    diag = refl_v3_length(refl_v3_sub(hi, lo));
+    if (!(diag > 0.0f)) diag = 1.0f;
+    if (!s->has_camera) {
+        s->camera.eye = refl_v3_add(c, refl_v3(0.35f * diag, 0.45f * diag, 1.1f * diag));
+        s->camera.target = c;
+        s->camera.up = refl_v3(0, 1, 0);
+        s->camera.fovy_degrees = 45.0f;
+        s->has_camera = 1;
+    }
+    if (!s->light_count) {
+        refl_light key;
+        memset(&key, 0, sizeof key);
+        key.type = REFL_LIGHT_DIRECTIONAL;
+        key.direction = refl_v3_normalize(refl_v3(-0.4f, -1.0f, -0.6f));
+        key.color[0] = key.color[1] = key.color[2] = 0.9f;
+        refl_scene_add_light(s, &key);
+    }
+    if (refl_v3_length(s->camera.up) == 0.0f) s->camera.up = refl_v3(0, 1, 0);
+}
+
+static void progress_bar(void *user, float done) {
+    int i, n = (int)(done * 30.0f + 0.5f);
+    (void)user;
+    fprintf(stderr, "\r[");
+    for (i = 0; i < 30; ++i) fputc(i < n ? '#' : ' ', stderr);
+    fprintf(stderr, "] %3d%%%s", (int)(done * 100.0f + 0.5f), done >= 1.0f ? "\n" : "");
+    fflush(stderr);
+}
+
+static int cmd_render(const options *o) {
+    refl_scene *s = load_scene(o);
+    refl_frame *f = NULL;
+    refl_view v;
+    refl_render_desc d;
+    refl_result r;
+    char err[1024] = "";
+    int code = 1;
+    if (!s) return 1;
+    complete_scene(s);
+    if (o->env) {
+        refl_environment env;
+        if ((r = refl_env_load(o->env, &env, NULL, err, sizeof err)) != REFL_OK) {
+            fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
+            goto done;
+        }
+        r = refl_scene_set_environment(s, &env);
+        refl_env_free(&env, NULL);
+        if (r != REFL_OK) {
+            fprintf(stderr, "reflect: %s: %s\n", o->env, refl_result_string(r));
+            goto done;
+        }
+    }
+    v = s->camera;
+    if (o->has_eye) v.eye = o->eye;
+    if (o->has_target) v.target = o->target;
+    if (o->has_up) v.up = o->up;
+    if (o->fov > 0.0f) v.fovy_degrees = o->fov;
+    v.width = o->width ? o->width : (v.width > 0 ? v.width : 640);
+    v.height = o->height ? o->height : (v.height > 0 ? v.height : 480);
+    memset(&d, 0, sizeof d);
+    d.threads = o->threads;
+    if (o->method && !(d.method = refl_method_from_name(o->method))) {
+        fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
+        goto done;
+    }
+    if (isatty(2)) d.progress = progress_bar;
+    if ((r = refl_frame_create(v.width, v.height, NULL, &f)) != REFL_OK) {
+        fprintf(stderr, "reflect: frame %dx%d: %s\n", v.width, v.height, refl_result_string(r));
+        goto done;
+    }
+    if ((r = refl_render(s, &v, &d, f)) != REFL_OK) {
+        fprintf(stderr, "reflect: render with %s: %s\n", refl_method_name(d.method), refl_result_string(r));
+        goto done;
+    }
+    if ((r = refl_image_write(o->out, f->width, f->height, 4, f->color, NULL, err, sizeof err)) != REFL_OK) {
+        fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
+        goto done;
+    }
+    if (o->stats) {
+        const refl_stats *st = &f->stats;
+        printf("method       %s\n", refl_method_name(d.method));
+        printf("size         %dx%d\n", f->width, f->height);
+        printf("total ms     %.2f\n", st->ms_total);
+        printf("  build ms   %.2f\n  base ms    %.2f\n  reflect ms %.2f\n  compose ms %.2f\n", st->ms_build,
+               st->ms_base, st->ms_reflect, st->ms_composite);
+        printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
+               st->triangles, st->points, st->cameras, st->leaves, st->layers);
+        printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
+    }
+    code = 0;
+done:
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+    return code;
+}
+
+static const char *material_type_name(refl_material_type t) {
+    switch (t) {
+    case REFL_MIRROR: return "mirror";
+    case REFL_GLASS: return "glass";
+    case REFL_PARTIAL: return "partial";
+    default: return "diffuse";
+    }
+}
+
+static int cmd_info(const options *o) {
+    refl_scene *s = load_scene(o);
+    refl_vec3 lo, hi;
+    int i;
+    if (!s) return 1;
+    refl_scene_bounds(s, &lo, &hi);
+    printf("scene        %s\n", o->file ? o->file : o->builtin);
+    printf("objects      %d\nmeshes       %d\nmaterials    %d\nlights       %d\ntextures     %d\n", s->object_count,
+           s->mesh_count, s->material_count, s->light_count, s->texture_count);
+    printf("triangles    %lld\n", refl_scene_triangles(s));
+    printf("bounds       (%g, %g, %g) .. (%g, %g, %g)\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+    if (s->has_camera)
+        printf("camera       eye (%g, %g, %g) target (%g, %g, %g) fovy %g\n", s->camera.eye.x, s->camera.eye.y,
+               s->camera.eye.z, s->camera.target.x, s->camera.target.y, s->camera.target.z,
+               s->camera.fovy_degrees);
+    printf("\n%-4s %-24s %10s  %-8s %s\n", "#", "object", "triangles", "type", "material");
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_object *ob = &s->objects[i];
+        const refl_material *m = &s->materials[ob->material];
+        printf("%-4d %-24.24s %10d  %-8s %s\n", i, ob->name[0] ? ob->name : "-", s->meshes[ob->mesh]->triangle_count,
+               material_type_name(m->type), m->name[0] ? m->name : "-");
+    }
+    refl_scene_destroy(s);
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    options o;
+    int r;
+    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        fputs(usage_main, argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    if (!strcmp(argv[1], "render") || !strcmp(argv[1], "info")) {
+        int is_render = !strcmp(argv[1], "render");
+        r = parse(argc, argv, is_render, &o);
+        if (r) return r == 1 ? 0 : 2;
+        return is_render ? cmd_render(&o) : cmd_info(&o);
+    }
+    fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);
+    return 2;
+}
