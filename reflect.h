@@ -1166,7 +1166,7 @@ REFL_API float refl_rng_float(refl_rng *rng) {
        in order of first appearance, so the result is deterministic.
        Attributes are interpolated at midpoints (normals renormalised). More
        than 2^26 triangles is REFL_ERROR_INVALID_SIZE, checked up front by a
-       lower bound and again every round.
+       lower bound (edge pieces and area) and again every round.
 
    SAMPLING
        Count: floor(area * density), plus one with probability equal to the
@@ -1570,20 +1570,30 @@ REFL_API refl_result refl_mesh_subdivide(const refl_mesh *mesh, float max_edge, 
     *out_mesh = NULL;
     if (!mesh || !mesh->positions || !mesh->normals || !mesh->indices) return REFL_ERROR_INVALID_ARGUMENT;
     if (!(max_edge > 0.0f)) return REFL_ERROR_INVALID_ARGUMENT; /* NaN too */
-    /* Lower bound of the result: a triangle's longest edge ends up in at
-       least 2^j pieces, each on its own triangle, where j is how often it
-       halves while staying clearly above max_edge. */
+    /* Lower bound of the result, per triangle: its longest edge ends up in
+       at least 2^j pieces, each on its own triangle, where j is how often
+       it halves while staying clearly above max_edge; and its area is
+       covered by triangles of area at most sqrt(3)/4 max_edge^2. */
     for (t = 0; t < mesh->triangle_count && bound <= REFL__MAX_TRIANGLES; ++t) {
         const uint32_t *tri = mesh->indices + 3 * t;
-        double l2 = REFL__MAX(REFL__MAX(refl__dist2(mesh->positions, tri[0], tri[1]),
-                                        refl__dist2(mesh->positions, tri[1], tri[2])),
-                              refl__dist2(mesh->positions, tri[2], tri[0]));
-        double pieces = 1.0;
+        const float *p = mesh->positions;
+        double e1[3], e2[3], c[3], area, pieces = 1.0;
+        double l2 = REFL__MAX(REFL__MAX(refl__dist2(p, tri[0], tri[1]), refl__dist2(p, tri[1], tri[2])),
+                              refl__dist2(p, tri[2], tri[0]));
+        int k;
+        for (k = 0; k < 3; ++k) {
+            e1[k] = (double)p[3 * tri[1] + k] - p[3 * tri[0] + k];
+            e2[k] = (double)p[3 * tri[2] + k] - p[3 * tri[0] + k];
+        }
+        c[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        c[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        area = 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
         while (l2 > max2 * 1.0001 && pieces <= REFL__MAX_TRIANGLES) {
             pieces *= 2.0;
             l2 *= 0.25;
         }
-        bound += pieces;
+        bound += REFL__MAX(pieces, 0.999 * area / (0.43301270189221935 * max2));
     }
     if (bound > REFL__MAX_TRIANGLES) return REFL_ERROR_INVALID_SIZE;
     /* Edges shrink towards max_edge geometrically; 200 rounds is far beyond

@@ -291,7 +291,7 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     int blend_k;
     memcpy(rgba, r->rgba, sizeof(rgba));
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
-    blend_k = !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
+    blend_k = want_color && !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
     if (p->stencil_on && !p->depth_on && !want_color) {
         /* a pure stencil pass: one table lookup per pixel */
