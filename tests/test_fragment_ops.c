@@ -1231,3 +1231,31 @@ Test(fragment_ops, fullscreen_stencil_passes) {
     rast_context_destroy(ctx);
     tu_fb_free(&fb);
 }
+
+/* Fast paths must not assume a colour target: blended rectangles and
+   constant-colour triangles over depth + stencil only still run their
+   stencil ops (GL: the blend state is irrelevant without colour). */
+Test(fragment_ops, blending_without_colour_target) {
+    rast_context *ctx = tu_ctx(2, 32);
+    tu_fb fb;
+    rast_state s;
+    static const float rgba[4] = {0.5f, 0.25f, 1.0f, 0.5f};
+    const float tri[3 * 8] = {-1, -1, 0, 1, 1, 0, 0, 1, 3, -1, 0, 1, 1, 0, 0, 1, -1, 3, 0, 1, 1, 0, 0, 1};
+    int x, y;
+    tu_fb_init(&fb, 48, 40, TU_DEPTH | TU_STENCIL);
+    tu_fb_bind(ctx, &fb);
+    memset(&s, 0, sizeof s);
+    s.blend = 1;
+    s.blend_src_rgb = s.blend_src_alpha = RAST_SRC_ALPHA;
+    s.blend_dst_rgb = s.blend_dst_alpha = RAST_ONE_MINUS_SRC_ALPHA;
+    s.stencil_test = 1;
+    s.stencil_front.pass = s.stencil_back.pass = RAST_INCR;
+    tu_set_state(ctx, &s);
+    cr_assert_eq(rast_draw_fullscreen(ctx, 0.5f, rgba), RAST_OK);
+    cr_assert_eq(tu_draw(ctx, RAST_TRIANGLES, tri, 3, 4), RAST_OK);
+    tu_finish(ctx);
+    for (y = 0; y < 40; y++)
+        for (x = 0; x < 48; x++) cr_assert_eq(*tu_sten(&fb, x, y), 2, "(%d,%d)", x, y);
+    rast_context_destroy(ctx);
+    tu_fb_free(&fb);
+}
