@@ -1250,6 +1250,8 @@ Test(fragment_ops, blending_without_colour_target) {
     s.blend_dst_rgb = s.blend_dst_alpha = RAST_ONE_MINUS_SRC_ALPHA;
     s.stencil_test = 1;
     s.stencil_front.pass = s.stencil_back.pass = RAST_INCR;
+    s.depth_test = 1; /* with depth, not the pure-stencil rectangle loop */
+    s.depth_func = RAST_ALWAYS;
     tu_set_state(ctx, &s);
     cr_assert_eq(rast_draw_fullscreen(ctx, 0.5f, rgba), RAST_OK);
     cr_assert_eq(tu_draw(ctx, RAST_TRIANGLES, tri, 3, 4), RAST_OK);
