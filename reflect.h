@@ -644,13 +644,13 @@ REFL_API int refl_mat4_invert(refl_mat4 a, refl_mat4 *out) {
     det = m[0] * inv[0] + m[1] * inv[4] + m[2] * inv[8] + m[3] * inv[12];
     if (!(fabs(det) > 1e-10 * bound) || !(fabs(det) <= DBL_MAX) || !(bound <= DBL_MAX)) return 0;
     {
-        refl_mat4 r;
+        refl_mat4 res;
         for (i = 0; i < 16; ++i) {
             double v = inv[i] / det;
             if (!(fabs(v) <= FLT_MAX)) return 0; /* not representable in float */
-            r.m[i] = (float)v;
+            res.m[i] = (float)v;
         }
-        if (out) *out = r;
+        if (out) *out = res;
     }
     return 1;
 }
@@ -1174,7 +1174,8 @@ REFL_API float refl_rng_float(refl_rng *rng) {
        area * density. Each point then takes two draws for a 53-bit uniform
        that picks its triangle by binary search in the cumulative areas
        (double, transformed triangles), and two floats r1, r2 for the point
-       (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). Only IEEE arithmetic and
+       (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). More than 2^28 expected
+       points is REFL_ERROR_INVALID_SIZE. Only IEEE arithmetic and
        sqrt: the same points on every machine, provided the compiler does
        not fuse multiply-adds (clang is told not to here; GCC fuses only
        in GNU modes on FMA targets such as aarch64: build the

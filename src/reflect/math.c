@@ -183,13 +183,13 @@ REFL_API int refl_mat4_invert(refl_mat4 a, refl_mat4 *out) {
     det = m[0] * inv[0] + m[1] * inv[4] + m[2] * inv[8] + m[3] * inv[12];
     if (!(fabs(det) > 1e-10 * bound) || !(fabs(det) <= DBL_MAX) || !(bound <= DBL_MAX)) return 0;
     {
-        refl_mat4 r;
+        refl_mat4 res;
         for (i = 0; i < 16; ++i) {
             double v = inv[i] / det;
             if (!(fabs(v) <= FLT_MAX)) return 0; /* not representable in float */
-            r.m[i] = (float)v;
+            res.m[i] = (float)v;
         }
-        if (out) *out = r;
+        if (out) *out = res;
     }
     return 1;
 }

@@ -27,7 +27,8 @@
        area * density. Each point then takes two draws for a 53-bit uniform
        that picks its triangle by binary search in the cumulative areas
        (double, transformed triangles), and two floats r1, r2 for the point
-       (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). Only IEEE arithmetic and
+       (1 - sqrt r1, sqrt r1 (1 - r2), sqrt r1 r2). More than 2^28 expected
+       points is REFL_ERROR_INVALID_SIZE. Only IEEE arithmetic and
        sqrt: the same points on every machine, provided the compiler does
        not fuse multiply-adds (clang is told not to here; GCC fuses only
        in GNU modes on FMA targets such as aarch64: build the
