@@ -6,6 +6,9 @@
 #include <string.h>
 #include <float.h>
 #include <limits.h>
+#if defined(__SSE2__) || defined(_M_X64)
+#include <emmintrin.h>
+#endif
 
 #ifndef RAST_ASSERT
 #include <assert.h>
@@ -59,15 +62,42 @@ static int64_t rast__round(float v) {
 /* Clamp and round to 8 bits; written so compilers emit min/max, not
    branches. NaN fails both comparisons and lands on 0. */
 static uint8_t rast__to_unorm8(float v) {
+    v = v * 255.0f + 0.5f;
     v = v > 0.0f ? v : 0.0f;
-    v = v < 1.0f ? v : 1.0f;
-    return (uint8_t)(int)(v * 255.0f + 0.5f);
+    v = v < 255.5f ? v : 255.5f;
+    return (uint8_t)(int)v;
 }
 
-/* Packs a colour for an RGBA8 target (little-endian byte order R, G, B, A). */
+/* Packs a colour as the 4 bytes R, G, B, A in memory order (so a memcpy of
+   the result writes an RGBA8 pixel on any byte order). With SSE2 the same
+   arithmetic (max, min, truncation) runs on all four channels at once;
+   max(v, 0) returns 0 for NaN exactly like the scalar comparison. */
 static uint32_t rast__pack_rgba8(const float c[4]) {
-    return (uint32_t)rast__to_unorm8(c[0]) | ((uint32_t)rast__to_unorm8(c[1]) << 8) |
-           ((uint32_t)rast__to_unorm8(c[2]) << 16) | ((uint32_t)rast__to_unorm8(c[3]) << 24);
+#if defined(__SSE2__) || defined(_M_X64)
+    __m128 v = _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(c), _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
+    __m128i i;
+    uint32_t out;
+    v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.5f));
+    i = _mm_cvttps_epi32(v);
+    i = _mm_packs_epi32(i, i);
+    i = _mm_packus_epi16(i, i);
+    out = (uint32_t)_mm_cvtsi128_si32(i);
+    {   /* memory order: on little-endian x86 the low byte is R already */
+        uint8_t b[4];
+        b[0] = (uint8_t)out; b[1] = (uint8_t)(out >> 8); b[2] = (uint8_t)(out >> 16); b[3] = (uint8_t)(out >> 24);
+        memcpy(&out, b, 4);
+    }
+    return out;
+#else
+    uint8_t b[4];
+    uint32_t v;
+    b[0] = rast__to_unorm8(c[0]);
+    b[1] = rast__to_unorm8(c[1]);
+    b[2] = rast__to_unorm8(c[2]);
+    b[3] = rast__to_unorm8(c[3]);
+    memcpy(&v, b, 4);
+    return v;
+#endif
 }
 
 /* ---- comparisons and stencil ops, GL semantics ---- */
