@@ -547,9 +547,10 @@ static uint8_t rast__to_unorm8(float v) {
    the result writes an RGBA8 pixel on any byte order). With SSE2 the same
    arithmetic (max, min, truncation) runs on all four channels at once;
    max(v, 0) returns 0 for NaN exactly like the scalar comparison. */
-static uint32_t rast__pack_rgba8(const float c[4]) {
 #if defined(__SSE2__) || defined(_M_X64)
-    __m128 v = _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(c), _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
+#define RAST__SSE2 1
+static uint32_t rast__pack_rgba8_v(__m128 c) {
+    __m128 v = _mm_add_ps(_mm_mul_ps(c, _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
     __m128i i;
     uint32_t out;
     v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.5f));
@@ -563,6 +564,12 @@ static uint32_t rast__pack_rgba8(const float c[4]) {
         memcpy(&out, b, 4);
     }
     return out;
+}
+#endif
+
+static uint32_t rast__pack_rgba8(const float c[4]) {
+#ifdef RAST__SSE2
+    return rast__pack_rgba8_v(_mm_loadu_ps(c));
 #else
     uint8_t b[4];
     uint32_t v;
@@ -2520,6 +2527,27 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
             return;
         }
     }
+#ifdef RAST__SSE2
+    if (crow && p->plain_color && !fb->color_f32 && di->nvar >= 4) {
+        /* the colour as one vector: no per-channel stores to reload */
+        const __m128 v0 = _mm_setr_ps(vd[0], vd[3], vd[6], vd[9]);
+        const __m128 d1 = _mm_setr_ps(vd[1], vd[4], vd[7], vd[10]);
+        const __m128 d2 = _mm_setr_ps(vd[2], vd[5], vd[8], vd[11]);
+        for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+            float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area, w, z;
+            uint32_t packed;
+            z = t->z[0] + l1 * dz1 + l2 * dz2;
+            z = RAST__CLAMP(z, 0.0f, 1.0f);
+            if (!rast__depth_simple(p, drow, x, z)) continue;
+            w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
+            /* (v0 + b1 d1) + b2 d2: the scalar paths' order, same bits */
+            packed = rast__pack_rgba8_v(_mm_add_ps(_mm_add_ps(v0, _mm_mul_ps(_mm_set1_ps(l1 * t->iw[1] * w), d1)),
+                                                   _mm_mul_ps(_mm_set1_ps(l2 * t->iw[2] * w), d2)));
+            memcpy(crow + 4 * x, &packed, 4);
+        }
+        return;
+    }
+#endif
     for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
         float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
         float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];

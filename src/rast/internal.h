@@ -72,9 +72,10 @@ static uint8_t rast__to_unorm8(float v) {
    the result writes an RGBA8 pixel on any byte order). With SSE2 the same
    arithmetic (max, min, truncation) runs on all four channels at once;
    max(v, 0) returns 0 for NaN exactly like the scalar comparison. */
-static uint32_t rast__pack_rgba8(const float c[4]) {
 #if defined(__SSE2__) || defined(_M_X64)
-    __m128 v = _mm_add_ps(_mm_mul_ps(_mm_loadu_ps(c), _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
+#define RAST__SSE2 1
+static uint32_t rast__pack_rgba8_v(__m128 c) {
+    __m128 v = _mm_add_ps(_mm_mul_ps(c, _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
     __m128i i;
     uint32_t out;
     v = _mm_min_ps(_mm_max_ps(v, _mm_setzero_ps()), _mm_set1_ps(255.5f));
@@ -88,6 +89,12 @@ static uint32_t rast__pack_rgba8(const float c[4]) {
         memcpy(&out, b, 4);
     }
     return out;
+}
+#endif
+
+static uint32_t rast__pack_rgba8(const float c[4]) {
+#ifdef RAST__SSE2
+    return rast__pack_rgba8_v(_mm_loadu_ps(c));
 #else
     uint8_t b[4];
     uint32_t v;
