@@ -2466,8 +2466,10 @@ static void rast__store_color(const rast__pipe *p, const rast__fb *fb, uint8_t *
 
 /* Depth test and write for the simple path; nonzero when the pixel passes. */
 static int rast__depth_simple(const rast__pipe *p, float *drow, int x, float z) {
+    int pass;
     if (!drow) return 1;
-    if (!rast__compare_f(p->depth_func, z, drow[x])) return 0;
+    pass = p->depth_func == RAST_LESS ? z < drow[x] : rast__compare_f(p->depth_func, z, drow[x]);
+    if (!pass) return 0;
     if (p->depth_write) drow[x] = z;
     return 1;
 }
@@ -2770,7 +2772,9 @@ static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const
             if (depth) { /* branchless: random depths would mispredict half the time */
                 float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
                 float old = *dp;
-                pass = rast__compare_f(func, sp->z, old);
+                /* the usual functions inline: no call between load and store */
+                pass = func == RAST_LESS ? sp->z < old : func == RAST_LEQUAL ? sp->z <= old
+                                                                             : rast__compare_f(func, sp->z, old);
                 *dp = pass && write ? sp->z : old;
             }
             memcpy(&now, cp, 4);
