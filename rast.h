@@ -2321,47 +2321,64 @@ static void rast__shade_fixed(const rast__pipe *p, const float *var, int nvar,
 
 /* ---- whole-target operations, one tile at a time ---- */
 
+/* Clears: the first row of the rectangle is filled value by value, every
+   other row is a memcpy of it (a fill loop per row is most of a frame's
+   clear time otherwise). Masked channels go the slow way. */
+static void rast__fill_rows(uint8_t *base, size_t stride, int y0, int y1, size_t offset, size_t bytes) {
+    int y;
+    for (y = y0 + 1; y < y1; ++y)
+        memcpy(base + (size_t)y * stride + offset, base + (size_t)y0 * stride + offset, bytes);
+}
+
 static void rast__run_clear(const rast__pipe *p, const rast__fb *fb, const rast__clear_rec *r,
                             int x0, int y0, int x1, int y1) {
     int x, y, c;
     const rast_clear_desc *d = &r->c;
     unsigned smask = p->st_wmask[0];
-    uint8_t v8[4];
-    uint32_t v32;
-    float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
-    for (c = 0; c < 4; ++c) v8[c] = rast__to_unorm8(d->color[c]);
-    memcpy(&v32, v8, 4);
-    for (y = y0; y < y1; ++y) {
-        if ((d->flags & RAST_CLEAR_COLOR) && fb->color && p->color_write) {
-            uint8_t *row = fb->color + (size_t)y * (size_t)fb->color_stride;
+    size_t n = (size_t)(x1 - x0);
+    if ((d->flags & RAST_CLEAR_COLOR) && fb->color && p->color_write) {
+        if (p->color_write == RAST_WRITE_RGBA) {
+            uint8_t *row = fb->color + (size_t)y0 * (size_t)fb->color_stride;
             if (fb->color_f32) {
-                float *px = (float *)row;
-                for (x = x0; x < x1; ++x)
-                    for (c = 0; c < 4; ++c)
-                        if (p->color_write & (1u << c)) px[4 * x + c] = d->color[c];
-            } else if (p->color_write == RAST_WRITE_RGBA) {
-                for (x = x0; x < x1; ++x) memcpy(row + 4 * x, &v32, 4);
+                for (x = x0; x < x1; ++x) memcpy(row + 16 * (size_t)x, d->color, 16);
+                rast__fill_rows(fb->color, (size_t)fb->color_stride, y0, y1, 16 * (size_t)x0, 16 * n);
             } else {
+                uint32_t v32 = rast__pack_rgba8(d->color);
+                for (x = x0; x < x1; ++x) memcpy(row + 4 * (size_t)x, &v32, 4);
+                rast__fill_rows(fb->color, (size_t)fb->color_stride, y0, y1, 4 * (size_t)x0, 4 * n);
+            }
+        } else {
+            uint8_t v8[4];
+            for (c = 0; c < 4; ++c) v8[c] = rast__to_unorm8(d->color[c]);
+            for (y = y0; y < y1; ++y) {
+                uint8_t *row = fb->color + (size_t)y * (size_t)fb->color_stride;
                 for (x = x0; x < x1; ++x)
-                    for (c = 0; c < 4; ++c)
-                        if (p->color_write & (1u << c)) row[4 * x + c] = v8[c];
+                    for (c = 0; c < 4; ++c) {
+                        if (!(p->color_write & (1u << c))) continue;
+                        if (fb->color_f32) ((float *)row)[4 * x + c] = d->color[c];
+                        else row[4 * x + c] = v8[c];
+                    }
             }
         }
-        if ((d->flags & RAST_CLEAR_DEPTH) && fb->depth && !p->s.depth_write_disabled) {
-            float *row = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride);
-            for (x = x0; x < x1; ++x) row[x] = z;
-        }
-        if ((d->flags & RAST_CLEAR_STENCIL) && fb->stencil) {
+    }
+    if ((d->flags & RAST_CLEAR_DEPTH) && fb->depth && !p->s.depth_write_disabled) {
+        float *row = (float *)((uint8_t *)fb->depth + (size_t)y0 * (size_t)fb->depth_stride);
+        float z = RAST__CLAMP(d->depth, 0.0f, 1.0f);
+        for (x = x0; x < x1; ++x) row[x] = z;
+        rast__fill_rows((uint8_t *)fb->depth, (size_t)fb->depth_stride, y0, y1, 4 * (size_t)x0, 4 * n);
+    }
+    if ((d->flags & RAST_CLEAR_STENCIL) && fb->stencil) {
+        for (y = y0; y < y1; ++y) {
             uint8_t *row = fb->stencil + (size_t)y * (size_t)fb->stencil_stride;
-            if (smask == 0xFFu) memset(row + x0, d->stencil, (size_t)(x1 - x0));
+            if (smask == 0xFFu) memset(row + x0, d->stencil, n);
             else
                 for (x = x0; x < x1; ++x) row[x] = (uint8_t)((row[x] & ~smask) | (d->stencil & smask));
         }
-        if ((d->flags & RAST_CLEAR_ACCUM) && fb->accum) {
-            float *row = (float *)((uint8_t *)fb->accum + (size_t)y * (size_t)fb->accum_stride);
-            for (x = x0; x < x1; ++x)
-                for (c = 0; c < 4; ++c) row[4 * x + c] = d->accum[c];
-        }
+    }
+    if ((d->flags & RAST_CLEAR_ACCUM) && fb->accum) {
+        float *row = (float *)((uint8_t *)fb->accum + (size_t)y0 * (size_t)fb->accum_stride);
+        for (x = x0; x < x1; ++x) memcpy(row + 4 * x, d->accum, 16);
+        rast__fill_rows((uint8_t *)fb->accum, (size_t)fb->accum_stride, y0, y1, 16 * (size_t)x0, 16 * n);
     }
 }
 
