@@ -333,6 +333,32 @@ static void render(rast_context *ctx, frame *f, int float_color) {
     cr_assert_eq(rast_accum(ctx, RAST_ADD, -0.0625f), RAST_OK);
     cr_assert_eq(rast_accum(ctx, RAST_RETURN, 0.8f), RAST_OK);
     draw_arr(ctx, RAST_TRIANGLES, sc->tris + 8 * 3 * 2500, 3 * 300, 4, NULL, 0);
+
+    /* 8: the fast paths (no stencil, no callbacks): smooth colours, some in
+       perspective, with depth LESS (RGBA8 takes four pixels at a time, and
+       which pixels share a group depends on the tile), splatted points,
+       then constant-colour blended triangles through the blend table */
+    memset(&s, 0, sizeof s);
+    s.depth_test = 1;
+    tu_set_state(ctx, &s);
+    draw_arr(ctx, RAST_TRIANGLES, sc->tris + 8 * 3 * 500, 3 * 1500, 4, NULL, 0);
+    s.depth_func = RAST_LEQUAL;
+    s.point_size = 2;
+    tu_set_state(ctx, &s);
+    draw_arr(ctx, RAST_POINTS, sc->pts, 20000, 4, NULL, 0);
+    s.blend = 1;
+    s.blend_src_rgb = s.blend_src_alpha = RAST_SRC_ALPHA;
+    s.blend_dst_rgb = s.blend_dst_alpha = RAST_ONE_MINUS_SRC_ALPHA;
+    tu_set_state(ctx, &s);
+    {
+        rast_draw_desc d;
+        memset(&d, 0, sizeof d);
+        d.vertices = sc->tris + 8 * 3 * 2000;
+        d.vertex_count = 3 * 500;
+        d.stride = 8; /* positions only: the draw colour */
+        d.color[0] = 0.2f; d.color[1] = 0.7f; d.color[2] = 0.4f; d.color[3] = 0.6f;
+        cr_assert_eq(rast_draw(ctx, &d), RAST_OK);
+    }
     tu_finish(ctx);
 }
 

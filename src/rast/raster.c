@@ -79,6 +79,63 @@ typedef struct rast__span {
     int64_t e0, e2, s0, s2;
 } rast__span;
 
+/* Clamp to [0, 1] as max then min, NaN to 0: the same on the scalar and
+   the SSE2 paths (which must agree to the bit). */
+static float rast__clamp01(float v) {
+    v = v > 0.0f ? v : 0.0f;
+    return v < 1.0f ? v : 1.0f;
+}
+
+#ifdef RAST__SSE2
+/* Whole groups of four pixels of a simple span, RGBA8, interpolated colour,
+   depth LESS or LEQUAL (or none); advances *x, *e0, *e2 past them. */
+static void rast__tri_quad_simple(const rast__pipe *p, const rast__tri *t, const float *vd, float *drow,
+                                  uint8_t *crow, int *x, int xe, int64_t *e0, int64_t *e2, int64_t s0,
+                                  int64_t s2) {
+    const __m128 inv_area = _mm_set1_ps(t->inv_area), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    const __m128 z0 = _mm_set1_ps(t->z[0]), dz1 = _mm_set1_ps(t->z[1] - t->z[0]), dz2 = _mm_set1_ps(t->z[2] - t->z[0]);
+    const __m128 iw0 = _mm_set1_ps(t->iw[0]), diw1 = _mm_set1_ps(t->iw[1] - t->iw[0]);
+    const __m128 diw2 = _mm_set1_ps(t->iw[2] - t->iw[0]), iw1 = _mm_set1_ps(t->iw[1]), iw2 = _mm_set1_ps(t->iw[2]);
+    const __m128 k255 = _mm_set1_ps(255.0f), half = _mm_set1_ps(0.5f), top = _mm_set1_ps(255.5f);
+    __m128 cv0[4], cd1[4], cd2[4];
+    int c, less = p->depth_func == RAST_LESS, write = p->depth_write;
+    for (c = 0; c < 4; ++c) {
+        cv0[c] = _mm_set1_ps(vd[3 * c]);
+        cd1[c] = _mm_set1_ps(vd[3 * c + 1]);
+        cd2[c] = _mm_set1_ps(vd[3 * c + 2]);
+    }
+    for (; *x + 4 <= xe; *x += 4, *e0 += 4 * s0, *e2 += 4 * s2) {
+        __m128 l1 = _mm_mul_ps(_mm_setr_ps((float)*e2, (float)(*e2 + s2), (float)(*e2 + 2 * s2), (float)(*e2 + 3 * s2)), inv_area);
+        __m128 l2 = _mm_mul_ps(_mm_setr_ps((float)*e0, (float)(*e0 + s0), (float)(*e0 + 2 * s0), (float)(*e0 + 3 * s0)), inv_area);
+        __m128 z = _mm_add_ps(_mm_add_ps(z0, _mm_mul_ps(l1, dz1)), _mm_mul_ps(l2, dz2));
+        __m128 pass, w, b1, b2;
+        __m128i px, ch[4], old;
+        z = _mm_min_ps(_mm_max_ps(z, zero), one);
+        if (drow) {
+            __m128 d = _mm_loadu_ps(drow + *x);
+            pass = less ? _mm_cmplt_ps(z, d) : _mm_cmple_ps(z, d);
+            if (_mm_movemask_ps(pass) == 0) continue;
+            if (write) _mm_storeu_ps(drow + *x, _mm_or_ps(_mm_and_ps(pass, z), _mm_andnot_ps(pass, d)));
+        } else {
+            pass = _mm_castsi128_ps(_mm_set1_epi32(-1));
+        }
+        w = _mm_div_ps(one, _mm_add_ps(_mm_add_ps(iw0, _mm_mul_ps(l1, diw1)), _mm_mul_ps(l2, diw2)));
+        b1 = _mm_mul_ps(_mm_mul_ps(l1, iw1), w);
+        b2 = _mm_mul_ps(_mm_mul_ps(l2, iw2), w);
+        for (c = 0; c < 4; ++c) { /* channel c of four pixels, as rast__pack_rgba8_v */
+            __m128 v = _mm_add_ps(_mm_add_ps(cv0[c], _mm_mul_ps(b1, cd1[c])), _mm_mul_ps(b2, cd2[c]));
+            v = _mm_add_ps(_mm_mul_ps(v, k255), half);
+            ch[c] = _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(v, zero), top));
+        }
+        px = _mm_or_si128(_mm_or_si128(ch[0], _mm_slli_epi32(ch[1], 8)),
+                          _mm_or_si128(_mm_slli_epi32(ch[2], 16), _mm_slli_epi32(ch[3], 24)));
+        old = _mm_loadu_si128((const __m128i *)(crow + 4 * *x));
+        px = _mm_or_si128(_mm_and_si128(_mm_castps_si128(pass), px), _mm_andnot_si128(_mm_castps_si128(pass), old));
+        _mm_storeu_si128((__m128i *)(crow + 4 * *x), px);
+    }
+}
+#endif
+
 /* A span of a triangle on a simple pipe: depth test, then the interpolated
    colour (or the draw colour) straight into the target. */
 static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
@@ -133,11 +190,20 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         const __m128 v0 = _mm_setr_ps(vd[0], vd[3], vd[6], vd[9]);
         const __m128 d1 = _mm_setr_ps(vd[1], vd[4], vd[7], vd[10]);
         const __m128 d2 = _mm_setr_ps(vd[2], vd[5], vd[8], vd[11]);
-        for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
+        if (!drow || p->depth_func == RAST_LESS || p->depth_func == RAST_LEQUAL) {
+            /* four pixels at a time; every lane does exactly the scalar
+               arithmetic, so which pixels share a group (it depends on the
+               tile) never changes a bit */
+            x = sp->xs;
+            rast__tri_quad_simple(p, t, vd, drow, crow, &x, sp->xe, &e0, &e2, sp->s0, sp->s2);
+        } else {
+            x = sp->xs;
+        }
+        for (; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
             float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area, w, z;
             uint32_t packed;
             z = t->z[0] + l1 * dz1 + l2 * dz2;
-            z = RAST__CLAMP(z, 0.0f, 1.0f);
+            z = rast__clamp01(z);
             if (!rast__depth_simple(p, drow, x, z)) continue;
             w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
             /* (v0 + b1 d1) + b2 d2: the scalar paths' order, same bits */
@@ -151,7 +217,7 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
     for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
         float l1 = (float)e2 * t->inv_area, l2 = (float)e0 * t->inv_area;
         float z = t->z[0] + l1 * dz1 + l2 * dz2, c[4];
-        z = RAST__CLAMP(z, 0.0f, 1.0f);
+        z = rast__clamp01(z);
         if (!rast__depth_simple(p, drow, x, z) || !crow) continue;
         if (di->nvar >= 4) {
             float w = 1.0f / (t->iw[0] + l1 * diw1 + l2 * diw2);
