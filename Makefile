@@ -72,6 +72,7 @@ TEST_OBJS      = $(TEST_SRCS:tests/%.c=build/tests/%.o)
 ASAN_TEST_OBJS = $(TEST_SRCS:tests/%.c=build/asan/%.o)
 RAST_IMPL_OBJ  = build/tests/rast_impl.o
 
+REFLECT_BIN = build/bin/reflect
 BENCH_BIN  = build/bench/bench_rast
 BENCH_OBJS = build/bench/bench_rast.o $(RAST_IMPL_OBJ)
 
@@ -85,7 +86,7 @@ COMPILE_CHECKS = build/check/compile_check.o build/check/compile_check_cpp.o
 all: headers
 	@$(MAKE) --no-print-directory build-all
 
-build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(EXAMPLES)
+build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(EXAMPLES) $(REFLECT_BIN)
 
 # ---- headers ----
 
@@ -161,6 +162,87 @@ DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) \
 deps:
 	@bash tools/deps.sh
 
+# ---- tools: begin ----
+# The C++ adapters in tools/ with C APIs (DESIGN.md section 7): gltf_load
+# over tinygltf (Debian's shared libtinygltf, so no JSON or stb code is
+# compiled here) and image_io over OpenImageIO. The test binaries link them.
+#
+# image_io.cpp compiles two ways. Plainly (image_io_oiio.o) it is the whole
+# implementation, linked with OpenImageIO: the shared library below, and
+# what a program that starts once (the `reflect` command) links, with
+# REFLECT_TOOLS_OBJS and REFLECT_TOOLS_LIBS. With REFL_IMAGE_IO_DLOPEN
+# (image_io.o) it is a small front that loads that library on the first
+# image call; the test binaries link this one. Linked directly,
+# OpenImageIO's ~270 shared libraries would cost every test about 0.3 s of
+# CPU, because Criterion re-executes the binary for each test.
+#
+# -fno-var-tracking: tinygltf's large inline types (Model's destructor alone
+# is 100 KB of instrumented code) make GCC's variable tracking the slowest
+# part of the build; line numbers in backtraces are kept.
+TOOLS_CXXFLAGS      = -std=c++17 -O2 -g -fno-var-tracking -Wall -Wextra -Werror -pthread
+ASAN_TOOLS_CXXFLAGS = -std=c++17 -O1 -g -fno-var-tracking -Wall -Wextra -Werror -pthread \
+                      -fsanitize=address,undefined -fno-omit-frame-pointer
+TINYGLTF_LIBS := $(or $(shell pkg-config --libs tinygltf 2>/dev/null),-ltinygltf)
+OIIO_CFLAGS   := $(shell pkg-config --cflags OpenImageIO 2>/dev/null)
+OIIO_LIBS     := $(or $(shell pkg-config --libs OpenImageIO 2>/dev/null),-lOpenImageIO -lOpenImageIO_Util)
+TOOLS_LIBS     = $(TINYGLTF_LIBS) -ldl -lstdc++
+
+TOOLS_OBJS        = build/tools/gltf_load.o build/tools/image_io.o
+ASAN_TOOLS_OBJS   = build/asan/tools/gltf_load.o build/asan/tools/image_io.o
+IMAGE_IO_LIB      = build/tools/libreflect_image_io.so
+ASAN_IMAGE_IO_LIB = build/asan/tools/libreflect_image_io.so
+REFLECT_TOOLS_OBJS = build/tools/gltf_load.o build/tools/image_io_oiio.o
+REFLECT_TOOLS_LIBS = $(TINYGLTF_LIBS) $(OIIO_LIBS) -lstdc++
+
+build/tools/gltf_load.o: tools/gltf_load.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(TOOLS_CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/asan/tools/gltf_load.o: tools/gltf_load.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(ASAN_TOOLS_CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+
+# the library's path from the test binary's directory: build/tests/ -> build/tools/
+build/tools/image_io.o: tools/image_io.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(TOOLS_CXXFLAGS) $(DEPFLAGS) -DREFL_IMAGE_IO_DLOPEN='"../tools/libreflect_image_io.so"' -c $< -o $@
+
+# build/asan/ -> build/asan/tools/
+build/asan/tools/image_io.o: tools/image_io.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(ASAN_TOOLS_CXXFLAGS) $(DEPFLAGS) -DREFL_IMAGE_IO_DLOPEN='"tools/libreflect_image_io.so"' -c $< -o $@
+
+build/tools/image_io_oiio.o: tools/image_io.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(TOOLS_CXXFLAGS) $(DEPFLAGS) $(OIIO_CFLAGS) -fPIC -c $< -o $@
+
+build/asan/tools/image_io_oiio.o: tools/image_io.cpp | rast.h
+	@mkdir -p $(@D)
+	$(CXX) $(ASAN_TOOLS_CXXFLAGS) $(DEPFLAGS) $(OIIO_CFLAGS) -fPIC -c $< -o $@
+
+$(IMAGE_IO_LIB): build/tools/image_io_oiio.o
+	$(CXX) $(TOOLS_CXXFLAGS) -shared $< -o $@ $(OIIO_LIBS) -Wl,-Bsymbolic
+
+$(ASAN_IMAGE_IO_LIB): build/asan/tools/image_io_oiio.o
+	$(CXX) $(ASAN_TOOLS_CXXFLAGS) -shared $< -o $@ $(OIIO_LIBS) -Wl,-Bsymbolic
+
+# Extra prerequisites of the test binaries (their link rules use $^); the
+# libraries are order-only: built first, never linked.
+$(TEST_BIN): $(TOOLS_OBJS) | $(IMAGE_IO_LIB)
+$(ASAN_TEST_BIN): $(ASAN_TOOLS_OBJS) | $(ASAN_IMAGE_IO_LIB)
+TEST_LIBS += $(TOOLS_LIBS)
+
+-include $(TOOLS_OBJS:.o=.d) $(ASAN_TOOLS_OBJS:.o=.d) build/tools/image_io_oiio.d build/asan/tools/image_io_oiio.d
+# ---- tools: end ----
+
+# ---- the reflect command ----
+
+$(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) | rast.h reflect.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) -o $@ \
+	  $(REFLECT_TOOLS_LIBS) $(LDLIBS)
+-include build/bin/reflect.d
+
 # ---- running ----
 
 # The sanitized run also fails on reports that do not fail a test by
@@ -168,7 +250,8 @@ deps:
 # has counted the test as passed. Third-party leaks: tests/lsan.supp.
 test: deps
 	@$(MAKE) --no-print-directory check-headers
-	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(ASAN_TEST_BIN)
+	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN)
+	bash tests/cli_test.sh $(REFLECT_BIN)
 	timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
 	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) 2>&1 \
 	  | tee build/asan/rast_tests.log
@@ -181,12 +264,20 @@ bench: deps
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
 
+# The demo: every built-in scene through the `reflect` command with every
+# method built so far (DIRECT), and the rasteriser's own demo picture.
+DEMO_SCENES  = default mirror-room concave glass
+DEMO_METHODS = direct
 demo: deps
-	@$(MAKE) --no-print-directory build/examples/rast_demo
+	@$(MAKE) --no-print-directory build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out
+	@for s in $(DEMO_SCENES); do for m in $(DEMO_METHODS); do \
+	  echo "$(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png"; \
+	  $(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png || exit 1; \
+	done; done
 	build/examples/rast_demo out/rast_demo.ppm
 	oiiotool out/rast_demo.ppm -o out/rast_demo.png
-	@echo "wrote out/rast_demo.png"
+	@echo "wrote out/*.png"
 
 clean:
 	rm -rf build out

@@ -185,8 +185,9 @@ static refl_scene *load_scene(const options *o) {
     return s;
 }
 
-/* A scene from a file may have no lights or camera: add a key light from
-   above and behind the viewer, and a camera framing the bounds. */
+/* A scene from a file may have no lights, camera or environment: add a key
+   light from above and behind the viewer, a camera framing the bounds and
+   a sky colour. */
 static void complete_scene(refl_scene *s) {
     refl_vec3 lo, hi, c;
     float diag;
@@ -210,6 +211,12 @@ static void complete_scene(refl_scene *s) {
         refl_scene_add_light(s, &key);
     }
     if (refl_v3_length(s->camera.up) == 0.0f) s->camera.up = refl_v3(0, 1, 0);
+    if (s->environment.type == REFL_ENV_COLOR && s->environment.color[0] == 0.0f &&
+        s->environment.color[1] == 0.0f && s->environment.color[2] == 0.0f) {
+        s->environment.color[0] = 0.45f; /* a sky, so mirrors have something to show */
+        s->environment.color[1] = 0.6f;
+        s->environment.color[2] = 0.85f;
+    }
 }
 
 static void progress_bar(void *user, float done) {
