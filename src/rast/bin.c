@@ -143,8 +143,11 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
         for (ty = h->y0 >> S; ty <= (h->y1 - 1) >> S; ++ty)
             for (tx = h->x0 >> S; tx <= (h->x1 - 1) >> S; ++tx) {
                 size_t *at = &ch->bin_start[ty * ctx->tiles_x + tx + 1], k;
-                /* records are whole words: a word loop beats a memcpy call */
-                for (k = 0; k < size; k += 4) memcpy(sorted + *at + k, (const uint8_t *)h + k, 4);
+                uint8_t *dst = sorted + *at;
+                /* records are whole 4-byte words: copy by 8 and a tail, fixed
+                   sizes the compiler turns into plain moves (not a memcpy call) */
+                for (k = 0; k + 8 <= size; k += 8) memcpy(dst + k, (const uint8_t *)h + k, 8);
+                if (k < size) memcpy(dst + k, (const uint8_t *)h + k, 4);
                 *at += size;
             }
     }
@@ -265,8 +268,10 @@ static void rast__free_chunks(rast_context *ctx) {
 static void rast__free_vertex_outputs(rast_context *ctx, rast__cmd *cmd) {
     rast__free(&ctx->alloc, cmd->vout);
     rast__free(&ctx->alloc, cmd->vout_count);
+    rast__free(&ctx->alloc, cmd->vinfo);
     cmd->vout = NULL;
     cmd->vout_count = NULL;
+    cmd->vinfo = NULL;
 }
 
 /* Runs commands from (*ci, *cp) until the pass budget is used; advances them. */
@@ -318,7 +323,9 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
                                                               (size_t)cmd->max_out *
                                                               rast__vout_floats(cmd) * sizeof(float));
             cmd->vout_count = (uint8_t *)rast__alloc(&ctx->alloc, (size_t)cmd->d.vertex_count);
-            if (!cmd->vout || !cmd->vout_count) r = RAST_ERROR_OUT_OF_MEMORY;
+            cmd->vinfo = (rast__vinfo *)rast__alloc(&ctx->alloc, (size_t)cmd->d.vertex_count *
+                                                                     (size_t)cmd->max_out * sizeof(rast__vinfo));
+            if (!cmd->vout || !cmd->vout_count || !cmd->vinfo) r = RAST_ERROR_OUT_OF_MEMORY;
             for (v = 0; v < nv; ++v) {
                 ps.vertex_cmds[nvjobs] = cmd;
                 ps.vertex_jobs[nvjobs++] = v;

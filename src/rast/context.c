@@ -87,6 +87,7 @@ RAST_API void rast_context_destroy(rast_context *ctx) {
     for (i = 0; i < ctx->cmd_count; ++i) {
         rast__free(&ctx->alloc, ctx->cmds[i].vout);
         rast__free(&ctx->alloc, ctx->cmds[i].vout_count);
+        rast__free(&ctx->alloc, ctx->cmds[i].vinfo);
     }
     rast__pool_destroy(ctx->pool);
     rast__free_pipes(ctx);

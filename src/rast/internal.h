@@ -285,12 +285,22 @@ static size_t rast__align(size_t n) { return (n + 3u) & ~(size_t)3u; }
 
 enum { RAST__CMD_DRAW = 1, RAST__CMD_CLEAR, RAST__CMD_RECT, RAST__CMD_ACCUM };
 
+/* A transformed vertex of an indexed draw, as setup needs it. */
+typedef struct rast__vinfo {
+    int32_t fx, fy;           /* window position, fixed point (when code is 0) */
+    float z, iw;              /* window depth, 1 / w */
+    unsigned code;            /* clip planes outside (bits 0-5), or: */
+} rast__vinfo;
+enum { RAST__VINFO_CLIP = 0x40, /* needs clipping for another reason */
+       RAST__VINFO_BAD = 0x80 }; /* non-finite: drops its triangles */
+
 typedef struct rast__cmd {
     int kind;
     rast__pipe *pipe;
     rast_draw_desc d;         /* DRAW: the caller's desc, with defaults resolved */
     int prim_count, verts_per_prim, max_out;
     float *vout;              /* indexed draws: vertex outputs, [vertex][layer] */
+    rast__vinfo *vinfo;       /* and their window positions, [vertex][layer] */
     uint8_t *vout_count;      /* outputs per vertex */
     rast_clear_desc clear;
     float rect_z, rect_rgba[4];

@@ -44,6 +44,10 @@ enum { RAST__VERTEX_JOB = 4096 };
 
 static size_t rast__vout_floats(const rast__cmd *cmd) { return 4 + (size_t)cmd->d.num_varyings; }
 
+static unsigned rast__outcode(const rast__pipe *p, const float *c);
+static int rast__vtx_finite(const rast__vtx *v, int nvar);
+static int rast__vertex_window(const rast__pipe *p, const rast__vtx *v, rast__vinfo *o);
+
 static void rast__vertex_job(rast__cmd *cmd, int job) {
     int v0 = job * RAST__VERTEX_JOB, v1 = RAST__MIN(cmd->d.vertex_count, v0 + RAST__VERTEX_JOB);
     size_t nf = rast__vout_floats(cmd);
@@ -53,9 +57,16 @@ static void rast__vertex_job(rast__cmd *cmd, int job) {
         int n = rast__vertex(cmd, v, out);
         cmd->vout_count[v] = (uint8_t)n;
         for (k = 0; k < n; ++k) {
-            float *dst = cmd->vout + ((size_t)v * (size_t)cmd->max_out + (size_t)k) * nf;
+            size_t at = (size_t)v * (size_t)cmd->max_out + (size_t)k;
+            float *dst = cmd->vout + at * nf;
+            rast__vinfo *wi = &cmd->vinfo[at];
             memcpy(dst, out[k].position, 4 * sizeof(float));
             memcpy(dst + 4, out[k].varyings, (size_t)cmd->d.num_varyings * sizeof(float));
+            /* what every triangle using this vertex would compute again:
+               where it is, and whether clipping is needed */
+            if (!rast__vtx_finite(dst, cmd->d.num_varyings)) wi->code = RAST__VINFO_BAD;
+            else wi->code = rast__outcode(cmd->pipe, dst);
+            if (!wi->code && !rast__vertex_window(cmd->pipe, dst, wi)) wi->code = RAST__VINFO_CLIP;
         }
     }
 }
@@ -108,26 +119,54 @@ static void rast__to_window(const rast__pipe *p, const float *c, float *x, float
 }
 
 /* Setup of a triangle that lies within the clip volume and the guard band. */
-static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb,
-                           const rast__vtx *vc, const float *flat) {
+/* Window position of one clip-space vertex in fixed point, or 0 when it
+   is unusable (w <= 0, or off any plausible window). Shared by triangle
+   setup and the per-vertex pass of indexed draws, so both paths give the
+   same bits. */
+static int rast__vertex_window(const rast__pipe *p, const rast__vtx *v, rast__vinfo *o) {
+    float wx, wy;
+    if (!(v[3] > 0.0f)) return 0;
+    rast__to_window(p, v, &wx, &wy, &o->z, &o->iw);
+    if (!(fabsf(wx) < 1e6f && fabsf(wy) < 1e6f)) return 0;
+    o->fx = (int32_t)rast__round(wx * (float)(1 << RAST_SUBPIXEL_BITS));
+    o->fy = (int32_t)rast__round(wy * (float)(1 << RAST_SUBPIXEL_BITS));
+    return 1;
+}
+
+static void rast__emit_tri_window(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb, const rast__vtx *vc,
+                                  const rast__vinfo *wa, const rast__vinfo *wb, const rast__vinfo *wc,
+                                  const float *flat);
+
+/* Setup of a triangle that lies within the clip volume and the guard band. */
+static void rast__emit_tri(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb, const rast__vtx *vc,
+                           const float *flat) {
+    const rast__pipe *p = ch->cmd->pipe;
+    rast__vinfo w[3];
+    if (!rast__vertex_window(p, va, &w[0]) || !rast__vertex_window(p, vb, &w[1]) ||
+        !rast__vertex_window(p, vc, &w[2]))
+        return;
+    rast__emit_tri_window(ch, va, vb, vc, &w[0], &w[1], &w[2], flat);
+}
+
+/* The rest of triangle setup, from window positions: area, culling,
+   orientation, bounds and the record. */
+static void rast__emit_tri_window(rast__chunk *ch, const rast__vtx *va, const rast__vtx *vb, const rast__vtx *vc,
+                                  const rast__vinfo *wa, const rast__vinfo *wb, const rast__vinfo *wc,
+                                  const float *flat) {
     const rast__cmd *cmd = ch->cmd;
     const rast__pipe *p = cmd->pipe;
     int nvar = cmd->d.num_varyings, i, k;
     const rast__vtx *v[3];
-    float wx[3], wy[3], wz[3], iw[3];
+    float wz[3], iw[3];
     int32_t fx[3], fy[3];
     int64_t area, minx, maxx, miny, maxy;
     int front, x0, y0, x1, y1;
     rast__tri *t;
     float *vd;
     v[0] = va; v[1] = vb; v[2] = vc;
-    for (i = 0; i < 3; ++i) {
-        if (!(v[i][3] > 0.0f)) return;
-        rast__to_window(p, (v[i]), &wx[i], &wy[i], &wz[i], &iw[i]);
-        if (!(fabsf(wx[i]) < 1e6f && fabsf(wy[i]) < 1e6f)) return;
-        fx[i] = (int32_t)rast__round(wx[i] * (float)(1 << RAST_SUBPIXEL_BITS));
-        fy[i] = (int32_t)rast__round(wy[i] * (float)(1 << RAST_SUBPIXEL_BITS));
-    }
+    fx[0] = wa->fx; fy[0] = wa->fy; wz[0] = wa->z; iw[0] = wa->iw;
+    fx[1] = wb->fx; fy[1] = wb->fy; wz[1] = wb->z; iw[1] = wb->iw;
+    fx[2] = wc->fx; fy[2] = wc->fy; wz[2] = wc->z; iw[2] = wc->iw;
     area = ((int64_t)fx[1] - fx[0]) * ((int64_t)fy[2] - fy[0]) -
            ((int64_t)fx[2] - fx[0]) * ((int64_t)fy[1] - fy[0]);
     if (area == 0) return;
@@ -334,6 +373,34 @@ static const rast__vtx *rast__fetch(const rast__cmd *cmd, int i, int layer,
     return layer < *scratch_n ? scratch[layer].position : NULL;
 }
 
+/* Triangles of an indexed draw, whose vertices were transformed once with
+   their window positions and clip codes: a triangle inside the guard band
+   goes straight to setup, only the others through clipping. */
+static void rast__setup_indexed_tris(rast__chunk *ch, int p0, int p1) {
+    const rast__cmd *cmd = ch->cmd;
+    const uint32_t *idx = cmd->d.indices;
+    size_t nf = rast__vout_floats(cmd), mo = (size_t)cmd->max_out;
+    int flat = cmd->pipe->s.shading == RAST_FLAT, prim, layer, j;
+    for (prim = p0; prim < p1 && !ch->failed; ++prim) {
+        for (layer = 0; layer < cmd->max_out; ++layer) {
+            const rast__vtx *v[3];
+            const rast__vinfo *w[3];
+            for (j = 0; j < 3; ++j) {
+                size_t at = (size_t)idx[3 * prim + j] * mo + (size_t)layer;
+                if (layer >= cmd->vout_count[idx[3 * prim + j]]) break;
+                v[j] = cmd->vout + at * nf;
+                w[j] = &cmd->vinfo[at];
+            }
+            if (j < 3) break;
+            if ((w[0]->code | w[1]->code | w[2]->code) == 0)
+                rast__emit_tri_window(ch, v[0], v[1], v[2], w[0], w[1], w[2], flat ? v[2] + 4 : NULL);
+            else if (!((w[0]->code | w[1]->code | w[2]->code) & RAST__VINFO_BAD) &&
+                     !(w[0]->code & w[1]->code & w[2]->code & 0x3Fu))
+                rast__setup_tri(ch, v[0], v[1], v[2]);
+        }
+    }
+}
+
 /* Points straight from the caller's array: the default vertex program
    inlined, no per-vertex copies (the C3RC method splats millions). */
 static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
@@ -367,6 +434,10 @@ static void rast__setup_range(rast__chunk *ch, int p0, int p1) {
     int scratch_n[3], scratch_index[3];
     if (vpp == 1 && !cmd->pipe->s.vertex_fn && !cmd->d.indices) {
         rast__setup_points_direct(ch, p0, p1);
+        return;
+    }
+    if (vpp == 3 && cmd->vout) {
+        rast__setup_indexed_tris(ch, p0, p1);
         return;
     }
     for (prim = p0; prim < p1 && !ch->failed; ++prim) {
