@@ -2339,6 +2339,34 @@ static int rast__const_blend(const rast__pipe *p, const float frag[4], float k1[
     return 1;
 }
 
+/* out = k1 + k2 * dst over n consecutive RGBA8 pixels: four at a time with
+   SSE2, each lane the scalar arithmetic of rast__to_unorm8 (same bits as
+   the table and the scalar path, whichever pixels share a group). */
+static void rast__const_blend_run(uint8_t *px, int n, const float k1[4], const float k2[4]) {
+    int i = 0, c;
+#ifdef RAST__SSE2
+    const __m128 a = _mm_loadu_ps(k1), b = _mm_loadu_ps(k2), zero = _mm_setzero_ps();
+    const __m128 k255 = _mm_set1_ps(255.0f), half = _mm_set1_ps(0.5f), top = _mm_set1_ps(255.5f);
+    const __m128i z8 = _mm_setzero_si128();
+    for (; i + 4 <= n; i += 4) {
+        __m128i d = _mm_loadu_si128((const __m128i *)(px + 4 * i));
+        __m128i lo = _mm_unpacklo_epi8(d, z8), hi = _mm_unpackhi_epi8(d, z8);
+        __m128i q[4], r;
+        q[0] = _mm_unpacklo_epi16(lo, z8); q[1] = _mm_unpackhi_epi16(lo, z8); /* pixels 0, 1 */
+        q[2] = _mm_unpacklo_epi16(hi, z8); q[3] = _mm_unpackhi_epi16(hi, z8); /* pixels 2, 3 */
+        for (c = 0; c < 4; ++c) { /* one pixel's R, G, B, A per vector */
+            __m128 v = _mm_add_ps(a, _mm_mul_ps(b, _mm_cvtepi32_ps(q[c])));
+            v = _mm_add_ps(_mm_mul_ps(v, k255), half);
+            q[c] = _mm_cvttps_epi32(_mm_min_ps(_mm_max_ps(v, zero), top));
+        }
+        r = _mm_packus_epi16(_mm_packs_epi32(q[0], q[1]), _mm_packs_epi32(q[2], q[3]));
+        _mm_storeu_si128((__m128i *)(px + 4 * i), r);
+    }
+#endif
+    for (; i < n; ++i)
+        for (c = 0; c < 4; ++c) px[4 * i + c] = rast__to_unorm8(k1[c] + k2[c] * (float)px[4 * i + c]);
+}
+
 /* The table of out = k1 + k2 * dst for every destination byte, rebuilt
    only when k1, k2 change: whole-screen blends then cost four lookups. */
 static const uint8_t (*rast__const_blend_lut(rast__tile *tl, const float k1[4], const float k2[4]))[256] {
@@ -2665,6 +2693,10 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         blend_k = rast__const_blend(p, cc, k1, k2);
         /* a table costs 1024 conversions: worth it for long spans only */
         if (blend_k && sp->xe - sp->xs >= 64) lut = rast__const_blend_lut(tl, k1, k2);
+        if (blend_k && !drow) {
+            rast__const_blend_run(crow + 4 * sp->xs, sp->xe - sp->xs, k1, k2);
+            return;
+        }
         if (p->plain_color || blend_k) {
             for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
                 if (drow) {
@@ -2883,6 +2915,11 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
     blend_k = want_color && !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
+    if (blend_k && !p->stencil_on && !p->depth_on) {
+        for (y = y0; y < y1; ++y)
+            rast__const_blend_run(fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x0, x1 - x0, k1, k2);
+        return;
+    }
     if (p->stencil_on && !p->depth_on && !want_color) {
         /* a pure stencil pass: one table lookup per pixel */
         uint8_t next[256];

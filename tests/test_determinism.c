@@ -358,6 +358,13 @@ static void render(rast_context *ctx, frame *f, int float_color) {
         d.stride = 8; /* positions only: the draw colour */
         d.color[0] = 0.2f; d.color[1] = 0.7f; d.color[2] = 0.4f; d.color[3] = 0.6f;
         cr_assert_eq(rast_draw(ctx, &d), RAST_OK);
+        /* without depth: whole spans and rectangles blend four at a time */
+        s.depth_test = 0;
+        tu_set_state(ctx, &s);
+        d.vertices = sc->tris + 8 * 3 * 2300;
+        d.vertex_count = 3 * 150;
+        cr_assert_eq(rast_draw(ctx, &d), RAST_OK);
+        cr_assert_eq(rast_draw_fullscreen(ctx, 0.5f, d.color), RAST_OK);
     }
     tu_finish(ctx);
 }

@@ -164,6 +164,10 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         blend_k = rast__const_blend(p, cc, k1, k2);
         /* a table costs 1024 conversions: worth it for long spans only */
         if (blend_k && sp->xe - sp->xs >= 64) lut = rast__const_blend_lut(tl, k1, k2);
+        if (blend_k && !drow) {
+            rast__const_blend_run(crow + 4 * sp->xs, sp->xe - sp->xs, k1, k2);
+            return;
+        }
         if (p->plain_color || blend_k) {
             for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
                 if (drow) {
@@ -382,6 +386,11 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
     blend_k = want_color && !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
+    if (blend_k && !p->stencil_on && !p->depth_on) {
+        for (y = y0; y < y1; ++y)
+            rast__const_blend_run(fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x0, x1 - x0, k1, k2);
+        return;
+    }
     if (p->stencil_on && !p->depth_on && !want_color) {
         /* a pure stencil pass: one table lookup per pixel */
         uint8_t next[256];
