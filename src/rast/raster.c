@@ -299,7 +299,18 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
         int64_t s1 = ea[1] * RAST__ONE;
         int xs = x0, xe;
-        /* the triangle is convex: its pixels on a row form one span */
+        int64_t last = (int64_t)(x1 - 1 - x0);
+        /* the triangle is convex: its pixels on a row form one span, and
+           when both ends of the row are inside, so is all of it (big
+           triangles then skip the pixel-by-pixel search) */
+        if ((e0 | e1 | e2) >= 0 && ((e0 + last * sp.s0) | (e1 + last * s1) | (e2 + last * sp.s2)) >= 0) {
+            sp.xs = x0;
+            sp.xe = x1;
+            sp.e0 = e0;
+            sp.e2 = e2;
+            (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
+            continue;
+        }
         while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xs; }
         if (xs == x1) continue;
         sp.xs = xs;
