@@ -12,30 +12,36 @@ typedef char rast__vertex_out_is_packed[offsetof(rast_vertex_out, varyings) == 4
 
 enum { RAST__MAX_POLY = 16 };
 
-/* The vertex program: the caller's callback or the default (optional
-   matrix, then varyings copied). Returns the number of outputs. */
+/* The default vertex program: the position (w = 1 when it has three
+   floats) through the optional matrix, then the varyings copied; writes
+   4 + num_varyings floats. */
+static void rast__default_vertex(const rast_draw_desc *d, const float *src, float *out) {
+    float in[4];
+    int k;
+    in[0] = src[0]; in[1] = src[1]; in[2] = src[2];
+    in[3] = d->position_size == 4 ? src[3] : 1.0f;
+    if (d->matrix) {
+        const float *m = d->matrix;
+        for (k = 0; k < 4; ++k) out[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
+    } else {
+        for (k = 0; k < 4; ++k) out[k] = in[k];
+    }
+    for (k = 0; k < d->num_varyings; ++k) out[4 + k] = src[d->position_size + k];
+}
+
+/* The vertex program: the caller's callback or the default. Returns the
+   number of outputs. */
 static int rast__vertex(const rast__cmd *cmd, int index, rast_vertex_out *out) {
     const rast__pipe *p = cmd->pipe;
     const rast_draw_desc *d = &cmd->d;
     const float *v = d->vertices + (size_t)index * (size_t)d->stride;
-    int n, k;
+    int n;
     if (p->s.vertex_fn) {
         n = p->s.vertex_fn(p->s.vertex_user, v, index, out, cmd->max_out);
         return RAST__CLAMP(n, 0, cmd->max_out);
     }
-    {
-        float in[4];
-        in[0] = v[0]; in[1] = v[1]; in[2] = v[2];
-        in[3] = d->position_size == 4 ? v[3] : 1.0f;
-        if (d->matrix) {
-            const float *m = d->matrix;
-            for (k = 0; k < 4; ++k)
-                out->position[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
-        } else {
-            for (k = 0; k < 4; ++k) out->position[k] = in[k];
-        }
-        for (k = 0; k < d->num_varyings; ++k) out->varyings[k] = v[d->position_size + k];
-    }
+    /* position and varyings are contiguous in rast_vertex_out (asserted above) */
+    rast__default_vertex(d, v, out->position);
     return 1;
 }
 
@@ -407,20 +413,9 @@ static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
     const rast__cmd *cmd = ch->cmd;
     const rast_draw_desc *d = &cmd->d;
     float v[RAST__VTX_FLOATS];
-    int i, k;
+    int i;
     for (i = p0; i < p1 && !ch->failed; ++i) {
-        const float *src = d->vertices + (size_t)i * (size_t)d->stride;
-        float in[4];
-        in[0] = src[0]; in[1] = src[1]; in[2] = src[2];
-        in[3] = d->position_size == 4 ? src[3] : 1.0f;
-        if (d->matrix) {
-            const float *m = d->matrix;
-            for (k = 0; k < 4; ++k)
-                v[k] = m[k] * in[0] + m[4 + k] * in[1] + m[8 + k] * in[2] + m[12 + k] * in[3];
-        } else {
-            for (k = 0; k < 4; ++k) v[k] = in[k];
-        }
-        for (k = 0; k < d->num_varyings; ++k) v[4 + k] = src[d->position_size + k];
+        rast__default_vertex(d, d->vertices + (size_t)i * (size_t)d->stride, v);
         rast__setup_point(ch, v);
     }
 }
