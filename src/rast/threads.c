@@ -21,12 +21,19 @@ typedef struct rast__pool {
     int next;               /* next job index to hand out */
 } rast__pool;
 
+/* The next job index, or -1 when all are handed out. An atomic add where
+   the compiler has one (no lock traffic between jobs), else the mutex. */
 static int rast__pool_take(rast__pool *p) {
     int i;
+#if defined(__GNUC__) || defined(__clang__)
+    i = __atomic_fetch_add(&p->next, 1, __ATOMIC_RELAXED);
+    return i < p->count ? i : -1;
+#else
     pthread_mutex_lock(&p->lock);
     i = p->next < p->count ? p->next++ : -1;
     pthread_mutex_unlock(&p->lock);
     return i;
+#endif
 }
 
 static void *rast__pool_main(void *arg) {
