@@ -2693,12 +2693,12 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
         for (k = 0; k < 4; ++k) cc[k] = di->nvar < 4 ? c[k] : c[3 * k];
         packed = rast__pack_rgba8(cc);
         blend_k = rast__const_blend(p, cc, k1, k2);
-        /* a table costs 1024 conversions: worth it for long spans only */
-        if (blend_k && sp->xe - sp->xs >= 64) lut = rast__const_blend_lut(tl, k1, k2);
         if (blend_k && !drow) {
             rast__const_blend_run(crow + 4 * sp->xs, sp->xe - sp->xs, k1, k2);
             return;
         }
+        /* a table costs 1024 conversions: worth it for long spans only */
+        if (blend_k && sp->xe - sp->xs >= 64) lut = rast__const_blend_lut(tl, k1, k2);
         if (p->plain_color || blend_k) {
             for (x = sp->xs; x < sp->xe; ++x, e0 += sp->s0, e2 += sp->s2) {
                 if (drow) {
@@ -2842,6 +2842,30 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
             (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
             continue;
         }
+        if (x1 - x0 > 16) {
+            /* wide rows: the span's ends from each edge by division, the
+               same pixels the search below finds */
+            const int64_t e[3] = {e0, e1, e2}, st[3] = {sp.s0, s1, sp.s2};
+            int64_t lo = 0, hi = x1 - x0; /* pixel offsets from x0, hi exclusive */
+            for (i = 0; i < 3 && lo < hi; ++i) {
+                if (st[i] > 0) {
+                    if (e[i] < 0) lo = RAST__MAX(lo, (-e[i] + st[i] - 1) / st[i]);
+                } else if (st[i] < 0) {
+                    if (e[i] < 0) hi = 0;
+                    else hi = RAST__MIN(hi, e[i] / -st[i] + 1);
+                } else if (e[i] < 0) {
+                    hi = 0;
+                }
+            }
+            if (lo >= hi) continue;
+            xs = x0 + (int)lo;
+            sp.xs = xs;
+            sp.xe = x0 + (int)hi;
+            sp.e0 = e0 + lo * sp.s0;
+            sp.e2 = e2 + lo * sp.s2;
+            (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
+            continue;
+        }
         while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xs; }
         if (xs == x1) continue;
         sp.xs = xs;
@@ -2927,12 +2951,12 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     memcpy(rgba, r->rgba, sizeof(rgba));
     if (p->fog) rast__apply_fog(p, 1.0f, rgba);
     blend_k = want_color && !fb->color_f32 && rast__const_blend(p, rgba, k1, k2);
-    if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
     if (blend_k && !p->stencil_on && !p->depth_on) {
         for (y = y0; y < y1; ++y)
             rast__const_blend_run(fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x0, x1 - x0, k1, k2);
         return;
     }
+    if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
     if (p->stencil_on && !p->depth_on && !want_color) {
         /* a pure stencil pass: one table lookup per pixel */
         uint8_t next[256];
