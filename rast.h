@@ -797,6 +797,9 @@ typedef struct rast__chunk {
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
+    /* neighbouring chunks are written by different workers record by
+       record: keep their counters on different cache lines */
+    char pad[64];
 } rast__chunk;
 
 static size_t rast__rec_size(int kind, int nvar) {
