@@ -80,11 +80,12 @@
        rast_context_destroy(ctx);
 
    LIFETIMES
-       Draws are queued and run at rast_finish() (or when the queue is full).
-       Vertex and index arrays, textures and callback user data must stay
-       valid until the next rast_finish(). State is copied at each draw.
-       Target memory holds undefined contents between the first draw and
-       rast_finish().
+       Draws are queued and run at rast_finish() or rast_set_targets();
+       rast_context_destroy() drops what is still queued. Vertex and index
+       arrays, textures and callback user data must stay valid until then.
+       State is copied at each draw. Target memory holds undefined contents
+       between the first draw and rast_finish(). Memory for setup stays
+       bounded (rast_context_desc.batch_bytes): a long queue runs in passes.
 
    DETERMINISM AND THREADS
        Work is split into fixed chunks of primitives and binned into square
