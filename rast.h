@@ -708,6 +708,14 @@ typedef struct rast__splat {
     uint32_t rgba;            /* bytes R, G, B, A in memory order */
 } rast__splat;
 
+/* A one-pixel splat (point size 1, the common case): just where, how deep
+   and what colour; chunks of them are binned and drawn by their own loops. */
+typedef struct rast__splat1 {
+    int16_t x, y;
+    float z;
+    uint32_t rgba;
+} rast__splat1;
+
 typedef struct rast__line {
     rast__rec h;
     float x[2], y[2];         /* window position */
@@ -794,7 +802,8 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
-    int splat;                /* points become rast__splat records */
+    int splat;                /* points become records of rast__splat (1),
+                                 or of rast__splat1 for size 1 (2) */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
@@ -2081,6 +2090,15 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
     x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
     if (x0 >= x1 || y0 >= y1) return;
+    if (ch->splat == 2) {
+        rast__splat1 *sp = (rast__splat1 *)rast__chunk_push(ch, sizeof(rast__splat1));
+        if (!sp) return;
+        sp->x = (int16_t)x0;
+        sp->y = (int16_t)y0;
+        sp->z = RAST__CLAMP(wz, 0.0f, 1.0f);
+        sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
+        return;
+    }
     if (ch->splat) {
         rast__splat *sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
         if (!sp) return;
@@ -3037,6 +3055,30 @@ static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const
     }
 }
 
+/* One-pixel splats of a tile (binning put each in its one tile). */
+static void rast__raster_splats1(const rast__draw_info *di, rast__tile *tl, const rast__splat1 *b,
+                                 const rast__splat1 *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
+    (void)tl;
+    for (; b < e; ++b) {
+        uint8_t *cp = fb->color + (size_t)b->y * (size_t)fb->color_stride + 4 * (size_t)b->x;
+        uint32_t now;
+        int pass = 1;
+        if (depth) { /* branchless, as in rast__raster_splats */
+            float *dp = (float *)((uint8_t *)fb->depth + (size_t)b->y * (size_t)fb->depth_stride) + b->x;
+            float old = *dp;
+            pass = func == RAST_LESS ? b->z < old : func == RAST_LEQUAL ? b->z <= old
+                                                                        : rast__compare_f(func, b->z, old);
+            *dp = pass && write ? b->z : old;
+        }
+        memcpy(&now, cp, 4);
+        now = pass ? b->rgba : now;
+        memcpy(cp, &now, 4);
+    }
+}
+
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
     int x0 = RAST__MAX(h->x0, tl->x0), x1 = RAST__MIN(h->x1, tl->x1);
     int y0 = RAST__MAX(h->y0, tl->y0), y1 = RAST__MIN(h->y1, tl->y1);
@@ -3156,6 +3198,42 @@ static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
     }
 }
 
+/* rast__bin_chunk for one-pixel splats: each lies in exactly one tile,
+   given by its pixel, so the sort needs no record headers. */
+static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
+    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, t;
+    const rast__splat1 *in = (const rast__splat1 *)ch->recs;
+    size_t n = ch->used / sizeof(rast__splat1), i, total = 0;
+    rast__splat1 *out;
+    for (i = 0; i < n; ++i) ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1] += sizeof(rast__splat1);
+    for (t = 0; t < ntiles; ++t) {
+        size_t c = ch->bin_start[t + 1];
+        ch->bin_start[t + 1] = total;
+        total += c;
+    }
+    if (ch->spare_cap < total) {
+        rast__free(ch->alloc, ch->spare);
+        ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
+        ch->spare_cap = ch->spare ? total : 0;
+        if (!ch->spare) { ch->failed = 1; return; }
+    }
+    out = (rast__splat1 *)ch->spare;
+    for (i = 0; i < n; ++i) {
+        size_t *at = &ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1];
+        out[*at / sizeof(rast__splat1)] = in[i];
+        *at += sizeof(rast__splat1);
+    }
+    {   /* swap buffers as rast__bin_chunk does */
+        uint8_t *r = ch->recs;
+        size_t cap = ch->cap;
+        ch->recs = ch->spare;
+        ch->cap = ch->spare_cap;
+        ch->spare = r;
+        ch->spare_cap = cap;
+        ch->used = total;
+    }
+}
+
 /* Sorts the chunk's records by tile: a counting sort by bytes that copies
    each record into every tile it touches, keeping submission order within
    a tile. Tile workers then read their records contiguously instead of
@@ -3173,6 +3251,10 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
     }
     memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
+    if (ch->splat == 2) {
+        rast__bin_splats1(ctx, ch);
+        return;
+    }
     /* a chunk holds one kind of record (one draw or one command) */
     nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
     size = rast__rec_size(((const rast__rec *)ch->recs)->kind, nvar);
@@ -3277,6 +3359,10 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
+        if (ch->splat == 2) {
+            rast__raster_splats1(&di, &tl, (const rast__splat1 *)(ch->recs + b), (const rast__splat1 *)(ch->recs + e));
+            continue;
+        }
         if (ch->splat) {
             rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
             continue;
@@ -3375,6 +3461,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].failed = 0;
         ps.chunks[i].splat = cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
                              cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
+        if (ps.chunks[i].splat && cmd->pipe->point_size == 1) ps.chunks[i].splat = 2;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

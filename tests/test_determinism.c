@@ -346,6 +346,9 @@ static void render(rast_context *ctx, frame *f, int float_color) {
     s.point_size = 2;
     tu_set_state(ctx, &s);
     draw_arr(ctx, RAST_POINTS, sc->pts, 20000, 4, NULL, 0);
+    s.point_size = 1; /* one-pixel splats have their own records and loops */
+    tu_set_state(ctx, &s);
+    draw_arr(ctx, RAST_POINTS, sc->pts + 8 * 20000, 30000, 4, NULL, 0);
     s.blend = 1;
     s.blend_src_rgb = s.blend_src_alpha = RAST_SRC_ALPHA;
     s.blend_dst_rgb = s.blend_dst_alpha = RAST_ONE_MINUS_SRC_ALPHA;

@@ -97,6 +97,42 @@ static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
     }
 }
 
+/* rast__bin_chunk for one-pixel splats: each lies in exactly one tile,
+   given by its pixel, so the sort needs no record headers. */
+static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
+    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, t;
+    const rast__splat1 *in = (const rast__splat1 *)ch->recs;
+    size_t n = ch->used / sizeof(rast__splat1), i, total = 0;
+    rast__splat1 *out;
+    for (i = 0; i < n; ++i) ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1] += sizeof(rast__splat1);
+    for (t = 0; t < ntiles; ++t) {
+        size_t c = ch->bin_start[t + 1];
+        ch->bin_start[t + 1] = total;
+        total += c;
+    }
+    if (ch->spare_cap < total) {
+        rast__free(ch->alloc, ch->spare);
+        ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
+        ch->spare_cap = ch->spare ? total : 0;
+        if (!ch->spare) { ch->failed = 1; return; }
+    }
+    out = (rast__splat1 *)ch->spare;
+    for (i = 0; i < n; ++i) {
+        size_t *at = &ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1];
+        out[*at / sizeof(rast__splat1)] = in[i];
+        *at += sizeof(rast__splat1);
+    }
+    {   /* swap buffers as rast__bin_chunk does */
+        uint8_t *r = ch->recs;
+        size_t cap = ch->cap;
+        ch->recs = ch->spare;
+        ch->cap = ch->spare_cap;
+        ch->spare = r;
+        ch->spare_cap = cap;
+        ch->used = total;
+    }
+}
+
 /* Sorts the chunk's records by tile: a counting sort by bytes that copies
    each record into every tile it touches, keeping submission order within
    a tile. Tile workers then read their records contiguously instead of
@@ -114,6 +150,10 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
     }
     memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
+    if (ch->splat == 2) {
+        rast__bin_splats1(ctx, ch);
+        return;
+    }
     /* a chunk holds one kind of record (one draw or one command) */
     nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
     size = rast__rec_size(((const rast__rec *)ch->recs)->kind, nvar);
@@ -218,6 +258,10 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
+        if (ch->splat == 2) {
+            rast__raster_splats1(&di, &tl, (const rast__splat1 *)(ch->recs + b), (const rast__splat1 *)(ch->recs + e));
+            continue;
+        }
         if (ch->splat) {
             rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
             continue;
@@ -316,6 +360,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].failed = 0;
         ps.chunks[i].splat = cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
                              cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
+        if (ps.chunks[i].splat && cmd->pipe->point_size == 1) ps.chunks[i].splat = 2;
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;

@@ -232,6 +232,14 @@ typedef struct rast__splat {
     uint32_t rgba;            /* bytes R, G, B, A in memory order */
 } rast__splat;
 
+/* A one-pixel splat (point size 1, the common case): just where, how deep
+   and what colour; chunks of them are binned and drawn by their own loops. */
+typedef struct rast__splat1 {
+    int16_t x, y;
+    float z;
+    uint32_t rgba;
+} rast__splat1;
+
 typedef struct rast__line {
     rast__rec h;
     float x[2], y[2];         /* window position */
@@ -318,7 +326,8 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
-    int splat;                /* points become rast__splat records */
+    int splat;                /* points become records of rast__splat (1),
+                                 or of rast__splat1 for size 1 (2) */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;

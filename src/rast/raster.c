@@ -502,6 +502,30 @@ static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const
     }
 }
 
+/* One-pixel splats of a tile (binning put each in its one tile). */
+static void rast__raster_splats1(const rast__draw_info *di, rast__tile *tl, const rast__splat1 *b,
+                                 const rast__splat1 *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__fb *fb = tl->fb;
+    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
+    (void)tl;
+    for (; b < e; ++b) {
+        uint8_t *cp = fb->color + (size_t)b->y * (size_t)fb->color_stride + 4 * (size_t)b->x;
+        uint32_t now;
+        int pass = 1;
+        if (depth) { /* branchless, as in rast__raster_splats */
+            float *dp = (float *)((uint8_t *)fb->depth + (size_t)b->y * (size_t)fb->depth_stride) + b->x;
+            float old = *dp;
+            pass = func == RAST_LESS ? b->z < old : func == RAST_LEQUAL ? b->z <= old
+                                                                        : rast__compare_f(func, b->z, old);
+            *dp = pass && write ? b->z : old;
+        }
+        memcpy(&now, cp, 4);
+        now = pass ? b->rgba : now;
+        memcpy(cp, &now, 4);
+    }
+}
+
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
     int x0 = RAST__MAX(h->x0, tl->x0), x1 = RAST__MIN(h->x1, tl->x1);
     int y0 = RAST__MAX(h->y0, tl->y0), y1 = RAST__MIN(h->y1, tl->y1);

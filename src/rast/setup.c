@@ -299,6 +299,15 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
     x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
     if (x0 >= x1 || y0 >= y1) return;
+    if (ch->splat == 2) {
+        rast__splat1 *sp = (rast__splat1 *)rast__chunk_push(ch, sizeof(rast__splat1));
+        if (!sp) return;
+        sp->x = (int16_t)x0;
+        sp->y = (int16_t)y0;
+        sp->z = RAST__CLAMP(wz, 0.0f, 1.0f);
+        sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
+        return;
+    }
     if (ch->splat) {
         rast__splat *sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
         if (!sp) return;
