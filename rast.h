@@ -2850,52 +2850,35 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         int64_t e0 = ea[0] * px + eb[0] * py + ec[0];
         int64_t e1 = ea[1] * px + eb[1] * py + ec[1];
         int64_t e2 = ea[2] * px + eb[2] * py + ec[2];
-        int64_t s1 = ea[1] * RAST__ONE;
-        int xs = x0, xe;
-        int64_t last = (int64_t)(x1 - 1 - x0);
-        /* the triangle is convex: its pixels on a row form one span, and
-           when both ends of the row are inside, so is all of it (big
-           triangles then skip the pixel-by-pixel search) */
+        int64_t s1 = ea[1] * RAST__ONE, last = (int64_t)(x1 - 1 - x0);
+        int64_t lo = 0, hi = x1 - x0; /* the span, as offsets from x0 (hi exclusive) */
+        /* The triangle is convex: its pixels on a row form one span. Both
+           ends inside: the whole row (big triangles). Wide rows: the ends
+           from each edge by division. Narrow rows: a short search. */
         if ((e0 | e1 | e2) >= 0 && ((e0 + last * sp.s0) | (e1 + last * s1) | (e2 + last * sp.s2)) >= 0) {
-            sp.xs = x0;
-            sp.xe = x1;
-            sp.e0 = e0;
-            sp.e2 = e2;
-            (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
-            continue;
-        }
-        if (x1 - x0 > 16) {
-            /* wide rows: the span's ends from each edge by division, the
-               same pixels the search below finds */
+            /* lo = 0, hi = x1 - x0 */
+        } else if (x1 - x0 > 16) {
             const int64_t e[3] = {e0, e1, e2}, st[3] = {sp.s0, s1, sp.s2};
-            int64_t lo = 0, hi = x1 - x0; /* pixel offsets from x0, hi exclusive */
             for (i = 0; i < 3 && lo < hi; ++i) {
                 if (st[i] > 0) {
                     if (e[i] < 0) lo = RAST__MAX(lo, (-e[i] + st[i] - 1) / st[i]);
                 } else if (st[i] < 0) {
-                    if (e[i] < 0) hi = 0;
-                    else hi = RAST__MIN(hi, e[i] / -st[i] + 1);
+                    hi = e[i] < 0 ? 0 : RAST__MIN(hi, e[i] / -st[i] + 1);
                 } else if (e[i] < 0) {
                     hi = 0;
                 }
             }
-            if (lo >= hi) continue;
-            xs = x0 + (int)lo;
-            sp.xs = xs;
-            sp.xe = x0 + (int)hi;
-            sp.e0 = e0 + lo * sp.s0;
-            sp.e2 = e2 + lo * sp.s2;
-            (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
-            continue;
+        } else {
+            int64_t a = e0, b = e1, c = e2;
+            while (lo < hi && (a | b | c) < 0) { a += sp.s0; b += s1; c += sp.s2; ++lo; }
+            hi = lo;
+            while (hi < x1 - x0 && (a | b | c) >= 0) { a += sp.s0; b += s1; c += sp.s2; ++hi; }
         }
-        while (xs < x1 && (e0 | e1 | e2) < 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xs; }
-        if (xs == x1) continue;
-        sp.xs = xs;
-        sp.e0 = e0;
-        sp.e2 = e2;
-        xe = xs;
-        while (xe < x1 && (e0 | e1 | e2) >= 0) { e0 += sp.s0; e1 += s1; e2 += sp.s2; ++xe; }
-        sp.xe = xe;
+        if (lo >= hi) continue;
+        sp.xs = x0 + (int)lo;
+        sp.xe = x0 + (int)hi;
+        sp.e0 = e0 + lo * sp.s0;
+        sp.e2 = e2 + lo * sp.s2;
         (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
     }
 }
