@@ -3355,10 +3355,25 @@ static void rast__tile_job_fn(void *arg, int t) {
     }
 }
 
-static size_t rast__prim_bytes(const rast__cmd *cmd) {
-    int kind = cmd->verts_per_prim == 3 ? RAST__REC_TRI : cmd->verts_per_prim == 2 ? RAST__REC_LINE
-                                                                                  : RAST__REC_POINT;
-    return (rast__rec_size(kind, cmd->d.num_varyings) + 2 * sizeof(uint32_t)) * (size_t)cmd->max_out;
+/* Which splat records a command's points become: 0 none (full point
+   records), 1 rast__splat, 2 rast__splat1 (see rast__chunk.splat). */
+static int rast__splat_kind(const rast_context *ctx, const rast__cmd *cmd) {
+    if (cmd->kind != RAST__CMD_DRAW || cmd->verts_per_prim != 1 || !cmd->pipe->simple ||
+        !cmd->pipe->plain_color || !ctx->fb.color || ctx->fb.color_f32)
+        return 0;
+    return cmd->pipe->point_size == 1 ? 2 : 1;
+}
+
+/* Setup memory a primitive of the command may take (records, twice for
+   the tile sort), for planning passes. */
+static size_t rast__prim_bytes(const rast_context *ctx, const rast__cmd *cmd) {
+    int splat = rast__splat_kind(ctx, cmd);
+    size_t rec = splat == 2 ? sizeof(rast__splat1)
+                 : splat == 1 ? sizeof(rast__splat)
+                 : rast__rec_size(cmd->verts_per_prim == 3 ? RAST__REC_TRI
+                                  : cmd->verts_per_prim == 2 ? RAST__REC_LINE : RAST__REC_POINT,
+                                  cmd->d.num_varyings);
+    return 2 * rec * (size_t)cmd->max_out;
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
@@ -3420,7 +3435,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p == 0 && cmd->d.indices && !cmd->vout)
             nvjobs += (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
         ++njobs;
-        budget += rast__prim_bytes(cmd) * (size_t)RAST__MIN(RAST__PRIMS_PER_JOB, cmd->prim_count - p);
+        budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(RAST__PRIMS_PER_JOB, cmd->prim_count - p);
         p += RAST__PRIMS_PER_JOB;
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
@@ -3442,9 +3457,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].used = 0;
         ps.chunks[i].nrec = 0;
         ps.chunks[i].failed = 0;
-        ps.chunks[i].splat = cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
-                             cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
-        if (ps.chunks[i].splat && cmd->pipe->point_size == 1) ps.chunks[i].splat = 2;
+        ps.chunks[i].splat = rast__splat_kind(ctx, cmd);
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
