@@ -1,7 +1,8 @@
-/* Compile check: the whole of rast.h, implementation included, as C99 with
+/* Compile check: the whole of rast.h and reflect.h, implementations included, as C99 with
    -Wall -Wextra -Werror. Built (never run) by `make` and `make test`. */
 #define RAST_IMPLEMENTATION
-#include "../rast.h"
+#define REFL_IMPLEMENTATION
+#include "../reflect.h" /* includes rast.h */
 
 /* Touches the public API the way the README's example does. */
 int rast_compile_check_c(void);

@@ -1,7 +1,8 @@
-// Compile check: the whole of rast.h, implementation included, as C++11 with
+// Compile check: the whole of rast.h and reflect.h, implementations included, as C++11 with
 // -Wall -Wextra -Werror. Built (never run) by `make` and `make test`.
 #define RAST_IMPLEMENTATION
-#include "../rast.h"
+#define REFL_IMPLEMENTATION
+#include "../reflect.h" /* includes rast.h */
 
 // Touches the public API the way a C++ caller would.
 int rast_compile_check_cpp();
@@ -27,4 +28,20 @@ int rast_compile_check_cpp() {
     rast_finish(ctx);
     rast_context_destroy(ctx);
     return rast_result_string(RAST_OK) != nullptr;
+}
+
+// And reflect.h's entry points.
+int refl_compile_check_cpp();
+int refl_compile_check_cpp() {
+    refl_scene *scene = nullptr;
+    if (refl_scene_builtin("default", nullptr, &scene) != REFL_OK) return 1;
+    refl_frame *frame = nullptr;
+    refl_view v = scene->camera;
+    v.width = 8;
+    v.height = 8;
+    refl_render_desc rd = {};
+    if (refl_frame_create(8, 8, nullptr, &frame) == REFL_OK) refl_render(scene, &v, &rd, frame);
+    refl_frame_destroy(frame);
+    refl_scene_destroy(scene);
+    return 0;
 }
