@@ -424,7 +424,12 @@ static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
     float v[RAST__VTX_FLOATS];
     int i;
     for (i = p0; i < p1 && !ch->failed; ++i) {
-        rast__default_vertex(d, d->vertices + (size_t)i * (size_t)d->stride, v);
+        const float *src = d->vertices + (size_t)i * (size_t)d->stride;
+        if (!d->matrix && d->position_size == 4) { /* already x, y, z, w, varyings */
+            rast__setup_point(ch, src);
+            continue;
+        }
+        rast__default_vertex(d, src, v);
         rast__setup_point(ch, v);
     }
 }
