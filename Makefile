@@ -56,6 +56,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/shapes.c \
                  src/reflect/scene.c \
                  src/reflect/shade.c \
+                 src/reflect/bvh.c \
                  src/reflect/render.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
 

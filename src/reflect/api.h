@@ -333,6 +333,31 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
 /* The environment seen along a world direction. */
 REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]);
 
+/* ---- ray tracing: a BVH over the scene's triangles ---------------------------- */
+
+typedef struct refl_bvh refl_bvh;
+
+typedef struct refl_hit {
+    float t;                 /* distance along the (unnormalised) direction */
+    int object;              /* scene object index */
+    int triangle;            /* triangle index within that object's mesh */
+    float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
+} refl_hit;
+
+/* Builds a bounding volume hierarchy (binned SAH) over every object's
+   triangles in world space. Deterministic: the same scene gives the same
+   tree. Degenerate and non-finite triangles are left out. */
+REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
+REFL_API void refl_bvh_destroy(refl_bvh *bvh);
+/* Closest hit of origin + t * dir with tmin < t < tmax: 1 and *hit, or 0.
+   Watertight: a ray through a shared edge or vertex hits one triangle. */
+REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                refl_hit *hit);
+/* Any hit with tmin < t < tmax (shadow rays). */
+REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Nodes and triangles in the tree (stats). */
+REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
