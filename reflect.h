@@ -2930,11 +2930,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
    differ only in where a reflected or refracted ray lands, never in how
    that point is shaded, so their images compare fairly. */
 
-/* Bilinear sample of an RGBA float image at (u, v), repeat wrap, v = 0 the
-   top row (glTF's convention). */
-static void refl__image_sample(const refl_image *img, float u, float v, float rgba[4]) {
+/* Bilinear sample of an RGBA float image at (u, v), v = 0 the top row
+   (glTF's convention). Each axis repeats, or is clamped to the edge when
+   its bit is set in `clamp` (1: u, 2: v): cube faces must not blend in
+   their opposite edge, nor an equirectangular map one pole into the other. */
+enum { REFL__CLAMP_U = 1, REFL__CLAMP_V = 2 };
+static void refl__image_sample(const refl_image *img, float u, float v, int clamp, float rgba[4]) {
     float x, y, fx, fy;
-    int x0, y0, x1, y1, c;
+    int x0, y0, x1, y1, c, cu = clamp & REFL__CLAMP_U, cv = clamp & REFL__CLAMP_V;
     const float *p00, *p10, *p01, *p11;
     if (!img->pixels || img->width <= 0 || img->height <= 0) {
         rgba[0] = rgba[1] = rgba[2] = rgba[3] = 1.0f;
@@ -2942,17 +2945,19 @@ static void refl__image_sample(const refl_image *img, float u, float v, float rg
     }
     if (!refl__isfinite(u)) u = 0.0f;
     if (!refl__isfinite(v)) v = 0.0f;
-    x = (u - floorf(u)) * (float)img->width - 0.5f;
-    y = (v - floorf(v)) * (float)img->height - 0.5f;
+    u = cu ? REFL__CLAMP(u, 0.0f, 1.0f) : u - floorf(u);
+    v = cv ? REFL__CLAMP(v, 0.0f, 1.0f) : v - floorf(v);
+    x = u * (float)img->width - 0.5f;
+    y = v * (float)img->height - 0.5f;
     fx = x - floorf(x);
     fy = y - floorf(y);
     x0 = (int)floorf(x);
     y0 = (int)floorf(y);
-    /* wrap each tap into the image */
-    x1 = x0 + 1 >= img->width ? 0 : x0 + 1;
-    y1 = y0 + 1 >= img->height ? 0 : y0 + 1;
-    if (x0 < 0) x0 = img->width - 1;
-    if (y0 < 0) y0 = img->height - 1;
+    /* each tap into the image: wrapped around, or held at the edge */
+    x1 = x0 + 1 >= img->width ? (cu ? img->width - 1 : 0) : x0 + 1;
+    y1 = y0 + 1 >= img->height ? (cv ? img->height - 1 : 0) : y0 + 1;
+    if (x0 < 0) x0 = cu ? 0 : img->width - 1;
+    if (y0 < 0) y0 = cv ? 0 : img->height - 1;
     if (x0 >= img->width) x0 = img->width - 1;
     if (y0 >= img->height) y0 = img->height - 1;
     p00 = img->pixels + 4 * ((size_t)y0 * (size_t)img->width + (size_t)x0);
@@ -2971,7 +2976,7 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
     for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
     if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
         float t[4];
-        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], t);
+        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], 0, t);
         for (c = 0; c < 4; ++c) base[c] *= t[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
@@ -2998,14 +3003,13 @@ REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir
         /* longitude across (-z at the centre column), +y at the top row */
         float u = 0.5f + atan2f(d.x, -d.z) * (float)(0.5 / REFL__PI);
         float v = acosf(REFL__CLAMP(d.y, -1.0f, 1.0f)) * (float)(1.0 / REFL__PI);
-        refl__image_sample(&env->image, u, REFL__CLAMP(v, 0.0f, 0.99999f), t);
+        refl__image_sample(&env->image, u, v, REFL__CLAMP_V, t); /* longitude wraps */
     } else {
         float dv[3], s, tt;
         int face;
         dv[0] = d.x; dv[1] = d.y; dv[2] = d.z;
         face = rast_cube_face(dv, &s, &tt);
-        /* clamp inside the face: cube faces do not wrap */
-        refl__image_sample(&env->faces[face], REFL__CLAMP(s, 0.0f, 0.99999f), REFL__CLAMP(tt, 0.0f, 0.99999f), t);
+        refl__image_sample(&env->faces[face], s, tt, REFL__CLAMP_U | REFL__CLAMP_V, t);
     }
     for (c = 0; c < 3; ++c) rgb[c] = t[c] * k;
 }

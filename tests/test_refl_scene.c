@@ -326,3 +326,42 @@ Test(refl_scene, direct_default_matches_golden) {
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
+
+/* Environment lookups stay on their own side of an edge: a cube face does
+   not blend in its opposite edge, an equirectangular map does not blend
+   one pole into the other (while longitude still wraps around). */
+Test(refl_scene, environment_edges_clamp_where_they_must) {
+    float face[6][4 * 4 * 4], equi[8 * 4 * 4], rgb[3];
+    refl_environment env;
+    int f, i;
+    memset(&env, 0, sizeof env);
+    for (f = 0; f < 6; ++f) {
+        for (i = 0; i < 16; ++i) {
+            int col = i % 4;
+            float v = col == 0 ? 1.0f : col == 3 ? 0.0f : 0.5f;
+            face[f][4 * i] = face[f][4 * i + 1] = face[f][4 * i + 2] = v;
+            face[f][4 * i + 3] = 1.0f;
+        }
+        env.faces[f].width = env.faces[f].height = 4;
+        env.faces[f].pixels = face[f];
+    }
+    env.type = REFL_ENV_CUBE;
+    /* +X face, s = (-z / x + 1) / 2 close to 1: the last column, value 0 */
+    refl_environment_lookup(&env, refl_v3(1.0f, 0.0f, -0.999f), rgb);
+    cr_assert_float_eq(rgb[0], 0.0f, 1e-6f, "cube face edge blended with its opposite edge: %g", rgb[0]);
+    /* equirect 8 x 4: top row 1, bottom row 0 */
+    for (i = 0; i < 32; ++i) {
+        float v = i / 8 == 0 ? 1.0f : i / 8 == 3 ? 0.0f : 0.5f;
+        equi[4 * i] = equi[4 * i + 1] = equi[4 * i + 2] = v;
+        equi[4 * i + 3] = 1.0f;
+    }
+    memset(&env, 0, sizeof env);
+    env.type = REFL_ENV_EQUIRECT;
+    env.image.width = 8;
+    env.image.height = 4;
+    env.image.pixels = equi;
+    refl_environment_lookup(&env, refl_v3(0.0f, -1.0f, 0.0f), rgb);
+    cr_assert_float_eq(rgb[0], 0.0f, 1e-6f, "south pole blended with the north: %g", rgb[0]);
+    refl_environment_lookup(&env, refl_v3(0.0f, 1.0f, 0.0f), rgb);
+    cr_assert_float_eq(rgb[0], 1.0f, 1e-6f, "north pole: %g", rgb[0]);
+}
