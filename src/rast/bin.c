@@ -97,6 +97,18 @@ static void rast__setup_command(const rast_context *ctx, rast__chunk *ch) {
     }
 }
 
+/* The sorted spare buffer (total bytes) becomes the records; the old
+   records buffer becomes the spare for the next pass. */
+static void rast__chunk_take_sorted(rast__chunk *ch, size_t total) {
+    uint8_t *r = ch->recs;
+    size_t cap = ch->cap;
+    ch->recs = ch->spare;
+    ch->cap = ch->spare_cap;
+    ch->spare = r;
+    ch->spare_cap = cap;
+    ch->used = total;
+}
+
 /* rast__bin_chunk for one-pixel splats: each lies in exactly one tile,
    given by its pixel, so the sort needs no record headers. */
 static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
@@ -122,15 +134,7 @@ static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
         out[*at / sizeof(rast__splat1)] = in[i];
         *at += sizeof(rast__splat1);
     }
-    {   /* swap buffers as rast__bin_chunk does */
-        uint8_t *r = ch->recs;
-        size_t cap = ch->cap;
-        ch->recs = ch->spare;
-        ch->cap = ch->spare_cap;
-        ch->spare = r;
-        ch->spare_cap = cap;
-        ch->used = total;
-    }
+    rast__chunk_take_sorted(ch, total);
 }
 
 /* Sorts the chunk's records by tile: a counting sort by bytes that copies
@@ -191,14 +195,7 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
                 *at += size;
             }
     }
-    {   /* the sorted buffer becomes the records; the old one the spare */
-        size_t cap = ch->spare_cap;
-        ch->spare = ch->recs;
-        ch->spare_cap = ch->cap;
-        ch->recs = sorted;
-        ch->cap = cap;
-        ch->used = total;
-    }
+    rast__chunk_take_sorted(ch, total);
 }
 
 static void rast__setup_job_fn(void *arg, int i) {

@@ -446,67 +446,41 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* Splats: points of a simple pipe whose colour was packed at setup. */
+/* One splatted pixel: depth test and write, then the packed colour. The
+   test is branchless (random depths would mispredict half the time) and
+   the usual functions inline (no call between the load and the store). */
+static void rast__splat_pixel(const rast__pipe *p, const rast__fb *fb, int x, int y, float z, uint32_t rgba) {
+    uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
+    uint32_t now;
+    int pass = 1;
+    if (p->depth_on) {
+        float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
+        float old = *dp;
+        pass = p->depth_func == RAST_LESS ? z < old : p->depth_func == RAST_LEQUAL ? z <= old
+                                                                                   : rast__compare_f(p->depth_func, z, old);
+        *dp = pass && p->depth_write ? z : old;
+    }
+    memcpy(&now, cp, 4);
+    now = pass ? rgba : now;
+    memcpy(cp, &now, 4);
+}
+
+/* Splats of points larger than a pixel: their square within the tile. */
 static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const uint8_t *b,
                                 const uint8_t *e) {
-    const rast__pipe *p = di->pipe;
-    const rast__fb *fb = tl->fb;
-    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
     for (; b < e; b += sizeof(rast__splat)) {
         const rast__splat *sp = (const rast__splat *)b;
-        int x = sp->h.x0, y = sp->h.y0, x1, y1;
-        if (sp->h.x1 - x == 1 && sp->h.y1 - y == 1) {
-            /* a one-pixel splat (the tile holds it: binning put it here) */
-            uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
-            uint32_t now;
-            int pass = 1;
-            if (depth) { /* branchless: random depths would mispredict half the time */
-                float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
-                float old = *dp;
-                /* the usual functions inline: no call between load and store */
-                pass = func == RAST_LESS ? sp->z < old : func == RAST_LEQUAL ? sp->z <= old
-                                                                             : rast__compare_f(func, sp->z, old);
-                *dp = pass && write ? sp->z : old;
-            }
-            memcpy(&now, cp, 4);
-            now = pass ? sp->rgba : now;
-            memcpy(cp, &now, 4);
-            continue;
-        }
-        x = RAST__MAX(x, tl->x0); y = RAST__MAX(y, tl->y0);
-        x1 = RAST__MIN(sp->h.x1, tl->x1); y1 = RAST__MIN(sp->h.y1, tl->y1);
-        for (; y < y1; ++y) {
-            float *drow = depth ? (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) : NULL;
-            uint8_t *crow = fb->color + (size_t)y * (size_t)fb->color_stride;
-            int xx;
-            for (xx = x; xx < x1; ++xx)
-                if (rast__depth_simple(p, drow, xx, sp->z)) memcpy(crow + 4 * xx, &sp->rgba, 4);
-        }
+        int x0 = RAST__MAX(sp->h.x0, tl->x0), x1 = RAST__MIN(sp->h.x1, tl->x1);
+        int y0 = RAST__MAX(sp->h.y0, tl->y0), y1 = RAST__MIN(sp->h.y1, tl->y1), x, y;
+        for (y = y0; y < y1; ++y)
+            for (x = x0; x < x1; ++x) rast__splat_pixel(di->pipe, tl->fb, x, y, sp->z, sp->rgba);
     }
 }
 
 /* One-pixel splats of a tile (binning put each in its one tile). */
 static void rast__raster_splats1(const rast__draw_info *di, rast__tile *tl, const rast__splat1 *b,
                                  const rast__splat1 *e) {
-    const rast__pipe *p = di->pipe;
-    const rast__fb *fb = tl->fb;
-    int depth = p->depth_on, write = p->depth_write, func = p->depth_func;
-    (void)tl;
-    for (; b < e; ++b) {
-        uint8_t *cp = fb->color + (size_t)b->y * (size_t)fb->color_stride + 4 * (size_t)b->x;
-        uint32_t now;
-        int pass = 1;
-        if (depth) { /* branchless, as in rast__raster_splats */
-            float *dp = (float *)((uint8_t *)fb->depth + (size_t)b->y * (size_t)fb->depth_stride) + b->x;
-            float old = *dp;
-            pass = func == RAST_LESS ? b->z < old : func == RAST_LEQUAL ? b->z <= old
-                                                                        : rast__compare_f(func, b->z, old);
-            *dp = pass && write ? b->z : old;
-        }
-        memcpy(&now, cp, 4);
-        now = pass ? b->rgba : now;
-        memcpy(cp, &now, 4);
-    }
+    for (; b < e; ++b) rast__splat_pixel(di->pipe, tl->fb, b->x, b->y, b->z, b->rgba);
 }
 
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
