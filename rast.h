@@ -173,6 +173,11 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
 /* Drops queued work (call rast_finish first to keep it). */
 RAST_API void rast_context_destroy(rast_context *ctx);
 RAST_API int rast_context_threads(const rast_context *ctx);
+/* Runs job(job_arg, i) for every i in [0, count) on the context's workers
+   (or its parallel_for) and returns when all have finished: the caller's
+   own parallel work on the same threads, e.g. reflect.h's ray tracer. Call
+   it between draws, never from inside a job or a callback. */
+RAST_API void rast_run_jobs(rast_context *ctx, int count, rast_job_fn job, void *job_arg);
 
 /* ---- targets ----------------------------------------------------------- */
 
@@ -3100,6 +3105,11 @@ static void rast__parallel(rast_context *ctx, int count, rast_job_fn fn, void *a
     }
 #endif
     for (i = 0; i < count; ++i) fn(arg, i);
+}
+
+RAST_API void rast_run_jobs(rast_context *ctx, int count, rast_job_fn job, void *job_arg) {
+    if (!ctx || !job) return;
+    rast__parallel(ctx, count, job, job_arg);
 }
 
 static void rast__vertex_job_fn(void *arg, int i) {

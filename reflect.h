@@ -334,6 +334,20 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
                                  refl_vec3 n, const float *uv, float rgb[3]);
 /* The environment seen along a world direction. */
 REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]);
+/* As refl_shade_diffuse, with light i counted only where lit[i] is nonzero
+   (lit may be NULL: every light). Methods with shadows pass their
+   visibility here, so shadows change nothing else. */
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p,
+                                     refl_vec3 n, const float *uv, const unsigned char *lit, float rgb[3]);
+/* Unpolarised Fresnel reflectance of a dielectric interface for a ray
+   arriving at cos_incidence (> 0) from a medium of index n1 into n2:
+   1 beyond the critical angle (total internal reflection). */
+REFL_API float refl_fresnel_dielectric(float cos_incidence, float n1, float n2);
+/* The share of light a reflector's mirror term carries at cos_incidence:
+   mirror: reflectance (0 means 1), through Schlick's Fresnel when `fresnel`
+   is set; partial: that times mirror_weight; glass: the dielectric Fresnel
+   term entering from air; diffuse: 0. Every method composites with it. */
+REFL_API float refl_material_reflectance(const refl_material *m, float cos_incidence);
 
 /* ---- ray tracing: a BVH over the scene's triangles ---------------------------- */
 
@@ -383,6 +397,7 @@ REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles, points, cameras, leaves, layers;
+    long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
 } refl_stats;
@@ -392,6 +407,10 @@ typedef struct refl_frame {
     uint8_t *color;          /* RGBA8, rows top first */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
+    float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel
+                                shows through its first reflection or refraction; NaN where
+                                it shows none (the environment) and on other pixels. The
+                                reflection-error metric compares these. */
     refl_stats stats;
     refl_allocator allocator;
 } refl_frame;
@@ -403,6 +422,10 @@ REFL_API void refl_frame_destroy(refl_frame *frame);
 typedef struct refl_render_desc {
     refl_method method;
     int threads;             /* 0: one per CPU */
+    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
+                                with none left shows what DIRECT shows there */
+    int shadows;             /* 1: hard shadows from every light */
+    int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -411,6 +434,45 @@ typedef struct refl_render_desc {
    match the view's). */
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
                                  const refl_render_desc *desc, refl_frame *frame);
+
+/* ---- metrics: each method against the ray-traced reference ------------------ */
+
+/* Reflection error in pixels. For a reflector pixel x of `test` showing
+   scene point P (frame->points), x* is the pixel of the same reflector in
+   `truth` whose true point lies nearest P (a kd-tree over the traced
+   points); the error is |x - x*|. P counts as wrong when no true point of
+   that reflector lies within `tolerance` times the local spacing of the
+   true points there (the distance to their 4-neighbours). Pixels where the
+   truth shows a point and the test none are holes (empty). */
+typedef struct refl_error_desc {
+    float tolerance;         /* 0: 1.5 */
+    refl_allocator allocator;
+} refl_error_desc;
+
+typedef struct refl_reflection_error {
+    long long pixels;        /* reflector pixels where truth or test shows a point */
+    long long matched;       /* of those, test points found in the true reflection */
+    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels */
+    double wrong;            /* fraction of `pixels` showing a point found nowhere */
+    double empty;            /* fraction of `pixels` showing nothing where truth shows a point */
+} refl_reflection_error;
+
+/* Frames of one size, rendered from the same view. */
+REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
+                                                   const refl_error_desc *desc, refl_reflection_error *out);
+
+/* Image error of RGB against the truth, over every pixel or (reflectors_only)
+   over the truth's reflector pixels; threshold per channel in [0, 1]
+   (0: 2/255). */
+typedef struct refl_image_error {
+    long long pixels;
+    double rmse;             /* in [0, 1] */
+    double psnr;             /* dB; INFINITY when identical */
+    double max_diff;         /* largest channel difference, in [0, 1] */
+    double over_threshold;   /* fraction of pixels with a channel over threshold */
+} refl_image_error;
+REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
+                                             float threshold, refl_image_error *out);
 
 /* View and projection matrices of a view (near/far resolved from the scene
    when zero). */
@@ -484,6 +546,38 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 }
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
+
+static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
+
+/* ---- what refl_render hands a method (render.c) ----
+   A method either renders the whole frame itself (RAYTRACE) or fills the
+   reflector pixels after the base pass: diffuse geometry shaded, mirrors
+   and glass transparent black, partial reflectors at their diffuse share,
+   reflector object id + 1 in the stencil, the environment behind, and
+   frame->points NaN everywhere. Methods add their mirror share on top. */
+typedef struct refl__pass {
+    const refl_scene *scene;
+    const refl_view *view;
+    refl_render_desc desc;        /* defaults resolved: depth, envmap_size */
+    refl_frame *frame;
+    rast_context *rc;             /* the frame bound as its targets */
+    refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
+} refl__pass;
+
+/* Draws every object but `skip` (-1: none) as the base pass does, into
+   whatever targets rc has bound, and finishes. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st);
+/* Fills every pixel whose depth is still 1 with the environment seen
+   through it (inv_vp: clip to world). */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp);
+static refl_result refl__result_from_rast(rast_result r);
+static double refl__now_ms(void);
+
+/* The methods (one module each). */
+static refl_result refl__method_raytrace(refl__pass *p);
+static refl_result refl__method_envmap(refl__pass *p);
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -2970,6 +3064,11 @@ static void refl__image_sample(const refl_image *img, float u, float v, int clam
 
 REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
                                  const float *uv, float rgb[3]) {
+    refl_shade_diffuse_lit(scene, m, p, n, uv, NULL, rgb);
+}
+
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                     const float *uv, const unsigned char *lit, float rgb[3]) {
     float base[4];
     int i, c;
     refl_vec3 nn = refl_v3_normalize(n);
@@ -2985,7 +3084,7 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
         refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
                                                                : refl_v3_sub(l->position, p);
         float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light));
-        if (lambert <= 0.0f) continue;
+        if (lambert <= 0.0f || (lit && !lit[i])) continue;
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
@@ -3012,6 +3111,32 @@ REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir
         refl__image_sample(&env->faces[face], s, tt, REFL__CLAMP_U | REFL__CLAMP_V, t);
     }
     for (c = 0; c < 3; ++c) rgb[c] = t[c] * k;
+}
+
+REFL_API float refl_fresnel_dielectric(float cos_i, float n1, float n2) {
+    float sin_t, cos_t, rs, rp;
+    cos_i = REFL__CLAMP(cos_i, 0.0f, 1.0f);
+    if (!(n1 > 0.0f) || !(n2 > 0.0f)) return 1.0f;
+    sin_t = n1 / n2 * sqrtf(REFL__MAX(0.0f, 1.0f - cos_i * cos_i));
+    if (sin_t >= 1.0f) return 1.0f;
+    cos_t = sqrtf(1.0f - sin_t * sin_t);
+    rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    rp = (n1 * cos_t - n2 * cos_i) / (n1 * cos_t + n2 * cos_i);
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
+    float r, c5;
+    if (!m || m->type == REFL_DIFFUSE) return 0.0f;
+    if (m->type == REFL_GLASS) return refl_fresnel_dielectric(cos_i, 1.0f, m->ior > 0.0f ? m->ior : 1.5f);
+    r = m->reflectance > 0.0f ? REFL__MIN(m->reflectance, 1.0f) : 1.0f;
+    if (m->fresnel) {
+        c5 = 1.0f - REFL__CLAMP(cos_i, 0.0f, 1.0f);
+        c5 = c5 * c5 * c5 * c5 * c5;
+        r = r + (1.0f - r) * c5;
+    }
+    if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
+    return r;
 }
 /* ---- src/reflect/bvh.c ---- */
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
@@ -3483,11 +3608,39 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
 }
+/* ---- src/reflect/m_raytrace.c ---- */
+/* RAYTRACE: the reference (in progress). */
+
+static refl_result refl__method_raytrace(refl__pass *p) {
+    (void)p;
+    return REFL_ERROR_UNSUPPORTED;
+}
+/* ---- src/reflect/m_envmap.c ---- */
+/* ENVMAP: the classic baseline (in progress). */
+
+static refl_result refl__method_envmap(refl__pass *p) {
+    (void)p;
+    return REFL_ERROR_UNSUPPORTED;
+}
+/* ---- src/reflect/metrics.c ---- */
+/* metrics: reflection error in pixels and image error (in progress). */
+
+REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
+                                           const refl_error_desc *desc, refl_reflection_error *out) {
+    (void)test; (void)truth; (void)desc; (void)out;
+    return REFL_ERROR_UNSUPPORTED;
+}
+
+REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
+                                             float threshold, refl_image_error *out) {
+    (void)test; (void)truth; (void)reflectors_only; (void)threshold; (void)out;
+    return REFL_ERROR_UNSUPPORTED;
+}
 /* ---- src/reflect/render.c ---- */
 /* Frames and the one entry point, refl_render: the base pass every method
    shares (diffuse geometry shaded per pixel, reflectors into the stencil),
    the environment behind everything, and the per-method middle step.
-   DIRECT is the base pass alone. */
+   DIRECT is the base pass alone; RAYTRACE renders the whole frame itself. */
 
 #include <time.h>
 
@@ -3522,7 +3675,8 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->color = (uint8_t *)refl__calloc(a, n, 4);
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
-    if (!f->color || !f->depth || !f->stencil) {
+    f->points = (float *)refl__calloc(a, n, 3 * sizeof(float));
+    if (!f->color || !f->depth || !f->stencil || !f->points) {
         refl_frame_destroy(f);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -3537,6 +3691,7 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl__free(&a, f->color);
     refl__free(&a, f->depth);
     refl__free(&a, f->stencil);
+    refl__free(&a, f->points);
     refl__free(&a, f);
 }
 
@@ -3630,12 +3785,15 @@ static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rg
     return 1;
 }
 
-static int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
+static refl_result refl__result_from_rast(rast_result r) {
+    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+}
 
-/* Draws every object: diffuse ones shaded, reflectors with their diffuse
-   share (partial) or black (mirror, glass), each writing its object id + 1
-   into the stencil. */
-static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_stats *st) {
+/* Draws every object but `skip`: diffuse ones shaded, reflectors with their
+   diffuse share (partial) or black (mirror, glass), each writing its object
+   id + 1 into the stencil. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st) {
     refl__draw_ctx *dc;
     int i;
     rast_result rr = RAST_OK;
@@ -3649,6 +3807,7 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
         rast_state s;
         rast_draw_desc d;
         refl_mat4 inv;
+        if (i == skip) continue;
         dc[i].scene = scene;
         dc[i].mesh = m;
         dc[i].material = &scene->materials[o->material];
@@ -3687,32 +3846,31 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
     }
     if (rr == RAST_OK) rr = rast_finish(rc);
     refl__free(&scene->allocator, dc);
-    return rr == RAST_OK ? REFL_OK : rr == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+    return refl__result_from_rast(rr);
 }
 
-/* The environment behind the geometry: every pixel the base pass left at
-   the far plane shows the environment along its view ray. */
-static void refl__background(refl_frame *f, const refl_scene *scene, refl_mat4 view_m, refl_mat4 proj_m) {
-    refl_mat4 inv_vp;
+/* The environment behind the geometry: every pixel the scene left at the
+   far plane shows the environment along its view ray. */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp) {
     int x, y;
-    if (!refl_mat4_invert(refl_mat4_mul(proj_m, view_m), &inv_vp)) return;
-    for (y = 0; y < f->height; ++y)
-        for (x = 0; x < f->width; ++x) {
-            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+    for (y = 0; y < height; ++y)
+        for (x = 0; x < width; ++x) {
+            size_t i = (size_t)y * (size_t)stride_px + (size_t)x;
             float nx, ny, rgb[3];
             refl_vec3 a, b;
             int c;
-            if (f->depth[i] < 1.0f) continue;
-            nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
-            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
+            if (depth[i] < 1.0f) continue;
+            nx = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
+            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
             a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
             b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
             refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
             for (c = 0; c < 3; ++c) {
                 float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                f->color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
+                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
             }
-            f->color[4 * i + 3] = 255;
+            color[4 * i + 3] = 255;
         }
 }
 
@@ -3725,38 +3883,48 @@ static int refl__view_ok(const refl_view *v) {
 
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                  refl_frame *frame) {
-    refl_render_desc d;
+    refl__pass p;
     rast_context_desc cd;
-    rast_context *rc = NULL;
     rast_targets t;
     rast_clear_desc clear;
-    refl_mat4 view_m, proj_m;
+    refl_mat4 inv_vp;
     refl_result r;
     double t0 = refl__now_ms(), t1;
+    size_t n, k;
     int i;
     if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
-    if (desc) d = *desc;
-    else memset(&d, 0, sizeof d);
-    if ((int)d.method < 0 || d.method >= REFL_METHOD_COUNT || d.threads < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(&p, 0, sizeof p);
+    if (desc) p.desc = *desc;
+    if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
+        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192)
+        return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
             return REFL_ERROR_INVALID_ARGUMENT;
-    if (d.method != REFL_METHOD_DEFAULT && d.method != REFL_DIRECT) return REFL_ERROR_UNSUPPORTED;
+    if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
+    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP)
+        return REFL_ERROR_UNSUPPORTED;
+    if (p.desc.depth == 0) p.desc.depth = 6;
+    if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
+    p.scene = scene;
+    p.view = view;
+    p.frame = frame;
     memset(&frame->stats, 0, sizeof(frame->stats));
+    n = (size_t)frame->width * (size_t)frame->height;
+    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
 
     memset(&cd, 0, sizeof cd);
-    cd.num_threads = d.threads;
+    cd.num_threads = p.desc.threads;
     cd.allocator.alloc = scene->allocator.alloc;
     cd.allocator.free = scene->allocator.free;
     cd.allocator.user = scene->allocator.user;
-    switch (rast_context_create(&cd, &rc)) {
-    case RAST_OK: break;
-    case RAST_ERROR_OUT_OF_MEMORY: return REFL_ERROR_OUT_OF_MEMORY;
-    default: return REFL_ERROR_RASTER;
-    }
+    r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
+    if (r != REFL_OK) return r;
     memset(&t, 0, sizeof t);
     t.color.ptr = frame->color; t.color.width = frame->width; t.color.height = frame->height;
     t.color.stride = 4 * frame->width;
@@ -3767,22 +3935,28 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    if (rast_set_targets(rc, &t) != RAST_OK || rast_clear(rc, &clear) != RAST_OK) {
-        rast_context_destroy(rc);
+    if (rast_set_targets(p.rc, &t) != RAST_OK || rast_clear(p.rc, &clear) != RAST_OK) {
+        rast_context_destroy(p.rc);
         return REFL_ERROR_RASTER;
     }
-    refl_view_matrices(view, scene, &view_m, &proj_m);
-    if (d.progress) d.progress(d.progress_user, 0.0f);
-    r = refl__base_pass(rc, scene, refl_mat4_mul(proj_m, view_m), &frame->stats);
-    rast_context_destroy(rc);
+    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
+    if (p.desc.method == REFL_RAYTRACE) {
+        r = refl__method_raytrace(&p);
+    } else {
+        r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
+        if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
+            refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
+                                  inv_vp);
+        t1 = refl__now_ms();
+        frame->stats.ms_base = t1 - t0;
+        if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
+    }
+    rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;
-    refl__background(frame, scene, view_m, proj_m);
-    t1 = refl__now_ms();
-    frame->stats.ms_base = t1 - t0;
-    frame->stats.ms_total = t1 - t0;
+    frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
-    if (d.progress) d.progress(d.progress_user, 1.0f);
+    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
     return REFL_OK;
 }
 #endif /* REFL_IMPLEMENTATION_INCLUDED_ */

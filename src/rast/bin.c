@@ -39,6 +39,11 @@ static void rast__parallel(rast_context *ctx, int count, rast_job_fn fn, void *a
     for (i = 0; i < count; ++i) fn(arg, i);
 }
 
+RAST_API void rast_run_jobs(rast_context *ctx, int count, rast_job_fn job, void *job_arg) {
+    if (!ctx || !job) return;
+    rast__parallel(ctx, count, job, job_arg);
+}
+
 static void rast__vertex_job_fn(void *arg, int i) {
     rast__pass *ps = (rast__pass *)arg;
     rast__vertex_job(ps->vertex_cmds[i], ps->vertex_jobs[i]);

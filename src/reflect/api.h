@@ -332,6 +332,20 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
                                  refl_vec3 n, const float *uv, float rgb[3]);
 /* The environment seen along a world direction. */
 REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]);
+/* As refl_shade_diffuse, with light i counted only where lit[i] is nonzero
+   (lit may be NULL: every light). Methods with shadows pass their
+   visibility here, so shadows change nothing else. */
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p,
+                                     refl_vec3 n, const float *uv, const unsigned char *lit, float rgb[3]);
+/* Unpolarised Fresnel reflectance of a dielectric interface for a ray
+   arriving at cos_incidence (> 0) from a medium of index n1 into n2:
+   1 beyond the critical angle (total internal reflection). */
+REFL_API float refl_fresnel_dielectric(float cos_incidence, float n1, float n2);
+/* The share of light a reflector's mirror term carries at cos_incidence:
+   mirror: reflectance (0 means 1), through Schlick's Fresnel when `fresnel`
+   is set; partial: that times mirror_weight; glass: the dielectric Fresnel
+   term entering from air; diffuse: 0. Every method composites with it. */
+REFL_API float refl_material_reflectance(const refl_material *m, float cos_incidence);
 
 /* ---- ray tracing: a BVH over the scene's triangles ---------------------------- */
 
@@ -381,6 +395,7 @@ REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles, points, cameras, leaves, layers;
+    long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
 } refl_stats;
@@ -390,6 +405,10 @@ typedef struct refl_frame {
     uint8_t *color;          /* RGBA8, rows top first */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
+    float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel
+                                shows through its first reflection or refraction; NaN where
+                                it shows none (the environment) and on other pixels. The
+                                reflection-error metric compares these. */
     refl_stats stats;
     refl_allocator allocator;
 } refl_frame;
@@ -401,6 +420,10 @@ REFL_API void refl_frame_destroy(refl_frame *frame);
 typedef struct refl_render_desc {
     refl_method method;
     int threads;             /* 0: one per CPU */
+    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
+                                with none left shows what DIRECT shows there */
+    int shadows;             /* 1: hard shadows from every light */
+    int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -409,6 +432,45 @@ typedef struct refl_render_desc {
    match the view's). */
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
                                  const refl_render_desc *desc, refl_frame *frame);
+
+/* ---- metrics: each method against the ray-traced reference ------------------ */
+
+/* Reflection error in pixels. For a reflector pixel x of `test` showing
+   scene point P (frame->points), x* is the pixel of the same reflector in
+   `truth` whose true point lies nearest P (a kd-tree over the traced
+   points); the error is |x - x*|. P counts as wrong when no true point of
+   that reflector lies within `tolerance` times the local spacing of the
+   true points there (the distance to their 4-neighbours). Pixels where the
+   truth shows a point and the test none are holes (empty). */
+typedef struct refl_error_desc {
+    float tolerance;         /* 0: 1.5 */
+    refl_allocator allocator;
+} refl_error_desc;
+
+typedef struct refl_reflection_error {
+    long long pixels;        /* reflector pixels where truth or test shows a point */
+    long long matched;       /* of those, test points found in the true reflection */
+    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels */
+    double wrong;            /* fraction of `pixels` showing a point found nowhere */
+    double empty;            /* fraction of `pixels` showing nothing where truth shows a point */
+} refl_reflection_error;
+
+/* Frames of one size, rendered from the same view. */
+REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
+                                                   const refl_error_desc *desc, refl_reflection_error *out);
+
+/* Image error of RGB against the truth, over every pixel or (reflectors_only)
+   over the truth's reflector pixels; threshold per channel in [0, 1]
+   (0: 2/255). */
+typedef struct refl_image_error {
+    long long pixels;
+    double rmse;             /* in [0, 1] */
+    double psnr;             /* dB; INFINITY when identical */
+    double max_diff;         /* largest channel difference, in [0, 1] */
+    double over_threshold;   /* fraction of pixels with a channel over threshold */
+} refl_image_error;
+REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
+                                             float threshold, refl_image_error *out);
 
 /* View and projection matrices of a view (near/far resolved from the scene
    when zero). */

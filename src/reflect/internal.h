@@ -58,3 +58,35 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 }
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
+
+static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
+
+/* ---- what refl_render hands a method (render.c) ----
+   A method either renders the whole frame itself (RAYTRACE) or fills the
+   reflector pixels after the base pass: diffuse geometry shaded, mirrors
+   and glass transparent black, partial reflectors at their diffuse share,
+   reflector object id + 1 in the stencil, the environment behind, and
+   frame->points NaN everywhere. Methods add their mirror share on top. */
+typedef struct refl__pass {
+    const refl_scene *scene;
+    const refl_view *view;
+    refl_render_desc desc;        /* defaults resolved: depth, envmap_size */
+    refl_frame *frame;
+    rast_context *rc;             /* the frame bound as its targets */
+    refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
+} refl__pass;
+
+/* Draws every object but `skip` (-1: none) as the base pass does, into
+   whatever targets rc has bound, and finishes. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st);
+/* Fills every pixel whose depth is still 1 with the environment seen
+   through it (inv_vp: clip to world). */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp);
+static refl_result refl__result_from_rast(rast_result r);
+static double refl__now_ms(void);
+
+/* The methods (one module each). */
+static refl_result refl__method_raytrace(refl__pass *p);
+static refl_result refl__method_envmap(refl__pass *p);

@@ -1,7 +1,7 @@
 /* Frames and the one entry point, refl_render: the base pass every method
    shares (diffuse geometry shaded per pixel, reflectors into the stencil),
    the environment behind everything, and the per-method middle step.
-   DIRECT is the base pass alone. */
+   DIRECT is the base pass alone; RAYTRACE renders the whole frame itself. */
 #include "internal.h"
 
 #include <time.h>
@@ -37,7 +37,8 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->color = (uint8_t *)refl__calloc(a, n, 4);
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
-    if (!f->color || !f->depth || !f->stencil) {
+    f->points = (float *)refl__calloc(a, n, 3 * sizeof(float));
+    if (!f->color || !f->depth || !f->stencil || !f->points) {
         refl_frame_destroy(f);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -52,6 +53,7 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl__free(&a, f->color);
     refl__free(&a, f->depth);
     refl__free(&a, f->stencil);
+    refl__free(&a, f->points);
     refl__free(&a, f);
 }
 
@@ -145,12 +147,15 @@ static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rg
     return 1;
 }
 
-static int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
+static refl_result refl__result_from_rast(rast_result r) {
+    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+}
 
-/* Draws every object: diffuse ones shaded, reflectors with their diffuse
-   share (partial) or black (mirror, glass), each writing its object id + 1
-   into the stencil. */
-static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_stats *st) {
+/* Draws every object but `skip`: diffuse ones shaded, reflectors with their
+   diffuse share (partial) or black (mirror, glass), each writing its object
+   id + 1 into the stencil. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st) {
     refl__draw_ctx *dc;
     int i;
     rast_result rr = RAST_OK;
@@ -164,6 +169,7 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
         rast_state s;
         rast_draw_desc d;
         refl_mat4 inv;
+        if (i == skip) continue;
         dc[i].scene = scene;
         dc[i].mesh = m;
         dc[i].material = &scene->materials[o->material];
@@ -202,32 +208,31 @@ static refl_result refl__base_pass(rast_context *rc, const refl_scene *scene, re
     }
     if (rr == RAST_OK) rr = rast_finish(rc);
     refl__free(&scene->allocator, dc);
-    return rr == RAST_OK ? REFL_OK : rr == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+    return refl__result_from_rast(rr);
 }
 
-/* The environment behind the geometry: every pixel the base pass left at
-   the far plane shows the environment along its view ray. */
-static void refl__background(refl_frame *f, const refl_scene *scene, refl_mat4 view_m, refl_mat4 proj_m) {
-    refl_mat4 inv_vp;
+/* The environment behind the geometry: every pixel the scene left at the
+   far plane shows the environment along its view ray. */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp) {
     int x, y;
-    if (!refl_mat4_invert(refl_mat4_mul(proj_m, view_m), &inv_vp)) return;
-    for (y = 0; y < f->height; ++y)
-        for (x = 0; x < f->width; ++x) {
-            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+    for (y = 0; y < height; ++y)
+        for (x = 0; x < width; ++x) {
+            size_t i = (size_t)y * (size_t)stride_px + (size_t)x;
             float nx, ny, rgb[3];
             refl_vec3 a, b;
             int c;
-            if (f->depth[i] < 1.0f) continue;
-            nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
-            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
+            if (depth[i] < 1.0f) continue;
+            nx = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
+            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
             a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
             b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
             refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
             for (c = 0; c < 3; ++c) {
                 float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                f->color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
+                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
             }
-            f->color[4 * i + 3] = 255;
+            color[4 * i + 3] = 255;
         }
 }
 
@@ -240,38 +245,48 @@ static int refl__view_ok(const refl_view *v) {
 
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                  refl_frame *frame) {
-    refl_render_desc d;
+    refl__pass p;
     rast_context_desc cd;
-    rast_context *rc = NULL;
     rast_targets t;
     rast_clear_desc clear;
-    refl_mat4 view_m, proj_m;
+    refl_mat4 inv_vp;
     refl_result r;
     double t0 = refl__now_ms(), t1;
+    size_t n, k;
     int i;
     if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
-    if (desc) d = *desc;
-    else memset(&d, 0, sizeof d);
-    if ((int)d.method < 0 || d.method >= REFL_METHOD_COUNT || d.threads < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(&p, 0, sizeof p);
+    if (desc) p.desc = *desc;
+    if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
+        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192)
+        return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
             return REFL_ERROR_INVALID_ARGUMENT;
-    if (d.method != REFL_METHOD_DEFAULT && d.method != REFL_DIRECT) return REFL_ERROR_UNSUPPORTED;
+    if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
+    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP)
+        return REFL_ERROR_UNSUPPORTED;
+    if (p.desc.depth == 0) p.desc.depth = 6;
+    if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
+    p.scene = scene;
+    p.view = view;
+    p.frame = frame;
     memset(&frame->stats, 0, sizeof(frame->stats));
+    n = (size_t)frame->width * (size_t)frame->height;
+    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
 
     memset(&cd, 0, sizeof cd);
-    cd.num_threads = d.threads;
+    cd.num_threads = p.desc.threads;
     cd.allocator.alloc = scene->allocator.alloc;
     cd.allocator.free = scene->allocator.free;
     cd.allocator.user = scene->allocator.user;
-    switch (rast_context_create(&cd, &rc)) {
-    case RAST_OK: break;
-    case RAST_ERROR_OUT_OF_MEMORY: return REFL_ERROR_OUT_OF_MEMORY;
-    default: return REFL_ERROR_RASTER;
-    }
+    r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
+    if (r != REFL_OK) return r;
     memset(&t, 0, sizeof t);
     t.color.ptr = frame->color; t.color.width = frame->width; t.color.height = frame->height;
     t.color.stride = 4 * frame->width;
@@ -282,21 +297,27 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    if (rast_set_targets(rc, &t) != RAST_OK || rast_clear(rc, &clear) != RAST_OK) {
-        rast_context_destroy(rc);
+    if (rast_set_targets(p.rc, &t) != RAST_OK || rast_clear(p.rc, &clear) != RAST_OK) {
+        rast_context_destroy(p.rc);
         return REFL_ERROR_RASTER;
     }
-    refl_view_matrices(view, scene, &view_m, &proj_m);
-    if (d.progress) d.progress(d.progress_user, 0.0f);
-    r = refl__base_pass(rc, scene, refl_mat4_mul(proj_m, view_m), &frame->stats);
-    rast_context_destroy(rc);
+    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
+    if (p.desc.method == REFL_RAYTRACE) {
+        r = refl__method_raytrace(&p);
+    } else {
+        r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
+        if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
+            refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
+                                  inv_vp);
+        t1 = refl__now_ms();
+        frame->stats.ms_base = t1 - t0;
+        if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
+    }
+    rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;
-    refl__background(frame, scene, view_m, proj_m);
-    t1 = refl__now_ms();
-    frame->stats.ms_base = t1 - t0;
-    frame->stats.ms_total = t1 - t0;
+    frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
-    if (d.progress) d.progress(d.progress_user, 1.0f);
+    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
     return REFL_OK;
 }

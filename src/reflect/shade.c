@@ -44,6 +44,11 @@ static void refl__image_sample(const refl_image *img, float u, float v, int clam
 
 REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
                                  const float *uv, float rgb[3]) {
+    refl_shade_diffuse_lit(scene, m, p, n, uv, NULL, rgb);
+}
+
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                     const float *uv, const unsigned char *lit, float rgb[3]) {
     float base[4];
     int i, c;
     refl_vec3 nn = refl_v3_normalize(n);
@@ -59,7 +64,7 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
         refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
                                                                : refl_v3_sub(l->position, p);
         float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light));
-        if (lambert <= 0.0f) continue;
+        if (lambert <= 0.0f || (lit && !lit[i])) continue;
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
@@ -86,4 +91,30 @@ REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir
         refl__image_sample(&env->faces[face], s, tt, REFL__CLAMP_U | REFL__CLAMP_V, t);
     }
     for (c = 0; c < 3; ++c) rgb[c] = t[c] * k;
+}
+
+REFL_API float refl_fresnel_dielectric(float cos_i, float n1, float n2) {
+    float sin_t, cos_t, rs, rp;
+    cos_i = REFL__CLAMP(cos_i, 0.0f, 1.0f);
+    if (!(n1 > 0.0f) || !(n2 > 0.0f)) return 1.0f;
+    sin_t = n1 / n2 * sqrtf(REFL__MAX(0.0f, 1.0f - cos_i * cos_i));
+    if (sin_t >= 1.0f) return 1.0f;
+    cos_t = sqrtf(1.0f - sin_t * sin_t);
+    rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    rp = (n1 * cos_t - n2 * cos_i) / (n1 * cos_t + n2 * cos_i);
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
+    float r, c5;
+    if (!m || m->type == REFL_DIFFUSE) return 0.0f;
+    if (m->type == REFL_GLASS) return refl_fresnel_dielectric(cos_i, 1.0f, m->ior > 0.0f ? m->ior : 1.5f);
+    r = m->reflectance > 0.0f ? REFL__MIN(m->reflectance, 1.0f) : 1.0f;
+    if (m->fresnel) {
+        c5 = 1.0f - REFL__CLAMP(cos_i, 0.0f, 1.0f);
+        c5 = c5 * c5 * c5 * c5 * c5;
+        r = r + (1.0f - r) * c5;
+    }
+    if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
+    return r;
 }
