@@ -419,6 +419,15 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
 
+/* Where rays go: RAYTRACE casts through its own BVH unless given another
+   caster (the bench plugs in Embree this way, so both trace one frame with
+   the same shading). Both functions run concurrently on worker threads. */
+typedef struct refl_ray_caster {
+    int (*intersect)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax, refl_hit *hit);
+    int (*occluded)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+    void *user;
+} refl_ray_caster;
+
 typedef struct refl_render_desc {
     refl_method method;
     int threads;             /* 0: one per CPU */
@@ -426,6 +435,7 @@ typedef struct refl_render_desc {
                                 with none left shows what DIRECT shows there */
     int shadows;             /* 1: hard shadows from every light */
     int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
+    refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
