@@ -1,7 +1,371 @@
-/* RAYTRACE: the reference (in progress). */
+/* RAYTRACE: the reference every other method is measured against.
+   Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
+   a primary ray per pixel centre, mirror reflections to desc.depth
+   bounces, glass with Fresnel reflection, refraction, total internal
+   reflection and Beer's-law absorption, optional hard shadows, the
+   environment on a miss. Shading is the shared model of shade.c, and each
+   surface's colour is clamped to [0, 1] before a reflectance weighs it,
+   exactly as the rasterised methods composite into their RGBA8 frame, so
+   images differ only where reflection geometry differs.
+   Pixels are independent, so any thread count gives the same bytes. */
 #include "internal.h"
 
+enum { REFL__RT_TILE = 16 };
+/* A branch whose weight falls below this cannot move an 8-bit pixel. */
+#define REFL__RT_MIN_WEIGHT (1.0f / 1024.0f)
+
+typedef struct refl__rt_object {
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
+} refl__rt_object;
+
+typedef struct refl__rt {
+    const refl__pass *p;
+    const refl_scene *scene;
+    refl__rt_object *objects;
+    refl_ray_caster caster;
+    refl_mat4 inv_vp;
+    float offset_scale;           /* near-origin offsets, scaled to the scene */
+    int tiles_x, tiles_y, first_tile;
+    long long *tile_rays;         /* per tile, summed after: no shared counter */
+} refl__rt;
+
+typedef struct refl__rt_surface {
+    refl_vec3 p, ng, ns;          /* point, geometric and shading normal (unit) */
+    float uv[2];
+    int has_uv;
+    const refl_material *material;
+    int object;
+} refl__rt_surface;
+
+static int refl__rt_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
+    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
+}
+
+static int refl__rt_bvh_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
+}
+
+/* Moves a surface point off its surface along n by a few ulps of its own
+   coordinates (Waechter and Binder, Ray Tracing Gems ch. 6): enough that
+   a secondary ray cannot hit the triangle it leaves, however far from the
+   origin the scene lies, and little enough not to skip nearby geometry.
+   Coordinates near zero, where ulps vanish, move by a scene-scaled amount. */
+static float refl__rt_nudge(float x, float n, float near_zero, float small) {
+    int32_t bits, ulps = (int32_t)(256.0f * n);
+    float out;
+    if (fabsf(x) < near_zero) return x + small * n;
+    memcpy(&bits, &x, sizeof bits);
+    bits += x < 0.0f ? -ulps : ulps;
+    memcpy(&out, &bits, sizeof out);
+    return out;
+}
+
+static refl_vec3 refl__rt_offset(const refl__rt *rt, refl_vec3 p, refl_vec3 n) {
+    float nz = rt->offset_scale / 32.0f, small = rt->offset_scale / 65536.0f;
+    return refl_v3(refl__rt_nudge(p.x, n.x, nz, small), refl__rt_nudge(p.y, n.y, nz, small),
+                   refl__rt_nudge(p.z, n.z, nz, small));
+}
+
+/* Point, normals and texture coordinates of a hit, from the mesh. */
+static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_surface *s) {
+    const refl__rt_object *o = &rt->objects[h->object];
+    const refl_mesh *m = o->mesh;
+    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
+    float w0 = 1.0f - h->u - h->v, w[3];
+    refl_vec3 v[3], n = refl_v3(0, 0, 0);
+    int k;
+    w[0] = w0; w[1] = h->u; w[2] = h->v;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
+        v[k] = refl_mat4_point(o->model, refl_v3(pp[0], pp[1], pp[2]));
+        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
+    }
+    /* barycentric interpolation is more exact than origin + t dir */
+    s->p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w0), refl_v3_scale(v[1], h->u)), refl_v3_scale(v[2], h->v));
+    s->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    s->ns = refl_v3_normalize(refl_mat4_dir(o->normal_m, n));
+    if (refl_v3_dot(s->ns, s->ns) == 0.0f) s->ns = s->ng;
+    s->has_uv = m->texcoords != NULL;
+    s->uv[0] = s->uv[1] = 0.0f;
+    if (s->has_uv)
+        for (k = 0; k < 3; ++k) {
+            s->uv[0] += w[k] * m->texcoords[2 * (size_t)tri[k]];
+            s->uv[1] += w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+        }
+    s->material = o->material;
+    s->object = h->object;
+    return refl_v3_dot(s->ng, s->ng) > 0.0f;
+}
+
+static void refl__rt_clamp(float rgb[3]) {
+    int c;
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+}
+
+/* The shared diffuse model at a surface, with shadow rays when asked. */
+static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
+                             float rgb[3]) {
+    enum { MAX_LIGHTS = 64 };
+    unsigned char lit[MAX_LIGHTS];
+    const refl_scene *scene = rt->scene;
+    int i, count = REFL__MIN(scene->light_count, MAX_LIGHTS);
+    if (!rt->p->desc.shadows) {
+        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    for (i = 0; i < count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                         : refl_v3_sub(l->position, s->p);
+        float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
+        refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
+        refl_vec3 o = refl__rt_offset(rt, s->p, side);
+        to = refl_v3_normalize(to);
+        lit[i] = 1;
+        if (refl_v3_dot(to, n) <= 0.0f) continue; /* unlit anyway: no ray needed */
+        ++*rays;
+        if (rt->caster.occluded) {
+            lit[i] = !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
+        } else {
+            refl_hit h;
+            lit[i] = !rt->caster.intersect(rt->caster.user, o, to, 0.0f, dist, &h);
+        }
+    }
+    /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
+    if (scene->light_count > MAX_LIGHTS) {
+        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    refl_shade_diffuse_lit(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, lit, rgb);
+}
+
+/* The medium a ray travels through: air, or the inside of a glass object
+   (absorbing per unit length). */
+typedef struct refl__rt_medium {
+    float attenuation;
+    int inside;
+} refl__rt_medium;
+
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point);
+
+/* A new ray leaving surface s in direction d, on the side d points to. */
+static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
+    refl__rt_trace(rt, refl__rt_offset(rt, s->p, side), d, depth, weight, medium, rays, rgb, first_point);
+}
+
+/* Colour of surface s seen along unit d with `depth` bounces left,
+   clamped to [0, 1]. first_point (may be NULL) receives the first point
+   outside glass that the reflected or refracted light comes from, along
+   the stronger branch at each interface. */
+static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    const refl_material *m = s->material;
+    float cos_i, r, sub[3];
+    int c, entering;
+    refl_vec3 n = s->ns, ng = s->ng;
+    if (m->type == REFL_DIFFUSE) {
+        refl__rt_diffuse(rt, s, n, rays, rgb);
+        refl__rt_clamp(rgb);
+        return;
+    }
+    entering = refl_v3_dot(d, ng) < 0.0f;
+    if (!entering) {
+        n = refl_v3_scale(n, -1.0f);
+        ng = refl_v3_scale(ng, -1.0f);
+    }
+    if (refl_v3_dot(d, n) > 0.0f) n = ng; /* shading normal faces away: trust the geometry */
+    cos_i = -refl_v3_dot(d, n);
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    if (m->type == REFL_PARTIAL) {
+        /* the diffuse share, as the base pass draws it */
+        float k = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
+        refl__rt_diffuse(rt, s, s->ns, rays, rgb);
+        refl__rt_clamp(rgb);
+        for (c = 0; c < 3; ++c) rgb[c] *= k;
+    }
+    if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
+    if (m->type != REFL_GLASS) {
+        r = refl_material_reflectance(m, cos_i);
+        if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
+            refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * r, medium, rays, sub, first_point);
+            for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
+        }
+    } else {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f;
+        float n1 = entering ? 1.0f : ior, n2 = entering ? ior : 1.0f;
+        float f = refl_fresnel_dielectric(cos_i, n1, n2), tint[3];
+        refl_vec3 t;
+        int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
+        int point_on_refraction = refracts && f < 0.5f;
+        refl__rt_medium through;
+        if (!refracts) f = 1.0f; /* total internal reflection */
+        for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
+        if (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction)) {
+            refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
+                           point_on_refraction ? NULL : first_point);
+            for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
+        }
+        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+            /* entering: tinted once, then absorbed along the inside */
+            through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
+            through.inside = entering;
+            refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
+                           point_on_refraction ? first_point : NULL);
+            for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
+        }
+    }
+    refl__rt_clamp(rgb);
+}
+
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    refl_hit h;
+    refl__rt_surface s;
+    int c;
+    ++*rays;
+    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, FLT_MAX, &h) || h.object < 0 ||
+        h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
+        refl_environment_lookup(&rt->scene->environment, d, rgb);
+        refl__rt_clamp(rgb);
+        return;
+    }
+    /* inside glass, the light's source lies further on */
+    if (first_point && !medium.inside) {
+        *first_point = s.p;
+        first_point = NULL;
+    }
+    refl__rt_shade(rt, &s, d, depth, weight, medium, rays, rgb, first_point);
+    if (medium.attenuation > 0.0f) {
+        float k = expf(-medium.attenuation * h.t);
+        for (c = 0; c < 3; ++c) rgb[c] *= k;
+    }
+}
+
+static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
+
+/* One tile of pixels: primary rays from the near plane to the far plane
+   (what the rasteriser clips to), depth and stencil as the base pass
+   writes them. */
+static void refl__rt_tile(void *arg, int job) {
+    const refl__rt *rt = (const refl__rt *)arg;
+    refl_frame *f = rt->p->frame;
+    int tile = rt->first_tile + job;
+    int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
+    int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
+    long long rays = 0;
+    refl__rt_medium air = {0.0f, 0};
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            float nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
+            float ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
+            refl_vec3 a = refl_mat4_point(rt->inv_vp, refl_v3(nx, ny, -1.0f));
+            refl_vec3 b = refl_mat4_point(rt->inv_vp, refl_v3(nx, ny, 1.0f));
+            refl_vec3 d = refl_v3_sub(b, a);
+            float len = refl_v3_length(d), rgb[3], depth = 1.0f;
+            refl_hit h;
+            refl__rt_surface s;
+            uint8_t stencil = 0;
+            d = refl_v3_scale(d, 1.0f / len);
+            ++rays;
+            if (len > 0.0f && rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
+                h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
+                const float *m = rt->p->vp.m;
+                float cz = m[2] * s.p.x + m[6] * s.p.y + m[10] * s.p.z + m[14];
+                float cw = m[3] * s.p.x + m[7] * s.p.y + m[11] * s.p.z + m[15];
+                refl_vec3 shown = refl_v3(NAN, NAN, NAN);
+                int reflector = refl__is_reflector(s.material);
+                depth = REFL__CLAMP(0.5f * cz / cw + 0.5f, 0.0f, 1.0f);
+                refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, &rays, rgb, reflector ? &shown : NULL);
+                if (reflector) {
+                    stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
+                    f->points[3 * i] = shown.x;
+                    f->points[3 * i + 1] = shown.y;
+                    f->points[3 * i + 2] = shown.z;
+                }
+            } else {
+                refl_environment_lookup(&rt->scene->environment, d, rgb);
+            }
+            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
+            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
+            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
+            f->color[4 * i + 3] = 255;
+            f->depth[i] = depth;
+            f->stencil[i] = stencil;
+        }
+    rt->tile_rays[tile] = rays;
+}
+
 static refl_result refl__method_raytrace(refl__pass *p) {
-    (void)p;
-    return REFL_ERROR_UNSUPPORTED;
+    const refl_scene *scene = p->scene;
+    refl_frame *f = p->frame;
+    refl_bvh *bvh = NULL;
+    refl__rt rt;
+    refl_vec3 lo, hi;
+    long long nodes = 0, tris = 0;
+    double t0 = refl__now_ms(), t1;
+    int i, tiles, rows_done;
+    memset(&rt, 0, sizeof rt);
+    rt.p = p;
+    rt.scene = scene;
+    rt.caster = p->desc.caster;
+    if (!refl_mat4_invert(p->vp, &rt.inv_vp)) return REFL_ERROR_INVALID_ARGUMENT;
+    refl_scene_bounds(scene, &lo, &hi);
+    rt.offset_scale = REFL__MAX(refl_v3_length(refl_v3_sub(hi, lo)), 1e-6f);
+    if (!refl__isfinite(rt.offset_scale)) rt.offset_scale = 1.0f;
+    rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tiles = rt.tiles_x * rt.tiles_y;
+    rt.objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
+                                                 sizeof(refl__rt_object));
+    rt.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
+    if (!rt.objects || !rt.tile_rays) {
+        refl__free(&scene->allocator, rt.objects);
+        refl__free(&scene->allocator, rt.tile_rays);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_mat4 inv;
+        rt.objects[i].mesh = scene->meshes[o->mesh];
+        rt.objects[i].material = &scene->materials[o->material];
+        rt.objects[i].model = o->transform;
+        rt.objects[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        f->stats.triangles += scene->meshes[o->mesh]->triangle_count;
+    }
+    if (!rt.caster.intersect) {
+        refl_result r = refl_bvh_build(scene, &scene->allocator, &bvh);
+        if (r != REFL_OK) {
+            refl__free(&scene->allocator, rt.objects);
+            refl__free(&scene->allocator, rt.tile_rays);
+            return r;
+        }
+        rt.caster.intersect = refl__rt_bvh_intersect;
+        rt.caster.occluded = refl__rt_bvh_occluded;
+        rt.caster.user = bvh;
+        refl_bvh_stats(bvh, &nodes, &tris);
+        f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
+                               tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
+    }
+    t1 = refl__now_ms();
+    f->stats.ms_build = t1 - t0;
+    /* bands of tile rows, so progress is reported from this thread */
+    for (rows_done = 0; rows_done < rt.tiles_y;) {
+        int band = REFL__MAX(1, rt.tiles_y / 16), rows = REFL__MIN(band, rt.tiles_y - rows_done);
+        rt.first_tile = rows_done * rt.tiles_x;
+        rast_run_jobs(p->rc, rows * rt.tiles_x, refl__rt_tile, &rt);
+        rows_done += rows;
+        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)rt.tiles_y);
+    }
+    for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
+    f->stats.ms_reflect = refl__now_ms() - t1;
+    refl_bvh_destroy(bvh);
+    refl__free(&scene->allocator, rt.objects);
+    refl__free(&scene->allocator, rt.tile_rays);
+    return REFL_OK;
 }
