@@ -55,10 +55,11 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     ctx->threads = threads;
 #ifndef RAST_NO_THREADS
     if (threads > 1 && !ctx->parallel_for) {
-        ctx->pool = rast__pool_create(&ctx->alloc, threads - 1);
+        int out_of_memory = 0;
+        ctx->pool = rast__pool_create(&ctx->alloc, threads - 1, &out_of_memory);
         if (!ctx->pool) {
             rast__free(&alloc, ctx);
-            return RAST_ERROR_THREADS;
+            return out_of_memory ? RAST_ERROR_OUT_OF_MEMORY : RAST_ERROR_THREADS;
         }
     }
 #else

@@ -67,10 +67,12 @@ static void rast__pool_destroy(rast__pool *p) {
     rast__free(p->alloc, p);
 }
 
-/* Starts `workers` threads; NULL on failure (nothing left running). */
-static rast__pool *rast__pool_create(const rast_allocator *alloc, int workers) {
+/* Starts `workers` threads; NULL on failure (nothing left running), with
+   *out_of_memory set when the allocation was what failed. */
+static rast__pool *rast__pool_create(const rast_allocator *alloc, int workers, int *out_of_memory) {
     rast__pool *p = (rast__pool *)rast__calloc(alloc, 1, sizeof(rast__pool));
     int i;
+    *out_of_memory = p == NULL;
     if (!p) return NULL;
     p->alloc = alloc;
     if (pthread_mutex_init(&p->lock, NULL) != 0) { rast__free(alloc, p); return NULL; }

@@ -482,6 +482,13 @@ typedef struct refl_image_error {
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out);
 
+/* The world ray through window point (px, py) of a view (pixel centres at
+   x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
+   plane, reaching the far plane at *tmax, as the rasteriser clips. Any
+   output may be NULL. */
+REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
+                            refl_vec3 *dir, float *tmax);
+
 /* View and projection matrices of a view (near/far resolved from the scene
    when zero). */
 REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene, refl_mat4 *view_m,

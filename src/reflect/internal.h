@@ -61,6 +61,21 @@ static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
+/* A pinhole view's rays, set up once (render.c): through window point
+   (px, py), pixel centres at + 0.5, the unit direction is
+   normalize(forward + right * nx + up * ny) with nx, ny in [-1, 1]; rays
+   start on the near plane and end on the far plane, as the rasteriser
+   clips. Built from the camera's basis, not by inverting the
+   view-projection matrix, which loses all precision far from the origin. */
+typedef struct refl__view_rays {
+    refl_vec3 eye, forward, right, up; /* right and up scaled by tan(half fov) */
+    float znear, zfar;
+    int width, height;
+} refl__view_rays;
+static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const refl_scene *scene);
+static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
+                                float *tmax);
+
 /* ---- what refl_render hands a method (render.c) ----
    A method either renders the whole frame itself (RAYTRACE) or fills the
    reflector pixels after the base pass: diffuse geometry shaded, mirrors
@@ -74,6 +89,7 @@ typedef struct refl__pass {
     refl_frame *frame;
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
+    refl__view_rays rays;
 } refl__pass;
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into

@@ -25,8 +25,6 @@ typedef struct refl__rt {
     const refl_scene *scene;
     refl__rt_object *objects;
     refl_ray_caster caster;
-    refl_mat4 inv_vp;
-    float offset_scale;           /* near-origin offsets, scaled to the scene */
     int tiles_x, tiles_y, first_tile;
     long long *tile_rays;         /* per tile, summed after: no shared counter */
 } refl__rt;
@@ -35,8 +33,9 @@ typedef struct refl__rt_surface {
     refl_vec3 p, ng, ns;          /* point, geometric and shading normal (unit) */
     float uv[2];
     int has_uv;
+    float magnitude;              /* largest |coordinate| of the triangle */
     const refl_material *material;
-    int object;
+    int object, triangle;
 } refl__rt_surface;
 
 static int refl__rt_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
@@ -47,25 +46,14 @@ static int refl__rt_bvh_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmi
     return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
 }
 
-/* Moves a surface point off its surface along n by a few ulps of its own
-   coordinates (Waechter and Binder, Ray Tracing Gems ch. 6): enough that
-   a secondary ray cannot hit the triangle it leaves, however far from the
-   origin the scene lies, and little enough not to skip nearby geometry.
-   Coordinates near zero, where ulps vanish, move by a scene-scaled amount. */
-static float refl__rt_nudge(float x, float n, float near_zero, float small) {
-    int32_t bits, ulps = (int32_t)(256.0f * n);
-    float out;
-    if (fabsf(x) < near_zero) return x + small * n;
-    memcpy(&bits, &x, sizeof bits);
-    bits += x < 0.0f ? -ulps : ulps;
-    memcpy(&out, &bits, sizeof out);
-    return out;
-}
-
-static refl_vec3 refl__rt_offset(const refl__rt *rt, refl_vec3 p, refl_vec3 n) {
-    float nz = rt->offset_scale / 32.0f, small = rt->offset_scale / 65536.0f;
-    return refl_v3(refl__rt_nudge(p.x, n.x, nz, small), refl__rt_nudge(p.y, n.y, nz, small),
-                   refl__rt_nudge(p.z, n.z, nz, small));
+/* A secondary ray starts a hair off its surface along n: a few float ulps
+   of the triangle's largest coordinate, which bounds the rounding of both
+   the hit point and the ray-triangle test, so the ray cannot hit its own
+   triangle's neighbours by error, yet skips no geometry an image could
+   show. Its own triangle is skipped exactly (refl__rt_cast): a flat
+   triangle cannot be met twice by a straight ray. */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude) {
+    return refl_v3_add(p, refl_v3_scale(n, 5e-7f * magnitude)); /* 4 ulps: 2^-21 */
 }
 
 /* Point, normals and texture coordinates of a hit, from the mesh. */
@@ -77,9 +65,11 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
     refl_vec3 v[3], n = refl_v3(0, 0, 0);
     int k;
     w[0] = w0; w[1] = h->u; w[2] = h->v;
+    s->magnitude = 0.0f;
     for (k = 0; k < 3; ++k) {
         const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
         v[k] = refl_mat4_point(o->model, refl_v3(pp[0], pp[1], pp[2]));
+        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(v[k].x), REFL__MAX(fabsf(v[k].y), fabsf(v[k].z))));
         n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
     }
     /* barycentric interpolation is more exact than origin + t dir */
@@ -96,12 +86,26 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
         }
     s->material = o->material;
     s->object = h->object;
+    s->triangle = h->triangle;
     return refl_v3_dot(s->ng, s->ng) > 0.0f;
 }
 
 static void refl__rt_clamp(float rgb[3]) {
     int c;
     for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+}
+
+/* Closest hit from o along d, skipping the triangle the ray leaves. */
+static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tmax, const refl__rt_surface *from,
+                         refl_hit *h) {
+    float tmin = 0.0f;
+    int tries;
+    for (tries = 0; tries < 4; ++tries) {
+        if (!rt->caster.intersect(rt->caster.user, o, d, tmin, tmax, h)) return 0;
+        if (!from || h->object != from->object || h->triangle != from->triangle) return 1;
+        tmin = h->t;
+    }
+    return 0;
 }
 
 /* The shared diffuse model at a surface, with shadow rays when asked. */
@@ -121,7 +125,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
                                                          : refl_v3_sub(l->position, s->p);
         float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
         refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-        refl_vec3 o = refl__rt_offset(rt, s->p, side);
+        refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
         to = refl_v3_normalize(to);
         lit[i] = 1;
         if (refl_v3_dot(to, n) <= 0.0f) continue; /* unlit anyway: no ray needed */
@@ -130,7 +134,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
             lit[i] = !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
         } else {
             refl_hit h;
-            lit[i] = !rt->caster.intersect(rt->caster.user, o, to, 0.0f, dist, &h);
+            lit[i] = !refl__rt_cast(rt, o, to, dist, s, &h);
         }
     }
     /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
@@ -148,14 +152,16 @@ typedef struct refl__rt_medium {
     int inside;
 } refl__rt_medium;
 
-static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, int depth, float weight,
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
+                           int depth, float weight,
                            refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point);
 
 /* A new ray leaving surface s in direction d, on the side d points to. */
 static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
                            refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
     refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-    refl__rt_trace(rt, refl__rt_offset(rt, s->p, side), d, depth, weight, medium, rays, rgb, first_point);
+    refl__rt_trace(rt, refl__rt_offset(s->p, side, s->magnitude), d, s, depth, weight, medium, rays, rgb,
+                   first_point);
 }
 
 /* Colour of surface s seen along unit d with `depth` bounces left,
@@ -190,9 +196,13 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
+        refl_vec3 rd = refl_v3_reflect(d, n);
+        /* near a silhouette the smooth normal can send the ray into the
+           surface itself: reflect about the true surface instead */
+        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
         r = refl_material_reflectance(m, cos_i);
         if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
-            refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * r, medium, rays, sub, first_point);
+            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point);
             for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
         }
     } else {
@@ -222,13 +232,14 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     refl__rt_clamp(rgb);
 }
 
-static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, int depth, float weight,
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
+                           int depth, float weight,
                            refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
     refl_hit h;
     refl__rt_surface s;
     int c;
     ++*rays;
-    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, FLT_MAX, &h) || h.object < 0 ||
+    if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
@@ -262,25 +273,22 @@ static void refl__rt_tile(void *arg, int job) {
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
-            float nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
-            float ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
-            refl_vec3 a = refl_mat4_point(rt->inv_vp, refl_v3(nx, ny, -1.0f));
-            refl_vec3 b = refl_mat4_point(rt->inv_vp, refl_v3(nx, ny, 1.0f));
-            refl_vec3 d = refl_v3_sub(b, a);
-            float len = refl_v3_length(d), rgb[3], depth = 1.0f;
+            refl_vec3 a, d;
+            float len, rgb[3], depth = 1.0f;
             refl_hit h;
             refl__rt_surface s;
             uint8_t stencil = 0;
-            d = refl_v3_scale(d, 1.0f / len);
+            refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
             ++rays;
-            if (len > 0.0f && rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
+            if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
                 h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
-                const float *m = rt->p->vp.m;
-                float cz = m[2] * s.p.x + m[6] * s.p.y + m[10] * s.p.z + m[14];
-                float cw = m[3] * s.p.x + m[7] * s.p.y + m[11] * s.p.z + m[15];
+                /* GL's window depth of the eye distance along the axis */
+                const refl__view_rays *vr = &rt->p->rays;
+                float ze = refl_v3_dot(refl_v3_sub(s.p, vr->eye), vr->forward), zn = vr->znear, zf = vr->zfar;
+                float ndc = (zf + zn) / (zf - zn) - 2.0f * zf * zn / ((zf - zn) * ze);
                 refl_vec3 shown = refl_v3(NAN, NAN, NAN);
                 int reflector = refl__is_reflector(s.material);
-                depth = REFL__CLAMP(0.5f * cz / cw + 0.5f, 0.0f, 1.0f);
+                depth = REFL__CLAMP(0.5f * ndc + 0.5f, 0.0f, 1.0f);
                 refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, &rays, rgb, reflector ? &shown : NULL);
                 if (reflector) {
                     stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
@@ -306,7 +314,6 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     refl_frame *f = p->frame;
     refl_bvh *bvh = NULL;
     refl__rt rt;
-    refl_vec3 lo, hi;
     long long nodes = 0, tris = 0;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
@@ -314,10 +321,6 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     rt.p = p;
     rt.scene = scene;
     rt.caster = p->desc.caster;
-    if (!refl_mat4_invert(p->vp, &rt.inv_vp)) return REFL_ERROR_INVALID_ARGUMENT;
-    refl_scene_bounds(scene, &lo, &hi);
-    rt.offset_scale = REFL__MAX(refl_v3_length(refl_v3_sub(hi, lo)), 1e-6f);
-    if (!refl__isfinite(rt.offset_scale)) rt.offset_scale = 1.0f;
     rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
     rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
     tiles = rt.tiles_x * rt.tiles_y;

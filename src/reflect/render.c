@@ -74,11 +74,9 @@ static double refl__now_ms(void) {
 }
 #endif
 
-REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
-                                 refl_mat4 *proj_m) {
+/* Near and far planes: the view's, or from the scene's bounds. */
+static void refl__view_planes(const refl_view *v, const refl_scene *scene, float *out_near, float *out_far) {
     float znear = v->znear, zfar = v->zfar;
-    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
-    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
     if (!(znear > 0.0f) || !(zfar > znear)) {
         /* from the scene's bounding sphere: far just beyond it, near a
            fraction of far (24 bits of depth keep plenty of precision) */
@@ -92,8 +90,55 @@ REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, re
         znear = REFL__MAX(dist - radius, zfar * 1e-3f);
         znear = REFL__MAX(znear * 0.5f, zfar * 1e-4f);
     }
+    *out_near = znear;
+    *out_far = zfar;
+}
+
+REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
+                                 refl_mat4 *proj_m) {
+    float znear, zfar;
+    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    refl__view_planes(v, scene, &znear, &zfar);
     if (view_m) *view_m = refl_mat4_look_at(v->eye, v->target, v->up);
     if (proj_m) *proj_m = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, znear, zfar);
+}
+
+static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const refl_scene *scene) {
+    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    float t = tanf(0.5f * fovy * (float)(REFL__PI / 180.0));
+    r->eye = v->eye;
+    /* the basis of refl_mat4_look_at */
+    r->forward = refl_v3_normalize(refl_v3_sub(v->target, v->eye));
+    r->right = refl_v3_normalize(refl_v3_cross(r->forward, v->up));
+    r->up = refl_v3_scale(refl_v3_cross(r->right, r->forward), t);
+    r->right = refl_v3_scale(r->right, t * aspect);
+    refl__view_planes(v, scene, &r->znear, &r->zfar);
+    r->width = v->width;
+    r->height = v->height;
+}
+
+static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
+                                float *tmax) {
+    float nx = 2.0f * px / (float)r->width - 1.0f, ny = 1.0f - 2.0f * py / (float)r->height;
+    refl_vec3 d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    float len = refl_v3_length(d); /* d . forward = 1: len is 1 / cos of the angle off axis */
+    *origin = refl_v3_add(r->eye, refl_v3_scale(d, r->znear));
+    *dir = refl_v3_scale(d, 1.0f / len);
+    *tmax = (r->zfar - r->znear) * len;
+}
+
+REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
+                            refl_vec3 *dir, float *tmax) {
+    refl__view_rays r;
+    refl_vec3 o, d;
+    float t;
+    refl__view_rays_init(&r, view, scene);
+    refl__view_rays_get(&r, px, py, &o, &d, &t);
+    if (origin) *origin = o;
+    if (dir) *dir = d;
+    if (tmax) *tmax = t;
 }
 
 /* ---- the base pass ---------------------------------------------------------- */
@@ -279,6 +324,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
     refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
     p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
 
     memset(&cd, 0, sizeof cd);
     cd.num_threads = p.desc.threads;
@@ -297,9 +343,11 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    if (rast_set_targets(p.rc, &t) != RAST_OK || rast_clear(p.rc, &clear) != RAST_OK) {
+    r = refl__result_from_rast(rast_set_targets(p.rc, &t));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(p.rc, &clear));
+    if (r != REFL_OK) {
         rast_context_destroy(p.rc);
-        return REFL_ERROR_RASTER;
+        return r;
     }
     if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
     if (p.desc.method == REFL_RAYTRACE) {
