@@ -54,5 +54,52 @@ refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
 refuses "method not built yet" "not available" "$bin" render --builtin default --method sbc --out "$tmp/z.png"
 
+# compare: PPMs written here, so every number is known. a is black; b has
+# two pixels 255 off in red and one 10 off in green: RMSE
+# sqrt((2*255^2 + 10^2) / (3*8)) / 255, 3 of 8 pixels over 2/255, 2 over 10/255.
+printf 'P3\n4 2\n255\n0 0 0  0 0 0  0 0 0  0 0 0\n0 0 0  0 0 0  0 0 0  0 0 0\n' >"$tmp/a.ppm"
+printf 'P3\n4 2\n255\n255 0 0  0 10 0  0 0 0  0 0 0\n0 0 0  0 0 0  0 0 0  255 0 0\n' >"$tmp/b.ppm"
+printf 'P3\n4 2\n255\n255 255 255  9 9 9  0 0 0  0 0 0\n0 0 0  0 0 0  0 0 0  0 0 0\n' >"$tmp/mask.ppm"
+printf 'P3\n1 1\n255\n0 0 0\n' >"$tmp/one.ppm"
+prints() { # prints NAME PATTERN... -- CMD...: exit 0 and every pattern on stdout
+    local name=$1; shift
+    local patterns=()
+    while [ "$1" != "--" ]; do patterns+=("$1"); shift; done
+    shift
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local code=$? p missing=
+    for p in "${patterns[@]}"; do grep -qE "$p" "$tmp/out" || missing="$missing [$p]"; done
+    if [ $code -eq 0 ] && [ -z "$missing" ]; then pass=$((pass + 1))
+    else fail=$((fail + 1)); echo "FAIL $name: exit $code, missing$missing; stdout:"; cat "$tmp/out" "$tmp/err"; fi
+}
+exits2() { # exits2 NAME PATTERN CMD...: exit status 2 and stderr matches PATTERN
+    local name=$1 pattern=$2; shift 2
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local code=$?
+    if [ $code -eq 2 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
+    else fail=$((fail + 1)); echo "FAIL $name: exit $code (want 2), stderr:"; cat "$tmp/err"; fi
+}
+ok "compare --help" "$bin" compare --help
+prints "compare identical" '^pixels +8$' '^rmse +0\.000000$' '^psnr +inf' '^max diff +0\.000000' \
+    '^over threshold +0\.000000 \(0 pixels' -- "$bin" compare "$tmp/a.ppm" "$tmp/a.ppm"
+prints "compare a render with itself (96x64)" '^psnr +inf' '^over threshold +0\.000000' '^pixels +6144$' -- \
+    "$bin" compare "$tmp/default.png" "$tmp/default.png"
+prints "compare different" '^pixels +8$' '^rmse +0\.288786$' '^psnr +10\.79 dB$' '^max diff +1\.000000 \(255/255\)$' \
+    '^over threshold +0\.375000 \(3 pixels' -- "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm"
+prints "compare --threshold" '^over threshold +0\.250000 \(2 pixels' -- \
+    "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --threshold 10/255
+prints "compare --threshold 0.05" '^over threshold +0\.250000' -- \
+    "$bin" compare "$tmp/b.ppm" "$tmp/a.ppm" --threshold 0.05
+prints "compare --mask" '^pixels +2$' '^rmse +0\.408562$' '^over threshold +1\.000000' -- \
+    "$bin" compare --mask "$tmp/mask.ppm" "$tmp/a.ppm" "$tmp/b.ppm"
+exits2 "compare missing file" "nope\.png" "$bin" compare "$tmp/a.ppm" "$tmp/nope.png"
+exits2 "compare missing mask" "nomask\.png" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --mask "$tmp/nomask.png"
+exits2 "compare sizes differ" "one\.ppm: 1x1, but .*a\.ppm is 4x2" "$bin" compare "$tmp/a.ppm" "$tmp/one.ppm"
+exits2 "compare one image" "give two images" "$bin" compare "$tmp/a.ppm"
+exits2 "compare three images" "more than two" "$bin" compare "$tmp/a.ppm" "$tmp/a.ppm" "$tmp/a.ppm"
+exits2 "compare bad threshold" "threshold: expected" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --threshold 1.5
+exits2 "compare empty mask" "selects no pixels" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --mask "$tmp/a.ppm"
+exits2 "compare unknown option" "unknown option" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --frobnicate
+
 echo "cli: $pass passed, $fail failed"
 [ $fail -eq 0 ]

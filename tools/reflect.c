@@ -2,6 +2,7 @@
 
      reflect render [SCENE.glb | --builtin NAME] [options]   render one frame
      reflect info   [SCENE.glb | --builtin NAME]             describe a scene
+     reflect compare A B [--mask M] [--threshold T]          image error of B against A
      reflect --help | reflect COMMAND --help
 
    Scenes come from glTF files (tools/gltf_load) or the built-in scenes;
@@ -24,6 +25,7 @@ static const char *const usage_main =
     "commands:\n"
     "  render   render one frame of a scene with one method to an image\n"
     "  info     list a scene's objects, materials, triangles and bounds\n"
+    "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
     "\n"
     "'reflect COMMAND --help' describes each command.\n";
 
@@ -50,6 +52,20 @@ static const char *const usage_info =
     "\n"
     "Prints the objects (mesh, triangles, material), the materials, the\n"
     "lights, the camera and the scene's bounds.\n";
+
+static const char *const usage_compare =
+    "usage: reflect compare A B [--mask M] [--threshold T]\n"
+    "\n"
+    "Compares two images of one size by their R, G and B as stored in 8 bits\n"
+    "(alpha ignored) and prints the pixels compared, the RMSE and the largest\n"
+    "difference (in channel units, 0..1), the PSNR (dB; inf when identical)\n"
+    "and the fraction of pixels with a channel differing by more than the\n"
+    "threshold. Exit status 0 when compared, 2 on bad usage or unreadable or\n"
+    "mismatched images.\n"
+    "\n"
+    "  --mask M           compare only the pixels where M (same size) is not black\n"
+    "  --threshold T      per channel, 0..1 or a fraction like 4/255 (default\n"
+    "                     2/255); 0 counts any difference\n";
 
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
@@ -304,6 +320,93 @@ static const char *material_type_name(refl_material_type t) {
     }
 }
 
+/* A threshold as a number in [0, 1] or a fraction such as 4/255. */
+static int parse_threshold(const char *s, double *out) {
+    double num, den = 1.0;
+    char extra;
+    if (sscanf(s, "%lf/%lf%c", &num, &den, &extra) != 2 && sscanf(s, "%lf%c", &num, &extra) != 1) return 0;
+    if (!(den > 0.0) || !(num / den >= 0.0 && num / den <= 1.0)) return 0;
+    *out = num / den;
+    return 1;
+}
+
+static uint8_t *read_rgba8(const char *path, int *width, int *height) {
+    uint8_t *px = NULL;
+    char err[1024] = "";
+    refl_result r = refl_image_read_rgba8(path, width, height, &px, NULL, err, sizeof err);
+    if (r != REFL_OK) {
+        fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
+        return NULL;
+    }
+    return px;
+}
+
+static int cmd_compare(int argc, char **argv) {
+    const char *path[3] = {NULL, NULL, NULL}; /* A, B, mask */
+    uint8_t *px[3] = {NULL, NULL, NULL};
+    int w[3] = {0, 0, 0}, h[3] = {0, 0, 0}, images = 0, count, i, k, code = 2;
+    double threshold = 2.0 / 255.0;
+    refl_image_diff d;
+    refl_result r;
+    for (i = 2; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            fputs(usage_compare, stdout);
+            return 0;
+        } else if (!strcmp(a, "--mask") || !strcmp(a, "--threshold")) {
+            if (!v) return fail("%s needs a value", a);
+            if (a[2] == 'm') path[2] = v;
+            else if (!parse_threshold(v, &threshold)) return fail("--threshold: expected 0..1 or N/255, got %s", v);
+            ++i;
+        } else if (a[0] == '-' && a[1] != '\0') {
+            return fail("compare: unknown option %s (see reflect compare --help)", a);
+        } else {
+            if (images == 2) return fail("compare: more than two images given (%s)", a);
+            path[images++] = a;
+        }
+    }
+    if (images < 2) return fail("%s", "compare: give two images (see reflect compare --help)");
+    for (k = 0; k < 3; ++k) {
+        if (!path[k]) continue;
+        if (!(px[k] = read_rgba8(path[k], &w[k], &h[k]))) goto done;
+        if (k && (w[k] != w[0] || h[k] != h[0])) {
+            fprintf(stderr, "reflect: %s: %dx%d, but %s is %dx%d\n", path[k], w[k], h[k], path[0], w[0], h[0]);
+            goto done;
+        }
+    }
+    count = w[0] * h[0];
+    if (px[2]) { /* keep the masked pixels of both, packed in place */
+        int n = 0;
+        for (i = 0; i < count; ++i)
+            if (px[2][4 * i] | px[2][4 * i + 1] | px[2][4 * i + 2]) {
+                memmove(px[0] + 4 * n, px[0] + 4 * i, 4);
+                memmove(px[1] + 4 * n, px[1] + 4 * i, 4);
+                ++n;
+            }
+        if (!n) {
+            fprintf(stderr, "reflect: %s: the mask selects no pixels (all black)\n", path[2]);
+            goto done;
+        }
+        count = n;
+    }
+    /* as reflect.h's refl_measure_image_error: a difference of exactly the
+       threshold is not over it, whatever the rounding of T */
+    r = refl_image_compare(px[0], px[1], count, 1, threshold + 1e-6 / 255.0, &d);
+    if (r != REFL_OK) {
+        fprintf(stderr, "reflect: compare: %s\n", refl_result_string(r));
+        goto done;
+    }
+    printf("pixels          %d\n", count);
+    printf("rmse            %.6f\n", d.rmse);
+    printf("psnr            %.2f dB\n", d.psnr);
+    printf("max diff        %.6f (%d/255)\n", d.max_error, (int)(d.max_error * 255.0 + 0.5));
+    printf("over threshold  %.6f (%lld pixels over %.6f)\n", d.fraction_over, d.pixels_over, threshold);
+    code = 0;
+done:
+    for (k = 0; k < 3; ++k) free(px[k]);
+    return code;
+}
+
 static int cmd_info(const options *o) {
     refl_scene *s = load_scene(o);
     refl_vec3 lo, hi;
@@ -343,6 +446,7 @@ int main(int argc, char **argv) {
         if (r) return r == 1 ? 0 : 2;
         return is_render ? cmd_render(&o) : cmd_info(&o);
     }
+    if (!strcmp(argv[1], "compare")) return cmd_compare(argc, argv);
     fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);
     return 2;
 }

@@ -445,13 +445,19 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
-/* Reflection error in pixels. For a reflector pixel x of `test` showing
-   scene point P (frame->points), x* is the pixel of the same reflector in
-   `truth` whose true point lies nearest P (a kd-tree over the traced
-   points); the error is |x - x*|. P counts as wrong when no true point of
-   that reflector lies within `tolerance` times the local spacing of the
-   true points there (the distance to their 4-neighbours). Pixels where the
-   truth shows a point and the test none are holes (empty). */
+/* Reflection error in pixels. The reflector pixels are those with a
+   nonzero stencil in `truth`; a pixel shows a point when its three
+   frame->points coordinates are finite (NaN or inf: none). For a reflector
+   pixel x of `test` showing scene point P, x* is the pixel of the same
+   reflector (truth's stencil id at x) in `truth` whose true point lies
+   nearest P (a kd-tree over the traced points; ties to the lowest pixel
+   index); the error is the Euclidean |x - x*| in pixels. P counts as wrong
+   when |P - truth(x*)| exceeds `tolerance` times the local spacing s(x*):
+   the largest distance from truth(x*) to the true points of its
+   4-neighbours on that reflector (with none, to the nearest other true
+   point of it). Pixels where the truth shows a point and the test none are
+   holes (empty); where neither does, they are not counted. Deterministic;
+   single-threaded, O(n log n) in the reflector pixels. */
 typedef struct refl_error_desc {
     float tolerance;         /* 0: 1.5 */
     refl_allocator allocator;
@@ -460,18 +466,24 @@ typedef struct refl_error_desc {
 typedef struct refl_reflection_error {
     long long pixels;        /* reflector pixels where truth or test shows a point */
     long long matched;       /* of those, test points found in the true reflection */
-    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels */
+    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels; p95 by
+                                nearest rank (the smallest error 95% of them do not
+                                exceed); all 0 when nothing matched */
     double wrong;            /* fraction of `pixels` showing a point found nowhere */
     double empty;            /* fraction of `pixels` showing nothing where truth shows a point */
 } refl_reflection_error;
 
-/* Frames of one size, rendered from the same view. */
+/* Frames of one size, rendered from the same view; desc may be NULL (the
+   defaults, malloc). REFL_ERROR_INVALID_SIZE when the sizes differ. */
 REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
                                                    const refl_error_desc *desc, refl_reflection_error *out);
 
-/* Image error of RGB against the truth, over every pixel or (reflectors_only)
-   over the truth's reflector pixels; threshold per channel in [0, 1]
-   (0: 2/255). */
+/* Image error of the RGB of the RGBA8 colours against the truth (alpha
+   ignored), over every pixel or (reflectors_only) over the truth's
+   reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is
+   over it when some channel differs by more (a difference of exactly the
+   threshold is not). The same numbers as tools/image_io's
+   refl_image_compare. No pixels: all 0, psnr INFINITY. */
 typedef struct refl_image_error {
     long long pixels;
     double rmse;             /* in [0, 1] */
