@@ -13,6 +13,7 @@
 #include "../reflect.h"
 #include "gltf_load.h"
 #include "image_io.h"
+#include "reflect_bench.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,6 +27,7 @@ static const char *const usage_main =
     "  render   render one frame of a scene with one method to an image\n"
     "  info     list a scene's objects, materials, triangles and bounds\n"
     "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
+    "  bench    every method x scene x setting: times, errors, CSV and charts\n"
     "\n"
     "'reflect COMMAND --help' describes each command.\n";
 
@@ -33,7 +35,11 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct (more methods arrive with later work)\n"
+    "  --method M         direct, raytrace (the reference) or envmap (more\n"
+    "                     methods arrive with later work)\n"
+    "  --depth N          reflection / refraction bounces (default 6)\n"
+    "  --shadows          hard shadows from every light\n"
+    "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -69,7 +75,7 @@ static const char *const usage_compare =
 
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
-    int width, height, threads, tess, stats;
+    int width, height, threads, tess, stats, depth, shadows, envmap_size;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize;
@@ -111,7 +117,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     o->out = "out.png";
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats");
+        int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
+                    strcmp(a, "--shadows");
         if (takes && !v) return fail("%s needs a value", a);
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
@@ -148,8 +155,15 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, RAST_MAX_THREADS, &o->threads)) return fail("--threads: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--out")) {
             o->out = v;
+        } else if (!strcmp(a, "--depth")) {
+            if (!parse_int(v, 1, 64, &o->depth)) return fail("--depth: expected 1..64, got %s", v);
+        } else if (!strcmp(a, "--envmap-size")) {
+            if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
         } else if (!strcmp(a, "--stats")) {
             o->stats = 1;
+            continue;
+        } else if (!strcmp(a, "--shadows")) {
+            o->shadows = 1;
             continue;
         } else if (a[0] == '-') {
             return fail("render: unknown option %s (see reflect render --help)", a);
@@ -276,6 +290,9 @@ static int cmd_render(const options *o) {
     v.height = o->height ? o->height : (v.height > 0 ? v.height : 480);
     memset(&d, 0, sizeof d);
     d.threads = o->threads;
+    d.depth = o->depth;
+    d.shadows = o->shadows;
+    d.envmap_size = o->envmap_size;
     if (o->method && !(d.method = refl_method_from_name(o->method))) {
         fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
         goto done;
@@ -302,6 +319,7 @@ static int cmd_render(const options *o) {
                st->ms_base, st->ms_reflect, st->ms_composite);
         printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
                st->triangles, st->points, st->cameras, st->leaves, st->layers);
+        printf("rays         %lld\n", st->rays);
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }
     code = 0;
@@ -447,6 +465,7 @@ int main(int argc, char **argv) {
         return is_render ? cmd_render(&o) : cmd_info(&o);
     }
     if (!strcmp(argv[1], "compare")) return cmd_compare(argc, argv);
+    if (!strcmp(argv[1], "bench")) return refl_cli_bench(argc, argv);
     fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);
     return 2;
 }

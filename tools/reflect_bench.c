@@ -1,0 +1,483 @@
+/* `reflect bench`: every method x scene x parameter setting, timed (median
+   of several runs) and measured against the ray-traced reference of the
+   same scene, view and size; a CSV, and gnuplot charts of time against
+   reflection error (one curve per method) and of cost growth (time against
+   resolution, diffuse triangles and reflector triangles). Embree, plugged
+   into RAYTRACE as its ray caster, is a row in every table: what a CPU user
+   would pick instead. DESIGN.md section 6. */
+#define _POSIX_C_SOURCE 200809L
+#include "../reflect.h"
+#include "../bench/embree_peer.h"
+#include "reflect_bench.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static const char *const usage_bench =
+    "usage: reflect bench [--full] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "\n"
+    "Renders every method on the built-in scenes over their parameter settings\n"
+    "(ENVMAP: cube sizes), times each setting (the median of N runs), measures\n"
+    "its reflection error in pixels and its image error against RAYTRACE of the\n"
+    "same scene, view and size, and writes DIR/bench.csv and the charts\n"
+    "DIR/time_vs_error_SCENE.png and DIR/growth_{resolution,diffuse,reflector}.png\n"
+    "(gnuplot). RAYTRACE through Embree is a row in every table.\n"
+    "\n"
+    "  --full        every built-in scene, sizes up to 1920x1080, 5 runs each\n"
+    "                (default: the default scene, up to 1280x720, 3 runs)\n"
+    "  --out DIR     where to write (default out/bench)\n"
+    "  --repeats N   runs per setting (median kept)\n"
+    "  --threads N   worker threads (default: one per CPU)\n"
+    "  --depth N     reflection bounces, the same for every method (default 1:\n"
+    "                what single-bounce methods such as ENVMAP model)\n";
+
+typedef struct bench_opts {
+    int full, repeats, threads, depth;
+    char out[512];
+} bench_opts;
+
+/* One measured setting: a CSV row and a chart point. */
+typedef struct bench_row {
+    char scene[32], method[24], series[24];
+    char param[24];               /* the sweep: base, resolution, diffuse, reflector */
+    double value;                 /* the method's setting (ENVMAP: cube size) */
+    int width, height, threads;
+    long long diffuse_tris, reflector_tris;
+    double ms_median, ms_min;
+    refl_reflection_error rerr;
+    refl_image_error ierr;
+    long long rays, model_bytes;
+} bench_row;
+
+typedef struct bench_table {
+    bench_row *rows;
+    int count, capacity;
+} bench_table;
+
+static bench_row *bench_add(bench_table *t) {
+    if (t->count == t->capacity) {
+        int cap = t->capacity ? 2 * t->capacity : 64;
+        bench_row *r = (bench_row *)realloc(t->rows, (size_t)cap * sizeof(bench_row));
+        if (!r) return NULL;
+        t->rows = r;
+        t->capacity = cap;
+    }
+    memset(&t->rows[t->count], 0, sizeof(bench_row));
+    return &t->rows[t->count++];
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Diffuse and reflector triangles of a scene. */
+static void count_triangles(const refl_scene *s, long long *diffuse, long long *reflector) {
+    int i;
+    *diffuse = *reflector = 0;
+    for (i = 0; i < s->object_count; ++i) {
+        long long n = s->meshes[s->objects[i].mesh]->triangle_count;
+        if (s->materials[s->objects[i].material].type == REFL_DIFFUSE) *diffuse += n;
+        else *reflector += n;
+    }
+}
+
+/* Renders `repeats` times, keeps the last frame, the median and the
+   fastest time. */
+static refl_result timed_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d, int repeats,
+                                refl_frame *f, double *median, double *fastest) {
+    double t[32];
+    int k, n = repeats < 1 ? 1 : repeats > 32 ? 32 : repeats;
+    for (k = 0; k < n; ++k) {
+        refl_result r = refl_render(s, v, d, f);
+        if (r != REFL_OK) return r;
+        t[k] = f->stats.ms_total;
+    }
+    qsort(t, (size_t)n, sizeof t[0], cmp_double);
+    *median = n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
+    *fastest = t[0];
+    return REFL_OK;
+}
+
+/* The methods of one row set: name, series (the chart's curve), render
+   settings. ENVMAP runs once per cube size. */
+typedef struct bench_method {
+    const char *method, *series, *param;
+    refl_method m;
+    int envmap_size, embree;
+} bench_method;
+
+/* Runs every method on one scene and view against its RAYTRACE reference
+   (its own row too: error 0 by definition, and its time); appends rows. */
+static int bench_scene(bench_table *table, const bench_opts *o, const char *scene_name, const refl_scene *s,
+                       const refl_view *view, const bench_method *methods, int method_count) {
+    refl_frame *truth = NULL, *f = NULL;
+    refl_render_desc d;
+    refl_embree *embree = NULL;
+    char err[256];
+    double ms, fastest;
+    long long diffuse, reflector;
+    int i, ok = 1;
+    count_triangles(s, &diffuse, &reflector);
+    if (refl_frame_create(view->width, view->height, NULL, &truth) != REFL_OK ||
+        refl_frame_create(view->width, view->height, NULL, &f) != REFL_OK) {
+        fprintf(stderr, "reflect bench: out of memory\n");
+        refl_frame_destroy(truth);
+        return 0;
+    }
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = o->threads;
+    d.depth = o->depth;
+    if (refl_render(s, view, &d, truth) != REFL_OK) ok = 0;
+    for (i = 0; ok && i < method_count; ++i) {
+        const bench_method *bm = &methods[i];
+        bench_row *row;
+        refl_result r;
+        memset(&d, 0, sizeof d);
+        d.method = bm->m;
+        d.threads = o->threads;
+        d.depth = o->depth;
+        d.envmap_size = bm->envmap_size;
+        if (bm->embree) {
+            if (!embree) embree = refl_embree_create(s, o->threads, err, sizeof err);
+            if (!embree) {
+                fprintf(stderr, "reflect bench: Embree: %s\n", err);
+                ok = 0;
+                break;
+            }
+            d.caster.intersect = refl_embree_intersect;
+            d.caster.occluded = refl_embree_occluded;
+            d.caster.user = embree;
+        }
+        r = timed_render(s, view, &d, o->repeats, f, &ms, &fastest);
+        if (r == REFL_ERROR_UNSUPPORTED) continue; /* a method not built yet */
+        if (r != REFL_OK) {
+            fprintf(stderr, "reflect bench: %s on %s: %s\n", bm->method, scene_name, refl_result_string(r));
+            ok = 0;
+            break;
+        }
+        row = bench_add(table);
+        if (!row) { ok = 0; break; }
+        snprintf(row->scene, sizeof row->scene, "%s", scene_name);
+        snprintf(row->method, sizeof row->method, "%s", bm->method);
+        snprintf(row->series, sizeof row->series, "%s", bm->series);
+        snprintf(row->param, sizeof row->param, "%s", bm->param);
+        row->value = bm->envmap_size;
+        row->width = view->width;
+        row->height = view->height;
+        row->threads = o->threads;
+        row->diffuse_tris = diffuse;
+        row->reflector_tris = reflector;
+        row->ms_median = ms;
+        row->ms_min = fastest;
+        row->rays = f->stats.rays;
+        row->model_bytes = f->stats.model_bytes;
+        if (refl_measure_reflection_error(f, truth, NULL, &row->rerr) != REFL_OK ||
+            refl_measure_image_error(f, truth, 1, 0.0f, &row->ierr) != REFL_OK)
+            memset(&row->rerr, 0, sizeof row->rerr);
+        fprintf(stderr, "  %-10s %-12s %-9s %4dx%-4d %7.1f ms  error %6.2f px (p95 %6.2f, wrong %5.3f, empty %5.3f)  "
+                        "PSNR %6.2f dB\n",
+                scene_name, bm->series, bm->param, view->width, view->height, ms, row->rerr.mean, row->rerr.p95,
+                row->rerr.wrong, row->rerr.empty, row->ierr.psnr);
+    }
+    refl_embree_destroy(embree);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(f);
+    return ok;
+}
+
+/* ---- output ---------------------------------------------------------------- */
+
+static int write_csv(const bench_table *t, const char *path) {
+    FILE *fp = fopen(path, "w");
+    int i;
+    if (!fp) return 0;
+    fprintf(fp, "scene,method,series,sweep,setting,width,height,threads,diffuse_triangles,reflector_triangles,"
+                "ms_median,ms_min,error_mean_px,error_p95_px,error_max_px,wrong,empty,psnr_db,rmse,"
+                "over_threshold,rays,model_bytes\n");
+    for (i = 0; i < t->count; ++i) {
+        const bench_row *r = &t->rows[i];
+        fprintf(fp, "%s,%s,%s,%s,%g,%d,%d,%d,%lld,%lld,%.3f,%.3f,%.4f,%.4f,%.4f,%.5f,%.5f,%.3f,%.6f,%.5f,%lld,%lld\n",
+                r->scene, r->method, r->series, r->param, r->value, r->width, r->height, r->threads,
+                r->diffuse_tris, r->reflector_tris, r->ms_median, r->ms_min, r->rerr.mean, r->rerr.p95,
+                r->rerr.max, r->rerr.wrong, r->rerr.empty, isinf(r->ierr.psnr) ? 999.0 : r->ierr.psnr,
+                r->ierr.rmse, r->ierr.over_threshold, r->rays, r->model_bytes);
+    }
+    return fclose(fp) == 0;
+}
+
+/* Writes one gnuplot data block per series of the rows that `take`
+   selects, x and y chosen by the caller; returns the number of blocks and
+   their names. */
+typedef double (*bench_axis)(const bench_row *r);
+static int write_blocks(const bench_table *t, const char *path, int (*take)(const bench_row *, const void *),
+                        const void *arg, bench_axis x, bench_axis y, char names[][24], int max_names) {
+    FILE *fp = fopen(path, "w");
+    int i, j, n = 0;
+    if (!fp) return -1;
+    for (i = 0; i < t->count; ++i) {
+        int seen = 0;
+        if (!take(&t->rows[i], arg)) continue;
+        for (j = 0; j < n; ++j) seen |= !strcmp(names[j], t->rows[i].series);
+        if (!seen && n < max_names) snprintf(names[n++], 24, "%s", t->rows[i].series);
+    }
+    for (j = 0; j < n; ++j) {
+        fprintf(fp, "# %s\n", names[j]);
+        for (i = 0; i < t->count; ++i)
+            if (take(&t->rows[i], arg) && !strcmp(names[j], t->rows[i].series))
+                fprintf(fp, "%g %g\n", x(&t->rows[i]), y(&t->rows[i]));
+        fprintf(fp, "\n\n");
+    }
+    fclose(fp);
+    return n;
+}
+
+static int run_gnuplot(const char *script_path, const char *script) {
+    FILE *fp = fopen(script_path, "w");
+    char cmd[1200];
+    if (!fp) return 0;
+    fputs(script, fp);
+    fclose(fp);
+    snprintf(cmd, sizeof cmd, "gnuplot '%s'", script_path);
+    if (system(cmd) != 0) {
+        fprintf(stderr, "reflect bench: gnuplot failed on %s (is gnuplot-nox installed?)\n", script_path);
+        return 0;
+    }
+    return 1;
+}
+
+/* A chart: blocks from write_blocks, one line per series. */
+static int chart(const char *dir, const char *name, const char *title, const char *xlabel, const char *ylabel,
+                 int logx, const char *dat, char names[][24], int n) {
+    char script[8192], path[1024];
+    size_t len;
+    int j;
+    len = (size_t)snprintf(script, sizeof script,
+                           "set terminal pngcairo size 900,600 noenhanced\n"
+                           "set output '%s/%s.png'\n"
+                           "set title '%s'\nset xlabel '%s'\nset ylabel '%s'\n"
+                           "set logscale y\n%s"
+                           "set grid\nset key outside right\n"
+                           "plot ",
+                           dir, name, title, xlabel, ylabel, logx ? "set logscale x\n" : "");
+    for (j = 0; j < n && len < sizeof script; ++j)
+        len += (size_t)snprintf(script + len, sizeof script - len, "%s'%s' index %d using 1:2 with linespoints title '%s'",
+                                j ? ", " : "", dat, j, names[j]);
+    if (len < sizeof script) snprintf(script + len, sizeof script - len, "\n");
+    snprintf(path, sizeof path, "%s/%s.gp", dir, name);
+    return run_gnuplot(path, script);
+}
+
+static int take_scene(const bench_row *r, const void *scene) {
+    return !strcmp(r->scene, (const char *)scene) && !strncmp(r->param, "base", 4);
+}
+static int take_sweep(const bench_row *r, const void *sweep) {
+    return !strncmp(r->param, (const char *)sweep, strlen((const char *)sweep));
+}
+/* Reflection error of the error chart: exact methods sit at 0.01 px, on a
+   log axis. */
+static double axis_error(const bench_row *r) { return r->rerr.mean > 0.01 ? r->rerr.mean : 0.01; }
+static double axis_ms(const bench_row *r) { return r->ms_median; }
+static double axis_pixels(const bench_row *r) { return (double)r->width * r->height; }
+static double axis_diffuse(const bench_row *r) { return (double)r->diffuse_tris; }
+static double axis_reflector(const bench_row *r) { return (double)r->reflector_tris; }
+
+/* ---- the sweeps ------------------------------------------------------------ */
+
+static const int envmap_sizes[] = {16, 32, 64, 128, 256, 512};
+
+/* The methods of the error chart: exact ones once, ENVMAP per cube size. */
+static int base_methods(bench_method *m, int full) {
+    int n = 0, k;
+    memset(m, 0, 16 * sizeof(*m));
+    m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; ++n;
+    m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
+    m[n].method = "direct"; m[n].series = "direct"; m[n].param = "base"; m[n].m = REFL_DIRECT; ++n;
+    for (k = 0; k < (int)(sizeof envmap_sizes / sizeof envmap_sizes[0]); ++k) {
+        if (!full && envmap_sizes[k] > 256) break;
+        m[n].method = "envmap"; m[n].series = "envmap"; m[n].param = "base";
+        m[n].m = REFL_ENVMAP; m[n].envmap_size = envmap_sizes[k]; ++n;
+    }
+    return n;
+}
+
+/* One setting per method, for the cost-growth sweeps. */
+static int growth_methods(bench_method *m, const char *sweep) {
+    int n = 0;
+    memset(m, 0, 16 * sizeof(*m));
+    m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; ++n;
+    m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
+    m[n].method = "direct"; m[n].series = "direct"; m[n].param = sweep; m[n].m = REFL_DIRECT; ++n;
+    m[n].method = "envmap"; m[n].series = "envmap-128"; m[n].param = sweep; m[n].m = REFL_ENVMAP;
+    m[n].envmap_size = 128; ++n;
+    return n;
+}
+
+static refl_scene *builtin(const char *name, int tess) {
+    refl_builtin_desc bd;
+    refl_scene *s = NULL;
+    memset(&bd, 0, sizeof bd);
+    bd.teapot_tess = tess;
+    if (refl_scene_builtin(name, &bd, &s) != REFL_OK) return NULL;
+    return s;
+}
+
+/* Splits the diffuse meshes' edges down to max_edge: more diffuse
+   triangles, the same picture. */
+static int subdivide_diffuse(refl_scene *s, float max_edge) {
+    int i;
+    for (i = 0; i < s->object_count; ++i) {
+        refl_object *o = &s->objects[i];
+        refl_mesh *finer;
+        if (s->materials[o->material].type != REFL_DIFFUSE) continue;
+        if (refl_mesh_subdivide(s->meshes[o->mesh], max_edge, &finer) != REFL_OK) return 0;
+        refl_mesh_destroy(s->meshes[o->mesh]);
+        s->meshes[o->mesh] = finer;
+    }
+    return 1;
+}
+
+static refl_view view_of(const refl_scene *s, int w, int h) {
+    refl_view v = s->camera;
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
+int refl_cli_bench(int argc, char **argv) {
+    bench_opts o;
+    bench_table table;
+    bench_method methods[32];
+    char path[1024], names[16][24];
+    const char *scenes_quick[] = {"default", NULL};
+    const char *const *scenes;
+    int i, n, ok = 1;
+    memset(&o, 0, sizeof o);
+    memset(&table, 0, sizeof table);
+    snprintf(o.out, sizeof o.out, "out/bench");
+    o.depth = 1;
+    for (i = 2; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            fputs(usage_bench, stdout);
+            return 0;
+        } else if (!strcmp(a, "--full")) {
+            o.full = 1;
+        } else if (!strcmp(a, "--out") && v) {
+            snprintf(o.out, sizeof o.out, "%s", v);
+            ++i;
+        } else if ((!strcmp(a, "--repeats") || !strcmp(a, "--threads") || !strcmp(a, "--depth")) && v) {
+            char *end;
+            long x = strtol(v, &end, 10);
+            if (*end || x < (a[2] == 'r' ? 1 : 0) || x > 64) {
+                fprintf(stderr, "reflect bench: bad %s '%s'\n", a, v);
+                return 2;
+            }
+            if (a[2] == 'r') o.repeats = (int)x;
+            else if (a[2] == 't') o.threads = (int)x;
+            else o.depth = (int)x;
+            ++i;
+        } else {
+            fprintf(stderr, "reflect bench: unknown option '%s'\n\n%s", a, usage_bench);
+            return 2;
+        }
+    }
+    if (!o.repeats) o.repeats = o.full ? 5 : 3;
+    if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "reflect bench: cannot create %s: %s\n", o.out, strerror(errno));
+        return 1;
+    }
+    fprintf(stderr, "reflect bench: %d runs per setting (median), %s threads, depth %d -> %s\n", o.repeats,
+            o.threads ? "given" : "all", o.depth, o.out);
+
+    /* (a) time against reflection error, per scene */
+    scenes = o.full ? refl_builtin_names() : scenes_quick;
+    n = base_methods(methods, o.full);
+    for (i = 0; ok && scenes[i]; ++i) {
+        refl_scene *s = builtin(scenes[i], 0);
+        refl_view v;
+        if (!s) { ok = 0; break; }
+        v = view_of(s, 640, 480);
+        ok = bench_scene(&table, &o, scenes[i], s, &v, methods, n);
+        refl_scene_destroy(s);
+    }
+    /* (b) cost growth on the default scene */
+    if (ok) {
+        static const int sizes[][2] = {{320, 240}, {640, 480}, {1280, 720}, {1920, 1080}};
+        refl_scene *s = builtin("default", 0);
+        n = growth_methods(methods, "resolution");
+        for (i = 0; ok && s && i < (o.full ? 4 : 3); ++i) {
+            refl_view v = view_of(s, sizes[i][0], sizes[i][1]);
+            ok = bench_scene(&table, &o, "default", s, &v, methods, n);
+        }
+        refl_scene_destroy(s);
+    }
+    if (ok) {
+        static const float edges[] = {0.0f, 1.0f, 0.5f, 0.25f, 0.125f};
+        n = growth_methods(methods, "diffuse");
+        for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
+            refl_scene *s = builtin("default", 0);
+            refl_view v;
+            if (!s || (edges[i] > 0.0f && !subdivide_diffuse(s, edges[i]))) ok = 0;
+            if (ok) {
+                v = view_of(s, 640, 480);
+                ok = bench_scene(&table, &o, "default", s, &v, methods, n);
+            }
+            refl_scene_destroy(s);
+        }
+    }
+    if (ok) {
+        static const int tess[] = {4, 8, 16, 32, 64};
+        n = growth_methods(methods, "reflector");
+        for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
+            refl_scene *s = builtin("default", tess[i]);
+            refl_view v;
+            if (!s) { ok = 0; break; }
+            v = view_of(s, 640, 480);
+            ok = bench_scene(&table, &o, "default", s, &v, methods, n);
+            refl_scene_destroy(s);
+        }
+    }
+    if (!ok) {
+        free(table.rows);
+        return 1;
+    }
+    snprintf(path, sizeof path, "%s/bench.csv", o.out);
+    if (!write_csv(&table, path)) {
+        fprintf(stderr, "reflect bench: cannot write %s\n", path);
+        free(table.rows);
+        return 1;
+    }
+    fprintf(stderr, "wrote %s\n", path);
+    for (i = 0; scenes[i]; ++i) {
+        char dat[1024], name[64], title[128];
+        snprintf(dat, sizeof dat, "%s/time_vs_error_%s.dat", o.out, scenes[i]);
+        snprintf(name, sizeof name, "time_vs_error_%s", scenes[i]);
+        snprintf(title, sizeof title, "%s scene, 640x480: time per frame against reflection error", scenes[i]);
+        n = write_blocks(&table, dat, take_scene, scenes[i], axis_error, axis_ms, names, 16);
+        if (n > 0) chart(o.out, name, title, "mean reflection error (pixels; exact methods at 0.01)",
+                         "ms per frame (median)", 1, dat, names, n);
+    }
+    {
+        static const char *sweeps[] = {"resolution", "diffuse", "reflector"};
+        static const char *xlabels[] = {"pixels", "diffuse triangles", "reflector triangles"};
+        bench_axis xs[] = {axis_pixels, axis_diffuse, axis_reflector};
+        for (i = 0; i < 3; ++i) {
+            char dat[1024], name[64], title[128];
+            snprintf(dat, sizeof dat, "%s/growth_%s.dat", o.out, sweeps[i]);
+            snprintf(name, sizeof name, "growth_%s", sweeps[i]);
+            snprintf(title, sizeof title, "default scene: time per frame against %s", xlabels[i]);
+            n = write_blocks(&table, dat, take_sweep, sweeps[i], xs[i], axis_ms, names, 16);
+            if (n > 0) chart(o.out, name, title, xlabels[i], "ms per frame (median)", 1, dat, names, n);
+        }
+    }
+    fprintf(stderr, "wrote %s/*.png\n", o.out);
+    free(table.rows);
+    return 0;
+}
