@@ -3,7 +3,7 @@
 #   make            amalgamator, headers, C and C++ compile checks, tests, bench, examples
 #   make headers    regenerate rast.h (and reflect.h) from src/
 #   make test       install packages, check headers, run the tests (plain and ASan/UBSan)
-#   make bench      install packages, build and run the rasteriser benchmark -> out/
+#   make bench      install packages, build and run the rasteriser and ray benchmarks -> out/
 #   make demo       install packages, render the demo picture -> out/
 #   make deps       install the Debian packages the project needs (tools/deps.sh)
 #   make clean
@@ -79,6 +79,9 @@ RAST_IMPL_OBJ  = build/tests/rast_impl.o
 REFLECT_BIN = build/bin/reflect
 BENCH_BIN  = build/bench/bench_rast
 BENCH_OBJS = build/bench/bench_rast.o $(RAST_IMPL_OBJ)
+# refl_bvh against Embree (bench/embree_peer.c), rays per second
+BENCH_RAYS_BIN  = build/bench/bench_rays
+BENCH_RAYS_OBJS = build/bench/bench_rays.o build/bench/embree_peer.o build/tests/reflect_impl.o $(RAST_IMPL_OBJ)
 
 # Each example is one self-contained program (it defines RAST_IMPLEMENTATION).
 EXAMPLES = $(patsubst examples/%.c,build/examples/%,$(sort $(wildcard examples/*.c)))
@@ -90,7 +93,7 @@ COMPILE_CHECKS = build/check/compile_check.o build/check/compile_check_cpp.o
 all: headers
 	@$(MAKE) --no-print-directory build-all
 
-build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(EXAMPLES) $(REFLECT_BIN)
+build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN)
 
 # ---- headers ----
 
@@ -144,6 +147,10 @@ build/bench/%.o: bench/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
+build/asan/bench/%.o: bench/%.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
+
 build/examples/%: examples/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) $< -o $@ $(LDLIBS)
@@ -157,8 +164,16 @@ $(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
 $(BENCH_BIN): $(BENCH_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(GL_LIBS) $(LDLIBS)
 
+$(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS)
+	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(LDLIBS)
+
+# The test binaries compare refl_bvh with Embree (tests/test_embree.c).
+$(TEST_BIN): build/bench/embree_peer.o
+$(ASAN_TEST_BIN): build/asan/bench/embree_peer.o
+TEST_LIBS += -lembree3
+
 DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) \
-           $(BENCH_OBJS:.o=.d) $(EXAMPLES:=.d)
+           $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d $(EXAMPLES:=.d)
 -include $(DEPFILES)
 
 # ---- packages ----
@@ -241,11 +256,18 @@ TEST_LIBS += $(TOOLS_LIBS)
 
 # ---- the reflect command ----
 
-$(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) | rast.h reflect.h
+# `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
+REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/bench/embree_peer.o
+
+build/tools/reflect_bench.o: tools/reflect_bench.c | rast.h reflect.h
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) -o $@ \
-	  $(REFLECT_TOOLS_LIBS) $(LDLIBS)
--include build/bin/reflect.d
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+$(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | rast.h reflect.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
+	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
+-include build/bin/reflect.d build/tools/reflect_bench.d
 
 # ---- running ----
 
@@ -264,9 +286,10 @@ test: deps
 	  exit 1; fi
 
 bench: deps
-	@$(MAKE) --no-print-directory $(BENCH_BIN)
+	@$(MAKE) --no-print-directory $(BENCH_BIN) $(BENCH_RAYS_BIN)
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
+	$(BENCH_RAYS_BIN) --csv out/bench_rays.csv
 
 # The demo: every built-in scene through the `reflect` command with every
 # method built so far (DIRECT), and the rasteriser's own demo picture.

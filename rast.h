@@ -956,10 +956,12 @@ static void rast__pool_destroy(rast__pool *p) {
     rast__free(p->alloc, p);
 }
 
-/* Starts `workers` threads; NULL on failure (nothing left running). */
-static rast__pool *rast__pool_create(const rast_allocator *alloc, int workers) {
+/* Starts `workers` threads; NULL on failure (nothing left running), with
+   *out_of_memory set when the allocation was what failed. */
+static rast__pool *rast__pool_create(const rast_allocator *alloc, int workers, int *out_of_memory) {
     rast__pool *p = (rast__pool *)rast__calloc(alloc, 1, sizeof(rast__pool));
     int i;
+    *out_of_memory = p == NULL;
     if (!p) return NULL;
     p->alloc = alloc;
     if (pthread_mutex_init(&p->lock, NULL) != 0) { rast__free(alloc, p); return NULL; }
@@ -1061,10 +1063,11 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     ctx->threads = threads;
 #ifndef RAST_NO_THREADS
     if (threads > 1 && !ctx->parallel_for) {
-        ctx->pool = rast__pool_create(&ctx->alloc, threads - 1);
+        int out_of_memory = 0;
+        ctx->pool = rast__pool_create(&ctx->alloc, threads - 1, &out_of_memory);
         if (!ctx->pool) {
             rast__free(&alloc, ctx);
-            return RAST_ERROR_THREADS;
+            return out_of_memory ? RAST_ERROR_OUT_OF_MEMORY : RAST_ERROR_THREADS;
         }
     }
 #else

@@ -447,13 +447,19 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
-/* Reflection error in pixels. For a reflector pixel x of `test` showing
-   scene point P (frame->points), x* is the pixel of the same reflector in
-   `truth` whose true point lies nearest P (a kd-tree over the traced
-   points); the error is |x - x*|. P counts as wrong when no true point of
-   that reflector lies within `tolerance` times the local spacing of the
-   true points there (the distance to their 4-neighbours). Pixels where the
-   truth shows a point and the test none are holes (empty). */
+/* Reflection error in pixels. The reflector pixels are those with a
+   nonzero stencil in `truth`; a pixel shows a point when its three
+   frame->points coordinates are finite (NaN or inf: none). For a reflector
+   pixel x of `test` showing scene point P, x* is the pixel of the same
+   reflector (truth's stencil id at x) in `truth` whose true point lies
+   nearest P (a kd-tree over the traced points; ties to the lowest pixel
+   index); the error is the Euclidean |x - x*| in pixels. P counts as wrong
+   when |P - truth(x*)| exceeds `tolerance` times the local spacing s(x*):
+   the largest distance from truth(x*) to the true points of its
+   4-neighbours on that reflector (with none, to the nearest other true
+   point of it). Pixels where the truth shows a point and the test none are
+   holes (empty); where neither does, they are not counted. Deterministic;
+   single-threaded, O(n log n) in the reflector pixels. */
 typedef struct refl_error_desc {
     float tolerance;         /* 0: 1.5 */
     refl_allocator allocator;
@@ -462,18 +468,24 @@ typedef struct refl_error_desc {
 typedef struct refl_reflection_error {
     long long pixels;        /* reflector pixels where truth or test shows a point */
     long long matched;       /* of those, test points found in the true reflection */
-    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels */
+    double mean, p95, max;   /* |x - x*| over matched pixels, in pixels; p95 by
+                                nearest rank (the smallest error 95% of them do not
+                                exceed); all 0 when nothing matched */
     double wrong;            /* fraction of `pixels` showing a point found nowhere */
     double empty;            /* fraction of `pixels` showing nothing where truth shows a point */
 } refl_reflection_error;
 
-/* Frames of one size, rendered from the same view. */
+/* Frames of one size, rendered from the same view; desc may be NULL (the
+   defaults, malloc). REFL_ERROR_INVALID_SIZE when the sizes differ. */
 REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
                                                    const refl_error_desc *desc, refl_reflection_error *out);
 
-/* Image error of RGB against the truth, over every pixel or (reflectors_only)
-   over the truth's reflector pixels; threshold per channel in [0, 1]
-   (0: 2/255). */
+/* Image error of the RGB of the RGBA8 colours against the truth (alpha
+   ignored), over every pixel or (reflectors_only) over the truth's
+   reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is
+   over it when some channel differs by more (a difference of exactly the
+   threshold is not). The same numbers as tools/image_io's
+   refl_image_compare. No pixels: all 0, psnr INFINITY. */
 typedef struct refl_image_error {
     long long pixels;
     double rmse;             /* in [0, 1] */
@@ -483,6 +495,13 @@ typedef struct refl_image_error {
 } refl_image_error;
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out);
+
+/* The world ray through window point (px, py) of a view (pixel centres at
+   x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
+   plane, reaching the far plane at *tmax, as the rasteriser clips. Any
+   output may be NULL. */
+REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
+                            refl_vec3 *dir, float *tmax);
 
 /* View and projection matrices of a view (near/far resolved from the scene
    when zero). */
@@ -559,6 +578,21 @@ static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
+/* A pinhole view's rays, set up once (render.c): through window point
+   (px, py), pixel centres at + 0.5, the unit direction is
+   normalize(forward + right * nx + up * ny) with nx, ny in [-1, 1]; rays
+   start on the near plane and end on the far plane, as the rasteriser
+   clips. Built from the camera's basis, not by inverting the
+   view-projection matrix, which loses all precision far from the origin. */
+typedef struct refl__view_rays {
+    refl_vec3 eye, forward, right, up; /* right and up scaled by tan(half fov) */
+    float znear, zfar;
+    int width, height;
+} refl__view_rays;
+static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const refl_scene *scene);
+static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
+                                float *tmax);
+
 /* ---- what refl_render hands a method (render.c) ----
    A method either renders the whole frame itself (RAYTRACE) or fills the
    reflector pixels after the base pass: diffuse geometry shaded, mirrors
@@ -572,6 +606,7 @@ typedef struct refl__pass {
     refl_frame *frame;
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
+    refl__view_rays rays;
 } refl__pass;
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into
@@ -2977,7 +3012,9 @@ static refl_result refl__scene_concave(refl_scene *s, const refl_allocator *a, i
     return REFL_OK;
 }
 
-/* glass: a glass teapot and a glass slab over a checker of diffuse boxes. */
+/* glass: a glass teapot and a glass slab over a checker of diffuse boxes.
+   The slab stands a hair above the floor: a face in the floor's plane
+   would make every tracer's answer there depend on traversal order. */
 static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int tess) {
     refl_material glass = refl__material(REFL_GLASS, 0.95f, 0.97f, 1.0f, "glass");
     refl_material slab = refl__material(REFL_GLASS, 0.9f, 1.0f, 0.95f, "glass slab");
@@ -2994,7 +3031,7 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     slab.attenuation = 0.2f;
     if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &glass, refl__at(-1.2f, 0.0f, 0.0f), "glass teapot")) < 0)
         return (refl_result)k;
-    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), &m, &slab, refl__at(2.2f, 0.75f, 1.0f),
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(2.0f, 1.5f, 0.3f), a, &m), &m, &slab, refl__at(2.2f, 0.76f, 1.0f),
                        "glass slab")) < 0)
         return (refl_result)k;
     for (j = 0; j < 4; ++j) /* tiles behind the glass, so refraction shows */
@@ -3619,32 +3656,1184 @@ REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
 }
 /* ---- src/reflect/m_raytrace.c ---- */
-/* RAYTRACE: the reference (in progress). */
+/* RAYTRACE: the reference every other method is measured against.
+   Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
+   a primary ray per pixel centre, mirror reflections to desc.depth
+   bounces, glass with Fresnel reflection, refraction, total internal
+   reflection and Beer's-law absorption, optional hard shadows, the
+   environment on a miss. Shading is the shared model of shade.c, and each
+   surface's colour is clamped to [0, 1] before a reflectance weighs it,
+   exactly as the rasterised methods composite into their RGBA8 frame, so
+   images differ only where reflection geometry differs.
+   Pixels are independent, so any thread count gives the same bytes. */
+
+enum { REFL__RT_TILE = 16 };
+/* A branch whose weight falls below this cannot move an 8-bit pixel. */
+#define REFL__RT_MIN_WEIGHT (1.0f / 1024.0f)
+
+typedef struct refl__rt_object {
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
+} refl__rt_object;
+
+typedef struct refl__rt {
+    const refl__pass *p;
+    const refl_scene *scene;
+    refl__rt_object *objects;
+    refl_ray_caster caster;
+    int tiles_x, tiles_y, first_tile;
+    long long *tile_rays;         /* per tile, summed after: no shared counter */
+} refl__rt;
+
+typedef struct refl__rt_surface {
+    refl_vec3 p, ng, ns;          /* point, geometric and shading normal (unit) */
+    float uv[2];
+    int has_uv;
+    float magnitude;              /* largest |coordinate| of the triangle */
+    const refl_material *material;
+    int object, triangle;
+} refl__rt_surface;
+
+static int refl__rt_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
+    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
+}
+
+static int refl__rt_bvh_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
+}
+
+/* A secondary ray starts a hair off its surface along n: a few float ulps
+   of the triangle's largest coordinate, which bounds the rounding of both
+   the hit point and the ray-triangle test, so the ray cannot hit its own
+   triangle's neighbours by error, yet skips no geometry an image could
+   show. Its own triangle is skipped exactly (refl__rt_cast): a flat
+   triangle cannot be met twice by a straight ray. */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude) {
+    return refl_v3_add(p, refl_v3_scale(n, 5e-7f * magnitude)); /* 4 ulps: 2^-21 */
+}
+
+/* Point, normals and texture coordinates of a hit, from the mesh. */
+static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_surface *s) {
+    const refl__rt_object *o = &rt->objects[h->object];
+    const refl_mesh *m = o->mesh;
+    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
+    float w0 = 1.0f - h->u - h->v, w[3];
+    refl_vec3 v[3], n = refl_v3(0, 0, 0);
+    int k;
+    w[0] = w0; w[1] = h->u; w[2] = h->v;
+    s->magnitude = 0.0f;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
+        v[k] = refl_mat4_point(o->model, refl_v3(pp[0], pp[1], pp[2]));
+        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(v[k].x), REFL__MAX(fabsf(v[k].y), fabsf(v[k].z))));
+        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
+    }
+    /* barycentric interpolation is more exact than origin + t dir */
+    s->p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w0), refl_v3_scale(v[1], h->u)), refl_v3_scale(v[2], h->v));
+    s->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    s->ns = refl_v3_normalize(refl_mat4_dir(o->normal_m, n));
+    if (refl_v3_dot(s->ns, s->ns) == 0.0f) s->ns = s->ng;
+    s->has_uv = m->texcoords != NULL;
+    s->uv[0] = s->uv[1] = 0.0f;
+    if (s->has_uv)
+        for (k = 0; k < 3; ++k) {
+            s->uv[0] += w[k] * m->texcoords[2 * (size_t)tri[k]];
+            s->uv[1] += w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+        }
+    s->material = o->material;
+    s->object = h->object;
+    s->triangle = h->triangle;
+    return refl_v3_dot(s->ng, s->ng) > 0.0f;
+}
+
+static void refl__rt_clamp(float rgb[3]) {
+    int c;
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+}
+
+/* Closest hit from o along d, skipping the triangle the ray leaves. */
+static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tmax, const refl__rt_surface *from,
+                         refl_hit *h) {
+    float tmin = 0.0f;
+    int tries;
+    for (tries = 0; tries < 4; ++tries) {
+        if (!rt->caster.intersect(rt->caster.user, o, d, tmin, tmax, h)) return 0;
+        if (!from || h->object != from->object || h->triangle != from->triangle) return 1;
+        tmin = h->t;
+    }
+    return 0;
+}
+
+/* The shared diffuse model at a surface, with shadow rays when asked. */
+static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
+                             float rgb[3]) {
+    enum { MAX_LIGHTS = 64 };
+    unsigned char lit[MAX_LIGHTS];
+    const refl_scene *scene = rt->scene;
+    int i, count = REFL__MIN(scene->light_count, MAX_LIGHTS);
+    if (!rt->p->desc.shadows) {
+        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    for (i = 0; i < count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                         : refl_v3_sub(l->position, s->p);
+        float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
+        refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
+        refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
+        to = refl_v3_normalize(to);
+        lit[i] = 1;
+        if (refl_v3_dot(to, n) <= 0.0f) continue; /* unlit anyway: no ray needed */
+        ++*rays;
+        if (rt->caster.occluded) {
+            lit[i] = !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
+        } else {
+            refl_hit h;
+            lit[i] = !refl__rt_cast(rt, o, to, dist, s, &h);
+        }
+    }
+    /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
+    if (scene->light_count > MAX_LIGHTS) {
+        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    refl_shade_diffuse_lit(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, lit, rgb);
+}
+
+/* The medium a ray travels through: air, or the inside of a glass object
+   (absorbing per unit length). */
+typedef struct refl__rt_medium {
+    float attenuation;
+    int inside;
+} refl__rt_medium;
+
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
+                           int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point);
+
+/* A new ray leaving surface s in direction d, on the side d points to. */
+static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
+    refl__rt_trace(rt, refl__rt_offset(s->p, side, s->magnitude), d, s, depth, weight, medium, rays, rgb,
+                   first_point);
+}
+
+/* Colour of surface s seen along unit d with `depth` bounces left,
+   clamped to [0, 1]. first_point (may be NULL) receives the first point
+   outside glass that the reflected or refracted light comes from, along
+   the stronger branch at each interface. */
+static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    const refl_material *m = s->material;
+    float cos_i, r, sub[3];
+    int c, entering;
+    refl_vec3 n = s->ns, ng = s->ng;
+    if (m->type == REFL_DIFFUSE) {
+        refl__rt_diffuse(rt, s, n, rays, rgb);
+        refl__rt_clamp(rgb);
+        return;
+    }
+    entering = refl_v3_dot(d, ng) < 0.0f;
+    if (!entering) {
+        n = refl_v3_scale(n, -1.0f);
+        ng = refl_v3_scale(ng, -1.0f);
+    }
+    if (refl_v3_dot(d, n) > 0.0f) n = ng; /* shading normal faces away: trust the geometry */
+    cos_i = -refl_v3_dot(d, n);
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    if (m->type == REFL_PARTIAL) {
+        /* the diffuse share, as the base pass draws it */
+        float k = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
+        refl__rt_diffuse(rt, s, s->ns, rays, rgb);
+        refl__rt_clamp(rgb);
+        for (c = 0; c < 3; ++c) rgb[c] *= k;
+    }
+    if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
+    if (m->type != REFL_GLASS) {
+        refl_vec3 rd = refl_v3_reflect(d, n);
+        /* near a silhouette the smooth normal can send the ray into the
+           surface itself: reflect about the true surface instead */
+        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
+        r = refl_material_reflectance(m, cos_i);
+        if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
+            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point);
+            for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
+        }
+    } else {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f;
+        float n1 = entering ? 1.0f : ior, n2 = entering ? ior : 1.0f;
+        float f = refl_fresnel_dielectric(cos_i, n1, n2), tint[3];
+        refl_vec3 t;
+        int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
+        int point_on_refraction = refracts && f < 0.5f;
+        refl__rt_medium through;
+        if (!refracts) f = 1.0f; /* total internal reflection */
+        for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
+        if (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction)) {
+            refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
+                           point_on_refraction ? NULL : first_point);
+            for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
+        }
+        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+            /* entering: tinted once, then absorbed along the inside */
+            through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
+            through.inside = entering;
+            refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
+                           point_on_refraction ? first_point : NULL);
+            for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
+        }
+    }
+    refl__rt_clamp(rgb);
+}
+
+static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
+                           int depth, float weight,
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+    refl_hit h;
+    refl__rt_surface s;
+    int c;
+    ++*rays;
+    if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
+        h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
+        refl_environment_lookup(&rt->scene->environment, d, rgb);
+        refl__rt_clamp(rgb);
+        return;
+    }
+    /* inside glass, the light's source lies further on */
+    if (first_point && !medium.inside) {
+        *first_point = s.p;
+        first_point = NULL;
+    }
+    refl__rt_shade(rt, &s, d, depth, weight, medium, rays, rgb, first_point);
+    if (medium.attenuation > 0.0f) {
+        float k = expf(-medium.attenuation * h.t);
+        for (c = 0; c < 3; ++c) rgb[c] *= k;
+    }
+}
+
+static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
+
+/* One tile of pixels: primary rays from the near plane to the far plane
+   (what the rasteriser clips to), depth and stencil as the base pass
+   writes them. */
+static void refl__rt_tile(void *arg, int job) {
+    const refl__rt *rt = (const refl__rt *)arg;
+    refl_frame *f = rt->p->frame;
+    int tile = rt->first_tile + job;
+    int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
+    int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
+    long long rays = 0;
+    refl__rt_medium air = {0.0f, 0};
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            refl_vec3 a, d;
+            float len, rgb[3], depth = 1.0f;
+            refl_hit h;
+            refl__rt_surface s;
+            uint8_t stencil = 0;
+            refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
+            ++rays;
+            if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
+                h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
+                /* GL's window depth of the eye distance along the axis */
+                const refl__view_rays *vr = &rt->p->rays;
+                float ze = refl_v3_dot(refl_v3_sub(s.p, vr->eye), vr->forward), zn = vr->znear, zf = vr->zfar;
+                float ndc = (zf + zn) / (zf - zn) - 2.0f * zf * zn / ((zf - zn) * ze);
+                refl_vec3 shown = refl_v3(NAN, NAN, NAN);
+                int reflector = refl__is_reflector(s.material);
+                depth = REFL__CLAMP(0.5f * ndc + 0.5f, 0.0f, 1.0f);
+                refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, &rays, rgb, reflector ? &shown : NULL);
+                if (reflector) {
+                    stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
+                    f->points[3 * i] = shown.x;
+                    f->points[3 * i + 1] = shown.y;
+                    f->points[3 * i + 2] = shown.z;
+                }
+            } else {
+                refl_environment_lookup(&rt->scene->environment, d, rgb);
+            }
+            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
+            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
+            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
+            f->color[4 * i + 3] = 255;
+            f->depth[i] = depth;
+            f->stencil[i] = stencil;
+        }
+    rt->tile_rays[tile] = rays;
+}
 
 static refl_result refl__method_raytrace(refl__pass *p) {
-    (void)p;
-    return REFL_ERROR_UNSUPPORTED;
+    const refl_scene *scene = p->scene;
+    refl_frame *f = p->frame;
+    refl_bvh *bvh = NULL;
+    refl__rt rt;
+    long long nodes = 0, tris = 0;
+    double t0 = refl__now_ms(), t1;
+    int i, tiles, rows_done;
+    memset(&rt, 0, sizeof rt);
+    rt.p = p;
+    rt.scene = scene;
+    rt.caster = p->desc.caster;
+    rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tiles = rt.tiles_x * rt.tiles_y;
+    rt.objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
+                                                 sizeof(refl__rt_object));
+    rt.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
+    if (!rt.objects || !rt.tile_rays) {
+        refl__free(&scene->allocator, rt.objects);
+        refl__free(&scene->allocator, rt.tile_rays);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_mat4 inv;
+        rt.objects[i].mesh = scene->meshes[o->mesh];
+        rt.objects[i].material = &scene->materials[o->material];
+        rt.objects[i].model = o->transform;
+        rt.objects[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        f->stats.triangles += scene->meshes[o->mesh]->triangle_count;
+    }
+    if (!rt.caster.intersect) {
+        refl_result r = refl_bvh_build(scene, &scene->allocator, &bvh);
+        if (r != REFL_OK) {
+            refl__free(&scene->allocator, rt.objects);
+            refl__free(&scene->allocator, rt.tile_rays);
+            return r;
+        }
+        rt.caster.intersect = refl__rt_bvh_intersect;
+        rt.caster.occluded = refl__rt_bvh_occluded;
+        rt.caster.user = bvh;
+        refl_bvh_stats(bvh, &nodes, &tris);
+        f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
+                               tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
+    }
+    t1 = refl__now_ms();
+    f->stats.ms_build = t1 - t0;
+    /* bands of tile rows, so progress is reported from this thread */
+    for (rows_done = 0; rows_done < rt.tiles_y;) {
+        int band = REFL__MAX(1, rt.tiles_y / 16), rows = REFL__MIN(band, rt.tiles_y - rows_done);
+        rt.first_tile = rows_done * rt.tiles_x;
+        rast_run_jobs(p->rc, rows * rt.tiles_x, refl__rt_tile, &rt);
+        rows_done += rows;
+        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)rt.tiles_y);
+    }
+    for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
+    f->stats.ms_reflect = refl__now_ms() - t1;
+    refl_bvh_destroy(bvh);
+    refl__free(&scene->allocator, rt.objects);
+    refl__free(&scene->allocator, rt.tile_rays);
+    return REFL_OK;
 }
 /* ---- src/reflect/m_envmap.c ---- */
-/* ENVMAP: the classic baseline (in progress). */
+/* ENVMAP: the classic baseline. Per reflector, a cube map is rendered with
+   rast.h from the centre of the reflector's world bounding box (six 90
+   degree faces, GL's layout +X -X +Y -Y +Z -Z, the reflector itself left
+   out), and each reflector pixel looks it up along its mirror direction, as
+   if everything the cube shows were infinitely far away. That assumption
+   is the method's known error: it is small for distant surroundings and
+   large for objects close to the reflector.
+
+   One bounce: other reflectors appear in a cube as DIRECT draws them
+   (black, or a partial reflector's diffuse share).
+
+   Per reflector pixel: the world normal comes from a G-buffer draw of the
+   reflectors (depth LEQUAL against the frame's depth, stencil EQUAL their
+   id, so exactly the pixels the base pass gave them; the object index in
+   alpha tells apart objects sharing stencil 255), the view direction from
+   the pixel's camera ray. Colour is looked up bilinearly within a face;
+   the world point a texel shows (drawn in a second pass per face) nearest,
+   into frame->points.
+
+   Glass is the classic single-interface approximation: the Fresnel share
+   of the reflected lookup plus (1 - F) times the tint of the lookup along
+   the ray refracted once into the glass (eta = 1 / ior). The second
+   interface and absorption (attenuation) are ignored: there is no path
+   length without the back surface. The point shown follows the stronger
+   branch, as RAYTRACE's does.
+
+   Cube texels are RGBA8, so every surface's colour is clamped to [0, 1]
+   before the reflectance weighs it, as in RAYTRACE. One set of cube
+   buffers is reused across reflectors; model_bytes counts a cube per
+   reflector, what a renderer keeping them between frames would hold. */
+
+/* One object in a draw of ours: clip position exactly as the base pass
+   computes it (so depth tests against the base pass's depth are exact),
+   world position and (G-buffer) world normal as varyings. */
+typedef struct refl__em_draw {
+    const refl_mesh *mesh;
+    refl_mat4 mvp, model, normal_m;
+    int normals;                  /* varyings 3..5: world normal too (G-buffer) */
+    refl_vec3 eye;                /* G-buffer: the viewer */
+    float id;                     /* written to alpha: object index + 1 */
+} refl__em_draw;
+
+/* Varyings: world position, then (G-buffer) world normal. */
+static int refl__em_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__em_draw *d = (const refl__em_draw *)user;
+    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]), w = refl_mat4_point(d->model, p);
+    const float *mm = d->mvp.m;
+    int k;
+    (void)max_out;
+    /* the same expression as refl__base_vertex: bit-identical clip positions */
+    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
+    out->varyings[0] = w.x;
+    out->varyings[1] = w.y;
+    out->varyings[2] = w.z;
+    if (d->normals) {
+        const float *n = d->mesh->normals + 3 * (size_t)index;
+        w = refl_mat4_dir(d->normal_m, refl_v3(n[0], n[1], n[2]));
+        out->varyings[3] = w.x;
+        out->varyings[4] = w.y;
+        out->varyings[5] = w.z;
+    }
+    return 1;
+}
+
+/* Cube faces: the world position a texel shows. */
+static int refl__em_position_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    (void)user;
+    rgba[0] = in->varyings[0];
+    rgba[1] = in->varyings[1];
+    rgba[2] = in->varyings[2];
+    rgba[3] = 1.0f;
+    return 1;
+}
+
+/* G-buffer: the normal a reflection uses, chosen as RAYTRACE chooses it:
+   the shading normal, turned to the side the viewer is on (back faces
+   flip it), or the geometric normal (from the screen derivatives of the
+   position, which lie in the triangle's plane) where the interpolated
+   normal still faces away, as it can at silhouettes. */
+static int refl__em_normal_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__em_draw *d = (const refl__em_draw *)user;
+    const float *v = in->varyings;
+    refl_vec3 view = refl_v3_sub(refl_v3(v[0], v[1], v[2]), d->eye), n = refl_v3(v[3], v[4], v[5]);
+    if (!in->front_facing) n = refl_v3_scale(n, -1.0f);
+    if (refl_v3_dot(view, n) > 0.0f || refl_v3_dot(n, n) == 0.0f) {
+        n = refl_v3_cross(refl_v3(in->ddx[0], in->ddx[1], in->ddx[2]), refl_v3(in->ddy[0], in->ddy[1], in->ddy[2]));
+        if (refl_v3_dot(view, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+    }
+    n = refl_v3_normalize(n);
+    rgba[0] = n.x;
+    rgba[1] = n.y;
+    rgba[2] = n.z;
+    rgba[3] = d->id;
+    return 1;
+}
+
+static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int object, refl_mat4 vp, int normals) {
+    const refl_object *o = &scene->objects[object];
+    refl_mat4 inv;
+    d->mesh = scene->meshes[o->mesh];
+    d->model = o->transform;
+    d->mvp = refl_mat4_mul(vp, o->transform);
+    d->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    d->normals = normals;
+    d->id = (float)(object + 1);
+}
+
+static rast_result refl__em_submit(rast_context *rc, const refl__em_draw *d) {
+    rast_draw_desc dd;
+    memset(&dd, 0, sizeof dd);
+    dd.primitive = RAST_TRIANGLES;
+    dd.vertices = d->mesh->positions;
+    dd.vertex_count = d->mesh->vertex_count;
+    dd.stride = 3;
+    dd.position_size = 3;
+    dd.num_varyings = d->normals ? 6 : 3;
+    dd.indices = d->mesh->indices;
+    dd.index_count = 3 * d->mesh->triangle_count;
+    return rast_draw(rc, &dd);
+}
+
+/* Clears with the default state: clears honour the depth mask and scissor. */
+static rast_result refl__em_clear(rast_context *rc, unsigned flags) {
+    rast_state s;
+    rast_clear_desc c;
+    rast_result r;
+    memset(&s, 0, sizeof s);
+    memset(&c, 0, sizeof c);
+    c.flags = flags;
+    c.depth = 1.0f;
+    if ((r = rast_set_state(rc, &s)) != RAST_OK) return r;
+    return rast_clear(rc, &c);
+}
+
+/* View matrix of cube face f from centre c: eye coordinates chosen so that
+   a 90 degree projection puts direction v at NDC (sc / ma, -tc / ma), which
+   is where rast_cube_face finds it: face texel (i, j) is pixel (i, j). */
+static refl_mat4 refl__em_face_view(int f, refl_vec3 c) {
+    /* rows x_e, y_e, z_e of the rotation, per face (GL table 8.19 inverted) */
+    static const float rows[6][9] = {
+        {0, 0, -1, 0, 1, 0, -1, 0, 0},  /* +X: sc = -z, tc = -y, ma = x */
+        {0, 0, 1, 0, 1, 0, 1, 0, 0},    /* -X: sc = z, tc = -y, ma = -x */
+        {1, 0, 0, 0, 0, -1, 0, -1, 0},  /* +Y: sc = x, tc = z, ma = y */
+        {1, 0, 0, 0, 0, 1, 0, 1, 0},    /* -Y: sc = x, tc = -z, ma = -y */
+        {1, 0, 0, 0, 1, 0, 0, 0, -1},   /* +Z: sc = x, tc = -y, ma = z */
+        {-1, 0, 0, 0, 1, 0, 0, 0, 1}};  /* -Z: sc = -x, tc = -y, ma = -z */
+    refl_mat4 m = refl_mat4_identity();
+    int r;
+    for (r = 0; r < 3; ++r) {
+        const float *v = rows[f] + 3 * r;
+        m.m[0 + r] = v[0];
+        m.m[4 + r] = v[1];
+        m.m[8 + r] = v[2];
+        m.m[12 + r] = -(v[0] * c.x + v[1] * c.y + v[2] * c.z);
+    }
+    return m;
+}
+
+/* Centre of the object's world-space bounding box: the box of its
+   vertices after the transform, counting only vertices a triangle uses
+   (a mesh may keep others, as the concave scene's bowl keeps its whole
+   sphere's). */
+static refl_vec3 refl__em_centre(const refl_scene *scene, int object) {
+    const refl_object *o = &scene->objects[object];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    refl_vec3 lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    size_t k, count = 3 * (size_t)m->triangle_count;
+    for (k = 0; k < count; ++k) {
+        const float *q = m->positions + 3 * (size_t)m->indices[k];
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        lo = refl_v3(REFL__MIN(lo.x, w.x), REFL__MIN(lo.y, w.y), REFL__MIN(lo.z, w.z));
+        hi = refl_v3(REFL__MAX(hi.x, w.x), REFL__MAX(hi.y, w.y), REFL__MAX(hi.z, w.z));
+    }
+    if (!count) return refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+    return refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+}
+
+typedef struct refl__em {
+    refl__pass *p;
+    int n;                        /* face size */
+    uint8_t *cube_color;          /* 6 faces of n x n RGBA8 */
+    float *cube_points;           /* 6 faces of n x n world points (NaN: environment) */
+    float *face_depth;            /* n x n */
+    float *face_pos;              /* n x n RGBA32F */
+    refl__em_draw *draws;         /* one per object */
+    float *gbuf;                  /* frame-sized RGBA32F: world normal, object + 1 */
+    int object;                   /* the reflector being looked up */
+} refl__em;
+
+/* Renders the cube of reflector `object` around centre c: colour with the
+   shared shading and the environment behind, then world points. */
+static refl_result refl__em_build_cube(refl__em *em, int object, refl_vec3 c) {
+    refl__pass *p = em->p;
+    const refl_scene *scene = p->scene;
+    size_t nn = (size_t)em->n * (size_t)em->n, k;
+    refl_vec3 lo, hi;
+    float far_d = 0.0f, near_d;
+    refl_mat4 proj;
+    int f, i, corner;
+    rast_result rr;
+    refl_result r;
+    /* far: the farthest corner of the scene's box; near: a small fraction */
+    refl_scene_bounds(scene, &lo, &hi);
+    for (corner = 0; corner < 8; ++corner) {
+        refl_vec3 q = refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+        far_d = REFL__MAX(far_d, refl_v3_length(refl_v3_sub(q, c)));
+    }
+    if (!(far_d > 1e-6f) || !refl__isfinite(far_d)) far_d = 1.0f;
+    far_d *= 1.01f;
+    near_d = far_d * 1e-3f;
+    proj = refl_mat4_perspective((float)(REFL__PI / 2.0), 1.0f, near_d, far_d);
+    for (f = 0; f < 6; ++f) {
+        refl_mat4 vp = refl_mat4_mul(proj, refl__em_face_view(f, c)), inv;
+        uint8_t *color = em->cube_color + 4 * nn * (size_t)f;
+        float *points = em->cube_points + 3 * nn * (size_t)f;
+        rast_targets t;
+        rast_state s;
+        memset(&t, 0, sizeof t);
+        t.color.ptr = color;
+        t.color.width = t.color.height = em->n;
+        t.color.stride = 4 * em->n;
+        t.depth.ptr = em->face_depth;
+        t.depth.width = t.depth.height = em->n;
+        t.depth.stride = (int)sizeof(float) * em->n;
+        if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK ||
+            (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH)) != RAST_OK)
+            return refl__result_from_rast(rr);
+        if ((r = refl__draw_scene(p->rc, scene, vp, object, &p->frame->stats)) != REFL_OK) return r;
+        if (refl_mat4_invert(vp, &inv)) refl__draw_background(color, em->face_depth, em->n, em->n, em->n, scene, inv);
+        /* the world points: the same objects, order and depth test, so the
+           same surface wins every texel */
+        t.color.ptr = em->face_pos;
+        t.color.stride = 4 * (int)sizeof(float) * em->n;
+        t.color_format = RAST_COLOR_RGBA32F;
+        if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_DEPTH)) != RAST_OK)
+            return refl__result_from_rast(rr);
+        memset(&s, 0, sizeof s);
+        s.depth_test = 1;
+        s.vertex_fn = refl__em_vertex;
+        s.fragment_fn = refl__em_position_fragment;
+        for (i = 0; i < scene->object_count; ++i) {
+            if (i == object) continue;
+            refl__em_setup_draw(&em->draws[i], scene, i, vp, 0);
+            s.vertex_user = s.fragment_user = &em->draws[i];
+            if ((rr = rast_set_state(p->rc, &s)) != RAST_OK || (rr = refl__em_submit(p->rc, &em->draws[i])) != RAST_OK)
+                return refl__result_from_rast(rr);
+            p->frame->stats.triangles += em->draws[i].mesh->triangle_count;
+        }
+        if ((rr = rast_finish(p->rc)) != RAST_OK) return refl__result_from_rast(rr);
+        for (k = 0; k < nn; ++k) {
+            int shown = em->face_depth[k] < 1.0f;
+            points[3 * k] = shown ? em->face_pos[4 * k] : NAN;
+            points[3 * k + 1] = shown ? em->face_pos[4 * k + 1] : NAN;
+            points[3 * k + 2] = shown ? em->face_pos[4 * k + 2] : NAN;
+        }
+    }
+    return REFL_OK;
+}
+
+/* Bilinear colour of the cube along dir (within its face, clamped at the
+   face's edges as GL samples cube maps), and the world point of the
+   nearest texel. */
+static void refl__em_lookup(const refl__em *em, refl_vec3 dir, float rgb[3], refl_vec3 *point) {
+    float v[3], s, t, x, y, fx, fy;
+    int face, x0, y0, x1, y1, c, n = em->n, ix, iy;
+    size_t base;
+    const uint8_t *px;
+    const float *pt;
+    v[0] = dir.x; v[1] = dir.y; v[2] = dir.z;
+    face = rast_cube_face(v, &s, &t);
+    base = (size_t)face * (size_t)n * (size_t)n;
+    x = s * (float)n - 0.5f;
+    y = t * (float)n - 0.5f;
+    x0 = (int)floorf(x);
+    y0 = (int)floorf(y);
+    fx = x - (float)x0;
+    fy = y - (float)y0;
+    x1 = REFL__CLAMP(x0 + 1, 0, n - 1);
+    y1 = REFL__CLAMP(y0 + 1, 0, n - 1);
+    x0 = REFL__CLAMP(x0, 0, n - 1);
+    y0 = REFL__CLAMP(y0, 0, n - 1);
+    px = em->cube_color + 4 * base;
+    for (c = 0; c < 3; ++c) {
+        float a = px[4 * ((size_t)y0 * (size_t)n + (size_t)x0) + (size_t)c];
+        float b = px[4 * ((size_t)y0 * (size_t)n + (size_t)x1) + (size_t)c];
+        float d = px[4 * ((size_t)y1 * (size_t)n + (size_t)x0) + (size_t)c];
+        float e = px[4 * ((size_t)y1 * (size_t)n + (size_t)x1) + (size_t)c];
+        rgb[c] = ((a * (1.0f - fx) + b * fx) * (1.0f - fy) + (d * (1.0f - fx) + e * fx) * fy) * (1.0f / 255.0f);
+    }
+    ix = REFL__CLAMP((int)(s * (float)n), 0, n - 1);
+    iy = REFL__CLAMP((int)(t * (float)n), 0, n - 1);
+    pt = em->cube_points + 3 * (base + (size_t)iy * (size_t)n + (size_t)ix);
+    *point = refl_v3(pt[0], pt[1], pt[2]);
+}
+
+/* One frame row: every pixel of the current reflector gets its reflection
+   (and refraction) added and its point. Pixels are independent, so rows
+   may run on any thread in any order. */
+static void refl__em_row(void *arg, int y) {
+    const refl__em *em = (const refl__em *)arg;
+    const refl__pass *p = em->p;
+    refl_frame *fr = p->frame;
+    const refl_material *m = &p->scene->materials[p->scene->objects[em->object].material];
+    float id = (float)(em->object + 1);
+    int x, c;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = em->gbuf + 4 * i;
+        float rgb[3], sub[3], cos_i, w, tmax;
+        refl_vec3 o, d, n, shown;
+        uint8_t *px = fr->color + 4 * i;
+        if (g[3] != id) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f); /* degenerate normal: face the eye */
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);  /* the side the viewer sees */
+        cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+        w = refl_material_reflectance(m, cos_i);
+        refl__em_lookup(em, refl_v3_reflect(d, n), sub, &shown);
+        if (m->type == REFL_GLASS) {
+            float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3], tsub[3];
+            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+            refl_vec3 t, tshown;
+            if (!refl_v3_refract(d, n, 1.0f / ior, &t)) w = 1.0f; /* total internal reflection */
+            for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+            if (w < 1.0f) {
+                refl__em_lookup(em, t, tsub, &tshown);
+                for (c = 0; c < 3; ++c) {
+                    tint[c] = tinted ? m->tint[c] : 1.0f;
+                    rgb[c] += (1.0f - w) * tint[c] * tsub[c];
+                }
+                if (w < 0.5f) shown = tshown;
+            }
+        } else {
+            for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+        }
+        for (c = 0; c < 3; ++c) {
+            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
+            px[c] = (uint8_t)(v * 255.0f + 0.5f);
+        }
+        px[3] = 255;
+        fr->points[3 * i] = shown.x;
+        fr->points[3 * i + 1] = shown.y;
+        fr->points[3 * i + 2] = shown.z;
+    }
+}
+
+/* The reflectors' world normals into em->gbuf where the base pass showed
+   them; seen[i] set for every reflector i with a pixel. */
+static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any) {
+    refl__pass *p = em->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    rast_targets t;
+    rast_state s;
+    rast_result rr;
+    size_t k, npx = (size_t)fr->width * (size_t)fr->height;
+    int i;
+    memset(&t, 0, sizeof t);
+    t.color.ptr = em->gbuf;
+    t.color.width = fr->width;
+    t.color.height = fr->height;
+    t.color.stride = 4 * (int)sizeof(float) * fr->width;
+    t.color_format = RAST_COLOR_RGBA32F;
+    t.depth.ptr = fr->depth;
+    t.depth.width = fr->width;
+    t.depth.height = fr->height;
+    t.depth.stride = (int)sizeof(float) * fr->width;
+    t.stencil.ptr = fr->stencil;
+    t.stencil.width = fr->width;
+    t.stencil.height = fr->height;
+    t.stencil.stride = fr->width;
+    if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR)) != RAST_OK)
+        return refl__result_from_rast(rr);
+    /* the frame's depth and stencil are only read */
+    memset(&s, 0, sizeof s);
+    s.depth_test = 1;
+    s.depth_func = RAST_LEQUAL;
+    s.depth_write_disabled = 1;
+    s.stencil_test = 1;
+    s.stencil_front.func = RAST_EQUAL;
+    s.stencil_back = s.stencil_front;
+    s.vertex_fn = refl__em_vertex;
+    s.fragment_fn = refl__em_normal_fragment;
+    s.fragment_derivatives = 1;
+    for (i = 0; i < scene->object_count; ++i) {
+        if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
+        refl__em_setup_draw(&em->draws[i], scene, i, p->vp, 1);
+        em->draws[i].eye = p->view->eye;
+        s.stencil_front.ref = s.stencil_back.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+        s.vertex_user = s.fragment_user = &em->draws[i];
+        if ((rr = rast_set_state(p->rc, &s)) != RAST_OK || (rr = refl__em_submit(p->rc, &em->draws[i])) != RAST_OK)
+            return refl__result_from_rast(rr);
+        fr->stats.triangles += em->draws[i].mesh->triangle_count;
+    }
+    if ((rr = rast_finish(p->rc)) != RAST_OK) return refl__result_from_rast(rr);
+    *any = 0;
+    for (k = 0; k < npx; ++k) {
+        float id = em->gbuf[4 * k + 3];
+        if (id >= 1.0f && id <= (float)scene->object_count) {
+            seen[(int)id - 1] = 1;
+            *any = 1;
+        }
+    }
+    return REFL_OK;
+}
 
 static refl_result refl__method_envmap(refl__pass *p) {
-    (void)p;
-    return REFL_ERROR_UNSUPPORTED;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__em em;
+    unsigned char *seen = NULL;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, nn;
+    double t0 = refl__now_ms(), t1;
+    refl_result r = REFL_OK;
+    int i, any = 0, reflectors = 0;
+    for (i = 0; i < scene->object_count; ++i)
+        reflectors += refl__is_reflector(&scene->materials[scene->objects[i].material]);
+    if (!reflectors) return REFL_OK;
+    memset(&em, 0, sizeof em);
+    em.p = p;
+    em.n = p->desc.envmap_size > 0 ? p->desc.envmap_size : 256;
+    nn = (size_t)em.n * (size_t)em.n;
+    em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    em.draws = (refl__em_draw *)refl__calloc(al, (size_t)scene->object_count, sizeof(refl__em_draw));
+    seen = (unsigned char *)refl__calloc(al, (size_t)scene->object_count, 1);
+    if (!em.gbuf || !em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) r = refl__em_gbuffer(&em, seen, &any);
+    if (r == REFL_OK && any) {
+        em.cube_color = (uint8_t *)refl__calloc(al, 6 * nn, 4);
+        em.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));
+        em.face_depth = (float *)refl__calloc(al, nn, sizeof(float));
+        em.face_pos = (float *)refl__calloc(al, nn, 4 * sizeof(float));
+        if (!em.cube_color || !em.cube_points || !em.face_depth || !em.face_pos) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        if (!seen[i]) continue;
+        r = refl__em_build_cube(&em, i, refl__em_centre(scene, i));
+        t0 = refl__now_ms();
+        fr->stats.ms_build += t0 - t1;
+        if (r != REFL_OK) break;
+        fr->stats.cameras += 6;
+        fr->stats.model_bytes += (long long)(6 * nn * (4 + 3 * sizeof(float)));
+        em.object = i;
+        rast_run_jobs(p->rc, fr->height, refl__em_row, &em);
+        t1 = refl__now_ms();
+        fr->stats.ms_reflect += t1 - t0;
+    }
+    /* leave the frame bound, as the method found it; never after a failed
+       draw, whose queued work may point at freed memory */
+    if (r == REFL_OK) {
+        rast_targets t;
+        memset(&t, 0, sizeof t);
+        t.color.ptr = fr->color; t.color.width = fr->width; t.color.height = fr->height;
+        t.color.stride = 4 * fr->width;
+        t.depth.ptr = fr->depth; t.depth.width = fr->width; t.depth.height = fr->height;
+        t.depth.stride = (int)sizeof(float) * fr->width;
+        t.stencil.ptr = fr->stencil; t.stencil.width = fr->width; t.stencil.height = fr->height;
+        t.stencil.stride = fr->width;
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__free(al, em.gbuf);
+    refl__free(al, em.draws);
+    refl__free(al, seen);
+    refl__free(al, em.cube_color);
+    refl__free(al, em.cube_points);
+    refl__free(al, em.face_depth);
+    refl__free(al, em.face_pos);
+    return r;
 }
 /* ---- src/reflect/metrics.c ---- */
-/* metrics: reflection error in pixels and image error (in progress). */
+/* Metrics: the reflection error in pixels (test frame's reflected points
+   against the ray-traced ones, matched through a kd-tree per reflector) and
+   the image error of the colours. Single-threaded and in pixel order, so
+   the numbers are the same on every machine and thread count. */
+
+#include <stdlib.h>
+
+/* A pixel shows a point only when all three coordinates are finite: NaN is
+   the frames' "none", and an infinite coordinate is no place in the scene. */
+static int refl__metric_point(const float *p) {
+    return refl__isfinite(p[0]) && refl__isfinite(p[1]) && refl__isfinite(p[2]);
+}
+
+static double refl__metric_d2(const float *a, const float *b) {
+    double dx = (double)a[0] - b[0], dy = (double)a[1] - b[1], dz = (double)a[2] - b[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/* ---- kd-tree ------------------------------------------------------------------
+   Implicit and balanced over copies of the points (searches then read
+   contiguous memory, not the frame at random): a node range [lo, hi) keeps
+   its splitting point at the middle, m = lo + (hi - lo) / 2, with the
+   smaller keys before it and the larger after; axis[m] says which
+   coordinate. Keys tie-break on the pixel index, so the order is total and
+   the tree depends on nothing but the points. Ranges this small are
+   scanned instead of split. */
+
+enum { REFL__KD_LEAF = 8, REFL__KD_STACK = 128 };
+
+typedef struct refl__kd_point {
+    float p[3];
+    uint32_t pixel;
+} refl__kd_point;
+
+static int refl__kd_less(const refl__kd_point *a, const refl__kd_point *b, int axis) {
+    return a->p[axis] < b->p[axis] || (a->p[axis] == b->p[axis] && a->pixel < b->pixel);
+}
+
+static void refl__kd_swap(refl__kd_point *a, refl__kd_point *b) {
+    refl__kd_point t = *a;
+    *a = *b;
+    *b = t;
+}
+
+/* Puts the k-th smallest (by axis) of v[lo, hi) at k, smaller ones before,
+   larger after (quickselect, median-of-three pivots). */
+static void refl__kd_select(refl__kd_point *v, size_t lo, size_t hi, size_t k, int axis) {
+    while (hi - lo > 2) {
+        size_t mid = lo + (hi - lo) / 2, i, store;
+        /* order v[lo], v[mid], v[hi - 1]; the median becomes the pivot at hi - 1 */
+        if (refl__kd_less(&v[mid], &v[lo], axis)) refl__kd_swap(&v[mid], &v[lo]);
+        if (refl__kd_less(&v[hi - 1], &v[lo], axis)) refl__kd_swap(&v[hi - 1], &v[lo]);
+        if (refl__kd_less(&v[mid], &v[hi - 1], axis)) refl__kd_swap(&v[mid], &v[hi - 1]);
+        for (store = lo, i = lo; i + 1 < hi; ++i)
+            if (refl__kd_less(&v[i], &v[hi - 1], axis)) refl__kd_swap(&v[i], &v[store++]);
+        refl__kd_swap(&v[store], &v[hi - 1]);
+        if (k == store) return;
+        if (k < store) hi = store;
+        else lo = store + 1;
+    }
+    if (hi - lo == 2 && refl__kd_less(&v[lo + 1], &v[lo], axis)) refl__kd_swap(&v[lo], &v[lo + 1]);
+}
+
+/* Builds the tree over v[lo, hi) in place, with an explicit stack: each
+   range splits in halves, so at most one pending range per level. */
+static void refl__kd_build(refl__kd_point *v, uint8_t *axes, size_t lo, size_t hi) {
+    size_t stack[2 * REFL__KD_STACK];
+    int top = 0;
+    stack[top++] = lo;
+    stack[top++] = hi;
+    while (top > 0) {
+        size_t h = stack[--top], l = stack[--top], m, i;
+        float mn[3], mx[3], ext = -1.0f;
+        int axis = 0, c;
+        if (h - l <= REFL__KD_LEAF) continue;
+        /* split across the widest extent of the range's box */
+        for (c = 0; c < 3; ++c) mn[c] = mx[c] = v[l].p[c];
+        for (i = l + 1; i < h; ++i)
+            for (c = 0; c < 3; ++c) {
+                mn[c] = REFL__MIN(mn[c], v[i].p[c]);
+                mx[c] = REFL__MAX(mx[c], v[i].p[c]);
+            }
+        for (c = 0; c < 3; ++c)
+            if (mx[c] - mn[c] > ext) {
+                ext = mx[c] - mn[c];
+                axis = c;
+            }
+        m = l + (h - l) / 2;
+        refl__kd_select(v, l, h, m, axis);
+        axes[m] = (uint8_t)axis;
+        REFL_ASSERT(top + 4 <= 2 * REFL__KD_STACK);
+        stack[top++] = l;
+        stack[top++] = m;
+        stack[top++] = m + 1;
+        stack[top++] = h;
+    }
+}
+
+/* Offers point e as the nearest to q: nearer wins, ties go to the lower
+   pixel index, so the answer does not depend on the tree's shape. */
+static void refl__kd_offer(const refl__kd_point *e, const float *q, uint32_t skip, uint32_t *best,
+                           double *best_d2) {
+    double d2;
+    if (e->pixel == skip) return;
+    d2 = refl__metric_d2(e->p, q);
+    if (d2 < *best_d2 || (d2 == *best_d2 && e->pixel < *best)) {
+        *best_d2 = d2;
+        *best = e->pixel;
+    }
+}
+
+/* The pixel in v[lo, hi) whose point lies nearest q, skipping pixel `skip`
+   (UINT32_MAX: none), or UINT32_MAX when there is no other. *best and
+   *best_d2 come in as a candidate already known (UINT32_MAX, INFINITY:
+   none), which prunes the search from the start. */
+static void refl__kd_nearest(const refl__kd_point *v, const uint8_t *axes, size_t lo, size_t hi, const float *q,
+                             uint32_t skip, uint32_t *best, double *best_d2) {
+    struct refl__kd_todo { size_t lo, hi; double bound; } stack[REFL__KD_STACK];
+    int top = 1;
+    stack[0].lo = lo;
+    stack[0].hi = hi;
+    stack[0].bound = 0.0;
+    while (top > 0) {
+        size_t l, h, m;
+        double diff;
+        --top;
+        l = stack[top].lo;
+        h = stack[top].hi;
+        /* strictly beyond: an equal distance may still win the tie */
+        if (stack[top].bound > *best_d2 || l >= h) continue;
+        if (h - l <= REFL__KD_LEAF) {
+            for (; l < h; ++l) refl__kd_offer(&v[l], q, skip, best, best_d2);
+            continue;
+        }
+        m = l + (h - l) / 2;
+        refl__kd_offer(&v[m], q, skip, best, best_d2);
+        diff = (double)q[axes[m]] - v[m].p[axes[m]];
+        /* the far side first on the stack, so the near side is searched
+           first; the stack gains at most one entry per level */
+        REFL_ASSERT(top + 2 <= REFL__KD_STACK);
+        stack[top].lo = diff < 0.0 ? m + 1 : l;
+        stack[top].hi = diff < 0.0 ? h : m;
+        stack[top].bound = diff * diff;
+        ++top;
+        stack[top].lo = diff < 0.0 ? l : m + 1;
+        stack[top].hi = diff < 0.0 ? m : h;
+        stack[top].bound = 0.0;
+        ++top;
+    }
+}
+
+/* ---- reflection error ------------------------------------------------------------ */
+
+static int refl__metric_cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static refl_result refl__metric_frames(const refl_frame *test, const refl_frame *truth) {
+    if (!test || !truth) return REFL_ERROR_INVALID_ARGUMENT;
+    if (test->width <= 0 || test->height <= 0 || test->width != truth->width || test->height != truth->height ||
+        (size_t)test->width * (size_t)test->height > (size_t)UINT32_MAX / 4)
+        return REFL_ERROR_INVALID_SIZE;
+    return REFL_OK;
+}
 
 REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
-                                           const refl_error_desc *desc, refl_reflection_error *out) {
-    (void)test; (void)truth; (void)desc; (void)out;
-    return REFL_ERROR_UNSUPPORTED;
+                                                   const refl_error_desc *desc, refl_reflection_error *out) {
+    refl_allocator a;
+    refl__kd_point *kd = NULL;
+    uint8_t *axes = NULL;
+    double *errors = NULL, tolerance = 1.5, sum = 0.0;
+    size_t n, i, start[257], fill[256];
+    long long counted = 0, matched = 0, wrong = 0, empty = 0;
+    uint32_t last = UINT32_MAX;
+    int w;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if ((r = refl__metric_frames(test, truth)) != REFL_OK) return r;
+    if (!test->points || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
+    a = refl__allocator(desc ? &desc->allocator : NULL);
+    if ((a.alloc != NULL) != (a.free != NULL)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc && desc->tolerance != 0.0f) {
+        if (!(desc->tolerance > 0.0f) || !refl__isfinite(desc->tolerance)) return REFL_ERROR_INVALID_ARGUMENT;
+        tolerance = desc->tolerance;
+    }
+    w = truth->width;
+    n = (size_t)w * (size_t)truth->height;
+
+    /* the truth's points, grouped by reflector id (a counting sort, so each
+       group starts in pixel order), then one tree per group */
+    memset(start, 0, sizeof start);
+    for (i = 0; i < n; ++i)
+        if (truth->stencil[i] && refl__metric_point(truth->points + 3 * i)) ++start[truth->stencil[i] + 1];
+    for (i = 1; i < 257; ++i) start[i] += start[i - 1];
+    kd = (refl__kd_point *)refl__calloc(&a, start[256], sizeof(refl__kd_point));
+    axes = (uint8_t *)refl__calloc(&a, start[256], 1);
+    errors = (double *)refl__calloc(&a, n, sizeof(double));
+    if (!kd || !axes || !errors) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    memcpy(fill, start, sizeof fill);
+    for (i = 0; i < n; ++i)
+        if (truth->stencil[i] && refl__metric_point(truth->points + 3 * i)) {
+            refl__kd_point *e = &kd[fill[truth->stencil[i]]++];
+            memcpy(e->p, truth->points + 3 * i, sizeof e->p);
+            e->pixel = (uint32_t)i;
+        }
+    for (i = 1; i < 256; ++i) refl__kd_build(kd, axes, start[i], start[i + 1]);
+
+    for (i = 0; i < n; ++i) {
+        int id = truth->stencil[i], x, y, k;
+        const float *p = test->points + 3 * i, *tp;
+        uint32_t best = UINT32_MAX, other = UINT32_MAX;
+        double d2 = INFINITY, spacing2 = -1.0;
+        if (!id) continue;
+        if (!refl__metric_point(p)) {
+            if (refl__metric_point(truth->points + 3 * i)) {
+                ++counted;
+                ++empty;
+            }
+            continue;
+        }
+        ++counted;
+        /* a first candidate bounds the search: the truth at this pixel, else
+           the previous match (neighbouring pixels show neighbouring points) */
+        if (refl__metric_point(truth->points + 3 * i)) best = (uint32_t)i;
+        else if (last != UINT32_MAX && truth->stencil[last] == id) best = last;
+        if (best != UINT32_MAX) d2 = refl__metric_d2(truth->points + 3 * (size_t)best, p);
+        refl__kd_nearest(kd, axes, start[id], start[id + 1], p, UINT32_MAX, &best, &d2);
+        if (best == UINT32_MAX) { /* this reflector shows nothing in the truth */
+            ++wrong;
+            continue;
+        }
+        last = best;
+        /* the spacing of the true points around x*: the farthest of its
+           4-neighbours on the same reflector, else the nearest other point */
+        x = (int)(best % (uint32_t)w);
+        y = (int)(best / (uint32_t)w);
+        tp = truth->points + 3 * (size_t)best;
+        for (k = 0; k < 4; ++k) {
+            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+            size_t j;
+            if (xs < 0 || ys < 0 || xs >= w || ys >= truth->height) continue;
+            j = (size_t)ys * (size_t)w + (size_t)xs;
+            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
+            spacing2 = REFL__MAX(spacing2, refl__metric_d2(tp, truth->points + 3 * j));
+        }
+        if (spacing2 < 0.0) {
+            spacing2 = INFINITY;
+            refl__kd_nearest(kd, axes, start[id], start[id + 1], tp, best, &other, &spacing2);
+            if (other == UINT32_MAX) spacing2 = 0.0; /* the only point: only itself matches */
+        }
+        if (sqrt(d2) <= tolerance * sqrt(spacing2)) {
+            double dx = (double)((long long)(i % (size_t)w) - x);
+            double dy = (double)((long long)(i / (size_t)w) - y);
+            double e = sqrt(dx * dx + dy * dy);
+            errors[matched++] = e;
+            sum += e;
+        } else {
+            ++wrong;
+        }
+    }
+
+    out->pixels = counted;
+    out->matched = matched;
+    if (matched) {
+        size_t rank;
+        qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
+        out->mean = sum / (double)matched;
+        /* nearest rank: the smallest error that 95% of the matches do not exceed */
+        rank = (size_t)ceil(0.95 * (double)matched);
+        out->p95 = errors[rank > 0 ? rank - 1 : 0];
+        out->max = errors[matched - 1];
+    }
+    if (counted) {
+        out->wrong = (double)wrong / (double)counted;
+        out->empty = (double)empty / (double)counted;
+    }
+    r = REFL_OK;
+done:
+    refl__free(&a, errors);
+    refl__free(&a, axes);
+    refl__free(&a, kd);
+    return r;
 }
+
+/* ---- image error ------------------------------------------------------------------ */
 
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out) {
-    (void)test; (void)truth; (void)reflectors_only; (void)threshold; (void)out;
-    return REFL_ERROR_UNSUPPORTED;
+    unsigned long long sum = 0; /* squared 8-bit differences: exact */
+    long long count = 0, over = 0;
+    int max_diff = 0;
+    double level;
+    size_t n, i;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    out->psnr = INFINITY;
+    if ((r = refl__metric_frames(test, truth)) != REFL_OK) return r;
+    if (!test->color || !truth->color || (reflectors_only && !truth->stencil)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!(threshold >= 0.0f) || !refl__isfinite(threshold)) return REFL_ERROR_INVALID_ARGUMENT;
+    /* over when a difference of d levels has d / 255 > threshold; the small
+       margin keeps a difference of exactly the threshold under it */
+    level = (threshold == 0.0f ? 2.0 / 255.0 : (double)threshold) * 255.0 + 1e-6;
+    n = (size_t)truth->width * (size_t)truth->height;
+    for (i = 0; i < n; ++i) {
+        int c, worst = 0;
+        if (reflectors_only && !truth->stencil[i]) continue;
+        for (c = 0; c < 3; ++c) {
+            int d = (int)test->color[4 * i + (size_t)c] - (int)truth->color[4 * i + (size_t)c];
+            d = d < 0 ? -d : d;
+            sum += (unsigned long long)(d * d);
+            worst = REFL__MAX(worst, d);
+        }
+        max_diff = REFL__MAX(max_diff, worst);
+        over += (double)worst > level;
+        ++count;
+    }
+    out->pixels = count;
+    if (count) {
+        out->rmse = sqrt((double)sum / (3.0 * (double)count)) / 255.0;
+        out->psnr = out->rmse > 0.0 ? 20.0 * log10(1.0 / out->rmse) : INFINITY;
+        out->max_diff = max_diff / 255.0;
+        out->over_threshold = (double)over / (double)count;
+    }
+    return REFL_OK;
 }
 /* ---- src/reflect/render.c ---- */
 /* Frames and the one entry point, refl_render: the base pass every method
@@ -3722,11 +4911,9 @@ static double refl__now_ms(void) {
 }
 #endif
 
-REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
-                                 refl_mat4 *proj_m) {
+/* Near and far planes: the view's, or from the scene's bounds. */
+static void refl__view_planes(const refl_view *v, const refl_scene *scene, float *out_near, float *out_far) {
     float znear = v->znear, zfar = v->zfar;
-    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
-    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
     if (!(znear > 0.0f) || !(zfar > znear)) {
         /* from the scene's bounding sphere: far just beyond it, near a
            fraction of far (24 bits of depth keep plenty of precision) */
@@ -3740,8 +4927,55 @@ REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, re
         znear = REFL__MAX(dist - radius, zfar * 1e-3f);
         znear = REFL__MAX(znear * 0.5f, zfar * 1e-4f);
     }
+    *out_near = znear;
+    *out_far = zfar;
+}
+
+REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
+                                 refl_mat4 *proj_m) {
+    float znear, zfar;
+    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    refl__view_planes(v, scene, &znear, &zfar);
     if (view_m) *view_m = refl_mat4_look_at(v->eye, v->target, v->up);
     if (proj_m) *proj_m = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, znear, zfar);
+}
+
+static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const refl_scene *scene) {
+    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    float t = tanf(0.5f * fovy * (float)(REFL__PI / 180.0));
+    r->eye = v->eye;
+    /* the basis of refl_mat4_look_at */
+    r->forward = refl_v3_normalize(refl_v3_sub(v->target, v->eye));
+    r->right = refl_v3_normalize(refl_v3_cross(r->forward, v->up));
+    r->up = refl_v3_scale(refl_v3_cross(r->right, r->forward), t);
+    r->right = refl_v3_scale(r->right, t * aspect);
+    refl__view_planes(v, scene, &r->znear, &r->zfar);
+    r->width = v->width;
+    r->height = v->height;
+}
+
+static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
+                                float *tmax) {
+    float nx = 2.0f * px / (float)r->width - 1.0f, ny = 1.0f - 2.0f * py / (float)r->height;
+    refl_vec3 d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    float len = refl_v3_length(d); /* d . forward = 1: len is 1 / cos of the angle off axis */
+    *origin = refl_v3_add(r->eye, refl_v3_scale(d, r->znear));
+    *dir = refl_v3_scale(d, 1.0f / len);
+    *tmax = (r->zfar - r->znear) * len;
+}
+
+REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
+                            refl_vec3 *dir, float *tmax) {
+    refl__view_rays r;
+    refl_vec3 o, d;
+    float t;
+    refl__view_rays_init(&r, view, scene);
+    refl__view_rays_get(&r, px, py, &o, &d, &t);
+    if (origin) *origin = o;
+    if (dir) *dir = d;
+    if (tmax) *tmax = t;
 }
 
 /* ---- the base pass ---------------------------------------------------------- */
@@ -3927,6 +5161,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
     refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
     p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
 
     memset(&cd, 0, sizeof cd);
     cd.num_threads = p.desc.threads;
@@ -3945,9 +5180,11 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    if (rast_set_targets(p.rc, &t) != RAST_OK || rast_clear(p.rc, &clear) != RAST_OK) {
+    r = refl__result_from_rast(rast_set_targets(p.rc, &t));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(p.rc, &clear));
+    if (r != REFL_OK) {
         rast_context_destroy(p.rc);
-        return REFL_ERROR_RASTER;
+        return r;
     }
     if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
     if (p.desc.method == REFL_RAYTRACE) {
