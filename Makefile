@@ -3,8 +3,8 @@
 #   make            amalgamator, headers, C and C++ compile checks, tests, bench, examples
 #   make headers    regenerate rast.h (and reflect.h) from src/
 #   make test       install packages, check headers, run the tests (plain and ASan/UBSan)
-#   make bench      install packages, build and run the rasteriser and ray benchmarks -> out/
-#   make demo       install packages, render the demo picture -> out/
+#   make bench      install packages, run the rasteriser, ray and method benchmarks -> out/
+#   make demo       install packages, render every scene with every method and the chart -> out/
 #   make deps       install the Debian packages the project needs (tools/deps.sh)
 #   make clean
 #
@@ -285,16 +285,21 @@ test: deps
 	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
 	  exit 1; fi
 
+# The rasteriser against llvmpipe, refl_bvh against Embree, then every
+# method against the ray-traced reference (`reflect bench`: CSV and charts
+# in out/bench/; `reflect bench --full` runs every scene and size).
 bench: deps
-	@$(MAKE) --no-print-directory $(BENCH_BIN) $(BENCH_RAYS_BIN)
+	@$(MAKE) --no-print-directory $(BENCH_BIN) $(BENCH_RAYS_BIN) $(REFLECT_BIN)
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
 	$(BENCH_RAYS_BIN) --csv out/bench_rays.csv
+	$(REFLECT_BIN) bench --out out/bench
 
 # The demo: every built-in scene through the `reflect` command with every
-# method built so far (DIRECT), and the rasteriser's own demo picture.
+# method built so far, the speed-against-accuracy chart of the default
+# scene (a quick `reflect bench`), and the rasteriser's own demo picture.
 DEMO_SCENES  = default mirror-room concave glass
-DEMO_METHODS = direct
+DEMO_METHODS = direct raytrace envmap
 demo: deps
 	@$(MAKE) --no-print-directory build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out
@@ -302,9 +307,10 @@ demo: deps
 	  echo "$(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png"; \
 	  $(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png || exit 1; \
 	done; done
+	$(REFLECT_BIN) bench --repeats 1 --out out/bench
 	build/examples/rast_demo out/rast_demo.ppm
 	oiiotool out/rast_demo.ppm -o out/rast_demo.png
-	@echo "wrote out/*.png"
+	@echo "wrote out/*.png, out/bench/bench.csv and the charts out/bench/*.png"
 
 clean:
 	rm -rf build out
