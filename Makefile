@@ -60,7 +60,8 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \
-                 src/reflect/render.c
+                 src/reflect/render.c \
+                 src/reflect/m_planar.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
 
 AMALGAMATE = build/amalgamate

@@ -396,6 +396,7 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles, points, cameras, leaves, layers;
     long long rays;          /* rays traced (primary, secondary and shadow) */
+    long long culled;        /* PLANAR: mirror renderings skipped as not visible */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
 } refl_stats;
@@ -434,6 +435,9 @@ typedef struct refl_render_desc {
     int shadows;             /* 1: hard shadows from every light */
     int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
     refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
+    int no_culling;          /* PLANAR: render every mirror at every level, seen or not
+                                (paper 002's count, formula 5); stats.leaves counts the
+                                renderings at the deepest level, stats.cameras all */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;

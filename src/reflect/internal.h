@@ -106,3 +106,4 @@ static double refl__now_ms(void);
 /* The methods (one module each). */
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
+static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */

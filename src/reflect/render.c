@@ -180,7 +180,11 @@ static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgb
     float rgb[3], k = 1.0f;
     refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
     if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    rgba[0] = rgb[0] * k; rgba[1] = rgb[1] * k; rgba[2] = rgb[2] * k;
+    /* clamped here too, for float targets (PLANAR's): the shared model
+       clamps each surface before anything weighs it */
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
     rgba[3] = 1.0f;
     return 1;
 }
@@ -312,7 +316,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
             return REFL_ERROR_INVALID_ARGUMENT;
     if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
-    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP)
+    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
+        p.desc.method != REFL_PLANAR)
         return REFL_ERROR_UNSUPPORTED;
     if (p.desc.depth == 0) p.desc.depth = 6;
     if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
@@ -360,6 +365,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         t1 = refl__now_ms();
         frame->stats.ms_base = t1 - t0;
         if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
+        if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
     }
     rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;

@@ -1,0 +1,498 @@
+/* PLANAR: Diefenbach and Badler's pipeline rendering (paper 002) for
+   planar mirrors. A mirror's visible pixels are marked in the stencil, the
+   scene is drawn again from the mirrored viewpoint into them, clipped by
+   an oblique near plane at the mirror (Lengyel 2005), and the procedure
+   recurses (a hall of mirrors) with one stencil level per bounce, as the
+   paper's Figure 4: level L's region has stencil L; marking a mirror
+   raises its pixels to L + 1; returning lowers them again.
+
+   Planar reflectors are found per object: its triangles grouped by plane
+   (within a tolerance). An object whose triangles fall into more than
+   REFL__PLANAR_MAX_FACES planes is not planar (a teapot) and is left as
+   DIRECT draws it.
+
+   Colour is kept in a float buffer while the recursion runs, so the
+   reflectance of each bounce weighs unrounded colour, as RAYTRACE's does;
+   each surface is clamped to [0, 1] before a reflectance weighs it (the
+   shared model), and the frame gets 8-bit colour once at the end. The
+   environment in a mirror is looked up along the mirrored ray; the point a
+   first-bounce pixel shows (frame->points) is unprojected from the
+   mirrored view's depth. This module follows render.c in the header: it
+   draws with the base pass's vertex and fragment programs. */
+#include "internal.h"
+
+enum { REFL__PLANAR_MAX_FACES = 16 };
+
+typedef struct refl__planar_face {
+    int object;
+    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    uint32_t *indices;            /* the face's triangles, into the object's mesh */
+    int index_count;
+} refl__planar_face;
+
+typedef struct refl__planar {
+    refl__pass *p;
+    const refl_scene *scene;
+    refl__planar_face *faces;
+    int face_count;
+    float *color;                 /* RGBA float, the frame's colour while drawing */
+    uint8_t *stencil;             /* recursion levels */
+    refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
+    int no_culling;
+    long long culled;
+} refl__planar;
+
+/* ---- planar faces --------------------------------------------------------------- */
+
+static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
+    int i;
+    for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);
+    refl__free(&s->allocator, faces);
+}
+
+/* Unit world plane of triangle t of object o (n . x = d); 0 when degenerate. */
+static int refl__planar_tri_plane(const refl_object *o, const refl_mesh *mesh, int t, double n[3], double *d) {
+    refl_vec3 v[3];
+    double e1[3], e2[3], len;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
+        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
+    }
+    e1[0] = (double)v[1].x - v[0].x; e1[1] = (double)v[1].y - v[0].y; e1[2] = (double)v[1].z - v[0].z;
+    e2[0] = (double)v[2].x - v[0].x; e2[1] = (double)v[2].y - v[0].y; e2[2] = (double)v[2].z - v[0].z;
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || len > DBL_MAX) return 0;
+    for (k = 0; k < 3; ++k) n[k] /= len;
+    *d = n[0] * v[0].x + n[1] * v[0].y + n[2] * v[0].z;
+    return *d == *d;
+}
+
+/* The face among faces[first, count) in the plane (n, d), or count. */
+static int refl__planar_match(const refl__planar_face *faces, int first, int count, const double n[3], double d,
+                              double tol_d) {
+    int f;
+    for (f = first; f < count; ++f)
+        if (faces[f].n[0] * n[0] + faces[f].n[1] * n[1] + faces[f].n[2] * n[2] > 1.0 - 1e-6 &&
+            fabs(faces[f].d - d) <= tol_d)
+            return f;
+    return count;
+}
+
+/* Groups each mirror or partial reflector's triangles by world plane
+   (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
+   Degenerate triangles join no face (they draw nothing anyway). */
+static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
+    refl__planar_face *faces;
+    int i, count = 0, cap = 0;
+    refl_vec3 lo, hi;
+    double tol_d;
+    refl_scene_bounds(s, &lo, &hi);
+    tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_material *m = &s->materials[s->objects[i].material];
+        if (m->type == REFL_MIRROR || m->type == REFL_PARTIAL) cap += REFL__PLANAR_MAX_FACES;
+    }
+    faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
+    if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_object *o = &s->objects[i];
+        const refl_mesh *mesh = s->meshes[o->mesh];
+        const refl_material *m = &s->materials[o->material];
+        int first = count, t, f, k, planar = 1;
+        double n[3], d;
+        if (m->type != REFL_MIRROR && m->type != REFL_PARTIAL) continue;
+        /* the planes and how many indices each gets */
+        for (t = 0; t < mesh->triangle_count && planar; ++t) {
+            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
+            f = refl__planar_match(faces, first, count, n, d, tol_d);
+            if (f == count) {
+                if (count - first == REFL__PLANAR_MAX_FACES) { planar = 0; break; }
+                faces[f].object = i;
+                for (k = 0; k < 3; ++k) faces[f].n[k] = n[k];
+                faces[f].d = d;
+                ++count;
+            }
+            faces[f].index_count += 3;
+        }
+        if (!planar) { /* curved: left as DIRECT draws it */
+            memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
+            count = first;
+            continue;
+        }
+        for (f = first; f < count; ++f) {
+            faces[f].indices = (uint32_t *)refl__calloc(&s->allocator, (size_t)faces[f].index_count, sizeof(uint32_t));
+            if (!faces[f].indices) {
+                refl__planar_free_faces(s, faces, count);
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+            faces[f].index_count = 0;
+        }
+        for (t = 0; t < mesh->triangle_count; ++t) {
+            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
+            f = refl__planar_match(faces, first, count, n, d, tol_d);
+            for (k = 0; k < 3; ++k) faces[f].indices[faces[f].index_count++] = mesh->indices[3 * t + k];
+        }
+    }
+    *out = faces;
+    *out_count = count;
+    return REFL_OK;
+}
+
+/* ---- mirrored cameras ----------------------------------------------------------- */
+
+/* Reflection about the plane n . x = d: x - 2 (n . x - d) n. */
+static refl_mat4 refl__planar_reflection(const double n[3], double d) {
+    refl_mat4 r = refl_mat4_identity();
+    int i, j;
+    for (j = 0; j < 3; ++j) {
+        for (i = 0; i < 3; ++i) r.m[j * 4 + i] = (float)((i == j) - 2.0 * n[i] * n[j]);
+        r.m[12 + j] = (float)(2.0 * d * n[j]);
+    }
+    return r;
+}
+
+/* Lengyel's oblique near plane: the projection's near plane becomes the
+   eye-space plane c (points with c . (x, y, z, 1) >= 0 are kept; the eye
+   must lie on the other side). 0 when c cannot serve (edge-on). */
+static int refl__planar_oblique(refl_mat4 *proj, double c[4]) {
+    float *m = proj->m;
+    double q[4], dot, k;
+    int i;
+    q[0] = ((c[0] > 0) - (c[0] < 0) + (double)m[8]) / m[0];
+    q[1] = ((c[1] > 0) - (c[1] < 0) + (double)m[9]) / m[5];
+    q[2] = -1.0;
+    q[3] = (1.0 + (double)m[10]) / m[14];
+    dot = c[0] * q[0] + c[1] * q[1] + c[2] * q[2] + c[3] * q[3];
+    if (!(dot > 0.0) || c[3] >= 0.0) return 0;
+    k = 2.0 / dot;
+    for (i = 0; i < 4; ++i) c[i] *= k; /* the caller keeps the scaled plane: row 3 + row 4 */
+    m[2] = (float)c[0];
+    m[6] = (float)c[1];
+    m[10] = (float)(c[2] + 1.0);
+    m[14] = (float)c[3];
+    return 1;
+}
+
+/* ---- drawing ---------------------------------------------------------------------- */
+
+/* One level of the recursion: the camera sees w * x through vp. */
+typedef struct refl__planar_level {
+    int level;                    /* the stencil value of its region */
+    refl_mat4 w, w_inv;           /* the virtual world and back */
+    refl_mat4 vp;                 /* projection (oblique at level > 0) * view * w */
+    double clip[4];               /* the eye-space near plane (level > 0) */
+    int parent;                   /* the face it reflects in; -1 at level 0 */
+} refl__planar_level;
+
+/* The composite of a face: its diffuse share plus reflectance times what
+   the region now holds (blend ONE, SRC_ALPHA; the reflectance in alpha). */
+typedef struct refl__planar_comp {
+    refl__draw_ctx dc;
+    refl_vec3 eye;                /* the viewer in the face's world */
+} refl__planar_comp;
+
+static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__planar_comp *c = (const refl__planar_comp *)user;
+    const refl_material *m = c->dc.material;
+    const float *v = in->varyings;
+    refl_vec3 p = refl_v3(v[0], v[1], v[2]), n = refl_v3_normalize(refl_v3(v[3], v[4], v[5]));
+    refl_vec3 d = refl_v3_normalize(refl_v3_sub(p, c->eye));
+    float cos_i = fabsf(refl_v3_dot(d, n));
+    int k;
+    rgba[0] = rgba[1] = rgba[2] = 0.0f;
+    if (m->type == REFL_PARTIAL) {
+        float w = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
+        refl_shade_diffuse(c->dc.scene, m, p, refl_v3(v[3], v[4], v[5]), v + 6, rgba);
+        for (k = 0; k < 3; ++k) rgba[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f) * w;
+    }
+    rgba[3] = refl_material_reflectance(m, cos_i);
+    return 1;
+}
+
+static void refl__planar_draw_ctx(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
+    const refl_object *o = &s->objects[object];
+    refl_mat4 inv;
+    dc->scene = s;
+    dc->mesh = s->meshes[o->mesh];
+    dc->material = &s->materials[o->material];
+    dc->model = o->transform;
+    dc->mvp = refl_mat4_mul(vp, o->transform);
+    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+}
+
+static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc, const uint32_t *indices,
+                                     int index_count) {
+    rast_draw_desc d;
+    memset(&d, 0, sizeof d);
+    d.primitive = RAST_TRIANGLES;
+    d.vertices = dc->mesh->positions;
+    d.vertex_count = dc->mesh->vertex_count;
+    d.stride = 3;
+    d.position_size = 3;
+    d.num_varyings = REFL__BASE_VARYINGS;
+    d.indices = indices ? indices : dc->mesh->indices;
+    d.index_count = indices ? index_count : 3 * dc->mesh->triangle_count;
+    return rast_draw(rc, &d);
+}
+
+/* A state testing the stencil against `ref` with `pass` on success. */
+static rast_state refl__planar_state(uint8_t ref, rast_stencil_op pass) {
+    rast_state s;
+    memset(&s, 0, sizeof s);
+    s.stencil_test = 1;
+    s.stencil_front.func = RAST_EQUAL;
+    s.stencil_front.ref = ref;
+    s.stencil_front.pass = pass;
+    s.stencil_back = s.stencil_front;
+    s.depth_test = 1;
+    s.vertex_fn = refl__base_vertex;
+    return s;
+}
+
+/* The scene as the level sees it, into its region (depth cleared there):
+   every object but the face's own, diffuse ones shaded, reflectors as
+   DIRECT draws them. */
+static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dc) {
+    const refl_scene *s = pl->scene;
+    rast_result rr = RAST_OK;
+    int i, skip = lv->parent >= 0 ? pl->faces[lv->parent].object : -1;
+    for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
+        rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
+        if (i == skip) continue;
+        refl__planar_draw_ctx(&dc[i], s, i, lv->vp);
+        st.vertex_user = &dc[i];
+        st.fragment_fn = dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL
+                             ? refl__base_fragment : refl__clear_fragment;
+        st.fragment_user = &dc[i];
+        rr = rast_set_state(pl->p->rc, &st);
+        if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &dc[i], NULL, 0);
+        pl->p->frame->stats.triangles += dc[i].mesh->triangle_count;
+    }
+    return rr;
+}
+
+/* After a level's scene: the environment where nothing was drawn (looked
+   up along the real, unmirrored ray), and at the first bounce the points
+   the region shows, unprojected from the depth along the pixel's ray. */
+static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level *lv) {
+    refl_frame *f = pl->p->frame;
+    const refl__view_rays *vr = &pl->p->rays;
+    double right_len = refl_v3_length(vr->right), up_len = refl_v3_length(vr->up);
+    int x, y;
+    for (y = 0; y < f->height; ++y)
+        for (x = 0; x < f->width; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            float nx, ny;
+            refl_vec3 dir;
+            if (pl->stencil[i] != lv->level) continue;
+            nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
+            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
+            dir = refl_v3_add(vr->forward, refl_v3_add(refl_v3_scale(vr->right, nx), refl_v3_scale(vr->up, ny)));
+            if (f->depth[i] >= 1.0f) {
+                float rgb[3];
+                int c;
+                refl_environment_lookup(&pl->scene->environment, refl_mat4_dir(lv->w_inv, dir), rgb);
+                for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                pl->color[4 * i + 3] = 1.0f;
+            } else if (lv->level == 1) {
+                /* eye-space depth along the ray from the oblique projection:
+                   z_ndc = c.D - 1 + c_w / t with D = (nx tx, ny ty, -1) */
+                double cd = lv->clip[0] * nx * right_len + lv->clip[1] * ny * up_len - lv->clip[2];
+                double zn = 2.0 * f->depth[i] - 1.0, t = lv->clip[3] / (zn + 1.0 - cd);
+                refl_vec3 seen = refl_v3_add(vr->eye, refl_v3_scale(dir, (float)t));
+                refl_vec3 world = refl_mat4_point(lv->w_inv, seen);
+                f->points[3 * i] = world.x;
+                f->points[3 * i + 1] = world.y;
+                f->points[3 * i + 2] = world.z;
+            }
+        }
+}
+
+/* Clamps the region's colour: a composite can exceed 1, and the shared
+   model clamps every surface before the next reflectance weighs it. */
+static void refl__planar_clamp_region(refl__planar *pl, int level) {
+    size_t i, n = (size_t)pl->p->frame->width * (size_t)pl->p->frame->height;
+    int c;
+    for (i = 0; i < n; ++i)
+        if (pl->stencil[i] == level)
+            for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(pl->color[4 * i + (size_t)c], 0.0f, 1.0f);
+}
+
+static long long refl__planar_count(const refl__planar *pl, int level) {
+    size_t i, n = (size_t)pl->p->frame->width * (size_t)pl->p->frame->height;
+    long long k = 0;
+    for (i = 0; i < n; ++i) k += pl->stencil[i] == level;
+    return k;
+}
+
+/* The level's mirrors, each: mark its visible pixels (stencil L -> L + 1),
+   clear their depth, draw the mirrored scene there, recurse, then
+   composite the face over what its region shows and restore its depth and
+   the stencil. */
+static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs) {
+    const refl_scene *s = pl->scene;
+    rast_context *rc = pl->p->rc;
+    refl_stats *st = &pl->p->frame->stats;
+    refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
+    int f;
+    for (f = 0; f < pl->face_count; ++f) {
+        const refl__planar_face *face = &pl->faces[f];
+        refl__planar_level child;
+        refl__planar_comp comp;
+        rast_state state;
+        rast_result rr = RAST_OK;
+        refl_mat4 proj, view_inv, plane_to_eye;
+        double cw[4], side;
+        int k, front;
+        float far_rgba[4] = {0, 0, 0, 0};
+        if (f == lv->parent) continue;
+        side = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d;
+        front = side > 0.0;
+        if (!front && !pl->no_culling) { ++pl->culled; continue; }
+        /* mark the face where it is visible at this level */
+        memset(&comp, 0, sizeof comp);
+        refl__planar_draw_ctx(&comp.dc, s, face->object, lv->vp);
+        comp.eye = eye;
+        if (front) {
+            state = refl__planar_state((uint8_t)lv->level, RAST_INCR);
+            state.depth_func = RAST_LEQUAL;
+            state.depth_write_disabled = 1;
+            state.color_write = RAST_MASK(0);
+            state.vertex_user = &comp.dc;
+            rr = rast_set_state(rc, &state);
+            if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp.dc, face->indices, face->index_count);
+            if (rr == RAST_OK) rr = rast_finish(rc);
+            if (rr != RAST_OK) return refl__result_from_rast(rr);
+        }
+        if (!pl->no_culling && refl__planar_count(pl, lv->level + 1) == 0) { ++pl->culled; continue; }
+        /* the mirrored camera: reflect the world, clip at the mirror */
+        memset(&child, 0, sizeof child);
+        child.level = lv->level + 1;
+        child.parent = f;
+        child.w = refl_mat4_mul(lv->w, refl__planar_reflection(face->n, face->d));
+        child.w_inv = refl_mat4_mul(refl__planar_reflection(face->n, face->d), lv->w_inv);
+        /* keep n . x >= d (the mirror's front) in world space, as a plane
+           of the viewed space (through w_inv) and then of eye space */
+        if (!refl_mat4_invert(pl->p->view_m, &view_inv)) return REFL_ERROR_INVALID_ARGUMENT;
+        plane_to_eye = refl_mat4_mul(child.w_inv, view_inv);
+        for (k = 0; k < 4; ++k) {
+            const float *col = plane_to_eye.m + 4 * k;
+            cw[k] = face->n[0] * col[0] + face->n[1] * col[1] + face->n[2] * col[2] - face->d * col[3];
+        }
+        proj = pl->p->proj_m;
+        {
+            /* room for the virtual scene, further away at every bounce */
+            float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
+            float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height;
+            proj = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, pl->p->rays.znear,
+                                         pl->p->rays.zfar * 2.0f * (float)(child.level + 1));
+        }
+        for (k = 0; k < 4; ++k) child.clip[k] = cw[k];
+        if (!refl__planar_oblique(&proj, child.clip)) memset(child.clip, 0, sizeof child.clip);
+        child.vp = refl_mat4_mul(refl_mat4_mul(proj, pl->p->view_m), child.w);
+        /* clear the region's depth, then draw the mirrored scene there */
+        state = refl__planar_state((uint8_t)child.level, RAST_KEEP);
+        state.depth_func = RAST_ALWAYS;
+        state.color_write = RAST_MASK(0);
+        state.vertex_fn = NULL;
+        rr = rast_set_state(rc, &state);
+        if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba);
+        if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, &child, dcs + s->object_count);
+        if (rr == RAST_OK) rr = rast_finish(rc);
+        if (rr != RAST_OK) return refl__result_from_rast(rr);
+        st->cameras++;
+        if (child.level == pl->p->desc.depth) st->leaves++;
+        refl__planar_fill_region(pl, &child);
+        if (child.level < pl->p->desc.depth) {
+            refl_result r = refl__planar_level_draw(pl, &child, dcs + s->object_count);
+            if (r != REFL_OK) return r;
+        }
+        /* composite, restoring the face's depth and the stencil */
+        state = refl__planar_state((uint8_t)child.level, RAST_KEEP);
+        state.depth_func = RAST_ALWAYS;
+        state.blend = 1;
+        state.blend_src_rgb = RAST_ONE;
+        state.blend_dst_rgb = RAST_SRC_ALPHA;
+        state.blend_src_alpha = RAST_ZERO_FACTOR; /* alpha: the region's (opaque) */
+        state.blend_dst_alpha = RAST_ONE;
+        state.vertex_user = &comp.dc;
+        state.fragment_fn = refl__planar_comp_fragment;
+        state.fragment_user = &comp;
+        rr = rast_set_state(rc, &state);
+        if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp.dc, face->indices, face->index_count);
+        if (rr == RAST_OK) {
+            state = refl__planar_state((uint8_t)child.level, RAST_DECR); /* back to this level */
+            state.depth_test = 0;
+            state.color_write = RAST_MASK(0);
+            state.vertex_fn = NULL;
+            rr = rast_set_state(rc, &state);
+        }
+        if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
+        if (rr == RAST_OK) rr = rast_finish(rc);
+        if (rr != RAST_OK) return refl__result_from_rast(rr);
+        refl__planar_clamp_region(pl, lv->level);
+    }
+    return REFL_OK;
+}
+
+static refl_result refl__method_planar(refl__pass *p) {
+    const refl_scene *s = p->scene;
+    refl_frame *f = p->frame;
+    refl__planar pl;
+    refl__planar_level top;
+    refl__draw_ctx *dcs;
+    rast_targets t;
+    refl_result r;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    double t0 = refl__now_ms();
+    memset(&pl, 0, sizeof pl);
+    pl.p = p;
+    pl.scene = s;
+    pl.no_culling = p->desc.no_culling;
+    r = refl__planar_find_faces(s, &pl.faces, &pl.face_count);
+    if (r != REFL_OK) return r;
+    f->stats.ms_build = refl__now_ms() - t0;
+    if (pl.face_count == 0) {
+        refl__planar_free_faces(s, pl.faces, 0);
+        return REFL_OK; /* no planar mirror: what DIRECT shows */
+    }
+    pl.color = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
+    dcs = (refl__draw_ctx *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
+                                         sizeof(refl__draw_ctx));
+    if (!pl.color || !pl.stencil || !dcs) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    for (i = 0; i < 4 * n; ++i) pl.color[i] = (float)f->color[i] * (1.0f / 255.0f);
+    memset(&t, 0, sizeof t);
+    t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color_format = RAST_COLOR_RGBA32F;
+    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
+    t.depth.stride = (int)sizeof(float) * f->width;
+    t.stencil.ptr = pl.stencil; t.stencil.width = f->width; t.stencil.height = f->height;
+    t.stencil.stride = f->width;
+    r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    if (r != REFL_OK) goto done;
+    memset(&top, 0, sizeof top);
+    top.w = top.w_inv = refl_mat4_identity();
+    top.vp = p->vp;
+    top.parent = -1;
+    r = refl__planar_level_draw(&pl, &top, dcs);
+    if (r != REFL_OK) goto done;
+    for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
+    f->stats.culled = pl.culled;
+    f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
+done:
+    /* the frame's own targets back: rc's queue is empty or dropped */
+    refl__free(&s->allocator, dcs);
+    refl__free(&s->allocator, pl.color);
+    refl__free(&s->allocator, pl.stencil);
+    refl__planar_free_faces(s, pl.faces, pl.face_count);
+    return r;
+}
