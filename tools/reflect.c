@@ -35,11 +35,12 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference) or envmap (more\n"
-    "                     methods arrive with later work)\n"
+    "  --method M         direct, raytrace (the reference), envmap or planar\n"
+    "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --shadows          hard shadows from every light\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
+    "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -75,7 +76,7 @@ static const char *const usage_compare =
 
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
-    int width, height, threads, tess, stats, depth, shadows, envmap_size;
+    int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize;
@@ -118,7 +119,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
-                    strcmp(a, "--shadows");
+                    strcmp(a, "--shadows") && strcmp(a, "--no-culling");
         if (takes && !v) return fail("%s needs a value", a);
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
@@ -164,6 +165,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--shadows")) {
             o->shadows = 1;
+            continue;
+        } else if (!strcmp(a, "--no-culling")) {
+            o->no_culling = 1;
             continue;
         } else if (a[0] == '-') {
             return fail("render: unknown option %s (see reflect render --help)", a);
@@ -293,6 +297,7 @@ static int cmd_render(const options *o) {
     d.depth = o->depth;
     d.shadows = o->shadows;
     d.envmap_size = o->envmap_size;
+    d.no_culling = o->no_culling;
     if (o->method && !(d.method = refl_method_from_name(o->method))) {
         fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
         goto done;
@@ -319,7 +324,7 @@ static int cmd_render(const options *o) {
                st->ms_base, st->ms_reflect, st->ms_composite);
         printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
                st->triangles, st->points, st->cameras, st->leaves, st->layers);
-        printf("rays         %lld\n", st->rays);
+        printf("rays         %lld\nculled       %lld\n", st->rays, st->culled);
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }
     code = 0;

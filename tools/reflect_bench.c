@@ -25,7 +25,7 @@ static const char *const usage_bench =
     "(ENVMAP: cube sizes), times each setting (the median of N runs), measures\n"
     "its reflection error in pixels and its image error against RAYTRACE of the\n"
     "same scene, view and size, and writes DIR/bench.csv and the charts\n"
-    "DIR/time_vs_error_SCENE.png and DIR/growth_{resolution,diffuse,reflector}.png\n"
+    "DIR/time_vs_error_SCENE.png and DIR/growth_{resolution,diffuse,reflector,depth}.png\n"
     "(gnuplot). RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, sizes up to 1920x1080, 5 runs each\n"
@@ -46,7 +46,8 @@ typedef struct bench_row {
     char scene[32], method[24], series[24];
     char param[24];               /* the sweep: base, resolution, diffuse, reflector */
     double value;                 /* the method's setting (ENVMAP: cube size) */
-    int width, height, threads;
+    int width, height, threads, depth;
+    int applies;                  /* the method reflects something here (not all holes) */
     long long diffuse_tris, reflector_tris;
     double ms_median, ms_min;
     refl_reflection_error rerr;
@@ -172,6 +173,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         row->width = view->width;
         row->height = view->height;
         row->threads = o->threads;
+        row->depth = o->depth;
         row->diffuse_tris = diffuse;
         row->reflector_tris = reflector;
         row->ms_median = ms;
@@ -181,6 +183,9 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         if (refl_measure_reflection_error(f, truth, NULL, &row->rerr) != REFL_OK ||
             refl_measure_image_error(f, truth, 1, 0.0f, &row->ierr) != REFL_OK)
             memset(&row->rerr, 0, sizeof row->rerr);
+        /* DIRECT, or PLANAR without planar mirrors, reflects nothing: it
+           has no place on the error chart */
+        row->applies = row->rerr.empty < 0.99;
         fprintf(stderr, "  %-10s %-12s %-9s %4dx%-4d %7.1f ms  error %6.2f px (p95 %6.2f, wrong %5.3f, empty %5.3f)  "
                         "PSNR %6.2f dB\n",
                 scene_name, bm->series, bm->param, view->width, view->height, ms, row->rerr.mean, row->rerr.p95,
@@ -198,13 +203,13 @@ static int write_csv(const bench_table *t, const char *path) {
     FILE *fp = fopen(path, "w");
     int i;
     if (!fp) return 0;
-    fprintf(fp, "scene,method,series,sweep,setting,width,height,threads,diffuse_triangles,reflector_triangles,"
+    fprintf(fp, "scene,method,series,sweep,setting,depth,width,height,threads,diffuse_triangles,reflector_triangles,"
                 "ms_median,ms_min,error_mean_px,error_p95_px,error_max_px,wrong,empty,psnr_db,rmse,"
                 "over_threshold,rays,model_bytes\n");
     for (i = 0; i < t->count; ++i) {
         const bench_row *r = &t->rows[i];
-        fprintf(fp, "%s,%s,%s,%s,%g,%d,%d,%d,%lld,%lld,%.3f,%.3f,%.4f,%.4f,%.4f,%.5f,%.5f,%.3f,%.6f,%.5f,%lld,%lld\n",
-                r->scene, r->method, r->series, r->param, r->value, r->width, r->height, r->threads,
+        fprintf(fp, "%s,%s,%s,%s,%g,%d,%d,%d,%d,%lld,%lld,%.3f,%.3f,%.4f,%.4f,%.4f,%.5f,%.5f,%.3f,%.6f,%.5f,%lld,%lld\n",
+                r->scene, r->method, r->series, r->param, r->value, r->depth, r->width, r->height, r->threads,
                 r->diffuse_tris, r->reflector_tris, r->ms_median, r->ms_min, r->rerr.mean, r->rerr.p95,
                 r->rerr.max, r->rerr.wrong, r->rerr.empty, isinf(r->ierr.psnr) ? 999.0 : r->ierr.psnr,
                 r->ierr.rmse, r->ierr.over_threshold, r->rays, r->model_bytes);
@@ -275,7 +280,7 @@ static int chart(const char *dir, const char *name, const char *title, const cha
 }
 
 static int take_scene(const bench_row *r, const void *scene) {
-    return !strcmp(r->scene, (const char *)scene) && !strncmp(r->param, "base", 4);
+    return !strcmp(r->scene, (const char *)scene) && !strncmp(r->param, "base", 4) && r->applies;
 }
 static int take_sweep(const bench_row *r, const void *sweep) {
     return !strncmp(r->param, (const char *)sweep, strlen((const char *)sweep));
@@ -287,6 +292,7 @@ static double axis_ms(const bench_row *r) { return r->ms_median; }
 static double axis_pixels(const bench_row *r) { return (double)r->width * r->height; }
 static double axis_diffuse(const bench_row *r) { return (double)r->diffuse_tris; }
 static double axis_reflector(const bench_row *r) { return (double)r->reflector_tris; }
+static double axis_depth(const bench_row *r) { return (double)r->depth; }
 
 /* ---- the sweeps ------------------------------------------------------------ */
 
@@ -299,6 +305,7 @@ static int base_methods(bench_method *m, int full) {
     m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; ++n;
     m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = "base"; m[n].m = REFL_DIRECT; ++n;
+    m[n].method = "planar"; m[n].series = "planar"; m[n].param = "base"; m[n].m = REFL_PLANAR; ++n;
     for (k = 0; k < (int)(sizeof envmap_sizes / sizeof envmap_sizes[0]); ++k) {
         if (!full && envmap_sizes[k] > 256) break;
         m[n].method = "envmap"; m[n].series = "envmap"; m[n].param = "base";
@@ -444,6 +451,26 @@ int refl_cli_bench(int argc, char **argv) {
             refl_scene_destroy(s);
         }
     }
+    if (ok) {
+        /* paper 002's cost: recursion depth in the mirror room, beside
+           RAYTRACE at the same depth */
+        refl_scene *s = builtin("mirror-room", 0);
+        bench_opts od = o;
+        memset(methods, 0, 3 * sizeof methods[0]);
+        methods[0].method = "planar"; methods[0].series = "planar"; methods[0].param = "depth";
+        methods[0].m = REFL_PLANAR;
+        methods[1].method = "raytrace"; methods[1].series = "raytrace"; methods[1].param = "depth";
+        methods[1].m = REFL_RAYTRACE;
+        methods[2].method = "raytrace"; methods[2].series = "embree"; methods[2].param = "depth";
+        methods[2].m = REFL_RAYTRACE; methods[2].embree = 1;
+        for (i = 1; ok && s && i <= 6; ++i) {
+            refl_view v = view_of(s, 640, 480);
+            od.depth = i;
+            ok = bench_scene(&table, &od, "mirror-room", s, &v, methods, 3);
+        }
+        if (!s) ok = 0;
+        refl_scene_destroy(s);
+    }
     if (!ok) {
         free(table.rows);
         return 1;
@@ -465,16 +492,18 @@ int refl_cli_bench(int argc, char **argv) {
                          "ms per frame (median)", 1, dat, names, n);
     }
     {
-        static const char *sweeps[] = {"resolution", "diffuse", "reflector"};
-        static const char *xlabels[] = {"pixels", "diffuse triangles", "reflector triangles"};
-        bench_axis xs[] = {axis_pixels, axis_diffuse, axis_reflector};
-        for (i = 0; i < 3; ++i) {
+        static const char *sweeps[] = {"resolution", "diffuse", "reflector", "depth"};
+        static const char *xlabels[] = {"pixels", "diffuse triangles", "reflector triangles",
+                                        "recursion depth (mirror room)"};
+        bench_axis xs[] = {axis_pixels, axis_diffuse, axis_reflector, axis_depth};
+        for (i = 0; i < 4; ++i) {
             char dat[1024], name[64], title[128];
             snprintf(dat, sizeof dat, "%s/growth_%s.dat", o.out, sweeps[i]);
             snprintf(name, sizeof name, "growth_%s", sweeps[i]);
-            snprintf(title, sizeof title, "default scene: time per frame against %s", xlabels[i]);
+            snprintf(title, sizeof title, "%s: time per frame against %s", i == 3 ? "mirror room" : "default scene",
+                     xlabels[i]);
             n = write_blocks(&table, dat, take_sweep, sweeps[i], xs[i], axis_ms, names, 16);
-            if (n > 0) chart(o.out, name, title, xlabels[i], "ms per frame (median)", 1, dat, names, n);
+            if (n > 0) chart(o.out, name, title, xlabels[i], "ms per frame (median)", i != 3, dat, names, n);
         }
     }
     fprintf(stderr, "wrote %s/*.png\n", o.out);
