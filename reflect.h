@@ -5245,6 +5245,9 @@ enum { REFL__PLANAR_MAX_FACES = 16 };
 typedef struct refl__planar_face {
     int object;
     double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    int glass;                    /* a refractor's face */
+    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
+    double thickness;             /* glass: the distance to that face */
     uint32_t *indices;            /* the face's triangles, into the object's mesh */
     int index_count;
 } refl__planar_face;
@@ -5255,6 +5258,8 @@ typedef struct refl__planar {
     refl__planar_face *faces;
     int face_count;
     float *color;                 /* RGBA float, the frame's colour while drawing */
+    float *saved;                 /* glass: the refracted image of a region */
+    float *saved_points;          /* and, at the first bounce, the points it shows */
     uint8_t *stencil;             /* recursion levels */
     refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
     int no_culling;
@@ -5313,7 +5318,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
     tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
     for (i = 0; i < s->object_count; ++i) {
         const refl_material *m = &s->materials[s->objects[i].material];
-        if (m->type == REFL_MIRROR || m->type == REFL_PARTIAL) cap += REFL__PLANAR_MAX_FACES;
+        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
     }
     faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
     if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
@@ -5323,7 +5328,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
         const refl_material *m = &s->materials[o->material];
         int first = count, t, f, k, planar = 1;
         double n[3], d;
-        if (m->type != REFL_MIRROR && m->type != REFL_PARTIAL) continue;
+        if (m->type == REFL_DIFFUSE) continue;
         /* the planes and how many indices each gets */
         for (t = 0; t < mesh->triangle_count && planar; ++t) {
             if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
@@ -5333,6 +5338,8 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
                 faces[f].object = i;
                 for (k = 0; k < 3; ++k) faces[f].n[k] = n[k];
                 faces[f].d = d;
+                faces[f].glass = m->type == REFL_GLASS;
+                faces[f].opposite = -1;
                 ++count;
             }
             faces[f].index_count += 3;
@@ -5354,6 +5361,16 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
             if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
             f = refl__planar_match(faces, first, count, n, d, tol_d);
             for (k = 0; k < 3; ++k) faces[f].indices[faces[f].index_count++] = mesh->indices[3 * t + k];
+        }
+        /* a glass face with a parallel face opposite is one side of a slab */
+        for (f = first; f < count; ++f) {
+            int g;
+            for (g = first; g < count && faces[f].glass; ++g)
+                if (faces[f].n[0] * faces[g].n[0] + faces[f].n[1] * faces[g].n[1] + faces[f].n[2] * faces[g].n[2] <
+                        -1.0 + 1e-6 && faces[f].d + faces[g].d > tol_d) {
+                    faces[f].opposite = g;
+                    faces[f].thickness = faces[f].d + faces[g].d;
+                }
         }
     }
     *out = faces;
@@ -5478,7 +5495,7 @@ static rast_state refl__planar_state(uint8_t ref, rast_stencil_op pass) {
 static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dc) {
     const refl_scene *s = pl->scene;
     rast_result rr = RAST_OK;
-    int i, skip = lv->parent >= 0 ? pl->faces[lv->parent].object : -1;
+    int i, skip = lv->parent >= 0 ? pl->faces[lv->parent].object : -1; /* the mirror, or the slab seen through */
     for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
         rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
         if (i == skip) continue;
@@ -5548,114 +5565,248 @@ static long long refl__planar_count(const refl__planar *pl, int level) {
     return k;
 }
 
-/* The level's mirrors, each: mark its visible pixels (stencil L -> L + 1),
-   clear their depth, draw the mirrored scene there, recurse, then
-   composite the face over what its region shows and restore its depth and
-   the stencil. */
-static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs) {
-    const refl_scene *s = pl->scene;
+/* Raises the face's visible pixels at this level to level + 1. */
+static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level *lv, refl__planar_comp *comp,
+                                     const refl__planar_face *face) {
+    rast_state state = refl__planar_state((uint8_t)lv->level, RAST_INCR);
+    rast_result rr;
+    state.depth_func = RAST_LEQUAL;
+    state.depth_write_disabled = 1;
+    state.color_write = RAST_MASK(0);
+    state.vertex_user = &comp->dc;
+    rr = rast_set_state(pl->p->rc, &state);
+    if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) rr = rast_finish(pl->p->rc);
+    return refl__result_from_rast(rr);
+}
+
+/* Draws into the child's region (stencil child->level) the scene as seen
+   through child->w, clipped to the world half-space n . x >= d (what lies
+   beyond the face), with the environment where nothing is; finishes. */
+static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_level *child, const double n[3], double d,
+                                             refl__draw_ctx *dcs) {
     rast_context *rc = pl->p->rc;
-    refl_stats *st = &pl->p->frame->stats;
-    refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
-    int f;
-    for (f = 0; f < pl->face_count; ++f) {
-        const refl__planar_face *face = &pl->faces[f];
-        refl__planar_level child;
-        refl__planar_comp comp;
-        rast_state state;
-        rast_result rr = RAST_OK;
-        refl_mat4 proj, view_inv, plane_to_eye;
-        double cw[4], side;
-        int k, front;
-        float far_rgba[4] = {0, 0, 0, 0};
-        if (f == lv->parent) continue;
-        side = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d;
-        front = side > 0.0;
-        if (!front && !pl->no_culling) { ++pl->culled; continue; }
-        /* mark the face where it is visible at this level */
-        memset(&comp, 0, sizeof comp);
-        refl__planar_draw_ctx(&comp.dc, s, face->object, lv->vp);
-        comp.eye = eye;
-        if (front) {
-            state = refl__planar_state((uint8_t)lv->level, RAST_INCR);
-            state.depth_func = RAST_LEQUAL;
-            state.depth_write_disabled = 1;
-            state.color_write = RAST_MASK(0);
-            state.vertex_user = &comp.dc;
-            rr = rast_set_state(rc, &state);
-            if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp.dc, face->indices, face->index_count);
-            if (rr == RAST_OK) rr = rast_finish(rc);
-            if (rr != RAST_OK) return refl__result_from_rast(rr);
-        }
-        if (!pl->no_culling && refl__planar_count(pl, lv->level + 1) == 0) { ++pl->culled; continue; }
-        /* the mirrored camera: reflect the world, clip at the mirror */
-        memset(&child, 0, sizeof child);
-        child.level = lv->level + 1;
-        child.parent = f;
-        child.w = refl_mat4_mul(lv->w, refl__planar_reflection(face->n, face->d));
-        child.w_inv = refl_mat4_mul(refl__planar_reflection(face->n, face->d), lv->w_inv);
-        /* keep n . x >= d (the mirror's front) in world space, as a plane
-           of the viewed space (through w_inv) and then of eye space */
-        if (!refl_mat4_invert(pl->p->view_m, &view_inv)) return REFL_ERROR_INVALID_ARGUMENT;
-        plane_to_eye = refl_mat4_mul(child.w_inv, view_inv);
-        for (k = 0; k < 4; ++k) {
-            const float *col = plane_to_eye.m + 4 * k;
-            cw[k] = face->n[0] * col[0] + face->n[1] * col[1] + face->n[2] * col[2] - face->d * col[3];
-        }
-        proj = pl->p->proj_m;
-        {
-            /* room for the virtual scene, further away at every bounce */
-            float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
-            float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height;
-            proj = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, pl->p->rays.znear,
-                                         pl->p->rays.zfar * 2.0f * (float)(child.level + 1));
-        }
-        for (k = 0; k < 4; ++k) child.clip[k] = cw[k];
-        if (!refl__planar_oblique(&proj, child.clip)) memset(child.clip, 0, sizeof child.clip);
-        child.vp = refl_mat4_mul(refl_mat4_mul(proj, pl->p->view_m), child.w);
-        /* clear the region's depth, then draw the mirrored scene there */
-        state = refl__planar_state((uint8_t)child.level, RAST_KEEP);
-        state.depth_func = RAST_ALWAYS;
-        state.color_write = RAST_MASK(0);
-        state.vertex_fn = NULL;
-        rr = rast_set_state(rc, &state);
-        if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba);
-        if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, &child, dcs + s->object_count);
-        if (rr == RAST_OK) rr = rast_finish(rc);
-        if (rr != RAST_OK) return refl__result_from_rast(rr);
-        st->cameras++;
-        if (child.level == pl->p->desc.depth) st->leaves++;
-        refl__planar_fill_region(pl, &child);
-        if (child.level < pl->p->desc.depth) {
-            refl_result r = refl__planar_level_draw(pl, &child, dcs + s->object_count);
-            if (r != REFL_OK) return r;
-        }
-        /* composite, restoring the face's depth and the stencil */
-        state = refl__planar_state((uint8_t)child.level, RAST_KEEP);
-        state.depth_func = RAST_ALWAYS;
+    refl_mat4 proj, view_inv, plane_to_eye;
+    rast_state state;
+    rast_result rr;
+    float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
+    float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height;
+    float far_rgba[4] = {0, 0, 0, 0};
+    int k;
+    /* the kept half-space as a plane of eye space: through w_inv, then the view */
+    if (!refl_mat4_invert(pl->p->view_m, &view_inv)) return REFL_ERROR_INVALID_ARGUMENT;
+    plane_to_eye = refl_mat4_mul(child->w_inv, view_inv);
+    for (k = 0; k < 4; ++k) {
+        const float *col = plane_to_eye.m + 4 * k;
+        child->clip[k] = n[0] * col[0] + n[1] * col[1] + n[2] * col[2] - d * col[3];
+    }
+    /* room for the virtual scene, further away at every bounce */
+    proj = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, pl->p->rays.znear,
+                                 pl->p->rays.zfar * 2.0f * (float)(child->level + 1));
+    if (!refl__planar_oblique(&proj, child->clip)) memset(child->clip, 0, sizeof child->clip);
+    child->vp = refl_mat4_mul(refl_mat4_mul(proj, pl->p->view_m), child->w);
+    state = refl__planar_state((uint8_t)child->level, RAST_KEEP);
+    state.depth_func = RAST_ALWAYS;
+    state.color_write = RAST_MASK(0);
+    state.vertex_fn = NULL;
+    rr = rast_set_state(rc, &state);
+    if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba); /* the region's depth cleared */
+    if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, dcs);
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    if (rr != RAST_OK) return refl__result_from_rast(rr);
+    pl->p->frame->stats.cameras++;
+    if (child->level == pl->p->desc.depth) pl->p->frame->stats.leaves++;
+    refl__planar_fill_region(pl, child);
+    return REFL_OK;
+}
+
+/* Draws the face over its region (stencil level + 1) with the composite
+   fragment (NULL: colour untouched), restoring the face's depth there,
+   then lowers the region back to `level`. */
+static refl_result refl__planar_restore(refl__planar *pl, int level, refl__planar_comp *comp,
+                                        const refl__planar_face *face, rast_fragment_fn composite) {
+    rast_context *rc = pl->p->rc;
+    rast_state state = refl__planar_state((uint8_t)(level + 1), RAST_KEEP);
+    rast_result rr;
+    float far_rgba[4] = {0, 0, 0, 0};
+    state.depth_func = RAST_ALWAYS;
+    state.vertex_user = &comp->dc;
+    if (composite) {
         state.blend = 1;
         state.blend_src_rgb = RAST_ONE;
         state.blend_dst_rgb = RAST_SRC_ALPHA;
         state.blend_src_alpha = RAST_ZERO_FACTOR; /* alpha: the region's (opaque) */
         state.blend_dst_alpha = RAST_ONE;
-        state.vertex_user = &comp.dc;
-        state.fragment_fn = refl__planar_comp_fragment;
-        state.fragment_user = &comp;
+        state.fragment_fn = composite;
+        state.fragment_user = comp;
+    } else {
+        state.color_write = RAST_MASK(0);
+    }
+    rr = rast_set_state(rc, &state);
+    if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) {
+        state = refl__planar_state((uint8_t)(level + 1), RAST_DECR);
+        state.depth_test = 0;
+        state.color_write = RAST_MASK(0);
+        state.vertex_fn = NULL;
         rr = rast_set_state(rc, &state);
-        if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp.dc, face->indices, face->index_count);
-        if (rr == RAST_OK) {
-            state = refl__planar_state((uint8_t)child.level, RAST_DECR); /* back to this level */
-            state.depth_test = 0;
-            state.color_write = RAST_MASK(0);
-            state.vertex_fn = NULL;
-            rr = rast_set_state(rc, &state);
+    }
+    if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    if (rr != RAST_OK) return refl__result_from_rast(rr);
+    refl__planar_clamp_region(pl, level);
+    return REFL_OK;
+}
+
+static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs);
+
+/* The mirror image in the face: the child level through the reflection,
+   and the levels below it. */
+static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__planar_level *lv, int f,
+                                             refl__draw_ctx *dcs) {
+    const refl__planar_face *face = &pl->faces[f];
+    refl__planar_level child;
+    refl_mat4 r = refl__planar_reflection(face->n, face->d);
+    refl_result res;
+    memset(&child, 0, sizeof child);
+    child.level = lv->level + 1;
+    child.parent = f;
+    child.w = refl_mat4_mul(lv->w, r);
+    child.w_inv = refl_mat4_mul(r, lv->w_inv);
+    res = refl__planar_render_child(pl, &child, face->n, face->d, dcs);
+    if (res == REFL_OK && child.level < pl->p->desc.depth) res = refl__planar_level_draw(pl, &child, dcs);
+    return res;
+}
+
+/* The level's mirrors, each: mark its visible pixels (stencil L -> L + 1),
+   draw the mirrored scene there (depth cleared), recurse, then composite
+   the face over what its region shows and restore its depth and the
+   stencil. Glass faces go through refl__planar_glass. */
+static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
+                                      refl__draw_ctx *dcs);
+
+static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs) {
+    refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
+    refl__draw_ctx *next = dcs + pl->scene->object_count;
+    int f;
+    for (f = 0; f < pl->face_count; ++f) {
+        const refl__planar_face *face = &pl->faces[f];
+        refl__planar_comp comp;
+        refl_result r;
+        int front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
+        if (f == lv->parent) continue;
+        if (!front && !pl->no_culling) { ++pl->culled; continue; }
+        memset(&comp, 0, sizeof comp);
+        refl__planar_draw_ctx(&comp.dc, pl->scene, face->object, lv->vp);
+        comp.eye = eye;
+        /* a mirror seen from behind marks nothing; unculled, it still
+           costs its renderings, as formula 5 counts them */
+        if (front && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
+        if (!pl->no_culling && refl__planar_count(pl, lv->level + 1) == 0) { ++pl->culled; continue; }
+        if (face->glass) {
+            r = refl__planar_glass(pl, lv, f, &comp, next);
+        } else {
+            r = refl__planar_mirror_image(pl, lv, f, next);
+            if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, refl__planar_comp_fragment);
         }
-        if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
-        if (rr == RAST_OK) rr = rast_finish(rc);
-        if (rr != RAST_OK) return refl__result_from_rast(rr);
-        refl__planar_clamp_region(pl, lv->level);
+        if (r != REFL_OK) return r;
     }
     return REFL_OK;
+}
+
+/* A glass face: the paper's refraction for a slab (in-out: light leaves
+   parallel to how it came, shifted sideways), one shift for the whole
+   face, taken at the incidence of the view axis where it meets the face
+   (of the ray to the face's centre when the axis misses it); plus the
+   mirror image, weighed per pixel by Fresnel's terms at both sides and
+   Beer's absorption along the path inside:
+       F_in mirror + (1 - F_in)(1 - F_out) tint e^(-attenuation path) refracted.
+   A slab's two interfaces take two bounces, as in RAYTRACE; with fewer
+   left, or a face without a parallel one opposite, only the reflection
+   shows. Viewed from inside the glass a face is culled (not modelled). */
+static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
+                                      refl__draw_ctx *dcs) {
+    const refl__planar_face *face = &pl->faces[f];
+    const refl_material *m = comp->dc.material;
+    const refl__view_rays *vr = &pl->p->rays;
+    refl_frame *fr = pl->p->frame;
+    float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3];
+    size_t i, npx = (size_t)fr->width * (size_t)fr->height;
+    int refracts = face->opposite >= 0 && lv->level + 2 <= pl->p->desc.depth, c, x, y;
+    refl_vec3 nv = refl_v3((float)face->n[0], (float)face->n[1], (float)face->n[2]);
+    refl_result r = REFL_OK;
+    for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
+    if (refracts) {
+        refl__planar_level child;
+        double behind[3];
+        refl_vec3 axis = refl_v3_normalize(refl_mat4_dir(lv->w_inv, vr->forward)), t, shift;
+        float cos_i, cos_t;
+        if (refl_v3_dot(axis, nv) > -1e-3f) {
+            /* the axis misses the face: the ray to its centre */
+            const refl_mesh *mesh = comp->dc.mesh;
+            refl_vec3 centre = refl_v3(0, 0, 0);
+            int k;
+            for (k = 0; k < face->index_count; ++k) {
+                const float *pp = mesh->positions + 3 * (size_t)face->indices[k];
+                centre = refl_v3_add(centre, refl_mat4_point(comp->dc.model, refl_v3(pp[0], pp[1], pp[2])));
+            }
+            centre = refl_v3_scale(centre, 1.0f / (float)face->index_count);
+            axis = refl_v3_normalize(refl_v3_sub(centre, comp->eye));
+        }
+        cos_i = -refl_v3_dot(axis, nv);
+        if (cos_i > 1e-4f && refl_v3_refract(axis, nv, 1.0f / ior, &t)) {
+            cos_t = -refl_v3_dot(t, nv);
+            /* where the refracted ray leaves the slab, less where the
+               straight one would: the shift of every exiting ray */
+            shift = refl_v3_sub(refl_v3_scale(t, (float)face->thickness / cos_t),
+                                refl_v3_scale(axis, (float)face->thickness / cos_i));
+            memset(&child, 0, sizeof child);
+            child.level = lv->level + 1;
+            child.parent = f;
+            child.w = refl_mat4_mul(lv->w, refl_mat4_translate(refl_v3_scale(shift, -1.0f)));
+            child.w_inv = refl_mat4_mul(refl_mat4_translate(shift), lv->w_inv);
+            /* what lies behind the face: light may also leave by another
+               face (the floor under a slab), so not only beyond the back */
+            for (c = 0; c < 3; ++c) behind[c] = -face->n[c];
+            r = refl__planar_render_child(pl, &child, behind, -face->d, dcs);
+            if (r != REFL_OK) return r;
+            for (i = 0; i < npx; ++i)
+                if (pl->stencil[i] == child.level) {
+                    memcpy(pl->saved + 4 * i, pl->color + 4 * i, 4 * sizeof(float));
+                    if (lv->level == 0) memcpy(pl->saved_points + 3 * i, fr->points + 3 * i, 3 * sizeof(float));
+                }
+        } else {
+            refracts = 0;
+        }
+    }
+    r = refl__planar_mirror_image(pl, lv, f, dcs);
+    if (r != REFL_OK) return r;
+    for (y = 0; y < fr->height; ++y)
+        for (x = 0; x < fr->width; ++x) {
+            float nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+            float ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+            refl_vec3 d;
+            float cos_i, sin_t, cos_t, f_in, through;
+            i = (size_t)y * (size_t)fr->width + (size_t)x;
+            if (pl->stencil[i] != lv->level + 1) continue;
+            d = refl_v3_add(vr->forward, refl_v3_add(refl_v3_scale(vr->right, nx), refl_v3_scale(vr->up, ny)));
+            d = refl_v3_normalize(refl_mat4_dir(lv->w_inv, d));
+            cos_i = REFL__CLAMP(-refl_v3_dot(d, nv), 0.0f, 1.0f);
+            f_in = refl_fresnel_dielectric(cos_i, 1.0f, ior);
+            sin_t = sqrtf(1.0f - cos_i * cos_i) / ior;
+            cos_t = sqrtf(REFL__MAX(1.0f - sin_t * sin_t, 1e-12f));
+            through = refracts ? (1.0f - f_in) * (1.0f - refl_fresnel_dielectric(cos_t, ior, 1.0f)) *
+                                     expf(-REFL__MAX(m->attenuation, 0.0f) * (float)face->thickness / cos_t)
+                               : 0.0f;
+            for (c = 0; c < 3; ++c)
+                pl->color[4 * i + (size_t)c] = REFL__CLAMP(
+                    f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c], 0.0f, 1.0f);
+            /* the point shown follows the stronger branch, as RAYTRACE's:
+               the mirror image wrote its points last */
+            if (lv->level == 0 && f_in < 0.5f)
+                for (c = 0; c < 3; ++c) fr->points[3 * i + (size_t)c] = refracts ? pl->saved_points[3 * i + (size_t)c] : NAN;
+        }
+    return refl__planar_restore(pl, lv->level, comp, face, NULL);
 }
 
 static refl_result refl__method_planar(refl__pass *p) {
@@ -5681,9 +5832,11 @@ static refl_result refl__method_planar(refl__pass *p) {
     }
     pl.color = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
+    pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
     dcs = (refl__draw_ctx *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                          sizeof(refl__draw_ctx));
-    if (!pl.color || !pl.stencil || !dcs) {
+    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !dcs) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
@@ -5712,6 +5865,8 @@ done:
     refl__free(&s->allocator, dcs);
     refl__free(&s->allocator, pl.color);
     refl__free(&s->allocator, pl.stencil);
+    refl__free(&s->allocator, pl.saved);
+    refl__free(&s->allocator, pl.saved_points);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;
 }
