@@ -5418,6 +5418,7 @@ static int refl__planar_oblique(refl_mat4 *proj, double c[4]) {
 /* One level of the recursion: the camera sees w * x through vp. */
 typedef struct refl__planar_level {
     int level;                    /* the stencil value of its region */
+    int bounces;                  /* taken to get here: one per mirror, two per slab */
     refl_mat4 w, w_inv;           /* the virtual world and back */
     refl_mat4 vp;                 /* projection (oblique at level > 0) * view * w */
     double clip[4];               /* the eye-space near plane (level > 0) */
@@ -5615,7 +5616,7 @@ static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
     pl->p->frame->stats.cameras++;
-    if (child->level == pl->p->desc.depth) pl->p->frame->stats.leaves++;
+    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
     refl__planar_fill_region(pl, child);
     return REFL_OK;
 }
@@ -5670,11 +5671,13 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
     refl_result res;
     memset(&child, 0, sizeof child);
     child.level = lv->level + 1;
+    child.bounces = lv->bounces + 1;
     child.parent = f;
     child.w = refl_mat4_mul(lv->w, r);
     child.w_inv = refl_mat4_mul(r, lv->w_inv);
     res = refl__planar_render_child(pl, &child, face->n, face->d, dcs);
-    if (res == REFL_OK && child.level < pl->p->desc.depth) res = refl__planar_level_draw(pl, &child, dcs);
+    if (res == REFL_OK && child.bounces < pl->p->desc.depth)
+        res = refl__planar_level_draw(pl, &child, dcs);
     return res;
 }
 
@@ -5732,7 +5735,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
     refl_frame *fr = pl->p->frame;
     float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3];
     size_t i, npx = (size_t)fr->width * (size_t)fr->height;
-    int refracts = face->opposite >= 0 && lv->level + 2 <= pl->p->desc.depth, c, x, y;
+    int refracts = face->opposite >= 0 && lv->bounces + 2 <= pl->p->desc.depth, c, x, y;
     refl_vec3 nv = refl_v3((float)face->n[0], (float)face->n[1], (float)face->n[2]);
     refl_result r = REFL_OK;
     for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
@@ -5762,6 +5765,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
                                 refl_v3_scale(axis, (float)face->thickness / cos_i));
             memset(&child, 0, sizeof child);
             child.level = lv->level + 1;
+            child.bounces = lv->bounces + 2;
             child.parent = f;
             child.w = refl_mat4_mul(lv->w, refl_mat4_translate(refl_v3_scale(shift, -1.0f)));
             child.w_inv = refl_mat4_mul(refl_mat4_translate(shift), lv->w_inv);
@@ -5769,6 +5773,9 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
                face (the floor under a slab), so not only beyond the back */
             for (c = 0; c < 3; ++c) behind[c] = -face->n[c];
             r = refl__planar_render_child(pl, &child, behind, -face->d, dcs);
+            /* mirrors seen through the slab, with the bounces left */
+            if (r == REFL_OK && child.bounces < pl->p->desc.depth)
+                r = refl__planar_level_draw(pl, &child, dcs);
             if (r != REFL_OK) return r;
             for (i = 0; i < npx; ++i)
                 if (pl->stencil[i] == child.level) {
