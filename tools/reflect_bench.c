@@ -25,7 +25,8 @@ static const char *const usage_bench =
     "(ENVMAP: cube sizes), times each setting (the median of N runs), measures\n"
     "its reflection error in pixels and its image error against RAYTRACE of the\n"
     "same scene, view and size, and writes DIR/bench.csv and the charts\n"
-    "DIR/time_vs_error_SCENE.png and DIR/growth_{resolution,diffuse,reflector,depth}.png\n"
+    "DIR/time_vs_error_SCENE.png, DIR/growth_{resolution,diffuse,reflector,depth}.png\n"
+    "and DIR/refraction_incidence.png (PLANAR's slab against the incidence angle)\n"
     "(gnuplot). RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, sizes up to 1920x1080, 5 runs each\n"
@@ -287,12 +288,16 @@ static int take_sweep(const bench_row *r, const void *sweep) {
 }
 /* Reflection error of the error chart: exact methods sit at 0.01 px, on a
    log axis. */
-static double axis_error(const bench_row *r) { return r->rerr.mean > 0.01 ? r->rerr.mean : 0.01; }
+static double axis_error(const bench_row *r) {
+    if (r->rerr.pixels > 0 && r->rerr.matched == 0) return NAN; /* nothing lands anywhere right: off the chart */
+    return r->rerr.mean > 0.01 ? r->rerr.mean : 0.01;
+}
 static double axis_ms(const bench_row *r) { return r->ms_median; }
 static double axis_pixels(const bench_row *r) { return (double)r->width * r->height; }
 static double axis_diffuse(const bench_row *r) { return (double)r->diffuse_tris; }
 static double axis_reflector(const bench_row *r) { return (double)r->reflector_tris; }
 static double axis_depth(const bench_row *r) { return (double)r->depth; }
+static double axis_setting(const bench_row *r) { return r->value; }
 
 /* ---- the sweeps ------------------------------------------------------------ */
 
@@ -348,6 +353,51 @@ static int subdivide_diffuse(refl_scene *s, float max_edge) {
         s->meshes[o->mesh] = finer;
     }
     return 1;
+}
+
+/* A glass slab (ior 1.5, 0.4 thick) before a striped wall, for PLANAR's
+   refraction against the incidence angle. */
+static refl_scene *slab_scene(void) {
+    refl_scene *s;
+    refl_mesh *m;
+    refl_material mat;
+    refl_object o;
+    refl_light l;
+    int k;
+    if (refl_scene_create(NULL, &s) != REFL_OK) return NULL;
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_DIRECTIONAL;
+    l.direction = refl_v3(0.3f, -0.5f, -1.0f);
+    l.color[0] = l.color[1] = l.color[2] = 0.8f;
+    refl_scene_add_light(s, &l);
+    s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.2f;
+    s->environment.color[0] = 0.4f; s->environment.color[1] = 0.6f; s->environment.color[2] = 0.9f;
+    for (k = 0; k < 13; ++k) { /* stripes 0.5 wide, 2 behind the slab */
+        memset(&mat, 0, sizeof mat);
+        memset(&o, 0, sizeof o);
+        mat.color[0] = k % 2 ? 0.9f : 0.1f; mat.color[1] = k % 3 ? 0.8f : 0.2f; mat.color[2] = k % 2 ? 0.2f : 0.7f;
+        mat.color[3] = 1.0f;
+        if (k == 12) { /* and a second slab of glass */
+            mat.type = REFL_GLASS;
+            mat.ior = 1.5f;
+        }
+        if (refl_mesh_box(k == 12 ? refl_v3(2.0f, 2.0f, 0.4f) : refl_v3(0.5f, 4.0f, 0.1f), NULL, &m) != REFL_OK) {
+            refl_scene_destroy(s);
+            return NULL;
+        }
+        o.mesh = refl_scene_add_mesh(s, m);
+        o.material = refl_scene_add_material(s, &mat);
+        o.transform = k == 12 ? refl_mat4_identity()
+                              : refl_mat4_translate(refl_v3(-2.75f + 0.5f * (float)k, 0.0f, -2.0f));
+        if (o.mesh < 0 || o.material < 0 || refl_scene_add_object(s, &o) < 0) {
+            refl_scene_destroy(s);
+            return NULL;
+        }
+    }
+    s->camera.eye = refl_v3(0, 0, 5);
+    s->camera.up = refl_v3(0, 1, 0);
+    s->has_camera = 1;
+    return s;
 }
 
 static refl_view view_of(const refl_scene *s, int w, int h) {
@@ -471,6 +521,27 @@ int refl_cli_bench(int argc, char **argv) {
         if (!s) ok = 0;
         refl_scene_destroy(s);
     }
+    if (ok) {
+        /* paper 002's refraction: one shift for the whole slab, so its
+           error grows with the incidence angle */
+        refl_scene *s = slab_scene();
+        bench_opts od = o;
+        memset(methods, 0, sizeof methods[0]);
+        methods[0].method = "planar"; methods[0].series = "planar-slab"; methods[0].param = "incidence";
+        methods[0].m = REFL_PLANAR;
+        od.depth = 2; /* in and out of the slab */
+        for (i = 0; ok && s && i <= 7; ++i) {
+            float a = (float)(10 * i) * 3.14159265f / 180.0f;
+            refl_view v = view_of(s, 640, 480);
+            int before = table.count;
+            v.eye = refl_v3(5.0f * sinf(a), 0.0f, 5.0f * cosf(a));
+            v.target = refl_v3(0, 0, 0);
+            ok = bench_scene(&table, &od, "slab", s, &v, methods, 1);
+            if (ok && table.count > before) table.rows[table.count - 1].value = 10 * i;
+        }
+        if (!s) ok = 0;
+        refl_scene_destroy(s);
+    }
     if (!ok) {
         free(table.rows);
         return 1;
@@ -505,6 +576,14 @@ int refl_cli_bench(int argc, char **argv) {
             n = write_blocks(&table, dat, take_sweep, sweeps[i], xs[i], axis_ms, names, 16);
             if (n > 0) chart(o.out, name, title, xlabels[i], "ms per frame (median)", i != 3, dat, names, n);
         }
+    }
+    {
+        char dat[1024];
+        snprintf(dat, sizeof dat, "%s/refraction_incidence.dat", o.out);
+        n = write_blocks(&table, dat, take_sweep, "incidence", axis_setting, axis_error, names, 16);
+        if (n > 0)
+            chart(o.out, "refraction_incidence", "PLANAR slab refraction against RAYTRACE (640x480)",
+                  "incidence angle of the view axis (degrees)", "mean reflection error (pixels)", 0, dat, names, n);
     }
     fprintf(stderr, "wrote %s/*.png\n", o.out);
     free(table.rows);
