@@ -304,3 +304,79 @@ Test(refl_planar, slab_refraction_is_close_head_on_and_degrades_with_incidence) 
     cr_assert(last > first, "one shift for every pixel must cost something at 60 degrees (%.3f vs %.3f)", last, first);
     refl_scene_destroy(s);
 }
+
+/* A water surface (one glass plane, ior 1.33, nothing parallel beneath)
+   over a floor, a box above it: the paper's refracted camera and
+   quad-to-quad map. From below, the camera moving away from under the
+   surface's centre crosses the critical angle (48.8 degrees, the paper's
+   rule at the face's centre): refracted inside the cone (two renderings:
+   refraction and reflection), wholly reflective beyond (one). No crash,
+   no NaN, nothing changed outside the water. */
+Test(refl_planar, water_surface_refracts_and_turns_to_a_mirror_past_the_critical_angle) {
+    static const float grey[3] = {0.6f, 0.6f, 0.55f}, red[3] = {0.9f, 0.2f, 0.1f};
+    refl_scene *s;
+    refl_mesh *m;
+    refl_light l;
+    int k, water, refracted = 0, mirrored = 0;
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_plane(12.0f, 2, NULL, &m), REFL_OK);
+    {
+        refl_material mat;
+        refl_object o;
+        memset(&mat, 0, sizeof mat);
+        memset(&o, 0, sizeof o);
+        mat.color[0] = grey[0]; mat.color[1] = grey[1]; mat.color[2] = grey[2]; mat.color[3] = 1.0f;
+        o.mesh = refl_scene_add_mesh(s, m);
+        o.material = refl_scene_add_material(s, &mat);
+        o.transform = refl_mat4_identity();
+        refl_scene_add_object(s, &o);
+        cr_assert_eq(refl_mesh_box(refl_v3(1, 1, 1), NULL, &m), REFL_OK);
+        mat.color[0] = red[0]; mat.color[1] = red[1]; mat.color[2] = red[2];
+        o.mesh = refl_scene_add_mesh(s, m);
+        o.material = refl_scene_add_material(s, &mat);
+        o.transform = refl_mat4_translate(refl_v3(0.5f, 3.5f, -0.5f));
+        refl_scene_add_object(s, &o);
+        memset(&mat, 0, sizeof mat);
+        mat.type = REFL_GLASS;
+        mat.ior = 1.33f;
+        cr_assert_eq(refl_mesh_plane(6.0f, 1, NULL, &m), REFL_OK);
+        o.mesh = refl_scene_add_mesh(s, m);
+        o.material = refl_scene_add_material(s, &mat);
+        o.transform = refl_mat4_translate(refl_v3(0, 2.0f, 0));
+        water = refl_scene_add_object(s, &o);
+    }
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_DIRECTIONAL;
+    l.direction = refl_v3(0.2f, -1.0f, 0.3f);
+    l.color[0] = l.color[1] = l.color[2] = 0.8f;
+    refl_scene_add_light(s, &l);
+    s->environment.color[0] = 0.4f; s->environment.color[1] = 0.6f; s->environment.color[2] = 0.9f;
+    for (k = 0; k < 6; ++k) {
+        refl_view v;
+        refl_frame *f, *direct;
+        size_t i, n;
+        float x = 0.5f * (float)k; /* 0 to 68 degrees off the centre's vertical */
+        memset(&v, 0, sizeof v);
+        v.width = 64; v.height = 48;
+        v.eye = refl_v3(x, 1.0f, 0.0f);
+        v.target = refl_v3(0.0f, 2.0f, 0.0f);
+        v.up = refl_v3(0, 0, -1);
+        f = render(s, &v, REFL_PLANAR, 2, 0, 2);
+        direct = render(s, &v, REFL_DIRECT, 0, 0, 2);
+        n = (size_t)v.width * (size_t)v.height;
+        for (i = 0; i < n; ++i) {
+            cr_assert(!isinf(f->points[3 * i]), "view %d", k);
+            if (direct->stencil[i] != water + 1)
+                cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "view %d: outside the water", k);
+        }
+        refracted += f->stats.cameras == 2;
+        mirrored += f->stats.cameras == 1;
+        cr_log_info("%.1f from under the centre (%.0f degrees): %lld renderings", x,
+                    atanf(x) * 180.0f / 3.14159265f, f->stats.cameras);
+        cr_assert_eq(f->stats.cameras, atanf(x) < asinf(1.0f / 1.33f) ? 2 : 1, "view %d", k);
+        refl_frame_destroy(f);
+        refl_frame_destroy(direct);
+    }
+    cr_assert(refracted > 0 && mirrored > 0);
+    refl_scene_destroy(s);
+}
