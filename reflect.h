@@ -5423,7 +5423,36 @@ typedef struct refl__planar_level {
     refl_mat4 vp;                 /* projection (oblique at level > 0) * view * w */
     double clip[4];               /* the eye-space near plane (level > 0) */
     int parent;                   /* the face it reflects in; -1 at level 0 */
+    /* a refracted camera's image warped onto the face (paper 002's
+       appendix): h maps its normalised device x, y, w to the viewer's */
+    int warped;
+    double h[9], h_inv[9];        /* 3 x 3, row vectors: [x y w] h */
+    refl_mat4 vp_inv;             /* the refracted camera's clip to world */
 } refl__planar_level;
+
+/* A draw context of a level's scene, with the level's warp (or NULL). */
+typedef struct refl__planar_dc {
+    refl__draw_ctx dc;
+    const double *h;
+} refl__planar_dc;
+
+/* The base pass's vertex program, then the level's warp: x, y, w through
+   h, z scaled with w so the depth a vertex gets is unchanged. */
+static int refl__planar_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__planar_dc *d = (const refl__planar_dc *)user;
+    int n = refl__base_vertex((void *)&d->dc, vertex, index, out, max_out);
+    if (d->h) {
+        const double *h = d->h;
+        double x = out->position[0], y = out->position[1], w = out->position[3];
+        double xw = x * h[0] + y * h[3] + w * h[6], yw = x * h[1] + y * h[4] + w * h[7];
+        double ww = x * h[2] + y * h[5] + w * h[8];
+        out->position[0] = (float)xw;
+        out->position[1] = (float)yw;
+        out->position[2] = w != 0.0 ? (float)(out->position[2] * ww / w) : out->position[2];
+        out->position[3] = (float)ww;
+    }
+    return n;
+}
 
 /* The composite of a face: its diffuse share plus reflectance times what
    the region now holds (blend ONE, SRC_ALPHA; the reflectance in alpha). */
@@ -5493,21 +5522,23 @@ static rast_state refl__planar_state(uint8_t ref, rast_stencil_op pass) {
 /* The scene as the level sees it, into its region (depth cleared there):
    every object but the face's own, diffuse ones shaded, reflectors as
    DIRECT draws them. */
-static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dc) {
+static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dc) {
     const refl_scene *s = pl->scene;
     rast_result rr = RAST_OK;
     int i, skip = lv->parent >= 0 ? pl->faces[lv->parent].object : -1; /* the mirror, or the slab seen through */
     for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
         rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
         if (i == skip) continue;
-        refl__planar_draw_ctx(&dc[i], s, i, lv->vp);
+        refl__planar_draw_ctx(&dc[i].dc, s, i, lv->vp);
+        dc[i].h = lv->warped ? lv->h : NULL;
+        st.vertex_fn = refl__planar_vertex;
         st.vertex_user = &dc[i];
-        st.fragment_fn = dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL
+        st.fragment_fn = dc[i].dc.material->type == REFL_DIFFUSE || dc[i].dc.material->type == REFL_PARTIAL
                              ? refl__base_fragment : refl__clear_fragment;
-        st.fragment_user = &dc[i];
+        st.fragment_user = &dc[i].dc;
         rr = rast_set_state(pl->p->rc, &st);
-        if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &dc[i], NULL, 0);
-        pl->p->frame->stats.triangles += dc[i].mesh->triangle_count;
+        if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &dc[i].dc, NULL, 0);
+        pl->p->frame->stats.triangles += dc[i].dc.mesh->triangle_count;
     }
     return rr;
 }
@@ -5529,6 +5560,30 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
             nx = 2.0f * ((float)x + 0.5f) / (float)f->width - 1.0f;
             ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)f->height;
             dir = refl_v3_add(vr->forward, refl_v3_add(refl_v3_scale(vr->right, nx), refl_v3_scale(vr->up, ny)));
+            if (lv->warped) {
+                /* back through the warp into the refracted camera */
+                const double *h = lv->h_inv;
+                double w = nx * h[2] + ny * h[5] + h[8], rx, ry;
+                refl_vec3 a, b;
+                if (w == 0.0) continue;
+                rx = (nx * h[0] + ny * h[3] + h[6]) / w;
+                ry = (nx * h[1] + ny * h[4] + h[7]) / w;
+                a = refl_mat4_point(lv->vp_inv, refl_v3((float)rx, (float)ry, -1.0f));
+                b = refl_mat4_point(lv->vp_inv, refl_v3((float)rx, (float)ry, 1.0f));
+                if (f->depth[i] >= 1.0f) {
+                    float rgb[3];
+                    int c;
+                    refl_environment_lookup(&pl->scene->environment, refl_v3_sub(b, a), rgb);
+                    for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                    pl->color[4 * i + 3] = 1.0f;
+                } else if (lv->level == 1) {
+                    refl_vec3 world = refl_mat4_point(lv->vp_inv, refl_v3((float)rx, (float)ry, 2.0f * f->depth[i] - 1.0f));
+                    f->points[3 * i] = world.x;
+                    f->points[3 * i + 1] = world.y;
+                    f->points[3 * i + 2] = world.z;
+                }
+                continue;
+            }
             if (f->depth[i] >= 1.0f) {
                 float rgb[3];
                 int c;
@@ -5581,18 +5636,35 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
     return refl__result_from_rast(rr);
 }
 
-/* Draws into the child's region (stencil child->level) the scene as seen
-   through child->w, clipped to the world half-space n . x >= d (what lies
-   beyond the face), with the environment where nothing is; finishes. */
-static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_level *child, const double n[3], double d,
-                                             refl__draw_ctx *dcs) {
+/* Draws into the child's region (stencil child->level) the scene through
+   child->vp (and its warp), the region's depth cleared first, then the
+   environment where nothing is; finishes. */
+static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_level *child, refl__planar_dc *dcs) {
     rast_context *rc = pl->p->rc;
-    refl_mat4 proj, view_inv, plane_to_eye;
-    rast_state state;
+    rast_state state = refl__planar_state((uint8_t)child->level, RAST_KEEP);
     rast_result rr;
+    float far_rgba[4] = {0, 0, 0, 0};
+    state.depth_func = RAST_ALWAYS;
+    state.color_write = RAST_MASK(0);
+    state.vertex_fn = NULL;
+    rr = rast_set_state(rc, &state);
+    if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba); /* the region's depth cleared */
+    if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, dcs);
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    if (rr != RAST_OK) return refl__result_from_rast(rr);
+    pl->p->frame->stats.cameras++;
+    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
+    refl__planar_fill_region(pl, child);
+    return REFL_OK;
+}
+
+/* The child's camera: the viewer's through child->w, clipped to the world
+   half-space n . x >= d (what lies beyond the face); then its scene. */
+static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_level *child, const double n[3], double d,
+                                             refl__planar_dc *dcs) {
+    refl_mat4 proj, view_inv, plane_to_eye;
     float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
     float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height;
-    float far_rgba[4] = {0, 0, 0, 0};
     int k;
     /* the kept half-space as a plane of eye space: through w_inv, then the view */
     if (!refl_mat4_invert(pl->p->view_m, &view_inv)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -5606,19 +5678,7 @@ static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_leve
                                  pl->p->rays.zfar * 2.0f * (float)(child->level + 1));
     if (!refl__planar_oblique(&proj, child->clip)) memset(child->clip, 0, sizeof child->clip);
     child->vp = refl_mat4_mul(refl_mat4_mul(proj, pl->p->view_m), child->w);
-    state = refl__planar_state((uint8_t)child->level, RAST_KEEP);
-    state.depth_func = RAST_ALWAYS;
-    state.color_write = RAST_MASK(0);
-    state.vertex_fn = NULL;
-    rr = rast_set_state(rc, &state);
-    if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba); /* the region's depth cleared */
-    if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, dcs);
-    if (rr == RAST_OK) rr = rast_finish(rc);
-    if (rr != RAST_OK) return refl__result_from_rast(rr);
-    pl->p->frame->stats.cameras++;
-    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
-    refl__planar_fill_region(pl, child);
-    return REFL_OK;
+    return refl__planar_render_level(pl, child, dcs);
 }
 
 /* Draws the face over its region (stencil level + 1) with the composite
@@ -5659,23 +5719,27 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
     return REFL_OK;
 }
 
-static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs);
+static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dcs);
 
 /* The mirror image in the face: the child level through the reflection,
    and the levels below it. */
-static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__planar_level *lv, int f,
-                                             refl__draw_ctx *dcs) {
+static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__planar_level *lv, int f, double side,
+                                             refl__planar_dc *dcs) {
     const refl__planar_face *face = &pl->faces[f];
     refl__planar_level child;
     refl_mat4 r = refl__planar_reflection(face->n, face->d);
+    double kept[3];
     refl_result res;
+    int k;
     memset(&child, 0, sizeof child);
     child.level = lv->level + 1;
     child.bounces = lv->bounces + 1;
     child.parent = f;
     child.w = refl_mat4_mul(lv->w, r);
     child.w_inv = refl_mat4_mul(r, lv->w_inv);
-    res = refl__planar_render_child(pl, &child, face->n, face->d, dcs);
+    /* what lies on the viewer's side of the face (side: +1 the front) */
+    for (k = 0; k < 3; ++k) kept[k] = side * face->n[k];
+    res = refl__planar_render_child(pl, &child, kept, side * face->d, dcs);
     if (res == REFL_OK && child.bounces < pl->p->desc.depth)
         res = refl__planar_level_draw(pl, &child, dcs);
     return res;
@@ -5686,11 +5750,11 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
    the face over what its region shows and restore its depth and the
    stencil. Glass faces go through refl__planar_glass. */
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
-                                      refl__draw_ctx *dcs);
+                                      refl__planar_dc *dcs);
 
-static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__draw_ctx *dcs) {
+static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dcs) {
     refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
-    refl__draw_ctx *next = dcs + pl->scene->object_count;
+    refl__planar_dc *next = dcs + pl->scene->object_count;
     int f;
     for (f = 0; f < pl->face_count; ++f) {
         const refl__planar_face *face = &pl->faces[f];
@@ -5698,18 +5762,20 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         refl_result r;
         int front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
         if (f == lv->parent) continue;
-        if (!front && !pl->no_culling) { ++pl->culled; continue; }
+        /* glass is seen from inside too (its far faces from outside fail
+           the depth test and mark nothing) */
+        if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
         memset(&comp, 0, sizeof comp);
         refl__planar_draw_ctx(&comp.dc, pl->scene, face->object, lv->vp);
         comp.eye = eye;
         /* a mirror seen from behind marks nothing; unculled, it still
            costs its renderings, as formula 5 counts them */
-        if (front && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
+        if ((front || face->glass) && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
         if (!pl->no_culling && refl__planar_count(pl, lv->level + 1) == 0) { ++pl->culled; continue; }
         if (face->glass) {
             r = refl__planar_glass(pl, lv, f, &comp, next);
         } else {
-            r = refl__planar_mirror_image(pl, lv, f, next);
+            r = refl__planar_mirror_image(pl, lv, f, 1.0, next);
             if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, refl__planar_comp_fragment);
         }
         if (r != REFL_OK) return r;
@@ -5717,47 +5783,169 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
     return REFL_OK;
 }
 
-/* A glass face: the paper's refraction for a slab (in-out: light leaves
-   parallel to how it came, shifted sideways), one shift for the whole
-   face, taken at the incidence of the view axis where it meets the face
-   (of the ray to the face's centre when the axis misses it); plus the
-   mirror image, weighed per pixel by Fresnel's terms at both sides and
-   Beer's absorption along the path inside:
-       F_in mirror + (1 - F_in)(1 - F_out) tint e^(-attenuation path) refracted.
-   A slab's two interfaces take two bounces, as in RAYTRACE; with fewer
-   left, or a face without a parallel one opposite, only the reflection
-   shows. Viewed from inside the glass a face is culled (not modelled). */
+/* ---- refraction ------------------------------------------------------------------- */
+
+/* Paper 002's appendix: the projective map of the unit square onto the
+   quadrilateral q (corners in order from (0,0) through (1,0), (1,1),
+   (0,1)), as a 3 x 3 matrix acting on row vectors [u v 1]. */
+static int refl__planar_square_to_quad(const double q[4][2], double m[9]) {
+    double sx = q[0][0] - q[1][0] + q[2][0] - q[3][0], sy = q[0][1] - q[1][1] + q[2][1] - q[3][1];
+    double dx1 = q[1][0] - q[2][0], dx2 = q[3][0] - q[2][0], dy1 = q[1][1] - q[2][1], dy2 = q[3][1] - q[2][1];
+    double den = dx1 * dy2 - dx2 * dy1, g, h;
+    if (den == 0.0) return 0;
+    g = (sx * dy2 - dx2 * sy) / den;
+    h = (dx1 * sy - sx * dy1) / den;
+    m[0] = q[1][0] - q[0][0] + g * q[1][0]; m[1] = q[1][1] - q[0][1] + g * q[1][1]; m[2] = g;
+    m[3] = q[3][0] - q[0][0] + h * q[3][0]; m[4] = q[3][1] - q[0][1] + h * q[3][1]; m[5] = h;
+    m[6] = q[0][0];                         m[7] = q[0][1];                         m[8] = 1.0;
+    return 1;
+}
+
+/* The adjoint: the inverse up to scale, all a projective map needs. */
+static void refl__planar_adjoint(const double m[9], double a[9]) {
+    a[0] = m[4] * m[8] - m[5] * m[7]; a[1] = m[2] * m[7] - m[1] * m[8]; a[2] = m[1] * m[5] - m[2] * m[4];
+    a[3] = m[5] * m[6] - m[3] * m[8]; a[4] = m[0] * m[8] - m[2] * m[6]; a[5] = m[2] * m[3] - m[0] * m[5];
+    a[6] = m[3] * m[7] - m[4] * m[6]; a[7] = m[1] * m[6] - m[0] * m[7]; a[8] = m[0] * m[4] - m[1] * m[3];
+}
+
+static void refl__planar_mul3(const double a[9], const double b[9], double r[9]) {
+    int i, j;
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < 3; ++j) r[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+}
+
+/* Normalised device x, y of a world point through vp; 0 behind the eye. */
+static int refl__planar_ndc(refl_mat4 vp, refl_vec3 p, double out[2]) {
+    const float *m = vp.m;
+    double x = m[0] * p.x + m[4] * p.y + m[8] * p.z + m[12], y = m[1] * p.x + m[5] * p.y + m[9] * p.z + m[13];
+    double w = m[3] * p.x + m[7] * p.y + m[11] * p.z + m[15];
+    if (!(w > 1e-9)) return 0;
+    out[0] = x / w;
+    out[1] = y / w;
+    return 1;
+}
+
+/* A single interface (a face with nothing parallel behind it, or any face
+   seen from inside the glass): the paper's refracted camera, bent by
+   Snell's law where the view axis meets the face, its image mapped onto
+   the face's image by the quad-to-quad map between two projections of the
+   face's plane. Any four points of the plane fix that map; a square about
+   the axis's point is in front of both cameras, where the face's own
+   corners may not be. */
+static refl_result refl__planar_single_interface(refl__planar *pl, const refl__planar_level *lv, int f,
+                                                 const refl__planar_comp *comp, refl_vec3 axis, refl_vec3 nf,
+                                                 double df, float eta, refl__planar_dc *dcs) {
+    refl__planar_level child;
+    refl_vec3 t, p0, eye_r, u, v, up;
+    double quad_v[4][2], quad_r[4][2], m_v[9], m_r[9], adj[9], kept[3], dist;
+    float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
+    float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height, tn;
+    refl_mat4 proj, view_r;
+    int k;
+    if (!refl_v3_refract(axis, nf, eta, &t)) return REFL_OK; /* wholly reflective: nothing refracted */
+    tn = refl_v3_dot(axis, nf);
+    if (tn > -1e-4f) return REFL_OK;
+    /* where the axis meets the plane, and the camera bent there */
+    dist = ((double)df - (nf.x * comp->eye.x + nf.y * comp->eye.y + nf.z * comp->eye.z)) / tn;
+    p0 = refl_v3_add(comp->eye, refl_v3_scale(axis, (float)dist));
+    eye_r = refl_v3_sub(p0, refl_v3_scale(t, (float)dist));
+    up = refl_mat4_dir(lv->w_inv, pl->p->rays.up);
+    if (refl_v3_length(refl_v3_cross(t, up)) < 1e-6f) up = refl_v3(up.z, up.x, up.y);
+    view_r = refl_mat4_look_at(eye_r, refl_v3_add(eye_r, t), up);
+    /* a square in the plane about the axis's point */
+    u = refl_v3_normalize(refl_v3_cross(nf, fabsf(nf.x) < 0.9f ? refl_v3(1, 0, 0) : refl_v3(0, 1, 0)));
+    v = refl_v3_cross(nf, u);
+    u = refl_v3_scale(u, 0.25f * (float)dist);
+    v = refl_v3_scale(v, 0.25f * (float)dist);
+    memset(&child, 0, sizeof child);
+    child.level = lv->level + 1;
+    child.bounces = lv->bounces + 1;
+    child.parent = f;
+    child.w = child.w_inv = refl_mat4_identity();
+    /* behind the face, from the viewer */
+    for (k = 0; k < 3; ++k) kept[k] = -(&nf.x)[k];
+    {
+        /* the refracted camera's projection, clipped at the face */
+        refl_mat4 view_inv;
+        double c[4];
+        proj = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, pl->p->rays.znear,
+                                     pl->p->rays.zfar * 2.0f * (float)(child.level + 1));
+        if (!refl_mat4_invert(view_r, &view_inv)) return REFL_OK;
+        for (k = 0; k < 4; ++k) {
+            const float *col = view_inv.m + 4 * k;
+            c[k] = kept[0] * col[0] + kept[1] * col[1] + kept[2] * col[2] + df * col[3];
+        }
+        if (refl__planar_oblique(&proj, c)) memcpy(child.clip, c, sizeof c);
+        child.vp = refl_mat4_mul(proj, view_r);
+    }
+    for (k = 0; k < 4; ++k) {
+        float a = k == 1 || k == 2 ? 1.0f : -1.0f, b = k >= 2 ? 1.0f : -1.0f;
+        refl_vec3 corner = refl_v3_add(p0, refl_v3_add(refl_v3_scale(u, a), refl_v3_scale(v, b)));
+        if (!refl__planar_ndc(lv->vp, corner, quad_v[k]) || !refl__planar_ndc(child.vp, corner, quad_r[k]))
+            return REFL_OK; /* grazing: the square reaches behind a camera */
+    }
+    /* refracted image -> unit square -> the viewer's image */
+    if (!refl__planar_square_to_quad(quad_r, m_r) || !refl__planar_square_to_quad(quad_v, m_v)) return REFL_OK;
+    refl__planar_adjoint(m_r, adj);
+    refl__planar_mul3(adj, m_v, child.h);
+    refl__planar_adjoint(child.h, child.h_inv);
+    if (!refl_mat4_invert(child.vp, &child.vp_inv)) return REFL_OK;
+    child.warped = 1;
+    return refl__planar_render_level(pl, &child, dcs);
+}
+
+/* A glass face. Seen from outside a slab (a parallel face behind it): the
+   paper's in-out refraction, light leaving parallel to how it came,
+   shifted sideways, one shift for the whole face, taken at the incidence
+   of the view axis where it meets the face (of the ray to the face's
+   centre when the axis misses it). Otherwise a single interface through
+   refl__planar_single_interface; seen from inside beyond the critical
+   angle (at the face's centre, the paper's rule), wholly reflective.
+   Besides, the mirror image; per pixel
+       F_in mirror + (1 - F_in)(1 - F_out) tint e^(-attenuation path) refracted
+   (a single interface: F_out = 0, no path). A slab takes two bounces, as
+   in RAYTRACE, an interface one. */
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
-                                      refl__draw_ctx *dcs) {
+                                      refl__planar_dc *dcs) {
     const refl__planar_face *face = &pl->faces[f];
     const refl_material *m = comp->dc.material;
     const refl__view_rays *vr = &pl->p->rays;
     refl_frame *fr = pl->p->frame;
-    float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3];
+    float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3], n1, n2;
     size_t i, npx = (size_t)fr->width * (size_t)fr->height;
-    int refracts = face->opposite >= 0 && lv->bounces + 2 <= pl->p->desc.depth, c, x, y;
-    refl_vec3 nv = refl_v3((float)face->n[0], (float)face->n[1], (float)face->n[2]);
+    int inside, slab, refracts = 0, c, x, y, k;
+    double side;
+    refl_vec3 nv, axis, centre = refl_v3(0, 0, 0);
+    float df;
     refl_result r = REFL_OK;
-    for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-    if (refracts) {
+    inside = face->n[0] * comp->eye.x + face->n[1] * comp->eye.y + face->n[2] * comp->eye.z - face->d <= 0.0;
+    side = inside ? -1.0 : 1.0;
+    nv = refl_v3((float)(side * face->n[0]), (float)(side * face->n[1]), (float)(side * face->n[2]));
+    df = (float)(side * face->d);
+    n1 = inside ? ior : 1.0f;
+    n2 = inside ? 1.0f : ior;
+    slab = !inside && face->opposite >= 0;
+    for (c = 0; c < 3; ++c) tint[c] = inside ? 1.0f : m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
+    for (k = 0; k < face->index_count; ++k) {
+        const float *pp = comp->dc.mesh->positions + 3 * (size_t)face->indices[k];
+        centre = refl_v3_add(centre, refl_mat4_point(comp->dc.model, refl_v3(pp[0], pp[1], pp[2])));
+    }
+    centre = refl_v3_scale(centre, 1.0f / (float)REFL__MAX(face->index_count, 1));
+    axis = refl_v3_normalize(refl_mat4_dir(lv->w_inv, vr->forward));
+    if (refl_v3_dot(axis, nv) > -1e-3f) axis = refl_v3_normalize(refl_v3_sub(centre, comp->eye)); /* misses */
+    if (lv->bounces + (slab ? 2 : 1) <= pl->p->desc.depth) {
+        /* the paper's critical-angle rule, at the face's centre */
+        refl_vec3 to_centre = refl_v3_normalize(refl_v3_sub(centre, comp->eye));
+        float cc = -refl_v3_dot(to_centre, nv);
+        refracts = refl_fresnel_dielectric(cc, n1, n2) < 1.0f;
+    }
+    if (refracts && slab) {
         refl__planar_level child;
         double behind[3];
-        refl_vec3 axis = refl_v3_normalize(refl_mat4_dir(lv->w_inv, vr->forward)), t, shift;
-        float cos_i, cos_t;
-        if (refl_v3_dot(axis, nv) > -1e-3f) {
-            /* the axis misses the face: the ray to its centre */
-            const refl_mesh *mesh = comp->dc.mesh;
-            refl_vec3 centre = refl_v3(0, 0, 0);
-            int k;
-            for (k = 0; k < face->index_count; ++k) {
-                const float *pp = mesh->positions + 3 * (size_t)face->indices[k];
-                centre = refl_v3_add(centre, refl_mat4_point(comp->dc.model, refl_v3(pp[0], pp[1], pp[2])));
-            }
-            centre = refl_v3_scale(centre, 1.0f / (float)face->index_count);
-            axis = refl_v3_normalize(refl_v3_sub(centre, comp->eye));
-        }
-        cos_i = -refl_v3_dot(axis, nv);
-        if (cos_i > 1e-4f && refl_v3_refract(axis, nv, 1.0f / ior, &t)) {
+        refl_vec3 t, shift;
+        float cos_i = -refl_v3_dot(axis, nv), cos_t;
+        refracts = cos_i > 1e-4f && refl_v3_refract(axis, nv, 1.0f / ior, &t);
+        if (refracts) {
             cos_t = -refl_v3_dot(t, nv);
             /* where the refracted ray leaves the slab, less where the
                straight one would: the shift of every exiting ray */
@@ -5774,37 +5962,44 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             for (c = 0; c < 3; ++c) behind[c] = -face->n[c];
             r = refl__planar_render_child(pl, &child, behind, -face->d, dcs);
             /* mirrors seen through the slab, with the bounces left */
-            if (r == REFL_OK && child.bounces < pl->p->desc.depth)
-                r = refl__planar_level_draw(pl, &child, dcs);
+            if (r == REFL_OK && child.bounces < pl->p->desc.depth) r = refl__planar_level_draw(pl, &child, dcs);
             if (r != REFL_OK) return r;
-            for (i = 0; i < npx; ++i)
-                if (pl->stencil[i] == child.level) {
-                    memcpy(pl->saved + 4 * i, pl->color + 4 * i, 4 * sizeof(float));
-                    if (lv->level == 0) memcpy(pl->saved_points + 3 * i, fr->points + 3 * i, 3 * sizeof(float));
-                }
-        } else {
-            refracts = 0;
         }
+    } else if (refracts) {
+        /* the region starts black: where the map leaves it, nothing shows */
+        for (i = 0; i < npx; ++i)
+            if (pl->stencil[i] == lv->level + 1) memset(pl->color + 4 * i, 0, 3 * sizeof(float));
+        r = refl__planar_single_interface(pl, lv, f, comp, axis, nv, df, n1 / n2, dcs);
+        if (r != REFL_OK) return r;
     }
-    r = refl__planar_mirror_image(pl, lv, f, dcs);
+    if (refracts)
+        for (i = 0; i < npx; ++i)
+            if (pl->stencil[i] == lv->level + 1) {
+                memcpy(pl->saved + 4 * i, pl->color + 4 * i, 4 * sizeof(float));
+                if (lv->level == 0) memcpy(pl->saved_points + 3 * i, fr->points + 3 * i, 3 * sizeof(float));
+            }
+    r = refl__planar_mirror_image(pl, lv, f, side, dcs);
     if (r != REFL_OK) return r;
     for (y = 0; y < fr->height; ++y)
         for (x = 0; x < fr->width; ++x) {
             float nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
             float ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
             refl_vec3 d;
-            float cos_i, sin_t, cos_t, f_in, through;
+            float cos_i, sin_t, cos_t, f_in, through = 0.0f;
             i = (size_t)y * (size_t)fr->width + (size_t)x;
             if (pl->stencil[i] != lv->level + 1) continue;
             d = refl_v3_add(vr->forward, refl_v3_add(refl_v3_scale(vr->right, nx), refl_v3_scale(vr->up, ny)));
             d = refl_v3_normalize(refl_mat4_dir(lv->w_inv, d));
             cos_i = REFL__CLAMP(-refl_v3_dot(d, nv), 0.0f, 1.0f);
-            f_in = refl_fresnel_dielectric(cos_i, 1.0f, ior);
-            sin_t = sqrtf(1.0f - cos_i * cos_i) / ior;
-            cos_t = sqrtf(REFL__MAX(1.0f - sin_t * sin_t, 1e-12f));
-            through = refracts ? (1.0f - f_in) * (1.0f - refl_fresnel_dielectric(cos_t, ior, 1.0f)) *
-                                     expf(-REFL__MAX(m->attenuation, 0.0f) * (float)face->thickness / cos_t)
-                               : 0.0f;
+            f_in = refl_fresnel_dielectric(cos_i, n1, n2);
+            if (refracts && f_in < 1.0f) {
+                sin_t = sqrtf(1.0f - cos_i * cos_i) * n1 / n2;
+                cos_t = sqrtf(REFL__MAX(1.0f - sin_t * sin_t, 1e-12f));
+                through = 1.0f - f_in;
+                if (slab)
+                    through *= (1.0f - refl_fresnel_dielectric(cos_t, ior, 1.0f)) *
+                               expf(-REFL__MAX(m->attenuation, 0.0f) * (float)face->thickness / cos_t);
+            }
             for (c = 0; c < 3; ++c)
                 pl->color[4 * i + (size_t)c] = REFL__CLAMP(
                     f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c], 0.0f, 1.0f);
@@ -5821,7 +6016,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     refl_frame *f = p->frame;
     refl__planar pl;
     refl__planar_level top;
-    refl__draw_ctx *dcs;
+    refl__planar_dc *dcs;
     rast_targets t;
     refl_result r;
     size_t i, n = (size_t)f->width * (size_t)f->height;
@@ -5841,8 +6036,8 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
-    dcs = (refl__draw_ctx *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
-                                         sizeof(refl__draw_ctx));
+    dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
+                                          sizeof(refl__planar_dc));
     if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !dcs) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
