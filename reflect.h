@@ -5505,6 +5505,15 @@ static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc,
     return rast_draw(rc, &d);
 }
 
+/* A state's scissor on a region's box (an empty box draws nothing). */
+static void refl__planar_scissor(rast_state *s, const int box[4]) {
+    s->scissor_test = 1;
+    s->scissor[0] = box[0];
+    s->scissor[1] = box[1];
+    s->scissor[2] = box[2] - box[0];
+    s->scissor[3] = box[3] - box[1];
+}
+
 /* A state testing the stencil against `ref` with `pass` on success. */
 static rast_state refl__planar_state(uint8_t ref, rast_stencil_op pass) {
     rast_state s;
@@ -5522,13 +5531,15 @@ static rast_state refl__planar_state(uint8_t ref, rast_stencil_op pass) {
 /* The scene as the level sees it, into its region (depth cleared there):
    every object but the face's own, diffuse ones shaded, reflectors as
    DIRECT draws them. */
-static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dc) {
+static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_level *lv, const int box[4],
+                                           refl__planar_dc *dc) {
     const refl_scene *s = pl->scene;
     rast_result rr = RAST_OK;
     int i, skip = lv->parent >= 0 ? pl->faces[lv->parent].object : -1; /* the mirror, or the slab seen through */
     for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
         rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
         if (i == skip) continue;
+        refl__planar_scissor(&st, box);
         refl__planar_draw_ctx(&dc[i].dc, s, i, lv->vp);
         dc[i].h = lv->warped ? lv->h : NULL;
         st.vertex_fn = refl__planar_vertex;
@@ -5546,13 +5557,13 @@ static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_
 /* After a level's scene: the environment where nothing was drawn (looked
    up along the real, unmirrored ray), and at the first bounce the points
    the region shows, unprojected from the depth along the pixel's ray. */
-static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level *lv) {
+static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level *lv, const int box[4]) {
     refl_frame *f = pl->p->frame;
     const refl__view_rays *vr = &pl->p->rays;
     double right_len = refl_v3_length(vr->right), up_len = refl_v3_length(vr->up);
     int x, y;
-    for (y = 0; y < f->height; ++y)
-        for (x = 0; x < f->width; ++x) {
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
             float nx, ny;
             refl_vec3 dir;
@@ -5606,20 +5617,37 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
 
 /* Clamps the region's colour: a composite can exceed 1, and the shared
    model clamps every surface before the next reflectance weighs it. */
-static void refl__planar_clamp_region(refl__planar *pl, int level) {
-    size_t i, n = (size_t)pl->p->frame->width * (size_t)pl->p->frame->height;
-    int c;
-    for (i = 0; i < n; ++i)
-        if (pl->stencil[i] == level)
-            for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(pl->color[4 * i + (size_t)c], 0.0f, 1.0f);
+static void refl__planar_clamp_region(refl__planar *pl, int level, const int box[4]) {
+    int x, y, c;
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
+            size_t i = (size_t)y * (size_t)pl->p->frame->width + (size_t)x;
+            if (pl->stencil[i] == level)
+                for (c = 0; c < 3; ++c)
+                    pl->color[4 * i + (size_t)c] = REFL__CLAMP(pl->color[4 * i + (size_t)c], 0.0f, 1.0f);
+        }
 }
 
-static long long refl__planar_count(const refl__planar *pl, int level) {
-    size_t i, n = (size_t)pl->p->frame->width * (size_t)pl->p->frame->height;
+/* How many pixels the region `level` has, and their bounding box
+   (x0, y0, x1, y1, exclusive; empty: all zero): every later pass over the
+   region, on the CPU or through rast's scissor, stays inside it. */
+static long long refl__planar_region(const refl__planar *pl, int level, int box[4]) {
+    int x, y, w = pl->p->frame->width, h = pl->p->frame->height;
     long long k = 0;
-    for (i = 0; i < n; ++i) k += pl->stencil[i] == level;
+    box[0] = w; box[1] = h; box[2] = box[3] = 0;
+    for (y = 0; y < h; ++y) {
+        const uint8_t *row = pl->stencil + (size_t)y * (size_t)w;
+        for (x = 0; x < w; ++x)
+            if (row[x] == level) {
+                ++k;
+                box[0] = REFL__MIN(box[0], x); box[2] = REFL__MAX(box[2], x + 1);
+                box[1] = REFL__MIN(box[1], y); box[3] = REFL__MAX(box[3], y + 1);
+            }
+    }
+    if (!k) box[0] = box[1] = box[2] = box[3] = 0;
     return k;
 }
+
 
 /* Raises the face's visible pixels at this level to level + 1. */
 static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level *lv, refl__planar_comp *comp,
@@ -5639,7 +5667,8 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
 /* Draws into the child's region (stencil child->level) the scene through
    child->vp (and its warp), the region's depth cleared first, then the
    environment where nothing is; finishes. */
-static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_level *child, refl__planar_dc *dcs) {
+static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_level *child, const int box[4],
+                                             refl__planar_dc *dcs) {
     rast_context *rc = pl->p->rc;
     rast_state state = refl__planar_state((uint8_t)child->level, RAST_KEEP);
     rast_result rr;
@@ -5647,21 +5676,22 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     state.depth_func = RAST_ALWAYS;
     state.color_write = RAST_MASK(0);
     state.vertex_fn = NULL;
+    refl__planar_scissor(&state, box);
     rr = rast_set_state(rc, &state);
     if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 1.0f, far_rgba); /* the region's depth cleared */
-    if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, dcs);
+    if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
     pl->p->frame->stats.cameras++;
     if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
-    refl__planar_fill_region(pl, child);
+    refl__planar_fill_region(pl, child, box);
     return REFL_OK;
 }
 
 /* The child's camera: the viewer's through child->w, clipped to the world
    half-space n . x >= d (what lies beyond the face); then its scene. */
 static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_level *child, const double n[3], double d,
-                                             refl__planar_dc *dcs) {
+                                             const int box[4], refl__planar_dc *dcs) {
     refl_mat4 proj, view_inv, plane_to_eye;
     float fovy = pl->p->view->fovy_degrees > 0.0f ? pl->p->view->fovy_degrees : 45.0f;
     float aspect = (float)pl->p->frame->width / (float)pl->p->frame->height;
@@ -5678,20 +5708,21 @@ static refl_result refl__planar_render_child(refl__planar *pl, refl__planar_leve
                                  pl->p->rays.zfar * 2.0f * (float)(child->level + 1));
     if (!refl__planar_oblique(&proj, child->clip)) memset(child->clip, 0, sizeof child->clip);
     child->vp = refl_mat4_mul(refl_mat4_mul(proj, pl->p->view_m), child->w);
-    return refl__planar_render_level(pl, child, dcs);
+    return refl__planar_render_level(pl, child, box, dcs);
 }
 
 /* Draws the face over its region (stencil level + 1) with the composite
    fragment (NULL: colour untouched), restoring the face's depth there,
    then lowers the region back to `level`. */
 static refl_result refl__planar_restore(refl__planar *pl, int level, refl__planar_comp *comp,
-                                        const refl__planar_face *face, rast_fragment_fn composite) {
+                                        const refl__planar_face *face, rast_fragment_fn composite, const int box[4]) {
     rast_context *rc = pl->p->rc;
     rast_state state = refl__planar_state((uint8_t)(level + 1), RAST_KEEP);
     rast_result rr;
     float far_rgba[4] = {0, 0, 0, 0};
     state.depth_func = RAST_ALWAYS;
     state.vertex_user = &comp->dc;
+    refl__planar_scissor(&state, box);
     if (composite) {
         state.blend = 1;
         state.blend_src_rgb = RAST_ONE;
@@ -5710,12 +5741,13 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
         state.depth_test = 0;
         state.color_write = RAST_MASK(0);
         state.vertex_fn = NULL;
+        refl__planar_scissor(&state, box);
         rr = rast_set_state(rc, &state);
     }
     if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    refl__planar_clamp_region(pl, level);
+    refl__planar_clamp_region(pl, level, box);
     return REFL_OK;
 }
 
@@ -5724,7 +5756,7 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
 /* The mirror image in the face: the child level through the reflection,
    and the levels below it. */
 static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__planar_level *lv, int f, double side,
-                                             refl__planar_dc *dcs) {
+                                             const int box[4], refl__planar_dc *dcs) {
     const refl__planar_face *face = &pl->faces[f];
     refl__planar_level child;
     refl_mat4 r = refl__planar_reflection(face->n, face->d);
@@ -5739,7 +5771,7 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
     child.w_inv = refl_mat4_mul(r, lv->w_inv);
     /* what lies on the viewer's side of the face (side: +1 the front) */
     for (k = 0; k < 3; ++k) kept[k] = side * face->n[k];
-    res = refl__planar_render_child(pl, &child, kept, side * face->d, dcs);
+    res = refl__planar_render_child(pl, &child, kept, side * face->d, box, dcs);
     if (res == REFL_OK && child.bounces < pl->p->desc.depth)
         res = refl__planar_level_draw(pl, &child, dcs);
     return res;
@@ -5750,7 +5782,7 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
    the face over what its region shows and restore its depth and the
    stencil. Glass faces go through refl__planar_glass. */
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
-                                      refl__planar_dc *dcs);
+                                      const int box[4], refl__planar_dc *dcs);
 
 static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dcs) {
     refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
@@ -5760,7 +5792,7 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         const refl__planar_face *face = &pl->faces[f];
         refl__planar_comp comp;
         refl_result r;
-        int front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
+        int box[4], front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
         if (f == lv->parent) continue;
         /* glass is seen from inside too (its far faces from outside fail
            the depth test and mark nothing) */
@@ -5771,12 +5803,12 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         /* a mirror seen from behind marks nothing; unculled, it still
            costs its renderings, as formula 5 counts them */
         if ((front || face->glass) && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
-        if (!pl->no_culling && refl__planar_count(pl, lv->level + 1) == 0) { ++pl->culled; continue; }
+        if (refl__planar_region(pl, lv->level + 1, box) == 0 && !pl->no_culling) { ++pl->culled; continue; }
         if (face->glass) {
-            r = refl__planar_glass(pl, lv, f, &comp, next);
+            r = refl__planar_glass(pl, lv, f, &comp, box, next);
         } else {
-            r = refl__planar_mirror_image(pl, lv, f, 1.0, next);
-            if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, refl__planar_comp_fragment);
+            r = refl__planar_mirror_image(pl, lv, f, 1.0, box, next);
+            if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, refl__planar_comp_fragment, box);
         }
         if (r != REFL_OK) return r;
     }
@@ -5832,7 +5864,7 @@ static int refl__planar_ndc(refl_mat4 vp, refl_vec3 p, double out[2]) {
    face's plane. Any four points of the plane fix that map; a square about
    the axis's point is in front of both cameras, where the face's own
    corners may not be. */
-static refl_result refl__planar_single_interface(refl__planar *pl, const refl__planar_level *lv, int f,
+static refl_result refl__planar_single_interface(refl__planar *pl, const refl__planar_level *lv, int f, const int box[4],
                                                  const refl__planar_comp *comp, refl_vec3 axis, refl_vec3 nf,
                                                  double df, float eta, refl__planar_dc *dcs) {
     refl__planar_level child;
@@ -5891,7 +5923,7 @@ static refl_result refl__planar_single_interface(refl__planar *pl, const refl__p
     refl__planar_adjoint(child.h, child.h_inv);
     if (!refl_mat4_invert(child.vp, &child.vp_inv)) return REFL_OK;
     child.warped = 1;
-    return refl__planar_render_level(pl, &child, dcs);
+    return refl__planar_render_level(pl, &child, box, dcs);
 }
 
 /* A glass face. Seen from outside a slab (a parallel face behind it): the
@@ -5906,7 +5938,7 @@ static refl_result refl__planar_single_interface(refl__planar *pl, const refl__p
    (a single interface: F_out = 0, no path). A slab takes two bounces, as
    in RAYTRACE, an interface one. */
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
-                                      refl__planar_dc *dcs) {
+                                      const int box[4], refl__planar_dc *dcs) {
     const refl__planar_face *face = &pl->faces[f];
     const refl_material *m = comp->dc.material;
     const refl__view_rays *vr = &pl->p->rays;
@@ -5960,7 +5992,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             /* what lies behind the face: light may also leave by another
                face (the floor under a slab), so not only beyond the back */
             for (c = 0; c < 3; ++c) behind[c] = -face->n[c];
-            r = refl__planar_render_child(pl, &child, behind, -face->d, dcs);
+            r = refl__planar_render_child(pl, &child, behind, -face->d, box, dcs);
             /* mirrors seen through the slab, with the bounces left */
             if (r == REFL_OK && child.bounces < pl->p->desc.depth) r = refl__planar_level_draw(pl, &child, dcs);
             if (r != REFL_OK) return r;
@@ -5969,7 +6001,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
         /* the region starts black: where the map leaves it, nothing shows */
         for (i = 0; i < npx; ++i)
             if (pl->stencil[i] == lv->level + 1) memset(pl->color + 4 * i, 0, 3 * sizeof(float));
-        r = refl__planar_single_interface(pl, lv, f, comp, axis, nv, df, n1 / n2, dcs);
+        r = refl__planar_single_interface(pl, lv, f, box, comp, axis, nv, df, n1 / n2, dcs);
         if (r != REFL_OK) return r;
     }
     if (refracts)
@@ -5978,10 +6010,10 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
                 memcpy(pl->saved + 4 * i, pl->color + 4 * i, 4 * sizeof(float));
                 if (lv->level == 0) memcpy(pl->saved_points + 3 * i, fr->points + 3 * i, 3 * sizeof(float));
             }
-    r = refl__planar_mirror_image(pl, lv, f, side, dcs);
+    r = refl__planar_mirror_image(pl, lv, f, side, box, dcs);
     if (r != REFL_OK) return r;
-    for (y = 0; y < fr->height; ++y)
-        for (x = 0; x < fr->width; ++x) {
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
             float nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
             float ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
             refl_vec3 d;
@@ -6008,7 +6040,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             if (lv->level == 0 && f_in < 0.5f)
                 for (c = 0; c < 3; ++c) fr->points[3 * i + (size_t)c] = refracts ? pl->saved_points[3 * i + (size_t)c] : NAN;
         }
-    return refl__planar_restore(pl, lv->level, comp, face, NULL);
+    return refl__planar_restore(pl, lv->level, comp, face, NULL, box);
 }
 
 static refl_result refl__method_planar(refl__pass *p) {
