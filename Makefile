@@ -57,6 +57,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/scene.c \
                  src/reflect/shade.c \
                  src/reflect/bvh.c \
+                 src/reflect/shadow.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \

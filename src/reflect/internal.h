@@ -103,6 +103,51 @@ static void refl__draw_background(uint8_t *color, const float *depth, int width,
 static refl_result refl__result_from_rast(rast_result r);
 static double refl__now_ms(void);
 
+/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
+   refl__shadow_mask: for the pixels of a width x height frame (region NULL,
+   or region[pixel] == region_value) whose window depth `depth` (drawn with
+   vp: any view-projection, mirrored or with an oblique near plane) is
+   below 1, sets bit i of lit[pixel] when light i reaches the surface seen
+   there and clears it when not, as RAYTRACE's shadow rays decide; bits of
+   lights past REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as
+   lit), other selected pixels get 0xFF, unselected ones are untouched.
+   Draws into a scratch stencil with `depth` bound read-only, finishes, and
+   leaves `restore` bound (NULL: no targets at all) and rast's state
+   changed, also on failure (then nothing stays queued). eye: the viewpoint
+   vp projects from (it takes part in choosing z-pass or z-fail).
+   refl__shade_lit: draws every diffuse and partial object but `skip` again
+   into the bound targets (depth EQUAL, the base pass's vertex expression,
+   no depth writes), where the bound stencil EQUALs stencil_ref (< 0: no
+   stencil test), shading with refl_shade_diffuse_lit and lit[y * width +
+   x] (partial: times 1 - mirror_weight, as the base pass), and finishes.
+   lit must hold every pixel the draw can reach (the mask's region: match
+   it with the stencil). all_pixels 0 rewrites only pixels with a light
+   shadowed (the others keep the colour the base pass gave them, which is
+   the same); 1 every pixel. */
+enum { REFL__SHADOW_MAX_LIGHTS = 8 };
+typedef enum refl__shadow_mode {
+    REFL__SHADOW_AUTO = 0,    /* z-pass where provably safe, else z-fail, per light */
+    REFL__SHADOW_ZPASS,       /* Heidmann: wrong where the near plane is in a volume */
+    REFL__SHADOW_ZFAIL        /* Carmack's reverse, with caps: always right */
+} refl__shadow_mode;
+static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                     const float *depth, int width, int height, const uint8_t *region,
+                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
+                                     refl_stats *st);
+/* The same with the counting forced; *used_zfail (may be NULL) gets bit i
+   set when light i was counted with z-fail. */
+static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                          const float *depth, int width, int height, const uint8_t *region,
+                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
+                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail);
+static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
+                                   refl_stats *st);
+/* The base pass's shadows: mask and re-shade over the whole frame (bound on
+   entry and on return). */
+static refl_result refl__shadow_base_pass(refl__pass *p);
+/* ---- end shadows ---- */
+
 /* The methods (one module each). */
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);

@@ -359,6 +359,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         r = refl__method_raytrace(&p);
     } else {
         r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
+        /* hard shadows: the pixels a light cannot reach shaded again (shadow.c) */
+        if (r == REFL_OK && p.desc.shadows) r = refl__shadow_base_pass(&p);
         if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
             refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
                                   inv_vp);
