@@ -3235,6 +3235,77 @@ REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
     if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
     return r;
 }
+
+/* ---- the base pass's programs, shared by every rasterising method ---------------- */
+
+enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
+
+typedef struct refl__draw_ctx {
+    const refl_scene *scene;
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
+} refl__draw_ctx;
+
+/* The draw context of object `object` seen through vp. */
+static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
+    const refl_object *o = &s->objects[object];
+    refl_mat4 inv;
+    dc->scene = s;
+    dc->mesh = s->meshes[o->mesh];
+    dc->material = &s->materials[o->material];
+    dc->model = o->transform;
+    dc->mvp = refl_mat4_mul(vp, o->transform);
+    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+}
+
+/* The vertex program of the base pass: clip position and world-space
+   varyings, read from the mesh by index. */
+static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
+    const refl_mesh *m = d->mesh;
+    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
+    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
+    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
+    const float *mm = d->mvp.m;
+    int k;
+    (void)max_out;
+    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
+    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
+    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
+    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
+    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
+    return 1;
+}
+
+/* The fragment program of the base pass: the shared diffuse model. A
+   partially reflective surface shows its diffuse share here; the methods
+   add the mirror share. */
+static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
+    const float *v = in->varyings;
+    float rgb[3], k = 1.0f;
+    refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
+    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
+    /* clamped here too, for float targets (PLANAR's): the shared model
+       clamps each surface before anything weighs it */
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
+    rgba[3] = 1.0f;
+    return 1;
+}
+
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    (void)user;
+    (void)in;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    return 1;
+}
+
+static refl_result refl__result_from_rast(rast_result r) {
+    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+}
 /* ---- src/reflect/bvh.c ---- */
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
    for the RAYTRACE reference and every method that needs exact rays.
@@ -4536,34 +4607,12 @@ static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, 
 /* ---- shading with the mask ---------------------------------------------------------- */
 
 typedef struct refl__sv_shade {
-    const refl_scene *scene;
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 mvp, model, normal_m;
+    refl__draw_ctx dc;            /* first: the base pass's vertex program reads it */
     const uint8_t *lit;
     const unsigned char *table;   /* 256 rows of light_count flags: row b is lit byte b unpacked */
     int width, height, light_count, all_pixels;
     unsigned all_lit;             /* the bits of a pixel every light reaches */
 } refl__sv_shade;
-
-/* refl__base_vertex's program: the same clip position (EQUAL finds the
-   base pass's depth) and the same varyings (world position, normal, uv). */
-static int refl__sv_shade_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
-    const refl__sv_shade *d = (const refl__sv_shade *)user;
-    const refl_mesh *m = d->mesh;
-    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
-    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
-    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
-    const float *mm = d->mvp.m;
-    int k;
-    (void)max_out;
-    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
-    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
-    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
-    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
-    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
-    return 1;
-}
 
 /* The base pass's fragment program with the pixel's lights. */
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -4574,10 +4623,13 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
         b = d->lit[(size_t)in->y * (size_t)d->width + (size_t)in->x];
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
-    refl_shade_diffuse_lit(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
+    refl_shade_diffuse_lit(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
                            d->table + (size_t)b * (size_t)d->light_count, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    rgba[0] = rgb[0] * k; rgba[1] = rgb[1] * k; rgba[2] = rgb[2] * k;
+    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
+    /* clamped before the share, as the base pass's fragment program */
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
     rgba[3] = 1.0f;
     return 1;
 }
@@ -4609,14 +4661,8 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
         rast_draw_desc d;
-        refl_mat4 inv;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        dc[i].scene = scene;
-        dc[i].mesh = scene->meshes[o->mesh];
-        dc[i].material = mat;
-        dc[i].model = o->transform;
-        dc[i].mvp = refl_mat4_mul(vp, o->transform);
-        dc[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
         dc[i].lit = lit;
         dc[i].table = table;
         dc[i].width = width;
@@ -4634,22 +4680,22 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
             s.stencil_front.ref = (uint8_t)REFL__MIN(stencil_ref, 255);
             s.stencil_back = s.stencil_front;
         }
-        s.vertex_fn = refl__sv_shade_vertex;
-        s.vertex_user = &dc[i];
+        s.vertex_fn = refl__base_vertex;
+        s.vertex_user = &dc[i].dc;
         s.fragment_fn = refl__sv_shade_fragment;
         s.fragment_user = &dc[i];
         memset(&d, 0, sizeof d);
         d.primitive = RAST_TRIANGLES;
-        d.vertices = dc[i].mesh->positions;
-        d.vertex_count = dc[i].mesh->vertex_count;
+        d.vertices = dc[i].dc.mesh->positions;
+        d.vertex_count = dc[i].dc.mesh->vertex_count;
         d.stride = 3;
         d.position_size = 3;
-        d.num_varyings = 8;
-        d.indices = dc[i].mesh->indices;
-        d.index_count = 3 * dc[i].mesh->triangle_count;
+        d.num_varyings = REFL__BASE_VARYINGS;
+        d.indices = dc[i].dc.mesh->indices;
+        d.index_count = 3 * dc[i].dc.mesh->triangle_count;
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = rast_draw(rc, &d);
-        if (st) st->triangles += dc[i].mesh->triangle_count;
+        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
        contexts it reads are freed */
@@ -6008,63 +6054,6 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
 
 /* ---- the base pass ---------------------------------------------------------- */
 
-enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
-
-typedef struct refl__draw_ctx {
-    const refl_scene *scene;
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
-} refl__draw_ctx;
-
-/* The vertex program of the base pass: clip position and world-space
-   varyings, read from the mesh by index. */
-static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
-    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
-    const refl_mesh *m = d->mesh;
-    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
-    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
-    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
-    const float *mm = d->mvp.m;
-    int k;
-    (void)max_out;
-    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
-    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
-    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
-    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
-    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
-    return 1;
-}
-
-/* The fragment program of the base pass: the shared diffuse model. A
-   partially reflective surface shows its diffuse share here; the methods
-   add the mirror share. */
-static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
-    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
-    const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
-    refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    /* clamped here too, for float targets (PLANAR's): the shared model
-       clamps each surface before anything weighs it */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
-    return 1;
-}
-
-static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
-    (void)user;
-    (void)in;
-    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
-    return 1;
-}
-
-static refl_result refl__result_from_rast(rast_result r) {
-    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
-}
-
 /* Draws every object but `skip`: diffuse ones shaded, reflectors with their
    diffuse share (partial) or black (mirror, glass), each writing its object
    id + 1 into the stencil. */
@@ -6082,14 +6071,8 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         const refl_mesh *m = scene->meshes[o->mesh];
         rast_state s;
         rast_draw_desc d;
-        refl_mat4 inv;
         if (i == skip) continue;
-        dc[i].scene = scene;
-        dc[i].mesh = m;
-        dc[i].material = &scene->materials[o->material];
-        dc[i].model = o->transform;
-        dc[i].mvp = refl_mat4_mul(vp, o->transform);
-        dc[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        refl__draw_ctx_init(&dc[i], scene, i, vp);
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
         s.stencil_test = 1;
@@ -6262,8 +6245,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. This module follows render.c in the header: it
-   draws with the base pass's vertex and fragment programs. */
+   mirrored view's depth. It draws with the base pass's programs (shade.c). */
 
 enum { REFL__PLANAR_MAX_FACES = 16 };
 
@@ -6504,17 +6486,6 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     return 1;
 }
 
-static void refl__planar_draw_ctx(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
-    const refl_object *o = &s->objects[object];
-    refl_mat4 inv;
-    dc->scene = s;
-    dc->mesh = s->meshes[o->mesh];
-    dc->material = &s->materials[o->material];
-    dc->model = o->transform;
-    dc->mvp = refl_mat4_mul(vp, o->transform);
-    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
-}
-
 static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc, const uint32_t *indices,
                                      int index_count) {
     rast_draw_desc d;
@@ -6565,7 +6536,7 @@ static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_
         rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
         if (i == skip) continue;
         refl__planar_scissor(&st, box);
-        refl__planar_draw_ctx(&dc[i].dc, s, i, lv->vp);
+        refl__draw_ctx_init(&dc[i].dc, s, i, lv->vp);
         dc[i].h = lv->warped ? lv->h : NULL;
         st.vertex_fn = refl__planar_vertex;
         st.vertex_user = &dc[i];
@@ -6823,7 +6794,7 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
            the depth test and mark nothing) */
         if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
         memset(&comp, 0, sizeof comp);
-        refl__planar_draw_ctx(&comp.dc, pl->scene, face->object, lv->vp);
+        refl__draw_ctx_init(&comp.dc, pl->scene, face->object, lv->vp);
         comp.eye = eye;
         /* a mirror seen from behind marks nothing; unculled, it still
            costs its renderings, as formula 5 counts them */

@@ -17,8 +17,7 @@
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. This module follows render.c in the header: it
-   draws with the base pass's vertex and fragment programs. */
+   mirrored view's depth. It draws with the base pass's programs (shade.c). */
 #include "internal.h"
 
 enum { REFL__PLANAR_MAX_FACES = 16 };
@@ -260,17 +259,6 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     return 1;
 }
 
-static void refl__planar_draw_ctx(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
-    const refl_object *o = &s->objects[object];
-    refl_mat4 inv;
-    dc->scene = s;
-    dc->mesh = s->meshes[o->mesh];
-    dc->material = &s->materials[o->material];
-    dc->model = o->transform;
-    dc->mvp = refl_mat4_mul(vp, o->transform);
-    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
-}
-
 static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc, const uint32_t *indices,
                                      int index_count) {
     rast_draw_desc d;
@@ -321,7 +309,7 @@ static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_
         rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
         if (i == skip) continue;
         refl__planar_scissor(&st, box);
-        refl__planar_draw_ctx(&dc[i].dc, s, i, lv->vp);
+        refl__draw_ctx_init(&dc[i].dc, s, i, lv->vp);
         dc[i].h = lv->warped ? lv->h : NULL;
         st.vertex_fn = refl__planar_vertex;
         st.vertex_user = &dc[i];
@@ -579,7 +567,7 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
            the depth test and mark nothing) */
         if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
         memset(&comp, 0, sizeof comp);
-        refl__planar_draw_ctx(&comp.dc, pl->scene, face->object, lv->vp);
+        refl__draw_ctx_init(&comp.dc, pl->scene, face->object, lv->vp);
         comp.eye = eye;
         /* a mirror seen from behind marks nothing; unculled, it still
            costs its renderings, as formula 5 counts them */

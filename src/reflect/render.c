@@ -143,63 +143,6 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
 
 /* ---- the base pass ---------------------------------------------------------- */
 
-enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
-
-typedef struct refl__draw_ctx {
-    const refl_scene *scene;
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
-} refl__draw_ctx;
-
-/* The vertex program of the base pass: clip position and world-space
-   varyings, read from the mesh by index. */
-static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
-    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
-    const refl_mesh *m = d->mesh;
-    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
-    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
-    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
-    const float *mm = d->mvp.m;
-    int k;
-    (void)max_out;
-    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
-    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
-    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
-    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
-    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
-    return 1;
-}
-
-/* The fragment program of the base pass: the shared diffuse model. A
-   partially reflective surface shows its diffuse share here; the methods
-   add the mirror share. */
-static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
-    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
-    const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
-    refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    /* clamped here too, for float targets (PLANAR's): the shared model
-       clamps each surface before anything weighs it */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
-    return 1;
-}
-
-static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
-    (void)user;
-    (void)in;
-    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
-    return 1;
-}
-
-static refl_result refl__result_from_rast(rast_result r) {
-    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
-}
-
 /* Draws every object but `skip`: diffuse ones shaded, reflectors with their
    diffuse share (partial) or black (mirror, glass), each writing its object
    id + 1 into the stencil. */
@@ -217,14 +160,8 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         const refl_mesh *m = scene->meshes[o->mesh];
         rast_state s;
         rast_draw_desc d;
-        refl_mat4 inv;
         if (i == skip) continue;
-        dc[i].scene = scene;
-        dc[i].mesh = m;
-        dc[i].material = &scene->materials[o->material];
-        dc[i].model = o->transform;
-        dc[i].mvp = refl_mat4_mul(vp, o->transform);
-        dc[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        refl__draw_ctx_init(&dc[i], scene, i, vp);
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
         s.stencil_test = 1;

@@ -829,34 +829,12 @@ static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, 
 /* ---- shading with the mask ---------------------------------------------------------- */
 
 typedef struct refl__sv_shade {
-    const refl_scene *scene;
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 mvp, model, normal_m;
+    refl__draw_ctx dc;            /* first: the base pass's vertex program reads it */
     const uint8_t *lit;
     const unsigned char *table;   /* 256 rows of light_count flags: row b is lit byte b unpacked */
     int width, height, light_count, all_pixels;
     unsigned all_lit;             /* the bits of a pixel every light reaches */
 } refl__sv_shade;
-
-/* refl__base_vertex's program: the same clip position (EQUAL finds the
-   base pass's depth) and the same varyings (world position, normal, uv). */
-static int refl__sv_shade_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
-    const refl__sv_shade *d = (const refl__sv_shade *)user;
-    const refl_mesh *m = d->mesh;
-    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
-    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
-    refl_vec3 wp = refl_mat4_point(d->model, p), wn = refl_mat4_dir(d->normal_m, n);
-    const float *mm = d->mvp.m;
-    int k;
-    (void)max_out;
-    for (k = 0; k < 4; ++k) out->position[k] = mm[k] * p.x + mm[4 + k] * p.y + mm[8 + k] * p.z + mm[12 + k];
-    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
-    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
-    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
-    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
-    return 1;
-}
 
 /* The base pass's fragment program with the pixel's lights. */
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -867,10 +845,13 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
         b = d->lit[(size_t)in->y * (size_t)d->width + (size_t)in->x];
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
-    refl_shade_diffuse_lit(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
+    refl_shade_diffuse_lit(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
                            d->table + (size_t)b * (size_t)d->light_count, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    rgba[0] = rgb[0] * k; rgba[1] = rgb[1] * k; rgba[2] = rgb[2] * k;
+    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
+    /* clamped before the share, as the base pass's fragment program */
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
     rgba[3] = 1.0f;
     return 1;
 }
@@ -902,14 +883,8 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
         rast_draw_desc d;
-        refl_mat4 inv;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        dc[i].scene = scene;
-        dc[i].mesh = scene->meshes[o->mesh];
-        dc[i].material = mat;
-        dc[i].model = o->transform;
-        dc[i].mvp = refl_mat4_mul(vp, o->transform);
-        dc[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
         dc[i].lit = lit;
         dc[i].table = table;
         dc[i].width = width;
@@ -927,22 +902,22 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
             s.stencil_front.ref = (uint8_t)REFL__MIN(stencil_ref, 255);
             s.stencil_back = s.stencil_front;
         }
-        s.vertex_fn = refl__sv_shade_vertex;
-        s.vertex_user = &dc[i];
+        s.vertex_fn = refl__base_vertex;
+        s.vertex_user = &dc[i].dc;
         s.fragment_fn = refl__sv_shade_fragment;
         s.fragment_user = &dc[i];
         memset(&d, 0, sizeof d);
         d.primitive = RAST_TRIANGLES;
-        d.vertices = dc[i].mesh->positions;
-        d.vertex_count = dc[i].mesh->vertex_count;
+        d.vertices = dc[i].dc.mesh->positions;
+        d.vertex_count = dc[i].dc.mesh->vertex_count;
         d.stride = 3;
         d.position_size = 3;
-        d.num_varyings = 8;
-        d.indices = dc[i].mesh->indices;
-        d.index_count = 3 * dc[i].mesh->triangle_count;
+        d.num_varyings = REFL__BASE_VARYINGS;
+        d.indices = dc[i].dc.mesh->indices;
+        d.index_count = 3 * dc[i].dc.mesh->triangle_count;
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = rast_draw(rc, &d);
-        if (st) st->triangles += dc[i].mesh->triangle_count;
+        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
        contexts it reads are freed */
