@@ -11,11 +11,14 @@
 #include "../reflect.h"
 #include "test_util.h"
 
+static int g_shadows; /* render() with shadows */
+
 static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m, int depth, int no_culling,
                           int threads) {
     refl_frame *f = NULL;
     refl_render_desc d;
     memset(&d, 0, sizeof d);
+    d.shadows = g_shadows;
     d.method = m;
     d.depth = depth;
     d.no_culling = no_culling;
@@ -378,5 +381,44 @@ Test(refl_planar, water_surface_refracts_and_turns_to_a_mirror_past_the_critical
         refl_frame_destroy(direct);
     }
     cr_assert(refracted > 0 && mirrored > 0);
+    refl_scene_destroy(s);
+}
+
+/* Shadows seen in the mirrors: stencil shadow volumes drawn through each
+   mirrored camera agree with RAYTRACE's shadow rays. A mirror pixel whose
+   colour is within 2/255 of the reference got both its light and its
+   shadow right; the mirrors must show shadows for this to mean anything. */
+Test(refl_planar, shadows_seen_in_the_mirrors_agree_with_the_reference) {
+    refl_scene *s;
+    refl_view v;
+    int depth;
+    cr_assert_eq(refl_scene_builtin("mirror-room", NULL, &s), REFL_OK);
+    v = s->camera;
+    v.width = 200; v.height = 150;
+    for (depth = 1; depth <= 2; ++depth) {
+        refl_frame *planar, *truth, *unshadowed;
+        refl_image_error ie;
+        size_t i, n = (size_t)v.width * (size_t)v.height;
+        long long mirror = 0, in_shadow = 0;
+        g_shadows = 1;
+        planar = render(s, &v, REFL_PLANAR, depth, 0, 2);
+        truth = render(s, &v, REFL_RAYTRACE, depth, 0, 2);
+        g_shadows = 0;
+        unshadowed = render(s, &v, REFL_RAYTRACE, depth, 0, 2);
+        for (i = 0; i < n; ++i) {
+            if (!truth->stencil[i]) continue;
+            ++mirror;
+            in_shadow += memcmp(truth->color + 4 * i, unshadowed->color + 4 * i, 3) != 0;
+        }
+        cr_assert_eq(refl_measure_image_error(planar, truth, 1, 2.0f / 255.0f, &ie), REFL_OK);
+        cr_log_info("shadows, depth %d: %lld of %lld mirror pixels show a shadow; PSNR %.2f dB, %.3f%% over 2/255",
+                    depth, in_shadow, mirror, ie.psnr, 100.0 * ie.over_threshold);
+        cr_assert(in_shadow > mirror / 20, "the mirrors must show shadows (%lld of %lld)", in_shadow, mirror);
+        cr_assert(ie.over_threshold <= 0.01 && ie.psnr >= 40.0, "depth %d: %.3f%% of mirror pixels off, %.2f dB",
+                  depth, 100.0 * ie.over_threshold, ie.psnr);
+        refl_frame_destroy(planar);
+        refl_frame_destroy(truth);
+        refl_frame_destroy(unshadowed);
+    }
     refl_scene_destroy(s);
 }

@@ -40,6 +40,8 @@ typedef struct refl__planar {
     float *color;                 /* RGBA float, the frame's colour while drawing */
     float *saved;                 /* glass: the refracted image of a region */
     float *saved_points;          /* and, at the first bounce, the points it shows */
+    uint8_t *lit;                 /* shadows: the lights each pixel of a region sees */
+    rast_targets targets;         /* what PLANAR draws into */
     uint8_t *stencil;             /* recursion levels */
     refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
     int no_culling;
@@ -451,6 +453,18 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
+    if (pl->p->desc.shadows && !child->warped && pl->scene->light_count > 0) {
+        /* the region's shadows, as the mirrored camera sees them (a warped
+           refraction's depth is not its camera's: left unshadowed) */
+        refl_frame *f = pl->p->frame;
+        refl_result r = refl__shadow_mask(rc, pl->scene, child->vp, refl_mat4_point(child->w_inv, pl->p->view->eye),
+                                          f->depth, f->width, f->height, pl->stencil, (uint8_t)child->level, pl->lit,
+                                          &pl->targets, &f->stats);
+        if (r == REFL_OK)
+            r = refl__shade_lit(rc, pl->scene, child->vp, child->parent >= 0 ? pl->faces[child->parent].object : -1,
+                                pl->lit, f->width, f->height, child->level, 0, &f->stats);
+        if (r != REFL_OK) return r;
+    }
     pl->p->frame->stats.cameras++;
     if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
     refl__planar_fill_region(pl, child, box);
@@ -837,14 +851,16 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
+    pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
-    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !dcs) {
+    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
     for (i = 0; i < 4 * n; ++i) pl.color[i] = (float)f->color[i] * (1.0f / 255.0f);
-    memset(&t, 0, sizeof t);
+    memset(&pl.targets, 0, sizeof pl.targets);
+    t = pl.targets;
     t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
     t.color.stride = 4 * (int)sizeof(float) * f->width;
     t.color_format = RAST_COLOR_RGBA32F;
@@ -852,6 +868,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = pl.stencil; t.stencil.width = f->width; t.stencil.height = f->height;
     t.stencil.stride = f->width;
+    pl.targets = t;
     r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     if (r != REFL_OK) goto done;
     memset(&top, 0, sizeof top);
@@ -870,6 +887,7 @@ done:
     refl__free(&s->allocator, pl.stencil);
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
+    refl__free(&s->allocator, pl.lit);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;
 }
