@@ -257,7 +257,22 @@ typedef struct refl_light {
     refl_vec3 position;      /* point lights */
     refl_vec3 direction;     /* directional: the direction light travels */
     float color[3];          /* intensity per channel */
+    float radius;            /* soft shadows (refl_render_desc.soft_shadow_samples):
+                                point: the radius of a spherical light; directional:
+                                the angular radius of its disc, in radians; 0: a
+                                point (hard shadows whatever the samples) */
 } refl_light;
+
+/* Sample `index` of `count` of a light with a radius, as every method's soft
+   shadows place it (paper 002: the scene drawn once per jittered light): a
+   point light's position moved onto its sphere at the Fibonacci point
+       z = 1 - (2 index + 1) / count, phi = index * 2.39996323 (golden angle),
+       position + radius (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z);
+   a directional light's direction tilted within its cone to the Fibonacci
+   disc point r = sqrt((index + 0.5) / count), same phi, times tan(radius),
+   across two axes perpendicular to it. count <= 1 or radius <= 0: the light
+   unchanged. Deterministic: the same lights on every machine. */
+REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count);
 
 typedef enum refl_env_type {
     REFL_ENV_COLOR = 0,      /* a constant colour */
@@ -339,6 +354,15 @@ REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir
    visibility here, so shadows change nothing else. */
 REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p,
                                      refl_vec3 n, const float *uv, const unsigned char *lit, float rgb[3]);
+/* As refl_shade_diffuse_lit with fractional visibility: light i's Lambert
+   term (towards the light's centre) scaled by weight[i] in [0, 1] (weight
+   may be NULL: every light 1). Soft shadows pass each light's visible
+   fraction of its samples here, (float)visible / (float)samples, which
+   RAYTRACE counts with shadow rays and the rasterised methods with shadow
+   masks, so both shade alike. Weights 0 and 1 give refl_shade_diffuse_lit's
+   bytes exactly. */
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p,
+                                          refl_vec3 n, const float *uv, const float *weight, float rgb[3]);
 /* Unpolarised Fresnel reflectance of a dielectric interface for a ray
    arriving at cos_incidence (> 0) from a medium of index n1 into n2:
    1 beyond the critical angle (total internal reflection). */
@@ -435,6 +459,13 @@ typedef struct refl_render_desc {
     int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
                                 with none left shows what DIRECT shows there */
     int shadows;             /* 1: hard shadows from every light */
+    int soft_shadow_samples; /* with shadows: 0 or 1 hard; N (at most 1024): soft shadows,
+                                every light with a radius sampled at N positions
+                                (refl_light_sample), each light's visible fraction
+                                weighing its Lambert term (refl_shade_diffuse_weighted);
+                                RAYTRACE casts a shadow ray per sample, the rasterised
+                                methods draw a shadow mask per sample. Lights with
+                                radius 0 stay hard (one sample). */
     int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
     refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not
@@ -664,6 +695,26 @@ static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *sc
 static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
                                    const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
                                    refl_stats *st);
+/* Soft shadows (paper 002: the scene rendered once per jittered light, summed
+   in the accumulation buffer; here the per-sample shadow masks are summed
+   exactly on the CPU instead, which rast's RAST_ACCUM would give up to
+   rounding): refl__soft_shadows says whether desc asks for them (shadows,
+   soft_shadow_samples > 1, at most 64 lights). refl__shadow_mask_soft: as
+   refl__shadow_mask, once at the lights' centres for the lights without a
+   radius and once per sample (refl_light_sample) for those with one, counts
+   (REFL__SHADOW_MAX_LIGHTS planes of width x height) receiving per light
+   and selected pixel the samples that reach it; lit is scratch.
+   refl__shade_soft: refl__shade_lit with those counts, each light's Lambert
+   term weighed by count / samples (refl_shade_diffuse_weighted); all_pixels
+   0 rewrites only pixels with a light not wholly visible. */
+static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene);
+static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                          const float *depth, int width, int height, const uint8_t *region,
+                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
+                                          const rast_targets *restore, refl_stats *st);
+static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
+                                    int all_pixels, refl_stats *st);
 /* The base pass's shadows: mask and re-shade over the whole frame (bound on
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
@@ -3187,6 +3238,52 @@ REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_materia
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
 }
 
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                          const float *uv, const float *weight, float rgb[3]) {
+    float base[4];
+    int i, c;
+    refl_vec3 nn = refl_v3_normalize(n);
+    for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
+    if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
+        float t[4];
+        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], 0, t);
+        for (c = 0; c < 4; ++c) base[c] *= t[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
+    for (i = 0; scene && i < scene->light_count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                               : refl_v3_sub(l->position, p);
+        float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light)), w = weight ? weight[i] : 1.0f;
+        if (lambert <= 0.0f || !(w > 0.0f)) continue;
+        /* w == 1: refl_shade_diffuse_lit's expression, bit for bit */
+        if (w < 1.0f) lambert *= w;
+        for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+}
+
+REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
+    refl_light l = *light;
+    float phi, cp, sp;
+    if (count <= 1 || !(light->radius > 0.0f)) return l;
+    phi = (float)((double)index * 2.39996322972865332);
+    cp = (float)cos((double)phi);
+    sp = (float)sin((double)phi);
+    if (light->type == REFL_LIGHT_DIRECTIONAL) {
+        refl_vec3 d = refl_v3_normalize(light->direction), u, v;
+        float r = sqrtf(((float)index + 0.5f) / (float)count) * tanf(REFL__MIN(light->radius, 1.5f));
+        if (refl_v3_dot(d, d) == 0.0f) return l;
+        u = refl_v3_normalize(refl_v3_cross(d, fabsf(d.x) < 0.9f ? refl_v3(1, 0, 0) : refl_v3(0, 1, 0)));
+        v = refl_v3_cross(d, u);
+        l.direction = refl_v3_normalize(refl_v3_add(d, refl_v3_add(refl_v3_scale(u, r * cp), refl_v3_scale(v, r * sp))));
+    } else {
+        float z = 1.0f - (2.0f * (float)index + 1.0f) / (float)count, rr = sqrtf(REFL__MAX(0.0f, 1.0f - z * z));
+        l.position = refl_v3_add(light->position, refl_v3_scale(refl_v3(rr * cp, rr * sp, z), light->radius));
+    }
+    return l;
+}
+
 REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]) {
     float k = env && env->intensity > 0.0f ? env->intensity : 1.0f, t[4];
     int c;
@@ -4612,7 +4709,40 @@ typedef struct refl__sv_shade {
     const unsigned char *table;   /* 256 rows of light_count flags: row b is lit byte b unpacked */
     int width, height, light_count, all_pixels;
     unsigned all_lit;             /* the bits of a pixel every light reaches */
+    const uint16_t *counts;       /* soft: per light (< REFL__SHADOW_MAX_LIGHTS) a plane of
+                                     width x height visible-sample counts; NULL: lit bytes */
+    const int *samples;           /* soft: samples per light */
 } refl__sv_shade;
+
+/* Soft shadows' fragment: each light's Lambert term weighed by its visible
+   fraction at the pixel, (float)count / (float)samples, as RAYTRACE's
+   refl__rt_diffuse_soft weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
+enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
+static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
+    const float *v = in->varyings;
+    float rgb[3], k = 1.0f, weight[REFL__SV_SOFT_MAX_LIGHTS];
+    int li, lights = REFL__MIN(d->light_count, REFL__SHADOW_MAX_LIGHTS), all_lit = 1;
+    size_t i, npx = (size_t)d->width * (size_t)d->height;
+    for (li = 0; li < d->light_count && li < REFL__SV_SOFT_MAX_LIGHTS; ++li) weight[li] = 1.0f;
+    if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height) {
+        i = (size_t)in->y * (size_t)d->width + (size_t)in->x;
+        for (li = 0; li < lights; ++li) {
+            int c = d->counts[(size_t)li * npx + i];
+            if (c >= d->samples[li]) continue;
+            weight[li] = (float)c / (float)d->samples[li];
+            all_lit = 0;
+        }
+    }
+    if (!d->all_pixels && all_lit) return 0; /* keeps the base pass's identical colour */
+    refl_shade_diffuse_weighted(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]),
+                                v + 6, weight, rgb);
+    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
+    rgba[3] = 1.0f;
+    return 1;
+}
 
 /* The base pass's fragment program with the pixel's lights. */
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -4620,6 +4750,7 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     const float *v = in->varyings;
     float rgb[3], k = 1.0f;
     unsigned b = 0xFFu;
+    if (d->counts) return refl__sv_shade_soft_fragment(d, in, rgba);
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
         b = d->lit[(size_t)in->y * (size_t)d->width + (size_t)in->x];
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
@@ -4634,15 +4765,20 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     return 1;
 }
 
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st) {
+/* refl__shade_lit, or with counts (refl__shadow_mask_soft's) the soft
+   shadows' fractional visibility. */
+static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                      const uint8_t *lit, const uint16_t *counts, int samples, int width, int height,
+                                      int stencil_ref, int all_pixels, refl_stats *st) {
     const refl_allocator *al;
     refl__sv_shade *dc = NULL;
     unsigned char *table = NULL;
     rast_result rr = RAST_OK;
-    int i, b, lc, queued = 0;
-    if (!rc || !scene || !lit || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    int i, b, lc, queued = 0, ns[REFL__SHADOW_MAX_LIGHTS];
+    if (!rc || !scene || (!lit && !counts) || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (counts && scene->light_count > REFL__SV_SOFT_MAX_LIGHTS) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
+        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(samples, 1) : 1;
     if (scene->object_count <= 0 || (scene->light_count <= 0 && !all_pixels)) return REFL_OK;
     al = &scene->allocator;
     lc = REFL__MAX(scene->light_count, 1);
@@ -4669,6 +4805,8 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
         dc[i].height = height;
         dc[i].light_count = lc;
         dc[i].all_pixels = all_pixels;
+        dc[i].counts = counts;
+        dc[i].samples = ns;
         dc[i].all_lit = (1u << REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS)) - 1u;
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
@@ -4708,6 +4846,77 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
     return refl__result_from_rast(rr);
 }
 
+static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
+                                   refl_stats *st) {
+    if (!lit) return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__shade_lit_ex(rc, scene, vp, skip, lit, NULL, 0, width, height, stencil_ref, all_pixels, st);
+}
+
+/* ---- soft shadows: the mask once per jittered light ----------------------------------- */
+
+static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene) {
+    return desc->shadows && desc->soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
+}
+
+static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                          const float *depth, int width, int height, const uint8_t *region,
+                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
+                                          const rast_targets *restore, refl_stats *st) {
+    const refl_allocator *al;
+    refl_light *jit = NULL;
+    refl_scene sc;
+    refl_result r = REFL_OK;
+    size_t npx, i;
+    int idx[REFL__SHADOW_MAX_LIGHTS], li, j, k, lights, soft = 0, hard = 0;
+    if (!rc || !scene || !depth || !counts || !lit || width <= 0 || height <= 0 || samples < 1)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    npx = (size_t)width * (size_t)height;
+    lights = REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS);
+    for (li = 0; li < lights; ++li) {
+        if (scene->lights[li].radius > 0.0f && samples > 1) idx[soft++] = li;
+        else hard = 1;
+    }
+    for (li = 0; li < lights; ++li)
+        for (i = 0; i < npx; ++i)
+            if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = 0;
+    if (hard || lights == 0) { /* the lights without a radius: one mask, at their centres */
+        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        if (r != REFL_OK) return r;
+        for (li = 0; li < lights; ++li) {
+            if (scene->lights[li].radius > 0.0f && samples > 1) continue;
+            for (i = 0; i < npx; ++i)
+                if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = (uint16_t)((lit[i] >> li) & 1);
+        }
+    }
+    if (!soft) return REFL_OK;
+    jit = (refl_light *)refl__alloc(al, (size_t)soft * sizeof(refl_light));
+    if (!jit) return REFL_ERROR_OUT_OF_MEMORY;
+    sc = *scene;
+    sc.lights = jit;
+    sc.light_count = soft;
+    for (k = 0; k < samples && r == REFL_OK; ++k) {
+        for (j = 0; j < soft; ++j) jit[j] = refl_light_sample(&scene->lights[idx[j]], k, samples);
+        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        if (r != REFL_OK) break;
+        for (j = 0; j < soft; ++j) {
+            uint16_t *plane = counts + (size_t)idx[j] * npx;
+            for (i = 0; i < npx; ++i)
+                if ((!region || region[i] == region_value) && ((lit[i] >> j) & 1)) ++plane[i];
+        }
+    }
+    refl__free(al, jit);
+    return r;
+}
+
+static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
+                                    int all_pixels, refl_stats *st) {
+    if (!counts) return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__shade_lit_ex(rc, scene, vp, skip, NULL, counts, samples, width, height, stencil_ref, all_pixels, st);
+}
+
 /* DIRECT's (and every method's) base pass with shadows: the mask over the
    whole frame, then the shadowed pixels shaded again. The frame stays bound. */
 static refl_result refl__shadow_base_pass(refl__pass *p) {
@@ -4716,17 +4925,34 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     uint8_t *lit;
     rast_targets t;
     refl_result r;
-    lit = (uint8_t *)refl__alloc(&scene->allocator, (size_t)f->width * (size_t)f->height);
-    if (!lit) return REFL_ERROR_OUT_OF_MEMORY;
+    size_t npx = (size_t)f->width * (size_t)f->height;
+    uint16_t *counts = NULL;
+    int soft = refl__soft_shadows(&p->desc, scene);
+    lit = (uint8_t *)refl__alloc(&scene->allocator, npx);
+    if (soft) counts = (uint16_t *)refl__calloc(&scene->allocator, npx * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
+    if (!lit || (soft && !counts)) {
+        refl__free(&scene->allocator, lit);
+        refl__free(&scene->allocator, counts);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     memset(&t, 0, sizeof t);
     t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height; t.color.stride = 4 * f->width;
     t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height; t.stencil.stride = f->width;
-    r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
-                          &f->stats);
-    if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+    if (soft) {
+        r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
+                                   p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
+        if (r == REFL_OK)
+            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.soft_shadow_samples, f->width, f->height,
+                                 -1, 0, &f->stats);
+    } else {
+        r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
+                              &f->stats);
+        if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+    }
     refl__free(&scene->allocator, lit);
+    refl__free(&scene->allocator, counts);
     return r;
 }
 /* ---- src/reflect/m_raytrace.c ---- */
@@ -4839,6 +5065,53 @@ static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tma
     return 0;
 }
 
+/* Whether a shadow ray from surface s towards light l (at its position or
+   along its direction) reaches it. */
+static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s, const refl_light *l,
+                                  long long *rays) {
+    refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                     : refl_v3_sub(l->position, s->p);
+    float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
+    refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
+    refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
+    to = refl_v3_normalize(to);
+    ++*rays;
+    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
+    {
+        refl_hit h;
+        return !refl__rt_cast(rt, o, to, dist, s, &h);
+    }
+}
+
+/* Soft shadows (paper 002's jittered lights): each light with a radius is
+   sampled at desc.soft_shadow_samples positions (refl_light_sample), a
+   shadow ray to each, and its Lambert term (towards its centre) weighed by
+   the fraction that arrive: what the rasterised methods count with one
+   shadow mask per sample. Lights past the masks' REFL__SHADOW_MAX_LIGHTS
+   count as lit there, so here too. */
+static void refl__rt_diffuse_soft(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
+                                  float rgb[3]) {
+    enum { MAX_LIGHTS = 64 };
+    float weight[MAX_LIGHTS];
+    const refl_scene *scene = rt->scene;
+    int i, k, count = REFL__MIN(scene->light_count, MAX_LIGHTS), samples = rt->p->desc.soft_shadow_samples;
+    refl_vec3 nn = refl_v3_normalize(n);
+    for (i = 0; i < count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                         : refl_v3_sub(l->position, s->p);
+        int ns = l->radius > 0.0f ? samples : 1, visible = 0;
+        weight[i] = 1.0f;
+        if (i >= REFL__SHADOW_MAX_LIGHTS || refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue;
+        for (k = 0; k < ns; ++k) {
+            refl_light ls = refl_light_sample(l, k, ns);
+            visible += refl__rt_light_visible(rt, s, &ls, rays);
+        }
+        weight[i] = (float)visible / (float)ns;
+    }
+    refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
+}
+
 /* The shared diffuse model at a surface, with shadow rays when asked. */
 static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
                              float rgb[3]) {
@@ -4848,6 +5121,10 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
     int i, count = REFL__MIN(scene->light_count, MAX_LIGHTS);
     if (!rt->p->desc.shadows) {
         refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    if (rt->p->desc.soft_shadow_samples > 1 && scene->light_count <= MAX_LIGHTS) {
+        refl__rt_diffuse_soft(rt, s, n, rays, rgb);
         return;
     }
     for (i = 0; i < count; ++i) {
@@ -6155,7 +6432,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&p, 0, sizeof p);
     if (desc) p.desc = *desc;
     if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
-        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192)
+        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
+        p.desc.soft_shadow_samples > 1024)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -6207,7 +6485,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         r = refl__method_raytrace(&p);
     } else {
         r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
-        /* hard shadows: the pixels a light cannot reach shaded again (shadow.c) */
+        /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
         if (r == REFL_OK && p.desc.shadows) r = refl__shadow_base_pass(&p);
         if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
             refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
@@ -6268,6 +6546,7 @@ typedef struct refl__planar {
     float *saved;                 /* glass: the refracted image of a region */
     float *saved_points;          /* and, at the first bounce, the points it shows */
     uint8_t *lit;                 /* shadows: the lights each pixel of a region sees */
+    uint16_t *counts;             /* soft shadows: per light, the samples each pixel sees */
     rast_targets targets;         /* what PLANAR draws into */
     uint8_t *stencil;             /* recursion levels */
     refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
@@ -6684,12 +6963,23 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         /* the region's shadows, as the mirrored camera sees them (a warped
            refraction's depth is not its camera's: left unshadowed) */
         refl_frame *f = pl->p->frame;
-        refl_result r = refl__shadow_mask(rc, pl->scene, child->vp, refl_mat4_point(child->w_inv, pl->p->view->eye),
-                                          f->depth, f->width, f->height, pl->stencil, (uint8_t)child->level, pl->lit,
-                                          &pl->targets, &f->stats);
-        if (r == REFL_OK)
-            r = refl__shade_lit(rc, pl->scene, child->vp, child->parent >= 0 ? pl->faces[child->parent].object : -1,
-                                pl->lit, f->width, f->height, child->level, 0, &f->stats);
+        refl_vec3 eye = refl_mat4_point(child->w_inv, pl->p->view->eye);
+        int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
+        refl_result r;
+        if (pl->counts) { /* soft: a mask per jittered light, summed */
+            int ns = pl->p->desc.soft_shadow_samples;
+            r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
+                                       (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
+            if (r == REFL_OK)
+                r = refl__shade_soft(rc, pl->scene, child->vp, skip, pl->counts, ns, f->width, f->height, child->level,
+                                     0, &f->stats);
+        } else {
+            r = refl__shadow_mask(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
+                                  (uint8_t)child->level, pl->lit, &pl->targets, &f->stats);
+            if (r == REFL_OK)
+                r = refl__shade_lit(rc, pl->scene, child->vp, skip, pl->lit, f->width, f->height, child->level, 0,
+                                    &f->stats);
+        }
         if (r != REFL_OK) return r;
     }
     pl->p->frame->stats.cameras++;
@@ -7081,7 +7371,10 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
-    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs) {
+    if (refl__soft_shadows(&p->desc, s))
+        pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
+    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+        (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
@@ -7115,6 +7408,7 @@ done:
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);
+    refl__free(&s->allocator, pl.counts);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;
 }

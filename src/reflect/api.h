@@ -255,7 +255,22 @@ typedef struct refl_light {
     refl_vec3 position;      /* point lights */
     refl_vec3 direction;     /* directional: the direction light travels */
     float color[3];          /* intensity per channel */
+    float radius;            /* soft shadows (refl_render_desc.soft_shadow_samples):
+                                point: the radius of a spherical light; directional:
+                                the angular radius of its disc, in radians; 0: a
+                                point (hard shadows whatever the samples) */
 } refl_light;
+
+/* Sample `index` of `count` of a light with a radius, as every method's soft
+   shadows place it (paper 002: the scene drawn once per jittered light): a
+   point light's position moved onto its sphere at the Fibonacci point
+       z = 1 - (2 index + 1) / count, phi = index * 2.39996323 (golden angle),
+       position + radius (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z);
+   a directional light's direction tilted within its cone to the Fibonacci
+   disc point r = sqrt((index + 0.5) / count), same phi, times tan(radius),
+   across two axes perpendicular to it. count <= 1 or radius <= 0: the light
+   unchanged. Deterministic: the same lights on every machine. */
+REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count);
 
 typedef enum refl_env_type {
     REFL_ENV_COLOR = 0,      /* a constant colour */
@@ -337,6 +352,15 @@ REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir
    visibility here, so shadows change nothing else. */
 REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p,
                                      refl_vec3 n, const float *uv, const unsigned char *lit, float rgb[3]);
+/* As refl_shade_diffuse_lit with fractional visibility: light i's Lambert
+   term (towards the light's centre) scaled by weight[i] in [0, 1] (weight
+   may be NULL: every light 1). Soft shadows pass each light's visible
+   fraction of its samples here, (float)visible / (float)samples, which
+   RAYTRACE counts with shadow rays and the rasterised methods with shadow
+   masks, so both shade alike. Weights 0 and 1 give refl_shade_diffuse_lit's
+   bytes exactly. */
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p,
+                                          refl_vec3 n, const float *uv, const float *weight, float rgb[3]);
 /* Unpolarised Fresnel reflectance of a dielectric interface for a ray
    arriving at cos_incidence (> 0) from a medium of index n1 into n2:
    1 beyond the critical angle (total internal reflection). */
@@ -433,6 +457,13 @@ typedef struct refl_render_desc {
     int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
                                 with none left shows what DIRECT shows there */
     int shadows;             /* 1: hard shadows from every light */
+    int soft_shadow_samples; /* with shadows: 0 or 1 hard; N (at most 1024): soft shadows,
+                                every light with a radius sampled at N positions
+                                (refl_light_sample), each light's visible fraction
+                                weighing its Lambert term (refl_shade_diffuse_weighted);
+                                RAYTRACE casts a shadow ray per sample, the rasterised
+                                methods draw a shadow mask per sample. Lights with
+                                radius 0 stay hard (one sample). */
     int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
     refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not

@@ -143,6 +143,26 @@ static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *sc
 static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
                                    const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
                                    refl_stats *st);
+/* Soft shadows (paper 002: the scene rendered once per jittered light, summed
+   in the accumulation buffer; here the per-sample shadow masks are summed
+   exactly on the CPU instead, which rast's RAST_ACCUM would give up to
+   rounding): refl__soft_shadows says whether desc asks for them (shadows,
+   soft_shadow_samples > 1, at most 64 lights). refl__shadow_mask_soft: as
+   refl__shadow_mask, once at the lights' centres for the lights without a
+   radius and once per sample (refl_light_sample) for those with one, counts
+   (REFL__SHADOW_MAX_LIGHTS planes of width x height) receiving per light
+   and selected pixel the samples that reach it; lit is scratch.
+   refl__shade_soft: refl__shade_lit with those counts, each light's Lambert
+   term weighed by count / samples (refl_shade_diffuse_weighted); all_pixels
+   0 rewrites only pixels with a light not wholly visible. */
+static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene);
+static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                          const float *depth, int width, int height, const uint8_t *region,
+                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
+                                          const rast_targets *restore, refl_stats *st);
+static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
+                                    int all_pixels, refl_stats *st);
 /* The base pass's shadows: mask and re-shade over the whole frame (bound on
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);

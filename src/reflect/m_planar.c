@@ -41,6 +41,7 @@ typedef struct refl__planar {
     float *saved;                 /* glass: the refracted image of a region */
     float *saved_points;          /* and, at the first bounce, the points it shows */
     uint8_t *lit;                 /* shadows: the lights each pixel of a region sees */
+    uint16_t *counts;             /* soft shadows: per light, the samples each pixel sees */
     rast_targets targets;         /* what PLANAR draws into */
     uint8_t *stencil;             /* recursion levels */
     refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
@@ -457,12 +458,23 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         /* the region's shadows, as the mirrored camera sees them (a warped
            refraction's depth is not its camera's: left unshadowed) */
         refl_frame *f = pl->p->frame;
-        refl_result r = refl__shadow_mask(rc, pl->scene, child->vp, refl_mat4_point(child->w_inv, pl->p->view->eye),
-                                          f->depth, f->width, f->height, pl->stencil, (uint8_t)child->level, pl->lit,
-                                          &pl->targets, &f->stats);
-        if (r == REFL_OK)
-            r = refl__shade_lit(rc, pl->scene, child->vp, child->parent >= 0 ? pl->faces[child->parent].object : -1,
-                                pl->lit, f->width, f->height, child->level, 0, &f->stats);
+        refl_vec3 eye = refl_mat4_point(child->w_inv, pl->p->view->eye);
+        int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
+        refl_result r;
+        if (pl->counts) { /* soft: a mask per jittered light, summed */
+            int ns = pl->p->desc.soft_shadow_samples;
+            r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
+                                       (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
+            if (r == REFL_OK)
+                r = refl__shade_soft(rc, pl->scene, child->vp, skip, pl->counts, ns, f->width, f->height, child->level,
+                                     0, &f->stats);
+        } else {
+            r = refl__shadow_mask(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
+                                  (uint8_t)child->level, pl->lit, &pl->targets, &f->stats);
+            if (r == REFL_OK)
+                r = refl__shade_lit(rc, pl->scene, child->vp, skip, pl->lit, f->width, f->height, child->level, 0,
+                                    &f->stats);
+        }
         if (r != REFL_OK) return r;
     }
     pl->p->frame->stats.cameras++;
@@ -854,7 +866,10 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
-    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs) {
+    if (refl__soft_shadows(&p->desc, s))
+        pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
+    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+        (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
@@ -888,6 +903,7 @@ done:
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);
+    refl__free(&s->allocator, pl.counts);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;
 }

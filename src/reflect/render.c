@@ -244,7 +244,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     memset(&p, 0, sizeof p);
     if (desc) p.desc = *desc;
     if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
-        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192)
+        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
+        p.desc.soft_shadow_samples > 1024)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -296,7 +297,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         r = refl__method_raytrace(&p);
     } else {
         r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
-        /* hard shadows: the pixels a light cannot reach shaded again (shadow.c) */
+        /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
         if (r == REFL_OK && p.desc.shadows) r = refl__shadow_base_pass(&p);
         if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
             refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,

@@ -70,6 +70,52 @@ REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_materia
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
 }
 
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                          const float *uv, const float *weight, float rgb[3]) {
+    float base[4];
+    int i, c;
+    refl_vec3 nn = refl_v3_normalize(n);
+    for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
+    if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
+        float t[4];
+        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], 0, t);
+        for (c = 0; c < 4; ++c) base[c] *= t[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
+    for (i = 0; scene && i < scene->light_count; ++i) {
+        const refl_light *l = &scene->lights[i];
+        refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
+                                                               : refl_v3_sub(l->position, p);
+        float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light)), w = weight ? weight[i] : 1.0f;
+        if (lambert <= 0.0f || !(w > 0.0f)) continue;
+        /* w == 1: refl_shade_diffuse_lit's expression, bit for bit */
+        if (w < 1.0f) lambert *= w;
+        for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
+    }
+    for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+}
+
+REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
+    refl_light l = *light;
+    float phi, cp, sp;
+    if (count <= 1 || !(light->radius > 0.0f)) return l;
+    phi = (float)((double)index * 2.39996322972865332);
+    cp = (float)cos((double)phi);
+    sp = (float)sin((double)phi);
+    if (light->type == REFL_LIGHT_DIRECTIONAL) {
+        refl_vec3 d = refl_v3_normalize(light->direction), u, v;
+        float r = sqrtf(((float)index + 0.5f) / (float)count) * tanf(REFL__MIN(light->radius, 1.5f));
+        if (refl_v3_dot(d, d) == 0.0f) return l;
+        u = refl_v3_normalize(refl_v3_cross(d, fabsf(d.x) < 0.9f ? refl_v3(1, 0, 0) : refl_v3(0, 1, 0)));
+        v = refl_v3_cross(d, u);
+        l.direction = refl_v3_normalize(refl_v3_add(d, refl_v3_add(refl_v3_scale(u, r * cp), refl_v3_scale(v, r * sp))));
+    } else {
+        float z = 1.0f - (2.0f * (float)index + 1.0f) / (float)count, rr = sqrtf(REFL__MAX(0.0f, 1.0f - z * z));
+        l.position = refl_v3_add(light->position, refl_v3_scale(refl_v3(rr * cp, rr * sp, z), light->radius));
+    }
+    return l;
+}
+
 REFL_API void refl_environment_lookup(const refl_environment *env, refl_vec3 dir, float rgb[3]) {
     float k = env && env->intensity > 0.0f ? env->intensity : 1.0f, t[4];
     int c;

@@ -834,7 +834,40 @@ typedef struct refl__sv_shade {
     const unsigned char *table;   /* 256 rows of light_count flags: row b is lit byte b unpacked */
     int width, height, light_count, all_pixels;
     unsigned all_lit;             /* the bits of a pixel every light reaches */
+    const uint16_t *counts;       /* soft: per light (< REFL__SHADOW_MAX_LIGHTS) a plane of
+                                     width x height visible-sample counts; NULL: lit bytes */
+    const int *samples;           /* soft: samples per light */
 } refl__sv_shade;
+
+/* Soft shadows' fragment: each light's Lambert term weighed by its visible
+   fraction at the pixel, (float)count / (float)samples, as RAYTRACE's
+   refl__rt_diffuse_soft weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
+enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
+static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
+    const float *v = in->varyings;
+    float rgb[3], k = 1.0f, weight[REFL__SV_SOFT_MAX_LIGHTS];
+    int li, lights = REFL__MIN(d->light_count, REFL__SHADOW_MAX_LIGHTS), all_lit = 1;
+    size_t i, npx = (size_t)d->width * (size_t)d->height;
+    for (li = 0; li < d->light_count && li < REFL__SV_SOFT_MAX_LIGHTS; ++li) weight[li] = 1.0f;
+    if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height) {
+        i = (size_t)in->y * (size_t)d->width + (size_t)in->x;
+        for (li = 0; li < lights; ++li) {
+            int c = d->counts[(size_t)li * npx + i];
+            if (c >= d->samples[li]) continue;
+            weight[li] = (float)c / (float)d->samples[li];
+            all_lit = 0;
+        }
+    }
+    if (!d->all_pixels && all_lit) return 0; /* keeps the base pass's identical colour */
+    refl_shade_diffuse_weighted(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]),
+                                v + 6, weight, rgb);
+    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
+    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
+    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
+    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
+    rgba[3] = 1.0f;
+    return 1;
+}
 
 /* The base pass's fragment program with the pixel's lights. */
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -842,6 +875,7 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     const float *v = in->varyings;
     float rgb[3], k = 1.0f;
     unsigned b = 0xFFu;
+    if (d->counts) return refl__sv_shade_soft_fragment(d, in, rgba);
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
         b = d->lit[(size_t)in->y * (size_t)d->width + (size_t)in->x];
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
@@ -856,15 +890,20 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     return 1;
 }
 
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st) {
+/* refl__shade_lit, or with counts (refl__shadow_mask_soft's) the soft
+   shadows' fractional visibility. */
+static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                      const uint8_t *lit, const uint16_t *counts, int samples, int width, int height,
+                                      int stencil_ref, int all_pixels, refl_stats *st) {
     const refl_allocator *al;
     refl__sv_shade *dc = NULL;
     unsigned char *table = NULL;
     rast_result rr = RAST_OK;
-    int i, b, lc, queued = 0;
-    if (!rc || !scene || !lit || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    int i, b, lc, queued = 0, ns[REFL__SHADOW_MAX_LIGHTS];
+    if (!rc || !scene || (!lit && !counts) || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (counts && scene->light_count > REFL__SV_SOFT_MAX_LIGHTS) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
+        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(samples, 1) : 1;
     if (scene->object_count <= 0 || (scene->light_count <= 0 && !all_pixels)) return REFL_OK;
     al = &scene->allocator;
     lc = REFL__MAX(scene->light_count, 1);
@@ -891,6 +930,8 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
         dc[i].height = height;
         dc[i].light_count = lc;
         dc[i].all_pixels = all_pixels;
+        dc[i].counts = counts;
+        dc[i].samples = ns;
         dc[i].all_lit = (1u << REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS)) - 1u;
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
@@ -930,6 +971,77 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
     return refl__result_from_rast(rr);
 }
 
+static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
+                                   refl_stats *st) {
+    if (!lit) return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__shade_lit_ex(rc, scene, vp, skip, lit, NULL, 0, width, height, stencil_ref, all_pixels, st);
+}
+
+/* ---- soft shadows: the mask once per jittered light ----------------------------------- */
+
+static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene) {
+    return desc->shadows && desc->soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
+}
+
+static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                          const float *depth, int width, int height, const uint8_t *region,
+                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
+                                          const rast_targets *restore, refl_stats *st) {
+    const refl_allocator *al;
+    refl_light *jit = NULL;
+    refl_scene sc;
+    refl_result r = REFL_OK;
+    size_t npx, i;
+    int idx[REFL__SHADOW_MAX_LIGHTS], li, j, k, lights, soft = 0, hard = 0;
+    if (!rc || !scene || !depth || !counts || !lit || width <= 0 || height <= 0 || samples < 1)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    npx = (size_t)width * (size_t)height;
+    lights = REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS);
+    for (li = 0; li < lights; ++li) {
+        if (scene->lights[li].radius > 0.0f && samples > 1) idx[soft++] = li;
+        else hard = 1;
+    }
+    for (li = 0; li < lights; ++li)
+        for (i = 0; i < npx; ++i)
+            if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = 0;
+    if (hard || lights == 0) { /* the lights without a radius: one mask, at their centres */
+        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        if (r != REFL_OK) return r;
+        for (li = 0; li < lights; ++li) {
+            if (scene->lights[li].radius > 0.0f && samples > 1) continue;
+            for (i = 0; i < npx; ++i)
+                if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = (uint16_t)((lit[i] >> li) & 1);
+        }
+    }
+    if (!soft) return REFL_OK;
+    jit = (refl_light *)refl__alloc(al, (size_t)soft * sizeof(refl_light));
+    if (!jit) return REFL_ERROR_OUT_OF_MEMORY;
+    sc = *scene;
+    sc.lights = jit;
+    sc.light_count = soft;
+    for (k = 0; k < samples && r == REFL_OK; ++k) {
+        for (j = 0; j < soft; ++j) jit[j] = refl_light_sample(&scene->lights[idx[j]], k, samples);
+        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        if (r != REFL_OK) break;
+        for (j = 0; j < soft; ++j) {
+            uint16_t *plane = counts + (size_t)idx[j] * npx;
+            for (i = 0; i < npx; ++i)
+                if ((!region || region[i] == region_value) && ((lit[i] >> j) & 1)) ++plane[i];
+        }
+    }
+    refl__free(al, jit);
+    return r;
+}
+
+static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
+                                    int all_pixels, refl_stats *st) {
+    if (!counts) return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__shade_lit_ex(rc, scene, vp, skip, NULL, counts, samples, width, height, stencil_ref, all_pixels, st);
+}
+
 /* DIRECT's (and every method's) base pass with shadows: the mask over the
    whole frame, then the shadowed pixels shaded again. The frame stays bound. */
 static refl_result refl__shadow_base_pass(refl__pass *p) {
@@ -938,16 +1050,33 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     uint8_t *lit;
     rast_targets t;
     refl_result r;
-    lit = (uint8_t *)refl__alloc(&scene->allocator, (size_t)f->width * (size_t)f->height);
-    if (!lit) return REFL_ERROR_OUT_OF_MEMORY;
+    size_t npx = (size_t)f->width * (size_t)f->height;
+    uint16_t *counts = NULL;
+    int soft = refl__soft_shadows(&p->desc, scene);
+    lit = (uint8_t *)refl__alloc(&scene->allocator, npx);
+    if (soft) counts = (uint16_t *)refl__calloc(&scene->allocator, npx * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
+    if (!lit || (soft && !counts)) {
+        refl__free(&scene->allocator, lit);
+        refl__free(&scene->allocator, counts);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     memset(&t, 0, sizeof t);
     t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height; t.color.stride = 4 * f->width;
     t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height; t.stencil.stride = f->width;
-    r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
-                          &f->stats);
-    if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+    if (soft) {
+        r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
+                                   p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
+        if (r == REFL_OK)
+            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.soft_shadow_samples, f->width, f->height,
+                                 -1, 0, &f->stats);
+    } else {
+        r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
+                              &f->stats);
+        if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+    }
     refl__free(&scene->allocator, lit);
+    refl__free(&scene->allocator, counts);
     return r;
 }
