@@ -565,7 +565,7 @@ int refl_cli_bench(int argc, char **argv) {
     {
         static const char *sweeps[] = {"resolution", "diffuse", "reflector", "depth"};
         static const char *xlabels[] = {"pixels", "diffuse triangles", "reflector triangles",
-                                        "recursion depth (mirror room)"};
+                                        "recursion depth"};
         bench_axis xs[] = {axis_pixels, axis_diffuse, axis_reflector, axis_depth};
         for (i = 0; i < 4; ++i) {
             char dat[1024], name[64], title[128];
