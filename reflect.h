@@ -4960,7 +4960,8 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
    Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
    a primary ray per pixel centre, mirror reflections to desc.depth
    bounces, glass with Fresnel reflection, refraction, total internal
-   reflection and Beer's-law absorption, optional hard shadows, the
+   reflection and Beer's-law absorption, optional hard or soft shadows
+   (soft: a shadow ray per jittered light sample, refl__rt_diffuse_soft), the
    environment on a miss. Shading is the shared model of shade.c, and each
    surface's colour is clamped to [0, 1] before a reflectance weighs it,
    exactly as the rasterised methods composite into their RGBA8 frame, so
