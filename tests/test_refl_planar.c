@@ -10,12 +10,12 @@
 #include <string.h>
 #include "../reflect.h"
 #include "test_util.h"
+#include "refl_test_util.h"
 
 static int g_shadows; /* render() with shadows */
 
 static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m, int depth, int no_culling,
                           int threads) {
-    refl_frame *f = NULL;
     refl_render_desc d;
     memset(&d, 0, sizeof d);
     d.shadows = g_shadows;
@@ -23,9 +23,7 @@ static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m
     d.depth = depth;
     d.no_culling = no_culling;
     d.threads = threads;
-    cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
-    cr_assert_eq(refl_render(s, v, &d, f), REFL_OK);
-    return f;
+    return tu_refl_render(s, v, &d);
 }
 
 /* The issue's bar: PSNR >= 40 dB and >= 99.5% of mirror pixels within

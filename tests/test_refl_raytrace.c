@@ -11,18 +11,16 @@
 #include <string.h>
 #include "../reflect.h"
 #include "test_util.h"
+#include "refl_test_util.h"
 
 static refl_frame *render_rt(const refl_scene *s, const refl_view *v, int depth, int shadows, int threads) {
-    refl_frame *f = NULL;
     refl_render_desc d;
     memset(&d, 0, sizeof d);
     d.method = REFL_RAYTRACE;
     d.depth = depth;
     d.shadows = shadows;
     d.threads = threads;
-    cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
-    cr_assert_eq(refl_render(s, v, &d, f), REFL_OK);
-    return f;
+    return tu_refl_render(s, v, &d);
 }
 
 /* The world ray of a pixel centre, from the camera's basis in double
@@ -67,20 +65,6 @@ static double ray_box(const double o[3], const double d[3], const double lo[3], 
     return t0 <= t1 && t0 > 0.0 ? t0 : -1.0;
 }
 
-static int add_object(refl_scene *s, refl_mesh *mesh, refl_material_type type, const float rgb[3], refl_mat4 xf) {
-    refl_material m;
-    refl_object o;
-    memset(&m, 0, sizeof m);
-    memset(&o, 0, sizeof o);
-    m.type = type;
-    m.color[0] = rgb[0]; m.color[1] = rgb[1]; m.color[2] = rgb[2]; m.color[3] = 1.0f;
-    o.mesh = refl_scene_add_mesh(s, mesh);
-    o.material = refl_scene_add_material(s, &m);
-    o.transform = xf;
-    cr_assert(o.mesh >= 0 && o.material >= 0);
-    return refl_scene_add_object(s, &o);
-}
-
 static void add_directional(refl_scene *s, refl_vec3 dir, float k) {
     refl_light l;
     memset(&l, 0, sizeof l);
@@ -109,8 +93,8 @@ static void check_plane_mirror(refl_vec3 off) {
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(20.0f, 4, NULL, &plane), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(2, 2, 2), NULL, &box), REFL_OK);
-    mirror = add_object(s, plane, REFL_MIRROR, white, refl_mat4_translate(off));
-    add_object(s, box, REFL_DIFFUSE, orange, refl_mat4_translate(refl_v3_add(off, refl_v3(0.5f, 2.0f, -1.0f))));
+    mirror = tu_refl_add_object(s, plane, REFL_MIRROR, white, refl_mat4_translate(off));
+    tu_refl_add_object(s, box, REFL_DIFFUSE, orange, refl_mat4_translate(refl_v3_add(off, refl_v3(0.5f, 2.0f, -1.0f))));
     add_directional(s, refl_v3(-0.3f, -1.0f, -0.5f), 0.8f);
     s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.15f;
     s->environment.color[0] = 0.3f; s->environment.color[1] = 0.5f; s->environment.color[2] = 0.8f;
@@ -206,8 +190,8 @@ Test(refl_raytrace, glass_slab_shifts_the_floor_by_snells_law) {
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(30.0f, 2, NULL, &floor_mesh), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(4.0f, 0.5f, 4.0f), NULL, &slab), REFL_OK);
-    add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
-    glass = add_object(s, slab, REFL_GLASS, grey, refl_mat4_translate(refl_v3(0, 1.0f, 0)));
+    tu_refl_add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
+    glass = tu_refl_add_object(s, slab, REFL_GLASS, grey, refl_mat4_translate(refl_v3(0, 1.0f, 0)));
     s->materials[s->objects[glass].material].ior = (float)ior;
     add_directional(s, refl_v3(0.2f, -1.0f, -0.3f), 0.8f);
     memset(&v, 0, sizeof v);
@@ -300,8 +284,8 @@ Test(refl_raytrace, hard_shadows_fall_under_the_box) {
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(10.0f, 2, NULL, &floor_mesh), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(1, 1, 1), NULL, &box), REFL_OK);
-    add_object(s, floor_mesh, REFL_DIFFUSE, white, refl_mat4_identity());
-    add_object(s, box, REFL_DIFFUSE, white, refl_mat4_translate(refl_v3(0, 2.0f, 0)));
+    tu_refl_add_object(s, floor_mesh, REFL_DIFFUSE, white, refl_mat4_identity());
+    tu_refl_add_object(s, box, REFL_DIFFUSE, white, refl_mat4_translate(refl_v3(0, 2.0f, 0)));
     add_directional(s, refl_v3(0, -1, 0), 0.5f);
     s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.2f;
     memset(&v, 0, sizeof v);
@@ -353,8 +337,8 @@ Test(refl_raytrace, exhausted_bounces_show_what_direct_shows_and_misses_the_envi
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 96, 48, NULL, &a), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 96, 48, NULL, &b), REFL_OK);
-    add_object(s, a, REFL_MIRROR, white, refl_mat4_translate(refl_v3(-1.2f, 0, 0)));
-    half = add_object(s, b, REFL_PARTIAL, green, refl_mat4_translate(refl_v3(1.2f, 0, 0)));
+    tu_refl_add_object(s, a, REFL_MIRROR, white, refl_mat4_translate(refl_v3(-1.2f, 0, 0)));
+    half = tu_refl_add_object(s, b, REFL_PARTIAL, green, refl_mat4_translate(refl_v3(1.2f, 0, 0)));
     s->materials[0].reflectance = 0.5f;
     s->materials[s->objects[half].material].mirror_weight = 0.5f;
     add_directional(s, refl_v3(-1.0f, -0.5f, -0.5f), 0.9f);

@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "test_util.h"
+#include "refl_test_util.h"
 
 /* ---- scenes and renders --------------------------------------------------------- */
 
@@ -86,20 +87,6 @@ static refl_frame *direct_masked(const refl_scene *s, const refl_view *v, refl__
     return f;
 }
 
-static int add_object(refl_scene *s, refl_mesh *mesh, refl_material_type type, const float rgb[3], refl_mat4 xf) {
-    refl_material m;
-    refl_object o;
-    memset(&m, 0, sizeof m);
-    memset(&o, 0, sizeof o);
-    m.type = type;
-    m.color[0] = rgb[0]; m.color[1] = rgb[1]; m.color[2] = rgb[2]; m.color[3] = 1.0f;
-    o.mesh = refl_scene_add_mesh(s, mesh);
-    o.material = refl_scene_add_material(s, &m);
-    o.transform = xf;
-    cr_assert(o.mesh >= 0 && o.material >= 0);
-    return refl_scene_add_object(s, &o);
-}
-
 static void add_light(refl_scene *s, refl_light_type type, refl_vec3 v, float k) {
     refl_light l;
     memset(&l, 0, sizeof l);
@@ -121,11 +108,11 @@ static refl_scene *box_scene_ex(refl_light_type type, refl_vec3 light, float box
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor_mesh), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(1.5f, 1.0f, 1.2f), NULL, &box), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(0.5f, 24, 12, NULL, &ball), REFL_OK);
-    add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
-    add_object(s, box, REFL_DIFFUSE, blue,
+    tu_refl_add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
+    tu_refl_add_object(s, box, REFL_DIFFUSE, blue,
                refl_mat4_mul(refl_mat4_translate(refl_v3(0.3f, box_y, -0.2f)),
                              refl_mat4_rotate(refl_v3(0, 1, 0), turn)));
-    add_object(s, ball, REFL_DIFFUSE, red, refl_mat4_translate(refl_v3(-1.8f, 0.5f, 1.0f)));
+    tu_refl_add_object(s, ball, REFL_DIFFUSE, red, refl_mat4_translate(refl_v3(-1.8f, 0.5f, 1.0f)));
     add_light(s, type, light, 0.7f);
     s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.15f;
     s->environment.color[0] = 0.3f; s->environment.color[1] = 0.5f; s->environment.color[2] = 0.8f;
@@ -640,7 +627,7 @@ Test(refl_shadow, direct_is_mask_plus_shade_and_unblocked_light_changes_nothing)
     refl_scene_destroy(s);
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(10.0f, 4, NULL, &plane), REFL_OK);
-    add_object(s, plane, REFL_DIFFUSE, grey, refl_mat4_identity());
+    tu_refl_add_object(s, plane, REFL_DIFFUSE, grey, refl_mat4_identity());
     add_light(s, REFL_LIGHT_POINT, refl_v3(1, 5, 2), 0.8f);
     add_light(s, REFL_LIGHT_DIRECTIONAL, refl_v3(0.3f, -1, 0.2f), 0.3f);
     v = view_at(refl_v3(0, 4, 8), refl_v3(0, 0, 0), 160, 120);
@@ -810,7 +797,7 @@ Test(refl_shadow, light_inside_a_closed_object) {
     size_t i, n = 160 * 120;
     long surface = 0, dark = 0;
     cr_assert_eq(refl_mesh_sphere(0.6f, 16, 8, NULL, &ball), REFL_OK);
-    add_object(s, ball, REFL_DIFFUSE, white, refl_mat4_translate(refl_v3(-1.0f, 3.0f, 1.0f)));
+    tu_refl_add_object(s, ball, REFL_DIFFUSE, white, refl_mat4_translate(refl_v3(-1.0f, 3.0f, 1.0f)));
     expect_agreement(s, &v, REFL__SHADOW_AUTO, "light inside a ball", 5000);
     f = direct_masked(s, &v, REFL__SHADOW_AUTO, NULL, &lit);
     refl__view_rays_init(&rays, &v, s);

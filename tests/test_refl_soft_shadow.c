@@ -11,36 +11,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "refl_test_util.h"
 
 static refl_frame *render_soft(const refl_scene *s, const refl_view *v, refl_method method, int depth, int shadows,
                                int samples, int threads) {
-    refl_frame *f = NULL;
     refl_render_desc d;
-    refl_result r;
     memset(&d, 0, sizeof d);
     d.method = method;
     d.depth = depth;
     d.shadows = shadows;
     d.soft_shadow_samples = samples;
     d.threads = threads;
-    cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
-    r = refl_render(s, v, &d, f);
-    cr_assert_eq(r, REFL_OK, "refl_render: %s", refl_result_string(r));
-    return f;
-}
-
-static void add_object(refl_scene *s, refl_mesh *mesh, const float rgb[3], refl_mat4 xf) {
-    refl_material m;
-    refl_object o;
-    memset(&m, 0, sizeof m);
-    memset(&o, 0, sizeof o);
-    m.type = REFL_DIFFUSE;
-    m.color[0] = rgb[0]; m.color[1] = rgb[1]; m.color[2] = rgb[2]; m.color[3] = 1.0f;
-    o.mesh = refl_scene_add_mesh(s, mesh);
-    o.material = refl_scene_add_material(s, &m);
-    o.transform = xf;
-    cr_assert(o.mesh >= 0 && o.material >= 0);
-    cr_assert(refl_scene_add_object(s, &o) >= 0);
+    return tu_refl_render(s, v, &d);
 }
 
 /* A box held over a floor (object 0), one point light of the given radius. */
@@ -52,8 +34,8 @@ static refl_scene *box_scene(float radius) {
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor_mesh), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(1.5f, 1.0f, 1.2f), NULL, &box), REFL_OK);
-    add_object(s, floor_mesh, grey, refl_mat4_identity());
-    add_object(s, box, blue,
+    tu_refl_add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
+    tu_refl_add_object(s, box, REFL_DIFFUSE, blue,
                refl_mat4_mul(refl_mat4_translate(refl_v3(0.3f, 1.8f, -0.2f)), refl_mat4_rotate(refl_v3(0, 1, 0), 0.5f)));
     memset(&l, 0, sizeof l);
     l.type = REFL_LIGHT_POINT;

@@ -1,0 +1,39 @@
+/* Helpers shared by the reflect.h tests: a frame rendered or the test
+   fails, and scene objects and lights in one call. Include after
+   <criterion/criterion.h> and "../reflect.h". */
+#ifndef REFL_TEST_UTIL_H
+#define REFL_TEST_UTIL_H
+
+#include <string.h>
+
+/* A new frame of the view rendered with desc (asserting success). */
+static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d) {
+    refl_frame *f = NULL;
+    refl_result r;
+    cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
+    r = refl_render(s, v, d, f);
+    cr_assert_eq(r, REFL_OK, "refl_render (%s): %s", refl_method_name(d->method), refl_result_string(r));
+    return f;
+}
+
+/* An object of `mesh` (the scene takes it) with a fresh material of the
+   given type and colour; its index. */
+static inline int tu_refl_add_object(refl_scene *s, refl_mesh *mesh, refl_material_type type, const float rgb[3],
+                                     refl_mat4 xf) {
+    refl_material m;
+    refl_object o;
+    int k;
+    memset(&m, 0, sizeof m);
+    memset(&o, 0, sizeof o);
+    m.type = type;
+    m.color[0] = rgb[0]; m.color[1] = rgb[1]; m.color[2] = rgb[2]; m.color[3] = 1.0f;
+    o.mesh = refl_scene_add_mesh(s, mesh);
+    o.material = refl_scene_add_material(s, &m);
+    o.transform = xf;
+    cr_assert(o.mesh >= 0 && o.material >= 0);
+    k = refl_scene_add_object(s, &o);
+    cr_assert(k >= 0);
+    return k;
+}
+
+#endif
