@@ -44,6 +44,14 @@ if [ -d "$assets" ]; then
 else
     echo "note: $assets not found; the asset cases are skipped"
 fi
+for m in raytrace envmap planar; do
+    ok "render --method $m" "$bin" render --builtin mirror-room --method $m --size 48x36 --depth 2 --out "$tmp/m-$m.png"
+done
+ok "render planar with soft shadows" "$bin" render --builtin mirror-room --method planar --shadows --soft-shadows 4 \
+    --light-radius 0.3 --size 48x36 --out "$tmp/soft.png"
+ok "render planar --no-culling counts renderings" bash -c \
+    "'$bin' render --builtin mirror-room --method planar --no-culling --depth 2 --size 32x24 --out '$tmp/n.png' --stats | grep -q 'leaves       12'"
+refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere
 refuses "unknown method" "unknown method" "$bin" render --builtin default --method magic

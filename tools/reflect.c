@@ -39,6 +39,8 @@ static const char *const usage_render =
     "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --shadows          hard shadows from every light\n"
+    "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
+    "  --light-radius R   give every light this radius (directional: radians)\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
@@ -76,10 +78,10 @@ static const char *const usage_compare =
 
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
-    int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling;
+    int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
-    float fov, normalize;
+    float fov, normalize, light_radius;
 } options;
 
 static int fail(const char *fmt, const char *arg) {
@@ -158,6 +160,10 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             o->out = v;
         } else if (!strcmp(a, "--depth")) {
             if (!parse_int(v, 1, 64, &o->depth)) return fail("--depth: expected 1..64, got %s", v);
+        } else if (!strcmp(a, "--soft-shadows")) {
+            if (!parse_int(v, 1, 1024, &o->soft_samples)) return fail("--soft-shadows: expected 1..1024, got %s", v);
+        } else if (!strcmp(a, "--light-radius")) {
+            if (!parse_float(v, 0.0f, 1e6f, &o->light_radius)) return fail("--light-radius: not a size: %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
         } else if (!strcmp(a, "--stats")) {
@@ -298,6 +304,11 @@ static int cmd_render(const options *o) {
     d.shadows = o->shadows;
     d.envmap_size = o->envmap_size;
     d.no_culling = o->no_culling;
+    d.soft_shadow_samples = o->soft_samples;
+    if (o->light_radius > 0.0f) {
+        int i;
+        for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
+    }
     if (o->method && !(d.method = refl_method_from_name(o->method))) {
         fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
         goto done;
