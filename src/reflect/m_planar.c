@@ -44,7 +44,6 @@ typedef struct refl__planar {
     uint16_t *counts;             /* soft shadows: per light, the samples each pixel sees */
     rast_targets targets;         /* what PLANAR draws into */
     uint8_t *stencil;             /* recursion levels */
-    refl__draw_ctx *dc;           /* draw contexts, one per object per draw, reused per level */
     int no_culling;
     long long culled;
 } refl__planar;
