@@ -3215,31 +3215,11 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
     refl_shade_diffuse_lit(scene, m, p, n, uv, NULL, rgb);
 }
 
-REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
-                                     const float *uv, const unsigned char *lit, float rgb[3]) {
-    float base[4];
-    int i, c;
-    refl_vec3 nn = refl_v3_normalize(n);
-    for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
-    if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
-        float t[4];
-        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], 0, t);
-        for (c = 0; c < 4; ++c) base[c] *= t[c];
-    }
-    for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
-    for (i = 0; scene && i < scene->light_count; ++i) {
-        const refl_light *l = &scene->lights[i];
-        refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
-                                                               : refl_v3_sub(l->position, p);
-        float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light));
-        if (lambert <= 0.0f || (lit && !lit[i])) continue;
-        for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
-    }
-    for (c = 0; c < 3; ++c) rgb[c] *= base[c];
-}
-
-REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
-                                          const float *uv, const float *weight, float rgb[3]) {
+/* Ambient plus each light's Lambert term, each light counted where lit[i]
+   is nonzero (lit NULL: all) and weighed by weight[i] (NULL: 1), times the
+   material's colour. A weight of 1 adds exactly the unweighted term. */
+static void refl__shade_lights(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                               const float *uv, const unsigned char *lit, const float *weight, float rgb[3]) {
     float base[4];
     int i, c;
     refl_vec3 nn = refl_v3_normalize(n);
@@ -3255,12 +3235,21 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
         refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
                                                                : refl_v3_sub(l->position, p);
         float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light)), w = weight ? weight[i] : 1.0f;
-        if (lambert <= 0.0f || !(w > 0.0f)) continue;
-        /* w == 1: refl_shade_diffuse_lit's expression, bit for bit */
+        if (lambert <= 0.0f || (lit && !lit[i]) || !(w > 0.0f)) continue;
         if (w < 1.0f) lambert *= w;
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+}
+
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                     const float *uv, const unsigned char *lit, float rgb[3]) {
+    refl__shade_lights(scene, m, p, n, uv, lit, NULL, rgb);
+}
+
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                          const float *uv, const float *weight, float rgb[3]) {
+    refl__shade_lights(scene, m, p, n, uv, NULL, weight, rgb);
 }
 
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
@@ -5084,74 +5073,37 @@ static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s,
     }
 }
 
-/* Soft shadows (paper 002's jittered lights): each light with a radius is
-   sampled at desc.soft_shadow_samples positions (refl_light_sample), a
-   shadow ray to each, and its Lambert term (towards its centre) weighed by
-   the fraction that arrive: what the rasterised methods count with one
-   shadow mask per sample. Lights past the masks' REFL__SHADOW_MAX_LIGHTS
-   count as lit there, so here too. */
-static void refl__rt_diffuse_soft(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
-                                  float rgb[3]) {
+/* The shared diffuse model at a surface, with shadow rays when asked: one
+   per light, or with soft shadows (paper 002's jittered lights) one per
+   sample of each light with a radius (refl_light_sample), its Lambert term
+   (towards its centre) weighed by the fraction that arrive, what the
+   rasterised methods count with one shadow mask per sample. */
+static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
+                             float rgb[3]) {
     enum { MAX_LIGHTS = 64 };
     float weight[MAX_LIGHTS];
     const refl_scene *scene = rt->scene;
-    int i, k, count = REFL__MIN(scene->light_count, MAX_LIGHTS), samples = rt->p->desc.soft_shadow_samples;
+    int i, k, samples = REFL__MAX(rt->p->desc.soft_shadow_samples, 1);
     refl_vec3 nn = refl_v3_normalize(n);
-    for (i = 0; i < count; ++i) {
+    /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
+    if (!rt->p->desc.shadows || scene->light_count > MAX_LIGHTS) {
+        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
+        return;
+    }
+    for (i = 0; i < scene->light_count; ++i) {
         const refl_light *l = &scene->lights[i];
         refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
                                                          : refl_v3_sub(l->position, s->p);
         int ns = l->radius > 0.0f ? samples : 1, visible = 0;
         weight[i] = 1.0f;
-        if (i >= REFL__SHADOW_MAX_LIGHTS || refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue;
+        if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
         for (k = 0; k < ns; ++k) {
-            refl_light ls = refl_light_sample(l, k, ns);
+            refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
             visible += refl__rt_light_visible(rt, s, &ls, rays);
         }
         weight[i] = (float)visible / (float)ns;
     }
     refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
-}
-
-/* The shared diffuse model at a surface, with shadow rays when asked. */
-static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
-                             float rgb[3]) {
-    enum { MAX_LIGHTS = 64 };
-    unsigned char lit[MAX_LIGHTS];
-    const refl_scene *scene = rt->scene;
-    int i, count = REFL__MIN(scene->light_count, MAX_LIGHTS);
-    if (!rt->p->desc.shadows) {
-        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
-        return;
-    }
-    if (rt->p->desc.soft_shadow_samples > 1 && scene->light_count <= MAX_LIGHTS) {
-        refl__rt_diffuse_soft(rt, s, n, rays, rgb);
-        return;
-    }
-    for (i = 0; i < count; ++i) {
-        const refl_light *l = &scene->lights[i];
-        refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
-                                                         : refl_v3_sub(l->position, s->p);
-        float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
-        refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-        refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
-        to = refl_v3_normalize(to);
-        lit[i] = 1;
-        if (refl_v3_dot(to, n) <= 0.0f) continue; /* unlit anyway: no ray needed */
-        ++*rays;
-        if (rt->caster.occluded) {
-            lit[i] = !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
-        } else {
-            refl_hit h;
-            lit[i] = !refl__rt_cast(rt, o, to, dist, s, &h);
-        }
-    }
-    /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if (scene->light_count > MAX_LIGHTS) {
-        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
-        return;
-    }
-    refl_shade_diffuse_lit(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, lit, rgb);
 }
 
 /* The medium a ray travels through: air, or the inside of a glass object

@@ -47,31 +47,11 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
     refl_shade_diffuse_lit(scene, m, p, n, uv, NULL, rgb);
 }
 
-REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
-                                     const float *uv, const unsigned char *lit, float rgb[3]) {
-    float base[4];
-    int i, c;
-    refl_vec3 nn = refl_v3_normalize(n);
-    for (c = 0; c < 4; ++c) base[c] = m ? m->color[c] : 0.8f;
-    if (m && m->texture > 0 && scene && m->texture <= scene->texture_count && uv) {
-        float t[4];
-        refl__image_sample(&scene->textures[m->texture - 1], uv[0], uv[1], 0, t);
-        for (c = 0; c < 4; ++c) base[c] *= t[c];
-    }
-    for (c = 0; c < 3; ++c) rgb[c] = scene ? scene->ambient[c] : 0.1f;
-    for (i = 0; scene && i < scene->light_count; ++i) {
-        const refl_light *l = &scene->lights[i];
-        refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
-                                                               : refl_v3_sub(l->position, p);
-        float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light));
-        if (lambert <= 0.0f || (lit && !lit[i])) continue;
-        for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
-    }
-    for (c = 0; c < 3; ++c) rgb[c] *= base[c];
-}
-
-REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
-                                          const float *uv, const float *weight, float rgb[3]) {
+/* Ambient plus each light's Lambert term, each light counted where lit[i]
+   is nonzero (lit NULL: all) and weighed by weight[i] (NULL: 1), times the
+   material's colour. A weight of 1 adds exactly the unweighted term. */
+static void refl__shade_lights(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                               const float *uv, const unsigned char *lit, const float *weight, float rgb[3]) {
     float base[4];
     int i, c;
     refl_vec3 nn = refl_v3_normalize(n);
@@ -87,12 +67,21 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
         refl_vec3 to_light = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
                                                                : refl_v3_sub(l->position, p);
         float lambert = refl_v3_dot(nn, refl_v3_normalize(to_light)), w = weight ? weight[i] : 1.0f;
-        if (lambert <= 0.0f || !(w > 0.0f)) continue;
-        /* w == 1: refl_shade_diffuse_lit's expression, bit for bit */
+        if (lambert <= 0.0f || (lit && !lit[i]) || !(w > 0.0f)) continue;
         if (w < 1.0f) lambert *= w;
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+}
+
+REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                     const float *uv, const unsigned char *lit, float rgb[3]) {
+    refl__shade_lights(scene, m, p, n, uv, lit, NULL, rgb);
+}
+
+REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
+                                          const float *uv, const float *weight, float rgb[3]) {
+    refl__shade_lights(scene, m, p, n, uv, NULL, weight, rgb);
 }
 
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
