@@ -3364,21 +3364,24 @@ static int refl__base_vertex(void *user, const float *vertex, int index, rast_ve
     return 1;
 }
 
-/* The fragment program of the base pass: the shared diffuse model. A
-   partially reflective surface shows its diffuse share here; the methods
-   add the mirror share. */
+/* What a diffuse surface shows of its shaded colour: clamped to [0, 1]
+   (the shared model clamps each surface before anything weighs it, also
+   in float targets), times 1 - mirror_weight on a partial reflector (its
+   diffuse share; the methods add the mirror share); opaque. */
+static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]) {
+    float k = m->type == REFL_PARTIAL ? 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f) : 1.0f;
+    int c;
+    for (c = 0; c < 3; ++c) rgba[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f) * k;
+    rgba[3] = 1.0f;
+}
+
+/* The fragment program of the base pass: the shared diffuse model. */
 static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__draw_ctx *d = (const refl__draw_ctx *)user;
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
+    float rgb[3];
     refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    /* clamped here too, for float targets (PLANAR's): the shared model
-       clamps each surface before anything weighs it */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->material, rgb, rgba);
     return 1;
 }
 
@@ -4709,7 +4712,7 @@ typedef struct refl__sv_shade {
 enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
 static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f, weight[REFL__SV_SOFT_MAX_LIGHTS];
+    float rgb[3], weight[REFL__SV_SOFT_MAX_LIGHTS];
     int li, lights = REFL__MIN(d->light_count, REFL__SHADOW_MAX_LIGHTS), all_lit = 1;
     size_t i, npx = (size_t)d->width * (size_t)d->height;
     for (li = 0; li < d->light_count && li < REFL__SV_SOFT_MAX_LIGHTS; ++li) weight[li] = 1.0f;
@@ -4725,11 +4728,7 @@ static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_frag
     if (!d->all_pixels && all_lit) return 0; /* keeps the base pass's identical colour */
     refl_shade_diffuse_weighted(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]),
                                 v + 6, weight, rgb);
-    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->dc.material, rgb, rgba);
     return 1;
 }
 
@@ -4737,7 +4736,7 @@ static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_frag
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__sv_shade *d = (const refl__sv_shade *)user;
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
+    float rgb[3];
     unsigned b = 0xFFu;
     if (d->counts) return refl__sv_shade_soft_fragment(d, in, rgba);
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
@@ -4745,12 +4744,7 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
     refl_shade_diffuse_lit(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
                            d->table + (size_t)b * (size_t)d->light_count, rgb);
-    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
-    /* clamped before the share, as the base pass's fragment program */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->dc.material, rgb, rgba);
     return 1;
 }
 
@@ -6708,12 +6702,11 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     refl_vec3 p = refl_v3(v[0], v[1], v[2]), n = refl_v3_normalize(refl_v3(v[3], v[4], v[5]));
     refl_vec3 d = refl_v3_normalize(refl_v3_sub(p, c->eye));
     float cos_i = fabsf(refl_v3_dot(d, n));
-    int k;
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
     if (m->type == REFL_PARTIAL) {
-        float w = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
-        refl_shade_diffuse(c->dc.scene, m, p, refl_v3(v[3], v[4], v[5]), v + 6, rgba);
-        for (k = 0; k < 3; ++k) rgba[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f) * w;
+        float rgb[3];
+        refl_shade_diffuse(c->dc.scene, m, p, refl_v3(v[3], v[4], v[5]), v + 6, rgb);
+        refl__surface_rgba(m, rgb, rgba);
     }
     rgba[3] = refl_material_reflectance(m, cos_i);
     return 1;

@@ -250,12 +250,11 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     refl_vec3 p = refl_v3(v[0], v[1], v[2]), n = refl_v3_normalize(refl_v3(v[3], v[4], v[5]));
     refl_vec3 d = refl_v3_normalize(refl_v3_sub(p, c->eye));
     float cos_i = fabsf(refl_v3_dot(d, n));
-    int k;
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
     if (m->type == REFL_PARTIAL) {
-        float w = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
-        refl_shade_diffuse(c->dc.scene, m, p, refl_v3(v[3], v[4], v[5]), v + 6, rgba);
-        for (k = 0; k < 3; ++k) rgba[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f) * w;
+        float rgb[3];
+        refl_shade_diffuse(c->dc.scene, m, p, refl_v3(v[3], v[4], v[5]), v + 6, rgb);
+        refl__surface_rgba(m, rgb, rgba);
     }
     rgba[3] = refl_material_reflectance(m, cos_i);
     return 1;

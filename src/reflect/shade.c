@@ -196,21 +196,24 @@ static int refl__base_vertex(void *user, const float *vertex, int index, rast_ve
     return 1;
 }
 
-/* The fragment program of the base pass: the shared diffuse model. A
-   partially reflective surface shows its diffuse share here; the methods
-   add the mirror share. */
+/* What a diffuse surface shows of its shaded colour: clamped to [0, 1]
+   (the shared model clamps each surface before anything weighs it, also
+   in float targets), times 1 - mirror_weight on a partial reflector (its
+   diffuse share; the methods add the mirror share); opaque. */
+static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]) {
+    float k = m->type == REFL_PARTIAL ? 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f) : 1.0f;
+    int c;
+    for (c = 0; c < 3; ++c) rgba[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f) * k;
+    rgba[3] = 1.0f;
+}
+
+/* The fragment program of the base pass: the shared diffuse model. */
 static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__draw_ctx *d = (const refl__draw_ctx *)user;
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
+    float rgb[3];
     refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
-    if (d->material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->material->mirror_weight, 0.0f, 1.0f);
-    /* clamped here too, for float targets (PLANAR's): the shared model
-       clamps each surface before anything weighs it */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->material, rgb, rgba);
     return 1;
 }
 

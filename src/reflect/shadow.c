@@ -845,7 +845,7 @@ typedef struct refl__sv_shade {
 enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
 static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f, weight[REFL__SV_SOFT_MAX_LIGHTS];
+    float rgb[3], weight[REFL__SV_SOFT_MAX_LIGHTS];
     int li, lights = REFL__MIN(d->light_count, REFL__SHADOW_MAX_LIGHTS), all_lit = 1;
     size_t i, npx = (size_t)d->width * (size_t)d->height;
     for (li = 0; li < d->light_count && li < REFL__SV_SOFT_MAX_LIGHTS; ++li) weight[li] = 1.0f;
@@ -861,11 +861,7 @@ static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_frag
     if (!d->all_pixels && all_lit) return 0; /* keeps the base pass's identical colour */
     refl_shade_diffuse_weighted(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]),
                                 v + 6, weight, rgb);
-    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->dc.material, rgb, rgba);
     return 1;
 }
 
@@ -873,7 +869,7 @@ static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_frag
 static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__sv_shade *d = (const refl__sv_shade *)user;
     const float *v = in->varyings;
-    float rgb[3], k = 1.0f;
+    float rgb[3];
     unsigned b = 0xFFu;
     if (d->counts) return refl__sv_shade_soft_fragment(d, in, rgba);
     if (in->x >= 0 && in->y >= 0 && in->x < d->width && in->y < d->height)
@@ -881,12 +877,7 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
     if (!d->all_pixels && (b & d->all_lit) == d->all_lit) return 0; /* keeps the base pass's identical colour */
     refl_shade_diffuse_lit(d->dc.scene, d->dc.material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6,
                            d->table + (size_t)b * (size_t)d->light_count, rgb);
-    if (d->dc.material->type == REFL_PARTIAL) k = 1.0f - REFL__CLAMP(d->dc.material->mirror_weight, 0.0f, 1.0f);
-    /* clamped before the share, as the base pass's fragment program */
-    rgba[0] = REFL__CLAMP(rgb[0], 0.0f, 1.0f) * k;
-    rgba[1] = REFL__CLAMP(rgb[1], 0.0f, 1.0f) * k;
-    rgba[2] = REFL__CLAMP(rgb[2], 0.0f, 1.0f) * k;
-    rgba[3] = 1.0f;
+    refl__surface_rgba(d->dc.material, rgb, rgba);
     return 1;
 }
 
