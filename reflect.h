@@ -613,6 +613,19 @@ static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
+/* The frame's colour, depth and stencil as rast.h targets. */
+static inline rast_targets refl__frame_targets(const refl_frame *f) {
+    rast_targets t;
+    memset(&t, 0, sizeof t);
+    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * f->width;
+    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
+    t.depth.stride = (int)sizeof(float) * f->width;
+    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
+    t.stencil.stride = f->width;
+    return t;
+}
+
 /* A pinhole view's rays, set up once (render.c): through window point
    (px, py), pixel centres at + 0.5, the unit direction is
    normalize(forward + right * nx + up * ny) with nx, ny in [-1, 1]; rays
@@ -3345,6 +3358,24 @@ static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int obj
     dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
 }
 
+/* Draws a mesh's triangles (indices NULL: all of them) with the bound
+   state: positions read three floats at a time, num_varyings from the
+   vertex program. */
+static rast_result refl__draw_mesh(rast_context *rc, const refl_mesh *m, const uint32_t *indices, int index_count,
+                                   int num_varyings) {
+    rast_draw_desc d;
+    memset(&d, 0, sizeof d);
+    d.primitive = RAST_TRIANGLES;
+    d.vertices = m->positions;
+    d.vertex_count = m->vertex_count;
+    d.stride = 3;
+    d.position_size = 3;
+    d.num_varyings = num_varyings;
+    d.indices = indices ? indices : m->indices;
+    d.index_count = indices ? index_count : 3 * m->triangle_count;
+    return rast_draw(rc, &d);
+}
+
 /* The vertex program of the base pass: clip position and world-space
    varyings, read from the mesh by index. */
 static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
@@ -4518,24 +4549,15 @@ static rast_state refl__sv_state(int zfail, int turned, int mirrored, rast_cull 
 static rast_result refl__sv_draw_caps(rast_context *rc, const refl__sv_object *o, int k, int zfail, int mirrored,
                                       const int scissor[4], long long *tris) {
     int turned = k == 1 && o->cap_turned, less_on_front = !(k == 1 && !o->cap_turned), pass;
-    rast_draw_desc d;
     rast_result r = RAST_OK;
     if (!o->cap_count[k]) return RAST_OK;
-    memset(&d, 0, sizeof d);
-    d.primitive = RAST_TRIANGLES;
-    d.vertices = o->mesh->positions;
-    d.vertex_count = o->mesh->vertex_count;
-    d.stride = 3;
-    d.position_size = 3;
-    d.indices = o->caps[k];
-    d.index_count = 3 * o->cap_count[k];
     for (pass = zfail ? 0 : 1; pass < 2 && r == RAST_OK; ++pass) {
         int cull_back = (pass == 0) == less_on_front; /* pass 0: LESS, pass 1: LEQUAL */
         rast_state s = refl__sv_state(zfail, turned, mirrored, cull_back ? RAST_CULL_BACK : RAST_CULL_FRONT,
                                       pass == 0 ? RAST_LESS : RAST_LEQUAL, scissor);
         s.vertex_fn = refl__sv_cap_vertex;
         s.vertex_user = (void *)&o->mvp;
-        if ((r = rast_set_state(rc, &s)) == RAST_OK) r = rast_draw(rc, &d);
+        if ((r = rast_set_state(rc, &s)) == RAST_OK) r = refl__draw_mesh(rc, o->mesh, o->caps[k], 3 * o->cap_count[k], 0);
         *tris += o->cap_count[k];
     }
     return r;
@@ -4779,7 +4801,6 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         const refl_object *o = &scene->objects[i];
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
-        rast_draw_desc d;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
         refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
         dc[i].lit = lit;
@@ -4805,17 +4826,8 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.vertex_user = &dc[i].dc;
         s.fragment_fn = refl__sv_shade_fragment;
         s.fragment_user = &dc[i];
-        memset(&d, 0, sizeof d);
-        d.primitive = RAST_TRIANGLES;
-        d.vertices = dc[i].dc.mesh->positions;
-        d.vertex_count = dc[i].dc.mesh->vertex_count;
-        d.stride = 3;
-        d.position_size = 3;
-        d.num_varyings = REFL__BASE_VARYINGS;
-        d.indices = dc[i].dc.mesh->indices;
-        d.index_count = 3 * dc[i].dc.mesh->triangle_count;
         queued = 1;
-        if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = rast_draw(rc, &d);
+        if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
         if (st) st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
@@ -4918,11 +4930,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
         refl__free(&scene->allocator, counts);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    memset(&t, 0, sizeof t);
-    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height; t.color.stride = 4 * f->width;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height; t.stencil.stride = f->width;
+    t = refl__frame_targets(f);
     if (soft) {
         r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
                                    p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
@@ -5436,17 +5444,7 @@ static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int o
 }
 
 static rast_result refl__em_submit(rast_context *rc, const refl__em_draw *d) {
-    rast_draw_desc dd;
-    memset(&dd, 0, sizeof dd);
-    dd.primitive = RAST_TRIANGLES;
-    dd.vertices = d->mesh->positions;
-    dd.vertex_count = d->mesh->vertex_count;
-    dd.stride = 3;
-    dd.position_size = 3;
-    dd.num_varyings = d->normals ? 6 : 3;
-    dd.indices = d->mesh->indices;
-    dd.index_count = 3 * d->mesh->triangle_count;
-    return rast_draw(rc, &dd);
+    return refl__draw_mesh(rc, d->mesh, NULL, 0, d->normals ? 6 : 3);
 }
 
 /* Clears with the default state: clears honour the depth mask and scissor. */
@@ -5782,14 +5780,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     /* leave the frame bound, as the method found it; never after a failed
        draw, whose queued work may point at freed memory */
     if (r == REFL_OK) {
-        rast_targets t;
-        memset(&t, 0, sizeof t);
-        t.color.ptr = fr->color; t.color.width = fr->width; t.color.height = fr->height;
-        t.color.stride = 4 * fr->width;
-        t.depth.ptr = fr->depth; t.depth.width = fr->width; t.depth.height = fr->height;
-        t.depth.stride = (int)sizeof(float) * fr->width;
-        t.stencil.ptr = fr->stencil; t.stencil.width = fr->width; t.stencil.height = fr->height;
-        t.stencil.stride = fr->width;
+        rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl__free(al, em.gbuf);
@@ -6294,7 +6285,6 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         const refl_object *o = &scene->objects[i];
         const refl_mesh *m = scene->meshes[o->mesh];
         rast_state s;
-        rast_draw_desc d;
         if (i == skip) continue;
         refl__draw_ctx_init(&dc[i], scene, i, vp);
         memset(&s, 0, sizeof s);
@@ -6315,16 +6305,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
             s.fragment_fn = refl__clear_fragment;
         rr = rast_set_state(rc, &s);
-        memset(&d, 0, sizeof d);
-        d.primitive = RAST_TRIANGLES;
-        d.vertices = m->positions;
-        d.vertex_count = m->vertex_count;
-        d.stride = 3;
-        d.position_size = 3;
-        d.num_varyings = REFL__BASE_VARYINGS;
-        d.indices = m->indices;
-        d.index_count = 3 * m->triangle_count;
-        if (rr == RAST_OK) rr = rast_draw(rc, &d);
+        if (rr == RAST_OK) rr = refl__draw_mesh(rc, m, NULL, 0, REFL__BASE_VARYINGS);
         st->triangles += m->triangle_count;
     }
     if (rr == RAST_OK) rr = rast_finish(rc);
@@ -6411,13 +6392,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     cd.allocator.user = scene->allocator.user;
     r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
     if (r != REFL_OK) return r;
-    memset(&t, 0, sizeof t);
-    t.color.ptr = frame->color; t.color.width = frame->width; t.color.height = frame->height;
-    t.color.stride = 4 * frame->width;
-    t.depth.ptr = frame->depth; t.depth.width = frame->width; t.depth.height = frame->height;
-    t.depth.stride = (int)sizeof(float) * frame->width;
-    t.stencil.ptr = frame->stencil; t.stencil.width = frame->width; t.stencil.height = frame->height;
-    t.stencil.stride = frame->width;
+    t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
@@ -6712,20 +6687,6 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     return 1;
 }
 
-static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc, const uint32_t *indices,
-                                     int index_count) {
-    rast_draw_desc d;
-    memset(&d, 0, sizeof d);
-    d.primitive = RAST_TRIANGLES;
-    d.vertices = dc->mesh->positions;
-    d.vertex_count = dc->mesh->vertex_count;
-    d.stride = 3;
-    d.position_size = 3;
-    d.num_varyings = REFL__BASE_VARYINGS;
-    d.indices = indices ? indices : dc->mesh->indices;
-    d.index_count = indices ? index_count : 3 * dc->mesh->triangle_count;
-    return rast_draw(rc, &d);
-}
 
 /* A state's scissor on a region's box (an empty box draws nothing). */
 static void refl__planar_scissor(rast_state *s, const int box[4]) {
@@ -6770,7 +6731,7 @@ static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_
                              ? refl__base_fragment : refl__clear_fragment;
         st.fragment_user = &dc[i].dc;
         rr = rast_set_state(pl->p->rc, &st);
-        if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &dc[i].dc, NULL, 0);
+        if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
         pl->p->frame->stats.triangles += dc[i].dc.mesh->triangle_count;
     }
     return rr;
@@ -6881,7 +6842,7 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
     state.color_write = RAST_MASK(0);
     state.vertex_user = &comp->dc;
     rr = rast_set_state(pl->p->rc, &state);
-    if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, comp->dc.mesh, face->indices, face->index_count, REFL__BASE_VARYINGS);
     if (rr == RAST_OK) rr = rast_finish(pl->p->rc);
     return refl__result_from_rast(rr);
 }
@@ -6980,7 +6941,7 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
         state.color_write = RAST_MASK(0);
     }
     rr = rast_set_state(rc, &state);
-    if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) rr = refl__draw_mesh(rc, comp->dc.mesh, face->indices, face->index_count, REFL__BASE_VARYINGS);
     if (rr == RAST_OK) {
         state = refl__planar_state((uint8_t)(level + 1), RAST_DECR);
         state.depth_test = 0;

@@ -1,10 +1,11 @@
 /* Helpers shared by the reflect.h tests: a frame rendered or the test
-   fails, and scene objects and lights in one call. Include after
+   fails, scene objects in one call, a counting allocator. Include after
    <criterion/criterion.h> and "../reflect.h". */
 #ifndef REFL_TEST_UTIL_H
 #define REFL_TEST_UTIL_H
 
 #include <string.h>
+#include "test_util.h"
 
 /* A new frame of the view rendered with desc (asserting success). */
 static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d) {
@@ -34,6 +35,15 @@ static inline int tu_refl_add_object(refl_scene *s, refl_mesh *mesh, refl_materi
     k = refl_scene_add_object(s, &o);
     cr_assert(k >= 0);
     return k;
+}
+
+/* An allocator counting into c (tests/test_util.h's tu_count_alloc). */
+static inline refl_allocator tu_refl_counting(tu_alloc_counter *c) {
+    refl_allocator a;
+    a.alloc = tu_count_alloc;
+    a.free = tu_count_free;
+    a.user = c;
+    return a;
 }
 
 #endif

@@ -11,14 +11,8 @@
 #include <time.h>
 #include "../reflect.h"
 #include "test_util.h"
+#include "refl_test_util.h"
 
-static refl_allocator counting(tu_alloc_counter *c) {
-    refl_allocator a;
-    a.alloc = tu_count_alloc;
-    a.free = tu_count_free;
-    a.user = c;
-    return a;
-}
 
 static float rnd(refl_rng *r, float lo, float hi) { return lo + (hi - lo) * refl_rng_float(r); }
 
@@ -433,7 +427,7 @@ Test(refl_bvh, allocation_failure_at_every_allocation) {
     refl_bvh *bvh = NULL;
     long attempts, i;
     memset(&c, 0, sizeof c);
-    a = counting(&c);
+    a = tu_refl_counting(&c);
     cr_assert_eq(refl_bvh_build(s, &a, &bvh), REFL_OK);
     attempts = c.attempts;
     cr_assert(attempts >= 2);

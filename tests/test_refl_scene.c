@@ -8,16 +8,10 @@
 #include <string.h>
 #include "../reflect.h"
 #include "test_util.h"
+#include "refl_test_util.h"
 
 #define GOLDEN "tests/golden/direct_default_160x120.ppm"
 
-static refl_allocator counting(tu_alloc_counter *c) {
-    refl_allocator a;
-    a.alloc = tu_count_alloc;
-    a.free = tu_count_free;
-    a.user = c;
-    return a;
-}
 
 static refl_frame *render(const refl_scene *s, int w, int h, int threads) {
     refl_frame *f = NULL;
@@ -144,7 +138,7 @@ Test(refl_scene, allocation_failure_leaks_nothing) {
         c.fail_at = k;
         memset(&bd, 0, sizeof bd);
         bd.teapot_tess = 2;
-        bd.allocator = counting(&c);
+        bd.allocator = tu_refl_counting(&c);
         r = refl_scene_builtin("default", &bd, &s);
         if (r == REFL_OK) {
             refl_frame *f = NULL;

@@ -61,6 +61,19 @@ static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
+/* The frame's colour, depth and stencil as rast.h targets. */
+static inline rast_targets refl__frame_targets(const refl_frame *f) {
+    rast_targets t;
+    memset(&t, 0, sizeof t);
+    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * f->width;
+    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
+    t.depth.stride = (int)sizeof(float) * f->width;
+    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
+    t.stencil.stride = f->width;
+    return t;
+}
+
 /* A pinhole view's rays, set up once (render.c): through window point
    (px, py), pixel centres at + 0.5, the unit direction is
    normalize(forward + right * nx + up * ny) with nx, ny in [-1, 1]; rays

@@ -107,17 +107,7 @@ static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int o
 }
 
 static rast_result refl__em_submit(rast_context *rc, const refl__em_draw *d) {
-    rast_draw_desc dd;
-    memset(&dd, 0, sizeof dd);
-    dd.primitive = RAST_TRIANGLES;
-    dd.vertices = d->mesh->positions;
-    dd.vertex_count = d->mesh->vertex_count;
-    dd.stride = 3;
-    dd.position_size = 3;
-    dd.num_varyings = d->normals ? 6 : 3;
-    dd.indices = d->mesh->indices;
-    dd.index_count = 3 * d->mesh->triangle_count;
-    return rast_draw(rc, &dd);
+    return refl__draw_mesh(rc, d->mesh, NULL, 0, d->normals ? 6 : 3);
 }
 
 /* Clears with the default state: clears honour the depth mask and scissor. */
@@ -453,14 +443,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     /* leave the frame bound, as the method found it; never after a failed
        draw, whose queued work may point at freed memory */
     if (r == REFL_OK) {
-        rast_targets t;
-        memset(&t, 0, sizeof t);
-        t.color.ptr = fr->color; t.color.width = fr->width; t.color.height = fr->height;
-        t.color.stride = 4 * fr->width;
-        t.depth.ptr = fr->depth; t.depth.width = fr->width; t.depth.height = fr->height;
-        t.depth.stride = (int)sizeof(float) * fr->width;
-        t.stencil.ptr = fr->stencil; t.stencil.width = fr->width; t.stencil.height = fr->height;
-        t.stencil.stride = fr->width;
+        rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl__free(al, em.gbuf);

@@ -260,20 +260,6 @@ static int refl__planar_comp_fragment(void *user, const rast_fragment_in *in, fl
     return 1;
 }
 
-static rast_result refl__planar_draw(rast_context *rc, const refl__draw_ctx *dc, const uint32_t *indices,
-                                     int index_count) {
-    rast_draw_desc d;
-    memset(&d, 0, sizeof d);
-    d.primitive = RAST_TRIANGLES;
-    d.vertices = dc->mesh->positions;
-    d.vertex_count = dc->mesh->vertex_count;
-    d.stride = 3;
-    d.position_size = 3;
-    d.num_varyings = REFL__BASE_VARYINGS;
-    d.indices = indices ? indices : dc->mesh->indices;
-    d.index_count = indices ? index_count : 3 * dc->mesh->triangle_count;
-    return rast_draw(rc, &d);
-}
 
 /* A state's scissor on a region's box (an empty box draws nothing). */
 static void refl__planar_scissor(rast_state *s, const int box[4]) {
@@ -318,7 +304,7 @@ static rast_result refl__planar_draw_scene(refl__planar *pl, const refl__planar_
                              ? refl__base_fragment : refl__clear_fragment;
         st.fragment_user = &dc[i].dc;
         rr = rast_set_state(pl->p->rc, &st);
-        if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &dc[i].dc, NULL, 0);
+        if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
         pl->p->frame->stats.triangles += dc[i].dc.mesh->triangle_count;
     }
     return rr;
@@ -429,7 +415,7 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
     state.color_write = RAST_MASK(0);
     state.vertex_user = &comp->dc;
     rr = rast_set_state(pl->p->rc, &state);
-    if (rr == RAST_OK) rr = refl__planar_draw(pl->p->rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, comp->dc.mesh, face->indices, face->index_count, REFL__BASE_VARYINGS);
     if (rr == RAST_OK) rr = rast_finish(pl->p->rc);
     return refl__result_from_rast(rr);
 }
@@ -528,7 +514,7 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
         state.color_write = RAST_MASK(0);
     }
     rr = rast_set_state(rc, &state);
-    if (rr == RAST_OK) rr = refl__planar_draw(rc, &comp->dc, face->indices, face->index_count);
+    if (rr == RAST_OK) rr = refl__draw_mesh(rc, comp->dc.mesh, face->indices, face->index_count, REFL__BASE_VARYINGS);
     if (rr == RAST_OK) {
         state = refl__planar_state((uint8_t)(level + 1), RAST_DECR);
         state.depth_test = 0;

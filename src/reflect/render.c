@@ -159,7 +159,6 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         const refl_object *o = &scene->objects[i];
         const refl_mesh *m = scene->meshes[o->mesh];
         rast_state s;
-        rast_draw_desc d;
         if (i == skip) continue;
         refl__draw_ctx_init(&dc[i], scene, i, vp);
         memset(&s, 0, sizeof s);
@@ -180,16 +179,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
         if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
             s.fragment_fn = refl__clear_fragment;
         rr = rast_set_state(rc, &s);
-        memset(&d, 0, sizeof d);
-        d.primitive = RAST_TRIANGLES;
-        d.vertices = m->positions;
-        d.vertex_count = m->vertex_count;
-        d.stride = 3;
-        d.position_size = 3;
-        d.num_varyings = REFL__BASE_VARYINGS;
-        d.indices = m->indices;
-        d.index_count = 3 * m->triangle_count;
-        if (rr == RAST_OK) rr = rast_draw(rc, &d);
+        if (rr == RAST_OK) rr = refl__draw_mesh(rc, m, NULL, 0, REFL__BASE_VARYINGS);
         st->triangles += m->triangle_count;
     }
     if (rr == RAST_OK) rr = rast_finish(rc);
@@ -276,13 +266,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     cd.allocator.user = scene->allocator.user;
     r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
     if (r != REFL_OK) return r;
-    memset(&t, 0, sizeof t);
-    t.color.ptr = frame->color; t.color.width = frame->width; t.color.height = frame->height;
-    t.color.stride = 4 * frame->width;
-    t.depth.ptr = frame->depth; t.depth.width = frame->width; t.depth.height = frame->height;
-    t.depth.stride = (int)sizeof(float) * frame->width;
-    t.stencil.ptr = frame->stencil; t.stencil.width = frame->width; t.stencil.height = frame->height;
-    t.stencil.stride = frame->width;
+    t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;

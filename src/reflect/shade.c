@@ -177,6 +177,24 @@ static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int obj
     dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
 }
 
+/* Draws a mesh's triangles (indices NULL: all of them) with the bound
+   state: positions read three floats at a time, num_varyings from the
+   vertex program. */
+static rast_result refl__draw_mesh(rast_context *rc, const refl_mesh *m, const uint32_t *indices, int index_count,
+                                   int num_varyings) {
+    rast_draw_desc d;
+    memset(&d, 0, sizeof d);
+    d.primitive = RAST_TRIANGLES;
+    d.vertices = m->positions;
+    d.vertex_count = m->vertex_count;
+    d.stride = 3;
+    d.position_size = 3;
+    d.num_varyings = num_varyings;
+    d.indices = indices ? indices : m->indices;
+    d.index_count = indices ? index_count : 3 * m->triangle_count;
+    return rast_draw(rc, &d);
+}
+
 /* The vertex program of the base pass: clip position and world-space
    varyings, read from the mesh by index. */
 static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {

@@ -651,24 +651,15 @@ static rast_state refl__sv_state(int zfail, int turned, int mirrored, rast_cull 
 static rast_result refl__sv_draw_caps(rast_context *rc, const refl__sv_object *o, int k, int zfail, int mirrored,
                                       const int scissor[4], long long *tris) {
     int turned = k == 1 && o->cap_turned, less_on_front = !(k == 1 && !o->cap_turned), pass;
-    rast_draw_desc d;
     rast_result r = RAST_OK;
     if (!o->cap_count[k]) return RAST_OK;
-    memset(&d, 0, sizeof d);
-    d.primitive = RAST_TRIANGLES;
-    d.vertices = o->mesh->positions;
-    d.vertex_count = o->mesh->vertex_count;
-    d.stride = 3;
-    d.position_size = 3;
-    d.indices = o->caps[k];
-    d.index_count = 3 * o->cap_count[k];
     for (pass = zfail ? 0 : 1; pass < 2 && r == RAST_OK; ++pass) {
         int cull_back = (pass == 0) == less_on_front; /* pass 0: LESS, pass 1: LEQUAL */
         rast_state s = refl__sv_state(zfail, turned, mirrored, cull_back ? RAST_CULL_BACK : RAST_CULL_FRONT,
                                       pass == 0 ? RAST_LESS : RAST_LEQUAL, scissor);
         s.vertex_fn = refl__sv_cap_vertex;
         s.vertex_user = (void *)&o->mvp;
-        if ((r = rast_set_state(rc, &s)) == RAST_OK) r = rast_draw(rc, &d);
+        if ((r = rast_set_state(rc, &s)) == RAST_OK) r = refl__draw_mesh(rc, o->mesh, o->caps[k], 3 * o->cap_count[k], 0);
         *tris += o->cap_count[k];
     }
     return r;
@@ -912,7 +903,6 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         const refl_object *o = &scene->objects[i];
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
-        rast_draw_desc d;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
         refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
         dc[i].lit = lit;
@@ -938,17 +928,8 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.vertex_user = &dc[i].dc;
         s.fragment_fn = refl__sv_shade_fragment;
         s.fragment_user = &dc[i];
-        memset(&d, 0, sizeof d);
-        d.primitive = RAST_TRIANGLES;
-        d.vertices = dc[i].dc.mesh->positions;
-        d.vertex_count = dc[i].dc.mesh->vertex_count;
-        d.stride = 3;
-        d.position_size = 3;
-        d.num_varyings = REFL__BASE_VARYINGS;
-        d.indices = dc[i].dc.mesh->indices;
-        d.index_count = 3 * dc[i].dc.mesh->triangle_count;
         queued = 1;
-        if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = rast_draw(rc, &d);
+        if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
         if (st) st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
@@ -1051,11 +1032,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
         refl__free(&scene->allocator, counts);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    memset(&t, 0, sizeof t);
-    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height; t.color.stride = 4 * f->width;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height; t.stencil.stride = f->width;
+    t = refl__frame_targets(f);
     if (soft) {
         r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
                                    p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
