@@ -57,10 +57,13 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/scene.c \
                  src/reflect/shade.c \
                  src/reflect/bvh.c \
+                 src/reflect/kdtree.c \
+                 src/reflect/cam_c3rc.c \
                  src/reflect/shadow.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \
+                 src/reflect/m_c3rc.c \
                  src/reflect/render.c \
                  src/reflect/m_planar.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
@@ -259,9 +262,9 @@ TEST_LIBS += $(TOOLS_LIBS)
 # ---- the reflect command ----
 
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
-REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/bench/embree_peer.o
+REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/bench/embree_peer.o
 
-build/tools/reflect_bench.o: tools/reflect_bench.c | rast.h reflect.h
+build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o: build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -269,7 +272,7 @@ $(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | ra
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
 	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
--include build/bin/reflect.d build/tools/reflect_bench.d
+-include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d
 
 # ---- running ----
 

@@ -398,6 +398,101 @@ REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
 
+/* ---- kd-tree over points (paper 000, section 4) ------------------------------
+   The hybrid method's scene subdivision: points (the diffuse meshes' samples)
+   in a kd-tree whose every inner node splits its points in eight at once, at
+   the median along x, then each half at its median along y, then each
+   quarter at its median along z (the paper's eight-way recursion; empty
+   children are left out). A node becomes a leaf when it holds at most
+   leaf_points points or its box's largest side is below min_size (the
+   paper's two termination criteria). Boxes are the tight bounds of each
+   node's points. Within a leaf the points are in a deterministic shuffled
+   order, so every prefix of a leaf is an even subsample of it (level of
+   detail: draw the first k). Deterministic: the same input gives the same
+   tree on every machine. The tree stores what it is given (object space, if
+   the points are), so it stays valid under rigid motion of the object. */
+typedef struct refl_kdtree_node {
+    float lo[3], hi[3];      /* tight bounds of the node's points */
+    int first, count;        /* its points: tree positions [first, first + count) */
+    int child, child_count;  /* children: nodes [child, child + child_count); leaf: -1, 0 */
+    int depth;               /* root 0 */
+} refl_kdtree_node;
+
+typedef struct refl_kdtree {
+    int point_count, node_count, leaf_count, max_depth;
+    double average_leaf_depth;  /* over leaves, weighted equally */
+    double average_leaf_points; /* point_count / leaf_count */
+    float *positions;        /* 3 per point, reordered: each node's points are contiguous */
+    uint32_t *order;         /* order[i]: the caller's index of tree point i */
+    refl_kdtree_node *nodes; /* nodes[0] is the root (also for no points) */
+    refl_allocator allocator;
+} refl_kdtree;
+
+typedef struct refl_kdtree_desc {
+    int leaf_points;         /* a node with at most this many points is a leaf; 0: 1000 */
+    float min_size;          /* a node whose box's largest side is below this is a leaf; 0: none */
+    refl_allocator allocator;
+} refl_kdtree_desc;
+
+/* Copies count points (3 floats each). REFL_ERROR_INVALID_ARGUMENT for a
+   non-finite coordinate, a negative count or NULL positions with count > 0;
+   count 0 gives an empty root leaf. desc may be NULL (defaults). */
+REFL_API refl_result refl_kdtree_build(const float *positions, int count, const refl_kdtree_desc *desc,
+                                       refl_kdtree **out_tree);
+REFL_API void refl_kdtree_destroy(refl_kdtree *tree);
+/* Depth-first from the root, children in order: a node whose box
+   box_test(user, lo, hi) rejects (returns 0) is skipped with its subtree;
+   leaf(user, tree, node) is called for every accepted leaf. Returns the
+   number of box tests made. */
+typedef int (*refl_kdtree_box_fn)(void *user, const float lo[3], const float hi[3]);
+typedef void (*refl_kdtree_leaf_fn)(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf);
+REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn box_test, refl_kdtree_leaf_fn leaf,
+                                     void *user);
+
+/* ---- continuous 3-ray camera (paper 000, section 5) ---------------------------
+   A C3RC is built per reflector triangle from its three vertices v1, v2, v3
+   (the tails) and the unit reflected rays there d1, d2, d3. The sweeping
+   triangle at t >= 0 has vertices vi + t di; a point P projects to
+   barycentrics (a, b, c), a + b + c = 1, a, b, c >= 0, and sweep t >= 0 when
+       P = a (v1 + t d1) + b (v2 + t d2) + c (v3 + t d3),
+   i.e. where P lies in the sweeping triangle's plane (a cubic in t) and
+   inside it. Every such (a, b, c, t) is a valid projection: up to three.
+   The image point is the reflector point a v1 + b v2 + c v3; t orders
+   visibility (nearer the reflector wins). Adjacent C3RCs share an edge's two
+   rays, so projection is continuous across it. */
+typedef struct refl_c3rc {
+    refl_vec3 v[3];          /* tails */
+    refl_vec3 d[3];          /* unit directions */
+    /* set by refl_c3rc_init, for projection (private) */
+    double pre[40];
+} refl_c3rc;
+
+typedef struct refl_c3rc_projection {
+    float a, b, c;           /* barycentrics on the base triangle, a + b + c = 1 */
+    float t;                 /* sweep parameter: distance along the unit rays */
+} refl_c3rc_projection;
+
+/* Sets up cam from tails and directions (directions are normalised here).
+   REFL_ERROR_INVALID_ARGUMENT for non-finite input or a zero direction; a
+   degenerate (zero-area) base is allowed and projects nothing at t = 0. */
+REFL_API refl_result refl_c3rc_init(refl_c3rc *cam, const refl_vec3 v[3], const refl_vec3 d[3]);
+/* Every valid projection of p, in ascending t, into out; returns how many
+   (0..3). Barycentrics within -1e-6 of the triangle count as inside (so a
+   point on an edge shared by two C3RCs projects in both), then clamped. */
+REFL_API int refl_c3rc_project(const refl_c3rc *cam, refl_vec3 p, refl_c3rc_projection out[3]);
+/* Section 5.1: the sweep intervals of [0, tmax] where the construction rays
+   are not all on one side of the sweeping triangle's plane (a ray switches
+   side where the plane contains it: a quadratic in t per ray). Only there
+   can a point have more than one projection. Writes up to 4 disjoint
+   intervals, ascending, into out; returns how many (0: never). */
+REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, float out[4][2]);
+/* Section 5.2: 0 when the box [lo, hi] certainly holds no point with a valid
+   projection of t <= tmax (tmax may be INFINITY), 1 when it may: no corner
+   projects, no side wall of the view volume meets a box face, and (when
+   tmax is finite) the box misses the bounds of the truncated volume.
+   Conservative: never 0 for a box holding a point that projects. */
+REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -422,7 +517,14 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles, points, cameras, leaves, layers;
     long long rays;          /* rays traced (primary, secondary and shadow) */
-    long long culled;        /* PLANAR: mirror renderings skipped as not visible */
+    long long culled;        /* PLANAR: mirror renderings skipped as not visible;
+                                C3RC: kd-tree boxes the view-volume test rejected */
+    long long projections;   /* C3RC: point projections attempted */
+    long long projected;     /* C3RC: valid projections found (a point may have several) */
+    long long multiple;      /* C3RC: projections beyond a point's first in one camera
+                                (section 5.1's multiple projections, all drawn) */
+    double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
+                                   and splatting, summed over threads */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
 } refl_stats;
@@ -471,6 +573,10 @@ typedef struct refl_render_desc {
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not
                                 (paper 002's count, formula 5); stats.leaves counts the
                                 renderings at the deepest level, stats.cameras all */
+    float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
+                                view (one per 2 x 2 pixels at the reflectors' distance) */
+    int kd_leaf_points;      /* C3RC: kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
+    int max_splat;           /* C3RC: largest splat side in pixels; 0: 8 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -492,8 +598,15 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    when |P - truth(x*)| exceeds `tolerance` times the local spacing s(x*):
    the largest distance from truth(x*) to the true points of its
    4-neighbours on that reflector (with none, to the nearest other true
-   point of it). Pixels where the truth shows a point and the test none are
-   holes (empty); where neither does, they are not counted. Deterministic;
+   point of it). A point may show more than once on one reflector (a
+   minified image of a surface beside a magnified one, where the nearest
+   true point is likelier in the magnified image): when P matches, the
+   error is the distance from x to the nearest pixel y, within 16 pixels
+   and nearer than x*, of the same reflector where the truth shows P too:
+   |P - truth(y)| within `tolerance` times s(y), and no 8-neighbour of y
+   nearer P (the middle of an image of P, not its edge).
+   Pixels where the truth shows a point and the test none are holes
+   (empty); where neither does, they are not counted. Deterministic;
    single-threaded, O(n log n) in the reflector pixels. */
 typedef struct refl_error_desc {
     float tolerance;         /* 0: 1.5 */
@@ -514,6 +627,17 @@ typedef struct refl_reflection_error {
    defaults, malloc). REFL_ERROR_INVALID_SIZE when the sizes differ. */
 REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
                                                    const refl_error_desc *desc, refl_reflection_error *out);
+
+/* C3RC's cameras alone, without points or splats (paper 000's camera
+   approximation): for each reflector pixel x of `truth` (RAYTRACE of the
+   same scene and view with depth 1) showing point P, every reflector
+   triangle's C3RC (as C3RC builds it for the view) whose screen box comes
+   within 8 pixels of x projects P; the error is the distance in pixels
+   from x's centre to the nearest image of P so found (sub-pixel), and P
+   with no image within 8 pixels counts as wrong. empty is 0. Single-
+   threaded. */
+REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                    const refl_frame *truth, refl_reflection_error *out);
 
 /* Image error of the RGB of the RGBA8 colours against the truth (alpha
    ignored), over every pixel or (reflectors_only) over the truth's
@@ -736,6 +860,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p);
 /* The methods (one module each). */
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
+static refl_result refl__method_c3rc(refl__pass *p);   /* after m_envmap.c and metrics.c: it uses their statics */
 static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
@@ -3896,6 +4021,964 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
 }
+/* ---- src/reflect/kdtree.c ---- */
+/* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
+   method's scene subdivision for the diffuse point samples.
+   Build: iterative, one task per node on an explicit stack. An inner node
+   splits its points in eight with three rounds of median selection (x over
+   the node, y over each half, z over each quarter): quickselect with a
+   sampled pivot and branch-free partitions, falling back to heapsort when
+   it stalls, so the build is O(n log n) and deterministic (1M points in
+   about 0.15 s on one core). The points move as 16-byte records (position
+   and caller index) and are written out at the end.
+   Leaves are shuffled (Fisher-Yates from the leaf's first index) so every
+   prefix is an even subsample. Query: explicit stack, children in order. */
+
+#define REFL__KDT_DEFAULT_LEAF 1000
+/* Every split leaves at most ceil(n / 8) points per child, so a tree over
+   INT_MAX points is 11 levels deep; the cap is a safety net only. */
+#define REFL__KDT_MAX_DEPTH 48
+#define REFL__KDT_STACK (8 * REFL__KDT_MAX_DEPTH + 8)
+#define REFL__KDT_SAMPLE 9
+
+typedef struct refl__kdt_rec {
+    float p[3];
+    uint32_t index;               /* the caller's index */
+} refl__kdt_rec;
+
+typedef struct refl__kdt_task { int node, depth; } refl__kdt_task;
+
+/* ---- median selection ------------------------------------------------------- */
+
+static void refl__kdt_swap(refl__kdt_rec *a, refl__kdt_rec *b) {
+    refl__kdt_rec t = *a;
+    *a = *b;
+    *b = t;
+}
+
+static void refl__kdt_sift(refl__kdt_rec *a, int root, int n, int axis) {
+    for (;;) {
+        int c = 2 * root + 1;
+        if (c >= n) return;
+        if (c + 1 < n && a[c + 1].p[axis] > a[c].p[axis]) ++c;
+        if (!(a[c].p[axis] > a[root].p[axis])) return;
+        refl__kdt_swap(&a[c], &a[root]);
+        root = c;
+    }
+}
+
+/* The fallback when quickselect stalls: O(n log n) whatever the input. */
+static void refl__kdt_heapsort(refl__kdt_rec *a, int n, int axis) {
+    int i;
+    for (i = n / 2 - 1; i >= 0; --i) refl__kdt_sift(a, i, n, axis);
+    for (i = n - 1; i > 0; --i) {
+        refl__kdt_swap(&a[0], &a[i]);
+        refl__kdt_sift(a, 0, i, axis);
+    }
+}
+
+/* Reorders a[0, n) so that a[k] holds the value a sort along axis would put
+   there, nothing after it is smaller and nothing before it larger (C++'s
+   nth_element). Pivot: drawn from a few keys at deterministic
+   pseudo-random places (fixed places meet patterns in structured input).
+   Branch-free Lomuto partitions (random keys mispredict a branching one
+   at every other element): the keys below the pivot to the front; when
+   there are none, the pivot is the least key and the keys equal to it go
+   to the front instead, so runs of equal keys end the search rather than
+   stall it. */
+static void refl__kdt_select(refl__kdt_rec *a, int n, int k, int axis) {
+    int lo = 0, hi = n - 1, budget = 8, m;
+    refl_rng rng = refl_rng_seed((uint64_t)n * 0x9E3779B97F4A7C15ull + (uint64_t)k);
+    for (m = n; m > 1; m >>= 1) budget += 2;
+    while (lo < hi) {
+        float x;
+        int i, s = lo;
+        if (--budget < 0) {
+            refl__kdt_heapsort(a + lo, hi - lo + 1, axis);
+            return;
+        }
+        {
+            /* pivot: of a few keys drawn at deterministic pseudo-random
+               places, the one whose rank among them matches k's */
+            float sample[REFL__KDT_SAMPLE];
+            int count = hi - lo + 1 < 64 ? 3 : REFL__KDT_SAMPLE, j;
+            for (i = 0; i < count; ++i) {
+                float v = a[lo + (int)(((uint64_t)refl_rng_u32(&rng) * (uint64_t)(hi - lo + 1)) >> 32)].p[axis];
+                for (j = i; j > 0 && sample[j - 1] > v; --j) sample[j] = sample[j - 1];
+                sample[j] = v;
+            }
+            x = sample[(int)((int64_t)(k - lo) * count / (hi - lo + 1))];
+        }
+        /* [lo, s) < x <= [s, i): swapping a[i] with a[s] keeps that either way */
+        for (i = lo; i <= hi; ++i) {
+            refl__kdt_rec r = a[i];
+            a[i] = a[s];
+            a[s] = r;
+            s += r.p[axis] < x;
+        }
+        if (k < s) {
+            hi = s - 1;
+            continue;
+        }
+        if (s > lo) {
+            lo = s;
+            continue;
+        }
+        /* x is the least key left: [lo, m) == x < [m, i), m > lo */
+        m = s;
+        for (i = s; i <= hi; ++i) {
+            refl__kdt_rec r = a[i];
+            a[i] = a[m];
+            a[m] = r;
+            m += r.p[axis] == x;
+        }
+        if (k < m) return;
+        lo = m;
+    }
+}
+
+/* ---- build ------------------------------------------------------------------ */
+
+static void refl__kdt_free_tree(refl_kdtree *t) {
+    refl_allocator a = t->allocator;
+    refl__free(&a, t->positions);
+    refl__free(&a, t->order);
+    refl__free(&a, t->nodes);
+    refl__free(&a, t);
+}
+
+/* Appends n nodes; their index, or -1 when out of memory. */
+static int refl__kdt_push_nodes(refl_kdtree *t, int *capacity, int n) {
+    int first = t->node_count;
+    if (first + n > *capacity) {
+        int cap = (int)REFL__MAX(REFL__MIN(2LL * *capacity, (long long)INT_MAX), (long long)first + n);
+        refl_kdtree_node *nodes = (refl_kdtree_node *)refl__alloc(&t->allocator, sizeof *nodes * (size_t)cap);
+        if (!nodes) return -1;
+        memcpy(nodes, t->nodes, sizeof *nodes * (size_t)first);
+        refl__free(&t->allocator, t->nodes);
+        t->nodes = nodes;
+        *capacity = cap;
+    }
+    t->node_count += n;
+    return first;
+}
+
+/* A node's box, and whether it can be split: a leaf when small enough
+   (either criterion of the paper), or when its points all coincide, which
+   no split separates. */
+static int refl__kdt_bound(refl_kdtree_node *node, const refl__kdt_rec *r, int leaf_points, float min_size) {
+    int i, k;
+    float size = 0;
+    if (node->count == 0) {
+        for (k = 0; k < 3; ++k) node->lo[k] = node->hi[k] = 0;
+        return 0;
+    }
+    for (k = 0; k < 3; ++k) node->lo[k] = node->hi[k] = r[node->first].p[k];
+    for (i = node->first + 1; i < node->first + node->count; ++i)
+        for (k = 0; k < 3; ++k) {
+            float v = r[i].p[k];
+            if (v < node->lo[k]) node->lo[k] = v;
+            if (v > node->hi[k]) node->hi[k] = v;
+        }
+    for (k = 0; k < 3; ++k) size = REFL__MAX(size, node->hi[k] - node->lo[k]);
+    if (node->count <= leaf_points || size < min_size || !(size > 0)) return 0;
+    return 1;
+}
+
+/* Fisher-Yates, seeded from the leaf's first index: the same on every
+   machine, and different leaves are shuffled differently. */
+static void refl__kdt_shuffle(refl__kdt_rec *r, int n, uint64_t seed) {
+    refl_rng rng = refl_rng_seed(seed * 0x9E3779B97F4A7C15ull + 1);
+    int i;
+    for (i = n - 1; i > 0; --i) {
+        int j = (int)(((uint64_t)refl_rng_u32(&rng) * (uint64_t)(i + 1)) >> 32);
+        refl__kdt_swap(&r[i], &r[j]);
+    }
+}
+
+/* Splits [first, first + n) at medians: x over it, y over each half, z over
+   each quarter. bounds[0..8] are the eight ranges' boundaries. */
+static void refl__kdt_split8(refl__kdt_rec *r, int first, int n, int bounds[9]) {
+    int axis, step, s;
+    bounds[0] = first;
+    bounds[8] = first + n;
+    for (axis = 0, step = 8; axis < 3; ++axis, step >>= 1)
+        for (s = 0; s < 8; s += step) {
+            int b = bounds[s], e = bounds[s + step], m = (e - b) / 2;
+            if (e - b > 1) refl__kdt_select(r + b, e - b, m, axis);
+            bounds[s + step / 2] = b + m;
+        }
+}
+
+REFL_API refl_result refl_kdtree_build(const float *positions, int count, const refl_kdtree_desc *desc,
+                                       refl_kdtree **out_tree) {
+    refl_allocator alloc = refl__allocator(desc ? &desc->allocator : NULL);
+    refl_kdtree *t;
+    refl__kdt_rec *rec;
+    refl__kdt_task stack[REFL__KDT_STACK];
+    int leaf_points = desc && desc->leaf_points ? desc->leaf_points : REFL__KDT_DEFAULT_LEAF;
+    float min_size = desc ? desc->min_size : 0.0f;
+    int capacity, sp = 0, i, k;
+    size_t j;
+    double depth_sum = 0;
+
+    if (out_tree) *out_tree = NULL;
+    if (!out_tree || count < 0 || (!positions && count > 0) || leaf_points < 0 || !(min_size >= 0))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (j = 0; j < 3 * (size_t)count; ++j)
+        if (!refl__isfinite(positions[j])) return REFL_ERROR_INVALID_ARGUMENT;
+
+    t = (refl_kdtree *)refl__calloc(&alloc, 1, sizeof *t);
+    if (!t) return REFL_ERROR_OUT_OF_MEMORY;
+    t->allocator = alloc;
+    t->point_count = count;
+    /* Eight nodes per leaf_points points: usually enough; it grows when not. */
+    capacity = 1 + (int)REFL__MIN(8LL * (count / ((long long)leaf_points + 1)), (long long)INT_MAX / 2);
+    t->positions = (float *)refl__calloc(&alloc, (size_t)count, 3 * sizeof(float));
+    t->order = (uint32_t *)refl__calloc(&alloc, (size_t)count, sizeof(uint32_t));
+    t->nodes = (refl_kdtree_node *)refl__calloc(&alloc, (size_t)capacity, sizeof(refl_kdtree_node));
+    rec = (refl__kdt_rec *)refl__calloc(&alloc, (size_t)count, sizeof *rec);
+    if (!t->positions || !t->order || !t->nodes || !rec) {
+        refl__free(&alloc, rec);
+        refl__kdt_free_tree(t);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < count; ++i) {
+        for (k = 0; k < 3; ++k) rec[i].p[k] = positions[3 * (size_t)i + k];
+        rec[i].index = (uint32_t)i;
+    }
+
+    t->node_count = 1;
+    t->nodes[0].first = 0;
+    t->nodes[0].count = count;
+    t->nodes[0].depth = 0;
+    stack[sp].node = 0; stack[sp].depth = 0;
+    ++sp;
+    while (sp > 0) {
+        refl__kdt_task task = stack[--sp];
+        refl_kdtree_node *node = &t->nodes[task.node];
+        int bounds[9], children = 0, c, s;
+        node->child = -1;
+        node->child_count = 0;
+        node->depth = task.depth;
+        if (!refl__kdt_bound(node, rec, leaf_points, min_size) || task.depth >= REFL__KDT_MAX_DEPTH) {
+            refl__kdt_shuffle(rec + node->first, node->count, (uint64_t)node->first);
+            t->leaf_count += 1;
+            t->max_depth = REFL__MAX(t->max_depth, task.depth);
+            depth_sum += task.depth;
+            continue;
+        }
+        refl__kdt_split8(rec, node->first, node->count, bounds);
+        for (s = 0; s < 8; ++s) children += bounds[s + 1] > bounds[s];
+        c = refl__kdt_push_nodes(t, &capacity, children);
+        if (c < 0) {
+            refl__free(&alloc, rec);
+            refl__kdt_free_tree(t);
+            return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        node = &t->nodes[task.node]; /* the push may have moved it */
+        node->child = c;
+        node->child_count = children;
+        for (s = 0; s < 8; ++s) {
+            if (bounds[s + 1] == bounds[s]) continue;
+            t->nodes[c].first = bounds[s];
+            t->nodes[c].count = bounds[s + 1] - bounds[s];
+            ++c;
+        }
+        /* reversed, so the children are built in order */
+        for (s = children - 1; s >= 0; --s) {
+            REFL_ASSERT(sp < REFL__KDT_STACK);
+            stack[sp].node = node->child + s;
+            stack[sp].depth = task.depth + 1;
+            ++sp;
+        }
+    }
+
+    for (i = 0; i < count; ++i) {
+        for (k = 0; k < 3; ++k) t->positions[3 * (size_t)i + k] = rec[i].p[k];
+        t->order[i] = rec[i].index;
+    }
+    refl__free(&alloc, rec);
+    t->average_leaf_depth = depth_sum / t->leaf_count;
+    t->average_leaf_points = (double)count / t->leaf_count;
+    *out_tree = t;
+    return REFL_OK;
+}
+
+REFL_API void refl_kdtree_destroy(refl_kdtree *tree) {
+    if (tree) refl__kdt_free_tree(tree);
+}
+
+/* ---- query ------------------------------------------------------------------ */
+
+REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn box_test, refl_kdtree_leaf_fn leaf,
+                                     void *user) {
+    int stack[REFL__KDT_STACK];
+    int sp = 0;
+    long long tests = 0;
+    if (!tree || !tree->nodes || tree->node_count <= 0) return 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+        const refl_kdtree_node *node = &tree->nodes[stack[--sp]];
+        int c;
+        if (box_test) {
+            ++tests;
+            if (!box_test(user, node->lo, node->hi)) continue;
+        }
+        if (node->child_count == 0) {
+            if (leaf) leaf(user, tree, node);
+            continue;
+        }
+        for (c = node->child_count - 1; c >= 0; --c) {
+            REFL_ASSERT(sp < REFL__KDT_STACK);
+            stack[sp++] = node->child + c;
+        }
+    }
+    return tests;
+}
+/* ---- src/reflect/cam_c3rc.c ---- */
+/* cam_c3rc: the continuous 3-ray camera (C3RC) of paper 000, section 5.
+   A C3RC replaces the reflected rays of one reflector triangle: the tails
+   v1, v2, v3 are the triangle's vertices, d1, d2, d3 the unit reflected rays
+   there, and the view volume is swept by the triangle T(t) with vertices
+   vi + t di, t >= 0. A point P projects to (a, b, c, t) when
+       P = a (v1 + t d1) + b (v2 + t d2) + c (v3 + t d3),  a, b, c >= 0,
+   so the image point a v1 + b v2 + c v3 moves continuously across an edge
+   two C3RCs share (they share its two rays).
+
+   Projection: with e1 = v2 - v1, e2 = v3 - v1, f1 = d2 - d1, f2 = d3 - d1,
+   P lies in T(t)'s plane where
+       F(t) = det(e1 + t f1, e2 + t f2, P - v1 - t d1) = 0,
+   a cubic whose coefficients are affine in P (three dot products; the
+   leading one is constant). The roots are found without dividing by the
+   leading coefficient, which vanishes for almost parallel rays: t is
+   bounded above by geometry, [0, T] is split at the critical points into
+   monotone pieces and each piece with a sign change is solved by
+   safeguarded Halley iteration. Each root is accepted by its barycentrics
+   in T(t).
+
+   Section 5.1 (refl_c3rc_multiple_intervals): the sweep values where the
+   rays are not all on one side of T(t)'s plane; every projection of a
+   point that projects more than once lies there (proved below).
+
+   Section 5.2 (refl_c3rc_box_visible), made conservative: a box is
+   rejected only when nothing that can bound the truncated view volume
+   reaches it; the argument is at the function. */
+
+/* cam->pre[] layout (doubles, all from the stored float tails and unit rays):
+     0..2    N0 = e1 x e2
+     3..5    N1 = e1 x f2 + f1 x e2
+     6..8    N2 = f1 x f2
+     9..12   m0..m3: coefficient k of F(t) is N_k . (P - ctr) + m_k (N3 = 0)
+     13..15  ctr, the tails' centroid
+     16      R = max |vi - ctr|
+     17      1/m, at most 1e7; m = distance from the origin to the triangle
+             (d1, d2, d3) = the least |a d1 + b d2 + c d3|
+     18..20  |e1||e2|, |e1||f2| + |f1||e2|, |f1||f2|: rounding bounds
+     21..23  e1    24..26 e2    27..29 f1    30..32 f2    33..35 d1
+     36..38  u = ctr - v1
+     39      |u| */
+#define REFL__C3RC_N0 0
+#define REFL__C3RC_N1 3
+#define REFL__C3RC_N2 6
+#define REFL__C3RC_M 9
+#define REFL__C3RC_CTR 13
+#define REFL__C3RC_R 16
+#define REFL__C3RC_INVM 17
+#define REFL__C3RC_L 18
+#define REFL__C3RC_E1 21
+#define REFL__C3RC_E2 24
+#define REFL__C3RC_F1 27
+#define REFL__C3RC_F2 30
+#define REFL__C3RC_D1 33
+#define REFL__C3RC_U 36
+#define REFL__C3RC_ULEN 39
+
+#define REFL__C3RC_BARY_TOL 1e-6   /* api.h: barycentrics this far outside count */
+#define REFL__C3RC_MAX_INVM 1e7    /* t <= 1e7 * distance when the rays can cancel */
+
+/* ---- double helpers ---------------------------------------------------------- */
+
+static double refl__c3rc_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void refl__c3rc_cross(const double *a, const double *b, double *o) {
+    o[0] = a[1] * b[2] - a[2] * b[1];
+    o[1] = a[2] * b[0] - a[0] * b[2];
+    o[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double refl__c3rc_len(const double *a) { return sqrt(refl__c3rc_dot(a, a)); }
+
+static void refl__c3rc_sub(const double *a, const double *b, double *o) {
+    o[0] = a[0] - b[0]; o[1] = a[1] - b[1]; o[2] = a[2] - b[2];
+}
+
+static void refl__c3rc_load(refl_vec3 v, double *o) { o[0] = v.x; o[1] = v.y; o[2] = v.z; }
+
+static int refl__c3rc_finite3(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+
+/* Distance from the origin to triangle (a, b, c): Ericson's closest point
+   on a triangle, with the query point at the origin. */
+static double refl__c3rc_origin_distance(const double *a, const double *b, const double *c) {
+    double ab[3], ac[3], bc[3], p[3], d1, d2, d3, d4, d5, d6, va, vb, vc, v, w;
+    int k;
+    refl__c3rc_sub(b, a, ab);
+    refl__c3rc_sub(c, a, ac);
+    d1 = -refl__c3rc_dot(ab, a);
+    d2 = -refl__c3rc_dot(ac, a);
+    if (d1 <= 0.0 && d2 <= 0.0) return refl__c3rc_len(a);
+    d3 = -refl__c3rc_dot(ab, b);
+    d4 = -refl__c3rc_dot(ac, b);
+    if (d3 >= 0.0 && d4 <= d3) return refl__c3rc_len(b);
+    vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        v = d1 / (d1 - d3);
+        for (k = 0; k < 3; ++k) p[k] = a[k] + v * ab[k];
+        return refl__c3rc_len(p);
+    }
+    d5 = -refl__c3rc_dot(ab, c);
+    d6 = -refl__c3rc_dot(ac, c);
+    if (d6 >= 0.0 && d5 <= d6) return refl__c3rc_len(c);
+    vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        w = d2 / (d2 - d6);
+        for (k = 0; k < 3; ++k) p[k] = a[k] + w * ac[k];
+        return refl__c3rc_len(p);
+    }
+    va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        refl__c3rc_sub(c, b, bc);
+        for (k = 0; k < 3; ++k) p[k] = b[k] + w * bc[k];
+        return refl__c3rc_len(p);
+    }
+    /* inside: the distance to the plane */
+    refl__c3rc_cross(ab, ac, p);
+    v = refl__c3rc_len(p);
+    return v > 0.0 ? fabs(refl__c3rc_dot(p, a)) / v : refl__c3rc_len(a);
+}
+
+/* ---- init -------------------------------------------------------------------- */
+
+REFL_API refl_result refl_c3rc_init(refl_c3rc *cam, const refl_vec3 v[3], const refl_vec3 d[3]) {
+    double V[3][3], D[3][3], *q, len, m, t[3];
+    int i, k;
+    if (!cam || !v || !d) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < 3; ++i) {
+        if (!refl__c3rc_finite3(v[i]) || !refl__c3rc_finite3(d[i])) return REFL_ERROR_INVALID_ARGUMENT;
+        refl__c3rc_load(d[i], D[i]);
+        if (!(refl__c3rc_dot(D[i], D[i]) > 0.0)) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    memset(cam, 0, sizeof *cam);
+    for (i = 0; i < 3; ++i) {
+        /* scale first: a tiny or huge direction would under- or overflow */
+        len = REFL__MAX(REFL__MAX(fabs(D[i][0]), fabs(D[i][1])), fabs(D[i][2]));
+        for (k = 0; k < 3; ++k) D[i][k] /= len;
+        len = refl__c3rc_len(D[i]);
+        cam->v[i] = v[i];
+        cam->d[i] = refl_v3((float)(D[i][0] / len), (float)(D[i][1] / len), (float)(D[i][2] / len));
+        /* everything below is derived from the stored floats */
+        refl__c3rc_load(cam->v[i], V[i]);
+        refl__c3rc_load(cam->d[i], D[i]);
+    }
+    q = cam->pre;
+    refl__c3rc_sub(V[1], V[0], q + REFL__C3RC_E1);
+    refl__c3rc_sub(V[2], V[0], q + REFL__C3RC_E2);
+    refl__c3rc_sub(D[1], D[0], q + REFL__C3RC_F1);
+    refl__c3rc_sub(D[2], D[0], q + REFL__C3RC_F2);
+    for (k = 0; k < 3; ++k) q[REFL__C3RC_D1 + k] = D[0][k];
+    refl__c3rc_cross(q + REFL__C3RC_E1, q + REFL__C3RC_E2, q + REFL__C3RC_N0);
+    refl__c3rc_cross(q + REFL__C3RC_E1, q + REFL__C3RC_F2, q + REFL__C3RC_N1);
+    refl__c3rc_cross(q + REFL__C3RC_F1, q + REFL__C3RC_E2, t);
+    for (k = 0; k < 3; ++k) q[REFL__C3RC_N1 + k] += t[k];
+    refl__c3rc_cross(q + REFL__C3RC_F1, q + REFL__C3RC_F2, q + REFL__C3RC_N2);
+    for (k = 0; k < 3; ++k) {
+        q[REFL__C3RC_CTR + k] = (V[0][k] + V[1][k] + V[2][k]) / 3.0;
+        q[REFL__C3RC_U + k] = q[REFL__C3RC_CTR + k] - V[0][k];
+    }
+    /* F(t) = (n0 + t n1 + t^2 n2) . (w + u - t d1), w = P - ctr */
+    q[REFL__C3RC_M + 0] = refl__c3rc_dot(q + REFL__C3RC_N0, q + REFL__C3RC_U);
+    q[REFL__C3RC_M + 1] = refl__c3rc_dot(q + REFL__C3RC_N1, q + REFL__C3RC_U) -
+                          refl__c3rc_dot(q + REFL__C3RC_N0, q + REFL__C3RC_D1);
+    q[REFL__C3RC_M + 2] = refl__c3rc_dot(q + REFL__C3RC_N2, q + REFL__C3RC_U) -
+                          refl__c3rc_dot(q + REFL__C3RC_N1, q + REFL__C3RC_D1);
+    q[REFL__C3RC_M + 3] = -refl__c3rc_dot(q + REFL__C3RC_N2, q + REFL__C3RC_D1);
+    q[REFL__C3RC_R] = 0.0;
+    for (i = 0; i < 3; ++i) {
+        refl__c3rc_sub(V[i], q + REFL__C3RC_CTR, t);
+        q[REFL__C3RC_R] = REFL__MAX(q[REFL__C3RC_R], refl__c3rc_len(t));
+    }
+    m = refl__c3rc_origin_distance(D[0], D[1], D[2]) * (1.0 - 1e-9);
+    q[REFL__C3RC_INVM] = m * REFL__C3RC_MAX_INVM > 1.0 ? 1.0 / m : REFL__C3RC_MAX_INVM;
+    {
+        double le1 = refl__c3rc_len(q + REFL__C3RC_E1), le2 = refl__c3rc_len(q + REFL__C3RC_E2);
+        double lf1 = refl__c3rc_len(q + REFL__C3RC_F1), lf2 = refl__c3rc_len(q + REFL__C3RC_F2);
+        q[REFL__C3RC_L + 0] = le1 * le2;
+        q[REFL__C3RC_L + 1] = le1 * lf2 + lf1 * le2;
+        q[REFL__C3RC_L + 2] = lf1 * lf2;
+    }
+    q[REFL__C3RC_ULEN] = refl__c3rc_len(q + REFL__C3RC_U);
+    return REFL_OK;
+}
+
+/* ---- projection -------------------------------------------------------------- */
+
+static double refl__c3rc_eval(const double *c, double t) { return ((c[3] * t + c[2]) * t + c[1]) * t + c[0]; }
+
+/* The root of the cubic c in (lo, hi), where it is monotone and F(lo) has
+   the sign of flo, F(hi) the other: Halley steps (cubic convergence for
+   one more multiply-add; Newton where Halley's denominator is not
+   positive) from the false-position point, bisection whenever a step
+   leaves the bracket or does not halve the previous one (as Numerical
+   Recipes' rtsafe). Done when the step is below full precision or below
+   what the rounding in F allows (M bounds it): the root is only that well
+   defined. */
+static double refl__c3rc_root(const double *c, const double *M, double lo, double hi, double flo, double fhi) {
+    double x, ax, dxold, f, df, d2f, den, xn, step, tol, floor_tol = 1e-18 * fabs(hi);
+    int it;
+    x = lo + (hi - lo) * (flo / (flo - fhi));
+    if (!(x > lo && x < hi)) x = 0.5 * (lo + hi);
+    dxold = hi - lo;
+    for (it = 0; it < 100; ++it) {
+        f = refl__c3rc_eval(c, x);
+        if (f == 0.0) return x;
+        df = (3.0 * c[3] * x + 2.0 * c[2]) * x + c[1];
+        if ((f < 0.0) == (flo < 0.0)) lo = x;
+        else hi = x;
+        if (df != 0.0) {
+            d2f = 6.0 * c[3] * x + 2.0 * c[2];
+            den = 2.0 * df * df - f * d2f;
+            step = den > 0.0 ? 2.0 * f * df / den : f / df;
+            xn = x - step;
+            ax = fabs(x);
+            tol = (2.0 * DBL_EPSILON * ax + floor_tol) * fabs(df) + ((M[3] * ax + M[2]) * ax + M[1]) * ax + M[0];
+            if (fabs(f) <= tol) return xn > lo && xn < hi ? xn : x;
+            if (xn > lo && xn < hi && fabs(2.0 * step) < fabs(dxold)) {
+                dxold = step;
+                x = xn;
+                continue;
+            }
+        }
+        xn = 0.5 * (lo + hi);
+        dxold = xn - x;
+        if (xn <= lo || xn >= hi) return xn;
+        x = xn;
+    }
+    return x;
+}
+
+/* Barycentrics of P (w = P - ctr) in T(t), by T(t)'s normal; 1 and the
+   clamped, renormalised values when they are all >= -BARY_TOL. */
+static int refl__c3rc_bary(const double *q, const double *w, double t, double *abc) {
+    double E1[3], E2[3], W[3], n[3], x[3], n2, a, b, c, s;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        E1[k] = q[REFL__C3RC_E1 + k] + t * q[REFL__C3RC_F1 + k];
+        E2[k] = q[REFL__C3RC_E2 + k] + t * q[REFL__C3RC_F2 + k];
+        W[k] = w[k] + q[REFL__C3RC_U + k] - t * q[REFL__C3RC_D1 + k];
+    }
+    refl__c3rc_cross(E1, E2, n);
+    n2 = refl__c3rc_dot(n, n);
+    /* T(t) degenerate (a segment) to within rounding: no barycentrics */
+    if (!(n2 > 1e-28 * refl__c3rc_dot(E1, E1) * refl__c3rc_dot(E2, E2) && n2 <= DBL_MAX)) return 0;
+    refl__c3rc_cross(W, E2, x);
+    b = refl__c3rc_dot(x, n) / n2;
+    refl__c3rc_cross(E1, W, x);
+    c = refl__c3rc_dot(x, n) / n2;
+    a = 1.0 - b - c;
+    if (!(a >= -REFL__C3RC_BARY_TOL && b >= -REFL__C3RC_BARY_TOL && c >= -REFL__C3RC_BARY_TOL)) return 0;
+    a = REFL__CLAMP(a, 0.0, 1.0);
+    b = REFL__CLAMP(b, 0.0, 1.0);
+    c = REFL__CLAMP(c, 0.0, 1.0);
+    s = a + b + c;
+    abc[0] = a / s; abc[1] = b / s; abc[2] = c / s;
+    return 1;
+}
+
+/* Every valid projection, ascending in t, into out; how many. */
+static int refl__c3rc_project(const refl_c3rc *cam, refl_vec3 p, refl_c3rc_projection *out) {
+    const double *q = cam->pre;
+    double w[3], c[4], x[4], f[4], M[4], r, T, rho, disc, s, qq, r1, r2, abc[3], cand[6];
+    int nx, i, n = 0, nc = 0, pos = 0, neg = 0;
+    w[0] = (double)p.x - q[REFL__C3RC_CTR + 0];
+    w[1] = (double)p.y - q[REFL__C3RC_CTR + 1];
+    w[2] = (double)p.z - q[REFL__C3RC_CTR + 2];
+    r = sqrt(refl__c3rc_dot(w, w));
+    if (!(r <= DBL_MAX)) return 0; /* NaN or infinite */
+    c[0] = refl__c3rc_dot(q + REFL__C3RC_N0, w) + q[REFL__C3RC_M + 0];
+    c[1] = refl__c3rc_dot(q + REFL__C3RC_N1, w) + q[REFL__C3RC_M + 1];
+    c[2] = refl__c3rc_dot(q + REFL__C3RC_N2, w) + q[REFL__C3RC_M + 2];
+    c[3] = q[REFL__C3RC_M + 3];
+    /* P = B + t D with B in the base and D in the triangle of directions:
+       t |D| = |P - B| <= |P - ctr| + R, |D| >= m */
+    T = (r + q[REFL__C3RC_R]) * q[REFL__C3RC_INVM] * 1.001;
+    /* M: a bound on the rounding in F(t) (coefficients of a polynomial in
+       |t|). A critical value within it is taken for zero, so a point at a
+       double root (a fold of the volume) keeps its projection. */
+    rho = r + q[REFL__C3RC_ULEN];
+    M[0] = 64.0 * DBL_EPSILON * (q[REFL__C3RC_L + 0] * rho);
+    M[1] = 64.0 * DBL_EPSILON * (q[REFL__C3RC_L + 1] * rho + q[REFL__C3RC_L + 0]);
+    M[2] = 64.0 * DBL_EPSILON * (q[REFL__C3RC_L + 2] * rho + q[REFL__C3RC_L + 1]);
+    M[3] = 64.0 * DBL_EPSILON * q[REFL__C3RC_L + 2];
+    /* Like the barycentrics, t may fall short of 0 by a millionth of the
+       triangle's size (reported as 0): a point on the reflector rounded to
+       floats still projects. A degenerate base has no such margin; there a
+       value of F(0) within rounding counts as a root at 0. */
+    x[0] = -2e-6 * q[REFL__C3RC_R];
+    f[0] = refl__c3rc_eval(c, x[0]);
+    if (fabs(f[0]) <= ((M[3] * -x[0] + M[2]) * -x[0] + M[1]) * -x[0] + M[0]) f[0] = 0.0;
+    nx = 1;
+    /* critical points: 3 c3 t^2 + 2 c2 t + c1 = 0, the stable way */
+    disc = c[2] * c[2] - 3.0 * c[3] * c[1];
+    if (disc >= 0.0) {
+        s = sqrt(disc);
+        qq = -(c[2] + (c[2] >= 0.0 ? s : -s));
+        if (qq != 0.0) {
+            r1 = qq / (3.0 * c[3]); /* +-inf when c3 = 0: dropped below */
+            r2 = c[1] / qq;
+            if (r1 > r2) { s = r1; r1 = r2; r2 = s; }
+            if (r1 > x[0] && r1 < T) x[nx++] = r1;
+            if (r2 > x[0] && r2 < T && r2 != r1) x[nx++] = r2;
+        }
+    }
+    for (i = 1; i < nx; ++i) {
+        f[i] = refl__c3rc_eval(c, x[i]);
+        if (fabs(f[i]) <= ((M[3] * x[i] + M[2]) * x[i] + M[1]) * x[i] + M[0]) f[i] = 0.0;
+    }
+    x[nx] = T;
+    f[nx] = refl__c3rc_eval(c, T);
+    for (i = 0; i <= nx; ++i) {
+        pos |= f[i] > 0.0;
+        neg |= f[i] < 0.0;
+    }
+    if (pos != neg) {
+        /* one strict sign at every breakpoint: no root (the common case) */
+        for (i = 0; i <= nx; ++i)
+            if (f[i] == 0.0) break;
+        if (i > nx) return 0;
+    }
+    for (i = 0; i < nx; ++i) {
+        if (f[i] == 0.0) cand[nc++] = x[i];
+        else if ((f[i] < 0.0 && f[i + 1] > 0.0) || (f[i] > 0.0 && f[i + 1] < 0.0))
+            cand[nc++] = refl__c3rc_root(c, M, x[i], x[i + 1], f[i], f[i + 1]);
+    }
+    if (f[nx] == 0.0) cand[nc++] = T;
+    for (i = 0; i < nc && n < 3; ++i) {
+        if (!(cand[i] <= (double)FLT_MAX) || !refl__c3rc_bary(q, w, cand[i], abc)) continue;
+        out[n].a = (float)abc[0];
+        out[n].b = (float)abc[1];
+        out[n].c = (float)abc[2];
+        out[n].t = cand[i] > 0.0 ? (float)cand[i] : 0.0f;
+        ++n;
+    }
+    return n;
+}
+
+REFL_API int refl_c3rc_project(const refl_c3rc *cam, refl_vec3 p, refl_c3rc_projection out[3]) {
+    if (!cam || !out) return 0;
+    return refl__c3rc_project(cam, p, out);
+}
+
+/* ---- section 5.1: where multiple projections can occur ----------------------- */
+
+/* Ray j sits on the side s_j(t) = dj . (E1(t) x E2(t)) of T(t)'s plane,
+   s_j(t) = dj.N0 + t dj.N1 + t^2 dj.N2 (the t^2 coefficient is det(d1, d2,
+   d3) for every j, so for large t the signs agree unless the rays are
+   coplanar). The intervals are the closed pieces of [0, tmax] between the
+   roots of the three quadratics where the signs are not all one strict
+   sign.
+
+   The property (and why it holds): a point whose projections number two
+   or more has ALL of them at sweep values inside the intervals; so a
+   camera with no interval projects nothing twice. Proof: let t* lie
+   outside every interval, so all s_j(t*) > 0, say. Ray j meets the plane
+   of T(t*) once, at its vertex vj + t* dj, crossing it towards the
+   positive side; so for t > t* all three vertices of T(t), hence all of
+   T(t), lie strictly on the positive side, and for t < t* strictly on the
+   negative side. T(t*) meets no other T(t): a point of it projects once.
+   (Verified in tests/test_refl_c3rc_camera.c over thousands of random
+   convergent cameras.) It also bounds the folds of the volume: the map
+   (a, b, c, t) -> P has Jacobian det(E1, E2, D) = a s1 + b s2 + c s3
+   (D = a d1 + b d2 + c d3; at a projection dF/dt = -J), which cannot
+   vanish outside the intervals.
+
+   Signs within a relative 1e-12 of zero count as zero, which is neither
+   strict sign: conservative for a (near-)planar sweep. */
+static int refl__c3rc_intervals(const refl_c3rc *cam, double tmax, double out[4][2]) {
+    const double *q = cam->pre;
+    double s[3][3], dj[3], br[8], tmp[2], lo, hi, mid, scale, v, ln[3];
+    int nb = 0, j, i, k, n = 0, flag, pos, neg, nr;
+    ln[0] = refl__c3rc_len(q + REFL__C3RC_N0);
+    ln[1] = refl__c3rc_len(q + REFL__C3RC_N1);
+    ln[2] = refl__c3rc_len(q + REFL__C3RC_N2);
+    for (j = 0; j < 3; ++j) {
+        refl__c3rc_load(cam->d[j], dj);
+        s[j][0] = refl__c3rc_dot(dj, q + REFL__C3RC_N0);
+        s[j][1] = refl__c3rc_dot(dj, q + REFL__C3RC_N1);
+        s[j][2] = refl__c3rc_dot(dj, q + REFL__C3RC_N2);
+        nr = refl_solve_quadratic(s[j][2], s[j][1], s[j][0], tmp);
+        for (i = 0; i < nr; ++i)
+            if (tmp[i] > 0.0 && tmp[i] < tmax) br[nb++] = tmp[i];
+    }
+    /* sort the (at most 6) breakpoints */
+    for (i = 1; i < nb; ++i)
+        for (k = i; k > 0 && br[k - 1] > br[k]; --k) { v = br[k]; br[k] = br[k - 1]; br[k - 1] = v; }
+    for (i = 0; i <= nb; ++i) {
+        lo = i == 0 ? 0.0 : br[i - 1];
+        hi = i == nb ? tmax : br[i];
+        if (hi < lo || (hi == lo && !(i == 0 && nb == 0))) continue;
+        if (hi <= DBL_MAX) mid = 0.5 * (lo + hi);
+        else mid = 2.0 * lo + 1.0; /* beyond the last root: any point will do */
+        scale = 1e-12 * ((ln[2] * mid + ln[1]) * mid + ln[0]);
+        pos = neg = 0;
+        for (j = 0; j < 3; ++j) {
+            v = (s[j][2] * mid + s[j][1]) * mid + s[j][0];
+            pos += v > scale;
+            neg += v < -scale;
+        }
+        flag = !(pos == 3 || neg == 3);
+        if (!flag) continue;
+        if (n > 0 && out[n - 1][1] >= lo) out[n - 1][1] = hi; /* adjacent: merge */
+        else if (n < 4) {
+            out[n][0] = lo;
+            out[n][1] = hi;
+            ++n;
+        }
+    }
+    return n;
+}
+
+REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, float out[4][2]) {
+    double iv[4][2], tm;
+    int n, i;
+    if (!cam || !out || tmax < 0.0f) return 0;
+    tm = tmax == tmax ? (double)tmax : (double)INFINITY; /* NaN: no limit */
+    n = refl__c3rc_intervals(cam, tm, iv);
+    for (i = 0; i < n; ++i) {
+        /* rounded outwards */
+        out[i][0] = (float)iv[i][0];
+        if ((double)out[i][0] > iv[i][0]) out[i][0] = nextafterf(out[i][0], -INFINITY);
+        out[i][1] = (float)iv[i][1];
+        if ((double)out[i][1] < iv[i][1]) out[i][1] = nextafterf(out[i][1], INFINITY);
+        if (out[i][0] < 0.0f) out[i][0] = 0.0f;
+    }
+    return n;
+}
+
+/* ---- section 5.2: box against view volume ------------------------------------ */
+
+/* Does the segment A + l D, l in [0, lmax], meet box [lo, hi]? (slabs) */
+static int refl__c3rc_segment_box(const double *A, const double *D, double lmax, const double *lo, const double *hi) {
+    double l0 = 0.0, l1 = lmax, a, b, inv;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (fabs(D[k]) < 1e-300) {
+            if (A[k] < lo[k] || A[k] > hi[k]) return 0;
+            continue;
+        }
+        inv = 1.0 / D[k];
+        a = (lo[k] - A[k]) * inv;
+        b = (hi[k] - A[k]) * inv;
+        if (a > b) { inv = a; a = b; b = inv; }
+        if (a > l0) l0 = a;
+        if (b < l1) l1 = b;
+        if (l0 > l1) return 0;
+    }
+    return 1;
+}
+
+/* Roots of A x^2 + B x + C (not all zero), the stable way; -1 when the
+   polynomial vanishes identically. */
+static int refl__c3rc_quadratic(double A, double B, double C, double *r) {
+    double disc, s, qq;
+    if (A == 0.0) {
+        if (B == 0.0) return C == 0.0 ? -1 : 0;
+        r[0] = -C / B;
+        return 1;
+    }
+    disc = B * B - 4.0 * A * C;
+    if (disc < 0.0) return 0;
+    s = sqrt(disc);
+    qq = -0.5 * (B + (B >= 0.0 ? s : -s));
+    if (qq == 0.0) { r[0] = 0.0; return 1; }
+    r[0] = qq / A;
+    r[1] = C / qq;
+    return 2;
+}
+
+/* Does the side wall S(al, l) = A(al) + l D(al), A = va + al ea, D = da +
+   al fa, al in [0, 1], l in [0, T], meet box [lo, hi]? For each al the wall
+   holds a segment (a ruling), and the set of feasible (al, l) is cut out of
+   [0, 1] x [0, T] by six bilinear inequalities lo_k <= A_k + l D_k <= hi_k,
+   each bounded by a hyperbola (or a line pair) with no vertical tangent.
+   If that set is not empty, its least al is at al = 0, where two of those
+   curves cross (a quadratic in al once l is eliminated), where one crosses
+   l = 0 or l = T (the base edge or the top edge meets a face plane: linear),
+   or on a vertical line of a degenerate curve (where D_k(al) = 0). Testing
+   the ruling at each of those al is therefore exact; the box is already
+   grown by the caller's tolerance. This is the paper's "wall curve against
+   the four face edges" test together with the curve ends it leaves out. */
+static int refl__c3rc_wall_box(const double *va, const double *vb, const double *da, const double *db, double T,
+                               const double *lo, const double *hi) {
+    double ea[3], fa[3], al[64], A[3], D[3], r[2], pk, pl, a;
+    int n = 0, k, l, ck, cl, i, nr;
+    refl__c3rc_sub(vb, va, ea);
+    refl__c3rc_sub(db, da, fa);
+    al[n++] = 0.0;
+    al[n++] = 1.0;
+    for (k = 0; k < 3; ++k) {
+        if (fa[k] != 0.0) al[n++] = -da[k] / fa[k];
+        for (ck = 0; ck < 2; ++ck) {
+            double c = ck ? hi[k] : lo[k];
+            if (ea[k] != 0.0) al[n++] = (c - va[k]) / ea[k];                                    /* l = 0 */
+            if (ea[k] + T * fa[k] != 0.0) al[n++] = (c - va[k] - T * da[k]) / (ea[k] + T * fa[k]); /* l = T */
+        }
+    }
+    for (k = 0; k < 3; ++k)
+        for (l = k + 1; l < 3; ++l)
+            for (ck = 0; ck < 2; ++ck)
+                for (cl = 0; cl < 2; ++cl) {
+                    /* (pk - al ea_k) D_l(al) - (pl - al ea_l) D_k(al) = 0 */
+                    pk = (ck ? hi[k] : lo[k]) - va[k];
+                    pl = (cl ? hi[l] : lo[l]) - va[l];
+                    nr = refl__c3rc_quadratic(ea[l] * fa[k] - ea[k] * fa[l],
+                                              pk * fa[l] - ea[k] * da[l] - pl * fa[k] + ea[l] * da[k],
+                                              pk * da[l] - pl * da[k], r);
+                    for (i = 0; i < nr; ++i) al[n++] = r[i];
+                }
+    for (i = 0; i < n; ++i) {
+        a = al[i];
+        if (!(a >= -1e-9 && a <= 1.0 + 1e-9)) continue;
+        a = REFL__CLAMP(a, 0.0, 1.0);
+        for (k = 0; k < 3; ++k) {
+            A[k] = va[k] + a * ea[k];
+            D[k] = da[k] + a * fa[k];
+        }
+        if (refl__c3rc_segment_box(A, D, T, lo, hi)) return 1;
+    }
+    return 0;
+}
+
+static int refl__c3rc_aabb_overlap(const double (*P)[3], int count, const double *lo, const double *hi) {
+    double mn, mx;
+    int i, k;
+    for (k = 0; k < 3; ++k) {
+        mn = mx = P[0][k];
+        for (i = 1; i < count; ++i) {
+            mn = REFL__MIN(mn, P[i][k]);
+            mx = REFL__MAX(mx, P[i][k]);
+        }
+        if (mx < lo[k] || mn > hi[k]) return 0;
+    }
+    return 1;
+}
+
+/* The triangles T(t0) and T(t1) (six points), whose hull holds the sweep
+   between them. */
+static void refl__c3rc_slab(const double (*V)[3], const double (*D)[3], double t0, double t1, double (*P)[3]) {
+    int i, k;
+    for (i = 0; i < 3; ++i)
+        for (k = 0; k < 3; ++k) {
+            P[i][k] = V[i][k] + t0 * D[i][k];
+            P[3 + i][k] = V[i][k] + t1 * D[i][k];
+        }
+}
+
+/* Conservative box test. Let V_T be the volume swept for t in [0, T].
+   Every boundary point of V_T is the image of a boundary point of the
+   parameter prism (the base T(0), the top T(T), the three side walls with
+   l in [0, T]) or of a fold (J = 0, see above, only at t inside the
+   section 5.1 intervals): elsewhere the map is a local diffeomorphism and
+   its image is interior. Suppose the box B meets V_T but
+     (a) B misses the hull of T(t0) and T(t1) for every interval [t0, t1],
+     (b) B misses every wall (each is tested against the whole box), and
+     (c) B misses T(0) or T(T) (their bounding boxes).
+   Then B meets the boundary of V_T only in one cap, say T(0) (T(T) alike);
+   the cap's edges lie on the walls, so B's section by the cap's plane lies
+   inside the cap. If the plane cuts B's interior, it splits B into two
+   convex pieces, each missing the boundary of V_T, so each lies wholly in
+   V_T or wholly outside it; near the cap (J != 0 there by (a)) V_T fills
+   one side, so one piece is inside V_T, and it holds a corner of B, which
+   projects with t <= T. If the plane only touches B, the touching face,
+   edge or corner lies in the cap: its corners project (t = 0 or T). If B
+   meets no cap at all it lies wholly inside V_T. So with (d) "no corner of
+   B projects with t <= T", B cannot meet V_T.
+   T is tmax, but never more than a bound on the t of any point of the box,
+   which keeps every test finite. Points that project within the
+   barycentric (or t) tolerance lie near V_T: the box is grown by that
+   much, and the argument applies to the grown box. */
+REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax) {
+    const double *q;
+    double blo[3], bhi[3], V[3][3], D[3][3], P[6][3], iv[4][2], far2, e, T, Tbox, delta, tc;
+    refl_c3rc_projection pr[3];
+    int i, k, n, j;
+    if (!cam || tmax < 0.0f) return 0;
+    q = cam->pre;
+    refl__c3rc_load(lo, blo);
+    refl__c3rc_load(hi, bhi);
+    far2 = 0.0;
+    for (k = 0; k < 3; ++k) {
+        if (!(blo[k] - blo[k] == 0.0 && bhi[k] - bhi[k] == 0.0)) return 1; /* unbounded or NaN: maybe */
+        if (blo[k] > bhi[k]) return 0;                                      /* empty */
+        e = REFL__MAX(fabs(blo[k] - q[REFL__C3RC_CTR + k]), fabs(bhi[k] - q[REFL__C3RC_CTR + k]));
+        far2 += e * e;
+    }
+    /* every point of the box projects (if at all) with t <= Tbox */
+    Tbox = (sqrt(far2) + q[REFL__C3RC_R]) * q[REFL__C3RC_INVM] * 1.01;
+    T = tmax == tmax && (double)tmax < Tbox ? (double)tmax : Tbox;
+    delta = 10.0 * REFL__C3RC_BARY_TOL * (2.0 * q[REFL__C3RC_R] + 2.0 * T) + 1e-30;
+    for (k = 0; k < 3; ++k) {
+        /* grown, then rounded outwards to floats: the corners projected
+           below are exactly this box's */
+        float fl = (float)(blo[k] - delta), fh = (float)(bhi[k] + delta);
+        if ((double)fl > blo[k] - delta) fl = nextafterf(fl, -INFINITY);
+        if ((double)fh < bhi[k] + delta) fh = nextafterf(fh, INFINITY);
+        if (!refl__isfinite(fl) || !refl__isfinite(fh)) return 1;
+        blo[k] = fl;
+        bhi[k] = fh;
+    }
+    for (i = 0; i < 3; ++i) {
+        refl__c3rc_load(cam->v[i], V[i]);
+        refl__c3rc_load(cam->d[i], D[i]);
+    }
+    /* the truncated volume lies in the hull of T(0) and T(T) */
+    refl__c3rc_slab((const double(*)[3])V, (const double(*)[3])D, 0.0, T, P);
+    if (!refl__c3rc_aabb_overlap((const double(*)[3])P, 6, blo, bhi)) return 0;
+    /* (c) both caps near the box */
+    if (refl__c3rc_aabb_overlap((const double(*)[3])P, 3, blo, bhi) &&
+        refl__c3rc_aabb_overlap((const double(*)[3])(P + 3), 3, blo, bhi))
+        return 1;
+    /* a wall's corner inside: cheap, and common for small boxes */
+    for (i = 0; i < 6; ++i) {
+        for (k = 0; k < 3; ++k)
+            if (P[i][k] < blo[k] || P[i][k] > bhi[k]) break;
+        if (k == 3) return 1;
+    }
+    /* (a) folds */
+    n = refl__c3rc_intervals(cam, T, iv);
+    for (j = 0; j < n; ++j) {
+        double t0 = iv[j][0], t1 = iv[j][1], pad = 1e-9 * (t1 + 2.0 * q[REFL__C3RC_R]);
+        double S[6][3];
+        t0 = REFL__MAX(0.0, t0 - pad);
+        t1 = REFL__MIN(T, t1 + pad);
+        refl__c3rc_slab((const double(*)[3])V, (const double(*)[3])D, t0, t1, S);
+        if (refl__c3rc_aabb_overlap((const double(*)[3])S, 6, blo, bhi)) return 1;
+    }
+    /* (d) corners */
+    tc = T * (1.0 + 1e-6);
+    for (i = 0; i < 8; ++i) {
+        refl_vec3 c = refl_v3((float)(i & 1 ? bhi[0] : blo[0]), (float)(i & 2 ? bhi[1] : blo[1]),
+                              (float)(i & 4 ? bhi[2] : blo[2]));
+        n = refl__c3rc_project(cam, c, pr);
+        if (n > 0 && (double)pr[0].t <= tc) return 1;
+    }
+    /* (b) walls */
+    for (i = 0; i < 3; ++i) {
+        j = (i + 1) % 3;
+        if (refl__c3rc_wall_box(V[i], V[j], D[i], D[j], T, blo, bhi)) return 1;
+    }
+    return 0;
+}
 /* ---- src/reflect/shadow.c ---- */
 /* Hard shadows for the rasterised methods: stencil shadow volumes, counted
    in and out as Heidmann does and Diefenbach and Badler use them (paper
@@ -5350,7 +6433,8 @@ static refl_result refl__method_raytrace(refl__pass *p) {
    Per reflector pixel: the world normal comes from a G-buffer draw of the
    reflectors (depth LEQUAL against the frame's depth, stencil EQUAL their
    id, so exactly the pixels the base pass gave them; the object index in
-   alpha tells apart objects sharing stencil 255), the view direction from
+   alpha tells apart objects sharing stencil 255; negative where the back
+   side shows), the view direction from
    the pixel's camera ray. Colour is looked up bilinearly within a face;
    the world point a texel shows (drawn in a second pass per face) nearest,
    into frame->points.
@@ -5428,7 +6512,7 @@ static int refl__em_normal_fragment(void *user, const rast_fragment_in *in, floa
     rgba[0] = n.x;
     rgba[1] = n.y;
     rgba[2] = n.z;
-    rgba[3] = d->id;
+    rgba[3] = in->front_facing ? d->id : -d->id; /* the side seen, for C3RC */
     return 1;
 }
 
@@ -5637,7 +6721,7 @@ static void refl__em_row(void *arg, int y) {
         float rgb[3], sub[3], cos_i, w, tmax;
         refl_vec3 o, d, n, shown;
         uint8_t *px = fr->color + 4 * i;
-        if (g[3] != id) continue;
+        if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
         if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f); /* degenerate normal: face the eye */
@@ -5724,7 +6808,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     if ((rr = rast_finish(p->rc)) != RAST_OK) return refl__result_from_rast(rr);
     *any = 0;
     for (k = 0; k < npx; ++k) {
-        float id = em->gbuf[4 * k + 3];
+        float id = fabsf(em->gbuf[4 * k + 3]);
         if (id >= 1.0f && id <= (float)scene->object_count) {
             seen[(int)id - 1] = 1;
             *any = 1;
@@ -5821,6 +6905,7 @@ static double refl__metric_d2(const float *a, const float *b) {
    scanned instead of split. */
 
 enum { REFL__KD_LEAF = 8, REFL__KD_STACK = 128 };
+enum { REFL__METRIC_REACH = 16 }; /* pixels searched for a nearer image of a point */
 
 typedef struct refl__kd_point {
     float p[3];
@@ -5946,6 +7031,35 @@ static void refl__kd_nearest(const refl__kd_point *v, const uint8_t *axes, size_
 
 /* ---- reflection error ------------------------------------------------------------ */
 
+/* Whether truth pixel (x, y) of reflector id is where an image of p lies:
+   its true point matches p (within tolerance times its spacing, as for
+   x*), and no 8-neighbour of it on the reflector shows a point nearer p
+   (ties to the lower pixel index): the middle of an image of p, not the
+   edge of one. */
+static int refl__metric_image_of(const refl_frame *truth, const double *spacing, int id, int x, int y, const float *p,
+                                 double tolerance) {
+    int w = truth->width, h = truth->height, dx, dy;
+    size_t i = (size_t)y * (size_t)w + (size_t)x;
+    double d2;
+    if (x < 0 || y < 0 || x >= w || y >= h || truth->stencil[i] != id || !refl__metric_point(truth->points + 3 * i) ||
+        spacing[i] < 0.0)
+        return 0;
+    d2 = refl__metric_d2(truth->points + 3 * i, p);
+    if (sqrt(d2) > tolerance * spacing[i]) return 0;
+    for (dy = -1; dy <= 1; ++dy)
+        for (dx = -1; dx <= 1; ++dx) {
+            int xs = x + dx, ys = y + dy;
+            size_t j;
+            double dj;
+            if ((!dx && !dy) || xs < 0 || ys < 0 || xs >= w || ys >= h) continue;
+            j = (size_t)ys * (size_t)w + (size_t)xs;
+            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
+            dj = refl__metric_d2(truth->points + 3 * j, p);
+            if (dj < d2 || (dj == d2 && j < i)) return 0;
+        }
+    return 1;
+}
+
 static int refl__metric_cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
@@ -5965,6 +7079,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     refl__kd_point *kd = NULL;
     uint8_t *axes = NULL;
     double *errors = NULL, tolerance = 1.5, sum = 0.0;
+    double *spacing = NULL;
     size_t n, i, start[257], fill[256];
     long long counted = 0, matched = 0, wrong = 0, empty = 0;
     uint32_t last = UINT32_MAX;
@@ -5992,7 +7107,8 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     kd = (refl__kd_point *)refl__calloc(&a, start[256], sizeof(refl__kd_point));
     axes = (uint8_t *)refl__calloc(&a, start[256], 1);
     errors = (double *)refl__calloc(&a, n, sizeof(double));
-    if (!kd || !axes || !errors) {
+    spacing = (double *)refl__calloc(&a, n, sizeof(double));
+    if (!kd || !axes || !errors || !spacing) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
@@ -6004,9 +7120,24 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
             e->pixel = (uint32_t)i;
         }
     for (i = 1; i < 256; ++i) refl__kd_build(kd, axes, start[i], start[i + 1]);
+    /* each true point's spacing to its 4-neighbours (-1: none of them) */
+    for (i = 0; i < n; ++i) {
+        int id = truth->stencil[i], x = (int)(i % (size_t)w), y = (int)(i / (size_t)w), k;
+        double s2 = -1.0;
+        if (!id || !refl__metric_point(truth->points + 3 * i)) continue;
+        for (k = 0; k < 4; ++k) {
+            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+            size_t j;
+            if (xs < 0 || ys < 0 || xs >= w || ys >= truth->height) continue;
+            j = (size_t)ys * (size_t)w + (size_t)xs;
+            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
+            s2 = REFL__MAX(s2, refl__metric_d2(truth->points + 3 * i, truth->points + 3 * j));
+        }
+        spacing[i] = s2 < 0.0 ? -1.0 : sqrt(s2);
+    }
 
     for (i = 0; i < n; ++i) {
-        int id = truth->stencil[i], x, y, k;
+        int id = truth->stencil[i], x, y;
         const float *p = test->points + 3 * i, *tp;
         uint32_t best = UINT32_MAX, other = UINT32_MAX;
         double d2 = INFINITY, spacing2 = -1.0;
@@ -6035,23 +7166,29 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
         x = (int)(best % (uint32_t)w);
         y = (int)(best / (uint32_t)w);
         tp = truth->points + 3 * (size_t)best;
-        for (k = 0; k < 4; ++k) {
-            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
-            size_t j;
-            if (xs < 0 || ys < 0 || xs >= w || ys >= truth->height) continue;
-            j = (size_t)ys * (size_t)w + (size_t)xs;
-            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
-            spacing2 = REFL__MAX(spacing2, refl__metric_d2(tp, truth->points + 3 * j));
-        }
+        if (spacing[best] >= 0.0) spacing2 = spacing[best] * spacing[best];
         if (spacing2 < 0.0) {
             spacing2 = INFINITY;
             refl__kd_nearest(kd, axes, start[id], start[id + 1], tp, best, &other, &spacing2);
             if (other == UINT32_MAX) spacing2 = 0.0; /* the only point: only itself matches */
         }
         if (sqrt(d2) <= tolerance * sqrt(spacing2)) {
-            double dx = (double)((long long)(i % (size_t)w) - x);
-            double dy = (double)((long long)(i / (size_t)w) - y);
-            double e = sqrt(dx * dx + dy * dy);
+            int xi = (int)(i % (size_t)w), yi = (int)(i / (size_t)w), dx, dy, reach;
+            double e = sqrt((double)(xi - x) * (xi - x) + (double)(yi - y) * (yi - y));
+            /* the same point may show in more than one place on a reflector
+               (a minified image beside a magnified one, where the nearest
+               true point is likelier): the error is the distance to the
+               nearest place within REFL__METRIC_REACH pixels where the
+               truth shows P too (refl__metric_image_of) */
+            reach = (int)REFL__MIN(ceil(e) - 1.0, (double)REFL__METRIC_REACH);
+            for (dy = -reach; dy <= reach; ++dy)
+                for (dx = -reach; dx <= reach; ++dx) {
+                    int xs = xi + dx, ys = yi + dy;
+                    double ej = sqrt((double)(dx * dx + dy * dy));
+                    if (ej < e && ej <= (double)REFL__METRIC_REACH &&
+                        refl__metric_image_of(truth, spacing, id, xs, ys, p, tolerance))
+                        e = ej;
+                }
             errors[matched++] = e;
             sum += e;
         } else {
@@ -6077,6 +7214,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     r = REFL_OK;
 done:
     refl__free(&a, errors);
+    refl__free(&a, spacing);
     refl__free(&a, axes);
     refl__free(&a, kd);
     return r;
@@ -6123,6 +7261,1067 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
         out->over_threshold = (double)over / (double)count;
     }
     return REFL_OK;
+}
+/* ---- src/reflect/m_c3rc.c ---- */
+/* C3RC: Mei, Popescu and Sacks' hybrid backward-forward reflections
+   (paper 000). Per frame:
+     1. every surface is sampled with points (refl_mesh_sample_points, world
+        space), each shaded once as DIRECT shows it (diffuse model clamped,
+        a partial reflector's diffuse share, mirrors and glass black), and
+        the points go into a kd-tree (section 4);
+     2. each front-facing reflector triangle becomes a continuous 3-ray
+        camera from the reflected rays at its vertices (section 5);
+     3. backward: the kd-tree is walked with the camera's box test
+        (section 5.2) to find the leaves it may see;
+     4. forward: every point of those leaves is projected with the camera,
+        every valid projection (the paper's GPU kept one; here all) lands on
+        the reflector point a v1 + b v2 + c v3, seen by the view at a pixel,
+        and is splatted there as a square; the point nearest the reflector
+        (smallest t, the paper's push-back) wins each pixel.
+   Pixels no point reaches show the environment along their reflected ray
+   (the paper's environment-mapped background). One bounce, as the paper.
+
+   Splats: the side grows with the point spacing the camera shows on
+   screen, estimated per projection from the sweeping triangle's area at t
+   against the reflector triangle's area in pixels (the paper's "increase
+   the splat size where rays converge"), up to max_splat. Level of detail:
+   a leaf's points are shuffled (refl_kdtree), so where a camera minifies a
+   whole leaf, a prefix of it at the needed density is drawn.
+
+   A splat only covers pixels where the reflector the camera belongs to is
+   what the view sees, and near the reflector point (within the
+   triangle's longest edge or three pixels): another part of the same
+   reflector in front hides it. Visibility is a per-pixel atomic minimum of
+   (t, point index), so the image is the same for any thread count and
+   order. Glass: the reflected share as above; the refracted share is the
+   environment along the ray refracted once (no point). */
+
+#define REFL__C3_EMPTY (~(uint64_t)0)
+#define REFL__C3_LOD_SPACING 0.5f   /* pixels between drawn points where a leaf is thinned */
+#define REFL__C3_SPLAT_SCALE 1.5f   /* splat side per point spacing (random points leave gaps) */
+
+/* A camera to build: a piece of reflector triangle `triangle`, its
+   corners as barycentrics of the triangle's vertices (rows: corners). */
+typedef struct refl__c3_job {
+    int object, triangle;
+    float corner[3][3];
+} refl__c3_job;
+
+#define REFL__C3_SPLIT_PX 0.1f     /* estimated camera error that splits a triangle's camera */
+#define REFL__C3_SPLIT_DEPTH 4      /* at most 4^4 cameras per reflector triangle */
+
+typedef struct refl__c3_counts {
+    long long tests, culled, leaves, tries, valid, multiple;
+    double ms_cull, ms_project;
+} refl__c3_counts;
+
+typedef struct refl__c3 {
+    refl__pass *p;
+    refl__em em;                  /* the reflectors' G-buffer (ENVMAP's) */
+    float *surface;               /* per pixel: the reflector point seen there (world) */
+    uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
+    refl_kdtree *tree;
+    float *rgb, *normal;          /* per tree point */
+    uint8_t *diffuse;             /* per tree point: on a diffuse object (culled when facing away) */
+    int32_t *object, *triangle;   /* per tree point: where it was sampled */
+    float density;
+    float tmax;                   /* longest possible sweep: the scene's diagonal */
+    float pixel_angle;            /* world size of a pixel per unit of distance */
+    int max_splat;
+    refl__c3_job *jobs;
+    refl__c3_counts *counts;      /* one per job, summed in order afterwards */
+} refl__c3;
+
+/* The state of one camera while its leaves are drawn. */
+typedef struct refl__c3_cam {
+    const refl__c3 *c3;
+    refl_c3rc cam;
+    int object, triangle;
+    float screen_area;            /* the triangle's area in pixels */
+    float edge;                   /* longest edge (world) */
+    refl_vec3 base_normal;        /* unit, the side the rays leave */
+    float dn_min, dn_max;         /* range of di . base_normal */
+    int lod;                      /* thinning allowed: no multiple projections */
+    float id;                     /* G-buffer id of its pixels: object + 1, negated for a back face */
+    float sweep;                  /* the largest t a scene point can have (INFINITY: unknown) */
+    float hull[14][4];            /* planes n . x <= w bounding the volume up to t = sweep */
+    int hull_count;
+    refl__c3_counts *n;
+    double t_cull;
+} refl__c3_cam;
+
+/* Atomic minimum: the smaller key wins whatever the order of arrival. */
+static void refl__c3_min(uint64_t *slot, uint64_t key) {
+#if defined(__GNUC__) || defined(__clang__)
+    uint64_t cur = __atomic_load_n(slot, __ATOMIC_RELAXED);
+    while (key < cur && !__atomic_compare_exchange_n(slot, &cur, key, 1, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
+    }
+#else
+#error "C3RC needs an atomic compare-and-swap (GCC or Clang builtins)"
+#endif
+}
+
+/* A float's bits: non-negative floats order as their bits do. */
+static uint32_t refl__c3_bits(float f) {
+    uint32_t u;
+    f = f > 0.0f ? f : 0.0f;
+    memcpy(&u, &f, sizeof u);
+    return u;
+}
+
+static double refl__c3_sweep_area(const refl_c3rc *c, float t) {
+    refl_vec3 a = refl_v3_add(c->v[0], refl_v3_scale(c->d[0], t));
+    refl_vec3 b = refl_v3_add(c->v[1], refl_v3_scale(c->d[1], t));
+    refl_vec3 d = refl_v3_add(c->v[2], refl_v3_scale(c->d[2], t));
+    return 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(b, a), refl_v3_sub(d, a)));
+}
+
+/* Window coordinates of a world point; 0 behind the eye. */
+static int refl__c3_window(const refl__pass *p, refl_vec3 q, float *x, float *y) {
+    const float *m = p->vp.m;
+    float cx = m[0] * q.x + m[4] * q.y + m[8] * q.z + m[12];
+    float cy = m[1] * q.x + m[5] * q.y + m[9] * q.z + m[13];
+    float cw = m[3] * q.x + m[7] * q.y + m[11] * q.z + m[15];
+    if (!(cw > 0.0f)) return 0;
+    *x = (cx / cw + 1.0f) * 0.5f * (float)p->frame->width;
+    *y = (1.0f - cy / cw) * 0.5f * (float)p->frame->height;
+    return 1;
+}
+
+/* Splats point i, projected at pr, into the pixels of the camera's
+   reflector around its reflector point. */
+static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_projection *pr, float density) {
+    const refl__c3 *c3 = k->c3;
+    const refl__pass *p = c3->p;
+    const refl_c3rc *c = &k->cam;
+    int w = p->frame->width, h = p->frame->height, side, x0, y0, x, y;
+    refl_vec3 q = refl_v3_add(refl_v3_add(refl_v3_scale(c->v[0], pr->a), refl_v3_scale(c->v[1], pr->b)),
+                              refl_v3_scale(c->v[2], pr->c));
+    float px, py, tol, plane_tol, pix, spacing = 0.0f;
+    uint64_t key;
+    if (!refl__c3_window(p, q, &px, &py)) return;
+    {   /* the point spacing on screen: a point's share of surface, turned
+           into the sweep plane along the ray, then into pixels */
+        refl_vec3 dir = refl_v3_add(refl_v3_add(refl_v3_scale(c->d[0], pr->a), refl_v3_scale(c->d[1], pr->b)),
+                                    refl_v3_scale(c->d[2], pr->c));
+        refl_vec3 e1 = refl_v3_sub(refl_v3_add(c->v[1], refl_v3_scale(c->d[1], pr->t)),
+                                   refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
+        refl_vec3 e2 = refl_v3_sub(refl_v3_add(c->v[2], refl_v3_scale(c->d[2], pr->t)),
+                                   refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
+        refl_vec3 ns = refl_v3_cross(e1, e2), np;
+        float sweep = 0.5f * refl_v3_length(ns), cs, cp;
+        const float *nn = c3->normal + 3 * (size_t)i;
+        np = refl_v3(nn[0], nn[1], nn[2]);
+        dir = refl_v3_normalize(dir);
+        cs = fabsf(refl_v3_dot(refl_v3_normalize(ns), dir));
+        cp = refl_v3_dot(np, dir);
+        /* a diffuse surface's back, seen through gaps in its front: not drawn */
+        if (cp > 0.0f && c3->diffuse[i]) return;
+        cp = fabsf(cp);
+        if (sweep > 0.0f && density > 0.0f)
+            spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
+    }
+    side = (int)ceilf(REFL__C3_SPLAT_SCALE * spacing);
+    side = REFL__CLAMP(side, 1, c3->max_splat);
+    x0 = (int)floorf(px - 0.5f * (float)side + 0.5f);
+    y0 = (int)floorf(py - 0.5f * (float)side + 0.5f);
+    /* the surface seen there must be this triangle's: within two pixels
+       of its plane (a neighbour across an edge is; another part of the
+       reflector hiding it is not) and of its size from the point */
+    pix = c3->pixel_angle * refl_v3_length(refl_v3_sub(q, p->view->eye));
+    plane_tol = 2.0f * pix;
+    tol = k->edge + (float)side * pix;
+    key = ((uint64_t)refl__c3_bits(pr->t) << 32) | (uint64_t)(uint32_t)i;
+    for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
+        for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *r = c3->surface + 3 * j;
+            refl_vec3 dq;
+            if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
+            dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
+            if (refl_v3_dot(dq, dq) > tol * tol || fabsf(refl_v3_dot(dq, k->base_normal)) > plane_tol) continue;
+            refl__c3_min(&((refl__c3 *)c3)->key[j], key);
+        }
+}
+
+/* The truncated volume (t <= k->sweep) is the convex hull of the tails
+   and vi + sweep di (every point of it a convex combination of them):
+   planes through three of those six points with all six on one side bound
+   it, and a box or point beyond one of them cannot project. */
+static void refl__c3_hull(refl__c3_cam *k) {
+    static const int tri[14][3] = {{0, 1, 2}, {3, 4, 5}, {0, 1, 3}, {0, 1, 4}, {0, 3, 4}, {1, 3, 4},
+                                   {1, 2, 4}, {1, 2, 5}, {1, 4, 5}, {2, 4, 5}, {2, 0, 5}, {2, 0, 3},
+                                   {2, 5, 3}, {0, 5, 3}};
+    refl_vec3 q[6];
+    float scale = 0.0f;
+    int i, j;
+    k->hull_count = 0;
+    if (!(k->sweep < FLT_MAX)) return;
+    for (i = 0; i < 3; ++i) {
+        q[i] = k->cam.v[i];
+        q[i + 3] = refl_v3_add(k->cam.v[i], refl_v3_scale(k->cam.d[i], k->sweep));
+    }
+    for (i = 0; i < 6; ++i) scale = REFL__MAX(scale, refl_v3_length(refl_v3_sub(q[i], q[0])));
+    for (i = 0; i < 14; ++i) {
+        refl_vec3 n = refl_v3_normalize(refl_v3_cross(refl_v3_sub(q[tri[i][1]], q[tri[i][0]]),
+                                                      refl_v3_sub(q[tri[i][2]], q[tri[i][0]])));
+        float w = refl_v3_dot(n, q[tri[i][0]]), eps = 1e-4f * scale + 1e-6f * fabsf(w), lo = 0.0f, hi = 0.0f;
+        if (refl_v3_dot(n, n) == 0.0f) continue;
+        for (j = 0; j < 6; ++j) {
+            float e = refl_v3_dot(n, q[j]) - w;
+            lo = REFL__MIN(lo, e);
+            hi = REFL__MAX(hi, e);
+        }
+        if (hi <= eps) { /* all on the negative side */
+            k->hull[k->hull_count][0] = n.x; k->hull[k->hull_count][1] = n.y; k->hull[k->hull_count][2] = n.z;
+            k->hull[k->hull_count++][3] = w + eps;
+        } else if (lo >= -eps) {
+            k->hull[k->hull_count][0] = -n.x; k->hull[k->hull_count][1] = -n.y; k->hull[k->hull_count][2] = -n.z;
+            k->hull[k->hull_count++][3] = -w + eps;
+        }
+    }
+}
+
+static int refl__c3_box(void *user, const float lo[3], const float hi[3]) {
+    refl__c3_cam *k = (refl__c3_cam *)user;
+    double t0 = refl__now_ms();
+    int i, seen = 1;
+    for (i = 0; i < k->hull_count && seen; ++i) { /* the box's corner least along the plane's normal */
+        const float *h = k->hull[i];
+        float m = h[0] * (h[0] > 0.0f ? lo[0] : hi[0]) + h[1] * (h[1] > 0.0f ? lo[1] : hi[1]) +
+                  h[2] * (h[2] > 0.0f ? lo[2] : hi[2]);
+        seen = m <= h[3];
+    }
+    if (seen)
+        seen = refl_c3rc_box_visible(&k->cam, refl_v3(lo[0], lo[1], lo[2]), refl_v3(hi[0], hi[1], hi[2]), k->sweep);
+    k->t_cull += refl__now_ms() - t0;
+    k->n->tests++;
+    k->n->culled += !seen;
+    return seen;
+}
+
+/* How many of a leaf's (shuffled) points to draw: all, or where the
+   camera minifies the whole box, enough for REFL__C3_LOD_SPACING pixels
+   between points. The sweep t of any point in the box lies between its
+   distances from the base plane over the largest and smallest di . n. */
+static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *leaf) {
+    const refl_c3rc *c = &k->cam;
+    float dmin = FLT_MAX, dmax = -FLT_MAX, t_lo, t_hi, area, spacing, keep;
+    double a0, a1, a2;
+    int corner;
+    if (!k->lod || leaf->count < 16 || !(k->dn_min > 0.05f) || !(k->screen_area > 0.0f)) return leaf->count;
+    for (corner = 0; corner < 8; ++corner) {
+        refl_vec3 q = refl_v3(corner & 1 ? leaf->hi[0] : leaf->lo[0], corner & 2 ? leaf->hi[1] : leaf->lo[1],
+                              corner & 4 ? leaf->hi[2] : leaf->lo[2]);
+        float d = refl_v3_dot(refl_v3_sub(q, c->v[0]), k->base_normal);
+        dmin = REFL__MIN(dmin, d);
+        dmax = REFL__MAX(dmax, d);
+    }
+    if (!(dmax > 0.0f)) return leaf->count;
+    t_lo = REFL__MAX(dmin, 0.0f) / k->dn_max;
+    t_hi = dmax / k->dn_min;
+    a0 = refl__c3_sweep_area(c, t_lo);
+    a1 = refl__c3_sweep_area(c, 0.5f * (t_lo + t_hi));
+    a2 = refl__c3_sweep_area(c, t_hi);
+    area = (float)REFL__MIN(a0, REFL__MIN(a1, a2));
+    if (!(area > 0.0f)) return leaf->count;
+    /* the densest the box's points can appear: every surface facing the ray */
+    spacing = sqrtf(k->screen_area / (area * k->c3->density));
+    if (spacing >= REFL__C3_LOD_SPACING) return leaf->count;
+    keep = (spacing / REFL__C3_LOD_SPACING) * (spacing / REFL__C3_LOD_SPACING);
+    return REFL__MAX(1, (int)ceilf(keep * (float)leaf->count));
+}
+
+static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
+    refl__c3_cam *k = (refl__c3_cam *)user;
+    const refl__c3 *c3 = k->c3;
+    double t0 = refl__now_ms();
+    int count = refl__c3_lod_count(k, leaf), i, j, n;
+    float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
+    refl_c3rc_projection pr[3];
+    k->n->leaves++;
+    for (i = leaf->first; i < leaf->first + count; ++i) {
+        const float *q = tree->positions + 3 * (size_t)i;
+        /* a reflector's own triangle would see all of itself at t = 0 */
+        if (c3->triangle[i] == k->triangle && c3->object[i] == k->object) continue;
+        for (j = 0; j < k->hull_count; ++j) {
+            const float *h = k->hull[j];
+            if (h[0] * q[0] + h[1] * q[1] + h[2] * q[2] > h[3]) break;
+        }
+        if (j < k->hull_count) continue; /* outside the volume's hull */
+        n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
+        k->n->tries++;
+        k->n->valid += n;
+        if (n > 1) k->n->multiple += n - 1;
+        for (j = 0; j < n; ++j)
+            if (pr[j].t > 0.0f) refl__c3_splat(k, i, &pr[j], density);
+    }
+    k->n->ms_project += refl__now_ms() - t0;
+}
+
+/* A reflector triangle in the world: vertices, unit smooth normals, the
+   unit geometric normal towards the viewer, and whether that turned it
+   (a back face seen: an open mesh's inside reflects on its back side, as
+   the rasteriser and RAYTRACE turn its normals). */
+typedef struct refl__c3_tri {
+    refl_vec3 v[3], n[3], ng;
+    int back;
+} refl__c3_tri;
+
+static void refl__c3_triangle(const refl__pass *p, int object, int triangle, refl__c3_tri *t) {
+    const refl_object *o = &p->scene->objects[object];
+    const refl_mesh *m = p->scene->meshes[o->mesh];
+    const uint32_t *tri = m->indices + 3 * (size_t)triangle;
+    refl_mat4 inv, normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        const float *q = m->positions + 3 * (size_t)tri[i], *n = m->normals + 3 * (size_t)tri[i];
+        t->v[i] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        t->n[i] = refl_v3_normalize(refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2])));
+    }
+    t->ng = refl_v3_cross(refl_v3_sub(t->v[1], t->v[0]), refl_v3_sub(t->v[2], t->v[0]));
+    t->back = !(refl_v3_dot(t->ng, refl_v3_sub(p->view->eye, t->v[0])) > 0.0f);
+    t->ng = refl_v3_normalize(t->back ? refl_v3_scale(t->ng, -1.0f) : t->ng);
+}
+
+/* The point at barycentrics b of the triangle, and its normal interpolated
+   and normalised (as RAYTRACE's). */
+static void refl__c3_at(const refl__c3_tri *t, const float b[3], refl_vec3 *q, refl_vec3 *n) {
+    *q = refl_v3_add(refl_v3_add(refl_v3_scale(t->v[0], b[0]), refl_v3_scale(t->v[1], b[1])),
+                     refl_v3_scale(t->v[2], b[2]));
+    *n = refl_v3_normalize(refl_v3_add(refl_v3_add(refl_v3_scale(t->n[0], b[0]), refl_v3_scale(t->n[1], b[1])),
+                                       refl_v3_scale(t->n[2], b[2])));
+}
+
+/* The reflected ray at reflector point q with smooth normal n, of a
+   triangle with unit normal ng facing the viewer (turned when `back`):
+   the smooth normal turned to the side seen, or the geometric one where
+   the smooth one still faces away, as RAYTRACE chooses. */
+static refl_vec3 refl__c3_ray(refl_vec3 eye, refl_vec3 q, refl_vec3 n, refl_vec3 ng, int back) {
+    refl_vec3 u = refl_v3_normalize(refl_v3_sub(q, eye));
+    if (back) n = refl_v3_scale(n, -1.0f);
+    if (!(refl_v3_dot(u, n) < 0.0f)) n = ng;
+    return refl_v3_reflect(u, n);
+}
+
+/* The camera of a job's piece of reflector triangle, seen from the view:
+   the reflected rays at its corners (refl__c3_ray), its size on screen and
+   the side it faces. 0 when the rays make no camera. */
+static int refl__c3_setup(const refl__pass *p, const refl__c3_job *job, refl__c3_cam *k) {
+    refl__c3_tri t;
+    refl_vec3 v[3], d[3];
+    float sx[3], sy[3];
+    int i, on_screen = 1;
+    refl__c3_triangle(p, job->object, job->triangle, &t);
+    k->object = job->object;
+    k->triangle = job->triangle;
+    k->id = t.back ? -(float)(job->object + 1) : (float)(job->object + 1);
+    for (i = 0; i < 3; ++i) {
+        refl_vec3 n;
+        refl__c3_at(&t, job->corner[i], &v[i], &n);
+        d[i] = refl__c3_ray(p->view->eye, v[i], n, t.ng, t.back);
+        on_screen &= refl__c3_window(p, v[i], &sx[i], &sy[i]);
+    }
+    if (refl_c3rc_init(&k->cam, v, d) != REFL_OK) return 0;
+    k->edge = REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
+                        REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    k->screen_area = on_screen ? 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]))
+                               : 0.0f;
+    k->base_normal = t.ng;
+    k->dn_min = FLT_MAX;
+    k->dn_max = -FLT_MAX;
+    for (i = 0; i < 3; ++i) {
+        float dn = refl_v3_dot(k->cam.d[i], t.ng);
+        k->dn_min = REFL__MIN(k->dn_min, dn);
+        k->dn_max = REFL__MAX(k->dn_max, dn);
+    }
+    return 1;
+}
+
+/* A growing list of jobs. */
+typedef struct refl__c3_list {
+    refl__c3_job *v;
+    int count, cap;
+    const refl_allocator *al;
+} refl__c3_list;
+
+static refl_result refl__c3_push(refl__c3_list *l, const refl__c3_job *job) {
+    if (l->count == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 1024;
+        refl__c3_job *v = (refl__c3_job *)refl__alloc(l->al, (size_t)cap * sizeof(refl__c3_job));
+        if (!v || cap < l->cap) {
+            refl__free(l->al, v);
+            return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        if (l->count) memcpy(v, l->v, (size_t)l->count * sizeof(refl__c3_job));
+        refl__free(l->al, l->v);
+        l->v = v;
+        l->cap = cap;
+    }
+    l->v[l->count++] = *job;
+    return REFL_OK;
+}
+
+/* How far, in pixels, the job's camera may put a point from where the
+   smooth reflector shows it: at the edge midpoints and the centre, the
+   angle between the camera's interpolated ray and the true reflected ray,
+   times the distance over which a ray offset becomes a pixel offset (up
+   to tmax, less where the rays spread: an offset dt along the reflector
+   moves the ray at distance t by dt (1 + t k), k the rays' turn per unit
+   length), times pixels per unit on the reflector. */
+static float refl__c3_error_px(const refl__pass *p, const refl__c3_tri *t, const refl__c3_job *job, float tmax) {
+    static const float mid[4][3] = {{0.5f, 0.5f, 0.0f}, {0.0f, 0.5f, 0.5f}, {0.5f, 0.0f, 0.5f},
+                                    {1.0f / 3.0f, 1.0f / 3.0f, 1.0f / 3.0f}};
+    refl_vec3 v[3], d[3];
+    float sx[3], sy[3], turn = 0.0f, delta = 0.0f, area, screen;
+    int i, j;
+    for (i = 0; i < 3; ++i) {
+        refl_vec3 n;
+        refl__c3_at(t, job->corner[i], &v[i], &n);
+        d[i] = refl__c3_ray(p->view->eye, v[i], n, t->ng, t->back);
+        if (!refl__c3_window(p, v[i], &sx[i], &sy[i])) return 0.0f; /* crosses the eye plane: no scale */
+    }
+    for (i = 0; i < 3; ++i) {
+        float len = refl_v3_length(refl_v3_sub(v[(i + 1) % 3], v[i]));
+        if (len > 0.0f) turn = REFL__MAX(turn, refl_v3_length(refl_v3_sub(d[(i + 1) % 3], d[i])) / len);
+    }
+    for (j = 0; j < 4; ++j) {
+        float b[3];
+        refl_vec3 q, n, camera = refl_v3(0, 0, 0);
+        for (i = 0; i < 3; ++i) {
+            b[i] = mid[j][0] * job->corner[0][i] + mid[j][1] * job->corner[1][i] + mid[j][2] * job->corner[2][i];
+            camera = refl_v3_add(camera, refl_v3_scale(d[i], mid[j][i]));
+        }
+        refl__c3_at(t, b, &q, &n);
+        delta = REFL__MAX(delta, refl_v3_length(refl_v3_sub(refl_v3_normalize(camera),
+                                                            refl__c3_ray(p->view->eye, q, n, t->ng, t->back))));
+    }
+    area = 0.5f * refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    screen = 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]));
+    if (!(area > 0.0f)) return 0.0f;
+    return delta * tmax / (1.0f + tmax * turn) * sqrtf(screen / area);
+}
+
+/* Appends the cameras of one reflector triangle: its own, split in four at
+   the edge midpoints while refl__c3_error_px exceeds REFL__C3_SPLIT_PX
+   (down to REFL__C3_SPLIT_DEPTH levels): no more cameras than the
+   triangle's curvature and size on screen need. */
+static refl_result refl__c3_split(const refl__pass *p, const refl__c3_tri *t, const refl__c3_job *job, float tmax,
+                                  int depth, refl__c3_list *out) {
+    refl__c3_job sub;
+    float m[3][3];
+    int i, k;
+    if (depth >= REFL__C3_SPLIT_DEPTH || refl__c3_error_px(p, t, job, tmax) <= REFL__C3_SPLIT_PX)
+        return refl__c3_push(out, job);
+    for (i = 0; i < 3; ++i) /* midpoint of edge i, i + 1 */
+        for (k = 0; k < 3; ++k) m[i][k] = 0.5f * (job->corner[i][k] + job->corner[(i + 1) % 3][k]);
+    sub.object = job->object;
+    sub.triangle = job->triangle;
+    for (i = 0; i < 4; ++i) {
+        refl_result r;
+        for (k = 0; k < 3; ++k) {
+            if (i == 3) { /* the middle piece */
+                sub.corner[0][k] = m[0][k]; sub.corner[1][k] = m[1][k]; sub.corner[2][k] = m[2][k];
+            } else { /* the piece at corner i */
+                sub.corner[0][k] = job->corner[i][k];
+                sub.corner[1][k] = m[i][k];
+                sub.corner[2][k] = m[(i + 2) % 3][k];
+            }
+        }
+        if ((r = refl__c3_split(p, t, &sub, tmax, depth + 1, out)) != REFL_OK) return r;
+    }
+    return REFL_OK;
+}
+
+/* Appends triangle `triangle` of `object`'s cameras. */
+static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int triangle, float tmax,
+                                         refl__c3_list *out) {
+    refl__c3_tri t;
+    refl__c3_job job;
+    memset(&job, 0, sizeof job);
+    job.object = object;
+    job.triangle = triangle;
+    job.corner[0][0] = job.corner[1][1] = job.corner[2][2] = 1.0f;
+    refl__c3_triangle(p, object, triangle, &t);
+    return refl__c3_split(p, &t, &job, tmax, 0, out);
+}
+
+/* One camera: reflector triangle jobs[index], built and drawn. */
+static void refl__c3_camera(void *arg, int index) {
+    const refl__c3 *c3 = (const refl__c3 *)arg;
+    refl__c3_cam k;
+    float intervals[4][2];
+    memset(&k, 0, sizeof k);
+    k.c3 = c3;
+    k.n = &((refl__c3 *)c3)->counts[index];
+    if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
+    {   /* a scene point lies within tmax of the base, and t = distance /
+           |a d1 + b d2 + c d3| >= distance / sqrt(min di . dj) */
+        float dmin = REFL__MIN(refl_v3_dot(k.cam.d[0], k.cam.d[1]),
+                               REFL__MIN(refl_v3_dot(k.cam.d[1], k.cam.d[2]), refl_v3_dot(k.cam.d[2], k.cam.d[0])));
+        k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
+    }
+    refl__c3_hull(&k);
+    k.lod = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), intervals) == 0;
+    refl_kdtree_query(c3->tree, refl__c3_box, refl__c3_leaf, &k);
+    k.n->ms_cull += k.t_cull;
+}
+
+/* A point's texture coordinates: the barycentrics of p in its (world)
+   triangle applied to the mesh's uvs. */
+static int refl__c3_uv(const refl_mesh *m, refl_mat4 transform, int triangle, refl_vec3 p, float uv[2]) {
+    const uint32_t *tri = m->indices + 3 * (size_t)triangle;
+    refl_vec3 v[3], e1, e2, w, n;
+    float nn, b, c;
+    int i;
+    if (!m->texcoords) return 0;
+    for (i = 0; i < 3; ++i) {
+        const float *q = m->positions + 3 * (size_t)tri[i];
+        v[i] = refl_mat4_point(transform, refl_v3(q[0], q[1], q[2]));
+    }
+    e1 = refl_v3_sub(v[1], v[0]);
+    e2 = refl_v3_sub(v[2], v[0]);
+    w = refl_v3_sub(p, v[0]);
+    n = refl_v3_cross(e1, e2);
+    nn = refl_v3_dot(n, n);
+    if (!(nn > 0.0f)) return 0;
+    b = refl_v3_dot(refl_v3_cross(w, e2), n) / nn;
+    c = refl_v3_dot(refl_v3_cross(e1, w), n) / nn;
+    for (i = 0; i < 2; ++i)
+        uv[i] = (1.0f - b - c) * m->texcoords[2 * tri[0] + (uint32_t)i] + b * m->texcoords[2 * tri[1] + (uint32_t)i] +
+                c * m->texcoords[2 * tri[2] + (uint32_t)i];
+    return 1;
+}
+
+typedef struct refl__c3_shade_arg {
+    refl__c3 *c3;
+    int chunk;
+} refl__c3_shade_arg;
+
+/* Shades tree points [index * chunk, ...) as DIRECT shows their surface. */
+static void refl__c3_shade(void *arg, int index) {
+    const refl__c3_shade_arg *a = (const refl__c3_shade_arg *)arg;
+    refl__c3 *c3 = a->c3;
+    const refl_scene *scene = c3->p->scene;
+    int i, end = REFL__MIN(c3->tree->point_count, (index + 1) * a->chunk);
+    for (i = index * a->chunk; i < end; ++i) {
+        const refl_object *o = &scene->objects[c3->object[i]];
+        const refl_material *m = &scene->materials[o->material];
+        const float *q = c3->tree->positions + 3 * (size_t)i, *n = c3->normal + 3 * (size_t)i;
+        refl_vec3 pt = refl_v3(q[0], q[1], q[2]);
+        float rgb[3] = {0.0f, 0.0f, 0.0f}, rgba[4], uv[2];
+        if (m->type == REFL_DIFFUSE || m->type == REFL_PARTIAL) {
+            int has_uv = refl__c3_uv(scene->meshes[o->mesh], o->transform, c3->triangle[i], pt, uv);
+            refl_shade_diffuse(scene, m, pt, refl_v3(n[0], n[1], n[2]), has_uv ? uv : NULL, rgb);
+            refl__surface_rgba(m, rgb, rgba);
+            memcpy(rgb, rgba, sizeof rgb);
+        }
+        memcpy(c3->rgb + 3 * (size_t)i, rgb, sizeof rgb);
+    }
+}
+
+/* Samples every object at the density, builds the kd-tree over the
+   points and shades them (tree order). */
+static refl_result refl__c3_points(refl__c3 *c3) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_points **pts;
+    float *all = NULL, *nrm = NULL;
+    int32_t *obj = NULL, *tri = NULL;
+    long long total = 0;
+    refl_kdtree_desc kd;
+    refl__c3_shade_arg sa;
+    refl_result r = REFL_OK;
+    int i, k;
+    pts = (refl_points **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_points *));
+    if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->density, 0x9e3779b97f4a7c15ull + (uint64_t)i,
+                                    al, &pts[i]);
+        if (r == REFL_OK) total += pts[i]->count;
+    }
+    if (r == REFL_OK && total > INT32_MAX / 4) r = REFL_ERROR_INVALID_SIZE;
+    if (r == REFL_OK) {
+        all = (float *)refl__calloc(al, (size_t)total, 3 * sizeof(float));
+        nrm = (float *)refl__calloc(al, (size_t)total, 3 * sizeof(float));
+        obj = (int32_t *)refl__calloc(al, (size_t)total, sizeof(int32_t));
+        tri = (int32_t *)refl__calloc(al, (size_t)total, sizeof(int32_t));
+        if (!all || !nrm || !obj || !tri) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK) {
+        size_t at = 0;
+        for (i = 0; i < scene->object_count; ++i) {
+            memcpy(all + 3 * at, pts[i]->positions, (size_t)pts[i]->count * 3 * sizeof(float));
+            memcpy(nrm + 3 * at, pts[i]->normals, (size_t)pts[i]->count * 3 * sizeof(float));
+            for (k = 0; k < pts[i]->count; ++k) {
+                obj[at + (size_t)k] = i;
+                tri[at + (size_t)k] = (int32_t)pts[i]->triangles[k];
+            }
+            at += (size_t)pts[i]->count;
+        }
+        memset(&kd, 0, sizeof kd);
+        kd.leaf_points = p->desc.kd_leaf_points;
+        kd.allocator = *al;
+        r = refl_kdtree_build(all, (int)total, &kd, &c3->tree);
+    }
+    if (r == REFL_OK) { /* per-point data in tree order */
+        int n = c3->tree->point_count;
+        c3->rgb = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->normal = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->object = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->triangle = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->diffuse = (uint8_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 1);
+        if (!c3->rgb || !c3->normal || !c3->object || !c3->triangle || !c3->diffuse) r = REFL_ERROR_OUT_OF_MEMORY;
+        for (i = 0; r == REFL_OK && i < n; ++i) {
+            uint32_t src = c3->tree->order[i];
+            memcpy(c3->normal + 3 * (size_t)i, nrm + 3 * (size_t)src, 3 * sizeof(float));
+            c3->object[i] = obj[src];
+            c3->triangle[i] = tri[src];
+            c3->diffuse[i] = !refl__is_reflector(&scene->materials[scene->objects[obj[src]].material]);
+        }
+        if (r == REFL_OK && n > 0) {
+            sa.c3 = c3;
+            sa.chunk = 4096;
+            rast_run_jobs(p->rc, (n + sa.chunk - 1) / sa.chunk, refl__c3_shade, &sa);
+        }
+    }
+    for (i = 0; i < scene->object_count; ++i) refl_points_destroy(pts[i]);
+    refl__free(al, pts);
+    refl__free(al, all);
+    refl__free(al, nrm);
+    refl__free(al, obj);
+    refl__free(al, tri);
+    return r;
+}
+
+/* Per reflector pixel: the world point of the surface seen (from the
+   window depth, along the pixel's ray). */
+static void refl__c3_surface_row(void *arg, int y) {
+    refl__c3 *c3 = (refl__c3 *)arg;
+    const refl__view_rays *r = &c3->p->rays;
+    const refl_frame *fr = c3->p->frame;
+    float n = r->znear, f = r->zfar;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        float nx, ny, ndc, dist;
+        refl_vec3 d, q;
+        if (fabsf(c3->em.gbuf[4 * i + 3]) < 1.0f) continue;
+        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+        ndc = 2.0f * fr->depth[i] - 1.0f;
+        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        c3->surface[3 * i] = q.x;
+        c3->surface[3 * i + 1] = q.y;
+        c3->surface[3 * i + 2] = q.z;
+    }
+}
+
+/* Composites one row: the winning point's colour (or the environment
+   along the reflected ray) times the reflectance, as ENVMAP composites. */
+static void refl__c3_resolve_row(void *arg, int y) {
+    const refl__c3 *c3 = (const refl__c3 *)arg;
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    int x, c;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = c3->em.gbuf + 4 * i;
+        const refl_material *m;
+        float rgb[3], sub[3], cos_i, w, tmax;
+        refl_vec3 o, d, n, shown = refl_v3(NAN, NAN, NAN);
+        uint8_t *px = fr->color + 4 * i;
+        int object = (int)fabsf(g[3]) - 1;
+        if (object < 0 || object >= scene->object_count) continue;
+        m = &scene->materials[scene->objects[object].material];
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+        w = refl_material_reflectance(m, cos_i);
+        if (c3->key[i] != REFL__C3_EMPTY) {
+            uint32_t k = (uint32_t)(c3->key[i] & 0xffffffffu);
+            const float *q = c3->tree->positions + 3 * (size_t)k;
+            memcpy(sub, c3->rgb + 3 * (size_t)k, sizeof sub);
+            shown = refl_v3(q[0], q[1], q[2]);
+        } else {
+            refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
+            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+        if (m->type == REFL_GLASS) {
+            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
+            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+            refl_vec3 t;
+            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+                refl_environment_lookup(&scene->environment, t, tsub);
+                for (c = 0; c < 3; ++c)
+                    rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
+            } else {
+                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+            }
+        }
+        for (c = 0; c < 3; ++c) {
+            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
+            px[c] = (uint8_t)(v * 255.0f + 0.5f);
+        }
+        px[3] = 255;
+        fr->points[3 * i] = shown.x;
+        fr->points[3 * i + 1] = shown.y;
+        fr->points[3 * i + 2] = shown.z;
+    }
+}
+
+/* Whether triangle t of object i can be seen: front-facing, or a back
+   face (the inside of an open mesh) with a pixel of its object's back
+   side in its screen box (x0, y0)-(x1, y1) whose surface lies in its
+   plane, within two pixels. Boxes over 4096 pixels are not scanned. */
+static int refl__c3_back_seen(const refl__c3 *c3, const refl_object *o, const refl_mesh *m, int t, int i, int x0,
+                              int y0, int x1, int y1) {
+    const refl__pass *p = c3->p;
+    const uint32_t *tri = m->indices + 3 * (size_t)t;
+    refl_vec3 v[3], ng;
+    int k, x, y, w = p->frame->width;
+    for (k = 0; k < 3; ++k) {
+        const float *q = m->positions + 3 * (size_t)tri[k];
+        v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+    }
+    ng = refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0]));
+    if (refl_v3_dot(ng, refl_v3_sub(p->view->eye, v[0])) > 0.0f) return 1;
+    if ((long long)(x1 - x0) * (y1 - y0) > 4096) return 1;
+    ng = refl_v3_normalize(ng);
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *r = c3->surface + 3 * j;
+            refl_vec3 d;
+            if (c3->em.gbuf[4 * j + 3] != -(float)(i + 1)) continue;
+            d = refl_v3_sub(refl_v3(r[0], r[1], r[2]), v[0]);
+            if (fabsf(refl_v3_dot(d, ng)) <= 2.0f * c3->pixel_angle * refl_v3_length(refl_v3_sub(refl_v3(r[0], r[1], r[2]), p->view->eye)))
+                return 1;
+        }
+    return 0;
+}
+
+/* The cameras worth building: those of the reflector triangles that can
+   be seen (front faces whose screen box holds a pixel of their object, a
+   summed-area table per object answering that in constant time, and back
+   faces seen, refl__c3_back_seen), split where one camera would be too
+   coarse (refl__c3_split). */
+static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *count) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int w = p->frame->width, h = p->frame->height, i, t, x, y;
+    refl__c3_list list;
+    refl_result r = REFL_OK;
+    uint32_t *sat = (uint32_t *)refl__calloc(al, (size_t)(w + 1) * (size_t)(h + 1), sizeof(uint32_t));
+    if (!sat) return REFL_ERROR_OUT_OF_MEMORY;
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *m = scene->meshes[o->mesh];
+        if (!seen[i]) continue;
+        for (y = 0; y < h; ++y)
+            for (x = 0; x < w; ++x) {
+                size_t a = (size_t)(y + 1) * (size_t)(w + 1) + (size_t)(x + 1);
+                uint32_t here = fabsf(c3->em.gbuf[4 * ((size_t)y * (size_t)w + (size_t)x) + 3]) == (float)(i + 1);
+                sat[a] = here + sat[a - 1] + sat[a - (size_t)(w + 1)] - sat[a - (size_t)(w + 1) - 1];
+            }
+        for (t = 0; t < m->triangle_count && r == REFL_OK; ++t) {
+            float sx, sy, lx = FLT_MAX, ly = FLT_MAX, hx = -FLT_MAX, hy = -FLT_MAX;
+            int k, x0, y0, x1, y1, front = 1;
+            for (k = 0; k < 3; ++k) {
+                const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
+                if (!refl__c3_window(p, refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2])), &sx, &sy)) {
+                    front = 0; /* crosses the eye plane: keep it, box unknown */
+                    break;
+                }
+                lx = REFL__MIN(lx, sx); hx = REFL__MAX(hx, sx);
+                ly = REFL__MIN(ly, sy); hy = REFL__MAX(hy, sy);
+            }
+            if (front) {
+                x0 = REFL__CLAMP((int)floorf(lx), 0, w);
+                y0 = REFL__CLAMP((int)floorf(ly), 0, h);
+                x1 = REFL__CLAMP((int)floorf(hx) + 1, 0, w);
+                y1 = REFL__CLAMP((int)floorf(hy) + 1, 0, h);
+                if (x1 <= x0 || y1 <= y0) continue;
+                if (sat[(size_t)y1 * (size_t)(w + 1) + (size_t)x1] - sat[(size_t)y0 * (size_t)(w + 1) + (size_t)x1] -
+                        sat[(size_t)y1 * (size_t)(w + 1) + (size_t)x0] + sat[(size_t)y0 * (size_t)(w + 1) + (size_t)x0] ==
+                    0)
+                    continue;
+                if (!refl__c3_back_seen(c3, o, m, t, i, x0, y0, x1, y1)) continue;
+            }
+            r = refl__c3_add_triangle(p, i, t, c3->tmax, &list);
+        }
+    }
+    refl__free(al, sat);
+    c3->jobs = list.v;
+    *count = list.count;
+    return r;
+}
+
+/* The default density: one point per 2 x 2 pixels where the reflectors
+   are (the footprint at the distance of their nearest bounds); splats
+   grow where that is too few. */
+static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    float nearest = FLT_MAX, size;
+    int i, corner;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_vec3 lo, hi, c;
+        if (!seen[i]) continue;
+        refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+        for (corner = 0; corner < 9; ++corner) {
+            refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                      : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+            c = refl_mat4_point(o->transform, q);
+            nearest = REFL__MIN(nearest, refl_v3_length(refl_v3_sub(c, p->view->eye)));
+        }
+    }
+    size = 2.0f * REFL__MAX(nearest, p->rays.znear) * c3->pixel_angle;
+    return size > 0.0f ? 1.0f / (size * size) : 0.0f;
+}
+
+static refl_result refl__method_c3rc(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__c3 c3;
+    unsigned char *seen = NULL;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
+    double t0 = refl__now_ms(), t1;
+    refl_result r = REFL_OK;
+    refl_vec3 lo, hi;
+    int i, any = 0, jobs = 0;
+    memset(&c3, 0, sizeof c3);
+    c3.p = p;
+    c3.em.p = p;
+    c3.pixel_angle = 2.0f * refl_v3_length(p->rays.up) / (float)fr->height;
+    c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
+    refl_scene_bounds(scene, &lo, &hi);
+    c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    c3.em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    c3.em.draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
+    seen = (unsigned char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1);
+    if (!c3.em.gbuf || !c3.em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) r = refl__em_gbuffer(&c3.em, seen, &any);
+    if (r == REFL_OK && any) {
+        c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
+        if (!c3.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
+        for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
+        rast_run_jobs(p->rc, fr->height, refl__c3_surface_row, &c3);
+        r = refl__c3_points(&c3);
+        t1 = refl__now_ms();
+        fr->stats.ms_build += t1 - t0;
+        t0 = t1;
+        if (r == REFL_OK) r = refl__c3_jobs(&c3, seen, &jobs);
+        if (r == REFL_OK) {
+            c3.counts = (refl__c3_counts *)refl__calloc(al, (size_t)REFL__MAX(jobs, 1), sizeof(refl__c3_counts));
+            if (!c3.counts) r = REFL_ERROR_OUT_OF_MEMORY;
+        }
+        if (r == REFL_OK) {
+            rast_run_jobs(p->rc, jobs, refl__c3_camera, &c3);
+            for (i = 0; i < jobs; ++i) {
+                const refl__c3_counts *n = &c3.counts[i];
+                fr->stats.leaves += n->leaves;
+                fr->stats.culled += n->culled;
+                fr->stats.projections += n->tries;
+                fr->stats.projected += n->valid;
+                fr->stats.multiple += n->multiple;
+                fr->stats.ms_cull += n->ms_cull;
+                fr->stats.ms_project += n->ms_project;
+            }
+            fr->stats.cameras += jobs;
+            fr->stats.points += c3.tree->point_count;
+            fr->stats.model_bytes += (long long)c3.tree->point_count * (long long)(3 * sizeof(float)) +
+                                     (long long)c3.tree->node_count * (long long)sizeof(refl_kdtree_node) +
+                                     (long long)jobs * (long long)sizeof(refl_c3rc);
+            t1 = refl__now_ms();
+            fr->stats.ms_reflect += t1 - t0;
+            t0 = t1;
+            rast_run_jobs(p->rc, fr->height, refl__c3_resolve_row, &c3);
+            fr->stats.ms_composite += refl__now_ms() - t0;
+        }
+    }
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl_kdtree_destroy(c3.tree);
+    refl__free(al, c3.em.gbuf);
+    refl__free(al, c3.em.draws);
+    refl__free(al, seen);
+    refl__free(al, c3.surface);
+    refl__free(al, c3.key);
+    refl__free(al, c3.rgb);
+    refl__free(al, c3.normal);
+    refl__free(al, c3.object);
+    refl__free(al, c3.triangle);
+    refl__free(al, c3.diffuse);
+    refl__free(al, c3.jobs);
+    refl__free(al, c3.counts);
+    return r;
+}
+
+/* ---- the cameras' own error ----------------------------------------------------- */
+
+enum { REFL__C3_CELL = 8, REFL__C3_REACH = 8 };
+
+REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                    const refl_frame *truth, refl_reflection_error *out) {
+    const refl_allocator *al;
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl__c3_cam *cams = NULL;
+    int *cell_start = NULL, *cell_list = NULL;
+    double *errors = NULL, sum = 0.0;
+    long long counted = 0, matched = 0;
+    refl_vec3 lo, hi;
+    float tmax;
+    int w, h, cw, ch, cells, i, t, c, x, y, n;
+    refl_result r = REFL_OK;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    w = truth->width;
+    h = truth->height;
+    memset(&p, 0, sizeof p);
+    memset(&shape, 0, sizeof shape);
+    shape.width = w; /* the pass reads the frame's size only */
+    shape.height = h;
+    p.scene = scene;
+    p.view = view;
+    p.frame = &shape;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    /* every reflector triangle's cameras, as C3RC builds them */
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(&p, i, t, tmax, &list);
+    /* binned by their screen boxes grown by REFL__C3_REACH, in cells of
+       REFL__C3_CELL pixels */
+    cw = (w + REFL__C3_CELL - 1) / REFL__C3_CELL;
+    ch = (h + REFL__C3_CELL - 1) / REFL__C3_CELL;
+    cells = cw * ch;
+    if (r == REFL_OK) {
+        cams = (refl__c3_cam *)refl__calloc(al, (size_t)REFL__MAX(list.count, 1), sizeof(refl__c3_cam));
+        cell_start = (int *)refl__calloc(al, (size_t)cells + 1, sizeof(int));
+        errors = (double *)refl__calloc(al, (size_t)w * (size_t)h, sizeof(double));
+        if (!cams || !cell_start || !errors) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (c = 0; c < 2 && r == REFL_OK; ++c) { /* count, then fill */
+        for (i = 0; i < list.count; ++i) {
+            refl__c3_cam *k = &cams[i];
+            float lx = FLT_MAX, ly = FLT_MAX, hx = -FLT_MAX, hy = -FLT_MAX, sx, sy;
+            int v, x0, y0, x1, y1, front = 1;
+            if (c == 0 && !refl__c3_setup(&p, &list.v[i], k)) k->object = -1;
+            if (k->object < 0) continue;
+            for (v = 0; v < 3; ++v) {
+                front &= refl__c3_window(&p, k->cam.v[v], &sx, &sy);
+                lx = REFL__MIN(lx, sx); hx = REFL__MAX(hx, sx);
+                ly = REFL__MIN(ly, sy); hy = REFL__MAX(hy, sy);
+            }
+            if (!front || hx < -REFL__C3_REACH || hy < -REFL__C3_REACH || lx > (float)(w + REFL__C3_REACH) ||
+                ly > (float)(h + REFL__C3_REACH))
+                continue;
+            x0 = REFL__CLAMP((int)floorf(lx) - REFL__C3_REACH, 0, w - 1) / REFL__C3_CELL;
+            y0 = REFL__CLAMP((int)floorf(ly) - REFL__C3_REACH, 0, h - 1) / REFL__C3_CELL;
+            x1 = REFL__CLAMP((int)floorf(hx) + REFL__C3_REACH, 0, w - 1) / REFL__C3_CELL;
+            y1 = REFL__CLAMP((int)floorf(hy) + REFL__C3_REACH, 0, h - 1) / REFL__C3_CELL;
+            for (y = y0; y <= y1; ++y)
+                for (x = x0; x <= x1; ++x) {
+                    if (c == 0) cell_start[y * cw + x + 1]++;
+                    else cell_list[cell_start[y * cw + x]++] = i;
+                }
+        }
+        if (c == 0) {
+            for (x = 0; x < cells; ++x) cell_start[x + 1] += cell_start[x];
+            cell_list = (int *)refl__calloc(al, (size_t)REFL__MAX(cell_start[cells], 1), sizeof(int));
+            if (!cell_list) r = REFL_ERROR_OUT_OF_MEMORY;
+        } else { /* the fill advanced every start to the next cell's */
+            for (x = cells; x > 0; --x) cell_start[x] = cell_start[x - 1];
+            cell_start[0] = 0;
+        }
+    }
+    /* each truth point, projected by the cameras near its pixel: the
+       nearest image within reach */
+    for (y = 0; y < h && r == REFL_OK; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *q = truth->points + 3 * j;
+            int cell = (y / REFL__C3_CELL) * cw + x / REFL__C3_CELL, object = truth->stencil[j] - 1;
+            double best = INFINITY;
+            refl_c3rc_projection pr[3];
+            if (object < 0 || !refl__isfinite(q[0]) || !refl__isfinite(q[1]) || !refl__isfinite(q[2])) continue;
+            ++counted;
+            for (c = cell_start[cell]; c < cell_start[cell + 1]; ++c) {
+                const refl__c3_cam *k = &cams[cell_list[c]];
+                if (k->object != object && !(object == 254 && k->object >= 254)) continue;
+                n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
+                for (i = 0; i < n; ++i) {
+                    const refl_c3rc *cm = &k->cam;
+                    refl_vec3 s = refl_v3_add(refl_v3_add(refl_v3_scale(cm->v[0], pr[i].a),
+                                                          refl_v3_scale(cm->v[1], pr[i].b)),
+                                              refl_v3_scale(cm->v[2], pr[i].c));
+                    float sx, sy;
+                    double dx, dy;
+                    if (!refl__c3_window(&p, s, &sx, &sy)) continue;
+                    dx = (double)sx - ((double)x + 0.5);
+                    dy = (double)sy - ((double)y + 0.5);
+                    best = REFL__MIN(best, sqrt(dx * dx + dy * dy));
+                }
+            }
+            if (best <= (double)REFL__C3_REACH) {
+                errors[matched++] = best;
+                sum += best;
+            }
+        }
+    if (r == REFL_OK) {
+        out->pixels = counted;
+        out->matched = matched;
+        if (matched) {
+            size_t rank = (size_t)ceil(0.95 * (double)matched);
+            qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
+            out->mean = sum / (double)matched;
+            out->p95 = errors[rank > 0 ? rank - 1 : 0];
+            out->max = errors[matched - 1];
+        }
+        if (counted) out->wrong = (double)(counted - matched) / (double)counted;
+    }
+    refl__free(al, list.v);
+    refl__free(al, cams);
+    refl__free(al, cell_start);
+    refl__free(al, cell_list);
+    refl__free(al, errors);
+    return r;
 }
 /* ---- src/reflect/render.c ---- */
 /* Frames and the one entry point, refl_render: the base pass every method
@@ -6361,7 +8560,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     if (desc) p.desc = *desc;
     if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
         p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
-        p.desc.soft_shadow_samples > 1024)
+        p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
+        !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
+        p.desc.max_splat > 64)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -6371,7 +8572,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
             return REFL_ERROR_INVALID_ARGUMENT;
     if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
     if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
-        p.desc.method != REFL_PLANAR)
+        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC)
         return REFL_ERROR_UNSUPPORTED;
     if (p.desc.depth == 0) p.desc.depth = 6;
     if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
@@ -6416,6 +8617,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         frame->stats.ms_base = t1 - t0;
         if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
         if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
+        if (r == REFL_OK && p.desc.method == REFL_C3RC) r = refl__method_c3rc(&p);
     }
     rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;

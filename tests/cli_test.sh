@@ -44,13 +44,17 @@ if [ -d "$assets" ]; then
 else
     echo "note: $assets not found; the asset cases are skipped"
 fi
-for m in raytrace envmap planar; do
+for m in raytrace envmap planar c3rc; do
     ok "render --method $m" "$bin" render --builtin mirror-room --method $m --size 48x36 --depth 2 --out "$tmp/m-$m.png"
 done
 ok "render planar with soft shadows" "$bin" render --builtin mirror-room --method planar --shadows --soft-shadows 4 \
     --light-radius 0.3 --size 48x36 --out "$tmp/soft.png"
 ok "render planar --no-culling counts renderings" bash -c \
     "'$bin' render --builtin mirror-room --method planar --no-culling --depth 2 --size 32x24 --out '$tmp/n.png' --stats | grep -q 'leaves       12'"
+ok "render c3rc --stats counts projections" bash -c \
+    "'$bin' render --builtin default --method c3rc --density 40 --max-splat 3 --leaf-points 200 --size 64x48 --out '$tmp/c.png' --stats | grep -q '^projections  [1-9]'"
+refuses "bad --density" "density: not a positive" "$bin" render --builtin default --method c3rc --density -1
+refuses "bad --max-splat" "max-splat: expected" "$bin" render --builtin default --method c3rc --max-splat 0
 refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere

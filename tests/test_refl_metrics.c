@@ -328,8 +328,37 @@ static refl_reflection_error brute_force(refl_frame *test, refl_frame *truth, do
             s2 = isinf(nd) ? 0.0 : nd;
         }
         if (sqrt(bd) <= tolerance * sqrt(s2)) {
-            double dx = i % w - best % w, dy = i / w - best / w;
-            err[e.matched] = sqrt(dx * dx + dy * dy);
+            double dx = i % w - best % w, dy = i / w - best / w, ex = sqrt(dx * dx + dy * dy);
+            /* a nearer image of the point: a pixel within 16 (and nearer
+               than x*) matching it within its own spacing, nearer it than
+               its 8 neighbours are */
+            for (j = 0; j < n; ++j) {
+                double ej = sqrt((double)(i % w - j % w) * (i % w - j % w) + (double)(i / w - j / w) * (i / w - j / w));
+                double dj, sj = -1.0;
+                int ok = 1, m;
+                if (ej >= ex || ej > 16.0 || abs(i % w - j % w) > 16 || abs(i / w - j / w) > 16) continue;
+                if (truth->stencil[j] != id || !shows(truth->points + 3 * j)) continue;
+                for (k = 0; k < 4; ++k) {
+                    int x = j % w + (k == 0) - (k == 1), y = j / w + (k == 2) - (k == 3);
+                    if (x < 0 || y < 0 || x >= w || y >= truth->height) continue;
+                    m = y * w + x;
+                    if (truth->stencil[m] == id && shows(truth->points + 3 * m))
+                        sj = fmax(sj, sqrt(dist2(truth->points + 3 * j, truth->points + 3 * m)));
+                }
+                dj = dist2(truth->points + 3 * j, test->points + 3 * i);
+                if (sj < 0.0 || sqrt(dj) > tolerance * sj) continue;
+                for (k = 0; k < 9 && ok; ++k) {
+                    int x = j % w + k % 3 - 1, y = j / w + k / 3 - 1;
+                    double dm;
+                    if (k == 4 || x < 0 || y < 0 || x >= w || y >= truth->height) continue;
+                    m = y * w + x;
+                    if (truth->stencil[m] != id || !shows(truth->points + 3 * m)) continue;
+                    dm = dist2(truth->points + 3 * m, test->points + 3 * i);
+                    if (dm < dj || (dm == dj && m < j)) ok = 0;
+                }
+                if (ok) ex = ej;
+            }
+            err[e.matched] = ex;
             sum += err[e.matched++];
         } else {
             ++wrong;
@@ -604,7 +633,10 @@ Test(refl_metrics, raytrace_against_itself, .timeout = 120) {
     moved = shifted(a, 3, 0);
     cr_assert_eq(refl_measure_reflection_error(moved, a, NULL, &e), REFL_OK);
     cr_assert(e.matched > 400, "%lld matched", e.matched);
-    cr_assert(fabs(e.mean - 3.0) < 1e-9, "mean %.12g", e.mean);
+    /* at 160x120 the teapot shrinks the scenery to a few pixels, where a
+       point shows more than once within 3 pixels (the handle, the spout,
+       the silhouettes): those pixels measure the nearer image */
+    cr_assert(e.mean > 2.5 && e.mean <= 3.0, "mean %.12g", e.mean);
     cr_assert_eq(e.max, 3.0);
     cr_assert_eq(e.wrong, 0.0);
     cr_assert(e.empty > 0.0);

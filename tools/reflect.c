@@ -35,7 +35,7 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference), envmap or planar\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar or c3rc\n"
     "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --shadows          hard shadows from every light\n"
@@ -43,6 +43,10 @@ static const char *const usage_render =
     "  --light-radius R   give every light this radius (directional: radians)\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
+    "  --density D        C3RC: points per unit area (default: one per 2x2 pixels\n"
+    "                     at the reflectors' distance)\n"
+    "  --leaf-points N    C3RC: kd-tree leaf size (default 1000)\n"
+    "  --max-splat N      C3RC: largest splat side in pixels, 1..64 (default 8)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -79,6 +83,8 @@ static const char *const usage_compare =
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
+    int leaf_points, max_splat;
+    float density;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
@@ -166,6 +172,12 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_float(v, 0.0f, 1e6f, &o->light_radius)) return fail("--light-radius: not a size: %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
+        } else if (!strcmp(a, "--density")) {
+            if (!parse_float(v, 1e-9f, 1e9f, &o->density)) return fail("--density: not a positive density: %s", v);
+        } else if (!strcmp(a, "--leaf-points")) {
+            if (!parse_int(v, 1, 1 << 24, &o->leaf_points)) return fail("--leaf-points: expected 1..16777216, got %s", v);
+        } else if (!strcmp(a, "--max-splat")) {
+            if (!parse_int(v, 1, 64, &o->max_splat)) return fail("--max-splat: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--stats")) {
             o->stats = 1;
             continue;
@@ -305,6 +317,9 @@ static int cmd_render(const options *o) {
     d.envmap_size = o->envmap_size;
     d.no_culling = o->no_culling;
     d.soft_shadow_samples = o->soft_samples;
+    d.point_density = o->density;
+    d.kd_leaf_points = o->leaf_points;
+    d.max_splat = o->max_splat;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -336,6 +351,10 @@ static int cmd_render(const options *o) {
         printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
                st->triangles, st->points, st->cameras, st->leaves, st->layers);
         printf("rays         %lld\nculled       %lld\n", st->rays, st->culled);
+        if (st->projections)
+            printf("projections  %lld (valid %lld, %.1f%%)\n  cull ms    %.2f (thread time)\n  project ms %.2f (thread time)\n",
+                   st->projections, st->projected, 100.0 * (double)st->projected / (double)st->projections,
+                   st->ms_cull, st->ms_project);
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }
     code = 0;

@@ -112,6 +112,7 @@ typedef struct bench_method {
     const char *method, *series, *param;
     refl_method m;
     int envmap_size, embree;
+    float density;                /* C3RC: points per unit area (0: automatic) */
 } bench_method;
 
 /* Runs every method on one scene and view against its RAYTRACE reference
@@ -146,6 +147,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         d.threads = o->threads;
         d.depth = o->depth;
         d.envmap_size = bm->envmap_size;
+        d.point_density = bm->density;
         if (bm->embree) {
             if (!embree) embree = refl_embree_create(s, o->threads, err, sizeof err);
             if (!embree) {
@@ -170,7 +172,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         snprintf(row->method, sizeof row->method, "%s", bm->method);
         snprintf(row->series, sizeof row->series, "%s", bm->series);
         snprintf(row->param, sizeof row->param, "%s", bm->param);
-        row->value = bm->envmap_size;
+        row->value = bm->m == REFL_C3RC ? bm->density : bm->envmap_size;
         row->width = view->width;
         row->height = view->height;
         row->threads = o->threads;
@@ -244,7 +246,7 @@ static int write_blocks(const bench_table *t, const char *path, int (*take)(cons
     return n;
 }
 
-static int run_gnuplot(const char *script_path, const char *script) {
+int refl_bench_gnuplot(const char *script_path, const char *script) {
     FILE *fp = fopen(script_path, "w");
     char cmd[1200];
     if (!fp) return 0;
@@ -277,7 +279,7 @@ static int chart(const char *dir, const char *name, const char *title, const cha
                                 j ? ", " : "", dat, j, names[j]);
     if (len < sizeof script) snprintf(script + len, sizeof script - len, "\n");
     snprintf(path, sizeof path, "%s/%s.gp", dir, name);
-    return run_gnuplot(path, script);
+    return refl_bench_gnuplot(path, script);
 }
 
 static int take_scene(const bench_row *r, const void *scene) {
@@ -302,6 +304,8 @@ static double axis_setting(const bench_row *r) { return r->value; }
 /* ---- the sweeps ------------------------------------------------------------ */
 
 static const int envmap_sizes[] = {16, 32, 64, 128, 256, 512};
+/* C3RC's setting: points per unit area (0: from the view) */
+static const float c3rc_densities[] = {250.0f, 1000.0f, 0.0f, 16000.0f};
 
 /* The methods of the error chart: exact ones once, ENVMAP per cube size. */
 static int base_methods(bench_method *m, int full) {
@@ -316,6 +320,11 @@ static int base_methods(bench_method *m, int full) {
         m[n].method = "envmap"; m[n].series = "envmap"; m[n].param = "base";
         m[n].m = REFL_ENVMAP; m[n].envmap_size = envmap_sizes[k]; ++n;
     }
+    for (k = 0; k < (int)(sizeof c3rc_densities / sizeof c3rc_densities[0]); ++k) {
+        if (!full && c3rc_densities[k] > 4000.0f) break;
+        m[n].method = "c3rc"; m[n].series = "c3rc"; m[n].param = "base";
+        m[n].m = REFL_C3RC; m[n].density = c3rc_densities[k]; ++n;
+    }
     return n;
 }
 
@@ -328,6 +337,7 @@ static int growth_methods(bench_method *m, const char *sweep) {
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = sweep; m[n].m = REFL_DIRECT; ++n;
     m[n].method = "envmap"; m[n].series = "envmap-128"; m[n].param = sweep; m[n].m = REFL_ENVMAP;
     m[n].envmap_size = 128; ++n;
+    m[n].method = "c3rc"; m[n].series = "c3rc"; m[n].param = sweep; m[n].m = REFL_C3RC; ++n;
     return n;
 }
 
@@ -584,6 +594,12 @@ int refl_cli_bench(int argc, char **argv) {
         if (n > 0)
             chart(o.out, "refraction_incidence", "PLANAR slab refraction against RAYTRACE (640x480)",
                   "incidence angle of the view axis (degrees)", "mean reflection error (pixels)", 0, dat, names, n);
+    }
+    /* paper 000's tables and the camera's error against triangle size */
+    if (!refl_bench_c3rc(o.out, o.threads, o.repeats, o.full)) {
+        fprintf(stderr, "reflect bench: the C3RC tables failed\n");
+        free(table.rows);
+        return 1;
     }
     fprintf(stderr, "wrote %s/*.png\n", o.out);
     free(table.rows);

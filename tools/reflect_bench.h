@@ -6,4 +6,11 @@
 /* argv[1] is "bench"; returns the process exit status. */
 int refl_cli_bench(int argc, char **argv);
 
+/* Writes script to script_path and runs gnuplot on it; 0 on failure. */
+int refl_bench_gnuplot(const char *script_path, const char *script);
+
+/* Paper 000's Tables 1 and 2 and C3RC's error against reflector triangle
+   size (tools/reflect_bench_c3rc.c), into dir; 0 on failure. */
+int refl_bench_c3rc(const char *dir, int threads, int repeats, int full);
+
 #endif

@@ -396,6 +396,101 @@ REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
 
+/* ---- kd-tree over points (paper 000, section 4) ------------------------------
+   The hybrid method's scene subdivision: points (the diffuse meshes' samples)
+   in a kd-tree whose every inner node splits its points in eight at once, at
+   the median along x, then each half at its median along y, then each
+   quarter at its median along z (the paper's eight-way recursion; empty
+   children are left out). A node becomes a leaf when it holds at most
+   leaf_points points or its box's largest side is below min_size (the
+   paper's two termination criteria). Boxes are the tight bounds of each
+   node's points. Within a leaf the points are in a deterministic shuffled
+   order, so every prefix of a leaf is an even subsample of it (level of
+   detail: draw the first k). Deterministic: the same input gives the same
+   tree on every machine. The tree stores what it is given (object space, if
+   the points are), so it stays valid under rigid motion of the object. */
+typedef struct refl_kdtree_node {
+    float lo[3], hi[3];      /* tight bounds of the node's points */
+    int first, count;        /* its points: tree positions [first, first + count) */
+    int child, child_count;  /* children: nodes [child, child + child_count); leaf: -1, 0 */
+    int depth;               /* root 0 */
+} refl_kdtree_node;
+
+typedef struct refl_kdtree {
+    int point_count, node_count, leaf_count, max_depth;
+    double average_leaf_depth;  /* over leaves, weighted equally */
+    double average_leaf_points; /* point_count / leaf_count */
+    float *positions;        /* 3 per point, reordered: each node's points are contiguous */
+    uint32_t *order;         /* order[i]: the caller's index of tree point i */
+    refl_kdtree_node *nodes; /* nodes[0] is the root (also for no points) */
+    refl_allocator allocator;
+} refl_kdtree;
+
+typedef struct refl_kdtree_desc {
+    int leaf_points;         /* a node with at most this many points is a leaf; 0: 1000 */
+    float min_size;          /* a node whose box's largest side is below this is a leaf; 0: none */
+    refl_allocator allocator;
+} refl_kdtree_desc;
+
+/* Copies count points (3 floats each). REFL_ERROR_INVALID_ARGUMENT for a
+   non-finite coordinate, a negative count or NULL positions with count > 0;
+   count 0 gives an empty root leaf. desc may be NULL (defaults). */
+REFL_API refl_result refl_kdtree_build(const float *positions, int count, const refl_kdtree_desc *desc,
+                                       refl_kdtree **out_tree);
+REFL_API void refl_kdtree_destroy(refl_kdtree *tree);
+/* Depth-first from the root, children in order: a node whose box
+   box_test(user, lo, hi) rejects (returns 0) is skipped with its subtree;
+   leaf(user, tree, node) is called for every accepted leaf. Returns the
+   number of box tests made. */
+typedef int (*refl_kdtree_box_fn)(void *user, const float lo[3], const float hi[3]);
+typedef void (*refl_kdtree_leaf_fn)(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf);
+REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn box_test, refl_kdtree_leaf_fn leaf,
+                                     void *user);
+
+/* ---- continuous 3-ray camera (paper 000, section 5) ---------------------------
+   A C3RC is built per reflector triangle from its three vertices v1, v2, v3
+   (the tails) and the unit reflected rays there d1, d2, d3. The sweeping
+   triangle at t >= 0 has vertices vi + t di; a point P projects to
+   barycentrics (a, b, c), a + b + c = 1, a, b, c >= 0, and sweep t >= 0 when
+       P = a (v1 + t d1) + b (v2 + t d2) + c (v3 + t d3),
+   i.e. where P lies in the sweeping triangle's plane (a cubic in t) and
+   inside it. Every such (a, b, c, t) is a valid projection: up to three.
+   The image point is the reflector point a v1 + b v2 + c v3; t orders
+   visibility (nearer the reflector wins). Adjacent C3RCs share an edge's two
+   rays, so projection is continuous across it. */
+typedef struct refl_c3rc {
+    refl_vec3 v[3];          /* tails */
+    refl_vec3 d[3];          /* unit directions */
+    /* set by refl_c3rc_init, for projection (private) */
+    double pre[40];
+} refl_c3rc;
+
+typedef struct refl_c3rc_projection {
+    float a, b, c;           /* barycentrics on the base triangle, a + b + c = 1 */
+    float t;                 /* sweep parameter: distance along the unit rays */
+} refl_c3rc_projection;
+
+/* Sets up cam from tails and directions (directions are normalised here).
+   REFL_ERROR_INVALID_ARGUMENT for non-finite input or a zero direction; a
+   degenerate (zero-area) base is allowed and projects nothing at t = 0. */
+REFL_API refl_result refl_c3rc_init(refl_c3rc *cam, const refl_vec3 v[3], const refl_vec3 d[3]);
+/* Every valid projection of p, in ascending t, into out; returns how many
+   (0..3). Barycentrics within -1e-6 of the triangle count as inside (so a
+   point on an edge shared by two C3RCs projects in both), then clamped. */
+REFL_API int refl_c3rc_project(const refl_c3rc *cam, refl_vec3 p, refl_c3rc_projection out[3]);
+/* Section 5.1: the sweep intervals of [0, tmax] where the construction rays
+   are not all on one side of the sweeping triangle's plane (a ray switches
+   side where the plane contains it: a quadratic in t per ray). Only there
+   can a point have more than one projection. Writes up to 4 disjoint
+   intervals, ascending, into out; returns how many (0: never). */
+REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, float out[4][2]);
+/* Section 5.2: 0 when the box [lo, hi] certainly holds no point with a valid
+   projection of t <= tmax (tmax may be INFINITY), 1 when it may: no corner
+   projects, no side wall of the view volume meets a box face, and (when
+   tmax is finite) the box misses the bounds of the truncated volume.
+   Conservative: never 0 for a box holding a point that projects. */
+REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -420,7 +515,14 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles, points, cameras, leaves, layers;
     long long rays;          /* rays traced (primary, secondary and shadow) */
-    long long culled;        /* PLANAR: mirror renderings skipped as not visible */
+    long long culled;        /* PLANAR: mirror renderings skipped as not visible;
+                                C3RC: kd-tree boxes the view-volume test rejected */
+    long long projections;   /* C3RC: point projections attempted */
+    long long projected;     /* C3RC: valid projections found (a point may have several) */
+    long long multiple;      /* C3RC: projections beyond a point's first in one camera
+                                (section 5.1's multiple projections, all drawn) */
+    double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
+                                   and splatting, summed over threads */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
 } refl_stats;
@@ -469,6 +571,10 @@ typedef struct refl_render_desc {
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not
                                 (paper 002's count, formula 5); stats.leaves counts the
                                 renderings at the deepest level, stats.cameras all */
+    float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
+                                view (one per 2 x 2 pixels at the reflectors' distance) */
+    int kd_leaf_points;      /* C3RC: kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
+    int max_splat;           /* C3RC: largest splat side in pixels; 0: 8 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -490,8 +596,15 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    when |P - truth(x*)| exceeds `tolerance` times the local spacing s(x*):
    the largest distance from truth(x*) to the true points of its
    4-neighbours on that reflector (with none, to the nearest other true
-   point of it). Pixels where the truth shows a point and the test none are
-   holes (empty); where neither does, they are not counted. Deterministic;
+   point of it). A point may show more than once on one reflector (a
+   minified image of a surface beside a magnified one, where the nearest
+   true point is likelier in the magnified image): when P matches, the
+   error is the distance from x to the nearest pixel y, within 16 pixels
+   and nearer than x*, of the same reflector where the truth shows P too:
+   |P - truth(y)| within `tolerance` times s(y), and no 8-neighbour of y
+   nearer P (the middle of an image of P, not its edge).
+   Pixels where the truth shows a point and the test none are holes
+   (empty); where neither does, they are not counted. Deterministic;
    single-threaded, O(n log n) in the reflector pixels. */
 typedef struct refl_error_desc {
     float tolerance;         /* 0: 1.5 */
@@ -512,6 +625,17 @@ typedef struct refl_reflection_error {
    defaults, malloc). REFL_ERROR_INVALID_SIZE when the sizes differ. */
 REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const refl_frame *truth,
                                                    const refl_error_desc *desc, refl_reflection_error *out);
+
+/* C3RC's cameras alone, without points or splats (paper 000's camera
+   approximation): for each reflector pixel x of `truth` (RAYTRACE of the
+   same scene and view with depth 1) showing point P, every reflector
+   triangle's C3RC (as C3RC builds it for the view) whose screen box comes
+   within 8 pixels of x projects P; the error is the distance in pixels
+   from x's centre to the nearest image of P so found (sub-pixel), and P
+   with no image within 8 pixels counts as wrong. empty is 0. Single-
+   threaded. */
+REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                    const refl_frame *truth, refl_reflection_error *out);
 
 /* Image error of the RGB of the RGBA8 colours against the truth (alpha
    ignored), over every pixel or (reflectors_only) over the truth's

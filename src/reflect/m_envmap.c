@@ -12,7 +12,8 @@
    Per reflector pixel: the world normal comes from a G-buffer draw of the
    reflectors (depth LEQUAL against the frame's depth, stencil EQUAL their
    id, so exactly the pixels the base pass gave them; the object index in
-   alpha tells apart objects sharing stencil 255), the view direction from
+   alpha tells apart objects sharing stencil 255; negative where the back
+   side shows), the view direction from
    the pixel's camera ray. Colour is looked up bilinearly within a face;
    the world point a texel shows (drawn in a second pass per face) nearest,
    into frame->points.
@@ -91,7 +92,7 @@ static int refl__em_normal_fragment(void *user, const rast_fragment_in *in, floa
     rgba[0] = n.x;
     rgba[1] = n.y;
     rgba[2] = n.z;
-    rgba[3] = d->id;
+    rgba[3] = in->front_facing ? d->id : -d->id; /* the side seen, for C3RC */
     return 1;
 }
 
@@ -300,7 +301,7 @@ static void refl__em_row(void *arg, int y) {
         float rgb[3], sub[3], cos_i, w, tmax;
         refl_vec3 o, d, n, shown;
         uint8_t *px = fr->color + 4 * i;
-        if (g[3] != id) continue;
+        if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
         if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f); /* degenerate normal: face the eye */
@@ -387,7 +388,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     if ((rr = rast_finish(p->rc)) != RAST_OK) return refl__result_from_rast(rr);
     *any = 0;
     for (k = 0; k < npx; ++k) {
-        float id = em->gbuf[4 * k + 3];
+        float id = fabsf(em->gbuf[4 * k + 3]);
         if (id >= 1.0f && id <= (float)scene->object_count) {
             seen[(int)id - 1] = 1;
             *any = 1;

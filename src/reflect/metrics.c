@@ -27,6 +27,7 @@ static double refl__metric_d2(const float *a, const float *b) {
    scanned instead of split. */
 
 enum { REFL__KD_LEAF = 8, REFL__KD_STACK = 128 };
+enum { REFL__METRIC_REACH = 16 }; /* pixels searched for a nearer image of a point */
 
 typedef struct refl__kd_point {
     float p[3];
@@ -152,6 +153,35 @@ static void refl__kd_nearest(const refl__kd_point *v, const uint8_t *axes, size_
 
 /* ---- reflection error ------------------------------------------------------------ */
 
+/* Whether truth pixel (x, y) of reflector id is where an image of p lies:
+   its true point matches p (within tolerance times its spacing, as for
+   x*), and no 8-neighbour of it on the reflector shows a point nearer p
+   (ties to the lower pixel index): the middle of an image of p, not the
+   edge of one. */
+static int refl__metric_image_of(const refl_frame *truth, const double *spacing, int id, int x, int y, const float *p,
+                                 double tolerance) {
+    int w = truth->width, h = truth->height, dx, dy;
+    size_t i = (size_t)y * (size_t)w + (size_t)x;
+    double d2;
+    if (x < 0 || y < 0 || x >= w || y >= h || truth->stencil[i] != id || !refl__metric_point(truth->points + 3 * i) ||
+        spacing[i] < 0.0)
+        return 0;
+    d2 = refl__metric_d2(truth->points + 3 * i, p);
+    if (sqrt(d2) > tolerance * spacing[i]) return 0;
+    for (dy = -1; dy <= 1; ++dy)
+        for (dx = -1; dx <= 1; ++dx) {
+            int xs = x + dx, ys = y + dy;
+            size_t j;
+            double dj;
+            if ((!dx && !dy) || xs < 0 || ys < 0 || xs >= w || ys >= h) continue;
+            j = (size_t)ys * (size_t)w + (size_t)xs;
+            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
+            dj = refl__metric_d2(truth->points + 3 * j, p);
+            if (dj < d2 || (dj == d2 && j < i)) return 0;
+        }
+    return 1;
+}
+
 static int refl__metric_cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
@@ -171,6 +201,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     refl__kd_point *kd = NULL;
     uint8_t *axes = NULL;
     double *errors = NULL, tolerance = 1.5, sum = 0.0;
+    double *spacing = NULL;
     size_t n, i, start[257], fill[256];
     long long counted = 0, matched = 0, wrong = 0, empty = 0;
     uint32_t last = UINT32_MAX;
@@ -198,7 +229,8 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     kd = (refl__kd_point *)refl__calloc(&a, start[256], sizeof(refl__kd_point));
     axes = (uint8_t *)refl__calloc(&a, start[256], 1);
     errors = (double *)refl__calloc(&a, n, sizeof(double));
-    if (!kd || !axes || !errors) {
+    spacing = (double *)refl__calloc(&a, n, sizeof(double));
+    if (!kd || !axes || !errors || !spacing) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
@@ -210,9 +242,24 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
             e->pixel = (uint32_t)i;
         }
     for (i = 1; i < 256; ++i) refl__kd_build(kd, axes, start[i], start[i + 1]);
+    /* each true point's spacing to its 4-neighbours (-1: none of them) */
+    for (i = 0; i < n; ++i) {
+        int id = truth->stencil[i], x = (int)(i % (size_t)w), y = (int)(i / (size_t)w), k;
+        double s2 = -1.0;
+        if (!id || !refl__metric_point(truth->points + 3 * i)) continue;
+        for (k = 0; k < 4; ++k) {
+            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+            size_t j;
+            if (xs < 0 || ys < 0 || xs >= w || ys >= truth->height) continue;
+            j = (size_t)ys * (size_t)w + (size_t)xs;
+            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
+            s2 = REFL__MAX(s2, refl__metric_d2(truth->points + 3 * i, truth->points + 3 * j));
+        }
+        spacing[i] = s2 < 0.0 ? -1.0 : sqrt(s2);
+    }
 
     for (i = 0; i < n; ++i) {
-        int id = truth->stencil[i], x, y, k;
+        int id = truth->stencil[i], x, y;
         const float *p = test->points + 3 * i, *tp;
         uint32_t best = UINT32_MAX, other = UINT32_MAX;
         double d2 = INFINITY, spacing2 = -1.0;
@@ -241,23 +288,29 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
         x = (int)(best % (uint32_t)w);
         y = (int)(best / (uint32_t)w);
         tp = truth->points + 3 * (size_t)best;
-        for (k = 0; k < 4; ++k) {
-            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
-            size_t j;
-            if (xs < 0 || ys < 0 || xs >= w || ys >= truth->height) continue;
-            j = (size_t)ys * (size_t)w + (size_t)xs;
-            if (truth->stencil[j] != id || !refl__metric_point(truth->points + 3 * j)) continue;
-            spacing2 = REFL__MAX(spacing2, refl__metric_d2(tp, truth->points + 3 * j));
-        }
+        if (spacing[best] >= 0.0) spacing2 = spacing[best] * spacing[best];
         if (spacing2 < 0.0) {
             spacing2 = INFINITY;
             refl__kd_nearest(kd, axes, start[id], start[id + 1], tp, best, &other, &spacing2);
             if (other == UINT32_MAX) spacing2 = 0.0; /* the only point: only itself matches */
         }
         if (sqrt(d2) <= tolerance * sqrt(spacing2)) {
-            double dx = (double)((long long)(i % (size_t)w) - x);
-            double dy = (double)((long long)(i / (size_t)w) - y);
-            double e = sqrt(dx * dx + dy * dy);
+            int xi = (int)(i % (size_t)w), yi = (int)(i / (size_t)w), dx, dy, reach;
+            double e = sqrt((double)(xi - x) * (xi - x) + (double)(yi - y) * (yi - y));
+            /* the same point may show in more than one place on a reflector
+               (a minified image beside a magnified one, where the nearest
+               true point is likelier): the error is the distance to the
+               nearest place within REFL__METRIC_REACH pixels where the
+               truth shows P too (refl__metric_image_of) */
+            reach = (int)REFL__MIN(ceil(e) - 1.0, (double)REFL__METRIC_REACH);
+            for (dy = -reach; dy <= reach; ++dy)
+                for (dx = -reach; dx <= reach; ++dx) {
+                    int xs = xi + dx, ys = yi + dy;
+                    double ej = sqrt((double)(dx * dx + dy * dy));
+                    if (ej < e && ej <= (double)REFL__METRIC_REACH &&
+                        refl__metric_image_of(truth, spacing, id, xs, ys, p, tolerance))
+                        e = ej;
+                }
             errors[matched++] = e;
             sum += e;
         } else {
@@ -283,6 +336,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
     r = REFL_OK;
 done:
     refl__free(&a, errors);
+    refl__free(&a, spacing);
     refl__free(&a, axes);
     refl__free(&a, kd);
     return r;

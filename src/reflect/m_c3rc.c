@@ -1,0 +1,1061 @@
+/* C3RC: Mei, Popescu and Sacks' hybrid backward-forward reflections
+   (paper 000). Per frame:
+     1. every surface is sampled with points (refl_mesh_sample_points, world
+        space), each shaded once as DIRECT shows it (diffuse model clamped,
+        a partial reflector's diffuse share, mirrors and glass black), and
+        the points go into a kd-tree (section 4);
+     2. each front-facing reflector triangle becomes a continuous 3-ray
+        camera from the reflected rays at its vertices (section 5);
+     3. backward: the kd-tree is walked with the camera's box test
+        (section 5.2) to find the leaves it may see;
+     4. forward: every point of those leaves is projected with the camera,
+        every valid projection (the paper's GPU kept one; here all) lands on
+        the reflector point a v1 + b v2 + c v3, seen by the view at a pixel,
+        and is splatted there as a square; the point nearest the reflector
+        (smallest t, the paper's push-back) wins each pixel.
+   Pixels no point reaches show the environment along their reflected ray
+   (the paper's environment-mapped background). One bounce, as the paper.
+
+   Splats: the side grows with the point spacing the camera shows on
+   screen, estimated per projection from the sweeping triangle's area at t
+   against the reflector triangle's area in pixels (the paper's "increase
+   the splat size where rays converge"), up to max_splat. Level of detail:
+   a leaf's points are shuffled (refl_kdtree), so where a camera minifies a
+   whole leaf, a prefix of it at the needed density is drawn.
+
+   A splat only covers pixels where the reflector the camera belongs to is
+   what the view sees, and near the reflector point (within the
+   triangle's longest edge or three pixels): another part of the same
+   reflector in front hides it. Visibility is a per-pixel atomic minimum of
+   (t, point index), so the image is the same for any thread count and
+   order. Glass: the reflected share as above; the refracted share is the
+   environment along the ray refracted once (no point). */
+#include "internal.h"
+
+#define REFL__C3_EMPTY (~(uint64_t)0)
+#define REFL__C3_LOD_SPACING 0.5f   /* pixels between drawn points where a leaf is thinned */
+#define REFL__C3_SPLAT_SCALE 1.5f   /* splat side per point spacing (random points leave gaps) */
+
+/* A camera to build: a piece of reflector triangle `triangle`, its
+   corners as barycentrics of the triangle's vertices (rows: corners). */
+typedef struct refl__c3_job {
+    int object, triangle;
+    float corner[3][3];
+} refl__c3_job;
+
+#define REFL__C3_SPLIT_PX 0.1f     /* estimated camera error that splits a triangle's camera */
+#define REFL__C3_SPLIT_DEPTH 4      /* at most 4^4 cameras per reflector triangle */
+
+typedef struct refl__c3_counts {
+    long long tests, culled, leaves, tries, valid, multiple;
+    double ms_cull, ms_project;
+} refl__c3_counts;
+
+typedef struct refl__c3 {
+    refl__pass *p;
+    refl__em em;                  /* the reflectors' G-buffer (ENVMAP's) */
+    float *surface;               /* per pixel: the reflector point seen there (world) */
+    uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
+    refl_kdtree *tree;
+    float *rgb, *normal;          /* per tree point */
+    uint8_t *diffuse;             /* per tree point: on a diffuse object (culled when facing away) */
+    int32_t *object, *triangle;   /* per tree point: where it was sampled */
+    float density;
+    float tmax;                   /* longest possible sweep: the scene's diagonal */
+    float pixel_angle;            /* world size of a pixel per unit of distance */
+    int max_splat;
+    refl__c3_job *jobs;
+    refl__c3_counts *counts;      /* one per job, summed in order afterwards */
+} refl__c3;
+
+/* The state of one camera while its leaves are drawn. */
+typedef struct refl__c3_cam {
+    const refl__c3 *c3;
+    refl_c3rc cam;
+    int object, triangle;
+    float screen_area;            /* the triangle's area in pixels */
+    float edge;                   /* longest edge (world) */
+    refl_vec3 base_normal;        /* unit, the side the rays leave */
+    float dn_min, dn_max;         /* range of di . base_normal */
+    int lod;                      /* thinning allowed: no multiple projections */
+    float id;                     /* G-buffer id of its pixels: object + 1, negated for a back face */
+    float sweep;                  /* the largest t a scene point can have (INFINITY: unknown) */
+    float hull[14][4];            /* planes n . x <= w bounding the volume up to t = sweep */
+    int hull_count;
+    refl__c3_counts *n;
+    double t_cull;
+} refl__c3_cam;
+
+/* Atomic minimum: the smaller key wins whatever the order of arrival. */
+static void refl__c3_min(uint64_t *slot, uint64_t key) {
+#if defined(__GNUC__) || defined(__clang__)
+    uint64_t cur = __atomic_load_n(slot, __ATOMIC_RELAXED);
+    while (key < cur && !__atomic_compare_exchange_n(slot, &cur, key, 1, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
+    }
+#else
+#error "C3RC needs an atomic compare-and-swap (GCC or Clang builtins)"
+#endif
+}
+
+/* A float's bits: non-negative floats order as their bits do. */
+static uint32_t refl__c3_bits(float f) {
+    uint32_t u;
+    f = f > 0.0f ? f : 0.0f;
+    memcpy(&u, &f, sizeof u);
+    return u;
+}
+
+static double refl__c3_sweep_area(const refl_c3rc *c, float t) {
+    refl_vec3 a = refl_v3_add(c->v[0], refl_v3_scale(c->d[0], t));
+    refl_vec3 b = refl_v3_add(c->v[1], refl_v3_scale(c->d[1], t));
+    refl_vec3 d = refl_v3_add(c->v[2], refl_v3_scale(c->d[2], t));
+    return 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(b, a), refl_v3_sub(d, a)));
+}
+
+/* Window coordinates of a world point; 0 behind the eye. */
+static int refl__c3_window(const refl__pass *p, refl_vec3 q, float *x, float *y) {
+    const float *m = p->vp.m;
+    float cx = m[0] * q.x + m[4] * q.y + m[8] * q.z + m[12];
+    float cy = m[1] * q.x + m[5] * q.y + m[9] * q.z + m[13];
+    float cw = m[3] * q.x + m[7] * q.y + m[11] * q.z + m[15];
+    if (!(cw > 0.0f)) return 0;
+    *x = (cx / cw + 1.0f) * 0.5f * (float)p->frame->width;
+    *y = (1.0f - cy / cw) * 0.5f * (float)p->frame->height;
+    return 1;
+}
+
+/* Splats point i, projected at pr, into the pixels of the camera's
+   reflector around its reflector point. */
+static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_projection *pr, float density) {
+    const refl__c3 *c3 = k->c3;
+    const refl__pass *p = c3->p;
+    const refl_c3rc *c = &k->cam;
+    int w = p->frame->width, h = p->frame->height, side, x0, y0, x, y;
+    refl_vec3 q = refl_v3_add(refl_v3_add(refl_v3_scale(c->v[0], pr->a), refl_v3_scale(c->v[1], pr->b)),
+                              refl_v3_scale(c->v[2], pr->c));
+    float px, py, tol, plane_tol, pix, spacing = 0.0f;
+    uint64_t key;
+    if (!refl__c3_window(p, q, &px, &py)) return;
+    {   /* the point spacing on screen: a point's share of surface, turned
+           into the sweep plane along the ray, then into pixels */
+        refl_vec3 dir = refl_v3_add(refl_v3_add(refl_v3_scale(c->d[0], pr->a), refl_v3_scale(c->d[1], pr->b)),
+                                    refl_v3_scale(c->d[2], pr->c));
+        refl_vec3 e1 = refl_v3_sub(refl_v3_add(c->v[1], refl_v3_scale(c->d[1], pr->t)),
+                                   refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
+        refl_vec3 e2 = refl_v3_sub(refl_v3_add(c->v[2], refl_v3_scale(c->d[2], pr->t)),
+                                   refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
+        refl_vec3 ns = refl_v3_cross(e1, e2), np;
+        float sweep = 0.5f * refl_v3_length(ns), cs, cp;
+        const float *nn = c3->normal + 3 * (size_t)i;
+        np = refl_v3(nn[0], nn[1], nn[2]);
+        dir = refl_v3_normalize(dir);
+        cs = fabsf(refl_v3_dot(refl_v3_normalize(ns), dir));
+        cp = refl_v3_dot(np, dir);
+        /* a diffuse surface's back, seen through gaps in its front: not drawn */
+        if (cp > 0.0f && c3->diffuse[i]) return;
+        cp = fabsf(cp);
+        if (sweep > 0.0f && density > 0.0f)
+            spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
+    }
+    side = (int)ceilf(REFL__C3_SPLAT_SCALE * spacing);
+    side = REFL__CLAMP(side, 1, c3->max_splat);
+    x0 = (int)floorf(px - 0.5f * (float)side + 0.5f);
+    y0 = (int)floorf(py - 0.5f * (float)side + 0.5f);
+    /* the surface seen there must be this triangle's: within two pixels
+       of its plane (a neighbour across an edge is; another part of the
+       reflector hiding it is not) and of its size from the point */
+    pix = c3->pixel_angle * refl_v3_length(refl_v3_sub(q, p->view->eye));
+    plane_tol = 2.0f * pix;
+    tol = k->edge + (float)side * pix;
+    key = ((uint64_t)refl__c3_bits(pr->t) << 32) | (uint64_t)(uint32_t)i;
+    for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
+        for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *r = c3->surface + 3 * j;
+            refl_vec3 dq;
+            if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
+            dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
+            if (refl_v3_dot(dq, dq) > tol * tol || fabsf(refl_v3_dot(dq, k->base_normal)) > plane_tol) continue;
+            refl__c3_min(&((refl__c3 *)c3)->key[j], key);
+        }
+}
+
+/* The truncated volume (t <= k->sweep) is the convex hull of the tails
+   and vi + sweep di (every point of it a convex combination of them):
+   planes through three of those six points with all six on one side bound
+   it, and a box or point beyond one of them cannot project. */
+static void refl__c3_hull(refl__c3_cam *k) {
+    static const int tri[14][3] = {{0, 1, 2}, {3, 4, 5}, {0, 1, 3}, {0, 1, 4}, {0, 3, 4}, {1, 3, 4},
+                                   {1, 2, 4}, {1, 2, 5}, {1, 4, 5}, {2, 4, 5}, {2, 0, 5}, {2, 0, 3},
+                                   {2, 5, 3}, {0, 5, 3}};
+    refl_vec3 q[6];
+    float scale = 0.0f;
+    int i, j;
+    k->hull_count = 0;
+    if (!(k->sweep < FLT_MAX)) return;
+    for (i = 0; i < 3; ++i) {
+        q[i] = k->cam.v[i];
+        q[i + 3] = refl_v3_add(k->cam.v[i], refl_v3_scale(k->cam.d[i], k->sweep));
+    }
+    for (i = 0; i < 6; ++i) scale = REFL__MAX(scale, refl_v3_length(refl_v3_sub(q[i], q[0])));
+    for (i = 0; i < 14; ++i) {
+        refl_vec3 n = refl_v3_normalize(refl_v3_cross(refl_v3_sub(q[tri[i][1]], q[tri[i][0]]),
+                                                      refl_v3_sub(q[tri[i][2]], q[tri[i][0]])));
+        float w = refl_v3_dot(n, q[tri[i][0]]), eps = 1e-4f * scale + 1e-6f * fabsf(w), lo = 0.0f, hi = 0.0f;
+        if (refl_v3_dot(n, n) == 0.0f) continue;
+        for (j = 0; j < 6; ++j) {
+            float e = refl_v3_dot(n, q[j]) - w;
+            lo = REFL__MIN(lo, e);
+            hi = REFL__MAX(hi, e);
+        }
+        if (hi <= eps) { /* all on the negative side */
+            k->hull[k->hull_count][0] = n.x; k->hull[k->hull_count][1] = n.y; k->hull[k->hull_count][2] = n.z;
+            k->hull[k->hull_count++][3] = w + eps;
+        } else if (lo >= -eps) {
+            k->hull[k->hull_count][0] = -n.x; k->hull[k->hull_count][1] = -n.y; k->hull[k->hull_count][2] = -n.z;
+            k->hull[k->hull_count++][3] = -w + eps;
+        }
+    }
+}
+
+static int refl__c3_box(void *user, const float lo[3], const float hi[3]) {
+    refl__c3_cam *k = (refl__c3_cam *)user;
+    double t0 = refl__now_ms();
+    int i, seen = 1;
+    for (i = 0; i < k->hull_count && seen; ++i) { /* the box's corner least along the plane's normal */
+        const float *h = k->hull[i];
+        float m = h[0] * (h[0] > 0.0f ? lo[0] : hi[0]) + h[1] * (h[1] > 0.0f ? lo[1] : hi[1]) +
+                  h[2] * (h[2] > 0.0f ? lo[2] : hi[2]);
+        seen = m <= h[3];
+    }
+    if (seen)
+        seen = refl_c3rc_box_visible(&k->cam, refl_v3(lo[0], lo[1], lo[2]), refl_v3(hi[0], hi[1], hi[2]), k->sweep);
+    k->t_cull += refl__now_ms() - t0;
+    k->n->tests++;
+    k->n->culled += !seen;
+    return seen;
+}
+
+/* How many of a leaf's (shuffled) points to draw: all, or where the
+   camera minifies the whole box, enough for REFL__C3_LOD_SPACING pixels
+   between points. The sweep t of any point in the box lies between its
+   distances from the base plane over the largest and smallest di . n. */
+static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *leaf) {
+    const refl_c3rc *c = &k->cam;
+    float dmin = FLT_MAX, dmax = -FLT_MAX, t_lo, t_hi, area, spacing, keep;
+    double a0, a1, a2;
+    int corner;
+    if (!k->lod || leaf->count < 16 || !(k->dn_min > 0.05f) || !(k->screen_area > 0.0f)) return leaf->count;
+    for (corner = 0; corner < 8; ++corner) {
+        refl_vec3 q = refl_v3(corner & 1 ? leaf->hi[0] : leaf->lo[0], corner & 2 ? leaf->hi[1] : leaf->lo[1],
+                              corner & 4 ? leaf->hi[2] : leaf->lo[2]);
+        float d = refl_v3_dot(refl_v3_sub(q, c->v[0]), k->base_normal);
+        dmin = REFL__MIN(dmin, d);
+        dmax = REFL__MAX(dmax, d);
+    }
+    if (!(dmax > 0.0f)) return leaf->count;
+    t_lo = REFL__MAX(dmin, 0.0f) / k->dn_max;
+    t_hi = dmax / k->dn_min;
+    a0 = refl__c3_sweep_area(c, t_lo);
+    a1 = refl__c3_sweep_area(c, 0.5f * (t_lo + t_hi));
+    a2 = refl__c3_sweep_area(c, t_hi);
+    area = (float)REFL__MIN(a0, REFL__MIN(a1, a2));
+    if (!(area > 0.0f)) return leaf->count;
+    /* the densest the box's points can appear: every surface facing the ray */
+    spacing = sqrtf(k->screen_area / (area * k->c3->density));
+    if (spacing >= REFL__C3_LOD_SPACING) return leaf->count;
+    keep = (spacing / REFL__C3_LOD_SPACING) * (spacing / REFL__C3_LOD_SPACING);
+    return REFL__MAX(1, (int)ceilf(keep * (float)leaf->count));
+}
+
+static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
+    refl__c3_cam *k = (refl__c3_cam *)user;
+    const refl__c3 *c3 = k->c3;
+    double t0 = refl__now_ms();
+    int count = refl__c3_lod_count(k, leaf), i, j, n;
+    float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
+    refl_c3rc_projection pr[3];
+    k->n->leaves++;
+    for (i = leaf->first; i < leaf->first + count; ++i) {
+        const float *q = tree->positions + 3 * (size_t)i;
+        /* a reflector's own triangle would see all of itself at t = 0 */
+        if (c3->triangle[i] == k->triangle && c3->object[i] == k->object) continue;
+        for (j = 0; j < k->hull_count; ++j) {
+            const float *h = k->hull[j];
+            if (h[0] * q[0] + h[1] * q[1] + h[2] * q[2] > h[3]) break;
+        }
+        if (j < k->hull_count) continue; /* outside the volume's hull */
+        n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
+        k->n->tries++;
+        k->n->valid += n;
+        if (n > 1) k->n->multiple += n - 1;
+        for (j = 0; j < n; ++j)
+            if (pr[j].t > 0.0f) refl__c3_splat(k, i, &pr[j], density);
+    }
+    k->n->ms_project += refl__now_ms() - t0;
+}
+
+/* A reflector triangle in the world: vertices, unit smooth normals, the
+   unit geometric normal towards the viewer, and whether that turned it
+   (a back face seen: an open mesh's inside reflects on its back side, as
+   the rasteriser and RAYTRACE turn its normals). */
+typedef struct refl__c3_tri {
+    refl_vec3 v[3], n[3], ng;
+    int back;
+} refl__c3_tri;
+
+static void refl__c3_triangle(const refl__pass *p, int object, int triangle, refl__c3_tri *t) {
+    const refl_object *o = &p->scene->objects[object];
+    const refl_mesh *m = p->scene->meshes[o->mesh];
+    const uint32_t *tri = m->indices + 3 * (size_t)triangle;
+    refl_mat4 inv, normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        const float *q = m->positions + 3 * (size_t)tri[i], *n = m->normals + 3 * (size_t)tri[i];
+        t->v[i] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        t->n[i] = refl_v3_normalize(refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2])));
+    }
+    t->ng = refl_v3_cross(refl_v3_sub(t->v[1], t->v[0]), refl_v3_sub(t->v[2], t->v[0]));
+    t->back = !(refl_v3_dot(t->ng, refl_v3_sub(p->view->eye, t->v[0])) > 0.0f);
+    t->ng = refl_v3_normalize(t->back ? refl_v3_scale(t->ng, -1.0f) : t->ng);
+}
+
+/* The point at barycentrics b of the triangle, and its normal interpolated
+   and normalised (as RAYTRACE's). */
+static void refl__c3_at(const refl__c3_tri *t, const float b[3], refl_vec3 *q, refl_vec3 *n) {
+    *q = refl_v3_add(refl_v3_add(refl_v3_scale(t->v[0], b[0]), refl_v3_scale(t->v[1], b[1])),
+                     refl_v3_scale(t->v[2], b[2]));
+    *n = refl_v3_normalize(refl_v3_add(refl_v3_add(refl_v3_scale(t->n[0], b[0]), refl_v3_scale(t->n[1], b[1])),
+                                       refl_v3_scale(t->n[2], b[2])));
+}
+
+/* The reflected ray at reflector point q with smooth normal n, of a
+   triangle with unit normal ng facing the viewer (turned when `back`):
+   the smooth normal turned to the side seen, or the geometric one where
+   the smooth one still faces away, as RAYTRACE chooses. */
+static refl_vec3 refl__c3_ray(refl_vec3 eye, refl_vec3 q, refl_vec3 n, refl_vec3 ng, int back) {
+    refl_vec3 u = refl_v3_normalize(refl_v3_sub(q, eye));
+    if (back) n = refl_v3_scale(n, -1.0f);
+    if (!(refl_v3_dot(u, n) < 0.0f)) n = ng;
+    return refl_v3_reflect(u, n);
+}
+
+/* The camera of a job's piece of reflector triangle, seen from the view:
+   the reflected rays at its corners (refl__c3_ray), its size on screen and
+   the side it faces. 0 when the rays make no camera. */
+static int refl__c3_setup(const refl__pass *p, const refl__c3_job *job, refl__c3_cam *k) {
+    refl__c3_tri t;
+    refl_vec3 v[3], d[3];
+    float sx[3], sy[3];
+    int i, on_screen = 1;
+    refl__c3_triangle(p, job->object, job->triangle, &t);
+    k->object = job->object;
+    k->triangle = job->triangle;
+    k->id = t.back ? -(float)(job->object + 1) : (float)(job->object + 1);
+    for (i = 0; i < 3; ++i) {
+        refl_vec3 n;
+        refl__c3_at(&t, job->corner[i], &v[i], &n);
+        d[i] = refl__c3_ray(p->view->eye, v[i], n, t.ng, t.back);
+        on_screen &= refl__c3_window(p, v[i], &sx[i], &sy[i]);
+    }
+    if (refl_c3rc_init(&k->cam, v, d) != REFL_OK) return 0;
+    k->edge = REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
+                        REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    k->screen_area = on_screen ? 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]))
+                               : 0.0f;
+    k->base_normal = t.ng;
+    k->dn_min = FLT_MAX;
+    k->dn_max = -FLT_MAX;
+    for (i = 0; i < 3; ++i) {
+        float dn = refl_v3_dot(k->cam.d[i], t.ng);
+        k->dn_min = REFL__MIN(k->dn_min, dn);
+        k->dn_max = REFL__MAX(k->dn_max, dn);
+    }
+    return 1;
+}
+
+/* A growing list of jobs. */
+typedef struct refl__c3_list {
+    refl__c3_job *v;
+    int count, cap;
+    const refl_allocator *al;
+} refl__c3_list;
+
+static refl_result refl__c3_push(refl__c3_list *l, const refl__c3_job *job) {
+    if (l->count == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 1024;
+        refl__c3_job *v = (refl__c3_job *)refl__alloc(l->al, (size_t)cap * sizeof(refl__c3_job));
+        if (!v || cap < l->cap) {
+            refl__free(l->al, v);
+            return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        if (l->count) memcpy(v, l->v, (size_t)l->count * sizeof(refl__c3_job));
+        refl__free(l->al, l->v);
+        l->v = v;
+        l->cap = cap;
+    }
+    l->v[l->count++] = *job;
+    return REFL_OK;
+}
+
+/* How far, in pixels, the job's camera may put a point from where the
+   smooth reflector shows it: at the edge midpoints and the centre, the
+   angle between the camera's interpolated ray and the true reflected ray,
+   times the distance over which a ray offset becomes a pixel offset (up
+   to tmax, less where the rays spread: an offset dt along the reflector
+   moves the ray at distance t by dt (1 + t k), k the rays' turn per unit
+   length), times pixels per unit on the reflector. */
+static float refl__c3_error_px(const refl__pass *p, const refl__c3_tri *t, const refl__c3_job *job, float tmax) {
+    static const float mid[4][3] = {{0.5f, 0.5f, 0.0f}, {0.0f, 0.5f, 0.5f}, {0.5f, 0.0f, 0.5f},
+                                    {1.0f / 3.0f, 1.0f / 3.0f, 1.0f / 3.0f}};
+    refl_vec3 v[3], d[3];
+    float sx[3], sy[3], turn = 0.0f, delta = 0.0f, area, screen;
+    int i, j;
+    for (i = 0; i < 3; ++i) {
+        refl_vec3 n;
+        refl__c3_at(t, job->corner[i], &v[i], &n);
+        d[i] = refl__c3_ray(p->view->eye, v[i], n, t->ng, t->back);
+        if (!refl__c3_window(p, v[i], &sx[i], &sy[i])) return 0.0f; /* crosses the eye plane: no scale */
+    }
+    for (i = 0; i < 3; ++i) {
+        float len = refl_v3_length(refl_v3_sub(v[(i + 1) % 3], v[i]));
+        if (len > 0.0f) turn = REFL__MAX(turn, refl_v3_length(refl_v3_sub(d[(i + 1) % 3], d[i])) / len);
+    }
+    for (j = 0; j < 4; ++j) {
+        float b[3];
+        refl_vec3 q, n, camera = refl_v3(0, 0, 0);
+        for (i = 0; i < 3; ++i) {
+            b[i] = mid[j][0] * job->corner[0][i] + mid[j][1] * job->corner[1][i] + mid[j][2] * job->corner[2][i];
+            camera = refl_v3_add(camera, refl_v3_scale(d[i], mid[j][i]));
+        }
+        refl__c3_at(t, b, &q, &n);
+        delta = REFL__MAX(delta, refl_v3_length(refl_v3_sub(refl_v3_normalize(camera),
+                                                            refl__c3_ray(p->view->eye, q, n, t->ng, t->back))));
+    }
+    area = 0.5f * refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    screen = 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]));
+    if (!(area > 0.0f)) return 0.0f;
+    return delta * tmax / (1.0f + tmax * turn) * sqrtf(screen / area);
+}
+
+/* Appends the cameras of one reflector triangle: its own, split in four at
+   the edge midpoints while refl__c3_error_px exceeds REFL__C3_SPLIT_PX
+   (down to REFL__C3_SPLIT_DEPTH levels): no more cameras than the
+   triangle's curvature and size on screen need. */
+static refl_result refl__c3_split(const refl__pass *p, const refl__c3_tri *t, const refl__c3_job *job, float tmax,
+                                  int depth, refl__c3_list *out) {
+    refl__c3_job sub;
+    float m[3][3];
+    int i, k;
+    if (depth >= REFL__C3_SPLIT_DEPTH || refl__c3_error_px(p, t, job, tmax) <= REFL__C3_SPLIT_PX)
+        return refl__c3_push(out, job);
+    for (i = 0; i < 3; ++i) /* midpoint of edge i, i + 1 */
+        for (k = 0; k < 3; ++k) m[i][k] = 0.5f * (job->corner[i][k] + job->corner[(i + 1) % 3][k]);
+    sub.object = job->object;
+    sub.triangle = job->triangle;
+    for (i = 0; i < 4; ++i) {
+        refl_result r;
+        for (k = 0; k < 3; ++k) {
+            if (i == 3) { /* the middle piece */
+                sub.corner[0][k] = m[0][k]; sub.corner[1][k] = m[1][k]; sub.corner[2][k] = m[2][k];
+            } else { /* the piece at corner i */
+                sub.corner[0][k] = job->corner[i][k];
+                sub.corner[1][k] = m[i][k];
+                sub.corner[2][k] = m[(i + 2) % 3][k];
+            }
+        }
+        if ((r = refl__c3_split(p, t, &sub, tmax, depth + 1, out)) != REFL_OK) return r;
+    }
+    return REFL_OK;
+}
+
+/* Appends triangle `triangle` of `object`'s cameras. */
+static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int triangle, float tmax,
+                                         refl__c3_list *out) {
+    refl__c3_tri t;
+    refl__c3_job job;
+    memset(&job, 0, sizeof job);
+    job.object = object;
+    job.triangle = triangle;
+    job.corner[0][0] = job.corner[1][1] = job.corner[2][2] = 1.0f;
+    refl__c3_triangle(p, object, triangle, &t);
+    return refl__c3_split(p, &t, &job, tmax, 0, out);
+}
+
+/* One camera: reflector triangle jobs[index], built and drawn. */
+static void refl__c3_camera(void *arg, int index) {
+    const refl__c3 *c3 = (const refl__c3 *)arg;
+    refl__c3_cam k;
+    float intervals[4][2];
+    memset(&k, 0, sizeof k);
+    k.c3 = c3;
+    k.n = &((refl__c3 *)c3)->counts[index];
+    if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
+    {   /* a scene point lies within tmax of the base, and t = distance /
+           |a d1 + b d2 + c d3| >= distance / sqrt(min di . dj) */
+        float dmin = REFL__MIN(refl_v3_dot(k.cam.d[0], k.cam.d[1]),
+                               REFL__MIN(refl_v3_dot(k.cam.d[1], k.cam.d[2]), refl_v3_dot(k.cam.d[2], k.cam.d[0])));
+        k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
+    }
+    refl__c3_hull(&k);
+    k.lod = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), intervals) == 0;
+    refl_kdtree_query(c3->tree, refl__c3_box, refl__c3_leaf, &k);
+    k.n->ms_cull += k.t_cull;
+}
+
+/* A point's texture coordinates: the barycentrics of p in its (world)
+   triangle applied to the mesh's uvs. */
+static int refl__c3_uv(const refl_mesh *m, refl_mat4 transform, int triangle, refl_vec3 p, float uv[2]) {
+    const uint32_t *tri = m->indices + 3 * (size_t)triangle;
+    refl_vec3 v[3], e1, e2, w, n;
+    float nn, b, c;
+    int i;
+    if (!m->texcoords) return 0;
+    for (i = 0; i < 3; ++i) {
+        const float *q = m->positions + 3 * (size_t)tri[i];
+        v[i] = refl_mat4_point(transform, refl_v3(q[0], q[1], q[2]));
+    }
+    e1 = refl_v3_sub(v[1], v[0]);
+    e2 = refl_v3_sub(v[2], v[0]);
+    w = refl_v3_sub(p, v[0]);
+    n = refl_v3_cross(e1, e2);
+    nn = refl_v3_dot(n, n);
+    if (!(nn > 0.0f)) return 0;
+    b = refl_v3_dot(refl_v3_cross(w, e2), n) / nn;
+    c = refl_v3_dot(refl_v3_cross(e1, w), n) / nn;
+    for (i = 0; i < 2; ++i)
+        uv[i] = (1.0f - b - c) * m->texcoords[2 * tri[0] + (uint32_t)i] + b * m->texcoords[2 * tri[1] + (uint32_t)i] +
+                c * m->texcoords[2 * tri[2] + (uint32_t)i];
+    return 1;
+}
+
+typedef struct refl__c3_shade_arg {
+    refl__c3 *c3;
+    int chunk;
+} refl__c3_shade_arg;
+
+/* Shades tree points [index * chunk, ...) as DIRECT shows their surface. */
+static void refl__c3_shade(void *arg, int index) {
+    const refl__c3_shade_arg *a = (const refl__c3_shade_arg *)arg;
+    refl__c3 *c3 = a->c3;
+    const refl_scene *scene = c3->p->scene;
+    int i, end = REFL__MIN(c3->tree->point_count, (index + 1) * a->chunk);
+    for (i = index * a->chunk; i < end; ++i) {
+        const refl_object *o = &scene->objects[c3->object[i]];
+        const refl_material *m = &scene->materials[o->material];
+        const float *q = c3->tree->positions + 3 * (size_t)i, *n = c3->normal + 3 * (size_t)i;
+        refl_vec3 pt = refl_v3(q[0], q[1], q[2]);
+        float rgb[3] = {0.0f, 0.0f, 0.0f}, rgba[4], uv[2];
+        if (m->type == REFL_DIFFUSE || m->type == REFL_PARTIAL) {
+            int has_uv = refl__c3_uv(scene->meshes[o->mesh], o->transform, c3->triangle[i], pt, uv);
+            refl_shade_diffuse(scene, m, pt, refl_v3(n[0], n[1], n[2]), has_uv ? uv : NULL, rgb);
+            refl__surface_rgba(m, rgb, rgba);
+            memcpy(rgb, rgba, sizeof rgb);
+        }
+        memcpy(c3->rgb + 3 * (size_t)i, rgb, sizeof rgb);
+    }
+}
+
+/* Samples every object at the density, builds the kd-tree over the
+   points and shades them (tree order). */
+static refl_result refl__c3_points(refl__c3 *c3) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_points **pts;
+    float *all = NULL, *nrm = NULL;
+    int32_t *obj = NULL, *tri = NULL;
+    long long total = 0;
+    refl_kdtree_desc kd;
+    refl__c3_shade_arg sa;
+    refl_result r = REFL_OK;
+    int i, k;
+    pts = (refl_points **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_points *));
+    if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->density, 0x9e3779b97f4a7c15ull + (uint64_t)i,
+                                    al, &pts[i]);
+        if (r == REFL_OK) total += pts[i]->count;
+    }
+    if (r == REFL_OK && total > INT32_MAX / 4) r = REFL_ERROR_INVALID_SIZE;
+    if (r == REFL_OK) {
+        all = (float *)refl__calloc(al, (size_t)total, 3 * sizeof(float));
+        nrm = (float *)refl__calloc(al, (size_t)total, 3 * sizeof(float));
+        obj = (int32_t *)refl__calloc(al, (size_t)total, sizeof(int32_t));
+        tri = (int32_t *)refl__calloc(al, (size_t)total, sizeof(int32_t));
+        if (!all || !nrm || !obj || !tri) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK) {
+        size_t at = 0;
+        for (i = 0; i < scene->object_count; ++i) {
+            memcpy(all + 3 * at, pts[i]->positions, (size_t)pts[i]->count * 3 * sizeof(float));
+            memcpy(nrm + 3 * at, pts[i]->normals, (size_t)pts[i]->count * 3 * sizeof(float));
+            for (k = 0; k < pts[i]->count; ++k) {
+                obj[at + (size_t)k] = i;
+                tri[at + (size_t)k] = (int32_t)pts[i]->triangles[k];
+            }
+            at += (size_t)pts[i]->count;
+        }
+        memset(&kd, 0, sizeof kd);
+        kd.leaf_points = p->desc.kd_leaf_points;
+        kd.allocator = *al;
+        r = refl_kdtree_build(all, (int)total, &kd, &c3->tree);
+    }
+    if (r == REFL_OK) { /* per-point data in tree order */
+        int n = c3->tree->point_count;
+        c3->rgb = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->normal = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->object = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->triangle = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->diffuse = (uint8_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 1);
+        if (!c3->rgb || !c3->normal || !c3->object || !c3->triangle || !c3->diffuse) r = REFL_ERROR_OUT_OF_MEMORY;
+        for (i = 0; r == REFL_OK && i < n; ++i) {
+            uint32_t src = c3->tree->order[i];
+            memcpy(c3->normal + 3 * (size_t)i, nrm + 3 * (size_t)src, 3 * sizeof(float));
+            c3->object[i] = obj[src];
+            c3->triangle[i] = tri[src];
+            c3->diffuse[i] = !refl__is_reflector(&scene->materials[scene->objects[obj[src]].material]);
+        }
+        if (r == REFL_OK && n > 0) {
+            sa.c3 = c3;
+            sa.chunk = 4096;
+            rast_run_jobs(p->rc, (n + sa.chunk - 1) / sa.chunk, refl__c3_shade, &sa);
+        }
+    }
+    for (i = 0; i < scene->object_count; ++i) refl_points_destroy(pts[i]);
+    refl__free(al, pts);
+    refl__free(al, all);
+    refl__free(al, nrm);
+    refl__free(al, obj);
+    refl__free(al, tri);
+    return r;
+}
+
+/* Per reflector pixel: the world point of the surface seen (from the
+   window depth, along the pixel's ray). */
+static void refl__c3_surface_row(void *arg, int y) {
+    refl__c3 *c3 = (refl__c3 *)arg;
+    const refl__view_rays *r = &c3->p->rays;
+    const refl_frame *fr = c3->p->frame;
+    float n = r->znear, f = r->zfar;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        float nx, ny, ndc, dist;
+        refl_vec3 d, q;
+        if (fabsf(c3->em.gbuf[4 * i + 3]) < 1.0f) continue;
+        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+        ndc = 2.0f * fr->depth[i] - 1.0f;
+        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        c3->surface[3 * i] = q.x;
+        c3->surface[3 * i + 1] = q.y;
+        c3->surface[3 * i + 2] = q.z;
+    }
+}
+
+/* Composites one row: the winning point's colour (or the environment
+   along the reflected ray) times the reflectance, as ENVMAP composites. */
+static void refl__c3_resolve_row(void *arg, int y) {
+    const refl__c3 *c3 = (const refl__c3 *)arg;
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    int x, c;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = c3->em.gbuf + 4 * i;
+        const refl_material *m;
+        float rgb[3], sub[3], cos_i, w, tmax;
+        refl_vec3 o, d, n, shown = refl_v3(NAN, NAN, NAN);
+        uint8_t *px = fr->color + 4 * i;
+        int object = (int)fabsf(g[3]) - 1;
+        if (object < 0 || object >= scene->object_count) continue;
+        m = &scene->materials[scene->objects[object].material];
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+        w = refl_material_reflectance(m, cos_i);
+        if (c3->key[i] != REFL__C3_EMPTY) {
+            uint32_t k = (uint32_t)(c3->key[i] & 0xffffffffu);
+            const float *q = c3->tree->positions + 3 * (size_t)k;
+            memcpy(sub, c3->rgb + 3 * (size_t)k, sizeof sub);
+            shown = refl_v3(q[0], q[1], q[2]);
+        } else {
+            refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
+            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+        if (m->type == REFL_GLASS) {
+            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
+            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+            refl_vec3 t;
+            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+                refl_environment_lookup(&scene->environment, t, tsub);
+                for (c = 0; c < 3; ++c)
+                    rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
+            } else {
+                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+            }
+        }
+        for (c = 0; c < 3; ++c) {
+            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
+            px[c] = (uint8_t)(v * 255.0f + 0.5f);
+        }
+        px[3] = 255;
+        fr->points[3 * i] = shown.x;
+        fr->points[3 * i + 1] = shown.y;
+        fr->points[3 * i + 2] = shown.z;
+    }
+}
+
+/* Whether triangle t of object i can be seen: front-facing, or a back
+   face (the inside of an open mesh) with a pixel of its object's back
+   side in its screen box (x0, y0)-(x1, y1) whose surface lies in its
+   plane, within two pixels. Boxes over 4096 pixels are not scanned. */
+static int refl__c3_back_seen(const refl__c3 *c3, const refl_object *o, const refl_mesh *m, int t, int i, int x0,
+                              int y0, int x1, int y1) {
+    const refl__pass *p = c3->p;
+    const uint32_t *tri = m->indices + 3 * (size_t)t;
+    refl_vec3 v[3], ng;
+    int k, x, y, w = p->frame->width;
+    for (k = 0; k < 3; ++k) {
+        const float *q = m->positions + 3 * (size_t)tri[k];
+        v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+    }
+    ng = refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0]));
+    if (refl_v3_dot(ng, refl_v3_sub(p->view->eye, v[0])) > 0.0f) return 1;
+    if ((long long)(x1 - x0) * (y1 - y0) > 4096) return 1;
+    ng = refl_v3_normalize(ng);
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *r = c3->surface + 3 * j;
+            refl_vec3 d;
+            if (c3->em.gbuf[4 * j + 3] != -(float)(i + 1)) continue;
+            d = refl_v3_sub(refl_v3(r[0], r[1], r[2]), v[0]);
+            if (fabsf(refl_v3_dot(d, ng)) <= 2.0f * c3->pixel_angle * refl_v3_length(refl_v3_sub(refl_v3(r[0], r[1], r[2]), p->view->eye)))
+                return 1;
+        }
+    return 0;
+}
+
+/* The cameras worth building: those of the reflector triangles that can
+   be seen (front faces whose screen box holds a pixel of their object, a
+   summed-area table per object answering that in constant time, and back
+   faces seen, refl__c3_back_seen), split where one camera would be too
+   coarse (refl__c3_split). */
+static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *count) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int w = p->frame->width, h = p->frame->height, i, t, x, y;
+    refl__c3_list list;
+    refl_result r = REFL_OK;
+    uint32_t *sat = (uint32_t *)refl__calloc(al, (size_t)(w + 1) * (size_t)(h + 1), sizeof(uint32_t));
+    if (!sat) return REFL_ERROR_OUT_OF_MEMORY;
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *m = scene->meshes[o->mesh];
+        if (!seen[i]) continue;
+        for (y = 0; y < h; ++y)
+            for (x = 0; x < w; ++x) {
+                size_t a = (size_t)(y + 1) * (size_t)(w + 1) + (size_t)(x + 1);
+                uint32_t here = fabsf(c3->em.gbuf[4 * ((size_t)y * (size_t)w + (size_t)x) + 3]) == (float)(i + 1);
+                sat[a] = here + sat[a - 1] + sat[a - (size_t)(w + 1)] - sat[a - (size_t)(w + 1) - 1];
+            }
+        for (t = 0; t < m->triangle_count && r == REFL_OK; ++t) {
+            float sx, sy, lx = FLT_MAX, ly = FLT_MAX, hx = -FLT_MAX, hy = -FLT_MAX;
+            int k, x0, y0, x1, y1, front = 1;
+            for (k = 0; k < 3; ++k) {
+                const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
+                if (!refl__c3_window(p, refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2])), &sx, &sy)) {
+                    front = 0; /* crosses the eye plane: keep it, box unknown */
+                    break;
+                }
+                lx = REFL__MIN(lx, sx); hx = REFL__MAX(hx, sx);
+                ly = REFL__MIN(ly, sy); hy = REFL__MAX(hy, sy);
+            }
+            if (front) {
+                x0 = REFL__CLAMP((int)floorf(lx), 0, w);
+                y0 = REFL__CLAMP((int)floorf(ly), 0, h);
+                x1 = REFL__CLAMP((int)floorf(hx) + 1, 0, w);
+                y1 = REFL__CLAMP((int)floorf(hy) + 1, 0, h);
+                if (x1 <= x0 || y1 <= y0) continue;
+                if (sat[(size_t)y1 * (size_t)(w + 1) + (size_t)x1] - sat[(size_t)y0 * (size_t)(w + 1) + (size_t)x1] -
+                        sat[(size_t)y1 * (size_t)(w + 1) + (size_t)x0] + sat[(size_t)y0 * (size_t)(w + 1) + (size_t)x0] ==
+                    0)
+                    continue;
+                if (!refl__c3_back_seen(c3, o, m, t, i, x0, y0, x1, y1)) continue;
+            }
+            r = refl__c3_add_triangle(p, i, t, c3->tmax, &list);
+        }
+    }
+    refl__free(al, sat);
+    c3->jobs = list.v;
+    *count = list.count;
+    return r;
+}
+
+/* The default density: one point per 2 x 2 pixels where the reflectors
+   are (the footprint at the distance of their nearest bounds); splats
+   grow where that is too few. */
+static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    float nearest = FLT_MAX, size;
+    int i, corner;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_vec3 lo, hi, c;
+        if (!seen[i]) continue;
+        refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+        for (corner = 0; corner < 9; ++corner) {
+            refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                      : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+            c = refl_mat4_point(o->transform, q);
+            nearest = REFL__MIN(nearest, refl_v3_length(refl_v3_sub(c, p->view->eye)));
+        }
+    }
+    size = 2.0f * REFL__MAX(nearest, p->rays.znear) * c3->pixel_angle;
+    return size > 0.0f ? 1.0f / (size * size) : 0.0f;
+}
+
+static refl_result refl__method_c3rc(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__c3 c3;
+    unsigned char *seen = NULL;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
+    double t0 = refl__now_ms(), t1;
+    refl_result r = REFL_OK;
+    refl_vec3 lo, hi;
+    int i, any = 0, jobs = 0;
+    memset(&c3, 0, sizeof c3);
+    c3.p = p;
+    c3.em.p = p;
+    c3.pixel_angle = 2.0f * refl_v3_length(p->rays.up) / (float)fr->height;
+    c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
+    refl_scene_bounds(scene, &lo, &hi);
+    c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    c3.em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    c3.em.draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
+    seen = (unsigned char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1);
+    if (!c3.em.gbuf || !c3.em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) r = refl__em_gbuffer(&c3.em, seen, &any);
+    if (r == REFL_OK && any) {
+        c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
+        if (!c3.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
+        for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
+        rast_run_jobs(p->rc, fr->height, refl__c3_surface_row, &c3);
+        r = refl__c3_points(&c3);
+        t1 = refl__now_ms();
+        fr->stats.ms_build += t1 - t0;
+        t0 = t1;
+        if (r == REFL_OK) r = refl__c3_jobs(&c3, seen, &jobs);
+        if (r == REFL_OK) {
+            c3.counts = (refl__c3_counts *)refl__calloc(al, (size_t)REFL__MAX(jobs, 1), sizeof(refl__c3_counts));
+            if (!c3.counts) r = REFL_ERROR_OUT_OF_MEMORY;
+        }
+        if (r == REFL_OK) {
+            rast_run_jobs(p->rc, jobs, refl__c3_camera, &c3);
+            for (i = 0; i < jobs; ++i) {
+                const refl__c3_counts *n = &c3.counts[i];
+                fr->stats.leaves += n->leaves;
+                fr->stats.culled += n->culled;
+                fr->stats.projections += n->tries;
+                fr->stats.projected += n->valid;
+                fr->stats.multiple += n->multiple;
+                fr->stats.ms_cull += n->ms_cull;
+                fr->stats.ms_project += n->ms_project;
+            }
+            fr->stats.cameras += jobs;
+            fr->stats.points += c3.tree->point_count;
+            fr->stats.model_bytes += (long long)c3.tree->point_count * (long long)(3 * sizeof(float)) +
+                                     (long long)c3.tree->node_count * (long long)sizeof(refl_kdtree_node) +
+                                     (long long)jobs * (long long)sizeof(refl_c3rc);
+            t1 = refl__now_ms();
+            fr->stats.ms_reflect += t1 - t0;
+            t0 = t1;
+            rast_run_jobs(p->rc, fr->height, refl__c3_resolve_row, &c3);
+            fr->stats.ms_composite += refl__now_ms() - t0;
+        }
+    }
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl_kdtree_destroy(c3.tree);
+    refl__free(al, c3.em.gbuf);
+    refl__free(al, c3.em.draws);
+    refl__free(al, seen);
+    refl__free(al, c3.surface);
+    refl__free(al, c3.key);
+    refl__free(al, c3.rgb);
+    refl__free(al, c3.normal);
+    refl__free(al, c3.object);
+    refl__free(al, c3.triangle);
+    refl__free(al, c3.diffuse);
+    refl__free(al, c3.jobs);
+    refl__free(al, c3.counts);
+    return r;
+}
+
+/* ---- the cameras' own error ----------------------------------------------------- */
+
+enum { REFL__C3_CELL = 8, REFL__C3_REACH = 8 };
+
+REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                    const refl_frame *truth, refl_reflection_error *out) {
+    const refl_allocator *al;
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl__c3_cam *cams = NULL;
+    int *cell_start = NULL, *cell_list = NULL;
+    double *errors = NULL, sum = 0.0;
+    long long counted = 0, matched = 0;
+    refl_vec3 lo, hi;
+    float tmax;
+    int w, h, cw, ch, cells, i, t, c, x, y, n;
+    refl_result r = REFL_OK;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    w = truth->width;
+    h = truth->height;
+    memset(&p, 0, sizeof p);
+    memset(&shape, 0, sizeof shape);
+    shape.width = w; /* the pass reads the frame's size only */
+    shape.height = h;
+    p.scene = scene;
+    p.view = view;
+    p.frame = &shape;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    /* every reflector triangle's cameras, as C3RC builds them */
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(&p, i, t, tmax, &list);
+    /* binned by their screen boxes grown by REFL__C3_REACH, in cells of
+       REFL__C3_CELL pixels */
+    cw = (w + REFL__C3_CELL - 1) / REFL__C3_CELL;
+    ch = (h + REFL__C3_CELL - 1) / REFL__C3_CELL;
+    cells = cw * ch;
+    if (r == REFL_OK) {
+        cams = (refl__c3_cam *)refl__calloc(al, (size_t)REFL__MAX(list.count, 1), sizeof(refl__c3_cam));
+        cell_start = (int *)refl__calloc(al, (size_t)cells + 1, sizeof(int));
+        errors = (double *)refl__calloc(al, (size_t)w * (size_t)h, sizeof(double));
+        if (!cams || !cell_start || !errors) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (c = 0; c < 2 && r == REFL_OK; ++c) { /* count, then fill */
+        for (i = 0; i < list.count; ++i) {
+            refl__c3_cam *k = &cams[i];
+            float lx = FLT_MAX, ly = FLT_MAX, hx = -FLT_MAX, hy = -FLT_MAX, sx, sy;
+            int v, x0, y0, x1, y1, front = 1;
+            if (c == 0 && !refl__c3_setup(&p, &list.v[i], k)) k->object = -1;
+            if (k->object < 0) continue;
+            for (v = 0; v < 3; ++v) {
+                front &= refl__c3_window(&p, k->cam.v[v], &sx, &sy);
+                lx = REFL__MIN(lx, sx); hx = REFL__MAX(hx, sx);
+                ly = REFL__MIN(ly, sy); hy = REFL__MAX(hy, sy);
+            }
+            if (!front || hx < -REFL__C3_REACH || hy < -REFL__C3_REACH || lx > (float)(w + REFL__C3_REACH) ||
+                ly > (float)(h + REFL__C3_REACH))
+                continue;
+            x0 = REFL__CLAMP((int)floorf(lx) - REFL__C3_REACH, 0, w - 1) / REFL__C3_CELL;
+            y0 = REFL__CLAMP((int)floorf(ly) - REFL__C3_REACH, 0, h - 1) / REFL__C3_CELL;
+            x1 = REFL__CLAMP((int)floorf(hx) + REFL__C3_REACH, 0, w - 1) / REFL__C3_CELL;
+            y1 = REFL__CLAMP((int)floorf(hy) + REFL__C3_REACH, 0, h - 1) / REFL__C3_CELL;
+            for (y = y0; y <= y1; ++y)
+                for (x = x0; x <= x1; ++x) {
+                    if (c == 0) cell_start[y * cw + x + 1]++;
+                    else cell_list[cell_start[y * cw + x]++] = i;
+                }
+        }
+        if (c == 0) {
+            for (x = 0; x < cells; ++x) cell_start[x + 1] += cell_start[x];
+            cell_list = (int *)refl__calloc(al, (size_t)REFL__MAX(cell_start[cells], 1), sizeof(int));
+            if (!cell_list) r = REFL_ERROR_OUT_OF_MEMORY;
+        } else { /* the fill advanced every start to the next cell's */
+            for (x = cells; x > 0; --x) cell_start[x] = cell_start[x - 1];
+            cell_start[0] = 0;
+        }
+    }
+    /* each truth point, projected by the cameras near its pixel: the
+       nearest image within reach */
+    for (y = 0; y < h && r == REFL_OK; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t j = (size_t)y * (size_t)w + (size_t)x;
+            const float *q = truth->points + 3 * j;
+            int cell = (y / REFL__C3_CELL) * cw + x / REFL__C3_CELL, object = truth->stencil[j] - 1;
+            double best = INFINITY;
+            refl_c3rc_projection pr[3];
+            if (object < 0 || !refl__isfinite(q[0]) || !refl__isfinite(q[1]) || !refl__isfinite(q[2])) continue;
+            ++counted;
+            for (c = cell_start[cell]; c < cell_start[cell + 1]; ++c) {
+                const refl__c3_cam *k = &cams[cell_list[c]];
+                if (k->object != object && !(object == 254 && k->object >= 254)) continue;
+                n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
+                for (i = 0; i < n; ++i) {
+                    const refl_c3rc *cm = &k->cam;
+                    refl_vec3 s = refl_v3_add(refl_v3_add(refl_v3_scale(cm->v[0], pr[i].a),
+                                                          refl_v3_scale(cm->v[1], pr[i].b)),
+                                              refl_v3_scale(cm->v[2], pr[i].c));
+                    float sx, sy;
+                    double dx, dy;
+                    if (!refl__c3_window(&p, s, &sx, &sy)) continue;
+                    dx = (double)sx - ((double)x + 0.5);
+                    dy = (double)sy - ((double)y + 0.5);
+                    best = REFL__MIN(best, sqrt(dx * dx + dy * dy));
+                }
+            }
+            if (best <= (double)REFL__C3_REACH) {
+                errors[matched++] = best;
+                sum += best;
+            }
+        }
+    if (r == REFL_OK) {
+        out->pixels = counted;
+        out->matched = matched;
+        if (matched) {
+            size_t rank = (size_t)ceil(0.95 * (double)matched);
+            qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
+            out->mean = sum / (double)matched;
+            out->p95 = errors[rank > 0 ? rank - 1 : 0];
+            out->max = errors[matched - 1];
+        }
+        if (counted) out->wrong = (double)(counted - matched) / (double)counted;
+    }
+    refl__free(al, list.v);
+    refl__free(al, cams);
+    refl__free(al, cell_start);
+    refl__free(al, cell_list);
+    refl__free(al, errors);
+    return r;
+}
