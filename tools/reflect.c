@@ -47,6 +47,8 @@ static const char *const usage_render =
     "                     at the reflectors' distance)\n"
     "  --leaf-points N    C3RC: kd-tree leaf size (default 1000)\n"
     "  --max-splat N      C3RC: largest splat side in pixels, 1..64 (default 8)\n"
+    "  --camera-split PX  C3RC: split a triangle's camera while its estimated error\n"
+    "                     exceeds PX pixels (default 0.1; -1: one camera per triangle)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -84,7 +86,7 @@ typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int leaf_points, max_splat;
-    float density;
+    float density, camera_split;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
@@ -176,6 +178,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_float(v, 1e-9f, 1e9f, &o->density)) return fail("--density: not a positive density: %s", v);
         } else if (!strcmp(a, "--leaf-points")) {
             if (!parse_int(v, 1, 1 << 24, &o->leaf_points)) return fail("--leaf-points: expected 1..16777216, got %s", v);
+        } else if (!strcmp(a, "--camera-split")) {
+            if (!parse_float(v, -1.0f, 1e6f, &o->camera_split)) return fail("--camera-split: expected -1..1e6, got %s", v);
         } else if (!strcmp(a, "--max-splat")) {
             if (!parse_int(v, 1, 64, &o->max_splat)) return fail("--max-splat: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--stats")) {
@@ -320,6 +324,7 @@ static int cmd_render(const options *o) {
     d.point_density = o->density;
     d.kd_leaf_points = o->leaf_points;
     d.max_splat = o->max_splat;
+    d.camera_split_px = o->camera_split;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

@@ -195,11 +195,43 @@ static int tables(const char *dir, int threads, int repeats, int full) {
     return ok;
 }
 
-/* The reflection error against the reflector triangles' mean size on
-   screen: the teapot tessellated 2x2 .. 32x32 per patch, each C3RC frame
-   against one-bounce RAYTRACE, at a density of 4 points per pixel
-   footprint (so splats stay near one pixel and the camera's own error
-   shows). */
+/* Mean screen area, in pixels, of the teapot's triangles that face the
+   view and lie in front of it. */
+static double mean_triangle_pixels(const refl_scene *s, const refl_view *v, int object) {
+    const refl_object *o = &s->objects[object];
+    const refl_mesh *m = s->meshes[o->mesh];
+    refl_mat4 view_m, proj_m, vp;
+    double sum = 0.0;
+    long n = 0;
+    int t, k;
+    refl_view_matrices(v, s, &view_m, &proj_m);
+    vp = refl_mat4_mul(proj_m, view_m);
+    for (t = 0; t < m->triangle_count; ++t) {
+        double x[3], y[3], area;
+        int front = 1;
+        for (k = 0; k < 3; ++k) {
+            const float *q = m->positions + 3 * m->indices[3 * t + k];
+            refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+            const float *a = vp.m;
+            double cx = a[0] * w.x + a[4] * w.y + a[8] * w.z + a[12], cy = a[1] * w.x + a[5] * w.y + a[9] * w.z + a[13];
+            double cw = a[3] * w.x + a[7] * w.y + a[11] * w.z + a[15];
+            if (!(cw > 0.0)) front = 0;
+            x[k] = (cx / cw + 1.0) * 0.5 * v->width;
+            y[k] = (1.0 - cy / cw) * 0.5 * v->height;
+        }
+        area = 0.5 * ((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]));
+        if (!front || area >= 0.0) continue; /* y down: front faces wind negative */
+        sum -= area;
+        ++n;
+    }
+    return n ? sum / (double)n : 0.0;
+}
+
+/* The cameras' error against the reflector triangles' size on screen (the
+   teapot at 2x2 .. 32x32 per patch, 640x480, against one-bounce RAYTRACE):
+   the paper's cameras (one per triangle), ours (split where a camera's
+   estimated error exceeds 0.1 px), and the rendered image's error at the
+   default density. */
 static int triangle_size(const char *dir, int threads, int full) {
     static const int tess[] = {2, 4, 8, 16, 32};
     char path[1024];
@@ -207,15 +239,15 @@ static int triangle_size(const char *dir, int threads, int full) {
     int i, ok = 1;
     snprintf(path, sizeof path, "%s/c3rc_triangle_size.dat", dir);
     if (!(dat = fopen(path, "w"))) return 0;
-    fprintf(dat, "# tess triangles mean_triangle_pixels error_mean error_p95 error_max wrong empty\n");
+    fprintf(dat, "# tess teapot_triangles mean_triangle_pixels paper_mean paper_p95 paper_none split_mean split_p95 "
+                 "split_none image_mean image_p95 cameras\n");
     for (i = 0; ok && i < (full ? 5 : 4); ++i) {
         refl_scene *s = default_scene(tess[i]);
         refl_frame *f = NULL, *truth = NULL;
         refl_render_desc d;
-        refl_reflection_error err;
+        refl_reflection_error paper, split, img;
         refl_view v;
-        long long tris = 0;
-        long pixels = 0;
+        double px = 0.0;
         int k, teapot = -1;
         if (!s) { ok = 0; break; }
         v = view_640(s);
@@ -230,16 +262,19 @@ static int triangle_size(const char *dir, int threads, int full) {
         if (ok) ok = refl_render(s, &v, &d, truth) == REFL_OK;
         d.method = REFL_C3RC;
         if (ok) ok = refl_render(s, &v, &d, f) == REFL_OK;
-        if (ok) ok = refl_measure_reflection_error(f, truth, NULL, &err) == REFL_OK;
+        if (ok) ok = refl_measure_reflection_error(f, truth, NULL, &img) == REFL_OK &&
+                     refl_c3rc_measure_camera_error(s, &v, truth, -1.0f, &paper) == REFL_OK &&
+                     refl_c3rc_measure_camera_error(s, &v, truth, 0.0f, &split) == REFL_OK;
         if (ok) {
-            for (k = 0; k < v.width * v.height; ++k) pixels += truth->stencil[k] == teapot + 1;
-            tris = f->stats.cameras; /* the teapot's triangles with pixels on screen */
-            fprintf(dat, "%d %lld %.2f %.4f %.4f %.4f %.5f %.5f\n", tess[i], tris,
-                    tris ? (double)pixels / (double)tris : 0.0, err.mean, err.p95, err.max, err.wrong, err.empty);
-            fprintf(stderr, "  C3RC teapot %2dx%-2d: %6lld cameras, %7.1f px per triangle: error mean %.3f p95 %.3f "
-                            "max %.2f px, wrong %.4f, empty %.4f\n",
-                    tess[i], tess[i], tris, tris ? (double)pixels / (double)tris : 0.0, err.mean, err.p95, err.max,
-                    err.wrong, err.empty);
+            px = mean_triangle_pixels(s, &v, teapot);
+            fprintf(dat, "%d %d %.2f %.4f %.4f %.5f %.4f %.4f %.5f %.4f %.4f %lld\n", tess[i],
+                    s->meshes[s->objects[teapot].mesh]->triangle_count, px, paper.mean, paper.p95, paper.wrong,
+                    split.mean, split.p95, split.wrong, img.mean, img.p95, f->stats.cameras);
+            fprintf(stderr, "  C3RC teapot %2dx%-2d (%5d triangles, %7.1f px each): cameras per triangle: mean %.3f "
+                            "p95 %.3f px (none %.4f); split (%lld cameras): mean %.3f p95 %.3f px; image: mean %.3f "
+                            "p95 %.3f px\n",
+                    tess[i], tess[i], s->meshes[s->objects[teapot].mesh]->triangle_count, px, paper.mean, paper.p95,
+                    paper.wrong, f->stats.cameras, split.mean, split.p95, img.mean, img.p95);
         }
         refl_frame_destroy(f);
         refl_frame_destroy(truth);
@@ -247,14 +282,17 @@ static int triangle_size(const char *dir, int threads, int full) {
     }
     fclose(dat);
     if (ok) {
-        char script[4096], gp[1100];
+        char script[8192], gp[1100];
         snprintf(script, sizeof script,
                  "set terminal pngcairo size 900,600 noenhanced\nset output '%s/c3rc_triangle_size.png'\n"
                  "set title 'C3RC against one-bounce RAYTRACE, default scene 640x480'\n"
-                 "set xlabel 'mean reflector triangle size on screen (pixels)'\n"
-                 "set ylabel 'reflection error (pixels)'\nset logscale x\nset grid\nset key top left\n"
-                 "plot '%s' using 3:4 with linespoints title 'mean', '%s' using 3:5 with linespoints title 'p95'\n",
-                 dir, path, path);
+                 "set xlabel 'mean teapot triangle size on screen (pixels)'\n"
+                 "set ylabel 'reflection error (pixels)'\nset logscale xy\nset grid\nset key top left\n"
+                 "plot '%s' using 3:5 with linespoints title 'a camera per triangle (paper), p95', "
+                 "'%s' using 3:4 with linespoints title 'a camera per triangle (paper), mean', "
+                 "'%s' using 3:8 with linespoints title 'split cameras (0.1 px), p95', "
+                 "'%s' using 3:11 with linespoints title 'rendered image (points), p95'\n",
+                 dir, path, path, path, path);
         snprintf(gp, sizeof gp, "%s/c3rc_triangle_size.gp", dir);
         ok = refl_bench_gnuplot(gp, script);
     }

@@ -572,9 +572,13 @@ typedef struct refl_render_desc {
                                 (paper 002's count, formula 5); stats.leaves counts the
                                 renderings at the deepest level, stats.cameras all */
     float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
-                                view (one per 2 x 2 pixels at the reflectors' distance) */
+                                view: one per 2 x 2 pixels at the reflectors' distance, at
+                                most 2 million in all) */
     int kd_leaf_points;      /* C3RC: kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
     int max_splat;           /* C3RC: largest splat side in pixels; 0: 8 */
+    float camera_split_px;   /* C3RC: a reflector triangle's camera is split in four while its
+                                estimated error exceeds this many pixels (4 levels at most);
+                                0: 0.1; negative: never (one camera per triangle, the paper's) */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -632,10 +636,11 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
    triangle's C3RC (as C3RC builds it for the view) whose screen box comes
    within 8 pixels of x projects P; the error is the distance in pixels
    from x's centre to the nearest image of P so found (sub-pixel), and P
-   with no image within 8 pixels counts as wrong. empty is 0. Single-
-   threaded. */
+   with no image within 8 pixels counts as wrong. empty is 0. split_px as
+   refl_render_desc.camera_split_px. Single-threaded. */
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
-                                                    const refl_frame *truth, refl_reflection_error *out);
+                                                    const refl_frame *truth, float split_px,
+                                                    refl_reflection_error *out);
 
 /* Image error of the RGB of the RGBA8 colours against the truth (alpha
    ignored), over every pixel or (reflectors_only) over the truth's

@@ -43,8 +43,9 @@ typedef struct refl__c3_job {
     float corner[3][3];
 } refl__c3_job;
 
-#define REFL__C3_SPLIT_PX 0.1f     /* estimated camera error that splits a triangle's camera */
+#define REFL__C3_SPLIT_PX 0.1f     /* default estimated camera error that splits a triangle's camera */
 #define REFL__C3_SPLIT_DEPTH 4      /* at most 4^4 cameras per reflector triangle */
+#define REFL__C3_AUTO_POINTS 2e6    /* the most points the default density samples */
 
 typedef struct refl__c3_counts {
     long long tests, culled, leaves, tries, valid, multiple;
@@ -439,15 +440,15 @@ static float refl__c3_error_px(const refl__pass *p, const refl__c3_tri *t, const
 }
 
 /* Appends the cameras of one reflector triangle: its own, split in four at
-   the edge midpoints while refl__c3_error_px exceeds REFL__C3_SPLIT_PX
+   the edge midpoints while refl__c3_error_px exceeds split_px (< 0: never)
    (down to REFL__C3_SPLIT_DEPTH levels): no more cameras than the
    triangle's curvature and size on screen need. */
 static refl_result refl__c3_split(const refl__pass *p, const refl__c3_tri *t, const refl__c3_job *job, float tmax,
-                                  int depth, refl__c3_list *out) {
+                                  float split_px, int depth, refl__c3_list *out) {
     refl__c3_job sub;
     float m[3][3];
     int i, k;
-    if (depth >= REFL__C3_SPLIT_DEPTH || refl__c3_error_px(p, t, job, tmax) <= REFL__C3_SPLIT_PX)
+    if (split_px < 0.0f || depth >= REFL__C3_SPLIT_DEPTH || refl__c3_error_px(p, t, job, tmax) <= split_px)
         return refl__c3_push(out, job);
     for (i = 0; i < 3; ++i) /* midpoint of edge i, i + 1 */
         for (k = 0; k < 3; ++k) m[i][k] = 0.5f * (job->corner[i][k] + job->corner[(i + 1) % 3][k]);
@@ -464,13 +465,13 @@ static refl_result refl__c3_split(const refl__pass *p, const refl__c3_tri *t, co
                 sub.corner[2][k] = m[(i + 2) % 3][k];
             }
         }
-        if ((r = refl__c3_split(p, t, &sub, tmax, depth + 1, out)) != REFL_OK) return r;
+        if ((r = refl__c3_split(p, t, &sub, tmax, split_px, depth + 1, out)) != REFL_OK) return r;
     }
     return REFL_OK;
 }
 
 /* Appends triangle `triangle` of `object`'s cameras. */
-static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int triangle, float tmax,
+static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int triangle, float tmax, float split_px,
                                          refl__c3_list *out) {
     refl__c3_tri t;
     refl__c3_job job;
@@ -479,7 +480,7 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
     job.triangle = triangle;
     job.corner[0][0] = job.corner[1][1] = job.corner[2][2] = 1.0f;
     refl__c3_triangle(p, object, triangle, &t);
-    return refl__c3_split(p, &t, &job, tmax, 0, out);
+    return refl__c3_split(p, &t, &job, tmax, split_px == 0.0f ? REFL__C3_SPLIT_PX : split_px, 0, out);
 }
 
 /* One camera: reflector triangle jobs[index], built and drawn. */
@@ -796,7 +797,7 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
                     continue;
                 if (!refl__c3_back_seen(c3, o, m, t, i, x0, y0, x1, y1)) continue;
             }
-            r = refl__c3_add_triangle(p, i, t, c3->tmax, &list);
+            r = refl__c3_add_triangle(p, i, t, c3->tmax, p->desc.camera_split_px, &list);
         }
     }
     refl__free(al, sat);
@@ -806,12 +807,13 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
 }
 
 /* The default density: one point per 2 x 2 pixels where the reflectors
-   are (the footprint at the distance of their nearest bounds); splats
-   grow where that is too few. */
+   are (the footprint at the distance of their nearest bounds), at most
+   REFL__C3_AUTO_POINTS in all; splats grow where that is too few. */
 static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
     float nearest = FLT_MAX, size;
+    double area = 0.0;
     int i, corner;
     for (i = 0; i < scene->object_count; ++i) {
         const refl_object *o = &scene->objects[i];
@@ -826,7 +828,23 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
         }
     }
     size = 2.0f * REFL__MAX(nearest, p->rays.znear) * c3->pixel_angle;
-    return size > 0.0f ? 1.0f / (size * size) : 0.0f;
+    /* at most REFL__C3_AUTO_POINTS over the whole scene (a viewer close to
+       a mirror would ask for tens of millions) */
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *m = scene->meshes[o->mesh];
+        int t, k;
+        for (t = 0; t < m->triangle_count; ++t) {
+            refl_vec3 v[3];
+            for (k = 0; k < 3; ++k) {
+                const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
+                v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+            }
+            area += 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+        }
+    }
+    if (!(size > 0.0f)) return 0.0f;
+    return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
 static refl_result refl__method_c3rc(refl__pass *p) {
@@ -919,7 +937,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
 enum { REFL__C3_CELL = 8, REFL__C3_REACH = 8 };
 
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
-                                                    const refl_frame *truth, refl_reflection_error *out) {
+                                                    const refl_frame *truth, float split_px,
+                                                    refl_reflection_error *out) {
     const refl_allocator *al;
     refl__pass p;
     refl_frame shape;
@@ -936,6 +955,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     memset(out, 0, sizeof *out);
     if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
+    if (!refl__isfinite(split_px)) return REFL_ERROR_INVALID_ARGUMENT;
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
@@ -961,7 +981,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
             for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
-                r = refl__c3_add_triangle(&p, i, t, tmax, &list);
+                r = refl__c3_add_triangle(&p, i, t, tmax, split_px, &list);
     /* binned by their screen boxes grown by REFL__C3_REACH, in cells of
        REFL__C3_CELL pixels */
     cw = (w + REFL__C3_CELL - 1) / REFL__C3_CELL;
