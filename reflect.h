@@ -519,6 +519,7 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long culled;        /* PLANAR: mirror renderings skipped as not visible;
                                 C3RC: kd-tree boxes the view-volume test rejected */
+    long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
     long long projections;   /* C3RC: point projections attempted */
     long long projected;     /* C3RC: valid projections found (a point may have several) */
     long long multiple;      /* C3RC: projections beyond a point's first in one camera
@@ -8163,6 +8164,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                 const refl__c3_counts *n = &c3.counts[i];
                 fr->stats.leaves += n->leaves;
                 fr->stats.culled += n->culled;
+                fr->stats.box_tests += n->tests;
                 fr->stats.projections += n->tries;
                 fr->stats.projected += n->valid;
                 fr->stats.multiple += n->multiple;

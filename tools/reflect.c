@@ -357,8 +357,10 @@ static int cmd_render(const options *o) {
                st->triangles, st->points, st->cameras, st->leaves, st->layers);
         printf("rays         %lld\nculled       %lld\n", st->rays, st->culled);
         if (st->projections)
-            printf("projections  %lld (valid %lld, %.1f%%)\n  cull ms    %.2f (thread time)\n  project ms %.2f (thread time)\n",
+            printf("projections  %lld (valid %lld, %.1f%%)\nbox tests    %lld (rejected %.1f%%)\n"
+                   "  cull ms    %.2f (thread time)\n  project ms %.2f (thread time)\n",
                    st->projections, st->projected, 100.0 * (double)st->projected / (double)st->projections,
+                   st->box_tests, st->box_tests ? 100.0 * (double)st->culled / (double)st->box_tests : 0.0,
                    st->ms_cull, st->ms_project);
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }

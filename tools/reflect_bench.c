@@ -26,11 +26,13 @@ static const char *const usage_bench =
     "its reflection error in pixels and its image error against RAYTRACE of the\n"
     "same scene, view and size, and writes DIR/bench.csv and the charts\n"
     "DIR/time_vs_error_SCENE.png, DIR/growth_{resolution,diffuse,reflector,depth}.png\n"
-    "and DIR/refraction_incidence.png (PLANAR's slab against the incidence angle)\n"
+    "and DIR/refraction_incidence.png (PLANAR's slab against the incidence angle),\n"
+    "and C3RC's tables (DIR/c3rc_tables.csv, paper 000's Tables 1 and 2) and\n"
+    "DIR/c3rc_triangle_size.png (its cameras' error against triangle size)\n"
     "(gnuplot). RAYTRACE through Embree is a row in every table.\n"
     "\n"
-    "  --full        every built-in scene, sizes up to 1920x1080, 5 runs each\n"
-    "                (default: the default scene, up to 1280x720, 3 runs)\n"
+    "  --full        every built-in scene, 5 runs each (default: the default\n"
+    "                scene, 3 runs); sizes 320x240 to 1920x1080 either way\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -479,7 +481,7 @@ int refl_cli_bench(int argc, char **argv) {
         static const int sizes[][2] = {{320, 240}, {640, 480}, {1280, 720}, {1920, 1080}};
         refl_scene *s = builtin("default", 0);
         n = growth_methods(methods, "resolution");
-        for (i = 0; ok && s && i < (o.full ? 4 : 3); ++i) {
+        for (i = 0; ok && s && i < 4; ++i) {
             refl_view v = view_of(s, sizes[i][0], sizes[i][1]);
             ok = bench_scene(&table, &o, "default", s, &v, methods, n);
         }

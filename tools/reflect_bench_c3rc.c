@@ -108,7 +108,7 @@ static const struct {
              {"Dragon1", 100, 95, 5.7, 122, 250, 134, 116, 20}, {"Bunny0", 147, 190, 6.1, 121, 264, 136, 128, 19},
              {"Dragon0", 437, 533, 7.2, 121, 588, 273, 315, 20}, {"Statue0", 543, 577, 7.4, 122, 650, 304, 346, 21}};
 
-static int tables(const char *dir, int threads, int repeats, int full) {
+static int tables(const char *dir, int threads, int repeats) {
     refl_scene *s = default_scene(8);
     refl_view v;
     refl_frame *f = NULL, *truth = NULL;
@@ -116,7 +116,7 @@ static int tables(const char *dir, int threads, int repeats, int full) {
     char path[1024];
     FILE *csv;
     double area;
-    int row, ok = 1, rows = full ? 6 : 4;
+    int row, ok = 1, rows = (int)(sizeof paper / sizeof paper[0]);
     if (!s) return 0;
     v = view_640(s);
     area = scene_area(s);
@@ -300,5 +300,5 @@ static int triangle_size(const char *dir, int threads, int full) {
 }
 
 int refl_bench_c3rc(const char *dir, int threads, int repeats, int full) {
-    return tables(dir, threads, repeats, full) && triangle_size(dir, threads, full);
+    return tables(dir, threads, repeats) && triangle_size(dir, threads, full);
 }

@@ -517,6 +517,7 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long culled;        /* PLANAR: mirror renderings skipped as not visible;
                                 C3RC: kd-tree boxes the view-volume test rejected */
+    long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
     long long projections;   /* C3RC: point projections attempted */
     long long projected;     /* C3RC: valid projections found (a point may have several) */
     long long multiple;      /* C3RC: projections beyond a point's first in one camera

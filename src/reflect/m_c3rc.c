@@ -894,6 +894,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                 const refl__c3_counts *n = &c3.counts[i];
                 fr->stats.leaves += n->leaves;
                 fr->stats.culled += n->culled;
+                fr->stats.box_tests += n->tests;
                 fr->stats.projections += n->tries;
                 fr->stats.projected += n->valid;
                 fr->stats.multiple += n->multiple;
