@@ -59,6 +59,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/bvh.c \
                  src/reflect/kdtree.c \
                  src/reflect/cam_c3rc.c \
+                 src/reflect/cam_sbc.c \
                  src/reflect/shadow.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_envmap.c \

@@ -491,6 +491,49 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
    Conservative: never 0 for a box holding a point that projects. */
 REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
 
+/* ---- sample-based camera (paper 003) -----------------------------------------
+   One reflection group's projection function: a BSP tree whose leaves hold
+   planar pinhole cameras fitted to the group's reflected rays (or, where no
+   camera fits, the rays themselves), built from a ray map (BuildBSP, the
+   paper's Fig. 10). A scene point projects to the first reflector point
+   whose reflected ray passes through it, within error_px pixels of the
+   desired view for pinhole leaves, within the ray map's spacing for
+   ray-list leaves; a point in no leaf's frustum does not project. */
+typedef struct refl_sbc_ray {
+    refl_vec3 tail;          /* where the reflected ray leaves the last reflector */
+    refl_vec3 head;          /* where it leaves the scene's bounding box */
+    refl_vec3 first;         /* the first reflector point: what the desired view sees */
+} refl_sbc_ray;
+
+typedef struct refl_sbc_desc {
+    float error_px;          /* largest projection error in desired-view pixels; 0: 1 */
+    refl_mat4 view_proj;     /* the desired view, whose pixels measure the error */
+    int width, height;       /* the desired view's size in pixels */
+    int max_depth;           /* BSP depth limit; 0: 40 */
+    refl_allocator allocator;
+} refl_sbc_desc;
+
+typedef struct refl_sbc refl_sbc;
+
+typedef struct refl_sbc_stats {
+    int nodes, pinhole_leaves, ray_leaves, depth;
+    long long rays;          /* rays in the group */
+    long long bytes;         /* memory the tree holds */
+} refl_sbc_stats;
+
+/* Builds the tree of one reflection group from a map_width x map_height
+   ray map (rays[v * map_width + u]); valid (may be NULL: every entry) marks
+   the entries that belong to the group. REFL_ERROR_INVALID_ARGUMENT for
+   NULL pointers, sizes < 1, non-finite rays or a bad desc. */
+REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *valid, int map_width, int map_height,
+                                    const refl_sbc_desc *desc, refl_sbc **out_sbc);
+REFL_API void refl_sbc_destroy(refl_sbc *sbc);
+REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out);
+/* Projects p: 1 with *first (the first reflector point) and *z (p's
+   distance to the leaf camera's image plane, the paper's visibility
+   offset z), or 0 when p lies in no leaf's frustum. Thread-safe. */
+REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {

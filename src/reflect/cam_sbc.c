@@ -1,0 +1,1067 @@
+/* cam_sbc: the sample-based camera (SBC) of paper 003, section IV.
+   One reflection group's projection function, built from a ray map: each
+   reflected ray has a tail (where it leaves the last reflector), a head
+   (where it leaves the scene box) and the first reflector point the
+   desired view sees along it. The rays are decomposed into a BSP tree
+   (BuildBSP, the paper's Fig. 10) whose leaves hold planar pinhole cameras
+   fitted to their rays, or, where no camera fits, the rays themselves.
+
+   Pinhole fit: the centre of projection o is the least-squares point
+   nearest every ray line (o x d = t x d per ray, solved as the normal
+   equations sum(I - d d^T) o = sum(I - d d^T) t in double); the image plane
+   is the least-squares plane of the tails, its normal n oriented along the
+   mean ray direction. A point p maps through o onto the plane, to (u, v) in
+   an orthonormal basis there; the frustum is the bounding rectangle of the
+   tails' and heads' images. f(u, v), the first reflector point, is a
+   quadratic (1, u, v, u^2, uv, v^2 per coordinate, u and v normalised to
+   the rectangle) fitted to f(image of tail) = first and f(image of head) =
+   first over every ray. The fit's error is the largest distance, in
+   desired-view pixels, between the view projections of f at a tail's or
+   head's image and of the ray's true first point; the camera is a leaf when
+   it is below error_px.
+   Beyond the paper: the fit also accepts a converging camera (o in front
+   of the plane, where the rays of a concave reflector meet beyond the
+   scene box; p then projects only between the plane and o), and a point
+   projects when it lies no lower than the lowest tail or head (less a
+   margin), not only beyond the plane: the tails of a curved patch lie on
+   both sides of their least-squares plane. Large sets are tried on an even
+   subsample first, so hopeless fits cost little (see refl__sbc_fit_ok).
+
+   Split (the paper's heuristic): the plane through the tails' centroid,
+   parallel to the mean ray direction, perpendicular to the tails' principal
+   axis (made orthogonal to the mean direction). A ray goes left when any
+   tail or head of its unit frustum (itself and its ray-map neighbours
+   u +- 1, v +- 1 in the set) lies on the plane's positive side (or on it),
+   right when any lies on the negative side; rays near the plane go both
+   ways, so a point of either half space that lies among the set's rays
+   lies among the rays of that side's subset. Splitting fails when a subset
+   is the whole set (the paper), when half the set would go both ways (a
+   few unit frustums across, every cut keeps nearly all rays on both sides
+   and the cells would multiply without end) and at max_depth: the rays
+   are then stored as a ray list.
+
+   Projection: down the tree by the side of each plane (s >= 0: left). A
+   pinhole leaf projects as above (z: p's height over the image plane). A
+   ray-list leaf searches its unit frustums, the 2 x 2 quads of its rays:
+   p lies in one at (s, t) in [0, 1]^2 when it lies on the bilinearly
+   interpolated ray (s, t). Each quad is sliced across its mean direction
+   m: at p's slice tau = (p - o) . m each ray is one point of the slice,
+   so (s, t) is an inverse bilinear interpolation in 2D, and the answer is
+   the four first points blended at (s, t) (z: the blended distance along
+   the rays from their tails); the nearest such quad wins. Adjacent quads
+   share their edge rays, so the blend is continuous to within the
+   rays' skewness.
+
+   Deterministic: lists keep ray-map order, nothing is sorted or drawn at
+   random, every sum runs in a fixed order. */
+#include "internal.h"
+
+/* zero: an empty ray list, what a fresh node is until it is built */
+enum { REFL__SBC_RAYS = 0, REFL__SBC_PINHOLE = 1, REFL__SBC_INNER = 2 };
+
+typedef struct refl__sbc_node {
+    double plane[4];         /* inner: n . p + plane[3] >= 0 goes left */
+    int child;               /* inner: left child, the right one follows; leaf: -1 */
+    int kind;
+    int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
+} refl__sbc_node;
+
+typedef struct refl__sbc_cam {
+    double o[3], c[3], n[3], eu[3], ev[3];
+    double ho;               /* (o - c) . n: < 0 diverging, > 0 converging */
+    double hmin;             /* the lowest (p - c) . n that projects */
+    double ocu, ocv;         /* (o - c) in the plane's basis */
+    double rect[4];          /* frustum: umin, umax, vmin, vmax */
+    double norm[4];          /* u, v centre and inverse half size: to [-1, 1] */
+    double coef[3][6];       /* f per coordinate over 1, u, v, u^2, uv, v^2 */
+} refl__sbc_cam;
+
+/* A unit frustum of a ray list: rays (u, v), (u + 1, v), (u, v + 1),
+   (u + 1, v + 1), sliced across its mean direction m: at tau = (p - o) . m
+   each ray is one point of the lateral plane (a, b), and p lies on the
+   bilinearly interpolated ray (s, t) when its lateral position is the
+   bilinear blend of the four at (s, t). */
+typedef struct refl__sbc_quad {
+    int idx;                 /* ray-map index of its (u, v) corner */
+    float o[3], m[3], a[3], b[3];
+    float tau[2];            /* its tails' lowest and (a quarter past) heads' highest tau */
+    float box[2][4];         /* lateral xmin, xmax, ymin, ymax at tau[0] and tau[1], padded:
+                                between them the lerp bounds the rays (min of lines is concave) */
+} refl__sbc_quad;
+
+/* A quad's frame in double: what build and projection both compute with. */
+typedef struct refl__sbc_frame {
+    double o[3], m[3], a[3], b[3];
+} refl__sbc_frame;
+
+struct refl_sbc {
+    refl_allocator allocator;
+    int width, height;
+    refl__sbc_node *nodes;
+    int node_count, node_cap;
+    refl__sbc_cam *cams;
+    int cam_count, cam_cap;
+    refl__sbc_quad *quads;
+    int quad_count, quad_cap;
+    refl_sbc_ray *rays;      /* a copy of the map, only when there are ray lists */
+    refl_sbc_stats stats;
+};
+
+/* ---- small double helpers ---------------------------------------------------- */
+
+static int refl__sbc_finite(double v) { return v - v == 0.0; }
+static double refl__sbc_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void refl__sbc_cross(const double *a, const double *b, double *o) {
+    o[0] = a[1] * b[2] - a[2] * b[1];
+    o[1] = a[2] * b[0] - a[0] * b[2];
+    o[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double refl__sbc_normalize(double *a) {
+    double l = sqrt(refl__sbc_dot(a, a));
+    if (l > 0.0) { a[0] /= l; a[1] /= l; a[2] /= l; }
+    return l;
+}
+static void refl__sbc_load(refl_vec3 v, double *o) { o[0] = v.x; o[1] = v.y; o[2] = v.z; }
+static int refl__sbc_finite3(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+
+/* Eigen-decomposition of a symmetric 3x3 (cyclic Jacobi): val descending,
+   vec[i] the unit eigenvector of val[i]. Fixed order of operations, so the
+   same on every machine. */
+static void refl__sbc_eigen3(const double A[3][3], double val[3], double vec[3][3]) {
+    double a[3][3], v[3][3];
+    int i, j, k, sweep, p, q, order[3];
+    memcpy(a, A, sizeof a);
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < 3; ++j) v[i][j] = i == j ? 1.0 : 0.0;
+    for (sweep = 0; sweep < 32; ++sweep) {
+        double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
+        double diag = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]);
+        if (!(off > 1e-300) || off <= 1e-18 * diag) break;
+        for (p = 0; p < 2; ++p)
+            for (q = p + 1; q < 3; ++q) {
+                double apq = a[p][q], theta, tt, c, s;
+                if (apq == 0.0) continue;
+                theta = (a[q][q] - a[p][p]) / (2.0 * apq);
+                tt = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(tt * tt + 1.0);
+                s = tt * c;
+                for (k = 0; k < 3; ++k) { /* A <- A J */
+                    double akp = a[k][p], akq = a[k][q];
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for (k = 0; k < 3; ++k) { /* A <- J^T A */
+                    double apk = a[p][k], aqk = a[q][k];
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for (k = 0; k < 3; ++k) { /* V <- V J */
+                    double vkp = v[k][p], vkq = v[k][q];
+                    v[k][p] = c * vkp - s * vkq;
+                    v[k][q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    for (i = 0; i < 3; ++i) order[i] = i;
+    for (i = 0; i < 2; ++i) /* descending; ties keep index order */
+        for (j = i + 1; j < 3; ++j)
+            if (a[order[j]][order[j]] > a[order[i]][order[i]]) { k = order[i]; order[i] = order[j]; order[j] = k; }
+    for (i = 0; i < 3; ++i) {
+        val[i] = a[order[i]][order[i]];
+        for (k = 0; k < 3; ++k) vec[i][k] = v[k][order[i]];
+        refl__sbc_normalize(vec[i]);
+    }
+}
+
+/* Solves G x = R (G symmetric positive definite, k x k row-major; R k x m,
+   overwritten by x) by Cholesky; 0 when a pivot falls below rel times the
+   largest diagonal entry (singular to working precision). */
+static int refl__sbc_cholesky(double *G, int k, double *R, int m, double rel) {
+    double big = 0.0;
+    int i, j, l;
+    for (i = 0; i < k; ++i) big = REFL__MAX(big, G[i * k + i]);
+    if (!(big > 0.0) || !refl__sbc_finite(big)) return 0;
+    for (j = 0; j < k; ++j) {
+        double d = G[j * k + j];
+        for (l = 0; l < j; ++l) d -= G[j * k + l] * G[j * k + l];
+        if (!(d > rel * big)) return 0;
+        d = sqrt(d);
+        G[j * k + j] = d;
+        for (i = j + 1; i < k; ++i) {
+            double s = G[i * k + j];
+            for (l = 0; l < j; ++l) s -= G[i * k + l] * G[j * k + l];
+            G[i * k + j] = s / d;
+        }
+    }
+    for (l = 0; l < m; ++l) {
+        for (i = 0; i < k; ++i) { /* L y = r */
+            double s = R[i * m + l];
+            for (j = 0; j < i; ++j) s -= G[i * k + j] * R[j * m + l];
+            R[i * m + l] = s / G[i * k + i];
+        }
+        for (i = k - 1; i >= 0; --i) { /* L^T x = y */
+            double s = R[i * m + l];
+            for (j = i + 1; j < k; ++j) s -= G[j * k + i] * R[j * m + l];
+            R[i * m + l] = s / G[i * k + i];
+        }
+    }
+    return 1;
+}
+
+/* ---- the leaf camera --------------------------------------------------------- */
+
+/* p's image (u, v) through o, and its height h over the image plane; 0 when
+   p lies below the tails or not between o and infinity on the rays' side. */
+static int refl__sbc_cam_uv(const refl__sbc_cam *k, const double *p, double *u, double *v, double *h) {
+    double w[3], pc[3], hp, den, s;
+    w[0] = p[0] - k->o[0]; w[1] = p[1] - k->o[1]; w[2] = p[2] - k->o[2];
+    pc[0] = p[0] - k->c[0]; pc[1] = p[1] - k->c[1]; pc[2] = p[2] - k->c[2];
+    hp = refl__sbc_dot(pc, k->n);
+    if (!(hp >= k->hmin)) return 0;
+    den = k->ho - hp;
+    if (!(k->ho * den > 0.0)) return 0; /* diverging: in front of o; converging: before o */
+    s = k->ho / den;
+    *u = k->ocu + s * refl__sbc_dot(w, k->eu);
+    *v = k->ocv + s * refl__sbc_dot(w, k->ev);
+    *h = hp;
+    return refl__sbc_finite(*u) && refl__sbc_finite(*v);
+}
+
+static void refl__sbc_basis(const refl__sbc_cam *k, double u, double v, double b[6]) {
+    double x = (u - k->norm[0]) * k->norm[2], y = (v - k->norm[1]) * k->norm[3];
+    b[0] = 1.0; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
+}
+
+/* f(u, v), as returned */
+static refl_vec3 refl__sbc_cam_eval(const refl__sbc_cam *k, double u, double v) {
+    double b[6], f[3];
+    int i, j;
+    refl__sbc_basis(k, u, v, b);
+    for (i = 0; i < 3; ++i) {
+        f[i] = 0.0;
+        for (j = 0; j < 6; ++j) f[i] += k->coef[i][j] * b[j];
+    }
+    return refl_v3((float)f[0], (float)f[1], (float)f[2]);
+}
+
+static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_vec3 *first, float *z) {
+    double u, v, h;
+    if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return 0;
+    if (!(u >= k->rect[0] && u <= k->rect[1] && v >= k->rect[2] && v <= k->rect[3])) return 0;
+    *first = refl__sbc_cam_eval(k, u, v);
+    *z = (float)REFL__MAX(h, 0.0);
+    return 1;
+}
+
+/* ---- building ---------------------------------------------------------------- */
+
+typedef struct refl__sbc_task {
+    int node, count, depth;
+    size_t off;              /* its rays: pool[off, off + count) */
+} refl__sbc_task;
+
+typedef struct refl__sbc_builder {
+    const refl_sbc_ray *rays;
+    int W, H;
+    double error_px;         /* INFINITY: every camera that fits is good */
+    double vp[16];
+    int width, height;
+    int max_depth;
+    refl_allocator *a;
+    uint8_t *valid;          /* in the group, finite, not of zero length */
+    float *dir;              /* unit direction per map entry */
+    double *truth;           /* desired-view pixel of each first point (NaN: behind the eye) */
+    unsigned *mark;          /* stamp of the set being split */
+    double *smin, *smax;     /* per set ray: lowest and highest plane side of tail and head */
+    uint8_t *side;           /* per set ray: 1 left, 2 right, 3 both */
+    double *uv;              /* fit scratch: 4 per ray of the set */
+    int *pool;
+    size_t pool_cap;
+    unsigned stamp;
+    refl_sbc *sbc;
+} refl__sbc_builder;
+
+/* Grows *arr (elements of size sz, capacity *cap) to hold need; 0 when out of memory. */
+static int refl__sbc_grow(const refl_allocator *a, void **arr, size_t *cap, size_t need, size_t sz) {
+    size_t nc;
+    void *n;
+    if (need <= *cap) return 1;
+    nc = *cap ? *cap : 16;
+    while (nc < need) {
+        if (nc > ((size_t)-1) / 2 / sz) return 0;
+        nc *= 2;
+    }
+    n = refl__alloc(a, nc * sz); /* no need to clear: every use writes first */
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, *cap * sz);
+    refl__free(a, *arr);
+    *arr = n;
+    *cap = nc;
+    return 1;
+}
+
+static int refl__sbc_grow_int(const refl_allocator *a, void **arr, int *cap, int need, size_t sz) {
+    size_t c = (size_t)*cap;
+    if (need < 0 || need >= INT_MAX / 2) return 0;
+    if (!refl__sbc_grow(a, arr, &c, (size_t)need, sz)) return 0;
+    *cap = c > (size_t)(INT_MAX / 2) ? INT_MAX / 2 : (int)c;
+    return 1;
+}
+
+/* Desired-view pixel of a world point; 0 behind the eye. */
+static int refl__sbc_pixel(const refl__sbc_builder *b, const double *p, double *x, double *y) {
+    const double *m = b->vp;
+    double cx = m[0] * p[0] + m[4] * p[1] + m[8] * p[2] + m[12];
+    double cy = m[1] * p[0] + m[5] * p[1] + m[9] * p[2] + m[13];
+    double cw = m[3] * p[0] + m[7] * p[1] + m[11] * p[2] + m[15];
+    if (!(cw > 0.0)) return 0;
+    *x = (cx / cw + 1.0) * 0.5 * (double)b->width;
+    *y = (1.0 - cy / cw) * 0.5 * (double)b->height;
+    return refl__sbc_finite(*x) && refl__sbc_finite(*y);
+}
+
+/* The quadratic (or, when that is singular, affine, then constant) f over
+   the images uv (u, v of tail, then of head, per ray) of the set's rays, by
+   the normal equations: the lower orders' are the quadratic's leading
+   blocks. 0 when nothing fits. */
+static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n, const double *uv,
+                             refl__sbc_cam *k) {
+    static const int orders[3] = {6, 3, 1};
+    double qc[3] = {0.0, 0.0, 0.0}, G6[36], R6[18];
+    int o, i, j, l, e;
+    for (i = 0; i < n; ++i) {
+        refl_vec3 q = b->rays[list[i]].first;
+        qc[0] += q.x; qc[1] += q.y; qc[2] += q.z;
+    }
+    for (j = 0; j < 3; ++j) qc[j] /= (double)n;
+    {
+        /* the moments of (x, y) up to degree 4 and of q up to degree 2 */
+        double m00 = 0, m10 = 0, m01 = 0, m20 = 0, m11 = 0, m02 = 0, m30 = 0, m21 = 0, m12 = 0, m03 = 0;
+        double m40 = 0, m31 = 0, m22 = 0, m13 = 0, m04 = 0, r[3][6];
+        memset(r, 0, sizeof r);
+        for (i = 0; i < n; ++i) {
+            refl_vec3 f = b->rays[list[i]].first;
+            double q[3];
+            /* centred: the coefficients carry only the variation */
+            q[0] = (double)f.x - qc[0];
+            q[1] = (double)f.y - qc[1];
+            q[2] = (double)f.z - qc[2];
+            for (e = 0; e < 2; ++e) {
+                double bs[6];
+                refl__sbc_basis(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1], bs);
+                m00 += 1.0; m10 += bs[1]; m01 += bs[2]; m20 += bs[3]; m11 += bs[4]; m02 += bs[5];
+                m30 += bs[3] * bs[1]; m21 += bs[3] * bs[2]; m12 += bs[5] * bs[1]; m03 += bs[5] * bs[2];
+                m40 += bs[3] * bs[3]; m31 += bs[3] * bs[4]; m22 += bs[3] * bs[5]; m13 += bs[4] * bs[5];
+                m04 += bs[5] * bs[5];
+                for (l = 0; l < 3; ++l)
+                    for (j = 0; j < 6; ++j) r[l][j] += bs[j] * q[l];
+            }
+        }
+        /* G6 = sum b b^T over the basis 1, x, y, x^2, xy, y^2 (lower triangle) */
+        G6[0] = m00;
+        G6[6] = m10; G6[7] = m20;
+        G6[12] = m01; G6[13] = m11; G6[14] = m02;
+        G6[18] = m20; G6[19] = m30; G6[20] = m21; G6[21] = m40;
+        G6[24] = m11; G6[25] = m21; G6[26] = m12; G6[27] = m31; G6[28] = m22;
+        G6[30] = m02; G6[31] = m12; G6[32] = m03; G6[33] = m22; G6[34] = m13; G6[35] = m04;
+        for (j = 0; j < 6; ++j)
+            for (l = 0; l < 3; ++l) R6[j * 3 + l] = r[l][j];
+    }
+    for (o = 0; o < 3; ++o) {
+        int nb = orders[o];
+        double G[36], R[18];
+        for (j = 0; j < nb; ++j) {
+            for (l = 0; l <= j; ++l) G[j * nb + l] = G[l * nb + j] = G6[j * 6 + l];
+            for (l = 0; l < 3; ++l) R[j * 3 + l] = R6[j * 3 + l];
+        }
+        if (refl__sbc_cholesky(G, nb, R, 3, 1e-11)) {
+            memset(k->coef, 0, sizeof k->coef);
+            for (l = 0; l < 3; ++l) {
+                for (j = 0; j < nb; ++j) k->coef[l][j] = R[j * 3 + l];
+                k->coef[l][0] += qc[l];
+            }
+            return 1;
+        }
+    }
+    return 0;
+}
+
+
+/* The tails' centroid c and the sum of the unit directions m (not
+   normalised) over the rays of list. */
+static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int n, double c[3], double m[3]) {
+    int i, j;
+    c[0] = c[1] = c[2] = 0.0;
+    m[0] = m[1] = m[2] = 0.0;
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        const float *d = b->dir + 3 * (size_t)list[i];
+        c[0] += r->tail.x; c[1] += r->tail.y; c[2] += r->tail.z;
+        m[0] += d[0]; m[1] += d[1]; m[2] += d[2];
+    }
+    for (j = 0; j < 3; ++j) c[j] /= (double)n;
+}
+
+/* FitPinholeCamera, then Error: the largest desired-view pixel distance,
+   at the set's tails and heads, between the camera's first point and the
+   true one, through the very projection refl_sbc_project uses. Stops at
+   the first distance over `limit` and returns it; INFINITY when no camera
+   can be fitted at all. uv: scratch for 4 n doubles. */
+static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, double limit, double *uv,
+                            refl__sbc_cam *k) {
+    double A[9], rhs[3], C[3][3], val[3], vec[3][3], m[3], c[3], ext, hlo, tlo, thi, worst = 0.0;
+    int i, j, l, e;
+    if (n < 2) return INFINITY;
+    memset(k, 0, sizeof *k);
+    memset(A, 0, sizeof A);
+    memset(rhs, 0, sizeof rhs);
+    memset(C, 0, sizeof C);
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 1e-6 * (double)n)) return INFINITY; /* the rays cancel: no mean direction */
+    /* o: sum (I - d d^T) (o - c) = sum (I - d d^T) (t - c), relative to the
+       centroid for precision; the tails' scatter alongside */
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        const float *d = b->dir + 3 * (size_t)list[i];
+        double t[3], dd[3], td;
+        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
+        dd[0] = d[0]; dd[1] = d[1]; dd[2] = d[2];
+        td = refl__sbc_dot(t, dd);
+        for (j = 0; j < 3; ++j) {
+            for (l = 0; l <= j; ++l) {
+                A[j * 3 + l] -= dd[j] * dd[l];
+                C[j][l] += t[j] * t[l];
+            }
+            rhs[j] += t[j] - dd[j] * td;
+        }
+    }
+    for (j = 0; j < 3; ++j) {
+        A[j * 3 + j] += (double)n;
+        for (l = 0; l < j; ++l) {
+            A[l * 3 + j] = A[j * 3 + l];
+            C[l][j] = C[j][l];
+        }
+    }
+    /* parallel rays: no finite centre (and no pinhole) */
+    if (!refl__sbc_cholesky(A, 3, rhs, 1, 1e-12)) return INFINITY;
+    for (j = 0; j < 3; ++j) { k->o[j] = c[j] + rhs[j]; k->c[j] = c[j]; }
+    /* image plane: the tails' least-squares plane; where the tails are too
+       thin to define one, the plane through their principal axis facing
+       the rays as much as it can */
+    refl__sbc_eigen3((const double(*)[3])C, val, vec);
+    memcpy(k->n, vec[2], sizeof k->n);
+    if (refl__sbc_dot(k->n, m) < 0.0)
+        for (j = 0; j < 3; ++j) k->n[j] = -k->n[j];
+    if (!(val[1] > 4.0 * val[2]) || refl__sbc_dot(k->n, m) < 0.05) {
+        double dm = refl__sbc_dot(m, vec[0]);
+        for (j = 0; j < 3; ++j) k->n[j] = val[0] > 4.0 * val[1] ? m[j] - dm * vec[0][j] : m[j];
+        if (!(refl__sbc_normalize(k->n) > 1e-3)) memcpy(k->n, m, sizeof k->n);
+    }
+    /* u along the principal axis (a tight rectangle), v completing the frame */
+    {
+        double dn = refl__sbc_dot(vec[0], k->n);
+        for (j = 0; j < 3; ++j) k->eu[j] = vec[0][j] - dn * k->n[j];
+        if (!(refl__sbc_normalize(k->eu) > 1e-3)) {
+            double ax[3] = {0.0, 0.0, 0.0};
+            int best = 0;
+            for (j = 1; j < 3; ++j)
+                if (fabs(k->n[j]) < fabs(k->n[best])) best = j;
+            ax[best] = 1.0;
+            refl__sbc_cross(k->n, ax, k->eu);
+            refl__sbc_normalize(k->eu);
+        }
+        refl__sbc_cross(k->n, k->eu, k->ev);
+    }
+    {
+        double oc[3];
+        for (j = 0; j < 3; ++j) oc[j] = k->o[j] - k->c[j];
+        k->ho = refl__sbc_dot(oc, k->n);
+        k->ocu = refl__sbc_dot(oc, k->eu);
+        k->ocv = refl__sbc_dot(oc, k->ev);
+        ext = sqrt(val[0] + val[1] + val[2]) + sqrt(refl__sbc_dot(oc, oc));
+        if (!(fabs(k->ho) > 1e-9 * ext)) return INFINITY; /* o on the image plane */
+    }
+    /* the lowest tail or head bounds what projects, less a margin for the
+       reflector between the tails (below them where it is concave) */
+    hlo = tlo = DBL_MAX;
+    thi = -DBL_MAX;
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        for (e = 0; e < 2; ++e) {
+            double p[3], pc[3], h;
+            refl__sbc_load(e ? r->head : r->tail, p);
+            for (j = 0; j < 3; ++j) pc[j] = p[j] - k->c[j];
+            h = refl__sbc_dot(pc, k->n);
+            hlo = REFL__MIN(hlo, h);
+            if (e == 0) {
+                tlo = REFL__MIN(tlo, h);
+                thi = REFL__MAX(thi, h);
+            }
+        }
+    }
+    k->hmin = hlo - 0.25 * (thi - tlo) - 1e-9 * ext;
+    /* the frustum: the images' bounding rectangle */
+    k->rect[0] = k->rect[2] = DBL_MAX;
+    k->rect[1] = k->rect[3] = -DBL_MAX;
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        for (e = 0; e < 2; ++e) {
+            double p[3], u, v, h;
+            refl__sbc_load(e ? r->head : r->tail, p);
+            if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return INFINITY; /* a ray on the wrong side of o */
+            uv[4 * i + 2 * e] = u;
+            uv[4 * i + 2 * e + 1] = v;
+            k->rect[0] = REFL__MIN(k->rect[0], u);
+            k->rect[1] = REFL__MAX(k->rect[1], u);
+            k->rect[2] = REFL__MIN(k->rect[2], v);
+            k->rect[3] = REFL__MAX(k->rect[3], v);
+        }
+    }
+    {
+        /* a hair wider: the same points must land inside however the
+           compiler contracts the arithmetic */
+        double wu = k->rect[1] - k->rect[0], wv = k->rect[3] - k->rect[2], pad = 1e-9 * (wu + wv + ext);
+        k->rect[0] -= pad; k->rect[1] += pad; k->rect[2] -= pad; k->rect[3] += pad;
+        k->norm[0] = 0.5 * (k->rect[0] + k->rect[1]);
+        k->norm[1] = 0.5 * (k->rect[2] + k->rect[3]);
+        k->norm[2] = 2.0 / (k->rect[1] - k->rect[0]);
+        k->norm[3] = 2.0 / (k->rect[3] - k->rect[2]);
+    }
+    if (!refl__sbc_fit_map(b, list, n, uv, k)) return INFINITY;
+    if (!(b->error_px <= DBL_MAX)) return 0.0; /* no error bound: any camera will do */
+    for (i = 0; i < n; ++i) {
+        const double *tp = b->truth + 2 * (size_t)list[i];
+        if (!refl__sbc_finite(tp[0])) return INFINITY; /* its first point is behind the eye */
+        for (e = 0; e < 2; ++e) {
+            /* refl_sbc_project's steps: the same (u, v), inside the
+               rectangle built from it, above hmin, then f */
+            double q[3], x, y, d;
+            refl__sbc_load(refl__sbc_cam_eval(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1]), q);
+            if (!refl__sbc_pixel(b, q, &x, &y)) return INFINITY;
+            d = sqrt((x - tp[0]) * (x - tp[0]) + (y - tp[1]) * (y - tp[1]));
+            if (!(d <= limit)) return refl__sbc_finite(d) ? d : INFINITY;
+            worst = REFL__MAX(worst, d);
+        }
+    }
+    return worst;
+}
+
+/* 1 when a camera fits the set with an error below error_px. A large set
+   is first tried on an even subsample: the least-squares fit to fewer rays
+   fits them at least about as well, so a subsample error far over the
+   bound means the whole set fails too, at a fraction of the cost (a wrong
+   guess only costs a split; every accepted camera is checked in full). */
+static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__sbc_cam *k) {
+    enum { SUB = 32 };
+    if (n > 2 * SUB && b->error_px <= DBL_MAX) {
+        int sub[SUB], i;
+        for (i = 0; i < SUB; ++i) sub[i] = list[(int)(((long long)i * n + n / 2) / SUB)];
+        if (!(refl__sbc_fit(b, sub, SUB, 2.0 * b->error_px, b->uv, k) <= 2.0 * b->error_px)) return 0;
+    }
+    return refl__sbc_fit(b, list, n, b->error_px, b->uv, k) < b->error_px;
+}
+
+/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
+static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
+    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
+    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3];
+    int i, j, best = 0, W = b->W, H = b->H;
+    unsigned st;
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
+    /* the tails' scatter within the plane perpendicular to the mean direction */
+    for (j = 1; j < 3; ++j)
+        if (fabs(m[j]) < fabs(m[best])) best = j;
+    ax[best] = 1.0;
+    refl__sbc_cross(m, ax, a1);
+    refl__sbc_normalize(a1);
+    refl__sbc_cross(m, a1, a2);
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double t[3], x, y;
+        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
+        x = refl__sbc_dot(t, a1);
+        y = refl__sbc_dot(t, a2);
+        cAA += x * x; cAB += x * y; cBB += y * y;
+    }
+    if (!(cAA + cBB > 0.0)) return 0;
+    /* the principal axis: the diameter's direction, orthogonal to m; the
+       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
+       correctly rounded, the same everywhere, unlike atan2 or cos) */
+    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
+    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
+    else { e1 = cAB; e2 = lam - cAA; }
+    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
+    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
+    for (j = 0; j < 3; ++j) plane[j] = sn[j];
+    plane[3] = -refl__sbc_dot(sn, c);
+    /* each ray's own extent, then its unit frustum's */
+    st = ++b->stamp;
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double p[3], s0, s1;
+        refl__sbc_load(r->tail, p);
+        s0 = refl__sbc_dot(p, sn) + plane[3];
+        refl__sbc_load(r->head, p);
+        s1 = refl__sbc_dot(p, sn) + plane[3];
+        b->smin[list[i]] = REFL__MIN(s0, s1);
+        b->smax[list[i]] = REFL__MAX(s0, s1);
+        b->mark[list[i]] = st;
+    }
+    *nl = *nr = 0;
+    for (i = 0; i < n; ++i) {
+        int idx = list[i], u = idx % W, v = idx / W, du, dv;
+        int u0 = u > 0 ? -1 : 0, u1 = u + 1 < W ? 1 : 0, v0 = v > 0 ? -1 : 0, v1 = v + 1 < H ? 1 : 0;
+        double lo = b->smin[idx], hi = b->smax[idx];
+        for (dv = v0; dv <= v1; ++dv)
+            for (du = u0; du <= u1; ++du) {
+                int k = idx + dv * W + du;
+                if (b->mark[k] != st) continue;
+                lo = REFL__MIN(lo, b->smin[k]);
+                hi = REFL__MAX(hi, b->smax[k]);
+            }
+        b->side[idx] = (uint8_t)((hi >= 0.0 ? 1 : 0) | (lo < 0.0 ? 2 : 0));
+        if (b->side[idx] == 0) b->side[idx] = 3; /* NaN: keep it everywhere */
+        *nl += b->side[idx] & 1;
+        *nr += (b->side[idx] >> 1) & 1;
+    }
+    /* the paper fails only when a subset is the whole set; below a few
+       unit frustums across, though, every cut keeps nearly all rays on both
+       sides and the cells multiply without end: fail when half the set
+       would go both ways */
+    return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
+}
+
+static void refl__sbc_frame_load(const refl__sbc_quad *q, refl__sbc_frame *f) {
+    int j;
+    for (j = 0; j < 3; ++j) {
+        f->o[j] = q->o[j]; f->m[j] = q->m[j]; f->a[j] = q->a[j]; f->b[j] = q->b[j];
+    }
+}
+
+/* The four rays' lateral positions (x, y) at slice tau of a quad's frame,
+   how far along each ray (0 tail, 1 head) that slice is, and their
+   lengths; 0 when a ray runs almost across the slices. */
+static int refl__sbc_quad_slice(const refl__sbc_frame *q, const refl_sbc_ray *rays, int idx, int W, double tau,
+                                double x[4], double y[4], double lam[4], double len[4]) {
+    int c, j;
+    for (c = 0; c < 4; ++c) {
+        const refl_sbc_ray *r = &rays[idx + (c & 1) + (c >> 1) * W];
+        double t[3], d[3], dm, l, pt[3];
+        refl__sbc_load(r->tail, t);
+        d[0] = (double)r->head.x - t[0]; d[1] = (double)r->head.y - t[1]; d[2] = (double)r->head.z - t[2];
+        for (j = 0; j < 3; ++j) t[j] -= q->o[j];
+        dm = refl__sbc_dot(d, q->m);
+        len[c] = sqrt(refl__sbc_dot(d, d));
+        if (!(dm > 0.05 * len[c])) return 0;
+        l = (tau - refl__sbc_dot(t, q->m)) / dm;
+        for (j = 0; j < 3; ++j) pt[j] = t[j] + l * d[j];
+        x[c] = refl__sbc_dot(pt, q->a);
+        y[c] = refl__sbc_dot(pt, q->b);
+        lam[c] = l;
+    }
+    return 1;
+}
+
+/* A ray-list leaf: the set's 2 x 2 quads of rays, each with its frame. */
+static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int n, refl__sbc_node *node) {
+    refl_sbc *s = b->sbc;
+    unsigned st = ++b->stamp;
+    int i, W = b->W, H = b->H;
+    for (i = 0; i < n; ++i) b->mark[list[i]] = st;
+    node->kind = REFL__SBC_RAYS;
+    node->first = s->quad_count;
+    node->count = 0;
+    for (i = 0; i < n; ++i) {
+        int idx = list[i], u = idx % W, v = idx / W, c, j, e, ok = 1;
+        refl__sbc_quad q;
+        refl__sbc_frame fr;
+        double ax[3] = {0.0, 0.0, 0.0}, lo = DBL_MAX, hi = -DBL_MAX, scale = 0.0, tau[2];
+        int best = 0;
+        if (u + 1 >= W || v + 1 >= H) continue;
+        if (b->mark[idx + 1] != st || b->mark[idx + W] != st || b->mark[idx + W + 1] != st) continue;
+        memset(&q, 0, sizeof q);
+        memset(&fr, 0, sizeof fr);
+        q.idx = idx;
+        for (c = 0; c < 4; ++c) {
+            int k = idx + (c & 1) + (c >> 1) * W;
+            const refl_sbc_ray *r = &b->rays[k];
+            fr.o[0] += 0.25 * r->tail.x; fr.o[1] += 0.25 * r->tail.y; fr.o[2] += 0.25 * r->tail.z;
+            for (j = 0; j < 3; ++j) fr.m[j] += b->dir[3 * (size_t)k + (size_t)j];
+        }
+        if (!(refl__sbc_normalize(fr.m) > 0.0)) continue;
+        for (j = 1; j < 3; ++j)
+            if (fabs(fr.m[j]) < fabs(fr.m[best])) best = j;
+        ax[best] = 1.0;
+        refl__sbc_cross(fr.m, ax, fr.a);
+        refl__sbc_normalize(fr.a);
+        refl__sbc_cross(fr.m, fr.a, fr.b);
+        /* stored in float; everything below from the stored values */
+        for (j = 0; j < 3; ++j) {
+            q.o[j] = (float)fr.o[j]; q.m[j] = (float)fr.m[j]; q.a[j] = (float)fr.a[j]; q.b[j] = (float)fr.b[j];
+        }
+        refl__sbc_frame_load(&q, &fr);
+        for (c = 0; c < 4; ++c) {
+            const refl_sbc_ray *r = &b->rays[idx + (c & 1) + (c >> 1) * W];
+            for (e = 0; e < 2; ++e) {
+                double p[3], t;
+                refl__sbc_load(e ? r->head : r->tail, p);
+                for (j = 0; j < 3; ++j) p[j] -= fr.o[j];
+                t = refl__sbc_dot(p, fr.m);
+                lo = REFL__MIN(lo, t);
+                hi = REFL__MAX(hi, t);
+                scale = REFL__MAX(scale, sqrt(refl__sbc_dot(p, p)));
+            }
+        }
+        /* the pads outgrow float rounding (relative 6e-8 of scale) */
+        scale += fabs(fr.o[0]) + fabs(fr.o[1]) + fabs(fr.o[2]);
+        tau[0] = lo - 1e-4 * (hi - lo) - 1e-6 * scale;
+        /* beyond the heads too: where heads leave the box through different
+           faces, their blend lies inside it, short of the box */
+        tau[1] = hi + 0.25 * (hi - lo) + 1e-6 * scale;
+        for (e = 0; e < 2 && ok; ++e) {
+            double x[4], y[4], lam[4], len[4], pad, bx[4];
+            if (!refl__sbc_quad_slice(&fr, b->rays, idx, W, tau[e], x, y, lam, len)) ok = 0;
+            bx[0] = bx[2] = DBL_MAX;
+            bx[1] = bx[3] = -DBL_MAX;
+            for (c = 0; c < 4; ++c) {
+                bx[0] = REFL__MIN(bx[0], x[c]); bx[1] = REFL__MAX(bx[1], x[c]);
+                bx[2] = REFL__MIN(bx[2], y[c]); bx[3] = REFL__MAX(bx[3], y[c]);
+            }
+            /* room for the exact test's tolerance in (s, t) */
+            pad = 1e-3 * (bx[1] - bx[0] + bx[3] - bx[2]) + 1e-6 * scale;
+            q.box[e][0] = (float)(bx[0] - pad); q.box[e][1] = (float)(bx[1] + pad);
+            q.box[e][2] = (float)(bx[2] - pad); q.box[e][3] = (float)(bx[3] + pad);
+            q.tau[e] = (float)tau[e];
+        }
+        if (!ok) continue; /* rays a quarter turn apart: no slicing; nothing projects there */
+        if (!refl__sbc_grow_int(&s->allocator, (void **)&s->quads, &s->quad_cap, s->quad_count + 1,
+                                sizeof(refl__sbc_quad)))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        s->quads[s->quad_count++] = q;
+        node->count++;
+    }
+    return REFL_OK;
+}
+
+static void refl__sbc_free_builder(refl__sbc_builder *b) {
+    refl__free(b->a, b->valid);
+    refl__free(b->a, b->dir);
+    refl__free(b->a, b->truth);
+    refl__free(b->a, b->mark);
+    refl__free(b->a, b->smin);
+    refl__free(b->a, b->smax);
+    refl__free(b->a, b->side);
+    refl__free(b->a, b->pool);
+    refl__free(b->a, b->uv);
+}
+
+REFL_API void refl_sbc_destroy(refl_sbc *sbc) {
+    refl_allocator a;
+    if (!sbc) return;
+    a = sbc->allocator;
+    refl__free(&a, sbc->nodes);
+    refl__free(&a, sbc->cams);
+    refl__free(&a, sbc->quads);
+    refl__free(&a, sbc->rays);
+    refl__free(&a, sbc);
+}
+
+static refl_result refl__sbc_run(refl__sbc_builder *b, int nvalid) {
+    refl_sbc *s = b->sbc;
+    refl__sbc_task *tasks;
+    int ntask = 0, i;
+    refl_result res = REFL_OK;
+    /* the DFS holds at most one pending right sibling per level */
+    tasks = (refl__sbc_task *)refl__calloc(b->a, (size_t)REFL__MIN(b->max_depth, nvalid) + 2, sizeof(refl__sbc_task));
+    if (!tasks) return REFL_ERROR_OUT_OF_MEMORY;
+    if (!refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, 1, sizeof(refl__sbc_node))) {
+        refl__free(b->a, tasks);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    s->node_count = 1;
+    s->nodes[0].child = -1;
+    tasks[0].node = 0;
+    tasks[0].off = 0;
+    tasks[0].count = nvalid;
+    tasks[0].depth = 0;
+    ntask = 1;
+    while (ntask > 0) {
+        refl__sbc_task t = tasks[--ntask];
+        size_t top = t.off + (size_t)t.count; /* everything above belongs to finished tasks */
+        refl__sbc_cam cam;
+        double plane[4];
+        int nl = 0, nr = 0;
+        s->stats.depth = REFL__MAX(s->stats.depth, t.depth);
+        if (refl__sbc_fit_ok(b, b->pool + t.off, t.count, &cam)) {
+            if (!refl__sbc_grow_int(b->a, (void **)&s->cams, &s->cam_cap, s->cam_count + 1, sizeof(refl__sbc_cam))) {
+                res = REFL_ERROR_OUT_OF_MEMORY;
+                break;
+            }
+            s->cams[s->cam_count] = cam;
+            s->nodes[t.node].kind = REFL__SBC_PINHOLE;
+            s->nodes[t.node].first = s->cam_count++;
+            s->nodes[t.node].count = 1;
+            s->stats.pinhole_leaves++;
+            continue;
+        }
+        if (t.depth < b->max_depth && refl__sbc_split(b, b->pool + t.off, t.count, plane, &nl, &nr)) {
+            int *list, *wr, *wl, left;
+            if (!refl__sbc_grow(b->a, (void **)&b->pool, &b->pool_cap, top + (size_t)nl + (size_t)nr, sizeof(int)) ||
+                !refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, s->node_count + 2,
+                                    sizeof(refl__sbc_node))) {
+                res = REFL_ERROR_OUT_OF_MEMORY;
+                break;
+            }
+            list = b->pool + t.off;
+            wr = b->pool + top;          /* right below left: left is popped first */
+            wl = wr + nr;
+            for (i = 0; i < t.count; ++i) {
+                int idx = list[i];
+                if (b->side[idx] & 1) *wl++ = idx;
+                if (b->side[idx] & 2) *wr++ = idx;
+            }
+            left = s->node_count;
+            s->node_count += 2;
+            memset(&s->nodes[left], 0, 2 * sizeof(refl__sbc_node));
+            s->nodes[left].child = s->nodes[left + 1].child = -1;
+            memcpy(s->nodes[t.node].plane, plane, sizeof plane);
+            s->nodes[t.node].kind = REFL__SBC_INNER;
+            s->nodes[t.node].child = left;
+            tasks[ntask].node = left + 1;
+            tasks[ntask].off = top;
+            tasks[ntask].count = nr;
+            tasks[ntask].depth = t.depth + 1;
+            ++ntask;
+            tasks[ntask].node = left;
+            tasks[ntask].off = top + (size_t)nr;
+            tasks[ntask].count = nl;
+            tasks[ntask].depth = t.depth + 1;
+            ++ntask;
+            continue;
+        }
+        res = refl__sbc_ray_leaf(b, b->pool + t.off, t.count, &s->nodes[t.node]);
+        if (res != REFL_OK) break;
+        s->stats.ray_leaves++;
+    }
+    refl__free(b->a, tasks);
+    return res;
+}
+
+REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *valid, int map_width, int map_height,
+                                    const refl_sbc_desc *desc, refl_sbc **out_sbc) {
+    refl__sbc_builder b;
+    refl_sbc *s;
+    refl_allocator alloc;
+    refl_result res;
+    size_t count, i;
+    int nvalid = 0, j;
+    double err;
+    if (out_sbc) *out_sbc = NULL;
+    if (!rays || !desc || !out_sbc || map_width < 1 || map_height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((size_t)map_width > (size_t)(INT_MAX / 4) / (size_t)map_height) return REFL_ERROR_INVALID_SIZE;
+    err = desc->error_px == 0.0f ? 1.0 : (double)desc->error_px;
+    if (!(err > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* negative or NaN */
+    if (desc->max_depth < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (err <= DBL_MAX) {
+        if (desc->width < 1 || desc->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+        for (j = 0; j < 16; ++j)
+            if (!refl__isfinite(desc->view_proj.m[j])) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    count = (size_t)map_width * (size_t)map_height;
+    for (i = 0; i < count; ++i) {
+        const refl_sbc_ray *r = &rays[i];
+        if (valid && !valid[i]) continue;
+        if (!refl__sbc_finite3(r->tail) || !refl__sbc_finite3(r->head) || !refl__sbc_finite3(r->first))
+            return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    alloc = desc->allocator;
+    memset(&b, 0, sizeof b);
+    b.rays = rays;
+    b.W = map_width;
+    b.H = map_height;
+    b.error_px = err;
+    for (j = 0; j < 16; ++j) b.vp[j] = desc->view_proj.m[j];
+    b.width = desc->width;
+    b.height = desc->height;
+    b.max_depth = desc->max_depth ? desc->max_depth : 40;
+    s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
+    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
+    s->allocator = alloc;
+    s->width = map_width;
+    s->height = map_height;
+    b.sbc = s;
+    b.a = &s->allocator;
+    b.valid = (uint8_t *)refl__calloc(b.a, count, 1);
+    b.dir = (float *)refl__calloc(b.a, count, 3 * sizeof(float));
+    b.truth = (double *)refl__calloc(b.a, count, 2 * sizeof(double));
+    b.mark = (unsigned *)refl__calloc(b.a, count, sizeof(unsigned));
+    b.smin = (double *)refl__calloc(b.a, count, sizeof(double));
+    b.smax = (double *)refl__calloc(b.a, count, sizeof(double));
+    b.side = (uint8_t *)refl__calloc(b.a, count, 1);
+    if (!b.valid || !b.dir || !b.truth || !b.mark || !b.smin || !b.smax || !b.side) {
+        res = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    /* rays of zero length have no direction: left out of the group */
+    for (i = 0; i < count; ++i) {
+        const refl_sbc_ray *r = &rays[i];
+        double d[3], l;
+        if (valid && !valid[i]) continue;
+        d[0] = (double)r->head.x - r->tail.x;
+        d[1] = (double)r->head.y - r->tail.y;
+        d[2] = (double)r->head.z - r->tail.z;
+        l = refl__sbc_normalize(d);
+        if (!(l > 0.0) || !refl__sbc_finite(l)) continue;
+        b.valid[i] = 1;
+        for (j = 0; j < 3; ++j) b.dir[3 * i + (size_t)j] = (float)d[j];
+        ++nvalid;
+        if (err <= DBL_MAX) {
+            double q[3];
+            refl__sbc_load(r->first, q);
+            if (!refl__sbc_pixel(&b, q, &b.truth[2 * i], &b.truth[2 * i + 1]))
+                b.truth[2 * i] = b.truth[2 * i + 1] = NAN; /* behind the eye: no camera fits it */
+        }
+    }
+    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 4 * sizeof(double));
+    if (!b.uv || !refl__sbc_grow(b.a, (void **)&b.pool, &b.pool_cap, (size_t)nvalid * 4 + 16, sizeof(int))) {
+        res = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    {
+        int k = 0;
+        for (i = 0; i < count; ++i)
+            if (b.valid[i]) b.pool[k++] = (int)i;
+    }
+    s->stats.rays = nvalid;
+    res = refl__sbc_run(&b, nvalid);
+    if (res == REFL_OK && s->stats.ray_leaves > 0) {
+        /* ray lists read the map at projection time; invalid entries are never read */
+        s->rays = (refl_sbc_ray *)refl__calloc(b.a, count, sizeof(refl_sbc_ray));
+        if (!s->rays) res = REFL_ERROR_OUT_OF_MEMORY;
+        else
+            for (i = 0; i < count; ++i)
+                if (b.valid[i]) s->rays[i] = rays[i];
+    }
+done:
+    refl__sbc_free_builder(&b);
+    if (res != REFL_OK) {
+        refl_sbc_destroy(s);
+        return res;
+    }
+    s->stats.nodes = s->node_count;
+    s->stats.bytes = (long long)sizeof(refl_sbc) + (long long)s->node_cap * (long long)sizeof(refl__sbc_node) +
+                     (long long)s->cam_cap * (long long)sizeof(refl__sbc_cam) +
+                     (long long)s->quad_cap * (long long)sizeof(refl__sbc_quad) +
+                     (s->rays ? (long long)count * (long long)sizeof(refl_sbc_ray) : 0);
+    *out_sbc = s;
+    return REFL_OK;
+}
+
+REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out) {
+    if (!out) return;
+    if (!sbc) {
+        memset(out, 0, sizeof *out);
+        return;
+    }
+    *out = sbc->stats;
+}
+
+static double refl__sbc_cross2(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
+
+/* Inverse bilinear interpolation: (s, t) in [0, 1]^2 (within tol, then
+   clamped) with (x, y) = the blend of corners 0 (0, 0), 1 (1, 0), 2 (0, 1),
+   3 (1, 1); 0 when there is none. */
+static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, double y, double *s, double *t) {
+    const double tol = 1e-4;
+    double ex = cx[1] - cx[0], ey = cy[1] - cy[0], fx = cx[2] - cx[0], fy = cy[2] - cy[0];
+    double gx = cx[0] - cx[1] - cx[2] + cx[3], gy = cy[0] - cy[1] - cy[2] + cy[3], hx = x - cx[0], hy = y - cy[0];
+    double roots[2];
+    int nr, i;
+    /* h - t f = s (e + t g): crossing both sides with e + t g leaves a quadratic in t */
+    nr = refl_solve_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
+                              refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
+                              refl__sbc_cross2(hx, hy, ex, ey), roots);
+    for (i = 0; i < nr; ++i) {
+        double tt = roots[i], dx = ex + gx * tt, dy = ey + gy * tt, ss;
+        if (!(tt >= -tol && tt <= 1.0 + tol)) continue;
+        if (fabs(dx) >= fabs(dy)) {
+            if (dx == 0.0) continue;
+            ss = (hx - fx * tt) / dx;
+        } else {
+            ss = (hy - fy * tt) / dy;
+        }
+        if (!(ss >= -tol && ss <= 1.0 + tol)) continue;
+        *s = REFL__CLAMP(ss, 0.0, 1.0);
+        *t = REFL__CLAMP(tt, 0.0, 1.0);
+        return 1;
+    }
+    return 0;
+}
+
+/* A ray-list leaf: the unit frustum holding p nearest the reflector. */
+static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
+                                  float *z) {
+    double best = DBL_MAX;
+    int i, c, j, W = sb->width;
+    for (i = 0; i < node->count; ++i) {
+        const refl__sbc_quad *q = &sb->quads[node->first + i];
+        refl__sbc_frame fr;
+        double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss, tt, wt[4], zz = 0.0, lm = 0.0;
+        double t0 = q->tau[0], t1 = q->tau[1];
+        refl__sbc_frame_load(q, &fr);
+        for (j = 0; j < 3; ++j) w[j] = p[j] - fr.o[j];
+        tau = refl__sbc_dot(w, fr.m);
+        if (!(tau >= t0 && tau <= t1)) continue;
+        f = (tau - t0) / (t1 - t0);
+        x = refl__sbc_dot(w, fr.a);
+        if (!(x >= q->box[0][0] + f * ((double)q->box[1][0] - q->box[0][0]) &&
+              x <= q->box[0][1] + f * ((double)q->box[1][1] - q->box[0][1])))
+            continue;
+        y = refl__sbc_dot(w, fr.b);
+        if (!(y >= q->box[0][2] + f * ((double)q->box[1][2] - q->box[0][2]) &&
+              y <= q->box[0][3] + f * ((double)q->box[1][3] - q->box[0][3])))
+            continue;
+        if (!refl__sbc_quad_slice(&fr, sb->rays, q->idx, W, tau, x4, y4, lam, len)) continue;
+        if (!refl__sbc_inv_bilinear(x4, y4, x, y, &ss, &tt)) continue;
+        wt[0] = (1.0 - ss) * (1.0 - tt); wt[1] = ss * (1.0 - tt); wt[2] = (1.0 - ss) * tt; wt[3] = ss * tt;
+        for (c = 0; c < 4; ++c) {
+            zz += wt[c] * lam[c] * len[c];
+            lm += wt[c] * lam[c];
+        }
+        /* past the interpolated ray's tail */
+        if (!(lm >= -1e-4) || !(zz < best)) continue;
+        best = zz;
+        {
+            double fp[3] = {0.0, 0.0, 0.0};
+            for (c = 0; c < 4; ++c) {
+                refl_vec3 r = sb->rays[q->idx + (c & 1) + (c >> 1) * W].first;
+                fp[0] += wt[c] * r.x; fp[1] += wt[c] * r.y; fp[2] += wt[c] * r.z;
+            }
+            *first = refl_v3((float)fp[0], (float)fp[1], (float)fp[2]);
+            *z = (float)REFL__MAX(zz, 0.0);
+        }
+    }
+    return best < DBL_MAX;
+}
+
+REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
+    const refl__sbc_node *node;
+    refl_vec3 f;
+    float zz = 0.0f;
+    double pd[3];
+    int ok;
+    if (!sbc || !sbc->nodes || !refl__sbc_finite3(p)) return 0;
+    refl__sbc_load(p, pd);
+    node = &sbc->nodes[0];
+    while (node->kind == REFL__SBC_INNER) {
+        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
+        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
+    }
+    if (node->kind == REFL__SBC_PINHOLE) ok = refl__sbc_cam_project(&sbc->cams[node->first], pd, &f, &zz);
+    else ok = refl__sbc_rays_project(sbc, node, pd, &f, &zz);
+    if (!ok) return 0;
+    if (first) *first = f;
+    if (z) *z = zz;
+    return 1;
+}
