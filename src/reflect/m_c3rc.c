@@ -4,10 +4,15 @@
         space), each shaded once as DIRECT shows it (diffuse model clamped,
         a partial reflector's diffuse share, mirrors and glass black), and
         the points go into a kd-tree (section 4);
-     2. each front-facing reflector triangle becomes a continuous 3-ray
-        camera from the reflected rays at its vertices (section 5);
+     2. each reflector triangle the view sees (front faces, and the back
+        faces of an open mesh's inside) becomes a continuous 3-ray camera
+        from the reflected rays at its vertices (section 5), split in four
+        while the error its rays' interpolation would make is estimated
+        above camera_split_px (beyond the paper: its one camera per triangle
+        errs by 1.5 px at p95 on the 4,000-triangle teapot);
      3. backward: the kd-tree is walked with the camera's box test
-        (section 5.2) to find the leaves it may see;
+        (section 5.2), after a cheaper one against planes bounding the
+        volume's convex hull, to find the leaves it may see;
      4. forward: every point of those leaves is projected with the camera,
         every valid projection (the paper's GPU kept one; here all) lands on
         the reflector point a v1 + b v2 + c v3, seen by the view at a pixel,
@@ -18,18 +23,19 @@
 
    Splats: the side grows with the point spacing the camera shows on
    screen, estimated per projection from the sweeping triangle's area at t
-   against the reflector triangle's area in pixels (the paper's "increase
-   the splat size where rays converge"), up to max_splat. Level of detail:
-   a leaf's points are shuffled (refl_kdtree), so where a camera minifies a
-   whole leaf, a prefix of it at the needed density is drawn.
+   against the reflector piece's area in pixels (the paper's "increase the
+   splat size where rays converge"), up to max_splat. Level of detail: a
+   leaf's points are shuffled (refl_kdtree), so where a camera minifies a
+   whole leaf, a prefix of it at the needed density is drawn. A diffuse
+   surface's points that face away from the ray are not drawn.
 
-   A splat only covers pixels where the reflector the camera belongs to is
-   what the view sees, and near the reflector point (within the
-   triangle's longest edge or three pixels): another part of the same
-   reflector in front hides it. Visibility is a per-pixel atomic minimum of
-   (t, point index), so the image is the same for any thread count and
-   order. Glass: the reflected share as above; the refracted share is the
-   environment along the ray refracted once (no point). */
+   A splat only covers pixels that show the camera's triangle's side (the
+   G-buffer's object id, negated on back faces) and lie within two pixels
+   of its plane: another part of the same reflector in front hides it.
+   Visibility is a per-pixel atomic minimum of (t, point index), so the
+   image is the same for any thread count and order. Glass: the reflected
+   share as above; the refracted share is the environment along the ray
+   refracted once (no point). */
 #include "internal.h"
 
 #define REFL__C3_EMPTY (~(uint64_t)0)
