@@ -7933,13 +7933,28 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     return REFL_OK;
 }
 
+/* Allocates em->gbuf, em->draws and *seen (one flag per object; the
+   caller frees all three, also on failure) and draws the G-buffer. */
+static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int *any) {
+    const refl_scene *scene = em->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)em->p->frame->width * (size_t)em->p->frame->height;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    em->gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    em->draws = (refl__em_draw *)refl__calloc(al, objects, sizeof(refl__em_draw));
+    *seen = (unsigned char *)refl__calloc(al, objects, 1);
+    *any = 0;
+    if (!em->gbuf || !em->draws || !*seen) return REFL_ERROR_OUT_OF_MEMORY;
+    return refl__em_gbuffer(em, *seen, any);
+}
+
 static refl_result refl__method_envmap(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     refl_frame *fr = p->frame;
     refl__em em;
     unsigned char *seen = NULL;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, nn;
+    size_t nn;
     double t0 = refl__now_ms(), t1;
     refl_result r = REFL_OK;
     int i, any = 0, reflectors = 0;
@@ -7950,11 +7965,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     em.p = p;
     em.n = p->desc.envmap_size > 0 ? p->desc.envmap_size : 256;
     nn = (size_t)em.n * (size_t)em.n;
-    em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-    em.draws = (refl__em_draw *)refl__calloc(al, (size_t)scene->object_count, sizeof(refl__em_draw));
-    seen = (unsigned char *)refl__calloc(al, (size_t)scene->object_count, 1);
-    if (!em.gbuf || !em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__em_gbuffer(&em, seen, &any);
+    r = refl__em_gbuffer_new(&em, &seen, &any);
     if (r == REFL_OK && any) {
         em.cube_color = (uint8_t *)refl__calloc(al, 6 * nn, 4);
         em.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));
@@ -8147,6 +8158,31 @@ static void refl__kd_nearest(const refl__kd_point *v, const uint8_t *axes, size_
 
 /* ---- reflection error ------------------------------------------------------------ */
 
+static int refl__metric_cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Fills out from the matched errors (sorted here) and the counts. */
+static void refl__metric_summary(double *errors, long long matched, double sum, long long counted, long long wrong,
+                                 long long empty, refl_reflection_error *out) {
+    out->pixels = counted;
+    out->matched = matched;
+    if (matched) {
+        size_t rank;
+        qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
+        out->mean = sum / (double)matched;
+        /* nearest rank: the smallest error that 95% of the matches do not exceed */
+        rank = (size_t)ceil(0.95 * (double)matched);
+        out->p95 = errors[rank > 0 ? rank - 1 : 0];
+        out->max = errors[matched - 1];
+    }
+    if (counted) {
+        out->wrong = (double)wrong / (double)counted;
+        out->empty = (double)empty / (double)counted;
+    }
+}
+
 /* Whether truth pixel (x, y) of reflector id is where an image of p lies:
    its true point matches p (within tolerance times its spacing, as for
    x*), and no 8-neighbour of it on the reflector shows a point nearer p
@@ -8176,10 +8212,6 @@ static int refl__metric_image_of(const refl_frame *truth, const double *spacing,
     return 1;
 }
 
-static int refl__metric_cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static refl_result refl__metric_frames(const refl_frame *test, const refl_frame *truth) {
     if (!test || !truth) return REFL_ERROR_INVALID_ARGUMENT;
@@ -8312,21 +8344,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
         }
     }
 
-    out->pixels = counted;
-    out->matched = matched;
-    if (matched) {
-        size_t rank;
-        qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
-        out->mean = sum / (double)matched;
-        /* nearest rank: the smallest error that 95% of the matches do not exceed */
-        rank = (size_t)ceil(0.95 * (double)matched);
-        out->p95 = errors[rank > 0 ? rank - 1 : 0];
-        out->max = errors[matched - 1];
-    }
-    if (counted) {
-        out->wrong = (double)wrong / (double)counted;
-        out->empty = (double)empty / (double)counted;
-    }
+    refl__metric_summary(errors, matched, sum, counted, wrong, empty, out);
     r = REFL_OK;
 done:
     refl__free(&a, errors);
@@ -9251,11 +9269,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
     refl_scene_bounds(scene, &lo, &hi);
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
-    c3.em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-    c3.em.draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
-    seen = (unsigned char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1);
-    if (!c3.em.gbuf || !c3.em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__em_gbuffer(&c3.em, seen, &any);
+    r = refl__em_gbuffer_new(&c3.em, &seen, &any);
     if (r == REFL_OK && any) {
         c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
@@ -9447,18 +9461,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
                 sum += best;
             }
         }
-    if (r == REFL_OK) {
-        out->pixels = counted;
-        out->matched = matched;
-        if (matched) {
-            size_t rank = (size_t)ceil(0.95 * (double)matched);
-            qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
-            out->mean = sum / (double)matched;
-            out->p95 = errors[rank > 0 ? rank - 1 : 0];
-            out->max = errors[matched - 1];
-        }
-        if (counted) out->wrong = (double)(counted - matched) / (double)counted;
-    }
+    if (r == REFL_OK) refl__metric_summary(errors, matched, sum, counted, counted - matched, 0, out);
     refl__free(al, list.v);
     refl__free(al, cams);
     refl__free(al, cell_start);

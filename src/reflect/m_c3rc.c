@@ -871,11 +871,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
     refl_scene_bounds(scene, &lo, &hi);
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
-    c3.em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-    c3.em.draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
-    seen = (unsigned char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1);
-    if (!c3.em.gbuf || !c3.em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__em_gbuffer(&c3.em, seen, &any);
+    r = refl__em_gbuffer_new(&c3.em, &seen, &any);
     if (r == REFL_OK && any) {
         c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
@@ -1067,18 +1063,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
                 sum += best;
             }
         }
-    if (r == REFL_OK) {
-        out->pixels = counted;
-        out->matched = matched;
-        if (matched) {
-            size_t rank = (size_t)ceil(0.95 * (double)matched);
-            qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
-            out->mean = sum / (double)matched;
-            out->p95 = errors[rank > 0 ? rank - 1 : 0];
-            out->max = errors[matched - 1];
-        }
-        if (counted) out->wrong = (double)(counted - matched) / (double)counted;
-    }
+    if (r == REFL_OK) refl__metric_summary(errors, matched, sum, counted, counted - matched, 0, out);
     refl__free(al, list.v);
     refl__free(al, cams);
     refl__free(al, cell_start);

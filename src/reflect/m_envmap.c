@@ -397,13 +397,28 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     return REFL_OK;
 }
 
+/* Allocates em->gbuf, em->draws and *seen (one flag per object; the
+   caller frees all three, also on failure) and draws the G-buffer. */
+static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int *any) {
+    const refl_scene *scene = em->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)em->p->frame->width * (size_t)em->p->frame->height;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    em->gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    em->draws = (refl__em_draw *)refl__calloc(al, objects, sizeof(refl__em_draw));
+    *seen = (unsigned char *)refl__calloc(al, objects, 1);
+    *any = 0;
+    if (!em->gbuf || !em->draws || !*seen) return REFL_ERROR_OUT_OF_MEMORY;
+    return refl__em_gbuffer(em, *seen, any);
+}
+
 static refl_result refl__method_envmap(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     refl_frame *fr = p->frame;
     refl__em em;
     unsigned char *seen = NULL;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, nn;
+    size_t nn;
     double t0 = refl__now_ms(), t1;
     refl_result r = REFL_OK;
     int i, any = 0, reflectors = 0;
@@ -414,11 +429,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     em.p = p;
     em.n = p->desc.envmap_size > 0 ? p->desc.envmap_size : 256;
     nn = (size_t)em.n * (size_t)em.n;
-    em.gbuf = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-    em.draws = (refl__em_draw *)refl__calloc(al, (size_t)scene->object_count, sizeof(refl__em_draw));
-    seen = (unsigned char *)refl__calloc(al, (size_t)scene->object_count, 1);
-    if (!em.gbuf || !em.draws || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__em_gbuffer(&em, seen, &any);
+    r = refl__em_gbuffer_new(&em, &seen, &any);
     if (r == REFL_OK && any) {
         em.cube_color = (uint8_t *)refl__calloc(al, 6 * nn, 4);
         em.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));

@@ -153,6 +153,31 @@ static void refl__kd_nearest(const refl__kd_point *v, const uint8_t *axes, size_
 
 /* ---- reflection error ------------------------------------------------------------ */
 
+static int refl__metric_cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Fills out from the matched errors (sorted here) and the counts. */
+static void refl__metric_summary(double *errors, long long matched, double sum, long long counted, long long wrong,
+                                 long long empty, refl_reflection_error *out) {
+    out->pixels = counted;
+    out->matched = matched;
+    if (matched) {
+        size_t rank;
+        qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
+        out->mean = sum / (double)matched;
+        /* nearest rank: the smallest error that 95% of the matches do not exceed */
+        rank = (size_t)ceil(0.95 * (double)matched);
+        out->p95 = errors[rank > 0 ? rank - 1 : 0];
+        out->max = errors[matched - 1];
+    }
+    if (counted) {
+        out->wrong = (double)wrong / (double)counted;
+        out->empty = (double)empty / (double)counted;
+    }
+}
+
 /* Whether truth pixel (x, y) of reflector id is where an image of p lies:
    its true point matches p (within tolerance times its spacing, as for
    x*), and no 8-neighbour of it on the reflector shows a point nearer p
@@ -182,10 +207,6 @@ static int refl__metric_image_of(const refl_frame *truth, const double *spacing,
     return 1;
 }
 
-static int refl__metric_cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static refl_result refl__metric_frames(const refl_frame *test, const refl_frame *truth) {
     if (!test || !truth) return REFL_ERROR_INVALID_ARGUMENT;
@@ -318,21 +339,7 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
         }
     }
 
-    out->pixels = counted;
-    out->matched = matched;
-    if (matched) {
-        size_t rank;
-        qsort(errors, (size_t)matched, sizeof(double), refl__metric_cmp_double);
-        out->mean = sum / (double)matched;
-        /* nearest rank: the smallest error that 95% of the matches do not exceed */
-        rank = (size_t)ceil(0.95 * (double)matched);
-        out->p95 = errors[rank > 0 ? rank - 1 : 0];
-        out->max = errors[matched - 1];
-    }
-    if (counted) {
-        out->wrong = (double)wrong / (double)counted;
-        out->empty = (double)empty / (double)counted;
-    }
+    refl__metric_summary(errors, matched, sum, counted, wrong, empty, out);
     r = REFL_OK;
 done:
     refl__free(&a, errors);
