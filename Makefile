@@ -65,6 +65,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \
                  src/reflect/m_c3rc.c \
+                 src/reflect/m_sbc.c \
                  src/reflect/render.c \
                  src/reflect/m_planar.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))

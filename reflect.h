@@ -563,8 +563,9 @@ typedef struct refl_stats {
     long long culled;        /* PLANAR: mirror renderings skipped as not visible;
                                 C3RC: kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* C3RC: point projections attempted */
-    long long projected;     /* C3RC: valid projections found (a point may have several) */
+    long long projections;   /* C3RC: point projections attempted; SBC: vertex projections */
+    long long projected;     /* C3RC: valid projections found (a point may have several);
+                                SBC: vertices in some leaf's frustum */
     long long multiple;      /* C3RC: projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
     double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
@@ -625,6 +626,9 @@ typedef struct refl_render_desc {
     float camera_split_px;   /* C3RC: a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
+    float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
+                                map's samples (refl_sbc_desc.error_px); 0: 1 */
+    int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -910,6 +914,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p);
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);   /* after m_envmap.c and metrics.c: it uses their statics */
+static refl_result refl__method_sbc(refl__pass *p);    /* after m_envmap.c: it uses its statics */
 static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
@@ -5103,7 +5108,7 @@ typedef struct refl__sbc_cam {
     double ocu, ocv;         /* (o - c) in the plane's basis */
     double rect[4];          /* frustum: umin, umax, vmin, vmax */
     double norm[4];          /* u, v centre and inverse half size: to [-1, 1] */
-    double coef[3][6];       /* f per coordinate over 1, u, v, u^2, uv, v^2 */
+    double coef[3][12];       /* f per coordinate over 1, u, v, u^2, uv, v^2, s, s u, s v */
 } refl__sbc_cam;
 
 /* A unit frustum of a ray list: rays (u, v), (u + 1, v), (u, v + 1),
@@ -5257,19 +5262,25 @@ static int refl__sbc_cam_uv(const refl__sbc_cam *k, const double *p, double *u, 
     return refl__sbc_finite(*u) && refl__sbc_finite(*v);
 }
 
-static void refl__sbc_basis(const refl__sbc_cam *k, double u, double v, double b[6]) {
+/* The projective depth of height h: 0 on the image plane, towards 1 at
+   infinity (diverging), negative before o (converging). Along any line,
+   a point's image moves linearly in it. */
+static double refl__sbc_cam_s(const refl__sbc_cam *k, double h) { return h / (h - k->ho); }
+
+static void refl__sbc_basis(const refl__sbc_cam *k, double u, double v, double s, double b[12]) {
     double x = (u - k->norm[0]) * k->norm[2], y = (v - k->norm[1]) * k->norm[3];
     b[0] = 1.0; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
+    b[6] = s; b[7] = s * x; b[8] = s * y; b[9] = s * b[3]; b[10] = s * b[4]; b[11] = s * b[5];
 }
 
-/* f(u, v), as returned */
-static refl_vec3 refl__sbc_cam_eval(const refl__sbc_cam *k, double u, double v) {
-    double b[6], f[3];
+/* f(u, v, s), as returned */
+static refl_vec3 refl__sbc_cam_eval(const refl__sbc_cam *k, double u, double v, double s) {
+    double b[12], f[3];
     int i, j;
-    refl__sbc_basis(k, u, v, b);
+    refl__sbc_basis(k, u, v, s, b);
     for (i = 0; i < 3; ++i) {
         f[i] = 0.0;
-        for (j = 0; j < 6; ++j) f[i] += k->coef[i][j] * b[j];
+        for (j = 0; j < 12; ++j) f[i] += k->coef[i][j] * b[j];
     }
     return refl_v3((float)f[0], (float)f[1], (float)f[2]);
 }
@@ -5278,7 +5289,7 @@ static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_v
     double u, v, h;
     if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return 0;
     if (!(u >= k->rect[0] && u <= k->rect[1] && v >= k->rect[2] && v <= k->rect[3])) return 0;
-    *first = refl__sbc_cam_eval(k, u, v);
+    *first = refl__sbc_cam_eval(k, u, v, refl__sbc_cam_s(k, h));
     *z = (float)REFL__MAX(h, 0.0);
     return 1;
 }
@@ -5304,7 +5315,7 @@ typedef struct refl__sbc_builder {
     unsigned *mark;          /* stamp of the set being split */
     double *smin, *smax;     /* per set ray: lowest and highest plane side of tail and head */
     uint8_t *side;           /* per set ray: 1 left, 2 right, 3 both */
-    double *uv;              /* fit scratch: 4 per ray of the set */
+    double *uv;              /* fit scratch: 6 per ray of the set */
     int *pool;
     size_t pool_cap;
     unsigned stamp;
@@ -5350,59 +5361,45 @@ static int refl__sbc_pixel(const refl__sbc_builder *b, const double *p, double *
     return refl__sbc_finite(*x) && refl__sbc_finite(*y);
 }
 
-/* The quadratic (or, when that is singular, affine, then constant) f over
-   the images uv (u, v of tail, then of head, per ray) of the set's rays, by
-   the normal equations: the lower orders' are the quadratic's leading
-   blocks. 0 when nothing fits. */
+/* f over the images (u, v, s: 3 per sample, tail then head per ray) of
+   the set's rays, by the normal equations: the quadratic in (u, v) plus
+   s times an affine one, or when that is singular its leading blocks (the
+   quadratic, the affine, the constant). 0 when nothing fits. */
 static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n, const double *uv,
                              refl__sbc_cam *k) {
-    static const int orders[3] = {6, 3, 1};
-    double qc[3] = {0.0, 0.0, 0.0}, G6[36], R6[18];
+    static const int orders[5] = {12, 9, 6, 3, 1};
+    double qc[3] = {0.0, 0.0, 0.0}, G9[144], R9[36];
     int o, i, j, l, e;
     for (i = 0; i < n; ++i) {
         refl_vec3 q = b->rays[list[i]].first;
         qc[0] += q.x; qc[1] += q.y; qc[2] += q.z;
     }
     for (j = 0; j < 3; ++j) qc[j] /= (double)n;
-    {
-        /* the moments of (x, y) up to degree 4 and of q up to degree 2 */
-        double m00 = 0, m10 = 0, m01 = 0, m20 = 0, m11 = 0, m02 = 0, m30 = 0, m21 = 0, m12 = 0, m03 = 0;
-        double m40 = 0, m31 = 0, m22 = 0, m13 = 0, m04 = 0, r[3][6];
-        memset(r, 0, sizeof r);
-        for (i = 0; i < n; ++i) {
-            refl_vec3 f = b->rays[list[i]].first;
-            double q[3];
-            /* centred: the coefficients carry only the variation */
-            q[0] = (double)f.x - qc[0];
-            q[1] = (double)f.y - qc[1];
-            q[2] = (double)f.z - qc[2];
-            for (e = 0; e < 2; ++e) {
-                double bs[6];
-                refl__sbc_basis(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1], bs);
-                m00 += 1.0; m10 += bs[1]; m01 += bs[2]; m20 += bs[3]; m11 += bs[4]; m02 += bs[5];
-                m30 += bs[3] * bs[1]; m21 += bs[3] * bs[2]; m12 += bs[5] * bs[1]; m03 += bs[5] * bs[2];
-                m40 += bs[3] * bs[3]; m31 += bs[3] * bs[4]; m22 += bs[3] * bs[5]; m13 += bs[4] * bs[5];
-                m04 += bs[5] * bs[5];
-                for (l = 0; l < 3; ++l)
-                    for (j = 0; j < 6; ++j) r[l][j] += bs[j] * q[l];
+    memset(G9, 0, sizeof G9);
+    memset(R9, 0, sizeof R9);
+    for (i = 0; i < n; ++i) {
+        refl_vec3 f = b->rays[list[i]].first;
+        double q[3];
+        /* centred: the coefficients carry only the variation */
+        q[0] = (double)f.x - qc[0];
+        q[1] = (double)f.y - qc[1];
+        q[2] = (double)f.z - qc[2];
+        for (e = 0; e < 2; ++e) {
+            const double *w = uv + 6 * i + 3 * e;
+            double bs[12];
+            refl__sbc_basis(k, w[0], w[1], w[2], bs);
+            for (j = 0; j < 12; ++j) {
+                for (l = 0; l <= j; ++l) G9[j * 12 + l] += bs[j] * bs[l];
+                for (l = 0; l < 3; ++l) R9[j * 3 + l] += bs[j] * q[l];
             }
         }
-        /* G6 = sum b b^T over the basis 1, x, y, x^2, xy, y^2 (lower triangle) */
-        G6[0] = m00;
-        G6[6] = m10; G6[7] = m20;
-        G6[12] = m01; G6[13] = m11; G6[14] = m02;
-        G6[18] = m20; G6[19] = m30; G6[20] = m21; G6[21] = m40;
-        G6[24] = m11; G6[25] = m21; G6[26] = m12; G6[27] = m31; G6[28] = m22;
-        G6[30] = m02; G6[31] = m12; G6[32] = m03; G6[33] = m22; G6[34] = m13; G6[35] = m04;
-        for (j = 0; j < 6; ++j)
-            for (l = 0; l < 3; ++l) R6[j * 3 + l] = r[l][j];
     }
-    for (o = 0; o < 3; ++o) {
+    for (o = 0; o < 5; ++o) {
         int nb = orders[o];
-        double G[36], R[18];
+        double G[144], R[36];
         for (j = 0; j < nb; ++j) {
-            for (l = 0; l <= j; ++l) G[j * nb + l] = G[l * nb + j] = G6[j * 6 + l];
-            for (l = 0; l < 3; ++l) R[j * 3 + l] = R6[j * 3 + l];
+            for (l = 0; l <= j; ++l) G[j * nb + l] = G[l * nb + j] = G9[j * 12 + l];
+            for (l = 0; l < 3; ++l) R[j * 3 + l] = R9[j * 3 + l];
         }
         if (refl__sbc_cholesky(G, nb, R, 3, 1e-11)) {
             memset(k->coef, 0, sizeof k->coef);
@@ -5416,9 +5413,6 @@ static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n,
     return 0;
 }
 
-
-/* The tails' centroid c and the sum of the unit directions m (not
-   normalised) over the rays of list. */
 static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int n, double c[3], double m[3]) {
     int i, j;
     c[0] = c[1] = c[2] = 0.0;
@@ -5432,24 +5426,17 @@ static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int 
     for (j = 0; j < 3; ++j) c[j] /= (double)n;
 }
 
-/* FitPinholeCamera, then Error: the largest desired-view pixel distance,
-   at the set's tails and heads, between the camera's first point and the
-   true one, through the very projection refl_sbc_project uses. Stops at
-   the first distance over `limit` and returns it; INFINITY when no camera
-   can be fitted at all. uv: scratch for 4 n doubles. */
-static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, double limit, double *uv,
-                            refl__sbc_cam *k) {
-    double A[9], rhs[3], C[3][3], val[3], vec[3][3], m[3], c[3], ext, hlo, tlo, thi, worst = 0.0;
-    int i, j, l, e;
-    if (n < 2) return INFINITY;
-    memset(k, 0, sizeof *k);
+/* The centre of projection o, the least-squares point nearest every ray
+   line: sum (I - d d^T) (o - c) = sum (I - d d^T) (t - c), relative to the
+   tails' centroid c for precision; C (may be NULL) gets the tails' scatter
+   about c. 0 when the rays are (nearly) parallel: no finite centre. */
+static int refl__sbc_centre(const refl__sbc_builder *b, const int *list, int n, const double c[3], double o[3],
+                            double C[3][3]) {
+    double A[9], rhs[3], S[3][3];
+    int i, j, l;
     memset(A, 0, sizeof A);
     memset(rhs, 0, sizeof rhs);
-    memset(C, 0, sizeof C);
-    refl__sbc_centroid(b, list, n, c, m);
-    if (!(refl__sbc_normalize(m) > 1e-6 * (double)n)) return INFINITY; /* the rays cancel: no mean direction */
-    /* o: sum (I - d d^T) (o - c) = sum (I - d d^T) (t - c), relative to the
-       centroid for precision; the tails' scatter alongside */
+    memset(S, 0, sizeof S);
     for (i = 0; i < n; ++i) {
         const refl_sbc_ray *r = &b->rays[list[i]];
         const float *d = b->dir + 3 * (size_t)list[i];
@@ -5460,7 +5447,7 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
         for (j = 0; j < 3; ++j) {
             for (l = 0; l <= j; ++l) {
                 A[j * 3 + l] -= dd[j] * dd[l];
-                C[j][l] += t[j] * t[l];
+                S[j][l] += t[j] * t[l];
             }
             rhs[j] += t[j] - dd[j] * td;
         }
@@ -5469,12 +5456,31 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
         A[j * 3 + j] += (double)n;
         for (l = 0; l < j; ++l) {
             A[l * 3 + j] = A[j * 3 + l];
-            C[l][j] = C[j][l];
+            S[l][j] = S[j][l];
         }
     }
+    if (C) memcpy(C, S, sizeof S);
+    if (!refl__sbc_cholesky(A, 3, rhs, 1, 1e-12)) return 0;
+    for (j = 0; j < 3; ++j) o[j] = c[j] + rhs[j];
+    return 1;
+}
+
+/* FitPinholeCamera, then Error: the largest desired-view pixel distance,
+   at the set's tails and heads, between the camera's first point and the
+   true one, through the very projection refl_sbc_project uses. Stops at
+   the first distance over `limit` and returns it; INFINITY when no camera
+   can be fitted at all. uv: scratch for 6 n doubles. */
+static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, double limit, double *uv,
+                            refl__sbc_cam *k) {
+    double C[3][3], val[3], vec[3][3], m[3], c[3], ext, hlo, tlo, thi, worst = 0.0;
+    int i, j, e;
+    if (n < 2) return INFINITY;
+    memset(k, 0, sizeof *k);
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 1e-6 * (double)n)) return INFINITY; /* the rays cancel: no mean direction */
     /* parallel rays: no finite centre (and no pinhole) */
-    if (!refl__sbc_cholesky(A, 3, rhs, 1, 1e-12)) return INFINITY;
-    for (j = 0; j < 3; ++j) { k->o[j] = c[j] + rhs[j]; k->c[j] = c[j]; }
+    if (!refl__sbc_centre(b, list, n, c, k->o, C)) return INFINITY;
+    memcpy(k->c, c, sizeof k->c);
     /* image plane: the tails' least-squares plane; where the tails are too
        thin to define one, the plane through their principal axis facing
        the rays as much as it can */
@@ -5539,8 +5545,9 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
             double p[3], u, v, h;
             refl__sbc_load(e ? r->head : r->tail, p);
             if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return INFINITY; /* a ray on the wrong side of o */
-            uv[4 * i + 2 * e] = u;
-            uv[4 * i + 2 * e + 1] = v;
+            uv[6 * i + 3 * e] = u;
+            uv[6 * i + 3 * e + 1] = v;
+            uv[6 * i + 3 * e + 2] = refl__sbc_cam_s(k, h);
             k->rect[0] = REFL__MIN(k->rect[0], u);
             k->rect[1] = REFL__MAX(k->rect[1], u);
             k->rect[2] = REFL__MIN(k->rect[2], v);
@@ -5562,11 +5569,15 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
     for (i = 0; i < n; ++i) {
         const double *tp = b->truth + 2 * (size_t)list[i];
         if (!refl__sbc_finite(tp[0])) return INFINITY; /* its first point is behind the eye */
-        for (e = 0; e < 2; ++e) {
-            /* refl_sbc_project's steps: the same (u, v), inside the
-               rectangle built from it, above hmin, then f */
-            double q[3], x, y, d;
-            refl__sbc_load(refl__sbc_cam_eval(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1]), q);
+        for (e = 0; e < 3; ++e) {
+            /* refl_sbc_project's steps: the same (u, v, s), inside the
+               rectangle built from it, above hmin, then f; beyond the
+               paper, also half-way along the ray (in s, along which the
+               image moves linearly), so the bound holds between the ends */
+            const double *t = uv + 6 * i, *h = t + 3;
+            double q[3], x, y, d, w[3];
+            for (j = 0; j < 3; ++j) w[j] = e == 0 ? t[j] : e == 1 ? h[j] : 0.5 * (t[j] + h[j]);
+            refl__sbc_load(refl__sbc_cam_eval(k, w[0], w[1], w[2]), q);
             if (!refl__sbc_pixel(b, q, &x, &y)) return INFINITY;
             d = sqrt((x - tp[0]) * (x - tp[0]) + (y - tp[1]) * (y - tp[1]));
             if (!(d <= limit)) return refl__sbc_finite(d) ? d : INFINITY;
@@ -5591,39 +5602,13 @@ static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__
     return refl__sbc_fit(b, list, n, b->error_px, b->uv, k) < b->error_px;
 }
 
-/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
-static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
-    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
-    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3];
-    int i, j, best = 0, W = b->W, H = b->H;
+/* The plane through c with normal sn, and each ray's side(s) in b->side:
+   by the extent of its unit frustum's tails and heads. */
+static void refl__sbc_assign(refl__sbc_builder *b, const int *list, int n, const double sn[3], const double c[3],
+                             double plane[4], int *nl, int *nr) {
+    int i, W = b->W, H = b->H;
     unsigned st;
-    refl__sbc_centroid(b, list, n, c, m);
-    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
-    /* the tails' scatter within the plane perpendicular to the mean direction */
-    for (j = 1; j < 3; ++j)
-        if (fabs(m[j]) < fabs(m[best])) best = j;
-    ax[best] = 1.0;
-    refl__sbc_cross(m, ax, a1);
-    refl__sbc_normalize(a1);
-    refl__sbc_cross(m, a1, a2);
-    for (i = 0; i < n; ++i) {
-        const refl_sbc_ray *r = &b->rays[list[i]];
-        double t[3], x, y;
-        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
-        x = refl__sbc_dot(t, a1);
-        y = refl__sbc_dot(t, a2);
-        cAA += x * x; cAB += x * y; cBB += y * y;
-    }
-    if (!(cAA + cBB > 0.0)) return 0;
-    /* the principal axis: the diameter's direction, orthogonal to m; the
-       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
-       correctly rounded, the same everywhere, unlike atan2 or cos) */
-    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
-    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
-    else { e1 = cAB; e2 = lam - cAA; }
-    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
-    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
-    for (j = 0; j < 3; ++j) plane[j] = sn[j];
+    memcpy(plane, sn, 3 * sizeof(double));
     plane[3] = -refl__sbc_dot(sn, c);
     /* each ray's own extent, then its unit frustum's */
     st = ++b->stamp;
@@ -5655,10 +5640,70 @@ static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double 
         *nl += b->side[idx] & 1;
         *nr += (b->side[idx] >> 1) & 1;
     }
+}
+
+/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
+static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
+    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
+    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3], sn2[3], plane2[4];
+    int i, j, best = 0, nl2, nr2;
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
+    /* Beyond the paper, whose plane is parallel to the mean direction: the
+       plane is parallel to the central ray, from the least-squares centre
+       of projection o through c. Rays spreading from about o then stay on
+       their side, where a plane off o is crossed by every ray whose tail
+       lies between the plane and o's side of it (the heads lie at the
+       scene's box, far beyond the tails: most of a set, at every level). */
+    {
+        double o[3], oc[3];
+        if (refl__sbc_centre(b, list, n, c, o, NULL)) {
+            for (j = 0; j < 3; ++j) oc[j] = c[j] - o[j];
+            if (refl__sbc_dot(oc, m) < 0.0)
+                for (j = 0; j < 3; ++j) oc[j] = -oc[j];
+            if (refl__sbc_normalize(oc) > 0.0 && refl__sbc_dot(oc, m) > 0.5) memcpy(m, oc, sizeof m);
+        }
+    }
+    /* the tails' scatter within the plane perpendicular to that direction */
+    for (j = 1; j < 3; ++j)
+        if (fabs(m[j]) < fabs(m[best])) best = j;
+    ax[best] = 1.0;
+    refl__sbc_cross(m, ax, a1);
+    refl__sbc_normalize(a1);
+    refl__sbc_cross(m, a1, a2);
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double t[3], x, y;
+        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
+        x = refl__sbc_dot(t, a1);
+        y = refl__sbc_dot(t, a2);
+        cAA += x * x; cAB += x * y; cBB += y * y;
+    }
+    if (!(cAA + cBB > 0.0)) return 0;
+    /* the principal axis: the diameter's direction, orthogonal to m; the
+       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
+       correctly rounded, the same everywhere, unlike atan2 or cos) */
+    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
+    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
+    else { e1 = cAB; e2 = lam - cAA; }
+    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
+    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
+    /* Beyond the paper: the plane across the other axis too, kept when
+       fewer rays cross it. Where the reflector curves the rays together
+       along the diameter (a saddle, a concave patch) they cross every
+       plane across it, the cut gains nothing and the set ends up as a ray
+       list; across the axis along which they spread, the cut is clean. */
+    refl__sbc_cross(m, sn, sn2);
+    refl__sbc_normalize(sn2);
+    refl__sbc_assign(b, list, n, sn2, c, plane2, &nl2, &nr2);
+    refl__sbc_assign(b, list, n, sn, c, plane, nl, nr);
+    if ((long long)nl2 + nr2 < (long long)*nl + *nr && 4 * ((long long)*nl + *nr) > 5 * (long long)n) {
+        refl__sbc_assign(b, list, n, sn2, c, plane, nl, nr);
+    }
     /* the paper fails only when a subset is the whole set; below a few
        unit frustums across, though, every cut keeps nearly all rays on both
-       sides and the cells multiply without end: fail when half the set
-       would go both ways */
+       sides and the cells would multiply without end: fail when half the
+       set would go both ways */
     return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
 }
 
@@ -5953,7 +5998,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
                 b.truth[2 * i] = b.truth[2 * i + 1] = NAN; /* behind the eye: no camera fits it */
         }
     }
-    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 4 * sizeof(double));
+    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 6 * sizeof(double));
     if (!b.uv || !refl__sbc_grow(b.a, (void **)&b.pool, &b.pool_cap, (size_t)nvalid * 4 + 16, sizeof(int))) {
         res = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
@@ -7712,6 +7757,7 @@ typedef struct refl__em {
     float *face_pos;              /* n x n RGBA32F */
     refl__em_draw *draws;         /* one per object */
     float *gbuf;                  /* frame-sized RGBA32F: world normal, object + 1 */
+    float *surface;               /* C3RC, SBC: per reflector pixel, the world point seen there */
     int object;                   /* the reflector being looked up */
 } refl__em;
 
@@ -7821,6 +7867,20 @@ static void refl__em_lookup(const refl__em *em, refl_vec3 dir, float rgb[3], ref
     *point = refl_v3(pt[0], pt[1], pt[2]);
 }
 
+/* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
+static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown) {
+    uint8_t *px = fr->color + 4 * i;
+    int c;
+    for (c = 0; c < 3; ++c) {
+        float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
+        px[c] = (uint8_t)(v * 255.0f + 0.5f);
+    }
+    px[3] = 255;
+    fr->points[3 * i] = shown.x;
+    fr->points[3 * i + 1] = shown.y;
+    fr->points[3 * i + 2] = shown.z;
+}
+
 /* One frame row: every pixel of the current reflector gets its reflection
    (and refraction) added and its point. Pixels are independent, so rows
    may run on any thread in any order. */
@@ -7836,7 +7896,6 @@ static void refl__em_row(void *arg, int y) {
         const float *g = em->gbuf + 4 * i;
         float rgb[3], sub[3], cos_i, w, tmax;
         refl_vec3 o, d, n, shown;
-        uint8_t *px = fr->color + 4 * i;
         if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
@@ -7862,15 +7921,80 @@ static void refl__em_row(void *arg, int y) {
         } else {
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         }
-        for (c = 0; c < 3; ++c) {
-            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-            px[c] = (uint8_t)(v * 255.0f + 0.5f);
-        }
-        px[3] = 255;
-        fr->points[3 * i] = shown.x;
-        fr->points[3 * i + 1] = shown.y;
-        fr->points[3 * i + 2] = shown.z;
+        refl__em_put(fr, i, rgb, shown);
     }
+}
+
+/* Per reflector pixel (G-buffer id nonzero): the world point of the
+   surface seen, from the window depth along the pixel's ray, into
+   em->surface. Rows are independent. */
+static void refl__em_surface_row(void *arg, int y) {
+    refl__em *em = (refl__em *)arg;
+    const refl__view_rays *r = &em->p->rays;
+    const refl_frame *fr = em->p->frame;
+    float n = r->znear, f = r->zfar;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        float nx, ny, ndc, dist;
+        refl_vec3 d, q;
+        if (fabsf(em->gbuf[4 * i + 3]) < 1.0f) continue;
+        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+        ndc = 2.0f * fr->depth[i] - 1.0f;
+        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        em->surface[3 * i] = q.x;
+        em->surface[3 * i + 1] = q.y;
+        em->surface[3 * i + 2] = q.z;
+    }
+}
+
+/* Adds reflector pixel i's mirror share to the frame, as ENVMAP
+   composites: `sub` (the colour reflected there, each channel in [0, 1];
+   NULL: the environment along the reflected ray) times the reflectance;
+   glass adds (1 - F) times the tinted environment along the ray refracted
+   once (wholly reflective past the critical angle). The pixel's point
+   becomes `shown` (NaN: none), or none where the refraction dominates. */
+static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
+                               refl_vec3 shown) {
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    int object = (int)fabsf(g[3]) - 1, c;
+    const refl_material *m;
+    float rgb[3], sub[3], cos_i, w, tmax;
+    refl_vec3 o, d, n;
+    if (object < 0 || object >= scene->object_count) return;
+    m = &scene->materials[scene->objects[object].material];
+    refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+    n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+    if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+    if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+    cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+    w = refl_material_reflectance(m, cos_i);
+    if (sub_in) {
+        memcpy(sub, sub_in, sizeof sub);
+    } else {
+        refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
+        for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+    if (m->type == REFL_GLASS) {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
+        int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+        refl_vec3 t;
+        if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+            refl_environment_lookup(&scene->environment, t, tsub);
+            for (c = 0; c < 3; ++c)
+                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+            if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
+        } else {
+            for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+        }
+    }
+    refl__em_put(fr, i, rgb, shown);
 }
 
 /* The reflectors' world normals into em->gbuf where the base pass showed
@@ -8459,7 +8583,6 @@ typedef struct refl__c3_counts {
 typedef struct refl__c3 {
     refl__pass *p;
     refl__em em;                  /* the reflectors' G-buffer (ENVMAP's) */
-    float *surface;               /* per pixel: the reflector point seen there (world) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     refl_kdtree *tree;
     float *rgb, *normal;          /* per tree point */
@@ -8576,7 +8699,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
-            const float *r = c3->surface + 3 * j;
+            const float *r = c3->em.surface + 3 * j;
             refl_vec3 dq;
             if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
             dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
@@ -9037,86 +9160,21 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     return r;
 }
 
-/* Per reflector pixel: the world point of the surface seen (from the
-   window depth, along the pixel's ray). */
-static void refl__c3_surface_row(void *arg, int y) {
-    refl__c3 *c3 = (refl__c3 *)arg;
-    const refl__view_rays *r = &c3->p->rays;
-    const refl_frame *fr = c3->p->frame;
-    float n = r->znear, f = r->zfar;
-    int x;
-    for (x = 0; x < fr->width; ++x) {
-        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        float nx, ny, ndc, dist;
-        refl_vec3 d, q;
-        if (fabsf(c3->em.gbuf[4 * i + 3]) < 1.0f) continue;
-        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
-        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
-        ndc = 2.0f * fr->depth[i] - 1.0f;
-        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
-        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
-        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
-        c3->surface[3 * i] = q.x;
-        c3->surface[3 * i + 1] = q.y;
-        c3->surface[3 * i + 2] = q.z;
-    }
-}
-
 /* Composites one row: the winning point's colour (or the environment
    along the reflected ray) times the reflectance, as ENVMAP composites. */
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
-    const refl__pass *p = c3->p;
-    const refl_scene *scene = p->scene;
-    refl_frame *fr = p->frame;
-    int x, c;
+    const refl_frame *fr = c3->p->frame;
+    int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        const float *g = c3->em.gbuf + 4 * i;
-        const refl_material *m;
-        float rgb[3], sub[3], cos_i, w, tmax;
-        refl_vec3 o, d, n, shown = refl_v3(NAN, NAN, NAN);
-        uint8_t *px = fr->color + 4 * i;
-        int object = (int)fabsf(g[3]) - 1;
-        if (object < 0 || object >= scene->object_count) continue;
-        m = &scene->materials[scene->objects[object].material];
-        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
-        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
-        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
-        cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
-        w = refl_material_reflectance(m, cos_i);
         if (c3->key[i] != REFL__C3_EMPTY) {
-            uint32_t k = (uint32_t)(c3->key[i] & 0xffffffffu);
-            const float *q = c3->tree->positions + 3 * (size_t)k;
-            memcpy(sub, c3->rgb + 3 * (size_t)k, sizeof sub);
-            shown = refl_v3(q[0], q[1], q[2]);
+            size_t k = (size_t)(c3->key[i] & 0xffffffffu);
+            const float *q = c3->tree->positions + 3 * k;
+            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
         } else {
-            refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
-            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
-        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
-        if (m->type == REFL_GLASS) {
-            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
-            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
-            refl_vec3 t;
-            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
-                refl_environment_lookup(&scene->environment, t, tsub);
-                for (c = 0; c < 3; ++c)
-                    rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
-                if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
-            } else {
-                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
-            }
-        }
-        for (c = 0; c < 3; ++c) {
-            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-            px[c] = (uint8_t)(v * 255.0f + 0.5f);
-        }
-        px[3] = 255;
-        fr->points[3 * i] = shown.x;
-        fr->points[3 * i + 1] = shown.y;
-        fr->points[3 * i + 2] = shown.z;
     }
 }
 
@@ -9141,7 +9199,7 @@ static int refl__c3_back_seen(const refl__c3 *c3, const refl_object *o, const re
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
-            const float *r = c3->surface + 3 * j;
+            const float *r = c3->em.surface + 3 * j;
             refl_vec3 d;
             if (c3->em.gbuf[4 * j + 3] != -(float)(i + 1)) continue;
             d = refl_v3_sub(refl_v3(r[0], r[1], r[2]), v[0]);
@@ -9271,14 +9329,14 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     r = refl__em_gbuffer_new(&c3.em, &seen, &any);
     if (r == REFL_OK && any) {
-        c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        c3.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
-        if (!c3.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!c3.em.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
         c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
-        rast_run_jobs(p->rc, fr->height, refl__c3_surface_row, &c3);
+        rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
         r = refl__c3_points(&c3);
         t1 = refl__now_ms();
         fr->stats.ms_build += t1 - t0;
@@ -9321,7 +9379,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__free(al, c3.em.gbuf);
     refl__free(al, c3.em.draws);
     refl__free(al, seen);
-    refl__free(al, c3.surface);
+    refl__free(al, c3.em.surface);
     refl__free(al, c3.key);
     refl__free(al, c3.rgb);
     refl__free(al, c3.normal);
@@ -9467,6 +9525,732 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     refl__free(al, cell_start);
     refl__free(al, cell_list);
     refl__free(al, errors);
+    return r;
+}
+/* ---- src/reflect/m_sbc.c ---- */
+/* SBC: Popescu, Sacks and Mei's sample-based camera reflections (paper
+   003). Per frame:
+     1. ray maps (section IV-A): the reflectors' G-buffer (ENVMAP's) gives
+        every reflector pixel its surface point and normal; every
+        factor x factor pixels one reflected ray is taken, tail on the
+        reflector, head where it leaves the scene's box (grown 1%), first
+        reflector point = tail. One ring of samples beyond a reflector's
+        silhouette is extrapolated (the sample's view ray meets the tangent
+        plane of its neighbour inside, the normal continues linearly), so
+        the frustums reach past the reflector's edge pixels: the paper's
+        "extended reflectors".
+     2. reflection groups: one per reflector object and side seen (the
+        G-buffer's id, negative on back faces: the inside of an open mesh),
+        each a BSP tree of pinhole cameras (cam_sbc.c) built to the
+        requested error in desired-view pixels. One bounce: this is the
+        first order of the paper's reflection histories.
+     3. projection (section V-A): every vertex of every object is
+        projected into every group (refl_sbc_project), moving it to its
+        first reflector point; the window depth is the paper's visibility
+        offset (k - 1 + z/D) g with k = 1 and g = 1 in a depth buffer of the
+        reflections' own, z measured as the distance from the vertex to its
+        first reflector point (consistent across leaves, where each leaf's
+        image-plane height is not).
+     4. rasterisation (section V-B): a reflected triangle is drawn when all
+        three vertices project. Triangles are subdivided in four, at most
+        REFL__SB_LEVELS times: always while an edge is longer than 1/32 of
+        the scene's diagonal (the paper's pre-subdivision, per frame), while
+        mixed (one or two vertices project; the paper's fix for jagged
+        edges), and while an edge's projected midpoint lies more than
+        REFL__SB_EDGE_PX from the midpoint of its projected ends (the
+        straight-edge error the paper bounds by pre-subdividing). Reflected
+        triangles are drawn by rast.h twice with one depth test (colour as
+        DIRECT shades the surface, then its world point), stencilled to the
+        group's pixels. The reflector's own triangles project too (a spout
+        seen in the body), except where a vertex lies nearer its first
+        reflector point than the triangle's longest edge (the surface the
+        rays leave).
+     5. composite (section V-D): the reflected colour, or the environment
+        along the pixel's reflected ray where nothing was drawn, times the
+        material's reflectance (Schlick's Fresnel when the material asks),
+        as ENVMAP composites; glass adds the environment refracted once.
+   Diffuse shading needs no eye vector (Lambert), so the paper's true eye
+   vector for point lights has nothing to change here. Deterministic: work
+   is split into jobs whose outputs are drawn in job order. */
+
+#define REFL__SB_FACTOR 2           /* default ray map down-sampling */
+#define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
+#define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
+#define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
+#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed */
+#define REFL__SB_CHUNK 256          /* scene triangles per emission job */
+#define REFL__SB_FLOATS 12
+#define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */          /* per emitted vertex: clip position, world position, normal, uv */
+
+/* A reflector object's side seen: its ray map over the whole frame. */
+typedef struct refl__sb_side {
+    int object;
+    float id;                     /* its pixels' G-buffer id: object + 1, negated for the back side */
+    refl_sbc_ray *rays;
+    uint8_t *valid;
+} refl__sb_side;
+
+/* A reflection group: one tile of a side's ray map, its rays and one ring
+   of rays around it (so neighbouring tiles' frustums overlap). */
+typedef struct refl__sb_group {
+    int side, object;
+    int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
+    refl_sbc *sbc;
+    refl_result result;
+} refl__sb_group;
+
+/* A scene point and what a group makes of it. */
+typedef struct refl__sb_pv {
+    refl_vec3 world, normal;
+    float uv[2];
+    float clip[4];                /* the first reflector point's, depth replaced */
+    float sx, sy;                 /* its window position */
+    float dist;                   /* to the first reflector point */
+    int ok;
+} refl__sb_pv;
+
+/* One emission job: triangles [first, first + count) of `object` into `group`. */
+typedef struct refl__sb_job {
+    int group, object, first, count;
+    float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
+    size_t out_count, out_cap;    /* vertices */
+    long long projections, projected;
+    int failed;
+} refl__sb_job;
+
+typedef struct refl__sb {
+    refl__pass *p;
+    refl__em em;                  /* the reflectors' G-buffer and surface points */
+    refl__sb_side *sides;
+    int side_count;
+    refl__sb_group *groups;
+    int group_count;
+    int map_w, map_h, tile;       /* the ray map's size; a group's tile side in samples */
+    int factor;
+    float error_px;
+    float diagonal;               /* the scene's, grown 1%: D */
+    refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
+    refl_bvh *bvh;                /* the scene's, for the rays' first hits */
+    uint8_t *group_of;            /* per pixel: group index + 1, 0: none (the stencil) */
+    refl__sb_pv **verts;          /* per group x object: every mesh vertex, projected */
+    refl__sb_job *jobs;
+    int job_count;
+    uint8_t *color;               /* scratch targets of the reflections */
+    float *depth, *points;
+} refl__sb;
+
+/* Where a ray from inside the box leaves it. */
+static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
+    float t = INFINITY, s;
+    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
+    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
+    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
+    return REFL__MAX(t, 0.0f);
+}
+
+/* The ray map sample (u, v)'s pixel. */
+static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int *y) {
+    const refl_frame *fr = sb->p->frame;
+    *x = REFL__MIN(u * sb->factor + sb->factor / 2, fr->width - 1);
+    *y = REFL__MIN(v * sb->factor + sb->factor / 2, fr->height - 1);
+}
+
+/* The reflected ray of surface point q with normal n seen along view
+   direction d; 0 when the normal does not face the viewer. */
+static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray) {
+    refl_vec3 r;
+    refl_hit hit;
+    float reach;
+    n = refl_v3_normalize(n);
+    if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+    if (!(refl_v3_dot(d, n) < -1e-4f)) return 0;
+    r = refl_v3_reflect(d, n);
+    ray->tail = q;
+    ray->first = q;
+    reach = refl__sb_exit(sb->box_lo, sb->box_hi, q, r);
+    if (refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, reach, &hit))
+        reach = REFL__MIN(reach, REFL__SB_REACH * hit.t + 0.01f * sb->diagonal);
+    else
+        reach = REFL__MIN(reach, 0.1f * sb->diagonal);
+    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
+    return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+}
+
+/* Group g's ray map: a ray per sample showing the group, then one ring
+   extrapolated beyond (marked 2 in valid while built). */
+static void refl__sb_ray_map(const refl__sb *sb, float id, int mw, int mh, refl_sbc_ray *rays, uint8_t *valid,
+                             refl_vec3 *normals) {
+    static const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+    const refl__pass *p = sb->p;
+    int u, v, k, W = p->frame->width;
+    for (v = 0; v < mh; ++v)
+        for (u = 0; u < mw; ++u) {
+            size_t m = (size_t)v * (size_t)mw + (size_t)u, i;
+            int x, y;
+            refl_vec3 o, d;
+            float tmax;
+            const float *gb;
+            refl__sb_sample_pixel(sb, u, v, &x, &y);
+            i = (size_t)y * (size_t)W + (size_t)x;
+            gb = sb->em.gbuf + 4 * i;
+            valid[m] = 0;
+            if (gb[3] != id) continue;
+            refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+            normals[m] = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+            valid[m] = (uint8_t)refl__sb_ray(sb, refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1],
+                                                         sb->em.surface[3 * i + 2]),
+                                             normals[m], d, &rays[m]);
+        }
+    for (v = 0; v < mh; ++v)
+        for (u = 0; u < mw; ++u) {
+            size_t m = (size_t)v * (size_t)mw + (size_t)u;
+            if (valid[m]) continue;
+            for (k = 0; k < 4; ++k) {
+                int u1 = u + du[k], v1 = v + dv[k], u2 = u + 2 * du[k], v2 = v + 2 * dv[k], x, y;
+                size_t m1, m2;
+                refl_vec3 o, d, q1, n1, n;
+                float tmax, den, t;
+                if (u1 < 0 || v1 < 0 || u1 >= mw || v1 >= mh) continue;
+                m1 = (size_t)v1 * (size_t)mw + (size_t)u1;
+                if (valid[m1] != 1) continue;
+                q1 = rays[m1].tail;
+                n1 = normals[m1];
+                n = n1;
+                if (u2 >= 0 && v2 >= 0 && u2 < mw && v2 < mh) {
+                    m2 = (size_t)v2 * (size_t)mw + (size_t)u2;
+                    if (valid[m2] == 1) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), normals[m2]);
+                }
+                refl__sb_sample_pixel(sb, u, v, &x, &y);
+                refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+                den = refl_v3_dot(d, n1);
+                if (fabsf(den) < 1e-6f) continue;
+                t = refl_v3_dot(refl_v3_sub(q1, o), n1) / den;
+                if (!(t > 0.0f) || !refl__isfinite(t)) continue;
+                if (refl__sb_ray(sb, refl_v3_add(o, refl_v3_scale(d, t)), n, d, &rays[m])) {
+                    valid[m] = 2;
+                    break;
+                }
+            }
+        }
+    for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
+}
+
+/* Side i's ray map (a job: sides map in parallel). */
+static void refl__sb_map_side(void *arg, int i) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    refl__sb_side *sd = &sb->sides[i];
+    size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+    refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
+    sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
+    sd->valid = (uint8_t *)refl__calloc(al, n, 1);
+    if (normals && sd->rays && sd->valid) refl__sb_ray_map(sb, sd->id, sb->map_w, sb->map_h, sd->rays, sd->valid, normals);
+    refl__free(al, normals);
+}
+
+/* Builds group g's tree from its tile grown by one sample (a job). */
+static void refl__sb_build_group(void *arg, int g) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    const refl_allocator *al = &p->scene->allocator;
+    refl__sb_group *gr = &sb->groups[g];
+    const refl__sb_side *sd = &sb->sides[gr->side];
+    int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
+    int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
+    int mw = u1 - u0, mh = v1 - v0, u, v, count = 0;
+    refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, (size_t)mw * (size_t)mh, sizeof(refl_sbc_ray));
+    uint8_t *valid = (uint8_t *)refl__calloc(al, (size_t)mw * (size_t)mh, 1);
+    refl_sbc_desc d;
+    if (!rays || !valid || !sd->rays || !sd->valid) {
+        gr->result = REFL_ERROR_OUT_OF_MEMORY;
+    } else {
+        for (v = v0; v < v1; ++v)
+            for (u = u0; u < u1; ++u) {
+                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
+                rays[k] = sd->rays[m];
+                valid[k] = sd->valid[m];
+                count += valid[k];
+            }
+    }
+    if (count) { /* a group without a ray (every normal turned away) reflects nothing */
+        memset(&d, 0, sizeof d);
+        d.error_px = sb->error_px;
+        d.view_proj = p->vp;
+        d.width = p->frame->width;
+        d.height = p->frame->height;
+        d.allocator = *al;
+        gr->result = refl_sbc_build(rays, valid, mw, mh, &d, &gr->sbc);
+    }
+    refl__free(al, rays);
+    refl__free(al, valid);
+}
+
+/* Projects v into group g: its first reflector point, seen by the view,
+   at window depth dist / D. */
+static void refl__sb_project(const refl__sb *sb, const refl_sbc *sbc, refl__sb_pv *v) {
+    const refl__pass *p = sb->p;
+    const float *m = p->vp.m;
+    refl_vec3 f;
+    float z, wd;
+    int k;
+    v->ok = 0;
+    if (!refl_sbc_project(sbc, v->world, &f, &z)) return;
+    for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
+    if (!(v->clip[3] > 0.0f)) return;
+    v->dist = refl_v3_length(refl_v3_sub(v->world, f));
+    wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
+    v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
+    v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
+    v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
+    v->ok = refl__isfinite(v->sx) && refl__isfinite(v->sy);
+}
+
+/* Projects every vertex of object o into group g (a job per pair). */
+static void refl__sb_project_object(void *arg, int index) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_scene *scene = sb->p->scene;
+    int g = index / scene->object_count, o = index % scene->object_count, i;
+    const refl_object *obj = &scene->objects[o];
+    const refl_mesh *m = scene->meshes[obj->mesh];
+    refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    refl__sb_pv *out = sb->verts[index];
+    if (!out || !sb->groups[g].sbc) return;
+    for (i = 0; i < m->vertex_count; ++i) {
+        const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
+        out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
+        out[i].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
+        out[i].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
+        out[i].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
+        refl__sb_project(sb, sb->groups[g].sbc, &out[i]);
+    }
+}
+
+static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl_sbc *sbc, const refl__sb_pv *a, const refl__sb_pv *b,
+                                refl__sb_job *j) {
+    refl__sb_pv m;
+    m.world = refl_v3_scale(refl_v3_add(a->world, b->world), 0.5f);
+    m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
+    m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
+    m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
+    refl__sb_project(sb, sbc, &m);
+    j->projections++;
+    j->projected += m.ok;
+    return m;
+}
+
+static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
+    float *o = j->out + REFL__SB_FLOATS * j->out_count++;
+    memcpy(o, v->clip, 4 * sizeof(float));
+    o[4] = v->world.x; o[5] = v->world.y; o[6] = v->world.z;
+    o[7] = v->normal.x; o[8] = v->normal.y; o[9] = v->normal.z;
+    o[10] = v->uv[0]; o[11] = v->uv[1];
+}
+
+/* Emits triangle (a, b, c) at subdivision level `level`, split as the
+   module comment says. */
+static void refl__sb_emit(const refl__sb *sb, const refl_sbc *sbc, refl__sb_job *j, const refl__sb_pv *a,
+                          const refl__sb_pv *b, const refl__sb_pv *c, int level, int self, float edge) {
+    const float max_edge = sb->diagonal / 32.0f;
+    int ok = a->ok + b->ok + c->ok, split = 0;
+    refl__sb_pv ab, bc, ca;
+    int have_mid = 0;
+    if (level < REFL__SB_LEVELS) {
+        float la = refl_v3_length(refl_v3_sub(a->world, b->world));
+        float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
+        float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
+        float ext = ok == 3 ? REFL__MAX(REFL__MAX(a->sx, b->sx), c->sx) - REFL__MIN(REFL__MIN(a->sx, b->sx), c->sx) +
+                                  REFL__MAX(REFL__MAX(a->sy, b->sy), c->sy) - REFL__MIN(REFL__MIN(a->sy, b->sy), c->sy)
+                            : 0.0f;
+        if (REFL__MAX(la, REFL__MAX(lb, lc)) > max_edge) {
+            split = 1;
+        } else if (ok == 3 && ext > 2.0f * REFL__SB_EDGE_PX) { /* smaller: no edge can bend further */
+            const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
+            refl__sb_pv *mid[3];
+            int k;
+            mid[0] = &ab; mid[1] = &bc; mid[2] = &ca;
+            for (k = 0; k < 3; ++k) {
+                float dx, dy;
+                *mid[k] = refl__sb_mid(sb, sbc, e[k][0], e[k][1], j);
+                dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
+                dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
+                if (!mid[k]->ok || dx * dx + dy * dy > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX) split = 1;
+            }
+            have_mid = 1;
+        } else if (ok > 0 && ok < 3) {
+            split = level < REFL__SB_MIXED_LEVELS;
+        }
+    }
+    if (!split) {
+        if (ok < 3) return;
+        /* the reflector's own surface around the rays' tails */
+        if (self && REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < edge) return;
+        if (j->out_count + 3 > j->out_cap) {
+            size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
+            float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));
+            if (!o) {
+                j->failed = 1;
+                return;
+            }
+            if (j->out_count) memcpy(o, j->out, j->out_count * REFL__SB_FLOATS * sizeof(float));
+            refl__free(&sb->p->scene->allocator, j->out);
+            j->out = o;
+            j->out_cap = cap;
+        }
+        refl__sb_put(j, a);
+        refl__sb_put(j, b);
+        refl__sb_put(j, c);
+        return;
+    }
+    if (!have_mid) {
+        ab = refl__sb_mid(sb, sbc, a, b, j);
+        bc = refl__sb_mid(sb, sbc, b, c, j);
+        ca = refl__sb_mid(sb, sbc, c, a, j);
+    }
+    refl__sb_emit(sb, sbc, j, a, &ab, &ca, level + 1, self, edge);
+    refl__sb_emit(sb, sbc, j, &ab, b, &bc, level + 1, self, edge);
+    refl__sb_emit(sb, sbc, j, &ca, &bc, c, level + 1, self, edge);
+    refl__sb_emit(sb, sbc, j, &ab, &bc, &ca, level + 1, self, edge);
+}
+
+static void refl__sb_emit_job(void *arg, int index) {
+    refl__sb *sb = (refl__sb *)arg;
+    refl__sb_job *j = &sb->jobs[index];
+    const refl_scene *scene = sb->p->scene;
+    const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
+    const refl__sb_pv *v = sb->verts[j->group * scene->object_count + j->object];
+    const refl_sbc *sbc = sb->groups[j->group].sbc;
+    int self = sb->groups[j->group].object == j->object, t;
+    for (t = j->first; t < j->first + j->count && !j->failed; ++t) {
+        const uint32_t *tri = m->indices + 3 * (size_t)t;
+        const refl__sb_pv *a = &v[tri[0]], *b = &v[tri[1]], *c = &v[tri[2]];
+        float edge = self ? REFL__MAX(refl_v3_length(refl_v3_sub(a->world, b->world)),
+                                      REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
+                                                refl_v3_length(refl_v3_sub(c->world, a->world))))
+                          : 0.0f;
+        refl__sb_emit(sb, sbc, j, a, b, c, 0, self, edge);
+    }
+}
+
+/* Draws every job's triangles into the scratch targets: colour, then the
+   points with the same depth test. */
+static refl_result refl__sb_draw(refl__sb *sb) {
+    refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    refl__draw_ctx *dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)scene->object_count,
+                                                        sizeof(refl__draw_ctx));
+    rast_targets t;
+    rast_result rr = RAST_OK;
+    int pass, i;
+    if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count; ++i) refl__draw_ctx_init(&dc[i], scene, i, p->vp);
+    memset(&t, 0, sizeof t);
+    t.color.width = t.depth.width = t.stencil.width = fr->width;
+    t.color.height = t.depth.height = t.stencil.height = fr->height;
+    t.depth.ptr = sb->depth;
+    t.depth.stride = (int)sizeof(float) * fr->width;
+    t.stencil.ptr = sb->group_of;
+    t.stencil.stride = fr->width;
+    for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
+        if (pass == 0) {
+            t.color.ptr = sb->color;
+            t.color.stride = 4 * fr->width;
+            t.color_format = RAST_COLOR_RGBA8;
+        } else {
+            t.color.ptr = sb->points;
+            t.color.stride = 4 * (int)sizeof(float) * fr->width;
+            t.color_format = RAST_COLOR_RGBA32F;
+        }
+        if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK ||
+            (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH)) != RAST_OK)
+            break;
+        for (i = 0; i < sb->job_count && rr == RAST_OK; ++i) {
+            const refl__sb_job *j = &sb->jobs[i];
+            const refl__draw_ctx *d = &dc[j->object];
+            rast_state s;
+            rast_draw_desc dd;
+            if (!j->out_count) continue;
+            memset(&s, 0, sizeof s);
+            s.depth_test = 1;
+            s.stencil_test = 1;
+            s.stencil_front.func = RAST_EQUAL;
+            s.stencil_front.ref = (uint8_t)(j->group + 1);
+            s.stencil_back = s.stencil_front;
+            if (pass == 1) {
+                s.fragment_fn = refl__em_position_fragment;
+            } else {
+                s.fragment_fn = d->material->type == REFL_DIFFUSE || d->material->type == REFL_PARTIAL
+                                    ? refl__base_fragment
+                                    : refl__clear_fragment;
+                s.fragment_user = (void *)d;
+            }
+            memset(&dd, 0, sizeof dd);
+            dd.primitive = RAST_TRIANGLES;
+            dd.vertices = j->out;
+            dd.vertex_count = (int)j->out_count;
+            dd.stride = REFL__SB_FLOATS;
+            dd.position_size = 4;
+            dd.num_varyings = REFL__SB_FLOATS - 4;
+            if ((rr = rast_set_state(p->rc, &s)) == RAST_OK) rr = rast_draw(p->rc, &dd);
+            if (pass == 0) fr->stats.triangles += (long long)(j->out_count / 3);
+        }
+        if (rr == RAST_OK) rr = rast_finish(p->rc);
+    }
+    refl__free(&scene->allocator, dc);
+    return refl__result_from_rast(rr);
+}
+
+static void refl__sb_resolve_row(void *arg, int y) {
+    const refl__sb *sb = (const refl__sb *)arg;
+    const refl_frame *fr = sb->p->frame;
+    int x, c;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        float sub[3];
+        if (sb->em.gbuf[4 * i + 3] == 0.0f) continue;
+        /* a pixel of no group (its tile's samples lie on other surfaces)
+           shows the environment, as one nothing reflects in */
+        if (sb->group_of[i] && sb->depth[i] < 1.0f) {
+            const float *q = sb->points + 4 * i;
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * i + (size_t)c] * (1.0f / 255.0f);
+            refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
+        } else {
+            refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
+        }
+    }
+}
+
+/* The sides seen (reflector objects and sides with a pixel), their ray
+   maps, and the groups: each side's map cut in tiles of sb->tile samples,
+   one group per tile with a ray, at most 254 in all (the stencil's
+   values; the tile side doubles until they fit). Beyond the paper, whose
+   groups are whole reflectors: a whole curved reflector's rays cross each
+   other (a teapot's spout and handle face its body, rims and concave
+   parts turn rays back across the others), and a BSP over crossing rays
+   sends them down both sides of every cut, so it ends in ray lists; the
+   tiles are the paper's "pieces whose rays do not intersect" (section
+   VI), cut where it is cheap. */
+static refl_result refl__sb_groups(refl__sb *sb) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_frame *fr = sb->p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
+    uint8_t *sides = (uint8_t *)refl__calloc(al, (size_t)scene->object_count, 1);
+    int i, side, pass, u, v, tu, tv;
+    if (!sides) return REFL_ERROR_OUT_OF_MEMORY;
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em.gbuf[4 * k + 3];
+        int o = (int)fabsf(id) - 1;
+        if (o >= 0 && o < scene->object_count) sides[o] |= (uint8_t)(id > 0.0f ? 1 : 2);
+    }
+    sb->sides = (refl__sb_side *)refl__calloc(al, 2 * (size_t)scene->object_count, sizeof(refl__sb_side));
+    if (!sb->sides) {
+        refl__free(al, sides);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i)
+        for (side = 0; side < 2; ++side)
+            if (sides[i] & (1 << side)) {
+                refl__sb_side *sd = &sb->sides[sb->side_count++];
+                sd->object = i;
+                sd->id = side ? -(float)(i + 1) : (float)(i + 1);
+            }
+    refl__free(al, sides);
+    rast_run_jobs(sb->p->rc, sb->side_count, refl__sb_map_side, sb);
+    for (i = 0; i < sb->side_count; ++i)
+        if (!sb->sides[i].rays || !sb->sides[i].valid) return REFL_ERROR_OUT_OF_MEMORY;
+    /* count the tiles with a ray, doubling the tile until they fit; then list them */
+    for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
+        int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
+        for (pass = 0; pass < 2; ++pass) {
+            sb->group_count = 0;
+            for (i = 0; i < sb->side_count; ++i)
+                for (tv = 0; tv < th; ++tv)
+                    for (tu = 0; tu < tw; ++tu) {
+                        int any = 0;
+                        for (v = tv * sb->tile; v < REFL__MIN((tv + 1) * sb->tile, sb->map_h) && !any; ++v)
+                            for (u = tu * sb->tile; u < REFL__MIN((tu + 1) * sb->tile, sb->map_w) && !any; ++u)
+                                any = sb->sides[i].valid[(size_t)v * (size_t)sb->map_w + (size_t)u];
+                        if (!any) continue;
+                        if (pass) {
+                            refl__sb_group *g = &sb->groups[sb->group_count];
+                            g->side = i;
+                            g->object = sb->sides[i].object;
+                            g->u0 = tu * sb->tile;
+                            g->v0 = tv * sb->tile;
+                            g->u1 = REFL__MIN(g->u0 + sb->tile, sb->map_w);
+                            g->v1 = REFL__MIN(g->v0 + sb->tile, sb->map_h);
+                        }
+                        sb->group_count++;
+                    }
+            if (sb->group_count > 254) break;
+            if (!pass) {
+                sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
+                                                            sizeof(refl__sb_group));
+                if (!sb->groups) return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+        if (sb->group_count <= 254) break;
+    }
+    /* each pixel's group: its side's, at the tile of its sample */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em.gbuf[4 * k + 3];
+        int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width);
+        u = x / sb->factor;
+        v = y / sb->factor;
+        sb->group_of[k] = 0;
+        for (i = 0; id != 0.0f && i < sb->group_count; ++i) {
+            const refl__sb_group *g = &sb->groups[i];
+            if (sb->sides[g->side].id == id && u >= g->u0 && u < g->u1 && v >= g->v0 && v < g->v1) {
+                sb->group_of[k] = (uint8_t)(i + 1);
+                break;
+            }
+        }
+    }
+    return REFL_OK;
+}
+
+/* Projection and emission jobs, run. */
+static refl_result refl__sb_project_all(refl__sb *sb) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int pairs = sb->group_count * scene->object_count, i, g, o, t, n = 0;
+    sb->verts = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_pv *));
+    if (!sb->verts) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < pairs; ++i) {
+        const refl_mesh *m = scene->meshes[scene->objects[i % scene->object_count].mesh];
+        sb->verts[i] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(m->vertex_count, 1), sizeof(refl__sb_pv));
+        if (!sb->verts[i]) return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
+    for (i = 0; i < pairs; ++i) {
+        int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
+        if (!sb->groups[i / scene->object_count].sbc) continue;
+        sb->p->frame->stats.projections += count;
+        for (v = 0; v < count; ++v) sb->p->frame->stats.projected += sb->verts[i][v].ok;
+    }
+    for (g = 0; g < sb->group_count; ++g)
+        for (o = 0; o < scene->object_count; ++o)
+            n += (scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK;
+    sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
+    if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
+    for (g = 0; g < sb->group_count; ++g) {
+        if (!sb->groups[g].sbc) continue;
+        for (o = 0; o < scene->object_count; ++o) {
+            int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
+            for (t = 0; t < tc; t += REFL__SB_CHUNK) {
+                refl__sb_job *j = &sb->jobs[sb->job_count++];
+                j->group = g;
+                j->object = o;
+                j->first = t;
+                j->count = REFL__MIN(REFL__SB_CHUNK, tc - t);
+            }
+        }
+    }
+    rast_run_jobs(sb->p->rc, sb->job_count, refl__sb_emit_job, sb);
+    for (i = 0; i < sb->job_count; ++i)
+        if (sb->jobs[i].failed) return REFL_ERROR_OUT_OF_MEMORY;
+    return REFL_OK;
+}
+
+static void refl__sb_free(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i;
+    for (i = 0; sb->groups && i < sb->group_count; ++i) refl_sbc_destroy(sb->groups[i].sbc);
+    for (i = 0; sb->sides && i < sb->side_count; ++i) {
+        refl__free(al, sb->sides[i].rays);
+        refl__free(al, sb->sides[i].valid);
+    }
+    refl__free(al, sb->sides);
+    for (i = 0; sb->verts && i < sb->group_count * sb->p->scene->object_count; ++i) refl__free(al, sb->verts[i]);
+    for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
+    refl_bvh_destroy(sb->bvh);
+    refl__free(al, sb->groups);
+    refl__free(al, sb->verts);
+    refl__free(al, sb->jobs);
+    refl__free(al, sb->em.gbuf);
+    refl__free(al, sb->em.draws);
+    refl__free(al, sb->em.surface);
+    refl__free(al, sb->group_of);
+    refl__free(al, sb->color);
+    refl__free(al, sb->depth);
+    refl__free(al, sb->points);
+}
+
+/* Everything up to the groups' trees (shared with the camera error). */
+static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
+    const refl_allocator *al = &p->scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height;
+    unsigned char *seen = NULL;
+    refl_vec3 lo, hi, grow;
+    refl_result r;
+    int any = 0, g;
+    memset(sb, 0, sizeof *sb);
+    sb->p = p;
+    sb->em.p = p;
+    sb->factor = p->desc.sbc_ray_factor > 0 ? p->desc.sbc_ray_factor : REFL__SB_FACTOR;
+    sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
+    sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
+    sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
+    refl_scene_bounds(p->scene, &lo, &hi);
+    grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.01f);
+    grow = refl_v3_add(grow, refl_v3(1e-4f, 1e-4f, 1e-4f));
+    sb->box_lo = refl_v3_sub(lo, grow);
+    sb->box_hi = refl_v3_add(hi, grow);
+    sb->diagonal = refl_v3_length(refl_v3_sub(sb->box_hi, sb->box_lo));
+    r = refl__em_gbuffer_new(&sb->em, &seen, &any);
+    refl__free(al, seen);
+    if (r != REFL_OK || !any) return r;
+    if ((r = refl_bvh_build(p->scene, al, &sb->bvh)) != REFL_OK) return r;
+    sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+    sb->group_of = (uint8_t *)refl__calloc(al, npx, 1);
+    if (!sb->em.surface || !sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
+    rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
+    if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
+    rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
+    for (g = 0; g < sb->group_count; ++g) {
+        refl_sbc_stats st;
+        if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
+        refl_sbc_get_stats(sb->groups[g].sbc, &st);
+        p->frame->stats.cameras += st.pinhole_leaves;
+        p->frame->stats.leaves += st.ray_leaves;
+        p->frame->stats.rays += st.rays;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    return REFL_OK;
+}
+
+static refl_result refl__method_sbc(refl__pass *p) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *fr = p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    double t0 = refl__now_ms(), t1;
+    refl__sb sb;
+    refl_result r = refl__sb_setup(&sb, p);
+    int i;
+    t1 = refl__now_ms();
+    fr->stats.ms_build += t1 - t0;
+    if (r == REFL_OK && sb.group_count) {
+        sb.color = (uint8_t *)refl__calloc(al, npx, 4);
+        sb.depth = (float *)refl__calloc(al, npx, sizeof(float));
+        sb.points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+        if (!sb.color || !sb.depth || !sb.points) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) r = refl__sb_project_all(&sb);
+        for (i = 0; i < sb.job_count; ++i) {
+            fr->stats.projections += sb.jobs[i].projections;
+            fr->stats.projected += sb.jobs[i].projected;
+        }
+        if (r == REFL_OK) r = refl__sb_draw(&sb);
+        t0 = refl__now_ms();
+        fr->stats.ms_reflect += t0 - t1;
+        if (r == REFL_OK) rast_run_jobs(p->rc, fr->height, refl__sb_resolve_row, &sb);
+        fr->stats.ms_composite += refl__now_ms() - t0;
+    }
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__sb_free(&sb);
     return r;
 }
 /* ---- src/reflect/render.c ---- */
@@ -9708,7 +10492,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
         p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
         !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
-        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px))
+        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
+        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -9718,7 +10503,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
             return REFL_ERROR_INVALID_ARGUMENT;
     if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
     if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
-        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC)
+        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC && p.desc.method != REFL_SBC)
         return REFL_ERROR_UNSUPPORTED;
     if (p.desc.depth == 0) p.desc.depth = 6;
     if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
@@ -9764,6 +10549,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
         if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
         if (r == REFL_OK && p.desc.method == REFL_C3RC) r = refl__method_c3rc(&p);
+        if (r == REFL_OK && p.desc.method == REFL_SBC) r = refl__method_sbc(&p);
     }
     rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;

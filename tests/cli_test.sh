@@ -55,6 +55,9 @@ ok "render c3rc --stats counts projections" bash -c \
     "'$bin' render --builtin default --method c3rc --density 40 --max-splat 3 --leaf-points 200 --size 64x48 --out '$tmp/c.png' --stats | grep -q '^projections  [1-9]'"
 refuses "bad --density" "density: not a positive" "$bin" render --builtin default --method c3rc --density -1
 refuses "bad --max-splat" "max-splat: expected" "$bin" render --builtin default --method c3rc --max-splat 0
+ok "render sbc --stats counts projections" bash -c \
+    "'$bin' render --builtin default --method sbc --error-px 2 --ray-factor 4 --size 64x48 --out '$tmp/s.png' --stats | grep -q '^projections  [1-9]'"
+refuses "bad --ray-factor" "ray-factor: expected" "$bin" render --builtin default --method sbc --ray-factor 0
 refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere
@@ -64,7 +67,7 @@ refuses "unknown option" "unknown option" "$bin" render --builtin default --frob
 refuses "no scene" "give one scene" "$bin" render
 refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
-refuses "method not built yet" "not available" "$bin" render --builtin default --method sbc --out "$tmp/z.png"
+refuses "method not built yet" "not available" "$bin" render --builtin default --method spoc --out "$tmp/z.png"
 
 # compare: PPMs written here, so every number is known. a is black; b has
 # two pixels 255 off in red and one 10 off in green: RMSE

@@ -4,6 +4,7 @@
 #ifndef REFL_TEST_UTIL_H
 #define REFL_TEST_UTIL_H
 
+#include <math.h>
 #include <string.h>
 #include "test_util.h"
 
@@ -44,6 +45,25 @@ static inline refl_allocator tu_refl_counting(tu_alloc_counter *c) {
     a.free = tu_count_free;
     a.user = c;
     return a;
+}
+
+/* Every colour byte opaque on reflectors; points NaN in all three or none,
+   and only on reflector pixels; non-reflector pixels DIRECT's bytes. */
+static inline void tu_assert_reflector_frame(const refl_frame *f, const refl_frame *direct) {
+    int i, n = f->width * f->height;
+    for (i = 0; i < n; ++i) {
+        const float *p = f->points + 3 * i;
+        int nan_count = (p[0] != p[0]) + (p[1] != p[1]) + (p[2] != p[2]);
+        cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
+        cr_assert_eq(f->stencil[i], direct->stencil[i]);
+        if (!f->stencil[i]) {
+            cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "pixel %d differs from DIRECT", i);
+            cr_assert_eq(nan_count, 3, "pixel %d off the reflectors has a point", i);
+        } else {
+            cr_assert(isfinite(p[0]) || nan_count == 3);
+            cr_assert_eq(f->color[4 * i + 3], 255);
+        }
+    }
 }
 
 #endif

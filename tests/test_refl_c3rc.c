@@ -44,25 +44,6 @@ static refl_scene *builtin(const char *name, int tess) {
     return s;
 }
 
-/* Every colour byte opaque on reflectors; points NaN in all three or none,
-   and only on reflector pixels; non-reflector pixels DIRECT's bytes. */
-static void assert_well_formed(const refl_frame *f, const refl_frame *direct) {
-    int i, n = f->width * f->height;
-    for (i = 0; i < n; ++i) {
-        const float *p = f->points + 3 * i;
-        int nan_count = (p[0] != p[0]) + (p[1] != p[1]) + (p[2] != p[2]);
-        cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
-        cr_assert_eq(f->stencil[i], direct->stencil[i]);
-        if (!f->stencil[i]) {
-            cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "pixel %d differs from DIRECT", i);
-            cr_assert_eq(nan_count, 3, "pixel %d off the reflectors has a point", i);
-        } else {
-            cr_assert(isfinite(p[0]) || nan_count == 3);
-            cr_assert_eq(f->color[4 * i + 3], 255);
-        }
-    }
-}
-
 typedef struct c3_result {
     refl_reflection_error err;
     refl_image_error img;
@@ -78,7 +59,7 @@ static c3_result measure(const refl_scene *s, const refl_view *v, float density)
     f = tu_refl_render(s, v, &d);
     truth = tu_refl_render(s, v, &t);
     direct = tu_refl_render(s, v, &dd);
-    assert_well_formed(f, direct);
+    tu_assert_reflector_frame(f, direct);
     cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &r.err), REFL_OK);
     cr_assert_eq(refl_measure_image_error(f, truth, 1, 0.0f, &r.img), REFL_OK);
     r.stats = f->stats;

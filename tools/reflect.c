@@ -35,7 +35,7 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar or c3rc\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
     "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --shadows          hard shadows from every light\n"
@@ -49,6 +49,8 @@ static const char *const usage_render =
     "  --max-splat N      C3RC: largest splat side in pixels, 1..64 (default 8)\n"
     "  --camera-split PX  C3RC: split a triangle's camera while its estimated error\n"
     "                     exceeds PX pixels (default 0.1; -1: one camera per triangle)\n"
+    "  --error-px E       SBC: largest camera error in pixels (default 1)\n"
+    "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -85,8 +87,8 @@ static const char *const usage_compare =
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
-    int leaf_points, max_splat;
-    float density, camera_split;
+    int leaf_points, max_splat, ray_factor;
+    float density, camera_split, error_px;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
@@ -180,6 +182,10 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 1 << 24, &o->leaf_points)) return fail("--leaf-points: expected 1..16777216, got %s", v);
         } else if (!strcmp(a, "--camera-split")) {
             if (!parse_float(v, -1.0f, 1e6f, &o->camera_split)) return fail("--camera-split: expected -1..1e6, got %s", v);
+        } else if (!strcmp(a, "--error-px")) {
+            if (!parse_float(v, 1e-3f, 1e6f, &o->error_px)) return fail("--error-px: expected 0.001..1e6, got %s", v);
+        } else if (!strcmp(a, "--ray-factor")) {
+            if (!parse_int(v, 1, 64, &o->ray_factor)) return fail("--ray-factor: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--max-splat")) {
             if (!parse_int(v, 1, 64, &o->max_splat)) return fail("--max-splat: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--stats")) {
@@ -325,6 +331,8 @@ static int cmd_render(const options *o) {
     d.kd_leaf_points = o->leaf_points;
     d.max_splat = o->max_splat;
     d.camera_split_px = o->camera_split;
+    d.sbc_error_px = o->error_px;
+    d.sbc_ray_factor = o->ray_factor;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -356,7 +364,10 @@ static int cmd_render(const options *o) {
         printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
                st->triangles, st->points, st->cameras, st->leaves, st->layers);
         printf("rays         %lld\nculled       %lld\n", st->rays, st->culled);
-        if (st->projections)
+        if (st->projections && d.method == REFL_SBC)
+            printf("projections  %lld (valid %lld, %.1f%%)\n", st->projections, st->projected,
+                   100.0 * (double)st->projected / (double)st->projections);
+        else if (st->projections)
             printf("projections  %lld (valid %lld, %.1f%%)\nbox tests    %lld (rejected %.1f%%)\n"
                    "  cull ms    %.2f (thread time)\n  project ms %.2f (thread time)\n",
                    st->projections, st->projected, 100.0 * (double)st->projected / (double)st->projections,

@@ -561,8 +561,9 @@ typedef struct refl_stats {
     long long culled;        /* PLANAR: mirror renderings skipped as not visible;
                                 C3RC: kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* C3RC: point projections attempted */
-    long long projected;     /* C3RC: valid projections found (a point may have several) */
+    long long projections;   /* C3RC: point projections attempted; SBC: vertex projections */
+    long long projected;     /* C3RC: valid projections found (a point may have several);
+                                SBC: vertices in some leaf's frustum */
     long long multiple;      /* C3RC: projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
     double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
@@ -623,6 +624,9 @@ typedef struct refl_render_desc {
     float camera_split_px;   /* C3RC: a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
+    float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
+                                map's samples (refl_sbc_desc.error_px); 0: 1 */
+    int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;

@@ -73,7 +73,7 @@ typedef struct refl__sbc_cam {
     double ocu, ocv;         /* (o - c) in the plane's basis */
     double rect[4];          /* frustum: umin, umax, vmin, vmax */
     double norm[4];          /* u, v centre and inverse half size: to [-1, 1] */
-    double coef[3][6];       /* f per coordinate over 1, u, v, u^2, uv, v^2 */
+    double coef[3][12];       /* f per coordinate over 1, u, v, u^2, uv, v^2, s, s u, s v */
 } refl__sbc_cam;
 
 /* A unit frustum of a ray list: rays (u, v), (u + 1, v), (u, v + 1),
@@ -227,19 +227,25 @@ static int refl__sbc_cam_uv(const refl__sbc_cam *k, const double *p, double *u, 
     return refl__sbc_finite(*u) && refl__sbc_finite(*v);
 }
 
-static void refl__sbc_basis(const refl__sbc_cam *k, double u, double v, double b[6]) {
+/* The projective depth of height h: 0 on the image plane, towards 1 at
+   infinity (diverging), negative before o (converging). Along any line,
+   a point's image moves linearly in it. */
+static double refl__sbc_cam_s(const refl__sbc_cam *k, double h) { return h / (h - k->ho); }
+
+static void refl__sbc_basis(const refl__sbc_cam *k, double u, double v, double s, double b[12]) {
     double x = (u - k->norm[0]) * k->norm[2], y = (v - k->norm[1]) * k->norm[3];
     b[0] = 1.0; b[1] = x; b[2] = y; b[3] = x * x; b[4] = x * y; b[5] = y * y;
+    b[6] = s; b[7] = s * x; b[8] = s * y; b[9] = s * b[3]; b[10] = s * b[4]; b[11] = s * b[5];
 }
 
-/* f(u, v), as returned */
-static refl_vec3 refl__sbc_cam_eval(const refl__sbc_cam *k, double u, double v) {
-    double b[6], f[3];
+/* f(u, v, s), as returned */
+static refl_vec3 refl__sbc_cam_eval(const refl__sbc_cam *k, double u, double v, double s) {
+    double b[12], f[3];
     int i, j;
-    refl__sbc_basis(k, u, v, b);
+    refl__sbc_basis(k, u, v, s, b);
     for (i = 0; i < 3; ++i) {
         f[i] = 0.0;
-        for (j = 0; j < 6; ++j) f[i] += k->coef[i][j] * b[j];
+        for (j = 0; j < 12; ++j) f[i] += k->coef[i][j] * b[j];
     }
     return refl_v3((float)f[0], (float)f[1], (float)f[2]);
 }
@@ -248,7 +254,7 @@ static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_v
     double u, v, h;
     if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return 0;
     if (!(u >= k->rect[0] && u <= k->rect[1] && v >= k->rect[2] && v <= k->rect[3])) return 0;
-    *first = refl__sbc_cam_eval(k, u, v);
+    *first = refl__sbc_cam_eval(k, u, v, refl__sbc_cam_s(k, h));
     *z = (float)REFL__MAX(h, 0.0);
     return 1;
 }
@@ -274,7 +280,7 @@ typedef struct refl__sbc_builder {
     unsigned *mark;          /* stamp of the set being split */
     double *smin, *smax;     /* per set ray: lowest and highest plane side of tail and head */
     uint8_t *side;           /* per set ray: 1 left, 2 right, 3 both */
-    double *uv;              /* fit scratch: 4 per ray of the set */
+    double *uv;              /* fit scratch: 6 per ray of the set */
     int *pool;
     size_t pool_cap;
     unsigned stamp;
@@ -320,59 +326,45 @@ static int refl__sbc_pixel(const refl__sbc_builder *b, const double *p, double *
     return refl__sbc_finite(*x) && refl__sbc_finite(*y);
 }
 
-/* The quadratic (or, when that is singular, affine, then constant) f over
-   the images uv (u, v of tail, then of head, per ray) of the set's rays, by
-   the normal equations: the lower orders' are the quadratic's leading
-   blocks. 0 when nothing fits. */
+/* f over the images (u, v, s: 3 per sample, tail then head per ray) of
+   the set's rays, by the normal equations: the quadratic in (u, v) plus
+   s times an affine one, or when that is singular its leading blocks (the
+   quadratic, the affine, the constant). 0 when nothing fits. */
 static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n, const double *uv,
                              refl__sbc_cam *k) {
-    static const int orders[3] = {6, 3, 1};
-    double qc[3] = {0.0, 0.0, 0.0}, G6[36], R6[18];
+    static const int orders[5] = {12, 9, 6, 3, 1};
+    double qc[3] = {0.0, 0.0, 0.0}, G9[144], R9[36];
     int o, i, j, l, e;
     for (i = 0; i < n; ++i) {
         refl_vec3 q = b->rays[list[i]].first;
         qc[0] += q.x; qc[1] += q.y; qc[2] += q.z;
     }
     for (j = 0; j < 3; ++j) qc[j] /= (double)n;
-    {
-        /* the moments of (x, y) up to degree 4 and of q up to degree 2 */
-        double m00 = 0, m10 = 0, m01 = 0, m20 = 0, m11 = 0, m02 = 0, m30 = 0, m21 = 0, m12 = 0, m03 = 0;
-        double m40 = 0, m31 = 0, m22 = 0, m13 = 0, m04 = 0, r[3][6];
-        memset(r, 0, sizeof r);
-        for (i = 0; i < n; ++i) {
-            refl_vec3 f = b->rays[list[i]].first;
-            double q[3];
-            /* centred: the coefficients carry only the variation */
-            q[0] = (double)f.x - qc[0];
-            q[1] = (double)f.y - qc[1];
-            q[2] = (double)f.z - qc[2];
-            for (e = 0; e < 2; ++e) {
-                double bs[6];
-                refl__sbc_basis(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1], bs);
-                m00 += 1.0; m10 += bs[1]; m01 += bs[2]; m20 += bs[3]; m11 += bs[4]; m02 += bs[5];
-                m30 += bs[3] * bs[1]; m21 += bs[3] * bs[2]; m12 += bs[5] * bs[1]; m03 += bs[5] * bs[2];
-                m40 += bs[3] * bs[3]; m31 += bs[3] * bs[4]; m22 += bs[3] * bs[5]; m13 += bs[4] * bs[5];
-                m04 += bs[5] * bs[5];
-                for (l = 0; l < 3; ++l)
-                    for (j = 0; j < 6; ++j) r[l][j] += bs[j] * q[l];
+    memset(G9, 0, sizeof G9);
+    memset(R9, 0, sizeof R9);
+    for (i = 0; i < n; ++i) {
+        refl_vec3 f = b->rays[list[i]].first;
+        double q[3];
+        /* centred: the coefficients carry only the variation */
+        q[0] = (double)f.x - qc[0];
+        q[1] = (double)f.y - qc[1];
+        q[2] = (double)f.z - qc[2];
+        for (e = 0; e < 2; ++e) {
+            const double *w = uv + 6 * i + 3 * e;
+            double bs[12];
+            refl__sbc_basis(k, w[0], w[1], w[2], bs);
+            for (j = 0; j < 12; ++j) {
+                for (l = 0; l <= j; ++l) G9[j * 12 + l] += bs[j] * bs[l];
+                for (l = 0; l < 3; ++l) R9[j * 3 + l] += bs[j] * q[l];
             }
         }
-        /* G6 = sum b b^T over the basis 1, x, y, x^2, xy, y^2 (lower triangle) */
-        G6[0] = m00;
-        G6[6] = m10; G6[7] = m20;
-        G6[12] = m01; G6[13] = m11; G6[14] = m02;
-        G6[18] = m20; G6[19] = m30; G6[20] = m21; G6[21] = m40;
-        G6[24] = m11; G6[25] = m21; G6[26] = m12; G6[27] = m31; G6[28] = m22;
-        G6[30] = m02; G6[31] = m12; G6[32] = m03; G6[33] = m22; G6[34] = m13; G6[35] = m04;
-        for (j = 0; j < 6; ++j)
-            for (l = 0; l < 3; ++l) R6[j * 3 + l] = r[l][j];
     }
-    for (o = 0; o < 3; ++o) {
+    for (o = 0; o < 5; ++o) {
         int nb = orders[o];
-        double G[36], R[18];
+        double G[144], R[36];
         for (j = 0; j < nb; ++j) {
-            for (l = 0; l <= j; ++l) G[j * nb + l] = G[l * nb + j] = G6[j * 6 + l];
-            for (l = 0; l < 3; ++l) R[j * 3 + l] = R6[j * 3 + l];
+            for (l = 0; l <= j; ++l) G[j * nb + l] = G[l * nb + j] = G9[j * 12 + l];
+            for (l = 0; l < 3; ++l) R[j * 3 + l] = R9[j * 3 + l];
         }
         if (refl__sbc_cholesky(G, nb, R, 3, 1e-11)) {
             memset(k->coef, 0, sizeof k->coef);
@@ -386,9 +378,6 @@ static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n,
     return 0;
 }
 
-
-/* The tails' centroid c and the sum of the unit directions m (not
-   normalised) over the rays of list. */
 static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int n, double c[3], double m[3]) {
     int i, j;
     c[0] = c[1] = c[2] = 0.0;
@@ -402,24 +391,17 @@ static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int 
     for (j = 0; j < 3; ++j) c[j] /= (double)n;
 }
 
-/* FitPinholeCamera, then Error: the largest desired-view pixel distance,
-   at the set's tails and heads, between the camera's first point and the
-   true one, through the very projection refl_sbc_project uses. Stops at
-   the first distance over `limit` and returns it; INFINITY when no camera
-   can be fitted at all. uv: scratch for 4 n doubles. */
-static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, double limit, double *uv,
-                            refl__sbc_cam *k) {
-    double A[9], rhs[3], C[3][3], val[3], vec[3][3], m[3], c[3], ext, hlo, tlo, thi, worst = 0.0;
-    int i, j, l, e;
-    if (n < 2) return INFINITY;
-    memset(k, 0, sizeof *k);
+/* The centre of projection o, the least-squares point nearest every ray
+   line: sum (I - d d^T) (o - c) = sum (I - d d^T) (t - c), relative to the
+   tails' centroid c for precision; C (may be NULL) gets the tails' scatter
+   about c. 0 when the rays are (nearly) parallel: no finite centre. */
+static int refl__sbc_centre(const refl__sbc_builder *b, const int *list, int n, const double c[3], double o[3],
+                            double C[3][3]) {
+    double A[9], rhs[3], S[3][3];
+    int i, j, l;
     memset(A, 0, sizeof A);
     memset(rhs, 0, sizeof rhs);
-    memset(C, 0, sizeof C);
-    refl__sbc_centroid(b, list, n, c, m);
-    if (!(refl__sbc_normalize(m) > 1e-6 * (double)n)) return INFINITY; /* the rays cancel: no mean direction */
-    /* o: sum (I - d d^T) (o - c) = sum (I - d d^T) (t - c), relative to the
-       centroid for precision; the tails' scatter alongside */
+    memset(S, 0, sizeof S);
     for (i = 0; i < n; ++i) {
         const refl_sbc_ray *r = &b->rays[list[i]];
         const float *d = b->dir + 3 * (size_t)list[i];
@@ -430,7 +412,7 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
         for (j = 0; j < 3; ++j) {
             for (l = 0; l <= j; ++l) {
                 A[j * 3 + l] -= dd[j] * dd[l];
-                C[j][l] += t[j] * t[l];
+                S[j][l] += t[j] * t[l];
             }
             rhs[j] += t[j] - dd[j] * td;
         }
@@ -439,12 +421,31 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
         A[j * 3 + j] += (double)n;
         for (l = 0; l < j; ++l) {
             A[l * 3 + j] = A[j * 3 + l];
-            C[l][j] = C[j][l];
+            S[l][j] = S[j][l];
         }
     }
+    if (C) memcpy(C, S, sizeof S);
+    if (!refl__sbc_cholesky(A, 3, rhs, 1, 1e-12)) return 0;
+    for (j = 0; j < 3; ++j) o[j] = c[j] + rhs[j];
+    return 1;
+}
+
+/* FitPinholeCamera, then Error: the largest desired-view pixel distance,
+   at the set's tails and heads, between the camera's first point and the
+   true one, through the very projection refl_sbc_project uses. Stops at
+   the first distance over `limit` and returns it; INFINITY when no camera
+   can be fitted at all. uv: scratch for 6 n doubles. */
+static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, double limit, double *uv,
+                            refl__sbc_cam *k) {
+    double C[3][3], val[3], vec[3][3], m[3], c[3], ext, hlo, tlo, thi, worst = 0.0;
+    int i, j, e;
+    if (n < 2) return INFINITY;
+    memset(k, 0, sizeof *k);
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 1e-6 * (double)n)) return INFINITY; /* the rays cancel: no mean direction */
     /* parallel rays: no finite centre (and no pinhole) */
-    if (!refl__sbc_cholesky(A, 3, rhs, 1, 1e-12)) return INFINITY;
-    for (j = 0; j < 3; ++j) { k->o[j] = c[j] + rhs[j]; k->c[j] = c[j]; }
+    if (!refl__sbc_centre(b, list, n, c, k->o, C)) return INFINITY;
+    memcpy(k->c, c, sizeof k->c);
     /* image plane: the tails' least-squares plane; where the tails are too
        thin to define one, the plane through their principal axis facing
        the rays as much as it can */
@@ -509,8 +510,9 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
             double p[3], u, v, h;
             refl__sbc_load(e ? r->head : r->tail, p);
             if (!refl__sbc_cam_uv(k, p, &u, &v, &h)) return INFINITY; /* a ray on the wrong side of o */
-            uv[4 * i + 2 * e] = u;
-            uv[4 * i + 2 * e + 1] = v;
+            uv[6 * i + 3 * e] = u;
+            uv[6 * i + 3 * e + 1] = v;
+            uv[6 * i + 3 * e + 2] = refl__sbc_cam_s(k, h);
             k->rect[0] = REFL__MIN(k->rect[0], u);
             k->rect[1] = REFL__MAX(k->rect[1], u);
             k->rect[2] = REFL__MIN(k->rect[2], v);
@@ -532,11 +534,15 @@ static double refl__sbc_fit(const refl__sbc_builder *b, const int *list, int n, 
     for (i = 0; i < n; ++i) {
         const double *tp = b->truth + 2 * (size_t)list[i];
         if (!refl__sbc_finite(tp[0])) return INFINITY; /* its first point is behind the eye */
-        for (e = 0; e < 2; ++e) {
-            /* refl_sbc_project's steps: the same (u, v), inside the
-               rectangle built from it, above hmin, then f */
-            double q[3], x, y, d;
-            refl__sbc_load(refl__sbc_cam_eval(k, uv[4 * i + 2 * e], uv[4 * i + 2 * e + 1]), q);
+        for (e = 0; e < 3; ++e) {
+            /* refl_sbc_project's steps: the same (u, v, s), inside the
+               rectangle built from it, above hmin, then f; beyond the
+               paper, also half-way along the ray (in s, along which the
+               image moves linearly), so the bound holds between the ends */
+            const double *t = uv + 6 * i, *h = t + 3;
+            double q[3], x, y, d, w[3];
+            for (j = 0; j < 3; ++j) w[j] = e == 0 ? t[j] : e == 1 ? h[j] : 0.5 * (t[j] + h[j]);
+            refl__sbc_load(refl__sbc_cam_eval(k, w[0], w[1], w[2]), q);
             if (!refl__sbc_pixel(b, q, &x, &y)) return INFINITY;
             d = sqrt((x - tp[0]) * (x - tp[0]) + (y - tp[1]) * (y - tp[1]));
             if (!(d <= limit)) return refl__sbc_finite(d) ? d : INFINITY;
@@ -561,39 +567,13 @@ static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__
     return refl__sbc_fit(b, list, n, b->error_px, b->uv, k) < b->error_px;
 }
 
-/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
-static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
-    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
-    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3];
-    int i, j, best = 0, W = b->W, H = b->H;
+/* The plane through c with normal sn, and each ray's side(s) in b->side:
+   by the extent of its unit frustum's tails and heads. */
+static void refl__sbc_assign(refl__sbc_builder *b, const int *list, int n, const double sn[3], const double c[3],
+                             double plane[4], int *nl, int *nr) {
+    int i, W = b->W, H = b->H;
     unsigned st;
-    refl__sbc_centroid(b, list, n, c, m);
-    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
-    /* the tails' scatter within the plane perpendicular to the mean direction */
-    for (j = 1; j < 3; ++j)
-        if (fabs(m[j]) < fabs(m[best])) best = j;
-    ax[best] = 1.0;
-    refl__sbc_cross(m, ax, a1);
-    refl__sbc_normalize(a1);
-    refl__sbc_cross(m, a1, a2);
-    for (i = 0; i < n; ++i) {
-        const refl_sbc_ray *r = &b->rays[list[i]];
-        double t[3], x, y;
-        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
-        x = refl__sbc_dot(t, a1);
-        y = refl__sbc_dot(t, a2);
-        cAA += x * x; cAB += x * y; cBB += y * y;
-    }
-    if (!(cAA + cBB > 0.0)) return 0;
-    /* the principal axis: the diameter's direction, orthogonal to m; the
-       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
-       correctly rounded, the same everywhere, unlike atan2 or cos) */
-    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
-    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
-    else { e1 = cAB; e2 = lam - cAA; }
-    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
-    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
-    for (j = 0; j < 3; ++j) plane[j] = sn[j];
+    memcpy(plane, sn, 3 * sizeof(double));
     plane[3] = -refl__sbc_dot(sn, c);
     /* each ray's own extent, then its unit frustum's */
     st = ++b->stamp;
@@ -625,10 +605,70 @@ static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double 
         *nl += b->side[idx] & 1;
         *nr += (b->side[idx] >> 1) & 1;
     }
+}
+
+/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
+static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
+    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
+    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3], sn2[3], plane2[4];
+    int i, j, best = 0, nl2, nr2;
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
+    /* Beyond the paper, whose plane is parallel to the mean direction: the
+       plane is parallel to the central ray, from the least-squares centre
+       of projection o through c. Rays spreading from about o then stay on
+       their side, where a plane off o is crossed by every ray whose tail
+       lies between the plane and o's side of it (the heads lie at the
+       scene's box, far beyond the tails: most of a set, at every level). */
+    {
+        double o[3], oc[3];
+        if (refl__sbc_centre(b, list, n, c, o, NULL)) {
+            for (j = 0; j < 3; ++j) oc[j] = c[j] - o[j];
+            if (refl__sbc_dot(oc, m) < 0.0)
+                for (j = 0; j < 3; ++j) oc[j] = -oc[j];
+            if (refl__sbc_normalize(oc) > 0.0 && refl__sbc_dot(oc, m) > 0.5) memcpy(m, oc, sizeof m);
+        }
+    }
+    /* the tails' scatter within the plane perpendicular to that direction */
+    for (j = 1; j < 3; ++j)
+        if (fabs(m[j]) < fabs(m[best])) best = j;
+    ax[best] = 1.0;
+    refl__sbc_cross(m, ax, a1);
+    refl__sbc_normalize(a1);
+    refl__sbc_cross(m, a1, a2);
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double t[3], x, y;
+        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
+        x = refl__sbc_dot(t, a1);
+        y = refl__sbc_dot(t, a2);
+        cAA += x * x; cAB += x * y; cBB += y * y;
+    }
+    if (!(cAA + cBB > 0.0)) return 0;
+    /* the principal axis: the diameter's direction, orthogonal to m; the
+       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
+       correctly rounded, the same everywhere, unlike atan2 or cos) */
+    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
+    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
+    else { e1 = cAB; e2 = lam - cAA; }
+    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
+    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
+    /* Beyond the paper: the plane across the other axis too, kept when
+       fewer rays cross it. Where the reflector curves the rays together
+       along the diameter (a saddle, a concave patch) they cross every
+       plane across it, the cut gains nothing and the set ends up as a ray
+       list; across the axis along which they spread, the cut is clean. */
+    refl__sbc_cross(m, sn, sn2);
+    refl__sbc_normalize(sn2);
+    refl__sbc_assign(b, list, n, sn2, c, plane2, &nl2, &nr2);
+    refl__sbc_assign(b, list, n, sn, c, plane, nl, nr);
+    if ((long long)nl2 + nr2 < (long long)*nl + *nr && 4 * ((long long)*nl + *nr) > 5 * (long long)n) {
+        refl__sbc_assign(b, list, n, sn2, c, plane, nl, nr);
+    }
     /* the paper fails only when a subset is the whole set; below a few
        unit frustums across, though, every cut keeps nearly all rays on both
-       sides and the cells multiply without end: fail when half the set
-       would go both ways */
+       sides and the cells would multiply without end: fail when half the
+       set would go both ways */
     return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
 }
 
@@ -923,7 +963,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
                 b.truth[2 * i] = b.truth[2 * i + 1] = NAN; /* behind the eye: no camera fits it */
         }
     }
-    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 4 * sizeof(double));
+    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 6 * sizeof(double));
     if (!b.uv || !refl__sbc_grow(b.a, (void **)&b.pool, &b.pool_cap, (size_t)nvalid * 4 + 16, sizeof(int))) {
         res = REFL_ERROR_OUT_OF_MEMORY;
         goto done;

@@ -185,4 +185,5 @@ static refl_result refl__shadow_base_pass(refl__pass *p);
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);   /* after m_envmap.c and metrics.c: it uses their statics */
+static refl_result refl__method_sbc(refl__pass *p);    /* after m_envmap.c: it uses its statics */
 static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */

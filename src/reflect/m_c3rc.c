@@ -61,7 +61,6 @@ typedef struct refl__c3_counts {
 typedef struct refl__c3 {
     refl__pass *p;
     refl__em em;                  /* the reflectors' G-buffer (ENVMAP's) */
-    float *surface;               /* per pixel: the reflector point seen there (world) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     refl_kdtree *tree;
     float *rgb, *normal;          /* per tree point */
@@ -178,7 +177,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
-            const float *r = c3->surface + 3 * j;
+            const float *r = c3->em.surface + 3 * j;
             refl_vec3 dq;
             if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
             dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
@@ -639,86 +638,21 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     return r;
 }
 
-/* Per reflector pixel: the world point of the surface seen (from the
-   window depth, along the pixel's ray). */
-static void refl__c3_surface_row(void *arg, int y) {
-    refl__c3 *c3 = (refl__c3 *)arg;
-    const refl__view_rays *r = &c3->p->rays;
-    const refl_frame *fr = c3->p->frame;
-    float n = r->znear, f = r->zfar;
-    int x;
-    for (x = 0; x < fr->width; ++x) {
-        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        float nx, ny, ndc, dist;
-        refl_vec3 d, q;
-        if (fabsf(c3->em.gbuf[4 * i + 3]) < 1.0f) continue;
-        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
-        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
-        ndc = 2.0f * fr->depth[i] - 1.0f;
-        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
-        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
-        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
-        c3->surface[3 * i] = q.x;
-        c3->surface[3 * i + 1] = q.y;
-        c3->surface[3 * i + 2] = q.z;
-    }
-}
-
 /* Composites one row: the winning point's colour (or the environment
    along the reflected ray) times the reflectance, as ENVMAP composites. */
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
-    const refl__pass *p = c3->p;
-    const refl_scene *scene = p->scene;
-    refl_frame *fr = p->frame;
-    int x, c;
+    const refl_frame *fr = c3->p->frame;
+    int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        const float *g = c3->em.gbuf + 4 * i;
-        const refl_material *m;
-        float rgb[3], sub[3], cos_i, w, tmax;
-        refl_vec3 o, d, n, shown = refl_v3(NAN, NAN, NAN);
-        uint8_t *px = fr->color + 4 * i;
-        int object = (int)fabsf(g[3]) - 1;
-        if (object < 0 || object >= scene->object_count) continue;
-        m = &scene->materials[scene->objects[object].material];
-        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
-        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
-        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
-        cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
-        w = refl_material_reflectance(m, cos_i);
         if (c3->key[i] != REFL__C3_EMPTY) {
-            uint32_t k = (uint32_t)(c3->key[i] & 0xffffffffu);
-            const float *q = c3->tree->positions + 3 * (size_t)k;
-            memcpy(sub, c3->rgb + 3 * (size_t)k, sizeof sub);
-            shown = refl_v3(q[0], q[1], q[2]);
+            size_t k = (size_t)(c3->key[i] & 0xffffffffu);
+            const float *q = c3->tree->positions + 3 * k;
+            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
         } else {
-            refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
-            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
-        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
-        if (m->type == REFL_GLASS) {
-            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
-            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
-            refl_vec3 t;
-            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
-                refl_environment_lookup(&scene->environment, t, tsub);
-                for (c = 0; c < 3; ++c)
-                    rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
-                if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
-            } else {
-                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
-            }
-        }
-        for (c = 0; c < 3; ++c) {
-            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-            px[c] = (uint8_t)(v * 255.0f + 0.5f);
-        }
-        px[3] = 255;
-        fr->points[3 * i] = shown.x;
-        fr->points[3 * i + 1] = shown.y;
-        fr->points[3 * i + 2] = shown.z;
     }
 }
 
@@ -743,7 +677,7 @@ static int refl__c3_back_seen(const refl__c3 *c3, const refl_object *o, const re
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
-            const float *r = c3->surface + 3 * j;
+            const float *r = c3->em.surface + 3 * j;
             refl_vec3 d;
             if (c3->em.gbuf[4 * j + 3] != -(float)(i + 1)) continue;
             d = refl_v3_sub(refl_v3(r[0], r[1], r[2]), v[0]);
@@ -873,14 +807,14 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     r = refl__em_gbuffer_new(&c3.em, &seen, &any);
     if (r == REFL_OK && any) {
-        c3.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        c3.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
-        if (!c3.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!c3.em.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
         c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
-        rast_run_jobs(p->rc, fr->height, refl__c3_surface_row, &c3);
+        rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
         r = refl__c3_points(&c3);
         t1 = refl__now_ms();
         fr->stats.ms_build += t1 - t0;
@@ -923,7 +857,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__free(al, c3.em.gbuf);
     refl__free(al, c3.em.draws);
     refl__free(al, seen);
-    refl__free(al, c3.surface);
+    refl__free(al, c3.em.surface);
     refl__free(al, c3.key);
     refl__free(al, c3.rgb);
     refl__free(al, c3.normal);

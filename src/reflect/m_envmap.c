@@ -176,6 +176,7 @@ typedef struct refl__em {
     float *face_pos;              /* n x n RGBA32F */
     refl__em_draw *draws;         /* one per object */
     float *gbuf;                  /* frame-sized RGBA32F: world normal, object + 1 */
+    float *surface;               /* C3RC, SBC: per reflector pixel, the world point seen there */
     int object;                   /* the reflector being looked up */
 } refl__em;
 
@@ -285,6 +286,20 @@ static void refl__em_lookup(const refl__em *em, refl_vec3 dir, float rgb[3], ref
     *point = refl_v3(pt[0], pt[1], pt[2]);
 }
 
+/* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
+static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown) {
+    uint8_t *px = fr->color + 4 * i;
+    int c;
+    for (c = 0; c < 3; ++c) {
+        float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
+        px[c] = (uint8_t)(v * 255.0f + 0.5f);
+    }
+    px[3] = 255;
+    fr->points[3 * i] = shown.x;
+    fr->points[3 * i + 1] = shown.y;
+    fr->points[3 * i + 2] = shown.z;
+}
+
 /* One frame row: every pixel of the current reflector gets its reflection
    (and refraction) added and its point. Pixels are independent, so rows
    may run on any thread in any order. */
@@ -300,7 +315,6 @@ static void refl__em_row(void *arg, int y) {
         const float *g = em->gbuf + 4 * i;
         float rgb[3], sub[3], cos_i, w, tmax;
         refl_vec3 o, d, n, shown;
-        uint8_t *px = fr->color + 4 * i;
         if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
@@ -326,15 +340,80 @@ static void refl__em_row(void *arg, int y) {
         } else {
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         }
-        for (c = 0; c < 3; ++c) {
-            float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-            px[c] = (uint8_t)(v * 255.0f + 0.5f);
-        }
-        px[3] = 255;
-        fr->points[3 * i] = shown.x;
-        fr->points[3 * i + 1] = shown.y;
-        fr->points[3 * i + 2] = shown.z;
+        refl__em_put(fr, i, rgb, shown);
     }
+}
+
+/* Per reflector pixel (G-buffer id nonzero): the world point of the
+   surface seen, from the window depth along the pixel's ray, into
+   em->surface. Rows are independent. */
+static void refl__em_surface_row(void *arg, int y) {
+    refl__em *em = (refl__em *)arg;
+    const refl__view_rays *r = &em->p->rays;
+    const refl_frame *fr = em->p->frame;
+    float n = r->znear, f = r->zfar;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        float nx, ny, ndc, dist;
+        refl_vec3 d, q;
+        if (fabsf(em->gbuf[4 * i + 3]) < 1.0f) continue;
+        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+        ndc = 2.0f * fr->depth[i] - 1.0f;
+        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        em->surface[3 * i] = q.x;
+        em->surface[3 * i + 1] = q.y;
+        em->surface[3 * i + 2] = q.z;
+    }
+}
+
+/* Adds reflector pixel i's mirror share to the frame, as ENVMAP
+   composites: `sub` (the colour reflected there, each channel in [0, 1];
+   NULL: the environment along the reflected ray) times the reflectance;
+   glass adds (1 - F) times the tinted environment along the ray refracted
+   once (wholly reflective past the critical angle). The pixel's point
+   becomes `shown` (NaN: none), or none where the refraction dominates. */
+static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
+                               refl_vec3 shown) {
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    int object = (int)fabsf(g[3]) - 1, c;
+    const refl_material *m;
+    float rgb[3], sub[3], cos_i, w, tmax;
+    refl_vec3 o, d, n;
+    if (object < 0 || object >= scene->object_count) return;
+    m = &scene->materials[scene->objects[object].material];
+    refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+    n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+    if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+    if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+    cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+    w = refl_material_reflectance(m, cos_i);
+    if (sub_in) {
+        memcpy(sub, sub_in, sizeof sub);
+    } else {
+        refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
+        for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+    if (m->type == REFL_GLASS) {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];
+        int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+        refl_vec3 t;
+        if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+            refl_environment_lookup(&scene->environment, t, tsub);
+            for (c = 0; c < 3; ++c)
+                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+            if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
+        } else {
+            for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+        }
+    }
+    refl__em_put(fr, i, rgb, shown);
 }
 
 /* The reflectors' world normals into em->gbuf where the base pass showed

@@ -237,7 +237,8 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
         p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
         !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
-        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px))
+        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
+        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -247,7 +248,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
             return REFL_ERROR_INVALID_ARGUMENT;
     if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
     if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
-        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC)
+        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC && p.desc.method != REFL_SBC)
         return REFL_ERROR_UNSUPPORTED;
     if (p.desc.depth == 0) p.desc.depth = 6;
     if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
@@ -293,6 +294,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
         if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
         if (r == REFL_OK && p.desc.method == REFL_C3RC) r = refl__method_c3rc(&p);
+        if (r == REFL_OK && p.desc.method == REFL_SBC) r = refl__method_sbc(&p);
     }
     rast_context_destroy(p.rc);
     if (r != REFL_OK) return r;

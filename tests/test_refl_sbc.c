@@ -1,0 +1,91 @@
+/* SBC, the sample-based camera method (paper 003): against the one-bounce
+   ray-traced reference with the reflection-error metric, at a small size
+   (the method is still slow: ray-list leaves dominate, see the module
+   comment of m_sbc.c). What is asserted: a well-formed frame (DIRECT's
+   bytes off the reflectors, points NaN in all three coordinates or none,
+   opaque reflector pixels), the same bytes for any thread count, and the
+   accuracy measured when the method landed as a regression bound (not the
+   issue's 1 px goal, which it does not reach yet); bad desc values. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <string.h>
+#include "../reflect.h"
+#include "test_util.h"
+#include "refl_test_util.h"
+
+static refl_render_desc sbc_desc(refl_method m, int threads) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = m;
+    d.threads = threads;
+    d.depth = 1;
+    return d;
+}
+
+static refl_scene *sbc_scene(const char *name, refl_view *v, int w, int h) {
+    refl_scene *s = NULL;
+    cr_assert_eq(refl_scene_builtin(name, NULL, &s), REFL_OK);
+    *v = s->camera;
+    v->width = w;
+    v->height = h;
+    return s;
+}
+
+/* Measured when SBC landed (128x96, ray map factor 2, 1 px camera bound):
+   default mean 1.96, p95 7.1 px, holes 17.7%; concave mean 0.59, p95
+   3.6 px, holes 6.7%: the ray-list leaves (most of them at this size) and
+   the mixed triangles at the reflections' edges. */
+static void sbc_accuracy(const char *name, double max_mean, double max_p95) {
+    refl_view v;
+    refl_scene *s = sbc_scene(name, &v, 128, 96);
+    refl_render_desc d = sbc_desc(REFL_SBC, 2), t = sbc_desc(REFL_RAYTRACE, 2), dd = sbc_desc(REFL_DIRECT, 2);
+    refl_frame *f = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &t), *direct = tu_refl_render(s, &v, &dd);
+    refl_reflection_error e;
+    tu_assert_reflector_frame(f, direct);
+    cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
+    cr_log_info("SBC %s 128x96: mean %.2f p95 %.2f max %.1f px, wrong %.3f, holes %.3f, %lld pinhole and %lld ray-list "
+                "leaves", name, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.cameras, f->stats.leaves);
+    cr_assert(e.pixels > 500, "%lld reflector pixels", e.pixels);
+    cr_assert(e.mean <= max_mean && e.p95 <= max_p95, "%s: mean %.2f p95 %.2f", name, e.mean, e.p95);
+    cr_assert(e.wrong < 0.1 && e.empty < 0.25, "%s: wrong %.3f holes %.3f", name, e.wrong, e.empty);
+    cr_assert(f->stats.cameras + f->stats.leaves > 0 && f->stats.rays > 0);
+    refl_frame_destroy(f);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(direct);
+    refl_scene_destroy(s);
+}
+
+Test(refl_sbc, default_scene_accuracy, .timeout = 120) { sbc_accuracy("default", 2.5, 8.0); }
+Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave", 2.5, 8.0); }
+
+Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
+    refl_view v;
+    refl_scene *s = sbc_scene("default", &v, 96, 72);
+    refl_render_desc a = sbc_desc(REFL_SBC, 1), b = sbc_desc(REFL_SBC, 3);
+    refl_frame *fa = tu_refl_render(s, &v, &a), *fb = tu_refl_render(s, &v, &b);
+    size_t n = (size_t)v.width * (size_t)v.height;
+    cr_assert_eq(memcmp(fa->color, fb->color, 4 * n), 0);
+    cr_assert_eq(memcmp(fa->points, fb->points, 3 * n * sizeof(float)), 0);
+    refl_frame_destroy(fa);
+    refl_frame_destroy(fb);
+    refl_scene_destroy(s);
+}
+
+Test(refl_sbc, bad_desc_values) {
+    refl_view v;
+    refl_scene *s = sbc_scene("default", &v, 32, 24);
+    refl_frame *f = NULL;
+    refl_render_desc d = sbc_desc(REFL_SBC, 1);
+    cr_assert_eq(refl_frame_create(32, 24, NULL, &f), REFL_OK);
+    d.sbc_error_px = -1.0f;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_error_px = NAN;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_error_px = 0.0f;
+    d.sbc_ray_factor = -2;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_ray_factor = 65;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
