@@ -56,6 +56,9 @@ ok "render c3rc --stats counts projections" bash -c \
 refuses "bad --density" "density: not a positive" "$bin" render --builtin default --method c3rc --density -1
 refuses "bad --max-splat" "max-splat: expected" "$bin" render --builtin default --method c3rc --max-splat 0
 refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
+ok "render planar with light volumes, caustics and translucency" "$bin" render --builtin mirror-room --method planar \
+    --shadows --light-volumes --caustics 4 --light-radius 0.3 --translucency 0.5 --size 48x36 --out "$tmp/lv.png"
+refuses "bad --caustics" "caustics: expected" "$bin" render --builtin default --light-volumes --caustics 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere
 refuses "unknown method" "unknown method" "$bin" render --builtin default --method magic
