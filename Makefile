@@ -61,6 +61,8 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_c3rc.c \
                  src/reflect/cam_sbc.c \
                  src/reflect/shadow.c \
+                 src/reflect/planar_faces.c \
+                 src/reflect/light_volume.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \

@@ -618,6 +618,27 @@ typedef struct refl_render_desc {
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not
                                 (paper 002's count, formula 5); stats.leaves counts the
                                 renderings at the deepest level, stats.cameras all */
+    int light_volumes;       /* PLANAR and RAYTRACE: 1: light reflected by planar mirror and
+                                partial faces lights diffuse surfaces (paper 002's light
+                                volumes): each light (of the first 8) mirrored in each face's
+                                plane is a virtual light that reaches a point on the light's
+                                side when the path through the face meets the face, weighed
+                                by the face's reflectance at that incidence; with shadows,
+                                blocked on either leg (PLANAR: objects crossing the face's
+                                plane block only the outgoing leg). At most 64 lights in all
+                                (the scene's first); glass bends no light here. 0: off */
+    int caustic_samples;     /* with light_volumes: 0 or 1: each reflected light from its
+                                centre; N (at most 1024): every light with a radius sampled
+                                at N positions (refl_light_sample), the reflected light weighed
+                                by the fraction whose paths arrive: soft-edged light volumes
+                                and caustics (paper 002's accumulated jittered lights) */
+    float translucency;      /* PLANAR and RAYTRACE: > 0: glass is translucent (paper 002's
+                                fog): what is seen through a glass face from outside is
+                                blended towards the glass's colour by exp(-translucency h),
+                                h the distance of the point seen from the face's plane (the
+                                environment: wholly the colour). PLANAR draws it with rast.h's
+                                exponential fog; mirrors seen through glass are not fogged
+                                there. 0: clear glass */
     float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
                                 view: one per 2 x 2 pixels at the reflectors' distance, at
                                 most 2 million in all) */
@@ -7190,6 +7211,538 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     refl__free(&scene->allocator, counts);
     return r;
 }
+/* ---- src/reflect/planar_faces.c ---- */
+/* Planar reflector faces, shared by PLANAR (paper 002's mirrors and
+   refractors) and by the light volumes of both PLANAR and RAYTRACE: each
+   mirror, partial reflector or glass object's triangles grouped by world
+   plane. An object whose triangles fall into more than
+   REFL__PLANAR_MAX_FACES planes is not planar (a teapot): it has no faces. */
+
+enum { REFL__PLANAR_MAX_FACES = 16 };
+
+typedef struct refl__planar_face {
+    int object;
+    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    int glass;                    /* a refractor's face */
+    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
+    double thickness;             /* glass: the distance to that face */
+    uint32_t *indices;            /* the face's triangles, into the object's mesh */
+    int index_count;
+} refl__planar_face;
+
+static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
+    int i;
+    for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);
+    refl__free(&s->allocator, faces);
+}
+
+/* Unit world plane of triangle t of object o (n . x = d); 0 when degenerate. */
+static int refl__planar_tri_plane(const refl_object *o, const refl_mesh *mesh, int t, double n[3], double *d) {
+    refl_vec3 v[3];
+    double e1[3], e2[3], len;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
+        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
+    }
+    e1[0] = (double)v[1].x - v[0].x; e1[1] = (double)v[1].y - v[0].y; e1[2] = (double)v[1].z - v[0].z;
+    e2[0] = (double)v[2].x - v[0].x; e2[1] = (double)v[2].y - v[0].y; e2[2] = (double)v[2].z - v[0].z;
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || len > DBL_MAX) return 0;
+    for (k = 0; k < 3; ++k) n[k] /= len;
+    *d = n[0] * v[0].x + n[1] * v[0].y + n[2] * v[0].z;
+    return *d == *d;
+}
+
+/* The face among faces[first, count) in the plane (n, d), or count. */
+static int refl__planar_match(const refl__planar_face *faces, int first, int count, const double n[3], double d,
+                              double tol_d) {
+    int f;
+    for (f = first; f < count; ++f)
+        if (faces[f].n[0] * n[0] + faces[f].n[1] * n[1] + faces[f].n[2] * n[2] > 1.0 - 1e-6 &&
+            fabs(faces[f].d - d) <= tol_d)
+            return f;
+    return count;
+}
+
+/* Groups each mirror or partial reflector's triangles by world plane
+   (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
+   Degenerate triangles join no face (they draw nothing anyway). */
+static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
+    refl__planar_face *faces;
+    int i, count = 0, cap = 0;
+    refl_vec3 lo, hi;
+    double tol_d;
+    refl_scene_bounds(s, &lo, &hi);
+    tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_material *m = &s->materials[s->objects[i].material];
+        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
+    }
+    faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
+    if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_object *o = &s->objects[i];
+        const refl_mesh *mesh = s->meshes[o->mesh];
+        const refl_material *m = &s->materials[o->material];
+        int first = count, t, f, k, planar = 1;
+        double n[3], d;
+        if (m->type == REFL_DIFFUSE) continue;
+        /* the planes and how many indices each gets */
+        for (t = 0; t < mesh->triangle_count && planar; ++t) {
+            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
+            f = refl__planar_match(faces, first, count, n, d, tol_d);
+            if (f == count) {
+                if (count - first == REFL__PLANAR_MAX_FACES) { planar = 0; break; }
+                faces[f].object = i;
+                for (k = 0; k < 3; ++k) faces[f].n[k] = n[k];
+                faces[f].d = d;
+                faces[f].glass = m->type == REFL_GLASS;
+                faces[f].opposite = -1;
+                ++count;
+            }
+            faces[f].index_count += 3;
+        }
+        if (!planar) { /* curved: left as DIRECT draws it */
+            memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
+            count = first;
+            continue;
+        }
+        for (f = first; f < count; ++f) {
+            faces[f].indices = (uint32_t *)refl__calloc(&s->allocator, (size_t)faces[f].index_count, sizeof(uint32_t));
+            if (!faces[f].indices) {
+                refl__planar_free_faces(s, faces, count);
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+            faces[f].index_count = 0;
+        }
+        for (t = 0; t < mesh->triangle_count; ++t) {
+            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
+            f = refl__planar_match(faces, first, count, n, d, tol_d);
+            for (k = 0; k < 3; ++k) faces[f].indices[faces[f].index_count++] = mesh->indices[3 * t + k];
+        }
+        /* a glass face with a parallel face opposite is one side of a slab */
+        for (f = first; f < count; ++f) {
+            int g;
+            for (g = first; g < count && faces[f].glass; ++g)
+                if (faces[f].n[0] * faces[g].n[0] + faces[f].n[1] * faces[g].n[1] + faces[f].n[2] * faces[g].n[2] <
+                        -1.0 + 1e-6 && faces[f].d + faces[g].d > tol_d) {
+                    faces[f].opposite = g;
+                    faces[f].thickness = faces[f].d + faces[g].d;
+                }
+        }
+    }
+    *out = faces;
+    *out_count = count;
+    return REFL_OK;
+}
+
+/* Reflection about the plane n . x = d: x - 2 (n . x - d) n. */
+static refl_mat4 refl__planar_reflection(const double n[3], double d) {
+    refl_mat4 r = refl_mat4_identity();
+    int i, j;
+    for (j = 0; j < 3; ++j) {
+        for (i = 0; i < 3; ++i) r.m[j * 4 + i] = (float)((i == j) - 2.0 * n[i] * n[j]);
+        r.m[12 + j] = (float)(2.0 * d * n[j]);
+    }
+    return r;
+}
+/* ---- src/reflect/light_volume.c ---- */
+/* Light volumes and caustics (paper 002): light a planar mirror reflects
+   onto diffuse surfaces (refl_render_desc.light_volumes).
+
+   THE VIRTUAL LIGHTS
+       A light on one side of a mirror face's plane (planar_faces.c),
+       mirrored in that plane, is a virtual light behind the mirror. It
+       lights a point P on the light's side exactly when the segment from
+       P to it crosses the face (the face's light volume: the frustum from
+       the virtual light through the face) and, with shadows, nothing
+       blocks the path P -> M (M where the segment meets the face) nor
+       M -> light. Its Lambert term at P is towards the virtual light,
+       weighed by the face's reflectance at the incidence of that path
+       (refl_material_reflectance: mirror_weight, Fresnel) and by the
+       fraction of the light's samples whose paths arrive: caustic_samples
+       jittered lights (refl_light_sample, each mirrored), summed as paper
+       002 sums its accumulated images. Shading adds the virtual lights
+       after the scene's own (refl_shade_diffuse_weighted), so RAYTRACE,
+       which traces the same paths, and PLANAR compare pixel for pixel.
+       Only mirror and partial faces reflect light here: the light glass
+       bends (refracted caustics) is left out, as no exact virtual light
+       exists for it. A face does not light its own object.
+
+   PLANAR: THE PAPER'S TWO PASSES
+       Per virtual light sample, two stencil shadow-volume masks
+       (shadow.c) from the virtual light: the face alone as the occluder
+       (a pixel "in its shadow" is inside the light volume: the face's
+       light stencil), and, with shadows, the blockers: the objects not
+       wholly behind the face's plane (they block P -> M) and the mirror
+       images of those wholly in front of it (they block light -> M,
+       mirrored). The paper's dot-product check decides sides per
+       object's bounds; an object crossing the plane (other than the
+       mirror) does not shadow the light on its way in. The face's own
+       object blocks neither way. A pixel counts the samples whose volume
+       holds it and whose blockers miss it; the region's diffuse objects
+       are then shaded again where any virtual light arrives. */
+
+/* Lights the shading sums at most (the soft shadows' limit). */
+enum { REFL__LV_MAX_LIGHTS = 64 };
+
+typedef struct refl__vlight {
+    int source;                   /* the scene light */
+    int face;                     /* index into the faces */
+    double side;                  /* +1, -1: the side of the face's plane the light is on */
+} refl__vlight;
+
+typedef struct refl__lv {
+    const refl__planar_face *faces; /* not owned */
+    refl__vlight v[REFL__LV_MAX_LIGHTS];
+    int count;
+    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
+    refl_light lights[REFL__LV_MAX_LIGHTS];
+    int samples;                  /* per light with a radius; 1: the centres */
+} refl__lv;
+
+/* A light mirrored in the plane n . x = d. */
+static refl_light refl__lv_mirror(const refl_light *l, const double n[3], double d) {
+    refl_mat4 r = refl__planar_reflection(n, d);
+    refl_light m = *l;
+    m.position = refl_mat4_point(r, l->position);
+    m.direction = refl_mat4_dir(r, l->direction);
+    return m;
+}
+
+/* Which side of the face's plane the light is on (0: on it, or unusable). */
+static double refl__lv_side(const refl__planar_face *f, const refl_light *l) {
+    double s;
+    if (l->type == REFL_LIGHT_DIRECTIONAL)
+        s = -(f->n[0] * l->direction.x + f->n[1] * l->direction.y + f->n[2] * l->direction.z);
+    else
+        s = f->n[0] * l->position.x + f->n[1] * l->position.y + f->n[2] * l->position.z - f->d;
+    return s > 0.0 ? 1.0 : s < 0.0 ? -1.0 : 0.0;
+}
+
+/* The virtual lights of every light (the first REFL__SHADOW_MAX_LIGHTS,
+   which shadows can mask) in every mirror or partial face, as many as fit
+   beside the scene's lights; lv->shade sums them after the scene's. */
+static void refl__lv_init(refl__lv *lv, const refl_scene *s, const refl__planar_face *faces, int face_count,
+                          int samples) {
+    int i, f;
+    memset(lv, 0, sizeof *lv);
+    lv->faces = faces;
+    lv->samples = REFL__MAX(samples, 1);
+    if (s->light_count >= REFL__LV_MAX_LIGHTS) return;
+    for (i = 0; i < s->light_count; ++i) lv->lights[i] = s->lights[i];
+    for (i = 0; i < REFL__MIN(s->light_count, REFL__SHADOW_MAX_LIGHTS); ++i)
+        for (f = 0; f < face_count && s->light_count + lv->count < REFL__LV_MAX_LIGHTS; ++f) {
+            double side = refl__lv_side(&faces[f], &s->lights[i]);
+            if (faces[f].glass || side == 0.0) continue;
+            lv->v[lv->count].source = i;
+            lv->v[lv->count].face = f;
+            lv->v[lv->count].side = side;
+            lv->lights[s->light_count + lv->count] = refl__lv_mirror(&s->lights[i], faces[f].n, faces[f].d);
+            ++lv->count;
+        }
+    lv->shade = *s;
+    lv->shade.lights = lv->lights;
+    lv->shade.light_count = s->light_count + lv->count;
+}
+
+/* Samples of virtual light k: 1 for lights without a radius. */
+static int refl__lv_samples(const refl__lv *lv, const refl_scene *s, int k) {
+    return s->lights[lv->v[k].source].radius > 0.0f ? lv->samples : 1;
+}
+
+/* Sample j of virtual light k's source (*src) and its mirror image (*virt);
+   0 when the sample is not on the light's side of the face. */
+static int refl__lv_sample(const refl__lv *lv, const refl_scene *s, int k, int j, refl_light *src, refl_light *virt) {
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    *src = refl_light_sample(&s->lights[lv->v[k].source], j, refl__lv_samples(lv, s, k));
+    *virt = refl__lv_mirror(src, f->n, f->d);
+    return refl__lv_side(f, src) == lv->v[k].side;
+}
+
+/* The reflectance weighing virtual light k at point p of object `object`:
+   the face's at the incidence of the path from the virtual light's centre;
+   0 when p is not on the light's side or on the face's own object. */
+static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k, int object, refl_vec3 p) {
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    const refl_light *vl = &lv->lights[s->light_count + k];
+    refl_vec3 d, n = refl_v3((float)f->n[0], (float)f->n[1], (float)f->n[2]);
+    if (object == f->object || lv->v[k].side * (f->n[0] * p.x + f->n[1] * p.y + f->n[2] * p.z - f->d) <= 0.0)
+        return 0.0f;
+    d = vl->type == REFL_LIGHT_DIRECTIONAL ? vl->direction : refl_v3_sub(p, vl->position);
+    return refl_material_reflectance(&s->materials[s->objects[f->object].material],
+                                     fabsf(refl_v3_dot(refl_v3_normalize(d), n)));
+}
+
+/* Where the segment from p towards the virtual light virt (to infinity
+   for a directional one) meets face k's plane, *m, when that point lies
+   on the face's triangles (barycentrics within a hair, so a shared edge
+   lets light through); 0 otherwise. RAYTRACE's light volume test. */
+static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
+                                 refl_vec3 *m) {
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    const refl_object *o = &s->objects[f->object];
+    const refl_mesh *mesh = s->meshes[o->mesh];
+    double to[3], pn, dn, t, q[3];
+    int i, c;
+    if (virt->type == REFL_LIGHT_DIRECTIONAL) {
+        to[0] = -virt->direction.x; to[1] = -virt->direction.y; to[2] = -virt->direction.z;
+    } else {
+        to[0] = (double)virt->position.x - p.x; to[1] = (double)virt->position.y - p.y;
+        to[2] = (double)virt->position.z - p.z;
+    }
+    pn = f->n[0] * p.x + f->n[1] * p.y + f->n[2] * p.z - f->d;
+    dn = f->n[0] * to[0] + f->n[1] * to[1] + f->n[2] * to[2];
+    if (dn == 0.0) return 0;
+    t = -pn / dn;
+    if (!(t > 0.0) || (virt->type != REFL_LIGHT_DIRECTIONAL && !(t < 1.0))) return 0;
+    q[0] = p.x + t * to[0]; q[1] = p.y + t * to[1]; q[2] = p.z + t * to[2];
+    for (i = 0; i + 2 < f->index_count; i += 3) {
+        double v[3][3], e[3], area = 0.0, b[3];
+        int inside = 1;
+        for (c = 0; c < 3; ++c) {
+            const float *pp = mesh->positions + 3 * (size_t)f->indices[i + c];
+            refl_vec3 w = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
+            v[c][0] = w.x; v[c][1] = w.y; v[c][2] = w.z;
+        }
+        /* signed areas along the face's normal of q with each edge */
+        for (c = 0; c < 3; ++c) {
+            const double *a = v[(c + 1) % 3], *bb = v[(c + 2) % 3];
+            double x[3], y[3];
+            int j;
+            for (j = 0; j < 3; ++j) { x[j] = a[j] - q[j]; y[j] = bb[j] - q[j]; }
+            e[0] = x[1] * y[2] - x[2] * y[1]; e[1] = x[2] * y[0] - x[0] * y[2]; e[2] = x[0] * y[1] - x[1] * y[0];
+            b[c] = e[0] * f->n[0] + e[1] * f->n[1] + e[2] * f->n[2];
+            area += b[c];
+        }
+        if (area == 0.0) continue;
+        for (c = 0; c < 3; ++c) inside &= b[c] / area >= -1e-9;
+        if (inside) {
+            *m = refl_v3((float)q[0], (float)q[1], (float)q[2]);
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* ---- PLANAR: masks and shading ------------------------------------------------------ */
+
+typedef struct refl__lv_shade {
+    refl__draw_ctx dc;            /* first: the base pass's vertex program reads it */
+    int object;
+    const refl__lv *lv;
+    const refl_scene *scene;
+    const uint8_t *lit;           /* hard shadows: the scene lights' bits; NULL: see counts */
+    const uint16_t *counts;       /* soft shadows: per light the samples that arrive; both NULL: all lit */
+    const int *samples;           /* per scene light (soft) */
+    const uint16_t *vcounts;      /* per virtual light, the samples that arrive */
+    int width, height;
+} refl__lv_shade;
+
+/* The shared model with the scene's lights as shadows left them and the
+   virtual lights that reach the pixel; keeps the pixel when none does. */
+static int refl__lv_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__lv_shade *d = (const refl__lv_shade *)user;
+    const refl__lv *lv = d->lv;
+    const refl_scene *s = d->scene;
+    const float *v = in->varyings;
+    refl_vec3 p = refl_v3(v[0], v[1], v[2]);
+    float weight[REFL__LV_MAX_LIGHTS], rgb[3];
+    size_t i, npx = (size_t)d->width * (size_t)d->height;
+    int k, any = 0;
+    if (in->x < 0 || in->y < 0 || in->x >= d->width || in->y >= d->height) return 0;
+    i = (size_t)in->y * (size_t)d->width + (size_t)in->x;
+    for (k = 0; k < s->light_count; ++k) {
+        weight[k] = 1.0f;
+        if (k >= REFL__SHADOW_MAX_LIGHTS) continue;
+        if (d->counts) {
+            int c = d->counts[(size_t)k * npx + i];
+            if (c < d->samples[k]) weight[k] = (float)c / (float)d->samples[k];
+        } else if (d->lit && !((d->lit[i] >> k) & 1)) {
+            weight[k] = 0.0f;
+        }
+    }
+    for (k = 0; k < lv->count; ++k) {
+        int c = d->vcounts[(size_t)k * npx + i], ns = refl__lv_samples(lv, s, k);
+        float r = c ? refl__lv_reflectance(lv, s, k, d->object, p) : 0.0f;
+        weight[s->light_count + k] = c < ns ? r * (float)c / (float)ns : r;
+        any |= weight[s->light_count + k] > 0.0f;
+    }
+    if (!any) return 0; /* what the scene's own lights gave it */
+    refl_shade_diffuse_weighted(&lv->shade, d->dc.material, p, refl_v3(v[3], v[4], v[5]), v + 6, weight, rgb);
+    refl__surface_rgba(d->dc.material, rgb, rgba);
+    return 1;
+}
+
+/* Counts into plane, for the selected pixels, the samples of virtual
+   light k that reach them: per sample, the face's light volume from the
+   virtual light and (shadows) its blockers, as masks from shadow.c. */
+static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, const refl__lv *lv, int k, int shadows,
+                                  refl_mat4 vp, refl_vec3 eye, const float *depth, int width, int height,
+                                  const uint8_t *region, uint8_t region_value, uint8_t *in_volume, uint8_t *unblocked,
+                                  uint16_t *plane, const rast_targets *restore, refl_stats *st) {
+    const refl_allocator *al = &scene->allocator;
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    refl_mat4 mirror = refl__planar_reflection(f->n, f->d);
+    refl_mesh face_mesh;
+    refl_mesh **meshes;
+    refl_object *objs, face_obj;
+    refl_scene sc;
+    refl_light src, virt;
+    refl_result r = REFL_OK;
+    size_t i, npx = (size_t)width * (size_t)height;
+    int ob, nb = 0, j, ns = refl__lv_samples(lv, scene, k);
+    meshes = (refl_mesh **)refl__alloc(al, (size_t)(scene->mesh_count + 1) * sizeof(*meshes));
+    objs = (refl_object *)refl__alloc(al, 2 * (size_t)REFL__MAX(scene->object_count, 1) * sizeof(*objs));
+    if (!meshes || !objs) {
+        refl__free(al, meshes);
+        refl__free(al, objs);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    /* the face alone, as a mesh of its triangles */
+    for (ob = 0; ob < scene->mesh_count; ++ob) meshes[ob] = scene->meshes[ob];
+    face_obj = scene->objects[f->object];
+    face_mesh = *scene->meshes[face_obj.mesh];
+    face_mesh.indices = f->indices;
+    face_mesh.triangle_count = f->index_count / 3;
+    meshes[scene->mesh_count] = &face_mesh;
+    face_obj.mesh = scene->mesh_count;
+    /* the blockers: the objects not wholly behind the plane, and the mirror
+       images of those wholly in front of it */
+    for (ob = 0; ob < scene->object_count && shadows; ++ob) {
+        refl_vec3 lo, hi;
+        double dmin = DBL_MAX, dmax = -DBL_MAX;
+        int c;
+        if (ob == f->object) continue;
+        refl_mesh_bounds(scene->meshes[scene->objects[ob].mesh], &lo, &hi);
+        for (c = 0; c < 8; ++c) {
+            refl_vec3 q = refl_mat4_point(scene->objects[ob].transform,
+                                          refl_v3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z));
+            double s = lv->v[k].side * (f->n[0] * q.x + f->n[1] * q.y + f->n[2] * q.z - f->d);
+            dmin = REFL__MIN(dmin, s);
+            dmax = REFL__MAX(dmax, s);
+        }
+        if (dmax > 0.0) objs[nb++] = scene->objects[ob];
+        if (dmin > 0.0) {
+            objs[nb] = scene->objects[ob];
+            objs[nb++].transform = refl_mat4_mul(mirror, scene->objects[ob].transform);
+        }
+    }
+    for (i = 0; i < npx; ++i)
+        if (!region || region[i] == region_value) plane[i] = 0;
+    sc = *scene;
+    sc.meshes = meshes;
+    sc.mesh_count = scene->mesh_count + 1;
+    sc.lights = &virt;
+    sc.light_count = 1;
+    for (j = 0; j < ns && r == REFL_OK; ++j) {
+        if (!refl__lv_sample(lv, scene, k, j, &src, &virt)) continue;
+        sc.objects = &face_obj;
+        sc.object_count = 1;
+        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, in_volume, restore, st);
+        if (r == REFL_OK && shadows && nb > 0) {
+            sc.objects = objs;
+            sc.object_count = nb;
+            r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, unblocked, restore, st);
+        }
+        if (r != REFL_OK) break;
+        for (i = 0; i < npx; ++i)
+            if ((!region || region[i] == region_value) && depth[i] < 1.0f && !(in_volume[i] & 1) &&
+                (!shadows || nb == 0 || (unblocked[i] & 1)))
+                ++plane[i];
+    }
+    refl__free(al, meshes);
+    refl__free(al, objs);
+    return r;
+}
+
+/* The virtual lights on the selected pixels of a view (vp, eye; depth as
+   drawn, the bound stencil being `region` when it is given): every diffuse
+   or partial object but `skip` shaded again, where the bound stencil
+   equals region_value (region NULL: everywhere), on the pixels a virtual
+   light reaches, with the scene's own lights shadowed as desc asks. Leaves
+   `restore` bound; finishes. */
+static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, const refl__lv *lv,
+                                 const refl_render_desc *desc, refl_mat4 vp, refl_vec3 eye, const float *depth,
+                                 int width, int height, const uint8_t *region, uint8_t region_value, int skip,
+                                 const rast_targets *restore, refl_stats *st) {
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)width * (size_t)height;
+    uint8_t *lit = NULL, *scratch = NULL;
+    uint16_t *counts = NULL, *vcounts = NULL;
+    refl__lv_shade *dc = NULL;
+    int soft = refl__soft_shadows(desc, scene), ns[REFL__SHADOW_MAX_LIGHTS], i, k, queued = 0;
+    rast_result rr = RAST_OK;
+    refl_result r = REFL_OK;
+    if (lv->count == 0) return REFL_OK;
+    lit = (uint8_t *)refl__alloc(al, npx);
+    scratch = (uint8_t *)refl__alloc(al, 2 * npx);
+    vcounts = (uint16_t *)refl__calloc(al, npx * (size_t)lv->count, sizeof(uint16_t));
+    if (soft) counts = (uint16_t *)refl__calloc(al, npx * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
+    dc = (refl__lv_shade *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(*dc));
+    if (!lit || !scratch || !vcounts || (soft && !counts) || !dc) { r = REFL_ERROR_OUT_OF_MEMORY; goto done; }
+    /* the scene's own lights, as the shadow pass saw them */
+    for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
+        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->soft_shadow_samples, 1) : 1;
+    if (soft)
+        r = refl__shadow_mask_soft(rc, scene, vp, eye, depth, width, height, region, region_value,
+                                   desc->soft_shadow_samples, counts, lit, restore, st);
+    else if (desc->shadows)
+        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+    for (k = 0; k < lv->count && r == REFL_OK; ++k)
+        r = refl__lv_count(rc, scene, lv, k, desc->shadows, vp, eye, depth, width, height, region, region_value,
+                           scratch, scratch + npx, vcounts + (size_t)k * npx, restore, st);
+    if (r != REFL_OK) goto done;
+    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
+        const refl_material *mat = &scene->materials[scene->objects[i].material];
+        rast_state s;
+        if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
+        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
+        dc[i].object = i;
+        dc[i].lv = lv;
+        dc[i].scene = scene;
+        dc[i].lit = desc->shadows && !soft ? lit : NULL;
+        dc[i].counts = soft ? counts : NULL;
+        dc[i].samples = ns;
+        dc[i].vcounts = vcounts;
+        dc[i].width = width;
+        dc[i].height = height;
+        memset(&s, 0, sizeof s);
+        s.depth_test = 1;
+        s.depth_func = RAST_EQUAL;
+        s.depth_write_disabled = 1;
+        if (region) {
+            s.stencil_test = 1;
+            s.stencil_front.func = RAST_EQUAL;
+            s.stencil_front.ref = region_value;
+            s.stencil_back = s.stencil_front;
+        }
+        s.vertex_fn = refl__base_vertex;
+        s.vertex_user = &dc[i].dc;
+        s.fragment_fn = refl__lv_fragment;
+        s.fragment_user = &dc[i];
+        queued = 1;
+        if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
+        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
+    }
+    /* nothing queued may outlive the arrays it reads */
+    if (queued) {
+        rast_result rf = rast_finish(rc);
+        if (rr == RAST_OK) rr = rf;
+    }
+    r = refl__result_from_rast(rr);
+done:
+    refl__free(al, lit);
+    refl__free(al, scratch);
+    refl__free(al, vcounts);
+    refl__free(al, counts);
+    refl__free(al, dc);
+    return r;
+}
 /* ---- src/reflect/m_raytrace.c ---- */
 /* RAYTRACE: the reference every other method is measured against.
    Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
@@ -7220,6 +7773,9 @@ typedef struct refl__rt {
     refl_ray_caster caster;
     int tiles_x, tiles_y, first_tile;
     long long *tile_rays;         /* per tile, summed after: no shared counter */
+    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
+    int face_count;
+    refl__lv lv;                  /* and their virtual lights (none when off) */
 } refl__rt;
 
 typedef struct refl__rt_surface {
@@ -7301,6 +7857,18 @@ static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tma
     return 0;
 }
 
+/* Whether a shadow ray from o along unit d meets nothing within dist
+   (from: the surface it leaves, whose triangle it skips; may be NULL). */
+static int refl__rt_clear(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float dist, const refl__rt_surface *from,
+                          long long *rays) {
+    ++*rays;
+    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, d, 0.0f, dist);
+    {
+        refl_hit h;
+        return !refl__rt_cast(rt, o, d, dist, from, &h);
+    }
+}
+
 /* Whether a shadow ray from surface s towards light l (at its position or
    along its direction) reaches it. */
 static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s, const refl_light *l,
@@ -7309,14 +7877,51 @@ static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s,
                                                      : refl_v3_sub(l->position, s->p);
     float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
     refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-    refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
-    to = refl_v3_normalize(to);
-    ++*rays;
-    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
-    {
-        refl_hit h;
-        return !refl__rt_cast(rt, o, to, dist, s, &h);
+    return refl__rt_clear(rt, refl__rt_offset(s->p, side, s->magnitude), refl_v3_normalize(to), dist, s, rays);
+}
+
+/* Virtual light k (light_volumes, light_volume.c) at surface s with unit
+   normal nn: the face's reflectance times the fraction of the light's
+   samples whose path through the face arrives (with shadows: nothing on
+   the way from the face to s, nor from the light to the face). */
+static float refl__rt_virtual(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 nn, int k, long long *rays) {
+    const refl__lv *lv = &rt->lv;
+    const refl_scene *scene = rt->scene;
+    const refl_light *vc = &lv->lights[scene->light_count + k];
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    refl_vec3 fn = refl_v3((float)(lv->v[k].side * f->n[0]), (float)(lv->v[k].side * f->n[1]),
+                           (float)(lv->v[k].side * f->n[2]));
+    refl_vec3 to = vc->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(vc->direction, -1.0f)
+                                                      : refl_v3_sub(vc->position, s->p);
+    float r;
+    int j, ns = refl__lv_samples(lv, scene, k), arrive = 0;
+    if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) return 0.0f; /* unlit anyway: no ray needed */
+    r = refl__lv_reflectance(lv, scene, k, s->object, s->p);
+    if (!(r > 0.0f)) return 0.0f;
+    for (j = 0; j < ns; ++j) {
+        refl_light src, virt;
+        refl_vec3 m, o, d, mo;
+        float mag;
+        if (!refl__lv_sample(lv, scene, k, j, &src, &virt) || !refl__lv_through_face(lv, scene, k, &virt, s->p, &m))
+            continue;
+        if (rt->p->desc.shadows) {
+            /* from the surface to the face, stopping short of the mirror */
+            d = refl_v3_sub(m, s->p);
+            o = refl__rt_offset(s->p, refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f),
+                                s->magnitude);
+            d = refl_v3_sub(m, o);
+            if (!refl__rt_clear(rt, o, refl_v3_normalize(d), refl_v3_length(d) * (1.0f - 1e-4f), s, rays)) continue;
+            /* from the face, on the light's side, to the light */
+            mag = REFL__MAX(REFL__MAX(fabsf(m.x), fabsf(m.y)), REFL__MAX(fabsf(m.z), 1e-3f));
+            mo = refl__rt_offset(m, fn, mag);
+            d = src.type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(src.direction, -1.0f) : refl_v3_sub(src.position, mo);
+            if (!refl__rt_clear(rt, mo, refl_v3_normalize(d),
+                                src.type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(d), NULL, rays))
+                continue;
+        }
+        ++arrive;
     }
+    return r * (float)arrive / (float)ns;
 }
 
 /* The shared diffuse model at a surface, with shadow rays when asked: one
@@ -7332,7 +7937,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
     int i, k, samples = REFL__MAX(rt->p->desc.soft_shadow_samples, 1);
     refl_vec3 nn = refl_v3_normalize(n);
     /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if (!rt->p->desc.shadows || scene->light_count > MAX_LIGHTS) {
+    if ((!rt->p->desc.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
         refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
         return;
     }
@@ -7342,6 +7947,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
                                                          : refl_v3_sub(l->position, s->p);
         int ns = l->radius > 0.0f ? samples : 1, visible = 0;
         weight[i] = 1.0f;
+        if (!rt->p->desc.shadows) continue;
         if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
         for (k = 0; k < ns; ++k) {
             refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
@@ -7349,7 +7955,13 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
         }
         weight[i] = (float)visible / (float)ns;
     }
-    refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
+    if (rt->lv.count == 0) {
+        refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
+        return;
+    }
+    /* then the light the mirrors reflect, as PLANAR's light volumes add it */
+    for (k = 0; k < rt->lv.count; ++k) weight[scene->light_count + k] = refl__rt_virtual(rt, s, nn, k, rays);
+    refl_shade_diffuse_weighted(&rt->lv.shade, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
 }
 
 /* The medium a ray travels through: air, or the inside of a glass object
@@ -7357,6 +7969,13 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
 typedef struct refl__rt_medium {
     float attenuation;
     int inside;
+    /* translucency (desc.translucency): entered through glass at fog_p
+       (plane normal fog_n), what the ray shows first beyond the glass is
+       fogged towards fog_rgb by exp(-fog h), h its distance from that
+       plane, as PLANAR fogs the image behind a glass face; 0: clear */
+    float fog;
+    refl_vec3 fog_p, fog_n;
+    const float *fog_rgb;
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -7419,18 +8038,28 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         refl_vec3 t;
         int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
         int point_on_refraction = refracts && f < 0.5f;
+        /* inside translucent glass the fog scatters what reflects within
+           (PLANAR's slab has no inner reflections either) */
+        int scattered = !entering && medium.fog > 0.0f && refracts;
         refl__rt_medium through;
         if (!refracts) f = 1.0f; /* total internal reflection */
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction)) {
+        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
         if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
+            through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
             through.inside = entering;
+            if (entering) { /* translucency: fogged from this face on (refl__rt_trace) */
+                through.fog = rt->p->desc.translucency;
+                through.fog_p = s->p;
+                through.fog_n = s->ng;
+                through.fog_rgb = m->color;
+            }
             refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
                            point_on_refraction ? first_point : NULL);
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
@@ -7445,11 +8074,14 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     refl_hit h;
     refl__rt_surface s;
     int c;
+    float fog = 1.0f;             /* the share the fog leaves */
     ++*rays;
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
+        if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
+            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
     }
     /* inside glass, the light's source lies further on */
@@ -7457,7 +8089,13 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         *first_point = s.p;
         first_point = NULL;
     }
+    if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
+        fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
+        medium.fog = 0.0f; /* once */
+    }
     refl__rt_shade(rt, &s, d, depth, weight, medium, rays, rgb, first_point);
+    if (fog < 1.0f)
+        for (c = 0; c < 3; ++c) rgb[c] = fog * rgb[c] + (1.0f - fog) * REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
     if (medium.attenuation > 0.0f) {
         float k = expf(-medium.attenuation * h.t);
         for (c = 0; c < 3; ++c) rgb[c] *= k;
@@ -7476,7 +8114,8 @@ static void refl__rt_tile(void *arg, int job) {
     int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
     int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
     long long rays = 0;
-    refl__rt_medium air = {0.0f, 0};
+    refl__rt_medium air;
+    memset(&air, 0, sizeof air);
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
@@ -7562,6 +8201,16 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
                                tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
     }
+    if (p->desc.light_volumes) {
+        refl_result r = refl__planar_find_faces(scene, &rt.faces, &rt.face_count);
+        if (r != REFL_OK) {
+            refl_bvh_destroy(bvh);
+            refl__free(&scene->allocator, rt.objects);
+            refl__free(&scene->allocator, rt.tile_rays);
+            return r;
+        }
+        refl__lv_init(&rt.lv, scene, rt.faces, rt.face_count, p->desc.caustic_samples);
+    }
     t1 = refl__now_ms();
     f->stats.ms_build = t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
@@ -7575,6 +8224,7 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
     f->stats.ms_reflect = refl__now_ms() - t1;
     refl_bvh_destroy(bvh);
+    if (rt.faces) refl__planar_free_faces(scene, rt.faces, rt.face_count);
     refl__free(&scene->allocator, rt.objects);
     refl__free(&scene->allocator, rt.tile_rays);
     return REFL_OK;
@@ -10493,7 +11143,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
         !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
         p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
-        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64)
+        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
+        p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
+        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency))
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
@@ -10569,7 +11221,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    raises its pixels to L + 1; returning lowers them again.
 
    Planar reflectors are found per object: its triangles grouped by plane
-   (within a tolerance). An object whose triangles fall into more than
+   (within a tolerance; planar_faces.c). An object whose triangles fall into more than
    REFL__PLANAR_MAX_FACES planes is not planar (a teapot) and is left as
    DIRECT draws it.
 
@@ -10579,19 +11231,10 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. It draws with the base pass's programs (shade.c). */
-
-enum { REFL__PLANAR_MAX_FACES = 16 };
-
-typedef struct refl__planar_face {
-    int object;
-    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
-    int glass;                    /* a refractor's face */
-    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
-    double thickness;             /* glass: the distance to that face */
-    uint32_t *indices;            /* the face's triangles, into the object's mesh */
-    int index_count;
-} refl__planar_face;
+   mirrored view's depth. It draws with the base pass's programs (shade.c).
+   Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
+   level, and translucent glass (desc.translucency: rast.h's fog over the
+   image behind a glass face, refl__planar_fog). */
 
 typedef struct refl__planar {
     refl__pass *p;
@@ -10600,6 +11243,7 @@ typedef struct refl__planar {
     int face_count;
     float *color;                 /* RGBA float, the frame's colour while drawing */
     float *saved;                 /* glass: the refracted image of a region */
+    float *unfogged;              /* translucency: a region's colour before its fog */
     float *saved_points;          /* and, at the first bounce, the points it shows */
     uint8_t *lit;                 /* shadows: the lights each pixel of a region sees */
     uint16_t *counts;             /* soft shadows: per light, the samples each pixel sees */
@@ -10607,132 +11251,10 @@ typedef struct refl__planar {
     uint8_t *stencil;             /* recursion levels */
     int no_culling;
     long long culled;
+    refl__lv lv;                  /* light volumes: the virtual lights (none when off) */
 } refl__planar;
 
-/* ---- planar faces --------------------------------------------------------------- */
-
-static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
-    int i;
-    for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);
-    refl__free(&s->allocator, faces);
-}
-
-/* Unit world plane of triangle t of object o (n . x = d); 0 when degenerate. */
-static int refl__planar_tri_plane(const refl_object *o, const refl_mesh *mesh, int t, double n[3], double *d) {
-    refl_vec3 v[3];
-    double e1[3], e2[3], len;
-    int k;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
-        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
-    }
-    e1[0] = (double)v[1].x - v[0].x; e1[1] = (double)v[1].y - v[0].y; e1[2] = (double)v[1].z - v[0].z;
-    e2[0] = (double)v[2].x - v[0].x; e2[1] = (double)v[2].y - v[0].y; e2[2] = (double)v[2].z - v[0].z;
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-    len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (!(len > 0.0) || len > DBL_MAX) return 0;
-    for (k = 0; k < 3; ++k) n[k] /= len;
-    *d = n[0] * v[0].x + n[1] * v[0].y + n[2] * v[0].z;
-    return *d == *d;
-}
-
-/* The face among faces[first, count) in the plane (n, d), or count. */
-static int refl__planar_match(const refl__planar_face *faces, int first, int count, const double n[3], double d,
-                              double tol_d) {
-    int f;
-    for (f = first; f < count; ++f)
-        if (faces[f].n[0] * n[0] + faces[f].n[1] * n[1] + faces[f].n[2] * n[2] > 1.0 - 1e-6 &&
-            fabs(faces[f].d - d) <= tol_d)
-            return f;
-    return count;
-}
-
-/* Groups each mirror or partial reflector's triangles by world plane
-   (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
-   Degenerate triangles join no face (they draw nothing anyway). */
-static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
-    refl__planar_face *faces;
-    int i, count = 0, cap = 0;
-    refl_vec3 lo, hi;
-    double tol_d;
-    refl_scene_bounds(s, &lo, &hi);
-    tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
-    for (i = 0; i < s->object_count; ++i) {
-        const refl_material *m = &s->materials[s->objects[i].material];
-        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
-    }
-    faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
-    if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < s->object_count; ++i) {
-        const refl_object *o = &s->objects[i];
-        const refl_mesh *mesh = s->meshes[o->mesh];
-        const refl_material *m = &s->materials[o->material];
-        int first = count, t, f, k, planar = 1;
-        double n[3], d;
-        if (m->type == REFL_DIFFUSE) continue;
-        /* the planes and how many indices each gets */
-        for (t = 0; t < mesh->triangle_count && planar; ++t) {
-            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
-            f = refl__planar_match(faces, first, count, n, d, tol_d);
-            if (f == count) {
-                if (count - first == REFL__PLANAR_MAX_FACES) { planar = 0; break; }
-                faces[f].object = i;
-                for (k = 0; k < 3; ++k) faces[f].n[k] = n[k];
-                faces[f].d = d;
-                faces[f].glass = m->type == REFL_GLASS;
-                faces[f].opposite = -1;
-                ++count;
-            }
-            faces[f].index_count += 3;
-        }
-        if (!planar) { /* curved: left as DIRECT draws it */
-            memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
-            count = first;
-            continue;
-        }
-        for (f = first; f < count; ++f) {
-            faces[f].indices = (uint32_t *)refl__calloc(&s->allocator, (size_t)faces[f].index_count, sizeof(uint32_t));
-            if (!faces[f].indices) {
-                refl__planar_free_faces(s, faces, count);
-                return REFL_ERROR_OUT_OF_MEMORY;
-            }
-            faces[f].index_count = 0;
-        }
-        for (t = 0; t < mesh->triangle_count; ++t) {
-            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
-            f = refl__planar_match(faces, first, count, n, d, tol_d);
-            for (k = 0; k < 3; ++k) faces[f].indices[faces[f].index_count++] = mesh->indices[3 * t + k];
-        }
-        /* a glass face with a parallel face opposite is one side of a slab */
-        for (f = first; f < count; ++f) {
-            int g;
-            for (g = first; g < count && faces[f].glass; ++g)
-                if (faces[f].n[0] * faces[g].n[0] + faces[f].n[1] * faces[g].n[1] + faces[f].n[2] * faces[g].n[2] <
-                        -1.0 + 1e-6 && faces[f].d + faces[g].d > tol_d) {
-                    faces[f].opposite = g;
-                    faces[f].thickness = faces[f].d + faces[g].d;
-                }
-        }
-    }
-    *out = faces;
-    *out_count = count;
-    return REFL_OK;
-}
-
 /* ---- mirrored cameras ----------------------------------------------------------- */
-
-/* Reflection about the plane n . x = d: x - 2 (n . x - d) n. */
-static refl_mat4 refl__planar_reflection(const double n[3], double d) {
-    refl_mat4 r = refl_mat4_identity();
-    int i, j;
-    for (j = 0; j < 3; ++j) {
-        for (i = 0; i < 3; ++i) r.m[j * 4 + i] = (float)((i == j) - 2.0 * n[i] * n[j]);
-        r.m[12 + j] = (float)(2.0 * d * n[j]);
-    }
-    return r;
-}
 
 /* Lengyel's oblique near plane: the projection's near plane becomes the
    eye-space plane c (points with c . (x, y, z, 1) >= 0 are kept; the eye
@@ -10771,6 +11293,11 @@ typedef struct refl__planar_level {
     int warped;
     double h[9], h_inv[9];        /* 3 x 3, row vectors: [x y w] h */
     refl_mat4 vp_inv;             /* the refracted camera's clip to world */
+    /* translucency: seen through a glass face from outside, fogged by
+       the distance fog . (x, 1) behind it towards fog_rgb */
+    int fogged;
+    double fog[4];
+    float fog_rgb[3];
 } refl__planar_level;
 
 /* A draw context of a level's scene, with the level's warp (or NULL). */
@@ -10981,6 +11508,77 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
     return refl__result_from_rast(rr);
 }
 
+/* Translucency (paper 002's fog): the level's objects drawn again over
+   its region (depth EQUAL) showing the colour they left there, fogged by
+   rast.h towards the glass's colour with the distance behind the face as
+   the fog coordinate (a ninth varying: affine in the position, so exact
+   under perspective interpolation); the environment, infinitely far,
+   becomes the colour. */
+typedef struct refl__planar_fog_dc {
+    refl__planar_dc pdc;          /* first: refl__planar_vertex reads it */
+    const double *fog;
+    const float *src;
+    int width;
+} refl__planar_fog_dc;
+
+static int refl__planar_fog_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__planar_fog_dc *d = (const refl__planar_fog_dc *)user;
+    int n = refl__planar_vertex(user, vertex, index, out, max_out);
+    const float *v = out->varyings;
+    out->varyings[REFL__BASE_VARYINGS] = (float)(d->fog[0] * v[0] + d->fog[1] * v[1] + d->fog[2] * v[2] + d->fog[3]);
+    return n;
+}
+
+static int refl__planar_fog_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__planar_fog_dc *d = (const refl__planar_fog_dc *)user;
+    memcpy(rgba, d->src + 4 * ((size_t)in->y * (size_t)d->width + (size_t)in->x), 4 * sizeof(float));
+    return 1;
+}
+
+static refl_result refl__planar_fog(refl__planar *pl, const refl__planar_level *lv, const int box[4],
+                                    const refl__planar_dc *dcs) {
+    const refl_scene *s = pl->scene;
+    refl_frame *f = pl->p->frame;
+    refl__planar_fog_dc *fd;
+    rast_result rr = RAST_OK;
+    int i, x, y, c, skip = pl->faces[lv->parent].object;
+    fd = (refl__planar_fog_dc *)refl__calloc(&s->allocator, (size_t)REFL__MAX(s->object_count, 1), sizeof(*fd));
+    if (!fd) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
+            size_t k = (size_t)y * (size_t)f->width + (size_t)x;
+            if (pl->stencil[k] != lv->level) continue;
+            memcpy(pl->unfogged + 4 * k, pl->color + 4 * k, 4 * sizeof(float));
+            if (f->depth[k] >= 1.0f)
+                for (c = 0; c < 3; ++c) pl->color[4 * k + (size_t)c] = lv->fog_rgb[c];
+        }
+    for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
+        rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
+        if (i == skip) continue;
+        fd[i].pdc = dcs[i]; /* as refl__planar_draw_scene set them up */
+        fd[i].fog = lv->fog;
+        fd[i].src = pl->unfogged;
+        fd[i].width = f->width;
+        refl__planar_scissor(&st, box);
+        st.depth_func = RAST_EQUAL;
+        st.depth_write_disabled = 1;
+        st.vertex_fn = refl__planar_fog_vertex;
+        st.vertex_user = &fd[i];
+        st.fragment_fn = refl__planar_fog_fragment;
+        st.fragment_user = &fd[i];
+        st.fog = RAST_FOG_EXP;
+        st.fog_density = pl->p->desc.translucency;
+        st.fog_varying = REFL__BASE_VARYINGS + 1;
+        for (c = 0; c < 3; ++c) st.fog_color[c] = lv->fog_rgb[c];
+        rr = rast_set_state(pl->p->rc, &st);
+        if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, dcs[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS + 1);
+    }
+    if (rr == RAST_OK) rr = rast_finish(pl->p->rc);
+    else rast_finish(pl->p->rc);
+    refl__free(&s->allocator, fd);
+    return refl__result_from_rast(rr);
+}
+
 /* Draws into the child's region (stencil child->level) the scene through
    child->vp (and its warp), the region's depth cleared first, then the
    environment where nothing is; finishes. */
@@ -11022,10 +11620,20 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         }
         if (r != REFL_OK) return r;
     }
+    if (pl->lv.count > 0 && !child->warped) {
+        /* the light the mirrors reflect onto what the mirrored camera sees */
+        refl_frame *f = pl->p->frame;
+        refl_result r = refl__lv_pass(rc, pl->scene, &pl->lv, &pl->p->desc, child->vp,
+                                      refl_mat4_point(child->w_inv, pl->p->view->eye), f->depth, f->width, f->height,
+                                      pl->stencil, (uint8_t)child->level,
+                                      child->parent >= 0 ? pl->faces[child->parent].object : -1, &pl->targets,
+                                      &f->stats);
+        if (r != REFL_OK) return r;
+    }
     pl->p->frame->stats.cameras++;
     if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
     refl__planar_fill_region(pl, child, box);
-    return REFL_OK;
+    return child->fogged ? refl__planar_fog(pl, child, box, dcs) : REFL_OK;
 }
 
 /* The child's camera: the viewer's through child->w, clipped to the world
@@ -11134,6 +11742,9 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         refl_result r;
         int box[4], front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
         if (f == lv->parent) continue;
+        /* through translucent glass, light has left the slab (in-out
+           refraction): its other faces are not met again */
+        if (lv->fogged && face->object == pl->faces[lv->parent].object) continue;
         /* glass is seen from inside too (its far faces from outside fail
            the depth test and mark nothing) */
         if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
@@ -11197,6 +11808,23 @@ static int refl__planar_ndc(refl_mat4 vp, refl_vec3 p, double out[2]) {
     return 1;
 }
 
+/* Translucency for a child seen through glass face f from eye: fogged
+   behind the face when desc asks and the eye is outside. */
+static void refl__planar_fog_setup(const refl__planar *pl, refl__planar_level *child, int f, const refl_material *m,
+                                   refl_vec3 eye) {
+    const refl__planar_face *face = &pl->faces[f];
+    int c;
+    if (!(pl->p->desc.translucency > 0.0f) ||
+        face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d <= 0.0)
+        return;
+    child->fogged = 1;
+    for (c = 0; c < 3; ++c) {
+        child->fog[c] = -face->n[c];
+        child->fog_rgb[c] = REFL__CLAMP(m->color[c], 0.0f, 1.0f);
+    }
+    child->fog[3] = face->d;
+}
+
 /* A single interface (a face with nothing parallel behind it, or any face
    seen from inside the glass): the paper's refracted camera, bent by
    Snell's law where the view axis meets the face, its image mapped onto
@@ -11234,6 +11862,7 @@ static refl_result refl__planar_single_interface(refl__planar *pl, const refl__p
     child.bounces = lv->bounces + 1;
     child.parent = f;
     child.w = child.w_inv = refl_mat4_identity();
+    refl__planar_fog_setup(pl, &child, f, comp->dc.material, comp->eye);
     /* behind the face, from the viewer */
     for (k = 0; k < 3; ++k) kept[k] = -(&nf.x)[k];
     {
@@ -11327,6 +11956,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             child.level = lv->level + 1;
             child.bounces = lv->bounces + 2;
             child.parent = f;
+            refl__planar_fog_setup(pl, &child, f, m, comp->eye);
             child.w = refl_mat4_mul(lv->w, refl_mat4_translate(refl_v3_scale(shift, -1.0f)));
             child.w_inv = refl_mat4_mul(refl_mat4_translate(shift), lv->w_inv);
             /* what lies behind the face: light may also leave by another
@@ -11409,11 +12039,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
+    if (p->desc.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
     if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+        (p->desc.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
@@ -11435,6 +12067,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.w = top.w_inv = refl_mat4_identity();
     top.vp = p->vp;
     top.parent = -1;
+    if (p->desc.light_volumes) {
+        /* the reflected light on what the viewer sees directly */
+        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.caustic_samples);
+        r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
+                          0, -1, &pl.targets, &f->stats);
+        if (r != REFL_OK) goto done;
+    }
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
     for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
@@ -11448,6 +12087,7 @@ done:
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);
+    refl__free(&s->allocator, pl.unfogged);
     refl__free(&s->allocator, pl.counts);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;

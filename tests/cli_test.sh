@@ -59,6 +59,9 @@ ok "render sbc --stats counts projections" bash -c \
     "'$bin' render --builtin default --method sbc --error-px 2 --ray-factor 4 --size 64x48 --out '$tmp/s.png' --stats | grep -q '^projections  [1-9]'"
 refuses "bad --ray-factor" "ray-factor: expected" "$bin" render --builtin default --method sbc --ray-factor 0
 refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
+ok "render planar with light volumes, caustics and translucency" "$bin" render --builtin mirror-room --method planar \
+    --shadows --light-volumes --caustics 4 --light-radius 0.3 --translucency 0.5 --size 48x36 --out "$tmp/lv.png"
+refuses "bad --caustics" "caustics: expected" "$bin" render --builtin default --light-volumes --caustics 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere
 refuses "unknown method" "unknown method" "$bin" render --builtin default --method magic

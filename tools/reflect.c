@@ -43,6 +43,9 @@ static const char *const usage_render =
     "  --light-radius R   give every light this radius (directional: radians)\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
+    "  --light-volumes    PLANAR, RAYTRACE: light reflected by planar mirrors lights the scene\n"
+    "  --caustics N       with --light-volumes: N samples of every light with a radius\n"
+    "  --translucency K   PLANAR, RAYTRACE: glass fogged by exp(-K distance) behind it\n"
     "  --density D        C3RC: points per unit area (default: one per 2x2 pixels\n"
     "                     at the reflectors' distance)\n"
     "  --leaf-points N    C3RC: kd-tree leaf size (default 1000)\n"
@@ -87,6 +90,8 @@ static const char *const usage_compare =
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
+    int light_volumes, caustic_samples;
+    float translucency;
     int leaf_points, max_splat, ray_factor;
     float density, camera_split, error_px;
     int has_eye, has_target, has_up;
@@ -131,7 +136,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
-                    strcmp(a, "--shadows") && strcmp(a, "--no-culling");
+                    strcmp(a, "--shadows") && strcmp(a, "--no-culling") &&
+                    strcmp(a, "--light-volumes");
         if (takes && !v) return fail("%s needs a value", a);
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
@@ -172,6 +178,10 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 64, &o->depth)) return fail("--depth: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--soft-shadows")) {
             if (!parse_int(v, 1, 1024, &o->soft_samples)) return fail("--soft-shadows: expected 1..1024, got %s", v);
+        } else if (!strcmp(a, "--caustics")) {
+            if (!parse_int(v, 1, 1024, &o->caustic_samples)) return fail("--caustics: expected 1..1024, got %s", v);
+        } else if (!strcmp(a, "--translucency")) {
+            if (!parse_float(v, 0.0f, 1e6f, &o->translucency)) return fail("--translucency: not a density: %s", v);
         } else if (!strcmp(a, "--light-radius")) {
             if (!parse_float(v, 0.0f, 1e6f, &o->light_radius)) return fail("--light-radius: not a size: %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
@@ -196,6 +206,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--no-culling")) {
             o->no_culling = 1;
+            continue;
+        } else if (!strcmp(a, "--light-volumes")) {
+            o->light_volumes = 1;
             continue;
         } else if (a[0] == '-') {
             return fail("render: unknown option %s (see reflect render --help)", a);
@@ -326,6 +339,9 @@ static int cmd_render(const options *o) {
     d.shadows = o->shadows;
     d.envmap_size = o->envmap_size;
     d.no_culling = o->no_culling;
+    d.light_volumes = o->light_volumes;
+    d.caustic_samples = o->caustic_samples;
+    d.translucency = o->translucency;
     d.soft_shadow_samples = o->soft_samples;
     d.point_density = o->density;
     d.kd_leaf_points = o->leaf_points;

@@ -616,6 +616,27 @@ typedef struct refl_render_desc {
     int no_culling;          /* PLANAR: render every mirror at every level, seen or not
                                 (paper 002's count, formula 5); stats.leaves counts the
                                 renderings at the deepest level, stats.cameras all */
+    int light_volumes;       /* PLANAR and RAYTRACE: 1: light reflected by planar mirror and
+                                partial faces lights diffuse surfaces (paper 002's light
+                                volumes): each light (of the first 8) mirrored in each face's
+                                plane is a virtual light that reaches a point on the light's
+                                side when the path through the face meets the face, weighed
+                                by the face's reflectance at that incidence; with shadows,
+                                blocked on either leg (PLANAR: objects crossing the face's
+                                plane block only the outgoing leg). At most 64 lights in all
+                                (the scene's first); glass bends no light here. 0: off */
+    int caustic_samples;     /* with light_volumes: 0 or 1: each reflected light from its
+                                centre; N (at most 1024): every light with a radius sampled
+                                at N positions (refl_light_sample), the reflected light weighed
+                                by the fraction whose paths arrive: soft-edged light volumes
+                                and caustics (paper 002's accumulated jittered lights) */
+    float translucency;      /* PLANAR and RAYTRACE: > 0: glass is translucent (paper 002's
+                                fog): what is seen through a glass face from outside is
+                                blended towards the glass's colour by exp(-translucency h),
+                                h the distance of the point seen from the face's plane (the
+                                environment: wholly the colour). PLANAR draws it with rast.h's
+                                exponential fog; mirrors seen through glass are not fogged
+                                there. 0: clear glass */
     float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
                                 view: one per 2 x 2 pixels at the reflectors' distance, at
                                 most 2 million in all) */

@@ -7,7 +7,7 @@
    raises its pixels to L + 1; returning lowers them again.
 
    Planar reflectors are found per object: its triangles grouped by plane
-   (within a tolerance). An object whose triangles fall into more than
+   (within a tolerance; planar_faces.c). An object whose triangles fall into more than
    REFL__PLANAR_MAX_FACES planes is not planar (a teapot) and is left as
    DIRECT draws it.
 
@@ -17,20 +17,11 @@
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. It draws with the base pass's programs (shade.c). */
+   mirrored view's depth. It draws with the base pass's programs (shade.c).
+   Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
+   level, and translucent glass (desc.translucency: rast.h's fog over the
+   image behind a glass face, refl__planar_fog). */
 #include "internal.h"
-
-enum { REFL__PLANAR_MAX_FACES = 16 };
-
-typedef struct refl__planar_face {
-    int object;
-    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
-    int glass;                    /* a refractor's face */
-    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
-    double thickness;             /* glass: the distance to that face */
-    uint32_t *indices;            /* the face's triangles, into the object's mesh */
-    int index_count;
-} refl__planar_face;
 
 typedef struct refl__planar {
     refl__pass *p;
@@ -39,6 +30,7 @@ typedef struct refl__planar {
     int face_count;
     float *color;                 /* RGBA float, the frame's colour while drawing */
     float *saved;                 /* glass: the refracted image of a region */
+    float *unfogged;              /* translucency: a region's colour before its fog */
     float *saved_points;          /* and, at the first bounce, the points it shows */
     uint8_t *lit;                 /* shadows: the lights each pixel of a region sees */
     uint16_t *counts;             /* soft shadows: per light, the samples each pixel sees */
@@ -46,132 +38,10 @@ typedef struct refl__planar {
     uint8_t *stencil;             /* recursion levels */
     int no_culling;
     long long culled;
+    refl__lv lv;                  /* light volumes: the virtual lights (none when off) */
 } refl__planar;
 
-/* ---- planar faces --------------------------------------------------------------- */
-
-static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
-    int i;
-    for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);
-    refl__free(&s->allocator, faces);
-}
-
-/* Unit world plane of triangle t of object o (n . x = d); 0 when degenerate. */
-static int refl__planar_tri_plane(const refl_object *o, const refl_mesh *mesh, int t, double n[3], double *d) {
-    refl_vec3 v[3];
-    double e1[3], e2[3], len;
-    int k;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
-        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
-    }
-    e1[0] = (double)v[1].x - v[0].x; e1[1] = (double)v[1].y - v[0].y; e1[2] = (double)v[1].z - v[0].z;
-    e2[0] = (double)v[2].x - v[0].x; e2[1] = (double)v[2].y - v[0].y; e2[2] = (double)v[2].z - v[0].z;
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-    len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (!(len > 0.0) || len > DBL_MAX) return 0;
-    for (k = 0; k < 3; ++k) n[k] /= len;
-    *d = n[0] * v[0].x + n[1] * v[0].y + n[2] * v[0].z;
-    return *d == *d;
-}
-
-/* The face among faces[first, count) in the plane (n, d), or count. */
-static int refl__planar_match(const refl__planar_face *faces, int first, int count, const double n[3], double d,
-                              double tol_d) {
-    int f;
-    for (f = first; f < count; ++f)
-        if (faces[f].n[0] * n[0] + faces[f].n[1] * n[1] + faces[f].n[2] * n[2] > 1.0 - 1e-6 &&
-            fabs(faces[f].d - d) <= tol_d)
-            return f;
-    return count;
-}
-
-/* Groups each mirror or partial reflector's triangles by world plane
-   (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
-   Degenerate triangles join no face (they draw nothing anyway). */
-static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
-    refl__planar_face *faces;
-    int i, count = 0, cap = 0;
-    refl_vec3 lo, hi;
-    double tol_d;
-    refl_scene_bounds(s, &lo, &hi);
-    tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
-    for (i = 0; i < s->object_count; ++i) {
-        const refl_material *m = &s->materials[s->objects[i].material];
-        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
-    }
-    faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
-    if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < s->object_count; ++i) {
-        const refl_object *o = &s->objects[i];
-        const refl_mesh *mesh = s->meshes[o->mesh];
-        const refl_material *m = &s->materials[o->material];
-        int first = count, t, f, k, planar = 1;
-        double n[3], d;
-        if (m->type == REFL_DIFFUSE) continue;
-        /* the planes and how many indices each gets */
-        for (t = 0; t < mesh->triangle_count && planar; ++t) {
-            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
-            f = refl__planar_match(faces, first, count, n, d, tol_d);
-            if (f == count) {
-                if (count - first == REFL__PLANAR_MAX_FACES) { planar = 0; break; }
-                faces[f].object = i;
-                for (k = 0; k < 3; ++k) faces[f].n[k] = n[k];
-                faces[f].d = d;
-                faces[f].glass = m->type == REFL_GLASS;
-                faces[f].opposite = -1;
-                ++count;
-            }
-            faces[f].index_count += 3;
-        }
-        if (!planar) { /* curved: left as DIRECT draws it */
-            memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
-            count = first;
-            continue;
-        }
-        for (f = first; f < count; ++f) {
-            faces[f].indices = (uint32_t *)refl__calloc(&s->allocator, (size_t)faces[f].index_count, sizeof(uint32_t));
-            if (!faces[f].indices) {
-                refl__planar_free_faces(s, faces, count);
-                return REFL_ERROR_OUT_OF_MEMORY;
-            }
-            faces[f].index_count = 0;
-        }
-        for (t = 0; t < mesh->triangle_count; ++t) {
-            if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
-            f = refl__planar_match(faces, first, count, n, d, tol_d);
-            for (k = 0; k < 3; ++k) faces[f].indices[faces[f].index_count++] = mesh->indices[3 * t + k];
-        }
-        /* a glass face with a parallel face opposite is one side of a slab */
-        for (f = first; f < count; ++f) {
-            int g;
-            for (g = first; g < count && faces[f].glass; ++g)
-                if (faces[f].n[0] * faces[g].n[0] + faces[f].n[1] * faces[g].n[1] + faces[f].n[2] * faces[g].n[2] <
-                        -1.0 + 1e-6 && faces[f].d + faces[g].d > tol_d) {
-                    faces[f].opposite = g;
-                    faces[f].thickness = faces[f].d + faces[g].d;
-                }
-        }
-    }
-    *out = faces;
-    *out_count = count;
-    return REFL_OK;
-}
-
 /* ---- mirrored cameras ----------------------------------------------------------- */
-
-/* Reflection about the plane n . x = d: x - 2 (n . x - d) n. */
-static refl_mat4 refl__planar_reflection(const double n[3], double d) {
-    refl_mat4 r = refl_mat4_identity();
-    int i, j;
-    for (j = 0; j < 3; ++j) {
-        for (i = 0; i < 3; ++i) r.m[j * 4 + i] = (float)((i == j) - 2.0 * n[i] * n[j]);
-        r.m[12 + j] = (float)(2.0 * d * n[j]);
-    }
-    return r;
-}
 
 /* Lengyel's oblique near plane: the projection's near plane becomes the
    eye-space plane c (points with c . (x, y, z, 1) >= 0 are kept; the eye
@@ -210,6 +80,11 @@ typedef struct refl__planar_level {
     int warped;
     double h[9], h_inv[9];        /* 3 x 3, row vectors: [x y w] h */
     refl_mat4 vp_inv;             /* the refracted camera's clip to world */
+    /* translucency: seen through a glass face from outside, fogged by
+       the distance fog . (x, 1) behind it towards fog_rgb */
+    int fogged;
+    double fog[4];
+    float fog_rgb[3];
 } refl__planar_level;
 
 /* A draw context of a level's scene, with the level's warp (or NULL). */
@@ -420,6 +295,77 @@ static refl_result refl__planar_mark(refl__planar *pl, const refl__planar_level 
     return refl__result_from_rast(rr);
 }
 
+/* Translucency (paper 002's fog): the level's objects drawn again over
+   its region (depth EQUAL) showing the colour they left there, fogged by
+   rast.h towards the glass's colour with the distance behind the face as
+   the fog coordinate (a ninth varying: affine in the position, so exact
+   under perspective interpolation); the environment, infinitely far,
+   becomes the colour. */
+typedef struct refl__planar_fog_dc {
+    refl__planar_dc pdc;          /* first: refl__planar_vertex reads it */
+    const double *fog;
+    const float *src;
+    int width;
+} refl__planar_fog_dc;
+
+static int refl__planar_fog_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__planar_fog_dc *d = (const refl__planar_fog_dc *)user;
+    int n = refl__planar_vertex(user, vertex, index, out, max_out);
+    const float *v = out->varyings;
+    out->varyings[REFL__BASE_VARYINGS] = (float)(d->fog[0] * v[0] + d->fog[1] * v[1] + d->fog[2] * v[2] + d->fog[3]);
+    return n;
+}
+
+static int refl__planar_fog_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__planar_fog_dc *d = (const refl__planar_fog_dc *)user;
+    memcpy(rgba, d->src + 4 * ((size_t)in->y * (size_t)d->width + (size_t)in->x), 4 * sizeof(float));
+    return 1;
+}
+
+static refl_result refl__planar_fog(refl__planar *pl, const refl__planar_level *lv, const int box[4],
+                                    const refl__planar_dc *dcs) {
+    const refl_scene *s = pl->scene;
+    refl_frame *f = pl->p->frame;
+    refl__planar_fog_dc *fd;
+    rast_result rr = RAST_OK;
+    int i, x, y, c, skip = pl->faces[lv->parent].object;
+    fd = (refl__planar_fog_dc *)refl__calloc(&s->allocator, (size_t)REFL__MAX(s->object_count, 1), sizeof(*fd));
+    if (!fd) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
+            size_t k = (size_t)y * (size_t)f->width + (size_t)x;
+            if (pl->stencil[k] != lv->level) continue;
+            memcpy(pl->unfogged + 4 * k, pl->color + 4 * k, 4 * sizeof(float));
+            if (f->depth[k] >= 1.0f)
+                for (c = 0; c < 3; ++c) pl->color[4 * k + (size_t)c] = lv->fog_rgb[c];
+        }
+    for (i = 0; i < s->object_count && rr == RAST_OK; ++i) {
+        rast_state st = refl__planar_state((uint8_t)lv->level, RAST_KEEP);
+        if (i == skip) continue;
+        fd[i].pdc = dcs[i]; /* as refl__planar_draw_scene set them up */
+        fd[i].fog = lv->fog;
+        fd[i].src = pl->unfogged;
+        fd[i].width = f->width;
+        refl__planar_scissor(&st, box);
+        st.depth_func = RAST_EQUAL;
+        st.depth_write_disabled = 1;
+        st.vertex_fn = refl__planar_fog_vertex;
+        st.vertex_user = &fd[i];
+        st.fragment_fn = refl__planar_fog_fragment;
+        st.fragment_user = &fd[i];
+        st.fog = RAST_FOG_EXP;
+        st.fog_density = pl->p->desc.translucency;
+        st.fog_varying = REFL__BASE_VARYINGS + 1;
+        for (c = 0; c < 3; ++c) st.fog_color[c] = lv->fog_rgb[c];
+        rr = rast_set_state(pl->p->rc, &st);
+        if (rr == RAST_OK) rr = refl__draw_mesh(pl->p->rc, dcs[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS + 1);
+    }
+    if (rr == RAST_OK) rr = rast_finish(pl->p->rc);
+    else rast_finish(pl->p->rc);
+    refl__free(&s->allocator, fd);
+    return refl__result_from_rast(rr);
+}
+
 /* Draws into the child's region (stencil child->level) the scene through
    child->vp (and its warp), the region's depth cleared first, then the
    environment where nothing is; finishes. */
@@ -461,10 +407,20 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         }
         if (r != REFL_OK) return r;
     }
+    if (pl->lv.count > 0 && !child->warped) {
+        /* the light the mirrors reflect onto what the mirrored camera sees */
+        refl_frame *f = pl->p->frame;
+        refl_result r = refl__lv_pass(rc, pl->scene, &pl->lv, &pl->p->desc, child->vp,
+                                      refl_mat4_point(child->w_inv, pl->p->view->eye), f->depth, f->width, f->height,
+                                      pl->stencil, (uint8_t)child->level,
+                                      child->parent >= 0 ? pl->faces[child->parent].object : -1, &pl->targets,
+                                      &f->stats);
+        if (r != REFL_OK) return r;
+    }
     pl->p->frame->stats.cameras++;
     if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
     refl__planar_fill_region(pl, child, box);
-    return REFL_OK;
+    return child->fogged ? refl__planar_fog(pl, child, box, dcs) : REFL_OK;
 }
 
 /* The child's camera: the viewer's through child->w, clipped to the world
@@ -573,6 +529,9 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         refl_result r;
         int box[4], front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
         if (f == lv->parent) continue;
+        /* through translucent glass, light has left the slab (in-out
+           refraction): its other faces are not met again */
+        if (lv->fogged && face->object == pl->faces[lv->parent].object) continue;
         /* glass is seen from inside too (its far faces from outside fail
            the depth test and mark nothing) */
         if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
@@ -636,6 +595,23 @@ static int refl__planar_ndc(refl_mat4 vp, refl_vec3 p, double out[2]) {
     return 1;
 }
 
+/* Translucency for a child seen through glass face f from eye: fogged
+   behind the face when desc asks and the eye is outside. */
+static void refl__planar_fog_setup(const refl__planar *pl, refl__planar_level *child, int f, const refl_material *m,
+                                   refl_vec3 eye) {
+    const refl__planar_face *face = &pl->faces[f];
+    int c;
+    if (!(pl->p->desc.translucency > 0.0f) ||
+        face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d <= 0.0)
+        return;
+    child->fogged = 1;
+    for (c = 0; c < 3; ++c) {
+        child->fog[c] = -face->n[c];
+        child->fog_rgb[c] = REFL__CLAMP(m->color[c], 0.0f, 1.0f);
+    }
+    child->fog[3] = face->d;
+}
+
 /* A single interface (a face with nothing parallel behind it, or any face
    seen from inside the glass): the paper's refracted camera, bent by
    Snell's law where the view axis meets the face, its image mapped onto
@@ -673,6 +649,7 @@ static refl_result refl__planar_single_interface(refl__planar *pl, const refl__p
     child.bounces = lv->bounces + 1;
     child.parent = f;
     child.w = child.w_inv = refl_mat4_identity();
+    refl__planar_fog_setup(pl, &child, f, comp->dc.material, comp->eye);
     /* behind the face, from the viewer */
     for (k = 0; k < 3; ++k) kept[k] = -(&nf.x)[k];
     {
@@ -766,6 +743,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             child.level = lv->level + 1;
             child.bounces = lv->bounces + 2;
             child.parent = f;
+            refl__planar_fog_setup(pl, &child, f, m, comp->eye);
             child.w = refl_mat4_mul(lv->w, refl_mat4_translate(refl_v3_scale(shift, -1.0f)));
             child.w_inv = refl_mat4_mul(refl_mat4_translate(shift), lv->w_inv);
             /* what lies behind the face: light may also leave by another
@@ -848,11 +826,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
+    if (p->desc.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
     if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+        (p->desc.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
@@ -874,6 +854,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.w = top.w_inv = refl_mat4_identity();
     top.vp = p->vp;
     top.parent = -1;
+    if (p->desc.light_volumes) {
+        /* the reflected light on what the viewer sees directly */
+        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.caustic_samples);
+        r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
+                          0, -1, &pl.targets, &f->stats);
+        if (r != REFL_OK) goto done;
+    }
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
     for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
@@ -887,6 +874,7 @@ done:
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);
+    refl__free(&s->allocator, pl.unfogged);
     refl__free(&s->allocator, pl.counts);
     refl__planar_free_faces(s, pl.faces, pl.face_count);
     return r;

@@ -28,6 +28,9 @@ typedef struct refl__rt {
     refl_ray_caster caster;
     int tiles_x, tiles_y, first_tile;
     long long *tile_rays;         /* per tile, summed after: no shared counter */
+    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
+    int face_count;
+    refl__lv lv;                  /* and their virtual lights (none when off) */
 } refl__rt;
 
 typedef struct refl__rt_surface {
@@ -109,6 +112,18 @@ static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tma
     return 0;
 }
 
+/* Whether a shadow ray from o along unit d meets nothing within dist
+   (from: the surface it leaves, whose triangle it skips; may be NULL). */
+static int refl__rt_clear(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float dist, const refl__rt_surface *from,
+                          long long *rays) {
+    ++*rays;
+    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, d, 0.0f, dist);
+    {
+        refl_hit h;
+        return !refl__rt_cast(rt, o, d, dist, from, &h);
+    }
+}
+
 /* Whether a shadow ray from surface s towards light l (at its position or
    along its direction) reaches it. */
 static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s, const refl_light *l,
@@ -117,14 +132,51 @@ static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s,
                                                      : refl_v3_sub(l->position, s->p);
     float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
     refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-    refl_vec3 o = refl__rt_offset(s->p, side, s->magnitude);
-    to = refl_v3_normalize(to);
-    ++*rays;
-    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, to, 0.0f, dist);
-    {
-        refl_hit h;
-        return !refl__rt_cast(rt, o, to, dist, s, &h);
+    return refl__rt_clear(rt, refl__rt_offset(s->p, side, s->magnitude), refl_v3_normalize(to), dist, s, rays);
+}
+
+/* Virtual light k (light_volumes, light_volume.c) at surface s with unit
+   normal nn: the face's reflectance times the fraction of the light's
+   samples whose path through the face arrives (with shadows: nothing on
+   the way from the face to s, nor from the light to the face). */
+static float refl__rt_virtual(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 nn, int k, long long *rays) {
+    const refl__lv *lv = &rt->lv;
+    const refl_scene *scene = rt->scene;
+    const refl_light *vc = &lv->lights[scene->light_count + k];
+    const refl__planar_face *f = &lv->faces[lv->v[k].face];
+    refl_vec3 fn = refl_v3((float)(lv->v[k].side * f->n[0]), (float)(lv->v[k].side * f->n[1]),
+                           (float)(lv->v[k].side * f->n[2]));
+    refl_vec3 to = vc->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(vc->direction, -1.0f)
+                                                      : refl_v3_sub(vc->position, s->p);
+    float r;
+    int j, ns = refl__lv_samples(lv, scene, k), arrive = 0;
+    if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) return 0.0f; /* unlit anyway: no ray needed */
+    r = refl__lv_reflectance(lv, scene, k, s->object, s->p);
+    if (!(r > 0.0f)) return 0.0f;
+    for (j = 0; j < ns; ++j) {
+        refl_light src, virt;
+        refl_vec3 m, o, d, mo;
+        float mag;
+        if (!refl__lv_sample(lv, scene, k, j, &src, &virt) || !refl__lv_through_face(lv, scene, k, &virt, s->p, &m))
+            continue;
+        if (rt->p->desc.shadows) {
+            /* from the surface to the face, stopping short of the mirror */
+            d = refl_v3_sub(m, s->p);
+            o = refl__rt_offset(s->p, refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f),
+                                s->magnitude);
+            d = refl_v3_sub(m, o);
+            if (!refl__rt_clear(rt, o, refl_v3_normalize(d), refl_v3_length(d) * (1.0f - 1e-4f), s, rays)) continue;
+            /* from the face, on the light's side, to the light */
+            mag = REFL__MAX(REFL__MAX(fabsf(m.x), fabsf(m.y)), REFL__MAX(fabsf(m.z), 1e-3f));
+            mo = refl__rt_offset(m, fn, mag);
+            d = src.type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(src.direction, -1.0f) : refl_v3_sub(src.position, mo);
+            if (!refl__rt_clear(rt, mo, refl_v3_normalize(d),
+                                src.type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(d), NULL, rays))
+                continue;
+        }
+        ++arrive;
     }
+    return r * (float)arrive / (float)ns;
 }
 
 /* The shared diffuse model at a surface, with shadow rays when asked: one
@@ -140,7 +192,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
     int i, k, samples = REFL__MAX(rt->p->desc.soft_shadow_samples, 1);
     refl_vec3 nn = refl_v3_normalize(n);
     /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if (!rt->p->desc.shadows || scene->light_count > MAX_LIGHTS) {
+    if ((!rt->p->desc.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
         refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
         return;
     }
@@ -150,6 +202,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
                                                          : refl_v3_sub(l->position, s->p);
         int ns = l->radius > 0.0f ? samples : 1, visible = 0;
         weight[i] = 1.0f;
+        if (!rt->p->desc.shadows) continue;
         if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
         for (k = 0; k < ns; ++k) {
             refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
@@ -157,7 +210,13 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
         }
         weight[i] = (float)visible / (float)ns;
     }
-    refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
+    if (rt->lv.count == 0) {
+        refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
+        return;
+    }
+    /* then the light the mirrors reflect, as PLANAR's light volumes add it */
+    for (k = 0; k < rt->lv.count; ++k) weight[scene->light_count + k] = refl__rt_virtual(rt, s, nn, k, rays);
+    refl_shade_diffuse_weighted(&rt->lv.shade, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
 }
 
 /* The medium a ray travels through: air, or the inside of a glass object
@@ -165,6 +224,13 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
 typedef struct refl__rt_medium {
     float attenuation;
     int inside;
+    /* translucency (desc.translucency): entered through glass at fog_p
+       (plane normal fog_n), what the ray shows first beyond the glass is
+       fogged towards fog_rgb by exp(-fog h), h its distance from that
+       plane, as PLANAR fogs the image behind a glass face; 0: clear */
+    float fog;
+    refl_vec3 fog_p, fog_n;
+    const float *fog_rgb;
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -227,18 +293,28 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         refl_vec3 t;
         int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
         int point_on_refraction = refracts && f < 0.5f;
+        /* inside translucent glass the fog scatters what reflects within
+           (PLANAR's slab has no inner reflections either) */
+        int scattered = !entering && medium.fog > 0.0f && refracts;
         refl__rt_medium through;
         if (!refracts) f = 1.0f; /* total internal reflection */
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction)) {
+        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
         if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
+            through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
             through.inside = entering;
+            if (entering) { /* translucency: fogged from this face on (refl__rt_trace) */
+                through.fog = rt->p->desc.translucency;
+                through.fog_p = s->p;
+                through.fog_n = s->ng;
+                through.fog_rgb = m->color;
+            }
             refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
                            point_on_refraction ? first_point : NULL);
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
@@ -253,11 +329,14 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     refl_hit h;
     refl__rt_surface s;
     int c;
+    float fog = 1.0f;             /* the share the fog leaves */
     ++*rays;
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
+        if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
+            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
     }
     /* inside glass, the light's source lies further on */
@@ -265,7 +344,13 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         *first_point = s.p;
         first_point = NULL;
     }
+    if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
+        fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
+        medium.fog = 0.0f; /* once */
+    }
     refl__rt_shade(rt, &s, d, depth, weight, medium, rays, rgb, first_point);
+    if (fog < 1.0f)
+        for (c = 0; c < 3; ++c) rgb[c] = fog * rgb[c] + (1.0f - fog) * REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
     if (medium.attenuation > 0.0f) {
         float k = expf(-medium.attenuation * h.t);
         for (c = 0; c < 3; ++c) rgb[c] *= k;
@@ -284,7 +369,8 @@ static void refl__rt_tile(void *arg, int job) {
     int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
     int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
     long long rays = 0;
-    refl__rt_medium air = {0.0f, 0};
+    refl__rt_medium air;
+    memset(&air, 0, sizeof air);
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
@@ -370,6 +456,16 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
                                tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
     }
+    if (p->desc.light_volumes) {
+        refl_result r = refl__planar_find_faces(scene, &rt.faces, &rt.face_count);
+        if (r != REFL_OK) {
+            refl_bvh_destroy(bvh);
+            refl__free(&scene->allocator, rt.objects);
+            refl__free(&scene->allocator, rt.tile_rays);
+            return r;
+        }
+        refl__lv_init(&rt.lv, scene, rt.faces, rt.face_count, p->desc.caustic_samples);
+    }
     t1 = refl__now_ms();
     f->stats.ms_build = t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
@@ -383,6 +479,7 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
     f->stats.ms_reflect = refl__now_ms() - t1;
     refl_bvh_destroy(bvh);
+    if (rt.faces) refl__planar_free_faces(scene, rt.faces, rt.face_count);
     refl__free(&scene->allocator, rt.objects);
     refl__free(&scene->allocator, rt.tile_rays);
     return REFL_OK;
