@@ -26,8 +26,17 @@
    margin), not only beyond the plane: the tails of a curved patch lie on
    both sides of their least-squares plane. Large sets are tried on an even
    subsample first, so hopeless fits cost little (see refl__sbc_fit_ok).
+   Also beyond the paper: f takes a third argument, the projective depth s
+   = h / (h - ho) of p (0 on the plane), and adds s times an affine map of
+   (u, v): a curved reflector's rays are astigmatic (they do not meet in
+   one point), so a ray's points drift across the image as s grows, and
+   along any line the drift is linear in s. Without the term a 4 x 4
+   patch of a 4,000-triangle teapot's rays errs by 1.35 px at 320 x 240,
+   with it 0.49 px. The error is also checked half-way along each ray (in
+   s), so the bound holds between a ray's ends, not only at them.
 
-   Split (the paper's heuristic): the plane through the tails' centroid,
+   Split (the paper's heuristic, with the changes said at
+   refl__sbc_split): the plane through the tails' centroid,
    parallel to the mean ray direction, perpendicular to the tails' principal
    axis (made orthogonal to the mean direction). A ray goes left when any
    tail or head of its unit frustum (itself and its ray-map neighbours
