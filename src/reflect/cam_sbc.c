@@ -358,10 +358,13 @@ static int refl__sbc_fit_map(const refl__sbc_builder *b, const int *list, int n,
         q[0] = (double)f.x - qc[0];
         q[1] = (double)f.y - qc[1];
         q[2] = (double)f.z - qc[2];
-        for (e = 0; e < 2; ++e) {
-            const double *w = uv + 6 * i + 3 * e;
+        for (e = 0; e < 3; ++e) {
+            /* tail, head, and half-way (in s) between: the ends alone
+               leave f free to bow along the ray */
+            const double *t = uv + 6 * i, *h = t + 3;
             double bs[12];
-            refl__sbc_basis(k, w[0], w[1], w[2], bs);
+            if (e < 2) refl__sbc_basis(k, t[3 * e], t[3 * e + 1], t[3 * e + 2], bs);
+            else refl__sbc_basis(k, 0.5 * (t[0] + h[0]), 0.5 * (t[1] + h[1]), 0.5 * (t[2] + h[2]), bs);
             for (j = 0; j < 12; ++j) {
                 for (l = 0; l <= j; ++l) G9[j * 12 + l] += bs[j] * bs[l];
                 for (l = 0; l < 3; ++l) R9[j * 3 + l] += bs[j] * q[l];
@@ -1096,7 +1099,7 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
 
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
     const refl__sbc_node *node;
-    refl_vec3 f;
+    refl_vec3 f = {0.0f, 0.0f, 0.0f}; /* set by every projection that succeeds */
     float zz = 0.0f;
     double pd[3];
     int ok;

@@ -261,7 +261,7 @@ static void refl__sb_build_group(void *arg, int g) {
 static void refl__sb_project(const refl__sb *sb, const refl_sbc *sbc, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
     const float *m = p->vp.m;
-    refl_vec3 f;
+    refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
     int k;
     v->ok = 0;
