@@ -308,7 +308,7 @@ bench: deps
 # method built so far, the speed-against-accuracy chart of the default
 # scene (a quick `reflect bench`), and the rasteriser's own demo picture.
 DEMO_SCENES  = default mirror-room concave glass
-DEMO_METHODS = direct raytrace envmap planar c3rc
+DEMO_METHODS = direct raytrace envmap planar c3rc sbc
 demo: deps
 	@$(MAKE) --no-print-directory build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out

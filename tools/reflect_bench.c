@@ -22,9 +22,10 @@ static const char *const usage_bench =
     "usage: reflect bench [--full] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
-    "(ENVMAP: cube sizes), times each setting (the median of N runs), measures\n"
-    "its reflection error in pixels and its image error against RAYTRACE of the\n"
-    "same scene, view and size, and writes DIR/bench.csv and the charts\n"
+    "(ENVMAP: cube sizes, C3RC: densities, SBC: ray map factors), times each\n"
+    "setting (the median of N runs), measures its reflection error in pixels\n"
+    "and its image error against RAYTRACE of the same scene, view and size,\n"
+    "and writes DIR/bench.csv and the charts\n"
     "DIR/time_vs_error_SCENE.png, DIR/growth_{resolution,diffuse,reflector,depth}.png\n"
     "and DIR/refraction_incidence.png (PLANAR's slab against the incidence angle),\n"
     "and C3RC's tables (DIR/c3rc_tables.csv, paper 000's Tables 1 and 2) and\n"
@@ -115,6 +116,7 @@ typedef struct bench_method {
     refl_method m;
     int envmap_size, embree;
     float density;                /* C3RC: points per unit area (0: automatic) */
+    int sbc_ray_factor;           /* SBC: one reflected ray per factor x factor pixels */
 } bench_method;
 
 /* Runs every method on one scene and view against its RAYTRACE reference
@@ -150,6 +152,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         d.depth = o->depth;
         d.envmap_size = bm->envmap_size;
         d.point_density = bm->density;
+        d.sbc_ray_factor = bm->sbc_ray_factor;
         if (bm->embree) {
             if (!embree) embree = refl_embree_create(s, o->threads, err, sizeof err);
             if (!embree) {
@@ -174,7 +177,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         snprintf(row->method, sizeof row->method, "%s", bm->method);
         snprintf(row->series, sizeof row->series, "%s", bm->series);
         snprintf(row->param, sizeof row->param, "%s", bm->param);
-        row->value = bm->m == REFL_C3RC ? bm->density : bm->envmap_size;
+        row->value = bm->m == REFL_C3RC ? bm->density : bm->m == REFL_SBC ? bm->sbc_ray_factor : bm->envmap_size;
         row->width = view->width;
         row->height = view->height;
         row->threads = o->threads;
@@ -309,10 +312,14 @@ static const int envmap_sizes[] = {16, 32, 64, 128, 256, 512};
 /* C3RC's setting: points per unit area (0: from the view) */
 static const float c3rc_densities[] = {250.0f, 1000.0f, 0.0f, 16000.0f};
 
-/* The methods of the error chart: exact ones once, ENVMAP per cube size. */
+/* SBC's setting: the ray map's down-sampling factor */
+static const int sbc_ray_factors[] = {4, 2};
+
+/* The methods of the error chart: exact ones once, ENVMAP per cube size,
+   C3RC per density, SBC per ray map factor. m: room for 32. */
 static int base_methods(bench_method *m, int full) {
     int n = 0, k;
-    memset(m, 0, 16 * sizeof(*m));
+    memset(m, 0, 32 * sizeof(*m));
     m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; ++n;
     m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = "base"; m[n].m = REFL_DIRECT; ++n;
@@ -327,13 +334,17 @@ static int base_methods(bench_method *m, int full) {
         m[n].method = "c3rc"; m[n].series = "c3rc"; m[n].param = "base";
         m[n].m = REFL_C3RC; m[n].density = c3rc_densities[k]; ++n;
     }
+    for (k = 0; k < (int)(sizeof sbc_ray_factors / sizeof sbc_ray_factors[0]); ++k) {
+        m[n].method = "sbc"; m[n].series = "sbc"; m[n].param = "base";
+        m[n].m = REFL_SBC; m[n].sbc_ray_factor = sbc_ray_factors[k]; ++n;
+    }
     return n;
 }
 
 /* One setting per method, for the cost-growth sweeps. */
 static int growth_methods(bench_method *m, const char *sweep) {
     int n = 0;
-    memset(m, 0, 16 * sizeof(*m));
+    memset(m, 0, 32 * sizeof(*m));
     m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; ++n;
     m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = sweep; m[n].m = REFL_DIRECT; ++n;
