@@ -110,7 +110,8 @@ static refl_result timed_render(const refl_scene *s, const refl_view *v, const r
 }
 
 /* The methods of one row set: name, series (the chart's curve), render
-   settings. ENVMAP runs once per cube size. */
+   settings. ENVMAP runs once per cube size. At most BENCH_METHODS_MAX. */
+#define BENCH_METHODS_MAX 32
 typedef struct bench_method {
     const char *method, *series, *param;
     refl_method m;
@@ -316,10 +317,10 @@ static const float c3rc_densities[] = {250.0f, 1000.0f, 0.0f, 16000.0f};
 static const int sbc_ray_factors[] = {4, 2};
 
 /* The methods of the error chart: exact ones once, ENVMAP per cube size,
-   C3RC per density, SBC per ray map factor. m: room for 32. */
+   C3RC per density, SBC per ray map factor. */
 static int base_methods(bench_method *m, int full) {
     int n = 0, k;
-    memset(m, 0, 32 * sizeof(*m));
+    memset(m, 0, BENCH_METHODS_MAX * sizeof(*m));
     m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; ++n;
     m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = "base"; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = "base"; m[n].m = REFL_DIRECT; ++n;
@@ -344,7 +345,7 @@ static int base_methods(bench_method *m, int full) {
 /* One setting per method, for the cost-growth sweeps. */
 static int growth_methods(bench_method *m, const char *sweep) {
     int n = 0;
-    memset(m, 0, 32 * sizeof(*m));
+    memset(m, 0, BENCH_METHODS_MAX * sizeof(*m));
     m[n].method = "raytrace"; m[n].series = "raytrace"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; ++n;
     m[n].method = "raytrace"; m[n].series = "embree"; m[n].param = sweep; m[n].m = REFL_RAYTRACE; m[n].embree = 1; ++n;
     m[n].method = "direct"; m[n].series = "direct"; m[n].param = sweep; m[n].m = REFL_DIRECT; ++n;
@@ -433,7 +434,7 @@ static refl_view view_of(const refl_scene *s, int w, int h) {
 int refl_cli_bench(int argc, char **argv) {
     bench_opts o;
     bench_table table;
-    bench_method methods[32];
+    bench_method methods[BENCH_METHODS_MAX];
     char path[1024], names[16][24];
     const char *scenes_quick[] = {"default", NULL};
     const char *const *scenes;
