@@ -491,6 +491,15 @@ RAST_API rast_result rast_finish(rast_context *ctx);
 #include <emmintrin.h>
 #endif
 
+/* For the few per-pixel helpers whose call would cost more than their body. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RAST__FORCE_INLINE static inline __attribute__((always_inline))
+#elif defined(_MSC_VER)
+#define RAST__FORCE_INLINE static __forceinline
+#else
+#define RAST__FORCE_INLINE static
+#endif
+
 #ifndef RAST_ASSERT
 #include <assert.h>
 #define RAST_ASSERT(c) assert(c)
@@ -674,7 +683,7 @@ typedef struct rast__pipe {
 /* ---- records: what setup leaves for the tile workers ---- */
 
 enum {
-    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_SPLAT, RAST__REC_LINE,
+    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_LINE,
     RAST__REC_RECT, RAST__REC_CLEAR, RAST__REC_ACCUM
 };
 
@@ -705,21 +714,15 @@ typedef struct rast__point {
     /* then num_varyings floats */
 } rast__point;
 
-/* A point of a simple pipe drawn into RGBA8: only depth and the packed
-   colour travel to the tile (the C3RC method splats millions). */
+/* A point of a simple pipe drawn into RGBA8: only where, how deep and
+   what colour travel to the tile (the C3RC method splats millions). Its
+   square is the pipe's point size from (x, y), clipped by the pipe's clip
+   rectangle where drawn. No record header: a chunk holds splats only. */
 typedef struct rast__splat {
-    rast__rec h;
+    int16_t x, y;             /* top-left pixel of the unclipped square */
     float z;                  /* clamped window depth */
     uint32_t rgba;            /* bytes R, G, B, A in memory order */
 } rast__splat;
-
-/* A one-pixel splat (point size 1, the common case): just where, how deep
-   and what colour; chunks of them are binned and drawn by their own loops. */
-typedef struct rast__splat1 {
-    int16_t x, y;
-    float z;
-    uint32_t rgba;
-} rast__splat1;
 
 typedef struct rast__line {
     rast__rec h;
@@ -807,8 +810,7 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
-    int splat;                /* points become records of rast__splat (1),
-                                 or of rast__splat1 for size 1 (2) */
+    int splat;                /* points become rast__splat records */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
@@ -821,7 +823,6 @@ static size_t rast__rec_size(int kind, int nvar) {
     switch (kind) {
     case RAST__REC_TRI: return rast__align(sizeof(rast__tri) + (size_t)nvar * 3 * sizeof(float));
     case RAST__REC_POINT: return rast__align(sizeof(rast__point) + (size_t)nvar * sizeof(float));
-    case RAST__REC_SPLAT: return sizeof(rast__splat);
     case RAST__REC_LINE: return rast__align(sizeof(rast__line) + (size_t)nvar * 2 * sizeof(float));
     case RAST__REC_RECT: return rast__align(sizeof(rast__rect));
     case RAST__REC_CLEAR: return rast__align(sizeof(rast__clear_rec));
@@ -2095,11 +2096,10 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     y0 = (int)rast__floor_px(top - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
-    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
-    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
-    if (x0 >= x1 || y0 >= y1) return;
-    if (ch->splat == 2) {
-        rast__splat1 *sp = (rast__splat1 *)rast__chunk_push(ch, sizeof(rast__splat1));
+    if (ch->splat) { /* clipped where drawn */
+        rast__splat *sp;
+        if (x1 <= p->clip[0] || x0 >= p->clip[2] || y1 <= p->clip[1] || y0 >= p->clip[3]) return;
+        sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
         if (!sp) return;
         sp->x = (int16_t)x0;
         sp->y = (int16_t)y0;
@@ -2107,17 +2107,9 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
         sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
         return;
     }
-    if (ch->splat) {
-        rast__splat *sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
-        if (!sp) return;
-        sp->h.kind = RAST__REC_SPLAT;
-        sp->h.front = 1;
-        sp->h.pad = 0;
-        sp->h.x0 = (int16_t)x0; sp->h.y0 = (int16_t)y0; sp->h.x1 = (int16_t)x1; sp->h.y1 = (int16_t)y1;
-        sp->z = RAST__CLAMP(wz, 0.0f, 1.0f);
-        sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
-        return;
-    }
+    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
+    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
+    if (x0 >= x1 || y0 >= y1) return;
     pt = (rast__point *)rast__chunk_push(ch, rast__rec_size(RAST__REC_POINT, nvar));
     if (!pt) return;
     pt->h.kind = RAST__REC_POINT;
@@ -2224,6 +2216,9 @@ static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
     int i;
     for (i = p0; i < p1 && !ch->failed; ++i) {
         const float *src = d->vertices + (size_t)i * (size_t)d->stride;
+#if defined(__GNUC__) || defined(__clang__)
+        if (i + 8 < p1) __builtin_prefetch(src + 8 * (size_t)d->stride); /* a miss per line otherwise */
+#endif
         if (!d->matrix && d->position_size == 4) { /* already x, y, z, w, varyings */
             rast__setup_point(ch, src);
             continue;
@@ -3012,41 +3007,86 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* One splatted pixel: depth test and write, then the packed colour. The
-   test is branchless (random depths would mispredict half the time) and
-   the usual functions inline (no call between the load and the store). */
-static void rast__splat_pixel(const rast__pipe *p, const rast__fb *fb, int x, int y, float z, uint32_t rgba) {
-    uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
-    uint32_t now;
-    int pass = 1;
-    if (p->depth_on) {
-        float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
-        float old = *dp;
-        pass = p->depth_func == RAST_LESS ? z < old : p->depth_func == RAST_LEQUAL ? z <= old
-                                                                                   : rast__compare_f(p->depth_func, z, old);
-        *dp = pass && p->depth_write ? z : old;
-    }
-    memcpy(&now, cp, 4);
-    now = pass ? rgba : now;
-    memcpy(cp, &now, 4);
+/* What splat loops need of the pipe and targets, in locals: a colour store
+   may alias anything, so fields read through pointers would be reloaded
+   for every pixel. */
+typedef struct rast__splat_target {
+    uint8_t *color, *depth;
+    size_t color_stride, depth_stride;
+    int depth_on, depth_func, depth_write;
+} rast__splat_target;
+
+static rast__splat_target rast__splat_target_of(const rast__pipe *p, const rast__fb *fb) {
+    rast__splat_target t;
+    t.color = fb->color;
+    t.depth = (uint8_t *)fb->depth;
+    t.color_stride = (size_t)fb->color_stride;
+    t.depth_stride = (size_t)fb->depth_stride;
+    t.depth_on = p->depth_on;
+    t.depth_func = p->depth_func;
+    t.depth_write = p->depth_write;
+    return t;
 }
 
-/* Splats of points larger than a pixel: their square within the tile. */
-static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const uint8_t *b,
-                                const uint8_t *e) {
-    for (; b < e; b += sizeof(rast__splat)) {
-        const rast__splat *sp = (const rast__splat *)b;
-        int x0 = RAST__MAX(sp->h.x0, tl->x0), x1 = RAST__MIN(sp->h.x1, tl->x1);
-        int y0 = RAST__MAX(sp->h.y0, tl->y0), y1 = RAST__MIN(sp->h.y1, tl->y1), x, y;
-        for (y = y0; y < y1; ++y)
-            for (x = x0; x < x1; ++x) rast__splat_pixel(di->pipe, tl->fb, x, y, sp->z, sp->rgba);
+/* A run of n splatted pixels of one row: depth test and write, then the
+   packed colour. Branchless per pixel (random depths would mispredict
+   half the time); the usual depth functions inline. */
+RAST__FORCE_INLINE void rast__splat_run(const rast__splat_target *t, int x, int y, int n, float z, uint32_t rgba) {
+    uint8_t *cp = t->color + (size_t)y * t->color_stride + 4 * (size_t)x;
+    int i;
+    if (!t->depth_on) {
+        for (i = 0; i < n; ++i) memcpy(cp + 4 * i, &rgba, 4);
+        return;
+    }
+    {
+        float *dp = (float *)(t->depth + (size_t)y * t->depth_stride) + x;
+        const int func = t->depth_func, write = t->depth_write;
+        i = 0;
+#ifdef RAST__SSE2
+        /* two pixels at a time for the usual functions: the same compares
+           (false for NaN, as above), selected by mask */
+        if (func == RAST_LESS || func == RAST_LEQUAL) {
+            const __m128 zz = _mm_set1_ps(z);
+            const __m128i col = _mm_set1_epi32((int)rgba);
+            for (; i + 2 <= n; i += 2) {
+                __m128 old = _mm_castpd_ps(_mm_load_sd((const double *)(const void *)(dp + i)));
+                __m128 pass = func == RAST_LESS ? _mm_cmplt_ps(zz, old) : _mm_cmple_ps(zz, old);
+                __m128i pm = _mm_castps_si128(pass);
+                __m128i now = _mm_loadl_epi64((const __m128i *)(const void *)(cp + 4 * i));
+                if (write) _mm_store_sd((double *)(void *)(dp + i), _mm_castps_pd(_mm_or_ps(_mm_and_ps(pass, zz), _mm_andnot_ps(pass, old))));
+                now = _mm_or_si128(_mm_and_si128(pm, col), _mm_andnot_si128(pm, now));
+                _mm_storel_epi64((__m128i *)(void *)(cp + 4 * i), now);
+            }
+        }
+#endif
+        for (; i < n; ++i) {
+            float old = dp[i];
+            uint32_t now;
+            int pass = func == RAST_LESS ? z < old : func == RAST_LEQUAL ? z <= old : rast__compare_f(func, z, old);
+            dp[i] = pass && write ? z : old;
+            memcpy(&now, cp + 4 * i, 4);
+            now = pass ? rgba : now;
+            memcpy(cp + 4 * i, &now, 4);
+        }
     }
 }
 
-/* One-pixel splats of a tile (binning put each in its one tile). */
-static void rast__raster_splats1(const rast__draw_info *di, rast__tile *tl, const rast__splat1 *b,
-                                 const rast__splat1 *e) {
-    for (; b < e; ++b) rast__splat_pixel(di->pipe, tl->fb, b->x, b->y, b->z, b->rgba);
+/* Splats of a tile: their squares clipped by the tile and the pipe. */
+static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const rast__splat *b,
+                                const rast__splat *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__splat_target t = rast__splat_target_of(p, tl->fb);
+    const int cx0 = RAST__MAX(tl->x0, p->clip[0]), cy0 = RAST__MAX(tl->y0, p->clip[1]);
+    const int cx1 = RAST__MIN(tl->x1, p->clip[2]), cy1 = RAST__MIN(tl->y1, p->clip[3]), size = p->point_size;
+    if (size == 1) { /* binning put each in this tile, within the clip */
+        for (; b < e; ++b) rast__splat_run(&t, b->x, b->y, 1, b->z, b->rgba);
+        return;
+    }
+    for (; b < e; ++b) {
+        int x0 = RAST__MAX(b->x, cx0), x1 = RAST__MIN(b->x + size, cx1);
+        int y0 = RAST__MAX(b->y, cy0), y1 = RAST__MIN(b->y + size, cy1), y;
+        for (y = y0; y < y1; ++y) rast__splat_run(&t, x0, y, x1 - x0, b->z, b->rgba);
+    }
 }
 
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
@@ -3055,7 +3095,6 @@ static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const
     switch (h->kind) {
     case RAST__REC_TRI: rast__raster_tri(di, tl, (const rast__tri *)h); break;
     case RAST__REC_POINT: rast__raster_point(di, tl, (const rast__point *)h); break;
-    case RAST__REC_SPLAT: rast__raster_splats(di, tl, (const uint8_t *)h, (const uint8_t *)h + sizeof(rast__splat)); break;
     case RAST__REC_LINE: rast__raster_line(di, tl, (const rast__line *)h); break;
     case RAST__REC_RECT: rast__raster_rect(di, tl, (const rast__rect *)h); break;
     case RAST__REC_CLEAR:
@@ -3078,7 +3117,10 @@ static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const
      3. tile jobs, each walking every chunk in submission order.
    Job boundaries depend only on the input, never on the thread count. */
 
-enum { RAST__PRIMS_PER_JOB = 2048 };
+/* A setup job writes about this many bytes of records: 2048 triangles
+   with a few varyings, 21845 splats. Every tile walks every chunk of a
+   pass, so small records want many to a job. */
+enum { RAST__JOB_BYTES = 256 * 1024, RAST__MAX_PRIMS_PER_JOB = 32768 };
 
 typedef struct rast__job {
     rast__cmd *cmd;
@@ -3185,30 +3227,60 @@ static void rast__chunk_take_sorted(rast__chunk *ch, size_t total) {
     ch->used = total;
 }
 
-/* rast__bin_chunk for one-pixel splats: each lies in exactly one tile,
-   given by its pixel, so the sort needs no record headers. */
-static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
-    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, t;
-    const rast__splat1 *in = (const rast__splat1 *)ch->recs;
-    size_t n = ch->used / sizeof(rast__splat1), i, total = 0;
-    rast__splat1 *out;
-    for (i = 0; i < n; ++i) ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1] += sizeof(rast__splat1);
+/* The tile a splat's square lies in, or -1 when it touches several: then
+   [*tx0, *tx1] x [*ty0, *ty1] are they (its square clipped by the pipe). */
+RAST__FORCE_INLINE int rast__splat_tiles(const rast_context *ctx, const rast__pipe *p, const rast__splat *sp, int *tx0, int *ty0,
+                             int *tx1, int *ty1) {
+    const int S = ctx->tile_shift;
+    if (p->point_size == 1) return (sp->y >> S) * ctx->tiles_x + (sp->x >> S); /* within the clip */
+    *tx0 = RAST__MAX(sp->x, p->clip[0]) >> S;
+    *ty0 = RAST__MAX(sp->y, p->clip[1]) >> S;
+    *tx1 = (RAST__MIN(sp->x + p->point_size, p->clip[2]) - 1) >> S;
+    *ty1 = (RAST__MIN(sp->y + p->point_size, p->clip[3]) - 1) >> S;
+    return *tx0 == *tx1 && *ty0 == *ty1 ? *ty0 * ctx->tiles_x + *tx0 : -1;
+}
+
+/* rast__bin_chunk for splats: records without headers, each copied into
+   every tile its square touches. */
+static void rast__bin_splats(const rast_context *ctx, rast__chunk *ch) {
+    int ntiles = ctx->tiles_x * ctx->tiles_y, t, tx, ty, tx0 = 0, ty0 = 0, tx1 = -1, ty1 = -1;
+    const rast__pipe *p = ch->cmd->pipe;
+    const rast__splat *in = (const rast__splat *)ch->recs;
+    size_t n = ch->used / sizeof(rast__splat), i, total = 0, *count = ch->bin_start + 1;
+    rast__splat *out;
+    for (i = 0; i < n; ++i) {
+        if ((t = rast__splat_tiles(ctx, p, &in[i], &tx0, &ty0, &tx1, &ty1)) >= 0) {
+            count[t] += sizeof(rast__splat);
+            continue;
+        }
+        for (ty = ty0; ty <= ty1; ++ty)
+            for (tx = tx0; tx <= tx1; ++tx) count[ty * ctx->tiles_x + tx] += sizeof(rast__splat);
+    }
     for (t = 0; t < ntiles; ++t) {
-        size_t c = ch->bin_start[t + 1];
-        ch->bin_start[t + 1] = total;
+        size_t c = count[t];
+        count[t] = total;
         total += c;
     }
+    /* count[t] is now the start of tile t; filling advances it to its end */
     if (ch->spare_cap < total) {
         rast__free(ch->alloc, ch->spare);
         ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
         ch->spare_cap = ch->spare ? total : 0;
         if (!ch->spare) { ch->failed = 1; return; }
     }
-    out = (rast__splat1 *)ch->spare;
+    out = (rast__splat *)ch->spare;
     for (i = 0; i < n; ++i) {
-        size_t *at = &ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1];
-        out[*at / sizeof(rast__splat1)] = in[i];
-        *at += sizeof(rast__splat1);
+        if ((t = rast__splat_tiles(ctx, p, &in[i], &tx0, &ty0, &tx1, &ty1)) >= 0) {
+            out[count[t] / sizeof(rast__splat)] = in[i];
+            count[t] += sizeof(rast__splat);
+            continue;
+        }
+        for (ty = ty0; ty <= ty1; ++ty)
+            for (tx = tx0; tx <= tx1; ++tx) {
+                size_t *at = &count[ty * ctx->tiles_x + tx];
+                out[*at / sizeof(rast__splat)] = in[i];
+                *at += sizeof(rast__splat);
+            }
     }
     rast__chunk_take_sorted(ch, total);
 }
@@ -3230,8 +3302,8 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
     }
     memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
-    if (ch->splat == 2) {
-        rast__bin_splats1(ctx, ch);
+    if (ch->splat) {
+        rast__bin_splats(ctx, ch);
         return;
     }
     /* a chunk holds one kind of record (one draw or one command) */
@@ -3331,12 +3403,8 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        if (ch->splat == 2) {
-            rast__raster_splats1(&di, &tl, (const rast__splat1 *)(ch->recs + b), (const rast__splat1 *)(ch->recs + e));
-            continue;
-        }
         if (ch->splat) {
-            rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
+            rast__raster_splats(&di, &tl, (const rast__splat *)(ch->recs + b), (const rast__splat *)(ch->recs + e));
             continue;
         }
         size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
@@ -3344,25 +3412,27 @@ static void rast__tile_job_fn(void *arg, int t) {
     }
 }
 
-/* Which splat records a command's points become: 0 none (full point
-   records), 1 rast__splat, 2 rast__splat1 (see rast__chunk.splat). */
-static int rast__splat_kind(const rast_context *ctx, const rast__cmd *cmd) {
-    if (cmd->kind != RAST__CMD_DRAW || cmd->verts_per_prim != 1 || !cmd->pipe->simple ||
-        !cmd->pipe->plain_color || !ctx->fb.color || ctx->fb.color_f32)
-        return 0;
-    return cmd->pipe->point_size == 1 ? 2 : 1;
+/* Whether a command's points become rast__splat records. */
+static int rast__is_splat(const rast_context *ctx, const rast__cmd *cmd) {
+    return cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
+           cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
 }
 
 /* Setup memory a primitive of the command may take (records, twice for
    the tile sort), for planning passes. */
 static size_t rast__prim_bytes(const rast_context *ctx, const rast__cmd *cmd) {
-    int splat = rast__splat_kind(ctx, cmd);
-    size_t rec = splat == 2 ? sizeof(rast__splat1)
-                 : splat == 1 ? sizeof(rast__splat)
+    size_t rec = rast__is_splat(ctx, cmd) ? sizeof(rast__splat)
                  : rast__rec_size(cmd->verts_per_prim == 3 ? RAST__REC_TRI
                                   : cmd->verts_per_prim == 2 ? RAST__REC_LINE : RAST__REC_POINT,
                                   cmd->d.num_varyings);
     return 2 * rec * (size_t)cmd->max_out;
+}
+
+/* Primitives per setup job of a command (a function of the command only,
+   so job boundaries never depend on the thread count). */
+static int rast__prims_per_job(const rast_context *ctx, const rast__cmd *cmd) {
+    size_t per_prim = rast__prim_bytes(ctx, cmd) / 2;
+    return (int)RAST__CLAMP(RAST__JOB_BYTES / RAST__MAX(per_prim, (size_t)1), (size_t)1, (size_t)RAST__MAX_PRIMS_PER_JOB);
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
@@ -3424,8 +3494,9 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p == 0 && cmd->d.indices && !cmd->vout)
             nvjobs += (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
         ++njobs;
-        budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(RAST__PRIMS_PER_JOB, cmd->prim_count - p);
-        p += RAST__PRIMS_PER_JOB;
+        int per_job = rast__prims_per_job(ctx, cmd);
+        budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(per_job, cmd->prim_count - p);
+        p += per_job;
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.jobs = (rast__job *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__job));
@@ -3446,7 +3517,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].used = 0;
         ps.chunks[i].nrec = 0;
         ps.chunks[i].failed = 0;
-        ps.chunks[i].splat = rast__splat_kind(ctx, cmd);
+        ps.chunks[i].splat = rast__is_splat(ctx, cmd);
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
@@ -3463,8 +3534,8 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
             }
         }
         ps.jobs[i].p0 = p;
-        ps.jobs[i].p1 = RAST__MIN(p + RAST__PRIMS_PER_JOB, cmd->prim_count);
-        p += RAST__PRIMS_PER_JOB;
+        ps.jobs[i].p1 = RAST__MIN(p + rast__prims_per_job(ctx, cmd), cmd->prim_count);
+        p = ps.jobs[i].p1;
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.count = njobs;

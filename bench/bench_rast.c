@@ -1,6 +1,8 @@
 /* bench_rast - rast.h against Mesa llvmpipe (headless EGL) at 1920x1080.
 
    Usage: bench_rast [--csv FILE] [--runs N]
+          bench_rast --child rast|gl THREADS RUNS   (one side's timings; with
+                     BENCH_RAST_ROW=NAME only that row: for perf record)
 
    Rows (each frame = clear colour/depth/stencil + the draws + finish):
      points_1M_size1    1M points of size 1, depth test LESS
@@ -358,10 +360,13 @@ static void gl_frame(gl_peer *p, int row, const geometry *g) {
 /* ---- children -------------------------------------------------------------- */
 
 static int child_time(const char *who, int threads, int runs) {
-    int row;
+    int row, only_row = -1;
+    const char *only = getenv("BENCH_RAST_ROW");
     gl_peer *gp = NULL;
     rast_side rs;
     int is_gl = strcmp(who, "gl") == 0;
+    for (row = 0; only && row < NROWS; row++)
+        if (!strcmp(only, row_names[row])) only_row = row;
     if (is_gl) {
         char buf[16];
         snprintf(buf, sizeof buf, "%d", threads);
@@ -381,6 +386,7 @@ static int child_time(const char *who, int threads, int runs) {
         geometry g;
         double t[64];
         int i, n = runs;
+        if (only_row >= 0 && row != only_row) continue;
         make_row_geometry(row, &g);
         if (is_gl) {
             gl_peer_upload(gp, g.v, g.nv, g.idx, g.ni);

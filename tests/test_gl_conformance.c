@@ -219,8 +219,10 @@ static void gl_stencil_face(GLenum face, const rast_stencil_face *f) {
     glStencilMaskSeparate(face, mask8(f->write_mask));
 }
 
-/* The subset of rast_state these tests use. */
-static void gl_apply_state(gl_peer *g, const rast_state *s) {
+/* The subset of rast_state these tests use. The scissor is in image rows
+   (top-left origin); GL counts rows from the bottom unless it draws the
+   scene mirrored. */
+static void gl_apply_state(gl_peer *g, const rast_state *s, int mirrored) {
     unsigned cw = s->color_write ? (s->color_write & 15u) : 15u;
     float ps = s->point_size <= 0.0f ? 1.0f : floorf(s->point_size + 0.5f);
     if (ps < 1.0f) ps = 1.0f;
@@ -254,6 +256,13 @@ static void gl_apply_state(gl_peer *g, const rast_state *s) {
     glBlendEquationSeparate(gl_blend_eq(s->blend_eq_rgb), gl_blend_eq(s->blend_eq_alpha));
     glBlendColor(s->blend_color[0], s->blend_color[1], s->blend_color[2], s->blend_color[3]);
     glColorMask((cw & 1) != 0, (cw & 2) != 0, (cw & 4) != 0, (cw & 8) != 0);
+    if (s->scissor_test) {
+        glEnable(GL_SCISSOR_TEST);
+        glScissor(s->scissor[0], mirrored ? s->scissor[1] : H - s->scissor[1] - s->scissor[3], s->scissor[2],
+                  s->scissor[3]);
+    } else {
+        glDisable(GL_SCISSOR_TEST);
+    }
 }
 
 /* ---- the pair: one scene, two renderers --------------------------------- */
@@ -350,7 +359,7 @@ static void pair_draw(pair *p, const rast_state *s, rast_primitive prim, const f
     res = rast_draw(p->rc, &d);
     cr_assert_eq(res, RAST_OK, "rast_draw: %s", rast_result_string(res));
 
-    gl_apply_state(&p->gl, s);
+    gl_apply_state(&p->gl, s, p->mirror_gl);
     if (p->mirror_gl) {
         /* y -> -y in clip space: GL window y == image y. Mirroring reverses
            the winding, so the front face flips too. */
@@ -1037,6 +1046,23 @@ Test(gl_conformance, depth_sloped_near_ties, .timeout = 120) {
 
 /* ---- points -------------------------------------------------------------- */
 
+/* n points with random colours, depths and w; every edge_every-th centre
+   lies within `size` pixels of a target edge (inside), so that squares
+   reach past it. */
+static void random_points(rng *r, float *v, int n, int size, int edge_every) {
+    int i;
+    for (i = 0; i < n; i++) {
+        float c[4];
+        double x = rng_point_coord(r, 0, W), y = rng_point_coord(r, 0, H);
+        if (i % edge_every == 0) {
+            if (rng_int(r, 2)) x = rng_int(r, 2) ? rng_point_coord(r, 0, size) : rng_point_coord(r, W - size, W);
+            else y = rng_int(r, 2) ? rng_point_coord(r, 0, size) : rng_point_coord(r, H - size, H);
+        }
+        rand_color(r, c);
+        put_vertex(v + i * VF, x, y, (rng_int(r, 2047) - 1023) / 1024.0, rand_pow2_w(r), c);
+    }
+}
+
 Test(gl_conformance, points_exact, .timeout = 120) {
     pair *p = pair_create();
     static float v[1500 * VF];
@@ -1045,20 +1071,8 @@ Test(gl_conformance, points_exact, .timeout = 120) {
     pair_clear(p, black, 1.0f, 0);
     for (size = 1; size <= 8; size++) {
         rast_state s;
-        int i, n = 1500 / size;
-        int margin = size; /* some squares reach past the viewport edges */
-        for (i = 0; i < n; i++) {
-            float c[4];
-            double x = rng_point_coord(&r, 0, W), y = rng_point_coord(&r, 0, H);
-            if (i % 7 == 0) { /* near an edge, centre inside */
-                if (rng_int(&r, 2)) x = rng_int(&r, 2) ? rng_point_coord(&r, 0, margin)
-                                                      : rng_point_coord(&r, W - margin, W);
-                else y = rng_int(&r, 2) ? rng_point_coord(&r, 0, margin)
-                                        : rng_point_coord(&r, H - margin, H);
-            }
-            rand_color(&r, c);
-            put_vertex(v + i * VF, x, y, (rng_int(&r, 2047) - 1023) / 1024.0, rand_pow2_w(&r), c);
-        }
+        int n = 1500 / size;
+        random_points(&r, v, n, size, 7);
         memset(&s, 0, sizeof s);
         s.point_size = (float)size;
         s.depth_test = 1;
@@ -1078,6 +1092,39 @@ Test(gl_conformance, points_exact, .timeout = 120) {
         cr_expect_eq(bs, 0, "points: %d pixels with a different coverage count", bs);
         cr_expect_eq(bd, 0, "points: %d depth values differ (constant depths must be exact)", bd);
         cr_expect_eq(bc, 0, "points: %d colours off by more than 1/255", bc);
+    }
+    pair_destroy(p);
+}
+
+/* Points through rast.h's splat path (RGBA8, depth test, no stencil,
+   blending or callbacks: records of position, depth and colour only),
+   sizes 1 to 8 near the target's edges and across a scissor rectangle
+   whose edges cut squares and tiles: colour and depth equal llvmpipe's. */
+Test(gl_conformance, splatted_points_exact, .timeout = 120) {
+    pair *p = pair_create();
+    static float v[1500 * VF];
+    rng r = { 0x5EED0016u };
+    int size, scissored;
+    pair_clear(p, black, 1.0f, 0);
+    for (scissored = 0; scissored < 2; scissored++)
+        for (size = 1; size <= 8; size++) {
+            rast_state s;
+            int n = 1500 / size;
+            random_points(&r, v, n, size, 5);
+            memset(&s, 0, sizeof s);
+            s.point_size = (float)size;
+            s.depth_test = 1;
+            s.depth_func = size & 1 ? RAST_LESS : RAST_LEQUAL;
+            s.scissor_test = scissored;
+            s.scissor[0] = 61; s.scissor[1] = 37; s.scissor[2] = W / 2; s.scissor[3] = H / 2;
+            pair_draw(p, &s, RAST_POINTS, v, n);
+        }
+    pair_read(p);
+    {
+        int bd = compare_depth(p, "splatted points", 0.0f, NULL, NULL);
+        int bc = compare_color(p, "splatted points", 1, NULL, NULL);
+        cr_expect_eq(bd, 0, "splatted points: %d depth values differ (constant depths must be exact)", bd);
+        cr_expect_eq(bc, 0, "splatted points: %d colours off by more than 1/255", bc);
     }
     pair_destroy(p);
 }

@@ -7,7 +7,10 @@
    Job boundaries depend only on the input, never on the thread count. */
 #include "internal.h"
 
-enum { RAST__PRIMS_PER_JOB = 2048 };
+/* A setup job writes about this many bytes of records: 2048 triangles
+   with a few varyings, 21845 splats. Every tile walks every chunk of a
+   pass, so small records want many to a job. */
+enum { RAST__JOB_BYTES = 256 * 1024, RAST__MAX_PRIMS_PER_JOB = 32768 };
 
 typedef struct rast__job {
     rast__cmd *cmd;
@@ -114,30 +117,60 @@ static void rast__chunk_take_sorted(rast__chunk *ch, size_t total) {
     ch->used = total;
 }
 
-/* rast__bin_chunk for one-pixel splats: each lies in exactly one tile,
-   given by its pixel, so the sort needs no record headers. */
-static void rast__bin_splats1(const rast_context *ctx, rast__chunk *ch) {
-    int ntiles = ctx->tiles_x * ctx->tiles_y, S = ctx->tile_shift, t;
-    const rast__splat1 *in = (const rast__splat1 *)ch->recs;
-    size_t n = ch->used / sizeof(rast__splat1), i, total = 0;
-    rast__splat1 *out;
-    for (i = 0; i < n; ++i) ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1] += sizeof(rast__splat1);
+/* The tile a splat's square lies in, or -1 when it touches several: then
+   [*tx0, *tx1] x [*ty0, *ty1] are they (its square clipped by the pipe). */
+RAST__FORCE_INLINE int rast__splat_tiles(const rast_context *ctx, const rast__pipe *p, const rast__splat *sp, int *tx0, int *ty0,
+                             int *tx1, int *ty1) {
+    const int S = ctx->tile_shift;
+    if (p->point_size == 1) return (sp->y >> S) * ctx->tiles_x + (sp->x >> S); /* within the clip */
+    *tx0 = RAST__MAX(sp->x, p->clip[0]) >> S;
+    *ty0 = RAST__MAX(sp->y, p->clip[1]) >> S;
+    *tx1 = (RAST__MIN(sp->x + p->point_size, p->clip[2]) - 1) >> S;
+    *ty1 = (RAST__MIN(sp->y + p->point_size, p->clip[3]) - 1) >> S;
+    return *tx0 == *tx1 && *ty0 == *ty1 ? *ty0 * ctx->tiles_x + *tx0 : -1;
+}
+
+/* rast__bin_chunk for splats: records without headers, each copied into
+   every tile its square touches. */
+static void rast__bin_splats(const rast_context *ctx, rast__chunk *ch) {
+    int ntiles = ctx->tiles_x * ctx->tiles_y, t, tx, ty, tx0 = 0, ty0 = 0, tx1 = -1, ty1 = -1;
+    const rast__pipe *p = ch->cmd->pipe;
+    const rast__splat *in = (const rast__splat *)ch->recs;
+    size_t n = ch->used / sizeof(rast__splat), i, total = 0, *count = ch->bin_start + 1;
+    rast__splat *out;
+    for (i = 0; i < n; ++i) {
+        if ((t = rast__splat_tiles(ctx, p, &in[i], &tx0, &ty0, &tx1, &ty1)) >= 0) {
+            count[t] += sizeof(rast__splat);
+            continue;
+        }
+        for (ty = ty0; ty <= ty1; ++ty)
+            for (tx = tx0; tx <= tx1; ++tx) count[ty * ctx->tiles_x + tx] += sizeof(rast__splat);
+    }
     for (t = 0; t < ntiles; ++t) {
-        size_t c = ch->bin_start[t + 1];
-        ch->bin_start[t + 1] = total;
+        size_t c = count[t];
+        count[t] = total;
         total += c;
     }
+    /* count[t] is now the start of tile t; filling advances it to its end */
     if (ch->spare_cap < total) {
         rast__free(ch->alloc, ch->spare);
         ch->spare = (uint8_t *)rast__alloc(ch->alloc, total);
         ch->spare_cap = ch->spare ? total : 0;
         if (!ch->spare) { ch->failed = 1; return; }
     }
-    out = (rast__splat1 *)ch->spare;
+    out = (rast__splat *)ch->spare;
     for (i = 0; i < n; ++i) {
-        size_t *at = &ch->bin_start[(in[i].y >> S) * ctx->tiles_x + (in[i].x >> S) + 1];
-        out[*at / sizeof(rast__splat1)] = in[i];
-        *at += sizeof(rast__splat1);
+        if ((t = rast__splat_tiles(ctx, p, &in[i], &tx0, &ty0, &tx1, &ty1)) >= 0) {
+            out[count[t] / sizeof(rast__splat)] = in[i];
+            count[t] += sizeof(rast__splat);
+            continue;
+        }
+        for (ty = ty0; ty <= ty1; ++ty)
+            for (tx = tx0; tx <= tx1; ++tx) {
+                size_t *at = &count[ty * ctx->tiles_x + tx];
+                out[*at / sizeof(rast__splat)] = in[i];
+                *at += sizeof(rast__splat);
+            }
     }
     rast__chunk_take_sorted(ch, total);
 }
@@ -159,8 +192,8 @@ static void rast__bin_chunk(const rast_context *ctx, rast__chunk *ch) {
     }
     memset(ch->bin_start, 0, ((size_t)ntiles + 1) * sizeof(size_t));
     if (!ch->nrec) return;
-    if (ch->splat == 2) {
-        rast__bin_splats1(ctx, ch);
+    if (ch->splat) {
+        rast__bin_splats(ctx, ch);
         return;
     }
     /* a chunk holds one kind of record (one draw or one command) */
@@ -260,12 +293,8 @@ static void rast__tile_job_fn(void *arg, int t) {
         di.pipe = ch->cmd->pipe;
         di.nvar = ch->cmd->kind == RAST__CMD_DRAW ? ch->cmd->d.num_varyings : 0;
         di.color = ch->cmd->d.color;
-        if (ch->splat == 2) {
-            rast__raster_splats1(&di, &tl, (const rast__splat1 *)(ch->recs + b), (const rast__splat1 *)(ch->recs + e));
-            continue;
-        }
         if (ch->splat) {
-            rast__raster_splats(&di, &tl, ch->recs + b, ch->recs + e);
+            rast__raster_splats(&di, &tl, (const rast__splat *)(ch->recs + b), (const rast__splat *)(ch->recs + e));
             continue;
         }
         size = rast__rec_size(((const rast__rec *)(ch->recs + b))->kind, di.nvar);
@@ -273,25 +302,27 @@ static void rast__tile_job_fn(void *arg, int t) {
     }
 }
 
-/* Which splat records a command's points become: 0 none (full point
-   records), 1 rast__splat, 2 rast__splat1 (see rast__chunk.splat). */
-static int rast__splat_kind(const rast_context *ctx, const rast__cmd *cmd) {
-    if (cmd->kind != RAST__CMD_DRAW || cmd->verts_per_prim != 1 || !cmd->pipe->simple ||
-        !cmd->pipe->plain_color || !ctx->fb.color || ctx->fb.color_f32)
-        return 0;
-    return cmd->pipe->point_size == 1 ? 2 : 1;
+/* Whether a command's points become rast__splat records. */
+static int rast__is_splat(const rast_context *ctx, const rast__cmd *cmd) {
+    return cmd->kind == RAST__CMD_DRAW && cmd->verts_per_prim == 1 && cmd->pipe->simple &&
+           cmd->pipe->plain_color && ctx->fb.color && !ctx->fb.color_f32;
 }
 
 /* Setup memory a primitive of the command may take (records, twice for
    the tile sort), for planning passes. */
 static size_t rast__prim_bytes(const rast_context *ctx, const rast__cmd *cmd) {
-    int splat = rast__splat_kind(ctx, cmd);
-    size_t rec = splat == 2 ? sizeof(rast__splat1)
-                 : splat == 1 ? sizeof(rast__splat)
+    size_t rec = rast__is_splat(ctx, cmd) ? sizeof(rast__splat)
                  : rast__rec_size(cmd->verts_per_prim == 3 ? RAST__REC_TRI
                                   : cmd->verts_per_prim == 2 ? RAST__REC_LINE : RAST__REC_POINT,
                                   cmd->d.num_varyings);
     return 2 * rec * (size_t)cmd->max_out;
+}
+
+/* Primitives per setup job of a command (a function of the command only,
+   so job boundaries never depend on the thread count). */
+static int rast__prims_per_job(const rast_context *ctx, const rast__cmd *cmd) {
+    size_t per_prim = rast__prim_bytes(ctx, cmd) / 2;
+    return (int)RAST__CLAMP(RAST__JOB_BYTES / RAST__MAX(per_prim, (size_t)1), (size_t)1, (size_t)RAST__MAX_PRIMS_PER_JOB);
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
@@ -353,8 +384,9 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p == 0 && cmd->d.indices && !cmd->vout)
             nvjobs += (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
         ++njobs;
-        budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(RAST__PRIMS_PER_JOB, cmd->prim_count - p);
-        p += RAST__PRIMS_PER_JOB;
+        int per_job = rast__prims_per_job(ctx, cmd);
+        budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(per_job, cmd->prim_count - p);
+        p += per_job;
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.jobs = (rast__job *)rast__calloc(&ctx->alloc, (size_t)njobs, sizeof(rast__job));
@@ -375,7 +407,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         ps.chunks[i].used = 0;
         ps.chunks[i].nrec = 0;
         ps.chunks[i].failed = 0;
-        ps.chunks[i].splat = rast__splat_kind(ctx, cmd);
+        ps.chunks[i].splat = rast__is_splat(ctx, cmd);
         if (cmd->kind != RAST__CMD_DRAW) { ++c; p = 0; continue; }
         if (p == 0 && cmd->d.indices && !cmd->vout) {
             int v, nv = (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
@@ -392,8 +424,8 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
             }
         }
         ps.jobs[i].p0 = p;
-        ps.jobs[i].p1 = RAST__MIN(p + RAST__PRIMS_PER_JOB, cmd->prim_count);
-        p += RAST__PRIMS_PER_JOB;
+        ps.jobs[i].p1 = RAST__MIN(p + rast__prims_per_job(ctx, cmd), cmd->prim_count);
+        p = ps.jobs[i].p1;
         if (p >= cmd->prim_count) { ++c; p = 0; }
     }
     ps.count = njobs;

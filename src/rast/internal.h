@@ -10,6 +10,15 @@
 #include <emmintrin.h>
 #endif
 
+/* For the few per-pixel helpers whose call would cost more than their body. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RAST__FORCE_INLINE static inline __attribute__((always_inline))
+#elif defined(_MSC_VER)
+#define RAST__FORCE_INLINE static __forceinline
+#else
+#define RAST__FORCE_INLINE static
+#endif
+
 #ifndef RAST_ASSERT
 #include <assert.h>
 #define RAST_ASSERT(c) assert(c)
@@ -193,7 +202,7 @@ typedef struct rast__pipe {
 /* ---- records: what setup leaves for the tile workers ---- */
 
 enum {
-    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_SPLAT, RAST__REC_LINE,
+    RAST__REC_TRI = 1, RAST__REC_POINT, RAST__REC_LINE,
     RAST__REC_RECT, RAST__REC_CLEAR, RAST__REC_ACCUM
 };
 
@@ -224,21 +233,15 @@ typedef struct rast__point {
     /* then num_varyings floats */
 } rast__point;
 
-/* A point of a simple pipe drawn into RGBA8: only depth and the packed
-   colour travel to the tile (the C3RC method splats millions). */
+/* A point of a simple pipe drawn into RGBA8: only where, how deep and
+   what colour travel to the tile (the C3RC method splats millions). Its
+   square is the pipe's point size from (x, y), clipped by the pipe's clip
+   rectangle where drawn. No record header: a chunk holds splats only. */
 typedef struct rast__splat {
-    rast__rec h;
+    int16_t x, y;             /* top-left pixel of the unclipped square */
     float z;                  /* clamped window depth */
     uint32_t rgba;            /* bytes R, G, B, A in memory order */
 } rast__splat;
-
-/* A one-pixel splat (point size 1, the common case): just where, how deep
-   and what colour; chunks of them are binned and drawn by their own loops. */
-typedef struct rast__splat1 {
-    int16_t x, y;
-    float z;
-    uint32_t rgba;
-} rast__splat1;
 
 typedef struct rast__line {
     rast__rec h;
@@ -326,8 +329,7 @@ typedef struct rast__chunk {
     size_t *bin_start;        /* tiles + 1 byte offsets: tile t's records
                                  are recs[bin_start[t] .. bin_start[t + 1]) */
     int bin_tiles;            /* tiles bin_start has room for */
-    int splat;                /* points become records of rast__splat (1),
-                                 or of rast__splat1 for size 1 (2) */
+    int splat;                /* points become rast__splat records */
     uint8_t *spare;           /* the other buffer of the tile sort */
     size_t spare_cap;
     int failed;
@@ -340,7 +342,6 @@ static size_t rast__rec_size(int kind, int nvar) {
     switch (kind) {
     case RAST__REC_TRI: return rast__align(sizeof(rast__tri) + (size_t)nvar * 3 * sizeof(float));
     case RAST__REC_POINT: return rast__align(sizeof(rast__point) + (size_t)nvar * sizeof(float));
-    case RAST__REC_SPLAT: return sizeof(rast__splat);
     case RAST__REC_LINE: return rast__align(sizeof(rast__line) + (size_t)nvar * 2 * sizeof(float));
     case RAST__REC_RECT: return rast__align(sizeof(rast__rect));
     case RAST__REC_CLEAR: return rast__align(sizeof(rast__clear_rec));

@@ -446,41 +446,86 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* One splatted pixel: depth test and write, then the packed colour. The
-   test is branchless (random depths would mispredict half the time) and
-   the usual functions inline (no call between the load and the store). */
-static void rast__splat_pixel(const rast__pipe *p, const rast__fb *fb, int x, int y, float z, uint32_t rgba) {
-    uint8_t *cp = fb->color + (size_t)y * (size_t)fb->color_stride + 4 * (size_t)x;
-    uint32_t now;
-    int pass = 1;
-    if (p->depth_on) {
-        float *dp = (float *)((uint8_t *)fb->depth + (size_t)y * (size_t)fb->depth_stride) + x;
-        float old = *dp;
-        pass = p->depth_func == RAST_LESS ? z < old : p->depth_func == RAST_LEQUAL ? z <= old
-                                                                                   : rast__compare_f(p->depth_func, z, old);
-        *dp = pass && p->depth_write ? z : old;
-    }
-    memcpy(&now, cp, 4);
-    now = pass ? rgba : now;
-    memcpy(cp, &now, 4);
+/* What splat loops need of the pipe and targets, in locals: a colour store
+   may alias anything, so fields read through pointers would be reloaded
+   for every pixel. */
+typedef struct rast__splat_target {
+    uint8_t *color, *depth;
+    size_t color_stride, depth_stride;
+    int depth_on, depth_func, depth_write;
+} rast__splat_target;
+
+static rast__splat_target rast__splat_target_of(const rast__pipe *p, const rast__fb *fb) {
+    rast__splat_target t;
+    t.color = fb->color;
+    t.depth = (uint8_t *)fb->depth;
+    t.color_stride = (size_t)fb->color_stride;
+    t.depth_stride = (size_t)fb->depth_stride;
+    t.depth_on = p->depth_on;
+    t.depth_func = p->depth_func;
+    t.depth_write = p->depth_write;
+    return t;
 }
 
-/* Splats of points larger than a pixel: their square within the tile. */
-static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const uint8_t *b,
-                                const uint8_t *e) {
-    for (; b < e; b += sizeof(rast__splat)) {
-        const rast__splat *sp = (const rast__splat *)b;
-        int x0 = RAST__MAX(sp->h.x0, tl->x0), x1 = RAST__MIN(sp->h.x1, tl->x1);
-        int y0 = RAST__MAX(sp->h.y0, tl->y0), y1 = RAST__MIN(sp->h.y1, tl->y1), x, y;
-        for (y = y0; y < y1; ++y)
-            for (x = x0; x < x1; ++x) rast__splat_pixel(di->pipe, tl->fb, x, y, sp->z, sp->rgba);
+/* A run of n splatted pixels of one row: depth test and write, then the
+   packed colour. Branchless per pixel (random depths would mispredict
+   half the time); the usual depth functions inline. */
+RAST__FORCE_INLINE void rast__splat_run(const rast__splat_target *t, int x, int y, int n, float z, uint32_t rgba) {
+    uint8_t *cp = t->color + (size_t)y * t->color_stride + 4 * (size_t)x;
+    int i;
+    if (!t->depth_on) {
+        for (i = 0; i < n; ++i) memcpy(cp + 4 * i, &rgba, 4);
+        return;
+    }
+    {
+        float *dp = (float *)(t->depth + (size_t)y * t->depth_stride) + x;
+        const int func = t->depth_func, write = t->depth_write;
+        i = 0;
+#ifdef RAST__SSE2
+        /* two pixels at a time for the usual functions: the same compares
+           (false for NaN, as above), selected by mask */
+        if (func == RAST_LESS || func == RAST_LEQUAL) {
+            const __m128 zz = _mm_set1_ps(z);
+            const __m128i col = _mm_set1_epi32((int)rgba);
+            for (; i + 2 <= n; i += 2) {
+                __m128 old = _mm_castpd_ps(_mm_load_sd((const double *)(const void *)(dp + i)));
+                __m128 pass = func == RAST_LESS ? _mm_cmplt_ps(zz, old) : _mm_cmple_ps(zz, old);
+                __m128i pm = _mm_castps_si128(pass);
+                __m128i now = _mm_loadl_epi64((const __m128i *)(const void *)(cp + 4 * i));
+                if (write) _mm_store_sd((double *)(void *)(dp + i), _mm_castps_pd(_mm_or_ps(_mm_and_ps(pass, zz), _mm_andnot_ps(pass, old))));
+                now = _mm_or_si128(_mm_and_si128(pm, col), _mm_andnot_si128(pm, now));
+                _mm_storel_epi64((__m128i *)(void *)(cp + 4 * i), now);
+            }
+        }
+#endif
+        for (; i < n; ++i) {
+            float old = dp[i];
+            uint32_t now;
+            int pass = func == RAST_LESS ? z < old : func == RAST_LEQUAL ? z <= old : rast__compare_f(func, z, old);
+            dp[i] = pass && write ? z : old;
+            memcpy(&now, cp + 4 * i, 4);
+            now = pass ? rgba : now;
+            memcpy(cp + 4 * i, &now, 4);
+        }
     }
 }
 
-/* One-pixel splats of a tile (binning put each in its one tile). */
-static void rast__raster_splats1(const rast__draw_info *di, rast__tile *tl, const rast__splat1 *b,
-                                 const rast__splat1 *e) {
-    for (; b < e; ++b) rast__splat_pixel(di->pipe, tl->fb, b->x, b->y, b->z, b->rgba);
+/* Splats of a tile: their squares clipped by the tile and the pipe. */
+static void rast__raster_splats(const rast__draw_info *di, rast__tile *tl, const rast__splat *b,
+                                const rast__splat *e) {
+    const rast__pipe *p = di->pipe;
+    const rast__splat_target t = rast__splat_target_of(p, tl->fb);
+    const int cx0 = RAST__MAX(tl->x0, p->clip[0]), cy0 = RAST__MAX(tl->y0, p->clip[1]);
+    const int cx1 = RAST__MIN(tl->x1, p->clip[2]), cy1 = RAST__MIN(tl->y1, p->clip[3]), size = p->point_size;
+    if (size == 1) { /* binning put each in this tile, within the clip */
+        for (; b < e; ++b) rast__splat_run(&t, b->x, b->y, 1, b->z, b->rgba);
+        return;
+    }
+    for (; b < e; ++b) {
+        int x0 = RAST__MAX(b->x, cx0), x1 = RAST__MIN(b->x + size, cx1);
+        int y0 = RAST__MAX(b->y, cy0), y1 = RAST__MIN(b->y + size, cy1), y;
+        for (y = y0; y < y1; ++y) rast__splat_run(&t, x0, y, x1 - x0, b->z, b->rgba);
+    }
 }
 
 static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const rast__rec *h) {
@@ -489,7 +534,6 @@ static void rast__raster_record(const rast__draw_info *di, rast__tile *tl, const
     switch (h->kind) {
     case RAST__REC_TRI: rast__raster_tri(di, tl, (const rast__tri *)h); break;
     case RAST__REC_POINT: rast__raster_point(di, tl, (const rast__point *)h); break;
-    case RAST__REC_SPLAT: rast__raster_splats(di, tl, (const uint8_t *)h, (const uint8_t *)h + sizeof(rast__splat)); break;
     case RAST__REC_LINE: rast__raster_line(di, tl, (const rast__line *)h); break;
     case RAST__REC_RECT: rast__raster_rect(di, tl, (const rast__rect *)h); break;
     case RAST__REC_CLEAR:

@@ -296,11 +296,10 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
     y0 = (int)rast__floor_px(top - (1 << RAST_SUBPIXEL_BITS) / 2) + 1;
     x1 = x0 + size;
     y1 = y0 + size;
-    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
-    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
-    if (x0 >= x1 || y0 >= y1) return;
-    if (ch->splat == 2) {
-        rast__splat1 *sp = (rast__splat1 *)rast__chunk_push(ch, sizeof(rast__splat1));
+    if (ch->splat) { /* clipped where drawn */
+        rast__splat *sp;
+        if (x1 <= p->clip[0] || x0 >= p->clip[2] || y1 <= p->clip[1] || y0 >= p->clip[3]) return;
+        sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
         if (!sp) return;
         sp->x = (int16_t)x0;
         sp->y = (int16_t)y0;
@@ -308,17 +307,9 @@ static void rast__setup_point(rast__chunk *ch, const rast__vtx *v) {
         sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
         return;
     }
-    if (ch->splat) {
-        rast__splat *sp = (rast__splat *)rast__chunk_push(ch, sizeof(rast__splat));
-        if (!sp) return;
-        sp->h.kind = RAST__REC_SPLAT;
-        sp->h.front = 1;
-        sp->h.pad = 0;
-        sp->h.x0 = (int16_t)x0; sp->h.y0 = (int16_t)y0; sp->h.x1 = (int16_t)x1; sp->h.y1 = (int16_t)y1;
-        sp->z = RAST__CLAMP(wz, 0.0f, 1.0f);
-        sp->rgba = rast__pack_rgba8(nvar >= 4 ? v + 4 : cmd->d.color);
-        return;
-    }
+    x0 = RAST__MAX(x0, p->clip[0]); y0 = RAST__MAX(y0, p->clip[1]);
+    x1 = RAST__MIN(x1, p->clip[2]); y1 = RAST__MIN(y1, p->clip[3]);
+    if (x0 >= x1 || y0 >= y1) return;
     pt = (rast__point *)rast__chunk_push(ch, rast__rec_size(RAST__REC_POINT, nvar));
     if (!pt) return;
     pt->h.kind = RAST__REC_POINT;
@@ -425,6 +416,9 @@ static void rast__setup_points_direct(rast__chunk *ch, int p0, int p1) {
     int i;
     for (i = p0; i < p1 && !ch->failed; ++i) {
         const float *src = d->vertices + (size_t)i * (size_t)d->stride;
+#if defined(__GNUC__) || defined(__clang__)
+        if (i + 8 < p1) __builtin_prefetch(src + 8 * (size_t)d->stride); /* a miss per line otherwise */
+#endif
         if (!d->matrix && d->position_size == 4) { /* already x, y, z, w, varyings */
             rast__setup_point(ch, src);
             continue;
