@@ -1058,7 +1058,7 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     ctx->alloc = alloc;
     ctx->tile_size = tile;
     while ((1 << ctx->tile_shift) < tile) ctx->tile_shift++;
-    ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)8 << 20;
+    ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)4 << 20;
     ctx->parallel_for = desc->parallel_for;
     ctx->parallel_for_user = desc->parallel_for_user;
     ctx->threads = threads;
@@ -2947,6 +2947,50 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
+/* What a pure stencil pass's table does to every value, when it is one of
+   the whole-byte operations SIMD has (the papers' INCR and DECR passes
+   with ALWAYS), found by comparing the whole table: the same bytes as the
+   lookup, 16 at a time. */
+enum { RAST__SOP_TABLE, RAST__SOP_KEEP, RAST__SOP_SET, RAST__SOP_ADD_SAT, RAST__SOP_SUB_SAT,
+       RAST__SOP_ADD_WRAP, RAST__SOP_SUB_WRAP, RAST__SOP_INVERT };
+
+static int rast__stencil_table_op(const uint8_t next[256]) {
+    int op, v;
+    for (op = RAST__SOP_KEEP; op <= RAST__SOP_INVERT; ++op) {
+        for (v = 0; v < 256; ++v) {
+            int want = op == RAST__SOP_KEEP ? v : op == RAST__SOP_SET ? next[0]
+                     : op == RAST__SOP_ADD_SAT ? RAST__MIN(v + 1, 255) : op == RAST__SOP_SUB_SAT ? RAST__MAX(v - 1, 0)
+                     : op == RAST__SOP_ADD_WRAP ? (v + 1) & 255 : op == RAST__SOP_SUB_WRAP ? (v - 1) & 255 : 255 - v;
+            if (next[v] != want) break;
+        }
+        if (v == 256) return op;
+    }
+    return RAST__SOP_TABLE;
+}
+
+/* Applies a pure stencil pass's table to one row of n values. */
+static void rast__stencil_table_run(uint8_t *s, int n, const uint8_t next[256], int op) {
+    int x = 0;
+    if (op == RAST__SOP_KEEP) return;
+    if (op == RAST__SOP_SET) {
+        memset(s, next[0], (size_t)n);
+        return;
+    }
+#ifdef RAST__SSE2
+    if (op != RAST__SOP_TABLE) {
+        const __m128i one = _mm_set1_epi8(1), ones = _mm_set1_epi8(-1);
+        for (; x + 16 <= n; x += 16) {
+            __m128i v = _mm_loadu_si128((const __m128i *)(const void *)(s + x));
+            v = op == RAST__SOP_ADD_SAT ? _mm_adds_epu8(v, one) : op == RAST__SOP_SUB_SAT ? _mm_subs_epu8(v, one)
+              : op == RAST__SOP_ADD_WRAP ? _mm_add_epi8(v, one) : op == RAST__SOP_SUB_WRAP ? _mm_sub_epi8(v, one)
+              : _mm_xor_si128(v, ones);
+            _mm_storeu_si128((__m128i *)(void *)(s + x), v);
+        }
+    }
+#endif
+    for (; x < n; ++x) s[x] = next[s[x]];
+}
+
 /* A constant rectangle through the tests and colour stages (no callbacks):
    the stencil passes of the papers, so the loop is kept tight. */
 static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const rast__rect *r) {
@@ -2973,12 +3017,11 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
     if (p->stencil_on && !p->depth_on && !want_color) {
         /* a pure stencil pass: one table lookup per pixel */
         uint8_t next[256];
-        int v;
+        int v, op;
         for (v = 0; v < 256; ++v) next[v] = test[v] ? pass[v] : fail[v];
-        for (y = y0; y < y1; ++y) {
-            uint8_t *srow = fb->stencil + (size_t)y * (size_t)fb->stencil_stride;
-            for (x = x0; x < x1; ++x) srow[x] = next[srow[x]];
-        }
+        op = rast__stencil_table_op(next);
+        for (y = y0; y < y1; ++y)
+            rast__stencil_table_run(fb->stencil + (size_t)y * (size_t)fb->stencil_stride + x0, x1 - x0, next, op);
         return;
     }
     for (y = y0; y < y1; ++y) {

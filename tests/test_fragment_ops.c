@@ -171,6 +171,65 @@ Test(fragment_ops, stencil_every_func_op_mask_and_path) {
     tu_fb_free(&fb);
 }
 
+/* Pure stencil passes (no depth test, colour masked off: the papers'
+   "apply stencil to every pixel"), which rast.h runs as a table or, for
+   the common ops, 16 values at a time: every func x ref x mask pair x op
+   on rows of 37 values (a SIMD run and a tail; with 16-pixel tiles, runs
+   split by tiles) holding all 256 values, 0 and 255 within SIMD runs,
+   against the GL model. */
+Test(fragment_ops, pure_stencil_passes_every_func_op_and_mask) {
+    static const uint8_t refs[] = {0x00, 0x5A, 0xFF};
+    static const unsigned masks[][2] = {
+        {0, 0}, {RAST_MASK(0x0F), RAST_MASK(0xF0)}, {RAST_MASK(0xF0), RAST_MASK(0x0F)},
+        {RAST_MASK(0), RAST_MASK(0)}, {0, RAST_MASK(0x81)}};
+    enum { W = 37, H = 8 };
+    tu_check chk = {0, {0}};
+    int tile;
+    for (tile = 16; tile <= 64; tile *= 4) {
+        rast_context *ctx = tu_ctx(2, tile);
+        tu_fb fb;
+        size_t fi, ri, mi;
+        int o, x, y;
+        tu_fb_init(&fb, W, H, TU_STENCIL);
+        tu_fb_bind(ctx, &fb);
+        for (fi = 0; fi < 9; fi++)
+            for (ri = 0; ri < sizeof refs; ri++)
+                for (mi = 0; mi < sizeof masks / sizeof masks[0]; mi++)
+                    for (o = 0; o < 9; o++) {
+                        rast_state s;
+                        memset(&s, 0, sizeof s);
+                        s.stencil_test = 1;
+                        s.color_write = RAST_MASK(0);
+                        s.stencil_front.func = all_funcs[fi];
+                        s.stencil_front.ref = refs[ri];
+                        s.stencil_front.read_mask = masks[mi][0];
+                        s.stencil_front.write_mask = masks[mi][1];
+                        s.stencil_front.fail = all_ops[o];
+                        s.stencil_front.pass = all_ops[(o + 5) % 9];
+                        s.stencil_back = s.stencil_front;
+                        for (y = 0; y < H; y++)
+                            for (x = 0; x < W; x++) *tu_sten(&fb, x, y) = (uint8_t)(y * W + x + 7);
+                        tu_set_state(ctx, &s);
+                        fullscreen(ctx, 0.5f, 1, 1, 1, 1);
+                        tu_finish(ctx);
+                        for (y = 0; y < H; y++)
+                            for (x = 0; x < W; x++) {
+                                uint8_t es = (uint8_t)(y * W + x + 7);
+                                float ed = 1.0f;
+                                model_fragment(&s, 1, 0.5f, &es, &ed, 0, 1);
+                                TU_CHECK(&chk, *tu_sten(&fb, x, y) == es,
+                                         "tile %d func %d ref 0x%02x masks %03x/%03x ops %d/%d: 0x%02x -> 0x%02x, "
+                                         "expected 0x%02x", tile, (int)all_funcs[fi], refs[ri], masks[mi][0],
+                                         masks[mi][1], (int)s.stencil_front.fail, (int)s.stencil_front.pass,
+                                         (y * W + x + 7) & 255, *tu_sten(&fb, x, y), es);
+                            }
+                    }
+        rast_context_destroy(ctx);
+        tu_fb_free(&fb);
+    }
+    TU_CHECK_DONE(&chk);
+}
+
 /* Without the depth test, stencil uses the pass op (never depth_fail) and
    the depth buffer is not written (GL: depth writes need the test
    enabled). With the stencil test disabled the stencil buffer is never
