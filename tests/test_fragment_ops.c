@@ -98,6 +98,23 @@ static void fill_f(float *p, size_t n, float v) {
 
 /* ---- stencil --------------------------------------------------------------- */
 
+/* A stencil test with both faces alike: func, ref, read/write masks, and
+   the ops rotated by `o` through all_ops (fail, depth_fail, pass). */
+static rast_state stencil_state(rast_compare func, uint8_t ref, const unsigned masks[2], int o) {
+    rast_state s;
+    memset(&s, 0, sizeof s);
+    s.stencil_test = 1;
+    s.stencil_front.func = func;
+    s.stencil_front.ref = ref;
+    s.stencil_front.read_mask = masks[0];
+    s.stencil_front.write_mask = masks[1];
+    s.stencil_front.fail = all_ops[o];
+    s.stencil_front.depth_fail = all_ops[(o + 3) % 9];
+    s.stencil_front.pass = all_ops[(o + 5) % 9];
+    s.stencil_back = s.stencil_front;
+    return s;
+}
+
 /* Every func (incl. the default ALWAYS) x ref x read/write mask pairs x
    every op on every path. A 32x16 target holds all 256 stencil values in
    its left half, where the depth test passes (buffer 1.0 vs z 0.5), and
@@ -123,18 +140,8 @@ Test(fragment_ops, stencil_every_func_op_mask_and_path) {
         for (ri = 0; ri < sizeof refs; ri++)
             for (mi = 0; mi < sizeof masks / sizeof masks[0]; mi++)
                 for (o = 0; o < 9; o++) {
-                    rast_state s;
-                    memset(&s, 0, sizeof s);
-                    s.stencil_test = 1;
+                    rast_state s = stencil_state(all_funcs[fi], refs[ri], masks[mi], o);
                     s.depth_test = 1; /* default func LESS */
-                    s.stencil_front.func = all_funcs[fi];
-                    s.stencil_front.ref = refs[ri];
-                    s.stencil_front.read_mask = masks[mi][0];
-                    s.stencil_front.write_mask = masks[mi][1];
-                    s.stencil_front.fail = all_ops[o];
-                    s.stencil_front.depth_fail = all_ops[(o + 3) % 9];
-                    s.stencil_front.pass = all_ops[(o + 5) % 9];
-                    s.stencil_back = s.stencil_front; /* face-independent here */
                     for (y = 0; y < H; y++)
                         for (x = 0; x < W; x++) {
                             *tu_sten(&fb, x, y) = (uint8_t)(y * 16 + (x & 15));
@@ -196,17 +203,8 @@ Test(fragment_ops, pure_stencil_passes_every_func_op_and_mask) {
             for (ri = 0; ri < sizeof refs; ri++)
                 for (mi = 0; mi < sizeof masks / sizeof masks[0]; mi++)
                     for (o = 0; o < 9; o++) {
-                        rast_state s;
-                        memset(&s, 0, sizeof s);
-                        s.stencil_test = 1;
+                        rast_state s = stencil_state(all_funcs[fi], refs[ri], masks[mi], o);
                         s.color_write = RAST_MASK(0);
-                        s.stencil_front.func = all_funcs[fi];
-                        s.stencil_front.ref = refs[ri];
-                        s.stencil_front.read_mask = masks[mi][0];
-                        s.stencil_front.write_mask = masks[mi][1];
-                        s.stencil_front.fail = all_ops[o];
-                        s.stencil_front.pass = all_ops[(o + 5) % 9];
-                        s.stencil_back = s.stencil_front;
                         for (y = 0; y < H; y++)
                             for (x = 0; x < W; x++) *tu_sten(&fb, x, y) = (uint8_t)(y * W + x + 7);
                         tu_set_state(ctx, &s);
