@@ -3092,11 +3092,14 @@ RAST__FORCE_INLINE void rast__splat_run(const rast__splat_target *t, int x, int 
             const __m128 zz = _mm_set1_ps(z);
             const __m128i col = _mm_set1_epi32((int)rgba);
             for (; i + 2 <= n; i += 2) {
-                __m128 old = _mm_castpd_ps(_mm_load_sd((const double *)(const void *)(dp + i)));
+                /* 8-byte moves that allow any alignment (depth rows need only 4) */
+                __m128 old = _mm_castsi128_ps(_mm_loadl_epi64((const __m128i *)(const void *)(dp + i)));
                 __m128 pass = func == RAST_LESS ? _mm_cmplt_ps(zz, old) : _mm_cmple_ps(zz, old);
                 __m128i pm = _mm_castps_si128(pass);
                 __m128i now = _mm_loadl_epi64((const __m128i *)(const void *)(cp + 4 * i));
-                if (write) _mm_store_sd((double *)(void *)(dp + i), _mm_castps_pd(_mm_or_ps(_mm_and_ps(pass, zz), _mm_andnot_ps(pass, old))));
+                if (write)
+                    _mm_storel_epi64((__m128i *)(void *)(dp + i),
+                                     _mm_castps_si128(_mm_or_ps(_mm_and_ps(pass, zz), _mm_andnot_ps(pass, old))));
                 now = _mm_or_si128(_mm_and_si128(pm, col), _mm_andnot_si128(pm, now));
                 _mm_storel_epi64((__m128i *)(void *)(cp + 4 * i), now);
             }
