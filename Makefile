@@ -266,9 +266,10 @@ TEST_LIBS += $(TOOLS_LIBS)
 # ---- the reflect command ----
 
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
-REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/bench/embree_peer.o
+REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
+                     build/bench/embree_peer.o
 
-build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o: build/tools/%.o: tools/%.c | rast.h reflect.h
+build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o: build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -276,7 +277,8 @@ $(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | ra
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
 	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
--include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d
+-include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d \
+         build/tools/reflect_bench_sbc.d
 
 # ---- running ----
 

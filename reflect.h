@@ -536,6 +536,18 @@ REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out);
    offset z), or 0 when p lies in no leaf's frustum. Thread-safe. */
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z);
 
+/* Which kind of leaf refl_sbc_project hands p to (the BSP cell holding p),
+   whether or not p then projects: the two cost very differently (a
+   pinhole camera's map against a search of the leaf's unit frustums), so
+   a benchmark or a profile can tell them apart. NONE for an empty tree,
+   a NULL sbc or a non-finite p. */
+typedef enum refl_sbc_leaf_kind {
+    REFL_SBC_LEAF_NONE = 0,
+    REFL_SBC_LEAF_PINHOLE,
+    REFL_SBC_LEAF_RAY_LIST
+} refl_sbc_leaf_kind;
+REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -650,6 +662,17 @@ typedef struct refl_render_desc {
     float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
                                 map's samples (refl_sbc_desc.error_px); 0: 1 */
     int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
+    /* SBC: optional; called once per reflector side seen (object index; the
+       back side of an open mesh is a side of its own), on the calling
+       thread, with the whole frame's ray map of that side as the method
+       builds it (ceil(width / factor) x ceil(height / factor) samples,
+       valid 1 on the side's samples and on the ring extrapolated beyond
+       its silhouette), before the side is cut into reflection groups. The
+       arrays live until the callback returns; its time counts in
+       stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests. */
+    void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
+                        int map_height);
+    void *sbc_ray_map_user;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -6153,6 +6176,23 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
     return best < DBL_MAX;
 }
 
+/* The leaf whose cell holds pd: down the tree by the side of each plane. */
+static const refl__sbc_node *refl__sbc_leaf(const refl_sbc *sbc, const double *pd) {
+    const refl__sbc_node *node = &sbc->nodes[0];
+    while (node->kind == REFL__SBC_INNER) {
+        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
+        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
+    }
+    return node;
+}
+
+REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p) {
+    double pd[3];
+    if (!sbc || !sbc->nodes || !sbc->stats.rays || !refl__sbc_finite3(p)) return REFL_SBC_LEAF_NONE;
+    refl__sbc_load(p, pd);
+    return refl__sbc_leaf(sbc, pd)->kind == REFL__SBC_PINHOLE ? REFL_SBC_LEAF_PINHOLE : REFL_SBC_LEAF_RAY_LIST;
+}
+
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
     const refl__sbc_node *node;
     refl_vec3 f = {0.0f, 0.0f, 0.0f}; /* set by every projection that succeeds */
@@ -6161,11 +6201,7 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
     int ok;
     if (!sbc || !sbc->nodes || !refl__sbc_finite3(p)) return 0;
     refl__sbc_load(p, pd);
-    node = &sbc->nodes[0];
-    while (node->kind == REFL__SBC_INNER) {
-        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
-        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
-    }
+    node = refl__sbc_leaf(sbc, pd);
     if (node->kind == REFL__SBC_PINHOLE) ok = refl__sbc_cam_project(&sbc->cams[node->first], pd, &f, &zz);
     else ok = refl__sbc_rays_project(sbc, node, pd, &f, &zz);
     if (!ok) return 0;
@@ -10869,6 +10905,9 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (!sb->em.surface || !sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
+    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count; ++g)
+        p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
+                            sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
     for (g = 0; g < sb->group_count; ++g) {
         refl_sbc_stats st;

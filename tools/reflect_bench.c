@@ -16,10 +16,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
     "(ENVMAP: cube sizes, C3RC: densities, SBC: ray map factors), times each\n"
@@ -30,10 +31,14 @@ static const char *const usage_bench =
     "and DIR/refraction_incidence.png (PLANAR's slab against the incidence angle),\n"
     "and C3RC's tables (DIR/c3rc_tables.csv, paper 000's Tables 1 and 2) and\n"
     "DIR/c3rc_triangle_size.png (its cameras' error against triangle size)\n"
-    "(gnuplot). RAYTRACE through Embree is a row in every table.\n"
+    "(gnuplot), and SBC's (DIR/sbc_fig19.csv, paper 003's Fig. 19: reflected\n"
+    "rays, coverage, SBC size and construction time at quarter and half\n"
+    "resolution ray maps, and the projection rate of pinhole and ray-list\n"
+    "leaves; also printed). RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
     "                scene, 3 runs); sizes 320x240 to 1920x1080 either way\n"
+    "  --only NAME   only that method's paper tables: c3rc or sbc\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -43,6 +48,7 @@ static const char *const usage_bench =
 typedef struct bench_opts {
     int full, repeats, threads, depth;
     char out[512];
+    char only[16];                /* "c3rc" or "sbc": just its paper tables; "": everything */
 } bench_opts;
 
 /* One measured setting: a CSV row and a chart point. */
@@ -81,6 +87,17 @@ static int cmp_double(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+double refl_bench_median(double *v, int n) {
+    qsort(v, (size_t)n, sizeof v[0], cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double refl_bench_now_ms(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
 /* Diffuse and reflector triangles of a scene. */
 static void count_triangles(const refl_scene *s, long long *diffuse, long long *reflector) {
     int i;
@@ -103,8 +120,7 @@ static refl_result timed_render(const refl_scene *s, const refl_view *v, const r
         if (r != REFL_OK) return r;
         t[k] = f->stats.ms_total;
     }
-    qsort(t, (size_t)n, sizeof t[0], cmp_double);
-    *median = n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
+    *median = refl_bench_median(t, n);
     *fastest = t[0];
     return REFL_OK;
 }
@@ -431,6 +447,21 @@ static refl_view view_of(const refl_scene *s, int w, int h) {
     return v;
 }
 
+/* The papers' own tables: paper 000's (C3RC's tables and its cameras'
+   error against triangle size) and paper 003's Fig. 19 (SBC), or the one
+   --only names. */
+static int paper_tables(const bench_opts *o) {
+    if ((!o->only[0] || !strcmp(o->only, "c3rc")) && !refl_bench_c3rc(o->out, o->threads, o->repeats, o->full)) {
+        fprintf(stderr, "reflect bench: the C3RC tables failed\n");
+        return 0;
+    }
+    if ((!o->only[0] || !strcmp(o->only, "sbc")) && !refl_bench_sbc(o->out, o->threads, o->repeats, o->full)) {
+        fprintf(stderr, "reflect bench: the SBC table failed\n");
+        return 0;
+    }
+    return 1;
+}
+
 int refl_cli_bench(int argc, char **argv) {
     bench_opts o;
     bench_table table;
@@ -450,6 +481,13 @@ int refl_cli_bench(int argc, char **argv) {
             return 0;
         } else if (!strcmp(a, "--full")) {
             o.full = 1;
+        } else if (!strcmp(a, "--only") && v) {
+            if (strcmp(v, "c3rc") && strcmp(v, "sbc")) {
+                fprintf(stderr, "reflect bench: --only takes c3rc or sbc, not '%s'\n", v);
+                return 2;
+            }
+            snprintf(o.only, sizeof o.only, "%s", v);
+            ++i;
         } else if (!strcmp(a, "--out") && v) {
             snprintf(o.out, sizeof o.out, "%s", v);
             ++i;
@@ -476,6 +514,7 @@ int refl_cli_bench(int argc, char **argv) {
     }
     fprintf(stderr, "reflect bench: %d runs per setting (median), %s threads, depth %d -> %s\n", o.repeats,
             o.threads ? "given" : "all", o.depth, o.out);
+    if (o.only[0]) return paper_tables(&o) ? 0 : 1;
 
     /* (a) time against reflection error, per scene */
     scenes = o.full ? refl_builtin_names() : scenes_quick;
@@ -609,9 +648,7 @@ int refl_cli_bench(int argc, char **argv) {
             chart(o.out, "refraction_incidence", "PLANAR slab refraction against RAYTRACE (640x480)",
                   "incidence angle of the view axis (degrees)", "mean reflection error (pixels)", 0, dat, names, n);
     }
-    /* paper 000's tables and the camera's error against triangle size */
-    if (!refl_bench_c3rc(o.out, o.threads, o.repeats, o.full)) {
-        fprintf(stderr, "reflect bench: the C3RC tables failed\n");
+    if (!paper_tables(&o)) {
         free(table.rows);
         return 1;
     }

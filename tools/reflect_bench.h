@@ -13,4 +13,14 @@ int refl_bench_gnuplot(const char *script_path, const char *script);
    size (tools/reflect_bench_c3rc.c), into dir; 0 on failure. */
 int refl_bench_c3rc(const char *dir, int threads, int repeats, int full);
 
+/* Paper 003's Fig. 19 (SBC construction at quarter and half resolution
+   ray maps) and its projection rate per leaf kind
+   (tools/reflect_bench_sbc.c): a table on stdout and dir/sbc_fig19.csv;
+   0 on failure. */
+int refl_bench_sbc(const char *dir, int threads, int repeats, int full);
+
+/* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
+double refl_bench_now_ms(void);
+double refl_bench_median(double *v, int n);
+
 #endif

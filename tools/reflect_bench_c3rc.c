@@ -19,23 +19,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-
-static double now_ms(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
-
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n) {
-    qsort(v, (size_t)n, sizeof v[0], cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* World surface area of every object. */
 static double scene_area(const refl_scene *s) {
@@ -151,11 +134,11 @@ static int tables(const char *dir, int threads, int repeats) {
         refl_reflection_error err;
         if (!pts) { ok = 0; break; }
         for (k = 0; k < n && ok; ++k) {
-            double t0 = now_ms();
+            double t0 = refl_bench_now_ms();
             refl_kdtree_destroy(tree);
             tree = NULL;
             ok = refl_kdtree_build(pts, count, NULL, &tree) == REFL_OK;
-            build[k] = now_ms() - t0;
+            build[k] = refl_bench_now_ms() - t0;
         }
         free(pts);
         memset(&d, 0, sizeof d);
@@ -169,7 +152,7 @@ static int tables(const char *dir, int threads, int repeats) {
         }
         if (ok && refl_measure_reflection_error(f, truth, NULL, &err) != REFL_OK) memset(&err, 0, sizeof err);
         if (ok) {
-            double b = median(build, n), r = median(refl, n);
+            double b = refl_bench_median(build, n), r = refl_bench_median(refl, n);
             double valid = f->stats.projections ? 100.0 * (double)f->stats.projected / (double)f->stats.projections : 0.0;
             fprintf(csv, "%s,%d,%d,%.2f,%.0f,%.2f,%.1f,%.1f,%.0f,%.2f,%.0f,%.2f,%.0f,%.2f,%.0f,%.1f,%.0f,%lld,%lld,%lld,%lld,"
                          "%.3f,%.3f,%.4f,%.4f\n",

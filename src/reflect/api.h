@@ -534,6 +534,18 @@ REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out);
    offset z), or 0 when p lies in no leaf's frustum. Thread-safe. */
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z);
 
+/* Which kind of leaf refl_sbc_project hands p to (the BSP cell holding p),
+   whether or not p then projects: the two cost very differently (a
+   pinhole camera's map against a search of the leaf's unit frustums), so
+   a benchmark or a profile can tell them apart. NONE for an empty tree,
+   a NULL sbc or a non-finite p. */
+typedef enum refl_sbc_leaf_kind {
+    REFL_SBC_LEAF_NONE = 0,
+    REFL_SBC_LEAF_PINHOLE,
+    REFL_SBC_LEAF_RAY_LIST
+} refl_sbc_leaf_kind;
+REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -648,6 +660,17 @@ typedef struct refl_render_desc {
     float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
                                 map's samples (refl_sbc_desc.error_px); 0: 1 */
     int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
+    /* SBC: optional; called once per reflector side seen (object index; the
+       back side of an open mesh is a side of its own), on the calling
+       thread, with the whole frame's ray map of that side as the method
+       builds it (ceil(width / factor) x ceil(height / factor) samples,
+       valid 1 on the side's samples and on the ring extrapolated beyond
+       its silhouette), before the side is cut into reflection groups. The
+       arrays live until the callback returns; its time counts in
+       stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests. */
+    void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
+                        int map_height);
+    void *sbc_ray_map_user;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;

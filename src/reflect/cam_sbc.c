@@ -1097,6 +1097,23 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
     return best < DBL_MAX;
 }
 
+/* The leaf whose cell holds pd: down the tree by the side of each plane. */
+static const refl__sbc_node *refl__sbc_leaf(const refl_sbc *sbc, const double *pd) {
+    const refl__sbc_node *node = &sbc->nodes[0];
+    while (node->kind == REFL__SBC_INNER) {
+        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
+        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
+    }
+    return node;
+}
+
+REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p) {
+    double pd[3];
+    if (!sbc || !sbc->nodes || !sbc->stats.rays || !refl__sbc_finite3(p)) return REFL_SBC_LEAF_NONE;
+    refl__sbc_load(p, pd);
+    return refl__sbc_leaf(sbc, pd)->kind == REFL__SBC_PINHOLE ? REFL_SBC_LEAF_PINHOLE : REFL_SBC_LEAF_RAY_LIST;
+}
+
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
     const refl__sbc_node *node;
     refl_vec3 f = {0.0f, 0.0f, 0.0f}; /* set by every projection that succeeds */
@@ -1105,11 +1122,7 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
     int ok;
     if (!sbc || !sbc->nodes || !refl__sbc_finite3(p)) return 0;
     refl__sbc_load(p, pd);
-    node = &sbc->nodes[0];
-    while (node->kind == REFL__SBC_INNER) {
-        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
-        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
-    }
+    node = refl__sbc_leaf(sbc, pd);
     if (node->kind == REFL__SBC_PINHOLE) ok = refl__sbc_cam_project(&sbc->cams[node->first], pd, &f, &zz);
     else ok = refl__sbc_rays_project(sbc, node, pd, &f, &zz);
     if (!ok) return 0;

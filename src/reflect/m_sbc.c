@@ -678,6 +678,9 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (!sb->em.surface || !sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
+    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count; ++g)
+        p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
+                            sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
     for (g = 0; g < sb->group_count; ++g) {
         refl_sbc_stats st;
