@@ -3275,8 +3275,8 @@ static void rast__chunk_take_sorted(rast__chunk *ch, size_t total) {
 
 /* The tile a splat's square lies in, or -1 when it touches several: then
    [*tx0, *tx1] x [*ty0, *ty1] are they (its square clipped by the pipe). */
-RAST__FORCE_INLINE int rast__splat_tiles(const rast_context *ctx, const rast__pipe *p, const rast__splat *sp, int *tx0, int *ty0,
-                             int *tx1, int *ty1) {
+RAST__FORCE_INLINE int rast__splat_tiles(const rast_context *ctx, const rast__pipe *p, const rast__splat *sp,
+                                         int *tx0, int *ty0, int *tx1, int *ty1) {
     const int S = ctx->tile_shift;
     if (p->point_size == 1) return (sp->y >> S) * ctx->tiles_x + (sp->x >> S); /* within the clip */
     *tx0 = RAST__MAX(sp->x, p->clip[0]) >> S;
@@ -3478,7 +3478,8 @@ static size_t rast__prim_bytes(const rast_context *ctx, const rast__cmd *cmd) {
    so job boundaries never depend on the thread count). */
 static int rast__prims_per_job(const rast_context *ctx, const rast__cmd *cmd) {
     size_t per_prim = rast__prim_bytes(ctx, cmd) / 2;
-    return (int)RAST__CLAMP(RAST__JOB_BYTES / RAST__MAX(per_prim, (size_t)1), (size_t)1, (size_t)RAST__MAX_PRIMS_PER_JOB);
+    return (int)RAST__CLAMP(RAST__JOB_BYTES / RAST__MAX(per_prim, (size_t)1), (size_t)1,
+                            (size_t)RAST__MAX_PRIMS_PER_JOB);
 }
 
 static void rast__free_pass(rast_context *ctx, rast__pass *ps) {
@@ -3533,6 +3534,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
     /* plan: count jobs within the budget (always at least one) */
     for (c = *ci, p = *cp; c < ctx->cmd_count && (njobs == 0 || budget < ctx->batch_bytes);) {
         rast__cmd *cmd = &ctx->cmds[c];
+        int per_job;
         if (cmd->kind != RAST__CMD_DRAW) {
             ++njobs; ++c; p = 0;
             continue;
@@ -3540,7 +3542,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
         if (p == 0 && cmd->d.indices && !cmd->vout)
             nvjobs += (cmd->d.vertex_count + RAST__VERTEX_JOB - 1) / RAST__VERTEX_JOB;
         ++njobs;
-        int per_job = rast__prims_per_job(ctx, cmd);
+        per_job = rast__prims_per_job(ctx, cmd);
         budget += rast__prim_bytes(ctx, cmd) * (size_t)RAST__MIN(per_job, cmd->prim_count - p);
         p += per_job;
         if (p >= cmd->prim_count) { ++c; p = 0; }
