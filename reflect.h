@@ -832,6 +832,14 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
+/* Per-axis minimum and maximum: bounding boxes. */
+static inline refl_vec3 refl__v3_min(refl_vec3 a, refl_vec3 b) {
+    return refl_v3(REFL__MIN(a.x, b.x), REFL__MIN(a.y, b.y), REFL__MIN(a.z, b.z));
+}
+static inline refl_vec3 refl__v3_max(refl_vec3 a, refl_vec3 b) {
+    return refl_v3(REFL__MAX(a.x, b.x), REFL__MAX(a.y, b.y), REFL__MAX(a.z, b.z));
+}
+
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* The frame's colour, depth and stencil as rast.h targets. */
@@ -8439,8 +8447,8 @@ static refl_vec3 refl__em_centre(const refl_scene *scene, int object) {
     for (k = 0; k < count; ++k) {
         const float *q = m->positions + 3 * (size_t)m->indices[k];
         refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        lo = refl_v3(REFL__MIN(lo.x, w.x), REFL__MIN(lo.y, w.y), REFL__MIN(lo.z, w.z));
-        hi = refl_v3(REFL__MAX(hi.x, w.x), REFL__MAX(hi.y, w.y), REFL__MAX(hi.z, w.z));
+        lo = refl__v3_min(lo, w);
+        hi = refl__v3_max(hi, w);
     }
     if (!count) return refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
     return refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
@@ -10248,13 +10256,17 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         offset (k - 1 + z/D) g with k = 1 and g = 1 in a depth buffer of the
         reflections' own, z measured as the distance from the vertex to its
         first reflector point (consistent across leaves, where each leaf's
-        image-plane height is not).
+        image-plane height is not). A vertex behind the reflector along the
+        reflected ray of the sample it lands on does not project.
      4. rasterisation (section V-B): a reflected triangle is drawn when all
         three vertices project. Triangles are subdivided in four, at most
         REFL__SB_LEVELS times: always while an edge is longer than 1/32 of
         the scene's diagonal (the paper's pre-subdivision, per frame), while
         mixed (one or two vertices project; the paper's fix for jagged
-        edges), and while an edge's projected midpoint lies more than
+        edges), while no vertex projects but the triangle overlaps the
+        group's rays and is large beside their footprint on the reflector
+        (its middle may project), and while an edge's projected midpoint
+        lies more than
         REFL__SB_EDGE_PX from the midpoint of its projected ends (the
         straight-edge error the paper bounds by pre-subdividing). Reflected
         triangles are drawn by rast.h twice with one depth test (colour as
@@ -10275,7 +10287,8 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
 #define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
-#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed */
+#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed or while no corner projects */
+#define REFL__SB_FOOTPRINT_SPLIT 0.25f /* ...a triangle this many times its group's footprint */
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_FLOATS 12
 #define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */          /* per emitted vertex: clip position, world position, normal, uv */
@@ -10293,6 +10306,8 @@ typedef struct refl__sb_side {
 typedef struct refl__sb_group {
     int side, object;
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
+    refl_vec3 lo, hi;             /* the box of its rays (tails and heads) */
+    float footprint;              /* the diagonal of its tails' box: its size on the reflector */
     refl_sbc *sbc;
     refl_result result;
 } refl__sb_group;
@@ -10456,6 +10471,7 @@ static void refl__sb_build_group(void *arg, int g) {
     int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
     int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0;
+    refl_vec3 tails_lo = refl_v3(0.0f, 0.0f, 0.0f), tails_hi = tails_lo;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, (size_t)mw * (size_t)mh, sizeof(refl_sbc_ray));
     uint8_t *valid = (uint8_t *)refl__calloc(al, (size_t)mw * (size_t)mh, 1);
     refl_sbc_desc d;
@@ -10467,8 +10483,16 @@ static void refl__sb_build_group(void *arg, int g) {
                 size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
                 rays[k] = sd->rays[m];
                 valid[k] = sd->valid[m];
-                count += valid[k];
+                if (!valid[k]) continue;
+                if (!count++) {
+                    gr->lo = gr->hi = tails_lo = tails_hi = rays[k].tail;
+                }
+                tails_lo = refl__v3_min(tails_lo, rays[k].tail);
+                tails_hi = refl__v3_max(tails_hi, rays[k].tail);
+                gr->lo = refl__v3_min(gr->lo, refl__v3_min(rays[k].tail, rays[k].head));
+                gr->hi = refl__v3_max(gr->hi, refl__v3_max(rays[k].tail, rays[k].head));
             }
+        gr->footprint = refl_v3_length(refl_v3_sub(tails_hi, tails_lo));
     }
     if (count) { /* a group without a ray (every normal turned away) reflects nothing */
         memset(&d, 0, sizeof d);
@@ -10484,15 +10508,20 @@ static void refl__sb_build_group(void *arg, int g) {
 }
 
 /* Projects v into group g: its first reflector point, seen by the view,
-   at window depth dist / D. */
-static void refl__sb_project(const refl__sb *sb, const refl_sbc *sbc, refl__sb_pv *v) {
+   at window depth dist / D. A point must lie ahead along the reflected ray
+   of the sample it lands on: a leaf's frustum starts at an image plane
+   fitted to the tails, so it can reach just behind a curved reflector's
+   surface, where the floor meets a sphere, say, and nothing is reflected. */
+static void refl__sb_project(const refl__sb *sb, int g, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
+    const refl__sb_side *sd = &sb->sides[sb->groups[g].side];
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
-    int k;
+    int k, u, w;
+    size_t at;
     v->ok = 0;
-    if (!refl_sbc_project(sbc, v->world, &f, &z)) return;
+    if (!refl_sbc_project(sb->groups[g].sbc, v->world, &f, &z)) return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->dist = refl_v3_length(refl_v3_sub(v->world, f));
@@ -10500,7 +10529,14 @@ static void refl__sb_project(const refl__sb *sb, const refl_sbc *sbc, refl__sb_p
     v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
-    v->ok = refl__isfinite(v->sx) && refl__isfinite(v->sy);
+    if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
+    u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
+    w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
+    at = (size_t)w * (size_t)sb->map_w + (size_t)u;
+    if (sd->valid[at] &&
+        !(refl_v3_dot(refl_v3_sub(v->world, f), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
+        return;
+    v->ok = 1;
 }
 
 /* Projects every vertex of object o into group g (a job per pair). */
@@ -10519,18 +10555,18 @@ static void refl__sb_project_object(void *arg, int index) {
         out[i].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
         out[i].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
         out[i].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
-        refl__sb_project(sb, sb->groups[g].sbc, &out[i]);
+        refl__sb_project(sb, g, &out[i]);
     }
 }
 
-static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl_sbc *sbc, const refl__sb_pv *a, const refl__sb_pv *b,
-                                refl__sb_job *j) {
+/* The midpoint of a and b, projected into the job's group. */
+static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_pv *a, const refl__sb_pv *b, refl__sb_job *j) {
     refl__sb_pv m;
     m.world = refl_v3_scale(refl_v3_add(a->world, b->world), 0.5f);
     m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
     m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
     m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
-    refl__sb_project(sb, sbc, &m);
+    refl__sb_project(sb, j->group, &m);
     j->projections++;
     j->projected += m.ok;
     return m;
@@ -10546,7 +10582,7 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
 
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
    module comment says. */
-static void refl__sb_emit(const refl__sb *sb, const refl_sbc *sbc, refl__sb_job *j, const refl__sb_pv *a,
+static void refl__sb_emit(const refl__sb *sb, refl__sb_job *j, const refl__sb_pv *a,
                           const refl__sb_pv *b, const refl__sb_pv *c, int level, int self, float edge) {
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
@@ -10568,7 +10604,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl_sbc *sbc, refl__sb_job 
             mid[0] = &ab; mid[1] = &bc; mid[2] = &ca;
             for (k = 0; k < 3; ++k) {
                 float dx, dy;
-                *mid[k] = refl__sb_mid(sb, sbc, e[k][0], e[k][1], j);
+                *mid[k] = refl__sb_mid(sb, e[k][0], e[k][1], j);
                 dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
                 dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
                 if (!mid[k]->ok || dx * dx + dy * dy > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX) split = 1;
@@ -10576,6 +10612,16 @@ static void refl__sb_emit(const refl__sb *sb, const refl_sbc *sbc, refl__sb_job 
             have_mid = 1;
         } else if (ok > 0 && ok < 3) {
             split = level < REFL__SB_MIXED_LEVELS;
+        } else if (ok == 0 && level < REFL__SB_MIXED_LEVELS) {
+            /* no corner projects, yet the middle may: a big triangle across
+               a narrow bundle of rays (a nearly flat mirror's tile), while
+               it is large beside the group's footprint and overlaps its box */
+            const refl__sb_group *gr = &sb->groups[j->group];
+            refl_vec3 lo = refl__v3_min(a->world, refl__v3_min(b->world, c->world));
+            refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
+            split = REFL__MAX(la, REFL__MAX(lb, lc)) > REFL__SB_FOOTPRINT_SPLIT * gr->footprint &&
+                    lo.x <= gr->hi.x && hi.x >= gr->lo.x && lo.y <= gr->hi.y && hi.y >= gr->lo.y &&
+                    lo.z <= gr->hi.z && hi.z >= gr->lo.z;
         }
     }
     if (!split) {
@@ -10600,14 +10646,14 @@ static void refl__sb_emit(const refl__sb *sb, const refl_sbc *sbc, refl__sb_job 
         return;
     }
     if (!have_mid) {
-        ab = refl__sb_mid(sb, sbc, a, b, j);
-        bc = refl__sb_mid(sb, sbc, b, c, j);
-        ca = refl__sb_mid(sb, sbc, c, a, j);
+        ab = refl__sb_mid(sb, a, b, j);
+        bc = refl__sb_mid(sb, b, c, j);
+        ca = refl__sb_mid(sb, c, a, j);
     }
-    refl__sb_emit(sb, sbc, j, a, &ab, &ca, level + 1, self, edge);
-    refl__sb_emit(sb, sbc, j, &ab, b, &bc, level + 1, self, edge);
-    refl__sb_emit(sb, sbc, j, &ca, &bc, c, level + 1, self, edge);
-    refl__sb_emit(sb, sbc, j, &ab, &bc, &ca, level + 1, self, edge);
+    refl__sb_emit(sb, j, a, &ab, &ca, level + 1, self, edge);
+    refl__sb_emit(sb, j, &ab, b, &bc, level + 1, self, edge);
+    refl__sb_emit(sb, j, &ca, &bc, c, level + 1, self, edge);
+    refl__sb_emit(sb, j, &ab, &bc, &ca, level + 1, self, edge);
 }
 
 static void refl__sb_emit_job(void *arg, int index) {
@@ -10616,7 +10662,6 @@ static void refl__sb_emit_job(void *arg, int index) {
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
     const refl__sb_pv *v = sb->verts[j->group * scene->object_count + j->object];
-    const refl_sbc *sbc = sb->groups[j->group].sbc;
     int self = sb->groups[j->group].object == j->object, t;
     for (t = j->first; t < j->first + j->count && !j->failed; ++t) {
         const uint32_t *tri = m->indices + 3 * (size_t)t;
@@ -10625,7 +10670,7 @@ static void refl__sb_emit_job(void *arg, int index) {
                                       REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
                                                 refl_v3_length(refl_v3_sub(c->world, a->world))))
                           : 0.0f;
-        refl__sb_emit(sb, sbc, j, a, b, c, 0, self, edge);
+        refl__sb_emit(sb, j, a, b, c, 0, self, edge);
     }
 }
 

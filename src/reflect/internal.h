@@ -59,6 +59,14 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
 
+/* Per-axis minimum and maximum: bounding boxes. */
+static inline refl_vec3 refl__v3_min(refl_vec3 a, refl_vec3 b) {
+    return refl_v3(REFL__MIN(a.x, b.x), REFL__MIN(a.y, b.y), REFL__MIN(a.z, b.z));
+}
+static inline refl_vec3 refl__v3_max(refl_vec3 a, refl_vec3 b) {
+    return refl_v3(REFL__MAX(a.x, b.x), REFL__MAX(a.y, b.y), REFL__MAX(a.z, b.z));
+}
+
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* The frame's colour, depth and stencil as rast.h targets. */

@@ -160,8 +160,8 @@ static refl_vec3 refl__em_centre(const refl_scene *scene, int object) {
     for (k = 0; k < count; ++k) {
         const float *q = m->positions + 3 * (size_t)m->indices[k];
         refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        lo = refl_v3(REFL__MIN(lo.x, w.x), REFL__MIN(lo.y, w.y), REFL__MIN(lo.z, w.z));
-        hi = refl_v3(REFL__MAX(hi.x, w.x), REFL__MAX(hi.y, w.y), REFL__MAX(hi.z, w.z));
+        lo = refl__v3_min(lo, w);
+        hi = refl__v3_max(hi, w);
     }
     if (!count) return refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
     return refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
