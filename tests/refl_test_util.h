@@ -18,6 +18,19 @@ static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v
     return f;
 }
 
+/* A view from eye towards target, y up, 45 degrees vertical, w x h. */
+static inline refl_view tu_refl_view(refl_vec3 eye, refl_vec3 target, int w, int h) {
+    refl_view v;
+    memset(&v, 0, sizeof v);
+    v.eye = eye;
+    v.target = target;
+    v.up = refl_v3(0, 1, 0);
+    v.fovy_degrees = 45.0f;
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
 /* An object of `mesh` (the scene takes it) with a fresh material of the
    given type and colour; its index. */
 static inline int tu_refl_add_object(refl_scene *s, refl_mesh *mesh, refl_material_type type, const float rgb[3],

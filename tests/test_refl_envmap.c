@@ -36,18 +36,6 @@ static refl_frame *render_with(const refl_scene *s, const refl_view *view, refl_
     return f;
 }
 
-static refl_view view_of(refl_vec3 eye, refl_vec3 target, int w, int h) {
-    refl_view v;
-    memset(&v, 0, sizeof v);
-    v.eye = eye;
-    v.target = target;
-    v.up = refl_v3(0, 1, 0);
-    v.fovy_degrees = 45.0f;
-    v.width = w;
-    v.height = h;
-    return v;
-}
-
 /* ---- environments ---------------------------------------------------------- */
 
 /* Six constant faces of distinct colours, exact in 8 bits. */
@@ -213,7 +201,7 @@ static void expected_color(const refl_scene *s, const refl_material *m, const tr
 Test(refl_envmap, mirror_in_face_environment_matches_the_true_reflection) {
     refl_material m = material(REFL_MIRROR);
     refl_scene *s = sphere_scene(&m, 0);
-    refl_view v = view_of(refl_v3(0.3f, 0.8f, 3.5f), refl_v3(0, 0, 0), 128, 128);
+    refl_view v = tu_refl_view(refl_v3(0.3f, 0.8f, 3.5f), refl_v3(0, 0, 0), 128, 128);
     refl_frame *f;
     refl_bvh *bvh;
     int x, y, c, faces_seen[6] = {0}, px = 0, off = 0, k;
@@ -275,7 +263,7 @@ Test(refl_envmap, smooth_environment_matches_within_cube_resolution) {
     mats[3].tint[0] = 0.9f; mats[3].tint[1] = 0.95f; mats[3].tint[2] = 0.7f;
     for (which = 0; which < 4; ++which) {
         refl_scene *s = sphere_scene(&mats[which], 0);
-        refl_view v = view_of(refl_v3(-0.4f, 1.0f, 3.2f), refl_v3(0, 0, 0), 128, 128);
+        refl_view v = tu_refl_view(refl_v3(-0.4f, 1.0f, 3.2f), refl_v3(0, 0, 0), 128, 128);
         refl_frame *f, *direct;
         refl_bvh *bvh;
             int x, y, c, px = 0, worst = 0;
@@ -319,7 +307,7 @@ Test(refl_envmap, points_are_what_the_cube_shows_along_the_reflection) {
     enum { N = 64 };
     refl_material m = material(REFL_MIRROR);
     refl_scene *s = sphere_scene(&m, 1), *rest;
-    refl_view v = view_of(refl_v3(0.5f, 1.5f, 4.0f), refl_v3(0, -0.3f, 0), 160, 160);
+    refl_view v = tu_refl_view(refl_v3(0.5f, 1.5f, 4.0f), refl_v3(0, -0.3f, 0), 160, 160);
     refl_frame *f;
     refl_bvh *bvh, *rest_bvh;
     int x, y, px = 0, finite = 0, agree = 0;
@@ -512,7 +500,7 @@ Test(refl_envmap, edge_sizes_and_views) {
     {
         refl_material m = material(REFL_MIRROR);
         s = sphere_scene(&m, 1);
-        v = view_of(refl_v3(0.1f, 0.2f, 0.3f), refl_v3(0.0f, 0.0f, -1.0f), 48, 32);
+        v = tu_refl_view(refl_v3(0.1f, 0.2f, 0.3f), refl_v3(0.0f, 0.0f, -1.0f), 48, 32);
         f = render_with(s, &v, REFL_ENVMAP, 2, 16);
         for (i = 0; i < 48 * 32; ++i) {
             cr_assert_eq(f->stencil[i], 1);
@@ -555,7 +543,7 @@ Test(refl_envmap, reflectors_sharing_stencil_255) {
     o.transform = refl_mat4_translate(refl_v3(1.0f, 0.0f, 0.0f));
     cr_assert_eq(refl_scene_add_object(s, &o), 261);
     set_face_env(s);
-    v = view_of(refl_v3(0.0f, 0.5f, 5.0f), refl_v3(0, 0, 0), 96, 64);
+    v = tu_refl_view(refl_v3(0.0f, 0.5f, 5.0f), refl_v3(0, 0, 0), 96, 64);
     f = render_with(s, &v, REFL_ENVMAP, 2, 16);
     for (i = 0; i < 96 * 64; ++i)
         if (f->stencil[i] == 255) {

@@ -49,18 +49,6 @@ static refl_scene *reflector_scene(refl_mesh *reflector, refl_mat4 xf) {
     return s;
 }
 
-static refl_view view_at(refl_vec3 eye, refl_vec3 target, int width, int height) {
-    refl_view v;
-    memset(&v, 0, sizeof v);
-    v.eye = eye;
-    v.target = target;
-    v.up = refl_v3(0, 1, 0);
-    v.fovy_degrees = 45.0f;
-    v.width = width;
-    v.height = height;
-    return v;
-}
-
 /* Largest errors a case may show (refl_reflection_error's fields). */
 typedef struct sbc_bounds {
     double mean, p95, wrong, holes;
@@ -90,7 +78,7 @@ static void check_sbc_frame(const refl_scene *s, const refl_view *v, const char 
 static void check_reflector(refl_mesh *m, refl_mat4 xf, refl_vec3 eye, int width, int height, const char *what,
                             sbc_bounds b, refl_stats *stats) {
     refl_scene *s = reflector_scene(m, xf);
-    refl_view v = view_at(eye, refl_v3(0, -0.2f, -0.5f), width, height);
+    refl_view v = tu_refl_view(eye, refl_v3(0, -0.2f, -0.5f), width, height);
     check_sbc_frame(s, &v, what, b, stats);
     refl_scene_destroy(s);
 }

@@ -123,17 +123,6 @@ static refl_scene *box_scene(refl_light_type type, refl_vec3 light, float box_y)
     return box_scene_ex(type, light, box_y, 0.5f, NULL);
 }
 
-static refl_view view_at(refl_vec3 eye, refl_vec3 target, int w, int h) {
-    refl_view v;
-    memset(&v, 0, sizeof v);
-    v.eye = eye;
-    v.target = target;
-    v.up = refl_v3(0, 1, 0);
-    v.width = w;
-    v.height = h;
-    return v;
-}
-
 /* ---- agreement with RAYTRACE ------------------------------------------------------ */
 
 typedef struct agreement {
@@ -285,14 +274,14 @@ Test(refl_shadow, default_scene_agrees_with_raytrace) {
 
 Test(refl_shadow, box_over_floor_point_light_agrees_with_raytrace) {
     refl_scene *s = box_scene(REFL_LIGHT_POINT, refl_v3(2.0f, 6.0f, 1.5f), 1.8f);
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
     expect_agreement(s, &v, REFL__SHADOW_AUTO, "box, point light", 300);
     refl_scene_destroy(s);
 }
 
 Test(refl_shadow, box_over_floor_directional_light_agrees_with_raytrace) {
     refl_scene *s = box_scene(REFL_LIGHT_DIRECTIONAL, refl_v3(-0.4f, -1.0f, -0.5f), 1.8f);
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
     expect_agreement(s, &v, REFL__SHADOW_AUTO, "box, directional light", 200);
     refl_scene_destroy(s);
 }
@@ -355,7 +344,7 @@ Test(refl_shadow, zpass_and_zfail_agree_when_the_eye_is_outside_every_volume) {
     expect_same_masks(s, &v, "default");
     refl_scene_destroy(s);
     s = box_scene(REFL_LIGHT_POINT, refl_v3(2.0f, 6.0f, 1.5f), 1.8f);
-    v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
+    v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 200, 150);
     expect_same_masks(s, &v, "box, point light");
     refl_scene_destroy(s);
     s = box_scene(REFL_LIGHT_DIRECTIONAL, refl_v3(-0.4f, -1.0f, -0.5f), 1.8f);
@@ -369,7 +358,7 @@ Test(refl_shadow, zpass_and_zfail_agree_when_the_eye_is_outside_every_volume) {
    be wrong there, which is why it is only taken when provably safe. */
 Test(refl_shadow, eye_inside_a_shadow_volume_needs_zfail) {
     refl_scene *s;
-    refl_view v = view_at(refl_v3(0.5f, 0.7f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 200, 150);
+    refl_view v = tu_refl_view(refl_v3(0.5f, 0.7f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 200, 150);
     agreement wrong;
     int k;
     for (k = 0; k < 2; ++k) {
@@ -503,7 +492,7 @@ static double window_depth(refl_mat4 vp, const double p[3]) {
    with z-fail (and with AUTO, which must choose it). */
 Test(refl_shadow, an_oblique_near_plane_through_the_occluder_keeps_its_shadow) {
     refl_scene *s = box_scene(REFL_LIGHT_POINT, refl_v3(2.0f, 6.0f, 1.5f), 1.8f);
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 240, 180);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 240, 180);
     refl_mat4 view_m, proj_m, vp, vpo;
     refl__view_rays rays;
     float *d, *dobl;
@@ -630,7 +619,7 @@ Test(refl_shadow, direct_is_mask_plus_shade_and_unblocked_light_changes_nothing)
     tu_refl_add_object(s, plane, REFL_DIFFUSE, grey, refl_mat4_identity());
     add_light(s, REFL_LIGHT_POINT, refl_v3(1, 5, 2), 0.8f);
     add_light(s, REFL_LIGHT_DIRECTIONAL, refl_v3(0.3f, -1, 0.2f), 0.3f);
-    v = view_at(refl_v3(0, 4, 8), refl_v3(0, 0, 0), 160, 120);
+    v = tu_refl_view(refl_v3(0, 4, 8), refl_v3(0, 0, 0), 160, 120);
     a = render(s, &v, REFL_DIRECT, 0, 2);
     b = render(s, &v, REFL_DIRECT, 1, 2);
     cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1, "an unblocked light must change nothing");
@@ -644,7 +633,7 @@ Test(refl_shadow, direct_is_mask_plus_shade_and_unblocked_light_changes_nothing)
    a diffuse floor of that much darker colour. */
 Test(refl_shadow, partial_reflectors_keep_their_diffuse_share) {
     refl_scene *s;
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
     refl_frame *a, *b;
     size_t i, n = 160 * 120;
     long floor_px = 0, shadowed = 0;
@@ -691,7 +680,7 @@ Test(refl_shadow, same_bytes_for_every_thread_count) {
             v = s->camera;
         } else { /* z-fail */
             s = box_scene(REFL_LIGHT_POINT, refl_v3(0.4f, 9.0f, -0.3f), 3.0f);
-            v = view_at(refl_v3(0.5f, 1.0f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 0, 0);
+            v = tu_refl_view(refl_v3(0.5f, 1.0f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 0, 0);
         }
         v.width = 197; v.height = 131; /* tiles cut at odd places */
         one = render(s, &v, REFL_DIRECT, 1, 1);
@@ -733,7 +722,7 @@ Test(refl_shadow, allocation_failure_at_every_allocation_leaks_nothing) {
             v = s->camera;
         } else {
             s = box_scene_ex(REFL_LIGHT_POINT, refl_v3(0.4f, 9.0f, -0.3f), 3.0f, 0.5f, &al);
-            v = view_at(refl_v3(0.5f, 1.0f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 0, 0);
+            v = tu_refl_view(refl_v3(0.5f, 1.0f, -0.3f), refl_v3(1.5f, 0.0f, 0.9f), 0, 0);
         }
         v.width = 24; v.height = 16;
         cr_assert_eq(refl_frame_create(24, 16, NULL, &f), REFL_OK);
@@ -789,7 +778,7 @@ Test(refl_shadow, no_lights_changes_nothing) {
 Test(refl_shadow, light_inside_a_closed_object) {
     static const float white[3] = {0.9f, 0.9f, 0.9f};
     refl_scene *s = box_scene(REFL_LIGHT_POINT, refl_v3(-1.0f, 3.0f, 1.0f), 1.8f);
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
     refl_mesh *ball;
     refl_frame *f;
     refl__view_rays rays;
@@ -826,7 +815,7 @@ Test(refl_shadow, light_inside_a_closed_object) {
    to the floor), a light with no direction, one with no position. No
    crash, no NaN, and where RAYTRACE can say, the same shadows. */
 Test(refl_shadow, degenerate_lights) {
-    refl_view v = view_at(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
+    refl_view v = tu_refl_view(refl_v3(4.0f, 5.0f, 7.0f), refl_v3(0, 0.5f, 0), 160, 120);
     refl_scene *s = box_scene_ex(REFL_LIGHT_DIRECTIONAL, refl_v3(1.0f, -1.0f, 0.0f), 1.8f, 0.0f, NULL);
     refl_frame *a, *b;
     expect_agreement(s, &v, REFL__SHADOW_AUTO, "light along the box's faces", 100);
