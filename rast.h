@@ -165,7 +165,8 @@ typedef struct rast_context_desc {
     rast_allocator allocator;            /* zero: RAST_MALLOC / malloc */
     rast_parallel_for_fn parallel_for;   /* caller-driven jobs instead of the pool */
     void *parallel_for_user;
-    size_t batch_bytes;  /* setup memory before a flush; 0: 4 MiB */
+    size_t batch_bytes;  /* setup memory per pass of a flush; 0: 4 MiB, or 16 bytes
+                            per queued vertex of non-indexed draws when more */
 } rast_context_desc;
 
 /* On failure *out_ctx is NULL (as is *out_tex of rast_texture_create). */
@@ -1058,7 +1059,7 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     ctx->alloc = alloc;
     ctx->tile_size = tile;
     while ((1 << ctx->tile_shift) < tile) ctx->tile_shift++;
-    ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)4 << 20;
+    ctx->batch_bytes = desc->batch_bytes; /* 0: rast__pass_budget decides per flush */
     ctx->parallel_for = desc->parallel_for;
     ctx->parallel_for_user = desc->parallel_for_user;
     ctx->threads = threads;
@@ -3523,8 +3524,23 @@ static void rast__free_vertex_outputs(rast_context *ctx, rast__cmd *cmd) {
     cmd->vinfo = NULL;
 }
 
+/* Setup memory a pass may take: the caller's, or by default 4 MiB or 16
+   bytes per queued vertex of non-indexed draws, whichever is more. Every
+   pass sweeps the tiles it touches once more, so a million splats want
+   one pass, not six; indexed draws already hold about 50 bytes of vertex
+   outputs per vertex, so theirs do not raise it. */
+static size_t rast__pass_budget(const rast_context *ctx) {
+    size_t vertices = 0;
+    int i;
+    if (ctx->batch_bytes) return ctx->batch_bytes;
+    for (i = 0; i < ctx->cmd_count; ++i)
+        if (ctx->cmds[i].kind == RAST__CMD_DRAW && !ctx->cmds[i].d.indices)
+            vertices += (size_t)ctx->cmds[i].d.vertex_count;
+    return RAST__MAX((size_t)4 << 20, 16 * vertices);
+}
+
 /* Runs commands from (*ci, *cp) until the pass budget is used; advances them. */
-static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
+static rast_result rast__run_pass(rast_context *ctx, size_t pass_budget, int *ci, int *cp) {
     rast__pass ps;
     size_t budget = 0;
     int njobs = 0, nvjobs = 0, c, p, i;
@@ -3532,7 +3548,7 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
     memset(&ps, 0, sizeof(ps));
     ps.ctx = ctx;
     /* plan: count jobs within the budget (always at least one) */
-    for (c = *ci, p = *cp; c < ctx->cmd_count && (njobs == 0 || budget < ctx->batch_bytes);) {
+    for (c = *ci, p = *cp; c < ctx->cmd_count && (njobs == 0 || budget < pass_budget);) {
         rast__cmd *cmd = &ctx->cmds[c];
         int per_job;
         if (cmd->kind != RAST__CMD_DRAW) {
@@ -3605,7 +3621,8 @@ static rast_result rast__run_pass(rast_context *ctx, int *ci, int *cp) {
 static rast_result rast__flush(rast_context *ctx) {
     rast_result r = RAST_OK;
     int ci = 0, cp = 0, i;
-    while (r == RAST_OK && ci < ctx->cmd_count) r = rast__run_pass(ctx, &ci, &cp);
+    size_t pass_budget = rast__pass_budget(ctx);
+    while (r == RAST_OK && ci < ctx->cmd_count) r = rast__run_pass(ctx, pass_budget, &ci, &cp);
     for (i = 0; i < ctx->cmd_count; ++i) rast__free_vertex_outputs(ctx, &ctx->cmds[i]);
     ctx->cmd_count = 0;
     /* keep the current pipe (state is unchanged); free the others */

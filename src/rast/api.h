@@ -163,7 +163,8 @@ typedef struct rast_context_desc {
     rast_allocator allocator;            /* zero: RAST_MALLOC / malloc */
     rast_parallel_for_fn parallel_for;   /* caller-driven jobs instead of the pool */
     void *parallel_for_user;
-    size_t batch_bytes;  /* setup memory before a flush; 0: 4 MiB */
+    size_t batch_bytes;  /* setup memory per pass of a flush; 0: 4 MiB, or 16 bytes
+                            per queued vertex of non-indexed draws when more */
 } rast_context_desc;
 
 /* On failure *out_ctx is NULL (as is *out_tex of rast_texture_create). */

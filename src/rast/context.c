@@ -49,7 +49,7 @@ RAST_API rast_result rast_context_create(const rast_context_desc *desc, rast_con
     ctx->alloc = alloc;
     ctx->tile_size = tile;
     while ((1 << ctx->tile_shift) < tile) ctx->tile_shift++;
-    ctx->batch_bytes = desc->batch_bytes ? desc->batch_bytes : (size_t)4 << 20;
+    ctx->batch_bytes = desc->batch_bytes; /* 0: rast__pass_budget decides per flush */
     ctx->parallel_for = desc->parallel_for;
     ctx->parallel_for_user = desc->parallel_for_user;
     ctx->threads = threads;
