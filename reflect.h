@@ -10239,42 +10239,54 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
      1. ray maps (section IV-A): the reflectors' G-buffer (ENVMAP's) gives
         every reflector pixel its surface point and normal; every
         factor x factor pixels one reflected ray is taken, tail on the
-        reflector, head where it leaves the scene's box (grown 1%), first
-        reflector point = tail. One ring of samples beyond a reflector's
-        silhouette is extrapolated (the sample's view ray meets the tangent
-        plane of its neighbour inside, the normal continues linearly), so
-        the frustums reach past the reflector's edge pixels: the paper's
-        "extended reflectors".
-     2. reflection groups: one per reflector object and side seen (the
-        G-buffer's id, negative on back faces: the inside of an open mesh),
-        each a BSP tree of pinhole cameras (cam_sbc.c) built to the
-        requested error in desired-view pixels. One bounce: this is the
-        first order of the paper's reflection histories.
-     3. projection (section V-A): every vertex of every object is
-        projected into every group (refl_sbc_project), moving it to its
+        reflector, head twice as far as what it meets (or where it leaves
+        the scene's box, grown 1%), first reflector point = tail.
+     2. reflection groups (section IV, and VII-C's pieces "whose rays do
+        not intersect"): per reflector object and side seen (the G-buffer's
+        id, negative on back faces: the inside of an open mesh), the ray
+        map is cut into pieces: neighbouring samples stay together when no
+        gap lies between them (one surface passing in front of another:
+        the handle before the body), their normals turn by less than 45
+        degrees (no crease: the knob on the lid), and either both or
+        neither of their rays cross a neighbour's before its head (a
+        concave groove focuses them). A group is a piece within a tile of
+        REFL__SB_TILE samples, with one ring of rays extrapolated around
+        it, diagonals included (the sample's view ray meets the tangent
+        plane of its neighbour in the piece, the normal continues linearly;
+        past grazing the ray goes straight on), so its frustums reach past
+        the piece's edge: the paper's "extended reflectors". Each group is
+        a BSP tree of pinhole cameras (cam_sbc.c) built to the requested
+        error in desired-view pixels; pieces whose rays do not cross end
+        mostly in pinhole leaves, focusing ones in ray lists. A pixel
+        belongs to the group of the nearest sample on its own smooth
+        surface. One bounce: this is the first order of the paper's
+        reflection histories.
+     3. projection (section V-A): every vertex of every object inside a
+        group's box (its rays' tails and heads, grown by a quarter) is
+        projected into the group (refl_sbc_project), moving it to its
         first reflector point; the window depth is the paper's visibility
         offset (k - 1 + z/D) g with k = 1 and g = 1 in a depth buffer of the
         reflections' own, z measured as the distance from the vertex to its
         first reflector point (consistent across leaves, where each leaf's
-        image-plane height is not). A vertex behind the reflector along the
-        reflected ray of the sample it lands on does not project.
+        image-plane height is not).
      4. rasterisation (section V-B): a reflected triangle is drawn when all
-        three vertices project. Triangles are subdivided in four, at most
-        REFL__SB_LEVELS times: always while an edge is longer than 1/32 of
-        the scene's diagonal (the paper's pre-subdivision, per frame), while
-        mixed (one or two vertices project; the paper's fix for jagged
-        edges), while no vertex projects but the triangle overlaps the
-        group's rays and is large beside their footprint on the reflector
-        (its middle may project), and while an edge's projected midpoint
-        lies more than
+        three vertices project; one outside the group's box is dropped
+        whole. Triangles are subdivided in four, at most REFL__SB_LEVELS
+        times: always while an edge is longer than 1/32 of the scene's
+        diagonal (the paper's pre-subdivision, per frame), while mixed (one
+        or two vertices project; the paper's fix for jagged edges; at most
+        REFL__SB_MIXED_LEVELS times unless the part holds a point where one
+        of the group's rays meets the triangle), while no vertex projects
+        but such a point lies inside (a group narrower than the triangle),
+        and while an edge's projected midpoint lies more than
         REFL__SB_EDGE_PX from the midpoint of its projected ends (the
         straight-edge error the paper bounds by pre-subdividing). Reflected
         triangles are drawn by rast.h twice with one depth test (colour as
         DIRECT shades the surface, then its world point), stencilled to the
-        group's pixels. The reflector's own triangles project too (a spout
-        seen in the body), except where a vertex lies nearer its first
-        reflector point than the triangle's longest edge (the surface the
-        rays leave).
+        group's pixels. The reflector's own triangles project too (the knob
+        seen in the lid), except the surface the rays leave: a triangle
+        facing away from every vertex's first reflector point, or with a
+        vertex nearer it than a quarter of the triangle's longest edge.
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
@@ -10287,28 +10299,43 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
 #define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
-#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed or while no corner projects */
-#define REFL__SB_FOOTPRINT_SPLIT 0.25f /* ...a triangle this many times its group's footprint */
+#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed */
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
-#define REFL__SB_FLOATS 12
-#define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */          /* per emitted vertex: clip position, world position, normal, uv */
+#define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
+#define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
+#define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
+#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to where it reflects is its surface */
+#define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
+
+/* What a reflected ray meets first: a scene triangle and the point; object
+   -1 for nothing. */
+typedef struct refl__sb_hit {
+    int object, triangle;
+    refl_vec3 point;
+} refl__sb_hit;
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
     int object;
     float id;                     /* its pixels' G-buffer id: object + 1, negated for the back side */
     refl_sbc_ray *rays;
-    uint8_t *valid;
+    refl__sb_hit *hits;           /* per sample: what its ray meets */
+    uint8_t *valid;               /* 1: the sample shows the side, with a ray */
+    refl_vec3 *normals;           /* per sample, towards the viewer */
+    int *comp;                    /* per sample: its smooth piece (refl__sb_pieces), -1: none */
+    int *group;                   /* per sample with a ray: its group */
+    uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
 } refl__sb_side;
 
 /* A reflection group: one tile of a side's ray map, its rays and one ring
    of rays around it (so neighbouring tiles' frustums overlap). */
 typedef struct refl__sb_group {
-    int side, object;
+    int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
-    refl_vec3 lo, hi;             /* the box of its rays (tails and heads) */
-    float footprint;              /* the diagonal of its tails' box: its size on the reflector */
     refl_sbc *sbc;
+    refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
+    refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
+    int hit_count;
     refl_result result;
 } refl__sb_group;
 
@@ -10318,6 +10345,7 @@ typedef struct refl__sb_pv {
     float uv[2];
     float clip[4];                /* the first reflector point's, depth replaced */
     float sx, sy;                 /* its window position */
+    refl_vec3 first;              /* its first reflector point */
     float dist;                   /* to the first reflector point */
     int ok;
 } refl__sb_pv;
@@ -10368,78 +10396,187 @@ static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int 
     *y = REFL__MIN(v * sb->factor + sb->factor / 2, fr->height - 1);
 }
 
-/* The reflected ray of surface point q with normal n seen along view
-   direction d; 0 when the normal does not face the viewer. */
-static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray) {
+/* The reflected ray of surface point q with normal n (towards the
+   viewer) seen along view direction d, and what it meets first in *met;
+   0 for a ray of zero length. */
+static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
+                        refl__sb_hit *met) {
     refl_vec3 r;
     refl_hit hit;
     float reach;
+    met->object = -1;
     n = refl_v3_normalize(n);
-    if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
-    if (!(refl_v3_dot(d, n) < -1e-4f)) return 0;
-    r = refl_v3_reflect(d, n);
+    /* a normal turned past grazing (extrapolated beyond a silhouette)
+       reflects as the limit does: straight on, not back */
+    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
     ray->tail = q;
     ray->first = q;
     reach = refl__sb_exit(sb->box_lo, sb->box_hi, q, r);
-    if (refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, reach, &hit))
+    if (refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, reach, &hit)) {
+        met->object = hit.object;
+        met->triangle = hit.triangle;
+        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
         reach = REFL__MIN(reach, REFL__SB_REACH * hit.t + 0.01f * sb->diagonal);
-    else
+    } else
         reach = REFL__MIN(reach, 0.1f * sb->diagonal);
     ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
     return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
 }
 
-/* Group g's ray map: a ray per sample showing the group, then one ring
-   extrapolated beyond (marked 2 in valid while built). */
-static void refl__sb_ray_map(const refl__sb *sb, float id, int mw, int mh, refl_sbc_ray *rays, uint8_t *valid,
-                             refl_vec3 *normals) {
-    static const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+/* Side sd's ray map: a ray per sample showing the side (valid 1), with
+   the sample's unit normal turned towards the viewer. */
+static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
     const refl__pass *p = sb->p;
-    int u, v, k, W = p->frame->width;
-    for (v = 0; v < mh; ++v)
+    int u, v, W = p->frame->width, mw = sb->map_w;
+    for (v = 0; v < sb->map_h; ++v)
         for (u = 0; u < mw; ++u) {
             size_t m = (size_t)v * (size_t)mw + (size_t)u, i;
             int x, y;
-            refl_vec3 o, d;
+            refl_vec3 o, d, n;
             float tmax;
             const float *gb;
             refl__sb_sample_pixel(sb, u, v, &x, &y);
             i = (size_t)y * (size_t)W + (size_t)x;
             gb = sb->em.gbuf + 4 * i;
-            valid[m] = 0;
-            if (gb[3] != id) continue;
+            sd->valid[m] = 0;
+            if (gb[3] != sd->id) continue;
             refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            normals[m] = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
-            valid[m] = (uint8_t)refl__sb_ray(sb, refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1],
-                                                         sb->em.surface[3 * i + 2]),
-                                             normals[m], d, &rays[m]);
+            n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+            sd->normals[m] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
+            sd->valid[m] = (uint8_t)refl__sb_ray(sb, refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1],
+                                                             sb->em.surface[3 * i + 2]),
+                                                 sd->normals[m], d, &sd->rays[m], &sd->hits[m]);
         }
+}
+
+/* Whether neighbouring samples m1 and m2 lie on one smooth piece of
+   surface: no gap between them (the chord between their points runs
+   within REFL__SB_SMOOTH_SIN of both tangent planes; not so where one
+   surface passes in front of another, a handle before the body, the knob
+   before the lid: the chord runs along the view ray), and their normals
+   turn by less than REFL__SB_SMOOTH_COS (not at a crease, the spout's
+   joint, nor where a silhouette turns them fast). */
+static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
+    refl_vec3 e = refl_v3_sub(sd->rays[m2].tail, sd->rays[m1].tail);
+    float l = refl_v3_length(e);
+    return !(fabsf(refl_v3_dot(sd->normals[m1], e)) <= REFL__SB_SMOOTH_SIN * l &&
+             fabsf(refl_v3_dot(sd->normals[m2], e)) <= REFL__SB_SMOOTH_SIN * l);
+}
+
+static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
+    return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
+}
+
+/* The root of sample m in a union-find forest (roots are their smallest member). */
+static int refl__sb_root(int *parent, int m) {
+    while (parent[m] != m) m = parent[m] = parent[parent[m]];
+    return m;
+}
+
+/* Whether the rays of neighbouring samples m1 and m2 cross before their
+   heads (in the plane of the chord between their tails): where a concave
+   reflector focuses them. */
+static int refl__sb_cross(const refl__sb_side *sd, size_t m1, size_t m2) {
+    const refl_sbc_ray *r1 = &sd->rays[m1], *r2 = &sd->rays[m2];
+    refl_vec3 e = refl_v3_sub(r2->tail, r1->tail), d1 = refl_v3_sub(r1->head, r1->tail), d2 = refl_v3_sub(r2->head, r2->tail);
+    float l1 = refl_v3_length(d1), l2 = refl_v3_length(d2), closing;
+    if (!(l1 > 0.0f) || !(l2 > 0.0f)) return 0;
+    closing = -refl_v3_dot(e, refl_v3_sub(refl_v3_scale(d2, 1.0f / l2), refl_v3_scale(d1, 1.0f / l1)));
+    /* the gap e closes at rate `closing` per unit of length: gone after |e|^2 / closing */
+    return closing > 0.0f && refl_v3_dot(e, e) < closing * REFL__MIN(l1, l2);
+}
+
+/* Side sd's pieces: comp[m] the smallest sample index of m's piece
+   (samples linked through smooth neighbours whose rays cross their
+   neighbours' alike: a focusing region and the rest are pieces apart),
+   -1 without a ray. */
+static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
+    uint8_t *crossing = sd->crossing;
+    int u, v, mw = sb->map_w, mh = sb->map_h, m, k, pass;
+    memset(crossing, 0, (size_t)mw * (size_t)mh);
+    for (m = 0; m < mw * mh; ++m) sd->comp[m] = sd->valid[m] ? m : -1;
+    /* first which rays cross a neighbour's, then the links */
+    for (pass = 0; pass < 2; ++pass)
+        for (v = 0; v < mh; ++v)
+            for (u = 0; u < mw; ++u) {
+                int a = v * mw + u;
+                if (!sd->valid[a]) continue;
+                for (k = 0; k < 2; ++k) {
+                    int b = k ? a + mw : a + 1, ra, rb;
+                    if ((k ? v + 1 >= mh : u + 1 >= mw) || !sd->valid[b]) continue;
+                    if (!pass) {
+                        if (refl__sb_cross(sd, (size_t)a, (size_t)b)) crossing[a] = crossing[b] = 1;
+                        continue;
+                    }
+                    if (crossing[a] != crossing[b] || !refl__sb_smooth(sd, (size_t)a, (size_t)b)) continue;
+                    ra = refl__sb_root(sd->comp, a);
+                    rb = refl__sb_root(sd->comp, b);
+                    if (ra < rb) sd->comp[rb] = ra;
+                    else sd->comp[ra] = rb;
+                }
+            }
+    for (m = 0; m < mw * mh; ++m)
+        if (sd->comp[m] >= 0) sd->comp[m] = refl__sb_root(sd->comp, m);
+}
+
+/* Side i's ray map and pieces (a job: sides map in parallel). */
+static void refl__sb_map_side(void *arg, int i) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    refl__sb_side *sd = &sb->sides[i];
+    size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+    sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
+    sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
+    sd->hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    sd->valid = (uint8_t *)refl__calloc(al, n, 1);
+    sd->comp = (int *)refl__calloc(al, n, sizeof(int));
+    sd->group = (int *)refl__calloc(al, n, sizeof(int));
+    sd->crossing = (uint8_t *)refl__calloc(al, n, 1);
+    if (sd->normals && sd->rays && sd->hits && sd->valid && sd->comp && sd->group && sd->crossing) {
+        refl__sb_ray_map(sb, sd);
+        refl__sb_pieces(sb, sd);
+    }
+}
+
+/* One ring of rays extrapolated around the members (valid 1) of a window
+   [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`: the
+   sample's view ray meets the tangent plane of its member neighbour, the
+   normal continues linearly from the member beyond that one. So the
+   frustums reach past the piece's edge (the paper's "extended
+   reflectors"), wherever the piece ends: at a silhouette, a crease, or a
+   surface passing in front. */
+static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp, int u0, int v0, int mw, int mh,
+                          refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
+    static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
+    const refl__pass *p = sb->p;
+    int u, v, k;
     for (v = 0; v < mh; ++v)
         for (u = 0; u < mw; ++u) {
             size_t m = (size_t)v * (size_t)mw + (size_t)u;
             if (valid[m]) continue;
-            for (k = 0; k < 4; ++k) {
-                int u1 = u + du[k], v1 = v + dv[k], u2 = u + 2 * du[k], v2 = v + 2 * dv[k], x, y;
-                size_t m1, m2;
+            for (k = 0; k < 8; ++k) {
+                int u1 = u + du[k], v1 = v + dv[k], u2 = u0 + u + 2 * du[k], v2 = v0 + v + 2 * dv[k], x, y;
+                size_t m1, g1;
                 refl_vec3 o, d, q1, n1, n;
                 float tmax, den, t;
                 if (u1 < 0 || v1 < 0 || u1 >= mw || v1 >= mh) continue;
                 m1 = (size_t)v1 * (size_t)mw + (size_t)u1;
                 if (valid[m1] != 1) continue;
+                g1 = (size_t)(v0 + v1) * (size_t)sb->map_w + (size_t)(u0 + u1);
                 q1 = rays[m1].tail;
-                n1 = normals[m1];
+                n1 = sd->normals[g1];
                 n = n1;
-                if (u2 >= 0 && v2 >= 0 && u2 < mw && v2 < mh) {
-                    m2 = (size_t)v2 * (size_t)mw + (size_t)u2;
-                    if (valid[m2] == 1) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), normals[m2]);
+                if (u2 >= 0 && v2 >= 0 && u2 < sb->map_w && v2 < sb->map_h) {
+                    size_t g2 = (size_t)v2 * (size_t)sb->map_w + (size_t)u2;
+                    if (sd->comp[g2] == comp) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), sd->normals[g2]);
                 }
-                refl__sb_sample_pixel(sb, u, v, &x, &y);
+                refl__sb_sample_pixel(sb, u0 + u, v0 + v, &x, &y);
                 refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
                 den = refl_v3_dot(d, n1);
                 if (fabsf(den) < 1e-6f) continue;
                 t = refl_v3_dot(refl_v3_sub(q1, o), n1) / den;
                 if (!(t > 0.0f) || !refl__isfinite(t)) continue;
-                if (refl__sb_ray(sb, refl_v3_add(o, refl_v3_scale(d, t)), n, d, &rays[m])) {
+                if (refl__sb_ray(sb, refl_v3_add(o, refl_v3_scale(d, t)), n, d, &rays[m], &hits[m])) {
                     valid[m] = 2;
                     break;
                 }
@@ -10448,20 +10585,32 @@ static void refl__sb_ray_map(const refl__sb *sb, float id, int mw, int mh, refl_
     for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
 }
 
-/* Side i's ray map (a job: sides map in parallel). */
-static void refl__sb_map_side(void *arg, int i) {
-    refl__sb *sb = (refl__sb *)arg;
-    const refl_allocator *al = &sb->p->scene->allocator;
-    refl__sb_side *sd = &sb->sides[i];
-    size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
-    refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
-    sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    sd->valid = (uint8_t *)refl__calloc(al, n, 1);
-    if (normals && sd->rays && sd->valid) refl__sb_ray_map(sb, sd->id, sb->map_w, sb->map_h, sd->rays, sd->valid, normals);
-    refl__free(al, normals);
+static void refl__sb_box_add(refl_vec3 *lo, refl_vec3 *hi, refl_vec3 p) {
+    lo->x = REFL__MIN(lo->x, p.x); lo->y = REFL__MIN(lo->y, p.y); lo->z = REFL__MIN(lo->z, p.z);
+    hi->x = REFL__MAX(hi->x, p.x); hi->y = REFL__MAX(hi->y, p.y); hi->z = REFL__MAX(hi->z, p.z);
 }
 
-/* Builds group g's tree from its tile grown by one sample (a job). */
+static int refl__sb_hit_before(const refl__sb_hit *a, const refl__sb_hit *b) {
+    return a->object < b->object || (a->object == b->object && a->triangle < b->triangle);
+}
+
+/* Sorts n hits from a into out by object and triangle, stably (a
+   bottom-up merge sort; a is scratch). */
+static void refl__sb_sort_hits(refl__sb_hit *a, refl__sb_hit *out, int n) {
+    int width, i;
+    refl__sb_hit *src = a, *dst = out, *t;
+    for (width = 1; width < n; width *= 2) {
+        for (i = 0; i < n; i += 2 * width) {
+            int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
+            while (l < m || r < e) dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+        }
+        t = src; src = dst; dst = t;
+    }
+    if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sb_hit));
+}
+
+/* Builds group g's tree from its piece's rays in its tile grown by one
+   sample, and a ring around them (a job). */
 static void refl__sb_build_group(void *arg, int g) {
     refl__sb *sb = (refl__sb *)arg;
     const refl__pass *p = sb->p;
@@ -10470,29 +10619,47 @@ static void refl__sb_build_group(void *arg, int g) {
     const refl__sb_side *sd = &sb->sides[gr->side];
     int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
     int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
-    int mw = u1 - u0, mh = v1 - v0, u, v, count = 0;
-    refl_vec3 tails_lo = refl_v3(0.0f, 0.0f, 0.0f), tails_hi = tails_lo;
-    refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, (size_t)mw * (size_t)mh, sizeof(refl_sbc_ray));
-    uint8_t *valid = (uint8_t *)refl__calloc(al, (size_t)mw * (size_t)mh, 1);
+    int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
+    size_t n = (size_t)mw * (size_t)mh, k;
+    refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
+    refl__sb_hit *hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    uint8_t *valid = (uint8_t *)refl__calloc(al, n, 1);
     refl_sbc_desc d;
-    if (!rays || !valid || !sd->rays || !sd->valid) {
+    refl_vec3 grow;
+    if (!rays || !hits || !valid) {
         gr->result = REFL_ERROR_OUT_OF_MEMORY;
     } else {
         for (v = v0; v < v1; ++v)
             for (u = u0; u < u1; ++u) {
-                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
+                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
+                if (!sd->valid[m] || sd->comp[m] != gr->comp) continue;
                 rays[k] = sd->rays[m];
-                valid[k] = sd->valid[m];
-                if (!valid[k]) continue;
-                if (!count++) {
-                    gr->lo = gr->hi = tails_lo = tails_hi = rays[k].tail;
-                }
-                tails_lo = refl__v3_min(tails_lo, rays[k].tail);
-                tails_hi = refl__v3_max(tails_hi, rays[k].tail);
-                gr->lo = refl__v3_min(gr->lo, refl__v3_min(rays[k].tail, rays[k].head));
-                gr->hi = refl__v3_max(gr->hi, refl__v3_max(rays[k].tail, rays[k].head));
+                hits[k] = sd->hits[m];
+                valid[k] = 1;
             }
-        gr->footprint = refl_v3_length(refl_v3_sub(tails_hi, tails_lo));
+        refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
+        for (k = 0; k < n; ++k) {
+            if (!valid[k]) continue;
+            if (!count++) gr->lo = gr->hi = rays[k].tail;
+            refl__sb_box_add(&gr->lo, &gr->hi, rays[k].tail);
+            refl__sb_box_add(&gr->lo, &gr->hi, rays[k].head);
+            if (hits[k].object >= 0) hits[met++] = hits[k]; /* k >= met: nothing unread is overwritten */
+        }
+        /* a quarter of its size around: ray lists reach past the heads,
+           cameras below the tails (see cam_sbc.c) */
+        grow = refl_v3_add(refl_v3_scale(refl_v3_sub(gr->hi, gr->lo), 0.25f),
+                           refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
+        gr->lo = refl_v3_sub(gr->lo, grow);
+        gr->hi = refl_v3_add(gr->hi, grow);
+        /* by object and triangle, ties in map order (a stable merge: qsort is not) */
+        if (met && (gr->hits = (refl__sb_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sb_hit))) != NULL) {
+            refl__sb_sort_hits(hits, gr->hits, met);
+            gr->hit_count = met;
+        } else if (met) {
+            gr->result = REFL_ERROR_OUT_OF_MEMORY;
+            count = 0;
+        }
     }
     if (count) { /* a group without a ray (every normal turned away) reflects nothing */
         memset(&d, 0, sizeof d);
@@ -10504,32 +10671,41 @@ static void refl__sb_build_group(void *arg, int g) {
         gr->result = refl_sbc_build(rays, valid, mw, mh, &d, &gr->sbc);
     }
     refl__free(al, rays);
+    refl__free(al, hits);
     refl__free(al, valid);
 }
 
+/* Whether box [a, b] (any two corners' extremes) meets box [lo, hi]. */
+static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b) {
+    return REFL__MAX(a.x, b.x) >= lo.x && REFL__MIN(a.x, b.x) <= hi.x && REFL__MAX(a.y, b.y) >= lo.y &&
+           REFL__MIN(a.y, b.y) <= hi.y && REFL__MAX(a.z, b.z) >= lo.z && REFL__MIN(a.z, b.z) <= hi.z;
+}
+
 /* Projects v into group g: its first reflector point, seen by the view,
-   at window depth dist / D. A point must lie ahead along the reflected ray
-   of the sample it lands on: a leaf's frustum starts at an image plane
-   fitted to the tails, so it can reach just behind a curved reflector's
-   surface, where the floor meets a sphere, say, and nothing is reflected. */
-static void refl__sb_project(const refl__sb *sb, int g, refl__sb_pv *v) {
+   at window depth dist / D. */
+static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
-    const refl__sb_side *sd = &sb->sides[sb->groups[g].side];
+    const refl__sb_side *sd = &sb->sides[g->side];
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
     int k, u, w;
     size_t at;
     v->ok = 0;
-    if (!refl_sbc_project(sb->groups[g].sbc, v->world, &f, &z)) return;
+    if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
+    if (!refl_sbc_project(g->sbc, v->world, &f, &z)) return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
+    v->first = f;
     v->dist = refl_v3_length(refl_v3_sub(v->world, f));
     wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
     v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
     if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
+    /* ahead along the reflected ray of the sample it lands on: a leaf's
+       frustum starts at an image plane fitted to the tails, so it can reach
+       just behind a curved mirror, where nothing is reflected */
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
@@ -10555,18 +10731,18 @@ static void refl__sb_project_object(void *arg, int index) {
         out[i].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
         out[i].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
         out[i].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
-        refl__sb_project(sb, g, &out[i]);
+        refl__sb_project(sb, &sb->groups[g], &out[i]);
     }
 }
 
-/* The midpoint of a and b, projected into the job's group. */
-static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_pv *a, const refl__sb_pv *b, refl__sb_job *j) {
+static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
+                                refl__sb_job *j) {
     refl__sb_pv m;
     m.world = refl_v3_scale(refl_v3_add(a->world, b->world), 0.5f);
     m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
     m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
     m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
-    refl__sb_project(sb, j->group, &m);
+    refl__sb_project(sb, g, &m);
     j->projections++;
     j->projected += m.ok;
     return m;
@@ -10580,14 +10756,63 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
     o[10] = v->uv[0]; o[11] = v->uv[1];
 }
 
+/* Whether a reflector's triangle, projected into a group of its own, is
+   the surface the group's rays leave rather than a part of the reflector
+   they meet (the knob seen in the lid): it faces away from every vertex's
+   first reflector point, or lies nearer one than a fraction of its edge. */
+static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge) {
+    const refl__sb_pv *v[3];
+    refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
+    int k;
+    v[0] = a; v[1] = b; v[2] = c;
+    /* outwards, as the vertex normals point */
+    if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
+    if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
+    for (k = 0; k < 3; ++k)
+        if (refl_v3_dot(refl_v3_sub(v[k]->first, v[k]->world), n) > 0.0f) return 0;
+    return 1;
+}
+
+/* A scene triangle being emitted into a group: whether it belongs to the
+   group's reflector, its longest edge, and the points where the group's
+   rays meet it. */
+typedef struct refl__sb_tri {
+    int self;
+    float edge;
+    const refl__sb_hit *hits;
+    int hit_count;
+} refl__sb_tri;
+
+/* Whether triangle (a, b, c) holds point p of its plane (its edges
+   included, with a little room). */
+static int refl__sb_holds(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, refl_vec3 p) {
+    const refl__sb_pv *v[3];
+    refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
+    float room = -1e-3f * refl_v3_dot(n, n);
+    int k;
+    v[0] = a; v[1] = b; v[2] = c;
+    for (k = 0; k < 3; ++k) {
+        refl_vec3 e = refl_v3_sub(v[(k + 1) % 3]->world, v[k]->world);
+        if (refl_v3_dot(refl_v3_cross(e, refl_v3_sub(p, v[k]->world)), n) < room) return 0;
+    }
+    return 1;
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
    module comment says. */
-static void refl__sb_emit(const refl__sb *sb, refl__sb_job *j, const refl__sb_pv *a,
-                          const refl__sb_pv *b, const refl__sb_pv *c, int level, int self, float edge) {
+static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
+                          const refl__sb_pv *b, const refl__sb_pv *c, int level, const refl__sb_tri *t) {
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
     refl__sb_pv ab, bc, ca;
     int have_mid = 0;
+    refl_vec3 lo = refl_v3(REFL__MIN(a->world.x, REFL__MIN(b->world.x, c->world.x)),
+                           REFL__MIN(a->world.y, REFL__MIN(b->world.y, c->world.y)),
+                           REFL__MIN(a->world.z, REFL__MIN(b->world.z, c->world.z)));
+    refl_vec3 hi = refl_v3(REFL__MAX(a->world.x, REFL__MAX(b->world.x, c->world.x)),
+                           REFL__MAX(a->world.y, REFL__MAX(b->world.y, c->world.y)),
+                           REFL__MAX(a->world.z, REFL__MAX(b->world.z, c->world.z)));
+    if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
@@ -10604,30 +10829,22 @@ static void refl__sb_emit(const refl__sb *sb, refl__sb_job *j, const refl__sb_pv
             mid[0] = &ab; mid[1] = &bc; mid[2] = &ca;
             for (k = 0; k < 3; ++k) {
                 float dx, dy;
-                *mid[k] = refl__sb_mid(sb, e[k][0], e[k][1], j);
+                *mid[k] = refl__sb_mid(sb, g, e[k][0], e[k][1], j);
                 dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
                 dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
                 if (!mid[k]->ok || dx * dx + dy * dy > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX) split = 1;
             }
             have_mid = 1;
-        } else if (ok > 0 && ok < 3) {
-            split = level < REFL__SB_MIXED_LEVELS;
-        } else if (ok == 0 && level < REFL__SB_MIXED_LEVELS) {
-            /* no corner projects, yet the middle may: a big triangle across
-               a narrow bundle of rays (a nearly flat mirror's tile), while
-               it is large beside the group's footprint and overlaps its box */
-            const refl__sb_group *gr = &sb->groups[j->group];
-            refl_vec3 lo = refl__v3_min(a->world, refl__v3_min(b->world, c->world));
-            refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
-            split = REFL__MAX(la, REFL__MAX(lb, lc)) > REFL__SB_FOOTPRINT_SPLIT * gr->footprint &&
-                    lo.x <= gr->hi.x && hi.x >= gr->lo.x && lo.y <= gr->hi.y && hi.y >= gr->lo.y &&
-                    lo.z <= gr->hi.z && hi.z >= gr->lo.z;
+        } else if (ok < 3) {
+            int k;
+            split = ok > 0 && level < REFL__SB_MIXED_LEVELS;
+            for (k = 0; k < t->hit_count && !split; ++k) split = refl__sb_holds(a, b, c, t->hits[k].point);
         }
     }
     if (!split) {
         if (ok < 3) return;
         /* the reflector's own surface around the rays' tails */
-        if (self && REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < edge) return;
+        if (t->self && refl__sb_own_surface(a, b, c, t->edge)) return;
         if (j->out_count + 3 > j->out_cap) {
             size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
             float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));
@@ -10646,14 +10863,14 @@ static void refl__sb_emit(const refl__sb *sb, refl__sb_job *j, const refl__sb_pv
         return;
     }
     if (!have_mid) {
-        ab = refl__sb_mid(sb, a, b, j);
-        bc = refl__sb_mid(sb, b, c, j);
-        ca = refl__sb_mid(sb, c, a, j);
+        ab = refl__sb_mid(sb, g, a, b, j);
+        bc = refl__sb_mid(sb, g, b, c, j);
+        ca = refl__sb_mid(sb, g, c, a, j);
     }
-    refl__sb_emit(sb, j, a, &ab, &ca, level + 1, self, edge);
-    refl__sb_emit(sb, j, &ab, b, &bc, level + 1, self, edge);
-    refl__sb_emit(sb, j, &ca, &bc, c, level + 1, self, edge);
-    refl__sb_emit(sb, j, &ab, &bc, &ca, level + 1, self, edge);
+    refl__sb_emit(sb, g, j, a, &ab, &ca, level + 1, t);
+    refl__sb_emit(sb, g, j, &ab, b, &bc, level + 1, t);
+    refl__sb_emit(sb, g, j, &ca, &bc, c, level + 1, t);
+    refl__sb_emit(sb, g, j, &ab, &bc, &ca, level + 1, t);
 }
 
 static void refl__sb_emit_job(void *arg, int index) {
@@ -10662,15 +10879,31 @@ static void refl__sb_emit_job(void *arg, int index) {
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
     const refl__sb_pv *v = sb->verts[j->group * scene->object_count + j->object];
-    int self = sb->groups[j->group].object == j->object, t;
-    for (t = j->first; t < j->first + j->count && !j->failed; ++t) {
-        const uint32_t *tri = m->indices + 3 * (size_t)t;
+    const refl__sb_group *g = &sb->groups[j->group];
+    int lo = 0, hi = g->hit_count, tr;
+    refl__sb_tri t;
+    t.self = g->object == j->object;
+    /* the group's hits on this job's triangles start at the first not before (object, first) */
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        const refl__sb_hit *h = &g->hits[mid];
+        if (h->object < j->object || (h->object == j->object && h->triangle < j->first)) lo = mid + 1;
+        else hi = mid;
+    }
+    for (tr = j->first; tr < j->first + j->count && !j->failed; ++tr) {
+        const uint32_t *tri = m->indices + 3 * (size_t)tr;
         const refl__sb_pv *a = &v[tri[0]], *b = &v[tri[1]], *c = &v[tri[2]];
-        float edge = self ? REFL__MAX(refl_v3_length(refl_v3_sub(a->world, b->world)),
-                                      REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
-                                                refl_v3_length(refl_v3_sub(c->world, a->world))))
-                          : 0.0f;
-        refl__sb_emit(sb, j, a, b, c, 0, self, edge);
+        t.edge = t.self ? REFL__MAX(refl_v3_length(refl_v3_sub(a->world, b->world)),
+                                    REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
+                                              refl_v3_length(refl_v3_sub(c->world, a->world))))
+                        : 0.0f;
+        t.hits = g->hits + lo;
+        t.hit_count = 0;
+        while (lo < g->hit_count && g->hits[lo].object == j->object && g->hits[lo].triangle == tr) {
+            ++lo;
+            ++t.hit_count;
+        }
+        refl__sb_emit(sb, g, j, a, b, c, 0, &t);
     }
 }
 
@@ -10764,22 +10997,16 @@ static void refl__sb_resolve_row(void *arg, int y) {
 }
 
 /* The sides seen (reflector objects and sides with a pixel), their ray
-   maps, and the groups: each side's map cut in tiles of sb->tile samples,
-   one group per tile with a ray, at most 254 in all (the stencil's
-   values; the tile side doubles until they fit). Beyond the paper, whose
-   groups are whole reflectors: a whole curved reflector's rays cross each
-   other (a teapot's spout and handle face its body, rims and concave
-   parts turn rays back across the others), and a BSP over crossing rays
-   sends them down both sides of every cut, so it ends in ray lists; the
-   tiles are the paper's "pieces whose rays do not intersect" (section
-   VI), cut where it is cheap. */
+   maps and pieces, and the groups: each side's pieces cut by tiles of
+   sb->tile samples, at most 254 in all (the stencil's values; the tile
+   side doubles until they fit), and each pixel's group. */
 static refl_result refl__sb_groups(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_frame *fr = sb->p->frame;
     size_t npx = (size_t)fr->width * (size_t)fr->height, k;
     uint8_t *sides = (uint8_t *)refl__calloc(al, (size_t)scene->object_count, 1);
-    int i, side, pass, u, v, tu, tv;
+    int *seen, i, side, pass, u, v, tu, tv;
     if (!sides) return REFL_ERROR_OUT_OF_MEMORY;
     for (k = 0; k < npx; ++k) {
         float id = sb->em.gbuf[4 * k + 3];
@@ -10801,54 +11028,112 @@ static refl_result refl__sb_groups(refl__sb *sb) {
     refl__free(al, sides);
     rast_run_jobs(sb->p->rc, sb->side_count, refl__sb_map_side, sb);
     for (i = 0; i < sb->side_count; ++i)
-        if (!sb->sides[i].rays || !sb->sides[i].valid) return REFL_ERROR_OUT_OF_MEMORY;
-    /* count the tiles with a ray, doubling the tile until they fit; then list them */
+        if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
+            !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
+            return REFL_ERROR_OUT_OF_MEMORY;
+    /* count the groups (a tile's pieces), doubling the tile until they
+       fit; then list them, each sample noting its group. Past a tile
+       twice the map, every side is one piece, and groups past 254 (more
+       sides than stencil values) reflect nothing. */
+    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
+    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
+        int whole = sb->tile > 2 * REFL__MAX(sb->map_w, sb->map_h);
+        for (i = 0; whole && i < sb->side_count; ++i) {
+            int first = -1, m;
+            for (m = 0; m < sb->map_w * sb->map_h; ++m)
+                if (sb->sides[i].valid[m]) sb->sides[i].comp[m] = first = first < 0 ? m : first;
+        }
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
             for (i = 0; i < sb->side_count; ++i)
                 for (tv = 0; tv < th; ++tv)
                     for (tu = 0; tu < tw; ++tu) {
-                        int any = 0;
-                        for (v = tv * sb->tile; v < REFL__MIN((tv + 1) * sb->tile, sb->map_h) && !any; ++v)
-                            for (u = tu * sb->tile; u < REFL__MIN((tu + 1) * sb->tile, sb->map_w) && !any; ++u)
-                                any = sb->sides[i].valid[(size_t)v * (size_t)sb->map_w + (size_t)u];
-                        if (!any) continue;
-                        if (pass) {
-                            refl__sb_group *g = &sb->groups[sb->group_count];
-                            g->side = i;
-                            g->object = sb->sides[i].object;
-                            g->u0 = tu * sb->tile;
-                            g->v0 = tv * sb->tile;
-                            g->u1 = REFL__MIN(g->u0 + sb->tile, sb->map_w);
-                            g->v1 = REFL__MIN(g->v0 + sb->tile, sb->map_h);
-                        }
-                        sb->group_count++;
+                        refl__sb_side *sd = &sb->sides[i];
+                        int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
+                        int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
+                        for (v = vv0; v < vv1; ++v)
+                            for (u = uu0; u < uu1; ++u) {
+                                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                                int gi = 0;
+                                if (!sd->valid[m]) continue;
+                                while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
+                                sd->group[m] = first + gi < 254 ? first + gi : -1;
+                                if (gi < nseen) continue;
+                                seen[nseen++] = sd->comp[m];
+                                if (pass && sb->group_count < 254) {
+                                    refl__sb_group *g = &sb->groups[sb->group_count];
+                                    g->side = i;
+                                    g->object = sd->object;
+                                    g->comp = sd->comp[m];
+                                    g->u0 = uu0;
+                                    g->v0 = vv0;
+                                    g->u1 = uu1;
+                                    g->v1 = vv1;
+                                }
+                                sb->group_count++;
+                            }
                     }
-            if (sb->group_count > 254) break;
+            if (sb->group_count > 254 && !whole) break;
+            sb->group_count = REFL__MIN(sb->group_count, 254);
             if (!pass) {
                 sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
                                                             sizeof(refl__sb_group));
-                if (!sb->groups) return REFL_ERROR_OUT_OF_MEMORY;
+                if (!sb->groups) {
+                    refl__free(al, seen);
+                    return REFL_ERROR_OUT_OF_MEMORY;
+                }
             }
         }
-        if (sb->group_count <= 254) break;
+        if (pass == 2) break;
     }
-    /* each pixel's group: its side's, at the tile of its sample */
+    refl__free(al, seen);
+    /* each pixel's group: that of the nearest sample on the pixel's own
+       smooth piece of surface, else of the sample nearby whose point lies
+       nearest the pixel's */
     for (k = 0; k < npx; ++k) {
         float id = sb->em.gbuf[4 * k + 3];
-        int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width);
+        int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width), du, dv, best = -1, near = -1;
+        float best_d2 = INFINITY, near_d2 = INFINITY;
+        refl_vec3 q = refl_v3(sb->em.surface[3 * k], sb->em.surface[3 * k + 1], sb->em.surface[3 * k + 2]);
+        refl_vec3 n = refl_v3_normalize(refl_v3(sb->em.gbuf[4 * k], sb->em.gbuf[4 * k + 1], sb->em.gbuf[4 * k + 2]));
+        const refl__sb_side *sd = NULL;
+        sb->group_of[k] = 0;
+        for (i = 0; id != 0.0f && i < sb->side_count; ++i)
+            if (sb->sides[i].id == id) sd = &sb->sides[i];
+        if (!sd) continue;
         u = x / sb->factor;
         v = y / sb->factor;
-        sb->group_of[k] = 0;
-        for (i = 0; id != 0.0f && i < sb->group_count; ++i) {
-            const refl__sb_group *g = &sb->groups[i];
-            if (sb->sides[g->side].id == id && u >= g->u0 && u < g->u1 && v >= g->v0 && v < g->v1) {
-                sb->group_of[k] = (uint8_t)(i + 1);
-                break;
+        for (dv = -2; dv <= 2; ++dv)
+            for (du = -2; du <= 2; ++du) {
+                int us = u + du, vs = v + dv, sx, sy;
+                size_t m;
+                refl_vec3 e;
+                float d2, l, p2;
+                if (us < 0 || vs < 0 || us >= sb->map_w || vs >= sb->map_h) continue;
+                m = (size_t)vs * (size_t)sb->map_w + (size_t)us;
+                if (!sd->valid[m]) continue;
+                e = refl_v3_sub(sd->rays[m].tail, q);
+                d2 = refl_v3_dot(e, e);
+                l = sqrtf(d2);
+                if (d2 < near_d2) {
+                    near_d2 = d2;
+                    near = sd->group[m];
+                }
+                if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SB_SMOOTH_COS ||
+                    fabsf(refl_v3_dot(n, e)) > REFL__SB_SMOOTH_SIN * l ||
+                    fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SB_SMOOTH_SIN * l)
+                    continue;
+                refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
+                p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
+                if (p2 < best_d2) {
+                    best_d2 = p2;
+                    best = sd->group[m];
+                }
             }
-        }
+        if (best < 0) best = near;
+        if (best >= 0) sb->group_of[k] = (uint8_t)(best + 1);
     }
     return REFL_OK;
 }
@@ -10899,10 +11184,18 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
 static void refl__sb_free(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
     int i;
-    for (i = 0; sb->groups && i < sb->group_count; ++i) refl_sbc_destroy(sb->groups[i].sbc);
+    for (i = 0; sb->groups && i < sb->group_count; ++i) {
+        refl_sbc_destroy(sb->groups[i].sbc);
+        refl__free(al, sb->groups[i].hits);
+    }
     for (i = 0; sb->sides && i < sb->side_count; ++i) {
         refl__free(al, sb->sides[i].rays);
         refl__free(al, sb->sides[i].valid);
+        refl__free(al, sb->sides[i].hits);
+        refl__free(al, sb->sides[i].normals);
+        refl__free(al, sb->sides[i].comp);
+        refl__free(al, sb->sides[i].group);
+        refl__free(al, sb->sides[i].crossing);
     }
     refl__free(al, sb->sides);
     for (i = 0; sb->verts && i < sb->group_count * sb->p->scene->object_count; ++i) refl__free(al, sb->verts[i]);
