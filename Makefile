@@ -84,6 +84,13 @@ ASAN_TEST_BIN  = build/asan/rast_tests
 TEST_OBJS      = $(TEST_SRCS:tests/%.c=build/tests/%.o)
 ASAN_TEST_OBJS = $(TEST_SRCS:tests/%.c=build/asan/%.o)
 RAST_IMPL_OBJ  = build/tests/rast_impl.o
+# The rasteriser's own tests again against an implementation in plain C
+# without threads (RAST_NO_SIMD, RAST_NO_THREADS): the scalar paths that
+# SSE2 machines never take must give the same answers.
+RAST_TEST_SRCS = $(filter-out tests/test_refl_% tests/test_embree.c tests/test_gltf.c tests/test_image_io.c, \
+                   $(sort $(wildcard tests/test_*.c)))
+PORTABLE_TEST_BIN = build/portable/rast_tests
+PORTABLE_TEST_OBJS = $(RAST_TEST_SRCS:tests/%.c=build/tests/%.o) build/portable/rast_impl.o
 
 REFLECT_BIN = build/bin/reflect
 BENCH_BIN  = build/bench/bench_rast
@@ -102,7 +109,7 @@ COMPILE_CHECKS = build/check/compile_check.o build/check/compile_check_cpp.o
 all: headers
 	@$(MAKE) --no-print-directory build-all
 
-build-all: compile-check $(TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN)
+build-all: compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN)
 
 # ---- headers ----
 
@@ -148,6 +155,10 @@ build/tests/%.o: tests/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
+build/portable/rast_impl.o: tests/rast_impl.c | rast.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) -DRAST_NO_SIMD -DRAST_NO_THREADS $(DEPFLAGS) -c $< -o $@
+
 build/asan/%.o: tests/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
@@ -167,6 +178,9 @@ build/examples/%: examples/%.c | rast.h
 $(TEST_BIN): $(TEST_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(TEST_LIBS)
 
+$(PORTABLE_TEST_BIN): $(PORTABLE_TEST_OBJS)
+	$(CC) $(CFLAGS) $^ -o $@ -lcriterion $(GL_LIBS) $(LDLIBS)
+
 $(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
 	$(CC) $(ASAN_CFLAGS) $^ -o $@ $(TEST_LIBS)
 
@@ -181,7 +195,7 @@ $(TEST_BIN): build/bench/embree_peer.o
 $(ASAN_TEST_BIN): build/asan/bench/embree_peer.o
 TEST_LIBS += -lembree3
 
-DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) \
+DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) build/portable/rast_impl.d \
            $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d $(EXAMPLES:=.d)
 -include $(DEPFILES)
 
@@ -287,9 +301,14 @@ $(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | ra
 # has counted the test as passed. Third-party leaks: tests/lsan.supp.
 test: deps
 	@$(MAKE) --no-print-directory check-headers
-	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN)
+	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN)
 	bash tests/cli_test.sh $(REFLECT_BIN)
-	timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
+	@rm -rf build/tests/digest build/portable/digest; mkdir -p build/tests/digest build/portable/digest
+	RAST_TEST_DIGEST_DIR=build/tests/digest timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
+	RAST_TEST_NO_THREADS=1 RAST_TEST_DIGEST_DIR=build/portable/digest \
+	  timeout -k 10 $(TEST_TIMEOUT) $(PORTABLE_TEST_BIN) $(CRITERION_FLAGS)
+	diff -r build/tests/digest build/portable/digest || \
+	  { echo "the plain C (RAST_NO_SIMD) build renders other bytes than the SSE2 one" >&2; exit 1; }
 	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) 2>&1 \
 	  | tee build/asan/rast_tests.log
 	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \

@@ -26,6 +26,8 @@
        RAST_API             decoration of every public function (default extern)
        RAST_NO_THREADS      no worker pool and no pthreads; work still runs in
                             tiles (and through rast_context_desc.parallel_for)
+       RAST_NO_SIMD         plain C where SSE2 would be used (the same bytes:
+                            `make test` runs the rasteriser's tests both ways)
        RAST_ASSERT(c)       contract checks (default assert from <assert.h>)
        RAST_MALLOC(size, user) / RAST_FREE(ptr, user)
                             compile-time allocator (define both or neither);

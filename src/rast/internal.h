@@ -6,7 +6,7 @@
 #include <string.h>
 #include <float.h>
 #include <limits.h>
-#if defined(__SSE2__) || defined(_M_X64)
+#if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAST_NO_SIMD)
 #include <emmintrin.h>
 #endif
 
@@ -81,7 +81,7 @@ static uint8_t rast__to_unorm8(float v) {
    the result writes an RGBA8 pixel on any byte order). With SSE2 the same
    arithmetic (max, min, truncation) runs on all four channels at once;
    max(v, 0) returns 0 for NaN exactly like the scalar comparison. */
-#if defined(__SSE2__) || defined(_M_X64)
+#if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAST_NO_SIMD)
 #define RAST__SSE2 1
 static uint32_t rast__pack_rgba8_v(__m128 c) {
     __m128 v = _mm_add_ps(_mm_mul_ps(c, _mm_set1_ps(255.0f)), _mm_set1_ps(0.5f));
