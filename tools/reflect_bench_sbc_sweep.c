@@ -147,8 +147,11 @@ static void print_crossover(const char *sbc, refl_cost_line a, const char *peer,
     const char *side = a.per_unit < b.per_unit ? "above" : "below";
     printf("  %s against %s: ", sbc, peer);
     if (!meet) {
-        printf("no crossover: %s is %s at every size\n", sbc,
+        printf("no crossover: %s is %s at every size", sbc,
                a.fixed + a.per_unit * lo < b.fixed + b.per_unit * lo ? "faster" : "slower");
+        /* the ratio the lines approach as the image grows */
+        if (b.per_unit > 0.0) printf(" (%.1fx as the image grows)", a.per_unit / b.per_unit);
+        printf("\n");
     } else if (x >= lo && x <= hi) {
         printf("crossover at %.2f Mpx, in range; %s is faster %s it\n", x * 1e-6, sbc, side);
     } else {
