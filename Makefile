@@ -190,13 +190,15 @@ $(BENCH_BIN): $(BENCH_OBJS)
 $(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(LDLIBS)
 
-# The test binaries compare refl_bvh with Embree (tests/test_embree.c).
-$(TEST_BIN): build/bench/embree_peer.o
-$(ASAN_TEST_BIN): build/asan/bench/embree_peer.o
+# The test binaries compare refl_bvh with Embree (tests/test_embree.c) and
+# check the bench's cost lines (tests/test_refl_sbc_sweep.c).
+$(TEST_BIN): build/bench/embree_peer.o build/bench/cost_fit.o
+$(ASAN_TEST_BIN): build/asan/bench/embree_peer.o build/asan/bench/cost_fit.o
 TEST_LIBS += -lembree3
 
 DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) build/portable/rast_impl.d \
-           $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d $(EXAMPLES:=.d)
+           $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d build/bench/cost_fit.d \
+           build/asan/bench/cost_fit.d $(EXAMPLES:=.d)
 -include $(DEPFILES)
 
 # ---- packages ----
@@ -281,9 +283,10 @@ TEST_LIBS += $(TOOLS_LIBS)
 
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
-                     build/bench/embree_peer.o
+                     build/tools/reflect_bench_sbc_sweep.o build/bench/embree_peer.o build/bench/cost_fit.o
 
-build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o: build/tools/%.o: tools/%.c | rast.h reflect.h
+build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
+build/tools/reflect_bench_sbc_sweep.o: build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -292,7 +295,7 @@ $(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | ra
 	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
 	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
 -include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d \
-         build/tools/reflect_bench_sbc.d
+         build/tools/reflect_bench_sbc.d build/tools/reflect_bench_sbc_sweep.d
 
 # ---- running ----
 

@@ -34,11 +34,16 @@ static const char *const usage_bench =
     "(gnuplot), and SBC's (DIR/sbc_fig19.csv, paper 003's Fig. 19: reflected\n"
     "rays, coverage, SBC size and construction time at quarter and half\n"
     "resolution ray maps, and the projection rate of pinhole and ray-list\n"
-    "leaves; also printed). RAYTRACE through Embree is a row in every table.\n"
+    "leaves; also printed), and SBC's speed against RAYTRACE (our BVH and\n"
+    "Embree) at 640x480, 1920x1080 and 3840x2160 with its error and where its\n"
+    "time goes (DIR/sbc_resolution.csv; printed with the crossover).\n"
+    "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
-    "                scene, 3 runs); sizes 320x240 to 1920x1080 either way\n"
-    "  --only NAME   only that method's paper tables: c3rc or sbc\n"
+    "                scene, 3 runs); sizes 320x240 to 1920x1080 either way;\n"
+    "                SBC's resolution sweep runs 3840x2160 once unless --full\n"
+    "  --only NAME   only that method's tables: c3rc, or sbc (Fig. 19 and\n"
+    "                the resolution sweep)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -109,10 +114,8 @@ static void count_triangles(const refl_scene *s, long long *diffuse, long long *
     }
 }
 
-/* Renders `repeats` times, keeps the last frame, the median and the
-   fastest time. */
-static refl_result timed_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d, int repeats,
-                                refl_frame *f, double *median, double *fastest) {
+refl_result refl_bench_timed_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d, int repeats,
+                                    refl_frame *f, double *median, double *fastest) {
     double t[32];
     int k, n = repeats < 1 ? 1 : repeats > 32 ? 32 : repeats;
     for (k = 0; k < n; ++k) {
@@ -181,7 +184,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
             d.caster.occluded = refl_embree_occluded;
             d.caster.user = embree;
         }
-        r = timed_render(s, view, &d, o->repeats, f, &ms, &fastest);
+        r = refl_bench_timed_render(s, view, &d, o->repeats, f, &ms, &fastest);
         if (r == REFL_ERROR_UNSUPPORTED) continue; /* a method not built yet */
         if (r != REFL_OK) {
             fprintf(stderr, "reflect bench: %s on %s: %s\n", bm->method, scene_name, refl_result_string(r));
@@ -457,6 +460,11 @@ static int paper_tables(const bench_opts *o) {
     }
     if ((!o->only[0] || !strcmp(o->only, "sbc")) && !refl_bench_sbc(o->out, o->threads, o->repeats, o->full)) {
         fprintf(stderr, "reflect bench: the SBC table failed\n");
+        return 0;
+    }
+    if ((!o->only[0] || !strcmp(o->only, "sbc")) &&
+        !refl_bench_sbc_sweep(o->out, o->threads, o->repeats, o->full)) {
+        fprintf(stderr, "reflect bench: the SBC resolution sweep failed\n");
         return 0;
     }
     return 1;

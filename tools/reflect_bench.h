@@ -3,6 +3,8 @@
 #ifndef REFL_CLI_BENCH_H
 #define REFL_CLI_BENCH_H
 
+#include "../reflect.h"
+
 /* argv[1] is "bench"; returns the process exit status. */
 int refl_cli_bench(int argc, char **argv);
 
@@ -19,8 +21,19 @@ int refl_bench_c3rc(const char *dir, int threads, int repeats, int full);
    0 on failure. */
 int refl_bench_sbc(const char *dir, int threads, int repeats, int full);
 
+/* SBC against RAYTRACE (our BVH and Embree) across resolutions
+   (tools/reflect_bench_sbc_sweep.c): time, where SBC's goes, reflection
+   error and the crossover; a table on stdout and dir/sbc_resolution.csv;
+   0 on failure. */
+int refl_bench_sbc_sweep(const char *dir, int threads, int repeats, int full);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);
+
+/* Renders `repeats` times (at most 32), keeps the last frame, the median
+   and the fastest of the frames' stats.ms_total. */
+refl_result refl_bench_timed_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d, int repeats,
+                                    refl_frame *f, double *median, double *fastest);
 
 #endif
