@@ -44,10 +44,11 @@
    right when any lies on the negative side; rays near the plane go both
    ways, so a point of either half space that lies among the set's rays
    lies among the rays of that side's subset. Splitting fails when a subset
-   is the whole set (the paper), when half the set would go both ways (a
-   few unit frustums across, every cut keeps nearly all rays on both sides
-   and the cells would multiply without end) and at max_depth: the rays
-   are then stored as a ray list.
+   is the whole set (the paper), when three quarters of the set would go
+   both ways (a few unit frustums across, every cut keeps nearly all rays
+   on both sides and the cells would multiply without end; cutting on
+   while fewer do keeps ray lists short, which is where projection spends
+   its time) and at max_depth: the rays are then stored as a ray list.
 
    Projection: down the tree by the side of each plane (s >= 0: left). A
    pinhole leaf projects as above (z: p's height over the image plane). A
@@ -679,9 +680,9 @@ static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double 
     }
     /* the paper fails only when a subset is the whole set; below a few
        unit frustums across, though, every cut keeps nearly all rays on both
-       sides and the cells would multiply without end: fail when half the
-       set would go both ways */
-    return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
+       sides and the cells would multiply without end: fail when three
+       quarters of the set would go both ways */
+    return *nl < n && *nr < n && 4 * ((long long)*nl + *nr - n) < 3 * (long long)n;
 }
 
 static void refl__sbc_frame_load(const refl__sbc_quad *q, refl__sbc_frame *f) {
