@@ -10243,7 +10243,8 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         group's pixels. The reflector's own triangles project too (the knob
         seen in the lid), except the surface the rays leave: a triangle
         facing away from every vertex's first reflector point, or with a
-        vertex nearer it than a quarter of the triangle's longest edge.
+        vertex nearer it than a quarter of the triangle's longest edge
+        (tested before each subdivision too: such a triangle is not split).
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
@@ -10758,6 +10759,8 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
                            REFL__MAX(a->world.y, REFL__MAX(b->world.y, c->world.y)),
                            REFL__MAX(a->world.z, REFL__MAX(b->world.z, c->world.z)));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
+    /* the surface the rays leave, whole: its parts would be dropped one by one */
+    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
