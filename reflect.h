@@ -5130,6 +5130,8 @@ typedef struct refl__sbc_node {
     int child;               /* inner: left child, the right one follows; leaf: -1 */
     int kind;
     int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
+    float box[6];            /* rays: the box its quads lie in (lows, then highs); what lies outside
+                                is no quad's, and a point not projecting is found so at once */
 } refl__sbc_node;
 
 typedef struct refl__sbc_cam {
@@ -5772,6 +5774,32 @@ static int refl__sbc_quad_slice(const refl__sbc_frame *q, const refl_sbc_ray *ra
     return 1;
 }
 
+/* A ray-list leaf's box: every corner of its quads' lateral boxes at both
+   ends (between them the quad's region is their blend), padded. */
+static void refl__sbc_leaf_box(const refl_sbc *s, refl__sbc_node *node) {
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
+    int i, e, c, j;
+    for (i = 0; i < node->count; ++i) {
+        const refl__sbc_quad *q = &s->quads[node->first + i];
+        refl__sbc_frame fr;
+        refl__sbc_frame_load(q, &fr);
+        for (e = 0; e < 2; ++e)
+            for (c = 0; c < 4; ++c) {
+                double x = q->box[e][c & 1], y = q->box[e][2 + (c >> 1)];
+                for (j = 0; j < 3; ++j) {
+                    double v = fr.o[j] + (double)q->tau[e] * fr.m[j] + x * fr.a[j] + y * fr.b[j];
+                    lo[j] = REFL__MIN(lo[j], v);
+                    hi[j] = REFL__MAX(hi[j], v);
+                }
+            }
+    }
+    for (j = 0; j < 3 && node->count; ++j) pad = REFL__MAX(pad, hi[j] - lo[j] + fabs(lo[j]) + fabs(hi[j]));
+    for (j = 0; j < 3; ++j) { /* empty: lows above highs, nothing inside */
+        node->box[j] = node->count ? (float)(lo[j] - 1e-5 * pad) : 1.0f;
+        node->box[3 + j] = node->count ? (float)(hi[j] + 1e-5 * pad) : 0.0f;
+    }
+}
+
 /* A ray-list leaf: the set's 2 x 2 quads of rays, each with its frame. */
 static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int n, refl__sbc_node *node) {
     refl_sbc *s = b->sbc;
@@ -5850,6 +5878,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         s->quads[s->quad_count++] = q;
         node->count++;
     }
+    refl__sbc_leaf_box(s, node);
     return REFL_OK;
 }
 
@@ -6113,6 +6142,8 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
                                   float *z) {
     double best = DBL_MAX;
     int i, c, j, W = sb->width;
+    for (j = 0; j < 3; ++j)
+        if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
     for (i = 0; i < node->count; ++i) {
         const refl__sbc_quad *q = &sb->quads[node->first + i];
         refl__sbc_frame fr;
