@@ -6107,6 +6107,30 @@ REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out) {
 
 static double refl__sbc_cross2(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
 
+/* The real roots of a t^2 + b t + c, ascending (the linear one where a is
+   negligible): the textbook's cancellation-free form, without
+   refl_solve_quadratic's exact scaling, which costs a tenth of a ray-list
+   projection and buys nothing here (the roots are checked against [0, 1]
+   with a tolerance). NaN coefficients give NaN roots, which fail that. */
+static int refl__sbc_quadratic(double a, double b, double c, double r[2]) {
+    double disc, q;
+    if (fabs(a) <= 1e-12 * (fabs(b) + fabs(c))) {
+        if (b == 0.0) return 0;
+        r[0] = -c / b;
+        return 1;
+    }
+    disc = b * b - 4.0 * a * c;
+    if (disc < 0.0) return 0;
+    q = -0.5 * (b + (b >= 0.0 ? sqrt(disc) : -sqrt(disc)));
+    if (q == 0.0) { /* b = c = 0: a double root at 0 */
+        r[0] = 0.0;
+        return 1;
+    }
+    r[0] = REFL__MIN(q / a, c / q);
+    r[1] = REFL__MAX(q / a, c / q);
+    return 2;
+}
+
 /* Inverse bilinear interpolation: (s, t) in [0, 1]^2 (within tol, then
    clamped) with (x, y) = the blend of corners 0 (0, 0), 1 (1, 0), 2 (0, 1),
    3 (1, 1); 0 when there is none. */
@@ -6117,9 +6141,9 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
     double roots[2];
     int nr, i;
     /* h - t f = s (e + t g): crossing both sides with e + t g leaves a quadratic in t */
-    nr = refl_solve_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
-                              refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
-                              refl__sbc_cross2(hx, hy, ex, ey), roots);
+    nr = refl__sbc_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
+                             refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
+                             refl__sbc_cross2(hx, hy, ex, ey), roots);
     for (i = 0; i < nr; ++i) {
         double tt = roots[i], dx = ex + gx * tt, dy = ey + gy * tt, ss;
         if (!(tt >= -tol && tt <= 1.0 + tol)) continue;
