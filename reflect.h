@@ -5135,7 +5135,10 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
    is the whole set (the paper), when half the set would go both ways (a
    few unit frustums across, every cut keeps nearly all rays on both sides
    and the cells would multiply without end) and at max_depth: the rays
-   are then stored as a ray list.
+   are then stored as a ray list. Cutting on until three quarters go both
+   ways keeps ray lists shorter (default scene, 640x480: 26% faster) but
+   put a strongly curved sphere's points up to 16 px off (2 px now; tests/
+   test_refl_sbc_stability.c).
 
    Projection: down the tree by the side of each plane (s >= 0: left). A
    pinhole leaf projects as above (z: p's height over the image plane). A
@@ -5160,6 +5163,8 @@ typedef struct refl__sbc_node {
     int child;               /* inner: left child, the right one follows; leaf: -1 */
     int kind;
     int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
+    float box[6];            /* rays: the box its quads lie in (lows, then highs); what lies outside
+                                is no quad's, and a point not projecting is found so at once */
 } refl__sbc_node;
 
 typedef struct refl__sbc_cam {
@@ -5802,6 +5807,32 @@ static int refl__sbc_quad_slice(const refl__sbc_frame *q, const refl_sbc_ray *ra
     return 1;
 }
 
+/* A ray-list leaf's box: every corner of its quads' lateral boxes at both
+   ends (between them the quad's region is their blend), padded. */
+static void refl__sbc_leaf_box(const refl_sbc *s, refl__sbc_node *node) {
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
+    int i, e, c, j;
+    for (i = 0; i < node->count; ++i) {
+        const refl__sbc_quad *q = &s->quads[node->first + i];
+        refl__sbc_frame fr;
+        refl__sbc_frame_load(q, &fr);
+        for (e = 0; e < 2; ++e)
+            for (c = 0; c < 4; ++c) {
+                double x = q->box[e][c & 1], y = q->box[e][2 + (c >> 1)];
+                for (j = 0; j < 3; ++j) {
+                    double v = fr.o[j] + (double)q->tau[e] * fr.m[j] + x * fr.a[j] + y * fr.b[j];
+                    lo[j] = REFL__MIN(lo[j], v);
+                    hi[j] = REFL__MAX(hi[j], v);
+                }
+            }
+    }
+    for (j = 0; j < 3 && node->count; ++j) pad = REFL__MAX(pad, hi[j] - lo[j] + fabs(lo[j]) + fabs(hi[j]));
+    for (j = 0; j < 3; ++j) { /* empty: lows above highs, nothing inside */
+        node->box[j] = node->count ? (float)(lo[j] - 1e-5 * pad) : 1.0f;
+        node->box[3 + j] = node->count ? (float)(hi[j] + 1e-5 * pad) : 0.0f;
+    }
+}
+
 /* A ray-list leaf: the set's 2 x 2 quads of rays, each with its frame. */
 static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int n, refl__sbc_node *node) {
     refl_sbc *s = b->sbc;
@@ -5880,6 +5911,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         s->quads[s->quad_count++] = q;
         node->count++;
     }
+    refl__sbc_leaf_box(s, node);
     return REFL_OK;
 }
 
@@ -6108,6 +6140,30 @@ REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out) {
 
 static double refl__sbc_cross2(double ax, double ay, double bx, double by) { return ax * by - ay * bx; }
 
+/* The real roots of a t^2 + b t + c, ascending (the linear one where a is
+   negligible): the textbook's cancellation-free form, without
+   refl_solve_quadratic's exact scaling, which costs a tenth of a ray-list
+   projection and buys nothing here (the roots are checked against [0, 1]
+   with a tolerance). NaN coefficients give NaN roots, which fail that. */
+static int refl__sbc_quadratic(double a, double b, double c, double r[2]) {
+    double disc, q;
+    if (fabs(a) <= 1e-12 * (fabs(b) + fabs(c))) {
+        if (b == 0.0) return 0;
+        r[0] = -c / b;
+        return 1;
+    }
+    disc = b * b - 4.0 * a * c;
+    if (disc < 0.0) return 0;
+    q = -0.5 * (b + (b >= 0.0 ? sqrt(disc) : -sqrt(disc)));
+    if (q == 0.0) { /* b = c = 0: a double root at 0 */
+        r[0] = 0.0;
+        return 1;
+    }
+    r[0] = REFL__MIN(q / a, c / q);
+    r[1] = REFL__MAX(q / a, c / q);
+    return 2;
+}
+
 /* Inverse bilinear interpolation: (s, t) in [0, 1]^2 (within tol, then
    clamped) with (x, y) = the blend of corners 0 (0, 0), 1 (1, 0), 2 (0, 1),
    3 (1, 1); 0 when there is none. */
@@ -6118,9 +6174,9 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
     double roots[2];
     int nr, i;
     /* h - t f = s (e + t g): crossing both sides with e + t g leaves a quadratic in t */
-    nr = refl_solve_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
-                              refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
-                              refl__sbc_cross2(hx, hy, ex, ey), roots);
+    nr = refl__sbc_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
+                             refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
+                             refl__sbc_cross2(hx, hy, ex, ey), roots);
     for (i = 0; i < nr; ++i) {
         double tt = roots[i], dx = ex + gx * tt, dy = ey + gy * tt, ss;
         if (!(tt >= -tol && tt <= 1.0 + tol)) continue;
@@ -6143,6 +6199,8 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
                                   float *z) {
     double best = DBL_MAX;
     int i, c, j, W = sb->width;
+    for (j = 0; j < 3; ++j)
+        if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
     for (i = 0; i < node->count; ++i) {
         const refl__sbc_quad *q = &sb->quads[node->first + i];
         refl__sbc_frame fr;
@@ -10286,7 +10344,8 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         group's pixels. The reflector's own triangles project too (the knob
         seen in the lid), except the surface the rays leave: a triangle
         facing away from every vertex's first reflector point, or with a
-        vertex nearer it than a quarter of the triangle's longest edge.
+        vertex nearer it than a quarter of the triangle's longest edge
+        (tested before each subdivision too: such a triangle is not split).
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
@@ -10304,7 +10363,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
 #define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
-#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to where it reflects is its surface */
+#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
 
 /* What a reflected ray meets first: a scene triangle and the point; object
@@ -10327,8 +10386,9 @@ typedef struct refl__sb_side {
     uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
 } refl__sb_side;
 
-/* A reflection group: one tile of a side's ray map, its rays and one ring
-   of rays around it (so neighbouring tiles' frustums overlap). */
+/* A reflection group: one piece of a side's ray map within one tile, its
+   rays (those of the piece in the tile grown by a sample: neighbouring
+   tiles' frustums overlap) and one ring of rays extrapolated around them. */
 typedef struct refl__sb_group {
     int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
@@ -10449,13 +10509,11 @@ static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
         }
 }
 
-/* Whether neighbouring samples m1 and m2 lie on one smooth piece of
-   surface: no gap between them (the chord between their points runs
-   within REFL__SB_SMOOTH_SIN of both tangent planes; not so where one
-   surface passes in front of another, a handle before the body, the knob
-   before the lid: the chord runs along the view ray), and their normals
-   turn by less than REFL__SB_SMOOTH_COS (not at a crease, the spout's
-   joint, nor where a silhouette turns them fast). */
+/* Whether a gap lies between neighbouring samples m1 and m2: the chord
+   between their points leaves a tangent plane by more than
+   REFL__SB_SMOOTH_SIN, as where one surface passes in front of another (a
+   handle before the body, the knob before the lid: the chord runs along
+   the view ray). */
 static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
     refl_vec3 e = refl_v3_sub(sd->rays[m2].tail, sd->rays[m1].tail);
     float l = refl_v3_length(e);
@@ -10463,6 +10521,10 @@ static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
              fabsf(refl_v3_dot(sd->normals[m2], e)) <= REFL__SB_SMOOTH_SIN * l);
 }
 
+/* Whether neighbouring samples m1 and m2 lie on one smooth piece of
+   surface: no gap, and normals turning by less than REFL__SB_SMOOTH_COS
+   (not at a crease, the spout's joint, nor where a silhouette turns them
+   fast). */
 static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
     return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
 }
@@ -10478,7 +10540,8 @@ static int refl__sb_root(int *parent, int m) {
    reflector focuses them. */
 static int refl__sb_cross(const refl__sb_side *sd, size_t m1, size_t m2) {
     const refl_sbc_ray *r1 = &sd->rays[m1], *r2 = &sd->rays[m2];
-    refl_vec3 e = refl_v3_sub(r2->tail, r1->tail), d1 = refl_v3_sub(r1->head, r1->tail), d2 = refl_v3_sub(r2->head, r2->tail);
+    refl_vec3 e = refl_v3_sub(r2->tail, r1->tail);
+    refl_vec3 d1 = refl_v3_sub(r1->head, r1->tail), d2 = refl_v3_sub(r2->head, r2->tail);
     float l1 = refl_v3_length(d1), l2 = refl_v3_length(d2), closing;
     if (!(l1 > 0.0f) || !(l2 > 0.0f)) return 0;
     closing = -refl_v3_dot(e, refl_v3_sub(refl_v3_scale(d2, 1.0f / l2), refl_v3_scale(d1, 1.0f / l1)));
@@ -10539,9 +10602,11 @@ static void refl__sb_map_side(void *arg, int i) {
 }
 
 /* One ring of rays extrapolated around the members (valid 1) of a window
-   [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`: the
-   sample's view ray meets the tangent plane of its member neighbour, the
-   normal continues linearly from the member beyond that one. So the
+   [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`, diagonal
+   neighbours included (else the unit frustums at a convex corner of the
+   piece lack a corner ray): the sample's view ray meets the tangent plane
+   of its member neighbour, the normal continues linearly from the member
+   beyond that one (past grazing the ray goes straight on). So the
    frustums reach past the piece's edge (the paper's "extended
    reflectors"), wherever the piece ends: at a silhouette, a crease, or a
    surface passing in front. */
@@ -10602,7 +10667,8 @@ static void refl__sb_sort_hits(refl__sb_hit *a, refl__sb_hit *out, int n) {
     for (width = 1; width < n; width *= 2) {
         for (i = 0; i < n; i += 2 * width) {
             int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
-            while (l < m || r < e) dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+            while (l < m || r < e)
+                dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
         }
         t = src; src = dst; dst = t;
     }
@@ -10709,7 +10775,7 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
-    if (sd->valid[at] &&
+    if (sd->valid[at] && sd->group[at] == (int)(g - sb->groups) &&
         !(refl_v3_dot(refl_v3_sub(v->world, f), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
         return;
     v->ok = 1;
@@ -10813,6 +10879,8 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
                            REFL__MAX(a->world.y, REFL__MAX(b->world.y, c->world.y)),
                            REFL__MAX(a->world.z, REFL__MAX(b->world.z, c->world.z)));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
+    /* the surface the rays leave, whole: its parts would be dropped one by one */
+    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));

@@ -1,11 +1,11 @@
 /* SBC, the sample-based camera method (paper 003): against the one-bounce
-   ray-traced reference with the reflection-error metric, at a small size
-   (the method is still slow: ray-list leaves dominate, see the module
-   comment of m_sbc.c). What is asserted: a well-formed frame (DIRECT's
-   bytes off the reflectors, points NaN in all three coordinates or none,
-   opaque reflector pixels), the same bytes for any thread count, and the
-   accuracy measured when the method landed as a regression bound (not the
-   issue's 1 px goal, which it does not reach yet); bad desc values. */
+   ray-traced reference with the reflection-error metric, at a small size.
+   What is asserted: a well-formed frame (DIRECT's bytes off the
+   reflectors, points NaN in all three coordinates or none, opaque
+   reflector pixels), the same bytes for any thread count, and the
+   accuracy measured as a regression bound (the issue's 1 px goal holds in
+   pinhole leaves; ray lists and holes at silhouettes keep the image short
+   of it, see m_sbc.c); bad desc values. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
@@ -31,11 +31,14 @@ static refl_scene *sbc_scene(const char *name, refl_view *v, int w, int h) {
     return s;
 }
 
-/* Measured when SBC landed (128x96, ray map factor 2, 1 px camera bound):
-   default mean 1.96, p95 7.1 px, holes 17.7%; concave mean 0.59, p95
-   3.6 px, holes 6.7%: the ray-list leaves (most of them at this size) and
-   the mixed triangles at the reflections' edges. */
-static void sbc_accuracy(const char *name, double max_mean, double max_p95) {
+/* Measured (128x96, ray map factor 2, 1 px camera bound): default mean
+   0.70, p95 1.41 px, wrong 0.4%, holes 14.0%, 177 pinhole and 237
+   ray-list leaves; concave mean 0.57, p95 3.16 px, wrong 7.4%, holes
+   4.5%, all ray lists (the mirror focuses every group's rays). When SBC
+   landed (tiles as groups): default mean 1.96, p95 7.1 px, wrong 0.3%,
+   holes 17.7%; concave mean 0.59, p95 3.6 px, holes 6.7%. The bounds are
+   the measurements with a little room. */
+static void sbc_accuracy(const char *name, double max_mean, double max_p95, double max_wrong, double max_holes) {
     refl_view v;
     refl_scene *s = sbc_scene(name, &v, 128, 96);
     refl_render_desc d = sbc_desc(REFL_SBC, 2), t = sbc_desc(REFL_RAYTRACE, 2), dd = sbc_desc(REFL_DIRECT, 2);
@@ -47,7 +50,7 @@ static void sbc_accuracy(const char *name, double max_mean, double max_p95) {
                 "leaves", name, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.cameras, f->stats.leaves);
     cr_assert(e.pixels > 500, "%lld reflector pixels", e.pixels);
     cr_assert(e.mean <= max_mean && e.p95 <= max_p95, "%s: mean %.2f p95 %.2f", name, e.mean, e.p95);
-    cr_assert(e.wrong < 0.1 && e.empty < 0.25, "%s: wrong %.3f holes %.3f", name, e.wrong, e.empty);
+    cr_assert(e.wrong <= max_wrong && e.empty <= max_holes, "%s: wrong %.3f holes %.3f", name, e.wrong, e.empty);
     cr_assert(f->stats.cameras + f->stats.leaves > 0 && f->stats.rays > 0);
     refl_frame_destroy(f);
     refl_frame_destroy(truth);
@@ -55,8 +58,8 @@ static void sbc_accuracy(const char *name, double max_mean, double max_p95) {
     refl_scene_destroy(s);
 }
 
-Test(refl_sbc, default_scene_accuracy, .timeout = 120) { sbc_accuracy("default", 2.5, 8.0); }
-Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave", 2.5, 8.0); }
+Test(refl_sbc, default_scene_accuracy, .timeout = 120) { sbc_accuracy("default", 0.85, 1.5, 0.01, 0.16); }
+Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave", 0.7, 3.2, 0.085, 0.06); }
 
 Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_view v;

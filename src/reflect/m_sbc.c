@@ -50,7 +50,8 @@
         group's pixels. The reflector's own triangles project too (the knob
         seen in the lid), except the surface the rays leave: a triangle
         facing away from every vertex's first reflector point, or with a
-        vertex nearer it than a quarter of the triangle's longest edge.
+        vertex nearer it than a quarter of the triangle's longest edge
+        (tested before each subdivision too: such a triangle is not split).
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
@@ -69,7 +70,7 @@
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
 #define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
-#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to where it reflects is its surface */
+#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
 
 /* What a reflected ray meets first: a scene triangle and the point; object
@@ -92,8 +93,9 @@ typedef struct refl__sb_side {
     uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
 } refl__sb_side;
 
-/* A reflection group: one tile of a side's ray map, its rays and one ring
-   of rays around it (so neighbouring tiles' frustums overlap). */
+/* A reflection group: one piece of a side's ray map within one tile, its
+   rays (those of the piece in the tile grown by a sample: neighbouring
+   tiles' frustums overlap) and one ring of rays extrapolated around them. */
 typedef struct refl__sb_group {
     int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
@@ -214,13 +216,11 @@ static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
         }
 }
 
-/* Whether neighbouring samples m1 and m2 lie on one smooth piece of
-   surface: no gap between them (the chord between their points runs
-   within REFL__SB_SMOOTH_SIN of both tangent planes; not so where one
-   surface passes in front of another, a handle before the body, the knob
-   before the lid: the chord runs along the view ray), and their normals
-   turn by less than REFL__SB_SMOOTH_COS (not at a crease, the spout's
-   joint, nor where a silhouette turns them fast). */
+/* Whether a gap lies between neighbouring samples m1 and m2: the chord
+   between their points leaves a tangent plane by more than
+   REFL__SB_SMOOTH_SIN, as where one surface passes in front of another (a
+   handle before the body, the knob before the lid: the chord runs along
+   the view ray). */
 static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
     refl_vec3 e = refl_v3_sub(sd->rays[m2].tail, sd->rays[m1].tail);
     float l = refl_v3_length(e);
@@ -228,6 +228,10 @@ static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
              fabsf(refl_v3_dot(sd->normals[m2], e)) <= REFL__SB_SMOOTH_SIN * l);
 }
 
+/* Whether neighbouring samples m1 and m2 lie on one smooth piece of
+   surface: no gap, and normals turning by less than REFL__SB_SMOOTH_COS
+   (not at a crease, the spout's joint, nor where a silhouette turns them
+   fast). */
 static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
     return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
 }
@@ -243,7 +247,8 @@ static int refl__sb_root(int *parent, int m) {
    reflector focuses them. */
 static int refl__sb_cross(const refl__sb_side *sd, size_t m1, size_t m2) {
     const refl_sbc_ray *r1 = &sd->rays[m1], *r2 = &sd->rays[m2];
-    refl_vec3 e = refl_v3_sub(r2->tail, r1->tail), d1 = refl_v3_sub(r1->head, r1->tail), d2 = refl_v3_sub(r2->head, r2->tail);
+    refl_vec3 e = refl_v3_sub(r2->tail, r1->tail);
+    refl_vec3 d1 = refl_v3_sub(r1->head, r1->tail), d2 = refl_v3_sub(r2->head, r2->tail);
     float l1 = refl_v3_length(d1), l2 = refl_v3_length(d2), closing;
     if (!(l1 > 0.0f) || !(l2 > 0.0f)) return 0;
     closing = -refl_v3_dot(e, refl_v3_sub(refl_v3_scale(d2, 1.0f / l2), refl_v3_scale(d1, 1.0f / l1)));
@@ -304,9 +309,11 @@ static void refl__sb_map_side(void *arg, int i) {
 }
 
 /* One ring of rays extrapolated around the members (valid 1) of a window
-   [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`: the
-   sample's view ray meets the tangent plane of its member neighbour, the
-   normal continues linearly from the member beyond that one. So the
+   [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`, diagonal
+   neighbours included (else the unit frustums at a convex corner of the
+   piece lack a corner ray): the sample's view ray meets the tangent plane
+   of its member neighbour, the normal continues linearly from the member
+   beyond that one (past grazing the ray goes straight on). So the
    frustums reach past the piece's edge (the paper's "extended
    reflectors"), wherever the piece ends: at a silhouette, a crease, or a
    surface passing in front. */
@@ -367,7 +374,8 @@ static void refl__sb_sort_hits(refl__sb_hit *a, refl__sb_hit *out, int n) {
     for (width = 1; width < n; width *= 2) {
         for (i = 0; i < n; i += 2 * width) {
             int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
-            while (l < m || r < e) dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+            while (l < m || r < e)
+                dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
         }
         t = src; src = dst; dst = t;
     }
@@ -474,7 +482,7 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
-    if (sd->valid[at] &&
+    if (sd->valid[at] && sd->group[at] == (int)(g - sb->groups) &&
         !(refl_v3_dot(refl_v3_sub(v->world, f), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
         return;
     v->ok = 1;
@@ -578,6 +586,8 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
                            REFL__MAX(a->world.y, REFL__MAX(b->world.y, c->world.y)),
                            REFL__MAX(a->world.z, REFL__MAX(b->world.z, c->world.z)));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
+    /* the surface the rays leave, whole: its parts would be dropped one by one */
+    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
