@@ -11064,6 +11064,51 @@ static void refl__sb_resolve_row(void *arg, int y) {
     }
 }
 
+/* A piece of a side: its sample count, side and root sample. */
+typedef struct refl__sb_piece {
+    int size, side, root;
+} refl__sb_piece;
+
+static int refl__sb_piece_order(const void *a, const void *b) {
+    const refl__sb_piece *p = (const refl__sb_piece *)a, *q = (const refl__sb_piece *)b;
+    if (p->size != q->size) return p->size > q->size ? -1 : 1; /* largest first */
+    if (p->side != q->side) return p->side < q->side ? -1 : 1;
+    return p->root < q->root ? -1 : p->root > q->root;
+}
+
+/* Keeps the rays of the `keep` largest pieces over all sides; the others'
+   samples lose theirs (they reflect nothing: the environment shows). */
+static refl_result refl__sb_keep_largest_pieces(refl__sb *sb, int keep) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    size_t n = (size_t)sb->map_w * (size_t)sb->map_h, m, count = 0, k;
+    int *size = (int *)refl__calloc(al, n, sizeof(int)), i;
+    refl__sb_piece *pieces = (refl__sb_piece *)refl__calloc(al, n, sizeof(refl__sb_piece));
+    refl_result r = size && pieces ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < sb->side_count; ++i) {
+        const refl__sb_side *sd = &sb->sides[i];
+        memset(size, 0, n * sizeof(int));
+        for (m = 0; m < n; ++m)
+            if (sd->valid[m]) size[sd->comp[m]]++;
+        for (m = 0; m < n; ++m)
+            if (size[m]) {
+                pieces[count].size = size[m];
+                pieces[count].side = i;
+                pieces[count++].root = (int)m;
+            }
+    }
+    if (r == REFL_OK && count > (size_t)keep) {
+        qsort(pieces, count, sizeof(refl__sb_piece), refl__sb_piece_order);
+        for (k = (size_t)keep; k < count; ++k) {
+            refl__sb_side *sd = &sb->sides[pieces[k].side];
+            for (m = 0; m < n; ++m)
+                if (sd->valid[m] && sd->comp[m] == pieces[k].root) sd->valid[m] = 0;
+        }
+    }
+    refl__free(al, size);
+    refl__free(al, pieces);
+    return r;
+}
+
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
    sb->tile samples, at most 254 in all (the stencil's values; the tile
@@ -11101,17 +11146,17 @@ static refl_result refl__sb_groups(refl__sb *sb) {
             return REFL_ERROR_OUT_OF_MEMORY;
     /* count the groups (a tile's pieces), doubling the tile until they
        fit; then list them, each sample noting its group. Past a tile
-       twice the map, every side is one piece, and groups past 254 (more
-       sides than stencil values) reflect nothing. */
+       twice the map, only the 254 largest pieces keep their rays (at
+       3840x2160 with factor 2 the default scene's teapot has about 270). */
     seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
     if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
         int whole = sb->tile > 2 * REFL__MAX(sb->map_w, sb->map_h);
-        for (i = 0; whole && i < sb->side_count; ++i) {
-            int first = -1, m;
-            for (m = 0; m < sb->map_w * sb->map_h; ++m)
-                if (sb->sides[i].valid[m]) sb->sides[i].comp[m] = first = first < 0 ? m : first;
+        refl_result r = whole ? refl__sb_keep_largest_pieces(sb, 254) : REFL_OK;
+        if (r != REFL_OK) {
+            refl__free(al, seen);
+            return r;
         }
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
