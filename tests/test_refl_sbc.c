@@ -74,6 +74,29 @@ Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_scene_destroy(s);
 }
 
+/* Groups are projected and drawn in batches (the stencil holds 254 group
+   values; past that the batches reuse them): the frame must be the same
+   bytes whatever the batch. */
+Test(refl_sbc, same_bytes_for_any_group_batch, .timeout = 120) {
+    static const int batches[] = {1, 7};
+    refl_view v;
+    refl_scene *s = sbc_scene("default", &v, 96, 72);
+    refl_render_desc d = sbc_desc(REFL_SBC, 2);
+    refl_frame *ref = tu_refl_render(s, &v, &d);
+    size_t n = (size_t)v.width * (size_t)v.height, k;
+    cr_assert(ref->stats.cameras + ref->stats.leaves > 7, "too few groups for batches to matter");
+    for (k = 0; k < sizeof batches / sizeof batches[0]; ++k) {
+        refl_frame *f;
+        d.sbc_batch_groups = batches[k];
+        f = tu_refl_render(s, &v, &d);
+        cr_assert_eq(memcmp(ref->color, f->color, 4 * n), 0, "batch %d: colour differs", batches[k]);
+        cr_assert_eq(memcmp(ref->points, f->points, 3 * n * sizeof(float)), 0, "batch %d: points differ", batches[k]);
+        refl_frame_destroy(f);
+    }
+    refl_frame_destroy(ref);
+    refl_scene_destroy(s);
+}
+
 Test(refl_sbc, bad_desc_values) {
     refl_view v;
     refl_scene *s = sbc_scene("default", &v, 32, 24);
@@ -88,6 +111,11 @@ Test(refl_sbc, bad_desc_values) {
     d.sbc_ray_factor = -2;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.sbc_ray_factor = 65;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_ray_factor = 0;
+    d.sbc_batch_groups = -1;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_batch_groups = 255;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

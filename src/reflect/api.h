@@ -660,6 +660,9 @@ typedef struct refl_render_desc {
     float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
                                 map's samples (refl_sbc_desc.error_px); 0: 1 */
     int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
+    int sbc_batch_groups;    /* SBC: reflection groups projected and drawn at once, 1..254
+                                (memory: that many times the scene's vertices); 0: 254.
+                                The image is the same for any value */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method

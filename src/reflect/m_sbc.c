@@ -45,9 +45,12 @@
         and while an edge's projected midpoint lies more than
         REFL__SB_EDGE_PX from the midpoint of its projected ends (the
         straight-edge error the paper bounds by pre-subdividing). Reflected
-        triangles are drawn by rast.h twice with one depth test (colour as
-        DIRECT shades the surface, then its world point), stencilled to the
-        group's pixels. The reflector's own triangles project too (the knob
+        triangles are drawn by rast.h twice (colour as DIRECT shades the
+        surface, then its world point; each pass with its depth buffer),
+        stencilled to the group's pixels. Groups go through projection and
+        drawing in batches of up to 254 (the stencil's values; the
+        projected vertices of one batch at a time). The reflector's own
+        triangles project too (the knob
         seen in the lid), except the surface the rays leave: a triangle
         facing away from every vertex's first reflector point, or with a
         vertex nearer it than a quarter of the triangle's longest edge
@@ -63,10 +66,12 @@
 
 #define REFL__SB_FACTOR 2           /* default ray map down-sampling */
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
+#define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
 #define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
 #define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
 #define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed */
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
+#define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
 #define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
@@ -139,12 +144,15 @@ typedef struct refl__sb {
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
     refl_bvh *bvh;                /* the scene's, for the rays' first hits */
-    uint8_t *group_of;            /* per pixel: group index + 1, 0: none (the stencil) */
-    refl__sb_pv **verts;          /* per group x object: every mesh vertex, projected */
+    int *group_of;                /* per pixel: group index + 1, 0: none */
+    int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
+    uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
+    refl__sb_pv **verts;          /* per group of the batch x object: every mesh vertex, projected */
     refl__sb_job *jobs;
     int job_count;
-    uint8_t *color;               /* scratch targets of the reflections */
-    float *depth, *points;
+    uint8_t *color;               /* scratch targets of the reflections: the colour pass's */
+    float *depth, *points;        /* (colour, depth), the points pass's (points, depth) */
+    float *points_depth;
 } refl__sb;
 
 /* Where a ray from inside the box leaves it. */
@@ -492,7 +500,7 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
 static void refl__sb_project_object(void *arg, int index) {
     refl__sb *sb = (refl__sb *)arg;
     const refl_scene *scene = sb->p->scene;
-    int g = index / scene->object_count, o = index % scene->object_count, i;
+    int g = sb->batch0 + index / scene->object_count, o = index % scene->object_count, i;
     const refl_object *obj = &scene->objects[o];
     const refl_mesh *m = scene->meshes[obj->mesh];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
@@ -653,7 +661,7 @@ static void refl__sb_emit_job(void *arg, int index) {
     refl__sb_job *j = &sb->jobs[index];
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
-    const refl__sb_pv *v = sb->verts[j->group * scene->object_count + j->object];
+    const refl__sb_pv *v = sb->verts[(j->group - sb->batch0) * scene->object_count + j->object];
     const refl__sb_group *g = &sb->groups[j->group];
     int lo = 0, hi = g->hit_count, tr;
     refl__sb_tri t;
@@ -682,39 +690,57 @@ static void refl__sb_emit_job(void *arg, int index) {
     }
 }
 
-/* Draws every job's triangles into the scratch targets: colour, then the
-   points with the same depth test. */
+/* The targets of draw pass `pass`: 0 the reflections' colour, 1 their
+   points, each with its own depth buffer (the batch draws both passes). */
+static rast_targets refl__sb_targets(const refl__sb *sb, int pass) {
+    const refl_frame *fr = sb->p->frame;
+    rast_targets t;
+    memset(&t, 0, sizeof t);
+    t.color.width = t.depth.width = t.stencil.width = fr->width;
+    t.color.height = t.depth.height = t.stencil.height = fr->height;
+    t.depth.ptr = pass ? sb->points_depth : sb->depth;
+    t.depth.stride = (int)sizeof(float) * fr->width;
+    t.stencil.ptr = sb->stencil;
+    t.stencil.stride = fr->width;
+    t.color.ptr = pass ? (void *)sb->points : (void *)sb->color;
+    t.color.stride = pass ? 4 * (int)sizeof(float) * fr->width : 4 * fr->width;
+    t.color_format = pass ? RAST_COLOR_RGBA32F : RAST_COLOR_RGBA8;
+    return t;
+}
+
+/* Clears both passes' colour and depth, once before the batches. */
+static refl_result refl__sb_clear(refl__sb *sb) {
+    rast_result rr = RAST_OK;
+    int pass;
+    for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
+        rast_targets t = refl__sb_targets(sb, pass);
+        if ((rr = rast_set_targets(sb->p->rc, &t)) == RAST_OK)
+            rr = refl__em_clear(sb->p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH);
+    }
+    if (rr == RAST_OK) rr = rast_finish(sb->p->rc);
+    return refl__result_from_rast(rr);
+}
+
+/* Draws the batch's jobs into the scratch targets: colour, then the points
+   with the same depth test, each job stencilled to its group's pixels. */
 static refl_result refl__sb_draw(refl__sb *sb) {
     refl__pass *p = sb->p;
     const refl_scene *scene = p->scene;
     refl_frame *fr = p->frame;
     refl__draw_ctx *dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)scene->object_count,
                                                         sizeof(refl__draw_ctx));
-    rast_targets t;
     rast_result rr = RAST_OK;
     int pass, i;
+    size_t k, npx = (size_t)fr->width * (size_t)fr->height;
     if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count; ++i) refl__draw_ctx_init(&dc[i], scene, i, p->vp);
-    memset(&t, 0, sizeof t);
-    t.color.width = t.depth.width = t.stencil.width = fr->width;
-    t.color.height = t.depth.height = t.stencil.height = fr->height;
-    t.depth.ptr = sb->depth;
-    t.depth.stride = (int)sizeof(float) * fr->width;
-    t.stencil.ptr = sb->group_of;
-    t.stencil.stride = fr->width;
+    for (k = 0; k < npx; ++k) {
+        int g = sb->group_of[k] - 1;
+        sb->stencil[k] = (uint8_t)(g >= sb->batch0 && g < sb->batch1 ? g - sb->batch0 + 1 : 0);
+    }
     for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
-        if (pass == 0) {
-            t.color.ptr = sb->color;
-            t.color.stride = 4 * fr->width;
-            t.color_format = RAST_COLOR_RGBA8;
-        } else {
-            t.color.ptr = sb->points;
-            t.color.stride = 4 * (int)sizeof(float) * fr->width;
-            t.color_format = RAST_COLOR_RGBA32F;
-        }
-        if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK ||
-            (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH)) != RAST_OK)
-            break;
+        rast_targets t = refl__sb_targets(sb, pass);
+        if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK) break;
         for (i = 0; i < sb->job_count && rr == RAST_OK; ++i) {
             const refl__sb_job *j = &sb->jobs[i];
             const refl__draw_ctx *d = &dc[j->object];
@@ -725,7 +751,7 @@ static refl_result refl__sb_draw(refl__sb *sb) {
             s.depth_test = 1;
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = (uint8_t)(j->group + 1);
+            s.stencil_front.ref = (uint8_t)(j->group - sb->batch0 + 1);
             s.stencil_back = s.stencil_front;
             if (pass == 1) {
                 s.fragment_fn = refl__em_position_fragment;
@@ -751,6 +777,19 @@ static refl_result refl__sb_draw(refl__sb *sb) {
     return refl__result_from_rast(rr);
 }
 
+/* Frees the batch's projected vertices and emitted triangles. */
+static void refl__sb_free_batch(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i;
+    for (i = 0; sb->verts && i < (sb->batch1 - sb->batch0) * sb->p->scene->object_count; ++i) refl__free(al, sb->verts[i]);
+    for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
+    refl__free(al, sb->verts);
+    refl__free(al, sb->jobs);
+    sb->verts = NULL;
+    sb->jobs = NULL;
+    sb->job_count = 0;
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
@@ -771,55 +810,10 @@ static void refl__sb_resolve_row(void *arg, int y) {
     }
 }
 
-/* A piece of a side: its sample count, side and root sample. */
-typedef struct refl__sb_piece {
-    int size, side, root;
-} refl__sb_piece;
-
-static int refl__sb_piece_order(const void *a, const void *b) {
-    const refl__sb_piece *p = (const refl__sb_piece *)a, *q = (const refl__sb_piece *)b;
-    if (p->size != q->size) return p->size > q->size ? -1 : 1; /* largest first */
-    if (p->side != q->side) return p->side < q->side ? -1 : 1;
-    return p->root < q->root ? -1 : p->root > q->root;
-}
-
-/* Keeps the rays of the `keep` largest pieces over all sides; the others'
-   samples lose theirs (they reflect nothing: the environment shows). */
-static refl_result refl__sb_keep_largest_pieces(refl__sb *sb, int keep) {
-    const refl_allocator *al = &sb->p->scene->allocator;
-    size_t n = (size_t)sb->map_w * (size_t)sb->map_h, m, count = 0, k;
-    int *size = (int *)refl__calloc(al, n, sizeof(int)), i;
-    refl__sb_piece *pieces = (refl__sb_piece *)refl__calloc(al, n, sizeof(refl__sb_piece));
-    refl_result r = size && pieces ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; r == REFL_OK && i < sb->side_count; ++i) {
-        const refl__sb_side *sd = &sb->sides[i];
-        memset(size, 0, n * sizeof(int));
-        for (m = 0; m < n; ++m)
-            if (sd->valid[m]) size[sd->comp[m]]++;
-        for (m = 0; m < n; ++m)
-            if (size[m]) {
-                pieces[count].size = size[m];
-                pieces[count].side = i;
-                pieces[count++].root = (int)m;
-            }
-    }
-    if (r == REFL_OK && count > (size_t)keep) {
-        qsort(pieces, count, sizeof(refl__sb_piece), refl__sb_piece_order);
-        for (k = (size_t)keep; k < count; ++k) {
-            refl__sb_side *sd = &sb->sides[pieces[k].side];
-            for (m = 0; m < n; ++m)
-                if (sd->valid[m] && sd->comp[m] == pieces[k].root) sd->valid[m] = 0;
-        }
-    }
-    refl__free(al, size);
-    refl__free(al, pieces);
-    return r;
-}
-
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
-   sb->tile samples, at most 254 in all (the stencil's values; the tile
-   side doubles until they fit), and each pixel's group. */
+   sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
+   there are more than a batch: REFL__SB_BATCH), and each pixel's group. */
 static refl_result refl__sb_groups(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -852,19 +846,14 @@ static refl_result refl__sb_groups(refl__sb *sb) {
             !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
             return REFL_ERROR_OUT_OF_MEMORY;
     /* count the groups (a tile's pieces), doubling the tile until they
-       fit; then list them, each sample noting its group. Past a tile
-       twice the map, only the 254 largest pieces keep their rays (at
-       3840x2160 with factor 2 the default scene's teapot has about 270). */
+       fit a batch (fewer groups, fewer projections) or the tile reaches
+       REFL__SB_TILE_MAX (more batches then); then list them, each sample
+       noting its group. */
     seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
     if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
-        int whole = sb->tile > 2 * REFL__MAX(sb->map_w, sb->map_h);
-        refl_result r = whole ? refl__sb_keep_largest_pieces(sb, 254) : REFL_OK;
-        if (r != REFL_OK) {
-            refl__free(al, seen);
-            return r;
-        }
+        int largest = sb->tile >= REFL__SB_TILE_MAX;
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
             for (i = 0; i < sb->side_count; ++i)
@@ -879,10 +868,10 @@ static refl_result refl__sb_groups(refl__sb *sb) {
                                 int gi = 0;
                                 if (!sd->valid[m]) continue;
                                 while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
-                                sd->group[m] = first + gi < 254 ? first + gi : -1;
+                                sd->group[m] = first + gi;
                                 if (gi < nseen) continue;
                                 seen[nseen++] = sd->comp[m];
-                                if (pass && sb->group_count < 254) {
+                                if (pass) {
                                     refl__sb_group *g = &sb->groups[sb->group_count];
                                     g->side = i;
                                     g->object = sd->object;
@@ -895,8 +884,7 @@ static refl_result refl__sb_groups(refl__sb *sb) {
                                 sb->group_count++;
                             }
                     }
-            if (sb->group_count > 254 && !whole) break;
-            sb->group_count = REFL__MIN(sb->group_count, 254);
+            if (sb->group_count > REFL__SB_BATCH && !largest) break;
             if (!pass) {
                 sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
                                                             sizeof(refl__sb_group));
@@ -953,16 +941,16 @@ static refl_result refl__sb_groups(refl__sb *sb) {
                 }
             }
         if (best < 0) best = near;
-        if (best >= 0) sb->group_of[k] = (uint8_t)(best + 1);
+        if (best >= 0) sb->group_of[k] = best + 1;
     }
     return REFL_OK;
 }
 
-/* Projection and emission jobs, run. */
+/* Projection and emission jobs of the batch's groups, run. */
 static refl_result refl__sb_project_all(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
-    int pairs = sb->group_count * scene->object_count, i, g, o, t, n = 0;
+    int pairs = (sb->batch1 - sb->batch0) * scene->object_count, i, g, o, t, n = 0;
     sb->verts = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_pv *));
     if (!sb->verts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < pairs; ++i) {
@@ -973,16 +961,16 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
     for (i = 0; i < pairs; ++i) {
         int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        if (!sb->groups[i / scene->object_count].sbc) continue;
+        if (!sb->groups[sb->batch0 + i / scene->object_count].sbc) continue;
         sb->p->frame->stats.projections += count;
         for (v = 0; v < count; ++v) sb->p->frame->stats.projected += sb->verts[i][v].ok;
     }
-    for (g = 0; g < sb->group_count; ++g)
+    for (g = sb->batch0; g < sb->batch1; ++g)
         for (o = 0; o < scene->object_count; ++o)
             n += (scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK;
     sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
-    for (g = 0; g < sb->group_count; ++g) {
+    for (g = sb->batch0; g < sb->batch1; ++g) {
         if (!sb->groups[g].sbc) continue;
         for (o = 0; o < scene->object_count; ++o) {
             int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
@@ -1018,19 +1006,18 @@ static void refl__sb_free(refl__sb *sb) {
         refl__free(al, sb->sides[i].crossing);
     }
     refl__free(al, sb->sides);
-    for (i = 0; sb->verts && i < sb->group_count * sb->p->scene->object_count; ++i) refl__free(al, sb->verts[i]);
-    for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
+    refl__sb_free_batch(sb);
     refl_bvh_destroy(sb->bvh);
     refl__free(al, sb->groups);
-    refl__free(al, sb->verts);
-    refl__free(al, sb->jobs);
     refl__free(al, sb->em.gbuf);
     refl__free(al, sb->em.draws);
     refl__free(al, sb->em.surface);
     refl__free(al, sb->group_of);
+    refl__free(al, sb->stencil);
     refl__free(al, sb->color);
     refl__free(al, sb->depth);
     refl__free(al, sb->points);
+    refl__free(al, sb->points_depth);
 }
 
 /* Everything up to the groups' trees (shared with the camera error). */
@@ -1048,6 +1035,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
     sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
     sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
+    sb->batch = p->desc.sbc_batch_groups > 0 ? p->desc.sbc_batch_groups : REFL__SB_BATCH;
     refl_scene_bounds(p->scene, &lo, &hi);
     grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.01f);
     grow = refl_v3_add(grow, refl_v3(1e-4f, 1e-4f, 1e-4f));
@@ -1059,7 +1047,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (r != REFL_OK || !any) return r;
     if ((r = refl_bvh_build(p->scene, al, &sb->bvh)) != REFL_OK) return r;
     sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-    sb->group_of = (uint8_t *)refl__calloc(al, npx, 1);
+    sb->group_of = (int *)refl__calloc(al, npx, sizeof(int));
     if (!sb->em.surface || !sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
@@ -1093,13 +1081,22 @@ static refl_result refl__method_sbc(refl__pass *p) {
         sb.color = (uint8_t *)refl__calloc(al, npx, 4);
         sb.depth = (float *)refl__calloc(al, npx, sizeof(float));
         sb.points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-        if (!sb.color || !sb.depth || !sb.points) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl__sb_project_all(&sb);
-        for (i = 0; i < sb.job_count; ++i) {
-            fr->stats.projections += sb.jobs[i].projections;
-            fr->stats.projected += sb.jobs[i].projected;
+        sb.points_depth = (float *)refl__calloc(al, npx, sizeof(float));
+        sb.stencil = (uint8_t *)refl__calloc(al, npx, 1);
+        if (!sb.color || !sb.depth || !sb.points || !sb.points_depth || !sb.stencil) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) r = refl__sb_clear(&sb);
+        /* groups in batches of the stencil's values; a group's pixels are
+           its own, so the batches' depth tests never meet */
+        for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
+            sb.batch1 = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
+            r = refl__sb_project_all(&sb);
+            for (i = 0; i < sb.job_count; ++i) {
+                fr->stats.projections += sb.jobs[i].projections;
+                fr->stats.projected += sb.jobs[i].projected;
+            }
+            if (r == REFL_OK) r = refl__sb_draw(&sb);
+            refl__sb_free_batch(&sb);
         }
-        if (r == REFL_OK) r = refl__sb_draw(&sb);
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
         if (r == REFL_OK) rast_run_jobs(p->rc, fr->height, refl__sb_resolve_row, &sb);

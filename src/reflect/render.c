@@ -239,6 +239,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
         p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
         !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
+        p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
         p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
         !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency))
         return REFL_ERROR_INVALID_ARGUMENT;
