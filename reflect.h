@@ -10883,12 +10883,8 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     int ok = a->ok + b->ok + c->ok, split = 0;
     refl__sb_pv ab, bc, ca;
     int have_mid = 0;
-    refl_vec3 lo = refl_v3(REFL__MIN(a->world.x, REFL__MIN(b->world.x, c->world.x)),
-                           REFL__MIN(a->world.y, REFL__MIN(b->world.y, c->world.y)),
-                           REFL__MIN(a->world.z, REFL__MIN(b->world.z, c->world.z)));
-    refl_vec3 hi = refl_v3(REFL__MAX(a->world.x, REFL__MAX(b->world.x, c->world.x)),
-                           REFL__MAX(a->world.y, REFL__MAX(b->world.y, c->world.y)),
-                           REFL__MAX(a->world.z, REFL__MAX(b->world.z, c->world.z)));
+    refl_vec3 lo = refl__v3_min(a->world, refl__v3_min(b->world, c->world));
+    refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
     /* the surface the rays leave, whole: its parts would be dropped one by one */
     if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
