@@ -86,24 +86,58 @@ static float rast__clamp01(float v) {
     return v < 1.0f ? v : 1.0f;
 }
 
+/* What every span of one triangle on a simple pipe shares: worked out
+   once per triangle and tile, not once per span (small triangles have
+   spans of a few pixels). */
+typedef struct rast__simple_tri {
+    int flat;                 /* one colour over the whole triangle */
+#ifdef RAST__SSE2
+    __m128 inv_area, z0, dz1, dz2, iw0, diw1, diw2, iw1, iw2;
+    __m128 cv0[4], cd1[4], cd2[4]; /* the colour's channels, each broadcast */
+    __m128 v0, d1, d2;        /* the colour's channels as one vector */
+#endif
+} rast__simple_tri;
+
+static void rast__simple_tri_init(const rast__draw_info *di, const rast__tri *t, rast__simple_tri *st) {
+    const float *vd = (const float *)(t + 1);
+    int k;
+    st->flat = 1;
+    for (k = 0; k < 4 && di->nvar >= 4; ++k)
+        if (vd[3 * k + 1] != 0.0f || vd[3 * k + 2] != 0.0f) st->flat = 0;
+#ifdef RAST__SSE2
+    st->inv_area = _mm_set1_ps(t->inv_area);
+    st->z0 = _mm_set1_ps(t->z[0]);
+    st->dz1 = _mm_set1_ps(t->z[1] - t->z[0]);
+    st->dz2 = _mm_set1_ps(t->z[2] - t->z[0]);
+    st->iw0 = _mm_set1_ps(t->iw[0]);
+    st->diw1 = _mm_set1_ps(t->iw[1] - t->iw[0]);
+    st->diw2 = _mm_set1_ps(t->iw[2] - t->iw[0]);
+    st->iw1 = _mm_set1_ps(t->iw[1]);
+    st->iw2 = _mm_set1_ps(t->iw[2]);
+    if (di->nvar >= 4) {
+        for (k = 0; k < 4; ++k) {
+            st->cv0[k] = _mm_set1_ps(vd[3 * k]);
+            st->cd1[k] = _mm_set1_ps(vd[3 * k + 1]);
+            st->cd2[k] = _mm_set1_ps(vd[3 * k + 2]);
+        }
+        st->v0 = _mm_setr_ps(vd[0], vd[3], vd[6], vd[9]);
+        st->d1 = _mm_setr_ps(vd[1], vd[4], vd[7], vd[10]);
+        st->d2 = _mm_setr_ps(vd[2], vd[5], vd[8], vd[11]);
+    }
+#endif
+}
+
 #ifdef RAST__SSE2
 /* Whole groups of four pixels of a simple span, RGBA8, interpolated colour,
    depth LESS or LEQUAL (or none); advances *x, *e0, *e2 past them. */
-static void rast__tri_quad_simple(const rast__pipe *p, const rast__tri *t, const float *vd, float *drow,
-                                  uint8_t *crow, int *x, int xe, int64_t *e0, int64_t *e2, int64_t s0,
-                                  int64_t s2) {
-    const __m128 inv_area = _mm_set1_ps(t->inv_area), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
-    const __m128 z0 = _mm_set1_ps(t->z[0]), dz1 = _mm_set1_ps(t->z[1] - t->z[0]), dz2 = _mm_set1_ps(t->z[2] - t->z[0]);
-    const __m128 iw0 = _mm_set1_ps(t->iw[0]), diw1 = _mm_set1_ps(t->iw[1] - t->iw[0]);
-    const __m128 diw2 = _mm_set1_ps(t->iw[2] - t->iw[0]), iw1 = _mm_set1_ps(t->iw[1]), iw2 = _mm_set1_ps(t->iw[2]);
+static void rast__tri_quad_simple(const rast__pipe *p, const rast__simple_tri *st, float *drow, uint8_t *crow,
+                                  int *x, int xe, int64_t *e0, int64_t *e2, int64_t s0, int64_t s2) {
+    const __m128 inv_area = st->inv_area, zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    const __m128 z0 = st->z0, dz1 = st->dz1, dz2 = st->dz2;
+    const __m128 iw0 = st->iw0, diw1 = st->diw1, diw2 = st->diw2, iw1 = st->iw1, iw2 = st->iw2;
     const __m128 k255 = _mm_set1_ps(255.0f), half = _mm_set1_ps(0.5f), top = _mm_set1_ps(255.5f);
-    __m128 cv0[4], cd1[4], cd2[4];
+    const __m128 *cv0 = st->cv0, *cd1 = st->cd1, *cd2 = st->cd2;
     int c, less = p->depth_func == RAST_LESS, write = p->depth_write;
-    for (c = 0; c < 4; ++c) {
-        cv0[c] = _mm_set1_ps(vd[3 * c]);
-        cd1[c] = _mm_set1_ps(vd[3 * c + 1]);
-        cd2[c] = _mm_set1_ps(vd[3 * c + 2]);
-    }
     for (; *x + 4 <= xe; *x += 4, *e0 += 4 * s0, *e2 += 4 * s2) {
         __m128 l1 = _mm_mul_ps(_mm_setr_ps((float)*e2, (float)(*e2 + s2), (float)(*e2 + 2 * s2), (float)(*e2 + 3 * s2)), inv_area);
         __m128 l2 = _mm_mul_ps(_mm_setr_ps((float)*e0, (float)(*e0 + s0), (float)(*e0 + 2 * s0), (float)(*e0 + 3 * s0)), inv_area);
@@ -139,7 +173,7 @@ static void rast__tri_quad_simple(const rast__pipe *p, const rast__tri *t, const
 /* A span of a triangle on a simple pipe: depth test, then the interpolated
    colour (or the draw colour) straight into the target. */
 static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, const rast__tri *t,
-                                  const rast__span *sp) {
+                                  const rast__simple_tri *st, const rast__span *sp) {
     const rast__pipe *p = di->pipe;
     const rast__fb *fb = tl->fb;
     const float *vd = (const float *)(t + 1);
@@ -148,12 +182,10 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
     float dz1 = t->z[1] - t->z[0], dz2 = t->z[2] - t->z[0];
     float diw1 = t->iw[1] - t->iw[0], diw2 = t->iw[2] - t->iw[0];
     int64_t e0 = sp->e0, e2 = sp->e2;
-    int x, k, flat = 1;
+    int x, k;
     float k1[4], k2[4];
     const uint8_t (*lut)[256] = NULL;
-    for (k = 0; k < 4 && di->nvar >= 4; ++k)
-        if (vd[3 * k + 1] != 0.0f || vd[3 * k + 2] != 0.0f) flat = 0;
-    if (flat && crow && !fb->color_f32) {
+    if (st->flat && crow && !fb->color_f32) {
         /* one colour over the whole triangle: pack or blend it once */
         const float *c = di->nvar < 4 ? di->color : (const float *)vd;
         float cc[4];
@@ -191,15 +223,13 @@ static void rast__tri_span_simple(const rast__draw_info *di, rast__tile *tl, con
 #ifdef RAST__SSE2
     if (crow && p->plain_color && !fb->color_f32 && di->nvar >= 4) {
         /* the colour as one vector: no per-channel stores to reload */
-        const __m128 v0 = _mm_setr_ps(vd[0], vd[3], vd[6], vd[9]);
-        const __m128 d1 = _mm_setr_ps(vd[1], vd[4], vd[7], vd[10]);
-        const __m128 d2 = _mm_setr_ps(vd[2], vd[5], vd[8], vd[11]);
+        const __m128 v0 = st->v0, d1 = st->d1, d2 = st->d2;
         if (!drow || p->depth_func == RAST_LESS || p->depth_func == RAST_LEQUAL) {
             /* four pixels at a time; every lane does exactly the scalar
                arithmetic, so which pixels share a group (it depends on the
                tile) never changes a bit */
             x = sp->xs;
-            rast__tri_quad_simple(p, t, vd, drow, crow, &x, sp->xe, &e0, &e2, sp->s0, sp->s2);
+            rast__tri_quad_simple(p, st, drow, crow, &x, sp->xe, &e0, &e2, sp->s0, sp->s2);
         } else {
             x = sp->xs;
         }
@@ -276,8 +306,9 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
     int x0 = RAST__MAX(t->h.x0, tl->x0), x1 = RAST__MIN(t->h.x1, tl->x1);
     int y0 = RAST__MAX(t->h.y0, tl->y0), y1 = RAST__MIN(t->h.y1, tl->y1);
     int64_t ea[3], eb[3], ec[3];
-    int i;
+    int i, have_st = 0;
     rast__span sp;
+    rast__simple_tri st;
     if (x0 >= x1 || y0 >= y1) return;
     /* Edge i runs from vertex i to vertex i+1; E = ea*px + eb*py + ec is
        positive inside. Top-left edges keep E == 0, others need E > 0. */
@@ -326,7 +357,13 @@ static void rast__raster_tri(const rast__draw_info *di, rast__tile *tl, const ra
         sp.xe = x0 + (int)hi;
         sp.e0 = e0 + lo * sp.s0;
         sp.e2 = e2 + lo * sp.s2;
-        (di->pipe->simple ? rast__tri_span_simple : rast__tri_span)(di, tl, t, &sp);
+        if (!di->pipe->simple) {
+            rast__tri_span(di, tl, t, &sp);
+            continue;
+        }
+        if (!have_st) rast__simple_tri_init(di, t, &st);
+        have_st = 1;
+        rast__tri_span_simple(di, tl, t, &st, &sp);
     }
 }
 
