@@ -659,6 +659,11 @@ enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
 
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
+/* What a stencil table does to every value, when it is one of the
+   whole-byte operations SIMD has (else TABLE). */
+enum { RAST__SOP_TABLE, RAST__SOP_KEEP, RAST__SOP_SET, RAST__SOP_ADD_SAT, RAST__SOP_SUB_SAT,
+       RAST__SOP_ADD_WRAP, RAST__SOP_SUB_WRAP, RAST__SOP_INVERT };
+
 typedef struct rast__pipe {
     rast_state s;             /* the caller's state, copied */
     struct rast__pipe *next;  /* every pipe of the frame, for freeing */
@@ -674,6 +679,9 @@ typedef struct rast__pipe {
     uint8_t st_func[2], st_fail[2], st_zfail[2], st_pass[2];
     uint8_t st_test[2][256];      /* stencil test result per stored value */
     uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
+    uint8_t st_pure[2][256];      /* value after a fragment with no depth test (the
+                                     papers' full-screen stencil passes) */
+    int st_pure_op[2];            /* what st_pure does to every value (RAST__SOP_) */
     int blend;
     rast__blend bl;
     int plain_color;          /* no blending, every channel written */
@@ -1193,6 +1201,22 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
 
 static uint8_t rast__mask(unsigned m) { return m ? (uint8_t)(m & 0xFFu) : 0xFFu; }
 
+/* The RAST__SOP_ a stencil table amounts to, found by comparing the whole
+   table: SIMD then gives the same bytes as the lookup, 16 at a time. */
+static int rast__stencil_table_op(const uint8_t next[256]) {
+    int op, v;
+    for (op = RAST__SOP_KEEP; op <= RAST__SOP_INVERT; ++op) {
+        for (v = 0; v < 256; ++v) {
+            int want = op == RAST__SOP_KEEP ? v : op == RAST__SOP_SET ? next[0]
+                     : op == RAST__SOP_ADD_SAT ? RAST__MIN(v + 1, 255) : op == RAST__SOP_SUB_SAT ? RAST__MAX(v - 1, 0)
+                     : op == RAST__SOP_ADD_WRAP ? (v + 1) & 255 : op == RAST__SOP_SUB_WRAP ? (v - 1) & 255 : 255 - v;
+            if (next[v] != want) break;
+        }
+        if (v == 256) return op;
+    }
+    return RAST__SOP_TABLE;
+}
+
 static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f) {
     unsigned v, w;
     int k;
@@ -1212,6 +1236,9 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
         for (k = 0; k < 3; ++k)
             p->st_next[i][k][v] = (uint8_t)((v & ~w) | (rast__stencil_op(ops[k], v, p->st_ref[i]) & w));
     }
+    for (v = 0; v < 256; ++v)
+        p->st_pure[i][v] = p->st_test[i][v] ? p->st_next[i][RAST__ST_PASS][v] : p->st_next[i][RAST__ST_FAIL][v];
+    p->st_pure_op[i] = rast__stencil_table_op(p->st_pure[i]);
 }
 
 /* Adds factor f of channel c (alpha when c == 3) to the linear form. */
@@ -2987,27 +3014,6 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* What a pure stencil pass's table does to every value, when it is one of
-   the whole-byte operations SIMD has (the papers' INCR and DECR passes
-   with ALWAYS), found by comparing the whole table: the same bytes as the
-   lookup, 16 at a time. */
-enum { RAST__SOP_TABLE, RAST__SOP_KEEP, RAST__SOP_SET, RAST__SOP_ADD_SAT, RAST__SOP_SUB_SAT,
-       RAST__SOP_ADD_WRAP, RAST__SOP_SUB_WRAP, RAST__SOP_INVERT };
-
-static int rast__stencil_table_op(const uint8_t next[256]) {
-    int op, v;
-    for (op = RAST__SOP_KEEP; op <= RAST__SOP_INVERT; ++op) {
-        for (v = 0; v < 256; ++v) {
-            int want = op == RAST__SOP_KEEP ? v : op == RAST__SOP_SET ? next[0]
-                     : op == RAST__SOP_ADD_SAT ? RAST__MIN(v + 1, 255) : op == RAST__SOP_SUB_SAT ? RAST__MAX(v - 1, 0)
-                     : op == RAST__SOP_ADD_WRAP ? (v + 1) & 255 : op == RAST__SOP_SUB_WRAP ? (v - 1) & 255 : 255 - v;
-            if (next[v] != want) break;
-        }
-        if (v == 256) return op;
-    }
-    return RAST__SOP_TABLE;
-}
-
 /* Applies a pure stencil pass's table to one row of n values. */
 static void rast__stencil_table_run(uint8_t *s, int n, const uint8_t next[256], int op) {
     int x = 0;
@@ -3054,14 +3060,10 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
         return;
     }
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
-    if (p->stencil_on && !p->depth_on && !want_color) {
-        /* a pure stencil pass: one table lookup per pixel */
-        uint8_t next[256];
-        int v, op;
-        for (v = 0; v < 256; ++v) next[v] = test[v] ? pass[v] : fail[v];
-        op = rast__stencil_table_op(next);
+    if (p->stencil_on && !p->depth_on && !want_color) { /* a pure stencil pass */
         for (y = y0; y < y1; ++y)
-            rast__stencil_table_run(fb->stencil + (size_t)y * (size_t)fb->stencil_stride + x0, x1 - x0, next, op);
+            rast__stencil_table_run(fb->stencil + (size_t)y * (size_t)fb->stencil_stride + x0, x1 - x0,
+                                    p->st_pure[0], p->st_pure_op[0]);
         return;
     }
     for (y = y0; y < y1; ++y) {

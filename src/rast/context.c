@@ -181,6 +181,22 @@ RAST_API rast_result rast_set_state(rast_context *ctx, const rast_state *s) {
 
 static uint8_t rast__mask(unsigned m) { return m ? (uint8_t)(m & 0xFFu) : 0xFFu; }
 
+/* The RAST__SOP_ a stencil table amounts to, found by comparing the whole
+   table: SIMD then gives the same bytes as the lookup, 16 at a time. */
+static int rast__stencil_table_op(const uint8_t next[256]) {
+    int op, v;
+    for (op = RAST__SOP_KEEP; op <= RAST__SOP_INVERT; ++op) {
+        for (v = 0; v < 256; ++v) {
+            int want = op == RAST__SOP_KEEP ? v : op == RAST__SOP_SET ? next[0]
+                     : op == RAST__SOP_ADD_SAT ? RAST__MIN(v + 1, 255) : op == RAST__SOP_SUB_SAT ? RAST__MAX(v - 1, 0)
+                     : op == RAST__SOP_ADD_WRAP ? (v + 1) & 255 : op == RAST__SOP_SUB_WRAP ? (v - 1) & 255 : 255 - v;
+            if (next[v] != want) break;
+        }
+        if (v == 256) return op;
+    }
+    return RAST__SOP_TABLE;
+}
+
 static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f) {
     unsigned v, w;
     int k;
@@ -200,6 +216,9 @@ static void rast__resolve_face(rast__pipe *p, int i, const rast_stencil_face *f)
         for (k = 0; k < 3; ++k)
             p->st_next[i][k][v] = (uint8_t)((v & ~w) | (rast__stencil_op(ops[k], v, p->st_ref[i]) & w));
     }
+    for (v = 0; v < 256; ++v)
+        p->st_pure[i][v] = p->st_test[i][v] ? p->st_next[i][RAST__ST_PASS][v] : p->st_next[i][RAST__ST_FAIL][v];
+    p->st_pure_op[i] = rast__stencil_table_op(p->st_pure[i]);
 }
 
 /* Adds factor f of channel c (alpha when c == 3) to the linear form. */

@@ -175,6 +175,11 @@ enum { RAST__ST_FAIL = 0, RAST__ST_ZFAIL = 1, RAST__ST_PASS = 2 };
 
 /* ---- resolved pipeline state: one per rast_set_state, shared by draws ---- */
 
+/* What a stencil table does to every value, when it is one of the
+   whole-byte operations SIMD has (else TABLE). */
+enum { RAST__SOP_TABLE, RAST__SOP_KEEP, RAST__SOP_SET, RAST__SOP_ADD_SAT, RAST__SOP_SUB_SAT,
+       RAST__SOP_ADD_WRAP, RAST__SOP_SUB_WRAP, RAST__SOP_INVERT };
+
 typedef struct rast__pipe {
     rast_state s;             /* the caller's state, copied */
     struct rast__pipe *next;  /* every pipe of the frame, for freeing */
@@ -190,6 +195,9 @@ typedef struct rast__pipe {
     uint8_t st_func[2], st_fail[2], st_zfail[2], st_pass[2];
     uint8_t st_test[2][256];      /* stencil test result per stored value */
     uint8_t st_next[2][3][256];   /* value after FAIL / ZFAIL / PASS, masks applied */
+    uint8_t st_pure[2][256];      /* value after a fragment with no depth test (the
+                                     papers' full-screen stencil passes) */
+    int st_pure_op[2];            /* what st_pure does to every value (RAST__SOP_) */
     int blend;
     rast__blend bl;
     int plain_color;          /* no blending, every channel written */

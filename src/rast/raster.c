@@ -423,27 +423,6 @@ static void rast__raster_line(const rast__draw_info *di, rast__tile *tl, const r
     }
 }
 
-/* What a pure stencil pass's table does to every value, when it is one of
-   the whole-byte operations SIMD has (the papers' INCR and DECR passes
-   with ALWAYS), found by comparing the whole table: the same bytes as the
-   lookup, 16 at a time. */
-enum { RAST__SOP_TABLE, RAST__SOP_KEEP, RAST__SOP_SET, RAST__SOP_ADD_SAT, RAST__SOP_SUB_SAT,
-       RAST__SOP_ADD_WRAP, RAST__SOP_SUB_WRAP, RAST__SOP_INVERT };
-
-static int rast__stencil_table_op(const uint8_t next[256]) {
-    int op, v;
-    for (op = RAST__SOP_KEEP; op <= RAST__SOP_INVERT; ++op) {
-        for (v = 0; v < 256; ++v) {
-            int want = op == RAST__SOP_KEEP ? v : op == RAST__SOP_SET ? next[0]
-                     : op == RAST__SOP_ADD_SAT ? RAST__MIN(v + 1, 255) : op == RAST__SOP_SUB_SAT ? RAST__MAX(v - 1, 0)
-                     : op == RAST__SOP_ADD_WRAP ? (v + 1) & 255 : op == RAST__SOP_SUB_WRAP ? (v - 1) & 255 : 255 - v;
-            if (next[v] != want) break;
-        }
-        if (v == 256) return op;
-    }
-    return RAST__SOP_TABLE;
-}
-
 /* Applies a pure stencil pass's table to one row of n values. */
 static void rast__stencil_table_run(uint8_t *s, int n, const uint8_t next[256], int op) {
     int x = 0;
@@ -490,14 +469,10 @@ static void rast__raster_rect(const rast__draw_info *di, rast__tile *tl, const r
         return;
     }
     if (blend_k) lut = rast__const_blend_lut(tl, k1, k2);
-    if (p->stencil_on && !p->depth_on && !want_color) {
-        /* a pure stencil pass: one table lookup per pixel */
-        uint8_t next[256];
-        int v, op;
-        for (v = 0; v < 256; ++v) next[v] = test[v] ? pass[v] : fail[v];
-        op = rast__stencil_table_op(next);
+    if (p->stencil_on && !p->depth_on && !want_color) { /* a pure stencil pass */
         for (y = y0; y < y1; ++y)
-            rast__stencil_table_run(fb->stencil + (size_t)y * (size_t)fb->stencil_stride + x0, x1 - x0, next, op);
+            rast__stencil_table_run(fb->stencil + (size_t)y * (size_t)fb->stencil_stride + x0, x1 - x0,
+                                    p->st_pure[0], p->st_pure_op[0]);
         return;
     }
     for (y = y0; y < y1; ++y) {
