@@ -51,6 +51,17 @@ static inline int tu_refl_add_object(refl_scene *s, refl_mesh *mesh, refl_materi
     return k;
 }
 
+/* A white point light of the given intensity and radius (0: a point). */
+static inline void tu_refl_add_point_light(refl_scene *s, refl_vec3 position, float intensity, float radius) {
+    refl_light l;
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_POINT;
+    l.position = position;
+    l.color[0] = l.color[1] = l.color[2] = intensity;
+    l.radius = radius;
+    cr_assert(refl_scene_add_light(s, &l) >= 0);
+}
+
 /* An allocator counting into c (tests/test_util.h's tu_count_alloc). */
 static inline refl_allocator tu_refl_counting(tu_alloc_counter *c) {
     refl_allocator a;

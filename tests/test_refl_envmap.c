@@ -87,7 +87,6 @@ static refl_scene *sphere_scene(const refl_material *m, int floor) {
     refl_scene *s;
     refl_mesh *mesh = NULL;
     refl_object o;
-    refl_light l;
     int mi;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 64, 32, NULL, &mesh), REFL_OK);
@@ -111,11 +110,7 @@ static refl_scene *sphere_scene(const refl_material *m, int floor) {
         o.mesh = refl_scene_add_mesh(s, mesh);
         o.transform = refl_mat4_translate(refl_v3(2.2f, -0.5f, 0.5f));
         cr_assert_eq(refl_scene_add_object(s, &o), 2);
-        memset(&l, 0, sizeof l);
-        l.type = REFL_LIGHT_POINT;
-        l.position = refl_v3(3.0f, 5.0f, 4.0f);
-        l.color[0] = l.color[1] = l.color[2] = 0.9f;
-        cr_assert(refl_scene_add_light(s, &l) >= 0);
+        tu_refl_add_point_light(s, refl_v3(3.0f, 5.0f, 4.0f), 0.9f, 0.0f);
     }
     return s;
 }

@@ -41,7 +41,6 @@ static refl_scene *mirror_scene(int boxes, float radius) {
     static const float blue[3] = {0.2f, 0.3f, 0.8f}, white[3] = {1, 1, 1};
     refl_scene *s;
     refl_mesh *floor_mesh, *mirror;
-    refl_light l;
     int mi;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor_mesh), REFL_OK);
@@ -56,12 +55,7 @@ static refl_scene *mirror_scene(int boxes, float radius) {
         add_box(s, BOX_OUT, blue);
         add_box(s, BOX_IN, blue);
     }
-    memset(&l, 0, sizeof l);
-    l.type = REFL_LIGHT_POINT;
-    l.position = refl_v3(LIGHT[0], LIGHT[1], LIGHT[2]);
-    l.color[0] = l.color[1] = l.color[2] = LIGHT_K;
-    l.radius = radius;
-    cr_assert(refl_scene_add_light(s, &l) >= 0);
+    tu_refl_add_point_light(s, refl_v3(LIGHT[0], LIGHT[1], LIGHT[2]), LIGHT_K, radius);
     s->ambient[0] = s->ambient[1] = s->ambient[2] = AMBIENT;
     s->environment.color[0] = 0.3f; s->environment.color[1] = 0.4f; s->environment.color[2] = 0.5f;
     return s;

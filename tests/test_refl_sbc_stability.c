@@ -31,7 +31,6 @@ static refl_scene *reflector_scene(refl_mesh *reflector, refl_mat4 xf) {
                        blue[3] = {0.2f, 0.3f, 0.9f}, silver[3] = {0.9f, 0.9f, 0.9f};
     refl_scene *s = NULL;
     refl_mesh *floor = NULL, *box[3] = {NULL, NULL, NULL};
-    refl_light l;
     int k;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor), REFL_OK);
@@ -41,11 +40,7 @@ static refl_scene *reflector_scene(refl_mesh *reflector, refl_mat4 xf) {
     tu_refl_add_object(s, box[1], REFL_DIFFUSE, green, refl_mat4_translate(refl_v3(2.0f, -0.2f, -1.8f)));
     tu_refl_add_object(s, box[2], REFL_DIFFUSE, blue, refl_mat4_translate(refl_v3(0.3f, 0.0f, -3.0f)));
     tu_refl_add_object(s, reflector, REFL_MIRROR, silver, xf);
-    memset(&l, 0, sizeof l);
-    l.type = REFL_LIGHT_POINT;
-    l.position = refl_v3(3.0f, 5.0f, 4.0f);
-    l.color[0] = l.color[1] = l.color[2] = 1.0f;
-    cr_assert(refl_scene_add_light(s, &l) >= 0);
+    tu_refl_add_point_light(s, refl_v3(3.0f, 5.0f, 4.0f), 1.0f, 0.0f);
     return s;
 }
 

@@ -30,19 +30,13 @@ static refl_scene *box_scene(float radius) {
     static const float grey[3] = {0.8f, 0.8f, 0.75f}, blue[3] = {0.2f, 0.3f, 0.9f};
     refl_scene *s;
     refl_mesh *floor_mesh, *box;
-    refl_light l;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor_mesh), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(1.5f, 1.0f, 1.2f), NULL, &box), REFL_OK);
     tu_refl_add_object(s, floor_mesh, REFL_DIFFUSE, grey, refl_mat4_identity());
     tu_refl_add_object(s, box, REFL_DIFFUSE, blue,
                refl_mat4_mul(refl_mat4_translate(refl_v3(0.3f, 1.8f, -0.2f)), refl_mat4_rotate(refl_v3(0, 1, 0), 0.5f)));
-    memset(&l, 0, sizeof l);
-    l.type = REFL_LIGHT_POINT;
-    l.position = refl_v3(2.0f, 6.0f, 1.5f);
-    l.color[0] = l.color[1] = l.color[2] = 0.7f;
-    l.radius = radius;
-    cr_assert(refl_scene_add_light(s, &l) >= 0);
+    tu_refl_add_point_light(s, refl_v3(2.0f, 6.0f, 1.5f), 0.7f, radius);
     s->ambient[0] = s->ambient[1] = s->ambient[2] = 0.15f;
     s->environment.color[0] = 0.3f; s->environment.color[1] = 0.5f; s->environment.color[2] = 0.8f;
     return s;
