@@ -10347,11 +10347,11 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         stencilled to the group's pixels. Groups go through projection and
         drawing in batches of up to 254 (the stencil's values; the
         projected vertices of one batch at a time). The reflector's own
-        triangles project too (the knob
-        seen in the lid), except the surface the rays leave: a triangle
-        facing away from every vertex's first reflector point, or with a
-        vertex nearer it than a quarter of the triangle's longest edge
-        (tested before each subdivision too: such a triangle is not split).
+        triangles project too (the knob seen in the lid), except the
+        surface the rays leave: a triangle facing away from every vertex's
+        first reflector point, or with a vertex nearer it than a quarter of
+        the triangle's longest edge (tested before each subdivision too:
+        such a triangle is not split).
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
@@ -11072,8 +11072,8 @@ static refl_result refl__sb_draw(refl__sb *sb) {
 /* Frees the batch's projected vertices and emitted triangles. */
 static void refl__sb_free_batch(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
-    int i;
-    for (i = 0; sb->verts && i < (sb->batch1 - sb->batch0) * sb->p->scene->object_count; ++i) refl__free(al, sb->verts[i]);
+    int pairs = (sb->batch1 - sb->batch0) * sb->p->scene->object_count, i;
+    for (i = 0; sb->verts && i < pairs; ++i) refl__free(al, sb->verts[i]);
     for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
     refl__free(al, sb->verts);
     refl__free(al, sb->jobs);
