@@ -676,6 +676,11 @@ typedef struct refl_render_desc {
     void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
                         int map_height);
     void *sbc_ray_map_user;
+    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
+                                the last point along its path (past every mirror, the
+                                stronger branch at glass as for the first; NaN where the
+                                path ends in the environment) instead of the first: how
+                                higher-order reflections are measured. Other methods: ignored */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -8197,6 +8202,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
+        if (first_point && rt->p->desc.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
@@ -8204,7 +8210,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;
-        first_point = NULL;
+        if (!rt->p->desc.points_last) first_point = NULL; /* else followed to the path's end */
     }
     if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
         fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
@@ -10373,6 +10379,8 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
+#define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
+#define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
 
 /* What a reflected ray meets first: a scene triangle and the point; object
    -1 for nothing. */
@@ -10383,8 +10391,12 @@ typedef struct refl__sb_hit {
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
-    int object;
+    int object;                   /* the last reflector of its history */
     float id;                     /* its pixels' G-buffer id: object + 1, negated for the back side */
+    int order;                    /* reflections along its history (a refraction's: 1, in a layer of its own) */
+    int layer;                    /* order - 1; sb->orders for refractions */
+    int parent;                   /* the side one reflection shorter (-1 at order 1) */
+    int kind;                     /* 0 reflected; 1 refracted through the glass of `parent` */
     refl_sbc_ray *rays;
     refl__sb_hit *hits;           /* per sample: what its ray meets */
     uint8_t *valid;               /* 1: the sample shows the side, with a ray */
@@ -10414,7 +10426,8 @@ typedef struct refl__sb_pv {
     float clip[4];                /* the first reflector point's, depth replaced */
     float sx, sy;                 /* its window position */
     refl_vec3 first;              /* its first reflector point */
-    float dist;                   /* to the first reflector point */
+    refl_vec3 from;               /* where its ray leaves the last reflector (order 1: first) */
+    float dist;                   /* to `from` */
     int ok;
 } refl__sb_pv;
 
@@ -10440,8 +10453,20 @@ typedef struct refl__sb {
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
     refl_bvh *bvh;                /* the scene's, for the rays' first hits */
-    int *group_of;                /* per pixel: group index + 1, 0: none */
+    /* higher orders (desc.depth > 1): the paper's reflection histories */
+    int budget;                   /* bounces a path may take: desc.depth, at most REFL__SB_ORDERS */
+    int orders;                   /* reflection orders drawn (k_max): the longest history sampled */
+    int layers;                   /* orders, plus one for refractions when any was sampled */
+    refl_bvh *mirrors;            /* the mirrors and glass alone (the paper traces the reflectors alone) */
+    int *mirror_object;           /* its objects' scene indices */
+    refl_mat4 *normal_m;          /* per object: the normals' matrix */
+    float *sample_id;             /* budget x map: per order, the side id each sample's path meets, 0: none */
+    uint8_t *sample_refr;         /* per sample: its glass refracts it out within the budget */
+    int *sample_side;             /* (budget + 1) x map: per layer, each sample's side, -1: none */
+    int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
     int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
+    int layer;                    /* the batch's layer (one per batch) */
+    int map_first;                /* the first side refl__sb_map_side's jobs map */
     uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
     refl__sb_pv **verts;          /* per group of the batch x object: every mesh vertex, projected */
     refl__sb_job *jobs;
@@ -10449,6 +10474,8 @@ typedef struct refl__sb {
     uint8_t *color;               /* scratch targets of the reflections: the colour pass's */
     float *depth, *points;        /* (colour, depth), the points pass's (points, depth) */
     float *points_depth;
+    uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
+    float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
 } refl__sb;
 
 /* Where a ray from inside the box leaves it. */
@@ -10467,19 +10494,13 @@ static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int 
     *y = REFL__MIN(v * sb->factor + sb->factor / 2, fr->height - 1);
 }
 
-/* The reflected ray of surface point q with normal n (towards the
-   viewer) seen along view direction d, and what it meets first in *met;
-   0 for a ray of zero length. */
-static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
-                        refl__sb_hit *met) {
-    refl_vec3 r;
+/* The ray from q along r (tail = first = q), its head clipped as the
+   module comment says, and what it meets first in *met; 0 for a ray of
+   zero length. */
+static int refl__sb_ray_dir(const refl__sb *sb, refl_vec3 q, refl_vec3 r, refl_sbc_ray *ray, refl__sb_hit *met) {
     refl_hit hit;
     float reach;
     met->object = -1;
-    n = refl_v3_normalize(n);
-    /* a normal turned past grazing (extrapolated beyond a silhouette)
-       reflects as the limit does: straight on, not back */
-    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
     ray->tail = q;
     ray->first = q;
     reach = refl__sb_exit(sb->box_lo, sb->box_hi, q, r);
@@ -10492,6 +10513,180 @@ static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 
         reach = REFL__MIN(reach, 0.1f * sb->diagonal);
     ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
     return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+}
+
+/* The reflected ray of surface point q with normal n (towards the
+   viewer) seen along view direction d (refl__sb_ray_dir). */
+static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
+                        refl__sb_hit *met) {
+    n = refl_v3_normalize(n);
+    /* a normal turned past grazing (extrapolated beyond a silhouette)
+       reflects as the limit does: straight on, not back */
+    return refl__sb_ray_dir(sb, q, refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d, ray, met);
+}
+
+/* ---- higher orders: paths through the mirrors and glass alone ---- */
+
+/* Reflectors a history goes on through: mirrors and glass. A partial
+   reflector ends it (its diffuse share is drawn where it is met). */
+static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIRROR || m->type == REFL_GLASS; }
+
+/* What a path from o along unit d meets first among the mirrors and glass
+   (h->object: the scene's index), within the scene's box. */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
+    float reach = refl__sb_exit(sb->box_lo, sb->box_hi, o, d);
+    if (!sb->mirrors || !refl_bvh_intersect(sb->mirrors, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
+    h->object = sb->mirror_object[h->object];
+    return 1;
+}
+
+/* A hit's point (barycentric, as RAYTRACE reads it), geometric and
+   shading normals (unit, as the mesh winds and interpolates them). */
+static void refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_object *o = &scene->objects[h->object];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
+    float w[3];
+    refl_vec3 v[3], n = refl_v3(0.0f, 0.0f, 0.0f);
+    int k;
+    w[0] = 1.0f - h->u - h->v;
+    w[1] = h->u;
+    w[2] = h->v;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
+        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
+        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
+    }
+    *p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w[0]), refl_v3_scale(v[1], w[1])), refl_v3_scale(v[2], w[2]));
+    *ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    *ns = refl_v3_normalize(refl_mat4_dir(sb->normal_m[h->object], n));
+    if (refl_v3_dot(*ns, *ns) == 0.0f) *ns = *ng;
+}
+
+/* A pixel's reflection history: per order k (index k - 1) the side it
+   reflects at (G-buffer id: object + 1, negated on the back), the point,
+   its unit normal facing the incoming ray, the incoming unit direction, and
+   the product of the reflectances through order k (each as RAYTRACE
+   weighs its bounce); `out` the last order's reflected direction. */
+typedef struct refl__sb_path {
+    int count;
+    float id[REFL__SB_ORDERS], weight[REFL__SB_ORDERS];
+    refl_vec3 q[REFL__SB_ORDERS], n[REFL__SB_ORDERS], d[REFL__SB_ORDERS];
+    refl_vec3 out;
+} refl__sb_path;
+
+/* The history of reflector point q (side id, unit normal n towards the
+   viewer) seen along d, through sb->orders reflections at most: the first
+   reflects as refl__sb_ray does, later ones as RAYTRACE reflects. */
+static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
+                                refl__sb_path *pa) {
+    const refl_scene *scene = sb->p->scene;
+    int object = (int)fabsf(id) - 1, k;
+    refl_vec3 r;
+    n = refl_v3_normalize(n);
+    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
+    pa->count = 1;
+    pa->id[0] = id;
+    pa->q[0] = q;
+    pa->n[0] = n;
+    pa->d[0] = d;
+    pa->weight[0] = refl_material_reflectance(&scene->materials[scene->objects[object].material],
+                                              REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f));
+    for (k = 1; k < sb->orders; ++k) {
+        refl_hit h;
+        refl_vec3 p, ng, ns, rd;
+        int front;
+        if (!refl__sb_mirror_hit(sb, pa->q[k - 1], r, &h)) break;
+        refl__sb_surface(sb, &h, &p, &ng, &ns);
+        front = refl_v3_dot(r, ng) < 0.0f;
+        if (!front) {
+            ng = refl_v3_scale(ng, -1.0f);
+            ns = refl_v3_scale(ns, -1.0f);
+        }
+        if (refl_v3_dot(r, ns) > 0.0f) ns = ng;
+        pa->id[k] = front ? (float)(h.object + 1) : -(float)(h.object + 1);
+        pa->q[k] = p;
+        pa->n[k] = ns;
+        pa->d[k] = r;
+        pa->weight[k] = pa->weight[k - 1] *
+                        refl_material_reflectance(&scene->materials[scene->objects[h.object].material],
+                                                  REFL__CLAMP(-refl_v3_dot(r, ns), 0.0f, 1.0f));
+        pa->count = k + 1;
+        rd = refl_v3_reflect(r, ns);
+        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(r, ng);
+        r = rd;
+    }
+    pa->out = r;
+}
+
+/* The path refracted through glass (paper 003's Fig. 20b): in at q (unit
+   normal n towards the viewer, seen along d), reflected totally inside
+   while it must, out where it refracts, within sb->budget interfaces and
+   meeting only its own glass. tail: the exit point; out: the direction
+   beyond; normal: the exit's, facing out; weight: what RAYTRACE's
+   refracted branch keeps past the entry's (1 - F) and tint: (1 - F) at
+   the exit times the absorption inside. Its partial reflections inside
+   are left out. 0: no such path. */
+typedef struct refl__sb_refr {
+    refl_vec3 tail, out, normal;
+    float weight;
+} refl__sb_refr;
+
+static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
+                                 refl__sb_refr *rp) {
+    const refl_scene *scene = sb->p->scene;
+    int object = (int)fabsf(id) - 1, b;
+    const refl_material *m;
+    float ior, len = 0.0f, f;
+    refl_vec3 t, pos = q;
+    if (object < 0 || object >= scene->object_count || sb->budget < 2 || !sb->mirrors) return 0;
+    m = &scene->materials[scene->objects[object].material];
+    if (m->type != REFL_GLASS) return 0;
+    ior = m->ior > 0.0f ? m->ior : 1.5f;
+    f = refl_fresnel_dielectric(REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f), 1.0f, ior);
+    if (!(f < 1.0f) || !refl_v3_refract(d, n, 1.0f / ior, &t)) return 0;
+    for (b = 1; b < sb->budget; ++b) {
+        refl_hit h;
+        refl_vec3 p, ng, ns, t2, rd;
+        if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return 0;
+        refl__sb_surface(sb, &h, &p, &ng, &ns);
+        /* as RAYTRACE: the normals turned against the ray */
+        if (!(refl_v3_dot(t, ng) < 0.0f)) {
+            ng = refl_v3_scale(ng, -1.0f);
+            ns = refl_v3_scale(ns, -1.0f);
+        }
+        if (refl_v3_dot(t, ns) > 0.0f) ns = ng;
+        len += h.t;
+        pos = p;
+        f = refl_fresnel_dielectric(REFL__CLAMP(-refl_v3_dot(t, ns), 0.0f, 1.0f), ior, 1.0f);
+        if (f < 1.0f && refl_v3_refract(t, ns, ior, &t2)) {
+            rp->tail = p;
+            rp->out = t2;
+            rp->normal = refl_v3_scale(ns, -1.0f);
+            rp->weight = (1.0f - f) * expf(-REFL__MAX(m->attenuation, 0.0f) * len);
+            return 1;
+        }
+        /* totally reflected inside: a reflection on the way */
+        rd = refl_v3_reflect(t, ns);
+        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(t, ng);
+        t = rd;
+    }
+    return 0;
+}
+
+/* Pixel i's view direction, surface point and unit normal towards the
+   viewer (as the ray map and the composite take them). */
+static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n) {
+    const refl__pass *p = sb->p;
+    int x = (int)(i % (size_t)p->frame->width), y = (int)(i / (size_t)p->frame->width);
+    refl_vec3 o;
+    float tmax;
+    const float *gb = sb->em.gbuf + 4 * i;
+    refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, d, &tmax);
+    *n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+    if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
+    *q = refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1], sb->em.surface[3 * i + 2]);
 }
 
 /* Side sd's ray map: a ray per sample showing the side (valid 1), with
@@ -10518,6 +10713,42 @@ static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
                                                              sb->em.surface[3 * i + 2]),
                                                  sd->normals[m], d, &sd->rays[m], &sd->hits[m]);
         }
+}
+
+/* A side of a higher layer: the rays of the samples whose history it is
+   (sb->sample_side), at its order's reflector (or out of its glass),
+   first reflector point on the pixel's own reflector. */
+static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int self) {
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
+    const int *own = sb->sample_side + (size_t)sd->layer * count;
+    for (m = 0; m < count; ++m) {
+        int x, y, ok = 0;
+        size_t i;
+        refl_vec3 d, q, n;
+        sd->valid[m] = 0;
+        if (own[m] != self) continue;
+        refl__sb_sample_pixel(sb, (int)(m % (size_t)sb->map_w), (int)(m / (size_t)sb->map_w), &x, &y);
+        i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        if (sd->kind) {
+            refl__sb_refr rp;
+            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp)) {
+                ok = refl__sb_ray_dir(sb, rp.tail, rp.out, &sd->rays[m], &sd->hits[m]);
+                sd->normals[m] = rp.normal;
+            }
+        } else {
+            refl__sb_path pa;
+            int k = sd->order - 1;
+            refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
+            if (pa.count > k) {
+                ok = refl__sb_ray_dir(sb, pa.q[k], k + 1 < pa.count ? pa.d[k + 1] : pa.out, &sd->rays[m],
+                                      &sd->hits[m]);
+                sd->normals[m] = pa.n[k];
+            }
+        }
+        sd->rays[m].first = q;
+        sd->valid[m] = (uint8_t)ok;
+    }
 }
 
 /* Whether a gap lies between neighbouring samples m1 and m2: the chord
@@ -10583,6 +10814,9 @@ static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
                         continue;
                     }
                     if (crossing[a] != crossing[b] || !refl__sb_smooth(sd, (size_t)a, (size_t)b)) continue;
+                    /* a history's pieces lie within its parent's: the rays of one
+                       smooth piece of the mirror before */
+                    if (sd->parent >= 0 && sb->sides[sd->parent].comp[a] != sb->sides[sd->parent].comp[b]) continue;
                     ra = refl__sb_root(sd->comp, a);
                     rb = refl__sb_root(sd->comp, b);
                     if (ra < rb) sd->comp[rb] = ra;
@@ -10594,9 +10828,10 @@ static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
 }
 
 /* Side i's ray map and pieces (a job: sides map in parallel). */
-static void refl__sb_map_side(void *arg, int i) {
+static void refl__sb_map_side(void *arg, int job) {
     refl__sb *sb = (refl__sb *)arg;
     const refl_allocator *al = &sb->p->scene->allocator;
+    int i = sb->map_first + job;
     refl__sb_side *sd = &sb->sides[i];
     size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
     sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
@@ -10607,7 +10842,8 @@ static void refl__sb_map_side(void *arg, int i) {
     sd->group = (int *)refl__calloc(al, n, sizeof(int));
     sd->crossing = (uint8_t *)refl__calloc(al, n, 1);
     if (sd->normals && sd->rays && sd->hits && sd->valid && sd->comp && sd->group && sd->crossing) {
-        refl__sb_ray_map(sb, sd);
+        if (sd->layer) refl__sb_ray_map_higher(sb, sd, i);
+        else refl__sb_ray_map(sb, sd);
         refl__sb_pieces(sb, sd);
     }
 }
@@ -10656,6 +10892,37 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     valid[m] = 2;
                     break;
                 }
+            }
+        }
+    for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
+}
+
+/* The ring of a higher layer's window: each missing ray continued
+   linearly from the member beside it and the member beyond that (tail,
+   head and first reflector point alike), diagonals included. Those rays
+   are no reflections of a surface the view sees, so the first order's
+   tangent-plane rule has nothing to extend. */
+static void refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
+    static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
+    int u, v, k;
+    for (v = 0; v < mh; ++v)
+        for (u = 0; u < mw; ++u) {
+            size_t m = (size_t)v * (size_t)mw + (size_t)u;
+            if (valid[m]) continue;
+            for (k = 0; k < 8; ++k) {
+                int u1 = u + du[k], v1 = v + dv[k], u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
+                const refl_sbc_ray *a, *b;
+                if (u2 < 0 || v2 < 0 || u2 >= mw || v2 >= mh) continue;
+                a = &rays[(size_t)v1 * (size_t)mw + (size_t)u1];
+                b = &rays[(size_t)v2 * (size_t)mw + (size_t)u2];
+                if (valid[(size_t)v1 * (size_t)mw + (size_t)u1] != 1 || valid[(size_t)v2 * (size_t)mw + (size_t)u2] != 1)
+                    continue;
+                rays[m].tail = refl_v3_sub(refl_v3_scale(a->tail, 2.0f), b->tail);
+                rays[m].head = refl_v3_sub(refl_v3_scale(a->head, 2.0f), b->head);
+                rays[m].first = refl_v3_sub(refl_v3_scale(a->first, 2.0f), b->first);
+                hits[m].object = -1;
+                valid[m] = 2;
+                break;
             }
         }
     for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
@@ -10715,7 +10982,8 @@ static void refl__sb_build_group(void *arg, int g) {
                 hits[k] = sd->hits[m];
                 valid[k] = 1;
             }
-        refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
+        if (sd->layer) refl__sb_ring_linear(mw, mh, rays, hits, valid);
+        else refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
         for (k = 0; k < n; ++k) {
             if (!valid[k]) continue;
             if (!count++) gr->lo = gr->hi = rays[k].tail;
@@ -10766,28 +11034,37 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
-    int k, u, w;
+    int k, u, w, landed;
     size_t at;
     v->ok = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
     if (!refl_sbc_project(g->sbc, v->world, &f, &z)) return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
-    v->first = f;
+    v->first = v->from = f;
     v->dist = refl_v3_length(refl_v3_sub(v->world, f));
-    wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
-    v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
     if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
-    /* ahead along the reflected ray of the sample it lands on: a leaf's
-       frustum starts at an image plane fitted to the tails, so it can reach
-       just behind a curved mirror, where nothing is reflected */
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
-    if (sd->valid[at] && sd->group[at] == (int)(g - sb->groups) &&
-        !(refl_v3_dot(refl_v3_sub(v->world, f), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
+    landed = sd->valid[at] && sd->group[at] == (int)(g - sb->groups);
+    if (sd->layer) {
+        /* beyond the first order the ray leaves the last reflector, not the
+           first: z from there (the sample it lands on), else the leaf's */
+        if (landed) v->from = sd->rays[at].tail;
+        v->dist = landed ? refl_v3_length(refl_v3_sub(v->world, v->from)) : z;
+    }
+    /* the visibility offset (k - 1 + z / D) g, g = D / k_max (window depth
+       over [0, D): lower orders in front; k_max = 1: z / D) */
+    wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
+    if (sb->orders > 1) wd = ((float)(sd->order - 1) + wd) / (float)sb->orders;
+    v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
+    /* ahead along the reflected ray of the sample it lands on: a leaf's
+       frustum starts at an image plane fitted to the tails, so it can reach
+       just behind a curved mirror, where nothing is reflected */
+    if (landed && !(refl_v3_dot(refl_v3_sub(v->world, v->from), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
         return;
     v->ok = 1;
 }
@@ -10835,8 +11112,9 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
 
 /* Whether a reflector's triangle, projected into a group of its own, is
    the surface the group's rays leave rather than a part of the reflector
-   they meet (the knob seen in the lid): it faces away from every vertex's
-   first reflector point, or lies nearer one than a fraction of its edge. */
+   they meet (the knob seen in the lid): it faces away from the point
+   every vertex's ray leaves (`from`), or lies nearer one than a fraction
+   of its edge. */
 static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge) {
     const refl__sb_pv *v[3];
     refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
@@ -10846,7 +11124,7 @@ static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, cons
     if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
     if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
     for (k = 0; k < 3; ++k)
-        if (refl_v3_dot(refl_v3_sub(v[k]->first, v[k]->world), n) > 0.0f) return 0;
+        if (refl_v3_dot(refl_v3_sub(v[k]->from, v[k]->world), n) > 0.0f) return 0;
     return 1;
 }
 
@@ -10986,31 +11264,46 @@ static void refl__sb_emit_job(void *arg, int index) {
    points, each with its own depth buffer (the batch draws both passes). */
 static rast_targets refl__sb_targets(const refl__sb *sb, int pass) {
     const refl_frame *fr = sb->p->frame;
+    int refr = sb->layer >= sb->orders; /* the refraction layer draws apart */
     rast_targets t;
     memset(&t, 0, sizeof t);
     t.color.width = t.depth.width = t.stencil.width = fr->width;
     t.color.height = t.depth.height = t.stencil.height = fr->height;
-    t.depth.ptr = pass ? sb->points_depth : sb->depth;
+    t.depth.ptr = refr ? (pass ? sb->refr_points_depth : sb->refr_depth) : pass ? sb->points_depth : sb->depth;
     t.depth.stride = (int)sizeof(float) * fr->width;
     t.stencil.ptr = sb->stencil;
     t.stencil.stride = fr->width;
-    t.color.ptr = pass ? (void *)sb->points : (void *)sb->color;
+    t.color.ptr = refr ? (pass ? (void *)sb->refr_points : (void *)sb->refr_color)
+                       : pass ? (void *)sb->points : (void *)sb->color;
     t.color.stride = pass ? 4 * (int)sizeof(float) * fr->width : 4 * fr->width;
     t.color_format = pass ? RAST_COLOR_RGBA32F : RAST_COLOR_RGBA8;
     return t;
 }
 
-/* Clears both passes' colour and depth, once before the batches. */
+/* Clears both passes' colour and depth, once before the batches (the
+   refraction layer's too, when there is one). */
 static refl_result refl__sb_clear(refl__sb *sb) {
     rast_result rr = RAST_OK;
     int pass;
-    for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
-        rast_targets t = refl__sb_targets(sb, pass);
+    for (pass = 0; pass < (sb->layers > sb->orders ? 4 : 2) && rr == RAST_OK; ++pass) {
+        rast_targets t;
+        sb->layer = pass < 2 ? 0 : sb->orders;
+        t = refl__sb_targets(sb, pass & 1);
         if ((rr = rast_set_targets(sb->p->rc, &t)) == RAST_OK)
             rr = refl__em_clear(sb->p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH);
     }
     if (rr == RAST_OK) rr = rast_finish(sb->p->rc);
     return refl__result_from_rast(rr);
+}
+
+/* After the groups of order k < k_max: where a mirror or glass (drawn
+   transparent black, alpha 0) is nearest, the reflection goes on there, so
+   the order k + 1 draws may (they lie behind every order-k point, by the
+   visibility offset); the mirror hid the order-k points behind it. */
+static void refl__sb_pass_through(refl__sb *sb) {
+    size_t k, npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    for (k = 0; k < npx; ++k)
+        if (sb->depth[k] < 1.0f && sb->color[4 * k + 3] == 0) sb->depth[k] = sb->points_depth[k] = 1.0f;
 }
 
 /* Draws the batch's jobs into the scratch targets: colour, then the points
@@ -11027,7 +11320,7 @@ static refl_result refl__sb_draw(refl__sb *sb) {
     if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count; ++i) refl__draw_ctx_init(&dc[i], scene, i, p->vp);
     for (k = 0; k < npx; ++k) {
-        int g = sb->group_of[k] - 1;
+        int g = sb->group_of[(size_t)sb->layer * npx + k] - 1;
         sb->stencil[k] = (uint8_t)(g >= sb->batch0 && g < sb->batch1 ? g - sb->batch0 + 1 : 0);
     }
     for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
@@ -11102,6 +11395,271 @@ static void refl__sb_resolve_row(void *arg, int y) {
     }
 }
 
+/* Pixel k's group in side sdk, whose samples are samples of sd, the
+   side the pixel shows (sdk == sd in the first layer): that of the nearest
+   sample on the pixel's own smooth piece of surface, else of the sample
+   nearby whose point lies nearest the pixel's; -1: none. */
+static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_side *sd, const refl__sb_side *sdk) {
+    const refl_frame *fr = sb->p->frame;
+    int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width), du, dv, best = -1, near = -1, u, v;
+    float best_d2 = INFINITY, near_d2 = INFINITY;
+    refl_vec3 q = refl_v3(sb->em.surface[3 * k], sb->em.surface[3 * k + 1], sb->em.surface[3 * k + 2]);
+    refl_vec3 n = refl_v3_normalize(refl_v3(sb->em.gbuf[4 * k], sb->em.gbuf[4 * k + 1], sb->em.gbuf[4 * k + 2]));
+    u = x / sb->factor;
+    v = y / sb->factor;
+    for (dv = -2; dv <= 2; ++dv)
+        for (du = -2; du <= 2; ++du) {
+            int us = u + du, vs = v + dv, sx, sy;
+            size_t m;
+            refl_vec3 e;
+            float d2, l, p2;
+            if (us < 0 || vs < 0 || us >= sb->map_w || vs >= sb->map_h) continue;
+            m = (size_t)vs * (size_t)sb->map_w + (size_t)us;
+            if (!sdk->valid[m]) continue;
+            e = refl_v3_sub(sd->rays[m].tail, q);
+            d2 = refl_v3_dot(e, e);
+            l = sqrtf(d2);
+            if (d2 < near_d2) {
+                near_d2 = d2;
+                near = sdk->group[m];
+            }
+            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SB_SMOOTH_COS ||
+                fabsf(refl_v3_dot(n, e)) > REFL__SB_SMOOTH_SIN * l ||
+                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SB_SMOOTH_SIN * l)
+                continue;
+            refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
+            p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
+            if (p2 < best_d2) {
+                best_d2 = p2;
+                best = sdk->group[m];
+            }
+        }
+    return best >= 0 ? best : near;
+}
+
+/* The side of history `parent` followed by side id `id` (kind 0) or
+   refracted through parent's glass (kind 1); -1: none sampled. */
+static int refl__sb_find_side(const refl__sb *sb, int parent, float id, int kind) {
+    int i;
+    for (i = parent + 1; i < sb->side_count; ++i) /* a child comes after its parent */
+        if (sb->sides[i].parent == parent && sb->sides[i].kind == kind && (kind || sb->sides[i].id == id)) return i;
+    return -1;
+}
+
+/* Row y's pixels' groups in the layers past the first: each pixel's own
+   history traced (refl__sb_trace_path), each order's side found, and the
+   pixel's group there (refl__sb_pixel_group). */
+static void refl__sb_assign_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_frame *fr = sb->p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    int x, k, l;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        int side = sb->group_of[i] ? sb->groups[sb->group_of[i] - 1].side : -1, s;
+        refl_vec3 d, q, n;
+        refl__sb_path pa;
+        refl__sb_refr rp;
+        for (l = 1; l < sb->layers; ++l) sb->group_of[(size_t)l * npx + i] = 0;
+        if (side < 0) continue;
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
+        for (s = side, k = 1; k < pa.count && s >= 0; ++k)
+            if ((s = refl__sb_find_side(sb, s, pa.id[k], 0)) >= 0)
+                sb->group_of[(size_t)k * npx + i] = refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
+        if (sb->layers > sb->orders && (s = refl__sb_find_side(sb, side, 0.0f, 1)) >= 0 &&
+            refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp))
+            sb->group_of[(size_t)sb->orders * npx + i] =
+                refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
+    }
+}
+
+/* Sample rows [v, v + 1)'s histories: the side ids of their paths into
+   sb->sample_id, and whether their glass refracts them out. */
+static void refl__sb_sample_row(void *arg, int v) {
+    refl__sb *sb = (refl__sb *)arg;
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h;
+    int u, k;
+    for (u = 0; u < sb->map_w; ++u) {
+        size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, i;
+        int x, y;
+        refl_vec3 d, q, n;
+        refl__sb_path pa;
+        refl__sb_refr rp;
+        for (k = 0; k < sb->budget; ++k) sb->sample_id[(size_t)k * count + m] = 0.0f;
+        sb->sample_refr[m] = 0;
+        if (sb->sample_side[m] < 0) continue;
+        refl__sb_sample_pixel(sb, u, v, &x, &y);
+        i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
+        for (k = 0; k < pa.count; ++k) sb->sample_id[(size_t)k * count + m] = pa.id[k];
+        sb->sample_refr[m] = (uint8_t)refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp);
+    }
+}
+
+/* The higher layers' sides (the paper's reflection groups AB, ABA, ...
+   and refractions through glass): every sample's history traced through
+   the mirrors and glass alone, one side per history sampled (at most
+   REFL__SB_HISTORIES; in sample order, so the same for any thread
+   count), then their ray maps and pieces, a layer at a time (a piece lies
+   within its parent's). */
+static refl_result refl__sb_histories(refl__sb *sb) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
+    refl_scene sub;
+    refl_object *objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    refl_result r = REFL_OK;
+    int i, n = 0, k, first, longest = 1, refr = 0, cap = sb->side_count + REFL__SB_HISTORIES;
+    sb->mirror_object = (int *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    sb->normal_m = (refl_mat4 *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_mat4));
+    sb->sample_id = (float *)refl__calloc(al, (size_t)sb->budget * count, sizeof(float));
+    sb->sample_refr = (uint8_t *)refl__calloc(al, count, 1);
+    sb->sample_side = (int *)refl__calloc(al, (size_t)(sb->budget + 1) * count, sizeof(int));
+    if (!objs || !sb->mirror_object || !sb->normal_m || !sb->sample_id || !sb->sample_refr || !sb->sample_side) {
+        refl__free(al, objs);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i) {
+        refl_mat4 inv, xf = scene->objects[i].transform;
+        sb->normal_m[i] = refl_mat4_invert(xf, &inv) ? refl_mat4_transpose(inv) : xf;
+        if (!refl__sb_goes_on(&scene->materials[scene->objects[i].material])) continue;
+        sb->mirror_object[n] = i;
+        objs[n++] = scene->objects[i];
+    }
+    sub = *scene;
+    sub.objects = objs;
+    sub.object_count = n;
+    if (n) r = refl_bvh_build(&sub, al, &sb->mirrors);
+    refl__free(al, objs);
+    if (r != REFL_OK || !n) return r;
+    /* every sample's first side, then its history */
+    for (m = 0; m < (size_t)(sb->budget + 1) * count; ++m) sb->sample_side[m] = -1;
+    for (i = 0; i < sb->side_count; ++i)
+        for (m = 0; m < count; ++m)
+            if (sb->sides[i].valid[m]) sb->sample_side[m] = i;
+    sb->orders = sb->budget;
+    rast_run_jobs(sb->p->rc, sb->map_h, refl__sb_sample_row, sb);
+    for (k = 1; k < sb->budget; ++k)
+        for (m = 0; m < count; ++m) {
+            int parent = sb->sample_side[(size_t)(k - 1) * count + m], s;
+            float id = sb->sample_id[(size_t)k * count + m];
+            if (parent < 0 || id == 0.0f) continue;
+            if ((s = refl__sb_find_side(sb, parent, id, 0)) < 0 && sb->side_count < cap) {
+                refl__sb_side *sd = &sb->sides[s = sb->side_count++];
+                sd->object = (int)fabsf(id) - 1;
+                sd->id = id;
+                sd->order = k + 1;
+                sd->layer = k;
+                sd->parent = parent;
+            }
+            sb->sample_side[(size_t)k * count + m] = s;
+            if (s >= 0) longest = k + 1;
+        }
+    /* the refractions' layer follows the longest history's */
+    sb->orders = longest;
+    for (m = 0; m < count; ++m) {
+        int parent = sb->sample_side[m], s;
+        if (!sb->sample_refr[m] || parent < 0) continue;
+        if ((s = refl__sb_find_side(sb, parent, 0.0f, 1)) < 0 && sb->side_count < cap) {
+            refl__sb_side *sd = &sb->sides[s = sb->side_count++];
+            sd->object = sb->sides[parent].object;
+            sd->id = sb->sides[parent].id;
+            sd->order = 1;
+            sd->layer = longest;
+            sd->parent = parent;
+            sd->kind = 1;
+        }
+        sb->sample_side[(size_t)longest * count + m] = s;
+        refr |= s >= 0;
+    }
+    sb->layers = longest + refr;
+    for (k = 1; k < sb->layers; ++k) {
+        for (first = 0; first < sb->side_count && sb->sides[first].layer != k; ++first) {}
+        for (n = first; n < sb->side_count && sb->sides[n].layer == k; ++n) {}
+        sb->map_first = first;
+        rast_run_jobs(sb->p->rc, n - first, refl__sb_map_side, sb);
+        for (i = first; i < n; ++i)
+            if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
+                !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
+                return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    return REFL_OK;
+}
+
+/* refl__sb_resolve_row past the first order: a pixel's reflected colour
+   is the nearest order's drawn colour (its order read off the visibility
+   offset) times the reflectances along the pixel's own history to that
+   order, or the environment along its last reflected ray times them all;
+   glass adds what its refraction layer drew (else the environment beyond
+   the glass) times (1 - F) tint at the entry and the refraction path's
+   weight. The point shown: the first past the first reflector, as RAYTRACE
+   records it (the second reflector's surface on an order-2 path), or with
+   desc.points_last the last one drawn (NaN where none). */
+static void refl__sb_resolve_row_deep(void *arg, int y) {
+    const refl__sb *sb = (const refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    int x, c, last = p->desc.points_last;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = sb->em.gbuf + 4 * i;
+        int object = (int)fabsf(g[3]) - 1, k;
+        const refl_material *m;
+        float rgb[3], sub[3], w;
+        refl_vec3 d, q, n, shown = refl_v3(NAN, NAN, NAN), t;
+        refl__sb_path pa;
+        if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
+        m = &scene->materials[scene->objects[object].material];
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        refl__sb_trace_path(sb, q, n, d, g[3], &pa);
+        if (sb->group_of[i] && sb->depth[i] < 1.0f) {
+            const float *pt = sb->points + 4 * i;
+            k = REFL__CLAMP((int)(sb->depth[i] * (float)sb->orders), 0, pa.count - 1);
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * i + (size_t)c] * (1.0f / 255.0f);
+            shown = refl_v3(pt[0], pt[1], pt[2]);
+        } else {
+            k = pa.count - 1;
+            refl_environment_lookup(&scene->environment, pa.out, sub);
+            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        }
+        if (!last && pa.count > 1 && (k > 0 || !(shown.x == shown.x))) shown = pa.q[1];
+        w = pa.weight[k];
+        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+        if (m->type == REFL_GLASS) {
+            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3], f = pa.weight[0], tw = 1.0f;
+            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+            refl_vec3 tshown = refl_v3(NAN, NAN, NAN);
+            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+                refl__sb_refr rp;
+                if (sb->layers <= sb->orders) { /* no refraction sampled: refracted once, as ENVMAP */
+                    refl_environment_lookup(&scene->environment, t, tsub);
+                } else if (!refl__sb_refract_path(sb, q, n, d, g[3], &rp)) {
+                    tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
+                } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr_depth[i] < 1.0f) {
+                    const float *pt = sb->refr_points + 4 * i;
+                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr_color[4 * i + (size_t)c] * (1.0f / 255.0f);
+                    tshown = refl_v3(pt[0], pt[1], pt[2]);
+                    tw = rp.weight;
+                } else {
+                    refl_environment_lookup(&scene->environment, rp.out, tsub);
+                    tw = rp.weight;
+                }
+                for (c = 0; c < 3; ++c)
+                    rgb[c] += (1.0f - f) * (tinted ? m->tint[c] : 1.0f) * tw * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                if (f < 0.5f) shown = tshown;
+            } else {
+                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+            }
+        }
+        refl__em_put(fr, i, rgb, shown);
+    }
+}
+
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
    sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
@@ -11119,7 +11677,8 @@ static refl_result refl__sb_groups(refl__sb *sb) {
         int o = (int)fabsf(id) - 1;
         if (o >= 0 && o < scene->object_count) sides[o] |= (uint8_t)(id > 0.0f ? 1 : 2);
     }
-    sb->sides = (refl__sb_side *)refl__calloc(al, 2 * (size_t)scene->object_count, sizeof(refl__sb_side));
+    sb->sides = (refl__sb_side *)refl__calloc(al, 2 * (size_t)scene->object_count + REFL__SB_HISTORIES,
+                                              sizeof(refl__sb_side));
     if (!sb->sides) {
         refl__free(al, sides);
         return REFL_ERROR_OUT_OF_MEMORY;
@@ -11130,13 +11689,20 @@ static refl_result refl__sb_groups(refl__sb *sb) {
                 refl__sb_side *sd = &sb->sides[sb->side_count++];
                 sd->object = i;
                 sd->id = side ? -(float)(i + 1) : (float)(i + 1);
+                sd->order = 1;
+                sd->parent = -1;
             }
     refl__free(al, sides);
+    sb->map_first = 0;
     rast_run_jobs(sb->p->rc, sb->side_count, refl__sb_map_side, sb);
     for (i = 0; i < sb->side_count; ++i)
         if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
             !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
             return REFL_ERROR_OUT_OF_MEMORY;
+    if (sb->budget > 1) {
+        refl_result r = refl__sb_histories(sb);
+        if (r != REFL_OK) return r;
+    }
     /* count the groups (a tile's pieces), doubling the tile until they
        fit a batch (fewer groups, fewer projections) or the tile reaches
        REFL__SB_TILE_MAX (more batches then); then list them, each sample
@@ -11189,52 +11755,18 @@ static refl_result refl__sb_groups(refl__sb *sb) {
         if (pass == 2) break;
     }
     refl__free(al, seen);
-    /* each pixel's group: that of the nearest sample on the pixel's own
-       smooth piece of surface, else of the sample nearby whose point lies
-       nearest the pixel's */
+    sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
+    if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
+    /* each pixel's group in the first layer; the others' by rows */
     for (k = 0; k < npx; ++k) {
         float id = sb->em.gbuf[4 * k + 3];
-        int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width), du, dv, best = -1, near = -1;
-        float best_d2 = INFINITY, near_d2 = INFINITY;
-        refl_vec3 q = refl_v3(sb->em.surface[3 * k], sb->em.surface[3 * k + 1], sb->em.surface[3 * k + 2]);
-        refl_vec3 n = refl_v3_normalize(refl_v3(sb->em.gbuf[4 * k], sb->em.gbuf[4 * k + 1], sb->em.gbuf[4 * k + 2]));
         const refl__sb_side *sd = NULL;
         sb->group_of[k] = 0;
-        for (i = 0; id != 0.0f && i < sb->side_count; ++i)
+        for (i = 0; id != 0.0f && i < sb->side_count && sb->sides[i].order == 1 && !sb->sides[i].kind; ++i)
             if (sb->sides[i].id == id) sd = &sb->sides[i];
-        if (!sd) continue;
-        u = x / sb->factor;
-        v = y / sb->factor;
-        for (dv = -2; dv <= 2; ++dv)
-            for (du = -2; du <= 2; ++du) {
-                int us = u + du, vs = v + dv, sx, sy;
-                size_t m;
-                refl_vec3 e;
-                float d2, l, p2;
-                if (us < 0 || vs < 0 || us >= sb->map_w || vs >= sb->map_h) continue;
-                m = (size_t)vs * (size_t)sb->map_w + (size_t)us;
-                if (!sd->valid[m]) continue;
-                e = refl_v3_sub(sd->rays[m].tail, q);
-                d2 = refl_v3_dot(e, e);
-                l = sqrtf(d2);
-                if (d2 < near_d2) {
-                    near_d2 = d2;
-                    near = sd->group[m];
-                }
-                if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SB_SMOOTH_COS ||
-                    fabsf(refl_v3_dot(n, e)) > REFL__SB_SMOOTH_SIN * l ||
-                    fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SB_SMOOTH_SIN * l)
-                    continue;
-                refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
-                p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
-                if (p2 < best_d2) {
-                    best_d2 = p2;
-                    best = sd->group[m];
-                }
-            }
-        if (best < 0) best = near;
-        if (best >= 0) sb->group_of[k] = best + 1;
+        if (sd) sb->group_of[k] = refl__sb_pixel_group(sb, k, sd, sd) + 1;
     }
+    if (sb->layers > 1) rast_run_jobs(sb->p->rc, fr->height, refl__sb_assign_row, sb);
     return REFL_OK;
 }
 
@@ -11300,6 +11832,16 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->sides);
     refl__sb_free_batch(sb);
     refl_bvh_destroy(sb->bvh);
+    refl_bvh_destroy(sb->mirrors);
+    refl__free(al, sb->mirror_object);
+    refl__free(al, sb->normal_m);
+    refl__free(al, sb->sample_id);
+    refl__free(al, sb->sample_refr);
+    refl__free(al, sb->sample_side);
+    refl__free(al, sb->refr_color);
+    refl__free(al, sb->refr_depth);
+    refl__free(al, sb->refr_points);
+    refl__free(al, sb->refr_points_depth);
     refl__free(al, sb->groups);
     refl__free(al, sb->em.gbuf);
     refl__free(al, sb->em.draws);
@@ -11328,6 +11870,8 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
     sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
     sb->batch = p->desc.sbc_batch_groups > 0 ? p->desc.sbc_batch_groups : REFL__SB_BATCH;
+    sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
+    sb->orders = sb->layers = 1;
     refl_scene_bounds(p->scene, &lo, &hi);
     grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.01f);
     grow = refl_v3_add(grow, refl_v3(1e-4f, 1e-4f, 1e-4f));
@@ -11339,8 +11883,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (r != REFL_OK || !any) return r;
     if ((r = refl_bvh_build(p->scene, al, &sb->bvh)) != REFL_OK) return r;
     sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-    sb->group_of = (int *)refl__calloc(al, npx, sizeof(int));
-    if (!sb->em.surface || !sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
+    if (!sb->em.surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
     for (g = 0; p->desc.sbc_ray_map && g < sb->side_count; ++g)
@@ -11376,11 +11919,24 @@ static refl_result refl__method_sbc(refl__pass *p) {
         sb.points_depth = (float *)refl__calloc(al, npx, sizeof(float));
         sb.stencil = (uint8_t *)refl__calloc(al, npx, 1);
         if (!sb.color || !sb.depth || !sb.points || !sb.points_depth || !sb.stencil) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK && sb.layers > sb.orders) {
+            sb.refr_color = (uint8_t *)refl__calloc(al, npx, 4);
+            sb.refr_depth = (float *)refl__calloc(al, npx, sizeof(float));
+            sb.refr_points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+            sb.refr_points_depth = (float *)refl__calloc(al, npx, sizeof(float));
+            if (!sb.refr_color || !sb.refr_depth || !sb.refr_points || !sb.refr_points_depth)
+                r = REFL_ERROR_OUT_OF_MEMORY;
+        }
         if (r == REFL_OK) r = refl__sb_clear(&sb);
-        /* groups in batches of the stencil's values; a group's pixels are
-           its own, so the batches' depth tests never meet */
+        /* groups in batches of the stencil's values, each within one layer
+           (the sides, so the groups, come layer by layer); a group's pixels
+           are its own in its layer, so a layer's batches' depth tests never
+           meet, and the orders meet by the visibility offset */
         for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
-            sb.batch1 = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
+            int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
+            sb.layer = sb.sides[sb.groups[sb.batch0].side].layer;
+            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && sb.sides[sb.groups[sb.batch1].side].layer == sb.layer;)
+                ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
                 fr->stats.projections += sb.jobs[i].projections;
@@ -11388,10 +11944,14 @@ static refl_result refl__method_sbc(refl__pass *p) {
             }
             if (r == REFL_OK) r = refl__sb_draw(&sb);
             refl__sb_free_batch(&sb);
+            if (r == REFL_OK && sb.layer + 1 < sb.orders &&
+                (sb.batch1 == sb.group_count || sb.sides[sb.groups[sb.batch1].side].layer != sb.layer))
+                refl__sb_pass_through(&sb);
         }
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
-        if (r == REFL_OK) rast_run_jobs(p->rc, fr->height, refl__sb_resolve_row, &sb);
+        if (r == REFL_OK)
+            rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
         fr->stats.ms_composite += refl__now_ms() - t0;
     }
     if (r == REFL_OK) {

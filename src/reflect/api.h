@@ -674,6 +674,11 @@ typedef struct refl_render_desc {
     void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
                         int map_height);
     void *sbc_ray_map_user;
+    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
+                                the last point along its path (past every mirror, the
+                                stronger branch at glass as for the first; NaN where the
+                                path ends in the environment) instead of the first: how
+                                higher-order reflections are measured. Other methods: ignored */
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;

@@ -335,6 +335,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
+        if (first_point && rt->p->desc.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
@@ -342,7 +343,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;
-        first_point = NULL;
+        if (!rt->p->desc.points_last) first_point = NULL; /* else followed to the path's end */
     }
     if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
         fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
