@@ -582,6 +582,9 @@ typedef struct refl_stats {
                                    and splatting, summed over threads */
     long long model_bytes;
     int reflectors;          /* reflector objects on screen */
+    int histories;           /* SBC: reflection histories sampled (paper 003's A, B, AB, BA,
+                                ...; a refraction through glass counts as one) */
+    int groups;              /* SBC: reflection groups (a history's pieces within tiles) */
 } refl_stats;
 
 typedef struct refl_frame {

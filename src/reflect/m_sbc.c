@@ -239,8 +239,9 @@ static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, ref
 }
 
 /* A hit's point (barycentric, as RAYTRACE reads it), geometric and
-   shading normals (unit, as the mesh winds and interpolates them). */
-static void refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
+   shading normals (unit, as the mesh winds and interpolates them); the
+   triangle's longest edge. */
+static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
     const refl_scene *scene = sb->p->scene;
     const refl_object *o = &scene->objects[h->object];
     const refl_mesh *m = scene->meshes[o->mesh];
@@ -260,6 +261,8 @@ static void refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p
     *ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
     *ns = refl_v3_normalize(refl_mat4_dir(sb->normal_m[h->object], n));
     if (refl_v3_dot(*ns, *ns) == 0.0f) *ns = *ng;
+    return REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
+                     REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
 }
 
 /* A pixel's reflection history: per order k (index k - 1) the side it
@@ -294,15 +297,21 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
     for (k = 1; k < sb->orders; ++k) {
         refl_hit h;
         refl_vec3 p, ng, ns, rd;
+        float edge;
         int front;
         if (!refl__sb_mirror_hit(sb, pa->q[k - 1], r, &h)) break;
-        refl__sb_surface(sb, &h, &p, &ng, &ns);
+        edge = refl__sb_surface(sb, &h, &p, &ng, &ns);
         front = refl_v3_dot(r, ng) < 0.0f;
         if (!front) {
             ng = refl_v3_scale(ng, -1.0f);
             ns = refl_v3_scale(ns, -1.0f);
         }
         if (refl_v3_dot(r, ns) > 0.0f) ns = ng;
+        /* into its own reflector's other side, or its own facets within an
+           edge: a shading normal sent it (nearly) along the surface or below
+           its facet (RAYTRACE then reflects about the facet, which the
+           G-buffer does not hold), not a reflection seen */
+        if (h.object + 1 == (int)fabsf(pa->id[k - 1]) && (front != (pa->id[k - 1] > 0.0f) || h.t < edge)) break;
         pa->id[k] = front ? (float)(h.object + 1) : -(float)(h.object + 1);
         pa->q[k] = p;
         pa->n[k] = ns;
@@ -934,6 +943,9 @@ static void refl__sb_emit_job(void *arg, int index) {
     int lo = 0, hi = g->hit_count, tr;
     refl__sb_tri t;
     t.self = g->object == j->object;
+    /* a refraction's own glass: the rays have left it (a lens cannot see
+       itself; a concave glass seeing itself beyond its exit is left out) */
+    if (t.self && sb->sides[g->side].kind) return;
     /* the group's hits on this job's triangles start at the first not before (object, first) */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
@@ -1273,6 +1285,7 @@ static refl_result refl__sb_histories(refl__sb *sb) {
         refr |= s >= 0;
     }
     sb->layers = longest + refr;
+    if (getenv("SBC_SIDES")) for (i = 0; i < sb->side_count; ++i) fprintf(stderr, "side %d id %g order %d layer %d parent %d kind %d\n", i, sb->sides[i].id, sb->sides[i].order, sb->sides[i].layer, sb->sides[i].parent, sb->sides[i].kind); /* DEBUG */
     for (k = 1; k < sb->layers; ++k) {
         for (first = 0; first < sb->side_count && sb->sides[first].layer != k; ++first) {}
         for (n = first; n < sb->side_count && sb->sides[n].layer == k; ++n) {}
@@ -1584,7 +1597,9 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (!sb->em.surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
-    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count; ++g)
+    p->frame->stats.histories += sb->side_count;
+    p->frame->stats.groups += sb->group_count;
+    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
         p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
@@ -1651,6 +1666,20 @@ static refl_result refl__method_sbc(refl__pass *p) {
         if (r == REFL_OK)
             rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
         fr->stats.ms_composite += refl__now_ms() - t0;
+        if (getenv("SBC_SIDES") && sb.layers > sb.orders) { /* DEBUG */
+            size_t k; long a = 0, b = 0, c = 0, dd = 0, e = 0;
+            for (k = 0; k < npx; ++k) {
+                refl_vec3 d, q, n; refl__sb_refr rp;
+                if (sb.em.gbuf[4 * k + 3] == 0.0f) continue;
+                ++a;
+                refl__sb_pixel_view(&sb, k, &d, &q, &n);
+                if (!refl__sb_refract_path(&sb, q, n, d, sb.em.gbuf[4 * k + 3], &rp)) { ++b; continue; }
+                if (!sb.group_of[(size_t)sb.orders * npx + k]) { ++c; continue; }
+                if (sb.refr_depth[k] >= 1.0f) { ++dd; continue; }
+                if (sb.refr_color[4 * k + 3] == 0) ++e;
+            }
+            fprintf(stderr, "lens px %ld no path %ld no group %ld nothing drawn %ld black %ld\n", a, b, c, dd, e);
+        }
     }
     if (r == REFL_OK) {
         rast_targets t = refl__frame_targets(fr);
