@@ -334,7 +334,9 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
    beyond; normal: the exit's, facing out; weight: what RAYTRACE's
    refracted branch keeps past the entry's (1 - F) and tint: (1 - F) at
    the exit times the absorption inside. Its partial reflections inside
-   are left out. 0: no such path. */
+   are left out. 1: such a path; 0: still inside when the budget runs out
+   (RAYTRACE's black); -1: it leaves without meeting its glass again (a
+   silhouette pixel whose point lies just off the glass). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
     float weight;
@@ -356,7 +358,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
     for (b = 1; b < sb->budget; ++b) {
         refl_hit h;
         refl_vec3 p, ng, ns, t2, rd;
-        if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return 0;
+        if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
         refl__sb_surface(sb, &h, &p, &ng, &ns);
         /* as RAYTRACE: the normals turned against the ray */
         if (!(refl_v3_dot(t, ng) < 0.0f)) {
@@ -439,7 +441,7 @@ static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int s
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         if (sd->kind) {
             refl__sb_refr rp;
-            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp)) {
+            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp) == 1) {
                 ok = refl__sb_ray_dir(sb, rp.tail, rp.out, &sd->rays[m], &sd->hits[m]);
                 sd->normals[m] = rp.normal;
             }
@@ -759,9 +761,11 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     landed = sd->valid[at] && sd->group[at] == (int)(g - sb->groups);
     if (sd->layer) {
         /* beyond the first order the ray leaves the last reflector, not the
-           first: z from there (the sample it lands on), else the leaf's */
-        if (landed) v->from = sd->rays[at].tail;
-        v->dist = landed ? refl_v3_length(refl_v3_sub(v->world, v->from)) : z;
+           first: z from there (the sample of the history it lands on; one
+           measure for all, or surfaces close behind each other fight),
+           else the leaf's */
+        if (sd->valid[at]) v->from = sd->rays[at].tail;
+        v->dist = sd->valid[at] ? refl_v3_length(refl_v3_sub(v->world, v->from)) : z;
     }
     /* the visibility offset (k - 1 + z / D) g, g = D / k_max (window depth
        over [0, D): lower orders in front; k_max = 1: z / D) */
@@ -1178,7 +1182,7 @@ static void refl__sb_assign_row(void *arg, int y) {
             if ((s = refl__sb_find_side(sb, s, pa.id[k], 0)) >= 0)
                 sb->group_of[(size_t)k * npx + i] = refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
         if (sb->layers > sb->orders && (s = refl__sb_find_side(sb, side, 0.0f, 1)) >= 0 &&
-            refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp))
+            refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp) == 1)
             sb->group_of[(size_t)sb->orders * npx + i] =
                 refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
     }
@@ -1204,7 +1208,7 @@ static void refl__sb_sample_row(void *arg, int v) {
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
         for (k = 0; k < pa.count; ++k) sb->sample_id[(size_t)k * count + m] = pa.id[k];
-        sb->sample_refr[m] = (uint8_t)refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp);
+        sb->sample_refr[m] = (uint8_t)(refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp) == 1);
     }
 }
 
@@ -1347,9 +1351,10 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
             refl_vec3 tshown = refl_v3(NAN, NAN, NAN);
             if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
                 refl__sb_refr rp;
-                if (sb->layers <= sb->orders) { /* no refraction sampled: refracted once, as ENVMAP */
+                int through = sb->layers > sb->orders ? refl__sb_refract_path(sb, q, n, d, g[3], &rp) : -1;
+                if (through < 0) { /* no refraction sampled, or off the glass: refracted once, as ENVMAP */
                     refl_environment_lookup(&scene->environment, t, tsub);
-                } else if (!refl__sb_refract_path(sb, q, n, d, g[3], &rp)) {
+                } else if (!through) {
                     tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
                 } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr_depth[i] < 1.0f) {
                     const float *pt = sb->refr_points + 4 * i;
@@ -1666,6 +1671,16 @@ static refl_result refl__method_sbc(refl__pass *p) {
         if (r == REFL_OK)
             rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
         fr->stats.ms_composite += refl__now_ms() - t0;
+        if (getenv("SBC_SIDES") && sb.orders > 1) { /* DEBUG */
+            size_t k; long a = 0, b = 0, c = 0;
+            for (k = 0; k < npx; ++k) {
+                if (!sb.group_of[npx + k]) continue;
+                ++a;
+                if (sb.depth[k] >= 0.5f && sb.depth[k] < 1.0f) ++b;
+                if (sb.depth[k] < 0.5f) ++c;
+            }
+            fprintf(stderr, "AB px %ld order2 wins %ld order1 wins %ld\n", a, b, c);
+        }
         if (getenv("SBC_SIDES") && sb.layers > sb.orders) { /* DEBUG */
             size_t k; long a = 0, b = 0, c = 0, dd = 0, e = 0;
             for (k = 0; k < npx; ++k) {
@@ -1673,7 +1688,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
                 if (sb.em.gbuf[4 * k + 3] == 0.0f) continue;
                 ++a;
                 refl__sb_pixel_view(&sb, k, &d, &q, &n);
-                if (!refl__sb_refract_path(&sb, q, n, d, sb.em.gbuf[4 * k + 3], &rp)) { ++b; continue; }
+                if (refl__sb_refract_path(&sb, q, n, d, sb.em.gbuf[4 * k + 3], &rp) != 1) { ++b; continue; }
                 if (!sb.group_of[(size_t)sb.orders * npx + k]) { ++c; continue; }
                 if (sb.refr_depth[k] >= 1.0f) { ++dd; continue; }
                 if (sb.refr_color[4 * k + 3] == 0) ++e;
