@@ -790,8 +790,6 @@ REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene,
 #include <string.h>
 #include <float.h>
 #include <limits.h>
-#include <stdio.h> /* DEBUG */
-#include <stdlib.h> /* DEBUG */
 
 #ifndef REFL_ASSERT
 #include <assert.h>
@@ -11596,7 +11594,6 @@ static refl_result refl__sb_histories(refl__sb *sb) {
         refr |= s >= 0;
     }
     sb->layers = longest + refr;
-    if (getenv("SBC_SIDES")) for (i = 0; i < sb->side_count; ++i) fprintf(stderr, "side %d id %g order %d layer %d parent %d kind %d\n", i, sb->sides[i].id, sb->sides[i].order, sb->sides[i].layer, sb->sides[i].parent, sb->sides[i].kind); /* DEBUG */
     for (k = 1; k < sb->layers; ++k) {
         for (first = 0; first < sb->side_count && sb->sides[first].layer != k; ++first) {}
         for (n = first; n < sb->side_count && sb->sides[n].layer == k; ++n) {}
@@ -11978,30 +11975,6 @@ static refl_result refl__method_sbc(refl__pass *p) {
         if (r == REFL_OK)
             rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
         fr->stats.ms_composite += refl__now_ms() - t0;
-        if (getenv("SBC_SIDES") && sb.orders > 1) { /* DEBUG */
-            size_t k; long a = 0, b = 0, c = 0;
-            for (k = 0; k < npx; ++k) {
-                if (!sb.group_of[npx + k]) continue;
-                ++a;
-                if (sb.depth[k] >= 0.5f && sb.depth[k] < 1.0f) ++b;
-                if (sb.depth[k] < 0.5f) ++c;
-            }
-            fprintf(stderr, "AB px %ld order2 wins %ld order1 wins %ld\n", a, b, c);
-        }
-        if (getenv("SBC_SIDES") && sb.layers > sb.orders) { /* DEBUG */
-            size_t k; long a = 0, b = 0, c = 0, dd = 0, e = 0;
-            for (k = 0; k < npx; ++k) {
-                refl_vec3 d, q, n; refl__sb_refr rp;
-                if (sb.em.gbuf[4 * k + 3] == 0.0f) continue;
-                ++a;
-                refl__sb_pixel_view(&sb, k, &d, &q, &n);
-                if (refl__sb_refract_path(&sb, q, n, d, sb.em.gbuf[4 * k + 3], &rp) != 1) { ++b; continue; }
-                if (!sb.group_of[(size_t)sb.orders * npx + k]) { ++c; continue; }
-                if (sb.refr_depth[k] >= 1.0f) { ++dd; continue; }
-                if (sb.refr_color[4 * k + 3] == 0) ++e;
-            }
-            fprintf(stderr, "lens px %ld no path %ld no group %ld nothing drawn %ld black %ld\n", a, b, c, dd, e);
-        }
     }
     if (r == REFL_OK) {
         rast_targets t = refl__frame_targets(fr);

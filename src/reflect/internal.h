@@ -6,8 +6,6 @@
 #include <string.h>
 #include <float.h>
 #include <limits.h>
-#include <stdio.h> /* DEBUG */
-#include <stdlib.h> /* DEBUG */
 
 #ifndef REFL_ASSERT
 #include <assert.h>
