@@ -152,13 +152,6 @@ static sbc_case run_case(const refl_scene *s, const refl_view *v, int depth, int
     f = tu_refl_render(s, v, &d);
     truth = tu_refl_render(s, v, &t);
     direct = tu_refl_render(s, v, &dd);
-    if (getenv("SBC_DUMP")) { /* DEBUG */
-        char fn[256]; int k, i; refl_frame *fs[2]; fs[0] = f; fs[1] = truth;
-        for (k = 0; k < 2; ++k) { FILE *fp; snprintf(fn, sizeof fn, "/tmp/hx/%s_%d_%s.ppm", what, depth, k ? "rt" : "sbc");
-          fp = fopen(fn, "wb"); fprintf(fp, "P6 %d %d 255\n", v->width, v->height);
-          for (i = 0; i < v->width * v->height; ++i) fwrite(fs[k]->color + 4 * i, 1, 3, fp);
-          fclose(fp); }
-    }
     tu_assert_reflector_frame(f, direct);
     cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &c.all), REFL_OK);
     c.colour = colour_off(f, truth);

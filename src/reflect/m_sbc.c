@@ -5,6 +5,18 @@
         factor x factor pixels one reflected ray is taken, tail on the
         reflector, head twice as far as what it meets (or where it leaves
         the scene's box, grown 1%), first reflector point = tail.
+        Past the first order (desc.depth > 1; section III-B's higher-order
+        rays, IV's reflection histories): each sample's reflected ray is
+        traced on through the mirrors and glass alone (a BVH of those; a
+        partial reflector ends a history), up to desc.depth reflections
+        (at most REFL__SB_ORDERS). Every history sampled (A, B, AB, BA,
+        ABA, ...; at most REFL__SB_HISTORIES past the first order) is a
+        side of its own, whose ray at a sample has its tail on the last
+        reflector, its head clipped as above and its first reflector point
+        the sample's. Glass seen directly also refracts (Fig. 20b): in at
+        the sample's point (Snell, the material's ior), totally reflected
+        inside while it must, out where it can within the depth: a side
+        "refracted through" of its own, tail at the exit.
      2. reflection groups (section IV, and VII-C's pieces "whose rays do
         not intersect"): per reflector object and side seen (the G-buffer's
         id, negative on back faces: the inside of an open mesh), the ray
@@ -23,16 +35,24 @@
         error in desired-view pixels; pieces whose rays do not cross end
         mostly in pinhole leaves, focusing ones in ray lists. A pixel
         belongs to the group of the nearest sample on its own smooth
-        surface. One bounce: this is the first order of the paper's
-        reflection histories.
+        surface. Past the first order a side's pieces lie within its
+        parent's (the rays of one smooth piece of the mirror before) and
+        its ring continues the rays linearly; groups come in layers (order
+        k; the refractions last) and a pixel belongs, in each layer its own
+        history reaches (traced per pixel as the samples are), to the group
+        of the nearest sample on its surface with that history.
      3. projection (section V-A): every vertex of every object inside a
         group's box (its rays' tails and heads, grown by a quarter) is
         projected into the group (refl_sbc_project), moving it to its
         first reflector point; the window depth is the paper's visibility
-        offset (k - 1 + z/D) g with k = 1 and g = 1 in a depth buffer of the
+        offset (k - 1 + z/D) g for order k, in a depth buffer of the
         reflections' own, z measured as the distance from the vertex to its
         first reflector point (consistent across leaves, where each leaf's
-        image-plane height is not).
+        image-plane height is not), past the first order to the last
+        reflector point (the tail of the history's sample it lands on).
+        g = 1 / k_max of the window range, k_max the longest history
+        sampled: the paper's g = D / (k_max + 1) with yon at 2D spends it
+        alike, and k_max = 1 keeps z/D: the one-bounce frames' bytes.
      4. rasterisation (section V-B): a reflected triangle is drawn when all
         three vertices project; one outside the group's box is dropped
         whole. Triangles are subdivided in four, at most REFL__SB_LEVELS
@@ -54,11 +74,26 @@
         surface the rays leave: a triangle facing away from every vertex's
         first reflector point, or with a vertex nearer it than a quarter of
         the triangle's longest edge (tested before each subdivision too:
-        such a triangle is not split).
+        such a triangle is not split). Layers are drawn in order, into one
+        depth buffer; after order k < k_max, where a mirror or glass (drawn
+        transparent black) is nearest the pixel is cleared: order k + 1
+        shows there, and nowhere an order-k point lies in front (the
+        offset): lower orders occlude higher ones. Refractions draw into
+        targets of their own (they add to the reflection, never hide it);
+        their own glass is not drawn.
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
         as ENVMAP composites; glass adds the environment refracted once.
+        Past the first order (refl__sb_resolve_row_deep): the nearest
+        order's colour (its order read off the offset), or the environment
+        along the last reflected ray, times the product of the reflectances
+        along the pixel's own history (each bounce as RAYTRACE weighs it);
+        glass adds (1 - F) tint times what the refraction layer drew (or
+        the environment beyond the glass), times (1 - F) at the exit and
+        the absorption inside; reflections inside the glass short of total
+        are left out. frame->points: the first point past the first
+        reflector, as RAYTRACE's, or with desc.points_last the last.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -142,7 +177,7 @@ typedef struct refl__sb {
     refl__pass *p;
     refl__em em;                  /* the reflectors' G-buffer and surface points */
     refl__sb_side *sides;
-    int side_count;
+    int side_count, sides1;       /* sides, and those of the first order (they come first) */
     refl__sb_group *groups;
     int group_count;
     int map_w, map_h, tile;       /* the ray map's size; a group's tile side in samples */
@@ -394,6 +429,7 @@ static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl
     const float *gb = sb->em.gbuf + 4 * i;
     refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, d, &tmax);
     *n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+    if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(*d, -1.0f); /* degenerate: face the eye */
     if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
     *q = refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1], sb->em.surface[3 * i + 2]);
 }
@@ -1155,7 +1191,8 @@ static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_sid
    refracted through parent's glass (kind 1); -1: none sampled. */
 static int refl__sb_find_side(const refl__sb *sb, int parent, float id, int kind) {
     int i;
-    for (i = parent + 1; i < sb->side_count; ++i) /* a child comes after its parent */
+    /* a child comes after its parent and the first order's sides */
+    for (i = REFL__MAX(parent + 1, sb->sides1); i < sb->side_count; ++i)
         if (sb->sides[i].parent == parent && sb->sides[i].kind == kind && (kind || sb->sides[i].id == id)) return i;
     return -1;
 }
@@ -1329,7 +1366,6 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
         if (sb->group_of[i] && sb->depth[i] < 1.0f) {
             const float *pt = sb->points + 4 * i;
@@ -1409,6 +1445,7 @@ static refl_result refl__sb_groups(refl__sb *sb) {
             }
     refl__free(al, sides);
     sb->map_first = 0;
+    sb->sides1 = sb->side_count;
     rast_run_jobs(sb->p->rc, sb->side_count, refl__sb_map_side, sb);
     for (i = 0; i < sb->side_count; ++i)
         if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
