@@ -393,18 +393,23 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
     for (b = 1; b < sb->budget; ++b) {
         refl_hit h;
         refl_vec3 p, ng, ns, t2, rd;
+        int entering;
         if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
         refl__sb_surface(sb, &h, &p, &ng, &ns);
-        /* as RAYTRACE: the normals turned against the ray */
-        if (!(refl_v3_dot(t, ng) < 0.0f)) {
+        /* as RAYTRACE: a face turned towards the ray is entered (an inner
+           wall of a glass whose parts overlap), else left; the normals
+           turned against the ray */
+        entering = refl_v3_dot(t, ng) < 0.0f;
+        if (!entering) {
             ng = refl_v3_scale(ng, -1.0f);
             ns = refl_v3_scale(ns, -1.0f);
         }
         if (refl_v3_dot(t, ns) > 0.0f) ns = ng;
         len += h.t;
         pos = p;
-        f = refl_fresnel_dielectric(REFL__CLAMP(-refl_v3_dot(t, ns), 0.0f, 1.0f), ior, 1.0f);
-        if (f < 1.0f && refl_v3_refract(t, ns, ior, &t2)) {
+        f = refl_fresnel_dielectric(REFL__CLAMP(-refl_v3_dot(t, ns), 0.0f, 1.0f), entering ? 1.0f : ior,
+                                    entering ? ior : 1.0f);
+        if (f < 1.0f && refl_v3_refract(t, ns, entering ? 1.0f / ior : ior, &t2)) {
             rp->tail = p;
             rp->out = t2;
             rp->normal = refl_v3_scale(ns, -1.0f);
