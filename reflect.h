@@ -10903,6 +10903,23 @@ static void refl__sb_map_side(void *arg, int job) {
     }
 }
 
+/* A higher layer's ring ray m (window mw x mh): continued linearly from
+   member m1 beside it and the member (u2, v2) beyond that (tail, head and
+   first reflector point alike); 0 when (u2, v2) is none. Those rays are no
+   reflections of a surface the view sees, so the first order's
+   tangent-plane rule has nothing to extend. */
+static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit *hits, const uint8_t *valid,
+                                size_t m, size_t m1, int u2, int v2) {
+    const refl_sbc_ray *a = &rays[m1], *b;
+    if (u2 < 0 || v2 < 0 || u2 >= mw || v2 >= mh || valid[(size_t)v2 * (size_t)mw + (size_t)u2] != 1) return 0;
+    b = &rays[(size_t)v2 * (size_t)mw + (size_t)u2];
+    rays[m].tail = refl_v3_sub(refl_v3_scale(a->tail, 2.0f), b->tail);
+    rays[m].head = refl_v3_sub(refl_v3_scale(a->head, 2.0f), b->head);
+    rays[m].first = refl_v3_sub(refl_v3_scale(a->first, 2.0f), b->first);
+    hits[m].object = -1;
+    return 1;
+}
+
 /* One ring of rays extrapolated around the members (valid 1) of a window
    [u0, u0 + mw) x [v0, v0 + mh) of side sd's map, piece `comp`, diagonal
    neighbours included (else the unit frustums at a convex corner of the
@@ -10911,7 +10928,7 @@ static void refl__sb_map_side(void *arg, int job) {
    beyond that one (past grazing the ray goes straight on). So the
    frustums reach past the piece's edge (the paper's "extended
    reflectors"), wherever the piece ends: at a silhouette, a crease, or a
-   surface passing in front. */
+   surface passing in front. Past the first order: refl__sb_ring_linear. */
 static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp, int u0, int v0, int mw, int mh,
                           refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
@@ -10929,6 +10946,11 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                 if (u1 < 0 || v1 < 0 || u1 >= mw || v1 >= mh) continue;
                 m1 = (size_t)v1 * (size_t)mw + (size_t)u1;
                 if (valid[m1] != 1) continue;
+                if (sd->layer) { /* past the first order: linearly */
+                    if (!refl__sb_ring_linear(mw, mh, rays, hits, valid, m, m1, u2 - u0, v2 - v0)) continue;
+                    valid[m] = 2;
+                    break;
+                }
                 g1 = (size_t)(v0 + v1) * (size_t)sb->map_w + (size_t)(u0 + u1);
                 q1 = rays[m1].tail;
                 n1 = sd->normals[g1];
@@ -10947,37 +10969,6 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     valid[m] = 2;
                     break;
                 }
-            }
-        }
-    for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
-}
-
-/* The ring of a higher layer's window: each missing ray continued
-   linearly from the member beside it and the member beyond that (tail,
-   head and first reflector point alike), diagonals included. Those rays
-   are no reflections of a surface the view sees, so the first order's
-   tangent-plane rule has nothing to extend. */
-static void refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
-    static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
-    int u, v, k;
-    for (v = 0; v < mh; ++v)
-        for (u = 0; u < mw; ++u) {
-            size_t m = (size_t)v * (size_t)mw + (size_t)u;
-            if (valid[m]) continue;
-            for (k = 0; k < 8; ++k) {
-                int u1 = u + du[k], v1 = v + dv[k], u2 = u + 2 * du[k], v2 = v + 2 * dv[k];
-                const refl_sbc_ray *a, *b;
-                if (u2 < 0 || v2 < 0 || u2 >= mw || v2 >= mh) continue;
-                a = &rays[(size_t)v1 * (size_t)mw + (size_t)u1];
-                b = &rays[(size_t)v2 * (size_t)mw + (size_t)u2];
-                if (valid[(size_t)v1 * (size_t)mw + (size_t)u1] != 1 || valid[(size_t)v2 * (size_t)mw + (size_t)u2] != 1)
-                    continue;
-                rays[m].tail = refl_v3_sub(refl_v3_scale(a->tail, 2.0f), b->tail);
-                rays[m].head = refl_v3_sub(refl_v3_scale(a->head, 2.0f), b->head);
-                rays[m].first = refl_v3_sub(refl_v3_scale(a->first, 2.0f), b->first);
-                hits[m].object = -1;
-                valid[m] = 2;
-                break;
             }
         }
     for (k = 0; k < mw * mh; ++k) valid[k] = valid[k] != 0;
@@ -11037,8 +11028,7 @@ static void refl__sb_build_group(void *arg, int g) {
                 hits[k] = sd->hits[m];
                 valid[k] = 1;
             }
-        if (sd->layer) refl__sb_ring_linear(mw, mh, rays, hits, valid);
-        else refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
+        refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
         for (k = 0; k < n; ++k) {
             if (!valid[k]) continue;
             if (!count++) gr->lo = gr->hi = rays[k].tail;

@@ -191,38 +191,48 @@ static void assert_within(const refl_reflection_error *e, double colour, sbc_bou
     cr_assert(colour <= b.colour, "%s: colour off at %.3f of the pixels", what, colour);
 }
 
+/* run_case over every reflector pixel, asserted within b; destroys s. */
+static void check_case(refl_scene *s, const refl_view *v, int depth, int last, const char *what, sbc_bounds b) {
+    sbc_case c = run_case(s, v, depth, last, what, NULL, 0);
+    assert_within(&c.all, c.colour, b, what);
+    refl_scene_destroy(s);
+}
+
 static refl_view facing_view(void) {
     return tu_refl_view(refl_v3(0.0f, 0.35f, 3.4f), refl_v3(0.0f, -0.1f, 0.0f), W, H);
 }
 
 static const mirror_sphere facing_spheres[2] = {{{-1.3f, 0.0f, 0.0f}, 0.8f}, {{1.3f, 0.0f, 0.0f}, 0.8f}};
 
-Test(sbc_higher, facing_mirrors_depth_2, .timeout = 120) {
-    refl_scene *s = facing_mirrors();
-    refl_view v = facing_view();
-    /* measured: mean 0.05, p95 0, max 23.4 px, wrong 0.000, holes 0.022,
-       colour off 0.027; past the first order (820 pixels): mean 0.09, p95
-       1.0, max 4.5 px, wrong 0.006, holes 0.049, colour off 0.099 */
-    sbc_bounds all = {0.1, 1.0, 30, 0.005, 0.03, 0.035}, higher = {0.2, 1.5, 8, 0.015, 0.07, 0.13};
-    sbc_case c = run_case(s, &v, 2, 1, "facing mirrors", facing_spheres, 2);
-    cr_assert_eq(c.stats.histories, 4, "A, B, AB, BA: %d", c.stats.histories);
-    assert_within(&c.all, c.colour, all, "facing mirrors, depth 2");
-    assert_within(&c.higher, c.higher_colour, higher, "facing mirrors, depth 2, past the first order");
+/* run_case with the mirror spheres m: the number of histories sampled,
+   and the errors over every reflector pixel and past the first order
+   within their bounds; destroys s. */
+static void check_higher(refl_scene *s, const refl_view *v, int depth, const mirror_sphere *m, int histories,
+                         sbc_bounds all, sbc_bounds higher, const char *what) {
+    sbc_case c = run_case(s, v, depth, 1, what, m, 2);
+    cr_assert_eq(c.stats.histories, histories, "%s: %d histories", what, c.stats.histories);
+    assert_within(&c.all, c.colour, all, what);
+    assert_within(&c.higher, c.higher_colour, higher, what);
     refl_scene_destroy(s);
 }
 
-Test(sbc_higher, facing_mirrors_depth_3, .timeout = 120) {
-    refl_scene *s = facing_mirrors();
+/* Histories A, B, AB, BA. Measured: mean 0.05, p95 0, max 23.4 px, wrong
+   0.000, holes 0.022, colour off 0.027; past the first order (820
+   pixels): mean 0.09, p95 1.0, max 4.5 px, wrong 0.006, holes 0.049,
+   colour off 0.099. */
+Test(sbc_higher, facing_mirrors_depth_2, .timeout = 120) {
     refl_view v = facing_view();
-    /* measured: mean 0.05, p95 0, max 7.1 px, wrong 0.000, holes 0.023,
-       colour off 0.028; past the first order: mean 0.11, p95 1.0, max 4.5
-       px, wrong 0.000, holes 0.080, colour off 0.128 */
+    sbc_bounds all = {0.1, 1.0, 30, 0.005, 0.03, 0.035}, higher = {0.2, 1.5, 8, 0.015, 0.07, 0.13};
+    check_higher(facing_mirrors(), &v, 2, facing_spheres, 4, all, higher, "facing mirrors");
+}
+
+/* ABA and BAB too. Measured: mean 0.05, p95 0, max 7.1 px, wrong 0.000,
+   holes 0.023, colour off 0.028; past the first order: mean 0.11, p95
+   1.0, max 4.5 px, wrong 0.000, holes 0.080, colour off 0.128. */
+Test(sbc_higher, facing_mirrors_depth_3, .timeout = 120) {
+    refl_view v = facing_view();
     sbc_bounds all = {0.1, 1.0, 12, 0.005, 0.03, 0.035}, higher = {0.2, 1.5, 8, 0.01, 0.11, 0.16};
-    sbc_case c = run_case(s, &v, 3, 1, "facing mirrors", facing_spheres, 2);
-    cr_assert_eq(c.stats.histories, 6, "A, B, AB, BA, ABA, BAB: %d", c.stats.histories);
-    assert_within(&c.all, c.colour, all, "facing mirrors, depth 3");
-    assert_within(&c.higher, c.higher_colour, higher, "facing mirrors, depth 3, past the first order");
-    refl_scene_destroy(s);
+    check_higher(facing_mirrors(), &v, 3, facing_spheres, 6, all, higher, "facing mirrors");
 }
 
 /* The points as RAYTRACE records them by default: the first past the
@@ -232,12 +242,9 @@ Test(sbc_higher, facing_mirrors_depth_3, .timeout = 120) {
    off 0.027. With the orders' offset (k - 1) g dropped from m_sbc.c's
    window depth: mean 0.39, max 104.4 px, wrong 0.005, colour off 0.032. */
 Test(sbc_higher, facing_mirrors_first_points, .timeout = 120) {
-    refl_scene *s = facing_mirrors();
     refl_view v = facing_view();
     sbc_bounds all = {0.1, 1.0, 10, 0.003, 0.03, 0.03};
-    sbc_case c = run_case(s, &v, 2, 0, "facing mirrors", NULL, 0);
-    assert_within(&c.all, c.colour, all, "facing mirrors, depth 2, first points");
-    refl_scene_destroy(s);
+    check_case(facing_mirrors(), &v, 2, 0, "facing mirrors, first points", all);
 }
 
 /* A small mirror sphere beside a large one: each shows the other (AB and
@@ -251,16 +258,11 @@ Test(sbc_higher, sphere_beside_curved_mirror, .timeout = 120) {
        colour off 0.031; past the first order (885 pixels): mean 0.16, p95
        1.41, max 5.7 px, wrong 0.013, holes 0.075, colour off 0.101 */
     sbc_bounds all = {0.1, 1.0, 16, 0.005, 0.03, 0.04}, higher = {0.25, 2.0, 8, 0.02, 0.1, 0.13};
-    sbc_case c;
     cr_assert_eq(refl_mesh_sphere(spheres[0].r, 48, 24, NULL, &a), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(spheres[1].r, 96, 48, NULL, &big), REFL_OK);
     tu_refl_add_object(s, a, REFL_MIRROR, silver, refl_mat4_translate(spheres[0].c));
     tu_refl_add_object(s, big, REFL_MIRROR, silver, refl_mat4_translate(spheres[1].c));
-    c = run_case(s, &v, 2, 1, "sphere beside a curved mirror", spheres, 2);
-    cr_assert_eq(c.stats.histories, 4, "A, B, AB, BA: %d", c.stats.histories);
-    assert_within(&c.all, c.colour, all, "sphere beside a curved mirror");
-    assert_within(&c.higher, c.higher_colour, higher, "sphere beside a curved mirror, past the first order");
-    refl_scene_destroy(s);
+    check_higher(s, &v, 2, spheres, 4, all, higher, "sphere beside a curved mirror");
 }
 
 /* A bi-convex lens: two caps of spheres of radius 1.6 meeting at a rim of
@@ -400,13 +402,10 @@ Test(sbc_higher, glass_lens, .timeout = 120) {
 
 /* Depth 3: a ray totally reflected inside may still get out. */
 Test(sbc_higher, glass_lens_depth_3, .timeout = 120) {
-    refl_scene *s = lens_scene();
     refl_view v = lens_view();
     /* measured: as at depth 2 (no path here needs a third interface) */
     sbc_bounds all = {0.15, 1.0, 35, 0.006, 0.05, 0.07};
-    sbc_case c = run_case(s, &v, 3, 1, "lens", NULL, 0);
-    assert_within(&c.all, c.colour, all, "lens, depth 3");
-    refl_scene_destroy(s);
+    check_case(lens_scene(), &v, 3, 1, "lens", all);
 }
 
 static void assert_same_frames(const refl_frame *a, const refl_frame *b, const char *what) {
