@@ -10434,7 +10434,8 @@ typedef struct refl__sb_side {
     int order;                    /* reflections along its history (a refraction's: 1, in a layer of its own) */
     int layer;                    /* order - 1; sb->orders for refractions */
     int parent;                   /* the side one reflection shorter (-1 at order 1) */
-    int kind;                     /* 0 reflected; 1 refracted through the glass of `parent` */
+    int kind;                     /* 0 reflected; 1 refracted through the glass of `parent`;
+                                     2 refracted into it, meeting a surface inside */
     refl_sbc_ray *rays;
     refl__sb_hit *hits;           /* per sample: what its ray meets */
     uint8_t *valid;               /* 1: the sample shows the side, with a ray */
@@ -10499,7 +10500,7 @@ typedef struct refl__sb {
     int *mirror_object;           /* its objects' scene indices */
     refl_mat4 *normal_m;          /* per object: the normals' matrix */
     float *sample_id;             /* budget x map: per order, the side id each sample's path meets, 0: none */
-    uint8_t *sample_refr;         /* per sample: its glass refracts it out within the budget */
+    uint8_t *sample_refr;         /* per sample: the kind of its refraction path (1, 2), 0: none */
     int *sample_side;             /* (budget + 1) x map: per layer, each sample's side, -1: none */
     int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
     int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
@@ -10674,9 +10675,12 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
    beyond; normal: the exit's, facing out; weight: what RAYTRACE's
    refracted branch keeps past the entry's (1 - F) and tint: (1 - F) at
    the exit times the absorption inside. Its partial reflections inside
-   are left out. 1: such a path; 0: still inside when the budget runs out
-   (RAYTRACE's black); -1: it leaves without meeting its glass again (a
-   silhouette pixel whose point lies just off the glass). */
+   are left out. 1: such a path; 2: it meets another object inside (the
+   floor under a glass sunk into it; the whole scene's BVH tells): tail
+   where the last segment starts, out along it, weight the absorption up
+   to the object; 0: still inside when the budget runs out (RAYTRACE's
+   black); -1: it leaves without meeting its glass again (a silhouette
+   pixel whose point lies just off the glass). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
     float weight;
@@ -10696,10 +10700,17 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
     f = refl_fresnel_dielectric(REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f), 1.0f, ior);
     if (!(f < 1.0f) || !refl_v3_refract(d, n, 1.0f / ior, &t)) return 0;
     for (b = 1; b < sb->budget; ++b) {
-        refl_hit h;
+        refl_hit h, in;
         refl_vec3 p, ng, ns, t2, rd;
         int entering;
         if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
+        if (refl_bvh_intersect(sb->bvh, pos, t, 1e-4f * sb->diagonal, h.t, &in) && in.object != object) {
+            rp->tail = pos;
+            rp->out = t;
+            rp->normal = b > 1 ? rp->normal : refl_v3_scale(n, -1.0f);
+            rp->weight = expf(-REFL__MAX(m->attenuation, 0.0f) * (len + in.t));
+            return 2;
+        }
         refl__sb_surface(sb, &h, &p, &ng, &ns);
         /* as RAYTRACE: a face turned towards the ray is entered (an inner
            wall of a glass whose parts overlap), else left; the normals
@@ -10722,6 +10733,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
             return 1;
         }
         /* totally reflected inside: a reflection on the way */
+        rp->normal = ns;
         rd = refl_v3_reflect(t, ns);
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(t, ng);
         t = rd;
@@ -10787,7 +10799,7 @@ static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int s
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         if (sd->kind) {
             refl__sb_refr rp;
-            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp) == 1) {
+            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp) == sd->kind) {
                 ok = refl__sb_ray_dir(sb, rp.tail, rp.out, &sd->rays[m], &sd->hits[m]);
                 sd->normals[m] = rp.normal;
             }
@@ -11518,8 +11530,8 @@ static void refl__sb_assign_row(void *arg, int y) {
         for (s = side, k = 1; k < pa.count && s >= 0; ++k)
             if ((s = refl__sb_find_side(sb, s, pa.id[k], 0)) >= 0)
                 sb->group_of[(size_t)k * npx + i] = refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
-        if (sb->layers > sb->orders && (s = refl__sb_find_side(sb, side, 0.0f, 1)) >= 0 &&
-            refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp) == 1)
+        if (sb->layers > sb->orders && (k = refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp)) > 0 &&
+            (s = refl__sb_find_side(sb, side, 0.0f, k)) >= 0)
             sb->group_of[(size_t)sb->orders * npx + i] =
                 refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
     }
@@ -11545,7 +11557,8 @@ static void refl__sb_sample_row(void *arg, int v) {
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
         for (k = 0; k < pa.count; ++k) sb->sample_id[(size_t)k * count + m] = pa.id[k];
-        sb->sample_refr[m] = (uint8_t)(refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp) == 1);
+        k = refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp);
+        sb->sample_refr[m] = (uint8_t)(k > 0 ? k : 0);
     }
 }
 
@@ -11613,14 +11626,14 @@ static refl_result refl__sb_histories(refl__sb *sb) {
     for (m = 0; m < count; ++m) {
         int parent = sb->sample_side[m], s;
         if (!sb->sample_refr[m] || parent < 0) continue;
-        if ((s = refl__sb_find_side(sb, parent, 0.0f, 1)) < 0 && sb->side_count < cap) {
+        if ((s = refl__sb_find_side(sb, parent, 0.0f, sb->sample_refr[m])) < 0 && sb->side_count < cap) {
             refl__sb_side *sd = &sb->sides[s = sb->side_count++];
             sd->object = sb->sides[parent].object;
             sd->id = sb->sides[parent].id;
             sd->order = 1;
             sd->layer = longest;
             sd->parent = parent;
-            sd->kind = 1;
+            sd->kind = sb->sample_refr[m];
         }
         sb->sample_side[(size_t)longest * count + m] = s;
         refr |= s >= 0;
@@ -11694,7 +11707,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
                 } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr_depth[i] < 1.0f) {
                     const float *pt = sb->refr_points + 4 * i;
                     for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr_color[4 * i + (size_t)c] * (1.0f / 255.0f);
-                    tshown = refl_v3(pt[0], pt[1], pt[2]);
+                    if (through == 1) tshown = refl_v3(pt[0], pt[1], pt[2]); /* inside glass: none, as RAYTRACE */
                     tw = rp.weight;
                 } else {
                     refl_environment_lookup(&scene->environment, rp.out, tsub);
