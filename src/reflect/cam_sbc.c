@@ -103,6 +103,11 @@ typedef struct refl__sbc_quad {
                                 between them the lerp bounds the rays (min of lines is concave) */
 } refl__sbc_quad;
 
+/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
+   lies on the reflector: heads are twice as far as what the rays meet, so
+   what they reflect lies near 0.5. */
+#define REFL__SBC_ON_SURFACE 0.02
+
 /* A quad's frame in double: what build and projection both compute with. */
 typedef struct refl__sbc_frame {
     double o[3], m[3], a[3], b[3];
@@ -1111,7 +1116,7 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
 static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
                                   float *z) {
     double best = DBL_MAX;
-    int i, c, j, W = sb->width;
+    int i, c, j, W = sb->width, off = 0;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
     for (i = 0; i < node->count; ++i) {
@@ -1139,8 +1144,14 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
             zz += wt[c] * lam[c] * len[c];
             lm += wt[c] * lam[c];
         }
-        /* past the interpolated ray's tail */
-        if (!(lm >= -1e-4) || !(zz < best)) continue;
+        /* past the interpolated ray's tail; where rays fold, the nearest
+           image off the reflector: one at the tails is the reflector's own
+           surface (a knob on a lid lies at its own rays' tails, and also
+           ahead of the lid's rays that meet it) */
+        if (!(lm >= -1e-4)) continue;
+        if (off && lm < REFL__SBC_ON_SURFACE) continue;
+        if (!(zz < best) && !(!off && lm >= REFL__SBC_ON_SURFACE)) continue;
+        off = lm >= REFL__SBC_ON_SURFACE;
         best = zz;
         {
             double fp[3] = {0.0, 0.0, 0.0};
