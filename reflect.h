@@ -744,7 +744,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    (RAYTRACE of the same scene and view with depth 1) showing point P, P is
    projected into every reflection group of its reflector as SBC builds
    them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
-   may be NULL); the error is the distance in pixels from x's centre to the
+   may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
    nearest image of P (sub-pixel), counted by the kind of leaf that made
    it. P with no image within 8 pixels counts as wrong, in the kind of
    leaf that holds it in the group of x's pixel (pinhole when none). empty
@@ -11588,6 +11588,7 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
     memset(&d, 0, sizeof d);
     if (desc) d = *desc;
     d.method = REFL_SBC;
+    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
     memset(&ms, 0, sizeof ms);
     ms.truth = truth;
     ms.out = out;

@@ -1238,6 +1238,7 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
     memset(&d, 0, sizeof d);
     if (desc) d = *desc;
     d.method = REFL_SBC;
+    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
     memset(&ms, 0, sizeof ms);
     ms.truth = truth;
     ms.out = out;
