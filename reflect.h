@@ -747,6 +747,25 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
                                                     const refl_frame *truth, float split_px,
                                                     refl_reflection_error *out);
 
+/* SBC's cameras alone, without rasterisation (paper 003's projection
+   accuracy, section VII-A): for each reflector pixel x of `truth`
+   (RAYTRACE of the same scene and view with depth 1) showing point P, P is
+   projected into every reflection group of its reflector as SBC builds
+   them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
+   may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
+   nearest image of P (sub-pixel), counted by the kind of leaf that made
+   it. P with no image within 8 pixels counts as wrong, in the kind of
+   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   is 0; everything 0 when the view shows no reflector. */
+typedef struct refl_sbc_camera_error {
+    refl_reflection_error pinhole, ray_list;   /* every truth pixel */
+    refl_reflection_error pinhole_samples,     /* the ray map's sample pixels only: where */
+                          ray_list_samples;    /* the build measures its error (heads, tails) */
+} refl_sbc_camera_error;
+REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                  const refl_render_desc *desc, const refl_frame *truth,
+                                                  refl_sbc_camera_error *out);
+
 /* Image error of the RGB of the RGBA8 colours against the truth (alpha
    ignored), over every pixel or (reflectors_only) over the truth's
    reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is
@@ -895,6 +914,7 @@ typedef struct refl__pass {
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
     refl__view_rays rays;
+    struct refl__sb_measure *sbc_measure; /* SBC: measure the cameras (refl_sbc_measure_camera_error), draw nothing */
 } refl__pass;
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into
@@ -906,6 +926,9 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 static refl_result refl__result_from_rast(rast_result r);
+struct refl__sb_measure;
+static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                refl_frame *frame, struct refl__sb_measure *sbc_measure);
 static double refl__now_ms(void);
 
 /* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
@@ -5201,6 +5224,11 @@ typedef struct refl__sbc_quad {
                                 between them the lerp bounds the rays (min of lines is concave) */
 } refl__sbc_quad;
 
+/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
+   lies on the reflector: heads are twice as far as what the rays meet, so
+   what they reflect lies near 0.5. */
+#define REFL__SBC_ON_SURFACE 0.02
+
 /* A quad's frame in double: what build and projection both compute with. */
 typedef struct refl__sbc_frame {
     double o[3], m[3], a[3], b[3];
@@ -6209,14 +6237,34 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
 static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
                                   float *z) {
     double best = DBL_MAX;
-    int i, c, j, W = sb->width;
+    int i, c, j, W = sb->width, off = 0;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
+    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
     for (i = 0; i < node->count; ++i) {
         const refl__sbc_quad *q = &sb->quads[node->first + i];
         refl__sbc_frame fr;
         double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss, tt, wt[4], zz = 0.0, lm = 0.0;
         double t0 = q->tau[0], t1 = q->tau[1];
+        /* most quads miss p: a float test first, looser than its rounding
+           (about 1e-6 of the coordinates' size), so it never drops a quad
+           the exact test below would take */
+        {
+            float eps = 1e-5f * (pn + fabsf(q->o[0]) + fabsf(q->o[1]) + fabsf(q->o[2]));
+            float wx = pf[0] - q->o[0], wy = pf[1] - q->o[1], wz = pf[2] - q->o[2], tf, ff, v;
+            tf = wx * q->m[0] + wy * q->m[1] + wz * q->m[2];
+            if (!(tf >= q->tau[0] - eps && tf <= q->tau[1] + eps)) continue;
+            ff = REFL__CLAMP((tf - q->tau[0]) / (q->tau[1] - q->tau[0]), 0.0f, 1.0f);
+            v = wx * q->a[0] + wy * q->a[1] + wz * q->a[2];
+            if (!(v >= q->box[0][0] + ff * (q->box[1][0] - q->box[0][0]) - eps &&
+                  v <= q->box[0][1] + ff * (q->box[1][1] - q->box[0][1]) + eps))
+                continue;
+            v = wx * q->b[0] + wy * q->b[1] + wz * q->b[2];
+            if (!(v >= q->box[0][2] + ff * (q->box[1][2] - q->box[0][2]) - eps &&
+                  v <= q->box[0][3] + ff * (q->box[1][3] - q->box[0][3]) + eps))
+                continue;
+        }
         refl__sbc_frame_load(q, &fr);
         for (j = 0; j < 3; ++j) w[j] = p[j] - fr.o[j];
         tau = refl__sbc_dot(w, fr.m);
@@ -6237,8 +6285,14 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
             zz += wt[c] * lam[c] * len[c];
             lm += wt[c] * lam[c];
         }
-        /* past the interpolated ray's tail */
-        if (!(lm >= -1e-4) || !(zz < best)) continue;
+        /* past the interpolated ray's tail; where rays fold, the nearest
+           image off the reflector: one at the tails is the reflector's own
+           surface (a knob on a lid lies at its own rays' tails, and also
+           ahead of the lid's rays that meet it) */
+        if (!(lm >= -1e-4)) continue;
+        if (off && lm < REFL__SBC_ON_SURFACE) continue;
+        if (!(zz < best) && !(!off && lm >= REFL__SBC_ON_SURFACE)) continue;
+        off = lm >= REFL__SBC_ON_SURFACE;
         best = zz;
         {
             double fp[3] = {0.0, 0.0, 0.0};
@@ -10453,6 +10507,7 @@ typedef struct refl__sb_group {
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
     refl_sbc *sbc;
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
+    refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
     refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
@@ -11043,7 +11098,11 @@ static void refl__sb_build_group(void *arg, int g) {
         refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
         for (k = 0; k < n; ++k) {
             if (!valid[k]) continue;
-            if (!count++) gr->lo = gr->hi = rays[k].tail;
+            if (!count++) {
+                gr->lo = gr->hi = rays[k].tail;
+                gr->first_lo = gr->first_hi = rays[k].first;
+            }
+            refl__sb_box_add(&gr->first_lo, &gr->first_hi, rays[k].first);
             refl__sb_box_add(&gr->lo, &gr->hi, rays[k].tail);
             refl__sb_box_add(&gr->lo, &gr->hi, rays[k].head);
             if (hits[k].object >= 0) hits[met++] = hits[k]; /* k >= met: nothing unread is overwritten */
@@ -11054,6 +11113,10 @@ static void refl__sb_build_group(void *arg, int g) {
                            refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
         gr->lo = refl_v3_sub(gr->lo, grow);
         gr->hi = refl_v3_add(gr->hi, grow);
+        grow = refl_v3_add(refl_v3_scale(refl_v3_sub(gr->first_hi, gr->first_lo), 0.25f),
+                           refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
+        gr->first_lo = refl_v3_sub(gr->first_lo, grow);
+        gr->first_hi = refl_v3_add(gr->first_hi, grow);
         /* by object and triangle, ties in map order (a stable merge: qsort is not) */
         if (met && (gr->hits = (refl__sb_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sb_hit))) != NULL) {
             refl__sb_sort_hits(hits, gr->hits, met);
@@ -11095,7 +11158,11 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     size_t at;
     v->ok = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    if (!refl_sbc_project(g->sbc, v->world, &f, &z)) return;
+    /* a leaf's map far outside the rays it was fitted to can send a point
+       anywhere: its first reflector point must lie where the group's do */
+    if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
+        !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f))
+        return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = v->from = f;
@@ -11174,7 +11241,7 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
    they meet (the knob seen in the lid): it faces away from the point
    every vertex's ray leaves (`from`), or lies nearer one than a fraction
    of its edge. */
-static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge) {
+static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
     const refl__sb_pv *v[3];
     refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
     int k;
@@ -11182,6 +11249,7 @@ static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, cons
     /* outwards, as the vertex normals point */
     if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
     if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
+    if (met) return 0;
     for (k = 0; k < 3; ++k)
         if (refl_v3_dot(refl_v3_sub(v[k]->from, v[k]->world), n) > 0.0f) return 0;
     return 1;
@@ -11224,7 +11292,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
     /* the surface the rays leave, whole: its parts would be dropped one by one */
-    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
+    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
@@ -11256,7 +11324,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     if (!split) {
         if (ok < 3) return;
         /* the reflector's own surface around the rays' tails */
-        if (t->self && refl__sb_own_surface(a, b, c, t->edge)) return;
+        if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
         if (j->out_count + 3 > j->out_cap) {
             size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
             float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));
@@ -11919,7 +11987,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->points_depth);
 }
 
-/* Everything up to the groups' trees (shared with the camera error). */
+/* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
 static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     const refl_allocator *al = &p->scene->allocator;
     size_t npx = (size_t)p->frame->width * (size_t)p->frame->height;
@@ -11969,6 +12037,104 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     return REFL_OK;
 }
 
+/* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
+   the nearest image of its point and the kind of leaf that made it. */
+typedef struct refl__sb_measure {
+    const refl_frame *truth;
+    const refl__sb *sb;
+    double *error;                /* INFINITY: no image within REFL__SB_MEASURE_REACH */
+    uint8_t *kind;                /* refl_sbc_leaf_kind */
+    refl_sbc_camera_error *out;
+} refl__sb_measure;
+
+#define REFL__SB_MEASURE_REACH 8.0 /* pixels: an image further off shows another point */
+
+/* Row y of the truth: each point projected into every group of its
+   reflector, as the method projects a vertex. */
+static void refl__sb_measure_row(void *arg, int y) {
+    refl__sb_measure *ms = (refl__sb_measure *)arg;
+    const refl__sb *sb = ms->sb;
+    const refl_frame *t = ms->truth;
+    int x, g;
+    for (x = 0; x < t->width; ++x) {
+        size_t i = (size_t)y * (size_t)t->width + (size_t)x;
+        const float *q = t->points + 3 * i;
+        int object = t->stencil[i] - 1, own = sb->group_of[i] - 1;
+        double best = INFINITY;
+        refl_sbc_leaf_kind kind = REFL_SBC_LEAF_NONE;
+        refl__sb_pv v;
+        ms->error[i] = INFINITY;
+        ms->kind[i] = REFL_SBC_LEAF_NONE;
+        if (object < 0 || !refl__isfinite(q[0]) || !refl__isfinite(q[1]) || !refl__isfinite(q[2])) continue;
+        memset(&v, 0, sizeof v);
+        v.world = refl_v3(q[0], q[1], q[2]);
+        for (g = 0; g < sb->group_count; ++g) {
+            const refl__sb_group *gr = &sb->groups[g];
+            double dx, dy, e;
+            if (!gr->sbc || (gr->object != object && !(object == 254 && gr->object >= 254))) continue;
+            /* an image lands on the group's first reflector points: its tile
+               and ring; one further off than the reach does not count */
+            if ((double)x < (double)((gr->u0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
+                (double)x > (double)((gr->u1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH ||
+                (double)y < (double)((gr->v0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
+                (double)y > (double)((gr->v1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH)
+                continue;
+            refl__sb_project(sb, gr, &v);
+            if (!v.ok) continue;
+            dx = (double)v.sx - ((double)x + 0.5);
+            dy = (double)v.sy - ((double)y + 0.5);
+            e = sqrt(dx * dx + dy * dy);
+            if (e < best) {
+                best = e;
+                kind = refl_sbc_leaf_at(gr->sbc, v.world);
+            }
+        }
+        if (best <= REFL__SB_MEASURE_REACH) {
+            ms->error[i] = best;
+        } else if (own >= 0 && sb->groups[own].sbc) { /* no image: charged to the leaf its own group holds it in */
+            kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
+        }
+        ms->kind[i] = (uint8_t)(kind == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+    }
+}
+
+/* The summaries of the pixels the measure left, by leaf kind, over every
+   pixel and over the ray map's sample pixels. */
+static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
+    const refl__sb *sb = ms->sb;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int w = ms->truth->width, h = ms->truth->height, k, x, y;
+    double *errors = (double *)refl__calloc(al, (size_t)w * (size_t)h, sizeof(double));
+    refl_reflection_error *out[4];
+    if (!errors) return REFL_ERROR_OUT_OF_MEMORY;
+    out[0] = &ms->out->pinhole;
+    out[1] = &ms->out->ray_list;
+    out[2] = &ms->out->pinhole_samples;
+    out[3] = &ms->out->ray_list_samples;
+    for (k = 0; k < 4; ++k) {
+        uint8_t want = (uint8_t)(k & 1 ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+        long long counted = 0, matched = 0;
+        double sum = 0.0;
+        for (y = 0; y < h; ++y)
+            for (x = 0; x < w; ++x) {
+                size_t i = (size_t)y * (size_t)w + (size_t)x;
+                int sx, sy;
+                if (ms->kind[i] != want) continue;
+                if (k >= 2) { /* the pixel of its sample only */
+                    refl__sb_sample_pixel(sb, x / sb->factor, y / sb->factor, &sx, &sy);
+                    if (sx != x || sy != y) continue;
+                }
+                ++counted;
+                if (ms->error[i] == INFINITY) continue;
+                errors[matched++] = ms->error[i];
+                sum += ms->error[i];
+            }
+        refl__metric_summary(errors, matched, sum, counted, counted - matched, 0, out[k]);
+    }
+    refl__free(al, errors);
+    return REFL_OK;
+}
+
 static refl_result refl__method_sbc(refl__pass *p) {
     const refl_allocator *al = &p->scene->allocator;
     refl_frame *fr = p->frame;
@@ -11979,6 +12145,23 @@ static refl_result refl__method_sbc(refl__pass *p) {
     int i;
     t1 = refl__now_ms();
     fr->stats.ms_build += t1 - t0;
+    if (p->sbc_measure) {
+        refl__sb_measure *ms = p->sbc_measure;
+        size_t n = (size_t)fr->width * (size_t)fr->height;
+        ms->sb = &sb;
+        ms->error = (double *)refl__calloc(al, n, sizeof(double));
+        ms->kind = (uint8_t *)refl__calloc(al, n, 1);
+        if (r == REFL_OK && (!ms->error || !ms->kind)) r = REFL_ERROR_OUT_OF_MEMORY;
+        /* no reflector in view: nothing to measure (the truth shows none either) */
+        if (r == REFL_OK && sb.group_of) {
+            rast_run_jobs(p->rc, fr->height, refl__sb_measure_row, ms);
+            r = refl__sb_measure_summary(ms);
+        }
+        refl__free(al, ms->error);
+        refl__free(al, ms->kind);
+        refl__sb_free(&sb);
+        return r;
+    }
     if (r == REFL_OK && sb.group_count) {
         sb.color = (uint8_t *)refl__calloc(al, npx, 4);
         sb.depth = (float *)refl__calloc(al, npx, sizeof(float));
@@ -12026,6 +12209,30 @@ static refl_result refl__method_sbc(refl__pass *p) {
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl__sb_free(&sb);
+    return r;
+}
+
+REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                  const refl_render_desc *desc, const refl_frame *truth,
+                                                  refl_sbc_camera_error *out) {
+    refl__sb_measure ms;
+    refl_render_desc d;
+    refl_frame *frame = NULL;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
+    memset(&d, 0, sizeof d);
+    if (desc) d = *desc;
+    d.method = REFL_SBC;
+    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    memset(&ms, 0, sizeof ms);
+    ms.truth = truth;
+    ms.out = out;
+    r = refl_frame_create(truth->width, truth->height, &scene->allocator, &frame);
+    if (r == REFL_OK) r = refl__render(scene, view, &d, frame, &ms);
+    refl_frame_destroy(frame);
     return r;
 }
 /* ---- src/reflect/render.c ---- */
@@ -12249,8 +12456,9 @@ static int refl__view_ok(const refl_view *v) {
            v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f;
 }
 
-REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                 refl_frame *frame) {
+/* refl_render, or (sbc_measure) SBC's cameras measured in place of its reflections. */
+static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                refl_frame *frame, struct refl__sb_measure *sbc_measure) {
     refl__pass p;
     rast_context_desc cd;
     rast_targets t;
@@ -12288,6 +12496,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     p.scene = scene;
     p.view = view;
     p.frame = frame;
+    p.sbc_measure = sbc_measure;
     memset(&frame->stats, 0, sizeof(frame->stats));
     n = (size_t)frame->width * (size_t)frame->height;
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
@@ -12336,6 +12545,11 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
     if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
     return REFL_OK;
+}
+
+REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                 refl_frame *frame) {
+    return refl__render(scene, view, desc, frame, NULL);
 }
 /* ---- src/reflect/m_planar.c ---- */
 /* PLANAR: Diefenbach and Badler's pipeline rendering (paper 002) for

@@ -745,6 +745,25 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
                                                     const refl_frame *truth, float split_px,
                                                     refl_reflection_error *out);
 
+/* SBC's cameras alone, without rasterisation (paper 003's projection
+   accuracy, section VII-A): for each reflector pixel x of `truth`
+   (RAYTRACE of the same scene and view with depth 1) showing point P, P is
+   projected into every reflection group of its reflector as SBC builds
+   them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
+   may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
+   nearest image of P (sub-pixel), counted by the kind of leaf that made
+   it. P with no image within 8 pixels counts as wrong, in the kind of
+   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   is 0; everything 0 when the view shows no reflector. */
+typedef struct refl_sbc_camera_error {
+    refl_reflection_error pinhole, ray_list;   /* every truth pixel */
+    refl_reflection_error pinhole_samples,     /* the ray map's sample pixels only: where */
+                          ray_list_samples;    /* the build measures its error (heads, tails) */
+} refl_sbc_camera_error;
+REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                  const refl_render_desc *desc, const refl_frame *truth,
+                                                  refl_sbc_camera_error *out);
+
 /* Image error of the RGB of the RGBA8 colours against the truth (alpha
    ignored), over every pixel or (reflectors_only) over the truth's
    reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is

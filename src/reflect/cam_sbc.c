@@ -103,6 +103,11 @@ typedef struct refl__sbc_quad {
                                 between them the lerp bounds the rays (min of lines is concave) */
 } refl__sbc_quad;
 
+/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
+   lies on the reflector: heads are twice as far as what the rays meet, so
+   what they reflect lies near 0.5. */
+#define REFL__SBC_ON_SURFACE 0.02
+
 /* A quad's frame in double: what build and projection both compute with. */
 typedef struct refl__sbc_frame {
     double o[3], m[3], a[3], b[3];
@@ -1111,14 +1116,34 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
 static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
                                   float *z) {
     double best = DBL_MAX;
-    int i, c, j, W = sb->width;
+    int i, c, j, W = sb->width, off = 0;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
+    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
     for (i = 0; i < node->count; ++i) {
         const refl__sbc_quad *q = &sb->quads[node->first + i];
         refl__sbc_frame fr;
         double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss, tt, wt[4], zz = 0.0, lm = 0.0;
         double t0 = q->tau[0], t1 = q->tau[1];
+        /* most quads miss p: a float test first, looser than its rounding
+           (about 1e-6 of the coordinates' size), so it never drops a quad
+           the exact test below would take */
+        {
+            float eps = 1e-5f * (pn + fabsf(q->o[0]) + fabsf(q->o[1]) + fabsf(q->o[2]));
+            float wx = pf[0] - q->o[0], wy = pf[1] - q->o[1], wz = pf[2] - q->o[2], tf, ff, v;
+            tf = wx * q->m[0] + wy * q->m[1] + wz * q->m[2];
+            if (!(tf >= q->tau[0] - eps && tf <= q->tau[1] + eps)) continue;
+            ff = REFL__CLAMP((tf - q->tau[0]) / (q->tau[1] - q->tau[0]), 0.0f, 1.0f);
+            v = wx * q->a[0] + wy * q->a[1] + wz * q->a[2];
+            if (!(v >= q->box[0][0] + ff * (q->box[1][0] - q->box[0][0]) - eps &&
+                  v <= q->box[0][1] + ff * (q->box[1][1] - q->box[0][1]) + eps))
+                continue;
+            v = wx * q->b[0] + wy * q->b[1] + wz * q->b[2];
+            if (!(v >= q->box[0][2] + ff * (q->box[1][2] - q->box[0][2]) - eps &&
+                  v <= q->box[0][3] + ff * (q->box[1][3] - q->box[0][3]) + eps))
+                continue;
+        }
         refl__sbc_frame_load(q, &fr);
         for (j = 0; j < 3; ++j) w[j] = p[j] - fr.o[j];
         tau = refl__sbc_dot(w, fr.m);
@@ -1139,8 +1164,14 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
             zz += wt[c] * lam[c] * len[c];
             lm += wt[c] * lam[c];
         }
-        /* past the interpolated ray's tail */
-        if (!(lm >= -1e-4) || !(zz < best)) continue;
+        /* past the interpolated ray's tail; where rays fold, the nearest
+           image off the reflector: one at the tails is the reflector's own
+           surface (a knob on a lid lies at its own rays' tails, and also
+           ahead of the lid's rays that meet it) */
+        if (!(lm >= -1e-4)) continue;
+        if (off && lm < REFL__SBC_ON_SURFACE) continue;
+        if (!(zz < best) && !(!off && lm >= REFL__SBC_ON_SURFACE)) continue;
+        off = lm >= REFL__SBC_ON_SURFACE;
         best = zz;
         {
             double fp[3] = {0.0, 0.0, 0.0};

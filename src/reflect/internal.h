@@ -111,6 +111,7 @@ typedef struct refl__pass {
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
     refl__view_rays rays;
+    struct refl__sb_measure *sbc_measure; /* SBC: measure the cameras (refl_sbc_measure_camera_error), draw nothing */
 } refl__pass;
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into
@@ -122,6 +123,9 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 static refl_result refl__result_from_rast(rast_result r);
+struct refl__sb_measure;
+static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                refl_frame *frame, struct refl__sb_measure *sbc_measure);
 static double refl__now_ms(void);
 
 /* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----

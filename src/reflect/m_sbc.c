@@ -148,6 +148,7 @@ typedef struct refl__sb_group {
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
     refl_sbc *sbc;
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
+    refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
     refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
@@ -738,7 +739,11 @@ static void refl__sb_build_group(void *arg, int g) {
         refl__sb_ring(sb, sd, gr->comp, u0, v0, mw, mh, rays, hits, valid);
         for (k = 0; k < n; ++k) {
             if (!valid[k]) continue;
-            if (!count++) gr->lo = gr->hi = rays[k].tail;
+            if (!count++) {
+                gr->lo = gr->hi = rays[k].tail;
+                gr->first_lo = gr->first_hi = rays[k].first;
+            }
+            refl__sb_box_add(&gr->first_lo, &gr->first_hi, rays[k].first);
             refl__sb_box_add(&gr->lo, &gr->hi, rays[k].tail);
             refl__sb_box_add(&gr->lo, &gr->hi, rays[k].head);
             if (hits[k].object >= 0) hits[met++] = hits[k]; /* k >= met: nothing unread is overwritten */
@@ -749,6 +754,10 @@ static void refl__sb_build_group(void *arg, int g) {
                            refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
         gr->lo = refl_v3_sub(gr->lo, grow);
         gr->hi = refl_v3_add(gr->hi, grow);
+        grow = refl_v3_add(refl_v3_scale(refl_v3_sub(gr->first_hi, gr->first_lo), 0.25f),
+                           refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
+        gr->first_lo = refl_v3_sub(gr->first_lo, grow);
+        gr->first_hi = refl_v3_add(gr->first_hi, grow);
         /* by object and triangle, ties in map order (a stable merge: qsort is not) */
         if (met && (gr->hits = (refl__sb_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sb_hit))) != NULL) {
             refl__sb_sort_hits(hits, gr->hits, met);
@@ -790,7 +799,11 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     size_t at;
     v->ok = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    if (!refl_sbc_project(g->sbc, v->world, &f, &z)) return;
+    /* a leaf's map far outside the rays it was fitted to can send a point
+       anywhere: its first reflector point must lie where the group's do */
+    if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
+        !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f))
+        return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = v->from = f;
@@ -869,7 +882,7 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
    they meet (the knob seen in the lid): it faces away from the point
    every vertex's ray leaves (`from`), or lies nearer one than a fraction
    of its edge. */
-static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge) {
+static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
     const refl__sb_pv *v[3];
     refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
     int k;
@@ -877,6 +890,7 @@ static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, cons
     /* outwards, as the vertex normals point */
     if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
     if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
+    if (met) return 0;
     for (k = 0; k < 3; ++k)
         if (refl_v3_dot(refl_v3_sub(v[k]->from, v[k]->world), n) > 0.0f) return 0;
     return 1;
@@ -919,7 +933,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
     /* the surface the rays leave, whole: its parts would be dropped one by one */
-    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge)) return;
+    if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
@@ -951,7 +965,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     if (!split) {
         if (ok < 3) return;
         /* the reflector's own surface around the rays' tails */
-        if (t->self && refl__sb_own_surface(a, b, c, t->edge)) return;
+        if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
         if (j->out_count + 3 > j->out_cap) {
             size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
             float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));
@@ -1614,7 +1628,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->points_depth);
 }
 
-/* Everything up to the groups' trees (shared with the camera error). */
+/* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
 static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     const refl_allocator *al = &p->scene->allocator;
     size_t npx = (size_t)p->frame->width * (size_t)p->frame->height;
@@ -1664,6 +1678,104 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     return REFL_OK;
 }
 
+/* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
+   the nearest image of its point and the kind of leaf that made it. */
+typedef struct refl__sb_measure {
+    const refl_frame *truth;
+    const refl__sb *sb;
+    double *error;                /* INFINITY: no image within REFL__SB_MEASURE_REACH */
+    uint8_t *kind;                /* refl_sbc_leaf_kind */
+    refl_sbc_camera_error *out;
+} refl__sb_measure;
+
+#define REFL__SB_MEASURE_REACH 8.0 /* pixels: an image further off shows another point */
+
+/* Row y of the truth: each point projected into every group of its
+   reflector, as the method projects a vertex. */
+static void refl__sb_measure_row(void *arg, int y) {
+    refl__sb_measure *ms = (refl__sb_measure *)arg;
+    const refl__sb *sb = ms->sb;
+    const refl_frame *t = ms->truth;
+    int x, g;
+    for (x = 0; x < t->width; ++x) {
+        size_t i = (size_t)y * (size_t)t->width + (size_t)x;
+        const float *q = t->points + 3 * i;
+        int object = t->stencil[i] - 1, own = sb->group_of[i] - 1;
+        double best = INFINITY;
+        refl_sbc_leaf_kind kind = REFL_SBC_LEAF_NONE;
+        refl__sb_pv v;
+        ms->error[i] = INFINITY;
+        ms->kind[i] = REFL_SBC_LEAF_NONE;
+        if (object < 0 || !refl__isfinite(q[0]) || !refl__isfinite(q[1]) || !refl__isfinite(q[2])) continue;
+        memset(&v, 0, sizeof v);
+        v.world = refl_v3(q[0], q[1], q[2]);
+        for (g = 0; g < sb->group_count; ++g) {
+            const refl__sb_group *gr = &sb->groups[g];
+            double dx, dy, e;
+            if (!gr->sbc || (gr->object != object && !(object == 254 && gr->object >= 254))) continue;
+            /* an image lands on the group's first reflector points: its tile
+               and ring; one further off than the reach does not count */
+            if ((double)x < (double)((gr->u0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
+                (double)x > (double)((gr->u1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH ||
+                (double)y < (double)((gr->v0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
+                (double)y > (double)((gr->v1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH)
+                continue;
+            refl__sb_project(sb, gr, &v);
+            if (!v.ok) continue;
+            dx = (double)v.sx - ((double)x + 0.5);
+            dy = (double)v.sy - ((double)y + 0.5);
+            e = sqrt(dx * dx + dy * dy);
+            if (e < best) {
+                best = e;
+                kind = refl_sbc_leaf_at(gr->sbc, v.world);
+            }
+        }
+        if (best <= REFL__SB_MEASURE_REACH) {
+            ms->error[i] = best;
+        } else if (own >= 0 && sb->groups[own].sbc) { /* no image: charged to the leaf its own group holds it in */
+            kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
+        }
+        ms->kind[i] = (uint8_t)(kind == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+    }
+}
+
+/* The summaries of the pixels the measure left, by leaf kind, over every
+   pixel and over the ray map's sample pixels. */
+static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
+    const refl__sb *sb = ms->sb;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int w = ms->truth->width, h = ms->truth->height, k, x, y;
+    double *errors = (double *)refl__calloc(al, (size_t)w * (size_t)h, sizeof(double));
+    refl_reflection_error *out[4];
+    if (!errors) return REFL_ERROR_OUT_OF_MEMORY;
+    out[0] = &ms->out->pinhole;
+    out[1] = &ms->out->ray_list;
+    out[2] = &ms->out->pinhole_samples;
+    out[3] = &ms->out->ray_list_samples;
+    for (k = 0; k < 4; ++k) {
+        uint8_t want = (uint8_t)(k & 1 ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+        long long counted = 0, matched = 0;
+        double sum = 0.0;
+        for (y = 0; y < h; ++y)
+            for (x = 0; x < w; ++x) {
+                size_t i = (size_t)y * (size_t)w + (size_t)x;
+                int sx, sy;
+                if (ms->kind[i] != want) continue;
+                if (k >= 2) { /* the pixel of its sample only */
+                    refl__sb_sample_pixel(sb, x / sb->factor, y / sb->factor, &sx, &sy);
+                    if (sx != x || sy != y) continue;
+                }
+                ++counted;
+                if (ms->error[i] == INFINITY) continue;
+                errors[matched++] = ms->error[i];
+                sum += ms->error[i];
+            }
+        refl__metric_summary(errors, matched, sum, counted, counted - matched, 0, out[k]);
+    }
+    refl__free(al, errors);
+    return REFL_OK;
+}
+
 static refl_result refl__method_sbc(refl__pass *p) {
     const refl_allocator *al = &p->scene->allocator;
     refl_frame *fr = p->frame;
@@ -1674,6 +1786,23 @@ static refl_result refl__method_sbc(refl__pass *p) {
     int i;
     t1 = refl__now_ms();
     fr->stats.ms_build += t1 - t0;
+    if (p->sbc_measure) {
+        refl__sb_measure *ms = p->sbc_measure;
+        size_t n = (size_t)fr->width * (size_t)fr->height;
+        ms->sb = &sb;
+        ms->error = (double *)refl__calloc(al, n, sizeof(double));
+        ms->kind = (uint8_t *)refl__calloc(al, n, 1);
+        if (r == REFL_OK && (!ms->error || !ms->kind)) r = REFL_ERROR_OUT_OF_MEMORY;
+        /* no reflector in view: nothing to measure (the truth shows none either) */
+        if (r == REFL_OK && sb.group_of) {
+            rast_run_jobs(p->rc, fr->height, refl__sb_measure_row, ms);
+            r = refl__sb_measure_summary(ms);
+        }
+        refl__free(al, ms->error);
+        refl__free(al, ms->kind);
+        refl__sb_free(&sb);
+        return r;
+    }
     if (r == REFL_OK && sb.group_count) {
         sb.color = (uint8_t *)refl__calloc(al, npx, 4);
         sb.depth = (float *)refl__calloc(al, npx, sizeof(float));
@@ -1721,5 +1850,29 @@ static refl_result refl__method_sbc(refl__pass *p) {
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl__sb_free(&sb);
+    return r;
+}
+
+REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
+                                                  const refl_render_desc *desc, const refl_frame *truth,
+                                                  refl_sbc_camera_error *out) {
+    refl__sb_measure ms;
+    refl_render_desc d;
+    refl_frame *frame = NULL;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
+    memset(&d, 0, sizeof d);
+    if (desc) d = *desc;
+    d.method = REFL_SBC;
+    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    memset(&ms, 0, sizeof ms);
+    ms.truth = truth;
+    ms.out = out;
+    r = refl_frame_create(truth->width, truth->height, &scene->allocator, &frame);
+    if (r == REFL_OK) r = refl__render(scene, view, &d, frame, &ms);
+    refl_frame_destroy(frame);
     return r;
 }

@@ -219,8 +219,9 @@ static int refl__view_ok(const refl_view *v) {
            v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f;
 }
 
-REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                 refl_frame *frame) {
+/* refl_render, or (sbc_measure) SBC's cameras measured in place of its reflections. */
+static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                refl_frame *frame, struct refl__sb_measure *sbc_measure) {
     refl__pass p;
     rast_context_desc cd;
     rast_targets t;
@@ -258,6 +259,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
     p.scene = scene;
     p.view = view;
     p.frame = frame;
+    p.sbc_measure = sbc_measure;
     memset(&frame->stats, 0, sizeof(frame->stats));
     n = (size_t)frame->width * (size_t)frame->height;
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
@@ -306,4 +308,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
     if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
     return REFL_OK;
+}
+
+REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
+                                 refl_frame *frame) {
+    return refl__render(scene, view, desc, frame, NULL);
 }
