@@ -675,7 +675,9 @@ typedef struct refl_render_desc {
        valid 1 on the side's samples and on the ring extrapolated beyond
        its silhouette), before the side is cut into reflection groups. The
        arrays live until the callback returns; its time counts in
-       stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests. */
+       stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests.
+       First-order sides only: the histories past them (desc.depth > 1)
+       are not reported. */
     void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
                         int map_height);
     void *sbc_ray_map_user;

@@ -365,6 +365,40 @@ static refl_view lens_view(void) {
     return tu_refl_view(refl_v3(0.2f, 0.3f, 3.6f), refl_v3(0.0f, -0.1f, 0.0f), W, H);
 }
 
+/* RAYTRACE's points_last: the same colours and, where the first reflection
+   meets no mirror, the same points as the first points; where it meets
+   one, a point off that mirror (the last along the path) or none. */
+Test(sbc_higher, raytrace_points_last, .timeout = 120) {
+    refl_scene *s = facing_mirrors();
+    refl_view v = facing_view();
+    refl_render_desc first = desc_of(REFL_RAYTRACE, 2, 2), last = desc_of(REFL_RAYTRACE, 2, 2);
+    refl_frame *a, *b;
+    long on = 0, moved = 0;
+    int i, k;
+    first.points_last = 0;
+    a = tu_refl_render(s, &v, &first);
+    b = tu_refl_render(s, &v, &last);
+    cr_assert_eq(memcmp(a->color, b->color, 4 * (size_t)W * H), 0);
+    for (i = 0; i < W * H; ++i) {
+        const float *p = a->points + 3 * i, *q = b->points + 3 * i;
+        int on_mirror = 0;
+        for (k = 0; k < 2 && p[0] == p[0]; ++k) {
+            float dx = p[0] - facing_spheres[k].c.x, dy = p[1] - facing_spheres[k].c.y, dz = p[2] - facing_spheres[k].c.z;
+            on_mirror |= fabsf(sqrtf(dx * dx + dy * dy + dz * dz) - facing_spheres[k].r) < 0.01f * facing_spheres[k].r;
+        }
+        if (!on_mirror) {
+            cr_assert(memcmp(p, q, 3 * sizeof(float)) == 0 || (p[0] != p[0] && q[0] != q[0]), "pixel %d", i);
+            continue;
+        }
+        ++on;
+        moved += memcmp(p, q, 3 * sizeof(float)) != 0;
+    }
+    cr_assert(on > 100 && moved == on, "%ld of %ld second-mirror points moved on", moved, on);
+    refl_frame_destroy(a);
+    refl_frame_destroy(b);
+    refl_scene_destroy(s);
+}
+
 /* Counts the first-order sides SBC reports (refl_render_desc.sbc_ray_map). */
 static void count_side(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int w, int h) {
     (void)object;
