@@ -240,6 +240,16 @@ typedef struct refl_material {
     float tint[3];           /* glass transmission colour; zero: white */
     float attenuation;       /* glass absorption per unit length (Beer's law) */
     float mirror_weight;     /* partial: 0 diffuse .. 1 mirror */
+    /* paper 003's reflector surface properties (section V-D) on the mirror
+       share of mirrors and partial reflectors; zero: off */
+    float fresnel_min, fresnel_max; /* fresnel_max > 0: the mirror share times
+                                       fresnel_max - (fresnel_max - fresnel_min) cos^2, cos the
+                                       incidence's: fresnel_min facing the eye, fresnel_max grazing */
+    float fade_distance;     /* > 0 (the paper's d_M): the mirror share times
+                                fade_max - (fade_max - fade_min) min(d / fade_distance, 1)^2,
+                                d from the reflector to what it reflects (the environment:
+                                infinitely far); refl_material_fade */
+    float fade_min, fade_max;
     char name[32];
 } refl_material;
 
@@ -369,9 +379,16 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
 REFL_API float refl_fresnel_dielectric(float cos_incidence, float n1, float n2);
 /* The share of light a reflector's mirror term carries at cos_incidence:
    mirror: reflectance (0 means 1), through Schlick's Fresnel when `fresnel`
-   is set; partial: that times mirror_weight; glass: the dielectric Fresnel
-   term entering from air; diffuse: 0. Every method composites with it. */
+   is set, times paper 003's Fresnel blend when fresnel_max > 0; partial:
+   that times mirror_weight; glass: the dielectric Fresnel term entering
+   from air; diffuse: 0. Every method composites with it. */
 REFL_API float refl_material_reflectance(const refl_material *m, float cos_incidence);
+/* The distance fade of a reflector's mirror share (fade_distance above)
+   for what it reflects `distance` away (INFINITY: the environment): 1
+   when the material has none, or for glass and diffuse materials. RAYTRACE
+   fades each mirror bounce by its ray's length, ENVMAP, C3RC and SBC by
+   the distance to the point each pixel shows; PLANAR does not fade. */
+REFL_API float refl_material_fade(const refl_material *m, float distance);
 
 /* ---- ray tracing: a BVH over the scene's triangles ---------------------------- */
 
@@ -3598,8 +3615,23 @@ REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
         c5 = c5 * c5 * c5 * c5 * c5;
         r = r + (1.0f - r) * c5;
     }
+    if (m->fresnel_max > 0.0f) { /* paper 003 V-D: weights in cos^2, scaled to [min, max] */
+        float c2 = REFL__CLAMP(cos_i, 0.0f, 1.0f) * REFL__CLAMP(cos_i, 0.0f, 1.0f);
+        float lo = REFL__CLAMP(m->fresnel_min, 0.0f, 1.0f), hi = REFL__CLAMP(m->fresnel_max, 0.0f, 1.0f);
+        r *= hi - (hi - lo) * c2;
+    }
     if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
     return r;
+}
+
+REFL_API float refl_material_fade(const refl_material *m, float distance) {
+    float lo, hi, f;
+    if (!m || (m->type != REFL_MIRROR && m->type != REFL_PARTIAL) || !(m->fade_distance > 0.0f)) return 1.0f;
+    lo = REFL__CLAMP(m->fade_min, 0.0f, 1.0f);
+    hi = REFL__CLAMP(m->fade_max, 0.0f, 1.0f);
+    /* NaN (no point) fades as the environment does: wholly */
+    f = distance >= 0.0f ? REFL__MIN(distance / m->fade_distance, 1.0f) : 1.0f;
+    return hi - (hi - lo) * f * f;
 }
 
 /* ---- the base pass's programs, shared by every rasterising method ---------------- */
@@ -5224,6 +5256,8 @@ typedef struct refl__sbc_quad {
     float tau[2];            /* its tails' lowest and (a quarter past) heads' highest tau */
     float box[2][4];         /* lateral xmin, xmax, ymin, ymax at tau[0] and tau[1], padded:
                                 between them the lerp bounds the rays (min of lines is concave) */
+    float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
+    float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
 } refl__sbc_quad;
 
 /* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
@@ -5946,6 +5980,8 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
             q.tau[e] = (float)tau[e];
         }
         if (!ok) continue; /* rays a quarter turn apart: no slicing; nothing projects there */
+        q.inv_span = 1.0f / (q.tau[1] - q.tau[0]); /* tau[1] > tau[0]: the pads grow them apart */
+        q.o_size = fabsf(q.o[0]) + fabsf(q.o[1]) + fabsf(q.o[2]);
         if (!refl__sbc_grow_int(&s->allocator, (void **)&s->quads, &s->quad_cap, s->quad_count + 1,
                                 sizeof(refl__sbc_quad)))
             return REFL_ERROR_OUT_OF_MEMORY;
@@ -6253,11 +6289,11 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
            (about 1e-6 of the coordinates' size), so it never drops a quad
            the exact test below would take */
         {
-            float eps = 1e-5f * (pn + fabsf(q->o[0]) + fabsf(q->o[1]) + fabsf(q->o[2]));
+            float eps = 1e-5f * (pn + q->o_size);
             float wx = pf[0] - q->o[0], wy = pf[1] - q->o[1], wz = pf[2] - q->o[2], tf, ff, v;
             tf = wx * q->m[0] + wy * q->m[1] + wz * q->m[2];
             if (!(tf >= q->tau[0] - eps && tf <= q->tau[1] + eps)) continue;
-            ff = REFL__CLAMP((tf - q->tau[0]) / (q->tau[1] - q->tau[0]), 0.0f, 1.0f);
+            ff = REFL__CLAMP((tf - q->tau[0]) * q->inv_span, 0.0f, 1.0f);
             v = wx * q->a[0] + wy * q->a[1] + wz * q->a[2];
             if (!(v >= q->box[0][0] + ff * (q->box[1][0] - q->box[0][0]) - eps &&
                   v <= q->box[0][1] + ff * (q->box[1][1] - q->box[0][1]) + eps))
@@ -8160,15 +8196,17 @@ typedef struct refl__rt_medium {
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point);
+                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
+                           refl_vec3 *first_point, float *hit_t);
 
-/* A new ray leaving surface s in direction d, on the side d points to. */
+/* A new ray leaving surface s in direction d, on the side d points to;
+   *hit_t (may be NULL) the distance to what it meets, INFINITY for none. */
 static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point,
+                           float *hit_t) {
     refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
     refl__rt_trace(rt, refl__rt_offset(s->p, side, s->magnitude), d, s, depth, weight, medium, rays, rgb,
-                   first_point);
+                   first_point, hit_t);
 }
 
 /* Colour of surface s seen along unit d with `depth` bounces left,
@@ -8207,9 +8245,11 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         /* near a silhouette the smooth normal can send the ray into the
            surface itself: reflect about the true surface instead */
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
+        float t = INFINITY;
         r = refl_material_reflectance(m, cos_i);
         if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
-            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point);
+            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
+            r *= refl_material_fade(m, t); /* paper 003 V-D: by the reflected ray's length */
             for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
         }
     } else {
@@ -8227,7 +8267,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
         if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
-                           point_on_refraction ? NULL : first_point);
+                           point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
         if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
@@ -8242,7 +8282,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
                 through.fog_rgb = m->color;
             }
             refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
-                           point_on_refraction ? first_point : NULL);
+                           point_on_refraction ? first_point : NULL, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
         }
     }
@@ -8250,13 +8290,14 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
 }
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
+                           refl_vec3 *first_point, float *hit_t) {
     refl_hit h;
     refl__rt_surface s;
     int c;
     float fog = 1.0f;             /* the share the fog leaves */
     ++*rays;
+    if (hit_t) *hit_t = INFINITY;
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
@@ -8266,6 +8307,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
     }
+    if (hit_t) *hit_t = h.t;
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;
@@ -8713,6 +8755,28 @@ static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3
     fr->points[3 * i + 2] = shown.z;
 }
 
+/* The world point of the surface pixel (x, y) shows, from its window
+   depth along its ray. */
+static refl_vec3 refl__em_surface_at(const refl__pass *p, int x, int y) {
+    const refl__view_rays *r = &p->rays;
+    const refl_frame *fr = p->frame;
+    float n = r->znear, f = r->zfar, nx, ny, ndc, dist;
+    refl_vec3 d;
+    nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+    ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+    ndc = 2.0f * fr->depth[(size_t)y * (size_t)fr->width + (size_t)x] - 1.0f;
+    dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+    d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    return refl_v3_add(r->eye, refl_v3_scale(d, dist));
+}
+
+/* The distance fade (paper 003 V-D) of material m's mirror share at pixel
+   (x, y) showing `shown` (NaN: the environment). */
+static float refl__em_fade(const refl__pass *p, const refl_material *m, int x, int y, refl_vec3 shown) {
+    if (!(m->fade_distance > 0.0f)) return 1.0f; /* the common case: no depth read */
+    return refl_material_fade(m, refl_v3_length(refl_v3_sub(shown, refl__em_surface_at(p, x, y))));
+}
+
 /* One frame row: every pixel of the current reflector gets its reflection
    (and refraction) added and its point. Pixels are independent, so rows
    may run on any thread in any order. */
@@ -8751,6 +8815,7 @@ static void refl__em_row(void *arg, int y) {
                 if (w < 0.5f) shown = tshown;
             }
         } else {
+            w *= refl__em_fade(p, m, x, y, shown);
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         }
         refl__em_put(fr, i, rgb, shown);
@@ -8758,25 +8823,16 @@ static void refl__em_row(void *arg, int y) {
 }
 
 /* Per reflector pixel (G-buffer id nonzero): the world point of the
-   surface seen, from the window depth along the pixel's ray, into
-   em->surface. Rows are independent. */
+   surface seen into em->surface. Rows are independent. */
 static void refl__em_surface_row(void *arg, int y) {
     refl__em *em = (refl__em *)arg;
-    const refl__view_rays *r = &em->p->rays;
     const refl_frame *fr = em->p->frame;
-    float n = r->znear, f = r->zfar;
     int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        float nx, ny, ndc, dist;
-        refl_vec3 d, q;
+        refl_vec3 q;
         if (fabsf(em->gbuf[4 * i + 3]) < 1.0f) continue;
-        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
-        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
-        ndc = 2.0f * fr->depth[i] - 1.0f;
-        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
-        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
-        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        q = refl__em_surface_at(em->p, x, y);
         em->surface[3 * i] = q.x;
         em->surface[3 * i + 1] = q.y;
         em->surface[3 * i + 2] = q.z;
@@ -8812,6 +8868,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
         for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
     }
+    if (m->type != REFL_GLASS) w *= refl__em_fade(p, m, x, y, shown);
     for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
     if (m->type == REFL_GLASS) {
         float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];

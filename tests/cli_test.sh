@@ -57,6 +57,10 @@ refuses "bad --density" "density: not a positive" "$bin" render --builtin defaul
 refuses "bad --max-splat" "max-splat: expected" "$bin" render --builtin default --method c3rc --max-splat 0
 ok "render sbc --stats counts projections" bash -c \
     "'$bin' render --builtin default --method sbc --error-px 2 --ray-factor 4 --size 64x48 --out '$tmp/s.png' --stats | grep -q '^projections  [1-9]'"
+ok "render sbc with the Fresnel blend and the fade" "$bin" render --builtin default --method sbc --fresnel 0.2,0.9 \
+    --fade 4,0.1,1 --size 48x36 --out "$tmp/vd.png"
+refuses "bad --fresnel" "fresnel: expected" "$bin" render --builtin default --fresnel 0.5
+refuses "bad --fade" "fade: expected" "$bin" render --builtin default --fade 0,0.1,1
 refuses "bad --ray-factor" "ray-factor: expected" "$bin" render --builtin default --method sbc --ray-factor 0
 refuses "bad --soft-shadows" "soft-shadows: expected" "$bin" render --builtin default --soft-shadows 0
 ok "render planar with light volumes, caustics and translucency" "$bin" render --builtin mirror-room --method planar \

@@ -41,6 +41,10 @@ static const char *const usage_render =
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
+    "  --fresnel MIN,MAX  every mirror's reflection weighted by MAX - (MAX - MIN) cos^2\n"
+    "                     of the incidence (paper 003's Fresnel blend; each in 0..1)\n"
+    "  --fade D,MIN,MAX   every mirror's reflection faded from MAX to MIN, quadratically\n"
+    "                     in its distance up to D (paper 003's attenuation; PLANAR: none)\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
     "  --light-volumes    PLANAR, RAYTRACE: light reflected by planar mirrors lights the scene\n"
@@ -97,6 +101,8 @@ typedef struct options {
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
+    float fresnel[2];             /* --fresnel: min, max; max 0: off */
+    refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
 
 static int fail(const char *fmt, const char *arg) {
@@ -184,6 +190,15 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_float(v, 0.0f, 1e6f, &o->translucency)) return fail("--translucency: not a density: %s", v);
         } else if (!strcmp(a, "--light-radius")) {
             if (!parse_float(v, 0.0f, 1e6f, &o->light_radius)) return fail("--light-radius: not a size: %s", v);
+        } else if (!strcmp(a, "--fresnel")) {
+            char extra;
+            if (sscanf(v, "%f,%f%c", &o->fresnel[0], &o->fresnel[1], &extra) != 2 ||
+                !(o->fresnel[0] >= 0.0f && o->fresnel[0] <= 1.0f && o->fresnel[1] > 0.0f && o->fresnel[1] <= 1.0f))
+                return fail("--fresnel: expected MIN,MAX in 0..1 (MAX above 0), got %s", v);
+        } else if (!strcmp(a, "--fade")) {
+            if (!parse_vec3(v, &o->fade) || !(o->fade.x > 0.0f) || !(o->fade.y >= 0.0f && o->fade.y <= 1.0f) ||
+                !(o->fade.z >= 0.0f && o->fade.z <= 1.0f))
+                return fail("--fade: expected D,MIN,MAX (D above 0, MIN and MAX in 0..1), got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
         } else if (!strcmp(a, "--density")) {
@@ -352,6 +367,21 @@ static int cmd_render(const options *o) {
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
+    }
+    if (o->fresnel[1] > 0.0f || o->fade.x > 0.0f) {
+        int i;
+        for (i = 0; i < s->material_count; ++i) {
+            refl_material *m = &s->materials[i];
+            if (o->fresnel[1] > 0.0f) {
+                m->fresnel_min = o->fresnel[0];
+                m->fresnel_max = o->fresnel[1];
+            }
+            if (o->fade.x > 0.0f) {
+                m->fade_distance = o->fade.x;
+                m->fade_min = o->fade.y;
+                m->fade_max = o->fade.z;
+            }
+        }
     }
     if (o->method && !(d.method = refl_method_from_name(o->method))) {
         fprintf(stderr, "reflect: unknown method '%s'\n", o->method);

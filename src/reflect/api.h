@@ -238,6 +238,16 @@ typedef struct refl_material {
     float tint[3];           /* glass transmission colour; zero: white */
     float attenuation;       /* glass absorption per unit length (Beer's law) */
     float mirror_weight;     /* partial: 0 diffuse .. 1 mirror */
+    /* paper 003's reflector surface properties (section V-D) on the mirror
+       share of mirrors and partial reflectors; zero: off */
+    float fresnel_min, fresnel_max; /* fresnel_max > 0: the mirror share times
+                                       fresnel_max - (fresnel_max - fresnel_min) cos^2, cos the
+                                       incidence's: fresnel_min facing the eye, fresnel_max grazing */
+    float fade_distance;     /* > 0 (the paper's d_M): the mirror share times
+                                fade_max - (fade_max - fade_min) min(d / fade_distance, 1)^2,
+                                d from the reflector to what it reflects (the environment:
+                                infinitely far); refl_material_fade */
+    float fade_min, fade_max;
     char name[32];
 } refl_material;
 
@@ -367,9 +377,16 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
 REFL_API float refl_fresnel_dielectric(float cos_incidence, float n1, float n2);
 /* The share of light a reflector's mirror term carries at cos_incidence:
    mirror: reflectance (0 means 1), through Schlick's Fresnel when `fresnel`
-   is set; partial: that times mirror_weight; glass: the dielectric Fresnel
-   term entering from air; diffuse: 0. Every method composites with it. */
+   is set, times paper 003's Fresnel blend when fresnel_max > 0; partial:
+   that times mirror_weight; glass: the dielectric Fresnel term entering
+   from air; diffuse: 0. Every method composites with it. */
 REFL_API float refl_material_reflectance(const refl_material *m, float cos_incidence);
+/* The distance fade of a reflector's mirror share (fade_distance above)
+   for what it reflects `distance` away (INFINITY: the environment): 1
+   when the material has none, or for glass and diffuse materials. RAYTRACE
+   fades each mirror bounce by its ray's length, ENVMAP, C3RC and SBC by
+   the distance to the point each pixel shows; PLANAR does not fade. */
+REFL_API float refl_material_fade(const refl_material *m, float distance);
 
 /* ---- ray tracing: a BVH over the scene's triangles ---------------------------- */
 

@@ -101,6 +101,8 @@ typedef struct refl__sbc_quad {
     float tau[2];            /* its tails' lowest and (a quarter past) heads' highest tau */
     float box[2][4];         /* lateral xmin, xmax, ymin, ymax at tau[0] and tau[1], padded:
                                 between them the lerp bounds the rays (min of lines is concave) */
+    float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
+    float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
 } refl__sbc_quad;
 
 /* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
@@ -823,6 +825,8 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
             q.tau[e] = (float)tau[e];
         }
         if (!ok) continue; /* rays a quarter turn apart: no slicing; nothing projects there */
+        q.inv_span = 1.0f / (q.tau[1] - q.tau[0]); /* tau[1] > tau[0]: the pads grow them apart */
+        q.o_size = fabsf(q.o[0]) + fabsf(q.o[1]) + fabsf(q.o[2]);
         if (!refl__sbc_grow_int(&s->allocator, (void **)&s->quads, &s->quad_cap, s->quad_count + 1,
                                 sizeof(refl__sbc_quad)))
             return REFL_ERROR_OUT_OF_MEMORY;
@@ -1130,11 +1134,11 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
            (about 1e-6 of the coordinates' size), so it never drops a quad
            the exact test below would take */
         {
-            float eps = 1e-5f * (pn + fabsf(q->o[0]) + fabsf(q->o[1]) + fabsf(q->o[2]));
+            float eps = 1e-5f * (pn + q->o_size);
             float wx = pf[0] - q->o[0], wy = pf[1] - q->o[1], wz = pf[2] - q->o[2], tf, ff, v;
             tf = wx * q->m[0] + wy * q->m[1] + wz * q->m[2];
             if (!(tf >= q->tau[0] - eps && tf <= q->tau[1] + eps)) continue;
-            ff = REFL__CLAMP((tf - q->tau[0]) / (q->tau[1] - q->tau[0]), 0.0f, 1.0f);
+            ff = REFL__CLAMP((tf - q->tau[0]) * q->inv_span, 0.0f, 1.0f);
             v = wx * q->a[0] + wy * q->a[1] + wz * q->a[2];
             if (!(v >= q->box[0][0] + ff * (q->box[1][0] - q->box[0][0]) - eps &&
                   v <= q->box[0][1] + ff * (q->box[1][1] - q->box[0][1]) + eps))

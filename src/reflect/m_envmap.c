@@ -300,6 +300,28 @@ static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3
     fr->points[3 * i + 2] = shown.z;
 }
 
+/* The world point of the surface pixel (x, y) shows, from its window
+   depth along its ray. */
+static refl_vec3 refl__em_surface_at(const refl__pass *p, int x, int y) {
+    const refl__view_rays *r = &p->rays;
+    const refl_frame *fr = p->frame;
+    float n = r->znear, f = r->zfar, nx, ny, ndc, dist;
+    refl_vec3 d;
+    nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
+    ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
+    ndc = 2.0f * fr->depth[(size_t)y * (size_t)fr->width + (size_t)x] - 1.0f;
+    dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
+    d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    return refl_v3_add(r->eye, refl_v3_scale(d, dist));
+}
+
+/* The distance fade (paper 003 V-D) of material m's mirror share at pixel
+   (x, y) showing `shown` (NaN: the environment). */
+static float refl__em_fade(const refl__pass *p, const refl_material *m, int x, int y, refl_vec3 shown) {
+    if (!(m->fade_distance > 0.0f)) return 1.0f; /* the common case: no depth read */
+    return refl_material_fade(m, refl_v3_length(refl_v3_sub(shown, refl__em_surface_at(p, x, y))));
+}
+
 /* One frame row: every pixel of the current reflector gets its reflection
    (and refraction) added and its point. Pixels are independent, so rows
    may run on any thread in any order. */
@@ -338,6 +360,7 @@ static void refl__em_row(void *arg, int y) {
                 if (w < 0.5f) shown = tshown;
             }
         } else {
+            w *= refl__em_fade(p, m, x, y, shown);
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         }
         refl__em_put(fr, i, rgb, shown);
@@ -345,25 +368,16 @@ static void refl__em_row(void *arg, int y) {
 }
 
 /* Per reflector pixel (G-buffer id nonzero): the world point of the
-   surface seen, from the window depth along the pixel's ray, into
-   em->surface. Rows are independent. */
+   surface seen into em->surface. Rows are independent. */
 static void refl__em_surface_row(void *arg, int y) {
     refl__em *em = (refl__em *)arg;
-    const refl__view_rays *r = &em->p->rays;
     const refl_frame *fr = em->p->frame;
-    float n = r->znear, f = r->zfar;
     int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        float nx, ny, ndc, dist;
-        refl_vec3 d, q;
+        refl_vec3 q;
         if (fabsf(em->gbuf[4 * i + 3]) < 1.0f) continue;
-        nx = 2.0f * ((float)x + 0.5f) / (float)fr->width - 1.0f;
-        ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)fr->height;
-        ndc = 2.0f * fr->depth[i] - 1.0f;
-        dist = 2.0f * f * n / ((f + n) - ndc * (f - n)); /* eye depth along forward */
-        d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
-        q = refl_v3_add(r->eye, refl_v3_scale(d, dist));
+        q = refl__em_surface_at(em->p, x, y);
         em->surface[3 * i] = q.x;
         em->surface[3 * i + 1] = q.y;
         em->surface[3 * i + 2] = q.z;
@@ -399,6 +413,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
         for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
     }
+    if (m->type != REFL_GLASS) w *= refl__em_fade(p, m, x, y, shown);
     for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
     if (m->type == REFL_GLASS) {
         float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3];

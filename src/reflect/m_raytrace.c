@@ -234,15 +234,17 @@ typedef struct refl__rt_medium {
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point);
+                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
+                           refl_vec3 *first_point, float *hit_t);
 
-/* A new ray leaving surface s in direction d, on the side d points to. */
+/* A new ray leaving surface s in direction d, on the side d points to;
+   *hit_t (may be NULL) the distance to what it meets, INFINITY for none. */
 static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point,
+                           float *hit_t) {
     refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
     refl__rt_trace(rt, refl__rt_offset(s->p, side, s->magnitude), d, s, depth, weight, medium, rays, rgb,
-                   first_point);
+                   first_point, hit_t);
 }
 
 /* Colour of surface s seen along unit d with `depth` bounces left,
@@ -281,9 +283,11 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         /* near a silhouette the smooth normal can send the ray into the
            surface itself: reflect about the true surface instead */
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
+        float t = INFINITY;
         r = refl_material_reflectance(m, cos_i);
         if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
-            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point);
+            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
+            r *= refl_material_fade(m, t); /* paper 003 V-D: by the reflected ray's length */
             for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
         }
     } else {
@@ -301,7 +305,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
         if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
-                           point_on_refraction ? NULL : first_point);
+                           point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
         if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
@@ -316,7 +320,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
                 through.fog_rgb = m->color;
             }
             refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
-                           point_on_refraction ? first_point : NULL);
+                           point_on_refraction ? first_point : NULL, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
         }
     }
@@ -324,13 +328,14 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
 }
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
+                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
+                           refl_vec3 *first_point, float *hit_t) {
     refl_hit h;
     refl__rt_surface s;
     int c;
     float fog = 1.0f;             /* the share the fog leaves */
     ++*rays;
+    if (hit_t) *hit_t = INFINITY;
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
@@ -340,6 +345,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
     }
+    if (hit_t) *hit_t = h.t;
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;

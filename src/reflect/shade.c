@@ -150,8 +150,23 @@ REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
         c5 = c5 * c5 * c5 * c5 * c5;
         r = r + (1.0f - r) * c5;
     }
+    if (m->fresnel_max > 0.0f) { /* paper 003 V-D: weights in cos^2, scaled to [min, max] */
+        float c2 = REFL__CLAMP(cos_i, 0.0f, 1.0f) * REFL__CLAMP(cos_i, 0.0f, 1.0f);
+        float lo = REFL__CLAMP(m->fresnel_min, 0.0f, 1.0f), hi = REFL__CLAMP(m->fresnel_max, 0.0f, 1.0f);
+        r *= hi - (hi - lo) * c2;
+    }
     if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
     return r;
+}
+
+REFL_API float refl_material_fade(const refl_material *m, float distance) {
+    float lo, hi, f;
+    if (!m || (m->type != REFL_MIRROR && m->type != REFL_PARTIAL) || !(m->fade_distance > 0.0f)) return 1.0f;
+    lo = REFL__CLAMP(m->fade_min, 0.0f, 1.0f);
+    hi = REFL__CLAMP(m->fade_max, 0.0f, 1.0f);
+    /* NaN (no point) fades as the environment does: wholly */
+    f = distance >= 0.0f ? REFL__MIN(distance / m->fade_distance, 1.0f) : 1.0f;
+    return hi - (hi - lo) * f * f;
 }
 
 /* ---- the base pass's programs, shared by every rasterising method ---------------- */
