@@ -10720,11 +10720,19 @@ static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *
                      REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
 }
 
+/* The material of G-buffer side id `id` (object + 1, negated on the back). */
+static const refl_material *refl__sb_material(const refl__sb *sb, float id) {
+    const refl_scene *scene = sb->p->scene;
+    return &scene->materials[scene->objects[(int)fabsf(id) - 1].material];
+}
+
 /* A pixel's reflection history: per order k (index k - 1) the side it
    reflects at (G-buffer id: object + 1, negated on the back), the point,
    its unit normal facing the incoming ray, the incoming unit direction, and
    the product of the reflectances through order k (each as RAYTRACE
-   weighs its bounce); `out` the last order's reflected direction. */
+   weighs its bounce, the fades of the bounces before k included: order
+   k's own fades by what it shows); `out` the last order's reflected
+   direction. */
 typedef struct refl__sb_path {
     int count;
     float id[REFL__SB_ORDERS], weight[REFL__SB_ORDERS];
@@ -10771,7 +10779,8 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
         pa->q[k] = p;
         pa->n[k] = ns;
         pa->d[k] = r;
-        pa->weight[k] = pa->weight[k - 1] *
+        /* RAYTRACE fades a bounce by its reflected ray's length (paper 003 V-D) */
+        pa->weight[k] = pa->weight[k - 1] * refl_material_fade(refl__sb_material(sb, pa->id[k - 1]), h.t) *
                         refl_material_reflectance(&scene->materials[scene->objects[h.object].material],
                                                   REFL__CLAMP(-refl_v3_dot(r, ns), 0.0f, 1.0f));
         pa->count = k + 1;
@@ -11817,8 +11826,10 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
             refl_environment_lookup(&scene->environment, pa.out, sub);
             for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
         }
+        /* order k's bounce fades by the distance to what it shows (none: wholly) */
+        w = pa.weight[k] * refl_material_fade(refl__sb_material(sb, pa.id[k]),
+                                              shown.x == shown.x ? refl_v3_length(refl_v3_sub(shown, pa.q[k])) : INFINITY);
         if (!last && pa.count > 1 && (k > 0 || !(shown.x == shown.x))) shown = pa.q[1];
-        w = pa.weight[k];
         for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         if (m->type == REFL_GLASS) {
             float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3], f = pa.weight[0], tw = 1.0f;
