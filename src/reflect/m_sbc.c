@@ -88,7 +88,8 @@
         Past the first order (refl__sb_resolve_row_deep): the nearest
         order's colour (its order read off the offset), or the environment
         along the last reflected ray, times the product of the reflectances
-        along the pixel's own history (each bounce as RAYTRACE weighs it);
+        along the pixel's own history (each bounce as RAYTRACE weighs it,
+        faded by its reflected ray's length when the material asks);
         glass adds (1 - F) tint times what the refraction layer drew (or
         the environment beyond the glass), times (1 - F) at the exit and
         the absorption inside; reflections inside the glass short of total
