@@ -109,6 +109,8 @@ typedef struct refl__sb_group {
     refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
+    const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
+    int piece;
 } refl__sb_group;
 
 /* A scene point and what a group makes of it. */
@@ -120,6 +122,7 @@ typedef struct refl__sb_pv {
     refl_vec3 first;              /* its first reflector point */
     float dist;                   /* to the first reflector point */
     int ok;
+    int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
 } refl__sb_pv;
 
 /* One emission job: triangles [first, first + count) of `object` into `group`. */
@@ -145,6 +148,7 @@ typedef struct refl__sb {
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
     refl_bvh *bvh;                /* the scene's, for the rays' first hits */
     int *group_of;                /* per pixel: group index + 1, 0: none */
+    int *morph_base;              /* per object: its morph groups' first index, -1: none */
     int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
     uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
     refl__sb_pv **verts;          /* per group of the batch x object: every mesh vertex, projected */
@@ -154,6 +158,21 @@ typedef struct refl__sb {
     float *depth, *points;        /* (colour, depth), the points pass's (points, depth) */
     float *points_depth;
 } refl__sb;
+
+/* Whether g projects: a tree of this frame or a morph's piece. */
+static int refl__sb_live(const refl__sb_group *g) { return g->sbc != NULL || g->morph != NULL; }
+
+/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
+static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
+    int k, nodes[4];
+    float w[4];
+    for (k = 0; k < p->desc.sbc_morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc_morphs[k];
+        if (m && refl_sbc_morph_object(m) == o)
+            return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
+    }
+    return NULL;
+}
 
 /* Where a ray from inside the box leaves it. */
 static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
@@ -466,24 +485,29 @@ static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b)
    at window depth dist / D. */
 static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
-    const refl__sb_side *sd = &sb->sides[g->side];
+    const refl__sb_side *sd = g->morph ? NULL : &sb->sides[g->side];
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
     int k, u, w;
     size_t at;
     v->ok = 0;
+    v->ambiguous = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    if (!refl_sbc_project(g->sbc, v->world, &f, &z)) return;
+    if (g->morph ? !refl_sbc_morph_project(g->morph, p->view->eye, g->piece, v->world, &f, &z, &v->ambiguous)
+                 : !refl_sbc_project(g->sbc, v->world, &f, &z))
+        return;
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = f;
-    v->dist = refl_v3_length(refl_v3_sub(v->world, f));
+    v->dist = g->morph ? z : refl_v3_length(refl_v3_sub(v->world, f)); /* a morph blends its nodes' */
     wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
     v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
     if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
+    v->ok = !sd; /* a morph group has no ray map of this frame to check against */
+    if (!sd) return;
     /* ahead along the reflected ray of the sample it lands on: a leaf's
        frustum starts at an image plane fitted to the tails, so it can reach
        just behind a curved mirror, where nothing is reflected */
@@ -505,7 +529,7 @@ static void refl__sb_project_object(void *arg, int index) {
     const refl_mesh *m = scene->meshes[obj->mesh];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
     refl__sb_pv *out = sb->verts[index];
-    if (!out || !sb->groups[g].sbc) return;
+    if (!out || !refl__sb_live(&sb->groups[g])) return;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
         out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
@@ -806,6 +830,100 @@ static void refl__sb_resolve_row(void *arg, int y) {
     }
 }
 
+/* ---- reflection morphing (paper 003 VI): groups backed by prebuilt grids ---- */
+
+/* Row y's front pixels of objects drawn from grids: the group of the
+   piece their view ray meets (a job per row). */
+static void refl__sb_morph_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    int x, W = p->frame->width;
+    for (x = 0; x < W; ++x) {
+        size_t i = (size_t)y * (size_t)W + (size_t)x;
+        float id = sb->em.gbuf[4 * i + 3], tmax;
+        int o = (int)id - 1, piece;
+        refl_vec3 org, d;
+        if (!(id > 0.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
+        piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
+        sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
+    }
+}
+
+/* Appends a group per piece of every grid in use whose object shows its
+   front (after the frame's own groups are built), and gives them their
+   pixels. */
+static refl_result refl__sb_morph_groups(refl__sb *sb) {
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
+    int o, add = 0, piece;
+    refl__sb_group *groups;
+    refl__sb_hit *scratch;
+    refl__sbm_hit *found;
+    sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
+    if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em.gbuf[4 * k + 3];
+        if (id > 0.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+    }
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
+        refl_sbc_morph_stats st;
+        sb->morph_base[o] = -1;
+        if (!m) continue;
+        refl_sbc_morph_get_stats(m, &st);
+        sb->morph_base[o] = sb->group_count + add;
+        add += st.pieces;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    if (!add) return REFL_OK;
+    groups = (refl__sb_group *)refl__calloc(al, (size_t)(sb->group_count + add), sizeof(refl__sb_group));
+    if (!groups) return REFL_ERROR_OUT_OF_MEMORY;
+    if (sb->group_count) memcpy(groups, sb->groups, (size_t)sb->group_count * sizeof(refl__sb_group));
+    refl__free(al, sb->groups);
+    sb->groups = groups;
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] < 0 ? NULL : refl__sb_morph_for(p, o);
+        refl_sbc_morph_stats st;
+        refl_sbc_morph_get_stats(m, &st);
+        for (piece = 0; piece < st.pieces; ++piece) {
+            refl__sb_group *g = &groups[sb->morph_base[o] + piece];
+            g->side = -1;
+            g->object = o;
+            g->morph = m;
+            g->piece = piece;
+            refl__sbm_piece_box(m, piece, &g->lo, &g->hi);
+            /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
+            g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
+            if (!g->hit_count) continue;
+            g->hits = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            scratch = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            found = (refl__sbm_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbm_hit));
+            if (g->hits && scratch && found) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, found);
+                for (k = 0; k < (size_t)g->hit_count; ++k) {
+                    scratch[k].object = found[k].object;
+                    scratch[k].triangle = found[k].triangle;
+                    scratch[k].point = found[k].point;
+                }
+                refl__sb_sort_hits(scratch, g->hits, g->hit_count);
+            }
+            refl__free(al, scratch);
+            refl__free(al, found);
+            if (!g->hits) {
+                sb->group_count += add; /* freed with the others */
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+    }
+    sb->group_count += add;
+    rast_run_jobs(p->rc, p->frame->height, refl__sb_morph_row, sb);
+    return REFL_OK;
+}
+
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
    sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
@@ -830,7 +948,7 @@ static refl_result refl__sb_groups(refl__sb *sb) {
     }
     for (i = 0; i < scene->object_count; ++i)
         for (side = 0; side < 2; ++side)
-            if (sides[i] & (1 << side)) {
+            if ((sides[i] & (1 << side)) && !(side == 0 && refl__sb_morph_for(sb->p, i))) {
                 refl__sb_side *sd = &sb->sides[sb->side_count++];
                 sd->object = i;
                 sd->id = side ? -(float)(i + 1) : (float)(i + 1);
@@ -957,9 +1075,12 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
     for (i = 0; i < pairs; ++i) {
         int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        if (!sb->groups[sb->batch0 + i / scene->object_count].sbc) continue;
+        if (!refl__sb_live(&sb->groups[sb->batch0 + i / scene->object_count])) continue;
         sb->p->frame->stats.projections += count;
-        for (v = 0; v < count; ++v) sb->p->frame->stats.projected += sb->verts[i][v].ok;
+        for (v = 0; v < count; ++v) {
+            sb->p->frame->stats.projected += sb->verts[i][v].ok;
+            sb->p->frame->stats.ambiguous += sb->verts[i][v].ambiguous;
+        }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
         for (o = 0; o < scene->object_count; ++o)
@@ -967,7 +1088,7 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch0; g < sb->batch1; ++g) {
-        if (!sb->groups[g].sbc) continue;
+        if (!refl__sb_live(&sb->groups[g])) continue;
         for (o = 0; o < scene->object_count; ++o) {
             int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
             for (t = 0; t < tc; t += REFL__SB_CHUNK) {
@@ -1009,6 +1130,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->em.draws);
     refl__free(al, sb->em.surface);
     refl__free(al, sb->group_of);
+    refl__free(al, sb->morph_base);
     refl__free(al, sb->stencil);
     refl__free(al, sb->color);
     refl__free(al, sb->depth);
@@ -1051,6 +1173,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
+    if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
     for (g = 0; g < sb->group_count; ++g) {
         refl_sbc_stats st;
         if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
