@@ -576,14 +576,17 @@ typedef struct refl_sbc_morph_desc {
                                 beyond its box on every side; 0: 0.5 */
     refl_vec3 region_lo, region_hi; /* both zero: the grid above; else the grid spans this box
                                 (a part of a larger grid, as the paper loads layers) */
-    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 32 */
-    float error_px;          /* leaf camera error bound in face pixels; 0: 0.5 */
+    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
+    float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
     int extend_rings;        /* remedy (a): rings of rays extrapolated past each piece's edge
                                 on each face map (its tangent plane, its normal continued
-                                linearly); 0: 2; negative: none */
+                                linearly); 0: 1; negative: none */
     float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
                                 negative: none */
     int threads;             /* build threads; 0: one per CPU */
+    int check_ambiguous;     /* 1: count the paper's construction-time ambiguities into the
+                                stats (ambiguous_ends): slow, every unextended ray's tail and
+                                head projected at the nodes sharing a tetrahedron */
     refl_allocator allocator;
 } refl_sbc_morph_desc;
 
@@ -598,6 +601,8 @@ typedef struct refl_sbc_morph_stats {
     long long rays, pinhole_leaves, ray_leaves;
     long long bytes;         /* memory the grid holds */
     double ms_build;         /* wall-clock construction time */
+    long long ends_checked;  /* with check_ambiguous: tails and heads tested (per cell and node pair) */
+    long long ambiguous_ends; /* of those, not projecting at the other node: ambiguous */
 } refl_sbc_morph_stats;
 
 /* Builds the grid of scene object `object` (desc may be NULL: defaults).
@@ -628,6 +633,11 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
    an argument is bad. Thread-safe. */
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
                                     refl_vec3 *first, float *dist, int *ambiguous);
+/* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
+   with *first and *dist, 0 when it does not project there, the node is
+   out of range or not built (its cells overlap the reflector's box). */
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist);
 /* Static points' projections kept while the eye stays in one tetrahedron
    (the paper's reuse): refl_sbc_morph_project_points with a cache projects
    each point at the four nodes only when the tetrahedron, the piece, the
@@ -6449,9 +6459,15 @@ typedef struct refl__sbm_node {
     refl_vec3 pos;
     int built;
     refl_sbc **sbc;              /* [piece * 6 + face]; NULL where the piece shows nothing */
+    signed char **dirs;          /* [piece * 6 + face]: per face sample, its unextended ray's unit
+                                    direction times 127 (zero: no such ray), or NULL */
+    int face;                    /* face samples per side (the maps have face + 2) */
     float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs) */
     refl__sbm_hit **hits;        /* per piece: what its rays meet, in face and map order */
     int *hit_count;
+    refl_vec3 **ends;            /* with check_ambiguous, during the build: per piece, its
+                                    unextended rays' heads and points a tenth along from the tails */
+    int *end_count;
     refl_result result;
 } refl__sbm_node;
 
@@ -6461,6 +6477,7 @@ struct refl_sbc_morph {
     int n[3];
     refl_vec3 lo, step;          /* node (i, j, k) = lo + (i, j, k) * step */
     refl_vec3 box_lo, box_hi;    /* the reflector's world box */
+    float diagonal;              /* the scene's, grown 1% (runtime mode's D) */
     int piece_count;
     int *piece;                  /* per reflector triangle */
     float *pos, *nrm;            /* world positions and normals of the reflector's vertices */
@@ -6470,7 +6487,6 @@ struct refl_sbc_morph {
     refl_bvh *bvh;               /* the reflector alone: hit.triangle */
     refl__sbm_node *nodes;
     uint8_t *cell_ok;            /* per cell: clear of the reflector's box */
-    float *piece_box;            /* per piece: where points projecting into it may lie */
     refl_sbc_morph_stats stats;
 };
 
@@ -6483,6 +6499,8 @@ struct refl_sbc_morph_cache {
     int cap;
 };
 
+static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 *first);
+
 /* What a build job reads. */
 typedef struct refl__sbm_build {
     refl_sbc_morph *m;
@@ -6493,6 +6511,7 @@ typedef struct refl__sbm_build {
     int face, rings;
     float error_px, widen;
     const int *list;             /* the nodes to build: job i builds nodes[list[i]] */
+    int check;                   /* desc.check_ambiguous */
 } refl__sbm_build;
 
 static const float refl__sbm_forward[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
@@ -6575,7 +6594,7 @@ static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h
 /* One face of one node: every piece's rays (valid: 1 on the piece, k + 1
    on ring k) in rays/valid/normals, P maps of S samples each. */
 static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, refl_sbc_ray *rays, uint8_t *valid,
-                                refl_vec3 *normals, refl__sbm_hit *met) {
+                                refl_vec3 *normals, refl__sbm_hit *met, uint8_t *miss) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
     const refl_sbc_morph *m = b->m;
     int W = b->face + 2, P = m->piece_count, i, j, k, ring, e;
@@ -6589,8 +6608,10 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
             float tmin = 0.0f;
             refl_hit h;
             size_t s = (size_t)j * (size_t)W + (size_t)i;
+            miss[s] = 1;
             /* every piece's first hit along the ray */
             for (k = 0; k < REFL__SBM_HITS && refl_bvh_intersect(m->bvh, o, d, tmin, INFINITY, &h); ++k) {
+                miss[s] = 0;
                 int pc = m->piece[h.triangle], front;
                 size_t at = (size_t)pc * S + s;
                 refl_vec3 n;
@@ -6616,7 +6637,9 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
             for (j = 0; j < W; ++j)
                 for (i = 0; i < W; ++i) {
                     size_t s = (size_t)j * (size_t)W + (size_t)i;
-                    if (vk[s]) continue;
+                    /* past the silhouette only: where another piece lies, extending
+                       this one would put a fictional surface beside a real one */
+                    if (vk[s] || !miss[s]) continue;
                     for (e = 0; e < 8; ++e) {
                         int i1 = i + du[e], j1 = j + dv[e], i2 = i + 2 * du[e], j2 = j + 2 * dv[e];
                         float den, t;
@@ -6646,6 +6669,22 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
         }
 }
 
+/* Appends elem (size bytes) to *arr of *count, capacity *cap; 0 when out of memory. */
+static int refl__sbm_push(const refl_allocator *al, void **arr, int *count, int *cap, size_t size, const void *elem) {
+    if (*count == *cap) {
+        int nc = *cap ? 2 * *cap : 256;
+        void *grown = nc > 0 && nc < INT_MAX / 2 ? refl__calloc(al, (size_t)nc, size) : NULL;
+        if (!grown) return 0;
+        if (*count) memcpy(grown, *arr, (size_t)*count * size);
+        refl__free(al, *arr);
+        *arr = grown;
+        *cap = nc;
+    }
+    memcpy((char *)*arr + (size_t)*count * size, elem, size);
+    ++*count;
+    return 1;
+}
+
 /* Builds node `index` (a job): per face, every piece's map and SBC. */
 static void refl__sbm_build_node(void *arg, int index) {
     const refl__sbm_build *b = (const refl__sbm_build *)arg;
@@ -6658,18 +6697,23 @@ static void refl__sbm_build_node(void *arg, int index) {
     uint8_t *valid = (uint8_t *)refl__calloc(al, S * (size_t)P, 1);
     refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, S * (size_t)P, sizeof(refl_vec3));
     refl__sbm_hit *met = (refl__sbm_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbm_hit));
-    int *cap = (int *)refl__calloc(al, (size_t)P, sizeof(int));
+    uint8_t *miss = (uint8_t *)refl__calloc(al, S, 1); /* per sample: the ray meets no piece */
+    int *cap = (int *)refl__calloc(al, 2 * (size_t)P, sizeof(int)); /* hits', then ends' */
     nd->hits = (refl__sbm_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbm_hit *));
     nd->hit_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
+    nd->ends = (refl_vec3 **)refl__calloc(al, (size_t)P, sizeof(refl_vec3 *));
+    nd->end_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
     nd->sbc = (refl_sbc **)refl__calloc(al, (size_t)P * 6, sizeof(refl_sbc *));
+    nd->dirs = (signed char **)refl__calloc(al, (size_t)P * 6, sizeof(signed char *));
+    nd->face = b->face;
     nd->box = (float *)refl__calloc(al, (size_t)P * 6, sizeof(float));
-    if (!rays || !valid || !normals || !met || !cap || !nd->hits || !nd->hit_count || !nd->sbc || !nd->box) {
+    if (!rays || !valid || !normals || !met || !miss || !cap || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count || !nd->sbc || !nd->dirs || !nd->box) {
         nd->result = REFL_ERROR_OUT_OF_MEMORY;
     } else {
         for (f = 0; f < 6 && nd->result == REFL_OK; ++f) {
             refl_vec3 fw, rt, up;
             refl_sbc_desc d;
-            refl__sbm_face_maps(b, nd->pos, f, rays, valid, normals, met);
+            refl__sbm_face_maps(b, nd->pos, f, rays, valid, normals, met, miss);
             refl__sbm_basis(f, &fw, &rt, &up);
             memset(&d, 0, sizeof d);
             d.error_px = b->error_px;
@@ -6692,22 +6736,20 @@ static void refl__sbm_build_node(void *arg, int index) {
                 for (i = 0; i < S; ++i) {
                     const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
                     const refl__sbm_hit *h = &met[(size_t)k * S + i];
+                    /* the tail itself lies on every node's frustums' floor, the
+                       reflector: a tenth of the way along stands for it */
+                    refl_vec3 near = refl_v3_add(ry->tail, refl_v3_scale(refl_v3_sub(ry->head, ry->tail), 0.1f));
                     if (!valid[(size_t)k * S + i]) continue;
                     ++count;
-                    if (h->object >= 0) {
-                        if (nd->hit_count[k] == cap[k]) {
-                            int nc = cap[k] ? 2 * cap[k] : 256;
-                            refl__sbm_hit *grown = (refl__sbm_hit *)refl__calloc(al, (size_t)nc, sizeof(refl__sbm_hit));
-                            if (!grown) {
-                                nd->result = REFL_ERROR_OUT_OF_MEMORY;
-                                break;
-                            }
-                            if (nd->hit_count[k]) memcpy(grown, nd->hits[k], (size_t)nd->hit_count[k] * sizeof *grown);
-                            refl__free(al, nd->hits[k]);
-                            nd->hits[k] = grown;
-                            cap[k] = nc;
-                        }
-                        nd->hits[k][nd->hit_count[k]++] = *h;
+                    if ((h->object >= 0 && !refl__sbm_push(al, (void **)&nd->hits[k], &nd->hit_count[k], &cap[k],
+                                                             sizeof *h, h)) ||
+                        (b->check && valid[(size_t)k * S + i] == 1 &&
+                         (!refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
+                                          &near) ||
+                          !refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
+                                          &ry->head)))) {
+                        nd->result = REFL_ERROR_OUT_OF_MEMORY;
+                        break;
                     }
                     for (e = 0; e < 2; ++e) {
                         const float *q = e ? &ry->head.x : &ry->tail.x;
@@ -6718,6 +6760,22 @@ static void refl__sbm_build_node(void *arg, int index) {
                     }
                 }
                 if (count < 4) continue; /* no unit frustum: nothing to project with */
+                {
+                    signed char *dm = (signed char *)refl__calloc(al, S, 3);
+                    nd->dirs[(size_t)k * 6 + (size_t)f] = dm;
+                    if (!dm) {
+                        nd->result = REFL_ERROR_OUT_OF_MEMORY;
+                        break;
+                    }
+                    for (i = 0; i < S; ++i) {
+                        const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
+                        refl_vec3 r = refl_v3_normalize(refl_v3_sub(ry->head, ry->tail));
+                        if (valid[(size_t)k * S + i] != 1) continue;
+                        dm[3 * i] = (signed char)lrintf(127.0f * r.x);
+                        dm[3 * i + 1] = (signed char)lrintf(127.0f * r.y);
+                        dm[3 * i + 2] = (signed char)lrintf(127.0f * r.z);
+                    }
+                }
                 nd->result = refl_sbc_build(rays + (size_t)k * S, valid + (size_t)k * S, W, W, &d,
                                             &nd->sbc[(size_t)k * 6 + (size_t)f]);
             }
@@ -6727,6 +6785,7 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl__free(al, valid);
     refl__free(al, normals);
     refl__free(al, met);
+    refl__free(al, miss);
     refl__free(al, cap);
 }
 
@@ -6739,14 +6798,18 @@ REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
     for (i = 0; morph->nodes && i < n; ++i) {
         for (k = 0; morph->nodes[i].sbc && k < 6 * morph->piece_count; ++k) refl_sbc_destroy(morph->nodes[i].sbc[k]);
         refl__free(&a, morph->nodes[i].sbc);
+        for (k = 0; morph->nodes[i].dirs && k < 6 * morph->piece_count; ++k) refl__free(&a, morph->nodes[i].dirs[k]);
+        refl__free(&a, morph->nodes[i].dirs);
         refl__free(&a, morph->nodes[i].box);
         for (k = 0; morph->nodes[i].hits && k < morph->piece_count; ++k) refl__free(&a, morph->nodes[i].hits[k]);
         refl__free(&a, morph->nodes[i].hits);
         refl__free(&a, morph->nodes[i].hit_count);
+        for (k = 0; morph->nodes[i].ends && k < morph->piece_count; ++k) refl__free(&a, morph->nodes[i].ends[k]);
+        refl__free(&a, morph->nodes[i].ends);
+        refl__free(&a, morph->nodes[i].end_count);
     }
     refl__free(&a, morph->nodes);
     refl__free(&a, morph->cell_ok);
-    refl__free(&a, morph->piece_box);
     refl__free(&a, morph->piece);
     refl__free(&a, morph->pos);
     refl__free(&a, morph->nrm);
@@ -6823,6 +6886,40 @@ static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scen
     return r;
 }
 
+/* The paper's construction check: a tail or head of a node's unextended
+   ray (of one piece) is ambiguous for a cell when another node of one of
+   the cell's tetrahedra holding both does not project it into the piece
+   (two corners share a tetrahedron when one lies at or above the other
+   along every axis). Counted over every cell clear of the reflector and
+   every such ordered pair of its corners; the ends are freed after. */
+static void refl__sbm_check(refl_sbc_morph *m) {
+    int i, j, k, a, c, piece, e;
+    const refl_allocator *al = &m->allocator;
+    for (k = 0; k + 1 < m->n[2]; ++k)
+        for (j = 0; j + 1 < m->n[1]; ++j)
+            for (i = 0; i + 1 < m->n[0]; ++i) {
+                if (!m->cell_ok[(k * (m->n[1] - 1) + j) * (m->n[0] - 1) + i]) continue;
+                for (a = 0; a < 8; ++a)
+                    for (c = 0; c < 8; ++c) {
+                        const refl__sbm_node *na = &m->nodes[((k + (a >> 2)) * m->n[1] + j + (a >> 1 & 1)) * m->n[0] + i + (a & 1)];
+                        const refl__sbm_node *nc = &m->nodes[((k + (c >> 2)) * m->n[1] + j + (c >> 1 & 1)) * m->n[0] + i + (c & 1)];
+                        if (a == c || ((a & c) != a && (a & c) != c)) continue; /* not comparable: no shared tetrahedron */
+                        for (piece = 0; piece < m->piece_count; ++piece)
+                            for (e = 0; e < na->end_count[piece]; ++e) {
+                                refl_vec3 q;
+                                m->stats.ends_checked++;
+                                if (!refl__sbm_node_project(nc, piece, na->ends[piece][e], &q)) m->stats.ambiguous_ends++;
+                            }
+                    }
+            }
+    for (i = 0; i < m->n[0] * m->n[1] * m->n[2]; ++i)
+        for (piece = 0; m->nodes[i].ends && piece < m->piece_count; ++piece) {
+            refl__free(al, m->nodes[i].ends[piece]);
+            m->nodes[i].ends[piece] = NULL;
+            m->nodes[i].end_count[piece] = 0;
+        }
+}
+
 REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
                                           refl_sbc_morph **out_morph) {
     refl_sbc_morph_desc d;
@@ -6851,16 +6948,16 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
         if (!d.nodes[k]) d.nodes[k] = 4;
         if (d.nodes[k] < 2 || d.nodes[k] > 64) return REFL_ERROR_INVALID_ARGUMENT;
     }
-    if (!d.face_size) d.face_size = 32;
+    if (!d.face_size) d.face_size = 128;
     if (d.face_size < 4 || d.face_size > 1024) return REFL_ERROR_INVALID_ARGUMENT;
     if (!(d.margin >= 0.0f && d.margin <= 1e6f) || !(d.error_px >= 0.0f && d.error_px <= 1e6f) ||
         !(d.widen <= 1e6f) || d.widen != d.widen)
         return REFL_ERROR_INVALID_ARGUMENT;
     if (d.margin == 0.0f) d.margin = 0.5f;
-    if (d.error_px == 0.0f) d.error_px = 0.5f;
+    if (d.error_px == 0.0f) d.error_px = 1.0f;
     if (d.widen == 0.0f) d.widen = 0.1f;
     if (d.widen < 0.0f) d.widen = 0.0f;
-    if (!d.extend_rings) d.extend_rings = 2;
+    if (!d.extend_rings) d.extend_rings = 1;
     if (d.extend_rings < 0) d.extend_rings = 0;
     if (d.extend_rings > 64) return REFL_ERROR_INVALID_ARGUMENT;
     {
@@ -6931,13 +7028,14 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
     ext = refl_v3_add(refl_v3_scale(refl_v3_sub(hi, lo), 0.01f), refl_v3(1e-4f, 1e-4f, 1e-4f));
     b.scene_lo = refl_v3_sub(lo, ext);
     b.scene_hi = refl_v3_add(hi, ext);
-    b.diagonal = refl_v3_length(refl_v3_sub(b.scene_hi, b.scene_lo));
+    b.diagonal = m->diagonal = refl_v3_length(refl_v3_sub(b.scene_hi, b.scene_lo));
     b.m = m;
     b.scene = scene;
     b.face = d.face_size;
     b.rings = d.extend_rings;
     b.error_px = d.error_px;
     b.widen = d.widen;
+    b.check = d.check_ambiguous;
     memset(&cd, 0, sizeof cd);
     cd.num_threads = d.threads;
     cd.allocator.alloc = m->allocator.alloc;
@@ -6967,6 +7065,7 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
             if (!m->nodes[i].sbc[k]) continue;
             refl_sbc_get_stats(m->nodes[i].sbc[k], &st);
             m->stats.sbcs++;
+            m->stats.bytes += 3 * (long long)(d.face_size + 2) * (long long)(d.face_size + 2); /* its dirs */
             m->stats.rays += st.rays;
             m->stats.pinhole_leaves += st.pinhole_leaves;
             m->stats.ray_leaves += st.ray_leaves;
@@ -6977,34 +7076,7 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
             m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbm_hit);
     }
     if (r != REFL_OK) goto fail;
-    /* each piece's box over every node, grown by a quarter as runtime mode
-       grows a group's (cameras reach below the tails, ray lists past heads) */
-    m->piece_box = (float *)refl__calloc(&m->allocator, (size_t)m->piece_count * 6, sizeof(float));
-    if (!m->piece_box) {
-        r = REFL_ERROR_OUT_OF_MEMORY;
-        goto fail;
-    }
-    for (k = 0; k < m->piece_count; ++k) {
-        float *bx = m->piece_box + 6 * (size_t)k;
-        int c;
-        for (c = 0; c < 3; ++c) {
-            bx[c] = INFINITY;
-            bx[3 + c] = -INFINITY;
-        }
-        for (i = 0; i < count; ++i) {
-            const float *nb = m->nodes[i].box;
-            if (!m->nodes[i].built) continue;
-            for (c = 0; c < 3; ++c) {
-                bx[c] = REFL__MIN(bx[c], nb[6 * k + c]);
-                bx[3 + c] = REFL__MAX(bx[3 + c], nb[6 * k + 3 + c]);
-            }
-        }
-        for (c = 0; c < 3 && bx[c] <= bx[3 + c]; ++c) {
-            float g = 0.25f * (bx[3 + c] - bx[c]) + 1e-4f * b.diagonal;
-            bx[c] -= g;
-            bx[3 + c] += g;
-        }
-    }
+    if (d.check_ambiguous) refl__sbm_check(m);
     rast_context_destroy(rc);
     refl_bvh_destroy(b.scene_bvh);
     {
@@ -7034,10 +7106,27 @@ REFL_API void refl_sbc_morph_get_stats(const refl_sbc_morph *morph, refl_sbc_mor
     else *out = morph->stats;
 }
 
-/* Piece `piece`'s box (refl__sb_morph_groups culls with it); empty (lo
-   above hi) when no node saw the piece. */
-static void refl__sbm_piece_box(const refl_sbc_morph *m, int piece, refl_vec3 *lo, refl_vec3 *hi) {
-    const float *bx = m->piece_box + 6 * (size_t)piece;
+/* Where points projecting into piece `piece` for the eye may lie: the
+   tetrahedron's nodes' rays' box, grown by a quarter of its size as
+   runtime mode grows a group's (cameras reach below the tails, ray lists
+   past the heads); empty (lo above hi) when none of them saw the piece. */
+static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl_vec3 *lo, refl_vec3 *hi) {
+    float bx[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY}, w[4];
+    int nodes[4], k, c;
+    if (refl_sbc_morph_locate(m, eye, nodes, w) >= 0)
+        for (k = 0; k < 4; ++k) {
+            const float *nb = m->nodes[nodes[k]].box;
+            if (!(w[k] > 0.0f) || !nb) continue;
+            for (c = 0; c < 3; ++c) {
+                bx[c] = REFL__MIN(bx[c], nb[6 * piece + c]);
+                bx[3 + c] = REFL__MAX(bx[3 + c], nb[6 * piece + 3 + c]);
+            }
+        }
+    for (c = 0; c < 3 && bx[c] <= bx[3 + c]; ++c) {
+        float g = 0.25f * (bx[3 + c] - bx[c]) + 1e-4f * m->diagonal;
+        bx[c] -= g;
+        bx[3 + c] += g;
+    }
     *lo = refl_v3(bx[0], bx[1], bx[2]);
     *hi = refl_v3(bx[3], bx[4], bx[5]);
 }
@@ -7117,6 +7206,29 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
 }
 
 /* p at one node: the piece's face SBCs, the face owning the answer first. */
+/* Whether p lies ahead of first point q along the unextended ray of the
+   node's sample that q lands on (when it has one): runtime mode's check
+   (m_sbc.c, refl__sb_project), since a leaf's frustum reaches a little
+   behind the reflector and an extrapolated ring's, at a silhouette, folds
+   back over it. */
+static int refl__sbm_ahead(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 q) {
+    refl_vec3 v = refl_v3_sub(q, nd->pos), fw, rt, up;
+    int f = refl__sbm_face_of(v), W = nd->face + 2, i, j;
+    const signed char *dm = nd->dirs[(size_t)piece * 6 + (size_t)f], *dr;
+    float w, x, y;
+    if (!dm) return 1;
+    refl__sbm_basis(f, &fw, &rt, &up);
+    w = refl_v3_dot(v, fw);
+    if (!(w > 0.0f)) return 1;
+    x = refl_v3_dot(v, rt) / w;
+    y = refl_v3_dot(v, up) / w;
+    i = (int)REFL__CLAMP(floorf((x + 1.0f) * 0.5f * (float)nd->face) + 1.0f, 0.0f, (float)(W - 1));
+    j = (int)REFL__CLAMP(floorf((1.0f - y) * 0.5f * (float)nd->face) + 1.0f, 0.0f, (float)(W - 1));
+    dr = dm + 3 * ((size_t)j * (size_t)W + (size_t)i);
+    if (!dr[0] && !dr[1] && !dr[2]) return 1;
+    return refl_v3_dot(refl_v3_sub(p, q), refl_v3((float)dr[0], (float)dr[1], (float)dr[2])) > 0.0f;
+}
+
 static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3 p,
                                   refl_vec3 *first) {
     refl_vec3 q, keep = {0.0f, 0.0f, 0.0f};
@@ -7125,7 +7237,7 @@ static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3
     if (!nd->built || !nd->sbc) return 0;
     for (f = 0; f < 6; ++f) {
         const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
-        if (!s || !refl_sbc_project(s, p, &q, &z)) continue;
+        if (!s || !refl_sbc_project(s, p, &q, &z) || !refl__sbm_ahead(nd, piece, p, q)) continue;
         if (refl__sbm_face_of(refl_v3_sub(q, nd->pos)) == f) {
             *first = q;
             return 1;
@@ -7173,6 +7285,18 @@ static int refl__sbm_project4(const refl_sbc_morph *m, const int nodes[4], const
         mask |= 1 << k;
     }
     return mask;
+}
+
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist) {
+    const refl__sbm_node *nd;
+    refl_vec3 q;
+    if (!morph || piece < 0 || piece >= morph->piece_count || !refl_sbc_morph_node(morph, i, j, k, NULL)) return 0;
+    nd = &morph->nodes[(k * morph->n[1] + j) * morph->n[0] + i];
+    if (!refl__sbm_node_project(nd, piece, p, &q)) return 0;
+    if (first) *first = q;
+    if (dist) *dist = refl_v3_length(refl_v3_sub(p, q));
+    return 1;
 }
 
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
@@ -12177,7 +12301,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             g->object = o;
             g->morph = m;
             g->piece = piece;
-            refl__sbm_piece_box(m, piece, &g->lo, &g->hi);
+            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
             if (!g->hit_count) continue;

@@ -574,14 +574,17 @@ typedef struct refl_sbc_morph_desc {
                                 beyond its box on every side; 0: 0.5 */
     refl_vec3 region_lo, region_hi; /* both zero: the grid above; else the grid spans this box
                                 (a part of a larger grid, as the paper loads layers) */
-    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 32 */
-    float error_px;          /* leaf camera error bound in face pixels; 0: 0.5 */
+    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
+    float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
     int extend_rings;        /* remedy (a): rings of rays extrapolated past each piece's edge
                                 on each face map (its tangent plane, its normal continued
-                                linearly); 0: 2; negative: none */
+                                linearly); 0: 1; negative: none */
     float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
                                 negative: none */
     int threads;             /* build threads; 0: one per CPU */
+    int check_ambiguous;     /* 1: count the paper's construction-time ambiguities into the
+                                stats (ambiguous_ends): slow, every unextended ray's tail and
+                                head projected at the nodes sharing a tetrahedron */
     refl_allocator allocator;
 } refl_sbc_morph_desc;
 
@@ -596,6 +599,8 @@ typedef struct refl_sbc_morph_stats {
     long long rays, pinhole_leaves, ray_leaves;
     long long bytes;         /* memory the grid holds */
     double ms_build;         /* wall-clock construction time */
+    long long ends_checked;  /* with check_ambiguous: tails and heads tested (per cell and node pair) */
+    long long ambiguous_ends; /* of those, not projecting at the other node: ambiguous */
 } refl_sbc_morph_stats;
 
 /* Builds the grid of scene object `object` (desc may be NULL: defaults).
@@ -626,6 +631,11 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
    an argument is bad. Thread-safe. */
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
                                     refl_vec3 *first, float *dist, int *ambiguous);
+/* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
+   with *first and *dist, 0 when it does not project there, the node is
+   out of range or not built (its cells overlap the reflector's box). */
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist);
 /* Static points' projections kept while the eye stays in one tetrahedron
    (the paper's reuse): refl_sbc_morph_project_points with a cache projects
    each point at the four nodes only when the tetrahedron, the piece, the

@@ -895,7 +895,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             g->object = o;
             g->morph = m;
             g->piece = piece;
-            refl__sbm_piece_box(m, piece, &g->lo, &g->hi);
+            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
             if (!g->hit_count) continue;
