@@ -6462,7 +6462,7 @@ typedef struct refl__sbm_node {
     signed char **dirs;          /* [piece * 6 + face]: per face sample, its unextended ray's unit
                                     direction times 127 (zero: no such ray), or NULL */
     int face;                    /* face samples per side (the maps have face + 2) */
-    float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs) */
+    float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs), grown */
     refl__sbm_hit **hits;        /* per piece: what its rays meet, in face and map order */
     int *hit_count;
     refl_vec3 **ends;            /* with check_ambiguous, during the build: per piece, its
@@ -6477,7 +6477,6 @@ struct refl_sbc_morph {
     int n[3];
     refl_vec3 lo, step;          /* node (i, j, k) = lo + (i, j, k) * step */
     refl_vec3 box_lo, box_hi;    /* the reflector's world box */
-    float diagonal;              /* the scene's, grown 1% (runtime mode's D) */
     int piece_count;
     int *piece;                  /* per reflector triangle */
     float *pos, *nrm;            /* world positions and normals of the reflector's vertices */
@@ -6780,6 +6779,17 @@ static void refl__sbm_build_node(void *arg, int index) {
                                             &nd->sbc[(size_t)k * 6 + (size_t)f]);
             }
         }
+        /* grown by a quarter of its size, as runtime mode grows a group's box
+           (cameras reach below the tails, ray lists past the heads): nothing
+           outside projects */
+        for (i = 0; i < 3 * (size_t)P; ++i) {
+            float *bx = nd->box + 6 * (i / 3), g;
+            size_t c = i % 3;
+            if (!(bx[c] <= bx[3 + c])) continue;
+            g = 0.25f * (bx[3 + c] - bx[c]) + 1e-4f * b->diagonal;
+            bx[c] -= g;
+            bx[3 + c] += g;
+        }
     }
     refl__free(al, rays);
     refl__free(al, valid);
@@ -7028,7 +7038,7 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
     ext = refl_v3_add(refl_v3_scale(refl_v3_sub(hi, lo), 0.01f), refl_v3(1e-4f, 1e-4f, 1e-4f));
     b.scene_lo = refl_v3_sub(lo, ext);
     b.scene_hi = refl_v3_add(hi, ext);
-    b.diagonal = m->diagonal = refl_v3_length(refl_v3_sub(b.scene_hi, b.scene_lo));
+    b.diagonal = refl_v3_length(refl_v3_sub(b.scene_hi, b.scene_lo));
     b.m = m;
     b.scene = scene;
     b.face = d.face_size;
@@ -7107,9 +7117,8 @@ REFL_API void refl_sbc_morph_get_stats(const refl_sbc_morph *morph, refl_sbc_mor
 }
 
 /* Where points projecting into piece `piece` for the eye may lie: the
-   tetrahedron's nodes' rays' box, grown by a quarter of its size as
-   runtime mode grows a group's (cameras reach below the tails, ray lists
-   past the heads); empty (lo above hi) when none of them saw the piece. */
+   tetrahedron's nodes' boxes; empty (lo above hi) when none of them saw
+   the piece. */
 static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl_vec3 *lo, refl_vec3 *hi) {
     float bx[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY}, w[4];
     int nodes[4], k, c;
@@ -7122,11 +7131,6 @@ static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piec
                 bx[3 + c] = REFL__MAX(bx[3 + c], nb[6 * piece + 3 + c]);
             }
         }
-    for (c = 0; c < 3 && bx[c] <= bx[3 + c]; ++c) {
-        float g = 0.25f * (bx[3 + c] - bx[c]) + 1e-4f * m->diagonal;
-        bx[c] -= g;
-        bx[3 + c] += g;
-    }
     *lo = refl_v3(bx[0], bx[1], bx[2]);
     *hi = refl_v3(bx[3], bx[4], bx[5]);
 }
@@ -7234,7 +7238,10 @@ static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3
     refl_vec3 q, keep = {0.0f, 0.0f, 0.0f};
     float z;
     int f, got = 0;
+    const float *bx;
     if (!nd->built || !nd->sbc) return 0;
+    bx = nd->box + 6 * (size_t)piece;
+    if (!(p.x >= bx[0] && p.x <= bx[3] && p.y >= bx[1] && p.y <= bx[4] && p.z >= bx[2] && p.z <= bx[5])) return 0;
     for (f = 0; f < 6; ++f) {
         const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
         if (!s || !refl_sbc_project(s, p, &q, &z) || !refl__sbm_ahead(nd, piece, p, q)) continue;

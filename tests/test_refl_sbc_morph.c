@@ -233,8 +233,8 @@ Test(refl_sbc_morph, eye_at_a_node_is_that_node, .timeout = 60) {
 
 /* The paper's construction check (check_ambiguous): each node's unextended
    rays' heads and near-tail points, projected at the nodes sharing a
-   tetrahedron. Measured at face 64: none 5678 of 17116, one ring past the
-   silhouettes 4285, leaves widened by 0.5: 5658, both 4284. Widening helps
+   tetrahedron. Measured at face 64: none 5680 of 17116, one ring past the
+   silhouettes 4285, leaves widened by 0.5: 5660, both 4284. Widening helps
    little: most leaves of the teapot's face maps are ray lists, which it
    does not widen. (With the ring also past the pieces' other edges, where
    a fictional surface lies beside a real one, the count fell to 3512 but
