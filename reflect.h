@@ -566,10 +566,13 @@ REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
    distances to p) are blended barycentrically. Cells that overlap the
    reflector's box hold no eye. A point that projects at some of the four
    nodes but not all is ambiguous and does not project; two remedies (the
-   paper's) shrink their number: rays extrapolated in rings past each
-   piece's silhouette (extended reflectors) and leaf cameras that project a
-   little beyond their frustums (refl_sbc_desc.widen). The grid assumes a
-   static scene: rays' heads are clipped against what the scene held. */
+   paper's) shrink their number: rays extrapolated in rings past the
+   reflector's silhouette (extended reflectors) and leaf cameras that project a little
+   beyond their frustums (refl_sbc_desc.widen). The grid assumes a static
+   scene: rays' heads are clipped against what the scene held. refl_render
+   (method SBC, refl_render_desc.sbc_morphs) projects every vertex afresh;
+   the reuse of static vertices' projections is refl_sbc_morph_project_points
+   with a cache. */
 typedef struct refl_sbc_morph_desc {
     int nodes[3];            /* grid nodes along x, y, z, each 2..64; 0: 4 */
     float margin;            /* the grid reaches this fraction of the reflector's box diagonal
@@ -578,8 +581,9 @@ typedef struct refl_sbc_morph_desc {
                                 (a part of a larger grid, as the paper loads layers) */
     int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
     float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
-    int extend_rings;        /* remedy (a): rings of rays extrapolated past each piece's edge
-                                on each face map (its tangent plane, its normal continued
+    int extend_rings;        /* remedy (a): rings of rays extrapolated past the reflector's
+                                silhouette on each face map, into samples whose ray meets no
+                                piece (the tangent plane of a neighbour, its normal continued
                                 linearly); 0: 1; negative: none */
     float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
                                 negative: none */
@@ -6434,15 +6438,30 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
      interpolated normal, its head clipped as runtime mode clips it (twice
      as far as what it meets plus 1% of the scene diagonal, or a tenth of
      the diagonal when it meets nothing, inside the scene box grown 1%).
-     Remedy (a): extend_rings rings of samples past each piece's edge get
-     extrapolated rays (the sample's ray meets the tangent plane of a
-     member neighbour; the normal continues linearly; past grazing the
-     ray goes straight on), as runtime mode's single ring does. Each
-     (piece, face) with rays is one SBC built to error_px face pixels with
-     the face's own view-projection, widened by remedy (b).
-     Projection at a node: the piece's face SBCs in face order; a point
-     whose first point lies in a face's own 90-degree cone takes that
-     face's answer, else the first face that projects it (the overlap).
+     Remedy (a): extend_rings rings of samples past the reflector's
+     silhouette (samples whose ray meets no piece) get extrapolated rays
+     (the sample's ray meets the tangent plane of a member neighbour; the
+     normal continues linearly; past grazing the ray goes straight on), as
+     runtime mode's single ring does. Not past a piece's other edges: there
+     the extension lies beside the neighbouring piece's real surface, and
+     points reflected in it were drawn over the piece's own pixels (the
+     teapot's p95 error at a node: 7 px with, 2 px without). More than one
+     ring does worse too (p95 9-14 px with two). Each (piece, face) with
+     rays is one SBC built to error_px face pixels with the face's own
+     view-projection, widened by remedy (b) (pinhole leaves only: most of
+     a curved reflector's leaves are ray lists, so it helps little).
+     Projection at a node: a point outside the piece's box there (its rays'
+     tails and heads, grown by a quarter as runtime mode grows a group's)
+     does not project; else the piece's face SBCs in face order, keeping
+     only a first point the point lies ahead of along the unextended ray
+     of the sample it lands on (runtime mode's check: a leaf reaches a
+     little behind the reflector); a first point in the face's own
+     90-degree cone takes that face's answer, else the first face that
+     projects it (the overlap).
+     check_ambiguous counts the paper's construction criterion: the heads
+     of every node's unextended rays, and points a tenth of the way along
+     from their tails (the tails themselves lie on every frustum's floor),
+     projected at the other nodes of the tetrahedra holding both.
    Deterministic: each node is built by one job from its own inputs; sums
    run in a fixed order. */
 
@@ -11473,6 +11492,12 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
         as ENVMAP composites; glass adds the environment refracted once.
+   Reflection morphing (section VI): a reflector the caller hands a
+   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   ray map or groups of its front side here; a group per piece of the grid
+   projects instead (the eye's tetrahedron, blended; no check against this
+   frame's ray map, which it has none of), its pixels those of the piece
+   their view ray meets.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -12256,7 +12281,7 @@ static void refl__sb_morph_row(void *arg, int y) {
         float id = sb->em.gbuf[4 * i + 3], tmax;
         int o = (int)id - 1, piece;
         refl_vec3 org, d;
-        if (!(id > 0.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
         piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
         sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
@@ -12280,7 +12305,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
     for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
     for (k = 0; k < npx; ++k) {
         float id = sb->em.gbuf[4 * k + 3];
-        if (id > 0.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
     }
     for (o = 0; o < scene->object_count; ++o) {
         const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;

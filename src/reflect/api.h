@@ -564,10 +564,13 @@ REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
    distances to p) are blended barycentrically. Cells that overlap the
    reflector's box hold no eye. A point that projects at some of the four
    nodes but not all is ambiguous and does not project; two remedies (the
-   paper's) shrink their number: rays extrapolated in rings past each
-   piece's silhouette (extended reflectors) and leaf cameras that project a
-   little beyond their frustums (refl_sbc_desc.widen). The grid assumes a
-   static scene: rays' heads are clipped against what the scene held. */
+   paper's) shrink their number: rays extrapolated in rings past the
+   reflector's silhouette (extended reflectors) and leaf cameras that project a little
+   beyond their frustums (refl_sbc_desc.widen). The grid assumes a static
+   scene: rays' heads are clipped against what the scene held. refl_render
+   (method SBC, refl_render_desc.sbc_morphs) projects every vertex afresh;
+   the reuse of static vertices' projections is refl_sbc_morph_project_points
+   with a cache. */
 typedef struct refl_sbc_morph_desc {
     int nodes[3];            /* grid nodes along x, y, z, each 2..64; 0: 4 */
     float margin;            /* the grid reaches this fraction of the reflector's box diagonal
@@ -576,8 +579,9 @@ typedef struct refl_sbc_morph_desc {
                                 (a part of a larger grid, as the paper loads layers) */
     int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
     float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
-    int extend_rings;        /* remedy (a): rings of rays extrapolated past each piece's edge
-                                on each face map (its tangent plane, its normal continued
+    int extend_rings;        /* remedy (a): rings of rays extrapolated past the reflector's
+                                silhouette on each face map, into samples whose ray meets no
+                                piece (the tangent plane of a neighbour, its normal continued
                                 linearly); 0: 1; negative: none */
     float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
                                 negative: none */

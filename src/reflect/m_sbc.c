@@ -59,6 +59,12 @@
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel when the material asks),
         as ENVMAP composites; glass adds the environment refracted once.
+   Reflection morphing (section VI): a reflector the caller hands a
+   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   ray map or groups of its front side here; a group per piece of the grid
+   projects instead (the eye's tetrahedron, blended; no check against this
+   frame's ray map, which it has none of), its pixels those of the piece
+   their view ray meets.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -843,7 +849,7 @@ static void refl__sb_morph_row(void *arg, int y) {
         float id = sb->em.gbuf[4 * i + 3], tmax;
         int o = (int)id - 1, piece;
         refl_vec3 org, d;
-        if (!(id > 0.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
         piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
         sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
@@ -867,7 +873,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
     for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
     for (k = 0; k < npx; ++k) {
         float id = sb->em.gbuf[4 * k + 3];
-        if (id > 0.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
     }
     for (o = 0; o < scene->object_count; ++o) {
         const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
