@@ -750,7 +750,7 @@ static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece,
     if (refl_sbc_morph_locate(m, eye, nodes, w) < 0) return 0;
     for (k = 0; k < 4; ++k) {
         const refl__sbm_node *nd = &m->nodes[nodes[k]];
-        if (!(w[k] > 0.0f) || !nd->hit_count) continue;
+        if (!(w[k] > 0.0f) || !nd->hit_count || !nd->hit_count[piece]) continue;
         if (out) memcpy(out + n, nd->hits[piece], (size_t)nd->hit_count[piece] * sizeof *out);
         n += nd->hit_count[piece];
     }
