@@ -323,6 +323,11 @@ REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, co
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
+/* Object `object`'s vertices in world space, 3 floats each, into out (may
+   be NULL: only counted); the count, or REFL_ERROR_INVALID_ARGUMENT for a
+   NULL scene or an object or mesh index out of range. (The static points
+   refl_sbc_morph_project_points reuses projections of.) */
+REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
@@ -3247,6 +3252,23 @@ REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *h
     if (l.x > h.x) l = h = refl_v3(0, 0, 0); /* empty scene */
     if (lo) *lo = l;
     if (hi) *hi = h;
+}
+
+REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {
+    const refl_mesh *m;
+    int i;
+    if (!s || object < 0 || object >= s->object_count || s->objects[object].mesh < 0 ||
+        s->objects[object].mesh >= s->mesh_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    m = s->meshes[s->objects[object].mesh];
+    for (i = 0; out && i < m->vertex_count; ++i) {
+        const float *q = m->positions + 3 * (size_t)i;
+        refl_vec3 w = refl_mat4_point(s->objects[object].transform, refl_v3(q[0], q[1], q[2]));
+        out[3 * (size_t)i] = w.x;
+        out[3 * (size_t)i + 1] = w.y;
+        out[3 * (size_t)i + 2] = w.z;
+    }
+    return m->vertex_count;
 }
 
 REFL_API void refl_scene_normalize(refl_scene *s, float size) {

@@ -13,14 +13,7 @@
 
 enum { MW = 96, MH = 72 };
 
-static refl_render_desc method_desc(refl_method m, int threads) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = threads;
-    d.depth = 1;
-    return d;
-}
+static refl_render_desc method_desc(refl_method m, int threads) { return tu_refl_one_bounce(m, threads); }
 
 /* A one-cell grid spanning [lo, hi] at face samples per cube face. */
 static refl_sbc_morph_desc cell_desc(refl_vec3 lo, refl_vec3 hi, int face) {
@@ -163,22 +156,14 @@ Test(refl_sbc_morph, sphere_error_within_5px, .timeout = 120) {
 
 /* Every vertex of every object of the scene, in world space (3 floats each). */
 static float *scene_points(const refl_scene *s, int *count) {
-    int o, i, n = 0;
+    int o, n = 0;
     float *p;
-    for (o = 0; o < s->object_count; ++o) n += s->meshes[s->objects[o].mesh]->vertex_count;
+    for (o = 0; o < s->object_count; ++o) n += refl_object_world_positions(s, o, NULL);
     p = (float *)malloc((size_t)n * 3 * sizeof(float));
     cr_assert_not_null(p);
-    n = 0;
-    for (o = 0; o < s->object_count; ++o) {
-        const refl_mesh *me = s->meshes[s->objects[o].mesh];
-        for (i = 0; i < me->vertex_count; ++i, ++n) {
-            refl_vec3 w = refl_mat4_point(s->objects[o].transform, refl_v3(me->positions[3 * i], me->positions[3 * i + 1],
-                                                                          me->positions[3 * i + 2]));
-            p[3 * n] = w.x;
-            p[3 * n + 1] = w.y;
-            p[3 * n + 2] = w.z;
-        }
-    }
+    for (o = 0, n = 0; o < s->object_count; ++o) n += refl_object_world_positions(s, o, p + 3 * (size_t)n);
+    cr_assert_eq(refl_object_world_positions(s, s->object_count, p), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_eq(refl_object_world_positions(NULL, 0, p), REFL_ERROR_INVALID_ARGUMENT);
     *count = n;
     return p;
 }

@@ -447,23 +447,14 @@ static int measure_morph(const refl_scene *s, const refl_view *v, int threads, i
         row->sbcs += st.sbcs;
     }
     /* every vertex of the scene, world space */
-    for (o = 0; o < s->object_count; ++o) nv += s->meshes[s->objects[o].mesh]->vertex_count;
+    for (o = 0; o < s->object_count; ++o) nv += refl_object_world_positions(s, o, NULL);
     row->vertices = nv;
     pts = (float *)malloc((size_t)nv * 3 * sizeof(float));
     dist = (float *)malloc((size_t)nv * sizeof(float));
     first = (refl_vec3 *)malloc((size_t)nv * sizeof(refl_vec3));
     status = (uint8_t *)malloc((size_t)nv);
     if (!pts || !dist || !first || !status) ok = 0;
-    for (o = 0, i = 0; ok && o < s->object_count; ++o) {
-        const refl_mesh *m = s->meshes[s->objects[o].mesh];
-        for (k = 0; k < m->vertex_count; ++k, ++i) {
-            refl_vec3 w = refl_mat4_point(s->objects[o].transform, refl_v3(m->positions[3 * k], m->positions[3 * k + 1],
-                                                                           m->positions[3 * k + 2]));
-            pts[3 * i] = w.x;
-            pts[3 * i + 1] = w.y;
-            pts[3 * i + 2] = w.z;
-        }
-    }
+    for (o = 0, i = 0; ok && o < s->object_count; ++o) i += refl_object_world_positions(s, o, pts + 3 * (size_t)i);
     for (g = 0; ok && g < row->grids; ++g) {
         refl_sbc_morph_stats st;
         refl_sbc_morph_get_stats(grids[g], &st);

@@ -321,6 +321,11 @@ REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, co
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
+/* Object `object`'s vertices in world space, 3 floats each, into out (may
+   be NULL: only counted); the count, or REFL_ERROR_INVALID_ARGUMENT for a
+   NULL scene or an object or mesh index out of range. (The static points
+   refl_sbc_morph_project_points reuses projections of.) */
+REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
