@@ -618,7 +618,9 @@ typedef struct refl_sbc_morph_stats {
    REFL_ERROR_INVALID_ARGUMENT for a NULL scene or out pointer, an object
    out of range or of an empty mesh, node counts outside 2..64, face sizes
    outside 4..1024, a negative or non-finite margin or error, a region
-   with lo not below hi or not finite; then *out_morph is NULL. */
+   with lo not below hi or not finite; REFL_ERROR_UNSUPPORTED for a mesh
+   of more than 1024 pieces (a triangle soup: nothing shares a vertex);
+   then *out_morph is NULL. */
 REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
                                           refl_sbc_morph **out_morph);
 REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph);
@@ -6488,6 +6490,7 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
    run in a fixed order. */
 
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
+#define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
 
 /* Where a node's ray meets the scene: runtime mode subdivides a scene
    triangle towards such points (m_sbc.c's refl__sb_hit, same layout). */
@@ -7029,6 +7032,8 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
     for (k = 0; k < 3; ++k) m->n[k] = d.nodes[k];
     memset(&b, 0, sizeof b);
     r = refl__sbm_reflector(m, scene, object);
+    /* a map per piece and face at every node: a triangle soup would need one per triangle */
+    if (r == REFL_OK && m->piece_count > REFL__SBM_PIECES) r = REFL_ERROR_UNSUPPORTED;
     if (r == REFL_OK) r = refl_bvh_build(scene, &m->allocator, &b.scene_bvh);
     if (r != REFL_OK) goto fail;
     /* the grid */

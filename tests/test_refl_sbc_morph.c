@@ -337,6 +337,31 @@ Test(refl_sbc_morph, bad_input, .timeout = 60) {
     bad = md; bad.region_lo.x = INFINITY;
     cr_assert_eq(refl_sbc_morph_build(s, 1, &bad, &m), REFL_ERROR_INVALID_ARGUMENT);
     cr_assert_null(m);
+    {
+        /* a triangle soup: every triangle a piece of its own */
+        refl_scene *soup = NULL;
+        refl_mesh *mesh = NULL;
+        refl_mesh_desc sd;
+        static const float grey[3] = {0.5f, 0.5f, 0.5f};
+        float *pos = (float *)malloc(1100 * 9 * sizeof(float));
+        int t;
+        cr_assert_not_null(pos);
+        for (t = 0; t < 1100; ++t) {
+            float x = (float)(t % 40), y = (float)(t / 40), tri[9] = {0, 0, 0, 0.8f, 0, 0, 0, 0.8f, 0};
+            int k;
+            for (k = 0; k < 9; ++k) pos[9 * t + k] = tri[k] + (k % 3 == 0 ? x : k % 3 == 1 ? y : 0.0f);
+        }
+        memset(&sd, 0, sizeof sd);
+        sd.positions = pos;
+        sd.vertex_count = 3300;
+        cr_assert_eq(refl_mesh_create(&sd, &mesh), REFL_OK);
+        free(pos);
+        cr_assert_eq(refl_scene_create(NULL, &soup), REFL_OK);
+        tu_refl_add_object(soup, mesh, REFL_MIRROR, grey, refl_mat4_identity());
+        cr_assert_eq(refl_sbc_morph_build(soup, 0, NULL, &m), REFL_ERROR_UNSUPPORTED);
+        cr_assert_null(m);
+        refl_scene_destroy(soup);
+    }
     /* NULL-safe and harmless on NULL */
     refl_sbc_morph_destroy(NULL);
     refl_sbc_morph_get_stats(NULL, NULL);

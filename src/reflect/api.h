@@ -616,7 +616,9 @@ typedef struct refl_sbc_morph_stats {
    REFL_ERROR_INVALID_ARGUMENT for a NULL scene or out pointer, an object
    out of range or of an empty mesh, node counts outside 2..64, face sizes
    outside 4..1024, a negative or non-finite margin or error, a region
-   with lo not below hi or not finite; then *out_morph is NULL. */
+   with lo not below hi or not finite; REFL_ERROR_UNSUPPORTED for a mesh
+   of more than 1024 pieces (a triangle soup: nothing shares a vertex);
+   then *out_morph is NULL. */
 REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
                                           refl_sbc_morph **out_morph);
 REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph);

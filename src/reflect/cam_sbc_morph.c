@@ -54,6 +54,7 @@
 #include "internal.h"
 
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
+#define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
 
 /* Where a node's ray meets the scene: runtime mode subdivides a scene
    triangle towards such points (m_sbc.c's refl__sb_hit, same layout). */
@@ -595,6 +596,8 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
     for (k = 0; k < 3; ++k) m->n[k] = d.nodes[k];
     memset(&b, 0, sizeof b);
     r = refl__sbm_reflector(m, scene, object);
+    /* a map per piece and face at every node: a triangle soup would need one per triangle */
+    if (r == REFL_OK && m->piece_count > REFL__SBM_PIECES) r = REFL_ERROR_UNSUPPORTED;
     if (r == REFL_OK) r = refl_bvh_build(scene, &m->allocator, &b.scene_bvh);
     if (r != REFL_OK) goto fail;
     /* the grid */
