@@ -60,6 +60,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/kdtree.c \
                  src/reflect/cam_c3rc.c \
                  src/reflect/cam_sbc.c \
+                 src/reflect/cam_sbc_morph.c \
                  src/reflect/shadow.c \
                  src/reflect/planar_faces.c \
                  src/reflect/light_volume.c \

@@ -333,6 +333,11 @@ REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, co
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
+/* Object `object`'s vertices in world space, 3 floats each, into out (may
+   be NULL: only counted); the count, or REFL_ERROR_INVALID_ARGUMENT for a
+   NULL scene or an object or mesh index out of range. (The static points
+   refl_sbc_morph_project_points reuses projections of.) */
+REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
@@ -529,6 +534,11 @@ typedef struct refl_sbc_desc {
     refl_mat4 view_proj;     /* the desired view, whose pixels measure the error */
     int width, height;       /* the desired view's size in pixels */
     int max_depth;           /* BSP depth limit; 0: 40 */
+    float widen;             /* pinhole leaves also project points this fraction of their
+                                image rectangle's width and height beyond each of its sides
+                                (paper 003 VI's widened fields of view, for morphing, where
+                                points fall just outside one node's ray map); 0: exactly the
+                                rectangle, as runtime mode wants */
     refl_allocator allocator;
 } refl_sbc_desc;
 
@@ -565,6 +575,115 @@ typedef enum refl_sbc_leaf_kind {
 } refl_sbc_leaf_kind;
 REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
 
+/* ---- reflection morphing (paper 003, section VI) -------------------------------
+   A precomputed grid of panoramic SBCs around one reflector object: nodes on
+   a regular 3-D grid, each grid cell cut into 6 tetrahedra (all sharing the
+   cell's main diagonal). At every node the reflector is seen through a cube
+   ray map (6 faces) with the node as the eye, and each smooth piece of the
+   reflector (triangles joined through shared vertices; the mesh splits its
+   vertices at creases) on each face is an SBC built to error_px face pixels.
+   A piece is traced on its own, so no other piece hides it. For an eye in
+   the grid, a point p projects with the four SBCs (of p's piece) at the
+   nodes of the eye's tetrahedron and their first reflector points (and
+   distances to p) are blended barycentrically. Cells that overlap the
+   reflector's box hold no eye. A point that projects at some of the four
+   nodes but not all is ambiguous and does not project; two remedies (the
+   paper's) shrink their number: rays extrapolated in rings past the
+   reflector's silhouette (extended reflectors) and leaf cameras that project a little
+   beyond their frustums (refl_sbc_desc.widen). The grid assumes a static
+   scene: rays' heads are clipped against what the scene held. refl_render
+   (method SBC, refl_render_desc.sbc_morphs) projects every vertex afresh;
+   the reuse of static vertices' projections is refl_sbc_morph_project_points
+   with a cache. */
+typedef struct refl_sbc_morph_desc {
+    int nodes[3];            /* grid nodes along x, y, z, each 2..64; 0: 4 */
+    float margin;            /* the grid reaches this fraction of the reflector's box diagonal
+                                beyond its box on every side; 0: 0.5 */
+    refl_vec3 region_lo, region_hi; /* both zero: the grid above; else the grid spans this box
+                                (a part of a larger grid, as the paper loads layers) */
+    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
+    float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
+    int extend_rings;        /* remedy (a): rings of rays extrapolated past the reflector's
+                                silhouette on each face map, into samples whose ray meets no
+                                piece (the tangent plane of a neighbour, its normal continued
+                                linearly); 0: 1; negative: none */
+    float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
+                                negative: none */
+    int threads;             /* build threads; 0: one per CPU */
+    int check_ambiguous;     /* 1: count the paper's construction-time ambiguities into the
+                                stats (ambiguous_ends): slow, every unextended ray's tail and
+                                head projected at the nodes sharing a tetrahedron */
+    refl_allocator allocator;
+} refl_sbc_morph_desc;
+
+typedef struct refl_sbc_morph refl_sbc_morph;
+
+typedef struct refl_sbc_morph_stats {
+    int nodes;               /* grid nodes */
+    int nodes_built;         /* those some eye cell uses (the others lie in the reflector's box) */
+    int tetrahedra;          /* 6 per cell, those of cells clear of the reflector's box */
+    int pieces;              /* smooth pieces of the reflector */
+    int sbcs;                /* SBCs built (node x piece x face with rays) */
+    long long rays, pinhole_leaves, ray_leaves;
+    long long bytes;         /* memory the grid holds */
+    double ms_build;         /* wall-clock construction time */
+    long long ends_checked;  /* with check_ambiguous: tails and heads tested (per cell and node pair) */
+    long long ambiguous_ends; /* of those, not projecting at the other node: ambiguous */
+} refl_sbc_morph_stats;
+
+/* Builds the grid of scene object `object` (desc may be NULL: defaults).
+   REFL_ERROR_INVALID_ARGUMENT for a NULL scene or out pointer, an object
+   out of range or of an empty mesh, node counts outside 2..64, face sizes
+   outside 4..1024, a negative or non-finite margin or error, a region
+   with lo not below hi or not finite; REFL_ERROR_UNSUPPORTED for a mesh
+   of more than 1024 pieces (a triangle soup: nothing shares a vertex);
+   then *out_morph is NULL. */
+REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
+                                          refl_sbc_morph **out_morph);
+REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph);
+REFL_API void refl_sbc_morph_get_stats(const refl_sbc_morph *morph, refl_sbc_morph_stats *out);
+/* The object the grid was built for (-1 for NULL). */
+REFL_API int refl_sbc_morph_object(const refl_sbc_morph *morph);
+/* Node (i, j, k)'s position: 1, or 0 when out of range (or morph is NULL). */
+REFL_API int refl_sbc_morph_node(const refl_sbc_morph *morph, int i, int j, int k, refl_vec3 *position);
+/* The eye's tetrahedron (a key: cell * 6 + which of its six) and its four
+   nodes' barycentric weights; -1 when the eye lies outside the grid, in a
+   cell overlapping the reflector's box, or is not finite. Eyes within 1e-5
+   cells of a node's plane count as on it, so an eye at a node weighs it 1. */
+REFL_API int refl_sbc_morph_locate(const refl_sbc_morph *morph, refl_vec3 eye, int nodes[4], float weights[4]);
+/* The piece the ray meets first on the reflector's outside (-1: none):
+   which piece's reflection a desired-view pixel shows. */
+REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 origin, refl_vec3 dir);
+/* Projects p into piece `piece` for the eye: 1 with *first (blended first
+   reflector point) and *dist (blended distance from p to it), 0 when p
+   does not project at every node of positive weight (*ambiguous, may be
+   NULL, 1 when it projects at some of them), the eye locates nowhere or
+   an argument is bad. Thread-safe. */
+REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
+                                    refl_vec3 *first, float *dist, int *ambiguous);
+/* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
+   with *first and *dist, 0 when it does not project there, the node is
+   out of range or not built (its cells overlap the reflector's box). */
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist);
+/* Static points' projections kept while the eye stays in one tetrahedron
+   (the paper's reuse): refl_sbc_morph_project_points with a cache projects
+   each point at the four nodes only when the tetrahedron, the piece, the
+   count or the points pointer changed, and otherwise only re-blends. The
+   caller keeps the points unchanged while they are cached. */
+typedef struct refl_sbc_morph_cache refl_sbc_morph_cache;
+REFL_API refl_result refl_sbc_morph_cache_create(const refl_allocator *a, refl_sbc_morph_cache **out_cache);
+REFL_API void refl_sbc_morph_cache_destroy(refl_sbc_morph_cache *cache);
+/* count points (3 floats each) into first[i], dist[i] and status[i] (1:
+   projects, 2: ambiguous, 0: neither); cache may be NULL (every point
+   projected at the four nodes). *ambiguous (may be NULL): how many have
+   status 2. REFL_ERROR_INVALID_ARGUMENT for NULL arrays with count > 0,
+   a negative count, a bad piece or an eye that locates nowhere. */
+REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, refl_vec3 eye, int piece,
+                                                   const float *points, int count, refl_sbc_morph_cache *cache,
+                                                   refl_vec3 *first, float *dist, uint8_t *status,
+                                                   long long *ambiguous);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -600,6 +719,8 @@ typedef struct refl_stats {
     double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
                                    and splatting, summed over threads */
     long long model_bytes;
+    long long ambiguous;     /* SBC with morphs: scene vertices that project at some but not
+                                all of the eye tetrahedron's nodes (paper 003 VI) */
     int reflectors;          /* reflector objects on screen */
     int histories;           /* SBC: reflection histories sampled (paper 003's A, B, AB, BA,
                                 ...; a refraction through glass counts as one) */
@@ -703,6 +824,13 @@ typedef struct refl_render_desc {
                                 stronger branch at glass as for the first; NaN where the
                                 path ends in the environment) instead of the first: how
                                 higher-order reflections are measured. Other methods: ignored */
+    /* SBC: prebuilt reflection morphing grids (refl_sbc_morph_build on this
+       scene); the front side of each one's object is drawn from its grid
+       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
+       its tetrahedra; otherwise, and for objects without one, as before.
+       One grid per object at most (the first counts). */
+    const refl_sbc_morph *const *sbc_morphs;
+    int sbc_morph_count;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
@@ -3178,6 +3306,23 @@ REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *h
     if (hi) *hi = h;
 }
 
+REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {
+    const refl_mesh *m;
+    int i;
+    if (!s || object < 0 || object >= s->object_count || s->objects[object].mesh < 0 ||
+        s->objects[object].mesh >= s->mesh_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    m = s->meshes[s->objects[object].mesh];
+    for (i = 0; out && i < m->vertex_count; ++i) {
+        const float *q = m->positions + 3 * (size_t)i;
+        refl_vec3 w = refl_mat4_point(s->objects[object].transform, refl_v3(q[0], q[1], q[2]));
+        out[3 * (size_t)i] = w.x;
+        out[3 * (size_t)i + 1] = w.y;
+        out[3 * (size_t)i + 2] = w.z;
+    }
+    return m->vertex_count;
+}
+
 REFL_API void refl_scene_normalize(refl_scene *s, float size) {
     refl_vec3 lo, hi, c;
     float diag, k;
@@ -5191,6 +5336,11 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
    with it 0.49 px. The error is also checked half-way along each ray (in
    s), so the bound holds between a ray's ends, not only at them.
 
+   Beyond runtime mode: desc.widen grows each accepted camera's rectangle
+   (paper 003 VI, "extends the field of view of the BSP leaf cameras"), so
+   a morphing grid's node projects points just outside its ray map; off by
+   default, leaving runtime mode's projections unchanged.
+
    Split (the paper's heuristic, with the changes said at
    refl__sbc_split): the plane through the tails' centroid,
    parallel to the mean ray direction, perpendicular to the tails' principal
@@ -5449,6 +5599,7 @@ typedef struct refl__sbc_builder {
     double vp[16];
     int width, height;
     int max_depth;
+    double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
     refl_allocator *a;
     uint8_t *valid;          /* in the group, finite, not of zero length */
     float *dir;              /* unit direction per map entry */
@@ -6046,6 +6197,10 @@ static refl_result refl__sbc_run(refl__sbc_builder *b, int nvalid) {
                 res = REFL_ERROR_OUT_OF_MEMORY;
                 break;
             }
+            if (b->widen > 0.0) { /* after the fit: its normalisation (norm) stays the fitted one */
+                double wu = b->widen * (cam.rect[1] - cam.rect[0]), wv = b->widen * (cam.rect[3] - cam.rect[2]);
+                cam.rect[0] -= wu; cam.rect[1] += wu; cam.rect[2] -= wv; cam.rect[3] += wv;
+            }
             s->cams[s->cam_count] = cam;
             s->nodes[t.node].kind = REFL__SBC_PINHOLE;
             s->nodes[t.node].first = s->cam_count++;
@@ -6110,7 +6265,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     if ((size_t)map_width > (size_t)(INT_MAX / 4) / (size_t)map_height) return REFL_ERROR_INVALID_SIZE;
     err = desc->error_px == 0.0f ? 1.0 : (double)desc->error_px;
     if (!(err > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* negative or NaN */
-    if (desc->max_depth < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc->max_depth < 0 || !(desc->widen >= 0.0f && desc->widen <= 1e6f)) return REFL_ERROR_INVALID_ARGUMENT;
     if (err <= DBL_MAX) {
         if (desc->width < 1 || desc->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
         for (j = 0; j < 16; ++j)
@@ -6133,6 +6288,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     b.width = desc->width;
     b.height = desc->height;
     b.max_depth = desc->max_depth ? desc->max_depth : 40;
+    b.widen = desc->widen;
     s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
     if (!s) return REFL_ERROR_OUT_OF_MEMORY;
     s->allocator = alloc;
@@ -6377,6 +6533,1013 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
     if (first) *first = f;
     if (z) *z = zz;
     return 1;
+}
+/* ---- src/reflect/cam_sbc_morph.c ---- */
+/* cam_sbc_morph: paper 003's reflection morphing mode (section VI): a
+   grid of panoramic sample-based cameras around one reflector, blended
+   for the eye.
+     Grid: nodes[0] x nodes[1] x nodes[2] nodes spanning the reflector's
+     world box grown by margin times its diagonal (or a given region). A
+     cell is cut into 6 tetrahedra along its main diagonal (Kuhn's
+     triangulation): for local coordinates f sorted as f_a >= f_b >= f_c
+     the tetrahedron runs from the cell's low corner through + e_a and
+     + e_a + e_b to the high corner, with barycentric weights 1 - f_a,
+     f_a - f_b, f_b - f_c, f_c. Neighbouring cells share faces, so the
+     weights are continuous across the grid. Cells overlapping the
+     reflector's box hold no eye (their nodes would look at the reflector
+     from opposite sides); nodes no such cell uses are not built.
+     Pieces: the reflector's triangles joined through shared vertices (the
+     mesh splits vertices at creases: the teapot's lid, knob, body, spout
+     and handle come apart). The desired view's pixel shows one piece, and
+     a point reflects at most about once in a smooth piece, so blending
+     first points per piece is meaningful where blending across pieces
+     (the spout's reflection at one node, the body's at another) is not.
+     Node cameras: per face of a cube around the node (90 degrees, one
+     extra sample all round so neighbouring faces' rays overlap) the ray
+     of each sample meets each piece at its first hit of that piece (the
+     other pieces are passed through: none hides another); a front-facing
+     hit is a ray with tail = first = the hit, reflected about the
+     interpolated normal, its head clipped as runtime mode clips it (twice
+     as far as what it meets plus 1% of the scene diagonal, or a tenth of
+     the diagonal when it meets nothing, inside the scene box grown 1%).
+     Remedy (a): extend_rings rings of samples past the reflector's
+     silhouette (samples whose ray meets no piece) get extrapolated rays
+     (the sample's ray meets the tangent plane of a member neighbour; the
+     normal continues linearly; past grazing the ray goes straight on), as
+     runtime mode's single ring does. Not past a piece's other edges: there
+     the extension lies beside the neighbouring piece's real surface, and
+     points reflected in it were drawn over the piece's own pixels (the
+     teapot's p95 error at a node: 7 px with, 2 px without). More than one
+     ring does worse too (p95 9-14 px with two). Each (piece, face) with
+     rays is one SBC built to error_px face pixels with the face's own
+     view-projection, widened by remedy (b) (pinhole leaves only: most of
+     a curved reflector's leaves are ray lists, so it helps little).
+     Projection at a node: a point outside the piece's box there (its rays'
+     tails and heads, grown by a quarter as runtime mode grows a group's)
+     does not project; else the piece's face SBCs in face order, keeping
+     only a first point the point lies ahead of along the unextended ray
+     of the sample it lands on (runtime mode's check: a leaf reaches a
+     little behind the reflector); a first point in the face's own
+     90-degree cone takes that face's answer, else the first face that
+     projects it (the overlap).
+     check_ambiguous counts the paper's construction criterion: the heads
+     of every node's unextended rays, and points a tenth of the way along
+     from their tails (the tails themselves lie on every frustum's floor),
+     projected at the other nodes of the tetrahedra holding both.
+   Deterministic: each node is built by one job from its own inputs; sums
+   run in a fixed order. */
+
+#define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
+#define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
+
+/* Where a node's ray meets the scene: runtime mode subdivides a scene
+   triangle towards such points (m_sbc.c's refl__sb_hit, same layout). */
+typedef struct refl__sbm_hit {
+    int object, triangle;
+    refl_vec3 point;
+} refl__sbm_hit;
+
+typedef struct refl__sbm_node {
+    refl_vec3 pos;
+    int built;
+    refl_sbc **sbc;              /* [piece * 6 + face]; NULL where the piece shows nothing */
+    signed char **dirs;          /* [piece * 6 + face]: per face sample, its unextended ray's unit
+                                    direction times 127 (zero: no such ray), or NULL */
+    int face;                    /* face samples per side (the maps have face + 2) */
+    float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs), grown */
+    refl__sbm_hit **hits;        /* per piece: what its rays meet, in face and map order */
+    int *hit_count;
+    refl_vec3 **ends;            /* with check_ambiguous, during the build: per piece, its
+                                    unextended rays' heads and points a tenth along from the tails */
+    int *end_count;
+    refl_result result;
+} refl__sbm_node;
+
+struct refl_sbc_morph {
+    refl_allocator allocator;
+    int object;
+    int n[3];
+    refl_vec3 lo, step;          /* node (i, j, k) = lo + (i, j, k) * step */
+    refl_vec3 box_lo, box_hi;    /* the reflector's world box */
+    int piece_count;
+    int *piece;                  /* per reflector triangle */
+    float *pos, *nrm;            /* world positions and normals of the reflector's vertices */
+    const uint32_t *indices;     /* a copy, 3 per triangle */
+    uint32_t *index_copy;
+    int triangle_count;
+    refl_bvh *bvh;               /* the reflector alone: hit.triangle */
+    refl__sbm_node *nodes;
+    uint8_t *cell_ok;            /* per cell: clear of the reflector's box */
+    refl_sbc_morph_stats stats;
+};
+
+struct refl_sbc_morph_cache {
+    refl_allocator allocator;
+    int tet, piece, count;
+    const float *points;
+    float *slot;                 /* per point and tetrahedron node: first (3), dist */
+    uint8_t *ok;                 /* per point: bit i, projects at node i */
+    int cap;
+};
+
+static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 *first);
+
+/* What a build job reads. */
+typedef struct refl__sbm_build {
+    refl_sbc_morph *m;
+    const refl_scene *scene;
+    refl_bvh *scene_bvh;
+    refl_vec3 scene_lo, scene_hi;
+    float diagonal;
+    int face, rings;
+    float error_px, widen;
+    const int *list;             /* the nodes to build: job i builds nodes[list[i]] */
+    int check;                   /* desc.check_ambiguous */
+} refl__sbm_build;
+
+static const float refl__sbm_forward[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+static const float refl__sbm_up[6][3] = {{0, 1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}, {0, 1, 0}, {0, 1, 0}};
+
+/* The cube face whose cone holds direction v (the largest component;
+   ties to the earlier axis). */
+static int refl__sbm_face_of(refl_vec3 v) {
+    float ax = fabsf(v.x), ay = fabsf(v.y), az = fabsf(v.z);
+    if (ax >= ay && ax >= az) return v.x >= 0.0f ? 0 : 1;
+    if (ay >= az) return v.y >= 0.0f ? 2 : 3;
+    return v.z >= 0.0f ? 4 : 5;
+}
+
+/* Face f's basis: forward, right, up (gluLookAt's). */
+static void refl__sbm_basis(int f, refl_vec3 *fw, refl_vec3 *rt, refl_vec3 *up) {
+    refl_vec3 u = refl_v3(refl__sbm_up[f][0], refl__sbm_up[f][1], refl__sbm_up[f][2]);
+    *fw = refl_v3(refl__sbm_forward[f][0], refl__sbm_forward[f][1], refl__sbm_forward[f][2]);
+    *rt = refl_v3_normalize(refl_v3_cross(*fw, u));
+    *up = refl_v3_cross(*rt, *fw);
+}
+
+/* The unit direction of face sample (i, j): sample 1 + x's centre is
+   pixel x of the face's image, so samples 0 and face + 1 lie just beyond it. */
+static refl_vec3 refl__sbm_dir(const refl__sbm_build *b, refl_vec3 fw, refl_vec3 rt, refl_vec3 up, int i, int j) {
+    float x = 2.0f * ((float)i - 0.5f) / (float)b->face - 1.0f, y = 1.0f - 2.0f * ((float)j - 0.5f) / (float)b->face;
+    return refl_v3_normalize(refl_v3_add(fw, refl_v3_add(refl_v3_scale(rt, x), refl_v3_scale(up, y))));
+}
+
+/* The distance along unit-free r from o (inside the box) to its exit. */
+static float refl__sbm_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 r) {
+    const float *pl = &lo.x, *ph = &hi.x, *po = &o.x, *pr = &r.x;
+    float t = INFINITY;
+    int k;
+    for (k = 0; k < 3; ++k)
+        if (pr[k] != 0.0f) t = REFL__MIN(t, ((pr[k] > 0.0f ? ph[k] : pl[k]) - po[k]) / pr[k]);
+    return t > 0.0f ? t : 0.0f;
+}
+
+/* The reflected ray at q (unit normal n towards the node, view direction d):
+   runtime mode's head rule. 0 for a ray of no length. */
+static int refl__sbm_ray(const refl__sbm_build *b, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
+                         refl__sbm_hit *met) {
+    refl_vec3 r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d; /* past grazing: straight on */
+    float reach = refl__sbm_box_exit(b->scene_lo, b->scene_hi, q, r);
+    refl_hit hit;
+    met->object = -1;
+    if (refl_bvh_intersect(b->scene_bvh, q, r, 1e-4f * b->diagonal, reach, &hit)) {
+        met->object = hit.object;
+        met->triangle = hit.triangle;
+        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
+        reach = REFL__MIN(reach, 2.0f * hit.t + 0.01f * b->diagonal);
+    } else {
+        reach = REFL__MIN(reach, 0.1f * b->diagonal);
+    }
+    ray->tail = ray->first = q;
+    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
+    return reach > 0.0f && refl__isfinite(reach);
+}
+
+/* Vertex a of triangle t, world. */
+static refl_vec3 refl__sbm_vertex(const refl_sbc_morph *m, const float *arr, int t, int a) {
+    const float *v = arr + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)a];
+    return refl_v3(v[0], v[1], v[2]);
+}
+
+/* The unit normal of a hit: interpolated (shading), and whether the hit
+   is on the triangle's front (geometric normal against d). */
+static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h, refl_vec3 d, int *front) {
+    refl_vec3 a = refl__sbm_vertex(m, m->pos, h->triangle, 0), b = refl__sbm_vertex(m, m->pos, h->triangle, 1);
+    refl_vec3 c = refl__sbm_vertex(m, m->pos, h->triangle, 2);
+    refl_vec3 g = refl_v3_cross(refl_v3_sub(b, a), refl_v3_sub(c, a));
+    refl_vec3 n = refl_v3_add(refl_v3_scale(refl__sbm_vertex(m, m->nrm, h->triangle, 0), 1.0f - h->u - h->v),
+                              refl_v3_add(refl_v3_scale(refl__sbm_vertex(m, m->nrm, h->triangle, 1), h->u),
+                                          refl_v3_scale(refl__sbm_vertex(m, m->nrm, h->triangle, 2), h->v)));
+    *front = refl_v3_dot(g, d) < 0.0f;
+    return refl_v3_normalize(n);
+}
+
+/* One face of one node: every piece's rays (valid: 1 on the piece, k + 1
+   on ring k) in rays/valid/normals, P maps of S samples each. */
+static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, refl_sbc_ray *rays, uint8_t *valid,
+                                refl_vec3 *normals, refl__sbm_hit *met, uint8_t *miss) {
+    static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
+    const refl_sbc_morph *m = b->m;
+    int W = b->face + 2, P = m->piece_count, i, j, k, ring, e;
+    size_t S = (size_t)W * (size_t)W;
+    refl_vec3 fw, rt, up;
+    refl__sbm_basis(f, &fw, &rt, &up);
+    memset(valid, 0, S * (size_t)P);
+    for (j = 0; j < W; ++j)
+        for (i = 0; i < W; ++i) {
+            refl_vec3 d = refl__sbm_dir(b, fw, rt, up, i, j);
+            float tmin = 0.0f;
+            refl_hit h;
+            size_t s = (size_t)j * (size_t)W + (size_t)i;
+            miss[s] = 1;
+            /* every piece's first hit along the ray */
+            for (k = 0; k < REFL__SBM_HITS && refl_bvh_intersect(m->bvh, o, d, tmin, INFINITY, &h); ++k) {
+                miss[s] = 0;
+                int pc = m->piece[h.triangle], front;
+                size_t at = (size_t)pc * S + s;
+                refl_vec3 n;
+                tmin = h.t;
+                if (valid[at]) continue;
+                n = refl__sbm_hit_normal(m, &h, d, &front);
+                valid[at] = 255; /* seen: later hits of the piece are hidden by this one */
+                if (!front) continue;
+                normals[at] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
+                if (refl__sbm_ray(b, refl_v3_add(o, refl_v3_scale(d, h.t)), normals[at], d, &rays[at], &met[at]))
+                    valid[at] = 1;
+            }
+        }
+    for (k = 0; k < (int)(S * (size_t)P); ++k)
+        if (valid[k] == 255) valid[k] = 0;
+    /* remedy (a): ring r from members and earlier rings only */
+    for (ring = 1; ring <= b->rings; ++ring)
+        for (k = 0; k < P; ++k) {
+            uint8_t *vk = valid + (size_t)k * S;
+            refl_sbc_ray *rk = rays + (size_t)k * S;
+            refl_vec3 *nk = normals + (size_t)k * S;
+            refl__sbm_hit *mk = met + (size_t)k * S;
+            for (j = 0; j < W; ++j)
+                for (i = 0; i < W; ++i) {
+                    size_t s = (size_t)j * (size_t)W + (size_t)i;
+                    /* past the silhouette only: where another piece lies, extending
+                       this one would put a fictional surface beside a real one */
+                    if (vk[s] || !miss[s]) continue;
+                    for (e = 0; e < 8; ++e) {
+                        int i1 = i + du[e], j1 = j + dv[e], i2 = i + 2 * du[e], j2 = j + 2 * dv[e];
+                        float den, t;
+                        refl_vec3 d, n1, n;
+                        size_t s1;
+                        if (i1 < 0 || j1 < 0 || i1 >= W || j1 >= W) continue;
+                        s1 = (size_t)j1 * (size_t)W + (size_t)i1;
+                        if (!vk[s1] || vk[s1] > ring) continue;
+                        n1 = nk[s1];
+                        n = n1;
+                        if (i2 >= 0 && j2 >= 0 && i2 < W && j2 < W && vk[(size_t)j2 * W + (size_t)i2] &&
+                            vk[(size_t)j2 * W + (size_t)i2] <= ring)
+                            n = refl_v3_normalize(refl_v3_sub(refl_v3_scale(n1, 2.0f), nk[(size_t)j2 * W + (size_t)i2]));
+                        d = refl__sbm_dir(b, fw, rt, up, i, j);
+                        den = refl_v3_dot(d, n1);
+                        if (fabsf(den) < 1e-6f) continue;
+                        t = refl_v3_dot(refl_v3_sub(rk[s1].tail, o), n1) / den;
+                        if (!(t > 0.0f) || !refl__isfinite(t)) continue;
+                        if (refl_v3_length(n) > 0.0f &&
+                            refl__sbm_ray(b, refl_v3_add(o, refl_v3_scale(d, t)), n, d, &rk[s], &mk[s])) {
+                            nk[s] = n;
+                            vk[s] = (uint8_t)(ring + 1);
+                            break;
+                        }
+                    }
+                }
+        }
+}
+
+/* Appends elem (size bytes) to *arr of *count, capacity *cap; 0 when out of memory. */
+static int refl__sbm_push(const refl_allocator *al, void **arr, int *count, int *cap, size_t size, const void *elem) {
+    if (*count == *cap) {
+        int nc = *cap ? 2 * *cap : 256;
+        void *grown = nc > 0 && nc < INT_MAX / 2 ? refl__calloc(al, (size_t)nc, size) : NULL;
+        if (!grown) return 0;
+        if (*count) memcpy(grown, *arr, (size_t)*count * size);
+        refl__free(al, *arr);
+        *arr = grown;
+        *cap = nc;
+    }
+    memcpy((char *)*arr + (size_t)*count * size, elem, size);
+    ++*count;
+    return 1;
+}
+
+/* Builds node `index` (a job): per face, every piece's map and SBC. */
+static void refl__sbm_build_node(void *arg, int index) {
+    const refl__sbm_build *b = (const refl__sbm_build *)arg;
+    refl_sbc_morph *m = b->m;
+    refl__sbm_node *nd = &m->nodes[b->list[index]];
+    const refl_allocator *al = &m->allocator;
+    int W = b->face + 2, P = m->piece_count, f, k;
+    size_t S = (size_t)W * (size_t)W, i;
+    refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, S * (size_t)P, sizeof(refl_sbc_ray));
+    uint8_t *valid = (uint8_t *)refl__calloc(al, S * (size_t)P, 1);
+    refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, S * (size_t)P, sizeof(refl_vec3));
+    refl__sbm_hit *met = (refl__sbm_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbm_hit));
+    uint8_t *miss = (uint8_t *)refl__calloc(al, S, 1); /* per sample: the ray meets no piece */
+    int *cap = (int *)refl__calloc(al, 2 * (size_t)P, sizeof(int)); /* hits', then ends' */
+    nd->hits = (refl__sbm_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbm_hit *));
+    nd->hit_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
+    nd->ends = (refl_vec3 **)refl__calloc(al, (size_t)P, sizeof(refl_vec3 *));
+    nd->end_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
+    nd->sbc = (refl_sbc **)refl__calloc(al, (size_t)P * 6, sizeof(refl_sbc *));
+    nd->dirs = (signed char **)refl__calloc(al, (size_t)P * 6, sizeof(signed char *));
+    nd->face = b->face;
+    nd->box = (float *)refl__calloc(al, (size_t)P * 6, sizeof(float));
+    if (!rays || !valid || !normals || !met || !miss || !cap || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count || !nd->sbc || !nd->dirs || !nd->box) {
+        nd->result = REFL_ERROR_OUT_OF_MEMORY;
+    } else {
+        for (f = 0; f < 6 && nd->result == REFL_OK; ++f) {
+            refl_vec3 fw, rt, up;
+            refl_sbc_desc d;
+            refl__sbm_face_maps(b, nd->pos, f, rays, valid, normals, met, miss);
+            refl__sbm_basis(f, &fw, &rt, &up);
+            memset(&d, 0, sizeof d);
+            d.error_px = b->error_px;
+            d.widen = b->widen;
+            d.width = d.height = b->face;
+            /* W samples span (face + 2) / face of the 90-degree image: pixels beyond
+               [0, face) are the overlap */
+            d.view_proj = refl_mat4_mul(refl_mat4_perspective((float)(REFL__PI / 2.0), 1.0f, 1e-3f * b->diagonal,
+                                                              4.0f * b->diagonal),
+                                        refl_mat4_look_at(nd->pos, refl_v3_add(nd->pos, fw), up));
+            d.allocator = *al;
+            for (k = 0; k < P && nd->result == REFL_OK; ++k) {
+                float *bx = nd->box + 6 * (size_t)k;
+                int count = 0, e, c;
+                if (f == 0)
+                    for (c = 0; c < 3; ++c) {
+                        bx[c] = INFINITY;
+                        bx[3 + c] = -INFINITY;
+                    }
+                for (i = 0; i < S; ++i) {
+                    const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
+                    const refl__sbm_hit *h = &met[(size_t)k * S + i];
+                    /* the tail itself lies on every node's frustums' floor, the
+                       reflector: a tenth of the way along stands for it */
+                    refl_vec3 near = refl_v3_add(ry->tail, refl_v3_scale(refl_v3_sub(ry->head, ry->tail), 0.1f));
+                    if (!valid[(size_t)k * S + i]) continue;
+                    ++count;
+                    if ((h->object >= 0 && !refl__sbm_push(al, (void **)&nd->hits[k], &nd->hit_count[k], &cap[k],
+                                                             sizeof *h, h)) ||
+                        (b->check && valid[(size_t)k * S + i] == 1 &&
+                         (!refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
+                                          &near) ||
+                          !refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
+                                          &ry->head)))) {
+                        nd->result = REFL_ERROR_OUT_OF_MEMORY;
+                        break;
+                    }
+                    for (e = 0; e < 2; ++e) {
+                        const float *q = e ? &ry->head.x : &ry->tail.x;
+                        for (c = 0; c < 3; ++c) {
+                            bx[c] = REFL__MIN(bx[c], q[c]);
+                            bx[3 + c] = REFL__MAX(bx[3 + c], q[c]);
+                        }
+                    }
+                }
+                if (count < 4) continue; /* no unit frustum: nothing to project with */
+                {
+                    signed char *dm = (signed char *)refl__calloc(al, S, 3);
+                    nd->dirs[(size_t)k * 6 + (size_t)f] = dm;
+                    if (!dm) {
+                        nd->result = REFL_ERROR_OUT_OF_MEMORY;
+                        break;
+                    }
+                    for (i = 0; i < S; ++i) {
+                        const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
+                        refl_vec3 r = refl_v3_normalize(refl_v3_sub(ry->head, ry->tail));
+                        if (valid[(size_t)k * S + i] != 1) continue;
+                        dm[3 * i] = (signed char)lrintf(127.0f * r.x);
+                        dm[3 * i + 1] = (signed char)lrintf(127.0f * r.y);
+                        dm[3 * i + 2] = (signed char)lrintf(127.0f * r.z);
+                    }
+                }
+                nd->result = refl_sbc_build(rays + (size_t)k * S, valid + (size_t)k * S, W, W, &d,
+                                            &nd->sbc[(size_t)k * 6 + (size_t)f]);
+            }
+        }
+        /* grown by a quarter of its size, as runtime mode grows a group's box
+           (cameras reach below the tails, ray lists past the heads): nothing
+           outside projects */
+        for (i = 0; i < 3 * (size_t)P; ++i) {
+            float *bx = nd->box + 6 * (i / 3), g;
+            size_t c = i % 3;
+            if (!(bx[c] <= bx[3 + c])) continue;
+            g = 0.25f * (bx[3 + c] - bx[c]) + 1e-4f * b->diagonal;
+            bx[c] -= g;
+            bx[3 + c] += g;
+        }
+    }
+    refl__free(al, rays);
+    refl__free(al, valid);
+    refl__free(al, normals);
+    refl__free(al, met);
+    refl__free(al, miss);
+    refl__free(al, cap);
+}
+
+REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
+    refl_allocator a;
+    int i, k, n;
+    if (!morph) return;
+    a = morph->allocator;
+    n = morph->n[0] * morph->n[1] * morph->n[2];
+    for (i = 0; morph->nodes && i < n; ++i) {
+        for (k = 0; morph->nodes[i].sbc && k < 6 * morph->piece_count; ++k) refl_sbc_destroy(morph->nodes[i].sbc[k]);
+        refl__free(&a, morph->nodes[i].sbc);
+        for (k = 0; morph->nodes[i].dirs && k < 6 * morph->piece_count; ++k) refl__free(&a, morph->nodes[i].dirs[k]);
+        refl__free(&a, morph->nodes[i].dirs);
+        refl__free(&a, morph->nodes[i].box);
+        for (k = 0; morph->nodes[i].hits && k < morph->piece_count; ++k) refl__free(&a, morph->nodes[i].hits[k]);
+        refl__free(&a, morph->nodes[i].hits);
+        refl__free(&a, morph->nodes[i].hit_count);
+        for (k = 0; morph->nodes[i].ends && k < morph->piece_count; ++k) refl__free(&a, morph->nodes[i].ends[k]);
+        refl__free(&a, morph->nodes[i].ends);
+        refl__free(&a, morph->nodes[i].end_count);
+    }
+    refl__free(&a, morph->nodes);
+    refl__free(&a, morph->cell_ok);
+    refl__free(&a, morph->piece);
+    refl__free(&a, morph->pos);
+    refl__free(&a, morph->nrm);
+    refl__free(&a, morph->index_copy);
+    refl_bvh_destroy(morph->bvh);
+    refl__free(&a, morph);
+}
+
+static int refl__sbm_find(int *parent, int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+}
+
+/* The reflector in world space, its pieces, and its BVH. */
+static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scene, int object) {
+    const refl_object *obj = &scene->objects[object];
+    const refl_mesh *mesh = scene->meshes[obj->mesh];
+    const refl_allocator *al = &m->allocator;
+    refl_mat4 inv, nm = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    int V = mesh->vertex_count, T = mesh->triangle_count, i, *parent, *label;
+    refl_scene one;
+    refl_result r;
+    m->pos = (float *)refl__calloc(al, (size_t)V, 3 * sizeof(float));
+    m->nrm = (float *)refl__calloc(al, (size_t)V, 3 * sizeof(float));
+    m->piece = (int *)refl__calloc(al, (size_t)T, sizeof(int));
+    m->index_copy = (uint32_t *)refl__calloc(al, (size_t)T, 3 * sizeof(uint32_t));
+    parent = (int *)refl__calloc(al, (size_t)V, sizeof(int));
+    label = (int *)refl__calloc(al, (size_t)V, sizeof(int));
+    if (!m->pos || !m->nrm || !m->piece || !m->index_copy || !parent || !label) {
+        refl__free(al, parent);
+        refl__free(al, label);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    memcpy(m->index_copy, mesh->indices, (size_t)T * 3 * sizeof(uint32_t));
+    m->indices = m->index_copy;
+    m->triangle_count = T;
+    m->box_lo = refl_v3(INFINITY, INFINITY, INFINITY);
+    m->box_hi = refl_v3(-INFINITY, -INFINITY, -INFINITY);
+    for (i = 0; i < V; ++i) {
+        const float *p = mesh->positions + 3 * (size_t)i, *n = mesh->normals + 3 * (size_t)i;
+        refl_vec3 w = refl_mat4_point(obj->transform, refl_v3(p[0], p[1], p[2]));
+        refl_vec3 wn = refl_v3_normalize(refl_mat4_dir(nm, refl_v3(n[0], n[1], n[2])));
+        m->pos[3 * (size_t)i] = w.x;
+        m->pos[3 * (size_t)i + 1] = w.y;
+        m->pos[3 * (size_t)i + 2] = w.z;
+        m->nrm[3 * (size_t)i] = wn.x;
+        m->nrm[3 * (size_t)i + 1] = wn.y;
+        m->nrm[3 * (size_t)i + 2] = wn.z;
+        m->box_lo = refl__v3_min(m->box_lo, w);
+        m->box_hi = refl__v3_max(m->box_hi, w);
+        parent[i] = i;
+        label[i] = -1;
+    }
+    /* pieces: triangles joined through shared vertices, numbered by first triangle */
+    for (i = 0; i < T; ++i) {
+        int a = refl__sbm_find(parent, (int)m->indices[3 * i]), k;
+        for (k = 1; k < 3; ++k) {
+            int c = refl__sbm_find(parent, (int)m->indices[3 * i + k]);
+            if (c < a) { parent[a] = c; a = c; } else parent[c] = a;
+        }
+    }
+    for (i = 0; i < T; ++i) {
+        int root = refl__sbm_find(parent, (int)m->indices[3 * i]);
+        if (label[root] < 0) label[root] = m->piece_count++;
+        m->piece[i] = label[root];
+    }
+    refl__free(al, parent);
+    refl__free(al, label);
+    /* the BVH of a scene holding the reflector alone (it copies the triangles) */
+    one = *scene;
+    one.objects = (refl_object *)obj;
+    one.object_count = 1;
+    r = refl_bvh_build(&one, al, &m->bvh);
+    return r;
+}
+
+/* The paper's construction check: a tail or head of a node's unextended
+   ray (of one piece) is ambiguous for a cell when another node of one of
+   the cell's tetrahedra holding both does not project it into the piece
+   (two corners share a tetrahedron when one lies at or above the other
+   along every axis). Counted over every cell clear of the reflector and
+   every such ordered pair of its corners; the ends are freed after. */
+static void refl__sbm_check(refl_sbc_morph *m) {
+    int i, j, k, a, c, piece, e;
+    const refl_allocator *al = &m->allocator;
+    for (k = 0; k + 1 < m->n[2]; ++k)
+        for (j = 0; j + 1 < m->n[1]; ++j)
+            for (i = 0; i + 1 < m->n[0]; ++i) {
+                if (!m->cell_ok[(k * (m->n[1] - 1) + j) * (m->n[0] - 1) + i]) continue;
+                for (a = 0; a < 8; ++a)
+                    for (c = 0; c < 8; ++c) {
+                        const refl__sbm_node *na = &m->nodes[((k + (a >> 2)) * m->n[1] + j + (a >> 1 & 1)) * m->n[0] + i + (a & 1)];
+                        const refl__sbm_node *nc = &m->nodes[((k + (c >> 2)) * m->n[1] + j + (c >> 1 & 1)) * m->n[0] + i + (c & 1)];
+                        if (a == c || ((a & c) != a && (a & c) != c)) continue; /* not comparable: no shared tetrahedron */
+                        for (piece = 0; piece < m->piece_count; ++piece)
+                            for (e = 0; e < na->end_count[piece]; ++e) {
+                                refl_vec3 q;
+                                m->stats.ends_checked++;
+                                if (!refl__sbm_node_project(nc, piece, na->ends[piece][e], &q)) m->stats.ambiguous_ends++;
+                            }
+                    }
+            }
+    for (i = 0; i < m->n[0] * m->n[1] * m->n[2]; ++i)
+        for (piece = 0; m->nodes[i].ends && piece < m->piece_count; ++piece) {
+            refl__free(al, m->nodes[i].ends[piece]);
+            m->nodes[i].ends[piece] = NULL;
+            m->nodes[i].end_count[piece] = 0;
+        }
+}
+
+REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
+                                          refl_sbc_morph **out_morph) {
+    refl_sbc_morph_desc d;
+    refl_sbc_morph *m;
+    refl__sbm_build b;
+    refl_vec3 lo, hi, ext;
+    rast_context *rc = NULL;
+    rast_context_desc cd;
+    refl_result r;
+    double t0 = refl__now_ms();
+    int i, j, k, count, cells;
+    if (out_morph) *out_morph = NULL;
+    if (!scene || !out_morph || object < 0 || object >= scene->object_count || !scene->objects)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    {
+        int mi = scene->objects[object].mesh;
+        const refl_mesh *mesh;
+        if (mi < 0 || mi >= scene->mesh_count || !scene->meshes || !scene->meshes[mi]) return REFL_ERROR_INVALID_ARGUMENT;
+        mesh = scene->meshes[mi];
+        if (mesh->triangle_count < 1 || mesh->vertex_count < 3 || !mesh->positions || !mesh->normals || !mesh->indices)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if (desc) d = *desc;
+    else memset(&d, 0, sizeof d);
+    for (k = 0; k < 3; ++k) {
+        if (!d.nodes[k]) d.nodes[k] = 4;
+        if (d.nodes[k] < 2 || d.nodes[k] > 64) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if (!d.face_size) d.face_size = 128;
+    if (d.face_size < 4 || d.face_size > 1024) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!(d.margin >= 0.0f && d.margin <= 1e6f) || !(d.error_px >= 0.0f && d.error_px <= 1e6f) ||
+        !(d.widen <= 1e6f) || d.widen != d.widen)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if (d.margin == 0.0f) d.margin = 0.5f;
+    if (d.error_px == 0.0f) d.error_px = 1.0f;
+    if (d.widen == 0.0f) d.widen = 0.1f;
+    if (d.widen < 0.0f) d.widen = 0.0f;
+    if (!d.extend_rings) d.extend_rings = 1;
+    if (d.extend_rings < 0) d.extend_rings = 0;
+    if (d.extend_rings > 64) return REFL_ERROR_INVALID_ARGUMENT;
+    {
+        const float *a = &d.region_lo.x, *c = &d.region_hi.x;
+        int zero = 1;
+        for (k = 0; k < 3; ++k) {
+            if (!refl__isfinite(a[k]) || !refl__isfinite(c[k])) return REFL_ERROR_INVALID_ARGUMENT;
+            zero &= a[k] == 0.0f && c[k] == 0.0f;
+        }
+        for (k = 0; !zero && k < 3; ++k)
+            if (!(a[k] < c[k])) return REFL_ERROR_INVALID_ARGUMENT;
+        if (zero) d.region_lo = d.region_hi = refl_v3(NAN, NAN, NAN);
+    }
+    m = (refl_sbc_morph *)refl__calloc(&d.allocator, 1, sizeof *m);
+    if (!m) return REFL_ERROR_OUT_OF_MEMORY;
+    m->allocator = d.allocator;
+    m->object = object;
+    for (k = 0; k < 3; ++k) m->n[k] = d.nodes[k];
+    memset(&b, 0, sizeof b);
+    r = refl__sbm_reflector(m, scene, object);
+    /* a map per piece and face at every node: a triangle soup would need one per triangle */
+    if (r == REFL_OK && m->piece_count > REFL__SBM_PIECES) r = REFL_ERROR_UNSUPPORTED;
+    if (r == REFL_OK) r = refl_bvh_build(scene, &m->allocator, &b.scene_bvh);
+    if (r != REFL_OK) goto fail;
+    /* the grid */
+    if (d.region_lo.x == d.region_lo.x) {
+        lo = d.region_lo;
+        hi = d.region_hi;
+    } else {
+        float g = d.margin * refl_v3_length(refl_v3_sub(m->box_hi, m->box_lo));
+        lo = refl_v3_sub(m->box_lo, refl_v3(g, g, g));
+        hi = refl_v3_add(m->box_hi, refl_v3(g, g, g));
+    }
+    ext = refl_v3_sub(hi, lo);
+    m->lo = lo;
+    m->step = refl_v3(ext.x / (float)(m->n[0] - 1), ext.y / (float)(m->n[1] - 1), ext.z / (float)(m->n[2] - 1));
+    if (!(m->step.x > 0.0f && m->step.y > 0.0f && m->step.z > 0.0f)) {
+        r = REFL_ERROR_INVALID_ARGUMENT; /* a degenerate reflector box with no margin */
+        goto fail;
+    }
+    count = m->n[0] * m->n[1] * m->n[2];
+    cells = (m->n[0] - 1) * (m->n[1] - 1) * (m->n[2] - 1);
+    m->nodes = (refl__sbm_node *)refl__calloc(&m->allocator, (size_t)count, sizeof(refl__sbm_node));
+    m->cell_ok = (uint8_t *)refl__calloc(&m->allocator, (size_t)cells, 1);
+    if (!m->nodes || !m->cell_ok) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto fail;
+    }
+    for (k = 0; k < m->n[2]; ++k)
+        for (j = 0; j < m->n[1]; ++j)
+            for (i = 0; i < m->n[0]; ++i)
+                refl_sbc_morph_node(m, i, j, k, &m->nodes[(k * m->n[1] + j) * m->n[0] + i].pos);
+    for (k = 0; k + 1 < m->n[2]; ++k)
+        for (j = 0; j + 1 < m->n[1]; ++j)
+            for (i = 0; i + 1 < m->n[0]; ++i) {
+                refl_vec3 a = m->nodes[(k * m->n[1] + j) * m->n[0] + i].pos;
+                refl_vec3 c = m->nodes[((k + 1) * m->n[1] + j + 1) * m->n[0] + i + 1].pos;
+                int overlap = a.x < m->box_hi.x && c.x > m->box_lo.x && a.y < m->box_hi.y && c.y > m->box_lo.y &&
+                              a.z < m->box_hi.z && c.z > m->box_lo.z;
+                int di, dj, dk, cell = (k * (m->n[1] - 1) + j) * (m->n[0] - 1) + i;
+                if (overlap) continue;
+                m->cell_ok[cell] = 1;
+                m->stats.tetrahedra += 6;
+                for (dk = 0; dk < 2; ++dk)
+                    for (dj = 0; dj < 2; ++dj)
+                        for (di = 0; di < 2; ++di) m->nodes[((k + dk) * m->n[1] + j + dj) * m->n[0] + i + di].built = 1;
+            }
+    /* the scene box and diagonal as runtime mode grows them */
+    refl_scene_bounds(scene, &lo, &hi);
+    ext = refl_v3_add(refl_v3_scale(refl_v3_sub(hi, lo), 0.01f), refl_v3(1e-4f, 1e-4f, 1e-4f));
+    b.scene_lo = refl_v3_sub(lo, ext);
+    b.scene_hi = refl_v3_add(hi, ext);
+    b.diagonal = refl_v3_length(refl_v3_sub(b.scene_hi, b.scene_lo));
+    b.m = m;
+    b.scene = scene;
+    b.face = d.face_size;
+    b.rings = d.extend_rings;
+    b.error_px = d.error_px;
+    b.widen = d.widen;
+    b.check = d.check_ambiguous;
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = d.threads;
+    cd.allocator.alloc = m->allocator.alloc;
+    cd.allocator.free = m->allocator.free;
+    cd.allocator.user = m->allocator.user;
+    r = refl__result_from_rast(rast_context_create(&cd, &rc));
+    if (r != REFL_OK) goto fail;
+    {
+        /* the built nodes' indices, as jobs */
+        int *list = (int *)refl__calloc(&m->allocator, (size_t)count, sizeof(int)), nb = 0;
+        if (!list) {
+            r = REFL_ERROR_OUT_OF_MEMORY;
+            goto fail;
+        }
+        for (i = 0; i < count; ++i)
+            if (m->nodes[i].built) list[nb++] = i;
+        b.list = list;
+        rast_run_jobs(rc, nb, refl__sbm_build_node, &b);
+        refl__free(&m->allocator, list);
+    }
+    for (i = 0; i < count && r == REFL_OK; ++i) {
+        if (!m->nodes[i].built) continue;
+        m->stats.nodes_built++;
+        if (m->nodes[i].result != REFL_OK) r = m->nodes[i].result;
+        for (k = 0; m->nodes[i].sbc && k < 6 * m->piece_count; ++k) {
+            refl_sbc_stats st;
+            if (!m->nodes[i].sbc[k]) continue;
+            refl_sbc_get_stats(m->nodes[i].sbc[k], &st);
+            m->stats.sbcs++;
+            m->stats.bytes += 3 * (long long)(d.face_size + 2) * (long long)(d.face_size + 2); /* its dirs */
+            m->stats.rays += st.rays;
+            m->stats.pinhole_leaves += st.pinhole_leaves;
+            m->stats.ray_leaves += st.ray_leaves;
+            m->stats.bytes += st.bytes;
+        }
+        m->stats.bytes += (long long)(12 * m->piece_count) * (long long)sizeof(float *);
+        for (k = 0; m->nodes[i].hit_count && k < m->piece_count; ++k)
+            m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbm_hit);
+    }
+    if (r != REFL_OK) goto fail;
+    if (d.check_ambiguous) refl__sbm_check(m);
+    rast_context_destroy(rc);
+    refl_bvh_destroy(b.scene_bvh);
+    {
+        long long tn = 0, tt = 0;
+        refl_bvh_stats(m->bvh, &tn, &tt);
+        m->stats.bytes += (long long)sizeof *m + (long long)count * (long long)sizeof(refl__sbm_node) + cells +
+                          (long long)m->triangle_count * (long long)(sizeof(int) + 3 * sizeof(uint32_t)) +
+                          (long long)scene->meshes[scene->objects[object].mesh]->vertex_count * 6 *
+                              (long long)sizeof(float) +
+                          tt * 44 + tn * 32; /* the BVH: about its triangles' and nodes' sizes */
+    }
+    m->stats.nodes = count;
+    m->stats.pieces = m->piece_count;
+    m->stats.ms_build = refl__now_ms() - t0;
+    *out_morph = m;
+    return REFL_OK;
+fail:
+    if (rc) rast_context_destroy(rc);
+    refl_bvh_destroy(b.scene_bvh);
+    refl_sbc_morph_destroy(m);
+    return r;
+}
+
+REFL_API void refl_sbc_morph_get_stats(const refl_sbc_morph *morph, refl_sbc_morph_stats *out) {
+    if (!out) return;
+    if (!morph) memset(out, 0, sizeof *out);
+    else *out = morph->stats;
+}
+
+/* Where points projecting into piece `piece` for the eye may lie: the
+   tetrahedron's nodes' boxes; empty (lo above hi) when none of them saw
+   the piece. */
+static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl_vec3 *lo, refl_vec3 *hi) {
+    float bx[6] = {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY}, w[4];
+    int nodes[4], k, c;
+    if (refl_sbc_morph_locate(m, eye, nodes, w) >= 0)
+        for (k = 0; k < 4; ++k) {
+            const float *nb = m->nodes[nodes[k]].box;
+            if (!(w[k] > 0.0f) || !nb) continue;
+            for (c = 0; c < 3; ++c) {
+                bx[c] = REFL__MIN(bx[c], nb[6 * piece + c]);
+                bx[3 + c] = REFL__MAX(bx[3 + c], nb[6 * piece + 3 + c]);
+            }
+        }
+    *lo = refl_v3(bx[0], bx[1], bx[2]);
+    *hi = refl_v3(bx[3], bx[4], bx[5]);
+}
+
+/* The hits of piece `piece` at the eye's tetrahedron's nodes (of positive
+   weight), appended to out (room for refl__sbm_hit_total's count); how many. */
+static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbm_hit *out) {
+    int nodes[4], k, n = 0;
+    float w[4];
+    if (refl_sbc_morph_locate(m, eye, nodes, w) < 0) return 0;
+    for (k = 0; k < 4; ++k) {
+        const refl__sbm_node *nd = &m->nodes[nodes[k]];
+        if (!(w[k] > 0.0f) || !nd->hit_count || !nd->hit_count[piece]) continue;
+        if (out) memcpy(out + n, nd->hits[piece], (size_t)nd->hit_count[piece] * sizeof *out);
+        n += nd->hit_count[piece];
+    }
+    return n;
+}
+
+REFL_API int refl_sbc_morph_object(const refl_sbc_morph *morph) { return morph ? morph->object : -1; }
+
+REFL_API int refl_sbc_morph_node(const refl_sbc_morph *morph, int i, int j, int k, refl_vec3 *position) {
+    if (!morph || i < 0 || j < 0 || k < 0 || i >= morph->n[0] || j >= morph->n[1] || k >= morph->n[2]) return 0;
+    if (position)
+        *position = refl_v3(morph->lo.x + (float)i * morph->step.x, morph->lo.y + (float)j * morph->step.y,
+                            morph->lo.z + (float)k * morph->step.z);
+    return 1;
+}
+
+REFL_API int refl_sbc_morph_locate(const refl_sbc_morph *morph, refl_vec3 eye, int nodes[4], float weights[4]) {
+    const float *e = &eye.x, *lo, *st;
+    double f[3];
+    int c[3], ord[3] = {0, 1, 2}, k, t, node, perm;
+    if (!morph || !nodes || !weights) return -1;
+    lo = &morph->lo.x;
+    st = &morph->step.x;
+    for (k = 0; k < 3; ++k) {
+        double g = ((double)e[k] - (double)lo[k]) / (double)st[k], r = floor(g + 0.5);
+        if (!(g >= -1e-5 && g <= (double)(morph->n[k] - 1) + 1e-5)) return -1; /* outside, or NaN */
+        if (fabs(g - r) < 1e-5) g = r;                                         /* on a node's plane */
+        c[k] = (int)REFL__MIN(floor(g), (double)(morph->n[k] - 2));
+        c[k] = REFL__MAX(c[k], 0);
+        f[k] = g - (double)c[k];
+    }
+    if (!morph->cell_ok[(c[2] * (morph->n[1] - 1) + c[1]) * (morph->n[0] - 1) + c[0]]) return -1;
+    /* axes by falling local coordinate (ties keep x, y, z order) */
+    for (k = 0; k < 2; ++k)
+        for (t = 0; t < 2 - k; ++t)
+            if (f[ord[t + 1]] > f[ord[t]]) {
+                int s = ord[t];
+                ord[t] = ord[t + 1];
+                ord[t + 1] = s;
+            }
+    node = (c[2] * morph->n[1] + c[1]) * morph->n[0] + c[0];
+    nodes[0] = node;
+    for (k = 0; k < 3; ++k) {
+        static const int unit[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        const int *u = unit[ord[k]];
+        node += (u[2] * morph->n[1] + u[1]) * morph->n[0] + u[0];
+        nodes[k + 1] = node;
+    }
+    weights[0] = (float)(1.0 - f[ord[0]]);
+    weights[1] = (float)(f[ord[0]] - f[ord[1]]);
+    weights[2] = (float)(f[ord[1]] - f[ord[2]]);
+    weights[3] = (float)f[ord[2]];
+    perm = ord[0] * 2 + (ord[1] > ord[2]); /* which of the six orders */
+    return ((c[2] * (morph->n[1] - 1) + c[1]) * (morph->n[0] - 1) + c[0]) * 6 + perm;
+}
+
+REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 origin, refl_vec3 dir) {
+    refl_hit h;
+    int front;
+    if (!morph) return -1;
+    if (!refl_bvh_intersect(morph->bvh, origin, dir, 0.0f, INFINITY, &h)) return -1;
+    refl__sbm_hit_normal(morph, &h, dir, &front);
+    return front ? morph->piece[h.triangle] : -1;
+}
+
+/* p at one node: the piece's face SBCs, the face owning the answer first. */
+/* Whether p lies ahead of first point q along the unextended ray of the
+   node's sample that q lands on (when it has one): runtime mode's check
+   (m_sbc.c, refl__sb_project), since a leaf's frustum reaches a little
+   behind the reflector and an extrapolated ring's, at a silhouette, folds
+   back over it. */
+static int refl__sbm_ahead(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 q) {
+    refl_vec3 v = refl_v3_sub(q, nd->pos), fw, rt, up;
+    int f = refl__sbm_face_of(v), W = nd->face + 2, i, j;
+    const signed char *dm = nd->dirs[(size_t)piece * 6 + (size_t)f], *dr;
+    float w, x, y;
+    if (!dm) return 1;
+    refl__sbm_basis(f, &fw, &rt, &up);
+    w = refl_v3_dot(v, fw);
+    if (!(w > 0.0f)) return 1;
+    x = refl_v3_dot(v, rt) / w;
+    y = refl_v3_dot(v, up) / w;
+    i = (int)REFL__CLAMP(floorf((x + 1.0f) * 0.5f * (float)nd->face) + 1.0f, 0.0f, (float)(W - 1));
+    j = (int)REFL__CLAMP(floorf((1.0f - y) * 0.5f * (float)nd->face) + 1.0f, 0.0f, (float)(W - 1));
+    dr = dm + 3 * ((size_t)j * (size_t)W + (size_t)i);
+    if (!dr[0] && !dr[1] && !dr[2]) return 1;
+    return refl_v3_dot(refl_v3_sub(p, q), refl_v3((float)dr[0], (float)dr[1], (float)dr[2])) > 0.0f;
+}
+
+static int refl__sbm_node_project(const refl__sbm_node *nd, int piece, refl_vec3 p,
+                                  refl_vec3 *first) {
+    refl_vec3 q, keep = {0.0f, 0.0f, 0.0f};
+    float z;
+    int f, got = 0;
+    const float *bx;
+    if (!nd->built || !nd->sbc) return 0;
+    bx = nd->box + 6 * (size_t)piece;
+    if (!(p.x >= bx[0] && p.x <= bx[3] && p.y >= bx[1] && p.y <= bx[4] && p.z >= bx[2] && p.z <= bx[5])) return 0;
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        if (!s || !refl_sbc_project(s, p, &q, &z) || !refl__sbm_ahead(nd, piece, p, q)) continue;
+        if (refl__sbm_face_of(refl_v3_sub(q, nd->pos)) == f) {
+            *first = q;
+            return 1;
+        }
+        if (!got) keep = q;
+        got = 1;
+    }
+    *first = keep;
+    return got;
+}
+
+/* Blends slots (first, dist) of the nodes in mask with weights w: 1, or 0
+   when a node of positive weight is missing (ambiguous when any is there). */
+static int refl__sbm_blend(const float *slot, int mask, const float w[4], refl_vec3 *first, float *dist,
+                           int *ambiguous) {
+    double f[3] = {0.0, 0.0, 0.0}, dd = 0.0;
+    int k, need = 0;
+    for (k = 0; k < 4; ++k)
+        if (w[k] > 0.0f) need |= 1 << k;
+    if (ambiguous) *ambiguous = (need & mask) != 0 && (need & mask) != need;
+    if ((need & mask) != need || !need) return 0;
+    for (k = 0; k < 4; ++k) {
+        if (!(need >> k & 1)) continue;
+        f[0] += (double)w[k] * slot[4 * k];
+        f[1] += (double)w[k] * slot[4 * k + 1];
+        f[2] += (double)w[k] * slot[4 * k + 2];
+        dd += (double)w[k] * slot[4 * k + 3];
+    }
+    *first = refl_v3((float)f[0], (float)f[1], (float)f[2]);
+    *dist = (float)dd;
+    return 1;
+}
+
+/* p at the four nodes into slot (4 floats each); the mask of those projecting. */
+static int refl__sbm_project4(const refl_sbc_morph *m, const int nodes[4], const float w[4], int piece, refl_vec3 p,
+                              float *slot) {
+    int k, mask = 0;
+    for (k = 0; k < 4; ++k) {
+        refl_vec3 q;
+        if (!(w[k] > 0.0f) || !refl__sbm_node_project(&m->nodes[nodes[k]], piece, p, &q)) continue;
+        slot[4 * k] = q.x;
+        slot[4 * k + 1] = q.y;
+        slot[4 * k + 2] = q.z;
+        slot[4 * k + 3] = refl_v3_length(refl_v3_sub(p, q));
+        mask |= 1 << k;
+    }
+    return mask;
+}
+
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist) {
+    const refl__sbm_node *nd;
+    refl_vec3 q;
+    if (!morph || piece < 0 || piece >= morph->piece_count || !refl_sbc_morph_node(morph, i, j, k, NULL)) return 0;
+    nd = &morph->nodes[(k * morph->n[1] + j) * morph->n[0] + i];
+    if (!refl__sbm_node_project(nd, piece, p, &q)) return 0;
+    if (first) *first = q;
+    if (dist) *dist = refl_v3_length(refl_v3_sub(p, q));
+    return 1;
+}
+
+REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
+                                    refl_vec3 *first, float *dist, int *ambiguous) {
+    int nodes[4], mask;
+    float w[4], slot[16], dd;
+    refl_vec3 f;
+    if (ambiguous) *ambiguous = 0;
+    if (!morph || piece < 0 || piece >= morph->piece_count || refl_sbc_morph_locate(morph, eye, nodes, w) < 0)
+        return 0;
+    mask = refl__sbm_project4(morph, nodes, w, piece, p, slot);
+    if (!refl__sbm_blend(slot, mask, w, &f, &dd, ambiguous)) return 0;
+    if (first) *first = f;
+    if (dist) *dist = dd;
+    return 1;
+}
+
+REFL_API refl_result refl_sbc_morph_cache_create(const refl_allocator *a, refl_sbc_morph_cache **out_cache) {
+    refl_sbc_morph_cache *c;
+    refl_allocator al = refl__allocator(a);
+    if (!out_cache) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_cache = c = (refl_sbc_morph_cache *)refl__calloc(&al, 1, sizeof *c);
+    if (!c) return REFL_ERROR_OUT_OF_MEMORY;
+    c->allocator = al;
+    c->tet = -1;
+    return REFL_OK;
+}
+
+REFL_API void refl_sbc_morph_cache_destroy(refl_sbc_morph_cache *cache) {
+    refl_allocator a;
+    if (!cache) return;
+    a = cache->allocator;
+    refl__free(&a, cache->slot);
+    refl__free(&a, cache->ok);
+    refl__free(&a, cache);
+}
+
+REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, refl_vec3 eye, int piece,
+                                                   const float *points, int count, refl_sbc_morph_cache *cache,
+                                                   refl_vec3 *first, float *dist, uint8_t *status,
+                                                   long long *ambiguous) {
+    int nodes[4], tet, i, fresh;
+    float w[4], local[16];
+    long long amb = 0;
+    if (ambiguous) *ambiguous = 0;
+    if (!morph || count < 0 || (count > 0 && (!points || !first || !dist || !status)) || piece < 0 ||
+        piece >= morph->piece_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    tet = refl_sbc_morph_locate(morph, eye, nodes, w);
+    if (tet < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    fresh = !cache || cache->tet != tet || cache->piece != piece || cache->count != count || cache->points != points;
+    if (cache && fresh) {
+        if (count > cache->cap) {
+            refl__free(&cache->allocator, cache->slot);
+            refl__free(&cache->allocator, cache->ok);
+            cache->cap = 0;
+            cache->slot = (float *)refl__calloc(&cache->allocator, (size_t)count, 16 * sizeof(float));
+            cache->ok = (uint8_t *)refl__calloc(&cache->allocator, (size_t)count, 1);
+            if (!cache->slot || !cache->ok) {
+                cache->tet = -1;
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+            cache->cap = count;
+        }
+        cache->tet = -1; /* valid again only once filled */
+    }
+    for (i = 0; i < count; ++i) {
+        float *slot = cache ? cache->slot + 16 * (size_t)i : local;
+        int mask, a = 0;
+        if (fresh) {
+            /* every node of the tetrahedron, weighed or not: the cache serves the whole tetrahedron */
+            static const float all[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+            const float *pp = points + 3 * (size_t)i;
+            mask = refl__sbm_project4(morph, nodes, cache ? all : w, piece, refl_v3(pp[0], pp[1], pp[2]), slot);
+            if (cache) cache->ok[i] = (uint8_t)mask;
+        } else {
+            mask = cache->ok[i];
+        }
+        status[i] = (uint8_t)refl__sbm_blend(slot, mask, w, &first[i], &dist[i], &a);
+        if (a) status[i] = 2;
+        amb += a;
+    }
+    if (cache && fresh) {
+        cache->tet = tet;
+        cache->piece = piece;
+        cache->count = count;
+        cache->points = points;
+    }
+    if (ambiguous) *ambiguous = amb;
+    return REFL_OK;
 }
 /* ---- src/reflect/shadow.c ---- */
 /* Hard shadows for the rasterised methods: stencil shadow volumes, counted
@@ -10514,6 +11677,12 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         the absorption inside; reflections inside the glass short of total
         are left out. frame->points: the first point past the first
         reflector, as RAYTRACE's, or with desc.points_last the last.
+   Reflection morphing (section VI): a reflector the caller hands a
+   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   ray map or groups of its front side here; a group per piece of the grid
+   projects instead (the eye's tetrahedron, blended; no check against this
+   frame's ray map, which it has none of), its pixels those of the piece
+   their view ray meets; morphing draws the first order only.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -10571,6 +11740,8 @@ typedef struct refl__sb_group {
     refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
+    const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
+    int piece;
 } refl__sb_group;
 
 /* A scene point and what a group makes of it. */
@@ -10583,6 +11754,7 @@ typedef struct refl__sb_pv {
     refl_vec3 from;               /* where its ray leaves the last reflector (order 1: first) */
     float dist;                   /* to `from` */
     int ok;
+    int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
 } refl__sb_pv;
 
 /* One emission job: triangles [first, first + count) of `object` into `group`. */
@@ -10618,6 +11790,7 @@ typedef struct refl__sb {
     uint8_t *sample_refr;         /* per sample: the kind of its refraction path (1, 2), 0: none */
     int *sample_side;             /* (budget + 1) x map: per layer, each sample's side, -1: none */
     int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
+    int *morph_base;              /* per object: its morph groups' first index, -1: none */
     int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
     int layer;                    /* the batch's layer (one per batch) */
     int map_first;                /* the first side refl__sb_map_side's jobs map */
@@ -10631,6 +11804,26 @@ typedef struct refl__sb {
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
 } refl__sb;
+
+/* Whether g projects: a tree of this frame or a morph's piece. */
+static int refl__sb_live(const refl__sb_group *g) { return g->sbc != NULL || g->morph != NULL; }
+
+/* The layer g draws in: its side's; a morph's piece reflects once. */
+static int refl__sb_group_layer(const refl__sb *sb, const refl__sb_group *g) {
+    return g->morph ? 0 : sb->sides[g->side].layer;
+}
+
+/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
+static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
+    int k, nodes[4];
+    float w[4];
+    for (k = 0; k < p->desc.sbc_morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc_morphs[k];
+        if (m && refl_sbc_morph_object(m) == o)
+            return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
+    }
+    return NULL;
+}
 
 /* Where a ray from inside the box leaves it. */
 static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
@@ -11219,26 +12412,37 @@ static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b)
    at window depth dist / D. */
 static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
-    const refl__sb_side *sd = &sb->sides[g->side];
+    const refl__sb_side *sd = g->morph ? NULL : &sb->sides[g->side];
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
     int k, u, w, landed;
     size_t at;
     v->ok = 0;
+    v->ambiguous = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
     /* a leaf's map far outside the rays it was fitted to can send a point
        anywhere: its first reflector point must lie where the group's do */
-    if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
-        !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f))
+    if (g->morph) {
+        if (!refl_sbc_morph_project(g->morph, p->view->eye, g->piece, v->world, &f, &z, &v->ambiguous)) return;
+    } else if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
+               !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f)) {
         return;
+    }
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = v->from = f;
-    v->dist = refl_v3_length(refl_v3_sub(v->world, f));
+    v->dist = g->morph ? z : refl_v3_length(refl_v3_sub(v->world, f)); /* a morph blends its nodes' */
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
     if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
+    if (!sd) { /* a morph group: the first order, and no ray map of this frame to check against */
+        wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
+        if (sb->orders > 1) wd /= (float)sb->orders;
+        v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
+        v->ok = 1;
+        return;
+    }
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
@@ -11273,7 +12477,7 @@ static void refl__sb_project_object(void *arg, int index) {
     const refl_mesh *m = scene->meshes[obj->mesh];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
     refl__sb_pv *out = sb->verts[index];
-    if (!out || !sb->groups[g].sbc) return;
+    if (!out || !refl__sb_live(&sb->groups[g])) return;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
         out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
@@ -11434,7 +12638,7 @@ static void refl__sb_emit_job(void *arg, int index) {
     t.self = g->object == j->object;
     /* a refraction's own glass: the rays have left it (a lens cannot see
        itself; a concave glass seeing itself beyond its exit is left out) */
-    if (t.self && sb->sides[g->side].kind) return;
+    if (t.self && !g->morph && sb->sides[g->side].kind) return;
     /* the group's hits on this job's triangles start at the first not before (object, first) */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
@@ -11863,6 +13067,115 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     }
 }
 
+/* ---- reflection morphing (paper 003 VI): groups backed by prebuilt grids ---- */
+
+/* Row y's front pixels of objects drawn from grids: the group of the
+   piece their view ray meets (a job per row). */
+static void refl__sb_morph_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    int x, W = p->frame->width;
+    for (x = 0; x < W; ++x) {
+        size_t i = (size_t)y * (size_t)W + (size_t)x;
+        float id = sb->em.gbuf[4 * i + 3], tmax;
+        int o = (int)id - 1, piece;
+        refl_vec3 org, d;
+        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
+        piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
+        sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
+    }
+}
+
+/* Adds a group per piece of every grid in use whose object shows its
+   front (after the frame's own groups are built) after the first layer's
+   groups (batches go layer by layer), and gives them their pixels. */
+static refl_result refl__sb_morph_groups(refl__sb *sb) {
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
+    int o, add = 0, piece, ins = 0, i;
+    refl__sb_group *groups;
+    refl__sb_hit *scratch;
+    refl__sbm_hit *found;
+    sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
+    if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em.gbuf[4 * k + 3];
+        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+    }
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
+        refl_sbc_morph_stats st;
+        sb->morph_base[o] = -1;
+        if (!m) continue;
+        refl_sbc_morph_get_stats(m, &st);
+        sb->morph_base[o] = add; /* from the insertion point, set below */
+        add += st.pieces;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    if (!add) return REFL_OK;
+    while (ins < sb->group_count && !sb->sides[sb->groups[ins].side].layer) ++ins;
+    for (o = 0; o < scene->object_count; ++o)
+        if (sb->morph_base[o] >= 0) sb->morph_base[o] += ins;
+    groups = (refl__sb_group *)refl__calloc(al, (size_t)(sb->group_count + add), sizeof(refl__sb_group));
+    if (!groups) return REFL_ERROR_OUT_OF_MEMORY;
+    if (ins) memcpy(groups, sb->groups, (size_t)ins * sizeof(refl__sb_group));
+    if (sb->group_count > ins)
+        memcpy(groups + ins + add, sb->groups + ins, (size_t)(sb->group_count - ins) * sizeof(refl__sb_group));
+    refl__free(al, sb->groups);
+    sb->groups = groups;
+    /* the later layers' groups moved on by `add`: their samples' and pixels' indices too */
+    for (i = 0; i < sb->side_count; ++i) {
+        refl__sb_side *sd = &sb->sides[i];
+        size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+        if (!sd->layer) continue;
+        for (k = 0; k < n; ++k)
+            if (sd->group[k] >= ins) sd->group[k] += add;
+    }
+    for (k = npx; k < (size_t)sb->layers * npx; ++k)
+        if (sb->group_of[k] > ins) sb->group_of[k] += add;
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] < 0 ? NULL : refl__sb_morph_for(p, o);
+        refl_sbc_morph_stats st;
+        refl_sbc_morph_get_stats(m, &st);
+        for (piece = 0; piece < st.pieces; ++piece) {
+            refl__sb_group *g = &groups[sb->morph_base[o] + piece];
+            g->side = -1;
+            g->object = o;
+            g->morph = m;
+            g->piece = piece;
+            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
+            /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
+            g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
+            if (!g->hit_count) continue;
+            g->hits = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            scratch = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            found = (refl__sbm_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbm_hit));
+            if (g->hits && scratch && found) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, found);
+                for (k = 0; k < (size_t)g->hit_count; ++k) {
+                    scratch[k].object = found[k].object;
+                    scratch[k].triangle = found[k].triangle;
+                    scratch[k].point = found[k].point;
+                }
+                refl__sb_sort_hits(scratch, g->hits, g->hit_count);
+            }
+            refl__free(al, scratch);
+            refl__free(al, found);
+            if (!g->hits) {
+                sb->group_count += add; /* freed with the others */
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+    }
+    sb->group_count += add;
+    rast_run_jobs(p->rc, p->frame->height, refl__sb_morph_row, sb);
+    return REFL_OK;
+}
+
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
    sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
@@ -11888,7 +13201,7 @@ static refl_result refl__sb_groups(refl__sb *sb) {
     }
     for (i = 0; i < scene->object_count; ++i)
         for (side = 0; side < 2; ++side)
-            if (sides[i] & (1 << side)) {
+            if ((sides[i] & (1 << side)) && !(side == 0 && refl__sb_morph_for(sb->p, i))) {
                 refl__sb_side *sd = &sb->sides[sb->side_count++];
                 sd->object = i;
                 sd->id = side ? -(float)(i + 1) : (float)(i + 1);
@@ -11989,9 +13302,12 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
     for (i = 0; i < pairs; ++i) {
         int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        if (!sb->groups[sb->batch0 + i / scene->object_count].sbc) continue;
+        if (!refl__sb_live(&sb->groups[sb->batch0 + i / scene->object_count])) continue;
         sb->p->frame->stats.projections += count;
-        for (v = 0; v < count; ++v) sb->p->frame->stats.projected += sb->verts[i][v].ok;
+        for (v = 0; v < count; ++v) {
+            sb->p->frame->stats.projected += sb->verts[i][v].ok;
+            sb->p->frame->stats.ambiguous += sb->verts[i][v].ambiguous;
+        }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
         for (o = 0; o < scene->object_count; ++o)
@@ -11999,7 +13315,7 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch0; g < sb->batch1; ++g) {
-        if (!sb->groups[g].sbc) continue;
+        if (!refl__sb_live(&sb->groups[g])) continue;
         for (o = 0; o < scene->object_count; ++o) {
             int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
             for (t = 0; t < tc; t += REFL__SB_CHUNK) {
@@ -12051,6 +13367,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->em.draws);
     refl__free(al, sb->em.surface);
     refl__free(al, sb->group_of);
+    refl__free(al, sb->morph_base);
     refl__free(al, sb->stencil);
     refl__free(al, sb->color);
     refl__free(al, sb->depth);
@@ -12096,6 +13413,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
+    if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
     for (g = 0; g < sb->group_count; ++g) {
         refl_sbc_stats st;
         if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
@@ -12255,8 +13573,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
            meet, and the orders meet by the visibility offset */
         for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
             int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
-            sb.layer = sb.sides[sb.groups[sb.batch0].side].layer;
-            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && sb.sides[sb.groups[sb.batch1].side].layer == sb.layer;)
+            sb.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch0]);
+            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer;)
                 ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
@@ -12266,7 +13584,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
             if (r == REFL_OK) r = refl__sb_draw(&sb);
             refl__sb_free_batch(&sb);
             if (r == REFL_OK && sb.layer + 1 < sb.orders &&
-                (sb.batch1 == sb.group_count || sb.sides[sb.groups[sb.batch1].side].layer != sb.layer))
+                (sb.batch1 == sb.group_count || refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) != sb.layer))
                 refl__sb_pass_through(&sb);
         }
         t0 = refl__now_ms();
@@ -12550,7 +13868,8 @@ static refl_result refl__render(const refl_scene *scene, const refl_view *view, 
         !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
         p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
         p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
-        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency))
+        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
+        (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;

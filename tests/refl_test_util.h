@@ -18,6 +18,16 @@ static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v
     return f;
 }
 
+/* A render desc of method m on `threads` threads, one bounce. */
+static inline refl_render_desc tu_refl_one_bounce(refl_method m, int threads) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = m;
+    d.threads = threads;
+    d.depth = 1;
+    return d;
+}
+
 /* A view from eye towards target, y up, 45 degrees vertical, w x h. */
 static inline refl_view tu_refl_view(refl_vec3 eye, refl_vec3 target, int w, int h) {
     refl_view v;

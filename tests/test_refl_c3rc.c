@@ -26,14 +26,7 @@
 #endif
 #endif
 
-static refl_render_desc desc_of(refl_method m, int threads) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = threads;
-    d.depth = 1;
-    return d;
-}
+static refl_render_desc desc_of(refl_method m, int threads) { return tu_refl_one_bounce(m, threads); }
 
 static refl_scene *builtin(const char *name, int tess) {
     refl_scene *s = NULL;

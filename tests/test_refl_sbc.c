@@ -13,14 +13,7 @@
 #include "test_util.h"
 #include "refl_test_util.h"
 
-static refl_render_desc sbc_desc(refl_method m, int threads) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = threads;
-    d.depth = 1;
-    return d;
-}
+static refl_render_desc sbc_desc(refl_method m, int threads) { return tu_refl_one_bounce(m, threads); }
 
 static refl_scene *sbc_scene(const char *name, refl_view *v, int w, int h) {
     refl_scene *s = NULL;

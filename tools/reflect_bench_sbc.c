@@ -34,7 +34,18 @@
    its leaf kind (refl_sbc_leaf_at), so the rate is per kind, in million
    vertices per second, whether the point then projects or not. The paper
    projected on the GPU (20 Mv/s pinhole, 2.5 Mv/s ray list) and says its
-   CPU was 5 times slower. */
+   CPU was 5 times slower.
+   Reflection morphing (the paper's section VI): for the teapot body and
+   two spheres scenes (the paper's morphing scenes), a one-cell grid of
+   panoramic SBCs (refl_sbc_morph_build, 2 x 2 x 2 nodes, 128-sample cube
+   faces) around the view's eye, a tenth of the eye's distance to its
+   target on every side, per mirror; every scene vertex projected into
+   every piece on one thread, dynamic (the four nodes' SBCs, then the
+   blend) and static (projections kept for the tetrahedron, re-blended for
+   ten eyes within it), in million vertex projections per second (the
+   paper: 1 and 12.5 Mv/s on its CPU); then a frame at half the table's
+   size drawn with the grids (SBC with refl_render_desc.sbc_morphs) and
+   per frame (SBC), each timed (median) and measured against RAYTRACE. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
 #include "reflect_bench.h"
@@ -372,6 +383,182 @@ static int measure(const refl_scene *s, const refl_view *v, int factor, int thre
 
 static double mvps(long long points, double ms) { return ms > 0.0 ? (double)points / ms * 1e-3 : 0.0; }
 
+/* One morphing row: grids, rates, and the frame with and without them. */
+typedef struct morph_row {
+    int grids, pieces, sbcs;
+    long long bytes, vertices, dynamic_calls, static_calls;
+    double build_ms, dynamic_ms, static_ms;
+    double morph_ms, runtime_ms, morph_mean, morph_p95, morph_holes, runtime_mean, runtime_p95, runtime_holes;
+    long long ambiguous;
+} morph_row;
+
+#define MORPH_GRIDS_MAX 4
+
+/* A frame of s from v with desc d (median time of n); its error against truth. */
+static int morph_frame(const refl_scene *s, const refl_view *v, const refl_render_desc *d, int n,
+                       const refl_frame *truth, double *ms, refl_reflection_error *e, long long *ambiguous) {
+    refl_frame *f = NULL;
+    double times[32];
+    int k, ok = refl_frame_create(v->width, v->height, NULL, &f) == REFL_OK;
+    for (k = 0; ok && k < n; ++k) {
+        ok = refl_render(s, v, d, f) == REFL_OK;
+        times[k] = f->stats.ms_total;
+    }
+    if (ok) {
+        *ms = refl_bench_median(times, n);
+        *ambiguous = f->stats.ambiguous;
+        ok = refl_measure_reflection_error(f, truth, NULL, e) == REFL_OK;
+    }
+    refl_frame_destroy(f);
+    return ok;
+}
+
+static int measure_morph(const refl_scene *s, const refl_view *v, int threads, int repeats, morph_row *row) {
+    refl_sbc_morph *grids[MORPH_GRIDS_MAX];
+    const refl_sbc_morph *use[MORPH_GRIDS_MAX];
+    refl_sbc_morph_desc md;
+    refl_render_desc d;
+    refl_view hv = *v;
+    refl_frame *truth = NULL;
+    refl_reflection_error e;
+    float *pts = NULL, *dist = NULL;
+    refl_vec3 *first = NULL;
+    uint8_t *status = NULL;
+    float reach = 0.1f * refl_v3_length(refl_v3_sub(v->eye, v->target));
+    int o, i, k, g, piece, n = repeats < 1 ? 1 : repeats > 32 ? 32 : repeats, ok = 1, nv = 0;
+    memset(row, 0, sizeof *row);
+    memset(&md, 0, sizeof md);
+    md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
+    md.region_lo = refl_v3_sub(v->eye, refl_v3(reach, reach, reach));
+    md.region_hi = refl_v3_add(v->eye, refl_v3(reach, reach, reach));
+    md.face_size = 128;
+    md.threads = threads;
+    for (o = 0; ok && o < s->object_count; ++o) {
+        refl_sbc_morph_stats st;
+        if (s->materials[s->objects[o].material].type != REFL_MIRROR) continue;
+        if (row->grids == MORPH_GRIDS_MAX) { ok = 0; break; }
+        ok = refl_sbc_morph_build(s, o, &md, &grids[row->grids]) == REFL_OK;
+        if (!ok) break;
+        use[row->grids] = grids[row->grids];
+        refl_sbc_morph_get_stats(grids[row->grids++], &st);
+        row->build_ms += st.ms_build;
+        row->bytes += st.bytes;
+        row->pieces += st.pieces;
+        row->sbcs += st.sbcs;
+    }
+    /* every vertex of the scene, world space */
+    for (o = 0; o < s->object_count; ++o) nv += refl_object_world_positions(s, o, NULL);
+    row->vertices = nv;
+    pts = (float *)malloc((size_t)nv * 3 * sizeof(float));
+    dist = (float *)malloc((size_t)nv * sizeof(float));
+    first = (refl_vec3 *)malloc((size_t)nv * sizeof(refl_vec3));
+    status = (uint8_t *)malloc((size_t)nv);
+    if (!pts || !dist || !first || !status) ok = 0;
+    for (o = 0, i = 0; ok && o < s->object_count; ++o) i += refl_object_world_positions(s, o, pts + 3 * (size_t)i);
+    for (g = 0; ok && g < row->grids; ++g) {
+        refl_sbc_morph_stats st;
+        refl_sbc_morph_get_stats(grids[g], &st);
+        for (piece = 0; ok && piece < st.pieces; ++piece) {
+            refl_sbc_morph_cache *cache = NULL;
+            long long amb;
+            double t0 = refl_bench_now_ms();
+            ok = refl_sbc_morph_project_points(grids[g], v->eye, piece, pts, nv, NULL, first, dist, status, &amb) ==
+                 REFL_OK;
+            row->dynamic_ms += refl_bench_now_ms() - t0;
+            row->dynamic_calls += nv;
+            /* the cache filled once (not timed), then ten eyes in the tetrahedron */
+            ok = ok && refl_sbc_morph_cache_create(NULL, &cache) == REFL_OK &&
+                 refl_sbc_morph_project_points(grids[g], v->eye, piece, pts, nv, cache, first, dist, status, &amb) ==
+                     REFL_OK;
+            t0 = refl_bench_now_ms();
+            for (k = 0; ok && k < 10; ++k) {
+                refl_vec3 eye = refl_v3_add(v->eye, refl_v3(1e-4f * reach * (float)k, 0.0f, 0.0f));
+                ok = refl_sbc_morph_project_points(grids[g], eye, piece, pts, nv, cache, first, dist, status, &amb) ==
+                     REFL_OK;
+                row->static_calls += nv;
+            }
+            row->static_ms += refl_bench_now_ms() - t0;
+            refl_sbc_morph_cache_destroy(cache);
+        }
+    }
+    /* the frame at half size: with the grids, per frame, and the truth */
+    hv.width = v->width / 2;
+    hv.height = v->height / 2;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = threads;
+    d.depth = 1;
+    ok = ok && refl_frame_create(hv.width, hv.height, NULL, &truth) == REFL_OK && refl_render(s, &hv, &d, truth) == REFL_OK;
+    d.method = REFL_SBC;
+    if (ok && morph_frame(s, &hv, &d, n, truth, &row->runtime_ms, &e, &row->ambiguous)) {
+        row->runtime_mean = e.mean;
+        row->runtime_p95 = e.p95;
+        row->runtime_holes = e.empty;
+    } else {
+        ok = 0;
+    }
+    d.sbc_morphs = use;
+    d.sbc_morph_count = row->grids;
+    if (ok && morph_frame(s, &hv, &d, n, truth, &row->morph_ms, &e, &row->ambiguous)) {
+        row->morph_mean = e.mean;
+        row->morph_p95 = e.p95;
+        row->morph_holes = e.empty;
+    } else {
+        ok = 0;
+    }
+    for (g = 0; g < row->grids; ++g) refl_sbc_morph_destroy(grids[g]);
+    refl_frame_destroy(truth);
+    free(pts);
+    free(dist);
+    free(first);
+    free(status);
+    return ok;
+}
+
+/* The morphing rows (the module comment), into sbc_morph.csv. */
+static int morph_table(const char *dir, int threads, int repeats, const float *closer) {
+    static const char *const scenes[] = {"teapot body", "two spheres"};
+    static const int which[] = {1, 2}; /* their places in refl_bench_sbc's list, for `closer` */
+    char path[1024];
+    FILE *csv;
+    int i, ok = 1;
+    snprintf(path, sizeof path, "%s/sbc_morph.csv", dir);
+    if (!(csv = fopen(path, "w"))) return 0;
+    fprintf(csv, "scene,grids,nodes_per_grid,face_size,pieces,sbcs,kb,build_ms,vertices,dynamic_mvps,static_mvps,"
+                 "paper_dynamic_mvps,paper_static_mvps,view_width,view_height,morph_ms,morph_mean_px,morph_p95_px,"
+                 "morph_holes,ambiguous,runtime_ms,runtime_mean_px,runtime_p95_px,runtime_holes\n");
+    printf("SBC reflection morphing: one-cell grids (8 nodes, 128-sample faces) around the eye per mirror; "
+           "projection on one thread\n(paper, CPU: 1 Mv/s dynamic, 12.5 static); frames at %dx%d with the grids "
+           "and per frame, median of %d, error against RAYTRACE\n", SBC_VIEW_W / 2, SBC_VIEW_H / 2, repeats);
+    printf("%-12s %6s %8s %9s | %9s %9s | %21s | %21s\n", "scene", "KB", "build ms", "vertices", "dyn Mv/s",
+           "stat Mv/s", "morph ms mean/p95/holes", "runtime ms mean/p95/holes");
+    for (i = 0; ok && i < 2; ++i) {
+        refl_scene *s = fig19_scene(scenes[i]);
+        refl_view v;
+        morph_row r;
+        if (!s) { ok = 0; break; }
+        v = s->camera;
+        v.width = SBC_VIEW_W;
+        v.height = SBC_VIEW_H;
+        v.eye = refl_v3_add(v.target, refl_v3_scale(refl_v3_sub(v.eye, v.target), closer[which[i]]));
+        ok = measure_morph(s, &v, threads, repeats, &r);
+        refl_scene_destroy(s);
+        if (!ok) break;
+        fprintf(csv, "%s,%d,8,128,%d,%d,%.1f,%.1f,%lld,%.3f,%.3f,1,12.5,%d,%d,%.1f,%.2f,%.2f,%.3f,%lld,%.1f,%.2f,%.2f,%.3f\n",
+                scenes[i], r.grids, r.pieces, r.sbcs, r.bytes / 1024.0, r.build_ms, r.vertices,
+                mvps(r.dynamic_calls, r.dynamic_ms), mvps(r.static_calls, r.static_ms), v.width / 2, v.height / 2,
+                r.morph_ms, r.morph_mean, r.morph_p95, r.morph_holes, r.ambiguous, r.runtime_ms, r.runtime_mean,
+                r.runtime_p95, r.runtime_holes);
+        printf("%-12s %6.0f %8.0f %9lld | %9.2f %9.2f | %7.0f %4.2f/%4.1f/%3.0f%% | %7.0f %4.2f/%4.1f/%3.0f%%\n",
+               scenes[i], r.bytes / 1024.0, r.build_ms, r.vertices, mvps(r.dynamic_calls, r.dynamic_ms),
+               mvps(r.static_calls, r.static_ms), r.morph_ms, r.morph_mean, r.morph_p95, 100.0 * r.morph_holes,
+               r.runtime_ms, r.runtime_mean, r.runtime_p95, 100.0 * r.runtime_holes);
+    }
+    fclose(csv);
+    if (ok) fprintf(stderr, "wrote %s\n", path);
+    return ok;
+}
+
 int refl_bench_sbc(const char *dir, int threads, int repeats, int full) {
     static const char *const scenes[] = {"spherical cap", "teapot body", "two spheres", "car"};
     static const fig19_paper paper[] = {{{4, 16}, 19, {153, 597}, {21, 33}},
@@ -437,5 +624,5 @@ int refl_bench_sbc(const char *dir, int threads, int repeats, int full) {
            "ray-list leaves %.2f Mv/s (paper, GPU: 20 and 2.5; its CPU 5 times slower)\n",
            npoints, mvps(all_points[0], all_ms[0]), mvps(all_points[1], all_ms[1]));
     fprintf(stderr, "wrote %s\n", path);
-    return 1;
+    return morph_table(dir, threads, repeats, closer);
 }

@@ -331,6 +331,11 @@ REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, co
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
+/* Object `object`'s vertices in world space, 3 floats each, into out (may
+   be NULL: only counted); the count, or REFL_ERROR_INVALID_ARGUMENT for a
+   NULL scene or an object or mesh index out of range. (The static points
+   refl_sbc_morph_project_points reuses projections of.) */
+REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
@@ -527,6 +532,11 @@ typedef struct refl_sbc_desc {
     refl_mat4 view_proj;     /* the desired view, whose pixels measure the error */
     int width, height;       /* the desired view's size in pixels */
     int max_depth;           /* BSP depth limit; 0: 40 */
+    float widen;             /* pinhole leaves also project points this fraction of their
+                                image rectangle's width and height beyond each of its sides
+                                (paper 003 VI's widened fields of view, for morphing, where
+                                points fall just outside one node's ray map); 0: exactly the
+                                rectangle, as runtime mode wants */
     refl_allocator allocator;
 } refl_sbc_desc;
 
@@ -563,6 +573,115 @@ typedef enum refl_sbc_leaf_kind {
 } refl_sbc_leaf_kind;
 REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
 
+/* ---- reflection morphing (paper 003, section VI) -------------------------------
+   A precomputed grid of panoramic SBCs around one reflector object: nodes on
+   a regular 3-D grid, each grid cell cut into 6 tetrahedra (all sharing the
+   cell's main diagonal). At every node the reflector is seen through a cube
+   ray map (6 faces) with the node as the eye, and each smooth piece of the
+   reflector (triangles joined through shared vertices; the mesh splits its
+   vertices at creases) on each face is an SBC built to error_px face pixels.
+   A piece is traced on its own, so no other piece hides it. For an eye in
+   the grid, a point p projects with the four SBCs (of p's piece) at the
+   nodes of the eye's tetrahedron and their first reflector points (and
+   distances to p) are blended barycentrically. Cells that overlap the
+   reflector's box hold no eye. A point that projects at some of the four
+   nodes but not all is ambiguous and does not project; two remedies (the
+   paper's) shrink their number: rays extrapolated in rings past the
+   reflector's silhouette (extended reflectors) and leaf cameras that project a little
+   beyond their frustums (refl_sbc_desc.widen). The grid assumes a static
+   scene: rays' heads are clipped against what the scene held. refl_render
+   (method SBC, refl_render_desc.sbc_morphs) projects every vertex afresh;
+   the reuse of static vertices' projections is refl_sbc_morph_project_points
+   with a cache. */
+typedef struct refl_sbc_morph_desc {
+    int nodes[3];            /* grid nodes along x, y, z, each 2..64; 0: 4 */
+    float margin;            /* the grid reaches this fraction of the reflector's box diagonal
+                                beyond its box on every side; 0: 0.5 */
+    refl_vec3 region_lo, region_hi; /* both zero: the grid above; else the grid spans this box
+                                (a part of a larger grid, as the paper loads layers) */
+    int face_size;           /* cube face ray map side in samples, 4..1024; 0: 128 */
+    float error_px;          /* leaf camera error bound in face pixels; 0: 1 */
+    int extend_rings;        /* remedy (a): rings of rays extrapolated past the reflector's
+                                silhouette on each face map, into samples whose ray meets no
+                                piece (the tangent plane of a neighbour, its normal continued
+                                linearly); 0: 1; negative: none */
+    float widen;             /* remedy (b): refl_sbc_desc.widen of every leaf; 0: 0.1;
+                                negative: none */
+    int threads;             /* build threads; 0: one per CPU */
+    int check_ambiguous;     /* 1: count the paper's construction-time ambiguities into the
+                                stats (ambiguous_ends): slow, every unextended ray's tail and
+                                head projected at the nodes sharing a tetrahedron */
+    refl_allocator allocator;
+} refl_sbc_morph_desc;
+
+typedef struct refl_sbc_morph refl_sbc_morph;
+
+typedef struct refl_sbc_morph_stats {
+    int nodes;               /* grid nodes */
+    int nodes_built;         /* those some eye cell uses (the others lie in the reflector's box) */
+    int tetrahedra;          /* 6 per cell, those of cells clear of the reflector's box */
+    int pieces;              /* smooth pieces of the reflector */
+    int sbcs;                /* SBCs built (node x piece x face with rays) */
+    long long rays, pinhole_leaves, ray_leaves;
+    long long bytes;         /* memory the grid holds */
+    double ms_build;         /* wall-clock construction time */
+    long long ends_checked;  /* with check_ambiguous: tails and heads tested (per cell and node pair) */
+    long long ambiguous_ends; /* of those, not projecting at the other node: ambiguous */
+} refl_sbc_morph_stats;
+
+/* Builds the grid of scene object `object` (desc may be NULL: defaults).
+   REFL_ERROR_INVALID_ARGUMENT for a NULL scene or out pointer, an object
+   out of range or of an empty mesh, node counts outside 2..64, face sizes
+   outside 4..1024, a negative or non-finite margin or error, a region
+   with lo not below hi or not finite; REFL_ERROR_UNSUPPORTED for a mesh
+   of more than 1024 pieces (a triangle soup: nothing shares a vertex);
+   then *out_morph is NULL. */
+REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, const refl_sbc_morph_desc *desc,
+                                          refl_sbc_morph **out_morph);
+REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph);
+REFL_API void refl_sbc_morph_get_stats(const refl_sbc_morph *morph, refl_sbc_morph_stats *out);
+/* The object the grid was built for (-1 for NULL). */
+REFL_API int refl_sbc_morph_object(const refl_sbc_morph *morph);
+/* Node (i, j, k)'s position: 1, or 0 when out of range (or morph is NULL). */
+REFL_API int refl_sbc_morph_node(const refl_sbc_morph *morph, int i, int j, int k, refl_vec3 *position);
+/* The eye's tetrahedron (a key: cell * 6 + which of its six) and its four
+   nodes' barycentric weights; -1 when the eye lies outside the grid, in a
+   cell overlapping the reflector's box, or is not finite. Eyes within 1e-5
+   cells of a node's plane count as on it, so an eye at a node weighs it 1. */
+REFL_API int refl_sbc_morph_locate(const refl_sbc_morph *morph, refl_vec3 eye, int nodes[4], float weights[4]);
+/* The piece the ray meets first on the reflector's outside (-1: none):
+   which piece's reflection a desired-view pixel shows. */
+REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 origin, refl_vec3 dir);
+/* Projects p into piece `piece` for the eye: 1 with *first (blended first
+   reflector point) and *dist (blended distance from p to it), 0 when p
+   does not project at every node of positive weight (*ambiguous, may be
+   NULL, 1 when it projects at some of them), the eye locates nowhere or
+   an argument is bad. Thread-safe. */
+REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
+                                    refl_vec3 *first, float *dist, int *ambiguous);
+/* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
+   with *first and *dist, 0 when it does not project there, the node is
+   out of range or not built (its cells overlap the reflector's box). */
+REFL_API int refl_sbc_morph_project_node(const refl_sbc_morph *morph, int i, int j, int k, int piece, refl_vec3 p,
+                                         refl_vec3 *first, float *dist);
+/* Static points' projections kept while the eye stays in one tetrahedron
+   (the paper's reuse): refl_sbc_morph_project_points with a cache projects
+   each point at the four nodes only when the tetrahedron, the piece, the
+   count or the points pointer changed, and otherwise only re-blends. The
+   caller keeps the points unchanged while they are cached. */
+typedef struct refl_sbc_morph_cache refl_sbc_morph_cache;
+REFL_API refl_result refl_sbc_morph_cache_create(const refl_allocator *a, refl_sbc_morph_cache **out_cache);
+REFL_API void refl_sbc_morph_cache_destroy(refl_sbc_morph_cache *cache);
+/* count points (3 floats each) into first[i], dist[i] and status[i] (1:
+   projects, 2: ambiguous, 0: neither); cache may be NULL (every point
+   projected at the four nodes). *ambiguous (may be NULL): how many have
+   status 2. REFL_ERROR_INVALID_ARGUMENT for NULL arrays with count > 0,
+   a negative count, a bad piece or an eye that locates nowhere. */
+REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, refl_vec3 eye, int piece,
+                                                   const float *points, int count, refl_sbc_morph_cache *cache,
+                                                   refl_vec3 *first, float *dist, uint8_t *status,
+                                                   long long *ambiguous);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {
@@ -598,6 +717,8 @@ typedef struct refl_stats {
     double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
                                    and splatting, summed over threads */
     long long model_bytes;
+    long long ambiguous;     /* SBC with morphs: scene vertices that project at some but not
+                                all of the eye tetrahedron's nodes (paper 003 VI) */
     int reflectors;          /* reflector objects on screen */
     int histories;           /* SBC: reflection histories sampled (paper 003's A, B, AB, BA,
                                 ...; a refraction through glass counts as one) */
@@ -701,6 +822,13 @@ typedef struct refl_render_desc {
                                 stronger branch at glass as for the first; NaN where the
                                 path ends in the environment) instead of the first: how
                                 higher-order reflections are measured. Other methods: ignored */
+    /* SBC: prebuilt reflection morphing grids (refl_sbc_morph_build on this
+       scene); the front side of each one's object is drawn from its grid
+       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
+       its tetrahedra; otherwise, and for objects without one, as before.
+       One grid per object at most (the first counts). */
+    const refl_sbc_morph *const *sbc_morphs;
+    int sbc_morph_count;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;

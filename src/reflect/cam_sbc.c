@@ -35,6 +35,11 @@
    with it 0.49 px. The error is also checked half-way along each ray (in
    s), so the bound holds between a ray's ends, not only at them.
 
+   Beyond runtime mode: desc.widen grows each accepted camera's rectangle
+   (paper 003 VI, "extends the field of view of the BSP leaf cameras"), so
+   a morphing grid's node projects points just outside its ray map; off by
+   default, leaving runtime mode's projections unchanged.
+
    Split (the paper's heuristic, with the changes said at
    refl__sbc_split): the plane through the tails' centroid,
    parallel to the mean ray direction, perpendicular to the tails' principal
@@ -294,6 +299,7 @@ typedef struct refl__sbc_builder {
     double vp[16];
     int width, height;
     int max_depth;
+    double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
     refl_allocator *a;
     uint8_t *valid;          /* in the group, finite, not of zero length */
     float *dir;              /* unit direction per map entry */
@@ -891,6 +897,10 @@ static refl_result refl__sbc_run(refl__sbc_builder *b, int nvalid) {
                 res = REFL_ERROR_OUT_OF_MEMORY;
                 break;
             }
+            if (b->widen > 0.0) { /* after the fit: its normalisation (norm) stays the fitted one */
+                double wu = b->widen * (cam.rect[1] - cam.rect[0]), wv = b->widen * (cam.rect[3] - cam.rect[2]);
+                cam.rect[0] -= wu; cam.rect[1] += wu; cam.rect[2] -= wv; cam.rect[3] += wv;
+            }
             s->cams[s->cam_count] = cam;
             s->nodes[t.node].kind = REFL__SBC_PINHOLE;
             s->nodes[t.node].first = s->cam_count++;
@@ -955,7 +965,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     if ((size_t)map_width > (size_t)(INT_MAX / 4) / (size_t)map_height) return REFL_ERROR_INVALID_SIZE;
     err = desc->error_px == 0.0f ? 1.0 : (double)desc->error_px;
     if (!(err > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* negative or NaN */
-    if (desc->max_depth < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc->max_depth < 0 || !(desc->widen >= 0.0f && desc->widen <= 1e6f)) return REFL_ERROR_INVALID_ARGUMENT;
     if (err <= DBL_MAX) {
         if (desc->width < 1 || desc->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
         for (j = 0; j < 16; ++j)
@@ -978,6 +988,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     b.width = desc->width;
     b.height = desc->height;
     b.max_depth = desc->max_depth ? desc->max_depth : 40;
+    b.widen = desc->widen;
     s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
     if (!s) return REFL_ERROR_OUT_OF_MEMORY;
     s->allocator = alloc;

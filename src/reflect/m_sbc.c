@@ -95,6 +95,12 @@
         the absorption inside; reflections inside the glass short of total
         are left out. frame->points: the first point past the first
         reflector, as RAYTRACE's, or with desc.points_last the last.
+   Reflection morphing (section VI): a reflector the caller hands a
+   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   ray map or groups of its front side here; a group per piece of the grid
+   projects instead (the eye's tetrahedron, blended; no check against this
+   frame's ray map, which it has none of), its pixels those of the piece
+   their view ray meets; morphing draws the first order only.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -153,6 +159,8 @@ typedef struct refl__sb_group {
     refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
+    const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
+    int piece;
 } refl__sb_group;
 
 /* A scene point and what a group makes of it. */
@@ -165,6 +173,7 @@ typedef struct refl__sb_pv {
     refl_vec3 from;               /* where its ray leaves the last reflector (order 1: first) */
     float dist;                   /* to `from` */
     int ok;
+    int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
 } refl__sb_pv;
 
 /* One emission job: triangles [first, first + count) of `object` into `group`. */
@@ -200,6 +209,7 @@ typedef struct refl__sb {
     uint8_t *sample_refr;         /* per sample: the kind of its refraction path (1, 2), 0: none */
     int *sample_side;             /* (budget + 1) x map: per layer, each sample's side, -1: none */
     int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
+    int *morph_base;              /* per object: its morph groups' first index, -1: none */
     int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
     int layer;                    /* the batch's layer (one per batch) */
     int map_first;                /* the first side refl__sb_map_side's jobs map */
@@ -213,6 +223,26 @@ typedef struct refl__sb {
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
 } refl__sb;
+
+/* Whether g projects: a tree of this frame or a morph's piece. */
+static int refl__sb_live(const refl__sb_group *g) { return g->sbc != NULL || g->morph != NULL; }
+
+/* The layer g draws in: its side's; a morph's piece reflects once. */
+static int refl__sb_group_layer(const refl__sb *sb, const refl__sb_group *g) {
+    return g->morph ? 0 : sb->sides[g->side].layer;
+}
+
+/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
+static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
+    int k, nodes[4];
+    float w[4];
+    for (k = 0; k < p->desc.sbc_morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc_morphs[k];
+        if (m && refl_sbc_morph_object(m) == o)
+            return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
+    }
+    return NULL;
+}
 
 /* Where a ray from inside the box leaves it. */
 static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
@@ -801,26 +831,37 @@ static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b)
    at window depth dist / D. */
 static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     const refl__pass *p = sb->p;
-    const refl__sb_side *sd = &sb->sides[g->side];
+    const refl__sb_side *sd = g->morph ? NULL : &sb->sides[g->side];
     const float *m = p->vp.m;
     refl_vec3 f = {0.0f, 0.0f, 0.0f};
     float z, wd;
     int k, u, w, landed;
     size_t at;
     v->ok = 0;
+    v->ambiguous = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
     /* a leaf's map far outside the rays it was fitted to can send a point
        anywhere: its first reflector point must lie where the group's do */
-    if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
-        !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f))
+    if (g->morph) {
+        if (!refl_sbc_morph_project(g->morph, p->view->eye, g->piece, v->world, &f, &z, &v->ambiguous)) return;
+    } else if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
+               !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f)) {
         return;
+    }
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = v->from = f;
-    v->dist = refl_v3_length(refl_v3_sub(v->world, f));
+    v->dist = g->morph ? z : refl_v3_length(refl_v3_sub(v->world, f)); /* a morph blends its nodes' */
     v->sx = (0.5f + 0.5f * v->clip[0] / v->clip[3]) * (float)p->frame->width;
     v->sy = (0.5f - 0.5f * v->clip[1] / v->clip[3]) * (float)p->frame->height;
     if (!refl__isfinite(v->sx) || !refl__isfinite(v->sy)) return;
+    if (!sd) { /* a morph group: the first order, and no ray map of this frame to check against */
+        wd = REFL__CLAMP(v->dist / sb->diagonal, 0.0f, 0.999999f);
+        if (sb->orders > 1) wd /= (float)sb->orders;
+        v->clip[2] = (2.0f * wd - 1.0f) * v->clip[3];
+        v->ok = 1;
+        return;
+    }
     u = (int)REFL__CLAMP(v->sx / (float)sb->factor, 0.0f, (float)(sb->map_w - 1));
     w = (int)REFL__CLAMP(v->sy / (float)sb->factor, 0.0f, (float)(sb->map_h - 1));
     at = (size_t)w * (size_t)sb->map_w + (size_t)u;
@@ -855,7 +896,7 @@ static void refl__sb_project_object(void *arg, int index) {
     const refl_mesh *m = scene->meshes[obj->mesh];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
     refl__sb_pv *out = sb->verts[index];
-    if (!out || !sb->groups[g].sbc) return;
+    if (!out || !refl__sb_live(&sb->groups[g])) return;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
         out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
@@ -1016,7 +1057,7 @@ static void refl__sb_emit_job(void *arg, int index) {
     t.self = g->object == j->object;
     /* a refraction's own glass: the rays have left it (a lens cannot see
        itself; a concave glass seeing itself beyond its exit is left out) */
-    if (t.self && sb->sides[g->side].kind) return;
+    if (t.self && !g->morph && sb->sides[g->side].kind) return;
     /* the group's hits on this job's triangles start at the first not before (object, first) */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
@@ -1445,6 +1486,115 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     }
 }
 
+/* ---- reflection morphing (paper 003 VI): groups backed by prebuilt grids ---- */
+
+/* Row y's front pixels of objects drawn from grids: the group of the
+   piece their view ray meets (a job per row). */
+static void refl__sb_morph_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    int x, W = p->frame->width;
+    for (x = 0; x < W; ++x) {
+        size_t i = (size_t)y * (size_t)W + (size_t)x;
+        float id = sb->em.gbuf[4 * i + 3], tmax;
+        int o = (int)id - 1, piece;
+        refl_vec3 org, d;
+        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
+        piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
+        sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
+    }
+}
+
+/* Adds a group per piece of every grid in use whose object shows its
+   front (after the frame's own groups are built) after the first layer's
+   groups (batches go layer by layer), and gives them their pixels. */
+static refl_result refl__sb_morph_groups(refl__sb *sb) {
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
+    int o, add = 0, piece, ins = 0, i;
+    refl__sb_group *groups;
+    refl__sb_hit *scratch;
+    refl__sbm_hit *found;
+    sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
+    if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em.gbuf[4 * k + 3];
+        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+    }
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
+        refl_sbc_morph_stats st;
+        sb->morph_base[o] = -1;
+        if (!m) continue;
+        refl_sbc_morph_get_stats(m, &st);
+        sb->morph_base[o] = add; /* from the insertion point, set below */
+        add += st.pieces;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    if (!add) return REFL_OK;
+    while (ins < sb->group_count && !sb->sides[sb->groups[ins].side].layer) ++ins;
+    for (o = 0; o < scene->object_count; ++o)
+        if (sb->morph_base[o] >= 0) sb->morph_base[o] += ins;
+    groups = (refl__sb_group *)refl__calloc(al, (size_t)(sb->group_count + add), sizeof(refl__sb_group));
+    if (!groups) return REFL_ERROR_OUT_OF_MEMORY;
+    if (ins) memcpy(groups, sb->groups, (size_t)ins * sizeof(refl__sb_group));
+    if (sb->group_count > ins)
+        memcpy(groups + ins + add, sb->groups + ins, (size_t)(sb->group_count - ins) * sizeof(refl__sb_group));
+    refl__free(al, sb->groups);
+    sb->groups = groups;
+    /* the later layers' groups moved on by `add`: their samples' and pixels' indices too */
+    for (i = 0; i < sb->side_count; ++i) {
+        refl__sb_side *sd = &sb->sides[i];
+        size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+        if (!sd->layer) continue;
+        for (k = 0; k < n; ++k)
+            if (sd->group[k] >= ins) sd->group[k] += add;
+    }
+    for (k = npx; k < (size_t)sb->layers * npx; ++k)
+        if (sb->group_of[k] > ins) sb->group_of[k] += add;
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] < 0 ? NULL : refl__sb_morph_for(p, o);
+        refl_sbc_morph_stats st;
+        refl_sbc_morph_get_stats(m, &st);
+        for (piece = 0; piece < st.pieces; ++piece) {
+            refl__sb_group *g = &groups[sb->morph_base[o] + piece];
+            g->side = -1;
+            g->object = o;
+            g->morph = m;
+            g->piece = piece;
+            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
+            /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
+            g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
+            if (!g->hit_count) continue;
+            g->hits = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            scratch = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
+            found = (refl__sbm_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbm_hit));
+            if (g->hits && scratch && found) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, found);
+                for (k = 0; k < (size_t)g->hit_count; ++k) {
+                    scratch[k].object = found[k].object;
+                    scratch[k].triangle = found[k].triangle;
+                    scratch[k].point = found[k].point;
+                }
+                refl__sb_sort_hits(scratch, g->hits, g->hit_count);
+            }
+            refl__free(al, scratch);
+            refl__free(al, found);
+            if (!g->hits) {
+                sb->group_count += add; /* freed with the others */
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+    }
+    sb->group_count += add;
+    rast_run_jobs(p->rc, p->frame->height, refl__sb_morph_row, sb);
+    return REFL_OK;
+}
+
 /* The sides seen (reflector objects and sides with a pixel), their ray
    maps and pieces, and the groups: each side's pieces cut by tiles of
    sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
@@ -1470,7 +1620,7 @@ static refl_result refl__sb_groups(refl__sb *sb) {
     }
     for (i = 0; i < scene->object_count; ++i)
         for (side = 0; side < 2; ++side)
-            if (sides[i] & (1 << side)) {
+            if ((sides[i] & (1 << side)) && !(side == 0 && refl__sb_morph_for(sb->p, i))) {
                 refl__sb_side *sd = &sb->sides[sb->side_count++];
                 sd->object = i;
                 sd->id = side ? -(float)(i + 1) : (float)(i + 1);
@@ -1571,9 +1721,12 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
     for (i = 0; i < pairs; ++i) {
         int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        if (!sb->groups[sb->batch0 + i / scene->object_count].sbc) continue;
+        if (!refl__sb_live(&sb->groups[sb->batch0 + i / scene->object_count])) continue;
         sb->p->frame->stats.projections += count;
-        for (v = 0; v < count; ++v) sb->p->frame->stats.projected += sb->verts[i][v].ok;
+        for (v = 0; v < count; ++v) {
+            sb->p->frame->stats.projected += sb->verts[i][v].ok;
+            sb->p->frame->stats.ambiguous += sb->verts[i][v].ambiguous;
+        }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
         for (o = 0; o < scene->object_count; ++o)
@@ -1581,7 +1734,7 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch0; g < sb->batch1; ++g) {
-        if (!sb->groups[g].sbc) continue;
+        if (!refl__sb_live(&sb->groups[g])) continue;
         for (o = 0; o < scene->object_count; ++o) {
             int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
             for (t = 0; t < tc; t += REFL__SB_CHUNK) {
@@ -1633,6 +1786,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->em.draws);
     refl__free(al, sb->em.surface);
     refl__free(al, sb->group_of);
+    refl__free(al, sb->morph_base);
     refl__free(al, sb->stencil);
     refl__free(al, sb->color);
     refl__free(al, sb->depth);
@@ -1678,6 +1832,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
+    if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
     for (g = 0; g < sb->group_count; ++g) {
         refl_sbc_stats st;
         if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
@@ -1837,8 +1992,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
            meet, and the orders meet by the visibility offset */
         for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
             int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
-            sb.layer = sb.sides[sb.groups[sb.batch0].side].layer;
-            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && sb.sides[sb.groups[sb.batch1].side].layer == sb.layer;)
+            sb.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch0]);
+            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer;)
                 ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
@@ -1848,7 +2003,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
             if (r == REFL_OK) r = refl__sb_draw(&sb);
             refl__sb_free_batch(&sb);
             if (r == REFL_OK && sb.layer + 1 < sb.orders &&
-                (sb.batch1 == sb.group_count || sb.sides[sb.groups[sb.batch1].side].layer != sb.layer))
+                (sb.batch1 == sb.group_count || refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) != sb.layer))
                 refl__sb_pass_through(&sb);
         }
         t0 = refl__now_ms();

@@ -242,7 +242,8 @@ static refl_result refl__render(const refl_scene *scene, const refl_view *view, 
         !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
         p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
         p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
-        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency))
+        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
+        (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))
         return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
     if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;

@@ -190,6 +190,23 @@ REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *h
     if (hi) *hi = h;
 }
 
+REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {
+    const refl_mesh *m;
+    int i;
+    if (!s || object < 0 || object >= s->object_count || s->objects[object].mesh < 0 ||
+        s->objects[object].mesh >= s->mesh_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    m = s->meshes[s->objects[object].mesh];
+    for (i = 0; out && i < m->vertex_count; ++i) {
+        const float *q = m->positions + 3 * (size_t)i;
+        refl_vec3 w = refl_mat4_point(s->objects[object].transform, refl_v3(q[0], q[1], q[2]));
+        out[3 * (size_t)i] = w.x;
+        out[3 * (size_t)i + 1] = w.y;
+        out[3 * (size_t)i + 2] = w.z;
+    }
+    return m->vertex_count;
+}
+
 REFL_API void refl_scene_normalize(refl_scene *s, float size) {
     refl_vec3 lo, hi, c;
     float diag, k;
