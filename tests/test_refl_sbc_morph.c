@@ -494,3 +494,52 @@ Test(refl_sbc_morph, widened_leaf_projects_beyond_its_frustum, .timeout = 30) {
     cr_assert_eq(refl_sbc_build(rays, NULL, 5, 5, &d, &narrow), REFL_ERROR_INVALID_ARGUMENT);
     cr_assert_null(narrow);
 }
+
+/* A grid beside the higher orders (depth 2): a second mirror sphere sees
+   the grid's sphere, and the grid's groups join the first layer. Every
+   pixel of the second sphere, its own reflections and the grid's sphere
+   seen in them, is the same with the grid as without (its groups, their
+   indices moved on past the grid's, draw the same), and the frame is the
+   same on 1 and 2 threads. */
+Test(refl_sbc_morph, beside_higher_orders, .timeout = 120) {
+    static const float silver[3] = {0.9f, 0.9f, 0.9f};
+    refl_scene *s = sphere_scene();
+    refl_mesh *ball = NULL;
+    refl_sbc_morph_desc md = cell_desc(refl_v3(-0.4f, 0.2f, 2.1f), refl_v3(0.4f, 0.8f, 2.9f), 64);
+    refl_sbc_morph *m;
+    const refl_sbc_morph *ms[1];
+    refl_render_desc plain = method_desc(REFL_SBC, 2), grid2, grid1;
+    refl_view v = tu_refl_view(refl_v3(0.1f, 0.5f, 2.5f), refl_v3(0.4f, -0.1f, -0.5f), 160, 120);
+    refl_frame *f0, *f2, *f1;
+    size_t n = (size_t)v.width * (size_t)v.height, i;
+    long long second = 0;
+    int other;
+    cr_assert_eq(refl_mesh_sphere(0.5f, 32, 16, NULL, &ball), REFL_OK);
+    other = tu_refl_add_object(s, ball, REFL_MIRROR, silver, refl_mat4_translate(refl_v3(1.3f, -0.3f, 0.2f)));
+    m = build(s, 3, &md);
+    ms[0] = m;
+    plain.depth = 2;
+    grid2 = grid1 = plain;
+    grid2.sbc_morphs = grid1.sbc_morphs = ms;
+    grid2.sbc_morph_count = grid1.sbc_morph_count = 1;
+    grid1.threads = 1;
+    f0 = tu_refl_render(s, &v, &plain);
+    f2 = tu_refl_render(s, &v, &grid2);
+    f1 = tu_refl_render(s, &v, &grid1);
+    cr_assert(f0->stats.histories > 2, "%d histories without the grid", f0->stats.histories);
+    cr_assert(f2->stats.histories >= 2, "%d histories with the grid", f2->stats.histories);
+    for (i = 0; i < n; ++i) {
+        if (f0->stencil[i] != other + 1) continue;
+        ++second;
+        cr_assert_eq(memcmp(f0->color + 4 * i, f2->color + 4 * i, 4), 0, "pixel %zu of the second sphere", i);
+        cr_assert_eq(memcmp(f0->points + 3 * i, f2->points + 3 * i, 3 * sizeof(float)), 0, "pixel %zu", i);
+    }
+    cr_assert(second > 500, "%lld pixels of the second sphere", second);
+    cr_assert_eq(memcmp(f1->color, f2->color, 4 * n), 0, "colour differs across thread counts");
+    cr_assert_eq(memcmp(f1->points, f2->points, 3 * sizeof(float) * n), 0, "points differ across thread counts");
+    refl_frame_destroy(f0);
+    refl_frame_destroy(f1);
+    refl_frame_destroy(f2);
+    refl_sbc_morph_destroy(m);
+    refl_scene_destroy(s);
+}
