@@ -13,11 +13,7 @@
 #include "refl_test_util.h"
 
 static refl_render_desc one_bounce(refl_method m, int factor, float error_px) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = 2;
-    d.depth = 1;
+    refl_render_desc d = tu_refl_one_bounce(m, 2);
     d.sbc_ray_factor = factor;
     d.sbc_error_px = error_px;
     return d;

@@ -55,7 +55,7 @@ Test(refl_surface_props, fade_known_answers) {
 }
 
 /* A mirror sphere over a floor among boxes; its material's fade set by
-   the caller through *out_material. */
+   the caller through the material index *mirror_material. */
 static refl_scene *fade_scene(int *mirror_material) {
     static const float grey[3] = {0.7f, 0.7f, 0.7f}, red[3] = {0.9f, 0.2f, 0.1f}, silver[3] = {1, 1, 1};
     refl_scene *s = NULL;
@@ -88,13 +88,9 @@ static void check_method_fades(refl_method method) {
     int mat, i, checked = 0, faded = 0, n;
     refl_scene *s = fade_scene(&mat);
     refl_view v = tu_refl_view(refl_v3(0.3f, 0.8f, 4.0f), refl_v3(0, -0.2f, 0), 160, 120);
-    refl_render_desc d;
+    refl_render_desc d = tu_refl_one_bounce(method, 2);
     refl_frame *plain, *fade;
     refl_material *m = &s->materials[mat];
-    memset(&d, 0, sizeof d);
-    d.method = method;
-    d.threads = 2;
-    d.depth = 1;
     plain = tu_refl_render(s, &v, &d);
     m->fade_distance = 3.0f;
     m->fade_min = 0.2f;
