@@ -44,7 +44,8 @@
      3. projection (section V-A): every vertex of every object inside a
         group's box (its rays' tails and heads, grown by a quarter) is
         projected into the group (refl_sbc_project), moving it to its
-        first reflector point; the window depth is the paper's visibility
+        first reflector point, which must lie in the group's box too (a
+        leaf's map far outside its rays sends points anywhere); the window depth is the paper's visibility
         offset (k - 1 + z/D) g for order k, in a depth buffer of the
         reflections' own, z measured as the distance from the vertex to its
         first reflector point (consistent across leaves, where each leaf's
@@ -72,9 +73,10 @@
         projected vertices of one batch at a time). The reflector's own
         triangles project too (the knob seen in the lid), except the
         surface the rays leave: a triangle facing away from every vertex's
-        first reflector point, or with a vertex nearer it than a quarter of
-        the triangle's longest edge (tested before each subdivision too:
-        such a triangle is not split). Layers are drawn in order, into one
+        first reflector point (unless the group's rays meet it: the body's
+        inside seen through the lid's gap faces away), or with a vertex
+        nearer it than a quarter of the triangle's longest edge (tested
+        before each subdivision too: such a triangle is not split). Layers are drawn in order, into one
         depth buffer; after order k < k_max, where a mirror or glass (drawn
         transparent black) is nearest the pixel is cleared: order k + 1
         shows there, and nowhere an order-k point lies in front (the
@@ -83,8 +85,9 @@
         their own glass is not drawn.
      5. composite (section V-D): the reflected colour, or the environment
         along the pixel's reflected ray where nothing was drawn, times the
-        material's reflectance (Schlick's Fresnel when the material asks),
-        as ENVMAP composites; glass adds the environment refracted once.
+        material's reflectance (Schlick's Fresnel, or V-D's Fresnel blend
+        and distance fade, when the material asks), as ENVMAP composites;
+        glass adds the environment refracted once.
         Past the first order (refl__sb_resolve_row_deep): the nearest
         order's colour (its order read off the offset), or the environment
         along the last reflected ray, times the product of the reflectances
