@@ -3210,6 +3210,9 @@ REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
     int i;
     if (!s || !m || (int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return REFL_ERROR_INVALID_ARGUMENT;
     if (m->texture < 0 || m->texture > s->texture_count) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
@@ -3750,6 +3753,10 @@ REFL_API float refl_fresnel_dielectric(float cos_i, float n1, float n2) {
     return 0.5f * (rs * rs + rp * rp);
 }
 
+/* A weight clamped to [0, 1]; NaN counts as 0 (a material edited by hand
+   must not turn a frame NaN). */
+static float refl__unit(float v) { return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; }
+
 REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
     float r, c5;
     if (!m || m->type == REFL_DIFFUSE) return 0.0f;
@@ -3762,7 +3769,7 @@ REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
     }
     if (m->fresnel_max > 0.0f) { /* paper 003 V-D: weights in cos^2, scaled to [min, max] */
         float c2 = REFL__CLAMP(cos_i, 0.0f, 1.0f) * REFL__CLAMP(cos_i, 0.0f, 1.0f);
-        float lo = REFL__CLAMP(m->fresnel_min, 0.0f, 1.0f), hi = REFL__CLAMP(m->fresnel_max, 0.0f, 1.0f);
+        float lo = refl__unit(m->fresnel_min), hi = refl__unit(m->fresnel_max);
         r *= hi - (hi - lo) * c2;
     }
     if (m->type == REFL_PARTIAL) r *= REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
@@ -3772,8 +3779,8 @@ REFL_API float refl_material_reflectance(const refl_material *m, float cos_i) {
 REFL_API float refl_material_fade(const refl_material *m, float distance) {
     float lo, hi, f;
     if (!m || (m->type != REFL_MIRROR && m->type != REFL_PARTIAL) || !(m->fade_distance > 0.0f)) return 1.0f;
-    lo = REFL__CLAMP(m->fade_min, 0.0f, 1.0f);
-    hi = REFL__CLAMP(m->fade_max, 0.0f, 1.0f);
+    lo = refl__unit(m->fade_min);
+    hi = refl__unit(m->fade_max);
     /* NaN (no point) fades as the environment does: wholly */
     f = distance >= 0.0f ? REFL__MIN(distance / m->fade_distance, 1.0f) : 1.0f;
     return hi - (hi - lo) * f * f;

@@ -54,6 +54,30 @@ Test(refl_surface_props, fade_known_answers) {
     cr_assert_float_eq(refl_material_fade(&glass, 1.0f), 1.0f, 1e-7, "glass does not fade");
 }
 
+Test(refl_surface_props, non_finite_fields) {
+    refl_scene *s = NULL;
+    refl_material m = mirror();
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    m.fresnel_min = NAN;
+    cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+    m = mirror();
+    m.fade_distance = INFINITY;
+    cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+    m = mirror();
+    m.fade_max = NAN;
+    cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+    /* edited by hand past the check: no NaN comes out (NaN weighs 0) */
+    m = mirror();
+    m.fresnel_min = NAN;
+    m.fresnel_max = 0.5f;
+    m.fade_distance = 1.0f;
+    m.fade_min = NAN;
+    m.fade_max = 1.0f;
+    cr_assert(isfinite(refl_material_reflectance(&m, 0.3f)));
+    cr_assert_float_eq(refl_material_fade(&m, 2.0f), 0.0f, 1e-7);
+    refl_scene_destroy(s);
+}
+
 /* A mirror sphere over a floor among boxes; its material's fade set by
    the caller through the material index *mirror_material. */
 static refl_scene *fade_scene(int *mirror_material) {

@@ -94,6 +94,9 @@ REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
     int i;
     if (!s || !m || (int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return REFL_ERROR_INVALID_ARGUMENT;
     if (m->texture < 0 || m->texture > s->texture_count) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
