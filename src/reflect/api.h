@@ -903,9 +903,11 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    leaf that holds it in the group of x's pixel (pinhole when none). empty
    is 0; everything 0 when the view shows no reflector. */
 typedef struct refl_sbc_camera_error {
-    refl_reflection_error pinhole, ray_list;   /* every truth pixel */
-    refl_reflection_error pinhole_samples,     /* the ray map's sample pixels only: where */
-                          ray_list_samples;    /* the build measures its error (heads, tails) */
+    refl_reflection_error pinhole, ray_list;   /* every truth pixel: the nearest image */
+    refl_reflection_error pinhole_samples,     /* the ray map's sample pixels only, each point */
+                          ray_list_samples;    /* through its pixel's own group (the leaf there
+                                                  decides the kind; no image: wrong): where the
+                                                  build checks its fit (heads, tails) */
 } refl_sbc_camera_error;
 REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                   const refl_render_desc *desc, const refl_frame *truth,

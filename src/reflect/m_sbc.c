@@ -1855,10 +1855,60 @@ typedef struct refl__sb_measure {
     const refl__sb *sb;
     double *error;                /* INFINITY: no image within REFL__SB_MEASURE_REACH */
     uint8_t *kind;                /* refl_sbc_leaf_kind */
+    double *own_error;            /* at sample pixels: through the pixel's own group, INFINITY: none */
+    uint8_t *own_kind;            /* ... and its leaf there; NONE off the samples */
+    int cells_x, cells_y;         /* REFL__SB_MEASURE_CELL pixel cells, each listing the groups */
+    int *cell_start, *cell_list;  /* whose images can land within reach of its pixels */
     refl_sbc_camera_error *out;
 } refl__sb_measure;
 
 #define REFL__SB_MEASURE_REACH 8.0 /* pixels: an image further off shows another point */
+#define REFL__SB_MEASURE_CELL 32   /* pixels per side of the measure's cells */
+
+/* Group g's pixels that an image of it can reach: an image lands on the
+   group's first reflector points (its tile and ring), and one further off
+   than the reach does not count. */
+static void refl__sb_measure_rect(const refl__sb *sb, const refl__sb_group *g, int r[4]) {
+    const int reach = (int)REFL__SB_MEASURE_REACH + 1;
+    r[0] = (g->u0 - 1) * sb->factor - reach;
+    r[1] = (g->v0 - 1) * sb->factor - reach;
+    r[2] = (g->u1 + 1) * sb->factor + reach;
+    r[3] = (g->v1 + 1) * sb->factor + reach;
+}
+
+/* The cells' group lists (counted, then filled), groups in index order. */
+static refl_result refl__sb_measure_cells(refl__sb_measure *ms) {
+    const refl__sb *sb = ms->sb;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    const int cell = REFL__SB_MEASURE_CELL;
+    int pass, g, cx, cy, cells;
+    ms->cells_x = (ms->truth->width + cell - 1) / cell;
+    ms->cells_y = (ms->truth->height + cell - 1) / cell;
+    cells = ms->cells_x * ms->cells_y;
+    ms->cell_start = (int *)refl__calloc(al, (size_t)cells + 1, sizeof(int));
+    if (!ms->cell_start) return REFL_ERROR_OUT_OF_MEMORY;
+    for (pass = 0; pass < 2; ++pass) {
+        for (g = 0; g < sb->group_count; ++g) {
+            int r[4];
+            if (!sb->groups[g].sbc) continue;
+            refl__sb_measure_rect(sb, &sb->groups[g], r);
+            for (cy = REFL__MAX(r[1], 0) / cell; cy <= REFL__MIN(r[3] / cell, ms->cells_y - 1); ++cy)
+                for (cx = REFL__MAX(r[0], 0) / cell; cx <= REFL__MIN(r[2] / cell, ms->cells_x - 1); ++cx) {
+                    if (!pass) ms->cell_start[cy * ms->cells_x + cx + 1]++;
+                    else ms->cell_list[ms->cell_start[cy * ms->cells_x + cx]++] = g;
+                }
+        }
+        if (!pass) {
+            for (cx = 0; cx < cells; ++cx) ms->cell_start[cx + 1] += ms->cell_start[cx];
+            ms->cell_list = (int *)refl__calloc(al, (size_t)REFL__MAX(ms->cell_start[cells], 1), sizeof(int));
+            if (!ms->cell_list) return REFL_ERROR_OUT_OF_MEMORY;
+        } else { /* the fill moved every start to the next cell's */
+            for (cx = cells; cx > 0; --cx) ms->cell_start[cx] = ms->cell_start[cx - 1];
+            ms->cell_start[0] = 0;
+        }
+    }
+    return REFL_OK;
+}
 
 /* Row y of the truth: each point projected into every group of its
    reflector, as the method projects a vertex. */
@@ -1866,30 +1916,39 @@ static void refl__sb_measure_row(void *arg, int y) {
     refl__sb_measure *ms = (refl__sb_measure *)arg;
     const refl__sb *sb = ms->sb;
     const refl_frame *t = ms->truth;
-    int x, g;
+    int x, c;
     for (x = 0; x < t->width; ++x) {
         size_t i = (size_t)y * (size_t)t->width + (size_t)x;
         const float *q = t->points + 3 * i;
         int object = t->stencil[i] - 1, own = sb->group_of[i] - 1;
+        int cell = (y / REFL__SB_MEASURE_CELL) * ms->cells_x + x / REFL__SB_MEASURE_CELL;
         double best = INFINITY;
         refl_sbc_leaf_kind kind = REFL_SBC_LEAF_NONE;
         refl__sb_pv v;
-        ms->error[i] = INFINITY;
-        ms->kind[i] = REFL_SBC_LEAF_NONE;
+        int sx, sy;
+        ms->error[i] = ms->own_error[i] = INFINITY;
+        ms->kind[i] = ms->own_kind[i] = REFL_SBC_LEAF_NONE;
         if (object < 0 || !refl__isfinite(q[0]) || !refl__isfinite(q[1]) || !refl__isfinite(q[2])) continue;
         memset(&v, 0, sizeof v);
         v.world = refl_v3(q[0], q[1], q[2]);
-        for (g = 0; g < sb->group_count; ++g) {
-            const refl__sb_group *gr = &sb->groups[g];
+        refl__sb_sample_pixel(sb, x / sb->factor, y / sb->factor, &sx, &sy);
+        if (sx == x && sy == y) { /* a sample: its own group's camera, where the build checked the fit */
+            refl_sbc_leaf_kind k = own >= 0 && sb->groups[own].sbc ? refl_sbc_leaf_at(sb->groups[own].sbc, v.world)
+                                                                   : REFL_SBC_LEAF_NONE;
+            ms->own_kind[i] = (uint8_t)(k == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+            if (k != REFL_SBC_LEAF_NONE) {
+                refl__sb_project(sb, &sb->groups[own], &v);
+                if (v.ok) ms->own_error[i] = sqrt(((double)v.sx - ((double)x + 0.5)) * ((double)v.sx - ((double)x + 0.5)) +
+                                                  ((double)v.sy - ((double)y + 0.5)) * ((double)v.sy - ((double)y + 0.5)));
+            }
+        }
+        for (c = ms->cell_start[cell]; c < ms->cell_start[cell + 1]; ++c) {
+            const refl__sb_group *gr = &sb->groups[ms->cell_list[c]];
             double dx, dy, e;
-            if (!gr->sbc || (gr->object != object && !(object == 254 && gr->object >= 254))) continue;
-            /* an image lands on the group's first reflector points: its tile
-               and ring; one further off than the reach does not count */
-            if ((double)x < (double)((gr->u0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
-                (double)x > (double)((gr->u1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH ||
-                (double)y < (double)((gr->v0 - 1) * sb->factor) - REFL__SB_MEASURE_REACH ||
-                (double)y > (double)((gr->v1 + 1) * sb->factor) + REFL__SB_MEASURE_REACH)
-                continue;
+            int rect[4];
+            if (gr->object != object && !(object == 254 && gr->object >= 254)) continue;
+            refl__sb_measure_rect(sb, gr, rect);
+            if (x < rect[0] || x > rect[2] || y < rect[1] || y > rect[3]) continue;
             refl__sb_project(sb, gr, &v);
             if (!v.ok) continue;
             dx = (double)v.sx - ((double)x + 0.5);
@@ -1909,8 +1968,9 @@ static void refl__sb_measure_row(void *arg, int y) {
     }
 }
 
-/* The summaries of the pixels the measure left, by leaf kind, over every
-   pixel and over the ray map's sample pixels. */
+/* The summaries of the pixels the measure left, by leaf kind: over every
+   pixel the nearest image, over the ray map's sample pixels the image
+   through the pixel's own group. */
 static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
     const refl__sb *sb = ms->sb;
     const refl_allocator *al = &sb->p->scene->allocator;
@@ -1924,21 +1984,18 @@ static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
     out[3] = &ms->out->ray_list_samples;
     for (k = 0; k < 4; ++k) {
         uint8_t want = (uint8_t)(k & 1 ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
+        const uint8_t *kind = k < 2 ? ms->kind : ms->own_kind;
+        const double *error = k < 2 ? ms->error : ms->own_error;
         long long counted = 0, matched = 0;
         double sum = 0.0;
         for (y = 0; y < h; ++y)
             for (x = 0; x < w; ++x) {
                 size_t i = (size_t)y * (size_t)w + (size_t)x;
-                int sx, sy;
-                if (ms->kind[i] != want) continue;
-                if (k >= 2) { /* the pixel of its sample only */
-                    refl__sb_sample_pixel(sb, x / sb->factor, y / sb->factor, &sx, &sy);
-                    if (sx != x || sy != y) continue;
-                }
+                if (kind[i] != want) continue;
                 ++counted;
-                if (ms->error[i] == INFINITY) continue;
-                errors[matched++] = ms->error[i];
-                sum += ms->error[i];
+                if (error[i] == INFINITY) continue;
+                errors[matched++] = error[i];
+                sum += error[i];
             }
         refl__metric_summary(errors, matched, sum, counted, counted - matched, 0, out[k]);
     }
@@ -1962,14 +2019,21 @@ static refl_result refl__method_sbc(refl__pass *p) {
         ms->sb = &sb;
         ms->error = (double *)refl__calloc(al, n, sizeof(double));
         ms->kind = (uint8_t *)refl__calloc(al, n, 1);
-        if (r == REFL_OK && (!ms->error || !ms->kind)) r = REFL_ERROR_OUT_OF_MEMORY;
+        ms->own_error = (double *)refl__calloc(al, n, sizeof(double));
+        ms->own_kind = (uint8_t *)refl__calloc(al, n, 1);
+        if (r == REFL_OK && (!ms->error || !ms->kind || !ms->own_error || !ms->own_kind))
+            r = REFL_ERROR_OUT_OF_MEMORY;
         /* no reflector in view: nothing to measure (the truth shows none either) */
-        if (r == REFL_OK && sb.group_of) {
+        if (r == REFL_OK && sb.group_of && (r = refl__sb_measure_cells(ms)) == REFL_OK) {
             rast_run_jobs(p->rc, fr->height, refl__sb_measure_row, ms);
             r = refl__sb_measure_summary(ms);
         }
         refl__free(al, ms->error);
         refl__free(al, ms->kind);
+        refl__free(al, ms->own_error);
+        refl__free(al, ms->own_kind);
+        refl__free(al, ms->cell_start);
+        refl__free(al, ms->cell_list);
         refl__sb_free(&sb);
         return r;
     }
