@@ -59,15 +59,16 @@ Test(refl_sbc_leaves, default_scene, .timeout = 120) {
     v = s->camera;
     e = measure(s, &v, 2, 1.0f, "default f2");
     /* measured: 1,094 pinhole samples (3 not projecting in their group),
-       ray-list samples p95 1.46 px, 1.3% not projecting */
+       ray-list samples p95 1.44 px, 0.09% not projecting (1.3% before a
+       point just off every quad took the nearest one's answer) */
     cr_assert(e.pinhole_samples.pixels > 800 && e.pinhole_samples.wrong <= 0.005);
     cr_assert(e.pinhole.p95 <= 0.5 && e.pinhole.wrong <= 0.01, "pinhole p95 %.3f wrong %.4f", e.pinhole.p95,
               e.pinhole.wrong);
-    cr_assert(e.ray_list_samples.p95 <= 1.6 && e.ray_list_samples.wrong <= 0.015, "ray lists p95 %.3f wrong %.4f",
+    cr_assert(e.ray_list_samples.p95 <= 1.6 && e.ray_list_samples.wrong <= 0.002, "ray lists p95 %.3f wrong %.4f",
               e.ray_list_samples.p95, e.ray_list_samples.wrong);
     e = measure(s, &v, 4, 1.0f, "default f4");
-    /* measured: ray-list samples p95 4.23 px (past the factor), 1.6% not projecting */
-    cr_assert(e.ray_list_samples.p95 <= 4.5 && e.ray_list_samples.wrong <= 0.02, "ray lists p95 %.3f wrong %.4f",
+    /* measured: ray-list samples p95 4.23 px (past the factor), 0.3% not projecting */
+    cr_assert(e.ray_list_samples.p95 <= 4.5 && e.ray_list_samples.wrong <= 0.005, "ray lists p95 %.3f wrong %.4f",
               e.ray_list_samples.p95, e.ray_list_samples.wrong);
     refl_scene_destroy(s);
 }
@@ -82,9 +83,9 @@ Test(refl_sbc_leaves, concave_bowl, .timeout = 120) {
     v.height = 240;
     e = measure(s, &v, 2, 1.0f, "concave f2");
     /* a focusing mirror: its rays cross, every leaf is a ray list; measured
-       p95 2.95 px (past the factor), 1.0% not projecting */
+       p95 2.80 px (past the factor), 0.1% not projecting */
     cr_assert(e.ray_list_samples.pixels > 10000);
-    cr_assert(e.ray_list_samples.p95 <= 3.2 && e.ray_list_samples.wrong <= 0.012, "ray lists p95 %.3f wrong %.4f",
+    cr_assert(e.ray_list_samples.p95 <= 3.0 && e.ray_list_samples.wrong <= 0.002, "ray lists p95 %.3f wrong %.4f",
               e.ray_list_samples.p95, e.ray_list_samples.wrong);
     refl_scene_destroy(s);
 }
@@ -157,7 +158,7 @@ Test(refl_sbc_leaves, random_bumpy_reflector, .timeout = 120) {
         cr_assert(e.pinhole_samples.pixels + e.ray_list_samples.pixels > 1000, "%s: %lld + %lld samples", what,
                   e.pinhole_samples.pixels, e.ray_list_samples.pixels);
         /* smooth: every ray-list sample within the factor (measured 0.42 px at most) */
-        cr_assert(e.ray_list_samples.max <= 2.0 && e.ray_list_samples.wrong <= 0.005, "%s: ray lists max %.3f, %.4f",
+        cr_assert(e.ray_list_samples.max <= 2.0 && e.ray_list_samples.wrong <= 0.001, "%s: ray lists max %.3f, %.4f",
                   what, e.ray_list_samples.max, e.ray_list_samples.wrong);
         refl_scene_destroy(s);
     }

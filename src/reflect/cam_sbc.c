@@ -67,7 +67,11 @@
    the four first points blended at (s, t) (z: the blended distance along
    the rays from their tails); the nearest such quad wins. Adjacent quads
    share their edge rays, so the blend is continuous to within the
-   rays' skewness.
+   rays' skewness. Where no quad holds p, the one p lies nearest outside
+   (within REFL__SBC_NEAR of its diagonal) answers at its clamped (s, t):
+   at a fold the quads around a ray cover only some sides of it, and a
+   point a hair off the ray fell in none (default scene, 640x480 factor
+   2: 1.5% of the ray-list samples had no image within 8 px, 0.6% now).
 
    Deterministic: lists keep ray-map order, nothing is sorted or drawn at
    random, every sum runs in a fixed order. */
@@ -114,6 +118,15 @@ typedef struct refl__sbc_quad {
    lies on the reflector: heads are twice as far as what the rays meet, so
    what they reflect lies near 0.5. */
 #define REFL__SBC_ON_SURFACE 0.02
+
+/* The exact test's (s, t) tolerance, and the fallback's reach for a point
+   no quad holds: its lateral distance to a quad (at clamped (s, t)), in
+   the quad's diagonals. Near a fold (a caustic: a neighbour ray crossing
+   the sample's) the quads around a ray do not cover all sides of it, and
+   a point a hair off the ray (a pixel's own reflected ray, not the
+   sample's) lies in none of them. */
+#define REFL__SBC_TOL 1e-4
+#define REFL__SBC_NEAR 0.01
 
 /* A quad's frame in double: what build and projection both compute with. */
 typedef struct refl__sbc_frame {
@@ -824,8 +837,9 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
                 bx[0] = REFL__MIN(bx[0], x[c]); bx[1] = REFL__MAX(bx[1], x[c]);
                 bx[2] = REFL__MIN(bx[2], y[c]); bx[3] = REFL__MAX(bx[3], y[c]);
             }
-            /* room for the exact test's tolerance in (s, t) */
-            pad = 1e-3 * (bx[1] - bx[0] + bx[3] - bx[2]) + 1e-6 * scale;
+            /* room for the exact test's tolerance in (s, t), and for the
+               fallback's reach (a diagonal is at most width plus height) */
+            pad = (1e-3 + REFL__SBC_NEAR) * (bx[1] - bx[0] + bx[3] - bx[2]) + 1e-6 * scale;
             q.box[e][0] = (float)(bx[0] - pad); q.box[e][1] = (float)(bx[1] + pad);
             q.box[e][2] = (float)(bx[2] - pad); q.box[e][3] = (float)(bx[3] + pad);
             q.tau[e] = (float)tau[e];
@@ -1099,19 +1113,20 @@ static int refl__sbc_quadratic(double a, double b, double c, double r[2]) {
 
 /* Inverse bilinear interpolation: (s, t) in [0, 1]^2 (within tol, then
    clamped) with (x, y) = the blend of corners 0 (0, 0), 1 (1, 0), 2 (0, 1),
-   3 (1, 1); 0 when there is none. */
-static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, double y, double *s, double *t) {
-    const double tol = 1e-4;
+   3 (1, 1), the root least outside the square (*out: how far); 0 when there
+   is none. */
+static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, double y, double tol, double *s,
+                                  double *t, double *out) {
     double ex = cx[1] - cx[0], ey = cy[1] - cy[0], fx = cx[2] - cx[0], fy = cy[2] - cy[0];
     double gx = cx[0] - cx[1] - cx[2] + cx[3], gy = cy[0] - cy[1] - cy[2] + cy[3], hx = x - cx[0], hy = y - cy[0];
-    double roots[2];
+    double roots[2], best = DBL_MAX;
     int nr, i;
     /* h - t f = s (e + t g): crossing both sides with e + t g leaves a quadratic in t */
     nr = refl__sbc_quadratic(refl__sbc_cross2(gx, gy, fx, fy),
                              refl__sbc_cross2(ex, ey, fx, fy) + refl__sbc_cross2(hx, hy, gx, gy),
                              refl__sbc_cross2(hx, hy, ex, ey), roots);
     for (i = 0; i < nr; ++i) {
-        double tt = roots[i], dx = ex + gx * tt, dy = ey + gy * tt, ss;
+        double tt = roots[i], dx = ex + gx * tt, dy = ey + gy * tt, ss, o;
         if (!(tt >= -tol && tt <= 1.0 + tol)) continue;
         if (fabs(dx) >= fabs(dy)) {
             if (dx == 0.0) continue;
@@ -1120,26 +1135,44 @@ static int refl__sbc_inv_bilinear(const double *cx, const double *cy, double x, 
             ss = (hy - fy * tt) / dy;
         }
         if (!(ss >= -tol && ss <= 1.0 + tol)) continue;
+        o = REFL__MAX(REFL__MAX(-ss, ss - 1.0), REFL__MAX(-tt, tt - 1.0));
+        o = REFL__MAX(o, 0.0);
+        if (!(o < best)) continue;
+        best = o;
         *s = REFL__CLAMP(ss, 0.0, 1.0);
         *t = REFL__CLAMP(tt, 0.0, 1.0);
-        return 1;
+        if (o == 0.0) break; /* inside: the first such root, as ever */
     }
-    return 0;
+    *out = best;
+    return best < DBL_MAX;
 }
 
-/* A ray-list leaf: the unit frustum holding p nearest the reflector. */
+/* A ray-list image candidate: its rank (off the reflector, how far off
+   its quad, depth) and its answer. */
+typedef struct refl__sbc_pick {
+    int off;
+    double out, zz;
+    refl_vec3 first;
+} refl__sbc_pick;
+
+/* A ray-list leaf: the unit frustum holding p nearest the reflector; where
+   none does, the one p lies nearest outside, within REFL__SBC_NEAR. */
 static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
                                   float *z) {
-    double best = DBL_MAX;
-    int i, c, j, W = sb->width, off = 0;
+    refl__sbc_pick pick[2]; /* inside a quad, near one */
+    int i, c, j, k, W = sb->width;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
     const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
     const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
+    pick[0].zz = pick[1].zz = DBL_MAX;
+    pick[0].out = pick[1].out = DBL_MAX;
+    pick[0].off = pick[1].off = 0;
     for (i = 0; i < node->count; ++i) {
         const refl__sbc_quad *q = &sb->quads[node->first + i];
         refl__sbc_frame fr;
-        double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss, tt, wt[4], zz = 0.0, lm = 0.0;
+        double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss = 0.0, tt = 0.0, wt[4], zz = 0.0, lm = 0.0, o;
+        refl__sbc_pick *pk;
         double t0 = q->tau[0], t1 = q->tau[1];
         /* most quads miss p: a float test first, looser than its rounding
            (about 1e-6 of the coordinates' size), so it never drops a quad
@@ -1173,8 +1206,24 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
               y <= q->box[0][3] + f * ((double)q->box[1][3] - q->box[0][3])))
             continue;
         if (!refl__sbc_quad_slice(&fr, sb->rays, q->idx, W, tau, x4, y4, lam, len)) continue;
-        if (!refl__sbc_inv_bilinear(x4, y4, x, y, &ss, &tt)) continue;
+        /* the root least outside: inside within the exact tolerance, else
+           near when its clamped point lies within REFL__SBC_NEAR diagonals */
+        if (!refl__sbc_inv_bilinear(x4, y4, x, y, pick[0].zz < DBL_MAX ? REFL__SBC_TOL : 0.5, &ss, &tt, &o)) continue;
         wt[0] = (1.0 - ss) * (1.0 - tt); wt[1] = ss * (1.0 - tt); wt[2] = (1.0 - ss) * tt; wt[3] = ss * tt;
+        k = o > REFL__SBC_TOL;
+        o = 0.0;
+        if (k && pick[0].zz < DBL_MAX) continue; /* one inside wins */
+        if (k) {
+            double dx = x, dy = y, d1, d2;
+            for (c = 0; c < 4; ++c) {
+                dx -= wt[c] * x4[c];
+                dy -= wt[c] * y4[c];
+            }
+            d1 = (x4[3] - x4[0]) * (x4[3] - x4[0]) + (y4[3] - y4[0]) * (y4[3] - y4[0]);
+            d2 = (x4[2] - x4[1]) * (x4[2] - x4[1]) + (y4[2] - y4[1]) * (y4[2] - y4[1]);
+            o = (dx * dx + dy * dy) / REFL__MAX(d1, d2); /* squared: ranks alike */
+            if (!(o <= REFL__SBC_NEAR * REFL__SBC_NEAR)) continue;
+        }
         for (c = 0; c < 4; ++c) {
             zz += wt[c] * lam[c] * len[c];
             lm += wt[c] * lam[c];
@@ -1184,21 +1233,29 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
            surface (a knob on a lid lies at its own rays' tails, and also
            ahead of the lid's rays that meet it) */
         if (!(lm >= -1e-4)) continue;
-        if (off && lm < REFL__SBC_ON_SURFACE) continue;
-        if (!(zz < best) && !(!off && lm >= REFL__SBC_ON_SURFACE)) continue;
-        off = lm >= REFL__SBC_ON_SURFACE;
-        best = zz;
+        pk = &pick[k];
+        if (pk->off && lm < REFL__SBC_ON_SURFACE) continue;
+        if (!(!pk->off && lm >= REFL__SBC_ON_SURFACE)) {
+            if (o > pk->out) continue;
+            if (o == pk->out && !(zz < pk->zz)) continue;
+        }
+        pk->off = lm >= REFL__SBC_ON_SURFACE;
+        pk->zz = zz;
+        pk->out = o;
         {
             double fp[3] = {0.0, 0.0, 0.0};
             for (c = 0; c < 4; ++c) {
                 refl_vec3 r = sb->rays[q->idx + (c & 1) + (c >> 1) * W].first;
                 fp[0] += wt[c] * r.x; fp[1] += wt[c] * r.y; fp[2] += wt[c] * r.z;
             }
-            *first = refl_v3((float)fp[0], (float)fp[1], (float)fp[2]);
-            *z = (float)REFL__MAX(zz, 0.0);
+            pk->first = refl_v3((float)fp[0], (float)fp[1], (float)fp[2]);
         }
     }
-    return best < DBL_MAX;
+    k = pick[0].zz < DBL_MAX ? 0 : 1;
+    if (!(pick[k].zz < DBL_MAX)) return 0;
+    *first = pick[k].first;
+    *z = (float)REFL__MAX(pick[k].zz, 0.0);
+    return 1;
 }
 
 /* The leaf whose cell holds pd: down the tree by the side of each plane. */
