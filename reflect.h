@@ -5456,6 +5456,51 @@ struct refl_sbc {
     refl_sbc_stats stats;
 };
 
+/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the morphing
+   grids (cam_sbc_morph.c): one head rule for both ------------------------------ */
+
+/* What a reflected ray meets first: a scene triangle and the point; object
+   -1 for nothing. */
+typedef struct refl__sbc_hit {
+    int object, triangle;
+    refl_vec3 point;
+} refl__sbc_hit;
+
+#define REFL__SBC_REACH 2.0f /* a ray's head: this many times as far as what it hits */
+
+/* Where a ray from inside box [lo, hi] along d leaves it. */
+static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
+    float t = INFINITY, s;
+    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
+    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
+    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
+    return REFL__MAX(t, 0.0f);
+}
+
+/* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,
+   and that box's diagonal): tail = first = q, head REFL__SBC_REACH times as
+   far as what it meets plus 1% of the diagonal, or a tenth of the diagonal
+   when it meets nothing, within the box; what it meets in *met. 0 for a
+   ray of zero length. */
+static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, float diagonal, refl_vec3 q,
+                               refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
+    refl_hit hit;
+    float reach = refl__sbc_box_exit(lo, hi, q, r);
+    met->object = -1;
+    ray->tail = q;
+    ray->first = q;
+    if (refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
+        met->object = hit.object;
+        met->triangle = hit.triangle;
+        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
+        reach = REFL__MIN(reach, REFL__SBC_REACH * hit.t + 0.01f * diagonal);
+    } else {
+        reach = REFL__MIN(reach, 0.1f * diagonal);
+    }
+    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
+    return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+}
+
 /* ---- small double helpers ---------------------------------------------------- */
 
 static int refl__sbc_finite(double v) { return v - v == 0.0; }
@@ -6659,13 +6704,9 @@ REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
 #define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
 
-/* Where a node's ray meets the scene: runtime mode subdivides a scene
-   triangle towards such points (m_sbc.c's refl__sb_hit, same layout). */
-typedef struct refl__sbm_hit {
-    int object, triangle;
-    refl_vec3 point;
-} refl__sbm_hit;
-
+/* A node: per piece, where its rays meet the scene (refl__sbc_hit, as
+   runtime mode's groups keep them: it subdivides a scene triangle towards
+   such points), its ray ends, its SBCs per face. */
 typedef struct refl__sbm_node {
     refl_vec3 pos;
     int built;
@@ -6674,7 +6715,7 @@ typedef struct refl__sbm_node {
                                     direction times 127 (zero: no such ray), or NULL */
     int face;                    /* face samples per side (the maps have face + 2) */
     float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs), grown */
-    refl__sbm_hit **hits;        /* per piece: what its rays meet, in face and map order */
+    refl__sbc_hit **hits;        /* per piece: what its rays meet, in face and map order */
     int *hit_count;
     refl_vec3 **ends;            /* with check_ambiguous, during the build: per piece, its
                                     unextended rays' heads and points a tenth along from the tails */
@@ -6751,35 +6792,12 @@ static refl_vec3 refl__sbm_dir(const refl__sbm_build *b, refl_vec3 fw, refl_vec3
     return refl_v3_normalize(refl_v3_add(fw, refl_v3_add(refl_v3_scale(rt, x), refl_v3_scale(up, y))));
 }
 
-/* The distance along unit-free r from o (inside the box) to its exit. */
-static float refl__sbm_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 r) {
-    const float *pl = &lo.x, *ph = &hi.x, *po = &o.x, *pr = &r.x;
-    float t = INFINITY;
-    int k;
-    for (k = 0; k < 3; ++k)
-        if (pr[k] != 0.0f) t = REFL__MIN(t, ((pr[k] > 0.0f ? ph[k] : pl[k]) - po[k]) / pr[k]);
-    return t > 0.0f ? t : 0.0f;
-}
-
 /* The reflected ray at q (unit normal n towards the node, view direction d):
-   runtime mode's head rule. 0 for a ray of no length. */
+   runtime mode's head rule (refl__sbc_scene_ray). 0 for a ray of no length. */
 static int refl__sbm_ray(const refl__sbm_build *b, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
-                         refl__sbm_hit *met) {
+                         refl__sbc_hit *met) {
     refl_vec3 r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d; /* past grazing: straight on */
-    float reach = refl__sbm_box_exit(b->scene_lo, b->scene_hi, q, r);
-    refl_hit hit;
-    met->object = -1;
-    if (refl_bvh_intersect(b->scene_bvh, q, r, 1e-4f * b->diagonal, reach, &hit)) {
-        met->object = hit.object;
-        met->triangle = hit.triangle;
-        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
-        reach = REFL__MIN(reach, 2.0f * hit.t + 0.01f * b->diagonal);
-    } else {
-        reach = REFL__MIN(reach, 0.1f * b->diagonal);
-    }
-    ray->tail = ray->first = q;
-    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
-    return reach > 0.0f && refl__isfinite(reach);
+    return refl__sbc_scene_ray(b->scene_bvh, b->scene_lo, b->scene_hi, b->diagonal, q, r, ray, met);
 }
 
 /* Vertex a of triangle t, world. */
@@ -6790,7 +6808,7 @@ static refl_vec3 refl__sbm_vertex(const refl_sbc_morph *m, const float *arr, int
 
 /* The unit normal of a hit: interpolated (shading), and whether the hit
    is on the triangle's front (geometric normal against d). */
-static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h, refl_vec3 d, int *front) {
+static refl_vec3 refl__sbc_hit_normal(const refl_sbc_morph *m, const refl_hit *h, refl_vec3 d, int *front) {
     refl_vec3 a = refl__sbm_vertex(m, m->pos, h->triangle, 0), b = refl__sbm_vertex(m, m->pos, h->triangle, 1);
     refl_vec3 c = refl__sbm_vertex(m, m->pos, h->triangle, 2);
     refl_vec3 g = refl_v3_cross(refl_v3_sub(b, a), refl_v3_sub(c, a));
@@ -6804,7 +6822,7 @@ static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h
 /* One face of one node: every piece's rays (valid: 1 on the piece, k + 1
    on ring k) in rays/valid/normals, P maps of S samples each. */
 static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, refl_sbc_ray *rays, uint8_t *valid,
-                                refl_vec3 *normals, refl__sbm_hit *met, uint8_t *miss) {
+                                refl_vec3 *normals, refl__sbc_hit *met, uint8_t *miss) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
     const refl_sbc_morph *m = b->m;
     int W = b->face + 2, P = m->piece_count, i, j, k, ring, e;
@@ -6827,7 +6845,7 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
                 refl_vec3 n;
                 tmin = h.t;
                 if (valid[at]) continue;
-                n = refl__sbm_hit_normal(m, &h, d, &front);
+                n = refl__sbc_hit_normal(m, &h, d, &front);
                 valid[at] = 255; /* seen: later hits of the piece are hidden by this one */
                 if (!front) continue;
                 normals[at] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
@@ -6843,7 +6861,7 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
             uint8_t *vk = valid + (size_t)k * S;
             refl_sbc_ray *rk = rays + (size_t)k * S;
             refl_vec3 *nk = normals + (size_t)k * S;
-            refl__sbm_hit *mk = met + (size_t)k * S;
+            refl__sbc_hit *mk = met + (size_t)k * S;
             for (j = 0; j < W; ++j)
                 for (i = 0; i < W; ++i) {
                     size_t s = (size_t)j * (size_t)W + (size_t)i;
@@ -6879,22 +6897,6 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
         }
 }
 
-/* Appends elem (size bytes) to *arr of *count, capacity *cap; 0 when out of memory. */
-static int refl__sbm_push(const refl_allocator *al, void **arr, int *count, int *cap, size_t size, const void *elem) {
-    if (*count == *cap) {
-        int nc = *cap ? 2 * *cap : 256;
-        void *grown = nc > 0 && nc < INT_MAX / 2 ? refl__calloc(al, (size_t)nc, size) : NULL;
-        if (!grown) return 0;
-        if (*count) memcpy(grown, *arr, (size_t)*count * size);
-        refl__free(al, *arr);
-        *arr = grown;
-        *cap = nc;
-    }
-    memcpy((char *)*arr + (size_t)*count * size, elem, size);
-    ++*count;
-    return 1;
-}
-
 /* Builds node `index` (a job): per face, every piece's map and SBC. */
 static void refl__sbm_build_node(void *arg, int index) {
     const refl__sbm_build *b = (const refl__sbm_build *)arg;
@@ -6906,10 +6908,9 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, S * (size_t)P, sizeof(refl_sbc_ray));
     uint8_t *valid = (uint8_t *)refl__calloc(al, S * (size_t)P, 1);
     refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, S * (size_t)P, sizeof(refl_vec3));
-    refl__sbm_hit *met = (refl__sbm_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbm_hit));
+    refl__sbc_hit *met = (refl__sbc_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbc_hit));
     uint8_t *miss = (uint8_t *)refl__calloc(al, S, 1); /* per sample: the ray meets no piece */
-    int *cap = (int *)refl__calloc(al, 2 * (size_t)P, sizeof(int)); /* hits', then ends' */
-    nd->hits = (refl__sbm_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbm_hit *));
+    nd->hits = (refl__sbc_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbc_hit *));
     nd->hit_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
     nd->ends = (refl_vec3 **)refl__calloc(al, (size_t)P, sizeof(refl_vec3 *));
     nd->end_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
@@ -6917,7 +6918,8 @@ static void refl__sbm_build_node(void *arg, int index) {
     nd->dirs = (signed char **)refl__calloc(al, (size_t)P * 6, sizeof(signed char *));
     nd->face = b->face;
     nd->box = (float *)refl__calloc(al, (size_t)P * 6, sizeof(float));
-    if (!rays || !valid || !normals || !met || !miss || !cap || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count || !nd->sbc || !nd->dirs || !nd->box) {
+    if (!rays || !valid || !normals || !met || !miss || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count ||
+        !nd->sbc || !nd->dirs || !nd->box) {
         nd->result = REFL_ERROR_OUT_OF_MEMORY;
     } else {
         for (f = 0; f < 6 && nd->result == REFL_OK; ++f) {
@@ -6945,19 +6947,17 @@ static void refl__sbm_build_node(void *arg, int index) {
                     }
                 for (i = 0; i < S; ++i) {
                     const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
-                    const refl__sbm_hit *h = &met[(size_t)k * S + i];
+                    const refl__sbc_hit *h = &met[(size_t)k * S + i];
                     /* the tail itself lies on every node's frustums' floor, the
                        reflector: a tenth of the way along stands for it */
                     refl_vec3 near = refl_v3_add(ry->tail, refl_v3_scale(refl_v3_sub(ry->head, ry->tail), 0.1f));
+                    int *ends = &nd->end_count[k];
                     if (!valid[(size_t)k * S + i]) continue;
                     ++count;
-                    if ((h->object >= 0 && !refl__sbm_push(al, (void **)&nd->hits[k], &nd->hit_count[k], &cap[k],
-                                                             sizeof *h, h)) ||
+                    if ((h->object >= 0 && refl__push(al, (void **)&nd->hits[k], &nd->hit_count[k], sizeof *h, h) < 0) ||
                         (b->check && valid[(size_t)k * S + i] == 1 &&
-                         (!refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
-                                          &near) ||
-                          !refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
-                                          &ry->head)))) {
+                         (refl__push(al, (void **)&nd->ends[k], ends, sizeof(refl_vec3), &near) < 0 ||
+                          refl__push(al, (void **)&nd->ends[k], ends, sizeof(refl_vec3), &ry->head) < 0))) {
                         nd->result = REFL_ERROR_OUT_OF_MEMORY;
                         break;
                     }
@@ -7007,7 +7007,6 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl__free(al, normals);
     refl__free(al, met);
     refl__free(al, miss);
-    refl__free(al, cap);
 }
 
 REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
@@ -7296,7 +7295,7 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
         }
         m->stats.bytes += (long long)(12 * m->piece_count) * (long long)sizeof(float *);
         for (k = 0; m->nodes[i].hit_count && k < m->piece_count; ++k)
-            m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbm_hit);
+            m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbc_hit);
     }
     if (r != REFL_OK) goto fail;
     if (d.check_ambiguous) refl__sbm_check(m);
@@ -7349,8 +7348,8 @@ static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piec
 }
 
 /* The hits of piece `piece` at the eye's tetrahedron's nodes (of positive
-   weight), appended to out (room for refl__sbm_hit_total's count); how many. */
-static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbm_hit *out) {
+   weight), appended to out (room for refl__sbc_hit_total's count); how many. */
+static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbc_hit *out) {
     int nodes[4], k, n = 0;
     float w[4];
     if (refl_sbc_morph_locate(m, eye, nodes, w) < 0) return 0;
@@ -7418,7 +7417,7 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
     int front;
     if (!morph) return -1;
     if (!refl_bvh_intersect(morph->bvh, origin, dir, 0.0f, INFINITY, &h)) return -1;
-    refl__sbm_hit_normal(morph, &h, dir, &front);
+    refl__sbc_hit_normal(morph, &h, dir, &front);
     return front ? morph->piece[h.triangle] : -1;
 }
 
@@ -11769,16 +11768,8 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
-#define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
 #define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
-
-/* What a reflected ray meets first: a scene triangle and the point; object
-   -1 for nothing. */
-typedef struct refl__sb_hit {
-    int object, triangle;
-    refl_vec3 point;
-} refl__sb_hit;
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
@@ -11790,7 +11781,7 @@ typedef struct refl__sb_side {
     int kind;                     /* 0 reflected; 1 refracted through the glass of `parent`;
                                      2 refracted into it, meeting a surface inside */
     refl_sbc_ray *rays;
-    refl__sb_hit *hits;           /* per sample: what its ray meets */
+    refl__sbc_hit *hits;           /* per sample: what its ray meets */
     uint8_t *valid;               /* 1: the sample shows the side, with a ray */
     refl_vec3 *normals;           /* per sample, towards the viewer */
     int *comp;                    /* per sample: its smooth piece (refl__sb_pieces), -1: none */
@@ -11807,7 +11798,7 @@ typedef struct refl__sb_group {
     refl_sbc *sbc;
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
     refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
-    refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
+    refl__sbc_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
     const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
@@ -11895,15 +11886,6 @@ static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
     return NULL;
 }
 
-/* Where a ray from inside the box leaves it. */
-static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t = INFINITY, s;
-    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
-    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
-    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
-    return REFL__MAX(t, 0.0f);
-}
-
 /* The ray map sample (u, v)'s pixel. */
 static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int *y) {
     const refl_frame *fr = sb->p->frame;
@@ -11912,30 +11894,16 @@ static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int 
 }
 
 /* The ray from q along r (tail = first = q), its head clipped as the
-   module comment says, and what it meets first in *met; 0 for a ray of
-   zero length. */
-static int refl__sb_ray_dir(const refl__sb *sb, refl_vec3 q, refl_vec3 r, refl_sbc_ray *ray, refl__sb_hit *met) {
-    refl_hit hit;
-    float reach;
-    met->object = -1;
-    ray->tail = q;
-    ray->first = q;
-    reach = refl__sb_exit(sb->box_lo, sb->box_hi, q, r);
-    if (refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, reach, &hit)) {
-        met->object = hit.object;
-        met->triangle = hit.triangle;
-        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
-        reach = REFL__MIN(reach, REFL__SB_REACH * hit.t + 0.01f * sb->diagonal);
-    } else
-        reach = REFL__MIN(reach, 0.1f * sb->diagonal);
-    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
-    return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+   module comment says (refl__sbc_scene_ray), and what it meets first in
+   *met; 0 for a ray of zero length. */
+static int refl__sb_ray_dir(const refl__sb *sb, refl_vec3 q, refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
+    return refl__sbc_scene_ray(sb->bvh, sb->box_lo, sb->box_hi, sb->diagonal, q, r, ray, met);
 }
 
 /* The reflected ray of surface point q with normal n (towards the
    viewer) seen along view direction d (refl__sb_ray_dir). */
 static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
-                        refl__sb_hit *met) {
+                        refl__sbc_hit *met) {
     n = refl_v3_normalize(n);
     /* a normal turned past grazing (extrapolated beyond a silhouette)
        reflects as the limit does: straight on, not back */
@@ -11951,7 +11919,7 @@ static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIR
 /* What a path from o along unit d meets first among the mirrors and glass
    (h->object: the scene's index), within the scene's box. */
 static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
-    float reach = refl__sb_exit(sb->box_lo, sb->box_hi, o, d);
+    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d);
     if (!sb->mirrors || !refl_bvh_intersect(sb->mirrors, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
     h->object = sb->mirror_object[h->object];
     return 1;
@@ -12290,7 +12258,7 @@ static void refl__sb_map_side(void *arg, int job) {
     size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
     sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
     sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    sd->hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    sd->hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
     sd->valid = (uint8_t *)refl__calloc(al, n, 1);
     sd->comp = (int *)refl__calloc(al, n, sizeof(int));
     sd->group = (int *)refl__calloc(al, n, sizeof(int));
@@ -12307,7 +12275,7 @@ static void refl__sb_map_side(void *arg, int job) {
    first reflector point alike); 0 when (u2, v2) is none. Those rays are no
    reflections of a surface the view sees, so the first order's
    tangent-plane rule has nothing to extend. */
-static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit *hits, const uint8_t *valid,
+static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sbc_hit *hits, const uint8_t *valid,
                                 size_t m, size_t m1, int u2, int v2) {
     const refl_sbc_ray *a = &rays[m1], *b;
     if (u2 < 0 || v2 < 0 || u2 >= mw || v2 >= mh || valid[(size_t)v2 * (size_t)mw + (size_t)u2] != 1) return 0;
@@ -12329,7 +12297,7 @@ static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit
    reflectors"), wherever the piece ends: at a silhouette, a crease, or a
    surface passing in front. Past the first order: refl__sb_ring_linear. */
 static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp, int u0, int v0, int mw, int mh,
-                          refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
+                          refl_sbc_ray *rays, refl__sbc_hit *hits, uint8_t *valid) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
     const refl__pass *p = sb->p;
     int u, v, k;
@@ -12378,24 +12346,24 @@ static void refl__sb_box_add(refl_vec3 *lo, refl_vec3 *hi, refl_vec3 p) {
     hi->x = REFL__MAX(hi->x, p.x); hi->y = REFL__MAX(hi->y, p.y); hi->z = REFL__MAX(hi->z, p.z);
 }
 
-static int refl__sb_hit_before(const refl__sb_hit *a, const refl__sb_hit *b) {
+static int refl__sbc_hit_before(const refl__sbc_hit *a, const refl__sbc_hit *b) {
     return a->object < b->object || (a->object == b->object && a->triangle < b->triangle);
 }
 
 /* Sorts n hits from a into out by object and triangle, stably (a
    bottom-up merge sort; a is scratch). */
-static void refl__sb_sort_hits(refl__sb_hit *a, refl__sb_hit *out, int n) {
+static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     int width, i;
-    refl__sb_hit *src = a, *dst = out, *t;
+    refl__sbc_hit *src = a, *dst = out, *t;
     for (width = 1; width < n; width *= 2) {
         for (i = 0; i < n; i += 2 * width) {
             int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
             while (l < m || r < e)
-                dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+                dst[o++] = r >= e || (l < m && !refl__sbc_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
         }
         t = src; src = dst; dst = t;
     }
-    if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sb_hit));
+    if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
 /* Builds group g's tree from its piece's rays in its tile grown by one
@@ -12411,7 +12379,7 @@ static void refl__sb_build_group(void *arg, int g) {
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    refl__sb_hit *hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    refl__sbc_hit *hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
     uint8_t *valid = (uint8_t *)refl__calloc(al, n, 1);
     refl_sbc_desc d;
     refl_vec3 grow;
@@ -12450,7 +12418,7 @@ static void refl__sb_build_group(void *arg, int g) {
         gr->first_lo = refl_v3_sub(gr->first_lo, grow);
         gr->first_hi = refl_v3_add(gr->first_hi, grow);
         /* by object and triangle, ties in map order (a stable merge: qsort is not) */
-        if (met && (gr->hits = (refl__sb_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sb_hit))) != NULL) {
+        if (met && (gr->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sbc_hit))) != NULL) {
             refl__sb_sort_hits(hits, gr->hits, met);
             gr->hit_count = met;
         } else if (met) {
@@ -12533,7 +12501,8 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     /* ahead along the reflected ray of the sample it lands on: a leaf's
        frustum starts at an image plane fitted to the tails, so it can reach
        just behind a curved mirror, where nothing is reflected */
-    if (landed && !(refl_v3_dot(refl_v3_sub(v->world, v->from), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
+    if (landed &&
+        !(refl_v3_dot(refl_v3_sub(v->world, v->from), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
         return;
     v->ok = 1;
 }
@@ -12604,7 +12573,7 @@ static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, cons
 typedef struct refl__sb_tri {
     int self;
     float edge;
-    const refl__sb_hit *hits;
+    const refl__sbc_hit *hits;
     int hit_count;
 } refl__sb_tri;
 
@@ -12712,7 +12681,7 @@ static void refl__sb_emit_job(void *arg, int index) {
     /* the group's hits on this job's triangles start at the first not before (object, first) */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        const refl__sb_hit *h = &g->hits[mid];
+        const refl__sbc_hit *h = &g->hits[mid];
         if (h->object < j->object || (h->object == j->object && h->triangle < j->first)) lo = mid + 1;
         else hi = mid;
     }
@@ -13167,8 +13136,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
     size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
     int o, add = 0, piece, ins = 0, i;
     refl__sb_group *groups;
-    refl__sb_hit *scratch;
-    refl__sbm_hit *found;
+    refl__sbc_hit *scratch;
     sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
     if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
     for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
@@ -13221,20 +13189,13 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
             if (!g->hit_count) continue;
-            g->hits = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
-            scratch = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
-            found = (refl__sbm_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbm_hit));
-            if (g->hits && scratch && found) {
-                refl__sbm_tet_hits(m, p->view->eye, piece, found);
-                for (k = 0; k < (size_t)g->hit_count; ++k) {
-                    scratch[k].object = found[k].object;
-                    scratch[k].triangle = found[k].triangle;
-                    scratch[k].point = found[k].point;
-                }
+            g->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            scratch = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            if (g->hits && scratch) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, scratch);
                 refl__sb_sort_hits(scratch, g->hits, g->hit_count);
             }
             refl__free(al, scratch);
-            refl__free(al, found);
             if (!g->hits) {
                 sb->group_count += add; /* freed with the others */
                 return REFL_ERROR_OUT_OF_MEMORY;
@@ -13586,8 +13547,7 @@ static void refl__sb_measure_row(void *arg, int y) {
             ms->own_kind[i] = (uint8_t)(k == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
             if (k != REFL_SBC_LEAF_NONE) {
                 refl__sb_project(sb, &sb->groups[own], &v);
-                if (v.ok) ms->own_error[i] = sqrt(((double)v.sx - ((double)x + 0.5)) * ((double)v.sx - ((double)x + 0.5)) +
-                                                  ((double)v.sy - ((double)y + 0.5)) * ((double)v.sy - ((double)y + 0.5)));
+                if (v.ok) ms->own_error[i] = hypot((double)v.sx - ((double)x + 0.5), (double)v.sy - ((double)y + 0.5));
             }
         }
         for (c = ms->cell_start[cell]; c < ms->cell_start[cell + 1]; ++c) {
@@ -13708,8 +13668,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
         for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
             int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
             sb.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch0]);
-            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer;)
-                ++sb.batch1;
+            sb.batch1 = sb.batch0 + 1;
+            while (sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer) ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
                 fr->stats.projections += sb.jobs[i].projections;

@@ -147,6 +147,51 @@ struct refl_sbc {
     refl_sbc_stats stats;
 };
 
+/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the morphing
+   grids (cam_sbc_morph.c): one head rule for both ------------------------------ */
+
+/* What a reflected ray meets first: a scene triangle and the point; object
+   -1 for nothing. */
+typedef struct refl__sbc_hit {
+    int object, triangle;
+    refl_vec3 point;
+} refl__sbc_hit;
+
+#define REFL__SBC_REACH 2.0f /* a ray's head: this many times as far as what it hits */
+
+/* Where a ray from inside box [lo, hi] along d leaves it. */
+static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
+    float t = INFINITY, s;
+    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
+    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
+    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
+    return REFL__MAX(t, 0.0f);
+}
+
+/* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,
+   and that box's diagonal): tail = first = q, head REFL__SBC_REACH times as
+   far as what it meets plus 1% of the diagonal, or a tenth of the diagonal
+   when it meets nothing, within the box; what it meets in *met. 0 for a
+   ray of zero length. */
+static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, float diagonal, refl_vec3 q,
+                               refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
+    refl_hit hit;
+    float reach = refl__sbc_box_exit(lo, hi, q, r);
+    met->object = -1;
+    ray->tail = q;
+    ray->first = q;
+    if (refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
+        met->object = hit.object;
+        met->triangle = hit.triangle;
+        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
+        reach = REFL__MIN(reach, REFL__SBC_REACH * hit.t + 0.01f * diagonal);
+    } else {
+        reach = REFL__MIN(reach, 0.1f * diagonal);
+    }
+    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
+    return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+}
+
 /* ---- small double helpers ---------------------------------------------------- */
 
 static int refl__sbc_finite(double v) { return v - v == 0.0; }

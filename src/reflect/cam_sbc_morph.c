@@ -56,13 +56,9 @@
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
 #define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
 
-/* Where a node's ray meets the scene: runtime mode subdivides a scene
-   triangle towards such points (m_sbc.c's refl__sb_hit, same layout). */
-typedef struct refl__sbm_hit {
-    int object, triangle;
-    refl_vec3 point;
-} refl__sbm_hit;
-
+/* A node: per piece, where its rays meet the scene (refl__sbc_hit, as
+   runtime mode's groups keep them: it subdivides a scene triangle towards
+   such points), its ray ends, its SBCs per face. */
 typedef struct refl__sbm_node {
     refl_vec3 pos;
     int built;
@@ -71,7 +67,7 @@ typedef struct refl__sbm_node {
                                     direction times 127 (zero: no such ray), or NULL */
     int face;                    /* face samples per side (the maps have face + 2) */
     float *box;                  /* per piece: its rays' tails' and heads' box (lows, highs), grown */
-    refl__sbm_hit **hits;        /* per piece: what its rays meet, in face and map order */
+    refl__sbc_hit **hits;        /* per piece: what its rays meet, in face and map order */
     int *hit_count;
     refl_vec3 **ends;            /* with check_ambiguous, during the build: per piece, its
                                     unextended rays' heads and points a tenth along from the tails */
@@ -148,35 +144,12 @@ static refl_vec3 refl__sbm_dir(const refl__sbm_build *b, refl_vec3 fw, refl_vec3
     return refl_v3_normalize(refl_v3_add(fw, refl_v3_add(refl_v3_scale(rt, x), refl_v3_scale(up, y))));
 }
 
-/* The distance along unit-free r from o (inside the box) to its exit. */
-static float refl__sbm_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 r) {
-    const float *pl = &lo.x, *ph = &hi.x, *po = &o.x, *pr = &r.x;
-    float t = INFINITY;
-    int k;
-    for (k = 0; k < 3; ++k)
-        if (pr[k] != 0.0f) t = REFL__MIN(t, ((pr[k] > 0.0f ? ph[k] : pl[k]) - po[k]) / pr[k]);
-    return t > 0.0f ? t : 0.0f;
-}
-
 /* The reflected ray at q (unit normal n towards the node, view direction d):
-   runtime mode's head rule. 0 for a ray of no length. */
+   runtime mode's head rule (refl__sbc_scene_ray). 0 for a ray of no length. */
 static int refl__sbm_ray(const refl__sbm_build *b, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
-                         refl__sbm_hit *met) {
+                         refl__sbc_hit *met) {
     refl_vec3 r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d; /* past grazing: straight on */
-    float reach = refl__sbm_box_exit(b->scene_lo, b->scene_hi, q, r);
-    refl_hit hit;
-    met->object = -1;
-    if (refl_bvh_intersect(b->scene_bvh, q, r, 1e-4f * b->diagonal, reach, &hit)) {
-        met->object = hit.object;
-        met->triangle = hit.triangle;
-        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
-        reach = REFL__MIN(reach, 2.0f * hit.t + 0.01f * b->diagonal);
-    } else {
-        reach = REFL__MIN(reach, 0.1f * b->diagonal);
-    }
-    ray->tail = ray->first = q;
-    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
-    return reach > 0.0f && refl__isfinite(reach);
+    return refl__sbc_scene_ray(b->scene_bvh, b->scene_lo, b->scene_hi, b->diagonal, q, r, ray, met);
 }
 
 /* Vertex a of triangle t, world. */
@@ -187,7 +160,7 @@ static refl_vec3 refl__sbm_vertex(const refl_sbc_morph *m, const float *arr, int
 
 /* The unit normal of a hit: interpolated (shading), and whether the hit
    is on the triangle's front (geometric normal against d). */
-static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h, refl_vec3 d, int *front) {
+static refl_vec3 refl__sbc_hit_normal(const refl_sbc_morph *m, const refl_hit *h, refl_vec3 d, int *front) {
     refl_vec3 a = refl__sbm_vertex(m, m->pos, h->triangle, 0), b = refl__sbm_vertex(m, m->pos, h->triangle, 1);
     refl_vec3 c = refl__sbm_vertex(m, m->pos, h->triangle, 2);
     refl_vec3 g = refl_v3_cross(refl_v3_sub(b, a), refl_v3_sub(c, a));
@@ -201,7 +174,7 @@ static refl_vec3 refl__sbm_hit_normal(const refl_sbc_morph *m, const refl_hit *h
 /* One face of one node: every piece's rays (valid: 1 on the piece, k + 1
    on ring k) in rays/valid/normals, P maps of S samples each. */
 static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, refl_sbc_ray *rays, uint8_t *valid,
-                                refl_vec3 *normals, refl__sbm_hit *met, uint8_t *miss) {
+                                refl_vec3 *normals, refl__sbc_hit *met, uint8_t *miss) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
     const refl_sbc_morph *m = b->m;
     int W = b->face + 2, P = m->piece_count, i, j, k, ring, e;
@@ -224,7 +197,7 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
                 refl_vec3 n;
                 tmin = h.t;
                 if (valid[at]) continue;
-                n = refl__sbm_hit_normal(m, &h, d, &front);
+                n = refl__sbc_hit_normal(m, &h, d, &front);
                 valid[at] = 255; /* seen: later hits of the piece are hidden by this one */
                 if (!front) continue;
                 normals[at] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
@@ -240,7 +213,7 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
             uint8_t *vk = valid + (size_t)k * S;
             refl_sbc_ray *rk = rays + (size_t)k * S;
             refl_vec3 *nk = normals + (size_t)k * S;
-            refl__sbm_hit *mk = met + (size_t)k * S;
+            refl__sbc_hit *mk = met + (size_t)k * S;
             for (j = 0; j < W; ++j)
                 for (i = 0; i < W; ++i) {
                     size_t s = (size_t)j * (size_t)W + (size_t)i;
@@ -276,22 +249,6 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
         }
 }
 
-/* Appends elem (size bytes) to *arr of *count, capacity *cap; 0 when out of memory. */
-static int refl__sbm_push(const refl_allocator *al, void **arr, int *count, int *cap, size_t size, const void *elem) {
-    if (*count == *cap) {
-        int nc = *cap ? 2 * *cap : 256;
-        void *grown = nc > 0 && nc < INT_MAX / 2 ? refl__calloc(al, (size_t)nc, size) : NULL;
-        if (!grown) return 0;
-        if (*count) memcpy(grown, *arr, (size_t)*count * size);
-        refl__free(al, *arr);
-        *arr = grown;
-        *cap = nc;
-    }
-    memcpy((char *)*arr + (size_t)*count * size, elem, size);
-    ++*count;
-    return 1;
-}
-
 /* Builds node `index` (a job): per face, every piece's map and SBC. */
 static void refl__sbm_build_node(void *arg, int index) {
     const refl__sbm_build *b = (const refl__sbm_build *)arg;
@@ -303,10 +260,9 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, S * (size_t)P, sizeof(refl_sbc_ray));
     uint8_t *valid = (uint8_t *)refl__calloc(al, S * (size_t)P, 1);
     refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, S * (size_t)P, sizeof(refl_vec3));
-    refl__sbm_hit *met = (refl__sbm_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbm_hit));
+    refl__sbc_hit *met = (refl__sbc_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbc_hit));
     uint8_t *miss = (uint8_t *)refl__calloc(al, S, 1); /* per sample: the ray meets no piece */
-    int *cap = (int *)refl__calloc(al, 2 * (size_t)P, sizeof(int)); /* hits', then ends' */
-    nd->hits = (refl__sbm_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbm_hit *));
+    nd->hits = (refl__sbc_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbc_hit *));
     nd->hit_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
     nd->ends = (refl_vec3 **)refl__calloc(al, (size_t)P, sizeof(refl_vec3 *));
     nd->end_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
@@ -314,7 +270,8 @@ static void refl__sbm_build_node(void *arg, int index) {
     nd->dirs = (signed char **)refl__calloc(al, (size_t)P * 6, sizeof(signed char *));
     nd->face = b->face;
     nd->box = (float *)refl__calloc(al, (size_t)P * 6, sizeof(float));
-    if (!rays || !valid || !normals || !met || !miss || !cap || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count || !nd->sbc || !nd->dirs || !nd->box) {
+    if (!rays || !valid || !normals || !met || !miss || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count ||
+        !nd->sbc || !nd->dirs || !nd->box) {
         nd->result = REFL_ERROR_OUT_OF_MEMORY;
     } else {
         for (f = 0; f < 6 && nd->result == REFL_OK; ++f) {
@@ -342,19 +299,17 @@ static void refl__sbm_build_node(void *arg, int index) {
                     }
                 for (i = 0; i < S; ++i) {
                     const refl_sbc_ray *ry = &rays[(size_t)k * S + i];
-                    const refl__sbm_hit *h = &met[(size_t)k * S + i];
+                    const refl__sbc_hit *h = &met[(size_t)k * S + i];
                     /* the tail itself lies on every node's frustums' floor, the
                        reflector: a tenth of the way along stands for it */
                     refl_vec3 near = refl_v3_add(ry->tail, refl_v3_scale(refl_v3_sub(ry->head, ry->tail), 0.1f));
+                    int *ends = &nd->end_count[k];
                     if (!valid[(size_t)k * S + i]) continue;
                     ++count;
-                    if ((h->object >= 0 && !refl__sbm_push(al, (void **)&nd->hits[k], &nd->hit_count[k], &cap[k],
-                                                             sizeof *h, h)) ||
+                    if ((h->object >= 0 && refl__push(al, (void **)&nd->hits[k], &nd->hit_count[k], sizeof *h, h) < 0) ||
                         (b->check && valid[(size_t)k * S + i] == 1 &&
-                         (!refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
-                                          &near) ||
-                          !refl__sbm_push(al, (void **)&nd->ends[k], &nd->end_count[k], &cap[P + k], sizeof(refl_vec3),
-                                          &ry->head)))) {
+                         (refl__push(al, (void **)&nd->ends[k], ends, sizeof(refl_vec3), &near) < 0 ||
+                          refl__push(al, (void **)&nd->ends[k], ends, sizeof(refl_vec3), &ry->head) < 0))) {
                         nd->result = REFL_ERROR_OUT_OF_MEMORY;
                         break;
                     }
@@ -404,7 +359,6 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl__free(al, normals);
     refl__free(al, met);
     refl__free(al, miss);
-    refl__free(al, cap);
 }
 
 REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
@@ -693,7 +647,7 @@ REFL_API refl_result refl_sbc_morph_build(const refl_scene *scene, int object, c
         }
         m->stats.bytes += (long long)(12 * m->piece_count) * (long long)sizeof(float *);
         for (k = 0; m->nodes[i].hit_count && k < m->piece_count; ++k)
-            m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbm_hit);
+            m->stats.bytes += (long long)m->nodes[i].hit_count[k] * (long long)sizeof(refl__sbc_hit);
     }
     if (r != REFL_OK) goto fail;
     if (d.check_ambiguous) refl__sbm_check(m);
@@ -746,8 +700,8 @@ static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piec
 }
 
 /* The hits of piece `piece` at the eye's tetrahedron's nodes (of positive
-   weight), appended to out (room for refl__sbm_hit_total's count); how many. */
-static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbm_hit *out) {
+   weight), appended to out (room for refl__sbc_hit_total's count); how many. */
+static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbc_hit *out) {
     int nodes[4], k, n = 0;
     float w[4];
     if (refl_sbc_morph_locate(m, eye, nodes, w) < 0) return 0;
@@ -815,7 +769,7 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
     int front;
     if (!morph) return -1;
     if (!refl_bvh_intersect(morph->bvh, origin, dir, 0.0f, INFINITY, &h)) return -1;
-    refl__sbm_hit_normal(morph, &h, dir, &front);
+    refl__sbc_hit_normal(morph, &h, dir, &front);
     return front ? morph->piece[h.triangle] : -1;
 }
 

@@ -121,16 +121,8 @@
 #define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
 #define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
-#define REFL__SB_REACH 2.0f         /* a ray's head: this many times as far as what it hits */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
 #define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
-
-/* What a reflected ray meets first: a scene triangle and the point; object
-   -1 for nothing. */
-typedef struct refl__sb_hit {
-    int object, triangle;
-    refl_vec3 point;
-} refl__sb_hit;
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
@@ -142,7 +134,7 @@ typedef struct refl__sb_side {
     int kind;                     /* 0 reflected; 1 refracted through the glass of `parent`;
                                      2 refracted into it, meeting a surface inside */
     refl_sbc_ray *rays;
-    refl__sb_hit *hits;           /* per sample: what its ray meets */
+    refl__sbc_hit *hits;           /* per sample: what its ray meets */
     uint8_t *valid;               /* 1: the sample shows the side, with a ray */
     refl_vec3 *normals;           /* per sample, towards the viewer */
     int *comp;                    /* per sample: its smooth piece (refl__sb_pieces), -1: none */
@@ -159,7 +151,7 @@ typedef struct refl__sb_group {
     refl_sbc *sbc;
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
     refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
-    refl__sb_hit *hits;           /* what its rays meet, by object and triangle */
+    refl__sbc_hit *hits;           /* what its rays meet, by object and triangle */
     int hit_count;
     refl_result result;
     const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
@@ -247,15 +239,6 @@ static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
     return NULL;
 }
 
-/* Where a ray from inside the box leaves it. */
-static float refl__sb_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t = INFINITY, s;
-    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
-    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
-    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
-    return REFL__MAX(t, 0.0f);
-}
-
 /* The ray map sample (u, v)'s pixel. */
 static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int *y) {
     const refl_frame *fr = sb->p->frame;
@@ -264,30 +247,16 @@ static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int 
 }
 
 /* The ray from q along r (tail = first = q), its head clipped as the
-   module comment says, and what it meets first in *met; 0 for a ray of
-   zero length. */
-static int refl__sb_ray_dir(const refl__sb *sb, refl_vec3 q, refl_vec3 r, refl_sbc_ray *ray, refl__sb_hit *met) {
-    refl_hit hit;
-    float reach;
-    met->object = -1;
-    ray->tail = q;
-    ray->first = q;
-    reach = refl__sb_exit(sb->box_lo, sb->box_hi, q, r);
-    if (refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, reach, &hit)) {
-        met->object = hit.object;
-        met->triangle = hit.triangle;
-        met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
-        reach = REFL__MIN(reach, REFL__SB_REACH * hit.t + 0.01f * sb->diagonal);
-    } else
-        reach = REFL__MIN(reach, 0.1f * sb->diagonal);
-    ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
-    return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
+   module comment says (refl__sbc_scene_ray), and what it meets first in
+   *met; 0 for a ray of zero length. */
+static int refl__sb_ray_dir(const refl__sb *sb, refl_vec3 q, refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
+    return refl__sbc_scene_ray(sb->bvh, sb->box_lo, sb->box_hi, sb->diagonal, q, r, ray, met);
 }
 
 /* The reflected ray of surface point q with normal n (towards the
    viewer) seen along view direction d (refl__sb_ray_dir). */
 static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
-                        refl__sb_hit *met) {
+                        refl__sbc_hit *met) {
     n = refl_v3_normalize(n);
     /* a normal turned past grazing (extrapolated beyond a silhouette)
        reflects as the limit does: straight on, not back */
@@ -303,7 +272,7 @@ static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIR
 /* What a path from o along unit d meets first among the mirrors and glass
    (h->object: the scene's index), within the scene's box. */
 static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
-    float reach = refl__sb_exit(sb->box_lo, sb->box_hi, o, d);
+    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d);
     if (!sb->mirrors || !refl_bvh_intersect(sb->mirrors, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
     h->object = sb->mirror_object[h->object];
     return 1;
@@ -642,7 +611,7 @@ static void refl__sb_map_side(void *arg, int job) {
     size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
     sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
     sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    sd->hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    sd->hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
     sd->valid = (uint8_t *)refl__calloc(al, n, 1);
     sd->comp = (int *)refl__calloc(al, n, sizeof(int));
     sd->group = (int *)refl__calloc(al, n, sizeof(int));
@@ -659,7 +628,7 @@ static void refl__sb_map_side(void *arg, int job) {
    first reflector point alike); 0 when (u2, v2) is none. Those rays are no
    reflections of a surface the view sees, so the first order's
    tangent-plane rule has nothing to extend. */
-static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit *hits, const uint8_t *valid,
+static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sbc_hit *hits, const uint8_t *valid,
                                 size_t m, size_t m1, int u2, int v2) {
     const refl_sbc_ray *a = &rays[m1], *b;
     if (u2 < 0 || v2 < 0 || u2 >= mw || v2 >= mh || valid[(size_t)v2 * (size_t)mw + (size_t)u2] != 1) return 0;
@@ -681,7 +650,7 @@ static int refl__sb_ring_linear(int mw, int mh, refl_sbc_ray *rays, refl__sb_hit
    reflectors"), wherever the piece ends: at a silhouette, a crease, or a
    surface passing in front. Past the first order: refl__sb_ring_linear. */
 static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp, int u0, int v0, int mw, int mh,
-                          refl_sbc_ray *rays, refl__sb_hit *hits, uint8_t *valid) {
+                          refl_sbc_ray *rays, refl__sbc_hit *hits, uint8_t *valid) {
     static const int du[8] = {-1, 1, 0, 0, -1, 1, -1, 1}, dv[8] = {0, 0, -1, 1, -1, -1, 1, 1};
     const refl__pass *p = sb->p;
     int u, v, k;
@@ -730,24 +699,24 @@ static void refl__sb_box_add(refl_vec3 *lo, refl_vec3 *hi, refl_vec3 p) {
     hi->x = REFL__MAX(hi->x, p.x); hi->y = REFL__MAX(hi->y, p.y); hi->z = REFL__MAX(hi->z, p.z);
 }
 
-static int refl__sb_hit_before(const refl__sb_hit *a, const refl__sb_hit *b) {
+static int refl__sbc_hit_before(const refl__sbc_hit *a, const refl__sbc_hit *b) {
     return a->object < b->object || (a->object == b->object && a->triangle < b->triangle);
 }
 
 /* Sorts n hits from a into out by object and triangle, stably (a
    bottom-up merge sort; a is scratch). */
-static void refl__sb_sort_hits(refl__sb_hit *a, refl__sb_hit *out, int n) {
+static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     int width, i;
-    refl__sb_hit *src = a, *dst = out, *t;
+    refl__sbc_hit *src = a, *dst = out, *t;
     for (width = 1; width < n; width *= 2) {
         for (i = 0; i < n; i += 2 * width) {
             int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
             while (l < m || r < e)
-                dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+                dst[o++] = r >= e || (l < m && !refl__sbc_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
         }
         t = src; src = dst; dst = t;
     }
-    if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sb_hit));
+    if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
 /* Builds group g's tree from its piece's rays in its tile grown by one
@@ -763,7 +732,7 @@ static void refl__sb_build_group(void *arg, int g) {
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    refl__sb_hit *hits = (refl__sb_hit *)refl__calloc(al, n, sizeof(refl__sb_hit));
+    refl__sbc_hit *hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
     uint8_t *valid = (uint8_t *)refl__calloc(al, n, 1);
     refl_sbc_desc d;
     refl_vec3 grow;
@@ -802,7 +771,7 @@ static void refl__sb_build_group(void *arg, int g) {
         gr->first_lo = refl_v3_sub(gr->first_lo, grow);
         gr->first_hi = refl_v3_add(gr->first_hi, grow);
         /* by object and triangle, ties in map order (a stable merge: qsort is not) */
-        if (met && (gr->hits = (refl__sb_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sb_hit))) != NULL) {
+        if (met && (gr->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)met, sizeof(refl__sbc_hit))) != NULL) {
             refl__sb_sort_hits(hits, gr->hits, met);
             gr->hit_count = met;
         } else if (met) {
@@ -885,7 +854,8 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     /* ahead along the reflected ray of the sample it lands on: a leaf's
        frustum starts at an image plane fitted to the tails, so it can reach
        just behind a curved mirror, where nothing is reflected */
-    if (landed && !(refl_v3_dot(refl_v3_sub(v->world, v->from), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
+    if (landed &&
+        !(refl_v3_dot(refl_v3_sub(v->world, v->from), refl_v3_sub(sd->rays[at].head, sd->rays[at].tail)) > 0.0f))
         return;
     v->ok = 1;
 }
@@ -956,7 +926,7 @@ static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, cons
 typedef struct refl__sb_tri {
     int self;
     float edge;
-    const refl__sb_hit *hits;
+    const refl__sbc_hit *hits;
     int hit_count;
 } refl__sb_tri;
 
@@ -1064,7 +1034,7 @@ static void refl__sb_emit_job(void *arg, int index) {
     /* the group's hits on this job's triangles start at the first not before (object, first) */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        const refl__sb_hit *h = &g->hits[mid];
+        const refl__sbc_hit *h = &g->hits[mid];
         if (h->object < j->object || (h->object == j->object && h->triangle < j->first)) lo = mid + 1;
         else hi = mid;
     }
@@ -1519,8 +1489,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
     size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
     int o, add = 0, piece, ins = 0, i;
     refl__sb_group *groups;
-    refl__sb_hit *scratch;
-    refl__sbm_hit *found;
+    refl__sbc_hit *scratch;
     sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
     if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
     for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
@@ -1573,20 +1542,13 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
             if (!g->hit_count) continue;
-            g->hits = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
-            scratch = (refl__sb_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sb_hit));
-            found = (refl__sbm_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbm_hit));
-            if (g->hits && scratch && found) {
-                refl__sbm_tet_hits(m, p->view->eye, piece, found);
-                for (k = 0; k < (size_t)g->hit_count; ++k) {
-                    scratch[k].object = found[k].object;
-                    scratch[k].triangle = found[k].triangle;
-                    scratch[k].point = found[k].point;
-                }
+            g->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            scratch = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            if (g->hits && scratch) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, scratch);
                 refl__sb_sort_hits(scratch, g->hits, g->hit_count);
             }
             refl__free(al, scratch);
-            refl__free(al, found);
             if (!g->hits) {
                 sb->group_count += add; /* freed with the others */
                 return REFL_ERROR_OUT_OF_MEMORY;
@@ -1938,8 +1900,7 @@ static void refl__sb_measure_row(void *arg, int y) {
             ms->own_kind[i] = (uint8_t)(k == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
             if (k != REFL_SBC_LEAF_NONE) {
                 refl__sb_project(sb, &sb->groups[own], &v);
-                if (v.ok) ms->own_error[i] = sqrt(((double)v.sx - ((double)x + 0.5)) * ((double)v.sx - ((double)x + 0.5)) +
-                                                  ((double)v.sy - ((double)y + 0.5)) * ((double)v.sy - ((double)y + 0.5)));
+                if (v.ok) ms->own_error[i] = hypot((double)v.sx - ((double)x + 0.5), (double)v.sy - ((double)y + 0.5));
             }
         }
         for (c = ms->cell_start[cell]; c < ms->cell_start[cell + 1]; ++c) {
@@ -2060,8 +2021,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
         for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
             int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
             sb.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch0]);
-            for (sb.batch1 = sb.batch0 + 1; sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer;)
-                ++sb.batch1;
+            sb.batch1 = sb.batch0 + 1;
+            while (sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer) ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
                 fr->stats.projections += sb.jobs[i].projections;
