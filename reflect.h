@@ -5501,6 +5501,13 @@ static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, 
     return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
 }
 
+/* A union-find root, halving the path on the way: how the method and the
+   grids join samples and triangles into smooth pieces. */
+static int refl__sbc_root(int *parent, int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+}
+
 /* ---- small double helpers ---------------------------------------------------- */
 
 static int refl__sbc_finite(double v) { return v - v == 0.0; }
@@ -7038,11 +7045,6 @@ REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
     refl__free(&a, morph);
 }
 
-static int refl__sbm_find(int *parent, int v) {
-    while (parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-}
-
 /* The reflector in world space, its pieces, and its BVH. */
 static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scene, int object) {
     const refl_object *obj = &scene->objects[object];
@@ -7085,14 +7087,14 @@ static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scen
     }
     /* pieces: triangles joined through shared vertices, numbered by first triangle */
     for (i = 0; i < T; ++i) {
-        int a = refl__sbm_find(parent, (int)m->indices[3 * i]), k;
+        int a = refl__sbc_root(parent, (int)m->indices[3 * i]), k;
         for (k = 1; k < 3; ++k) {
-            int c = refl__sbm_find(parent, (int)m->indices[3 * i + k]);
+            int c = refl__sbc_root(parent, (int)m->indices[3 * i + k]);
             if (c < a) { parent[a] = c; a = c; } else parent[c] = a;
         }
     }
     for (i = 0; i < T; ++i) {
-        int root = refl__sbm_find(parent, (int)m->indices[3 * i]);
+        int root = refl__sbc_root(parent, (int)m->indices[3 * i]);
         if (label[root] < 0) label[root] = m->piece_count++;
         m->piece[i] = label[root];
     }
@@ -12193,12 +12195,6 @@ static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
     return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
 }
 
-/* The root of sample m in a union-find forest (roots are their smallest member). */
-static int refl__sb_root(int *parent, int m) {
-    while (parent[m] != m) m = parent[m] = parent[parent[m]];
-    return m;
-}
-
 /* Whether the rays of neighbouring samples m1 and m2 cross before their
    heads (in the plane of the chord between their tails): where a concave
    reflector focuses them. */
@@ -12239,14 +12235,14 @@ static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
                     /* a history's pieces lie within its parent's: the rays of one
                        smooth piece of the mirror before */
                     if (sd->parent >= 0 && sb->sides[sd->parent].comp[a] != sb->sides[sd->parent].comp[b]) continue;
-                    ra = refl__sb_root(sd->comp, a);
-                    rb = refl__sb_root(sd->comp, b);
+                    ra = refl__sbc_root(sd->comp, a);
+                    rb = refl__sbc_root(sd->comp, b);
                     if (ra < rb) sd->comp[rb] = ra;
                     else sd->comp[ra] = rb;
                 }
             }
     for (m = 0; m < mw * mh; ++m)
-        if (sd->comp[m] >= 0) sd->comp[m] = refl__sb_root(sd->comp, m);
+        if (sd->comp[m] >= 0) sd->comp[m] = refl__sbc_root(sd->comp, m);
 }
 
 /* Side i's ray map and pieces (a job: sides map in parallel). */

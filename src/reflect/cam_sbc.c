@@ -192,6 +192,13 @@ static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, 
     return refl_v3_length(refl_v3_sub(ray->head, q)) > 0.0f;
 }
 
+/* A union-find root, halving the path on the way: how the method and the
+   grids join samples and triangles into smooth pieces. */
+static int refl__sbc_root(int *parent, int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+}
+
 /* ---- small double helpers ---------------------------------------------------- */
 
 static int refl__sbc_finite(double v) { return v - v == 0.0; }

@@ -390,11 +390,6 @@ REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
     refl__free(&a, morph);
 }
 
-static int refl__sbm_find(int *parent, int v) {
-    while (parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-}
-
 /* The reflector in world space, its pieces, and its BVH. */
 static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scene, int object) {
     const refl_object *obj = &scene->objects[object];
@@ -437,14 +432,14 @@ static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scen
     }
     /* pieces: triangles joined through shared vertices, numbered by first triangle */
     for (i = 0; i < T; ++i) {
-        int a = refl__sbm_find(parent, (int)m->indices[3 * i]), k;
+        int a = refl__sbc_root(parent, (int)m->indices[3 * i]), k;
         for (k = 1; k < 3; ++k) {
-            int c = refl__sbm_find(parent, (int)m->indices[3 * i + k]);
+            int c = refl__sbc_root(parent, (int)m->indices[3 * i + k]);
             if (c < a) { parent[a] = c; a = c; } else parent[c] = a;
         }
     }
     for (i = 0; i < T; ++i) {
-        int root = refl__sbm_find(parent, (int)m->indices[3 * i]);
+        int root = refl__sbc_root(parent, (int)m->indices[3 * i]);
         if (label[root] < 0) label[root] = m->piece_count++;
         m->piece[i] = label[root];
     }

@@ -546,12 +546,6 @@ static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
     return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
 }
 
-/* The root of sample m in a union-find forest (roots are their smallest member). */
-static int refl__sb_root(int *parent, int m) {
-    while (parent[m] != m) m = parent[m] = parent[parent[m]];
-    return m;
-}
-
 /* Whether the rays of neighbouring samples m1 and m2 cross before their
    heads (in the plane of the chord between their tails): where a concave
    reflector focuses them. */
@@ -592,14 +586,14 @@ static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
                     /* a history's pieces lie within its parent's: the rays of one
                        smooth piece of the mirror before */
                     if (sd->parent >= 0 && sb->sides[sd->parent].comp[a] != sb->sides[sd->parent].comp[b]) continue;
-                    ra = refl__sb_root(sd->comp, a);
-                    rb = refl__sb_root(sd->comp, b);
+                    ra = refl__sbc_root(sd->comp, a);
+                    rb = refl__sbc_root(sd->comp, b);
                     if (ra < rb) sd->comp[rb] = ra;
                     else sd->comp[ra] = rb;
                 }
             }
     for (m = 0; m < mw * mh; ++m)
-        if (sd->comp[m] >= 0) sd->comp[m] = refl__sb_root(sd->comp, m);
+        if (sd->comp[m] >= 0) sd->comp[m] = refl__sbc_root(sd->comp, m);
 }
 
 /* Side i's ray map and pieces (a job: sides map in parallel). */
