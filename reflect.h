@@ -6522,11 +6522,11 @@ typedef struct refl__sbc_pick {
 static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, refl_vec3 *first,
                                   float *z) {
     refl__sbc_pick pick[2]; /* inside a quad, near one */
+    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
+    const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
     int i, c, j, k, W = sb->width;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
-    const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
-    const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
     pick[0].zz = pick[1].zz = DBL_MAX;
     pick[0].out = pick[1].out = DBL_MAX;
     pick[0].off = pick[1].off = 0;
