@@ -605,6 +605,61 @@ Test(refl_sbc_camera, parallel_rays_exact_ray_lists) {
     refl_sbc_destroy(sbc);
 }
 
+/* Rays that fold: tails (u, y, 0), directions (-u^2, 0, 1), so at height
+   z a ray lies at x = u - z u^2, which turns back at u = 1 / (2 z): each
+   ray meets the caustic x = 1 / (4 z) at z = 1 / (2 u). At z = 1 the point
+   x = 0.24 lies on two rays, u = 0.4 (its fold at z = 1.25, ahead) and
+   u = 0.6 (at z = 0.83, behind): one image before its ray's fold, one past
+   it. refl_sbc_project keeps the nearer (the paper's one per group);
+   refl_sbc_project_sheets gives both. */
+Test(refl_sbc_camera, folded_rays_one_image_per_sheet) {
+    enum { NU = 21, NY = 8 };
+    refl_sbc_ray rays[NU * NY];
+    refl_sbc_desc d;
+    refl_sbc *sbc = NULL;
+    refl_sbc_stats st;
+    refl_vec3 got, first[REFL_SBC_SHEETS];
+    float z, zs[REFL_SBC_SHEETS];
+    double p[3] = {0.24, 0.125, 1.0};
+    int i, j, mask;
+    for (j = 0; j < NY; ++j)
+        for (i = 0; i < NU; ++i) {
+            double u = 0.3 + 0.025 * i, t[3] = {u, 0.05 * j, 0.0}, h[3] = {u - 2.0 * u * u, 0.05 * j, 2.0};
+            rays[j * NU + i].tail = rays[j * NU + i].first = fv(t);
+            rays[j * NU + i].head = fv(h);
+        }
+    memset(&d, 0, sizeof d);
+    d.view_proj = refl_mat4_mul(refl_mat4_perspective(1.0f, 1.0f, 0.1f, 100.0f),
+                                refl_mat4_look_at(refl_v3(0.5f, 0.2f, -3.0f), refl_v3(0.5f, 0.2f, 0.0f),
+                                                  refl_v3(0, 1, 0)));
+    d.width = d.height = 256;
+    d.error_px = 0.01f; /* no pinhole fits the fold: ray lists */
+    cr_assert_eq(refl_sbc_build(rays, NULL, NU, NY, &d, &sbc), REFL_OK);
+    refl_sbc_get_stats(sbc, &st);
+    cr_assert_eq(st.sheets, 2, "%d sheets", st.sheets);
+    cr_assert_eq(refl_sbc_leaf_at(sbc, fv(p)), REFL_SBC_LEAF_RAY_LIST);
+    mask = refl_sbc_project_sheets(sbc, fv(p), REFL_SBC_SHEETS, first, zs);
+    cr_assert_eq(mask, 3, "mask %d", mask);
+    cr_assert(fabs(first[0].x - 0.4) < 1e-3 && fabs(first[0].y - 0.125) < 1e-3 && fabs(first[0].z) < 1e-4,
+              "sheet 0: (%g %g %g)", first[0].x, first[0].y, first[0].z);
+    cr_assert(fabs(first[1].x - 0.6) < 1e-3 && fabs(first[1].y - 0.125) < 1e-3 && fabs(first[1].z) < 1e-4,
+              "sheet 1: (%g %g %g)", first[1].x, first[1].y, first[1].z);
+    /* z: the distance along the ray from its tail, sqrt(1 + u^4) */
+    cr_assert(fabs(zs[0] - sqrt(1.0 + 0.0256)) < 1e-3 && fabs(zs[1] - sqrt(1.0 + 0.1296)) < 1e-3, "z %g %g", zs[0],
+              zs[1]);
+    cr_assert(refl_sbc_project(sbc, fv(p), &got, &z));
+    cr_assert(fabs(got.x - first[0].x) < 1e-6 && fabs(z - zs[0]) < 1e-6, "one image: the nearer");
+    /* past every caustic point of the map (x > 1 / (4 z)): no ray there */
+    p[0] = 0.3;
+    cr_assert_eq(refl_sbc_project_sheets(sbc, fv(p), REFL_SBC_SHEETS, first, zs), 0);
+    /* asking for fewer sheets fills fewer; none is an error */
+    p[0] = 0.24;
+    cr_assert_eq(refl_sbc_project_sheets(sbc, fv(p), 1, first, zs), 1);
+    cr_assert_eq(refl_sbc_project_sheets(sbc, fv(p), 0, first, zs), 0);
+    cr_assert_eq(refl_sbc_project_sheets(NULL, fv(p), 2, first, zs), 0);
+    refl_sbc_destroy(sbc);
+}
+
 /* Behind the reflector and where no reflected ray can go: nothing. */
 Test(refl_sbc_camera, outside_every_frustum) {
     scene_t scenes[3];

@@ -4,11 +4,17 @@
    build checks its fit at the rays' heads and tails, a pinhole leaf of
    the sample's own group must project within the requested error. Ray-list
    leaves interpolate between samples; the paper puts them within the
-   down-sampling factor, which holds on smooth reflectors (the bumpy
-   spheres: 0.42 px at most) but not where rays graze or cross (the teapot's
-   rim, knob and spout at factor 4, the focusing bowl): there the bounds
-   below are what the leaves do now, to catch them getting worse. Scenes:
-   the default teapot, the concave bowl and two random bumpy reflectors. */
+   down-sampling factor. With the rays split at their folds (sheets,
+   refl_sbc_project_sheets) that holds for 95% of the samples everywhere,
+   and for every sample on smooth reflectors (the bumpy spheres: 0.42 px at
+   most). A few samples where rays cross stay further off (the teapot's
+   knob, rim and spout, the bowl's caustic): the ray tracer's point lies
+   off the sample's own ray, by 1e-4 to 1e-3 of a unit (the ray map's
+   normals are the rasteriser's) or on another surface (7 of the 36 beyond
+   the factor on the teapot at factor 2), and next to a caustic, whose
+   magnification has no bound, that is pixels. Their bounds are what the
+   leaves do now, to catch them getting worse. Scenes: the default teapot, the concave bowl and two
+   random bumpy reflectors. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
@@ -59,17 +65,21 @@ Test(refl_sbc_leaves, default_scene, .timeout = 120) {
     v = s->camera;
     e = measure(s, &v, 2, 1.0f, "default f2");
     /* measured: 1,094 pinhole samples (3 not projecting in their group),
-       ray-list samples p95 1.44 px, 0.09% not projecting (1.3% before a
-       point just off every quad took the nearest one's answer) */
+       ray-list samples p95 0.08 px (1.44 with one image per group), max
+       12.8 px, 0.09% not projecting (1.3% before a point just off every
+       quad took the nearest one's answer) */
     cr_assert(e.pinhole_samples.pixels > 800 && e.pinhole_samples.wrong <= 0.005);
     cr_assert(e.pinhole.p95 <= 0.5 && e.pinhole.wrong <= 0.01, "pinhole p95 %.3f wrong %.4f", e.pinhole.p95,
               e.pinhole.wrong);
-    cr_assert(e.ray_list_samples.p95 <= 1.6 && e.ray_list_samples.wrong <= 0.002, "ray lists p95 %.3f wrong %.4f",
-              e.ray_list_samples.p95, e.ray_list_samples.wrong);
+    cr_assert(e.ray_list_samples.p95 <= 2.0 && e.ray_list_samples.max <= 16.0 && e.ray_list_samples.wrong <= 0.002,
+              "ray lists p95 %.3f max %.2f wrong %.4f", e.ray_list_samples.p95, e.ray_list_samples.max,
+              e.ray_list_samples.wrong);
     e = measure(s, &v, 4, 1.0f, "default f4");
-    /* measured: ray-list samples p95 4.23 px (past the factor), 0.3% not projecting */
-    cr_assert(e.ray_list_samples.p95 <= 4.5 && e.ray_list_samples.wrong <= 0.005, "ray lists p95 %.3f wrong %.4f",
-              e.ray_list_samples.p95, e.ray_list_samples.wrong);
+    /* measured: ray-list samples p95 0.04 px (4.23 with one image per
+       group), max 12.4 px, 0.3% not projecting */
+    cr_assert(e.ray_list_samples.p95 <= 4.0 && e.ray_list_samples.max <= 16.0 && e.ray_list_samples.wrong <= 0.005,
+              "ray lists p95 %.3f max %.2f wrong %.4f", e.ray_list_samples.p95, e.ray_list_samples.max,
+              e.ray_list_samples.wrong);
     refl_scene_destroy(s);
 }
 
@@ -83,10 +93,12 @@ Test(refl_sbc_leaves, concave_bowl, .timeout = 120) {
     v.height = 240;
     e = measure(s, &v, 2, 1.0f, "concave f2");
     /* a focusing mirror: its rays cross, every leaf is a ray list; measured
-       p95 2.80 px (past the factor), 0.1% not projecting */
+       p95 0.14 px (2.80 with one image per group), max 10.9 px, 0.1% not
+       projecting */
     cr_assert(e.ray_list_samples.pixels > 10000);
-    cr_assert(e.ray_list_samples.p95 <= 3.0 && e.ray_list_samples.wrong <= 0.002, "ray lists p95 %.3f wrong %.4f",
-              e.ray_list_samples.p95, e.ray_list_samples.wrong);
+    cr_assert(e.ray_list_samples.p95 <= 2.0 && e.ray_list_samples.max <= 14.0 && e.ray_list_samples.wrong <= 0.002,
+              "ray lists p95 %.3f max %.2f wrong %.4f", e.ray_list_samples.p95, e.ray_list_samples.max,
+              e.ray_list_samples.wrong);
     refl_scene_destroy(s);
 }
 

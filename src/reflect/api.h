@@ -546,6 +546,8 @@ typedef struct refl_sbc_stats {
     int nodes, pinhole_leaves, ray_leaves, depth;
     long long rays;          /* rays in the group */
     long long bytes;         /* memory the tree holds */
+    int sheets;              /* 1 + the most times a ray-list leaf's neighbouring rays cross (fold) between
+                                their tails and heads: the sheets refl_sbc_project_sheets can fill */
 } refl_sbc_stats;
 
 /* Builds the tree of one reflection group from a map_width x map_height
@@ -560,6 +562,18 @@ REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out);
    distance to the leaf camera's image plane, the paper's visibility
    offset z), or 0 when p lies in no leaf's frustum. Thread-safe. */
 REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z);
+/* p's projection per sheet: first[k], z[k] for sheets k < `sheets` (at
+   most REFL_SBC_SHEETS); returns the mask of the sheets p projects in (bit
+   k). Where a group's rays cross (a focusing mirror, a crease), a point
+   can lie in the frustums of several rays: before their crossing and past
+   it. refl_sbc_project keeps one image per group, the nearest, as the
+   paper does (its section VII-C restriction: one reflection per group);
+   the paper names splitting rays as the way past it, and a sheet is that:
+   the rays of the ray-list leaves cut where they fold (sheet k: past k
+   folds of the frustum's four rays), and within one sheet a point has one
+   image. Pinhole leaves have sheet 0 only. */
+#define REFL_SBC_SHEETS 3 /* a frustum's signed area is quadratic along it: two folds at most */
+REFL_API int refl_sbc_project_sheets(const refl_sbc *sbc, refl_vec3 p, int sheets, refl_vec3 *first, float *z);
 
 /* Which kind of leaf refl_sbc_project hands p to (the BSP cell holding p),
    whether or not p then projects: the two cost very differently (a

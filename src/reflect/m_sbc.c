@@ -43,9 +43,10 @@
         of the nearest sample on its surface with that history.
      3. projection (section V-A): every vertex of every object inside a
         group's box (its rays' tails and heads, grown by a quarter) is
-        projected into the group (refl_sbc_project), moving it to its
-        first reflector point, which must lie in the group's box too (a
-        leaf's map far outside its rays sends points anywhere); the window depth is the paper's visibility
+        projected into the group (refl_sbc_project_sheets), moving it to
+        its first reflector point, which must lie in the group's box too
+        (a leaf's map far outside its rays sends points anywhere); the
+        window depth is the paper's visibility
         offset (k - 1 + z/D) g for order k, in a depth buffer of the
         reflections' own, z measured as the distance from the vertex to its
         first reflector point (consistent across leaves, where each leaf's
@@ -54,6 +55,16 @@
         g = 1 / k_max of the window range, k_max the longest history
         sampled: the paper's g = D / (k_max + 1) with yon at 2D spends it
         alike, and k_max = 1 keeps z/D: the one-bounce frames' bytes.
+        A group whose rays fold (cam_sbc.c's sheets: 1 + the folds of its
+        ray lists, at most three) projects every vertex into each sheet at
+        once and draws each sheet's triangles into its pixels, the depth
+        test keeping the nearest: a point seen twice in a focusing mirror
+        shows twice. A vertex with no image in a sheet takes its image one
+        fold away (the sheets meet at the fold), and a triangle with such
+        vertices is split as a mixed one and drawn only when no wider than
+        REFL__SB_FOLD_SAMPLES samples: wider, it spans the caustic, where
+        the two sheets' images part (concave bowl 320x240: mean 0.15 px
+        with the limit, 0.43 without).
      4. rasterisation (section V-B): a reflected triangle is drawn when all
         three vertices project; one outside the group's box is dropped
         whole. Triangles are subdivided in four, at most REFL__SB_LEVELS
@@ -123,6 +134,9 @@
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
 #define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
+#define REFL__SB_SHEETS REFL_SBC_SHEETS /* a group's sheets at most (refl_sbc_project_sheets) */
+#define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
+#define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
@@ -149,6 +163,7 @@ typedef struct refl__sb_group {
     int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
     refl_sbc *sbc;
+    int sheets;                   /* its rays split at their folds: each sheet projects and draws apart */
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
     refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
     refl__sbc_hit *hits;           /* what its rays meet, by object and triangle */
@@ -161,6 +176,8 @@ typedef struct refl__sb_group {
 /* A scene point and what a group makes of it. */
 typedef struct refl__sb_pv {
     refl_vec3 world, normal;
+    int sheet;                    /* the group's sheet it projects in */
+    int across;                   /* it has none there: its image one fold away (refl__sb_sheet_project) */
     float uv[2];
     float clip[4];                /* the first reflector point's, depth replaced */
     float sx, sy;                 /* its window position */
@@ -171,9 +188,9 @@ typedef struct refl__sb_pv {
     int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
 } refl__sb_pv;
 
-/* One emission job: triangles [first, first + count) of `object` into `group`. */
+/* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
 typedef struct refl__sb_job {
-    int group, object, first, count;
+    int group, object, sheet, first, count;
     float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
     size_t out_count, out_cap;    /* vertices */
     long long projections, projected;
@@ -209,7 +226,7 @@ typedef struct refl__sb {
     int layer;                    /* the batch's layer (one per batch) */
     int map_first;                /* the first side refl__sb_map_side's jobs map */
     uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
-    refl__sb_pv **verts;          /* per group of the batch x object: every mesh vertex, projected */
+    refl__sb_pv **verts;          /* per group of the batch x object x sheet: every mesh vertex, projected */
     refl__sb_job *jobs;
     int job_count;
     uint8_t *color;               /* scratch targets of the reflections: the colour pass's */
@@ -781,6 +798,11 @@ static void refl__sb_build_group(void *arg, int g) {
         d.height = p->frame->height;
         d.allocator = *al;
         gr->result = refl_sbc_build(rays, valid, mw, mh, &d, &gr->sbc);
+        if (gr->result == REFL_OK) {
+            refl_sbc_stats st;
+            refl_sbc_get_stats(gr->sbc, &st);
+            gr->sheets = REFL__CLAMP(st.sheets, 1, REFL__SB_SHEETS);
+        }
     }
     refl__free(al, rays);
     refl__free(al, hits);
@@ -793,27 +815,83 @@ static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b)
            REFL__MIN(a.y, b.y) <= hi.y && REFL__MAX(a.z, b.z) >= lo.z && REFL__MIN(a.z, b.z) <= hi.z;
 }
 
-/* Projects v into group g: its first reflector point, seen by the view,
-   at window depth dist / D. */
+/* Point p's first reflector points in g's sheets (refl_sbc_project_sheets),
+   each within g's box (a leaf's map far outside the rays it was fitted to
+   can send a point anywhere): the mask of those it has. */
+static int refl__sb_images(const refl__sb_side *sd, const refl__sb_group *g, refl_vec3 p, refl_vec3 *f, float *z) {
+    int mask = refl_sbc_project_sheets(g->sbc, p, REFL__MAX(g->sheets, 1), f, z), k;
+    for (k = 0; k < REFL__SB_SHEETS; ++k)
+        if ((mask >> k & 1) && !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f[k], f[k]))
+            mask &= ~(1 << k);
+    return mask;
+}
+
+/* The image sheet `sheet` draws of a point with images `mask`: its own,
+   else one a fold away (*across): a triangle straddling a fold draws in
+   the sheets on both sides, its vertices past the fold at their images
+   there, which meet this sheet's at the fold. -1: none. */
+static int refl__sb_sheet_image(int mask, int sheet, int *across) {
+    *across = !(mask >> sheet & 1);
+    if (!*across) return sheet;
+    if (sheet > 0 && (mask >> (sheet - 1) & 1)) return sheet - 1;
+    if (mask >> (sheet + 1) & 1) return sheet + 1;
+    return -1;
+}
+
+static void refl__sb_place(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v, refl_vec3 f, float z);
+
+/* Projects v into group g's sheet v->sheet: its first reflector point,
+   seen by the view, at window depth dist / D. */
 static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
+    refl_vec3 f[REFL__SB_SHEETS];
+    float z[REFL__SB_SHEETS];
+    int k;
+    v->ok = 0;
+    v->ambiguous = 0;
+    v->across = 0;
+    if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
+    if (g->morph) {
+        if (refl_sbc_morph_project(g->morph, sb->p->view->eye, g->piece, v->world, &f[0], &z[0], &v->ambiguous))
+            refl__sb_place(sb, g, v, f[0], z[0]);
+        return;
+    }
+    k = refl__sb_sheet_image(refl__sb_images(&sb->sides[g->side], g, v->world, f, z), v->sheet, &v->across);
+    if (k >= 0) refl__sb_place(sb, g, v, f[k], z[k]);
+}
+
+/* Projects v[0] (world, normal, uv set) into each of g's sheets, v[k] for
+   sheet k: one search of the leaf for all. */
+static void refl__sb_project_sheets(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
+    refl_vec3 f[REFL__SB_SHEETS];
+    float z[REFL__SB_SHEETS];
+    int k, mask, sheets = REFL__MAX(g->sheets, 1);
+    if (g->morph || sheets == 1) {
+        v[0].sheet = 0;
+        refl__sb_project(sb, g, &v[0]);
+        return;
+    }
+    mask = refl__sb_in_box(g->lo, g->hi, v[0].world, v[0].world)
+               ? refl__sb_images(&sb->sides[g->side], g, v[0].world, f, z)
+               : 0;
+    for (k = 0; k < sheets; ++k) {
+        int image;
+        v[k] = v[0];
+        v[k].sheet = k;
+        v[k].ok = v[k].ambiguous = 0;
+        image = refl__sb_sheet_image(mask, k, &v[k].across);
+        if (image >= 0) refl__sb_place(sb, g, &v[k], f[image], z[image]);
+    }
+}
+
+/* Places v at its first reflector point f in group g (z: the leaf's
+   depth there): window position, and the visibility offset as depth. */
+static void refl__sb_place(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v, refl_vec3 f, float z) {
     const refl__pass *p = sb->p;
     const refl__sb_side *sd = g->morph ? NULL : &sb->sides[g->side];
     const float *m = p->vp.m;
-    refl_vec3 f = {0.0f, 0.0f, 0.0f};
-    float z, wd;
+    float wd;
     int k, u, w, landed;
     size_t at;
-    v->ok = 0;
-    v->ambiguous = 0;
-    if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    /* a leaf's map far outside the rays it was fitted to can send a point
-       anywhere: its first reflector point must lie where the group's do */
-    if (g->morph) {
-        if (!refl_sbc_morph_project(g->morph, p->view->eye, g->piece, v->world, &f, &z, &v->ambiguous)) return;
-    } else if (!refl_sbc_project(g->sbc, v->world, &f, &z) ||
-               !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f, f)) {
-        return;
-    }
     for (k = 0; k < 4; ++k) v->clip[k] = m[k] * f.x + m[4 + k] * f.y + m[8 + k] * f.z + m[12 + k];
     if (!(v->clip[3] > 0.0f)) return;
     v->first = v->from = f;
@@ -858,19 +936,21 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
 static void refl__sb_project_object(void *arg, int index) {
     refl__sb *sb = (refl__sb *)arg;
     const refl_scene *scene = sb->p->scene;
-    int g = sb->batch0 + index / scene->object_count, o = index % scene->object_count, i;
+    int g = sb->batch0 + index / scene->object_count, o = index % scene->object_count, i, k;
+    const refl__sb_group *gr = &sb->groups[g];
     const refl_object *obj = &scene->objects[o];
     const refl_mesh *m = scene->meshes[obj->mesh];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
-    refl__sb_pv *out = sb->verts[index];
-    if (!out || !refl__sb_live(&sb->groups[g])) return;
+    refl__sb_pv **out = sb->verts + (size_t)index * REFL__SB_SHEETS, v[REFL__SB_SHEETS];
+    if (!out[0] || !refl__sb_live(gr)) return;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
-        out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
-        out[i].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
-        out[i].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
-        out[i].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
-        refl__sb_project(sb, &sb->groups[g], &out[i]);
+        v[0].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
+        v[0].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
+        v[0].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
+        v[0].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
+        refl__sb_project_sheets(sb, gr, v);
+        for (k = 0; k < REFL__MAX(gr->sheets, 1); ++k) out[k][i] = v[k];
     }
 }
 
@@ -881,6 +961,7 @@ static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_group *g, con
     m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
     m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
     m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
+    m.sheet = a->sheet;
     refl__sb_project(sb, g, &m);
     j->projections++;
     j->projected += m.ok;
@@ -939,28 +1020,37 @@ static int refl__sb_holds(const refl__sb_pv *a, const refl__sb_pv *b, const refl
     return 1;
 }
 
+/* A projected triangle's width plus height in pixels. */
+static float refl__sb_extent(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c) {
+    return REFL__MAX(REFL__MAX(a->sx, b->sx), c->sx) - REFL__MIN(REFL__MIN(a->sx, b->sx), c->sx) +
+           REFL__MAX(REFL__MAX(a->sy, b->sy), c->sy) - REFL__MIN(REFL__MIN(a->sy, b->sy), c->sy);
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
    module comment says. */
 static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
                           const refl__sb_pv *b, const refl__sb_pv *c, int level, const refl__sb_tri *t) {
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
+    int across = (a->ok && a->across) + (b->ok && b->across) + (c->ok && c->across);
     refl__sb_pv ab, bc, ca;
     int have_mid = 0;
     refl_vec3 lo = refl__v3_min(a->world, refl__v3_min(b->world, c->world));
     refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
+    int elsewhere = across && across == ok; /* every image from other sheets: drawn in those */
+    if (elsewhere) ok = 0;
     /* the surface the rays leave, whole: its parts would be dropped one by one */
     if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
     if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
         float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
-        float ext = ok == 3 ? REFL__MAX(REFL__MAX(a->sx, b->sx), c->sx) - REFL__MIN(REFL__MIN(a->sx, b->sx), c->sx) +
-                                  REFL__MAX(REFL__MAX(a->sy, b->sy), c->sy) - REFL__MIN(REFL__MIN(a->sy, b->sy), c->sy)
-                            : 0.0f;
+        float ext = ok == 3 ? refl__sb_extent(a, b, c) : 0.0f;
         if (REFL__MAX(la, REFL__MAX(lb, lc)) > max_edge) {
             split = 1;
+        } else if (ok == 3 && across) { /* straddles a fold: finer where the sheets meet */
+            split = level < REFL__SB_MIXED_LEVELS;
         } else if (ok == 3 && ext > 2.0f * REFL__SB_EDGE_PX) { /* smaller: no edge can bend further */
             const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
             refl__sb_pv *mid[3];
@@ -977,11 +1067,14 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         } else if (ok < 3) {
             int k;
             split = ok > 0 && level < REFL__SB_MIXED_LEVELS;
-            for (k = 0; k < t->hit_count && !split; ++k) split = refl__sb_holds(a, b, c, t->hits[k].point);
+            for (k = 0; k < t->hit_count && !split && (!elsewhere || level < REFL__SB_ELSEWHERE_LEVELS); ++k)
+                split = refl__sb_holds(a, b, c, t->hits[k].point);
         }
     }
     if (!split) {
         if (ok < 3) return;
+        /* straddling a fold, drawn only where the sheets' images meet */
+        if (across && refl__sb_extent(a, b, c) > REFL__SB_FOLD_SAMPLES * (float)sb->factor) return;
         /* the reflector's own surface around the rays' tails */
         if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
         if (j->out_count + 3 > j->out_cap) {
@@ -1017,7 +1110,8 @@ static void refl__sb_emit_job(void *arg, int index) {
     refl__sb_job *j = &sb->jobs[index];
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
-    const refl__sb_pv *v = sb->verts[(j->group - sb->batch0) * scene->object_count + j->object];
+    const refl__sb_pv *v =
+        sb->verts[((j->group - sb->batch0) * scene->object_count + j->object) * REFL__SB_SHEETS + j->sheet];
     const refl__sb_group *g = &sb->groups[j->group];
     int lo = 0, hi = g->hit_count, tr;
     refl__sb_tri t;
@@ -1154,8 +1248,8 @@ static refl_result refl__sb_draw(refl__sb *sb) {
 /* Frees the batch's projected vertices and emitted triangles. */
 static void refl__sb_free_batch(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
-    int pairs = (sb->batch1 - sb->batch0) * sb->p->scene->object_count, i;
-    for (i = 0; sb->verts && i < pairs; ++i) refl__free(al, sb->verts[i]);
+    int slots = (sb->batch1 - sb->batch0) * sb->p->scene->object_count * REFL__SB_SHEETS, i;
+    for (i = 0; sb->verts && i < slots; ++i) refl__free(al, sb->verts[i]);
     for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
     refl__free(al, sb->verts);
     refl__free(al, sb->jobs);
@@ -1669,40 +1763,48 @@ static refl_result refl__sb_groups(refl__sb *sb) {
 static refl_result refl__sb_project_all(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
-    int pairs = (sb->batch1 - sb->batch0) * scene->object_count, i, g, o, t, n = 0;
-    sb->verts = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_pv *));
+    int slots = (sb->batch1 - sb->batch0) * scene->object_count * REFL__SB_SHEETS, i, g, o, t, k, n = 0;
+    sb->verts = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(slots, 1), sizeof(refl__sb_pv *));
     if (!sb->verts) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < pairs; ++i) {
-        const refl_mesh *m = scene->meshes[scene->objects[i % scene->object_count].mesh];
+    for (i = 0; i < slots; ++i) { /* a group's sheets past its own stay NULL */
+        const refl__sb_group *gr = &sb->groups[sb->batch0 + i / REFL__SB_SHEETS / scene->object_count];
+        const refl_mesh *m = scene->meshes[scene->objects[i / REFL__SB_SHEETS % scene->object_count].mesh];
+        if (i % REFL__SB_SHEETS >= REFL__MAX(gr->sheets, 1)) continue;
         sb->verts[i] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(m->vertex_count, 1), sizeof(refl__sb_pv));
         if (!sb->verts[i]) return REFL_ERROR_OUT_OF_MEMORY;
     }
-    rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
-    for (i = 0; i < pairs; ++i) {
-        int v, count = scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        if (!refl__sb_live(&sb->groups[sb->batch0 + i / scene->object_count])) continue;
+    rast_run_jobs(sb->p->rc, slots / REFL__SB_SHEETS, refl__sb_project_object, sb);
+    for (i = 0; i < slots; i += REFL__SB_SHEETS) { /* a vertex projects into every sheet at once */
+        int v, count = scene->meshes[scene->objects[i / REFL__SB_SHEETS % scene->object_count].mesh]->vertex_count;
+        if (!sb->verts[i] || !refl__sb_live(&sb->groups[sb->batch0 + i / REFL__SB_SHEETS / scene->object_count]))
+            continue;
         sb->p->frame->stats.projections += count;
         for (v = 0; v < count; ++v) {
-            sb->p->frame->stats.projected += sb->verts[i][v].ok;
+            int ok = 0;
+            for (k = 0; k < REFL__SB_SHEETS && sb->verts[i + k]; ++k) ok |= sb->verts[i + k][v].ok;
+            sb->p->frame->stats.projected += ok;
             sb->p->frame->stats.ambiguous += sb->verts[i][v].ambiguous;
         }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
         for (o = 0; o < scene->object_count; ++o)
-            n += (scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK;
+            n += REFL__MAX(sb->groups[g].sheets, 1) *
+                 ((scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK);
     sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch0; g < sb->batch1; ++g) {
         if (!refl__sb_live(&sb->groups[g])) continue;
         for (o = 0; o < scene->object_count; ++o) {
             int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
-            for (t = 0; t < tc; t += REFL__SB_CHUNK) {
-                refl__sb_job *j = &sb->jobs[sb->job_count++];
-                j->group = g;
-                j->object = o;
-                j->first = t;
-                j->count = REFL__MIN(REFL__SB_CHUNK, tc - t);
-            }
+            for (k = 0; k < REFL__MAX(sb->groups[g].sheets, 1); ++k)
+                for (t = 0; t < tc; t += REFL__SB_CHUNK) {
+                    refl__sb_job *j = &sb->jobs[sb->job_count++];
+                    j->group = g;
+                    j->object = o;
+                    j->sheet = k;
+                    j->first = t;
+                    j->count = REFL__MIN(REFL__SB_CHUNK, tc - t);
+                }
         }
     }
     rast_run_jobs(sb->p->rc, sb->job_count, refl__sb_emit_job, sb);
@@ -1892,9 +1994,11 @@ static void refl__sb_measure_row(void *arg, int y) {
             refl_sbc_leaf_kind k = own >= 0 && sb->groups[own].sbc ? refl_sbc_leaf_at(sb->groups[own].sbc, v.world)
                                                                    : REFL_SBC_LEAF_NONE;
             ms->own_kind[i] = (uint8_t)(k == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
-            if (k != REFL_SBC_LEAF_NONE) {
+            for (v.sheet = 0; k != REFL_SBC_LEAF_NONE && v.sheet < sb->groups[own].sheets; ++v.sheet) {
                 refl__sb_project(sb, &sb->groups[own], &v);
-                if (v.ok) ms->own_error[i] = hypot((double)v.sx - ((double)x + 0.5), (double)v.sy - ((double)y + 0.5));
+                if (v.ok)
+                    ms->own_error[i] = REFL__MIN(ms->own_error[i], hypot((double)v.sx - ((double)x + 0.5),
+                                                                          (double)v.sy - ((double)y + 0.5)));
             }
         }
         for (c = ms->cell_start[cell]; c < ms->cell_start[cell + 1]; ++c) {
@@ -1904,14 +2008,16 @@ static void refl__sb_measure_row(void *arg, int y) {
             if (gr->object != object && !(object == 254 && gr->object >= 254)) continue;
             refl__sb_measure_rect(sb, gr, rect);
             if (x < rect[0] || x > rect[2] || y < rect[1] || y > rect[3]) continue;
-            refl__sb_project(sb, gr, &v);
-            if (!v.ok) continue;
-            dx = (double)v.sx - ((double)x + 0.5);
-            dy = (double)v.sy - ((double)y + 0.5);
-            e = sqrt(dx * dx + dy * dy);
-            if (e < best) {
-                best = e;
-                kind = refl_sbc_leaf_at(gr->sbc, v.world);
+            for (v.sheet = 0; v.sheet < gr->sheets; ++v.sheet) {
+                refl__sb_project(sb, gr, &v);
+                if (!v.ok) continue;
+                dx = (double)v.sx - ((double)x + 0.5);
+                dy = (double)v.sy - ((double)y + 0.5);
+                e = sqrt(dx * dx + dy * dy);
+                if (e < best) {
+                    best = e;
+                    kind = refl_sbc_leaf_at(gr->sbc, v.world);
+                }
             }
         }
         if (best <= REFL__SB_MEASURE_REACH) {
