@@ -3,7 +3,8 @@
    grids (one cell: 8 nodes, 6 tetrahedra) in the eye's neighbourhood and
    small images keep this fast; the bounds are what this build measured
    (in the comments) with some room, and the paper's 5 px for the
-   blending error. */
+   blending error where it holds (the sphere; the teapot's knob seen in
+   its lid is further off). */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
@@ -66,7 +67,7 @@ static refl_scene *sphere_scene(void) {
 }
 
 typedef struct morph_bounds {
-    double mean, p95, wrong, holes;
+    double mean, p95, max, wrong, holes;
 } morph_bounds;
 
 /* Renders SBC with the grid from eye, checks the frame is well formed, that
@@ -95,7 +96,8 @@ static void check_morph_view(const refl_scene *s, const refl_sbc_morph *m, refl_
     cr_assert(f->stats.model_bytes >= st.bytes, "%s: the grid was not used", what);
     cr_assert(f->stats.projected > 0, "%s: nothing projected", what);
     cr_assert(e.pixels > 200, "%s: %lld reflector pixels", what, e.pixels);
-    cr_assert(e.mean <= b.mean && e.p95 <= b.p95, "%s: mean %.2f p95 %.2f px", what, e.mean, e.p95);
+    cr_assert(e.mean <= b.mean && e.p95 <= b.p95 && e.max <= b.max, "%s: mean %.2f p95 %.2f max %.1f px", what, e.mean,
+              e.p95, e.max);
     cr_assert(e.wrong <= b.wrong && e.empty <= b.holes, "%s: wrong %.3f holes %.3f", what, e.wrong, e.empty);
     refl_frame_destroy(f);
     refl_frame_destroy(truth);
@@ -103,17 +105,21 @@ static void check_morph_view(const refl_scene *s, const refl_sbc_morph *m, refl_
 }
 
 /* Measured (face 128, defaults: one ring extrapolated past the
-   silhouettes, leaves widened by 0.1): mean 0.24 / 0.32 / 0.30, p95 1.4 /
-   2.2 / 2.0 px, wrong up to 0.6%, holes 35 / 32 / 29% (runtime mode at
-   these eyes: mean 0.3-0.5, p95 1.4, holes 12-20%: the nodes' face maps
-   are coarser than its ray maps and end at the pieces' creases, where
-   runtime mode extends each group by a ring). */
+   silhouettes, leaves widened by 0.1): mean 0.27 / 0.34 / 0.28, p95 1.4 /
+   2.0 / 1.4 px, max 4.2 / 7.0 / 3.6 px, wrong up to 0.3%, holes 34 / 31 /
+   28% (runtime mode at these eyes: mean 0.3-0.5, p95 1.4, holes 12-20%:
+   the nodes' face maps are coarser than its ray maps and end at the
+   pieces' creases, where runtime mode extends each group by a ring). The
+   paper's 5 px holds but for the knob seen in the lid (eye 1: 7 px here,
+   15 px at 192x144): a point that near the reflector is seen very
+   differently from the cell's corners, and the blend of the four nodes'
+   images misses it; the paper's teapot was its body alone. */
 Test(refl_sbc_morph, teapot_error_within_5px, .timeout = 120) {
     refl_scene *s = teapot_scene();
     refl_sbc_morph_desc md = cell_desc(teapot_lo, teapot_hi, 128);
     refl_sbc_morph *m = build(s, 1, &md);
     static const refl_vec3 eyes[3] = {{0.3f, 4.5f, 8.9f}, {-0.7f, 3.9f, 7.6f}, {0.8f, 5.1f, 8.2f}};
-    morph_bounds b = {0.6, 5.0, 0.02, 0.4};
+    morph_bounds b = {0.6, 3.0, 8.0, 0.02, 0.4};
     refl_sbc_morph_stats st;
     int k;
     refl_sbc_morph_get_stats(m, &st);
@@ -133,14 +139,14 @@ Test(refl_sbc_morph, teapot_error_within_5px, .timeout = 120) {
     refl_scene_destroy(s);
 }
 
-/* Measured: mean 0.28 / 0.08 / 0.09, p95 1.4 / 1.0 / 1.0 px, wrong up to
-   0.5%, holes 4 / 6 / 4%. */
+/* Measured: mean 0.28 / 0.08 / 0.09, p95 1.4 / 1.0 / 1.0 px, max 3 / 3 /
+   2 px (the paper's 5 px bounds it), wrong up to 0.5%, holes 4 / 6 / 4%. */
 Test(refl_sbc_morph, sphere_error_within_5px, .timeout = 120) {
     refl_scene *s = sphere_scene();
     refl_sbc_morph_desc md = cell_desc(refl_v3(-0.4f, 0.2f, 2.1f), refl_v3(0.4f, 0.8f, 2.9f), 128);
     refl_sbc_morph *m = build(s, 3, &md);
     static const refl_vec3 eyes[3] = {{0.0f, 0.5f, 2.5f}, {-0.25f, 0.3f, 2.2f}, {0.3f, 0.7f, 2.8f}};
-    morph_bounds b = {0.5, 5.0, 0.02, 0.1};
+    morph_bounds b = {0.5, 2.0, 5.0, 0.02, 0.1};
     refl_sbc_morph_stats st;
     int k;
     refl_sbc_morph_get_stats(m, &st);
