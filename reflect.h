@@ -5446,6 +5446,8 @@ typedef struct refl__sbc_quad {
     float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
     float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
     float fold[2];           /* the slices where its rays fold (ascending; FLT_MAX: none) */
+    float ray[4][6];         /* per ray in its frame: tail - o along m, a, b, then head - tail along m, a, b */
+    float len[4];            /* per ray: |head - tail| */
 } refl__sbc_quad;
 
 /* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
@@ -6288,6 +6290,20 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
             q.tau[e] = (float)tau[e];
         }
         if (!ok) continue; /* rays a quarter turn apart: no slicing; nothing projects there */
+        for (c = 0; c < 4; ++c) { /* what projection slices, once */
+            const refl_sbc_ray *r = &b->rays[idx + (c & 1) + (c >> 1) * W];
+            double t[3], d[3];
+            refl__sbc_load(r->tail, t);
+            d[0] = (double)r->head.x - t[0]; d[1] = (double)r->head.y - t[1]; d[2] = (double)r->head.z - t[2];
+            for (j = 0; j < 3; ++j) t[j] -= fr.o[j];
+            q.ray[c][0] = (float)refl__sbc_dot(t, fr.m);
+            q.ray[c][1] = (float)refl__sbc_dot(t, fr.a);
+            q.ray[c][2] = (float)refl__sbc_dot(t, fr.b);
+            q.ray[c][3] = (float)refl__sbc_dot(d, fr.m);
+            q.ray[c][4] = (float)refl__sbc_dot(d, fr.a);
+            q.ray[c][5] = (float)refl__sbc_dot(d, fr.b);
+            q.len[c] = (float)sqrt(refl__sbc_dot(d, d));
+        }
         {
             double fold[2];
             int folds = refl__sbc_quad_folds(&fr, b->rays, idx, W, tau, fold);
@@ -6638,7 +6654,13 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
         if (!(y >= q->box[0][2] + f * ((double)q->box[1][2] - q->box[0][2]) &&
               y <= q->box[0][3] + f * ((double)q->box[1][3] - q->box[0][3])))
             continue;
-        if (!refl__sbc_quad_slice(&fr, sb->rays, q->idx, W, tau, x4, y4, lam, len)) continue;
+        for (c = 0; c < 4; ++c) { /* its rays at p's slice (each crosses the slices: the build checked) */
+            double l = (tau - q->ray[c][0]) / q->ray[c][3];
+            x4[c] = q->ray[c][1] + l * q->ray[c][4];
+            y4[c] = q->ray[c][2] + l * q->ray[c][5];
+            lam[c] = l;
+            len[c] = q->len[c];
+        }
         /* the root least outside: inside within the exact tolerance, else
            near when its clamped point lies within REFL__SBC_NEAR diagonals */
         if (!refl__sbc_inv_bilinear(x4, y4, x, y, pick[0].zz < DBL_MAX ? REFL__SBC_TOL : 0.5, &ss, &tt, &o)) continue;
