@@ -188,6 +188,15 @@ typedef struct refl__sb_pv {
     int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
 } refl__sb_pv;
 
+/* A group's vertices of one object: those in the group's box, projected
+   (into each sheet), the others as they are (refl__sb's base). */
+typedef struct refl__sb_slot {
+    int *index;                   /* per mesh vertex: its place in pv, -1: outside the box (base) */
+    refl__sb_pv *pv[REFL__SB_SHEETS]; /* per sheet of the group */
+    int count;                    /* vertices in the box */
+    int failed;
+} refl__sb_slot;
+
 /* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
 typedef struct refl__sb_job {
     int group, object, sheet, first, count;
@@ -226,7 +235,8 @@ typedef struct refl__sb {
     int layer;                    /* the batch's layer (one per batch) */
     int map_first;                /* the first side refl__sb_map_side's jobs map */
     uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
-    refl__sb_pv **verts;          /* per group of the batch x object x sheet: every mesh vertex, projected */
+    refl__sb_pv **base;           /* per object: every mesh vertex in the world, projecting nowhere */
+    refl__sb_slot *slots;         /* per group of the batch x object: its vertices */
     refl__sb_job *jobs;
     int job_count;
     uint8_t *color;               /* scratch targets of the reflections: the colour pass's */
@@ -933,24 +943,56 @@ static void refl__sb_place(const refl__sb *sb, const refl__sb_group *g, refl__sb
 }
 
 /* Projects every vertex of object o into group g (a job per pair). */
-static void refl__sb_project_object(void *arg, int index) {
+/* Object o's vertices in the world, projecting nowhere (what a group
+   whose box a vertex lies outside makes of it). */
+static void refl__sb_base_object(void *arg, int o) {
     refl__sb *sb = (refl__sb *)arg;
-    const refl_scene *scene = sb->p->scene;
-    int g = sb->batch0 + index / scene->object_count, o = index % scene->object_count, i, k;
-    const refl__sb_group *gr = &sb->groups[g];
-    const refl_object *obj = &scene->objects[o];
-    const refl_mesh *m = scene->meshes[obj->mesh];
+    const refl_object *obj = &sb->p->scene->objects[o];
+    const refl_mesh *m = sb->p->scene->meshes[obj->mesh];
+    refl__sb_pv *out = sb->base[o];
     refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
-    refl__sb_pv **out = sb->verts + (size_t)index * REFL__SB_SHEETS, v[REFL__SB_SHEETS];
-    if (!out[0] || !refl__sb_live(gr)) return;
+    int i;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
-        v[0].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
-        v[0].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
-        v[0].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
-        v[0].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
+        out[i].world = refl_mat4_point(obj->transform, refl_v3(q[0], q[1], q[2]));
+        out[i].normal = refl_mat4_dir(normal_m, refl_v3(n[0], n[1], n[2]));
+        out[i].uv[0] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
+        out[i].uv[1] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
+    }
+}
+
+/* Projects the vertices of object o in group g's box into g (a job per
+   pair): each into every sheet at once. */
+static void refl__sb_project_object(void *arg, int index) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int g = sb->batch0 + index / sb->p->scene->object_count, o = index % sb->p->scene->object_count, i, k;
+    int vc = sb->p->scene->meshes[sb->p->scene->objects[o].mesh]->vertex_count, sheets;
+    const refl__sb_group *gr = &sb->groups[g];
+    const refl__sb_pv *base = sb->base[o];
+    refl__sb_slot *slot = &sb->slots[index];
+    refl__sb_pv v[REFL__SB_SHEETS];
+    if (!refl__sb_live(gr)) return;
+    sheets = REFL__MAX(gr->sheets, 1);
+    slot->index = (int *)refl__alloc(al, (size_t)REFL__MAX(vc, 1) * sizeof(int));
+    if (!slot->index) {
+        slot->failed = 1;
+        return;
+    }
+    for (i = 0; i < vc; ++i)
+        slot->index[i] = refl__sb_in_box(gr->lo, gr->hi, base[i].world, base[i].world) ? slot->count++ : -1;
+    for (k = 0; k < sheets; ++k) {
+        slot->pv[k] = (refl__sb_pv *)refl__alloc(al, (size_t)REFL__MAX(slot->count, 1) * sizeof(refl__sb_pv));
+        if (!slot->pv[k]) {
+            slot->failed = 1;
+            return;
+        }
+    }
+    for (i = 0; i < vc; ++i) {
+        if (slot->index[i] < 0) continue;
+        v[0] = base[i];
         refl__sb_project_sheets(sb, gr, v);
-        for (k = 0; k < REFL__MAX(gr->sheets, 1); ++k) out[k][i] = v[k];
+        for (k = 0; k < sheets; ++k) slot->pv[k][slot->index[i]] = v[k];
     }
 }
 
@@ -961,7 +1003,7 @@ static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_group *g, con
     m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
     m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
     m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
-    m.sheet = a->sheet;
+    m.sheet = j->sheet;
     refl__sb_project(sb, g, &m);
     j->projections++;
     j->projected += m.ok;
@@ -1110,8 +1152,8 @@ static void refl__sb_emit_job(void *arg, int index) {
     refl__sb_job *j = &sb->jobs[index];
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
-    const refl__sb_pv *v =
-        sb->verts[((j->group - sb->batch0) * scene->object_count + j->object) * REFL__SB_SHEETS + j->sheet];
+    const refl__sb_slot *slot = &sb->slots[(j->group - sb->batch0) * scene->object_count + j->object];
+    const refl__sb_pv *base = sb->base[j->object], *pv = slot->pv[j->sheet], *v[3];
     const refl__sb_group *g = &sb->groups[j->group];
     int lo = 0, hi = g->hit_count, tr;
     refl__sb_tri t;
@@ -1128,7 +1170,12 @@ static void refl__sb_emit_job(void *arg, int index) {
     }
     for (tr = j->first; tr < j->first + j->count && !j->failed; ++tr) {
         const uint32_t *tri = m->indices + 3 * (size_t)tr;
-        const refl__sb_pv *a = &v[tri[0]], *b = &v[tri[1]], *c = &v[tri[2]];
+        const refl__sb_pv *a, *b, *c;
+        int k;
+        for (k = 0; k < 3; ++k) v[k] = slot->index[tri[k]] < 0 ? &base[tri[k]] : &pv[slot->index[tri[k]]];
+        a = v[0];
+        b = v[1];
+        c = v[2];
         t.edge = t.self ? REFL__MAX(refl_v3_length(refl_v3_sub(a->world, b->world)),
                                     REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
                                               refl_v3_length(refl_v3_sub(c->world, a->world))))
@@ -1248,12 +1295,15 @@ static refl_result refl__sb_draw(refl__sb *sb) {
 /* Frees the batch's projected vertices and emitted triangles. */
 static void refl__sb_free_batch(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
-    int slots = (sb->batch1 - sb->batch0) * sb->p->scene->object_count * REFL__SB_SHEETS, i;
-    for (i = 0; sb->verts && i < slots; ++i) refl__free(al, sb->verts[i]);
+    int pairs = (sb->batch1 - sb->batch0) * sb->p->scene->object_count, i, k;
+    for (i = 0; sb->slots && i < pairs; ++i) {
+        refl__free(al, sb->slots[i].index);
+        for (k = 0; k < REFL__SB_SHEETS; ++k) refl__free(al, sb->slots[i].pv[k]);
+    }
     for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
-    refl__free(al, sb->verts);
+    refl__free(al, sb->slots);
     refl__free(al, sb->jobs);
-    sb->verts = NULL;
+    sb->slots = NULL;
     sb->jobs = NULL;
     sb->job_count = 0;
 }
@@ -1763,27 +1813,31 @@ static refl_result refl__sb_groups(refl__sb *sb) {
 static refl_result refl__sb_project_all(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
-    int slots = (sb->batch1 - sb->batch0) * scene->object_count * REFL__SB_SHEETS, i, g, o, t, k, n = 0;
-    sb->verts = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(slots, 1), sizeof(refl__sb_pv *));
-    if (!sb->verts) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < slots; ++i) { /* a group's sheets past its own stay NULL */
-        const refl__sb_group *gr = &sb->groups[sb->batch0 + i / REFL__SB_SHEETS / scene->object_count];
-        const refl_mesh *m = scene->meshes[scene->objects[i / REFL__SB_SHEETS % scene->object_count].mesh];
-        if (i % REFL__SB_SHEETS >= REFL__MAX(gr->sheets, 1)) continue;
-        sb->verts[i] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(m->vertex_count, 1), sizeof(refl__sb_pv));
-        if (!sb->verts[i]) return REFL_ERROR_OUT_OF_MEMORY;
+    int pairs = (sb->batch1 - sb->batch0) * scene->object_count, i, g, o, t, k, n = 0;
+    if (!sb->base) { /* the first batch: every object's vertices in the world, once */
+        sb->base = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__sb_pv *));
+        if (!sb->base) return REFL_ERROR_OUT_OF_MEMORY;
+        for (o = 0; o < scene->object_count; ++o) {
+            int vc = scene->meshes[scene->objects[o].mesh]->vertex_count;
+            sb->base[o] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(vc, 1), sizeof(refl__sb_pv));
+            if (!sb->base[o]) return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        rast_run_jobs(sb->p->rc, scene->object_count, refl__sb_base_object, sb);
     }
-    rast_run_jobs(sb->p->rc, slots / REFL__SB_SHEETS, refl__sb_project_object, sb);
-    for (i = 0; i < slots; i += REFL__SB_SHEETS) { /* a vertex projects into every sheet at once */
-        int v, count = scene->meshes[scene->objects[i / REFL__SB_SHEETS % scene->object_count].mesh]->vertex_count;
-        if (!sb->verts[i] || !refl__sb_live(&sb->groups[sb->batch0 + i / REFL__SB_SHEETS / scene->object_count]))
-            continue;
-        sb->p->frame->stats.projections += count;
-        for (v = 0; v < count; ++v) {
+    sb->slots = (refl__sb_slot *)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_slot));
+    if (!sb->slots) return REFL_ERROR_OUT_OF_MEMORY;
+    rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
+    for (i = 0; i < pairs; ++i) {
+        const refl__sb_slot *slot = &sb->slots[i];
+        int v;
+        if (slot->failed) return REFL_ERROR_OUT_OF_MEMORY;
+        if (!slot->index) continue; /* no tree */
+        sb->p->frame->stats.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
+        for (v = 0; v < slot->count; ++v) { /* a vertex projects into every sheet at once */
             int ok = 0;
-            for (k = 0; k < REFL__SB_SHEETS && sb->verts[i + k]; ++k) ok |= sb->verts[i + k][v].ok;
+            for (k = 0; k < REFL__SB_SHEETS && slot->pv[k]; ++k) ok |= slot->pv[k][v].ok;
             sb->p->frame->stats.projected += ok;
-            sb->p->frame->stats.ambiguous += sb->verts[i][v].ambiguous;
+            sb->p->frame->stats.ambiguous += slot->pv[0][v].ambiguous;
         }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
@@ -1831,6 +1885,8 @@ static void refl__sb_free(refl__sb *sb) {
     }
     refl__free(al, sb->sides);
     refl__sb_free_batch(sb);
+    for (i = 0; sb->base && i < sb->p->scene->object_count; ++i) refl__free(al, sb->base[i]);
+    refl__free(al, sb->base);
     refl_bvh_destroy(sb->bvh);
     refl_bvh_destroy(sb->mirrors);
     refl__free(al, sb->mirror_object);
