@@ -5445,6 +5445,7 @@ typedef struct refl__sbc_quad {
                                 between them the lerp bounds the rays (min of lines is concave) */
     float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
     float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
+    float aabb[6];           /* its region's world box (lows, highs), padded: the first pre-test */
     float fold[2];           /* the slices where its rays fold (ascending; FLT_MAX: none) */
     float ray[4][6];         /* per ray in its frame: tail - o along m, a, b, then head - tail along m, a, b */
     float len[4];            /* per ray: |head - tail| */
@@ -6134,13 +6135,15 @@ static int refl__sbc_quad_slice(const refl__sbc_frame *q, const refl_sbc_ray *ra
     return 1;
 }
 
-/* A ray-list leaf's box: every corner of its quads' lateral boxes at both
-   ends (between them the quad's region is their blend), padded. */
-static void refl__sbc_leaf_box(const refl_sbc *s, refl__sbc_node *node) {
+/* A ray-list leaf's box and each of its quads': every corner of a quad's
+   lateral boxes at both ends (between them the quad's region is their
+   blend), padded past float rounding. */
+static void refl__sbc_leaf_box(refl_sbc *s, refl__sbc_node *node) {
     double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
     int i, e, c, j;
     for (i = 0; i < node->count; ++i) {
-        const refl__sbc_quad *q = &s->quads[node->first + i];
+        refl__sbc_quad *q = &s->quads[node->first + i];
+        double qlo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, qhi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, qpad = 0.0;
         refl__sbc_frame fr;
         refl__sbc_frame_load(q, &fr);
         for (e = 0; e < 2; ++e)
@@ -6148,10 +6151,17 @@ static void refl__sbc_leaf_box(const refl_sbc *s, refl__sbc_node *node) {
                 double x = q->box[e][c & 1], y = q->box[e][2 + (c >> 1)];
                 for (j = 0; j < 3; ++j) {
                     double v = fr.o[j] + (double)q->tau[e] * fr.m[j] + x * fr.a[j] + y * fr.b[j];
-                    lo[j] = REFL__MIN(lo[j], v);
-                    hi[j] = REFL__MAX(hi[j], v);
+                    qlo[j] = REFL__MIN(qlo[j], v);
+                    qhi[j] = REFL__MAX(qhi[j], v);
                 }
             }
+        for (j = 0; j < 3; ++j) qpad = REFL__MAX(qpad, qhi[j] - qlo[j] + fabs(qlo[j]) + fabs(qhi[j]));
+        for (j = 0; j < 3; ++j) {
+            q->aabb[j] = (float)(qlo[j] - 1e-5 * qpad);
+            q->aabb[3 + j] = (float)(qhi[j] + 1e-5 * qpad);
+            lo[j] = REFL__MIN(lo[j], qlo[j]);
+            hi[j] = REFL__MAX(hi[j], qhi[j]);
+        }
     }
     for (j = 0; j < 3 && node->count; ++j) pad = REFL__MAX(pad, hi[j] - lo[j] + fabs(lo[j]) + fabs(hi[j]));
     for (j = 0; j < 3; ++j) { /* empty: lows above highs, nothing inside */
@@ -6620,9 +6630,12 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
         refl__sbc_pick *pk, *pick;
         double t0 = q->tau[0], t1 = q->tau[1];
         int sheet;
-        /* most quads miss p: a float test first, looser than its rounding
-           (about 1e-6 of the coordinates' size), so it never drops a quad
-           the exact test below would take */
+        /* most quads miss p: its box first, then a float test of its
+           region, looser than its rounding (about 1e-6 of the coordinates'
+           size), so neither drops a quad the exact test below would take */
+        if (!(pf[0] >= q->aabb[0] && pf[0] <= q->aabb[3] && pf[1] >= q->aabb[1] && pf[1] <= q->aabb[4] &&
+              pf[2] >= q->aabb[2] && pf[2] <= q->aabb[5]))
+            continue;
         {
             float eps = 1e-5f * (pn + q->o_size);
             float wx = pf[0] - q->o[0], wy = pf[1] - q->o[1], wz = pf[2] - q->o[2], tf, ff, v;
