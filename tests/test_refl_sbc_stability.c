@@ -136,9 +136,9 @@ Test(refl_sbc_stability, concave_mirror, .timeout = 120) {
 }
 
 /* The default scene's camera swung around the teapot in eight steps of
-   0.4 radians. Measured: worst mean 1.13 and p95 7.0 px (step 0, where
-   the spout's reflection crosses the body's), wrong up to 1.9%, holes up
-   to 22.3% (step 7): ray-list leaves near the silhouettes, and the teapot
+   0.4 radians. Measured: worst mean 1.17 and p95 7.0 px (step 0, where
+   the spout's reflection crosses the body's), wrong up to 1.5%, holes up
+   to 21.9% (step 7): ray-list leaves near the silhouettes, and the teapot
    reflecting itself next to its own surface. */
 Test(refl_sbc_stability, camera_path_across_the_teapot, .timeout = 300) {
     refl_scene *s = NULL;
