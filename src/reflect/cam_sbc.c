@@ -878,8 +878,8 @@ static int refl__sbc_quadratic(double a, double b, double c, double r[2]) {
    of their quadrilateral (half the cross product of its diagonals) is a
    quadratic in tau, exact from three slices, and it turns over at its
    roots. Returns the folds found (0 to 2). */
-static int refl__sbc_quad_folds(const refl__sbc_frame *fr, const refl_sbc_ray *rays, int idx, int W, const double tau[2],
-                                double fold[2]) {
+static int refl__sbc_quad_folds(const refl__sbc_frame *fr, const refl_sbc_ray *rays, int idx, int W,
+                                const double tau[2], double fold[2]) {
     double ts[3], area[3], x[4], y[4], lam[4], len[4], a, b, roots[2];
     int i, n, found = 0;
     ts[0] = tau[0];

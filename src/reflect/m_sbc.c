@@ -177,7 +177,7 @@ typedef struct refl__sb_group {
 typedef struct refl__sb_pv {
     refl_vec3 world, normal;
     int sheet;                    /* the group's sheet it projects in */
-    int across;                   /* it has none there: its image one fold away (refl__sb_sheet_project) */
+    int across;                   /* it has none there: its image one fold away (refl__sb_sheet_image) */
     float uv[2];
     float clip[4];                /* the first reflector point's, depth replaced */
     float sx, sy;                 /* its window position */
@@ -829,10 +829,10 @@ static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b)
    each within g's box (a leaf's map far outside the rays it was fitted to
    can send a point anywhere): the mask of those it has. */
 static int refl__sb_images(const refl__sb_side *sd, const refl__sb_group *g, refl_vec3 p, refl_vec3 *f, float *z) {
+    refl_vec3 lo = sd->layer ? g->first_lo : g->lo, hi = sd->layer ? g->first_hi : g->hi;
     int mask = refl_sbc_project_sheets(g->sbc, p, REFL__MAX(g->sheets, 1), f, z), k;
     for (k = 0; k < REFL__SB_SHEETS; ++k)
-        if ((mask >> k & 1) && !refl__sb_in_box(sd->layer ? g->first_lo : g->lo, sd->layer ? g->first_hi : g->hi, f[k], f[k]))
-            mask &= ~(1 << k);
+        if ((mask >> k & 1) && !refl__sb_in_box(lo, hi, f[k], f[k])) mask &= ~(1 << k);
     return mask;
 }
 
@@ -869,8 +869,8 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     if (k >= 0) refl__sb_place(sb, g, v, f[k], z[k]);
 }
 
-/* Projects v[0] (world, normal, uv set) into each of g's sheets, v[k] for
-   sheet k: one search of the leaf for all. */
+/* Projects v[0] (world, normal, uv set; in g's box) into each of g's
+   sheets, v[k] for sheet k: one search of the leaf for all. */
 static void refl__sb_project_sheets(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     refl_vec3 f[REFL__SB_SHEETS];
     float z[REFL__SB_SHEETS];
@@ -880,9 +880,7 @@ static void refl__sb_project_sheets(const refl__sb *sb, const refl__sb_group *g,
         refl__sb_project(sb, g, &v[0]);
         return;
     }
-    mask = refl__sb_in_box(g->lo, g->hi, v[0].world, v[0].world)
-               ? refl__sb_images(&sb->sides[g->side], g, v[0].world, f, z)
-               : 0;
+    mask = refl__sb_images(&sb->sides[g->side], g, v[0].world, f, z);
     for (k = 0; k < sheets; ++k) {
         int image;
         v[k] = v[0];
@@ -942,7 +940,6 @@ static void refl__sb_place(const refl__sb *sb, const refl__sb_group *g, refl__sb
     v->ok = 1;
 }
 
-/* Projects every vertex of object o into group g (a job per pair). */
 /* Object o's vertices in the world, projecting nowhere (what a group
    whose box a vertex lies outside makes of it). */
 static void refl__sb_base_object(void *arg, int o) {
@@ -1075,12 +1072,12 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
     int across = (a->ok && a->across) + (b->ok && b->across) + (c->ok && c->across);
+    int elsewhere = across && across == ok; /* every image from other sheets: drawn in those */
     refl__sb_pv ab, bc, ca;
     int have_mid = 0;
     refl_vec3 lo = refl__v3_min(a->world, refl__v3_min(b->world, c->world));
     refl_vec3 hi = refl__v3_max(a->world, refl__v3_max(b->world, c->world));
     if (!refl__sb_in_box(g->lo, g->hi, lo, hi)) return; /* nothing of it can reflect in the group */
-    int elsewhere = across && across == ok; /* every image from other sheets: drawn in those */
     if (elsewhere) ok = 0;
     /* the surface the rays leave, whole: its parts would be dropped one by one */
     if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
