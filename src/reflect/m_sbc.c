@@ -98,7 +98,13 @@
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel, or V-D's Fresnel blend
         and distance fade, when the material asks), as ENVMAP composites;
-        glass adds the environment refracted once.
+        glass adds the environment refracted once. At the first order a
+        pixel of a group that nothing was drawn on, between two drawn
+        pixels of its group on opposite sides, is a crack (reflected
+        triangles subdivided to different depths meet at a T-junction)
+        and takes the nearer one's reflection (default 640x480 factor 2:
+        holes 6.7% to 4.9%, mean 0.34 to 0.36 px; 1080p factor 4 holes
+        6.5% to 4.8%).
         Past the first order (refl__sb_resolve_row_deep): the nearest
         order's colour (its order read off the offset), or the environment
         along the last reflected ray, times the product of the reflectances
@@ -1305,19 +1311,46 @@ static void refl__sb_free_batch(refl__sb *sb) {
     sb->job_count = 0;
 }
 
+/* Where the first-order pixel (x, y) of a group, with nothing drawn on
+   it, takes its reflection from: the nearer of two drawn pixels of its
+   group on opposite sides of it (left and right, above and below, or
+   diagonally). Reflected triangles subdivided to different depths meet
+   at edges bent differently (a T-junction), and the crack between them
+   is a pixel wide; a hole wider than that stays one. Itself when none. */
+static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    const refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x, best = i;
+    int k, e;
+    for (k = 0; k < 4; ++k) {
+        size_t side[2];
+        int ok = 1;
+        for (e = 0; e < 2 && ok; ++e) {
+            int sx = x + (e ? -dir[k][0] : dir[k][0]), sy = y + (e ? -dir[k][1] : dir[k][1]);
+            if (sx < 0 || sy < 0 || sx >= fr->width || sy >= fr->height) ok = 0;
+            else side[e] = (size_t)sy * (size_t)fr->width + (size_t)sx;
+            ok = ok && sb->group_of[side[e]] == sb->group_of[i] && sb->depth[side[e]] < 1.0f;
+        }
+        for (e = 0; e < 2 && ok; ++e)
+            if (best == i || sb->depth[side[e]] < sb->depth[best]) best = side[e];
+    }
+    return best;
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
     int x, c;
     for (x = 0; x < fr->width; ++x) {
-        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
         float sub[3];
         if (sb->em.gbuf[4 * i + 3] == 0.0f) continue;
+        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
-        if (sb->group_of[i] && sb->depth[i] < 1.0f) {
-            const float *q = sb->points + 4 * i;
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * i + (size_t)c] * (1.0f / 255.0f);
+        if (sb->group_of[i] && sb->depth[src] < 1.0f) {
+            const float *q = sb->points + 4 * src;
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
         } else {
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
