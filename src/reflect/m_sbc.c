@@ -98,8 +98,8 @@
         along the pixel's reflected ray where nothing was drawn, times the
         material's reflectance (Schlick's Fresnel, or V-D's Fresnel blend
         and distance fade, when the material asks), as ENVMAP composites;
-        glass adds the environment refracted once. At the first order a
-        pixel of a group that nothing was drawn on, between two drawn
+        glass adds the environment refracted once. In a one-bounce frame
+        a pixel of a group that nothing was drawn on, between two drawn
         pixels of its group on opposite sides, is a crack (reflected
         triangles subdivided to different depths meet at a T-junction)
         and takes the nearer one's reflection (default 640x480 factor 2:
@@ -1311,8 +1311,8 @@ static void refl__sb_free_batch(refl__sb *sb) {
     sb->job_count = 0;
 }
 
-/* Where the first-order pixel (x, y) of a group, with nothing drawn on
-   it, takes its reflection from: the nearer of two drawn pixels of its
+/* Where pixel (x, y) of a group, with nothing drawn on it, takes its
+   reflection from (one-bounce frames): the nearer of two drawn pixels of its
    group on opposite sides of it (left and right, above and below, or
    diagonally). Reflected triangles subdivided to different depths meet
    at edges bent differently (a T-junction), and the crack between them
