@@ -5420,7 +5420,24 @@ typedef struct refl__sbc_node {
     int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
     float box[6];            /* rays: the box its quads lie in (lows, then highs); what lies outside
                                 is no quad's, and a point not projecting is found so at once */
+    int grid;                /* rays: its index (refl__sbc_index) + 1; 0: none, every quad is tried */
 } refl__sbc_node;
+
+/* A ray-list leaf's index: slabs across the leaf's mean ray direction m,
+   each cut in cells across it, each cell listing the quads whose region
+   (the hull of its lateral boxes at both ends) meets it. A point then
+   tries the quads of its cell only: the concave bowl's leaves hold about
+   1,000 quads each, and its 640x480 frame took 3.1 s with every quad
+   tried, 1.6 s with the index; the teapot's leaves are short (80 quads)
+   and their quads' world boxes already stop most, so it gains 4%. */
+#define REFL__SBC_INDEX_MIN 16 /* quads in a leaf, at least, for an index */
+typedef struct refl__sbc_index {
+    double o[3], m[3], a[3], b[3]; /* the leaf's frame: t along m, x along a, y along b */
+    double t0, t_scale;      /* slab = (t - t0) t_scale */
+    double x0, x_scale, y0, y_scale; /* cell = (x - x0) x_scale, (y - y0) y_scale */
+    int slabs, cells;        /* slabs, and cells per side of one */
+    int start;               /* cell_start[start + (slab * cells + y) * cells + x]: its list */
+} refl__sbc_index;
 
 typedef struct refl__sbc_cam {
     double o[3], c[3], n[3], eu[3], ev[3];
@@ -5479,6 +5496,12 @@ struct refl_sbc {
     int cam_count, cam_cap;
     refl__sbc_quad *quads;
     int quad_count, quad_cap;
+    refl__sbc_index *indexes; /* the ray-list leaves' */
+    int index_count, index_cap;
+    int *cell_start;         /* per index cell, then one past the last: where its list starts */
+    int cell_start_count, cell_start_cap;
+    int *cell_quads;         /* the lists: quads, from their leaf's first */
+    int cell_quad_count, cell_quad_cap;
     refl_sbc_ray *rays;      /* a copy of the map, only when there are ray lists */
     refl_sbc_stats stats;
 };
@@ -6227,6 +6250,154 @@ static int refl__sbc_quad_folds(const refl__sbc_frame *fr, const refl_sbc_ray *r
     return found;
 }
 
+/* Quad q's region in index frame ix: its 8 corners (its lateral boxes'
+   at both ends) as (t, x, y). */
+static void refl__sbc_index_corners(const refl__sbc_index *ix, const refl__sbc_quad *q, double v[8][3]) {
+    refl__sbc_frame fr;
+    int e, c, j;
+    refl__sbc_frame_load(q, &fr);
+    for (e = 0; e < 2; ++e)
+        for (c = 0; c < 4; ++c) {
+            double w[3], x = q->box[e][c & 1], y = q->box[e][2 + (c >> 1)];
+            for (j = 0; j < 3; ++j) w[j] = fr.o[j] + (double)q->tau[e] * fr.m[j] + x * fr.a[j] + y * fr.b[j] - ix->o[j];
+            v[4 * e + c][0] = refl__sbc_dot(w, ix->m);
+            v[4 * e + c][1] = refl__sbc_dot(w, ix->a);
+            v[4 * e + c][2] = refl__sbc_dot(w, ix->b);
+        }
+}
+
+/* The lateral box (x lo, x hi, y lo, y hi) of the part of a quad's region
+   (its corners v) with t in [t0, t1]: the corners in the slab and where
+   the region's 12 edges cross its planes; 0 when none (it misses the slab). */
+static int refl__sbc_slab_box(const double v[8][3], double t0, double t1, double box[4]) {
+    static const int edge[12][2] = {{0, 1}, {1, 3}, {3, 2}, {2, 0}, {4, 5}, {5, 7}, {7, 6}, {6, 4},
+                                    {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    int k, e, any = 0;
+    box[0] = box[2] = DBL_MAX;
+    box[1] = box[3] = -DBL_MAX;
+    for (k = 0; k < 8; ++k)
+        if (v[k][0] >= t0 && v[k][0] <= t1) {
+            box[0] = REFL__MIN(box[0], v[k][1]); box[1] = REFL__MAX(box[1], v[k][1]);
+            box[2] = REFL__MIN(box[2], v[k][2]); box[3] = REFL__MAX(box[3], v[k][2]);
+            any = 1;
+        }
+    for (k = 0; k < 12; ++k) {
+        const double *p = v[edge[k][0]], *q = v[edge[k][1]];
+        for (e = 0; e < 2; ++e) {
+            double t = e ? t1 : t0, f;
+            if (!((p[0] - t) * (q[0] - t) <= 0.0) || p[0] == q[0]) continue;
+            f = (t - p[0]) / (q[0] - p[0]);
+            box[0] = REFL__MIN(box[0], p[1] + f * (q[1] - p[1])); box[1] = REFL__MAX(box[1], p[1] + f * (q[1] - p[1]));
+            box[2] = REFL__MIN(box[2], p[2] + f * (q[2] - p[2])); box[3] = REFL__MAX(box[3], p[2] + f * (q[2] - p[2]));
+            any = 1;
+        }
+    }
+    return any;
+}
+
+/* A ray-list leaf's index (see refl__sbc_index), built when it has
+   REFL__SBC_INDEX_MIN quads or more. Conservative: a point a quad's exact
+   test takes lies in its region, so in a cell listing it (boxes padded
+   past rounding). */
+static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
+    refl__sbc_index ix;
+    int cells;
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0, ax[3] = {0, 0, 0};
+    double v[8][3], box[4];
+    int i, j, k, pass, best = 0, total, *start, *last;
+    node->grid = 0;
+    if (node->count < REFL__SBC_INDEX_MIN) return REFL_OK;
+    memset(&ix, 0, sizeof ix);
+    /* finer for longer lists: a few quads per cell where they lie side by side */
+    ix.cells = REFL__CLAMP((int)sqrt((double)node->count), 4, 32);
+    ix.slabs = REFL__CLAMP((int)(0.5 * sqrt((double)node->count)), 4, 16);
+    cells = ix.slabs * ix.cells * ix.cells;
+    for (i = 0; i < node->count; ++i)
+        for (j = 0; j < 3; ++j) {
+            ix.o[j] += (double)s->quads[node->first + i].o[j] / node->count;
+            ix.m[j] += s->quads[node->first + i].m[j];
+        }
+    if (!(refl__sbc_normalize(ix.m) > 0.0)) return REFL_OK;
+    for (j = 1; j < 3; ++j)
+        if (fabs(ix.m[j]) < fabs(ix.m[best])) best = j;
+    ax[best] = 1.0;
+    refl__sbc_cross(ix.m, ax, ix.a);
+    refl__sbc_normalize(ix.a);
+    refl__sbc_cross(ix.m, ix.a, ix.b);
+    for (i = 0; i < node->count; ++i) { /* the leaf's extent in its frame */
+        refl__sbc_index_corners(&ix, &s->quads[node->first + i], v);
+        for (k = 0; k < 8; ++k)
+            for (j = 0; j < 3; ++j) {
+                lo[j] = REFL__MIN(lo[j], v[k][j]);
+                hi[j] = REFL__MAX(hi[j], v[k][j]);
+            }
+    }
+    for (j = 0; j < 3; ++j) pad = REFL__MAX(pad, hi[j] - lo[j] + fabs(lo[j]) + fabs(hi[j]));
+    pad = 1e-5 * (pad + fabs(ix.o[0]) + fabs(ix.o[1]) + fabs(ix.o[2]));
+    ix.t0 = lo[0] - pad;
+    ix.t_scale = ix.slabs / (hi[0] - lo[0] + 2.0 * pad);
+    ix.x0 = lo[1] - pad;
+    ix.x_scale = ix.cells / (hi[1] - lo[1] + 2.0 * pad);
+    ix.y0 = lo[2] - pad;
+    ix.y_scale = ix.cells / (hi[2] - lo[2] + 2.0 * pad);
+    ix.start = s->cell_start_count;
+    if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_start, &s->cell_start_cap, ix.start + cells + 1,
+                            sizeof(int)) ||
+        !refl__sbc_grow_int(&s->allocator, (void **)&s->indexes, &s->index_cap, s->index_count + 1,
+                            sizeof(refl__sbc_index)))
+        return REFL_ERROR_OUT_OF_MEMORY;
+    start = s->cell_start + ix.start;
+    last = (int *)refl__alloc(&s->allocator, (size_t)cells * sizeof(int)); /* per cell: the quad it listed last */
+    if (!last) return REFL_ERROR_OUT_OF_MEMORY;
+    memset(start, 0, (size_t)(cells + 1) * sizeof(int));
+    total = s->cell_quad_count;
+    for (pass = 0; pass < 2; ++pass) { /* count each cell's list, then fill it */
+        for (k = 0; k < cells; ++k) last[k] = -1;
+        if (pass) {
+            for (k = 0; k <= cells; ++k) {
+                int count = start[k];
+                start[k] = total;
+                total += count;
+            }
+            if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_quads, &s->cell_quad_cap, total, sizeof(int))) {
+                refl__free(&s->allocator, last);
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+        for (i = 0; i < node->count; ++i) {
+            int slab;
+            refl__sbc_index_corners(&ix, &s->quads[node->first + i], v);
+            for (slab = 0; slab < ix.slabs; ++slab) {
+                double t0 = ix.t0 + slab / ix.t_scale, t1 = ix.t0 + (slab + 1) / ix.t_scale;
+                int x, y, r[4];
+                if (!refl__sbc_slab_box(v, t0 - pad, t1 + pad, box)) continue;
+                r[0] = (int)REFL__CLAMP((box[0] - pad - ix.x0) * ix.x_scale, 0.0, ix.cells - 1.0);
+                r[1] = (int)REFL__CLAMP((box[1] + pad - ix.x0) * ix.x_scale, 0.0, ix.cells - 1.0);
+                r[2] = (int)REFL__CLAMP((box[2] - pad - ix.y0) * ix.y_scale, 0.0, ix.cells - 1.0);
+                r[3] = (int)REFL__CLAMP((box[3] + pad - ix.y0) * ix.y_scale, 0.0, ix.cells - 1.0);
+                for (y = r[2]; y <= r[3]; ++y)
+                    for (x = r[0]; x <= r[1]; ++x) {
+                        int c = (slab * ix.cells + y) * ix.cells + x;
+                        if (last[c] == i) continue;
+                        last[c] = i;
+                        if (!pass) start[c]++;
+                        else s->cell_quads[start[c]++] = i;
+                    }
+            }
+        }
+        if (pass) { /* the fill moved every start to the next cell's */
+            for (k = cells; k > 0; --k) start[k] = start[k - 1];
+            start[0] = s->cell_quad_count;
+        }
+    }
+    refl__free(&s->allocator, last);
+    s->cell_quad_count = total;
+    s->cell_start_count += cells + 1;
+    s->indexes[s->index_count++] = ix;
+    node->grid = s->index_count;
+    return REFL_OK;
+}
+
 /* A ray-list leaf: the set's 2 x 2 quads of rays, each with its frame. */
 static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int n, refl__sbc_node *node) {
     refl_sbc *s = b->sbc;
@@ -6330,7 +6501,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         node->count++;
     }
     refl__sbc_leaf_box(s, node);
-    return REFL_OK;
+    return refl__sbc_leaf_index(s, node);
 }
 
 static void refl__sbc_free_builder(refl__sbc_builder *b) {
@@ -6352,6 +6523,9 @@ REFL_API void refl_sbc_destroy(refl_sbc *sbc) {
     refl__free(&a, sbc->nodes);
     refl__free(&a, sbc->cams);
     refl__free(&a, sbc->quads);
+    refl__free(&a, sbc->indexes);
+    refl__free(&a, sbc->cell_start);
+    refl__free(&a, sbc->cell_quads);
     refl__free(&a, sbc->rays);
     refl__free(&a, sbc);
 }
@@ -6548,6 +6722,8 @@ done:
     s->stats.bytes = (long long)sizeof(refl_sbc) + (long long)s->node_cap * (long long)sizeof(refl__sbc_node) +
                      (long long)s->cam_cap * (long long)sizeof(refl__sbc_cam) +
                      (long long)s->quad_cap * (long long)sizeof(refl__sbc_quad) +
+                     (long long)s->index_cap * (long long)sizeof(refl__sbc_index) +
+                     ((long long)s->cell_start_cap + (long long)s->cell_quad_cap) * (long long)sizeof(int) +
                      (s->rays ? (long long)count * (long long)sizeof(refl_sbc_ray) : 0);
     *out_sbc = s;
     return REFL_OK;
@@ -6615,7 +6791,8 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
     refl__sbc_pick picks[REFL_SBC_SHEETS][2]; /* per sheet: inside a quad, near one */
     const float pf[3] = {(float)p[0], (float)p[1], (float)p[2]};
     const float pn = fabsf(pf[0]) + fabsf(pf[1]) + fabsf(pf[2]);
-    int i, c, j, k, W = sb->width, mask = 0;
+    int i, c, j, k, W = sb->width, mask = 0, from = 0, to = node->count, at;
+    const int *list = NULL;
     for (j = 0; j < 3; ++j)
         if (!(p[j] >= node->box[j] && p[j] <= node->box[3 + j])) return 0;
     for (i = 0; i < REFL_SBC_SHEETS; ++i) {
@@ -6623,8 +6800,26 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
         picks[i][0].out = picks[i][1].out = DBL_MAX;
         picks[i][0].off = picks[i][1].off = 0;
     }
-    for (i = 0; i < node->count; ++i) {
-        const refl__sbc_quad *q = &sb->quads[node->first + i];
+    if (node->grid) { /* only the quads listed in p's cell */
+        const refl__sbc_index *ix = &sb->indexes[node->grid - 1];
+        double w[3], t, x, y;
+        int slab, cx, cy;
+        for (j = 0; j < 3; ++j) w[j] = p[j] - ix->o[j];
+        t = (refl__sbc_dot(w, ix->m) - ix->t0) * ix->t_scale;
+        x = (refl__sbc_dot(w, ix->a) - ix->x0) * ix->x_scale;
+        y = (refl__sbc_dot(w, ix->b) - ix->y0) * ix->y_scale;
+        if (!(t >= 0.0 && t < ix->slabs && x >= 0.0 && x < ix->cells && y >= 0.0 && y < ix->cells))
+            return 0;
+        slab = (int)t;
+        cx = (int)x;
+        cy = (int)y;
+        at = ix->start + (slab * ix->cells + cy) * ix->cells + cx;
+        from = sb->cell_start[at];
+        to = sb->cell_start[at + 1];
+        list = sb->cell_quads;
+    }
+    for (at = from; at < to; ++at) {
+        const refl__sbc_quad *q = &sb->quads[node->first + (list ? list[at] : at)];
         refl__sbc_frame fr;
         double w[3], tau, x, y, f, x4[4], y4[4], lam[4], len[4], ss = 0.0, tt = 0.0, wt[4], zz = 0.0, lm = 0.0, o;
         refl__sbc_pick *pk, *pick;
