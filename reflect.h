@@ -6250,6 +6250,19 @@ static int refl__sbc_quad_folds(const refl__sbc_frame *fr, const refl_sbc_ray *r
     return found;
 }
 
+/* Unit a and b across unit m (m, a, b right-handed): a from m and the
+   axis m leans on least. */
+static void refl__sbc_across(const double *m, double *a, double *b) {
+    double ax[3] = {0.0, 0.0, 0.0};
+    int j, best = 0;
+    for (j = 1; j < 3; ++j)
+        if (fabs(m[j]) < fabs(m[best])) best = j;
+    ax[best] = 1.0;
+    refl__sbc_cross(m, ax, a);
+    refl__sbc_normalize(a);
+    refl__sbc_cross(m, a, b);
+}
+
 /* Quad q's region in index frame ix: its 8 corners (its lateral boxes'
    at both ends) as (t, x, y). */
 static void refl__sbc_index_corners(const refl__sbc_index *ix, const refl__sbc_quad *q, double v[8][3]) {
@@ -6302,9 +6315,9 @@ static int refl__sbc_slab_box(const double v[8][3], double t0, double t1, double
 static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
     refl__sbc_index ix;
     int cells;
-    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0, ax[3] = {0, 0, 0};
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
     double v[8][3], box[4];
-    int i, j, k, pass, best = 0, total, *start, *last;
+    int i, j, k, pass, total, *start, *last;
     node->grid = 0;
     if (node->count < REFL__SBC_INDEX_MIN) return REFL_OK;
     memset(&ix, 0, sizeof ix);
@@ -6318,12 +6331,7 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
             ix.m[j] += s->quads[node->first + i].m[j];
         }
     if (!(refl__sbc_normalize(ix.m) > 0.0)) return REFL_OK;
-    for (j = 1; j < 3; ++j)
-        if (fabs(ix.m[j]) < fabs(ix.m[best])) best = j;
-    ax[best] = 1.0;
-    refl__sbc_cross(ix.m, ax, ix.a);
-    refl__sbc_normalize(ix.a);
-    refl__sbc_cross(ix.m, ix.a, ix.b);
+    refl__sbc_across(ix.m, ix.a, ix.b);
     for (i = 0; i < node->count; ++i) { /* the leaf's extent in its frame */
         refl__sbc_index_corners(&ix, &s->quads[node->first + i], v);
         for (k = 0; k < 8; ++k)
@@ -6411,8 +6419,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         int idx = list[i], u = idx % W, v = idx / W, c, j, e, ok = 1;
         refl__sbc_quad q;
         refl__sbc_frame fr;
-        double ax[3] = {0.0, 0.0, 0.0}, lo = DBL_MAX, hi = -DBL_MAX, scale = 0.0, tau[2];
-        int best = 0;
+        double lo = DBL_MAX, hi = -DBL_MAX, scale = 0.0, tau[2];
         if (u + 1 >= W || v + 1 >= H) continue;
         if (b->mark[idx + 1] != st || b->mark[idx + W] != st || b->mark[idx + W + 1] != st) continue;
         memset(&q, 0, sizeof q);
@@ -6425,12 +6432,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
             for (j = 0; j < 3; ++j) fr.m[j] += b->dir[3 * (size_t)k + (size_t)j];
         }
         if (!(refl__sbc_normalize(fr.m) > 0.0)) continue;
-        for (j = 1; j < 3; ++j)
-            if (fabs(fr.m[j]) < fabs(fr.m[best])) best = j;
-        ax[best] = 1.0;
-        refl__sbc_cross(fr.m, ax, fr.a);
-        refl__sbc_normalize(fr.a);
-        refl__sbc_cross(fr.m, fr.a, fr.b);
+        refl__sbc_across(fr.m, fr.a, fr.b);
         /* stored in float; everything below from the stored values */
         for (j = 0; j < 3; ++j) {
             q.o[j] = (float)fr.o[j]; q.m[j] = (float)fr.m[j]; q.a[j] = (float)fr.a[j]; q.b[j] = (float)fr.b[j];
