@@ -6314,17 +6314,16 @@ static int refl__sbc_slab_box(const double v[8][3], double t0, double t1, double
    past rounding). */
 static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
     refl__sbc_index ix;
-    int cells;
     double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
     double v[8][3], box[4];
-    int i, j, k, pass, total, *start, *last;
+    int ncells, i, j, k, pass, total, *start, *last;
     node->grid = 0;
     if (node->count < REFL__SBC_INDEX_MIN) return REFL_OK;
     memset(&ix, 0, sizeof ix);
     /* finer for longer lists: a few quads per cell where they lie side by side */
     ix.cells = REFL__CLAMP((int)sqrt((double)node->count), 4, 32);
     ix.slabs = REFL__CLAMP((int)(0.5 * sqrt((double)node->count)), 4, 16);
-    cells = ix.slabs * ix.cells * ix.cells;
+    ncells = ix.slabs * ix.cells * ix.cells;
     for (i = 0; i < node->count; ++i)
         for (j = 0; j < 3; ++j) {
             ix.o[j] += (double)s->quads[node->first + i].o[j] / node->count;
@@ -6349,20 +6348,20 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
     ix.y0 = lo[2] - pad;
     ix.y_scale = ix.cells / (hi[2] - lo[2] + 2.0 * pad);
     ix.start = s->cell_start_count;
-    if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_start, &s->cell_start_cap, ix.start + cells + 1,
+    if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_start, &s->cell_start_cap, ix.start + ncells + 1,
                             sizeof(int)) ||
         !refl__sbc_grow_int(&s->allocator, (void **)&s->indexes, &s->index_cap, s->index_count + 1,
                             sizeof(refl__sbc_index)))
         return REFL_ERROR_OUT_OF_MEMORY;
     start = s->cell_start + ix.start;
-    last = (int *)refl__alloc(&s->allocator, (size_t)cells * sizeof(int)); /* per cell: the quad it listed last */
+    last = (int *)refl__alloc(&s->allocator, (size_t)ncells * sizeof(int)); /* per cell: the quad it listed last */
     if (!last) return REFL_ERROR_OUT_OF_MEMORY;
-    memset(start, 0, (size_t)(cells + 1) * sizeof(int));
+    memset(start, 0, (size_t)(ncells + 1) * sizeof(int));
     total = s->cell_quad_count;
     for (pass = 0; pass < 2; ++pass) { /* count each cell's list, then fill it */
-        for (k = 0; k < cells; ++k) last[k] = -1;
+        for (k = 0; k < ncells; ++k) last[k] = -1;
         if (pass) {
-            for (k = 0; k <= cells; ++k) {
+            for (k = 0; k <= ncells; ++k) {
                 int count = start[k];
                 start[k] = total;
                 total += count;
@@ -6394,13 +6393,13 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
             }
         }
         if (pass) { /* the fill moved every start to the next cell's */
-            for (k = cells; k > 0; --k) start[k] = start[k - 1];
+            for (k = ncells; k > 0; --k) start[k] = start[k - 1];
             start[0] = s->cell_quad_count;
         }
     }
     refl__free(&s->allocator, last);
     s->cell_quad_count = total;
-    s->cell_start_count += cells + 1;
+    s->cell_start_count += ncells + 1;
     s->indexes[s->index_count++] = ix;
     node->grid = s->index_count;
     return REFL_OK;
