@@ -227,20 +227,21 @@ static void check_higher(refl_scene *s, const refl_view *v, int depth, const mir
     refl_scene_destroy(s);
 }
 
-/* Histories A, B, AB, BA. Measured: mean 0.05, p95 0, max 23.4 px, wrong
-   0.000, holes 0.022, colour off 0.027; past the first order (820
-   pixels): mean 0.09, p95 1.0, max 4.5 px, wrong 0.006, holes 0.049,
-   colour off 0.099, mean colour difference 8.25. */
+/* Histories A, B, AB, BA. Measured: mean 0.07, p95 0, max 23.4 px, wrong
+   0.000, holes 0.012, colour off 0.018; past the first order (820
+   pixels): mean 0.11, p95 1.0, max 4.5 px, wrong 0.009, holes 0.026,
+   colour off 0.087, mean colour difference 7.72 (holes 0.049 and colour
+   off 0.099 before cracks were filled). */
 Test(sbc_higher, facing_mirrors_depth_2, .timeout = 120) {
     refl_view v = facing_view();
     sbc_bounds all = {0.1, 1.0, 30, 0.005, 0.03, 0.035, 0}, higher = {0.2, 1.5, 8, 0.015, 0.07, 0.13, 10};
     check_higher(facing_mirrors(), &v, 2, facing_spheres, 4, all, higher, "facing mirrors");
 }
 
-/* ABA and BAB too. Measured: mean 0.05, p95 0, max 7.1 px, wrong 0.000,
-   holes 0.023, colour off 0.028; past the first order: mean 0.11, p95
-   1.0, max 4.5 px, wrong 0.000, holes 0.080, colour off 0.128, mean
-   colour difference 10.36. */
+/* ABA and BAB too. Measured: mean 0.06, p95 0, max 5.1 px, wrong 0.000,
+   holes 0.013, colour off 0.018; past the first order: mean 0.14, p95
+   1.0, max 4.5 px, wrong 0.000, holes 0.050, colour off 0.109, mean
+   colour difference 9.61. */
 Test(sbc_higher, facing_mirrors_depth_3, .timeout = 120) {
     refl_view v = facing_view();
     sbc_bounds all = {0.1, 1.0, 12, 0.005, 0.03, 0.035, 0}, higher = {0.2, 1.5, 8, 0.01, 0.11, 0.16, 12.5};
@@ -249,9 +250,9 @@ Test(sbc_higher, facing_mirrors_depth_3, .timeout = 120) {
 
 /* Paper 003's surface properties on both mirrors (a Fresnel interval and
    a distance fade), each bounce weighed as RAYTRACE weighs it: the fade of
-   a bounce by its own reflected ray's length. Measured: colour off 0.023,
-   past the first order 0.044 and a mean colour difference of 3.24 (8.06
-   when the first bounce's fade is left out of an order-2 pixel). */
+   a bounce by its own reflected ray's length. Measured: colour off 0.014,
+   past the first order 0.044 and a mean colour difference of 3.13 (8.06
+   when the first bounce's fade was left out of an order-2 pixel). */
 Test(sbc_higher, facing_mirrors_surface_properties, .timeout = 120) {
     refl_scene *s = facing_mirrors();
     refl_view v = facing_view();
@@ -272,8 +273,8 @@ Test(sbc_higher, facing_mirrors_surface_properties, .timeout = 120) {
 /* The points as RAYTRACE records them by default: the first past the
    first reflector (on an order-2 path, the second mirror's surface), which
    tells apart the block (order 1) from the floor it hides (order 2).
-   Measured: mean 0.05, p95 0, max 5.1 px, wrong 0.000, holes 0.020, colour
-   off 0.027, mean colour difference 2.24. With the orders' offset (k - 1) g
+   Measured: mean 0.06, p95 0, max 5.1 px, wrong 0.000, holes 0.011, colour
+   off 0.017, mean colour difference 1.78. With the orders' offset (k - 1) g
    dropped from m_sbc.c's window depth: mean 0.39, max 104.4 px, wrong
    0.005, colour off 0.032. */
 Test(sbc_higher, facing_mirrors_first_points, .timeout = 120) {
@@ -289,10 +290,11 @@ Test(sbc_higher, sphere_beside_curved_mirror, .timeout = 120) {
     refl_mesh *a = NULL, *big = NULL;
     refl_view v = tu_refl_view(refl_v3(0.6f, 0.6f, 4.2f), refl_v3(0.0f, 0.0f, -0.6f), W, H);
     static const mirror_sphere spheres[2] = {{{1.0f, -0.4f, 0.0f}, 0.6f}, {{-0.9f, 0.5f, -1.6f}, 1.5f}};
-    /* measured: mean 0.06, p95 0, max 11.4 px, wrong 0.001, holes 0.022,
-       colour off 0.031; past the first order (885 pixels): mean 0.16, p95
-       1.41, max 5.7 px, wrong 0.013, holes 0.075, colour off 0.101, mean
-       colour difference 9.08 */
+    /* measured: mean 0.07, p95 0, max 11.4 px, wrong 0.001, holes 0.013,
+       colour off 0.022; past the first order (885 pixels): mean 0.22, p95
+       1.41, max 8.0 px (5.7 before cracks were filled: a crack there takes
+       a neighbour's point 8 px away), wrong 0.017, holes 0.049, colour off
+       0.081, mean colour difference 8.36 */
     sbc_bounds all = {0.1, 1.0, 16, 0.005, 0.03, 0.04, 0}, higher = {0.25, 2.0, 8, 0.02, 0.1, 0.13, 11};
     cr_assert_eq(refl_mesh_sphere(spheres[0].r, 48, 24, NULL, &a), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(spheres[1].r, 96, 48, NULL, &big), REFL_OK);
