@@ -1089,6 +1089,15 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 static refl_result refl__result_from_rast(rast_result r);
+
+/* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
+typedef struct refl__hit_geom {
+    refl_vec3 v[3];
+    float w[3];
+    refl_vec3 p, ng, ns;
+} refl__hit_geom;
+static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
+                              refl__hit_geom *g);
 struct refl__sb_measure;
 static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                 refl_frame *frame, struct refl__sb_measure *sbc_measure);
@@ -4362,6 +4371,31 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
+}
+
+/* The surface at hit h on mesh m placed by `model` (normals by
+   `normal_m`): its triangle's corners in the world, the barycentric
+   weights, the point (interpolated: more exact than origin + t dir), the
+   geometric normal and the interpolated shading normal (the geometric one
+   where that vanishes). The ray tracer and SBC's higher orders share it. */
+static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
+                              refl__hit_geom *g) {
+    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
+    refl_vec3 n = refl_v3(0.0f, 0.0f, 0.0f);
+    int k;
+    g->w[0] = 1.0f - h->u - h->v;
+    g->w[1] = h->u;
+    g->w[2] = h->v;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
+        g->v[k] = refl_mat4_point(*model, refl_v3(pp[0], pp[1], pp[2]));
+        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), g->w[k]));
+    }
+    g->p = refl_v3_add(refl_v3_add(refl_v3_scale(g->v[0], g->w[0]), refl_v3_scale(g->v[1], g->w[1])),
+                       refl_v3_scale(g->v[2], g->w[2]));
+    g->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(g->v[1], g->v[0]), refl_v3_sub(g->v[2], g->v[0])));
+    g->ns = refl_v3_normalize(refl_mat4_dir(*normal_m, n));
+    if (refl_v3_dot(g->ns, g->ns) == 0.0f) g->ns = g->ng;
 }
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
@@ -9572,28 +9606,21 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
     const refl__rt_object *o = &rt->objects[h->object];
     const refl_mesh *m = o->mesh;
     const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
-    float w0 = 1.0f - h->u - h->v, w[3];
-    refl_vec3 v[3], n = refl_v3(0, 0, 0);
+    refl__hit_geom g;
     int k;
-    w[0] = w0; w[1] = h->u; w[2] = h->v;
+    refl__hit_surface(m, &o->model, &o->normal_m, h, &g);
     s->magnitude = 0.0f;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
-        v[k] = refl_mat4_point(o->model, refl_v3(pp[0], pp[1], pp[2]));
-        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(v[k].x), REFL__MAX(fabsf(v[k].y), fabsf(v[k].z))));
-        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
-    }
-    /* barycentric interpolation is more exact than origin + t dir */
-    s->p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w0), refl_v3_scale(v[1], h->u)), refl_v3_scale(v[2], h->v));
-    s->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-    s->ns = refl_v3_normalize(refl_mat4_dir(o->normal_m, n));
-    if (refl_v3_dot(s->ns, s->ns) == 0.0f) s->ns = s->ng;
+    for (k = 0; k < 3; ++k)
+        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+    s->p = g.p;
+    s->ng = g.ng;
+    s->ns = g.ns;
     s->has_uv = m->texcoords != NULL;
     s->uv[0] = s->uv[1] = 0.0f;
     if (s->has_uv)
         for (k = 0; k < 3; ++k) {
-            s->uv[0] += w[k] * m->texcoords[2 * (size_t)tri[k]];
-            s->uv[1] += w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+            s->uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+            s->uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
         }
     s->material = o->material;
     s->object = h->object;
@@ -12280,27 +12307,14 @@ static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, ref
    shading normals (unit, as the mesh winds and interpolates them); the
    triangle's longest edge. */
 static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
-    const refl_scene *scene = sb->p->scene;
-    const refl_object *o = &scene->objects[h->object];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
-    float w[3];
-    refl_vec3 v[3], n = refl_v3(0.0f, 0.0f, 0.0f);
-    int k;
-    w[0] = 1.0f - h->u - h->v;
-    w[1] = h->u;
-    w[2] = h->v;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
-        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
-        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
-    }
-    *p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w[0]), refl_v3_scale(v[1], w[1])), refl_v3_scale(v[2], w[2]));
-    *ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-    *ns = refl_v3_normalize(refl_mat4_dir(sb->normal_m[h->object], n));
-    if (refl_v3_dot(*ns, *ns) == 0.0f) *ns = *ng;
-    return REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
-                     REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    const refl_object *o = &sb->p->scene->objects[h->object];
+    refl__hit_geom g;
+    refl__hit_surface(sb->p->scene->meshes[o->mesh], &o->transform, &sb->normal_m[h->object], h, &g);
+    *p = g.p;
+    *ng = g.ng;
+    *ns = g.ns;
+    return REFL__MAX(refl_v3_length(refl_v3_sub(g.v[1], g.v[0])),
+                     REFL__MAX(refl_v3_length(refl_v3_sub(g.v[2], g.v[1])), refl_v3_length(refl_v3_sub(g.v[0], g.v[2]))));
 }
 
 /* The material of G-buffer side id `id` (object + 1, negated on the back). */

@@ -468,3 +468,28 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
 }
+
+/* The surface at hit h on mesh m placed by `model` (normals by
+   `normal_m`): its triangle's corners in the world, the barycentric
+   weights, the point (interpolated: more exact than origin + t dir), the
+   geometric normal and the interpolated shading normal (the geometric one
+   where that vanishes). The ray tracer and SBC's higher orders share it. */
+static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
+                              refl__hit_geom *g) {
+    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
+    refl_vec3 n = refl_v3(0.0f, 0.0f, 0.0f);
+    int k;
+    g->w[0] = 1.0f - h->u - h->v;
+    g->w[1] = h->u;
+    g->w[2] = h->v;
+    for (k = 0; k < 3; ++k) {
+        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
+        g->v[k] = refl_mat4_point(*model, refl_v3(pp[0], pp[1], pp[2]));
+        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), g->w[k]));
+    }
+    g->p = refl_v3_add(refl_v3_add(refl_v3_scale(g->v[0], g->w[0]), refl_v3_scale(g->v[1], g->w[1])),
+                       refl_v3_scale(g->v[2], g->w[2]));
+    g->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(g->v[1], g->v[0]), refl_v3_sub(g->v[2], g->v[0])));
+    g->ns = refl_v3_normalize(refl_mat4_dir(*normal_m, n));
+    if (refl_v3_dot(g->ns, g->ns) == 0.0f) g->ns = g->ng;
+}

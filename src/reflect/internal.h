@@ -123,6 +123,15 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 static refl_result refl__result_from_rast(rast_result r);
+
+/* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
+typedef struct refl__hit_geom {
+    refl_vec3 v[3];
+    float w[3];
+    refl_vec3 p, ng, ns;
+} refl__hit_geom;
+static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
+                              refl__hit_geom *g);
 struct refl__sb_measure;
 static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                 refl_frame *frame, struct refl__sb_measure *sbc_measure);

@@ -65,28 +65,21 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
     const refl__rt_object *o = &rt->objects[h->object];
     const refl_mesh *m = o->mesh;
     const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
-    float w0 = 1.0f - h->u - h->v, w[3];
-    refl_vec3 v[3], n = refl_v3(0, 0, 0);
+    refl__hit_geom g;
     int k;
-    w[0] = w0; w[1] = h->u; w[2] = h->v;
+    refl__hit_surface(m, &o->model, &o->normal_m, h, &g);
     s->magnitude = 0.0f;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
-        v[k] = refl_mat4_point(o->model, refl_v3(pp[0], pp[1], pp[2]));
-        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(v[k].x), REFL__MAX(fabsf(v[k].y), fabsf(v[k].z))));
-        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
-    }
-    /* barycentric interpolation is more exact than origin + t dir */
-    s->p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w0), refl_v3_scale(v[1], h->u)), refl_v3_scale(v[2], h->v));
-    s->ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-    s->ns = refl_v3_normalize(refl_mat4_dir(o->normal_m, n));
-    if (refl_v3_dot(s->ns, s->ns) == 0.0f) s->ns = s->ng;
+    for (k = 0; k < 3; ++k)
+        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+    s->p = g.p;
+    s->ng = g.ng;
+    s->ns = g.ns;
     s->has_uv = m->texcoords != NULL;
     s->uv[0] = s->uv[1] = 0.0f;
     if (s->has_uv)
         for (k = 0; k < 3; ++k) {
-            s->uv[0] += w[k] * m->texcoords[2 * (size_t)tri[k]];
-            s->uv[1] += w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+            s->uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+            s->uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
         }
     s->material = o->material;
     s->object = h->object;

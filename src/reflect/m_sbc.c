@@ -317,27 +317,14 @@ static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, ref
    shading normals (unit, as the mesh winds and interpolates them); the
    triangle's longest edge. */
 static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
-    const refl_scene *scene = sb->p->scene;
-    const refl_object *o = &scene->objects[h->object];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
-    float w[3];
-    refl_vec3 v[3], n = refl_v3(0.0f, 0.0f, 0.0f);
-    int k;
-    w[0] = 1.0f - h->u - h->v;
-    w[1] = h->u;
-    w[2] = h->v;
-    for (k = 0; k < 3; ++k) {
-        const float *pp = m->positions + 3 * (size_t)tri[k], *nn = m->normals + 3 * (size_t)tri[k];
-        v[k] = refl_mat4_point(o->transform, refl_v3(pp[0], pp[1], pp[2]));
-        n = refl_v3_add(n, refl_v3_scale(refl_v3(nn[0], nn[1], nn[2]), w[k]));
-    }
-    *p = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], w[0]), refl_v3_scale(v[1], w[1])), refl_v3_scale(v[2], w[2]));
-    *ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-    *ns = refl_v3_normalize(refl_mat4_dir(sb->normal_m[h->object], n));
-    if (refl_v3_dot(*ns, *ns) == 0.0f) *ns = *ng;
-    return REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
-                     REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    const refl_object *o = &sb->p->scene->objects[h->object];
+    refl__hit_geom g;
+    refl__hit_surface(sb->p->scene->meshes[o->mesh], &o->transform, &sb->normal_m[h->object], h, &g);
+    *p = g.p;
+    *ng = g.ng;
+    *ns = g.ns;
+    return REFL__MAX(refl_v3_length(refl_v3_sub(g.v[1], g.v[0])),
+                     REFL__MAX(refl_v3_length(refl_v3_sub(g.v[2], g.v[1])), refl_v3_length(refl_v3_sub(g.v[0], g.v[2]))));
 }
 
 /* The material of G-buffer side id `id` (object + 1, negated on the back). */
