@@ -6349,7 +6349,7 @@ static int refl__sbc_slab_box(const double v[8][3], double t0, double t1, double
 static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
     refl__sbc_index ix;
     double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, pad = 0.0;
-    double v[8][3], box[4];
+    double (*v)[8][3], box[4];
     int ncells, i, j, k, pass, total, *start, *last;
     node->grid = 0;
     if (node->count < REFL__SBC_INDEX_MIN) return REFL_OK;
@@ -6365,12 +6365,14 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
         }
     if (!(refl__sbc_normalize(ix.m) > 0.0)) return REFL_OK;
     refl__sbc_across(ix.m, ix.a, ix.b);
+    v = (double(*)[8][3])refl__alloc(&s->allocator, (size_t)node->count * sizeof *v); /* per quad: its corners */
+    if (!v) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < node->count; ++i) { /* the leaf's extent in its frame */
-        refl__sbc_index_corners(&ix, &s->quads[node->first + i], v);
+        refl__sbc_index_corners(&ix, &s->quads[node->first + i], v[i]);
         for (k = 0; k < 8; ++k)
             for (j = 0; j < 3; ++j) {
-                lo[j] = REFL__MIN(lo[j], v[k][j]);
-                hi[j] = REFL__MAX(hi[j], v[k][j]);
+                lo[j] = REFL__MIN(lo[j], v[i][k][j]);
+                hi[j] = REFL__MAX(hi[j], v[i][k][j]);
             }
     }
     for (j = 0; j < 3; ++j) pad = REFL__MAX(pad, hi[j] - lo[j] + fabs(lo[j]) + fabs(hi[j]));
@@ -6385,11 +6387,12 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
     if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_start, &s->cell_start_cap, ix.start + ncells + 1,
                             sizeof(int)) ||
         !refl__sbc_grow_int(&s->allocator, (void **)&s->indexes, &s->index_cap, s->index_count + 1,
-                            sizeof(refl__sbc_index)))
+                            sizeof(refl__sbc_index)) ||
+        !(last = (int *)refl__alloc(&s->allocator, (size_t)ncells * sizeof(int)))) { /* per cell: its last quad */
+        refl__free(&s->allocator, v);
         return REFL_ERROR_OUT_OF_MEMORY;
+    }
     start = s->cell_start + ix.start;
-    last = (int *)refl__alloc(&s->allocator, (size_t)ncells * sizeof(int)); /* per cell: the quad it listed last */
-    if (!last) return REFL_ERROR_OUT_OF_MEMORY;
     memset(start, 0, (size_t)(ncells + 1) * sizeof(int));
     total = s->cell_quad_count;
     for (pass = 0; pass < 2; ++pass) { /* count each cell's list, then fill it */
@@ -6402,16 +6405,16 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
             }
             if (!refl__sbc_grow_int(&s->allocator, (void **)&s->cell_quads, &s->cell_quad_cap, total, sizeof(int))) {
                 refl__free(&s->allocator, last);
+                refl__free(&s->allocator, v);
                 return REFL_ERROR_OUT_OF_MEMORY;
             }
         }
         for (i = 0; i < node->count; ++i) {
             int slab;
-            refl__sbc_index_corners(&ix, &s->quads[node->first + i], v);
             for (slab = 0; slab < ix.slabs; ++slab) {
                 double t0 = ix.t0 + slab / ix.t_scale, t1 = ix.t0 + (slab + 1) / ix.t_scale;
                 int x, y, r[4];
-                if (!refl__sbc_slab_box(v, t0 - pad, t1 + pad, box)) continue;
+                if (!refl__sbc_slab_box((const double(*)[3])v[i], t0 - pad, t1 + pad, box)) continue;
                 r[0] = (int)REFL__CLAMP((box[0] - pad - ix.x0) * ix.x_scale, 0.0, ix.cells - 1.0);
                 r[1] = (int)REFL__CLAMP((box[1] + pad - ix.x0) * ix.x_scale, 0.0, ix.cells - 1.0);
                 r[2] = (int)REFL__CLAMP((box[2] - pad - ix.y0) * ix.y_scale, 0.0, ix.cells - 1.0);
@@ -6432,6 +6435,7 @@ static refl_result refl__sbc_leaf_index(refl_sbc *s, refl__sbc_node *node) {
         }
     }
     refl__free(&s->allocator, last);
+    refl__free(&s->allocator, v);
     s->cell_quad_count = total;
     s->cell_start_count += ncells + 1;
     s->indexes[s->index_count++] = ix;
