@@ -12173,6 +12173,8 @@ typedef struct refl__sb_group {
     refl_result result;
     const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
     int piece;
+    int morph_nodes[4];           /* the eye's tetrahedron in the grid and its weights, located once */
+    float morph_w[4];
 } refl__sb_group;
 
 /* A scene point and what a group makes of it. */
@@ -12849,9 +12851,10 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     v->ambiguous = 0;
     v->across = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    if (g->morph) {
-        if (refl_sbc_morph_project(g->morph, sb->p->view->eye, g->piece, v->world, &f[0], &z[0], &v->ambiguous))
-            refl__sb_place(sb, g, v, f[0], z[0]);
+    if (g->morph) { /* refl_sbc_morph_project, with the eye located once per frame */
+        float slot[16];
+        int mask = refl__sbm_project4(g->morph, g->morph_nodes, g->morph_w, g->piece, v->world, slot);
+        if (refl__sbm_blend(slot, mask, g->morph_w, &f[0], &z[0], &v->ambiguous)) refl__sb_place(sb, g, v, f[0], z[0]);
         return;
     }
     k = refl__sb_sheet_image(refl__sb_images(&sb->sides[g->side], g, v->world, f, z), v->sheet, &v->across);
@@ -13690,6 +13693,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             g->object = o;
             g->morph = m;
             g->piece = piece;
+            refl_sbc_morph_locate(m, p->view->eye, g->morph_nodes, g->morph_w); /* refl__sb_morph_for found it */
             refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
