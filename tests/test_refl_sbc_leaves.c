@@ -17,6 +17,7 @@
    random bumpy reflectors. */
 #include <criterion/criterion.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 #include "../reflect.h"
 #include "test_util.h"
@@ -52,7 +53,13 @@ static refl_sbc_camera_error measure(const refl_scene *s, const refl_view *v, in
               e.pinhole_samples.max);
     /* the samples are a subset of every pixel */
     cr_assert(e.pinhole_samples.pixels <= e.pinhole.pixels && e.ray_list_samples.pixels <= e.ray_list.pixels);
-    cr_assert(e.pinhole_samples.pixels * factor * factor <= e.pinhole.pixels + e.pinhole.pixels / 2 + 64);
+    /* one sample per factor^2 pixels of each kind (measured within 5%) */
+    cr_assert(llabs(e.pinhole_samples.pixels * factor * factor - e.pinhole.pixels) <= e.pinhole.pixels / 8 + 64,
+              "%s: %lld pinhole samples at factor %d against %lld pixels", what, e.pinhole_samples.pixels, factor,
+              e.pinhole.pixels);
+    cr_assert(llabs(e.ray_list_samples.pixels * factor * factor - e.ray_list.pixels) <= e.ray_list.pixels / 8 + 64,
+              "%s: %lld ray-list samples at factor %d against %lld pixels", what, e.ray_list_samples.pixels, factor,
+              e.ray_list.pixels);
     refl_frame_destroy(truth);
     return e;
 }
