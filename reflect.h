@@ -1033,6 +1033,13 @@ static inline refl_vec3 refl__v3_max(refl_vec3 a, refl_vec3 b) {
     return refl_v3(REFL__MAX(a.x, b.x), REFL__MAX(a.y, b.y), REFL__MAX(a.z, b.z));
 }
 
+/* The matrix that carries normals under transform m: its inverse
+   transpose (m itself when it has no inverse). */
+static inline refl_mat4 refl__normal_matrix(refl_mat4 m) {
+    refl_mat4 inv;
+    return refl_mat4_invert(m, &inv) ? refl_mat4_transpose(inv) : m;
+}
+
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* The frame's colour, depth and stencil as rast.h targets. */
@@ -3825,13 +3832,12 @@ typedef struct refl__draw_ctx {
 /* The draw context of object `object` seen through vp. */
 static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
     const refl_object *o = &s->objects[object];
-    refl_mat4 inv;
     dc->scene = s;
     dc->mesh = s->meshes[o->mesh];
     dc->material = &s->materials[o->material];
     dc->model = o->transform;
     dc->mvp = refl_mat4_mul(vp, o->transform);
-    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    dc->normal_m = refl__normal_matrix(o->transform);
 }
 
 /* Draws a mesh's triangles (indices NULL: all of them) with the bound
@@ -7402,7 +7408,7 @@ static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scen
     const refl_object *obj = &scene->objects[object];
     const refl_mesh *mesh = scene->meshes[obj->mesh];
     const refl_allocator *al = &m->allocator;
-    refl_mat4 inv, nm = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    refl_mat4 nm = refl__normal_matrix(obj->transform);
     int V = mesh->vertex_count, T = mesh->triangle_count, i, *parent, *label;
     refl_scene one;
     refl_result r;
@@ -9980,11 +9986,10 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     }
     for (i = 0; i < scene->object_count; ++i) {
         const refl_object *o = &scene->objects[i];
-        refl_mat4 inv;
         rt.objects[i].mesh = scene->meshes[o->mesh];
         rt.objects[i].material = &scene->materials[o->material];
         rt.objects[i].model = o->transform;
-        rt.objects[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        rt.objects[i].normal_m = refl__normal_matrix(o->transform);
         f->stats.triangles += scene->meshes[o->mesh]->triangle_count;
     }
     if (!rt.caster.intersect) {
@@ -10129,11 +10134,10 @@ static int refl__em_normal_fragment(void *user, const rast_fragment_in *in, floa
 
 static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int object, refl_mat4 vp, int normals) {
     const refl_object *o = &scene->objects[object];
-    refl_mat4 inv;
     d->mesh = scene->meshes[o->mesh];
     d->model = o->transform;
     d->mvp = refl_mat4_mul(vp, o->transform);
-    d->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    d->normal_m = refl__normal_matrix(o->transform);
     d->normals = normals;
     d->id = (float)(object + 1);
 }
@@ -11301,7 +11305,7 @@ static void refl__c3_triangle(const refl__pass *p, int object, int triangle, ref
     const refl_object *o = &p->scene->objects[object];
     const refl_mesh *m = p->scene->meshes[o->mesh];
     const uint32_t *tri = m->indices + 3 * (size_t)triangle;
-    refl_mat4 inv, normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    refl_mat4 normal_m = refl__normal_matrix(o->transform);
     int i;
     for (i = 0; i < 3; ++i) {
         const float *q = m->positions + 3 * (size_t)tri[i], *n = m->normals + 3 * (size_t)tri[i];
@@ -12939,7 +12943,7 @@ static void refl__sb_base_object(void *arg, int o) {
     const refl_object *obj = &sb->p->scene->objects[o];
     const refl_mesh *m = sb->p->scene->meshes[obj->mesh];
     refl__sb_pv *out = sb->base[o];
-    refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    refl_mat4 normal_m = refl__normal_matrix(obj->transform);
     int i;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
@@ -13473,8 +13477,8 @@ static refl_result refl__sb_histories(refl__sb *sb) {
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < scene->object_count; ++i) {
-        refl_mat4 inv, xf = scene->objects[i].transform;
-        sb->normal_m[i] = refl_mat4_invert(xf, &inv) ? refl_mat4_transpose(inv) : xf;
+        refl_mat4 xf = scene->objects[i].transform;
+        sb->normal_m[i] = refl__normal_matrix(xf);
         if (!refl__sb_goes_on(&scene->materials[scene->objects[i].material])) continue;
         sb->mirror_object[n] = i;
         objs[n++] = scene->objects[i];

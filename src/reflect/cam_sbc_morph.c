@@ -395,7 +395,7 @@ static refl_result refl__sbm_reflector(refl_sbc_morph *m, const refl_scene *scen
     const refl_object *obj = &scene->objects[object];
     const refl_mesh *mesh = scene->meshes[obj->mesh];
     const refl_allocator *al = &m->allocator;
-    refl_mat4 inv, nm = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    refl_mat4 nm = refl__normal_matrix(obj->transform);
     int V = mesh->vertex_count, T = mesh->triangle_count, i, *parent, *label;
     refl_scene one;
     refl_result r;

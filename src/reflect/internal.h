@@ -67,6 +67,13 @@ static inline refl_vec3 refl__v3_max(refl_vec3 a, refl_vec3 b) {
     return refl_v3(REFL__MAX(a.x, b.x), REFL__MAX(a.y, b.y), REFL__MAX(a.z, b.z));
 }
 
+/* The matrix that carries normals under transform m: its inverse
+   transpose (m itself when it has no inverse). */
+static inline refl_mat4 refl__normal_matrix(refl_mat4 m) {
+    refl_mat4 inv;
+    return refl_mat4_invert(m, &inv) ? refl_mat4_transpose(inv) : m;
+}
+
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
 /* The frame's colour, depth and stencil as rast.h targets. */

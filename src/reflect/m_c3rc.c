@@ -314,7 +314,7 @@ static void refl__c3_triangle(const refl__pass *p, int object, int triangle, ref
     const refl_object *o = &p->scene->objects[object];
     const refl_mesh *m = p->scene->meshes[o->mesh];
     const uint32_t *tri = m->indices + 3 * (size_t)triangle;
-    refl_mat4 inv, normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    refl_mat4 normal_m = refl__normal_matrix(o->transform);
     int i;
     for (i = 0; i < 3; ++i) {
         const float *q = m->positions + 3 * (size_t)tri[i], *n = m->normals + 3 * (size_t)tri[i];

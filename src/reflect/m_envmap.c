@@ -98,11 +98,10 @@ static int refl__em_normal_fragment(void *user, const rast_fragment_in *in, floa
 
 static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int object, refl_mat4 vp, int normals) {
     const refl_object *o = &scene->objects[object];
-    refl_mat4 inv;
     d->mesh = scene->meshes[o->mesh];
     d->model = o->transform;
     d->mvp = refl_mat4_mul(vp, o->transform);
-    d->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    d->normal_m = refl__normal_matrix(o->transform);
     d->normals = normals;
     d->id = (float)(object + 1);
 }

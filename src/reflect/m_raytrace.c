@@ -435,11 +435,10 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     }
     for (i = 0; i < scene->object_count; ++i) {
         const refl_object *o = &scene->objects[i];
-        refl_mat4 inv;
         rt.objects[i].mesh = scene->meshes[o->mesh];
         rt.objects[i].material = &scene->materials[o->material];
         rt.objects[i].model = o->transform;
-        rt.objects[i].normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+        rt.objects[i].normal_m = refl__normal_matrix(o->transform);
         f->stats.triangles += scene->meshes[o->mesh]->triangle_count;
     }
     if (!rt.caster.intersect) {

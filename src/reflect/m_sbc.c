@@ -945,7 +945,7 @@ static void refl__sb_base_object(void *arg, int o) {
     const refl_object *obj = &sb->p->scene->objects[o];
     const refl_mesh *m = sb->p->scene->meshes[obj->mesh];
     refl__sb_pv *out = sb->base[o];
-    refl_mat4 inv, normal_m = refl_mat4_invert(obj->transform, &inv) ? refl_mat4_transpose(inv) : obj->transform;
+    refl_mat4 normal_m = refl__normal_matrix(obj->transform);
     int i;
     for (i = 0; i < m->vertex_count; ++i) {
         const float *q = m->positions + 3 * (size_t)i, *n = m->normals + 3 * (size_t)i;
@@ -1479,8 +1479,8 @@ static refl_result refl__sb_histories(refl__sb *sb) {
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < scene->object_count; ++i) {
-        refl_mat4 inv, xf = scene->objects[i].transform;
-        sb->normal_m[i] = refl_mat4_invert(xf, &inv) ? refl_mat4_transpose(inv) : xf;
+        refl_mat4 xf = scene->objects[i].transform;
+        sb->normal_m[i] = refl__normal_matrix(xf);
         if (!refl__sb_goes_on(&scene->materials[scene->objects[i].material])) continue;
         sb->mirror_object[n] = i;
         objs[n++] = scene->objects[i];

@@ -187,13 +187,12 @@ typedef struct refl__draw_ctx {
 /* The draw context of object `object` seen through vp. */
 static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
     const refl_object *o = &s->objects[object];
-    refl_mat4 inv;
     dc->scene = s;
     dc->mesh = s->meshes[o->mesh];
     dc->material = &s->materials[o->material];
     dc->model = o->transform;
     dc->mvp = refl_mat4_mul(vp, o->transform);
-    dc->normal_m = refl_mat4_invert(o->transform, &inv) ? refl_mat4_transpose(inv) : o->transform;
+    dc->normal_m = refl__normal_matrix(o->transform);
 }
 
 /* Draws a mesh's triangles (indices NULL: all of them) with the bound
