@@ -1648,3 +1648,15 @@ REFL_API int refl_sbc_project_sheets(const refl_sbc *sbc, refl_vec3 p, int sheet
     if (!first || !z || sheets < 1) return 0;
     return refl__sbc_project(sbc, p, REFL__MIN(sheets, REFL_SBC_SHEETS), first, z);
 }
+
+/* The image sheet `sheet` draws of a point with images `mask`: its own,
+   else one a fold away (*across): a triangle straddling a fold draws in
+   the sheets on both sides, its vertices past the fold at their images
+   there, which meet this sheet's at the fold. -1: none. */
+static int refl__sbc_sheet_image(int mask, int sheet, int *across) {
+    *across = !(mask >> sheet & 1);
+    if (!*across) return sheet;
+    if (sheet > 0 && (mask >> (sheet - 1) & 1)) return sheet - 1;
+    if (mask >> (sheet + 1) & 1) return sheet + 1;
+    return -1;
+}

@@ -122,7 +122,9 @@
    ray map or groups of its front side here; a group per piece of the grid
    projects instead (the eye's tetrahedron, blended; no check against this
    frame's ray map, which it has none of), its pixels those of the piece
-   their view ray meets; morphing draws the first order only.
+   their view ray meets; morphing draws the first order only. Its sheets
+   are the most its nodes' cameras have, and sheet k blends each node's
+   image in sheet k (or one fold away), as a runtime group draws them.
    Diffuse shading needs no eye vector (Lambert), so the paper's true eye
    vector for point lights has nothing to change here. Deterministic: work
    is split into jobs whose outputs are drawn in job order. */
@@ -187,7 +189,7 @@ typedef struct refl__sb_group {
 typedef struct refl__sb_pv {
     refl_vec3 world, normal;
     int sheet;                    /* the group's sheet it projects in */
-    int across;                   /* it has none there: its image one fold away (refl__sb_sheet_image) */
+    int across;                   /* it has none there: its image one fold away (refl__sbc_sheet_image) */
     float uv[2];
     float clip[4];                /* the first reflector point's, depth replaced */
     float sx, sy;                 /* its window position */
@@ -833,18 +835,6 @@ static int refl__sb_images(const refl__sb_side *sd, const refl__sb_group *g, ref
     return mask;
 }
 
-/* The image sheet `sheet` draws of a point with images `mask`: its own,
-   else one a fold away (*across): a triangle straddling a fold draws in
-   the sheets on both sides, its vertices past the fold at their images
-   there, which meet this sheet's at the fold. -1: none. */
-static int refl__sb_sheet_image(int mask, int sheet, int *across) {
-    *across = !(mask >> sheet & 1);
-    if (!*across) return sheet;
-    if (sheet > 0 && (mask >> (sheet - 1) & 1)) return sheet - 1;
-    if (mask >> (sheet + 1) & 1) return sheet + 1;
-    return -1;
-}
-
 static void refl__sb_place(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v, refl_vec3 f, float z);
 
 /* Projects v into group g's sheet v->sheet: its first reflector point,
@@ -857,13 +847,16 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
     v->ambiguous = 0;
     v->across = 0;
     if (!refl__sb_in_box(g->lo, g->hi, v->world, v->world)) return;
-    if (g->morph) { /* refl_sbc_morph_project, with the eye located once per frame */
-        float slot[16];
-        int mask = refl__sbm_project4(g->morph, g->morph_nodes, g->morph_w, g->piece, v->world, slot);
-        if (refl__sbm_blend(slot, mask, g->morph_w, &f[0], &z[0], &v->ambiguous)) refl__sb_place(sb, g, v, f[0], z[0]);
+    if (g->morph) { /* the eye's nodes, located once per frame, blended in v's sheet */
+        float slot[4 * 4 * REFL__SB_SHEETS];
+        int masks[4];
+        refl__sbm_project4_sheets(g->morph, g->morph_nodes, g->morph_w, g->piece, v->world, REFL__MAX(g->sheets, 1),
+                                  slot, masks);
+        if (refl__sbm_blend_sheet(slot, masks, g->morph_w, v->sheet, &f[0], &z[0], &v->across, &v->ambiguous))
+            refl__sb_place(sb, g, v, f[0], z[0]);
         return;
     }
-    k = refl__sb_sheet_image(refl__sb_images(&sb->sides[g->side], g, v->world, f, z), v->sheet, &v->across);
+    k = refl__sbc_sheet_image(refl__sb_images(&sb->sides[g->side], g, v->world, f, z), v->sheet, &v->across);
     if (k >= 0) refl__sb_place(sb, g, v, f[k], z[k]);
 }
 
@@ -871,20 +864,28 @@ static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__
    sheets, v[k] for sheet k: one search of the leaf for all. */
 static void refl__sb_project_sheets(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v) {
     refl_vec3 f[REFL__SB_SHEETS];
-    float z[REFL__SB_SHEETS];
-    int k, mask, sheets = REFL__MAX(g->sheets, 1);
-    if (g->morph || sheets == 1) {
+    float z[REFL__SB_SHEETS], slot[4 * 4 * REFL__SB_SHEETS];
+    int k, mask = 0, masks[4], sheets = REFL__MAX(g->sheets, 1);
+    if (sheets == 1) {
         v[0].sheet = 0;
         refl__sb_project(sb, g, &v[0]);
         return;
     }
-    mask = refl__sb_images(&sb->sides[g->side], g, v[0].world, f, z);
+    if (g->morph)
+        refl__sbm_project4_sheets(g->morph, g->morph_nodes, g->morph_w, g->piece, v[0].world, sheets, slot, masks);
+    else
+        mask = refl__sb_images(&sb->sides[g->side], g, v[0].world, f, z);
     for (k = 0; k < sheets; ++k) {
         int image;
         v[k] = v[0];
         v[k].sheet = k;
         v[k].ok = v[k].ambiguous = 0;
-        image = refl__sb_sheet_image(mask, k, &v[k].across);
+        if (g->morph) {
+            if (refl__sbm_blend_sheet(slot, masks, g->morph_w, k, &f[0], &z[0], &v[k].across, &v[k].ambiguous))
+                refl__sb_place(sb, g, &v[k], f[0], z[0]);
+            continue;
+        }
+        image = refl__sbc_sheet_image(mask, k, &v[k].across);
         if (image >= 0) refl__sb_place(sb, g, &v[k], f[image], z[image]);
     }
 }
@@ -1700,6 +1701,7 @@ static refl_result refl__sb_morph_groups(refl__sb *sb) {
             g->morph = m;
             g->piece = piece;
             refl_sbc_morph_locate(m, p->view->eye, g->morph_nodes, g->morph_w); /* refl__sb_morph_for found it */
+            g->sheets = refl__sbm_piece_sheets(m, g->morph_nodes, g->morph_w, piece);
             refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
             /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
             g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
