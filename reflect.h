@@ -605,10 +605,13 @@ REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p);
    paper's) shrink their number: rays extrapolated in rings past the
    reflector's silhouette (extended reflectors) and leaf cameras that project a little
    beyond their frustums (refl_sbc_desc.widen). The grid assumes a static
-   scene: rays' heads are clipped against what the scene held. refl_render
-   (method SBC, refl_render_desc.sbc_morphs) projects every vertex afresh;
-   the reuse of static vertices' projections is refl_sbc_morph_project_points
-   with a cache. */
+   scene: rays' heads are clipped against what the scene held. The
+   projections below keep one image per node and piece (the nearest, the
+   paper's); refl_render (method SBC, refl_render_desc.sbc_morphs) blends
+   each sheet of the nodes' SBCs apart (refl_sbc_project_sheets), so a
+   point seen twice in a piece shows twice. It projects every vertex
+   afresh; the reuse of static vertices' projections is
+   refl_sbc_morph_project_points with a cache. */
 typedef struct refl_sbc_morph_desc {
     int nodes[3];            /* grid nodes along x, y, z, each 2..64; 0: 4 */
     float margin;            /* the grid reaches this fraction of the reflector's box diagonal
