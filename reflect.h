@@ -539,6 +539,13 @@ typedef struct refl_sbc_desc {
                                 (paper 003 VI's widened fields of view, for morphing, where
                                 points fall just outside one node's ray map); 0: exactly the
                                 rectangle, as runtime mode wants */
+    const uint8_t *links;    /* optional, per map entry: bit 0 set when it and its right
+                                neighbour lie on one smooth piece of surface, bit 1 the same
+                                with the entry below (what SBC and morphing take: normals
+                                within 45 degrees, the chord between the tails within 30
+                                degrees of both tangent planes); no unit frustum spans a link
+                                that is not set. NULL: every neighbour is linked (a map
+                                already cut into smooth pieces) */
     refl_allocator allocator;
 } refl_sbc_desc;
 
@@ -5755,6 +5762,26 @@ static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_v
 
 /* ---- building ---------------------------------------------------------------- */
 
+#define REFL__SBC_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
+#define REFL__SBC_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
+
+/* Whether neighbouring samples with surface points t1, t2 and unit normals
+   n1, n2 lie on one smooth piece of surface: normals turning by less than
+   REFL__SBC_SMOOTH_COS (not a crease: the knob on the lid, the spout's
+   joint, a silhouette turning them fast) and no gap, where the chord
+   between the points leaves a tangent plane by more than
+   REFL__SBC_SMOOTH_SIN (one surface passing in front of another: the knob
+   before the lid, the handle before the body; the chord runs along the
+   view ray). */
+static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 n2) {
+    refl_vec3 e;
+    float l;
+    if (!(refl_v3_dot(n1, n2) >= REFL__SBC_SMOOTH_COS)) return 0;
+    e = refl_v3_sub(t2, t1);
+    l = refl_v3_length(e);
+    return fabsf(refl_v3_dot(n1, e)) <= REFL__SBC_SMOOTH_SIN * l && fabsf(refl_v3_dot(n2, e)) <= REFL__SBC_SMOOTH_SIN * l;
+}
+
 typedef struct refl__sbc_task {
     int node, count, depth;
     size_t off;              /* its rays: pool[off, off + count) */
@@ -5768,6 +5795,7 @@ typedef struct refl__sbc_builder {
     int width, height;
     int max_depth;
     double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
+    const uint8_t *links;    /* desc.links, or NULL */
     refl_allocator *a;
     uint8_t *valid;          /* in the group, finite, not of zero length */
     float *dir;              /* unit direction per map entry */
@@ -6468,6 +6496,8 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         double lo = DBL_MAX, hi = -DBL_MAX, scale = 0.0, tau[2];
         if (u + 1 >= W || v + 1 >= H) continue;
         if (b->mark[idx + 1] != st || b->mark[idx + W] != st || b->mark[idx + W + 1] != st) continue;
+        /* one smooth piece: a frustum across a gap or crease holds points no ray reflects */
+        if (b->links && !((b->links[idx] & 3) == 3 && (b->links[idx + W] & 1) && (b->links[idx + 1] & 2))) continue;
         memset(&q, 0, sizeof q);
         memset(&fr, 0, sizeof fr);
         q.idx = idx;
@@ -6701,6 +6731,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     b.height = desc->height;
     b.max_depth = desc->max_depth ? desc->max_depth : 40;
     b.widen = desc->widen;
+    b.links = desc->links;
     s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
     if (!s) return REFL_ERROR_OUT_OF_MEMORY;
     s->allocator = alloc;
@@ -7080,7 +7111,8 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across) {
      projections here, the paper's) drew it in one place only. Blending
      sheet k of the four nodes (refl__sbm_blend_sheet) at 192x144, face
      256: teapot mean 1.8-4.7 px before, 0.5-2.2 after; concave bowl at
-     96x72, face 64: 25-37 px before, 3.3-3.8 after.
+     96x72, face 64: 25-37 px before, 3.3-3.8 after. No unit frustum spans
+     neighbours off one smooth piece of surface (refl__sbm_links).
      check_ambiguous counts the paper's construction criterion: the heads
      of every node's unextended rays, and points a tenth of the way along
      from their tails (the tails themselves lie on every frustum's floor),
@@ -7284,6 +7316,28 @@ static void refl__sbm_face_maps(const refl__sbm_build *b, refl_vec3 o, int f, re
         }
 }
 
+/* A piece's face map's links (refl_sbc_desc.links): neighbours on one
+   smooth piece of surface. A mesh piece is joined through shared vertices
+   only, so the knob seen in front of the lid is the lid's piece, and a
+   unit frustum between a ray off the knob's silhouette and one off the lid
+   behind it holds points of the body's rim that neither reflects (at
+   512-sample faces most of the teapot's error); runtime mode cuts its
+   groups at the same links. */
+static void refl__sbm_links(const refl_sbc_ray *rays, const uint8_t *valid, const refl_vec3 *normals, int W,
+                            uint8_t *links) {
+    int u, v;
+    for (v = 0; v < W; ++v)
+        for (u = 0; u < W; ++u) {
+            size_t a = (size_t)v * (size_t)W + (size_t)u, r = a + 1, d = a + (size_t)W;
+            links[a] = 0;
+            if (!valid[a]) continue;
+            if (u + 1 < W && valid[r] && refl__sbc_smooth(rays[a].tail, normals[a], rays[r].tail, normals[r]))
+                links[a] |= 1;
+            if (v + 1 < W && valid[d] && refl__sbc_smooth(rays[a].tail, normals[a], rays[d].tail, normals[d]))
+                links[a] |= 2;
+        }
+}
+
 /* Builds node `index` (a job): per face, every piece's map and SBC. */
 static void refl__sbm_build_node(void *arg, int index) {
     const refl__sbm_build *b = (const refl__sbm_build *)arg;
@@ -7297,6 +7351,7 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl_vec3 *normals = (refl_vec3 *)refl__calloc(al, S * (size_t)P, sizeof(refl_vec3));
     refl__sbc_hit *met = (refl__sbc_hit *)refl__calloc(al, S * (size_t)P, sizeof(refl__sbc_hit));
     uint8_t *miss = (uint8_t *)refl__calloc(al, S, 1); /* per sample: the ray meets no piece */
+    uint8_t *links = (uint8_t *)refl__calloc(al, S, 1);
     nd->hits = (refl__sbc_hit **)refl__calloc(al, (size_t)P, sizeof(refl__sbc_hit *));
     nd->hit_count = (int *)refl__calloc(al, (size_t)P, sizeof(int));
     nd->ends = (refl_vec3 **)refl__calloc(al, (size_t)P, sizeof(refl_vec3 *));
@@ -7305,7 +7360,7 @@ static void refl__sbm_build_node(void *arg, int index) {
     nd->dirs = (signed char **)refl__calloc(al, (size_t)P * 6, sizeof(signed char *));
     nd->face = b->face;
     nd->box = (float *)refl__calloc(al, (size_t)P * 6, sizeof(float));
-    if (!rays || !valid || !normals || !met || !miss || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count ||
+    if (!rays || !valid || !normals || !met || !miss || !links || !nd->hits || !nd->hit_count || !nd->ends || !nd->end_count ||
         !nd->sbc || !nd->dirs || !nd->box) {
         nd->result = REFL_ERROR_OUT_OF_MEMORY;
     } else {
@@ -7373,6 +7428,8 @@ static void refl__sbm_build_node(void *arg, int index) {
                         dm[3 * i + 2] = (signed char)lrintf(127.0f * r.z);
                     }
                 }
+                refl__sbm_links(rays + (size_t)k * S, valid + (size_t)k * S, normals + (size_t)k * S, W, links);
+                d.links = links;
                 nd->result = refl_sbc_build(rays + (size_t)k * S, valid + (size_t)k * S, W, W, &d,
                                             &nd->sbc[(size_t)k * 6 + (size_t)f]);
             }
@@ -7394,6 +7451,7 @@ static void refl__sbm_build_node(void *arg, int index) {
     refl__free(al, normals);
     refl__free(al, met);
     refl__free(al, miss);
+    refl__free(al, links);
 }
 
 REFL_API void refl_sbc_morph_destroy(refl_sbc_morph *morph) {
@@ -12243,8 +12301,6 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
-#define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
-#define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
 #define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
@@ -12656,24 +12712,10 @@ static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int s
     }
 }
 
-/* Whether a gap lies between neighbouring samples m1 and m2: the chord
-   between their points leaves a tangent plane by more than
-   REFL__SB_SMOOTH_SIN, as where one surface passes in front of another (a
-   handle before the body, the knob before the lid: the chord runs along
-   the view ray). */
-static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
-    refl_vec3 e = refl_v3_sub(sd->rays[m2].tail, sd->rays[m1].tail);
-    float l = refl_v3_length(e);
-    return !(fabsf(refl_v3_dot(sd->normals[m1], e)) <= REFL__SB_SMOOTH_SIN * l &&
-             fabsf(refl_v3_dot(sd->normals[m2], e)) <= REFL__SB_SMOOTH_SIN * l);
-}
-
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
-   surface: no gap, and normals turning by less than REFL__SB_SMOOTH_COS
-   (not at a crease, the spout's joint, nor where a silhouette turns them
-   fast). */
+   surface (refl__sbc_smooth). */
 static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
-    return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
+    return refl__sbc_smooth(sd->rays[m1].tail, sd->normals[m1], sd->rays[m2].tail, sd->normals[m2]);
 }
 
 /* Whether the rays of neighbouring samples m1 and m2 cross before their
@@ -13483,9 +13525,9 @@ static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_sid
                 near_d2 = d2;
                 near = sdk->group[m];
             }
-            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SB_SMOOTH_COS ||
-                fabsf(refl_v3_dot(n, e)) > REFL__SB_SMOOTH_SIN * l ||
-                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SB_SMOOTH_SIN * l)
+            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SBC_SMOOTH_COS ||
+                fabsf(refl_v3_dot(n, e)) > REFL__SBC_SMOOTH_SIN * l ||
+                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SBC_SMOOTH_SIN * l)
                 continue;
             refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
             p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));

@@ -105,24 +105,28 @@ static void check_morph_view(const refl_scene *s, const refl_sbc_morph *m, refl_
 }
 
 /* Measured (face 128, defaults: one ring extrapolated past the
-   silhouettes, leaves widened by 0.1): mean 0.22 / 0.30 / 0.25, p95 1.4 /
-   1.4 / 1.4 px, max 2.2 / 7.0 / 4.5 px, wrong up to 0.3%, holes 33 / 30 /
-   27% (one image per node and piece, before the sheets: mean 0.33 / 0.40
-   / 0.33, p95 1.4 / 2.2 / 1.4 px, max 4.2 / 7.0 / 3.6 px, holes 31 / 27 /
-   26%; the new holes lie in the spout's reflection, where the one-image
-   frame showed points other than the truth's there. Runtime mode at these
-   eyes: mean 0.3-0.5, p95 1.4, holes 12-20%: the nodes' face maps are coarser than its ray maps and end at the
-   pieces' creases, where runtime mode extends each group by a ring). The
-   paper's 5 px holds but for the knob seen in the lid (eye 1: 7 px here,
-   15 px at 192x144): a point that near the reflector is seen very
-   differently from the cell's corners, and the blend of the four nodes'
-   images misses it; the paper's teapot was its body alone. */
+   silhouettes, leaves widened by 0.1): mean 0.08 / 0.07 / 0.12, p95 1.0
+   px, max 1.4 / 1.4 / 3.6 px (the paper's 5 px, asserted), wrong up to
+   0.3%, holes 40 / 40 / 36%. History of this test's numbers:
+   - one image per node and piece, every quad of a piece's map a unit
+     frustum: mean 0.33 / 0.40 / 0.33, p95 1.4 / 2.2 / 1.4, max 4.2 / 7.0
+     / 3.6 px, holes 31 / 27 / 26%; 7 px where the knob is seen in the lid;
+   - each sheet blended apart: mean 0.22 / 0.30 / 0.25, p95 1.4, max 2.2
+     / 7.0 / 4.5 px, holes 33 / 30 / 27%;
+   - no unit frustum across a gap or crease (refl_sbc_desc.links; the
+     knob before the lid is one mesh piece with it): the numbers above.
+     The frustums between the knob's silhouette and the lid behind it held
+     points neither reflects; without them the lid behind the knob, which
+     the nodes do not see, is a hole where the eye sees it.
+   Runtime mode at these eyes: mean 0.3-0.5, p95 1.4, holes 12-20%: the
+   nodes' face maps are coarser than its ray maps and end at the pieces'
+   creases and gaps, where runtime mode extends each group by a ring. */
 Test(refl_sbc_morph, teapot_error_within_5px, .timeout = 120) {
     refl_scene *s = teapot_scene();
     refl_sbc_morph_desc md = cell_desc(teapot_lo, teapot_hi, 128);
     refl_sbc_morph *m = build(s, 1, &md);
     static const refl_vec3 eyes[3] = {{0.3f, 4.5f, 8.9f}, {-0.7f, 3.9f, 7.6f}, {0.8f, 5.1f, 8.2f}};
-    morph_bounds b = {0.4, 2.0, 8.0, 0.02, 0.4};
+    morph_bounds b = {0.2, 1.0, 5.0, 0.02, 0.45};
     refl_sbc_morph_stats st;
     int k;
     refl_sbc_morph_get_stats(m, &st);
@@ -256,12 +260,16 @@ Test(refl_sbc_morph, eye_at_a_node_is_that_node, .timeout = 60) {
 
 /* The paper's construction check (check_ambiguous): each node's unextended
    rays' heads and near-tail points, projected at the nodes sharing a
-   tetrahedron. Measured at face 64: none 5680 of 17116, one ring past the
-   silhouettes 4285, leaves widened by 0.5: 5660, both 4284. Widening helps
+   tetrahedron. Measured at face 64: none 5723 of 17116, one ring past the
+   silhouettes 4984, leaves widened by 0.5: 5703, both 4983. Widening helps
    little: most leaves of the teapot's face maps are ray lists, which it
-   does not widen. (With the ring also past the pieces' other edges, where
-   a fictional surface lies beside a real one, the count fell to 3512 but
-   the teapot's p95 error at a node rose from 2 to 7 px.) */
+   does not widen. The ring helped more (4285 of 5680) while unit frustums
+   spanned creases: ring rays whose extrapolated normals turn more than 45
+   degrees from their neighbours' covered points with frustums no ray
+   reflects (at 288x216, 256-sample faces, eye 2: mean 2.8 px with them,
+   0.6 without). (With the ring also past the pieces' other edges, where a
+   fictional surface lies beside a real one, the count fell to 3512 but the
+   teapot's p95 error at a node rose from 2 to 7 px.) */
 static long long ambiguous_ends(const refl_scene *s, int rings, float widen, long long *checked) {
     refl_sbc_morph_desc md = cell_desc(teapot_lo, teapot_hi, 64);
     refl_sbc_morph *m;
@@ -284,7 +292,7 @@ Test(refl_sbc_morph, remedies_reduce_ambiguity, .timeout = 120) {
     /* the same unextended rays are checked every time */
     cr_assert(c0 == c1 && c1 == c2 && c2 == c3 && c0 > 10000, "%lld %lld %lld %lld", c0, c1, c2, c3);
     cr_assert(none > c0 / 5, "without remedies %lld of %lld", none, c0);
-    cr_assert(ring < none * 8 / 10, "extended reflectors: %lld against %lld", ring, none);
+    cr_assert(ring < none * 9 / 10, "extended reflectors: %lld against %lld", ring, none);
     cr_assert(wide < none, "widened leaves: %lld against %lld", wide, none);
     /* with a ring nearly every leaf is a ray list: widening them adds nothing */
     cr_assert(both <= ring, "both: %lld against one ring's %lld", both, ring);

@@ -537,6 +537,13 @@ typedef struct refl_sbc_desc {
                                 (paper 003 VI's widened fields of view, for morphing, where
                                 points fall just outside one node's ray map); 0: exactly the
                                 rectangle, as runtime mode wants */
+    const uint8_t *links;    /* optional, per map entry: bit 0 set when it and its right
+                                neighbour lie on one smooth piece of surface, bit 1 the same
+                                with the entry below (what SBC and morphing take: normals
+                                within 45 degrees, the chord between the tails within 30
+                                degrees of both tangent planes); no unit frustum spans a link
+                                that is not set. NULL: every neighbour is linked (a map
+                                already cut into smooth pieces) */
     refl_allocator allocator;
 } refl_sbc_desc;
 

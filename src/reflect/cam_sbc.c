@@ -389,6 +389,26 @@ static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_v
 
 /* ---- building ---------------------------------------------------------------- */
 
+#define REFL__SBC_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
+#define REFL__SBC_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
+
+/* Whether neighbouring samples with surface points t1, t2 and unit normals
+   n1, n2 lie on one smooth piece of surface: normals turning by less than
+   REFL__SBC_SMOOTH_COS (not a crease: the knob on the lid, the spout's
+   joint, a silhouette turning them fast) and no gap, where the chord
+   between the points leaves a tangent plane by more than
+   REFL__SBC_SMOOTH_SIN (one surface passing in front of another: the knob
+   before the lid, the handle before the body; the chord runs along the
+   view ray). */
+static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 n2) {
+    refl_vec3 e;
+    float l;
+    if (!(refl_v3_dot(n1, n2) >= REFL__SBC_SMOOTH_COS)) return 0;
+    e = refl_v3_sub(t2, t1);
+    l = refl_v3_length(e);
+    return fabsf(refl_v3_dot(n1, e)) <= REFL__SBC_SMOOTH_SIN * l && fabsf(refl_v3_dot(n2, e)) <= REFL__SBC_SMOOTH_SIN * l;
+}
+
 typedef struct refl__sbc_task {
     int node, count, depth;
     size_t off;              /* its rays: pool[off, off + count) */
@@ -402,6 +422,7 @@ typedef struct refl__sbc_builder {
     int width, height;
     int max_depth;
     double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
+    const uint8_t *links;    /* desc.links, or NULL */
     refl_allocator *a;
     uint8_t *valid;          /* in the group, finite, not of zero length */
     float *dir;              /* unit direction per map entry */
@@ -1102,6 +1123,8 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
         double lo = DBL_MAX, hi = -DBL_MAX, scale = 0.0, tau[2];
         if (u + 1 >= W || v + 1 >= H) continue;
         if (b->mark[idx + 1] != st || b->mark[idx + W] != st || b->mark[idx + W + 1] != st) continue;
+        /* one smooth piece: a frustum across a gap or crease holds points no ray reflects */
+        if (b->links && !((b->links[idx] & 3) == 3 && (b->links[idx + W] & 1) && (b->links[idx + 1] & 2))) continue;
         memset(&q, 0, sizeof q);
         memset(&fr, 0, sizeof fr);
         q.idx = idx;
@@ -1335,6 +1358,7 @@ REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *val
     b.height = desc->height;
     b.max_depth = desc->max_depth ? desc->max_depth : 40;
     b.widen = desc->widen;
+    b.links = desc->links;
     s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
     if (!s) return REFL_ERROR_OUT_OF_MEMORY;
     s->allocator = alloc;

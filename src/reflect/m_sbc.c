@@ -139,8 +139,6 @@
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
-#define REFL__SB_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
-#define REFL__SB_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
 #define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
@@ -552,24 +550,10 @@ static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int s
     }
 }
 
-/* Whether a gap lies between neighbouring samples m1 and m2: the chord
-   between their points leaves a tangent plane by more than
-   REFL__SB_SMOOTH_SIN, as where one surface passes in front of another (a
-   handle before the body, the knob before the lid: the chord runs along
-   the view ray). */
-static int refl__sb_gap(const refl__sb_side *sd, size_t m1, size_t m2) {
-    refl_vec3 e = refl_v3_sub(sd->rays[m2].tail, sd->rays[m1].tail);
-    float l = refl_v3_length(e);
-    return !(fabsf(refl_v3_dot(sd->normals[m1], e)) <= REFL__SB_SMOOTH_SIN * l &&
-             fabsf(refl_v3_dot(sd->normals[m2], e)) <= REFL__SB_SMOOTH_SIN * l);
-}
-
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
-   surface: no gap, and normals turning by less than REFL__SB_SMOOTH_COS
-   (not at a crease, the spout's joint, nor where a silhouette turns them
-   fast). */
+   surface (refl__sbc_smooth). */
 static int refl__sb_smooth(const refl__sb_side *sd, size_t m1, size_t m2) {
-    return refl_v3_dot(sd->normals[m1], sd->normals[m2]) >= REFL__SB_SMOOTH_COS && !refl__sb_gap(sd, m1, m2);
+    return refl__sbc_smooth(sd->rays[m1].tail, sd->normals[m1], sd->rays[m2].tail, sd->normals[m2]);
 }
 
 /* Whether the rays of neighbouring samples m1 and m2 cross before their
@@ -1379,9 +1363,9 @@ static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_sid
                 near_d2 = d2;
                 near = sdk->group[m];
             }
-            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SB_SMOOTH_COS ||
-                fabsf(refl_v3_dot(n, e)) > REFL__SB_SMOOTH_SIN * l ||
-                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SB_SMOOTH_SIN * l)
+            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SBC_SMOOTH_COS ||
+                fabsf(refl_v3_dot(n, e)) > REFL__SBC_SMOOTH_SIN * l ||
+                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SBC_SMOOTH_SIN * l)
                 continue;
             refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
             p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
