@@ -660,6 +660,55 @@ Test(refl_sbc_camera, folded_rays_one_image_per_sheet) {
     refl_sbc_destroy(sbc);
 }
 
+/* refl_sbc_desc.links: no unit frustum spans a neighbour pair whose link
+   is not set. The folded map above meets (0.2419, 0.125, 1) at u = 0.41
+   (between columns 4 and 5, rows 2 and 3) and u = 0.59 (columns 11 and
+   12): cutting columns 11 and 12 apart takes sheet 1's image away, cutting
+   (4, 2) from the row below takes sheet 0's, and every link set is the
+   map without links. */
+Test(refl_sbc_camera, links_cut_unit_frustums) {
+    enum { NU = 21, NY = 8 };
+    refl_sbc_ray rays[NU * NY];
+    uint8_t links[NU * NY];
+    refl_sbc_desc d;
+    refl_vec3 first[REFL_SBC_SHEETS], plain[REFL_SBC_SHEETS];
+    float zs[REFL_SBC_SHEETS], zp[REFL_SBC_SHEETS];
+    const refl_vec3 p = {0.2419f, 0.125f, 1.0f};
+    int i, j, k, cut, mask[4];
+    for (j = 0; j < NY; ++j)
+        for (i = 0; i < NU; ++i) {
+            double u = 0.3 + 0.025 * i, t[3] = {u, 0.05 * j, 0.0}, h[3] = {u - 2.0 * u * u, 0.05 * j, 2.0};
+            rays[j * NU + i].tail = rays[j * NU + i].first = fv(t);
+            rays[j * NU + i].head = fv(h);
+        }
+    memset(&d, 0, sizeof d);
+    d.view_proj = refl_mat4_mul(refl_mat4_perspective(1.0f, 1.0f, 0.1f, 100.0f),
+                                refl_mat4_look_at(refl_v3(0.5f, 0.2f, -3.0f), refl_v3(0.5f, 0.2f, 0.0f),
+                                                  refl_v3(0, 1, 0)));
+    d.width = d.height = 256;
+    d.error_px = 0.01f; /* ray lists */
+    for (cut = 0; cut < 4; ++cut) {
+        refl_sbc *sbc = NULL;
+        memset(links, 3, sizeof links);
+        if (cut == 1)
+            for (j = 0; j < NY; ++j) links[j * NU + 11] &= (uint8_t)~1u;
+        if (cut == 2) links[2 * NU + 4] &= (uint8_t)~2u;
+        d.links = cut == 3 ? NULL : links;
+        cr_assert_eq(refl_sbc_build(rays, NULL, NU, NY, &d, &sbc), REFL_OK);
+        mask[cut] = refl_sbc_project_sheets(sbc, p, REFL_SBC_SHEETS, cut ? first : plain, cut ? zs : zp);
+        if (cut == 3)
+            for (k = 0; k < REFL_SBC_SHEETS; ++k)
+                if (mask[3] >> k & 1)
+                    cr_assert(first[k].x == plain[k].x && zs[k] == zp[k], "sheet %d: links all set, the same image", k);
+        refl_sbc_destroy(sbc);
+    }
+    cr_assert_eq(mask[0], 3, "every link set: %d", mask[0]);
+    cr_assert(fabs(plain[0].x - 0.41) < 1e-3 && fabs(plain[1].x - 0.59) < 1e-3, "%g %g", plain[0].x, plain[1].x);
+    cr_assert_eq(mask[1], 1, "columns 11 and 12 cut apart: %d", mask[1]);
+    cr_assert_eq(mask[2], 2, "(4, 2) cut from the row below: %d", mask[2]);
+    cr_assert_eq(mask[3], 3, "no links: %d", mask[3]);
+}
+
 /* Behind the reflector and where no reflected ray can go: nothing. */
 Test(refl_sbc_camera, outside_every_frustum) {
     scene_t scenes[3];
