@@ -830,6 +830,13 @@ typedef struct refl_render_desc {
     int sbc_batch_groups;    /* SBC: reflection groups projected and drawn at once, 1..254
                                 (memory: that many times the scene's vertices); 0: 254.
                                 The image is the same for any value */
+    int sbc_trace_holes;     /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
+                                piece thinner than a sample, a scene triangle no vertex of
+                                which projects) shows what its reflected ray meets, traced
+                                through the scene (one ray per hole and order; past the first
+                                order along the pixel's own history), counted in stats.rays;
+                                every other pixel keeps its bytes. 0: the paper's method
+                                alone, holes show the environment */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method
@@ -9741,6 +9748,7 @@ typedef struct refl__rt {
     const refl_scene *scene;
     refl__rt_object *objects;
     refl_ray_caster caster;
+    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
     int tiles_x, tiles_y, first_tile;
     long long *tile_rays;         /* per tile, summed after: no shared counter */
     refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
@@ -10074,9 +10082,40 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
 
 static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
 
-/* One tile of pixels: primary rays from the near plane to the far plane
-   (what the rasteriser clips to), depth and stencil as the base pass
-   writes them. */
+/* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
+   to the far plane (what the rasteriser clips to); colour, the point its
+   reflector shows (NaN: none, or no reflector), window depth and stencil
+   as the base pass writes them; *rays counts the rays cast. SBC traces
+   its holes with it too (desc.sbc_trace_holes). */
+static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
+                           float *depth, uint8_t *stencil) {
+    refl_vec3 a, d;
+    float len;
+    refl_hit h;
+    refl__rt_surface s;
+    refl__rt_medium air;
+    memset(&air, 0, sizeof air);
+    *shown = refl_v3(NAN, NAN, NAN);
+    *depth = 1.0f;
+    *stencil = 0;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
+    ++*rays;
+    if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
+        h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
+        /* GL's window depth of the eye distance along the axis */
+        const refl__view_rays *vr = &rt->p->rays;
+        float ze = refl_v3_dot(refl_v3_sub(s.p, vr->eye), vr->forward), zn = vr->znear, zf = vr->zfar;
+        float ndc = (zf + zn) / (zf - zn) - 2.0f * zf * zn / ((zf - zn) * ze);
+        int reflector = refl__is_reflector(s.material);
+        *depth = REFL__CLAMP(0.5f * ndc + 0.5f, 0.0f, 1.0f);
+        refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, rays, rgb, reflector ? shown : NULL);
+        if (reflector) *stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
+    } else {
+        refl_environment_lookup(&rt->scene->environment, d, rgb);
+    }
+}
+
+/* One tile of pixels. */
 static void refl__rt_tile(void *arg, int job) {
     const refl__rt *rt = (const refl__rt *)arg;
     refl_frame *f = rt->p->frame;
@@ -10084,101 +10123,94 @@ static void refl__rt_tile(void *arg, int job) {
     int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
     int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
     long long rays = 0;
-    refl__rt_medium air;
-    memset(&air, 0, sizeof air);
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
-            refl_vec3 a, d;
-            float len, rgb[3], depth = 1.0f;
-            refl_hit h;
-            refl__rt_surface s;
-            uint8_t stencil = 0;
-            refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
-            ++rays;
-            if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
-                h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
-                /* GL's window depth of the eye distance along the axis */
-                const refl__view_rays *vr = &rt->p->rays;
-                float ze = refl_v3_dot(refl_v3_sub(s.p, vr->eye), vr->forward), zn = vr->znear, zf = vr->zfar;
-                float ndc = (zf + zn) / (zf - zn) - 2.0f * zf * zn / ((zf - zn) * ze);
-                refl_vec3 shown = refl_v3(NAN, NAN, NAN);
-                int reflector = refl__is_reflector(s.material);
-                depth = REFL__CLAMP(0.5f * ndc + 0.5f, 0.0f, 1.0f);
-                refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, &rays, rgb, reflector ? &shown : NULL);
-                if (reflector) {
-                    stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
-                    f->points[3 * i] = shown.x;
-                    f->points[3 * i + 1] = shown.y;
-                    f->points[3 * i + 2] = shown.z;
-                }
-            } else {
-                refl_environment_lookup(&rt->scene->environment, d, rgb);
+            float rgb[3];
+            refl_vec3 shown;
+            refl__rt_pixel(rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
+            if (f->stencil[i]) {
+                f->points[3 * i] = shown.x;
+                f->points[3 * i + 1] = shown.y;
+                f->points[3 * i + 2] = shown.z;
             }
             f->color[4 * i] = refl__rt_unorm8(rgb[0]);
             f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
             f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
             f->color[4 * i + 3] = 255;
-            f->depth[i] = depth;
-            f->stencil[i] = stencil;
         }
     rt->tile_rays[tile] = rays;
+}
+
+/* What tracing a frame of pass p needs besides the tiles: the objects'
+   transforms and materials, the caster (p's, else `bvh` when the caller
+   has built one of the scene, else a BVH built here), and with light
+   volumes the planar mirror faces and their virtual lights. refl__rt_end
+   frees it. */
+static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh) {
+    const refl_scene *scene = p->scene;
+    refl_result r = REFL_OK;
+    int i;
+    memset(rt, 0, sizeof *rt);
+    rt->p = p;
+    rt->scene = scene;
+    rt->caster = p->desc.caster;
+    rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
+                                                  sizeof(refl__rt_object));
+    if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        rt->objects[i].mesh = scene->meshes[o->mesh];
+        rt->objects[i].material = &scene->materials[o->material];
+        rt->objects[i].model = o->transform;
+        rt->objects[i].normal_m = refl__normal_matrix(o->transform);
+    }
+    if (!rt->caster.intersect) {
+        if (!bvh && (r = refl_bvh_build(scene, &scene->allocator, &rt->bvh)) != REFL_OK) return r;
+        rt->caster.intersect = refl__rt_bvh_intersect;
+        rt->caster.occluded = refl__rt_bvh_occluded;
+        rt->caster.user = bvh ? bvh : rt->bvh;
+    }
+    if (p->desc.light_volumes) {
+        if ((r = refl__planar_find_faces(scene, &rt->faces, &rt->face_count)) != REFL_OK) return r;
+        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.caustic_samples);
+    }
+    return REFL_OK;
+}
+
+static void refl__rt_end(refl__rt *rt) {
+    if (!rt->scene) return;
+    refl_bvh_destroy(rt->bvh);
+    if (rt->faces) refl__planar_free_faces(rt->scene, rt->faces, rt->face_count);
+    refl__free(&rt->scene->allocator, rt->objects);
+    rt->scene = NULL;
 }
 
 static refl_result refl__method_raytrace(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl_bvh *bvh = NULL;
     refl__rt rt;
     long long nodes = 0, tris = 0;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
-    memset(&rt, 0, sizeof rt);
-    rt.p = p;
-    rt.scene = scene;
-    rt.caster = p->desc.caster;
+    refl_result r = refl__rt_begin(&rt, p, NULL);
+    if (r != REFL_OK) {
+        refl__rt_end(&rt);
+        return r;
+    }
     rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
     rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
     tiles = rt.tiles_x * rt.tiles_y;
-    rt.objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                                 sizeof(refl__rt_object));
     rt.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
-    if (!rt.objects || !rt.tile_rays) {
-        refl__free(&scene->allocator, rt.objects);
-        refl__free(&scene->allocator, rt.tile_rays);
+    if (!rt.tile_rays) {
+        refl__rt_end(&rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        rt.objects[i].mesh = scene->meshes[o->mesh];
-        rt.objects[i].material = &scene->materials[o->material];
-        rt.objects[i].model = o->transform;
-        rt.objects[i].normal_m = refl__normal_matrix(o->transform);
-        f->stats.triangles += scene->meshes[o->mesh]->triangle_count;
-    }
-    if (!rt.caster.intersect) {
-        refl_result r = refl_bvh_build(scene, &scene->allocator, &bvh);
-        if (r != REFL_OK) {
-            refl__free(&scene->allocator, rt.objects);
-            refl__free(&scene->allocator, rt.tile_rays);
-            return r;
-        }
-        rt.caster.intersect = refl__rt_bvh_intersect;
-        rt.caster.occluded = refl__rt_bvh_occluded;
-        rt.caster.user = bvh;
-        refl_bvh_stats(bvh, &nodes, &tris);
+    for (i = 0; i < scene->object_count; ++i) f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
+    if (rt.bvh) {
+        refl_bvh_stats(rt.bvh, &nodes, &tris);
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
                                tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
-    }
-    if (p->desc.light_volumes) {
-        refl_result r = refl__planar_find_faces(scene, &rt.faces, &rt.face_count);
-        if (r != REFL_OK) {
-            refl_bvh_destroy(bvh);
-            refl__free(&scene->allocator, rt.objects);
-            refl__free(&scene->allocator, rt.tile_rays);
-            return r;
-        }
-        refl__lv_init(&rt.lv, scene, rt.faces, rt.face_count, p->desc.caustic_samples);
     }
     t1 = refl__now_ms();
     f->stats.ms_build = t1 - t0;
@@ -10192,10 +10224,8 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     }
     for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
     f->stats.ms_reflect = refl__now_ms() - t1;
-    refl_bvh_destroy(bvh);
-    if (rt.faces) refl__planar_free_faces(scene, rt.faces, rt.face_count);
-    refl__free(&scene->allocator, rt.objects);
     refl__free(&scene->allocator, rt.tile_rays);
+    refl__rt_end(&rt);
     return REFL_OK;
 }
 /* ---- src/reflect/m_envmap.c ---- */
@@ -12416,6 +12446,8 @@ typedef struct refl__sb {
     float *points_depth;
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
+    refl__rt *tracer;             /* desc.sbc_trace_holes: how RAYTRACE renders a pixel; else NULL */
+    long long *hole_rays;         /* ... and per row, the rays its holes cast */
 } refl__sb;
 
 /* Whether g projects: a tree of this frame or a morph's piece. */
@@ -13476,6 +13508,42 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
     return best;
 }
 
+static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
+
+/* Pixel (x, y) of a reflector with nothing drawn on it (after the crack
+   fill), under desc.sbc_trace_holes: where its reflected ray (taken as the
+   ray map's samples take it) meets anything, the pixel is rendered as
+   RAYTRACE renders it, colour and point, and 1 is returned; else 0, and
+   it shows the environment as without the option (most such pixels: the
+   sky seen in the mirror, one ray each). */
+static int refl__sb_trace_hole(const refl__sb *sb, int x, int y) {
+    refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    refl_vec3 d, q, n, r, shown;
+    refl_hit h;
+    float rgb[3], depth;
+    uint8_t stencil;
+    int c;
+    refl__sb_pixel_view(sb, i, &d, &q, &n);
+    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
+    sb->hole_rays[y]++;
+    if (!refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, refl__sbc_box_exit(sb->box_lo, sb->box_hi, q, r), &h))
+        return 0;
+    refl__rt_pixel(sb->tracer, x, y, &sb->hole_rays[y], rgb, &shown, &depth, &stencil);
+    for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
+    fr->color[4 * i + 3] = 255;
+    fr->points[3 * i] = shown.x;
+    fr->points[3 * i + 1] = shown.y;
+    fr->points[3 * i + 2] = shown.z;
+    return 1;
+}
+
+/* Whether pixel i, of a group or not, shows nothing drawn (src: where
+   its reflection comes from, itself or a crack's neighbour). */
+static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
+    return !(sb->group_of[i] && sb->depth[src] < 1.0f);
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
@@ -13487,11 +13555,11 @@ static void refl__sb_resolve_row(void *arg, int y) {
         if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
-        if (sb->group_of[i] && sb->depth[src] < 1.0f) {
+        if (!refl__sb_hole(sb, i, src)) {
             const float *q = sb->points + 4 * src;
             for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
-        } else {
+        } else if (!sb->tracer || !refl__sb_trace_hole(sb, x, y)) {
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
     }
@@ -13717,11 +13785,12 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         refl_vec3 d, q, n, shown = refl_v3(NAN, NAN, NAN), t;
         refl__sb_path pa;
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
+        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (refl__sb_hole(sb, i, src) && sb->tracer && refl__sb_trace_hole(sb, x, y)) continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
-        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->group_of[i] && sb->depth[src] < 1.0f) {
+        if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->points + 4 * src;
             k = REFL__CLAMP((int)(sb->depth[src] * (float)sb->orders), 0, pa.count - 1);
             for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
@@ -14081,6 +14150,9 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->depth);
     refl__free(al, sb->points);
     refl__free(al, sb->points_depth);
+    if (sb->tracer) refl__rt_end(sb->tracer);
+    refl__free(al, sb->tracer);
+    refl__free(al, sb->hole_rays);
 }
 
 /* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
@@ -14364,8 +14436,15 @@ static refl_result refl__method_sbc(refl__pass *p) {
         }
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
+        if (r == REFL_OK && p->desc.sbc_trace_holes) {
+            sb.tracer = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
+            sb.hole_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+            if (!sb.tracer || !sb.hole_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+            if (r == REFL_OK) r = refl__rt_begin(sb.tracer, p, sb.bvh);
+        }
         if (r == REFL_OK)
             rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
+        for (i = 0; sb.hole_rays && i < fr->height; ++i) fr->stats.rays += sb.hole_rays[i];
         fr->stats.ms_composite += refl__now_ms() - t0;
     }
     if (r == REFL_OK) {
@@ -14642,6 +14721,7 @@ static refl_result refl__render(const refl_scene *scene, const refl_view *view, 
         p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
         !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
         p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
+        p.desc.sbc_trace_holes < 0 || p.desc.sbc_trace_holes > 1 ||
         p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
         !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
         (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))

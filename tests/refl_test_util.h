@@ -28,6 +28,16 @@ static inline refl_render_desc tu_refl_one_bounce(refl_method m, int threads) {
     return d;
 }
 
+/* Built-in scene `name` (asserting success) and its camera at w x h. */
+static inline refl_scene *tu_refl_builtin(const char *name, refl_view *v, int w, int h) {
+    refl_scene *s = NULL;
+    cr_assert_eq(refl_scene_builtin(name, NULL, &s), REFL_OK);
+    *v = s->camera;
+    v->width = w;
+    v->height = h;
+    return s;
+}
+
 /* A view from eye towards target, y up, 45 degrees vertical, w x h. */
 static inline refl_view tu_refl_view(refl_vec3 eye, refl_vec3 target, int w, int h) {
     refl_view v;

@@ -15,15 +15,6 @@
 
 static refl_render_desc sbc_desc(refl_method m, int threads) { return tu_refl_one_bounce(m, threads); }
 
-static refl_scene *sbc_scene(const char *name, refl_view *v, int w, int h) {
-    refl_scene *s = NULL;
-    cr_assert_eq(refl_scene_builtin(name, NULL, &s), REFL_OK);
-    *v = s->camera;
-    v->width = w;
-    v->height = h;
-    return s;
-}
-
 /* Measured (128x96, ray map factor 2, 1 px camera bound): default mean
    0.62, p95 1.41 px, wrong 0.2%, holes 11.2%, 49 pinhole and 65 ray-list
    leaves; concave mean 0.26, p95 1.41 px, wrong 3.8%, holes 2.7%, all
@@ -34,7 +25,7 @@ static refl_scene *sbc_scene(const char *name, refl_view *v, int w, int h) {
    the measurements with a little room. */
 static void sbc_accuracy(const char *name, double max_mean, double max_p95, double max_wrong, double max_holes) {
     refl_view v;
-    refl_scene *s = sbc_scene(name, &v, 128, 96);
+    refl_scene *s = tu_refl_builtin(name, &v, 128, 96);
     refl_render_desc d = sbc_desc(REFL_SBC, 2), t = sbc_desc(REFL_RAYTRACE, 2), dd = sbc_desc(REFL_DIRECT, 2);
     refl_frame *f = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &t), *direct = tu_refl_render(s, &v, &dd);
     refl_reflection_error e;
@@ -57,7 +48,7 @@ Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave"
 
 Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_view v;
-    refl_scene *s = sbc_scene("default", &v, 96, 72);
+    refl_scene *s = tu_refl_builtin("default", &v, 96, 72);
     refl_render_desc a = sbc_desc(REFL_SBC, 1), b = sbc_desc(REFL_SBC, 3);
     refl_frame *fa = tu_refl_render(s, &v, &a), *fb = tu_refl_render(s, &v, &b);
     size_t n = (size_t)v.width * (size_t)v.height;
@@ -74,7 +65,7 @@ Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
 Test(refl_sbc, same_bytes_for_any_group_batch, .timeout = 120) {
     static const int batches[] = {1, 7};
     refl_view v;
-    refl_scene *s = sbc_scene("default", &v, 96, 72);
+    refl_scene *s = tu_refl_builtin("default", &v, 96, 72);
     refl_render_desc d = sbc_desc(REFL_SBC, 2);
     refl_frame *ref = tu_refl_render(s, &v, &d);
     size_t n = (size_t)v.width * (size_t)v.height, k;
@@ -93,7 +84,7 @@ Test(refl_sbc, same_bytes_for_any_group_batch, .timeout = 120) {
 
 Test(refl_sbc, bad_desc_values) {
     refl_view v;
-    refl_scene *s = sbc_scene("default", &v, 32, 24);
+    refl_scene *s = tu_refl_builtin("default", &v, 32, 24);
     refl_frame *f = NULL;
     refl_render_desc d = sbc_desc(REFL_SBC, 1);
     cr_assert_eq(refl_frame_create(32, 24, NULL, &f), REFL_OK);
@@ -110,6 +101,11 @@ Test(refl_sbc, bad_desc_values) {
     d.sbc_batch_groups = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.sbc_batch_groups = 255;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_batch_groups = 0;
+    d.sbc_trace_holes = 2; /* a flag: 0 or 1 */
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_trace_holes = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

@@ -254,6 +254,8 @@ typedef struct refl__sb {
     float *points_depth;
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
+    refl__rt *tracer;             /* desc.sbc_trace_holes: how RAYTRACE renders a pixel; else NULL */
+    long long *hole_rays;         /* ... and per row, the rays its holes cast */
 } refl__sb;
 
 /* Whether g projects: a tree of this frame or a morph's piece. */
@@ -1314,6 +1316,42 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
     return best;
 }
 
+static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
+
+/* Pixel (x, y) of a reflector with nothing drawn on it (after the crack
+   fill), under desc.sbc_trace_holes: where its reflected ray (taken as the
+   ray map's samples take it) meets anything, the pixel is rendered as
+   RAYTRACE renders it, colour and point, and 1 is returned; else 0, and
+   it shows the environment as without the option (most such pixels: the
+   sky seen in the mirror, one ray each). */
+static int refl__sb_trace_hole(const refl__sb *sb, int x, int y) {
+    refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    refl_vec3 d, q, n, r, shown;
+    refl_hit h;
+    float rgb[3], depth;
+    uint8_t stencil;
+    int c;
+    refl__sb_pixel_view(sb, i, &d, &q, &n);
+    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
+    sb->hole_rays[y]++;
+    if (!refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, refl__sbc_box_exit(sb->box_lo, sb->box_hi, q, r), &h))
+        return 0;
+    refl__rt_pixel(sb->tracer, x, y, &sb->hole_rays[y], rgb, &shown, &depth, &stencil);
+    for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
+    fr->color[4 * i + 3] = 255;
+    fr->points[3 * i] = shown.x;
+    fr->points[3 * i + 1] = shown.y;
+    fr->points[3 * i + 2] = shown.z;
+    return 1;
+}
+
+/* Whether pixel i, of a group or not, shows nothing drawn (src: where
+   its reflection comes from, itself or a crack's neighbour). */
+static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
+    return !(sb->group_of[i] && sb->depth[src] < 1.0f);
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
@@ -1325,11 +1363,11 @@ static void refl__sb_resolve_row(void *arg, int y) {
         if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
-        if (sb->group_of[i] && sb->depth[src] < 1.0f) {
+        if (!refl__sb_hole(sb, i, src)) {
             const float *q = sb->points + 4 * src;
             for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
-        } else {
+        } else if (!sb->tracer || !refl__sb_trace_hole(sb, x, y)) {
             refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
     }
@@ -1555,11 +1593,12 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         refl_vec3 d, q, n, shown = refl_v3(NAN, NAN, NAN), t;
         refl__sb_path pa;
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
+        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (refl__sb_hole(sb, i, src) && sb->tracer && refl__sb_trace_hole(sb, x, y)) continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
-        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->group_of[i] && sb->depth[src] < 1.0f) {
+        if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->points + 4 * src;
             k = REFL__CLAMP((int)(sb->depth[src] * (float)sb->orders), 0, pa.count - 1);
             for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
@@ -1919,6 +1958,9 @@ static void refl__sb_free(refl__sb *sb) {
     refl__free(al, sb->depth);
     refl__free(al, sb->points);
     refl__free(al, sb->points_depth);
+    if (sb->tracer) refl__rt_end(sb->tracer);
+    refl__free(al, sb->tracer);
+    refl__free(al, sb->hole_rays);
 }
 
 /* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
@@ -2202,8 +2244,15 @@ static refl_result refl__method_sbc(refl__pass *p) {
         }
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
+        if (r == REFL_OK && p->desc.sbc_trace_holes) {
+            sb.tracer = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
+            sb.hole_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+            if (!sb.tracer || !sb.hole_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+            if (r == REFL_OK) r = refl__rt_begin(sb.tracer, p, sb.bvh);
+        }
         if (r == REFL_OK)
             rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
+        for (i = 0; sb.hole_rays && i < fr->height; ++i) fr->stats.rays += sb.hole_rays[i];
         fr->stats.ms_composite += refl__now_ms() - t0;
     }
     if (r == REFL_OK) {
