@@ -57,7 +57,7 @@ refuses "bad --density" "density: not a positive" "$bin" render --builtin defaul
 refuses "bad --max-splat" "max-splat: expected" "$bin" render --builtin default --method c3rc --max-splat 0
 ok "render sbc --stats counts projections" bash -c \
     "'$bin' render --builtin default --method sbc --error-px 2 --ray-factor 4 --size 64x48 --out '$tmp/s.png' --stats | grep -q '^projections  [1-9]'"
-ok "render sbc --trace-holes" "$bin" render --builtin default --method sbc --trace-holes --ray-factor 4 \
+ok "render sbc --trace-fallback" "$bin" render --builtin default --method sbc --trace-fallback --ray-factor 4 \
     --size 64x48 --out "$tmp/th.png"
 ok "render sbc with the Fresnel blend and the fade" "$bin" render --builtin default --method sbc --fresnel 0.2,0.9 \
     --fade 4,0.1,1 --size 48x36 --out "$tmp/vd.png"

@@ -103,9 +103,9 @@ Test(refl_sbc, bad_desc_values) {
     d.sbc_batch_groups = 255;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.sbc_batch_groups = 0;
-    d.sbc_trace_holes = 2; /* a flag: 0 or 1 */
+    d.sbc_trace_fallback = 2; /* a flag: 0 or 1 */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_trace_holes = -1;
+    d.sbc_trace_fallback = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

@@ -58,8 +58,8 @@ static const char *const usage_render =
     "                     exceeds PX pixels (default 0.1; -1: one camera per triangle)\n"
     "  --error-px E       SBC: largest camera error in pixels (default 1)\n"
     "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
-    "  --trace-holes      SBC: a reflector pixel nothing was drawn on shows what its\n"
-    "                     reflected ray meets, ray traced (default: the environment)\n"
+    "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
+    "                     and those whose point the ray map's samples contradict\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -98,7 +98,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_holes;
+    int leaf_points, max_splat, ray_factor, trace_fallback;
     float density, camera_split, error_px;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
@@ -145,7 +145,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
                     strcmp(a, "--shadows") && strcmp(a, "--no-culling") &&
-                    strcmp(a, "--light-volumes") && strcmp(a, "--trace-holes");
+                    strcmp(a, "--light-volumes") && strcmp(a, "--trace-fallback");
         if (takes && !v) return fail("%s needs a value", a);
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
@@ -227,8 +227,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--light-volumes")) {
             o->light_volumes = 1;
             continue;
-        } else if (!strcmp(a, "--trace-holes")) {
-            o->trace_holes = 1;
+        } else if (!strcmp(a, "--trace-fallback")) {
+            o->trace_fallback = 1;
             continue;
         } else if (a[0] == '-') {
             return fail("render: unknown option %s (see reflect render --help)", a);
@@ -369,7 +369,7 @@ static int cmd_render(const options *o) {
     d.camera_split_px = o->camera_split;
     d.sbc_error_px = o->error_px;
     d.sbc_ray_factor = o->ray_factor;
-    d.sbc_trace_holes = o->trace_holes;
+    d.sbc_trace_fallback = o->trace_fallback;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

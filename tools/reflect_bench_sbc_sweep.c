@@ -7,9 +7,10 @@
    truth the others are measured against, its own error 0 by definition),
    RAYTRACE through Embree (its scene built once, outside the timing, as
    the other bench tables do; refl_bvh is built inside every frame), and
-   SBC at ray map factors 4 and 2, each also with its holes ray traced
-   (refl_render_desc.sbc_trace_holes: a pixel no reflected triangle
-   covers is rendered as RAYTRACE renders it). Each row: the median frame time
+   SBC at ray map factors 4 and 2, each also with its ray-traced fallback
+   (refl_render_desc.sbc_trace_fallback: a pixel no reflected triangle
+   covers, or whose point the samples around it contradict, is rendered
+   as RAYTRACE renders it). Each row: the median frame time
    (stats.ms_total) of `repeats` runs, but one run at 3840x2160 unless
    --full (SBC takes tens of seconds a frame there); the process CPU time
    per frame and the cores it kept busy (CPU time over wall time): on a
@@ -43,7 +44,7 @@ typedef struct sweep_method {
     refl_method method;
     int embree;                   /* RAYTRACE's rays through Embree */
     int ray_factor;               /* SBC: refl_render_desc.sbc_ray_factor */
-    int trace_holes;              /* SBC: refl_render_desc.sbc_trace_holes */
+    int trace_fallback;           /* SBC: refl_render_desc.sbc_trace_fallback */
 } sweep_method;
 
 static const sweep_method sweep_methods[SWEEP_METHODS] = {
@@ -87,7 +88,7 @@ static int sweep_render(const refl_scene *s, const refl_view *v, const sweep_met
     d.threads = threads;
     d.depth = 1;
     d.sbc_ray_factor = m->ray_factor;
-    d.sbc_trace_holes = m->trace_holes;
+    d.sbc_trace_fallback = m->trace_fallback;
     if (m->embree) {
         refl_ray_caster c = {refl_embree_intersect, refl_embree_occluded, embree};
         d.caster = c;
@@ -111,7 +112,8 @@ static int write_sweep_csv(const char *path, const sweep_row *rows, int n, int t
     FILE *fp = fopen(path, "w");
     int i;
     if (!fp) return 0;
-    fprintf(fp, "width,height,pixels,method,ray_factor,trace_holes,threads,runs,ms_median,ms_min,cpu_ms,cores_busy,vs_embree,"
+    fprintf(fp, "width,height,pixels,method,ray_factor,trace_fallback,threads,runs,ms_median,ms_min,cpu_ms,cores_busy,"
+                "vs_embree,"
                 "cpu_vs_embree,ms_build,ms_base,"
                 "ms_reflect,ms_composite,pinhole_leaves,ray_list_leaves,rays,projections,projected,triangles,"
                 "model_bytes,error_mean_px,error_p95_px,error_max_px,wrong,holes,"
@@ -123,7 +125,8 @@ static int write_sweep_csv(const char *path, const sweep_row *rows, int n, int t
         fprintf(fp, "%d,%d,%lld,%s,%d,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.3f,%.3f,%.3f,%.3f,%lld,%lld,%lld,%lld,"
                     "%lld,%lld,%lld,%.4f,%.4f,%.4f,%.5f,%.5f,%lld,%.4f,%.4f,%.5f,%lld,%.4f,%.4f,%.5f\n",
                 r->width, r->height, (long long)r->width * r->height, sweep_methods[r->method].name,
-                sweep_methods[r->method].ray_factor, sweep_methods[r->method].trace_holes, threads, r->runs, r->ms, r->ms_min, r->cpu_ms, r->cores,
+                sweep_methods[r->method].ray_factor, sweep_methods[r->method].trace_fallback, threads, r->runs, r->ms,
+                r->ms_min, r->cpu_ms, r->cores,
                 r->vs_embree, r->cpu_vs_embree, st->ms_build,
                 st->ms_base, st->ms_reflect, st->ms_composite, st->cameras, st->leaves, st->rays, st->projections,
                 st->projected, st->triangles, st->model_bytes, r->error.mean, r->error.p95, r->error.max,
@@ -161,7 +164,7 @@ static void print_cameras(const sweep_row *rows, int n) {
     for (i = 0; i < n; ++i) {
         const sweep_row *r = &rows[i];
         const refl_sbc_camera_error *c = &r->cams;
-        if (sweep_methods[r->method].method != REFL_SBC || sweep_methods[r->method].trace_holes) continue;
+        if (sweep_methods[r->method].method != REFL_SBC || sweep_methods[r->method].trace_fallback) continue;
         printf("%4dx%-4d %-6s | %7lld %6.2f %6.2f %5.1f%% | %8lld %6.2f %7.2f %5.1f%%\n", r->width, r->height,
                sweep_methods[r->method].name, c->pinhole_samples.pixels, c->pinhole_samples.p95,
                c->pinhole_samples.max, 100.0 * c->pinhole_samples.wrong, c->ray_list_samples.pixels,
@@ -293,7 +296,8 @@ int refl_bench_sbc_sweep(const char *dir, int threads, int repeats, int full) {
             r->method = m;
             ok = sweep_render(s, &v, &sweep_methods[m], embree, threads, runs, into, r) &&
                  refl_measure_reflection_error(into, truth, NULL, &r->error) == REFL_OK;
-            if (ok && sweep_methods[m].method == REFL_SBC && !sweep_methods[m].trace_holes) { /* the same cameras traced or not */
+            /* the cameras, once per factor: the fallback leaves them as they are */
+            if (ok && sweep_methods[m].method == REFL_SBC && !sweep_methods[m].trace_fallback) {
                 refl_render_desc d;
                 memset(&d, 0, sizeof d);
                 d.threads = threads;

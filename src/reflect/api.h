@@ -828,13 +828,14 @@ typedef struct refl_render_desc {
     int sbc_batch_groups;    /* SBC: reflection groups projected and drawn at once, 1..254
                                 (memory: that many times the scene's vertices); 0: 254.
                                 The image is the same for any value */
-    int sbc_trace_holes;     /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
+    int sbc_trace_fallback;  /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
                                 piece thinner than a sample, a scene triangle no vertex of
-                                which projects) shows what its reflected ray meets, traced
-                                through the scene (one ray per hole and order; past the first
-                                order along the pixel's own history), counted in stats.rays;
-                                every other pixel keeps its bytes. 0: the paper's method
-                                alone, holes show the environment */
+                                which projects), or whose first-order point the ray map's
+                                samples around it contradict (nearer or farther than all
+                                that their rays meet), is rendered as RAYTRACE renders it
+                                when its reflected ray meets anything; its rays count in
+                                stats.rays. Every other pixel keeps its bytes. 0: the
+                                paper's method alone; holes show the environment */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method

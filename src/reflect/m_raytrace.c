@@ -363,8 +363,8 @@ static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
-   as the base pass writes them; *rays counts the rays cast. SBC traces
-   its holes with it too (desc.sbc_trace_holes). */
+   as the base pass writes them; *rays counts the rays cast. SBC's
+   fallback traces pixels with it too (desc.sbc_trace_fallback). */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil) {
     refl_vec3 a, d;
@@ -484,7 +484,8 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         refl__rt_end(&rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (i = 0; i < scene->object_count; ++i) f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
+    for (i = 0; i < scene->object_count; ++i)
+        f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
     if (rt.bvh) {
         refl_bvh_stats(rt.bvh, &nodes, &tris);
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
