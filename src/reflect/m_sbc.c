@@ -1374,7 +1374,7 @@ static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first
     float lo = INFINITY, hi = 0.0f, d;
     refl_vec3 q = refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1], sb->em.surface[3 * i + 2]);
     if (refl__sb_hole(sb, i, src)) return 1;
-    if (!first) return 0;
+    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
     sd = &sb->sides[sb->groups[sb->group_of[i] - 1].side];
     for (k = 0; k < 4; ++k) {
         int u = u0 + (k & 1), v = v0 + (k >> 1);
