@@ -12406,11 +12406,26 @@ typedef struct refl__sb_slot {
 } refl__sb_slot;
 
 /* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
+/* Subdivision midpoints a job has projected: an edge shared by two
+   triangles (the split's inner edges, neighbours in the mesh) is split
+   by both, and its midpoint projects alike (the same world position,
+   group and sheet). Direct-mapped by the edge's ends, compared exactly, so
+   a hit is what projecting again would give, bit for bit. */
+#define REFL__SB_MEMO 512
+typedef struct refl__sb_memo {
+    uint8_t used[REFL__SB_MEMO];
+    struct {
+        refl_vec3 ends[2];        /* the edge's ends, the lesser bytes first */
+        refl__sb_pv mid;
+    } entry[REFL__SB_MEMO];
+} refl__sb_memo;
+
 typedef struct refl__sb_job {
     int group, object, sheet, first, count;
     float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
     size_t out_count, out_cap;    /* vertices */
     long long projections, projected;
+    refl__sb_memo *memo;          /* while it runs, from its first midpoint on (NULL: none to spare) */
     int failed;
 } refl__sb_job;
 
@@ -13179,14 +13194,36 @@ static void refl__sb_project_object(void *arg, int index) {
 static refl__sb_pv refl__sb_mid(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
                                 refl__sb_job *j) {
     refl__sb_pv m;
-    m.world = refl_v3_scale(refl_v3_add(a->world, b->world), 0.5f);
+    refl_vec3 ends[2];
+    uint32_t h = 2166136261u, w;
+    int k, slot;
+    ends[0] = memcmp(&a->world, &b->world, sizeof(refl_vec3)) <= 0 ? a->world : b->world;
+    ends[1] = memcmp(&a->world, &b->world, sizeof(refl_vec3)) <= 0 ? b->world : a->world;
+    for (k = 0; k < 6; ++k) { /* FNV-1a over the ends' words */
+        memcpy(&w, (const float *)ends + k, sizeof w);
+        h = (h ^ w) * 16777619u;
+    }
+    slot = (int)(h % REFL__SB_MEMO);
+    if (!j->memo && (j->memo = (refl__sb_memo *)refl__alloc(&sb->p->scene->allocator, sizeof(refl__sb_memo))))
+        memset(j->memo->used, 0, sizeof j->memo->used);
+    if (j->memo && j->memo->used[slot] && !memcmp(j->memo->entry[slot].ends, ends, sizeof ends)) {
+        m = j->memo->entry[slot].mid;
+    } else {
+        m.world = refl_v3_scale(refl_v3_add(a->world, b->world), 0.5f);
+        m.sheet = j->sheet;
+        refl__sb_project(sb, g, &m);
+        j->projections++;
+        j->projected += m.ok;
+        if (j->memo) {
+            j->memo->used[slot] = 1;
+            memcpy(j->memo->entry[slot].ends, ends, sizeof ends);
+            j->memo->entry[slot].mid = m;
+        }
+    }
+    /* the ends' own attributes: a crease's two sides share positions, not normals */
     m.normal = refl_v3_scale(refl_v3_add(a->normal, b->normal), 0.5f);
     m.uv[0] = 0.5f * (a->uv[0] + b->uv[0]);
     m.uv[1] = 0.5f * (a->uv[1] + b->uv[1]);
-    m.sheet = j->sheet;
-    refl__sb_project(sb, g, &m);
-    j->projections++;
-    j->projected += m.ok;
     return m;
 }
 
@@ -13368,6 +13405,8 @@ static void refl__sb_emit_job(void *arg, int index) {
         }
         refl__sb_emit(sb, g, j, a, b, c, 0, &t);
     }
+    refl__free(&scene->allocator, j->memo);
+    j->memo = NULL;
 }
 
 /* The targets of draw pass `pass`: 0 the reflections' colour, 1 their
