@@ -112,3 +112,55 @@ Test(refl_sbc_fallback, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_frame_destroy(fb);
     refl_scene_destroy(s);
 }
+
+/* Every allocation of an SBC frame with the fallback failing in turn (one
+   thread, so the order is the same each time): OUT_OF_MEMORY, or the same
+   bytes where the allocation was one the frame does without (a job's
+   midpoint memo); nothing leaks either way. */
+Test(refl_sbc_fallback, allocation_failure_at_every_allocation, .timeout = 120) {
+    tu_alloc_counter c;
+    refl_builtin_desc bd;
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_frame *ref, *f;
+    refl_render_desc d = tu_refl_one_bounce(REFL_SBC, 1);
+    long needed, k, same = 0, oom = 0;
+    size_t n;
+    memset(&c, 0, sizeof c);
+    memset(&bd, 0, sizeof bd);
+    bd.allocator = tu_refl_counting(&c);
+    bd.teapot_tess = 2;
+    cr_assert_eq(refl_scene_builtin("default", &bd, &s), REFL_OK);
+    v = s->camera;
+    v.width = 32;
+    v.height = 24;
+    n = (size_t)v.width * (size_t)v.height;
+    d.sbc_trace_fallback = 1;
+    d.sbc_ray_factor = 4;
+    ref = tu_refl_render(s, &v, &d);
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+    k = c.attempts;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
+    needed = c.attempts - k;
+    for (k = 1; k <= needed; ++k) {
+        long live = c.allocs - c.frees;
+        refl_result r;
+        c.fail_at = c.attempts + k;
+        r = refl_render(s, &v, &d, f);
+        c.fail_at = 0;
+        cr_assert_eq(c.allocs - c.frees, live, "allocation %ld of %ld failed: leaked", k, needed);
+        if (r == REFL_ERROR_OUT_OF_MEMORY) {
+            ++oom;
+            continue;
+        }
+        cr_assert_eq(r, REFL_OK, "allocation %ld of %ld failed: %s", k, needed, refl_result_string(r));
+        cr_assert_eq(memcmp(ref->color, f->color, 4 * n), 0, "allocation %ld of %ld failed: other colours", k, needed);
+        cr_assert_eq(memcmp(ref->points, f->points, 3 * n * sizeof(float)), 0, "allocation %ld: other points", k);
+        ++same;
+    }
+    cr_log_info("%ld allocations: %ld failures reported, %ld done without", needed, oom, same);
+    cr_assert(oom > 10 && same > 0, "%ld reported, %ld done without", oom, same);
+    refl_frame_destroy(ref);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
