@@ -107,6 +107,9 @@ Test(refl_sbc, bad_desc_values) {
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.sbc_trace_fallback = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    d.sbc_trace_fallback = 0;
+    d.sbc_mixed_levels = 7; /* four times the triangles per level: 6 at most */
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }

@@ -836,6 +836,12 @@ typedef struct refl_render_desc {
                                 when its reflected ray meets anything; its rays count in
                                 stats.rays. Every other pixel keeps its bytes. 0: the
                                 paper's method alone; holes show the environment */
+    int sbc_mixed_levels;    /* SBC: times a mixed reflected triangle (some of its vertices
+                                project, some not: the edge of a group) is split in four,
+                                1..6; negative: never (it is split only towards where the
+                                group's rays meet it). 0: 4, or never with the fallback,
+                                which traces the pixels the group's edge leaves uncovered:
+                                most of SBC's projections are these triangles' midpoints */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method

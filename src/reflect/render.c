@@ -241,7 +241,7 @@ static refl_result refl__render(const refl_scene *scene, const refl_view *view, 
         p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
         !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
         p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
-        p.desc.sbc_trace_fallback < 0 || p.desc.sbc_trace_fallback > 1 ||
+        p.desc.sbc_trace_fallback < 0 || p.desc.sbc_trace_fallback > 1 || p.desc.sbc_mixed_levels > 6 ||
         p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
         !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
         (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))
