@@ -12311,8 +12311,10 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         1.8%). With desc.sbc_trace_fallback (beyond the paper) a pixel still
         without a reflection, or whose first-order point the samples
         around it contradict (refl__sb_fallback), is rendered as RAYTRACE
-        renders it (refl__rt_pixel) when its reflected ray meets anything:
-        640x480 factor 2 holes 4.9% to 0.01%, mean 0.358 to 0.288 px.
+        renders it (refl__rt_pixel) when its reflected ray meets anything,
+        and mixed triangles are not split (step 4), their pixels traced:
+        640x480 factor 2 holes 4.9% to 0.01%, mean 0.36 to 0.24 px, p95
+        1.41 to 1.00 px, 296 to 175 ms a frame.
         Past the first order (refl__sb_resolve_row_deep): the nearest
         order's colour (its order read off the offset), or the environment
         along the last reflected ray, times the product of the reflectances
