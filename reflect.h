@@ -12414,7 +12414,6 @@ typedef struct refl__sb_slot {
     int failed;
 } refl__sb_slot;
 
-/* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
 /* Subdivision midpoints a job has projected: an edge shared by two
    triangles (the split's inner edges, neighbours in the mesh) is split
    by both, and its midpoint projects alike (the same world position,
@@ -12429,6 +12428,7 @@ typedef struct refl__sb_memo {
     } entry[REFL__SB_MEMO];
 } refl__sb_memo;
 
+/* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
 typedef struct refl__sb_job {
     int group, object, sheet, first, count;
     float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
@@ -12478,7 +12478,7 @@ typedef struct refl__sb {
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
     refl__rt *tracer;             /* desc.sbc_trace_fallback: how RAYTRACE renders a pixel; else NULL */
-    long long *traced_rays;         /* ... and per row, the rays its holes cast */
+    long long *traced_rays;       /* ... and per row, the rays the fallback cast */
 } refl__sb;
 
 /* Whether g projects: a tree of this frame or a morph's piece. */
@@ -13465,8 +13465,6 @@ static void refl__sb_pass_through(refl__sb *sb) {
         if (sb->depth[k] < 1.0f && sb->color[4 * k + 3] == 0) sb->depth[k] = sb->points_depth[k] = 1.0f;
 }
 
-/* Draws the batch's jobs into the scratch targets: colour, then the points
-   with the same depth test, each job stencilled to its group's pixels. */
 /* The points pass's fragments: the world position and the object drawn
    (user: the object's index + 1, as a float), which the fallback checks
    against what the ray map's samples meet. */
@@ -13478,6 +13476,8 @@ static int refl__sb_point_fragment(void *user, const rast_fragment_in *in, float
     return 1;
 }
 
+/* Draws the batch's jobs into the scratch targets: colour, then the points
+   with the same depth test, each job stencilled to its group's pixels. */
 static refl_result refl__sb_draw(refl__sb *sb) {
     refl__pass *p = sb->p;
     const refl_scene *scene = p->scene;
@@ -14288,7 +14288,8 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
     /* with the fallback, the pixels a group's edge leaves uncovered are
        traced: splitting mixed triangles costs more than it buys (default
-       640x480 factor 2: 305 -> 153 ms a frame, mean 0.29 -> 0.23 px) */
+       640x480 factor 2 with the fallback: 305 -> 178 ms a frame, mean
+       0.29 -> 0.24 px) */
     sb->mixed_levels = p->desc.sbc_mixed_levels > 0   ? p->desc.sbc_mixed_levels
                        : p->desc.sbc_mixed_levels < 0 ? 0
                        : p->desc.sbc_trace_fallback   ? 0
