@@ -10,7 +10,7 @@
    SBC at ray map factors 4 and 2, each also with its ray-traced fallback
    (refl_render_desc.sbc_trace_fallback: a pixel no reflected triangle
    covers, or whose point the samples around it contradict, is rendered
-   as RAYTRACE renders it). Each row: the median frame time
+   as RAYTRACE renders it, and the groups' edges are left to it). Each row: the median frame time
    (stats.ms_total) of `repeats` runs, but one run at 3840x2160 unless
    --full (SBC takes tens of seconds a frame there); the process CPU time
    per frame and the cores it kept busy (CPU time over wall time): on a

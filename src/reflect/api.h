@@ -831,11 +831,12 @@ typedef struct refl_render_desc {
     int sbc_trace_fallback;  /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
                                 piece thinner than a sample, a scene triangle no vertex of
                                 which projects), or whose first-order point the ray map's
-                                samples around it contradict (nearer or farther than all
-                                that their rays meet), is rendered as RAYTRACE renders it
-                                when its reflected ray meets anything; its rays count in
-                                stats.rays. Every other pixel keeps its bytes. 0: the
-                                paper's method alone; holes show the environment */
+                                samples around it contradict (on an object none of their
+                                rays meets, nearer or farther than all they meet), is
+                                rendered as RAYTRACE renders it when its reflected ray
+                                meets anything; its rays count in stats.rays. The other
+                                pixels are SBC's (see sbc_mixed_levels). 0: the paper's
+                                method alone; holes show the environment */
     int sbc_mixed_levels;    /* SBC: times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
