@@ -137,6 +137,7 @@ typedef struct bench_method {
     int envmap_size, embree;
     float density;                /* C3RC: points per unit area (0: automatic) */
     int sbc_ray_factor;           /* SBC: one reflected ray per factor x factor pixels */
+    int sbc_trace_fallback;       /* SBC: refl_render_desc.sbc_trace_fallback */
 } bench_method;
 
 /* Runs every method on one scene and view against its RAYTRACE reference
@@ -173,6 +174,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         d.envmap_size = bm->envmap_size;
         d.point_density = bm->density;
         d.sbc_ray_factor = bm->sbc_ray_factor;
+        d.sbc_trace_fallback = bm->sbc_trace_fallback;
         if (bm->embree) {
             if (!embree) embree = refl_embree_create(s, o->threads, err, sizeof err);
             if (!embree) {
@@ -336,7 +338,8 @@ static const float c3rc_densities[] = {250.0f, 1000.0f, 0.0f, 16000.0f};
 static const int sbc_ray_factors[] = {4, 2};
 
 /* The methods of the error chart: exact ones once, ENVMAP per cube size,
-   C3RC per density, SBC per ray map factor. */
+   C3RC per density, SBC per ray map factor, without and with its
+   ray-traced fallback. */
 static int base_methods(bench_method *m, int full) {
     int n = 0, k;
     memset(m, 0, BENCH_METHODS_MAX * sizeof(*m));
@@ -357,6 +360,8 @@ static int base_methods(bench_method *m, int full) {
     for (k = 0; k < (int)(sizeof sbc_ray_factors / sizeof sbc_ray_factors[0]); ++k) {
         m[n].method = "sbc"; m[n].series = "sbc"; m[n].param = "base";
         m[n].m = REFL_SBC; m[n].sbc_ray_factor = sbc_ray_factors[k]; ++n;
+        m[n].method = "sbc"; m[n].series = "sbc-fallback"; m[n].param = "base";
+        m[n].m = REFL_SBC; m[n].sbc_ray_factor = sbc_ray_factors[k]; m[n].sbc_trace_fallback = 1; ++n;
     }
     return n;
 }
