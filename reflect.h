@@ -13596,16 +13596,15 @@ static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl
 static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
     refl_frame *fr = sb->p->frame;
     size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-    refl_vec3 d, q, n, r, shown;
-    refl_hit h;
+    refl_vec3 d, q, n, shown;
+    refl_sbc_ray ray;
+    refl__sbc_hit met;
     float rgb[3], depth;
     uint8_t stencil;
     int c;
     refl__sb_pixel_view(sb, i, &d, &q, &n);
-    r = refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d;
     sb->traced_rays[y]++;
-    if (!refl_bvh_intersect(sb->bvh, q, r, 1e-4f * sb->diagonal, refl__sbc_box_exit(sb->box_lo, sb->box_hi, q, r), &h))
-        return 0;
+    if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
     refl__rt_pixel(sb->tracer, x, y, &sb->traced_rays[y], rgb, &shown, &depth, &stencil);
     for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
     fr->color[4 * i + 3] = 255;
