@@ -330,8 +330,9 @@ bench: deps
 	$(REFLECT_BIN) bench --out out/bench
 
 # The demo: every built-in scene through the `reflect` command with every
-# method built so far, the speed-against-accuracy chart of the default
-# scene (a quick `reflect bench`), and the rasteriser's own demo picture.
+# method built so far (and SBC with its ray-traced fallback on the default
+# scene), the speed-against-accuracy chart of the default scene (a quick
+# `reflect bench`), and the rasteriser's own demo picture.
 DEMO_SCENES  = default mirror-room concave glass
 DEMO_METHODS = direct raytrace envmap planar c3rc sbc
 demo: deps
@@ -341,6 +342,7 @@ demo: deps
 	  echo "$(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png"; \
 	  $(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png || exit 1; \
 	done; done
+	$(REFLECT_BIN) render --builtin default --method sbc --trace-fallback --size 960x720 --out out/default-sbc-fallback.png
 	$(REFLECT_BIN) bench --repeats 1 --out out/bench
 	build/examples/rast_demo out/rast_demo.ppm
 	oiiotool out/rast_demo.ppm -o out/rast_demo.png
