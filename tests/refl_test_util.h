@@ -38,6 +38,12 @@ static inline refl_scene *tu_refl_builtin(const char *name, refl_view *v, int w,
     return s;
 }
 
+/* Whether two frame points are the same: both none (NaN) or equal in
+   every coordinate. */
+static inline int tu_refl_same_point(const float *a, const float *b) {
+    return (a[0] != a[0] && b[0] != b[0]) || (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]);
+}
+
 /* A view from eye towards target, y up, 45 degrees vertical, w x h. */
 static inline refl_view tu_refl_view(refl_vec3 eye, refl_vec3 target, int w, int h) {
     refl_view v;

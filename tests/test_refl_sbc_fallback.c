@@ -20,10 +20,6 @@
 #include "test_util.h"
 #include "refl_test_util.h"
 
-static int same_point(const float *a, const float *b) {
-    return (a[0] != a[0] && b[0] != b[0]) || (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]);
-}
-
 /* Renders SBC plain and traced, and RAYTRACE, at `depth`; checks the
    pixels and returns the plain and traced errors against RAYTRACE. */
 static void check_traced(const char *name, int w, int h, int depth, int factor, refl_reflection_error *plain,
@@ -43,12 +39,12 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < n; ++i) {
         const float *pp = fp->points + 3 * i, *pt = ft->points + 3 * i, *pr = truth->points + 3 * i;
-        int changed = memcmp(fp->color + 4 * i, ft->color + 4 * i, 4) || !same_point(pp, pt);
+        int changed = memcmp(fp->color + 4 * i, ft->color + 4 * i, 4) || !tu_refl_same_point(pp, pt);
         if (!changed) continue;
         cr_assert(fp->stencil[i] != 0, "%s: pixel %d off the reflectors changed", name, i);
         cr_assert_eq(memcmp(ft->color + 4 * i, truth->color + 4 * i, 4), 0, "%s: pixel %d is not RAYTRACE's colour",
                      name, i);
-        cr_assert(same_point(pt, pr), "%s: pixel %d is not RAYTRACE's point", name, i);
+        cr_assert(tu_refl_same_point(pt, pr), "%s: pixel %d is not RAYTRACE's point", name, i);
         ++filled;
     }
     cr_assert_eq(refl_measure_reflection_error(fp, truth, NULL, plain), REFL_OK);

@@ -616,13 +616,13 @@ Test(refl_sbc_morph, fallback_traces_the_holes, .timeout = 120) {
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < MW * MH; ++i) {
         if (!memcmp(plain->color + 4 * i, traced->color + 4 * i, 4) &&
-            !memcmp(plain->points + 3 * i, traced->points + 3 * i, 3 * sizeof(float)))
+            tu_refl_same_point(plain->points + 3 * i, traced->points + 3 * i))
             continue;
         ++changed;
         cr_assert(plain->points[3 * i] != plain->points[3 * i], "pixel %d showed a point, and changed", i);
         cr_assert_eq(memcmp(traced->color + 4 * i, truth->color + 4 * i, 4), 0, "pixel %d: not RAYTRACE's colour", i);
-        cr_assert(traced->points[3 * i] == truth->points[3 * i] || truth->points[3 * i] != truth->points[3 * i],
-                  "pixel %d: not RAYTRACE's point", i);
+        cr_assert(tu_refl_same_point(traced->points + 3 * i, truth->points + 3 * i), "pixel %d: not RAYTRACE's point",
+                  i);
     }
     cr_assert_eq(refl_measure_reflection_error(plain, truth, NULL, &ep), REFL_OK);
     cr_assert_eq(refl_measure_reflection_error(traced, truth, NULL, &et), REFL_OK);
