@@ -316,6 +316,8 @@ typedef struct refl_scene {
     refl_view camera;        /* the scene's own view */
     int has_camera;
     float ambient[3];        /* ambient light on diffuse surfaces */
+    unsigned version;        /* bumped by every change through refl_scene_* (renderers
+                                rebuild their models when it moves) */
     refl_allocator allocator;
 } refl_scene;
 
@@ -331,6 +333,9 @@ REFL_API int refl_scene_add_light(refl_scene *scene, const refl_light *l);
 REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, const float *rgba);
 /* Copies the images. */
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
+/* Marks the scene changed (bumps version), after writing its arrays
+   directly: a renderer rebuilds its models at its next frame. */
+REFL_API void refl_scene_touch(refl_scene *scene);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
 /* Object `object`'s vertices in world space, 3 floats each, into out (may
@@ -728,27 +733,57 @@ typedef enum refl_method {
 REFL_API const char *refl_method_name(refl_method m);          /* "direct", ... */
 REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown */
 
+/* What a frame cost and what it drew. The first fields mean the same for
+   every method; each method's own figures are in its sub-struct (zero for
+   the others). */
+typedef struct refl_envmap_frame_stats {
+    long long cube_faces;    /* cube faces rendered (6 per reflector) */
+} refl_envmap_frame_stats;
+
+typedef struct refl_planar_frame_stats {
+    long long renderings;    /* mirror renderings at every level */
+    long long deepest;       /* of those, renderings at the deepest level */
+    long long culled;        /* mirror renderings skipped as not visible */
+} refl_planar_frame_stats;
+
+typedef struct refl_c3rc_frame_stats {
+    long long points;        /* scene samples in the kd-tree */
+    long long cameras;       /* 3-ray cameras (reflector triangles and their splits) */
+    long long leaves;        /* kd-tree leaves whose points were projected */
+    long long culled;        /* kd-tree boxes the view-volume test rejected */
+    long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
+    long long projections;   /* point projections attempted */
+    long long projected;     /* valid projections found (a point may have several) */
+    long long multiple;      /* projections beyond a point's first in one camera
+                                (section 5.1's multiple projections, all drawn) */
+    double ms_cull, ms_project; /* thread time in the box tests and in projection and
+                                   splatting, summed over threads */
+} refl_c3rc_frame_stats;
+
+typedef struct refl_sbc_frame_stats {
+    long long pinhole_leaves, ray_leaves; /* BSP leaves of every group's camera */
+    long long projections;   /* vertex projections made */
+    long long projected;     /* vertices in some leaf's frustum */
+    long long ambiguous;     /* with morphs: scene vertices that project at some but not all
+                                of the eye tetrahedron's nodes (paper 003 VI) */
+    int histories;           /* reflection histories sampled (paper 003's A, B, AB, BA, ...;
+                                a refraction through glass counts as one) */
+    int groups;              /* reflection groups (a history's pieces within tiles) */
+} refl_sbc_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
-    long long triangles, points, cameras, leaves, layers;
+    long long triangles;     /* scene triangles drawn or put in a BVH */
     long long rays;          /* rays traced (primary, secondary and shadow) */
-    long long culled;        /* PLANAR: mirror renderings skipped as not visible;
-                                C3RC: kd-tree boxes the view-volume test rejected */
-    long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* C3RC: point projections attempted; SBC: vertex projections */
-    long long projected;     /* C3RC: valid projections found (a point may have several);
-                                SBC: vertices in some leaf's frustum */
-    long long multiple;      /* C3RC: projections beyond a point's first in one camera
-                                (section 5.1's multiple projections, all drawn) */
-    double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
-                                   and splatting, summed over threads */
-    long long model_bytes;
-    long long ambiguous;     /* SBC with morphs: scene vertices that project at some but not
-                                all of the eye tetrahedron's nodes (paper 003 VI) */
-    int reflectors;          /* reflector objects on screen */
-    int histories;           /* SBC: reflection histories sampled (paper 003's A, B, AB, BA,
-                                ...; a refraction through glass counts as one) */
-    int groups;              /* SBC: reflection groups (a history's pieces within tiles) */
+    long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
+    int reflectors;          /* reflector objects in the scene */
+    int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
+                                points and kd-tree); 0 when a renderer kept them all from
+                                an earlier frame */
+    refl_envmap_frame_stats envmap;
+    refl_planar_frame_stats planar;
+    refl_c3rc_frame_stats c3rc;
+    refl_sbc_frame_stats sbc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -761,6 +796,9 @@ typedef struct refl_frame {
                                 it shows none (the environment) and on other pixels. The
                                 reflection-error metric compares these. */
     refl_stats stats;
+    const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
+                                rule the desc or view broke (refl_validate_render_desc's
+                                words); "" otherwise. A static string */
     refl_allocator allocator;
 } refl_frame;
 
@@ -768,20 +806,8 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
 
-/* Where rays go: RAYTRACE casts through its own BVH unless given another
-   caster (the bench plugs in Embree this way, so both trace one frame with
-   the same shading). Both functions run concurrently on worker threads. */
-typedef struct refl_ray_caster {
-    int (*intersect)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax, refl_hit *hit);
-    int (*occluded)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
-    void *user;
-} refl_ray_caster;
-
-typedef struct refl_render_desc {
-    refl_method method;
-    int threads;             /* 0: one per CPU */
-    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
-                                with none left shows what DIRECT shows there */
+/* Lighting every method shares. */
+typedef struct refl_lighting_options {
     int shadows;             /* 1: hard shadows from every light */
     int soft_shadow_samples; /* with shadows: 0 or 1 hard; N (at most 1024): soft shadows,
                                 every light with a radius sampled at N positions
@@ -790,11 +816,6 @@ typedef struct refl_render_desc {
                                 RAYTRACE casts a shadow ray per sample, the rasterised
                                 methods draw a shadow mask per sample. Lights with
                                 radius 0 stay hard (one sample). */
-    int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
-    refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
-    int no_culling;          /* PLANAR: render every mirror at every level, seen or not
-                                (paper 002's count, formula 5); stats.leaves counts the
-                                renderings at the deepest level, stats.cameras all */
     int light_volumes;       /* PLANAR and RAYTRACE: 1: light reflected by planar mirror and
                                 partial faces lights diffuse surfaces (paper 002's light
                                 volumes): each light (of the first 8) mirrored in each face's
@@ -816,35 +837,81 @@ typedef struct refl_render_desc {
                                 environment: wholly the colour). PLANAR draws it with rast.h's
                                 exponential fog; mirrors seen through glass are not fogged
                                 there. 0: clear glass */
-    float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
-                                view: one per 2 x 2 pixels at the reflectors' distance, at
-                                most 2 million in all) */
-    int kd_leaf_points;      /* C3RC: kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
-    int max_splat;           /* C3RC: largest splat side in pixels; 0: 8 */
-    float camera_split_px;   /* C3RC: a reflector triangle's camera is split in four while its
+} refl_lighting_options;
+
+/* Where rays go: RAYTRACE casts through its own BVH unless given another
+   caster (the bench plugs in Embree this way, so both trace one frame with
+   the same shading). Both functions run concurrently on worker threads. */
+typedef struct refl_ray_caster {
+    int (*intersect)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax, refl_hit *hit);
+    int (*occluded)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax); /* NULL:
+                                intersect answers it */
+    void *user;
+} refl_ray_caster;
+
+/* Each method's options; zero everywhere means its defaults. */
+typedef struct refl_raytrace_options {
+    refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+} refl_raytrace_options;
+
+typedef struct refl_envmap_options {
+    int size;                /* cube face size in pixels, at most 8192; 0: 256 */
+} refl_envmap_options;
+
+typedef struct refl_planar_options {
+    int no_culling;          /* 1: render every mirror at every level, seen or not (paper
+                                002's count, formula 5) */
+} refl_planar_options;
+
+typedef struct refl_c3rc_options {
+    float point_density;     /* samples per unit area of every surface; 0: from the view: one
+                                per 2 x 2 pixels at the reflectors' distance, at most 2
+                                million in all (a renderer fixes it at its first frame) */
+    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
+    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8 */
+    float camera_split_px;   /* a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
-    float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
-                                map's samples (refl_sbc_desc.error_px); 0: 1 */
-    int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
-    int sbc_batch_groups;    /* SBC: reflection groups projected and drawn at once, 1..254
+} refl_c3rc_options;
+
+typedef struct refl_sbc_options {
+    float error_px;          /* largest camera error in desired-view pixels at the ray map's
+                                samples (refl_sbc_desc.error_px); 0: 1 */
+    int ray_factor;          /* one reflected ray per factor x factor pixels, at most 64; 0: 2 */
+    int batch_groups;        /* reflection groups projected and drawn at once, 1..254
                                 (memory: that many times the scene's vertices); 0: 254.
                                 The image is the same for any value */
-    int sbc_trace_fallback;  /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
-                                piece thinner than a sample, a scene triangle no vertex of
-                                which projects), or whose first-order point the ray map's
-                                samples around it contradict (on an object none of their
-                                rays meets, nearer or farther than all they meet), is
-                                rendered as RAYTRACE renders it when its reflected ray
-                                meets anything; its rays count in stats.rays. The other
-                                pixels are SBC's (see sbc_mixed_levels). 0: the paper's
-                                method alone; holes show the environment */
-    int sbc_mixed_levels;    /* SBC: times a mixed reflected triangle (some of its vertices
+    int trace_fallback;      /* 1: a reflector pixel nothing was drawn on (a hole: a piece
+                                thinner than a sample, a scene triangle no vertex of which
+                                projects), or whose first-order point the ray map's samples
+                                around it contradict (on an object none of their rays meets,
+                                nearer or farther than all they meet), is rendered as
+                                RAYTRACE renders it when its reflected ray meets anything;
+                                its rays count in stats.rays. The other pixels are SBC's
+                                (see mixed_levels). 0: the paper's method alone; holes show
+                                the environment */
+    int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with the fallback,
+                                group's rays meet it). 0: 4, or never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
+    /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this
+       scene); the front side of each one's object is drawn from its grid
+       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
+       its tetrahedra; otherwise, and for objects without one, as before.
+       One grid per object at most (the first counts). */
+    const refl_sbc_morph *const *morphs;
+    int morph_count;
+} refl_sbc_options;
+
+/* Hooks for tests and benchmarks. */
+typedef struct refl_debug_options {
+    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
+                                the last point along its path (past every mirror, the
+                                stronger branch at glass as for the first; NaN where the
+                                path ends in the environment) instead of the first: how
+                                higher-order reflections are measured. Other methods: ignored */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method
@@ -853,31 +920,65 @@ typedef struct refl_render_desc {
        its silhouette), before the side is cut into reflection groups. The
        arrays live until the callback returns; its time counts in
        stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests.
-       First-order sides only: the histories past them (desc.depth > 1)
-       are not reported. */
+       First-order sides only: the histories past them (depth > 1) are not
+       reported. */
     void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
                         int map_height);
     void *sbc_ray_map_user;
-    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
-                                the last point along its path (past every mirror, the
-                                stronger branch at glass as for the first; NaN where the
-                                path ends in the environment) instead of the first: how
-                                higher-order reflections are measured. Other methods: ignored */
-    /* SBC: prebuilt reflection morphing grids (refl_sbc_morph_build on this
-       scene); the front side of each one's object is drawn from its grid
-       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
-       its tetrahedra; otherwise, and for objects without one, as before.
-       One grid per object at most (the first counts). */
-    const refl_sbc_morph *const *sbc_morphs;
-    int sbc_morph_count;
+} refl_debug_options;
+
+/* How to render: zero is the defaults (DIRECT). `= {0}` in C and `= {}`
+   in C++ both compile. Options of a method the frame does not use are
+   ignored but still validated. */
+typedef struct refl_render_desc {
+    int threads;             /* 0: one per CPU, at most 256 */
+    refl_method method;      /* every reflector's, unless object_methods says otherwise */
+    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
+                                with none left shows what DIRECT shows there */
+    refl_lighting_options lighting;
+    /* Optional, per object: object_methods[i] (i < object_method_count) is
+       the method that draws reflector object i; 0: `method`. One of
+       DIRECT, ENVMAP, PLANAR, C3RC, SBC (RAYTRACE draws whole frames
+       only). Ignored on objects that are not reflectors. */
+    const refl_method *object_methods;
+    int object_method_count;
+    refl_raytrace_options raytrace;
+    refl_envmap_options envmap;
+    refl_planar_options planar;
+    refl_c3rc_options c3rc;
+    refl_sbc_options sbc;
+    refl_debug_options debug;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
 
+/* REFL_OK, or REFL_ERROR_INVALID_ARGUMENT with *message (may be NULL)
+   naming the option and the rule it broke, e.g. "sbc.ray_factor: 0 or 1
+   to 64" (a static string). desc NULL: the defaults, valid. */
+REFL_API refl_result refl_validate_render_desc(const refl_render_desc *desc, const char **message);
+
 /* Renders one frame of the scene from the view into frame (its size must
-   match the view's). */
+   match the view's): a renderer created and destroyed around the frame.
+   The same bytes as refl_renderer_render's first frame. */
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
                                  const refl_render_desc *desc, refl_frame *frame);
+
+/* A renderer lives across the frames of one scene and one desc (a camera
+   path) and keeps what does not depend on the view: the thread pool, the
+   BVH, C3RC's points and kd-tree. What the scene's changes invalidate:
+   every refl_scene_* function that changes the scene bumps scene->version,
+   and a frame whose scene version differs from the one the models were
+   built at rebuilds them all; code that writes the scene's arrays itself
+   calls refl_scene_touch. A frame renders the same bytes as refl_render
+   with the same desc, except that C3RC's default point density is the one
+   of the renderer's first frame (the density follows the view, and the
+   points would otherwise be re-sampled every frame). The scene must outlive
+   the renderer; one thread at a time renders with it. */
+typedef struct refl_renderer refl_renderer;
+REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
+                                          refl_renderer **out_renderer);
+REFL_API refl_result refl_renderer_render(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
+REFL_API void refl_renderer_destroy(refl_renderer *renderer);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
@@ -1101,16 +1202,51 @@ static void refl__view_rays_get(const refl__view_rays *r, float px, float py, re
    and glass transparent black, partial reflectors at their diffuse share,
    reflector object id + 1 in the stencil, the environment behind, and
    frame->points NaN everywhere. Methods add their mirror share on top. */
+/* What a renderer keeps across frames (render.c): models that depend on
+   the scene and the desc but not on the view, built on a frame's first
+   need and dropped when scene->version moves. */
+typedef struct refl__models {
+    unsigned scene_version;
+    refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
+    struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
+    float c3_density;             /* the density they were sampled at; 0: none yet */
+} refl__models;
+
 typedef struct refl__pass {
     const refl_scene *scene;
     const refl_view *view;
-    refl_render_desc desc;        /* defaults resolved: depth, envmap_size */
+    refl_render_desc desc;        /* validated, defaults resolved: depth, envmap.size */
     refl_frame *frame;
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
     refl__view_rays rays;
-    struct refl__sb_measure *sbc_measure; /* SBC: measure the cameras (refl_sbc_measure_camera_error), draw nothing */
+    const uint8_t *mine;          /* per object: 1 where this method draws the reflector;
+                                     NULL: every reflector is the method's */
+    refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
+
+/* Whether the running method draws object i (a reflector it was given). */
+static inline int refl__pass_draws(const refl__pass *p, int i) {
+    return refl__is_reflector(&p->scene->materials[p->scene->objects[i].material]) && (!p->mine || p->mine[i]);
+}
+
+/* The scene's BVH, built on first use and kept with the renderer's models
+   (owned by them; with no models, the caller frees *owned). */
+static refl_result refl__models_bvh(refl__pass *p, refl_bvh **out, refl_bvh **owned);
+
+/* Sets up p for a frame of scene from view into frame (desc validated and
+   resolved, rc any rast context) and runs the base pass: diffuse geometry
+   shaded, shadows, reflectors into the stencil, the environment behind. */
+static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                                   const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
+                                   refl__models *models);
+/* The rule a view, its frame or the scene breaks for rendering; NULL when none. */
+static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v, const refl_frame *frame);
+/* A rast context (the thread pool) on the scene's allocator. */
+static refl_result refl__context_create(const refl_scene *scene, int threads, rast_context **out);
+/* desc validated (NULL: the defaults) into *out with the renderer-wide
+   defaults resolved; the broken rule into *message. */
+static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into
    whatever targets rc has bound, and finishes. */
@@ -1130,9 +1266,6 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
-struct refl__sb_measure;
-static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                refl_frame *frame, struct refl__sb_measure *sbc_measure);
 static double refl__now_ms(void);
 
 /* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
@@ -1200,12 +1333,20 @@ static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, r
 static refl_result refl__shadow_base_pass(refl__pass *p);
 /* ---- end shadows ---- */
 
-/* The methods (one module each). */
+/* The methods, one module each, and their rows in the method table
+   (render.c). A row's options function checks the method's sub-struct of
+   the desc and resolves its defaults in place: NULL, or the rule broken. */
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
-static refl_result refl__method_c3rc(refl__pass *p);   /* after m_envmap.c and metrics.c: it uses their statics */
-static refl_result refl__method_sbc(refl__pass *p);    /* after m_envmap.c: it uses its statics */
-static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */
+static refl_result refl__method_c3rc(refl__pass *p);
+static refl_result refl__method_sbc(refl__pass *p);
+static refl_result refl__method_planar(refl__pass *p);
+static const char *refl__options_raytrace(refl_render_desc *d);
+static const char *refl__options_envmap(refl_render_desc *d);
+static const char *refl__options_planar(refl_render_desc *d);
+static const char *refl__options_c3rc(refl_render_desc *d);
+static const char *refl__options_sbc(refl_render_desc *d);
+static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -3260,6 +3401,7 @@ REFL_API int refl_scene_add_mesh(refl_scene *s, refl_mesh *mesh) {
         refl_mesh_destroy(mesh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
+    s->version++;
     return i;
 }
 
@@ -3271,6 +3413,7 @@ REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
         !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
         return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -3282,6 +3425,7 @@ REFL_API int refl_scene_add_object(refl_scene *s, const refl_object *o) {
     for (k = 0; k < 16; ++k)
         if (!refl__isfinite(o->transform.m[k])) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->objects, &s->object_count, sizeof(refl_object), o);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -3290,6 +3434,7 @@ REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
     if (!s || !l || (int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL)
         return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->lights, &s->light_count, sizeof(refl_light), l);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -3317,6 +3462,7 @@ REFL_API int refl_scene_add_texture(refl_scene *s, int width, int height, const 
         refl__image_free(&s->allocator, &img);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
+    s->version++;
     return i;
 }
 
@@ -3344,6 +3490,7 @@ REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_enviro
     }
     refl__environment_free(&s->allocator, &s->environment);
     s->environment = e;
+    s->version++;
     return REFL_OK;
 }
 
@@ -3389,6 +3536,7 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
     refl_mat4 m;
     int i;
     if (!s || !(size > 0.0f) || !s->object_count) return;
+    s->version++;
     refl_scene_bounds(s, &lo, &hi);
     diag = refl_v3_length(refl_v3_sub(hi, lo));
     if (!(diag > 0.0f)) return;
@@ -3404,6 +3552,10 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
         s->camera.znear *= k;
         s->camera.zfar *= k;
     }
+}
+
+REFL_API void refl_scene_touch(refl_scene *s) {
+    if (s) s->version++;
 }
 
 REFL_API long long refl_scene_triangles(const refl_scene *s) {
@@ -9101,7 +9253,7 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
 /* ---- soft shadows: the mask once per jittered light ----------------------------------- */
 
 static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene) {
-    return desc->shadows && desc->soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
+    return desc->lighting.shadows && desc->lighting.soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
 }
 
 static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
@@ -9183,9 +9335,9 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     t = refl__frame_targets(f);
     if (soft) {
         r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
-                                   p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
+                                   p->desc.lighting.soft_shadow_samples, counts, lit, &t, &f->stats);
         if (r == REFL_OK)
-            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.soft_shadow_samples, f->width, f->height,
+            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.lighting.soft_shadow_samples, f->width, f->height,
                                  -1, 0, &f->stats);
     } else {
         r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
@@ -9255,8 +9407,10 @@ static int refl__planar_match(const refl__planar_face *faces, int first, int cou
 
 /* Groups each mirror or partial reflector's triangles by world plane
    (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
-   Degenerate triangles join no face (they draw nothing anyway). */
-static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
+   Degenerate triangles join no face (they draw nothing anyway). only:
+   NULL, or per object whether to look at it at all. */
+static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *only, refl__planar_face **out,
+                                           int *out_count) {
     refl__planar_face *faces;
     int i, count = 0, cap = 0;
     refl_vec3 lo, hi;
@@ -9265,7 +9419,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
     tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
     for (i = 0; i < s->object_count; ++i) {
         const refl_material *m = &s->materials[s->objects[i].material];
-        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
+        if (m->type != REFL_DIFFUSE && (!only || only[i])) cap += REFL__PLANAR_MAX_FACES;
     }
     faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
     if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
@@ -9275,7 +9429,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
         const refl_material *m = &s->materials[o->material];
         int first = count, t, f, k, planar = 1;
         double n[3], d;
-        if (m->type == REFL_DIFFUSE) continue;
+        if (m->type == REFL_DIFFUSE || (only && !only[i])) continue;
         /* the planes and how many indices each gets */
         for (t = 0; t < mesh->triangle_count && planar; ++t) {
             if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;
@@ -9337,7 +9491,7 @@ static refl_mat4 refl__planar_reflection(const double n[3], double d) {
 }
 /* ---- src/reflect/light_volume.c ---- */
 /* Light volumes and caustics (paper 002): light a planar mirror reflects
-   onto diffuse surfaces (refl_render_desc.light_volumes).
+   onto diffuse surfaces (refl_render_desc.lighting.light_volumes).
 
    THE VIRTUAL LIGHTS
        A light on one side of a mirror face's plane (planar_faces.c),
@@ -9672,14 +9826,14 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
     if (!lit || !scratch || !vcounts || (soft && !counts) || !dc) { r = REFL_ERROR_OUT_OF_MEMORY; goto done; }
     /* the scene's own lights, as the shadow pass saw them */
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
-        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->soft_shadow_samples, 1) : 1;
+        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->lighting.soft_shadow_samples, 1) : 1;
     if (soft)
         r = refl__shadow_mask_soft(rc, scene, vp, eye, depth, width, height, region, region_value,
-                                   desc->soft_shadow_samples, counts, lit, restore, st);
-    else if (desc->shadows)
+                                   desc->lighting.soft_shadow_samples, counts, lit, restore, st);
+    else if (desc->lighting.shadows)
         r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
     for (k = 0; k < lv->count && r == REFL_OK; ++k)
-        r = refl__lv_count(rc, scene, lv, k, desc->shadows, vp, eye, depth, width, height, region, region_value,
+        r = refl__lv_count(rc, scene, lv, k, desc->lighting.shadows, vp, eye, depth, width, height, region, region_value,
                            scratch, scratch + npx, vcounts + (size_t)k * npx, restore, st);
     if (r != REFL_OK) goto done;
     for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
@@ -9690,7 +9844,7 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         dc[i].object = i;
         dc[i].lv = lv;
         dc[i].scene = scene;
-        dc[i].lit = desc->shadows && !soft ? lit : NULL;
+        dc[i].lit = desc->lighting.shadows && !soft ? lit : NULL;
         dc[i].counts = soft ? counts : NULL;
         dc[i].samples = ns;
         dc[i].vcounts = vcounts;
@@ -9883,7 +10037,7 @@ static float refl__rt_virtual(const refl__rt *rt, const refl__rt_surface *s, ref
         float mag;
         if (!refl__lv_sample(lv, scene, k, j, &src, &virt) || !refl__lv_through_face(lv, scene, k, &virt, s->p, &m))
             continue;
-        if (rt->p->desc.shadows) {
+        if (rt->p->desc.lighting.shadows) {
             /* from the surface to the face, stopping short of the mirror */
             d = refl_v3_sub(m, s->p);
             o = refl__rt_offset(s->p, refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f),
@@ -9913,10 +10067,10 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
     enum { MAX_LIGHTS = 64 };
     float weight[MAX_LIGHTS];
     const refl_scene *scene = rt->scene;
-    int i, k, samples = REFL__MAX(rt->p->desc.soft_shadow_samples, 1);
+    int i, k, samples = REFL__MAX(rt->p->desc.lighting.soft_shadow_samples, 1);
     refl_vec3 nn = refl_v3_normalize(n);
     /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if ((!rt->p->desc.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
+    if ((!rt->p->desc.lighting.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
         refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
         return;
     }
@@ -9926,7 +10080,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
                                                          : refl_v3_sub(l->position, s->p);
         int ns = l->radius > 0.0f ? samples : 1, visible = 0;
         weight[i] = 1.0f;
-        if (!rt->p->desc.shadows) continue;
+        if (!rt->p->desc.lighting.shadows) continue;
         if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
         for (k = 0; k < ns; ++k) {
             refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
@@ -9948,7 +10102,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
 typedef struct refl__rt_medium {
     float attenuation;
     int inside;
-    /* translucency (desc.translucency): entered through glass at fog_p
+    /* translucency (desc.lighting.translucency): entered through glass at fog_p
        (plane normal fog_n), what the ray shows first beyond the glass is
        fogged towards fog_rgb by exp(-fog h), h its distance from that
        plane, as PLANAR fogs the image behind a glass face; 0: clear */
@@ -10038,7 +10192,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
             through.inside = entering;
             if (entering) { /* translucency: fogged from this face on (refl__rt_trace) */
-                through.fog = rt->p->desc.translucency;
+                through.fog = rt->p->desc.lighting.translucency;
                 through.fog_p = s->p;
                 through.fog_n = s->ng;
                 through.fog_rgb = m->color;
@@ -10064,7 +10218,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
-        if (first_point && rt->p->desc.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
+        if (first_point && rt->p->desc.debug.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
@@ -10073,7 +10227,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;
-        if (!rt->p->desc.points_last) first_point = NULL; /* else followed to the path's end */
+        if (!rt->p->desc.debug.points_last) first_point = NULL; /* else followed to the path's end */
     }
     if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
         fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
@@ -10094,7 +10248,7 @@ static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
    as the base pass writes them; *rays counts the rays cast. SBC's
-   fallback traces pixels with it too (desc.sbc_trace_fallback). */
+   fallback traces pixels with it too (desc.sbc.trace_fallback). */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil) {
     refl_vec3 a, d;
@@ -10162,7 +10316,7 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
     memset(rt, 0, sizeof *rt);
     rt->p = p;
     rt->scene = scene;
-    rt->caster = p->desc.caster;
+    rt->caster = p->desc.raytrace.caster;
     rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
                                                   sizeof(refl__rt_object));
     if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
@@ -10179,9 +10333,9 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
         rt->caster.occluded = refl__rt_bvh_occluded;
         rt->caster.user = bvh ? bvh : rt->bvh;
     }
-    if (p->desc.light_volumes) {
-        if ((r = refl__planar_find_faces(scene, &rt->faces, &rt->face_count)) != REFL_OK) return r;
-        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.caustic_samples);
+    if (p->desc.lighting.light_volumes) {
+        if ((r = refl__planar_find_faces(scene, NULL, &rt->faces, &rt->face_count)) != REFL_OK) return r;
+        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.lighting.caustic_samples);
     }
     return REFL_OK;
 }
@@ -10194,6 +10348,12 @@ static void refl__rt_end(refl__rt *rt) {
     rt->scene = NULL;
 }
 
+static const char *refl__options_raytrace(refl_render_desc *d) {
+    if (d->raytrace.caster.occluded && !d->raytrace.caster.intersect)
+        return "raytrace.caster: occluded without intersect";
+    return NULL;
+}
+
 static refl_result refl__method_raytrace(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
@@ -10201,7 +10361,11 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     long long nodes = 0, tris = 0;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
-    refl_result r = refl__rt_begin(&rt, p, NULL);
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&rt, p, bvh);
+    rt.bvh = owned; /* freed with rt */
     if (r != REFL_OK) {
         refl__rt_end(&rt);
         return r;
@@ -10216,8 +10380,8 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     }
     for (i = 0; i < scene->object_count; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (rt.bvh) {
-        refl_bvh_stats(rt.bvh, &nodes, &tris);
+    if (bvh) {
+        refl_bvh_stats(bvh, &nodes, &tris);
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
                                tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
     }
@@ -10708,7 +10872,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     s.fragment_fn = refl__em_normal_fragment;
     s.fragment_derivatives = 1;
     for (i = 0; i < scene->object_count; ++i) {
-        if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
+        if (!refl__pass_draws(p, i)) continue;
         refl__em_setup_draw(&em->draws[i], scene, i, p->vp, 1);
         em->draws[i].eye = p->view->eye;
         s.stencil_front.ref = s.stencil_back.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
@@ -10744,6 +10908,12 @@ static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int 
     return refl__em_gbuffer(em, *seen, any);
 }
 
+static const char *refl__options_envmap(refl_render_desc *d) {
+    if (d->envmap.size < 0 || d->envmap.size > 8192) return "envmap.size: 0 (256) to 8192";
+    if (d->envmap.size == 0) d->envmap.size = 256;
+    return NULL;
+}
+
 static refl_result refl__method_envmap(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -10759,7 +10929,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     if (!reflectors) return REFL_OK;
     memset(&em, 0, sizeof em);
     em.p = p;
-    em.n = p->desc.envmap_size > 0 ? p->desc.envmap_size : 256;
+    em.n = p->desc.envmap.size > 0 ? p->desc.envmap.size : 256;
     nn = (size_t)em.n * (size_t)em.n;
     r = refl__em_gbuffer_new(&em, &seen, &any);
     if (r == REFL_OK && any) {
@@ -10777,7 +10947,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
         t0 = refl__now_ms();
         fr->stats.ms_build += t0 - t1;
         if (r != REFL_OK) break;
-        fr->stats.cameras += 6;
+        fr->stats.envmap.cube_faces += 6;
         fr->stats.model_bytes += (long long)(6 * nn * (4 + 3 * sizeof(float)));
         em.object = i;
         rast_run_jobs(p->rc, fr->height, refl__em_row, &em);
@@ -11756,6 +11926,26 @@ static void refl__c3_shade(void *arg, int index) {
     }
 }
 
+/* What refl__c3_points makes, as a renderer keeps it across frames: it
+   depends on the scene and the density, not on the view. */
+typedef struct refl__c3_samples {
+    refl_kdtree *tree;
+    float *rgb, *normal;
+    uint8_t *diffuse;
+    int32_t *object, *triangle;
+} refl__c3_samples;
+
+static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
+    if (!pts) return;
+    refl_kdtree_destroy(pts->tree);
+    refl__free(al, pts->rgb);
+    refl__free(al, pts->normal);
+    refl__free(al, pts->diffuse);
+    refl__free(al, pts->object);
+    refl__free(al, pts->triangle);
+    refl__free(al, pts);
+}
+
 /* Samples every object at the density, builds the kd-tree over the
    points and shades them (tree order). */
 static refl_result refl__c3_points(refl__c3 *c3) {
@@ -11798,7 +11988,7 @@ static refl_result refl__c3_points(refl__c3 *c3) {
             at += (size_t)pts[i]->count;
         }
         memset(&kd, 0, sizeof kd);
-        kd.leaf_points = p->desc.kd_leaf_points;
+        kd.leaf_points = p->desc.c3rc.kd_leaf_points;
         kd.allocator = *al;
         r = refl_kdtree_build(all, (int)total, &kd, &c3->tree);
     }
@@ -11931,7 +12121,7 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
                     continue;
                 if (!refl__c3_back_seen(c3, o, m, t, i, x0, y0, x1, y1)) continue;
             }
-            r = refl__c3_add_triangle(p, i, t, c3->tmax, p->desc.camera_split_px, &list);
+            r = refl__c3_add_triangle(p, i, t, c3->tmax, p->desc.c3rc.camera_split_px, &list);
         }
     }
     refl__free(al, sat);
@@ -11981,6 +12171,40 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
+/* Hands c3's points to the renderer's models (which free them from now on). */
+static refl_result refl__c3_keep_points(refl__c3 *c3, refl__models *models) {
+    refl__c3_samples *pts = (refl__c3_samples *)refl__calloc(&c3->p->scene->allocator, 1, sizeof *pts);
+    if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
+    pts->tree = c3->tree;
+    pts->rgb = c3->rgb;
+    pts->normal = c3->normal;
+    pts->diffuse = c3->diffuse;
+    pts->object = c3->object;
+    pts->triangle = c3->triangle;
+    models->c3 = pts;
+    models->c3_density = c3->density;
+    return REFL_OK;
+}
+
+static void refl__c3_borrow_points(refl__c3 *c3, const refl__c3_samples *pts) {
+    c3->tree = pts->tree;
+    c3->rgb = pts->rgb;
+    c3->normal = pts->normal;
+    c3->diffuse = pts->diffuse;
+    c3->object = pts->object;
+    c3->triangle = pts->triangle;
+}
+
+static const char *refl__options_c3rc(refl_render_desc *d) {
+    const refl_c3rc_options *o = &d->c3rc;
+    if (!(o->point_density >= 0.0f) || !refl__isfinite(o->point_density))
+        return "c3rc.point_density: finite, 0 (from the view) or more";
+    if (o->kd_leaf_points < 0) return "c3rc.kd_leaf_points: 0 (1000) or more";
+    if (o->max_splat < 0 || o->max_splat > 64) return "c3rc.max_splat: 0 (8) to 64";
+    if (!refl__isfinite(o->camera_split_px)) return "c3rc.camera_split_px: finite";
+    return NULL;
+}
+
 static refl_result refl__method_c3rc(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -11996,7 +12220,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.p = p;
     c3.em.p = p;
     c3.pixel_angle = 2.0f * refl_v3_length(p->rays.up) / (float)fr->height;
-    c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
+    c3.max_splat = p->desc.c3rc.max_splat > 0 ? p->desc.c3rc.max_splat : 8;
     refl_scene_bounds(scene, &lo, &hi);
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     r = refl__em_gbuffer_new(&c3.em, &seen, &any);
@@ -12006,10 +12230,22 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         if (!c3.em.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
-        c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
+        refl__models *models = p->models;
+        c3.density = p->desc.c3rc.point_density > 0.0f ? p->desc.c3rc.point_density
+                     : models && models->c3             ? models->c3_density
+                                                        : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
-        r = refl__c3_points(&c3);
+        if (models && models->c3 && models->c3_density != c3.density) {
+            refl__c3_samples_free(al, models->c3);
+            models->c3 = NULL;
+        }
+        if (!models || !models->c3) {
+            r = refl__c3_points(&c3);
+            fr->stats.scene_models_built++;
+            if (r == REFL_OK && models) r = refl__c3_keep_points(&c3, models);
+        }
+        if (models && models->c3) refl__c3_borrow_points(&c3, models->c3);
         t1 = refl__now_ms();
         fr->stats.ms_build += t1 - t0;
         t0 = t1;
@@ -12022,17 +12258,17 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             rast_run_jobs(p->rc, jobs, refl__c3_camera, &c3);
             for (i = 0; i < jobs; ++i) {
                 const refl__c3_counts *n = &c3.counts[i];
-                fr->stats.leaves += n->leaves;
-                fr->stats.culled += n->culled;
-                fr->stats.box_tests += n->tests;
-                fr->stats.projections += n->tries;
-                fr->stats.projected += n->valid;
-                fr->stats.multiple += n->multiple;
-                fr->stats.ms_cull += n->ms_cull;
-                fr->stats.ms_project += n->ms_project;
+                fr->stats.c3rc.leaves += n->leaves;
+                fr->stats.c3rc.culled += n->culled;
+                fr->stats.c3rc.box_tests += n->tests;
+                fr->stats.c3rc.projections += n->tries;
+                fr->stats.c3rc.projected += n->valid;
+                fr->stats.c3rc.multiple += n->multiple;
+                fr->stats.c3rc.ms_cull += n->ms_cull;
+                fr->stats.c3rc.ms_project += n->ms_project;
             }
-            fr->stats.cameras += jobs;
-            fr->stats.points += c3.tree->point_count;
+            fr->stats.c3rc.cameras += jobs;
+            fr->stats.c3rc.points += c3.tree->point_count;
             fr->stats.model_bytes += (long long)c3.tree->point_count * (long long)(3 * sizeof(float)) +
                                      (long long)c3.tree->node_count * (long long)sizeof(refl_kdtree_node) +
                                      (long long)jobs * (long long)sizeof(refl_c3rc);
@@ -12047,17 +12283,19 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    refl_kdtree_destroy(c3.tree);
+    if (!p->models || !p->models->c3) { /* not kept: this frame's own */
+        refl_kdtree_destroy(c3.tree);
+        refl__free(al, c3.rgb);
+        refl__free(al, c3.normal);
+        refl__free(al, c3.object);
+        refl__free(al, c3.triangle);
+        refl__free(al, c3.diffuse);
+    }
     refl__free(al, c3.em.gbuf);
     refl__free(al, c3.em.draws);
     refl__free(al, seen);
     refl__free(al, c3.em.surface);
     refl__free(al, c3.key);
-    refl__free(al, c3.rgb);
-    refl__free(al, c3.normal);
-    refl__free(al, c3.object);
-    refl__free(al, c3.triangle);
-    refl__free(al, c3.diffuse);
     refl__free(al, c3.jobs);
     refl__free(al, c3.counts);
     return r;
@@ -12273,7 +12511,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         times: always while an edge is longer than 1/32 of the scene's
         diagonal (the paper's pre-subdivision, per frame), while mixed (one
         or two vertices project; the paper's fix for jagged edges; at most
-        desc.sbc_mixed_levels times, REFL__SB_MIXED_LEVELS by default and
+        desc.sbc.mixed_levels times, REFL__SB_MIXED_LEVELS by default and
         none with the fallback, unless the part holds a point where one
         of the group's rays meets the triangle), while no vertex projects
         but such a point lies inside (a group narrower than the triangle),
@@ -12309,7 +12547,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         holes 6.7% to 4.9%, mean 0.34 to 0.36 px; 1080p factor 4 holes
         6.5% to 4.8%; past the first order, the order with it: two
         facing mirrors at depth 2 holes 2.1% to 1.2%, colour off 2.6% to
-        1.8%). With desc.sbc_trace_fallback (beyond the paper) a pixel still
+        1.8%). With desc.sbc.trace_fallback (beyond the paper) a pixel still
         without a reflection, or whose first-order point the samples
         around it contradict (refl__sb_fallback), is rendered as RAYTRACE
         renders it (refl__rt_pixel) when its reflected ray meets anything,
@@ -12325,9 +12563,9 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
         the environment beyond the glass), times (1 - F) at the exit and
         the absorption inside; reflections inside the glass short of total
         are left out. frame->points: the first point past the first
-        reflector, as RAYTRACE's, or with desc.points_last the last.
+        reflector, as RAYTRACE's, or with desc.debug.points_last the last.
    Reflection morphing (section VI): a reflector the caller hands a
-   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   prebuilt grid for (refl_render_desc.sbc.morphs, cam_sbc_morph.c) has no
    ray map or groups of its front side here; a group per piece of the grid
    projects instead (the eye's tetrahedron, blended; no check against this
    frame's ray map, which it has none of), its pixels those of the piece
@@ -12343,7 +12581,7 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
 #define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
 #define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
-#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed (desc.sbc_mixed_levels' default) */
+#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed (desc.sbc.mixed_levels' default) */
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
@@ -12448,11 +12686,12 @@ typedef struct refl__sb {
     int group_count;
     int map_w, map_h, tile;       /* the ray map's size; a group's tile side in samples */
     int factor;
-    int mixed_levels;             /* desc.sbc_mixed_levels resolved */
+    int mixed_levels;             /* desc.sbc.mixed_levels resolved */
     float error_px;
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
-    refl_bvh *bvh;                /* the scene's, for the rays' first hits */
+    refl_bvh *bvh;                /* the scene's, for the rays' first hits (the renderer's) */
+    refl_bvh *own_bvh;            /* bvh when no renderer keeps it */
     /* higher orders (desc.depth > 1): the paper's reflection histories */
     int budget;                   /* bounces a path may take: desc.depth, at most REFL__SB_ORDERS */
     int orders;                   /* reflection orders drawn (k_max): the longest history sampled */
@@ -12478,7 +12717,7 @@ typedef struct refl__sb {
     float *points_depth;
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
-    refl__rt *tracer;             /* desc.sbc_trace_fallback: how RAYTRACE renders a pixel; else NULL */
+    refl__rt *tracer;             /* desc.sbc.trace_fallback: how RAYTRACE renders a pixel; else NULL */
     long long *traced_rays;       /* ... and per row, the rays the fallback cast */
 } refl__sb;
 
@@ -12494,8 +12733,8 @@ static int refl__sb_group_layer(const refl__sb *sb, const refl__sb_group *g) {
 static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
     int k, nodes[4];
     float w[4];
-    for (k = 0; k < p->desc.sbc_morph_count; ++k) {
-        const refl_sbc_morph *m = p->desc.sbc_morphs[k];
+    for (k = 0; k < p->desc.sbc.morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc.morphs[k];
         if (m && refl_sbc_morph_object(m) == o)
             return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
     }
@@ -13587,7 +13826,7 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
 
 static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
 
-/* Pixel (x, y) under desc.sbc_trace_fallback (refl__sb_fallback): where
+/* Pixel (x, y) under desc.sbc.trace_fallback (refl__sb_fallback): where
    its reflected ray (taken as the ray map's samples take it) meets
    anything, the pixel is rendered as RAYTRACE renders it, colour and
    point, and 1 is returned; else 0, and it keeps what SBC made of it (a
@@ -13620,7 +13859,7 @@ static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
     return !(sb->group_of[i] && sb->depth[src] < 1.0f);
 }
 
-/* Whether desc.sbc_trace_fallback traces pixel i (src as above; first:
+/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
    what it shows is a first-order reflection): a hole, or a first-order
    point the ray map's samples around the pixel contradict: on an object
    none of their four rays meets, or nearer than the nearest of what they
@@ -13882,14 +14121,14 @@ static refl_result refl__sb_histories(refl__sb *sb) {
    the glass) times (1 - F) tint at the entry and the refraction path's
    weight. The point shown: the first past the first reflector, as RAYTRACE
    records it (the second reflector's surface on an order-2 path), or with
-   desc.points_last the last one drawn (NaN where none). */
+   desc.debug.points_last the last one drawn (NaN where none). */
 static void refl__sb_resolve_row_deep(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl__pass *p = sb->p;
     const refl_scene *scene = p->scene;
     refl_frame *fr = p->frame;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
-    int x, c, last = p->desc.points_last;
+    int x, c, last = p->desc.debug.points_last;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
         const float *g = sb->em.gbuf + 4 * i;
@@ -14189,12 +14428,12 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
         int v;
         if (slot->failed) return REFL_ERROR_OUT_OF_MEMORY;
         if (!slot->index) continue; /* no tree */
-        sb->p->frame->stats.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
+        sb->p->frame->stats.sbc.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
         for (v = 0; v < slot->count; ++v) { /* a vertex projects into every sheet at once */
             int ok = 0;
             for (k = 0; k < REFL__SB_SHEETS && slot->pv[k]; ++k) ok |= slot->pv[k][v].ok;
-            sb->p->frame->stats.projected += ok;
-            sb->p->frame->stats.ambiguous += slot->pv[0][v].ambiguous;
+            sb->p->frame->stats.sbc.projected += ok;
+            sb->p->frame->stats.sbc.ambiguous += slot->pv[0][v].ambiguous;
         }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
@@ -14244,7 +14483,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__sb_free_batch(sb);
     for (i = 0; sb->base && i < sb->p->scene->object_count; ++i) refl__free(al, sb->base[i]);
     refl__free(al, sb->base);
-    refl_bvh_destroy(sb->bvh);
+    refl_bvh_destroy(sb->own_bvh);
     refl_bvh_destroy(sb->mirrors);
     refl__free(al, sb->mirror_object);
     refl__free(al, sb->normal_m);
@@ -14282,19 +14521,19 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     memset(sb, 0, sizeof *sb);
     sb->p = p;
     sb->em.p = p;
-    sb->factor = p->desc.sbc_ray_factor > 0 ? p->desc.sbc_ray_factor : REFL__SB_FACTOR;
+    sb->factor = p->desc.sbc.ray_factor > 0 ? p->desc.sbc.ray_factor : REFL__SB_FACTOR;
     sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
     sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
-    sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
+    sb->error_px = p->desc.sbc.error_px > 0.0f ? p->desc.sbc.error_px : 1.0f;
     /* with the fallback, the pixels a group's edge leaves uncovered are
        traced: splitting mixed triangles costs more than it buys (default
        640x480 factor 2 with the fallback: 305 -> 178 ms a frame, mean
        0.29 -> 0.24 px) */
-    sb->mixed_levels = p->desc.sbc_mixed_levels > 0   ? p->desc.sbc_mixed_levels
-                       : p->desc.sbc_mixed_levels < 0 ? 0
-                       : p->desc.sbc_trace_fallback   ? 0
+    sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
+                       : p->desc.sbc.mixed_levels < 0 ? 0
+                       : p->desc.sbc.trace_fallback   ? 0
                                                       : REFL__SB_MIXED_LEVELS;
-    sb->batch = p->desc.sbc_batch_groups > 0 ? p->desc.sbc_batch_groups : REFL__SB_BATCH;
+    sb->batch = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
     sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
     sb->orders = sb->layers = 1;
     refl_scene_bounds(p->scene, &lo, &hi);
@@ -14306,15 +14545,15 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     r = refl__em_gbuffer_new(&sb->em, &seen, &any);
     refl__free(al, seen);
     if (r != REFL_OK || !any) return r;
-    if ((r = refl_bvh_build(p->scene, al, &sb->bvh)) != REFL_OK) return r;
+    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
     sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
     if (!sb->em.surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
-    p->frame->stats.histories += sb->side_count;
-    p->frame->stats.groups += sb->group_count;
-    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
-        p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
+    p->frame->stats.sbc.histories += sb->side_count;
+    p->frame->stats.sbc.groups += sb->group_count;
+    for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
+        p->desc.debug.sbc_ray_map(p->desc.debug.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
     if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
@@ -14322,8 +14561,8 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         refl_sbc_stats st;
         if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
         refl_sbc_get_stats(sb->groups[g].sbc, &st);
-        p->frame->stats.cameras += st.pinhole_leaves;
-        p->frame->stats.leaves += st.ray_leaves;
+        p->frame->stats.sbc.pinhole_leaves += st.pinhole_leaves;
+        p->frame->stats.sbc.ray_leaves += st.ray_leaves;
         p->frame->stats.rays += st.rays;
         p->frame->stats.model_bytes += st.bytes;
     }
@@ -14488,7 +14727,20 @@ static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
     return REFL_OK;
 }
 
-static refl_result refl__method_sbc(refl__pass *p) {
+static const char *refl__options_sbc(refl_render_desc *d) {
+    const refl_sbc_options *o = &d->sbc;
+    if (!(o->error_px >= 0.0f) || !refl__isfinite(o->error_px)) return "sbc.error_px: finite, 0 (1) or more";
+    if (o->ray_factor < 0 || o->ray_factor > 64) return "sbc.ray_factor: 0 (2) to 64";
+    if (o->batch_groups < 0 || o->batch_groups > 254) return "sbc.batch_groups: 0 (254) to 254";
+    if (o->trace_fallback < 0 || o->trace_fallback > 1) return "sbc.trace_fallback: 0 or 1";
+    if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
+    if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
+        return "sbc.morphs: morph_count 0, or the array of that many grids";
+    return NULL;
+}
+
+/* An SBC frame, or (ms) SBC's cameras measured in place of its reflections. */
+static refl_result refl__sb_run(refl__pass *p, refl__sb_measure *ms) {
     const refl_allocator *al = &p->scene->allocator;
     refl_frame *fr = p->frame;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
@@ -14498,8 +14750,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
     int i;
     t1 = refl__now_ms();
     fr->stats.ms_build += t1 - t0;
-    if (p->sbc_measure) {
-        refl__sb_measure *ms = p->sbc_measure;
+    if (ms) {
         size_t n = (size_t)fr->width * (size_t)fr->height;
         ms->sb = &sb;
         ms->error = (double *)refl__calloc(al, n, sizeof(double));
@@ -14549,8 +14800,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
             while (sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer) ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
-                fr->stats.projections += sb.jobs[i].projections;
-                fr->stats.projected += sb.jobs[i].projected;
+                fr->stats.sbc.projections += sb.jobs[i].projections;
+                fr->stats.sbc.projected += sb.jobs[i].projected;
             }
             if (r == REFL_OK) r = refl__sb_draw(&sb);
             refl__sb_free_batch(&sb);
@@ -14560,7 +14811,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
         }
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
-        if (r == REFL_OK && p->desc.sbc_trace_fallback) {
+        if (r == REFL_OK && p->desc.sbc.trace_fallback) {
             sb.tracer = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
             sb.traced_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
             if (!sb.tracer || !sb.traced_rays) r = REFL_ERROR_OUT_OF_MEMORY;
@@ -14579,26 +14830,38 @@ static refl_result refl__method_sbc(refl__pass *p) {
     return r;
 }
 
+static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p, NULL); }
+
 REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                   const refl_render_desc *desc, const refl_frame *truth,
                                                   refl_sbc_camera_error *out) {
     refl__sb_measure ms;
-    refl_render_desc d;
+    refl_render_desc given, d;
     refl_frame *frame = NULL;
+    rast_context *rc = NULL;
+    refl__pass p;
+    const char *why;
     refl_result r;
     if (!out) return REFL_ERROR_INVALID_ARGUMENT;
     memset(out, 0, sizeof *out);
     if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
-    memset(&d, 0, sizeof d);
-    if (desc) d = *desc;
-    d.method = REFL_SBC;
-    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    memset(&given, 0, sizeof given);
+    if (desc) given = *desc;
+    given.method = REFL_SBC;
+    given.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    given.object_methods = NULL;
+    given.object_method_count = 0;
+    if ((r = refl__resolve_desc(&given, &d, &why)) != REFL_OK) return r;
     memset(&ms, 0, sizeof ms);
     ms.truth = truth;
     ms.out = out;
     r = refl_frame_create(truth->width, truth->height, &scene->allocator, &frame);
-    if (r == REFL_OK) r = refl__render(scene, view, &d, frame, &ms);
+    if (r == REFL_OK && refl__frame_rule(scene, view, frame)) r = REFL_ERROR_INVALID_ARGUMENT;
+    if (r == REFL_OK) r = refl__context_create(scene, d.threads, &rc);
+    if (r == REFL_OK) r = refl__base_pass(&p, scene, view, &d, frame, rc, NULL);
+    if (r == REFL_OK) r = refl__sb_run(&p, &ms);
+    rast_context_destroy(rc);
     refl_frame_destroy(frame);
     return r;
 }
@@ -14638,6 +14901,7 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->allocator = refl__allocator(a);
     f->width = width;
     f->height = height;
+    f->message = "";
     f->color = (uint8_t *)refl__calloc(a, n, 4);
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
@@ -14816,109 +15080,311 @@ static void refl__draw_background(uint8_t *color, const float *depth, int width,
         }
 }
 
-static int refl__view_ok(const refl_view *v) {
-    refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
-    return refl__isfinite(v->eye.x) && refl__isfinite(v->eye.y) && refl__isfinite(v->eye.z) &&
-           refl_v3_length(fwd) > 0.0f && refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f &&
-           v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f;
+/* ---- the method table ---------------------------------------------------------- */
+
+enum {
+    REFL__WHOLE_FRAME = 1,        /* renders every pixel itself: no base pass, no other method */
+    REFL__PER_REFLECTOR = 2       /* fills the reflectors it is given after the base pass */
+};
+
+typedef struct refl__method_row {
+    refl_method method;
+    unsigned kind;                /* REFL__WHOLE_FRAME or REFL__PER_REFLECTOR */
+    refl_result (*draw)(refl__pass *p);       /* NULL: nothing past the base pass (DIRECT) */
+    const char *(*options)(refl_render_desc *d);
+} refl__method_row;
+
+/* The built methods, in the order a frame runs them. A method without a
+   row returns REFL_ERROR_UNSUPPORTED. */
+static const refl__method_row refl__methods[] = {
+    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL},
+    {REFL_RAYTRACE, REFL__WHOLE_FRAME, refl__method_raytrace, refl__options_raytrace},
+    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap},
+    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc},
+};
+enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
+
+static const refl__method_row *refl__method_row_of(refl_method m) {
+    int i;
+    for (i = 0; i < REFL__METHOD_ROWS; ++i)
+        if (refl__methods[i].method == m) return &refl__methods[i];
+    return NULL;
 }
 
-/* refl_render, or (sbc_measure) SBC's cameras measured in place of its reflections. */
-static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                refl_frame *frame, struct refl__sb_measure *sbc_measure) {
-    refl__pass p;
-    rast_context_desc cd;
-    rast_targets t;
-    rast_clear_desc clear;
-    refl_mat4 inv_vp;
-    refl_result r;
-    double t0 = refl__now_ms(), t1;
-    size_t n, k;
+/* The method that draws object i. */
+static refl_method refl__object_method(const refl_render_desc *d, int i) {
+    return i < d->object_method_count && d->object_methods[i] != REFL_METHOD_DEFAULT ? d->object_methods[i]
+                                                                                     : d->method;
+}
+
+static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message) {
+    const char *why = NULL;
     int i;
-    if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
-    memset(&p, 0, sizeof p);
-    if (desc) p.desc = *desc;
-    if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
-        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
-        p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
-        !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
-        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
-        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
-        p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
-        p.desc.sbc_trace_fallback < 0 || p.desc.sbc_trace_fallback > 1 || p.desc.sbc_mixed_levels > 6 ||
-        p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
-        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
-        (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))
+    *message = "";
+    memset(out, 0, sizeof *out);
+    if (desc) *out = *desc;
+    if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
+    else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
+    else if (out->depth < 0) why = "depth: 0 (the default, 6) or more";
+    else if (out->lighting.shadows < 0 || out->lighting.shadows > 1) why = "lighting.shadows: 0 or 1";
+    else if (out->lighting.soft_shadow_samples < 0 || out->lighting.soft_shadow_samples > 1024)
+        why = "lighting.soft_shadow_samples: 0 to 1024";
+    else if (out->lighting.light_volumes < 0 || out->lighting.light_volumes > 1)
+        why = "lighting.light_volumes: 0 or 1";
+    else if (out->lighting.caustic_samples < 0 || out->lighting.caustic_samples > 1024)
+        why = "lighting.caustic_samples: 0 to 1024";
+    else if (!(out->lighting.translucency >= 0.0f) || !refl__isfinite(out->lighting.translucency))
+        why = "lighting.translucency: finite, 0 or more";
+    else if (out->object_method_count < 0 || (out->object_method_count > 0 && !out->object_methods))
+        why = "object_methods: object_method_count 0, or the array of that many";
+    else if (out->debug.points_last < 0 || out->debug.points_last > 1) why = "debug.points_last: 0 or 1";
+    for (i = 0; !why && i < REFL__METHOD_ROWS; ++i)
+        if (refl__methods[i].options) why = refl__methods[i].options(out);
+    if (!why && out->method == REFL_METHOD_DEFAULT) out->method = REFL_DIRECT;
+    for (i = 0; !why && i < out->object_method_count; ++i) {
+        const refl__method_row *row = refl__method_row_of(out->object_methods[i]);
+        if (out->object_methods[i] == REFL_METHOD_DEFAULT) continue;
+        if ((int)out->object_methods[i] < 0 || out->object_methods[i] >= REFL_METHOD_COUNT)
+            why = "object_methods: an entry is not a refl_method";
+        else if (row && row->kind == REFL__WHOLE_FRAME)
+            why = "object_methods: RAYTRACE renders whole frames, not single reflectors";
+    }
+    if (!why && out->object_method_count > 0 && refl__method_row_of(out->method) &&
+        refl__method_row_of(out->method)->kind == REFL__WHOLE_FRAME)
+        why = "object_methods: must be empty when method is RAYTRACE (it renders whole frames)";
+    if (why) {
+        *message = why;
         return REFL_ERROR_INVALID_ARGUMENT;
-    if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
-    if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if (out->depth == 0) out->depth = 6;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_validate_render_desc(const refl_render_desc *desc, const char **message) {
+    refl_render_desc d;
+    const char *why;
+    refl_result r = refl__resolve_desc(desc, &d, &why);
+    if (message) *message = why;
+    return r;
+}
+
+/* ---- a frame ------------------------------------------------------------------- */
+
+static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v, const refl_frame *frame) {
+    refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
+    int i;
+    if (v->width != frame->width || v->height != frame->height) return "view: its size is not the frame's";
+    if (!refl__isfinite(v->eye.x) || !refl__isfinite(v->eye.y) || !refl__isfinite(v->eye.z))
+        return "view.eye: finite";
+    if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
+    if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
+    if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return REFL_ERROR_INVALID_ARGUMENT;
-    if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
-    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
-        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC && p.desc.method != REFL_SBC)
-        return REFL_ERROR_UNSUPPORTED;
-    if (p.desc.depth == 0) p.desc.depth = 6;
-    if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
-    p.scene = scene;
-    p.view = view;
-    p.frame = frame;
-    p.sbc_measure = sbc_measure;
-    memset(&frame->stats, 0, sizeof(frame->stats));
-    n = (size_t)frame->width * (size_t)frame->height;
-    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
-    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
-    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
-    refl__view_rays_init(&p.rays, view, scene);
+            return "scene.objects: a mesh or material index out of range";
+    return NULL;
+}
 
-    memset(&cd, 0, sizeof cd);
-    cd.num_threads = p.desc.threads;
-    cd.allocator.alloc = scene->allocator.alloc;
-    cd.allocator.free = scene->allocator.free;
-    cd.allocator.user = scene->allocator.user;
-    r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
-    if (r != REFL_OK) return r;
+static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                                   const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
+                                   refl__models *models) {
+    rast_targets t;
+    rast_clear_desc clear;
+    rast_state state;
+    refl_mat4 inv_vp;
+    refl_result r;
+    double t0 = refl__now_ms();
+    size_t n = (size_t)frame->width * (size_t)frame->height, k;
+    memset(p, 0, sizeof *p);
+    p->desc = *desc;
+    p->scene = scene;
+    p->view = view;
+    p->frame = frame;
+    p->rc = rc;
+    p->models = models;
+    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
     t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    r = refl__result_from_rast(rast_set_targets(p.rc, &t));
-    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(p.rc, &clear));
-    if (r != REFL_OK) {
-        rast_context_destroy(p.rc);
+    memset(&state, 0, sizeof state); /* a renderer's context keeps the last frame's state: clears obey its masks */
+    r = refl__result_from_rast(rast_set_targets(rc, &t));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
+    if (r != REFL_OK || refl__method_row_of(desc->method)->kind == REFL__WHOLE_FRAME) return r;
+    r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
+    /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
+    if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
+    if (r == REFL_OK && refl_mat4_invert(p->vp, &inv_vp))
+        refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
+    frame->stats.ms_base = refl__now_ms() - t0;
+    return r;
+}
+
+/* The per-reflector methods of the frame, in table order, each given the
+   reflectors that are its own. */
+static refl_result refl__draw_reflectors(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    uint8_t *mine = NULL;
+    refl_result r = REFL_OK;
+    int row, i;
+    if (!p->desc.object_method_count) {
+        const refl__method_row *m = refl__method_row_of(p->desc.method);
+        return m->draw ? m->draw(p) : REFL_OK;
+    }
+    mine = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p->mine = mine;
+    for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
+        const refl__method_row *m = &refl__methods[row];
+        int any = 0;
+        if (!m->draw || m->kind != REFL__PER_REFLECTOR) continue;
+        for (i = 0; i < scene->object_count; ++i) {
+            mine[i] = refl__object_method(&p->desc, i) == m->method;
+            any |= mine[i] && refl__is_reflector(&scene->materials[scene->objects[i].material]);
+        }
+        if (any) r = m->draw(p);
+    }
+    p->mine = NULL;
+    refl__free(&scene->allocator, mine);
+    return r;
+}
+
+/* ---- the renderer ---------------------------------------------------------------- */
+
+struct refl_renderer {
+    const refl_scene *scene;
+    refl_render_desc desc;        /* validated, defaults resolved */
+    rast_context *rc;             /* the thread pool */
+    refl__models models;
+};
+
+static void refl__models_free(const refl_scene *scene, refl__models *m) {
+    refl_bvh_destroy(m->bvh);
+    refl__c3_samples_free(&scene->allocator, m->c3);
+    memset(m, 0, sizeof *m);
+}
+
+static refl_result refl__models_bvh(refl__pass *p, refl_bvh **out, refl_bvh **owned) {
+    refl_result r;
+    *owned = NULL;
+    if (p->models && p->models->bvh) {
+        *out = p->models->bvh;
+        return REFL_OK;
+    }
+    r = refl_bvh_build(p->scene, &p->scene->allocator, out);
+    if (r != REFL_OK) return r;
+    p->frame->stats.scene_models_built++;
+    if (p->models) p->models->bvh = *out;
+    else *owned = *out;
+    return REFL_OK;
+}
+
+static refl_result refl__context_create(const refl_scene *scene, int threads, rast_context **out) {
+    rast_context_desc cd;
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = threads;
+    cd.allocator.alloc = scene->allocator.alloc;
+    cd.allocator.free = scene->allocator.free;
+    cd.allocator.user = scene->allocator.user;
+    return refl__result_from_rast(rast_context_create(&cd, out));
+}
+
+REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
+                                          refl_renderer **out_renderer) {
+    refl_renderer *rr;
+    refl_render_desc d;
+    const char *why;
+    refl_result r;
+    int i;
+    if (!out_renderer) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_renderer = NULL;
+    if (!scene) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__resolve_desc(desc, &d, &why)) != REFL_OK) return r;
+    if (!refl__method_row_of(d.method)) return REFL_ERROR_UNSUPPORTED;
+    for (i = 0; i < d.object_method_count; ++i)
+        if (d.object_methods[i] != REFL_METHOD_DEFAULT && !refl__method_row_of(d.object_methods[i]))
+            return REFL_ERROR_UNSUPPORTED;
+    rr = (refl_renderer *)refl__calloc(&scene->allocator, 1, sizeof *rr);
+    if (!rr) return REFL_ERROR_OUT_OF_MEMORY;
+    rr->scene = scene;
+    rr->desc = d;
+    rr->models.scene_version = scene->version;
+    if ((r = refl__context_create(scene, d.threads, &rr->rc)) != REFL_OK) {
+        refl__free(&scene->allocator, rr);
         return r;
     }
-    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
-    if (p.desc.method == REFL_RAYTRACE) {
-        r = refl__method_raytrace(&p);
-    } else {
-        r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
-        /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
-        if (r == REFL_OK && p.desc.shadows) r = refl__shadow_base_pass(&p);
-        if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
-            refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
-                                  inv_vp);
-        t1 = refl__now_ms();
-        frame->stats.ms_base = t1 - t0;
-        if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
-        if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
-        if (r == REFL_OK && p.desc.method == REFL_C3RC) r = refl__method_c3rc(&p);
-        if (r == REFL_OK && p.desc.method == REFL_SBC) r = refl__method_sbc(&p);
+    *out_renderer = rr;
+    return REFL_OK;
+}
+
+REFL_API void refl_renderer_destroy(refl_renderer *rr) {
+    if (!rr) return;
+    refl__models_free(rr->scene, &rr->models);
+    rast_context_destroy(rr->rc);
+    refl__free(&rr->scene->allocator, rr);
+}
+
+REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    const refl_scene *scene;
+    const refl__method_row *row;
+    refl__pass p;
+    refl_result r;
+    const char *why;
+    double t0 = refl__now_ms();
+    int i;
+    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    scene = rr->scene;
+    frame->message = "";
+    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
+        frame->message = why;
+        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                            : REFL_ERROR_INVALID_ARGUMENT;
     }
-    rast_context_destroy(p.rc);
+    if (rr->models.scene_version != scene->version) {
+        refl__models_free(scene, &rr->models);
+        rr->models.scene_version = scene->version;
+    }
+    memset(&frame->stats, 0, sizeof(frame->stats));
+    row = refl__method_row_of(rr->desc.method);
+    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
+    r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
+    if (r == REFL_OK) r = row->kind == REFL__WHOLE_FRAME ? row->draw(&p) : refl__draw_reflectors(&p);
     if (r != REFL_OK) return r;
     frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
-    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
+    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
     return REFL_OK;
 }
 
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                  refl_frame *frame) {
-    return refl__render(scene, view, desc, frame, NULL);
+    refl_renderer *rr;
+    const char *why;
+    refl_render_desc d;
+    refl_result r;
+    if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__resolve_desc(desc, &d, &why)) != REFL_OK) {
+        frame->message = why;
+        return r;
+    }
+    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
+        frame->message = why;
+        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                            : REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) return r;
+    r = refl_renderer_render(rr, view, frame);
+    refl_renderer_destroy(rr);
+    return r;
 }
 /* ---- src/reflect/m_planar.c ---- */
 /* PLANAR: Diefenbach and Badler's pipeline rendering (paper 002) for
@@ -14942,7 +15408,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    first-bounce pixel shows (frame->points) is unprojected from the
    mirrored view's depth. It draws with the base pass's programs (shade.c).
    Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
-   level, and translucent glass (desc.translucency: rast.h's fog over the
+   level, and translucent glass (desc.lighting.translucency: rast.h's fog over the
    image behind a glass face, refl__planar_fog). */
 
 typedef struct refl__planar {
@@ -15276,7 +15742,7 @@ static refl_result refl__planar_fog(refl__planar *pl, const refl__planar_level *
         st.fragment_fn = refl__planar_fog_fragment;
         st.fragment_user = &fd[i];
         st.fog = RAST_FOG_EXP;
-        st.fog_density = pl->p->desc.translucency;
+        st.fog_density = pl->p->desc.lighting.translucency;
         st.fog_varying = REFL__BASE_VARYINGS + 1;
         for (c = 0; c < 3; ++c) st.fog_color[c] = lv->fog_rgb[c];
         rr = rast_set_state(pl->p->rc, &st);
@@ -15306,7 +15772,7 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    if (pl->p->desc.shadows && !child->warped && pl->scene->light_count > 0) {
+    if (pl->p->desc.lighting.shadows && !child->warped && pl->scene->light_count > 0) {
         /* the region's shadows, as the mirrored camera sees them (a warped
            refraction's depth is not its camera's: left unshadowed) */
         refl_frame *f = pl->p->frame;
@@ -15314,7 +15780,7 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
         refl_result r;
         if (pl->counts) { /* soft: a mask per jittered light, summed */
-            int ns = pl->p->desc.soft_shadow_samples;
+            int ns = pl->p->desc.lighting.soft_shadow_samples;
             r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
                                        (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
             if (r == REFL_OK)
@@ -15339,8 +15805,8 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
                                       &f->stats);
         if (r != REFL_OK) return r;
     }
-    pl->p->frame->stats.cameras++;
-    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
+    pl->p->frame->stats.planar.renderings++;
+    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.planar.deepest++;
     refl__planar_fill_region(pl, child, box);
     return child->fogged ? refl__planar_fog(pl, child, box, dcs) : REFL_OK;
 }
@@ -15523,7 +15989,7 @@ static void refl__planar_fog_setup(const refl__planar *pl, refl__planar_level *c
                                    refl_vec3 eye) {
     const refl__planar_face *face = &pl->faces[f];
     int c;
-    if (!(pl->p->desc.translucency > 0.0f) ||
+    if (!(pl->p->desc.lighting.translucency > 0.0f) ||
         face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d <= 0.0)
         return;
     child->fogged = 1;
@@ -15722,6 +16188,11 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
     return refl__planar_restore(pl, lv->level, comp, face, NULL, box);
 }
 
+static const char *refl__options_planar(refl_render_desc *d) {
+    if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
+    return NULL;
+}
+
 static refl_result refl__method_planar(refl__pass *p) {
     const refl_scene *s = p->scene;
     refl_frame *f = p->frame;
@@ -15735,8 +16206,8 @@ static refl_result refl__method_planar(refl__pass *p) {
     memset(&pl, 0, sizeof pl);
     pl.p = p;
     pl.scene = s;
-    pl.no_culling = p->desc.no_culling;
-    r = refl__planar_find_faces(s, &pl.faces, &pl.face_count);
+    pl.no_culling = p->desc.planar.no_culling;
+    r = refl__planar_find_faces(s, p->mine, &pl.faces, &pl.face_count);
     if (r != REFL_OK) return r;
     f->stats.ms_build = refl__now_ms() - t0;
     if (pl.face_count == 0) {
@@ -15748,13 +16219,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
-    if (p->desc.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    if (p->desc.lighting.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
     if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
-        (p->desc.translucency > 0.0f && !pl.unfogged) ||
+        (p->desc.lighting.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
@@ -15776,9 +16247,9 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.w = top.w_inv = refl_mat4_identity();
     top.vp = p->vp;
     top.parent = -1;
-    if (p->desc.light_volumes) {
+    if (p->desc.lighting.light_volumes) {
         /* the reflected light on what the viewer sees directly */
-        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.caustic_samples);
+        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.lighting.caustic_samples);
         r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
                           0, -1, &pl.targets, &f->stats);
         if (r != REFL_OK) goto done;
@@ -15786,7 +16257,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
     for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
-    f->stats.culled = pl.culled;
+    f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
 done:
     /* the frame's own targets back: rc's queue is empty or dropped */

@@ -75,7 +75,7 @@ int main(int argc, char **argv) {
     refl_measure_image_error(planar, truth, 1, 0.0f, &ie);
     refl_measure_reflection_error(planar, truth, NULL, &re);
     printf("reflect_planar: depth %d: PLANAR %.1f ms (%lld renderings, %lld culled), RAYTRACE %.1f ms\n", depth,
-           planar->stats.ms_total, planar->stats.cameras, planar->stats.culled, truth->stats.ms_total);
+           planar->stats.ms_total, planar->stats.planar.renderings, planar->stats.planar.culled, truth->stats.ms_total);
     printf("  over %lld reflector pixels: PSNR %.1f dB, reflection error %.2f px mean, %.2f px p95\n", ie.pixels,
            ie.psnr, re.mean, re.p95);
     if (!(f = fopen(out, "wb"))) {

@@ -50,7 +50,7 @@ done
 ok "render planar with soft shadows" "$bin" render --builtin mirror-room --method planar --shadows --soft-shadows 4 \
     --light-radius 0.3 --size 48x36 --out "$tmp/soft.png"
 ok "render planar --no-culling counts renderings" bash -c \
-    "'$bin' render --builtin mirror-room --method planar --no-culling --depth 2 --size 32x24 --out '$tmp/n.png' --stats | grep -q 'leaves       12'"
+    "'$bin' render --builtin mirror-room --method planar --no-culling --depth 2 --size 32x24 --out '$tmp/n.png' --stats | grep -q 'deepest level 12'"
 ok "render c3rc --stats counts projections" bash -c \
     "'$bin' render --builtin default --method c3rc --density 40 --max-splat 3 --leaf-points 200 --size 64x48 --out '$tmp/c.png' --stats | grep -q '^projections  [1-9]'"
 refuses "bad --density" "density: not a positive" "$bin" render --builtin default --method c3rc --density -1

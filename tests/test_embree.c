@@ -478,7 +478,7 @@ Test(embree, raytrace_through_embree) {
         memset(&rd, 0, sizeof rd);
         rd.method = REFL_RAYTRACE;
         rd.threads = 1;
-        rd.shadows = 1;
+        rd.lighting.shadows = 1;
         r = refl_render(s, &view, &rd, ours);
         if (r == REFL_ERROR_UNSUPPORTED) {
             refl_frame_destroy(ours);
@@ -493,9 +493,9 @@ Test(embree, raytrace_through_embree) {
         cr_assert_eq(refl_bvh_build(s, NULL, &checked.bvh), REFL_OK);
         checked.embree = refl_embree_create(s, 0, err, sizeof err);
         cr_assert(checked.embree, "%s", err);
-        rd.caster.intersect = checked_intersect;
-        rd.caster.occluded = checked_occluded;
-        rd.caster.user = &checked;
+        rd.raytrace.caster.intersect = checked_intersect;
+        rd.raytrace.caster.occluded = checked_occluded;
+        rd.raytrace.caster.user = &checked;
         cr_assert_eq(refl_render(s, &view, &rd, theirs), REFL_OK, "%s", names[i]);
         for (p = 0; p < pixels; ++p) {
             int c, worst = 0;

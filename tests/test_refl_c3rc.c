@@ -48,7 +48,7 @@ static c3_result measure(const refl_scene *s, const refl_view *v, float density)
     refl_render_desc d = desc_of(REFL_C3RC, 0), t = desc_of(REFL_RAYTRACE, 0), dd = desc_of(REFL_DIRECT, 0);
     refl_frame *f, *truth, *direct;
     c3_result r;
-    d.point_density = density;
+    d.c3rc.point_density = density;
     f = tu_refl_render(s, v, &d);
     truth = tu_refl_render(s, v, &t);
     direct = tu_refl_render(s, v, &dd);
@@ -100,12 +100,12 @@ Test(refl_c3rc, default_scene_within_a_pixel) {
                 r.err.mean, r.err.p95, r.err.max, r.err.wrong, r.err.empty, r.img.psnr);
     cr_assert(r.err.p95 <= 4.0, "p95 %.3f px", r.err.p95);
     cr_assert(r.err.wrong <= 0.01 && r.err.empty <= 0.01, "wrong %.4f, empty %.4f", r.err.wrong, r.err.empty);
-    cr_assert(r.stats.cameras > 4000 && r.stats.points > 400000 && r.stats.leaves > 0);
-    cr_assert(r.stats.projected > 0 && r.stats.projected <= 3 * r.stats.projections);
-    cr_assert(r.stats.culled > 0 && r.stats.culled < r.stats.box_tests, "%lld of %lld boxes rejected",
-              r.stats.culled, r.stats.box_tests);
-    cr_log_info("box tests %lld, rejected %.1f%%", r.stats.box_tests,
-                100.0 * (double)r.stats.culled / (double)r.stats.box_tests);
+    cr_assert(r.stats.c3rc.cameras > 4000 && r.stats.c3rc.points > 400000 && r.stats.c3rc.leaves > 0);
+    cr_assert(r.stats.c3rc.projected > 0 && r.stats.c3rc.projected <= 3 * r.stats.c3rc.projections);
+    cr_assert(r.stats.c3rc.culled > 0 && r.stats.c3rc.culled < r.stats.c3rc.box_tests, "%lld of %lld boxes rejected",
+              r.stats.c3rc.culled, r.stats.c3rc.box_tests);
+    cr_log_info("box tests %lld, rejected %.1f%%", r.stats.c3rc.box_tests,
+                100.0 * (double)r.stats.c3rc.culled / (double)r.stats.c3rc.box_tests);
     refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
@@ -160,7 +160,7 @@ Test(refl_c3rc, identical_for_any_thread_count) {
     int threads[3] = {2, 3, 8}, k;
     v.width = 160;
     v.height = 120;
-    d.point_density = 150.0f;
+    d.c3rc.point_density = 150.0f;
     a = tu_refl_render(s, &v, &d);
     for (k = 0; k < 3; ++k) {
         d.threads = threads[k];
@@ -168,7 +168,7 @@ Test(refl_c3rc, identical_for_any_thread_count) {
         cr_assert_eq(memcmp(a->color, b->color, 4 * (size_t)v.width * v.height), 0, "%d threads: colours", threads[k]);
         cr_assert_eq(memcmp(a->points, b->points, 3 * sizeof(float) * (size_t)v.width * v.height), 0,
                      "%d threads: points", threads[k]);
-        cr_assert_eq(a->stats.projected, b->stats.projected);
+        cr_assert_eq(a->stats.c3rc.projected, b->stats.c3rc.projected);
         refl_frame_destroy(b);
     }
     refl_frame_destroy(a);
@@ -188,7 +188,7 @@ Test(refl_c3rc, error_falls_with_density) {
     cr_log_info("density 30: mean %.3f empty %.4f; 300: mean %.3f empty %.4f", lo.err.mean, lo.err.empty,
                 hi.err.mean, hi.err.empty);
     cr_assert(hi.err.mean < lo.err.mean, "mean %.3f at 300 against %.3f at 30", hi.err.mean, lo.err.mean);
-    cr_assert(hi.stats.points > 8 * lo.stats.points);
+    cr_assert(hi.stats.c3rc.points > 8 * lo.stats.c3rc.points);
     refl_scene_destroy(s);
 }
 
@@ -206,8 +206,8 @@ Test(refl_c3rc, concave_mirror_convergence) {
     v.height = 150;
     r = measure(s, &v, 200.0f);
     cr_log_info("concave: error mean %.3f p95 %.3f, wrong %.4f, empty %.4f, %lld multiple projections", r.err.mean,
-                r.err.p95, r.err.wrong, r.err.empty, r.stats.multiple);
-    cr_assert(r.stats.projected > 0 && r.stats.multiple >= 0);
+                r.err.p95, r.err.wrong, r.err.empty, r.stats.c3rc.multiple);
+    cr_assert(r.stats.c3rc.projected > 0 && r.stats.c3rc.multiple >= 0);
     cr_assert(r.err.matched > 0 && isfinite(r.err.mean));
     cr_assert(r.err.wrong + r.err.empty < 0.5, "wrong %.4f, empty %.4f", r.err.wrong, r.err.empty);
     refl_scene_destroy(s);
@@ -230,7 +230,7 @@ Test(refl_c3rc, large_and_small_reflector_triangles) {
         r = measure(s, &v, 500.0f);
         p95[k] = r.err.p95;
         cr_log_info("teapot %dx%d: %lld cameras, error mean %.3f p95 %.3f, wrong %.4f, empty %.4f", tess[k], tess[k],
-                    r.stats.cameras, r.err.mean, r.err.p95, r.err.wrong, r.err.empty);
+                    r.stats.c3rc.cameras, r.err.mean, r.err.p95, r.err.wrong, r.err.empty);
         cr_assert(r.err.matched > 0 && isfinite(r.err.mean));
         refl_scene_destroy(s);
     }
@@ -285,23 +285,23 @@ Test(refl_c3rc, bad_settings) {
     v.width = 32;
     v.height = 24;
     cr_assert_eq(refl_frame_create(32, 24, NULL, &f), REFL_OK);
-    d.point_density = -1.0f;
+    d.c3rc.point_density = -1.0f;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.point_density = NAN;
+    d.c3rc.point_density = NAN;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.point_density = INFINITY;
+    d.c3rc.point_density = INFINITY;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.point_density = 0.0f;
-    d.max_splat = 65;
+    d.c3rc.point_density = 0.0f;
+    d.c3rc.max_splat = 65;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.max_splat = 0;
-    d.kd_leaf_points = -3;
+    d.c3rc.max_splat = 0;
+    d.c3rc.kd_leaf_points = -3;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.kd_leaf_points = 0;
-    d.camera_split_px = NAN;
+    d.c3rc.kd_leaf_points = 0;
+    d.c3rc.camera_split_px = NAN;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.camera_split_px = 0.0f;
-    d.point_density = 1e9f; /* 1e9 points per unit area: too many to sample */
+    d.c3rc.camera_split_px = 0.0f;
+    d.c3rc.point_density = 1e9f; /* 1e9 points per unit area: too many to sample */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_SIZE);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
@@ -328,7 +328,7 @@ Test(refl_c3rc, allocation_failure_leaks_nothing) {
             v.height = 24;
             if (refl_frame_create(32, 24, &bd.allocator, &f) == REFL_OK) {
                 refl_render_desc d = desc_of(REFL_C3RC, 2);
-                d.point_density = 20.0f;
+                d.c3rc.point_density = 20.0f;
                 r = refl_render(s, &v, &d, f);
                 cr_assert(r == REFL_OK || r == REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
                 if (r != REFL_OK) saw_render_failure = 1;

@@ -29,7 +29,7 @@ static refl_frame *render_with(const refl_scene *s, const refl_view *view, refl_
     memset(&d, 0, sizeof d);
     d.method = method;
     d.threads = threads;
-    d.envmap_size = envmap_size;
+    d.envmap.size = envmap_size;
     cr_assert_eq(refl_frame_create(view->width, view->height, NULL, &f), REFL_OK);
     r = refl_render(s, view, &d, f);
     cr_assert_eq(r, REFL_OK, "refl_render: %s", refl_result_string(r));
@@ -232,7 +232,7 @@ Test(refl_envmap, mirror_in_face_environment_matches_the_true_reflection) {
     cr_assert(px > 5000, "only %d sphere pixels", px);
     cr_assert(off * 1000 <= px * 3, "%d of %d pixels differ from the true reflection", off, px);
     for (k = 0; k < 6; ++k) cr_assert(faces_seen[k], "face %d never reflected", k);
-    cr_assert_eq(f->stats.cameras, 6);
+    cr_assert_eq(f->stats.envmap.cube_faces, 6);
     cr_assert_eq(f->stats.model_bytes, 6LL * 32 * 32 * (4 + 3 * (long long)sizeof(float)));
     refl_bvh_destroy(bvh);
     refl_frame_destroy(f);
@@ -441,7 +441,7 @@ Test(refl_envmap, default_scene) {
         }
     }
     cr_assert(px > 2000 && finite > px / 10 && finite < px, "%d teapot pixels, %d with points", px, finite);
-    cr_assert_eq(f->stats.cameras, 6);
+    cr_assert_eq(f->stats.envmap.cube_faces, 6);
     cr_assert_eq(f->stats.reflectors, 1);
     cr_assert_eq(f->stats.model_bytes, 6LL * 256 * 256 * (4 + 3 * (long long)sizeof(float)));
     cr_assert(f->stats.triangles > 12 * (direct->stats.triangles - s->meshes[s->objects[teapot].mesh]->triangle_count),
@@ -485,7 +485,7 @@ Test(refl_envmap, edge_sizes_and_views) {
     v.target = refl_v3(v.eye.x, v.eye.y, v.eye.z + 1.0f);
     f = render_with(s, &v, REFL_ENVMAP, 2, 32);
     direct = render_with(s, &v, REFL_DIRECT, 2, 0);
-    cr_assert_eq(f->stats.cameras, 0);
+    cr_assert_eq(f->stats.envmap.cube_faces, 0);
     cr_assert_eq(tu_first_diff(f->color, direct->color, 64 * 48 * 4), -1);
     for (i = 0; i < 64 * 48 * 3; ++i) cr_assert(is_nan(f->points[i]));
     refl_frame_destroy(direct);
@@ -501,7 +501,7 @@ Test(refl_envmap, edge_sizes_and_views) {
             cr_assert_eq(f->stencil[i], 1);
             cr_assert_eq(f->color[4 * i + 3], 255);
         }
-        cr_assert_eq(f->stats.cameras, 6);
+        cr_assert_eq(f->stats.envmap.cube_faces, 6);
         refl_frame_destroy(f);
         refl_scene_destroy(s);
     }
@@ -546,7 +546,7 @@ Test(refl_envmap, reflectors_sharing_stencil_255) {
             cr_assert_eq(f->color[4 * i + 3], 255, "pixel %d unfilled", i);
         }
     cr_assert(px > 500, "%d mirror pixels", px);
-    cr_assert_eq(f->stats.cameras, 12);
+    cr_assert_eq(f->stats.envmap.cube_faces, 12);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
@@ -577,7 +577,7 @@ Test(refl_envmap, allocation_failure_leaks_nothing) {
                 memset(&d, 0, sizeof d);
                 d.method = REFL_ENVMAP;
                 d.threads = 2;
-                d.envmap_size = 8;
+                d.envmap.size = 8;
                 r = refl_render(s, &v, &d, f);
                 cr_assert(r == REFL_OK || r == REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
                 if (r != REFL_OK) saw_render_failure = 1;

@@ -23,37 +23,37 @@ static refl_render_desc golden_desc(const char *setting) {
     d.threads = 2;
     if (!strcmp(setting, "sbc-fallback")) {
         d.method = REFL_SBC;
-        d.sbc_trace_fallback = 1;
+        d.sbc.trace_fallback = 1;
     } else if (!strcmp(setting, "sbc-f4-depth2")) {
         d.method = REFL_SBC;
-        d.sbc_ray_factor = 4;
+        d.sbc.ray_factor = 4;
         d.depth = 2;
-        d.points_last = 1;
+        d.debug.points_last = 1;
     } else if (!strcmp(setting, "c3rc-one-camera")) {
         d.method = REFL_C3RC;
-        d.camera_split_px = -1.0f;
-        d.max_splat = 4;
-        d.kd_leaf_points = 200;
+        d.c3rc.camera_split_px = -1.0f;
+        d.c3rc.max_splat = 4;
+        d.c3rc.kd_leaf_points = 200;
     } else if (!strcmp(setting, "planar-shadows")) {
         d.method = REFL_PLANAR;
-        d.shadows = 1;
-        d.soft_shadow_samples = 3;
-        d.light_volumes = 1;
+        d.lighting.shadows = 1;
+        d.lighting.soft_shadow_samples = 3;
+        d.lighting.light_volumes = 1;
     } else if (!strcmp(setting, "planar-no-culling")) {
         d.method = REFL_PLANAR;
-        d.no_culling = 1;
+        d.planar.no_culling = 1;
         d.depth = 3;
-        d.translucency = 0.5f;
+        d.lighting.translucency = 0.5f;
     } else if (!strcmp(setting, "raytrace-volumes")) {
         d.method = REFL_RAYTRACE;
-        d.shadows = 1;
-        d.light_volumes = 1;
-        d.caustic_samples = 2;
-        d.points_last = 1;
+        d.lighting.shadows = 1;
+        d.lighting.light_volumes = 1;
+        d.lighting.caustic_samples = 2;
+        d.debug.points_last = 1;
     } else if (!strcmp(setting, "envmap-64")) {
         d.method = REFL_ENVMAP;
-        d.envmap_size = 64;
-        d.shadows = 1;
+        d.envmap.size = 64;
+        d.lighting.shadows = 1;
     } else {
         d.method = refl_method_from_name(setting);
         cr_assert(d.method != REFL_METHOD_DEFAULT || !strcmp(setting, "direct"), "unknown setting %s", setting);

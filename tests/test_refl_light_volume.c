@@ -1,5 +1,5 @@
 /* Paper 002's light volumes, caustics and translucency in PLANAR
-   (refl_render_desc.light_volumes, caustic_samples, translucency), against
+   (refl_render_desc.lighting.light_volumes, caustic_samples, translucency), against
    RAYTRACE, which traces the same light paths, and against answers worked
    out here by hand: the square of floor a ceiling mirror lights, the
    paths two boxes block, the fog's exp(-density h). */
@@ -79,9 +79,9 @@ static refl_frame *render_lv(const refl_scene *s, const refl_view *v, refl_metho
     memset(&d, 0, sizeof d);
     d.method = m;
     d.depth = 2;
-    d.shadows = shadows;
-    d.light_volumes = light_volumes;
-    d.caustic_samples = caustic_samples;
+    d.lighting.shadows = shadows;
+    d.lighting.light_volumes = light_volumes;
+    d.lighting.caustic_samples = caustic_samples;
     d.threads = threads;
     return tu_refl_render(s, v, &d);
 }
@@ -361,7 +361,7 @@ static refl_frame *render_fog(const refl_scene *s, const refl_view *v, refl_meth
     refl_render_desc d;
     memset(&d, 0, sizeof d);
     d.method = m; /* the default depth: the slab's faces seen again inside must not undo the fog */
-    d.translucency = translucency;
+    d.lighting.translucency = translucency;
     d.threads = 2;
     return tu_refl_render(s, v, &d);
 }

@@ -18,10 +18,10 @@ static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m
                           int threads) {
     refl_render_desc d;
     memset(&d, 0, sizeof d);
-    d.shadows = g_shadows;
+    d.lighting.shadows = g_shadows;
     d.method = m;
     d.depth = depth;
-    d.no_culling = no_culling;
+    d.planar.no_culling = no_culling;
     d.threads = threads;
     return tu_refl_render(s, v, &d);
 }
@@ -38,7 +38,7 @@ static void expect_matches_reference(const refl_scene *s, const refl_view *v, in
     cr_log_info("%s, depth %d: %lld mirror pixels, PSNR %.2f dB, %.4f%% over 2/255; reflection error mean %.3f px, "
                 "max %.2f, wrong %.4f, holes %.4f; %lld renderings",
                 what, depth, ie.pixels, ie.psnr, 100.0 * ie.over_threshold, re.mean, re.max, re.wrong, re.empty,
-                planar->stats.cameras);
+                planar->stats.planar.renderings);
     cr_assert(ie.pixels > 1000, "%s: the view must show mirrors", what);
     cr_assert(ie.psnr >= 40.0, "%s, depth %d: PSNR %.2f dB < 40", what, depth, ie.psnr);
     cr_assert(ie.over_threshold <= 0.005, "%s, depth %d: %.3f%% of mirror pixels over 2/255", what, depth,
@@ -98,13 +98,13 @@ Test(refl_planar, renderings_follow_formula_5_without_culling) {
         long long total = 0, level = 4;
         int d;
         for (d = 1; d <= depth; ++d, level *= 3) total += level;
-        cr_assert_eq(all->stats.leaves, expected, "depth %d: %lld renderings at the deepest level, formula 5 says %lld",
-                     depth, all->stats.leaves, expected);
-        cr_assert_eq(all->stats.cameras, total, "depth %d: %lld renderings in all, want %lld", depth,
-                     all->stats.cameras, total);
+        cr_assert_eq(all->stats.planar.deepest, expected, "depth %d: %lld renderings at the deepest level, formula 5 says %lld",
+                     depth, all->stats.planar.deepest, expected);
+        cr_assert_eq(all->stats.planar.renderings, total, "depth %d: %lld renderings in all, want %lld", depth,
+                     all->stats.planar.renderings, total);
         cr_log_info("depth %d: %lld renderings at the deepest level (formula 5), %lld with culling (%lld culled)",
-                    depth, all->stats.leaves, seen->stats.leaves, seen->stats.culled);
-        cr_assert(seen->stats.leaves < all->stats.leaves || depth == 1);
+                    depth, all->stats.planar.deepest, seen->stats.planar.deepest, seen->stats.planar.culled);
+        cr_assert(seen->stats.planar.deepest < all->stats.planar.deepest || depth == 1);
         cr_assert_eq(tu_first_diff(all->color, seen->color, 4 * (size_t)v.width * (size_t)v.height), -1,
                      "depth %d: culling changed the image", depth);
         refl_frame_destroy(all);
@@ -180,7 +180,7 @@ Test(refl_planar, hard_views_stay_confined_to_the_mirrors) {
     {
         refl_frame *direct = render(s, &v, REFL_DIRECT, 0, 0, 2), *planar = render(s, &v, REFL_PLANAR, 2, 0, 2);
         cr_assert_eq(tu_first_diff(direct->color, planar->color, 4 * 64 * 48), -1, "a curved mirror is not planar");
-        cr_assert_eq(planar->stats.cameras, 0);
+        cr_assert_eq(planar->stats.planar.renderings, 0);
         refl_frame_destroy(direct);
         refl_frame_destroy(planar);
     }
@@ -370,11 +370,11 @@ Test(refl_planar, water_surface_refracts_and_turns_to_a_mirror_past_the_critical
             if (direct->stencil[i] != water + 1)
                 cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "view %d: outside the water", k);
         }
-        refracted += f->stats.cameras == 2;
-        mirrored += f->stats.cameras == 1;
+        refracted += f->stats.planar.renderings == 2;
+        mirrored += f->stats.planar.renderings == 1;
         cr_log_info("%.1f from under the centre (%.0f degrees): %lld renderings", x,
-                    atanf(x) * 180.0f / 3.14159265f, f->stats.cameras);
-        cr_assert_eq(f->stats.cameras, atanf(x) < asinf(1.0f / 1.33f) ? 2 : 1, "view %d", k);
+                    atanf(x) * 180.0f / 3.14159265f, f->stats.planar.renderings);
+        cr_assert_eq(f->stats.planar.renderings, atanf(x) < asinf(1.0f / 1.33f) ? 2 : 1, "view %d", k);
         refl_frame_destroy(f);
         refl_frame_destroy(direct);
     }

@@ -18,7 +18,7 @@ static refl_frame *render_rt(const refl_scene *s, const refl_view *v, int depth,
     memset(&d, 0, sizeof d);
     d.method = REFL_RAYTRACE;
     d.depth = depth;
-    d.shadows = shadows;
+    d.lighting.shadows = shadows;
     d.threads = threads;
     return tu_refl_render(s, v, &d);
 }
@@ -449,10 +449,10 @@ Test(refl_raytrace, a_callers_ray_caster_gives_the_same_frame) {
     for (pass = 0; pass < 2; ++pass) {
         memset(&d, 0, sizeof d);
         d.method = REFL_RAYTRACE;
-        d.shadows = 1;
-        d.caster.intersect = cast_intersect;
-        d.caster.occluded = pass == 0 ? cast_occluded : NULL;
-        d.caster.user = bvh;
+        d.lighting.shadows = 1;
+        d.raytrace.caster.intersect = cast_intersect;
+        d.raytrace.caster.occluded = pass == 0 ? cast_occluded : NULL;
+        d.raytrace.caster.user = bvh;
         cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &theirs), REFL_OK);
         cr_assert_eq(refl_render(s, &v, &d, theirs), REFL_OK);
         expect_same_frames(own, theirs, pass == 0 ? "caster" : "caster without occluded");

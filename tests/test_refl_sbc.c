@@ -32,11 +32,11 @@ static void sbc_accuracy(const char *name, double max_mean, double max_p95, doub
     tu_assert_reflector_frame(f, direct);
     cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
     cr_log_info("SBC %s 128x96: mean %.2f p95 %.2f max %.1f px, wrong %.3f, holes %.3f, %lld pinhole and %lld ray-list "
-                "leaves", name, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.cameras, f->stats.leaves);
+                "leaves", name, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.sbc.pinhole_leaves, f->stats.sbc.ray_leaves);
     cr_assert(e.pixels > 500, "%lld reflector pixels", e.pixels);
     cr_assert(e.mean <= max_mean && e.p95 <= max_p95, "%s: mean %.2f p95 %.2f", name, e.mean, e.p95);
     cr_assert(e.wrong <= max_wrong && e.empty <= max_holes, "%s: wrong %.3f holes %.3f", name, e.wrong, e.empty);
-    cr_assert(f->stats.cameras + f->stats.leaves > 0 && f->stats.rays > 0);
+    cr_assert(f->stats.sbc.pinhole_leaves + f->stats.sbc.ray_leaves > 0 && f->stats.rays > 0);
     refl_frame_destroy(f);
     refl_frame_destroy(truth);
     refl_frame_destroy(direct);
@@ -69,10 +69,10 @@ Test(refl_sbc, same_bytes_for_any_group_batch, .timeout = 120) {
     refl_render_desc d = sbc_desc(REFL_SBC, 2);
     refl_frame *ref = tu_refl_render(s, &v, &d);
     size_t n = (size_t)v.width * (size_t)v.height, k;
-    cr_assert(ref->stats.cameras + ref->stats.leaves > 7, "too few groups for batches to matter");
+    cr_assert(ref->stats.sbc.pinhole_leaves + ref->stats.sbc.ray_leaves > 7, "too few groups for batches to matter");
     for (k = 0; k < sizeof batches / sizeof batches[0]; ++k) {
         refl_frame *f;
-        d.sbc_batch_groups = batches[k];
+        d.sbc.batch_groups = batches[k];
         f = tu_refl_render(s, &v, &d);
         cr_assert_eq(memcmp(ref->color, f->color, 4 * n), 0, "batch %d: colour differs", batches[k]);
         cr_assert_eq(memcmp(ref->points, f->points, 3 * n * sizeof(float)), 0, "batch %d: points differ", batches[k]);
@@ -88,27 +88,27 @@ Test(refl_sbc, bad_desc_values) {
     refl_frame *f = NULL;
     refl_render_desc d = sbc_desc(REFL_SBC, 1);
     cr_assert_eq(refl_frame_create(32, 24, NULL, &f), REFL_OK);
-    d.sbc_error_px = -1.0f;
+    d.sbc.error_px = -1.0f;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_error_px = NAN;
+    d.sbc.error_px = NAN;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_error_px = 0.0f;
-    d.sbc_ray_factor = -2;
+    d.sbc.error_px = 0.0f;
+    d.sbc.ray_factor = -2;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_ray_factor = 65;
+    d.sbc.ray_factor = 65;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_ray_factor = 0;
-    d.sbc_batch_groups = -1;
+    d.sbc.ray_factor = 0;
+    d.sbc.batch_groups = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_batch_groups = 255;
+    d.sbc.batch_groups = 255;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_batch_groups = 0;
-    d.sbc_trace_fallback = 2; /* a flag: 0 or 1 */
+    d.sbc.batch_groups = 0;
+    d.sbc.trace_fallback = 2; /* a flag: 0 or 1 */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_trace_fallback = -1;
+    d.sbc.trace_fallback = -1;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.sbc_trace_fallback = 0;
-    d.sbc_mixed_levels = 7; /* four times the triangles per level: 6 at most */
+    d.sbc.trace_fallback = 0;
+    d.sbc.mixed_levels = 7; /* four times the triangles per level: 6 at most */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

@@ -1,4 +1,4 @@
-/* SBC with a ray-traced fallback (refl_render_desc.sbc_trace_fallback):
+/* SBC with a ray-traced fallback (refl_render_desc.sbc.trace_fallback):
    a reflector pixel that no reflected triangle covers (a piece thinner
    than a sample, a scene triangle none of whose vertices projects), or
    whose first-order point the ray map's samples around it contradict,
@@ -31,10 +31,10 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
     int i, n = w * h;
     long long filled = 0;
     d.depth = t.depth = depth;
-    d.sbc_ray_factor = factor;
+    d.sbc.ray_factor = factor;
     fp = tu_refl_render(s, &v, &d);
-    d.sbc_trace_fallback = 1;
-    d.sbc_mixed_levels = 4; /* as without the fallback: the same triangles drawn */
+    d.sbc.trace_fallback = 1;
+    d.sbc.mixed_levels = 4; /* as without the fallback: the same triangles drawn */
     ft = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < n; ++i) {
@@ -110,19 +110,19 @@ Test(refl_sbc_fallback, by_default_mixed_triangles_are_left_to_it, .timeout = 12
         refl_render_desc d = tu_refl_one_bounce(REFL_SBC, 2), t = tu_refl_one_bounce(REFL_RAYTRACE, 2);
         refl_frame *fp = tu_refl_render(s, &v, &d), *fs, *fd, *truth = tu_refl_render(s, &v, &t);
         refl_reflection_error ep, es, ed;
-        d.sbc_trace_fallback = 1;
-        d.sbc_mixed_levels = 4;
+        d.sbc.trace_fallback = 1;
+        d.sbc.mixed_levels = 4;
         fs = tu_refl_render(s, &v, &d);
-        d.sbc_mixed_levels = 0;
+        d.sbc.mixed_levels = 0;
         fd = tu_refl_render(s, &v, &d);
         cr_assert_eq(refl_measure_reflection_error(fp, truth, NULL, &ep), REFL_OK);
         cr_assert_eq(refl_measure_reflection_error(fs, truth, NULL, &es), REFL_OK);
         cr_assert_eq(refl_measure_reflection_error(fd, truth, NULL, &ed), REFL_OK);
         cr_log_info("%s 128x96: plain mean %.3f holes %.4f, %lld projections; fallback, mixed split: mean %.3f, %lld "
                     "projections, %lld rays; by default: mean %.3f p95 %.2f wrong %.4f holes %.4f, %lld projections, "
-                    "%lld rays", scenes[k], ep.mean, ep.empty, fp->stats.projections, es.mean, fs->stats.projections,
-                    fs->stats.rays, ed.mean, ed.p95, ed.wrong, ed.empty, fd->stats.projections, fd->stats.rays);
-        cr_assert(fd->stats.projections < fs->stats.projections, "%s: no projection saved", scenes[k]);
+                    "%lld rays", scenes[k], ep.mean, ep.empty, fp->stats.sbc.projections, es.mean, fs->stats.sbc.projections,
+                    fs->stats.rays, ed.mean, ed.p95, ed.wrong, ed.empty, fd->stats.sbc.projections, fd->stats.rays);
+        cr_assert(fd->stats.sbc.projections < fs->stats.sbc.projections, "%s: no projection saved", scenes[k]);
         cr_assert(ed.empty <= 0.002 && ed.mean <= ep.mean, "%s: holes %.4f, mean %.3f against %.3f", scenes[k],
                   ed.empty, ed.mean, ep.mean);
         cr_assert(llround(ed.wrong * (double)ed.pixels) <= llround(ep.wrong * (double)ep.pixels), "%s: wrong %.4f",
@@ -141,8 +141,8 @@ Test(refl_sbc_fallback, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_render_desc a = tu_refl_one_bounce(REFL_SBC, 1), b = tu_refl_one_bounce(REFL_SBC, 3);
     refl_frame *fa, *fb;
     size_t n = (size_t)v.width * (size_t)v.height;
-    a.sbc_trace_fallback = b.sbc_trace_fallback = 1;
-    a.sbc_ray_factor = b.sbc_ray_factor = 4;
+    a.sbc.trace_fallback = b.sbc.trace_fallback = 1;
+    a.sbc.ray_factor = b.sbc.ray_factor = 4;
     fa = tu_refl_render(s, &v, &a);
     fb = tu_refl_render(s, &v, &b);
     cr_assert_eq(memcmp(fa->color, fb->color, 4 * n), 0);
@@ -175,8 +175,8 @@ Test(refl_sbc_fallback, allocation_failure_at_every_allocation, .timeout = 120) 
     v.width = 32;
     v.height = 24;
     n = (size_t)v.width * (size_t)v.height;
-    d.sbc_trace_fallback = 1;
-    d.sbc_ray_factor = 4;
+    d.sbc.trace_fallback = 1;
+    d.sbc.ray_factor = 4;
     ref = tu_refl_render(s, &v, &d);
     cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
     k = c.attempts;

@@ -1,6 +1,6 @@
 /* What `reflect bench`'s SBC table (paper 003's Fig. 19,
    tools/reflect_bench_sbc.c) reports, checked on small frames: the ray
-   maps the method hands over (refl_render_desc.sbc_ray_map) have the
+   maps the method hands over (refl_render_desc.debug.sbc_ray_map) have the
    ray map's size and hold a ray on every sample where a reflector is seen
    (counted independently by casting the sample's view ray), so coverage
    is a fraction in [0, 1] that a ray cast confirms; an SBC built from a
@@ -89,9 +89,9 @@ static void fig19_check(int sphere) {
     d.method = REFL_SBC;
     d.threads = 2;
     d.depth = 1;
-    d.sbc_ray_factor = FIG19_FACTOR;
-    d.sbc_ray_map = keep;
-    d.sbc_ray_map_user = &maps;
+    d.sbc.ray_factor = FIG19_FACTOR;
+    d.debug.sbc_ray_map = keep;
+    d.debug.sbc_ray_map_user = &maps;
     cr_assert_eq(refl_frame_create(FIG19_W, FIG19_H, NULL, &f), REFL_OK);
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
     /* one reflector: one map per side seen (the teapot's inside shows too) */

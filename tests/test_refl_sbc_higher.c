@@ -3,7 +3,7 @@
    spheres facing each other over a floor with diffuse boxes, a mirror
    sphere beside a large curved mirror, and a glass lens before a row of
    coloured boxes, against RAYTRACE at the same depth. Both record the last
-   point along each reflector pixel's path (desc.points_last), so the error
+   point along each reflector pixel's path (desc.debug.points_last), so the error
    measures where a higher-order reflection lands, not where the second
    mirror is. Depth 1 must be what SBC drew before histories existed. */
 #include <criterion/criterion.h>
@@ -21,7 +21,7 @@ static refl_render_desc desc_of(refl_method m, int depth, int threads) {
     d.method = m;
     d.threads = threads;
     d.depth = depth;
-    d.points_last = 1;
+    d.debug.points_last = 1;
     return d;
 }
 
@@ -142,7 +142,7 @@ typedef struct sbc_case {
     refl_stats stats;
 } sbc_case;
 
-/* Renders SBC, RAYTRACE and DIRECT at `depth` (desc.points_last =
+/* Renders SBC, RAYTRACE and DIRECT at `depth` (desc.debug.points_last =
    `last`); checks SBC's frame is well formed (DIRECT's bytes off the
    reflectors, points NaN in all three coordinates or none) and measures
    it; with mirrors (n > 0), the higher-order pixels too. */
@@ -153,7 +153,7 @@ static sbc_case run_case(const refl_scene *s, const refl_view *v, int depth, int
     refl_frame *f, *truth, *direct;
     sbc_case c;
     memset(&c, 0, sizeof c);
-    d.points_last = t.points_last = last;
+    d.debug.points_last = t.debug.points_last = last;
     f = tu_refl_render(s, v, &d);
     truth = tu_refl_render(s, v, &t);
     direct = tu_refl_render(s, v, &dd);
@@ -164,8 +164,8 @@ static sbc_case run_case(const refl_scene *s, const refl_view *v, int depth, int
     cr_log_info("SBC %s depth %d%s %dx%d: mean %.2f p95 %.2f max %.1f px, wrong %.3f, holes %.3f over %lld pixels, "
                 "colour off %.3f (mean difference %.2f); %d histories, %d groups, %lld pinhole and %lld ray-list "
                 "leaves", what, depth, last ? "" : " (first points)", v->width, v->height, c.all.mean, c.all.p95,
-                c.all.max, c.all.wrong, c.all.empty, c.all.pixels, c.colour, c.mean_diff, f->stats.histories,
-                f->stats.groups, f->stats.cameras, f->stats.leaves);
+                c.all.max, c.all.wrong, c.all.empty, c.all.pixels, c.colour, c.mean_diff, f->stats.sbc.histories,
+                f->stats.sbc.groups, f->stats.sbc.pinhole_leaves, f->stats.sbc.ray_leaves);
     if (n) {
         refl_render_desc t1 = desc_of(REFL_RAYTRACE, 1, 2);
         refl_frame *first = tu_refl_render(s, v, &t1);
@@ -219,7 +219,7 @@ static const mirror_sphere facing_spheres[2] = {{{-1.3f, 0.0f, 0.0f}, 0.8f}, {{1
 static void check_higher(refl_scene *s, const refl_view *v, int depth, const mirror_sphere *m, int histories,
                          sbc_bounds all, sbc_bounds higher, const char *what) {
     sbc_case c = run_case(s, v, depth, 1, what, m, 2);
-    cr_assert_eq(c.stats.histories, histories, "%s: %d histories", what, c.stats.histories);
+    cr_assert_eq(c.stats.sbc.histories, histories, "%s: %d histories", what, c.stats.sbc.histories);
     assert_within(&c.all, c.colour, all, what);
     assert_within(&c.higher, c.higher_colour, higher, what);
     cr_assert(c.higher_mean_diff <= higher.mean_diff, "%s: colours past the first order off by %.2f on average", what,
@@ -413,7 +413,7 @@ Test(sbc_higher, raytrace_points_last, .timeout = 120) {
     refl_frame *a, *b;
     long on = 0, moved = 0;
     int i, k;
-    first.points_last = 0;
+    first.debug.points_last = 0;
     a = tu_refl_render(s, &v, &first);
     b = tu_refl_render(s, &v, &last);
     cr_assert_eq(memcmp(a->color, b->color, 4 * (size_t)W * H), 0);
@@ -437,7 +437,7 @@ Test(sbc_higher, raytrace_points_last, .timeout = 120) {
     refl_scene_destroy(s);
 }
 
-/* Counts the first-order sides SBC reports (refl_render_desc.sbc_ray_map). */
+/* Counts the first-order sides SBC reports (refl_render_desc.debug.sbc_ray_map). */
 static void count_side(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int w, int h) {
     (void)object;
     (void)rays;
@@ -461,12 +461,12 @@ Test(sbc_higher, glass_lens, .timeout = 120) {
     sbc_bounds all = {0.15, 1.0, 35, 0.006, 0.05, 0.07, 4.5};
     sbc_case c = run_case(s, &v, 2, 1, "lens", NULL, 0);
     int sides = 0;
-    d.sbc_ray_map = count_side;
-    d.sbc_ray_map_user = &sides;
+    d.debug.sbc_ray_map = count_side;
+    d.debug.sbc_ray_map_user = &sides;
     f = tu_refl_render(s, &v, &d);
     cr_assert(sides >= 1);
-    cr_assert_eq(c.stats.histories, sides + 1, "%d first-order sides and one refraction: %d histories", sides,
-                 c.stats.histories);
+    cr_assert_eq(c.stats.sbc.histories, sides + 1, "%d first-order sides and one refraction: %d histories", sides,
+                 c.stats.sbc.histories);
     assert_within(&c.all, c.colour, all, "lens, depth 2");
     cr_assert(c.mean_diff <= all.mean_diff, "lens: colours off by %.2f on average", c.mean_diff);
     refl_frame_destroy(f);
@@ -520,10 +520,10 @@ Test(sbc_higher, depth_1_unchanged, .timeout = 120) {
     refl_frame *f1, *f6;
     cr_assert_eq(refl_mesh_sphere(0.8f, 48, 24, NULL, &a), REFL_OK);
     tu_refl_add_object(s, a, REFL_MIRROR, silver, refl_mat4_identity());
-    d1.points_last = d6.points_last = 0;
+    d1.debug.points_last = d6.debug.points_last = 0;
     f1 = tu_refl_render(s, &v, &d1);
     f6 = tu_refl_render(s, &v, &d6);
-    cr_assert_eq(f6->stats.histories, 1);
+    cr_assert_eq(f6->stats.sbc.histories, 1);
     assert_same_frames(f1, f6, "one mirror, depth 1 and 6");
     refl_frame_destroy(f1);
     refl_frame_destroy(f6);

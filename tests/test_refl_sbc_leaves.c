@@ -25,8 +25,8 @@
 
 static refl_render_desc one_bounce(refl_method m, int factor, float error_px) {
     refl_render_desc d = tu_refl_one_bounce(m, 2);
-    d.sbc_ray_factor = factor;
-    d.sbc_error_px = error_px;
+    d.sbc.ray_factor = factor;
+    d.sbc.error_px = error_px;
     return d;
 }
 

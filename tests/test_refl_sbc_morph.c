@@ -82,19 +82,19 @@ static void check_morph_view(const refl_scene *s, const refl_sbc_morph *m, refl_
     refl_reflection_error e;
     refl_sbc_morph_stats st;
     ms[0] = m;
-    d.sbc_morphs = ms;
-    d.sbc_morph_count = 1;
+    d.sbc.morphs = ms;
+    d.sbc.morph_count = 1;
     f = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     direct = tu_refl_render(s, &v, &dd);
     tu_assert_reflector_frame(f, direct);
     cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
     cr_log_info("morph %s: mean %.2f p95 %.2f max %.1f px, wrong %.3f, holes %.3f, %lld of %lld projected, %lld "
-                "ambiguous", what, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.projected, f->stats.projections,
-                f->stats.ambiguous);
+                "ambiguous", what, e.mean, e.p95, e.max, e.wrong, e.empty, f->stats.sbc.projected, f->stats.sbc.projections,
+                f->stats.sbc.ambiguous);
     refl_sbc_morph_get_stats(m, &st);
     cr_assert(f->stats.model_bytes >= st.bytes, "%s: the grid was not used", what);
-    cr_assert(f->stats.projected > 0, "%s: nothing projected", what);
+    cr_assert(f->stats.sbc.projected > 0, "%s: nothing projected", what);
     cr_assert(e.pixels > 200, "%s: %lld reflector pixels", what, e.pixels);
     cr_assert(e.mean <= b.mean && e.p95 <= b.p95 && e.max <= b.max, "%s: mean %.2f p95 %.2f max %.1f px", what, e.mean,
               e.p95, e.max);
@@ -444,20 +444,20 @@ Test(refl_sbc_morph, bad_input, .timeout = 60) {
     refl_sbc_morph_cache_destroy(cache);
     /* the render desc's grids */
     cr_assert_eq(refl_frame_create(16, 12, NULL, &fr), REFL_OK);
-    rd.sbc_morph_count = 1;
+    rd.sbc.morph_count = 1;
     cr_assert_eq(refl_render(s, &v, &rd, fr), REFL_ERROR_INVALID_ARGUMENT);
-    rd.sbc_morph_count = -1;
+    rd.sbc.morph_count = -1;
     cr_assert_eq(refl_render(s, &v, &rd, fr), REFL_ERROR_INVALID_ARGUMENT);
     {
         /* a NULL entry is skipped; an eye outside every tetrahedron draws per frame */
         const refl_sbc_morph *ms[2] = {NULL, m};
-        rd.sbc_morphs = ms;
-        rd.sbc_morph_count = 2;
+        rd.sbc.morphs = ms;
+        rd.sbc.morph_count = 2;
         cr_assert_eq(refl_render(s, &v, &rd, fr), REFL_OK);
-        cr_assert_eq(fr->stats.cameras + fr->stats.leaves, 0);
+        cr_assert_eq(fr->stats.sbc.pinhole_leaves + fr->stats.sbc.ray_leaves, 0);
         v.eye = refl_v3(0.0f, 4.5f, 12.0f);
         cr_assert_eq(refl_render(s, &v, &rd, fr), REFL_OK);
-        cr_assert(fr->stats.cameras + fr->stats.leaves > 0, "outside the grid: per-frame SBCs");
+        cr_assert(fr->stats.sbc.pinhole_leaves + fr->stats.sbc.ray_leaves > 0, "outside the grid: per-frame SBCs");
     }
     refl_frame_destroy(fr);
     refl_sbc_morph_destroy(m);
@@ -484,16 +484,16 @@ Test(refl_sbc_morph, same_bytes_for_thread_counts, .timeout = 120) {
     cr_assert(a.rays == b.rays && a.bytes == b.bytes && a.pinhole_leaves == b.pinhole_leaves &&
               a.ray_leaves == b.ray_leaves && a.sbcs == b.sbcs);
     ms[0] = m1;
-    d1.sbc_morphs = d2.sbc_morphs = ms;
-    d1.sbc_morph_count = d2.sbc_morph_count = 1;
+    d1.sbc.morphs = d2.sbc.morphs = ms;
+    d1.sbc.morph_count = d2.sbc.morph_count = 1;
     f1 = tu_refl_render(s, &v, &d1);
     ms[0] = m2;
     f2 = tu_refl_render(s, &v, &d2);
     cr_assert_eq(memcmp(f1->color, f2->color, 4 * n), 0, "colour differs");
     cr_assert_eq(memcmp(f1->depth, f2->depth, sizeof(float) * n), 0, "depth differs");
     cr_assert_eq(memcmp(f1->points, f2->points, 3 * sizeof(float) * n), 0, "points differ");
-    cr_assert_eq(f1->stats.ambiguous, f2->stats.ambiguous);
-    cr_assert(f1->stats.ambiguous > 0, "no ambiguous vertex counted");
+    cr_assert_eq(f1->stats.sbc.ambiguous, f2->stats.sbc.ambiguous);
+    cr_assert(f1->stats.sbc.ambiguous > 0, "no ambiguous vertex counted");
     refl_frame_destroy(f1);
     refl_frame_destroy(f2);
     refl_sbc_morph_destroy(m1);
@@ -566,14 +566,14 @@ Test(refl_sbc_morph, beside_higher_orders, .timeout = 120) {
     ms[0] = m;
     plain.depth = 2;
     grid2 = grid1 = plain;
-    grid2.sbc_morphs = grid1.sbc_morphs = ms;
-    grid2.sbc_morph_count = grid1.sbc_morph_count = 1;
+    grid2.sbc.morphs = grid1.sbc.morphs = ms;
+    grid2.sbc.morph_count = grid1.sbc.morph_count = 1;
     grid1.threads = 1;
     f0 = tu_refl_render(s, &v, &plain);
     f2 = tu_refl_render(s, &v, &grid2);
     f1 = tu_refl_render(s, &v, &grid1);
-    cr_assert(f0->stats.histories > 2, "%d histories without the grid", f0->stats.histories);
-    cr_assert(f2->stats.histories >= 2, "%d histories with the grid", f2->stats.histories);
+    cr_assert(f0->stats.sbc.histories > 2, "%d histories without the grid", f0->stats.sbc.histories);
+    cr_assert(f2->stats.sbc.histories >= 2, "%d histories with the grid", f2->stats.sbc.histories);
     for (i = 0; i < n; ++i) {
         if (f0->stencil[i] != other + 1) continue;
         ++second;
@@ -590,7 +590,7 @@ Test(refl_sbc_morph, beside_higher_orders, .timeout = 120) {
     refl_scene_destroy(s);
 }
 
-/* The ray-traced fallback (refl_render_desc.sbc_trace_fallback) fills
+/* The ray-traced fallback (refl_render_desc.sbc.trace_fallback) fills
    morphing's holes too (36-40% of the teapot's pixels at these eyes: the
    nodes' face maps end at the pieces' creases and gaps): each pixel it
    changes is RAYTRACE's. A morph group has no ray map samples in the
@@ -607,11 +607,11 @@ Test(refl_sbc_morph, fallback_traces_the_holes, .timeout = 120) {
     refl_reflection_error ep, et;
     int i, changed = 0;
     ms[0] = m;
-    d.sbc_morphs = ms;
-    d.sbc_morph_count = 1;
+    d.sbc.morphs = ms;
+    d.sbc.morph_count = 1;
     plain = tu_refl_render(s, &v, &d);
-    d.sbc_trace_fallback = 1;
-    d.sbc_mixed_levels = 4; /* as without the fallback: the same triangles drawn */
+    d.sbc.trace_fallback = 1;
+    d.sbc.mixed_levels = 4; /* as without the fallback: the same triangles drawn */
     traced = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < MW * MH; ++i) {

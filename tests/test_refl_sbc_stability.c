@@ -59,7 +59,7 @@ static void check_sbc_frame(const refl_scene *s, const refl_view *v, const char 
     cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
     cr_log_info("SBC %s %dx%d: mean %.2f p95 %.2f max %.1f px, wrong %.3f, holes %.3f, %lld pinhole and %lld "
                 "ray-list leaves", what, v->width, v->height, e.mean, e.p95, e.max, e.wrong, e.empty,
-                f->stats.cameras, f->stats.leaves);
+                f->stats.sbc.pinhole_leaves, f->stats.sbc.ray_leaves);
     cr_assert(e.pixels > 200, "%s: %lld reflector pixels", what, e.pixels);
     cr_assert(e.mean <= b.mean && e.p95 <= b.p95, "%s: mean %.2f p95 %.2f px", what, e.mean, e.p95);
     cr_assert(e.wrong <= b.wrong && e.empty <= b.holes, "%s: wrong %.3f holes %.3f", what, e.wrong, e.empty);
@@ -89,7 +89,7 @@ Test(refl_sbc_stability, planar_mirror, .timeout = 120) {
     sbc_bounds b = {0.05, 1.0, 0.005, 0.005};
     cr_assert_eq(refl_mesh_plane(3.0f, 4, NULL, &m), REFL_OK);
     check_reflector(m, refl_mat4_translate(refl_v3(0, -0.9f, 0)), refl_v3(0, 1.5f, 4.0f), SW, SH, "planar", b, &st);
-    cr_assert_eq(st.leaves, 0, "%lld ray-list leaves on a plane", st.leaves);
+    cr_assert_eq(st.sbc.ray_leaves, 0, "%lld ray-list leaves on a plane", st.sbc.ray_leaves);
 }
 
 /* A cap of a sphere of radius 20: within the view, a mirror bent by about
@@ -106,7 +106,7 @@ Test(refl_sbc_stability, nearly_planar_mirror, .timeout = 120) {
     cr_assert_eq(refl_mesh_sphere(20.0f, 256, 128, NULL, &m), REFL_OK);
     check_reflector(m, refl_mat4_translate(refl_v3(0, -20.9f, 0)), refl_v3(0, 1.5f, 4.0f), 384, 288, "nearly planar",
                     b, &st);
-    cr_assert_eq(st.leaves, 0, "%lld ray-list leaves on a nearly flat mirror", st.leaves);
+    cr_assert_eq(st.sbc.ray_leaves, 0, "%lld ray-list leaves on a nearly flat mirror", st.sbc.ray_leaves);
 }
 
 /* Measured: mean 0.10, p95 1.0, max 2.0 px, wrong 1.0%, holes 1.2%.

@@ -32,7 +32,7 @@ static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m
     memset(&d, 0, sizeof d);
     d.method = method;
     d.depth = 1;
-    d.shadows = shadows;
+    d.lighting.shadows = shadows;
     d.threads = threads;
     cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
     r = refl_render(s, v, &d, f);
@@ -728,7 +728,7 @@ Test(refl_shadow, allocation_failure_at_every_allocation_leaks_nothing) {
         cr_assert_eq(refl_frame_create(24, 16, NULL, &f), REFL_OK);
         memset(&d, 0, sizeof d);
         d.method = REFL_DIRECT;
-        d.shadows = 1;
+        d.lighting.shadows = 1;
         d.threads = 2;
         base_attempts = c.attempts;
         cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);

@@ -19,8 +19,8 @@ static refl_frame *render_soft(const refl_scene *s, const refl_view *v, refl_met
     memset(&d, 0, sizeof d);
     d.method = method;
     d.depth = depth;
-    d.shadows = shadows;
-    d.soft_shadow_samples = samples;
+    d.lighting.shadows = shadows;
+    d.lighting.soft_shadow_samples = samples;
     d.threads = threads;
     return tu_refl_render(s, v, &d);
 }
@@ -277,10 +277,10 @@ Test(refl_soft_shadow, light_samples_and_arguments) {
     }
     cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
     memset(&rd, 0, sizeof rd);
-    rd.shadows = 1;
-    rd.soft_shadow_samples = -1;
+    rd.lighting.shadows = 1;
+    rd.lighting.soft_shadow_samples = -1;
     cr_assert_eq(refl_render(s, &v, &rd, f), REFL_ERROR_INVALID_ARGUMENT);
-    rd.soft_shadow_samples = 1025;
+    rd.lighting.soft_shadow_samples = 1025;
     cr_assert_eq(refl_render(s, &v, &rd, f), REFL_ERROR_INVALID_ARGUMENT);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

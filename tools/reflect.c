@@ -356,20 +356,20 @@ static int cmd_render(const options *o) {
     memset(&d, 0, sizeof d);
     d.threads = o->threads;
     d.depth = o->depth;
-    d.shadows = o->shadows;
-    d.envmap_size = o->envmap_size;
-    d.no_culling = o->no_culling;
-    d.light_volumes = o->light_volumes;
-    d.caustic_samples = o->caustic_samples;
-    d.translucency = o->translucency;
-    d.soft_shadow_samples = o->soft_samples;
-    d.point_density = o->density;
-    d.kd_leaf_points = o->leaf_points;
-    d.max_splat = o->max_splat;
-    d.camera_split_px = o->camera_split;
-    d.sbc_error_px = o->error_px;
-    d.sbc_ray_factor = o->ray_factor;
-    d.sbc_trace_fallback = o->trace_fallback;
+    d.lighting.shadows = o->shadows;
+    d.envmap.size = o->envmap_size;
+    d.planar.no_culling = o->no_culling;
+    d.lighting.light_volumes = o->light_volumes;
+    d.lighting.caustic_samples = o->caustic_samples;
+    d.lighting.translucency = o->translucency;
+    d.lighting.soft_shadow_samples = o->soft_samples;
+    d.c3rc.point_density = o->density;
+    d.c3rc.kd_leaf_points = o->leaf_points;
+    d.c3rc.max_splat = o->max_splat;
+    d.c3rc.camera_split_px = o->camera_split;
+    d.sbc.error_px = o->error_px;
+    d.sbc.ray_factor = o->ray_factor;
+    d.sbc.trace_fallback = o->trace_fallback;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -399,7 +399,8 @@ static int cmd_render(const options *o) {
         goto done;
     }
     if ((r = refl_render(s, &v, &d, f)) != REFL_OK) {
-        fprintf(stderr, "reflect: render with %s: %s\n", refl_method_name(d.method), refl_result_string(r));
+        fprintf(stderr, "reflect: render with %s: %s%s%s\n", refl_method_name(d.method), refl_result_string(r),
+                f->message[0] ? ": " : "", f->message);
         goto done;
     }
     if ((r = refl_image_write(o->out, f->width, f->height, 4, f->color, NULL, err, sizeof err)) != REFL_OK) {
@@ -413,18 +414,27 @@ static int cmd_render(const options *o) {
         printf("total ms     %.2f\n", st->ms_total);
         printf("  build ms   %.2f\n  base ms    %.2f\n  reflect ms %.2f\n  compose ms %.2f\n", st->ms_build,
                st->ms_base, st->ms_reflect, st->ms_composite);
-        printf("triangles    %lld\npoints       %lld\ncameras      %lld\nleaves       %lld\nlayers       %lld\n",
-               st->triangles, st->points, st->cameras, st->leaves, st->layers);
-        printf("rays         %lld\nculled       %lld\n", st->rays, st->culled);
-        if (st->projections && d.method == REFL_SBC)
-            printf("projections  %lld (valid %lld, %.1f%%)\n", st->projections, st->projected,
-                   100.0 * (double)st->projected / (double)st->projections);
-        else if (st->projections)
+        printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
+        if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);
+        if (st->planar.renderings || st->planar.culled)
+            printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,
+                   st->planar.deepest, st->planar.culled);
+        if (st->c3rc.cameras) {
+            const refl_c3rc_frame_stats *c = &st->c3rc;
+            printf("points       %lld\ncameras      %lld\nleaves       %lld\n", c->points, c->cameras, c->leaves);
             printf("projections  %lld (valid %lld, %.1f%%)\nbox tests    %lld (rejected %.1f%%)\n"
                    "  cull ms    %.2f (thread time)\n  project ms %.2f (thread time)\n",
-                   st->projections, st->projected, 100.0 * (double)st->projected / (double)st->projections,
-                   st->box_tests, st->box_tests ? 100.0 * (double)st->culled / (double)st->box_tests : 0.0,
-                   st->ms_cull, st->ms_project);
+                   c->projections, c->projected,
+                   c->projections ? 100.0 * (double)c->projected / (double)c->projections : 0.0, c->box_tests,
+                   c->box_tests ? 100.0 * (double)c->culled / (double)c->box_tests : 0.0, c->ms_cull, c->ms_project);
+        }
+        if (st->sbc.histories) {
+            const refl_sbc_frame_stats *b = &st->sbc;
+            printf("histories    %d\ngroups       %d\nleaves       %lld pinhole, %lld ray-list\n", b->histories,
+                   b->groups, b->pinhole_leaves, b->ray_leaves);
+            printf("projections  %lld (valid %lld, %.1f%%)\n", b->projections, b->projected,
+                   b->projections ? 100.0 * (double)b->projected / (double)b->projections : 0.0);
+        }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }
     code = 0;

@@ -137,7 +137,7 @@ typedef struct bench_method {
     int envmap_size, embree;
     float density;                /* C3RC: points per unit area (0: automatic) */
     int sbc_ray_factor;           /* SBC: one reflected ray per factor x factor pixels */
-    int sbc_trace_fallback;       /* SBC: refl_render_desc.sbc_trace_fallback */
+    int sbc_trace_fallback;       /* SBC: refl_render_desc.sbc.trace_fallback */
 } bench_method;
 
 /* Runs every method on one scene and view against its RAYTRACE reference
@@ -171,10 +171,10 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         d.method = bm->m;
         d.threads = o->threads;
         d.depth = o->depth;
-        d.envmap_size = bm->envmap_size;
-        d.point_density = bm->density;
-        d.sbc_ray_factor = bm->sbc_ray_factor;
-        d.sbc_trace_fallback = bm->sbc_trace_fallback;
+        d.envmap.size = bm->envmap_size;
+        d.c3rc.point_density = bm->density;
+        d.sbc.ray_factor = bm->sbc_ray_factor;
+        d.sbc.trace_fallback = bm->sbc_trace_fallback;
         if (bm->embree) {
             if (!embree) embree = refl_embree_create(s, o->threads, err, sizeof err);
             if (!embree) {
@@ -182,9 +182,9 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
                 ok = 0;
                 break;
             }
-            d.caster.intersect = refl_embree_intersect;
-            d.caster.occluded = refl_embree_occluded;
-            d.caster.user = embree;
+            d.raytrace.caster.intersect = refl_embree_intersect;
+            d.raytrace.caster.occluded = refl_embree_occluded;
+            d.raytrace.caster.user = embree;
         }
         r = refl_bench_timed_render(s, view, &d, o->repeats, f, &ms, &fastest);
         if (r == REFL_ERROR_UNSUPPORTED) continue; /* a method not built yet */

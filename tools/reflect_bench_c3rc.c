@@ -145,7 +145,7 @@ static int tables(const char *dir, int threads, int repeats) {
         d.method = REFL_C3RC;
         d.threads = threads;
         d.depth = 1;
-        d.point_density = density;
+        d.c3rc.point_density = density;
         for (k = 0; k < n && ok; ++k) {
             ok = refl_render(s, &v, &d, f) == REFL_OK;
             refl[k] = f->stats.ms_reflect;
@@ -153,18 +153,18 @@ static int tables(const char *dir, int threads, int repeats) {
         if (ok && refl_measure_reflection_error(f, truth, NULL, &err) != REFL_OK) memset(&err, 0, sizeof err);
         if (ok) {
             double b = refl_bench_median(build, n), r = refl_bench_median(refl, n);
-            double valid = f->stats.projections ? 100.0 * (double)f->stats.projected / (double)f->stats.projections : 0.0;
+            double valid = f->stats.c3rc.projections ? 100.0 * (double)f->stats.c3rc.projected / (double)f->stats.c3rc.projections : 0.0;
             fprintf(csv, "%s,%d,%d,%.2f,%.0f,%.2f,%.1f,%.1f,%.0f,%.2f,%.0f,%.2f,%.0f,%.2f,%.0f,%.1f,%.0f,%lld,%lld,%lld,%lld,"
                          "%.3f,%.3f,%.4f,%.4f\n",
                     paper[row].scene, paper[row].kpoints, tree->point_count, b, paper[row].build_ms,
                     tree->average_leaf_depth, paper[row].depth, tree->average_leaf_points, paper[row].per_leaf, r,
-                    paper[row].total_ms, f->stats.ms_cull, paper[row].cull_ms, f->stats.ms_project,
-                    paper[row].project_ms, valid, paper[row].valid, f->stats.projections, f->stats.cameras,
-                    f->stats.leaves, f->stats.culled, err.mean, err.p95, err.wrong, err.empty);
+                    paper[row].total_ms, f->stats.c3rc.ms_cull, paper[row].cull_ms, f->stats.c3rc.ms_project,
+                    paper[row].project_ms, valid, paper[row].valid, f->stats.c3rc.projections, f->stats.c3rc.cameras,
+                    f->stats.c3rc.leaves, f->stats.c3rc.culled, err.mean, err.p95, err.wrong, err.empty);
             fprintf(stderr, "  %8d %9.1f %7.2f %6.0f %7lld | %9.1f %9.1f %9.1f %5.1f%% | paper: %6.0f %6.0f %6.0f %6.0f %4.0f%%"
                             "  (error p95 %.2f px, empty %.3f)\n",
-                    tree->point_count, b, tree->average_leaf_depth, tree->average_leaf_points, f->stats.cameras, r,
-                    f->stats.ms_cull, f->stats.ms_project, valid, paper[row].build_ms, paper[row].total_ms,
+                    tree->point_count, b, tree->average_leaf_depth, tree->average_leaf_points, f->stats.c3rc.cameras, r,
+                    f->stats.c3rc.ms_cull, f->stats.c3rc.ms_project, valid, paper[row].build_ms, paper[row].total_ms,
                     paper[row].cull_ms, paper[row].project_ms, paper[row].valid, err.p95, err.empty);
         }
         refl_kdtree_destroy(tree);
@@ -252,12 +252,12 @@ static int triangle_size(const char *dir, int threads, int full) {
             px = mean_triangle_pixels(s, &v, teapot);
             fprintf(dat, "%d %d %.2f %.4f %.4f %.5f %.4f %.4f %.5f %.4f %.4f %lld\n", tess[i],
                     s->meshes[s->objects[teapot].mesh]->triangle_count, px, paper.mean, paper.p95, paper.wrong,
-                    split.mean, split.p95, split.wrong, img.mean, img.p95, f->stats.cameras);
+                    split.mean, split.p95, split.wrong, img.mean, img.p95, f->stats.c3rc.cameras);
             fprintf(stderr, "  C3RC teapot %2dx%-2d (%5d triangles, %7.1f px each): cameras per triangle: mean %.3f "
                             "p95 %.3f px (none %.4f); split (%lld cameras): mean %.3f p95 %.3f px; image: mean %.3f "
                             "p95 %.3f px\n",
                     tess[i], tess[i], s->meshes[s->objects[teapot].mesh]->triangle_count, px, paper.mean, paper.p95,
-                    paper.wrong, f->stats.cameras, split.mean, split.p95, img.mean, img.p95);
+                    paper.wrong, f->stats.c3rc.cameras, split.mean, split.p95, img.mean, img.p95);
         }
         refl_frame_destroy(f);
         refl_frame_destroy(truth);

@@ -13,7 +13,7 @@
    are its quarter and half resolution ones (factors 4 and 2: 180x120 and
    360x240).
 
-   The ray maps are SBC's own (refl_render_desc.sbc_ray_map hands over
+   The ray maps are SBC's own (refl_render_desc.debug.sbc_ray_map hands over
    each reflector side's map as the method makes it); each becomes one
    reflection group, as in the paper (the teapot body's inside, seen over
    its top, is a group of its own), built with refl_sbc_build at the
@@ -44,7 +44,7 @@
    blend) and static (projections kept for the tetrahedron, re-blended for
    ten eyes within it), in million vertex projections per second (the
    paper: 1 and 12.5 Mv/s on its CPU); then a frame at half the table's
-   size drawn with the grids (SBC with refl_render_desc.sbc_morphs) and
+   size drawn with the grids (SBC with refl_render_desc.sbc.morphs) and
    per frame (SBC), each timed (median) and measured against RAYTRACE. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
@@ -308,9 +308,9 @@ static int measure(const refl_scene *s, const refl_view *v, int factor, int thre
     d.method = REFL_SBC;
     d.threads = threads;
     d.depth = 1;
-    d.sbc_ray_factor = factor;
-    d.sbc_ray_map = keep_ray_map;
-    d.sbc_ray_map_user = &maps;
+    d.sbc.ray_factor = factor;
+    d.debug.sbc_ray_map = keep_ray_map;
+    d.debug.sbc_ray_map_user = &maps;
     ok = refl_frame_create(v->width, v->height, NULL, &f) == REFL_OK && refl_render(s, v, &d, f) == REFL_OK &&
          !maps.failed && maps.count > 0;
     if (ok) {
@@ -320,8 +320,8 @@ static int measure(const refl_scene *s, const refl_view *v, int factor, int thre
         row->on_reflector = samples_on_reflectors(f, factor, maps.width, maps.height);
         row->coverage = (double)row->on_reflector / ((double)maps.width * maps.height);
         row->render_bytes = f->stats.model_bytes;
-        row->render_pinhole = f->stats.cameras;
-        row->render_rays = f->stats.leaves;
+        row->render_pinhole = f->stats.sbc.pinhole_leaves;
+        row->render_rays = f->stats.sbc.ray_leaves;
     }
     memset(&sd, 0, sizeof sd);
     refl_view_matrices(v, s, &view_m, &proj_m);
@@ -406,7 +406,7 @@ static int morph_frame(const refl_scene *s, const refl_view *v, const refl_rende
     }
     if (ok) {
         *ms = refl_bench_median(times, n);
-        *ambiguous = f->stats.ambiguous;
+        *ambiguous = f->stats.sbc.ambiguous;
         ok = refl_measure_reflection_error(f, truth, NULL, e) == REFL_OK;
     }
     refl_frame_destroy(f);
@@ -497,8 +497,8 @@ static int measure_morph(const refl_scene *s, const refl_view *v, int threads, i
     } else {
         ok = 0;
     }
-    d.sbc_morphs = use;
-    d.sbc_morph_count = row->grids;
+    d.sbc.morphs = use;
+    d.sbc.morph_count = row->grids;
     if (ok && morph_frame(s, &hv, &d, n, truth, &row->morph_ms, &e, &row->ambiguous)) {
         row->morph_mean = e.mean;
         row->morph_p95 = e.p95;

@@ -8,7 +8,7 @@
    RAYTRACE through Embree (its scene built once, outside the timing, as
    the other bench tables do; refl_bvh is built inside every frame), and
    SBC at ray map factors 4 and 2, each also with its ray-traced fallback
-   (refl_render_desc.sbc_trace_fallback: a pixel no reflected triangle
+   (refl_render_desc.sbc.trace_fallback: a pixel no reflected triangle
    covers, or whose point the samples around it contradict, is rendered
    as RAYTRACE renders it, and the groups' edges are left to it). Each row: the median frame time
    (stats.ms_total) of `repeats` runs, but one run at 3840x2160 unless
@@ -43,8 +43,8 @@ typedef struct sweep_method {
     const char *name;
     refl_method method;
     int embree;                   /* RAYTRACE's rays through Embree */
-    int ray_factor;               /* SBC: refl_render_desc.sbc_ray_factor */
-    int trace_fallback;           /* SBC: refl_render_desc.sbc_trace_fallback */
+    int ray_factor;               /* SBC: refl_render_desc.sbc.ray_factor */
+    int trace_fallback;           /* SBC: refl_render_desc.sbc.trace_fallback */
 } sweep_method;
 
 static const sweep_method sweep_methods[SWEEP_METHODS] = {
@@ -87,11 +87,11 @@ static int sweep_render(const refl_scene *s, const refl_view *v, const sweep_met
     d.method = m->method;
     d.threads = threads;
     d.depth = 1;
-    d.sbc_ray_factor = m->ray_factor;
-    d.sbc_trace_fallback = m->trace_fallback;
+    d.sbc.ray_factor = m->ray_factor;
+    d.sbc.trace_fallback = m->trace_fallback;
     if (m->embree) {
         refl_ray_caster c = {refl_embree_intersect, refl_embree_occluded, embree};
-        d.caster = c;
+        d.raytrace.caster = c;
     }
     wall0 = refl_bench_now_ms();
     cpu0 = cpu_ms();
@@ -128,8 +128,8 @@ static int write_sweep_csv(const char *path, const sweep_row *rows, int n, int t
                 sweep_methods[r->method].ray_factor, sweep_methods[r->method].trace_fallback, threads, r->runs, r->ms,
                 r->ms_min, r->cpu_ms, r->cores,
                 r->vs_embree, r->cpu_vs_embree, st->ms_build,
-                st->ms_base, st->ms_reflect, st->ms_composite, st->cameras, st->leaves, st->rays, st->projections,
-                st->projected, st->triangles, st->model_bytes, r->error.mean, r->error.p95, r->error.max,
+                st->ms_base, st->ms_reflect, st->ms_composite, st->sbc.pinhole_leaves, st->sbc.ray_leaves, st->rays, st->sbc.projections,
+                st->sbc.projected, st->triangles, st->model_bytes, r->error.mean, r->error.p95, r->error.max,
                 r->error.wrong, r->error.empty, r->cams.pinhole_samples.pixels, r->cams.pinhole_samples.p95,
                 r->cams.pinhole_samples.max, r->cams.pinhole_samples.wrong, r->cams.ray_list_samples.pixels,
                 r->cams.ray_list_samples.p95, r->cams.ray_list_samples.max, r->cams.ray_list_samples.wrong);
@@ -144,7 +144,7 @@ static void print_row(const sweep_row *r) {
            m->name, r->runs, r->ms, r->cpu_ms, r->cores, r->vs_embree, r->cpu_vs_embree, st->ms_build, st->ms_base,
            st->ms_reflect, st->ms_composite);
     if (m->method == REFL_SBC)
-        printf(" %6lld/%-6lld %6lld %9lld %9lld", st->cameras, st->leaves, st->rays, st->projections,
+        printf(" %6lld/%-6lld %6lld %9lld %9lld", st->sbc.pinhole_leaves, st->sbc.ray_leaves, st->rays, st->sbc.projections,
                st->triangles);
     else
         printf(" %13s %6s %9s %9s", "-", "-", "-", "-");
@@ -301,7 +301,7 @@ int refl_bench_sbc_sweep(const char *dir, int threads, int repeats, int full) {
                 refl_render_desc d;
                 memset(&d, 0, sizeof d);
                 d.threads = threads;
-                d.sbc_ray_factor = sweep_methods[m].ray_factor;
+                d.sbc.ray_factor = sweep_methods[m].ray_factor;
                 ok = refl_sbc_measure_camera_error(s, &v, &d, truth, &r->cams) == REFL_OK;
             }
         }

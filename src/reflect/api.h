@@ -314,6 +314,8 @@ typedef struct refl_scene {
     refl_view camera;        /* the scene's own view */
     int has_camera;
     float ambient[3];        /* ambient light on diffuse surfaces */
+    unsigned version;        /* bumped by every change through refl_scene_* (renderers
+                                rebuild their models when it moves) */
     refl_allocator allocator;
 } refl_scene;
 
@@ -329,6 +331,9 @@ REFL_API int refl_scene_add_light(refl_scene *scene, const refl_light *l);
 REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, const float *rgba);
 /* Copies the images. */
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
+/* Marks the scene changed (bumps version), after writing its arrays
+   directly: a renderer rebuilds its models at its next frame. */
+REFL_API void refl_scene_touch(refl_scene *scene);
 /* World-space bounds of every object. */
 REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec3 *hi);
 /* Object `object`'s vertices in world space, 3 floats each, into out (may
@@ -726,27 +731,57 @@ typedef enum refl_method {
 REFL_API const char *refl_method_name(refl_method m);          /* "direct", ... */
 REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown */
 
+/* What a frame cost and what it drew. The first fields mean the same for
+   every method; each method's own figures are in its sub-struct (zero for
+   the others). */
+typedef struct refl_envmap_frame_stats {
+    long long cube_faces;    /* cube faces rendered (6 per reflector) */
+} refl_envmap_frame_stats;
+
+typedef struct refl_planar_frame_stats {
+    long long renderings;    /* mirror renderings at every level */
+    long long deepest;       /* of those, renderings at the deepest level */
+    long long culled;        /* mirror renderings skipped as not visible */
+} refl_planar_frame_stats;
+
+typedef struct refl_c3rc_frame_stats {
+    long long points;        /* scene samples in the kd-tree */
+    long long cameras;       /* 3-ray cameras (reflector triangles and their splits) */
+    long long leaves;        /* kd-tree leaves whose points were projected */
+    long long culled;        /* kd-tree boxes the view-volume test rejected */
+    long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
+    long long projections;   /* point projections attempted */
+    long long projected;     /* valid projections found (a point may have several) */
+    long long multiple;      /* projections beyond a point's first in one camera
+                                (section 5.1's multiple projections, all drawn) */
+    double ms_cull, ms_project; /* thread time in the box tests and in projection and
+                                   splatting, summed over threads */
+} refl_c3rc_frame_stats;
+
+typedef struct refl_sbc_frame_stats {
+    long long pinhole_leaves, ray_leaves; /* BSP leaves of every group's camera */
+    long long projections;   /* vertex projections made */
+    long long projected;     /* vertices in some leaf's frustum */
+    long long ambiguous;     /* with morphs: scene vertices that project at some but not all
+                                of the eye tetrahedron's nodes (paper 003 VI) */
+    int histories;           /* reflection histories sampled (paper 003's A, B, AB, BA, ...;
+                                a refraction through glass counts as one) */
+    int groups;              /* reflection groups (a history's pieces within tiles) */
+} refl_sbc_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
-    long long triangles, points, cameras, leaves, layers;
+    long long triangles;     /* scene triangles drawn or put in a BVH */
     long long rays;          /* rays traced (primary, secondary and shadow) */
-    long long culled;        /* PLANAR: mirror renderings skipped as not visible;
-                                C3RC: kd-tree boxes the view-volume test rejected */
-    long long box_tests;     /* C3RC: kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* C3RC: point projections attempted; SBC: vertex projections */
-    long long projected;     /* C3RC: valid projections found (a point may have several);
-                                SBC: vertices in some leaf's frustum */
-    long long multiple;      /* C3RC: projections beyond a point's first in one camera
-                                (section 5.1's multiple projections, all drawn) */
-    double ms_cull, ms_project; /* C3RC: thread time in the box tests and in projection
-                                   and splatting, summed over threads */
-    long long model_bytes;
-    long long ambiguous;     /* SBC with morphs: scene vertices that project at some but not
-                                all of the eye tetrahedron's nodes (paper 003 VI) */
-    int reflectors;          /* reflector objects on screen */
-    int histories;           /* SBC: reflection histories sampled (paper 003's A, B, AB, BA,
-                                ...; a refraction through glass counts as one) */
-    int groups;              /* SBC: reflection groups (a history's pieces within tiles) */
+    long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
+    int reflectors;          /* reflector objects in the scene */
+    int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
+                                points and kd-tree); 0 when a renderer kept them all from
+                                an earlier frame */
+    refl_envmap_frame_stats envmap;
+    refl_planar_frame_stats planar;
+    refl_c3rc_frame_stats c3rc;
+    refl_sbc_frame_stats sbc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -759,6 +794,9 @@ typedef struct refl_frame {
                                 it shows none (the environment) and on other pixels. The
                                 reflection-error metric compares these. */
     refl_stats stats;
+    const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
+                                rule the desc or view broke (refl_validate_render_desc's
+                                words); "" otherwise. A static string */
     refl_allocator allocator;
 } refl_frame;
 
@@ -766,20 +804,8 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
 
-/* Where rays go: RAYTRACE casts through its own BVH unless given another
-   caster (the bench plugs in Embree this way, so both trace one frame with
-   the same shading). Both functions run concurrently on worker threads. */
-typedef struct refl_ray_caster {
-    int (*intersect)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax, refl_hit *hit);
-    int (*occluded)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
-    void *user;
-} refl_ray_caster;
-
-typedef struct refl_render_desc {
-    refl_method method;
-    int threads;             /* 0: one per CPU */
-    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
-                                with none left shows what DIRECT shows there */
+/* Lighting every method shares. */
+typedef struct refl_lighting_options {
     int shadows;             /* 1: hard shadows from every light */
     int soft_shadow_samples; /* with shadows: 0 or 1 hard; N (at most 1024): soft shadows,
                                 every light with a radius sampled at N positions
@@ -788,11 +814,6 @@ typedef struct refl_render_desc {
                                 RAYTRACE casts a shadow ray per sample, the rasterised
                                 methods draw a shadow mask per sample. Lights with
                                 radius 0 stay hard (one sample). */
-    int envmap_size;         /* ENVMAP: cube face size in pixels; 0: 256 */
-    refl_ray_caster caster;  /* RAYTRACE: zero: a BVH built per frame (refl_bvh) */
-    int no_culling;          /* PLANAR: render every mirror at every level, seen or not
-                                (paper 002's count, formula 5); stats.leaves counts the
-                                renderings at the deepest level, stats.cameras all */
     int light_volumes;       /* PLANAR and RAYTRACE: 1: light reflected by planar mirror and
                                 partial faces lights diffuse surfaces (paper 002's light
                                 volumes): each light (of the first 8) mirrored in each face's
@@ -814,35 +835,81 @@ typedef struct refl_render_desc {
                                 environment: wholly the colour). PLANAR draws it with rast.h's
                                 exponential fog; mirrors seen through glass are not fogged
                                 there. 0: clear glass */
-    float point_density;     /* C3RC: samples per unit area of every surface; 0: from the
-                                view: one per 2 x 2 pixels at the reflectors' distance, at
-                                most 2 million in all) */
-    int kd_leaf_points;      /* C3RC: kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
-    int max_splat;           /* C3RC: largest splat side in pixels; 0: 8 */
-    float camera_split_px;   /* C3RC: a reflector triangle's camera is split in four while its
+} refl_lighting_options;
+
+/* Where rays go: RAYTRACE casts through its own BVH unless given another
+   caster (the bench plugs in Embree this way, so both trace one frame with
+   the same shading). Both functions run concurrently on worker threads. */
+typedef struct refl_ray_caster {
+    int (*intersect)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax, refl_hit *hit);
+    int (*occluded)(void *user, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax); /* NULL:
+                                intersect answers it */
+    void *user;
+} refl_ray_caster;
+
+/* Each method's options; zero everywhere means its defaults. */
+typedef struct refl_raytrace_options {
+    refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+} refl_raytrace_options;
+
+typedef struct refl_envmap_options {
+    int size;                /* cube face size in pixels, at most 8192; 0: 256 */
+} refl_envmap_options;
+
+typedef struct refl_planar_options {
+    int no_culling;          /* 1: render every mirror at every level, seen or not (paper
+                                002's count, formula 5) */
+} refl_planar_options;
+
+typedef struct refl_c3rc_options {
+    float point_density;     /* samples per unit area of every surface; 0: from the view: one
+                                per 2 x 2 pixels at the reflectors' distance, at most 2
+                                million in all (a renderer fixes it at its first frame) */
+    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
+    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8 */
+    float camera_split_px;   /* a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
-    float sbc_error_px;      /* SBC: largest camera error in desired-view pixels at the ray
-                                map's samples (refl_sbc_desc.error_px); 0: 1 */
-    int sbc_ray_factor;      /* SBC: one reflected ray per factor x factor pixels; 0: 2 */
-    int sbc_batch_groups;    /* SBC: reflection groups projected and drawn at once, 1..254
+} refl_c3rc_options;
+
+typedef struct refl_sbc_options {
+    float error_px;          /* largest camera error in desired-view pixels at the ray map's
+                                samples (refl_sbc_desc.error_px); 0: 1 */
+    int ray_factor;          /* one reflected ray per factor x factor pixels, at most 64; 0: 2 */
+    int batch_groups;        /* reflection groups projected and drawn at once, 1..254
                                 (memory: that many times the scene's vertices); 0: 254.
                                 The image is the same for any value */
-    int sbc_trace_fallback;  /* SBC: 1: a reflector pixel nothing was drawn on (a hole: a
-                                piece thinner than a sample, a scene triangle no vertex of
-                                which projects), or whose first-order point the ray map's
-                                samples around it contradict (on an object none of their
-                                rays meets, nearer or farther than all they meet), is
-                                rendered as RAYTRACE renders it when its reflected ray
-                                meets anything; its rays count in stats.rays. The other
-                                pixels are SBC's (see sbc_mixed_levels). 0: the paper's
-                                method alone; holes show the environment */
-    int sbc_mixed_levels;    /* SBC: times a mixed reflected triangle (some of its vertices
+    int trace_fallback;      /* 1: a reflector pixel nothing was drawn on (a hole: a piece
+                                thinner than a sample, a scene triangle no vertex of which
+                                projects), or whose first-order point the ray map's samples
+                                around it contradict (on an object none of their rays meets,
+                                nearer or farther than all they meet), is rendered as
+                                RAYTRACE renders it when its reflected ray meets anything;
+                                its rays count in stats.rays. The other pixels are SBC's
+                                (see mixed_levels). 0: the paper's method alone; holes show
+                                the environment */
+    int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with the fallback,
+                                group's rays meet it). 0: 4, or never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
+    /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this
+       scene); the front side of each one's object is drawn from its grid
+       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
+       its tetrahedra; otherwise, and for objects without one, as before.
+       One grid per object at most (the first counts). */
+    const refl_sbc_morph *const *morphs;
+    int morph_count;
+} refl_sbc_options;
+
+/* Hooks for tests and benchmarks. */
+typedef struct refl_debug_options {
+    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
+                                the last point along its path (past every mirror, the
+                                stronger branch at glass as for the first; NaN where the
+                                path ends in the environment) instead of the first: how
+                                higher-order reflections are measured. Other methods: ignored */
     /* SBC: optional; called once per reflector side seen (object index; the
        back side of an open mesh is a side of its own), on the calling
        thread, with the whole frame's ray map of that side as the method
@@ -851,31 +918,65 @@ typedef struct refl_render_desc {
        its silhouette), before the side is cut into reflection groups. The
        arrays live until the callback returns; its time counts in
        stats.ms_build. For benchmarks (paper 003's Fig. 19) and tests.
-       First-order sides only: the histories past them (desc.depth > 1)
-       are not reported. */
+       First-order sides only: the histories past them (depth > 1) are not
+       reported. */
     void (*sbc_ray_map)(void *user, int object, const refl_sbc_ray *rays, const uint8_t *valid, int map_width,
                         int map_height);
     void *sbc_ray_map_user;
-    int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
-                                the last point along its path (past every mirror, the
-                                stronger branch at glass as for the first; NaN where the
-                                path ends in the environment) instead of the first: how
-                                higher-order reflections are measured. Other methods: ignored */
-    /* SBC: prebuilt reflection morphing grids (refl_sbc_morph_build on this
-       scene); the front side of each one's object is drawn from its grid
-       (paper 003 VI) instead of per-frame SBCs, when the eye lies in one of
-       its tetrahedra; otherwise, and for objects without one, as before.
-       One grid per object at most (the first counts). */
-    const refl_sbc_morph *const *sbc_morphs;
-    int sbc_morph_count;
+} refl_debug_options;
+
+/* How to render: zero is the defaults (DIRECT). `= {0}` in C and `= {}`
+   in C++ both compile. Options of a method the frame does not use are
+   ignored but still validated. */
+typedef struct refl_render_desc {
+    int threads;             /* 0: one per CPU, at most 256 */
+    refl_method method;      /* every reflector's, unless object_methods says otherwise */
+    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
+                                with none left shows what DIRECT shows there */
+    refl_lighting_options lighting;
+    /* Optional, per object: object_methods[i] (i < object_method_count) is
+       the method that draws reflector object i; 0: `method`. One of
+       DIRECT, ENVMAP, PLANAR, C3RC, SBC (RAYTRACE draws whole frames
+       only). Ignored on objects that are not reflectors. */
+    const refl_method *object_methods;
+    int object_method_count;
+    refl_raytrace_options raytrace;
+    refl_envmap_options envmap;
+    refl_planar_options planar;
+    refl_c3rc_options c3rc;
+    refl_sbc_options sbc;
+    refl_debug_options debug;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
 } refl_render_desc;
 
+/* REFL_OK, or REFL_ERROR_INVALID_ARGUMENT with *message (may be NULL)
+   naming the option and the rule it broke, e.g. "sbc.ray_factor: 0 or 1
+   to 64" (a static string). desc NULL: the defaults, valid. */
+REFL_API refl_result refl_validate_render_desc(const refl_render_desc *desc, const char **message);
+
 /* Renders one frame of the scene from the view into frame (its size must
-   match the view's). */
+   match the view's): a renderer created and destroyed around the frame.
+   The same bytes as refl_renderer_render's first frame. */
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
                                  const refl_render_desc *desc, refl_frame *frame);
+
+/* A renderer lives across the frames of one scene and one desc (a camera
+   path) and keeps what does not depend on the view: the thread pool, the
+   BVH, C3RC's points and kd-tree. What the scene's changes invalidate:
+   every refl_scene_* function that changes the scene bumps scene->version,
+   and a frame whose scene version differs from the one the models were
+   built at rebuilds them all; code that writes the scene's arrays itself
+   calls refl_scene_touch. A frame renders the same bytes as refl_render
+   with the same desc, except that C3RC's default point density is the one
+   of the renderer's first frame (the density follows the view, and the
+   points would otherwise be re-sampled every frame). The scene must outlive
+   the renderer; one thread at a time renders with it. */
+typedef struct refl_renderer refl_renderer;
+REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
+                                          refl_renderer **out_renderer);
+REFL_API refl_result refl_renderer_render(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
+REFL_API void refl_renderer_destroy(refl_renderer *renderer);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 

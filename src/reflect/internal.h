@@ -110,16 +110,51 @@ static void refl__view_rays_get(const refl__view_rays *r, float px, float py, re
    and glass transparent black, partial reflectors at their diffuse share,
    reflector object id + 1 in the stencil, the environment behind, and
    frame->points NaN everywhere. Methods add their mirror share on top. */
+/* What a renderer keeps across frames (render.c): models that depend on
+   the scene and the desc but not on the view, built on a frame's first
+   need and dropped when scene->version moves. */
+typedef struct refl__models {
+    unsigned scene_version;
+    refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
+    struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
+    float c3_density;             /* the density they were sampled at; 0: none yet */
+} refl__models;
+
 typedef struct refl__pass {
     const refl_scene *scene;
     const refl_view *view;
-    refl_render_desc desc;        /* defaults resolved: depth, envmap_size */
+    refl_render_desc desc;        /* validated, defaults resolved: depth, envmap.size */
     refl_frame *frame;
     rast_context *rc;             /* the frame bound as its targets */
     refl_mat4 view_m, proj_m, vp; /* vp = proj_m * view_m */
     refl__view_rays rays;
-    struct refl__sb_measure *sbc_measure; /* SBC: measure the cameras (refl_sbc_measure_camera_error), draw nothing */
+    const uint8_t *mine;          /* per object: 1 where this method draws the reflector;
+                                     NULL: every reflector is the method's */
+    refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
+
+/* Whether the running method draws object i (a reflector it was given). */
+static inline int refl__pass_draws(const refl__pass *p, int i) {
+    return refl__is_reflector(&p->scene->materials[p->scene->objects[i].material]) && (!p->mine || p->mine[i]);
+}
+
+/* The scene's BVH, built on first use and kept with the renderer's models
+   (owned by them; with no models, the caller frees *owned). */
+static refl_result refl__models_bvh(refl__pass *p, refl_bvh **out, refl_bvh **owned);
+
+/* Sets up p for a frame of scene from view into frame (desc validated and
+   resolved, rc any rast context) and runs the base pass: diffuse geometry
+   shaded, shadows, reflectors into the stencil, the environment behind. */
+static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                                   const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
+                                   refl__models *models);
+/* The rule a view, its frame or the scene breaks for rendering; NULL when none. */
+static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v, const refl_frame *frame);
+/* A rast context (the thread pool) on the scene's allocator. */
+static refl_result refl__context_create(const refl_scene *scene, int threads, rast_context **out);
+/* desc validated (NULL: the defaults) into *out with the renderer-wide
+   defaults resolved; the broken rule into *message. */
+static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
 
 /* Draws every object but `skip` (-1: none) as the base pass does, into
    whatever targets rc has bound, and finishes. */
@@ -139,9 +174,6 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
-struct refl__sb_measure;
-static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                refl_frame *frame, struct refl__sb_measure *sbc_measure);
 static double refl__now_ms(void);
 
 /* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
@@ -209,9 +241,17 @@ static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, r
 static refl_result refl__shadow_base_pass(refl__pass *p);
 /* ---- end shadows ---- */
 
-/* The methods (one module each). */
+/* The methods, one module each, and their rows in the method table
+   (render.c). A row's options function checks the method's sub-struct of
+   the desc and resolves its defaults in place: NULL, or the rule broken. */
 static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
-static refl_result refl__method_c3rc(refl__pass *p);   /* after m_envmap.c and metrics.c: it uses their statics */
-static refl_result refl__method_sbc(refl__pass *p);    /* after m_envmap.c: it uses its statics */
-static refl_result refl__method_planar(refl__pass *p); /* after render.c: it draws with the base pass's programs */
+static refl_result refl__method_c3rc(refl__pass *p);
+static refl_result refl__method_sbc(refl__pass *p);
+static refl_result refl__method_planar(refl__pass *p);
+static const char *refl__options_raytrace(refl_render_desc *d);
+static const char *refl__options_envmap(refl_render_desc *d);
+static const char *refl__options_planar(refl_render_desc *d);
+static const char *refl__options_c3rc(refl_render_desc *d);
+static const char *refl__options_sbc(refl_render_desc *d);
+static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

@@ -1,5 +1,5 @@
 /* Light volumes and caustics (paper 002): light a planar mirror reflects
-   onto diffuse surfaces (refl_render_desc.light_volumes).
+   onto diffuse surfaces (refl_render_desc.lighting.light_volumes).
 
    THE VIRTUAL LIGHTS
        A light on one side of a mirror face's plane (planar_faces.c),
@@ -335,14 +335,14 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
     if (!lit || !scratch || !vcounts || (soft && !counts) || !dc) { r = REFL_ERROR_OUT_OF_MEMORY; goto done; }
     /* the scene's own lights, as the shadow pass saw them */
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
-        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->soft_shadow_samples, 1) : 1;
+        ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->lighting.soft_shadow_samples, 1) : 1;
     if (soft)
         r = refl__shadow_mask_soft(rc, scene, vp, eye, depth, width, height, region, region_value,
-                                   desc->soft_shadow_samples, counts, lit, restore, st);
-    else if (desc->shadows)
+                                   desc->lighting.soft_shadow_samples, counts, lit, restore, st);
+    else if (desc->lighting.shadows)
         r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
     for (k = 0; k < lv->count && r == REFL_OK; ++k)
-        r = refl__lv_count(rc, scene, lv, k, desc->shadows, vp, eye, depth, width, height, region, region_value,
+        r = refl__lv_count(rc, scene, lv, k, desc->lighting.shadows, vp, eye, depth, width, height, region, region_value,
                            scratch, scratch + npx, vcounts + (size_t)k * npx, restore, st);
     if (r != REFL_OK) goto done;
     for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
@@ -353,7 +353,7 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         dc[i].object = i;
         dc[i].lv = lv;
         dc[i].scene = scene;
-        dc[i].lit = desc->shadows && !soft ? lit : NULL;
+        dc[i].lit = desc->lighting.shadows && !soft ? lit : NULL;
         dc[i].counts = soft ? counts : NULL;
         dc[i].samples = ns;
         dc[i].vcounts = vcounts;

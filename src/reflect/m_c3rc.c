@@ -562,6 +562,26 @@ static void refl__c3_shade(void *arg, int index) {
     }
 }
 
+/* What refl__c3_points makes, as a renderer keeps it across frames: it
+   depends on the scene and the density, not on the view. */
+typedef struct refl__c3_samples {
+    refl_kdtree *tree;
+    float *rgb, *normal;
+    uint8_t *diffuse;
+    int32_t *object, *triangle;
+} refl__c3_samples;
+
+static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
+    if (!pts) return;
+    refl_kdtree_destroy(pts->tree);
+    refl__free(al, pts->rgb);
+    refl__free(al, pts->normal);
+    refl__free(al, pts->diffuse);
+    refl__free(al, pts->object);
+    refl__free(al, pts->triangle);
+    refl__free(al, pts);
+}
+
 /* Samples every object at the density, builds the kd-tree over the
    points and shades them (tree order). */
 static refl_result refl__c3_points(refl__c3 *c3) {
@@ -604,7 +624,7 @@ static refl_result refl__c3_points(refl__c3 *c3) {
             at += (size_t)pts[i]->count;
         }
         memset(&kd, 0, sizeof kd);
-        kd.leaf_points = p->desc.kd_leaf_points;
+        kd.leaf_points = p->desc.c3rc.kd_leaf_points;
         kd.allocator = *al;
         r = refl_kdtree_build(all, (int)total, &kd, &c3->tree);
     }
@@ -737,7 +757,7 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
                     continue;
                 if (!refl__c3_back_seen(c3, o, m, t, i, x0, y0, x1, y1)) continue;
             }
-            r = refl__c3_add_triangle(p, i, t, c3->tmax, p->desc.camera_split_px, &list);
+            r = refl__c3_add_triangle(p, i, t, c3->tmax, p->desc.c3rc.camera_split_px, &list);
         }
     }
     refl__free(al, sat);
@@ -787,6 +807,40 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
+/* Hands c3's points to the renderer's models (which free them from now on). */
+static refl_result refl__c3_keep_points(refl__c3 *c3, refl__models *models) {
+    refl__c3_samples *pts = (refl__c3_samples *)refl__calloc(&c3->p->scene->allocator, 1, sizeof *pts);
+    if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
+    pts->tree = c3->tree;
+    pts->rgb = c3->rgb;
+    pts->normal = c3->normal;
+    pts->diffuse = c3->diffuse;
+    pts->object = c3->object;
+    pts->triangle = c3->triangle;
+    models->c3 = pts;
+    models->c3_density = c3->density;
+    return REFL_OK;
+}
+
+static void refl__c3_borrow_points(refl__c3 *c3, const refl__c3_samples *pts) {
+    c3->tree = pts->tree;
+    c3->rgb = pts->rgb;
+    c3->normal = pts->normal;
+    c3->diffuse = pts->diffuse;
+    c3->object = pts->object;
+    c3->triangle = pts->triangle;
+}
+
+static const char *refl__options_c3rc(refl_render_desc *d) {
+    const refl_c3rc_options *o = &d->c3rc;
+    if (!(o->point_density >= 0.0f) || !refl__isfinite(o->point_density))
+        return "c3rc.point_density: finite, 0 (from the view) or more";
+    if (o->kd_leaf_points < 0) return "c3rc.kd_leaf_points: 0 (1000) or more";
+    if (o->max_splat < 0 || o->max_splat > 64) return "c3rc.max_splat: 0 (8) to 64";
+    if (!refl__isfinite(o->camera_split_px)) return "c3rc.camera_split_px: finite";
+    return NULL;
+}
+
 static refl_result refl__method_c3rc(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -802,7 +856,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     c3.p = p;
     c3.em.p = p;
     c3.pixel_angle = 2.0f * refl_v3_length(p->rays.up) / (float)fr->height;
-    c3.max_splat = p->desc.max_splat > 0 ? p->desc.max_splat : 8;
+    c3.max_splat = p->desc.c3rc.max_splat > 0 ? p->desc.c3rc.max_splat : 8;
     refl_scene_bounds(scene, &lo, &hi);
     c3.tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     r = refl__em_gbuffer_new(&c3.em, &seen, &any);
@@ -812,10 +866,22 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         if (!c3.em.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
-        c3.density = p->desc.point_density > 0.0f ? p->desc.point_density : refl__c3_auto_density(&c3, seen);
+        refl__models *models = p->models;
+        c3.density = p->desc.c3rc.point_density > 0.0f ? p->desc.c3rc.point_density
+                     : models && models->c3             ? models->c3_density
+                                                        : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
-        r = refl__c3_points(&c3);
+        if (models && models->c3 && models->c3_density != c3.density) {
+            refl__c3_samples_free(al, models->c3);
+            models->c3 = NULL;
+        }
+        if (!models || !models->c3) {
+            r = refl__c3_points(&c3);
+            fr->stats.scene_models_built++;
+            if (r == REFL_OK && models) r = refl__c3_keep_points(&c3, models);
+        }
+        if (models && models->c3) refl__c3_borrow_points(&c3, models->c3);
         t1 = refl__now_ms();
         fr->stats.ms_build += t1 - t0;
         t0 = t1;
@@ -828,17 +894,17 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             rast_run_jobs(p->rc, jobs, refl__c3_camera, &c3);
             for (i = 0; i < jobs; ++i) {
                 const refl__c3_counts *n = &c3.counts[i];
-                fr->stats.leaves += n->leaves;
-                fr->stats.culled += n->culled;
-                fr->stats.box_tests += n->tests;
-                fr->stats.projections += n->tries;
-                fr->stats.projected += n->valid;
-                fr->stats.multiple += n->multiple;
-                fr->stats.ms_cull += n->ms_cull;
-                fr->stats.ms_project += n->ms_project;
+                fr->stats.c3rc.leaves += n->leaves;
+                fr->stats.c3rc.culled += n->culled;
+                fr->stats.c3rc.box_tests += n->tests;
+                fr->stats.c3rc.projections += n->tries;
+                fr->stats.c3rc.projected += n->valid;
+                fr->stats.c3rc.multiple += n->multiple;
+                fr->stats.c3rc.ms_cull += n->ms_cull;
+                fr->stats.c3rc.ms_project += n->ms_project;
             }
-            fr->stats.cameras += jobs;
-            fr->stats.points += c3.tree->point_count;
+            fr->stats.c3rc.cameras += jobs;
+            fr->stats.c3rc.points += c3.tree->point_count;
             fr->stats.model_bytes += (long long)c3.tree->point_count * (long long)(3 * sizeof(float)) +
                                      (long long)c3.tree->node_count * (long long)sizeof(refl_kdtree_node) +
                                      (long long)jobs * (long long)sizeof(refl_c3rc);
@@ -853,17 +919,19 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    refl_kdtree_destroy(c3.tree);
+    if (!p->models || !p->models->c3) { /* not kept: this frame's own */
+        refl_kdtree_destroy(c3.tree);
+        refl__free(al, c3.rgb);
+        refl__free(al, c3.normal);
+        refl__free(al, c3.object);
+        refl__free(al, c3.triangle);
+        refl__free(al, c3.diffuse);
+    }
     refl__free(al, c3.em.gbuf);
     refl__free(al, c3.em.draws);
     refl__free(al, seen);
     refl__free(al, c3.em.surface);
     refl__free(al, c3.key);
-    refl__free(al, c3.rgb);
-    refl__free(al, c3.normal);
-    refl__free(al, c3.object);
-    refl__free(al, c3.triangle);
-    refl__free(al, c3.diffuse);
     refl__free(al, c3.jobs);
     refl__free(al, c3.counts);
     return r;

@@ -469,7 +469,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     s.fragment_fn = refl__em_normal_fragment;
     s.fragment_derivatives = 1;
     for (i = 0; i < scene->object_count; ++i) {
-        if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
+        if (!refl__pass_draws(p, i)) continue;
         refl__em_setup_draw(&em->draws[i], scene, i, p->vp, 1);
         em->draws[i].eye = p->view->eye;
         s.stencil_front.ref = s.stencil_back.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
@@ -505,6 +505,12 @@ static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int 
     return refl__em_gbuffer(em, *seen, any);
 }
 
+static const char *refl__options_envmap(refl_render_desc *d) {
+    if (d->envmap.size < 0 || d->envmap.size > 8192) return "envmap.size: 0 (256) to 8192";
+    if (d->envmap.size == 0) d->envmap.size = 256;
+    return NULL;
+}
+
 static refl_result refl__method_envmap(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -520,7 +526,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     if (!reflectors) return REFL_OK;
     memset(&em, 0, sizeof em);
     em.p = p;
-    em.n = p->desc.envmap_size > 0 ? p->desc.envmap_size : 256;
+    em.n = p->desc.envmap.size > 0 ? p->desc.envmap.size : 256;
     nn = (size_t)em.n * (size_t)em.n;
     r = refl__em_gbuffer_new(&em, &seen, &any);
     if (r == REFL_OK && any) {
@@ -538,7 +544,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
         t0 = refl__now_ms();
         fr->stats.ms_build += t0 - t1;
         if (r != REFL_OK) break;
-        fr->stats.cameras += 6;
+        fr->stats.envmap.cube_faces += 6;
         fr->stats.model_bytes += (long long)(6 * nn * (4 + 3 * sizeof(float)));
         em.object = i;
         rast_run_jobs(p->rc, fr->height, refl__em_row, &em);

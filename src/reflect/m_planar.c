@@ -19,7 +19,7 @@
    first-bounce pixel shows (frame->points) is unprojected from the
    mirrored view's depth. It draws with the base pass's programs (shade.c).
    Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
-   level, and translucent glass (desc.translucency: rast.h's fog over the
+   level, and translucent glass (desc.lighting.translucency: rast.h's fog over the
    image behind a glass face, refl__planar_fog). */
 #include "internal.h"
 
@@ -354,7 +354,7 @@ static refl_result refl__planar_fog(refl__planar *pl, const refl__planar_level *
         st.fragment_fn = refl__planar_fog_fragment;
         st.fragment_user = &fd[i];
         st.fog = RAST_FOG_EXP;
-        st.fog_density = pl->p->desc.translucency;
+        st.fog_density = pl->p->desc.lighting.translucency;
         st.fog_varying = REFL__BASE_VARYINGS + 1;
         for (c = 0; c < 3; ++c) st.fog_color[c] = lv->fog_rgb[c];
         rr = rast_set_state(pl->p->rc, &st);
@@ -384,7 +384,7 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    if (pl->p->desc.shadows && !child->warped && pl->scene->light_count > 0) {
+    if (pl->p->desc.lighting.shadows && !child->warped && pl->scene->light_count > 0) {
         /* the region's shadows, as the mirrored camera sees them (a warped
            refraction's depth is not its camera's: left unshadowed) */
         refl_frame *f = pl->p->frame;
@@ -392,7 +392,7 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
         int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
         refl_result r;
         if (pl->counts) { /* soft: a mask per jittered light, summed */
-            int ns = pl->p->desc.soft_shadow_samples;
+            int ns = pl->p->desc.lighting.soft_shadow_samples;
             r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
                                        (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
             if (r == REFL_OK)
@@ -417,8 +417,8 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
                                       &f->stats);
         if (r != REFL_OK) return r;
     }
-    pl->p->frame->stats.cameras++;
-    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.leaves++;
+    pl->p->frame->stats.planar.renderings++;
+    if (child->bounces >= pl->p->desc.depth) pl->p->frame->stats.planar.deepest++;
     refl__planar_fill_region(pl, child, box);
     return child->fogged ? refl__planar_fog(pl, child, box, dcs) : REFL_OK;
 }
@@ -601,7 +601,7 @@ static void refl__planar_fog_setup(const refl__planar *pl, refl__planar_level *c
                                    refl_vec3 eye) {
     const refl__planar_face *face = &pl->faces[f];
     int c;
-    if (!(pl->p->desc.translucency > 0.0f) ||
+    if (!(pl->p->desc.lighting.translucency > 0.0f) ||
         face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d <= 0.0)
         return;
     child->fogged = 1;
@@ -800,6 +800,11 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
     return refl__planar_restore(pl, lv->level, comp, face, NULL, box);
 }
 
+static const char *refl__options_planar(refl_render_desc *d) {
+    if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
+    return NULL;
+}
+
 static refl_result refl__method_planar(refl__pass *p) {
     const refl_scene *s = p->scene;
     refl_frame *f = p->frame;
@@ -813,8 +818,8 @@ static refl_result refl__method_planar(refl__pass *p) {
     memset(&pl, 0, sizeof pl);
     pl.p = p;
     pl.scene = s;
-    pl.no_culling = p->desc.no_culling;
-    r = refl__planar_find_faces(s, &pl.faces, &pl.face_count);
+    pl.no_culling = p->desc.planar.no_culling;
+    r = refl__planar_find_faces(s, p->mine, &pl.faces, &pl.face_count);
     if (r != REFL_OK) return r;
     f->stats.ms_build = refl__now_ms() - t0;
     if (pl.face_count == 0) {
@@ -826,13 +831,13 @@ static refl_result refl__method_planar(refl__pass *p) {
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
     pl.lit = (uint8_t *)refl__calloc(&s->allocator, n, 1);
-    if (p->desc.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    if (p->desc.lighting.translucency > 0.0f) pl.unfogged = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     dcs = (refl__planar_dc *)refl__calloc(&s->allocator, (size_t)(p->desc.depth + 1) * (size_t)s->object_count,
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
     if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
-        (p->desc.translucency > 0.0f && !pl.unfogged) ||
+        (p->desc.lighting.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
@@ -854,9 +859,9 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.w = top.w_inv = refl_mat4_identity();
     top.vp = p->vp;
     top.parent = -1;
-    if (p->desc.light_volumes) {
+    if (p->desc.lighting.light_volumes) {
         /* the reflected light on what the viewer sees directly */
-        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.caustic_samples);
+        refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.lighting.caustic_samples);
         r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
                           0, -1, &pl.targets, &f->stats);
         if (r != REFL_OK) goto done;
@@ -864,7 +869,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
     for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
-    f->stats.culled = pl.culled;
+    f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
 done:
     /* the frame's own targets back: rc's queue is empty or dropped */

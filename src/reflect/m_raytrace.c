@@ -153,7 +153,7 @@ static float refl__rt_virtual(const refl__rt *rt, const refl__rt_surface *s, ref
         float mag;
         if (!refl__lv_sample(lv, scene, k, j, &src, &virt) || !refl__lv_through_face(lv, scene, k, &virt, s->p, &m))
             continue;
-        if (rt->p->desc.shadows) {
+        if (rt->p->desc.lighting.shadows) {
             /* from the surface to the face, stopping short of the mirror */
             d = refl_v3_sub(m, s->p);
             o = refl__rt_offset(s->p, refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f),
@@ -183,10 +183,10 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
     enum { MAX_LIGHTS = 64 };
     float weight[MAX_LIGHTS];
     const refl_scene *scene = rt->scene;
-    int i, k, samples = REFL__MAX(rt->p->desc.soft_shadow_samples, 1);
+    int i, k, samples = REFL__MAX(rt->p->desc.lighting.soft_shadow_samples, 1);
     refl_vec3 nn = refl_v3_normalize(n);
     /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if ((!rt->p->desc.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
+    if ((!rt->p->desc.lighting.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
         refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
         return;
     }
@@ -196,7 +196,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
                                                          : refl_v3_sub(l->position, s->p);
         int ns = l->radius > 0.0f ? samples : 1, visible = 0;
         weight[i] = 1.0f;
-        if (!rt->p->desc.shadows) continue;
+        if (!rt->p->desc.lighting.shadows) continue;
         if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
         for (k = 0; k < ns; ++k) {
             refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
@@ -218,7 +218,7 @@ static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl
 typedef struct refl__rt_medium {
     float attenuation;
     int inside;
-    /* translucency (desc.translucency): entered through glass at fog_p
+    /* translucency (desc.lighting.translucency): entered through glass at fog_p
        (plane normal fog_n), what the ray shows first beyond the glass is
        fogged towards fog_rgb by exp(-fog h), h its distance from that
        plane, as PLANAR fogs the image behind a glass face; 0: clear */
@@ -308,7 +308,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
             through.inside = entering;
             if (entering) { /* translucency: fogged from this face on (refl__rt_trace) */
-                through.fog = rt->p->desc.translucency;
+                through.fog = rt->p->desc.lighting.translucency;
                 through.fog_p = s->p;
                 through.fog_n = s->ng;
                 through.fog_rgb = m->color;
@@ -334,7 +334,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
         refl__rt_clamp(rgb);
-        if (first_point && rt->p->desc.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
+        if (first_point && rt->p->desc.debug.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
         return;
@@ -343,7 +343,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     /* inside glass, the light's source lies further on */
     if (first_point && !medium.inside) {
         *first_point = s.p;
-        if (!rt->p->desc.points_last) first_point = NULL; /* else followed to the path's end */
+        if (!rt->p->desc.debug.points_last) first_point = NULL; /* else followed to the path's end */
     }
     if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
         fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
@@ -364,7 +364,7 @@ static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
    as the base pass writes them; *rays counts the rays cast. SBC's
-   fallback traces pixels with it too (desc.sbc_trace_fallback). */
+   fallback traces pixels with it too (desc.sbc.trace_fallback). */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil) {
     refl_vec3 a, d;
@@ -432,7 +432,7 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
     memset(rt, 0, sizeof *rt);
     rt->p = p;
     rt->scene = scene;
-    rt->caster = p->desc.caster;
+    rt->caster = p->desc.raytrace.caster;
     rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
                                                   sizeof(refl__rt_object));
     if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
@@ -449,9 +449,9 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
         rt->caster.occluded = refl__rt_bvh_occluded;
         rt->caster.user = bvh ? bvh : rt->bvh;
     }
-    if (p->desc.light_volumes) {
-        if ((r = refl__planar_find_faces(scene, &rt->faces, &rt->face_count)) != REFL_OK) return r;
-        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.caustic_samples);
+    if (p->desc.lighting.light_volumes) {
+        if ((r = refl__planar_find_faces(scene, NULL, &rt->faces, &rt->face_count)) != REFL_OK) return r;
+        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.lighting.caustic_samples);
     }
     return REFL_OK;
 }
@@ -464,6 +464,12 @@ static void refl__rt_end(refl__rt *rt) {
     rt->scene = NULL;
 }
 
+static const char *refl__options_raytrace(refl_render_desc *d) {
+    if (d->raytrace.caster.occluded && !d->raytrace.caster.intersect)
+        return "raytrace.caster: occluded without intersect";
+    return NULL;
+}
+
 static refl_result refl__method_raytrace(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
@@ -471,7 +477,11 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     long long nodes = 0, tris = 0;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
-    refl_result r = refl__rt_begin(&rt, p, NULL);
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&rt, p, bvh);
+    rt.bvh = owned; /* freed with rt */
     if (r != REFL_OK) {
         refl__rt_end(&rt);
         return r;
@@ -486,8 +496,8 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     }
     for (i = 0; i < scene->object_count; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (rt.bvh) {
-        refl_bvh_stats(rt.bvh, &nodes, &tris);
+    if (bvh) {
+        refl_bvh_stats(bvh, &nodes, &tris);
         f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
                                tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
     }

@@ -71,7 +71,7 @@
         times: always while an edge is longer than 1/32 of the scene's
         diagonal (the paper's pre-subdivision, per frame), while mixed (one
         or two vertices project; the paper's fix for jagged edges; at most
-        desc.sbc_mixed_levels times, REFL__SB_MIXED_LEVELS by default and
+        desc.sbc.mixed_levels times, REFL__SB_MIXED_LEVELS by default and
         none with the fallback, unless the part holds a point where one
         of the group's rays meets the triangle), while no vertex projects
         but such a point lies inside (a group narrower than the triangle),
@@ -107,7 +107,7 @@
         holes 6.7% to 4.9%, mean 0.34 to 0.36 px; 1080p factor 4 holes
         6.5% to 4.8%; past the first order, the order with it: two
         facing mirrors at depth 2 holes 2.1% to 1.2%, colour off 2.6% to
-        1.8%). With desc.sbc_trace_fallback (beyond the paper) a pixel still
+        1.8%). With desc.sbc.trace_fallback (beyond the paper) a pixel still
         without a reflection, or whose first-order point the samples
         around it contradict (refl__sb_fallback), is rendered as RAYTRACE
         renders it (refl__rt_pixel) when its reflected ray meets anything,
@@ -123,9 +123,9 @@
         the environment beyond the glass), times (1 - F) at the exit and
         the absorption inside; reflections inside the glass short of total
         are left out. frame->points: the first point past the first
-        reflector, as RAYTRACE's, or with desc.points_last the last.
+        reflector, as RAYTRACE's, or with desc.debug.points_last the last.
    Reflection morphing (section VI): a reflector the caller hands a
-   prebuilt grid for (refl_render_desc.sbc_morphs, cam_sbc_morph.c) has no
+   prebuilt grid for (refl_render_desc.sbc.morphs, cam_sbc_morph.c) has no
    ray map or groups of its front side here; a group per piece of the grid
    projects instead (the eye's tetrahedron, blended; no check against this
    frame's ray map, which it has none of), its pixels those of the piece
@@ -142,7 +142,7 @@
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
 #define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
 #define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
-#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed (desc.sbc_mixed_levels' default) */
+#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed (desc.sbc.mixed_levels' default) */
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
@@ -247,11 +247,12 @@ typedef struct refl__sb {
     int group_count;
     int map_w, map_h, tile;       /* the ray map's size; a group's tile side in samples */
     int factor;
-    int mixed_levels;             /* desc.sbc_mixed_levels resolved */
+    int mixed_levels;             /* desc.sbc.mixed_levels resolved */
     float error_px;
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
-    refl_bvh *bvh;                /* the scene's, for the rays' first hits */
+    refl_bvh *bvh;                /* the scene's, for the rays' first hits (the renderer's) */
+    refl_bvh *own_bvh;            /* bvh when no renderer keeps it */
     /* higher orders (desc.depth > 1): the paper's reflection histories */
     int budget;                   /* bounces a path may take: desc.depth, at most REFL__SB_ORDERS */
     int orders;                   /* reflection orders drawn (k_max): the longest history sampled */
@@ -277,7 +278,7 @@ typedef struct refl__sb {
     float *points_depth;
     uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
     float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
-    refl__rt *tracer;             /* desc.sbc_trace_fallback: how RAYTRACE renders a pixel; else NULL */
+    refl__rt *tracer;             /* desc.sbc.trace_fallback: how RAYTRACE renders a pixel; else NULL */
     long long *traced_rays;       /* ... and per row, the rays the fallback cast */
 } refl__sb;
 
@@ -293,8 +294,8 @@ static int refl__sb_group_layer(const refl__sb *sb, const refl__sb_group *g) {
 static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
     int k, nodes[4];
     float w[4];
-    for (k = 0; k < p->desc.sbc_morph_count; ++k) {
-        const refl_sbc_morph *m = p->desc.sbc_morphs[k];
+    for (k = 0; k < p->desc.sbc.morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc.morphs[k];
         if (m && refl_sbc_morph_object(m) == o)
             return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
     }
@@ -1386,7 +1387,7 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
 
 static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
 
-/* Pixel (x, y) under desc.sbc_trace_fallback (refl__sb_fallback): where
+/* Pixel (x, y) under desc.sbc.trace_fallback (refl__sb_fallback): where
    its reflected ray (taken as the ray map's samples take it) meets
    anything, the pixel is rendered as RAYTRACE renders it, colour and
    point, and 1 is returned; else 0, and it keeps what SBC made of it (a
@@ -1419,7 +1420,7 @@ static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
     return !(sb->group_of[i] && sb->depth[src] < 1.0f);
 }
 
-/* Whether desc.sbc_trace_fallback traces pixel i (src as above; first:
+/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
    what it shows is a first-order reflection): a hole, or a first-order
    point the ray map's samples around the pixel contradict: on an object
    none of their four rays meets, or nearer than the nearest of what they
@@ -1681,14 +1682,14 @@ static refl_result refl__sb_histories(refl__sb *sb) {
    the glass) times (1 - F) tint at the entry and the refraction path's
    weight. The point shown: the first past the first reflector, as RAYTRACE
    records it (the second reflector's surface on an order-2 path), or with
-   desc.points_last the last one drawn (NaN where none). */
+   desc.debug.points_last the last one drawn (NaN where none). */
 static void refl__sb_resolve_row_deep(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl__pass *p = sb->p;
     const refl_scene *scene = p->scene;
     refl_frame *fr = p->frame;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
-    int x, c, last = p->desc.points_last;
+    int x, c, last = p->desc.debug.points_last;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
         const float *g = sb->em.gbuf + 4 * i;
@@ -1988,12 +1989,12 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
         int v;
         if (slot->failed) return REFL_ERROR_OUT_OF_MEMORY;
         if (!slot->index) continue; /* no tree */
-        sb->p->frame->stats.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
+        sb->p->frame->stats.sbc.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
         for (v = 0; v < slot->count; ++v) { /* a vertex projects into every sheet at once */
             int ok = 0;
             for (k = 0; k < REFL__SB_SHEETS && slot->pv[k]; ++k) ok |= slot->pv[k][v].ok;
-            sb->p->frame->stats.projected += ok;
-            sb->p->frame->stats.ambiguous += slot->pv[0][v].ambiguous;
+            sb->p->frame->stats.sbc.projected += ok;
+            sb->p->frame->stats.sbc.ambiguous += slot->pv[0][v].ambiguous;
         }
     }
     for (g = sb->batch0; g < sb->batch1; ++g)
@@ -2043,7 +2044,7 @@ static void refl__sb_free(refl__sb *sb) {
     refl__sb_free_batch(sb);
     for (i = 0; sb->base && i < sb->p->scene->object_count; ++i) refl__free(al, sb->base[i]);
     refl__free(al, sb->base);
-    refl_bvh_destroy(sb->bvh);
+    refl_bvh_destroy(sb->own_bvh);
     refl_bvh_destroy(sb->mirrors);
     refl__free(al, sb->mirror_object);
     refl__free(al, sb->normal_m);
@@ -2081,19 +2082,19 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     memset(sb, 0, sizeof *sb);
     sb->p = p;
     sb->em.p = p;
-    sb->factor = p->desc.sbc_ray_factor > 0 ? p->desc.sbc_ray_factor : REFL__SB_FACTOR;
+    sb->factor = p->desc.sbc.ray_factor > 0 ? p->desc.sbc.ray_factor : REFL__SB_FACTOR;
     sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
     sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
-    sb->error_px = p->desc.sbc_error_px > 0.0f ? p->desc.sbc_error_px : 1.0f;
+    sb->error_px = p->desc.sbc.error_px > 0.0f ? p->desc.sbc.error_px : 1.0f;
     /* with the fallback, the pixels a group's edge leaves uncovered are
        traced: splitting mixed triangles costs more than it buys (default
        640x480 factor 2 with the fallback: 305 -> 178 ms a frame, mean
        0.29 -> 0.24 px) */
-    sb->mixed_levels = p->desc.sbc_mixed_levels > 0   ? p->desc.sbc_mixed_levels
-                       : p->desc.sbc_mixed_levels < 0 ? 0
-                       : p->desc.sbc_trace_fallback   ? 0
+    sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
+                       : p->desc.sbc.mixed_levels < 0 ? 0
+                       : p->desc.sbc.trace_fallback   ? 0
                                                       : REFL__SB_MIXED_LEVELS;
-    sb->batch = p->desc.sbc_batch_groups > 0 ? p->desc.sbc_batch_groups : REFL__SB_BATCH;
+    sb->batch = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
     sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
     sb->orders = sb->layers = 1;
     refl_scene_bounds(p->scene, &lo, &hi);
@@ -2105,15 +2106,15 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     r = refl__em_gbuffer_new(&sb->em, &seen, &any);
     refl__free(al, seen);
     if (r != REFL_OK || !any) return r;
-    if ((r = refl_bvh_build(p->scene, al, &sb->bvh)) != REFL_OK) return r;
+    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
     sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
     if (!sb->em.surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
-    p->frame->stats.histories += sb->side_count;
-    p->frame->stats.groups += sb->group_count;
-    for (g = 0; p->desc.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
-        p->desc.sbc_ray_map(p->desc.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
+    p->frame->stats.sbc.histories += sb->side_count;
+    p->frame->stats.sbc.groups += sb->group_count;
+    for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
+        p->desc.debug.sbc_ray_map(p->desc.debug.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
                             sb->map_w, sb->map_h);
     rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
     if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
@@ -2121,8 +2122,8 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         refl_sbc_stats st;
         if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
         refl_sbc_get_stats(sb->groups[g].sbc, &st);
-        p->frame->stats.cameras += st.pinhole_leaves;
-        p->frame->stats.leaves += st.ray_leaves;
+        p->frame->stats.sbc.pinhole_leaves += st.pinhole_leaves;
+        p->frame->stats.sbc.ray_leaves += st.ray_leaves;
         p->frame->stats.rays += st.rays;
         p->frame->stats.model_bytes += st.bytes;
     }
@@ -2287,7 +2288,20 @@ static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
     return REFL_OK;
 }
 
-static refl_result refl__method_sbc(refl__pass *p) {
+static const char *refl__options_sbc(refl_render_desc *d) {
+    const refl_sbc_options *o = &d->sbc;
+    if (!(o->error_px >= 0.0f) || !refl__isfinite(o->error_px)) return "sbc.error_px: finite, 0 (1) or more";
+    if (o->ray_factor < 0 || o->ray_factor > 64) return "sbc.ray_factor: 0 (2) to 64";
+    if (o->batch_groups < 0 || o->batch_groups > 254) return "sbc.batch_groups: 0 (254) to 254";
+    if (o->trace_fallback < 0 || o->trace_fallback > 1) return "sbc.trace_fallback: 0 or 1";
+    if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
+    if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
+        return "sbc.morphs: morph_count 0, or the array of that many grids";
+    return NULL;
+}
+
+/* An SBC frame, or (ms) SBC's cameras measured in place of its reflections. */
+static refl_result refl__sb_run(refl__pass *p, refl__sb_measure *ms) {
     const refl_allocator *al = &p->scene->allocator;
     refl_frame *fr = p->frame;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
@@ -2297,8 +2311,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
     int i;
     t1 = refl__now_ms();
     fr->stats.ms_build += t1 - t0;
-    if (p->sbc_measure) {
-        refl__sb_measure *ms = p->sbc_measure;
+    if (ms) {
         size_t n = (size_t)fr->width * (size_t)fr->height;
         ms->sb = &sb;
         ms->error = (double *)refl__calloc(al, n, sizeof(double));
@@ -2348,8 +2361,8 @@ static refl_result refl__method_sbc(refl__pass *p) {
             while (sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer) ++sb.batch1;
             r = refl__sb_project_all(&sb);
             for (i = 0; i < sb.job_count; ++i) {
-                fr->stats.projections += sb.jobs[i].projections;
-                fr->stats.projected += sb.jobs[i].projected;
+                fr->stats.sbc.projections += sb.jobs[i].projections;
+                fr->stats.sbc.projected += sb.jobs[i].projected;
             }
             if (r == REFL_OK) r = refl__sb_draw(&sb);
             refl__sb_free_batch(&sb);
@@ -2359,7 +2372,7 @@ static refl_result refl__method_sbc(refl__pass *p) {
         }
         t0 = refl__now_ms();
         fr->stats.ms_reflect += t0 - t1;
-        if (r == REFL_OK && p->desc.sbc_trace_fallback) {
+        if (r == REFL_OK && p->desc.sbc.trace_fallback) {
             sb.tracer = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
             sb.traced_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
             if (!sb.tracer || !sb.traced_rays) r = REFL_ERROR_OUT_OF_MEMORY;
@@ -2378,26 +2391,38 @@ static refl_result refl__method_sbc(refl__pass *p) {
     return r;
 }
 
+static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p, NULL); }
+
 REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                   const refl_render_desc *desc, const refl_frame *truth,
                                                   refl_sbc_camera_error *out) {
     refl__sb_measure ms;
-    refl_render_desc d;
+    refl_render_desc given, d;
     refl_frame *frame = NULL;
+    rast_context *rc = NULL;
+    refl__pass p;
+    const char *why;
     refl_result r;
     if (!out) return REFL_ERROR_INVALID_ARGUMENT;
     memset(out, 0, sizeof *out);
     if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
-    memset(&d, 0, sizeof d);
-    if (desc) d = *desc;
-    d.method = REFL_SBC;
-    d.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    memset(&given, 0, sizeof given);
+    if (desc) given = *desc;
+    given.method = REFL_SBC;
+    given.depth = 1; /* the first order's cameras, as the truth's points are first bounces */
+    given.object_methods = NULL;
+    given.object_method_count = 0;
+    if ((r = refl__resolve_desc(&given, &d, &why)) != REFL_OK) return r;
     memset(&ms, 0, sizeof ms);
     ms.truth = truth;
     ms.out = out;
     r = refl_frame_create(truth->width, truth->height, &scene->allocator, &frame);
-    if (r == REFL_OK) r = refl__render(scene, view, &d, frame, &ms);
+    if (r == REFL_OK && refl__frame_rule(scene, view, frame)) r = REFL_ERROR_INVALID_ARGUMENT;
+    if (r == REFL_OK) r = refl__context_create(scene, d.threads, &rc);
+    if (r == REFL_OK) r = refl__base_pass(&p, scene, view, &d, frame, rc, NULL);
+    if (r == REFL_OK) r = refl__sb_run(&p, &ms);
+    rast_context_destroy(rc);
     refl_frame_destroy(frame);
     return r;
 }

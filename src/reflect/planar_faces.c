@@ -57,8 +57,10 @@ static int refl__planar_match(const refl__planar_face *faces, int first, int cou
 
 /* Groups each mirror or partial reflector's triangles by world plane
    (normals within 0.08 degrees, offsets within 1e-5 of the scene's size).
-   Degenerate triangles join no face (they draw nothing anyway). */
-static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_face **out, int *out_count) {
+   Degenerate triangles join no face (they draw nothing anyway). only:
+   NULL, or per object whether to look at it at all. */
+static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *only, refl__planar_face **out,
+                                           int *out_count) {
     refl__planar_face *faces;
     int i, count = 0, cap = 0;
     refl_vec3 lo, hi;
@@ -67,7 +69,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
     tol_d = 1e-5 * REFL__MAX((double)refl_v3_length(refl_v3_sub(hi, lo)), 1e-6);
     for (i = 0; i < s->object_count; ++i) {
         const refl_material *m = &s->materials[s->objects[i].material];
-        if (m->type != REFL_DIFFUSE) cap += REFL__PLANAR_MAX_FACES;
+        if (m->type != REFL_DIFFUSE && (!only || only[i])) cap += REFL__PLANAR_MAX_FACES;
     }
     faces = (refl__planar_face *)refl__calloc(&s->allocator, (size_t)REFL__MAX(cap, 1), sizeof(*faces));
     if (!faces) return REFL_ERROR_OUT_OF_MEMORY;
@@ -77,7 +79,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, refl__planar_fac
         const refl_material *m = &s->materials[o->material];
         int first = count, t, f, k, planar = 1;
         double n[3], d;
-        if (m->type == REFL_DIFFUSE) continue;
+        if (m->type == REFL_DIFFUSE || (only && !only[i])) continue;
         /* the planes and how many indices each gets */
         for (t = 0; t < mesh->triangle_count && planar; ++t) {
             if (!refl__planar_tri_plane(o, mesh, t, n, &d)) continue;

@@ -34,6 +34,7 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->allocator = refl__allocator(a);
     f->width = width;
     f->height = height;
+    f->message = "";
     f->color = (uint8_t *)refl__calloc(a, n, 4);
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
@@ -212,107 +213,309 @@ static void refl__draw_background(uint8_t *color, const float *depth, int width,
         }
 }
 
-static int refl__view_ok(const refl_view *v) {
-    refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
-    return refl__isfinite(v->eye.x) && refl__isfinite(v->eye.y) && refl__isfinite(v->eye.z) &&
-           refl_v3_length(fwd) > 0.0f && refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f &&
-           v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f;
+/* ---- the method table ---------------------------------------------------------- */
+
+enum {
+    REFL__WHOLE_FRAME = 1,        /* renders every pixel itself: no base pass, no other method */
+    REFL__PER_REFLECTOR = 2       /* fills the reflectors it is given after the base pass */
+};
+
+typedef struct refl__method_row {
+    refl_method method;
+    unsigned kind;                /* REFL__WHOLE_FRAME or REFL__PER_REFLECTOR */
+    refl_result (*draw)(refl__pass *p);       /* NULL: nothing past the base pass (DIRECT) */
+    const char *(*options)(refl_render_desc *d);
+} refl__method_row;
+
+/* The built methods, in the order a frame runs them. A method without a
+   row returns REFL_ERROR_UNSUPPORTED. */
+static const refl__method_row refl__methods[] = {
+    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL},
+    {REFL_RAYTRACE, REFL__WHOLE_FRAME, refl__method_raytrace, refl__options_raytrace},
+    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap},
+    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc},
+};
+enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
+
+static const refl__method_row *refl__method_row_of(refl_method m) {
+    int i;
+    for (i = 0; i < REFL__METHOD_ROWS; ++i)
+        if (refl__methods[i].method == m) return &refl__methods[i];
+    return NULL;
 }
 
-/* refl_render, or (sbc_measure) SBC's cameras measured in place of its reflections. */
-static refl_result refl__render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
-                                refl_frame *frame, struct refl__sb_measure *sbc_measure) {
-    refl__pass p;
-    rast_context_desc cd;
-    rast_targets t;
-    rast_clear_desc clear;
-    refl_mat4 inv_vp;
-    refl_result r;
-    double t0 = refl__now_ms(), t1;
-    size_t n, k;
+/* The method that draws object i. */
+static refl_method refl__object_method(const refl_render_desc *d, int i) {
+    return i < d->object_method_count && d->object_methods[i] != REFL_METHOD_DEFAULT ? d->object_methods[i]
+                                                                                     : d->method;
+}
+
+static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message) {
+    const char *why = NULL;
     int i;
-    if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
-    memset(&p, 0, sizeof p);
-    if (desc) p.desc = *desc;
-    if ((int)p.desc.method < 0 || p.desc.method >= REFL_METHOD_COUNT || p.desc.threads < 0 || p.desc.depth < 0 ||
-        p.desc.envmap_size < 0 || p.desc.envmap_size > 8192 || p.desc.soft_shadow_samples < 0 ||
-        p.desc.soft_shadow_samples > 1024 || !(p.desc.point_density >= 0.0f) ||
-        !refl__isfinite(p.desc.point_density) || p.desc.kd_leaf_points < 0 || p.desc.max_splat < 0 ||
-        p.desc.max_splat > 64 || !refl__isfinite(p.desc.camera_split_px) || !(p.desc.sbc_error_px >= 0.0f) ||
-        !refl__isfinite(p.desc.sbc_error_px) || p.desc.sbc_ray_factor < 0 || p.desc.sbc_ray_factor > 64 ||
-        p.desc.sbc_batch_groups < 0 || p.desc.sbc_batch_groups > 254 ||
-        p.desc.sbc_trace_fallback < 0 || p.desc.sbc_trace_fallback > 1 || p.desc.sbc_mixed_levels > 6 ||
-        p.desc.light_volumes < 0 || p.desc.caustic_samples < 0 || p.desc.caustic_samples > 1024 ||
-        !(p.desc.translucency >= 0.0f) || !refl__isfinite(p.desc.translucency) || p.desc.sbc_morph_count < 0 ||
-        (p.desc.sbc_morph_count > 0 && !p.desc.sbc_morphs))
+    *message = "";
+    memset(out, 0, sizeof *out);
+    if (desc) *out = *desc;
+    if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
+    else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
+    else if (out->depth < 0) why = "depth: 0 (the default, 6) or more";
+    else if (out->lighting.shadows < 0 || out->lighting.shadows > 1) why = "lighting.shadows: 0 or 1";
+    else if (out->lighting.soft_shadow_samples < 0 || out->lighting.soft_shadow_samples > 1024)
+        why = "lighting.soft_shadow_samples: 0 to 1024";
+    else if (out->lighting.light_volumes < 0 || out->lighting.light_volumes > 1)
+        why = "lighting.light_volumes: 0 or 1";
+    else if (out->lighting.caustic_samples < 0 || out->lighting.caustic_samples > 1024)
+        why = "lighting.caustic_samples: 0 to 1024";
+    else if (!(out->lighting.translucency >= 0.0f) || !refl__isfinite(out->lighting.translucency))
+        why = "lighting.translucency: finite, 0 or more";
+    else if (out->object_method_count < 0 || (out->object_method_count > 0 && !out->object_methods))
+        why = "object_methods: object_method_count 0, or the array of that many";
+    else if (out->debug.points_last < 0 || out->debug.points_last > 1) why = "debug.points_last: 0 or 1";
+    for (i = 0; !why && i < REFL__METHOD_ROWS; ++i)
+        if (refl__methods[i].options) why = refl__methods[i].options(out);
+    if (!why && out->method == REFL_METHOD_DEFAULT) out->method = REFL_DIRECT;
+    for (i = 0; !why && i < out->object_method_count; ++i) {
+        const refl__method_row *row = refl__method_row_of(out->object_methods[i]);
+        if (out->object_methods[i] == REFL_METHOD_DEFAULT) continue;
+        if ((int)out->object_methods[i] < 0 || out->object_methods[i] >= REFL_METHOD_COUNT)
+            why = "object_methods: an entry is not a refl_method";
+        else if (row && row->kind == REFL__WHOLE_FRAME)
+            why = "object_methods: RAYTRACE renders whole frames, not single reflectors";
+    }
+    if (!why && out->object_method_count > 0 && refl__method_row_of(out->method) &&
+        refl__method_row_of(out->method)->kind == REFL__WHOLE_FRAME)
+        why = "object_methods: must be empty when method is RAYTRACE (it renders whole frames)";
+    if (why) {
+        *message = why;
         return REFL_ERROR_INVALID_ARGUMENT;
-    if (view->width != frame->width || view->height != frame->height) return REFL_ERROR_INVALID_SIZE;
-    if (!refl__view_ok(view)) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if (out->depth == 0) out->depth = 6;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_validate_render_desc(const refl_render_desc *desc, const char **message) {
+    refl_render_desc d;
+    const char *why;
+    refl_result r = refl__resolve_desc(desc, &d, &why);
+    if (message) *message = why;
+    return r;
+}
+
+/* ---- a frame ------------------------------------------------------------------- */
+
+static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v, const refl_frame *frame) {
+    refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
+    int i;
+    if (v->width != frame->width || v->height != frame->height) return "view: its size is not the frame's";
+    if (!refl__isfinite(v->eye.x) || !refl__isfinite(v->eye.y) || !refl__isfinite(v->eye.z))
+        return "view.eye: finite";
+    if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
+    if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
+    if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return REFL_ERROR_INVALID_ARGUMENT;
-    if (p.desc.method == REFL_METHOD_DEFAULT) p.desc.method = REFL_DIRECT;
-    if (p.desc.method != REFL_DIRECT && p.desc.method != REFL_RAYTRACE && p.desc.method != REFL_ENVMAP &&
-        p.desc.method != REFL_PLANAR && p.desc.method != REFL_C3RC && p.desc.method != REFL_SBC)
-        return REFL_ERROR_UNSUPPORTED;
-    if (p.desc.depth == 0) p.desc.depth = 6;
-    if (p.desc.envmap_size == 0) p.desc.envmap_size = 256;
-    p.scene = scene;
-    p.view = view;
-    p.frame = frame;
-    p.sbc_measure = sbc_measure;
-    memset(&frame->stats, 0, sizeof(frame->stats));
-    n = (size_t)frame->width * (size_t)frame->height;
-    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
-    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
-    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
-    refl__view_rays_init(&p.rays, view, scene);
+            return "scene.objects: a mesh or material index out of range";
+    return NULL;
+}
 
-    memset(&cd, 0, sizeof cd);
-    cd.num_threads = p.desc.threads;
-    cd.allocator.alloc = scene->allocator.alloc;
-    cd.allocator.free = scene->allocator.free;
-    cd.allocator.user = scene->allocator.user;
-    r = refl__result_from_rast(rast_context_create(&cd, &p.rc));
-    if (r != REFL_OK) return r;
+static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                                   const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
+                                   refl__models *models) {
+    rast_targets t;
+    rast_clear_desc clear;
+    rast_state state;
+    refl_mat4 inv_vp;
+    refl_result r;
+    double t0 = refl__now_ms();
+    size_t n = (size_t)frame->width * (size_t)frame->height, k;
+    memset(p, 0, sizeof *p);
+    p->desc = *desc;
+    p->scene = scene;
+    p->view = view;
+    p->frame = frame;
+    p->rc = rc;
+    p->models = models;
+    for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
     t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
     clear.depth = 1.0f;
-    r = refl__result_from_rast(rast_set_targets(p.rc, &t));
-    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(p.rc, &clear));
-    if (r != REFL_OK) {
-        rast_context_destroy(p.rc);
+    memset(&state, 0, sizeof state); /* a renderer's context keeps the last frame's state: clears obey its masks */
+    r = refl__result_from_rast(rast_set_targets(rc, &t));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
+    if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
+    if (r != REFL_OK || refl__method_row_of(desc->method)->kind == REFL__WHOLE_FRAME) return r;
+    r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
+    /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
+    if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
+    if (r == REFL_OK && refl_mat4_invert(p->vp, &inv_vp))
+        refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
+    frame->stats.ms_base = refl__now_ms() - t0;
+    return r;
+}
+
+/* The per-reflector methods of the frame, in table order, each given the
+   reflectors that are its own. */
+static refl_result refl__draw_reflectors(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    uint8_t *mine = NULL;
+    refl_result r = REFL_OK;
+    int row, i;
+    if (!p->desc.object_method_count) {
+        const refl__method_row *m = refl__method_row_of(p->desc.method);
+        return m->draw ? m->draw(p) : REFL_OK;
+    }
+    mine = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p->mine = mine;
+    for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
+        const refl__method_row *m = &refl__methods[row];
+        int any = 0;
+        if (!m->draw || m->kind != REFL__PER_REFLECTOR) continue;
+        for (i = 0; i < scene->object_count; ++i) {
+            mine[i] = refl__object_method(&p->desc, i) == m->method;
+            any |= mine[i] && refl__is_reflector(&scene->materials[scene->objects[i].material]);
+        }
+        if (any) r = m->draw(p);
+    }
+    p->mine = NULL;
+    refl__free(&scene->allocator, mine);
+    return r;
+}
+
+/* ---- the renderer ---------------------------------------------------------------- */
+
+struct refl_renderer {
+    const refl_scene *scene;
+    refl_render_desc desc;        /* validated, defaults resolved */
+    rast_context *rc;             /* the thread pool */
+    refl__models models;
+};
+
+static void refl__models_free(const refl_scene *scene, refl__models *m) {
+    refl_bvh_destroy(m->bvh);
+    refl__c3_samples_free(&scene->allocator, m->c3);
+    memset(m, 0, sizeof *m);
+}
+
+static refl_result refl__models_bvh(refl__pass *p, refl_bvh **out, refl_bvh **owned) {
+    refl_result r;
+    *owned = NULL;
+    if (p->models && p->models->bvh) {
+        *out = p->models->bvh;
+        return REFL_OK;
+    }
+    r = refl_bvh_build(p->scene, &p->scene->allocator, out);
+    if (r != REFL_OK) return r;
+    p->frame->stats.scene_models_built++;
+    if (p->models) p->models->bvh = *out;
+    else *owned = *out;
+    return REFL_OK;
+}
+
+static refl_result refl__context_create(const refl_scene *scene, int threads, rast_context **out) {
+    rast_context_desc cd;
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = threads;
+    cd.allocator.alloc = scene->allocator.alloc;
+    cd.allocator.free = scene->allocator.free;
+    cd.allocator.user = scene->allocator.user;
+    return refl__result_from_rast(rast_context_create(&cd, out));
+}
+
+REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
+                                          refl_renderer **out_renderer) {
+    refl_renderer *rr;
+    refl_render_desc d;
+    const char *why;
+    refl_result r;
+    int i;
+    if (!out_renderer) return REFL_ERROR_INVALID_ARGUMENT;
+    *out_renderer = NULL;
+    if (!scene) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__resolve_desc(desc, &d, &why)) != REFL_OK) return r;
+    if (!refl__method_row_of(d.method)) return REFL_ERROR_UNSUPPORTED;
+    for (i = 0; i < d.object_method_count; ++i)
+        if (d.object_methods[i] != REFL_METHOD_DEFAULT && !refl__method_row_of(d.object_methods[i]))
+            return REFL_ERROR_UNSUPPORTED;
+    rr = (refl_renderer *)refl__calloc(&scene->allocator, 1, sizeof *rr);
+    if (!rr) return REFL_ERROR_OUT_OF_MEMORY;
+    rr->scene = scene;
+    rr->desc = d;
+    rr->models.scene_version = scene->version;
+    if ((r = refl__context_create(scene, d.threads, &rr->rc)) != REFL_OK) {
+        refl__free(&scene->allocator, rr);
         return r;
     }
-    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 0.0f);
-    if (p.desc.method == REFL_RAYTRACE) {
-        r = refl__method_raytrace(&p);
-    } else {
-        r = refl__draw_scene(p.rc, scene, p.vp, -1, &frame->stats);
-        /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
-        if (r == REFL_OK && p.desc.shadows) r = refl__shadow_base_pass(&p);
-        if (r == REFL_OK && refl_mat4_invert(p.vp, &inv_vp))
-            refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene,
-                                  inv_vp);
-        t1 = refl__now_ms();
-        frame->stats.ms_base = t1 - t0;
-        if (r == REFL_OK && p.desc.method == REFL_ENVMAP) r = refl__method_envmap(&p);
-        if (r == REFL_OK && p.desc.method == REFL_PLANAR) r = refl__method_planar(&p);
-        if (r == REFL_OK && p.desc.method == REFL_C3RC) r = refl__method_c3rc(&p);
-        if (r == REFL_OK && p.desc.method == REFL_SBC) r = refl__method_sbc(&p);
+    *out_renderer = rr;
+    return REFL_OK;
+}
+
+REFL_API void refl_renderer_destroy(refl_renderer *rr) {
+    if (!rr) return;
+    refl__models_free(rr->scene, &rr->models);
+    rast_context_destroy(rr->rc);
+    refl__free(&rr->scene->allocator, rr);
+}
+
+REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    const refl_scene *scene;
+    const refl__method_row *row;
+    refl__pass p;
+    refl_result r;
+    const char *why;
+    double t0 = refl__now_ms();
+    int i;
+    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    scene = rr->scene;
+    frame->message = "";
+    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
+        frame->message = why;
+        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                            : REFL_ERROR_INVALID_ARGUMENT;
     }
-    rast_context_destroy(p.rc);
+    if (rr->models.scene_version != scene->version) {
+        refl__models_free(scene, &rr->models);
+        rr->models.scene_version = scene->version;
+    }
+    memset(&frame->stats, 0, sizeof(frame->stats));
+    row = refl__method_row_of(rr->desc.method);
+    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
+    r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
+    if (r == REFL_OK) r = row->kind == REFL__WHOLE_FRAME ? row->draw(&p) : refl__draw_reflectors(&p);
     if (r != REFL_OK) return r;
     frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
-    if (p.desc.progress) p.desc.progress(p.desc.progress_user, 1.0f);
+    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
     return REFL_OK;
 }
 
 REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view, const refl_render_desc *desc,
                                  refl_frame *frame) {
-    return refl__render(scene, view, desc, frame, NULL);
+    refl_renderer *rr;
+    const char *why;
+    refl_render_desc d;
+    refl_result r;
+    if (!scene || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__resolve_desc(desc, &d, &why)) != REFL_OK) {
+        frame->message = why;
+        return r;
+    }
+    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
+        frame->message = why;
+        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                            : REFL_ERROR_INVALID_ARGUMENT;
+    }
+    if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) return r;
+    r = refl_renderer_render(rr, view, frame);
+    refl_renderer_destroy(rr);
+    return r;
 }

@@ -87,6 +87,7 @@ REFL_API int refl_scene_add_mesh(refl_scene *s, refl_mesh *mesh) {
         refl_mesh_destroy(mesh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
+    s->version++;
     return i;
 }
 
@@ -98,6 +99,7 @@ REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
         !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
         return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -109,6 +111,7 @@ REFL_API int refl_scene_add_object(refl_scene *s, const refl_object *o) {
     for (k = 0; k < 16; ++k)
         if (!refl__isfinite(o->transform.m[k])) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->objects, &s->object_count, sizeof(refl_object), o);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -117,6 +120,7 @@ REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
     if (!s || !l || (int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL)
         return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->lights, &s->light_count, sizeof(refl_light), l);
+    if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
@@ -144,6 +148,7 @@ REFL_API int refl_scene_add_texture(refl_scene *s, int width, int height, const 
         refl__image_free(&s->allocator, &img);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
+    s->version++;
     return i;
 }
 
@@ -171,6 +176,7 @@ REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_enviro
     }
     refl__environment_free(&s->allocator, &s->environment);
     s->environment = e;
+    s->version++;
     return REFL_OK;
 }
 
@@ -216,6 +222,7 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
     refl_mat4 m;
     int i;
     if (!s || !(size > 0.0f) || !s->object_count) return;
+    s->version++;
     refl_scene_bounds(s, &lo, &hi);
     diag = refl_v3_length(refl_v3_sub(hi, lo));
     if (!(diag > 0.0f)) return;
@@ -231,6 +238,10 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
         s->camera.znear *= k;
         s->camera.zfar *= k;
     }
+}
+
+REFL_API void refl_scene_touch(refl_scene *s) {
+    if (s) s->version++;
 }
 
 REFL_API long long refl_scene_triangles(const refl_scene *s) {

@@ -953,7 +953,7 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
 /* ---- soft shadows: the mask once per jittered light ----------------------------------- */
 
 static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene) {
-    return desc->shadows && desc->soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
+    return desc->lighting.shadows && desc->lighting.soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
 }
 
 static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
@@ -1035,9 +1035,9 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     t = refl__frame_targets(f);
     if (soft) {
         r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
-                                   p->desc.soft_shadow_samples, counts, lit, &t, &f->stats);
+                                   p->desc.lighting.soft_shadow_samples, counts, lit, &t, &f->stats);
         if (r == REFL_OK)
-            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.soft_shadow_samples, f->width, f->height,
+            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.lighting.soft_shadow_samples, f->width, f->height,
                                  -1, 0, &f->stats);
     } else {
         r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
