@@ -284,10 +284,11 @@ TEST_LIBS += $(TOOLS_LIBS)
 
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
-                     build/tools/reflect_bench_sbc_sweep.o build/bench/embree_peer.o build/bench/cost_fit.o
+                     build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o build/bench/embree_peer.o \
+                     build/bench/cost_fit.o
 
 build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
-build/tools/reflect_bench_sbc_sweep.o: build/tools/%.o: tools/%.c | rast.h reflect.h
+build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o: build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -296,7 +297,7 @@ $(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | ra
 	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
 	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
 -include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d \
-         build/tools/reflect_bench_sbc.d build/tools/reflect_bench_sbc_sweep.d
+         build/tools/reflect_bench_sbc.d build/tools/reflect_bench_sbc_sweep.d build/tools/reflect_bench_path.d
 
 # ---- running ----
 

@@ -27,6 +27,12 @@ int refl_bench_sbc(const char *dir, int threads, int repeats, int full);
    0 on failure. */
 int refl_bench_sbc_sweep(const char *dir, int threads, int repeats, int full);
 
+/* A camera path of 30 frames on the default scene, each method rendered
+   by refl_render per frame and by one renderer kept along the path
+   (tools/reflect_bench_path.c): a table on stdout and dir/path.csv; 0 on
+   failure, or when the two give other bytes. */
+int refl_bench_path(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);
