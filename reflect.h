@@ -15381,7 +15381,10 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
                                                                             : REFL_ERROR_INVALID_ARGUMENT;
     }
-    if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) return r;
+    if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) {
+        if (r == REFL_ERROR_UNSUPPORTED) frame->message = "method: not built yet (no row in the method table)";
+        return r;
+    }
     r = refl_renderer_render(rr, view, frame);
     refl_renderer_destroy(rr);
     return r;
