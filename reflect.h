@@ -233,7 +233,8 @@ typedef enum refl_material_type {
 typedef struct refl_material {
     refl_material_type type;
     float color[4];          /* diffuse colour (linear RGBA) */
-    int texture;             /* 0: none; k: scene texture k - 1, modulating color */
+    int texture;             /* 0: none; else the texture id refl_scene_add_texture
+                                returned, modulating color */
     float reflectance;       /* mirror colour scale at normal incidence; 0: 1 */
     int fresnel;             /* Schlick's Fresnel term on reflections */
     float ior;               /* glass; 0: 1.5 */
@@ -329,10 +330,27 @@ REFL_API int refl_scene_add_mesh(refl_scene *scene, refl_mesh *mesh);
 REFL_API int refl_scene_add_material(refl_scene *scene, const refl_material *m);
 REFL_API int refl_scene_add_object(refl_scene *scene, const refl_object *o);
 REFL_API int refl_scene_add_light(refl_scene *scene, const refl_light *l);
-/* Copies width x height RGBA floats; index or error. */
+/* Copies width x height RGBA floats (linear); the texture's id for
+   refl_material.texture (1, 2, ...: scene->textures[id - 1]), or an error. */
 REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, const float *rgba);
 /* Copies the images. */
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
+/* Building a scene in code: materials and lights with the usual fields
+   set (the rest zero: adjust them after), and an object in one call. */
+REFL_API refl_material refl_material_diffuse(float r, float g, float b);
+REFL_API refl_material refl_material_mirror(float reflectance);   /* grey mirror; 0: 1 */
+REFL_API refl_material refl_material_glass(float ior);            /* clear glass; 0: 1.5 */
+REFL_API refl_light refl_light_point(refl_vec3 position, float intensity);
+REFL_API refl_light refl_light_directional(refl_vec3 direction, float intensity);
+/* Adds the mesh (the scene takes it, also on failure), a copy of the
+   material and an object of both at transform: the object's index, or an
+   error. */
+REFL_API int refl_scene_add(refl_scene *scene, refl_mesh *mesh, const refl_material *material, refl_mat4 transform);
+/* What a scene without them needs to show something: a camera framing its
+   bounds (when it has none), a directional key light from above and behind
+   the viewer (when it has no light), and a sky colour (when its
+   environment is black). */
+REFL_API void refl_scene_complete(refl_scene *scene);
 /* Marks the scene changed (bumps version), after writing its arrays
    directly: a renderer rebuilds its models at its next frame. */
 REFL_API void refl_scene_touch(refl_scene *scene);
@@ -805,6 +823,10 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
+/* The frame's colours, linear as rendered, encoded to sRGB into out
+   (width * height * 4 bytes; alpha as is): what an 8-bit image file or a
+   display expects. */
+REFL_API void refl_frame_to_srgb8(const refl_frame *frame, uint8_t *out);
 
 /* Lighting every method shares. */
 typedef struct refl_lighting_options {
@@ -3463,7 +3485,7 @@ REFL_API int refl_scene_add_texture(refl_scene *s, int width, int height, const 
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     s->version++;
-    return i;
+    return i + 1;
 }
 
 REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_environment *env) {
@@ -3552,6 +3574,90 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
         s->camera.znear *= k;
         s->camera.zfar *= k;
     }
+}
+
+REFL_API refl_material refl_material_diffuse(float r, float g, float b) {
+    refl_material m;
+    memset(&m, 0, sizeof m);
+    m.type = REFL_DIFFUSE;
+    m.color[0] = r;
+    m.color[1] = g;
+    m.color[2] = b;
+    m.color[3] = 1.0f;
+    return m;
+}
+
+REFL_API refl_material refl_material_mirror(float reflectance) {
+    refl_material m = refl_material_diffuse(1.0f, 1.0f, 1.0f);
+    m.type = REFL_MIRROR;
+    m.reflectance = reflectance;
+    return m;
+}
+
+REFL_API refl_material refl_material_glass(float ior) {
+    refl_material m = refl_material_diffuse(1.0f, 1.0f, 1.0f);
+    m.type = REFL_GLASS;
+    m.ior = ior;
+    return m;
+}
+
+REFL_API refl_light refl_light_point(refl_vec3 position, float intensity) {
+    refl_light l;
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_POINT;
+    l.position = position;
+    l.color[0] = l.color[1] = l.color[2] = intensity;
+    return l;
+}
+
+REFL_API refl_light refl_light_directional(refl_vec3 direction, float intensity) {
+    refl_light l = refl_light_point(refl_v3(0.0f, 0.0f, 0.0f), intensity);
+    l.type = REFL_LIGHT_DIRECTIONAL;
+    l.direction = refl_v3_normalize(direction);
+    return l;
+}
+
+REFL_API int refl_scene_add(refl_scene *s, refl_mesh *mesh, const refl_material *material, refl_mat4 transform) {
+    refl_object o;
+    if (!s || !material) {
+        refl_mesh_destroy(mesh);
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    memset(&o, 0, sizeof o);
+    o.transform = transform;
+    if ((o.mesh = refl_scene_add_mesh(s, mesh)) < 0) return o.mesh;
+    if ((o.material = refl_scene_add_material(s, material)) < 0) return o.material;
+    return refl_scene_add_object(s, &o);
+}
+
+REFL_API void refl_scene_complete(refl_scene *s) {
+    refl_vec3 lo, hi, c;
+    float diag;
+    if (!s) return;
+    refl_scene_bounds(s, &lo, &hi);
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    diag = refl_v3_length(refl_v3_sub(hi, lo));
+    if (!(diag > 0.0f) || !refl__isfinite(diag)) diag = 1.0f;
+    if (!s->has_camera) {
+        memset(&s->camera, 0, sizeof s->camera);
+        s->camera.eye = refl_v3_add(c, refl_v3(0.35f * diag, 0.45f * diag, 1.1f * diag));
+        s->camera.target = c;
+        s->camera.up = refl_v3(0, 1, 0);
+        s->camera.fovy_degrees = 45.0f;
+        s->has_camera = 1;
+    }
+    if (refl_v3_length(s->camera.up) == 0.0f) s->camera.up = refl_v3(0, 1, 0);
+    if (!s->light_count) {
+        refl_light key = refl_light_directional(refl_v3(-0.4f, -1.0f, -0.6f), 0.9f);
+        refl_scene_add_light(s, &key);
+    }
+    if (s->environment.type == REFL_ENV_COLOR && s->environment.color[0] == 0.0f &&
+        s->environment.color[1] == 0.0f && s->environment.color[2] == 0.0f) {
+        s->environment.color[0] = 0.45f; /* a sky, so mirrors have something to show */
+        s->environment.color[1] = 0.6f;
+        s->environment.color[2] = 0.85f;
+    }
+    s->version++;
 }
 
 REFL_API void refl_scene_touch(refl_scene *s) {
@@ -14923,6 +15029,25 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl__free(&a, f->stencil);
     refl__free(&a, f->points);
     refl__free(&a, f);
+}
+
+REFL_API void refl_frame_to_srgb8(const refl_frame *f, uint8_t *out) {
+    uint8_t table[256];
+    size_t i, n;
+    int v;
+    if (!f || !out) return;
+    for (v = 0; v < 256; ++v) {
+        float x = (float)v / 255.0f;
+        float e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+        table[v] = (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+    }
+    n = (size_t)f->width * (size_t)f->height;
+    for (i = 0; i < n; ++i) {
+        out[4 * i + 0] = table[f->color[4 * i + 0]];
+        out[4 * i + 1] = table[f->color[4 * i + 1]];
+        out[4 * i + 2] = table[f->color[4 * i + 2]];
+        out[4 * i + 3] = f->color[4 * i + 3];
+    }
 }
 
 /* Milliseconds from a monotonic clock. Timings go into stats only, never

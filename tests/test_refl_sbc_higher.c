@@ -40,7 +40,7 @@ static void add_floor(refl_scene *s) {
     }
     cr_assert_eq(refl_mesh_plane(12.0f, 8, NULL, &floor), REFL_OK);
     o = tu_refl_add_object(s, floor, REFL_DIFFUSE, grey, refl_mat4_translate(refl_v3(0, -1.0f, 0)));
-    s->materials[s->objects[o].material].texture = refl_scene_add_texture(s, 16, 16, texels) + 1;
+    s->materials[s->objects[o].material].texture = refl_scene_add_texture(s, 16, 16, texels);
     cr_assert(s->materials[s->objects[o].material].texture > 0);
 }
 

@@ -425,7 +425,7 @@ int Loader::texture_for(int t, const std::string &what) {
     int idx = refl_scene_add_texture(scene_.get(), w, h, rgba.data());
     if (idx < 0) fail(refl_result(idx), format("%s: image %d: refl_scene_add_texture failed: %s", what.c_str(), src,
                                                refl_result_string(refl_result(idx))));
-    return image_texture_[src] = idx + 1;
+    return image_texture_[src] = idx;
 }
 
 void Loader::add_materials() {

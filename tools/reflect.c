@@ -280,40 +280,6 @@ static refl_scene *load_scene(const options *o) {
     return s;
 }
 
-/* A scene from a file may have no lights, camera or environment: add a key
-   light from above and behind the viewer, a camera framing the bounds and
-   a sky colour. */
-static void complete_scene(refl_scene *s) {
-    refl_vec3 lo, hi, c;
-    float diag;
-    refl_scene_bounds(s, &lo, &hi);
-    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    diag = refl_v3_length(refl_v3_sub(hi, lo));
-    if (!(diag > 0.0f)) diag = 1.0f;
-    if (!s->has_camera) {
-        s->camera.eye = refl_v3_add(c, refl_v3(0.35f * diag, 0.45f * diag, 1.1f * diag));
-        s->camera.target = c;
-        s->camera.up = refl_v3(0, 1, 0);
-        s->camera.fovy_degrees = 45.0f;
-        s->has_camera = 1;
-    }
-    if (!s->light_count) {
-        refl_light key;
-        memset(&key, 0, sizeof key);
-        key.type = REFL_LIGHT_DIRECTIONAL;
-        key.direction = refl_v3_normalize(refl_v3(-0.4f, -1.0f, -0.6f));
-        key.color[0] = key.color[1] = key.color[2] = 0.9f;
-        refl_scene_add_light(s, &key);
-    }
-    if (refl_v3_length(s->camera.up) == 0.0f) s->camera.up = refl_v3(0, 1, 0);
-    if (s->environment.type == REFL_ENV_COLOR && s->environment.color[0] == 0.0f &&
-        s->environment.color[1] == 0.0f && s->environment.color[2] == 0.0f) {
-        s->environment.color[0] = 0.45f; /* a sky, so mirrors have something to show */
-        s->environment.color[1] = 0.6f;
-        s->environment.color[2] = 0.85f;
-    }
-}
-
 static void progress_bar(void *user, float done) {
     int i, n = (int)(done * 30.0f + 0.5f);
     (void)user;
@@ -332,7 +298,7 @@ static int cmd_render(const options *o) {
     char err[1024] = "";
     int code = 1;
     if (!s) return 1;
-    complete_scene(s);
+    refl_scene_complete(s); /* a file may have no camera, light or sky */
     if (o->env) {
         refl_environment env;
         if ((r = refl_env_load(o->env, &env, NULL, err, sizeof err)) != REFL_OK) {

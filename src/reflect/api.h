@@ -231,7 +231,8 @@ typedef enum refl_material_type {
 typedef struct refl_material {
     refl_material_type type;
     float color[4];          /* diffuse colour (linear RGBA) */
-    int texture;             /* 0: none; k: scene texture k - 1, modulating color */
+    int texture;             /* 0: none; else the texture id refl_scene_add_texture
+                                returned, modulating color */
     float reflectance;       /* mirror colour scale at normal incidence; 0: 1 */
     int fresnel;             /* Schlick's Fresnel term on reflections */
     float ior;               /* glass; 0: 1.5 */
@@ -327,10 +328,27 @@ REFL_API int refl_scene_add_mesh(refl_scene *scene, refl_mesh *mesh);
 REFL_API int refl_scene_add_material(refl_scene *scene, const refl_material *m);
 REFL_API int refl_scene_add_object(refl_scene *scene, const refl_object *o);
 REFL_API int refl_scene_add_light(refl_scene *scene, const refl_light *l);
-/* Copies width x height RGBA floats; index or error. */
+/* Copies width x height RGBA floats (linear); the texture's id for
+   refl_material.texture (1, 2, ...: scene->textures[id - 1]), or an error. */
 REFL_API int refl_scene_add_texture(refl_scene *scene, int width, int height, const float *rgba);
 /* Copies the images. */
 REFL_API refl_result refl_scene_set_environment(refl_scene *scene, const refl_environment *env);
+/* Building a scene in code: materials and lights with the usual fields
+   set (the rest zero: adjust them after), and an object in one call. */
+REFL_API refl_material refl_material_diffuse(float r, float g, float b);
+REFL_API refl_material refl_material_mirror(float reflectance);   /* grey mirror; 0: 1 */
+REFL_API refl_material refl_material_glass(float ior);            /* clear glass; 0: 1.5 */
+REFL_API refl_light refl_light_point(refl_vec3 position, float intensity);
+REFL_API refl_light refl_light_directional(refl_vec3 direction, float intensity);
+/* Adds the mesh (the scene takes it, also on failure), a copy of the
+   material and an object of both at transform: the object's index, or an
+   error. */
+REFL_API int refl_scene_add(refl_scene *scene, refl_mesh *mesh, const refl_material *material, refl_mat4 transform);
+/* What a scene without them needs to show something: a camera framing its
+   bounds (when it has none), a directional key light from above and behind
+   the viewer (when it has no light), and a sky colour (when its
+   environment is black). */
+REFL_API void refl_scene_complete(refl_scene *scene);
 /* Marks the scene changed (bumps version), after writing its arrays
    directly: a renderer rebuilds its models at its next frame. */
 REFL_API void refl_scene_touch(refl_scene *scene);
@@ -803,6 +821,10 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
+/* The frame's colours, linear as rendered, encoded to sRGB into out
+   (width * height * 4 bytes; alpha as is): what an 8-bit image file or a
+   display expects. */
+REFL_API void refl_frame_to_srgb8(const refl_frame *frame, uint8_t *out);
 
 /* Lighting every method shares. */
 typedef struct refl_lighting_options {

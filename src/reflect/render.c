@@ -58,6 +58,25 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl__free(&a, f);
 }
 
+REFL_API void refl_frame_to_srgb8(const refl_frame *f, uint8_t *out) {
+    uint8_t table[256];
+    size_t i, n;
+    int v;
+    if (!f || !out) return;
+    for (v = 0; v < 256; ++v) {
+        float x = (float)v / 255.0f;
+        float e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+        table[v] = (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+    }
+    n = (size_t)f->width * (size_t)f->height;
+    for (i = 0; i < n; ++i) {
+        out[4 * i + 0] = table[f->color[4 * i + 0]];
+        out[4 * i + 1] = table[f->color[4 * i + 1]];
+        out[4 * i + 2] = table[f->color[4 * i + 2]];
+        out[4 * i + 3] = f->color[4 * i + 3];
+    }
+}
+
 /* Milliseconds from a monotonic clock. Timings go into stats only, never
    into images. Strict C99 has no such clock: define _POSIX_C_SOURCE
    200809L before the implementation's includes, or REFL_NOW_MS(). */

@@ -149,7 +149,7 @@ REFL_API int refl_scene_add_texture(refl_scene *s, int width, int height, const 
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     s->version++;
-    return i;
+    return i + 1;
 }
 
 REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_environment *env) {
@@ -238,6 +238,90 @@ REFL_API void refl_scene_normalize(refl_scene *s, float size) {
         s->camera.znear *= k;
         s->camera.zfar *= k;
     }
+}
+
+REFL_API refl_material refl_material_diffuse(float r, float g, float b) {
+    refl_material m;
+    memset(&m, 0, sizeof m);
+    m.type = REFL_DIFFUSE;
+    m.color[0] = r;
+    m.color[1] = g;
+    m.color[2] = b;
+    m.color[3] = 1.0f;
+    return m;
+}
+
+REFL_API refl_material refl_material_mirror(float reflectance) {
+    refl_material m = refl_material_diffuse(1.0f, 1.0f, 1.0f);
+    m.type = REFL_MIRROR;
+    m.reflectance = reflectance;
+    return m;
+}
+
+REFL_API refl_material refl_material_glass(float ior) {
+    refl_material m = refl_material_diffuse(1.0f, 1.0f, 1.0f);
+    m.type = REFL_GLASS;
+    m.ior = ior;
+    return m;
+}
+
+REFL_API refl_light refl_light_point(refl_vec3 position, float intensity) {
+    refl_light l;
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_POINT;
+    l.position = position;
+    l.color[0] = l.color[1] = l.color[2] = intensity;
+    return l;
+}
+
+REFL_API refl_light refl_light_directional(refl_vec3 direction, float intensity) {
+    refl_light l = refl_light_point(refl_v3(0.0f, 0.0f, 0.0f), intensity);
+    l.type = REFL_LIGHT_DIRECTIONAL;
+    l.direction = refl_v3_normalize(direction);
+    return l;
+}
+
+REFL_API int refl_scene_add(refl_scene *s, refl_mesh *mesh, const refl_material *material, refl_mat4 transform) {
+    refl_object o;
+    if (!s || !material) {
+        refl_mesh_destroy(mesh);
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    memset(&o, 0, sizeof o);
+    o.transform = transform;
+    if ((o.mesh = refl_scene_add_mesh(s, mesh)) < 0) return o.mesh;
+    if ((o.material = refl_scene_add_material(s, material)) < 0) return o.material;
+    return refl_scene_add_object(s, &o);
+}
+
+REFL_API void refl_scene_complete(refl_scene *s) {
+    refl_vec3 lo, hi, c;
+    float diag;
+    if (!s) return;
+    refl_scene_bounds(s, &lo, &hi);
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    diag = refl_v3_length(refl_v3_sub(hi, lo));
+    if (!(diag > 0.0f) || !refl__isfinite(diag)) diag = 1.0f;
+    if (!s->has_camera) {
+        memset(&s->camera, 0, sizeof s->camera);
+        s->camera.eye = refl_v3_add(c, refl_v3(0.35f * diag, 0.45f * diag, 1.1f * diag));
+        s->camera.target = c;
+        s->camera.up = refl_v3(0, 1, 0);
+        s->camera.fovy_degrees = 45.0f;
+        s->has_camera = 1;
+    }
+    if (refl_v3_length(s->camera.up) == 0.0f) s->camera.up = refl_v3(0, 1, 0);
+    if (!s->light_count) {
+        refl_light key = refl_light_directional(refl_v3(-0.4f, -1.0f, -0.6f), 0.9f);
+        refl_scene_add_light(s, &key);
+    }
+    if (s->environment.type == REFL_ENV_COLOR && s->environment.color[0] == 0.0f &&
+        s->environment.color[1] == 0.0f && s->environment.color[2] == 0.0f) {
+        s->environment.color[0] = 0.45f; /* a sky, so mirrors have something to show */
+        s->environment.color[1] = 0.6f;
+        s->environment.color[2] = 0.85f;
+    }
+    s->version++;
 }
 
 REFL_API void refl_scene_touch(refl_scene *s) {
