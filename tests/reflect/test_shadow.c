@@ -5,15 +5,9 @@
    inside a volume; mirrored and oblique projections, as PLANAR's mirrored
    cameras use; thread counts, allocation failures and degenerate lights.
 
-   This file compiles its own static copy of reflect.h's implementation
-   (REFL_STATIC), so it can call the internal refl__shadow_mask_mode with
-   the counting forced; rast.h is the shared one. */
+   The internals it calls (refl__shadow_mask_mode, with the counting
+   forced, and a few more) come from tests/reflect_testing.h. */
 #define _POSIX_C_SOURCE 200809L
-#define REFL_STATIC
-#define REFL_IMPLEMENTATION
-#if defined(__GNUC__)
-#pragma GCC diagnostic ignored "-Wunused-function"
-#endif
 #include "../../reflect.h"
 #include <criterion/criterion.h>
 #include <math.h>
@@ -21,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "../test_util.h"
+#include "../reflect_testing.h"
 #include "refl_test_util.h"
 
 /* ---- scenes and renders --------------------------------------------------------- */
