@@ -2,16 +2,32 @@
 #
 #   make            amalgamator, headers, C and C++ compile checks, tests, bench, examples
 #   make headers    regenerate rast.h (and reflect.h) from src/
-#   make test       install packages, check headers, run the tests (plain and ASan/UBSan)
+#   make test       install packages, check headers, run the tests (plain, portable, ASan/UBSan)
 #   make bench      install packages, run the rasteriser, ray and method benchmarks -> out/
 #   make demo       install packages, render every scene with every method and the chart -> out/
 #   make deps       install the Debian packages the project needs (tools/deps.sh)
 #   make clean
 #
-# Every object records what it includes (-MMD), so anything that includes
-# rast.h rebuilds when rast.h changes. rast.h itself is only rewritten by
-# `make headers` (and `make`, which runs it): the tests build against the
-# shipped header, and `make check-headers` tells when it is stale.
+# rast.h and reflect.h are generated from src/ by `make headers` (and `make`,
+# which runs it first). The amalgamator writes a header only when its bytes
+# change, so a `make` with nothing changed rebuilds nothing. Everything else
+# builds against the shipped headers; `make check-headers` tells when they
+# are stale. Every object records what it includes (-MMD), so anything that
+# includes a header rebuilds when that header changes.
+#
+# Each implementation is compiled once per configuration and linked wherever
+# it is needed: tests/rast_impl.c and tests/reflect_impl.c, plain in
+# build/tests/ (the test binary, the benchmarks, the `reflect` command),
+# sanitized in build/asan/tests/ (the sanitized test binary), and rast.h in
+# plain C without threads in build/portable/ (the rasteriser's tests again).
+# Besides these, only the C and C++ compile checks compile the
+# implementations (at -O0: they are never run), and each example in
+# examples/, a self-contained program that defines the IMPLEMENTATION macros
+# as a user's would.
+#
+# Build outputs mirror the source tree: tests/reflect/test_bvh.c compiles to
+# build/tests/reflect/test_bvh.o, and to build/asan/tests/reflect/test_bvh.o
+# sanitized.
 
 SHELL := /bin/bash
 
@@ -79,31 +95,44 @@ amalgamate = $(AMALGAMATE) -o $(1) --banner $(2) --public $(3) --impl $(4) $(5)
 
 # ---- what gets built ----
 
-TEST_SRCS      = $(sort $(wildcard tests/test_*.c)) tests/rast_impl.c tests/reflect_impl.c
+# The tests, one folder per subject: the rasteriser's, reflect.h's, and
+# those of the adapters and bench code in tools/ and bench/.
+RAST_TEST_SRCS    = $(sort $(wildcard tests/rast/test_*.c))
+REFLECT_TEST_SRCS = $(sort $(wildcard tests/reflect/test_*.c))
+TOOLS_TEST_SRCS   = $(sort $(wildcard tests/tools/test_*.c))
+TEST_SRCS         = $(RAST_TEST_SRCS) $(REFLECT_TEST_SRCS) $(TOOLS_TEST_SRCS)
+
+# The implementations, once per configuration (see the top of this file).
+RAST_IMPL_OBJ     = build/tests/rast_impl.o
+REFLECT_IMPL_OBJ  = build/tests/reflect_impl.o
+IMPL_OBJS         = $(RAST_IMPL_OBJ) $(REFLECT_IMPL_OBJ)
+ASAN_IMPL_OBJS    = build/asan/tests/rast_impl.o build/asan/tests/reflect_impl.o
+PORTABLE_IMPL_OBJ = build/portable/rast_impl.o
+
 TEST_BIN       = build/tests/rast_tests
 ASAN_TEST_BIN  = build/asan/rast_tests
-TEST_OBJS      = $(TEST_SRCS:tests/%.c=build/tests/%.o)
-ASAN_TEST_OBJS = $(TEST_SRCS:tests/%.c=build/asan/%.o)
-RAST_IMPL_OBJ  = build/tests/rast_impl.o
-# The rasteriser's own tests again against an implementation in plain C
-# without threads (RAST_NO_SIMD, RAST_NO_THREADS): the scalar paths that
-# SSE2 machines never take must give the same answers.
-RAST_TEST_SRCS = $(filter-out tests/test_refl_% tests/test_embree.c tests/test_gltf.c tests/test_image_io.c, \
-                   $(sort $(wildcard tests/test_*.c)))
-PORTABLE_TEST_BIN = build/portable/rast_tests
-PORTABLE_TEST_OBJS = $(RAST_TEST_SRCS:tests/%.c=build/tests/%.o) build/portable/rast_impl.o
+TEST_OBJS      = $(TEST_SRCS:%.c=build/%.o) $(IMPL_OBJS)
+ASAN_TEST_OBJS = $(TEST_SRCS:%.c=build/asan/%.o) $(ASAN_IMPL_OBJS)
+# The rasteriser's own tests (tests/rast/) again against an implementation
+# in plain C without threads (RAST_NO_SIMD, RAST_NO_THREADS): the scalar
+# paths that SSE2 machines never take must give the same answers.
+PORTABLE_TEST_BIN  = build/portable/rast_tests
+PORTABLE_TEST_OBJS = $(RAST_TEST_SRCS:%.c=build/%.o) $(PORTABLE_IMPL_OBJ)
 
 REFLECT_BIN = build/bin/reflect
 BENCH_BIN  = build/bench/bench_rast
 BENCH_OBJS = build/bench/bench_rast.o $(RAST_IMPL_OBJ)
 # refl_bvh against Embree (bench/embree_peer.c), rays per second
 BENCH_RAYS_BIN  = build/bench/bench_rays
-BENCH_RAYS_OBJS = build/bench/bench_rays.o build/bench/embree_peer.o build/tests/reflect_impl.o $(RAST_IMPL_OBJ)
+BENCH_RAYS_OBJS = build/bench/bench_rays.o build/bench/embree_peer.o $(IMPL_OBJS)
 
 # Each example is one self-contained program (it defines RAST_IMPLEMENTATION).
 EXAMPLES = $(patsubst examples/%.c,build/examples/%,$(sort $(wildcard examples/*.c)))
 
 COMPILE_CHECKS = build/check/compile_check.o build/check/compile_check_cpp.o
+# Compiled, never run: -O0 keeps them cheap.
+CHECK_CFLAGS   = -std=c99 -O0 -Wall -Wextra -Werror -pthread
+CHECK_CXXFLAGS = -std=c++11 -O0 -Wall -Wextra -Werror -pthread
 
 .PHONY: all build-all headers check-headers compile-check deps test bench demo clean
 
@@ -146,21 +175,21 @@ compile-check: $(COMPILE_CHECKS)
 
 build/check/compile_check.o: tests/compile_check.c | rast.h
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+	$(CC) $(CHECK_CFLAGS) $(DEPFLAGS) -c $< -o $@
 
 build/check/compile_check_cpp.o: tests/compile_check.cpp | rast.h
 	@mkdir -p $(@D)
-	$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+	$(CXX) $(CHECK_CXXFLAGS) $(DEPFLAGS) -c $< -o $@
 
 build/tests/%.o: tests/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
-build/portable/rast_impl.o: tests/rast_impl.c | rast.h
+$(PORTABLE_IMPL_OBJ): tests/rast_impl.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) -DRAST_NO_SIMD -DRAST_NO_THREADS $(DEPFLAGS) -c $< -o $@
 
-build/asan/%.o: tests/%.c | rast.h
+build/asan/tests/%.o: tests/%.c | rast.h
 	@mkdir -p $(@D)
 	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -180,6 +209,7 @@ $(TEST_BIN): $(TEST_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(TEST_LIBS)
 
 $(PORTABLE_TEST_BIN): $(PORTABLE_TEST_OBJS)
+	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $^ -o $@ -lcriterion $(GL_LIBS) $(LDLIBS)
 
 $(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
@@ -191,13 +221,13 @@ $(BENCH_BIN): $(BENCH_OBJS)
 $(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(LDLIBS)
 
-# The test binaries compare refl_bvh with Embree (tests/test_embree.c) and
-# check the bench's cost lines (tests/test_refl_sbc_sweep.c).
+# The test binaries compare refl_bvh with Embree (tests/tools/test_embree.c)
+# and check the bench's cost lines (tests/tools/test_bench_cost_fit.c).
 $(TEST_BIN): build/bench/embree_peer.o build/bench/cost_fit.o
 $(ASAN_TEST_BIN): build/asan/bench/embree_peer.o build/asan/bench/cost_fit.o
 TEST_LIBS += -lembree3
 
-DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) build/portable/rast_impl.d \
+DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) $(PORTABLE_IMPL_OBJ:.o=.d) \
            $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d build/bench/cost_fit.d \
            build/asan/bench/cost_fit.d $(EXAMPLES:=.d)
 -include $(DEPFILES)
@@ -282,22 +312,20 @@ TEST_LIBS += $(TOOLS_LIBS)
 
 # ---- the reflect command ----
 
+# One file per command (tools/reflect*.c) over the shared implementations;
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
-REFLECT_BENCH_OBJS = build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
-                     build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o build/bench/embree_peer.o \
-                     build/bench/cost_fit.o
+REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
+               build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o
+REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
-build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o build/tools/reflect_bench_sbc.o \
-build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o: build/tools/%.o: tools/%.c | rast.h reflect.h
+$(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
-$(REFLECT_BIN): tools/reflect.c $(REFLECT_TOOLS_OBJS) $(REFLECT_BENCH_OBJS) | rast.h reflect.h
+$(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IMPL_OBJS)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $(DEPFLAGS) -MF build/bin/reflect.d tools/reflect.c $(REFLECT_TOOLS_OBJS) \
-	  $(REFLECT_BENCH_OBJS) -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
--include build/bin/reflect.d build/tools/reflect_bench.d build/tools/reflect_bench_c3rc.d \
-         build/tools/reflect_bench_sbc.d build/tools/reflect_bench_sbc_sweep.d build/tools/reflect_bench_path.d
+	$(CC) $(CFLAGS) $^ -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
+-include $(REFLECT_OBJS:.o=.d)
 
 # ---- running ----
 

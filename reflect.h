@@ -5361,7 +5361,7 @@ REFL_API int refl_c3rc_project(const refl_c3rc *cam, refl_vec3 p, refl_c3rc_proj
    positive side; so for t > t* all three vertices of T(t), hence all of
    T(t), lie strictly on the positive side, and for t < t* strictly on the
    negative side. T(t*) meets no other T(t): a point of it projects once.
-   (Verified in tests/test_refl_c3rc_camera.c over thousands of random
+   (Verified in tests/reflect/test_c3rc_camera.c over thousands of random
    convergent cameras.) It also bounds the folds of the volume: the map
    (a, b, c, t) -> P has Jacobian det(E1, E2, D) = a s1 + b s2 + c s3
    (D = a d1 + b d2 + c d3; at a projection dF/dt = -J), which cannot
@@ -5702,7 +5702,7 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
    are then stored as a ray list. Cutting on until three quarters go both
    ways keeps ray lists shorter (default scene, 640x480: 26% faster) but
    put a strongly curved sphere's points up to 16 px off (2 px now; tests/
-   test_refl_sbc_stability.c).
+   reflect/test_sbc_stability.c).
 
    Projection: down the tree by the side of each plane (s >= 0: left). A
    pinhole leaf projects as above (z: p's height over the image plane). A

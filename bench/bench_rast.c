@@ -36,7 +36,7 @@
 #define _POSIX_C_SOURCE 200809L
 /* The implementation comes from tests/rast_impl.c (linked in by the Makefile). */
 #include "../rast.h"
-#include "../tests/gl_peer.h"
+#include "../tests/rast/gl_peer.h"
 
 #include <errno.h>
 #include <math.h>

@@ -23,7 +23,7 @@
 
    The hits are checked too: all three must find the same number, and rays
    where refl_bvh and Embree name different triangles are counted (only
-   rays grazing an edge may differ; tests/test_embree.c classifies them).
+   rays grazing an edge may differ; tests/tools/test_embree.c classifies them).
    Exit status 1 when the hit counts differ by more than 1 in 10^4. */
 #define _POSIX_C_SOURCE 200809L
 /* The implementations come from tests/reflect_impl.c and tests/rast_impl.c

@@ -1,5 +1,5 @@
 /* embree_peer.h - Embree 3 as a peer of refl_bvh: the same scene, the same
-   hit record, for the agreement tests (tests/test_embree.c) and the ray
+   hit record, for the agreement tests (tests/tools/test_embree.c) and the ray
    benchmark (bench/bench_rays.c). Bench and tests only, never part of the
    headers (DESIGN.md section 7); links with -lembree3.
 

@@ -1,6 +1,6 @@
 /* Shared helpers for the rast.h core test suite (Criterion).
 
-   Everything here is static inline so that every tests/test_*.c can include
+   Everything here is static inline so that every test_*.c under tests/ can include
    it and all of them link into one binary.
 
    Conventions used throughout the tests:

@@ -18,7 +18,9 @@
    rast.h included by reflect.h), whose include line is kept. Everything else is copied verbatim; only a file whose last
    line lacks a newline gets one. All inputs are read before anything is
    written, and OUT is written to OUT.tmp and renamed, so a failed run never
-   leaves a half-written header.
+   leaves a half-written header. When OUT already holds exactly those bytes,
+   OUT.tmp is removed and OUT is left alone, its time stamp included, so
+   what make builds from OUT is not rebuilt.
 
    Plain C99, no dependency beyond libc. Exit status: 0 ok, 1 I/O or input
    error, 2 bad arguments. */
@@ -281,6 +283,22 @@ static int write_input(FILE *out, const input *in, const options *o) {
     return 0;
 }
 
+/* Whether the files at a and b both exist and hold the same bytes. */
+static int same_bytes(const char *a, const char *b) {
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb;
+    while (same) {
+        char ba[16384], bb[16384];
+        size_t na = fread(ba, 1, sizeof ba, fa), nb = fread(bb, 1, sizeof bb, fb);
+        if (na != nb || memcmp(ba, bb, na) != 0) same = 0;
+        else if (na == 0) break;
+    }
+    if (same && (ferror(fa) || ferror(fb))) same = 0;
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
 /* Writes the whole header to path; 0 on success, else prints why. */
 static int write_header(const char *path, const options *o) {
     FILE *out = fopen(path, "wb");
@@ -336,7 +354,12 @@ int main(int argc, char **argv) {
         strcpy(tmp, o.out);
         strcat(tmp, ".tmp");
         failed = write_header(tmp, &o);
-        if (!failed && rename(tmp, o.out) != 0) {
+        if (!failed && same_bytes(tmp, o.out)) {
+            if (remove(tmp) != 0) {
+                fprintf(stderr, "%s: cannot remove %s: %s\n", prog, tmp, strerror(errno));
+                failed = 1;
+            }
+        } else if (!failed && rename(tmp, o.out) != 0) {
             fprintf(stderr, "%s: cannot rename %s to %s: %s\n", prog, tmp, o.out, strerror(errno));
             failed = 1;
         }

@@ -6,15 +6,16 @@
      reflect --help | reflect COMMAND --help
 
    Scenes come from glTF files (tools/gltf_load) or the built-in scenes;
-   images go out through OpenImageIO (tools/image_io). */
+   images go out through OpenImageIO (tools/image_io). The implementations
+   come from tests/rast_impl.c and tests/reflect_impl.c (linked in by the
+   Makefile). */
 #define _POSIX_C_SOURCE 200809L
-#define RAST_IMPLEMENTATION
-#define REFL_IMPLEMENTATION
 #include "../reflect.h"
 #include "gltf_load.h"
 #include "image_io.h"
 #include "reflect_bench.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -116,8 +117,8 @@ static int fail(const char *fmt, const char *arg) {
 
 static int parse_vec3(const char *s, refl_vec3 *v) {
     char extra;
-    return sscanf(s, "%f,%f,%f%c", &v->x, &v->y, &v->z, &extra) == 3 && refl__isfinite(v->x) &&
-           refl__isfinite(v->y) && refl__isfinite(v->z);
+    return sscanf(s, "%f,%f,%f%c", &v->x, &v->y, &v->z, &extra) == 3 && isfinite(v->x) &&
+           isfinite(v->y) && isfinite(v->z);
 }
 
 static int parse_int(const char *s, int lo, int hi, int *out) {

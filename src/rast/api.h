@@ -54,7 +54,7 @@
        top-left in image coordinates. GL leaves the rule to the implementation
        (each shared edge drawn once); Mesa's llvmpipe, read back and flipped,
        is bottom-left, so the two differ only at pixel centres lying exactly on
-       horizontal edges (tests/test_gl_conformance.c measures this).
+       horizontal edges (tests/rast/test_gl_conformance.c measures this).
 
    STEP BY STEP
        uint8_t rgba[W*H*4]; float depth[W*H];

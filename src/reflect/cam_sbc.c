@@ -55,7 +55,7 @@
    are then stored as a ray list. Cutting on until three quarters go both
    ways keeps ray lists shorter (default scene, 640x480: 26% faster) but
    put a strongly curved sphere's points up to 16 px off (2 px now; tests/
-   test_refl_sbc_stability.c).
+   reflect/test_sbc_stability.c).
 
    Projection: down the tree by the side of each plane (s >= 0: left). A
    pinhole leaf projects as above (z: p's height over the image plane). A

@@ -1,0 +1,119 @@
+/* Helpers shared by the reflect.h tests: a frame rendered or the test
+   fails, scene objects in one call, a counting allocator. Include after
+   <criterion/criterion.h> and "../reflect.h". */
+#ifndef REFL_TEST_UTIL_H
+#define REFL_TEST_UTIL_H
+
+#include <math.h>
+#include <string.h>
+#include "../test_util.h"
+
+/* A new frame of the view rendered with desc (asserting success). */
+static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v, const refl_render_desc *d) {
+    refl_frame *f = NULL;
+    refl_result r;
+    cr_assert_eq(refl_frame_create(v->width, v->height, NULL, &f), REFL_OK);
+    r = refl_render(s, v, d, f);
+    cr_assert_eq(r, REFL_OK, "refl_render (%s): %s", refl_method_name(d->method), refl_result_string(r));
+    return f;
+}
+
+/* A render desc of method m on `threads` threads, one bounce. */
+static inline refl_render_desc tu_refl_one_bounce(refl_method m, int threads) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = m;
+    d.threads = threads;
+    d.depth = 1;
+    return d;
+}
+
+/* Built-in scene `name` (asserting success) and its camera at w x h. */
+static inline refl_scene *tu_refl_builtin(const char *name, refl_view *v, int w, int h) {
+    refl_scene *s = NULL;
+    cr_assert_eq(refl_scene_builtin(name, NULL, &s), REFL_OK);
+    *v = s->camera;
+    v->width = w;
+    v->height = h;
+    return s;
+}
+
+/* Whether two frame points are the same: both none (NaN) or equal in
+   every coordinate. */
+static inline int tu_refl_same_point(const float *a, const float *b) {
+    return (a[0] != a[0] && b[0] != b[0]) || (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]);
+}
+
+/* A view from eye towards target, y up, 45 degrees vertical, w x h. */
+static inline refl_view tu_refl_view(refl_vec3 eye, refl_vec3 target, int w, int h) {
+    refl_view v;
+    memset(&v, 0, sizeof v);
+    v.eye = eye;
+    v.target = target;
+    v.up = refl_v3(0, 1, 0);
+    v.fovy_degrees = 45.0f;
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
+/* An object of `mesh` (the scene takes it) with a fresh material of the
+   given type and colour; its index. */
+static inline int tu_refl_add_object(refl_scene *s, refl_mesh *mesh, refl_material_type type, const float rgb[3],
+                                     refl_mat4 xf) {
+    refl_material m;
+    refl_object o;
+    int k;
+    memset(&m, 0, sizeof m);
+    memset(&o, 0, sizeof o);
+    m.type = type;
+    m.color[0] = rgb[0]; m.color[1] = rgb[1]; m.color[2] = rgb[2]; m.color[3] = 1.0f;
+    o.mesh = refl_scene_add_mesh(s, mesh);
+    o.material = refl_scene_add_material(s, &m);
+    o.transform = xf;
+    cr_assert(o.mesh >= 0 && o.material >= 0);
+    k = refl_scene_add_object(s, &o);
+    cr_assert(k >= 0);
+    return k;
+}
+
+/* A white point light of the given intensity and radius (0: a point). */
+static inline void tu_refl_add_point_light(refl_scene *s, refl_vec3 position, float intensity, float radius) {
+    refl_light l;
+    memset(&l, 0, sizeof l);
+    l.type = REFL_LIGHT_POINT;
+    l.position = position;
+    l.color[0] = l.color[1] = l.color[2] = intensity;
+    l.radius = radius;
+    cr_assert(refl_scene_add_light(s, &l) >= 0);
+}
+
+/* An allocator counting into c (tests/test_util.h's tu_count_alloc). */
+static inline refl_allocator tu_refl_counting(tu_alloc_counter *c) {
+    refl_allocator a;
+    a.alloc = tu_count_alloc;
+    a.free = tu_count_free;
+    a.user = c;
+    return a;
+}
+
+/* Every colour byte opaque on reflectors; points NaN in all three or none,
+   and only on reflector pixels; non-reflector pixels DIRECT's bytes. */
+static inline void tu_assert_reflector_frame(const refl_frame *f, const refl_frame *direct) {
+    int i, n = f->width * f->height;
+    for (i = 0; i < n; ++i) {
+        const float *p = f->points + 3 * i;
+        int nan_count = (p[0] != p[0]) + (p[1] != p[1]) + (p[2] != p[2]);
+        cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
+        cr_assert_eq(f->stencil[i], direct->stencil[i]);
+        if (!f->stencil[i]) {
+            cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "pixel %d differs from DIRECT", i);
+            cr_assert_eq(nan_count, 3, "pixel %d off the reflectors has a point", i);
+        } else {
+            cr_assert(isfinite(p[0]) || nan_count == 3);
+            cr_assert_eq(f->color[4 * i + 3], 255);
+        }
+    }
+}
+
+#endif

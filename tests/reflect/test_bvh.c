@@ -1,0 +1,448 @@
+/* The triangle BVH: agreement with brute force, watertightness on closed
+   meshes (rays through vertices and edges included), occlusion against
+   intersection, the default scene, determinism, bad input and allocation
+   failure at every allocation. */
+#define _POSIX_C_SOURCE 200809L
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "../../reflect.h"
+#include "../test_util.h"
+#include "refl_test_util.h"
+
+
+static float rnd(refl_rng *r, float lo, float hi) { return lo + (hi - lo) * refl_rng_float(r); }
+
+static refl_vec3 rnd_dir(refl_rng *r) {
+    for (;;) {
+        refl_vec3 d = refl_v3(rnd(r, -1, 1), rnd(r, -1, 1), rnd(r, -1, 1));
+        float l = refl_v3_length(d);
+        if (l > 0.05f && l <= 1) return refl_v3_scale(d, 1 / l);
+    }
+}
+
+static int add_object(refl_scene *s, refl_mesh *m, refl_mat4 transform) {
+    refl_object o;
+    int mi = refl_scene_add_mesh(s, m), oi;
+    cr_assert(mi >= 0);
+    if (s->material_count == 0) {
+        refl_material mat;
+        memset(&mat, 0, sizeof mat);
+        cr_assert(refl_scene_add_material(s, &mat) >= 0);
+    }
+    memset(&o, 0, sizeof o);
+    o.mesh = mi;
+    o.transform = transform;
+    oi = refl_scene_add_object(s, &o);
+    cr_assert(oi >= 0);
+    return oi;
+}
+
+/* `objects` objects of `per` random triangles each (some small, some
+   large), under random rotations, scales and translations. */
+static refl_scene *random_scene(uint64_t seed, int objects, int per) {
+    refl_rng r = refl_rng_seed(seed);
+    refl_scene *s = NULL;
+    refl_material mat;
+    int i, k;
+    float *pos = (float *)malloc(sizeof(float) * 9 * (size_t)per);
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    memset(&mat, 0, sizeof mat);
+    cr_assert(refl_scene_add_material(s, &mat) >= 0);
+    for (i = 0; i < objects; ++i) {
+        refl_mesh_desc d;
+        refl_mesh *m = NULL;
+        refl_mat4 t;
+        for (k = 0; k < per; ++k) {
+            float cx = rnd(&r, -3, 3), cy = rnd(&r, -3, 3), cz = rnd(&r, -3, 3), size = rnd(&r, 0.05f, 1.0f);
+            int j;
+            for (j = 0; j < 3; ++j) {
+                pos[9 * k + 3 * j] = cx + rnd(&r, -size, size);
+                pos[9 * k + 3 * j + 1] = cy + rnd(&r, -size, size);
+                pos[9 * k + 3 * j + 2] = cz + rnd(&r, -size, size);
+            }
+        }
+        memset(&d, 0, sizeof d);
+        d.positions = pos;
+        d.vertex_count = 3 * per;
+        cr_assert_eq(refl_mesh_create(&d, &m), REFL_OK);
+        t = refl_mat4_mul(refl_mat4_translate(refl_v3(rnd(&r, -2, 2), rnd(&r, -2, 2), rnd(&r, -2, 2))),
+                          refl_mat4_mul(refl_mat4_rotate(rnd_dir(&r), rnd(&r, 0, 6.28f)),
+                                        refl_mat4_scale(refl_v3(rnd(&r, 0.5f, 1.5f), rnd(&r, 0.5f, 1.5f),
+                                                                rnd(&r, 0.5f, 1.5f)))));
+        add_object(s, m, t);
+    }
+    free(pos);
+    return s;
+}
+
+/* Reference: every triangle, Moeller-Trumbore in double. *margin gets the
+   smallest barycentric of the closest hit, to excuse rays that graze an
+   edge (where float and double may rightly disagree). */
+static int brute_force(const refl_scene *s, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit,
+                       double *margin) {
+    int i, t, found = 0;
+    double best = tmax;
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_mesh *m = s->meshes[s->objects[i].mesh];
+        for (t = 0; t < m->triangle_count; ++t) {
+            double v[3][3], e1[3], e2[3], p[3], q[3], tv[3], det, u, w, tt;
+            int j;
+            for (j = 0; j < 3; ++j) {
+                const float *src = m->positions + 3 * m->indices[3 * t + j];
+                refl_vec3 wv = refl_mat4_point(s->objects[i].transform, refl_v3(src[0], src[1], src[2]));
+                v[j][0] = wv.x; v[j][1] = wv.y; v[j][2] = wv.z;
+            }
+            for (j = 0; j < 3; ++j) {
+                e1[j] = v[1][j] - v[0][j];
+                e2[j] = v[2][j] - v[0][j];
+                tv[j] = (j == 0 ? o.x : j == 1 ? o.y : o.z) - v[0][j];
+            }
+            p[0] = d.y * e2[2] - d.z * e2[1];
+            p[1] = d.z * e2[0] - d.x * e2[2];
+            p[2] = d.x * e2[1] - d.y * e2[0];
+            det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+            if (det == 0) continue;
+            u = (tv[0] * p[0] + tv[1] * p[1] + tv[2] * p[2]) / det;
+            q[0] = tv[1] * e1[2] - tv[2] * e1[1];
+            q[1] = tv[2] * e1[0] - tv[0] * e1[2];
+            q[2] = tv[0] * e1[1] - tv[1] * e1[0];
+            w = (d.x * q[0] + d.y * q[1] + d.z * q[2]) / det;
+            tt = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det;
+            if (u < 0 || w < 0 || u + w > 1) continue;
+            if (!(tt > tmin && tt < best)) continue;
+            best = tt;
+            found = 1;
+            hit->t = (float)tt;
+            hit->object = i;
+            hit->triangle = t;
+            hit->u = (float)u;
+            hit->v = (float)w;
+            *margin = fmin(fmin(u, w), 1 - u - w);
+        }
+    }
+    return found;
+}
+
+static void random_ray(refl_rng *r, refl_vec3 *o, refl_vec3 *d) {
+    *o = refl_v3(rnd(r, -6, 6), rnd(r, -6, 6), rnd(r, -6, 6));
+    /* Aim near the scene, so most rays hit something. */
+    *d = refl_v3_sub(refl_v3(rnd(r, -3, 3), rnd(r, -3, 3), rnd(r, -3, 3)), *o);
+    /* Some axis-aligned components: infinite inverse directions. */
+    if (refl_rng_u32(r) % 8 == 0) d->x = 0;
+    if (refl_rng_u32(r) % 8 == 0) d->y = 0;
+    if (d->x == 0 && d->y == 0 && d->z == 0) d->z = 1;
+}
+
+Test(refl_bvh, matches_brute_force_on_random_scenes) {
+    int scene_i;
+    for (scene_i = 0; scene_i < 3; ++scene_i) {
+        refl_scene *s = random_scene(1234 + scene_i, 5, 80);
+        refl_bvh *bvh = NULL;
+        refl_rng r = refl_rng_seed(99 + scene_i);
+        long long nodes, tris;
+        int i, hits = 0, grazing = 0;
+        cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+        refl_bvh_stats(bvh, &nodes, &tris);
+        cr_assert_eq(tris, 400);
+        cr_assert(nodes >= 1 && nodes <= 2 * tris - 1);
+        for (i = 0; i < 20000; ++i) {
+            refl_vec3 o, d;
+            refl_hit a, b;
+            double margin = 1;
+            int ha, hb;
+            float tmin = (i % 5 == 0) ? 0.3f : 0.0f, tmax = (i % 7 == 0) ? 0.8f : INFINITY;
+            random_ray(&r, &o, &d);
+            memset(&a, 0, sizeof a);
+            memset(&b, 0, sizeof b);
+            ha = refl_bvh_intersect(bvh, o, d, tmin, tmax, &a);
+            hb = brute_force(s, o, d, tmin, tmax, &b, &margin);
+            if (ha != hb || (ha && (a.object != b.object || a.triangle != b.triangle))) {
+                /* Only rays within a hair of an edge may disagree. */
+                cr_assert(margin < 1e-5, "ray %d: bvh %d (%d/%d t=%g) vs brute %d (%d/%d t=%g) margin %g", i, ha,
+                          a.object, a.triangle, ha ? a.t : 0, hb, b.object, b.triangle, hb ? b.t : 0, margin);
+                ++grazing;
+                continue;
+            }
+            if (!ha) continue;
+            ++hits;
+            cr_assert(fabsf(a.t - b.t) <= 1e-5f * fabsf(b.t) + 1e-6f, "ray %d: t %.9g vs %.9g", i, a.t, b.t);
+            cr_assert(fabsf(a.u - b.u) < 1e-3f && fabsf(a.v - b.v) < 1e-3f, "ray %d: uv", i);
+        }
+        cr_assert(hits > 2000, "only %d hits", hits);
+        cr_assert(grazing <= 2, "%d grazing disagreements", grazing);
+        refl_bvh_destroy(bvh);
+        refl_scene_destroy(s);
+    }
+}
+
+/* Every ray from inside a closed mesh must hit it: directions at random,
+   at every vertex and at every edge's midpoint and endpoints. */
+static void check_closed(refl_scene *s, refl_vec3 centre, int random_rays) {
+    refl_bvh *bvh = NULL;
+    refl_rng r = refl_rng_seed(7);
+    const refl_mesh *m = s->meshes[s->objects[0].mesh];
+    refl_mat4 tr = s->objects[0].transform;
+    int i, j;
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    for (i = 0; i < random_rays; ++i) {
+        refl_vec3 d = rnd_dir(&r);
+        cr_assert(refl_bvh_intersect(bvh, centre, d, 0, INFINITY, NULL), "random ray %d escaped", i);
+    }
+    for (i = 0; i < m->vertex_count; ++i) {
+        const float *p = m->positions + 3 * i;
+        refl_vec3 w = refl_mat4_point(tr, refl_v3(p[0], p[1], p[2]));
+        refl_hit h;
+        cr_assert(refl_bvh_intersect(bvh, centre, refl_v3_sub(w, centre), 0, INFINITY, &h),
+                  "ray at vertex %d escaped", i);
+        /* ... and it hits that vertex, at t = 1 */
+        cr_assert(fabsf(h.t - 1) < 1e-4f, "vertex %d: t %g", i, h.t);
+    }
+    for (i = 0; i < m->triangle_count; ++i)
+        for (j = 0; j < 3; ++j) {
+            const float *p = m->positions + 3 * m->indices[3 * i + j];
+            const float *q = m->positions + 3 * m->indices[3 * i + (j + 1) % 3];
+            refl_vec3 a = refl_mat4_point(tr, refl_v3(p[0], p[1], p[2]));
+            refl_vec3 b = refl_mat4_point(tr, refl_v3(q[0], q[1], q[2]));
+            int k;
+            for (k = 1; k < 8; ++k) {
+                float f = (float)k / 8;
+                refl_vec3 e = refl_v3_add(refl_v3_scale(a, 1 - f), refl_v3_scale(b, f));
+                cr_assert(refl_bvh_intersect(bvh, centre, refl_v3_sub(e, centre), 0, INFINITY, NULL),
+                          "ray at edge %d/%d (%g) escaped", i, j, f);
+                cr_assert(refl_bvh_occluded(bvh, centre, refl_v3_sub(e, centre), 0, INFINITY));
+            }
+        }
+    refl_bvh_destroy(bvh);
+}
+
+Test(refl_bvh, closed_meshes_are_watertight) {
+    refl_scene *s = NULL;
+    refl_mesh *m = NULL, *sub = NULL;
+    refl_mat4 t = refl_mat4_mul(refl_mat4_translate(refl_v3(0.3f, -1.7f, 2.1f)),
+                                refl_mat4_rotate(refl_v3_normalize(refl_v3(1, 2, 3)), 0.7f));
+    /* A sphere, moved and turned so its world floats are not round. */
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_sphere(1.3f, 48, 24, NULL, &m), REFL_OK);
+    add_object(s, m, t);
+    check_closed(s, refl_mat4_point(t, refl_v3(0, 0, 0)), 100000);
+    refl_scene_destroy(s);
+
+    /* A subdivided box, seen from its centre and in its own frame: rays
+       along the faces' diagonals and through the corners. */
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_box(refl_v3(2, 2, 2), NULL, &m), REFL_OK);
+    cr_assert_eq(refl_mesh_subdivide(m, 0.5f, &sub), REFL_OK);
+    refl_mesh_destroy(m);
+    add_object(s, sub, refl_mat4_identity());
+    check_closed(s, refl_v3(0, 0, 0), 20000);
+    refl_scene_destroy(s);
+}
+
+Test(refl_bvh, occluded_agrees_with_intersect) {
+    refl_scene *s = random_scene(77, 4, 100);
+    refl_bvh *bvh = NULL;
+    refl_rng r = refl_rng_seed(5);
+    int i;
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    for (i = 0; i < 20000; ++i) {
+        refl_vec3 o, d;
+        float tmax = (i % 3 == 0) ? rnd(&r, 0.1f, 1.0f) : INFINITY;
+        random_ray(&r, &o, &d);
+        cr_assert_eq(refl_bvh_occluded(bvh, o, d, 0, tmax), refl_bvh_intersect(bvh, o, d, 0, tmax, NULL) != 0,
+                     "ray %d", i);
+    }
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
+
+static int object_named(const refl_scene *s, const char *name) {
+    int i;
+    for (i = 0; i < s->object_count; ++i)
+        if (!strcmp(s->objects[i].name, name)) return i;
+    return -1;
+}
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* Primary rays through pixel centres of the scene's camera. */
+static refl_vec3 camera_ray(const refl_view *v, int w, int h, float px, float py) {
+    refl_vec3 f = refl_v3_normalize(refl_v3_sub(v->target, v->eye));
+    refl_vec3 right = refl_v3_normalize(refl_v3_cross(f, v->up));
+    refl_vec3 up = refl_v3_cross(right, f);
+    float th = tanf((v->fovy_degrees > 0 ? v->fovy_degrees : 45.0f) * 3.14159265f / 360.0f);
+    float sx = (2 * px / w - 1) * th * w / h, sy = (1 - 2 * py / h) * th;
+    return refl_v3_add(f, refl_v3_add(refl_v3_scale(right, sx), refl_v3_scale(up, sy)));
+}
+
+Test(refl_bvh, default_scene) {
+    refl_scene *s = NULL;
+    refl_bvh *bvh = NULL;
+    refl_hit h;
+    long long nodes, tris;
+    int teapot, x, y, hits = 0;
+    double t0, dt;
+    const int w = 640, hgt = 480;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    teapot = object_named(s, "teapot");
+    cr_assert(teapot >= 0);
+    t0 = now_s();
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    dt = now_s() - t0;
+    refl_bvh_stats(bvh, &nodes, &tris);
+    cr_assert(tris > 0 && tris <= refl_scene_triangles(s));
+    cr_log_info("default scene: %lld nodes, %lld triangles (of %lld), built in %.1f ms", nodes, tris,
+                refl_scene_triangles(s), dt * 1e3);
+
+    /* Straight down onto the lid (through its knob's pole, then just off it). */
+    cr_assert(refl_bvh_intersect(bvh, refl_v3(0, 50, 0), refl_v3(0, -1, 0), 0, INFINITY, &h));
+    cr_assert_eq(h.object, teapot);
+    cr_assert(refl_bvh_intersect(bvh, refl_v3(0.031f, 50, -0.017f), refl_v3(0, -1, 0), 0, INFINITY, &h));
+    cr_assert_eq(h.object, teapot);
+
+    cr_assert(s->has_camera);
+    cr_assert(refl_bvh_intersect(bvh, s->camera.eye, refl_v3_sub(s->camera.target, s->camera.eye), 0, INFINITY,
+                                 &h));
+    cr_assert(refl_bvh_intersect(bvh, s->camera.eye, camera_ray(&s->camera, w, hgt, w * 0.5f, hgt * 0.5f), 0,
+                                 INFINITY, &h));
+
+    /* Throughput, single-threaded, primary rays at 640x480. */
+    t0 = now_s();
+    for (y = 0; y < hgt; ++y)
+        for (x = 0; x < w; ++x)
+            hits += refl_bvh_intersect(bvh, s->camera.eye, camera_ray(&s->camera, w, hgt, x + 0.5f, y + 0.5f), 0,
+                                       INFINITY, &h);
+    dt = now_s() - t0;
+    cr_log_info("default scene: %d of %d primary rays hit, %.2f Mrays/s", hits, w * hgt, w * hgt / dt * 1e-6);
+    cr_assert(hits > w * hgt / 4);
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
+
+Test(refl_bvh, deterministic) {
+    refl_scene *s = random_scene(4242, 6, 60);
+    refl_bvh *a = NULL, *b = NULL;
+    refl_rng r = refl_rng_seed(11);
+    long long na, ta, nb, tb;
+    int i;
+    cr_assert_eq(refl_bvh_build(s, NULL, &a), REFL_OK);
+    cr_assert_eq(refl_bvh_build(s, NULL, &b), REFL_OK);
+    refl_bvh_stats(a, &na, &ta);
+    refl_bvh_stats(b, &nb, &tb);
+    cr_assert_eq(na, nb);
+    cr_assert_eq(ta, tb);
+    for (i = 0; i < 5000; ++i) {
+        refl_vec3 o, d;
+        refl_hit ha, hb;
+        int ra, rb;
+        random_ray(&r, &o, &d);
+        memset(&ha, 0, sizeof ha);
+        memset(&hb, 0, sizeof hb);
+        ra = refl_bvh_intersect(a, o, d, 0, INFINITY, &ha);
+        rb = refl_bvh_intersect(b, o, d, 0, INFINITY, &hb);
+        cr_assert_eq(ra, rb);
+        cr_assert_eq(memcmp(&ha, &hb, sizeof ha), 0, "ray %d", i);
+    }
+    refl_bvh_destroy(a);
+    refl_bvh_destroy(b);
+    refl_scene_destroy(s);
+}
+
+/* Degenerate and non-finite triangles are dropped; thousands of copies of
+   one triangle (every centroid equal) still build within the depth limit
+   and still hit. */
+Test(refl_bvh, degenerate_and_pathological_input) {
+    refl_scene *s = NULL;
+    refl_mesh *m = NULL;
+    refl_mesh_desc d;
+    refl_bvh *bvh = NULL;
+    refl_hit h;
+    long long nodes, tris;
+    const int copies = 5000;
+    float *pos = (float *)malloc(sizeof(float) * 9 * (copies + 2));
+    int i;
+    static const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    static const float flat[9] = {0, 0, 0, 1, 1, 1, 2, 2, 2};   /* zero area */
+    for (i = 0; i < copies; ++i) memcpy(pos + 9 * i, tri, sizeof tri);
+    memcpy(pos + 9 * copies, flat, sizeof flat);
+    memcpy(pos + 9 * (copies + 1), tri, sizeof tri);
+    pos[9 * (copies + 1)] = 1e30f;                                /* becomes inf under the scale below */
+    memset(&d, 0, sizeof d);
+    d.positions = pos;
+    d.vertex_count = 3 * (copies + 2);
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_create(&d, &m), REFL_OK);
+    free(pos);
+    add_object(s, m, refl_mat4_scale(refl_v3(1e10f, 1, 1)));
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    refl_bvh_stats(bvh, &nodes, &tris);
+    cr_assert_eq(tris, copies);
+    cr_assert(refl_bvh_intersect(bvh, refl_v3(1e9f, 0.25f, 5), refl_v3(0, 0, -1), 0, INFINITY, &h));
+    cr_assert(fabsf(h.t - 5) < 1e-5f);
+    cr_assert(h.triangle < copies);
+    cr_assert(!refl_bvh_intersect(bvh, refl_v3(1e9f, 0.25f, 5), refl_v3(0, 0, 1), 0, INFINITY, &h));
+    /* NaN and zero rays never hit. */
+    cr_assert(!refl_bvh_intersect(bvh, refl_v3(NAN, 0.25f, 5), refl_v3(0, 0, -1), 0, INFINITY, &h));
+    cr_assert(!refl_bvh_intersect(bvh, refl_v3(1e9f, 0.25f, 5), refl_v3(0, 0, 0), 0, INFINITY, &h));
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
+
+Test(refl_bvh, bad_input_and_empty_scene) {
+    refl_scene *s = NULL;
+    refl_bvh *bvh = (refl_bvh *)1;
+    refl_hit h;
+    long long nodes = -1, tris = -1;
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_bvh_build(NULL, NULL, &bvh), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_null(bvh);
+    cr_assert_eq(refl_bvh_build(s, NULL, NULL), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_eq(refl_bvh_intersect(NULL, refl_v3(0, 0, 0), refl_v3(0, 0, 1), 0, INFINITY, &h), 0);
+    cr_assert_eq(refl_bvh_occluded(NULL, refl_v3(0, 0, 0), refl_v3(0, 0, 1), 0, INFINITY), 0);
+    refl_bvh_stats(NULL, &nodes, &tris);
+    cr_assert(nodes == 0 && tris == 0);
+    refl_bvh_destroy(NULL);
+
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    refl_bvh_stats(bvh, &nodes, &tris);
+    cr_assert(nodes == 0 && tris == 0);
+    cr_assert_eq(refl_bvh_intersect(bvh, refl_v3(0, 0, 0), refl_v3(0, 0, 1), 0, INFINITY, &h), 0);
+    cr_assert_eq(refl_bvh_occluded(bvh, refl_v3(0, 0, 0), refl_v3(0, 0, 1), 0, INFINITY), 0);
+    refl_bvh_stats(bvh, NULL, NULL);
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
+
+Test(refl_bvh, allocation_failure_at_every_allocation) {
+    refl_scene *s = random_scene(31, 3, 50);
+    tu_alloc_counter c;
+    refl_allocator a;
+    refl_bvh *bvh = NULL;
+    long attempts, i;
+    memset(&c, 0, sizeof c);
+    a = tu_refl_counting(&c);
+    cr_assert_eq(refl_bvh_build(s, &a, &bvh), REFL_OK);
+    attempts = c.attempts;
+    cr_assert(attempts >= 2);
+    cr_assert(refl_bvh_intersect(bvh, refl_v3(0, 0, -20), refl_v3(0, 0, 1), 0, INFINITY, NULL) ||
+              !refl_bvh_intersect(bvh, refl_v3(0, 0, -20), refl_v3(0, 0, 1), 0, INFINITY, NULL));
+    refl_bvh_destroy(bvh);
+    cr_assert_eq(c.allocs, c.frees);
+    for (i = 1; i <= attempts; ++i) {
+        memset(&c, 0, sizeof c);
+        c.fail_at = i;
+        bvh = (refl_bvh *)1;
+        cr_assert_eq(refl_bvh_build(s, &a, &bvh), REFL_ERROR_OUT_OF_MEMORY, "failing allocation %ld", i);
+        cr_assert_null(bvh);
+        cr_assert_eq(c.failed, 1);
+        cr_assert_eq(c.allocs, c.frees, "leak when allocation %ld fails", i);
+    }
+    refl_scene_destroy(s);
+}

@@ -1,0 +1,248 @@
+/* The contract every method in the method table keeps, present and
+   future: each refl_method value either renders or says UNSUPPORTED, and
+   a method that renders gives the same bytes for every thread count,
+   survives the failure of every allocation without a leak, refuses every
+   bad option by name, and writes no NaN depth, no half-NaN point, and
+   (but where noted) no transparent pixel. */
+#include <criterion/criterion.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "../../reflect.h"
+#include "refl_test_util.h"
+
+/* The methods whose unfilled mirror and glass pixels stay transparent
+   black, as the base pass leaves them: DIRECT everywhere, PLANAR on curved
+   mirrors, glass and where its recursion ends. */
+static int leaves_reflectors_transparent(refl_method m) { return m == REFL_DIRECT || m == REFL_PLANAR; }
+
+static int renders(refl_method m) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("default", &v, 8, 6);
+    refl_frame *f = NULL;
+    refl_render_desc d = tu_refl_one_bounce(m, 1);
+    refl_result r;
+    cr_assert_eq(refl_frame_create(8, 6, NULL, &f), REFL_OK);
+    r = refl_render(s, &v, &d, f);
+    cr_assert(r == REFL_OK || r == REFL_ERROR_UNSUPPORTED, "%s: %s", refl_method_name(m), refl_result_string(r));
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+    return r == REFL_OK;
+}
+
+static uint64_t digest(const refl_frame *f) {
+    size_t n = (size_t)f->width * (size_t)f->height, i;
+    uint64_t h = 0xCBF29CE484222325ull;
+    for (i = 0; i < 4 * n; ++i) h = (h ^ f->color[i]) * 0x100000001B3ull;
+    for (i = 0; i < n; ++i) h = (h ^ f->stencil[i]) * 0x100000001B3ull;
+    for (i = 0; i < n * sizeof(float); ++i) h = (h ^ ((const uint8_t *)f->depth)[i]) * 0x100000001B3ull;
+    for (i = 0; i < 3 * n * sizeof(float); ++i) h = (h ^ ((const uint8_t *)f->points)[i]) * 0x100000001B3ull;
+    return h;
+}
+
+Test(refl_contract, every_method_renders_or_is_unsupported) {
+    int m, built = 0;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) built += renders((refl_method)m);
+    cr_assert_geq(built, 6, "%d methods render", built);
+    cr_assert(!renders(REFL_AUTO) || built > 6);
+}
+
+/* The same bytes on 1, 2, 3 and 7 threads, with shadows and two bounces;
+   no NaN depth, points NaN in all three coordinates or none; every pixel
+   opaque (but where noted). */
+Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .timeout = 240) {
+    static const char *const scenes[] = {"default", "glass", "mirror-room"};
+    static const int threads[] = {1, 2, 3, 7};
+    int m, k, t;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        if (!renders((refl_method)m)) continue;
+        for (k = 0; k < 3; ++k) {
+            refl_view v;
+            refl_scene *s = tu_refl_builtin(scenes[k], &v, 48, 36);
+            uint64_t first = 0;
+            for (t = 0; t < 4; ++t) {
+                refl_render_desc d = tu_refl_one_bounce((refl_method)m, threads[t]);
+                refl_frame *f;
+                int i;
+                d.depth = 2;
+                d.lighting.shadows = 1;
+                f = tu_refl_render(s, &v, &d);
+                if (t == 0) first = digest(f);
+                cr_assert_eq(digest(f), first, "%s on %s: %d threads give other bytes than 1",
+                             refl_method_name((refl_method)m), scenes[k], threads[t]);
+                for (i = 0; t == 0 && i < v.width * v.height; ++i) {
+                    const float *p = f->points + 3 * i;
+                    int nan_count = isnan(p[0]) + isnan(p[1]) + isnan(p[2]);
+                    cr_assert(f->depth[i] >= 0.0f && f->depth[i] <= 1.0f, "pixel %d: depth %g", i, f->depth[i]);
+                    cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
+                    cr_assert(nan_count == 3 || (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])));
+                    if (f->color[4 * i + 3] != 255) {
+                        cr_assert(leaves_reflectors_transparent((refl_method)m) && f->stencil[i],
+                                  "%s on %s: pixel %d is not opaque", refl_method_name((refl_method)m), scenes[k],
+                                  i);
+                    }
+                }
+                refl_frame_destroy(f);
+            }
+            refl_scene_destroy(s);
+        }
+    }
+}
+
+/* A renderer's three frames, each allocation failing in turn: every call
+   fails with OUT_OF_MEMORY or succeeds, and nothing leaks. */
+Test(refl_contract, allocation_failure_at_every_allocation, .timeout = 600) {
+    int m;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        long k, failures = 0;
+        int done = 0;
+        if (!renders((refl_method)m)) continue;
+        for (k = 1; !done; ++k) {
+            tu_alloc_counter c;
+            refl_builtin_desc bd;
+            refl_scene *s = NULL;
+            refl_renderer *rr = NULL;
+            refl_frame *f = NULL;
+            refl_render_desc d = tu_refl_one_bounce((refl_method)m, 2);
+            refl_result r;
+            int frame;
+            memset(&c, 0, sizeof c);
+            memset(&bd, 0, sizeof bd);
+            c.fail_at = k;
+            bd.teapot_tess = 2;
+            bd.allocator = tu_refl_counting(&c);
+            d.depth = 2;
+            d.sbc.trace_fallback = 1;
+            r = refl_scene_builtin("default", &bd, &s);
+            if (r == REFL_OK) r = refl_frame_create(24, 18, &bd.allocator, &f);
+            if (r == REFL_OK) r = refl_renderer_create(s, &d, &rr);
+            for (frame = 0; r == REFL_OK && frame < 3; ++frame) {
+                refl_view v = s->camera;
+                v.width = 24;
+                v.height = 18;
+                v.eye.x += 0.2f * (float)frame;
+                r = refl_renderer_render(rr, &v, f);
+            }
+            cr_assert(r == REFL_OK || r == REFL_ERROR_OUT_OF_MEMORY, "%s, allocation %ld: %s",
+                      refl_method_name((refl_method)m), k, refl_result_string(r));
+            refl_renderer_destroy(rr);
+            refl_frame_destroy(f);
+            refl_scene_destroy(s);
+            cr_assert_eq(c.allocs, c.frees, "%s, allocation %ld failed: %ld allocations, %ld frees",
+                         refl_method_name((refl_method)m), k, c.allocs, c.frees);
+            failures += r != REFL_OK;
+            done = c.failed == 0;
+        }
+        cr_assert(failures > 20, "%s: only %ld failures", refl_method_name((refl_method)m), failures);
+        cr_log_info("%s: %ld allocations failed in turn", refl_method_name((refl_method)m), k - 1);
+    }
+}
+
+typedef struct bad_option {
+    const char *rule;        /* what frame->message starts with */
+    void (*set)(refl_render_desc *d);
+} bad_option;
+
+static void bad_method(refl_render_desc *d) { d->method = (refl_method)99; }
+static void bad_threads(refl_render_desc *d) { d->threads = -1; }
+static void bad_depth(refl_render_desc *d) { d->depth = -2; }
+static void bad_shadows(refl_render_desc *d) { d->lighting.shadows = 2; }
+static void bad_soft(refl_render_desc *d) { d->lighting.soft_shadow_samples = 1025; }
+static void bad_volumes(refl_render_desc *d) { d->lighting.light_volumes = -1; }
+static void bad_caustics(refl_render_desc *d) { d->lighting.caustic_samples = 5000; }
+static void bad_translucency(refl_render_desc *d) { d->lighting.translucency = NAN; }
+static void bad_object_methods(refl_render_desc *d) { d->object_method_count = 3; }
+static void bad_object_method(refl_render_desc *d) {
+    static const refl_method m[2] = {REFL_SBC, (refl_method)-4};
+    d->object_methods = m;
+    d->object_method_count = 2;
+}
+static void bad_object_raytrace(refl_render_desc *d) {
+    static const refl_method m[1] = {REFL_RAYTRACE};
+    d->object_methods = m;
+    d->object_method_count = 1;
+}
+static int never_occluded(void *user, refl_vec3 o, refl_vec3 dir, float tmin, float tmax) {
+    (void)user; (void)o; (void)dir; (void)tmin; (void)tmax;
+    return 0;
+}
+static void bad_caster(refl_render_desc *d) { d->raytrace.caster.occluded = never_occluded; }
+static void bad_envmap(refl_render_desc *d) { d->envmap.size = 8193; }
+static void bad_culling(refl_render_desc *d) { d->planar.no_culling = 7; }
+static void bad_density(refl_render_desc *d) { d->c3rc.point_density = -1.0f; }
+static void bad_leaf(refl_render_desc *d) { d->c3rc.kd_leaf_points = -5; }
+static void bad_splat(refl_render_desc *d) { d->c3rc.max_splat = 65; }
+static void bad_split(refl_render_desc *d) { d->c3rc.camera_split_px = INFINITY; }
+static void bad_error(refl_render_desc *d) { d->sbc.error_px = -0.5f; }
+static void bad_factor(refl_render_desc *d) { d->sbc.ray_factor = 65; }
+static void bad_batch(refl_render_desc *d) { d->sbc.batch_groups = 255; }
+static void bad_fallback(refl_render_desc *d) { d->sbc.trace_fallback = 2; }
+static void bad_mixed(refl_render_desc *d) { d->sbc.mixed_levels = 7; }
+static void bad_morphs(refl_render_desc *d) { d->sbc.morph_count = 1; }
+static void bad_points_last(refl_render_desc *d) { d->debug.points_last = 3; }
+
+static const bad_option bad_options[] = {
+    {"method:", bad_method},
+    {"threads:", bad_threads},
+    {"depth:", bad_depth},
+    {"lighting.shadows:", bad_shadows},
+    {"lighting.soft_shadow_samples:", bad_soft},
+    {"lighting.light_volumes:", bad_volumes},
+    {"lighting.caustic_samples:", bad_caustics},
+    {"lighting.translucency:", bad_translucency},
+    {"object_methods:", bad_object_methods},
+    {"object_methods:", bad_object_method},
+    {"object_methods:", bad_object_raytrace},
+    {"raytrace.caster:", bad_caster},
+    {"envmap.size:", bad_envmap},
+    {"planar.no_culling:", bad_culling},
+    {"c3rc.point_density:", bad_density},
+    {"c3rc.kd_leaf_points:", bad_leaf},
+    {"c3rc.max_splat:", bad_splat},
+    {"c3rc.camera_split_px:", bad_split},
+    {"sbc.error_px:", bad_error},
+    {"sbc.ray_factor:", bad_factor},
+    {"sbc.batch_groups:", bad_batch},
+    {"sbc.trace_fallback:", bad_fallback},
+    {"sbc.mixed_levels:", bad_mixed},
+    {"sbc.morphs:", bad_morphs},
+    {"debug.points_last:", bad_points_last},
+};
+
+/* Every bad option value makes refl_render, refl_renderer_create and
+   refl_validate_render_desc refuse the desc, naming the option, whatever
+   the method (options of methods not used are checked too). */
+Test(refl_contract, every_bad_option_is_refused_by_name) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("default", &v, 16, 12);
+    refl_frame *f = NULL;
+    size_t i;
+    int m;
+    cr_assert_eq(refl_frame_create(16, 12, NULL, &f), REFL_OK);
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m)
+        for (i = 0; i < sizeof bad_options / sizeof bad_options[0]; ++i) {
+            refl_render_desc d = tu_refl_one_bounce((refl_method)m, 1);
+            refl_renderer *rr = NULL;
+            const char *why = NULL;
+            bad_options[i].set(&d);
+            if (m == REFL_RAYTRACE && bad_options[i].set == bad_object_raytrace) continue;
+            cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT, "%s", bad_options[i].rule);
+            cr_assert(why && !strncmp(why, bad_options[i].rule, strlen(bad_options[i].rule)),
+                      "%s: expected a message naming %s, got \"%s\"", refl_method_name((refl_method)m),
+                      bad_options[i].rule, why);
+            cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT, "%s", bad_options[i].rule);
+            cr_assert_str_eq(f->message, why);
+            cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_ERROR_INVALID_ARGUMENT);
+            cr_assert_null(rr);
+        }
+    /* the defaults are valid, and a good frame clears the message */
+    cr_assert_eq(refl_validate_render_desc(NULL, NULL), REFL_OK);
+    cr_assert_eq(refl_render(s, &v, NULL, f), REFL_OK);
+    cr_assert_str_eq(f->message, "");
+    /* a bad view is named too */
+    v.fovy_degrees = 180.0f;
+    cr_assert_eq(refl_render(s, &v, NULL, f), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert(!strncmp(f->message, "view.fovy_degrees:", 18), "%s", f->message);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}

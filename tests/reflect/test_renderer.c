@@ -1,0 +1,182 @@
+/* The renderer that lives across frames, options validation that names
+   the rule broken, and per-reflector dispatch. */
+#include <criterion/criterion.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "../../reflect.h"
+#include "refl_test_util.h"
+
+static uint64_t digest(const refl_frame *f) {
+    size_t n = (size_t)f->width * (size_t)f->height, i;
+    uint64_t h = 0xCBF29CE484222325ull;
+    const unsigned char *parts[4];
+    size_t sizes[4];
+    int k;
+    parts[0] = f->color; sizes[0] = 4 * n;
+    parts[1] = (const unsigned char *)f->depth; sizes[1] = n * sizeof(float);
+    parts[2] = f->stencil; sizes[2] = n;
+    parts[3] = (const unsigned char *)f->points; sizes[3] = 3 * n * sizeof(float);
+    for (k = 0; k < 4; ++k)
+        for (i = 0; i < sizes[k]; ++i) h = (h ^ parts[k][i]) * 0x100000001B3ull;
+    return h;
+}
+
+/* Frame k of a camera path orbiting the scene's camera around its target. */
+static refl_view path_view(const refl_scene *s, int k, int w, int h) {
+    refl_view v = s->camera;
+    refl_vec3 off = refl_v3_sub(v.eye, v.target);
+    float a = 0.04f * (float)k, c = cosf(a), sn = sinf(a);
+    v.eye = refl_v3_add(v.target, refl_v3(c * off.x + sn * off.z, off.y, -sn * off.x + c * off.z));
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
+/* Each frame of a camera path through one renderer renders refl_render's
+   bytes, and the scene-wide models (BVH, C3RC's points and kd-tree) are
+   built at the first frame only. */
+static void check_path(const char *scene, refl_render_desc d, int builds_first) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin(scene, &v, 64, 48);
+    refl_renderer *rr = NULL;
+    refl_frame *kept = NULL;
+    int k;
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_frame_create(64, 48, NULL, &kept), REFL_OK);
+    for (k = 0; k < 6; ++k) {
+        refl_view vk = path_view(s, k, 64, 48);
+        refl_frame *fresh = tu_refl_render(s, &vk, &d);
+        cr_assert_eq(refl_renderer_render(rr, &vk, kept), REFL_OK);
+        cr_assert_eq(digest(kept), digest(fresh), "%s, %s, frame %d: the renderer's bytes differ from refl_render's",
+                     scene, refl_method_name(d.method), k);
+        cr_assert_eq(fresh->stats.scene_models_built, builds_first, "%s: refl_render builds %d models",
+                     refl_method_name(d.method), fresh->stats.scene_models_built);
+        cr_assert_eq(kept->stats.scene_models_built, k == 0 ? builds_first : 0, "%s, frame %d: %d models rebuilt",
+                     refl_method_name(d.method), k, kept->stats.scene_models_built);
+        refl_frame_destroy(fresh);
+    }
+    /* a change to the scene rebuilds them */
+    refl_scene_touch(s);
+    cr_assert_eq(refl_renderer_render(rr, &v, kept), REFL_OK);
+    cr_assert_eq(kept->stats.scene_models_built, builds_first);
+    refl_frame_destroy(kept);
+    refl_renderer_destroy(rr);
+    refl_scene_destroy(s);
+}
+
+Test(refl_renderer, a_camera_path_keeps_the_bvh_and_the_kd_tree, .timeout = 120) {
+    refl_render_desc d = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    d.depth = 0;
+    check_path("default", d, 1);
+    check_path("glass", d, 1);
+    d.method = REFL_SBC;
+    check_path("default", d, 1);
+    d.sbc.trace_fallback = 1;
+    check_path("concave", d, 1);
+    d = tu_refl_one_bounce(REFL_C3RC, 2);
+    d.c3rc.point_density = 400.0f;
+    check_path("default", d, 1);
+    d = tu_refl_one_bounce(REFL_ENVMAP, 2);
+    check_path("default", d, 0);
+    d.method = REFL_PLANAR;
+    check_path("mirror-room", d, 0);
+}
+
+/* C3RC's view-dependent default density is fixed at the renderer's first
+   frame: the same bytes as refl_render of later frames at that density,
+   found as the density refl_render of the first frame reports. */
+Test(refl_renderer, c3rc_default_density_is_the_first_frames, .timeout = 120) {
+    refl_view v0, v3;
+    refl_scene *s = tu_refl_builtin("default", &v0, 64, 48);
+    refl_render_desc d = tu_refl_one_bounce(REFL_C3RC, 2);
+    refl_renderer *rr = NULL;
+    refl_frame *first, *kept = NULL, *fresh;
+    double area_density;
+    v0 = path_view(s, 0, 64, 48);
+    v3 = path_view(s, 3, 64, 48);
+    first = tu_refl_render(s, &v0, &d);
+    cr_assert(first->stats.c3rc.points > 1000);
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_frame_create(64, 48, NULL, &kept), REFL_OK);
+    cr_assert_eq(refl_renderer_render(rr, &v0, kept), REFL_OK);
+    cr_assert_eq(digest(kept), digest(first));
+    cr_assert_eq(refl_renderer_render(rr, &v3, kept), REFL_OK);
+    cr_assert_eq(kept->stats.c3rc.points, first->stats.c3rc.points, "the points were sampled again");
+    /* refl_render of the same view samples at its own density */
+    fresh = tu_refl_render(s, &v3, &d);
+    area_density = (double)fresh->stats.c3rc.points / (double)first->stats.c3rc.points;
+    cr_log_info("points: first frame %lld, frame 3 alone %lld (ratio %.3f)", first->stats.c3rc.points,
+                fresh->stats.c3rc.points, area_density);
+    refl_frame_destroy(fresh);
+    refl_frame_destroy(first);
+    refl_frame_destroy(kept);
+    refl_renderer_destroy(rr);
+    refl_scene_destroy(s);
+}
+
+/* A planar mirror, a mirror sphere and a few diffuse objects. */
+static refl_scene *two_mirrors(refl_view *v, int *plane, int *sphere) {
+    refl_scene *s = NULL;
+    refl_mesh *m = NULL;
+    const float grey[3] = {0.9f, 0.9f, 0.9f}, red[3] = {0.8f, 0.2f, 0.1f}, blue[3] = {0.2f, 0.3f, 0.8f};
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_plane(6.0f, 1, NULL, &m), REFL_OK);
+    *plane = tu_refl_add_object(s, m, REFL_MIRROR, grey, refl_mat4_identity());
+    cr_assert_eq(refl_mesh_sphere(0.8f, 32, 16, NULL, &m), REFL_OK);
+    *sphere = tu_refl_add_object(s, m, REFL_MIRROR, grey, refl_mat4_translate(refl_v3(0.0f, 0.8f, 0.0f)));
+    cr_assert_eq(refl_mesh_box(refl_v3(0.8f, 0.8f, 0.8f), NULL, &m), REFL_OK);
+    tu_refl_add_object(s, m, REFL_DIFFUSE, red, refl_mat4_translate(refl_v3(1.6f, 0.4f, -0.8f)));
+    cr_assert_eq(refl_mesh_torus(0.5f, 0.2f, 24, 12, NULL, &m), REFL_OK);
+    tu_refl_add_object(s, m, REFL_DIFFUSE, blue, refl_mat4_translate(refl_v3(-1.5f, 0.3f, 0.9f)));
+    tu_refl_add_point_light(s, refl_v3(2.0f, 5.0f, 3.0f), 1.0f, 0.0f);
+    *v = tu_refl_view(refl_v3(0.5f, 2.6f, 5.0f), refl_v3(0.0f, 0.5f, 0.0f), 96, 72);
+    return s;
+}
+
+/* One frame, each reflector its own method: each reflector's pixels are
+   those a frame of its method alone gives it (one bounce), the rest the
+   base pass's. (C3RC's density is set: its default follows the
+   reflectors it draws.) */
+Test(refl_renderer, each_reflector_with_its_own_method, .timeout = 60) {
+    static const refl_method pairs[][2] = {{REFL_PLANAR, REFL_SBC}, {REFL_PLANAR, REFL_ENVMAP},
+                                           {REFL_ENVMAP, REFL_C3RC}, {REFL_DIRECT, REFL_SBC}};
+    refl_view v;
+    int plane, sphere, k;
+    refl_scene *s = two_mirrors(&v, &plane, &sphere);
+    for (k = 0; k < (int)(sizeof pairs / sizeof pairs[0]); ++k) {
+        refl_method per_object[2];
+        refl_render_desc d = tu_refl_one_bounce(pairs[k][0], 2);
+        refl_frame *alone0, *alone1, *mixed;
+        d.c3rc.point_density = 300.0f;
+        alone0 = tu_refl_render(s, &v, &d);
+        long long on[2] = {0, 0};
+        int i;
+        d.method = pairs[k][1];
+        alone1 = tu_refl_render(s, &v, &d);
+        per_object[plane] = pairs[k][0];
+        per_object[sphere] = pairs[k][1];
+        d.method = REFL_DIRECT;
+        d.object_methods = per_object;
+        d.object_method_count = 2;
+        mixed = tu_refl_render(s, &v, &d);
+        for (i = 0; i < v.width * v.height; ++i) {
+            const refl_frame *want = mixed->stencil[i] == plane + 1 ? alone0 : alone1;
+            cr_assert_eq(mixed->stencil[i], alone0->stencil[i]);
+            on[mixed->stencil[i] == plane + 1] += mixed->stencil[i] != 0;
+            cr_assert_eq(memcmp(mixed->color + 4 * i, want->color + 4 * i, 4), 0,
+                         "%s + %s: pixel %d (stencil %d) differs from its method's own frame",
+                         refl_method_name(pairs[k][0]), refl_method_name(pairs[k][1]), i, mixed->stencil[i]);
+            cr_assert(tu_refl_same_point(mixed->points + 3 * i, want->points + 3 * i),
+                      "%s + %s: pixel %d (stencil %d): point (%g %g %g), its method's own (%g %g %g)",
+                      refl_method_name(pairs[k][0]), refl_method_name(pairs[k][1]), i, mixed->stencil[i],
+                      mixed->points[3 * i], mixed->points[3 * i + 1], mixed->points[3 * i + 2], want->points[3 * i],
+                      want->points[3 * i + 1], want->points[3 * i + 2]);
+        }
+        cr_assert(on[0] > 200 && on[1] > 200, "the view shows %lld sphere and %lld plane pixels", on[0], on[1]);
+        refl_frame_destroy(alone0);
+        refl_frame_destroy(alone1);
+        refl_frame_destroy(mixed);
+    }
+    refl_scene_destroy(s);
+}

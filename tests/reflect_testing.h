@@ -1,0 +1,58 @@
+/* Private functions of reflect.h for the tests that call them
+   (tests/reflect/test_shadow.c). tests/reflect_impl.c defines the
+   refl__testing_ functions after the implementation, where the refl__
+   statics they forward to are in scope, so no test compiles a copy of the
+   implementation. A test then uses the internals under their own names
+   (the second part). Not API. */
+#ifndef REFL_TESTING_H
+#define REFL_TESTING_H
+#include "../reflect.h"
+
+/* refl__shadow_mask, refl__shadow_mask_mode, refl__shade_lit and
+   refl__draw_scene (src/reflect/internal.h); mode is a refl__shadow_mode. */
+refl_result refl__testing_shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                      const float *depth, int width, int height, const uint8_t *region,
+                                      uint8_t region_value, uint8_t *lit, const rast_targets *restore,
+                                      refl_stats *st);
+refl_result refl__testing_shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
+                                           const float *depth, int width, int height, const uint8_t *region,
+                                           uint8_t region_value, uint8_t *lit, const rast_targets *restore,
+                                           refl_stats *st, int mode, unsigned *used_zfail);
+refl_result refl__testing_shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
+                                    refl_stats *st);
+refl_result refl__testing_draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                     refl_stats *st);
+/* refl__view_rays_init for the view, then refl__view_rays_get at (px, py). */
+void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float px, float py, refl_vec3 *origin,
+                            refl_vec3 *dir, float *tmax);
+
+#ifndef REFL_IMPLEMENTATION
+/* The internals under their own names, as the tests call them. The mode
+   values are checked against the implementation's in reflect_impl.c. */
+#define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
+#define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
+typedef enum refl__shadow_mode { REFL__SHADOW_AUTO = 0, REFL__SHADOW_ZPASS, REFL__SHADOW_ZFAIL } refl__shadow_mode;
+#define refl__shadow_mask refl__testing_shadow_mask
+#define refl__shadow_mask_mode refl__testing_shadow_mask_mode
+#define refl__shade_lit refl__testing_shade_lit
+#define refl__draw_scene refl__testing_draw_scene
+
+/* A view's rays: the view kept, each ray set up again when asked for. */
+typedef struct refl__view_rays {
+    refl_view view;
+    const refl_scene *scene;
+} refl__view_rays;
+
+static inline void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const refl_scene *scene) {
+    r->view = *v;
+    r->scene = scene;
+}
+
+static inline void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin,
+                                       refl_vec3 *dir, float *tmax) {
+    refl__testing_view_ray(&r->view, r->scene, px, py, origin, dir, tmax);
+}
+#endif
+
+#endif
