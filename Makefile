@@ -65,6 +65,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/planar_faces.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_raytrace.c \
+                 src/reflect/gbuffer.c \
                  src/reflect/m_envmap.c \
                  src/reflect/metrics.c \
                  src/reflect/m_c3rc.c \

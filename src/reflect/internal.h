@@ -176,6 +176,56 @@ static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const 
                               refl__hit_geom *g);
 static double refl__now_ms(void);
 
+/* ---- the reflectors' G-buffer and composite (gbuffer.c): ENVMAP, C3RC, SBC ---- */
+
+/* One object in a G-buffer or cube-face draw: clip position exactly as the
+   base pass computes it (so depth tests against the base pass's depth are
+   exact), world position and (G-buffer) world normal as varyings. */
+typedef struct refl__em_draw {
+    const refl_mesh *mesh;
+    refl_mat4 mvp, model, normal_m;
+    int normals;                  /* varyings 3..5: world normal too (G-buffer) */
+    refl_vec3 eye;                /* G-buffer: the viewer */
+    float id;                     /* written to alpha: object index + 1 */
+} refl__em_draw;
+
+/* The G-buffer of the reflectors the running method draws. */
+typedef struct refl__em {
+    refl__pass *p;
+    refl__em_draw *draws;         /* one per object */
+    float *gbuf;                  /* frame-sized RGBA32F: world normal, object + 1 (negative: the back side) */
+    float *surface;               /* C3RC, SBC: per reflector pixel, the world point seen there */
+} refl__em;
+
+/* Vertex program of those draws: varyings world position, then (with
+   d->normals) world normal. */
+static int refl__em_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
+/* d for object `object` seen through vp, with normals or without. */
+static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int object, refl_mat4 vp, int normals);
+static rast_result refl__em_submit(rast_context *rc, const refl__em_draw *d);
+/* Clears `flags` (RAST_CLEAR_*) with the default state: clears honour the
+   depth mask and scissor. */
+static rast_result refl__em_clear(rast_context *rc, unsigned flags);
+/* The reflectors' world normals into em->gbuf where the base pass showed
+   them; seen[i] set for every reflector i with a pixel, *any when one has. */
+static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any);
+/* Allocates em->gbuf, em->draws and *seen (one flag per object; the
+   caller frees all three, also on failure) and draws the G-buffer. */
+static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int *any);
+/* A row job (arg: the refl__em): per reflector pixel, the world point of
+   the surface seen into em->surface. */
+static void refl__em_surface_row(void *arg, int y);
+/* The distance fade (paper 003 V-D) of material m's mirror share at pixel
+   (x, y) showing `shown` (NaN: the environment). */
+static float refl__em_fade(const refl__pass *p, const refl_material *m, int x, int y, refl_vec3 shown);
+/* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
+static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown);
+/* Adds reflector pixel (x, y)'s mirror share (g: its G-buffer texel), as
+   ENVMAP composites: sub (NULL: the environment along the reflected ray)
+   times the reflectance; glass adds the refracted environment. */
+static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
+                               refl_vec3 shown);
+
 /* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
    refl__shadow_mask: for the pixels of a width x height frame (region NULL,
    or region[pixel] == region_value) whose window depth `depth` (drawn with
