@@ -64,6 +64,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/shadow.c \
                  src/reflect/planar_faces.c \
                  src/reflect/light_volume.c \
+                 src/reflect/trace.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/gbuffer.c \
                  src/reflect/m_envmap.c \

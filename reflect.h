@@ -1266,6 +1266,8 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
+/* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
+static long long refl__bvh_bytes(const refl_bvh *bvh);
 static double refl__now_ms(void);
 
 /* ---- the reflectors' G-buffer and composite (gbuffer.c): ENVMAP, C3RC, SBC ---- */
@@ -1382,6 +1384,99 @@ static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, r
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
 /* ---- end shadows ---- */
+
+/* ---- planar reflector faces (planar_faces.c): PLANAR and the light volumes ---- */
+
+/* A mirror, partial reflector or glass object's triangles in one world
+   plane. */
+typedef struct refl__planar_face {
+    int object;
+    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    int glass;                    /* a refractor's face */
+    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
+    double thickness;             /* glass: the distance to that face */
+    uint32_t *indices;            /* the face's triangles, into the object's mesh */
+    int index_count;
+} refl__planar_face;
+
+/* Each mirror or partial reflector's (and glass's) faces into *out (only:
+   NULL, or per object whether to look at it); none for an object that is
+   not planar. Free with refl__planar_free_faces. */
+static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *only, refl__planar_face **out,
+                                           int *out_count);
+static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count);
+/* Reflection about the plane n . x = d. */
+static refl_mat4 refl__planar_reflection(const double n[3], double d);
+
+/* ---- light volumes (light_volume.c): light planar mirrors reflect ---- */
+
+/* Lights the shading sums at most (the soft shadows' limit). */
+enum { REFL__LV_MAX_LIGHTS = 64 };
+
+typedef struct refl__vlight {
+    int source;                   /* the scene light */
+    int face;                     /* index into the faces */
+    double side;                  /* +1, -1: the side of the face's plane the light is on */
+} refl__vlight;
+
+typedef struct refl__lv {
+    const refl__planar_face *faces; /* not owned */
+    refl__vlight v[REFL__LV_MAX_LIGHTS];
+    int count;
+    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
+    refl_light lights[REFL__LV_MAX_LIGHTS];
+    int samples;                  /* per light with a radius; 1: the centres */
+} refl__lv;
+
+/* The virtual lights of the scene's lights in the mirror faces; lv->shade
+   sums them after the scene's own. */
+static void refl__lv_init(refl__lv *lv, const refl_scene *s, const refl__planar_face *faces, int face_count,
+                          int samples);
+/* Samples of virtual light k: 1 for lights without a radius. */
+static int refl__lv_samples(const refl__lv *lv, const refl_scene *s, int k);
+/* Sample j of virtual light k's source (*src) and its mirror image (*virt);
+   0 when the sample is not on the light's side of the face. */
+static int refl__lv_sample(const refl__lv *lv, const refl_scene *s, int k, int j, refl_light *src, refl_light *virt);
+/* The face's reflectance weighing virtual light k at point p of object
+   `object`; 0 off the light's side or on the face's own object. */
+static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k, int object, refl_vec3 p);
+/* Where the segment from p towards virt meets face k, *m, when it does. */
+static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
+                                 refl_vec3 *m);
+
+/* ---- the per-pixel tracer (trace.c): RAYTRACE, and SBC's fallback ---- */
+
+typedef struct refl__rt_object {
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
+} refl__rt_object;
+
+/* A tracer set up for one pass (refl__rt_begin). */
+typedef struct refl__rt {
+    const refl__pass *p;
+    const refl_scene *scene;
+    refl__rt_object *objects;
+    refl_ray_caster caster;
+    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
+    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
+    int face_count;
+    refl__lv lv;                  /* and their virtual lights (none when off) */
+} refl__rt;
+
+/* What tracing pass p needs: the objects' transforms and materials, the
+   caster (p's, else bvh when the caller has one of the scene, else a BVH
+   built here) and, with light volumes, the mirror faces and their virtual
+   lights. refl__rt_end frees it (also after a failed begin). */
+static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
+static void refl__rt_end(refl__rt *rt);
+/* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
+   shows (NaN: none), window depth and stencil as the base pass writes
+   them; *rays counts the rays cast. */
+static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
+                           float *depth, uint8_t *stencil);
+/* A colour channel in [0, 1] as a byte, rounded. */
+static uint8_t refl__rt_unorm8(float v);
 
 /* The methods, one module each, and their rows in the method table
    (render.c). A row's options function checks the method's sub-struct of
@@ -4432,6 +4527,12 @@ REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocato
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles) {
     if (nodes) *nodes = bvh ? bvh->node_count : 0;
     if (triangles) *triangles = bvh ? bvh->tri_count : 0;
+}
+
+static long long refl__bvh_bytes(const refl_bvh *bvh) {
+    long long nodes = 0, tris = 0;
+    refl_bvh_stats(bvh, &nodes, &tris);
+    return nodes * (long long)sizeof(refl__bvh_node) + tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
 }
 
 /* ---- traversal ---------------------------------------------------------------- */
@@ -9182,7 +9283,7 @@ typedef struct refl__sv_shade {
 
 /* Soft shadows' fragment: each light's Lambert term weighed by its visible
    fraction at the pixel, (float)count / (float)samples, as RAYTRACE's
-   refl__rt_diffuse_soft weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
+   refl__rt_diffuse weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
 enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
 static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
     const float *v = in->varyings;
@@ -9407,16 +9508,6 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
 
 enum { REFL__PLANAR_MAX_FACES = 16 };
 
-typedef struct refl__planar_face {
-    int object;
-    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
-    int glass;                    /* a refractor's face */
-    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
-    double thickness;             /* glass: the distance to that face */
-    uint32_t *indices;            /* the face's triangles, into the object's mesh */
-    int index_count;
-} refl__planar_face;
-
 static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
     int i;
     for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);
@@ -9575,24 +9666,6 @@ static refl_mat4 refl__planar_reflection(const double n[3], double d) {
        object blocks neither way. A pixel counts the samples whose volume
        holds it and whose blockers miss it; the region's diffuse objects
        are then shaded again where any virtual light arrives. */
-
-/* Lights the shading sums at most (the soft shadows' limit). */
-enum { REFL__LV_MAX_LIGHTS = 64 };
-
-typedef struct refl__vlight {
-    int source;                   /* the scene light */
-    int face;                     /* index into the faces */
-    double side;                  /* +1, -1: the side of the face's plane the light is on */
-} refl__vlight;
-
-typedef struct refl__lv {
-    const refl__planar_face *faces; /* not owned */
-    refl__vlight v[REFL__LV_MAX_LIGHTS];
-    int count;
-    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
-    refl_light lights[REFL__LV_MAX_LIGHTS];
-    int samples;                  /* per light with a radius; 1: the centres */
-} refl__lv;
 
 /* A light mirrored in the plane n . x = d. */
 static refl_light refl__lv_mirror(const refl_light *l, const double n[3], double d) {
@@ -9932,41 +10005,23 @@ done:
     refl__free(al, dc);
     return r;
 }
-/* ---- src/reflect/m_raytrace.c ---- */
-/* RAYTRACE: the reference every other method is measured against.
-   Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
-   a primary ray per pixel centre, mirror reflections to desc.depth
-   bounces, glass with Fresnel reflection, refraction, total internal
-   reflection and Beer's-law absorption, optional hard or soft shadows
-   (soft: a shadow ray per jittered light sample, refl__rt_diffuse_soft), the
-   environment on a miss. Shading is the shared model of shade.c, and each
-   surface's colour is clamped to [0, 1] before a reflectance weighs it,
-   exactly as the rasterised methods composite into their RGBA8 frame, so
-   images differ only where reflection geometry differs.
-   Pixels are independent, so any thread count gives the same bytes. */
+/* ---- src/reflect/trace.c ---- */
+/* The per-pixel tracer: Whitted ray tracing through the BVH (or a caller's
+   refl_ray_caster), what RAYTRACE renders every pixel with and SBC's
+   fallback renders the pixels it cannot resolve with. A primary ray per
+   pixel centre, mirror reflections to desc.depth bounces, glass with
+   Fresnel reflection, refraction, total internal reflection and Beer's-law
+   absorption, optional hard or soft shadows (soft: a shadow ray per
+   jittered light sample, refl__rt_diffuse), the light planar mirrors
+   reflect (light_volumes), the environment on a miss. Shading is the
+   shared model of shade.c, and each surface's colour is clamped to [0, 1]
+   before a reflectance weighs it, exactly as the rasterised methods
+   composite into their RGBA8 frame, so images differ only where
+   reflection geometry differs. A pixel depends on nothing but its own
+   rays, so any thread count gives the same bytes. */
 
-enum { REFL__RT_TILE = 16 };
 /* A branch whose weight falls below this cannot move an 8-bit pixel. */
 #define REFL__RT_MIN_WEIGHT (1.0f / 1024.0f)
-
-typedef struct refl__rt_object {
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
-} refl__rt_object;
-
-typedef struct refl__rt {
-    const refl__pass *p;
-    const refl_scene *scene;
-    refl__rt_object *objects;
-    refl_ray_caster caster;
-    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
-    int tiles_x, tiles_y, first_tile;
-    long long *tile_rays;         /* per tile, summed after: no shared counter */
-    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
-    int face_count;
-    refl__lv lv;                  /* and their virtual lights (none when off) */
-} refl__rt;
 
 typedef struct refl__rt_surface {
     refl_vec3 p, ng, ns;          /* point, geometric and shading normal (unit) */
@@ -10327,33 +10382,6 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     }
 }
 
-/* One tile of pixels. */
-static void refl__rt_tile(void *arg, int job) {
-    const refl__rt *rt = (const refl__rt *)arg;
-    refl_frame *f = rt->p->frame;
-    int tile = rt->first_tile + job;
-    int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
-    int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
-    long long rays = 0;
-    for (y = y0; y < y1; ++y)
-        for (x = x0; x < x1; ++x) {
-            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
-            float rgb[3];
-            refl_vec3 shown;
-            refl__rt_pixel(rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
-            if (f->stencil[i]) {
-                f->points[3 * i] = shown.x;
-                f->points[3 * i + 1] = shown.y;
-                f->points[3 * i + 2] = shown.z;
-            }
-            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
-            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
-            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
-            f->color[4 * i + 3] = 255;
-        }
-    rt->tile_rays[tile] = rays;
-}
-
 /* What tracing a frame of pass p needs besides the tiles: the objects'
    transforms and materials, the caster (p's, else `bvh` when the caller
    has built one of the scene, else a BVH built here), and with light
@@ -10397,6 +10425,49 @@ static void refl__rt_end(refl__rt *rt) {
     refl__free(&rt->scene->allocator, rt->objects);
     rt->scene = NULL;
 }
+/* ---- src/reflect/m_raytrace.c ---- */
+/* RAYTRACE: the reference every other method is measured against. Every
+   pixel is rendered by the per-pixel tracer (trace.c), in tiles of
+   REFL__RT_TILE pixels square run on the thread pool, a band of tile rows
+   at a time so progress is reported from the calling thread. Pixels are
+   independent, so any thread count gives the same bytes. */
+
+enum { REFL__RT_TILE = 16 };
+
+/* A frame's tracing: the tracer, and the rays each tile cast (summed
+   after: no shared counter). */
+typedef struct refl__rt_frame {
+    refl__rt rt;
+    int tiles_x, tiles_y, first_tile;
+    long long *tile_rays;
+} refl__rt_frame;
+
+/* One tile of pixels. */
+static void refl__rt_tile(void *arg, int job) {
+    const refl__rt_frame *tf = (const refl__rt_frame *)arg;
+    refl_frame *f = tf->rt.p->frame;
+    int tile = tf->first_tile + job;
+    int x0 = (tile % tf->tiles_x) * REFL__RT_TILE, y0 = (tile / tf->tiles_x) * REFL__RT_TILE;
+    int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
+    long long rays = 0;
+    for (y = y0; y < y1; ++y)
+        for (x = x0; x < x1; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            float rgb[3];
+            refl_vec3 shown;
+            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
+            if (f->stencil[i]) {
+                f->points[3 * i] = shown.x;
+                f->points[3 * i + 1] = shown.y;
+                f->points[3 * i + 2] = shown.z;
+            }
+            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
+            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
+            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
+            f->color[4 * i + 3] = 255;
+        }
+    tf->tile_rays[tile] = rays;
+}
 
 static const char *refl__options_raytrace(refl_render_desc *d) {
     if (d->raytrace.caster.occluded && !d->raytrace.caster.intersect)
@@ -10407,48 +10478,43 @@ static const char *refl__options_raytrace(refl_render_desc *d) {
 static refl_result refl__method_raytrace(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl__rt rt;
-    long long nodes = 0, tris = 0;
+    refl__rt_frame tf;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
     if (r != REFL_OK) return r;
-    r = refl__rt_begin(&rt, p, bvh);
-    rt.bvh = owned; /* freed with rt */
+    r = refl__rt_begin(&tf.rt, p, bvh);
+    tf.rt.bvh = owned; /* freed with rt */
     if (r != REFL_OK) {
-        refl__rt_end(&rt);
+        refl__rt_end(&tf.rt);
         return r;
     }
-    rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
-    rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
-    tiles = rt.tiles_x * rt.tiles_y;
-    rt.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
-    if (!rt.tile_rays) {
-        refl__rt_end(&rt);
+    tf.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tf.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tiles = tf.tiles_x * tf.tiles_y;
+    tf.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
+    if (!tf.tile_rays) {
+        refl__rt_end(&tf.rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < scene->object_count; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (bvh) {
-        refl_bvh_stats(bvh, &nodes, &tris);
-        f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
-                               tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
-    }
+    if (bvh) f->stats.model_bytes = refl__bvh_bytes(bvh);
     t1 = refl__now_ms();
     f->stats.ms_build = t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
-    for (rows_done = 0; rows_done < rt.tiles_y;) {
-        int band = REFL__MAX(1, rt.tiles_y / 16), rows = REFL__MIN(band, rt.tiles_y - rows_done);
-        rt.first_tile = rows_done * rt.tiles_x;
-        rast_run_jobs(p->rc, rows * rt.tiles_x, refl__rt_tile, &rt);
+    for (rows_done = 0; rows_done < tf.tiles_y;) {
+        int band = REFL__MAX(1, tf.tiles_y / 16), rows = REFL__MIN(band, tf.tiles_y - rows_done);
+        tf.first_tile = rows_done * tf.tiles_x;
+        rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)rt.tiles_y);
+        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
     }
-    for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
+    for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
     f->stats.ms_reflect = refl__now_ms() - t1;
-    refl__free(&scene->allocator, rt.tile_rays);
-    refl__rt_end(&rt);
+    refl__free(&scene->allocator, tf.tile_rays);
+    refl__rt_end(&tf.rt);
     return REFL_OK;
 }
 /* ---- src/reflect/gbuffer.c ---- */

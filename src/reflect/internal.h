@@ -174,6 +174,8 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
+/* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
+static long long refl__bvh_bytes(const refl_bvh *bvh);
 static double refl__now_ms(void);
 
 /* ---- the reflectors' G-buffer and composite (gbuffer.c): ENVMAP, C3RC, SBC ---- */
@@ -290,6 +292,99 @@ static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, r
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
 /* ---- end shadows ---- */
+
+/* ---- planar reflector faces (planar_faces.c): PLANAR and the light volumes ---- */
+
+/* A mirror, partial reflector or glass object's triangles in one world
+   plane. */
+typedef struct refl__planar_face {
+    int object;
+    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    int glass;                    /* a refractor's face */
+    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
+    double thickness;             /* glass: the distance to that face */
+    uint32_t *indices;            /* the face's triangles, into the object's mesh */
+    int index_count;
+} refl__planar_face;
+
+/* Each mirror or partial reflector's (and glass's) faces into *out (only:
+   NULL, or per object whether to look at it); none for an object that is
+   not planar. Free with refl__planar_free_faces. */
+static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *only, refl__planar_face **out,
+                                           int *out_count);
+static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count);
+/* Reflection about the plane n . x = d. */
+static refl_mat4 refl__planar_reflection(const double n[3], double d);
+
+/* ---- light volumes (light_volume.c): light planar mirrors reflect ---- */
+
+/* Lights the shading sums at most (the soft shadows' limit). */
+enum { REFL__LV_MAX_LIGHTS = 64 };
+
+typedef struct refl__vlight {
+    int source;                   /* the scene light */
+    int face;                     /* index into the faces */
+    double side;                  /* +1, -1: the side of the face's plane the light is on */
+} refl__vlight;
+
+typedef struct refl__lv {
+    const refl__planar_face *faces; /* not owned */
+    refl__vlight v[REFL__LV_MAX_LIGHTS];
+    int count;
+    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
+    refl_light lights[REFL__LV_MAX_LIGHTS];
+    int samples;                  /* per light with a radius; 1: the centres */
+} refl__lv;
+
+/* The virtual lights of the scene's lights in the mirror faces; lv->shade
+   sums them after the scene's own. */
+static void refl__lv_init(refl__lv *lv, const refl_scene *s, const refl__planar_face *faces, int face_count,
+                          int samples);
+/* Samples of virtual light k: 1 for lights without a radius. */
+static int refl__lv_samples(const refl__lv *lv, const refl_scene *s, int k);
+/* Sample j of virtual light k's source (*src) and its mirror image (*virt);
+   0 when the sample is not on the light's side of the face. */
+static int refl__lv_sample(const refl__lv *lv, const refl_scene *s, int k, int j, refl_light *src, refl_light *virt);
+/* The face's reflectance weighing virtual light k at point p of object
+   `object`; 0 off the light's side or on the face's own object. */
+static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k, int object, refl_vec3 p);
+/* Where the segment from p towards virt meets face k, *m, when it does. */
+static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
+                                 refl_vec3 *m);
+
+/* ---- the per-pixel tracer (trace.c): RAYTRACE, and SBC's fallback ---- */
+
+typedef struct refl__rt_object {
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
+} refl__rt_object;
+
+/* A tracer set up for one pass (refl__rt_begin). */
+typedef struct refl__rt {
+    const refl__pass *p;
+    const refl_scene *scene;
+    refl__rt_object *objects;
+    refl_ray_caster caster;
+    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
+    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
+    int face_count;
+    refl__lv lv;                  /* and their virtual lights (none when off) */
+} refl__rt;
+
+/* What tracing pass p needs: the objects' transforms and materials, the
+   caster (p's, else bvh when the caller has one of the scene, else a BVH
+   built here) and, with light volumes, the mirror faces and their virtual
+   lights. refl__rt_end frees it (also after a failed begin). */
+static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
+static void refl__rt_end(refl__rt *rt);
+/* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
+   shows (NaN: none), window depth and stencil as the base pass writes
+   them; *rays counts the rays cast. */
+static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
+                           float *depth, uint8_t *stencil);
+/* A colour channel in [0, 1] as a byte, rounded. */
+static uint8_t refl__rt_unorm8(float v);
 
 /* The methods, one module each, and their rows in the method table
    (render.c). A row's options function checks the method's sub-struct of

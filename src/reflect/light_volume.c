@@ -35,24 +35,6 @@
        are then shaded again where any virtual light arrives. */
 #include "internal.h"
 
-/* Lights the shading sums at most (the soft shadows' limit). */
-enum { REFL__LV_MAX_LIGHTS = 64 };
-
-typedef struct refl__vlight {
-    int source;                   /* the scene light */
-    int face;                     /* index into the faces */
-    double side;                  /* +1, -1: the side of the face's plane the light is on */
-} refl__vlight;
-
-typedef struct refl__lv {
-    const refl__planar_face *faces; /* not owned */
-    refl__vlight v[REFL__LV_MAX_LIGHTS];
-    int count;
-    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
-    refl_light lights[REFL__LV_MAX_LIGHTS];
-    int samples;                  /* per light with a radius; 1: the centres */
-} refl__lv;
-
 /* A light mirrored in the plane n . x = d. */
 static refl_light refl__lv_mirror(const refl_light *l, const double n[3], double d) {
     refl_mat4 r = refl__planar_reflection(n, d);

@@ -832,7 +832,7 @@ typedef struct refl__sv_shade {
 
 /* Soft shadows' fragment: each light's Lambert term weighed by its visible
    fraction at the pixel, (float)count / (float)samples, as RAYTRACE's
-   refl__rt_diffuse_soft weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
+   refl__rt_diffuse weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
 enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
 static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
     const float *v = in->varyings;
