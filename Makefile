@@ -55,7 +55,9 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/mesh.c \
                  src/reflect/shapes.c \
                  src/reflect/scene.c \
+                 src/reflect/result.c \
                  src/reflect/shade.c \
+                 src/reflect/base_pass.c \
                  src/reflect/bvh.c \
                  src/reflect/kdtree.c \
                  src/reflect/cam_c3rc.c \

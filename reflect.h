@@ -1248,6 +1248,38 @@ static refl_result refl__context_create(const refl_scene *scene, int threads, ra
    defaults resolved; the broken rule into *message. */
 static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
 
+/* rast.h's result as a refl_result (result.c). */
+static refl_result refl__result_from_rast(rast_result r);
+
+/* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
+
+/* The base pass's programs: refl__base_vertex reads a refl__draw_ctx and
+   writes REFL__BASE_VARYINGS varyings; refl__base_fragment shades them
+   with the shared diffuse model (refl__surface_rgba); refl__clear_fragment
+   writes transparent black (mirrors and glass until a method fills them).
+   A program with a context of its own puts the refl__draw_ctx first. */
+enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
+
+/* One object seen through a view-projection. */
+typedef struct refl__draw_ctx {
+    const refl_scene *scene;
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
+} refl__draw_ctx;
+
+
+static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp);
+static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
+static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+/* What a diffuse surface shows of its shaded colour rgb: clamped, times
+   1 - mirror_weight on a partial reflector; opaque. */
+static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]);
+/* Draws a mesh's triangles (indices NULL: all of them) with the bound
+   state, num_varyings from the vertex program. */
+static rast_result refl__draw_mesh(rast_context *rc, const refl_mesh *m, const uint32_t *indices, int index_count,
+                                   int num_varyings);
 /* Draws every object but `skip` (-1: none) as the base pass does, into
    whatever targets rc has bound, and finishes. */
 static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
@@ -1256,7 +1288,6 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
    through it (inv_vp: clip to world). */
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
-static refl_result refl__result_from_rast(rast_result r);
 
 /* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
 typedef struct refl__hit_geom {
@@ -3462,21 +3493,6 @@ REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_alloc
    textures, the environment and the scene's own camera. The scene owns
    everything added to it. */
 
-REFL_API const char *refl_result_string(refl_result result) {
-    switch (result) {
-    case REFL_OK: return "ok";
-    case REFL_ERROR_INVALID_ARGUMENT: return "invalid argument";
-    case REFL_ERROR_INVALID_SIZE: return "invalid size (zero, negative, or too large)";
-    case REFL_ERROR_OUT_OF_MEMORY: return "out of memory";
-    case REFL_ERROR_BAD_MESH: return "bad mesh (indices out of range, non-finite positions or no triangles)";
-    case REFL_ERROR_UNKNOWN_NAME: return "unknown name";
-    case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
-    case REFL_ERROR_UNSUPPORTED: return "method not available";
-    case REFL_ERROR_RASTER: return "rasteriser error";
-    }
-    return "unknown refl_result";
-}
-
 REFL_API refl_result refl_scene_create(const refl_allocator *a, refl_scene **out_scene) {
     refl_scene *s;
     if (!out_scene) return REFL_ERROR_INVALID_ARGUMENT;
@@ -3965,6 +3981,28 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     *out_scene = s;
     return REFL_OK;
 }
+/* ---- src/reflect/result.c ---- */
+/* What the calls return: refl_result's strings, and rast.h's results as
+   refl_result. */
+
+REFL_API const char *refl_result_string(refl_result result) {
+    switch (result) {
+    case REFL_OK: return "ok";
+    case REFL_ERROR_INVALID_ARGUMENT: return "invalid argument";
+    case REFL_ERROR_INVALID_SIZE: return "invalid size (zero, negative, or too large)";
+    case REFL_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case REFL_ERROR_BAD_MESH: return "bad mesh (indices out of range, non-finite positions or no triangles)";
+    case REFL_ERROR_UNKNOWN_NAME: return "unknown name";
+    case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
+    case REFL_ERROR_UNSUPPORTED: return "method not available";
+    case REFL_ERROR_RASTER: return "rasteriser error";
+    }
+    return "unknown refl_result";
+}
+
+static refl_result refl__result_from_rast(rast_result r) {
+    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+}
 /* ---- src/reflect/shade.c ---- */
 /* The one shading model every method uses: diffuse surfaces lit by ambient
    and Lambert terms (no shadows), and the environment on a miss. Methods
@@ -4139,17 +4177,14 @@ REFL_API float refl_material_fade(const refl_material *m, float distance) {
     f = distance >= 0.0f ? REFL__MIN(distance / m->fade_distance, 1.0f) : 1.0f;
     return hi - (hi - lo) * f * f;
 }
-
-/* ---- the base pass's programs, shared by every rasterising method ---------------- */
-
-enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
-
-typedef struct refl__draw_ctx {
-    const refl_scene *scene;
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
-} refl__draw_ctx;
+/* ---- src/reflect/base_pass.c ---- */
+/* The base pass's drawing, shared by every rasterising method: each object
+   drawn with the shared diffuse model per pixel (shade.c), reflectors with
+   their diffuse share (partial) or transparent black (mirror, glass) and
+   their object id + 1 in the stencil, then the environment behind
+   everything. Methods draw with these programs again (a mirrored camera, a
+   cube face, the shadowed pixels shaded once more), so their clip
+   positions and colours match the base pass's bit for bit. */
 
 /* The draw context of object `object` seen through vp. */
 static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp) {
@@ -4227,8 +4262,73 @@ static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rg
     return 1;
 }
 
-static refl_result refl__result_from_rast(rast_result r) {
-    return r == RAST_OK ? REFL_OK : r == RAST_ERROR_OUT_OF_MEMORY ? REFL_ERROR_OUT_OF_MEMORY : REFL_ERROR_RASTER;
+/* Draws every object but `skip`: diffuse ones shaded, reflectors with their
+   diffuse share (partial) or black (mirror, glass), each writing its object
+   id + 1 into the stencil. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st) {
+    refl__draw_ctx *dc;
+    int i;
+    rast_result rr = RAST_OK;
+    /* one draw context per object: rast runs the callbacks at rast_finish */
+    dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
+                                        sizeof(refl__draw_ctx));
+    if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *m = scene->meshes[o->mesh];
+        rast_state s;
+        if (i == skip) continue;
+        refl__draw_ctx_init(&dc[i], scene, i, vp);
+        memset(&s, 0, sizeof s);
+        s.depth_test = 1;
+        s.stencil_test = 1;
+        s.stencil_front.func = RAST_ALWAYS;
+        s.stencil_front.pass = RAST_REPLACE;
+        s.stencil_front.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+        s.stencil_back = s.stencil_front;
+        s.vertex_fn = refl__base_vertex;
+        s.vertex_user = &dc[i];
+        if (dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL) {
+            s.fragment_fn = refl__base_fragment;
+            s.fragment_user = &dc[i];
+        }
+        if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
+        /* mirrors and glass: transparent black until a method fills them */
+        if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
+            s.fragment_fn = refl__clear_fragment;
+        rr = rast_set_state(rc, &s);
+        if (rr == RAST_OK) rr = refl__draw_mesh(rc, m, NULL, 0, REFL__BASE_VARYINGS);
+        st->triangles += m->triangle_count;
+    }
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    refl__free(&scene->allocator, dc);
+    return refl__result_from_rast(rr);
+}
+
+/* The environment behind the geometry: every pixel the scene left at the
+   far plane shows the environment along its view ray. */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp) {
+    int x, y;
+    for (y = 0; y < height; ++y)
+        for (x = 0; x < width; ++x) {
+            size_t i = (size_t)y * (size_t)stride_px + (size_t)x;
+            float nx, ny, rgb[3];
+            refl_vec3 a, b;
+            int c;
+            if (depth[i] < 1.0f) continue;
+            nx = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
+            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
+            a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
+            b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
+            refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
+            for (c = 0; c < 3; ++c) {
+                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
+            }
+            color[4 * i + 3] = 255;
+        }
 }
 /* ---- src/reflect/bvh.c ---- */
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
@@ -14986,10 +15086,11 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
     return r;
 }
 /* ---- src/reflect/render.c ---- */
-/* Frames and the one entry point, refl_render: the base pass every method
-   shares (diffuse geometry shaded per pixel, reflectors into the stencil),
-   the environment behind everything, and the per-method middle step.
-   DIRECT is the base pass alone; RAYTRACE renders the whole frame itself. */
+/* Frames, views and their rays, the method table, the renderer and the
+   flow of a frame: the base pass every method shares (base_pass.c's
+   drawing, then shadows, then the environment behind everything), then
+   the per-reflector methods. DIRECT is the base pass alone; RAYTRACE
+   renders the whole frame itself. */
 
 #include <time.h>
 
@@ -15127,77 +15228,6 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
     if (origin) *origin = o;
     if (dir) *dir = d;
     if (tmax) *tmax = t;
-}
-
-/* ---- the base pass ---------------------------------------------------------- */
-
-/* Draws every object but `skip`: diffuse ones shaded, reflectors with their
-   diffuse share (partial) or black (mirror, glass), each writing its object
-   id + 1 into the stencil. */
-static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    refl_stats *st) {
-    refl__draw_ctx *dc;
-    int i;
-    rast_result rr = RAST_OK;
-    /* one draw context per object: rast runs the callbacks at rast_finish */
-    dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                        sizeof(refl__draw_ctx));
-    if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *m = scene->meshes[o->mesh];
-        rast_state s;
-        if (i == skip) continue;
-        refl__draw_ctx_init(&dc[i], scene, i, vp);
-        memset(&s, 0, sizeof s);
-        s.depth_test = 1;
-        s.stencil_test = 1;
-        s.stencil_front.func = RAST_ALWAYS;
-        s.stencil_front.pass = RAST_REPLACE;
-        s.stencil_front.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
-        s.stencil_back = s.stencil_front;
-        s.vertex_fn = refl__base_vertex;
-        s.vertex_user = &dc[i];
-        if (dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL) {
-            s.fragment_fn = refl__base_fragment;
-            s.fragment_user = &dc[i];
-        }
-        if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
-        /* mirrors and glass: transparent black until a method fills them */
-        if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
-            s.fragment_fn = refl__clear_fragment;
-        rr = rast_set_state(rc, &s);
-        if (rr == RAST_OK) rr = refl__draw_mesh(rc, m, NULL, 0, REFL__BASE_VARYINGS);
-        st->triangles += m->triangle_count;
-    }
-    if (rr == RAST_OK) rr = rast_finish(rc);
-    refl__free(&scene->allocator, dc);
-    return refl__result_from_rast(rr);
-}
-
-/* The environment behind the geometry: every pixel the scene left at the
-   far plane shows the environment along its view ray. */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
-                                  const refl_scene *scene, refl_mat4 inv_vp) {
-    int x, y;
-    for (y = 0; y < height; ++y)
-        for (x = 0; x < width; ++x) {
-            size_t i = (size_t)y * (size_t)stride_px + (size_t)x;
-            float nx, ny, rgb[3];
-            refl_vec3 a, b;
-            int c;
-            if (depth[i] < 1.0f) continue;
-            nx = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
-            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
-            a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
-            b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
-            refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
-            for (c = 0; c < 3; ++c) {
-                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-            color[4 * i + 3] = 255;
-        }
 }
 
 /* ---- the method table ---------------------------------------------------------- */
@@ -15526,7 +15556,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. It draws with the base pass's programs (shade.c).
+   mirrored view's depth. It draws with the base pass's programs (base_pass.c).
    Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
    level, and translucent glass (desc.lighting.translucency: rast.h's fog over the
    image behind a glass face, refl__planar_fog). */

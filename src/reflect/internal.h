@@ -156,6 +156,38 @@ static refl_result refl__context_create(const refl_scene *scene, int threads, ra
    defaults resolved; the broken rule into *message. */
 static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
 
+/* rast.h's result as a refl_result (result.c). */
+static refl_result refl__result_from_rast(rast_result r);
+
+/* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
+
+/* The base pass's programs: refl__base_vertex reads a refl__draw_ctx and
+   writes REFL__BASE_VARYINGS varyings; refl__base_fragment shades them
+   with the shared diffuse model (refl__surface_rgba); refl__clear_fragment
+   writes transparent black (mirrors and glass until a method fills them).
+   A program with a context of its own puts the refl__draw_ctx first. */
+enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
+
+/* One object seen through a view-projection. */
+typedef struct refl__draw_ctx {
+    const refl_scene *scene;
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
+} refl__draw_ctx;
+
+
+static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp);
+static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
+static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+/* What a diffuse surface shows of its shaded colour rgb: clamped, times
+   1 - mirror_weight on a partial reflector; opaque. */
+static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]);
+/* Draws a mesh's triangles (indices NULL: all of them) with the bound
+   state, num_varyings from the vertex program. */
+static rast_result refl__draw_mesh(rast_context *rc, const refl_mesh *m, const uint32_t *indices, int index_count,
+                                   int num_varyings);
 /* Draws every object but `skip` (-1: none) as the base pass does, into
    whatever targets rc has bound, and finishes. */
 static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
@@ -164,7 +196,6 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
    through it (inv_vp: clip to world). */
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
-static refl_result refl__result_from_rast(rast_result r);
 
 /* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
 typedef struct refl__hit_geom {

@@ -17,7 +17,7 @@
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. It draws with the base pass's programs (shade.c).
+   mirrored view's depth. It draws with the base pass's programs (base_pass.c).
    Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
    level, and translucent glass (desc.lighting.translucency: rast.h's fog over the
    image behind a glass face, refl__planar_fog). */
