@@ -1351,25 +1351,46 @@ static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3
 static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
                                refl_vec3 shown);
 
-/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
-   refl__shadow_mask: for the pixels of a width x height frame (region NULL,
-   or region[pixel] == region_value) whose window depth `depth` (drawn with
-   vp: any view-projection, mirrored or with an oblique near plane) is
-   below 1, sets bit i of lit[pixel] when light i reaches the surface seen
-   there and clears it when not, as RAYTRACE's shadow rays decide; bits of
-   lights past REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as
-   lit), other selected pixels get 0xFF, unselected ones are untouched.
-   Draws into a scratch stencil with `depth` bound read-only, finishes, and
-   leaves `restore` bound (NULL: no targets at all) and rast's state
-   changed, also on failure (then nothing stays queued). eye: the viewpoint
-   vp projects from (it takes part in choosing z-pass or z-fail).
+/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ---- */
+
+/* What a shadow or light-volume pass works on: the pixels of a width x
+   height view (region NULL, or region[pixel] == region_value) whose
+   window depth `depth` (drawn with vp: any view-projection, mirrored or
+   with an oblique near plane) is below 1. eye: the viewpoint vp projects
+   from (it takes part in choosing z-pass or z-fail). A pass draws into rc
+   and finishes; the masks draw into a scratch stencil with `depth` bound
+   read-only and leave `restore` bound (NULL: no targets at all) and rast's
+   state changed, also on failure (then nothing stays queued); the shading
+   passes draw into the bound targets, stencil EQUAL region_value where a
+   region is given (the bound stencil then holds it). st (may be NULL)
+   counts the triangles drawn. */
+typedef struct refl__shadow_job {
+    rast_context *rc;
+    const refl_scene *scene;
+    refl_mat4 vp;
+    refl_vec3 eye;
+    const float *depth;
+    int width, height;
+    const uint8_t *region;
+    uint8_t region_value;
+    const rast_targets *restore;
+    refl_stats *st;
+} refl__shadow_job;
+
+/* A job over pass p's frame (its context, scene, depth and stats) seen
+   through vp from eye: every pixel, nothing restored. */
+static refl__shadow_job refl__shadow_job_of(const refl__pass *p, refl_mat4 vp, refl_vec3 eye);
+
+/* refl__shadow_mask: for the job's pixels, sets bit i of lit[pixel] when
+   light i reaches the surface seen there and clears it when not, as
+   RAYTRACE's shadow rays decide; bits of lights past
+   REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as lit), other
+   selected pixels get 0xFF, unselected ones are untouched.
    refl__shade_lit: draws every diffuse and partial object but `skip` again
-   into the bound targets (depth EQUAL, the base pass's vertex expression,
-   no depth writes), where the bound stencil EQUALs stencil_ref (< 0: no
-   stencil test), shading with refl_shade_diffuse_lit and lit[y * width +
-   x] (partial: times 1 - mirror_weight, as the base pass), and finishes.
-   lit must hold every pixel the draw can reach (the mask's region: match
-   it with the stencil). all_pixels 0 rewrites only pixels with a light
+   (depth EQUAL, the base pass's vertex expression, no depth writes),
+   shading with refl_shade_diffuse_lit and lit[y * width + x] (partial:
+   times 1 - mirror_weight, as the base pass). lit must hold every pixel
+   the draw can reach. all_pixels 0 rewrites only pixels with a light
    shadowed (the others keep the colour the base pass gave them, which is
    the same); 1 every pixel. */
 enum { REFL__SHADOW_MAX_LIGHTS = 8 };
@@ -1378,19 +1399,12 @@ typedef enum refl__shadow_mode {
     REFL__SHADOW_ZPASS,       /* Heidmann: wrong where the near plane is in a volume */
     REFL__SHADOW_ZFAIL        /* Carmack's reverse, with caps: always right */
 } refl__shadow_mode;
-static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                     const float *depth, int width, int height, const uint8_t *region,
-                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                     refl_stats *st);
+static refl_result refl__shadow_mask(const refl__shadow_job *job, uint8_t *lit);
 /* The same with the counting forced; *used_zfail (may be NULL) gets bit i
    set when light i was counted with z-fail. */
-static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail);
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st);
+static refl_result refl__shadow_mask_mode(const refl__shadow_job *job, uint8_t *lit, refl__shadow_mode mode,
+                                          unsigned *used_zfail);
+static refl_result refl__shade_lit(const refl__shadow_job *job, int skip, const uint8_t *lit, int all_pixels);
 /* Soft shadows (paper 002: the scene rendered once per jittered light, summed
    in the accumulation buffer; here the per-sample shadow masks are summed
    exactly on the CPU instead, which rast's RAST_ACCUM would give up to
@@ -1404,17 +1418,12 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
    term weighed by count / samples (refl_shade_diffuse_weighted); all_pixels
    0 rewrites only pixels with a light not wholly visible. */
 static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene);
-static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
-                                          const rast_targets *restore, refl_stats *st);
-static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
-                                    int all_pixels, refl_stats *st);
+static refl_result refl__shadow_mask_soft(const refl__shadow_job *job, int samples, uint16_t *counts, uint8_t *lit);
+static refl_result refl__shade_soft(const refl__shadow_job *job, int skip, const uint16_t *counts, int samples,
+                                    int all_pixels);
 /* The base pass's shadows: mask and re-shade over the whole frame (bound on
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
-/* ---- end shadows ---- */
 
 /* ---- planar reflector faces (planar_faces.c): PLANAR and the light volumes ---- */
 
@@ -1474,6 +1483,11 @@ static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k
 /* Where the segment from p towards virt meets face k, *m, when it does. */
 static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
                                  refl_vec3 *m);
+/* PLANAR's virtual lights on the job's pixels: every diffuse or partial
+   object but `skip` shaded again where a virtual light reaches, with the
+   scene's own lights shadowed as desc asks. */
+static refl_result refl__lv_pass(const refl__shadow_job *job, const refl__lv *lv, const refl_render_desc *desc,
+                                 int skip);
 
 /* ---- the per-pixel tracer (trace.c): RAYTRACE, and SBC's fallback ---- */
 
@@ -9224,10 +9238,15 @@ static int refl__sv_mirrored(refl_mat4 vp) {
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0.0;
 }
 
-static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail) {
+static refl_result refl__shadow_mask_mode(const refl__shadow_job *job, uint8_t *lit, refl__shadow_mode mode,
+                                          unsigned *used_zfail) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
+    const refl_mat4 vp = job->vp;
+    const float *depth = job->depth;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
+    const int width = job->width, height = job->height;
     const refl_allocator *al;
     refl__sv_object *objs = NULL;
     refl__sv_buf buf;
@@ -9281,7 +9300,7 @@ static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *sc
         int zfail, chain;
         if (!refl__sv_light(&scene->lights[li], l)) continue;
         zfail = mode == REFL__SHADOW_ZFAIL ||
-                (mode == REFL__SHADOW_AUTO && !refl__sv_zpass_safe(objs, scene->object_count, l, eye, vp));
+                (mode == REFL__SHADOW_AUTO && !refl__sv_zpass_safe(objs, scene->object_count, l, job->eye, vp));
         if (zfail && used_zfail) *used_zfail |= 1u << li;
         /* z-pass: what lies beyond the farthest surface never counts (a
            margin for the rounding of window depth); z-fail: the far plane */
@@ -9353,19 +9372,15 @@ done:
         rast_targets none;
         rast_result rb;
         memset(&none, 0, sizeof none);
-        rb = rast_set_targets(rc, restore ? restore : &none);
+        rb = rast_set_targets(rc, job->restore ? job->restore : &none);
         if (r == REFL_OK && rb != RAST_OK) r = refl__result_from_rast(rb);
     }
-    if (st) st->triangles += tris;
+    if (job->st) job->st->triangles += tris;
     return r;
 }
 
-static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                     const float *depth, int width, int height, const uint8_t *region,
-                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                     refl_stats *st) {
-    return refl__shadow_mask_mode(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st,
-                                  REFL__SHADOW_AUTO, NULL);
+static refl_result refl__shadow_mask(const refl__shadow_job *job, uint8_t *lit) {
+    return refl__shadow_mask_mode(job, lit, REFL__SHADOW_AUTO, NULL);
 }
 
 /* ---- shading with the mask ---------------------------------------------------------- */
@@ -9425,15 +9440,16 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
 
 /* refl__shade_lit, or with counts (refl__shadow_mask_soft's) the soft
    shadows' fractional visibility. */
-static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                      const uint8_t *lit, const uint16_t *counts, int samples, int width, int height,
-                                      int stencil_ref, int all_pixels, refl_stats *st) {
+static refl_result refl__shade_lit_ex(const refl__shadow_job *job, int skip, const uint8_t *lit,
+                                      const uint16_t *counts, int samples, int all_pixels) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
     const refl_allocator *al;
     refl__sv_shade *dc = NULL;
     unsigned char *table = NULL;
     rast_result rr = RAST_OK;
     int i, b, lc, queued = 0, ns[REFL__SHADOW_MAX_LIGHTS];
-    if (!rc || !scene || (!lit && !counts) || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!rc || !scene || (!lit && !counts) || job->width <= 0 || job->height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
     if (counts && scene->light_count > REFL__SV_SOFT_MAX_LIGHTS) return REFL_ERROR_INVALID_ARGUMENT;
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
         ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(samples, 1) : 1;
@@ -9455,11 +9471,11 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
+        refl__draw_ctx_init(&dc[i].dc, scene, i, job->vp);
         dc[i].lit = lit;
         dc[i].table = table;
-        dc[i].width = width;
-        dc[i].height = height;
+        dc[i].width = job->width;
+        dc[i].height = job->height;
         dc[i].light_count = lc;
         dc[i].all_pixels = all_pixels;
         dc[i].counts = counts;
@@ -9469,10 +9485,10 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.depth_test = 1;
         s.depth_func = RAST_EQUAL;
         s.depth_write_disabled = 1;
-        if (stencil_ref >= 0) {
+        if (job->region) { /* the bound stencil is the region */
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = (uint8_t)REFL__MIN(stencil_ref, 255);
+            s.stencil_front.ref = job->region_value;
             s.stencil_back = s.stencil_front;
         }
         s.vertex_fn = refl__base_vertex;
@@ -9481,7 +9497,7 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.fragment_user = &dc[i];
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
-        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
+        if (job->st) job->st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
        contexts it reads are freed */
@@ -9494,11 +9510,9 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
     return refl__result_from_rast(rr);
 }
 
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st) {
+static refl_result refl__shade_lit(const refl__shadow_job *job, int skip, const uint8_t *lit, int all_pixels) {
     if (!lit) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__shade_lit_ex(rc, scene, vp, skip, lit, NULL, 0, width, height, stencil_ref, all_pixels, st);
+    return refl__shade_lit_ex(job, skip, lit, NULL, 0, all_pixels);
 }
 
 /* ---- soft shadows: the mask once per jittered light ----------------------------------- */
@@ -9507,20 +9521,21 @@ static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *sc
     return desc->lighting.shadows && desc->lighting.soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
 }
 
-static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
-                                          const rast_targets *restore, refl_stats *st) {
+static refl_result refl__shadow_mask_soft(const refl__shadow_job *job, int samples, uint16_t *counts, uint8_t *lit) {
+    const refl_scene *scene = job->scene;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
     const refl_allocator *al;
     refl_light *jit = NULL;
     refl_scene sc;
+    refl__shadow_job jittered;
     refl_result r = REFL_OK;
     size_t npx, i;
     int idx[REFL__SHADOW_MAX_LIGHTS], li, j, k, lights, soft = 0, hard = 0;
-    if (!rc || !scene || !depth || !counts || !lit || width <= 0 || height <= 0 || samples < 1)
+    if (!job->rc || !scene || !job->depth || !counts || !lit || job->width <= 0 || job->height <= 0 || samples < 1)
         return REFL_ERROR_INVALID_ARGUMENT;
     al = &scene->allocator;
-    npx = (size_t)width * (size_t)height;
+    npx = (size_t)job->width * (size_t)job->height;
     lights = REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS);
     for (li = 0; li < lights; ++li) {
         if (scene->lights[li].radius > 0.0f && samples > 1) idx[soft++] = li;
@@ -9530,7 +9545,7 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
         for (i = 0; i < npx; ++i)
             if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = 0;
     if (hard || lights == 0) { /* the lights without a radius: one mask, at their centres */
-        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(job, lit);
         if (r != REFL_OK) return r;
         for (li = 0; li < lights; ++li) {
             if (scene->lights[li].radius > 0.0f && samples > 1) continue;
@@ -9544,9 +9559,11 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
     sc = *scene;
     sc.lights = jit;
     sc.light_count = soft;
+    jittered = *job;
+    jittered.scene = &sc;
     for (k = 0; k < samples && r == REFL_OK; ++k) {
         for (j = 0; j < soft; ++j) jit[j] = refl_light_sample(&scene->lights[idx[j]], k, samples);
-        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(&jittered, lit);
         if (r != REFL_OK) break;
         for (j = 0; j < soft; ++j) {
             uint16_t *plane = counts + (size_t)idx[j] * npx;
@@ -9558,11 +9575,24 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
     return r;
 }
 
-static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
-                                    int all_pixels, refl_stats *st) {
+static refl_result refl__shade_soft(const refl__shadow_job *job, int skip, const uint16_t *counts, int samples,
+                                    int all_pixels) {
     if (!counts) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__shade_lit_ex(rc, scene, vp, skip, NULL, counts, samples, width, height, stencil_ref, all_pixels, st);
+    return refl__shade_lit_ex(job, skip, NULL, counts, samples, all_pixels);
+}
+
+static refl__shadow_job refl__shadow_job_of(const refl__pass *p, refl_mat4 vp, refl_vec3 eye) {
+    refl__shadow_job job;
+    memset(&job, 0, sizeof job);
+    job.rc = p->rc;
+    job.scene = p->scene;
+    job.vp = vp;
+    job.eye = eye;
+    job.depth = p->frame->depth;
+    job.width = p->frame->width;
+    job.height = p->frame->height;
+    job.st = &p->frame->stats;
+    return job;
 }
 
 /* DIRECT's (and every method's) base pass with shadows: the mask over the
@@ -9575,6 +9605,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     refl_result r;
     size_t npx = (size_t)f->width * (size_t)f->height;
     uint16_t *counts = NULL;
+    refl__shadow_job job;
     int soft = refl__soft_shadows(&p->desc, scene);
     lit = (uint8_t *)refl__alloc(&scene->allocator, npx);
     if (soft) counts = (uint16_t *)refl__calloc(&scene->allocator, npx * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
@@ -9584,16 +9615,14 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     t = refl__frame_targets(f);
+    job = refl__shadow_job_of(p, p->vp, p->view->eye);
+    job.restore = &t;
     if (soft) {
-        r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
-                                   p->desc.lighting.soft_shadow_samples, counts, lit, &t, &f->stats);
-        if (r == REFL_OK)
-            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.lighting.soft_shadow_samples, f->width, f->height,
-                                 -1, 0, &f->stats);
+        r = refl__shadow_mask_soft(&job, p->desc.lighting.soft_shadow_samples, counts, lit);
+        if (r == REFL_OK) r = refl__shade_soft(&job, -1, counts, p->desc.lighting.soft_shadow_samples, 0);
     } else {
-        r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
-                              &f->stats);
-        if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+        r = refl__shadow_mask(&job, lit);
+        if (r == REFL_OK) r = refl__shade_lit(&job, -1, lit, 0);
     }
     refl__free(&scene->allocator, lit);
     refl__free(&scene->allocator, counts);
@@ -9940,13 +9969,15 @@ static int refl__lv_fragment(void *user, const rast_fragment_in *in, float rgba[
     return 1;
 }
 
-/* Counts into plane, for the selected pixels, the samples of virtual
-   light k that reach them: per sample, the face's light volume from the
-   virtual light and (shadows) its blockers, as masks from shadow.c. */
-static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, const refl__lv *lv, int k, int shadows,
-                                  refl_mat4 vp, refl_vec3 eye, const float *depth, int width, int height,
-                                  const uint8_t *region, uint8_t region_value, uint8_t *in_volume, uint8_t *unblocked,
-                                  uint16_t *plane, const rast_targets *restore, refl_stats *st) {
+/* Counts into plane, for the job's pixels, the samples of virtual light k
+   that reach them: per sample, the face's light volume from the virtual
+   light and (shadows) its blockers, as masks from shadow.c into scratch
+   (two planes of the job's size). */
+static refl_result refl__lv_count(const refl__shadow_job *job, const refl__lv *lv, int k, int shadows,
+                                  uint8_t *scratch, uint16_t *plane) {
+    const refl_scene *scene = job->scene;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
     const refl_allocator *al = &scene->allocator;
     const refl__planar_face *f = &lv->faces[lv->v[k].face];
     refl_mat4 mirror = refl__planar_reflection(f->n, f->d);
@@ -9954,9 +9985,11 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     refl_mesh **meshes;
     refl_object *objs, face_obj;
     refl_scene sc;
+    refl__shadow_job virtual_job = *job;
     refl_light src, virt;
     refl_result r = REFL_OK;
-    size_t i, npx = (size_t)width * (size_t)height;
+    size_t i, npx = (size_t)job->width * (size_t)job->height;
+    uint8_t *in_volume = scratch, *unblocked = scratch + npx;
     int ob, nb = 0, j, ns = refl__lv_samples(lv, scene, k);
     meshes = (refl_mesh **)refl__alloc(al, (size_t)(scene->mesh_count + 1) * sizeof(*meshes));
     objs = (refl_object *)refl__alloc(al, 2 * (size_t)REFL__MAX(scene->object_count, 1) * sizeof(*objs));
@@ -10001,19 +10034,20 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     sc.mesh_count = scene->mesh_count + 1;
     sc.lights = &virt;
     sc.light_count = 1;
+    virtual_job.scene = &sc;
     for (j = 0; j < ns && r == REFL_OK; ++j) {
         if (!refl__lv_sample(lv, scene, k, j, &src, &virt)) continue;
         sc.objects = &face_obj;
         sc.object_count = 1;
-        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, in_volume, restore, st);
+        r = refl__shadow_mask(&virtual_job, in_volume);
         if (r == REFL_OK && shadows && nb > 0) {
             sc.objects = objs;
             sc.object_count = nb;
-            r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, unblocked, restore, st);
+            r = refl__shadow_mask(&virtual_job, unblocked);
         }
         if (r != REFL_OK) break;
         for (i = 0; i < npx; ++i)
-            if ((!region || region[i] == region_value) && depth[i] < 1.0f && !(in_volume[i] & 1) &&
+            if ((!region || region[i] == region_value) && job->depth[i] < 1.0f && !(in_volume[i] & 1) &&
                 (!shadows || nb == 0 || (unblocked[i] & 1)))
                 ++plane[i];
     }
@@ -10022,18 +10056,12 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     return r;
 }
 
-/* The virtual lights on the selected pixels of a view (vp, eye; depth as
-   drawn, the bound stencil being `region` when it is given): every diffuse
-   or partial object but `skip` shaded again, where the bound stencil
-   equals region_value (region NULL: everywhere), on the pixels a virtual
-   light reaches, with the scene's own lights shadowed as desc asks. Leaves
-   `restore` bound; finishes. */
-static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, const refl__lv *lv,
-                                 const refl_render_desc *desc, refl_mat4 vp, refl_vec3 eye, const float *depth,
-                                 int width, int height, const uint8_t *region, uint8_t region_value, int skip,
-                                 const rast_targets *restore, refl_stats *st) {
+static refl_result refl__lv_pass(const refl__shadow_job *job, const refl__lv *lv, const refl_render_desc *desc,
+                                 int skip) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
     const refl_allocator *al = &scene->allocator;
-    size_t npx = (size_t)width * (size_t)height;
+    size_t npx = (size_t)job->width * (size_t)job->height;
     uint8_t *lit = NULL, *scratch = NULL;
     uint16_t *counts = NULL, *vcounts = NULL;
     refl__lv_shade *dc = NULL;
@@ -10051,19 +10079,17 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
         ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->lighting.soft_shadow_samples, 1) : 1;
     if (soft)
-        r = refl__shadow_mask_soft(rc, scene, vp, eye, depth, width, height, region, region_value,
-                                   desc->lighting.soft_shadow_samples, counts, lit, restore, st);
+        r = refl__shadow_mask_soft(job, desc->lighting.soft_shadow_samples, counts, lit);
     else if (desc->lighting.shadows)
-        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(job, lit);
     for (k = 0; k < lv->count && r == REFL_OK; ++k)
-        r = refl__lv_count(rc, scene, lv, k, desc->lighting.shadows, vp, eye, depth, width, height, region, region_value,
-                           scratch, scratch + npx, vcounts + (size_t)k * npx, restore, st);
+        r = refl__lv_count(job, lv, k, desc->lighting.shadows, scratch, vcounts + (size_t)k * npx);
     if (r != REFL_OK) goto done;
     for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
         const refl_material *mat = &scene->materials[scene->objects[i].material];
         rast_state s;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
+        refl__draw_ctx_init(&dc[i].dc, scene, i, job->vp);
         dc[i].object = i;
         dc[i].lv = lv;
         dc[i].scene = scene;
@@ -10071,16 +10097,16 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         dc[i].counts = soft ? counts : NULL;
         dc[i].samples = ns;
         dc[i].vcounts = vcounts;
-        dc[i].width = width;
-        dc[i].height = height;
+        dc[i].width = job->width;
+        dc[i].height = job->height;
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
         s.depth_func = RAST_EQUAL;
         s.depth_write_disabled = 1;
-        if (region) {
+        if (job->region) { /* the bound stencil is the region */
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = region_value;
+            s.stencil_front.ref = job->region_value;
             s.stencil_back = s.stencil_front;
         }
         s.vertex_fn = refl__base_vertex;
@@ -10089,7 +10115,7 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         s.fragment_user = &dc[i];
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
-        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
+        if (job->st) job->st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* nothing queued may outlive the arrays it reads */
     if (queued) {
@@ -15922,37 +15948,27 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    if (pl->p->desc.lighting.shadows && !child->warped && pl->scene->light_count > 0) {
-        /* the region's shadows, as the mirrored camera sees them (a warped
-           refraction's depth is not its camera's: left unshadowed) */
-        refl_frame *f = pl->p->frame;
-        refl_vec3 eye = refl_mat4_point(child->w_inv, pl->p->view->eye);
+    if (!child->warped) {
+        /* the region as the mirrored camera sees it (a warped refraction's
+           depth is not its camera's: left unshadowed and unlit by mirrors) */
+        refl__shadow_job job = refl__shadow_job_of(pl->p, child->vp, refl_mat4_point(child->w_inv, pl->p->view->eye));
         int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
-        refl_result r;
-        if (pl->counts) { /* soft: a mask per jittered light, summed */
-            int ns = pl->p->desc.lighting.soft_shadow_samples;
-            r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
-                                       (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
-            if (r == REFL_OK)
-                r = refl__shade_soft(rc, pl->scene, child->vp, skip, pl->counts, ns, f->width, f->height, child->level,
-                                     0, &f->stats);
-        } else {
-            r = refl__shadow_mask(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
-                                  (uint8_t)child->level, pl->lit, &pl->targets, &f->stats);
-            if (r == REFL_OK)
-                r = refl__shade_lit(rc, pl->scene, child->vp, skip, pl->lit, f->width, f->height, child->level, 0,
-                                    &f->stats);
+        refl_result r = REFL_OK;
+        job.region = pl->stencil;
+        job.region_value = (uint8_t)child->level;
+        job.restore = &pl->targets;
+        if (pl->p->desc.lighting.shadows && pl->scene->light_count > 0) {
+            if (pl->counts) { /* soft: a mask per jittered light, summed */
+                int ns = pl->p->desc.lighting.soft_shadow_samples;
+                r = refl__shadow_mask_soft(&job, ns, pl->counts, pl->lit);
+                if (r == REFL_OK) r = refl__shade_soft(&job, skip, pl->counts, ns, 0);
+            } else {
+                r = refl__shadow_mask(&job, pl->lit);
+                if (r == REFL_OK) r = refl__shade_lit(&job, skip, pl->lit, 0);
+            }
         }
-        if (r != REFL_OK) return r;
-    }
-    if (pl->lv.count > 0 && !child->warped) {
         /* the light the mirrors reflect onto what the mirrored camera sees */
-        refl_frame *f = pl->p->frame;
-        refl_result r = refl__lv_pass(rc, pl->scene, &pl->lv, &pl->p->desc, child->vp,
-                                      refl_mat4_point(child->w_inv, pl->p->view->eye), f->depth, f->width, f->height,
-                                      pl->stencil, (uint8_t)child->level,
-                                      child->parent >= 0 ? pl->faces[child->parent].object : -1, &pl->targets,
-                                      &f->stats);
+        if (r == REFL_OK && pl->lv.count > 0) r = refl__lv_pass(&job, &pl->lv, &pl->p->desc, skip);
         if (r != REFL_OK) return r;
     }
     pl->p->frame->stats.planar.renderings++;
@@ -16399,9 +16415,12 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.parent = -1;
     if (p->desc.lighting.light_volumes) {
         /* the reflected light on what the viewer sees directly */
+        refl__shadow_job job = refl__shadow_job_of(p, p->vp, p->view->eye);
+        job.region = pl.stencil;
+        job.region_value = 0;
+        job.restore = &pl.targets;
         refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.lighting.caustic_samples);
-        r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
-                          0, -1, &pl.targets, &f->stats);
+        r = refl__lv_pass(&job, &pl.lv, &p->desc, -1);
         if (r != REFL_OK) goto done;
     }
     r = refl__planar_level_draw(&pl, &top, dcs);

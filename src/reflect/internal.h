@@ -259,25 +259,46 @@ static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3
 static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
                                refl_vec3 shown);
 
-/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
-   refl__shadow_mask: for the pixels of a width x height frame (region NULL,
-   or region[pixel] == region_value) whose window depth `depth` (drawn with
-   vp: any view-projection, mirrored or with an oblique near plane) is
-   below 1, sets bit i of lit[pixel] when light i reaches the surface seen
-   there and clears it when not, as RAYTRACE's shadow rays decide; bits of
-   lights past REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as
-   lit), other selected pixels get 0xFF, unselected ones are untouched.
-   Draws into a scratch stencil with `depth` bound read-only, finishes, and
-   leaves `restore` bound (NULL: no targets at all) and rast's state
-   changed, also on failure (then nothing stays queued). eye: the viewpoint
-   vp projects from (it takes part in choosing z-pass or z-fail).
+/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ---- */
+
+/* What a shadow or light-volume pass works on: the pixels of a width x
+   height view (region NULL, or region[pixel] == region_value) whose
+   window depth `depth` (drawn with vp: any view-projection, mirrored or
+   with an oblique near plane) is below 1. eye: the viewpoint vp projects
+   from (it takes part in choosing z-pass or z-fail). A pass draws into rc
+   and finishes; the masks draw into a scratch stencil with `depth` bound
+   read-only and leave `restore` bound (NULL: no targets at all) and rast's
+   state changed, also on failure (then nothing stays queued); the shading
+   passes draw into the bound targets, stencil EQUAL region_value where a
+   region is given (the bound stencil then holds it). st (may be NULL)
+   counts the triangles drawn. */
+typedef struct refl__shadow_job {
+    rast_context *rc;
+    const refl_scene *scene;
+    refl_mat4 vp;
+    refl_vec3 eye;
+    const float *depth;
+    int width, height;
+    const uint8_t *region;
+    uint8_t region_value;
+    const rast_targets *restore;
+    refl_stats *st;
+} refl__shadow_job;
+
+/* A job over pass p's frame (its context, scene, depth and stats) seen
+   through vp from eye: every pixel, nothing restored. */
+static refl__shadow_job refl__shadow_job_of(const refl__pass *p, refl_mat4 vp, refl_vec3 eye);
+
+/* refl__shadow_mask: for the job's pixels, sets bit i of lit[pixel] when
+   light i reaches the surface seen there and clears it when not, as
+   RAYTRACE's shadow rays decide; bits of lights past
+   REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as lit), other
+   selected pixels get 0xFF, unselected ones are untouched.
    refl__shade_lit: draws every diffuse and partial object but `skip` again
-   into the bound targets (depth EQUAL, the base pass's vertex expression,
-   no depth writes), where the bound stencil EQUALs stencil_ref (< 0: no
-   stencil test), shading with refl_shade_diffuse_lit and lit[y * width +
-   x] (partial: times 1 - mirror_weight, as the base pass), and finishes.
-   lit must hold every pixel the draw can reach (the mask's region: match
-   it with the stencil). all_pixels 0 rewrites only pixels with a light
+   (depth EQUAL, the base pass's vertex expression, no depth writes),
+   shading with refl_shade_diffuse_lit and lit[y * width + x] (partial:
+   times 1 - mirror_weight, as the base pass). lit must hold every pixel
+   the draw can reach. all_pixels 0 rewrites only pixels with a light
    shadowed (the others keep the colour the base pass gave them, which is
    the same); 1 every pixel. */
 enum { REFL__SHADOW_MAX_LIGHTS = 8 };
@@ -286,19 +307,12 @@ typedef enum refl__shadow_mode {
     REFL__SHADOW_ZPASS,       /* Heidmann: wrong where the near plane is in a volume */
     REFL__SHADOW_ZFAIL        /* Carmack's reverse, with caps: always right */
 } refl__shadow_mode;
-static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                     const float *depth, int width, int height, const uint8_t *region,
-                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                     refl_stats *st);
+static refl_result refl__shadow_mask(const refl__shadow_job *job, uint8_t *lit);
 /* The same with the counting forced; *used_zfail (may be NULL) gets bit i
    set when light i was counted with z-fail. */
-static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail);
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st);
+static refl_result refl__shadow_mask_mode(const refl__shadow_job *job, uint8_t *lit, refl__shadow_mode mode,
+                                          unsigned *used_zfail);
+static refl_result refl__shade_lit(const refl__shadow_job *job, int skip, const uint8_t *lit, int all_pixels);
 /* Soft shadows (paper 002: the scene rendered once per jittered light, summed
    in the accumulation buffer; here the per-sample shadow masks are summed
    exactly on the CPU instead, which rast's RAST_ACCUM would give up to
@@ -312,17 +326,12 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
    term weighed by count / samples (refl_shade_diffuse_weighted); all_pixels
    0 rewrites only pixels with a light not wholly visible. */
 static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene);
-static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
-                                          const rast_targets *restore, refl_stats *st);
-static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
-                                    int all_pixels, refl_stats *st);
+static refl_result refl__shadow_mask_soft(const refl__shadow_job *job, int samples, uint16_t *counts, uint8_t *lit);
+static refl_result refl__shade_soft(const refl__shadow_job *job, int skip, const uint16_t *counts, int samples,
+                                    int all_pixels);
 /* The base pass's shadows: mask and re-shade over the whole frame (bound on
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
-/* ---- end shadows ---- */
 
 /* ---- planar reflector faces (planar_faces.c): PLANAR and the light volumes ---- */
 
@@ -382,6 +391,11 @@ static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k
 /* Where the segment from p towards virt meets face k, *m, when it does. */
 static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
                                  refl_vec3 *m);
+/* PLANAR's virtual lights on the job's pixels: every diffuse or partial
+   object but `skip` shaded again where a virtual light reaches, with the
+   scene's own lights shadowed as desc asks. */
+static refl_result refl__lv_pass(const refl__shadow_job *job, const refl__lv *lv, const refl_render_desc *desc,
+                                 int skip);
 
 /* ---- the per-pixel tracer (trace.c): RAYTRACE, and SBC's fallback ---- */
 
