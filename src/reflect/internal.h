@@ -1,5 +1,9 @@
 /* Private declarations shared by the reflect.h modules (refl__ prefix).
-   The amalgamator puts this first inside the REFL_IMPLEMENTATION section. */
+   The amalgamator puts this first inside the REFL_IMPLEMENTATION section.
+   Whatever one module takes from another is declared here, grouped by the
+   module that defines it, so the modules may follow in any order; only the
+   SBC family still shares privates among itself (cam_sbc.c before
+   cam_sbc_morph.c and m_sbc.c). */
 #include "api.h"
 
 #include <math.h>
@@ -104,15 +108,11 @@ static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const r
 static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
                                 float *tmax);
 
-/* ---- what refl_render hands a method (render.c) ----
-   A method either renders the whole frame itself (RAYTRACE) or fills the
-   reflector pixels after the base pass: diffuse geometry shaded, mirrors
-   and glass transparent black, partial reflectors at their diffuse share,
-   reflector object id + 1 in the stencil, the environment behind, and
-   frame->points NaN everywhere. Methods add their mirror share on top. */
-/* What a renderer keeps across frames (render.c): models that depend on
-   the scene and the desc but not on the view, built on a frame's first
-   need and dropped when scene->version moves. */
+/* ---- what refl_render hands a method (render.c) ---- */
+
+/* What a renderer keeps across frames: models that depend on the scene and
+   the desc but not on the view, built on a frame's first need and dropped
+   when scene->version moves. */
 typedef struct refl__models {
     unsigned scene_version;
     refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
@@ -120,6 +120,11 @@ typedef struct refl__models {
     float c3_density;             /* the density they were sampled at; 0: none yet */
 } refl__models;
 
+/* A method either renders the whole frame itself (RAYTRACE) or fills the
+   reflector pixels after the base pass: diffuse geometry shaded, mirrors
+   and glass transparent black, partial reflectors at their diffuse share,
+   reflector object id + 1 in the stencil, the environment behind, and
+   frame->points NaN everywhere. Methods add their mirror share on top. */
 typedef struct refl__pass {
     const refl_scene *scene;
     const refl_view *view;
@@ -155,9 +160,29 @@ static refl_result refl__context_create(const refl_scene *scene, int threads, ra
 /* desc validated (NULL: the defaults) into *out with the renderer-wide
    defaults resolved; the broken rule into *message. */
 static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
+/* Milliseconds from a monotonic clock, for the stats only. */
+static double refl__now_ms(void);
+
+/* ---- small services of other modules ---- */
 
 /* rast.h's result as a refl_result (result.c). */
 static refl_result refl__result_from_rast(rast_result r);
+/* Appends one element of `size` bytes to *array (count *count), growing by
+   doubling (scene.c). Its index, or -1. */
+static int refl__push(const refl_allocator *a, void **array, int *count, size_t size, const void *elem);
+/* Fills out from the matched errors (sorted here) and the counts (metrics.c). */
+static void refl__metric_summary(double *errors, long long matched, double sum, long long counted, long long wrong,
+                                 long long empty, refl_reflection_error *out);
+/* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
+typedef struct refl__hit_geom {
+    refl_vec3 v[3];
+    float w[3];
+    refl_vec3 p, ng, ns;
+} refl__hit_geom;
+static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
+                              refl__hit_geom *g);
+/* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
+static long long refl__bvh_bytes(const refl_bvh *bvh);
 
 /* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
 
@@ -175,7 +200,6 @@ typedef struct refl__draw_ctx {
     const refl_material *material;
     refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
 } refl__draw_ctx;
-
 
 static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp);
 static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
@@ -197,17 +221,6 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 
-/* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
-typedef struct refl__hit_geom {
-    refl_vec3 v[3];
-    float w[3];
-    refl_vec3 p, ng, ns;
-} refl__hit_geom;
-static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
-                              refl__hit_geom *g);
-/* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
-static long long refl__bvh_bytes(const refl_bvh *bvh);
-static double refl__now_ms(void);
 
 /* ---- the reflectors' G-buffer and composite (gbuffer.c): ENVMAP, C3RC, SBC ---- */
 
@@ -431,6 +444,8 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
 /* A colour channel in [0, 1] as a byte, rounded. */
 static uint8_t refl__rt_unorm8(float v);
 
+/* ---- the methods (m_*.c) ---- */
+
 /* The methods, one module each, and their rows in the method table
    (render.c). A row's options function checks the method's sub-struct of
    the desc and resolves its defaults in place: NULL, or the rule broken. */
@@ -444,4 +459,5 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+/* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
