@@ -7837,7 +7837,6 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
     *point = refl_v3(pt[0], pt[1], pt[2]);
 }
 
-/* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
 /* One frame row: every pixel of the current reflector gets its reflection
    (and refraction) added and its point. Pixels are independent, so rows
    may run on any thread in any order. */
