@@ -64,29 +64,36 @@ RAST_IMPL   = src/rast/internal.h \
               src/rast/bin.c
 
 # reflect.h gets the same treatment; it is skipped while src/reflect/api.h
-# does not exist. List its modules here, in order:
+# does not exist. internal.h comes first and declares whatever one module
+# takes from another, so the modules after it may come in any order
+# (alphabetical here); only the SBC family shares privates among itself:
+# cam_sbc.c before cam_sbc_morph.c and m_sbc.c.
 REFLECT_PUBLIC = src/reflect/api.h
 REFLECT_IMPL   = src/reflect/internal.h \
-                 src/reflect/math.c \
-                 src/reflect/mesh.c \
-                 src/reflect/shapes.c \
-                 src/reflect/scene.c \
-                 src/reflect/shade.c \
+                 src/reflect/base_pass.c \
                  src/reflect/bvh.c \
-                 src/reflect/kdtree.c \
                  src/reflect/cam_c3rc.c \
                  src/reflect/cam_sbc.c \
                  src/reflect/cam_sbc_morph.c \
-                 src/reflect/shadow.c \
-                 src/reflect/planar_faces.c \
+                 src/reflect/gbuffer.c \
+                 src/reflect/kdtree.c \
                  src/reflect/light_volume.c \
-                 src/reflect/m_raytrace.c \
-                 src/reflect/m_envmap.c \
-                 src/reflect/metrics.c \
                  src/reflect/m_c3rc.c \
+                 src/reflect/m_envmap.c \
+                 src/reflect/m_planar.c \
+                 src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \
+                 src/reflect/math.c \
+                 src/reflect/mesh.c \
+                 src/reflect/metrics.c \
+                 src/reflect/planar_faces.c \
                  src/reflect/render.c \
-                 src/reflect/m_planar.c
+                 src/reflect/result.c \
+                 src/reflect/scene.c \
+                 src/reflect/shade.c \
+                 src/reflect/shadow.c \
+                 src/reflect/shapes.c \
+                 src/reflect/trace.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))
 
 AMALGAMATE = build/amalgamate

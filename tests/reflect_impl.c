@@ -11,25 +11,38 @@
 typedef char refl__testing_modes_match[REFL__SHADOW_AUTO == 0 && REFL__SHADOW_ZPASS == 1 &&
                                        REFL__SHADOW_ZFAIL == 2 ? 1 : -1];
 
-refl_result refl__testing_shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                      const float *depth, int width, int height, const uint8_t *region,
-                                      uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                      refl_stats *st) {
-    return refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+static refl__shadow_job refl__testing_job(const refl__testing_shadow_job *t) {
+    refl__shadow_job job;
+    job.rc = t->rc;
+    job.scene = t->scene;
+    job.vp = t->vp;
+    job.eye = t->eye;
+    job.depth = t->depth;
+    job.width = t->width;
+    job.height = t->height;
+    job.region = t->region;
+    job.region_value = t->region_value;
+    job.restore = t->restore;
+    job.st = t->st;
+    return job;
+}
+/* reflect_testing.h's copy of refl__shadow_job has its size (the copy above names every field) */
+typedef char refl__testing_jobs_match[sizeof(refl__testing_shadow_job) == sizeof(refl__shadow_job) ? 1 : -1];
+
+refl_result refl__testing_shadow_mask(const refl__testing_shadow_job *t, uint8_t *lit) {
+    refl__shadow_job job = refl__testing_job(t);
+    return refl__shadow_mask(&job, lit);
 }
 
-refl_result refl__testing_shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                           const float *depth, int width, int height, const uint8_t *region,
-                                           uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                           refl_stats *st, int mode, unsigned *used_zfail) {
-    return refl__shadow_mask_mode(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st,
-                                  (refl__shadow_mode)mode, used_zfail);
+refl_result refl__testing_shadow_mask_mode(const refl__testing_shadow_job *t, uint8_t *lit, int mode,
+                                           unsigned *used_zfail) {
+    refl__shadow_job job = refl__testing_job(t);
+    return refl__shadow_mask_mode(&job, lit, (refl__shadow_mode)mode, used_zfail);
 }
 
-refl_result refl__testing_shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                    refl_stats *st) {
-    return refl__shade_lit(rc, scene, vp, skip, lit, width, height, stencil_ref, all_pixels, st);
+refl_result refl__testing_shade_lit(const refl__testing_shadow_job *t, int skip, const uint8_t *lit, int all_pixels) {
+    refl__shadow_job job = refl__testing_job(t);
+    return refl__shade_lit(&job, skip, lit, all_pixels);
 }
 
 refl_result refl__testing_draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,

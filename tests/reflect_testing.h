@@ -8,19 +8,27 @@
 #define REFL_TESTING_H
 #include "../reflect.h"
 
+/* refl__shadow_job's fields, in its order (checked in reflect_impl.c). */
+typedef struct refl__testing_shadow_job {
+    rast_context *rc;
+    const refl_scene *scene;
+    refl_mat4 vp;
+    refl_vec3 eye;
+    const float *depth;
+    int width, height;
+    const uint8_t *region;
+    uint8_t region_value;
+    const rast_targets *restore;
+    refl_stats *st;
+} refl__testing_shadow_job;
+
 /* refl__shadow_mask, refl__shadow_mask_mode, refl__shade_lit and
    refl__draw_scene (src/reflect/internal.h); mode is a refl__shadow_mode. */
-refl_result refl__testing_shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                      const float *depth, int width, int height, const uint8_t *region,
-                                      uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                      refl_stats *st);
-refl_result refl__testing_shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                           const float *depth, int width, int height, const uint8_t *region,
-                                           uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                           refl_stats *st, int mode, unsigned *used_zfail);
-refl_result refl__testing_shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                    refl_stats *st);
+refl_result refl__testing_shadow_mask(const refl__testing_shadow_job *job, uint8_t *lit);
+refl_result refl__testing_shadow_mask_mode(const refl__testing_shadow_job *job, uint8_t *lit, int mode,
+                                           unsigned *used_zfail);
+refl_result refl__testing_shade_lit(const refl__testing_shadow_job *job, int skip, const uint8_t *lit,
+                                    int all_pixels);
 refl_result refl__testing_draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
                                      refl_stats *st);
 /* refl__view_rays_init for the view, then refl__view_rays_get at (px, py). */
@@ -33,6 +41,7 @@ void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float p
 #define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
 #define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
 typedef enum refl__shadow_mode { REFL__SHADOW_AUTO = 0, REFL__SHADOW_ZPASS, REFL__SHADOW_ZFAIL } refl__shadow_mode;
+#define refl__shadow_job refl__testing_shadow_job
 #define refl__shadow_mask refl__testing_shadow_mask
 #define refl__shadow_mask_mode refl__testing_shadow_mask_mode
 #define refl__shade_lit refl__testing_shade_lit

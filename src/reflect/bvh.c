@@ -297,6 +297,12 @@ REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *t
     if (triangles) *triangles = bvh ? bvh->tri_count : 0;
 }
 
+static long long refl__bvh_bytes(const refl_bvh *bvh) {
+    long long nodes = 0, tris = 0;
+    refl_bvh_stats(bvh, &nodes, &tris);
+    return nodes * (long long)sizeof(refl__bvh_node) + tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
+}
+
 /* ---- traversal ---------------------------------------------------------------- */
 
 typedef struct refl__bvh_ray {

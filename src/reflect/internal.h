@@ -1,5 +1,9 @@
 /* Private declarations shared by the reflect.h modules (refl__ prefix).
-   The amalgamator puts this first inside the REFL_IMPLEMENTATION section. */
+   The amalgamator puts this first inside the REFL_IMPLEMENTATION section.
+   Whatever one module takes from another is declared here, grouped by the
+   module that defines it, so the modules may follow in any order; only the
+   SBC family still shares privates among itself (cam_sbc.c before
+   cam_sbc_morph.c and m_sbc.c). */
 #include "api.h"
 
 #include <math.h>
@@ -104,15 +108,11 @@ static void refl__view_rays_init(refl__view_rays *r, const refl_view *v, const r
 static void refl__view_rays_get(const refl__view_rays *r, float px, float py, refl_vec3 *origin, refl_vec3 *dir,
                                 float *tmax);
 
-/* ---- what refl_render hands a method (render.c) ----
-   A method either renders the whole frame itself (RAYTRACE) or fills the
-   reflector pixels after the base pass: diffuse geometry shaded, mirrors
-   and glass transparent black, partial reflectors at their diffuse share,
-   reflector object id + 1 in the stencil, the environment behind, and
-   frame->points NaN everywhere. Methods add their mirror share on top. */
-/* What a renderer keeps across frames (render.c): models that depend on
-   the scene and the desc but not on the view, built on a frame's first
-   need and dropped when scene->version moves. */
+/* ---- what refl_render hands a method (render.c) ---- */
+
+/* What a renderer keeps across frames: models that depend on the scene and
+   the desc but not on the view, built on a frame's first need and dropped
+   when scene->version moves. */
 typedef struct refl__models {
     unsigned scene_version;
     refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
@@ -120,6 +120,11 @@ typedef struct refl__models {
     float c3_density;             /* the density they were sampled at; 0: none yet */
 } refl__models;
 
+/* A method either renders the whole frame itself (RAYTRACE) or fills the
+   reflector pixels after the base pass: diffuse geometry shaded, mirrors
+   and glass transparent black, partial reflectors at their diffuse share,
+   reflector object id + 1 in the stencil, the environment behind, and
+   frame->points NaN everywhere. Methods add their mirror share on top. */
 typedef struct refl__pass {
     const refl_scene *scene;
     const refl_view *view;
@@ -155,17 +160,19 @@ static refl_result refl__context_create(const refl_scene *scene, int threads, ra
 /* desc validated (NULL: the defaults) into *out with the renderer-wide
    defaults resolved; the broken rule into *message. */
 static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message);
+/* Milliseconds from a monotonic clock, for the stats only. */
+static double refl__now_ms(void);
 
-/* Draws every object but `skip` (-1: none) as the base pass does, into
-   whatever targets rc has bound, and finishes. */
-static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    refl_stats *st);
-/* Fills every pixel whose depth is still 1 with the environment seen
-   through it (inv_vp: clip to world). */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
-                                  const refl_scene *scene, refl_mat4 inv_vp);
+/* ---- small services of other modules ---- */
+
+/* rast.h's result as a refl_result (result.c). */
 static refl_result refl__result_from_rast(rast_result r);
-
+/* Appends one element of `size` bytes to *array (count *count), growing by
+   doubling (scene.c). Its index, or -1. */
+static int refl__push(const refl_allocator *a, void **array, int *count, size_t size, const void *elem);
+/* Fills out from the matched errors (sorted here) and the counts (metrics.c). */
+static void refl__metric_summary(double *errors, long long matched, double sum, long long counted, long long wrong,
+                                 long long empty, refl_reflection_error *out);
 /* A hit's surface (bvh.c): triangle corners, weights, point, normals. */
 typedef struct refl__hit_geom {
     refl_vec3 v[3];
@@ -174,27 +181,137 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
-static double refl__now_ms(void);
+/* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
+static long long refl__bvh_bytes(const refl_bvh *bvh);
 
-/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ----
-   refl__shadow_mask: for the pixels of a width x height frame (region NULL,
-   or region[pixel] == region_value) whose window depth `depth` (drawn with
-   vp: any view-projection, mirrored or with an oblique near plane) is
-   below 1, sets bit i of lit[pixel] when light i reaches the surface seen
-   there and clears it when not, as RAYTRACE's shadow rays decide; bits of
-   lights past REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as
-   lit), other selected pixels get 0xFF, unselected ones are untouched.
-   Draws into a scratch stencil with `depth` bound read-only, finishes, and
-   leaves `restore` bound (NULL: no targets at all) and rast's state
-   changed, also on failure (then nothing stays queued). eye: the viewpoint
-   vp projects from (it takes part in choosing z-pass or z-fail).
+/* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
+
+/* The base pass's programs: refl__base_vertex reads a refl__draw_ctx and
+   writes REFL__BASE_VARYINGS varyings; refl__base_fragment shades them
+   with the shared diffuse model (refl__surface_rgba); refl__clear_fragment
+   writes transparent black (mirrors and glass until a method fills them).
+   A program with a context of its own puts the refl__draw_ctx first. */
+enum { REFL__BASE_VARYINGS = 8 }; /* world position, world normal, uv */
+
+/* One object seen through a view-projection. */
+typedef struct refl__draw_ctx {
+    const refl_scene *scene;
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 mvp, model, normal_m;  /* normal_m: inverse transpose of model */
+} refl__draw_ctx;
+
+static void refl__draw_ctx_init(refl__draw_ctx *dc, const refl_scene *s, int object, refl_mat4 vp);
+static int refl__base_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
+static int refl__base_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+static int refl__clear_fragment(void *user, const rast_fragment_in *in, float rgba[4]);
+/* What a diffuse surface shows of its shaded colour rgb: clamped, times
+   1 - mirror_weight on a partial reflector; opaque. */
+static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]);
+/* Draws a mesh's triangles (indices NULL: all of them) with the bound
+   state, num_varyings from the vertex program. */
+static rast_result refl__draw_mesh(rast_context *rc, const refl_mesh *m, const uint32_t *indices, int index_count,
+                                   int num_varyings);
+/* Draws every object but `skip` (-1: none) as the base pass does, into
+   whatever targets rc has bound, and finishes. */
+static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
+                                    refl_stats *st);
+/* Fills every pixel whose depth is still 1 with the environment seen
+   through it (inv_vp: clip to world). */
+static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+                                  const refl_scene *scene, refl_mat4 inv_vp);
+
+
+/* ---- the reflectors' G-buffer and composite (gbuffer.c): ENVMAP, C3RC, SBC ---- */
+
+/* One object in a G-buffer or cube-face draw: clip position exactly as the
+   base pass computes it (so depth tests against the base pass's depth are
+   exact), world position and (G-buffer) world normal as varyings. */
+typedef struct refl__em_draw {
+    const refl_mesh *mesh;
+    refl_mat4 mvp, model, normal_m;
+    int normals;                  /* varyings 3..5: world normal too (G-buffer) */
+    refl_vec3 eye;                /* G-buffer: the viewer */
+    float id;                     /* written to alpha: object index + 1 */
+} refl__em_draw;
+
+/* The G-buffer of the reflectors the running method draws. */
+typedef struct refl__em {
+    refl__pass *p;
+    refl__em_draw *draws;         /* one per object */
+    float *gbuf;                  /* frame-sized RGBA32F: world normal, object + 1 (negative: the back side) */
+    float *surface;               /* C3RC, SBC: per reflector pixel, the world point seen there */
+} refl__em;
+
+/* Vertex program of those draws: varyings world position, then (with
+   d->normals) world normal. */
+static int refl__em_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out);
+/* d for object `object` seen through vp, with normals or without. */
+static void refl__em_setup_draw(refl__em_draw *d, const refl_scene *scene, int object, refl_mat4 vp, int normals);
+static rast_result refl__em_submit(rast_context *rc, const refl__em_draw *d);
+/* Clears `flags` (RAST_CLEAR_*) with the default state: clears honour the
+   depth mask and scissor. */
+static rast_result refl__em_clear(rast_context *rc, unsigned flags);
+/* The reflectors' world normals into em->gbuf where the base pass showed
+   them; seen[i] set for every reflector i with a pixel, *any when one has. */
+static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any);
+/* Allocates em->gbuf, em->draws and *seen (one flag per object; the
+   caller frees all three, also on failure) and draws the G-buffer. */
+static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int *any);
+/* A row job (arg: the refl__em): per reflector pixel, the world point of
+   the surface seen into em->surface. */
+static void refl__em_surface_row(void *arg, int y);
+/* The distance fade (paper 003 V-D) of material m's mirror share at pixel
+   (x, y) showing `shown` (NaN: the environment). */
+static float refl__em_fade(const refl__pass *p, const refl_material *m, int x, int y, refl_vec3 shown);
+/* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
+static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown);
+/* Adds reflector pixel (x, y)'s mirror share (g: its G-buffer texel), as
+   ENVMAP composites: sub (NULL: the environment along the reflected ray)
+   times the reflectance; glass adds the refracted environment. */
+static void refl__em_composite(const refl__pass *p, const float *g, int x, int y, const float *sub_in,
+                               refl_vec3 shown);
+
+/* ---- shadows (shadow.c): stencil shadow volumes for the rasterised methods ---- */
+
+/* What a shadow or light-volume pass works on: the pixels of a width x
+   height view (region NULL, or region[pixel] == region_value) whose
+   window depth `depth` (drawn with vp: any view-projection, mirrored or
+   with an oblique near plane) is below 1. eye: the viewpoint vp projects
+   from (it takes part in choosing z-pass or z-fail). A pass draws into rc
+   and finishes; the masks draw into a scratch stencil with `depth` bound
+   read-only and leave `restore` bound (NULL: no targets at all) and rast's
+   state changed, also on failure (then nothing stays queued); the shading
+   passes draw into the bound targets, stencil EQUAL region_value where a
+   region is given (the bound stencil then holds it). st (may be NULL)
+   counts the triangles drawn. */
+typedef struct refl__shadow_job {
+    rast_context *rc;
+    const refl_scene *scene;
+    refl_mat4 vp;
+    refl_vec3 eye;
+    const float *depth;
+    int width, height;
+    const uint8_t *region;
+    uint8_t region_value;
+    const rast_targets *restore;
+    refl_stats *st;
+} refl__shadow_job;
+
+/* A job over pass p's frame (its context, scene, depth and stats) seen
+   through vp from eye: every pixel, nothing restored. */
+static refl__shadow_job refl__shadow_job_of(const refl__pass *p, refl_mat4 vp, refl_vec3 eye);
+
+/* refl__shadow_mask: for the job's pixels, sets bit i of lit[pixel] when
+   light i reaches the surface seen there and clears it when not, as
+   RAYTRACE's shadow rays decide; bits of lights past
+   REFL__SHADOW_MAX_LIGHTS do not exist (those lights count as lit), other
+   selected pixels get 0xFF, unselected ones are untouched.
    refl__shade_lit: draws every diffuse and partial object but `skip` again
-   into the bound targets (depth EQUAL, the base pass's vertex expression,
-   no depth writes), where the bound stencil EQUALs stencil_ref (< 0: no
-   stencil test), shading with refl_shade_diffuse_lit and lit[y * width +
-   x] (partial: times 1 - mirror_weight, as the base pass), and finishes.
-   lit must hold every pixel the draw can reach (the mask's region: match
-   it with the stencil). all_pixels 0 rewrites only pixels with a light
+   (depth EQUAL, the base pass's vertex expression, no depth writes),
+   shading with refl_shade_diffuse_lit and lit[y * width + x] (partial:
+   times 1 - mirror_weight, as the base pass). lit must hold every pixel
+   the draw can reach. all_pixels 0 rewrites only pixels with a light
    shadowed (the others keep the colour the base pass gave them, which is
    the same); 1 every pixel. */
 enum { REFL__SHADOW_MAX_LIGHTS = 8 };
@@ -203,19 +320,12 @@ typedef enum refl__shadow_mode {
     REFL__SHADOW_ZPASS,       /* Heidmann: wrong where the near plane is in a volume */
     REFL__SHADOW_ZFAIL        /* Carmack's reverse, with caps: always right */
 } refl__shadow_mode;
-static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                     const float *depth, int width, int height, const uint8_t *region,
-                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                     refl_stats *st);
+static refl_result refl__shadow_mask(const refl__shadow_job *job, uint8_t *lit);
 /* The same with the counting forced; *used_zfail (may be NULL) gets bit i
    set when light i was counted with z-fail. */
-static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail);
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st);
+static refl_result refl__shadow_mask_mode(const refl__shadow_job *job, uint8_t *lit, refl__shadow_mode mode,
+                                          unsigned *used_zfail);
+static refl_result refl__shade_lit(const refl__shadow_job *job, int skip, const uint8_t *lit, int all_pixels);
 /* Soft shadows (paper 002: the scene rendered once per jittered light, summed
    in the accumulation buffer; here the per-sample shadow masks are summed
    exactly on the CPU instead, which rast's RAST_ACCUM would give up to
@@ -229,17 +339,112 @@ static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, re
    term weighed by count / samples (refl_shade_diffuse_weighted); all_pixels
    0 rewrites only pixels with a light not wholly visible. */
 static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *scene);
-static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
-                                          const rast_targets *restore, refl_stats *st);
-static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
-                                    int all_pixels, refl_stats *st);
+static refl_result refl__shadow_mask_soft(const refl__shadow_job *job, int samples, uint16_t *counts, uint8_t *lit);
+static refl_result refl__shade_soft(const refl__shadow_job *job, int skip, const uint16_t *counts, int samples,
+                                    int all_pixels);
 /* The base pass's shadows: mask and re-shade over the whole frame (bound on
    entry and on return). */
 static refl_result refl__shadow_base_pass(refl__pass *p);
-/* ---- end shadows ---- */
+
+/* ---- planar reflector faces (planar_faces.c): PLANAR and the light volumes ---- */
+
+/* A mirror, partial reflector or glass object's triangles in one world
+   plane. */
+typedef struct refl__planar_face {
+    int object;
+    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
+    int glass;                    /* a refractor's face */
+    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
+    double thickness;             /* glass: the distance to that face */
+    uint32_t *indices;            /* the face's triangles, into the object's mesh */
+    int index_count;
+} refl__planar_face;
+
+/* Each mirror or partial reflector's (and glass's) faces into *out (only:
+   NULL, or per object whether to look at it); none for an object that is
+   not planar. Free with refl__planar_free_faces. */
+static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *only, refl__planar_face **out,
+                                           int *out_count);
+static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count);
+/* Reflection about the plane n . x = d. */
+static refl_mat4 refl__planar_reflection(const double n[3], double d);
+
+/* ---- light volumes (light_volume.c): light planar mirrors reflect ---- */
+
+/* Lights the shading sums at most (the soft shadows' limit). */
+enum { REFL__LV_MAX_LIGHTS = 64 };
+
+typedef struct refl__vlight {
+    int source;                   /* the scene light */
+    int face;                     /* index into the faces */
+    double side;                  /* +1, -1: the side of the face's plane the light is on */
+} refl__vlight;
+
+typedef struct refl__lv {
+    const refl__planar_face *faces; /* not owned */
+    refl__vlight v[REFL__LV_MAX_LIGHTS];
+    int count;
+    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
+    refl_light lights[REFL__LV_MAX_LIGHTS];
+    int samples;                  /* per light with a radius; 1: the centres */
+} refl__lv;
+
+/* The virtual lights of the scene's lights in the mirror faces; lv->shade
+   sums them after the scene's own. */
+static void refl__lv_init(refl__lv *lv, const refl_scene *s, const refl__planar_face *faces, int face_count,
+                          int samples);
+/* Samples of virtual light k: 1 for lights without a radius. */
+static int refl__lv_samples(const refl__lv *lv, const refl_scene *s, int k);
+/* Sample j of virtual light k's source (*src) and its mirror image (*virt);
+   0 when the sample is not on the light's side of the face. */
+static int refl__lv_sample(const refl__lv *lv, const refl_scene *s, int k, int j, refl_light *src, refl_light *virt);
+/* The face's reflectance weighing virtual light k at point p of object
+   `object`; 0 off the light's side or on the face's own object. */
+static float refl__lv_reflectance(const refl__lv *lv, const refl_scene *s, int k, int object, refl_vec3 p);
+/* Where the segment from p towards virt meets face k, *m, when it does. */
+static int refl__lv_through_face(const refl__lv *lv, const refl_scene *s, int k, const refl_light *virt, refl_vec3 p,
+                                 refl_vec3 *m);
+/* PLANAR's virtual lights on the job's pixels: every diffuse or partial
+   object but `skip` shaded again where a virtual light reaches, with the
+   scene's own lights shadowed as desc asks. */
+static refl_result refl__lv_pass(const refl__shadow_job *job, const refl__lv *lv, const refl_render_desc *desc,
+                                 int skip);
+
+/* ---- the per-pixel tracer (trace.c): RAYTRACE, and SBC's fallback ---- */
+
+typedef struct refl__rt_object {
+    const refl_mesh *mesh;
+    const refl_material *material;
+    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
+} refl__rt_object;
+
+/* A tracer set up for one pass (refl__rt_begin). */
+typedef struct refl__rt {
+    const refl__pass *p;
+    const refl_scene *scene;
+    refl__rt_object *objects;
+    refl_ray_caster caster;
+    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
+    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
+    int face_count;
+    refl__lv lv;                  /* and their virtual lights (none when off) */
+} refl__rt;
+
+/* What tracing pass p needs: the objects' transforms and materials, the
+   caster (p's, else bvh when the caller has one of the scene, else a BVH
+   built here) and, with light volumes, the mirror faces and their virtual
+   lights. refl__rt_end frees it (also after a failed begin). */
+static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
+static void refl__rt_end(refl__rt *rt);
+/* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
+   shows (NaN: none), window depth and stencil as the base pass writes
+   them; *rays counts the rays cast. */
+static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
+                           float *depth, uint8_t *stencil);
+/* A colour channel in [0, 1] as a byte, rounded. */
+static uint8_t refl__rt_unorm8(float v);
+
+/* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
    (render.c). A row's options function checks the method's sub-struct of
@@ -254,4 +459,5 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+/* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

@@ -35,24 +35,6 @@
        are then shaded again where any virtual light arrives. */
 #include "internal.h"
 
-/* Lights the shading sums at most (the soft shadows' limit). */
-enum { REFL__LV_MAX_LIGHTS = 64 };
-
-typedef struct refl__vlight {
-    int source;                   /* the scene light */
-    int face;                     /* index into the faces */
-    double side;                  /* +1, -1: the side of the face's plane the light is on */
-} refl__vlight;
-
-typedef struct refl__lv {
-    const refl__planar_face *faces; /* not owned */
-    refl__vlight v[REFL__LV_MAX_LIGHTS];
-    int count;
-    refl_scene shade;             /* the scene with its lights then the virtual lights' centres */
-    refl_light lights[REFL__LV_MAX_LIGHTS];
-    int samples;                  /* per light with a radius; 1: the centres */
-} refl__lv;
-
 /* A light mirrored in the plane n . x = d. */
 static refl_light refl__lv_mirror(const refl_light *l, const double n[3], double d) {
     refl_mat4 r = refl__planar_reflection(n, d);
@@ -226,13 +208,15 @@ static int refl__lv_fragment(void *user, const rast_fragment_in *in, float rgba[
     return 1;
 }
 
-/* Counts into plane, for the selected pixels, the samples of virtual
-   light k that reach them: per sample, the face's light volume from the
-   virtual light and (shadows) its blockers, as masks from shadow.c. */
-static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, const refl__lv *lv, int k, int shadows,
-                                  refl_mat4 vp, refl_vec3 eye, const float *depth, int width, int height,
-                                  const uint8_t *region, uint8_t region_value, uint8_t *in_volume, uint8_t *unblocked,
-                                  uint16_t *plane, const rast_targets *restore, refl_stats *st) {
+/* Counts into plane, for the job's pixels, the samples of virtual light k
+   that reach them: per sample, the face's light volume from the virtual
+   light and (shadows) its blockers, as masks from shadow.c into scratch
+   (two planes of the job's size). */
+static refl_result refl__lv_count(const refl__shadow_job *job, const refl__lv *lv, int k, int shadows,
+                                  uint8_t *scratch, uint16_t *plane) {
+    const refl_scene *scene = job->scene;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
     const refl_allocator *al = &scene->allocator;
     const refl__planar_face *f = &lv->faces[lv->v[k].face];
     refl_mat4 mirror = refl__planar_reflection(f->n, f->d);
@@ -240,9 +224,11 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     refl_mesh **meshes;
     refl_object *objs, face_obj;
     refl_scene sc;
+    refl__shadow_job virtual_job = *job;
     refl_light src, virt;
     refl_result r = REFL_OK;
-    size_t i, npx = (size_t)width * (size_t)height;
+    size_t i, npx = (size_t)job->width * (size_t)job->height;
+    uint8_t *in_volume = scratch, *unblocked = scratch + npx;
     int ob, nb = 0, j, ns = refl__lv_samples(lv, scene, k);
     meshes = (refl_mesh **)refl__alloc(al, (size_t)(scene->mesh_count + 1) * sizeof(*meshes));
     objs = (refl_object *)refl__alloc(al, 2 * (size_t)REFL__MAX(scene->object_count, 1) * sizeof(*objs));
@@ -287,19 +273,20 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     sc.mesh_count = scene->mesh_count + 1;
     sc.lights = &virt;
     sc.light_count = 1;
+    virtual_job.scene = &sc;
     for (j = 0; j < ns && r == REFL_OK; ++j) {
         if (!refl__lv_sample(lv, scene, k, j, &src, &virt)) continue;
         sc.objects = &face_obj;
         sc.object_count = 1;
-        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, in_volume, restore, st);
+        r = refl__shadow_mask(&virtual_job, in_volume);
         if (r == REFL_OK && shadows && nb > 0) {
             sc.objects = objs;
             sc.object_count = nb;
-            r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, unblocked, restore, st);
+            r = refl__shadow_mask(&virtual_job, unblocked);
         }
         if (r != REFL_OK) break;
         for (i = 0; i < npx; ++i)
-            if ((!region || region[i] == region_value) && depth[i] < 1.0f && !(in_volume[i] & 1) &&
+            if ((!region || region[i] == region_value) && job->depth[i] < 1.0f && !(in_volume[i] & 1) &&
                 (!shadows || nb == 0 || (unblocked[i] & 1)))
                 ++plane[i];
     }
@@ -308,18 +295,12 @@ static refl_result refl__lv_count(rast_context *rc, const refl_scene *scene, con
     return r;
 }
 
-/* The virtual lights on the selected pixels of a view (vp, eye; depth as
-   drawn, the bound stencil being `region` when it is given): every diffuse
-   or partial object but `skip` shaded again, where the bound stencil
-   equals region_value (region NULL: everywhere), on the pixels a virtual
-   light reaches, with the scene's own lights shadowed as desc asks. Leaves
-   `restore` bound; finishes. */
-static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, const refl__lv *lv,
-                                 const refl_render_desc *desc, refl_mat4 vp, refl_vec3 eye, const float *depth,
-                                 int width, int height, const uint8_t *region, uint8_t region_value, int skip,
-                                 const rast_targets *restore, refl_stats *st) {
+static refl_result refl__lv_pass(const refl__shadow_job *job, const refl__lv *lv, const refl_render_desc *desc,
+                                 int skip) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
     const refl_allocator *al = &scene->allocator;
-    size_t npx = (size_t)width * (size_t)height;
+    size_t npx = (size_t)job->width * (size_t)job->height;
     uint8_t *lit = NULL, *scratch = NULL;
     uint16_t *counts = NULL, *vcounts = NULL;
     refl__lv_shade *dc = NULL;
@@ -337,19 +318,17 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
         ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(desc->lighting.soft_shadow_samples, 1) : 1;
     if (soft)
-        r = refl__shadow_mask_soft(rc, scene, vp, eye, depth, width, height, region, region_value,
-                                   desc->lighting.soft_shadow_samples, counts, lit, restore, st);
+        r = refl__shadow_mask_soft(job, desc->lighting.soft_shadow_samples, counts, lit);
     else if (desc->lighting.shadows)
-        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(job, lit);
     for (k = 0; k < lv->count && r == REFL_OK; ++k)
-        r = refl__lv_count(rc, scene, lv, k, desc->lighting.shadows, vp, eye, depth, width, height, region, region_value,
-                           scratch, scratch + npx, vcounts + (size_t)k * npx, restore, st);
+        r = refl__lv_count(job, lv, k, desc->lighting.shadows, scratch, vcounts + (size_t)k * npx);
     if (r != REFL_OK) goto done;
     for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
         const refl_material *mat = &scene->materials[scene->objects[i].material];
         rast_state s;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
+        refl__draw_ctx_init(&dc[i].dc, scene, i, job->vp);
         dc[i].object = i;
         dc[i].lv = lv;
         dc[i].scene = scene;
@@ -357,16 +336,16 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         dc[i].counts = soft ? counts : NULL;
         dc[i].samples = ns;
         dc[i].vcounts = vcounts;
-        dc[i].width = width;
-        dc[i].height = height;
+        dc[i].width = job->width;
+        dc[i].height = job->height;
         memset(&s, 0, sizeof s);
         s.depth_test = 1;
         s.depth_func = RAST_EQUAL;
         s.depth_write_disabled = 1;
-        if (region) {
+        if (job->region) { /* the bound stencil is the region */
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = region_value;
+            s.stencil_front.ref = job->region_value;
             s.stencil_back = s.stencil_front;
         }
         s.vertex_fn = refl__base_vertex;
@@ -375,7 +354,7 @@ static refl_result refl__lv_pass(rast_context *rc, const refl_scene *scene, cons
         s.fragment_user = &dc[i];
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
-        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
+        if (job->st) job->st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* nothing queued may outlive the arrays it reads */
     if (queued) {

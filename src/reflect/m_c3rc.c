@@ -60,7 +60,7 @@ typedef struct refl__c3_counts {
 
 typedef struct refl__c3 {
     refl__pass *p;
-    refl__em em;                  /* the reflectors' G-buffer (ENVMAP's) */
+    refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     refl_kdtree *tree;
     float *rgb, *normal;          /* per tree point */

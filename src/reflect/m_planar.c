@@ -17,7 +17,7 @@
    shared model), and the frame gets 8-bit colour once at the end. The
    environment in a mirror is looked up along the mirrored ray; the point a
    first-bounce pixel shows (frame->points) is unprojected from the
-   mirrored view's depth. It draws with the base pass's programs (shade.c).
+   mirrored view's depth. It draws with the base pass's programs (base_pass.c).
    Opt-in: the light mirrors reflect (light_volume.c) at every unwarped
    level, and translucent glass (desc.lighting.translucency: rast.h's fog over the
    image behind a glass face, refl__planar_fog). */
@@ -384,37 +384,27 @@ static refl_result refl__planar_render_level(refl__planar *pl, refl__planar_leve
     if (rr == RAST_OK) rr = refl__planar_draw_scene(pl, child, box, dcs);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    if (pl->p->desc.lighting.shadows && !child->warped && pl->scene->light_count > 0) {
-        /* the region's shadows, as the mirrored camera sees them (a warped
-           refraction's depth is not its camera's: left unshadowed) */
-        refl_frame *f = pl->p->frame;
-        refl_vec3 eye = refl_mat4_point(child->w_inv, pl->p->view->eye);
+    if (!child->warped) {
+        /* the region as the mirrored camera sees it (a warped refraction's
+           depth is not its camera's: left unshadowed and unlit by mirrors) */
+        refl__shadow_job job = refl__shadow_job_of(pl->p, child->vp, refl_mat4_point(child->w_inv, pl->p->view->eye));
         int skip = child->parent >= 0 ? pl->faces[child->parent].object : -1;
-        refl_result r;
-        if (pl->counts) { /* soft: a mask per jittered light, summed */
-            int ns = pl->p->desc.lighting.soft_shadow_samples;
-            r = refl__shadow_mask_soft(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
-                                       (uint8_t)child->level, ns, pl->counts, pl->lit, &pl->targets, &f->stats);
-            if (r == REFL_OK)
-                r = refl__shade_soft(rc, pl->scene, child->vp, skip, pl->counts, ns, f->width, f->height, child->level,
-                                     0, &f->stats);
-        } else {
-            r = refl__shadow_mask(rc, pl->scene, child->vp, eye, f->depth, f->width, f->height, pl->stencil,
-                                  (uint8_t)child->level, pl->lit, &pl->targets, &f->stats);
-            if (r == REFL_OK)
-                r = refl__shade_lit(rc, pl->scene, child->vp, skip, pl->lit, f->width, f->height, child->level, 0,
-                                    &f->stats);
+        refl_result r = REFL_OK;
+        job.region = pl->stencil;
+        job.region_value = (uint8_t)child->level;
+        job.restore = &pl->targets;
+        if (pl->p->desc.lighting.shadows && pl->scene->light_count > 0) {
+            if (pl->counts) { /* soft: a mask per jittered light, summed */
+                int ns = pl->p->desc.lighting.soft_shadow_samples;
+                r = refl__shadow_mask_soft(&job, ns, pl->counts, pl->lit);
+                if (r == REFL_OK) r = refl__shade_soft(&job, skip, pl->counts, ns, 0);
+            } else {
+                r = refl__shadow_mask(&job, pl->lit);
+                if (r == REFL_OK) r = refl__shade_lit(&job, skip, pl->lit, 0);
+            }
         }
-        if (r != REFL_OK) return r;
-    }
-    if (pl->lv.count > 0 && !child->warped) {
         /* the light the mirrors reflect onto what the mirrored camera sees */
-        refl_frame *f = pl->p->frame;
-        refl_result r = refl__lv_pass(rc, pl->scene, &pl->lv, &pl->p->desc, child->vp,
-                                      refl_mat4_point(child->w_inv, pl->p->view->eye), f->depth, f->width, f->height,
-                                      pl->stencil, (uint8_t)child->level,
-                                      child->parent >= 0 ? pl->faces[child->parent].object : -1, &pl->targets,
-                                      &f->stats);
+        if (r == REFL_OK && pl->lv.count > 0) r = refl__lv_pass(&job, &pl->lv, &pl->p->desc, skip);
         if (r != REFL_OK) return r;
     }
     pl->p->frame->stats.planar.renderings++;
@@ -861,9 +851,12 @@ static refl_result refl__method_planar(refl__pass *p) {
     top.parent = -1;
     if (p->desc.lighting.light_volumes) {
         /* the reflected light on what the viewer sees directly */
+        refl__shadow_job job = refl__shadow_job_of(p, p->vp, p->view->eye);
+        job.region = pl.stencil;
+        job.region_value = 0;
+        job.restore = &pl.targets;
         refl__lv_init(&pl.lv, s, pl.faces, pl.face_count, p->desc.lighting.caustic_samples);
-        r = refl__lv_pass(p->rc, s, &pl.lv, &p->desc, p->vp, p->view->eye, f->depth, f->width, f->height, pl.stencil,
-                          0, -1, &pl.targets, &f->stats);
+        r = refl__lv_pass(&job, &pl.lv, &p->desc, -1);
         if (r != REFL_OK) goto done;
     }
     r = refl__planar_level_draw(&pl, &top, dcs);

@@ -1,404 +1,26 @@
-/* RAYTRACE: the reference every other method is measured against.
-   Whitted ray tracing through the BVH (or a caller's refl_ray_caster):
-   a primary ray per pixel centre, mirror reflections to desc.depth
-   bounces, glass with Fresnel reflection, refraction, total internal
-   reflection and Beer's-law absorption, optional hard or soft shadows
-   (soft: a shadow ray per jittered light sample, refl__rt_diffuse_soft), the
-   environment on a miss. Shading is the shared model of shade.c, and each
-   surface's colour is clamped to [0, 1] before a reflectance weighs it,
-   exactly as the rasterised methods composite into their RGBA8 frame, so
-   images differ only where reflection geometry differs.
-   Pixels are independent, so any thread count gives the same bytes. */
+/* RAYTRACE: the reference every other method is measured against. Every
+   pixel is rendered by the per-pixel tracer (trace.c), in tiles of
+   REFL__RT_TILE pixels square run on the thread pool, a band of tile rows
+   at a time so progress is reported from the calling thread. Pixels are
+   independent, so any thread count gives the same bytes. */
 #include "internal.h"
 
 enum { REFL__RT_TILE = 16 };
-/* A branch whose weight falls below this cannot move an 8-bit pixel. */
-#define REFL__RT_MIN_WEIGHT (1.0f / 1024.0f)
 
-typedef struct refl__rt_object {
-    const refl_mesh *mesh;
-    const refl_material *material;
-    refl_mat4 model, normal_m;    /* normal_m: inverse transpose of model */
-} refl__rt_object;
-
-typedef struct refl__rt {
-    const refl__pass *p;
-    const refl_scene *scene;
-    refl__rt_object *objects;
-    refl_ray_caster caster;
-    refl_bvh *bvh;                /* built by refl__rt_begin when the pass brings no caster, nor its caller a BVH */
+/* A frame's tracing: the tracer, and the rays each tile cast (summed
+   after: no shared counter). */
+typedef struct refl__rt_frame {
+    refl__rt rt;
     int tiles_x, tiles_y, first_tile;
-    long long *tile_rays;         /* per tile, summed after: no shared counter */
-    refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
-    int face_count;
-    refl__lv lv;                  /* and their virtual lights (none when off) */
-} refl__rt;
-
-typedef struct refl__rt_surface {
-    refl_vec3 p, ng, ns;          /* point, geometric and shading normal (unit) */
-    float uv[2];
-    int has_uv;
-    float magnitude;              /* largest |coordinate| of the triangle */
-    const refl_material *material;
-    int object, triangle;
-} refl__rt_surface;
-
-static int refl__rt_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
-    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
-}
-
-static int refl__rt_bvh_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
-    return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
-}
-
-/* A secondary ray starts a hair off its surface along n: a few float ulps
-   of the triangle's largest coordinate, which bounds the rounding of both
-   the hit point and the ray-triangle test, so the ray cannot hit its own
-   triangle's neighbours by error, yet skips no geometry an image could
-   show. Its own triangle is skipped exactly (refl__rt_cast): a flat
-   triangle cannot be met twice by a straight ray. */
-static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude) {
-    return refl_v3_add(p, refl_v3_scale(n, 5e-7f * magnitude)); /* 4 ulps: 2^-21 */
-}
-
-/* Point, normals and texture coordinates of a hit, from the mesh. */
-static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_surface *s) {
-    const refl__rt_object *o = &rt->objects[h->object];
-    const refl_mesh *m = o->mesh;
-    const uint32_t *tri = m->indices + 3 * (size_t)h->triangle;
-    refl__hit_geom g;
-    int k;
-    refl__hit_surface(m, &o->model, &o->normal_m, h, &g);
-    s->magnitude = 0.0f;
-    for (k = 0; k < 3; ++k)
-        s->magnitude = REFL__MAX(s->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
-    s->p = g.p;
-    s->ng = g.ng;
-    s->ns = g.ns;
-    s->has_uv = m->texcoords != NULL;
-    s->uv[0] = s->uv[1] = 0.0f;
-    if (s->has_uv)
-        for (k = 0; k < 3; ++k) {
-            s->uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
-            s->uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
-        }
-    s->material = o->material;
-    s->object = h->object;
-    s->triangle = h->triangle;
-    return refl_v3_dot(s->ng, s->ng) > 0.0f;
-}
-
-static void refl__rt_clamp(float rgb[3]) {
-    int c;
-    for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-}
-
-/* Closest hit from o along d, skipping the triangle the ray leaves. */
-static int refl__rt_cast(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float tmax, const refl__rt_surface *from,
-                         refl_hit *h) {
-    float tmin = 0.0f;
-    int tries;
-    for (tries = 0; tries < 4; ++tries) {
-        if (!rt->caster.intersect(rt->caster.user, o, d, tmin, tmax, h)) return 0;
-        if (!from || h->object != from->object || h->triangle != from->triangle) return 1;
-        tmin = h->t;
-    }
-    return 0;
-}
-
-/* Whether a shadow ray from o along unit d meets nothing within dist
-   (from: the surface it leaves, whose triangle it skips; may be NULL). */
-static int refl__rt_clear(const refl__rt *rt, refl_vec3 o, refl_vec3 d, float dist, const refl__rt_surface *from,
-                          long long *rays) {
-    ++*rays;
-    if (rt->caster.occluded) return !rt->caster.occluded(rt->caster.user, o, d, 0.0f, dist);
-    {
-        refl_hit h;
-        return !refl__rt_cast(rt, o, d, dist, from, &h);
-    }
-}
-
-/* Whether a shadow ray from surface s towards light l (at its position or
-   along its direction) reaches it. */
-static int refl__rt_light_visible(const refl__rt *rt, const refl__rt_surface *s, const refl_light *l,
-                                  long long *rays) {
-    refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
-                                                     : refl_v3_sub(l->position, s->p);
-    float dist = l->type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(to);
-    refl_vec3 side = refl_v3_dot(to, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-    return refl__rt_clear(rt, refl__rt_offset(s->p, side, s->magnitude), refl_v3_normalize(to), dist, s, rays);
-}
-
-/* Virtual light k (light_volumes, light_volume.c) at surface s with unit
-   normal nn: the face's reflectance times the fraction of the light's
-   samples whose path through the face arrives (with shadows: nothing on
-   the way from the face to s, nor from the light to the face). */
-static float refl__rt_virtual(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 nn, int k, long long *rays) {
-    const refl__lv *lv = &rt->lv;
-    const refl_scene *scene = rt->scene;
-    const refl_light *vc = &lv->lights[scene->light_count + k];
-    const refl__planar_face *f = &lv->faces[lv->v[k].face];
-    refl_vec3 fn = refl_v3((float)(lv->v[k].side * f->n[0]), (float)(lv->v[k].side * f->n[1]),
-                           (float)(lv->v[k].side * f->n[2]));
-    refl_vec3 to = vc->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(vc->direction, -1.0f)
-                                                      : refl_v3_sub(vc->position, s->p);
-    float r;
-    int j, ns = refl__lv_samples(lv, scene, k), arrive = 0;
-    if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) return 0.0f; /* unlit anyway: no ray needed */
-    r = refl__lv_reflectance(lv, scene, k, s->object, s->p);
-    if (!(r > 0.0f)) return 0.0f;
-    for (j = 0; j < ns; ++j) {
-        refl_light src, virt;
-        refl_vec3 m, o, d, mo;
-        float mag;
-        if (!refl__lv_sample(lv, scene, k, j, &src, &virt) || !refl__lv_through_face(lv, scene, k, &virt, s->p, &m))
-            continue;
-        if (rt->p->desc.lighting.shadows) {
-            /* from the surface to the face, stopping short of the mirror */
-            d = refl_v3_sub(m, s->p);
-            o = refl__rt_offset(s->p, refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f),
-                                s->magnitude);
-            d = refl_v3_sub(m, o);
-            if (!refl__rt_clear(rt, o, refl_v3_normalize(d), refl_v3_length(d) * (1.0f - 1e-4f), s, rays)) continue;
-            /* from the face, on the light's side, to the light */
-            mag = REFL__MAX(REFL__MAX(fabsf(m.x), fabsf(m.y)), REFL__MAX(fabsf(m.z), 1e-3f));
-            mo = refl__rt_offset(m, fn, mag);
-            d = src.type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(src.direction, -1.0f) : refl_v3_sub(src.position, mo);
-            if (!refl__rt_clear(rt, mo, refl_v3_normalize(d),
-                                src.type == REFL_LIGHT_DIRECTIONAL ? FLT_MAX : refl_v3_length(d), NULL, rays))
-                continue;
-        }
-        ++arrive;
-    }
-    return r * (float)arrive / (float)ns;
-}
-
-/* The shared diffuse model at a surface, with shadow rays when asked: one
-   per light, or with soft shadows (paper 002's jittered lights) one per
-   sample of each light with a radius (refl_light_sample), its Lambert term
-   (towards its centre) weighed by the fraction that arrive, what the
-   rasterised methods count with one shadow mask per sample. */
-static void refl__rt_diffuse(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 n, long long *rays,
-                             float rgb[3]) {
-    enum { MAX_LIGHTS = 64 };
-    float weight[MAX_LIGHTS];
-    const refl_scene *scene = rt->scene;
-    int i, k, samples = REFL__MAX(rt->p->desc.lighting.soft_shadow_samples, 1);
-    refl_vec3 nn = refl_v3_normalize(n);
-    /* lights beyond MAX_LIGHTS (absurd scenes) go unshadowed */
-    if ((!rt->p->desc.lighting.shadows && rt->lv.count == 0) || scene->light_count > MAX_LIGHTS) {
-        refl_shade_diffuse(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, rgb);
-        return;
-    }
-    for (i = 0; i < scene->light_count; ++i) {
-        const refl_light *l = &scene->lights[i];
-        refl_vec3 to = l->type == REFL_LIGHT_DIRECTIONAL ? refl_v3_scale(l->direction, -1.0f)
-                                                         : refl_v3_sub(l->position, s->p);
-        int ns = l->radius > 0.0f ? samples : 1, visible = 0;
-        weight[i] = 1.0f;
-        if (!rt->p->desc.lighting.shadows) continue;
-        if (refl_v3_dot(nn, refl_v3_normalize(to)) <= 0.0f) continue; /* unlit anyway: no ray needed */
-        for (k = 0; k < ns; ++k) {
-            refl_light ls = ns > 1 ? refl_light_sample(l, k, ns) : *l;
-            visible += refl__rt_light_visible(rt, s, &ls, rays);
-        }
-        weight[i] = (float)visible / (float)ns;
-    }
-    if (rt->lv.count == 0) {
-        refl_shade_diffuse_weighted(scene, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
-        return;
-    }
-    /* then the light the mirrors reflect, as PLANAR's light volumes add it */
-    for (k = 0; k < rt->lv.count; ++k) weight[scene->light_count + k] = refl__rt_virtual(rt, s, nn, k, rays);
-    refl_shade_diffuse_weighted(&rt->lv.shade, s->material, s->p, n, s->has_uv ? s->uv : NULL, weight, rgb);
-}
-
-/* The medium a ray travels through: air, or the inside of a glass object
-   (absorbing per unit length). */
-typedef struct refl__rt_medium {
-    float attenuation;
-    int inside;
-    /* translucency (desc.lighting.translucency): entered through glass at fog_p
-       (plane normal fog_n), what the ray shows first beyond the glass is
-       fogged towards fog_rgb by exp(-fog h), h its distance from that
-       plane, as PLANAR fogs the image behind a glass face; 0: clear */
-    float fog;
-    refl_vec3 fog_p, fog_n;
-    const float *fog_rgb;
-} refl__rt_medium;
-
-static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
-                           refl_vec3 *first_point, float *hit_t);
-
-/* A new ray leaving surface s in direction d, on the side d points to;
-   *hit_t (may be NULL) the distance to what it meets, INFINITY for none. */
-static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point,
-                           float *hit_t) {
-    refl_vec3 side = refl_v3_dot(d, s->ng) >= 0.0f ? s->ng : refl_v3_scale(s->ng, -1.0f);
-    refl__rt_trace(rt, refl__rt_offset(s->p, side, s->magnitude), d, s, depth, weight, medium, rays, rgb,
-                   first_point, hit_t);
-}
-
-/* Colour of surface s seen along unit d with `depth` bounces left,
-   clamped to [0, 1]. first_point (may be NULL) receives the first point
-   outside glass that the reflected or refracted light comes from, along
-   the stronger branch at each interface. */
-static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
-                           refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
-    const refl_material *m = s->material;
-    float cos_i, r, sub[3];
-    int c, entering;
-    refl_vec3 n = s->ns, ng = s->ng;
-    if (m->type == REFL_DIFFUSE) {
-        refl__rt_diffuse(rt, s, n, rays, rgb);
-        refl__rt_clamp(rgb);
-        return;
-    }
-    entering = refl_v3_dot(d, ng) < 0.0f;
-    if (!entering) {
-        n = refl_v3_scale(n, -1.0f);
-        ng = refl_v3_scale(ng, -1.0f);
-    }
-    if (refl_v3_dot(d, n) > 0.0f) n = ng; /* shading normal faces away: trust the geometry */
-    cos_i = -refl_v3_dot(d, n);
-    rgb[0] = rgb[1] = rgb[2] = 0.0f;
-    if (m->type == REFL_PARTIAL) {
-        /* the diffuse share, as the base pass draws it */
-        float k = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
-        refl__rt_diffuse(rt, s, s->ns, rays, rgb);
-        refl__rt_clamp(rgb);
-        for (c = 0; c < 3; ++c) rgb[c] *= k;
-    }
-    if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
-    if (m->type != REFL_GLASS) {
-        refl_vec3 rd = refl_v3_reflect(d, n);
-        /* near a silhouette the smooth normal can send the ray into the
-           surface itself: reflect about the true surface instead */
-        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
-        float t = INFINITY;
-        r = refl_material_reflectance(m, cos_i);
-        if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
-            refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
-            r *= refl_material_fade(m, t); /* paper 003 V-D: by the reflected ray's length */
-            for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
-        }
-    } else {
-        float ior = m->ior > 0.0f ? m->ior : 1.5f;
-        float n1 = entering ? 1.0f : ior, n2 = entering ? ior : 1.0f;
-        float f = refl_fresnel_dielectric(cos_i, n1, n2), tint[3];
-        refl_vec3 t;
-        int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
-        int point_on_refraction = refracts && f < 0.5f;
-        /* inside translucent glass the fog scatters what reflects within
-           (PLANAR's slab has no inner reflections either) */
-        int scattered = !entering && medium.fog > 0.0f && refracts;
-        refl__rt_medium through;
-        if (!refracts) f = 1.0f; /* total internal reflection */
-        for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
-            refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
-                           point_on_refraction ? NULL : first_point, NULL);
-            for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
-        }
-        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
-            /* entering: tinted once, then absorbed along the inside */
-            through = medium;
-            through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;
-            through.inside = entering;
-            if (entering) { /* translucency: fogged from this face on (refl__rt_trace) */
-                through.fog = rt->p->desc.lighting.translucency;
-                through.fog_p = s->p;
-                through.fog_n = s->ng;
-                through.fog_rgb = m->color;
-            }
-            refl__rt_spawn(rt, s, t, depth - 1, weight * (1.0f - f), through, rays, sub,
-                           point_on_refraction ? first_point : NULL, NULL);
-            for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
-        }
-    }
-    refl__rt_clamp(rgb);
-}
-
-static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
-                           int depth, float weight, refl__rt_medium medium, long long *rays, float rgb[3],
-                           refl_vec3 *first_point, float *hit_t) {
-    refl_hit h;
-    refl__rt_surface s;
-    int c;
-    float fog = 1.0f;             /* the share the fog leaves */
-    ++*rays;
-    if (hit_t) *hit_t = INFINITY;
-    if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
-        h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
-        refl_environment_lookup(&rt->scene->environment, d, rgb);
-        refl__rt_clamp(rgb);
-        if (first_point && rt->p->desc.debug.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
-        if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
-            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
-        return;
-    }
-    if (hit_t) *hit_t = h.t;
-    /* inside glass, the light's source lies further on */
-    if (first_point && !medium.inside) {
-        *first_point = s.p;
-        if (!rt->p->desc.debug.points_last) first_point = NULL; /* else followed to the path's end */
-    }
-    if (medium.fog > 0.0f && s.material->type != REFL_GLASS) {
-        fog = expf(-medium.fog * fabsf(refl_v3_dot(refl_v3_sub(s.p, medium.fog_p), medium.fog_n)));
-        medium.fog = 0.0f; /* once */
-    }
-    refl__rt_shade(rt, &s, d, depth, weight, medium, rays, rgb, first_point);
-    if (fog < 1.0f)
-        for (c = 0; c < 3; ++c) rgb[c] = fog * rgb[c] + (1.0f - fog) * REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
-    if (medium.attenuation > 0.0f) {
-        float k = expf(-medium.attenuation * h.t);
-        for (c = 0; c < 3; ++c) rgb[c] *= k;
-    }
-}
-
-static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
-
-/* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
-   to the far plane (what the rasteriser clips to); colour, the point its
-   reflector shows (NaN: none, or no reflector), window depth and stencil
-   as the base pass writes them; *rays counts the rays cast. SBC's
-   fallback traces pixels with it too (desc.sbc.trace_fallback). */
-static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
-                           float *depth, uint8_t *stencil) {
-    refl_vec3 a, d;
-    float len;
-    refl_hit h;
-    refl__rt_surface s;
-    refl__rt_medium air;
-    memset(&air, 0, sizeof air);
-    *shown = refl_v3(NAN, NAN, NAN);
-    *depth = 1.0f;
-    *stencil = 0;
-    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
-    ++*rays;
-    if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
-        h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
-        /* GL's window depth of the eye distance along the axis */
-        const refl__view_rays *vr = &rt->p->rays;
-        float ze = refl_v3_dot(refl_v3_sub(s.p, vr->eye), vr->forward), zn = vr->znear, zf = vr->zfar;
-        float ndc = (zf + zn) / (zf - zn) - 2.0f * zf * zn / ((zf - zn) * ze);
-        int reflector = refl__is_reflector(s.material);
-        *depth = REFL__CLAMP(0.5f * ndc + 0.5f, 0.0f, 1.0f);
-        refl__rt_shade(rt, &s, d, rt->p->desc.depth, 1.0f, air, rays, rgb, reflector ? shown : NULL);
-        if (reflector) *stencil = (uint8_t)(h.object + 1 < 255 ? h.object + 1 : 255);
-    } else {
-        refl_environment_lookup(&rt->scene->environment, d, rgb);
-    }
-}
+    long long *tile_rays;
+} refl__rt_frame;
 
 /* One tile of pixels. */
 static void refl__rt_tile(void *arg, int job) {
-    const refl__rt *rt = (const refl__rt *)arg;
-    refl_frame *f = rt->p->frame;
-    int tile = rt->first_tile + job;
-    int x0 = (tile % rt->tiles_x) * REFL__RT_TILE, y0 = (tile / rt->tiles_x) * REFL__RT_TILE;
+    const refl__rt_frame *tf = (const refl__rt_frame *)arg;
+    refl_frame *f = tf->rt.p->frame;
+    int tile = tf->first_tile + job;
+    int x0 = (tile % tf->tiles_x) * REFL__RT_TILE, y0 = (tile / tf->tiles_x) * REFL__RT_TILE;
     int x1 = REFL__MIN(x0 + REFL__RT_TILE, f->width), y1 = REFL__MIN(y0 + REFL__RT_TILE, f->height), x, y;
     long long rays = 0;
     for (y = y0; y < y1; ++y)
@@ -406,7 +28,7 @@ static void refl__rt_tile(void *arg, int job) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
             float rgb[3];
             refl_vec3 shown;
-            refl__rt_pixel(rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
+            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
             if (f->stencil[i]) {
                 f->points[3 * i] = shown.x;
                 f->points[3 * i + 1] = shown.y;
@@ -417,51 +39,7 @@ static void refl__rt_tile(void *arg, int job) {
             f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
             f->color[4 * i + 3] = 255;
         }
-    rt->tile_rays[tile] = rays;
-}
-
-/* What tracing a frame of pass p needs besides the tiles: the objects'
-   transforms and materials, the caster (p's, else `bvh` when the caller
-   has built one of the scene, else a BVH built here), and with light
-   volumes the planar mirror faces and their virtual lights. refl__rt_end
-   frees it. */
-static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh) {
-    const refl_scene *scene = p->scene;
-    refl_result r = REFL_OK;
-    int i;
-    memset(rt, 0, sizeof *rt);
-    rt->p = p;
-    rt->scene = scene;
-    rt->caster = p->desc.raytrace.caster;
-    rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                                  sizeof(refl__rt_object));
-    if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        rt->objects[i].mesh = scene->meshes[o->mesh];
-        rt->objects[i].material = &scene->materials[o->material];
-        rt->objects[i].model = o->transform;
-        rt->objects[i].normal_m = refl__normal_matrix(o->transform);
-    }
-    if (!rt->caster.intersect) {
-        if (!bvh && (r = refl_bvh_build(scene, &scene->allocator, &rt->bvh)) != REFL_OK) return r;
-        rt->caster.intersect = refl__rt_bvh_intersect;
-        rt->caster.occluded = refl__rt_bvh_occluded;
-        rt->caster.user = bvh ? bvh : rt->bvh;
-    }
-    if (p->desc.lighting.light_volumes) {
-        if ((r = refl__planar_find_faces(scene, NULL, &rt->faces, &rt->face_count)) != REFL_OK) return r;
-        refl__lv_init(&rt->lv, scene, rt->faces, rt->face_count, p->desc.lighting.caustic_samples);
-    }
-    return REFL_OK;
-}
-
-static void refl__rt_end(refl__rt *rt) {
-    if (!rt->scene) return;
-    refl_bvh_destroy(rt->bvh);
-    if (rt->faces) refl__planar_free_faces(rt->scene, rt->faces, rt->face_count);
-    refl__free(&rt->scene->allocator, rt->objects);
-    rt->scene = NULL;
+    tf->tile_rays[tile] = rays;
 }
 
 static const char *refl__options_raytrace(refl_render_desc *d) {
@@ -473,47 +51,42 @@ static const char *refl__options_raytrace(refl_render_desc *d) {
 static refl_result refl__method_raytrace(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl__rt rt;
-    long long nodes = 0, tris = 0;
+    refl__rt_frame tf;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
     if (r != REFL_OK) return r;
-    r = refl__rt_begin(&rt, p, bvh);
-    rt.bvh = owned; /* freed with rt */
+    r = refl__rt_begin(&tf.rt, p, bvh);
+    tf.rt.bvh = owned; /* freed with rt */
     if (r != REFL_OK) {
-        refl__rt_end(&rt);
+        refl__rt_end(&tf.rt);
         return r;
     }
-    rt.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
-    rt.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
-    tiles = rt.tiles_x * rt.tiles_y;
-    rt.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
-    if (!rt.tile_rays) {
-        refl__rt_end(&rt);
+    tf.tiles_x = (f->width + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tf.tiles_y = (f->height + REFL__RT_TILE - 1) / REFL__RT_TILE;
+    tiles = tf.tiles_x * tf.tiles_y;
+    tf.tile_rays = (long long *)refl__calloc(&scene->allocator, (size_t)tiles, sizeof(long long));
+    if (!tf.tile_rays) {
+        refl__rt_end(&tf.rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < scene->object_count; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (bvh) {
-        refl_bvh_stats(bvh, &nodes, &tris);
-        f->stats.model_bytes = nodes * (long long)sizeof(refl__bvh_node) +
-                               tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
-    }
+    if (bvh) f->stats.model_bytes = refl__bvh_bytes(bvh);
     t1 = refl__now_ms();
     f->stats.ms_build = t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
-    for (rows_done = 0; rows_done < rt.tiles_y;) {
-        int band = REFL__MAX(1, rt.tiles_y / 16), rows = REFL__MIN(band, rt.tiles_y - rows_done);
-        rt.first_tile = rows_done * rt.tiles_x;
-        rast_run_jobs(p->rc, rows * rt.tiles_x, refl__rt_tile, &rt);
+    for (rows_done = 0; rows_done < tf.tiles_y;) {
+        int band = REFL__MAX(1, tf.tiles_y / 16), rows = REFL__MIN(band, tf.tiles_y - rows_done);
+        tf.first_tile = rows_done * tf.tiles_x;
+        rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)rt.tiles_y);
+        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
     }
-    for (i = 0; i < tiles; ++i) f->stats.rays += rt.tile_rays[i];
+    for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
     f->stats.ms_reflect = refl__now_ms() - t1;
-    refl__free(&scene->allocator, rt.tile_rays);
-    refl__rt_end(&rt);
+    refl__free(&scene->allocator, tf.tile_rays);
+    refl__rt_end(&tf.rt);
     return REFL_OK;
 }

@@ -7,16 +7,6 @@
 
 enum { REFL__PLANAR_MAX_FACES = 16 };
 
-typedef struct refl__planar_face {
-    int object;
-    double n[3], d;               /* world plane n . x = d, n facing the mirror's front */
-    int glass;                    /* a refractor's face */
-    int opposite;                 /* glass: the parallel face behind it (a slab), or -1 */
-    double thickness;             /* glass: the distance to that face */
-    uint32_t *indices;            /* the face's triangles, into the object's mesh */
-    int index_count;
-} refl__planar_face;
-
 static void refl__planar_free_faces(const refl_scene *s, refl__planar_face *faces, int count) {
     int i;
     for (i = 0; i < count; ++i) refl__free(&s->allocator, faces[i].indices);

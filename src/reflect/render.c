@@ -1,7 +1,8 @@
-/* Frames and the one entry point, refl_render: the base pass every method
-   shares (diffuse geometry shaded per pixel, reflectors into the stencil),
-   the environment behind everything, and the per-method middle step.
-   DIRECT is the base pass alone; RAYTRACE renders the whole frame itself. */
+/* Frames, views and their rays, the method table, the renderer and the
+   flow of a frame: the base pass every method shares (base_pass.c's
+   drawing, then shadows, then the environment behind everything), then
+   the per-reflector methods. DIRECT is the base pass alone; RAYTRACE
+   renders the whole frame itself. */
 #include "internal.h"
 
 #include <time.h>
@@ -159,77 +160,6 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
     if (origin) *origin = o;
     if (dir) *dir = d;
     if (tmax) *tmax = t;
-}
-
-/* ---- the base pass ---------------------------------------------------------- */
-
-/* Draws every object but `skip`: diffuse ones shaded, reflectors with their
-   diffuse share (partial) or black (mirror, glass), each writing its object
-   id + 1 into the stencil. */
-static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    refl_stats *st) {
-    refl__draw_ctx *dc;
-    int i;
-    rast_result rr = RAST_OK;
-    /* one draw context per object: rast runs the callbacks at rast_finish */
-    dc = (refl__draw_ctx *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                        sizeof(refl__draw_ctx));
-    if (!dc) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *m = scene->meshes[o->mesh];
-        rast_state s;
-        if (i == skip) continue;
-        refl__draw_ctx_init(&dc[i], scene, i, vp);
-        memset(&s, 0, sizeof s);
-        s.depth_test = 1;
-        s.stencil_test = 1;
-        s.stencil_front.func = RAST_ALWAYS;
-        s.stencil_front.pass = RAST_REPLACE;
-        s.stencil_front.ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
-        s.stencil_back = s.stencil_front;
-        s.vertex_fn = refl__base_vertex;
-        s.vertex_user = &dc[i];
-        if (dc[i].material->type == REFL_DIFFUSE || dc[i].material->type == REFL_PARTIAL) {
-            s.fragment_fn = refl__base_fragment;
-            s.fragment_user = &dc[i];
-        }
-        if (!refl__is_reflector(dc[i].material)) s.stencil_front.pass = s.stencil_back.pass = RAST_ZERO;
-        /* mirrors and glass: transparent black until a method fills them */
-        if (dc[i].material->type == REFL_MIRROR || dc[i].material->type == REFL_GLASS)
-            s.fragment_fn = refl__clear_fragment;
-        rr = rast_set_state(rc, &s);
-        if (rr == RAST_OK) rr = refl__draw_mesh(rc, m, NULL, 0, REFL__BASE_VARYINGS);
-        st->triangles += m->triangle_count;
-    }
-    if (rr == RAST_OK) rr = rast_finish(rc);
-    refl__free(&scene->allocator, dc);
-    return refl__result_from_rast(rr);
-}
-
-/* The environment behind the geometry: every pixel the scene left at the
-   far plane shows the environment along its view ray. */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
-                                  const refl_scene *scene, refl_mat4 inv_vp) {
-    int x, y;
-    for (y = 0; y < height; ++y)
-        for (x = 0; x < width; ++x) {
-            size_t i = (size_t)y * (size_t)stride_px + (size_t)x;
-            float nx, ny, rgb[3];
-            refl_vec3 a, b;
-            int c;
-            if (depth[i] < 1.0f) continue;
-            nx = 2.0f * ((float)x + 0.5f) / (float)width - 1.0f;
-            ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)height;
-            a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
-            b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
-            refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
-            for (c = 0; c < 3; ++c) {
-                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-            color[4 * i + 3] = 255;
-        }
 }
 
 /* ---- the method table ---------------------------------------------------------- */

@@ -3,21 +3,6 @@
    everything added to it. */
 #include "internal.h"
 
-REFL_API const char *refl_result_string(refl_result result) {
-    switch (result) {
-    case REFL_OK: return "ok";
-    case REFL_ERROR_INVALID_ARGUMENT: return "invalid argument";
-    case REFL_ERROR_INVALID_SIZE: return "invalid size (zero, negative, or too large)";
-    case REFL_ERROR_OUT_OF_MEMORY: return "out of memory";
-    case REFL_ERROR_BAD_MESH: return "bad mesh (indices out of range, non-finite positions or no triangles)";
-    case REFL_ERROR_UNKNOWN_NAME: return "unknown name";
-    case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
-    case REFL_ERROR_UNSUPPORTED: return "method not available";
-    case REFL_ERROR_RASTER: return "rasteriser error";
-    }
-    return "unknown refl_result";
-}
-
 REFL_API refl_result refl_scene_create(const refl_allocator *a, refl_scene **out_scene) {
     refl_scene *s;
     if (!out_scene) return REFL_ERROR_INVALID_ARGUMENT;

@@ -673,10 +673,15 @@ static int refl__sv_mirrored(refl_mat4 vp) {
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0.0;
 }
 
-static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                          refl_stats *st, refl__shadow_mode mode, unsigned *used_zfail) {
+static refl_result refl__shadow_mask_mode(const refl__shadow_job *job, uint8_t *lit, refl__shadow_mode mode,
+                                          unsigned *used_zfail) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
+    const refl_mat4 vp = job->vp;
+    const float *depth = job->depth;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
+    const int width = job->width, height = job->height;
     const refl_allocator *al;
     refl__sv_object *objs = NULL;
     refl__sv_buf buf;
@@ -730,7 +735,7 @@ static refl_result refl__shadow_mask_mode(rast_context *rc, const refl_scene *sc
         int zfail, chain;
         if (!refl__sv_light(&scene->lights[li], l)) continue;
         zfail = mode == REFL__SHADOW_ZFAIL ||
-                (mode == REFL__SHADOW_AUTO && !refl__sv_zpass_safe(objs, scene->object_count, l, eye, vp));
+                (mode == REFL__SHADOW_AUTO && !refl__sv_zpass_safe(objs, scene->object_count, l, job->eye, vp));
         if (zfail && used_zfail) *used_zfail |= 1u << li;
         /* z-pass: what lies beyond the farthest surface never counts (a
            margin for the rounding of window depth); z-fail: the far plane */
@@ -802,19 +807,15 @@ done:
         rast_targets none;
         rast_result rb;
         memset(&none, 0, sizeof none);
-        rb = rast_set_targets(rc, restore ? restore : &none);
+        rb = rast_set_targets(rc, job->restore ? job->restore : &none);
         if (r == REFL_OK && rb != RAST_OK) r = refl__result_from_rast(rb);
     }
-    if (st) st->triangles += tris;
+    if (job->st) job->st->triangles += tris;
     return r;
 }
 
-static refl_result refl__shadow_mask(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                     const float *depth, int width, int height, const uint8_t *region,
-                                     uint8_t region_value, uint8_t *lit, const rast_targets *restore,
-                                     refl_stats *st) {
-    return refl__shadow_mask_mode(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st,
-                                  REFL__SHADOW_AUTO, NULL);
+static refl_result refl__shadow_mask(const refl__shadow_job *job, uint8_t *lit) {
+    return refl__shadow_mask_mode(job, lit, REFL__SHADOW_AUTO, NULL);
 }
 
 /* ---- shading with the mask ---------------------------------------------------------- */
@@ -832,7 +833,7 @@ typedef struct refl__sv_shade {
 
 /* Soft shadows' fragment: each light's Lambert term weighed by its visible
    fraction at the pixel, (float)count / (float)samples, as RAYTRACE's
-   refl__rt_diffuse_soft weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
+   refl__rt_diffuse weighs it. light_count <= REFL__SV_SOFT_MAX_LIGHTS. */
 enum { REFL__SV_SOFT_MAX_LIGHTS = 64 };
 static int refl__sv_shade_soft_fragment(const refl__sv_shade *d, const rast_fragment_in *in, float rgba[4]) {
     const float *v = in->varyings;
@@ -874,15 +875,16 @@ static int refl__sv_shade_fragment(void *user, const rast_fragment_in *in, float
 
 /* refl__shade_lit, or with counts (refl__shadow_mask_soft's) the soft
    shadows' fractional visibility. */
-static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                      const uint8_t *lit, const uint16_t *counts, int samples, int width, int height,
-                                      int stencil_ref, int all_pixels, refl_stats *st) {
+static refl_result refl__shade_lit_ex(const refl__shadow_job *job, int skip, const uint8_t *lit,
+                                      const uint16_t *counts, int samples, int all_pixels) {
+    rast_context *rc = job->rc;
+    const refl_scene *scene = job->scene;
     const refl_allocator *al;
     refl__sv_shade *dc = NULL;
     unsigned char *table = NULL;
     rast_result rr = RAST_OK;
     int i, b, lc, queued = 0, ns[REFL__SHADOW_MAX_LIGHTS];
-    if (!rc || !scene || (!lit && !counts) || width <= 0 || height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!rc || !scene || (!lit && !counts) || job->width <= 0 || job->height <= 0) return REFL_ERROR_INVALID_ARGUMENT;
     if (counts && scene->light_count > REFL__SV_SOFT_MAX_LIGHTS) return REFL_ERROR_INVALID_ARGUMENT;
     for (i = 0; i < REFL__SHADOW_MAX_LIGHTS; ++i)
         ns[i] = i < scene->light_count && scene->lights[i].radius > 0.0f ? REFL__MAX(samples, 1) : 1;
@@ -904,11 +906,11 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         const refl_material *mat = &scene->materials[o->material];
         rast_state s;
         if (i == skip || (mat->type != REFL_DIFFUSE && mat->type != REFL_PARTIAL)) continue;
-        refl__draw_ctx_init(&dc[i].dc, scene, i, vp);
+        refl__draw_ctx_init(&dc[i].dc, scene, i, job->vp);
         dc[i].lit = lit;
         dc[i].table = table;
-        dc[i].width = width;
-        dc[i].height = height;
+        dc[i].width = job->width;
+        dc[i].height = job->height;
         dc[i].light_count = lc;
         dc[i].all_pixels = all_pixels;
         dc[i].counts = counts;
@@ -918,10 +920,10 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.depth_test = 1;
         s.depth_func = RAST_EQUAL;
         s.depth_write_disabled = 1;
-        if (stencil_ref >= 0) {
+        if (job->region) { /* the bound stencil is the region */
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = (uint8_t)REFL__MIN(stencil_ref, 255);
+            s.stencil_front.ref = job->region_value;
             s.stencil_back = s.stencil_front;
         }
         s.vertex_fn = refl__base_vertex;
@@ -930,7 +932,7 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
         s.fragment_user = &dc[i];
         queued = 1;
         if ((rr = rast_set_state(rc, &s)) == RAST_OK) rr = refl__draw_mesh(rc, dc[i].dc.mesh, NULL, 0, REFL__BASE_VARYINGS);
-        if (st) st->triangles += dc[i].dc.mesh->triangle_count;
+        if (job->st) job->st->triangles += dc[i].dc.mesh->triangle_count;
     }
     /* finishing also drops what a failed draw left queued, before the
        contexts it reads are freed */
@@ -943,11 +945,9 @@ static refl_result refl__shade_lit_ex(rast_context *rc, const refl_scene *scene,
     return refl__result_from_rast(rr);
 }
 
-static refl_result refl__shade_lit(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                   const uint8_t *lit, int width, int height, int stencil_ref, int all_pixels,
-                                   refl_stats *st) {
+static refl_result refl__shade_lit(const refl__shadow_job *job, int skip, const uint8_t *lit, int all_pixels) {
     if (!lit) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__shade_lit_ex(rc, scene, vp, skip, lit, NULL, 0, width, height, stencil_ref, all_pixels, st);
+    return refl__shade_lit_ex(job, skip, lit, NULL, 0, all_pixels);
 }
 
 /* ---- soft shadows: the mask once per jittered light ----------------------------------- */
@@ -956,20 +956,21 @@ static int refl__soft_shadows(const refl_render_desc *desc, const refl_scene *sc
     return desc->lighting.shadows && desc->lighting.soft_shadow_samples > 1 && scene->light_count <= REFL__SV_SOFT_MAX_LIGHTS;
 }
 
-static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, refl_vec3 eye,
-                                          const float *depth, int width, int height, const uint8_t *region,
-                                          uint8_t region_value, int samples, uint16_t *counts, uint8_t *lit,
-                                          const rast_targets *restore, refl_stats *st) {
+static refl_result refl__shadow_mask_soft(const refl__shadow_job *job, int samples, uint16_t *counts, uint8_t *lit) {
+    const refl_scene *scene = job->scene;
+    const uint8_t *region = job->region;
+    const uint8_t region_value = job->region_value;
     const refl_allocator *al;
     refl_light *jit = NULL;
     refl_scene sc;
+    refl__shadow_job jittered;
     refl_result r = REFL_OK;
     size_t npx, i;
     int idx[REFL__SHADOW_MAX_LIGHTS], li, j, k, lights, soft = 0, hard = 0;
-    if (!rc || !scene || !depth || !counts || !lit || width <= 0 || height <= 0 || samples < 1)
+    if (!job->rc || !scene || !job->depth || !counts || !lit || job->width <= 0 || job->height <= 0 || samples < 1)
         return REFL_ERROR_INVALID_ARGUMENT;
     al = &scene->allocator;
-    npx = (size_t)width * (size_t)height;
+    npx = (size_t)job->width * (size_t)job->height;
     lights = REFL__MIN(scene->light_count, REFL__SHADOW_MAX_LIGHTS);
     for (li = 0; li < lights; ++li) {
         if (scene->lights[li].radius > 0.0f && samples > 1) idx[soft++] = li;
@@ -979,7 +980,7 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
         for (i = 0; i < npx; ++i)
             if (!region || region[i] == region_value) counts[(size_t)li * npx + i] = 0;
     if (hard || lights == 0) { /* the lights without a radius: one mask, at their centres */
-        r = refl__shadow_mask(rc, scene, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(job, lit);
         if (r != REFL_OK) return r;
         for (li = 0; li < lights; ++li) {
             if (scene->lights[li].radius > 0.0f && samples > 1) continue;
@@ -993,9 +994,11 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
     sc = *scene;
     sc.lights = jit;
     sc.light_count = soft;
+    jittered = *job;
+    jittered.scene = &sc;
     for (k = 0; k < samples && r == REFL_OK; ++k) {
         for (j = 0; j < soft; ++j) jit[j] = refl_light_sample(&scene->lights[idx[j]], k, samples);
-        r = refl__shadow_mask(rc, &sc, vp, eye, depth, width, height, region, region_value, lit, restore, st);
+        r = refl__shadow_mask(&jittered, lit);
         if (r != REFL_OK) break;
         for (j = 0; j < soft; ++j) {
             uint16_t *plane = counts + (size_t)idx[j] * npx;
@@ -1007,11 +1010,24 @@ static refl_result refl__shadow_mask_soft(rast_context *rc, const refl_scene *sc
     return r;
 }
 
-static refl_result refl__shade_soft(rast_context *rc, const refl_scene *scene, refl_mat4 vp, int skip,
-                                    const uint16_t *counts, int samples, int width, int height, int stencil_ref,
-                                    int all_pixels, refl_stats *st) {
+static refl_result refl__shade_soft(const refl__shadow_job *job, int skip, const uint16_t *counts, int samples,
+                                    int all_pixels) {
     if (!counts) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__shade_lit_ex(rc, scene, vp, skip, NULL, counts, samples, width, height, stencil_ref, all_pixels, st);
+    return refl__shade_lit_ex(job, skip, NULL, counts, samples, all_pixels);
+}
+
+static refl__shadow_job refl__shadow_job_of(const refl__pass *p, refl_mat4 vp, refl_vec3 eye) {
+    refl__shadow_job job;
+    memset(&job, 0, sizeof job);
+    job.rc = p->rc;
+    job.scene = p->scene;
+    job.vp = vp;
+    job.eye = eye;
+    job.depth = p->frame->depth;
+    job.width = p->frame->width;
+    job.height = p->frame->height;
+    job.st = &p->frame->stats;
+    return job;
 }
 
 /* DIRECT's (and every method's) base pass with shadows: the mask over the
@@ -1024,6 +1040,7 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
     refl_result r;
     size_t npx = (size_t)f->width * (size_t)f->height;
     uint16_t *counts = NULL;
+    refl__shadow_job job;
     int soft = refl__soft_shadows(&p->desc, scene);
     lit = (uint8_t *)refl__alloc(&scene->allocator, npx);
     if (soft) counts = (uint16_t *)refl__calloc(&scene->allocator, npx * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
@@ -1033,16 +1050,14 @@ static refl_result refl__shadow_base_pass(refl__pass *p) {
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     t = refl__frame_targets(f);
+    job = refl__shadow_job_of(p, p->vp, p->view->eye);
+    job.restore = &t;
     if (soft) {
-        r = refl__shadow_mask_soft(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0,
-                                   p->desc.lighting.soft_shadow_samples, counts, lit, &t, &f->stats);
-        if (r == REFL_OK)
-            r = refl__shade_soft(p->rc, scene, p->vp, -1, counts, p->desc.lighting.soft_shadow_samples, f->width, f->height,
-                                 -1, 0, &f->stats);
+        r = refl__shadow_mask_soft(&job, p->desc.lighting.soft_shadow_samples, counts, lit);
+        if (r == REFL_OK) r = refl__shade_soft(&job, -1, counts, p->desc.lighting.soft_shadow_samples, 0);
     } else {
-        r = refl__shadow_mask(p->rc, scene, p->vp, p->view->eye, f->depth, f->width, f->height, NULL, 0, lit, &t,
-                              &f->stats);
-        if (r == REFL_OK) r = refl__shade_lit(p->rc, scene, p->vp, -1, lit, f->width, f->height, -1, 0, &f->stats);
+        r = refl__shadow_mask(&job, lit);
+        if (r == REFL_OK) r = refl__shade_lit(&job, -1, lit, 0);
     }
     refl__free(&scene->allocator, lit);
     refl__free(&scene->allocator, counts);

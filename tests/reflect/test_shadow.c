@@ -72,10 +72,11 @@ static refl_frame *direct_masked(const refl_scene *s, const refl_view *v, refl__
     uint8_t *lit = (uint8_t *)malloc((size_t)f->width * (size_t)f->height);
     cr_assert_not_null(lit);
     cr_assert_eq(rast_set_targets(rc, &t), RAST_OK);
-    cr_assert_eq(refl__shadow_mask_mode(rc, s, vp, v->eye, f->depth, f->width, f->height, NULL, 0, lit, &t, NULL,
-                                        mode, zfail),
-                 REFL_OK);
-    cr_assert_eq(refl__shade_lit(rc, s, vp, -1, lit, f->width, f->height, -1, 0, NULL), REFL_OK);
+    refl__shadow_job job = {
+        .rc = rc, .scene = s, .vp = vp, .eye = v->eye, .depth = f->depth, .width = f->width, .height = f->height,
+        .restore = &t};
+    cr_assert_eq(refl__shadow_mask_mode(&job, lit, mode, zfail), REFL_OK);
+    cr_assert_eq(refl__shade_lit(&job, -1, lit, 0), REFL_OK);
     rast_context_destroy(rc);
     if (lit_out) *lit_out = lit;
     else free(lit);
@@ -294,13 +295,11 @@ static void expect_same_masks(const refl_scene *s, const refl_view *v, const cha
     unsigned za = 0, zb = 0, bits = (1u << REFL__MIN(s->light_count, 8)) - 1u;
     long differ = 0, inner = 0, surface = 0;
     int x, y, dx, dy;
+    refl__shadow_job job = {
+        .rc = rc, .scene = s, .vp = vp, .eye = v->eye, .depth = f->depth, .width = v->width, .height = v->height};
     cr_assert(a && b);
-    cr_assert_eq(refl__shadow_mask_mode(rc, s, vp, v->eye, f->depth, v->width, v->height, NULL, 0, a, NULL, NULL,
-                                        REFL__SHADOW_ZPASS, &za),
-                 REFL_OK);
-    cr_assert_eq(refl__shadow_mask_mode(rc, s, vp, v->eye, f->depth, v->width, v->height, NULL, 0, b, NULL, NULL,
-                                        REFL__SHADOW_ZFAIL, &zb),
-                 REFL_OK);
+    cr_assert_eq(refl__shadow_mask_mode(&job, a, REFL__SHADOW_ZPASS, &za), REFL_OK);
+    cr_assert_eq(refl__shadow_mask_mode(&job, b, REFL__SHADOW_ZFAIL, &zb), REFL_OK);
     cr_assert_eq(za, 0u);
     cr_assert_eq(zb, bits);
     for (y = 0; y < v->height; ++y)
@@ -405,7 +404,8 @@ static uint8_t *mask_with(const refl_scene *s, refl_mat4 vp, refl_vec3 eye, cons
     uint8_t *lit = (uint8_t *)malloc((size_t)w * (size_t)h);
     rast_context *rc = context(3);
     cr_assert_not_null(lit);
-    cr_assert_eq(refl__shadow_mask_mode(rc, s, vp, eye, depth, w, h, NULL, 0, lit, NULL, NULL, mode, zfail), REFL_OK);
+    refl__shadow_job job = {.rc = rc, .scene = s, .vp = vp, .eye = eye, .depth = depth, .width = w, .height = h};
+    cr_assert_eq(refl__shadow_mask_mode(&job, lit, mode, zfail), REFL_OK);
     rast_context_destroy(rc);
     return lit;
 }
@@ -568,8 +568,13 @@ Test(refl_shadow, region_restore_and_bits) {
     cr_assert(full && part && region);
     for (i = 0; i < n; ++i) region[i] = (uint8_t)(((i % 7) < 3) ? 5 : 1);
     memset(part, 0x5A, n);
-    cr_assert_eq(refl__shadow_mask(rc, s, vp, v.eye, f->depth, v.width, v.height, NULL, 0, full, NULL, NULL), REFL_OK);
-    cr_assert_eq(refl__shadow_mask(rc, s, vp, v.eye, f->depth, v.width, v.height, region, 5, part, &t, NULL), REFL_OK);
+    refl__shadow_job job = {
+        .rc = rc, .scene = s, .vp = vp, .eye = v.eye, .depth = f->depth, .width = v.width, .height = v.height};
+    cr_assert_eq(refl__shadow_mask(&job, full), REFL_OK);
+    job.region = region;
+    job.region_value = 5;
+    job.restore = &t;
+    cr_assert_eq(refl__shadow_mask(&job, part), REFL_OK);
     for (i = 0; i < n; ++i) {
         cr_assert_eq(part[i], region[i] == 5 ? full[i] : 0x5A, "pixel %zu", i);
         cr_assert_eq(full[i] & 0xFC, 0xFC, "bits past the two lights are set");
