@@ -51,6 +51,7 @@ RAST_IMPL   = src/rast/internal.h \
 # does not exist. List its modules here, in order:
 REFLECT_PUBLIC = src/reflect/api.h
 REFLECT_IMPL   = src/reflect/internal.h \
+                 src/reflect/cam_sbc_internal.h \
                  src/reflect/math.c \
                  src/reflect/mesh.c \
                  src/reflect/shapes.c \
@@ -60,6 +61,8 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/kdtree.c \
                  src/reflect/cam_c3rc.c \
                  src/reflect/cam_sbc.c \
+                 src/reflect/cam_sbc_fit.c \
+                 src/reflect/cam_sbc_raylist.c \
                  src/reflect/cam_sbc_morph.c \
                  src/reflect/shadow.c \
                  src/reflect/planar_faces.c \

@@ -1347,6 +1347,189 @@ static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
+/* ---- src/reflect/cam_sbc_internal.h ---- */
+/* Private declarations of the sample-based camera (refl_sbc, paper 003
+   section IV; docs/methods/sbc.md, "The sample-based camera"), shared by
+   its modules: cam_sbc.c (the BSP build, the descent, the public API),
+   cam_sbc_fit.c (pinhole leaves) and cam_sbc_raylist.c (ray-list leaves
+   and their sheets); and what the SBC method (m_sbc.c) and the
+   morphing grids (cam_sbc_morph.c) take from it: the reflected-ray rule,
+   the smoothness test, the sheets. Needs internal.h only. */
+
+/* ---- the tree ---------------------------------------------------------------- */
+
+/* zero: an empty ray list, what a fresh node is until it is built */
+enum { REFL__SBC_RAYS = 0, REFL__SBC_PINHOLE = 1, REFL__SBC_INNER = 2 };
+
+typedef struct refl__sbc_node {
+    double plane[4];         /* inner: n . p + plane[3] >= 0 goes left */
+    int child;               /* inner: left child, the right one follows; leaf: -1 */
+    int kind;
+    int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
+    float box[6];            /* rays: the box its quads lie in (lows, then highs); what lies outside
+                                is no quad's, and a point not projecting is found so at once */
+    int grid;                /* rays: its index (refl__sbc_index) + 1; 0: none, every quad is tried */
+} refl__sbc_node;
+
+/* A pinhole leaf (cam_sbc_fit.c). */
+typedef struct refl__sbc_cam {
+    double o[3], c[3], n[3], eu[3], ev[3];
+    double ho;               /* (o - c) . n: < 0 diverging, > 0 converging */
+    double hmin;             /* the lowest (p - c) . n that projects */
+    double ocu, ocv;         /* (o - c) in the plane's basis */
+    double rect[4];          /* frustum: umin, umax, vmin, vmax */
+    double norm[4];          /* u, v centre and inverse half size: to [-1, 1] */
+    double coef[3][12];       /* f per coordinate over 1, u, v, u^2, uv, v^2, s, s u, s v */
+} refl__sbc_cam;
+
+/* A unit frustum of a ray list (cam_sbc_raylist.c): rays (u, v), (u + 1,
+   v), (u, v + 1), (u + 1, v + 1), sliced across its mean direction m: at
+   tau = (p - o) . m each ray is one point of the lateral plane (a, b), and
+   p lies on the bilinearly interpolated ray (s, t) when its lateral
+   position is the bilinear blend of the four at (s, t). */
+typedef struct refl__sbc_quad {
+    int idx;                 /* ray-map index of its (u, v) corner */
+    float o[3], m[3], a[3], b[3];
+    float tau[2];            /* its tails' lowest and (a quarter past) heads' highest tau */
+    float box[2][4];         /* lateral xmin, xmax, ymin, ymax at tau[0] and tau[1], padded:
+                                between them the lerp bounds the rays (min of lines is concave) */
+    float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
+    float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
+    float aabb[6];           /* its region's world box (lows, highs), padded: the first pre-test */
+    float fold[2];           /* the slices where its rays fold (ascending; FLT_MAX: none) */
+    float ray[4][6];         /* per ray in its frame: tail - o along m, a, b, then head - tail along m, a, b */
+    float len[4];            /* per ray: |head - tail| */
+} refl__sbc_quad;
+
+/* A ray-list leaf's index (cam_sbc_raylist.c): slabs across the leaf's
+   mean ray direction m, each cut in cells across it, each cell listing the
+   quads whose region (the hull of its lateral boxes at both ends) meets
+   it. */
+typedef struct refl__sbc_index {
+    double o[3], m[3], a[3], b[3]; /* the leaf's frame: t along m, x along a, y along b */
+    double t0, t_scale;      /* slab = (t - t0) t_scale */
+    double x0, x_scale, y0, y_scale; /* cell = (x - x0) x_scale, (y - y0) y_scale */
+    int slabs, cells;        /* slabs, and cells per side of one */
+    int start;               /* cell_start[start + (slab * cells + y) * cells + x]: its list */
+} refl__sbc_index;
+
+struct refl_sbc {
+    refl_allocator allocator;
+    int width, height;
+    refl__sbc_node *nodes;
+    int node_count, node_cap;
+    refl__sbc_cam *cams;
+    int cam_count, cam_cap;
+    refl__sbc_quad *quads;
+    int quad_count, quad_cap;
+    refl__sbc_index *indexes; /* the ray-list leaves' */
+    int index_count, index_cap;
+    int *cell_start;         /* per index cell, then one past the last: where its list starts */
+    int cell_start_count, cell_start_cap;
+    int *cell_quads;         /* the lists: quads, from their leaf's first */
+    int cell_quad_count, cell_quad_cap;
+    refl_sbc_ray *rays;      /* a copy of the map, only when there are ray lists */
+    refl_sbc_stats stats;
+};
+
+/* ---- building (cam_sbc.c drives it) ------------------------------------------ */
+
+typedef struct refl__sbc_builder {
+    const refl_sbc_ray *rays;
+    int W, H;
+    double error_px;         /* INFINITY: every camera that fits is good */
+    double vp[16];
+    int width, height;
+    int max_depth;
+    double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
+    const uint8_t *links;    /* desc.links, or NULL */
+    refl_allocator *a;
+    uint8_t *valid;          /* in the group, finite, not of zero length */
+    float *dir;              /* unit direction per map entry */
+    double *truth;           /* desired-view pixel of each first point (NaN: behind the eye) */
+    unsigned *mark;          /* stamp of the set being split */
+    double *smin, *smax;     /* per set ray: lowest and highest plane side of tail and head */
+    uint8_t *side;           /* per set ray: 1 left, 2 right, 3 both */
+    double *uv;              /* fit scratch: 6 per ray of the set */
+    int *pool;
+    size_t pool_cap;
+    unsigned stamp;
+    refl_sbc *sbc;
+} refl__sbc_builder;
+
+/* Grows *arr (elements of size sz, capacity *cap) to hold need; 0 when out
+   of memory. The _int form for int capacities. */
+static int refl__sbc_grow(const refl_allocator *a, void **arr, size_t *cap, size_t need, size_t sz);
+static int refl__sbc_grow_int(const refl_allocator *a, void **arr, int *cap, int need, size_t sz);
+
+/* cam_sbc_fit.c: the desired-view pixel of a world point (0 behind the
+   eye); the tails' centroid c and the summed directions m of a set of rays
+   (list, n); the least-squares centre of projection o (C, may be NULL: the
+   tails' scatter about c; 0 when the rays are nearly parallel); whether a
+   pinhole camera fits the set within error_px (into *k); and a pinhole
+   leaf's projection of p. */
+static int refl__sbc_pixel(const refl__sbc_builder *b, const double *p, double *x, double *y);
+static void refl__sbc_centroid(const refl__sbc_builder *b, const int *list, int n, double c[3], double m[3]);
+static int refl__sbc_centre(const refl__sbc_builder *b, const int *list, int n, const double c[3], double o[3],
+                            double C[3][3]);
+static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__sbc_cam *k);
+static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_vec3 *first, float *z);
+
+/* cam_sbc_raylist.c: a ray-list leaf of the set (its quads, box and
+   index), and its projection of p per sheet (sheets 0: one for all): the
+   mask of the sheets p projects in. */
+static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int n, refl__sbc_node *node);
+static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node, const double *p, int sheets,
+                                  refl_vec3 *first, float *z);
+/* Unit a and b across unit m (m, a, b right-handed). */
+static void refl__sbc_across(const double *m, double *a, double *b);
+
+/* ---- small double helpers ---------------------------------------------------- */
+
+static inline int refl__sbc_finite(double v) { return v - v == 0.0; }
+static inline double refl__sbc_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static inline void refl__sbc_cross(const double *a, const double *b, double *o) {
+    o[0] = a[1] * b[2] - a[2] * b[1];
+    o[1] = a[2] * b[0] - a[0] * b[2];
+    o[2] = a[0] * b[1] - a[1] * b[0];
+}
+static inline double refl__sbc_normalize(double *a) {
+    double l = sqrt(refl__sbc_dot(a, a));
+    if (l > 0.0) { a[0] /= l; a[1] /= l; a[2] /= l; }
+    return l;
+}
+static inline void refl__sbc_load(refl_vec3 v, double *o) { o[0] = v.x; o[1] = v.y; o[2] = v.z; }
+static inline int refl__sbc_finite3(refl_vec3 v) {
+    return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z);
+}
+
+/* ---- shared with the SBC method (m_sbc.c) and the morphing grids
+   (cam_sbc_morph.c), defined in cam_sbc.c and cam_sbc_raylist.c ----------------- */
+
+/* What a reflected ray meets first: a scene triangle and the point; object
+   -1 for nothing. */
+typedef struct refl__sbc_hit {
+    int object, triangle;
+    refl_vec3 point;
+} refl__sbc_hit;
+
+/* Where a ray from inside box [lo, hi] along d leaves it. */
+static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d);
+/* The reflected ray from q along unit r in a scene (one head rule for the
+   method and the grids; cam_sbc.c). */
+static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, float diagonal, refl_vec3 q,
+                               refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met);
+/* A union-find root, halving the path on the way. */
+static int refl__sbc_root(int *parent, int v);
+
+#define REFL__SBC_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
+#define REFL__SBC_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
+/* Whether neighbouring samples (surface points t1, t2, unit normals n1,
+   n2) lie on one smooth piece of surface (cam_sbc.c). */
+static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 n2);
+/* The image sheet `sheet` draws of a point with images `mask`, or -1
+   (cam_sbc_raylist.c). */
+static int refl__sbc_sheet_image(int mask, int sheet, int *across);
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -5539,47 +5722,16 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
     return 0;
 }
 /* ---- src/reflect/cam_sbc.c ---- */
-/* cam_sbc: the sample-based camera (SBC) of paper 003, section IV.
-   One reflection group's projection function, built from a ray map: each
+/* cam_sbc: the sample-based camera (SBC) of paper 003, section IV: one
+   reflection group's projection function, built from a ray map. Each
    reflected ray has a tail (where it leaves the last reflector), a head
    (where it leaves the scene box) and the first reflector point the
    desired view sees along it. The rays are decomposed into a BSP tree
    (BuildBSP, the paper's Fig. 10) whose leaves hold planar pinhole cameras
-   fitted to their rays, or, where no camera fits, the rays themselves.
-
-   Pinhole fit: the centre of projection o is the least-squares point
-   nearest every ray line (o x d = t x d per ray, solved as the normal
-   equations sum(I - d d^T) o = sum(I - d d^T) t in double); the image plane
-   is the least-squares plane of the tails, its normal n oriented along the
-   mean ray direction. A point p maps through o onto the plane, to (u, v) in
-   an orthonormal basis there; the frustum is the bounding rectangle of the
-   tails' and heads' images. f(u, v), the first reflector point, is a
-   quadratic (1, u, v, u^2, uv, v^2 per coordinate, u and v normalised to
-   the rectangle) fitted to f(image of tail) = first and f(image of head) =
-   first over every ray. The fit's error is the largest distance, in
-   desired-view pixels, between the view projections of f at a tail's or
-   head's image and of the ray's true first point; the camera is a leaf when
-   it is below error_px.
-   Beyond the paper: the fit also accepts a converging camera (o in front
-   of the plane, where the rays of a concave reflector meet beyond the
-   scene box; p then projects only between the plane and o), and a point
-   projects when it lies no lower than the lowest tail or head (less a
-   margin), not only beyond the plane: the tails of a curved patch lie on
-   both sides of their least-squares plane. Large sets are tried on an even
-   subsample first, so hopeless fits cost little (see refl__sbc_fit_ok).
-   Also beyond the paper: f takes a third argument, the projective depth s
-   = h / (h - ho) of p (0 on the plane), and adds s times an affine map of
-   (u, v): a curved reflector's rays are astigmatic (they do not meet in
-   one point), so a ray's points drift across the image as s grows, and
-   along any line the drift is linear in s. Without the term a 4 x 4
-   patch of a 4,000-triangle teapot's rays errs by 1.35 px at 320 x 240,
-   with it 0.49 px. The error is also checked half-way along each ray (in
-   s), so the bound holds between a ray's ends, not only at them.
-
-   Beyond runtime mode: desc.widen grows each accepted camera's rectangle
-   (paper 003 VI, "extends the field of view of the BSP leaf cameras"), so
-   a morphing grid's node projects points just outside its ray map; off by
-   default, leaving runtime mode's projections unchanged.
+   fitted to their rays (cam_sbc_fit.c), or, where no camera fits, the rays
+   themselves (cam_sbc_raylist.c). This file builds the tree, descends it
+   and holds the public API; docs/methods/sbc.md, "The sample-based
+   camera", tells the whole algorithm.
 
    Split (the paper's heuristic, with the changes said at
    refl__sbc_split): the plane through the tails' centroid,
@@ -5594,144 +5746,22 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
    few unit frustums across, every cut keeps nearly all rays on both sides
    and the cells would multiply without end) and at max_depth: the rays
    are then stored as a ray list. Cutting on until three quarters go both
-   ways keeps ray lists shorter (default scene, 640x480: 26% faster) but
-   put a strongly curved sphere's points up to 16 px off (2 px now; tests/
-   test_refl_sbc_stability.c).
+   ways would keep ray lists shorter, but puts a strongly curved sphere's
+   points pixels off (tests/test_refl_sbc_stability.c).
 
-   Projection: down the tree by the side of each plane (s >= 0: left). A
-   pinhole leaf projects as above (z: p's height over the image plane). A
-   ray-list leaf searches its unit frustums, the 2 x 2 quads of its rays:
-   p lies in one at (s, t) in [0, 1]^2 when it lies on the bilinearly
-   interpolated ray (s, t). Each quad is sliced across its mean direction
-   m: at p's slice tau = (p - o) . m each ray is one point of the slice,
-   so (s, t) is an inverse bilinear interpolation in 2D, and the answer is
-   the four first points blended at (s, t) (z: the blended distance along
-   the rays from their tails); the nearest such quad wins. Adjacent quads
-   share their edge rays, so the blend is continuous to within the
-   rays' skewness. Where no quad holds p, the one p lies nearest outside
-   (within REFL__SBC_NEAR of its diagonal) answers at its clamped (s, t):
-   at a fold the quads around a ray cover only some sides of it, and a
-   point a hair off the ray fell in none (default scene, 640x480 factor
-   2: 1.3% of the ray-list samples did not project through their own
-   group, 0.1% now; refl_sbc_measure_camera_error).
-   Sheets (beyond the paper, its section VII-C's proposal): where rays
-   cross (a focusing mirror, a crease) a point lies in several quads, and
-   one image per group (the nearest, as refl_sbc_project keeps) shows it
-   in one place only. Each quad knows the slices where its four rays fold
-   (its signed area, a quadratic along m, is zero; folds behind the tails
-   do not count) and a point past k of them lies in the quad's sheet k:
-   refl_sbc_project_sheets returns the nearest image per sheet, in one
-   search. Default scene, 640x480, factor 2, ray-list samples through
-   their own group: p95 1.44 -> 0.08 px; the concave bowl 2.80 -> 0.14 px.
+   Projection: down the tree by the side of each plane (s >= 0: left), then
+   the leaf's camera or ray list.
+
+   Beyond runtime mode: desc.widen grows each accepted camera's rectangle
+   (paper 003 VI, "extends the field of view of the BSP leaf cameras"), so
+   a morphing grid's node projects points just outside its ray map; off by
+   default, leaving runtime mode's projections unchanged.
 
    Deterministic: lists keep ray-map order, nothing is sorted or drawn at
    random, every sum runs in a fixed order. */
 
-/* zero: an empty ray list, what a fresh node is until it is built */
-enum { REFL__SBC_RAYS = 0, REFL__SBC_PINHOLE = 1, REFL__SBC_INNER = 2 };
-
-typedef struct refl__sbc_node {
-    double plane[4];         /* inner: n . p + plane[3] >= 0 goes left */
-    int child;               /* inner: left child, the right one follows; leaf: -1 */
-    int kind;
-    int first, count;        /* pinhole: camera index; rays: quads [first, first + count) */
-    float box[6];            /* rays: the box its quads lie in (lows, then highs); what lies outside
-                                is no quad's, and a point not projecting is found so at once */
-    int grid;                /* rays: its index (refl__sbc_index) + 1; 0: none, every quad is tried */
-} refl__sbc_node;
-
-/* A ray-list leaf's index: slabs across the leaf's mean ray direction m,
-   each cut in cells across it, each cell listing the quads whose region
-   (the hull of its lateral boxes at both ends) meets it. A point then
-   tries the quads of its cell only: the concave bowl's leaves hold about
-   1,000 quads each, and its 640x480 frame took 3.1 s with every quad
-   tried, 1.6 s with the index; the teapot's leaves are short (80 quads)
-   and their quads' world boxes already stop most, so it gains 4%. */
-#define REFL__SBC_INDEX_MIN 16 /* quads in a leaf, at least, for an index */
-typedef struct refl__sbc_index {
-    double o[3], m[3], a[3], b[3]; /* the leaf's frame: t along m, x along a, y along b */
-    double t0, t_scale;      /* slab = (t - t0) t_scale */
-    double x0, x_scale, y0, y_scale; /* cell = (x - x0) x_scale, (y - y0) y_scale */
-    int slabs, cells;        /* slabs, and cells per side of one */
-    int start;               /* cell_start[start + (slab * cells + y) * cells + x]: its list */
-} refl__sbc_index;
-
-typedef struct refl__sbc_cam {
-    double o[3], c[3], n[3], eu[3], ev[3];
-    double ho;               /* (o - c) . n: < 0 diverging, > 0 converging */
-    double hmin;             /* the lowest (p - c) . n that projects */
-    double ocu, ocv;         /* (o - c) in the plane's basis */
-    double rect[4];          /* frustum: umin, umax, vmin, vmax */
-    double norm[4];          /* u, v centre and inverse half size: to [-1, 1] */
-    double coef[3][12];       /* f per coordinate over 1, u, v, u^2, uv, v^2, s, s u, s v */
-} refl__sbc_cam;
-
-/* A unit frustum of a ray list: rays (u, v), (u + 1, v), (u, v + 1),
-   (u + 1, v + 1), sliced across its mean direction m: at tau = (p - o) . m
-   each ray is one point of the lateral plane (a, b), and p lies on the
-   bilinearly interpolated ray (s, t) when its lateral position is the
-   bilinear blend of the four at (s, t). */
-typedef struct refl__sbc_quad {
-    int idx;                 /* ray-map index of its (u, v) corner */
-    float o[3], m[3], a[3], b[3];
-    float tau[2];            /* its tails' lowest and (a quarter past) heads' highest tau */
-    float box[2][4];         /* lateral xmin, xmax, ymin, ymax at tau[0] and tau[1], padded:
-                                between them the lerp bounds the rays (min of lines is concave) */
-    float inv_span;          /* 1 / (tau[1] - tau[0]), for the float pre-test */
-    float o_size;            /* |o.x| + |o.y| + |o.z|: the pre-test's rounding scale */
-    float aabb[6];           /* its region's world box (lows, highs), padded: the first pre-test */
-    float fold[2];           /* the slices where its rays fold (ascending; FLT_MAX: none) */
-    float ray[4][6];         /* per ray in its frame: tail - o along m, a, b, then head - tail along m, a, b */
-    float len[4];            /* per ray: |head - tail| */
-} refl__sbc_quad;
-
-/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
-   lies on the reflector: heads are twice as far as what the rays meet, so
-   what they reflect lies near 0.5. */
-#define REFL__SBC_ON_SURFACE 0.02
-
-/* The exact test's (s, t) tolerance, and the fallback's reach for a point
-   no quad holds: its lateral distance to a quad (at clamped (s, t)), in
-   the quad's diagonals. Near a fold (a caustic: a neighbour ray crossing
-   the sample's) the quads around a ray do not cover all sides of it, and
-   a point a hair off the ray (a pixel's own reflected ray, not the
-   sample's) lies in none of them. */
-#define REFL__SBC_TOL 1e-4
-#define REFL__SBC_NEAR 0.01
-
-/* A quad's frame in double: what build and projection both compute with. */
-typedef struct refl__sbc_frame {
-    double o[3], m[3], a[3], b[3];
-} refl__sbc_frame;
-
-struct refl_sbc {
-    refl_allocator allocator;
-    int width, height;
-    refl__sbc_node *nodes;
-    int node_count, node_cap;
-    refl__sbc_cam *cams;
-    int cam_count, cam_cap;
-    refl__sbc_quad *quads;
-    int quad_count, quad_cap;
-    refl__sbc_index *indexes; /* the ray-list leaves' */
-    int index_count, index_cap;
-    int *cell_start;         /* per index cell, then one past the last: where its list starts */
-    int cell_start_count, cell_start_cap;
-    int *cell_quads;         /* the lists: quads, from their leaf's first */
-    int cell_quad_count, cell_quad_cap;
-    refl_sbc_ray *rays;      /* a copy of the map, only when there are ray lists */
-    refl_sbc_stats stats;
-};
-
-/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the morphing
-   grids (cam_sbc_morph.c): one head rule for both ------------------------------ */
-
-/* What a reflected ray meets first: a scene triangle and the point; object
-   -1 for nothing. */
-typedef struct refl__sbc_hit {
-    int object, triangle;
-    refl_vec3 point;
-} refl__sbc_hit;
+/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the
+   morphing grids (cam_sbc_morph.c): one head rule for both -------------------- */
 
 #define REFL__SBC_REACH 2.0f /* a ray's head: this many times as far as what it hits */
 
@@ -5775,22 +5805,471 @@ static int refl__sbc_root(int *parent, int v) {
     return v;
 }
 
-/* ---- small double helpers ---------------------------------------------------- */
+/* Whether neighbouring samples with surface points t1, t2 and unit normals
+   n1, n2 lie on one smooth piece of surface: normals turning by less than
+   REFL__SBC_SMOOTH_COS (not a crease: the knob on the lid, the spout's
+   joint, a silhouette turning them fast) and no gap, where the chord
+   between the points leaves a tangent plane by more than
+   REFL__SBC_SMOOTH_SIN (one surface passing in front of another: the knob
+   before the lid, the handle before the body; the chord runs along the
+   view ray). */
+static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 n2) {
+    refl_vec3 e;
+    float l;
+    if (!(refl_v3_dot(n1, n2) >= REFL__SBC_SMOOTH_COS)) return 0;
+    e = refl_v3_sub(t2, t1);
+    l = refl_v3_length(e);
+    return fabsf(refl_v3_dot(n1, e)) <= REFL__SBC_SMOOTH_SIN * l && fabsf(refl_v3_dot(n2, e)) <= REFL__SBC_SMOOTH_SIN * l;
+}
 
-static int refl__sbc_finite(double v) { return v - v == 0.0; }
-static double refl__sbc_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-static void refl__sbc_cross(const double *a, const double *b, double *o) {
-    o[0] = a[1] * b[2] - a[2] * b[1];
-    o[1] = a[2] * b[0] - a[0] * b[2];
-    o[2] = a[0] * b[1] - a[1] * b[0];
+/* ---- building ---------------------------------------------------------------- */
+
+typedef struct refl__sbc_task {
+    int node, count, depth;
+    size_t off;              /* its rays: pool[off, off + count) */
+} refl__sbc_task;
+
+/* Grows *arr (elements of size sz, capacity *cap) to hold need; 0 when out of memory. */
+static int refl__sbc_grow(const refl_allocator *a, void **arr, size_t *cap, size_t need, size_t sz) {
+    size_t nc;
+    void *n;
+    if (need <= *cap) return 1;
+    nc = *cap ? *cap : 16;
+    while (nc < need) {
+        if (nc > ((size_t)-1) / 2 / sz) return 0;
+        nc *= 2;
+    }
+    n = refl__alloc(a, nc * sz); /* no need to clear: every use writes first */
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, *cap * sz);
+    refl__free(a, *arr);
+    *arr = n;
+    *cap = nc;
+    return 1;
 }
-static double refl__sbc_normalize(double *a) {
-    double l = sqrt(refl__sbc_dot(a, a));
-    if (l > 0.0) { a[0] /= l; a[1] /= l; a[2] /= l; }
-    return l;
+
+static int refl__sbc_grow_int(const refl_allocator *a, void **arr, int *cap, int need, size_t sz) {
+    size_t c = (size_t)*cap;
+    if (need < 0 || need >= INT_MAX / 2) return 0;
+    if (!refl__sbc_grow(a, arr, &c, (size_t)need, sz)) return 0;
+    *cap = c > (size_t)(INT_MAX / 2) ? INT_MAX / 2 : (int)c;
+    return 1;
 }
-static void refl__sbc_load(refl_vec3 v, double *o) { o[0] = v.x; o[1] = v.y; o[2] = v.z; }
-static int refl__sbc_finite3(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+
+/* The plane through c with normal sn, and each ray's side(s) in b->side:
+   by the extent of its unit frustum's tails and heads. */
+static void refl__sbc_assign(refl__sbc_builder *b, const int *list, int n, const double sn[3], const double c[3],
+                             double plane[4], int *nl, int *nr) {
+    int i, W = b->W, H = b->H;
+    unsigned st;
+    memcpy(plane, sn, 3 * sizeof(double));
+    plane[3] = -refl__sbc_dot(sn, c);
+    /* each ray's own extent, then its unit frustum's */
+    st = ++b->stamp;
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double p[3], s0, s1;
+        refl__sbc_load(r->tail, p);
+        s0 = refl__sbc_dot(p, sn) + plane[3];
+        refl__sbc_load(r->head, p);
+        s1 = refl__sbc_dot(p, sn) + plane[3];
+        b->smin[list[i]] = REFL__MIN(s0, s1);
+        b->smax[list[i]] = REFL__MAX(s0, s1);
+        b->mark[list[i]] = st;
+    }
+    *nl = *nr = 0;
+    for (i = 0; i < n; ++i) {
+        int idx = list[i], u = idx % W, v = idx / W, du, dv;
+        int u0 = u > 0 ? -1 : 0, u1 = u + 1 < W ? 1 : 0, v0 = v > 0 ? -1 : 0, v1 = v + 1 < H ? 1 : 0;
+        double lo = b->smin[idx], hi = b->smax[idx];
+        for (dv = v0; dv <= v1; ++dv)
+            for (du = u0; du <= u1; ++du) {
+                int k = idx + dv * W + du;
+                if (b->mark[k] != st) continue;
+                lo = REFL__MIN(lo, b->smin[k]);
+                hi = REFL__MAX(hi, b->smax[k]);
+            }
+        b->side[idx] = (uint8_t)((hi >= 0.0 ? 1 : 0) | (lo < 0.0 ? 2 : 0));
+        if (b->side[idx] == 0) b->side[idx] = 3; /* NaN: keep it everywhere */
+        *nl += b->side[idx] & 1;
+        *nr += (b->side[idx] >> 1) & 1;
+    }
+}
+
+/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
+static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
+    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3];
+    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3], sn2[3], plane2[4];
+    int i, j, nl2, nr2;
+    refl__sbc_centroid(b, list, n, c, m);
+    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
+    /* Beyond the paper, whose plane is parallel to the mean direction: the
+       plane is parallel to the central ray, from the least-squares centre
+       of projection o through c. Rays spreading from about o then stay on
+       their side, where a plane off o is crossed by every ray whose tail
+       lies between the plane and o's side of it (the heads lie at the
+       scene's box, far beyond the tails: most of a set, at every level). */
+    {
+        double o[3], oc[3];
+        if (refl__sbc_centre(b, list, n, c, o, NULL)) {
+            for (j = 0; j < 3; ++j) oc[j] = c[j] - o[j];
+            if (refl__sbc_dot(oc, m) < 0.0)
+                for (j = 0; j < 3; ++j) oc[j] = -oc[j];
+            if (refl__sbc_normalize(oc) > 0.0 && refl__sbc_dot(oc, m) > 0.5) memcpy(m, oc, sizeof m);
+        }
+    }
+    /* the tails' scatter within the plane perpendicular to that direction */
+    refl__sbc_across(m, a1, a2);
+    for (i = 0; i < n; ++i) {
+        const refl_sbc_ray *r = &b->rays[list[i]];
+        double t[3], x, y;
+        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
+        x = refl__sbc_dot(t, a1);
+        y = refl__sbc_dot(t, a2);
+        cAA += x * x; cAB += x * y; cBB += y * y;
+    }
+    if (!(cAA + cBB > 0.0)) return 0;
+    /* the principal axis: the diameter's direction, orthogonal to m; the
+       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
+       correctly rounded, the same everywhere, unlike atan2 or cos) */
+    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
+    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
+    else { e1 = cAB; e2 = lam - cAA; }
+    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
+    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
+    /* Beyond the paper: the plane across the other axis too, kept when
+       fewer rays cross it. Where the reflector curves the rays together
+       along the diameter (a saddle, a concave patch) they cross every
+       plane across it, the cut gains nothing and the set ends up as a ray
+       list; across the axis along which they spread, the cut is clean. */
+    refl__sbc_cross(m, sn, sn2);
+    refl__sbc_normalize(sn2);
+    refl__sbc_assign(b, list, n, sn2, c, plane2, &nl2, &nr2);
+    refl__sbc_assign(b, list, n, sn, c, plane, nl, nr);
+    if ((long long)nl2 + nr2 < (long long)*nl + *nr && 4 * ((long long)*nl + *nr) > 5 * (long long)n) {
+        refl__sbc_assign(b, list, n, sn2, c, plane, nl, nr);
+    }
+    /* the paper fails only when a subset is the whole set; below a few
+       unit frustums across, though, every cut keeps nearly all rays on both
+       sides and the cells would multiply without end: fail when half the
+       set would go both ways */
+    return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
+}
+
+static void refl__sbc_free_builder(refl__sbc_builder *b) {
+    refl__free(b->a, b->valid);
+    refl__free(b->a, b->dir);
+    refl__free(b->a, b->truth);
+    refl__free(b->a, b->mark);
+    refl__free(b->a, b->smin);
+    refl__free(b->a, b->smax);
+    refl__free(b->a, b->side);
+    refl__free(b->a, b->pool);
+    refl__free(b->a, b->uv);
+}
+
+REFL_API void refl_sbc_destroy(refl_sbc *sbc) {
+    refl_allocator a;
+    if (!sbc) return;
+    a = sbc->allocator;
+    refl__free(&a, sbc->nodes);
+    refl__free(&a, sbc->cams);
+    refl__free(&a, sbc->quads);
+    refl__free(&a, sbc->indexes);
+    refl__free(&a, sbc->cell_start);
+    refl__free(&a, sbc->cell_quads);
+    refl__free(&a, sbc->rays);
+    refl__free(&a, sbc);
+}
+
+static refl_result refl__sbc_run(refl__sbc_builder *b, int nvalid) {
+    refl_sbc *s = b->sbc;
+    refl__sbc_task *tasks;
+    int ntask = 0, i;
+    refl_result res = REFL_OK;
+    /* the DFS holds at most one pending right sibling per level */
+    tasks = (refl__sbc_task *)refl__calloc(b->a, (size_t)REFL__MIN(b->max_depth, nvalid) + 2, sizeof(refl__sbc_task));
+    if (!tasks) return REFL_ERROR_OUT_OF_MEMORY;
+    if (!refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, 1, sizeof(refl__sbc_node))) {
+        refl__free(b->a, tasks);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    s->node_count = 1;
+    s->nodes[0].child = -1;
+    tasks[0].node = 0;
+    tasks[0].off = 0;
+    tasks[0].count = nvalid;
+    tasks[0].depth = 0;
+    ntask = 1;
+    while (ntask > 0) {
+        refl__sbc_task t = tasks[--ntask];
+        size_t top = t.off + (size_t)t.count; /* everything above belongs to finished tasks */
+        refl__sbc_cam cam;
+        double plane[4];
+        int nl = 0, nr = 0;
+        s->stats.depth = REFL__MAX(s->stats.depth, t.depth);
+        if (refl__sbc_fit_ok(b, b->pool + t.off, t.count, &cam)) {
+            if (!refl__sbc_grow_int(b->a, (void **)&s->cams, &s->cam_cap, s->cam_count + 1, sizeof(refl__sbc_cam))) {
+                res = REFL_ERROR_OUT_OF_MEMORY;
+                break;
+            }
+            if (b->widen > 0.0) { /* after the fit: its normalisation (norm) stays the fitted one */
+                double wu = b->widen * (cam.rect[1] - cam.rect[0]), wv = b->widen * (cam.rect[3] - cam.rect[2]);
+                cam.rect[0] -= wu; cam.rect[1] += wu; cam.rect[2] -= wv; cam.rect[3] += wv;
+            }
+            s->cams[s->cam_count] = cam;
+            s->nodes[t.node].kind = REFL__SBC_PINHOLE;
+            s->nodes[t.node].first = s->cam_count++;
+            s->nodes[t.node].count = 1;
+            s->stats.pinhole_leaves++;
+            continue;
+        }
+        if (t.depth < b->max_depth && refl__sbc_split(b, b->pool + t.off, t.count, plane, &nl, &nr)) {
+            int *list, *wr, *wl, left;
+            if (!refl__sbc_grow(b->a, (void **)&b->pool, &b->pool_cap, top + (size_t)nl + (size_t)nr, sizeof(int)) ||
+                !refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, s->node_count + 2,
+                                    sizeof(refl__sbc_node))) {
+                res = REFL_ERROR_OUT_OF_MEMORY;
+                break;
+            }
+            list = b->pool + t.off;
+            wr = b->pool + top;          /* right below left: left is popped first */
+            wl = wr + nr;
+            for (i = 0; i < t.count; ++i) {
+                int idx = list[i];
+                if (b->side[idx] & 1) *wl++ = idx;
+                if (b->side[idx] & 2) *wr++ = idx;
+            }
+            left = s->node_count;
+            s->node_count += 2;
+            memset(&s->nodes[left], 0, 2 * sizeof(refl__sbc_node));
+            s->nodes[left].child = s->nodes[left + 1].child = -1;
+            memcpy(s->nodes[t.node].plane, plane, sizeof plane);
+            s->nodes[t.node].kind = REFL__SBC_INNER;
+            s->nodes[t.node].child = left;
+            tasks[ntask].node = left + 1;
+            tasks[ntask].off = top;
+            tasks[ntask].count = nr;
+            tasks[ntask].depth = t.depth + 1;
+            ++ntask;
+            tasks[ntask].node = left;
+            tasks[ntask].off = top + (size_t)nr;
+            tasks[ntask].count = nl;
+            tasks[ntask].depth = t.depth + 1;
+            ++ntask;
+            continue;
+        }
+        res = refl__sbc_ray_leaf(b, b->pool + t.off, t.count, &s->nodes[t.node]);
+        if (res != REFL_OK) break;
+        s->stats.ray_leaves++;
+    }
+    refl__free(b->a, tasks);
+    return res;
+}
+
+REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *valid, int map_width, int map_height,
+                                    const refl_sbc_desc *desc, refl_sbc **out_sbc) {
+    refl__sbc_builder b;
+    refl_sbc *s;
+    refl_allocator alloc;
+    refl_result res;
+    size_t count, i;
+    int nvalid = 0, j;
+    double err;
+    if (out_sbc) *out_sbc = NULL;
+    if (!rays || !desc || !out_sbc || map_width < 1 || map_height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((size_t)map_width > (size_t)(INT_MAX / 4) / (size_t)map_height) return REFL_ERROR_INVALID_SIZE;
+    err = desc->error_px == 0.0f ? 1.0 : (double)desc->error_px;
+    if (!(err > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* negative or NaN */
+    if (desc->max_depth < 0 || !(desc->widen >= 0.0f && desc->widen <= 1e6f)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (err <= DBL_MAX) {
+        if (desc->width < 1 || desc->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+        for (j = 0; j < 16; ++j)
+            if (!refl__isfinite(desc->view_proj.m[j])) return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    count = (size_t)map_width * (size_t)map_height;
+    for (i = 0; i < count; ++i) {
+        const refl_sbc_ray *r = &rays[i];
+        if (valid && !valid[i]) continue;
+        if (!refl__sbc_finite3(r->tail) || !refl__sbc_finite3(r->head) || !refl__sbc_finite3(r->first))
+            return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    alloc = desc->allocator;
+    memset(&b, 0, sizeof b);
+    b.rays = rays;
+    b.W = map_width;
+    b.H = map_height;
+    b.error_px = err;
+    for (j = 0; j < 16; ++j) b.vp[j] = desc->view_proj.m[j];
+    b.width = desc->width;
+    b.height = desc->height;
+    b.max_depth = desc->max_depth ? desc->max_depth : 40;
+    b.widen = desc->widen;
+    b.links = desc->links;
+    s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
+    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
+    s->allocator = alloc;
+    s->width = map_width;
+    s->height = map_height;
+    b.sbc = s;
+    b.a = &s->allocator;
+    b.valid = (uint8_t *)refl__calloc(b.a, count, 1);
+    b.dir = (float *)refl__calloc(b.a, count, 3 * sizeof(float));
+    b.truth = (double *)refl__calloc(b.a, count, 2 * sizeof(double));
+    b.mark = (unsigned *)refl__calloc(b.a, count, sizeof(unsigned));
+    b.smin = (double *)refl__calloc(b.a, count, sizeof(double));
+    b.smax = (double *)refl__calloc(b.a, count, sizeof(double));
+    b.side = (uint8_t *)refl__calloc(b.a, count, 1);
+    if (!b.valid || !b.dir || !b.truth || !b.mark || !b.smin || !b.smax || !b.side) {
+        res = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    /* rays of zero length have no direction: left out of the group */
+    for (i = 0; i < count; ++i) {
+        const refl_sbc_ray *r = &rays[i];
+        double d[3], l;
+        if (valid && !valid[i]) continue;
+        d[0] = (double)r->head.x - r->tail.x;
+        d[1] = (double)r->head.y - r->tail.y;
+        d[2] = (double)r->head.z - r->tail.z;
+        l = refl__sbc_normalize(d);
+        if (!(l > 0.0) || !refl__sbc_finite(l)) continue;
+        b.valid[i] = 1;
+        for (j = 0; j < 3; ++j) b.dir[3 * i + (size_t)j] = (float)d[j];
+        ++nvalid;
+        if (err <= DBL_MAX) {
+            double q[3];
+            refl__sbc_load(r->first, q);
+            if (!refl__sbc_pixel(&b, q, &b.truth[2 * i], &b.truth[2 * i + 1]))
+                b.truth[2 * i] = b.truth[2 * i + 1] = NAN; /* behind the eye: no camera fits it */
+        }
+    }
+    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 6 * sizeof(double));
+    if (!b.uv || !refl__sbc_grow(b.a, (void **)&b.pool, &b.pool_cap, (size_t)nvalid * 4 + 16, sizeof(int))) {
+        res = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    {
+        int k = 0;
+        for (i = 0; i < count; ++i)
+            if (b.valid[i]) b.pool[k++] = (int)i;
+    }
+    s->stats.rays = nvalid;
+    s->stats.sheets = 1;
+    res = refl__sbc_run(&b, nvalid);
+    if (res == REFL_OK && s->stats.ray_leaves > 0) {
+        /* ray lists read the map at projection time; invalid entries are never read */
+        s->rays = (refl_sbc_ray *)refl__calloc(b.a, count, sizeof(refl_sbc_ray));
+        if (!s->rays) res = REFL_ERROR_OUT_OF_MEMORY;
+        else
+            for (i = 0; i < count; ++i)
+                if (b.valid[i]) s->rays[i] = rays[i];
+    }
+done:
+    refl__sbc_free_builder(&b);
+    if (res != REFL_OK) {
+        refl_sbc_destroy(s);
+        return res;
+    }
+    s->stats.nodes = s->node_count;
+    s->stats.bytes = (long long)sizeof(refl_sbc) + (long long)s->node_cap * (long long)sizeof(refl__sbc_node) +
+                     (long long)s->cam_cap * (long long)sizeof(refl__sbc_cam) +
+                     (long long)s->quad_cap * (long long)sizeof(refl__sbc_quad) +
+                     (long long)s->index_cap * (long long)sizeof(refl__sbc_index) +
+                     ((long long)s->cell_start_cap + (long long)s->cell_quad_cap) * (long long)sizeof(int) +
+                     (s->rays ? (long long)count * (long long)sizeof(refl_sbc_ray) : 0);
+    *out_sbc = s;
+    return REFL_OK;
+}
+
+REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out) {
+    if (!out) return;
+    if (!sbc) {
+        memset(out, 0, sizeof *out);
+        return;
+    }
+    *out = sbc->stats;
+}
+
+/* ---- projecting -------------------------------------------------------------- */
+
+/* The leaf whose cell holds pd: down the tree by the side of each plane. */
+static const refl__sbc_node *refl__sbc_leaf(const refl_sbc *sbc, const double *pd) {
+    const refl__sbc_node *node = &sbc->nodes[0];
+    while (node->kind == REFL__SBC_INNER) {
+        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
+        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
+    }
+    return node;
+}
+
+REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p) {
+    double pd[3];
+    if (!sbc || !sbc->nodes || !sbc->stats.rays || !refl__sbc_finite3(p)) return REFL_SBC_LEAF_NONE;
+    refl__sbc_load(p, pd);
+    return refl__sbc_leaf(sbc, pd)->kind == REFL__SBC_PINHOLE ? REFL_SBC_LEAF_PINHOLE : REFL_SBC_LEAF_RAY_LIST;
+}
+
+/* The leaf holding p and its projection per sheet (sheets 0: one for
+   all); the mask of those p projects in. */
+static int refl__sbc_project(const refl_sbc *sbc, refl_vec3 p, int sheets, refl_vec3 *first, float *z) {
+    const refl__sbc_node *node;
+    double pd[3];
+    if (!sbc || !sbc->nodes || !refl__sbc_finite3(p)) return 0;
+    refl__sbc_load(p, pd);
+    node = refl__sbc_leaf(sbc, pd);
+    if (node->kind == REFL__SBC_PINHOLE) return refl__sbc_cam_project(&sbc->cams[node->first], pd, first, z);
+    return refl__sbc_rays_project(sbc, node, pd, sheets, first, z);
+}
+
+REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
+    refl_vec3 f;
+    float zz;
+    if (!refl__sbc_project(sbc, p, 0, &f, &zz)) return 0;
+    if (first) *first = f;
+    if (z) *z = zz;
+    return 1;
+}
+
+REFL_API int refl_sbc_project_sheets(const refl_sbc *sbc, refl_vec3 p, int sheets, refl_vec3 *first, float *z) {
+    if (!first || !z || sheets < 1) return 0;
+    return refl__sbc_project(sbc, p, REFL__MIN(sheets, REFL_SBC_SHEETS), first, z);
+}
+/* ---- src/reflect/cam_sbc_fit.c ---- */
+/* cam_sbc_fit: the sample-based camera's pinhole leaves (paper 003 IV,
+   FitPinholeCamera and Error; docs/methods/sbc.md, "The sample-based
+   camera").
+
+   Pinhole fit: the centre of projection o is the least-squares point
+   nearest every ray line (o x d = t x d per ray, solved as the normal
+   equations sum(I - d d^T) o = sum(I - d d^T) t in double); the image plane
+   is the least-squares plane of the tails, its normal n oriented along the
+   mean ray direction. A point p maps through o onto the plane, to (u, v) in
+   an orthonormal basis there; the frustum is the bounding rectangle of the
+   tails' and heads' images. f(u, v), the first reflector point, is a
+   quadratic (1, u, v, u^2, uv, v^2 per coordinate, u and v normalised to
+   the rectangle) fitted to f(image of tail) = first and f(image of head) =
+   first over every ray. The fit's error is the largest distance, in
+   desired-view pixels, between the view projections of f at a tail's or
+   head's image and of the ray's true first point; the camera is a leaf when
+   it is below error_px. A pinhole leaf projects p as the fit maps it (z:
+   p's height over the image plane).
+
+   Beyond the paper: the fit also accepts a converging camera (o in front
+   of the plane, where the rays of a concave reflector meet beyond the
+   scene box; p then projects only between the plane and o), and a point
+   projects when it lies no lower than the lowest tail or head (less a
+   margin), not only beyond the plane: the tails of a curved patch lie on
+   both sides of their least-squares plane. Large sets are tried on an even
+   subsample first, so hopeless fits cost little (see refl__sbc_fit_ok).
+
+   Also beyond the paper: f takes a third argument, the projective depth s
+   = h / (h - ho) of p (0 on the plane), and adds s times an affine map of
+   (u, v): a curved reflector's rays are astigmatic (they do not meet in
+   one point), so a ray's points drift across the image as s grows, and
+   along any line the drift is linear in s. The error is also checked
+   half-way along each ray (in s), so the bound holds between a ray's ends,
+   not only at them. */
 
 /* Eigen-decomposition of a symmetric 3x3 (cyclic Jacobi): val descending,
    vec[i] the unit eigenvector of val[i]. Fixed order of operations, so the
@@ -5927,82 +6406,7 @@ static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_v
     return 1;
 }
 
-/* ---- building ---------------------------------------------------------------- */
-
-#define REFL__SBC_SMOOTH_SIN 0.5f    /* a chord leaving a tangent plane by more (30 degrees) crosses a gap */
-#define REFL__SBC_SMOOTH_COS 0.7071f /* normals turning by more (45 degrees) meet at a crease */
-
-/* Whether neighbouring samples with surface points t1, t2 and unit normals
-   n1, n2 lie on one smooth piece of surface: normals turning by less than
-   REFL__SBC_SMOOTH_COS (not a crease: the knob on the lid, the spout's
-   joint, a silhouette turning them fast) and no gap, where the chord
-   between the points leaves a tangent plane by more than
-   REFL__SBC_SMOOTH_SIN (one surface passing in front of another: the knob
-   before the lid, the handle before the body; the chord runs along the
-   view ray). */
-static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 n2) {
-    refl_vec3 e;
-    float l;
-    if (!(refl_v3_dot(n1, n2) >= REFL__SBC_SMOOTH_COS)) return 0;
-    e = refl_v3_sub(t2, t1);
-    l = refl_v3_length(e);
-    return fabsf(refl_v3_dot(n1, e)) <= REFL__SBC_SMOOTH_SIN * l && fabsf(refl_v3_dot(n2, e)) <= REFL__SBC_SMOOTH_SIN * l;
-}
-
-typedef struct refl__sbc_task {
-    int node, count, depth;
-    size_t off;              /* its rays: pool[off, off + count) */
-} refl__sbc_task;
-
-typedef struct refl__sbc_builder {
-    const refl_sbc_ray *rays;
-    int W, H;
-    double error_px;         /* INFINITY: every camera that fits is good */
-    double vp[16];
-    int width, height;
-    int max_depth;
-    double widen;            /* desc.widen: accepted cameras' rectangles grown by this */
-    const uint8_t *links;    /* desc.links, or NULL */
-    refl_allocator *a;
-    uint8_t *valid;          /* in the group, finite, not of zero length */
-    float *dir;              /* unit direction per map entry */
-    double *truth;           /* desired-view pixel of each first point (NaN: behind the eye) */
-    unsigned *mark;          /* stamp of the set being split */
-    double *smin, *smax;     /* per set ray: lowest and highest plane side of tail and head */
-    uint8_t *side;           /* per set ray: 1 left, 2 right, 3 both */
-    double *uv;              /* fit scratch: 6 per ray of the set */
-    int *pool;
-    size_t pool_cap;
-    unsigned stamp;
-    refl_sbc *sbc;
-} refl__sbc_builder;
-
-/* Grows *arr (elements of size sz, capacity *cap) to hold need; 0 when out of memory. */
-static int refl__sbc_grow(const refl_allocator *a, void **arr, size_t *cap, size_t need, size_t sz) {
-    size_t nc;
-    void *n;
-    if (need <= *cap) return 1;
-    nc = *cap ? *cap : 16;
-    while (nc < need) {
-        if (nc > ((size_t)-1) / 2 / sz) return 0;
-        nc *= 2;
-    }
-    n = refl__alloc(a, nc * sz); /* no need to clear: every use writes first */
-    if (!n) return 0;
-    if (*arr) memcpy(n, *arr, *cap * sz);
-    refl__free(a, *arr);
-    *arr = n;
-    *cap = nc;
-    return 1;
-}
-
-static int refl__sbc_grow_int(const refl_allocator *a, void **arr, int *cap, int need, size_t sz) {
-    size_t c = (size_t)*cap;
-    if (need < 0 || need >= INT_MAX / 2) return 0;
-    if (!refl__sbc_grow(a, arr, &c, (size_t)need, sz)) return 0;
-    *cap = c > (size_t)(INT_MAX / 2) ? INT_MAX / 2 : (int)c;
-    return 1;
-}
+/* ---- fitting ------------------------------------------------------------------ */
 
 /* Desired-view pixel of a world point; 0 behind the eye. */
 static int refl__sbc_pixel(const refl__sbc_builder *b, const double *p, double *x, double *y) {
@@ -6259,111 +6663,60 @@ static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__
     }
     return refl__sbc_fit(b, list, n, b->error_px, b->uv, k) < b->error_px;
 }
+/* ---- src/reflect/cam_sbc_raylist.c ---- */
+/* cam_sbc_raylist: the sample-based camera's ray-list leaves, where no
+   pinhole camera fits, and their sheets (paper 003 IV and VII-C;
+   docs/methods/sbc.md, "The sample-based camera").
 
-/* The plane through c with normal sn, and each ray's side(s) in b->side:
-   by the extent of its unit frustum's tails and heads. */
-static void refl__sbc_assign(refl__sbc_builder *b, const int *list, int n, const double sn[3], const double c[3],
-                             double plane[4], int *nl, int *nr) {
-    int i, W = b->W, H = b->H;
-    unsigned st;
-    memcpy(plane, sn, 3 * sizeof(double));
-    plane[3] = -refl__sbc_dot(sn, c);
-    /* each ray's own extent, then its unit frustum's */
-    st = ++b->stamp;
-    for (i = 0; i < n; ++i) {
-        const refl_sbc_ray *r = &b->rays[list[i]];
-        double p[3], s0, s1;
-        refl__sbc_load(r->tail, p);
-        s0 = refl__sbc_dot(p, sn) + plane[3];
-        refl__sbc_load(r->head, p);
-        s1 = refl__sbc_dot(p, sn) + plane[3];
-        b->smin[list[i]] = REFL__MIN(s0, s1);
-        b->smax[list[i]] = REFL__MAX(s0, s1);
-        b->mark[list[i]] = st;
-    }
-    *nl = *nr = 0;
-    for (i = 0; i < n; ++i) {
-        int idx = list[i], u = idx % W, v = idx / W, du, dv;
-        int u0 = u > 0 ? -1 : 0, u1 = u + 1 < W ? 1 : 0, v0 = v > 0 ? -1 : 0, v1 = v + 1 < H ? 1 : 0;
-        double lo = b->smin[idx], hi = b->smax[idx];
-        for (dv = v0; dv <= v1; ++dv)
-            for (du = u0; du <= u1; ++du) {
-                int k = idx + dv * W + du;
-                if (b->mark[k] != st) continue;
-                lo = REFL__MIN(lo, b->smin[k]);
-                hi = REFL__MAX(hi, b->smax[k]);
-            }
-        b->side[idx] = (uint8_t)((hi >= 0.0 ? 1 : 0) | (lo < 0.0 ? 2 : 0));
-        if (b->side[idx] == 0) b->side[idx] = 3; /* NaN: keep it everywhere */
-        *nl += b->side[idx] & 1;
-        *nr += (b->side[idx] >> 1) & 1;
-    }
-}
+   A ray-list leaf searches its unit frustums, the 2 x 2 quads of its rays:
+   p lies in one at (s, t) in [0, 1]^2 when it lies on the bilinearly
+   interpolated ray (s, t). Each quad is sliced across its mean direction
+   m: at p's slice tau = (p - o) . m each ray is one point of the slice,
+   so (s, t) is an inverse bilinear interpolation in 2D, and the answer is
+   the four first points blended at (s, t) (z: the blended distance along
+   the rays from their tails); the nearest such quad wins. Adjacent quads
+   share their edge rays, so the blend is continuous to within the
+   rays' skewness. Where no quad holds p, the one p lies nearest outside
+   (within REFL__SBC_NEAR of its diagonal) answers at its clamped (s, t):
+   at a fold the quads around a ray cover only some sides of it, and a
+   point a hair off the ray would fall in none. A leaf of many quads gets
+   an index (refl__sbc_index), so a point tries the quads of its cell only.
 
-/* Split: the plane and each ray's side(s) in b->side; 0 when it fails. */
-static int refl__sbc_split(refl__sbc_builder *b, const int *list, int n, double plane[4], int *nl, int *nr) {
-    double c[3] = {0.0, 0.0, 0.0}, m[3] = {0.0, 0.0, 0.0}, a1[3], a2[3], ax[3] = {0.0, 0.0, 0.0};
-    double cAA = 0.0, cAB = 0.0, cBB = 0.0, lam, e1, e2, sn[3], sn2[3], plane2[4];
-    int i, j, best = 0, nl2, nr2;
-    refl__sbc_centroid(b, list, n, c, m);
-    if (!(refl__sbc_normalize(m) > 0.0)) return 0;
-    /* Beyond the paper, whose plane is parallel to the mean direction: the
-       plane is parallel to the central ray, from the least-squares centre
-       of projection o through c. Rays spreading from about o then stay on
-       their side, where a plane off o is crossed by every ray whose tail
-       lies between the plane and o's side of it (the heads lie at the
-       scene's box, far beyond the tails: most of a set, at every level). */
-    {
-        double o[3], oc[3];
-        if (refl__sbc_centre(b, list, n, c, o, NULL)) {
-            for (j = 0; j < 3; ++j) oc[j] = c[j] - o[j];
-            if (refl__sbc_dot(oc, m) < 0.0)
-                for (j = 0; j < 3; ++j) oc[j] = -oc[j];
-            if (refl__sbc_normalize(oc) > 0.0 && refl__sbc_dot(oc, m) > 0.5) memcpy(m, oc, sizeof m);
-        }
-    }
-    /* the tails' scatter within the plane perpendicular to that direction */
-    for (j = 1; j < 3; ++j)
-        if (fabs(m[j]) < fabs(m[best])) best = j;
-    ax[best] = 1.0;
-    refl__sbc_cross(m, ax, a1);
-    refl__sbc_normalize(a1);
-    refl__sbc_cross(m, a1, a2);
-    for (i = 0; i < n; ++i) {
-        const refl_sbc_ray *r = &b->rays[list[i]];
-        double t[3], x, y;
-        t[0] = r->tail.x - c[0]; t[1] = r->tail.y - c[1]; t[2] = r->tail.z - c[2];
-        x = refl__sbc_dot(t, a1);
-        y = refl__sbc_dot(t, a2);
-        cAA += x * x; cAB += x * y; cBB += y * y;
-    }
-    if (!(cAA + cBB > 0.0)) return 0;
-    /* the principal axis: the diameter's direction, orthogonal to m; the
-       larger eigenvector of the 2 x 2 scatter in closed form (sqrt only:
-       correctly rounded, the same everywhere, unlike atan2 or cos) */
-    lam = 0.5 * (cAA + cBB) + sqrt(0.25 * (cAA - cBB) * (cAA - cBB) + cAB * cAB);
-    if (lam - cBB >= lam - cAA) { e1 = lam - cBB; e2 = cAB; }
-    else { e1 = cAB; e2 = lam - cAA; }
-    for (j = 0; j < 3; ++j) sn[j] = e1 * a1[j] + e2 * a2[j];
-    if (!(refl__sbc_normalize(sn) > 0.0)) memcpy(sn, a1, sizeof sn); /* round: any axis */
-    /* Beyond the paper: the plane across the other axis too, kept when
-       fewer rays cross it. Where the reflector curves the rays together
-       along the diameter (a saddle, a concave patch) they cross every
-       plane across it, the cut gains nothing and the set ends up as a ray
-       list; across the axis along which they spread, the cut is clean. */
-    refl__sbc_cross(m, sn, sn2);
-    refl__sbc_normalize(sn2);
-    refl__sbc_assign(b, list, n, sn2, c, plane2, &nl2, &nr2);
-    refl__sbc_assign(b, list, n, sn, c, plane, nl, nr);
-    if ((long long)nl2 + nr2 < (long long)*nl + *nr && 4 * ((long long)*nl + *nr) > 5 * (long long)n) {
-        refl__sbc_assign(b, list, n, sn2, c, plane, nl, nr);
-    }
-    /* the paper fails only when a subset is the whole set; below a few
-       unit frustums across, though, every cut keeps nearly all rays on both
-       sides and the cells would multiply without end: fail when half the
-       set would go both ways */
-    return *nl < n && *nr < n && 2 * ((long long)*nl + *nr) < 3 * (long long)n;
-}
+   Sheets (beyond the paper, its section VII-C's proposal): where rays
+   cross (a focusing mirror, a crease) a point lies in several quads, and
+   one image per group (the nearest, as refl_sbc_project keeps) shows it
+   in one place only. Each quad knows the slices where its four rays fold
+   (its signed area, a quadratic along m, is zero; folds behind the tails
+   do not count) and a point past k of them lies in the quad's sheet k:
+   refl_sbc_project_sheets returns the nearest image per sheet, in one
+   search. */
+
+/* A ray-list leaf gets an index (refl__sbc_index) from this many quads on:
+   a concave bowl's leaves hold about a thousand quads each, where trying
+   every quad costs most of the frame; short leaves' quads' world boxes
+   already stop most points. */
+#define REFL__SBC_INDEX_MIN 16
+
+/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
+   lies on the reflector: heads are twice as far as what the rays meet, so
+   what they reflect lies near 0.5. */
+#define REFL__SBC_ON_SURFACE 0.02
+
+/* The exact test's (s, t) tolerance, and the fallback's reach for a point
+   no quad holds: its lateral distance to a quad (at clamped (s, t)), in
+   the quad's diagonals. Near a fold (a caustic: a neighbour ray crossing
+   the sample's) the quads around a ray do not cover all sides of it, and
+   a point a hair off the ray (a pixel's own reflected ray, not the
+   sample's) lies in none of them. */
+#define REFL__SBC_TOL 1e-4
+#define REFL__SBC_NEAR 0.01
+
+/* A quad's frame in double: what build and projection both compute with. */
+typedef struct refl__sbc_frame {
+    double o[3], m[3], a[3], b[3];
+} refl__sbc_frame;
+
+/* ---- building ---------------------------------------------------------------- */
 
 static void refl__sbc_frame_load(const refl__sbc_quad *q, refl__sbc_frame *f) {
     int j;
@@ -6749,240 +7102,7 @@ static refl_result refl__sbc_ray_leaf(refl__sbc_builder *b, const int *list, int
     return refl__sbc_leaf_index(s, node);
 }
 
-static void refl__sbc_free_builder(refl__sbc_builder *b) {
-    refl__free(b->a, b->valid);
-    refl__free(b->a, b->dir);
-    refl__free(b->a, b->truth);
-    refl__free(b->a, b->mark);
-    refl__free(b->a, b->smin);
-    refl__free(b->a, b->smax);
-    refl__free(b->a, b->side);
-    refl__free(b->a, b->pool);
-    refl__free(b->a, b->uv);
-}
-
-REFL_API void refl_sbc_destroy(refl_sbc *sbc) {
-    refl_allocator a;
-    if (!sbc) return;
-    a = sbc->allocator;
-    refl__free(&a, sbc->nodes);
-    refl__free(&a, sbc->cams);
-    refl__free(&a, sbc->quads);
-    refl__free(&a, sbc->indexes);
-    refl__free(&a, sbc->cell_start);
-    refl__free(&a, sbc->cell_quads);
-    refl__free(&a, sbc->rays);
-    refl__free(&a, sbc);
-}
-
-static refl_result refl__sbc_run(refl__sbc_builder *b, int nvalid) {
-    refl_sbc *s = b->sbc;
-    refl__sbc_task *tasks;
-    int ntask = 0, i;
-    refl_result res = REFL_OK;
-    /* the DFS holds at most one pending right sibling per level */
-    tasks = (refl__sbc_task *)refl__calloc(b->a, (size_t)REFL__MIN(b->max_depth, nvalid) + 2, sizeof(refl__sbc_task));
-    if (!tasks) return REFL_ERROR_OUT_OF_MEMORY;
-    if (!refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, 1, sizeof(refl__sbc_node))) {
-        refl__free(b->a, tasks);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    s->node_count = 1;
-    s->nodes[0].child = -1;
-    tasks[0].node = 0;
-    tasks[0].off = 0;
-    tasks[0].count = nvalid;
-    tasks[0].depth = 0;
-    ntask = 1;
-    while (ntask > 0) {
-        refl__sbc_task t = tasks[--ntask];
-        size_t top = t.off + (size_t)t.count; /* everything above belongs to finished tasks */
-        refl__sbc_cam cam;
-        double plane[4];
-        int nl = 0, nr = 0;
-        s->stats.depth = REFL__MAX(s->stats.depth, t.depth);
-        if (refl__sbc_fit_ok(b, b->pool + t.off, t.count, &cam)) {
-            if (!refl__sbc_grow_int(b->a, (void **)&s->cams, &s->cam_cap, s->cam_count + 1, sizeof(refl__sbc_cam))) {
-                res = REFL_ERROR_OUT_OF_MEMORY;
-                break;
-            }
-            if (b->widen > 0.0) { /* after the fit: its normalisation (norm) stays the fitted one */
-                double wu = b->widen * (cam.rect[1] - cam.rect[0]), wv = b->widen * (cam.rect[3] - cam.rect[2]);
-                cam.rect[0] -= wu; cam.rect[1] += wu; cam.rect[2] -= wv; cam.rect[3] += wv;
-            }
-            s->cams[s->cam_count] = cam;
-            s->nodes[t.node].kind = REFL__SBC_PINHOLE;
-            s->nodes[t.node].first = s->cam_count++;
-            s->nodes[t.node].count = 1;
-            s->stats.pinhole_leaves++;
-            continue;
-        }
-        if (t.depth < b->max_depth && refl__sbc_split(b, b->pool + t.off, t.count, plane, &nl, &nr)) {
-            int *list, *wr, *wl, left;
-            if (!refl__sbc_grow(b->a, (void **)&b->pool, &b->pool_cap, top + (size_t)nl + (size_t)nr, sizeof(int)) ||
-                !refl__sbc_grow_int(b->a, (void **)&s->nodes, &s->node_cap, s->node_count + 2,
-                                    sizeof(refl__sbc_node))) {
-                res = REFL_ERROR_OUT_OF_MEMORY;
-                break;
-            }
-            list = b->pool + t.off;
-            wr = b->pool + top;          /* right below left: left is popped first */
-            wl = wr + nr;
-            for (i = 0; i < t.count; ++i) {
-                int idx = list[i];
-                if (b->side[idx] & 1) *wl++ = idx;
-                if (b->side[idx] & 2) *wr++ = idx;
-            }
-            left = s->node_count;
-            s->node_count += 2;
-            memset(&s->nodes[left], 0, 2 * sizeof(refl__sbc_node));
-            s->nodes[left].child = s->nodes[left + 1].child = -1;
-            memcpy(s->nodes[t.node].plane, plane, sizeof plane);
-            s->nodes[t.node].kind = REFL__SBC_INNER;
-            s->nodes[t.node].child = left;
-            tasks[ntask].node = left + 1;
-            tasks[ntask].off = top;
-            tasks[ntask].count = nr;
-            tasks[ntask].depth = t.depth + 1;
-            ++ntask;
-            tasks[ntask].node = left;
-            tasks[ntask].off = top + (size_t)nr;
-            tasks[ntask].count = nl;
-            tasks[ntask].depth = t.depth + 1;
-            ++ntask;
-            continue;
-        }
-        res = refl__sbc_ray_leaf(b, b->pool + t.off, t.count, &s->nodes[t.node]);
-        if (res != REFL_OK) break;
-        s->stats.ray_leaves++;
-    }
-    refl__free(b->a, tasks);
-    return res;
-}
-
-REFL_API refl_result refl_sbc_build(const refl_sbc_ray *rays, const uint8_t *valid, int map_width, int map_height,
-                                    const refl_sbc_desc *desc, refl_sbc **out_sbc) {
-    refl__sbc_builder b;
-    refl_sbc *s;
-    refl_allocator alloc;
-    refl_result res;
-    size_t count, i;
-    int nvalid = 0, j;
-    double err;
-    if (out_sbc) *out_sbc = NULL;
-    if (!rays || !desc || !out_sbc || map_width < 1 || map_height < 1) return REFL_ERROR_INVALID_ARGUMENT;
-    if ((size_t)map_width > (size_t)(INT_MAX / 4) / (size_t)map_height) return REFL_ERROR_INVALID_SIZE;
-    err = desc->error_px == 0.0f ? 1.0 : (double)desc->error_px;
-    if (!(err > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* negative or NaN */
-    if (desc->max_depth < 0 || !(desc->widen >= 0.0f && desc->widen <= 1e6f)) return REFL_ERROR_INVALID_ARGUMENT;
-    if (err <= DBL_MAX) {
-        if (desc->width < 1 || desc->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
-        for (j = 0; j < 16; ++j)
-            if (!refl__isfinite(desc->view_proj.m[j])) return REFL_ERROR_INVALID_ARGUMENT;
-    }
-    count = (size_t)map_width * (size_t)map_height;
-    for (i = 0; i < count; ++i) {
-        const refl_sbc_ray *r = &rays[i];
-        if (valid && !valid[i]) continue;
-        if (!refl__sbc_finite3(r->tail) || !refl__sbc_finite3(r->head) || !refl__sbc_finite3(r->first))
-            return REFL_ERROR_INVALID_ARGUMENT;
-    }
-    alloc = desc->allocator;
-    memset(&b, 0, sizeof b);
-    b.rays = rays;
-    b.W = map_width;
-    b.H = map_height;
-    b.error_px = err;
-    for (j = 0; j < 16; ++j) b.vp[j] = desc->view_proj.m[j];
-    b.width = desc->width;
-    b.height = desc->height;
-    b.max_depth = desc->max_depth ? desc->max_depth : 40;
-    b.widen = desc->widen;
-    b.links = desc->links;
-    s = (refl_sbc *)refl__calloc(&alloc, 1, sizeof(refl_sbc));
-    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
-    s->allocator = alloc;
-    s->width = map_width;
-    s->height = map_height;
-    b.sbc = s;
-    b.a = &s->allocator;
-    b.valid = (uint8_t *)refl__calloc(b.a, count, 1);
-    b.dir = (float *)refl__calloc(b.a, count, 3 * sizeof(float));
-    b.truth = (double *)refl__calloc(b.a, count, 2 * sizeof(double));
-    b.mark = (unsigned *)refl__calloc(b.a, count, sizeof(unsigned));
-    b.smin = (double *)refl__calloc(b.a, count, sizeof(double));
-    b.smax = (double *)refl__calloc(b.a, count, sizeof(double));
-    b.side = (uint8_t *)refl__calloc(b.a, count, 1);
-    if (!b.valid || !b.dir || !b.truth || !b.mark || !b.smin || !b.smax || !b.side) {
-        res = REFL_ERROR_OUT_OF_MEMORY;
-        goto done;
-    }
-    /* rays of zero length have no direction: left out of the group */
-    for (i = 0; i < count; ++i) {
-        const refl_sbc_ray *r = &rays[i];
-        double d[3], l;
-        if (valid && !valid[i]) continue;
-        d[0] = (double)r->head.x - r->tail.x;
-        d[1] = (double)r->head.y - r->tail.y;
-        d[2] = (double)r->head.z - r->tail.z;
-        l = refl__sbc_normalize(d);
-        if (!(l > 0.0) || !refl__sbc_finite(l)) continue;
-        b.valid[i] = 1;
-        for (j = 0; j < 3; ++j) b.dir[3 * i + (size_t)j] = (float)d[j];
-        ++nvalid;
-        if (err <= DBL_MAX) {
-            double q[3];
-            refl__sbc_load(r->first, q);
-            if (!refl__sbc_pixel(&b, q, &b.truth[2 * i], &b.truth[2 * i + 1]))
-                b.truth[2 * i] = b.truth[2 * i + 1] = NAN; /* behind the eye: no camera fits it */
-        }
-    }
-    b.uv = (double *)refl__calloc(b.a, (size_t)nvalid + 1, 6 * sizeof(double));
-    if (!b.uv || !refl__sbc_grow(b.a, (void **)&b.pool, &b.pool_cap, (size_t)nvalid * 4 + 16, sizeof(int))) {
-        res = REFL_ERROR_OUT_OF_MEMORY;
-        goto done;
-    }
-    {
-        int k = 0;
-        for (i = 0; i < count; ++i)
-            if (b.valid[i]) b.pool[k++] = (int)i;
-    }
-    s->stats.rays = nvalid;
-    s->stats.sheets = 1;
-    res = refl__sbc_run(&b, nvalid);
-    if (res == REFL_OK && s->stats.ray_leaves > 0) {
-        /* ray lists read the map at projection time; invalid entries are never read */
-        s->rays = (refl_sbc_ray *)refl__calloc(b.a, count, sizeof(refl_sbc_ray));
-        if (!s->rays) res = REFL_ERROR_OUT_OF_MEMORY;
-        else
-            for (i = 0; i < count; ++i)
-                if (b.valid[i]) s->rays[i] = rays[i];
-    }
-done:
-    refl__sbc_free_builder(&b);
-    if (res != REFL_OK) {
-        refl_sbc_destroy(s);
-        return res;
-    }
-    s->stats.nodes = s->node_count;
-    s->stats.bytes = (long long)sizeof(refl_sbc) + (long long)s->node_cap * (long long)sizeof(refl__sbc_node) +
-                     (long long)s->cam_cap * (long long)sizeof(refl__sbc_cam) +
-                     (long long)s->quad_cap * (long long)sizeof(refl__sbc_quad) +
-                     (long long)s->index_cap * (long long)sizeof(refl__sbc_index) +
-                     ((long long)s->cell_start_cap + (long long)s->cell_quad_cap) * (long long)sizeof(int) +
-                     (s->rays ? (long long)count * (long long)sizeof(refl_sbc_ray) : 0);
-    *out_sbc = s;
-    return REFL_OK;
-}
-
-REFL_API void refl_sbc_get_stats(const refl_sbc *sbc, refl_sbc_stats *out) {
-    if (!out) return;
-    if (!sbc) {
-        memset(out, 0, sizeof *out);
-        return;
-    }
-    *out = sbc->stats;
-}
+/* ---- projecting -------------------------------------------------------------- */
 
 /* Inverse bilinear interpolation: (s, t) in [0, 1]^2 (within tol, then
    clamped) with (x, y) = the blend of corners 0 (0, 0), 1 (1, 0), 2 (0, 1),
@@ -7168,49 +7288,6 @@ static int refl__sbc_rays_project(const refl_sbc *sb, const refl__sbc_node *node
         mask |= 1 << i;
     }
     return mask;
-}
-
-/* The leaf whose cell holds pd: down the tree by the side of each plane. */
-static const refl__sbc_node *refl__sbc_leaf(const refl_sbc *sbc, const double *pd) {
-    const refl__sbc_node *node = &sbc->nodes[0];
-    while (node->kind == REFL__SBC_INNER) {
-        double sd = node->plane[0] * pd[0] + node->plane[1] * pd[1] + node->plane[2] * pd[2] + node->plane[3];
-        node = &sbc->nodes[sd >= 0.0 ? node->child : node->child + 1];
-    }
-    return node;
-}
-
-REFL_API refl_sbc_leaf_kind refl_sbc_leaf_at(const refl_sbc *sbc, refl_vec3 p) {
-    double pd[3];
-    if (!sbc || !sbc->nodes || !sbc->stats.rays || !refl__sbc_finite3(p)) return REFL_SBC_LEAF_NONE;
-    refl__sbc_load(p, pd);
-    return refl__sbc_leaf(sbc, pd)->kind == REFL__SBC_PINHOLE ? REFL_SBC_LEAF_PINHOLE : REFL_SBC_LEAF_RAY_LIST;
-}
-
-/* The leaf holding p and its projection per sheet (sheets 0: one for
-   all); the mask of those p projects in. */
-static int refl__sbc_project(const refl_sbc *sbc, refl_vec3 p, int sheets, refl_vec3 *first, float *z) {
-    const refl__sbc_node *node;
-    double pd[3];
-    if (!sbc || !sbc->nodes || !refl__sbc_finite3(p)) return 0;
-    refl__sbc_load(p, pd);
-    node = refl__sbc_leaf(sbc, pd);
-    if (node->kind == REFL__SBC_PINHOLE) return refl__sbc_cam_project(&sbc->cams[node->first], pd, first, z);
-    return refl__sbc_rays_project(sbc, node, pd, sheets, first, z);
-}
-
-REFL_API int refl_sbc_project(const refl_sbc *sbc, refl_vec3 p, refl_vec3 *first, float *z) {
-    refl_vec3 f;
-    float zz;
-    if (!refl__sbc_project(sbc, p, 0, &f, &zz)) return 0;
-    if (first) *first = f;
-    if (z) *z = zz;
-    return 1;
-}
-
-REFL_API int refl_sbc_project_sheets(const refl_sbc *sbc, refl_vec3 p, int sheets, refl_vec3 *first, float *z) {
-    if (!first || !z || sheets < 1) return 0;
-    return refl__sbc_project(sbc, p, REFL__MIN(sheets, REFL_SBC_SHEETS), first, z);
 }
 
 /* The image sheet `sheet` draws of a point with images `mask`: its own,

@@ -59,7 +59,7 @@
      projected at the other nodes of the tetrahedra holding both.
    Deterministic: each node is built by one job from its own inputs; sums
    run in a fixed order. */
-#include "internal.h"
+#include "cam_sbc_internal.h"
 
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
 #define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
