@@ -52,6 +52,7 @@ RAST_IMPL   = src/rast/internal.h \
 REFLECT_PUBLIC = src/reflect/api.h
 REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_internal.h \
+                 src/reflect/sbc_internal.h \
                  src/reflect/math.c \
                  src/reflect/mesh.c \
                  src/reflect/shapes.c \
@@ -72,6 +73,12 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/metrics.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_sbc.c \
+                 src/reflect/sbc_raymap.c \
+                 src/reflect/sbc_groups.c \
+                 src/reflect/sbc_project.c \
+                 src/reflect/sbc_draw.c \
+                 src/reflect/sbc_resolve.c \
+                 src/reflect/sbc_measure.c \
                  src/reflect/render.c \
                  src/reflect/m_planar.c
 HAVE_REFLECT   = $(wildcard $(REFLECT_PUBLIC))

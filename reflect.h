@@ -1352,7 +1352,7 @@ static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samp
    section IV; docs/methods/sbc.md, "The sample-based camera"), shared by
    its modules: cam_sbc.c (the BSP build, the descent, the public API),
    cam_sbc_fit.c (pinhole leaves) and cam_sbc_raylist.c (ray-list leaves
-   and their sheets); and what the SBC method (m_sbc.c) and the
+   and their sheets); and what the SBC method (m_sbc.c, sbc_*.c) and the
    morphing grids (cam_sbc_morph.c) take from it: the reflected-ray rule,
    the smoothness test, the sheets. Needs internal.h only. */
 
@@ -1503,7 +1503,7 @@ static inline int refl__sbc_finite3(refl_vec3 v) {
     return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z);
 }
 
-/* ---- shared with the SBC method (m_sbc.c) and the morphing grids
+/* ---- shared with the SBC method (m_sbc.c, sbc_*.c) and the morphing grids
    (cam_sbc_morph.c), defined in cam_sbc.c and cam_sbc_raylist.c ----------------- */
 
 /* What a reflected ray meets first: a scene triangle and the point; object
@@ -1530,6 +1530,290 @@ static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 
 /* The image sheet `sheet` draws of a point with images `mask`, or -1
    (cam_sbc_raylist.c). */
 static int refl__sbc_sheet_image(int mask, int sheet, int *across);
+/* ---- src/reflect/sbc_internal.h ---- */
+/* Private declarations of the SBC method (paper 003; docs/methods/sbc.md):
+   a frame's state and the entry points its stages share.
+     m_sbc.c        options, setup, the frame's orchestration, the method
+     sbc_raymap.c   1. ray maps; past the first order, the histories
+     sbc_groups.c   2. pieces, rings, reflection groups and their trees,
+                       each pixel's group; morphing grids' groups
+     sbc_project.c  3. projection, 4. triangle emission and subdivision,
+                       in batches of groups
+     sbc_draw.c     4. the batches drawn into the reflections' targets
+     sbc_resolve.c  5. composite, cracks, the ray-traced fallback
+     sbc_measure.c  refl_sbc_measure_camera_error
+   This header needs internal.h and cam_sbc_internal.h only (the G-buffer
+   and the tracer are pointers to m_envmap.c's and m_raytrace.c's types);
+   among themselves the SBC modules may come in any order. They use the
+   G-buffer and composite of m_envmap.c, the tracer of m_raytrace.c, the
+   draw programs of shade.c and metrics.c's summary, so they follow those
+   in the Makefile's REFLECT_IMPL. */
+
+#define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed, at most (desc.sbc.mixed_levels' default) */
+#define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
+#define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
+#define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
+#define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
+#define REFL__SB_SHEETS REFL_SBC_SHEETS /* a group's sheets at most (refl_sbc_project_sheets) */
+
+/* ---- the state of a frame ------------------------------------------------------ */
+
+/* A reflector object's side seen: its ray map over the whole frame. */
+typedef struct refl__sb_side {
+    int object;                   /* the last reflector of its history */
+    float id;                     /* its pixels' G-buffer id: object + 1, negated for the back side */
+    int order;                    /* reflections along its history (a refraction's: 1, in a layer of its own) */
+    int layer;                    /* order - 1; sb->orders for refractions */
+    int parent;                   /* the side one reflection shorter (-1 at order 1) */
+    int kind;                     /* 0 reflected; 1 refracted through the glass of `parent`;
+                                     2 refracted into it, meeting a surface inside */
+    refl_sbc_ray *rays;
+    refl__sbc_hit *hits;           /* per sample: what its ray meets */
+    uint8_t *valid;               /* 1: the sample shows the side, with a ray */
+    refl_vec3 *normals;           /* per sample, towards the viewer */
+    int *comp;                    /* per sample: its smooth piece (refl__sb_pieces), -1: none */
+    int *group;                   /* per sample with a ray: its group */
+    uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
+} refl__sb_side;
+
+/* A reflection group: one piece of a side's ray map within one tile, its
+   rays (those of the piece in the tile grown by a sample: neighbouring
+   tiles' frustums overlap) and one ring of rays extrapolated around them. */
+typedef struct refl__sb_group {
+    int side, object, comp;       /* comp: its piece of the side */
+    int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
+    refl_sbc *sbc;
+    int sheets;                   /* its rays split at their folds: each sheet projects and draws apart */
+    refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
+    refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
+    refl__sbc_hit *hits;           /* what its rays meet, by object and triangle */
+    int hit_count;
+    refl_result result;
+    const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
+    int piece;
+    int morph_nodes[4];           /* the eye's tetrahedron in the grid and its weights, located once */
+    float morph_w[4];
+} refl__sb_group;
+
+/* A scene point and what a group makes of it. */
+typedef struct refl__sb_pv {
+    refl_vec3 world, normal;
+    int sheet;                    /* the group's sheet it projects in */
+    int across;                   /* it has none there: its image one fold away (refl__sbc_sheet_image) */
+    float uv[2];
+    float clip[4];                /* the first reflector point's, depth replaced */
+    float sx, sy;                 /* its window position */
+    refl_vec3 first;              /* its first reflector point */
+    refl_vec3 from;               /* where its ray leaves the last reflector (order 1: first) */
+    float dist;                   /* to `from` */
+    int ok;
+    int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
+} refl__sb_pv;
+
+/* A group's vertices of one object: those in the group's box, projected
+   (into each sheet), the others as they are (the batch's base). */
+typedef struct refl__sb_slot {
+    int *index;                   /* per mesh vertex: its place in pv, -1: outside the box (base) */
+    refl__sb_pv *pv[REFL__SB_SHEETS]; /* per sheet of the group */
+    int count;                    /* vertices in the box */
+    int failed;
+} refl__sb_slot;
+
+/* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
+typedef struct refl__sb_job {
+    int group, object, sheet, first, count;
+    float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
+    size_t out_count, out_cap;    /* vertices */
+    long long projections, projected;
+    struct refl__sb_memo *memo;   /* while it runs, from its first midpoint on (NULL: none to spare; sbc_project.c) */
+    int failed;
+} refl__sb_job;
+
+/* The mirrors and glass alone, which histories past the first order are
+   traced through (the paper traces the reflectors alone; sbc_raymap.c). */
+typedef struct refl__sb_mirrors {
+    refl_bvh *bvh;                /* NULL: the scene has none */
+    int *object;                  /* its objects' scene indices */
+    refl_mat4 *normal_m;          /* per scene object: the normals' matrix */
+} refl__sb_mirrors;
+
+/* While the histories are sampled (sbc_raymap.c): per ray map sample. */
+typedef struct refl__sb_samples {
+    float *id;                    /* budget x map: per order, the side id each sample's path meets, 0: none */
+    uint8_t *refr;                /* per sample: the kind of its refraction path (1, 2), 0: none */
+    int *side;                    /* (budget + 1) x map: per layer, each sample's side, -1: none */
+} refl__sb_samples;
+
+/* The groups projected and drawn at once (sbc_project.c). */
+typedef struct refl__sb_batch {
+    int size;                     /* groups per batch at most (desc.sbc.batch_groups resolved) */
+    int first, end;               /* the groups projected and drawn now: [first, end) */
+    int layer;                    /* their layer (one per batch) */
+    refl__sb_pv **base;           /* per object: every mesh vertex in the world, projecting nowhere (kept) */
+    refl__sb_slot *slots;         /* per group of the batch x object: its vertices */
+    refl__sb_job *jobs;
+    int job_count;
+} refl__sb_batch;
+
+/* Scratch targets the groups draw into (sbc_draw.c): the colour pass's
+   (colour, depth) and the points pass's (world point and object + 1, depth). */
+typedef struct refl__sb_canvas {
+    uint8_t *color;
+    float *depth;
+    float *points, *points_depth;
+} refl__sb_canvas;
+
+/* desc.sbc.trace_fallback's tracer (sbc_resolve.c), while the composite runs. */
+typedef struct refl__sb_tracer {
+    struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
+    long long *rays;              /* per row, the rays the fallback cast */
+} refl__sb_tracer;
+
+typedef struct refl__sb {
+    refl__pass *p;
+    struct refl__em *em;          /* the reflectors' G-buffer and surface points (m_envmap.c's) */
+    /* options, resolved */
+    int factor;                   /* a ray map sample every factor x factor pixels */
+    int mixed_levels;             /* desc.sbc.mixed_levels */
+    float error_px;
+    /* the scene */
+    float diagonal;               /* the scene's, grown 1%: D */
+    refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
+    refl_bvh *bvh;                /* the scene's, for the rays' first hits (the renderer's) */
+    refl_bvh *own_bvh;            /* bvh when no renderer keeps it */
+    /* 1. ray maps (sbc_raymap.c) */
+    int map_w, map_h;             /* the ray map's size */
+    refl__sb_side *sides;
+    int side_count, sides1;       /* sides, and those of the first order (they come first) */
+    int map_first;                /* the first side refl__sb_map_side's jobs map */
+    /* higher orders (desc.depth > 1): the paper's reflection histories */
+    int budget;                   /* bounces a path may take: desc.depth, at most REFL__SB_ORDERS */
+    int orders;                   /* reflection orders drawn (k_max): the longest history sampled */
+    int layers;                   /* orders, plus one for refractions when any was sampled */
+    refl__sb_mirrors mirrors;
+    refl__sb_samples samples;
+    /* 2. groups (sbc_groups.c) */
+    refl__sb_group *groups;
+    int group_count;
+    int tile;                     /* a group's tile side in samples */
+    int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
+    int *morph_base;              /* per object: its morph groups' first index, -1: none */
+    /* 3., 4. projected and drawn in batches (sbc_project.c, sbc_draw.c) */
+    refl__sb_batch batch;
+    uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
+    refl__sb_canvas drawn;        /* the reflections */
+    refl__sb_canvas refr;         /* the refraction layer's, drawn apart: it adds to them, never hides them */
+    /* 5. composite (sbc_resolve.c) */
+    refl__sb_tracer tracer;
+} refl__sb;
+
+/* ---- cam_sbc_morph.c: a morphing grid's pieces, as groups of a frame ---------------- */
+
+/* For the eye in grid m: where points projecting into piece `piece` may
+   lie; its nodes' hits (appended to out when not NULL; how many); at the
+   eye's tetrahedron (nodes, weights w), the piece's sheets, a point's
+   images at the four nodes per sheet (into slot, masks), and sheet
+   `sheet` of those blended (1, or 0 when a node of positive weight has no
+   image). */
+static void refl__sbm_piece_box(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl_vec3 *lo, refl_vec3 *hi);
+static int refl__sbm_tet_hits(const refl_sbc_morph *m, refl_vec3 eye, int piece, refl__sbc_hit *out);
+static int refl__sbm_piece_sheets(const refl_sbc_morph *m, const int nodes[4], const float w[4], int piece);
+static void refl__sbm_project4_sheets(const refl_sbc_morph *m, const int nodes[4], const float w[4], int piece,
+                                      refl_vec3 p, int sheets, float *slot, int masks[4]);
+static int refl__sbm_blend_sheet(const float *slot, const int masks[4], const float w[4], int sheet, refl_vec3 *first,
+                                 float *dist, int *across, int *ambiguous);
+
+/* ---- m_sbc.c ------------------------------------------------------------------- */
+
+/* Everything up to the groups' trees (a frame's, or the camera measure's);
+   refl__sb_free frees it, also after a failure. */
+static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p);
+static void refl__sb_free(refl__sb *sb);
+
+/* ---- sbc_raymap.c: 1. ray maps, histories -------------------------------------- */
+
+/* The sides seen, their ray maps and pieces; past the first order the
+   histories' sides too. refl__sb_ray_maps_free frees them. */
+static refl_result refl__sb_ray_maps(refl__sb *sb);
+static void refl__sb_ray_maps_free(refl__sb *sb);
+/* The ray map sample (u, v)'s pixel. */
+static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int *y);
+/* The reflected ray of surface point q with normal n (towards the viewer)
+   seen along view direction d, and what it meets first; 0 for a ray of
+   zero length. */
+static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, refl_sbc_ray *ray,
+                        refl__sbc_hit *met);
+/* Pixel i's view direction, surface point and unit normal towards the viewer. */
+static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
+/* The material of G-buffer side id `id` (object + 1, negated on the back). */
+static const refl_material *refl__sb_material(const refl__sb *sb, float id);
+
+/* A pixel's reflection history: per order k (index k - 1) the side it
+   reflects at (G-buffer id: object + 1, negated on the back), the point,
+   its unit normal facing the incoming ray, the incoming unit direction, and
+   the product of the reflectances through order k (each as RAYTRACE
+   weighs its bounce, the fades of the bounces before k included: order
+   k's own fades by what it shows); `out` the last order's reflected
+   direction. */
+typedef struct refl__sb_path {
+    int count;
+    float id[REFL__SB_ORDERS], weight[REFL__SB_ORDERS];
+    refl_vec3 q[REFL__SB_ORDERS], n[REFL__SB_ORDERS], d[REFL__SB_ORDERS];
+    refl_vec3 out;
+} refl__sb_path;
+static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
+                                refl__sb_path *pa);
+/* A path refracted through glass (refl__sb_refract_path). */
+typedef struct refl__sb_refr {
+    refl_vec3 tail, out, normal;
+    float weight;
+} refl__sb_refr;
+static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
+                                 refl__sb_refr *rp);
+/* The side of history `parent` followed by side id `id` (kind 0) or
+   refracted through parent's glass (kind 1); -1: none sampled. */
+static int refl__sb_find_side(const refl__sb *sb, int parent, float id, int kind);
+
+/* ---- sbc_groups.c: 2. pieces and groups ------------------------------------------ */
+
+/* Side sd's pieces (sd->comp), from its ray map. */
+static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd);
+/* The groups of the sides' pieces and each pixel's group per layer; then
+   (a job per group) each group's tree; then the morphing grids' groups.
+   refl__sb_groups_free frees them. */
+static refl_result refl__sb_groups(refl__sb *sb);
+static void refl__sb_build_group(void *arg, int g);
+static refl_result refl__sb_morph_groups(refl__sb *sb);
+static void refl__sb_groups_free(refl__sb *sb);
+/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
+static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o);
+
+/* ---- sbc_project.c: 3. projection, 4. emission ----------------------------------- */
+
+/* Projects v (world set) into group g's sheet v->sheet. */
+static void refl__sb_project(const refl__sb *sb, const refl__sb_group *g, refl__sb_pv *v);
+/* The batch's projection and emission jobs, run; refl__sb_batch_clear
+   frees what they made, refl__sb_batch_free that and the base too. */
+static refl_result refl__sb_project_all(refl__sb *sb);
+static void refl__sb_batch_clear(refl__sb *sb);
+static void refl__sb_batch_free(refl__sb *sb);
+
+/* ---- sbc_draw.c: 4. drawing ------------------------------------------------------- */
+
+/* The reflections' targets, made and cleared; refl__sb_draw_end frees them. */
+static refl_result refl__sb_draw_begin(refl__sb *sb);
+static void refl__sb_draw_end(refl__sb *sb);
+/* Draws the batch's jobs into them. */
+static refl_result refl__sb_draw(refl__sb *sb);
+/* After the last batch of an order below k_max: the next order shows
+   where a mirror or glass was drawn nearest. */
+static void refl__sb_pass_through(refl__sb *sb);
+
+/* ---- sbc_resolve.c: 5. composite ---------------------------------------------------- */
+
+/* Every reflector pixel of the frame from what was drawn (with
+   desc.sbc.trace_fallback, traced where that fails). */
+static refl_result refl__sb_resolve(refl__sb *sb);
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -5760,7 +6044,7 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
    Deterministic: lists keep ray-map order, nothing is sorted or drawn at
    random, every sum runs in a fixed order. */
 
-/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the
+/* ---- reflected rays, shared by the SBC method (sbc_raymap.c) and the
    morphing grids (cam_sbc_morph.c): one head rule for both -------------------- */
 
 #define REFL__SBC_REACH 2.0f /* a ray's head: this many times as far as what it hits */
@@ -8108,7 +8392,7 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
 /* p at one node: the piece's face SBCs, the face owning the answer first. */
 /* Whether p lies ahead of first point q along the unextended ray of the
    node's sample that q lands on (when it has one): runtime mode's check
-   (m_sbc.c, refl__sb_project), since a leaf's frustum reaches a little
+   (sbc_project.c, refl__sb_place), since a leaf's frustum reaches a little
    behind the reflector and an extrapolated ring's, at a silhouette, folds
    back over it. */
 static int refl__sbm_ahead(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 q) {
@@ -12516,307 +12800,190 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
 }
 /* ---- src/reflect/m_sbc.c ---- */
 /* SBC: Popescu, Sacks and Mei's sample-based camera reflections (paper
-   003). Per frame:
-     1. ray maps (section IV-A): the reflectors' G-buffer (ENVMAP's) gives
-        every reflector pixel its surface point and normal; every
-        factor x factor pixels one reflected ray is taken, tail on the
-        reflector, head twice as far as what it meets (or where it leaves
-        the scene's box, grown 1%), first reflector point = tail.
-        Past the first order (desc.depth > 1; section III-B's higher-order
-        rays, IV's reflection histories): each sample's reflected ray is
-        traced on through the mirrors and glass alone (a BVH of those; a
-        partial reflector ends a history), up to desc.depth reflections
-        (at most REFL__SB_ORDERS). Every history sampled (A, B, AB, BA,
-        ABA, ...; at most REFL__SB_HISTORIES past the first order) is a
-        side of its own, whose ray at a sample has its tail on the last
-        reflector, its head clipped as above and its first reflector point
-        the sample's. Glass seen directly also refracts (Fig. 20b): in at
-        the sample's point (Snell, the material's ior), totally reflected
-        inside while it must, out where it can within the depth: a side
-        "refracted through" of its own, tail at the exit.
-     2. reflection groups (section IV, and VII-C's pieces "whose rays do
-        not intersect"): per reflector object and side seen (the G-buffer's
-        id, negative on back faces: the inside of an open mesh), the ray
-        map is cut into pieces: neighbouring samples stay together when no
-        gap lies between them (one surface passing in front of another:
-        the handle before the body), their normals turn by less than 45
-        degrees (no crease: the knob on the lid), and either both or
-        neither of their rays cross a neighbour's before its head (a
-        concave groove focuses them). A group is a piece within a tile of
-        REFL__SB_TILE samples, with one ring of rays extrapolated around
-        it, diagonals included (the sample's view ray meets the tangent
-        plane of its neighbour in the piece, the normal continues linearly;
-        past grazing the ray goes straight on), so its frustums reach past
-        the piece's edge: the paper's "extended reflectors". Each group is
-        a BSP tree of pinhole cameras (cam_sbc.c) built to the requested
-        error in desired-view pixels; pieces whose rays do not cross end
-        mostly in pinhole leaves, focusing ones in ray lists. A pixel
-        belongs to the group of the nearest sample on its own smooth
-        surface. Past the first order a side's pieces lie within its
-        parent's (the rays of one smooth piece of the mirror before) and
-        its ring continues the rays linearly; groups come in layers (order
-        k; the refractions last) and a pixel belongs, in each layer its own
-        history reaches (traced per pixel as the samples are), to the group
-        of the nearest sample on its surface with that history.
-     3. projection (section V-A): every vertex of every object inside a
-        group's box (its rays' tails and heads, grown by a quarter) is
-        projected into the group (refl_sbc_project_sheets), moving it to
-        its first reflector point, which must lie in the group's box too
-        (a leaf's map far outside its rays sends points anywhere); the
-        window depth is the paper's visibility
-        offset (k - 1 + z/D) g for order k, in a depth buffer of the
-        reflections' own, z measured as the distance from the vertex to its
-        first reflector point (consistent across leaves, where each leaf's
-        image-plane height is not), past the first order to the last
-        reflector point (the tail of the history's sample it lands on).
-        g = 1 / k_max of the window range, k_max the longest history
-        sampled: the paper's g = D / (k_max + 1) with yon at 2D spends it
-        alike, and k_max = 1 keeps z/D: the one-bounce frames' bytes.
-        A group whose rays fold (cam_sbc.c's sheets: 1 + the folds of its
-        ray lists, at most three) projects every vertex into each sheet at
-        once and draws each sheet's triangles into its pixels, the depth
-        test keeping the nearest: a point seen twice in a focusing mirror
-        shows twice. A vertex with no image in a sheet takes its image one
-        fold away (the sheets meet at the fold), and a triangle with such
-        vertices is split as a mixed one and drawn only when no wider than
-        REFL__SB_FOLD_SAMPLES samples: wider, it spans the caustic, where
-        the two sheets' images part (concave bowl 320x240: mean 0.15 px
-        with the limit, 0.43 without).
-     4. rasterisation (section V-B): a reflected triangle is drawn when all
-        three vertices project; one outside the group's box is dropped
-        whole. Triangles are subdivided in four, at most REFL__SB_LEVELS
-        times: always while an edge is longer than 1/32 of the scene's
-        diagonal (the paper's pre-subdivision, per frame), while mixed (one
-        or two vertices project; the paper's fix for jagged edges; at most
-        desc.sbc.mixed_levels times, REFL__SB_MIXED_LEVELS by default and
-        none with the fallback, unless the part holds a point where one
-        of the group's rays meets the triangle), while no vertex projects
-        but such a point lies inside (a group narrower than the triangle),
-        and while an edge's projected midpoint lies more than
-        REFL__SB_EDGE_PX from the midpoint of its projected ends (the
-        straight-edge error the paper bounds by pre-subdividing). Reflected
-        triangles are drawn by rast.h twice (colour as DIRECT shades the
-        surface, then its world point; each pass with its depth buffer),
-        stencilled to the group's pixels. Groups go through projection and
-        drawing in batches of up to 254 (the stencil's values; the
-        projected vertices of one batch at a time). The reflector's own
-        triangles project too (the knob seen in the lid), except the
-        surface the rays leave: a triangle facing away from every vertex's
-        first reflector point (unless the group's rays meet it: the body's
-        inside seen through the lid's gap faces away), or with a vertex
-        nearer it than a quarter of the triangle's longest edge (tested
-        before each subdivision too: such a triangle is not split). Layers are drawn in order, into one
-        depth buffer; after order k < k_max, where a mirror or glass (drawn
-        transparent black) is nearest the pixel is cleared: order k + 1
-        shows there, and nowhere an order-k point lies in front (the
-        offset): lower orders occlude higher ones. Refractions draw into
-        targets of their own (they add to the reflection, never hide it);
-        their own glass is not drawn.
-     5. composite (section V-D): the reflected colour, or the environment
-        along the pixel's reflected ray where nothing was drawn, times the
-        material's reflectance (Schlick's Fresnel, or V-D's Fresnel blend
-        and distance fade, when the material asks), as ENVMAP composites;
-        glass adds the environment refracted once. A pixel of a group
-        (of the first layer) that nothing was drawn on, between two drawn
-        pixels of its group on opposite sides, is a crack (reflected
-        triangles subdivided to different depths meet at a T-junction)
-        and takes the nearer one's reflection (default 640x480 factor 2:
-        holes 6.7% to 4.9%, mean 0.34 to 0.36 px; 1080p factor 4 holes
-        6.5% to 4.8%; past the first order, the order with it: two
-        facing mirrors at depth 2 holes 2.1% to 1.2%, colour off 2.6% to
-        1.8%). With desc.sbc.trace_fallback (beyond the paper) a pixel still
-        without a reflection, or whose first-order point the samples
-        around it contradict (refl__sb_fallback), is rendered as RAYTRACE
-        renders it (refl__rt_pixel) when its reflected ray meets anything,
-        and mixed triangles are not split (step 4), their pixels traced:
-        640x480 factor 2 holes 4.9% to 0.01%, mean 0.36 to 0.24 px, p95
-        1.41 to 1.00 px, 296 to 175 ms a frame.
-        Past the first order (refl__sb_resolve_row_deep): the nearest
-        order's colour (its order read off the offset), or the environment
-        along the last reflected ray, times the product of the reflectances
-        along the pixel's own history (each bounce as RAYTRACE weighs it,
-        faded by its reflected ray's length when the material asks);
-        glass adds (1 - F) tint times what the refraction layer drew (or
-        the environment beyond the glass), times (1 - F) at the exit and
-        the absorption inside; reflections inside the glass short of total
-        are left out. frame->points: the first point past the first
-        reflector, as RAYTRACE's, or with desc.debug.points_last the last.
-   Reflection morphing (section VI): a reflector the caller hands a
-   prebuilt grid for (refl_render_desc.sbc.morphs, cam_sbc_morph.c) has no
-   ray map or groups of its front side here; a group per piece of the grid
-   projects instead (the eye's tetrahedron, blended; no check against this
-   frame's ray map, which it has none of), its pixels those of the piece
-   their view ray meets; morphing draws the first order only. Its sheets
-   are the most its nodes' cameras have, and sheet k blends each node's
-   image in sheet k (or one fold away), as a runtime group draws them.
-   Diffuse shading needs no eye vector (Lambert), so the paper's true eye
-   vector for point lights has nothing to change here. Deterministic: work
-   is split into jobs whose outputs are drawn in job order. */
+   003; docs/methods/sbc.md tells the algorithm, step by step). Per frame,
+   after the base pass:
+     1. ray maps (sbc_raymap.c): a reflected ray per factor x factor pixels
+        of every reflector side seen, from the reflectors' G-buffer; past
+        the first order, the reflection histories traced through the
+        mirrors and glass;
+     2. reflection groups (sbc_groups.c): each ray map cut into smooth
+        pieces and tiles, each group a BSP tree of sample-based cameras
+        (cam_sbc.c) built to the requested error, each pixel given a group;
+     3. projection and 4. rasterisation, in batches of groups: every scene
+        vertex in a group's box projected into it, its triangles emitted and
+        subdivided (sbc_project.c), then drawn, stencilled to the group's
+        pixels (sbc_draw.c);
+     5. composite (sbc_resolve.c): what was drawn times the reflectance,
+        cracks filled, holes and contradicted pixels traced with
+        desc.sbc.trace_fallback.
+   This file: the options, the frame's setup (steps 1 and 2) and its
+   orchestration. Diffuse shading needs no eye vector (Lambert), so the
+   paper's true eye vector for point lights has nothing to change here.
+   Deterministic: work is split into jobs whose outputs are drawn in job
+   order. */
 
 #define REFL__SB_FACTOR 2           /* default ray map down-sampling */
-#define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
-#define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
-#define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
-#define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
-#define REFL__SB_MIXED_LEVELS 4     /* of those, while mixed (desc.sbc.mixed_levels' default) */
-#define REFL__SB_CHUNK 256          /* scene triangles per emission job */
-#define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
-#define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
-#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
-#define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
-#define REFL__SB_HISTORIES 64       /* histories beyond the first order, at most: the rest end a step early */
-#define REFL__SB_SHEETS REFL_SBC_SHEETS /* a group's sheets at most (refl_sbc_project_sheets) */
-#define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
-#define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
 
-/* A reflector object's side seen: its ray map over the whole frame. */
-typedef struct refl__sb_side {
-    int object;                   /* the last reflector of its history */
-    float id;                     /* its pixels' G-buffer id: object + 1, negated for the back side */
-    int order;                    /* reflections along its history (a refraction's: 1, in a layer of its own) */
-    int layer;                    /* order - 1; sb->orders for refractions */
-    int parent;                   /* the side one reflection shorter (-1 at order 1) */
-    int kind;                     /* 0 reflected; 1 refracted through the glass of `parent`;
-                                     2 refracted into it, meeting a surface inside */
-    refl_sbc_ray *rays;
-    refl__sbc_hit *hits;           /* per sample: what its ray meets */
-    uint8_t *valid;               /* 1: the sample shows the side, with a ray */
-    refl_vec3 *normals;           /* per sample, towards the viewer */
-    int *comp;                    /* per sample: its smooth piece (refl__sb_pieces), -1: none */
-    int *group;                   /* per sample with a ray: its group */
-    uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
-} refl__sb_side;
+static const char *refl__options_sbc(refl_render_desc *d) {
+    const refl_sbc_options *o = &d->sbc;
+    if (!(o->error_px >= 0.0f) || !refl__isfinite(o->error_px)) return "sbc.error_px: finite, 0 (1) or more";
+    if (o->ray_factor < 0 || o->ray_factor > 64) return "sbc.ray_factor: 0 (2) to 64";
+    if (o->batch_groups < 0 || o->batch_groups > 254) return "sbc.batch_groups: 0 (254) to 254";
+    if (o->trace_fallback < 0 || o->trace_fallback > 1) return "sbc.trace_fallback: 0 or 1";
+    if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
+    if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
+        return "sbc.morphs: morph_count 0, or the array of that many grids";
+    return NULL;
+}
 
-/* A reflection group: one piece of a side's ray map within one tile, its
-   rays (those of the piece in the tile grown by a sample: neighbouring
-   tiles' frustums overlap) and one ring of rays extrapolated around them. */
-typedef struct refl__sb_group {
-    int side, object, comp;       /* comp: its piece of the side */
-    int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
-    refl_sbc *sbc;
-    int sheets;                   /* its rays split at their folds: each sheet projects and draws apart */
-    refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
-    refl_vec3 first_lo, first_hi; /* past the first order: its first reflector points' box, grown alike */
-    refl__sbc_hit *hits;           /* what its rays meet, by object and triangle */
-    int hit_count;
-    refl_result result;
-    const refl_sbc_morph *morph;  /* instead of sbc: a morphing grid's piece (refl__sb_morph_groups) */
-    int piece;
-    int morph_nodes[4];           /* the eye's tetrahedron in the grid and its weights, located once */
-    float morph_w[4];
-} refl__sb_group;
+/* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
+static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
+    const refl_allocator *al = &p->scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height;
+    unsigned char *seen = NULL;
+    refl_vec3 lo, hi, grow;
+    refl_result r;
+    int any = 0, g;
+    memset(sb, 0, sizeof *sb);
+    sb->p = p;
+    sb->factor = p->desc.sbc.ray_factor > 0 ? p->desc.sbc.ray_factor : REFL__SB_FACTOR;
+    sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
+    sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
+    sb->error_px = p->desc.sbc.error_px > 0.0f ? p->desc.sbc.error_px : 1.0f;
+    /* with the fallback, the pixels a group's edge leaves uncovered are
+       traced: splitting mixed triangles costs more than it buys */
+    sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
+                       : p->desc.sbc.mixed_levels < 0 ? 0
+                       : p->desc.sbc.trace_fallback   ? 0
+                                                      : REFL__SB_MIXED_LEVELS;
+    sb->batch.size = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
+    sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
+    sb->orders = sb->layers = 1;
+    refl_scene_bounds(p->scene, &lo, &hi);
+    grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.01f);
+    grow = refl_v3_add(grow, refl_v3(1e-4f, 1e-4f, 1e-4f));
+    sb->box_lo = refl_v3_sub(lo, grow);
+    sb->box_hi = refl_v3_add(hi, grow);
+    sb->diagonal = refl_v3_length(refl_v3_sub(sb->box_hi, sb->box_lo));
+    /* the reflectors' G-buffer (ENVMAP's) and the point seen at each pixel */
+    sb->em = (refl__em *)refl__calloc(al, 1, sizeof(refl__em));
+    if (!sb->em) return REFL_ERROR_OUT_OF_MEMORY;
+    sb->em->p = p;
+    r = refl__em_gbuffer_new(sb->em, &seen, &any);
+    refl__free(al, seen);
+    if (r != REFL_OK || !any) return r;
+    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
+    sb->em->surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+    if (!sb->em->surface) return REFL_ERROR_OUT_OF_MEMORY;
+    rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, sb->em);
+    if ((r = refl__sb_ray_maps(sb)) != REFL_OK || (r = refl__sb_groups(sb)) != REFL_OK) return r;
+    p->frame->stats.sbc.histories += sb->side_count;
+    p->frame->stats.sbc.groups += sb->group_count;
+    for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
+        p->desc.debug.sbc_ray_map(p->desc.debug.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays,
+                                  sb->sides[g].valid, sb->map_w, sb->map_h);
+    rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
+    if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
+    for (g = 0; g < sb->group_count; ++g) {
+        refl_sbc_stats st;
+        if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
+        refl_sbc_get_stats(sb->groups[g].sbc, &st);
+        p->frame->stats.sbc.pinhole_leaves += st.pinhole_leaves;
+        p->frame->stats.sbc.ray_leaves += st.ray_leaves;
+        p->frame->stats.rays += st.rays;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    return REFL_OK;
+}
 
-/* A scene point and what a group makes of it. */
-typedef struct refl__sb_pv {
-    refl_vec3 world, normal;
-    int sheet;                    /* the group's sheet it projects in */
-    int across;                   /* it has none there: its image one fold away (refl__sbc_sheet_image) */
-    float uv[2];
-    float clip[4];                /* the first reflector point's, depth replaced */
-    float sx, sy;                 /* its window position */
-    refl_vec3 first;              /* its first reflector point */
-    refl_vec3 from;               /* where its ray leaves the last reflector (order 1: first) */
-    float dist;                   /* to `from` */
-    int ok;
-    int ambiguous;                /* morph groups: projects at some of the eye's nodes, not all */
-} refl__sb_pv;
-
-/* A group's vertices of one object: those in the group's box, projected
-   (into each sheet), the others as they are (refl__sb's base). */
-typedef struct refl__sb_slot {
-    int *index;                   /* per mesh vertex: its place in pv, -1: outside the box (base) */
-    refl__sb_pv *pv[REFL__SB_SHEETS]; /* per sheet of the group */
-    int count;                    /* vertices in the box */
-    int failed;
-} refl__sb_slot;
-
-/* Subdivision midpoints a job has projected: an edge shared by two
-   triangles (the split's inner edges, neighbours in the mesh) is split
-   by both, and its midpoint projects alike (the same world position,
-   group and sheet). Direct-mapped by the edge's ends, compared exactly, so
-   a hit is what projecting again would give, bit for bit. */
-#define REFL__SB_MEMO 512
-typedef struct refl__sb_memo {
-    uint8_t used[REFL__SB_MEMO];
-    struct {
-        refl_vec3 ends[2];        /* the edge's ends, the lesser bytes first */
-        refl__sb_pv mid;
-    } entry[REFL__SB_MEMO];
-} refl__sb_memo;
-
-/* One emission job: triangles [first, first + count) of `object` into `group`'s `sheet`. */
-typedef struct refl__sb_job {
-    int group, object, sheet, first, count;
-    float *out;                   /* REFL__SB_FLOATS per vertex, three per triangle */
-    size_t out_count, out_cap;    /* vertices */
-    long long projections, projected;
-    refl__sb_memo *memo;          /* while it runs, from its first midpoint on (NULL: none to spare) */
-    int failed;
-} refl__sb_job;
-
-typedef struct refl__sb {
-    refl__pass *p;
-    refl__em em;                  /* the reflectors' G-buffer and surface points */
-    refl__sb_side *sides;
-    int side_count, sides1;       /* sides, and those of the first order (they come first) */
-    refl__sb_group *groups;
-    int group_count;
-    int map_w, map_h, tile;       /* the ray map's size; a group's tile side in samples */
-    int factor;
-    int mixed_levels;             /* desc.sbc.mixed_levels resolved */
-    float error_px;
-    float diagonal;               /* the scene's, grown 1%: D */
-    refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
-    refl_bvh *bvh;                /* the scene's, for the rays' first hits (the renderer's) */
-    refl_bvh *own_bvh;            /* bvh when no renderer keeps it */
-    /* higher orders (desc.depth > 1): the paper's reflection histories */
-    int budget;                   /* bounces a path may take: desc.depth, at most REFL__SB_ORDERS */
-    int orders;                   /* reflection orders drawn (k_max): the longest history sampled */
-    int layers;                   /* orders, plus one for refractions when any was sampled */
-    refl_bvh *mirrors;            /* the mirrors and glass alone (the paper traces the reflectors alone) */
-    int *mirror_object;           /* its objects' scene indices */
-    refl_mat4 *normal_m;          /* per object: the normals' matrix */
-    float *sample_id;             /* budget x map: per order, the side id each sample's path meets, 0: none */
-    uint8_t *sample_refr;         /* per sample: the kind of its refraction path (1, 2), 0: none */
-    int *sample_side;             /* (budget + 1) x map: per layer, each sample's side, -1: none */
-    int *group_of;                /* layers x pixels: per layer and pixel, group index + 1, 0: none */
-    int *morph_base;              /* per object: its morph groups' first index, -1: none */
-    int batch, batch0, batch1;    /* groups per batch; those projected and drawn now: [batch0, batch1) */
-    int layer;                    /* the batch's layer (one per batch) */
-    int map_first;                /* the first side refl__sb_map_side's jobs map */
-    uint8_t *stencil;             /* per pixel: its group's place in the batch + 1, 0: none */
-    refl__sb_pv **base;           /* per object: every mesh vertex in the world, projecting nowhere */
-    refl__sb_slot *slots;         /* per group of the batch x object: its vertices */
-    refl__sb_job *jobs;
-    int job_count;
-    uint8_t *color;               /* scratch targets of the reflections: the colour pass's */
-    float *depth, *points;        /* (colour, depth), the points pass's (points, depth) */
-    float *points_depth;
-    uint8_t *refr_color;          /* the same for the refraction layer, drawn apart: */
-    float *refr_depth, *refr_points, *refr_points_depth; /* it adds to the reflections, never hides them */
-    refl__rt *tracer;             /* desc.sbc.trace_fallback: how RAYTRACE renders a pixel; else NULL */
-    long long *traced_rays;       /* ... and per row, the rays the fallback cast */
-} refl__sb;
-
-/* Whether g projects: a tree of this frame or a morph's piece. */
-static int refl__sb_live(const refl__sb_group *g) { return g->sbc != NULL || g->morph != NULL; }
+static void refl__sb_free(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    refl__sb_groups_free(sb);
+    refl__sb_ray_maps_free(sb);
+    refl__sb_batch_free(sb);
+    refl__sb_draw_end(sb);
+    refl_bvh_destroy(sb->own_bvh);
+    if (sb->em) {
+        refl__free(al, sb->em->gbuf);
+        refl__free(al, sb->em->draws);
+        refl__free(al, sb->em->surface);
+        refl__free(al, sb->em);
+    }
+}
 
 /* The layer g draws in: its side's; a morph's piece reflects once. */
 static int refl__sb_group_layer(const refl__sb *sb, const refl__sb_group *g) {
     return g->morph ? 0 : sb->sides[g->side].layer;
 }
 
-/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
-static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
-    int k, nodes[4];
-    float w[4];
-    for (k = 0; k < p->desc.sbc.morph_count; ++k) {
-        const refl_sbc_morph *m = p->desc.sbc.morphs[k];
-        if (m && refl_sbc_morph_object(m) == o)
-            return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
+/* An SBC frame: the setup, the batches projected and drawn, the composite. */
+static refl_result refl__sb_run(refl__pass *p) {
+    refl_frame *fr = p->frame;
+    double t0 = refl__now_ms(), t1;
+    refl__sb sb;
+    refl_result r = refl__sb_setup(&sb, p);
+    int i;
+    t1 = refl__now_ms();
+    fr->stats.ms_build += t1 - t0;
+    if (r == REFL_OK && sb.group_count) {
+        r = refl__sb_draw_begin(&sb);
+        /* groups in batches of the stencil's values, each within one layer
+           (the sides, so the groups, come layer by layer); a group's pixels
+           are its own in its layer, so a layer's batches' depth tests never
+           meet, and the orders meet by the visibility offset */
+        for (sb.batch.first = 0; r == REFL_OK && sb.batch.first < sb.group_count; sb.batch.first = sb.batch.end) {
+            int end = REFL__MIN(sb.batch.first + sb.batch.size, sb.group_count);
+            sb.batch.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch.first]);
+            sb.batch.end = sb.batch.first + 1;
+            while (sb.batch.end < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch.end]) == sb.batch.layer)
+                ++sb.batch.end;
+            r = refl__sb_project_all(&sb);
+            for (i = 0; i < sb.batch.job_count; ++i) {
+                fr->stats.sbc.projections += sb.batch.jobs[i].projections;
+                fr->stats.sbc.projected += sb.batch.jobs[i].projected;
+            }
+            if (r == REFL_OK) r = refl__sb_draw(&sb);
+            refl__sb_batch_clear(&sb);
+            if (r == REFL_OK && sb.batch.layer + 1 < sb.orders &&
+                (sb.batch.end == sb.group_count ||
+                 refl__sb_group_layer(&sb, &sb.groups[sb.batch.end]) != sb.batch.layer))
+                refl__sb_pass_through(&sb);
+        }
+        t0 = refl__now_ms();
+        fr->stats.ms_reflect += t0 - t1;
+        if (r == REFL_OK) r = refl__sb_resolve(&sb);
+        fr->stats.ms_composite += refl__now_ms() - t0;
     }
-    return NULL;
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__sb_free(&sb);
+    return r;
 }
+
+static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
+/* ---- src/reflect/sbc_raymap.c ---- */
+/* sbc_raymap: SBC's ray maps (paper 003 IV-A; docs/methods/sbc.md, "1. Ray
+   maps"). The reflectors' G-buffer (ENVMAP's) gives every reflector pixel
+   its surface point and normal; every factor x factor pixels one reflected
+   ray is taken, tail on the reflector, head twice as far as what it meets
+   (or where it leaves the scene's box, grown 1%), first reflector point =
+   tail. Each side of a reflector object seen (the G-buffer's id, negative
+   on back faces: the inside of an open mesh) has a ray map over the whole
+   frame.
+
+   Past the first order (desc.depth > 1; section III-B's higher-order rays,
+   IV's reflection histories): each sample's reflected ray is traced on
+   through the mirrors and glass alone (a BVH of those; a partial reflector
+   ends a history), up to desc.depth reflections (at most REFL__SB_ORDERS).
+   Every history sampled (A, B, AB, BA, ABA, ...; at most
+   REFL__SB_HISTORIES past the first order) is a side of its own, whose ray
+   at a sample has its tail on the last reflector, its head clipped as above
+   and its first reflector point the sample's. Glass seen directly also
+   refracts (Fig. 20b): in at the sample's point (Snell, the material's
+   ior), totally reflected inside while it must, out where it can within the
+   depth: a side "refracted through" of its own, tail at the exit. */
 
 /* The ray map sample (u, v)'s pixel. */
 static void refl__sb_sample_pixel(const refl__sb *sb, int u, int v, int *x, int *y) {
@@ -12842,6 +13009,116 @@ static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 
     return refl__sb_ray_dir(sb, q, refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d, ray, met);
 }
 
+/* Pixel i's view direction, surface point and unit normal towards the
+   viewer (as the ray map and the composite take them). */
+static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n) {
+    const refl__pass *p = sb->p;
+    int x = (int)(i % (size_t)p->frame->width), y = (int)(i / (size_t)p->frame->width);
+    refl_vec3 o;
+    float tmax;
+    const float *gb = sb->em->gbuf + 4 * i;
+    refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, d, &tmax);
+    *n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+    if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(*d, -1.0f); /* degenerate: face the eye */
+    if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
+    *q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+}
+
+/* Side sd's ray map: a ray per sample showing the side (valid 1), with
+   the sample's unit normal turned towards the viewer. */
+static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
+    const refl__pass *p = sb->p;
+    int u, v, W = p->frame->width, mw = sb->map_w;
+    for (v = 0; v < sb->map_h; ++v)
+        for (u = 0; u < mw; ++u) {
+            size_t m = (size_t)v * (size_t)mw + (size_t)u, i;
+            int x, y;
+            refl_vec3 o, d, n;
+            float tmax;
+            const float *gb;
+            refl__sb_sample_pixel(sb, u, v, &x, &y);
+            i = (size_t)y * (size_t)W + (size_t)x;
+            gb = sb->em->gbuf + 4 * i;
+            sd->valid[m] = 0;
+            if (gb[3] != sd->id) continue;
+            refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+            n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+            sd->normals[m] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
+            sd->valid[m] = (uint8_t)refl__sb_ray(sb, refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1],
+                                                             sb->em->surface[3 * i + 2]),
+                                                 sd->normals[m], d, &sd->rays[m], &sd->hits[m]);
+        }
+}
+
+/* A side of a higher layer: the rays of the samples whose history it is
+   (sb->samples.side), at its order's reflector (or out of its glass),
+   first reflector point on the pixel's own reflector. */
+static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int self) {
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
+    const int *own = sb->samples.side + (size_t)sd->layer * count;
+    for (m = 0; m < count; ++m) {
+        int x, y, ok = 0;
+        size_t i;
+        refl_vec3 d, q, n;
+        sd->valid[m] = 0;
+        if (own[m] != self) continue;
+        refl__sb_sample_pixel(sb, (int)(m % (size_t)sb->map_w), (int)(m / (size_t)sb->map_w), &x, &y);
+        i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        if (sd->kind) {
+            refl__sb_refr rp;
+            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp) == sd->kind) {
+                ok = refl__sb_ray_dir(sb, rp.tail, rp.out, &sd->rays[m], &sd->hits[m]);
+                sd->normals[m] = rp.normal;
+            }
+        } else {
+            refl__sb_path pa;
+            int k = sd->order - 1;
+            refl__sb_trace_path(sb, q, n, d, sb->em->gbuf[4 * i + 3], &pa);
+            if (pa.count > k) {
+                ok = refl__sb_ray_dir(sb, pa.q[k], k + 1 < pa.count ? pa.d[k + 1] : pa.out, &sd->rays[m],
+                                      &sd->hits[m]);
+                sd->normals[m] = pa.n[k];
+            }
+        }
+        sd->rays[m].first = q;
+        sd->valid[m] = (uint8_t)ok;
+    }
+}
+
+/* Side i's ray map and pieces (a job: sides map in parallel). */
+static void refl__sb_map_side(void *arg, int job) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i = sb->map_first + job;
+    refl__sb_side *sd = &sb->sides[i];
+    size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+    sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
+    sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
+    sd->hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
+    sd->valid = (uint8_t *)refl__calloc(al, n, 1);
+    sd->comp = (int *)refl__calloc(al, n, sizeof(int));
+    sd->group = (int *)refl__calloc(al, n, sizeof(int));
+    sd->crossing = (uint8_t *)refl__calloc(al, n, 1);
+    if (sd->normals && sd->rays && sd->hits && sd->valid && sd->comp && sd->group && sd->crossing) {
+        if (sd->layer) refl__sb_ray_map_higher(sb, sd, i);
+        else refl__sb_ray_map(sb, sd);
+        refl__sb_pieces(sb, sd);
+    }
+}
+
+/* Sides [first, end)'s ray maps and pieces, a job each. */
+static refl_result refl__sb_map_sides(refl__sb *sb, int first, int end) {
+    int i;
+    sb->map_first = first;
+    rast_run_jobs(sb->p->rc, end - first, refl__sb_map_side, sb);
+    for (i = first; i < end; ++i)
+        if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
+            !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
+            return REFL_ERROR_OUT_OF_MEMORY;
+    return REFL_OK;
+}
+
 /* ---- higher orders: paths through the mirrors and glass alone ---- */
 
 /* Reflectors a history goes on through: mirrors and glass. A partial
@@ -12852,8 +13129,8 @@ static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIR
    (h->object: the scene's index), within the scene's box. */
 static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
     float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d);
-    if (!sb->mirrors || !refl_bvh_intersect(sb->mirrors, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
-    h->object = sb->mirror_object[h->object];
+    if (!sb->mirrors.bvh || !refl_bvh_intersect(sb->mirrors.bvh, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
+    h->object = sb->mirrors.object[h->object];
     return 1;
 }
 
@@ -12863,7 +13140,7 @@ static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, ref
 static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns) {
     const refl_object *o = &sb->p->scene->objects[h->object];
     refl__hit_geom g;
-    refl__hit_surface(sb->p->scene->meshes[o->mesh], &o->transform, &sb->normal_m[h->object], h, &g);
+    refl__hit_surface(sb->p->scene->meshes[o->mesh], &o->transform, &sb->mirrors.normal_m[h->object], h, &g);
     *p = g.p;
     *ng = g.ng;
     *ns = g.ns;
@@ -12876,20 +13153,6 @@ static const refl_material *refl__sb_material(const refl__sb *sb, float id) {
     const refl_scene *scene = sb->p->scene;
     return &scene->materials[scene->objects[(int)fabsf(id) - 1].material];
 }
-
-/* A pixel's reflection history: per order k (index k - 1) the side it
-   reflects at (G-buffer id: object + 1, negated on the back), the point,
-   its unit normal facing the incoming ray, the incoming unit direction, and
-   the product of the reflectances through order k (each as RAYTRACE
-   weighs its bounce, the fades of the bounces before k included: order
-   k's own fades by what it shows); `out` the last order's reflected
-   direction. */
-typedef struct refl__sb_path {
-    int count;
-    float id[REFL__SB_ORDERS], weight[REFL__SB_ORDERS];
-    refl_vec3 q[REFL__SB_ORDERS], n[REFL__SB_ORDERS], d[REFL__SB_ORDERS];
-    refl_vec3 out;
-} refl__sb_path;
 
 /* The history of reflector point q (side id, unit normal n towards the
    viewer) seen along d, through sb->orders reflections at most: the first
@@ -12955,11 +13218,6 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
    to the object; 0: still inside when the budget runs out (RAYTRACE's
    black); -1: it leaves without meeting its glass again (a silhouette
    pixel whose point lies just off the glass). */
-typedef struct refl__sb_refr {
-    refl_vec3 tail, out, normal;
-    float weight;
-} refl__sb_refr;
-
 static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                  refl__sb_refr *rp) {
     const refl_scene *scene = sb->p->scene;
@@ -12967,7 +13225,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
     const refl_material *m;
     float ior, len = 0.0f, f;
     refl_vec3 t, pos = q;
-    if (object < 0 || object >= scene->object_count || sb->budget < 2 || !sb->mirrors) return 0;
+    if (object < 0 || object >= scene->object_count || sb->budget < 2 || !sb->mirrors.bvh) return 0;
     m = &scene->materials[scene->objects[object].material];
     if (m->type != REFL_GLASS) return 0;
     ior = m->ior > 0.0f ? m->ior : 1.5f;
@@ -13015,82 +13273,238 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
     return 0;
 }
 
-/* Pixel i's view direction, surface point and unit normal towards the
-   viewer (as the ray map and the composite take them). */
-static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n) {
-    const refl__pass *p = sb->p;
-    int x = (int)(i % (size_t)p->frame->width), y = (int)(i / (size_t)p->frame->width);
-    refl_vec3 o;
-    float tmax;
-    const float *gb = sb->em.gbuf + 4 * i;
-    refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, d, &tmax);
-    *n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
-    if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(*d, -1.0f); /* degenerate: face the eye */
-    if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
-    *q = refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1], sb->em.surface[3 * i + 2]);
-}
-
-/* Side sd's ray map: a ray per sample showing the side (valid 1), with
-   the sample's unit normal turned towards the viewer. */
-static void refl__sb_ray_map(const refl__sb *sb, refl__sb_side *sd) {
-    const refl__pass *p = sb->p;
-    int u, v, W = p->frame->width, mw = sb->map_w;
-    for (v = 0; v < sb->map_h; ++v)
-        for (u = 0; u < mw; ++u) {
-            size_t m = (size_t)v * (size_t)mw + (size_t)u, i;
-            int x, y;
-            refl_vec3 o, d, n;
-            float tmax;
-            const float *gb;
-            refl__sb_sample_pixel(sb, u, v, &x, &y);
-            i = (size_t)y * (size_t)W + (size_t)x;
-            gb = sb->em.gbuf + 4 * i;
-            sd->valid[m] = 0;
-            if (gb[3] != sd->id) continue;
-            refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
-            sd->normals[m] = refl_v3_dot(n, d) > 0.0f ? refl_v3_scale(n, -1.0f) : n;
-            sd->valid[m] = (uint8_t)refl__sb_ray(sb, refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1],
-                                                             sb->em.surface[3 * i + 2]),
-                                                 sd->normals[m], d, &sd->rays[m], &sd->hits[m]);
-        }
-}
-
-/* A side of a higher layer: the rays of the samples whose history it is
-   (sb->sample_side), at its order's reflector (or out of its glass),
-   first reflector point on the pixel's own reflector. */
-static void refl__sb_ray_map_higher(const refl__sb *sb, refl__sb_side *sd, int self) {
-    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
-    const int *own = sb->sample_side + (size_t)sd->layer * count;
-    for (m = 0; m < count; ++m) {
-        int x, y, ok = 0;
-        size_t i;
+/* Sample rows [v, v + 1)'s histories: the side ids of their paths into
+   sb->samples.id, and whether their glass refracts them out. */
+static void refl__sb_sample_row(void *arg, int v) {
+    refl__sb *sb = (refl__sb *)arg;
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h;
+    int u, k;
+    for (u = 0; u < sb->map_w; ++u) {
+        size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, i;
+        int x, y;
         refl_vec3 d, q, n;
-        sd->valid[m] = 0;
-        if (own[m] != self) continue;
-        refl__sb_sample_pixel(sb, (int)(m % (size_t)sb->map_w), (int)(m / (size_t)sb->map_w), &x, &y);
+        refl__sb_path pa;
+        refl__sb_refr rp;
+        for (k = 0; k < sb->budget; ++k) sb->samples.id[(size_t)k * count + m] = 0.0f;
+        sb->samples.refr[m] = 0;
+        if (sb->samples.side[m] < 0) continue;
+        refl__sb_sample_pixel(sb, u, v, &x, &y);
         i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sd->kind) {
-            refl__sb_refr rp;
-            if (refl__sb_refract_path(sb, q, n, d, sb->sides[sd->parent].id, &rp) == sd->kind) {
-                ok = refl__sb_ray_dir(sb, rp.tail, rp.out, &sd->rays[m], &sd->hits[m]);
-                sd->normals[m] = rp.normal;
-            }
-        } else {
-            refl__sb_path pa;
-            int k = sd->order - 1;
-            refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
-            if (pa.count > k) {
-                ok = refl__sb_ray_dir(sb, pa.q[k], k + 1 < pa.count ? pa.d[k + 1] : pa.out, &sd->rays[m],
-                                      &sd->hits[m]);
-                sd->normals[m] = pa.n[k];
-            }
-        }
-        sd->rays[m].first = q;
-        sd->valid[m] = (uint8_t)ok;
+        refl__sb_trace_path(sb, q, n, d, sb->em->gbuf[4 * i + 3], &pa);
+        for (k = 0; k < pa.count; ++k) sb->samples.id[(size_t)k * count + m] = pa.id[k];
+        k = refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp);
+        sb->samples.refr[m] = (uint8_t)(k > 0 ? k : 0);
     }
 }
+
+/* The side of history `parent` followed by side id `id` (kind 0) or
+   refracted through parent's glass (kind 1); -1: none sampled. */
+static int refl__sb_find_side(const refl__sb *sb, int parent, float id, int kind) {
+    int i;
+    /* a child comes after its parent and the first order's sides */
+    for (i = REFL__MAX(parent + 1, sb->sides1); i < sb->side_count; ++i)
+        if (sb->sides[i].parent == parent && sb->sides[i].kind == kind && (kind || sb->sides[i].id == id)) return i;
+    return -1;
+}
+
+/* The scene's mirrors and glass in a BVH of their own (none: mi->bvh
+   stays NULL), and every object's normal matrix. */
+static refl_result refl__sb_mirrors_build(refl__sb_mirrors *mi, const refl_scene *scene) {
+    const refl_allocator *al = &scene->allocator;
+    refl_scene sub;
+    refl_object *objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    refl_result r = REFL_OK;
+    int i, n = 0;
+    mi->object = (int *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    mi->normal_m = (refl_mat4 *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_mat4));
+    if (!objs || !mi->object || !mi->normal_m) {
+        refl__free(al, objs);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i) {
+        refl_mat4 xf = scene->objects[i].transform;
+        mi->normal_m[i] = refl__normal_matrix(xf);
+        if (!refl__sb_goes_on(&scene->materials[scene->objects[i].material])) continue;
+        mi->object[n] = i;
+        objs[n++] = scene->objects[i];
+    }
+    sub = *scene;
+    sub.objects = objs;
+    sub.object_count = n;
+    if (n) r = refl_bvh_build(&sub, al, &mi->bvh);
+    refl__free(al, objs);
+    return r;
+}
+
+static void refl__sb_mirrors_free(refl__sb_mirrors *mi, const refl_allocator *al) {
+    refl_bvh_destroy(mi->bvh);
+    refl__free(al, mi->object);
+    refl__free(al, mi->normal_m);
+    memset(mi, 0, sizeof *mi);
+}
+
+static void refl__sb_samples_free(refl__sb_samples *s, const refl_allocator *al) {
+    refl__free(al, s->id);
+    refl__free(al, s->refr);
+    refl__free(al, s->side);
+    memset(s, 0, sizeof *s);
+}
+
+/* The higher layers' sides (the paper's reflection groups AB, ABA, ...
+   and refractions through glass): every sample's history traced through
+   the mirrors and glass alone, one side per history sampled (at most
+   REFL__SB_HISTORIES; in sample order, so the same for any thread
+   count), then their ray maps and pieces, a layer at a time (a piece lies
+   within its parent's). */
+static refl_result refl__sb_histories(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
+    refl_result r;
+    int i, n, k, first, longest = 1, refr = 0, cap = sb->side_count + REFL__SB_HISTORIES;
+    if ((r = refl__sb_mirrors_build(&sb->mirrors, sb->p->scene)) != REFL_OK || !sb->mirrors.bvh) return r;
+    sb->samples.id = (float *)refl__calloc(al, (size_t)sb->budget * count, sizeof(float));
+    sb->samples.refr = (uint8_t *)refl__calloc(al, count, 1);
+    sb->samples.side = (int *)refl__calloc(al, (size_t)(sb->budget + 1) * count, sizeof(int));
+    if (!sb->samples.id || !sb->samples.refr || !sb->samples.side) return REFL_ERROR_OUT_OF_MEMORY;
+    /* every sample's first side, then its history */
+    for (m = 0; m < (size_t)(sb->budget + 1) * count; ++m) sb->samples.side[m] = -1;
+    for (i = 0; i < sb->side_count; ++i)
+        for (m = 0; m < count; ++m)
+            if (sb->sides[i].valid[m]) sb->samples.side[m] = i;
+    sb->orders = sb->budget;
+    rast_run_jobs(sb->p->rc, sb->map_h, refl__sb_sample_row, sb);
+    for (k = 1; k < sb->budget; ++k)
+        for (m = 0; m < count; ++m) {
+            int parent = sb->samples.side[(size_t)(k - 1) * count + m], s;
+            float id = sb->samples.id[(size_t)k * count + m];
+            if (parent < 0 || id == 0.0f) continue;
+            if ((s = refl__sb_find_side(sb, parent, id, 0)) < 0 && sb->side_count < cap) {
+                refl__sb_side *sd = &sb->sides[s = sb->side_count++];
+                sd->object = (int)fabsf(id) - 1;
+                sd->id = id;
+                sd->order = k + 1;
+                sd->layer = k;
+                sd->parent = parent;
+            }
+            sb->samples.side[(size_t)k * count + m] = s;
+            if (s >= 0) longest = k + 1;
+        }
+    /* the refractions' layer follows the longest history's */
+    sb->orders = longest;
+    for (m = 0; m < count; ++m) {
+        int parent = sb->samples.side[m], s;
+        if (!sb->samples.refr[m] || parent < 0) continue;
+        if ((s = refl__sb_find_side(sb, parent, 0.0f, sb->samples.refr[m])) < 0 && sb->side_count < cap) {
+            refl__sb_side *sd = &sb->sides[s = sb->side_count++];
+            sd->object = sb->sides[parent].object;
+            sd->id = sb->sides[parent].id;
+            sd->order = 1;
+            sd->layer = longest;
+            sd->parent = parent;
+            sd->kind = sb->samples.refr[m];
+        }
+        sb->samples.side[(size_t)longest * count + m] = s;
+        refr |= s >= 0;
+    }
+    sb->layers = longest + refr;
+    for (k = 1; k < sb->layers; ++k) {
+        for (first = 0; first < sb->side_count && sb->sides[first].layer != k; ++first) {}
+        for (n = first; n < sb->side_count && sb->sides[n].layer == k; ++n) {}
+        if ((r = refl__sb_map_sides(sb, first, n)) != REFL_OK) return r;
+    }
+    return REFL_OK;
+}
+
+/* ---- the sides seen ---- */
+
+/* The sides seen (reflector objects and sides with a pixel; a front drawn
+   from a morphing grid has none), their ray maps and pieces; past the
+   first order, the histories' sides too. */
+static refl_result refl__sb_ray_maps(refl__sb *sb) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_frame *fr = sb->p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
+    uint8_t *sides = (uint8_t *)refl__calloc(al, (size_t)scene->object_count, 1);
+    refl_result r;
+    int i, side;
+    if (!sides) return REFL_ERROR_OUT_OF_MEMORY;
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em->gbuf[4 * k + 3];
+        int o = (int)fabsf(id) - 1;
+        if (o >= 0 && o < scene->object_count) sides[o] |= (uint8_t)(id > 0.0f ? 1 : 2);
+    }
+    sb->sides = (refl__sb_side *)refl__calloc(al, 2 * (size_t)scene->object_count + REFL__SB_HISTORIES,
+                                              sizeof(refl__sb_side));
+    if (!sb->sides) {
+        refl__free(al, sides);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count; ++i)
+        for (side = 0; side < 2; ++side)
+            if ((sides[i] & (1 << side)) && !(side == 0 && refl__sb_morph_for(sb->p, i))) {
+                refl__sb_side *sd = &sb->sides[sb->side_count++];
+                sd->object = i;
+                sd->id = side ? -(float)(i + 1) : (float)(i + 1);
+                sd->order = 1;
+                sd->parent = -1;
+            }
+    refl__free(al, sides);
+    sb->sides1 = sb->side_count;
+    if ((r = refl__sb_map_sides(sb, 0, sb->side_count)) != REFL_OK) return r;
+    if (sb->budget > 1) {
+        r = refl__sb_histories(sb);
+        refl__sb_samples_free(&sb->samples, al); /* read by the histories alone */
+    }
+    return r;
+}
+
+static void refl__sb_ray_maps_free(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i;
+    for (i = 0; sb->sides && i < sb->side_count; ++i) {
+        refl__free(al, sb->sides[i].rays);
+        refl__free(al, sb->sides[i].valid);
+        refl__free(al, sb->sides[i].hits);
+        refl__free(al, sb->sides[i].normals);
+        refl__free(al, sb->sides[i].comp);
+        refl__free(al, sb->sides[i].group);
+        refl__free(al, sb->sides[i].crossing);
+    }
+    refl__free(al, sb->sides);
+    refl__sb_mirrors_free(&sb->mirrors, al);
+    refl__sb_samples_free(&sb->samples, al);
+}
+/* ---- src/reflect/sbc_groups.c ---- */
+/* sbc_groups: SBC's reflection groups (paper 003 IV, and VII-C's pieces
+   "whose rays do not intersect"; docs/methods/sbc.md, "2. Reflection
+   groups"). Per side seen, the ray map is cut into pieces: neighbouring
+   samples stay together when no gap lies between them (one surface
+   passing in front of another: the handle before the body), their normals
+   turn by less than 45 degrees (no crease: the knob on the lid), and
+   either both or neither of their rays cross a neighbour's before its head
+   (a concave groove focuses them). A group is a piece within a tile of
+   REFL__SB_TILE samples, with one ring of rays extrapolated around it,
+   diagonals included, so its frustums reach past the piece's edge: the
+   paper's "extended reflectors". Each group is a BSP tree of pinhole
+   cameras (cam_sbc.c) built to the requested error in desired-view pixels;
+   pieces whose rays do not cross end mostly in pinhole leaves, focusing
+   ones in ray lists. A pixel belongs to the group of the nearest sample on
+   its own smooth surface. Past the first order a side's pieces lie within
+   its parent's and its ring continues the rays linearly; groups come in
+   layers (order k; the refractions last) and a pixel belongs, in each layer
+   its own history reaches, to the group of the nearest sample on its
+   surface with that history.
+
+   Reflection morphing (section VI): a reflector the caller hands a
+   prebuilt grid for (desc.sbc.morphs, cam_sbc_morph.c) has no ray map or
+   groups of its front side; a group per piece of the grid stands in, its
+   pixels those of the piece their view ray meets, reflecting once (the
+   first order only). Its sheets are the most its nodes' cameras have. */
+
+#define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
+#define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
    surface (refl__sbc_smooth). */
@@ -13146,27 +13560,6 @@ static void refl__sb_pieces(const refl__sb *sb, refl__sb_side *sd) {
             }
     for (m = 0; m < mw * mh; ++m)
         if (sd->comp[m] >= 0) sd->comp[m] = refl__sbc_root(sd->comp, m);
-}
-
-/* Side i's ray map and pieces (a job: sides map in parallel). */
-static void refl__sb_map_side(void *arg, int job) {
-    refl__sb *sb = (refl__sb *)arg;
-    const refl_allocator *al = &sb->p->scene->allocator;
-    int i = sb->map_first + job;
-    refl__sb_side *sd = &sb->sides[i];
-    size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
-    sd->normals = (refl_vec3 *)refl__calloc(al, n, sizeof(refl_vec3));
-    sd->rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
-    sd->hits = (refl__sbc_hit *)refl__calloc(al, n, sizeof(refl__sbc_hit));
-    sd->valid = (uint8_t *)refl__calloc(al, n, 1);
-    sd->comp = (int *)refl__calloc(al, n, sizeof(int));
-    sd->group = (int *)refl__calloc(al, n, sizeof(int));
-    sd->crossing = (uint8_t *)refl__calloc(al, n, 1);
-    if (sd->normals && sd->rays && sd->hits && sd->valid && sd->comp && sd->group && sd->crossing) {
-        if (sd->layer) refl__sb_ray_map_higher(sb, sd, i);
-        else refl__sb_ray_map(sb, sd);
-        refl__sb_pieces(sb, sd);
-    }
 }
 
 /* A higher layer's ring ray m (window mw x mh): continued linearly from
@@ -13245,7 +13638,7 @@ static void refl__sb_box_add(refl_vec3 *lo, refl_vec3 *hi, refl_vec3 p) {
     hi->x = REFL__MAX(hi->x, p.x); hi->y = REFL__MAX(hi->y, p.y); hi->z = REFL__MAX(hi->z, p.z);
 }
 
-static int refl__sbc_hit_before(const refl__sbc_hit *a, const refl__sbc_hit *b) {
+static int refl__sb_hit_before(const refl__sbc_hit *a, const refl__sbc_hit *b) {
     return a->object < b->object || (a->object == b->object && a->triangle < b->triangle);
 }
 
@@ -13258,7 +13651,7 @@ static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
         for (i = 0; i < n; i += 2 * width) {
             int l = i, m = REFL__MIN(i + width, n), r = m, e = REFL__MIN(i + 2 * width, n), o = i;
             while (l < m || r < e)
-                dst[o++] = r >= e || (l < m && !refl__sbc_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
+                dst[o++] = r >= e || (l < m && !refl__sb_hit_before(&src[r], &src[l])) ? src[l++] : src[r++];
         }
         t = src; src = dst; dst = t;
     }
@@ -13307,7 +13700,7 @@ static void refl__sb_build_group(void *arg, int g) {
             if (hits[k].object >= 0) hits[met++] = hits[k]; /* k >= met: nothing unread is overwritten */
         }
         /* a quarter of its size around: ray lists reach past the heads,
-           cameras below the tails (see cam_sbc.c) */
+           cameras below the tails (cam_sbc_raylist.c, cam_sbc_fit.c) */
         grow = refl_v3_add(refl_v3_scale(refl_v3_sub(gr->hi, gr->lo), 0.25f),
                            refl_v3(1e-4f * sb->diagonal, 1e-4f * sb->diagonal, 1e-4f * sb->diagonal));
         gr->lo = refl_v3_sub(gr->lo, grow);
@@ -13343,6 +13736,342 @@ static void refl__sb_build_group(void *arg, int g) {
     refl__free(al, hits);
     refl__free(al, valid);
 }
+
+/* Pixel k's group in side sdk, whose samples are samples of sd, the
+   side the pixel shows (sdk == sd in the first layer): that of the nearest
+   sample on the pixel's own smooth piece of surface, else of the sample
+   nearby whose point lies nearest the pixel's; -1: none. */
+static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_side *sd, const refl__sb_side *sdk) {
+    const refl_frame *fr = sb->p->frame;
+    int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width), du, dv, best = -1, near = -1, u, v;
+    float best_d2 = INFINITY, near_d2 = INFINITY;
+    refl_vec3 q = refl_v3(sb->em->surface[3 * k], sb->em->surface[3 * k + 1], sb->em->surface[3 * k + 2]);
+    refl_vec3 n = refl_v3_normalize(refl_v3(sb->em->gbuf[4 * k], sb->em->gbuf[4 * k + 1], sb->em->gbuf[4 * k + 2]));
+    u = x / sb->factor;
+    v = y / sb->factor;
+    for (dv = -2; dv <= 2; ++dv)
+        for (du = -2; du <= 2; ++du) {
+            int us = u + du, vs = v + dv, sx, sy;
+            size_t m;
+            refl_vec3 e;
+            float d2, l, p2;
+            if (us < 0 || vs < 0 || us >= sb->map_w || vs >= sb->map_h) continue;
+            m = (size_t)vs * (size_t)sb->map_w + (size_t)us;
+            if (!sdk->valid[m]) continue;
+            e = refl_v3_sub(sd->rays[m].tail, q);
+            d2 = refl_v3_dot(e, e);
+            l = sqrtf(d2);
+            if (d2 < near_d2) {
+                near_d2 = d2;
+                near = sdk->group[m];
+            }
+            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SBC_SMOOTH_COS ||
+                fabsf(refl_v3_dot(n, e)) > REFL__SBC_SMOOTH_SIN * l ||
+                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SBC_SMOOTH_SIN * l)
+                continue;
+            refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
+            p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
+            if (p2 < best_d2) {
+                best_d2 = p2;
+                best = sdk->group[m];
+            }
+        }
+    return best >= 0 ? best : near;
+}
+
+/* Row y's pixels' groups in the layers past the first: each pixel's own
+   history traced (refl__sb_trace_path), each order's side found, and the
+   pixel's group there (refl__sb_pixel_group). */
+static void refl__sb_assign_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl_frame *fr = sb->p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    int x, k, l;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        int side = sb->group_of[i] ? sb->groups[sb->group_of[i] - 1].side : -1, s;
+        refl_vec3 d, q, n;
+        refl__sb_path pa;
+        refl__sb_refr rp;
+        for (l = 1; l < sb->layers; ++l) sb->group_of[(size_t)l * npx + i] = 0;
+        if (side < 0) continue;
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        refl__sb_trace_path(sb, q, n, d, sb->em->gbuf[4 * i + 3], &pa);
+        for (s = side, k = 1; k < pa.count && s >= 0; ++k)
+            if ((s = refl__sb_find_side(sb, s, pa.id[k], 0)) >= 0)
+                sb->group_of[(size_t)k * npx + i] = refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
+        if (sb->layers > sb->orders && (k = refl__sb_refract_path(sb, q, n, d, sb->em->gbuf[4 * i + 3], &rp)) > 0 &&
+            (s = refl__sb_find_side(sb, side, 0.0f, k)) >= 0)
+            sb->group_of[(size_t)sb->orders * npx + i] =
+                refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
+    }
+}
+
+/* The groups: each side's pieces cut by tiles of sb->tile samples (the
+   tile side doubles, up to REFL__SB_TILE_MAX, while there are more than a
+   batch: REFL__SB_BATCH), and each pixel's group. */
+static refl_result refl__sb_groups(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    const refl_frame *fr = sb->p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
+    int *seen, i, pass, u, v, tu, tv;
+    /* count the groups (a tile's pieces), doubling the tile until they
+       fit a batch (fewer groups, fewer projections) or the tile reaches
+       REFL__SB_TILE_MAX (more batches then); then list them, each sample
+       noting its group. */
+    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
+    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
+    for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
+        int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
+        int largest = sb->tile >= REFL__SB_TILE_MAX;
+        for (pass = 0; pass < 2; ++pass) {
+            sb->group_count = 0;
+            for (i = 0; i < sb->side_count; ++i)
+                for (tv = 0; tv < th; ++tv)
+                    for (tu = 0; tu < tw; ++tu) {
+                        refl__sb_side *sd = &sb->sides[i];
+                        int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
+                        int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
+                        for (v = vv0; v < vv1; ++v)
+                            for (u = uu0; u < uu1; ++u) {
+                                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                                int gi = 0;
+                                if (!sd->valid[m]) continue;
+                                while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
+                                sd->group[m] = first + gi;
+                                if (gi < nseen) continue;
+                                seen[nseen++] = sd->comp[m];
+                                if (pass) {
+                                    refl__sb_group *g = &sb->groups[sb->group_count];
+                                    g->side = i;
+                                    g->object = sd->object;
+                                    g->comp = sd->comp[m];
+                                    g->u0 = uu0;
+                                    g->v0 = vv0;
+                                    g->u1 = uu1;
+                                    g->v1 = vv1;
+                                }
+                                sb->group_count++;
+                            }
+                    }
+            if (sb->group_count > REFL__SB_BATCH && !largest) break;
+            if (!pass) {
+                sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
+                                                            sizeof(refl__sb_group));
+                if (!sb->groups) {
+                    refl__free(al, seen);
+                    return REFL_ERROR_OUT_OF_MEMORY;
+                }
+            }
+        }
+        if (pass == 2) break;
+    }
+    refl__free(al, seen);
+    sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
+    if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
+    /* each pixel's group in the first layer; the others' by rows */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em->gbuf[4 * k + 3];
+        const refl__sb_side *sd = NULL;
+        sb->group_of[k] = 0;
+        for (i = 0; id != 0.0f && i < sb->side_count && sb->sides[i].order == 1 && !sb->sides[i].kind; ++i)
+            if (sb->sides[i].id == id) sd = &sb->sides[i];
+        if (sd) sb->group_of[k] = refl__sb_pixel_group(sb, k, sd, sd) + 1;
+    }
+    if (sb->layers > 1) rast_run_jobs(sb->p->rc, fr->height, refl__sb_assign_row, sb);
+    return REFL_OK;
+}
+
+/* ---- reflection morphing (paper 003 VI): groups backed by prebuilt grids ---- */
+
+/* The caller's grid for object o whose tetrahedra hold the eye, or NULL. */
+static const refl_sbc_morph *refl__sb_morph_for(const refl__pass *p, int o) {
+    int k, nodes[4];
+    float w[4];
+    for (k = 0; k < p->desc.sbc.morph_count; ++k) {
+        const refl_sbc_morph *m = p->desc.sbc.morphs[k];
+        if (m && refl_sbc_morph_object(m) == o)
+            return refl_sbc_morph_locate(m, p->view->eye, nodes, w) >= 0 ? m : NULL;
+    }
+    return NULL;
+}
+
+/* Row y's front pixels of objects drawn from grids: the group of the
+   piece their view ray meets (a job per row). */
+static void refl__sb_morph_row(void *arg, int y) {
+    refl__sb *sb = (refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    int x, W = p->frame->width;
+    for (x = 0; x < W; ++x) {
+        size_t i = (size_t)y * (size_t)W + (size_t)x;
+        float id = sb->em->gbuf[4 * i + 3], tmax;
+        int o = (int)id - 1, piece;
+        refl_vec3 org, d;
+        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
+        piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
+        sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
+    }
+}
+
+/* Adds a group per piece of every grid in use whose object shows its
+   front (after the frame's own groups are built) after the first layer's
+   groups (batches go layer by layer), and gives them their pixels. */
+static refl_result refl__sb_morph_groups(refl__sb *sb) {
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
+    int o, add = 0, piece, ins = 0, i;
+    refl__sb_group *groups;
+    refl__sbc_hit *scratch;
+    sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
+    if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
+    for (k = 0; k < npx; ++k) {
+        float id = sb->em->gbuf[4 * k + 3];
+        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
+    }
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
+        refl_sbc_morph_stats st;
+        sb->morph_base[o] = -1;
+        if (!m) continue;
+        refl_sbc_morph_get_stats(m, &st);
+        sb->morph_base[o] = add; /* from the insertion point, set below */
+        add += st.pieces;
+        p->frame->stats.model_bytes += st.bytes;
+    }
+    if (!add) return REFL_OK;
+    while (ins < sb->group_count && !sb->sides[sb->groups[ins].side].layer) ++ins;
+    for (o = 0; o < scene->object_count; ++o)
+        if (sb->morph_base[o] >= 0) sb->morph_base[o] += ins;
+    groups = (refl__sb_group *)refl__calloc(al, (size_t)(sb->group_count + add), sizeof(refl__sb_group));
+    if (!groups) return REFL_ERROR_OUT_OF_MEMORY;
+    if (ins) memcpy(groups, sb->groups, (size_t)ins * sizeof(refl__sb_group));
+    if (sb->group_count > ins)
+        memcpy(groups + ins + add, sb->groups + ins, (size_t)(sb->group_count - ins) * sizeof(refl__sb_group));
+    refl__free(al, sb->groups);
+    sb->groups = groups;
+    /* the later layers' groups moved on by `add`: their samples' and pixels' indices too */
+    for (i = 0; i < sb->side_count; ++i) {
+        refl__sb_side *sd = &sb->sides[i];
+        size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
+        if (!sd->layer) continue;
+        for (k = 0; k < n; ++k)
+            if (sd->group[k] >= ins) sd->group[k] += add;
+    }
+    for (k = npx; k < (size_t)sb->layers * npx; ++k)
+        if (sb->group_of[k] > ins) sb->group_of[k] += add;
+    for (o = 0; o < scene->object_count; ++o) {
+        const refl_sbc_morph *m = sb->morph_base[o] < 0 ? NULL : refl__sb_morph_for(p, o);
+        refl_sbc_morph_stats st;
+        refl_sbc_morph_get_stats(m, &st);
+        for (piece = 0; piece < st.pieces; ++piece) {
+            refl__sb_group *g = &groups[sb->morph_base[o] + piece];
+            g->side = -1;
+            g->object = o;
+            g->morph = m;
+            g->piece = piece;
+            refl_sbc_morph_locate(m, p->view->eye, g->morph_nodes, g->morph_w); /* refl__sb_morph_for found it */
+            g->sheets = refl__sbm_piece_sheets(m, g->morph_nodes, g->morph_w, piece);
+            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
+            /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
+            g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
+            if (!g->hit_count) continue;
+            g->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            scratch = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
+            if (g->hits && scratch) {
+                refl__sbm_tet_hits(m, p->view->eye, piece, scratch);
+                refl__sb_sort_hits(scratch, g->hits, g->hit_count);
+            }
+            refl__free(al, scratch);
+            if (!g->hits) {
+                sb->group_count += add; /* freed with the others */
+                return REFL_ERROR_OUT_OF_MEMORY;
+            }
+        }
+    }
+    sb->group_count += add;
+    rast_run_jobs(p->rc, p->frame->height, refl__sb_morph_row, sb);
+    return REFL_OK;
+}
+
+static void refl__sb_groups_free(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i;
+    for (i = 0; sb->groups && i < sb->group_count; ++i) {
+        refl_sbc_destroy(sb->groups[i].sbc);
+        refl__free(al, sb->groups[i].hits);
+    }
+    refl__free(al, sb->groups);
+    refl__free(al, sb->group_of);
+    refl__free(al, sb->morph_base);
+}
+/* ---- src/reflect/sbc_project.c ---- */
+/* sbc_project: SBC's projection and triangle emission (paper 003 V-A and
+   V-B; docs/methods/sbc.md, "3. Projection" and "4. Rasterisation"), a
+   batch of groups at a time (the stencil's values: sbc_draw.c draws them).
+
+   Every vertex of every object inside a group's box (its rays' tails and
+   heads, grown by a quarter) is projected into the group
+   (refl_sbc_project_sheets), moving it to its first reflector point, which
+   must lie in the group's box too (a leaf's map far outside its rays sends
+   points anywhere); the window depth is the paper's visibility offset
+   (k - 1 + z/D) g for order k, in a depth buffer of the reflections' own, z
+   measured as the distance from the vertex to its first reflector point
+   (consistent across leaves, where each leaf's image-plane height is not),
+   past the first order to the last reflector point (the tail of the
+   history's sample it lands on). g = 1 / k_max of the window range, k_max
+   the longest history sampled: the paper's g = D / (k_max + 1) with yon at
+   2D spends it alike, and k_max = 1 keeps z/D. A group whose rays fold
+   (cam_sbc_raylist.c's sheets, at most three) projects every vertex into
+   each sheet at once and emits each sheet's triangles apart: a point seen
+   twice in a focusing mirror shows twice. A vertex with no image in a sheet
+   takes its image one fold away (the sheets meet at the fold), and a
+   triangle with such vertices is split as a mixed one and drawn only when
+   no wider than REFL__SB_FOLD_SAMPLES samples: wider, it spans the caustic,
+   where the two sheets' images part.
+
+   A reflected triangle is drawn when all three vertices project; one
+   outside the group's box is dropped whole. Triangles are subdivided in
+   four, at most REFL__SB_LEVELS times: always while an edge is longer than
+   1/32 of the scene's diagonal (the paper's pre-subdivision, per frame),
+   while mixed (one or two vertices project; the paper's fix for jagged
+   edges; at most desc.sbc.mixed_levels times, unless the part holds a
+   point where one of the group's rays meets the triangle), while no vertex
+   projects but such a point lies inside (a group narrower than the
+   triangle), and while an edge's projected midpoint lies more than
+   REFL__SB_EDGE_PX from the midpoint of its projected ends (the
+   straight-edge error the paper bounds by pre-subdividing). The
+   reflector's own triangles project too (the knob seen in the lid), except
+   the surface the rays leave (refl__sb_own_surface). A morphing grid's
+   group projects through the eye's tetrahedron of nodes, blended, with no
+   ray map of this frame to check against. */
+
+#define REFL__SB_EDGE_PX 0.5f       /* straight-edge error that splits a reflected triangle */
+#define REFL__SB_LEVELS 6           /* subdivisions of a scene triangle at most */
+#define REFL__SB_CHUNK 256          /* scene triangles per emission job */
+#define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
+#define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
+#define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
+
+/* Subdivision midpoints a job has projected: an edge shared by two
+   triangles (the split's inner edges, neighbours in the mesh) is split
+   by both, and its midpoint projects alike (the same world position,
+   group and sheet). Direct-mapped by the edge's ends, compared exactly, so
+   a hit is what projecting again would give, bit for bit. */
+#define REFL__SB_MEMO 512
+typedef struct refl__sb_memo {
+    uint8_t used[REFL__SB_MEMO];
+    struct {
+        refl_vec3 ends[2];        /* the edge's ends, the lesser bytes first */
+        refl__sb_pv mid;
+    } entry[REFL__SB_MEMO];
+} refl__sb_memo;
+
+/* Whether g projects: a tree of this frame or a morph's piece. */
+static int refl__sb_live(const refl__sb_group *g) { return g->sbc != NULL || g->morph != NULL; }
 
 /* Whether box [a, b] (any two corners' extremes) meets box [lo, hi]. */
 static int refl__sb_in_box(refl_vec3 lo, refl_vec3 hi, refl_vec3 a, refl_vec3 b) {
@@ -13471,7 +14200,7 @@ static void refl__sb_base_object(void *arg, int o) {
     refl__sb *sb = (refl__sb *)arg;
     const refl_object *obj = &sb->p->scene->objects[o];
     const refl_mesh *m = sb->p->scene->meshes[obj->mesh];
-    refl__sb_pv *out = sb->base[o];
+    refl__sb_pv *out = sb->batch.base[o];
     refl_mat4 normal_m = refl__normal_matrix(obj->transform);
     int i;
     for (i = 0; i < m->vertex_count; ++i) {
@@ -13488,11 +14217,11 @@ static void refl__sb_base_object(void *arg, int o) {
 static void refl__sb_project_object(void *arg, int index) {
     refl__sb *sb = (refl__sb *)arg;
     const refl_allocator *al = &sb->p->scene->allocator;
-    int g = sb->batch0 + index / sb->p->scene->object_count, o = index % sb->p->scene->object_count, i, k;
+    int g = sb->batch.first + index / sb->p->scene->object_count, o = index % sb->p->scene->object_count, i, k;
     int vc = sb->p->scene->meshes[sb->p->scene->objects[o].mesh]->vertex_count, sheets;
     const refl__sb_group *gr = &sb->groups[g];
-    const refl__sb_pv *base = sb->base[o];
-    refl__sb_slot *slot = &sb->slots[index];
+    const refl__sb_pv *base = sb->batch.base[o];
+    refl__sb_slot *slot = &sb->batch.slots[index];
     refl__sb_pv v[REFL__SB_SHEETS];
     if (!refl__sb_live(gr)) return;
     sheets = REFL__MAX(gr->sheets, 1);
@@ -13693,11 +14422,11 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
 
 static void refl__sb_emit_job(void *arg, int index) {
     refl__sb *sb = (refl__sb *)arg;
-    refl__sb_job *j = &sb->jobs[index];
+    refl__sb_job *j = &sb->batch.jobs[index];
     const refl_scene *scene = sb->p->scene;
     const refl_mesh *m = scene->meshes[scene->objects[j->object].mesh];
-    const refl__sb_slot *slot = &sb->slots[(j->group - sb->batch0) * scene->object_count + j->object];
-    const refl__sb_pv *base = sb->base[j->object], *pv = slot->pv[j->sheet], *v[3];
+    const refl__sb_slot *slot = &sb->batch.slots[(j->group - sb->batch.first) * scene->object_count + j->object];
+    const refl__sb_pv *base = sb->batch.base[j->object], *pv = slot->pv[j->sheet], *v[3];
     const refl__sb_group *g = &sb->groups[j->group];
     int lo = 0, hi = g->hit_count, tr;
     refl__sb_tri t;
@@ -13736,35 +14465,150 @@ static void refl__sb_emit_job(void *arg, int index) {
     j->memo = NULL;
 }
 
-/* The targets of draw pass `pass`: 0 the reflections' colour, 1 their
+/* Projection and emission jobs of the batch's groups, run. */
+static refl_result refl__sb_project_all(refl__sb *sb) {
+    const refl_scene *scene = sb->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int pairs = (sb->batch.end - sb->batch.first) * scene->object_count, i, g, o, t, k, n = 0;
+    if (!sb->batch.base) { /* the first batch: every object's vertices in the world, once */
+        sb->batch.base =
+            (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__sb_pv *));
+        if (!sb->batch.base) return REFL_ERROR_OUT_OF_MEMORY;
+        for (o = 0; o < scene->object_count; ++o) {
+            int vc = scene->meshes[scene->objects[o].mesh]->vertex_count;
+            sb->batch.base[o] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(vc, 1), sizeof(refl__sb_pv));
+            if (!sb->batch.base[o]) return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        rast_run_jobs(sb->p->rc, scene->object_count, refl__sb_base_object, sb);
+    }
+    sb->batch.slots = (refl__sb_slot *)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_slot));
+    if (!sb->batch.slots) return REFL_ERROR_OUT_OF_MEMORY;
+    rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
+    for (i = 0; i < pairs; ++i) {
+        const refl__sb_slot *slot = &sb->batch.slots[i];
+        int v;
+        if (slot->failed) return REFL_ERROR_OUT_OF_MEMORY;
+        if (!slot->index) continue; /* no tree */
+        sb->p->frame->stats.sbc.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
+        for (v = 0; v < slot->count; ++v) { /* a vertex projects into every sheet at once */
+            int ok = 0;
+            for (k = 0; k < REFL__SB_SHEETS && slot->pv[k]; ++k) ok |= slot->pv[k][v].ok;
+            sb->p->frame->stats.sbc.projected += ok;
+            sb->p->frame->stats.sbc.ambiguous += slot->pv[0][v].ambiguous;
+        }
+    }
+    for (g = sb->batch.first; g < sb->batch.end; ++g)
+        for (o = 0; o < scene->object_count; ++o)
+            n += REFL__MAX(sb->groups[g].sheets, 1) *
+                 ((scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK);
+    sb->batch.jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
+    if (!sb->batch.jobs) return REFL_ERROR_OUT_OF_MEMORY;
+    for (g = sb->batch.first; g < sb->batch.end; ++g) {
+        if (!refl__sb_live(&sb->groups[g])) continue;
+        for (o = 0; o < scene->object_count; ++o) {
+            int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
+            for (k = 0; k < REFL__MAX(sb->groups[g].sheets, 1); ++k)
+                for (t = 0; t < tc; t += REFL__SB_CHUNK) {
+                    refl__sb_job *j = &sb->batch.jobs[sb->batch.job_count++];
+                    j->group = g;
+                    j->object = o;
+                    j->sheet = k;
+                    j->first = t;
+                    j->count = REFL__MIN(REFL__SB_CHUNK, tc - t);
+                }
+        }
+    }
+    rast_run_jobs(sb->p->rc, sb->batch.job_count, refl__sb_emit_job, sb);
+    for (i = 0; i < sb->batch.job_count; ++i)
+        if (sb->batch.jobs[i].failed) return REFL_ERROR_OUT_OF_MEMORY;
+    return REFL_OK;
+}
+
+/* Frees the batch's projected vertices and emitted triangles. */
+static void refl__sb_batch_clear(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int pairs = (sb->batch.end - sb->batch.first) * sb->p->scene->object_count, i, k;
+    for (i = 0; sb->batch.slots && i < pairs; ++i) {
+        refl__free(al, sb->batch.slots[i].index);
+        for (k = 0; k < REFL__SB_SHEETS; ++k) refl__free(al, sb->batch.slots[i].pv[k]);
+    }
+    for (i = 0; sb->batch.jobs && i < sb->batch.job_count; ++i) refl__free(al, sb->batch.jobs[i].out);
+    refl__free(al, sb->batch.slots);
+    refl__free(al, sb->batch.jobs);
+    sb->batch.slots = NULL;
+    sb->batch.jobs = NULL;
+    sb->batch.job_count = 0;
+}
+
+static void refl__sb_batch_free(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    int i;
+    refl__sb_batch_clear(sb);
+    for (i = 0; sb->batch.base && i < sb->p->scene->object_count; ++i) refl__free(al, sb->batch.base[i]);
+    refl__free(al, sb->batch.base);
+    sb->batch.base = NULL;
+}
+/* ---- src/reflect/sbc_draw.c ---- */
+/* sbc_draw: SBC's reflected triangles drawn (paper 003 V-B;
+   docs/methods/sbc.md, "4. Rasterisation"), a batch of groups at a time:
+   by rast.h, twice (colour as DIRECT shades the surface, then its world
+   point; each pass with its depth buffer), stencilled to each group's
+   pixels. Layers are drawn in order, into one depth buffer; after order
+   k < k_max, where a mirror or glass (drawn transparent black) is nearest
+   the pixel is cleared: order k + 1 shows there, and nowhere an order-k
+   point lies in front (the visibility offset): lower orders occlude higher
+   ones. Refractions draw into targets of their own (they add to the
+   reflection, never hide it). */
+
+static refl_result refl__sb_canvas_create(refl__sb_canvas *c, const refl_allocator *al, size_t npx) {
+    c->color = (uint8_t *)refl__calloc(al, npx, 4);
+    c->depth = (float *)refl__calloc(al, npx, sizeof(float));
+    c->points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    c->points_depth = (float *)refl__calloc(al, npx, sizeof(float));
+    return c->color && c->depth && c->points && c->points_depth ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+}
+
+static void refl__sb_canvas_free(refl__sb_canvas *c, const refl_allocator *al) {
+    refl__free(al, c->color);
+    refl__free(al, c->depth);
+    refl__free(al, c->points);
+    refl__free(al, c->points_depth);
+    memset(c, 0, sizeof *c);
+}
+
+/* The targets of draw pass `pass` into canvas c: 0 the colour, 1 the
    points, each with its own depth buffer (the batch draws both passes). */
-static rast_targets refl__sb_targets(const refl__sb *sb, int pass) {
+static rast_targets refl__sb_targets(const refl__sb *sb, const refl__sb_canvas *c, int pass) {
     const refl_frame *fr = sb->p->frame;
-    int refr = sb->layer >= sb->orders; /* the refraction layer draws apart */
     rast_targets t;
     memset(&t, 0, sizeof t);
     t.color.width = t.depth.width = t.stencil.width = fr->width;
     t.color.height = t.depth.height = t.stencil.height = fr->height;
-    t.depth.ptr = refr ? (pass ? sb->refr_points_depth : sb->refr_depth) : pass ? sb->points_depth : sb->depth;
+    t.depth.ptr = pass ? c->points_depth : c->depth;
     t.depth.stride = (int)sizeof(float) * fr->width;
     t.stencil.ptr = sb->stencil;
     t.stencil.stride = fr->width;
-    t.color.ptr = refr ? (pass ? (void *)sb->refr_points : (void *)sb->refr_color)
-                       : pass ? (void *)sb->points : (void *)sb->color;
+    t.color.ptr = pass ? (void *)c->points : (void *)c->color;
     t.color.stride = pass ? 4 * (int)sizeof(float) * fr->width : 4 * fr->width;
     t.color_format = pass ? RAST_COLOR_RGBA32F : RAST_COLOR_RGBA8;
     return t;
 }
 
-/* Clears both passes' colour and depth, once before the batches (the
-   refraction layer's too, when there is one). */
-static refl_result refl__sb_clear(refl__sb *sb) {
+/* The reflections' targets, and the refraction layer's when there is one,
+   and the stencil, made; both passes' colour and depth cleared, once
+   before the batches. */
+static refl_result refl__sb_draw_begin(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    refl_result r = refl__sb_canvas_create(&sb->drawn, al, npx);
     rast_result rr = RAST_OK;
     int pass;
+    sb->stencil = (uint8_t *)refl__calloc(al, npx, 1);
+    if (!sb->stencil) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK && sb->layers > sb->orders) r = refl__sb_canvas_create(&sb->refr, al, npx);
+    if (r != REFL_OK) return r;
     for (pass = 0; pass < (sb->layers > sb->orders ? 4 : 2) && rr == RAST_OK; ++pass) {
-        rast_targets t;
-        sb->layer = pass < 2 ? 0 : sb->orders;
-        t = refl__sb_targets(sb, pass & 1);
+        rast_targets t = refl__sb_targets(sb, pass < 2 ? &sb->drawn : &sb->refr, pass & 1);
         if ((rr = rast_set_targets(sb->p->rc, &t)) == RAST_OK)
             rr = refl__em_clear(sb->p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH);
     }
@@ -13772,14 +14616,23 @@ static refl_result refl__sb_clear(refl__sb *sb) {
     return refl__result_from_rast(rr);
 }
 
+static void refl__sb_draw_end(refl__sb *sb) {
+    const refl_allocator *al = &sb->p->scene->allocator;
+    refl__sb_canvas_free(&sb->drawn, al);
+    refl__sb_canvas_free(&sb->refr, al);
+    refl__free(al, sb->stencil);
+    sb->stencil = NULL;
+}
+
 /* After the groups of order k < k_max: where a mirror or glass (drawn
    transparent black, alpha 0) is nearest, the reflection goes on there, so
    the order k + 1 draws may (they lie behind every order-k point, by the
    visibility offset); the mirror hid the order-k points behind it. */
 static void refl__sb_pass_through(refl__sb *sb) {
+    refl__sb_canvas *c = &sb->drawn;
     size_t k, npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     for (k = 0; k < npx; ++k)
-        if (sb->depth[k] < 1.0f && sb->color[4 * k + 3] == 0) sb->depth[k] = sb->points_depth[k] = 1.0f;
+        if (c->depth[k] < 1.0f && c->color[4 * k + 3] == 0) c->depth[k] = c->points_depth[k] = 1.0f;
 }
 
 /* The points pass's fragments: the world position and the object drawn
@@ -13815,14 +14668,14 @@ static refl_result refl__sb_draw(refl__sb *sb) {
         ids[i] = (float)(i + 1);
     }
     for (k = 0; k < npx; ++k) {
-        int g = sb->group_of[(size_t)sb->layer * npx + k] - 1;
-        sb->stencil[k] = (uint8_t)(g >= sb->batch0 && g < sb->batch1 ? g - sb->batch0 + 1 : 0);
+        int g = sb->group_of[(size_t)sb->batch.layer * npx + k] - 1;
+        sb->stencil[k] = (uint8_t)(g >= sb->batch.first && g < sb->batch.end ? g - sb->batch.first + 1 : 0);
     }
     for (pass = 0; pass < 2 && rr == RAST_OK; ++pass) {
-        rast_targets t = refl__sb_targets(sb, pass);
+        rast_targets t = refl__sb_targets(sb, sb->batch.layer >= sb->orders ? &sb->refr : &sb->drawn, pass);
         if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK) break;
-        for (i = 0; i < sb->job_count && rr == RAST_OK; ++i) {
-            const refl__sb_job *j = &sb->jobs[i];
+        for (i = 0; i < sb->batch.job_count && rr == RAST_OK; ++i) {
+            const refl__sb_job *j = &sb->batch.jobs[i];
             const refl__draw_ctx *d = &dc[j->object];
             rast_state s;
             rast_draw_desc dd;
@@ -13831,7 +14684,7 @@ static refl_result refl__sb_draw(refl__sb *sb) {
             s.depth_test = 1;
             s.stencil_test = 1;
             s.stencil_front.func = RAST_EQUAL;
-            s.stencil_front.ref = (uint8_t)(j->group - sb->batch0 + 1);
+            s.stencil_front.ref = (uint8_t)(j->group - sb->batch.first + 1);
             s.stencil_back = s.stencil_front;
             if (pass == 1) {
                 s.fragment_fn = refl__sb_point_fragment;
@@ -13858,22 +14711,33 @@ static refl_result refl__sb_draw(refl__sb *sb) {
     refl__free(&scene->allocator, ids);
     return refl__result_from_rast(rr);
 }
+/* ---- src/reflect/sbc_resolve.c ---- */
+/* sbc_resolve: SBC's composite (paper 003 V-D; docs/methods/sbc.md, "5.
+   Composite" and "The ray-traced fallback"). The reflected colour, or the
+   environment along the pixel's reflected ray where nothing was drawn,
+   times the material's reflectance (Schlick's Fresnel, or V-D's Fresnel
+   blend and distance fade, when the material asks), as ENVMAP composites;
+   glass adds the environment refracted once. A pixel of a group (of the
+   first layer) that nothing was drawn on, between two drawn pixels of its
+   group on opposite sides, is a crack (reflected triangles subdivided to
+   different depths meet at a T-junction) and takes the nearer one's
+   reflection (past the first order, the order with it). With
+   desc.sbc.trace_fallback (beyond the paper) a pixel still without a
+   reflection, or whose first-order point the samples around it contradict
+   (refl__sb_fallback), is rendered as RAYTRACE renders it (refl__rt_pixel)
+   when its reflected ray meets anything; mixed triangles are then not
+   split (sbc_project.c), their pixels traced.
 
-/* Frees the batch's projected vertices and emitted triangles. */
-static void refl__sb_free_batch(refl__sb *sb) {
-    const refl_allocator *al = &sb->p->scene->allocator;
-    int pairs = (sb->batch1 - sb->batch0) * sb->p->scene->object_count, i, k;
-    for (i = 0; sb->slots && i < pairs; ++i) {
-        refl__free(al, sb->slots[i].index);
-        for (k = 0; k < REFL__SB_SHEETS; ++k) refl__free(al, sb->slots[i].pv[k]);
-    }
-    for (i = 0; sb->jobs && i < sb->job_count; ++i) refl__free(al, sb->jobs[i].out);
-    refl__free(al, sb->slots);
-    refl__free(al, sb->jobs);
-    sb->slots = NULL;
-    sb->jobs = NULL;
-    sb->job_count = 0;
-}
+   Past the first order (refl__sb_resolve_row_deep): the nearest order's
+   colour (its order read off the offset), or the environment along the
+   last reflected ray, times the product of the reflectances along the
+   pixel's own history (each bounce as RAYTRACE weighs it, faded by its
+   reflected ray's length when the material asks); glass adds (1 - F) tint
+   times what the refraction layer drew (or the environment beyond the
+   glass), times (1 - F) at the exit and the absorption inside; reflections
+   inside the glass short of total are left out. frame->points: the first
+   point past the first reflector, as RAYTRACE's, or with
+   desc.debug.points_last the last. */
 
 /* Where pixel (x, y) of a group, with nothing drawn on it, takes its
    reflection from (past the first order, its order too): the nearer of two drawn pixels of its
@@ -13893,15 +14757,13 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
             int sx = x + (e ? -dir[k][0] : dir[k][0]), sy = y + (e ? -dir[k][1] : dir[k][1]);
             if (sx < 0 || sy < 0 || sx >= fr->width || sy >= fr->height) ok = 0;
             else side[e] = (size_t)sy * (size_t)fr->width + (size_t)sx;
-            ok = ok && sb->group_of[side[e]] == sb->group_of[i] && sb->depth[side[e]] < 1.0f;
+            ok = ok && sb->group_of[side[e]] == sb->group_of[i] && sb->drawn.depth[side[e]] < 1.0f;
         }
         for (e = 0; e < 2 && ok; ++e)
-            if (best == i || sb->depth[side[e]] < sb->depth[best]) best = side[e];
+            if (best == i || sb->drawn.depth[side[e]] < sb->drawn.depth[best]) best = side[e];
     }
     return best;
 }
-
-static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n);
 
 /* Pixel (x, y) under desc.sbc.trace_fallback (refl__sb_fallback): where
    its reflected ray (taken as the ray map's samples take it) meets
@@ -13919,9 +14781,9 @@ static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
     uint8_t stencil;
     int c;
     refl__sb_pixel_view(sb, i, &d, &q, &n);
-    sb->traced_rays[y]++;
+    sb->tracer.rays[y]++;
     if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
-    refl__rt_pixel(sb->tracer, x, y, &sb->traced_rays[y], rgb, &shown, &depth, &stencil);
+    refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
     for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
     fr->color[4 * i + 3] = 255;
     fr->points[3 * i] = shown.x;
@@ -13933,7 +14795,7 @@ static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
 /* Whether pixel i, of a group or not, shows nothing drawn (src: where
    its reflection comes from, itself or a crack's neighbour). */
 static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
-    return !(sb->group_of[i] && sb->depth[src] < 1.0f);
+    return !(sb->group_of[i] && sb->drawn.depth[src] < 1.0f);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
@@ -13944,19 +14806,17 @@ static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
    between the samples, the distance to what it shows is too, and lies
    between theirs; a point outside is a surface the samples do not see:
    the floor drawn below the lid's rim where the truth sees the teapot's
-   own surface (default 1920x1080 factor 4, mixed triangles split: mean
-   1.01 -> 0.69 px with the distances, 0.67 px and max 549 -> 441 px with
-   the objects too, 3% more rays). A thin object between the samples is
-   traced too: exact, at a ray's cost. */
+   own surface. A thin object between the samples is traced too: exact, at
+   a ray's cost. */
 static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
     const refl_frame *fr = sb->p->frame;
     const refl__sb_side *sd;
-    const float *shown = sb->points + 4 * src;
+    const float *shown = sb->drawn.points + 4 * src;
     int x = (int)(i % (size_t)fr->width), y = (int)(i / (size_t)fr->width), f = sb->factor, k;
     int u0 = (x - f / 2 + f) / f - 1, v0 = (y - f / 2 + f) / f - 1; /* the samples around it: u0, u0 + 1 */
     float lo = INFINITY, hi = 0.0f, d;
     int met_shown = 0, object = (int)shown[3] - 1;
-    refl_vec3 q = refl_v3(sb->em.surface[3 * i], sb->em.surface[3 * i + 1], sb->em.surface[3 * i + 2]);
+    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
     if (refl__sb_hole(sb, i, src)) return 1;
     if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
     sd = &sb->sides[sb->groups[sb->group_of[i] - 1].side];
@@ -13980,214 +14840,19 @@ static void refl__sb_resolve_row(void *arg, int y) {
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
         float sub[3];
-        if (sb->em.gbuf[4 * i + 3] == 0.0f) continue;
-        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->tracer && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
+        if (sb->em->gbuf[4 * i + 3] == 0.0f) continue;
+        if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
-            const float *q = sb->points + 4 * src;
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
-            refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
+            const float *q = sb->drawn.points + 4 * src;
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
         } else {
-            refl__em_composite(sb->p, sb->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
+            refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
     }
-}
-
-/* Pixel k's group in side sdk, whose samples are samples of sd, the
-   side the pixel shows (sdk == sd in the first layer): that of the nearest
-   sample on the pixel's own smooth piece of surface, else of the sample
-   nearby whose point lies nearest the pixel's; -1: none. */
-static int refl__sb_pixel_group(const refl__sb *sb, size_t k, const refl__sb_side *sd, const refl__sb_side *sdk) {
-    const refl_frame *fr = sb->p->frame;
-    int x = (int)(k % (size_t)fr->width), y = (int)(k / (size_t)fr->width), du, dv, best = -1, near = -1, u, v;
-    float best_d2 = INFINITY, near_d2 = INFINITY;
-    refl_vec3 q = refl_v3(sb->em.surface[3 * k], sb->em.surface[3 * k + 1], sb->em.surface[3 * k + 2]);
-    refl_vec3 n = refl_v3_normalize(refl_v3(sb->em.gbuf[4 * k], sb->em.gbuf[4 * k + 1], sb->em.gbuf[4 * k + 2]));
-    u = x / sb->factor;
-    v = y / sb->factor;
-    for (dv = -2; dv <= 2; ++dv)
-        for (du = -2; du <= 2; ++du) {
-            int us = u + du, vs = v + dv, sx, sy;
-            size_t m;
-            refl_vec3 e;
-            float d2, l, p2;
-            if (us < 0 || vs < 0 || us >= sb->map_w || vs >= sb->map_h) continue;
-            m = (size_t)vs * (size_t)sb->map_w + (size_t)us;
-            if (!sdk->valid[m]) continue;
-            e = refl_v3_sub(sd->rays[m].tail, q);
-            d2 = refl_v3_dot(e, e);
-            l = sqrtf(d2);
-            if (d2 < near_d2) {
-                near_d2 = d2;
-                near = sdk->group[m];
-            }
-            if (fabsf(refl_v3_dot(sd->normals[m], n)) < REFL__SBC_SMOOTH_COS ||
-                fabsf(refl_v3_dot(n, e)) > REFL__SBC_SMOOTH_SIN * l ||
-                fabsf(refl_v3_dot(sd->normals[m], e)) > REFL__SBC_SMOOTH_SIN * l)
-                continue;
-            refl__sb_sample_pixel(sb, us, vs, &sx, &sy);
-            p2 = (float)((sx - x) * (sx - x) + (sy - y) * (sy - y));
-            if (p2 < best_d2) {
-                best_d2 = p2;
-                best = sdk->group[m];
-            }
-        }
-    return best >= 0 ? best : near;
-}
-
-/* The side of history `parent` followed by side id `id` (kind 0) or
-   refracted through parent's glass (kind 1); -1: none sampled. */
-static int refl__sb_find_side(const refl__sb *sb, int parent, float id, int kind) {
-    int i;
-    /* a child comes after its parent and the first order's sides */
-    for (i = REFL__MAX(parent + 1, sb->sides1); i < sb->side_count; ++i)
-        if (sb->sides[i].parent == parent && sb->sides[i].kind == kind && (kind || sb->sides[i].id == id)) return i;
-    return -1;
-}
-
-/* Row y's pixels' groups in the layers past the first: each pixel's own
-   history traced (refl__sb_trace_path), each order's side found, and the
-   pixel's group there (refl__sb_pixel_group). */
-static void refl__sb_assign_row(void *arg, int y) {
-    refl__sb *sb = (refl__sb *)arg;
-    const refl_frame *fr = sb->p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height;
-    int x, k, l;
-    for (x = 0; x < fr->width; ++x) {
-        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        int side = sb->group_of[i] ? sb->groups[sb->group_of[i] - 1].side : -1, s;
-        refl_vec3 d, q, n;
-        refl__sb_path pa;
-        refl__sb_refr rp;
-        for (l = 1; l < sb->layers; ++l) sb->group_of[(size_t)l * npx + i] = 0;
-        if (side < 0) continue;
-        refl__sb_pixel_view(sb, i, &d, &q, &n);
-        refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
-        for (s = side, k = 1; k < pa.count && s >= 0; ++k)
-            if ((s = refl__sb_find_side(sb, s, pa.id[k], 0)) >= 0)
-                sb->group_of[(size_t)k * npx + i] = refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
-        if (sb->layers > sb->orders && (k = refl__sb_refract_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &rp)) > 0 &&
-            (s = refl__sb_find_side(sb, side, 0.0f, k)) >= 0)
-            sb->group_of[(size_t)sb->orders * npx + i] =
-                refl__sb_pixel_group(sb, i, &sb->sides[side], &sb->sides[s]) + 1;
-    }
-}
-
-/* Sample rows [v, v + 1)'s histories: the side ids of their paths into
-   sb->sample_id, and whether their glass refracts them out. */
-static void refl__sb_sample_row(void *arg, int v) {
-    refl__sb *sb = (refl__sb *)arg;
-    size_t count = (size_t)sb->map_w * (size_t)sb->map_h;
-    int u, k;
-    for (u = 0; u < sb->map_w; ++u) {
-        size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u, i;
-        int x, y;
-        refl_vec3 d, q, n;
-        refl__sb_path pa;
-        refl__sb_refr rp;
-        for (k = 0; k < sb->budget; ++k) sb->sample_id[(size_t)k * count + m] = 0.0f;
-        sb->sample_refr[m] = 0;
-        if (sb->sample_side[m] < 0) continue;
-        refl__sb_sample_pixel(sb, u, v, &x, &y);
-        i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
-        refl__sb_pixel_view(sb, i, &d, &q, &n);
-        refl__sb_trace_path(sb, q, n, d, sb->em.gbuf[4 * i + 3], &pa);
-        for (k = 0; k < pa.count; ++k) sb->sample_id[(size_t)k * count + m] = pa.id[k];
-        k = refl__sb_refract_path(sb, q, n, d, pa.id[0], &rp);
-        sb->sample_refr[m] = (uint8_t)(k > 0 ? k : 0);
-    }
-}
-
-/* The higher layers' sides (the paper's reflection groups AB, ABA, ...
-   and refractions through glass): every sample's history traced through
-   the mirrors and glass alone, one side per history sampled (at most
-   REFL__SB_HISTORIES; in sample order, so the same for any thread
-   count), then their ray maps and pieces, a layer at a time (a piece lies
-   within its parent's). */
-static refl_result refl__sb_histories(refl__sb *sb) {
-    const refl_scene *scene = sb->p->scene;
-    const refl_allocator *al = &scene->allocator;
-    size_t count = (size_t)sb->map_w * (size_t)sb->map_h, m;
-    refl_scene sub;
-    refl_object *objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
-    refl_result r = REFL_OK;
-    int i, n = 0, k, first, longest = 1, refr = 0, cap = sb->side_count + REFL__SB_HISTORIES;
-    sb->mirror_object = (int *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
-    sb->normal_m = (refl_mat4 *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_mat4));
-    sb->sample_id = (float *)refl__calloc(al, (size_t)sb->budget * count, sizeof(float));
-    sb->sample_refr = (uint8_t *)refl__calloc(al, count, 1);
-    sb->sample_side = (int *)refl__calloc(al, (size_t)(sb->budget + 1) * count, sizeof(int));
-    if (!objs || !sb->mirror_object || !sb->normal_m || !sb->sample_id || !sb->sample_refr || !sb->sample_side) {
-        refl__free(al, objs);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    for (i = 0; i < scene->object_count; ++i) {
-        refl_mat4 xf = scene->objects[i].transform;
-        sb->normal_m[i] = refl__normal_matrix(xf);
-        if (!refl__sb_goes_on(&scene->materials[scene->objects[i].material])) continue;
-        sb->mirror_object[n] = i;
-        objs[n++] = scene->objects[i];
-    }
-    sub = *scene;
-    sub.objects = objs;
-    sub.object_count = n;
-    if (n) r = refl_bvh_build(&sub, al, &sb->mirrors);
-    refl__free(al, objs);
-    if (r != REFL_OK || !n) return r;
-    /* every sample's first side, then its history */
-    for (m = 0; m < (size_t)(sb->budget + 1) * count; ++m) sb->sample_side[m] = -1;
-    for (i = 0; i < sb->side_count; ++i)
-        for (m = 0; m < count; ++m)
-            if (sb->sides[i].valid[m]) sb->sample_side[m] = i;
-    sb->orders = sb->budget;
-    rast_run_jobs(sb->p->rc, sb->map_h, refl__sb_sample_row, sb);
-    for (k = 1; k < sb->budget; ++k)
-        for (m = 0; m < count; ++m) {
-            int parent = sb->sample_side[(size_t)(k - 1) * count + m], s;
-            float id = sb->sample_id[(size_t)k * count + m];
-            if (parent < 0 || id == 0.0f) continue;
-            if ((s = refl__sb_find_side(sb, parent, id, 0)) < 0 && sb->side_count < cap) {
-                refl__sb_side *sd = &sb->sides[s = sb->side_count++];
-                sd->object = (int)fabsf(id) - 1;
-                sd->id = id;
-                sd->order = k + 1;
-                sd->layer = k;
-                sd->parent = parent;
-            }
-            sb->sample_side[(size_t)k * count + m] = s;
-            if (s >= 0) longest = k + 1;
-        }
-    /* the refractions' layer follows the longest history's */
-    sb->orders = longest;
-    for (m = 0; m < count; ++m) {
-        int parent = sb->sample_side[m], s;
-        if (!sb->sample_refr[m] || parent < 0) continue;
-        if ((s = refl__sb_find_side(sb, parent, 0.0f, sb->sample_refr[m])) < 0 && sb->side_count < cap) {
-            refl__sb_side *sd = &sb->sides[s = sb->side_count++];
-            sd->object = sb->sides[parent].object;
-            sd->id = sb->sides[parent].id;
-            sd->order = 1;
-            sd->layer = longest;
-            sd->parent = parent;
-            sd->kind = sb->sample_refr[m];
-        }
-        sb->sample_side[(size_t)longest * count + m] = s;
-        refr |= s >= 0;
-    }
-    sb->layers = longest + refr;
-    for (k = 1; k < sb->layers; ++k) {
-        for (first = 0; first < sb->side_count && sb->sides[first].layer != k; ++first) {}
-        for (n = first; n < sb->side_count && sb->sides[n].layer == k; ++n) {}
-        sb->map_first = first;
-        rast_run_jobs(sb->p->rc, n - first, refl__sb_map_side, sb);
-        for (i = first; i < n; ++i)
-            if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
-                !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
-                return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    return REFL_OK;
 }
 
 /* refl__sb_resolve_row past the first order: a pixel's reflected colour
@@ -14208,24 +14873,24 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     int x, c, last = p->desc.debug.points_last;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
-        const float *g = sb->em.gbuf + 4 * i;
+        const float *g = sb->em->gbuf + 4 * i;
         int object = (int)fabsf(g[3]) - 1, k;
         const refl_material *m;
         float rgb[3], sub[3], w;
         refl_vec3 d, q, n, shown = refl_v3(NAN, NAN, NAN), t;
         refl__sb_path pa;
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
-        if (sb->group_of[i] && !(sb->depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->tracer && refl__sb_fallback(sb, i, src, (int)(sb->depth[src] * (float)sb->orders) == 0) &&
+        if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
             refl__sb_trace_pixel(sb, x, y))
             continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
         if (!refl__sb_hole(sb, i, src)) {
-            const float *pt = sb->points + 4 * src;
-            k = REFL__CLAMP((int)(sb->depth[src] * (float)sb->orders), 0, pa.count - 1);
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            const float *pt = sb->drawn.points + 4 * src;
+            k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
             shown = refl_v3(pt[0], pt[1], pt[2]);
         } else {
             k = pa.count - 1;
@@ -14248,9 +14913,9 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
                     refl_environment_lookup(&scene->environment, t, tsub);
                 } else if (!through) {
                     tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
-                } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr_depth[i] < 1.0f) {
-                    const float *pt = sb->refr_points + 4 * i;
-                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr_color[4 * i + (size_t)c] * (1.0f / 255.0f);
+                } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f) {
+                    const float *pt = sb->refr.points + 4 * i;
+                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr.color[4 * i + (size_t)c] * (1.0f / 255.0f);
                     if (through == 1) tshown = refl_v3(pt[0], pt[1], pt[2]); /* inside glass: none, as RAYTRACE */
                     tw = rp.weight;
                 } else {
@@ -14268,383 +14933,35 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     }
 }
 
-/* ---- reflection morphing (paper 003 VI): groups backed by prebuilt grids ---- */
-
-/* Row y's front pixels of objects drawn from grids: the group of the
-   piece their view ray meets (a job per row). */
-static void refl__sb_morph_row(void *arg, int y) {
-    refl__sb *sb = (refl__sb *)arg;
-    const refl__pass *p = sb->p;
-    int x, W = p->frame->width;
-    for (x = 0; x < W; ++x) {
-        size_t i = (size_t)y * (size_t)W + (size_t)x;
-        float id = sb->em.gbuf[4 * i + 3], tmax;
-        int o = (int)id - 1, piece;
-        refl_vec3 org, d;
-        if (!(id >= 1.0f) || o >= p->scene->object_count || sb->morph_base[o] < 0) continue;
-        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &org, &d, &tmax);
-        piece = refl_sbc_morph_piece_at(sb->groups[sb->morph_base[o]].morph, org, d);
-        sb->group_of[i] = piece >= 0 ? sb->morph_base[o] + piece + 1 : 0;
-    }
-}
-
-/* Adds a group per piece of every grid in use whose object shows its
-   front (after the frame's own groups are built) after the first layer's
-   groups (batches go layer by layer), and gives them their pixels. */
-static refl_result refl__sb_morph_groups(refl__sb *sb) {
-    const refl__pass *p = sb->p;
-    const refl_scene *scene = p->scene;
-    const refl_allocator *al = &scene->allocator;
-    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height, k;
-    int o, add = 0, piece, ins = 0, i;
-    refl__sb_group *groups;
-    refl__sbc_hit *scratch;
-    sb->morph_base = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
-    if (!sb->morph_base) return REFL_ERROR_OUT_OF_MEMORY;
-    for (o = 0; o < scene->object_count; ++o) sb->morph_base[o] = -2; /* -2: not shown */
-    for (k = 0; k < npx; ++k) {
-        float id = sb->em.gbuf[4 * k + 3];
-        if (id >= 1.0f && (int)id - 1 < scene->object_count) sb->morph_base[(int)id - 1] = -1;
-    }
-    for (o = 0; o < scene->object_count; ++o) {
-        const refl_sbc_morph *m = sb->morph_base[o] == -1 ? refl__sb_morph_for(p, o) : NULL;
-        refl_sbc_morph_stats st;
-        sb->morph_base[o] = -1;
-        if (!m) continue;
-        refl_sbc_morph_get_stats(m, &st);
-        sb->morph_base[o] = add; /* from the insertion point, set below */
-        add += st.pieces;
-        p->frame->stats.model_bytes += st.bytes;
-    }
-    if (!add) return REFL_OK;
-    while (ins < sb->group_count && !sb->sides[sb->groups[ins].side].layer) ++ins;
-    for (o = 0; o < scene->object_count; ++o)
-        if (sb->morph_base[o] >= 0) sb->morph_base[o] += ins;
-    groups = (refl__sb_group *)refl__calloc(al, (size_t)(sb->group_count + add), sizeof(refl__sb_group));
-    if (!groups) return REFL_ERROR_OUT_OF_MEMORY;
-    if (ins) memcpy(groups, sb->groups, (size_t)ins * sizeof(refl__sb_group));
-    if (sb->group_count > ins)
-        memcpy(groups + ins + add, sb->groups + ins, (size_t)(sb->group_count - ins) * sizeof(refl__sb_group));
-    refl__free(al, sb->groups);
-    sb->groups = groups;
-    /* the later layers' groups moved on by `add`: their samples' and pixels' indices too */
-    for (i = 0; i < sb->side_count; ++i) {
-        refl__sb_side *sd = &sb->sides[i];
-        size_t n = (size_t)sb->map_w * (size_t)sb->map_h;
-        if (!sd->layer) continue;
-        for (k = 0; k < n; ++k)
-            if (sd->group[k] >= ins) sd->group[k] += add;
-    }
-    for (k = npx; k < (size_t)sb->layers * npx; ++k)
-        if (sb->group_of[k] > ins) sb->group_of[k] += add;
-    for (o = 0; o < scene->object_count; ++o) {
-        const refl_sbc_morph *m = sb->morph_base[o] < 0 ? NULL : refl__sb_morph_for(p, o);
-        refl_sbc_morph_stats st;
-        refl_sbc_morph_get_stats(m, &st);
-        for (piece = 0; piece < st.pieces; ++piece) {
-            refl__sb_group *g = &groups[sb->morph_base[o] + piece];
-            g->side = -1;
-            g->object = o;
-            g->morph = m;
-            g->piece = piece;
-            refl_sbc_morph_locate(m, p->view->eye, g->morph_nodes, g->morph_w); /* refl__sb_morph_for found it */
-            g->sheets = refl__sbm_piece_sheets(m, g->morph_nodes, g->morph_w, piece);
-            refl__sbm_piece_box(m, p->view->eye, piece, &g->lo, &g->hi);
-            /* where the tetrahedron's nodes' rays meet the scene, by object and triangle */
-            g->hit_count = refl__sbm_tet_hits(m, p->view->eye, piece, NULL);
-            if (!g->hit_count) continue;
-            g->hits = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
-            scratch = (refl__sbc_hit *)refl__calloc(al, (size_t)g->hit_count, sizeof(refl__sbc_hit));
-            if (g->hits && scratch) {
-                refl__sbm_tet_hits(m, p->view->eye, piece, scratch);
-                refl__sb_sort_hits(scratch, g->hits, g->hit_count);
-            }
-            refl__free(al, scratch);
-            if (!g->hits) {
-                sb->group_count += add; /* freed with the others */
-                return REFL_ERROR_OUT_OF_MEMORY;
-            }
-        }
-    }
-    sb->group_count += add;
-    rast_run_jobs(p->rc, p->frame->height, refl__sb_morph_row, sb);
-    return REFL_OK;
-}
-
-/* The sides seen (reflector objects and sides with a pixel), their ray
-   maps and pieces, and the groups: each side's pieces cut by tiles of
-   sb->tile samples (the tile side doubles, up to REFL__SB_TILE_MAX, while
-   there are more than a batch: REFL__SB_BATCH), and each pixel's group. */
-static refl_result refl__sb_groups(refl__sb *sb) {
-    const refl_scene *scene = sb->p->scene;
-    const refl_allocator *al = &scene->allocator;
-    const refl_frame *fr = sb->p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    uint8_t *sides = (uint8_t *)refl__calloc(al, (size_t)scene->object_count, 1);
-    int *seen, i, side, pass, u, v, tu, tv;
-    if (!sides) return REFL_ERROR_OUT_OF_MEMORY;
-    for (k = 0; k < npx; ++k) {
-        float id = sb->em.gbuf[4 * k + 3];
-        int o = (int)fabsf(id) - 1;
-        if (o >= 0 && o < scene->object_count) sides[o] |= (uint8_t)(id > 0.0f ? 1 : 2);
-    }
-    sb->sides = (refl__sb_side *)refl__calloc(al, 2 * (size_t)scene->object_count + REFL__SB_HISTORIES,
-                                              sizeof(refl__sb_side));
-    if (!sb->sides) {
-        refl__free(al, sides);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    for (i = 0; i < scene->object_count; ++i)
-        for (side = 0; side < 2; ++side)
-            if ((sides[i] & (1 << side)) && !(side == 0 && refl__sb_morph_for(sb->p, i))) {
-                refl__sb_side *sd = &sb->sides[sb->side_count++];
-                sd->object = i;
-                sd->id = side ? -(float)(i + 1) : (float)(i + 1);
-                sd->order = 1;
-                sd->parent = -1;
-            }
-    refl__free(al, sides);
-    sb->map_first = 0;
-    sb->sides1 = sb->side_count;
-    rast_run_jobs(sb->p->rc, sb->side_count, refl__sb_map_side, sb);
-    for (i = 0; i < sb->side_count; ++i)
-        if (!sb->sides[i].rays || !sb->sides[i].hits || !sb->sides[i].valid || !sb->sides[i].normals ||
-            !sb->sides[i].comp || !sb->sides[i].group || !sb->sides[i].crossing)
-            return REFL_ERROR_OUT_OF_MEMORY;
-    if (sb->budget > 1) {
-        refl_result r = refl__sb_histories(sb);
-        if (r != REFL_OK) return r;
-    }
-    /* count the groups (a tile's pieces), doubling the tile until they
-       fit a batch (fewer groups, fewer projections) or the tile reaches
-       REFL__SB_TILE_MAX (more batches then); then list them, each sample
-       noting its group. */
-    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
-    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
-    for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
-        int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
-        int largest = sb->tile >= REFL__SB_TILE_MAX;
-        for (pass = 0; pass < 2; ++pass) {
-            sb->group_count = 0;
-            for (i = 0; i < sb->side_count; ++i)
-                for (tv = 0; tv < th; ++tv)
-                    for (tu = 0; tu < tw; ++tu) {
-                        refl__sb_side *sd = &sb->sides[i];
-                        int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
-                        int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
-                        for (v = vv0; v < vv1; ++v)
-                            for (u = uu0; u < uu1; ++u) {
-                                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
-                                int gi = 0;
-                                if (!sd->valid[m]) continue;
-                                while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
-                                sd->group[m] = first + gi;
-                                if (gi < nseen) continue;
-                                seen[nseen++] = sd->comp[m];
-                                if (pass) {
-                                    refl__sb_group *g = &sb->groups[sb->group_count];
-                                    g->side = i;
-                                    g->object = sd->object;
-                                    g->comp = sd->comp[m];
-                                    g->u0 = uu0;
-                                    g->v0 = vv0;
-                                    g->u1 = uu1;
-                                    g->v1 = vv1;
-                                }
-                                sb->group_count++;
-                            }
-                    }
-            if (sb->group_count > REFL__SB_BATCH && !largest) break;
-            if (!pass) {
-                sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
-                                                            sizeof(refl__sb_group));
-                if (!sb->groups) {
-                    refl__free(al, seen);
-                    return REFL_ERROR_OUT_OF_MEMORY;
-                }
-            }
-        }
-        if (pass == 2) break;
-    }
-    refl__free(al, seen);
-    sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
-    if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
-    /* each pixel's group in the first layer; the others' by rows */
-    for (k = 0; k < npx; ++k) {
-        float id = sb->em.gbuf[4 * k + 3];
-        const refl__sb_side *sd = NULL;
-        sb->group_of[k] = 0;
-        for (i = 0; id != 0.0f && i < sb->side_count && sb->sides[i].order == 1 && !sb->sides[i].kind; ++i)
-            if (sb->sides[i].id == id) sd = &sb->sides[i];
-        if (sd) sb->group_of[k] = refl__sb_pixel_group(sb, k, sd, sd) + 1;
-    }
-    if (sb->layers > 1) rast_run_jobs(sb->p->rc, fr->height, refl__sb_assign_row, sb);
-    return REFL_OK;
-}
-
-/* Projection and emission jobs of the batch's groups, run. */
-static refl_result refl__sb_project_all(refl__sb *sb) {
-    const refl_scene *scene = sb->p->scene;
-    const refl_allocator *al = &scene->allocator;
-    int pairs = (sb->batch1 - sb->batch0) * scene->object_count, i, g, o, t, k, n = 0;
-    if (!sb->base) { /* the first batch: every object's vertices in the world, once */
-        sb->base = (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__sb_pv *));
-        if (!sb->base) return REFL_ERROR_OUT_OF_MEMORY;
-        for (o = 0; o < scene->object_count; ++o) {
-            int vc = scene->meshes[scene->objects[o].mesh]->vertex_count;
-            sb->base[o] = (refl__sb_pv *)refl__calloc(al, (size_t)REFL__MAX(vc, 1), sizeof(refl__sb_pv));
-            if (!sb->base[o]) return REFL_ERROR_OUT_OF_MEMORY;
-        }
-        rast_run_jobs(sb->p->rc, scene->object_count, refl__sb_base_object, sb);
-    }
-    sb->slots = (refl__sb_slot *)refl__calloc(al, (size_t)REFL__MAX(pairs, 1), sizeof(refl__sb_slot));
-    if (!sb->slots) return REFL_ERROR_OUT_OF_MEMORY;
-    rast_run_jobs(sb->p->rc, pairs, refl__sb_project_object, sb);
-    for (i = 0; i < pairs; ++i) {
-        const refl__sb_slot *slot = &sb->slots[i];
-        int v;
-        if (slot->failed) return REFL_ERROR_OUT_OF_MEMORY;
-        if (!slot->index) continue; /* no tree */
-        sb->p->frame->stats.sbc.projections += scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count;
-        for (v = 0; v < slot->count; ++v) { /* a vertex projects into every sheet at once */
-            int ok = 0;
-            for (k = 0; k < REFL__SB_SHEETS && slot->pv[k]; ++k) ok |= slot->pv[k][v].ok;
-            sb->p->frame->stats.sbc.projected += ok;
-            sb->p->frame->stats.sbc.ambiguous += slot->pv[0][v].ambiguous;
-        }
-    }
-    for (g = sb->batch0; g < sb->batch1; ++g)
-        for (o = 0; o < scene->object_count; ++o)
-            n += REFL__MAX(sb->groups[g].sheets, 1) *
-                 ((scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK);
-    sb->jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
-    if (!sb->jobs) return REFL_ERROR_OUT_OF_MEMORY;
-    for (g = sb->batch0; g < sb->batch1; ++g) {
-        if (!refl__sb_live(&sb->groups[g])) continue;
-        for (o = 0; o < scene->object_count; ++o) {
-            int tc = scene->meshes[scene->objects[o].mesh]->triangle_count;
-            for (k = 0; k < REFL__MAX(sb->groups[g].sheets, 1); ++k)
-                for (t = 0; t < tc; t += REFL__SB_CHUNK) {
-                    refl__sb_job *j = &sb->jobs[sb->job_count++];
-                    j->group = g;
-                    j->object = o;
-                    j->sheet = k;
-                    j->first = t;
-                    j->count = REFL__MIN(REFL__SB_CHUNK, tc - t);
-                }
-        }
-    }
-    rast_run_jobs(sb->p->rc, sb->job_count, refl__sb_emit_job, sb);
-    for (i = 0; i < sb->job_count; ++i)
-        if (sb->jobs[i].failed) return REFL_ERROR_OUT_OF_MEMORY;
-    return REFL_OK;
-}
-
-static void refl__sb_free(refl__sb *sb) {
-    const refl_allocator *al = &sb->p->scene->allocator;
-    int i;
-    for (i = 0; sb->groups && i < sb->group_count; ++i) {
-        refl_sbc_destroy(sb->groups[i].sbc);
-        refl__free(al, sb->groups[i].hits);
-    }
-    for (i = 0; sb->sides && i < sb->side_count; ++i) {
-        refl__free(al, sb->sides[i].rays);
-        refl__free(al, sb->sides[i].valid);
-        refl__free(al, sb->sides[i].hits);
-        refl__free(al, sb->sides[i].normals);
-        refl__free(al, sb->sides[i].comp);
-        refl__free(al, sb->sides[i].group);
-        refl__free(al, sb->sides[i].crossing);
-    }
-    refl__free(al, sb->sides);
-    refl__sb_free_batch(sb);
-    for (i = 0; sb->base && i < sb->p->scene->object_count; ++i) refl__free(al, sb->base[i]);
-    refl__free(al, sb->base);
-    refl_bvh_destroy(sb->own_bvh);
-    refl_bvh_destroy(sb->mirrors);
-    refl__free(al, sb->mirror_object);
-    refl__free(al, sb->normal_m);
-    refl__free(al, sb->sample_id);
-    refl__free(al, sb->sample_refr);
-    refl__free(al, sb->sample_side);
-    refl__free(al, sb->refr_color);
-    refl__free(al, sb->refr_depth);
-    refl__free(al, sb->refr_points);
-    refl__free(al, sb->refr_points_depth);
-    refl__free(al, sb->groups);
-    refl__free(al, sb->em.gbuf);
-    refl__free(al, sb->em.draws);
-    refl__free(al, sb->em.surface);
-    refl__free(al, sb->group_of);
-    refl__free(al, sb->morph_base);
-    refl__free(al, sb->stencil);
-    refl__free(al, sb->color);
-    refl__free(al, sb->depth);
-    refl__free(al, sb->points);
-    refl__free(al, sb->points_depth);
-    if (sb->tracer) refl__rt_end(sb->tracer);
-    refl__free(al, sb->tracer);
-    refl__free(al, sb->traced_rays);
-}
-
-/* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
-static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
+/* The composite, a job per row; with desc.sbc.trace_fallback, RAYTRACE's
+   tracer for the pixels it traces, begun and ended here. */
+static refl_result refl__sb_resolve(refl__sb *sb) {
+    refl__pass *p = sb->p;
+    refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
-    size_t npx = (size_t)p->frame->width * (size_t)p->frame->height;
-    unsigned char *seen = NULL;
-    refl_vec3 lo, hi, grow;
-    refl_result r;
-    int any = 0, g;
-    memset(sb, 0, sizeof *sb);
-    sb->p = p;
-    sb->em.p = p;
-    sb->factor = p->desc.sbc.ray_factor > 0 ? p->desc.sbc.ray_factor : REFL__SB_FACTOR;
-    sb->map_w = (p->frame->width + sb->factor - 1) / sb->factor;
-    sb->map_h = (p->frame->height + sb->factor - 1) / sb->factor;
-    sb->error_px = p->desc.sbc.error_px > 0.0f ? p->desc.sbc.error_px : 1.0f;
-    /* with the fallback, the pixels a group's edge leaves uncovered are
-       traced: splitting mixed triangles costs more than it buys (default
-       640x480 factor 2 with the fallback: 305 -> 178 ms a frame, mean
-       0.29 -> 0.24 px) */
-    sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
-                       : p->desc.sbc.mixed_levels < 0 ? 0
-                       : p->desc.sbc.trace_fallback   ? 0
-                                                      : REFL__SB_MIXED_LEVELS;
-    sb->batch = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
-    sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
-    sb->orders = sb->layers = 1;
-    refl_scene_bounds(p->scene, &lo, &hi);
-    grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.01f);
-    grow = refl_v3_add(grow, refl_v3(1e-4f, 1e-4f, 1e-4f));
-    sb->box_lo = refl_v3_sub(lo, grow);
-    sb->box_hi = refl_v3_add(hi, grow);
-    sb->diagonal = refl_v3_length(refl_v3_sub(sb->box_hi, sb->box_lo));
-    r = refl__em_gbuffer_new(&sb->em, &seen, &any);
-    refl__free(al, seen);
-    if (r != REFL_OK || !any) return r;
-    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
-    sb->em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-    if (!sb->em.surface) return REFL_ERROR_OUT_OF_MEMORY;
-    rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, &sb->em);
-    if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
-    p->frame->stats.sbc.histories += sb->side_count;
-    p->frame->stats.sbc.groups += sb->group_count;
-    for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
-        p->desc.debug.sbc_ray_map(p->desc.debug.sbc_ray_map_user, sb->sides[g].object, sb->sides[g].rays, sb->sides[g].valid,
-                            sb->map_w, sb->map_h);
-    rast_run_jobs(p->rc, sb->group_count, refl__sb_build_group, sb);
-    if ((r = refl__sb_morph_groups(sb)) != REFL_OK) return r;
-    for (g = 0; g < sb->group_count; ++g) {
-        refl_sbc_stats st;
-        if (sb->groups[g].result != REFL_OK) return sb->groups[g].result;
-        refl_sbc_get_stats(sb->groups[g].sbc, &st);
-        p->frame->stats.sbc.pinhole_leaves += st.pinhole_leaves;
-        p->frame->stats.sbc.ray_leaves += st.ray_leaves;
-        p->frame->stats.rays += st.rays;
-        p->frame->stats.model_bytes += st.bytes;
+    refl_result r = REFL_OK;
+    int i;
+    if (p->desc.sbc.trace_fallback) {
+        sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
+        sb->tracer.rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sb->tracer.rt || !sb->tracer.rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) r = refl__rt_begin(sb->tracer.rt, p, sb->bvh);
     }
-    return REFL_OK;
+    if (r == REFL_OK)
+        rast_run_jobs(p->rc, fr->height, sb->layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, sb);
+    for (i = 0; sb->tracer.rays && i < fr->height; ++i) fr->stats.rays += sb->tracer.rays[i];
+    if (sb->tracer.rt) refl__rt_end(sb->tracer.rt);
+    refl__free(al, sb->tracer.rt);
+    refl__free(al, sb->tracer.rays);
+    memset(&sb->tracer, 0, sizeof sb->tracer);
+    return r;
 }
+/* ---- src/reflect/sbc_measure.c ---- */
+/* sbc_measure: refl_sbc_measure_camera_error, SBC's cameras alone
+   (docs/metrics.md, "The cameras alone"): every point a truth frame shows
+   on a reflector, projected into the groups a frame's setup builds, lands
+   some distance from the pixel the truth sees it at; the distances are
+   summarised by the kind of leaf that projected them. */
 
 /* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
    the nearest image of its point and the kind of leaf that made it. */
@@ -14804,110 +15121,34 @@ static refl_result refl__sb_measure_summary(const refl__sb_measure *ms) {
     return REFL_OK;
 }
 
-static const char *refl__options_sbc(refl_render_desc *d) {
-    const refl_sbc_options *o = &d->sbc;
-    if (!(o->error_px >= 0.0f) || !refl__isfinite(o->error_px)) return "sbc.error_px: finite, 0 (1) or more";
-    if (o->ray_factor < 0 || o->ray_factor > 64) return "sbc.ray_factor: 0 (2) to 64";
-    if (o->batch_groups < 0 || o->batch_groups > 254) return "sbc.batch_groups: 0 (254) to 254";
-    if (o->trace_fallback < 0 || o->trace_fallback > 1) return "sbc.trace_fallback: 0 or 1";
-    if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
-    if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
-        return "sbc.morphs: morph_count 0, or the array of that many grids";
-    return NULL;
-}
-
-/* An SBC frame, or (ms) SBC's cameras measured in place of its reflections. */
-static refl_result refl__sb_run(refl__pass *p, refl__sb_measure *ms) {
+/* SBC's cameras set up for pass p (a frame's base pass done) and measured
+   against ms->truth into ms->out. */
+static refl_result refl__sb_measure_cameras(refl__pass *p, refl__sb_measure *ms) {
     const refl_allocator *al = &p->scene->allocator;
-    refl_frame *fr = p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height;
-    double t0 = refl__now_ms(), t1;
+    const refl_frame *fr = p->frame;
+    size_t n = (size_t)fr->width * (size_t)fr->height;
     refl__sb sb;
     refl_result r = refl__sb_setup(&sb, p);
-    int i;
-    t1 = refl__now_ms();
-    fr->stats.ms_build += t1 - t0;
-    if (ms) {
-        size_t n = (size_t)fr->width * (size_t)fr->height;
-        ms->sb = &sb;
-        ms->error = (double *)refl__calloc(al, n, sizeof(double));
-        ms->kind = (uint8_t *)refl__calloc(al, n, 1);
-        ms->own_error = (double *)refl__calloc(al, n, sizeof(double));
-        ms->own_kind = (uint8_t *)refl__calloc(al, n, 1);
-        if (r == REFL_OK && (!ms->error || !ms->kind || !ms->own_error || !ms->own_kind))
-            r = REFL_ERROR_OUT_OF_MEMORY;
-        /* no reflector in view: nothing to measure (the truth shows none either) */
-        if (r == REFL_OK && sb.group_of && (r = refl__sb_measure_cells(ms)) == REFL_OK) {
-            rast_run_jobs(p->rc, fr->height, refl__sb_measure_row, ms);
-            r = refl__sb_measure_summary(ms);
-        }
-        refl__free(al, ms->error);
-        refl__free(al, ms->kind);
-        refl__free(al, ms->own_error);
-        refl__free(al, ms->own_kind);
-        refl__free(al, ms->cell_start);
-        refl__free(al, ms->cell_list);
-        refl__sb_free(&sb);
-        return r;
+    ms->sb = &sb;
+    ms->error = (double *)refl__calloc(al, n, sizeof(double));
+    ms->kind = (uint8_t *)refl__calloc(al, n, 1);
+    ms->own_error = (double *)refl__calloc(al, n, sizeof(double));
+    ms->own_kind = (uint8_t *)refl__calloc(al, n, 1);
+    if (r == REFL_OK && (!ms->error || !ms->kind || !ms->own_error || !ms->own_kind)) r = REFL_ERROR_OUT_OF_MEMORY;
+    /* no reflector in view: nothing to measure (the truth shows none either) */
+    if (r == REFL_OK && sb.group_of && (r = refl__sb_measure_cells(ms)) == REFL_OK) {
+        rast_run_jobs(p->rc, fr->height, refl__sb_measure_row, ms);
+        r = refl__sb_measure_summary(ms);
     }
-    if (r == REFL_OK && sb.group_count) {
-        sb.color = (uint8_t *)refl__calloc(al, npx, 4);
-        sb.depth = (float *)refl__calloc(al, npx, sizeof(float));
-        sb.points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-        sb.points_depth = (float *)refl__calloc(al, npx, sizeof(float));
-        sb.stencil = (uint8_t *)refl__calloc(al, npx, 1);
-        if (!sb.color || !sb.depth || !sb.points || !sb.points_depth || !sb.stencil) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK && sb.layers > sb.orders) {
-            sb.refr_color = (uint8_t *)refl__calloc(al, npx, 4);
-            sb.refr_depth = (float *)refl__calloc(al, npx, sizeof(float));
-            sb.refr_points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
-            sb.refr_points_depth = (float *)refl__calloc(al, npx, sizeof(float));
-            if (!sb.refr_color || !sb.refr_depth || !sb.refr_points || !sb.refr_points_depth)
-                r = REFL_ERROR_OUT_OF_MEMORY;
-        }
-        if (r == REFL_OK) r = refl__sb_clear(&sb);
-        /* groups in batches of the stencil's values, each within one layer
-           (the sides, so the groups, come layer by layer); a group's pixels
-           are its own in its layer, so a layer's batches' depth tests never
-           meet, and the orders meet by the visibility offset */
-        for (sb.batch0 = 0; r == REFL_OK && sb.batch0 < sb.group_count; sb.batch0 = sb.batch1) {
-            int end = REFL__MIN(sb.batch0 + sb.batch, sb.group_count);
-            sb.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch0]);
-            sb.batch1 = sb.batch0 + 1;
-            while (sb.batch1 < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) == sb.layer) ++sb.batch1;
-            r = refl__sb_project_all(&sb);
-            for (i = 0; i < sb.job_count; ++i) {
-                fr->stats.sbc.projections += sb.jobs[i].projections;
-                fr->stats.sbc.projected += sb.jobs[i].projected;
-            }
-            if (r == REFL_OK) r = refl__sb_draw(&sb);
-            refl__sb_free_batch(&sb);
-            if (r == REFL_OK && sb.layer + 1 < sb.orders &&
-                (sb.batch1 == sb.group_count || refl__sb_group_layer(&sb, &sb.groups[sb.batch1]) != sb.layer))
-                refl__sb_pass_through(&sb);
-        }
-        t0 = refl__now_ms();
-        fr->stats.ms_reflect += t0 - t1;
-        if (r == REFL_OK && p->desc.sbc.trace_fallback) {
-            sb.tracer = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
-            sb.traced_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
-            if (!sb.tracer || !sb.traced_rays) r = REFL_ERROR_OUT_OF_MEMORY;
-            if (r == REFL_OK) r = refl__rt_begin(sb.tracer, p, sb.bvh);
-        }
-        if (r == REFL_OK)
-            rast_run_jobs(p->rc, fr->height, sb.layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, &sb);
-        for (i = 0; sb.traced_rays && i < fr->height; ++i) fr->stats.rays += sb.traced_rays[i];
-        fr->stats.ms_composite += refl__now_ms() - t0;
-    }
-    if (r == REFL_OK) {
-        rast_targets t = refl__frame_targets(fr);
-        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
-    }
+    refl__free(al, ms->error);
+    refl__free(al, ms->kind);
+    refl__free(al, ms->own_error);
+    refl__free(al, ms->own_kind);
+    refl__free(al, ms->cell_start);
+    refl__free(al, ms->cell_list);
     refl__sb_free(&sb);
     return r;
 }
-
-static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p, NULL); }
 
 REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                   const refl_render_desc *desc, const refl_frame *truth,
@@ -14937,7 +15178,7 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
     if (r == REFL_OK && refl__frame_rule(scene, view, frame)) r = REFL_ERROR_INVALID_ARGUMENT;
     if (r == REFL_OK) r = refl__context_create(scene, d.threads, &rc);
     if (r == REFL_OK) r = refl__base_pass(&p, scene, view, &d, frame, rc, NULL);
-    if (r == REFL_OK) r = refl__sb_run(&p, &ms);
+    if (r == REFL_OK) r = refl__sb_measure_cameras(&p, &ms);
     rast_context_destroy(rc);
     refl_frame_destroy(frame);
     return r;

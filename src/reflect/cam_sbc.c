@@ -37,7 +37,7 @@
    random, every sum runs in a fixed order. */
 #include "cam_sbc_internal.h"
 
-/* ---- reflected rays, shared by the SBC method (m_sbc.c) and the
+/* ---- reflected rays, shared by the SBC method (sbc_raymap.c) and the
    morphing grids (cam_sbc_morph.c): one head rule for both -------------------- */
 
 #define REFL__SBC_REACH 2.0f /* a ray's head: this many times as far as what it hits */

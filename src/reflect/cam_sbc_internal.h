@@ -2,7 +2,7 @@
    section IV; docs/methods/sbc.md, "The sample-based camera"), shared by
    its modules: cam_sbc.c (the BSP build, the descent, the public API),
    cam_sbc_fit.c (pinhole leaves) and cam_sbc_raylist.c (ray-list leaves
-   and their sheets); and what the SBC method (m_sbc.c) and the
+   and their sheets); and what the SBC method (m_sbc.c, sbc_*.c) and the
    morphing grids (cam_sbc_morph.c) take from it: the reflected-ray rule,
    the smoothness test, the sheets. Needs internal.h only. */
 #include "internal.h"
@@ -154,7 +154,7 @@ static inline int refl__sbc_finite3(refl_vec3 v) {
     return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z);
 }
 
-/* ---- shared with the SBC method (m_sbc.c) and the morphing grids
+/* ---- shared with the SBC method (m_sbc.c, sbc_*.c) and the morphing grids
    (cam_sbc_morph.c), defined in cam_sbc.c and cam_sbc_raylist.c ----------------- */
 
 /* What a reflected ray meets first: a scene triangle and the point; object
