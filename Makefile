@@ -66,15 +66,18 @@ RAST_IMPL   = src/rast/internal.h \
 # reflect.h gets the same treatment; it is skipped while src/reflect/api.h
 # does not exist. internal.h comes first and declares whatever one module
 # takes from another, so the modules after it may come in any order
-# (alphabetical here); only the SBC family shares privates among itself:
-# cam_sbc.c before cam_sbc_morph.c and m_sbc.c.
+# (alphabetical here); SBC's private headers come right after it.
 REFLECT_PUBLIC = src/reflect/api.h
 REFLECT_IMPL   = src/reflect/internal.h \
+                 src/reflect/cam_sbc_internal.h \
+                 src/reflect/sbc_internal.h \
                  src/reflect/base_pass.c \
                  src/reflect/bvh.c \
                  src/reflect/cam_c3rc.c \
                  src/reflect/cam_sbc.c \
+                 src/reflect/cam_sbc_fit.c \
                  src/reflect/cam_sbc_morph.c \
+                 src/reflect/cam_sbc_raylist.c \
                  src/reflect/gbuffer.c \
                  src/reflect/kdtree.c \
                  src/reflect/light_volume.c \
@@ -89,6 +92,12 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/planar_faces.c \
                  src/reflect/render.c \
                  src/reflect/result.c \
+                 src/reflect/sbc_draw.c \
+                 src/reflect/sbc_groups.c \
+                 src/reflect/sbc_measure.c \
+                 src/reflect/sbc_project.c \
+                 src/reflect/sbc_raymap.c \
+                 src/reflect/sbc_resolve.c \
                  src/reflect/scene.c \
                  src/reflect/shade.c \
                  src/reflect/shadow.c \

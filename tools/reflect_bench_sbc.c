@@ -28,7 +28,7 @@
      KB        the trees' memory (refl_sbc_stats.bytes), summed;
      build ms  refl_sbc_build over all reflectors, one thread, median;
      the renderer's own trees (REFL_SBC cuts each side into tiles of 16
-     samples, see m_sbc.c) are reported beside them.
+     samples, see sbc_groups.c) are reported beside them.
    Projection: points spread uniformly in the scene's box are sent through
    every reflector's SBC on one thread; each is timed with the others of
    its leaf kind (refl_sbc_leaf_at), so the rate is per kind, in million
@@ -257,7 +257,7 @@ typedef struct fig19_row {
     double project_ms[2];
 } fig19_row;
 
-/* Map samples whose pixel (as m_sbc.c places it: the middle of its
+/* Map samples whose pixel (as sbc_raymap.c places it: the middle of its
    factor x factor block) shows a reflector in the frame's stencil. */
 static long long samples_on_reflectors(const refl_frame *f, int factor, int mw, int mh) {
     long long n = 0;

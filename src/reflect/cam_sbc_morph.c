@@ -59,7 +59,7 @@
      projected at the other nodes of the tetrahedra holding both.
    Deterministic: each node is built by one job from its own inputs; sums
    run in a fixed order. */
-#include "internal.h"
+#include "cam_sbc_internal.h"
 
 #define REFL__SBM_HITS 64        /* hits walked along one node ray at most */
 #define REFL__SBM_PIECES 1024    /* smooth pieces of a reflector at most */
@@ -805,7 +805,7 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
 /* p at one node: the piece's face SBCs, the face owning the answer first. */
 /* Whether p lies ahead of first point q along the unextended ray of the
    node's sample that q lands on (when it has one): runtime mode's check
-   (m_sbc.c, refl__sb_project), since a leaf's frustum reaches a little
+   (sbc_project.c, refl__sb_place), since a leaf's frustum reaches a little
    behind the reflector and an extrapolated ring's, at a silhouette, folds
    back over it. */
 static int refl__sbm_ahead(const refl__sbm_node *nd, int piece, refl_vec3 p, refl_vec3 q) {

@@ -1,0 +1,245 @@
+/* sbc_resolve: SBC's composite (paper 003 V-D; docs/methods/sbc.md, "5.
+   Composite" and "The ray-traced fallback"). The reflected colour, or the
+   environment along the pixel's reflected ray where nothing was drawn,
+   times the material's reflectance (Schlick's Fresnel, or V-D's Fresnel
+   blend and distance fade, when the material asks), as ENVMAP composites;
+   glass adds the environment refracted once. A pixel of a group (of the
+   first layer) that nothing was drawn on, between two drawn pixels of its
+   group on opposite sides, is a crack (reflected triangles subdivided to
+   different depths meet at a T-junction) and takes the nearer one's
+   reflection (past the first order, the order with it). With
+   desc.sbc.trace_fallback (beyond the paper) a pixel still without a
+   reflection, or whose first-order point the samples around it contradict
+   (refl__sb_fallback), is rendered as RAYTRACE renders it (refl__rt_pixel)
+   when its reflected ray meets anything; mixed triangles are then not
+   split (sbc_project.c), their pixels traced.
+
+   Past the first order (refl__sb_resolve_row_deep): the nearest order's
+   colour (its order read off the offset), or the environment along the
+   last reflected ray, times the product of the reflectances along the
+   pixel's own history (each bounce as RAYTRACE weighs it, faded by its
+   reflected ray's length when the material asks); glass adds (1 - F) tint
+   times what the refraction layer drew (or the environment beyond the
+   glass), times (1 - F) at the exit and the absorption inside; reflections
+   inside the glass short of total are left out. frame->points: the first
+   point past the first reflector, as RAYTRACE's, or with
+   desc.debug.points_last the last. */
+#include "sbc_internal.h"
+
+/* Where pixel (x, y) of a group, with nothing drawn on it, takes its
+   reflection from (past the first order, its order too): the nearer of two drawn pixels of its
+   group on opposite sides of it (left and right, above and below, or
+   diagonally). Reflected triangles subdivided to different depths meet
+   at edges bent differently (a T-junction), and the crack between them
+   is a pixel wide; a hole wider than that stays one. Itself when none. */
+static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    const refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x, best = i;
+    int k, e;
+    for (k = 0; k < 4; ++k) {
+        size_t side[2];
+        int ok = 1;
+        for (e = 0; e < 2 && ok; ++e) {
+            int sx = x + (e ? -dir[k][0] : dir[k][0]), sy = y + (e ? -dir[k][1] : dir[k][1]);
+            if (sx < 0 || sy < 0 || sx >= fr->width || sy >= fr->height) ok = 0;
+            else side[e] = (size_t)sy * (size_t)fr->width + (size_t)sx;
+            ok = ok && sb->group_of[side[e]] == sb->group_of[i] && sb->drawn.depth[side[e]] < 1.0f;
+        }
+        for (e = 0; e < 2 && ok; ++e)
+            if (best == i || sb->drawn.depth[side[e]] < sb->drawn.depth[best]) best = side[e];
+    }
+    return best;
+}
+
+/* Pixel (x, y) under desc.sbc.trace_fallback (refl__sb_fallback): where
+   its reflected ray (taken as the ray map's samples take it) meets
+   anything, the pixel is rendered as RAYTRACE renders it, colour and
+   point, and 1 is returned; else 0, and it keeps what SBC made of it (a
+   hole: the environment, as without the option; most holes are the sky
+   seen in the mirror, one ray each). */
+static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
+    refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    refl_vec3 d, q, n, shown;
+    refl_sbc_ray ray;
+    refl__sbc_hit met;
+    float rgb[3], depth;
+    uint8_t stencil;
+    int c;
+    refl__sb_pixel_view(sb, i, &d, &q, &n);
+    sb->tracer.rays[y]++;
+    if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
+    refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
+    for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
+    fr->color[4 * i + 3] = 255;
+    fr->points[3 * i] = shown.x;
+    fr->points[3 * i + 1] = shown.y;
+    fr->points[3 * i + 2] = shown.z;
+    return 1;
+}
+
+/* Whether pixel i, of a group or not, shows nothing drawn (src: where
+   its reflection comes from, itself or a crack's neighbour). */
+static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
+    return !(sb->group_of[i] && sb->drawn.depth[src] < 1.0f);
+}
+
+/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
+   what it shows is a first-order reflection): a hole, or a first-order
+   point the ray map's samples around the pixel contradict: on an object
+   none of their four rays meets, or nearer than the nearest of what they
+   meet or farther than the farthest. Where the reflection is continuous
+   between the samples, the distance to what it shows is too, and lies
+   between theirs; a point outside is a surface the samples do not see:
+   the floor drawn below the lid's rim where the truth sees the teapot's
+   own surface. A thin object between the samples is traced too: exact, at
+   a ray's cost. */
+static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
+    const refl_frame *fr = sb->p->frame;
+    const refl__sb_side *sd;
+    const float *shown = sb->drawn.points + 4 * src;
+    int x = (int)(i % (size_t)fr->width), y = (int)(i / (size_t)fr->width), f = sb->factor, k;
+    int u0 = (x - f / 2 + f) / f - 1, v0 = (y - f / 2 + f) / f - 1; /* the samples around it: u0, u0 + 1 */
+    float lo = INFINITY, hi = 0.0f, d;
+    int met_shown = 0, object = (int)shown[3] - 1;
+    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+    if (refl__sb_hole(sb, i, src)) return 1;
+    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
+    sd = &sb->sides[sb->groups[sb->group_of[i] - 1].side];
+    for (k = 0; k < 4; ++k) {
+        int u = u0 + (k & 1), v = v0 + (k >> 1);
+        size_t at = (size_t)v * (size_t)sb->map_w + (size_t)u;
+        if (u < 0 || v < 0 || u >= sb->map_w || v >= sb->map_h || sd->valid[at] != 1) return 0;
+        d = sd->hits[at].object < 0 ? INFINITY : refl_v3_length(refl_v3_sub(sd->hits[at].point, sd->rays[at].tail));
+        lo = REFL__MIN(lo, d);
+        hi = REFL__MAX(hi, d);
+        met_shown |= sd->hits[at].object == object;
+    }
+    d = refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), q));
+    return !met_shown || d < lo || d > hi;
+}
+
+static void refl__sb_resolve_row(void *arg, int y) {
+    const refl__sb *sb = (const refl__sb *)arg;
+    const refl_frame *fr = sb->p->frame;
+    int x, c;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
+        float sub[3];
+        if (sb->em->gbuf[4 * i + 3] == 0.0f) continue;
+        if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
+        /* a pixel of no group (its tile's samples lie on other surfaces)
+           shows the environment, as one nothing reflects in */
+        if (!refl__sb_hole(sb, i, src)) {
+            const float *q = sb->drawn.points + 4 * src;
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
+        } else {
+            refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
+        }
+    }
+}
+
+/* refl__sb_resolve_row past the first order: a pixel's reflected colour
+   is the nearest order's drawn colour (its order read off the visibility
+   offset) times the reflectances along the pixel's own history to that
+   order, or the environment along its last reflected ray times them all;
+   glass adds what its refraction layer drew (else the environment beyond
+   the glass) times (1 - F) tint at the entry and the refraction path's
+   weight. The point shown: the first past the first reflector, as RAYTRACE
+   records it (the second reflector's surface on an order-2 path), or with
+   desc.debug.points_last the last one drawn (NaN where none). */
+static void refl__sb_resolve_row_deep(void *arg, int y) {
+    const refl__sb *sb = (const refl__sb *)arg;
+    const refl__pass *p = sb->p;
+    const refl_scene *scene = p->scene;
+    refl_frame *fr = p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    int x, c, last = p->desc.debug.points_last;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x, src = i;
+        const float *g = sb->em->gbuf + 4 * i;
+        int object = (int)fabsf(g[3]) - 1, k;
+        const refl_material *m;
+        float rgb[3], sub[3], w;
+        refl_vec3 d, q, n, shown = refl_v3(NAN, NAN, NAN), t;
+        refl__sb_path pa;
+        if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
+        if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
+            refl__sb_trace_pixel(sb, x, y))
+            continue;
+        m = &scene->materials[scene->objects[object].material];
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        refl__sb_trace_path(sb, q, n, d, g[3], &pa);
+        if (!refl__sb_hole(sb, i, src)) {
+            const float *pt = sb->drawn.points + 4 * src;
+            k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
+            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            shown = refl_v3(pt[0], pt[1], pt[2]);
+        } else {
+            k = pa.count - 1;
+            refl_environment_lookup(&scene->environment, pa.out, sub);
+            for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        }
+        /* order k's bounce fades by the distance to what it shows (none: wholly) */
+        w = pa.weight[k] * refl_material_fade(refl__sb_material(sb, pa.id[k]),
+                                              shown.x == shown.x ? refl_v3_length(refl_v3_sub(shown, pa.q[k])) : INFINITY);
+        if (!last && pa.count > 1 && (k > 0 || !(shown.x == shown.x))) shown = pa.q[1];
+        for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
+        if (m->type == REFL_GLASS) {
+            float ior = m->ior > 0.0f ? m->ior : 1.5f, tsub[3], f = pa.weight[0], tw = 1.0f;
+            int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+            refl_vec3 tshown = refl_v3(NAN, NAN, NAN);
+            if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
+                refl__sb_refr rp;
+                int through = sb->layers > sb->orders ? refl__sb_refract_path(sb, q, n, d, g[3], &rp) : -1;
+                if (through < 0) { /* no refraction sampled, or off the glass: refracted once, as ENVMAP */
+                    refl_environment_lookup(&scene->environment, t, tsub);
+                } else if (!through) {
+                    tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
+                } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f) {
+                    const float *pt = sb->refr.points + 4 * i;
+                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr.color[4 * i + (size_t)c] * (1.0f / 255.0f);
+                    if (through == 1) tshown = refl_v3(pt[0], pt[1], pt[2]); /* inside glass: none, as RAYTRACE */
+                    tw = rp.weight;
+                } else {
+                    refl_environment_lookup(&scene->environment, rp.out, tsub);
+                    tw = rp.weight;
+                }
+                for (c = 0; c < 3; ++c)
+                    rgb[c] += (1.0f - f) * (tinted ? m->tint[c] : 1.0f) * tw * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                if (f < 0.5f) shown = tshown;
+            } else {
+                for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
+            }
+        }
+        refl__em_put(fr, i, rgb, shown);
+    }
+}
+
+/* The composite, a job per row; with desc.sbc.trace_fallback, RAYTRACE's
+   tracer for the pixels it traces, begun and ended here. */
+static refl_result refl__sb_resolve(refl__sb *sb) {
+    refl__pass *p = sb->p;
+    refl_frame *fr = p->frame;
+    const refl_allocator *al = &p->scene->allocator;
+    refl_result r = REFL_OK;
+    int i;
+    if (p->desc.sbc.trace_fallback) {
+        sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
+        sb->tracer.rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sb->tracer.rt || !sb->tracer.rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) r = refl__rt_begin(sb->tracer.rt, p, sb->bvh);
+    }
+    if (r == REFL_OK)
+        rast_run_jobs(p->rc, fr->height, sb->layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, sb);
+    for (i = 0; sb->tracer.rays && i < fr->height; ++i) fr->stats.rays += sb->tracer.rays[i];
+    if (sb->tracer.rt) refl__rt_end(sb->tracer.rt);
+    refl__free(al, sb->tracer.rt);
+    refl__free(al, sb->tracer.rays);
+    memset(&sb->tracer, 0, sizeof sb->tracer);
+    return r;
+}
