@@ -31,9 +31,8 @@
      normal continues linearly; past grazing the ray goes straight on), as
      runtime mode's single ring does. Not past a piece's other edges: there
      the extension lies beside the neighbouring piece's real surface, and
-     points reflected in it were drawn over the piece's own pixels (the
-     teapot's p95 error at a node: 7 px with, 2 px without). More than one
-     ring does worse too (p95 9-14 px with two). Each (piece, face) with
+     points reflected in it were drawn over the piece's own pixels; more
+     than one ring does worse still (docs/methods/sbc.md). Each (piece, face) with
      rays is one SBC built to error_px face pixels with the face's own
      view-projection, widened by remedy (b) (pinhole leaves only: most of
      a curved reflector's leaves are ray lists, so it helps little).
@@ -48,10 +47,9 @@
      face SBCs (refl_sbc_project_sheets) so: seen from a node, a point near
      the teapot's knob or in a concave bowl lies in the frustums of rays
      before and past their fold, and one image per piece (the public
-     projections here, the paper's) drew it in one place only. Blending
-     sheet k of the four nodes (refl__sbm_blend_sheet) at 192x144, face
-     256: teapot mean 1.8-4.7 px before, 0.5-2.2 after; concave bowl at
-     96x72, face 64: 25-37 px before, 3.3-3.8 after. No unit frustum spans
+     projections here, the paper's) drew it in one place only; sheet k
+     of the four nodes is blended with sheet k (refl__sbm_blend_sheet).
+     No unit frustum spans
      neighbours off one smooth piece of surface (refl__sbm_links).
      check_ambiguous counts the paper's construction criterion: the heads
      of every node's unextended rays, and points a tenth of the way along
