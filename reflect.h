@@ -949,8 +949,9 @@ typedef struct refl_debug_options {
     void *sbc_ray_map_user;
 } refl_debug_options;
 
-/* How to render: zero is the defaults (DIRECT). `= {0}` in C and `= {}`
-   in C++ both compile. Options of a method the frame does not use are
+/* How to render: zero is the defaults (DIRECT): `= {0}` in C, `= {}` in
+   C++ (where `{0}` compiles too, its first member being an int, but
+   -Wextra warns of the members it leaves out). Options of a method the frame does not use are
    ignored but still validated. */
 typedef struct refl_render_desc {
     int threads;             /* 0: one per CPU, at most 256 */
@@ -4315,9 +4316,8 @@ static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__
      normal continues linearly; past grazing the ray goes straight on), as
      runtime mode's single ring does. Not past a piece's other edges: there
      the extension lies beside the neighbouring piece's real surface, and
-     points reflected in it were drawn over the piece's own pixels (the
-     teapot's p95 error at a node: 7 px with, 2 px without). More than one
-     ring does worse too (p95 9-14 px with two). Each (piece, face) with
+     points reflected in it were drawn over the piece's own pixels; more
+     than one ring does worse still (docs/methods/sbc.md). Each (piece, face) with
      rays is one SBC built to error_px face pixels with the face's own
      view-projection, widened by remedy (b) (pinhole leaves only: most of
      a curved reflector's leaves are ray lists, so it helps little).
@@ -4332,10 +4332,9 @@ static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__
      face SBCs (refl_sbc_project_sheets) so: seen from a node, a point near
      the teapot's knob or in a concave bowl lies in the frustums of rays
      before and past their fold, and one image per piece (the public
-     projections here, the paper's) drew it in one place only. Blending
-     sheet k of the four nodes (refl__sbm_blend_sheet) at 192x144, face
-     256: teapot mean 1.8-4.7 px before, 0.5-2.2 after; concave bowl at
-     96x72, face 64: 25-37 px before, 3.3-3.8 after. No unit frustum spans
+     projections here, the paper's) drew it in one place only; sheet k
+     of the four nodes is blended with sheet k (refl__sbm_blend_sheet).
+     No unit frustum spans
      neighbours off one smooth piece of surface (refl__sbm_links).
      check_ambiguous counts the paper's construction criterion: the heads
      of every node's unextended rays, and points a tenth of the way along

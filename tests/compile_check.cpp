@@ -40,11 +40,11 @@ int refl_compile_check_cpp() {
     v.width = 8;
     v.height = 8;
     refl_render_desc rd = {};
-    refl_render_desc as_in_c = {0}; // the README's C form compiles too: the first member is an int
+    refl_render_desc kept = {};
     refl_renderer *renderer = nullptr;
-    as_in_c.method = REFL_ENVMAP;
+    kept.method = REFL_ENVMAP;
     if (refl_frame_create(8, 8, nullptr, &frame) == REFL_OK) refl_render(scene, &v, &rd, frame);
-    if (refl_renderer_create(scene, &as_in_c, &renderer) == REFL_OK) refl_renderer_render(renderer, &v, frame);
+    if (refl_renderer_create(scene, &kept, &renderer) == REFL_OK) refl_renderer_render(renderer, &v, frame);
     refl_renderer_destroy(renderer);
     refl_frame_destroy(frame);
     refl_scene_destroy(scene);

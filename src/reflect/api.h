@@ -947,8 +947,9 @@ typedef struct refl_debug_options {
     void *sbc_ray_map_user;
 } refl_debug_options;
 
-/* How to render: zero is the defaults (DIRECT). `= {0}` in C and `= {}`
-   in C++ both compile. Options of a method the frame does not use are
+/* How to render: zero is the defaults (DIRECT): `= {0}` in C, `= {}` in
+   C++ (where `{0}` compiles too, its first member being an int, but
+   -Wextra warns of the members it leaves out). Options of a method the frame does not use are
    ignored but still validated. */
 typedef struct refl_render_desc {
     int threads;             /* 0: one per CPU, at most 256 */
