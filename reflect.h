@@ -795,6 +795,8 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
+    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
+                                drawn by RAYTRACE's tracer instead */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from
                                 an earlier frame */
@@ -960,9 +962,11 @@ typedef struct refl_render_desc {
                                 with none left shows what DIRECT shows there */
     refl_lighting_options lighting;
     /* Optional, per object: object_methods[i] (i < object_method_count) is
-       the method that draws reflector object i; 0: `method`. One of
-       DIRECT, ENVMAP, PLANAR, C3RC, SBC (RAYTRACE draws whole frames
-       only). Ignored on objects that are not reflectors. */
+       the method that draws reflector object i; 0: `method`. Any built
+       method; RAYTRACE traces the object's pixels on the base pass (and
+       draws whole frames when it is `method`, with object_methods empty).
+       A reflector its method cannot draw (PLANAR: a curved one) is traced
+       (stats.handed_over). Ignored on objects that are not reflectors. */
     const refl_method *object_methods;
     int object_method_count;
     refl_raytrace_options raytrace;
@@ -1237,7 +1241,8 @@ typedef struct refl__models {
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
    reflector pixels after the base pass: diffuse geometry shaded, mirrors
-   and glass transparent black, partial reflectors at their diffuse share,
+   and glass transparent black (opaque once every method has run),
+   partial reflectors at their diffuse share,
    reflector object id + 1 in the stencil, the environment behind, and
    frame->points NaN everywhere. Methods add their mirror share on top. */
 typedef struct refl__pass {
@@ -1574,6 +1579,7 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/cam_sbc_internal.h ---- */
@@ -9117,6 +9123,24 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
     return refl__planar_restore(pl, lv->level, comp, face, NULL, box);
 }
 
+/* Whether PLANAR can draw reflector `object` (*can): a planar mirror or
+   glass (a few planes at most, refl__planar_find_faces); a curved one it
+   cannot. */
+static refl_result refl__planar_handles(const refl__pass *p, int object, int *can) {
+    const refl_scene *s = p->scene;
+    refl__planar_face *faces = NULL;
+    uint8_t *only = (uint8_t *)refl__calloc(&s->allocator, (size_t)s->object_count, 1);
+    int count = 0;
+    refl_result r;
+    if (!only) return REFL_ERROR_OUT_OF_MEMORY;
+    only[object] = 1;
+    r = refl__planar_find_faces(s, only, &faces, &count);
+    if (r == REFL_OK) refl__planar_free_faces(s, faces, count);
+    refl__free(&s->allocator, only);
+    *can = count > 0;
+    return r;
+}
+
 static const char *refl__options_planar(refl_render_desc *d) {
     if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
     return NULL;
@@ -9222,6 +9246,19 @@ typedef struct refl__rt_frame {
 } refl__rt_frame;
 
 /* One tile of pixels. */
+/* Whether a pixel of base-pass stencil value `stencil` shows a reflector
+   this pass draws (objects past 254 share 255: any of them). */
+static int refl__rt_mine(const refl__pass *p, uint8_t stencil) {
+    int i;
+    if (!stencil) return 0;
+    if (stencil < 255) return refl__pass_draws(p, stencil - 1);
+    for (i = 254; i < p->scene->object_count; ++i)
+        if (refl__pass_draws(p, i)) return 1;
+    return 0;
+}
+
+/* RAYTRACE's tiles: every pixel of the frame, or (p->mine, a frame of
+   several methods) the pixels of its own reflectors, on the base pass. */
 static void refl__rt_tile(void *arg, int job) {
     const refl__rt_frame *tf = (const refl__rt_frame *)arg;
     refl_frame *f = tf->rt.p->frame;
@@ -9232,9 +9269,15 @@ static void refl__rt_tile(void *arg, int job) {
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
-            float rgb[3];
+            float rgb[3], depth;
+            uint8_t stencil;
             refl_vec3 shown;
-            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
+            if (tf->rt.p->mine && !refl__rt_mine(tf->rt.p, f->stencil[i])) continue;
+            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &depth, &stencil);
+            if (!tf->rt.p->mine) { /* the whole frame: no base pass under it */
+                f->depth[i] = depth;
+                f->stencil[i] = stencil;
+            }
             if (f->stencil[i]) {
                 f->points[3 * i] = shown.x;
                 f->points[3 * i + 1] = shown.y;
@@ -9277,21 +9320,22 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         refl__rt_end(&tf.rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (i = 0; i < scene->object_count; ++i)
+    for (i = 0; i < scene->object_count && !p->mine; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (bvh) f->stats.model_bytes = refl__bvh_bytes(bvh);
+    if (bvh) f->stats.model_bytes += refl__bvh_bytes(bvh);
     t1 = refl__now_ms();
-    f->stats.ms_build = t1 - t0;
+    f->stats.ms_build += t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
     for (rows_done = 0; rows_done < tf.tiles_y;) {
         int band = REFL__MAX(1, tf.tiles_y / 16), rows = REFL__MIN(band, tf.tiles_y - rows_done);
         tf.first_tile = rows_done * tf.tiles_x;
         rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
+        if (p->desc.progress && !p->mine)
+            p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
     }
     for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
-    f->stats.ms_reflect = refl__now_ms() - t1;
+    f->stats.ms_reflect += refl__now_ms() - t1;
     refl__free(&scene->allocator, tf.tile_rays);
     refl__rt_end(&tf.rt);
     return REFL_OK;
@@ -11251,7 +11295,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *o
             }
             faces[f].index_count += 3;
         }
-        if (!planar) { /* curved: left as DIRECT draws it */
+        if (!planar) { /* curved: not PLANAR's (refl__planar_handles) */
             memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
             count = first;
             continue;
@@ -11462,26 +11506,29 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
 /* ---- the method table ---------------------------------------------------------- */
 
 enum {
-    REFL__WHOLE_FRAME = 1,        /* renders every pixel itself: no base pass, no other method */
+    REFL__WHOLE_FRAME = 1,        /* as the frame's method: renders every pixel itself, no base pass */
     REFL__PER_REFLECTOR = 2       /* fills the reflectors it is given after the base pass */
 };
 
 typedef struct refl__method_row {
     refl_method method;
-    unsigned kind;                /* REFL__WHOLE_FRAME or REFL__PER_REFLECTOR */
+    unsigned kind;                /* REFL__WHOLE_FRAME and/or REFL__PER_REFLECTOR */
     refl_result (*draw)(refl__pass *p);       /* NULL: nothing past the base pass (DIRECT) */
     const char *(*options)(refl_render_desc *d);
+    /* NULL: it draws any reflector; else whether it can draw object i
+       (those it cannot go to RAYTRACE's tracer, stats.handed_over) */
+    refl_result (*handles)(const refl__pass *p, int object, int *can);
 } refl__method_row;
 
 /* The built methods, in the order a frame runs them. A method without a
    row returns REFL_ERROR_UNSUPPORTED. */
 static const refl__method_row refl__methods[] = {
-    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL},
-    {REFL_RAYTRACE, REFL__WHOLE_FRAME, refl__method_raytrace, refl__options_raytrace},
-    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap},
-    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc},
-    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc},
+    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL, NULL},
+    {REFL_RAYTRACE, REFL__WHOLE_FRAME | REFL__PER_REFLECTOR, refl__method_raytrace, refl__options_raytrace, NULL},
+    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL},
+    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -11527,11 +11574,11 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
         if (out->object_methods[i] == REFL_METHOD_DEFAULT) continue;
         if ((int)out->object_methods[i] < 0 || out->object_methods[i] >= REFL_METHOD_COUNT)
             why = "object_methods: an entry is not a refl_method";
-        else if (row && row->kind == REFL__WHOLE_FRAME)
-            why = "object_methods: RAYTRACE renders whole frames, not single reflectors";
+        else if (row && !(row->kind & REFL__PER_REFLECTOR))
+            why = "object_methods: an entry's method renders whole frames only";
     }
     if (!why && out->object_method_count > 0 && refl__method_row_of(out->method) &&
-        refl__method_row_of(out->method)->kind == REFL__WHOLE_FRAME)
+        (refl__method_row_of(out->method)->kind & REFL__WHOLE_FRAME))
         why = "object_methods: must be empty when method is RAYTRACE (it renders whole frames)";
     if (why) {
         *message = why;
@@ -11596,7 +11643,7 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     r = refl__result_from_rast(rast_set_targets(rc, &t));
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
     if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
-    if (r != REFL_OK || refl__method_row_of(desc->method)->kind == REFL__WHOLE_FRAME) return r;
+    if (r != REFL_OK || (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME)) return r;
     r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
@@ -11606,33 +11653,55 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     return r;
 }
 
+/* The method that draws reflector object i (*by): its own or the frame's,
+   or RAYTRACE's tracer where that one cannot draw it. */
+static refl_result refl__drawn_by(const refl__pass *p, int i, uint8_t *by) {
+    refl_method m = refl__object_method(&p->desc, i);
+    const refl__method_row *row = refl__method_row_of(m);
+    int can = 1;
+    refl_result r = row->handles ? row->handles(p, i, &can) : REFL_OK;
+    *by = (uint8_t)(can ? m : REFL_RAYTRACE);
+    return r;
+}
+
 /* The per-reflector methods of the frame, in table order, each given the
    reflectors that are its own. */
 static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
-    uint8_t *mine = NULL;
+    uint8_t *by = NULL;
     refl_result r = REFL_OK;
-    int row, i;
-    if (!p->desc.object_method_count) {
-        const refl__method_row *m = refl__method_row_of(p->desc.method);
-        return m->draw ? m->draw(p) : REFL_OK;
+    int row, i, mixed = 0;
+    by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
+    if (!by) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
+        r = refl__drawn_by(p, i, &by[i]);
+        mixed |= by[i] != (uint8_t)p->desc.method;
+        if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
     }
-    mine = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 1);
-    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
-    p->mine = mine;
     for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
         const refl__method_row *m = &refl__methods[row];
+        uint8_t *mine = by + scene->object_count;
         int any = 0;
-        if (!m->draw || m->kind != REFL__PER_REFLECTOR) continue;
+        if (!m->draw || !(m->kind & REFL__PER_REFLECTOR)) continue;
         for (i = 0; i < scene->object_count; ++i) {
-            mine[i] = refl__object_method(&p->desc, i) == m->method;
-            any |= mine[i] && refl__is_reflector(&scene->materials[scene->objects[i].material]);
+            mine[i] = by[i] == (uint8_t)m->method;
+            any |= mine[i];
         }
-        if (any) r = m->draw(p);
+        if (!any) continue;
+        p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
+        r = m->draw(p);
     }
     p->mine = NULL;
-    refl__free(&scene->allocator, mine);
+    refl__free(&scene->allocator, by);
     return r;
+}
+
+/* What no method filled (DIRECT's reflectors, where a recursion ended)
+   shows black, the base pass's colour for mirror and glass, opaque. */
+static void refl__opaque(refl_frame *frame) {
+    size_t i, n = (size_t)frame->width * (size_t)frame->height;
+    for (i = 0; i < n; ++i) frame->color[4 * i + 3] = 255;
 }
 
 /* ---- the renderer ---------------------------------------------------------------- */
@@ -11734,8 +11803,9 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     row = refl__method_row_of(rr->desc.method);
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
     r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
-    if (r == REFL_OK) r = row->kind == REFL__WHOLE_FRAME ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
     if (r != REFL_OK) return r;
+    refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;

@@ -370,6 +370,9 @@ static int cmd_render(const options *o) {
                 f->message[0] ? ": " : "", f->message);
         goto done;
     }
+    if (f->stats.handed_over)
+        fprintf(stderr, "reflect: %d reflector%s %s cannot draw (curved) ray traced instead\n", f->stats.handed_over,
+                f->stats.handed_over > 1 ? "s" : "", refl_method_name(d.method));
     if ((r = refl_image_write(o->out, f->width, f->height, 4, f->color, NULL, err, sizeof err)) != REFL_OK) {
         fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
         goto done;
@@ -382,6 +385,7 @@ static int cmd_render(const options *o) {
         printf("  build ms   %.2f\n  base ms    %.2f\n  reflect ms %.2f\n  compose ms %.2f\n", st->ms_build,
                st->ms_base, st->ms_reflect, st->ms_composite);
         printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
+        if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);
         if (st->planar.renderings || st->planar.culled)
             printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,

@@ -793,6 +793,8 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
+    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
+                                drawn by RAYTRACE's tracer instead */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from
                                 an earlier frame */
@@ -958,9 +960,11 @@ typedef struct refl_render_desc {
                                 with none left shows what DIRECT shows there */
     refl_lighting_options lighting;
     /* Optional, per object: object_methods[i] (i < object_method_count) is
-       the method that draws reflector object i; 0: `method`. One of
-       DIRECT, ENVMAP, PLANAR, C3RC, SBC (RAYTRACE draws whole frames
-       only). Ignored on objects that are not reflectors. */
+       the method that draws reflector object i; 0: `method`. Any built
+       method; RAYTRACE traces the object's pixels on the base pass (and
+       draws whole frames when it is `method`, with object_methods empty).
+       A reflector its method cannot draw (PLANAR: a curved one) is traced
+       (stats.handed_over). Ignored on objects that are not reflectors. */
     const refl_method *object_methods;
     int object_method_count;
     refl_raytrace_options raytrace;

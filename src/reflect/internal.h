@@ -122,7 +122,8 @@ typedef struct refl__models {
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
    reflector pixels after the base pass: diffuse geometry shaded, mirrors
-   and glass transparent black, partial reflectors at their diffuse share,
+   and glass transparent black (opaque once every method has run),
+   partial reflectors at their diffuse share,
    reflector object id + 1 in the stencil, the environment behind, and
    frame->points NaN everywhere. Methods add their mirror share on top. */
 typedef struct refl__pass {
@@ -459,5 +460,6 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

@@ -790,6 +790,24 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
     return refl__planar_restore(pl, lv->level, comp, face, NULL, box);
 }
 
+/* Whether PLANAR can draw reflector `object` (*can): a planar mirror or
+   glass (a few planes at most, refl__planar_find_faces); a curved one it
+   cannot. */
+static refl_result refl__planar_handles(const refl__pass *p, int object, int *can) {
+    const refl_scene *s = p->scene;
+    refl__planar_face *faces = NULL;
+    uint8_t *only = (uint8_t *)refl__calloc(&s->allocator, (size_t)s->object_count, 1);
+    int count = 0;
+    refl_result r;
+    if (!only) return REFL_ERROR_OUT_OF_MEMORY;
+    only[object] = 1;
+    r = refl__planar_find_faces(s, only, &faces, &count);
+    if (r == REFL_OK) refl__planar_free_faces(s, faces, count);
+    refl__free(&s->allocator, only);
+    *can = count > 0;
+    return r;
+}
+
 static const char *refl__options_planar(refl_render_desc *d) {
     if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
     return NULL;

@@ -16,6 +16,19 @@ typedef struct refl__rt_frame {
 } refl__rt_frame;
 
 /* One tile of pixels. */
+/* Whether a pixel of base-pass stencil value `stencil` shows a reflector
+   this pass draws (objects past 254 share 255: any of them). */
+static int refl__rt_mine(const refl__pass *p, uint8_t stencil) {
+    int i;
+    if (!stencil) return 0;
+    if (stencil < 255) return refl__pass_draws(p, stencil - 1);
+    for (i = 254; i < p->scene->object_count; ++i)
+        if (refl__pass_draws(p, i)) return 1;
+    return 0;
+}
+
+/* RAYTRACE's tiles: every pixel of the frame, or (p->mine, a frame of
+   several methods) the pixels of its own reflectors, on the base pass. */
 static void refl__rt_tile(void *arg, int job) {
     const refl__rt_frame *tf = (const refl__rt_frame *)arg;
     refl_frame *f = tf->rt.p->frame;
@@ -26,9 +39,15 @@ static void refl__rt_tile(void *arg, int job) {
     for (y = y0; y < y1; ++y)
         for (x = x0; x < x1; ++x) {
             size_t i = (size_t)y * (size_t)f->width + (size_t)x;
-            float rgb[3];
+            float rgb[3], depth;
+            uint8_t stencil;
             refl_vec3 shown;
-            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &f->depth[i], &f->stencil[i]);
+            if (tf->rt.p->mine && !refl__rt_mine(tf->rt.p, f->stencil[i])) continue;
+            refl__rt_pixel(&tf->rt, x, y, &rays, rgb, &shown, &depth, &stencil);
+            if (!tf->rt.p->mine) { /* the whole frame: no base pass under it */
+                f->depth[i] = depth;
+                f->stencil[i] = stencil;
+            }
             if (f->stencil[i]) {
                 f->points[3 * i] = shown.x;
                 f->points[3 * i + 1] = shown.y;
@@ -71,21 +90,22 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         refl__rt_end(&tf.rt);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (i = 0; i < scene->object_count; ++i)
+    for (i = 0; i < scene->object_count && !p->mine; ++i)
         f->stats.triangles += scene->meshes[scene->objects[i].mesh]->triangle_count;
-    if (bvh) f->stats.model_bytes = refl__bvh_bytes(bvh);
+    if (bvh) f->stats.model_bytes += refl__bvh_bytes(bvh);
     t1 = refl__now_ms();
-    f->stats.ms_build = t1 - t0;
+    f->stats.ms_build += t1 - t0;
     /* bands of tile rows, so progress is reported from this thread */
     for (rows_done = 0; rows_done < tf.tiles_y;) {
         int band = REFL__MAX(1, tf.tiles_y / 16), rows = REFL__MIN(band, tf.tiles_y - rows_done);
         tf.first_tile = rows_done * tf.tiles_x;
         rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress) p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
+        if (p->desc.progress && !p->mine)
+            p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
     }
     for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
-    f->stats.ms_reflect = refl__now_ms() - t1;
+    f->stats.ms_reflect += refl__now_ms() - t1;
     refl__free(&scene->allocator, tf.tile_rays);
     refl__rt_end(&tf.rt);
     return REFL_OK;

@@ -85,7 +85,7 @@ static refl_result refl__planar_find_faces(const refl_scene *s, const uint8_t *o
             }
             faces[f].index_count += 3;
         }
-        if (!planar) { /* curved: left as DIRECT draws it */
+        if (!planar) { /* curved: not PLANAR's (refl__planar_handles) */
             memset(&faces[first], 0, (size_t)(count - first) * sizeof(*faces));
             count = first;
             continue;

@@ -165,26 +165,29 @@ REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, floa
 /* ---- the method table ---------------------------------------------------------- */
 
 enum {
-    REFL__WHOLE_FRAME = 1,        /* renders every pixel itself: no base pass, no other method */
+    REFL__WHOLE_FRAME = 1,        /* as the frame's method: renders every pixel itself, no base pass */
     REFL__PER_REFLECTOR = 2       /* fills the reflectors it is given after the base pass */
 };
 
 typedef struct refl__method_row {
     refl_method method;
-    unsigned kind;                /* REFL__WHOLE_FRAME or REFL__PER_REFLECTOR */
+    unsigned kind;                /* REFL__WHOLE_FRAME and/or REFL__PER_REFLECTOR */
     refl_result (*draw)(refl__pass *p);       /* NULL: nothing past the base pass (DIRECT) */
     const char *(*options)(refl_render_desc *d);
+    /* NULL: it draws any reflector; else whether it can draw object i
+       (those it cannot go to RAYTRACE's tracer, stats.handed_over) */
+    refl_result (*handles)(const refl__pass *p, int object, int *can);
 } refl__method_row;
 
 /* The built methods, in the order a frame runs them. A method without a
    row returns REFL_ERROR_UNSUPPORTED. */
 static const refl__method_row refl__methods[] = {
-    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL},
-    {REFL_RAYTRACE, REFL__WHOLE_FRAME, refl__method_raytrace, refl__options_raytrace},
-    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap},
-    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc},
-    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc},
+    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL, NULL},
+    {REFL_RAYTRACE, REFL__WHOLE_FRAME | REFL__PER_REFLECTOR, refl__method_raytrace, refl__options_raytrace, NULL},
+    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL},
+    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -230,11 +233,11 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
         if (out->object_methods[i] == REFL_METHOD_DEFAULT) continue;
         if ((int)out->object_methods[i] < 0 || out->object_methods[i] >= REFL_METHOD_COUNT)
             why = "object_methods: an entry is not a refl_method";
-        else if (row && row->kind == REFL__WHOLE_FRAME)
-            why = "object_methods: RAYTRACE renders whole frames, not single reflectors";
+        else if (row && !(row->kind & REFL__PER_REFLECTOR))
+            why = "object_methods: an entry's method renders whole frames only";
     }
     if (!why && out->object_method_count > 0 && refl__method_row_of(out->method) &&
-        refl__method_row_of(out->method)->kind == REFL__WHOLE_FRAME)
+        (refl__method_row_of(out->method)->kind & REFL__WHOLE_FRAME))
         why = "object_methods: must be empty when method is RAYTRACE (it renders whole frames)";
     if (why) {
         *message = why;
@@ -299,7 +302,7 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     r = refl__result_from_rast(rast_set_targets(rc, &t));
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
     if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
-    if (r != REFL_OK || refl__method_row_of(desc->method)->kind == REFL__WHOLE_FRAME) return r;
+    if (r != REFL_OK || (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME)) return r;
     r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
@@ -309,33 +312,55 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     return r;
 }
 
+/* The method that draws reflector object i (*by): its own or the frame's,
+   or RAYTRACE's tracer where that one cannot draw it. */
+static refl_result refl__drawn_by(const refl__pass *p, int i, uint8_t *by) {
+    refl_method m = refl__object_method(&p->desc, i);
+    const refl__method_row *row = refl__method_row_of(m);
+    int can = 1;
+    refl_result r = row->handles ? row->handles(p, i, &can) : REFL_OK;
+    *by = (uint8_t)(can ? m : REFL_RAYTRACE);
+    return r;
+}
+
 /* The per-reflector methods of the frame, in table order, each given the
    reflectors that are its own. */
 static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
-    uint8_t *mine = NULL;
+    uint8_t *by = NULL;
     refl_result r = REFL_OK;
-    int row, i;
-    if (!p->desc.object_method_count) {
-        const refl__method_row *m = refl__method_row_of(p->desc.method);
-        return m->draw ? m->draw(p) : REFL_OK;
+    int row, i, mixed = 0;
+    by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
+    if (!by) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
+        r = refl__drawn_by(p, i, &by[i]);
+        mixed |= by[i] != (uint8_t)p->desc.method;
+        if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
     }
-    mine = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 1);
-    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
-    p->mine = mine;
     for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
         const refl__method_row *m = &refl__methods[row];
+        uint8_t *mine = by + scene->object_count;
         int any = 0;
-        if (!m->draw || m->kind != REFL__PER_REFLECTOR) continue;
+        if (!m->draw || !(m->kind & REFL__PER_REFLECTOR)) continue;
         for (i = 0; i < scene->object_count; ++i) {
-            mine[i] = refl__object_method(&p->desc, i) == m->method;
-            any |= mine[i] && refl__is_reflector(&scene->materials[scene->objects[i].material]);
+            mine[i] = by[i] == (uint8_t)m->method;
+            any |= mine[i];
         }
-        if (any) r = m->draw(p);
+        if (!any) continue;
+        p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
+        r = m->draw(p);
     }
     p->mine = NULL;
-    refl__free(&scene->allocator, mine);
+    refl__free(&scene->allocator, by);
     return r;
+}
+
+/* What no method filled (DIRECT's reflectors, where a recursion ended)
+   shows black, the base pass's colour for mirror and glass, opaque. */
+static void refl__opaque(refl_frame *frame) {
+    size_t i, n = (size_t)frame->width * (size_t)frame->height;
+    for (i = 0; i < n; ++i) frame->color[4 * i + 3] = 255;
 }
 
 /* ---- the renderer ---------------------------------------------------------------- */
@@ -437,8 +462,9 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     row = refl__method_row_of(rr->desc.method);
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
     r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
-    if (r == REFL_OK) r = row->kind == REFL__WHOLE_FRAME ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
     if (r != REFL_OK) return r;
+    refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;

@@ -178,10 +178,11 @@ Test(refl_planar, hard_views_stay_confined_to_the_mirrors) {
     v = s->camera;
     v.width = 64; v.height = 48;
     {
-        refl_frame *direct = render(s, &v, REFL_DIRECT, 0, 0, 2), *planar = render(s, &v, REFL_PLANAR, 2, 0, 2);
-        cr_assert_eq(tu_first_diff(direct->color, planar->color, 4 * 64 * 48), -1, "a curved mirror is not planar");
+        /* a curved mirror is not planar: PLANAR hands it to the tracer
+           (tests/reflect/test_renderer.c checks its pixels) */
+        refl_frame *planar = render(s, &v, REFL_PLANAR, 2, 0, 2);
         cr_assert_eq(planar->stats.planar.renderings, 0);
-        refl_frame_destroy(direct);
+        cr_assert_eq(planar->stats.handed_over, 1);
         refl_frame_destroy(planar);
     }
     refl_scene_destroy(s);

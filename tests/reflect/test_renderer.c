@@ -135,15 +135,18 @@ static refl_scene *two_mirrors(refl_view *v, int *plane, int *sphere) {
 }
 
 /* One frame, each reflector its own method: each reflector's pixels are
-   those a frame of its method alone gives it (one bounce), the rest the
-   base pass's. (C3RC's density is set: its default follows the
+   those a frame of its method alone gives it (one bounce), the rest
+   DIRECT's (the base pass). (C3RC's density is set: its default follows the
    reflectors it draws.) */
 Test(refl_renderer, each_reflector_with_its_own_method, .timeout = 60) {
     static const refl_method pairs[][2] = {{REFL_PLANAR, REFL_SBC}, {REFL_PLANAR, REFL_ENVMAP},
-                                           {REFL_ENVMAP, REFL_C3RC}, {REFL_DIRECT, REFL_SBC}};
+                                           {REFL_ENVMAP, REFL_C3RC}, {REFL_DIRECT, REFL_SBC},
+                                           {REFL_PLANAR, REFL_RAYTRACE}};
     refl_view v;
     int plane, sphere, k;
     refl_scene *s = two_mirrors(&v, &plane, &sphere);
+    refl_render_desc direct = tu_refl_one_bounce(REFL_DIRECT, 2);
+    refl_frame *base = tu_refl_render(s, &v, &direct);
     for (k = 0; k < (int)(sizeof pairs / sizeof pairs[0]); ++k) {
         refl_method per_object[2];
         refl_render_desc d = tu_refl_one_bounce(pairs[k][0], 2);
@@ -161,7 +164,7 @@ Test(refl_renderer, each_reflector_with_its_own_method, .timeout = 60) {
         d.object_method_count = 2;
         mixed = tu_refl_render(s, &v, &d);
         for (i = 0; i < v.width * v.height; ++i) {
-            const refl_frame *want = mixed->stencil[i] == plane + 1 ? alone0 : alone1;
+            const refl_frame *want = !mixed->stencil[i] ? base : mixed->stencil[i] == plane + 1 ? alone0 : alone1;
             cr_assert_eq(mixed->stencil[i], alone0->stencil[i]);
             on[mixed->stencil[i] == plane + 1] += mixed->stencil[i] != 0;
             cr_assert_eq(memcmp(mixed->color + 4 * i, want->color + 4 * i, 4), 0,
@@ -178,5 +181,32 @@ Test(refl_renderer, each_reflector_with_its_own_method, .timeout = 60) {
         refl_frame_destroy(alone1);
         refl_frame_destroy(mixed);
     }
+    refl_frame_destroy(base);
+    refl_scene_destroy(s);
+}
+
+/* A reflector PLANAR cannot draw (the default scene's curved teapot) is
+   handed to RAYTRACE's tracer: its pixels are RAYTRACE's, colour and
+   point, and the frame says one reflector was handed over. */
+Test(refl_renderer, a_reflector_its_method_cannot_draw_is_ray_traced, .timeout = 60) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("default", &v, 96, 72);
+    refl_render_desc d = tu_refl_one_bounce(REFL_PLANAR, 2);
+    refl_frame *planar = tu_refl_render(s, &v, &d), *traced;
+    long long on = 0;
+    int i;
+    d.method = REFL_RAYTRACE;
+    traced = tu_refl_render(s, &v, &d);
+    cr_assert_eq(planar->stats.handed_over, 1);
+    cr_assert_eq(traced->stats.handed_over, 0);
+    for (i = 0; i < v.width * v.height; ++i) {
+        if (!planar->stencil[i]) continue;
+        on++;
+        cr_assert_eq(memcmp(planar->color + 4 * i, traced->color + 4 * i, 4), 0, "pixel %d", i);
+        cr_assert(tu_refl_same_point(planar->points + 3 * i, traced->points + 3 * i), "pixel %d: point", i);
+    }
+    cr_assert(on > 500, "%lld teapot pixels", on);
+    refl_frame_destroy(planar);
+    refl_frame_destroy(traced);
     refl_scene_destroy(s);
 }

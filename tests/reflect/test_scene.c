@@ -180,7 +180,7 @@ Test(refl_scene, direct_stencil_ids_colours_and_background) {
         const uint8_t *c = f->color + 4 * i;
         if (f->stencil[i]) {
             cr_assert_eq(f->stencil[i], t + 1);
-            cr_assert(c[0] == 0 && c[1] == 0 && c[2] == 0 && c[3] == 0);
+            cr_assert(c[0] == 0 && c[1] == 0 && c[2] == 0 && c[3] == 255); /* mirrors: black, opaque */
             ++mirror_px;
         } else if (f->depth[i] >= 1.0f) {
             cr_assert(c[0] == sky[0] && c[1] == sky[1] && c[2] == sky[2] && c[3] == 255, "pixel %d", i);
