@@ -24,6 +24,16 @@ refuses() { # refuses NAME PATTERN CMD...: non-zero exit (not a crash), stderr m
     else fail=$((fail + 1)); echo "FAIL $name: exit $code, stderr:"; cat "$tmp/err"; fi
 }
 
+# colour: a PNG is sRGB-encoded, so a constant grey sky (sRGB 128, decoded
+# to linear on load) comes out as 128 again; an EXR keeps linear values
+oiiotool --pattern constant:color=0.50196,0.50196,0.50196 8x4 3 -d uint8 -o "$tmp/grey.png"
+ok "render with a grey sky" "$bin" render --builtin default --env "$tmp/grey.png" --size 32x24 --out "$tmp/grey-out.png"
+ok "the grey sky is 128 in the PNG" bash -c \
+    "oiiotool '$tmp/grey-out.png' --cut 32x4+0+0 --printstats | grep -qE 'Stats (Min|Max): 0\.(498|50[0-3])[0-9]* 0\.(498|50[0-3])[0-9]* 0\.(498|50[0-3])'"
+ok "render to EXR" "$bin" render --builtin default --env "$tmp/grey.png" --size 32x24 --out "$tmp/grey-out.exr"
+ok "the grey sky is linear 0.216 in the EXR" bash -c \
+    "oiiotool '$tmp/grey-out.exr' --cut 32x4+0+0 --printstats | grep -qE 'Stats Min: 0\.21[4-8]'"
+
 for s in default mirror-room concave glass; do
     ok "render $s" "$bin" render --builtin "$s" --size 96x64 --threads 2 --out "$tmp/$s.png"
     ok "$s.png is a 96x64 image" bash -c "oiiotool --info '$tmp/$s.png' | grep -q '96 x  *64'"

@@ -290,6 +290,21 @@ static void progress_bar(void *user, float done) {
     fflush(stderr);
 }
 
+/* The frame's linear colours written as such: image_io encodes them to
+   sRGB for 8-bit formats (PNG, JPEG, PPM ...) and keeps them linear in
+   float ones (EXR, HDR, PFM). */
+static refl_result write_linear(const char *path, const refl_frame *f, char *err, size_t err_size) {
+    size_t i, n = (size_t)f->width * (size_t)f->height * 4;
+    float *rgbaf = (float *)malloc(n * sizeof(float));
+    refl_result r;
+    err[0] = '\0';
+    if (!rgbaf) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n; ++i) rgbaf[i] = (float)f->color[i] / 255.0f;
+    r = refl_image_write(path, f->width, f->height, 4, NULL, rgbaf, err, err_size);
+    free(rgbaf);
+    return r;
+}
+
 static int cmd_render(const options *o) {
     refl_scene *s = load_scene(o);
     refl_frame *f = NULL;
@@ -373,7 +388,7 @@ static int cmd_render(const options *o) {
     if (f->stats.handed_over)
         fprintf(stderr, "reflect: %d reflector%s %s cannot draw (curved) ray traced instead\n", f->stats.handed_over,
                 f->stats.handed_over > 1 ? "s" : "", refl_method_name(d.method));
-    if ((r = refl_image_write(o->out, f->width, f->height, 4, f->color, NULL, err, sizeof err)) != REFL_OK) {
+    if ((r = write_linear(o->out, f, err, sizeof err)) != REFL_OK) {
         fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
         goto done;
     }
