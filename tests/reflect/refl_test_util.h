@@ -5,6 +5,7 @@
 #define REFL_TEST_UTIL_H
 
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 #include "../test_util.h"
 
@@ -36,6 +37,23 @@ static inline refl_scene *tu_refl_builtin(const char *name, refl_view *v, int w,
     v->width = w;
     v->height = h;
     return s;
+}
+
+/* A 64-bit FNV-1a digest of a frame's colour, depth, stencil and points:
+   equal digests, the same bytes. */
+static inline uint64_t tu_refl_digest(const refl_frame *f) {
+    size_t n = (size_t)f->width * (size_t)f->height, i;
+    const unsigned char *parts[4];
+    size_t sizes[4];
+    uint64_t h = 0xCBF29CE484222325ull;
+    int k;
+    parts[0] = f->color; sizes[0] = 4 * n;
+    parts[1] = (const unsigned char *)f->depth; sizes[1] = n * sizeof(float);
+    parts[2] = f->stencil; sizes[2] = n;
+    parts[3] = (const unsigned char *)f->points; sizes[3] = 3 * n * sizeof(float);
+    for (k = 0; k < 4; ++k)
+        for (i = 0; i < sizes[k]; ++i) h = (h ^ parts[k][i]) * 0x100000001B3ull;
+    return h;
 }
 
 /* Whether two frame points are the same: both none (NaN) or equal in

@@ -25,16 +25,6 @@ static int renders(refl_method m) {
     return r == REFL_OK;
 }
 
-static uint64_t digest(const refl_frame *f) {
-    size_t n = (size_t)f->width * (size_t)f->height, i;
-    uint64_t h = 0xCBF29CE484222325ull;
-    for (i = 0; i < 4 * n; ++i) h = (h ^ f->color[i]) * 0x100000001B3ull;
-    for (i = 0; i < n; ++i) h = (h ^ f->stencil[i]) * 0x100000001B3ull;
-    for (i = 0; i < n * sizeof(float); ++i) h = (h ^ ((const uint8_t *)f->depth)[i]) * 0x100000001B3ull;
-    for (i = 0; i < 3 * n * sizeof(float); ++i) h = (h ^ ((const uint8_t *)f->points)[i]) * 0x100000001B3ull;
-    return h;
-}
-
 Test(refl_contract, every_method_renders_or_is_unsupported) {
     int m, built = 0;
     for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) built += renders((refl_method)m);
@@ -62,8 +52,8 @@ Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .
                 d.depth = 2;
                 d.lighting.shadows = 1;
                 f = tu_refl_render(s, &v, &d);
-                if (t == 0) first = digest(f);
-                cr_assert_eq(digest(f), first, "%s on %s: %d threads give other bytes than 1",
+                if (t == 0) first = tu_refl_digest(f);
+                cr_assert_eq(tu_refl_digest(f), first, "%s on %s: %d threads give other bytes than 1",
                              refl_method_name((refl_method)m), scenes[k], threads[t]);
                 for (i = 0; t == 0 && i < v.width * v.height; ++i) {
                     const float *p = f->points + 3 * i;

@@ -61,22 +61,6 @@ static refl_render_desc golden_desc(const char *setting) {
     return d;
 }
 
-static uint64_t fnv1a(uint64_t h, const void *data, size_t n) {
-    const unsigned char *p = (const unsigned char *)data;
-    size_t i;
-    for (i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001B3ull;
-    return h;
-}
-
-static uint64_t frame_digest(const refl_frame *f) {
-    size_t n = (size_t)f->width * (size_t)f->height;
-    uint64_t h = 0xCBF29CE484222325ull;
-    h = fnv1a(h, f->color, 4 * n);
-    h = fnv1a(h, f->depth, n * sizeof(float));
-    h = fnv1a(h, f->stencil, n);
-    return fnv1a(h, f->points, 3 * n * sizeof(float));
-}
-
 static const golden_case golden_cases[] = {
     {"default", "direct", 0x25d9a4b808333eafull},
     {"default", "raytrace", 0x8e1ba9c7e3ee052cull},
@@ -123,7 +107,7 @@ Test(refl_golden, every_method_on_every_builtin_scene_renders_the_recorded_bytes
         refl_scene *s = tu_refl_builtin(c->scene, &v, 96, 72);
         refl_render_desc d = golden_desc(c->setting);
         refl_frame *f = tu_refl_render(s, &v, &d);
-        uint64_t h = frame_digest(f);
+        uint64_t h = tu_refl_digest(f);
         if (print) printf("    {\"%s\", \"%s\", 0x%016llxull},\n", c->scene, c->setting, (unsigned long long)h);
         if (h != c->digest) {
             fprintf(stderr, "%s %s: digest 0x%016llx, recorded 0x%016llx\n", c->scene, c->setting,

@@ -7,21 +7,6 @@
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
-static uint64_t digest(const refl_frame *f) {
-    size_t n = (size_t)f->width * (size_t)f->height, i;
-    uint64_t h = 0xCBF29CE484222325ull;
-    const unsigned char *parts[4];
-    size_t sizes[4];
-    int k;
-    parts[0] = f->color; sizes[0] = 4 * n;
-    parts[1] = (const unsigned char *)f->depth; sizes[1] = n * sizeof(float);
-    parts[2] = f->stencil; sizes[2] = n;
-    parts[3] = (const unsigned char *)f->points; sizes[3] = 3 * n * sizeof(float);
-    for (k = 0; k < 4; ++k)
-        for (i = 0; i < sizes[k]; ++i) h = (h ^ parts[k][i]) * 0x100000001B3ull;
-    return h;
-}
-
 /* Frame k of a camera path orbiting the scene's camera around its target. */
 static refl_view path_view(const refl_scene *s, int k, int w, int h) {
     refl_view v = s->camera;
@@ -48,7 +33,7 @@ static void check_path(const char *scene, refl_render_desc d, int builds_first) 
         refl_view vk = path_view(s, k, 64, 48);
         refl_frame *fresh = tu_refl_render(s, &vk, &d);
         cr_assert_eq(refl_renderer_render(rr, &vk, kept), REFL_OK);
-        cr_assert_eq(digest(kept), digest(fresh), "%s, %s, frame %d: the renderer's bytes differ from refl_render's",
+        cr_assert_eq(tu_refl_digest(kept), tu_refl_digest(fresh), "%s, %s, frame %d: the renderer's bytes differ from refl_render's",
                      scene, refl_method_name(d.method), k);
         cr_assert_eq(fresh->stats.scene_models_built, builds_first, "%s: refl_render builds %d models",
                      refl_method_name(d.method), fresh->stats.scene_models_built);
@@ -100,7 +85,7 @@ Test(refl_renderer, c3rc_default_density_is_the_first_frames, .timeout = 120) {
     cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
     cr_assert_eq(refl_frame_create(64, 48, NULL, &kept), REFL_OK);
     cr_assert_eq(refl_renderer_render(rr, &v0, kept), REFL_OK);
-    cr_assert_eq(digest(kept), digest(first));
+    cr_assert_eq(tu_refl_digest(kept), tu_refl_digest(first));
     cr_assert_eq(refl_renderer_render(rr, &v3, kept), REFL_OK);
     cr_assert_eq(kept->stats.c3rc.points, first->stats.c3rc.points, "the points were sampled again");
     /* refl_render of the same view samples at its own density */
