@@ -999,8 +999,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene must outlive
-   the renderer; one thread at a time renders with it. */
+   points would otherwise be re-sampled every frame). The scene, and what
+   the desc points to (object_methods, sbc.morphs), must outlive the
+   renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;
 REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
                                           refl_renderer **out_renderer);
@@ -11569,14 +11570,9 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     for (i = 0; !why && i < REFL__METHOD_ROWS; ++i)
         if (refl__methods[i].options) why = refl__methods[i].options(out);
     if (!why && out->method == REFL_METHOD_DEFAULT) out->method = REFL_DIRECT;
-    for (i = 0; !why && i < out->object_method_count; ++i) {
-        const refl__method_row *row = refl__method_row_of(out->object_methods[i]);
-        if (out->object_methods[i] == REFL_METHOD_DEFAULT) continue;
+    for (i = 0; !why && i < out->object_method_count; ++i)
         if ((int)out->object_methods[i] < 0 || out->object_methods[i] >= REFL_METHOD_COUNT)
             why = "object_methods: an entry is not a refl_method";
-        else if (row && !(row->kind & REFL__PER_REFLECTOR))
-            why = "object_methods: an entry's method renders whole frames only";
-    }
     if (!why && out->object_method_count > 0 && refl__method_row_of(out->method) &&
         (refl__method_row_of(out->method)->kind & REFL__WHOLE_FRAME))
         why = "object_methods: must be empty when method is RAYTRACE (it renders whole frames)";

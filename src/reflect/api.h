@@ -997,8 +997,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene must outlive
-   the renderer; one thread at a time renders with it. */
+   points would otherwise be re-sampled every frame). The scene, and what
+   the desc points to (object_methods, sbc.morphs), must outlive the
+   renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;
 REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_render_desc *desc,
                                           refl_renderer **out_renderer);
