@@ -7010,14 +7010,33 @@ typedef struct refl__c3_counts {
     double ms_cull, ms_project;
 } refl__c3_counts;
 
+/* The scene's samples in a kd-tree, and per tree point its shade, normal
+   and where it was sampled: what refl__c3_points makes, and what a
+   renderer keeps across frames (it depends on the scene and the density,
+   not on the view). */
+typedef struct refl__c3_samples {
+    refl_kdtree *tree;
+    float *rgb, *normal;
+    uint8_t *diffuse;             /* on a diffuse object (culled when facing away) */
+    int32_t *object, *triangle;   /* where it was sampled */
+} refl__c3_samples;
+
+static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
+    if (!pts) return;
+    refl_kdtree_destroy(pts->tree);
+    refl__free(al, pts->rgb);
+    refl__free(al, pts->normal);
+    refl__free(al, pts->diffuse);
+    refl__free(al, pts->object);
+    refl__free(al, pts->triangle);
+    refl__free(al, pts);
+}
+
 typedef struct refl__c3 {
     refl__pass *p;
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
-    refl_kdtree *tree;
-    float *rgb, *normal;          /* per tree point */
-    uint8_t *diffuse;             /* per tree point: on a diffuse object (culled when facing away) */
-    int32_t *object, *triangle;   /* per tree point: where it was sampled */
+    refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
     float tmax;                   /* longest possible sweep: the scene's diagonal */
     float pixel_angle;            /* world size of a pixel per unit of distance */
@@ -7104,13 +7123,13 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                                    refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
         refl_vec3 ns = refl_v3_cross(e1, e2), np;
         float sweep = 0.5f * refl_v3_length(ns), cs, cp;
-        const float *nn = c3->normal + 3 * (size_t)i;
+        const float *nn = c3->s->normal + 3 * (size_t)i;
         np = refl_v3(nn[0], nn[1], nn[2]);
         dir = refl_v3_normalize(dir);
         cs = fabsf(refl_v3_dot(refl_v3_normalize(ns), dir));
         cp = refl_v3_dot(np, dir);
         /* a diffuse surface's back, seen through gaps in its front: not drawn */
-        if (cp > 0.0f && c3->diffuse[i]) return;
+        if (cp > 0.0f && c3->s->diffuse[i]) return;
         cp = fabsf(cp);
         if (sweep > 0.0f && density > 0.0f)
             spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
@@ -7237,7 +7256,7 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
     for (i = leaf->first; i < leaf->first + count; ++i) {
         const float *q = tree->positions + 3 * (size_t)i;
         /* a reflector's own triangle would see all of itself at t = 0 */
-        if (c3->triangle[i] == k->triangle && c3->object[i] == k->object) continue;
+        if (c3->s->triangle[i] == k->triangle && c3->s->object[i] == k->object) continue;
         for (j = 0; j < k->hull_count; ++j) {
             const float *h = k->hull[j];
             if (h[0] * q[0] + h[1] * q[1] + h[2] * q[2] > h[3]) break;
@@ -7457,7 +7476,7 @@ static void refl__c3_camera(void *arg, int index) {
     }
     refl__c3_hull(&k);
     k.lod = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), intervals) == 0;
-    refl_kdtree_query(c3->tree, refl__c3_box, refl__c3_leaf, &k);
+    refl_kdtree_query(c3->s->tree, refl__c3_box, refl__c3_leaf, &k);
     k.n->ms_cull += k.t_cull;
 }
 
@@ -7497,41 +7516,21 @@ static void refl__c3_shade(void *arg, int index) {
     const refl__c3_shade_arg *a = (const refl__c3_shade_arg *)arg;
     refl__c3 *c3 = a->c3;
     const refl_scene *scene = c3->p->scene;
-    int i, end = REFL__MIN(c3->tree->point_count, (index + 1) * a->chunk);
+    int i, end = REFL__MIN(c3->s->tree->point_count, (index + 1) * a->chunk);
     for (i = index * a->chunk; i < end; ++i) {
-        const refl_object *o = &scene->objects[c3->object[i]];
+        const refl_object *o = &scene->objects[c3->s->object[i]];
         const refl_material *m = &scene->materials[o->material];
-        const float *q = c3->tree->positions + 3 * (size_t)i, *n = c3->normal + 3 * (size_t)i;
+        const float *q = c3->s->tree->positions + 3 * (size_t)i, *n = c3->s->normal + 3 * (size_t)i;
         refl_vec3 pt = refl_v3(q[0], q[1], q[2]);
         float rgb[3] = {0.0f, 0.0f, 0.0f}, rgba[4], uv[2];
         if (m->type == REFL_DIFFUSE || m->type == REFL_PARTIAL) {
-            int has_uv = refl__c3_uv(scene->meshes[o->mesh], o->transform, c3->triangle[i], pt, uv);
+            int has_uv = refl__c3_uv(scene->meshes[o->mesh], o->transform, c3->s->triangle[i], pt, uv);
             refl_shade_diffuse(scene, m, pt, refl_v3(n[0], n[1], n[2]), has_uv ? uv : NULL, rgb);
             refl__surface_rgba(m, rgb, rgba);
             memcpy(rgb, rgba, sizeof rgb);
         }
-        memcpy(c3->rgb + 3 * (size_t)i, rgb, sizeof rgb);
+        memcpy(c3->s->rgb + 3 * (size_t)i, rgb, sizeof rgb);
     }
-}
-
-/* What refl__c3_points makes, as a renderer keeps it across frames: it
-   depends on the scene and the density, not on the view. */
-typedef struct refl__c3_samples {
-    refl_kdtree *tree;
-    float *rgb, *normal;
-    uint8_t *diffuse;
-    int32_t *object, *triangle;
-} refl__c3_samples;
-
-static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
-    if (!pts) return;
-    refl_kdtree_destroy(pts->tree);
-    refl__free(al, pts->rgb);
-    refl__free(al, pts->normal);
-    refl__free(al, pts->diffuse);
-    refl__free(al, pts->object);
-    refl__free(al, pts->triangle);
-    refl__free(al, pts);
 }
 
 /* Samples every object at the density, builds the kd-tree over the
@@ -7578,22 +7577,22 @@ static refl_result refl__c3_points(refl__c3 *c3) {
         memset(&kd, 0, sizeof kd);
         kd.leaf_points = p->desc.c3rc.kd_leaf_points;
         kd.allocator = *al;
-        r = refl_kdtree_build(all, (int)total, &kd, &c3->tree);
+        r = refl_kdtree_build(all, (int)total, &kd, &c3->s->tree);
     }
     if (r == REFL_OK) { /* per-point data in tree order */
-        int n = c3->tree->point_count;
-        c3->rgb = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
-        c3->normal = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
-        c3->object = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
-        c3->triangle = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
-        c3->diffuse = (uint8_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 1);
-        if (!c3->rgb || !c3->normal || !c3->object || !c3->triangle || !c3->diffuse) r = REFL_ERROR_OUT_OF_MEMORY;
+        int n = c3->s->tree->point_count;
+        c3->s->rgb = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->s->normal = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 3 * sizeof(float));
+        c3->s->object = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->s->triangle = (int32_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(int32_t));
+        c3->s->diffuse = (uint8_t *)refl__calloc(al, (size_t)REFL__MAX(n, 1), 1);
+        if (!c3->s->rgb || !c3->s->normal || !c3->s->object || !c3->s->triangle || !c3->s->diffuse) r = REFL_ERROR_OUT_OF_MEMORY;
         for (i = 0; r == REFL_OK && i < n; ++i) {
-            uint32_t src = c3->tree->order[i];
-            memcpy(c3->normal + 3 * (size_t)i, nrm + 3 * (size_t)src, 3 * sizeof(float));
-            c3->object[i] = obj[src];
-            c3->triangle[i] = tri[src];
-            c3->diffuse[i] = !refl__is_reflector(&scene->materials[scene->objects[obj[src]].material]);
+            uint32_t src = c3->s->tree->order[i];
+            memcpy(c3->s->normal + 3 * (size_t)i, nrm + 3 * (size_t)src, 3 * sizeof(float));
+            c3->s->object[i] = obj[src];
+            c3->s->triangle[i] = tri[src];
+            c3->s->diffuse[i] = !refl__is_reflector(&scene->materials[scene->objects[obj[src]].material]);
         }
         if (r == REFL_OK && n > 0) {
             sa.c3 = c3;
@@ -7620,8 +7619,8 @@ static void refl__c3_resolve_row(void *arg, int y) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         if (c3->key[i] != REFL__C3_EMPTY) {
             size_t k = (size_t)(c3->key[i] & 0xffffffffu);
-            const float *q = c3->tree->positions + 3 * k;
-            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
+            const float *q = c3->s->tree->positions + 3 * k;
+            refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
         } else {
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
@@ -7759,30 +7758,6 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
-/* Hands c3's points to the renderer's models (which free them from now on). */
-static refl_result refl__c3_keep_points(refl__c3 *c3, refl__models *models) {
-    refl__c3_samples *pts = (refl__c3_samples *)refl__calloc(&c3->p->scene->allocator, 1, sizeof *pts);
-    if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
-    pts->tree = c3->tree;
-    pts->rgb = c3->rgb;
-    pts->normal = c3->normal;
-    pts->diffuse = c3->diffuse;
-    pts->object = c3->object;
-    pts->triangle = c3->triangle;
-    models->c3 = pts;
-    models->c3_density = c3->density;
-    return REFL_OK;
-}
-
-static void refl__c3_borrow_points(refl__c3 *c3, const refl__c3_samples *pts) {
-    c3->tree = pts->tree;
-    c3->rgb = pts->rgb;
-    c3->normal = pts->normal;
-    c3->diffuse = pts->diffuse;
-    c3->object = pts->object;
-    c3->triangle = pts->triangle;
-}
-
 static const char *refl__options_c3rc(refl_render_desc *d) {
     const refl_c3rc_options *o = &d->c3rc;
     if (!(o->point_density >= 0.0f) || !refl__isfinite(o->point_density))
@@ -7824,16 +7799,17 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                                                         : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
-        if (models && models->c3 && models->c3_density != c3.density) {
-            refl__c3_samples_free(al, models->c3);
-            models->c3 = NULL;
-        }
-        if (!models || !models->c3) {
-            r = refl__c3_points(&c3);
+        if (models && models->c3) {
+            c3.s = models->c3; /* a renderer's density never changes */
+        } else {
+            c3.s = (refl__c3_samples *)refl__calloc(al, 1, sizeof *c3.s);
+            r = c3.s ? refl__c3_points(&c3) : REFL_ERROR_OUT_OF_MEMORY;
             fr->stats.scene_models_built++;
-            if (r == REFL_OK && models) r = refl__c3_keep_points(&c3, models);
+            if (r == REFL_OK && models) {
+                models->c3 = c3.s;
+                models->c3_density = c3.density;
+            }
         }
-        if (models && models->c3) refl__c3_borrow_points(&c3, models->c3);
         t1 = refl__now_ms();
         fr->stats.ms_build += t1 - t0;
         t0 = t1;
@@ -7856,9 +7832,9 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                 fr->stats.c3rc.ms_project += n->ms_project;
             }
             fr->stats.c3rc.cameras += jobs;
-            fr->stats.c3rc.points += c3.tree->point_count;
-            fr->stats.model_bytes += (long long)c3.tree->point_count * (long long)(3 * sizeof(float)) +
-                                     (long long)c3.tree->node_count * (long long)sizeof(refl_kdtree_node) +
+            fr->stats.c3rc.points += c3.s->tree->point_count;
+            fr->stats.model_bytes += (long long)c3.s->tree->point_count * (long long)(3 * sizeof(float)) +
+                                     (long long)c3.s->tree->node_count * (long long)sizeof(refl_kdtree_node) +
                                      (long long)jobs * (long long)sizeof(refl_c3rc);
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
@@ -7871,14 +7847,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    if (!p->models || !p->models->c3) { /* not kept: this frame's own */
-        refl_kdtree_destroy(c3.tree);
-        refl__free(al, c3.rgb);
-        refl__free(al, c3.normal);
-        refl__free(al, c3.object);
-        refl__free(al, c3.triangle);
-        refl__free(al, c3.diffuse);
-    }
+    if (!p->models || p->models->c3 != c3.s) refl__c3_samples_free(al, c3.s); /* this frame's own */
     refl__free(al, c3.em.gbuf);
     refl__free(al, c3.em.draws);
     refl__free(al, seen);
@@ -11610,6 +11579,16 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     return NULL;
 }
 
+/* REFL_OK with frame->message "", or the error of the rule refl__frame_rule
+   finds, named in frame->message. */
+static refl_result refl__check_frame(const refl_scene *scene, const refl_view *view, refl_frame *frame) {
+    const char *why = refl__frame_rule(scene, view, frame);
+    frame->message = why ? why : "";
+    if (!why) return REFL_OK;
+    return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                        : REFL_ERROR_INVALID_ARGUMENT;
+}
+
 static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
                                    const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
                                    refl__models *models) {
@@ -11780,17 +11759,11 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     const refl__method_row *row;
     refl__pass p;
     refl_result r;
-    const char *why;
     double t0 = refl__now_ms();
     int i;
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
     scene = rr->scene;
-    frame->message = "";
-    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
-        frame->message = why;
-        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
-                                                                            : REFL_ERROR_INVALID_ARGUMENT;
-    }
+    if ((r = refl__check_frame(scene, view, frame)) != REFL_OK) return r;
     if (rr->models.scene_version != scene->version) {
         refl__models_free(scene, &rr->models);
         rr->models.scene_version = scene->version;
@@ -11821,11 +11794,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         frame->message = why;
         return r;
     }
-    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
-        frame->message = why;
-        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
-                                                                            : REFL_ERROR_INVALID_ARGUMENT;
-    }
+    if ((r = refl__check_frame(scene, view, frame)) != REFL_OK) return r; /* before any thread starts */
     if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) {
         if (r == REFL_ERROR_UNSUPPORTED) frame->message = "method: not built yet (no row in the method table)";
         return r;

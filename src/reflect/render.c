@@ -268,6 +268,16 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     return NULL;
 }
 
+/* REFL_OK with frame->message "", or the error of the rule refl__frame_rule
+   finds, named in frame->message. */
+static refl_result refl__check_frame(const refl_scene *scene, const refl_view *view, refl_frame *frame) {
+    const char *why = refl__frame_rule(scene, view, frame);
+    frame->message = why ? why : "";
+    if (!why) return REFL_OK;
+    return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
+                                                                        : REFL_ERROR_INVALID_ARGUMENT;
+}
+
 static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
                                    const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
                                    refl__models *models) {
@@ -438,17 +448,11 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     const refl__method_row *row;
     refl__pass p;
     refl_result r;
-    const char *why;
     double t0 = refl__now_ms();
     int i;
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
     scene = rr->scene;
-    frame->message = "";
-    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
-        frame->message = why;
-        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
-                                                                            : REFL_ERROR_INVALID_ARGUMENT;
-    }
+    if ((r = refl__check_frame(scene, view, frame)) != REFL_OK) return r;
     if (rr->models.scene_version != scene->version) {
         refl__models_free(scene, &rr->models);
         rr->models.scene_version = scene->version;
@@ -479,11 +483,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
         frame->message = why;
         return r;
     }
-    if ((why = refl__frame_rule(scene, view, frame)) != NULL) {
-        frame->message = why;
-        return view->width != frame->width || view->height != frame->height ? REFL_ERROR_INVALID_SIZE
-                                                                            : REFL_ERROR_INVALID_ARGUMENT;
-    }
+    if ((r = refl__check_frame(scene, view, frame)) != REFL_OK) return r; /* before any thread starts */
     if ((r = refl_renderer_create(scene, &d, &rr)) != REFL_OK) {
         if (r == REFL_ERROR_UNSUPPORTED) frame->message = "method: not built yet (no row in the method table)";
         return r;
