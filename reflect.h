@@ -42,7 +42,7 @@
        refl_frame *frame;
        refl_frame_create(view.width, view.height, NULL, &frame);
        refl_render_desc rd = {0};                   // method 0: DIRECT
-       refl_render(scene, &view, &rd, frame);       // frame->color is RGBA8
+       refl_render(scene, &view, &rd, frame);       // frame->rgba: linear floats
        refl_frame_destroy(frame);
        refl_scene_destroy(scene);
 
@@ -808,7 +808,9 @@ typedef struct refl_stats {
 
 typedef struct refl_frame {
     int width, height;
-    uint8_t *color;          /* RGBA8, rows top first */
+    float *rgba;             /* linear RGBA, 4 floats per pixel, rows top first: colour as
+                                rendered, unclamped (an HDR sky brighter than 1 stays so);
+                                alpha 1 once a render returned */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
     float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel
@@ -825,10 +827,24 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
-/* The frame's colours, linear as rendered, encoded to sRGB into out
-   (width * height * 4 bytes; alpha as is): what an 8-bit image file or a
-   display expects. */
-REFL_API void refl_frame_to_srgb8(const refl_frame *frame, uint8_t *out);
+/* How linear colour becomes display colour: scaled by 2^exposure, tone
+   mapped, clamped to [0, 1], sRGB-encoded. {0}: exposure 0, no tone map. */
+typedef enum refl_tonemap {
+    REFL_TONEMAP_CLAMP = 0,  /* none: values over 1 clip to white */
+    REFL_TONEMAP_REINHARD,   /* x / (1 + x) per channel */
+    REFL_TONEMAP_ACES        /* Narkowicz's fit of the ACES filmic curve, per channel */
+} refl_tonemap;
+typedef struct refl_display_desc {
+    float exposure;          /* stops: colours scaled by 2^exposure; finite, |exposure| <= 64 */
+    refl_tonemap tonemap;
+} refl_display_desc;
+/* One linear colour channel to display: exposure, tone map, [0, 1] clamp,
+   sRGB encoding, 8 bits (NaN: 0). d NULL: {0}. */
+REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d);
+/* The frame's colours, linear as rendered, to display colour into out
+   (width * height * 4 bytes; alpha as is, scaled to 255): what an 8-bit
+   image file or a screen expects. d NULL: {0}. */
+REFL_API void refl_frame_to_srgb8(const refl_frame *frame, const refl_display_desc *d, uint8_t *out);
 
 /* Lighting every method shares. */
 typedef struct refl_lighting_options {
@@ -1083,8 +1099,9 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
                                                   const refl_render_desc *desc, const refl_frame *truth,
                                                   refl_sbc_camera_error *out);
 
-/* Image error of the RGB of the RGBA8 colours against the truth (alpha
-   ignored), over every pixel or (reflectors_only) over the truth's
+/* Image error of the RGB of the colours against the truth (alpha
+   ignored), each channel clamped to [0, 1] and quantised to 8 bits as
+   linear values, over every pixel or (reflectors_only) over the truth's
    reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is
    over it when some channel differs by more (a difference of exactly the
    threshold is not). The same numbers as tools/image_io's
@@ -1148,6 +1165,8 @@ REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene,
 #define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
 #define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
 #define REFL__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+/* A colour channel as the frame keeps it: unclamped above, 0 for negative and NaN. */
+#define REFL__RADIANCE(v) ((v) > 0.0f ? (v) : 0.0f)
 #define REFL__PI 3.14159265358979323846
 
 /* ---- allocation: the given allocator when set, else REFL_MALLOC ---- */
@@ -1204,8 +1223,9 @@ static inline int refl__is_reflector(const refl_material *m) { return m->type !=
 static inline rast_targets refl__frame_targets(const refl_frame *f) {
     rast_targets t;
     memset(&t, 0, sizeof t);
-    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * f->width;
+    t.color.ptr = f->rgba; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color_format = RAST_COLOR_RGBA32F;
     t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
@@ -1339,7 +1359,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
                                     refl_stats *st);
 /* Fills every pixel whose depth is still 1 with the environment seen
    through it (inv_vp: clip to world). */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+static void refl__draw_background(float *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 
 
@@ -1563,7 +1583,6 @@ static void refl__rt_end(refl__rt *rt);
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
 /* A colour channel in [0, 1] as a byte, rounded. */
-static uint8_t refl__rt_unorm8(float v);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -2107,14 +2126,13 @@ static int refl__base_vertex(void *user, const float *vertex, int index, rast_ve
     return 1;
 }
 
-/* What a diffuse surface shows of its shaded colour: clamped to [0, 1]
-   (the shared model clamps each surface before anything weighs it, also
-   in float targets), times 1 - mirror_weight on a partial reflector (its
+/* What a diffuse surface shows of its shaded colour: never negative
+   (REFL__RADIANCE, as the shared model keeps every surface), times 1 - mirror_weight on a partial reflector (its
    diffuse share; the methods add the mirror share); opaque. */
 static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]) {
     float k = m->type == REFL_PARTIAL ? 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f) : 1.0f;
     int c;
-    for (c = 0; c < 3; ++c) rgba[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f) * k;
+    for (c = 0; c < 3; ++c) rgba[c] = REFL__RADIANCE(rgb[c]) * k;
     rgba[3] = 1.0f;
 }
 
@@ -2181,7 +2199,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 
 /* The environment behind the geometry: every pixel the scene left at the
    far plane shows the environment along its view ray. */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+static void refl__draw_background(float *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp) {
     int x, y;
     for (y = 0; y < height; ++y)
@@ -2196,11 +2214,8 @@ static void refl__draw_background(uint8_t *color, const float *depth, int width,
             a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
             b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
             refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
-            for (c = 0; c < 3; ++c) {
-                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-            color[4 * i + 3] = 255;
+            for (c = 0; c < 3; ++c) color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
+            color[4 * i + 3] = 1.0f;
         }
 }
 /* ---- src/reflect/bvh.c ---- */
@@ -6091,13 +6106,10 @@ static rast_result refl__em_clear(rast_context *rc, unsigned flags) {
 
 /* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
 static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown) {
-    uint8_t *px = fr->color + 4 * i;
+    float *px = fr->rgba + 4 * i;
     int c;
-    for (c = 0; c < 3; ++c) {
-        float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-        px[c] = (uint8_t)(v * 255.0f + 0.5f);
-    }
-    px[3] = 255;
+    for (c = 0; c < 3; ++c) px[c] += rgb[c];
+    px[3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;
@@ -6169,7 +6181,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         memcpy(sub, sub_in, sizeof sub);
     } else {
         refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
-        for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        for (c = 0; c < 3; ++c) sub[c] = REFL__RADIANCE(sub[c]);
     }
     if (m->type != REFL_GLASS) w *= refl__em_fade(p, m, x, y, shown);
     for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
@@ -6180,7 +6192,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
             refl_environment_lookup(&scene->environment, t, tsub);
             for (c = 0; c < 3; ++c)
-                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__RADIANCE(tsub[c]);
             if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
         } else {
             for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */
@@ -8081,7 +8093,7 @@ static refl_vec3 refl__em_centre(const refl_scene *scene, int object) {
 typedef struct refl__em_cube {
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     int n;                        /* face size */
-    uint8_t *cube_color;          /* 6 faces of n x n RGBA8 */
+    float *cube_color;            /* 6 faces of n x n linear RGBA */
     float *cube_points;           /* 6 faces of n x n world points (NaN: environment) */
     float *face_depth;            /* n x n */
     float *face_pos;              /* n x n RGBA32F */
@@ -8112,14 +8124,15 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
     proj = refl_mat4_perspective((float)(REFL__PI / 2.0), 1.0f, near_d, far_d);
     for (f = 0; f < 6; ++f) {
         refl_mat4 vp = refl_mat4_mul(proj, refl__em_face_view(f, c)), inv;
-        uint8_t *color = cb->cube_color + 4 * nn * (size_t)f;
+        float *color = cb->cube_color + 4 * nn * (size_t)f;
         float *points = cb->cube_points + 3 * nn * (size_t)f;
         rast_targets t;
         rast_state s;
         memset(&t, 0, sizeof t);
         t.color.ptr = color;
         t.color.width = t.color.height = cb->n;
-        t.color.stride = 4 * cb->n;
+        t.color.stride = 4 * (int)sizeof(float) * cb->n;
+        t.color_format = RAST_COLOR_RGBA32F;
         t.depth.ptr = cb->face_depth;
         t.depth.width = t.depth.height = cb->n;
         t.depth.stride = (int)sizeof(float) * cb->n;
@@ -8131,8 +8144,6 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
         /* the world points: the same objects, order and depth test, so the
            same surface wins every texel */
         t.color.ptr = cb->face_pos;
-        t.color.stride = 4 * (int)sizeof(float) * cb->n;
-        t.color_format = RAST_COLOR_RGBA32F;
         if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_DEPTH)) != RAST_OK)
             return refl__result_from_rast(rr);
         memset(&s, 0, sizeof s);
@@ -8166,7 +8177,7 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
     float v[3], s, t, x, y, fx, fy;
     int face, x0, y0, x1, y1, c, n = cb->n, ix, iy;
     size_t base;
-    const uint8_t *px;
+    const float *px;
     const float *pt;
     v[0] = dir.x; v[1] = dir.y; v[2] = dir.z;
     face = rast_cube_face(v, &s, &t);
@@ -8187,7 +8198,7 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
         float b = px[4 * ((size_t)y0 * (size_t)n + (size_t)x1) + (size_t)c];
         float d = px[4 * ((size_t)y1 * (size_t)n + (size_t)x0) + (size_t)c];
         float e = px[4 * ((size_t)y1 * (size_t)n + (size_t)x1) + (size_t)c];
-        rgb[c] = ((a * (1.0f - fx) + b * fx) * (1.0f - fy) + (d * (1.0f - fx) + e * fx) * fy) * (1.0f / 255.0f);
+        rgb[c] = (a * (1.0f - fx) + b * fx) * (1.0f - fy) + (d * (1.0f - fx) + e * fx) * fy;
     }
     ix = REFL__CLAMP((int)(s * (float)n), 0, n - 1);
     iy = REFL__CLAMP((int)(t * (float)n), 0, n - 1);
@@ -8265,7 +8276,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     nn = (size_t)cb.n * (size_t)cb.n;
     r = refl__em_gbuffer_new(&cb.em, &seen, &any);
     if (r == REFL_OK && any) {
-        cb.cube_color = (uint8_t *)refl__calloc(al, 6 * nn, 4);
+        cb.cube_color = (float *)refl__calloc(al, 6 * nn, 4 * sizeof(float));
         cb.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));
         cb.face_depth = (float *)refl__calloc(al, nn, sizeof(float));
         cb.face_pos = (float *)refl__calloc(al, nn, 4 * sizeof(float));
@@ -8331,7 +8342,7 @@ typedef struct refl__planar {
     const refl_scene *scene;
     refl__planar_face *faces;
     int face_count;
-    float *color;                 /* RGBA float, the frame's colour while drawing */
+    float *color;                 /* the frame's colour (frame->rgba) */
     float *saved;                 /* glass: the refracted image of a region */
     float *unfogged;              /* translucency: a region's colour before its fog */
     float *saved_points;          /* and, at the first bounce, the points it shows */
@@ -8519,7 +8530,7 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                     float rgb[3];
                     int c;
                     refl_environment_lookup(&pl->scene->environment, refl_v3_sub(b, a), rgb);
-                    for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                    for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
                     pl->color[4 * i + 3] = 1.0f;
                 } else if (lv->level == 1) {
                     refl_vec3 world = refl_mat4_point(lv->vp_inv, refl_v3((float)rx, (float)ry, 2.0f * f->depth[i] - 1.0f));
@@ -8533,7 +8544,7 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                 float rgb[3];
                 int c;
                 refl_environment_lookup(&pl->scene->environment, refl_mat4_dir(lv->w_inv, dir), rgb);
-                for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
                 pl->color[4 * i + 3] = 1.0f;
             } else if (lv->level == 1) {
                 /* eye-space depth along the ray from the oblique projection:
@@ -8546,19 +8557,6 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                 f->points[3 * i + 1] = world.y;
                 f->points[3 * i + 2] = world.z;
             }
-        }
-}
-
-/* Clamps the region's colour: a composite can exceed 1, and the shared
-   model clamps every surface before the next reflectance weighs it. */
-static void refl__planar_clamp_region(refl__planar *pl, int level, const int box[4]) {
-    int x, y, c;
-    for (y = box[1]; y < box[3]; ++y)
-        for (x = box[0]; x < box[2]; ++x) {
-            size_t i = (size_t)y * (size_t)pl->p->frame->width + (size_t)x;
-            if (pl->stencil[i] == level)
-                for (c = 0; c < 3; ++c)
-                    pl->color[4 * i + (size_t)c] = REFL__CLAMP(pl->color[4 * i + (size_t)c], 0.0f, 1.0f);
         }
 }
 
@@ -8775,7 +8773,6 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
     if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    refl__planar_clamp_region(pl, level, box);
     return REFL_OK;
 }
 
@@ -9083,8 +9080,8 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
                                expf(-REFL__MAX(m->attenuation, 0.0f) * (float)face->thickness / cos_t);
             }
             for (c = 0; c < 3; ++c)
-                pl->color[4 * i + (size_t)c] = REFL__CLAMP(
-                    f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c], 0.0f, 1.0f);
+                pl->color[4 * i + (size_t)c] =
+                    f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c];
             /* the point shown follows the stronger branch, as RAYTRACE's:
                the mirror image wrote its points last */
             if (lv->level == 0 && f_in < 0.5f)
@@ -9124,7 +9121,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     refl__planar_dc *dcs;
     rast_targets t;
     refl_result r;
-    size_t i, n = (size_t)f->width * (size_t)f->height;
+    size_t n = (size_t)f->width * (size_t)f->height;
     double t0 = refl__now_ms();
     memset(&pl, 0, sizeof pl);
     pl.p = p;
@@ -9137,7 +9134,7 @@ static refl_result refl__method_planar(refl__pass *p) {
         refl__planar_free_faces(s, pl.faces, 0);
         return REFL_OK; /* no planar mirror: what DIRECT shows */
     }
-    pl.color = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    pl.color = f->rgba;
     pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
@@ -9147,13 +9144,12 @@ static refl_result refl__method_planar(refl__pass *p) {
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
-    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+    if (!pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
         (p->desc.lighting.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
-    for (i = 0; i < 4 * n; ++i) pl.color[i] = (float)f->color[i] * (1.0f / 255.0f);
     memset(&pl.targets, 0, sizeof pl.targets);
     t = pl.targets;
     t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
@@ -9182,13 +9178,11 @@ static refl_result refl__method_planar(refl__pass *p) {
     }
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
-    for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
     f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
 done:
     /* the frame's own targets back: rc's queue is empty or dropped */
     refl__free(&s->allocator, dcs);
-    refl__free(&s->allocator, pl.color);
     refl__free(&s->allocator, pl.stencil);
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
@@ -9253,10 +9247,10 @@ static void refl__rt_tile(void *arg, int job) {
                 f->points[3 * i + 1] = shown.y;
                 f->points[3 * i + 2] = shown.z;
             }
-            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
-            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
-            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
-            f->color[4 * i + 3] = 255;
+            f->rgba[4 * i] = rgb[0];
+            f->rgba[4 * i + 1] = rgb[1];
+            f->rgba[4 * i + 2] = rgb[2];
+            f->rgba[4 * i + 3] = 1.0f;
         }
     tf->tile_rays[tile] = rays;
 }
@@ -11138,6 +11132,9 @@ done:
 
 /* ---- image error ------------------------------------------------------------------ */
 
+/* A linear channel as the image error compares it: clamped to [0, 1], 8 bits. */
+static int refl__unorm8(float v) { return v > 0.0f ? (v < 1.0f ? (int)(v * 255.0f + 0.5f) : 255) : 0; }
+
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out) {
     unsigned long long sum = 0; /* squared 8-bit differences: exact */
@@ -11150,7 +11147,7 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
     memset(out, 0, sizeof *out);
     out->psnr = INFINITY;
     if ((r = refl__metric_frames(test, truth)) != REFL_OK) return r;
-    if (!test->color || !truth->color || (reflectors_only && !truth->stencil)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!test->rgba || !truth->rgba || (reflectors_only && !truth->stencil)) return REFL_ERROR_INVALID_ARGUMENT;
     if (!(threshold >= 0.0f) || !refl__isfinite(threshold)) return REFL_ERROR_INVALID_ARGUMENT;
     /* over when a difference of d levels has d / 255 > threshold; the small
        margin keeps a difference of exactly the threshold under it */
@@ -11160,7 +11157,7 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
         int c, worst = 0;
         if (reflectors_only && !truth->stencil[i]) continue;
         for (c = 0; c < 3; ++c) {
-            int d = (int)test->color[4 * i + (size_t)c] - (int)truth->color[4 * i + (size_t)c];
+            int d = refl__unorm8(test->rgba[4 * i + (size_t)c]) - refl__unorm8(truth->rgba[4 * i + (size_t)c]);
             d = d < 0 ? -d : d;
             sum += (unsigned long long)(d * d);
             worst = REFL__MAX(worst, d);
@@ -11347,11 +11344,11 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->width = width;
     f->height = height;
     f->message = "";
-    f->color = (uint8_t *)refl__calloc(a, n, 4);
+    f->rgba = (float *)refl__calloc(a, n, 4 * sizeof(float));
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
     f->points = (float *)refl__calloc(a, n, 3 * sizeof(float));
-    if (!f->color || !f->depth || !f->stencil || !f->points) {
+    if (!f->rgba || !f->depth || !f->stencil || !f->points) {
         refl_frame_destroy(f);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -11363,29 +11360,32 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl_allocator a;
     if (!f) return;
     a = f->allocator;
-    refl__free(&a, f->color);
+    refl__free(&a, f->rgba);
     refl__free(&a, f->depth);
     refl__free(&a, f->stencil);
     refl__free(&a, f->points);
     refl__free(&a, f);
 }
 
-REFL_API void refl_frame_to_srgb8(const refl_frame *f, uint8_t *out) {
-    uint8_t table[256];
+REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d) {
+    float x = linear * (d ? exp2f(d->exposure) : 1.0f), e;
+    if (!(x > 0.0f)) return 0; /* negative, zero and NaN */
+    if (d && d->tonemap == REFL_TONEMAP_REINHARD) x = x / (1.0f + x);
+    else if (d && d->tonemap == REFL_TONEMAP_ACES) x = x * (2.51f * x + 0.03f) / (x * (2.43f * x + 0.59f) + 0.14f);
+    if (!(x < 1.0f)) return 255; /* +inf and the ACES quotient of two infinities */
+    e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+    return (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+}
+
+REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *d, uint8_t *out) {
     size_t i, n;
-    int v;
+    int c;
     if (!f || !out) return;
-    for (v = 0; v < 256; ++v) {
-        float x = (float)v / 255.0f;
-        float e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-        table[v] = (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
-    }
     n = (size_t)f->width * (size_t)f->height;
     for (i = 0; i < n; ++i) {
-        out[4 * i + 0] = table[f->color[4 * i + 0]];
-        out[4 * i + 1] = table[f->color[4 * i + 1]];
-        out[4 * i + 2] = table[f->color[4 * i + 2]];
-        out[4 * i + 3] = f->color[4 * i + 3];
+        float a = f->rgba[4 * i + 3];
+        for (c = 0; c < 3; ++c) out[4 * i + (size_t)c] = refl_display_channel(f->rgba[4 * i + (size_t)c], d);
+        out[4 * i + 3] = (uint8_t)(a > 0.0f ? (a < 1.0f ? a * 255.0f + 0.5f : 255.0f) : 0.0f);
     }
 }
 
@@ -11623,7 +11623,7 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
     if (r == REFL_OK && refl_mat4_invert(p->vp, &inv_vp))
-        refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
+        refl__draw_background(frame->rgba, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
     frame->stats.ms_base = refl__now_ms() - t0;
     return r;
 }
@@ -11676,7 +11676,7 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
    shows black, the base pass's colour for mirror and glass, opaque. */
 static void refl__opaque(refl_frame *frame) {
     size_t i, n = (size_t)frame->width * (size_t)frame->height;
-    for (i = 0; i < n; ++i) frame->color[4 * i + 3] = 255;
+    for (i = 0; i < n; ++i) frame->rgba[4 * i + 3] = 1.0f;
 }
 
 /* ---- the renderer ---------------------------------------------------------------- */
@@ -13873,8 +13873,8 @@ static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
     sb->tracer.rays[y]++;
     if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
     refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
-    for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
-    fr->color[4 * i + 3] = 255;
+    for (c = 0; c < 3; ++c) fr->rgba[4 * i + (size_t)c] = rgb[c];
+    fr->rgba[4 * i + 3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;
@@ -16588,9 +16588,10 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
     return refl_v3_dot(s->ng, s->ng) > 0.0f;
 }
 
-static void refl__rt_clamp(float rgb[3]) {
+/* Every surface's colour as the rasterised methods keep it (REFL__RADIANCE). */
+static void refl__rt_radiance(float rgb[3]) {
     int c;
-    for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__RADIANCE(rgb[c]);
 }
 
 /* Closest hit from o along d, skipping the triangle the ray leaves. */
@@ -16753,7 +16754,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     refl_vec3 n = s->ns, ng = s->ng;
     if (m->type == REFL_DIFFUSE) {
         refl__rt_diffuse(rt, s, n, rays, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         return;
     }
     entering = refl_v3_dot(d, ng) < 0.0f;
@@ -16768,7 +16769,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         /* the diffuse share, as the base pass draws it */
         float k = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
         refl__rt_diffuse(rt, s, s->ns, rays, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         for (c = 0; c < 3; ++c) rgb[c] *= k;
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
@@ -16818,7 +16819,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
         }
     }
-    refl__rt_clamp(rgb);
+    refl__rt_radiance(rgb);
 }
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -16833,7 +16834,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         if (first_point && rt->p->desc.debug.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
@@ -16857,8 +16858,6 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         for (c = 0; c < 3; ++c) rgb[c] *= k;
     }
 }
-
-static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
 
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its

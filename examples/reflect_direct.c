@@ -32,12 +32,17 @@ int main(int argc, char **argv) {
         refl_scene_destroy(scene);
         return 1;
     }
-    /* colour is RGBA8 with the top row first, as PPM wants it */
+    /* colour is linear: sRGB-encoded to 8 bits, top row first, as PPM wants it */
     if (!(f = fopen(out, "wb"))) {
         perror(out);
     } else {
         fprintf(f, "P6\n%d %d\n255\n", frame->width, frame->height);
-        for (i = 0; i < frame->width * frame->height; ++i) fwrite(frame->color + 4 * i, 1, 3, f);
+        for (i = 0; i < frame->width * frame->height; ++i) {
+            uint8_t px[3];
+            int c;
+            for (c = 0; c < 3; ++c) px[c] = refl_display_channel(frame->rgba[4 * i + c], NULL);
+            fwrite(px, 1, 3, f);
+        }
         fclose(f);
         printf("reflect_direct: %s, %d reflector(s) left for the methods to fill, %lld triangles -> %s\n", name,
                frame->stats.reflectors, frame->stats.triangles, out);

@@ -89,7 +89,9 @@ int main(int argc, char **argv) {
     for (y = 0; y < view.height; ++y)
         for (x = 0; x < 2 * view.width; ++x) {
             const refl_frame *src = x < view.width ? planar : truth;
-            fwrite(src->color + 4 * ((size_t)y * (size_t)view.width + (size_t)(x % view.width)), 1, 3, f);
+            const float *p = src->rgba + 4 * ((size_t)y * (size_t)view.width + (size_t)(x % view.width));
+            int c;
+            for (c = 0; c < 3; ++c) fputc(refl_display_channel(p[c], NULL), f);
         }
     fclose(f);
     printf("  -> %s (PLANAR left, RAYTRACE right)\n", out);

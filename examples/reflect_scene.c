@@ -74,7 +74,7 @@ int main(int argc, char **argv) {
         view.height = 360;
         view.eye.x += 0.6f * (float)k; /* a short dolly sideways: the BVH is built once */
         if ((r = refl_renderer_render(renderer, &view, frame)) != REFL_OK) break;
-        refl_frame_to_srgb8(frame, srgb);
+        refl_frame_to_srgb8(frame, NULL, srgb);
         snprintf(path, sizeof path, "%s/scene-%d.ppm", dir, k);
         ok = write_ppm(path, srgb, frame->width, frame->height);
         printf("reflect_scene: %s%s, %.1f ms, %lld rays traced\n", path, ok ? "" : " (not written)",

@@ -33,6 +33,25 @@ ok "the grey sky is 128 in the PNG" bash -c \
 ok "render to EXR" "$bin" render --builtin default --env "$tmp/grey.png" --size 32x24 --out "$tmp/grey-out.exr"
 ok "the grey sky is linear 0.216 in the EXR" bash -c \
     "oiiotool '$tmp/grey-out.exr' --cut 32x4+0+0 --printstats | grep -qE 'Stats Min: 0\.21[4-8]'"
+# HDR: a sky of linear 4 stays 4 in the EXR, in the sky and in the mirror
+# that reflects it (RAYTRACE), and clips to 255 in the PNG unless exposed
+# down (-2 stops: linear 1, 255 still) or tone mapped (Reinhard: 4/5 ->
+# sRGB 231)
+oiiotool --pattern constant:color=4,4,4 8x4 3 -d float -o "$tmp/bright.exr"
+ok "render with an HDR sky" "$bin" render --builtin default --method raytrace --env "$tmp/bright.exr" --size 32x24 \
+    --out "$tmp/bright-out.exr"
+ok "the HDR sky is linear 4 in the EXR" bash -c \
+    "oiiotool '$tmp/bright-out.exr' --cut 32x4+0+0 --printstats | grep -qE 'Stats Min: (3\.99|4\.00)[0-9]* (3\.99|4\.00)'"
+ok "the mirror reflects the HDR sky above 1" bash -c \
+    "oiiotool '$tmp/bright-out.exr' --printstats | grep -qE 'Stats Max: ([2-9]|[1-9][0-9])\.'"
+ok "--exposure -3 halves the sky to linear 0.5 in the EXR" bash -c \
+    "'$bin' render --builtin default --env '$tmp/bright.exr' --size 32x24 --exposure -3 --out '$tmp/b3.exr' &&
+     oiiotool '$tmp/b3.exr' --cut 32x4+0+0 --printstats | grep -qE 'Stats Min: 0\.(49|50)[0-9]* 0\.(49|50)'"
+ok "--tonemap reinhard maps the sky of 4 to sRGB 231" bash -c \
+    "'$bin' render --builtin default --env '$tmp/bright.exr' --size 32x24 --tonemap reinhard --out '$tmp/b-r.png' &&
+     oiiotool '$tmp/b-r.png' --cut 32x4+0+0 --printstats | grep -qE 'Stats Min: 0\.90[0-9]* 0\.90'"
+refuses "--tonemap of an unknown name" "expected clamp, reinhard or aces" "$bin" render --builtin default --tonemap x
+refuses "--exposure out of range" "expected -64..64" "$bin" render --builtin default --exposure 100
 
 for s in default mirror-room concave glass; do
     ok "render $s" "$bin" render --builtin "$s" --size 96x64 --threads 2 --out "$tmp/$s.png"

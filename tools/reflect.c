@@ -19,6 +19,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
 
 static const char *const usage_main =
@@ -71,7 +72,10 @@ static const char *const usage_render =
     "  --normalize SIZE   scale a glTF scene to this bounding-box diagonal\n"
     "  --tess N           teapot patches N x N for built-in scenes (default 8)\n"
     "  --threads N        worker threads (default: one per CPU)\n"
-    "  --out FILE         output image, format by extension (default out.png)\n"
+    "  --out FILE         output image, format by extension (default out.png): 8-bit\n"
+    "                     formats (PNG ...) sRGB-encoded; EXR, HDR and PFM linear, unclamped\n"
+    "  --exposure EV      scale the colours by 2^EV before writing, -64..64 (default 0)\n"
+    "  --tonemap T        8-bit output: clamp (default), reinhard or aces\n"
     "  --stats            print timings and model sizes\n";
 
 static const char *const usage_info =
@@ -104,6 +108,7 @@ typedef struct options {
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
+    refl_display_desc display; /* --exposure, --tonemap */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -181,6 +186,13 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             o->env = v;
         } else if (!strcmp(a, "--threads")) {
             if (!parse_int(v, 1, RAST_MAX_THREADS, &o->threads)) return fail("--threads: expected 1..64, got %s", v);
+        } else if (!strcmp(a, "--exposure")) {
+            if (!parse_float(v, -64.0f, 64.0f, &o->display.exposure)) return fail("--exposure: expected -64..64 stops, got %s", v);
+        } else if (!strcmp(a, "--tonemap")) {
+            if (!strcmp(v, "clamp")) o->display.tonemap = REFL_TONEMAP_CLAMP;
+            else if (!strcmp(v, "reinhard")) o->display.tonemap = REFL_TONEMAP_REINHARD;
+            else if (!strcmp(v, "aces")) o->display.tonemap = REFL_TONEMAP_ACES;
+            else return fail("--tonemap: expected clamp, reinhard or aces, got %s", v);
         } else if (!strcmp(a, "--out")) {
             o->out = v;
         } else if (!strcmp(a, "--depth")) {
@@ -290,18 +302,36 @@ static void progress_bar(void *user, float done) {
     fflush(stderr);
 }
 
-/* The frame's linear colours written as such: image_io encodes them to
-   sRGB for 8-bit formats (PNG, JPEG, PPM ...) and keeps them linear in
-   float ones (EXR, HDR, PFM). */
-static refl_result write_linear(const char *path, const refl_frame *f, char *err, size_t err_size) {
+/* Whether a file name asks for a float format (linear, unclamped). */
+static int is_float_format(const char *path) {
+    static const char *const exts[] = {".exr", ".hdr", ".pfm"};
+    size_t n = strlen(path), k;
+    for (k = 0; k < 3; ++k)
+        if (n >= 4 && !strcasecmp(path + n - 4, exts[k])) return 1;
+    return 0;
+}
+
+/* The frame written in the format the extension names: float formats get
+   the linear colours times 2^exposure, 8-bit ones the display colours
+   (refl_frame_to_srgb8: exposure, tone map, sRGB). */
+static refl_result write_frame(const char *path, const refl_frame *f, const refl_display_desc *d, char *err,
+                               size_t err_size) {
     size_t i, n = (size_t)f->width * (size_t)f->height * 4;
-    float *rgbaf = (float *)malloc(n * sizeof(float));
     refl_result r;
     err[0] = '\0';
-    if (!rgbaf) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < n; ++i) rgbaf[i] = (float)f->color[i] / 255.0f;
-    r = refl_image_write(path, f->width, f->height, 4, NULL, rgbaf, err, err_size);
-    free(rgbaf);
+    if (is_float_format(path)) {
+        float *rgbaf = (float *)malloc(n * sizeof(float)), scale = exp2f(d->exposure);
+        if (!rgbaf) return REFL_ERROR_OUT_OF_MEMORY;
+        for (i = 0; i < n; ++i) rgbaf[i] = i % 4 == 3 ? f->rgba[i] : f->rgba[i] * scale;
+        r = refl_image_write(path, f->width, f->height, 4, NULL, rgbaf, err, err_size);
+        free(rgbaf);
+    } else {
+        uint8_t *rgba8 = (uint8_t *)malloc(n);
+        if (!rgba8) return REFL_ERROR_OUT_OF_MEMORY;
+        refl_frame_to_srgb8(f, d, rgba8);
+        r = refl_image_write(path, f->width, f->height, 4, rgba8, NULL, err, err_size);
+        free(rgba8);
+    }
     return r;
 }
 
@@ -388,7 +418,7 @@ static int cmd_render(const options *o) {
     if (f->stats.handed_over)
         fprintf(stderr, "reflect: %d reflector%s %s cannot draw (curved) ray traced instead\n", f->stats.handed_over,
                 f->stats.handed_over > 1 ? "s" : "", refl_method_name(d.method));
-    if ((r = write_linear(o->out, f, err, sizeof err)) != REFL_OK) {
+    if ((r = write_frame(o->out, f, &o->display, err, sizeof err)) != REFL_OK) {
         fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
         goto done;
     }

@@ -64,7 +64,7 @@ static int run_path(const refl_scene *s, const refl_render_desc *d, int keep, in
         out->ms[k] = refl_bench_now_ms() - t0;
         out->build_ms[k] = f->stats.ms_build;
         out->models += f->stats.scene_models_built;
-        out->digest = fnv(out->digest, f->color, (size_t)w * (size_t)h * 4);
+        out->digest = fnv(out->digest, (const uint8_t *)f->rgba, (size_t)w * (size_t)h * 4 * sizeof(float));
     }
     if (r != REFL_OK) fprintf(stderr, "reflect bench: path with %s: %s\n", refl_method_name(d->method),
                               refl_result_string(r));

@@ -40,7 +40,7 @@
        refl_frame *frame;
        refl_frame_create(view.width, view.height, NULL, &frame);
        refl_render_desc rd = {0};                   // method 0: DIRECT
-       refl_render(scene, &view, &rd, frame);       // frame->color is RGBA8
+       refl_render(scene, &view, &rd, frame);       // frame->rgba: linear floats
        refl_frame_destroy(frame);
        refl_scene_destroy(scene);
 
@@ -806,7 +806,9 @@ typedef struct refl_stats {
 
 typedef struct refl_frame {
     int width, height;
-    uint8_t *color;          /* RGBA8, rows top first */
+    float *rgba;             /* linear RGBA, 4 floats per pixel, rows top first: colour as
+                                rendered, unclamped (an HDR sky brighter than 1 stays so);
+                                alpha 1 once a render returned */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
     float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel
@@ -823,10 +825,24 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
-/* The frame's colours, linear as rendered, encoded to sRGB into out
-   (width * height * 4 bytes; alpha as is): what an 8-bit image file or a
-   display expects. */
-REFL_API void refl_frame_to_srgb8(const refl_frame *frame, uint8_t *out);
+/* How linear colour becomes display colour: scaled by 2^exposure, tone
+   mapped, clamped to [0, 1], sRGB-encoded. {0}: exposure 0, no tone map. */
+typedef enum refl_tonemap {
+    REFL_TONEMAP_CLAMP = 0,  /* none: values over 1 clip to white */
+    REFL_TONEMAP_REINHARD,   /* x / (1 + x) per channel */
+    REFL_TONEMAP_ACES        /* Narkowicz's fit of the ACES filmic curve, per channel */
+} refl_tonemap;
+typedef struct refl_display_desc {
+    float exposure;          /* stops: colours scaled by 2^exposure; finite, |exposure| <= 64 */
+    refl_tonemap tonemap;
+} refl_display_desc;
+/* One linear colour channel to display: exposure, tone map, [0, 1] clamp,
+   sRGB encoding, 8 bits (NaN: 0). d NULL: {0}. */
+REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d);
+/* The frame's colours, linear as rendered, to display colour into out
+   (width * height * 4 bytes; alpha as is, scaled to 255): what an 8-bit
+   image file or a screen expects. d NULL: {0}. */
+REFL_API void refl_frame_to_srgb8(const refl_frame *frame, const refl_display_desc *d, uint8_t *out);
 
 /* Lighting every method shares. */
 typedef struct refl_lighting_options {
@@ -1081,8 +1097,9 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
                                                   const refl_render_desc *desc, const refl_frame *truth,
                                                   refl_sbc_camera_error *out);
 
-/* Image error of the RGB of the RGBA8 colours against the truth (alpha
-   ignored), over every pixel or (reflectors_only) over the truth's
+/* Image error of the RGB of the colours against the truth (alpha
+   ignored), each channel clamped to [0, 1] and quantised to 8 bits as
+   linear values, over every pixel or (reflectors_only) over the truth's
    reflector pixels; threshold per channel in [0, 1] (0: 2/255): a pixel is
    over it when some channel differs by more (a difference of exactly the
    threshold is not). The same numbers as tools/image_io's

@@ -55,14 +55,13 @@ static int refl__base_vertex(void *user, const float *vertex, int index, rast_ve
     return 1;
 }
 
-/* What a diffuse surface shows of its shaded colour: clamped to [0, 1]
-   (the shared model clamps each surface before anything weighs it, also
-   in float targets), times 1 - mirror_weight on a partial reflector (its
+/* What a diffuse surface shows of its shaded colour: never negative
+   (REFL__RADIANCE, as the shared model keeps every surface), times 1 - mirror_weight on a partial reflector (its
    diffuse share; the methods add the mirror share); opaque. */
 static void refl__surface_rgba(const refl_material *m, const float rgb[3], float rgba[4]) {
     float k = m->type == REFL_PARTIAL ? 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f) : 1.0f;
     int c;
-    for (c = 0; c < 3; ++c) rgba[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f) * k;
+    for (c = 0; c < 3; ++c) rgba[c] = REFL__RADIANCE(rgb[c]) * k;
     rgba[3] = 1.0f;
 }
 
@@ -129,7 +128,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
 
 /* The environment behind the geometry: every pixel the scene left at the
    far plane shows the environment along its view ray. */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+static void refl__draw_background(float *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp) {
     int x, y;
     for (y = 0; y < height; ++y)
@@ -144,10 +143,7 @@ static void refl__draw_background(uint8_t *color, const float *depth, int width,
             a = refl_mat4_point(inv_vp, refl_v3(nx, ny, -1.0f));
             b = refl_mat4_point(inv_vp, refl_v3(nx, ny, 1.0f));
             refl_environment_lookup(&scene->environment, refl_v3_sub(b, a), rgb);
-            for (c = 0; c < 3; ++c) {
-                float v = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
-                color[4 * i + (size_t)c] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-            color[4 * i + 3] = 255;
+            for (c = 0; c < 3; ++c) color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
+            color[4 * i + 3] = 1.0f;
         }
 }

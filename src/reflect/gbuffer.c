@@ -90,13 +90,10 @@ static rast_result refl__em_clear(rast_context *rc, unsigned flags) {
 
 /* Adds rgb to frame pixel i (opaque now) and sets the point it shows. */
 static void refl__em_put(refl_frame *fr, size_t i, const float rgb[3], refl_vec3 shown) {
-    uint8_t *px = fr->color + 4 * i;
+    float *px = fr->rgba + 4 * i;
     int c;
-    for (c = 0; c < 3; ++c) {
-        float v = REFL__CLAMP((float)px[c] * (1.0f / 255.0f) + rgb[c], 0.0f, 1.0f);
-        px[c] = (uint8_t)(v * 255.0f + 0.5f);
-    }
-    px[3] = 255;
+    for (c = 0; c < 3; ++c) px[c] += rgb[c];
+    px[3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;
@@ -168,7 +165,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         memcpy(sub, sub_in, sizeof sub);
     } else {
         refl_environment_lookup(&scene->environment, refl_v3_reflect(d, n), sub);
-        for (c = 0; c < 3; ++c) sub[c] = REFL__CLAMP(sub[c], 0.0f, 1.0f);
+        for (c = 0; c < 3; ++c) sub[c] = REFL__RADIANCE(sub[c]);
     }
     if (m->type != REFL_GLASS) w *= refl__em_fade(p, m, x, y, shown);
     for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
@@ -179,7 +176,7 @@ static void refl__em_composite(const refl__pass *p, const float *g, int x, int y
         if (refl_v3_refract(d, n, 1.0f / ior, &t)) {
             refl_environment_lookup(&scene->environment, t, tsub);
             for (c = 0; c < 3; ++c)
-                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__CLAMP(tsub[c], 0.0f, 1.0f);
+                rgb[c] += (1.0f - w) * (tinted ? m->tint[c] : 1.0f) * REFL__RADIANCE(tsub[c]);
             if (w < 0.5f) shown = refl_v3(NAN, NAN, NAN);
         } else {
             for (c = 0; c < 3; ++c) rgb[c] = sub[c]; /* total internal reflection */

@@ -28,6 +28,8 @@
 #define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
 #define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
 #define REFL__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+/* A colour channel as the frame keeps it: unclamped above, 0 for negative and NaN. */
+#define REFL__RADIANCE(v) ((v) > 0.0f ? (v) : 0.0f)
 #define REFL__PI 3.14159265358979323846
 
 /* ---- allocation: the given allocator when set, else REFL_MALLOC ---- */
@@ -84,8 +86,9 @@ static inline int refl__is_reflector(const refl_material *m) { return m->type !=
 static inline rast_targets refl__frame_targets(const refl_frame *f) {
     rast_targets t;
     memset(&t, 0, sizeof t);
-    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * f->width;
+    t.color.ptr = f->rgba; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color_format = RAST_COLOR_RGBA32F;
     t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
@@ -219,7 +222,7 @@ static refl_result refl__draw_scene(rast_context *rc, const refl_scene *scene, r
                                     refl_stats *st);
 /* Fills every pixel whose depth is still 1 with the environment seen
    through it (inv_vp: clip to world). */
-static void refl__draw_background(uint8_t *color, const float *depth, int width, int height, int stride_px,
+static void refl__draw_background(float *color, const float *depth, int width, int height, int stride_px,
                                   const refl_scene *scene, refl_mat4 inv_vp);
 
 
@@ -443,7 +446,6 @@ static void refl__rt_end(refl__rt *rt);
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
 /* A colour channel in [0, 1] as a byte, rounded. */
-static uint8_t refl__rt_unorm8(float v);
 
 /* ---- the methods (m_*.c) ---- */
 

@@ -85,7 +85,7 @@ static refl_vec3 refl__em_centre(const refl_scene *scene, int object) {
 typedef struct refl__em_cube {
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     int n;                        /* face size */
-    uint8_t *cube_color;          /* 6 faces of n x n RGBA8 */
+    float *cube_color;            /* 6 faces of n x n linear RGBA */
     float *cube_points;           /* 6 faces of n x n world points (NaN: environment) */
     float *face_depth;            /* n x n */
     float *face_pos;              /* n x n RGBA32F */
@@ -116,14 +116,15 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
     proj = refl_mat4_perspective((float)(REFL__PI / 2.0), 1.0f, near_d, far_d);
     for (f = 0; f < 6; ++f) {
         refl_mat4 vp = refl_mat4_mul(proj, refl__em_face_view(f, c)), inv;
-        uint8_t *color = cb->cube_color + 4 * nn * (size_t)f;
+        float *color = cb->cube_color + 4 * nn * (size_t)f;
         float *points = cb->cube_points + 3 * nn * (size_t)f;
         rast_targets t;
         rast_state s;
         memset(&t, 0, sizeof t);
         t.color.ptr = color;
         t.color.width = t.color.height = cb->n;
-        t.color.stride = 4 * cb->n;
+        t.color.stride = 4 * (int)sizeof(float) * cb->n;
+        t.color_format = RAST_COLOR_RGBA32F;
         t.depth.ptr = cb->face_depth;
         t.depth.width = t.depth.height = cb->n;
         t.depth.stride = (int)sizeof(float) * cb->n;
@@ -135,8 +136,6 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
         /* the world points: the same objects, order and depth test, so the
            same surface wins every texel */
         t.color.ptr = cb->face_pos;
-        t.color.stride = 4 * (int)sizeof(float) * cb->n;
-        t.color_format = RAST_COLOR_RGBA32F;
         if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_DEPTH)) != RAST_OK)
             return refl__result_from_rast(rr);
         memset(&s, 0, sizeof s);
@@ -170,7 +169,7 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
     float v[3], s, t, x, y, fx, fy;
     int face, x0, y0, x1, y1, c, n = cb->n, ix, iy;
     size_t base;
-    const uint8_t *px;
+    const float *px;
     const float *pt;
     v[0] = dir.x; v[1] = dir.y; v[2] = dir.z;
     face = rast_cube_face(v, &s, &t);
@@ -191,7 +190,7 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
         float b = px[4 * ((size_t)y0 * (size_t)n + (size_t)x1) + (size_t)c];
         float d = px[4 * ((size_t)y1 * (size_t)n + (size_t)x0) + (size_t)c];
         float e = px[4 * ((size_t)y1 * (size_t)n + (size_t)x1) + (size_t)c];
-        rgb[c] = ((a * (1.0f - fx) + b * fx) * (1.0f - fy) + (d * (1.0f - fx) + e * fx) * fy) * (1.0f / 255.0f);
+        rgb[c] = (a * (1.0f - fx) + b * fx) * (1.0f - fy) + (d * (1.0f - fx) + e * fx) * fy;
     }
     ix = REFL__CLAMP((int)(s * (float)n), 0, n - 1);
     iy = REFL__CLAMP((int)(t * (float)n), 0, n - 1);
@@ -269,7 +268,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     nn = (size_t)cb.n * (size_t)cb.n;
     r = refl__em_gbuffer_new(&cb.em, &seen, &any);
     if (r == REFL_OK && any) {
-        cb.cube_color = (uint8_t *)refl__calloc(al, 6 * nn, 4);
+        cb.cube_color = (float *)refl__calloc(al, 6 * nn, 4 * sizeof(float));
         cb.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));
         cb.face_depth = (float *)refl__calloc(al, nn, sizeof(float));
         cb.face_pos = (float *)refl__calloc(al, nn, 4 * sizeof(float));

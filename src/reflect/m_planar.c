@@ -28,7 +28,7 @@ typedef struct refl__planar {
     const refl_scene *scene;
     refl__planar_face *faces;
     int face_count;
-    float *color;                 /* RGBA float, the frame's colour while drawing */
+    float *color;                 /* the frame's colour (frame->rgba) */
     float *saved;                 /* glass: the refracted image of a region */
     float *unfogged;              /* translucency: a region's colour before its fog */
     float *saved_points;          /* and, at the first bounce, the points it shows */
@@ -216,7 +216,7 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                     float rgb[3];
                     int c;
                     refl_environment_lookup(&pl->scene->environment, refl_v3_sub(b, a), rgb);
-                    for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                    for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
                     pl->color[4 * i + 3] = 1.0f;
                 } else if (lv->level == 1) {
                     refl_vec3 world = refl_mat4_point(lv->vp_inv, refl_v3((float)rx, (float)ry, 2.0f * f->depth[i] - 1.0f));
@@ -230,7 +230,7 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                 float rgb[3];
                 int c;
                 refl_environment_lookup(&pl->scene->environment, refl_mat4_dir(lv->w_inv, dir), rgb);
-                for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+                for (c = 0; c < 3; ++c) pl->color[4 * i + (size_t)c] = REFL__RADIANCE(rgb[c]);
                 pl->color[4 * i + 3] = 1.0f;
             } else if (lv->level == 1) {
                 /* eye-space depth along the ray from the oblique projection:
@@ -243,19 +243,6 @@ static void refl__planar_fill_region(refl__planar *pl, const refl__planar_level 
                 f->points[3 * i + 1] = world.y;
                 f->points[3 * i + 2] = world.z;
             }
-        }
-}
-
-/* Clamps the region's colour: a composite can exceed 1, and the shared
-   model clamps every surface before the next reflectance weighs it. */
-static void refl__planar_clamp_region(refl__planar *pl, int level, const int box[4]) {
-    int x, y, c;
-    for (y = box[1]; y < box[3]; ++y)
-        for (x = box[0]; x < box[2]; ++x) {
-            size_t i = (size_t)y * (size_t)pl->p->frame->width + (size_t)x;
-            if (pl->stencil[i] == level)
-                for (c = 0; c < 3; ++c)
-                    pl->color[4 * i + (size_t)c] = REFL__CLAMP(pl->color[4 * i + (size_t)c], 0.0f, 1.0f);
         }
 }
 
@@ -472,7 +459,6 @@ static refl_result refl__planar_restore(refl__planar *pl, int level, refl__plana
     if (rr == RAST_OK) rr = rast_draw_fullscreen(rc, 0.0f, far_rgba);
     if (rr == RAST_OK) rr = rast_finish(rc);
     if (rr != RAST_OK) return refl__result_from_rast(rr);
-    refl__planar_clamp_region(pl, level, box);
     return REFL_OK;
 }
 
@@ -780,8 +766,8 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
                                expf(-REFL__MAX(m->attenuation, 0.0f) * (float)face->thickness / cos_t);
             }
             for (c = 0; c < 3; ++c)
-                pl->color[4 * i + (size_t)c] = REFL__CLAMP(
-                    f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c], 0.0f, 1.0f);
+                pl->color[4 * i + (size_t)c] =
+                    f_in * pl->color[4 * i + (size_t)c] + through * tint[c] * pl->saved[4 * i + (size_t)c];
             /* the point shown follows the stronger branch, as RAYTRACE's:
                the mirror image wrote its points last */
             if (lv->level == 0 && f_in < 0.5f)
@@ -821,7 +807,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     refl__planar_dc *dcs;
     rast_targets t;
     refl_result r;
-    size_t i, n = (size_t)f->width * (size_t)f->height;
+    size_t n = (size_t)f->width * (size_t)f->height;
     double t0 = refl__now_ms();
     memset(&pl, 0, sizeof pl);
     pl.p = p;
@@ -834,7 +820,7 @@ static refl_result refl__method_planar(refl__pass *p) {
         refl__planar_free_faces(s, pl.faces, 0);
         return REFL_OK; /* no planar mirror: what DIRECT shows */
     }
-    pl.color = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
+    pl.color = f->rgba;
     pl.stencil = (uint8_t *)refl__calloc(&s->allocator, n, 1);
     pl.saved = (float *)refl__calloc(&s->allocator, n, 4 * sizeof(float));
     pl.saved_points = (float *)refl__calloc(&s->allocator, n, 3 * sizeof(float));
@@ -844,13 +830,12 @@ static refl_result refl__method_planar(refl__pass *p) {
                                           sizeof(refl__planar_dc));
     if (refl__soft_shadows(&p->desc, s))
         pl.counts = (uint16_t *)refl__calloc(&s->allocator, n * REFL__SHADOW_MAX_LIGHTS, sizeof(uint16_t));
-    if (!pl.color || !pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
+    if (!pl.stencil || !pl.saved || !pl.saved_points || !pl.lit || !dcs ||
         (p->desc.lighting.translucency > 0.0f && !pl.unfogged) ||
         (refl__soft_shadows(&p->desc, s) && !pl.counts)) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
-    for (i = 0; i < 4 * n; ++i) pl.color[i] = (float)f->color[i] * (1.0f / 255.0f);
     memset(&pl.targets, 0, sizeof pl.targets);
     t = pl.targets;
     t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
@@ -879,13 +864,11 @@ static refl_result refl__method_planar(refl__pass *p) {
     }
     r = refl__planar_level_draw(&pl, &top, dcs);
     if (r != REFL_OK) goto done;
-    for (i = 0; i < 4 * n; ++i) f->color[i] = (uint8_t)(REFL__CLAMP(pl.color[i], 0.0f, 1.0f) * 255.0f + 0.5f);
     f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
 done:
     /* the frame's own targets back: rc's queue is empty or dropped */
     refl__free(&s->allocator, dcs);
-    refl__free(&s->allocator, pl.color);
     refl__free(&s->allocator, pl.stencil);
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);

@@ -53,10 +53,10 @@ static void refl__rt_tile(void *arg, int job) {
                 f->points[3 * i + 1] = shown.y;
                 f->points[3 * i + 2] = shown.z;
             }
-            f->color[4 * i] = refl__rt_unorm8(rgb[0]);
-            f->color[4 * i + 1] = refl__rt_unorm8(rgb[1]);
-            f->color[4 * i + 2] = refl__rt_unorm8(rgb[2]);
-            f->color[4 * i + 3] = 255;
+            f->rgba[4 * i] = rgb[0];
+            f->rgba[4 * i + 1] = rgb[1];
+            f->rgba[4 * i + 2] = rgb[2];
+            f->rgba[4 * i + 3] = 1.0f;
         }
     tf->tile_rays[tile] = rays;
 }

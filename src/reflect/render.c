@@ -36,11 +36,11 @@ REFL_API refl_result refl_frame_create(int width, int height, const refl_allocat
     f->width = width;
     f->height = height;
     f->message = "";
-    f->color = (uint8_t *)refl__calloc(a, n, 4);
+    f->rgba = (float *)refl__calloc(a, n, 4 * sizeof(float));
     f->depth = (float *)refl__calloc(a, n, sizeof(float));
     f->stencil = (uint8_t *)refl__calloc(a, n, 1);
     f->points = (float *)refl__calloc(a, n, 3 * sizeof(float));
-    if (!f->color || !f->depth || !f->stencil || !f->points) {
+    if (!f->rgba || !f->depth || !f->stencil || !f->points) {
         refl_frame_destroy(f);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -52,29 +52,32 @@ REFL_API void refl_frame_destroy(refl_frame *f) {
     refl_allocator a;
     if (!f) return;
     a = f->allocator;
-    refl__free(&a, f->color);
+    refl__free(&a, f->rgba);
     refl__free(&a, f->depth);
     refl__free(&a, f->stencil);
     refl__free(&a, f->points);
     refl__free(&a, f);
 }
 
-REFL_API void refl_frame_to_srgb8(const refl_frame *f, uint8_t *out) {
-    uint8_t table[256];
+REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d) {
+    float x = linear * (d ? exp2f(d->exposure) : 1.0f), e;
+    if (!(x > 0.0f)) return 0; /* negative, zero and NaN */
+    if (d && d->tonemap == REFL_TONEMAP_REINHARD) x = x / (1.0f + x);
+    else if (d && d->tonemap == REFL_TONEMAP_ACES) x = x * (2.51f * x + 0.03f) / (x * (2.43f * x + 0.59f) + 0.14f);
+    if (!(x < 1.0f)) return 255; /* +inf and the ACES quotient of two infinities */
+    e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
+    return (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+}
+
+REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *d, uint8_t *out) {
     size_t i, n;
-    int v;
+    int c;
     if (!f || !out) return;
-    for (v = 0; v < 256; ++v) {
-        float x = (float)v / 255.0f;
-        float e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-        table[v] = (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
-    }
     n = (size_t)f->width * (size_t)f->height;
     for (i = 0; i < n; ++i) {
-        out[4 * i + 0] = table[f->color[4 * i + 0]];
-        out[4 * i + 1] = table[f->color[4 * i + 1]];
-        out[4 * i + 2] = table[f->color[4 * i + 2]];
-        out[4 * i + 3] = f->color[4 * i + 3];
+        float a = f->rgba[4 * i + 3];
+        for (c = 0; c < 3; ++c) out[4 * i + (size_t)c] = refl_display_channel(f->rgba[4 * i + (size_t)c], d);
+        out[4 * i + 3] = (uint8_t)(a > 0.0f ? (a < 1.0f ? a * 255.0f + 0.5f : 255.0f) : 0.0f);
     }
 }
 
@@ -312,7 +315,7 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
     if (r == REFL_OK && refl_mat4_invert(p->vp, &inv_vp))
-        refl__draw_background(frame->color, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
+        refl__draw_background(frame->rgba, frame->depth, frame->width, frame->height, frame->width, scene, inv_vp);
     frame->stats.ms_base = refl__now_ms() - t0;
     return r;
 }
@@ -365,7 +368,7 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
    shows black, the base pass's colour for mirror and glass, opaque. */
 static void refl__opaque(refl_frame *frame) {
     size_t i, n = (size_t)frame->width * (size_t)frame->height;
-    for (i = 0; i < n; ++i) frame->color[4 * i + 3] = 255;
+    for (i = 0; i < n; ++i) frame->rgba[4 * i + 3] = 1.0f;
 }
 
 /* ---- the renderer ---------------------------------------------------------------- */

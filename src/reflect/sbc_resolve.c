@@ -71,8 +71,8 @@ static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
     sb->tracer.rays[y]++;
     if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
     refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
-    for (c = 0; c < 3; ++c) fr->color[4 * i + (size_t)c] = refl__rt_unorm8(rgb[c]);
-    fr->color[4 * i + 3] = 255;
+    for (c = 0; c < 3; ++c) fr->rgba[4 * i + (size_t)c] = rgb[c];
+    fr->rgba[4 * i + 3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;

@@ -70,9 +70,10 @@ static int refl__rt_surface_at(const refl__rt *rt, const refl_hit *h, refl__rt_s
     return refl_v3_dot(s->ng, s->ng) > 0.0f;
 }
 
-static void refl__rt_clamp(float rgb[3]) {
+/* Every surface's colour as the rasterised methods keep it (REFL__RADIANCE). */
+static void refl__rt_radiance(float rgb[3]) {
     int c;
-    for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgb[c], 0.0f, 1.0f);
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__RADIANCE(rgb[c]);
 }
 
 /* Closest hit from o along d, skipping the triangle the ray leaves. */
@@ -235,7 +236,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     refl_vec3 n = s->ns, ng = s->ng;
     if (m->type == REFL_DIFFUSE) {
         refl__rt_diffuse(rt, s, n, rays, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         return;
     }
     entering = refl_v3_dot(d, ng) < 0.0f;
@@ -250,7 +251,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         /* the diffuse share, as the base pass draws it */
         float k = 1.0f - REFL__CLAMP(m->mirror_weight, 0.0f, 1.0f);
         refl__rt_diffuse(rt, s, s->ns, rays, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         for (c = 0; c < 3; ++c) rgb[c] *= k;
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
@@ -300,7 +301,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
             for (c = 0; c < 3; ++c) rgb[c] += (1.0f - f) * (entering ? tint[c] : 1.0f) * sub[c];
         }
     }
-    refl__rt_clamp(rgb);
+    refl__rt_radiance(rgb);
 }
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -315,7 +316,7 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     if (!refl__rt_cast(rt, o, d, FLT_MAX, from, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s)) {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
-        refl__rt_clamp(rgb);
+        refl__rt_radiance(rgb);
         if (first_point && rt->p->desc.debug.points_last) *first_point = refl_v3(NAN, NAN, NAN); /* ends here */
         if (medium.fog > 0.0f) /* infinitely far: wholly fogged */
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(medium.fog_rgb[c], 0.0f, 1.0f);
@@ -339,8 +340,6 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
         for (c = 0; c < 3; ++c) rgb[c] *= k;
     }
 }
-
-static uint8_t refl__rt_unorm8(float v) { return (uint8_t)(REFL__CLAMP(v, 0.0f, 1.0f) * 255.0f + 0.5f); }
 
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its

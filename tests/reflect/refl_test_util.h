@@ -39,6 +39,13 @@ static inline refl_scene *tu_refl_builtin(const char *name, refl_view *v, int w,
     return s;
 }
 
+/* Pixel i's linear colour as 8-bit levels (tu_unorm8): what the tests
+   compare against expected 8-bit values. */
+static inline void tu_pixel8(const refl_frame *f, size_t i, int out[4]) {
+    int c;
+    for (c = 0; c < 4; ++c) out[c] = tu_unorm8(f->rgba[4 * i + (size_t)c]);
+}
+
 /* A 64-bit FNV-1a digest of a frame's colour, depth, stencil and points:
    equal digests, the same bytes. */
 static inline uint64_t tu_refl_digest(const refl_frame *f) {
@@ -47,7 +54,7 @@ static inline uint64_t tu_refl_digest(const refl_frame *f) {
     size_t sizes[4];
     uint64_t h = 0xCBF29CE484222325ull;
     int k;
-    parts[0] = f->color; sizes[0] = 4 * n;
+    parts[0] = (const unsigned char *)f->rgba; sizes[0] = 4 * n * sizeof(float);
     parts[1] = (const unsigned char *)f->depth; sizes[1] = n * sizeof(float);
     parts[2] = f->stencil; sizes[2] = n;
     parts[3] = (const unsigned char *)f->points; sizes[3] = 3 * n * sizeof(float);
@@ -125,11 +132,11 @@ static inline void tu_assert_reflector_frame(const refl_frame *f, const refl_fra
         cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
         cr_assert_eq(f->stencil[i], direct->stencil[i]);
         if (!f->stencil[i]) {
-            cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "pixel %d differs from DIRECT", i);
+            cr_assert_eq(memcmp(f->rgba + 4 * i, direct->rgba + 4 * i, (4) * sizeof(float)), 0, "pixel %d differs from DIRECT", i);
             cr_assert_eq(nan_count, 3, "pixel %d off the reflectors has a point", i);
         } else {
             cr_assert(isfinite(p[0]) || nan_count == 3);
-            cr_assert_eq(f->color[4 * i + 3], 255);
+            cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255);
         }
     }
 }

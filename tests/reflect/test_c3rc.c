@@ -165,7 +165,7 @@ Test(refl_c3rc, identical_for_any_thread_count) {
     for (k = 0; k < 3; ++k) {
         d.threads = threads[k];
         b = tu_refl_render(s, &v, &d);
-        cr_assert_eq(memcmp(a->color, b->color, 4 * (size_t)v.width * v.height), 0, "%d threads: colours", threads[k]);
+        cr_assert_eq(memcmp(a->rgba, b->rgba, 4 * sizeof(float) * (size_t)v.width * v.height), 0, "%d threads: colours", threads[k]);
         cr_assert_eq(memcmp(a->points, b->points, 3 * sizeof(float) * (size_t)v.width * v.height), 0,
                      "%d threads: points", threads[k]);
         cr_assert_eq(a->stats.c3rc.projected, b->stats.c3rc.projected);
@@ -268,9 +268,9 @@ Test(refl_c3rc, environment_only) {
         ++mirror;
         cr_assert(f->points[3 * i] != f->points[3 * i], "pixel %d shows a point", i);
         /* mirror reflectance 1 of the constant environment */
-        cr_assert(abs(f->color[4 * i] - 51) <= 1 && abs(f->color[4 * i + 1] - 102) <= 1 &&
-                  abs(f->color[4 * i + 2] - 153) <= 1,
-                  "pixel %d: %d %d %d", i, f->color[4 * i], f->color[4 * i + 1], f->color[4 * i + 2]);
+        cr_assert(abs(tu_unorm8(f->rgba[4 * i]) - 51) <= 1 && abs(tu_unorm8(f->rgba[4 * i + 1]) - 102) <= 1 &&
+                  abs(tu_unorm8(f->rgba[4 * i + 2]) - 153) <= 1,
+                  "pixel %d: %d %d %d", i, tu_unorm8(f->rgba[4 * i]), tu_unorm8(f->rgba[4 * i + 1]), tu_unorm8(f->rgba[4 * i + 2]));
     }
     cr_assert(mirror > 200);
     refl_frame_destroy(f);

@@ -60,7 +60,7 @@ Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .
                     cr_assert(f->depth[i] >= 0.0f && f->depth[i] <= 1.0f, "pixel %d: depth %g", i, f->depth[i]);
                     cr_assert(nan_count == 0 || nan_count == 3, "pixel %d: partly NaN point", i);
                     cr_assert(nan_count == 3 || (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])));
-                    cr_assert_eq(f->color[4 * i + 3], 255, "%s on %s: pixel %d is not opaque",
+                    cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255, "%s on %s: pixel %d is not opaque",
                                  refl_method_name((refl_method)m), scenes[k], i);
                 }
                 refl_frame_destroy(f);

@@ -168,19 +168,19 @@ static traced trace_pixel(const refl_bvh *bvh, const refl_scene *s, const refl_v
    environment: the DIRECT byte plus the reflectance share of the lookup
    along r (and for glass, 1 - F of the lookup along the refracted ray,
    tinted), clamped. */
-static void expected_color(const refl_scene *s, const refl_material *m, const traced *t, const uint8_t *direct,
+static void expected_color(const refl_scene *s, const refl_material *m, const traced *t, const float *direct,
                            float out[3]) {
     float cos_i = -refl_v3_dot(t->d, t->n), w = refl_material_reflectance(m, cos_i), e[3], tr[3];
     int c;
     refl_environment_lookup(&s->environment, refl_v3_reflect(t->d, t->n), e);
-    for (c = 0; c < 3; ++c) out[c] = (float)direct[c] / 255.0f + w * fminf(fmaxf(e[c], 0.0f), 1.0f);
+    for (c = 0; c < 3; ++c) out[c] = direct[c] + w * fmaxf(e[c], 0.0f);
     if (m->type == REFL_GLASS) {
         refl_vec3 dir;
         cr_assert(refl_v3_refract(t->d, t->n, 1.0f / (m->ior > 0.0f ? m->ior : 1.5f), &dir));
         refl_environment_lookup(&s->environment, dir, tr);
         for (c = 0; c < 3; ++c) {
             float tint = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-            out[c] += (1.0f - w) * tint * fminf(fmaxf(tr[c], 0.0f), 1.0f);
+            out[c] += (1.0f - w) * tint * fmaxf(tr[c], 0.0f);
         }
     }
     for (c = 0; c < 3; ++c) out[c] = fminf(fmaxf(out[c], 0.0f), 1.0f);
@@ -206,16 +206,17 @@ Test(refl_envmap, mirror_in_face_environment_matches_the_true_reflection) {
     for (y = 0; y < v.height; ++y)
         for (x = 0; x < v.width; ++x) {
             size_t i = (size_t)y * (size_t)v.width + (size_t)x;
-            const uint8_t *p = f->color + 4 * i;
+            int p[4];
             traced t;
             float want[3];
-            uint8_t zero[3] = {0, 0, 0};
+            float zero[3] = {0, 0, 0};
             if (f->stencil[i] != 1) {
                 cr_assert(is_nan(f->points[3 * i]), "points off the reflector must be NaN");
                 continue;
             }
             cr_assert(is_nan(f->points[3 * i]) && is_nan(f->points[3 * i + 1]) && is_nan(f->points[3 * i + 2]),
                       "the environment shows no point");
+            tu_pixel8(f, i, p);
             cr_assert_eq(p[3], 255);
             t = trace_pixel(bvh, s, &v, x, y);
             if (!t.ok) continue; /* silhouette: raster and ray disagree on coverage */
@@ -276,9 +277,9 @@ Test(refl_envmap, smooth_environment_matches_within_cube_resolution) {
                 t = trace_pixel(bvh, s, &v, x, y);
                 if (!t.ok) continue;
                 ++px;
-                expected_color(s, &mats[which], &t, direct->color + 4 * i, want);
+                expected_color(s, &mats[which], &t, direct->rgba + 4 * i, want);
                 for (c = 0; c < 3; ++c) {
-                    int d = abs((int)f->color[4 * i + c] - tu_unorm8(want[c]));
+                    int d = abs((int)tu_unorm8(f->rgba[4 * i + c]) - tu_unorm8(want[c]));
                     if (d > pixel_worst) pixel_worst = d;
                 }
                 if (pixel_worst > worst) worst = pixel_worst;
@@ -371,7 +372,7 @@ Test(refl_envmap, points_are_what_the_cube_shows_along_the_reflection) {
 
 static void assert_same(const refl_frame *a, const refl_frame *b, const char *what, int threads) {
     size_t n = (size_t)a->width * (size_t)a->height;
-    cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1, "%s: colour differs with %d threads", what, threads);
+    cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (4 * n) * sizeof(float)), -1, "%s: colour differs with %d threads", what, threads);
     cr_assert_eq(tu_first_diff(a->points, b->points, 3 * n * sizeof(float)), -1, "%s: points differ with %d threads",
                  what, threads);
 }
@@ -420,16 +421,16 @@ Test(refl_envmap, default_scene) {
     direct = render_with(s, &v, REFL_DIRECT, 0, 0);
     n = v.width * v.height;
     for (i = 0; i < n; ++i) {
-        const uint8_t *c = f->color + 4 * i;
+        const float *c = f->rgba + 4 * i;
         const float *p = f->points + 3 * i;
         cr_assert_eq(f->stencil[i], direct->stencil[i]);
         if (f->stencil[i] != teapot + 1) {
-            cr_assert_eq(memcmp(c, direct->color + 4 * i, 4), 0, "pixel %d differs from DIRECT", i);
+            cr_assert_eq(memcmp(c, direct->rgba + 4 * i, 4 * sizeof(float)), 0, "pixel %d differs from DIRECT", i);
             cr_assert(is_nan(p[0]) && is_nan(p[1]) && is_nan(p[2]), "pixel %d has a point", i);
             continue;
         }
         ++px;
-        cr_assert_eq(c[3], 255);
+        cr_assert_eq(c[3], 1.0f);
         cr_assert(c[0] + c[1] + c[2] > 0, "teapot pixel %d is black", i);
         if (!is_nan(p[0])) {
             ++finite;
@@ -467,10 +468,10 @@ Test(refl_envmap, edge_sizes_and_views) {
     v.target = refl_v3(0.0f, 0.8f, 0.0f);
     v.width = v.height = 1;
     f = render_with(s, &v, REFL_ENVMAP, 2, 0);
-    cr_assert(f->stencil[0] != 0 && f->color[3] == 255);
+    cr_assert(f->stencil[0] != 0 && tu_unorm8(f->rgba[3]) == 255);
     refl_frame_destroy(f);
     f = render_with(s, &v, REFL_ENVMAP, 2, 1);
-    cr_assert(f->color[3] == 255);
+    cr_assert(tu_unorm8(f->rgba[3]) == 255);
     refl_frame_destroy(f);
     /* a one-texel cube on a full frame */
     v = s->camera;
@@ -478,7 +479,7 @@ Test(refl_envmap, edge_sizes_and_views) {
     v.height = 48;
     f = render_with(s, &v, REFL_ENVMAP, 3, 1);
     for (i = 0; i < 64 * 48; ++i)
-        if (f->stencil[i]) cr_assert_eq(f->color[4 * i + 3], 255);
+        if (f->stencil[i]) cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255);
     cr_assert_eq(f->stats.model_bytes, 6LL * (4 + 3 * (long long)sizeof(float)));
     refl_frame_destroy(f);
     /* the teapot behind the camera */
@@ -486,7 +487,7 @@ Test(refl_envmap, edge_sizes_and_views) {
     f = render_with(s, &v, REFL_ENVMAP, 2, 32);
     direct = render_with(s, &v, REFL_DIRECT, 2, 0);
     cr_assert_eq(f->stats.envmap.cube_faces, 0);
-    cr_assert_eq(tu_first_diff(f->color, direct->color, 64 * 48 * 4), -1);
+    cr_assert_eq(tu_first_diff(f->rgba, direct->rgba, (64 * 48 * 4) * sizeof(float)), -1);
     for (i = 0; i < 64 * 48 * 3; ++i) cr_assert(is_nan(f->points[i]));
     refl_frame_destroy(direct);
     refl_frame_destroy(f);
@@ -499,7 +500,7 @@ Test(refl_envmap, edge_sizes_and_views) {
         f = render_with(s, &v, REFL_ENVMAP, 2, 16);
         for (i = 0; i < 48 * 32; ++i) {
             cr_assert_eq(f->stencil[i], 1);
-            cr_assert_eq(f->color[4 * i + 3], 255);
+            cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255);
         }
         cr_assert_eq(f->stats.envmap.cube_faces, 6);
         refl_frame_destroy(f);
@@ -543,7 +544,7 @@ Test(refl_envmap, reflectors_sharing_stencil_255) {
     for (i = 0; i < 96 * 64; ++i)
         if (f->stencil[i] == 255) {
             ++px;
-            cr_assert_eq(f->color[4 * i + 3], 255, "pixel %d unfilled", i);
+            cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255, "pixel %d unfilled", i);
         }
     cr_assert(px > 500, "%d mirror pixels", px);
     cr_assert_eq(f->stats.envmap.cube_faces, 12);

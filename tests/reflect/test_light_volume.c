@@ -178,7 +178,7 @@ Test(refl_light_volume, the_lit_floor_is_the_mirrored_frustums_footprint) {
         int diff;
         if (!fl[i]) continue;
         margin = through_mirror(pts + 3 * i, m);
-        diff = (int)on->color[4 * i + 1] - (int)off->color[4 * i + 1];
+        diff = (int)tu_unorm8(on->rgba[4 * i + 1]) - (int)tu_unorm8(off->rgba[4 * i + 1]);
         if (margin > 0.02) {
             int e = abs(diff - (int)lround(255.0 * added_green(pts + 3 * i)));
             ++inside;
@@ -186,7 +186,7 @@ Test(refl_light_volume, the_lit_floor_is_the_mirrored_frustums_footprint) {
             if (e > worst) worst = e;
         } else if (margin < -0.02) {
             ++outside;
-            bad_out += memcmp(on->color + 4 * i, off->color + 4 * i, 4) != 0;
+            bad_out += memcmp(on->rgba + 4 * i, off->rgba + 4 * i, 4 * sizeof(float)) != 0;
         }
     }
     cr_log_info("footprint: %ld floor pixels inside (%ld off by more than 1/255, worst %d), %ld outside (%ld changed)",
@@ -227,7 +227,7 @@ Test(refl_light_volume, boxes_cast_shadows_in_the_reflected_light_both_ways) {
         grown_in = segment_hits_box(m, lt, BOX_OUT, 0.02) || segment_hits_box(m, lt, BOX_IN, 0.02);
         shrunk_in = segment_hits_box(m, lt, BOX_OUT, -0.02) || segment_hits_box(m, lt, BOX_IN, -0.02);
         if (grown_out != shrunk_out || grown_in != shrunk_in) continue; /* near a shadow's edge */
-        diff = (int)on->color[4 * i + 1] - (int)off->color[4 * i + 1];
+        diff = (int)tu_unorm8(on->rgba[4 * i + 1]) - (int)tu_unorm8(off->rgba[4 * i + 1]);
         if (shrunk_out || shrunk_in) {
             blocked_out += shrunk_out;
             blocked_in += shrunk_in && !shrunk_out;
@@ -258,7 +258,7 @@ static void expect_close_to_raytrace(const refl_frame *planar, const refl_frame 
     for (i = 0; i < n; ++i) {
         int c, m = 0;
         for (c = 0; c < 3; ++c) {
-            int e = abs((int)planar->color[4 * i + c] - (int)truth->color[4 * i + c]);
+            int e = abs((int)tu_unorm8(planar->rgba[4 * i + c]) - (int)tu_unorm8(truth->rgba[4 * i + c]));
             if (e > m) m = e;
         }
         close += m <= 2;
@@ -279,7 +279,7 @@ Test(refl_light_volume, planar_equals_raytrace_with_shadows_and_blockers) {
     refl_frame *r_off = render_lv(s, &v, REFL_RAYTRACE, 0, 1, 0, 2);
     size_t i, n = (size_t)v.width * (size_t)v.height;
     long changed = 0;
-    for (i = 0; i < n; ++i) changed += r->color[4 * i + 1] > r_off->color[4 * i + 1] + 8;
+    for (i = 0; i < n; ++i) changed += tu_unorm8(r->rgba[4 * i + 1]) > tu_unorm8(r_off->rgba[4 * i + 1]) + 8;
     cr_log_info("RAYTRACE: %ld pixels brighter by the reflected light", changed);
     cr_assert(changed > 3000, "the traced reflected light must show: %ld pixels", changed);
     expect_close_to_raytrace(p, r, 0.995, "light volumes, shadows");
@@ -300,9 +300,9 @@ Test(refl_light_volume, caustic_samples_soften_the_footprint_as_traced) {
     refl_frame *off = render_lv(s, &v, REFL_PLANAR, 0, 0, 0, 2), *soft = render_lv(s, &v, REFL_PLANAR, 1, 0, 16, 2);
     size_t i, n = (size_t)v.width * (size_t)v.height;
     long partial = 0, hard_partial = 0;
-    cr_assert_eq(memcmp(hard->color, one->color, 4 * n), 0, "one caustic sample is the light's centre");
+    cr_assert_eq(memcmp(hard->rgba, one->rgba, (4 * n) * sizeof(float)), 0, "one caustic sample is the light's centre");
     for (i = 0; i < n; ++i) {
-        int full = hard->color[4 * i + 1] - off->color[4 * i + 1], got = soft->color[4 * i + 1] - off->color[4 * i + 1];
+        int full = tu_unorm8(hard->rgba[4 * i + 1]) - tu_unorm8(off->rgba[4 * i + 1]), got = tu_unorm8(soft->rgba[4 * i + 1]) - tu_unorm8(off->rgba[4 * i + 1]);
         /* strictly between unlit and the hard footprint's level nearby */
         partial += got > 2 && (full == 0 || got < full - 2);
         hard_partial += full > 0 && full < 3;
@@ -325,7 +325,7 @@ Test(refl_light_volume, same_bytes_for_every_thread_count_and_nothing_without_mi
     refl_frame *a = render_lv(s, &v, REFL_PLANAR, 1, 1, 8, 1), *b = render_lv(s, &v, REFL_PLANAR, 1, 1, 8, 3);
     refl_frame *c, *d;
     size_t n = (size_t)v.width * (size_t)v.height;
-    cr_assert_eq(memcmp(a->color, b->color, 4 * n), 0);
+    cr_assert_eq(memcmp(a->rgba, b->rgba, (4 * n) * sizeof(float)), 0);
     refl_frame_destroy(a);
     refl_frame_destroy(b);
     /* the mirror made diffuse: no virtual light, the same bytes as off */
@@ -333,7 +333,7 @@ Test(refl_light_volume, same_bytes_for_every_thread_count_and_nothing_without_mi
     s->materials[s->objects[1].material].type = REFL_DIFFUSE;
     c = render_lv(s, &v, REFL_PLANAR, 1, 1, 0, 2);
     d = render_lv(s, &v, REFL_PLANAR, 0, 1, 0, 2);
-    cr_assert_eq(memcmp(c->color, d->color, 4 * n), 0);
+    cr_assert_eq(memcmp(c->rgba, d->rgba, (4 * n) * sizeof(float)), 0);
     refl_frame_destroy(c);
     refl_frame_destroy(d);
     refl_scene_destroy(plain);
@@ -401,10 +401,10 @@ Test(refl_light_volume, translucency_fogs_by_exp_of_the_distance_behind_the_face
         h = SLAB_FRONT - p[2];
         f = exp(-density * h);
         for (c = 0; c < 3; ++c) {
-            int full = (int)a->color[4 * i + c] - (int)z->color[4 * i + c];
+            int full = (int)tu_unorm8(a->rgba[4 * i + c]) - (int)tu_unorm8(z->rgba[4 * i + c]);
             double measured;
             if (full < 30) continue;
-            measured = 1.0 - (double)((int)a->color[4 * i + c] - (int)b->color[4 * i + c]) / (double)full;
+            measured = 1.0 - (double)((int)tu_unorm8(a->rgba[4 * i + c]) - (int)tu_unorm8(b->rgba[4 * i + c])) / (double)full;
             ++checked;
             worst = fmax(worst, fabs(measured - f));
             bad += fabs(measured - f) > 2.0 / full + 0.005;
@@ -440,7 +440,7 @@ Test(refl_light_volume, translucency_equals_raytrace_where_both_show_the_same_po
     for (i = 0; i < n; ++i) {
         const float *a = p->points + 3 * i, *b = r->points + 3 * i;
         int c, m = 0;
-        moved += abs((int)r->color[4 * i] - (int)r0->color[4 * i]) > 10;
+        moved += abs((int)tu_unorm8(r->rgba[4 * i]) - (int)tu_unorm8(r0->rgba[4 * i])) > 10;
         if (r->stencil[i] != glass || p->stencil[i] != glass) continue;
         if (isfinite(a[0]) != isfinite(b[0])) continue;
         if (isfinite(a[0]) && (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
@@ -449,7 +449,7 @@ Test(refl_light_volume, translucency_equals_raytrace_where_both_show_the_same_po
         env += !isfinite(a[0]);
         ++same;
         for (c = 0; c < 3; ++c) {
-            int e = abs((int)p->color[4 * i + c] - (int)r->color[4 * i + c]);
+            int e = abs((int)tu_unorm8(p->rgba[4 * i + c]) - (int)tu_unorm8(r->rgba[4 * i + c]));
             if (e > m) m = e;
         }
         close += m <= 2;

@@ -536,10 +536,10 @@ Test(refl_metrics, allocation_failure_leaks_nothing) {
 static void fill_color(refl_frame *f, uint8_t r, uint8_t g, uint8_t b) {
     size_t i, n = (size_t)f->width * (size_t)f->height;
     for (i = 0; i < n; ++i) {
-        f->color[4 * i] = r;
-        f->color[4 * i + 1] = g;
-        f->color[4 * i + 2] = b;
-        f->color[4 * i + 3] = 255;
+        f->rgba[4 * i] = (float)r / 255.0f;
+        f->rgba[4 * i + 1] = (float)g / 255.0f;
+        f->rgba[4 * i + 2] = (float)b / 255.0f;
+        f->rgba[4 * i + 3] = (float)255 / 255.0f;
     }
 }
 
@@ -548,6 +548,7 @@ Test(refl_metrics, image_error_known_answers) {
     refl_image_error ie;
     refl_image_diff cmp;
     const double n = W * H;
+    static uint8_t test8[4 * W * H], truth8[4 * W * H];
     double rmse;
     int i, on_reflector = 0;
     fill_color(truth, 10, 20, 30);
@@ -558,8 +559,8 @@ Test(refl_metrics, image_error_known_answers) {
     /* green 10 levels up on 100 pixels (alpha differences are ignored) */
     for (i = 0; i < 100; ++i) {
         int p = i * 29 % (W * H);
-        test->color[4 * p + 1] = 30;
-        test->color[4 * p + 3] = 0;
+        test->rgba[4 * p + 1] = (float)30 / 255.0f;
+        test->rgba[4 * p + 3] = (float)0 / 255.0f;
         on_reflector += truth->stencil[p] != 0;
     }
     rmse = sqrt(100.0 * 100.0 / (3.0 * n)) / 255.0;
@@ -574,8 +575,13 @@ Test(refl_metrics, image_error_known_answers) {
     cr_assert_eq(ie.over_threshold, 0.0);
     cr_assert_eq(refl_measure_image_error(test, truth, 0, 9.0f / 255.0f, &ie), REFL_OK);
     cr_assert(fabs(ie.over_threshold - 100.0 / n) < 1e-15);
-    /* the same numbers as the tools' comparison (reflect compare) */
-    cr_assert_eq(refl_image_compare(test->color, truth->color, W, H, 2.0 / 255.0, &cmp), REFL_OK);
+    /* the same numbers as the tools' comparison (reflect compare) of the
+       frames' 8-bit levels */
+    for (i = 0; i < 4 * W * H; ++i) {
+        test8[i] = (uint8_t)tu_unorm8(test->rgba[i]);
+        truth8[i] = (uint8_t)tu_unorm8(truth->rgba[i]);
+    }
+    cr_assert_eq(refl_image_compare(test8, truth8, W, H, 2.0 / 255.0, &cmp), REFL_OK);
     cr_assert(fabs(cmp.rmse - rmse) < 1e-15 && cmp.psnr == 20.0 * log10(1.0 / cmp.rmse) &&
               cmp.fraction_over == 100.0 / n);
     /* over the truth's reflector pixels only */
@@ -586,8 +592,8 @@ Test(refl_metrics, image_error_known_answers) {
     cr_assert(fabs(ie.rmse - rmse) < 1e-15);
     cr_assert(fabs(ie.over_threshold - on_reflector / (double)REFLECTOR_PIXELS) < 1e-15);
     /* a pixel 255 off in every channel */
-    test->color[0] = 255; test->color[1] = 255; test->color[2] = 0;
-    truth->color[0] = 0; truth->color[1] = 0; truth->color[2] = 255;
+    test->rgba[0] = (float)255 / 255.0f; test->rgba[1] = (float)255 / 255.0f; test->rgba[2] = (float)0 / 255.0f;
+    truth->rgba[0] = (float)0 / 255.0f; truth->rgba[1] = (float)0 / 255.0f; truth->rgba[2] = (float)255 / 255.0f;
     cr_assert_eq(refl_measure_image_error(test, truth, 0, 0.5f, &ie), REFL_OK);
     cr_assert_eq(ie.max_diff, 1.0);
     cr_assert(fabs(ie.over_threshold - 1.0 / n) < 1e-15);

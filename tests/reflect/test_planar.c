@@ -105,7 +105,7 @@ Test(refl_planar, renderings_follow_formula_5_without_culling) {
         cr_log_info("depth %d: %lld renderings at the deepest level (formula 5), %lld with culling (%lld culled)",
                     depth, all->stats.planar.deepest, seen->stats.planar.deepest, seen->stats.planar.culled);
         cr_assert(seen->stats.planar.deepest < all->stats.planar.deepest || depth == 1);
-        cr_assert_eq(tu_first_diff(all->color, seen->color, 4 * (size_t)v.width * (size_t)v.height), -1,
+        cr_assert_eq(tu_first_diff(all->rgba, seen->rgba, 4 * sizeof(float) * (size_t)v.width * (size_t)v.height), -1,
                      "depth %d: culling changed the image", depth);
         refl_frame_destroy(all);
         refl_frame_destroy(seen);
@@ -126,7 +126,7 @@ Test(refl_planar, same_bytes_for_every_thread_count) {
     for (t = 0; t < 3; ++t) {
         refl_frame *other = render(s, &v, REFL_PLANAR, 3, 0, threads[t]);
         size_t n = (size_t)v.width * (size_t)v.height;
-        cr_assert_eq(tu_first_diff(one->color, other->color, 4 * n), -1, "%d threads: colour differs", threads[t]);
+        cr_assert_eq(tu_first_diff(one->rgba, other->rgba, (4 * n) * sizeof(float)), -1, "%d threads: colour differs", threads[t]);
         cr_assert_eq(tu_first_diff(one->points, other->points, 12 * n), -1, "%d threads: points differ", threads[t]);
         refl_frame_destroy(other);
     }
@@ -143,7 +143,7 @@ static void expect_confined(const refl_scene *s, const refl_view *v, int depth, 
     long long leaks = 0;
     for (i = 0; i < n; ++i) {
         int mirror = direct->stencil[i] && s->materials[s->objects[direct->stencil[i] - 1].material].type == REFL_MIRROR;
-        if (!mirror) leaks += memcmp(direct->color + 4 * i, planar->color + 4 * i, 4) != 0;
+        if (!mirror) leaks += memcmp(direct->rgba + 4 * i, planar->rgba + 4 * i, 4 * sizeof(float)) != 0;
         cr_assert(!isinf(planar->points[3 * i]), "%s: infinite point", what);
     }
     cr_assert_eq(leaks, 0, "%s: %lld pixels outside the mirrors changed", what, leaks);
@@ -292,7 +292,7 @@ Test(refl_planar, slab_refraction_is_close_head_on_and_degrades_with_incidence) 
             cr_assert(!isinf(planar->points[3 * i]));
             if (truth->stencil[i] != glass) continue;
             ++slab;
-            for (c = 0; c < 3; ++c) bad += abs((int)planar->color[4 * i + c] - (int)truth->color[4 * i + c]) > 2;
+            for (c = 0; c < 3; ++c) bad += abs((int)tu_unorm8(planar->rgba[4 * i + c]) - (int)tu_unorm8(truth->rgba[4 * i + c])) > 2;
         }
         cr_log_info("incidence %2d degrees: reflection error mean %.3f px, p95 %.3f, wrong %.4f, holes %.4f; "
                     "%.2f%% of slab channels over 2/255",
@@ -369,7 +369,7 @@ Test(refl_planar, water_surface_refracts_and_turns_to_a_mirror_past_the_critical
         for (i = 0; i < n; ++i) {
             cr_assert(!isinf(f->points[3 * i]), "view %d", k);
             if (direct->stencil[i] != water + 1)
-                cr_assert_eq(memcmp(f->color + 4 * i, direct->color + 4 * i, 4), 0, "view %d: outside the water", k);
+                cr_assert_eq(memcmp(f->rgba + 4 * i, direct->rgba + 4 * i, 4 * sizeof(float)), 0, "view %d: outside the water", k);
         }
         refracted += f->stats.planar.renderings == 2;
         mirrored += f->stats.planar.renderings == 1;
@@ -407,7 +407,7 @@ Test(refl_planar, shadows_seen_in_the_mirrors_agree_with_the_reference) {
         for (i = 0; i < n; ++i) {
             if (!truth->stencil[i]) continue;
             ++mirror;
-            in_shadow += memcmp(truth->color + 4 * i, unshadowed->color + 4 * i, 3) != 0;
+            in_shadow += memcmp(truth->rgba + 4 * i, unshadowed->rgba + 4 * i, 3 * sizeof(float)) != 0;
         }
         cr_assert_eq(refl_measure_image_error(planar, truth, 1, 2.0f / 255.0f, &ie), REFL_OK);
         cr_log_info("shadows, depth %d: %lld of %lld mirror pixels show a shadow; PSNR %.2f dB, %.3f%% over 2/255",

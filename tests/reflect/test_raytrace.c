@@ -151,9 +151,9 @@ static void check_plane_mirror(refl_vec3 off) {
                                    rgb);
                 for (c = 0; c < 3; ++c) {
                     int want = (int)(fminf(fmaxf(rgb[c], 0.0f), 1.0f) * 255.0f + 0.5f);
-                    TU_CHECK(&chk, abs((int)f->color[4 * i + (size_t)c] - want) <= 1,
+                    TU_CHECK(&chk, abs((int)tu_unorm8(f->rgba[4 * i + (size_t)c]) - want) <= 1,
                              "pixel %d,%d channel %d: %d, the shaded mirror image is %d", x, y, c,
-                             f->color[4 * i + (size_t)c], want);
+                             tu_unorm8(f->rgba[4 * i + (size_t)c]), want);
                 }
             }
         }
@@ -310,9 +310,10 @@ Test(refl_raytrace, hard_shadows_fall_under_the_box) {
             in_shadow = fabs(px) < 0.5 && fabs(pz) < 0.5;
             under += in_shadow;
             open += !in_shadow;
-            TU_CHECK(&chk, lit->color[4 * i] == 179, "pixel %d,%d unshadowed: %d, want 0.7", x, y, lit->color[4 * i]);
-            TU_CHECK(&chk, shadowed->color[4 * i] == (in_shadow ? 51 : 179), "pixel %d,%d: %d, want %s", x, y,
-                     shadowed->color[4 * i], in_shadow ? "0.2 (shadow)" : "0.7 (lit)");
+            TU_CHECK(&chk, fabsf(lit->rgba[4 * i] - 0.7f) < 1e-5f, "pixel %d,%d unshadowed: %g, want 0.7", x, y,
+                     lit->rgba[4 * i]);
+            TU_CHECK(&chk, fabsf(shadowed->rgba[4 * i] - (in_shadow ? 0.2f : 0.7f)) < 1e-5f, "pixel %d,%d: %g, want %s",
+                     x, y, shadowed->rgba[4 * i], in_shadow ? "0.2 (shadow)" : "0.7 (lit)");
         }
     cr_assert(under > 100 && open > 1000, "the view must show the shadow (%d, %d)", under, open);
     TU_CHECK_DONE(&chk);
@@ -362,9 +363,9 @@ Test(refl_raytrace, exhausted_bounces_show_what_direct_shows_and_misses_the_envi
             if (isnan(p[0])) {
                 /* the sky, at half strength: 0.1 0.2 0.3 */
                 ++sky;
-                TU_CHECK(&chk, one->color[4 * i] == 26 && one->color[4 * i + 1] == 51 && one->color[4 * i + 2] == 77,
-                         "pixel %d,%d: %d %d %d, want the environment at half", x, y, one->color[4 * i],
-                         one->color[4 * i + 1], one->color[4 * i + 2]);
+                TU_CHECK(&chk, tu_unorm8(one->rgba[4 * i]) == 26 && tu_unorm8(one->rgba[4 * i + 1]) == 51 && tu_unorm8(one->rgba[4 * i + 2]) == 77,
+                         "pixel %d,%d: %d %d %d, want the environment at half", x, y, tu_unorm8(one->rgba[4 * i]),
+                         tu_unorm8(one->rgba[4 * i + 1]), tu_unorm8(one->rgba[4 * i + 2]));
                 continue;
             }
             n = refl_v3(p[0] - 1.2f, p[1], p[2]);
@@ -374,13 +375,13 @@ Test(refl_raytrace, exhausted_bounces_show_what_direct_shows_and_misses_the_envi
             refl_shade_diffuse(s, &s->materials[s->objects[half].material], refl_v3(p[0], p[1], p[2]), n, NULL, rgb);
             for (c = 0; c < 3; ++c) {
                 int want = (int)(0.5f * 0.5f * fminf(rgb[c], 1.0f) * 255.0f + 0.5f);
-                TU_CHECK(&chk, abs((int)one->color[4 * i + (size_t)c] - want) <= 1,
+                TU_CHECK(&chk, abs((int)tu_unorm8(one->rgba[4 * i + (size_t)c]) - want) <= 1,
                          "pixel %d,%d channel %d: one bounce shows %d, the diffuse share is %d", x, y, c,
-                         one->color[4 * i + (size_t)c], want);
-                TU_CHECK(&chk, two->color[4 * i + (size_t)c] >= one->color[4 * i + (size_t)c],
+                         tu_unorm8(one->rgba[4 * i + (size_t)c]), want);
+                TU_CHECK(&chk, tu_unorm8(two->rgba[4 * i + (size_t)c]) >= tu_unorm8(one->rgba[4 * i + (size_t)c]),
                          "pixel %d,%d: a second bounce took light away", x, y);
             }
-            brighter += two->color[4 * i + 2] > one->color[4 * i + 2];
+            brighter += tu_unorm8(two->rgba[4 * i + 2]) > tu_unorm8(one->rgba[4 * i + 2]);
         }
     cr_assert(ball_in_ball > 50 && sky > 1000 && brighter > ball_in_ball / 2, "%d %d %d", ball_in_ball, sky,
               brighter);
@@ -392,7 +393,7 @@ Test(refl_raytrace, exhausted_bounces_show_what_direct_shows_and_misses_the_envi
 
 static void expect_same_frames(const refl_frame *a, const refl_frame *b, const char *what) {
     size_t n = (size_t)a->width * (size_t)a->height;
-    cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1, "%s: colour differs", what);
+    cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (4 * n) * sizeof(float)), -1, "%s: colour differs", what);
     cr_assert_eq(tu_first_diff(a->depth, b->depth, sizeof(float) * n), -1, "%s: depth differs", what);
     cr_assert_eq(tu_first_diff(a->stencil, b->stencil, n), -1, "%s: stencil differs", what);
     cr_assert_eq(tu_first_diff(a->points, b->points, 3 * sizeof(float) * n), -1, "%s: points differ", what);
@@ -411,7 +412,7 @@ Test(refl_raytrace, same_bytes_for_every_thread_count) {
         v.width = 97; v.height = 61; /* tiles cut at odd places */
         one = render_rt(s, &v, 0, 1, 1);
         n = (size_t)v.width * (size_t)v.height;
-        for (i = 0; i < 4 * n; ++i) cr_assert(one->color[i] <= 255);
+        for (i = 0; i < 4 * n; ++i) cr_assert(tu_unorm8(one->rgba[i]) <= 255);
         for (i = 0; i < n; ++i) cr_assert(one->depth[i] >= 0.0f && one->depth[i] <= 1.0f, "%s", names[k]);
         for (t = 0; t < 3; ++t) {
             refl_frame *other = render_rt(s, &v, 0, 1, threads[t]);

@@ -146,7 +146,7 @@ Test(refl_renderer, each_reflector_with_its_own_method, .timeout = 60) {
             const refl_frame *want = !mixed->stencil[i] ? base : mixed->stencil[i] == plane + 1 ? alone0 : alone1;
             cr_assert_eq(mixed->stencil[i], alone0->stencil[i]);
             on[mixed->stencil[i] == plane + 1] += mixed->stencil[i] != 0;
-            cr_assert_eq(memcmp(mixed->color + 4 * i, want->color + 4 * i, 4), 0,
+            cr_assert_eq(memcmp(mixed->rgba + 4 * i, want->rgba + 4 * i, 4 * sizeof(float)), 0,
                          "%s + %s: pixel %d (stencil %d) differs from its method's own frame",
                          refl_method_name(pairs[k][0]), refl_method_name(pairs[k][1]), i, mixed->stencil[i]);
             cr_assert(tu_refl_same_point(mixed->points + 3 * i, want->points + 3 * i),
@@ -181,7 +181,7 @@ Test(refl_renderer, a_reflector_its_method_cannot_draw_is_ray_traced, .timeout =
     for (i = 0; i < v.width * v.height; ++i) {
         if (!planar->stencil[i]) continue;
         on++;
-        cr_assert_eq(memcmp(planar->color + 4 * i, traced->color + 4 * i, 4), 0, "pixel %d", i);
+        cr_assert_eq(memcmp(planar->rgba + 4 * i, traced->rgba + 4 * i, 4 * sizeof(float)), 0, "pixel %d", i);
         cr_assert(tu_refl_same_point(planar->points + 3 * i, traced->points + 3 * i), "pixel %d: point", i);
     }
     cr_assert(on > 500, "%lld teapot pixels", on);

@@ -52,7 +52,7 @@ Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_render_desc a = sbc_desc(REFL_SBC, 1), b = sbc_desc(REFL_SBC, 3);
     refl_frame *fa = tu_refl_render(s, &v, &a), *fb = tu_refl_render(s, &v, &b);
     size_t n = (size_t)v.width * (size_t)v.height;
-    cr_assert_eq(memcmp(fa->color, fb->color, 4 * n), 0);
+    cr_assert_eq(memcmp(fa->rgba, fb->rgba, (4 * n) * sizeof(float)), 0);
     cr_assert_eq(memcmp(fa->points, fb->points, 3 * n * sizeof(float)), 0);
     refl_frame_destroy(fa);
     refl_frame_destroy(fb);
@@ -74,7 +74,7 @@ Test(refl_sbc, same_bytes_for_any_group_batch, .timeout = 120) {
         refl_frame *f;
         d.sbc.batch_groups = batches[k];
         f = tu_refl_render(s, &v, &d);
-        cr_assert_eq(memcmp(ref->color, f->color, 4 * n), 0, "batch %d: colour differs", batches[k]);
+        cr_assert_eq(memcmp(ref->rgba, f->rgba, (4 * n) * sizeof(float)), 0, "batch %d: colour differs", batches[k]);
         cr_assert_eq(memcmp(ref->points, f->points, 3 * n * sizeof(float)), 0, "batch %d: points differ", batches[k]);
         refl_frame_destroy(f);
     }

@@ -39,10 +39,10 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < n; ++i) {
         const float *pp = fp->points + 3 * i, *pt = ft->points + 3 * i, *pr = truth->points + 3 * i;
-        int changed = memcmp(fp->color + 4 * i, ft->color + 4 * i, 4) || !tu_refl_same_point(pp, pt);
+        int changed = memcmp(fp->rgba + 4 * i, ft->rgba + 4 * i, 4 * sizeof(float)) || !tu_refl_same_point(pp, pt);
         if (!changed) continue;
         cr_assert(fp->stencil[i] != 0, "%s: pixel %d off the reflectors changed", name, i);
-        cr_assert_eq(memcmp(ft->color + 4 * i, truth->color + 4 * i, 4), 0, "%s: pixel %d is not RAYTRACE's colour",
+        cr_assert_eq(memcmp(ft->rgba + 4 * i, truth->rgba + 4 * i, 4 * sizeof(float)), 0, "%s: pixel %d is not RAYTRACE's colour",
                      name, i);
         cr_assert(tu_refl_same_point(pt, pr), "%s: pixel %d is not RAYTRACE's point", name, i);
         ++filled;
@@ -145,7 +145,7 @@ Test(refl_sbc_fallback, same_bytes_for_any_thread_count, .timeout = 120) {
     a.sbc.ray_factor = b.sbc.ray_factor = 4;
     fa = tu_refl_render(s, &v, &a);
     fb = tu_refl_render(s, &v, &b);
-    cr_assert_eq(memcmp(fa->color, fb->color, 4 * n), 0);
+    cr_assert_eq(memcmp(fa->rgba, fb->rgba, (4 * n) * sizeof(float)), 0);
     cr_assert_eq(memcmp(fa->points, fb->points, 3 * n * sizeof(float)), 0);
     cr_assert_eq(fa->stats.rays, fb->stats.rays);
     refl_frame_destroy(fa);
@@ -194,7 +194,7 @@ Test(refl_sbc_fallback, allocation_failure_at_every_allocation, .timeout = 120) 
             continue;
         }
         cr_assert_eq(r, REFL_OK, "allocation %ld of %ld failed: %s", k, needed, refl_result_string(r));
-        cr_assert_eq(memcmp(ref->color, f->color, 4 * n), 0, "allocation %ld of %ld failed: other colours", k, needed);
+        cr_assert_eq(memcmp(ref->rgba, f->rgba, (4 * n) * sizeof(float)), 0, "allocation %ld of %ld failed: other colours", k, needed);
         cr_assert_eq(memcmp(ref->points, f->points, 3 * n * sizeof(float)), 0, "allocation %ld: other points", k);
         ++same;
     }

@@ -92,7 +92,7 @@ static double colour_off(const refl_frame *f, const refl_frame *truth, double *m
         int worst = 0;
         if (!(truth->points[3 * i] == truth->points[3 * i])) continue;
         for (c = 0; c < 3; ++c) {
-            int d = abs((int)f->color[4 * i + c] - (int)truth->color[4 * i + c]);
+            int d = abs((int)tu_unorm8(f->rgba[4 * i + c]) - (int)tu_unorm8(truth->rgba[4 * i + c]));
             worst = d > worst ? d : worst;
             sum += d;
         }
@@ -416,7 +416,7 @@ Test(sbc_higher, raytrace_points_last, .timeout = 120) {
     first.debug.points_last = 0;
     a = tu_refl_render(s, &v, &first);
     b = tu_refl_render(s, &v, &last);
-    cr_assert_eq(memcmp(a->color, b->color, 4 * (size_t)W * H), 0);
+    cr_assert_eq(memcmp(a->rgba, b->rgba, 4 * sizeof(float) * (size_t)W * H), 0);
     for (i = 0; i < W * H; ++i) {
         const float *p = a->points + 3 * i, *q = b->points + 3 * i;
         int on_mirror = 0;
@@ -485,7 +485,7 @@ Test(sbc_higher, glass_lens_depth_3, .timeout = 120) {
 
 static void assert_same_frames(const refl_frame *a, const refl_frame *b, const char *what) {
     size_t n = (size_t)a->width * (size_t)a->height;
-    cr_assert_eq(memcmp(a->color, b->color, 4 * n), 0, "%s: colours differ", what);
+    cr_assert_eq(memcmp(a->rgba, b->rgba, (4 * n) * sizeof(float)), 0, "%s: colours differ", what);
     cr_assert_eq(memcmp(a->points, b->points, 3 * n * sizeof(float)), 0, "%s: points differ", what);
 }
 

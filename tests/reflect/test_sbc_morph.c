@@ -489,7 +489,7 @@ Test(refl_sbc_morph, same_bytes_for_thread_counts, .timeout = 120) {
     f1 = tu_refl_render(s, &v, &d1);
     ms[0] = m2;
     f2 = tu_refl_render(s, &v, &d2);
-    cr_assert_eq(memcmp(f1->color, f2->color, 4 * n), 0, "colour differs");
+    cr_assert_eq(memcmp(f1->rgba, f2->rgba, (4 * n) * sizeof(float)), 0, "colour differs");
     cr_assert_eq(memcmp(f1->depth, f2->depth, sizeof(float) * n), 0, "depth differs");
     cr_assert_eq(memcmp(f1->points, f2->points, 3 * sizeof(float) * n), 0, "points differ");
     cr_assert_eq(f1->stats.sbc.ambiguous, f2->stats.sbc.ambiguous);
@@ -577,11 +577,11 @@ Test(refl_sbc_morph, beside_higher_orders, .timeout = 120) {
     for (i = 0; i < n; ++i) {
         if (f0->stencil[i] != other + 1) continue;
         ++second;
-        cr_assert_eq(memcmp(f0->color + 4 * i, f2->color + 4 * i, 4), 0, "pixel %zu of the second sphere", i);
+        cr_assert_eq(memcmp(f0->rgba + 4 * i, f2->rgba + 4 * i, 4 * sizeof(float)), 0, "pixel %zu of the second sphere", i);
         cr_assert_eq(memcmp(f0->points + 3 * i, f2->points + 3 * i, 3 * sizeof(float)), 0, "pixel %zu", i);
     }
     cr_assert(second > 500, "%lld pixels of the second sphere", second);
-    cr_assert_eq(memcmp(f1->color, f2->color, 4 * n), 0, "colour differs across thread counts");
+    cr_assert_eq(memcmp(f1->rgba, f2->rgba, (4 * n) * sizeof(float)), 0, "colour differs across thread counts");
     cr_assert_eq(memcmp(f1->points, f2->points, 3 * sizeof(float) * n), 0, "points differ across thread counts");
     refl_frame_destroy(f0);
     refl_frame_destroy(f1);
@@ -615,12 +615,12 @@ Test(refl_sbc_morph, fallback_traces_the_holes, .timeout = 120) {
     traced = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < MW * MH; ++i) {
-        if (!memcmp(plain->color + 4 * i, traced->color + 4 * i, 4) &&
+        if (!memcmp(plain->rgba + 4 * i, traced->rgba + 4 * i, 4 * sizeof(float)) &&
             tu_refl_same_point(plain->points + 3 * i, traced->points + 3 * i))
             continue;
         ++changed;
         cr_assert(plain->points[3 * i] != plain->points[3 * i], "pixel %d showed a point, and changed", i);
-        cr_assert_eq(memcmp(traced->color + 4 * i, truth->color + 4 * i, 4), 0, "pixel %d: not RAYTRACE's colour", i);
+        cr_assert_eq(memcmp(traced->rgba + 4 * i, truth->rgba + 4 * i, 4 * sizeof(float)), 0, "pixel %d: not RAYTRACE's colour", i);
         cr_assert(tu_refl_same_point(traced->points + 3 * i, truth->points + 3 * i), "pixel %d: not RAYTRACE's point",
                   i);
     }

@@ -177,7 +177,8 @@ Test(refl_scene, direct_stencil_ids_colours_and_background) {
     for (i = 0; i < 3; ++i) sky[i] = (uint8_t)(s->environment.color[i] * 255.0f + 0.5f);
     f = render(s, 160, 120, 2);
     for (i = 0; i < 160 * 120; ++i) {
-        const uint8_t *c = f->color + 4 * i;
+        int c[4];
+        tu_pixel8(f, (size_t)i, c);
         if (f->stencil[i]) {
             cr_assert_eq(f->stencil[i], t + 1);
             cr_assert(c[0] == 0 && c[1] == 0 && c[2] == 0 && c[3] == 255); /* mirrors: black, opaque */
@@ -205,7 +206,7 @@ Test(refl_scene, direct_is_identical_for_any_thread_count) {
     a = render(s, 200, 150, 2);
     for (i = 0; i < 3; ++i) {
         b = render(s, 200, 150, threads[i]);
-        cr_assert_eq(tu_first_diff(a->color, b->color, 200 * 150 * 4), -1, "threads %d", threads[i]);
+        cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (200 * 150 * 4) * sizeof(float)), -1, "threads %d", threads[i]);
         cr_assert_eq(tu_first_diff(a->depth, b->depth, 200 * 150 * sizeof(float)), -1);
         cr_assert_eq(tu_first_diff(a->stencil, b->stencil, 200 * 150), -1);
         refl_frame_destroy(b);
@@ -303,7 +304,7 @@ Test(refl_scene, direct_default_matches_golden) {
         FILE *fp = fopen(GOLDEN, "wb");
         cr_assert_not_null(fp);
         fprintf(fp, "P6 160 120 255\n");
-        for (i = 0; i < 160 * 120; ++i) fwrite(f->color + 4 * i, 1, 3, fp);
+        for (i = 0; i < 3 * 160 * 120; ++i) fputc(tu_unorm8(f->rgba[4 * (i / 3) + i % 3]), fp);
         fclose(fp);
     }
     golden = read_ppm(GOLDEN, &w, &h);
@@ -311,7 +312,7 @@ Test(refl_scene, direct_default_matches_golden) {
     cr_assert(w == 160 && h == 120);
     for (i = 0; i < 160 * 120; ++i)
         for (c = 0; c < 3; ++c) {
-            int d = abs((int)f->color[4 * i + c] - (int)golden[3 * i + c]);
+            int d = abs((int)tu_unorm8(f->rgba[4 * i + c]) - (int)golden[3 * i + c]);
             if (d > worst) worst = d;
             over += d > 2;
         }

@@ -44,7 +44,9 @@ static refl_mat4 view_proj(const refl_scene *s, const refl_view *v) {
 static rast_targets frame_targets(refl_frame *f) {
     rast_targets t;
     memset(&t, 0, sizeof t);
-    t.color.ptr = f->color; t.color.width = f->width; t.color.height = f->height; t.color.stride = 4 * f->width;
+    t.color.ptr = f->rgba; t.color.width = f->width; t.color.height = f->height;
+    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color_format = RAST_COLOR_RGBA32F;
     t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
     t.depth.stride = (int)sizeof(float) * f->width;
     t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
@@ -129,9 +131,9 @@ typedef struct agreement {
     long colour_checked, colour_ok;
 } agreement;
 
-static int channel_diff(const uint8_t *a, const uint8_t *b) {
+static int channel_diff(const float *a, const float *b) {
     int c, m = 0;
-    for (c = 0; c < 3; ++c) m = REFL__MAX(m, abs((int)a[c] - (int)b[c]));
+    for (c = 0; c < 3; ++c) m = REFL__MAX(m, abs(tu_unorm8(a[c]) - tu_unorm8(b[c])));
     return m;
 }
 
@@ -143,7 +145,7 @@ static void classify(const refl_frame *unshadowed, const refl_frame *shadowed, s
     size_t i, n = (size_t)unshadowed->width * (size_t)unshadowed->height;
     for (i = 0; i < n; ++i) {
         if (shadowed->stencil[i] || !(shadowed->depth[i] < 1.0f)) cls[i] = -1;
-        else cls[i] = (signed char)(channel_diff(unshadowed->color + 4 * i, shadowed->color + 4 * i) != 0);
+        else cls[i] = (signed char)(channel_diff(unshadowed->rgba + 4 * i, shadowed->rgba + 4 * i) != 0);
     }
 }
 
@@ -173,9 +175,9 @@ static void agree_frames(const refl_frame *d0, const refl_frame *d1, const refl_
             if (cd[i] != cr[i]) continue;
             ++a->agree;
             /* where the unshadowed colours agree, the shadowed ones must too */
-            if (channel_diff(d0->color + 4 * i, r0->color + 4 * i) <= 2) {
+            if (channel_diff(d0->rgba + 4 * i, r0->rgba + 4 * i) <= 2) {
                 ++a->colour_checked;
-                a->colour_ok += channel_diff(d1->color + 4 * i, r1->color + 4 * i) <= 2;
+                a->colour_ok += channel_diff(d1->rgba + 4 * i, r1->rgba + 4 * i) <= 2;
             }
         }
     free(cd);
@@ -257,7 +259,7 @@ Test(refl_shadow, default_scene_agrees_with_raytrace) {
         for (i = 0; i < n; ++i) {
             if (d->stencil[i] || r->stencil[i] || !(d->depth[i] < 1.0f) || !(r->depth[i] < 1.0f)) continue;
             ++diffuse;
-            close += channel_diff(d->color + 4 * i, r->color + 4 * i) <= 2;
+            close += channel_diff(d->rgba + 4 * i, r->rgba + 4 * i) <= 2;
         }
         cr_log_info("default, both lights: DIRECT within 2/255 of RAYTRACE on %ld of %ld diffuse pixels (%.3f%%)",
                     close, diffuse, 100.0 * ratio(close, diffuse));
@@ -585,7 +587,7 @@ Test(refl_shadow, region_restore_and_bits) {
     cr_assert_eq(rast_set_state(rc, &st), RAST_OK);
     cr_assert_eq(rast_draw_fullscreen(rc, 0.0f, red), RAST_OK);
     cr_assert_eq(rast_finish(rc), RAST_OK);
-    cr_assert(f->color[0] == 255 && f->color[1] == 0 && f->color[4 * n - 3] == 0);
+    cr_assert(tu_unorm8(f->rgba[0]) == 255 && tu_unorm8(f->rgba[1]) == 0 && tu_unorm8(f->rgba[4 * n - 3]) == 0);
     free(full); free(part); free(region);
     rast_context_destroy(rc);
     refl_frame_destroy(f);
@@ -608,7 +610,7 @@ Test(refl_shadow, direct_is_mask_plus_shade_and_unblocked_light_changes_nothing)
     n = (size_t)v.width * (size_t)v.height;
     a = render(s, &v, REFL_DIRECT, 1, 2);
     b = direct_masked(s, &v, REFL__SHADOW_AUTO, NULL, NULL);
-    cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1);
+    cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (4 * n) * sizeof(float)), -1);
     cr_assert_eq(tu_first_diff(a->depth, b->depth, sizeof(float) * n), -1);
     cr_assert_eq(tu_first_diff(a->stencil, b->stencil, n), -1);
     refl_frame_destroy(a);
@@ -622,7 +624,7 @@ Test(refl_shadow, direct_is_mask_plus_shade_and_unblocked_light_changes_nothing)
     v = tu_refl_view(refl_v3(0, 4, 8), refl_v3(0, 0, 0), 160, 120);
     a = render(s, &v, REFL_DIRECT, 0, 2);
     b = render(s, &v, REFL_DIRECT, 1, 2);
-    cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1, "an unblocked light must change nothing");
+    cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (4 * n) * sizeof(float)), -1, "an unblocked light must change nothing");
     refl_frame_destroy(a);
     refl_frame_destroy(b);
     refl_scene_destroy(s);
@@ -649,8 +651,8 @@ Test(refl_shadow, partial_reflectors_keep_their_diffuse_share) {
         for (i = 0; i < n; ++i) {
             if (a->stencil[i] != 1) continue; /* the partial floor */
             ++floor_px;
-            shadowed += channel_diff(a->color + 4 * i, b->color + 4 * i) > 0;
-            cr_assert(channel_diff(a->color + 4 * i, c->color + 4 * i) <= 1, "pixel %zu", i);
+            shadowed += channel_diff(a->rgba + 4 * i, b->rgba + 4 * i) > 0;
+            cr_assert(channel_diff(a->rgba + 4 * i, c->rgba + 4 * i) <= 1, "pixel %zu", i);
         }
         refl_frame_destroy(c);
     }
@@ -664,7 +666,7 @@ Test(refl_shadow, partial_reflectors_keep_their_diffuse_share) {
 
 static void expect_same_frames(const refl_frame *a, const refl_frame *b, const char *what) {
     size_t n = (size_t)a->width * (size_t)a->height;
-    cr_assert_eq(tu_first_diff(a->color, b->color, 4 * n), -1, "%s: colour differs", what);
+    cr_assert_eq(tu_first_diff(a->rgba, b->rgba, (4 * n) * sizeof(float)), -1, "%s: colour differs", what);
     cr_assert_eq(tu_first_diff(a->depth, b->depth, sizeof(float) * n), -1, "%s: depth differs", what);
     cr_assert_eq(tu_first_diff(a->stencil, b->stencil, n), -1, "%s: stencil differs", what);
 }

@@ -76,10 +76,10 @@ static unsigned char *floor_pixels(const refl_scene *s, const refl_view *v, long
     return fl;
 }
 
-static int channel_diff(const uint8_t *a, const uint8_t *b) {
+static int channel_diff(const float *a, const float *b) {
     int c, m = 0;
     for (c = 0; c < 3; ++c) {
-        int d = abs((int)a[c] - (int)b[c]);
+        int d = abs(tu_unorm8(a[c]) - tu_unorm8(b[c]));
         if (d > m) m = d;
     }
     return m;
@@ -87,7 +87,7 @@ static int channel_diff(const uint8_t *a, const uint8_t *b) {
 
 static void expect_same_bytes(const refl_frame *a, const refl_frame *b, const char *what) {
     size_t n = (size_t)a->width * (size_t)a->height;
-    cr_assert_eq(memcmp(a->color, b->color, 4 * n), 0, "%s: colours differ", what);
+    cr_assert_eq(memcmp(a->rgba, b->rgba, (4 * n) * sizeof(float)), 0, "%s: colours differ", what);
 }
 
 /* Penumbra pixels of the floor: strictly between the umbra (ambient only:
@@ -99,14 +99,14 @@ static long penumbra(const refl_frame *soft, const refl_frame *hard, const refl_
     long count = 0;
     int umbra = -1;
     for (i = 0; i < n; ++i) /* the hard shadow's colour on the floor: the umbra */
-        if (fl[i] && hard->color[4 * i + 1] + 8 < lit->color[4 * i + 1]) {
-            umbra = hard->color[4 * i + 1];
+        if (fl[i] && tu_unorm8(hard->rgba[4 * i + 1]) + 8 < tu_unorm8(lit->rgba[4 * i + 1])) {
+            umbra = tu_unorm8(hard->rgba[4 * i + 1]);
             break;
         }
     cr_assert(umbra >= 0, "the box must shadow the floor");
     for (i = 0; i < n; ++i) {
-        int g = soft->color[4 * i + 1];
-        if (fl[i] && g > umbra + 2 && g < (int)lit->color[4 * i + 1] - 2) ++count;
+        int g = tu_unorm8(soft->rgba[4 * i + 1]);
+        if (fl[i] && g > umbra + 2 && g < (int)tu_unorm8(lit->rgba[4 * i + 1]) - 2) ++count;
     }
     if (umbra_out) *umbra_out = umbra;
     return count;
@@ -123,7 +123,7 @@ Test(refl_soft_shadow, direct_equals_raytrace_on_a_box_over_a_floor) {
     for (i = 0; i < n; ++i) {
         int df;
         if (!fl[i]) continue;
-        df = channel_diff(d->color + 4 * i, r->color + 4 * i);
+        df = channel_diff(d->rgba + 4 * i, r->rgba + 4 * i);
         close += df <= 2;
         exact += df == 0;
         if (df > worst) worst = df;
@@ -229,7 +229,7 @@ Test(refl_soft_shadow, planar_equals_raytrace_in_the_mirror_room) {
         for (i = 0; i < n; ++i) {
             if (!truth->stencil[i]) continue;
             ++mirror;
-            soft_differs += memcmp(truth->color + 4 * i, hard->color + 4 * i, 3) != 0;
+            soft_differs += memcmp(truth->rgba + 4 * i, hard->rgba + 4 * i, 3 * sizeof(float)) != 0;
         }
         cr_assert_eq(refl_measure_image_error(planar, truth, 1, 2.0f / 255.0f, &ie), REFL_OK);
         cr_log_info("soft, depth %d: %lld of %lld mirror pixels differ from hard shadows; PLANAR vs RAYTRACE PSNR "

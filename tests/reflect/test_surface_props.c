@@ -131,7 +131,7 @@ static void check_method_fades(refl_method method) {
         dist = isfinite(p[0]) ? refl_v3_length(refl_v3_sub(refl_v3(p[0], p[1], p[2]), q)) : INFINITY;
         f = refl_material_fade(m, dist);
         for (c = 0; c < 3; ++c) {
-            float want = (float)plain->color[4 * i + c] * f, got = (float)fade->color[4 * i + c];
+            float want = (float)tu_unorm8(plain->rgba[4 * i + c]) * f, got = (float)tu_unorm8(fade->rgba[4 * i + c]);
             cr_assert(fabsf(got - want) <= 1.5f + 0.01f * want, "%s pixel %d channel %d: %g, want %g (fade %g at %g)",
                       refl_method_name(method), i, c, got, want, f, dist);
         }

@@ -21,6 +21,7 @@
 #include "../../bench/embree_peer.h"
 #include "../../reflect.h"
 #include "../../tools/gltf_load.h"
+#include "../test_util.h"
 
 /* Tests run from the repository root. */
 #define ASSETS "../shared/assets"
@@ -500,7 +501,7 @@ Test(embree, raytrace_through_embree) {
         for (p = 0; p < pixels; ++p) {
             int c, worst = 0;
             for (c = 0; c < 4; ++c) {
-                int d = abs((int)ours->color[4 * p + c] - (int)theirs->color[4 * p + c]);
+                int d = abs(tu_unorm8(ours->rgba[4 * p + c]) - tu_unorm8(theirs->rgba[4 * p + c]));
                 if (d > worst) worst = d;
             }
             differ += worst > 2;
