@@ -415,6 +415,10 @@ static int cmd_render(const options *o) {
                 f->message[0] ? ": " : "", f->message);
         goto done;
     }
+    if (f->stats.depth < (d.depth ? d.depth : REFL_DEFAULT_DEPTH))
+        fprintf(stderr, "reflect: %s models %d bounce%s of the %d asked; deeper ones show what direct shows\n",
+                refl_method_name(d.method), f->stats.depth, f->stats.depth == 1 ? "" : "s",
+                d.depth ? d.depth : REFL_DEFAULT_DEPTH);
     if (f->stats.handed_over)
         fprintf(stderr, "reflect: %d reflector%s %s cannot draw (curved) ray traced instead\n", f->stats.handed_over,
                 f->stats.handed_over > 1 ? "s" : "", refl_method_name(d.method));
@@ -429,6 +433,7 @@ static int cmd_render(const options *o) {
         printf("total ms     %.2f\n", st->ms_total);
         printf("  build ms   %.2f\n  base ms    %.2f\n  reflect ms %.2f\n  compose ms %.2f\n", st->ms_build,
                st->ms_base, st->ms_reflect, st->ms_composite);
+        printf("depth        %d bounce%s\n", st->depth, st->depth == 1 ? "" : "s");
         printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
         if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);

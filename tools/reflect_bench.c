@@ -142,8 +142,23 @@ typedef struct bench_method {
     int sbc_trace_fallback;       /* SBC: refl_render_desc.sbc.trace_fallback */
 } bench_method;
 
+/* Renders RAYTRACE's truth of `depth` bounces into *truth, unless it holds
+   that depth already (*truth_depth). */
+static int bench_truth(const refl_scene *s, const refl_view *view, int threads, int depth, refl_frame *truth,
+                       int *truth_depth) {
+    refl_render_desc d;
+    if (*truth_depth == depth) return 1;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = threads;
+    d.depth = depth;
+    *truth_depth = refl_render(s, view, &d, truth) == REFL_OK ? depth : -1;
+    return *truth_depth == depth;
+}
+
 /* Runs every method on one scene and view against its RAYTRACE reference
-   (its own row too: error 0 by definition, and its time); appends rows. */
+   of the depth the method models (its own row too: error 0 by definition,
+   and its time); appends rows. */
 static int bench_scene(bench_table *table, const bench_opts *o, const char *scene_name, const refl_scene *s,
                        const refl_view *view, const bench_method *methods, int method_count) {
     refl_frame *truth = NULL, *f = NULL;
@@ -152,7 +167,7 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
     char err[256];
     double ms, fastest;
     long long diffuse, reflector;
-    int i, ok = 1;
+    int i, ok = 1, truth_depth = -1;
     count_triangles(s, &diffuse, &reflector);
     if (refl_frame_create(view->width, view->height, NULL, &truth) != REFL_OK ||
         refl_frame_create(view->width, view->height, NULL, &f) != REFL_OK) {
@@ -160,11 +175,6 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         refl_frame_destroy(truth);
         return 0;
     }
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = o->threads;
-    d.depth = o->depth;
-    if (refl_render(s, view, &d, truth) != REFL_OK) ok = 0;
     for (i = 0; ok && i < method_count; ++i) {
         const bench_method *bm = &methods[i];
         bench_row *row;
@@ -205,7 +215,12 @@ static int bench_scene(bench_table *table, const bench_opts *o, const char *scen
         row->width = view->width;
         row->height = view->height;
         row->threads = o->threads;
-        row->depth = o->depth;
+        row->depth = f->stats.depth; /* a one-bounce method against one-bounce truth */
+        if (!bench_truth(s, view, o->threads, row->depth > 1 ? row->depth : 1, truth, &truth_depth)) {
+            fprintf(stderr, "reflect bench: RAYTRACE of depth %d on %s failed\n", row->depth, scene_name);
+            ok = 0;
+            break;
+        }
         row->diffuse_tris = diffuse;
         row->reflector_tris = reflector;
         row->ms_median = ms;

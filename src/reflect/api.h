@@ -795,6 +795,10 @@ typedef struct refl_stats {
     int reflectors;          /* reflector objects in the scene */
     int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
                                 drawn by RAYTRACE's tracer instead */
+    int depth;               /* bounces the frame models: desc.depth, or fewer where the
+                                method of some reflector models fewer (DIRECT: 0;
+                                ENVMAP, C3RC: 1; SBC: 8). Compare a frame with truth
+                                of this depth */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from
                                 an earlier frame */
@@ -969,11 +973,14 @@ typedef struct refl_debug_options {
    C++ (where `{0}` compiles too, its first member being an int, but
    -Wextra warns of the members it leaves out). Options of a method the frame does not use are
    ignored but still validated. */
+#define REFL_DEFAULT_DEPTH 6
+
 typedef struct refl_render_desc {
     int threads;             /* 0: one per CPU, at most 256 */
     refl_method method;      /* every reflector's, unless object_methods says otherwise */
-    int depth;               /* reflection / refraction bounces; 0: 6. A reflector met
-                                with none left shows what DIRECT shows there */
+    int depth;               /* reflection / refraction bounces; 0: REFL_DEFAULT_DEPTH. A
+                                reflector met with none left shows what DIRECT shows
+                                there; a method that models fewer says so (stats.depth) */
     refl_lighting_options lighting;
     /* Optional, per object: object_methods[i] (i < object_method_count) is
        the method that draws reflector object i; 0: `method`. Any built

@@ -180,17 +180,22 @@ typedef struct refl__method_row {
     /* NULL: it draws any reflector; else whether it can draw object i
        (those it cannot go to RAYTRACE's tracer, stats.handed_over) */
     refl_result (*handles)(const refl__pass *p, int object, int *can);
+    int max_depth;                /* bounces it models at most (stats.depth) */
 } refl__method_row;
+
+enum { REFL__ANY_DEPTH = 1 << 30 };
 
 /* The built methods, in the order a frame runs them. A method without a
    row returns REFL_ERROR_UNSUPPORTED. */
 static const refl__method_row refl__methods[] = {
-    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL, NULL},
-    {REFL_RAYTRACE, REFL__WHOLE_FRAME | REFL__PER_REFLECTOR, refl__method_raytrace, refl__options_raytrace, NULL},
-    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL},
-    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL},
-    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL},
+    {REFL_DIRECT, REFL__PER_REFLECTOR, NULL, NULL, NULL, 0},
+    {REFL_RAYTRACE, REFL__WHOLE_FRAME | REFL__PER_REFLECTOR, refl__method_raytrace, refl__options_raytrace, NULL,
+     REFL__ANY_DEPTH},
+    {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL, 1},
+    {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
+     REFL__ANY_DEPTH},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL, 1},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -215,7 +220,7 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     if (desc) *out = *desc;
     if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
     else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
-    else if (out->depth < 0) why = "depth: 0 (the default, 6) or more";
+    else if (out->depth < 0) why = "depth: 0 (REFL_DEFAULT_DEPTH) or more";
     else if (out->lighting.shadows < 0 || out->lighting.shadows > 1) why = "lighting.shadows: 0 or 1";
     else if (out->lighting.soft_shadow_samples < 0 || out->lighting.soft_shadow_samples > 1024)
         why = "lighting.soft_shadow_samples: 0 to 1024";
@@ -241,7 +246,7 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
         *message = why;
         return REFL_ERROR_INVALID_ARGUMENT;
     }
-    if (out->depth == 0) out->depth = 6;
+    if (out->depth == 0) out->depth = REFL_DEFAULT_DEPTH;
     return REFL_OK;
 }
 
@@ -337,7 +342,7 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
     uint8_t *by = NULL;
     refl_result r = REFL_OK;
-    int row, i, mixed = 0;
+    int row, i, mixed = 0, depth = p->desc.depth;
     by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
     if (!by) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
@@ -350,15 +355,17 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         const refl__method_row *m = &refl__methods[row];
         uint8_t *mine = by + scene->object_count;
         int any = 0;
-        if (!m->draw || !(m->kind & REFL__PER_REFLECTOR)) continue;
+        if (!(m->kind & REFL__PER_REFLECTOR)) continue;
         for (i = 0; i < scene->object_count; ++i) {
             mine[i] = by[i] == (uint8_t)m->method;
             any |= mine[i];
         }
-        if (!any) continue;
+        if (any) depth = REFL__MIN(depth, m->max_depth);
+        if (!any || !m->draw) continue;
         p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
         r = m->draw(p);
     }
+    p->frame->stats.depth = depth;
     p->mine = NULL;
     refl__free(&scene->allocator, by);
     return r;
@@ -464,6 +471,7 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     row = refl__method_row_of(rr->desc.method);
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
     r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
+    frame->stats.depth = rr->desc.depth;
     if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
     if (r != REFL_OK) return r;
     refl__opaque(frame);

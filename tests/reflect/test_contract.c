@@ -234,3 +234,50 @@ Test(refl_contract, every_bad_option_is_refused_by_name) {
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
+
+/* stats.depth: the bounces asked, or fewer where the method of some
+   reflector models fewer; what the bench compares against truth of. */
+Test(refl_contract, every_frame_says_the_depth_it_models) {
+    static const struct { refl_method m; int asked, modelled; } rows[] = {
+        {REFL_DIRECT, 3, 0},  {REFL_RAYTRACE, 3, 3}, {REFL_RAYTRACE, 0, REFL_DEFAULT_DEPTH},
+        {REFL_ENVMAP, 3, 1},  {REFL_C3RC, 3, 1},     {REFL_PLANAR, 3, 3},
+        {REFL_SBC, 3, 3},     {REFL_SBC, 12, 8},
+    };
+    size_t k;
+    for (k = 0; k < sizeof rows / sizeof rows[0]; ++k) {
+        refl_view v;
+        refl_scene *s = tu_refl_builtin("mirror-room", &v, 16, 12);
+        refl_render_desc d = tu_refl_one_bounce(rows[k].m, 1);
+        refl_frame *f;
+        d.depth = rows[k].asked;
+        f = tu_refl_render(s, &v, &d);
+        cr_assert_eq(f->stats.depth, rows[k].modelled, "%s asked %d: %d", refl_method_name(rows[k].m), rows[k].asked,
+                     f->stats.depth);
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
+}
+
+/* A frame of several methods models what its shallowest one does. */
+Test(refl_contract, a_mixed_frame_models_its_shallowest_method_s_depth) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("mirror-room", &v, 16, 12);
+    refl_method per_object[64];
+    refl_render_desc d = tu_refl_one_bounce(REFL_PLANAR, 1);
+    refl_frame *f;
+    int i, first = -1;
+    cr_assert_leq(s->object_count, 64);
+    for (i = 0; i < s->object_count; ++i) {
+        per_object[i] = REFL_METHOD_DEFAULT;
+        if (first < 0 && s->materials[s->objects[i].material].type != REFL_DIFFUSE) first = i;
+    }
+    cr_assert_geq(first, 0);
+    per_object[first] = REFL_ENVMAP;
+    d.depth = 4;
+    d.object_methods = per_object;
+    d.object_method_count = s->object_count;
+    f = tu_refl_render(s, &v, &d);
+    cr_assert_eq(f->stats.depth, 1);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
