@@ -762,6 +762,8 @@ typedef struct refl_planar_frame_stats {
     long long renderings;    /* mirror renderings at every level */
     long long deepest;       /* of those, renderings at the deepest level */
     long long culled;        /* mirror renderings skipped as not visible */
+    long long traced;        /* pixels of mirrors past options.max_renderings, drawn by
+                                RAYTRACE's tracer */
 } refl_planar_frame_stats;
 
 typedef struct refl_c3rc_frame_stats {
@@ -905,6 +907,8 @@ typedef struct refl_envmap_options {
 typedef struct refl_planar_options {
     int no_culling;          /* 1: render every mirror at every level, seen or not (paper
                                 002's count, formula 5) */
+    int max_renderings;      /* mirror renderings a frame makes at most; 0: 256. The pixels
+                                of the mirrors past it are ray traced (stats.planar.traced) */
 } refl_planar_options;
 
 typedef struct refl_c3rc_options {
@@ -1589,7 +1593,9 @@ static void refl__rt_end(refl__rt *rt);
    them; *rays counts the rays cast. */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
-/* A colour channel in [0, 1] as a byte, rounded. */
+/* RAYTRACE's colour and point for the pixels of pass p that `marked` is
+   not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
+static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -8359,6 +8365,7 @@ typedef struct refl__planar {
     uint8_t *stencil;             /* recursion levels */
     int no_culling;
     long long culled;
+    uint8_t *cut;                 /* pixels of mirrors past desc.planar.max_renderings (NULL: none) */
     refl__lv lv;                  /* light volumes: the virtual lights (none when off) */
 } refl__planar;
 
@@ -8816,6 +8823,22 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
                                       const int box[4], refl__planar_dc *dcs);
 
+/* Past the rendering budget: the region `level` goes to RAYTRACE's tracer
+   once the recursion is done. */
+static refl_result refl__planar_cut(refl__planar *pl, int level, const int box[4]) {
+    const refl_frame *fr = pl->p->frame;
+    int x, y;
+    if (!pl->cut && !(pl->cut = (uint8_t *)refl__calloc(&pl->scene->allocator,
+                                                        (size_t)fr->width * (size_t)fr->height, 1)))
+        return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
+            size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+            pl->cut[i] |= pl->stencil[i] == level;
+        }
+    return REFL_OK;
+}
+
 static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dcs) {
     refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
     refl__planar_dc *next = dcs + pl->scene->object_count;
@@ -8839,6 +8862,12 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
            costs its renderings, as formula 5 counts them */
         if ((front || face->glass) && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
         if (refl__planar_region(pl, lv->level + 1, box) == 0 && !pl->no_culling) { ++pl->culled; continue; }
+        if (pl->p->frame->stats.planar.renderings >= pl->p->desc.planar.max_renderings) {
+            r = refl__planar_cut(pl, lv->level + 1, box);
+            if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, NULL, box);
+            if (r != REFL_OK) return r;
+            continue;
+        }
         if (face->glass) {
             r = refl__planar_glass(pl, lv, f, &comp, box, next);
         } else {
@@ -9117,6 +9146,8 @@ static refl_result refl__planar_handles(const refl__pass *p, int object, int *ca
 
 static const char *refl__options_planar(refl_render_desc *d) {
     if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
+    if (d->planar.max_renderings < 0) return "planar.max_renderings: 0 (256) or more";
+    if (d->planar.max_renderings == 0) d->planar.max_renderings = 256;
     return NULL;
 }
 
@@ -9128,7 +9159,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     refl__planar_dc *dcs;
     rast_targets t;
     refl_result r;
-    size_t n = (size_t)f->width * (size_t)f->height;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
     double t0 = refl__now_ms();
     memset(&pl, 0, sizeof pl);
     pl.p = p;
@@ -9184,6 +9215,10 @@ static refl_result refl__method_planar(refl__pass *p) {
         if (r != REFL_OK) goto done;
     }
     r = refl__planar_level_draw(&pl, &top, dcs);
+    if (r == REFL_OK && pl.cut) {
+        for (i = 0; i < n; ++i) f->stats.planar.traced += pl.cut[i];
+        r = refl__trace_marked(p, pl.cut);
+    }
     if (r != REFL_OK) goto done;
     f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
@@ -9191,6 +9226,7 @@ done:
     /* the frame's own targets back: rc's queue is empty or dropped */
     refl__free(&s->allocator, dcs);
     refl__free(&s->allocator, pl.stencil);
+    refl__free(&s->allocator, pl.cut);
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);
@@ -9310,6 +9346,55 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     refl__free(&scene->allocator, tf.tile_rays);
     refl__rt_end(&tf.rt);
     return REFL_OK;
+}
+
+/* ---- pixels handed over ---------------------------------------------------------- */
+
+typedef struct refl__rt_marked {
+    refl__rt rt;
+    const uint8_t *marked;
+    long long *row_rays;
+} refl__rt_marked;
+
+static void refl__rt_marked_row(void *arg, int y) {
+    const refl__rt_marked *m = (const refl__rt_marked *)arg;
+    refl_frame *f = m->rt.p->frame;
+    int x, c;
+    for (x = 0; x < f->width; ++x) {
+        size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+        float rgb[3], depth;
+        uint8_t stencil;
+        refl_vec3 shown;
+        if (!m->marked[i]) continue;
+        refl__rt_pixel(&m->rt, x, y, &m->row_rays[y], rgb, &shown, &depth, &stencil);
+        for (c = 0; c < 3; ++c) f->rgba[4 * i + (size_t)c] = rgb[c];
+        f->rgba[4 * i + 3] = 1.0f;
+        f->points[3 * i] = shown.x;
+        f->points[3 * i + 1] = shown.y;
+        f->points[3 * i + 2] = shown.z;
+    }
+}
+
+static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *f = p->frame;
+    refl__rt_marked m;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    int y;
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&m.rt, p, bvh);
+    m.rt.bvh = owned; /* freed with rt */
+    m.marked = marked;
+    m.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
+    if (r == REFL_OK && !m.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        rast_run_jobs(p->rc, f->height, refl__rt_marked_row, &m);
+        for (y = 0; y < f->height; ++y) f->stats.rays += m.row_rays[y];
+    }
+    refl__free(al, m.row_rays);
+    refl__rt_end(&m.rt);
+    return r;
 }
 /* ---- src/reflect/m_sbc.c ---- */
 /* SBC: Popescu, Sacks and Mei's sample-based camera reflections (paper

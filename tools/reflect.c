@@ -49,6 +49,8 @@ static const char *const usage_render =
     "                     in its distance up to D (paper 003's attenuation; PLANAR: none)\n"
     "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
+    "  --max-renderings N PLANAR: mirror renderings per frame at most (default 256);\n"
+    "                     the mirrors past them are ray traced\n"
     "  --light-volumes    PLANAR, RAYTRACE: light reflected by planar mirrors lights the scene\n"
     "  --caustics N       with --light-volumes: N samples of every light with a radius\n"
     "  --translucency K   PLANAR, RAYTRACE: glass fogged by exp(-K distance) behind it\n"
@@ -101,7 +103,7 @@ static const char *const usage_compare =
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
-    int light_volumes, caustic_samples;
+    int light_volumes, caustic_samples, max_renderings;
     float translucency;
     int leaf_points, max_splat, ray_factor, trace_fallback;
     float density, camera_split, error_px;
@@ -214,6 +216,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_vec3(v, &o->fade) || !(o->fade.x > 0.0f) || !(o->fade.y >= 0.0f && o->fade.y <= 1.0f) ||
                 !(o->fade.z >= 0.0f && o->fade.z <= 1.0f))
                 return fail("--fade: expected D,MIN,MAX (D above 0, MIN and MAX in 0..1), got %s", v);
+        } else if (!strcmp(a, "--max-renderings")) {
+            if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
         } else if (!strcmp(a, "--density")) {
@@ -371,6 +375,7 @@ static int cmd_render(const options *o) {
     d.lighting.shadows = o->shadows;
     d.envmap.size = o->envmap_size;
     d.planar.no_culling = o->no_culling;
+    d.planar.max_renderings = o->max_renderings;
     d.lighting.light_volumes = o->light_volumes;
     d.lighting.caustic_samples = o->caustic_samples;
     d.lighting.translucency = o->translucency;
@@ -440,6 +445,7 @@ static int cmd_render(const options *o) {
         if (st->planar.renderings || st->planar.culled)
             printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,
                    st->planar.deepest, st->planar.culled);
+        if (st->planar.traced) printf("ray traced   %lld pixels past the rendering budget\n", st->planar.traced);
         if (st->c3rc.cameras) {
             const refl_c3rc_frame_stats *c = &st->c3rc;
             printf("points       %lld\ncameras      %lld\nleaves       %lld\n", c->points, c->cameras, c->leaves);

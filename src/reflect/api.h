@@ -760,6 +760,8 @@ typedef struct refl_planar_frame_stats {
     long long renderings;    /* mirror renderings at every level */
     long long deepest;       /* of those, renderings at the deepest level */
     long long culled;        /* mirror renderings skipped as not visible */
+    long long traced;        /* pixels of mirrors past options.max_renderings, drawn by
+                                RAYTRACE's tracer */
 } refl_planar_frame_stats;
 
 typedef struct refl_c3rc_frame_stats {
@@ -903,6 +905,8 @@ typedef struct refl_envmap_options {
 typedef struct refl_planar_options {
     int no_culling;          /* 1: render every mirror at every level, seen or not (paper
                                 002's count, formula 5) */
+    int max_renderings;      /* mirror renderings a frame makes at most; 0: 256. The pixels
+                                of the mirrors past it are ray traced (stats.planar.traced) */
 } refl_planar_options;
 
 typedef struct refl_c3rc_options {

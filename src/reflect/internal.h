@@ -445,7 +445,9 @@ static void refl__rt_end(refl__rt *rt);
    them; *rays counts the rays cast. */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
-/* A colour channel in [0, 1] as a byte, rounded. */
+/* RAYTRACE's colour and point for the pixels of pass p that `marked` is
+   not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
+static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
 /* ---- the methods (m_*.c) ---- */
 

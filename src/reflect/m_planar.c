@@ -38,6 +38,7 @@ typedef struct refl__planar {
     uint8_t *stencil;             /* recursion levels */
     int no_culling;
     long long culled;
+    uint8_t *cut;                 /* pixels of mirrors past desc.planar.max_renderings (NULL: none) */
     refl__lv lv;                  /* light volumes: the virtual lights (none when off) */
 } refl__planar;
 
@@ -495,6 +496,22 @@ static refl_result refl__planar_mirror_image(refl__planar *pl, const refl__plana
 static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level *lv, int f, refl__planar_comp *comp,
                                       const int box[4], refl__planar_dc *dcs);
 
+/* Past the rendering budget: the region `level` goes to RAYTRACE's tracer
+   once the recursion is done. */
+static refl_result refl__planar_cut(refl__planar *pl, int level, const int box[4]) {
+    const refl_frame *fr = pl->p->frame;
+    int x, y;
+    if (!pl->cut && !(pl->cut = (uint8_t *)refl__calloc(&pl->scene->allocator,
+                                                        (size_t)fr->width * (size_t)fr->height, 1)))
+        return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = box[1]; y < box[3]; ++y)
+        for (x = box[0]; x < box[2]; ++x) {
+            size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+            pl->cut[i] |= pl->stencil[i] == level;
+        }
+    return REFL_OK;
+}
+
 static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_level *lv, refl__planar_dc *dcs) {
     refl_vec3 eye = refl_mat4_point(lv->w_inv, pl->p->view->eye); /* the viewer in this level's world */
     refl__planar_dc *next = dcs + pl->scene->object_count;
@@ -518,6 +535,12 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
            costs its renderings, as formula 5 counts them */
         if ((front || face->glass) && (r = refl__planar_mark(pl, lv, &comp, face)) != REFL_OK) return r;
         if (refl__planar_region(pl, lv->level + 1, box) == 0 && !pl->no_culling) { ++pl->culled; continue; }
+        if (pl->p->frame->stats.planar.renderings >= pl->p->desc.planar.max_renderings) {
+            r = refl__planar_cut(pl, lv->level + 1, box);
+            if (r == REFL_OK) r = refl__planar_restore(pl, lv->level, &comp, face, NULL, box);
+            if (r != REFL_OK) return r;
+            continue;
+        }
         if (face->glass) {
             r = refl__planar_glass(pl, lv, f, &comp, box, next);
         } else {
@@ -796,6 +819,8 @@ static refl_result refl__planar_handles(const refl__pass *p, int object, int *ca
 
 static const char *refl__options_planar(refl_render_desc *d) {
     if (d->planar.no_culling < 0 || d->planar.no_culling > 1) return "planar.no_culling: 0 or 1";
+    if (d->planar.max_renderings < 0) return "planar.max_renderings: 0 (256) or more";
+    if (d->planar.max_renderings == 0) d->planar.max_renderings = 256;
     return NULL;
 }
 
@@ -807,7 +832,7 @@ static refl_result refl__method_planar(refl__pass *p) {
     refl__planar_dc *dcs;
     rast_targets t;
     refl_result r;
-    size_t n = (size_t)f->width * (size_t)f->height;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
     double t0 = refl__now_ms();
     memset(&pl, 0, sizeof pl);
     pl.p = p;
@@ -863,6 +888,10 @@ static refl_result refl__method_planar(refl__pass *p) {
         if (r != REFL_OK) goto done;
     }
     r = refl__planar_level_draw(&pl, &top, dcs);
+    if (r == REFL_OK && pl.cut) {
+        for (i = 0; i < n; ++i) f->stats.planar.traced += pl.cut[i];
+        r = refl__trace_marked(p, pl.cut);
+    }
     if (r != REFL_OK) goto done;
     f->stats.planar.culled = pl.culled;
     f->stats.ms_reflect = refl__now_ms() - t0 - f->stats.ms_build;
@@ -870,6 +899,7 @@ done:
     /* the frame's own targets back: rc's queue is empty or dropped */
     refl__free(&s->allocator, dcs);
     refl__free(&s->allocator, pl.stencil);
+    refl__free(&s->allocator, pl.cut);
     refl__free(&s->allocator, pl.saved);
     refl__free(&s->allocator, pl.saved_points);
     refl__free(&s->allocator, pl.lit);

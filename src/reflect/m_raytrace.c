@@ -110,3 +110,52 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     refl__rt_end(&tf.rt);
     return REFL_OK;
 }
+
+/* ---- pixels handed over ---------------------------------------------------------- */
+
+typedef struct refl__rt_marked {
+    refl__rt rt;
+    const uint8_t *marked;
+    long long *row_rays;
+} refl__rt_marked;
+
+static void refl__rt_marked_row(void *arg, int y) {
+    const refl__rt_marked *m = (const refl__rt_marked *)arg;
+    refl_frame *f = m->rt.p->frame;
+    int x, c;
+    for (x = 0; x < f->width; ++x) {
+        size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+        float rgb[3], depth;
+        uint8_t stencil;
+        refl_vec3 shown;
+        if (!m->marked[i]) continue;
+        refl__rt_pixel(&m->rt, x, y, &m->row_rays[y], rgb, &shown, &depth, &stencil);
+        for (c = 0; c < 3; ++c) f->rgba[4 * i + (size_t)c] = rgb[c];
+        f->rgba[4 * i + 3] = 1.0f;
+        f->points[3 * i] = shown.x;
+        f->points[3 * i + 1] = shown.y;
+        f->points[3 * i + 2] = shown.z;
+    }
+}
+
+static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *f = p->frame;
+    refl__rt_marked m;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    int y;
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&m.rt, p, bvh);
+    m.rt.bvh = owned; /* freed with rt */
+    m.marked = marked;
+    m.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
+    if (r == REFL_OK && !m.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        rast_run_jobs(p->rc, f->height, refl__rt_marked_row, &m);
+        for (y = 0; y < f->height; ++y) f->stats.rays += m.row_rays[y];
+    }
+    refl__free(al, m.row_rays);
+    refl__rt_end(&m.rt);
+    return r;
+}

@@ -114,6 +114,41 @@ Test(refl_planar, renderings_follow_formula_5_without_culling) {
     refl_scene_destroy(s);
 }
 
+/* Past desc.planar.max_renderings the mirrors still to render are ray
+   traced: the frame stays the reference's, with at most the budget of
+   renderings (and the last one begun). */
+Test(refl_planar, renderings_past_the_budget_are_ray_traced) {
+    refl_scene *s;
+    refl_view v;
+    refl_render_desc d;
+    refl_frame *budgeted, *truth;
+    refl_image_error ie;
+    refl_reflection_error re;
+    cr_assert_eq(refl_scene_builtin("mirror-room", NULL, &s), REFL_OK);
+    v = s->camera;
+    v.width = 200; v.height = 150;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_PLANAR;
+    d.depth = 6;
+    d.threads = 2;
+    d.planar.no_culling = 1; /* 1456 renderings unbudgeted */
+    d.planar.max_renderings = 12;
+    budgeted = tu_refl_render(s, &v, &d);
+    d.method = REFL_RAYTRACE;
+    truth = tu_refl_render(s, &v, &d);
+    cr_assert_leq(budgeted->stats.planar.renderings, 13, "%lld renderings", budgeted->stats.planar.renderings);
+    cr_assert_gt(budgeted->stats.planar.traced, 1000, "%lld pixels traced", budgeted->stats.planar.traced);
+    cr_assert_gt(budgeted->stats.rays, budgeted->stats.planar.traced);
+    cr_assert_eq(refl_measure_image_error(budgeted, truth, 1, 2.0f / 255.0f, &ie), REFL_OK);
+    cr_assert_eq(refl_measure_reflection_error(budgeted, truth, NULL, &re), REFL_OK);
+    cr_assert(ie.psnr >= 40.0 && ie.over_threshold <= 0.005, "PSNR %.2f dB, %.3f%% over 2/255", ie.psnr,
+              100.0 * ie.over_threshold);
+    cr_assert(re.mean < 0.05 && re.wrong < 0.001 && re.empty < 0.001, "reflection error %.3f px", re.mean);
+    refl_frame_destroy(budgeted);
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
+
 Test(refl_planar, same_bytes_for_every_thread_count) {
     refl_scene *s;
     refl_view v;
