@@ -987,6 +987,12 @@ typedef struct refl_render_desc {
     int depth;               /* reflection / refraction bounces; 0: REFL_DEFAULT_DEPTH. A
                                 reflector met with none left shows what DIRECT shows
                                 there; a method that models fewer says so (stats.depth) */
+    int spp;                 /* samples per pixel, a square: 0 or 1, 4, 9 ... 64. The frame
+                                is rendered sqrt(spp) times wider and higher and each pixel
+                                the mean of its samples' colours; depth, stencil and points
+                                are those of its centre sample (odd sqrt: the pixel centre,
+                                so the reflection error compares as at 1 spp; even: the
+                                sample half a sample right of and below it) */
     refl_lighting_options lighting;
     /* Optional, per object: object_methods[i] (i < object_method_count) is
        the method that draws reflector object i; 0: `method`. Any built
@@ -11612,6 +11618,13 @@ static refl_method refl__object_method(const refl_render_desc *d, int i) {
                                                                                      : d->method;
 }
 
+/* Samples along a pixel's side for desc.spp (0: 1). */
+static int refl__spp_side(int spp) {
+    int s = 1;
+    while ((s + 1) * (s + 1) <= spp) ++s;
+    return s;
+}
+
 static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_desc *out, const char **message) {
     const char *why = NULL;
     int i;
@@ -11621,6 +11634,8 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
     else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
     else if (out->depth < 0) why = "depth: 0 (REFL_DEFAULT_DEPTH) or more";
+    else if (out->spp < 0 || out->spp > 64 || refl__spp_side(out->spp) * refl__spp_side(out->spp) != REFL__MAX(out->spp, 1))
+        why = "spp: 0 or 1, 4, 9, 16, 25, 36, 49 or 64";
     else if (out->lighting.shadows < 0 || out->lighting.shadows > 1) why = "lighting.shadows: 0 or 1";
     else if (out->lighting.soft_shadow_samples < 0 || out->lighting.soft_shadow_samples > 1024)
         why = "lighting.soft_shadow_samples: 0 to 1024";
@@ -11785,6 +11800,7 @@ struct refl_renderer {
     refl_render_desc desc;        /* validated, defaults resolved */
     rast_context *rc;             /* the thread pool */
     refl__models models;
+    refl_frame *fine;             /* spp > 1: the frame of every sample, kept for the next */
 };
 
 static void refl__models_free(const refl_scene *scene, refl__models *m) {
@@ -11848,21 +11864,20 @@ REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_re
 
 REFL_API void refl_renderer_destroy(refl_renderer *rr) {
     if (!rr) return;
+    refl_frame_destroy(rr->fine);
     refl__models_free(rr->scene, &rr->models);
     rast_context_destroy(rr->rc);
     refl__free(&rr->scene->allocator, rr);
 }
 
-REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
-    const refl_scene *scene;
+/* One render of view into frame, a sample per pixel. */
+static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    const refl_scene *scene = rr->scene;
     const refl__method_row *row;
     refl__pass p;
     refl_result r;
     double t0 = refl__now_ms();
     int i;
-    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
-    scene = rr->scene;
-    if ((r = refl__check_frame(scene, view, frame)) != REFL_OK) return r;
     if (rr->models.scene_version != scene->version) {
         refl__models_free(scene, &rr->models);
         rr->models.scene_version = scene->version;
@@ -11879,6 +11894,61 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
+    return REFL_OK;
+}
+
+/* Pixel by pixel, the mean colour of its side x side samples in fine, and
+   the depth, stencil and point of its centre sample. */
+static void refl__resolve_spp(const refl_frame *fine, refl_frame *frame, int side) {
+    int x, y, sx, sy, c, centre = side / 2;
+    float w = 1.0f / (float)(side * side);
+    for (y = 0; y < frame->height; ++y)
+        for (x = 0; x < frame->width; ++x) {
+            size_t i = (size_t)y * (size_t)frame->width + (size_t)x;
+            size_t k = ((size_t)(y * side + centre)) * (size_t)fine->width + (size_t)(x * side + centre);
+            float sum[4] = {0, 0, 0, 0};
+            for (sy = 0; sy < side; ++sy)
+                for (sx = 0; sx < side; ++sx) {
+                    const float *q = fine->rgba + 4 * ((size_t)(y * side + sy) * (size_t)fine->width + (size_t)(x * side + sx));
+                    for (c = 0; c < 4; ++c) sum[c] += q[c];
+                }
+            for (c = 0; c < 4; ++c) frame->rgba[4 * i + (size_t)c] = sum[c] * w;
+            frame->depth[i] = fine->depth[k];
+            frame->stencil[i] = fine->stencil[k];
+            memcpy(frame->points + 3 * i, fine->points + 3 * k, 3 * sizeof(float));
+        }
+}
+
+REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    refl_view fine_view;
+    refl_result r;
+    double t0;
+    int side;
+    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
+    side = refl__spp_side(rr->desc.spp);
+    if (side == 1) return refl__render_samples(rr, view, frame);
+    t0 = refl__now_ms();
+    fine_view = *view;
+    fine_view.width = view->width * side;
+    fine_view.height = view->height * side;
+    if (fine_view.width > RAST_MAX_TARGET_SIZE || fine_view.height > RAST_MAX_TARGET_SIZE) {
+        frame->message = "spp: the frame's side times sqrt(spp) above RAST_MAX_TARGET_SIZE";
+        return REFL_ERROR_INVALID_SIZE;
+    }
+    if (rr->fine && (rr->fine->width != fine_view.width || rr->fine->height != fine_view.height)) {
+        refl_frame_destroy(rr->fine);
+        rr->fine = NULL;
+    }
+    if (!rr->fine && (r = refl_frame_create(fine_view.width, fine_view.height, &rr->scene->allocator, &rr->fine)) != REFL_OK)
+        return r;
+    if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
+        frame->message = rr->fine->message;
+        return r;
+    }
+    refl__resolve_spp(rr->fine, frame, side);
+    frame->stats = rr->fine->stats;
+    frame->stats.ms_total = refl__now_ms() - t0;
     return REFL_OK;
 }
 

@@ -40,6 +40,8 @@ static const char *const usage_render =
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
     "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
+    "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
+    "                     mean of sqrt(N) x sqrt(N) samples\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -103,7 +105,7 @@ static const char *const usage_compare =
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
-    int light_volumes, caustic_samples, max_renderings;
+    int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
     int leaf_points, max_splat, ray_factor, trace_fallback;
     float density, camera_split, error_px;
@@ -216,6 +218,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_vec3(v, &o->fade) || !(o->fade.x > 0.0f) || !(o->fade.y >= 0.0f && o->fade.y <= 1.0f) ||
                 !(o->fade.z >= 0.0f && o->fade.z <= 1.0f))
                 return fail("--fade: expected D,MIN,MAX (D above 0, MIN and MAX in 0..1), got %s", v);
+        } else if (!strcmp(a, "--spp")) {
+            if (!parse_int(v, 1, 64, &o->spp) || (int)sqrt((double)o->spp) * (int)sqrt((double)o->spp) != o->spp)
+                return fail("--spp: expected a square 1..64 (1, 4, 9 ... 64), got %s", v);
         } else if (!strcmp(a, "--max-renderings")) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
@@ -372,6 +377,7 @@ static int cmd_render(const options *o) {
     memset(&d, 0, sizeof d);
     d.threads = o->threads;
     d.depth = o->depth;
+    d.spp = o->spp;
     d.lighting.shadows = o->shadows;
     d.envmap.size = o->envmap_size;
     d.planar.no_culling = o->no_culling;

@@ -985,6 +985,12 @@ typedef struct refl_render_desc {
     int depth;               /* reflection / refraction bounces; 0: REFL_DEFAULT_DEPTH. A
                                 reflector met with none left shows what DIRECT shows
                                 there; a method that models fewer says so (stats.depth) */
+    int spp;                 /* samples per pixel, a square: 0 or 1, 4, 9 ... 64. The frame
+                                is rendered sqrt(spp) times wider and higher and each pixel
+                                the mean of its samples' colours; depth, stencil and points
+                                are those of its centre sample (odd sqrt: the pixel centre,
+                                so the reflection error compares as at 1 spp; even: the
+                                sample half a sample right of and below it) */
     refl_lighting_options lighting;
     /* Optional, per object: object_methods[i] (i < object_method_count) is
        the method that draws reflector object i; 0: `method`. Any built
