@@ -70,6 +70,17 @@ if [ -d "$assets" ]; then
     ok "render Box.glb" "$bin" render "$assets/Box.glb" --size 48x48 --out "$tmp/box.png"
     ok "render with an HDR environment" "$bin" render --builtin default --size 48x36 \
         --env "$assets/env/studio_small_03_1k.hdr" --out "$tmp/env.png"
+    # every method on every asset and built-in scene: every pixel opaque,
+    # no NaN (alpha's minimum 1 and no NaN count in the linear EXR)
+    for scene in "$assets"/*.glb --builtin=default --builtin=mirror-room --builtin=concave --builtin=glass; do
+        case $scene in --builtin=*) src=(--builtin "${scene#--builtin=}") ;; *) src=("$scene") ;; esac
+        for m in direct raytrace envmap planar c3rc sbc; do
+            ok "$(basename -- "$scene") with $m: every pixel opaque, no NaN" bash -c \
+                "'$bin' render $(printf "'%s' " "${src[@]}") --method $m --size 32x24 --depth 2 --out '$tmp/alpha.exr' 2>/dev/null &&
+                 oiiotool '$tmp/alpha.exr' --printstats | grep -qE 'Stats Min: [^ ]+ [^ ]+ [^ ]+ 1\.000000' &&
+                 oiiotool '$tmp/alpha.exr' --printstats | grep -qE 'NanCount: 0 0 0 0'"
+        done
+    done
     head -c 3000 "$assets/Duck.glb" >"$tmp/truncated.glb"
     refuses "truncated glb" "truncated.glb" "$bin" render "$tmp/truncated.glb" --out "$tmp/x.png"
 else
