@@ -282,7 +282,8 @@ typedef struct refl_light {
    a directional light's direction tilted within its cone to the Fibonacci
    disc point r = sqrt((index + 0.5) / count), same phi, times tan(radius),
    across two axes perpendicular to it. count <= 1 or radius <= 0: the light
-   unchanged. Deterministic: the same lights on every machine. */
+   unchanged; light NULL: a zeroed light. Deterministic: the same lights
+   on every machine. */
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count);
 
 typedef enum refl_env_type {
@@ -982,7 +983,7 @@ typedef struct refl_debug_options {
 #define REFL_DEFAULT_DEPTH 6
 
 typedef struct refl_render_desc {
-    int threads;             /* 0: one per CPU, at most 256 */
+    int threads;             /* 0: one per CPU, at most RAST_MAX_THREADS (64) */
     refl_method method;      /* every reflector's, unless object_methods says otherwise */
     int depth;               /* reflection / refraction bounces; 0: REFL_DEFAULT_DEPTH. A
                                 reflector met with none left shows what DIRECT shows
@@ -1136,12 +1137,13 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
 /* The world ray through window point (px, py) of a view (pixel centres at
    x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
    plane, reaching the far plane at *tmax, as the rasteriser clips. Any
-   output may be NULL. */
+   output may be NULL; view NULL: zero outputs; scene NULL: an empty
+   scene's near and far. */
 REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
                             refl_vec3 *dir, float *tmax);
 
 /* View and projection matrices of a view (near/far resolved from the scene
-   when zero). */
+   when zero; scene NULL: an empty scene's). view NULL: identities. */
 REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene, refl_mat4 *view_m,
                                  refl_mat4 *proj_m);
 
@@ -1218,6 +1220,18 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 }
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
+static inline int refl__all_finite(const float *v, size_t n) {
+    size_t i;
+    for (i = 0; i < n; ++i)
+        if (!refl__isfinite(v[i])) return 0;
+    return 1;
+}
+static inline int refl__v3_finite(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+/* The rules refl_scene_add_material and _add_light enforce (scene.c), also
+   checked per frame since the scene's arrays are the caller's to edit:
+   the rule a value breaks, or NULL. */
+static const char *refl__material_rule(const refl_material *m, int texture_count);
+static const char *refl__light_rule(const refl_light *l);
 
 /* Per-axis minimum and maximum: bounding boxes. */
 static inline refl_vec3 refl__v3_min(refl_vec3 a, refl_vec3 b) {
@@ -11527,6 +11541,11 @@ static void refl__view_planes(const refl_view *v, const refl_scene *scene, float
 REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
                                  refl_mat4 *proj_m) {
     float znear, zfar;
+    if (!v) {
+        if (view_m) *view_m = refl_mat4_identity();
+        if (proj_m) *proj_m = refl_mat4_identity();
+        return;
+    }
     float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
     float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
     refl__view_planes(v, scene, &znear, &zfar);
@@ -11562,10 +11581,12 @@ static void refl__view_rays_get(const refl__view_rays *r, float px, float py, re
 REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
                             refl_vec3 *dir, float *tmax) {
     refl__view_rays r;
-    refl_vec3 o, d;
-    float t;
-    refl__view_rays_init(&r, view, scene);
-    refl__view_rays_get(&r, px, py, &o, &d, &t);
+    refl_vec3 o = refl_v3(0, 0, 0), d = refl_v3(0, 0, 0);
+    float t = 0.0f;
+    if (view) {
+        refl__view_rays_init(&r, view, scene);
+        refl__view_rays_get(&r, px, py, &o, &d, &t);
+    }
     if (origin) *origin = o;
     if (dir) *dir = d;
     if (tmax) *tmax = t;
@@ -11632,7 +11653,7 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     memset(out, 0, sizeof *out);
     if (desc) *out = *desc;
     if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
-    else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
+    else if (out->threads < 0 || out->threads > RAST_MAX_THREADS) why = "threads: 0 (one per CPU) to 64";
     else if (out->depth < 0) why = "depth: 0 (REFL_DEFAULT_DEPTH) or more";
     else if (out->spp < 0 || out->spp > 64 || refl__spp_side(out->spp) * refl__spp_side(out->spp) != REFL__MAX(out->spp, 1))
         why = "spp: 0 or 1, 4, 9, 16, 25, 36, 49 or 64";
@@ -11679,8 +11700,10 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
     int i;
     if (v->width != frame->width || v->height != frame->height) return "view: its size is not the frame's";
-    if (!refl__isfinite(v->eye.x) || !refl__isfinite(v->eye.y) || !refl__isfinite(v->eye.z))
-        return "view.eye: finite";
+    if (!refl__v3_finite(v->eye)) return "view.eye: finite";
+    if (!refl__v3_finite(v->target)) return "view.target: finite";
+    if (!refl__v3_finite(v->up)) return "view.up: finite";
+    if (!refl__isfinite(v->znear) || !refl__isfinite(v->zfar)) return "view.znear, zfar: finite";
     if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
     if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
     if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
@@ -11688,6 +11711,14 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
             return "scene.objects: a mesh or material index out of range";
+    for (i = 0; i < scene->material_count + scene->light_count; ++i) {
+        const char *why = i < scene->material_count ? refl__material_rule(&scene->materials[i], scene->texture_count)
+                                                    : refl__light_rule(&scene->lights[i - scene->material_count]);
+        if (why) return why;
+    }
+    if (!refl__all_finite(scene->ambient, 3)) return "scene.ambient: finite";
+    if (!refl__all_finite(scene->environment.color, 3) || !refl__isfinite(scene->environment.intensity))
+        return "scene.environment: colour and intensity finite";
     return NULL;
 }
 
@@ -14293,13 +14324,20 @@ REFL_API int refl_scene_add_mesh(refl_scene *s, refl_mesh *mesh) {
     return i;
 }
 
+static const char *refl__material_rule(const refl_material *m, int texture_count) {
+    if ((int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return "material.type: a refl_material_type";
+    if (m->texture < 0 || m->texture > texture_count) return "material.texture: 0 or a texture id";
+    if (!refl__all_finite(m->color, 4) || !refl__all_finite(m->tint, 3) || !refl__isfinite(m->reflectance) ||
+        !refl__isfinite(m->ior) || !refl__isfinite(m->attenuation) || !refl__isfinite(m->mirror_weight) ||
+        !refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        return "material: every number finite";
+    return NULL;
+}
+
 REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
     int i;
-    if (!s || !m || (int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return REFL_ERROR_INVALID_ARGUMENT;
-    if (m->texture < 0 || m->texture > s->texture_count) return REFL_ERROR_INVALID_ARGUMENT;
-    if (!refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
-        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
-        return REFL_ERROR_INVALID_ARGUMENT;
+    if (!s || !m || refl__material_rule(m, s->texture_count)) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
     if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
@@ -14317,10 +14355,17 @@ REFL_API int refl_scene_add_object(refl_scene *s, const refl_object *o) {
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
+static const char *refl__light_rule(const refl_light *l) {
+    if ((int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL) return "light.type: a refl_light_type";
+    if (!refl__v3_finite(l->position) || !refl__v3_finite(l->direction) || !refl__all_finite(l->color, 3) ||
+        !refl__isfinite(l->radius))
+        return "light: every number finite";
+    return NULL;
+}
+
 REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
     int i;
-    if (!s || !l || (int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL)
-        return REFL_ERROR_INVALID_ARGUMENT;
+    if (!s || !l || refl__light_rule(l)) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->lights, &s->light_count, sizeof(refl_light), l);
     if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
@@ -14330,7 +14375,7 @@ REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
 static refl_result refl__image_copy(const refl_allocator *a, int w, int h, const float *rgba, refl_image *out) {
     memset(out, 0, sizeof(*out));
     if (w <= 0 || h <= 0 || w > 65536 || h > 65536) return REFL_ERROR_INVALID_SIZE;
-    if (!rgba) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!rgba || !refl__all_finite(rgba, (size_t)w * (size_t)h * 4)) return REFL_ERROR_INVALID_ARGUMENT;
     out->pixels = (float *)refl__calloc(a, (size_t)w * (size_t)h, 4 * sizeof(float));
     if (!out->pixels) return REFL_ERROR_OUT_OF_MEMORY;
     memcpy(out->pixels, rgba, (size_t)w * (size_t)h * 4 * sizeof(float));
@@ -14358,7 +14403,8 @@ REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_enviro
     refl_environment e;
     refl_result r = REFL_OK;
     int i;
-    if (!s || !env || (int)env->type < REFL_ENV_COLOR || (int)env->type > REFL_ENV_CUBE)
+    if (!s || !env || (int)env->type < REFL_ENV_COLOR || (int)env->type > REFL_ENV_CUBE ||
+        !refl__all_finite(env->color, 3) || !refl__isfinite(env->intensity))
         return REFL_ERROR_INVALID_ARGUMENT;
     e = *env;
     memset(&e.image, 0, sizeof(e.image));
@@ -14879,8 +14925,11 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
 }
 
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
-    refl_light l = *light;
+    refl_light l;
     float phi, cp, sp;
+    memset(&l, 0, sizeof l);
+    if (!light) return l;
+    l = *light;
     if (count <= 1 || !(light->radius > 0.0f)) return l;
     phi = (float)((double)index * 2.39996322972865332);
     cp = (float)cos((double)phi);

@@ -280,7 +280,8 @@ typedef struct refl_light {
    a directional light's direction tilted within its cone to the Fibonacci
    disc point r = sqrt((index + 0.5) / count), same phi, times tan(radius),
    across two axes perpendicular to it. count <= 1 or radius <= 0: the light
-   unchanged. Deterministic: the same lights on every machine. */
+   unchanged; light NULL: a zeroed light. Deterministic: the same lights
+   on every machine. */
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count);
 
 typedef enum refl_env_type {
@@ -980,7 +981,7 @@ typedef struct refl_debug_options {
 #define REFL_DEFAULT_DEPTH 6
 
 typedef struct refl_render_desc {
-    int threads;             /* 0: one per CPU, at most 256 */
+    int threads;             /* 0: one per CPU, at most RAST_MAX_THREADS (64) */
     refl_method method;      /* every reflector's, unless object_methods says otherwise */
     int depth;               /* reflection / refraction bounces; 0: REFL_DEFAULT_DEPTH. A
                                 reflector met with none left shows what DIRECT shows
@@ -1134,12 +1135,13 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
 /* The world ray through window point (px, py) of a view (pixel centres at
    x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
    plane, reaching the far plane at *tmax, as the rasteriser clips. Any
-   output may be NULL. */
+   output may be NULL; view NULL: zero outputs; scene NULL: an empty
+   scene's near and far. */
 REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
                             refl_vec3 *dir, float *tmax);
 
 /* View and projection matrices of a view (near/far resolved from the scene
-   when zero). */
+   when zero; scene NULL: an empty scene's). view NULL: identities. */
 REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene, refl_mat4 *view_m,
                                  refl_mat4 *proj_m);
 

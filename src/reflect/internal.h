@@ -64,6 +64,18 @@ static inline refl_allocator refl__allocator(const refl_allocator *a) {
 }
 
 static inline int refl__isfinite(float v) { return v - v == 0.0f; }
+static inline int refl__all_finite(const float *v, size_t n) {
+    size_t i;
+    for (i = 0; i < n; ++i)
+        if (!refl__isfinite(v[i])) return 0;
+    return 1;
+}
+static inline int refl__v3_finite(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+/* The rules refl_scene_add_material and _add_light enforce (scene.c), also
+   checked per frame since the scene's arrays are the caller's to edit:
+   the rule a value breaks, or NULL. */
+static const char *refl__material_rule(const refl_material *m, int texture_count);
+static const char *refl__light_rule(const refl_light *l);
 
 /* Per-axis minimum and maximum: bounding boxes. */
 static inline refl_vec3 refl__v3_min(refl_vec3 a, refl_vec3 b) {

@@ -121,6 +121,11 @@ static void refl__view_planes(const refl_view *v, const refl_scene *scene, float
 REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
                                  refl_mat4 *proj_m) {
     float znear, zfar;
+    if (!v) {
+        if (view_m) *view_m = refl_mat4_identity();
+        if (proj_m) *proj_m = refl_mat4_identity();
+        return;
+    }
     float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
     float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
     refl__view_planes(v, scene, &znear, &zfar);
@@ -156,10 +161,12 @@ static void refl__view_rays_get(const refl__view_rays *r, float px, float py, re
 REFL_API void refl_view_ray(const refl_view *view, const refl_scene *scene, float px, float py, refl_vec3 *origin,
                             refl_vec3 *dir, float *tmax) {
     refl__view_rays r;
-    refl_vec3 o, d;
-    float t;
-    refl__view_rays_init(&r, view, scene);
-    refl__view_rays_get(&r, px, py, &o, &d, &t);
+    refl_vec3 o = refl_v3(0, 0, 0), d = refl_v3(0, 0, 0);
+    float t = 0.0f;
+    if (view) {
+        refl__view_rays_init(&r, view, scene);
+        refl__view_rays_get(&r, px, py, &o, &d, &t);
+    }
     if (origin) *origin = o;
     if (dir) *dir = d;
     if (tmax) *tmax = t;
@@ -226,7 +233,7 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     memset(out, 0, sizeof *out);
     if (desc) *out = *desc;
     if ((int)out->method < 0 || out->method >= REFL_METHOD_COUNT) why = "method: not a refl_method";
-    else if (out->threads < 0 || out->threads > 256) why = "threads: 0 (one per CPU) to 256";
+    else if (out->threads < 0 || out->threads > RAST_MAX_THREADS) why = "threads: 0 (one per CPU) to 64";
     else if (out->depth < 0) why = "depth: 0 (REFL_DEFAULT_DEPTH) or more";
     else if (out->spp < 0 || out->spp > 64 || refl__spp_side(out->spp) * refl__spp_side(out->spp) != REFL__MAX(out->spp, 1))
         why = "spp: 0 or 1, 4, 9, 16, 25, 36, 49 or 64";
@@ -273,8 +280,10 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     refl_vec3 fwd = refl_v3_sub(v->target, v->eye);
     int i;
     if (v->width != frame->width || v->height != frame->height) return "view: its size is not the frame's";
-    if (!refl__isfinite(v->eye.x) || !refl__isfinite(v->eye.y) || !refl__isfinite(v->eye.z))
-        return "view.eye: finite";
+    if (!refl__v3_finite(v->eye)) return "view.eye: finite";
+    if (!refl__v3_finite(v->target)) return "view.target: finite";
+    if (!refl__v3_finite(v->up)) return "view.up: finite";
+    if (!refl__isfinite(v->znear) || !refl__isfinite(v->zfar)) return "view.znear, zfar: finite";
     if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
     if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
     if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
@@ -282,6 +291,14 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
             return "scene.objects: a mesh or material index out of range";
+    for (i = 0; i < scene->material_count + scene->light_count; ++i) {
+        const char *why = i < scene->material_count ? refl__material_rule(&scene->materials[i], scene->texture_count)
+                                                    : refl__light_rule(&scene->lights[i - scene->material_count]);
+        if (why) return why;
+    }
+    if (!refl__all_finite(scene->ambient, 3)) return "scene.ambient: finite";
+    if (!refl__all_finite(scene->environment.color, 3) || !refl__isfinite(scene->environment.intensity))
+        return "scene.environment: colour and intensity finite";
     return NULL;
 }
 

@@ -76,13 +76,20 @@ REFL_API int refl_scene_add_mesh(refl_scene *s, refl_mesh *mesh) {
     return i;
 }
 
+static const char *refl__material_rule(const refl_material *m, int texture_count) {
+    if ((int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return "material.type: a refl_material_type";
+    if (m->texture < 0 || m->texture > texture_count) return "material.texture: 0 or a texture id";
+    if (!refl__all_finite(m->color, 4) || !refl__all_finite(m->tint, 3) || !refl__isfinite(m->reflectance) ||
+        !refl__isfinite(m->ior) || !refl__isfinite(m->attenuation) || !refl__isfinite(m->mirror_weight) ||
+        !refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        return "material: every number finite";
+    return NULL;
+}
+
 REFL_API int refl_scene_add_material(refl_scene *s, const refl_material *m) {
     int i;
-    if (!s || !m || (int)m->type < REFL_DIFFUSE || (int)m->type > REFL_PARTIAL) return REFL_ERROR_INVALID_ARGUMENT;
-    if (m->texture < 0 || m->texture > s->texture_count) return REFL_ERROR_INVALID_ARGUMENT;
-    if (!refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
-        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
-        return REFL_ERROR_INVALID_ARGUMENT;
+    if (!s || !m || refl__material_rule(m, s->texture_count)) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->materials, &s->material_count, sizeof(refl_material), m);
     if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
@@ -100,10 +107,17 @@ REFL_API int refl_scene_add_object(refl_scene *s, const refl_object *o) {
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
 }
 
+static const char *refl__light_rule(const refl_light *l) {
+    if ((int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL) return "light.type: a refl_light_type";
+    if (!refl__v3_finite(l->position) || !refl__v3_finite(l->direction) || !refl__all_finite(l->color, 3) ||
+        !refl__isfinite(l->radius))
+        return "light: every number finite";
+    return NULL;
+}
+
 REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
     int i;
-    if (!s || !l || (int)l->type < REFL_LIGHT_POINT || (int)l->type > REFL_LIGHT_DIRECTIONAL)
-        return REFL_ERROR_INVALID_ARGUMENT;
+    if (!s || !l || refl__light_rule(l)) return REFL_ERROR_INVALID_ARGUMENT;
     i = refl__push(&s->allocator, (void **)&s->lights, &s->light_count, sizeof(refl_light), l);
     if (i >= 0) s->version++;
     return i < 0 ? REFL_ERROR_OUT_OF_MEMORY : i;
@@ -113,7 +127,7 @@ REFL_API int refl_scene_add_light(refl_scene *s, const refl_light *l) {
 static refl_result refl__image_copy(const refl_allocator *a, int w, int h, const float *rgba, refl_image *out) {
     memset(out, 0, sizeof(*out));
     if (w <= 0 || h <= 0 || w > 65536 || h > 65536) return REFL_ERROR_INVALID_SIZE;
-    if (!rgba) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!rgba || !refl__all_finite(rgba, (size_t)w * (size_t)h * 4)) return REFL_ERROR_INVALID_ARGUMENT;
     out->pixels = (float *)refl__calloc(a, (size_t)w * (size_t)h, 4 * sizeof(float));
     if (!out->pixels) return REFL_ERROR_OUT_OF_MEMORY;
     memcpy(out->pixels, rgba, (size_t)w * (size_t)h * 4 * sizeof(float));
@@ -141,7 +155,8 @@ REFL_API refl_result refl_scene_set_environment(refl_scene *s, const refl_enviro
     refl_environment e;
     refl_result r = REFL_OK;
     int i;
-    if (!s || !env || (int)env->type < REFL_ENV_COLOR || (int)env->type > REFL_ENV_CUBE)
+    if (!s || !env || (int)env->type < REFL_ENV_COLOR || (int)env->type > REFL_ENV_CUBE ||
+        !refl__all_finite(env->color, 3) || !refl__isfinite(env->intensity))
         return REFL_ERROR_INVALID_ARGUMENT;
     e = *env;
     memset(&e.image, 0, sizeof(e.image));

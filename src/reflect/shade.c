@@ -85,8 +85,11 @@ REFL_API void refl_shade_diffuse_weighted(const refl_scene *scene, const refl_ma
 }
 
 REFL_API refl_light refl_light_sample(const refl_light *light, int index, int count) {
-    refl_light l = *light;
+    refl_light l;
     float phi, cp, sp;
+    memset(&l, 0, sizeof l);
+    if (!light) return l;
+    l = *light;
     if (count <= 1 || !(light->radius > 0.0f)) return l;
     phi = (float)((double)index * 2.39996322972865332);
     cp = (float)cos((double)phi);

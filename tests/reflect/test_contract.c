@@ -133,6 +133,7 @@ typedef struct bad_option {
 
 static void bad_method(refl_render_desc *d) { d->method = (refl_method)99; }
 static void bad_threads(refl_render_desc *d) { d->threads = -1; }
+static void too_many_threads(refl_render_desc *d) { d->threads = RAST_MAX_THREADS + 1; }
 static void bad_depth(refl_render_desc *d) { d->depth = -2; }
 static void bad_shadows(refl_render_desc *d) { d->lighting.shadows = 2; }
 static void bad_soft(refl_render_desc *d) { d->lighting.soft_shadow_samples = 1025; }
@@ -173,6 +174,7 @@ static void bad_points_last(refl_render_desc *d) { d->debug.points_last = 3; }
 static const bad_option bad_options[] = {
     {"method:", bad_method},
     {"threads:", bad_threads},
+    {"threads:", too_many_threads},
     {"depth:", bad_depth},
     {"lighting.shadows:", bad_shadows},
     {"lighting.soft_shadow_samples:", bad_soft},

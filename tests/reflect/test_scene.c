@@ -237,12 +237,87 @@ Test(refl_scene, render_rejects_bad_input) {
     v.width = 64;
     v.target = v.eye; /* no direction */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    refl_frame_destroy(f);
     cr_assert_eq(refl_frame_create(0, 10, NULL, &f), REFL_ERROR_INVALID_SIZE);
     cr_assert_null(f);
     refl_scene_destroy(s);
     cr_assert_eq(refl_method_from_name("sbc"), REFL_SBC);
     cr_assert_str_eq(refl_method_name(REFL_LAYERED_EM), "layered-em");
     cr_assert_eq(refl_method_from_name("nonsense"), REFL_METHOD_DEFAULT);
+}
+
+/* Non-finite numbers are refused where the API takes them, and where the
+   caller wrote them into the scene's arrays directly, by the render that
+   would use them, naming the field. */
+Test(refl_scene, non_finite_numbers_are_refused_everywhere) {
+    static const float bad[] = {NAN, INFINITY, -INFINITY};
+    refl_scene *s;
+    refl_frame *f;
+    refl_view v;
+    refl_render_desc d;
+    size_t k;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    cr_assert_eq(refl_frame_create(16, 12, NULL, &f), REFL_OK);
+    memset(&d, 0, sizeof d);
+    for (k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        float x = bad[k], pixels[4 * 4] = {0};
+        refl_material m = refl_material_diffuse(0.5f, 0.5f, 0.5f);
+        refl_light l = refl_light_point(refl_v3(0, 3, 0), 1.0f);
+        refl_environment env;
+        const refl_material saved_material = s->materials[0];
+        const refl_light saved_light = s->lights[0];
+        const float saved_ambient = s->ambient[1];
+        m.color[1] = x;
+        cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+        m = refl_material_glass(x);
+        cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+        l.position.y = x;
+        cr_assert_eq(refl_scene_add_light(s, &l), REFL_ERROR_INVALID_ARGUMENT);
+        l = refl_light_point(refl_v3(0, 3, 0), x);
+        cr_assert_eq(refl_scene_add_light(s, &l), REFL_ERROR_INVALID_ARGUMENT);
+        pixels[6] = x;
+        cr_assert_eq(refl_scene_add_texture(s, 2, 2, pixels), REFL_ERROR_INVALID_ARGUMENT);
+        memset(&env, 0, sizeof env);
+        env.color[2] = x;
+        cr_assert_eq(refl_scene_set_environment(s, &env), REFL_ERROR_INVALID_ARGUMENT);
+        /* written directly: the render refuses */
+        v = s->camera;
+        v.width = 16; v.height = 12;
+        s->materials[0].reflectance = x;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(f->message, "material") != NULL, "%s", f->message);
+        s->materials[0] = saved_material;
+        s->lights[0].color[0] = x;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(f->message, "light") != NULL, "%s", f->message);
+        s->lights[0] = saved_light;
+        s->ambient[1] = x;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(f->message, "ambient") != NULL, "%s", f->message);
+        s->ambient[1] = saved_ambient;
+        v.up.x = x;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(f->message, "view.up") != NULL, "%s", f->message);
+    }
+    v = s->camera;
+    v.width = 16; v.height = 12;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK, "the scene restored renders");
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
+
+/* Functions that take pointers say what NULL does, and do it. */
+Test(refl_scene, null_pointers_give_documented_results) {
+    refl_vec3 o, dir;
+    refl_mat4 vm, pm;
+    refl_light l;
+    float t = 1.0f;
+    refl_view_ray(NULL, NULL, 0.5f, 0.5f, &o, &dir, &t);
+    cr_assert(o.x == 0 && dir.x == 0 && t == 0.0f);
+    refl_view_matrices(NULL, NULL, &vm, &pm);
+    cr_assert(vm.m[0] == 1.0f && pm.m[5] == 1.0f && vm.m[1] == 0.0f);
+    l = refl_light_sample(NULL, 0, 4);
+    cr_assert(l.color[0] == 0.0f && l.radius == 0.0f);
 }
 
 /* Near and far from the scene bounds enclose every object: all scene
