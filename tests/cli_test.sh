@@ -23,6 +23,13 @@ refuses() { # refuses NAME PATTERN CMD...: non-zero exit (not a crash), stderr m
     if [ $code -ne 0 ] && [ $code -lt 128 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
     else fail=$((fail + 1)); echo "FAIL $name: exit $code, stderr:"; cat "$tmp/err"; fi
 }
+exits2() { # exits2 NAME PATTERN CMD...: exit status 2 and stderr matches PATTERN
+    local name=$1 pattern=$2; shift 2
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local code=$?
+    if [ $code -eq 2 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
+    else fail=$((fail + 1)); echo "FAIL $name: exit $code (want 2), stderr:"; cat "$tmp/err"; fi
+}
 
 # colour: a PNG is sRGB-encoded, so a constant grey sky (sRGB 128, decoded
 # to linear on load) comes out as 128 again; an EXR keeps linear values
@@ -112,13 +119,30 @@ ok "render planar with light volumes, caustics and translucency" "$bin" render -
 refuses "bad --caustics" "caustics: expected" "$bin" render --builtin default --light-volumes --caustics 0
 refuses "missing file" "nope.glb" "$bin" info "$tmp/nope.glb"
 refuses "unknown builtin" "no built-in scene" "$bin" render --builtin nowhere
-refuses "unknown method" "unknown method" "$bin" render --builtin default --method magic
+exits2 "unknown method" "no method .magic." "$bin" render --builtin default --method magic
 refuses "bad size" "expected WxH" "$bin" render --builtin default --size 0x10
-refuses "unknown option" "unknown option" "$bin" render --builtin default --frobnicate 1
-refuses "no scene" "give one scene" "$bin" render
+exits2 "unknown option" "unknown option" "$bin" render --builtin default --frobnicate 1
+exits2 "no scene" "give one scene" "$bin" render
 refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
-refuses "method not built yet" "not available" "$bin" render --builtin default --method spoc --out "$tmp/z.png"
+exits2 "method not built yet" "not built yet" "$bin" render --builtin default --method spoc --out "$tmp/z.png"
+
+# the command line's manners: --version, --name=value, method names in any
+# case, an unknown option named as such wherever it stands, exit status 2
+# for every usage error, RGB for formats without alpha, material overrides
+ok "--version" bash -c "'$bin' --version | grep -qE '^reflect [0-9]+\.[0-9]+\.[0-9]+$'"
+ok "--name=value and a method in capitals" "$bin" render --builtin default --method=RAYTRACE --size=32x24 --out="$tmp/eq.png"
+ok "PPM output (no alpha)" bash -c "'$bin' render --builtin default --size 32x24 --out '$tmp/rgb.ppm' &&
+    oiiotool --info '$tmp/rgb.ppm' | grep -q '3 channel'"
+exits2 "an unknown option last" "unknown option --frobnicate" "$bin" render --builtin default --frobnicate
+exits2 "a flag given a value" "takes no value" "$bin" render --builtin default --stats=1
+exits2 "a value missing" "needs a value" "$bin" render --builtin default --size
+ok "--mirror and --glass make diffuse objects reflective" bash -c \
+    "'$bin' render --builtin default --method raytrace --mirror sphere --glass red --size 32x24 --out '$tmp/ov.png' --stats |
+     grep -q 'total ms'"
+ok "--error-px at the bound the help gives" "$bin" render --builtin default --method sbc --error-px 0.001 --size 16x12 --out "$tmp/ep.png"
+exits2 "--size past int" "expected WxH" "$bin" render --builtin default --size 4294967297x2
+exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has
 # two pixels 255 off in red and one 10 off in green: RMSE
@@ -137,13 +161,6 @@ prints() { # prints NAME PATTERN... -- CMD...: exit 0 and every pattern on stdou
     for p in "${patterns[@]}"; do grep -qE "$p" "$tmp/out" || missing="$missing [$p]"; done
     if [ $code -eq 0 ] && [ -z "$missing" ]; then pass=$((pass + 1))
     else fail=$((fail + 1)); echo "FAIL $name: exit $code, missing$missing; stdout:"; cat "$tmp/out" "$tmp/err"; fi
-}
-exits2() { # exits2 NAME PATTERN CMD...: exit status 2 and stderr matches PATTERN
-    local name=$1 pattern=$2; shift 2
-    "$@" >"$tmp/out" 2>"$tmp/err"
-    local code=$?
-    if [ $code -eq 2 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
-    else fail=$((fail + 1)); echo "FAIL $name: exit $code (want 2), stderr:"; cat "$tmp/err"; fi
 }
 ok "compare --help" "$bin" compare --help
 prints "compare identical" '^pixels +8$' '^rmse +0\.000000$' '^psnr +inf' '^max diff +0\.000000' \

@@ -31,14 +31,15 @@ static const char *const usage_main =
     "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
     "  bench    every method x scene x setting: times, errors, CSV and charts\n"
     "\n"
-    "'reflect COMMAND --help' describes each command.\n";
+    "'reflect COMMAND --help' describes each command; 'reflect --version' prints\n"
+    "the version.\n";
 
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
-    "                     (more methods arrive with later work)\n"
+    "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
@@ -80,7 +81,14 @@ static const char *const usage_render =
     "                     formats (PNG ...) sRGB-encoded; EXR, HDR and PFM linear, unclamped\n"
     "  --exposure EV      scale the colours by 2^EV before writing, -64..64 (default 0)\n"
     "  --tonemap T        8-bit output: clamp (default), reinhard or aces\n"
-    "  --stats            print timings and model sizes\n";
+    "  --mirror NAME      make the objects named NAME (or of the material NAME) mirrors;\n"
+    "                     repeatable\n"
+    "  --glass NAME       likewise glass (index 1.5)\n"
+    "  --stats            print timings and model sizes\n"
+    "\n"
+    "Options take their value as the next argument or after '=' (--size=640x480).\n"
+    "Exit status: 0 the image was written; 1 the scene could not be loaded, rendered\n"
+    "or written; 2 bad usage.\n";
 
 static const char *const usage_info =
     "usage: reflect info [SCENE.glb | --builtin NAME] [--normalize SIZE] [--tess N]\n"
@@ -113,6 +121,8 @@ typedef struct options {
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
     refl_display_desc display; /* --exposure, --tonemap */
+    const char *mirror[8], *glass[8]; /* --mirror, --glass */
+    int mirror_count, glass_count;
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -140,10 +150,25 @@ static int parse_int(const char *s, int lo, int hi, int *out) {
 
 static int parse_float(const char *s, float lo, float hi, float *out) {
     char *end;
-    double v = strtod(s, &end);
+    float v = (float)strtod(s, &end); /* compared as floats: "0.001" is 1e-3f */
     if (*s == '\0' || *end != '\0' || !(v >= lo && v <= hi)) return 0;
-    *out = (float)v;
+    *out = v;
     return 1;
+}
+
+/* The options that take a value, and those that do not. */
+static const char *const value_options[] = {
+    "--builtin", "--normalize", "--tess", "--method", "--size", "--eye", "--target", "--up", "--fov", "--env",
+    "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
+    "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
+    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
+static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
+                                           "--light-volumes", "--trace-fallback", NULL};
+
+static int listed(const char *const *names, const char *a) {
+    for (; *names; ++names)
+        if (!strcmp(*names, a)) return 1;
+    return 0;
 }
 
 /* Parses argv[2..]; returns 0, 1 after --help, or 2 after an error. */
@@ -152,11 +177,25 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     memset(o, 0, sizeof(*o));
     o->out = "out.png";
     for (i = 2; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
-                    strcmp(a, "--shadows") && strcmp(a, "--no-culling") &&
-                    strcmp(a, "--light-volumes") && strcmp(a, "--trace-fallback");
-        if (takes && !v) return fail("%s needs a value", a);
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL, *eq = strchr(a, '=');
+        char name[32];
+        int inline_value = a[0] == '-' && a[1] == '-' && eq && eq - a < (long)sizeof name;
+        if (inline_value) { /* --name=value */
+            memcpy(name, a, (size_t)(eq - a));
+            name[eq - a] = '\0';
+            a = name;
+            v = eq + 1;
+        }
+        if (a[0] == '-' && a[1]) {
+            if (listed(flag_options, a)) {
+                if (inline_value) return fail("%s takes no value", a);
+            } else if (!listed(value_options, a)) {
+                return fail(is_render ? "render: unknown option %s (see reflect render --help)"
+                                      : "info: unknown option %s (see reflect info --help)", a);
+            } else if (!v) {
+                return fail("%s needs a value", a);
+            }
+        }
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
             return 1;
@@ -172,11 +211,20 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             o->file = a;
             continue;
         } else if (!strcmp(a, "--method")) {
+            refl_method m = refl_method_from_name(v);
+            if (!m) return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc)", v);
+            if (!refl_method_is_built(m)) return fail("--method: '%s' is not built yet", v);
             o->method = v;
+        } else if (!strcmp(a, "--mirror") || !strcmp(a, "--glass")) {
+            int glass = !strcmp(a, "--glass"), *count = glass ? &o->glass_count : &o->mirror_count;
+            if (*count == 8) return fail("%s: at most 8 times", a);
+            (glass ? o->glass : o->mirror)[(*count)++] = v;
         } else if (!strcmp(a, "--size")) {
-            char extra;
-            if (sscanf(v, "%dx%d%c", &o->width, &o->height, &extra) != 2 || o->width <= 0 || o->height <= 0 ||
-                o->width > RAST_MAX_TARGET_SIZE || o->height > RAST_MAX_TARGET_SIZE)
+            char *x = strchr(v, 'x'), w[16];
+            if (!x || x - v >= (long)sizeof w) return fail("--size: expected WxH, each 1..16384, got %s", v);
+            memcpy(w, v, (size_t)(x - v));
+            w[x - v] = '\0';
+            if (!parse_int(w, 1, RAST_MAX_TARGET_SIZE, &o->width) || !parse_int(x + 1, 1, RAST_MAX_TARGET_SIZE, &o->height))
                 return fail("--size: expected WxH, each 1..16384, got %s", v);
         } else if (!strcmp(a, "--eye")) {
             if (!(o->has_eye = parse_vec3(v, &o->eye))) return fail("--eye: expected X,Y,Z, got %s", v);
@@ -252,14 +300,12 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--trace-fallback")) {
             o->trace_fallback = 1;
             continue;
-        } else if (a[0] == '-') {
-            return fail("render: unknown option %s (see reflect render --help)", a);
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
             o->file = a;
             continue;
         }
-        ++i; /* the option's value */
+        if (!inline_value) ++i; /* the option's value */
     }
     if (!o->file == !o->builtin) return fail("%s", "give one scene: a glTF file or --builtin NAME");
     return 0;
@@ -311,6 +357,25 @@ static void progress_bar(void *user, float done) {
     fflush(stderr);
 }
 
+/* --mirror and --glass: the objects named `name`, or whose material is,
+   get a mirror (glass) material. Returns 0 when nothing has that name. */
+static int override_material(refl_scene *s, const char *name, int glass) {
+    refl_material m = glass ? refl_material_glass(1.5f) : refl_material_mirror(1.0f);
+    int i, id = -1, found = 0;
+    for (i = 0; i < s->object_count; ++i) {
+        refl_object *o = &s->objects[i];
+        if (strcmp(o->name, name) && strcmp(s->materials[o->material].name, name)) continue;
+        if (id < 0) {
+            snprintf(m.name, sizeof m.name, "%s", glass ? "--glass" : "--mirror");
+            if ((id = refl_scene_add_material(s, &m)) < 0) return 0;
+        }
+        o->material = id;
+        found = 1;
+    }
+    if (found) refl_scene_touch(s);
+    return found;
+}
+
 /* Whether a file name asks for a float format (linear, unclamped). */
 static int is_float_format(const char *path) {
     static const char *const exts[] = {".exr", ".hdr", ".pfm"};
@@ -334,11 +399,12 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
         for (i = 0; i < n; ++i) rgbaf[i] = i % 4 == 3 ? f->rgba[i] : f->rgba[i] * scale;
         r = refl_image_write(path, f->width, f->height, 4, NULL, rgbaf, err, err_size);
         free(rgbaf);
-    } else {
+    } else { /* RGB: the frame is opaque, and PPM or JPEG hold no alpha */
         uint8_t *rgba8 = (uint8_t *)malloc(n);
         if (!rgba8) return REFL_ERROR_OUT_OF_MEMORY;
         refl_frame_to_srgb8(f, d, rgba8);
-        r = refl_image_write(path, f->width, f->height, 4, rgba8, NULL, err, err_size);
+        for (i = 0; i < n / 4; ++i) memmove(rgba8 + 3 * i, rgba8 + 4 * i, 3);
+        r = refl_image_write(path, f->width, f->height, 3, rgba8, NULL, err, err_size);
         free(rgba8);
     }
     return r;
@@ -351,8 +417,18 @@ static int cmd_render(const options *o) {
     refl_render_desc d;
     refl_result r;
     char err[1024] = "";
-    int code = 1;
+    int code = 1, i;
     if (!s) return 1;
+    for (i = 0; i < o->mirror_count + o->glass_count; ++i) {
+        int glass = i >= o->mirror_count;
+        const char *name = glass ? o->glass[i - o->mirror_count] : o->mirror[i];
+        if (!override_material(s, name, glass)) {
+            fprintf(stderr, "reflect: %s %s: no object or material of that name (reflect info lists them)\n",
+                    glass ? "--glass" : "--mirror", name);
+            refl_scene_destroy(s);
+            return 2;
+        }
+    }
     refl_scene_complete(s); /* a file may have no camera, light or sky */
     if (o->env) {
         refl_environment env;
@@ -412,10 +488,7 @@ static int cmd_render(const options *o) {
             }
         }
     }
-    if (o->method && !(d.method = refl_method_from_name(o->method))) {
-        fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
-        goto done;
-    }
+    if (o->method) d.method = refl_method_from_name(o->method); /* checked by parse */
     if (isatty(2)) d.progress = progress_bar;
     if ((r = refl_frame_create(v.width, v.height, NULL, &f)) != REFL_OK) {
         fprintf(stderr, "reflect: frame %dx%d: %s\n", v.width, v.height, refl_result_string(r));
@@ -426,7 +499,7 @@ static int cmd_render(const options *o) {
                 f->message[0] ? ": " : "", f->message);
         goto done;
     }
-    if (f->stats.depth < (d.depth ? d.depth : REFL_DEFAULT_DEPTH))
+    if (d.method != REFL_DIRECT && d.method != REFL_METHOD_DEFAULT && f->stats.depth < (d.depth ? d.depth : REFL_DEFAULT_DEPTH))
         fprintf(stderr, "reflect: %s models %d bounce%s of the %d asked; deeper ones show what direct shows\n",
                 refl_method_name(d.method), f->stats.depth, f->stats.depth == 1 ? "" : "s",
                 d.depth ? d.depth : REFL_DEFAULT_DEPTH);
@@ -602,6 +675,10 @@ static int cmd_info(const options *o) {
 int main(int argc, char **argv) {
     options o;
     int r;
+    if (argc >= 2 && !strcmp(argv[1], "--version")) {
+        printf("reflect %d.%d.%d\n", REFL_VERSION_MAJOR, REFL_VERSION_MINOR, REFL_VERSION_PATCH);
+        return 0;
+    }
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
         fputs(usage_main, argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;

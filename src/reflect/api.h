@@ -748,7 +748,8 @@ typedef enum refl_method {
 } refl_method;
 
 REFL_API const char *refl_method_name(refl_method m);          /* "direct", ... */
-REFL_API refl_method refl_method_from_name(const char *name);  /* 0 when unknown */
+REFL_API refl_method refl_method_from_name(const char *name);  /* any case; 0 when unknown */
+REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render draws with it */
 
 /* What a frame cost and what it drew. The first fields mean the same for
    every method; each method's own figures are in its sub-struct (zero for

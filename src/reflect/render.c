@@ -14,10 +14,20 @@ REFL_API const char *refl_method_name(refl_method m) {
     return (int)m >= 0 && m < REFL_METHOD_COUNT ? refl__method_names[m] : "unknown";
 }
 
+/* ASCII letters compared without case, as method names are written both ways. */
+static int refl__same_name(const char *a, const char *b) {
+    for (; *a && *b; ++a, ++b) {
+        char x = *a >= 'A' && *a <= 'Z' ? (char)(*a - 'A' + 'a') : *a;
+        char y = *b >= 'A' && *b <= 'Z' ? (char)(*b - 'A' + 'a') : *b;
+        if (x != y) return 0;
+    }
+    return *a == *b;
+}
+
 REFL_API refl_method refl_method_from_name(const char *name) {
     int i;
     for (i = 1; name && i < REFL_METHOD_COUNT; ++i)
-        if (!strcmp(name, refl__method_names[i])) return (refl_method)i;
+        if (refl__same_name(name, refl__method_names[i])) return (refl_method)i;
     return REFL_METHOD_DEFAULT;
 }
 
@@ -266,6 +276,8 @@ static refl_result refl__resolve_desc(const refl_render_desc *desc, refl_render_
     return REFL_OK;
 }
 
+REFL_API int refl_method_is_built(refl_method m) { return m == REFL_METHOD_DEFAULT || refl__method_row_of(m) != NULL; }
+
 REFL_API refl_result refl_validate_render_desc(const refl_render_desc *desc, const char **message) {
     refl_render_desc d;
     const char *why;
@@ -287,6 +299,12 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
     if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
     if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
+    {
+        refl_mat4 vm, pm;
+        refl_view_matrices(v, scene, &vm, &pm);
+        if (!refl__all_finite(vm.m, 16) || !refl__all_finite(pm.m, 16))
+            return "view: its matrices overflow float (eye, near or far too large)";
+    }
     for (i = 0; i < scene->object_count; ++i)
         if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
             scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)

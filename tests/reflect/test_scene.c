@@ -237,6 +237,12 @@ Test(refl_scene, render_rejects_bad_input) {
     v.width = 64;
     v.target = v.eye; /* no direction */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    v = s->camera; /* so far away that the projection overflows float: refused, not black */
+    v.width = 64;
+    v.height = 48;
+    v.eye = refl_v3(1e38f, 1e38f, 1e38f);
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert(strstr(f->message, "overflow") != NULL, "%s", f->message);
     refl_frame_destroy(f);
     cr_assert_eq(refl_frame_create(0, 10, NULL, &f), REFL_ERROR_INVALID_SIZE);
     cr_assert_null(f);
