@@ -834,10 +834,16 @@ Test(refl_shadow, degenerate_lights) {
     refl_frame_destroy(a);
     refl_frame_destroy(b);
     s->lights[0].type = REFL_LIGHT_POINT;
-    s->lights[0].position = refl_v3(NAN, 1.0f, 0.0f);
-    a = render(s, &v, REFL_DIRECT, 1, 2);
-    expect_sane(a, "no position");
-    refl_frame_destroy(a);
+    s->lights[0].position = refl_v3(NAN, 1.0f, 0.0f); /* refused, naming the light */
+    {
+        refl_render_desc d;
+        memset(&d, 0, sizeof d);
+        d.lighting.shadows = 1;
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &a), REFL_OK);
+        cr_assert_eq(refl_render(s, &v, &d, a), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(a->message, "light") != NULL, "%s", a->message);
+        refl_frame_destroy(a);
+    }
     s->lights[0].position = refl_v3(0.3f, 2.3f, -0.2f); /* on the box's top face */
     a = render(s, &v, REFL_DIRECT, 1, 2);
     expect_sane(a, "on a face");
