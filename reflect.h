@@ -903,7 +903,8 @@ typedef struct refl_raytrace_options {
 } refl_raytrace_options;
 
 typedef struct refl_envmap_options {
-    int size;                /* cube face size in pixels, at most 8192; 0: 256 */
+    int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
+                                each face: 1.2 GB); 0: 256 */
 } refl_envmap_options;
 
 typedef struct refl_planar_options {
@@ -8286,7 +8287,8 @@ static void refl__em_row(void *arg, int y) {
 }
 
 static const char *refl__options_envmap(refl_render_desc *d) {
-    if (d->envmap.size < 0 || d->envmap.size > 8192) return "envmap.size: 0 (256) to 8192";
+    /* six faces of float colour, points, depth and positions: 48 bytes a texel */
+    if (d->envmap.size < 0 || d->envmap.size > 2048) return "envmap.size: 0 (256) to 2048 (1.2 GB of cube buffers)";
     if (d->envmap.size == 0) d->envmap.size = 256;
     return NULL;
 }

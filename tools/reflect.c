@@ -50,7 +50,7 @@ static const char *const usage_render =
     "                     of the incidence (paper 003's Fresnel blend; each in 0..1)\n"
     "  --fade D,MIN,MAX   every mirror's reflection faded from MAX to MIN, quadratically\n"
     "                     in its distance up to D (paper 003's attenuation; PLANAR: none)\n"
-    "  --envmap-size N    ENVMAP cube face size in pixels (default 256)\n"
+    "  --envmap-size N    ENVMAP cube face size in pixels, 1..2048 (default 256)\n"
     "  --no-culling       PLANAR: render every mirror at every level (paper 002's count)\n"
     "  --max-renderings N PLANAR: mirror renderings per frame at most (default 256);\n"
     "                     the mirrors past them are ray traced\n"
@@ -272,7 +272,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--max-renderings")) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
-            if (!parse_int(v, 1, 8192, &o->envmap_size)) return fail("--envmap-size: expected 1..8192, got %s", v);
+            if (!parse_int(v, 1, 2048, &o->envmap_size)) return fail("--envmap-size: expected 1..2048, got %s", v);
         } else if (!strcmp(a, "--density")) {
             if (!parse_float(v, 1e-9f, 1e9f, &o->density)) return fail("--density: not a positive density: %s", v);
         } else if (!strcmp(a, "--leaf-points")) {

@@ -901,7 +901,8 @@ typedef struct refl_raytrace_options {
 } refl_raytrace_options;
 
 typedef struct refl_envmap_options {
-    int size;                /* cube face size in pixels, at most 8192; 0: 256 */
+    int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
+                                each face: 1.2 GB); 0: 256 */
 } refl_envmap_options;
 
 typedef struct refl_planar_options {

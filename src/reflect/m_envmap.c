@@ -244,7 +244,8 @@ static void refl__em_row(void *arg, int y) {
 }
 
 static const char *refl__options_envmap(refl_render_desc *d) {
-    if (d->envmap.size < 0 || d->envmap.size > 8192) return "envmap.size: 0 (256) to 8192";
+    /* six faces of float colour, points, depth and positions: 48 bytes a texel */
+    if (d->envmap.size < 0 || d->envmap.size > 2048) return "envmap.size: 0 (256) to 2048 (1.2 GB of cube buffers)";
     if (d->envmap.size == 0) d->envmap.size = 256;
     return NULL;
 }

@@ -157,7 +157,7 @@ static int never_occluded(void *user, refl_vec3 o, refl_vec3 dir, float tmin, fl
     return 0;
 }
 static void bad_caster(refl_render_desc *d) { d->raytrace.caster.occluded = never_occluded; }
-static void bad_envmap(refl_render_desc *d) { d->envmap.size = 8193; }
+static void bad_envmap(refl_render_desc *d) { d->envmap.size = 2049; }
 static void bad_culling(refl_render_desc *d) { d->planar.no_culling = 7; }
 static void bad_density(refl_render_desc *d) { d->c3rc.point_density = -1.0f; }
 static void bad_leaf(refl_render_desc *d) { d->c3rc.kd_leaf_points = -5; }
