@@ -170,6 +170,7 @@ void rgl_destroy(rgl_context *g) {
 }
 
 const char *rgl_renderer(const rgl_context *g) { return g->renderer; }
+GLuint rgl_default_framebuffer(const rgl_context *g) { return g->fbo; }
 const char *rgl_version(const rgl_context *g) { return g->version; }
 const char *rgl_egl_vendor(const rgl_context *g) { return g->vendor; }
 

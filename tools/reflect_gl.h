@@ -12,6 +12,7 @@
 #define REFLECT_GL_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 /* The context: opaque, one per process at a time. */
 typedef struct rgl_context rgl_context;
@@ -44,6 +45,32 @@ enum { RGL_CAMERAS = 4 };
    both ways (GL `repeats` times, the best time kept). 0 on success. */
 int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_validation *out, char *err,
                  size_t err_size);
+
+/* A frame of PLANAR through GL (tools/reflect_gl_frame.c): GL draws the
+   base pass and each planar mirror through refl_mirror_project, the CPU
+   shades with reflect.h's shading and composites as PLANAR does. Fills
+   frame's stencil (on the planar mirrors' pixels: the mirror object + 1;
+   0 elsewhere, curved reflectors included) and points (what each mirror
+   pixel shows, NaN elsewhere), and rgb (3 linear floats per pixel, rows
+   top first); frame is the view's size. One bounce. 0 on success. */
+typedef struct rgl_frame_stats {
+    int mirrors;             /* planar mirrors drawn through */
+    long long vertices;      /* vertices GL transformed, every pass */
+    double gl_seconds;       /* upload, both passes and the read-backs */
+    double shade_seconds;    /* the CPU's shading and compositing */
+} rgl_frame_stats;
+int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                      rgl_frame_stats *st, char *err, size_t err_size);
+
+/* The GL path's numbers (tools/reflect_gl_bench.c), a line each on stdout
+   and, when csv is not NULL, a CSV header and rows. rgl_bench_projection:
+   every camera's validation on `points` points, GL timed best of
+   `repeats` (check: nonzero when one fails rgl_validation_ok).
+   rgl_bench_frames: PLANAR frames of mirror-room through GL against the
+   CPU path at each size of "WxH,WxH,...", RAYTRACE as the truth up to
+   truth_max pixels. Return 0 on success. */
+int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
+int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv);
 
 /* The agreement a validation must show (docs/gl.md): at most this share
    of points projecting on one side only, and the errors of the others. */

@@ -34,6 +34,8 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, ReadPixels, (GLint, GLint, GLsizei, GLsizei, GLenum, GLenum, void *)) \
     X(void, PixelStorei, (GLenum, GLint)) \
     X(void, DrawArrays, (GLenum, GLint, GLsizei)) \
+    X(void, DrawBuffers, (GLsizei, const GLenum *)) \
+    X(void, ReadBuffer, (GLenum)) \
     X(void, DrawElements, (GLenum, GLsizei, GLenum, const void *)) \
     X(GLuint, CreateShader, (GLenum)) \
     X(void, ShaderSource, (GLuint, GLsizei, const GLchar_rgl *const *, const GLint *)) \
@@ -107,5 +109,7 @@ GLuint rgl_program(const char *const *vs_parts, int vs_count, const char *const 
                    const char *const *varyings, int varying_count, char *err, size_t n);
 GLuint rgl_buffer_texture(const float *data, long long floats, GLuint *buffer, char *err, size_t n);
 double rgl_now(void);
+struct rgl_context;
+GLuint rgl_default_framebuffer(const struct rgl_context *g); /* the context's 1 x 1 framebuffer */
 
 #endif

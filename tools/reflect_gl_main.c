@@ -9,6 +9,11 @@
                                         they disagree beyond the bounds of docs/gl.md
      reflect_gl bench [--points N] [--repeats R] [--csv FILE]
                                         projection rate of every camera, GL beside C
+     reflect_gl frames [--sizes WxH,...] [--truth-max-pixels N] [--csv FILE]
+                                        PLANAR frames of the built-in scenes through GL
+                                        against the CPU path (reflection error, PSNR
+                                        over reflector pixels, frame times); RAYTRACE
+                                        as the truth up to N pixels (default 640x480)
 
    Exit status 0 on success, 1 on a failed check, 2 on bad usage, 3 when no
    EGL context can be created. */
@@ -21,22 +26,28 @@
 #include <string.h>
 
 int main(int argc, char **argv) {
-    const char *cmd = argc > 1 ? argv[1] : "", *csv_path = NULL;
-    long long points = -1;
+    const char *cmd = argc > 1 ? argv[1] : "", *csv_path = NULL, *sizes = "640x480";
+    long long points = -1, truth_max = 640 * 480;
     int repeats = 5, i, failed = 0;
     rgl_context *g = NULL;
     char err[1024];
     FILE *csv = NULL;
-    if (strcmp(cmd, "info") && strcmp(cmd, "validate") && strcmp(cmd, "bench")) {
+    if (strcmp(cmd, "info") && strcmp(cmd, "validate") && strcmp(cmd, "bench") && strcmp(cmd, "frames")) {
         fprintf(stderr, "usage: reflect_gl info | validate [--points N] [--csv FILE] |"
-                        " bench [--points N] [--repeats R] [--csv FILE]\n");
+                        " bench [--points N] [--repeats R] [--csv FILE] |"
+                        " frames [--sizes WxH,...] [--truth-max-pixels N] [--csv FILE]\n");
         return 2;
     }
     for (i = 2; i < argc; ++i) {
         if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--csv") && i + 1 < argc) csv_path = argv[++i];
-        else {
+        else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
+        else if (!strcmp(argv[i], "--truth-max-pixels") && i + 1 < argc) truth_max = atoll(argv[++i]);
+        else if (!strcmp(argv[i], "--help")) {
+            printf("see the top of tools/reflect_gl_main.c\n");
+            return 0;
+        } else {
             fprintf(stderr, "reflect_gl: unknown argument %s\n", argv[i]);
             return 2;
         }
@@ -57,29 +68,9 @@ int main(int argc, char **argv) {
         rgl_destroy(g);
         return 2;
     }
-    if (csv)
-        fprintf(csv, "renderer,camera,points,projected,disagree,max_rel,p999_rel,gl_seconds,gl_mpoints_per_s,"
-                     "cpu_seconds,cpu_mpoints_per_s,fixture\n");
-    for (i = 0; i < RGL_CAMERAS; ++i) {
-        rgl_validation v;
-        if (rgl_validate(g, i, points, !strcmp(cmd, "bench") ? repeats : 1, &v, err, sizeof err) != 0) {
-            fprintf(stderr, "reflect_gl: camera %d: %s\n", i, err);
-            failed = 1;
-            continue;
-        }
-        printf("%-12s %9lld points, %9lld projected, %6lld disagree (%.2e), max rel %.2e, p99.9 %.2e, "
-               "GL %.2f M/s, C %.2f M/s, leaves %lld/%lld  [%s]\n",
-               v.camera, v.points, v.projected, v.disagree, (double)v.disagree / (double)v.points, v.max_rel,
-               v.p999_rel, v.points / v.gl_seconds * 1e-6, v.points / v.cpu_seconds * 1e-6, v.pinhole_points, v.raylist_points, v.note);
-        if (csv)
-            fprintf(csv, "\"%s\",%s,%lld,%lld,%lld,%.3e,%.3e,%.6f,%.3f,%.6f,%.3f,\"%s\"\n", rgl_renderer(g), v.camera,
-                    v.points, v.projected, v.disagree, v.max_rel, v.p999_rel, v.gl_seconds,
-                    v.points / v.gl_seconds * 1e-6, v.cpu_seconds, v.points / v.cpu_seconds * 1e-6, v.note);
-        if (!strcmp(cmd, "validate") && !rgl_validation_ok(&v)) {
-            fprintf(stderr, "reflect_gl: %s: GLSL and C disagree beyond the bounds\n", v.camera);
-            failed = 1;
-        }
-    }
+    failed = !strcmp(cmd, "frames") ? rgl_bench_frames(g, sizes, truth_max, csv)
+                                    : rgl_bench_projection(g, points, !strcmp(cmd, "bench") ? repeats : 1,
+                                                           !strcmp(cmd, "validate"), csv);
     if (csv) fclose(csv);
     rgl_destroy(g);
     return failed;
