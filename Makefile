@@ -341,7 +341,7 @@ $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h
 
 $(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IMPL_OBJS)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $^ -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
+	$(CC) $(CFLAGS) $^ -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(EGL_LIBS) $(LDLIBS)
 -include $(REFLECT_OBJS:.o=.d)
 
 # ---- the GL path ----
@@ -367,7 +367,7 @@ $(REFLECT_GL_BIN): build/tools/reflect_gl_main.o $(REFLECT_GL_OBJS) $(IMPL_OBJS)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $^ -o $@ $(EGL_LIBS) $(LDLIBS)
 
-$(TEST_BIN): $(REFLECT_GL_OBJS)
+$(TEST_BIN) $(REFLECT_BIN): $(REFLECT_GL_OBJS)
 $(ASAN_TEST_BIN): build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_frame.o build/asan/tools/reflect_gl_bench.o
 -include $(REFLECT_GL_OBJS:.o=.d) build/tools/reflect_gl_main.d build/asan/tools/reflect_gl.d build/asan/tools/reflect_gl_frame.d \
            build/asan/tools/reflect_gl_bench.d

@@ -14,6 +14,7 @@
 #include "gltf_load.h"
 #include "image_io.h"
 #include "reflect_bench.h"
+#include "reflect_gl.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -29,6 +30,7 @@ static const char *const usage_main =
     "  info     list a scene's objects, materials, triangles and bounds\n"
     "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
     "  bench    every method x scene x setting: times, errors, CSV and charts\n"
+    "           (bench --gl: the GL path's projection rates and frames, docs/gl.md)\n"
     "\n"
     "'reflect COMMAND --help' describes each command.\n";
 
@@ -39,6 +41,7 @@ static const char *const usage_render =
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
     "                     (more methods arrive with later work)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, one bounce\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -104,6 +107,7 @@ typedef struct options {
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
+    int gl;                       /* --gl: the GL path (tools/reflect_gl_frame.c) */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -146,7 +150,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int takes = a[0] == '-' && strcmp(a, "--help") && strcmp(a, "-h") && strcmp(a, "--stats") &&
                     strcmp(a, "--shadows") && strcmp(a, "--no-culling") &&
-                    strcmp(a, "--light-volumes") && strcmp(a, "--trace-fallback");
+                    strcmp(a, "--light-volumes") && strcmp(a, "--trace-fallback") && strcmp(a, "--gl");
         if (takes && !v) return fail("%s needs a value", a);
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(is_render ? usage_render : usage_info, stdout);
@@ -231,6 +235,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--trace-fallback")) {
             o->trace_fallback = 1;
             continue;
+        } else if (!strcmp(a, "--gl")) {
+            o->gl = 1;
+            continue;
         } else if (a[0] == '-') {
             return fail("render: unknown option %s (see reflect render --help)", a);
         } else {
@@ -305,6 +312,54 @@ static refl_result write_linear(const char *path, const refl_frame *f, char *err
     return r;
 }
 
+/* --gl: PLANAR through the GL host (one bounce), written as any frame is. */
+static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
+    rgl_context *g = NULL;
+    refl_frame *f = NULL;
+    rgl_frame_stats st;
+    size_t i, n = (size_t)v->width * (size_t)v->height;
+    float *rgb = NULL, *rgba = NULL;
+    char err[1024];
+    int code = 1;
+    if (m != REFL_PLANAR) {
+        fprintf(stderr, "reflect: --gl draws PLANAR only (--method planar)\n");
+        return 2;
+    }
+    if (rgl_create(&g, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: --gl: no GL context: %s\n", err);
+        return 1;
+    }
+    rgb = (float *)malloc(n * 3 * sizeof(float));
+    rgba = (float *)malloc(n * 4 * sizeof(float));
+    if (!rgb || !rgba || refl_frame_create(v->width, v->height, NULL, &f) != REFL_OK) {
+        fprintf(stderr, "reflect: out of memory\n");
+        goto out;
+    }
+    if (rgl_render_planar(g, s, v, f, rgb, &st, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: --gl: %s\n", err);
+        goto out;
+    }
+    for (i = 0; i < n; ++i) {
+        memcpy(rgba + 4 * i, rgb + 3 * i, 3 * sizeof(float));
+        rgba[4 * i + 3] = 1.0f;
+    }
+    if (refl_image_write(o->out, v->width, v->height, 4, NULL, rgba, err, sizeof err) != REFL_OK) {
+        fprintf(stderr, "reflect: %s\n", err);
+        goto out;
+    }
+    if (o->stats)
+        printf("method       planar (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\nmirrors      %d\n"
+               "GL ms        %.2f\nshading ms   %.2f\n",
+               rgl_renderer(g), v->width, v->height, st.mirrors, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
+    code = 0;
+out:
+    free(rgb);
+    free(rgba);
+    refl_frame_destroy(f);
+    rgl_destroy(g);
+    return code;
+}
+
 static int cmd_render(const options *o) {
     refl_scene *s = load_scene(o);
     refl_frame *f = NULL;
@@ -373,6 +428,10 @@ static int cmd_render(const options *o) {
     }
     if (o->method && !(d.method = refl_method_from_name(o->method))) {
         fprintf(stderr, "reflect: unknown method '%s'\n", o->method);
+        goto done;
+    }
+    if (o->gl) {
+        code = render_gl(o, s, &v, d.method);
         goto done;
     }
     if (isatty(2)) d.progress = progress_bar;
@@ -566,7 +625,12 @@ int main(int argc, char **argv) {
         return is_render ? cmd_render(&o) : cmd_info(&o);
     }
     if (!strcmp(argv[1], "compare")) return cmd_compare(argc, argv);
-    if (!strcmp(argv[1], "bench")) return refl_cli_bench(argc, argv);
+    if (!strcmp(argv[1], "bench")) {
+        int i;
+        for (i = 2; i < argc; ++i)
+            if (!strcmp(argv[i], "--gl")) return rgl_cli_bench(argc, argv);
+        return refl_cli_bench(argc, argv);
+    }
     fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);
     return 2;
 }

@@ -72,6 +72,10 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
 int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv);
 
+/* `reflect bench --gl [--out DIR] [--sizes ...] [--points N] [--repeats R]`:
+   both of the above into DIR/gl_projection.csv and DIR/gl_frames.csv. */
+int rgl_cli_bench(int argc, char **argv);
+
 /* The agreement a validation must show (docs/gl.md): at most this share
    of points projecting on one side only, and the errors of the others. */
 #define RGL_MAX_DISAGREE 1e-3

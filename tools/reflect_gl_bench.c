@@ -176,3 +176,52 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
     return failed;
 }
 
+
+int rgl_cli_bench(int argc, char **argv) {
+    const char *dir = "out/bench", *sizes = "320x240,640x480";
+    long long points = 1000000;
+    int repeats = 5, i, failed;
+    rgl_context *g = NULL;
+    char err[1024], path[1024];
+    FILE *csv;
+    for (i = 2; i < argc; ++i) {
+        if (!strcmp(argv[i], "--gl")) continue;
+        if (!strcmp(argv[i], "--out") && i + 1 < argc) dir = argv[++i];
+        else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
+        else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
+        else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
+        else {
+            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--points N] [--repeats R]\n"
+                            "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
+                            "  DIR/gl_frames.csv: PLANAR frames through GL against the CPU path\n");
+            return !strcmp(argv[i], "--help") ? 0 : 2;
+        }
+    }
+    if (rgl_create(&g, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: bench --gl: no GL context: %s\n", err);
+        return 1;
+    }
+    printf("GL renderer: %s (%s)\n", rgl_renderer(g), rgl_version(g));
+    snprintf(path, sizeof path, "mkdir -p '%s'", dir);
+    if (system(path) != 0) {
+        rgl_destroy(g);
+        return 1;
+    }
+    snprintf(path, sizeof path, "%s/gl_projection.csv", dir);
+    if (!(csv = fopen(path, "w"))) {
+        rgl_destroy(g);
+        return 1;
+    }
+    failed = rgl_bench_projection(g, points, repeats, 0, csv);
+    fclose(csv);
+    snprintf(path, sizeof path, "%s/gl_frames.csv", dir);
+    if (!(csv = fopen(path, "w"))) {
+        rgl_destroy(g);
+        return 1;
+    }
+    failed |= rgl_bench_frames(g, sizes, 640 * 480, csv);
+    fclose(csv);
+    rgl_destroy(g);
+    printf("wrote %s/gl_projection.csv and %s/gl_frames.csv\n", dir, dir);
+    return failed;
+}
