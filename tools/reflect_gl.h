@@ -62,6 +62,11 @@ typedef struct rgl_frame_stats {
 int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                       rgl_frame_stats *st, char *err, size_t err_size);
 
+/* PSNR (dB) of a GL frame's colours (rgb, from rgl_render_planar) against
+   the CPU frame's over the planar mirrors' pixels (gl's stencil), both
+   encoded to sRGB8; NaN without mirror pixels. */
+double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float *gl_rgb);
+
 /* The GL path's numbers (tools/reflect_gl_bench.c), a line each on stdout
    and, when csv is not NULL, a CSV header and rows. rgl_bench_projection:
    every camera's validation on `points` points, GL timed best of

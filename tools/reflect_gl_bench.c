@@ -48,9 +48,7 @@ static uint8_t srgb8(float v) {
     return (uint8_t)(s * 255.0f + 0.5f);
 }
 
-/* PSNR (dB) of the GL frame's colours against the CPU frame's over the
-   planar mirrors' pixels (the GL frame's stencil), both sRGB8. */
-static double reflector_psnr(const refl_frame *cpu, const refl_frame *gl, const float *gl_rgb) {
+double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float *gl_rgb) {
     uint8_t *c = (uint8_t *)malloc((size_t)cpu->width * cpu->height * 4);
     double se = 0.0;
     long long count = 0, i;
@@ -149,7 +147,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
                 failed = 1;
             } else {
                 refl_measure_reflection_error(gf, cf, NULL, &e_gc);
-                psnr = reflector_psnr(cf, gf, rgb);
+                psnr = rgl_mirror_psnr(cf, gf, rgb);
                 if ((long long)w * h <= truth_max && (tf = cpu_frame(s, &v, REFL_RAYTRACE, &truth_s))) {
                     refl_measure_reflection_error(gf, tf, NULL, &e_gt);
                     refl_measure_reflection_error(cf, tf, NULL, &e_ct);
