@@ -79,6 +79,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_morph.c \
                  src/reflect/cam_sbc_raylist.c \
                  src/reflect/gbuffer.c \
+                 src/reflect/gl_hooks.c \
                  src/reflect/kdtree.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \
@@ -155,7 +156,7 @@ CHECK_CXXFLAGS = -std=c++11 -O0 -Wall -Wextra -Werror -pthread
 all: headers
 	@$(MAKE) --no-print-directory build-all
 
-build-all: compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN)
+build-all: compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN) $(REFLECT_GL_BIN)
 
 # ---- headers ----
 
@@ -340,8 +341,36 @@ $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h
 
 $(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IMPL_OBJS)
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS) $^ -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(LDLIBS)
+	$(CC) $(CFLAGS) $^ -o $@ $(REFLECT_TOOLS_LIBS) -lembree3 $(EGL_LIBS) $(LDLIBS)
 -include $(REFLECT_OBJS:.o=.d)
+
+# ---- the GL path ----
+
+# The GL host (tools/reflect_gl*.c): an EGL context whose GL entry points are
+# loaded through eglGetProcAddress, so it links libEGL alone. reflect_gl is
+# the GL path's checks as a program that needs nothing else (run on a bare
+# GPU machine by tools/gl_device_check.sh); the tests and `reflect` link the
+# host too.
+REFLECT_GL_BIN  = build/bin/reflect_gl
+REFLECT_GL_OBJS = build/tools/reflect_gl.o build/tools/reflect_gl_frame.o build/tools/reflect_gl_bench.o
+EGL_LIBS        = -lEGL
+
+$(REFLECT_GL_OBJS) build/tools/reflect_gl_main.o: build/tools/%.o: tools/%.c | rast.h reflect.h
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_frame.o build/asan/tools/reflect_gl_bench.o: build/asan/tools/%.o: tools/%.c | rast.h reflect.h
+	@mkdir -p $(@D)
+	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
+
+$(REFLECT_GL_BIN): build/tools/reflect_gl_main.o $(REFLECT_GL_OBJS) $(IMPL_OBJS)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $^ -o $@ $(EGL_LIBS) $(LDLIBS)
+
+$(TEST_BIN) $(REFLECT_BIN): $(REFLECT_GL_OBJS)
+$(ASAN_TEST_BIN): build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_frame.o build/asan/tools/reflect_gl_bench.o
+-include $(REFLECT_GL_OBJS:.o=.d) build/tools/reflect_gl_main.d build/asan/tools/reflect_gl.d build/asan/tools/reflect_gl_frame.d \
+           build/asan/tools/reflect_gl_bench.d
 
 # ---- running ----
 
@@ -350,7 +379,7 @@ $(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IM
 # has counted the test as passed. Third-party leaks: tests/lsan.supp.
 test: deps
 	@$(MAKE) --no-print-directory check-headers
-	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN)
+	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN) $(REFLECT_GL_BIN)
 	bash tests/cli_test.sh $(REFLECT_BIN)
 	@rm -rf build/tests/digest build/portable/digest; mkdir -p build/tests/digest build/portable/digest
 	RAST_TEST_DIGEST_DIR=build/tests/digest timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)

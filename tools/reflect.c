@@ -14,6 +14,7 @@
 #include "gltf_load.h"
 #include "image_io.h"
 #include "reflect_bench.h"
+#include "reflect_gl.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -30,6 +31,7 @@ static const char *const usage_main =
     "  info     list a scene's objects, materials, triangles and bounds\n"
     "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
     "  bench    every method x scene x setting: times, errors, CSV and charts\n"
+    "           (bench --gl: the GL path's projection rates and frames, docs/gl.md)\n"
     "\n"
     "'reflect COMMAND --help' describes each command; 'reflect --version' prints\n"
     "the version.\n";
@@ -43,6 +45,7 @@ static const char *const usage_render =
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, one bounce\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -123,6 +126,7 @@ typedef struct options {
     refl_display_desc display; /* --exposure, --tonemap */
     const char *mirror[8], *glass[8]; /* --mirror, --glass */
     int mirror_count, glass_count;
+    int gl;                       /* --gl: the GL path (tools/reflect_gl_frame.c) */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -163,7 +167,7 @@ static const char *const value_options[] = {
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
-                                           "--light-volumes", "--trace-fallback", NULL};
+                                           "--light-volumes", "--trace-fallback", "--gl", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -300,6 +304,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--trace-fallback")) {
             o->trace_fallback = 1;
             continue;
+        } else if (!strcmp(a, "--gl")) {
+            o->gl = 1;
+            continue;
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
             o->file = a;
@@ -410,6 +417,52 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
+/* --gl: PLANAR through the GL host (one bounce), written as any frame is. */
+static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
+    rgl_context *g = NULL;
+    refl_frame *f = NULL;
+    rgl_frame_stats st;
+    size_t i, n = (size_t)v->width * (size_t)v->height;
+    float *rgb = NULL;
+    char err[1024];
+    int code = 1;
+    if (m != REFL_PLANAR) {
+        fprintf(stderr, "reflect: --gl draws PLANAR only (--method planar)\n");
+        return 2;
+    }
+    if (rgl_create(&g, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: --gl: no GL context: %s\n", err);
+        return 1;
+    }
+    rgb = (float *)malloc(n * 3 * sizeof(float));
+    if (!rgb || refl_frame_create(v->width, v->height, NULL, &f) != REFL_OK) {
+        fprintf(stderr, "reflect: out of memory\n");
+        goto out;
+    }
+    if (rgl_render_planar(g, s, v, f, rgb, &st, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: --gl: %s\n", err);
+        goto out;
+    }
+    for (i = 0; i < n; ++i) {
+        memcpy(f->rgba + 4 * i, rgb + 3 * i, 3 * sizeof(float));
+        f->rgba[4 * i + 3] = 1.0f;
+    }
+    if (write_frame(o->out, f, &o->display, err, sizeof err) != REFL_OK) {
+        fprintf(stderr, "reflect: %s\n", err);
+        goto out;
+    }
+    if (o->stats)
+        printf("method       planar (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\nmirrors      %d\n"
+               "GL ms        %.2f\nshading ms   %.2f\n",
+               rgl_renderer(g), v->width, v->height, st.mirrors, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
+    code = 0;
+out:
+    free(rgb);
+    refl_frame_destroy(f);
+    rgl_destroy(g);
+    return code;
+}
+
 static int cmd_render(const options *o) {
     refl_scene *s = load_scene(o);
     refl_frame *f = NULL;
@@ -489,6 +542,10 @@ static int cmd_render(const options *o) {
         }
     }
     if (o->method) d.method = refl_method_from_name(o->method); /* checked by parse */
+    if (o->gl) {
+        code = render_gl(o, s, &v, d.method);
+        goto done;
+    }
     if (isatty(2)) d.progress = progress_bar;
     if ((r = refl_frame_create(v.width, v.height, NULL, &f)) != REFL_OK) {
         fprintf(stderr, "reflect: frame %dx%d: %s\n", v.width, v.height, refl_result_string(r));
@@ -690,7 +747,12 @@ int main(int argc, char **argv) {
         return is_render ? cmd_render(&o) : cmd_info(&o);
     }
     if (!strcmp(argv[1], "compare")) return cmd_compare(argc, argv);
-    if (!strcmp(argv[1], "bench")) return refl_cli_bench(argc, argv);
+    if (!strcmp(argv[1], "bench")) {
+        int i;
+        for (i = 2; i < argc; ++i)
+            if (!strcmp(argv[i], "--gl")) return rgl_cli_bench(argc, argv);
+        return refl_cli_bench(argc, argv);
+    }
     fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);
     return 2;
 }

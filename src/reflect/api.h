@@ -730,6 +730,42 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
                                                    refl_vec3 *first, float *dist, uint8_t *status,
                                                    long long *ambiguous);
 
+/* ---- GL hooks: the cameras in a GL vertex program (docs/gl.md) ---------------
+   Each camera packs into plain floats, read in GLSL 3.30 as a buffer texture
+   of vec4 (GL_RGBA32F, texelFetch on a samplerBuffer), and refl_gl_glsl
+   gives the source (no #version line) of the function projecting a world
+   point with them; the functions of every camera may share one program.
+   No GL here: a host (tools/reflect_gl.c) uploads and draws. A block starts
+   with a header texel (camera, REFL_GL_LAYOUT_VERSION, two counts) and
+   carries every number its projection reads; integers are stored as
+   floats (exact below 2^24). The layouts are in docs/gl.md. Packers return
+   the floats the block needs and write them only when cap holds them all
+   (out may be NULL to size), or a negative refl_result. */
+#define REFL_GL_LAYOUT_VERSION 1
+#define REFL_GL_C3RC_TEXELS 16        /* per camera, after the header texel */
+#define REFL_GL_SBC_HEADER_TEXELS 4
+#define REFL_GL_SBC_NODE_TEXELS 4
+#define REFL_GL_SBC_CAM_TEXELS 16
+#define REFL_GL_SBC_QUAD_TEXELS 20
+#define REFL_GL_SBC_INDEX_TEXELS 6
+typedef enum refl_gl_camera {
+    REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
+    REFL_GL_C3RC,            /* an array of C3RCs */
+    REFL_GL_SBC              /* one SBC: its BSP tree, pinhole and ray-list leaves */
+} refl_gl_camera;
+/* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
+         int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
+             (a, b, c, t) ascending in t; vec3 refl_c3rc_image(samplerBuffer, int base, int cam, vec4 proj)
+         bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
+   NULL for an unknown camera. */
+REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
+/* The mirror plane n . x = d (n towards the mirror's front; need not be
+   unit) and the viewer's view-projection: clip = vp * R * p, with the
+   plane as the clip distance n . p - d (>= 0: in front of the mirror). */
+REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap);
+REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
+REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
+
 /* ---- rendering -------------------------------------------------------------- */
 
 typedef enum refl_method {

@@ -126,6 +126,21 @@ static int refl__sbc_centre(const refl__sbc_builder *b, const int *list, int n, 
 static int refl__sbc_fit_ok(refl__sbc_builder *b, const int *list, int n, refl__sbc_cam *k);
 static int refl__sbc_cam_project(const refl__sbc_cam *k, const double *p, refl_vec3 *first, float *z);
 
+/* Ray-list leaves' thresholds (cam_sbc_raylist.c; the GL hooks pack them). */
+/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
+   lies on the reflector: heads are twice as far as what the rays meet, so
+   what they reflect lies near 0.5. */
+#define REFL__SBC_ON_SURFACE 0.02
+
+/* The exact test's (s, t) tolerance, and the fallback's reach for a point
+   no quad holds: its lateral distance to a quad (at clamped (s, t)), in
+   the quad's diagonals. Near a fold (a caustic: a neighbour ray crossing
+   the sample's) the quads around a ray do not cover all sides of it, and
+   a point a hair off the ray (a pixel's own reflected ray, not the
+   sample's) lies in none of them. */
+#define REFL__SBC_TOL 1e-4
+#define REFL__SBC_NEAR 0.01
+
 /* cam_sbc_raylist.c: a ray-list leaf of the set (its quads, box and
    index), and its projection of p per sheet (sheets 0: one for all): the
    mask of the sheets p projects in. */

@@ -32,20 +32,6 @@
    already stop most points. */
 #define REFL__SBC_INDEX_MIN 16
 
-/* A point nearer its interpolated ray's tail than this (0 tail, 1 head)
-   lies on the reflector: heads are twice as far as what the rays meet, so
-   what they reflect lies near 0.5. */
-#define REFL__SBC_ON_SURFACE 0.02
-
-/* The exact test's (s, t) tolerance, and the fallback's reach for a point
-   no quad holds: its lateral distance to a quad (at clamped (s, t)), in
-   the quad's diagonals. Near a fold (a caustic: a neighbour ray crossing
-   the sample's) the quads around a ray do not cover all sides of it, and
-   a point a hair off the ray (a pixel's own reflected ray, not the
-   sample's) lies in none of them. */
-#define REFL__SBC_TOL 1e-4
-#define REFL__SBC_NEAR 0.01
-
 /* A quad's frame in double: what build and projection both compute with. */
 typedef struct refl__sbc_frame {
     double o[3], m[3], a[3], b[3];

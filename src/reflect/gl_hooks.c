@@ -1,0 +1,467 @@
+/* gl_hooks: the camera models handed to a GL vertex program (DESIGN.md
+   section 2, "GL hooks"; docs/gl.md). Each camera packs into plain floats
+   that a GLSL 3.30 program reads as a buffer texture of vec4 (GL_RGBA32F,
+   texelFetch on a samplerBuffer), and refl_gl_glsl gives the source of the
+   function that projects a world point with them. Nothing here calls GL:
+   the host (tools/reflect_gl.c) uploads the floats and compiles the source.
+
+   Every block starts with a header texel (kind, REFL_GL_LAYOUT_VERSION,
+   then two kind-specific counts) and carries every number its projection
+   reads (thresholds included), so a shader needs nothing else. Integers
+   (counts, indices, offsets) are stored as floats, exact below 2^24; a
+   packer refuses anything larger. Offsets inside a block count texels
+   from the block's header. The GLSL mirrors the C projection in float
+   where the C computes in double, so the two agree to float rounding
+   except where the C's own decisions (a BSP side, a root's existence) sit
+   within that rounding. */
+#include "cam_sbc_internal.h"
+
+#define REFL__GL_INT_MAX 16777216.0 /* 2^24: integers stored as floats are exact below */
+
+/* A packer's output: out NULL while it only counts. */
+typedef struct refl__gl_out {
+    float *out;
+    long long cap, n;
+} refl__gl_out;
+
+static void refl__gl_put(refl__gl_out *o, double v) {
+    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
+    ++o->n;
+}
+
+static void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
+    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}
+
+/* A double[3] and a fourth value: one texel. */
+static void refl__gl_put3d(refl__gl_out *o, const double *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }
+
+static void refl__gl_put3f(refl__gl_out *o, const float *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }
+
+static void refl__gl_put_v3(refl__gl_out *o, refl_vec3 v, double w) { refl__gl_put4(o, v.x, v.y, v.z, w); }
+
+/* What a packer returns: the floats needed (written when they fit). */
+static long long refl__gl_done(const refl__gl_out *o) { return o->n; }
+
+/* ---- PLANAR: the mirrored pinhole -------------------------------------------- */
+
+static long long refl__gl_mirror(refl__gl_out *op, refl_mat4 view_proj, refl_vec3 normal, float d) {
+    refl__gl_out o = *op;
+    double n[3] = {normal.x, normal.y, normal.z}, len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    refl_mat4 m;
+    int i;
+    if (!(len > 0.0) || !refl__isfinite(d)) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < 3; ++i) n[i] /= len;
+    /* the same reflection PLANAR draws its mirrored levels with */
+    m = refl_mat4_mul(view_proj, refl__planar_reflection(n, d / len));
+    refl__gl_put4(&o, REFL_GL_MIRROR, REFL_GL_LAYOUT_VERSION, 0, 0);
+    for (i = 0; i < 16; ++i) refl__gl_put(&o, m.m[i]);
+    refl__gl_put4(&o, n[0], n[1], n[2], -(double)d / len);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_mirror(&o, view_proj, normal, d);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_mirror(&o, view_proj, normal, d);
+}
+
+/* ---- C3RC -------------------------------------------------------------------- */
+
+/* The indices of cam->pre[] (cam_c3rc.c's layout) the GLSL reads. */
+enum {
+    REFL__GL_C3RC_N0 = 0, REFL__GL_C3RC_N1 = 3, REFL__GL_C3RC_N2 = 6, REFL__GL_C3RC_M = 9, REFL__GL_C3RC_CTR = 13,
+    REFL__GL_C3RC_R = 16, REFL__GL_C3RC_INVM = 17, REFL__GL_C3RC_L = 18, REFL__GL_C3RC_E1 = 21,
+    REFL__GL_C3RC_E2 = 24, REFL__GL_C3RC_F1 = 27, REFL__GL_C3RC_F2 = 30, REFL__GL_C3RC_D1 = 33,
+    REFL__GL_C3RC_U = 36, REFL__GL_C3RC_ULEN = 39
+};
+
+static long long refl__gl_c3rc(refl__gl_out *op, const refl_c3rc *cams, int count) {
+    refl__gl_out o = *op;
+    int i;
+    if (count < 0 || (count > 0 && !cams) || count >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_C3RC, REFL_GL_LAYOUT_VERSION, count, REFL_GL_C3RC_TEXELS);
+    for (i = 0; i < count; ++i) {
+        const double *q = cams[i].pre;
+        refl__gl_put_v3(&o, cams[i].v[0], q[REFL__GL_C3RC_R]);
+        refl__gl_put_v3(&o, cams[i].v[1], q[REFL__GL_C3RC_INVM]);
+        refl__gl_put_v3(&o, cams[i].v[2], q[REFL__GL_C3RC_ULEN]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_N0, q[REFL__GL_C3RC_M + 0]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_N1, q[REFL__GL_C3RC_M + 1]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_N2, q[REFL__GL_C3RC_M + 2]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_CTR, q[REFL__GL_C3RC_M + 3]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_E1, q[REFL__GL_C3RC_L + 0]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_E2, q[REFL__GL_C3RC_L + 1]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_F1, q[REFL__GL_C3RC_L + 2]);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_F2, 0.0);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_D1, 0.0);
+        refl__gl_put3d(&o, q + REFL__GL_C3RC_U, 0.0);
+        refl__gl_put4(&o, 0, 0, 0, 0);
+        refl__gl_put4(&o, 0, 0, 0, 0);
+        refl__gl_put4(&o, 0, 0, 0, 0);
+    }
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_c3rc(&o, cams, count);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_c3rc(&o, cams, count);
+}
+
+/* ---- SBC --------------------------------------------------------------------- */
+
+static long long refl__gl_sbc(refl__gl_out *op, const refl_sbc *sbc) {
+    refl__gl_out o = *op;
+    long long node_off, cam_off, quad_off, index_off, start_off, list_off, end;
+    int i, j;
+    if (!sbc || !sbc->nodes) return REFL_ERROR_INVALID_ARGUMENT;
+    node_off = REFL_GL_SBC_HEADER_TEXELS;
+    cam_off = node_off + (long long)sbc->node_count * REFL_GL_SBC_NODE_TEXELS;
+    quad_off = cam_off + (long long)sbc->cam_count * REFL_GL_SBC_CAM_TEXELS;
+    index_off = quad_off + (long long)sbc->quad_count * REFL_GL_SBC_QUAD_TEXELS;
+    start_off = index_off + (long long)sbc->index_count * REFL_GL_SBC_INDEX_TEXELS;
+    list_off = start_off + (sbc->cell_start_count + 3) / 4;
+    end = list_off + (sbc->cell_quad_count + 3) / 4;
+    if (end >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SBC, REFL_GL_LAYOUT_VERSION, sbc->node_count, end);
+    refl__gl_put4(&o, node_off, cam_off, quad_off, index_off);
+    refl__gl_put4(&o, start_off, list_off, 0, 0);
+    refl__gl_put4(&o, REFL__SBC_TOL, REFL__SBC_NEAR, REFL__SBC_ON_SURFACE, 0);
+    for (i = 0; i < sbc->node_count; ++i) {
+        const refl__sbc_node *n = &sbc->nodes[i];
+        refl__gl_put3d(&o, n->plane, n->plane[3]);
+        refl__gl_put4(&o, n->child, n->kind, n->first, n->count);
+        refl__gl_put3f(&o, n->box, n->grid);
+        refl__gl_put3f(&o, n->box + 3, 0);
+    }
+    for (i = 0; i < sbc->cam_count; ++i) {
+        const refl__sbc_cam *k = &sbc->cams[i];
+        refl__gl_put3d(&o, k->o, k->ho);
+        refl__gl_put3d(&o, k->c, k->hmin);
+        refl__gl_put3d(&o, k->n, k->ocu);
+        refl__gl_put3d(&o, k->eu, k->ocv);
+        refl__gl_put3d(&o, k->ev, 0);
+        refl__gl_put4(&o, k->rect[0], k->rect[1], k->rect[2], k->rect[3]);
+        refl__gl_put4(&o, k->norm[0], k->norm[1], k->norm[2], k->norm[3]);
+        for (j = 0; j < 36; ++j) refl__gl_put(&o, k->coef[j / 12][j % 12]);
+    }
+    for (i = 0; i < sbc->quad_count; ++i) {
+        const refl__sbc_quad *q = &sbc->quads[i];
+        int c, W = sbc->width;
+        refl__gl_put3f(&o, q->o, 0);
+        refl__gl_put3f(&o, q->m, 0);
+        refl__gl_put3f(&o, q->a, 0);
+        refl__gl_put3f(&o, q->b, 0);
+        refl__gl_put4(&o, q->tau[0], q->tau[1], q->fold[0], q->fold[1]);
+        refl__gl_put4(&o, q->box[0][0], q->box[0][1], q->box[0][2], q->box[0][3]);
+        refl__gl_put4(&o, q->box[1][0], q->box[1][1], q->box[1][2], q->box[1][3]);
+        refl__gl_put3f(&o, q->aabb, 0);
+        refl__gl_put3f(&o, q->aabb + 3, 0);
+        refl__gl_put4(&o, q->len[0], q->len[1], q->len[2], q->len[3]);
+        for (c = 0; c < 4; ++c)
+            for (j = 0; j < 6; ++j) refl__gl_put(&o, q->ray[c][j]);
+        /* the four rays' first reflector points, what the blend returns */
+        for (c = 0; c < 4; ++c) refl__gl_put_v3(&o, sbc->rays[q->idx + (c & 1) + (c >> 1) * W].first, 0);
+    }
+    for (i = 0; i < sbc->index_count; ++i) {
+        const refl__sbc_index *ix = &sbc->indexes[i];
+        refl__gl_put3d(&o, ix->o, ix->t0);
+        refl__gl_put3d(&o, ix->m, ix->t_scale);
+        refl__gl_put3d(&o, ix->a, ix->x0);
+        refl__gl_put3d(&o, ix->b, ix->x_scale);
+        refl__gl_put4(&o, ix->y0, ix->y_scale, ix->slabs, ix->cells);
+        refl__gl_put4(&o, ix->start, 0, 0, 0);
+    }
+    for (i = 0; i < (sbc->cell_start_count + 3) / 4 * 4; ++i)
+        refl__gl_put(&o, i < sbc->cell_start_count ? sbc->cell_start[i] : 0);
+    for (i = 0; i < (sbc->cell_quad_count + 3) / 4 * 4; ++i)
+        refl__gl_put(&o, i < sbc->cell_quad_count ? sbc->cell_quads[i] : 0);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_sbc(&o, sbc);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_sbc(&o, sbc);
+}
+
+/* ---- GLSL -------------------------------------------------------------------- */
+
+static const char refl__gl_glsl_mirror[] =
+    "/* reflect.h GL hook: PLANAR's mirrored pinhole (layout version 1). */\n"
+    "vec4 refl_mirror_project(samplerBuffer data, int base, vec3 p, out float clip_distance) {\n"
+    "    mat4 m = mat4(texelFetch(data, base + 1), texelFetch(data, base + 2),\n"
+    "                  texelFetch(data, base + 3), texelFetch(data, base + 4));\n"
+    "    vec4 plane = texelFetch(data, base + 5);\n"
+    "    clip_distance = dot(plane.xyz, p) + plane.w;\n"
+    "    return m * vec4(p, 1.0);\n"
+    "}\n";
+
+static const char refl__gl_glsl_c3rc[] =
+    "/* reflect.h GL hook: C3RC (layout version 1); cam_c3rc.c's projection in float. */\n"
+    "float refl_c3rc_eval(vec4 c, float t) { return ((c.w * t + c.z) * t + c.y) * t + c.x; }\n"
+    "float refl_c3rc_tol(vec4 M, float t) { t = abs(t); return ((M.w * t + M.z) * t + M.y) * t + M.x; }\n"
+    "/* the root in (lo, hi) where the cubic is monotone and changes sign: Newton\n"
+    "   steps kept inside the bracket, bisection otherwise */\n"
+    "float refl_c3rc_root(vec4 c, vec4 M, float lo, float hi, float flo) {\n"
+    "    float x = 0.5 * (lo + hi);\n"
+    "    for (int it = 0; it < 80; ++it) {\n"
+    "        float f = refl_c3rc_eval(c, x);\n"
+    "        if (f == 0.0) return x;\n"
+    "        if ((f < 0.0) == (flo < 0.0)) lo = x; else hi = x;\n"
+    "        float df = (3.0 * c.w * x + 2.0 * c.z) * x + c.y;\n"
+    "        float xn = df != 0.0 ? x - f / df : lo;\n"
+    "        bool inside = xn > lo && xn < hi;\n"
+    "        if (abs(f) <= refl_c3rc_tol(M, x)) return inside ? xn : x;\n"
+    "        if (!inside) xn = 0.5 * (lo + hi);\n"
+    "        if (xn == x || hi - lo <= 1e-7 * max(abs(lo), abs(hi))) return xn;\n"
+    "        x = xn;\n"
+    "    }\n"
+    "    return x;\n"
+    "}\n"
+    "bool refl_c3rc_bary(int o, samplerBuffer data, vec3 w, float t, out vec3 abc) {\n"
+    "    vec3 E1 = texelFetch(data, o + 7).xyz + t * texelFetch(data, o + 9).xyz;\n"
+    "    vec3 E2 = texelFetch(data, o + 8).xyz + t * texelFetch(data, o + 10).xyz;\n"
+    "    vec3 W = w + texelFetch(data, o + 12).xyz - t * texelFetch(data, o + 11).xyz;\n"
+    "    vec3 n = cross(E1, E2);\n"
+    "    float n2 = dot(n, n);\n"
+    "    if (!(n2 > 1e-14 * dot(E1, E1) * dot(E2, E2))) return false;\n"
+    "    float b = dot(cross(W, E2), n) / n2, c = dot(cross(E1, W), n) / n2, a = 1.0 - b - c;\n"
+    "    if (!(a >= -1e-6 && b >= -1e-6 && c >= -1e-6)) return false;\n"
+    "    abc = clamp(vec3(a, b, c), 0.0, 1.0);\n"
+    "    abc /= abc.x + abc.y + abc.z;\n"
+    "    return true;\n"
+    "}\n"
+    "/* Every projection (a, b, c, t) of p through camera `cam` of the block at\n"
+    "   `base`, ascending in t, into proj; returns how many (0..3). */\n"
+    "int refl_c3rc_project(samplerBuffer data, int base, int cam, vec3 p, out vec4 proj[3]) {\n"
+    "    int o = base + 1 + cam * 16;\n"
+    "    vec4 t0 = texelFetch(data, o), t1 = texelFetch(data, o + 1), t2 = texelFetch(data, o + 2);\n"
+    "    vec4 n0 = texelFetch(data, o + 3), n1 = texelFetch(data, o + 4), n2 = texelFetch(data, o + 5);\n"
+    "    vec4 ct = texelFetch(data, o + 6);\n"
+    "    vec3 L = vec3(texelFetch(data, o + 7).w, texelFetch(data, o + 8).w, texelFetch(data, o + 9).w);\n"
+    "    vec3 w = p - ct.xyz;\n"
+    "    float r = length(w);\n"
+    "    vec4 c = vec4(dot(n0.xyz, w) + n0.w, dot(n1.xyz, w) + n1.w, dot(n2.xyz, w) + n2.w, ct.w);\n"
+    "    float T = (r + t0.w) * t1.w * 1.001;\n"
+    "    float rho = r + t2.w, e = 64.0 * 1.1920929e-7;\n"
+    "    vec4 M = e * vec4(L.x * rho, L.y * rho + L.x, L.z * rho + L.y, L.z);\n"
+    "    float x[4], f[4], cand[4];\n"
+    "    int nx = 1, nc = 0, n = 0;\n"
+    "    x[0] = -2e-6 * t0.w;\n"
+    "    f[0] = refl_c3rc_eval(c, x[0]);\n"
+    "    if (abs(f[0]) <= refl_c3rc_tol(M, x[0])) f[0] = 0.0;\n"
+    "    float disc = c.z * c.z - 3.0 * c.w * c.y;\n"
+    "    if (disc >= 0.0) {\n"
+    "        float s = sqrt(disc), qq = -(c.z + (c.z >= 0.0 ? s : -s));\n"
+    "        if (qq != 0.0) {\n"
+    "            float r1 = c.w != 0.0 ? qq / (3.0 * c.w) : T, r2 = c.y / qq;\n"
+    "            if (r1 > r2) { s = r1; r1 = r2; r2 = s; }\n"
+    "            if (r1 > x[0] && r1 < T) x[nx++] = r1;\n"
+    "            if (r2 > x[0] && r2 < T && r2 != r1) x[nx++] = r2;\n"
+    "        }\n"
+    "    }\n"
+    "    for (int i = 1; i < nx; ++i) {\n"
+    "        f[i] = refl_c3rc_eval(c, x[i]);\n"
+    "        if (abs(f[i]) <= refl_c3rc_tol(M, x[i])) f[i] = 0.0;\n"
+    "    }\n"
+    "    x[nx] = T;\n"
+    "    f[nx] = refl_c3rc_eval(c, T);\n"
+    "    for (int i = 0; i < nx; ++i) {\n"
+    "        if (f[i] == 0.0) cand[nc++] = x[i];\n"
+    "        else if ((f[i] < 0.0 && f[i + 1] > 0.0) || (f[i] > 0.0 && f[i + 1] < 0.0))\n"
+    "            cand[nc++] = refl_c3rc_root(c, M, x[i], x[i + 1], f[i]);\n"
+    "    }\n"
+    "    if (f[nx] == 0.0) cand[nc++] = T;\n"
+    "    for (int i = 0; i < nc && n < 3; ++i) {\n"
+    "        vec3 abc;\n"
+    "        if (!refl_c3rc_bary(o, data, w, cand[i], abc)) continue;\n"
+    "        proj[n++] = vec4(abc, max(cand[i], 0.0));\n"
+    "    }\n"
+    "    return n;\n"
+    "}\n"
+    "/* The image point of a projection: its reflector point a v1 + b v2 + c v3. */\n"
+    "vec3 refl_c3rc_image(samplerBuffer data, int base, int cam, vec4 proj) {\n"
+    "    int o = base + 1 + cam * 16;\n"
+    "    return proj.x * texelFetch(data, o).xyz + proj.y * texelFetch(data, o + 1).xyz +\n"
+    "           proj.z * texelFetch(data, o + 2).xyz;\n"
+    "}\n";
+
+static const char refl__gl_glsl_sbc[] =
+    "/* reflect.h GL hook: SBC (layout version 1); cam_sbc.c's BSP descent, cam_sbc_fit.c's\n"
+    "   pinhole leaves and cam_sbc_raylist.c's ray-list leaves (one sheet) in float. */\n"
+    "float refl_sbc_cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }\n"
+    "int refl_sbc_quadratic(float a, float b, float c, out vec2 r) {\n"
+    "    if (abs(a) <= 1e-6 * (abs(b) + abs(c))) {\n"
+    "        if (b == 0.0) return 0;\n"
+    "        r = vec2(-c / b);\n"
+    "        return 1;\n"
+    "    }\n"
+    "    float disc = b * b - 4.0 * a * c;\n"
+    "    if (disc < 0.0) return 0;\n"
+    "    float q = -0.5 * (b + (b >= 0.0 ? sqrt(disc) : -sqrt(disc)));\n"
+    "    if (q == 0.0) { r = vec2(0.0); return 1; }\n"
+    "    r = vec2(min(q / a, c / q), max(q / a, c / q));\n"
+    "    return 2;\n"
+    "}\n"
+    "/* inverse bilinear interpolation of corners (0,0) (1,0) (0,1) (1,1) */\n"
+    "bool refl_sbc_inv_bilinear(vec2 c0, vec2 c1, vec2 c2, vec2 c3, vec2 p, float tol, out vec2 st, out float outside) {\n"
+    "    vec2 e = c1 - c0, f = c2 - c0, g = c0 - c1 - c2 + c3, h = p - c0, r;\n"
+    "    float best = 3.0e38;\n"
+    "    int nr = refl_sbc_quadratic(refl_sbc_cross2(g, f), refl_sbc_cross2(e, f) + refl_sbc_cross2(h, g),\n"
+    "                                refl_sbc_cross2(h, e), r);\n"
+    "    for (int i = 0; i < nr; ++i) {\n"
+    "        float tt = r[i], ss;\n"
+    "        vec2 d = e + g * tt;\n"
+    "        if (!(tt >= -tol && tt <= 1.0 + tol)) continue;\n"
+    "        if (abs(d.x) >= abs(d.y)) { if (d.x == 0.0) continue; ss = (h.x - f.x * tt) / d.x; }\n"
+    "        else ss = (h.y - f.y * tt) / d.y;\n"
+    "        if (!(ss >= -tol && ss <= 1.0 + tol)) continue;\n"
+    "        float o = max(max(max(-ss, ss - 1.0), max(-tt, tt - 1.0)), 0.0);\n"
+    "        if (!(o < best)) continue;\n"
+    "        best = o;\n"
+    "        st = clamp(vec2(ss, tt), 0.0, 1.0);\n"
+    "        if (o == 0.0) break;\n"
+    "    }\n"
+    "    outside = best;\n"
+    "    return best < 3.0e38;\n"
+    "}\n"
+    "bool refl_sbc_pinhole(samplerBuffer data, int k, vec3 p, out vec3 first, out float z) {\n"
+    "    vec4 o = texelFetch(data, k), c = texelFetch(data, k + 1), n = texelFetch(data, k + 2);\n"
+    "    vec4 eu = texelFetch(data, k + 3), ev = texelFetch(data, k + 4);\n"
+    "    vec4 rect = texelFetch(data, k + 5), norm = texelFetch(data, k + 6);\n"
+    "    float hp = dot(p - c.xyz, n.xyz), den = o.w - hp;\n"
+    "    if (!(hp >= c.w) || !(o.w * den > 0.0)) return false;\n"
+    "    float s = o.w / den;\n"
+    "    vec3 w = p - o.xyz;\n"
+    "    float u = n.w + s * dot(w, eu.xyz), v = eu.w + s * dot(w, ev.xyz);\n"
+    "    if (!(u >= rect.x && u <= rect.y && v >= rect.z && v <= rect.w)) return false;\n"
+    "    float x = (u - norm.x) * norm.z, y = (v - norm.y) * norm.w, sd = hp / (hp - o.w);\n"
+    "    float b[12] = float[12](1.0, x, y, x * x, x * y, y * y, sd, sd * x, sd * y, sd * x * x, sd * x * y, sd * y * y);\n"
+    "    for (int i = 0; i < 3; ++i) {\n"
+    "        float acc = 0.0;\n"
+    "        for (int j = 0; j < 12; ++j) acc += texelFetch(data, k + 7 + (i * 12 + j) / 4)[(i * 12 + j) % 4] * b[j];\n"
+    "        first[i] = acc;\n"
+    "    }\n"
+    "    z = max(hp, 0.0);\n"
+    "    return true;\n"
+    "}\n"
+    "float refl_sbc_int(samplerBuffer data, int at, int i) { return texelFetch(data, at + i / 4)[i % 4]; }\n"
+    "bool refl_sbc_rays(samplerBuffer data, int base, vec4 nd1, vec4 nd2, vec4 nd3, vec3 p, out vec3 first, out float z) {\n"
+    "    if (any(lessThan(p, nd2.xyz)) || any(greaterThan(p, nd3.xyz))) return false;\n"
+    "    vec4 h1 = texelFetch(data, base + 1), h2 = texelFetch(data, base + 2), th = texelFetch(data, base + 3);\n"
+    "    int from = 0, to = int(nd1.w), grid = int(nd2.w), quads = base + int(h1.z);\n"
+    "    int list = -1;\n"
+    "    if (grid > 0) {\n"
+    "        int ix = base + int(h1.w) + (grid - 1) * 6;\n"
+    "        vec4 i0 = texelFetch(data, ix), i1 = texelFetch(data, ix + 1), i2 = texelFetch(data, ix + 2);\n"
+    "        vec4 i3 = texelFetch(data, ix + 3), i4 = texelFetch(data, ix + 4), i5 = texelFetch(data, ix + 5);\n"
+    "        vec3 w = p - i0.xyz;\n"
+    "        float t = (dot(w, i1.xyz) - i0.w) * i1.w, x = (dot(w, i2.xyz) - i2.w) * i3.w;\n"
+    "        float y = (dot(w, i3.xyz) - i4.x) * i4.y;\n"
+    "        if (!(t >= 0.0 && t < i4.z && x >= 0.0 && x < i4.w && y >= 0.0 && y < i4.w)) return false;\n"
+    "        int cells = int(i4.w);\n"
+    "        int at = int(i5.x) + (int(t) * cells + int(y)) * cells + int(x);\n"
+    "        from = int(refl_sbc_int(data, base + int(h2.x), at));\n"
+    "        to = int(refl_sbc_int(data, base + int(h2.x), at + 1));\n"
+    "        list = base + int(h2.y);\n"
+    "    }\n"
+    "    /* per rank (0 inside a quad, 1 near one): off the surface, how far outside, depth */\n"
+    "    bool off[2] = bool[2](false, false);\n"
+    "    float outv[2] = float[2](3.0e38, 3.0e38), zz[2] = float[2](3.0e38, 3.0e38);\n"
+    "    vec3 fp[2];\n"
+    "    for (int at = from; at < to; ++at) {\n"
+    "        int q = quads + (int(nd1.z) + (list >= 0 ? int(refl_sbc_int(data, list, at)) : at)) * 20;\n"
+    "        vec4 lo = texelFetch(data, q + 7), hi = texelFetch(data, q + 8);\n"
+    "        if (any(lessThan(p, lo.xyz)) || any(greaterThan(p, hi.xyz))) continue;\n"
+    "        vec3 w = p - texelFetch(data, q).xyz;\n"
+    "        vec4 tf = texelFetch(data, q + 4), b0 = texelFetch(data, q + 5), b1 = texelFetch(data, q + 6);\n"
+    "        float tau = dot(w, texelFetch(data, q + 1).xyz);\n"
+    "        if (!(tau >= tf.x && tau <= tf.y)) continue;\n"
+    "        float fr = (tau - tf.x) / (tf.y - tf.x);\n"
+    "        float x = dot(w, texelFetch(data, q + 2).xyz);\n"
+    "        if (!(x >= b0.x + fr * (b1.x - b0.x) && x <= b0.y + fr * (b1.y - b0.y))) continue;\n"
+    "        float y = dot(w, texelFetch(data, q + 3).xyz);\n"
+    "        if (!(y >= b0.z + fr * (b1.z - b0.z) && y <= b0.w + fr * (b1.w - b0.w))) continue;\n"
+    "        vec2 c4[4];\n"
+    "        vec4 lam, len = texelFetch(data, q + 9);\n"
+    "        for (int c = 0; c < 4; ++c) {\n"
+    "            vec4 ra = texelFetch(data, q + 10 + (c * 6) / 4), rb = texelFetch(data, q + 10 + (c * 6) / 4 + 1);\n"
+    "            float r6[6];\n"
+    "            int s0 = (c * 6) % 4;\n"
+    "            for (int j = 0; j < 6; ++j) r6[j] = s0 + j < 4 ? ra[s0 + j] : rb[s0 + j - 4];\n"
+    "            float l = (tau - r6[0]) / r6[3];\n"
+    "            c4[c] = vec2(r6[1] + l * r6[4], r6[2] + l * r6[5]);\n"
+    "            lam[c] = l;\n"
+    "        }\n"
+    "        vec2 st;\n"
+    "        float o;\n"
+    "        if (!refl_sbc_inv_bilinear(c4[0], c4[1], c4[2], c4[3], vec2(x, y), zz[0] < 3.0e38 ? th.x : 0.5, st, o))\n"
+    "            continue;\n"
+    "        vec4 wt = vec4((1.0 - st.x) * (1.0 - st.y), st.x * (1.0 - st.y), (1.0 - st.x) * st.y, st.x * st.y);\n"
+    "        int k = o > th.x ? 1 : 0;\n"
+    "        o = 0.0;\n"
+    "        if (k == 1 && zz[0] < 3.0e38) continue;\n"
+    "        if (k == 1) {\n"
+    "            vec2 d = vec2(x, y) - (wt.x * c4[0] + wt.y * c4[1] + wt.z * c4[2] + wt.w * c4[3]);\n"
+    "            vec2 d1 = c4[3] - c4[0], d2 = c4[2] - c4[1];\n"
+    "            o = dot(d, d) / max(dot(d1, d1), dot(d2, d2));\n"
+    "            if (!(o <= th.y * th.y)) continue;\n"
+    "        }\n"
+    "        float zq = dot(wt, lam * len), lm = dot(wt, lam);\n"
+    "        if (!(lm >= -1e-4)) continue;\n"
+    "        if (off[k] && lm < th.z) continue;\n"
+    "        if (!(!off[k] && lm >= th.z)) {\n"
+    "            if (o > outv[k]) continue;\n"
+    "            if (o == outv[k] && !(zq < zz[k])) continue;\n"
+    "        }\n"
+    "        off[k] = lm >= th.z;\n"
+    "        zz[k] = zq;\n"
+    "        outv[k] = o;\n"
+    "        fp[k] = wt.x * texelFetch(data, q + 16).xyz + wt.y * texelFetch(data, q + 17).xyz +\n"
+    "                wt.z * texelFetch(data, q + 18).xyz + wt.w * texelFetch(data, q + 19).xyz;\n"
+    "    }\n"
+    "    int k = zz[0] < 3.0e38 ? 0 : 1;\n"
+    "    if (!(zz[k] < 3.0e38)) return false;\n"
+    "    first = fp[k];\n"
+    "    z = max(zz[k], 0.0);\n"
+    "    return true;\n"
+    "}\n"
+    "/* p's projection through the SBC block at `base`: true with the first\n"
+    "   reflector point and the visibility offset z, false when p lies in no\n"
+    "   leaf's frustum. leaf_kind: 1 pinhole, 0 ray list. */\n"
+    "bool refl_sbc_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float z, out int leaf_kind) {\n"
+    "    vec4 h1 = texelFetch(data, base + 1);\n"
+    "    int nodes = base + int(h1.x), node = 0;\n"
+    "    vec4 nd1 = texelFetch(data, nodes + 1);\n"
+    "    while (int(nd1.y) == 2) {\n"
+    "        vec4 pl = texelFetch(data, nodes + node * 4);\n"
+    "        node = int(nd1.x) + (dot(pl.xyz, p) + pl.w >= 0.0 ? 0 : 1);\n"
+    "        nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
+    "    }\n"
+    "    first = vec3(0.0);\n"
+    "    z = 0.0;\n"
+    "    leaf_kind = int(nd1.y);\n"
+    "    if (leaf_kind == 1) return refl_sbc_pinhole(data, base + int(h1.y) + int(nd1.z) * 16, p, first, z);\n"
+    "    return refl_sbc_rays(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
+    "                         texelFetch(data, nodes + node * 4 + 3), p, first, z);\n"
+    "}\n";
+
+REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
+    switch (camera) {
+    case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
+    case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
+    case REFL_GL_SBC: return refl__gl_glsl_sbc;
+    }
+    return NULL;
+}

@@ -1,0 +1,75 @@
+/* The GL hooks (src/reflect/gl_hooks.c): the packers' layouts (no GL
+   needed), and every camera's GLSL projection against its C projection by
+   transform feedback on 10^5 random points (tools/reflect_gl.c; docs/gl.md),
+   skipped, saying why, where no EGL device exists (test_gl_context.h). */
+#include <criterion/criterion.h>
+#include "../../reflect.h"
+#include "../../tools/reflect_gl.h"
+#include "refl_test_util.h"
+#include "test_gl_context.h"
+
+
+Test(refl_gl_hooks, mirror_layout) {
+    float buf[64];
+    refl_mat4 vp = refl_mat4_identity();
+    long long n = refl_gl_pack_mirror(vp, refl_v3(0, 2, 0), 1.0f, NULL, 0);
+    cr_assert_eq(n, 24);
+    cr_assert_eq(refl_gl_pack_mirror(vp, refl_v3(0, 2, 0), 1.0f, buf, 64), 24);
+    cr_assert_eq(buf[0], (float)REFL_GL_MIRROR);
+    cr_assert_eq(buf[1], (float)REFL_GL_LAYOUT_VERSION);
+    /* y reflected about y = 0.5: the matrix maps (0, 0, 0) to (0, 1, 0) */
+    cr_assert_float_eq(buf[4 + 13], 1.0f, 1e-6f);
+    cr_assert_float_eq(buf[4 + 5], -1.0f, 1e-6f);
+    /* the clip plane, unit: y - 0.5 */
+    cr_assert_float_eq(buf[21], 1.0f, 1e-6f);
+    cr_assert_float_eq(buf[23], -0.5f, 1e-6f);
+    cr_assert_lt(refl_gl_pack_mirror(vp, refl_v3(0, 0, 0), 1.0f, buf, 64), 0);
+}
+
+Test(refl_gl_hooks, c3rc_layout) {
+    refl_c3rc cams[2];
+    refl_vec3 v[3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, d[3] = {{0, 0, 1}, {0.1f, 0, 1}, {0, 0.1f, 1}};
+    float buf[200];
+    cr_assert_eq(refl_c3rc_init(&cams[0], v, d), REFL_OK);
+    cams[1] = cams[0];
+    cr_assert_eq(refl_gl_pack_c3rc(cams, 2, NULL, 0), 4 * (1 + 2 * REFL_GL_C3RC_TEXELS));
+    /* too small: nothing written */
+    buf[0] = -7.0f;
+    cr_assert_eq(refl_gl_pack_c3rc(cams, 2, buf, 10), 4 * (1 + 2 * REFL_GL_C3RC_TEXELS));
+    cr_assert_eq(buf[0], -7.0f);
+    cr_assert_eq(refl_gl_pack_c3rc(cams, 2, buf, 200), 4 * (1 + 2 * REFL_GL_C3RC_TEXELS));
+    cr_assert_eq(buf[0], (float)REFL_GL_C3RC);
+    cr_assert_eq(buf[2], 2.0f);
+    /* camera 1's tails at texels 0..2 of its block */
+    cr_assert_eq(buf[4 * (1 + REFL_GL_C3RC_TEXELS) + 4], 1.0f);
+    cr_assert_lt(refl_gl_pack_c3rc(NULL, 1, buf, 200), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_C3RC));
+    cr_assert_null(refl_gl_glsl((refl_gl_camera)0));
+}
+
+static void validate(int which) {
+    rgl_context *g = tu_gl_context("test_gl_hooks");
+    rgl_validation v;
+    char err[1024];
+    int r;
+    LSAN_OFF();
+    r = rgl_validate(g, which, 100000, 1, &v, err, sizeof err);
+    rgl_destroy(g);
+    LSAN_ON();
+    cr_assert_eq(r, 0, "%s", err);
+    cr_log_info("%s on %s: %lld points, %lld project, %lld disagree, max rel %.2e, p99.9 %.2e [%s]", v.camera,
+                "GL", v.points, v.projected, v.disagree, v.max_rel, v.p999_rel, v.note);
+    /* most points project (the fixtures aim 80% of them into the volume) */
+    cr_assert_gt(v.projected, v.points / 2, "%s: %lld of %lld project", v.camera, v.projected, v.points);
+    cr_assert(rgl_validation_ok(&v), "%s: %lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.camera, v.disagree,
+              v.points, v.max_rel, v.p999_rel);
+    if (which >= 2) { /* SBC: both leaf kinds carry points */
+        cr_assert_gt(v.pinhole_points, 1000);
+        if (which == 2) cr_assert_gt(v.raylist_points, 1000);
+    }
+}
+
+Test(refl_gl_hooks, mirror_glsl_matches_c, .timeout = 120) { validate(0); }
+Test(refl_gl_hooks, c3rc_glsl_matches_c, .timeout = 120) { validate(1); }
+Test(refl_gl_hooks, sbc_glsl_matches_c, .timeout = 120) { validate(2); }
+Test(refl_gl_hooks, sbc_bowl_glsl_matches_c, .timeout = 120) { validate(3); }

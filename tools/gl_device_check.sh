@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# gl_device_check.sh - the GL path on a GPU machine, in one short run
+# (docs/gl.md). Runs binaries built elsewhere and carried along
+# (build/bin/reflect_gl: links libEGL.so.1, libm and libc only), so the
+# machine needs no build tools: only a GLVND libEGL (libegl1, libglvnd0)
+# and the vendor's EGL driver.
+#
+#   bash tools/gl_device_check.sh            from the repository root
+#
+# Environment:
+#   OUT           where the results go (default out/gl_device); 7 files
+#   GL_LIBS_DIR   optional: folders (colon-separated) holding libEGL.so.1 and
+#                 libGLdispatch.so.0 unpacked from .deb files; put first on
+#                 LD_LIBRARY_PATH
+# When /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json exists,
+# GLVND's EGL is pointed at it (and /usr/local/nvidia/lib64 and lib join
+# LD_LIBRARY_PATH), so the NVIDIA driver answers rather than Mesa.
+#
+# Writes: info.txt (EGL vendor, GL renderer and version, the libraries
+# resolved), validate.txt and validate.csv (every camera's GLSL projection
+# against its C projection on 10^5 points), bench.txt and bench.csv (the
+# projection rate on 4 x 10^6 points per camera, GL beside one CPU thread),
+# frames.txt and frames.csv (PLANAR frames of mirror-room through GL
+# against the CPU path on every core at 640x480, 1920x1080 and 3840x2160).
+# Each step has its own time limit; the whole run stays under 4 minutes.
+set -u
+cd "$(dirname "$0")/.." || exit 1
+OUT=${OUT:-out/gl_device}
+mkdir -p "$OUT"
+BIN=build/bin/reflect_gl
+VENDOR_JSON=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+
+if [ -n "${GL_LIBS_DIR:-}" ]; then
+  export LD_LIBRARY_PATH="$GL_LIBS_DIR${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+fi
+if [ -f "$VENDOR_JSON" ]; then
+  export __EGL_VENDOR_LIBRARY_FILENAMES="$VENDOR_JSON"
+  for d in /usr/local/nvidia/lib64 /usr/local/nvidia/lib; do
+    [ -d "$d" ] && export LD_LIBRARY_PATH="${LD_LIBRARY_PATH:+$LD_LIBRARY_PATH:}$d"
+  done
+fi
+
+{
+  echo "date: $(date -u)"
+  echo "host: $(uname -a)"
+  echo "__EGL_VENDOR_LIBRARY_FILENAMES=${__EGL_VENDOR_LIBRARY_FILENAMES:-}"
+  echo "LD_LIBRARY_PATH=${LD_LIBRARY_PATH:-}"
+  command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
+  echo "--- libraries of $BIN"
+  if command -v ldd >/dev/null; then ldd "$BIN"; else echo "(no ldd)"; fi
+  echo "--- reflect_gl info"
+} >"$OUT/info.txt" 2>&1
+
+if [ ! -x "$BIN" ]; then
+  echo "missing $BIN: build it with 'make build/bin/reflect_gl' and carry build/bin" | tee -a "$OUT/info.txt"
+  exit 1
+fi
+timeout -k 5 30 "$BIN" info >>"$OUT/info.txt" 2>&1
+rc=$?
+cat "$OUT/info.txt"
+if [ $rc -ne 0 ]; then
+  echo "gl_device_check: no GL context (exit $rc); see $OUT/info.txt" >&2
+  exit 1
+fi
+
+status=0
+echo "=== validate (10^5 points per camera)"
+timeout -k 5 60 "$BIN" validate --points 100000 --csv "$OUT/validate.csv" >"$OUT/validate.txt" 2>&1 || status=1
+cat "$OUT/validate.txt"
+
+echo "=== bench: projection rate (4 x 10^6 points per camera, GL best of 5)"
+timeout -k 5 90 "$BIN" bench --points 4000000 --repeats 5 --csv "$OUT/bench.csv" >"$OUT/bench.txt" 2>&1 || status=1
+cat "$OUT/bench.txt"
+
+echo "=== frames: PLANAR through GL against the CPU path (RAYTRACE as truth at 640x480)"
+timeout -k 5 80 "$BIN" frames --sizes 640x480,1920x1080,3840x2160 --truth-max-pixels 307200 \
+  --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
+cat "$OUT/frames.txt"
+echo "gl_device_check: results in $OUT (exit $status)"
+exit $status

@@ -1,0 +1,91 @@
+/* reflect_gl.h - the GL host of reflect.h's GL hooks (tools/reflect_gl.c):
+   a headless EGL context (any vendor's EGL through GLVND: Mesa's llvmpipe
+   here, a GPU's driver elsewhere) with desktop GL 3.3 core, the GL entry
+   points loaded through eglGetProcAddress (so the host links libEGL only),
+   and on top of it the cross-validation of every camera's GLSL projection
+   against its C projection (transform feedback) and the projection rate.
+
+   Every failure returns nonzero with the reason in err; nothing aborts, so
+   callers skip cleanly where there is no EGL device. Include after
+   reflect.h. */
+#ifndef REFLECT_GL_H
+#define REFLECT_GL_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+/* The context: opaque, one per process at a time. */
+typedef struct rgl_context rgl_context;
+
+/* Creates the context (made current). 0 on success; else nonzero with the
+   reason in err. */
+int rgl_create(rgl_context **out, char *err, size_t err_size);
+void rgl_destroy(rgl_context *g);
+const char *rgl_renderer(const rgl_context *g);  /* GL_RENDERER */
+const char *rgl_version(const rgl_context *g);   /* GL_VERSION */
+const char *rgl_egl_vendor(const rgl_context *g); /* EGL_VENDOR, and the EGL platform used */
+
+/* A camera's GLSL projection against its C projection on `points` random
+   points (a fixed seed): how many were compared, how many the two
+   disagreed on (one projects and the other not, or a different count of
+   C3RC images), and the largest and 99.9th-percentile error of the
+   agreeing ones, relative to the fixture's scene size (docs/gl.md). */
+typedef struct rgl_validation {
+    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave" */
+    long long points, projected, disagree;
+    long long pinhole_points, raylist_points; /* SBC: agreeing points per leaf kind */
+    double max_rel, p999_rel;
+    double gl_seconds;       /* the transform-feedback pass alone (upload excluded), best of `repeats` */
+    double cpu_seconds;      /* the C projection of the same points on one thread */
+    char note[160];          /* the fixture: cameras, leaves */
+} rgl_validation;
+
+enum { RGL_CAMERAS = 4 };
+/* Fixture i (0 .. RGL_CAMERAS - 1): builds it, projects `points` points
+   both ways (GL `repeats` times, the best time kept). 0 on success. */
+int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_validation *out, char *err,
+                 size_t err_size);
+
+/* A frame of PLANAR through GL (tools/reflect_gl_frame.c): GL draws the
+   base pass and each planar mirror through refl_mirror_project, the CPU
+   shades with reflect.h's shading and composites as PLANAR does. Fills
+   frame's stencil (on the planar mirrors' pixels: the mirror object + 1;
+   0 elsewhere, curved reflectors included) and points (what each mirror
+   pixel shows, NaN elsewhere), and rgb (3 linear floats per pixel, rows
+   top first); frame is the view's size. One bounce. 0 on success. */
+typedef struct rgl_frame_stats {
+    int mirrors;             /* planar mirrors drawn through */
+    long long vertices;      /* vertices GL transformed, every pass */
+    double gl_seconds;       /* upload, both passes and the read-backs */
+    double shade_seconds;    /* the CPU's shading and compositing */
+} rgl_frame_stats;
+int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                      rgl_frame_stats *st, char *err, size_t err_size);
+
+/* PSNR (dB) of a GL frame's colours (rgb, from rgl_render_planar) against
+   the CPU frame's over the planar mirrors' pixels (gl's stencil), both
+   encoded to sRGB8; NaN without mirror pixels. */
+double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float *gl_rgb);
+
+/* The GL path's numbers (tools/reflect_gl_bench.c), a line each on stdout
+   and, when csv is not NULL, a CSV header and rows. rgl_bench_projection:
+   every camera's validation on `points` points, GL timed best of
+   `repeats` (check: nonzero when one fails rgl_validation_ok).
+   rgl_bench_frames: PLANAR frames of mirror-room through GL against the
+   CPU path at each size of "WxH,WxH,...", RAYTRACE as the truth up to
+   truth_max pixels. Return 0 on success. */
+int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
+int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv);
+
+/* `reflect bench --gl [--out DIR] [--sizes ...] [--points N] [--repeats R]`:
+   both of the above into DIR/gl_projection.csv and DIR/gl_frames.csv. */
+int rgl_cli_bench(int argc, char **argv);
+
+/* The agreement a validation must show (docs/gl.md): at most this share
+   of points projecting on one side only, and the errors of the others. */
+#define RGL_MAX_DISAGREE 1e-3
+#define RGL_MAX_P999 1e-4
+#define RGL_MAX_REL 1e-2
+int rgl_validation_ok(const rgl_validation *v);
+
+#endif

@@ -1,0 +1,219 @@
+/* reflect_gl_bench.c - the GL path's numbers (reflect_gl.h): every
+   camera's projection, GLSL against C, and PLANAR frames through GL
+   against the CPU path; a line per row on stdout and CSV rows. Shared by
+   reflect_gl (tools/reflect_gl_main.c) and `reflect bench --gl`. */
+#define _POSIX_C_SOURCE 200809L
+#include "../reflect.h"
+#include "reflect_gl.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv) {
+    int i, failed = 0;
+    char err[1024];
+    if (csv)
+        fprintf(csv, "renderer,camera,points,projected,disagree,max_rel,p999_rel,gl_seconds,gl_mpoints_per_s,"
+                     "cpu_seconds,cpu_mpoints_per_s,fixture\n");
+    for (i = 0; i < RGL_CAMERAS; ++i) {
+        rgl_validation v;
+        if (rgl_validate(g, i, points, repeats, &v, err, sizeof err) != 0) {
+            fprintf(stderr, "reflect_gl: camera %d: %s\n", i, err);
+            failed = 1;
+            continue;
+        }
+        printf("%-12s %9lld points, %9lld projected, %6lld disagree (%.2e), max rel %.2e, p99.9 %.2e, "
+               "GL %.2f M/s, C %.2f M/s, leaves %lld/%lld  [%s]\n",
+               v.camera, v.points, v.projected, v.disagree, (double)v.disagree / (double)v.points, v.max_rel,
+               v.p999_rel, v.points / v.gl_seconds * 1e-6, v.points / v.cpu_seconds * 1e-6, v.pinhole_points, v.raylist_points, v.note);
+        if (csv)
+            fprintf(csv, "\"%s\",%s,%lld,%lld,%lld,%.3e,%.3e,%.6f,%.3f,%.6f,%.3f,\"%s\"\n", rgl_renderer(g), v.camera,
+                    v.points, v.projected, v.disagree, v.max_rel, v.p999_rel, v.gl_seconds,
+                    v.points / v.gl_seconds * 1e-6, v.cpu_seconds, v.points / v.cpu_seconds * 1e-6, v.note);
+        if (check && !rgl_validation_ok(&v)) {
+            fprintf(stderr, "reflect_gl: %s: GLSL and C disagree beyond the bounds\n", v.camera);
+            failed = 1;
+        }
+    }
+    return failed;
+}
+
+double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float *gl_rgb) {
+    uint8_t *c = (uint8_t *)malloc((size_t)cpu->width * cpu->height * 4);
+    double se = 0.0;
+    long long count = 0, i;
+    if (!c) return NAN;
+    refl_frame_to_srgb8(cpu, NULL, c);
+    for (i = 0; i < (long long)cpu->width * cpu->height; ++i) {
+        int k;
+        if (!gl->stencil[i]) continue;
+        for (k = 0; k < 3; ++k) {
+            double d = (double)c[4 * i + k] - (double)refl_display_channel(gl_rgb[3 * i + k], NULL);
+            se += d * d;
+        }
+        count += 3;
+    }
+    free(c);
+    if (!count) return NAN;
+    return se == 0.0 ? INFINITY : 10.0 * log10(255.0 * 255.0 / (se / (double)count));
+}
+
+static double seconds_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* A CPU frame of method m (one bounce); NULL on failure. *secs: its time. */
+static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_method m, double *secs) {
+    refl_render_desc d;
+    refl_frame *f = NULL;
+    double t;
+    memset(&d, 0, sizeof d);
+    d.method = m;
+    d.depth = 1;
+    if (refl_frame_create(v->width, v->height, NULL, &f) != REFL_OK) return NULL;
+    t = seconds_now();
+    if (refl_render(s, v, &d, f) != REFL_OK) {
+        refl_frame_destroy(f);
+        return NULL;
+    }
+    *secs = seconds_now() - t;
+    return f;
+}
+
+/* The GL frame three times (the first compiles llvmpipe's shader
+   variants), the least times kept. */
+static int rgl_render_planar_best(rgl_context *g, const refl_scene *s, const refl_view *v, refl_frame *f, float *rgb,
+                                  rgl_frame_stats *st, char *err, size_t n) {
+    rgl_frame_stats best;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (rgl_render_planar(g, s, v, f, rgb, st, err, n) != 0) return -1;
+        if (k == 0 || st->gl_seconds + st->shade_seconds < best.gl_seconds + best.shade_seconds) best = *st;
+    }
+    *st = best;
+    return 0;
+}
+
+int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv) {
+    static const char *const scenes[] = {"mirror-room"};
+    int si, failed = 0;
+    if (csv)
+        fprintf(csv, "renderer,scene,width,height,mirrors,gl_frame_s,gl_draw_s,cpu_shade_s,cpu_planar_s,"
+                     "gl_vs_cpu_mean_px,gl_vs_cpu_wrong,gl_vs_cpu_empty,psnr_reflectors_db,gl_vs_truth_mean_px,"
+                     "cpu_vs_truth_mean_px,gl_mvertices_per_s\n");
+    for (si = 0; si < (int)(sizeof scenes / sizeof scenes[0]); ++si) {
+        const char *p = sizes;
+        while (*p) {
+            int w = 0, h = 0;
+            refl_scene *s = NULL;
+            refl_view v;
+            refl_frame *gf = NULL, *cf = NULL, *tf = NULL;
+            float *rgb = NULL;
+            rgl_frame_stats st;
+            refl_reflection_error e_gc, e_gt, e_ct;
+            double cpu_s = 0.0, truth_s = 0.0, psnr;
+            char err[512];
+            if (sscanf(p, "%dx%d", &w, &h) != 2 || w < 1 || h < 1) {
+                fprintf(stderr, "reflect_gl: bad size list %s\n", sizes);
+                return 2;
+            }
+            p = strchr(p, ',');
+            p = p ? p + 1 : "";
+            if (refl_scene_builtin(scenes[si], NULL, &s) != REFL_OK) return 1;
+            v = s->camera;
+            v.width = w;
+            v.height = h;
+            memset(&e_gt, 0, sizeof e_gt);
+            memset(&e_ct, 0, sizeof e_ct);
+            rgb = (float *)malloc((size_t)w * h * 3 * sizeof(float));
+            if (!rgb || refl_frame_create(w, h, NULL, &gf) != REFL_OK) return 1;
+            if (rgl_render_planar_best(g, s, &v, gf, rgb, &st, err, sizeof err) != 0) {
+                fprintf(stderr, "reflect_gl: %s %dx%d: %s\n", scenes[si], w, h, err);
+                failed = 1;
+            } else if (!(cf = cpu_frame(s, &v, REFL_PLANAR, &cpu_s))) {
+                fprintf(stderr, "reflect_gl: the CPU PLANAR frame failed\n");
+                failed = 1;
+            } else {
+                refl_measure_reflection_error(gf, cf, NULL, &e_gc);
+                psnr = rgl_mirror_psnr(cf, gf, rgb);
+                if ((long long)w * h <= truth_max && (tf = cpu_frame(s, &v, REFL_RAYTRACE, &truth_s))) {
+                    refl_measure_reflection_error(gf, tf, NULL, &e_gt);
+                    refl_measure_reflection_error(cf, tf, NULL, &e_ct);
+                }
+                printf("%-11s %4dx%-4d %d mirrors: GL frame %.1f ms (draw %.1f, CPU shading %.1f), CPU PLANAR %.1f ms; "
+                       "GL vs CPU: %lld px matched, mean %.3f px, wrong %.4f, empty %.4f, PSNR %.1f dB over mirrors",
+                       scenes[si], w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
+                       1e3 * st.shade_seconds, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
+                if (tf) printf("; vs RAYTRACE: GL %.3f px, CPU %.3f px", e_gt.mean, e_ct.mean);
+                printf("\n");
+                if (csv)
+                    fprintf(csv, "\"%s\",%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f\n",
+                            rgl_renderer(g), scenes[si], w, h, st.mirrors, st.gl_seconds + st.shade_seconds,
+                            st.gl_seconds, st.shade_seconds, cpu_s, e_gc.mean, e_gc.wrong, e_gc.empty, psnr,
+                            tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6);
+            }
+            free(rgb);
+            refl_frame_destroy(gf);
+            refl_frame_destroy(cf);
+            refl_frame_destroy(tf);
+            refl_scene_destroy(s);
+        }
+    }
+    return failed;
+}
+
+
+int rgl_cli_bench(int argc, char **argv) {
+    const char *dir = "out/bench", *sizes = "320x240,640x480";
+    long long points = 1000000;
+    int repeats = 5, i, failed;
+    rgl_context *g = NULL;
+    char err[1024], path[1024];
+    FILE *csv;
+    for (i = 2; i < argc; ++i) {
+        if (!strcmp(argv[i], "--gl")) continue;
+        if (!strcmp(argv[i], "--out") && i + 1 < argc) dir = argv[++i];
+        else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
+        else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
+        else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
+        else {
+            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--points N] [--repeats R]\n"
+                            "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
+                            "  DIR/gl_frames.csv: PLANAR frames through GL against the CPU path\n");
+            return !strcmp(argv[i], "--help") ? 0 : 2;
+        }
+    }
+    if (rgl_create(&g, err, sizeof err) != 0) {
+        fprintf(stderr, "reflect: bench --gl: no GL context: %s\n", err);
+        return 1;
+    }
+    printf("GL renderer: %s (%s)\n", rgl_renderer(g), rgl_version(g));
+    snprintf(path, sizeof path, "mkdir -p '%s'", dir);
+    if (system(path) != 0) {
+        rgl_destroy(g);
+        return 1;
+    }
+    snprintf(path, sizeof path, "%s/gl_projection.csv", dir);
+    if (!(csv = fopen(path, "w"))) {
+        rgl_destroy(g);
+        return 1;
+    }
+    failed = rgl_bench_projection(g, points, repeats, 0, csv);
+    fclose(csv);
+    snprintf(path, sizeof path, "%s/gl_frames.csv", dir);
+    if (!(csv = fopen(path, "w"))) {
+        rgl_destroy(g);
+        return 1;
+    }
+    failed |= rgl_bench_frames(g, sizes, 640 * 480, csv);
+    fclose(csv);
+    rgl_destroy(g);
+    printf("wrote %s/gl_projection.csv and %s/gl_frames.csv\n", dir, dir);
+    return failed;
+}

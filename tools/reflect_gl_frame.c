@@ -1,0 +1,403 @@
+/* reflect_gl_frame.c - a frame of PLANAR through GL (reflect_gl.h,
+   docs/gl.md). GL draws, the CPU shades:
+     1. base pass from the eye: every object's world point, normal, uv and
+        id into float targets; each planar mirror marks its pixels in the
+        stencil with its number;
+     2. per mirror: the scene again through the mirrored pinhole (the GL
+        hook, refl_mirror_project in the vertex shader, its plane as
+        gl_ClipDistance), stencil-tested to the mirror's pixels;
+     3. the CPU shades both read-backs with reflect.h's shading
+        (refl_shade_diffuse, refl_environment_lookup) and composites each
+        mirror pixel as PLANAR does: reflectance times what it shows.
+   One bounce; a mirror object must be planar (all its triangles in one
+   plane) and seen from its front, else it is drawn as DIRECT draws it. */
+#define _POSIX_C_SOURCE 200809L
+#include "../reflect.h"
+#include "reflect_gl.h"
+
+#include <EGL/egl.h>
+#include <GL/gl.h>
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "reflect_gl_funcs.h"
+
+enum { RGL_VERTEX_FLOATS = 9 }; /* world position, normal, uv, object id */
+
+static const char rgl__frame_vs_base[] =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_p;\n"
+    "layout(location = 1) in vec3 a_n;\n"
+    "layout(location = 2) in vec3 a_uv_id;\n"
+    "uniform mat4 u_vp;\n"
+    "out vec3 v_p; out vec3 v_n; out vec2 v_uv; flat out float v_id;\n"
+    "void main() {\n"
+    "    v_p = a_p; v_n = a_n; v_uv = a_uv_id.xy; v_id = a_uv_id.z;\n"
+    "    gl_Position = u_vp * vec4(a_p, 1.0);\n"
+    "}\n";
+
+static const char rgl__frame_vs_mirror_head[] =
+    "#version 330 core\n"
+    "layout(location = 0) in vec3 a_p;\n"
+    "layout(location = 1) in vec3 a_n;\n"
+    "layout(location = 2) in vec3 a_uv_id;\n"
+    "uniform samplerBuffer u_data;\n"
+    "uniform int u_base;\n"
+    "out vec3 v_p; out vec3 v_n; out vec2 v_uv; flat out float v_id;\n";
+
+static const char rgl__frame_vs_mirror_main[] =
+    "void main() {\n"
+    "    v_p = a_p; v_n = a_n; v_uv = a_uv_id.xy; v_id = a_uv_id.z;\n"
+    "    gl_Position = refl_mirror_project(u_data, u_base, a_p, gl_ClipDistance[0]);\n"
+    "}\n";
+
+static const char rgl__frame_fs[] =
+    "#version 330 core\n"
+    "in vec3 v_p; in vec3 v_n; in vec2 v_uv; flat in float v_id;\n"
+    "layout(location = 0) out vec4 o_point;\n"
+    "layout(location = 1) out vec4 o_normal;\n"
+    "layout(location = 2) out vec4 o_uv;\n"
+    "void main() { o_point = vec4(v_p, v_id); o_normal = vec4(v_n, 0.0); o_uv = vec4(v_uv, 0.0, 0.0); }\n";
+
+/* A planar mirror object: its world plane n . x = d, n towards the eye. */
+typedef struct rgl_mirror {
+    int object;
+    double n[3], d;
+} rgl_mirror;
+
+/* The scene's triangles in world space (RGL_VERTEX_FLOATS per vertex),
+   each object's range, and its planar mirrors seen from the front. */
+typedef struct rgl_geometry {
+    float *v;
+    long long vertex_count;
+    long long *first;        /* per object, and one past the last */
+    rgl_mirror *mirrors;
+    int mirror_count;
+} rgl_geometry;
+
+static void rgl__geometry_free(rgl_geometry *g) {
+    free(g->v);
+    free(g->first);
+    free(g->mirrors);
+    memset(g, 0, sizeof *g);
+}
+
+/* Whether object o's world triangles all lie in one plane; its plane. */
+static int rgl__planar(const float *v, long long first, long long count, double n[3], double *d) {
+    double size = 0.0, len;
+    long long i;
+    int k, found = 0;
+    for (i = first; i + 2 < first + count && !found; i += 3) {
+        const float *a = v + i * RGL_VERTEX_FLOATS, *b = a + RGL_VERTEX_FLOATS, *c = b + RGL_VERTEX_FLOATS;
+        double e1[3], e2[3];
+        for (k = 0; k < 3; ++k) { e1[k] = b[k] - a[k]; e2[k] = c[k] - a[k]; }
+        n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (len > 0.0) {
+            for (k = 0; k < 3; ++k) n[k] /= len;
+            *d = n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
+            found = 1;
+        }
+    }
+    if (!found) return 0;
+    for (i = first; i < first + count; ++i)
+        for (k = 0; k < 3; ++k) size = fmax(size, fabs(v[i * RGL_VERTEX_FLOATS + k]));
+    for (i = first; i < first + count; ++i) {
+        const float *p = v + i * RGL_VERTEX_FLOATS;
+        if (fabs(n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - *d) > 1e-4 * (size + 1.0)) return 0;
+    }
+    return 1;
+}
+
+static int rgl__frame_fail(char *err, size_t n, const char *what) {
+    snprintf(err, n, "%s", what);
+    return -1;
+}
+
+static int rgl__geometry(const refl_scene *s, refl_vec3 eye, rgl_geometry *g) {
+    long long total = 0, at = 0;
+    int o;
+    memset(g, 0, sizeof *g);
+    for (o = 0; o < s->object_count; ++o) total += 3LL * s->meshes[s->objects[o].mesh]->triangle_count;
+    g->v = (float *)malloc((size_t)(total ? total : 1) * RGL_VERTEX_FLOATS * sizeof(float));
+    g->first = (long long *)malloc((size_t)(s->object_count + 1) * sizeof(long long));
+    g->mirrors = (rgl_mirror *)malloc((size_t)(s->object_count ? s->object_count : 1) * sizeof(rgl_mirror));
+    if (!g->v || !g->first || !g->mirrors) return -1;
+    for (o = 0; o < s->object_count; ++o) {
+        const refl_object *ob = &s->objects[o];
+        const refl_mesh *m = s->meshes[ob->mesh];
+        const refl_material *mat = &s->materials[ob->material];
+        refl_mat4 inv, nm;
+        int t, c;
+        g->first[o] = at;
+        nm = refl_mat4_invert(ob->transform, &inv) ? refl_mat4_transpose(inv) : ob->transform;
+        for (t = 0; t < m->triangle_count; ++t) {
+            for (c = 0; c < 3; ++c) {
+                uint32_t i = m->indices[3 * t + c];
+                float *out = g->v + at * RGL_VERTEX_FLOATS;
+                refl_vec3 p = refl_mat4_point(ob->transform, refl_v3(m->positions[3 * i], m->positions[3 * i + 1],
+                                                                     m->positions[3 * i + 2]));
+                refl_vec3 n = refl_v3_normalize(refl_mat4_dir(nm, refl_v3(m->normals[3 * i], m->normals[3 * i + 1],
+                                                                          m->normals[3 * i + 2])));
+                out[0] = p.x; out[1] = p.y; out[2] = p.z;
+                out[3] = n.x; out[4] = n.y; out[5] = n.z;
+                out[6] = m->texcoords ? m->texcoords[2 * i] : 0.0f;
+                out[7] = m->texcoords ? m->texcoords[2 * i + 1] : 0.0f;
+                out[8] = (float)(o + 1);
+                ++at;
+            }
+        }
+        if (mat->type == REFL_MIRROR || mat->type == REFL_PARTIAL) {
+            rgl_mirror *mr = &g->mirrors[g->mirror_count];
+            if (rgl__planar(g->v, g->first[o], at - g->first[o], mr->n, &mr->d)) {
+                double side = mr->n[0] * eye.x + mr->n[1] * eye.y + mr->n[2] * eye.z - mr->d;
+                int k;
+                if (side < 0.0) { /* facing the eye: its front */
+                    for (k = 0; k < 3; ++k) mr->n[k] = -mr->n[k];
+                    mr->d = -mr->d;
+                }
+                mr->object = o;
+                if (side != 0.0 && g->mirror_count < 254) g->mirror_count++;
+            }
+        }
+    }
+    g->first[s->object_count] = at;
+    g->vertex_count = at;
+    return 0;
+}
+
+/* Reads attachment `a` (4 floats per pixel) with rows top first. */
+static void rgl__read(int a, int w, int h, float *out) {
+    int y;
+    rgl.ReadBuffer(GL_COLOR_ATTACHMENT0 + a);
+    rgl.ReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, out);
+    for (y = 0; y < h / 2; ++y) { /* GL's row 0 is the bottom one */
+        float *r0 = out + (size_t)y * w * 4, *r1 = out + (size_t)(h - 1 - y) * w * 4, t;
+        int x;
+        for (x = 0; x < w * 4; ++x) { t = r0[x]; r0[x] = r1[x]; r1[x] = t; }
+    }
+}
+
+static void rgl__read_stencil(int w, int h, uint8_t *out) {
+    int y;
+    rgl.ReadPixels(0, 0, w, h, GL_STENCIL_INDEX, GL_UNSIGNED_BYTE, out);
+    for (y = 0; y < h / 2; ++y) {
+        uint8_t *r0 = out + (size_t)y * w, *r1 = out + (size_t)(h - 1 - y) * w, t;
+        int x;
+        for (x = 0; x < w; ++x) { t = r0[x]; r0[x] = r1[x]; r1[x] = t; }
+    }
+}
+
+/* The CPU side: shade pixel data (point + id, normal, uv) into rgb, or
+   the environment along dir where it shows nothing; clamped to [0, 1]. */
+static void rgl__shade(const refl_scene *s, const float *pt, const float *nrm, const float *uv, refl_vec3 dir,
+                       float rgb[3]) {
+    int id = (int)pt[3], c;
+    if (id >= 1 && id <= s->object_count) {
+        const refl_material *m = &s->materials[s->objects[id - 1].material];
+        /* a reflector's diffuse share only (the bounce ends here), as DIRECT */
+        float share = m->type == REFL_DIFFUSE ? 1.0f : m->type == REFL_PARTIAL ? 1.0f - m->mirror_weight : 0.0f;
+        refl_shade_diffuse(s, m, refl_v3(pt[0], pt[1], pt[2]), refl_v3(nrm[0], nrm[1], nrm[2]), uv, rgb);
+        for (c = 0; c < 3; ++c) rgb[c] *= share;
+    } else {
+        refl_environment_lookup(&s->environment, dir, rgb);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = rgb[c] > 0.0f ? rgb[c] : 0.0f; /* as the CPU path keeps colour */
+}
+
+int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                      rgl_frame_stats *st, char *err, size_t n) {
+    static const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    static const char *const mirror_vs[3] = {rgl__frame_vs_mirror_head, NULL, rgl__frame_vs_mirror_main};
+    const char *base_vs[1] = {rgl__frame_vs_base}, *fs[1] = {rgl__frame_fs}, *mvs[3];
+    int w = view->width, h = view->height, i, k, rc = -1;
+    size_t np = (size_t)w * (size_t)h;
+    GLuint fbo = 0, rb[4] = {0, 0, 0, 0}, base_prog = 0, mirror_prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0;
+    float *base[3] = {NULL, NULL, NULL}, *refl[3] = {NULL, NULL, NULL}, mirror_data[24];
+    uint8_t *marks = NULL;
+    refl_mat4 view_m, proj_m, vp, vp_inv, mirror_vp;
+    rgl_geometry geo;
+    double t0;
+    (void)g;
+    memset(st, 0, sizeof *st);
+    if (w < 1 || h < 1 || frame->width != w || frame->height != h) return rgl__frame_fail(err, n, "bad frame size");
+    if (rgl__geometry(scene, view->eye, &geo) != 0) {
+        rgl__geometry_free(&geo);
+        return rgl__frame_fail(err, n, "out of memory");
+    }
+    for (i = 0; i < 3; ++i) {
+        base[i] = (float *)malloc(np * 4 * sizeof(float));
+        refl[i] = (float *)malloc(np * 4 * sizeof(float));
+        if (!base[i] || !refl[i]) goto oom;
+    }
+    marks = (uint8_t *)malloc(np);
+    if (!marks) goto oom;
+    mvs[0] = mirror_vs[0];
+    mvs[1] = refl_gl_glsl(REFL_GL_MIRROR);
+    mvs[2] = mirror_vs[2];
+    base_prog = rgl_program(base_vs, 1, fs, 1, NULL, 0, err, n);
+    mirror_prog = base_prog ? rgl_program(mvs, 3, fs, 1, NULL, 0, err, n) : 0;
+    if (!mirror_prog) goto done;
+    refl_view_matrices(view, scene, &view_m, &proj_m);
+    vp = refl_mat4_mul(proj_m, view_m);
+    {
+        /* the mirrored scene lies further away: PLANAR's far plane, doubled
+           (near and far read back from the perspective matrix) */
+        float zn = proj_m.m[14] / (proj_m.m[10] - 1.0f), zf = proj_m.m[14] / (proj_m.m[10] + 1.0f);
+        float fovy = view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f;
+        mirror_vp = refl_mat4_mul(refl_mat4_perspective(fovy * 3.14159265f / 180.0f, (float)w / (float)h, zn, 2.0f * zf),
+                                  view_m);
+    }
+    if (!refl_mat4_invert(vp, &vp_inv)) {
+        rgl__frame_fail(err, n, "singular view");
+        goto done;
+    }
+
+    t0 = rgl_now();
+    rgl.GenFramebuffers(1, &fbo);
+    rgl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+    rgl.GenRenderbuffers(4, rb);
+    for (i = 0; i < 4; ++i) {
+        rgl.BindRenderbuffer(GL_RENDERBUFFER, rb[i]);
+        rgl.RenderbufferStorage(GL_RENDERBUFFER, i < 3 ? GL_RGBA32F : GL_DEPTH24_STENCIL8, w, h);
+        rgl.FramebufferRenderbuffer(GL_FRAMEBUFFER, i < 3 ? GL_COLOR_ATTACHMENT0 + i : GL_DEPTH_STENCIL_ATTACHMENT,
+                                    GL_RENDERBUFFER, rb[i]);
+    }
+    if (rgl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+        rgl__frame_fail(err, n, "float G-buffer framebuffer incomplete");
+        goto done;
+    }
+    rgl.DrawBuffers(3, bufs);
+    rgl.Viewport(0, 0, w, h);
+    rgl.GenVertexArrays(1, &vao);
+    rgl.BindVertexArray(vao);
+    rgl.GenBuffers(1, &vbo);
+    rgl.BindBuffer(GL_ARRAY_BUFFER, vbo);
+    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(geo.vertex_count * RGL_VERTEX_FLOATS * (long long)sizeof(float)),
+                   geo.v, GL_STATIC_DRAW);
+    for (i = 0; i < 3; ++i) {
+        rgl.EnableVertexAttribArray((GLuint)i);
+        rgl.VertexAttribPointer((GLuint)i, 3, GL_FLOAT, GL_FALSE, RGL_VERTEX_FLOATS * sizeof(float),
+                                (const void *)(size_t)(i * 3 * sizeof(float)));
+    }
+    /* 1. the base pass: mirrors mark their pixels */
+    rgl.ClearColor(0, 0, 0, 0);
+    rgl.ClearDepth(1.0);
+    rgl.ClearStencil(0);
+    rgl.StencilMask(0xFF);
+    rgl.DepthMask(GL_TRUE);
+    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+    rgl.Enable(GL_DEPTH_TEST);
+    rgl.DepthFunc(GL_LESS);
+    rgl.Enable(GL_STENCIL_TEST);
+    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+    rgl.UseProgram(base_prog);
+    rgl.UniformMatrix4fv(rgl.GetUniformLocation(base_prog, "u_vp"), 1, GL_FALSE, vp.m);
+    for (i = 0; i < scene->object_count; ++i) {
+        int mark = 0;
+        for (k = 0; k < geo.mirror_count; ++k)
+            if (geo.mirrors[k].object == i) mark = k + 1;
+        rgl.StencilFunc(GL_ALWAYS, mark, 0xFF);
+        rgl.DrawArrays(GL_TRIANGLES, (GLint)geo.first[i], (GLsizei)(geo.first[i + 1] - geo.first[i]));
+        st->vertices += geo.first[i + 1] - geo.first[i];
+    }
+    for (i = 0; i < 3; ++i) rgl__read(i, w, h, base[i]);
+    rgl__read_stencil(w, h, marks);
+    /* 2. per mirror: the scene through its mirrored pinhole, in its pixels */
+    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    rgl.Enable(GL_CLIP_DISTANCE0);
+    rgl.UseProgram(mirror_prog);
+    rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_data"), 0);
+    rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_base"), 0);
+    for (k = 0; k < geo.mirror_count; ++k) {
+        const rgl_mirror *mr = &geo.mirrors[k];
+        if (refl_gl_pack_mirror(mirror_vp, refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]), (float)mr->d,
+                                mirror_data, 24) != 24) {
+            rgl__frame_fail(err, n, "refl_gl_pack_mirror refused a mirror");
+            goto done;
+        }
+        if (tex) rgl.DeleteTextures(1, &tex);
+        if (tbuf) rgl.DeleteBuffers(1, &tbuf);
+        tex = rgl_buffer_texture(mirror_data, 24, &tbuf, err, n);
+        if (!tex) goto done;
+        rgl.ActiveTexture(GL_TEXTURE0);
+        rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
+        rgl.StencilFunc(GL_EQUAL, k + 1, 0xFF);
+        for (i = 0; i < scene->object_count; ++i) {
+            if (i == mr->object) continue;
+            rgl.DrawArrays(GL_TRIANGLES, (GLint)geo.first[i], (GLsizei)(geo.first[i + 1] - geo.first[i]));
+            st->vertices += geo.first[i + 1] - geo.first[i];
+        }
+    }
+    rgl.Disable(GL_CLIP_DISTANCE0);
+    rgl.Disable(GL_STENCIL_TEST);
+    rgl.Disable(GL_DEPTH_TEST);
+    for (i = 0; i < 3; ++i) rgl__read(i, w, h, refl[i]);
+    {
+        GLenum e = rgl.GetError();
+        if (e != GL_NO_ERROR) {
+            snprintf(err, n, "GL error 0x%x while drawing the frame", (unsigned)e);
+            goto done;
+        }
+    }
+    st->gl_seconds = rgl_now() - t0;
+    st->mirrors = geo.mirror_count;
+
+    /* 3. shade and composite on the CPU */
+    t0 = rgl_now();
+    for (i = 0; i < (int)np; ++i) {
+        int x = i % w, y = i / w, mark = marks[i], c;
+        refl_vec3 o, d;
+        float col[3];
+        float nx = (2.0f * ((float)x + 0.5f)) / (float)w - 1.0f, ny = 1.0f - (2.0f * ((float)y + 0.5f)) / (float)h;
+        o = refl_mat4_point(vp_inv, refl_v3(nx, ny, -1.0f));
+        d = refl_v3_normalize(refl_v3_sub(refl_mat4_point(vp_inv, refl_v3(nx, ny, 1.0f)), o));
+        frame->stencil[i] = 0;
+        for (c = 0; c < 3; ++c) frame->points[3 * i + c] = NAN;
+        rgl__shade(scene, base[0] + 4 * i, base[1] + 4 * i, base[2] + 4 * i, d, col);
+        if (mark) {
+            const rgl_mirror *mr = &geo.mirrors[mark - 1];
+            const refl_material *m = &scene->materials[scene->objects[mr->object].material];
+            refl_vec3 nrm = refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]);
+            float sub[3], wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, nrm)));
+            const float *rp = refl[0] + 4 * i;
+            rgl__shade(scene, rp, refl[1] + 4 * i, refl[2] + 4 * i, refl_v3_reflect(d, nrm), sub);
+            for (c = 0; c < 3; ++c) col[c] += wgt * sub[c]; /* col: the mirror's diffuse share */
+            frame->stencil[i] = (uint8_t)(mr->object + 1 < 255 ? mr->object + 1 : 255);
+            if ((int)rp[3] >= 1)
+                for (c = 0; c < 3; ++c) frame->points[3 * i + c] = rp[c];
+        }
+        for (c = 0; c < 3; ++c) rgb[3 * i + c] = col[c];
+    }
+    st->shade_seconds = rgl_now() - t0;
+    rc = 0;
+    goto done;
+oom:
+    rgl__frame_fail(err, n, "out of memory");
+done:
+    if (tex) rgl.DeleteTextures(1, &tex);
+    if (tbuf) rgl.DeleteBuffers(1, &tbuf);
+    if (vbo) rgl.DeleteBuffers(1, &vbo);
+    if (vao) rgl.DeleteVertexArrays(1, &vao);
+    if (base_prog) rgl.DeleteProgram(base_prog);
+    if (mirror_prog) rgl.DeleteProgram(mirror_prog);
+    if (fbo) {
+        rgl.BindFramebuffer(GL_FRAMEBUFFER, rgl_default_framebuffer(g));
+        rgl.DeleteFramebuffers(1, &fbo);
+    }
+    if (rb[0]) rgl.DeleteRenderbuffers(4, rb);
+    for (i = 0; i < 3; ++i) {
+        free(base[i]);
+        free(refl[i]);
+    }
+    free(marks);
+    rgl__geometry_free(&geo);
+    return rc;
+}
