@@ -793,7 +793,7 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
-    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
+    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
                                 drawn by RAYTRACE's tracer instead */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from

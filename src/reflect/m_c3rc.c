@@ -17,14 +17,19 @@
         every valid projection (the paper's GPU kept one; here all) lands on
         the reflector point a v1 + b v2 + c v3, seen by the view at a pixel,
         and is splatted there as a square; the point nearest the reflector
-        (smallest t, the paper's push-back) wins each pixel.
+        (the paper's push-back) wins each pixel, its depth taken where the
+        pixel's own ray meets the point's tangent plane (refl__c3_depth_at).
+        A camera does not draw its reflector's own points within one
+        triangle edge (refl__c3_near_self).
    Pixels no point reaches show the environment along their reflected ray
    (the paper's environment-mapped background). One bounce, as the paper.
 
    Splats: the side grows with the point spacing the camera shows on
    screen, estimated per projection from the sweeping triangle's area at t
    against the reflector piece's area in pixels (the paper's "increase the
-   splat size where rays converge"), up to max_splat. Level of detail: a
+   splat size where rays converge"), up to max_splat, or from the
+   camera's first fold interval on (section 5.1), up to its own size on
+   screen (refl__c3_in_fold). Level of detail: a
    leaf's points are shuffled (refl_kdtree), so where a camera minifies a
    whole leaf, a prefix of it at the needed density is drawn. A diffuse
    surface's points that face away from the ray are not drawn.
@@ -33,14 +38,25 @@
    G-buffer's object id, negated on back faces) and lie within two pixels
    of its plane: another part of the same reflector in front hides it.
    Visibility is a per-pixel atomic minimum of (t, point index), so the
-   image is the same for any thread count and order. Glass: the reflected
-   share as above; the refracted share is the environment along the ray
-   refracted once (no point). */
+   image is the same for any thread count and order.
+
+   Glass is declined (refl__c3_handles) and goes to RAYTRACE's tracer: a
+   C3RC interpolates rays that leave the reflector straight, while light
+   through a glass object bends again at its back surface, and the exit
+   rays of one triangle's three corners can leave through different back
+   triangles (they cross inside a thick object), so no three-ray camera
+   spans them; the paper has no refraction. */
 #include "internal.h"
 
 #define REFL__C3_EMPTY (~(uint64_t)0)
 #define REFL__C3_LOD_SPACING 0.5f   /* pixels between drawn points where a leaf is thinned */
 #define REFL__C3_SPLAT_SCALE 1.5f   /* splat side per point spacing (random points leave gaps) */
+/* At a pixel, a splat's depth grows by this many pixel widths (in the
+   sweep plane) per pixel between the pixel and the point's projection:
+   the slope of a surface seen at 76 degrees from its normal. Points of
+   one surface then compare by how near they project, and a surface
+   behind by more than that slope stays hidden. */
+#define REFL__C3_SAME_SURFACE_SLOPE 4.0f
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
    corners as barycentrics of the triangle's vertices (rows: corners). */
@@ -100,9 +116,14 @@ typedef struct refl__c3_cam {
     int object, triangle;
     float screen_area;            /* the triangle's area in pixels */
     float edge;                   /* longest edge (world) */
+    float near_self;              /* its reflector's own points nearer (in t) are not drawn */
+    float bary[4];                /* barycentric solve of the base: e1.e1, e1.e2, e2.e2, 1 / det */
     refl_vec3 base_normal;        /* unit, the side the rays leave */
     float dn_min, dn_max;         /* range of di . base_normal */
     int lod;                      /* thinning allowed: no multiple projections */
+    float fold[4][2];             /* section 5.1's sweep intervals where the rays fold */
+    int folds;
+    float screen_edge;            /* the longest edge in pixels */
     float id;                     /* G-buffer id of its pixels: object + 1, negated for a back face */
     float sweep;                  /* the largest t a scene point can have (INFINITY: unknown) */
     float hull[14][4];            /* planes n . x <= w bounding the volume up to t = sweep */
@@ -149,6 +170,34 @@ static int refl__c3_window(const refl__pass *p, refl_vec3 q, float *x, float *y)
     return 1;
 }
 
+/* Whether sweep t lies in or past the camera's first fold interval
+   (section 5.1): where its rays converge, then diverge again, a point
+   covers as many pixels as the magnification asks (the paper's "increase
+   the splat size" in the quasi-convergence region), up to the camera's own
+   size on screen. Past the fold the rays spread and the splats shrink by
+   themselves. */
+static int refl__c3_in_fold(const refl__c3_cam *k, float t) { return k->folds > 0 && t >= k->fold[0][0]; }
+
+/* The push-back depth of a splat at a pixel: where the camera's ray
+   through the pixel's reflector point r (its barycentrics in the base, the
+   rays interpolated there) meets the plane of the point pt with normal
+   np, so that the points of one surface compare as the surface at the
+   pixel's centre and not as their own (the nearest one at the edge of a
+   pixel's footprint would win every pixel it covers). Within `reach` of
+   the point's own t; t itself where the ray grazes the plane. */
+static float refl__c3_depth_at(const refl__c3_cam *k, refl_vec3 r, refl_vec3 pt, refl_vec3 np, float t, float reach) {
+    const refl_c3rc *c = &k->cam;
+    refl_vec3 w = refl_v3_sub(r, c->v[0]), d;
+    float w1 = refl_v3_dot(w, refl_v3_sub(c->v[1], c->v[0])), w2 = refl_v3_dot(w, refl_v3_sub(c->v[2], c->v[0]));
+    float b = (k->bary[2] * w1 - k->bary[1] * w2) * k->bary[3], cc = (k->bary[0] * w2 - k->bary[1] * w1) * k->bary[3];
+    float dn, s;
+    d = refl_v3_add(refl_v3_add(refl_v3_scale(c->d[0], 1.0f - b - cc), refl_v3_scale(c->d[1], b)), refl_v3_scale(c->d[2], cc));
+    dn = refl_v3_dot(d, np);
+    if (!(fabsf(dn) > 0.2f * refl_v3_length(d))) return t;
+    s = refl_v3_dot(refl_v3_sub(pt, r), np) / dn;
+    return REFL__CLAMP(s, t - reach, t + reach);
+}
+
 /* Splats point i, projected at pr, into the pixels of the camera's
    reflector around its reflector point. */
 static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_projection *pr, float density) {
@@ -158,8 +207,9 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     int w = p->frame->width, h = p->frame->height, side, x0, y0, x, y;
     refl_vec3 q = refl_v3_add(refl_v3_add(refl_v3_scale(c->v[0], pr->a), refl_v3_scale(c->v[1], pr->b)),
                               refl_v3_scale(c->v[2], pr->c));
-    float px, py, tol, plane_tol, pix, spacing = 0.0f;
-    uint64_t key;
+    const float *tq = c3->s->tree->positions + 3 * (size_t)i;
+    refl_vec3 pt = refl_v3(tq[0], tq[1], tq[2]), np = refl_v3(0.0f, 0.0f, 0.0f);
+    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, reach;
     if (!refl__c3_window(p, q, &px, &py)) return;
     {   /* the point spacing on screen: a point's share of surface, turned
            into the sweep plane along the ray, then into pixels */
@@ -169,7 +219,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                                    refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
         refl_vec3 e2 = refl_v3_sub(refl_v3_add(c->v[2], refl_v3_scale(c->d[2], pr->t)),
                                    refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
-        refl_vec3 ns = refl_v3_cross(e1, e2), np;
+        refl_vec3 ns = refl_v3_cross(e1, e2);
         float sweep = 0.5f * refl_v3_length(ns), cs, cp;
         const float *nn = c3->s->normal + 3 * (size_t)i;
         np = refl_v3(nn[0], nn[1], nn[2]);
@@ -181,9 +231,11 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
         cp = fabsf(cp);
         if (sweep > 0.0f && density > 0.0f)
             spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
+        if (k->screen_area > 0.0f) pix_sweep = sqrtf(sweep / k->screen_area);
     }
-    side = (int)ceilf(REFL__C3_SPLAT_SCALE * spacing);
-    side = REFL__CLAMP(side, 1, c3->max_splat);
+    side = (int)ceilf(REFL__C3_SPLAT_SCALE * REFL__MIN(spacing, 1e4f));
+    side = REFL__CLAMP(side, 1, refl__c3_in_fold(k, pr->t) ? REFL__MAX(c3->max_splat, (int)ceilf(2.0f * k->screen_edge))
+                                                          : c3->max_splat);
     x0 = (int)floorf(px - 0.5f * (float)side + 0.5f);
     y0 = (int)floorf(py - 0.5f * (float)side + 0.5f);
     /* the surface seen there must be this triangle's: within two pixels
@@ -192,16 +244,21 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     pix = c3->pixel_angle * refl_v3_length(refl_v3_sub(q, p->view->eye));
     plane_tol = 2.0f * pix;
     tol = k->edge + (float)side * pix;
-    key = ((uint64_t)refl__c3_bits(pr->t) << 32) | (uint64_t)(uint32_t)i;
+    reach = (float)side * pix_sweep / REFL__MAX(fabsf(refl_v3_dot(np, refl_v3_normalize(refl_v3_add(
+                                                    refl_v3_add(refl_v3_scale(c->d[0], pr->a), refl_v3_scale(c->d[1], pr->b)),
+                                                    refl_v3_scale(c->d[2], pr->c))))), 0.2f);
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
             const float *r = c3->em.surface + 3 * j;
             refl_vec3 dq;
+            float depth;
             if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
             dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
             if (refl_v3_dot(dq, dq) > tol * tol || fabsf(refl_v3_dot(dq, k->base_normal)) > plane_tol) continue;
-            refl__c3_min(&((refl__c3 *)c3)->key[j], key);
+            depth = refl__c3_depth_at(k, refl_v3(r[0], r[1], r[2]), pt, np, pr->t, reach) +
+                    REFL__C3_SAME_SURFACE_SLOPE * pix_sweep * hypotf((float)x + 0.5f - px, (float)y + 0.5f - py);
+            refl__c3_min(&((refl__c3 *)c3)->key[j], ((uint64_t)refl__c3_bits(depth) << 32) | (uint64_t)(uint32_t)i);
         }
 }
 
@@ -293,6 +350,17 @@ static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *lea
     return REFL__MAX(1, (int)ceilf(keep * (float)leaf->count));
 }
 
+/* Whether tree point i, seen by camera k at sweep t, is its reflector's
+   own surface within one triangle edge of the camera: there the sampled
+   (flat) neighbours of a curved reflector cross the smoothly interpolated
+   rays at grazing angles, and would win the push-back over what the ray
+   truly sees. The paper samples no reflector; farther self-reflections
+   (a spout in the body) are kept, black as one-bounce RAYTRACE shows
+   them. */
+static int refl__c3_near_self(const refl__c3_cam *k, int i, float t) {
+    return k->c3->s->object[i] == k->object && t < k->near_self;
+}
+
 static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
     refl__c3_cam *k = (refl__c3_cam *)user;
     const refl__c3 *c3 = k->c3;
@@ -315,7 +383,7 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
         k->n->valid += n;
         if (n > 1) k->n->multiple += n - 1;
         for (j = 0; j < n; ++j)
-            if (pr[j].t > 0.0f) refl__c3_splat(k, i, &pr[j], density);
+            if (pr[j].t > 0.0f && !refl__c3_near_self(k, i, pr[j].t)) refl__c3_splat(k, i, &pr[j], density);
     }
     k->n->ms_project += refl__now_ms() - t0;
 }
@@ -386,6 +454,17 @@ static int refl__c3_setup(const refl__pass *p, const refl__c3_job *job, refl__c3
     if (refl_c3rc_init(&k->cam, v, d) != REFL_OK) return 0;
     k->edge = REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
                         REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    k->near_self = REFL__MAX(refl_v3_length(refl_v3_sub(t.v[1], t.v[0])),
+                             REFL__MAX(refl_v3_length(refl_v3_sub(t.v[2], t.v[1])), refl_v3_length(refl_v3_sub(t.v[0], t.v[2]))));
+    {
+        refl_vec3 e1 = refl_v3_sub(v[1], v[0]), e2 = refl_v3_sub(v[2], v[0]);
+        float a = refl_v3_dot(e1, e1), b = refl_v3_dot(e1, e2), c = refl_v3_dot(e2, e2), det = a * c - b * b;
+        k->bary[0] = a; k->bary[1] = b; k->bary[2] = c;
+        k->bary[3] = det != 0.0f ? 1.0f / det : 0.0f;
+    }
+    k->screen_edge = 0.0f;
+    for (i = 0; on_screen && i < 3; ++i)
+        k->screen_edge = REFL__MAX(k->screen_edge, hypotf(sx[(i + 1) % 3] - sx[i], sy[(i + 1) % 3] - sy[i]));
     k->screen_area = on_screen ? 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]))
                                : 0.0f;
     k->base_normal = t.ng;
@@ -511,7 +590,6 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     refl__c3_cam k;
-    float intervals[4][2];
     memset(&k, 0, sizeof k);
     k.c3 = c3;
     k.n = &((refl__c3 *)c3)->counts[index];
@@ -523,7 +601,8 @@ static void refl__c3_camera(void *arg, int index) {
         k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
     }
     refl__c3_hull(&k);
-    k.lod = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), intervals) == 0;
+    k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
+    k.lod = k.folds == 0;
     refl_kdtree_query(c3->s->tree, refl__c3_box, refl__c3_leaf, &k);
     k.n->ms_cull += k.t_cull;
 }
@@ -804,6 +883,13 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     }
     if (!(size > 0.0f)) return 0.0f;
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
+}
+
+/* Whether C3RC draws reflector `object` (*can): mirrors and partial
+   mirrors; not glass (see the top of this file). */
+static refl_result refl__c3_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
 }
 
 static const char *refl__options_c3rc(refl_render_desc *d) {

@@ -186,7 +186,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_RAYTRACE, REFL__WHOLE_FRAME | REFL__PER_REFLECTOR, refl__method_raytrace, refl__options_raytrace, NULL},
     {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL},
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
