@@ -770,7 +770,9 @@ typedef struct refl_c3rc_frame_stats {
     long long leaves;        /* kd-tree leaves whose points were projected */
     long long culled;        /* kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* point projections attempted */
+    long long projections;   /* points of the leaves the box test accepted (the paper's
+                                count; those a cheaper per-point hull test then skips
+                                included), after level-of-detail thinning */
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
@@ -7322,6 +7324,7 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
     float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
     refl_c3rc_projection pr[3];
     k->n->leaves++;
+    k->n->tries += count; /* the paper's count: every point of a leaf the box test accepts */
     for (i = leaf->first; i < leaf->first + count; ++i) {
         const float *q = tree->positions + 3 * (size_t)i;
         /* a reflector's own triangle would see all of itself at t = 0 */
@@ -7332,7 +7335,6 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
         }
         if (j < k->hull_count) continue; /* outside the volume's hull */
         n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
-        k->n->tries++;
         k->n->valid += n;
         if (n > 1) k->n->multiple += n - 1;
         for (j = 0; j < n; ++j)

@@ -768,7 +768,9 @@ typedef struct refl_c3rc_frame_stats {
     long long leaves;        /* kd-tree leaves whose points were projected */
     long long culled;        /* kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* point projections attempted */
+    long long projections;   /* points of the leaves the box test accepted (the paper's
+                                count; those a cheaper per-point hull test then skips
+                                included), after level-of-detail thinning */
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */

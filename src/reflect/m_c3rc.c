@@ -369,6 +369,7 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
     float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
     refl_c3rc_projection pr[3];
     k->n->leaves++;
+    k->n->tries += count; /* the paper's count: every point of a leaf the box test accepts */
     for (i = leaf->first; i < leaf->first + count; ++i) {
         const float *q = tree->positions + 3 * (size_t)i;
         /* a reflector's own triangle would see all of itself at t = 0 */
@@ -379,7 +380,6 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
         }
         if (j < k->hull_count) continue; /* outside the volume's hull */
         n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
-        k->n->tries++;
         k->n->valid += n;
         if (n > 1) k->n->multiple += n - 1;
         for (j = 0; j < n; ++j)
