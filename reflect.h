@@ -6959,7 +6959,9 @@ done:
      1. every surface is sampled with points (refl_mesh_sample_points, world
         space), each shaded once as DIRECT shows it (diffuse model clamped,
         a partial reflector's diffuse share, mirrors and glass black), and
-        the points go into a kd-tree (section 4);
+        the points go into a kd-tree (section 4); the default density is
+        raised on the objects a folding camera shows magnified
+        (refl__c3_object_densities);
      2. each reflector triangle the view sees (front faces, and the back
         faces of an open mesh's inside) becomes a continuous 3-ray camera
         from the reflected rays at its vertices (section 5), split in four
@@ -7023,6 +7025,8 @@ typedef struct refl__c3_job {
 #define REFL__C3_SPLIT_PX 0.1f     /* default estimated camera error that splits a triangle's camera */
 #define REFL__C3_SPLIT_DEPTH 4      /* at most 4^4 cameras per reflector triangle */
 #define REFL__C3_AUTO_POINTS 2e6    /* the most points the default density samples */
+#define REFL__C3_PIXELS_PER_POINT 4.0 /* the default density: a point per 2 x 2 pixels */
+#define REFL__C3_MAX_BOOST 64.0f    /* the most a magnified object's density is raised */
 
 typedef struct refl__c3_counts {
     long long tests, culled, leaves, tries, valid, multiple;
@@ -7037,6 +7041,7 @@ typedef struct refl__c3_samples {
     refl_kdtree *tree;
     float *rgb, *normal;
     uint8_t *diffuse;             /* on a diffuse object (culled when facing away) */
+    float *object_density;        /* per object: the points per unit area it was sampled at */
     int32_t *object, *triangle;   /* where it was sampled */
 } refl__c3_samples;
 
@@ -7046,6 +7051,7 @@ static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pt
     refl__free(al, pts->rgb);
     refl__free(al, pts->normal);
     refl__free(al, pts->diffuse);
+    refl__free(al, pts->object_density);
     refl__free(al, pts->object);
     refl__free(al, pts->triangle);
     refl__free(al, pts);
@@ -7321,7 +7327,7 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
     const refl__c3 *c3 = k->c3;
     double t0 = refl__now_ms();
     int count = refl__c3_lod_count(k, leaf), i, j, n;
-    float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
+    float thinned = (float)count / (float)REFL__MAX(leaf->count, 1);
     refl_c3rc_projection pr[3];
     k->n->leaves++;
     k->n->tries += count; /* the paper's count: every point of a leaf the box test accepts */
@@ -7338,7 +7344,8 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
         k->n->valid += n;
         if (n > 1) k->n->multiple += n - 1;
         for (j = 0; j < n; ++j)
-            if (pr[j].t > 0.0f && !refl__c3_near_self(k, i, pr[j].t)) refl__c3_splat(k, i, &pr[j], density);
+            if (pr[j].t > 0.0f && !refl__c3_near_self(k, i, pr[j].t))
+                refl__c3_splat(k, i, &pr[j], c3->s->object_density[c3->s->object[i]] * thinned);
     }
     k->n->ms_project += refl__now_ms() - t0;
 }
@@ -7633,8 +7640,8 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         const refl_object *o = &scene->objects[i];
-        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->density, 0x9e3779b97f4a7c15ull + (uint64_t)i,
-                                    al, &pts[i]);
+        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->s->object_density[i],
+                                    0x9e3779b97f4a7c15ull + (uint64_t)i, al, &pts[i]);
         if (r == REFL_OK) total += pts[i]->count;
     }
     if (r == REFL_OK && total > INT32_MAX / 4) r = REFL_ERROR_INVALID_SIZE;
@@ -7799,6 +7806,23 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
     return r;
 }
 
+/* Object i's surface area in the world. */
+static double refl__c3_object_area(const refl_scene *scene, int i) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    double area = 0.0;
+    int t, k;
+    for (t = 0; t < m->triangle_count; ++t) {
+        refl_vec3 v[3];
+        for (k = 0; k < 3; ++k) {
+            const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
+            v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        }
+        area += 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    }
+    return area;
+}
+
 /* The default density: one point per 2 x 2 pixels where the reflectors
    are (the footprint at the distance of their nearest bounds), at most
    REFL__C3_AUTO_POINTS in all; splats grow where that is too few. */
@@ -7823,19 +7847,7 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     size = 2.0f * REFL__MAX(nearest, p->rays.znear) * c3->pixel_angle;
     /* at most REFL__C3_AUTO_POINTS over the whole scene (a viewer close to
        a mirror would ask for tens of millions) */
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *m = scene->meshes[o->mesh];
-        int t, k;
-        for (t = 0; t < m->triangle_count; ++t) {
-            refl_vec3 v[3];
-            for (k = 0; k < 3; ++k) {
-                const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
-                v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-            }
-            area += 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-        }
-    }
+    for (i = 0; i < scene->object_count; ++i) area += refl__c3_object_area(scene, i);
     if (!(size > 0.0f)) return 0.0f;
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
@@ -7844,6 +7856,63 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
    mirrors; not glass (see the top of this file). */
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can) {
     *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
+/* Each object's sampling density (c3->s->object_density): the frame's,
+   raised (when `magnify`) where a folding camera (section 5.1: its rays
+   converge, the paper's quasi-convergence region) shows the object
+   magnified, to one point per REFL__C3_PIXELS_PER_POINT pixels there: the
+   magnification at the object's centre and box corners is the camera's
+   screen area over its sweeping triangle's area at their t. Diffuse
+   objects only (a reflector's own points show black). At most
+   REFL__C3_MAX_BOOST times the frame's density, and all objects together
+   at most REFL__C3_AUTO_POINTS points. */
+static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    float *dens = (float *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(float));
+    double total = 0.0, area_all = 0.0;
+    int i, j, corner;
+    if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
+    c3->s->object_density = dens;
+    for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
+    if (!magnify) return REFL_OK;
+    for (j = 0; j < jobs; ++j) {
+        refl__c3_cam k;
+        float folds[4][2];
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(p, &c3->jobs[j], &k) || !(k.screen_area > 0.0f) ||
+            refl_c3rc_multiple_intervals(&k.cam, 4.0f * c3->tmax, folds) == 0)
+            continue;
+        for (i = 0; i < scene->object_count; ++i) {
+            const refl_object *o = &scene->objects[i];
+            refl_vec3 lo, hi;
+            if (refl__is_reflector(&scene->materials[o->material])) continue;
+            refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+            for (corner = 0; corner < 9; ++corner) {
+                refl_c3rc_projection pr[3];
+                refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                          : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+                int m = refl_c3rc_project(&k.cam, refl_mat4_point(o->transform, q), pr), r;
+                for (r = 0; r < m; ++r) {
+                    double sweep = refl__c3_sweep_area(&k.cam, pr[r].t);
+                    float want = sweep > 0.0 ? (float)((double)k.screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
+                    dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * c3->density));
+                }
+            }
+        }
+    }
+    for (i = 0; i < scene->object_count; ++i) { /* the budget: scale the raises down together */
+        double area = refl__c3_object_area(scene, i);
+        total += area * (double)dens[i];
+        area_all += area * (double)c3->density;
+    }
+    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
+        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
+        for (i = 0; i < scene->object_count; ++i)
+            dens[i] = c3->density + (float)(keep * (double)(dens[i] - c3->density));
+    }
     return REFL_OK;
 }
 
@@ -7864,7 +7933,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__c3 c3;
     unsigned char *seen = NULL;
     size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    double t0 = refl__now_ms(), t1;
+    double t0 = refl__now_ms(), t1, t_jobs = 0.0;
     refl_result r = REFL_OK;
     refl_vec3 lo, hi;
     int i, any = 0, jobs = 0;
@@ -7888,11 +7957,16 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                                                         : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
-        if (models && models->c3) {
+        t1 = refl__now_ms();
+        r = refl__c3_jobs(&c3, seen, &jobs); /* the cameras, before the points: they size the densities */
+        t_jobs = refl__now_ms() - t1;
+        if (r == REFL_OK && models && models->c3) {
             c3.s = models->c3; /* a renderer's density never changes */
-        } else {
+        } else if (r == REFL_OK) {
             c3.s = (refl__c3_samples *)refl__calloc(al, 1, sizeof *c3.s);
-            r = c3.s ? refl__c3_points(&c3) : REFL_ERROR_OUT_OF_MEMORY;
+            r = c3.s ? refl__c3_object_densities(&c3, jobs, !(p->desc.c3rc.point_density > 0.0f))
+                     : REFL_ERROR_OUT_OF_MEMORY;
+            if (r == REFL_OK) r = refl__c3_points(&c3);
             fr->stats.scene_models_built++;
             if (r == REFL_OK && models) {
                 models->c3 = c3.s;
@@ -7900,9 +7974,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             }
         }
         t1 = refl__now_ms();
-        fr->stats.ms_build += t1 - t0;
-        t0 = t1;
-        if (r == REFL_OK) r = refl__c3_jobs(&c3, seen, &jobs);
+        fr->stats.ms_build += t1 - t0 - t_jobs;
+        t0 = t1 - t_jobs; /* the cameras count as reflection time */
         if (r == REFL_OK) {
             c3.counts = (refl__c3_counts *)refl__calloc(al, (size_t)REFL__MAX(jobs, 1), sizeof(refl__c3_counts));
             if (!c3.counts) r = REFL_ERROR_OUT_OF_MEMORY;

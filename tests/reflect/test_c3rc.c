@@ -219,11 +219,14 @@ Test(refl_c3rc, concave_mirror_convergence) {
 }
 
 /* The focusing region at the issue's size: the ball at the concave
-   bowl's focus is magnified many times. Splats grow with the magnification
-   their camera shows, past max_splat from the camera's first fold interval
-   on (section 5.1), so the ball's reflection is covered, not a scatter of
-   capped squares over the environment: p95 within 8 px at 640x480 with
-   the default density (measured 7.8; capped at 8 px, 32.7). */
+   bowl's focus is magnified many times. The default density samples it
+   as densely as the folding cameras magnify it, and splats grow with the
+   magnification past max_splat from a camera's first fold interval on
+   (section 5.1), so the ball's reflection is covered, not a scatter of
+   capped squares over the environment: p95 within 8 px at 640x480 (the
+   issue's bound), mean within 2 px and holes under 3% (measured: mean
+   1.53, p95 3.16, holes 2.3%; with the density of a direct view and
+   8-pixel splats, mean 4.88, p95 32.7, holes 6.8%). */
 Test(refl_c3rc, concave_focus_at_640x480) {
     refl_scene *s = builtin("concave", 0);
     refl_view v = s->camera;
@@ -238,7 +241,8 @@ Test(refl_c3rc, concave_focus_at_640x480) {
     cr_log_info("concave 640x480: error mean %.3f p95 %.3f, wrong %.4f, empty %.4f, PSNR %.2f dB", r.err.mean,
                 r.err.p95, r.err.wrong, r.err.empty, r.img.psnr);
     cr_assert(r.err.p95 <= 8.0, "p95 %.3f px", r.err.p95);
-    cr_assert(r.err.empty <= 0.05, "empty %.4f", r.err.empty);
+    cr_assert(r.err.mean <= 2.0, "mean %.3f px", r.err.mean);
+    cr_assert(r.err.empty <= 0.03, "empty %.4f", r.err.empty);
     refl_scene_destroy(s);
 }
 

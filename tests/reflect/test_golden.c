@@ -85,7 +85,7 @@ static const golden_case golden_cases[] = {
     {"concave", "raytrace", 0x0aa69e24c679f72cull},
     {"concave", "envmap", 0x73e9d6dd35cc0fa5ull},
     {"concave", "planar", 0x2ecce22de74556c8ull},
-    {"concave", "c3rc", 0x08bb780cfe531a8aull},
+    {"concave", "c3rc", 0x125ec59a7d75e78aull},
     {"concave", "sbc", 0xa73f73ffddd6b0baull},
     {"concave", "sbc-fallback", 0x6e9b931c1324dbd1ull},
     {"glass", "direct", 0x2e3444e9a05d8becull},
