@@ -891,10 +891,12 @@ typedef struct refl_planar_options {
 
 typedef struct refl_c3rc_options {
     float point_density;     /* samples per unit area of every surface; 0: from the view: one
-                                per 2 x 2 pixels at the reflectors' distance, at most 2
-                                million in all (a renderer fixes it at its first frame) */
-    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
-    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8 */
+                                per 2 x 2 pixels at the reflectors' distance, raised on an
+                                object a folding camera magnifies, at most 2 million in all
+                                (a renderer fixes it at its first frame) */
+    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 (the paper: 122) */
+    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8; from a camera's
+                                first fold interval on (section 5.1): its size on screen */
     float camera_split_px;   /* a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
