@@ -7172,7 +7172,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                               refl_v3_scale(c->v[2], pr->c));
     const float *tq = c3->s->tree->positions + 3 * (size_t)i;
     refl_vec3 pt = refl_v3(tq[0], tq[1], tq[2]), np = refl_v3(0.0f, 0.0f, 0.0f);
-    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, reach;
+    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, facing = 0.0f, reach;
     if (!refl__c3_window(p, q, &px, &py)) return;
     {   /* the point spacing on screen: a point's share of surface, turned
            into the sweep plane along the ray, then into pixels */
@@ -7192,6 +7192,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
         /* a diffuse surface's back, seen through gaps in its front: not drawn */
         if (cp > 0.0f && c3->s->diffuse[i]) return;
         cp = fabsf(cp);
+        facing = cp;
         if (sweep > 0.0f && density > 0.0f)
             spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
         if (k->screen_area > 0.0f) pix_sweep = sqrtf(sweep / k->screen_area);
@@ -7207,9 +7208,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     pix = c3->pixel_angle * refl_v3_length(refl_v3_sub(q, p->view->eye));
     plane_tol = 2.0f * pix;
     tol = k->edge + (float)side * pix;
-    reach = (float)side * pix_sweep / REFL__MAX(fabsf(refl_v3_dot(np, refl_v3_normalize(refl_v3_add(
-                                                    refl_v3_add(refl_v3_scale(c->d[0], pr->a), refl_v3_scale(c->d[1], pr->b)),
-                                                    refl_v3_scale(c->d[2], pr->c))))), 0.2f);
+    reach = (float)side * pix_sweep / REFL__MAX(facing, 0.2f);
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
