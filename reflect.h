@@ -810,7 +810,9 @@ typedef struct refl_c3rc_frame_stats {
     long long leaves;        /* kd-tree leaves whose points were projected */
     long long culled;        /* kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* point projections attempted */
+    long long projections;   /* points of the leaves the box test accepted (the paper's
+                                count; those a cheaper per-point hull test then skips
+                                included), after level-of-detail thinning */
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
@@ -835,7 +837,7 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
-    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
+    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
                                 drawn by RAYTRACE's tracer instead */
     int depth;               /* bounces the frame models: desc.depth, or fewer where the
                                 method of some reflector models fewer (DIRECT: 0;
@@ -952,10 +954,12 @@ typedef struct refl_planar_options {
 
 typedef struct refl_c3rc_options {
     float point_density;     /* samples per unit area of every surface; 0: from the view: one
-                                per 2 x 2 pixels at the reflectors' distance, at most 2
-                                million in all (a renderer fixes it at its first frame) */
-    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
-    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8 */
+                                per 2 x 2 pixels at the reflectors' distance, raised on an
+                                object a folding camera magnifies, at most 2 million in all
+                                (a renderer fixes it at its first frame) */
+    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 (the paper: 122) */
+    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8; from a camera's
+                                first fold interval on (section 5.1): its size on screen */
     float camera_split_px;   /* a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
@@ -1671,6 +1675,7 @@ static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/cam_sbc_internal.h ---- */
@@ -7507,7 +7512,9 @@ done:
      1. every surface is sampled with points (refl_mesh_sample_points, world
         space), each shaded once as DIRECT shows it (diffuse model clamped,
         a partial reflector's diffuse share, mirrors and glass black), and
-        the points go into a kd-tree (section 4);
+        the points go into a kd-tree (section 4); the default density is
+        raised on the objects a folding camera shows magnified
+        (refl__c3_object_densities);
      2. each reflector triangle the view sees (front faces, and the back
         faces of an open mesh's inside) becomes a continuous 3-ray camera
         from the reflected rays at its vertices (section 5), split in four
@@ -7521,14 +7528,19 @@ done:
         every valid projection (the paper's GPU kept one; here all) lands on
         the reflector point a v1 + b v2 + c v3, seen by the view at a pixel,
         and is splatted there as a square; the point nearest the reflector
-        (smallest t, the paper's push-back) wins each pixel.
+        (the paper's push-back) wins each pixel, its depth taken where the
+        pixel's own ray meets the point's tangent plane (refl__c3_depth_at).
+        A camera does not draw its reflector's own points within one
+        triangle edge (refl__c3_near_self).
    Pixels no point reaches show the environment along their reflected ray
    (the paper's environment-mapped background). One bounce, as the paper.
 
    Splats: the side grows with the point spacing the camera shows on
    screen, estimated per projection from the sweeping triangle's area at t
    against the reflector piece's area in pixels (the paper's "increase the
-   splat size where rays converge"), up to max_splat. Level of detail: a
+   splat size where rays converge"), up to max_splat, or from the
+   camera's first fold interval on (section 5.1), up to its own size on
+   screen (refl__c3_in_fold). Level of detail: a
    leaf's points are shuffled (refl_kdtree), so where a camera minifies a
    whole leaf, a prefix of it at the needed density is drawn. A diffuse
    surface's points that face away from the ray are not drawn.
@@ -7537,13 +7549,24 @@ done:
    G-buffer's object id, negated on back faces) and lie within two pixels
    of its plane: another part of the same reflector in front hides it.
    Visibility is a per-pixel atomic minimum of (t, point index), so the
-   image is the same for any thread count and order. Glass: the reflected
-   share as above; the refracted share is the environment along the ray
-   refracted once (no point). */
+   image is the same for any thread count and order.
+
+   Glass is declined (refl__c3_handles) and goes to RAYTRACE's tracer: a
+   C3RC interpolates rays that leave the reflector straight, while light
+   through a glass object bends again at its back surface, and the exit
+   rays of one triangle's three corners can leave through different back
+   triangles (they cross inside a thick object), so no three-ray camera
+   spans them; the paper has no refraction. */
 
 #define REFL__C3_EMPTY (~(uint64_t)0)
 #define REFL__C3_LOD_SPACING 0.5f   /* pixels between drawn points where a leaf is thinned */
 #define REFL__C3_SPLAT_SCALE 1.5f   /* splat side per point spacing (random points leave gaps) */
+/* At a pixel, a splat's depth grows by this many pixel widths (in the
+   sweep plane) per pixel between the pixel and the point's projection:
+   the slope of a surface seen at 76 degrees from its normal. Points of
+   one surface then compare by how near they project, and a surface
+   behind by more than that slope stays hidden. */
+#define REFL__C3_SAME_SURFACE_SLOPE 4.0f
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
    corners as barycentrics of the triangle's vertices (rows: corners). */
@@ -7555,6 +7578,8 @@ typedef struct refl__c3_job {
 #define REFL__C3_SPLIT_PX 0.1f     /* default estimated camera error that splits a triangle's camera */
 #define REFL__C3_SPLIT_DEPTH 4      /* at most 4^4 cameras per reflector triangle */
 #define REFL__C3_AUTO_POINTS 2e6    /* the most points the default density samples */
+#define REFL__C3_PIXELS_PER_POINT 4.0 /* the default density: a point per 2 x 2 pixels */
+#define REFL__C3_MAX_BOOST 64.0f    /* the most a magnified object's density is raised */
 
 typedef struct refl__c3_counts {
     long long tests, culled, leaves, tries, valid, multiple;
@@ -7569,6 +7594,7 @@ typedef struct refl__c3_samples {
     refl_kdtree *tree;
     float *rgb, *normal;
     uint8_t *diffuse;             /* on a diffuse object (culled when facing away) */
+    float *object_density;        /* per object: the points per unit area it was sampled at */
     int32_t *object, *triangle;   /* where it was sampled */
 } refl__c3_samples;
 
@@ -7578,6 +7604,7 @@ static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pt
     refl__free(al, pts->rgb);
     refl__free(al, pts->normal);
     refl__free(al, pts->diffuse);
+    refl__free(al, pts->object_density);
     refl__free(al, pts->object);
     refl__free(al, pts->triangle);
     refl__free(al, pts);
@@ -7603,9 +7630,14 @@ typedef struct refl__c3_cam {
     int object, triangle;
     float screen_area;            /* the triangle's area in pixels */
     float edge;                   /* longest edge (world) */
+    float near_self;              /* its reflector's own points nearer (in t) are not drawn */
+    float bary[4];                /* barycentric solve of the base: e1.e1, e1.e2, e2.e2, 1 / det */
     refl_vec3 base_normal;        /* unit, the side the rays leave */
     float dn_min, dn_max;         /* range of di . base_normal */
     int lod;                      /* thinning allowed: no multiple projections */
+    float fold[4][2];             /* section 5.1's sweep intervals where the rays fold */
+    int folds;
+    float screen_edge;            /* the longest edge in pixels */
     float id;                     /* G-buffer id of its pixels: object + 1, negated for a back face */
     float sweep;                  /* the largest t a scene point can have (INFINITY: unknown) */
     float hull[14][4];            /* planes n . x <= w bounding the volume up to t = sweep */
@@ -7652,6 +7684,34 @@ static int refl__c3_window(const refl__pass *p, refl_vec3 q, float *x, float *y)
     return 1;
 }
 
+/* Whether sweep t lies in or past the camera's first fold interval
+   (section 5.1): where its rays converge, then diverge again, a point
+   covers as many pixels as the magnification asks (the paper's "increase
+   the splat size" in the quasi-convergence region), up to the camera's own
+   size on screen. Past the fold the rays spread and the splats shrink by
+   themselves. */
+static int refl__c3_in_fold(const refl__c3_cam *k, float t) { return k->folds > 0 && t >= k->fold[0][0]; }
+
+/* The push-back depth of a splat at a pixel: where the camera's ray
+   through the pixel's reflector point r (its barycentrics in the base, the
+   rays interpolated there) meets the plane of the point pt with normal
+   np, so that the points of one surface compare as the surface at the
+   pixel's centre and not as their own (the nearest one at the edge of a
+   pixel's footprint would win every pixel it covers). Within `reach` of
+   the point's own t; t itself where the ray grazes the plane. */
+static float refl__c3_depth_at(const refl__c3_cam *k, refl_vec3 r, refl_vec3 pt, refl_vec3 np, float t, float reach) {
+    const refl_c3rc *c = &k->cam;
+    refl_vec3 w = refl_v3_sub(r, c->v[0]), d;
+    float w1 = refl_v3_dot(w, refl_v3_sub(c->v[1], c->v[0])), w2 = refl_v3_dot(w, refl_v3_sub(c->v[2], c->v[0]));
+    float b = (k->bary[2] * w1 - k->bary[1] * w2) * k->bary[3], cc = (k->bary[0] * w2 - k->bary[1] * w1) * k->bary[3];
+    float dn, s;
+    d = refl_v3_add(refl_v3_add(refl_v3_scale(c->d[0], 1.0f - b - cc), refl_v3_scale(c->d[1], b)), refl_v3_scale(c->d[2], cc));
+    dn = refl_v3_dot(d, np);
+    if (!(fabsf(dn) > 0.2f * refl_v3_length(d))) return t;
+    s = refl_v3_dot(refl_v3_sub(pt, r), np) / dn;
+    return REFL__CLAMP(s, t - reach, t + reach);
+}
+
 /* Splats point i, projected at pr, into the pixels of the camera's
    reflector around its reflector point. */
 static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_projection *pr, float density) {
@@ -7661,8 +7721,9 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     int w = p->frame->width, h = p->frame->height, side, x0, y0, x, y;
     refl_vec3 q = refl_v3_add(refl_v3_add(refl_v3_scale(c->v[0], pr->a), refl_v3_scale(c->v[1], pr->b)),
                               refl_v3_scale(c->v[2], pr->c));
-    float px, py, tol, plane_tol, pix, spacing = 0.0f;
-    uint64_t key;
+    const float *tq = c3->s->tree->positions + 3 * (size_t)i;
+    refl_vec3 pt = refl_v3(tq[0], tq[1], tq[2]), np = refl_v3(0.0f, 0.0f, 0.0f);
+    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, facing = 0.0f, reach;
     if (!refl__c3_window(p, q, &px, &py)) return;
     {   /* the point spacing on screen: a point's share of surface, turned
            into the sweep plane along the ray, then into pixels */
@@ -7672,7 +7733,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                                    refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
         refl_vec3 e2 = refl_v3_sub(refl_v3_add(c->v[2], refl_v3_scale(c->d[2], pr->t)),
                                    refl_v3_add(c->v[0], refl_v3_scale(c->d[0], pr->t)));
-        refl_vec3 ns = refl_v3_cross(e1, e2), np;
+        refl_vec3 ns = refl_v3_cross(e1, e2);
         float sweep = 0.5f * refl_v3_length(ns), cs, cp;
         const float *nn = c3->s->normal + 3 * (size_t)i;
         np = refl_v3(nn[0], nn[1], nn[2]);
@@ -7682,11 +7743,14 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
         /* a diffuse surface's back, seen through gaps in its front: not drawn */
         if (cp > 0.0f && c3->s->diffuse[i]) return;
         cp = fabsf(cp);
+        facing = cp;
         if (sweep > 0.0f && density > 0.0f)
             spacing = sqrtf(cp / REFL__MAX(cs, 0.05f) * k->screen_area / (sweep * density));
+        if (k->screen_area > 0.0f) pix_sweep = sqrtf(sweep / k->screen_area);
     }
-    side = (int)ceilf(REFL__C3_SPLAT_SCALE * spacing);
-    side = REFL__CLAMP(side, 1, c3->max_splat);
+    side = (int)ceilf(REFL__C3_SPLAT_SCALE * REFL__MIN(spacing, 1e4f));
+    side = REFL__CLAMP(side, 1, refl__c3_in_fold(k, pr->t) ? REFL__MAX(c3->max_splat, (int)ceilf(2.0f * k->screen_edge))
+                                                          : c3->max_splat);
     x0 = (int)floorf(px - 0.5f * (float)side + 0.5f);
     y0 = (int)floorf(py - 0.5f * (float)side + 0.5f);
     /* the surface seen there must be this triangle's: within two pixels
@@ -7695,16 +7759,19 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     pix = c3->pixel_angle * refl_v3_length(refl_v3_sub(q, p->view->eye));
     plane_tol = 2.0f * pix;
     tol = k->edge + (float)side * pix;
-    key = ((uint64_t)refl__c3_bits(pr->t) << 32) | (uint64_t)(uint32_t)i;
+    reach = (float)side * pix_sweep / REFL__MAX(facing, 0.2f);
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
             const float *r = c3->em.surface + 3 * j;
             refl_vec3 dq;
+            float depth;
             if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
             dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
             if (refl_v3_dot(dq, dq) > tol * tol || fabsf(refl_v3_dot(dq, k->base_normal)) > plane_tol) continue;
-            refl__c3_min(&((refl__c3 *)c3)->key[j], key);
+            depth = refl__c3_depth_at(k, refl_v3(r[0], r[1], r[2]), pt, np, pr->t, reach) +
+                    REFL__C3_SAME_SURFACE_SLOPE * pix_sweep * hypotf((float)x + 0.5f - px, (float)y + 0.5f - py);
+            refl__c3_min(&((refl__c3 *)c3)->key[j], ((uint64_t)refl__c3_bits(depth) << 32) | (uint64_t)(uint32_t)i);
         }
 }
 
@@ -7796,14 +7863,26 @@ static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *lea
     return REFL__MAX(1, (int)ceilf(keep * (float)leaf->count));
 }
 
+/* Whether tree point i, seen by camera k at sweep t, is its reflector's
+   own surface within one triangle edge of the camera: there the sampled
+   (flat) neighbours of a curved reflector cross the smoothly interpolated
+   rays at grazing angles, and would win the push-back over what the ray
+   truly sees. The paper samples no reflector; farther self-reflections
+   (a spout in the body) are kept, black as one-bounce RAYTRACE shows
+   them. */
+static int refl__c3_near_self(const refl__c3_cam *k, int i, float t) {
+    return k->c3->s->object[i] == k->object && t < k->near_self;
+}
+
 static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
     refl__c3_cam *k = (refl__c3_cam *)user;
     const refl__c3 *c3 = k->c3;
     double t0 = refl__now_ms();
     int count = refl__c3_lod_count(k, leaf), i, j, n;
-    float density = c3->density * (float)count / (float)REFL__MAX(leaf->count, 1);
+    float thinned = (float)count / (float)REFL__MAX(leaf->count, 1);
     refl_c3rc_projection pr[3];
     k->n->leaves++;
+    k->n->tries += count; /* the paper's count: every point of a leaf the box test accepts */
     for (i = leaf->first; i < leaf->first + count; ++i) {
         const float *q = tree->positions + 3 * (size_t)i;
         /* a reflector's own triangle would see all of itself at t = 0 */
@@ -7814,11 +7893,11 @@ static void refl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree
         }
         if (j < k->hull_count) continue; /* outside the volume's hull */
         n = refl_c3rc_project(&k->cam, refl_v3(q[0], q[1], q[2]), pr);
-        k->n->tries++;
         k->n->valid += n;
         if (n > 1) k->n->multiple += n - 1;
         for (j = 0; j < n; ++j)
-            if (pr[j].t > 0.0f) refl__c3_splat(k, i, &pr[j], density);
+            if (pr[j].t > 0.0f && !refl__c3_near_self(k, i, pr[j].t))
+                refl__c3_splat(k, i, &pr[j], c3->s->object_density[c3->s->object[i]] * thinned);
     }
     k->n->ms_project += refl__now_ms() - t0;
 }
@@ -7889,6 +7968,17 @@ static int refl__c3_setup(const refl__pass *p, const refl__c3_job *job, refl__c3
     if (refl_c3rc_init(&k->cam, v, d) != REFL_OK) return 0;
     k->edge = REFL__MAX(refl_v3_length(refl_v3_sub(v[1], v[0])),
                         REFL__MAX(refl_v3_length(refl_v3_sub(v[2], v[1])), refl_v3_length(refl_v3_sub(v[0], v[2]))));
+    k->near_self = REFL__MAX(refl_v3_length(refl_v3_sub(t.v[1], t.v[0])),
+                             REFL__MAX(refl_v3_length(refl_v3_sub(t.v[2], t.v[1])), refl_v3_length(refl_v3_sub(t.v[0], t.v[2]))));
+    {
+        refl_vec3 e1 = refl_v3_sub(v[1], v[0]), e2 = refl_v3_sub(v[2], v[0]);
+        float a = refl_v3_dot(e1, e1), b = refl_v3_dot(e1, e2), c = refl_v3_dot(e2, e2), det = a * c - b * b;
+        k->bary[0] = a; k->bary[1] = b; k->bary[2] = c;
+        k->bary[3] = det != 0.0f ? 1.0f / det : 0.0f;
+    }
+    k->screen_edge = 0.0f;
+    for (i = 0; on_screen && i < 3; ++i)
+        k->screen_edge = REFL__MAX(k->screen_edge, hypotf(sx[(i + 1) % 3] - sx[i], sy[(i + 1) % 3] - sy[i]));
     k->screen_area = on_screen ? 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]))
                                : 0.0f;
     k->base_normal = t.ng;
@@ -8014,7 +8104,6 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     refl__c3_cam k;
-    float intervals[4][2];
     memset(&k, 0, sizeof k);
     k.c3 = c3;
     k.n = &((refl__c3 *)c3)->counts[index];
@@ -8026,7 +8115,8 @@ static void refl__c3_camera(void *arg, int index) {
         k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
     }
     refl__c3_hull(&k);
-    k.lod = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), intervals) == 0;
+    k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
+    k.lod = k.folds == 0;
     refl_kdtree_query(c3->s->tree, refl__c3_box, refl__c3_leaf, &k);
     k.n->ms_cull += k.t_cull;
 }
@@ -8102,8 +8192,8 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         const refl_object *o = &scene->objects[i];
-        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->density, 0x9e3779b97f4a7c15ull + (uint64_t)i,
-                                    al, &pts[i]);
+        r = refl_mesh_sample_points(scene->meshes[o->mesh], &o->transform, c3->s->object_density[i],
+                                    0x9e3779b97f4a7c15ull + (uint64_t)i, al, &pts[i]);
         if (r == REFL_OK) total += pts[i]->count;
     }
     if (r == REFL_OK && total > INT32_MAX / 4) r = REFL_ERROR_INVALID_SIZE;
@@ -8268,6 +8358,23 @@ static refl_result refl__c3_jobs(refl__c3 *c3, const unsigned char *seen, int *c
     return r;
 }
 
+/* Object i's surface area in the world. */
+static double refl__c3_object_area(const refl_scene *scene, int i) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    double area = 0.0;
+    int t, k;
+    for (t = 0; t < m->triangle_count; ++t) {
+        refl_vec3 v[3];
+        for (k = 0; k < 3; ++k) {
+            const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
+            v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        }
+        area += 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+    }
+    return area;
+}
+
 /* The default density: one point per 2 x 2 pixels where the reflectors
    are (the footprint at the distance of their nearest bounds), at most
    REFL__C3_AUTO_POINTS in all; splats grow where that is too few. */
@@ -8292,21 +8399,73 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     size = 2.0f * REFL__MAX(nearest, p->rays.znear) * c3->pixel_angle;
     /* at most REFL__C3_AUTO_POINTS over the whole scene (a viewer close to
        a mirror would ask for tens of millions) */
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *m = scene->meshes[o->mesh];
-        int t, k;
-        for (t = 0; t < m->triangle_count; ++t) {
-            refl_vec3 v[3];
-            for (k = 0; k < 3; ++k) {
-                const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + (size_t)k];
-                v[k] = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-            }
-            area += 0.5 * (double)refl_v3_length(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-        }
-    }
+    for (i = 0; i < scene->object_count; ++i) area += refl__c3_object_area(scene, i);
     if (!(size > 0.0f)) return 0.0f;
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
+}
+
+/* Whether C3RC draws reflector `object` (*can): mirrors and partial
+   mirrors; not glass (see the top of this file). */
+static refl_result refl__c3_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
+/* Each object's sampling density (c3->s->object_density): the frame's,
+   raised (when `magnify`) where a folding camera (section 5.1: its rays
+   converge, the paper's quasi-convergence region) shows the object
+   magnified, to one point per REFL__C3_PIXELS_PER_POINT pixels there: the
+   magnification at the object's centre and box corners is the camera's
+   screen area over its sweeping triangle's area at their t. Diffuse
+   objects only (a reflector's own points show black). At most
+   REFL__C3_MAX_BOOST times the frame's density, and all objects together
+   at most REFL__C3_AUTO_POINTS points. */
+static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify) {
+    const refl__pass *p = c3->p;
+    const refl_scene *scene = p->scene;
+    float *dens = (float *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(float));
+    double total = 0.0, area_all = 0.0;
+    int i, j, corner;
+    if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
+    c3->s->object_density = dens;
+    for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
+    if (!magnify) return REFL_OK;
+    for (j = 0; j < jobs; ++j) {
+        refl__c3_cam k;
+        float folds[4][2];
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(p, &c3->jobs[j], &k) || !(k.screen_area > 0.0f) ||
+            refl_c3rc_multiple_intervals(&k.cam, 4.0f * c3->tmax, folds) == 0)
+            continue;
+        for (i = 0; i < scene->object_count; ++i) {
+            const refl_object *o = &scene->objects[i];
+            refl_vec3 lo, hi;
+            if (refl__is_reflector(&scene->materials[o->material])) continue;
+            refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+            for (corner = 0; corner < 9; ++corner) {
+                refl_c3rc_projection pr[3];
+                refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                          : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+                int m = refl_c3rc_project(&k.cam, refl_mat4_point(o->transform, q), pr), r;
+                for (r = 0; r < m; ++r) {
+                    double sweep = refl__c3_sweep_area(&k.cam, pr[r].t);
+                    float want = sweep > 0.0 ? (float)((double)k.screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
+                    dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * c3->density));
+                }
+            }
+        }
+    }
+    for (i = 0; i < scene->object_count; ++i) { /* the budget: scale the raises down together */
+        double area = refl__c3_object_area(scene, i);
+        total += area * (double)dens[i];
+        area_all += area * (double)c3->density;
+    }
+    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
+        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
+        for (i = 0; i < scene->object_count; ++i)
+            dens[i] = c3->density + (float)(keep * (double)(dens[i] - c3->density));
+    }
+    return REFL_OK;
 }
 
 static const char *refl__options_c3rc(refl_render_desc *d) {
@@ -8326,7 +8485,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__c3 c3;
     unsigned char *seen = NULL;
     size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    double t0 = refl__now_ms(), t1;
+    double t0 = refl__now_ms(), t1, t_jobs = 0.0;
     refl_result r = REFL_OK;
     refl_vec3 lo, hi;
     int i, any = 0, jobs = 0;
@@ -8350,11 +8509,16 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                                                         : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
-        if (models && models->c3) {
+        t1 = refl__now_ms();
+        r = refl__c3_jobs(&c3, seen, &jobs); /* the cameras, before the points: they size the densities */
+        t_jobs = refl__now_ms() - t1;
+        if (r == REFL_OK && models && models->c3) {
             c3.s = models->c3; /* a renderer's density never changes */
-        } else {
+        } else if (r == REFL_OK) {
             c3.s = (refl__c3_samples *)refl__calloc(al, 1, sizeof *c3.s);
-            r = c3.s ? refl__c3_points(&c3) : REFL_ERROR_OUT_OF_MEMORY;
+            r = c3.s ? refl__c3_object_densities(&c3, jobs, !(p->desc.c3rc.point_density > 0.0f))
+                     : REFL_ERROR_OUT_OF_MEMORY;
+            if (r == REFL_OK) r = refl__c3_points(&c3);
             fr->stats.scene_models_built++;
             if (r == REFL_OK && models) {
                 models->c3 = c3.s;
@@ -8362,9 +8526,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             }
         }
         t1 = refl__now_ms();
-        fr->stats.ms_build += t1 - t0;
-        t0 = t1;
-        if (r == REFL_OK) r = refl__c3_jobs(&c3, seen, &jobs);
+        fr->stats.ms_build += t1 - t0 - t_jobs;
+        t0 = t1 - t_jobs; /* the cameras count as reflection time */
         if (r == REFL_OK) {
             c3.counts = (refl__c3_counts *)refl__calloc(al, (size_t)REFL__MAX(jobs, 1), sizeof(refl__c3_counts));
             if (!c3.counts) r = REFL_ERROR_OUT_OF_MEMORY;
@@ -12138,7 +12301,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL, 1},
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
      REFL__ANY_DEPTH},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL, 1},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };

@@ -808,7 +808,9 @@ typedef struct refl_c3rc_frame_stats {
     long long leaves;        /* kd-tree leaves whose points were projected */
     long long culled;        /* kd-tree boxes the view-volume test rejected */
     long long box_tests;     /* kd-tree boxes tested against a camera's view volume */
-    long long projections;   /* point projections attempted */
+    long long projections;   /* points of the leaves the box test accepted (the paper's
+                                count; those a cheaper per-point hull test then skips
+                                included), after level-of-detail thinning */
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
@@ -833,7 +835,7 @@ typedef struct refl_stats {
     long long rays;          /* rays traced (primary, secondary and shadow) */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
-    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones),
+    int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
                                 drawn by RAYTRACE's tracer instead */
     int depth;               /* bounces the frame models: desc.depth, or fewer where the
                                 method of some reflector models fewer (DIRECT: 0;
@@ -950,10 +952,12 @@ typedef struct refl_planar_options {
 
 typedef struct refl_c3rc_options {
     float point_density;     /* samples per unit area of every surface; 0: from the view: one
-                                per 2 x 2 pixels at the reflectors' distance, at most 2
-                                million in all (a renderer fixes it at its first frame) */
-    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 */
-    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8 */
+                                per 2 x 2 pixels at the reflectors' distance, raised on an
+                                object a folding camera magnifies, at most 2 million in all
+                                (a renderer fixes it at its first frame) */
+    int kd_leaf_points;      /* kd-tree leaf size (refl_kdtree_desc); 0: 1000 (the paper: 122) */
+    int max_splat;           /* largest splat side in pixels, at most 64; 0: 8; from a camera's
+                                first fold interval on (section 5.1): its size on screen */
     float camera_split_px;   /* a reflector triangle's camera is split in four while its
                                 estimated error exceeds this many pixels (4 levels at most);
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */

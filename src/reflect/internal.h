@@ -477,5 +477,6 @@ static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

@@ -211,7 +211,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL, 1},
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
      REFL__ANY_DEPTH},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, NULL, 1},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };

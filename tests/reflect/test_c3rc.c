@@ -70,8 +70,12 @@ static c3_result measure(const refl_scene *s, const refl_view *v, float density)
    splat's reach (about two pixels at four points per pixel footprint)
    from where it truly shows, so the reflection error (the shared metric)
    gets a budget of the cameras' pixel plus three: p95 within 4 px, and
-   nearly every pixel shows a point where the truth does (measured: mean
-   2.4, p95 3.0, wrong 0.5%, holes 0.4%). */
+   nearly every pixel shows a point where the truth does. The mean holds
+   what the reflector's own neighbourhood (not drawn by its cameras) and
+   the depth at the pixel's centre (one surface's points compare by how
+   near they project) bought: within 1.8 px (measured: mean 1.57, p95 3.0,
+   wrong 0.8%, holes 0.5%; with the reflector's neighbours drawn and the
+   nearest point of a footprint winning, mean 2.4). */
 Test(refl_c3rc, default_scene_within_a_pixel) {
     refl_scene *s = builtin("default", 8);
     refl_view v = s->camera;
@@ -99,6 +103,7 @@ Test(refl_c3rc, default_scene_within_a_pixel) {
                 "PSNR %.2f dB",
                 r.err.mean, r.err.p95, r.err.max, r.err.wrong, r.err.empty, r.img.psnr);
     cr_assert(r.err.p95 <= 4.0, "p95 %.3f px", r.err.p95);
+    cr_assert(r.err.mean <= 1.8, "mean %.3f px", r.err.mean);
     cr_assert(r.err.wrong <= 0.01 && r.err.empty <= 0.01, "wrong %.4f, empty %.4f", r.err.wrong, r.err.empty);
     cr_assert(r.stats.c3rc.cameras > 4000 && r.stats.c3rc.points > 400000 && r.stats.c3rc.leaves > 0);
     cr_assert(r.stats.c3rc.projected > 0 && r.stats.c3rc.projected <= 3 * r.stats.c3rc.projections);
@@ -210,6 +215,64 @@ Test(refl_c3rc, concave_mirror_convergence) {
     cr_assert(r.stats.c3rc.projected > 0 && r.stats.c3rc.multiple >= 0);
     cr_assert(r.err.matched > 0 && isfinite(r.err.mean));
     cr_assert(r.err.wrong + r.err.empty < 0.5, "wrong %.4f, empty %.4f", r.err.wrong, r.err.empty);
+    refl_scene_destroy(s);
+}
+
+/* The focusing region at the issue's size: the ball at the concave
+   bowl's focus is magnified many times. The default density samples it
+   as densely as the folding cameras magnify it, and splats grow with the
+   magnification past max_splat from a camera's first fold interval on
+   (section 5.1), so the ball's reflection is covered, not a scatter of
+   capped squares over the environment: p95 within 8 px at 640x480 (the
+   issue's bound), mean within 2 px and holes under 3% (measured: mean
+   1.53, p95 3.16, holes 2.3%; with the density of a direct view and
+   8-pixel splats, mean 4.88, p95 32.7, holes 6.8%). */
+Test(refl_c3rc, concave_focus_at_640x480) {
+    refl_scene *s = builtin("concave", 0);
+    refl_view v = s->camera;
+    c3_result r;
+#ifdef C3_SANITIZED
+    refl_scene_destroy(s);
+    cr_skip_test("the 640x480 accuracy test runs in the plain build");
+#endif
+    v.width = 640;
+    v.height = 480;
+    r = measure(s, &v, 0.0f);
+    cr_log_info("concave 640x480: error mean %.3f p95 %.3f, wrong %.4f, empty %.4f, PSNR %.2f dB", r.err.mean,
+                r.err.p95, r.err.wrong, r.err.empty, r.img.psnr);
+    cr_assert(r.err.p95 <= 8.0, "p95 %.3f px", r.err.p95);
+    cr_assert(r.err.mean <= 2.0, "mean %.3f px", r.err.mean);
+    cr_assert(r.err.empty <= 0.03, "empty %.4f", r.err.empty);
+    refl_scene_destroy(s);
+}
+
+/* Glass is not C3RC's (a C3RC spans rays that leave straight; light
+   through glass bends again at the back): each glass object is handed to
+   RAYTRACE's tracer, counted in stats.handed_over, and its pixels are
+   RAYTRACE's own; the frame's mirrors stay C3RC's. */
+Test(refl_c3rc, glass_goes_to_the_tracer) {
+    refl_scene *s = builtin("glass", 2);
+    refl_view v = s->camera;
+    refl_render_desc d = desc_of(REFL_C3RC, 0), t = desc_of(REFL_RAYTRACE, 0);
+    refl_frame *f, *truth;
+    int i, glass = 0, shown = 0;
+    v.width = 160;
+    v.height = 120;
+    d.depth = t.depth = 4;
+    for (i = 0; i < s->object_count; ++i) glass += s->materials[s->objects[i].material].type == REFL_GLASS;
+    cr_assert(glass > 0);
+    f = tu_refl_render(s, &v, &d);
+    truth = tu_refl_render(s, &v, &t);
+    cr_assert_eq(f->stats.handed_over, glass, "%d handed over of %d glass objects", f->stats.handed_over, glass);
+    for (i = 0; i < v.width * v.height; ++i) {
+        int object = f->stencil[i] - 1;
+        if (object < 0 || s->materials[s->objects[object].material].type != REFL_GLASS) continue;
+        ++shown;
+        cr_assert_eq(memcmp(f->rgba + 4 * (size_t)i, truth->rgba + 4 * (size_t)i, 4 * sizeof(float)), 0, "pixel %d", i);
+    }
+    cr_assert(shown > 100, "%d glass pixels", shown);
+    refl_frame_destroy(f);
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
 
