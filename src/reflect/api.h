@@ -816,7 +816,8 @@ typedef struct refl_frame {
     refl_stats stats;
     const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
                                 rule the desc or view broke (refl_validate_render_desc's
-                                words); "" otherwise. A static string */
+                                words), or with OUT_OF_MEMORY past sbc.memory_mb (SBC's
+                                bound); "" otherwise. A static string */
     refl_allocator allocator;
 } refl_frame;
 
@@ -896,6 +897,19 @@ typedef struct refl_c3rc_options {
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
 } refl_c3rc_options;
 
+/* What SBC's reflected rays know of the scene (refl_sbc_options.mode). */
+typedef enum refl_sbc_mode {
+    REFL_SBC_TRACED = 0,     /* "SBC-traced" (beyond the paper): every ray map sample is ray
+                                traced against a BVH of the whole scene (built each frame, or
+                                kept by a renderer); its first hit sets the ray's head (twice
+                                as far), cuts pieces, splits the reflected triangles it lies
+                                in and feeds trace_fallback's checks */
+    REFL_SBC_PAPER = 1       /* "SBC-paper": the paper's method, what is timed against ray
+                                tracing: no search of the scene (no BVH of it); a ray's head
+                                is where it leaves the scene's box; only the mirrors and glass
+                                are traced (histories, refraction). trace_fallback must be 0 */
+} refl_sbc_mode;
+
 typedef struct refl_sbc_options {
     float error_px;          /* largest camera error in desired-view pixels at the ray map's
                                 samples (refl_sbc_desc.error_px); 0: 1 */
@@ -925,6 +939,12 @@ typedef struct refl_sbc_options {
        One grid per object at most (the first counts). */
     const refl_sbc_morph *const *morphs;
     int morph_count;
+    int mode;                /* refl_sbc_mode; 0: REFL_SBC_TRACED */
+    int memory_mb;           /* the frame's ray maps, groups' trees and a batch's projected
+                                vertices at most, in MiB (the reflected triangles drawn are
+                                not counted); a batch takes fewer groups to stay within it,
+                                and a frame that cannot fails with REFL_ERROR_OUT_OF_MEMORY
+                                and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
 /* Hooks for tests and benchmarks. */

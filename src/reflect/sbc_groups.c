@@ -27,6 +27,8 @@
 
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
+#define REFL__SB_GUARD 4           /* a tile grown by this many samples: its rays reach past its pixels */
+#define REFL__SB_PLANAR_COS 0.9999f /* a piece whose normals all lie this near its first's: planar, untiled */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
    surface (refl__sbc_smooth). */
@@ -188,8 +190,8 @@ static void refl__sb_build_group(void *arg, int g) {
     const refl_allocator *al = &p->scene->allocator;
     refl__sb_group *gr = &sb->groups[g];
     const refl__sb_side *sd = &sb->sides[gr->side];
-    int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
-    int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
+    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, 0), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, 0);
+    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
@@ -329,65 +331,126 @@ static void refl__sb_assign_row(void *arg, int y) {
     }
 }
 
-/* The groups: each side's pieces cut by tiles of sb->tile samples (the
-   tile side doubles, up to REFL__SB_TILE_MAX, while there are more than a
-   batch: REFL__SB_BATCH), and each pixel's group. */
+/* Side sd's pieces that need no tiles (planar, their rays crossing no
+   neighbour's: a pinhole camera fits them whole, however large), as
+   `whole` per piece root, with their samples' box (4 per root: u0, v0,
+   u1, v1). */
+static void refl__sb_whole_pieces(const refl__sb *sb, const refl__sb_side *sd, uint8_t *whole, int *box) {
+    int u, v, mw = sb->map_w;
+    for (v = 0; v < sb->map_h; ++v)
+        for (u = 0; u < mw; ++u) {
+            int m = v * mw + u, r = sd->comp[m];
+            if (!sd->valid[m] || r < 0) continue;
+            if (r == m) {
+                whole[r] = 1;
+                box[4 * r] = box[4 * r + 2] = u;
+                box[4 * r + 1] = box[4 * r + 3] = v;
+            }
+            whole[r] = (uint8_t)(whole[r] && !sd->crossing[m] &&
+                                 refl_v3_dot(sd->normals[m], sd->normals[r]) >= REFL__SB_PLANAR_COS);
+            box[4 * r] = REFL__MIN(box[4 * r], u);
+            box[4 * r + 1] = REFL__MIN(box[4 * r + 1], v);
+            box[4 * r + 2] = REFL__MAX(box[4 * r + 2], u + 1);
+            box[4 * r + 3] = REFL__MAX(box[4 * r + 3], v + 1);
+        }
+}
+
+/* Group `index` of side i, piece `comp`, over samples [u0, u1) x [v0, v1). */
+static void refl__sb_group_set(refl__sb *sb, int index, int i, int comp, int u0, int v0, int u1, int v1) {
+    refl__sb_group *g = &sb->groups[index];
+    g->side = i;
+    g->object = sb->sides[i].object;
+    g->comp = comp;
+    g->u0 = u0;
+    g->v0 = v0;
+    g->u1 = u1;
+    g->v1 = v1;
+}
+
+/* The groups: each side's planar pieces whole (the paper's one camera
+   per planar mirror), the others (curved: a tree's leaves fit a tile's
+   rays better than a whole piece's; focusing: ray lists) cut by tiles of sb->tile samples (the tile side
+   doubles, up to REFL__SB_TILE_MAX, while there are more than a batch:
+   REFL__SB_BATCH; focusing rays end in ray lists, which a tile keeps
+   small), and each pixel's group. */
 static refl_result refl__sb_groups(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
     const refl_frame *fr = sb->p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    int *seen, i, pass, u, v, tu, tv;
-    /* count the groups (a tile's pieces), doubling the tile until they
-       fit a batch (fewer groups, fewer projections) or the tile reaches
-       REFL__SB_TILE_MAX (more batches then); then list them, each sample
-       noting its group. */
-    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
-    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k, nmap = (size_t)sb->map_w * (size_t)sb->map_h;
+    int *seen, *box, *piece_group, i, pass, u, v, tu, tv;
+    uint8_t *whole;
+    /* count the groups (whole pieces, a tile's pieces), doubling the tile
+       until they fit a batch (fewer groups, fewer projections) or the
+       tile reaches REFL__SB_TILE_MAX (more batches then); then list them,
+       each sample noting its group. */
+    seen = (int *)refl__calloc(al, nmap, sizeof(int));
+    box = (int *)refl__calloc(al, nmap, 4 * sizeof(int));
+    piece_group = (int *)refl__calloc(al, nmap, sizeof(int));
+    whole = (uint8_t *)refl__calloc(al, nmap, 1);
+    if (!seen || !box || !piece_group || !whole) {
+        refl__free(al, seen);
+        refl__free(al, box);
+        refl__free(al, piece_group);
+        refl__free(al, whole);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
         int largest = sb->tile >= REFL__SB_TILE_MAX;
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
-            for (i = 0; i < sb->side_count; ++i)
+            for (i = 0; i < sb->side_count; ++i) {
+                refl__sb_side *sd = &sb->sides[i];
+                refl__sb_whole_pieces(sb, sd, whole, box);
+                for (k = 0; k < nmap; ++k) {
+                    int r = sd->comp[k];
+                    if (!sd->valid[k] || r < 0 || !whole[r]) continue;
+                    if ((size_t)r == k) {
+                        piece_group[r] = sb->group_count++;
+                        if (pass) {
+                            refl__sb_group_set(sb, piece_group[r], i, r, box[4 * r], box[4 * r + 1],
+                                               box[4 * r + 2], box[4 * r + 3]);
+                            sb->groups[piece_group[r]].whole = 1;
+                        }
+                    }
+                    sd->group[k] = piece_group[r];
+                }
                 for (tv = 0; tv < th; ++tv)
                     for (tu = 0; tu < tw; ++tu) {
-                        refl__sb_side *sd = &sb->sides[i];
                         int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
                         int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
                         for (v = vv0; v < vv1; ++v)
                             for (u = uu0; u < uu1; ++u) {
                                 size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                                 int gi = 0;
-                                if (!sd->valid[m]) continue;
+                                if (!sd->valid[m] || sd->comp[m] < 0 || whole[sd->comp[m]]) continue;
                                 while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
                                 sd->group[m] = first + gi;
                                 if (gi < nseen) continue;
                                 seen[nseen++] = sd->comp[m];
-                                if (pass) {
-                                    refl__sb_group *g = &sb->groups[sb->group_count];
-                                    g->side = i;
-                                    g->object = sd->object;
-                                    g->comp = sd->comp[m];
-                                    g->u0 = uu0;
-                                    g->v0 = vv0;
-                                    g->u1 = uu1;
-                                    g->v1 = vv1;
-                                }
+                                if (pass) refl__sb_group_set(sb, sb->group_count, i, sd->comp[m], uu0, vv0, uu1, vv1);
                                 sb->group_count++;
                             }
                     }
+            }
             if (sb->group_count > REFL__SB_BATCH && !largest) break;
             if (!pass) {
                 sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
                                                             sizeof(refl__sb_group));
                 if (!sb->groups) {
                     refl__free(al, seen);
+                    refl__free(al, box);
+                    refl__free(al, piece_group);
+                    refl__free(al, whole);
                     return REFL_ERROR_OUT_OF_MEMORY;
                 }
             }
         }
         if (pass == 2) break;
     }
+    refl__free(al, box);
+    refl__free(al, piece_group);
+    refl__free(al, whole);
     refl__free(al, seen);
     sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
     if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
