@@ -1088,9 +1088,10 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    projected into every reflection group of its reflector as SBC builds
    them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
    may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
-   nearest image of P (sub-pixel), counted by the kind of leaf that made
-   it. P with no image within 8 pixels counts as wrong, in the kind of
-   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   nearest image of P (sub-pixel), counted by the kind of leaf that holds
+   P in the group of x's pixel (else the kind that made the image). P with
+   no image within 8 pixels counts as wrong, in that kind (pinhole when
+   none). empty
    is 0; everything 0 when the view shows no reflector. */
 typedef struct refl_sbc_camera_error {
     refl_reflection_error pinhole, ray_list;   /* every truth pixel: the nearest image */
@@ -1806,6 +1807,7 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across);
    in the Makefile's REFLECT_IMPL. */
 
 #define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed with no scale known yet, at most */
+#define REFL__SB_GUARD 2            /* a tile's group also holds its piece's rays this many samples past it */
 #define REFL__SB_MEMORY_MB 2048     /* the frame's working memory at most (desc.sbc.memory_mb's default) */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
@@ -12074,7 +12076,6 @@ static refl_result refl__sb_draw(refl__sb *sb) {
 
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
-#define REFL__SB_GUARD 4           /* a tile grown by this many samples: its rays reach past its pixels */
 #define REFL__SB_PLANAR_COS 0.9999f /* a piece whose normals all lie this near its first's: planar, untiled */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
@@ -12189,7 +12190,8 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     size_t g2 = (size_t)v2 * (size_t)sb->map_w + (size_t)u2;
                     if (sd->comp[g2] == comp) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), sd->normals[g2]);
                 }
-                refl__sb_sample_pixel(sb, u0 + u, v0 + v, &x, &y);
+                x = (u0 + u) * sb->factor + sb->factor / 2; /* past the frame's edge too */
+                y = (v0 + v) * sb->factor + sb->factor / 2;
                 refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
                 den = refl_v3_dot(d, n1);
                 if (fabsf(den) < 1e-6f) continue;
@@ -12237,8 +12239,9 @@ static void refl__sb_build_group(void *arg, int g) {
     const refl_allocator *al = &p->scene->allocator;
     refl__sb_group *gr = &sb->groups[g];
     const refl__sb_side *sd = &sb->sides[gr->side];
-    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, 0), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, 0);
-    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h);
+    /* the ring may lie a sample past the map's edge: the frustums reach the frame's edge pixels */
+    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, -1), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, -1);
+    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w + 1), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h + 1);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
@@ -12251,7 +12254,9 @@ static void refl__sb_build_group(void *arg, int g) {
     } else {
         for (v = v0; v < v1; ++v)
             for (u = u0; u < u1; ++u) {
-                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                size_t m;
+                if (u < 0 || v < 0 || u >= sb->map_w || v >= sb->map_h) continue;
+                m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                 k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
                 if (!sd->valid[m] || sd->comp[m] != gr->comp) continue;
                 rays[k] = sd->rays[m];
@@ -12648,7 +12653,8 @@ static void refl__sb_groups_free(refl__sb *sb) {
    summarised by the kind of leaf that projected them. */
 
 /* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
-   the nearest image of its point and the kind of leaf that made it. */
+   the nearest image of its point and the kind of leaf its own group holds
+   the point in (the nearest image's when it has no group). */
 typedef struct refl__sb_measure {
     const refl_frame *truth;
     const refl__sb *sb;
@@ -12665,14 +12671,14 @@ typedef struct refl__sb_measure {
 #define REFL__SB_MEASURE_CELL 32   /* pixels per side of the measure's cells */
 
 /* Group g's pixels that an image of it can reach: an image lands on the
-   group's first reflector points (its tile and ring), and one further off
+   group's first reflector points (its tile, guard band and ring), and one further off
    than the reach does not count. */
 static void refl__sb_measure_rect(const refl__sb *sb, const refl__sb_group *g, int r[4]) {
     const int reach = (int)REFL__SB_MEASURE_REACH + 1;
-    r[0] = (g->u0 - 1) * sb->factor - reach;
-    r[1] = (g->v0 - 1) * sb->factor - reach;
-    r[2] = (g->u1 + 1) * sb->factor + reach;
-    r[3] = (g->v1 + 1) * sb->factor + reach;
+    r[0] = (g->u0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[1] = (g->v0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[2] = (g->u1 + REFL__SB_GUARD + 1) * sb->factor + reach;
+    r[3] = (g->v1 + REFL__SB_GUARD + 1) * sb->factor + reach;
 }
 
 /* The cells' group lists (counted, then filled), groups in index order. */
@@ -12761,11 +12767,10 @@ static void refl__sb_measure_row(void *arg, int y) {
                 }
             }
         }
-        if (best <= REFL__SB_MEASURE_REACH) {
-            ms->error[i] = best;
-        } else if (own >= 0 && sb->groups[own].sbc) { /* no image: charged to the leaf its own group holds it in */
-            kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
-        }
+        if (best <= REFL__SB_MEASURE_REACH) ms->error[i] = best;
+        /* charged to the leaf its own group holds it in (the groups'
+           guard bands overlap: the nearest image may be a neighbour's) */
+        if (own >= 0 && sb->groups[own].sbc) kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
         ms->kind[i] = (uint8_t)(kind == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
     }
 }
@@ -13218,14 +13223,12 @@ static float refl__sb_scale(const refl__sb_pv *a, const refl__sb_pv *b, const re
     return best >= 0.0f ? best : known;
 }
 
-/* Whether a mixed part (a, b, c) may reach the pixels of group g where
-   its rays end: for a whole piece, any of its box's; for a tile, those
-   along its border (within two samples inside), where the next tile's
-   rays begin; reaching: within `reach` pixels of a vertex that projects.
-   A part that cannot is split no further: beyond the box the stencil
-   keeps it from the pixels it might cover, and inside a tile a vertex
-   fails for other reasons (a fold, a ray list's gap), as costly to chase
-   to the pixel as rare to matter. */
+/* Whether a mixed part (a, b, c) may reach the pixels of group g where its
+   rays end (within `reach` pixels of a vertex that projects): for a whole
+   piece any pixel of its box; for a tile those along its border (two
+   samples either side), where the next tile's rays begin. Inside a tile a
+   vertex fails for other reasons (a silhouette, a fold, a ray list's
+   gap), as costly to chase to the pixel as rare to matter. */
 static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
                                const refl__sb_pv *b, const refl__sb_pv *c, float reach) {
     const refl__sb_pv *v[3];
@@ -13240,24 +13243,24 @@ static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, cons
             lx = REFL__MIN(lx, v[k]->sx - reach); hx = REFL__MAX(hx, v[k]->sx + reach);
             ly = REFL__MIN(ly, v[k]->sy - reach); hy = REFL__MAX(hy, v[k]->sy + reach);
         }
-    if (hx < x0 || lx > x1 || hy < y0 || ly > y1) return 0; /* off the tile */
+    if (hx < x0 - band || lx > x1 + band || hy < y0 - band || ly > y1 + band) return 0; /* off the group */
     return g->whole || lx < x0 + band || hx > x1 - band || ly < y0 + band || hy > y1 - band;
 }
 
 /* Whether mixed part (a, b, c) at subdivision level `level` is split
-   further, when mixed parts are split to the pixel (desc.sbc.mixed_levels
-   0): while it may reach REFL__SB_MIXED_PX or more into the group's
-   pixels, judged by `scale` (refl__sb_scale); with no scale known yet, for
-   two levels past REFL__SB_LEVELS. The parts on the group's pixels then
-   all project: the group's rays reach a sample and more past them. */
+   further (desc.sbc.mixed_levels 0): REFL__SB_MIXED_LEVELS times, and where
+   the group's rays end (refl__sb_mixed_near) to the pixel, while it may
+   reach REFL__SB_MIXED_PX or more, judged by `scale` (refl__sb_scale). The
+   parts on a tile's border pixels then all project: the group's rays reach
+   REFL__SB_GUARD samples past them. */
 static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
                                 const refl__sb_pv *c, int level, float scale) {
     float la = refl_v3_length(refl_v3_sub(a->world, b->world));
     float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
     float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
     float reach = scale * REFL__MAX(la, REFL__MAX(lb, lc));
-    if (!(scale > 0.0f)) return level < REFL__SB_MIXED_LEVELS;
-    return reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
+    if (level < REFL__SB_MIXED_LEVELS) return 1;
+    return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
 }
 
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the

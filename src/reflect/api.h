@@ -1086,9 +1086,10 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    projected into every reflection group of its reflector as SBC builds
    them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
    may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
-   nearest image of P (sub-pixel), counted by the kind of leaf that made
-   it. P with no image within 8 pixels counts as wrong, in the kind of
-   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   nearest image of P (sub-pixel), counted by the kind of leaf that holds
+   P in the group of x's pixel (else the kind that made the image). P with
+   no image within 8 pixels counts as wrong, in that kind (pinhole when
+   none). empty
    is 0; everything 0 when the view shows no reflector. */
 typedef struct refl_sbc_camera_error {
     refl_reflection_error pinhole, ray_list;   /* every truth pixel: the nearest image */

@@ -27,7 +27,6 @@
 
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
-#define REFL__SB_GUARD 4           /* a tile grown by this many samples: its rays reach past its pixels */
 #define REFL__SB_PLANAR_COS 0.9999f /* a piece whose normals all lie this near its first's: planar, untiled */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
@@ -142,7 +141,8 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     size_t g2 = (size_t)v2 * (size_t)sb->map_w + (size_t)u2;
                     if (sd->comp[g2] == comp) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), sd->normals[g2]);
                 }
-                refl__sb_sample_pixel(sb, u0 + u, v0 + v, &x, &y);
+                x = (u0 + u) * sb->factor + sb->factor / 2; /* past the frame's edge too */
+                y = (v0 + v) * sb->factor + sb->factor / 2;
                 refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
                 den = refl_v3_dot(d, n1);
                 if (fabsf(den) < 1e-6f) continue;
@@ -190,8 +190,9 @@ static void refl__sb_build_group(void *arg, int g) {
     const refl_allocator *al = &p->scene->allocator;
     refl__sb_group *gr = &sb->groups[g];
     const refl__sb_side *sd = &sb->sides[gr->side];
-    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, 0), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, 0);
-    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h);
+    /* the ring may lie a sample past the map's edge: the frustums reach the frame's edge pixels */
+    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, -1), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, -1);
+    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w + 1), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h + 1);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
@@ -204,7 +205,9 @@ static void refl__sb_build_group(void *arg, int g) {
     } else {
         for (v = v0; v < v1; ++v)
             for (u = u0; u < u1; ++u) {
-                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                size_t m;
+                if (u < 0 || v < 0 || u >= sb->map_w || v >= sb->map_h) continue;
+                m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                 k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
                 if (!sd->valid[m] || sd->comp[m] != gr->comp) continue;
                 rays[k] = sd->rays[m];

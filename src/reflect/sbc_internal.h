@@ -18,6 +18,7 @@
 #include "cam_sbc_internal.h"
 
 #define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed with no scale known yet, at most */
+#define REFL__SB_GUARD 2            /* a tile's group also holds its piece's rays this many samples past it */
 #define REFL__SB_MEMORY_MB 2048     /* the frame's working memory at most (desc.sbc.memory_mb's default) */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */

@@ -349,14 +349,12 @@ static float refl__sb_scale(const refl__sb_pv *a, const refl__sb_pv *b, const re
     return best >= 0.0f ? best : known;
 }
 
-/* Whether a mixed part (a, b, c) may reach the pixels of group g where
-   its rays end: for a whole piece, any of its box's; for a tile, those
-   along its border (within two samples inside), where the next tile's
-   rays begin; reaching: within `reach` pixels of a vertex that projects.
-   A part that cannot is split no further: beyond the box the stencil
-   keeps it from the pixels it might cover, and inside a tile a vertex
-   fails for other reasons (a fold, a ray list's gap), as costly to chase
-   to the pixel as rare to matter. */
+/* Whether a mixed part (a, b, c) may reach the pixels of group g where its
+   rays end (within `reach` pixels of a vertex that projects): for a whole
+   piece any pixel of its box; for a tile those along its border (two
+   samples either side), where the next tile's rays begin. Inside a tile a
+   vertex fails for other reasons (a silhouette, a fold, a ray list's
+   gap), as costly to chase to the pixel as rare to matter. */
 static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
                                const refl__sb_pv *b, const refl__sb_pv *c, float reach) {
     const refl__sb_pv *v[3];
@@ -371,24 +369,24 @@ static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, cons
             lx = REFL__MIN(lx, v[k]->sx - reach); hx = REFL__MAX(hx, v[k]->sx + reach);
             ly = REFL__MIN(ly, v[k]->sy - reach); hy = REFL__MAX(hy, v[k]->sy + reach);
         }
-    if (hx < x0 || lx > x1 || hy < y0 || ly > y1) return 0; /* off the tile */
+    if (hx < x0 - band || lx > x1 + band || hy < y0 - band || ly > y1 + band) return 0; /* off the group */
     return g->whole || lx < x0 + band || hx > x1 - band || ly < y0 + band || hy > y1 - band;
 }
 
 /* Whether mixed part (a, b, c) at subdivision level `level` is split
-   further, when mixed parts are split to the pixel (desc.sbc.mixed_levels
-   0): while it may reach REFL__SB_MIXED_PX or more into the group's
-   pixels, judged by `scale` (refl__sb_scale); with no scale known yet, for
-   two levels past REFL__SB_LEVELS. The parts on the group's pixels then
-   all project: the group's rays reach a sample and more past them. */
+   further (desc.sbc.mixed_levels 0): REFL__SB_MIXED_LEVELS times, and where
+   the group's rays end (refl__sb_mixed_near) to the pixel, while it may
+   reach REFL__SB_MIXED_PX or more, judged by `scale` (refl__sb_scale). The
+   parts on a tile's border pixels then all project: the group's rays reach
+   REFL__SB_GUARD samples past them. */
 static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
                                 const refl__sb_pv *c, int level, float scale) {
     float la = refl_v3_length(refl_v3_sub(a->world, b->world));
     float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
     float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
     float reach = scale * REFL__MAX(la, REFL__MAX(lb, lc));
-    if (!(scale > 0.0f)) return level < REFL__SB_MIXED_LEVELS;
-    return reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
+    if (level < REFL__SB_MIXED_LEVELS) return 1;
+    return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
 }
 
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
