@@ -931,7 +931,8 @@ typedef struct refl_sbc_options {
     int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with trace_fallback,
+                                group's rays meet it). 0: 4, and down to the pixel along a
+                                tile's border (no crack between groups); never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
     /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this
@@ -9349,8 +9350,9 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         the first order, the reflection histories traced through the
         mirrors and glass;
      2. reflection groups (sbc_groups.c): each ray map cut into smooth
-        pieces and tiles, each group a BSP tree of sample-based cameras
-        (cam_sbc.c) built to the requested error, each pixel given a group;
+        pieces, the curved ones into tiles, each group a BSP tree of
+        sample-based cameras (cam_sbc.c) built to the requested error, each
+        pixel given a group;
      3. projection and 4. rasterisation, in batches of groups: every scene
         vertex in a group's box projected into it, its triangles emitted and
         subdivided (sbc_project.c), then drawn, stencilled to the group's
@@ -9358,9 +9360,12 @@ static refl_result refl__method_raytrace(refl__pass *p) {
      5. composite (sbc_resolve.c): what was drawn times the reflectance,
         cracks filled, holes and contradicted pixels traced with
         desc.sbc.trace_fallback.
-   This file: the options, the frame's setup (steps 1 and 2) and its
-   orchestration. Diffuse shading needs no eye vector (Lambert), so the
-   paper's true eye vector for point lights has nothing to change here.
+   The rays meet the scene's BVH (SBC-traced, the default) or its box
+   alone (SBC-paper, desc.sbc.mode: no search of the scene).
+   This file: the options, the frame's setup (steps 1 and 2), the memory
+   bound (desc.sbc.memory_mb) and its orchestration. Diffuse shading needs
+   no eye vector (Lambert), so the paper's true eye vector for point lights
+   has nothing to change here.
    Deterministic: work is split into jobs whose outputs are drawn in job
    order. */
 
@@ -12055,9 +12060,14 @@ static refl_result refl__sb_draw(refl__sb *sb) {
    passing in front of another: the handle before the body), their normals
    turn by less than 45 degrees (no crease: the knob on the lid), and
    either both or neither of their rays cross a neighbour's before its head
-   (a concave groove focuses them). A group is a piece within a tile of
-   REFL__SB_TILE samples, with one ring of rays extrapolated around it,
-   diagonals included, so its frustums reach past the piece's edge: the
+   (a concave groove focuses them). A planar piece is one group (the
+   paper's one camera per planar mirror); any other is cut into tiles of
+   REFL__SB_TILE samples, each tile's group holding its piece's rays
+   REFL__SB_GUARD samples past the tile (neighbouring tiles' frustums
+   overlap: sbc_project.c splits a reflected triangle across the border to
+   the pixel, and the parts on the border pixels all project). Around its
+   rays a group has one ring of rays extrapolated, diagonals included (past
+   the ray map's edge too), so its frustums reach past the piece's edge: the
    paper's "extended reflectors". Each group is a BSP tree of pinhole
    cameras (cam_sbc.c) built to the requested error in desired-view pixels;
    pieces whose rays do not cross end mostly in pinhole leaves, focusing
@@ -12231,8 +12241,8 @@ static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
-/* Builds group g's tree from its piece's rays in its tile grown by one
-   sample, and a ring around them (a job). */
+/* Builds group g's tree from its piece's rays in its tile grown by
+   REFL__SB_GUARD samples, and a ring around them (a job). */
 static void refl__sb_build_group(void *arg, int g) {
     refl__sb *sb = (refl__sb *)arg;
     const refl__pass *p = sb->p;
@@ -12903,7 +12913,9 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
    1/32 of the scene's diagonal (the paper's pre-subdivision, per frame),
    while mixed (one or two vertices project; the paper's fix for jagged
    edges; at most desc.sbc.mixed_levels times, unless the part holds a
-   point where one of the group's rays meets the triangle), while no vertex
+   point where one of the group's rays meets the triangle; by default
+   REFL__SB_MIXED_LEVELS times, and where the group's rays end, along a
+   tile's border, down to the pixel: refl__sb_mixed_split), while no vertex
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the

@@ -929,7 +929,8 @@ typedef struct refl_sbc_options {
     int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with trace_fallback,
+                                group's rays meet it). 0: 4, and down to the pixel along a
+                                tile's border (no crack between groups); never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
     /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this

@@ -6,8 +6,9 @@
         the first order, the reflection histories traced through the
         mirrors and glass;
      2. reflection groups (sbc_groups.c): each ray map cut into smooth
-        pieces and tiles, each group a BSP tree of sample-based cameras
-        (cam_sbc.c) built to the requested error, each pixel given a group;
+        pieces, the curved ones into tiles, each group a BSP tree of
+        sample-based cameras (cam_sbc.c) built to the requested error, each
+        pixel given a group;
      3. projection and 4. rasterisation, in batches of groups: every scene
         vertex in a group's box projected into it, its triangles emitted and
         subdivided (sbc_project.c), then drawn, stencilled to the group's
@@ -15,9 +16,12 @@
      5. composite (sbc_resolve.c): what was drawn times the reflectance,
         cracks filled, holes and contradicted pixels traced with
         desc.sbc.trace_fallback.
-   This file: the options, the frame's setup (steps 1 and 2) and its
-   orchestration. Diffuse shading needs no eye vector (Lambert), so the
-   paper's true eye vector for point lights has nothing to change here.
+   The rays meet the scene's BVH (SBC-traced, the default) or its box
+   alone (SBC-paper, desc.sbc.mode: no search of the scene).
+   This file: the options, the frame's setup (steps 1 and 2), the memory
+   bound (desc.sbc.memory_mb) and its orchestration. Diffuse shading needs
+   no eye vector (Lambert), so the paper's true eye vector for point lights
+   has nothing to change here.
    Deterministic: work is split into jobs whose outputs are drawn in job
    order. */
 #include "sbc_internal.h"

@@ -5,9 +5,14 @@
    passing in front of another: the handle before the body), their normals
    turn by less than 45 degrees (no crease: the knob on the lid), and
    either both or neither of their rays cross a neighbour's before its head
-   (a concave groove focuses them). A group is a piece within a tile of
-   REFL__SB_TILE samples, with one ring of rays extrapolated around it,
-   diagonals included, so its frustums reach past the piece's edge: the
+   (a concave groove focuses them). A planar piece is one group (the
+   paper's one camera per planar mirror); any other is cut into tiles of
+   REFL__SB_TILE samples, each tile's group holding its piece's rays
+   REFL__SB_GUARD samples past the tile (neighbouring tiles' frustums
+   overlap: sbc_project.c splits a reflected triangle across the border to
+   the pixel, and the parts on the border pixels all project). Around its
+   rays a group has one ring of rays extrapolated, diagonals included (past
+   the ray map's edge too), so its frustums reach past the piece's edge: the
    paper's "extended reflectors". Each group is a BSP tree of pinhole
    cameras (cam_sbc.c) built to the requested error in desired-view pixels;
    pieces whose rays do not cross end mostly in pinhole leaves, focusing
@@ -182,8 +187,8 @@ static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
-/* Builds group g's tree from its piece's rays in its tile grown by one
-   sample, and a ring around them (a job). */
+/* Builds group g's tree from its piece's rays in its tile grown by
+   REFL__SB_GUARD samples, and a ring around them (a job). */
 static void refl__sb_build_group(void *arg, int g) {
     refl__sb *sb = (refl__sb *)arg;
     const refl__pass *p = sb->p;

@@ -28,7 +28,9 @@
    1/32 of the scene's diagonal (the paper's pre-subdivision, per frame),
    while mixed (one or two vertices project; the paper's fix for jagged
    edges; at most desc.sbc.mixed_levels times, unless the part holds a
-   point where one of the group's rays meets the triangle), while no vertex
+   point where one of the group's rays meets the triangle; by default
+   REFL__SB_MIXED_LEVELS times, and where the group's rays end, along a
+   tile's border, down to the pixel: refl__sb_mixed_split), while no vertex
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the
