@@ -234,6 +234,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--trace-fallback")) {
             o->trace_fallback = 1;
+            continue;
         } else if (!strcmp(a, "--sbc-paper")) {
             o->sbc_paper = 1;
             continue;
