@@ -866,7 +866,8 @@ typedef struct refl_frame {
     refl_stats stats;
     const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
                                 rule the desc or view broke (refl_validate_render_desc's
-                                words); "" otherwise. A static string */
+                                words), or with OUT_OF_MEMORY past sbc.memory_mb (SBC's
+                                bound); "" otherwise. A static string */
     refl_allocator allocator;
 } refl_frame;
 
@@ -965,6 +966,19 @@ typedef struct refl_c3rc_options {
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
 } refl_c3rc_options;
 
+/* What SBC's reflected rays know of the scene (refl_sbc_options.mode). */
+typedef enum refl_sbc_mode {
+    REFL_SBC_TRACED = 0,     /* "SBC-traced" (beyond the paper): every ray map sample is ray
+                                traced against a BVH of the whole scene (built each frame, or
+                                kept by a renderer); its first hit sets the ray's head (twice
+                                as far), cuts pieces, splits the reflected triangles it lies
+                                in and feeds trace_fallback's checks */
+    REFL_SBC_PAPER = 1       /* "SBC-paper": the paper's method, what is timed against ray
+                                tracing: no search of the scene (no BVH of it); a ray's head
+                                is where it leaves the scene's box; only the mirrors and glass
+                                are traced (histories, refraction). trace_fallback must be 0 */
+} refl_sbc_mode;
+
 typedef struct refl_sbc_options {
     float error_px;          /* largest camera error in desired-view pixels at the ray map's
                                 samples (refl_sbc_desc.error_px); 0: 1 */
@@ -984,7 +998,8 @@ typedef struct refl_sbc_options {
     int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with trace_fallback,
+                                group's rays meet it). 0: 4, and down to the pixel along a
+                                tile's border (no crack between groups); never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
     /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this
@@ -994,6 +1009,12 @@ typedef struct refl_sbc_options {
        One grid per object at most (the first counts). */
     const refl_sbc_morph *const *morphs;
     int morph_count;
+    int mode;                /* refl_sbc_mode; 0: REFL_SBC_TRACED */
+    int memory_mb;           /* the frame's ray maps, groups' trees and a batch's projected
+                                vertices at most, in MiB (the reflected triangles drawn are
+                                not counted); a batch takes fewer groups to stay within it,
+                                and a frame that cannot fails with REFL_ERROR_OUT_OF_MEMORY
+                                and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
 /* Hooks for tests and benchmarks. */
@@ -1144,9 +1165,10 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    projected into every reflection group of its reflector as SBC builds
    them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
    may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
-   nearest image of P (sub-pixel), counted by the kind of leaf that made
-   it. P with no image within 8 pixels counts as wrong, in the kind of
-   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   nearest image of P (sub-pixel), counted by the kind of leaf that holds
+   P in the group of x's pixel (else the kind that made the image). P with
+   no image within 8 pixels counts as wrong, in that kind (pinhole when
+   none). empty
    is 0; everything 0 when the view shows no reflector. */
 typedef struct refl_sbc_camera_error {
     refl_reflection_error pinhole, ray_list;   /* every truth pixel: the nearest image */
@@ -1895,7 +1917,9 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across);
    draw programs of shade.c and metrics.c's summary, so they follow those
    in the Makefile's REFLECT_IMPL. */
 
-#define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed, at most (desc.sbc.mixed_levels' default) */
+#define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed with no scale known yet, at most */
+#define REFL__SB_GUARD 2            /* a tile's group also holds its piece's rays this many samples past it */
+#define REFL__SB_MEMORY_MB 2048     /* the frame's working memory at most (desc.sbc.memory_mb's default) */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
@@ -1922,12 +1946,14 @@ typedef struct refl__sb_side {
     uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
 } refl__sb_side;
 
-/* A reflection group: one piece of a side's ray map within one tile, its
-   rays (those of the piece in the tile grown by a sample: neighbouring
-   tiles' frustums overlap) and one ring of rays extrapolated around them. */
+/* A reflection group: one piece of a side's ray map, whole when planar,
+   else within one tile, its rays (those of the piece in the tile grown by
+   REFL__SB_GUARD samples: neighbouring tiles' frustums overlap) and one
+   ring of rays extrapolated around them. */
 typedef struct refl__sb_group {
     int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
+    int whole;                    /* the whole piece (a planar one), not a tile of it */
     refl_sbc *sbc;
     int sheets;                   /* its rays split at their folds: each sheet projects and draws apart */
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
@@ -2020,8 +2046,11 @@ typedef struct refl__sb {
     struct refl__em *em;          /* the reflectors' G-buffer and surface points (m_envmap.c's) */
     /* options, resolved */
     int factor;                   /* a ray map sample every factor x factor pixels */
-    int mixed_levels;             /* desc.sbc.mixed_levels */
+    int mixed_levels;             /* desc.sbc.mixed_levels resolved: -1 to the pixel, 0 never, else levels */
     float error_px;
+    size_t memory_limit;          /* desc.sbc.memory_mb, in bytes */
+    size_t memory_fixed;          /* what the ray maps and the groups' trees hold */
+    long long vertices;           /* the scene's, all objects': a group's slot indexes them all */
     /* the scene */
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */
@@ -3509,8 +3538,10 @@ static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_ve
 /* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,
    and that box's diagonal): tail = first = q, head REFL__SBC_REACH times as
    far as what it meets plus 1% of the diagonal, or a tenth of the diagonal
-   when it meets nothing, within the box; what it meets in *met. 0 for a
-   ray of zero length. */
+   when it meets nothing, within the box; what it meets in *met. With no
+   BVH (SBC-paper, no search of the scene) the head is where the ray leaves
+   the box, the paper's rule, and it meets nothing. 0 for a ray of zero
+   length. */
 static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, float diagonal, refl_vec3 q,
                                refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
     refl_hit hit;
@@ -3518,12 +3549,12 @@ static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, 
     met->object = -1;
     ray->tail = q;
     ray->first = q;
-    if (refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
+    if (bvh && refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
         met->object = hit.object;
         met->triangle = hit.triangle;
         met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
         reach = REFL__MIN(reach, REFL__SBC_REACH * hit.t + 0.01f * diagonal);
-    } else {
+    } else if (bvh) {
         reach = REFL__MIN(reach, 0.1f * diagonal);
     }
     ray->head = refl_v3_add(q, refl_v3_scale(r, reach));
@@ -10095,8 +10126,9 @@ static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
         the first order, the reflection histories traced through the
         mirrors and glass;
      2. reflection groups (sbc_groups.c): each ray map cut into smooth
-        pieces and tiles, each group a BSP tree of sample-based cameras
-        (cam_sbc.c) built to the requested error, each pixel given a group;
+        pieces, the curved ones into tiles, each group a BSP tree of
+        sample-based cameras (cam_sbc.c) built to the requested error, each
+        pixel given a group;
      3. projection and 4. rasterisation, in batches of groups: every scene
         vertex in a group's box projected into it, its triangles emitted and
         subdivided (sbc_project.c), then drawn, stencilled to the group's
@@ -10104,9 +10136,12 @@ static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
      5. composite (sbc_resolve.c): what was drawn times the reflectance,
         cracks filled, holes and contradicted pixels traced with
         desc.sbc.trace_fallback.
-   This file: the options, the frame's setup (steps 1 and 2) and its
-   orchestration. Diffuse shading needs no eye vector (Lambert), so the
-   paper's true eye vector for point lights has nothing to change here.
+   The rays meet the scene's BVH (SBC-traced, the default) or its box
+   alone (SBC-paper, desc.sbc.mode: no search of the scene).
+   This file: the options, the frame's setup (steps 1 and 2), the memory
+   bound (desc.sbc.memory_mb) and its orchestration. Diffuse shading needs
+   no eye vector (Lambert), so the paper's true eye vector for point lights
+   has nothing to change here.
    Deterministic: work is split into jobs whose outputs are drawn in job
    order. */
 
@@ -10121,7 +10156,17 @@ static const char *refl__options_sbc(refl_render_desc *d) {
     if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
     if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
         return "sbc.morphs: morph_count 0, or the array of that many grids";
+    if (o->mode != REFL_SBC_TRACED && o->mode != REFL_SBC_PAPER) return "sbc.mode: REFL_SBC_TRACED or REFL_SBC_PAPER";
+    if (o->mode == REFL_SBC_PAPER && o->trace_fallback)
+        return "sbc.mode: REFL_SBC_PAPER searches no scene, so trace_fallback must be 0";
+    if (o->memory_mb < 0) return "sbc.memory_mb: 0 (2048) or more";
     return NULL;
+}
+
+/* A frame past desc.sbc.memory_mb: OUT_OF_MEMORY, `why` in frame->message. */
+static refl_result refl__sb_over_memory(refl__sb *sb, const char *why) {
+    sb->p->frame->message = why;
+    return REFL_ERROR_OUT_OF_MEMORY;
 }
 
 /* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
@@ -10143,8 +10188,11 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
                        : p->desc.sbc.mixed_levels < 0 ? 0
                        : p->desc.sbc.trace_fallback   ? 0
-                                                      : REFL__SB_MIXED_LEVELS;
+                                                      : -1;
     sb->batch.size = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
+    sb->memory_limit = (size_t)(p->desc.sbc.memory_mb > 0 ? p->desc.sbc.memory_mb : REFL__SB_MEMORY_MB) << 20;
+    for (g = 0; g < p->scene->object_count; ++g)
+        sb->vertices += p->scene->meshes[p->scene->objects[g].mesh]->vertex_count;
     sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
     sb->orders = sb->layers = 1;
     refl_scene_bounds(p->scene, &lo, &hi);
@@ -10160,11 +10208,16 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     r = refl__em_gbuffer_new(sb->em, &seen, &any);
     refl__free(al, seen);
     if (r != REFL_OK || !any) return r;
-    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
+    /* SBC-traced's rays meet the scene's BVH; SBC-paper's meet its box alone */
+    if (p->desc.sbc.mode != REFL_SBC_PAPER && (r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
     sb->em->surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
     if (!sb->em->surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, sb->em);
-    if ((r = refl__sb_ray_maps(sb)) != REFL_OK || (r = refl__sb_groups(sb)) != REFL_OK) return r;
+    if ((r = refl__sb_ray_maps(sb)) != REFL_OK) return r;
+    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h *
+                       (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2);
+    if (sb->memory_fixed > sb->memory_limit) return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps alone exceed it");
+    if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
     p->frame->stats.sbc.histories += sb->side_count;
     p->frame->stats.sbc.groups += sb->group_count;
     for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
@@ -10180,7 +10233,10 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         p->frame->stats.sbc.ray_leaves += st.ray_leaves;
         p->frame->stats.rays += st.rays;
         p->frame->stats.model_bytes += st.bytes;
+        sb->memory_fixed += (size_t)st.bytes;
     }
+    if (sb->memory_fixed > sb->memory_limit)
+        return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps and the groups' trees exceed it");
     return REFL_OK;
 }
 
@@ -10220,7 +10276,15 @@ static refl_result refl__sb_run(refl__pass *p) {
            are its own in its layer, so a layer's batches' depth tests never
            meet, and the orders meet by the visibility offset */
         for (sb.batch.first = 0; r == REFL_OK && sb.batch.first < sb.group_count; sb.batch.first = sb.batch.end) {
-            int end = REFL__MIN(sb.batch.first + sb.batch.size, sb.group_count);
+            /* a batch's groups index every scene vertex each: as many as
+               half the memory bound leaves room for */
+            size_t room = (sb.memory_limit - sb.memory_fixed) / 2 / ((size_t)sb.vertices * sizeof(int) + 1);
+            int end = REFL__MIN(sb.batch.first + REFL__MIN(sb.batch.size, (int)REFL__MIN(room, (size_t)INT_MAX)),
+                                sb.group_count);
+            if (!room) {
+                r = refl__sb_over_memory(&sb, "sbc.memory_mb: one group's projected vertices exceed it");
+                break;
+            }
             sb.batch.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch.first]);
             sb.batch.end = sb.batch.first + 1;
             while (sb.batch.end < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch.end]) == sb.batch.layer)
@@ -12885,9 +12949,14 @@ static refl_result refl__sb_draw(refl__sb *sb) {
    passing in front of another: the handle before the body), their normals
    turn by less than 45 degrees (no crease: the knob on the lid), and
    either both or neither of their rays cross a neighbour's before its head
-   (a concave groove focuses them). A group is a piece within a tile of
-   REFL__SB_TILE samples, with one ring of rays extrapolated around it,
-   diagonals included, so its frustums reach past the piece's edge: the
+   (a concave groove focuses them). A planar piece is one group (the
+   paper's one camera per planar mirror); any other is cut into tiles of
+   REFL__SB_TILE samples, each tile's group holding its piece's rays
+   REFL__SB_GUARD samples past the tile (neighbouring tiles' frustums
+   overlap: sbc_project.c splits a reflected triangle across the border to
+   the pixel, and the parts on the border pixels all project). Around its
+   rays a group has one ring of rays extrapolated, diagonals included (past
+   the ray map's edge too), so its frustums reach past the piece's edge: the
    paper's "extended reflectors". Each group is a BSP tree of pinhole
    cameras (cam_sbc.c) built to the requested error in desired-view pixels;
    pieces whose rays do not cross end mostly in pinhole leaves, focusing
@@ -12906,6 +12975,7 @@ static refl_result refl__sb_draw(refl__sb *sb) {
 
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
+#define REFL__SB_PLANAR_COS 0.9999f /* a piece whose normals all lie this near its first's: planar, untiled */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
    surface (refl__sbc_smooth). */
@@ -13019,7 +13089,8 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     size_t g2 = (size_t)v2 * (size_t)sb->map_w + (size_t)u2;
                     if (sd->comp[g2] == comp) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), sd->normals[g2]);
                 }
-                refl__sb_sample_pixel(sb, u0 + u, v0 + v, &x, &y);
+                x = (u0 + u) * sb->factor + sb->factor / 2; /* past the frame's edge too */
+                y = (v0 + v) * sb->factor + sb->factor / 2;
                 refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
                 den = refl_v3_dot(d, n1);
                 if (fabsf(den) < 1e-6f) continue;
@@ -13059,16 +13130,17 @@ static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
-/* Builds group g's tree from its piece's rays in its tile grown by one
-   sample, and a ring around them (a job). */
+/* Builds group g's tree from its piece's rays in its tile grown by
+   REFL__SB_GUARD samples, and a ring around them (a job). */
 static void refl__sb_build_group(void *arg, int g) {
     refl__sb *sb = (refl__sb *)arg;
     const refl__pass *p = sb->p;
     const refl_allocator *al = &p->scene->allocator;
     refl__sb_group *gr = &sb->groups[g];
     const refl__sb_side *sd = &sb->sides[gr->side];
-    int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
-    int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
+    /* the ring may lie a sample past the map's edge: the frustums reach the frame's edge pixels */
+    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, -1), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, -1);
+    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w + 1), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h + 1);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
@@ -13081,7 +13153,9 @@ static void refl__sb_build_group(void *arg, int g) {
     } else {
         for (v = v0; v < v1; ++v)
             for (u = u0; u < u1; ++u) {
-                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                size_t m;
+                if (u < 0 || v < 0 || u >= sb->map_w || v >= sb->map_h) continue;
+                m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                 k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
                 if (!sd->valid[m] || sd->comp[m] != gr->comp) continue;
                 rays[k] = sd->rays[m];
@@ -13208,65 +13282,126 @@ static void refl__sb_assign_row(void *arg, int y) {
     }
 }
 
-/* The groups: each side's pieces cut by tiles of sb->tile samples (the
-   tile side doubles, up to REFL__SB_TILE_MAX, while there are more than a
-   batch: REFL__SB_BATCH), and each pixel's group. */
+/* Side sd's pieces that need no tiles (planar, their rays crossing no
+   neighbour's: a pinhole camera fits them whole, however large), as
+   `whole` per piece root, with their samples' box (4 per root: u0, v0,
+   u1, v1). */
+static void refl__sb_whole_pieces(const refl__sb *sb, const refl__sb_side *sd, uint8_t *whole, int *box) {
+    int u, v, mw = sb->map_w;
+    for (v = 0; v < sb->map_h; ++v)
+        for (u = 0; u < mw; ++u) {
+            int m = v * mw + u, r = sd->comp[m];
+            if (!sd->valid[m] || r < 0) continue;
+            if (r == m) {
+                whole[r] = 1;
+                box[4 * r] = box[4 * r + 2] = u;
+                box[4 * r + 1] = box[4 * r + 3] = v;
+            }
+            whole[r] = (uint8_t)(whole[r] && !sd->crossing[m] &&
+                                 refl_v3_dot(sd->normals[m], sd->normals[r]) >= REFL__SB_PLANAR_COS);
+            box[4 * r] = REFL__MIN(box[4 * r], u);
+            box[4 * r + 1] = REFL__MIN(box[4 * r + 1], v);
+            box[4 * r + 2] = REFL__MAX(box[4 * r + 2], u + 1);
+            box[4 * r + 3] = REFL__MAX(box[4 * r + 3], v + 1);
+        }
+}
+
+/* Group `index` of side i, piece `comp`, over samples [u0, u1) x [v0, v1). */
+static void refl__sb_group_set(refl__sb *sb, int index, int i, int comp, int u0, int v0, int u1, int v1) {
+    refl__sb_group *g = &sb->groups[index];
+    g->side = i;
+    g->object = sb->sides[i].object;
+    g->comp = comp;
+    g->u0 = u0;
+    g->v0 = v0;
+    g->u1 = u1;
+    g->v1 = v1;
+}
+
+/* The groups: each side's planar pieces whole (the paper's one camera
+   per planar mirror), the others (curved: a tree's leaves fit a tile's
+   rays better than a whole piece's; focusing: ray lists) cut by tiles of sb->tile samples (the tile side
+   doubles, up to REFL__SB_TILE_MAX, while there are more than a batch:
+   REFL__SB_BATCH; focusing rays end in ray lists, which a tile keeps
+   small), and each pixel's group. */
 static refl_result refl__sb_groups(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
     const refl_frame *fr = sb->p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    int *seen, i, pass, u, v, tu, tv;
-    /* count the groups (a tile's pieces), doubling the tile until they
-       fit a batch (fewer groups, fewer projections) or the tile reaches
-       REFL__SB_TILE_MAX (more batches then); then list them, each sample
-       noting its group. */
-    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
-    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k, nmap = (size_t)sb->map_w * (size_t)sb->map_h;
+    int *seen, *box, *piece_group, i, pass, u, v, tu, tv;
+    uint8_t *whole;
+    /* count the groups (whole pieces, a tile's pieces), doubling the tile
+       until they fit a batch (fewer groups, fewer projections) or the
+       tile reaches REFL__SB_TILE_MAX (more batches then); then list them,
+       each sample noting its group. */
+    seen = (int *)refl__calloc(al, nmap, sizeof(int));
+    box = (int *)refl__calloc(al, nmap, 4 * sizeof(int));
+    piece_group = (int *)refl__calloc(al, nmap, sizeof(int));
+    whole = (uint8_t *)refl__calloc(al, nmap, 1);
+    if (!seen || !box || !piece_group || !whole) {
+        refl__free(al, seen);
+        refl__free(al, box);
+        refl__free(al, piece_group);
+        refl__free(al, whole);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
         int largest = sb->tile >= REFL__SB_TILE_MAX;
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
-            for (i = 0; i < sb->side_count; ++i)
+            for (i = 0; i < sb->side_count; ++i) {
+                refl__sb_side *sd = &sb->sides[i];
+                refl__sb_whole_pieces(sb, sd, whole, box);
+                for (k = 0; k < nmap; ++k) {
+                    int r = sd->comp[k];
+                    if (!sd->valid[k] || r < 0 || !whole[r]) continue;
+                    if ((size_t)r == k) {
+                        piece_group[r] = sb->group_count++;
+                        if (pass) {
+                            refl__sb_group_set(sb, piece_group[r], i, r, box[4 * r], box[4 * r + 1],
+                                               box[4 * r + 2], box[4 * r + 3]);
+                            sb->groups[piece_group[r]].whole = 1;
+                        }
+                    }
+                    sd->group[k] = piece_group[r];
+                }
                 for (tv = 0; tv < th; ++tv)
                     for (tu = 0; tu < tw; ++tu) {
-                        refl__sb_side *sd = &sb->sides[i];
                         int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
                         int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
                         for (v = vv0; v < vv1; ++v)
                             for (u = uu0; u < uu1; ++u) {
                                 size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                                 int gi = 0;
-                                if (!sd->valid[m]) continue;
+                                if (!sd->valid[m] || sd->comp[m] < 0 || whole[sd->comp[m]]) continue;
                                 while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
                                 sd->group[m] = first + gi;
                                 if (gi < nseen) continue;
                                 seen[nseen++] = sd->comp[m];
-                                if (pass) {
-                                    refl__sb_group *g = &sb->groups[sb->group_count];
-                                    g->side = i;
-                                    g->object = sd->object;
-                                    g->comp = sd->comp[m];
-                                    g->u0 = uu0;
-                                    g->v0 = vv0;
-                                    g->u1 = uu1;
-                                    g->v1 = vv1;
-                                }
+                                if (pass) refl__sb_group_set(sb, sb->group_count, i, sd->comp[m], uu0, vv0, uu1, vv1);
                                 sb->group_count++;
                             }
                     }
+            }
             if (sb->group_count > REFL__SB_BATCH && !largest) break;
             if (!pass) {
                 sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
                                                             sizeof(refl__sb_group));
                 if (!sb->groups) {
                     refl__free(al, seen);
+                    refl__free(al, box);
+                    refl__free(al, piece_group);
+                    refl__free(al, whole);
                     return REFL_ERROR_OUT_OF_MEMORY;
                 }
             }
         }
         if (pass == 2) break;
     }
+    refl__free(al, box);
+    refl__free(al, piece_group);
+    refl__free(al, whole);
     refl__free(al, seen);
     sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
     if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;
@@ -13417,7 +13552,8 @@ static void refl__sb_groups_free(refl__sb *sb) {
    summarised by the kind of leaf that projected them. */
 
 /* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
-   the nearest image of its point and the kind of leaf that made it. */
+   the nearest image of its point and the kind of leaf its own group holds
+   the point in (the nearest image's when it has no group). */
 typedef struct refl__sb_measure {
     const refl_frame *truth;
     const refl__sb *sb;
@@ -13434,14 +13570,14 @@ typedef struct refl__sb_measure {
 #define REFL__SB_MEASURE_CELL 32   /* pixels per side of the measure's cells */
 
 /* Group g's pixels that an image of it can reach: an image lands on the
-   group's first reflector points (its tile and ring), and one further off
+   group's first reflector points (its tile, guard band and ring), and one further off
    than the reach does not count. */
 static void refl__sb_measure_rect(const refl__sb *sb, const refl__sb_group *g, int r[4]) {
     const int reach = (int)REFL__SB_MEASURE_REACH + 1;
-    r[0] = (g->u0 - 1) * sb->factor - reach;
-    r[1] = (g->v0 - 1) * sb->factor - reach;
-    r[2] = (g->u1 + 1) * sb->factor + reach;
-    r[3] = (g->v1 + 1) * sb->factor + reach;
+    r[0] = (g->u0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[1] = (g->v0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[2] = (g->u1 + REFL__SB_GUARD + 1) * sb->factor + reach;
+    r[3] = (g->v1 + REFL__SB_GUARD + 1) * sb->factor + reach;
 }
 
 /* The cells' group lists (counted, then filled), groups in index order. */
@@ -13530,11 +13666,10 @@ static void refl__sb_measure_row(void *arg, int y) {
                 }
             }
         }
-        if (best <= REFL__SB_MEASURE_REACH) {
-            ms->error[i] = best;
-        } else if (own >= 0 && sb->groups[own].sbc) { /* no image: charged to the leaf its own group holds it in */
-            kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
-        }
+        if (best <= REFL__SB_MEASURE_REACH) ms->error[i] = best;
+        /* charged to the leaf its own group holds it in (the groups'
+           guard bands overlap: the nearest image may be a neighbour's) */
+        if (own >= 0 && sb->groups[own].sbc) kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
         ms->kind[i] = (uint8_t)(kind == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
     }
 }
@@ -13667,7 +13802,9 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
    1/32 of the scene's diagonal (the paper's pre-subdivision, per frame),
    while mixed (one or two vertices project; the paper's fix for jagged
    edges; at most desc.sbc.mixed_levels times, unless the part holds a
-   point where one of the group's rays meets the triangle), while no vertex
+   point where one of the group's rays meets the triangle; by default
+   REFL__SB_MIXED_LEVELS times, and where the group's rays end, along a
+   tile's border, down to the pixel: refl__sb_mixed_split), while no vertex
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the
@@ -13683,6 +13820,8 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
 #define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
+#define REFL__SB_MIXED_PX 1.0f      /* a mixed part is split while it may reach this many pixels ... */
+#define REFL__SB_MIXED_MAX 16       /* ... down to this level at most (a 64k-fold magnification) */
 
 /* Subdivision midpoints a job has projected: an edge shared by two
    triangles (the split's inner edges, neighbours in the mesh) is split
@@ -13969,10 +14108,67 @@ static float refl__sb_extent(const refl__sb_pv *a, const refl__sb_pv *b, const r
            REFL__MAX(REFL__MAX(a->sy, b->sy), c->sy) - REFL__MIN(REFL__MIN(a->sy, b->sy), c->sy);
 }
 
+/* The pixels per unit of length of the largest image of an edge between
+   two of (a, b, c) that both project; `known` (an ancestor's) when fewer
+   than two project. */
+static float refl__sb_scale(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float known) {
+    const refl__sb_pv *v[3];
+    float best = -1.0f;
+    int k;
+    v[0] = a; v[1] = b; v[2] = c;
+    for (k = 0; k < 3; ++k) {
+        const refl__sb_pv *p = v[k], *q = v[(k + 1) % 3];
+        float dx = p->sx - q->sx, dy = p->sy - q->sy, l = refl_v3_length(refl_v3_sub(p->world, q->world));
+        if (p->ok && q->ok && l > 0.0f) best = REFL__MAX(best, sqrtf(dx * dx + dy * dy) / l);
+    }
+    return best >= 0.0f ? best : known;
+}
+
+/* Whether a mixed part (a, b, c) may reach the pixels of group g where its
+   rays end (within `reach` pixels of a vertex that projects): for a whole
+   piece any pixel of its box; for a tile those along its border (two
+   samples either side), where the next tile's rays begin. Inside a tile a
+   vertex fails for other reasons (a silhouette, a fold, a ray list's
+   gap), as costly to chase to the pixel as rare to matter. */
+static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
+                               const refl__sb_pv *b, const refl__sb_pv *c, float reach) {
+    const refl__sb_pv *v[3];
+    float x0 = (float)(g->u0 * sb->factor), y0 = (float)(g->v0 * sb->factor);
+    float x1 = (float)(g->u1 * sb->factor), y1 = (float)(g->v1 * sb->factor), band = 2.0f * (float)sb->factor;
+    float lx = INFINITY, ly = INFINITY, hx = -INFINITY, hy = -INFINITY;
+    int k;
+    if (g->morph) return 0;
+    v[0] = a; v[1] = b; v[2] = c;
+    for (k = 0; k < 3; ++k)
+        if (v[k]->ok) {
+            lx = REFL__MIN(lx, v[k]->sx - reach); hx = REFL__MAX(hx, v[k]->sx + reach);
+            ly = REFL__MIN(ly, v[k]->sy - reach); hy = REFL__MAX(hy, v[k]->sy + reach);
+        }
+    if (hx < x0 - band || lx > x1 + band || hy < y0 - band || ly > y1 + band) return 0; /* off the group */
+    return g->whole || lx < x0 + band || hx > x1 - band || ly < y0 + band || hy > y1 - band;
+}
+
+/* Whether mixed part (a, b, c) at subdivision level `level` is split
+   further (desc.sbc.mixed_levels 0): REFL__SB_MIXED_LEVELS times, and where
+   the group's rays end (refl__sb_mixed_near) to the pixel, while it may
+   reach REFL__SB_MIXED_PX or more, judged by `scale` (refl__sb_scale). The
+   parts on a tile's border pixels then all project: the group's rays reach
+   REFL__SB_GUARD samples past them. */
+static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
+                                const refl__sb_pv *c, int level, float scale) {
+    float la = refl_v3_length(refl_v3_sub(a->world, b->world));
+    float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
+    float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
+    float reach = scale * REFL__MAX(la, REFL__MAX(lb, lc));
+    if (level < REFL__SB_MIXED_LEVELS) return 1;
+    return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
-   module comment says. */
+   module comment says; scale: the pixels per unit of length an ancestor's
+   projected edge had (0: none projected two vertices yet). */
 static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
-                          const refl__sb_pv *b, const refl__sb_pv *c, int level, const refl__sb_tri *t) {
+                          const refl__sb_pv *b, const refl__sb_pv *c, int level, float scale, const refl__sb_tri *t) {
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
     int across = (a->ok && a->across) + (b->ok && b->across) + (c->ok && c->across);
@@ -13985,7 +14181,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     if (elsewhere) ok = 0;
     /* the surface the rays leave, whole: its parts would be dropped one by one */
     if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
-    if (level < REFL__SB_LEVELS) {
+    scale = refl__sb_scale(a, b, c, scale);
+    if (level >= REFL__SB_LEVELS && ok > 0 && ok < 3 && sb->mixed_levels < 0 && level < REFL__SB_MIXED_MAX) {
+        split = refl__sb_mixed_split(sb, g, a, b, c, level, scale);
+    } else if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
         float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
@@ -14009,7 +14208,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
             have_mid = 1;
         } else if (ok < 3) {
             int k;
-            split = ok > 0 && level < sb->mixed_levels;
+            if (ok > 0 && sb->mixed_levels < 0)
+                split = refl__sb_mixed_split(sb, g, a, b, c, level, scale);
+            else
+                split = ok > 0 && level < sb->mixed_levels;
             for (k = 0; k < t->hit_count && !split && (!elsewhere || level < REFL__SB_ELSEWHERE_LEVELS); ++k)
                 split = refl__sb_holds(a, b, c, t->hits[k].point);
         }
@@ -14042,10 +14244,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         bc = refl__sb_mid(sb, g, b, c, j);
         ca = refl__sb_mid(sb, g, c, a, j);
     }
-    refl__sb_emit(sb, g, j, a, &ab, &ca, level + 1, t);
-    refl__sb_emit(sb, g, j, &ab, b, &bc, level + 1, t);
-    refl__sb_emit(sb, g, j, &ca, &bc, c, level + 1, t);
-    refl__sb_emit(sb, g, j, &ab, &bc, &ca, level + 1, t);
+    refl__sb_emit(sb, g, j, a, &ab, &ca, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ab, b, &bc, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ca, &bc, c, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ab, &bc, &ca, level + 1, scale, t);
 }
 
 static void refl__sb_emit_job(void *arg, int index) {
@@ -14087,7 +14289,7 @@ static void refl__sb_emit_job(void *arg, int index) {
             ++lo;
             ++t.hit_count;
         }
-        refl__sb_emit(sb, g, j, a, b, c, 0, &t);
+        refl__sb_emit(sb, g, j, a, b, c, 0, 0.0f, &t);
     }
     refl__free(&scene->allocator, j->memo);
     j->memo = NULL;
@@ -14098,6 +14300,7 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
     int pairs = (sb->batch.end - sb->batch.first) * scene->object_count, i, g, o, t, k, n = 0;
+    size_t slot_bytes = 0;
     if (!sb->batch.base) { /* the first batch: every object's vertices in the world, once */
         sb->batch.base =
             (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__sb_pv *));
@@ -14129,6 +14332,18 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
         for (o = 0; o < scene->object_count; ++o)
             n += REFL__MAX(sb->groups[g].sheets, 1) *
                  ((scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK);
+    /* the batch's projected vertices within the memory bound */
+    for (i = 0; i < pairs; ++i) {
+        const refl__sb_slot *slot = &sb->batch.slots[i];
+        if (!slot->index) continue;
+        slot_bytes += (size_t)scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count * sizeof(int) +
+                      (size_t)slot->count * (size_t)REFL__MAX(sb->groups[sb->batch.first + i / scene->object_count].sheets, 1) *
+                          sizeof(refl__sb_pv);
+    }
+    if (sb->memory_fixed + slot_bytes >= sb->memory_limit) {
+        sb->p->frame->message = "sbc.memory_mb: a batch's projected vertices exceed it";
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     sb->batch.jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->batch.jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch.first; g < sb->batch.end; ++g) {
@@ -14449,6 +14664,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
         refl_vec3 p, ng, ns, t2, rd;
         int entering;
         if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
+        /* a surface inside the glass (SBC-paper searches no scene: none) */
         if (refl_bvh_intersect(sb->bvh, pos, t, 1e-4f * sb->diagonal, h.t, &in) && in.object != object) {
             rp->tail = pos;
             rp->out = t;
@@ -14749,25 +14965,48 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
    point, and 1 is returned; else 0, and it keeps what SBC made of it (a
    hole: the environment, as without the option; most holes are the sky
    seen in the mirror, one ray each). */
+static void refl__sb_render_pixel(const refl__sb *sb, int x, int y);
 static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
-    refl_frame *fr = sb->p->frame;
-    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-    refl_vec3 d, q, n, shown;
+    size_t i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
+    refl_vec3 d, q, n;
     refl_sbc_ray ray;
     refl__sbc_hit met;
-    float rgb[3], depth;
-    uint8_t stencil;
-    int c;
     refl__sb_pixel_view(sb, i, &d, &q, &n);
     sb->tracer.rays[y]++;
     if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
+    refl__sb_render_pixel(sb, x, y);
+    return 1;
+}
+
+/* Pixel (x, y) rendered as RAYTRACE renders it, colour and point. */
+static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
+    refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    refl_vec3 shown;
+    float rgb[3], depth;
+    uint8_t stencil;
+    int c;
     refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
     for (c = 0; c < 3; ++c) fr->rgba[4 * i + (size_t)c] = rgb[c];
     fr->rgba[4 * i + 3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;
-    return 1;
+}
+
+/* Whether glass pixel i's refraction (view direction d, point q, normal
+   n, side id `id`) is a hole that desc.sbc.trace_fallback traces, as it
+   traces the reflections': it leaves the glass, or meets a surface inside
+   it, with nothing drawn on the refraction layer there; or it meets
+   another mirror or glass first, or stays inside (reflected within), which
+   no refraction group models. Past one bounce only: at depth 1 glass
+   shows the environment refracted once, as ENVMAP's. */
+static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
+    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    refl__sb_refr rp;
+    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
+    return refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
+           !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f);
 }
 
 /* Whether pixel i, of a group or not, shows nothing drawn (src: where
@@ -14859,11 +15098,15 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         refl__sb_path pa;
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+            refl__sb_render_pixel(sb, x, y);
+            continue;
+        }
         if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
             refl__sb_trace_pixel(sb, x, y))
             continue;
         m = &scene->materials[scene->objects[object].material];
-        refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;

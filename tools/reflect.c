@@ -70,6 +70,9 @@ static const char *const usage_render =
     "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
     "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
     "                     and those whose point the ray map's samples contradict\n"
+    "  --sbc-paper        SBC: the paper's method, no search of the scene (heads where\n"
+    "                     the rays leave its box); default: SBC-traced, every ray map\n"
+    "                     sample traced against the scene's BVH\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -118,7 +121,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper;
     float density, camera_split, error_px;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
@@ -167,7 +170,7 @@ static const char *const value_options[] = {
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
-                                           "--light-volumes", "--trace-fallback", "--gl", NULL};
+                                           "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -306,6 +309,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--gl")) {
             o->gl = 1;
+            continue;
+        } else if (!strcmp(a, "--sbc-paper")) {
+            o->sbc_paper = 1;
             continue;
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
@@ -522,6 +528,7 @@ static int cmd_render(const options *o) {
     d.sbc.error_px = o->error_px;
     d.sbc.ray_factor = o->ray_factor;
     d.sbc.trace_fallback = o->trace_fallback;
+    d.sbc.mode = o->sbc_paper ? REFL_SBC_PAPER : REFL_SBC_TRACED;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

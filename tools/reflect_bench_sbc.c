@@ -45,9 +45,12 @@
    ten eyes within it), in million vertex projections per second (the
    paper: 1 and 12.5 Mv/s on its CPU); then a frame at half the table's
    size drawn with the grids (SBC with refl_render_desc.sbc.morphs) and
-   per frame (SBC), each timed (median) and measured against RAYTRACE. */
+   per frame (SBC), each timed (median) and measured against RAYTRACE.
+   SBC-paper and SBC-traced (refl_sbc_options.mode) against Embree's
+   RAYTRACE on the built-in scenes: modes_table. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
+#include "../bench/embree_peer.h"
 #include "reflect_bench.h"
 
 #include <math.h>
@@ -559,6 +562,82 @@ static int morph_table(const char *dir, int threads, int repeats, const float *c
     return ok;
 }
 
+/* The two SBC variants against Embree's RAYTRACE in one run, per built-in
+   scene at 640x480: SBC-paper (refl_sbc_options.mode REFL_SBC_PAPER: no
+   search of the scene, what the paper times against ray tracing) and
+   SBC-traced (REFL_SBC_TRACED, the default: every ray map sample traced
+   against the scene's BVH), each timed (median) and measured against
+   RAYTRACE of the same depth (glass at depth 2: one bounce leaves it
+   black). A table on stdout and dir/sbc_modes.csv. */
+static int modes_table(const char *dir, int threads, int repeats) {
+    static const char *const scenes[] = {"default", "mirror-room", "concave", "glass"};
+    static const char *const series[] = {"embree", "sbc-paper", "sbc-traced"};
+    char path[1024], err[256];
+    FILE *csv;
+    int i, k, ok = 1;
+    snprintf(path, sizeof path, "%s/sbc_modes.csv", dir);
+    if (!(csv = fopen(path, "w"))) return 0;
+    fprintf(csv, "scene,series,depth,width,height,threads,ms_median,ms_min,ratio_to_embree,rays,model_bytes,"
+                 "error_mean_px,error_p95_px,wrong,empty,psnr_db\n");
+    printf("SBC-paper (no scene search) and SBC-traced (ray map samples traced) against Embree's RAYTRACE, "
+           "640x480, %d threads, median of %d\n", threads, repeats);
+    printf("%-12s %-11s %5s %9s %7s %9s %8s %8s %7s %7s\n", "scene", "series", "depth", "ms", "x embree", "rays",
+           "mean px", "p95 px", "holes", "PSNR");
+    for (i = 0; ok && i < 4; ++i) {
+        refl_scene *s = NULL;
+        refl_embree *e = NULL;
+        refl_frame *truth = NULL, *f = NULL;
+        refl_render_desc d;
+        refl_view v;
+        double embree_ms = 0.0;
+        if (refl_scene_builtin(scenes[i], NULL, &s) != REFL_OK) {
+            ok = 0;
+            break;
+        }
+        v = s->camera;
+        v.width = 640;
+        v.height = 480;
+        if (!(e = refl_embree_create(s, threads, err, sizeof err)) ||
+            refl_frame_create(v.width, v.height, NULL, &truth) != REFL_OK ||
+            refl_frame_create(v.width, v.height, NULL, &f) != REFL_OK)
+            ok = 0;
+        memset(&d, 0, sizeof d);
+        d.method = REFL_RAYTRACE;
+        d.threads = threads;
+        d.depth = strcmp(scenes[i], "glass") ? 1 : 2;
+        if (ok && refl_render(s, &v, &d, truth) != REFL_OK) ok = 0;
+        for (k = 0; ok && k < 3; ++k) {
+            refl_reflection_error re;
+            refl_image_error ie;
+            double ms, fastest;
+            d.method = k ? REFL_SBC : REFL_RAYTRACE;
+            d.sbc.mode = k == 1 ? REFL_SBC_PAPER : REFL_SBC_TRACED;
+            d.raytrace.caster.intersect = k ? NULL : refl_embree_intersect;
+            d.raytrace.caster.occluded = k ? NULL : refl_embree_occluded;
+            d.raytrace.caster.user = k ? NULL : e;
+            if (refl_bench_timed_render(s, &v, &d, repeats, f, &ms, &fastest) != REFL_OK ||
+                refl_measure_reflection_error(f, truth, NULL, &re) != REFL_OK ||
+                refl_measure_image_error(f, truth, 1, 0.0f, &ie) != REFL_OK) {
+                ok = 0;
+                break;
+            }
+            if (!k) embree_ms = ms;
+            fprintf(csv, "%s,%s,%d,%d,%d,%d,%.2f,%.2f,%.3f,%lld,%lld,%.4f,%.4f,%.6f,%.6f,%.3f\n", scenes[i], series[k],
+                    d.depth, v.width, v.height, threads, ms, fastest, embree_ms > 0.0 ? ms / embree_ms : 0.0,
+                    f->stats.rays, f->stats.model_bytes, re.mean, re.p95, re.wrong, re.empty, ie.psnr);
+            printf("%-12s %-11s %5d %9.1f %8.2f %9lld %8.3f %8.2f %6.2f%% %7.2f\n", scenes[i], series[k], d.depth, ms,
+                   embree_ms > 0.0 ? ms / embree_ms : 0.0, f->stats.rays, re.mean, re.p95, 100.0 * re.empty, ie.psnr);
+        }
+        refl_frame_destroy(truth);
+        refl_frame_destroy(f);
+        refl_embree_destroy(e);
+        refl_scene_destroy(s);
+    }
+    fclose(csv);
+    if (ok) fprintf(stderr, "wrote %s\n", path);
+    return ok;
+}
+
 int refl_bench_sbc(const char *dir, int threads, int repeats, int full) {
     static const char *const scenes[] = {"spherical cap", "teapot body", "two spheres", "car"};
     static const fig19_paper paper[] = {{{4, 16}, 19, {153, 597}, {21, 33}},
@@ -624,5 +703,5 @@ int refl_bench_sbc(const char *dir, int threads, int repeats, int full) {
            "ray-list leaves %.2f Mv/s (paper, GPU: 20 and 2.5; its CPU 5 times slower)\n",
            npoints, mvps(all_points[0], all_ms[0]), mvps(all_points[1], all_ms[1]));
     fprintf(stderr, "wrote %s\n", path);
-    return morph_table(dir, threads, repeats, closer);
+    return modes_table(dir, threads, repeats) && morph_table(dir, threads, repeats, closer);
 }

@@ -864,7 +864,8 @@ typedef struct refl_frame {
     refl_stats stats;
     const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
                                 rule the desc or view broke (refl_validate_render_desc's
-                                words); "" otherwise. A static string */
+                                words), or with OUT_OF_MEMORY past sbc.memory_mb (SBC's
+                                bound); "" otherwise. A static string */
     refl_allocator allocator;
 } refl_frame;
 
@@ -963,6 +964,19 @@ typedef struct refl_c3rc_options {
                                 0: 0.1; negative: never (one camera per triangle, the paper's) */
 } refl_c3rc_options;
 
+/* What SBC's reflected rays know of the scene (refl_sbc_options.mode). */
+typedef enum refl_sbc_mode {
+    REFL_SBC_TRACED = 0,     /* "SBC-traced" (beyond the paper): every ray map sample is ray
+                                traced against a BVH of the whole scene (built each frame, or
+                                kept by a renderer); its first hit sets the ray's head (twice
+                                as far), cuts pieces, splits the reflected triangles it lies
+                                in and feeds trace_fallback's checks */
+    REFL_SBC_PAPER = 1       /* "SBC-paper": the paper's method, what is timed against ray
+                                tracing: no search of the scene (no BVH of it); a ray's head
+                                is where it leaves the scene's box; only the mirrors and glass
+                                are traced (histories, refraction). trace_fallback must be 0 */
+} refl_sbc_mode;
+
 typedef struct refl_sbc_options {
     float error_px;          /* largest camera error in desired-view pixels at the ray map's
                                 samples (refl_sbc_desc.error_px); 0: 1 */
@@ -982,7 +996,8 @@ typedef struct refl_sbc_options {
     int mixed_levels;        /* times a mixed reflected triangle (some of its vertices
                                 project, some not: the edge of a group) is split in four,
                                 1..6; negative: never (it is split only towards where the
-                                group's rays meet it). 0: 4, or never with trace_fallback,
+                                group's rays meet it). 0: 4, and down to the pixel along a
+                                tile's border (no crack between groups); never with trace_fallback,
                                 which traces the pixels the group's edge leaves uncovered:
                                 most of SBC's projections are these triangles' midpoints */
     /* Prebuilt reflection morphing grids (refl_sbc_morph_build on this
@@ -992,6 +1007,12 @@ typedef struct refl_sbc_options {
        One grid per object at most (the first counts). */
     const refl_sbc_morph *const *morphs;
     int morph_count;
+    int mode;                /* refl_sbc_mode; 0: REFL_SBC_TRACED */
+    int memory_mb;           /* the frame's ray maps, groups' trees and a batch's projected
+                                vertices at most, in MiB (the reflected triangles drawn are
+                                not counted); a batch takes fewer groups to stay within it,
+                                and a frame that cannot fails with REFL_ERROR_OUT_OF_MEMORY
+                                and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
 /* Hooks for tests and benchmarks. */
@@ -1142,9 +1163,10 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
    projected into every reflection group of its reflector as SBC builds
    them for the view with `desc` (sbc_error_px, sbc_ray_factor, threads;
    may be NULL; depth is taken as 1); the error is the distance in pixels from x's centre to the
-   nearest image of P (sub-pixel), counted by the kind of leaf that made
-   it. P with no image within 8 pixels counts as wrong, in the kind of
-   leaf that holds it in the group of x's pixel (pinhole when none). empty
+   nearest image of P (sub-pixel), counted by the kind of leaf that holds
+   P in the group of x's pixel (else the kind that made the image). P with
+   no image within 8 pixels counts as wrong, in that kind (pinhole when
+   none). empty
    is 0; everything 0 when the view shows no reflector. */
 typedef struct refl_sbc_camera_error {
     refl_reflection_error pinhole, ray_list;   /* every truth pixel: the nearest image */

@@ -54,8 +54,10 @@ static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_ve
 /* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,
    and that box's diagonal): tail = first = q, head REFL__SBC_REACH times as
    far as what it meets plus 1% of the diagonal, or a tenth of the diagonal
-   when it meets nothing, within the box; what it meets in *met. 0 for a
-   ray of zero length. */
+   when it meets nothing, within the box; what it meets in *met. With no
+   BVH (SBC-paper, no search of the scene) the head is where the ray leaves
+   the box, the paper's rule, and it meets nothing. 0 for a ray of zero
+   length. */
 static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, float diagonal, refl_vec3 q,
                                refl_vec3 r, refl_sbc_ray *ray, refl__sbc_hit *met) {
     refl_hit hit;
@@ -63,12 +65,12 @@ static int refl__sbc_scene_ray(const refl_bvh *bvh, refl_vec3 lo, refl_vec3 hi, 
     met->object = -1;
     ray->tail = q;
     ray->first = q;
-    if (refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
+    if (bvh && refl_bvh_intersect(bvh, q, r, 1e-4f * diagonal, reach, &hit)) {
         met->object = hit.object;
         met->triangle = hit.triangle;
         met->point = refl_v3_add(q, refl_v3_scale(r, hit.t));
         reach = REFL__MIN(reach, REFL__SBC_REACH * hit.t + 0.01f * diagonal);
-    } else {
+    } else if (bvh) {
         reach = REFL__MIN(reach, 0.1f * diagonal);
     }
     ray->head = refl_v3_add(q, refl_v3_scale(r, reach));

@@ -6,8 +6,9 @@
         the first order, the reflection histories traced through the
         mirrors and glass;
      2. reflection groups (sbc_groups.c): each ray map cut into smooth
-        pieces and tiles, each group a BSP tree of sample-based cameras
-        (cam_sbc.c) built to the requested error, each pixel given a group;
+        pieces, the curved ones into tiles, each group a BSP tree of
+        sample-based cameras (cam_sbc.c) built to the requested error, each
+        pixel given a group;
      3. projection and 4. rasterisation, in batches of groups: every scene
         vertex in a group's box projected into it, its triangles emitted and
         subdivided (sbc_project.c), then drawn, stencilled to the group's
@@ -15,9 +16,12 @@
      5. composite (sbc_resolve.c): what was drawn times the reflectance,
         cracks filled, holes and contradicted pixels traced with
         desc.sbc.trace_fallback.
-   This file: the options, the frame's setup (steps 1 and 2) and its
-   orchestration. Diffuse shading needs no eye vector (Lambert), so the
-   paper's true eye vector for point lights has nothing to change here.
+   The rays meet the scene's BVH (SBC-traced, the default) or its box
+   alone (SBC-paper, desc.sbc.mode: no search of the scene).
+   This file: the options, the frame's setup (steps 1 and 2), the memory
+   bound (desc.sbc.memory_mb) and its orchestration. Diffuse shading needs
+   no eye vector (Lambert), so the paper's true eye vector for point lights
+   has nothing to change here.
    Deterministic: work is split into jobs whose outputs are drawn in job
    order. */
 #include "sbc_internal.h"
@@ -33,7 +37,17 @@ static const char *refl__options_sbc(refl_render_desc *d) {
     if (o->mixed_levels > 6) return "sbc.mixed_levels: negative (never), 0 (the default) or 1 to 6";
     if (o->morph_count < 0 || (o->morph_count > 0 && !o->morphs))
         return "sbc.morphs: morph_count 0, or the array of that many grids";
+    if (o->mode != REFL_SBC_TRACED && o->mode != REFL_SBC_PAPER) return "sbc.mode: REFL_SBC_TRACED or REFL_SBC_PAPER";
+    if (o->mode == REFL_SBC_PAPER && o->trace_fallback)
+        return "sbc.mode: REFL_SBC_PAPER searches no scene, so trace_fallback must be 0";
+    if (o->memory_mb < 0) return "sbc.memory_mb: 0 (2048) or more";
     return NULL;
+}
+
+/* A frame past desc.sbc.memory_mb: OUT_OF_MEMORY, `why` in frame->message. */
+static refl_result refl__sb_over_memory(refl__sb *sb, const char *why) {
+    sb->p->frame->message = why;
+    return REFL_ERROR_OUT_OF_MEMORY;
 }
 
 /* Everything up to the groups' trees (shared with refl_sbc_measure_camera_error). */
@@ -55,8 +69,11 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     sb->mixed_levels = p->desc.sbc.mixed_levels > 0   ? p->desc.sbc.mixed_levels
                        : p->desc.sbc.mixed_levels < 0 ? 0
                        : p->desc.sbc.trace_fallback   ? 0
-                                                      : REFL__SB_MIXED_LEVELS;
+                                                      : -1;
     sb->batch.size = p->desc.sbc.batch_groups > 0 ? p->desc.sbc.batch_groups : REFL__SB_BATCH;
+    sb->memory_limit = (size_t)(p->desc.sbc.memory_mb > 0 ? p->desc.sbc.memory_mb : REFL__SB_MEMORY_MB) << 20;
+    for (g = 0; g < p->scene->object_count; ++g)
+        sb->vertices += p->scene->meshes[p->scene->objects[g].mesh]->vertex_count;
     sb->budget = REFL__CLAMP(p->desc.depth, 1, REFL__SB_ORDERS);
     sb->orders = sb->layers = 1;
     refl_scene_bounds(p->scene, &lo, &hi);
@@ -72,11 +89,16 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     r = refl__em_gbuffer_new(sb->em, &seen, &any);
     refl__free(al, seen);
     if (r != REFL_OK || !any) return r;
-    if ((r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
+    /* SBC-traced's rays meet the scene's BVH; SBC-paper's meet its box alone */
+    if (p->desc.sbc.mode != REFL_SBC_PAPER && (r = refl__models_bvh(p, &sb->bvh, &sb->own_bvh)) != REFL_OK) return r;
     sb->em->surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
     if (!sb->em->surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, sb->em);
-    if ((r = refl__sb_ray_maps(sb)) != REFL_OK || (r = refl__sb_groups(sb)) != REFL_OK) return r;
+    if ((r = refl__sb_ray_maps(sb)) != REFL_OK) return r;
+    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h *
+                       (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2);
+    if (sb->memory_fixed > sb->memory_limit) return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps alone exceed it");
+    if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
     p->frame->stats.sbc.histories += sb->side_count;
     p->frame->stats.sbc.groups += sb->group_count;
     for (g = 0; p->desc.debug.sbc_ray_map && g < sb->side_count && !sb->sides[g].layer; ++g)
@@ -92,7 +114,10 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
         p->frame->stats.sbc.ray_leaves += st.ray_leaves;
         p->frame->stats.rays += st.rays;
         p->frame->stats.model_bytes += st.bytes;
+        sb->memory_fixed += (size_t)st.bytes;
     }
+    if (sb->memory_fixed > sb->memory_limit)
+        return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps and the groups' trees exceed it");
     return REFL_OK;
 }
 
@@ -132,7 +157,15 @@ static refl_result refl__sb_run(refl__pass *p) {
            are its own in its layer, so a layer's batches' depth tests never
            meet, and the orders meet by the visibility offset */
         for (sb.batch.first = 0; r == REFL_OK && sb.batch.first < sb.group_count; sb.batch.first = sb.batch.end) {
-            int end = REFL__MIN(sb.batch.first + sb.batch.size, sb.group_count);
+            /* a batch's groups index every scene vertex each: as many as
+               half the memory bound leaves room for */
+            size_t room = (sb.memory_limit - sb.memory_fixed) / 2 / ((size_t)sb.vertices * sizeof(int) + 1);
+            int end = REFL__MIN(sb.batch.first + REFL__MIN(sb.batch.size, (int)REFL__MIN(room, (size_t)INT_MAX)),
+                                sb.group_count);
+            if (!room) {
+                r = refl__sb_over_memory(&sb, "sbc.memory_mb: one group's projected vertices exceed it");
+                break;
+            }
             sb.batch.layer = refl__sb_group_layer(&sb, &sb.groups[sb.batch.first]);
             sb.batch.end = sb.batch.first + 1;
             while (sb.batch.end < end && refl__sb_group_layer(&sb, &sb.groups[sb.batch.end]) == sb.batch.layer)

@@ -5,9 +5,14 @@
    passing in front of another: the handle before the body), their normals
    turn by less than 45 degrees (no crease: the knob on the lid), and
    either both or neither of their rays cross a neighbour's before its head
-   (a concave groove focuses them). A group is a piece within a tile of
-   REFL__SB_TILE samples, with one ring of rays extrapolated around it,
-   diagonals included, so its frustums reach past the piece's edge: the
+   (a concave groove focuses them). A planar piece is one group (the
+   paper's one camera per planar mirror); any other is cut into tiles of
+   REFL__SB_TILE samples, each tile's group holding its piece's rays
+   REFL__SB_GUARD samples past the tile (neighbouring tiles' frustums
+   overlap: sbc_project.c splits a reflected triangle across the border to
+   the pixel, and the parts on the border pixels all project). Around its
+   rays a group has one ring of rays extrapolated, diagonals included (past
+   the ray map's edge too), so its frustums reach past the piece's edge: the
    paper's "extended reflectors". Each group is a BSP tree of pinhole
    cameras (cam_sbc.c) built to the requested error in desired-view pixels;
    pieces whose rays do not cross end mostly in pinhole leaves, focusing
@@ -27,6 +32,7 @@
 
 #define REFL__SB_TILE 16            /* a group's tile side in ray map samples (at least) */
 #define REFL__SB_TILE_MAX 64        /* ... and at most: larger groups fit their rays worse */
+#define REFL__SB_PLANAR_COS 0.9999f /* a piece whose normals all lie this near its first's: planar, untiled */
 
 /* Whether neighbouring samples m1 and m2 lie on one smooth piece of
    surface (refl__sbc_smooth). */
@@ -140,7 +146,8 @@ static void refl__sb_ring(const refl__sb *sb, const refl__sb_side *sd, int comp,
                     size_t g2 = (size_t)v2 * (size_t)sb->map_w + (size_t)u2;
                     if (sd->comp[g2] == comp) n = refl_v3_sub(refl_v3_scale(n1, 2.0f), sd->normals[g2]);
                 }
-                refl__sb_sample_pixel(sb, u0 + u, v0 + v, &x, &y);
+                x = (u0 + u) * sb->factor + sb->factor / 2; /* past the frame's edge too */
+                y = (v0 + v) * sb->factor + sb->factor / 2;
                 refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
                 den = refl_v3_dot(d, n1);
                 if (fabsf(den) < 1e-6f) continue;
@@ -180,16 +187,17 @@ static void refl__sb_sort_hits(refl__sbc_hit *a, refl__sbc_hit *out, int n) {
     if (src != out) memcpy(out, src, (size_t)n * sizeof(refl__sbc_hit));
 }
 
-/* Builds group g's tree from its piece's rays in its tile grown by one
-   sample, and a ring around them (a job). */
+/* Builds group g's tree from its piece's rays in its tile grown by
+   REFL__SB_GUARD samples, and a ring around them (a job). */
 static void refl__sb_build_group(void *arg, int g) {
     refl__sb *sb = (refl__sb *)arg;
     const refl__pass *p = sb->p;
     const refl_allocator *al = &p->scene->allocator;
     refl__sb_group *gr = &sb->groups[g];
     const refl__sb_side *sd = &sb->sides[gr->side];
-    int u0 = REFL__MAX(gr->u0 - 1, 0), v0 = REFL__MAX(gr->v0 - 1, 0);
-    int u1 = REFL__MIN(gr->u1 + 1, sb->map_w), v1 = REFL__MIN(gr->v1 + 1, sb->map_h);
+    /* the ring may lie a sample past the map's edge: the frustums reach the frame's edge pixels */
+    int u0 = REFL__MAX(gr->u0 - REFL__SB_GUARD, -1), v0 = REFL__MAX(gr->v0 - REFL__SB_GUARD, -1);
+    int u1 = REFL__MIN(gr->u1 + REFL__SB_GUARD, sb->map_w + 1), v1 = REFL__MIN(gr->v1 + REFL__SB_GUARD, sb->map_h + 1);
     int mw = u1 - u0, mh = v1 - v0, u, v, count = 0, met = 0;
     size_t n = (size_t)mw * (size_t)mh, k;
     refl_sbc_ray *rays = (refl_sbc_ray *)refl__calloc(al, n, sizeof(refl_sbc_ray));
@@ -202,7 +210,9 @@ static void refl__sb_build_group(void *arg, int g) {
     } else {
         for (v = v0; v < v1; ++v)
             for (u = u0; u < u1; ++u) {
-                size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
+                size_t m;
+                if (u < 0 || v < 0 || u >= sb->map_w || v >= sb->map_h) continue;
+                m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                 k = (size_t)(v - v0) * (size_t)mw + (size_t)(u - u0);
                 if (!sd->valid[m] || sd->comp[m] != gr->comp) continue;
                 rays[k] = sd->rays[m];
@@ -329,65 +339,126 @@ static void refl__sb_assign_row(void *arg, int y) {
     }
 }
 
-/* The groups: each side's pieces cut by tiles of sb->tile samples (the
-   tile side doubles, up to REFL__SB_TILE_MAX, while there are more than a
-   batch: REFL__SB_BATCH), and each pixel's group. */
+/* Side sd's pieces that need no tiles (planar, their rays crossing no
+   neighbour's: a pinhole camera fits them whole, however large), as
+   `whole` per piece root, with their samples' box (4 per root: u0, v0,
+   u1, v1). */
+static void refl__sb_whole_pieces(const refl__sb *sb, const refl__sb_side *sd, uint8_t *whole, int *box) {
+    int u, v, mw = sb->map_w;
+    for (v = 0; v < sb->map_h; ++v)
+        for (u = 0; u < mw; ++u) {
+            int m = v * mw + u, r = sd->comp[m];
+            if (!sd->valid[m] || r < 0) continue;
+            if (r == m) {
+                whole[r] = 1;
+                box[4 * r] = box[4 * r + 2] = u;
+                box[4 * r + 1] = box[4 * r + 3] = v;
+            }
+            whole[r] = (uint8_t)(whole[r] && !sd->crossing[m] &&
+                                 refl_v3_dot(sd->normals[m], sd->normals[r]) >= REFL__SB_PLANAR_COS);
+            box[4 * r] = REFL__MIN(box[4 * r], u);
+            box[4 * r + 1] = REFL__MIN(box[4 * r + 1], v);
+            box[4 * r + 2] = REFL__MAX(box[4 * r + 2], u + 1);
+            box[4 * r + 3] = REFL__MAX(box[4 * r + 3], v + 1);
+        }
+}
+
+/* Group `index` of side i, piece `comp`, over samples [u0, u1) x [v0, v1). */
+static void refl__sb_group_set(refl__sb *sb, int index, int i, int comp, int u0, int v0, int u1, int v1) {
+    refl__sb_group *g = &sb->groups[index];
+    g->side = i;
+    g->object = sb->sides[i].object;
+    g->comp = comp;
+    g->u0 = u0;
+    g->v0 = v0;
+    g->u1 = u1;
+    g->v1 = v1;
+}
+
+/* The groups: each side's planar pieces whole (the paper's one camera
+   per planar mirror), the others (curved: a tree's leaves fit a tile's
+   rays better than a whole piece's; focusing: ray lists) cut by tiles of sb->tile samples (the tile side
+   doubles, up to REFL__SB_TILE_MAX, while there are more than a batch:
+   REFL__SB_BATCH; focusing rays end in ray lists, which a tile keeps
+   small), and each pixel's group. */
 static refl_result refl__sb_groups(refl__sb *sb) {
     const refl_allocator *al = &sb->p->scene->allocator;
     const refl_frame *fr = sb->p->frame;
-    size_t npx = (size_t)fr->width * (size_t)fr->height, k;
-    int *seen, i, pass, u, v, tu, tv;
-    /* count the groups (a tile's pieces), doubling the tile until they
-       fit a batch (fewer groups, fewer projections) or the tile reaches
-       REFL__SB_TILE_MAX (more batches then); then list them, each sample
-       noting its group. */
-    seen = (int *)refl__calloc(al, (size_t)sb->map_w * (size_t)sb->map_h, sizeof(int));
-    if (!seen) return REFL_ERROR_OUT_OF_MEMORY;
+    size_t npx = (size_t)fr->width * (size_t)fr->height, k, nmap = (size_t)sb->map_w * (size_t)sb->map_h;
+    int *seen, *box, *piece_group, i, pass, u, v, tu, tv;
+    uint8_t *whole;
+    /* count the groups (whole pieces, a tile's pieces), doubling the tile
+       until they fit a batch (fewer groups, fewer projections) or the
+       tile reaches REFL__SB_TILE_MAX (more batches then); then list them,
+       each sample noting its group. */
+    seen = (int *)refl__calloc(al, nmap, sizeof(int));
+    box = (int *)refl__calloc(al, nmap, 4 * sizeof(int));
+    piece_group = (int *)refl__calloc(al, nmap, sizeof(int));
+    whole = (uint8_t *)refl__calloc(al, nmap, 1);
+    if (!seen || !box || !piece_group || !whole) {
+        refl__free(al, seen);
+        refl__free(al, box);
+        refl__free(al, piece_group);
+        refl__free(al, whole);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     for (sb->tile = REFL__SB_TILE;; sb->tile *= 2) {
         int tw = (sb->map_w + sb->tile - 1) / sb->tile, th = (sb->map_h + sb->tile - 1) / sb->tile;
         int largest = sb->tile >= REFL__SB_TILE_MAX;
         for (pass = 0; pass < 2; ++pass) {
             sb->group_count = 0;
-            for (i = 0; i < sb->side_count; ++i)
+            for (i = 0; i < sb->side_count; ++i) {
+                refl__sb_side *sd = &sb->sides[i];
+                refl__sb_whole_pieces(sb, sd, whole, box);
+                for (k = 0; k < nmap; ++k) {
+                    int r = sd->comp[k];
+                    if (!sd->valid[k] || r < 0 || !whole[r]) continue;
+                    if ((size_t)r == k) {
+                        piece_group[r] = sb->group_count++;
+                        if (pass) {
+                            refl__sb_group_set(sb, piece_group[r], i, r, box[4 * r], box[4 * r + 1],
+                                               box[4 * r + 2], box[4 * r + 3]);
+                            sb->groups[piece_group[r]].whole = 1;
+                        }
+                    }
+                    sd->group[k] = piece_group[r];
+                }
                 for (tv = 0; tv < th; ++tv)
                     for (tu = 0; tu < tw; ++tu) {
-                        refl__sb_side *sd = &sb->sides[i];
                         int first = sb->group_count, nseen = 0, uu0 = tu * sb->tile, vv0 = tv * sb->tile;
                         int uu1 = REFL__MIN(uu0 + sb->tile, sb->map_w), vv1 = REFL__MIN(vv0 + sb->tile, sb->map_h);
                         for (v = vv0; v < vv1; ++v)
                             for (u = uu0; u < uu1; ++u) {
                                 size_t m = (size_t)v * (size_t)sb->map_w + (size_t)u;
                                 int gi = 0;
-                                if (!sd->valid[m]) continue;
+                                if (!sd->valid[m] || sd->comp[m] < 0 || whole[sd->comp[m]]) continue;
                                 while (gi < nseen && seen[gi] != sd->comp[m]) ++gi;
                                 sd->group[m] = first + gi;
                                 if (gi < nseen) continue;
                                 seen[nseen++] = sd->comp[m];
-                                if (pass) {
-                                    refl__sb_group *g = &sb->groups[sb->group_count];
-                                    g->side = i;
-                                    g->object = sd->object;
-                                    g->comp = sd->comp[m];
-                                    g->u0 = uu0;
-                                    g->v0 = vv0;
-                                    g->u1 = uu1;
-                                    g->v1 = vv1;
-                                }
+                                if (pass) refl__sb_group_set(sb, sb->group_count, i, sd->comp[m], uu0, vv0, uu1, vv1);
                                 sb->group_count++;
                             }
                     }
+            }
             if (sb->group_count > REFL__SB_BATCH && !largest) break;
             if (!pass) {
                 sb->groups = (refl__sb_group *)refl__calloc(al, (size_t)REFL__MAX(sb->group_count, 1),
                                                             sizeof(refl__sb_group));
                 if (!sb->groups) {
                     refl__free(al, seen);
+                    refl__free(al, box);
+                    refl__free(al, piece_group);
+                    refl__free(al, whole);
                     return REFL_ERROR_OUT_OF_MEMORY;
                 }
             }
         }
         if (pass == 2) break;
     }
+    refl__free(al, box);
+    refl__free(al, piece_group);
+    refl__free(al, whole);
     refl__free(al, seen);
     sb->group_of = (int *)refl__calloc(al, npx, (size_t)sb->layers * sizeof(int));
     if (!sb->group_of) return REFL_ERROR_OUT_OF_MEMORY;

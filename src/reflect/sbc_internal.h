@@ -17,7 +17,9 @@
    in the Makefile's REFLECT_IMPL. */
 #include "cam_sbc_internal.h"
 
-#define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed, at most (desc.sbc.mixed_levels' default) */
+#define REFL__SB_MIXED_LEVELS 4     /* subdivisions while mixed with no scale known yet, at most */
+#define REFL__SB_GUARD 2            /* a tile's group also holds its piece's rays this many samples past it */
+#define REFL__SB_MEMORY_MB 2048     /* the frame's working memory at most (desc.sbc.memory_mb's default) */
 #define REFL__SB_BATCH 254          /* groups projected and drawn at once, at most: the stencil's values but 0 */
 #define REFL__SB_FLOATS 12          /* per emitted vertex: clip position, world position, normal, uv */
 #define REFL__SB_ORDERS 8           /* reflection orders traced at most (desc.depth beyond: cut here) */
@@ -44,12 +46,14 @@ typedef struct refl__sb_side {
     uint8_t *crossing;            /* per sample: its ray crosses a neighbour's (refl__sb_cross) */
 } refl__sb_side;
 
-/* A reflection group: one piece of a side's ray map within one tile, its
-   rays (those of the piece in the tile grown by a sample: neighbouring
-   tiles' frustums overlap) and one ring of rays extrapolated around them. */
+/* A reflection group: one piece of a side's ray map, whole when planar,
+   else within one tile, its rays (those of the piece in the tile grown by
+   REFL__SB_GUARD samples: neighbouring tiles' frustums overlap) and one
+   ring of rays extrapolated around them. */
 typedef struct refl__sb_group {
     int side, object, comp;       /* comp: its piece of the side */
     int u0, v0, u1, v1;           /* its tile: samples [u0, u1) x [v0, v1) */
+    int whole;                    /* the whole piece (a planar one), not a tile of it */
     refl_sbc *sbc;
     int sheets;                   /* its rays split at their folds: each sheet projects and draws apart */
     refl_vec3 lo, hi;             /* where its points may lie: its rays' box, grown */
@@ -142,8 +146,11 @@ typedef struct refl__sb {
     struct refl__em *em;          /* the reflectors' G-buffer and surface points (m_envmap.c's) */
     /* options, resolved */
     int factor;                   /* a ray map sample every factor x factor pixels */
-    int mixed_levels;             /* desc.sbc.mixed_levels */
+    int mixed_levels;             /* desc.sbc.mixed_levels resolved: -1 to the pixel, 0 never, else levels */
     float error_px;
+    size_t memory_limit;          /* desc.sbc.memory_mb, in bytes */
+    size_t memory_fixed;          /* what the ray maps and the groups' trees hold */
+    long long vertices;           /* the scene's, all objects': a group's slot indexes them all */
     /* the scene */
     float diagonal;               /* the scene's, grown 1%: D */
     refl_vec3 box_lo, box_hi;     /* the scene's box, grown 1% */

@@ -6,7 +6,8 @@
 #include "sbc_internal.h"
 
 /* refl_sbc_measure_camera_error's state: per truth pixel, the distance to
-   the nearest image of its point and the kind of leaf that made it. */
+   the nearest image of its point and the kind of leaf its own group holds
+   the point in (the nearest image's when it has no group). */
 typedef struct refl__sb_measure {
     const refl_frame *truth;
     const refl__sb *sb;
@@ -23,14 +24,14 @@ typedef struct refl__sb_measure {
 #define REFL__SB_MEASURE_CELL 32   /* pixels per side of the measure's cells */
 
 /* Group g's pixels that an image of it can reach: an image lands on the
-   group's first reflector points (its tile and ring), and one further off
+   group's first reflector points (its tile, guard band and ring), and one further off
    than the reach does not count. */
 static void refl__sb_measure_rect(const refl__sb *sb, const refl__sb_group *g, int r[4]) {
     const int reach = (int)REFL__SB_MEASURE_REACH + 1;
-    r[0] = (g->u0 - 1) * sb->factor - reach;
-    r[1] = (g->v0 - 1) * sb->factor - reach;
-    r[2] = (g->u1 + 1) * sb->factor + reach;
-    r[3] = (g->v1 + 1) * sb->factor + reach;
+    r[0] = (g->u0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[1] = (g->v0 - REFL__SB_GUARD - 1) * sb->factor - reach;
+    r[2] = (g->u1 + REFL__SB_GUARD + 1) * sb->factor + reach;
+    r[3] = (g->v1 + REFL__SB_GUARD + 1) * sb->factor + reach;
 }
 
 /* The cells' group lists (counted, then filled), groups in index order. */
@@ -119,11 +120,10 @@ static void refl__sb_measure_row(void *arg, int y) {
                 }
             }
         }
-        if (best <= REFL__SB_MEASURE_REACH) {
-            ms->error[i] = best;
-        } else if (own >= 0 && sb->groups[own].sbc) { /* no image: charged to the leaf its own group holds it in */
-            kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
-        }
+        if (best <= REFL__SB_MEASURE_REACH) ms->error[i] = best;
+        /* charged to the leaf its own group holds it in (the groups'
+           guard bands overlap: the nearest image may be a neighbour's) */
+        if (own >= 0 && sb->groups[own].sbc) kind = refl_sbc_leaf_at(sb->groups[own].sbc, v.world);
         ms->kind[i] = (uint8_t)(kind == REFL_SBC_LEAF_RAY_LIST ? REFL_SBC_LEAF_RAY_LIST : REFL_SBC_LEAF_PINHOLE);
     }
 }

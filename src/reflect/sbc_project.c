@@ -28,7 +28,9 @@
    1/32 of the scene's diagonal (the paper's pre-subdivision, per frame),
    while mixed (one or two vertices project; the paper's fix for jagged
    edges; at most desc.sbc.mixed_levels times, unless the part holds a
-   point where one of the group's rays meets the triangle), while no vertex
+   point where one of the group's rays meets the triangle; by default
+   REFL__SB_MIXED_LEVELS times, and where the group's rays end, along a
+   tile's border, down to the pixel: refl__sb_mixed_split), while no vertex
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the
@@ -45,6 +47,8 @@
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
 #define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
+#define REFL__SB_MIXED_PX 1.0f      /* a mixed part is split while it may reach this many pixels ... */
+#define REFL__SB_MIXED_MAX 16       /* ... down to this level at most (a 64k-fold magnification) */
 
 /* Subdivision midpoints a job has projected: an edge shared by two
    triangles (the split's inner edges, neighbours in the mesh) is split
@@ -331,10 +335,67 @@ static float refl__sb_extent(const refl__sb_pv *a, const refl__sb_pv *b, const r
            REFL__MAX(REFL__MAX(a->sy, b->sy), c->sy) - REFL__MIN(REFL__MIN(a->sy, b->sy), c->sy);
 }
 
+/* The pixels per unit of length of the largest image of an edge between
+   two of (a, b, c) that both project; `known` (an ancestor's) when fewer
+   than two project. */
+static float refl__sb_scale(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float known) {
+    const refl__sb_pv *v[3];
+    float best = -1.0f;
+    int k;
+    v[0] = a; v[1] = b; v[2] = c;
+    for (k = 0; k < 3; ++k) {
+        const refl__sb_pv *p = v[k], *q = v[(k + 1) % 3];
+        float dx = p->sx - q->sx, dy = p->sy - q->sy, l = refl_v3_length(refl_v3_sub(p->world, q->world));
+        if (p->ok && q->ok && l > 0.0f) best = REFL__MAX(best, sqrtf(dx * dx + dy * dy) / l);
+    }
+    return best >= 0.0f ? best : known;
+}
+
+/* Whether a mixed part (a, b, c) may reach the pixels of group g where its
+   rays end (within `reach` pixels of a vertex that projects): for a whole
+   piece any pixel of its box; for a tile those along its border (two
+   samples either side), where the next tile's rays begin. Inside a tile a
+   vertex fails for other reasons (a silhouette, a fold, a ray list's
+   gap), as costly to chase to the pixel as rare to matter. */
+static int refl__sb_mixed_near(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
+                               const refl__sb_pv *b, const refl__sb_pv *c, float reach) {
+    const refl__sb_pv *v[3];
+    float x0 = (float)(g->u0 * sb->factor), y0 = (float)(g->v0 * sb->factor);
+    float x1 = (float)(g->u1 * sb->factor), y1 = (float)(g->v1 * sb->factor), band = 2.0f * (float)sb->factor;
+    float lx = INFINITY, ly = INFINITY, hx = -INFINITY, hy = -INFINITY;
+    int k;
+    if (g->morph) return 0;
+    v[0] = a; v[1] = b; v[2] = c;
+    for (k = 0; k < 3; ++k)
+        if (v[k]->ok) {
+            lx = REFL__MIN(lx, v[k]->sx - reach); hx = REFL__MAX(hx, v[k]->sx + reach);
+            ly = REFL__MIN(ly, v[k]->sy - reach); hy = REFL__MAX(hy, v[k]->sy + reach);
+        }
+    if (hx < x0 - band || lx > x1 + band || hy < y0 - band || ly > y1 + band) return 0; /* off the group */
+    return g->whole || lx < x0 + band || hx > x1 - band || ly < y0 + band || hy > y1 - band;
+}
+
+/* Whether mixed part (a, b, c) at subdivision level `level` is split
+   further (desc.sbc.mixed_levels 0): REFL__SB_MIXED_LEVELS times, and where
+   the group's rays end (refl__sb_mixed_near) to the pixel, while it may
+   reach REFL__SB_MIXED_PX or more, judged by `scale` (refl__sb_scale). The
+   parts on a tile's border pixels then all project: the group's rays reach
+   REFL__SB_GUARD samples past them. */
+static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a, const refl__sb_pv *b,
+                                const refl__sb_pv *c, int level, float scale) {
+    float la = refl_v3_length(refl_v3_sub(a->world, b->world));
+    float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
+    float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
+    float reach = scale * REFL__MAX(la, REFL__MAX(lb, lc));
+    if (level < REFL__SB_MIXED_LEVELS) return 1;
+    return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
-   module comment says. */
+   module comment says; scale: the pixels per unit of length an ancestor's
+   projected edge had (0: none projected two vertices yet). */
 static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
-                          const refl__sb_pv *b, const refl__sb_pv *c, int level, const refl__sb_tri *t) {
+                          const refl__sb_pv *b, const refl__sb_pv *c, int level, float scale, const refl__sb_tri *t) {
     const float max_edge = sb->diagonal / 32.0f;
     int ok = a->ok + b->ok + c->ok, split = 0;
     int across = (a->ok && a->across) + (b->ok && b->across) + (c->ok && c->across);
@@ -347,7 +408,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
     if (elsewhere) ok = 0;
     /* the surface the rays leave, whole: its parts would be dropped one by one */
     if (t->self && ok == 3 && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
-    if (level < REFL__SB_LEVELS) {
+    scale = refl__sb_scale(a, b, c, scale);
+    if (level >= REFL__SB_LEVELS && ok > 0 && ok < 3 && sb->mixed_levels < 0 && level < REFL__SB_MIXED_MAX) {
+        split = refl__sb_mixed_split(sb, g, a, b, c, level, scale);
+    } else if (level < REFL__SB_LEVELS) {
         float la = refl_v3_length(refl_v3_sub(a->world, b->world));
         float lb = refl_v3_length(refl_v3_sub(b->world, c->world));
         float lc = refl_v3_length(refl_v3_sub(c->world, a->world));
@@ -371,7 +435,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
             have_mid = 1;
         } else if (ok < 3) {
             int k;
-            split = ok > 0 && level < sb->mixed_levels;
+            if (ok > 0 && sb->mixed_levels < 0)
+                split = refl__sb_mixed_split(sb, g, a, b, c, level, scale);
+            else
+                split = ok > 0 && level < sb->mixed_levels;
             for (k = 0; k < t->hit_count && !split && (!elsewhere || level < REFL__SB_ELSEWHERE_LEVELS); ++k)
                 split = refl__sb_holds(a, b, c, t->hits[k].point);
         }
@@ -404,10 +471,10 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         bc = refl__sb_mid(sb, g, b, c, j);
         ca = refl__sb_mid(sb, g, c, a, j);
     }
-    refl__sb_emit(sb, g, j, a, &ab, &ca, level + 1, t);
-    refl__sb_emit(sb, g, j, &ab, b, &bc, level + 1, t);
-    refl__sb_emit(sb, g, j, &ca, &bc, c, level + 1, t);
-    refl__sb_emit(sb, g, j, &ab, &bc, &ca, level + 1, t);
+    refl__sb_emit(sb, g, j, a, &ab, &ca, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ab, b, &bc, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ca, &bc, c, level + 1, scale, t);
+    refl__sb_emit(sb, g, j, &ab, &bc, &ca, level + 1, scale, t);
 }
 
 static void refl__sb_emit_job(void *arg, int index) {
@@ -449,7 +516,7 @@ static void refl__sb_emit_job(void *arg, int index) {
             ++lo;
             ++t.hit_count;
         }
-        refl__sb_emit(sb, g, j, a, b, c, 0, &t);
+        refl__sb_emit(sb, g, j, a, b, c, 0, 0.0f, &t);
     }
     refl__free(&scene->allocator, j->memo);
     j->memo = NULL;
@@ -460,6 +527,7 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
     const refl_scene *scene = sb->p->scene;
     const refl_allocator *al = &scene->allocator;
     int pairs = (sb->batch.end - sb->batch.first) * scene->object_count, i, g, o, t, k, n = 0;
+    size_t slot_bytes = 0;
     if (!sb->batch.base) { /* the first batch: every object's vertices in the world, once */
         sb->batch.base =
             (refl__sb_pv **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__sb_pv *));
@@ -491,6 +559,18 @@ static refl_result refl__sb_project_all(refl__sb *sb) {
         for (o = 0; o < scene->object_count; ++o)
             n += REFL__MAX(sb->groups[g].sheets, 1) *
                  ((scene->meshes[scene->objects[o].mesh]->triangle_count + REFL__SB_CHUNK - 1) / REFL__SB_CHUNK);
+    /* the batch's projected vertices within the memory bound */
+    for (i = 0; i < pairs; ++i) {
+        const refl__sb_slot *slot = &sb->batch.slots[i];
+        if (!slot->index) continue;
+        slot_bytes += (size_t)scene->meshes[scene->objects[i % scene->object_count].mesh]->vertex_count * sizeof(int) +
+                      (size_t)slot->count * (size_t)REFL__MAX(sb->groups[sb->batch.first + i / scene->object_count].sheets, 1) *
+                          sizeof(refl__sb_pv);
+    }
+    if (sb->memory_fixed + slot_bytes >= sb->memory_limit) {
+        sb->p->frame->message = "sbc.memory_mb: a batch's projected vertices exceed it";
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     sb->batch.jobs = (refl__sb_job *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(refl__sb_job));
     if (!sb->batch.jobs) return REFL_ERROR_OUT_OF_MEMORY;
     for (g = sb->batch.first; g < sb->batch.end; ++g) {

@@ -271,6 +271,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
         refl_vec3 p, ng, ns, t2, rd;
         int entering;
         if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
+        /* a surface inside the glass (SBC-paper searches no scene: none) */
         if (refl_bvh_intersect(sb->bvh, pos, t, 1e-4f * sb->diagonal, h.t, &in) && in.object != object) {
             rp->tail = pos;
             rp->out = t;

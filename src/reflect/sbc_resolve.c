@@ -58,25 +58,48 @@ static size_t refl__sb_crack_source(const refl__sb *sb, int x, int y) {
    point, and 1 is returned; else 0, and it keeps what SBC made of it (a
    hole: the environment, as without the option; most holes are the sky
    seen in the mirror, one ray each). */
+static void refl__sb_render_pixel(const refl__sb *sb, int x, int y);
 static int refl__sb_trace_pixel(const refl__sb *sb, int x, int y) {
-    refl_frame *fr = sb->p->frame;
-    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-    refl_vec3 d, q, n, shown;
+    size_t i = (size_t)y * (size_t)sb->p->frame->width + (size_t)x;
+    refl_vec3 d, q, n;
     refl_sbc_ray ray;
     refl__sbc_hit met;
-    float rgb[3], depth;
-    uint8_t stencil;
-    int c;
     refl__sb_pixel_view(sb, i, &d, &q, &n);
     sb->tracer.rays[y]++;
     if (!refl__sb_ray(sb, q, n, d, &ray, &met) || met.object < 0) return 0;
+    refl__sb_render_pixel(sb, x, y);
+    return 1;
+}
+
+/* Pixel (x, y) rendered as RAYTRACE renders it, colour and point. */
+static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
+    refl_frame *fr = sb->p->frame;
+    size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+    refl_vec3 shown;
+    float rgb[3], depth;
+    uint8_t stencil;
+    int c;
     refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
     for (c = 0; c < 3; ++c) fr->rgba[4 * i + (size_t)c] = rgb[c];
     fr->rgba[4 * i + 3] = 1.0f;
     fr->points[3 * i] = shown.x;
     fr->points[3 * i + 1] = shown.y;
     fr->points[3 * i + 2] = shown.z;
-    return 1;
+}
+
+/* Whether glass pixel i's refraction (view direction d, point q, normal
+   n, side id `id`) is a hole that desc.sbc.trace_fallback traces, as it
+   traces the reflections': it leaves the glass, or meets a surface inside
+   it, with nothing drawn on the refraction layer there; or it meets
+   another mirror or glass first, or stays inside (reflected within), which
+   no refraction group models. Past one bounce only: at depth 1 glass
+   shows the environment refracted once, as ENVMAP's. */
+static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
+    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    refl__sb_refr rp;
+    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
+    return refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
+           !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f);
 }
 
 /* Whether pixel i, of a group or not, shows nothing drawn (src: where
@@ -168,11 +191,15 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         refl__sb_path pa;
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
+        refl__sb_pixel_view(sb, i, &d, &q, &n);
+        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+            refl__sb_render_pixel(sb, x, y);
+            continue;
+        }
         if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
             refl__sb_trace_pixel(sb, x, y))
             continue;
         m = &scene->materials[scene->objects[object].material];
-        refl__sb_pixel_view(sb, i, &d, &q, &n);
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;

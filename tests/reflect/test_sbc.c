@@ -44,7 +44,9 @@ static void sbc_accuracy(const char *name, double max_mean, double max_p95, doub
 }
 
 Test(refl_sbc, default_scene_accuracy, .timeout = 120) { sbc_accuracy("default", 0.75, 1.5, 0.01, 0.13); }
-Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave", 0.4, 2.0, 0.05, 0.04); }
+/* the bowl's tiles meet without cracks (refl_sbc_seams): holes 0.2%, 2.7% when a
+   reflected triangle across a tile border was split 4 times and dropped */
+Test(refl_sbc, concave_mirror_accuracy, .timeout = 120) { sbc_accuracy("concave", 0.4, 2.0, 0.05, 0.005); }
 
 Test(refl_sbc, same_bytes_for_any_thread_count, .timeout = 120) {
     refl_view v;

@@ -32,9 +32,9 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
     long long filled = 0;
     d.depth = t.depth = depth;
     d.sbc.ray_factor = factor;
+    d.sbc.mixed_levels = 4; /* with and without the fallback: the same triangles drawn */
     fp = tu_refl_render(s, &v, &d);
     d.sbc.trace_fallback = 1;
-    d.sbc.mixed_levels = 4; /* as without the fallback: the same triangles drawn */
     ft = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     for (i = 0; i < n; ++i) {
@@ -53,7 +53,8 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
                 "traced mean %.3f p95 %.2f wrong %.6f holes %.4f; rays %lld -> %lld",
                 name, w, h, depth, factor, filled, plain->mean, plain->p95, plain->wrong, plain->empty, traced->mean,
                 traced->p95, traced->wrong, traced->empty, fp->stats.rays, ft->stats.rays);
-    cr_assert(plain->empty > 0.01, "%s: %.4f holes without the option: nothing to fill", name, plain->empty);
+    /* holes to fill (the bowl has few since tiles meet without cracks: 0.3%) */
+    cr_assert(plain->empty > 0.001, "%s: %.4f holes without the option: nothing to fill", name, plain->empty);
     cr_assert(filled > 0 && ft->stats.rays > fp->stats.rays);
     /* the filled pixels are the truth's: no error added, no wrong point
        (counted, not as a fraction: a pixel that showed a point the truth
