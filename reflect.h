@@ -2030,7 +2030,7 @@ typedef struct refl__sb_batch {
 /* Scratch targets the groups draw into (sbc_draw.c): the colour pass's
    (colour, depth) and the points pass's (world point and object + 1, depth). */
 typedef struct refl__sb_canvas {
-    uint8_t *color;
+    float *color;                 /* linear RGBA, as the frame's */
     float *depth;
     float *points, *points_depth;
 } refl__sb_canvas;
@@ -12791,7 +12791,7 @@ static refl_result refl__result_from_rast(rast_result r) {
    reflection, never hide it). */
 
 static refl_result refl__sb_canvas_create(refl__sb_canvas *c, const refl_allocator *al, size_t npx) {
-    c->color = (uint8_t *)refl__calloc(al, npx, 4);
+    c->color = (float *)refl__calloc(al, npx, 4 * sizeof(float));
     c->depth = (float *)refl__calloc(al, npx, sizeof(float));
     c->points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
     c->points_depth = (float *)refl__calloc(al, npx, sizeof(float));
@@ -12819,8 +12819,8 @@ static rast_targets refl__sb_targets(const refl__sb *sb, const refl__sb_canvas *
     t.stencil.ptr = sb->stencil;
     t.stencil.stride = fr->width;
     t.color.ptr = pass ? (void *)c->points : (void *)c->color;
-    t.color.stride = pass ? 4 * (int)sizeof(float) * fr->width : 4 * fr->width;
-    t.color_format = pass ? RAST_COLOR_RGBA32F : RAST_COLOR_RGBA8;
+    t.color.stride = 4 * (int)sizeof(float) * fr->width;
+    t.color_format = RAST_COLOR_RGBA32F;
     return t;
 }
 
@@ -12862,7 +12862,7 @@ static void refl__sb_pass_through(refl__sb *sb) {
     refl__sb_canvas *c = &sb->drawn;
     size_t k, npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     for (k = 0; k < npx; ++k)
-        if (c->depth[k] < 1.0f && c->color[4 * k + 3] == 0) c->depth[k] = c->points_depth[k] = 1.0f;
+        if (c->depth[k] < 1.0f && c->color[4 * k + 3] == 0.0f) c->depth[k] = c->points_depth[k] = 1.0f;
 }
 
 /* The points pass's fragments: the world position and the object drawn
@@ -15064,7 +15064,7 @@ static void refl__sb_resolve_row(void *arg, int y) {
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
             const float *q = sb->drawn.points + 4 * src;
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            for (c = 0; c < 3; ++c) sub[c] = sb->drawn.color[4 * src + (size_t)c];
             refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
         } else {
             refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
@@ -15111,7 +15111,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;
             k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            for (c = 0; c < 3; ++c) sub[c] = sb->drawn.color[4 * src + (size_t)c];
             shown = refl_v3(pt[0], pt[1], pt[2]);
         } else {
             k = pa.count - 1;
@@ -15136,7 +15136,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
                     tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
                 } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f) {
                     const float *pt = sb->refr.points + 4 * i;
-                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr.color[4 * i + (size_t)c] * (1.0f / 255.0f);
+                    for (c = 0; c < 3; ++c) tsub[c] = sb->refr.color[4 * i + (size_t)c];
                     if (through == 1) tshown = refl_v3(pt[0], pt[1], pt[2]); /* inside glass: none, as RAYTRACE */
                     tw = rp.weight;
                 } else {

@@ -11,7 +11,7 @@
 #include "sbc_internal.h"
 
 static refl_result refl__sb_canvas_create(refl__sb_canvas *c, const refl_allocator *al, size_t npx) {
-    c->color = (uint8_t *)refl__calloc(al, npx, 4);
+    c->color = (float *)refl__calloc(al, npx, 4 * sizeof(float));
     c->depth = (float *)refl__calloc(al, npx, sizeof(float));
     c->points = (float *)refl__calloc(al, npx, 4 * sizeof(float));
     c->points_depth = (float *)refl__calloc(al, npx, sizeof(float));
@@ -39,8 +39,8 @@ static rast_targets refl__sb_targets(const refl__sb *sb, const refl__sb_canvas *
     t.stencil.ptr = sb->stencil;
     t.stencil.stride = fr->width;
     t.color.ptr = pass ? (void *)c->points : (void *)c->color;
-    t.color.stride = pass ? 4 * (int)sizeof(float) * fr->width : 4 * fr->width;
-    t.color_format = pass ? RAST_COLOR_RGBA32F : RAST_COLOR_RGBA8;
+    t.color.stride = 4 * (int)sizeof(float) * fr->width;
+    t.color_format = RAST_COLOR_RGBA32F;
     return t;
 }
 
@@ -82,7 +82,7 @@ static void refl__sb_pass_through(refl__sb *sb) {
     refl__sb_canvas *c = &sb->drawn;
     size_t k, npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     for (k = 0; k < npx; ++k)
-        if (c->depth[k] < 1.0f && c->color[4 * k + 3] == 0) c->depth[k] = c->points_depth[k] = 1.0f;
+        if (c->depth[k] < 1.0f && c->color[4 * k + 3] == 0.0f) c->depth[k] = c->points_depth[k] = 1.0f;
 }
 
 /* The points pass's fragments: the world position and the object drawn

@@ -130,7 +130,7 @@ typedef struct refl__sb_batch {
 /* Scratch targets the groups draw into (sbc_draw.c): the colour pass's
    (colour, depth) and the points pass's (world point and object + 1, depth). */
 typedef struct refl__sb_canvas {
-    uint8_t *color;
+    float *color;                 /* linear RGBA, as the frame's */
     float *depth;
     float *points, *points_depth;
 } refl__sb_canvas;

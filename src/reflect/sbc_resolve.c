@@ -157,7 +157,7 @@ static void refl__sb_resolve_row(void *arg, int y) {
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
             const float *q = sb->drawn.points + 4 * src;
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            for (c = 0; c < 3; ++c) sub[c] = sb->drawn.color[4 * src + (size_t)c];
             refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, sub, refl_v3(q[0], q[1], q[2]));
         } else {
             refl__em_composite(sb->p, sb->em->gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
@@ -204,7 +204,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;
             k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
-            for (c = 0; c < 3; ++c) sub[c] = (float)sb->drawn.color[4 * src + (size_t)c] * (1.0f / 255.0f);
+            for (c = 0; c < 3; ++c) sub[c] = sb->drawn.color[4 * src + (size_t)c];
             shown = refl_v3(pt[0], pt[1], pt[2]);
         } else {
             k = pa.count - 1;
@@ -229,7 +229,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
                     tsub[0] = tsub[1] = tsub[2] = 0.0f; /* still inside when the bounces run out */
                 } else if (sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f) {
                     const float *pt = sb->refr.points + 4 * i;
-                    for (c = 0; c < 3; ++c) tsub[c] = (float)sb->refr.color[4 * i + (size_t)c] * (1.0f / 255.0f);
+                    for (c = 0; c < 3; ++c) tsub[c] = sb->refr.color[4 * i + (size_t)c];
                     if (through == 1) tshown = refl_v3(pt[0], pt[1], pt[2]); /* inside glass: none, as RAYTRACE */
                     tw = rp.weight;
                 } else {
