@@ -3,6 +3,7 @@
 #   make            amalgamator, headers, C and C++ compile checks, tests, bench, examples
 #   make headers    regenerate rast.h (and reflect.h) from src/
 #   make test       install packages, check headers, run the tests (plain, portable, ASan/UBSan)
+#   make fuzz       install packages, fuzz the glTF loader for FUZZ_SECONDS (clang, libFuzzer)
 #   make bench      install packages, run the rasteriser, ray and method benchmarks -> out/
 #   make demo       install packages, render every scene with every method and the chart -> out/
 #   make deps       install the Debian packages the project needs (tools/deps.sh)
@@ -327,6 +328,46 @@ TEST_LIBS += $(TOOLS_LIBS)
 -include $(TOOLS_OBJS:.o=.d) $(ASAN_TOOLS_OBJS:.o=.d) build/tools/image_io_oiio.d build/asan/tools/image_io_oiio.d
 # ---- tools: end ----
 
+# ---- fuzzing ----
+# fuzz/gltf_fuzz.cpp feeds libFuzzer's inputs to the glTF loader, compiled
+# with clang under ASan/UBSan (Debian: clang and libclang-rt-14-dev).
+# `make fuzz` runs it for FUZZ_SECONDS; `make test` runs it for 60 seconds
+# when clang can build it (fuzz/run.sh --available), else says it skipped.
+FUZZ_CC      ?= clang
+FUZZ_CXX     ?= clang++
+FUZZ_SAN      = -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+FUZZ_FLAGS    = -O1 -g -pthread -fsanitize=fuzzer-no-link $(FUZZ_SAN)
+FUZZ_BIN      = build/fuzz/gltf_fuzz
+FUZZ_OBJS     = build/fuzz/gltf_fuzz.o build/fuzz/gltf_load.o build/fuzz/reflect_impl.o build/fuzz/rast_impl.o
+FUZZ_SECONDS  = 600
+
+build/fuzz/gltf_fuzz.o: fuzz/gltf_fuzz.cpp | rast.h
+	@mkdir -p $(@D)
+	$(FUZZ_CXX) -std=c++17 $(FUZZ_FLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/fuzz/gltf_load.o: tools/gltf_load.cpp | rast.h
+	@mkdir -p $(@D)
+	$(FUZZ_CXX) -std=c++17 $(FUZZ_FLAGS) $(DEPFLAGS) -c $< -o $@
+
+build/fuzz/%_impl.o: tests/%_impl.c | rast.h
+	@mkdir -p $(@D)
+	$(FUZZ_CC) -std=c99 $(FUZZ_FLAGS) $(DEPFLAGS) -c $< -o $@
+
+$(FUZZ_BIN): $(FUZZ_OBJS)
+	$(FUZZ_CXX) -fsanitize=fuzzer $(FUZZ_SAN) -pthread $^ -o $@ $(TINYGLTF_LIBS) -lm
+
+.PHONY: fuzz fuzz-short
+fuzz: deps
+	@$(MAKE) --no-print-directory $(FUZZ_BIN)
+	bash fuzz/run.sh $(FUZZ_BIN) $(FUZZ_SECONDS)
+
+fuzz-short:
+	@if bash fuzz/run.sh --available; then \
+	  $(MAKE) --no-print-directory $(FUZZ_BIN) && bash fuzz/run.sh $(FUZZ_BIN) 60; \
+	else echo "fuzz: $(FUZZ_CXX) cannot build a libFuzzer target (Debian: clang libclang-rt-14-dev); skipped"; fi
+
+-include $(FUZZ_OBJS:.o=.d)
+
 # ---- the reflect command ----
 
 # One file per command (tools/reflect*.c) over the shared implementations;
@@ -392,6 +433,7 @@ test: deps
 	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \
 	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
 	  exit 1; fi
+	@$(MAKE) --no-print-directory fuzz-short
 
 # The rasteriser against llvmpipe, refl_bvh against Embree, then every
 # method against the ray-traced reference (`reflect bench`: CSV and charts

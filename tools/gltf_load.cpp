@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
+#include <cfloat>
 #include <cmath>
 #include <cstdarg>
 #include <cstdint>
@@ -111,6 +112,43 @@ std::string base_dir(const char *path) {
     return slash == std::string::npos ? std::string() : p.substr(0, slash + 1);
 }
 
+// tinygltf's JSON parser recurses once per nesting level and keeps every
+// value in a node of its own: a small file of deeply nested arrays overflows
+// the stack, and a file of millions of tiny values takes many times its size
+// in memory. So the JSON text is scanned first (outside strings: brackets
+// for depth, brackets and commas for values) and refused beyond these
+// limits, which no real glTF file comes near (its bulk data lives in buffers).
+const int kMaxJsonDepth = 512;
+const size_t kMaxJsonValues = size_t(1) << 24;
+
+void check_json_shape(const unsigned char *p, size_t n) {
+    int depth = 0;
+    size_t values = 0;
+    bool in_string = false;
+    for (size_t i = 0; i < n; i++) {
+        unsigned char c = p[i];
+        if (in_string) {
+            if (c == '\\') i++;
+            else if (c == '"') in_string = false;
+            continue;
+        }
+        if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > kMaxJsonDepth)
+                fail(REFL_ERROR_INVALID_SIZE, format("JSON nested deeper than %d arrays and objects (at byte %zu)",
+                                                     kMaxJsonDepth, i));
+            values++;
+        } else if (c == ']' || c == '}') {
+            depth -= depth > 0;
+        } else if (c == ',') {
+            values++;
+        }
+        if (values > kMaxJsonValues)
+            fail(REFL_ERROR_INVALID_SIZE, format("JSON with more than %zu values", kMaxJsonValues));
+    }
+}
+
 // ---- small math (double, column-major like refl_mat4) ------------------------
 
 struct Mat {
@@ -179,6 +217,15 @@ Mat node_matrix(const tinygltf::Node &n, int index) {
 // ---- accessors ------------------------------------------------------------------
 
 const size_t kMaxCount = size_t(1) << 28;  // elements per accessor
+
+// The renderers work in float and square coordinates (dot products,
+// distances): beyond 1e18 a square overflows float's 3.4e38. Every world
+// coordinate the loader hands out (vertices after their node's transform,
+// light and camera positions) lies within it, else the load fails naming
+// the node; every other double the file gives must fit a float.
+const double kMaxCoordinate = 1e18;
+
+bool fits_float(double v) { return std::isfinite(v) && std::fabs(v) <= double(FLT_MAX); }
 
 // A bounds-checked view of one accessor: every element lies inside its
 // bufferView, and the bufferView inside its buffer.
@@ -307,6 +354,44 @@ double ext_number(const tinygltf::ExtensionMap &ext, const char *name, const cha
     return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
 }
 
+// KHR_materials_volume on a glass, as the material model can hold it: Beer's
+// law per channel, sigma_c = -ln(attenuationColor_c) / attenuationDistance
+// per unit of length, while refl_material has one attenuation and a tint.
+// The least absorbed channel's sigma becomes the attenuation (exact at every
+// path length); the other channels' excess over it goes into the tint at the
+// volume's nominal thickness (thicknessFactor): exact there, the same hue at
+// other lengths. thicknessFactor 0 is thin-walled (no volume, no absorption).
+// tint comes in as the base colour and leaves multiplied by the excess.
+void volume_absorption(const tinygltf::Material &gm, const std::string &what, double tint[3], double *attenuation) {
+    *attenuation = 0;
+    auto it = gm.extensions.find("KHR_materials_volume");
+    if (it == gm.extensions.end() || !it->second.IsObject()) return;
+    double dist = ext_number(gm.extensions, "KHR_materials_volume", "attenuationDistance", INFINITY);
+    double thickness = ext_number(gm.extensions, "KHR_materials_volume", "thicknessFactor", 0);
+    if (!(dist > 0) || !std::isfinite(dist) || !(thickness > 0) || !std::isfinite(thickness)) return;
+    double col[3] = {1, 1, 1};
+    const tinygltf::Value &ac = it->second.Get("attenuationColor");
+    if (ac.IsArray() && ac.ArrayLen() == 3)
+        for (int k = 0; k < 3; k++)
+            if (ac.Get(k).IsNumber() && std::isfinite(ac.Get(k).GetNumberAsDouble()))
+                col[k] = std::min(std::max(ac.Get(k).GetNumberAsDouble(), 1e-4), 1.0);
+    double sigma[3], least = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        sigma[k] = -std::log(col[k]) / dist;
+        least = std::min(least, sigma[k]);
+    }
+    if (!fits_float(least))
+        fail(REFL_ERROR_BAD_MESH, format("%s: KHR_materials_volume: attenuation %g per unit (attenuationDistance %g) "
+                                         "does not fit a float", what.c_str(), least, dist));
+    for (int k = 0; k < 3; k++) tint[k] *= std::exp(-(sigma[k] - least) * thickness);
+    *attenuation = least;
+}
+
+// Metallic-roughness surfaces whose mirror share is below this stay diffuse:
+// a dielectric's 0.04 among them, which glTF shows mostly at grazing angles
+// (Fresnel), where a constant mirror share would spread it over the surface.
+const double kMinMirrorWeight = 0.05;
+
 // ---- the loader ---------------------------------------------------------------
 
 struct SceneDeleter { void operator()(refl_scene *s) const { refl_scene_destroy(s); } };
@@ -314,15 +399,40 @@ struct MeshDeleter { void operator()(refl_mesh *m) const { refl_mesh_destroy(m);
 
 // tinygltf's image callback: keeps the encoded bytes, so that only the
 // images a base colour texture uses are decoded (by tinygltf's own decoder),
-// and a damaged image of an unused map does not fail the load.
+// and a damaged image of an unused map does not fail the load. tinygltf
+// hands over an image's bufferView without checking it against its buffer,
+// so the sink checks that range before reading a byte of it (the model's
+// buffers and bufferViews are parsed before its images).
 typedef std::vector<std::vector<unsigned char>> RawImages;
 
-bool defer_image(tinygltf::Image *, const int index, std::string *, std::string *, int, int,
+struct ImageSink {
+    const tinygltf::Model *model = nullptr;
+    RawImages raw;
+    std::string error;  // the first image whose bytes lie outside their buffer
+};
+
+bool defer_image(tinygltf::Image *image, const int index, std::string *, std::string *, int, int,
                  const unsigned char *bytes, int size, void *user) {
-    RawImages &raw = *static_cast<RawImages *>(user);
+    ImageSink &sink = *static_cast<ImageSink *>(user);
+    if (image && image->bufferView >= 0) {
+        const tinygltf::Model &m = *sink.model;
+        const size_t v = size_t(image->bufferView);
+        if (v >= m.bufferViews.size() || m.bufferViews[v].buffer < 0 ||
+            size_t(m.bufferViews[v].buffer) >= m.buffers.size()) {
+            sink.error = format("image %d: bufferView %d or its buffer does not exist", index, image->bufferView);
+            return false;
+        }
+        const tinygltf::BufferView &bv = m.bufferViews[v];
+        const size_t have = m.buffers[size_t(bv.buffer)].data.size();
+        if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset || bv.byteLength > size_t(INT32_MAX)) {
+            sink.error = format("image %d: bufferView %d (byteOffset %zu, byteLength %zu) lies outside buffer %d "
+                                "(%zu bytes)", index, image->bufferView, bv.byteOffset, bv.byteLength, bv.buffer, have);
+            return false;
+        }
+    }
     if (index < 0 || index > (1 << 20) || size < 0 || (size > 0 && !bytes)) return false;
-    if (size_t(index) >= raw.size()) raw.resize(size_t(index) + 1);
-    raw[size_t(index)].assign(bytes, bytes + size);
+    if (size_t(index) >= sink.raw.size()) sink.raw.resize(size_t(index) + 1);
+    sink.raw[size_t(index)].assign(bytes, bytes + size);
     return true;
 }
 
@@ -352,6 +462,7 @@ private:
     int skipped_mode_ = -1;
     std::vector<std::pair<int, float>> glass_;      // (material, attenuation) to rescale
     std::vector<char> seen_;                        // nodes visited
+    std::vector<std::array<double, 6>> mesh_bounds_; // scene mesh -> its vertices' lo xyz, hi xyz
 
     void warn(const std::string &w) { warnings_ += w; warnings_ += '\n'; }
     void check_extensions();
@@ -362,6 +473,8 @@ private:
     int build_mesh(int mesh, int prim, const PrimKey &key, const std::string &texcoord_name);
     void traverse();
     void visit_node(int node, const Mat &world);
+    void check_placement(int node, const Mat &world, int scene_mesh);
+    void check_point(int node, const char *what, const double p[3]);
 };
 
 void Loader::check_extensions() {
@@ -446,6 +559,17 @@ void Loader::add_materials() {
         std::memset(&m, 0, sizeof m);
         copy_name(m.name, gm.name);
         for (int k = 0; k < 4; k++) m.color[k] = float(base[k]);
+        double mirror_weight = 0, reflectance = 1;
+        if (std::isfinite(metallic) && std::isfinite(roughness)) {
+            metallic = std::min(std::max(metallic, 0.0), 1.0);
+            roughness = std::min(std::max(roughness, 0.0), 1.0);
+            // see gltf_load.h: the sharp share of the specular lobe, at glTF's
+            // normal-incidence reflectance (0.04 for the dielectric share)
+            double metal_f0 = luminance(base[0], base[1], base[2]);
+            double f0 = 0.04 * (1 - metallic) + metallic;
+            mirror_weight = (1 - roughness) * (1 - roughness) * f0;
+            reflectance = (0.04 * (1 - metallic) + metallic * metal_f0) / f0;
+        }
         if (metallic >= 0.99 && roughness <= 0.05) {
             m.type = REFL_MIRROR;
             double lum = luminance(base[0], base[1], base[2]);
@@ -453,21 +577,18 @@ void Loader::add_materials() {
         } else if (has_transmission && transmission > 0) {
             m.type = REFL_GLASS;
             double ior = ext_number(gm.extensions, "KHR_materials_ior", "ior", 1.5);
+            if (std::isfinite(ior) && !fits_float(ior))
+                fail(REFL_ERROR_BAD_MESH, format("%s: KHR_materials_ior.ior %g does not fit a float", what.c_str(), ior));
             m.ior = std::isfinite(ior) && ior >= 1 ? float(ior) : 1.5f;
-            for (int k = 0; k < 3; k++) m.tint[k] = float(base[k]);
-            bool has_volume = false;
-            double dist = ext_number(gm.extensions, "KHR_materials_volume", "attenuationDistance", INFINITY, &has_volume);
-            if (has_volume && std::isfinite(dist) && dist > 0) {
-                double col[3] = {1, 1, 1};
-                auto it = gm.extensions.find("KHR_materials_volume");
-                const tinygltf::Value &ac = it->second.Get("attenuationColor");
-                if (ac.IsArray() && ac.ArrayLen() == 3)
-                    for (int k = 0; k < 3; k++)
-                        if (ac.Get(k).IsNumber()) col[k] = ac.Get(k).GetNumberAsDouble();
-                double lum = luminance(col[0], col[1], col[2]);
-                if (std::isfinite(lum) && lum > 0 && lum < 1) m.attenuation = float(-std::log(lum) / dist);
-                else if (std::isfinite(lum) && lum <= 0) m.attenuation = float(-std::log(1e-4) / dist);
-            }
+            double tint[3] = {base[0], base[1], base[2]}, attenuation = 0;
+            volume_absorption(gm, what, tint, &attenuation);
+            for (int k = 0; k < 3; k++) m.tint[k] = float(tint[k]);
+            m.attenuation = float(attenuation);
+        } else if (mirror_weight >= kMinMirrorWeight) {
+            m.type = REFL_PARTIAL;
+            m.mirror_weight = float(mirror_weight);
+            m.reflectance = reflectance > 0 ? float(reflectance) : 1e-6f;
+            m.texture = texture_for(pbr.baseColorTexture.index, what);
         } else {
             m.type = REFL_DIFFUSE;
             m.texture = texture_for(pbr.baseColorTexture.index, what);
@@ -540,12 +661,16 @@ int Loader::build_mesh(int mi, int pi, const PrimKey &key, const std::string &te
     size_t nv = pos.count;
     if (nv > size_t(INT32_MAX) / 4) fail(REFL_ERROR_INVALID_SIZE, format("%s: %zu vertices is too many", w, nv));
     std::vector<float> positions(nv * 3);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < nv; i++)
         for (int c = 0; c < 3; c++) {
             double v = pos.get(i, c);
-            if (!std::isfinite(v) || std::fabs(v) > 3.0e38)
-                fail(REFL_ERROR_BAD_MESH, format("%s: vertex %zu has a non-finite position", w, i));
+            if (!std::isfinite(v)) fail(REFL_ERROR_BAD_MESH, format("%s: vertex %zu has a non-finite position", w, i));
+            if (std::fabs(v) > kMaxCoordinate)
+                fail(REFL_ERROR_BAD_MESH, format("%s: vertex %zu: POSITION %g is beyond +-%g", w, i, v, kMaxCoordinate));
             positions[i * 3 + size_t(c)] = float(v);
+            lo[c] = std::min(lo[c], v);
+            hi[c] = std::max(hi[c], v);
         }
 
     auto same_count = [&](const View &v, const char *name) {
@@ -649,10 +774,39 @@ int Loader::build_mesh(int mi, int pi, const PrimKey &key, const std::string &te
     }
     int sm = refl_scene_add_mesh(scene_.get(), mesh.release());  // owns it, also on failure
     if (sm < 0) fail(refl_result(sm), format("%s: refl_scene_add_mesh failed", w));
+    if (size_t(sm) >= mesh_bounds_.size()) mesh_bounds_.resize(size_t(sm) + 1);
+    mesh_bounds_[size_t(sm)] = {{lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]}};
     return sm;
 }
 
 const long long kMaxObjects = 1000000;
+
+void Loader::check_point(int ni, const char *what, const double p[3]) {
+    for (int c = 0; c < 3; c++)
+        if (!(std::fabs(p[c]) <= kMaxCoordinate))
+            fail(REFL_ERROR_BAD_MESH, format("node %d '%s': %s (%g, %g, %g) is beyond +-%g", ni,
+                                             model_.nodes[size_t(ni)].name.c_str(), what, p[0], p[1], p[2],
+                                             kMaxCoordinate));
+}
+
+// The node's world transform must fit a float and keep the mesh's vertices
+// (the corners of their box) within kMaxCoordinate.
+void Loader::check_placement(int ni, const Mat &world, int sm) {
+    const tinygltf::Node &node = model_.nodes[size_t(ni)];
+    for (double v : world.m)
+        if (!fits_float(v))
+            fail(REFL_ERROR_BAD_MESH, format("node %d '%s': transform entry %g does not fit a float", ni,
+                                             node.name.c_str(), v));
+    const std::array<double, 6> &b = mesh_bounds_[size_t(sm)];
+    for (int corner = 0; corner < 8; corner++) {
+        double in[4] = {b[corner & 1 ? 3 : 0], b[corner & 2 ? 4 : 1], b[corner & 4 ? 5 : 2], 1}, out[3];
+        world.apply(in, out);
+        for (int c = 0; c < 3; c++)
+            if (!(std::fabs(out[c]) <= kMaxCoordinate))
+                fail(REFL_ERROR_BAD_MESH, format("node %d '%s': its transform puts mesh %d's vertices at %g, beyond "
+                                                 "+-%g", ni, node.name.c_str(), node.mesh, out[c], kMaxCoordinate));
+    }
+}
 
 void Loader::visit_node(int root, const Mat &parent) {
     // Depth first, pre-order, with an explicit stack: deep hierarchies cannot
@@ -691,12 +845,14 @@ void Loader::visit_node(int root, const Mat &parent) {
                 o.mesh = sm;
                 o.material = material_for(gm.primitives[p].material,
                                           format("primitive %zu of mesh %d '%s'", p, node.mesh, gm.name.c_str()));
+                check_placement(ni, world, sm);
                 for (int k = 0; k < 16; k++) o.transform.m[k] = float(world.m[k]);
                 copy_name(o.name, !node.name.empty() ? node.name
                                   : !gm.name.empty() ? gm.name
                                                      : format("node %d", ni));
-                if (refl_scene_add_object(scene_.get(), &o) < 0)
-                    fail(REFL_ERROR_OUT_OF_MEMORY, format("node %d: refl_scene_add_object failed", ni));
+                if (int r = refl_scene_add_object(scene_.get(), &o); r < 0)
+                    fail(refl_result(r), format("node %d: refl_scene_add_object failed: %s", ni,
+                                                refl_result_string(refl_result(r))));
             }
         }
         if (node.camera >= 0 && !scene_->has_camera) {
@@ -712,6 +868,7 @@ void Loader::visit_node(int root, const Mat &parent) {
                 double fl = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
                 double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
                 if (fl > 0 && ul > 0 && std::isfinite(fl) && std::isfinite(ul)) {
+                    check_point(ni, "camera position", e);
                     refl_view &v = scene_->camera;
                     std::memset(&v, 0, sizeof v);
                     v.eye = {float(e[0]), float(e[1]), float(e[2])};
@@ -736,7 +893,13 @@ void Loader::visit_node(int root, const Mat &parent) {
             double col[3] = {1, 1, 1};
             if (gl.color.size() == 3) col[0] = gl.color[0], col[1] = gl.color[1], col[2] = gl.color[2];
             double inten = std::isfinite(gl.intensity) && gl.intensity >= 0 ? gl.intensity : 1.0;
-            for (int k = 0; k < 3; k++) l.color[k] = float(std::isfinite(col[k]) ? std::max(col[k], 0.0) * inten : inten);
+            for (int k = 0; k < 3; k++) {
+                double c = std::isfinite(col[k]) ? std::max(col[k], 0.0) * inten : inten;
+                if (!fits_float(c))
+                    fail(REFL_ERROR_BAD_MESH, format("node %d: light %d: color x intensity %g does not fit a float", ni,
+                                                     li, c));
+                l.color[k] = float(c);
+            }
             double p[3];
             static const double origin[4] = {0, 0, 0, 1}, fwd[4] = {0, 0, -1, 0};
             if (gl.type == "directional") {
@@ -749,6 +912,7 @@ void Loader::visit_node(int root, const Mat &parent) {
                 if (gl.type != "point" && gl.type != "spot")
                     warn(format("light %d: unknown type '%s', used as a point light", li, gl.type.c_str()));
                 world.apply(origin, p);
+                check_point(ni, "light position", p);
                 l.type = REFL_LIGHT_POINT;
                 l.position = {float(p[0]), float(p[1]), float(p[2])};
             }
@@ -807,8 +971,13 @@ std::unique_ptr<refl_scene, SceneDeleter> Loader::run(std::string &warnings) {
         refl_scene_normalize(scene_.get(), opt_.normalize_size);
         // attenuation is per unit of world length: a scale s divides it by s
         if (diag > 0 && std::isfinite(diag))
-            for (auto &g : glass_)
-                scene_->materials[g.first].attenuation = float(g.second * diag / opt_.normalize_size);
+            for (auto &g : glass_) {
+                double att = double(g.second) * diag / opt_.normalize_size;
+                if (!fits_float(att))
+                    fail(REFL_ERROR_BAD_MESH, format("material %d: attenuation %g after normalising does not fit a "
+                                                     "float", g.first, att));
+                scene_->materials[g.first].attenuation = float(att);
+            }
     }
     warnings = std::move(warnings_);
     return std::move(scene_);
@@ -826,14 +995,17 @@ refl_result load(const char *path, const unsigned char *bytes, size_t size, cons
     }
     tinygltf::TinyGLTF gltf;
     tinygltf::Model model;
-    RawImages raw_images;
-    gltf.SetImageLoader(defer_image, &raw_images);
+    ImageSink images;
+    images.model = &model;
+    gltf.SetImageLoader(defer_image, &images);
     std::string terr, twarn;
     bool ok;
     if (data.size() >= 4 && std::memcmp(data.data(), "glTF", 4) == 0) {
         size_t n = check_glb(data);
+        check_json_shape(&data[20], le32(&data[12]));
         ok = gltf.LoadBinaryFromMemory(&model, &terr, &twarn, data.data(), unsigned(n), base_dir(path));
     } else {
+        check_json_shape(data.data(), data.size());
         ok = gltf.LoadASCIIFromString(&model, &terr, &twarn, reinterpret_cast<const char *>(data.data()),
                                       unsigned(data.size()), base_dir(path));
     }
@@ -844,10 +1016,11 @@ refl_result load(const char *path, const unsigned char *bytes, size_t size, cons
         std::replace(s.begin(), s.end(), '\n', ' ');
         return s;
     };
+    if (!images.error.empty()) fail(REFL_ERROR_BAD_MESH, images.error);
     if (!ok) fail(REFL_ERROR_BAD_MESH, "tinygltf: " + one_line(terr.empty() ? "cannot parse the file" : terr));
     if (!terr.empty()) warnings += "tinygltf: " + one_line(terr) + "\n";
     if (!twarn.empty()) warnings += "tinygltf: " + one_line(twarn) + "\n";
-    Loader loader(model, raw_images, opt);
+    Loader loader(model, images.raw, opt);
     std::string w;
     std::unique_ptr<refl_scene, SceneDeleter> scene = loader.run(w);
     warnings += w;

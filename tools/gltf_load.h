@@ -44,10 +44,25 @@
              mirror too.)
          KHR_materials_transmission with transmissionFactor > 0 ->
              REFL_GLASS, ior = KHR_materials_ior.ior (1.5), tint =
-             baseColorFactor.rgb, attenuation = -ln(lum(attenuationColor)) /
-             attenuationDistance from KHR_materials_volume (Beer's law per
-             unit of world length; 0 without the extension, for a white
-             attenuationColor or an infinite distance).
+             baseColorFactor.rgb, and KHR_materials_volume's absorption
+             (thicknessFactor > 0, finite attenuationDistance) per channel
+             as far as one attenuation and a tint can hold it: with
+             sigma_c = -ln(attenuationColor_c) / attenuationDistance,
+             attenuation = min_c sigma_c (per unit of world length) and
+             tint_c *= exp(-(sigma_c - min sigma) * thicknessFactor), so
+             light through the nominal thickness comes out exactly
+             attenuationColor^(thickness / distance) per channel, and
+             through other lengths with that hue. thicknessFactor 0 (thin
+             walled, the extension's default) absorbs nothing.
+         mirror_weight = (1 - roughness)^2 * (0.04 (1 - metallic) + metallic)
+             at least 0.05 -> REFL_PARTIAL: the sharp share of glTF's
+             specular lobe at its normal-incidence reflectance (0.04 for a
+             dielectric, so plastics stay diffuse: glTF shows their 4%
+             mostly at grazing angles), the rest diffuse; reflectance = (0.04 (1 -
+             metallic) + metallic * lum(baseColor)) / that F0, so a metal
+             reflects its colour's luminance; no Fresnel rise, color and
+             texture as for diffuse. A rough surface's reflection is blurred
+             beyond what a mirror shows, hence the square.
          otherwise REFL_DIFFUSE with color = baseColorFactor and
              baseColorTexture: the image decoded by tinygltf's decoder (8 or
              16 bits, any channel count), sRGB -> linear (alpha kept
@@ -55,7 +70,8 @@
              = index + 1. Images are shared between materials. Only images
              a base colour texture uses are decoded; one that fails to
              decode is a warning (no texture), not an error.
-         Texture transforms, samplers and every other map are ignored.
+         Texture transforms, samplers, every other map and emission are
+         ignored (refl_material has no emissive term).
      - Camera: the first node (depth first, in scene order) with a
        perspective camera sets scene->camera (eye = node origin, target =
        eye + its -Z axis, up = its +Y axis, fovy from yfov; znear/zfar and
@@ -69,11 +85,20 @@
    ERRORS
      Never a crash or an abort: missing or unreadable files, truncated or
      corrupted .glb (the GLB header and chunks are checked before tinygltf
-     sees them), JSON errors, and every accessor read bounds-checked against
-     its bufferView and buffer (offset, stride, count, component type,
-     normalised flag) give a REFL_ERROR_* code and one line in err that
-     starts with the path, e.g.
+     sees them), JSON errors, every byte range read (accessors against
+     their bufferView and buffer: offset, stride, count, component type,
+     normalised flag; an image's bufferView against its buffer, before a
+     byte of it is read), and every double that would not survive as a
+     float give a REFL_ERROR_* code and one line in err that starts with
+     the path, e.g.
          "teapot.glb: primitive 3 of mesh 'x': index 40123 out of range (2082 vertices)".
+     Limits, each refused with a message that names it: the JSON text is
+     scanned before tinygltf parses it, at most 512 levels of nested arrays
+     and objects (tinygltf's parser recurses per level) and 2^24 values
+     (INVALID_SIZE); every world coordinate (vertices after their node's
+     transform, light and camera positions) within +-1e18, so that float
+     squares of coordinates stay finite; transforms, light colours times
+     intensity, ior and attenuation within float's range (BAD_MESH).
      Codes: INVALID_ARGUMENT (NULL arguments), UNKNOWN_NAME (file missing),
      BAD_MESH (malformed file or data: parse errors, bounds, indices,
      non-finite positions, node cycles, no triangles), UNSUPPORTED (sparse

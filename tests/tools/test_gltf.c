@@ -181,7 +181,8 @@ Test(gltf, every_asset_loads_with_readme_counts_and_bounds) {
 }
 
 /* 98 nodes instance one sphere: one scene mesh, many objects (glTF repeats the
-   accessors in one mesh per material; the loader shares them). */
+   accessors in one mesh per material; the loader shares them). Metallic 1,
+   roughness 0 is a mirror; smooth enough spheres in between are partial. */
 Test(gltf, metal_rough_spheres_instance_one_mesh_and_find_the_mirror) {
     refl_scene *s;
     int i, *uses, most = 0, mirror_objects = 0;
@@ -202,9 +203,21 @@ Test(gltf, metal_rough_spheres_instance_one_mesh_and_find_the_mirror) {
     cr_expect_eq(m->type, REFL_MIRROR);
     cr_expect_float_eq(m->reflectance, 0.6038f, 1e-3f);
     cr_expect_eq(tg_material(s, "mat_91")->type, REFL_MIRROR);
-    cr_expect_eq(tg_material(s, "mat_43")->type, REFL_DIFFUSE, "roughness 1/6 is not a mirror");
     cr_expect_eq(tg_count_type(s, REFL_MIRROR), 2);
     cr_expect_eq(mirror_objects, 2);
+    /* in between: PARTIAL, mirror_weight = (1 - roughness)^2 (0.04 (1 - metallic) + metallic) */
+    m = tg_material(s, "mat_43"); /* metallic 1, roughness 1/6 */
+    cr_expect_eq(m->type, REFL_PARTIAL);
+    cr_expect_float_eq(m->mirror_weight, 25.0f / 36.0f, 1e-5f);
+    cr_expect_float_eq(m->reflectance, 0.6038f, 1e-3f, "a metal reflects its base colour's luminance");
+    m = tg_material(s, "mat_7"); /* metallic 1/6, roughness 0: 0.04 5/6 + 1/6 = 0.2 */
+    cr_expect_eq(m->type, REFL_PARTIAL);
+    cr_expect_float_eq(m->mirror_weight, 0.2f, 1e-6f);
+    cr_expect_float_eq(m->reflectance, (0.04f * 5 / 6 + 0.6038f / 6) / 0.2f, 1e-3f);
+    cr_expect_eq(tg_material(s, "mat_0")->type, REFL_DIFFUSE, "a smooth dielectric: 0.04, below 0.05");
+    /* 27 of each colour; metallic 1/6 (0.16666667 in the file), roughness 1/2
+       gives 0.0500000012, just in */
+    cr_expect_eq(tg_count_type(s, REFL_PARTIAL), 54, "%d partial", tg_count_type(s, REFL_PARTIAL));
     refl_scene_destroy(s);
 }
 
@@ -250,28 +263,51 @@ Test(gltf, transmission_materials_are_glass) {
     refl_scene_destroy(s);
 }
 
-/* KHR_materials_volume: attenuation = -ln(lum(attenuationColor)) / distance. */
+/* KHR_materials_volume: the colour through the volume's nominal thickness
+   (thicknessFactor) is attenuationColor^(thickness / attenuationDistance),
+   which is what the test's row of reference samples (R1_Sample_*: plain
+   transmission with that base colour) shows: the loader's tint and
+   attenuation (the least absorbed channel's, per unit length) must give
+   each R2 (thickness) and R5 (distance) cube its sample's colour. */
 Test(gltf, attenuation_from_materials_volume) {
+    static const char *suffix[] = {"1.0", "1.5", "2.0", "0.50", "0.25"};
     refl_scene *s;
-    const refl_material *m;
-    const double lum = 0.2126 * 0.1 + 0.7152 * 0.5 + 0.0722 * 0.9;
+    const refl_material *m, *ref;
+    char name[64];
+    int i, c, row;
     need_assets();
     s = tg_load("AttenuationTest.glb", 0);
     cr_expect_eq(tg_count_type(s, REFL_GLASS), 16);
-    m = tg_material(s, "R5_Attenuation_2.0"); /* attenuationDistance 0.5 */
-    cr_assert(m);
-    cr_expect_eq(m->type, REFL_GLASS);
-    cr_expect_float_eq(m->attenuation, (float)(-log(lum) / 0.5), 1e-5f);
-    m = tg_material(s, "R1_Sample_1.0"); /* no volume: no absorption */
-    cr_expect_eq(m->type, REFL_GLASS);
-    cr_expect_eq(m->attenuation, 0.0f);
-    cr_expect_float_eq(m->tint[0], 0.1f, 1e-6f);
+    for (i = 0; i < 5; i++) {
+        snprintf(name, sizeof name, "R1_Sample_%s", suffix[i]);
+        ref = tg_material(s, name);
+        cr_assert(ref);
+        cr_expect_eq(ref->type, REFL_GLASS);
+        cr_expect_eq(ref->attenuation, 0.0f, "no volume: no absorption");
+        for (row = 0; row < 2; row++) {
+            float thickness;
+            if (row == 0) snprintf(name, sizeof name, "R2_ThicknessFac_%s", suffix[i]);
+            else snprintf(name, sizeof name, "R5_Attenuation_%s", suffix[i]);
+            m = tg_material(s, i == 0 && row == 0 ? "R2_and_R4_ThicknessFac_1.0" : name);
+            cr_assert(m, "%s", name);
+            cr_expect_eq(m->type, REFL_GLASS);
+            thickness = row == 0 ? (float)atof(suffix[i]) : 1.0f;
+            for (c = 0; c < 3; c++) {
+                float through = m->tint[c] * expf(-m->attenuation * thickness);
+                cr_expect(fabsf(through - ref->tint[c]) < 1e-3f, "%s channel %d: %g through the cube, sample %g",
+                          name, c, through, ref->tint[c]);
+            }
+        }
+    }
+    m = tg_material(s, "R5_Attenuation_2.0"); /* attenuationDistance 0.5: blue absorbs least */
+    cr_expect_float_eq(m->attenuation, (float)(-log(0.9) / 0.5), 1e-5f);
+    cr_expect_float_eq(m->tint[2], 1.0f, 1e-6f);
     refl_scene_destroy(s);
 
     /* normalising rescales the attenuation with the scene (diagonal 20*sqrt(2.04) -> 2) */
     s = tg_load("AttenuationTest.glb", 2.0f);
     m = tg_material(s, "R5_Attenuation_2.0");
-    cr_expect_float_eq(m->attenuation, (float)(-log(lum) / 0.5 * sqrt(20.0 * 20 + 20 * 20 + 4 * 4) / 2.0), 1e-3f);
+    cr_expect_float_eq(m->attenuation, (float)(-log(0.9) / 0.5 * sqrt(20.0 * 20 + 20 * 20 + 4 * 4) / 2.0), 1e-3f);
     refl_scene_destroy(s);
 }
 
@@ -510,19 +546,22 @@ static void write_tiny_bin(const char *dir) {
    more top-level members (or ""). Nodes: 0 is the root (translated by
    (10, 0, 0), scaled by 2) with children 1 (mesh 0) and 2 (camera at z = 5,
    a point light). */
-static void write_gltf(const char *dir, const char *name, const char *accessors, const char *meshes,
-                       const char *extra) {
+#define TINY_NODES                                                                                      \
+    "[{\"translation\":[10,0,0],\"scale\":[2,2,2],\"children\":[1,2]},{\"mesh\":0},"                   \
+    "{\"camera\":0,\"translation\":[0,0,5],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}]"
+#define TINY_LIGHTS "[{\"type\":\"point\",\"color\":[1,0.5,0.25],\"intensity\":2}]"
+
+/* write_gltf with other nodes (a JSON array like TINY_NODES) and lights. */
+static void write_gltf_nodes(const char *dir, const char *name, const char *nodes, const char *lights,
+                             const char *accessors, const char *meshes, const char *extra) {
     char path[256];
     static char json[8192];
     int n = snprintf(json, sizeof json,
         "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
-        "\"nodes\":[{\"translation\":[10,0,0],\"scale\":[2,2,2],\"children\":[1,2]},{\"mesh\":0},"
-        "{\"camera\":0,\"translation\":[0,0,5],"
-        "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}],"
+        "\"nodes\":%s,"
         "\"cameras\":[{\"type\":\"perspective\",\"perspective\":{\"yfov\":0.5,\"znear\":0.1}}],"
         "\"extensionsUsed\":[\"KHR_lights_punctual\"],"
-        "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[{\"type\":\"point\",\"color\":[1,0.5,0.25],"
-        "\"intensity\":2}]}},"
+        "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":%s}},"
         "\"buffers\":[{\"uri\":\"tiny.bin\",\"byteLength\":144}],"
         "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48},"
         "{\"buffer\":0,\"byteOffset\":48,\"byteLength\":12},"
@@ -531,10 +570,15 @@ static void write_gltf(const char *dir, const char *name, const char *accessors,
         "{\"buffer\":0,\"byteOffset\":80,\"byteLength\":12},"
         "{\"buffer\":0,\"byteOffset\":96,\"byteLength\":48}],"
         "\"accessors\":%s,\"meshes\":%s%s}",
-        accessors, meshes, extra);
+        nodes, lights, accessors, meshes, extra);
     cr_assert(n > 0 && n < (int)sizeof json);
     snprintf(path, sizeof path, "%s/%s", dir, name);
     tg_write(path, json, (size_t)n);
+}
+
+static void write_gltf(const char *dir, const char *name, const char *accessors, const char *meshes,
+                       const char *extra) {
+    write_gltf_nodes(dir, name, TINY_NODES, TINY_LIGHTS, accessors, meshes, extra);
 }
 
 /* accessors: 0 positions, 1 u16 indices (one out of range), 2 u8 indices,
@@ -692,5 +736,197 @@ Test(gltf, node_cycle_does_not_hang) {
     cr_expect_eq(s->mesh_count, 1);
     cr_expect(strstr(err, "reached twice") != NULL, "warning: %s", err);
     refl_scene_destroy(s);
+    tg_rmdir(dir);
+}
+
+/* ---- hostile files ------------------------------------------------------------------ */
+
+static uint32_t tg_le32(const unsigned char *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void tg_put_le32(unsigned char *p, uint32_t v) {
+    p[0] = (unsigned char)v; p[1] = (unsigned char)(v >> 8); p[2] = (unsigned char)(v >> 16); p[3] = (unsigned char)(v >> 24);
+}
+
+/* A GLB with its JSON chunk edited: the first `find` replaced by `repl`,
+   the chunk padded with spaces and the lengths rewritten. Free .data. */
+static tg_bytes tg_glb_patch(const tg_bytes *glb, const char *find, const char *repl) {
+    size_t json_len = tg_le32(glb->data + 12), rest = glb->size - 20 - json_len, at, n;
+    char *json = malloc(json_len + 1);
+    const char *hit;
+    tg_bytes out;
+    cr_assert(json);
+    memcpy(json, glb->data + 20, json_len);
+    json[json_len] = '\0';
+    hit = strstr(json, find);
+    cr_assert(hit, "'%s' is not in the JSON", find);
+    at = (size_t)(hit - json);
+    n = json_len - strlen(find) + strlen(repl);
+    n += (4 - n % 4) % 4;
+    out.size = 20 + n + rest;
+    out.data = malloc(out.size);
+    cr_assert(out.data);
+    memcpy(out.data, glb->data, 12);
+    tg_put_le32(out.data + 8, (uint32_t)out.size);
+    tg_put_le32(out.data + 12, (uint32_t)n);
+    memcpy(out.data + 16, "JSON", 4);
+    memset(out.data + 20, ' ', n);
+    memcpy(out.data + 20, json, at);
+    memcpy(out.data + 20 + at, repl, strlen(repl));
+    memcpy(out.data + 20 + at + strlen(repl), hit + strlen(find), json_len - at - strlen(find));
+    memcpy(out.data + 20 + n, glb->data + 20 + json_len, rest);
+    free(json);
+    return out;
+}
+
+/* bytes named `name` must fail with `code` and a message naming the file
+   and saying `needle`. */
+static void expect_memory_error(const tg_bytes *b, const char *name, refl_result code, const char *needle) {
+    char err[1024] = "";
+    refl_scene *s = (refl_scene *)1;
+    refl_result r = refl_gltf_load_memory(b->data, b->size, name, NULL, &s, err, sizeof err);
+    cr_expect_eq(r, code, "%s: result %d, expected %d (%s)", name, r, code, err);
+    cr_expect_null(s);
+    cr_expect(strncmp(err, name, strlen(name)) == 0, "%s: message '%s' does not start with the file", name, err);
+    cr_expect(strstr(err, needle) != NULL, "%s: message '%s' does not say '%s'", name, err, needle);
+    cr_expect(strchr(err, '\n') == NULL, "%s: message '%s' spans lines", name, err);
+    if (r == REFL_OK && s) refl_scene_destroy(s);
+}
+
+/* Duck.glb's PNG lies in bufferView 3 (offset 102040, 16302 bytes) of its
+   118342-byte buffer: a view that reaches past the buffer, starts far
+   outside it, or a buffer declared shorter than its views is refused
+   before a byte of the image is read. */
+Test(gltf, image_bytes_outside_their_buffer) {
+    static const struct { const char *find, *repl, *needle; } cases[] = {
+        {"\"byteOffset\":102040,\"byteLength\":16302", "\"byteOffset\":102040,\"byteLength\":99999999",
+         "image 0: bufferView 3 (byteOffset 102040, byteLength 99999999) lies outside buffer 0 (118342 bytes)"},
+        {"\"byteOffset\":102040,\"byteLength\":16302", "\"byteOffset\":2000000000,\"byteLength\":16302",
+         "image 0: bufferView 3 (byteOffset 2000000000"},
+        {"\"buffers\":[{\"byteLength\":118342}]", "\"buffers\":[{\"byteLength\":110000}]",
+         "lies outside buffer 0 (110000 bytes)"},
+    };
+    tg_bytes duck;
+    size_t i;
+    need_assets();
+    duck = tg_read(ASSETS "/Duck.glb");
+    for (i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        tg_bytes b = tg_glb_patch(&duck, cases[i].find, cases[i].repl);
+        expect_memory_error(&b, "hostile_duck.glb", REFL_ERROR_BAD_MESH, cases[i].needle);
+        free(b.data);
+    }
+    free(duck.data);
+}
+
+/* `depth` nested arrays: "[[...]]". Free the result. */
+static char *tg_nested_arrays(int depth) {
+    char *s = malloc((size_t)depth * 2 + 1);
+    cr_assert(s);
+    memset(s, '[', (size_t)depth);
+    memset(s + depth, ']', (size_t)depth);
+    s[depth * 2] = '\0';
+    return s;
+}
+
+/* tinygltf's JSON parser recurses per level: 100,000 nested arrays in an
+   `extras` (200 KB) overflowed the stack. The loader scans the JSON first
+   and refuses more than 512 levels, in .glb and .gltf alike. */
+Test(gltf, deeply_nested_json_is_refused) {
+    static const int depths[] = {510, 511, 100000};
+    char *nest, *text;
+    tg_bytes box, b;
+    size_t i;
+    need_assets();
+    box = tg_read(ASSETS "/Box.glb");
+    for (i = 0; i < 3; i++) {
+        /* "{" and "asset":{ are two levels: 510 arrays make 512 */
+        char *repl;
+        nest = tg_nested_arrays(depths[i]);
+        repl = malloc(strlen(nest) + 32);
+        cr_assert(repl);
+        sprintf(repl, "\"asset\":{\"extras\":%s,", nest);
+        b = tg_glb_patch(&box, "\"asset\":{", repl);
+        if (depths[i] == 510) {
+            char err[1024];
+            refl_scene *s;
+            cr_expect_eq(refl_gltf_load_memory(b.data, b.size, "nested.glb", NULL, &s, err, sizeof err), REFL_OK,
+                         "512 levels load: %s", err);
+            if (s) refl_scene_destroy(s);
+        } else {
+            expect_memory_error(&b, "nested.glb", REFL_ERROR_INVALID_SIZE, "JSON nested deeper than 512");
+        }
+        free(b.data);
+        free(repl);
+        free(nest);
+    }
+    free(box.data);
+
+    nest = tg_nested_arrays(100000);
+    text = malloc(strlen(nest) + 64);
+    cr_assert(text);
+    sprintf(text, "{\"asset\":{\"version\":\"2.0\",\"extras\":%s}}", nest);
+    b.data = (unsigned char *)text;
+    b.size = strlen(text);
+    expect_memory_error(&b, "nested.gltf", REFL_ERROR_INVALID_SIZE, "JSON nested deeper than 512");
+    /* brackets inside strings do not count */
+    sprintf(text, "{\"asset\":{\"version\":\"2.0\",\"generator\":\"%.*s\"}}", 1000, nest);
+    b.size = strlen(text);
+    expect_memory_error(&b, "strings.gltf", REFL_ERROR_BAD_MESH, "no triangles");
+    free(text);
+    free(nest);
+}
+
+/* 2^24 values: refused before the parser builds millions of nodes. */
+Test(gltf, json_with_too_many_values_is_refused) {
+    const size_t count = ((size_t)1 << 24) + 8;
+    size_t i, n = 0;
+    char *text = malloc(count * 2 + 64);
+    tg_bytes b;
+    cr_assert(text);
+    n += (size_t)sprintf(text, "{\"asset\":{\"version\":\"2.0\",\"extras\":[");
+    for (i = 0; i < count; i++) { text[n++] = '0'; text[n++] = ','; }
+    n += (size_t)sprintf(text + n - 1, "0]}}") - 1;
+    b.data = (unsigned char *)text;
+    b.size = n;
+    expect_memory_error(&b, "values.gltf", REFL_ERROR_INVALID_SIZE, "JSON with more than 16777216 values");
+    free(text);
+}
+
+/* Doubles the renderer would get as inf, or as coordinates whose squares
+   overflow float: refused, naming the node or material and the field. */
+Test(gltf, large_doubles_are_refused) {
+    static const char mesh[] = "[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":2,\"material\":0}]}]";
+    static const char glass[] =
+        ",\"materials\":[{\"name\":\"g\",\"extensions\":{\"KHR_materials_transmission\":{\"transmissionFactor\":1}%s}}]";
+    static const struct { const char *name, *nodes, *lights, *ext, *needle; } cases[] = {
+        {"light_far.gltf", "[{\"children\":[1,2]},{\"mesh\":0},{\"translation\":[1e300,0,0],"
+         "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}]", TINY_LIGHTS, "",
+         "node 2 '': light position (1e+300, 0, 0) is beyond +-1e+18"},
+        {"scale_1e30.gltf", "[{\"children\":[1]},{\"name\":\"big\",\"mesh\":0,\"scale\":[1e30,1e30,1e30]}]",
+         TINY_LIGHTS, "", "node 1 'big': its transform puts mesh 0's vertices at 1e+30, beyond +-1e+18"},
+        {"translate_1e300.gltf", "[{\"children\":[1]},{\"mesh\":0,\"translation\":[0,1e300,0]}]", TINY_LIGHTS, "",
+         "node 1 '': transform entry 1e+300 does not fit a float"},
+        {"camera_far.gltf", "[{\"children\":[1,2]},{\"mesh\":0},{\"camera\":0,\"translation\":[0,0,1e20]}]",
+         TINY_LIGHTS, "", "node 2 '': camera position (0, 0, 1e+20) is beyond"},
+        {"intensity.gltf", TINY_NODES, "[{\"type\":\"point\",\"intensity\":1e300}]", "",
+         "node 2: light 0: color x intensity 1e+300 does not fit a float"},
+        {"ior.gltf", TINY_NODES, TINY_LIGHTS, ",\"KHR_materials_ior\":{\"ior\":1e300}",
+         "material 0 'g': KHR_materials_ior.ior 1e+300 does not fit a float"},
+        {"attenuation.gltf", TINY_NODES, TINY_LIGHTS,
+         ",\"KHR_materials_volume\":{\"thicknessFactor\":1,\"attenuationDistance\":1e-300,"
+         "\"attenuationColor\":[0.5,0.5,0.5]}",
+         "material 0 'g': KHR_materials_volume: attenuation 6.93147e+299"},
+    };
+    char dir[64], extra[512];
+    size_t i;
+    tg_mkdtemp(dir, sizeof dir);
+    write_tiny_bin(dir);
+    for (i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        snprintf(extra, sizeof extra, glass, cases[i].ext);
+        if (!cases[i].ext[0]) snprintf(extra, sizeof extra, ",\"materials\":[{}]");
+        write_gltf_nodes(dir, cases[i].name, cases[i].nodes, cases[i].lights, TINY_ACCESSORS, mesh, extra);
+        expect_tiny_error(dir, cases[i].name, REFL_ERROR_BAD_MESH, cases[i].needle);
+    }
     tg_rmdir(dir);
 }
