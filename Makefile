@@ -50,7 +50,7 @@ ASAN_ENV = ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 CRITERION_FLAGS = --jobs 2
 # Seconds per test run (plain, then sanitized), so `make test` stays bounded.
-TEST_TIMEOUT = 300
+TEST_TIMEOUT = 450
 
 # ---- modules, in amalgamation order (edit here when adding a module) ----
 
