@@ -130,14 +130,14 @@ static void refl__view_planes(const refl_view *v, const refl_scene *scene, float
 
 REFL_API void refl_view_matrices(const refl_view *v, const refl_scene *scene, refl_mat4 *view_m,
                                  refl_mat4 *proj_m) {
-    float znear, zfar;
+    float znear, zfar, fovy, aspect;
     if (!v) {
         if (view_m) *view_m = refl_mat4_identity();
         if (proj_m) *proj_m = refl_mat4_identity();
         return;
     }
-    float fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
-    float aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
+    fovy = v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f;
+    aspect = v->height > 0 ? (float)v->width / (float)v->height : 1.0f;
     refl__view_planes(v, scene, &znear, &zfar);
     if (view_m) *view_m = refl_mat4_look_at(v->eye, v->target, v->up);
     if (proj_m) *proj_m = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, znear, zfar);
