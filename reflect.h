@@ -1248,6 +1248,8 @@ REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene,
 #define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
 #define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
 #define REFL__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+/* A channel in [0, 1] as 8 bits, rounded; below 0 and NaN: 0, above 1: 255. */
+static inline uint8_t refl__unorm8(float v) { return (uint8_t)(v > 0.0f ? (v < 1.0f ? v * 255.0f + 0.5f : 255.0f) : 0.0f); }
 /* A colour channel as the frame keeps it: unclamped above, 0 for negative and NaN. */
 #define REFL__RADIANCE(v) ((v) > 0.0f ? (v) : 0.0f)
 #define REFL__PI 3.14159265358979323846
@@ -11978,9 +11980,6 @@ done:
 
 /* ---- image error ------------------------------------------------------------------ */
 
-/* A linear channel as the image error compares it: clamped to [0, 1], 8 bits. */
-static int refl__unorm8(float v) { return v > 0.0f ? (v < 1.0f ? (int)(v * 255.0f + 0.5f) : 255) : 0; }
-
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out) {
     unsigned long long sum = 0; /* squared 8-bit differences: exact */
@@ -12003,7 +12002,7 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
         int c, worst = 0;
         if (reflectors_only && !truth->stencil[i]) continue;
         for (c = 0; c < 3; ++c) {
-            int d = refl__unorm8(test->rgba[4 * i + (size_t)c]) - refl__unorm8(truth->rgba[4 * i + (size_t)c]);
+            int d = (int)refl__unorm8(test->rgba[4 * i + (size_t)c]) - (int)refl__unorm8(truth->rgba[4 * i + (size_t)c]);
             d = d < 0 ? -d : d;
             sum += (unsigned long long)(d * d);
             worst = REFL__MAX(worst, d);
@@ -12230,7 +12229,7 @@ REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d) 
     else if (d && d->tonemap == REFL_TONEMAP_ACES) x = x * (2.51f * x + 0.03f) / (x * (2.43f * x + 0.59f) + 0.14f);
     if (!(x < 1.0f)) return 255; /* +inf and the ACES quotient of two infinities */
     e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-    return (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+    return refl__unorm8(e);
 }
 
 REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *d, uint8_t *out) {
@@ -12239,9 +12238,8 @@ REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *
     if (!f || !out) return;
     n = (size_t)f->width * (size_t)f->height;
     for (i = 0; i < n; ++i) {
-        float a = f->rgba[4 * i + 3];
         for (c = 0; c < 3; ++c) out[4 * i + (size_t)c] = refl_display_channel(f->rgba[4 * i + (size_t)c], d);
-        out[4 * i + 3] = (uint8_t)(a > 0.0f ? (a < 1.0f ? a * 255.0f + 0.5f : 255.0f) : 0.0f);
+        out[4 * i + 3] = refl__unorm8(f->rgba[4 * i + 3]);
     }
 }
 

@@ -28,6 +28,8 @@
 #define REFL__MIN(a, b) ((a) < (b) ? (a) : (b))
 #define REFL__MAX(a, b) ((a) > (b) ? (a) : (b))
 #define REFL__CLAMP(v, lo, hi) ((v) < (lo) ? (lo) : ((v) > (hi) ? (hi) : (v)))
+/* A channel in [0, 1] as 8 bits, rounded; below 0 and NaN: 0, above 1: 255. */
+static inline uint8_t refl__unorm8(float v) { return (uint8_t)(v > 0.0f ? (v < 1.0f ? v * 255.0f + 0.5f : 255.0f) : 0.0f); }
 /* A colour channel as the frame keeps it: unclamped above, 0 for negative and NaN. */
 #define REFL__RADIANCE(v) ((v) > 0.0f ? (v) : 0.0f)
 #define REFL__PI 3.14159265358979323846

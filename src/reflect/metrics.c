@@ -351,9 +351,6 @@ done:
 
 /* ---- image error ------------------------------------------------------------------ */
 
-/* A linear channel as the image error compares it: clamped to [0, 1], 8 bits. */
-static int refl__unorm8(float v) { return v > 0.0f ? (v < 1.0f ? (int)(v * 255.0f + 0.5f) : 255) : 0; }
-
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out) {
     unsigned long long sum = 0; /* squared 8-bit differences: exact */
@@ -376,7 +373,7 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
         int c, worst = 0;
         if (reflectors_only && !truth->stencil[i]) continue;
         for (c = 0; c < 3; ++c) {
-            int d = refl__unorm8(test->rgba[4 * i + (size_t)c]) - refl__unorm8(truth->rgba[4 * i + (size_t)c]);
+            int d = (int)refl__unorm8(test->rgba[4 * i + (size_t)c]) - (int)refl__unorm8(truth->rgba[4 * i + (size_t)c]);
             d = d < 0 ? -d : d;
             sum += (unsigned long long)(d * d);
             worst = REFL__MAX(worst, d);

@@ -76,7 +76,7 @@ REFL_API uint8_t refl_display_channel(float linear, const refl_display_desc *d) 
     else if (d && d->tonemap == REFL_TONEMAP_ACES) x = x * (2.51f * x + 0.03f) / (x * (2.43f * x + 0.59f) + 0.14f);
     if (!(x < 1.0f)) return 255; /* +inf and the ACES quotient of two infinities */
     e = x <= 0.0031308f ? 12.92f * x : 1.055f * powf(x, 1.0f / 2.4f) - 0.055f;
-    return (uint8_t)(REFL__CLAMP(e, 0.0f, 1.0f) * 255.0f + 0.5f);
+    return refl__unorm8(e);
 }
 
 REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *d, uint8_t *out) {
@@ -85,9 +85,8 @@ REFL_API void refl_frame_to_srgb8(const refl_frame *f, const refl_display_desc *
     if (!f || !out) return;
     n = (size_t)f->width * (size_t)f->height;
     for (i = 0; i < n; ++i) {
-        float a = f->rgba[4 * i + 3];
         for (c = 0; c < 3; ++c) out[4 * i + (size_t)c] = refl_display_channel(f->rgba[4 * i + (size_t)c], d);
-        out[4 * i + 3] = (uint8_t)(a > 0.0f ? (a < 1.0f ? a * 255.0f + 0.5f : 255.0f) : 0.0f);
+        out[4 * i + 3] = refl__unorm8(f->rgba[4 * i + 3]);
     }
 }
 
