@@ -251,6 +251,8 @@ typedef struct refl_material {
                                 d from the reflector to what it reflects (the environment:
                                 infinitely far); refl_material_fade */
     float fade_min, fade_max;
+    float emissive[3];       /* light the surface gives off itself (linear RGB, >= 0), added to
+                                its diffuse shading: diffuse and partial materials; zero: none */
     char name[32];
 } refl_material;
 
@@ -15259,8 +15261,9 @@ static const char *refl__material_rule(const refl_material *m, int texture_count
     if (!refl__all_finite(m->color, 4) || !refl__all_finite(m->tint, 3) || !refl__isfinite(m->reflectance) ||
         !refl__isfinite(m->ior) || !refl__isfinite(m->attenuation) || !refl__isfinite(m->mirror_weight) ||
         !refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
-        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max) || !refl__all_finite(m->emissive, 3))
         return "material: every number finite";
+    if (m->emissive[0] < 0.0f || m->emissive[1] < 0.0f || m->emissive[2] < 0.0f) return "material.emissive: >= 0";
     return NULL;
 }
 
@@ -15818,7 +15821,7 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
 
 /* Ambient plus each light's Lambert term, each light counted where lit[i]
    is nonzero (lit NULL: all) and weighed by weight[i] (NULL: 1), times the
-   material's colour. A weight of 1 adds exactly the unweighted term. */
+   material's colour, plus its emission. A weight of 1 adds exactly the unweighted term. */
 static void refl__shade_lights(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
                                const float *uv, const unsigned char *lit, const float *weight, float rgb[3]) {
     float base[4];
@@ -15841,6 +15844,8 @@ static void refl__shade_lights(const refl_scene *scene, const refl_material *m, 
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+    if (m)
+        for (c = 0; c < 3; ++c) rgb[c] += m->emissive[c];
 }
 
 REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,

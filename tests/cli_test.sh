@@ -88,6 +88,10 @@ if [ -d "$assets" ]; then
                  oiiotool '$tmp/alpha.exr' --printstats | grep -qE 'NanCount: 0 0 0 0'"
         done
     done
+    ok "--camera picks ToyCar's eighth camera" bash -c "'$bin' info '$assets/ToyCar.glb' --camera 7 2>/dev/null | grep -q 'camera       7 of 8'"
+    refuses "--camera past the last" "camera 8 does not exist: the scene has 8" "$bin" render "$assets/ToyCar.glb" --camera 8 --out "$tmp/x.png"
+    ok "ignored glTF features are named" bash -c \
+        "'$bin' info '$assets/ToyCar.glb' 2>&1 >/dev/null | grep -q 'warning: .*ToyCar.glb: not drawn: normalTexture (2 uses)'"
     head -c 3000 "$assets/Duck.glb" >"$tmp/truncated.glb"
     refuses "truncated glb" "truncated.glb" "$bin" render "$tmp/truncated.glb" --out "$tmp/x.png"
 else
@@ -125,7 +129,8 @@ exits2 "unknown option" "unknown option" "$bin" render --builtin default --frobn
 exits2 "no scene" "give one scene" "$bin" render
 refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
-exits2 "method not built yet" "not built yet" "$bin" render --builtin default --method spoc --out "$tmp/z.png"
+refuses "a device is not a scene file" "/dev/zero: not a regular file" "$bin" info /dev/zero
+exits2 "method not built yet" "not built yet: .auto.; the methods are: direct raytrace" "$bin" render --builtin default --method auto --out "$tmp/z.png"
 
 # the command line's manners: --version, --name=value, method names in any
 # case, an unknown option named as such wherever it stands, exit status 2

@@ -24,6 +24,8 @@
 #include <utility>
 #include <vector>
 
+#include <sys/stat.h>
+
 namespace {
 
 // ---- errors ---------------------------------------------------------------
@@ -57,12 +59,19 @@ void write_message(char *err, size_t err_size, const std::string &text) {
 // ---- the file ---------------------------------------------------------------
 
 const size_t kMaxFileBytes = size_t(1) << 31;  // tinygltf takes 32-bit sizes
+const long long kDefaultMaxTexturePixels = 1LL << 24;  // 4096 x 4096: 256 MiB as float RGBA
 
 std::vector<unsigned char> read_file(const char *path) {
     struct Closer { void operator()(FILE *f) const { std::fclose(f); } };
     std::unique_ptr<FILE, Closer> f(std::fopen(path, "rb"));
     if (!f) fail(REFL_ERROR_UNKNOWN_NAME, format("cannot open: %s", std::strerror(errno)));
+    // a device or pipe could stream without end (/dev/zero)
+    struct stat st;
+    if (fstat(fileno(f.get()), &st) != 0 || !S_ISREG(st.st_mode))
+        fail(REFL_ERROR_INVALID_SIZE, "not a regular file");
+    if (uint64_t(st.st_size) > kMaxFileBytes) fail(REFL_ERROR_INVALID_SIZE, "file larger than 2 GiB");
     std::vector<unsigned char> data;
+    data.reserve(size_t(st.st_size));
     unsigned char chunk[1 << 16];
     for (;;) {
         size_t n = std::fread(chunk, 1, sizeof chunk, f.get());
@@ -411,6 +420,37 @@ struct ImageSink {
     std::string error;  // the first image whose bytes lie outside their buffer
 };
 
+// The width and height a PNG (IHDR) or baseline/progressive JPEG (SOFn)
+// header gives, read before decoding so that a texture too large is refused
+// before memory is spent on it; false for any other format.
+bool image_size(const std::vector<unsigned char> &d, long long *w, long long *h) {
+    static const unsigned char png[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+    auto be16 = [&](size_t i) { return (long long)(d[i] << 8 | d[i + 1]); };
+    if (d.size() >= 24 && std::memcmp(d.data(), png, 8) == 0 && std::memcmp(&d[12], "IHDR", 4) == 0) {
+        *w = be16(16) << 16 | be16(18);
+        *h = be16(20) << 16 | be16(22);
+        return true;
+    }
+    if (d.size() < 4 || d[0] != 0xFF || d[1] != 0xD8) return false;
+    size_t i = 2;
+    while (i + 4 <= d.size()) {
+        if (d[i] != 0xFF) return false;
+        unsigned char marker = d[i + 1];
+        if (marker == 0xFF) { i++; continue; }  // fill byte
+        size_t len = size_t(be16(i + 2));
+        bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+        if (sof) {
+            if (i + 9 > d.size()) return false;
+            *h = be16(i + 5);
+            *w = be16(i + 7);
+            return true;
+        }
+        if (len < 2) return false;
+        i += 2 + len;
+    }
+    return false;
+}
+
 bool defer_image(tinygltf::Image *image, const int index, std::string *, std::string *, int, int,
                  const unsigned char *bytes, int size, void *user) {
     ImageSink &sink = *static_cast<ImageSink *>(user);
@@ -462,13 +502,17 @@ private:
     int skipped_mode_ = -1;
     std::vector<std::pair<int, float>> glass_;      // (material, attenuation) to rescale
     std::vector<char> seen_;                        // nodes visited
+    int cameras_ = 0;                               // perspective camera nodes met
+    std::map<std::string, int> ignored_;            // glTF feature the renderer ignores -> uses
     std::vector<std::array<double, 6>> mesh_bounds_; // scene mesh -> its vertices' lo xyz, hi xyz
 
     void warn(const std::string &w) { warnings_ += w; warnings_ += '\n'; }
     void check_extensions();
+    void note_ignored_features();
     void add_materials();
     int texture_for(int gltf_texture, const std::string &what);
     int material_for(int gltf_material, const std::string &what);
+    void emission(const tinygltf::Material &gm, const std::string &what, refl_material *m);
     int mesh_for(int mesh, int prim);
     int build_mesh(int mesh, int prim, const PrimKey &key, const std::string &texcoord_name);
     void traverse();
@@ -502,6 +546,18 @@ int Loader::texture_for(int t, const std::string &what) {
     tinygltf::Image img;
     std::string derr, dwarn;
     const std::vector<unsigned char> *raw = size_t(src) < raw_images_.size() ? &raw_images_[size_t(src)] : nullptr;
+    const long long limit = opt_.max_texture_pixels > 0 ? opt_.max_texture_pixels : kDefaultMaxTexturePixels;
+    if (raw && !raw->empty()) {
+        long long w = 0, h = 0;
+        if (!image_size(*raw, &w, &h)) {
+            warn(format("%s: image %d is neither PNG nor JPEG; texture ignored", what.c_str(), src));
+            return image_texture_[src] = 0;
+        }
+        if (w * h > limit)
+            fail(REFL_ERROR_INVALID_SIZE, format("%s: image %d is %lldx%lld, more than the texture limit of %lld "
+                                                 "pixels (refl_gltf_options.max_texture_pixels)",
+                                                 what.c_str(), src, w, h, limit));
+    }
     if (!raw || raw->empty() || raw->size() > size_t(INT32_MAX) ||
         !tinygltf::LoadImageData(&img, src, &derr, &dwarn, 0, 0, raw->data(), int(raw->size()), nullptr)) {
         while (!derr.empty() && derr.back() == '\n') derr.pop_back();
@@ -510,7 +566,7 @@ int Loader::texture_for(int t, const std::string &what) {
         return image_texture_[src] = 0;
     }
     int w = img.width, h = img.height, comp = img.component, bytes = img.bits / 8;
-    if ((long long)w * h > (1LL << 26))
+    if ((long long)w * h > limit)
         fail(REFL_ERROR_INVALID_SIZE, format("%s: image %d: %dx%d is too large", what.c_str(), src, w, h));
     if (comp < 1 || comp > 4 || (bytes != 1 && bytes != 2) ||
         img.image.size() != size_t(w) * size_t(h) * size_t(comp) * size_t(bytes))
@@ -593,11 +649,34 @@ void Loader::add_materials() {
             m.type = REFL_DIFFUSE;
             m.texture = texture_for(pbr.baseColorTexture.index, what);
         }
+        emission(gm, what, &m);
         int idx = refl_scene_add_material(scene_.get(), &m);
         if (idx < 0) fail(refl_result(idx), format("%s: refl_scene_add_material failed", what.c_str()));
         material_index_.push_back(idx);
         if (m.type == REFL_GLASS && m.attenuation > 0) glass_.emplace_back(idx, m.attenuation);
     }
+}
+
+// emissiveFactor times KHR_materials_emissive_strength, on the diffuse share
+// (refl_material.emissive); mirrors and glass have none to add it to. An
+// emissiveTexture is not drawn (a warning), and then neither is its factor.
+void Loader::emission(const tinygltf::Material &gm, const std::string &what, refl_material *m) {
+    // the factor scales the texture: without the texture it is no emission
+    if (gm.emissiveFactor.size() != 3 || gm.emissiveTexture.index >= 0) return;
+    double strength = ext_number(gm.extensions, "KHR_materials_emissive_strength", "emissiveStrength", 1);
+    double e[3];
+    for (int k = 0; k < 3; k++) {
+        e[k] = gm.emissiveFactor[size_t(k)] * strength;
+        if (!(e[k] > 0)) e[k] = 0;  // glTF's factors are >= 0
+        if (!fits_float(e[k]))
+            fail(REFL_ERROR_BAD_MESH, format("%s: emission %g does not fit a float", what.c_str(), e[k]));
+    }
+    if (e[0] == 0 && e[1] == 0 && e[2] == 0) return;
+    if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+        warn(format("%s: emission on a %s is not drawn", what.c_str(), m->type == REFL_MIRROR ? "mirror" : "glass"));
+        return;
+    }
+    for (int k = 0; k < 3; k++) m->emissive[k] = float(e[k]);
 }
 
 int Loader::material_for(int g, const std::string &what) {
@@ -855,11 +934,13 @@ void Loader::visit_node(int root, const Mat &parent) {
                                                 refl_result_string(refl_result(r))));
             }
         }
-        if (node.camera >= 0 && !scene_->has_camera) {
+        if (node.camera >= 0) {
             if (size_t(node.camera) >= model_.cameras.size())
                 fail(REFL_ERROR_BAD_MESH, format("node %d: camera %d does not exist", ni, node.camera));
             const tinygltf::Camera &cam = model_.cameras[size_t(node.camera)];
-            if (cam.type == "perspective") {
+            if (cam.type != "perspective") ignored_["orthographic cameras"]++;
+            // the opt_.camera-th perspective camera node, depth first
+            if (cam.type == "perspective" && cameras_++ == opt_.camera) {
                 static const double origin[4] = {0, 0, 0, 1}, fwd[4] = {0, 0, -1, 0}, up[4] = {0, 1, 0, 0};
                 double e[3], f[3], u[3];
                 world.apply(origin, e);
@@ -946,6 +1027,38 @@ void Loader::traverse() {
     for (int r : roots) visit_node(r, Mat::identity());
 }
 
+// One warning per glTF feature the scene uses and the renderer does not draw,
+// with how often it is used.
+void Loader::note_ignored_features() {
+    static const char *const drawn_material_ext[] = {"KHR_materials_transmission", "KHR_materials_ior",
+                                                     "KHR_materials_volume", "KHR_materials_emissive_strength"};
+    auto texture_transform = [&](const tinygltf::ExtensionMap &ext) {
+        if (ext.count("KHR_texture_transform")) ignored_["KHR_texture_transform"]++;
+    };
+    for (const tinygltf::Material &gm : model_.materials) {
+        if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND") ignored_["alphaMode " + gm.alphaMode + " (drawn opaque)"]++;
+        if (gm.normalTexture.index >= 0) ignored_["normalTexture"]++;
+        if (gm.occlusionTexture.index >= 0) ignored_["occlusionTexture"]++;
+        if (gm.emissiveTexture.index >= 0) ignored_["emissiveTexture"]++;
+        if (gm.pbrMetallicRoughness.metallicRoughnessTexture.index >= 0) ignored_["metallicRoughnessTexture"]++;
+        texture_transform(gm.pbrMetallicRoughness.baseColorTexture.extensions);
+        for (const auto &e : gm.extensions)
+            if (std::find(std::begin(drawn_material_ext), std::end(drawn_material_ext), e.first) ==
+                std::end(drawn_material_ext))
+                ignored_[e.first]++;
+    }
+    for (const tinygltf::Sampler &sm : model_.samplers)
+        if ((sm.wrapS != -1 && sm.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT) ||
+            (sm.wrapT != -1 && sm.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT))
+            ignored_["sampler wrap modes other than REPEAT"]++;
+    for (const tinygltf::Mesh &gm : model_.meshes)
+        for (const tinygltf::Primitive &p : gm.primitives)
+            if (!p.targets.empty()) ignored_["morph targets (the rest pose is drawn)"]++;
+    if (!model_.skins.empty()) ignored_["skins (the rest pose is drawn)"] += int(model_.skins.size());
+    if (!model_.animations.empty()) ignored_["animations"] += int(model_.animations.size());
+    for (const auto &f : ignored_) warn(format("not drawn: %s (%d use%s)", f.first.c_str(), f.second, f.second == 1 ? "" : "s"));
+}
+
 std::unique_ptr<refl_scene, SceneDeleter> Loader::run(std::string &warnings) {
     check_extensions();
     refl_scene *raw = nullptr;
@@ -954,6 +1067,11 @@ std::unique_ptr<refl_scene, SceneDeleter> Loader::run(std::string &warnings) {
     if (r != REFL_OK || !scene_) fail(r != REFL_OK ? r : REFL_ERROR_OUT_OF_MEMORY, "refl_scene_create failed");
     add_materials();
     traverse();
+    if (opt_.camera_count) *opt_.camera_count = cameras_;
+    if (opt_.camera > 0 && opt_.camera >= cameras_)
+        fail(REFL_ERROR_INVALID_ARGUMENT, format("camera %d does not exist: the scene has %d perspective camera%s",
+                                                 opt_.camera, cameras_, cameras_ == 1 ? "" : "s"));
+    note_ignored_features();
     if (scene_->object_count == 0) {
         if (skipped_prims_ > 0) {
             static const char *names[] = {"POINTS", "LINES", "LINE_LOOP", "LINE_STRIP"};

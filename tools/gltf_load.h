@@ -70,12 +70,19 @@
              = index + 1. Images are shared between materials. Only images
              a base colour texture uses are decoded; one that fails to
              decode is a warning (no texture), not an error.
-         Texture transforms, samplers, every other map and emission are
-         ignored (refl_material has no emissive term).
-     - Camera: the first node (depth first, in scene order) with a
-       perspective camera sets scene->camera (eye = node origin, target =
-       eye + its -Z axis, up = its +Y axis, fovy from yfov; znear/zfar and
-       the size left 0) and has_camera = 1.
+             Images other than PNG and JPEG are ignored with a warning.
+         Emission: emissiveFactor times KHR_materials_emissive_strength
+             becomes refl_material.emissive on diffuse and partial
+             materials (a warning on mirrors and glass); none where the
+             material has an emissiveTexture, which the factor scales.
+         Texture transforms, sampler wrap modes, alpha modes, every other map
+         and material extension, skins, morph targets and animations are
+         not drawn: one warning line per feature the file uses, with its
+         count ("not drawn: normalTexture (3 uses)").
+     - Camera: the opt.camera-th node (depth first, in scene order) with a
+       perspective camera, the first by default, sets scene->camera (eye =
+       node origin, target = eye + its -Z axis, up = its +Y axis, fovy from
+       yfov; znear/zfar and the size left 0) and has_camera = 1.
      - Lights: KHR_lights_punctual point and spot (as point) lights at their
        node's position, directional lights along the node's -Z axis; color
        = color * intensity. A file without lights adds none.
@@ -103,7 +110,8 @@
      BAD_MESH (malformed file or data: parse errors, bounds, indices,
      non-finite positions, node cycles, no triangles), UNSUPPORTED (sparse
      accessors, non-triangle primitives only, a file that needs an unknown
-     extension), INVALID_SIZE (counts or images too large),
+     extension), INVALID_SIZE (counts too large, a texture over
+     opt.max_texture_pixels, a file over 2 GiB or not a regular file),
      OUT_OF_MEMORY. On error *out_scene is NULL and nothing leaks.
      On success err holds the warnings, one per line ("" when none).
      err may be NULL (then nothing is written). */
@@ -121,6 +129,12 @@ extern "C" {
 typedef struct refl_gltf_options {
     float normalize_size;    /* 0: keep the file's units; > 0: scene diagonal */
     refl_allocator allocator; /* for the scene, its meshes and textures; zero: malloc */
+    int camera;              /* which perspective camera node (depth first, in scene order)
+                                sets scene->camera: 0 the first; negative: none; one
+                                past the last: INVALID_ARGUMENT */
+    int *camera_count;       /* optional out: how many perspective camera nodes there are */
+    long long max_texture_pixels; /* a larger base colour image is refused (INVALID_SIZE)
+                                     before it is decoded; 0: 2^24 (4096 x 4096) */
 } refl_gltf_options;
 
 /* opt may be NULL (all defaults). */

@@ -78,6 +78,8 @@ static const char *const usage_render =
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
     "  --up X,Y,Z         up direction (default 0,1,0)\n"
     "  --fov DEGREES      vertical field of view (default 45)\n"
+    "  --camera N         the glTF file's N-th perspective camera, 0 first (reflect info\n"
+    "                     counts them)\n"
     "  --env FILE         environment: an equirectangular image, or a pattern\n"
     "                     with %s for six faces px nx py ny pz nz\n"
     "  --normalize SIZE   scale a glTF scene to this bounding-box diagonal\n"
@@ -97,7 +99,7 @@ static const char *const usage_render =
     "or written; 2 bad usage.\n";
 
 static const char *const usage_info =
-    "usage: reflect info [SCENE.glb | --builtin NAME] [--normalize SIZE] [--tess N]\n"
+    "usage: reflect info [SCENE.glb | --builtin NAME] [--normalize SIZE] [--tess N] [--camera N]\n"
     "\n"
     "Prints the objects (mesh, triangles, material), the materials, the\n"
     "lights, the camera and the scene's bounds.\n";
@@ -130,6 +132,7 @@ typedef struct options {
     const char *mirror[8], *glass[8]; /* --mirror, --glass */
     int mirror_count, glass_count;
     int gl;                       /* --gl: the GL path (tools/reflect_gl_frame.c) */
+    int camera;                   /* --camera: which glTF camera */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -168,7 +171,7 @@ static const char *const value_options[] = {
     "--builtin", "--normalize", "--tess", "--method", "--size", "--eye", "--target", "--up", "--fov", "--env",
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
-    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
+    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
 
@@ -212,6 +215,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_float(v, 1e-6f, 1e9f, &o->normalize)) return fail("--normalize: not a positive size: %s", v);
         } else if (!strcmp(a, "--tess")) {
             if (!parse_int(v, 1, 64, &o->tess)) return fail("--tess: expected 1..64, got %s", v);
+        } else if (!strcmp(a, "--camera")) {
+            if (!parse_int(v, 0, 1 << 20, &o->camera)) return fail("--camera: expected a camera number 0.., got %s", v);
         } else if (!is_render) {
             if (a[0] == '-') return fail("info: unknown option %s (see reflect info --help)", a);
             if (o->file) return fail("info: more than one scene given (%s)", a);
@@ -219,8 +224,13 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--method")) {
             refl_method m = refl_method_from_name(v);
-            if (!m) return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc)", v);
-            if (!refl_method_is_built(m)) return fail("--method: '%s' is not built yet", v);
+            if (!m || !refl_method_is_built(m)) {
+                fprintf(stderr, "reflect: --method: %s '%s'; the methods are:", m ? "not built yet:" : "no method", v);
+                for (m = (refl_method)1; m < REFL_METHOD_COUNT; m = (refl_method)(m + 1))
+                    if (refl_method_is_built(m)) fprintf(stderr, " %s", refl_method_name(m));
+                fprintf(stderr, "\n");
+                return 2;
+            }
             o->method = v;
         } else if (!strcmp(a, "--mirror") || !strcmp(a, "--glass")) {
             int glass = !strcmp(a, "--glass"), *count = glass ? &o->glass_count : &o->mirror_count;
@@ -325,10 +335,11 @@ static int parse(int argc, char **argv, int is_render, options *o) {
 }
 
 /* Loads the scene the options name; prints why not and returns NULL. */
-static refl_scene *load_scene(const options *o) {
+static refl_scene *load_scene(const options *o, int *camera_count) {
     refl_scene *s = NULL;
     refl_result r;
     char err[1024] = "";
+    const char *line;
     if (o->builtin) {
         refl_builtin_desc bd;
         memset(&bd, 0, sizeof bd);
@@ -346,17 +357,29 @@ static refl_scene *load_scene(const options *o) {
             return NULL;
         }
         if (o->normalize > 0.0f) refl_scene_normalize(s, o->normalize);
+        if (o->camera > 0) {
+            fprintf(stderr, "reflect: --camera %d: a built-in scene has one camera (0)\n", o->camera);
+            refl_scene_destroy(s);
+            return NULL;
+        }
+        if (camera_count) *camera_count = 1;
         return s;
     } else {
         refl_gltf_options go;
         memset(&go, 0, sizeof go);
         go.normalize_size = o->normalize;
+        go.camera = o->camera;
+        go.camera_count = camera_count;
         r = refl_gltf_load(o->file, &go, &s, err, sizeof err);
         if (r != REFL_OK) {
             fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
             return NULL;
         }
-        if (err[0]) fprintf(stderr, "reflect: warning: %s%s", err, err[strlen(err) - 1] == '\n' ? "" : "\n");
+        for (line = err; *line;) { /* one warning per line */
+            size_t n = strcspn(line, "\n");
+            fprintf(stderr, "reflect: warning: %.*s\n", (int)n, line);
+            line += n + (line[n] == '\n');
+        }
     }
     return s;
 }
@@ -470,7 +493,7 @@ out:
 }
 
 static int cmd_render(const options *o) {
-    refl_scene *s = load_scene(o);
+    refl_scene *s = load_scene(o, NULL);
     refl_frame *f = NULL;
     refl_view v;
     refl_render_desc d;
@@ -711,7 +734,8 @@ done:
 }
 
 static int cmd_info(const options *o) {
-    refl_scene *s = load_scene(o);
+    int cameras = 0;
+    refl_scene *s = load_scene(o, &cameras);
     refl_vec3 lo, hi;
     int i;
     if (!s) return 1;
@@ -722,9 +746,9 @@ static int cmd_info(const options *o) {
     printf("triangles    %lld\n", refl_scene_triangles(s));
     printf("bounds       (%g, %g, %g) .. (%g, %g, %g)\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     if (s->has_camera)
-        printf("camera       eye (%g, %g, %g) target (%g, %g, %g) fovy %g\n", s->camera.eye.x, s->camera.eye.y,
-               s->camera.eye.z, s->camera.target.x, s->camera.target.y, s->camera.target.z,
-               s->camera.fovy_degrees);
+        printf("camera       %d of %d: eye (%g, %g, %g) target (%g, %g, %g) fovy %g\n", o->camera, cameras,
+               s->camera.eye.x, s->camera.eye.y, s->camera.eye.z, s->camera.target.x, s->camera.target.y,
+               s->camera.target.z, s->camera.fovy_degrees);
     printf("\n%-4s %-24s %10s  %-8s %s\n", "#", "object", "triangles", "type", "material");
     for (i = 0; i < s->object_count; ++i) {
         const refl_object *ob = &s->objects[i];

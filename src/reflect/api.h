@@ -249,6 +249,8 @@ typedef struct refl_material {
                                 d from the reflector to what it reflects (the environment:
                                 infinitely far); refl_material_fade */
     float fade_min, fade_max;
+    float emissive[3];       /* light the surface gives off itself (linear RGB, >= 0), added to
+                                its diffuse shading: diffuse and partial materials; zero: none */
     char name[32];
 } refl_material;
 

@@ -82,8 +82,9 @@ static const char *refl__material_rule(const refl_material *m, int texture_count
     if (!refl__all_finite(m->color, 4) || !refl__all_finite(m->tint, 3) || !refl__isfinite(m->reflectance) ||
         !refl__isfinite(m->ior) || !refl__isfinite(m->attenuation) || !refl__isfinite(m->mirror_weight) ||
         !refl__isfinite(m->fresnel_min) || !refl__isfinite(m->fresnel_max) || !refl__isfinite(m->fade_distance) ||
-        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max))
+        !refl__isfinite(m->fade_min) || !refl__isfinite(m->fade_max) || !refl__all_finite(m->emissive, 3))
         return "material: every number finite";
+    if (m->emissive[0] < 0.0f || m->emissive[1] < 0.0f || m->emissive[2] < 0.0f) return "material.emissive: >= 0";
     return NULL;
 }
 

@@ -49,7 +49,7 @@ REFL_API void refl_shade_diffuse(const refl_scene *scene, const refl_material *m
 
 /* Ambient plus each light's Lambert term, each light counted where lit[i]
    is nonzero (lit NULL: all) and weighed by weight[i] (NULL: 1), times the
-   material's colour. A weight of 1 adds exactly the unweighted term. */
+   material's colour, plus its emission. A weight of 1 adds exactly the unweighted term. */
 static void refl__shade_lights(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,
                                const float *uv, const unsigned char *lit, const float *weight, float rgb[3]) {
     float base[4];
@@ -72,6 +72,8 @@ static void refl__shade_lights(const refl_scene *scene, const refl_material *m, 
         for (c = 0; c < 3; ++c) rgb[c] += lambert * l->color[c];
     }
     for (c = 0; c < 3; ++c) rgb[c] *= base[c];
+    if (m)
+        for (c = 0; c < 3; ++c) rgb[c] += m->emissive[c];
 }
 
 REFL_API void refl_shade_diffuse_lit(const refl_scene *scene, const refl_material *m, refl_vec3 p, refl_vec3 n,

@@ -277,6 +277,9 @@ Test(refl_scene, non_finite_numbers_are_refused_everywhere) {
         cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
         m = refl_material_glass(x);
         cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
+        m = refl_material_diffuse(0.5f, 0.5f, 0.5f);
+        m.emissive[2] = x;
+        cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
         l.position.y = x;
         cr_assert_eq(refl_scene_add_light(s, &l), REFL_ERROR_INVALID_ARGUMENT);
         l = refl_light_point(refl_v3(0, 3, 0), x);
@@ -440,4 +443,46 @@ Test(refl_scene, environment_edges_clamp_where_they_must) {
     cr_assert_float_eq(rgb[0], 0.0f, 1e-6f, "south pole blended with the north: %g", rgb[0]);
     refl_environment_lookup(&env, refl_v3(0.0f, 1.0f, 0.0f), rgb);
     cr_assert_float_eq(rgb[0], 1.0f, 1e-6f, "north pole: %g", rgb[0]);
+}
+
+/* Emission is light the surface gives off itself: on a diffuse surface with
+   no light and no ambient, every method shows exactly the emitted colour;
+   a negative emission is refused. */
+Test(refl_scene, emission_is_what_an_unlit_surface_shows, .timeout = 120) {
+    int m;
+    refl_material neg = refl_material_diffuse(0.5f, 0.5f, 0.5f);
+    refl_scene *s;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    neg.emissive[0] = -0.1f;
+    cr_assert_eq(refl_scene_add_material(s, &neg), REFL_ERROR_INVALID_ARGUMENT);
+    refl_scene_destroy(s);
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        refl_view v;
+        refl_render_desc d;
+        refl_frame *f;
+        int i, k, c, shown = 0;
+        if (!refl_method_is_built((refl_method)m)) continue;
+        s = tu_refl_builtin("default", &v, 64, 48);
+        d = tu_refl_one_bounce((refl_method)m, 1);
+        s->light_count = 0;
+        for (c = 0; c < 3; ++c) s->ambient[c] = 0.0f;
+        for (k = 0; k < s->material_count; ++k)
+            if (s->materials[k].type == REFL_DIFFUSE) {
+                s->materials[k].emissive[0] = 0.5f;
+                s->materials[k].emissive[1] = 0.25f;
+                s->materials[k].emissive[2] = 2.0f;
+            }
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK, "%s: %s", refl_method_name((refl_method)m), f->message);
+        for (i = 0; i < v.width * v.height; ++i) {
+            if (f->stencil[i] || f->depth[i] >= 1.0f) continue; /* reflectors and sky */
+            cr_assert(f->rgba[4 * i] == 0.5f && f->rgba[4 * i + 1] == 0.25f && f->rgba[4 * i + 2] == 2.0f,
+                      "%s: pixel %d shows %g %g %g", refl_method_name((refl_method)m), i, f->rgba[4 * i],
+                      f->rgba[4 * i + 1], f->rgba[4 * i + 2]);
+            ++shown;
+        }
+        cr_assert_gt(shown, 100, "%s: %d diffuse pixels", refl_method_name((refl_method)m), shown);
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
 }
