@@ -80,7 +80,8 @@ typedef enum refl_result {
     REFL_ERROR_UNKNOWN_NAME = -5,     /* no built-in scene of that name */
     REFL_ERROR_SINGULAR = -6,         /* ill-conditioned least squares, singular matrix */
     REFL_ERROR_UNSUPPORTED = -7,      /* a method not built (yet) */
-    REFL_ERROR_RASTER = -8            /* rast.h failed; see the message */
+    REFL_ERROR_RASTER = -8,           /* rast.h failed; see the message */
+    REFL_ERROR_CANCELLED = -9         /* the progress callback asked to stop */
 } refl_result;
 
 REFL_API const char *refl_result_string(refl_result result);
@@ -1074,7 +1075,11 @@ typedef struct refl_render_desc {
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
     refl_debug_options debug;
-    void (*progress)(void *user, float done); /* optional, done in [0, 1] */
+    /* optional: called from the rendering thread with done in [0, 1], at the
+       start, between the phases and reflector methods, and per band of rows
+       of ray tracing; a nonzero return stops the render, which returns
+       REFL_ERROR_CANCELLED (its frame's pixels are not a finished image) */
+    int (*progress)(void *user, float done);
     void *progress_user;
 } refl_render_desc;
 
@@ -1377,6 +1382,11 @@ typedef struct refl__pass {
                                      NULL: every reflector is the method's */
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
+
+/* Reports done (0..1) to the progress callback; nonzero when it asks to stop. */
+static inline int refl__progress(const refl__pass *p, float done) {
+    return p->desc.progress && p->desc.progress(p->desc.progress_user, done) != 0;
+}
 
 /* Whether the running method draws object i (a reflector it was given). */
 static inline int refl__pass_draws(const refl__pass *p, int i) {
@@ -10063,14 +10073,16 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         tf.first_tile = rows_done * tf.tiles_x;
         rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress && !p->mine)
-            p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
+        if (!p->mine && rows_done < tf.tiles_y && refl__progress(p, (float)rows_done / (float)tf.tiles_y)) {
+            r = REFL_ERROR_CANCELLED;
+            break;
+        }
     }
     for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
     f->stats.ms_reflect += refl__now_ms() - t1;
     refl__free(&scene->allocator, tf.tile_rays);
     refl__rt_end(&tf.rt);
-    return REFL_OK;
+    return r;
 }
 
 /* ---- pixels handed over ---------------------------------------------------------- */
@@ -12540,7 +12552,7 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
     uint8_t *by = NULL;
     refl_result r = REFL_OK;
-    int row, i, mixed = 0, depth = p->desc.depth;
+    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0;
     by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
     if (!by) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
@@ -12549,6 +12561,12 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         mixed |= by[i] != (uint8_t)p->desc.method;
         if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
     }
+    for (row = 0; row < REFL__METHOD_ROWS; ++row)
+        for (i = 0; i < scene->object_count; ++i)
+            if (by[i] == (uint8_t)refl__methods[row].method && refl__methods[row].draw) {
+                rows_used++;
+                break;
+            }
     for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
         const refl__method_row *m = &refl__methods[row];
         uint8_t *mine = by + scene->object_count;
@@ -12562,6 +12580,8 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         if (!any || !m->draw) continue;
         p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
         r = m->draw(p);
+        if (r == REFL_OK && ++rows_done < rows_used && refl__progress(p, (float)rows_done / (float)rows_used))
+            r = REFL_ERROR_CANCELLED;
     }
     p->frame->stats.depth = depth;
     p->mine = NULL;
@@ -12653,6 +12673,11 @@ REFL_API void refl_renderer_destroy(refl_renderer *rr) {
     refl__free(&rr->scene->allocator, rr);
 }
 
+static refl_result refl__cancelled(refl_frame *frame) {
+    frame->message = "cancelled by the progress callback";
+    return REFL_ERROR_CANCELLED;
+}
+
 /* One render of view into frame, a sample per pixel. */
 static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     const refl_scene *scene = rr->scene;
@@ -12667,10 +12692,12 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     }
     memset(&frame->stats, 0, sizeof(frame->stats));
     row = refl__method_row_of(rr->desc.method);
-    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
+    if (rr->desc.progress && rr->desc.progress(rr->desc.progress_user, 0.0f)) return refl__cancelled(frame);
     r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
     frame->stats.depth = rr->desc.depth;
+    if (r == REFL_OK && refl__progress(&p, 0.0f)) r = REFL_ERROR_CANCELLED;
     if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r != REFL_OK) return r;
     refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;
@@ -12771,6 +12798,7 @@ REFL_API const char *refl_result_string(refl_result result) {
     case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
     case REFL_ERROR_UNSUPPORTED: return "method not available";
     case REFL_ERROR_RASTER: return "rasteriser error";
+    case REFL_ERROR_CANCELLED: return "cancelled";
     }
     return "unknown refl_result";
 }

@@ -129,6 +129,9 @@ exits2 "unknown option" "unknown option" "$bin" render --builtin default --frobn
 exits2 "no scene" "give one scene" "$bin" render
 refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
+refuses "--time-limit stops a long render and writes nothing" "stopped at the time limit.*nothing written" \
+    "$bin" render --builtin glass --method raytrace --depth 8 --size 1024x768 --time-limit 0.05 --out "$tmp/limited.png"
+ok "nothing written after the time limit" test ! -e "$tmp/limited.png"
 refuses "a device is not a scene file" "/dev/zero: not a regular file" "$bin" info /dev/zero
 exits2 "method not built yet" "not built yet: .auto.; the methods are: direct raytrace" "$bin" render --builtin default --method auto --out "$tmp/z.png"
 

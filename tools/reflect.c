@@ -85,6 +85,8 @@ static const char *const usage_render =
     "  --normalize SIZE   scale a glTF scene to this bounding-box diagonal\n"
     "  --tess N           teapot patches N x N for built-in scenes (default 8)\n"
     "  --threads N        worker threads (default: one per CPU)\n"
+    "  --time-limit S     stop a render still running after S seconds (checked between\n"
+    "                     phases, reflector methods and bands of traced rows); exit 1\n"
     "  --out FILE         output image, format by extension (default out.png): 8-bit\n"
     "                     formats (PNG ...) sRGB-encoded; EXR, HDR and PFM linear, unclamped\n"
     "  --exposure EV      scale the colours by 2^EV before writing, -64..64 (default 0)\n"
@@ -133,6 +135,7 @@ typedef struct options {
     int mirror_count, glass_count;
     int gl;                       /* --gl: the GL path (tools/reflect_gl_frame.c) */
     int camera;                   /* --camera: which glTF camera */
+    float time_limit;             /* --time-limit: seconds; 0 none */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -171,7 +174,8 @@ static const char *const value_options[] = {
     "--builtin", "--normalize", "--tess", "--method", "--size", "--eye", "--target", "--up", "--fov", "--env",
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
-    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", NULL};
+    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
+    NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
 
@@ -232,6 +236,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
                 return 2;
             }
             o->method = v;
+        } else if (!strcmp(a, "--time-limit")) {
+            if (!parse_float(v, 1e-3f, 1e6f, &o->time_limit)) return fail("--time-limit: expected seconds 0.001..1e6, got %s", v);
         } else if (!strcmp(a, "--mirror") || !strcmp(a, "--glass")) {
             int glass = !strcmp(a, "--glass"), *count = glass ? &o->glass_count : &o->mirror_count;
             if (*count == 8) return fail("%s: at most 8 times", a);
@@ -384,13 +390,28 @@ static refl_scene *load_scene(const options *o, int *camera_count) {
     return s;
 }
 
-static void progress_bar(void *user, float done) {
-    int i, n = (int)(done * 30.0f + 0.5f);
-    (void)user;
-    fprintf(stderr, "\r[");
-    for (i = 0; i < 30; ++i) fputc(i < n ? '#' : ' ', stderr);
-    fprintf(stderr, "] %3d%%%s", (int)(done * 100.0f + 0.5f), done >= 1.0f ? "\n" : "");
-    fflush(stderr);
+/* The render's progress callback: a bar on a terminal, and the stop at
+   --time-limit. */
+typedef struct progress_state {
+    int bar;
+    double start_ms, limit_ms; /* limit 0: none */
+    int stopped;
+} progress_state;
+
+static int progress(void *user, float done) {
+    progress_state *ps = (progress_state *)user;
+    if (ps->bar) {
+        int i, n = (int)(done * 30.0f + 0.5f);
+        fprintf(stderr, "\r[");
+        for (i = 0; i < 30; ++i) fputc(i < n ? '#' : ' ', stderr);
+        fprintf(stderr, "] %3d%%%s", (int)(done * 100.0f + 0.5f), done >= 1.0f ? "\n" : "");
+        fflush(stderr);
+    }
+    if (ps->limit_ms > 0.0 && refl_bench_now_ms() - ps->start_ms > ps->limit_ms) {
+        if (ps->bar) fputc('\n', stderr);
+        ps->stopped = 1;
+    }
+    return ps->stopped;
 }
 
 /* --mirror and --glass: the objects named `name`, or whose material is,
@@ -500,6 +521,8 @@ static int cmd_render(const options *o) {
     refl_result r;
     char err[1024] = "";
     int code = 1, i;
+    progress_state ps;
+    memset(&ps, 0, sizeof ps);
     if (!s) return 1;
     for (i = 0; i < o->mirror_count + o->glass_count; ++i) {
         int glass = i >= o->mirror_count;
@@ -576,12 +599,23 @@ static int cmd_render(const options *o) {
         code = render_gl(o, s, &v, d.method);
         goto done;
     }
-    if (isatty(2)) d.progress = progress_bar;
+    ps.bar = isatty(2);
+    ps.limit_ms = o->time_limit * 1000.0;
+    ps.start_ms = refl_bench_now_ms();
+    if (ps.bar || ps.limit_ms > 0.0) {
+        d.progress = progress;
+        d.progress_user = &ps;
+    }
     if ((r = refl_frame_create(v.width, v.height, NULL, &f)) != REFL_OK) {
         fprintf(stderr, "reflect: frame %dx%d: %s\n", v.width, v.height, refl_result_string(r));
         goto done;
     }
-    if ((r = refl_render(s, &v, &d, f)) != REFL_OK) {
+    if ((r = refl_render(s, &v, &d, f)) == REFL_ERROR_CANCELLED && ps.stopped) {
+        fprintf(stderr, "reflect: render with %s stopped at the time limit (--time-limit %g); nothing written\n",
+                refl_method_name(d.method), (double)o->time_limit);
+        goto done;
+    }
+    if (r != REFL_OK) {
         fprintf(stderr, "reflect: render with %s: %s%s%s\n", refl_method_name(d.method), refl_result_string(r),
                 f->message[0] ? ": " : "", f->message);
         goto done;

@@ -78,7 +78,8 @@ typedef enum refl_result {
     REFL_ERROR_UNKNOWN_NAME = -5,     /* no built-in scene of that name */
     REFL_ERROR_SINGULAR = -6,         /* ill-conditioned least squares, singular matrix */
     REFL_ERROR_UNSUPPORTED = -7,      /* a method not built (yet) */
-    REFL_ERROR_RASTER = -8            /* rast.h failed; see the message */
+    REFL_ERROR_RASTER = -8,           /* rast.h failed; see the message */
+    REFL_ERROR_CANCELLED = -9         /* the progress callback asked to stop */
 } refl_result;
 
 REFL_API const char *refl_result_string(refl_result result);
@@ -1072,7 +1073,11 @@ typedef struct refl_render_desc {
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
     refl_debug_options debug;
-    void (*progress)(void *user, float done); /* optional, done in [0, 1] */
+    /* optional: called from the rendering thread with done in [0, 1], at the
+       start, between the phases and reflector methods, and per band of rows
+       of ray tracing; a nonzero return stops the render, which returns
+       REFL_ERROR_CANCELLED (its frame's pixels are not a finished image) */
+    int (*progress)(void *user, float done);
     void *progress_user;
 } refl_render_desc;
 

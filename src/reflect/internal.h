@@ -156,6 +156,11 @@ typedef struct refl__pass {
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
 
+/* Reports done (0..1) to the progress callback; nonzero when it asks to stop. */
+static inline int refl__progress(const refl__pass *p, float done) {
+    return p->desc.progress && p->desc.progress(p->desc.progress_user, done) != 0;
+}
+
 /* Whether the running method draws object i (a reflector it was given). */
 static inline int refl__pass_draws(const refl__pass *p, int i) {
     return refl__is_reflector(&p->scene->materials[p->scene->objects[i].material]) && (!p->mine || p->mine[i]);

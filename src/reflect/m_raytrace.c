@@ -101,14 +101,16 @@ static refl_result refl__method_raytrace(refl__pass *p) {
         tf.first_tile = rows_done * tf.tiles_x;
         rast_run_jobs(p->rc, rows * tf.tiles_x, refl__rt_tile, &tf);
         rows_done += rows;
-        if (p->desc.progress && !p->mine)
-            p->desc.progress(p->desc.progress_user, (float)rows_done / (float)tf.tiles_y);
+        if (!p->mine && rows_done < tf.tiles_y && refl__progress(p, (float)rows_done / (float)tf.tiles_y)) {
+            r = REFL_ERROR_CANCELLED;
+            break;
+        }
     }
     for (i = 0; i < tiles; ++i) f->stats.rays += tf.tile_rays[i];
     f->stats.ms_reflect += refl__now_ms() - t1;
     refl__free(&scene->allocator, tf.tile_rays);
     refl__rt_end(&tf.rt);
-    return REFL_OK;
+    return r;
 }
 
 /* ---- pixels handed over ---------------------------------------------------------- */

@@ -385,7 +385,7 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
     uint8_t *by = NULL;
     refl_result r = REFL_OK;
-    int row, i, mixed = 0, depth = p->desc.depth;
+    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0;
     by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
     if (!by) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
@@ -394,6 +394,12 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         mixed |= by[i] != (uint8_t)p->desc.method;
         if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
     }
+    for (row = 0; row < REFL__METHOD_ROWS; ++row)
+        for (i = 0; i < scene->object_count; ++i)
+            if (by[i] == (uint8_t)refl__methods[row].method && refl__methods[row].draw) {
+                rows_used++;
+                break;
+            }
     for (row = 0; row < REFL__METHOD_ROWS && r == REFL_OK; ++row) {
         const refl__method_row *m = &refl__methods[row];
         uint8_t *mine = by + scene->object_count;
@@ -407,6 +413,8 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         if (!any || !m->draw) continue;
         p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
         r = m->draw(p);
+        if (r == REFL_OK && ++rows_done < rows_used && refl__progress(p, (float)rows_done / (float)rows_used))
+            r = REFL_ERROR_CANCELLED;
     }
     p->frame->stats.depth = depth;
     p->mine = NULL;
@@ -498,6 +506,11 @@ REFL_API void refl_renderer_destroy(refl_renderer *rr) {
     refl__free(&rr->scene->allocator, rr);
 }
 
+static refl_result refl__cancelled(refl_frame *frame) {
+    frame->message = "cancelled by the progress callback";
+    return REFL_ERROR_CANCELLED;
+}
+
 /* One render of view into frame, a sample per pixel. */
 static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     const refl_scene *scene = rr->scene;
@@ -512,10 +525,12 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     }
     memset(&frame->stats, 0, sizeof(frame->stats));
     row = refl__method_row_of(rr->desc.method);
-    if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 0.0f);
+    if (rr->desc.progress && rr->desc.progress(rr->desc.progress_user, 0.0f)) return refl__cancelled(frame);
     r = refl__base_pass(&p, scene, view, &rr->desc, frame, rr->rc, &rr->models);
     frame->stats.depth = rr->desc.depth;
+    if (r == REFL_OK && refl__progress(&p, 0.0f)) r = REFL_ERROR_CANCELLED;
     if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r != REFL_OK) return r;
     refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;

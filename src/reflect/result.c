@@ -13,6 +13,7 @@ REFL_API const char *refl_result_string(refl_result result) {
     case REFL_ERROR_SINGULAR: return "singular or ill-conditioned system";
     case REFL_ERROR_UNSUPPORTED: return "method not available";
     case REFL_ERROR_RASTER: return "rasteriser error";
+    case REFL_ERROR_CANCELLED: return "cancelled";
     }
     return "unknown refl_result";
 }

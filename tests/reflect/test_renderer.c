@@ -189,3 +189,67 @@ Test(refl_renderer, a_reflector_its_method_cannot_draw_is_ray_traced, .timeout =
     refl_frame_destroy(traced);
     refl_scene_destroy(s);
 }
+
+/* The progress callback: what it was told, and when to stop. */
+typedef struct progress_log {
+    int calls, stop_at; /* stop_at: the call that returns nonzero; 0: never */
+    float last;
+    int rising;         /* every report at least the one before */
+} progress_log;
+
+static int log_progress(void *user, float done) {
+    progress_log *l = (progress_log *)user;
+    if (done < l->last || !(done >= 0.0f && done <= 1.0f)) l->rising = 0;
+    l->last = done;
+    return ++l->calls == l->stop_at;
+}
+
+/* Every method reports progress from 0 to 1, rising, and renders the same
+   bytes with a callback that never stops; a callback that stops at its
+   first or its last-but-one report ends the render with
+   REFL_ERROR_CANCELLED, saying so, and the renderer renders again after. */
+Test(refl_renderer, the_progress_callback_reports_and_cancels, .timeout = 120) {
+    int m;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        refl_view v;
+        refl_scene *s;
+        refl_render_desc d;
+        refl_frame *plain, *f;
+        refl_renderer *rr;
+        progress_log log;
+        int stop, reports;
+        if (!refl_method_is_built((refl_method)m)) continue;
+        s = tu_refl_builtin(m == REFL_PLANAR ? "mirror-room" : "default", &v, 48, 36);
+        d = tu_refl_one_bounce((refl_method)m, 2);
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &plain), REFL_OK);
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+        cr_assert_eq(refl_render(s, &v, &d, plain), REFL_OK);
+        memset(&log, 0, sizeof log);
+        log.rising = 1;
+        d.progress = log_progress;
+        d.progress_user = &log;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
+        cr_expect(log.rising && log.last == 1.0f, "%s: reports rise to 1", refl_method_name((refl_method)m));
+        cr_expect(log.calls >= 3, "%s: %d reports", refl_method_name((refl_method)m), log.calls);
+        cr_expect_eq(memcmp(plain->rgba, f->rgba, sizeof(float) * 4 * (size_t)(v.width * v.height)), 0,
+                     "%s: a callback changes no pixel", refl_method_name((refl_method)m));
+        reports = log.calls;
+        cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+        for (stop = 1; stop <= reports - 1; stop += reports - 2) {
+            memset(&log, 0, sizeof log);
+            log.stop_at = stop;
+            cr_expect_eq(refl_renderer_render(rr, &v, f), REFL_ERROR_CANCELLED, "%s: stop at report %d",
+                         refl_method_name((refl_method)m), stop);
+            cr_expect_str_eq(f->message, "cancelled by the progress callback");
+            cr_expect_eq(log.calls, stop, "no report after the stop");
+        }
+        memset(&log, 0, sizeof log);
+        cr_assert_eq(refl_renderer_render(rr, &v, f), REFL_OK);
+        cr_expect_eq(memcmp(plain->rgba, f->rgba, sizeof(float) * 4 * (size_t)(v.width * v.height)), 0,
+                     "%s: after a cancelled frame the renderer renders the same bytes", refl_method_name((refl_method)m));
+        refl_renderer_destroy(rr);
+        refl_frame_destroy(plain);
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
+}
