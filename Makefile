@@ -329,17 +329,27 @@ TEST_LIBS += $(TOOLS_LIBS)
 # ---- tools: end ----
 
 # ---- fuzzing ----
-# fuzz/gltf_fuzz.cpp feeds libFuzzer's inputs to the glTF loader, compiled
-# with clang under ASan/UBSan (Debian: clang and libclang-rt-14-dev).
-# `make fuzz` runs it for FUZZ_SECONDS; `make test` runs it for 60 seconds
-# when clang can build it (fuzz/run.sh --available), else says it skipped.
+# fuzz/gltf_fuzz.cpp feeds libFuzzer's inputs to the glTF loader and
+# fuzz/render_fuzz.c to the scene and render API, compiled with clang under
+# ASan/UBSan (Debian: clang and libclang-rt-14-dev). `make fuzz` runs each
+# for FUZZ_SECONDS; `make test` runs them for 60 and 30 seconds when clang
+# can build them (fuzz/run.sh --available), else says it skipped.
 FUZZ_CC      ?= clang
 FUZZ_CXX     ?= clang++
 FUZZ_SAN      = -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
 FUZZ_FLAGS    = -O1 -g -pthread -fsanitize=fuzzer-no-link $(FUZZ_SAN)
 FUZZ_BIN      = build/fuzz/gltf_fuzz
 FUZZ_OBJS     = build/fuzz/gltf_fuzz.o build/fuzz/gltf_load.o build/fuzz/reflect_impl.o build/fuzz/rast_impl.o
+RENDER_FUZZ_BIN  = build/fuzz/render_fuzz
+RENDER_FUZZ_OBJS = build/fuzz/render_fuzz.o build/fuzz/reflect_impl.o build/fuzz/rast_impl.o
 FUZZ_SECONDS  = 600
+
+build/fuzz/render_fuzz.o: fuzz/render_fuzz.c | rast.h
+	@mkdir -p $(@D)
+	$(FUZZ_CC) -std=c99 $(FUZZ_FLAGS) $(DEPFLAGS) -c $< -o $@
+
+$(RENDER_FUZZ_BIN): $(RENDER_FUZZ_OBJS)
+	$(FUZZ_CC) -fsanitize=fuzzer $(FUZZ_SAN) -pthread $^ -o $@ -lm
 
 build/fuzz/gltf_fuzz.o: fuzz/gltf_fuzz.cpp | rast.h
 	@mkdir -p $(@D)
@@ -358,15 +368,17 @@ $(FUZZ_BIN): $(FUZZ_OBJS)
 
 .PHONY: fuzz fuzz-short
 fuzz: deps
-	@$(MAKE) --no-print-directory $(FUZZ_BIN)
+	@$(MAKE) --no-print-directory $(FUZZ_BIN) $(RENDER_FUZZ_BIN)
 	bash fuzz/run.sh $(FUZZ_BIN) $(FUZZ_SECONDS)
+	bash fuzz/run.sh $(RENDER_FUZZ_BIN) $(FUZZ_SECONDS)
 
 fuzz-short:
 	@if bash fuzz/run.sh --available; then \
-	  $(MAKE) --no-print-directory $(FUZZ_BIN) && bash fuzz/run.sh $(FUZZ_BIN) 60; \
+	  $(MAKE) --no-print-directory $(FUZZ_BIN) $(RENDER_FUZZ_BIN) && bash fuzz/run.sh $(FUZZ_BIN) 60 && \
+	  bash fuzz/run.sh $(RENDER_FUZZ_BIN) 30; \
 	else echo "fuzz: $(FUZZ_CXX) cannot build a libFuzzer target (Debian: clang libclang-rt-14-dev); skipped"; fi
 
--include $(FUZZ_OBJS:.o=.d)
+-include $(FUZZ_OBJS:.o=.d) build/fuzz/render_fuzz.d
 
 # ---- the reflect command ----
 

@@ -869,8 +869,10 @@ typedef struct refl_frame {
     refl_stats stats;
     const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
                                 rule the desc or view broke (refl_validate_render_desc's
-                                words), or with OUT_OF_MEMORY past sbc.memory_mb (SBC's
-                                bound); "" otherwise. A static string */
+                                words), with OUT_OF_MEMORY past sbc.memory_mb or
+                                INVALID_SIZE past C3RC's points (the estimate), or
+                                CANCELLED; "" otherwise. A static string or message_text */
+    char message_text[160];  /* where a message with numbers is written */
     refl_allocator allocator;
 } refl_frame;
 
@@ -1237,6 +1239,8 @@ REFL_API void refl_view_matrices(const refl_view *view, const refl_scene *scene,
 #include <string.h>
 #include <float.h>
 #include <limits.h>
+#include <stdarg.h>
+#include <stdio.h>  /* vsnprintf: messages with numbers (refl__frame_say) */
 
 #ifndef REFL_ASSERT
 #include <assert.h>
@@ -1382,6 +1386,10 @@ typedef struct refl__pass {
                                      NULL: every reflector is the method's */
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
+
+/* Writes a message with numbers into frame->message_text and points
+   frame->message at it. */
+static void refl__frame_say(refl_frame *frame, const char *fmt, ...);
 
 /* Reports done (0..1) to the progress callback; nonzero when it asks to stop. */
 static inline int refl__progress(const refl__pass *p, float done) {
@@ -1941,6 +1949,11 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across);
 #define REFL__SB_SHEETS REFL_SBC_SHEETS /* a group's sheets at most (refl_sbc_project_sheets) */
 
 /* ---- the state of a frame ------------------------------------------------------ */
+
+/* What a side's ray map holds per sample (refl__sb_side: rays, hits, normals,
+   comp, group, valid, crossing): the bound desc.sbc.memory_mb counts it. */
+#define REFL__SB_SAMPLE_BYTES \
+    (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2)
 
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
@@ -7625,6 +7638,8 @@ typedef struct refl__c3_job {
 #define REFL__C3_AUTO_POINTS 2e6    /* the most points the default density samples */
 #define REFL__C3_PIXELS_PER_POINT 4.0 /* the default density: a point per 2 x 2 pixels */
 #define REFL__C3_MAX_BOOST 64.0f    /* the most a magnified object's density is raised */
+#define REFL__C3_MAX_POINTS 33554432.0 /* 2^25 points at most: about 2 GiB with the kd-tree */
+#define REFL__C3_POINT_BYTES 64.0   /* per point: position, normal, colour, ids, tree */
 
 typedef struct refl__c3_counts {
     long long tests, culled, leaves, tries, valid, multiple;
@@ -8221,6 +8236,8 @@ static void refl__c3_shade(void *arg, int index) {
 
 /* Samples every object at the density, builds the kd-tree over the
    points and shades them (tree order). */
+static double refl__c3_object_area(const refl_scene *scene, int i);
+
 static refl_result refl__c3_points(refl__c3 *c3) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
@@ -8233,6 +8250,15 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     refl__c3_shade_arg sa;
     refl_result r = REFL_OK;
     int i, k;
+    double expect = 0.0;
+    /* refused before a point is allocated, with what they would take */
+    for (i = 0; i < scene->object_count; ++i)
+        expect += refl__c3_object_area(scene, i) * (double)c3->s->object_density[i];
+    if (!(expect <= REFL__C3_MAX_POINTS)) {
+        refl__frame_say(p->frame, "c3rc.point_density: about %.3g points (%.0f MiB), more than C3RC's %.0f", expect,
+                        expect * REFL__C3_POINT_BYTES / 1048576.0, REFL__C3_MAX_POINTS);
+        return REFL_ERROR_INVALID_SIZE;
+    }
     pts = (refl_points **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_points *));
     if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
@@ -10181,7 +10207,8 @@ static const char *refl__options_sbc(refl_render_desc *d) {
 
 /* A frame past desc.sbc.memory_mb: OUT_OF_MEMORY, `why` in frame->message. */
 static refl_result refl__sb_over_memory(refl__sb *sb, const char *why) {
-    sb->p->frame->message = why;
+    refl__frame_say(sb->p->frame, "%s (%.0f MiB, more than sbc.memory_mb %.0f)", why,
+                    (double)sb->memory_fixed / 1048576.0, (double)sb->memory_limit / 1048576.0);
     return REFL_ERROR_OUT_OF_MEMORY;
 }
 
@@ -10230,8 +10257,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (!sb->em->surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, sb->em);
     if ((r = refl__sb_ray_maps(sb)) != REFL_OK) return r;
-    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h *
-                       (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2);
+    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h * REFL__SB_SAMPLE_BYTES;
     if (sb->memory_fixed > sb->memory_limit) return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps alone exceed it");
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
     p->frame->stats.sbc.histories += sb->side_count;
@@ -12673,6 +12699,14 @@ REFL_API void refl_renderer_destroy(refl_renderer *rr) {
     refl__free(&rr->scene->allocator, rr);
 }
 
+static void refl__frame_say(refl_frame *frame, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(frame->message_text, sizeof frame->message_text, fmt, ap);
+    va_end(ap);
+    frame->message = frame->message_text;
+}
+
 static refl_result refl__cancelled(refl_frame *frame) {
     frame->message = "cancelled by the progress callback";
     return REFL_ERROR_CANCELLED;
@@ -12753,7 +12787,8 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     if (!rr->fine && (r = refl_frame_create(fine_view.width, fine_view.height, &rr->scene->allocator, &rr->fine)) != REFL_OK)
         return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
-        frame->message = rr->fine->message;
+        if (rr->fine->message == rr->fine->message_text) refl__frame_say(frame, "%s", rr->fine->message_text);
+        else frame->message = rr->fine->message;
         return r;
     }
     refl__resolve_spp(rr->fine, frame, side);
@@ -14311,7 +14346,7 @@ static void refl__sb_emit_job(void *arg, int index) {
                                     REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
                                               refl_v3_length(refl_v3_sub(c->world, a->world))))
                         : 0.0f;
-        t.hits = g->hits + lo;
+        t.hits = g->hits ? g->hits + lo : NULL; /* none in SBC-paper mode */
         t.hit_count = 0;
         while (lo < g->hit_count && g->hits[lo].object == j->object && g->hits[lo].triangle == tr) {
             ++lo;
@@ -14565,7 +14600,14 @@ static void refl__sb_map_side(void *arg, int job) {
 
 /* Sides [first, end)'s ray maps and pieces, a job each. */
 static refl_result refl__sb_map_sides(refl__sb *sb, int first, int end) {
+    double bytes = (double)end * (double)sb->map_w * (double)sb->map_h * (double)REFL__SB_SAMPLE_BYTES;
     int i;
+    /* refused before the maps are allocated, with what they would take */
+    if (bytes > (double)sb->memory_limit) {
+        refl__frame_say(sb->p->frame, "sbc.memory_mb: %d ray maps of %dx%d samples need %.0f MiB, more than %.0f", end,
+                        sb->map_w, sb->map_h, bytes / 1048576.0, (double)sb->memory_limit / 1048576.0);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     sb->map_first = first;
     rast_run_jobs(sb->p->rc, end - first, refl__sb_map_side, sb);
     for (i = first; i < end; ++i)

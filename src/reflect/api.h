@@ -867,8 +867,10 @@ typedef struct refl_frame {
     refl_stats stats;
     const char *message;     /* after a refl_render that failed with INVALID_ARGUMENT: the
                                 rule the desc or view broke (refl_validate_render_desc's
-                                words), or with OUT_OF_MEMORY past sbc.memory_mb (SBC's
-                                bound); "" otherwise. A static string */
+                                words), with OUT_OF_MEMORY past sbc.memory_mb or
+                                INVALID_SIZE past C3RC's points (the estimate), or
+                                CANCELLED; "" otherwise. A static string or message_text */
+    char message_text[160];  /* where a message with numbers is written */
     refl_allocator allocator;
 } refl_frame;
 

@@ -10,6 +10,8 @@
 #include <string.h>
 #include <float.h>
 #include <limits.h>
+#include <stdarg.h>
+#include <stdio.h>  /* vsnprintf: messages with numbers (refl__frame_say) */
 
 #ifndef REFL_ASSERT
 #include <assert.h>
@@ -155,6 +157,10 @@ typedef struct refl__pass {
                                      NULL: every reflector is the method's */
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
 } refl__pass;
+
+/* Writes a message with numbers into frame->message_text and points
+   frame->message at it. */
+static void refl__frame_say(refl_frame *frame, const char *fmt, ...);
 
 /* Reports done (0..1) to the progress callback; nonzero when it asks to stop. */
 static inline int refl__progress(const refl__pass *p, float done) {

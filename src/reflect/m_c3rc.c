@@ -72,6 +72,8 @@ typedef struct refl__c3_job {
 #define REFL__C3_AUTO_POINTS 2e6    /* the most points the default density samples */
 #define REFL__C3_PIXELS_PER_POINT 4.0 /* the default density: a point per 2 x 2 pixels */
 #define REFL__C3_MAX_BOOST 64.0f    /* the most a magnified object's density is raised */
+#define REFL__C3_MAX_POINTS 33554432.0 /* 2^25 points at most: about 2 GiB with the kd-tree */
+#define REFL__C3_POINT_BYTES 64.0   /* per point: position, normal, colour, ids, tree */
 
 typedef struct refl__c3_counts {
     long long tests, culled, leaves, tries, valid, multiple;
@@ -668,6 +670,8 @@ static void refl__c3_shade(void *arg, int index) {
 
 /* Samples every object at the density, builds the kd-tree over the
    points and shades them (tree order). */
+static double refl__c3_object_area(const refl_scene *scene, int i);
+
 static refl_result refl__c3_points(refl__c3 *c3) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
@@ -680,6 +684,15 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     refl__c3_shade_arg sa;
     refl_result r = REFL_OK;
     int i, k;
+    double expect = 0.0;
+    /* refused before a point is allocated, with what they would take */
+    for (i = 0; i < scene->object_count; ++i)
+        expect += refl__c3_object_area(scene, i) * (double)c3->s->object_density[i];
+    if (!(expect <= REFL__C3_MAX_POINTS)) {
+        refl__frame_say(p->frame, "c3rc.point_density: about %.3g points (%.0f MiB), more than C3RC's %.0f", expect,
+                        expect * REFL__C3_POINT_BYTES / 1048576.0, REFL__C3_MAX_POINTS);
+        return REFL_ERROR_INVALID_SIZE;
+    }
     pts = (refl_points **)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_points *));
     if (!pts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {

@@ -46,7 +46,8 @@ static const char *refl__options_sbc(refl_render_desc *d) {
 
 /* A frame past desc.sbc.memory_mb: OUT_OF_MEMORY, `why` in frame->message. */
 static refl_result refl__sb_over_memory(refl__sb *sb, const char *why) {
-    sb->p->frame->message = why;
+    refl__frame_say(sb->p->frame, "%s (%.0f MiB, more than sbc.memory_mb %.0f)", why,
+                    (double)sb->memory_fixed / 1048576.0, (double)sb->memory_limit / 1048576.0);
     return REFL_ERROR_OUT_OF_MEMORY;
 }
 
@@ -95,8 +96,7 @@ static refl_result refl__sb_setup(refl__sb *sb, refl__pass *p) {
     if (!sb->em->surface) return REFL_ERROR_OUT_OF_MEMORY;
     rast_run_jobs(p->rc, p->frame->height, refl__em_surface_row, sb->em);
     if ((r = refl__sb_ray_maps(sb)) != REFL_OK) return r;
-    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h *
-                       (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2);
+    sb->memory_fixed = (size_t)sb->side_count * (size_t)sb->map_w * (size_t)sb->map_h * REFL__SB_SAMPLE_BYTES;
     if (sb->memory_fixed > sb->memory_limit) return refl__sb_over_memory(sb, "sbc.memory_mb: the ray maps alone exceed it");
     if ((r = refl__sb_groups(sb)) != REFL_OK) return r;
     p->frame->stats.sbc.histories += sb->side_count;

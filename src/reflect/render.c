@@ -506,6 +506,14 @@ REFL_API void refl_renderer_destroy(refl_renderer *rr) {
     refl__free(&rr->scene->allocator, rr);
 }
 
+static void refl__frame_say(refl_frame *frame, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(frame->message_text, sizeof frame->message_text, fmt, ap);
+    va_end(ap);
+    frame->message = frame->message_text;
+}
+
 static refl_result refl__cancelled(refl_frame *frame) {
     frame->message = "cancelled by the progress callback";
     return REFL_ERROR_CANCELLED;
@@ -586,7 +594,8 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     if (!rr->fine && (r = refl_frame_create(fine_view.width, fine_view.height, &rr->scene->allocator, &rr->fine)) != REFL_OK)
         return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
-        frame->message = rr->fine->message;
+        if (rr->fine->message == rr->fine->message_text) refl__frame_say(frame, "%s", rr->fine->message_text);
+        else frame->message = rr->fine->message;
         return r;
     }
     refl__resolve_spp(rr->fine, frame, side);

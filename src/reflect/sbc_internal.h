@@ -28,6 +28,11 @@
 
 /* ---- the state of a frame ------------------------------------------------------ */
 
+/* What a side's ray map holds per sample (refl__sb_side: rays, hits, normals,
+   comp, group, valid, crossing): the bound desc.sbc.memory_mb counts it. */
+#define REFL__SB_SAMPLE_BYTES \
+    (sizeof(refl_sbc_ray) + sizeof(refl__sbc_hit) + sizeof(refl_vec3) + 2 * sizeof(int) + 2)
+
 /* A reflector object's side seen: its ray map over the whole frame. */
 typedef struct refl__sb_side {
     int object;                   /* the last reflector of its history */

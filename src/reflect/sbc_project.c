@@ -510,7 +510,7 @@ static void refl__sb_emit_job(void *arg, int index) {
                                     REFL__MAX(refl_v3_length(refl_v3_sub(b->world, c->world)),
                                               refl_v3_length(refl_v3_sub(c->world, a->world))))
                         : 0.0f;
-        t.hits = g->hits + lo;
+        t.hits = g->hits ? g->hits + lo : NULL; /* none in SBC-paper mode */
         t.hit_count = 0;
         while (lo < g->hit_count && g->hits[lo].object == j->object && g->hits[lo].triangle == tr) {
             ++lo;

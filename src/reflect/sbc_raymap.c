@@ -144,7 +144,14 @@ static void refl__sb_map_side(void *arg, int job) {
 
 /* Sides [first, end)'s ray maps and pieces, a job each. */
 static refl_result refl__sb_map_sides(refl__sb *sb, int first, int end) {
+    double bytes = (double)end * (double)sb->map_w * (double)sb->map_h * (double)REFL__SB_SAMPLE_BYTES;
     int i;
+    /* refused before the maps are allocated, with what they would take */
+    if (bytes > (double)sb->memory_limit) {
+        refl__frame_say(sb->p->frame, "sbc.memory_mb: %d ray maps of %dx%d samples need %.0f MiB, more than %.0f", end,
+                        sb->map_w, sb->map_h, bytes / 1048576.0, (double)sb->memory_limit / 1048576.0);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     sb->map_first = first;
     rast_run_jobs(sb->p->rc, end - first, refl__sb_map_side, sb);
     for (i = first; i < end; ++i)

@@ -366,6 +366,8 @@ Test(refl_c3rc, bad_settings) {
     d.c3rc.camera_split_px = 0.0f;
     d.c3rc.point_density = 1e9f; /* 1e9 points per unit area: too many to sample */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_SIZE);
+    cr_assert(strstr(f->message, "c3rc.point_density: about ") && strstr(f->message, "MiB), more than C3RC's"), "%s",
+              f->message);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }

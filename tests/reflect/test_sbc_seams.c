@@ -101,5 +101,23 @@ Test(refl_sbc_seams, mode_and_memory_options, .timeout = 120) {
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
     cr_assert_str_eq(f->message, "");
     refl_frame_destroy(f);
+    /* ray maps over the bound are refused before they are allocated, the
+       estimate in the message; through the supersampled frame too */
+    v.width = 640;
+    v.height = 480;
+    d.sbc.memory_mb = 1;
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_OUT_OF_MEMORY);
+    cr_assert(strstr(f->message, "ray maps of 320x240 samples need") && strstr(f->message, "MiB, more than 1"), "%s",
+              f->message);
+    v.width = 320;
+    v.height = 240;
+    d.spp = 4;
+    refl_frame_destroy(f);
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_OUT_OF_MEMORY);
+    cr_assert(strstr(f->message, "ray maps of 320x240 samples need"), "%s", f->message);
+    cr_assert(f->message == f->message_text, "the frame holds its own copy");
+    refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
