@@ -1207,6 +1207,21 @@ typedef struct refl_image_error {
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out);
 
+/* Flicker along a camera path: how much more a method's reflector pixels
+   change from one frame to the next than the truth's do. Per pixel that is
+   a reflector in both truth frames, the change of each (the largest RGB
+   channel difference, in 8-bit levels of the clamped linear colour, as
+   refl_measure_image_error counts) and the excess max(0, test's - truth's);
+   a method that follows the truth smoothly has excess 0 however fast the
+   camera moves. No pixels: all 0. */
+typedef struct refl_flicker {
+    long long pixels;
+    double mean, p95;        /* the excess, in levels; p95 by nearest rank */
+    double test_change, truth_change; /* the mean change of each, in levels */
+} refl_flicker;
+REFL_API refl_result refl_measure_flicker(const refl_frame *test_prev, const refl_frame *test,
+                                          const refl_frame *truth_prev, const refl_frame *truth, refl_flicker *out);
+
 /* The world ray through window point (px, py) of a view (pixel centres at
    x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
    plane, reaching the far plane at *tmax, as the rasteriser clips. Any
@@ -12060,6 +12075,58 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
     }
     return REFL_OK;
 }
+
+/* The largest RGB channel difference of pixel i between two frames, in
+   8-bit levels. */
+static int refl__level_change(const refl_frame *a, const refl_frame *b, size_t i) {
+    int c, worst = 0;
+    for (c = 0; c < 3; ++c) {
+        int d = (int)refl__unorm8(a->rgba[4 * i + (size_t)c]) - (int)refl__unorm8(b->rgba[4 * i + (size_t)c]);
+        worst = REFL__MAX(worst, d < 0 ? -d : d);
+    }
+    return worst;
+}
+
+REFL_API refl_result refl_measure_flicker(const refl_frame *test_prev, const refl_frame *test,
+                                          const refl_frame *truth_prev, const refl_frame *truth, refl_flicker *out) {
+    long long histogram[256], count = 0, rank, seen = 0;
+    double excess = 0.0, test_sum = 0.0, truth_sum = 0.0;
+    size_t n, i;
+    int level;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if ((r = refl__metric_frames(test, truth)) != REFL_OK || (r = refl__metric_frames(test_prev, truth)) != REFL_OK ||
+        (r = refl__metric_frames(truth_prev, truth)) != REFL_OK)
+        return r;
+    if (!test->rgba || !test_prev->rgba || !truth->rgba || !truth_prev->rgba || !truth->stencil || !truth_prev->stencil)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    memset(histogram, 0, sizeof histogram);
+    n = (size_t)truth->width * (size_t)truth->height;
+    for (i = 0; i < n; ++i) {
+        int dt, dr;
+        if (!truth->stencil[i] || !truth_prev->stencil[i]) continue;
+        dt = refl__level_change(test, test_prev, i);
+        dr = refl__level_change(truth, truth_prev, i);
+        histogram[REFL__MAX(dt - dr, 0)]++;
+        excess += REFL__MAX(dt - dr, 0);
+        test_sum += dt;
+        truth_sum += dr;
+        ++count;
+    }
+    out->pixels = count;
+    if (!count) return REFL_OK;
+    out->mean = excess / (double)count;
+    out->test_change = test_sum / (double)count;
+    out->truth_change = truth_sum / (double)count;
+    rank = (long long)ceil(0.95 * (double)count); /* nearest rank */
+    for (level = 0; level < 256; ++level) {
+        seen += histogram[level];
+        if (seen >= rank) break;
+    }
+    out->p95 = level;
+    return REFL_OK;
+}
 /* ---- src/reflect/planar_faces.c ---- */
 /* Planar reflector faces, shared by PLANAR (paper 002's mirrors and
    refractors) and by the light volumes of both PLANAR and RAYTRACE: each
@@ -12551,7 +12618,11 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     r = refl__result_from_rast(rast_set_targets(rc, &t));
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
     if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
-    if (r != REFL_OK || (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME)) return r;
+    /* a whole-frame method writes the frame itself: the clear goes first,
+       not when the context next flushes (onto this frame, kept by then) */
+    if (r == REFL_OK && (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME))
+        return refl__result_from_rast(rast_finish(rc));
+    if (r != REFL_OK) return r;
     r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
@@ -12731,6 +12802,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     frame->stats.depth = rr->desc.depth;
     if (r == REFL_OK && refl__progress(&p, 0.0f)) r = REFL_ERROR_CANCELLED;
     if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_OK) r = refl__result_from_rast(rast_finish(rr->rc)); /* nothing left pending on this frame */
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r != REFL_OK) return r;
     refl__opaque(frame);

@@ -132,6 +132,11 @@ refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --en
 refuses "--time-limit stops a long render and writes nothing" "stopped at the time limit.*nothing written" \
     "$bin" render --builtin glass --method raytrace --depth 8 --size 1024x768 --time-limit 0.05 --out "$tmp/limited.png"
 ok "nothing written after the time limit" test ! -e "$tmp/limited.png"
+ok "path: every frame of each method against the truth" bash -c "'$bin' path --builtin default --frames 3 --size 32x24 \
+    --methods envmap,PLANAR --out '$tmp/path' --images >/dev/null && [ \$(wc -l <'$tmp/path/orbit.csv') = 7 ] && \
+    grep -q '^orbit,planar,2,.*,0.0000,0.0000,0.00000,0.00000,999.000,0.0000,0.0$' '$tmp/path/orbit.csv' && \
+    [ -s '$tmp/path/envmap-0002.png' ] && [ -s '$tmp/path/raytrace-0000.png' ]"
+exits2 "path: an unknown path" "orbit, dolly, pan or focus" "$bin" path --path spiral
 refuses "a device is not a scene file" "/dev/zero: not a regular file" "$bin" info /dev/zero
 exits2 "method not built yet" "not built yet: .auto.; the methods are: direct raytrace" "$bin" render --builtin default --method auto --out "$tmp/z.png"
 

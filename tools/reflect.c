@@ -32,6 +32,7 @@ static const char *const usage_main =
     "  compare  RMSE, PSNR and pixels over a threshold between two images\n"
     "  bench    every method x scene x setting: times, errors, CSV and charts\n"
     "           (bench --gl: the GL path's projection rates and frames, docs/gl.md)\n"
+    "  path     every method along a camera path: error, time and flicker per frame\n"
     "\n"
     "'reflect COMMAND --help' describes each command; 'reflect --version' prints\n"
     "the version.\n";
@@ -812,6 +813,7 @@ int main(int argc, char **argv) {
         return is_render ? cmd_render(&o) : cmd_info(&o);
     }
     if (!strcmp(argv[1], "compare")) return cmd_compare(argc, argv);
+    if (!strcmp(argv[1], "path")) return refl_cli_path(argc, argv);
     if (!strcmp(argv[1], "bench")) {
         int i;
         for (i = 2; i < argc; ++i)

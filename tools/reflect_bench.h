@@ -8,6 +8,10 @@
 /* argv[1] is "bench"; returns the process exit status. */
 int refl_cli_bench(int argc, char **argv);
 
+/* argv[1] is "path" (tools/reflect_path.c): every method along a camera
+   path against RAYTRACE; returns the process exit status. */
+int refl_cli_path(int argc, char **argv);
+
 /* Writes script to script_path and runs gnuplot on it; 0 on failure. */
 int refl_bench_gnuplot(const char *script_path, const char *script);
 

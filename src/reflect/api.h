@@ -1205,6 +1205,21 @@ typedef struct refl_image_error {
 REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl_frame *truth, int reflectors_only,
                                              float threshold, refl_image_error *out);
 
+/* Flicker along a camera path: how much more a method's reflector pixels
+   change from one frame to the next than the truth's do. Per pixel that is
+   a reflector in both truth frames, the change of each (the largest RGB
+   channel difference, in 8-bit levels of the clamped linear colour, as
+   refl_measure_image_error counts) and the excess max(0, test's - truth's);
+   a method that follows the truth smoothly has excess 0 however fast the
+   camera moves. No pixels: all 0. */
+typedef struct refl_flicker {
+    long long pixels;
+    double mean, p95;        /* the excess, in levels; p95 by nearest rank */
+    double test_change, truth_change; /* the mean change of each, in levels */
+} refl_flicker;
+REFL_API refl_result refl_measure_flicker(const refl_frame *test_prev, const refl_frame *test,
+                                          const refl_frame *truth_prev, const refl_frame *truth, refl_flicker *out);
+
 /* The world ray through window point (px, py) of a view (pixel centres at
    x + 0.5, y + 0.5, row 0 at the top): unit dir, starting on the near
    plane, reaching the far plane at *tmax, as the rasteriser clips. Any

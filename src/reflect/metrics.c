@@ -391,3 +391,55 @@ REFL_API refl_result refl_measure_image_error(const refl_frame *test, const refl
     }
     return REFL_OK;
 }
+
+/* The largest RGB channel difference of pixel i between two frames, in
+   8-bit levels. */
+static int refl__level_change(const refl_frame *a, const refl_frame *b, size_t i) {
+    int c, worst = 0;
+    for (c = 0; c < 3; ++c) {
+        int d = (int)refl__unorm8(a->rgba[4 * i + (size_t)c]) - (int)refl__unorm8(b->rgba[4 * i + (size_t)c]);
+        worst = REFL__MAX(worst, d < 0 ? -d : d);
+    }
+    return worst;
+}
+
+REFL_API refl_result refl_measure_flicker(const refl_frame *test_prev, const refl_frame *test,
+                                          const refl_frame *truth_prev, const refl_frame *truth, refl_flicker *out) {
+    long long histogram[256], count = 0, rank, seen = 0;
+    double excess = 0.0, test_sum = 0.0, truth_sum = 0.0;
+    size_t n, i;
+    int level;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    if ((r = refl__metric_frames(test, truth)) != REFL_OK || (r = refl__metric_frames(test_prev, truth)) != REFL_OK ||
+        (r = refl__metric_frames(truth_prev, truth)) != REFL_OK)
+        return r;
+    if (!test->rgba || !test_prev->rgba || !truth->rgba || !truth_prev->rgba || !truth->stencil || !truth_prev->stencil)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    memset(histogram, 0, sizeof histogram);
+    n = (size_t)truth->width * (size_t)truth->height;
+    for (i = 0; i < n; ++i) {
+        int dt, dr;
+        if (!truth->stencil[i] || !truth_prev->stencil[i]) continue;
+        dt = refl__level_change(test, test_prev, i);
+        dr = refl__level_change(truth, truth_prev, i);
+        histogram[REFL__MAX(dt - dr, 0)]++;
+        excess += REFL__MAX(dt - dr, 0);
+        test_sum += dt;
+        truth_sum += dr;
+        ++count;
+    }
+    out->pixels = count;
+    if (!count) return REFL_OK;
+    out->mean = excess / (double)count;
+    out->test_change = test_sum / (double)count;
+    out->truth_change = truth_sum / (double)count;
+    rank = (long long)ceil(0.95 * (double)count); /* nearest rank */
+    for (level = 0; level < 256; ++level) {
+        seen += histogram[level];
+        if (seen >= rank) break;
+    }
+    out->p95 = level;
+    return REFL_OK;
+}

@@ -358,7 +358,11 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     r = refl__result_from_rast(rast_set_targets(rc, &t));
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_state(rc, &state));
     if (r == REFL_OK) r = refl__result_from_rast(rast_clear(rc, &clear));
-    if (r != REFL_OK || (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME)) return r;
+    /* a whole-frame method writes the frame itself: the clear goes first,
+       not when the context next flushes (onto this frame, kept by then) */
+    if (r == REFL_OK && (refl__method_row_of(desc->method)->kind & REFL__WHOLE_FRAME))
+        return refl__result_from_rast(rast_finish(rc));
+    if (r != REFL_OK) return r;
     r = refl__draw_scene(rc, scene, p->vp, -1, &frame->stats);
     /* shadows: the pixels a light cannot (wholly) reach shaded again (shadow.c) */
     if (r == REFL_OK && desc->lighting.shadows) r = refl__shadow_base_pass(p);
@@ -538,6 +542,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     frame->stats.depth = rr->desc.depth;
     if (r == REFL_OK && refl__progress(&p, 0.0f)) r = REFL_ERROR_CANCELLED;
     if (r == REFL_OK) r = (row->kind & REFL__WHOLE_FRAME) ? row->draw(&p) : refl__draw_reflectors(&p);
+    if (r == REFL_OK) r = refl__result_from_rast(rast_finish(rr->rc)); /* nothing left pending on this frame */
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r != REFL_OK) return r;
     refl__opaque(frame);

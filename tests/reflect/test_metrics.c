@@ -651,3 +651,40 @@ Test(refl_metrics, raytrace_against_itself, .timeout = 120) {
     refl_frame_destroy(a);
     refl_scene_destroy(s);
 }
+
+/* A w x 1 frame of one grey level per pixel (levels[i] / 255), reflector
+   pixels where stencil[i]. */
+static refl_frame *grey_frame(int w, const int *levels, const uint8_t *stencil) {
+    refl_frame *f;
+    int i, c;
+    cr_assert_eq(refl_frame_create(w, 1, NULL, &f), REFL_OK);
+    for (i = 0; i < w; ++i) {
+        for (c = 0; c < 3; ++c) f->rgba[4 * i + c] = (float)levels[i] / 255.0f;
+        f->rgba[4 * i + 3] = 1.0f;
+        f->stencil[i] = stencil[i];
+    }
+    return f;
+}
+
+/* Known answers: a method that changes as the truth does flickers 0; one
+   pixel of two jumping 10 levels where the truth moves 4 is an excess of 6
+   there (mean 3, p95 6); pixels outside the truth's reflectors, in either
+   frame, do not count. */
+Test(refl_metrics, flicker_known_answers) {
+    static const uint8_t stencil[4] = {1, 1, 1, 0}, stencil_prev[4] = {1, 1, 0, 0};
+    static const int zero[4] = {0, 0, 0, 0}, truth_now[4] = {4, 0, 0, 0}, test_now[4] = {10, 0, 200, 90};
+    refl_frame *truth_prev = grey_frame(4, zero, stencil_prev), *truth = grey_frame(4, truth_now, stencil);
+    refl_frame *test_prev = grey_frame(4, zero, stencil_prev), *test = grey_frame(4, test_now, stencil);
+    refl_flicker fl;
+    cr_assert_eq(refl_measure_flicker(truth_prev, truth, truth_prev, truth, &fl), REFL_OK);
+    cr_assert(fl.pixels == 2 && fl.mean == 0.0 && fl.p95 == 0.0 && fl.test_change == 2.0 && fl.truth_change == 2.0);
+    cr_assert_eq(refl_measure_flicker(test_prev, test, truth_prev, truth, &fl), REFL_OK);
+    cr_assert_eq(fl.pixels, 2, "pixel 2 is no reflector in the previous truth, pixel 3 in neither");
+    cr_assert(fl.mean == 3.0 && fl.p95 == 6.0, "mean %g p95 %g", fl.mean, fl.p95);
+    cr_assert(fl.test_change == 5.0 && fl.truth_change == 2.0);
+    cr_assert_eq(refl_measure_flicker(test_prev, test, truth_prev, NULL, &fl), REFL_ERROR_INVALID_ARGUMENT);
+    refl_frame_destroy(truth_prev);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(test_prev);
+    refl_frame_destroy(test);
+}

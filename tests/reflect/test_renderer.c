@@ -253,3 +253,40 @@ Test(refl_renderer, the_progress_callback_reports_and_cancels, .timeout = 120) {
         refl_scene_destroy(s);
     }
 }
+
+/* A frame a renderer finished is the caller's: rendering the next frame
+   (another frame, another view) leaves every byte of it as it was, for
+   every method. */
+Test(refl_renderer, a_finished_frame_is_left_alone_by_the_next, .timeout = 120) {
+    int m;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        refl_view v, w;
+        refl_scene *s;
+        refl_render_desc d;
+        refl_frame *a, *b, *copy;
+        refl_renderer *rr;
+        size_t n;
+        if (!refl_method_is_built((refl_method)m)) continue;
+        s = tu_refl_builtin("default", &v, 40, 30);
+        d = tu_refl_one_bounce((refl_method)m, 2);
+        w = path_view(s, 5, 40, 30);
+        n = (size_t)v.width * (size_t)v.height;
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &a), REFL_OK);
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &b), REFL_OK);
+        cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &copy), REFL_OK);
+        cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+        cr_assert_eq(refl_renderer_render(rr, &v, a), REFL_OK);
+        memcpy(copy->rgba, a->rgba, n * 4 * sizeof(float));
+        memcpy(copy->depth, a->depth, n * sizeof(float));
+        memcpy(copy->stencil, a->stencil, n);
+        cr_assert_eq(refl_renderer_render(rr, &w, b), REFL_OK);
+        cr_expect_eq(memcmp(copy->rgba, a->rgba, n * 4 * sizeof(float)), 0, "%s: colour", refl_method_name((refl_method)m));
+        cr_expect_eq(memcmp(copy->depth, a->depth, n * sizeof(float)), 0, "%s: depth", refl_method_name((refl_method)m));
+        cr_expect_eq(memcmp(copy->stencil, a->stencil, n), 0, "%s: stencil", refl_method_name((refl_method)m));
+        refl_renderer_destroy(rr);
+        refl_frame_destroy(a);
+        refl_frame_destroy(b);
+        refl_frame_destroy(copy);
+        refl_scene_destroy(s);
+    }
+}

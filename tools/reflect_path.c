@@ -1,0 +1,281 @@
+/* reflect path: every method along a camera path, against RAYTRACE at the
+   same depth: per frame its time, reflection error and PSNR over the
+   reflectors, and its flicker (refl_measure_flicker: how much more its
+   reflector pixels change from frame to frame than the truth's do). Each
+   method renders through one renderer kept along the path, as an
+   application would. Writes DIR/PATH.csv, a summary table on stdout (the
+   worst frame of each method is where it pops), and with --images the
+   numbered frames DIR/METHOD-0000.png ... for a video. */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "gltf_load.h"
+#include "image_io.h"
+#include "reflect_bench.h"
+
+static const char *const usage_path =
+    "usage: reflect path [SCENE.glb | --builtin NAME] [options]\n"
+    "\n"
+    "Renders every built method (or --methods) along a camera path and\n"
+    "measures each frame against RAYTRACE at the same depth.\n"
+    "\n"
+    "  --path P           orbit (default): 60 degrees around the camera's target;\n"
+    "                     dolly: towards the target, from 1 to 0.3 of its distance;\n"
+    "                     pan: the target swept sideways across half the view;\n"
+    "                     focus: towards the target to 0.05 of its distance\n"
+    "                     (into a concave mirror's focus)\n"
+    "  --frames N         frames along the path, 2..10000 (default 30)\n"
+    "  --methods LIST     comma-separated method names (default: every built method\n"
+    "                     but raytrace and direct)\n"
+    "  --size WxH         frame size (default 160x120)\n"
+    "  --depth N          bounces, for the truth too (default 1)\n"
+    "  --threads N        worker threads (default: one per CPU)\n"
+    "  --out DIR          where PATH.csv goes (default out/path)\n"
+    "  --images           also write DIR/METHOD-NNNN.png for every frame\n";
+
+typedef struct path_options {
+    const char *file, *builtin, *path, *out;
+    refl_method methods[REFL_METHOD_COUNT];
+    int method_count, frames, width, height, depth, threads, images;
+} path_options;
+
+static int path_fail(const char *what, const char *value) {
+    fprintf(stderr, "reflect path: %s%s\n", what, value ? value : "");
+    return 2;
+}
+
+static int parse_methods(const char *list, path_options *o) {
+    char buf[256], *tok, *save = NULL;
+    if (strlen(list) >= sizeof buf) return 0;
+    strcpy(buf, list);
+    for (tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        refl_method m = refl_method_from_name(tok);
+        if (!m || !refl_method_is_built(m) || o->method_count == REFL_METHOD_COUNT) return 0;
+        o->methods[o->method_count++] = m;
+    }
+    return o->method_count > 0;
+}
+
+static int parse_path_options(int argc, char **argv, path_options *o) {
+    int i;
+    memset(o, 0, sizeof *o);
+    o->path = "orbit";
+    o->out = "out/path";
+    o->frames = 30;
+    o->width = 160;
+    o->height = 120;
+    o->depth = 1;
+    for (i = 2; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        char extra;
+        int takes = strcmp(a, "--images") && strcmp(a, "--help") && strcmp(a, "-h") && a[0] == '-';
+        if (takes && !v) return path_fail("needs a value: ", a);
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            fputs(usage_path, stdout);
+            return 1;
+        } else if (!strcmp(a, "--images")) {
+            o->images = 1;
+            continue;
+        } else if (!strcmp(a, "--builtin")) {
+            o->builtin = v;
+        } else if (!strcmp(a, "--path")) {
+            if (strcmp(v, "orbit") && strcmp(v, "dolly") && strcmp(v, "pan") && strcmp(v, "focus"))
+                return path_fail("--path: orbit, dolly, pan or focus, not ", v);
+            o->path = v;
+        } else if (!strcmp(a, "--frames")) {
+            if (sscanf(v, "%d%c", &o->frames, &extra) != 1 || o->frames < 2 || o->frames > 10000)
+                return path_fail("--frames: 2..10000, not ", v);
+        } else if (!strcmp(a, "--methods")) {
+            if (!parse_methods(v, o)) return path_fail("--methods: built method names separated by commas, not ", v);
+        } else if (!strcmp(a, "--size")) {
+            if (sscanf(v, "%dx%d%c", &o->width, &o->height, &extra) != 2 || o->width < 1 || o->height < 1 ||
+                o->width > 4096 || o->height > 4096)
+                return path_fail("--size: WxH, each 1..4096, not ", v);
+        } else if (!strcmp(a, "--depth")) {
+            if (sscanf(v, "%d%c", &o->depth, &extra) != 1 || o->depth < 1 || o->depth > 64)
+                return path_fail("--depth: 1..64, not ", v);
+        } else if (!strcmp(a, "--threads")) {
+            if (sscanf(v, "%d%c", &o->threads, &extra) != 1 || o->threads < 0 || o->threads > RAST_MAX_THREADS)
+                return path_fail("--threads: 0..64, not ", v);
+        } else if (!strcmp(a, "--out")) {
+            o->out = v;
+        } else if (a[0] == '-') {
+            return path_fail("unknown option (see reflect path --help): ", a);
+        } else {
+            if (o->file) return path_fail("more than one scene given: ", a);
+            o->file = a;
+            continue;
+        }
+        ++i;
+    }
+    if (!o->file && !o->builtin) o->builtin = "default";
+    if (!o->method_count) {
+        refl_method m;
+        for (m = (refl_method)1; m < REFL_METHOD_COUNT; m = (refl_method)(m + 1))
+            if (refl_method_is_built(m) && m != REFL_RAYTRACE && m != REFL_DIRECT) o->methods[o->method_count++] = m;
+    }
+    return 0;
+}
+
+/* Frame k of n along the path, from the scene's camera. */
+static refl_view path_view(const refl_scene *s, const path_options *o, int k) {
+    refl_view v = s->camera;
+    refl_vec3 off = refl_v3_sub(v.eye, v.target);
+    float u = (float)k / (float)(o->frames - 1);
+    if (!strcmp(o->path, "orbit")) {
+        float a = u * 1.04719755f, c = cosf(a), sn = sinf(a); /* 60 degrees about +y */
+        v.eye = refl_v3_add(v.target, refl_v3(c * off.x + sn * off.z, off.y, -sn * off.x + c * off.z));
+    } else if (!strcmp(o->path, "dolly") || !strcmp(o->path, "focus")) {
+        float end = !strcmp(o->path, "dolly") ? 0.3f : 0.05f;
+        v.eye = refl_v3_add(v.target, refl_v3_scale(off, 1.0f + (end - 1.0f) * u));
+    } else { /* pan: eye and target sideways, across half the view's width at the target */
+        float fov = v.fovy_degrees > 0.0f ? v.fovy_degrees : 45.0f;
+        float half = refl_v3_length(off) * tanf(fov * 0.00872664626f) * (float)o->width / (float)o->height;
+        refl_vec3 up = refl_v3_length(v.up) > 0.0f ? v.up : refl_v3(0, 1, 0);
+        refl_vec3 side = refl_v3_normalize(refl_v3_cross(off, up));
+        refl_vec3 shift = refl_v3_scale(side, half * (u - 0.5f));
+        v.eye = refl_v3_add(v.eye, shift);
+        v.target = refl_v3_add(v.target, shift);
+    }
+    v.width = o->width;
+    v.height = o->height;
+    return v;
+}
+
+static refl_scene *path_scene(const path_options *o) {
+    refl_scene *s = NULL;
+    char err[512] = "";
+    refl_result r;
+    if (o->builtin) {
+        r = refl_scene_builtin(o->builtin, NULL, &s);
+        if (r != REFL_OK) fprintf(stderr, "reflect path: built-in scene '%s': %s\n", o->builtin, refl_result_string(r));
+    } else {
+        r = refl_gltf_load(o->file, NULL, &s, err, sizeof err);
+        if (r != REFL_OK) fprintf(stderr, "reflect path: %s\n", err[0] ? err : refl_result_string(r));
+    }
+    if (r == REFL_OK && !s->has_camera) refl_scene_complete(s);
+    return r == REFL_OK ? s : NULL;
+}
+
+static int write_png(const char *dir, const char *method, int k, const refl_frame *f) {
+    char path[1024], err[256];
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    uint8_t *px = (uint8_t *)malloc(n * 4);
+    refl_result r;
+    if (!px) return 0;
+    refl_frame_to_srgb8(f, NULL, px);
+    for (i = 0; i < n; ++i) memmove(px + 3 * i, px + 4 * i, 3);
+    snprintf(path, sizeof path, "%s/%s-%04d.png", dir, method, k);
+    r = refl_image_write(path, f->width, f->height, 3, px, NULL, err, sizeof err);
+    free(px);
+    if (r != REFL_OK) fprintf(stderr, "reflect path: %s\n", err);
+    return r == REFL_OK;
+}
+
+/* One method's running totals along the path. */
+typedef struct path_totals {
+    double ms, mean_px, flicker_mean, flicker_p95, worst_flicker;
+    int worst_frame, frames;
+} path_totals;
+
+int refl_cli_path(int argc, char **argv) {
+    path_options o;
+    refl_scene *s;
+    refl_renderer *rr[REFL_METHOD_COUNT + 1] = {0};
+    refl_frame *now[REFL_METHOD_COUNT + 1] = {0}, *prev[REFL_METHOD_COUNT + 1] = {0};
+    path_totals tot[REFL_METHOD_COUNT];
+    char csv_path[1024];
+    FILE *csv = NULL;
+    int code = 1, k, m, r = parse_path_options(argc, argv, &o);
+    if (r) return r == 1 ? 0 : 2;
+    if (!(s = path_scene(&o))) return 1;
+    memset(tot, 0, sizeof tot);
+    mkdir(o.out, 0777); /* may exist */
+    snprintf(csv_path, sizeof csv_path, "%s/%s.csv", o.out, o.path);
+    if (!(csv = fopen(csv_path, "w"))) {
+        fprintf(stderr, "reflect path: cannot write %s\n", csv_path);
+        goto done;
+    }
+    fprintf(csv, "path,method,frame,ms,mean_px,p95_px,wrong,empty,psnr_db,flicker_mean,flicker_p95\n");
+    /* renderer o.method_count is the truth's */
+    for (m = 0; m <= o.method_count; ++m) {
+        refl_render_desc d;
+        memset(&d, 0, sizeof d);
+        d.method = m < o.method_count ? o.methods[m] : REFL_RAYTRACE;
+        d.depth = o.depth;
+        d.threads = o.threads;
+        if (refl_renderer_create(s, &d, &rr[m]) != REFL_OK || refl_frame_create(o.width, o.height, NULL, &now[m]) != REFL_OK ||
+            refl_frame_create(o.width, o.height, NULL, &prev[m]) != REFL_OK) {
+            fprintf(stderr, "reflect path: cannot set up %s\n", refl_method_name(d.method));
+            goto done;
+        }
+    }
+    for (k = 0; k < o.frames; ++k) {
+        refl_view v = path_view(s, &o, k);
+        refl_frame *truth = now[o.method_count];
+        refl_result rt = refl_renderer_render(rr[o.method_count], &v, truth);
+        if (rt != REFL_OK) {
+            fprintf(stderr, "reflect path: frame %d: raytrace: %s %s\n", k, refl_result_string(rt), truth->message);
+            goto done;
+        }
+        for (m = 0; m < o.method_count; ++m) {
+            const char *name = refl_method_name(o.methods[m]);
+            refl_reflection_error e;
+            refl_image_error ie;
+            refl_flicker fl;
+            refl_result rm = refl_renderer_render(rr[m], &v, now[m]);
+            if (rm != REFL_OK) {
+                fprintf(stderr, "reflect path: frame %d: %s: %s %s\n", k, name, refl_result_string(rm), now[m]->message);
+                goto done;
+            }
+            refl_measure_reflection_error(now[m], truth, NULL, &e);
+            refl_measure_image_error(now[m], truth, 1, 0.0f, &ie);
+            memset(&fl, 0, sizeof fl);
+            if (k > 0) refl_measure_flicker(prev[m], now[m], prev[o.method_count], truth, &fl);
+            fprintf(csv, "%s,%s,%d,%.3f,%.4f,%.4f,%.5f,%.5f,%.3f,%.4f,%.1f\n", o.path, name, k, now[m]->stats.ms_total,
+                    e.mean, e.p95, e.wrong, e.empty, isinf(ie.psnr) ? 999.0 : ie.psnr, fl.mean, fl.p95);
+            tot[m].ms += now[m]->stats.ms_total;
+            tot[m].mean_px += e.mean;
+            tot[m].frames++;
+            if (k > 0) {
+                tot[m].flicker_mean += fl.mean;
+                tot[m].flicker_p95 += fl.p95;
+                if (fl.mean > tot[m].worst_flicker) {
+                    tot[m].worst_flicker = fl.mean;
+                    tot[m].worst_frame = k;
+                }
+            }
+            if (o.images && !write_png(o.out, name, k, now[m])) goto done;
+        }
+        if (o.images && !write_png(o.out, "raytrace", k, truth)) goto done;
+        for (m = 0; m <= o.method_count; ++m) { /* this frame becomes the previous one */
+            refl_frame *t = prev[m];
+            prev[m] = now[m];
+            now[m] = t;
+        }
+        if (isatty(2)) fprintf(stderr, "\rreflect path: %s, frame %d of %d%s", o.path, k + 1, o.frames,
+                               k + 1 == o.frames ? "\n" : "");
+    }
+    printf("%-12s %10s %10s %14s %13s %s\n", "method", "mean ms", "mean px", "flicker mean", "flicker p95",
+           "worst frame (flicker)");
+    for (m = 0; m < o.method_count; ++m)
+        printf("%-12s %10.2f %10.3f %14.3f %13.2f %d (%.3f)\n", refl_method_name(o.methods[m]), tot[m].ms / tot[m].frames,
+               tot[m].mean_px / tot[m].frames, tot[m].flicker_mean / (tot[m].frames - 1),
+               tot[m].flicker_p95 / (tot[m].frames - 1), tot[m].worst_frame, tot[m].worst_flicker);
+    printf("per frame: %s\n", csv_path);
+    code = 0;
+done:
+    if (csv) fclose(csv);
+    for (m = 0; m <= o.method_count; ++m) {
+        refl_renderer_destroy(rr[m]);
+        refl_frame_destroy(now[m]);
+        refl_frame_destroy(prev[m]);
+    }
+    refl_scene_destroy(s);
+    return code;
+}
