@@ -75,6 +75,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/base_pass.c \
                  src/reflect/bvh.c \
                  src/reflect/cam_c3rc.c \
+                 src/reflect/cam_graph.c \
                  src/reflect/cam_sbc.c \
                  src/reflect/cam_sbc_fit.c \
                  src/reflect/cam_sbc_morph.c \
@@ -85,6 +86,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_envmap.c \
+                 src/reflect/m_graphcam.c \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \
