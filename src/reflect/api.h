@@ -850,9 +850,11 @@ typedef struct refl_graphcam_hit {
 } refl_graphcam_hit;
 
 /* The first crossing of the ray o + t dir, t in (tmin, tmax], with the
-   impostor's depth, where the crossing's impostor point lies within two
-   pixel footprints of the ray (no hits on the "skins" between depth
-   layers). step: REFL_GRAPHCAM_SEGMENTS: pixels a step (0: 1);
+   impostor's depth (the ray in front of the stored depth at one sample,
+   behind it at the next, both in pixels of the sample's own frustum),
+   except where the stored depth jumps between the two samples' pixels by
+   more than three times the ray's own depth change plus twice the
+   surface's local slope: the "skins" between depth layers. step: REFL_GRAPHCAM_SEGMENTS: pixels a step (0: 1);
    REFL_GRAPHCAM_UNIFORM: world units a step (0: the camera's bounds'
    diagonal / 2048). 1 when hit; hit->steps counts either way. */
 REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,

@@ -155,12 +155,12 @@ static int refl__gci_overlaps(const refl_scene *s, int i, const refl_graphcam_fr
              wlo.z > f->hi.z);
 }
 
-REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const refl_graphcam *cam,
-                                                  const uint8_t *skip, int threads, refl_graphcam_impostor **out) {
+/* The impostor drawn with rc (its targets rebound to the impostor's). */
+static refl_result refl__gci_build(const refl_scene *scene, const refl_graphcam *cam, const uint8_t *skip,
+                                   rast_context *rc, refl_graphcam_impostor **out) {
     const refl_allocator *al;
     refl_graphcam_impostor *imp;
     refl__gci_draw *draws = NULL;
-    rast_context *rc = NULL;
     rast_targets t;
     size_t npx;
     int f, i, nd = 0;
@@ -168,9 +168,6 @@ REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const
     rast_result rr = RAST_OK;
     if (!out) return REFL_ERROR_INVALID_ARGUMENT;
     *out = NULL;
-    if (!scene || !cam || cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA || cam->width <= 0 ||
-        cam->height <= 0 || threads < 0)
-        return REFL_ERROR_INVALID_ARGUMENT;
     al = &scene->allocator;
     npx = (size_t)cam->width * (size_t)cam->height;
     imp = (refl_graphcam_impostor *)refl__calloc(al, 1, sizeof *imp);
@@ -184,7 +181,6 @@ REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const
     draws = (refl__gci_draw *)refl__calloc(al, (size_t)cam->count * (size_t)REFL__MAX(scene->object_count, 1),
                                            sizeof *draws);
     if (!imp->rgba || !imp->depth || !imp->frustum || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__context_create(scene, threads, &rc);
     if (r == REFL_OK) {
         memset(&t, 0, sizeof t);
         t.color.ptr = imp->rgba; t.color.width = cam->width; t.color.height = cam->height;
@@ -239,9 +235,13 @@ REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const
             }
             imp->triangles += d->inside_count / 3 + d->piece_count / 3;
         }
-    if (r == REFL_OK && rr == RAST_OK) rr = rast_finish(rc);
+    /* always finished before the draws' memory goes, also after a failure:
+       queued work points into it */
+    {
+        rast_result fin = rast_finish(rc);
+        if (rr == RAST_OK) rr = fin;
+    }
     if (r == REFL_OK && rr != RAST_OK) r = refl__result_from_rast(rr);
-    if (rc) rast_context_destroy(rc);
     for (i = 0; draws && i < nd; ++i) {
         refl__free(al, draws[i].inside);
         refl__free(al, draws[i].pieces);
@@ -253,6 +253,21 @@ REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const
     }
     *out = imp;
     return REFL_OK;
+}
+
+REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const refl_graphcam *cam,
+                                                  const uint8_t *skip, int threads, refl_graphcam_impostor **out) {
+    rast_context *rc = NULL;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!scene || !cam || cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA || cam->width <= 0 ||
+        cam->height <= 0 || threads < 0 || threads > RAST_MAX_THREADS)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__context_create(scene, threads, &rc)) != REFL_OK) return r;
+    r = refl__gci_build(scene, cam, skip, rc, out);
+    rast_context_destroy(rc);
+    return r;
 }
 
 /* ---- intersection --------------------------------------------------------------- */
@@ -546,10 +561,9 @@ static refl_result refl__method_graphcam(refl__pass *p) {
     refl_graphcam *own = NULL;
     refl_graphcam_impostor *imp = NULL;
     unsigned char *seen = NULL;
-    uint8_t *skip = NULL;
     double t0 = refl__now_ms(), t1;
     refl_result r = REFL_OK;
-    int i, any = 0, y;
+    int any = 0, y;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
     memset(&g, 0, sizeof g);
     g.p = p;
@@ -568,10 +582,9 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             if (r == REFL_OK) r = refl_graphcam_init(own, &v, w, REFL__MAX(h, 1));
             g.cam = own;
         }
-        skip = (uint8_t *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1);
         g.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         g.steps = (long long *)refl__calloc(al, (size_t)fr->height, 4 * sizeof(long long));
-        if (r == REFL_OK && (!skip || !g.em.surface || !g.steps)) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK && (!g.em.surface || !g.steps)) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             g.max_steps = g.steps + fr->height;
             g.rays = g.max_steps + fr->height;
@@ -579,7 +592,7 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             /* the impostor replaces the diffuse scene; reflectors stay out */
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
-            r = refl_graphcam_impostor_build(scene, g.cam, skip, p->desc.threads, &imp);
+            r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
             t0 = refl__now_ms();
             fr->stats.ms_build += t0 - t1;
         }
@@ -604,10 +617,8 @@ static refl_result refl__method_graphcam(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    (void)i;
     refl_graphcam_impostor_destroy(imp);
     refl__free(al, own);
-    refl__free(al, skip);
     refl__free(al, g.steps);
     refl__free(al, g.em.surface);
     refl__free(al, g.em.gbuf);
