@@ -883,15 +883,19 @@ REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int heigh
 #define REFL_GL_SBC_CAM_TEXELS 16
 #define REFL_GL_SBC_QUAD_TEXELS 20
 #define REFL_GL_SBC_INDEX_TEXELS 6
+#define REFL_GL_GRAPHCAM_TEXELS (5 + REFL_GRAPHCAM_MAX_PLANES) /* per frustum, after 2 header texels */
 typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
-    REFL_GL_SBC              /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
              (a, b, c, t) ascending in t; vec3 refl_c3rc_image(samplerBuffer, int base, int cam, vec4 proj)
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
+         vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
+             the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -900,6 +904,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap);
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
+REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 

@@ -11,8 +11,10 @@
 #include <stdio.h>
 #include <string.h>
 #include "../../reflect.h"
+#include "../../tools/reflect_gl.h"
 #include "../test_util.h"
 #include "refl_test_util.h"
+#include "test_gl_context.h"
 
 /* An object of mesh with material m (the scene takes the mesh); its index. */
 static int add(refl_scene *s, refl_mesh *mesh, const refl_material *m, refl_mat4 xf) {
@@ -377,4 +379,48 @@ Test(graphcam, bad_bends_and_options_are_refused) {
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
     cr_assert(!strncmp(why, "graphcam.size", 13));
     free(cam);
+}
+
+/* The GL hook: the packed layout, and the GLSL projection against the C
+   one by transform feedback on 10^5 random points (docs/gl.md), skipped
+   where no EGL device exists. */
+Test(graphcam, gl_layout) {
+    refl_graphcam *cam = malloc(sizeof *cam);
+    long long n;
+    float *buf;
+    cr_assert_eq(refl_graphcam_maze(cam, 960, 588), REFL_OK);
+    n = refl_gl_pack_graphcam(cam, NULL, 0);
+    cr_assert_eq(n, 4 * (2 + 15 * REFL_GL_GRAPHCAM_TEXELS));
+    buf = malloc((size_t)n * sizeof(float));
+    cr_assert_eq(refl_gl_pack_graphcam(cam, buf, n), n);
+    cr_assert_eq(buf[0], (float)REFL_GL_GRAPHCAM);
+    cr_assert_eq(buf[2], 15.0f);
+    cr_assert_eq(buf[3], 4.0f);
+    cr_assert_eq(buf[4], 960.0f);
+    /* frustum 1: its plane count, level and parent, then its entry plane */
+    cr_assert_eq(buf[4 * (2 + REFL_GL_GRAPHCAM_TEXELS)], (float)cam->frusta[1].plane_count);
+    cr_assert_eq(buf[4 * (2 + REFL_GL_GRAPHCAM_TEXELS) + 1], 1.0f);
+    cr_assert_eq(buf[4 * (2 + REFL_GL_GRAPHCAM_TEXELS + 5) + 3], (float)cam->frusta[1].planes[0][3]);
+    cr_assert_lt(refl_gl_pack_graphcam(NULL, buf, n), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_GRAPHCAM));
+    free(buf);
+    free(cam);
+}
+
+Test(graphcam, gl_glsl_matches_c, .timeout = 120) {
+    rgl_context *g = tu_gl_context("test_graphcam");
+    rgl_validation v;
+    char err[1024];
+    int r;
+    LSAN_OFF();
+    r = rgl_validate(g, 4, 100000, 1, &v, err, sizeof err);
+    rgl_destroy(g);
+    LSAN_ON();
+    cr_assert_eq(r, 0, "%s", err);
+    cr_log_info("%s on GL: %lld points, %lld project, %lld disagree, max rel %.2e, p99.9 %.2e [%s]", v.camera, v.points,
+                v.projected, v.disagree, v.max_rel, v.p999_rel, v.note);
+    /* a fifth of the maze's box lies in a frustum */
+    cr_assert_gt(v.projected, v.points / 10);
+    cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.disagree, v.points,
+              v.max_rel, v.p999_rel);
 }
