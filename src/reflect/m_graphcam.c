@@ -182,14 +182,15 @@ static refl_result refl__gci_build(const refl_scene *scene, const refl_graphcam 
                                            sizeof *draws);
     if (!imp->rgba || !imp->depth || !imp->frustum || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) {
-        memset(&t, 0, sizeof t);
-        t.color.ptr = imp->rgba; t.color.width = cam->width; t.color.height = cam->height;
-        t.color.stride = 4 * (int)sizeof(float) * cam->width;
-        t.color_format = RAST_COLOR_RGBA32F;
-        t.depth.ptr = imp->depth; t.depth.width = cam->width; t.depth.height = cam->height;
-        t.depth.stride = (int)sizeof(float) * cam->width;
-        t.stencil.ptr = imp->frustum; t.stencil.width = cam->width; t.stencil.height = cam->height;
-        t.stencil.stride = cam->width;
+        /* a frame's layout: colour, depth, and the frustum ids as its stencil */
+        refl_frame as_frame;
+        memset(&as_frame, 0, sizeof as_frame);
+        as_frame.width = cam->width;
+        as_frame.height = cam->height;
+        as_frame.rgba = imp->rgba;
+        as_frame.depth = imp->depth;
+        as_frame.stencil = imp->frustum;
+        t = refl__frame_targets(&as_frame);
         rr = rast_set_targets(rc, &t);
         if (rr == RAST_OK) rr = refl__em_clear(rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL);
     }
@@ -325,9 +326,14 @@ static int refl__gci_crossing(refl__gci_march *mc, const refl__gci_sample *a, co
     return 1;
 }
 
+/* The ray's point at t. */
+static refl_vec3 refl__gci_ray_at(const refl__gci_march *mc, double t) {
+    return refl_v3((float)(mc->o.x + t * mc->d.x), (float)(mc->o.y + t * mc->d.y), (float)(mc->o.z + t * mc->d.z));
+}
+
 /* Fills sample x for the ray at t, seen through frustum f (-1: none). */
 static void refl__gci_sample_at(refl__gci_march *mc, int f, double t, refl__gci_sample *x) {
-    refl_vec3 p = refl_v3((float)(mc->o.x + t * mc->d.x), (float)(mc->o.y + t * mc->d.y), (float)(mc->o.z + t * mc->d.z));
+    refl_vec3 p = refl__gci_ray_at(mc, t);
     double c[4];
     x->valid = 0;
     x->frustum = f;
@@ -354,11 +360,31 @@ static void refl__gci_fill_hit(refl__gci_march *mc, const refl__gci_sample *a, c
     const float *px = mc->imp->rgba + 4 * ((size_t)b->py * (size_t)mc->imp->width + (size_t)b->px);
     double t = a->t + s * (b->t - a->t);
     hit->t = (float)t;
-    hit->point = refl_v3((float)(mc->o.x + t * mc->d.x), (float)(mc->o.y + t * mc->d.y), (float)(mc->o.z + t * mc->d.z));
+    hit->point = refl__gci_ray_at(mc, t);
     hit->rgb[0] = px[0];
     hit->rgb[1] = px[1];
     hit->rgb[2] = px[2];
     hit->frustum = b->frustum;
+}
+
+/* Samples a march takes over a length at `step` a sample (at least 1, at most 10^6). */
+static long long refl__gci_samples(double length, double step) {
+    double n = ceil(length / step);
+    return n < 1.0 ? 1 : n > 1e6 ? 1000000 : (long long)n;
+}
+
+/* One march step: sample b after a (k: b's index); 1 when the ray crosses
+   the impostor between them (the hit filled in), else b becomes a. */
+static int refl__gci_step(refl__gci_march *mc, refl__gci_sample *a, const refl__gci_sample *b, long long k,
+                          refl_graphcam_hit *hit) {
+    double s;
+    hit->steps++;
+    if (k > 0 && refl__gci_crossing(mc, a, b, &s)) {
+        refl__gci_fill_hit(mc, a, b, s, hit);
+        return 1;
+    }
+    *a = *b;
+    return 0;
 }
 
 /* Algorithm 1: uniform steps of `step` world units over the part of the
@@ -366,22 +392,13 @@ static void refl__gci_fill_hit(refl__gci_march *mc, const refl__gci_sample *a, c
 static int refl__gci_uniform(refl__gci_march *mc, double t0, double t1, double step, refl_graphcam_hit *hit) {
     refl__gci_sample a, b;
     long long n, k;
-    double s;
     if (!(t1 > t0)) return 0;
-    n = (long long)ceil((t1 - t0) / step);
-    if (n < 1) n = 1;
-    if (n > 1000000) n = 1000000;
+    n = refl__gci_samples(t1 - t0, step);
     memset(&a, 0, sizeof a);
     for (k = 0; k <= n; ++k) {
         double t = t0 + (t1 - t0) * (double)k / (double)n;
-        refl_vec3 p = refl_v3((float)(mc->o.x + t * mc->d.x), (float)(mc->o.y + t * mc->d.y), (float)(mc->o.z + t * mc->d.z));
-        refl__gci_sample_at(mc, refl_graphcam_locate(mc->cam, p), t, &b);
-        hit->steps++;
-        if (k > 0 && refl__gci_crossing(mc, &a, &b, &s)) {
-            refl__gci_fill_hit(mc, &a, &b, s, hit);
-            return 1;
-        }
-        a = b;
+        refl__gci_sample_at(mc, refl_graphcam_locate(mc->cam, refl__gci_ray_at(mc, t)), t, &b);
+        if (refl__gci_step(mc, &a, &b, k, hit)) return 1;
     }
     return 0;
 }
@@ -391,33 +408,21 @@ static int refl__gci_uniform(refl__gci_march *mc, double t0, double t1, double s
    each step found by perspective-correct interpolation). */
 static int refl__gci_segment(refl__gci_march *mc, int f, double t0, double t1, double step, refl_graphcam_hit *hit) {
     refl__gci_sample a, b;
-    refl_vec3 pa = refl_v3((float)(mc->o.x + t0 * mc->d.x), (float)(mc->o.y + t0 * mc->d.y), (float)(mc->o.z + t0 * mc->d.z));
-    refl_vec3 pb = refl_v3((float)(mc->o.x + t1 * mc->d.x), (float)(mc->o.y + t1 * mc->d.y), (float)(mc->o.z + t1 * mc->d.z));
-    double ca[4], cb[4], len, s;
+    double ca[4], cb[4], du, dv;
     long long n, k;
-    refl__gc_clip(mc->cam, f, pa, ca);
-    refl__gc_clip(mc->cam, f, pb, cb);
+    refl__gc_clip(mc->cam, f, refl__gci_ray_at(mc, t0), ca);
+    refl__gc_clip(mc->cam, f, refl__gci_ray_at(mc, t1), cb);
     if (!(ca[3] > 0.0) || !(cb[3] > 0.0)) return 0;
-    {
-        double du = (cb[0] / cb[3] - ca[0] / ca[3]) * 0.5 * mc->cam->width;
-        double dv = (cb[1] / cb[3] - ca[1] / ca[3]) * 0.5 * mc->cam->height;
-        len = sqrt(du * du + dv * dv);
-    }
-    n = (long long)ceil(len / step);
-    if (n < 1) n = 1;
-    if (n > 1000000) n = 1000000;
+    du = (cb[0] / cb[3] - ca[0] / ca[3]) * 0.5 * mc->cam->width;
+    dv = (cb[1] / cb[3] - ca[1] / ca[3]) * 0.5 * mc->cam->height;
+    n = refl__gci_samples(sqrt(du * du + dv * dv), step);
     memset(&a, 0, sizeof a);
     for (k = 0; k <= n; ++k) {
         /* image fraction sf -> ray fraction: homogeneous interpolation */
         double sf = (double)k / (double)n, den = (1.0 - sf) * cb[3] + sf * ca[3];
         double tf = den > 0.0 ? sf * ca[3] / den : sf;
         refl__gci_sample_at(mc, f, t0 + (t1 - t0) * tf, &b);
-        hit->steps++;
-        if (k > 0 && refl__gci_crossing(mc, &a, &b, &s)) {
-            refl__gci_fill_hit(mc, &a, &b, s, hit);
-            return 1;
-        }
-        a = b;
+        if (refl__gci_step(mc, &a, &b, k, hit)) return 1;
     }
     return 0;
 }
@@ -464,8 +469,7 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
            may overlap, so every earlier piece is searched) */
         double best = HUGE_VAL, ta[REFL_GRAPHCAM_MAX_FRUSTA], tb[REFL_GRAPHCAM_MAX_FRUSTA];
         int order[REFL_GRAPHCAM_MAX_FRUSTA], pieces = 0, j;
-        refl_vec3 a = refl_v3((float)(o.x + t0 * dir.x), (float)(o.y + t0 * dir.y), (float)(o.z + t0 * dir.z));
-        refl_vec3 b = refl_v3((float)(o.x + t1 * dir.x), (float)(o.y + t1 * dir.y), (float)(o.z + t1 * dir.z));
+        refl_vec3 a = refl__gci_ray_at(&mc, t0), b = refl__gci_ray_at(&mc, t1);
         for (k = 0; k < cam->count; ++k) {
             float s0, s1;
             if (!refl_graphcam_clip_segment(cam, k, a, b, &s0, &s1)) continue;
