@@ -75,6 +75,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/base_pass.c \
                  src/reflect/bvh.c \
                  src/reflect/cam_c3rc.c \
+                 src/reflect/cam_graph.c \
                  src/reflect/cam_sbc.c \
                  src/reflect/cam_sbc_fit.c \
                  src/reflect/cam_sbc_morph.c \
@@ -85,6 +86,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_envmap.c \
+                 src/reflect/m_graphcam.c \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \
@@ -386,7 +388,7 @@ fuzz-short:
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
-               build/tools/reflect_path.o
+               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o
 REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h

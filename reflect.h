@@ -376,7 +376,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "maze"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -735,6 +735,141 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
                                                    refl_vec3 *first, float *dist, uint8_t *status,
                                                    long long *ambiguous);
 
+/* ---- graph camera (paper 004, section 5; docs/graphcam.md) --------------------
+   A tree of planar pinhole frusta grown from a root pinhole by bending: a
+   bend's child frustum starts at a planar portal quad inside its parent and
+   holds the points P beyond the portal (seen from the child's eye C) whose
+   line from C crosses the portal; P is imaged where that line meets the
+   portal, as the parent images that point. Every frustum is one 4x4 matrix
+   to the root's image (the concatenated projections). A mirror bend's
+   child eye is the parent's eye mirrored in the portal's plane: the
+   frustum is then PLANAR's mirrored camera (matrix parent * reflection).
+   A split is several bends of one parent. Merges are not modelled.
+
+   A frustum's region is convex: its entry plane (the root's near plane, a
+   child's portal plane), four side planes, a far plane and any bounds added
+   with refl_graphcam_bound. A bend does not cut its parent's region: where
+   regions overlap (a parent reaching past its portal; a mirror bend's
+   child, which lies on its parent's side of the mirror) a point belongs to
+   the first frustum, in creation order, that holds it, and the impostor
+   shows it in both; bounds make the regions disjoint (the maze's
+   corridors). Depth: frustum f at level k (bends from the root)
+   of L levels takes window depth gd in [k / L, (k + 1) / L), so depth
+   rises along every camera ray from frustum to frustum. */
+#define REFL_GRAPHCAM_MAX_FRUSTA 64
+#define REFL_GRAPHCAM_MAX_PLANES 16
+
+typedef struct refl_graphcam_frustum {
+    int parent;              /* -1: the root */
+    int level;               /* bends from the root */
+    int mirror;              /* made by a mirror bend */
+    refl_vec3 eye;           /* its centre of projection */
+    refl_vec3 portal[4];     /* its entry quad (the root: the near plane's corners) */
+    refl_mat4 m;             /* world to the root image's clip space; z / w is -1 on the
+                                entry plane, rising along the frustum's rays (no level) */
+    double planes[REFL_GRAPHCAM_MAX_PLANES][4]; /* inside: n . x + d >= 0; [0] the entry,
+                                [1..4] the sides, [5] the far plane, then the bounds */
+    int plane_count;
+    int rast_clipped;        /* planes [0..rast_clipped) are the rasteriser's own clip
+                                (the root's near and side planes), not clipped again */
+    refl_vec3 lo, hi;        /* the region's bounding box */
+} refl_graphcam_frustum;
+
+typedef struct refl_graphcam {
+    int width, height;       /* the image in pixels */
+    int levels;              /* L: the deepest level + 1 */
+    int count;
+    refl_graphcam_frustum frusta[REFL_GRAPHCAM_MAX_FRUSTA];
+    /* point location (the paper's floor map): a grid over the frusta's x, z
+       bounds, per cell the frusta whose box reaches it (bit f) */
+    int map_w, map_h;
+    float map_lo[2], map_cell[2];
+    unsigned long long map[64 * 64];
+} refl_graphcam;
+
+/* The root: the view's pinhole (fovy 0: 45; znear and zfar must be set,
+   0 < znear < zfar) seen at width x height pixels. */
+REFL_API refl_result refl_graphcam_init(refl_graphcam *cam, const refl_view *view, int width, int height);
+/* A child of `parent` entering at the planar quad portal (corners in order
+   around it, every one inside the parent's region up to 1e-3 of its size)
+   with centre of projection eye (off the portal's plane), reaching `far`
+   beyond the portal's plane; its index into *out. */
+REFL_API refl_result refl_graphcam_bend(refl_graphcam *cam, int parent, const refl_vec3 portal[4], refl_vec3 eye,
+                                        float far, int *out);
+/* A bend whose eye is the parent's mirrored in the portal's plane. */
+REFL_API refl_result refl_graphcam_bend_mirror(refl_graphcam *cam, int parent, const refl_vec3 portal[4], float far,
+                                               int *out);
+/* count bends of one parent (portals[i], eyes[i]): indices *first .. + count - 1. */
+REFL_API refl_result refl_graphcam_split(refl_graphcam *cam, int parent, const refl_vec3 (*portals)[4],
+                                         const refl_vec3 *eyes, int count, float far, int *first);
+/* Restricts a frustum's region to n . x + d >= 0. */
+REFL_API refl_result refl_graphcam_bound(refl_graphcam *cam, int frustum, refl_vec3 n, float d);
+/* The frustum that holds p (the floor map, then plane tests), or -1. */
+REFL_API int refl_graphcam_locate(const refl_graphcam *cam, refl_vec3 p);
+/* Whether frustum f's region holds p. */
+REFL_API int refl_graphcam_contains(const refl_graphcam *cam, int f, refl_vec3 p);
+/* p through frustum f (whether or not it holds p): out = (u, v, gd), u, v in
+   pixels (0, 0 the top left corner), gd the window depth with f's level;
+   0 behind the frustum's eye. */
+REFL_API int refl_graphcam_project_in(const refl_graphcam *cam, int f, refl_vec3 p, float out[3]);
+/* p through the frustum that holds it (*frustum, may be NULL); 0 when none does. */
+REFL_API int refl_graphcam_project(const refl_graphcam *cam, refl_vec3 p, float out[3], int *frustum);
+/* The point of frustum f at image (u, v) and window depth gd; 0 when singular. */
+REFL_API int refl_graphcam_unproject(const refl_graphcam *cam, int f, float u, float v, float gd, refl_vec3 *p);
+/* The part [*t0, *t1] of a + t (b - a), t in [0, 1], in frustum f's region; 0: none. */
+REFL_API int refl_graphcam_clip_segment(const refl_graphcam *cam, int f, refl_vec3 a, refl_vec3 b, float *t0,
+                                        float *t1);
+/* The box around every frustum's region. */
+REFL_API void refl_graphcam_bounds(const refl_graphcam *cam, refl_vec3 *lo, refl_vec3 *hi);
+/* A graph-camera impostor (paper 004, section 3): the scene's diffuse
+   objects (reflectors and glass left out, and objects with skip[i] set)
+   drawn through the graph camera, each triangle clipped to each frustum's
+   region and rasterised with that frustum's matrix: colour (the shared
+   diffuse shading), window depth gd and the frustum each pixel shows. */
+typedef struct refl_graphcam_impostor {
+    int width, height;
+    float *rgba;             /* linear colour, 4 floats a pixel, rows top first */
+    float *depth;            /* gd; 1 where nothing was drawn */
+    uint8_t *frustum;        /* frustum + 1; 0 where nothing was drawn */
+    long long triangles;     /* triangles drawn (clipped pieces counted) */
+    refl_allocator allocator;
+} refl_graphcam_impostor;
+
+REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const refl_graphcam *cam,
+                                                  const uint8_t *skip, int threads, refl_graphcam_impostor **out);
+REFL_API void refl_graphcam_impostor_destroy(refl_graphcam_impostor *imp);
+
+typedef enum refl_graphcam_algorithm {
+    REFL_GRAPHCAM_SEGMENTS = 0, /* the paper's algorithm 2: the ray clipped to each frustum,
+                                   each piece walked along its straight image segment */
+    REFL_GRAPHCAM_UNIFORM = 1   /* algorithm 1: uniform steps in 3-D, each point located and
+                                   projected */
+} refl_graphcam_algorithm;
+
+typedef struct refl_graphcam_hit {
+    refl_vec3 point;         /* on the ray, where it crosses the impostor's depth */
+    float t;                 /* along the ray (direction as given) */
+    float rgb[3];            /* the impostor's colour there */
+    int frustum;
+    long long steps;         /* samples taken */
+} refl_graphcam_hit;
+
+/* The first crossing of the ray o + t dir, t in (tmin, tmax], with the
+   impostor's depth (the ray in front of the stored depth at one sample,
+   behind it at the next, both in pixels of the sample's own frustum),
+   except where the stored depth jumps between the two samples' pixels by
+   more than three times the ray's own depth change plus twice the
+   surface's local slope: the "skins" between depth layers. step: REFL_GRAPHCAM_SEGMENTS: pixels a step (0: 1);
+   REFL_GRAPHCAM_UNIFORM: world units a step (0: the camera's bounds'
+   diagonal / 2048). 1 when hit; hit->steps counts either way. */
+REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
+                                     float step, refl_graphcam_hit *hit);
+
+/* The built-in scene "maze"'s graph camera: 15 frusta, one per corridor,
+   each bounded by its corridor; the image width x height (0: 1920 x 1176). */
+REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int height);
+
 /* ---- GL hooks: the cameras in a GL vertex program (docs/gl.md) ---------------
    Each camera packs into plain floats, read in GLSL 3.30 as a buffer texture
    of vec4 (GL_RGBA32F, texelFetch on a samplerBuffer), and refl_gl_glsl
@@ -753,15 +888,19 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
 #define REFL_GL_SBC_CAM_TEXELS 16
 #define REFL_GL_SBC_QUAD_TEXELS 20
 #define REFL_GL_SBC_INDEX_TEXELS 6
+#define REFL_GL_GRAPHCAM_TEXELS (5 + REFL_GRAPHCAM_MAX_PLANES) /* per frustum, after 2 header texels */
 typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
-    REFL_GL_SBC              /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
              (a, b, c, t) ascending in t; vec3 refl_c3rc_image(samplerBuffer, int base, int cam, vec4 proj)
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
+         vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
+             the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -770,6 +909,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap);
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
+REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -834,6 +974,15 @@ typedef struct refl_sbc_frame_stats {
     int groups;              /* reflection groups (a history's pieces within tiles) */
 } refl_sbc_frame_stats;
 
+typedef struct refl_graphcam_frame_stats {
+    int frusta;              /* the graph camera's */
+    long long triangles;     /* drawn into the impostor (clipped pieces counted) */
+    long long rays;          /* reflected rays intersected with it */
+    long long hits;          /* of those, the ones that met it */
+    long long steps;         /* march samples in all */
+    long long max_steps;     /* the most one ray took */
+} refl_graphcam_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -853,6 +1002,7 @@ typedef struct refl_stats {
     refl_planar_frame_stats planar;
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
+    refl_graphcam_frame_stats graphcam;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1022,6 +1172,19 @@ typedef struct refl_sbc_options {
                                 and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
+/* GRAPHCAM (paper 004, section 5): mirrors reflect a graph-camera
+   impostor of the scene's diffuse objects, rebuilt every frame. */
+typedef struct refl_graphcam_options {
+    const refl_graphcam *camera; /* NULL: one frustum, the view's own pinhole (a plain depth
+                                    image, the paper's Fig. 6 baseline) at size x size * height
+                                    / width pixels */
+    int size;                /* with camera NULL: the impostor's width, at most 8192; 0: twice
+                                the frame's */
+    int algorithm;           /* refl_graphcam_algorithm; 0: REFL_GRAPHCAM_SEGMENTS */
+    float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
+                                (0: the camera's bounds' diagonal / 2048) */
+} refl_graphcam_options;
+
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
     int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
@@ -1076,6 +1239,7 @@ typedef struct refl_render_desc {
     refl_planar_options planar;
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
+    refl_graphcam_options graphcam;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows
@@ -1718,6 +1882,26 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
    not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
+/* ---- the graph camera (cam_graph.c) and the maze built on it (scene.c) ---- */
+
+/* The maze's layout: REFL__MAZE_CORRIDORS corridors, breadth first, the
+   entrance first; corridor i < 7 ends in a T whose branches are 2i + 1 and
+   2i + 2. s: the middle of its entry edge (x, z); d: its unit direction
+   (x, z); length: along d, its 2 x 2 junction square included. */
+enum { REFL__MAZE_CORRIDORS = 15 };
+#define REFL__MAZE_WALL_H 2.5f
+typedef struct refl__maze_corridor {
+    float s[2], d[2], length;
+    int level, parent;
+} refl__maze_corridor;
+static void refl__maze_layout(refl__maze_corridor out[REFL__MAZE_CORRIDORS]);
+/* Frustum f's matrix with its level folded into z (what the impostor is
+   drawn with; window depth = gd), p in its clip space with that level,
+   and a 4x4's inverse in double (0 when singular). */
+static refl_mat4 refl__gc_draw_matrix(const refl_graphcam *cam, int f);
+static void refl__gc_clip(const refl_graphcam *cam, int f, refl_vec3 p, double c[4]);
+static int refl__gc_invert(const refl_mat4 *m, double inv[16]);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
@@ -1728,6 +1912,8 @@ static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
+static refl_result refl__method_graphcam(refl__pass *p);
+static const char *refl__options_graphcam(refl_render_desc *d);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
@@ -3523,6 +3709,567 @@ REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3
         if (refl__c3rc_wall_box(V[i], V[j], D[i], D[j], T, blo, bhi)) return 1;
     }
     return 0;
+}
+/* ---- src/reflect/cam_graph.c ---- */
+/* cam_graph: the graph camera of paper 004, section 5 (after Popescu,
+   Rosen and Adamo-Villani's graph camera): a tree of planar pinhole
+   frusta grown from a root pinhole by bends; docs/graphcam.md.
+
+   A bend of frustum F at the planar portal quad Q with child eye C maps a
+   point P to the point where the line C-P meets Q's plane pi, then images
+   that point as F does. In homogeneous coordinates the map to the plane is
+       H = C pi^T - (pi . C) I          (H P lies on pi and on line C-P)
+   with pi oriented so that pi . C < 0 (the child's region is pi . P > 0;
+   the weight pi . P - pi . C of H P is then positive), so the child's
+   matrix is M_F H: one 4x4 for the whole path to the root. A mirror bend
+   uses the reflection R in pi instead (C = R eye_F, the same image: the
+   parent's x, y, w rows vanish at eye_F, so M_F R P and M_F H P differ by
+   a positive factor), which makes the child's x, y, w rows bit for bit
+   those of PLANAR's mirrored camera (m_planar.c: projection * view * R).
+
+   Depth: a child's z row is c pi - w, so z / w = -1 on the portal and
+   rises along each of its rays (pi / w is linear-fractional, 0 on the
+   portal, positive beyond); c = 2 / the largest pi / w at the corners of
+   the frustum's far face, so z / w <= 1 up to its far plane. The window
+   depth gd adds the frustum's level k of L: gd = (k + (z / w + 1) / 2) / L.
+
+   Regions are convex (plane lists), so clipping a segment is one interval
+   and point location is a floor map of candidate frusta per cell, then
+   plane tests. */
+
+/* ---- small double helpers ------------------------------------------------------- */
+
+static double refl__gc_plane_eval(const double pl[4], refl_vec3 p) {
+    return pl[0] * p.x + pl[1] * p.y + pl[2] * p.z + pl[3];
+}
+
+/* The plane through a, b, c (normal (b - a) x (c - a), unit); 0 when degenerate. */
+static int refl__gc_plane3(refl_vec3 a, refl_vec3 b, refl_vec3 c, double out[4]) {
+    double u[3] = {(double)b.x - a.x, (double)b.y - a.y, (double)b.z - a.z};
+    double v[3] = {(double)c.x - a.x, (double)c.y - a.y, (double)c.z - a.z};
+    double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !(len < HUGE_VAL)) return 0;
+    out[0] = n[0] / len; out[1] = n[1] / len; out[2] = n[2] / len;
+    out[3] = -(out[0] * a.x + out[1] * a.y + out[2] * a.z);
+    return 1;
+}
+
+/* Row r of a column-major 4x4 at p (w = 1), in double. */
+static double refl__gc_row(const refl_mat4 *m, int r, refl_vec3 p) {
+    return (double)m->m[r] * p.x + (double)m->m[4 + r] * p.y + (double)m->m[8 + r] * p.z + (double)m->m[12 + r];
+}
+
+/* Inverse of a column-major 4x4 in double (Gauss-Jordan, partial pivoting); 0 when singular. */
+static int refl__gc_invert(const refl_mat4 *m, double inv[16]) {
+    double a[4][8];
+    int i, j, k;
+    for (i = 0; i < 4; ++i)
+        for (j = 0; j < 4; ++j) {
+            a[i][j] = m->m[j * 4 + i];
+            a[i][4 + j] = i == j;
+        }
+    for (k = 0; k < 4; ++k) {
+        int piv = k;
+        double best = fabs(a[k][k]);
+        for (i = k + 1; i < 4; ++i)
+            if (fabs(a[i][k]) > best) best = fabs(a[i][k]), piv = i;
+        if (!(best > 0.0)) return 0;
+        if (piv != k)
+            for (j = 0; j < 8; ++j) {
+                double t = a[k][j];
+                a[k][j] = a[piv][j];
+                a[piv][j] = t;
+            }
+        for (j = 7; j >= k; --j) a[k][j] /= a[k][k];
+        for (i = 0; i < 4; ++i)
+            if (i != k && a[i][k] != 0.0) {
+                double f = a[i][k];
+                for (j = k; j < 8; ++j) a[i][j] -= f * a[k][j];
+            }
+    }
+    for (i = 0; i < 4; ++i)
+        for (j = 0; j < 4; ++j) inv[j * 4 + i] = a[i][4 + j];
+    return 1;
+}
+
+/* ---- regions -------------------------------------------------------------------- */
+
+static int refl__gc_inside_first(const refl_graphcam_frustum *f, refl_vec3 p, double tol, int planes) {
+    int k;
+    for (k = 0; k < planes && k < f->plane_count; ++k)
+        if (refl__gc_plane_eval(f->planes[k], p) < -tol) return 0;
+    return 1;
+}
+
+static int refl__gc_inside(const refl_graphcam_frustum *f, refl_vec3 p, double tol) {
+    int k;
+    for (k = 0; k < f->plane_count; ++k)
+        if (refl__gc_plane_eval(f->planes[k], p) < -tol) return 0;
+    return 1;
+}
+
+/* The region's bounding box: its vertices are the points where three of its
+   planes meet that every other plane keeps (at most C(16, 3) candidates). */
+static void refl__gc_region_box(refl_graphcam_frustum *f) {
+    int a, b, c, any = 0;
+    double scale = 0.0;
+    refl_vec3 lo = refl_v3(0, 0, 0), hi = lo;
+    for (a = 0; a < 4; ++a) {
+        double s = fabs(f->portal[a].x) + fabs(f->portal[a].y) + fabs(f->portal[a].z);
+        if (s > scale) scale = s;
+    }
+    for (a = 0; a < f->plane_count; ++a)
+        for (b = a + 1; b < f->plane_count; ++b)
+            for (c = b + 1; c < f->plane_count; ++c) {
+                const double *p = f->planes[a], *q = f->planes[b], *r = f->planes[c];
+                double n1[3] = {q[1] * r[2] - q[2] * r[1], q[2] * r[0] - q[0] * r[2], q[0] * r[1] - q[1] * r[0]};
+                double det = p[0] * n1[0] + p[1] * n1[1] + p[2] * n1[2], x[3];
+                double n2[3] = {r[1] * p[2] - r[2] * p[1], r[2] * p[0] - r[0] * p[2], r[0] * p[1] - r[1] * p[0]};
+                double n3[3] = {p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]};
+                refl_vec3 v;
+                int k;
+                if (fabs(det) < 1e-9) continue;
+                for (k = 0; k < 3; ++k) x[k] = -(p[3] * n1[k] + q[3] * n2[k] + r[3] * n3[k]) / det;
+                v = refl_v3((float)x[0], (float)x[1], (float)x[2]);
+                if (!refl__v3_finite(v) || !refl__gc_inside(f, v, 1e-5 * (scale + 1.0) + 1e-4 * (fabs(x[0]) + fabs(x[1]) + fabs(x[2]))))
+                    continue;
+                lo = any ? refl__v3_min(lo, v) : v;
+                hi = any ? refl__v3_max(hi, v) : v;
+                any = 1;
+            }
+    f->lo = lo;
+    f->hi = hi;
+}
+
+/* The floor map: per cell of a grid over the frusta's x, z boxes, the
+   frusta whose box reaches it. */
+static void refl__gc_build_map(refl_graphcam *cam) {
+    refl_vec3 lo, hi;
+    int i, x, z, n = 64;
+    refl_graphcam_bounds(cam, &lo, &hi);
+    cam->map_w = cam->map_h = n;
+    cam->map_lo[0] = lo.x;
+    cam->map_lo[1] = lo.z;
+    cam->map_cell[0] = (hi.x - lo.x) / (float)n;
+    cam->map_cell[1] = (hi.z - lo.z) / (float)n;
+    if (!(cam->map_cell[0] > 0.0f)) cam->map_cell[0] = 1.0f;
+    if (!(cam->map_cell[1] > 0.0f)) cam->map_cell[1] = 1.0f;
+    memset(cam->map, 0, sizeof cam->map);
+    for (i = 0; i < cam->count; ++i) {
+        const refl_graphcam_frustum *f = &cam->frusta[i];
+        int x0 = (int)floorf((f->lo.x - lo.x) / cam->map_cell[0]) - 1, x1 = (int)floorf((f->hi.x - lo.x) / cam->map_cell[0]) + 1;
+        int z0 = (int)floorf((f->lo.z - lo.z) / cam->map_cell[1]) - 1, z1 = (int)floorf((f->hi.z - lo.z) / cam->map_cell[1]) + 1;
+        x0 = REFL__CLAMP(x0, 0, n - 1); x1 = REFL__CLAMP(x1, 0, n - 1);
+        z0 = REFL__CLAMP(z0, 0, n - 1); z1 = REFL__CLAMP(z1, 0, n - 1);
+        for (z = z0; z <= z1; ++z)
+            for (x = x0; x <= x1; ++x) cam->map[z * n + x] |= 1ull << i;
+    }
+}
+
+/* After a frustum's planes change: its box, its levels, the map. */
+static void refl__gc_update(refl_graphcam *cam, int f) {
+    refl__gc_region_box(&cam->frusta[f]);
+    if (cam->frusta[f].level + 1 > cam->levels) cam->levels = cam->frusta[f].level + 1;
+    refl__gc_build_map(cam);
+}
+
+static int refl__gc_add_plane(refl_graphcam_frustum *f, const double pl[4]) {
+    if (f->plane_count >= REFL_GRAPHCAM_MAX_PLANES) return 0;
+    memcpy(f->planes[f->plane_count++], pl, 4 * sizeof(double));
+    return 1;
+}
+
+/* ---- the root ------------------------------------------------------------------- */
+
+/* The root from a view matrix and a projection whose x, y scales are 1 / tx,
+   1 / ty (tx, ty: tangents of the half angles). */
+static refl_result refl__gc_root(refl_graphcam *cam, refl_mat4 view_m, refl_mat4 proj, refl_vec3 eye, double tx,
+                                 double ty, double znear, double zfar, int width, int height) {
+    refl_graphcam_frustum *f;
+    refl_vec3 s = refl_v3(view_m.m[0], view_m.m[4], view_m.m[8]);
+    refl_vec3 u = refl_v3(view_m.m[1], view_m.m[5], view_m.m[9]);
+    refl_vec3 fw = refl_v3(-view_m.m[2], -view_m.m[6], -view_m.m[10]);
+    refl_vec3 corner[4];
+    double pl[4];
+    int k;
+    if (width <= 0 || height <= 0 || width > 16384 || height > 16384) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(cam, 0, sizeof *cam);
+    cam->width = width;
+    cam->height = height;
+    cam->levels = 1;
+    cam->count = 1;
+    f = &cam->frusta[0];
+    f->parent = -1;
+    f->eye = eye;
+    f->m = refl_mat4_mul(proj, view_m);
+    for (k = 0; k < 4; ++k) { /* near corners, counter-clockwise seen from the eye */
+        double sx = (k == 1 || k == 2) ? tx : -tx, sy = k >= 2 ? ty : -ty;
+        corner[k] = refl_v3((float)(eye.x + znear * (fw.x + sx * s.x + sy * u.x)),
+                            (float)(eye.y + znear * (fw.y + sx * s.y + sy * u.y)),
+                            (float)(eye.z + znear * (fw.z + sx * s.z + sy * u.z)));
+        f->portal[k] = corner[k];
+    }
+    pl[0] = fw.x; pl[1] = fw.y; pl[2] = fw.z;
+    pl[3] = -(fw.x * (double)eye.x + fw.y * (double)eye.y + fw.z * (double)eye.z) - znear;
+    refl__gc_add_plane(f, pl);
+    for (k = 0; k < 4; ++k) /* sides: through the eye and an edge of the near face, inward */
+        if (!refl__gc_plane3(eye, corner[k], corner[(k + 1) & 3], pl)) return REFL_ERROR_INVALID_ARGUMENT;
+        else {
+            refl_vec3 c = refl_v3_add(eye, fw);
+            if (refl__gc_plane_eval(pl, c) < 0.0) {
+                int j;
+                for (j = 0; j < 4; ++j) pl[j] = -pl[j];
+            }
+            refl__gc_add_plane(f, pl);
+        }
+    f->rast_clipped = 5;
+    pl[0] = -fw.x; pl[1] = -fw.y; pl[2] = -fw.z;
+    pl[3] = fw.x * (double)eye.x + fw.y * (double)eye.y + fw.z * (double)eye.z + zfar;
+    refl__gc_add_plane(f, pl);
+    refl__gc_update(cam, 0);
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_graphcam_init(refl_graphcam *cam, const refl_view *view, int width, int height) {
+    float fovy, aspect;
+    double ty;
+    refl_mat4 view_m, proj;
+    refl_vec3 fw;
+    if (!cam || !view) return REFL_ERROR_INVALID_ARGUMENT;
+    fovy = view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f;
+    fw = refl_v3_sub(view->target, view->eye);
+    if (!(fovy < 180.0f) || !(view->znear > 0.0f) || !(view->zfar > view->znear) || !refl__v3_finite(view->eye) ||
+        !(refl_v3_length(fw) > 0.0f) || !(refl_v3_length(refl_v3_cross(fw, view->up)) > 0.0f) || width <= 0 ||
+        height <= 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    aspect = (float)width / (float)height;
+    /* the base pass's matrices (render.c), so a one-frustum camera draws as it does */
+    view_m = refl_mat4_look_at(view->eye, view->target, view->up);
+    proj = refl_mat4_perspective(fovy * (float)(REFL__PI / 180.0), aspect, view->znear, view->zfar);
+    ty = 1.0 / proj.m[5];
+    return refl__gc_root(cam, view_m, proj, view->eye, 1.0 / proj.m[0], ty, view->znear, view->zfar, width, height);
+}
+
+/* ---- bends ---------------------------------------------------------------------- */
+
+static refl_result refl__gc_bend(refl_graphcam *cam, int parent, const refl_vec3 portal[4], refl_vec3 eye,
+                                 int mirror, float far, int *out) {
+    const refl_graphcam_frustum *pf;
+    refl_graphcam_frustum *f;
+    double pi[4], size = 0.0, tol, pc, wmax = 0.0;
+    refl_mat4 h;
+    int k, j, child;
+    if (out) *out = -1;
+    if (!cam || !portal || parent < 0 || parent >= cam->count || cam->count >= REFL_GRAPHCAM_MAX_FRUSTA ||
+        !(far > 0.0f) || !refl__isfinite(far))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    pf = &cam->frusta[parent];
+    for (k = 0; k < 4; ++k) {
+        if (!refl__v3_finite(portal[k])) return REFL_ERROR_INVALID_ARGUMENT;
+        size = REFL__MAX(size, (double)refl_v3_length(refl_v3_sub(portal[k], portal[(k + 1) & 3])));
+    }
+    if (!refl__gc_plane3(portal[0], portal[1], portal[2], pi)) return REFL_ERROR_INVALID_ARGUMENT;
+    tol = 1e-3 * size;
+    for (k = 0; k < 4; ++k) /* planar, and inside the parent's own frustum (entry, sides, far) */
+        if (fabs(refl__gc_plane_eval(pi, portal[k])) > tol || !refl__gc_inside_first(pf, portal[k], tol, 6))
+            return REFL_ERROR_INVALID_ARGUMENT;
+    /* the parent's eye must see the portal from one side */
+    if (fabs(refl__gc_plane_eval(pi, pf->eye)) <= tol) return REFL_ERROR_INVALID_ARGUMENT;
+    if (mirror) {
+        double e = refl__gc_plane_eval(pi, pf->eye);
+        eye = refl_v3((float)(pf->eye.x - 2.0 * e * pi[0]), (float)(pf->eye.y - 2.0 * e * pi[1]),
+                      (float)(pf->eye.z - 2.0 * e * pi[2]));
+    }
+    if (!refl__v3_finite(eye)) return REFL_ERROR_INVALID_ARGUMENT;
+    pc = refl__gc_plane_eval(pi, eye);
+    if (fabs(pc) <= tol) return REFL_ERROR_INVALID_ARGUMENT;
+    if (pc > 0.0) {
+        for (k = 0; k < 4; ++k) pi[k] = -pi[k];
+        pc = -pc;
+    }
+    child = cam->count;
+    f = &cam->frusta[child];
+    memset(f, 0, sizeof *f);
+    f->parent = parent;
+    f->level = pf->level + 1;
+    f->mirror = mirror;
+    f->eye = eye;
+    memcpy(f->portal, portal, 4 * sizeof(refl_vec3));
+    if (mirror) {
+        double n[3] = {pi[0], pi[1], pi[2]};
+        h = refl__planar_reflection(n, -pi[3]);
+    } else { /* H = C pi^T - (pi . C) I */
+        const float c[4] = {eye.x, eye.y, eye.z, 1.0f};
+        for (j = 0; j < 4; ++j)
+            for (k = 0; k < 4; ++k) h.m[j * 4 + k] = (float)((double)c[k] * pi[j] - (j == k ? pc : 0.0));
+    }
+    f->m = refl_mat4_mul(pf->m, h);
+    /* planes: entry, sides (through the eye and the portal's edges), far */
+    refl__gc_add_plane(f, pi);
+    for (k = 0; k < 4; ++k) {
+        double pl[4];
+        refl_vec3 mid = refl_v3_scale(refl_v3_add(refl_v3_add(portal[0], portal[1]), refl_v3_add(portal[2], portal[3])), 0.25f);
+        if (!refl__gc_plane3(eye, portal[k], portal[(k + 1) & 3], pl)) return REFL_ERROR_INVALID_ARGUMENT;
+        if (refl__gc_plane_eval(pl, mid) < 0.0)
+            for (j = 0; j < 4; ++j) pl[j] = -pl[j];
+        refl__gc_add_plane(f, pl);
+    }
+    {
+        double pl[4] = {-pi[0], -pi[1], -pi[2], -pi[3] + far};
+        refl__gc_add_plane(f, pl);
+    }
+    /* the depth row: c pi - w, c from the far face's corners */
+    for (k = 0; k < 4; ++k) {
+        double s = (far - pc) / (refl__gc_plane_eval(pi, portal[k]) - pc);
+        refl_vec3 q = refl_v3((float)(eye.x + s * ((double)portal[k].x - eye.x)), (float)(eye.y + s * ((double)portal[k].y - eye.y)),
+                              (float)(eye.z + s * ((double)portal[k].z - eye.z)));
+        double w = refl__gc_row(&f->m, 3, q);
+        if (!(w > 0.0)) return REFL_ERROR_INVALID_ARGUMENT; /* the portal is not in front of the parent's eye */
+        wmax = REFL__MAX(wmax, far / w);
+    }
+    {
+        double c = 2.0 / wmax;
+        for (k = 0; k < 4; ++k) f->m.m[k * 4 + 2] = (float)(c * pi[k] - (double)f->m.m[k * 4 + 3]);
+    }
+    cam->count++;
+    refl__gc_update(cam, child);
+    if (out) *out = child;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_graphcam_bend(refl_graphcam *cam, int parent, const refl_vec3 portal[4], refl_vec3 eye,
+                                        float far, int *out) {
+    return refl__gc_bend(cam, parent, portal, eye, 0, far, out);
+}
+
+REFL_API refl_result refl_graphcam_bend_mirror(refl_graphcam *cam, int parent, const refl_vec3 portal[4], float far,
+                                               int *out) {
+    return refl__gc_bend(cam, parent, portal, refl_v3(0, 0, 0), 1, far, out);
+}
+
+REFL_API refl_result refl_graphcam_split(refl_graphcam *cam, int parent, const refl_vec3 (*portals)[4],
+                                         const refl_vec3 *eyes, int count, float far, int *first) {
+    int i, idx;
+    refl_result r;
+    if (first) *first = -1;
+    if (!cam || !portals || !eyes || count <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < count; ++i) {
+        if ((r = refl__gc_bend(cam, parent, portals[i], eyes[i], 0, far, &idx)) != REFL_OK) return r;
+        if (i == 0 && first) *first = idx;
+    }
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_graphcam_bound(refl_graphcam *cam, int frustum, refl_vec3 n, float d) {
+    double pl[4], len;
+    if (!cam || frustum < 0 || frustum >= cam->count || !refl__v3_finite(n) || !refl__isfinite(d))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    len = sqrt((double)n.x * n.x + (double)n.y * n.y + (double)n.z * n.z);
+    if (!(len > 0.0)) return REFL_ERROR_INVALID_ARGUMENT;
+    pl[0] = n.x / len; pl[1] = n.y / len; pl[2] = n.z / len; pl[3] = d / len;
+    if (!refl__gc_add_plane(&cam->frusta[frustum], pl)) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gc_update(cam, frustum);
+    return REFL_OK;
+}
+
+/* ---- queries -------------------------------------------------------------------- */
+
+REFL_API int refl_graphcam_contains(const refl_graphcam *cam, int f, refl_vec3 p) {
+    if (!cam || f < 0 || f >= cam->count) return 0;
+    return refl__gc_inside(&cam->frusta[f], p, 0.0);
+}
+
+REFL_API int refl_graphcam_locate(const refl_graphcam *cam, refl_vec3 p) {
+    unsigned long long cand = ~0ull;
+    int i;
+    if (!cam || !refl__v3_finite(p)) return -1;
+    if (cam->map_w > 0) {
+        int x = (int)floorf((p.x - cam->map_lo[0]) / cam->map_cell[0]);
+        int z = (int)floorf((p.z - cam->map_lo[1]) / cam->map_cell[1]);
+        if (x < 0 || z < 0 || x >= cam->map_w || z >= cam->map_h) return -1;
+        cand = cam->map[z * cam->map_w + x];
+    }
+    for (i = 0; i < cam->count; ++i)
+        if ((cand >> i & 1ull) && refl__gc_inside(&cam->frusta[i], p, 0.0)) return i;
+    return -1;
+}
+
+/* Clip coordinates of p in frustum f, z with f's level. */
+static void refl__gc_clip(const refl_graphcam *cam, int f, refl_vec3 p, double c[4]) {
+    const refl_graphcam_frustum *fr = &cam->frusta[f];
+    double L = (double)cam->levels, k;
+    int r;
+    for (r = 0; r < 4; ++r) c[r] = refl__gc_row(&fr->m, r, p);
+    k = (double)fr->level;
+    c[2] = c[2] / L + (2.0 * k + 1.0 - L) / L * c[3];
+}
+
+/* Frustum f's matrix with its level in z: what the rasteriser draws with. */
+static refl_mat4 refl__gc_draw_matrix(const refl_graphcam *cam, int f) {
+    const refl_graphcam_frustum *fr = &cam->frusta[f];
+    refl_mat4 m = fr->m;
+    double L = (double)cam->levels, k = (double)fr->level;
+    int c;
+    if (cam->levels == 1) return m;
+    for (c = 0; c < 4; ++c)
+        m.m[c * 4 + 2] = (float)((double)fr->m.m[c * 4 + 2] / L + (2.0 * k + 1.0 - L) / L * fr->m.m[c * 4 + 3]);
+    return m;
+}
+
+REFL_API int refl_graphcam_project_in(const refl_graphcam *cam, int f, refl_vec3 p, float out[3]) {
+    double c[4];
+    if (!cam || f < 0 || f >= cam->count || !out) return 0;
+    refl__gc_clip(cam, f, p, c);
+    if (!(c[3] > 0.0)) return 0;
+    out[0] = (float)((c[0] / c[3] + 1.0) * 0.5 * cam->width);
+    out[1] = (float)((1.0 - c[1] / c[3]) * 0.5 * cam->height);
+    out[2] = (float)((c[2] / c[3] + 1.0) * 0.5);
+    return 1;
+}
+
+REFL_API int refl_graphcam_project(const refl_graphcam *cam, refl_vec3 p, float out[3], int *frustum) {
+    int f = refl_graphcam_locate(cam, p);
+    if (frustum) *frustum = f;
+    return f >= 0 && refl_graphcam_project_in(cam, f, p, out);
+}
+
+REFL_API int refl_graphcam_unproject(const refl_graphcam *cam, int f, float u, float v, float gd, refl_vec3 *p) {
+    double inv[16], c[4], w[4];
+    refl_mat4 m;
+    int r;
+    if (!cam || f < 0 || f >= cam->count || !p) return 0;
+    m = refl__gc_draw_matrix(cam, f);
+    if (!refl__gc_invert(&m, inv)) return 0;
+    c[0] = 2.0 * u / cam->width - 1.0;
+    c[1] = 1.0 - 2.0 * v / cam->height;
+    c[2] = 2.0 * gd - 1.0;
+    c[3] = 1.0;
+    for (r = 0; r < 4; ++r) w[r] = inv[r] * c[0] + inv[4 + r] * c[1] + inv[8 + r] * c[2] + inv[12 + r] * c[3];
+    if (!(fabs(w[3]) > 0.0)) return 0;
+    *p = refl_v3((float)(w[0] / w[3]), (float)(w[1] / w[3]), (float)(w[2] / w[3]));
+    return refl__v3_finite(*p);
+}
+
+REFL_API int refl_graphcam_clip_segment(const refl_graphcam *cam, int f, refl_vec3 a, refl_vec3 b, float *t0,
+                                        float *t1) {
+    const refl_graphcam_frustum *fr;
+    double lo = 0.0, hi = 1.0;
+    int k;
+    if (!cam || f < 0 || f >= cam->count) return 0;
+    fr = &cam->frusta[f];
+    for (k = 0; k < fr->plane_count; ++k) {
+        double ea = refl__gc_plane_eval(fr->planes[k], a), eb = refl__gc_plane_eval(fr->planes[k], b);
+        if (ea < 0.0 && eb < 0.0) return 0;
+        if (ea < 0.0) lo = REFL__MAX(lo, ea / (ea - eb));
+        else if (eb < 0.0) hi = REFL__MIN(hi, ea / (ea - eb));
+        if (lo > hi) return 0;
+    }
+    if (t0) *t0 = (float)lo;
+    if (t1) *t1 = (float)hi;
+    return 1;
+}
+
+REFL_API void refl_graphcam_bounds(const refl_graphcam *cam, refl_vec3 *lo, refl_vec3 *hi) {
+    refl_vec3 l = refl_v3(0, 0, 0), h = l;
+    int i;
+    for (i = 0; cam && i < cam->count; ++i) {
+        l = i ? refl__v3_min(l, cam->frusta[i].lo) : cam->frusta[i].lo;
+        h = i ? refl__v3_max(h, cam->frusta[i].hi) : cam->frusta[i].hi;
+    }
+    if (lo) *lo = l;
+    if (hi) *hi = h;
+}
+
+/* ---- the maze (scene.c builds its geometry from the same layout) ----------------- */
+
+/* The maze's corridors, breadth first: corridor 0 the entrance (from z = 0
+   northwards, -z), each of the first 7 ending in a T whose two branches
+   are corridors 2i + 1 and 2i + 2 (an H-tree: branches turn 90 degrees,
+   three levels). A corridor is 2 wide (walls on its centre line +-1);
+   one ending in a T has a 2 x 2 junction square at its end. */
+static void refl__maze_layout(refl__maze_corridor out[REFL__MAZE_CORRIDORS]) {
+    static const float len[4] = {10.0f, 8.0f, 6.0f, 3.0f};
+    int i;
+    out[0].s[0] = 0.0f;
+    out[0].s[1] = 0.0f;
+    out[0].d[0] = 0.0f;
+    out[0].d[1] = -1.0f;
+    out[0].length = len[0];
+    out[0].level = 0;
+    out[0].parent = -1;
+    for (i = 0; i < 7; ++i) {
+        const refl__maze_corridor *c = &out[i];
+        float ax = c->s[0] + c->d[0] * (c->length - 2.0f), az = c->s[1] + c->d[1] * (c->length - 2.0f);
+        float lx = -c->d[1], lz = c->d[0]; /* lateral */
+        int b;
+        for (b = 0; b < 2; ++b) {
+            refl__maze_corridor *k = &out[2 * i + 1 + b];
+            float sgn = b ? -1.0f : 1.0f;
+            k->parent = i;
+            k->level = c->level + 1;
+            k->s[0] = ax + c->d[0] + sgn * lx;
+            k->s[1] = az + c->d[1] + sgn * lz;
+            k->d[0] = sgn * lx;
+            k->d[1] = sgn * lz;
+            k->length = len[k->level];
+        }
+    }
+}
+
+REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int height) {
+    refl__maze_corridor c[REFL__MAZE_CORRIDORS];
+    int idx[REFL__MAZE_CORRIDORS];
+    const float eye_h = 1.25f, back = 6.0f;
+    refl_mat4 view_m, proj;
+    refl_vec3 eye = refl_v3(0.0f, eye_h, 4.0f);
+    double tx = 1.05 / 4.0, ty = 1.4 / 4.0, zn = 0.5, zf = 30.0;
+    refl_result r;
+    int i;
+    if (!cam) return REFL_ERROR_INVALID_ARGUMENT;
+    if (width == 0 && height == 0) width = 1920, height = 1176;
+    refl__maze_layout(c);
+    view_m = refl_mat4_look_at(eye, refl_v3(0.0f, eye_h, 0.0f), refl_v3(0, 1, 0));
+    memset(&proj, 0, sizeof proj);
+    proj.m[0] = (float)(1.0 / tx);
+    proj.m[5] = (float)(1.0 / ty);
+    proj.m[10] = (float)((zf + zn) / (zn - zf));
+    proj.m[11] = -1.0f;
+    proj.m[14] = (float)(2.0 * zf * zn / (zn - zf));
+    if ((r = refl__gc_root(cam, view_m, proj, eye, tx, ty, zn, zf, width, height)) != REFL_OK) return r;
+    idx[0] = 0;
+    for (i = 1; i < REFL__MAZE_CORRIDORS; ++i) {
+        const refl__maze_corridor *p = &c[c[i].parent], *k = &c[i];
+        /* the portal: a vertical quad from the junction's apex (the middle
+           of its near edge) to its far corner on the branch's side */
+        float ax = p->s[0] + p->d[0] * (p->length - 2.0f), az = p->s[1] + p->d[1] * (p->length - 2.0f);
+        float fx = ax + 2.0f * p->d[0] + k->d[0], fz = az + 2.0f * p->d[1] + k->d[1];
+        refl_vec3 portal[4];
+        portal[0] = refl_v3(ax, 0.0f, az);
+        portal[1] = refl_v3(fx, 0.0f, fz);
+        portal[2] = refl_v3(fx, REFL__MAZE_WALL_H, fz);
+        portal[3] = refl_v3(ax, REFL__MAZE_WALL_H, az);
+        /* the eye on the branch's axis, `back` behind its entry */
+        r = refl_graphcam_bend(cam, idx[k->parent], portal,
+                               refl_v3(k->s[0] - back * k->d[0], eye_h, k->s[1] - back * k->d[1]), 2.0f * k->length + 4.0f,
+                               &idx[i]);
+        if (r != REFL_OK) return r;
+    }
+    for (i = 0; i < REFL__MAZE_CORRIDORS; ++i) { /* each frustum inside its corridor */
+        const refl__maze_corridor *k = &c[i];
+        refl_vec3 d = refl_v3(k->d[0], 0.0f, k->d[1]), l = refl_v3(-k->d[1], 0.0f, k->d[0]);
+        float sd = k->s[0] * k->d[0] + k->s[1] * k->d[1], sl = -k->s[0] * k->d[1] + k->s[1] * k->d[0];
+        /* a T's junction square: its half on a branch's side is the branch's
+           (the part of it beyond the portal, where the branch's rays pass);
+           the corridor ending there stops at the square */
+        float end = i < 7 ? k->length - 2.0f : k->length;
+        if (i > 0 && (r = refl_graphcam_bound(cam, idx[i], d, -(sd - 1.0f))) != REFL_OK) return r;
+        if ((r = refl_graphcam_bound(cam, idx[i], refl_v3_scale(d, -1.0f), sd + end)) != REFL_OK ||
+            (r = refl_graphcam_bound(cam, idx[i], l, -(sl - 1.0f))) != REFL_OK ||
+            (r = refl_graphcam_bound(cam, idx[i], refl_v3_scale(l, -1.0f), sl + 1.0f)) != REFL_OK)
+            return r;
+    }
+    return REFL_OK;
 }
 /* ---- src/reflect/cam_sbc.c ---- */
 /* cam_sbc: the sample-based camera (SBC) of paper 003, section IV: one
@@ -6622,6 +7369,36 @@ REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long c
     return refl__gl_sbc(&o, sbc);
 }
 
+/* ---- the graph camera ------------------------------------------------------------ */
+
+static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
+    refl__gl_out o = *op;
+    int f, k;
+    if (!cam || cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_GRAPHCAM, REFL_GL_LAYOUT_VERSION, cam->count, cam->levels);
+    refl__gl_put4(&o, cam->width, cam->height, 0, 0);
+    for (f = 0; f < cam->count; ++f) {
+        const refl_graphcam_frustum *fr = &cam->frusta[f];
+        refl_mat4 m = refl__gc_draw_matrix(cam, f); /* what the impostor is drawn with */
+        refl__gl_put4(&o, fr->plane_count, fr->level, fr->parent, 0);
+        for (k = 0; k < 16; ++k) refl__gl_put(&o, m.m[k]);
+        for (k = 0; k < REFL_GRAPHCAM_MAX_PLANES; ++k) {
+            if (k < fr->plane_count) refl__gl_put3d(&o, fr->planes[k], fr->planes[k][3]);
+            else refl__gl_put4(&o, 0, 0, 0, 1);
+        }
+    }
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_graphcam(&o, cam);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_graphcam(&o, cam);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -6884,11 +7661,36 @@ static const char refl__gl_glsl_sbc[] =
     "                         texelFetch(data, nodes + node * 4 + 3), p, first, z);\n"
     "}\n";
 
+static const char refl__gl_glsl_graphcam[] =
+    "/* reflect.h GL hook: the graph camera (layout version 1): the first frustum\n"
+    "   whose region holds p (cam_graph.c's locate), then its matrix. */\n"
+    "vec4 refl_graphcam_project(samplerBuffer data, int base, vec3 p, out int frustum) {\n"
+    "    int count = int(texelFetch(data, base).z);\n"
+    "    frustum = -1;\n"
+    "    for (int f = 0; f < count; ++f) {\n"
+    "        int b = base + 2 + f * 21;\n"
+    "        int planes = int(texelFetch(data, b).x);\n"
+    "        bool inside = true;\n"
+    "        for (int k = 0; k < planes && inside; ++k) {\n"
+    "            vec4 pl = texelFetch(data, b + 5 + k);\n"
+    "            inside = dot(pl.xyz, p) + pl.w >= 0.0;\n"
+    "        }\n"
+    "        if (inside) {\n"
+    "            frustum = f;\n"
+    "            mat4 m = mat4(texelFetch(data, b + 1), texelFetch(data, b + 2),\n"
+    "                          texelFetch(data, b + 3), texelFetch(data, b + 4));\n"
+    "            return m * vec4(p, 1.0);\n"
+    "        }\n"
+    "    }\n"
+    "    return vec4(0.0);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
+    case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     }
     return NULL;
 }
@@ -9099,6 +9901,638 @@ static refl_result refl__method_envmap(refl__pass *p) {
     refl__free(al, cb.cube_points);
     refl__free(al, cb.face_depth);
     refl__free(al, cb.face_pos);
+    return r;
+}
+/* ---- src/reflect/m_graphcam.c ---- */
+/* GRAPHCAM: reflections of a graph-camera impostor (paper 004, sections 3
+   and 5; docs/graphcam.md). Each frame the scene's diffuse objects are
+   drawn through the graph camera (cam_graph.c) into colour, depth and
+   frustum-id images: every triangle is clipped in world space to each
+   frustum's region it reaches and rasterised with that frustum's matrix
+   (triangles wholly inside go through the base pass's programs
+   unchanged). Each mirror pixel's reflected ray is then intersected with
+   the impostor by one of the paper's two algorithms, and composited as
+   ENVMAP composites (gbuffer.c); a ray that meets nothing shows the
+   environment. One bounce (stats.depth 1).
+
+   The impostor's construction and its ray march are the graph camera's
+   own here; the generic impostor of the SPOC method could share the
+   march's crossing test (refl__gci_crossing) and the clipped-triangle
+   drawing. */
+
+/* ---- construction --------------------------------------------------------------- */
+
+enum { REFL__GCI_FLOATS = 8 };    /* a clipped vertex: world position, world normal, uv */
+enum { REFL__GCI_MAX_POLY = 3 + REFL_GRAPHCAM_MAX_PLANES };
+
+/* One object in one frustum: the base pass's context with the frustum's
+   matrix, its whole triangles and its clipped pieces. */
+typedef struct refl__gci_draw {
+    refl__draw_ctx dc;
+    refl_mat4 m;                  /* the frustum's draw matrix (world to clip) */
+    uint32_t *inside;
+    int inside_count, inside_cap;
+    float *pieces;                /* REFL__GCI_FLOATS per vertex, 3 vertices a triangle */
+    int piece_count, piece_cap;   /* vertices */
+} refl__gci_draw;
+
+static int refl__gci_piece_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__gci_draw *d = (const refl__gci_draw *)user;
+    const float *mm = d->m.m;
+    int k;
+    (void)index;
+    (void)max_out;
+    for (k = 0; k < 4; ++k)
+        out->position[k] = mm[k] * vertex[0] + mm[4 + k] * vertex[1] + mm[8 + k] * vertex[2] + mm[12 + k];
+    for (k = 0; k < REFL__GCI_FLOATS; ++k) out->varyings[k] = vertex[k];
+    return 1;
+}
+
+/* Sutherland-Hodgman in double: poly (n vertices of REFL__GCI_FLOATS) kept
+   where plane >= 0; the new count. */
+static int refl__gci_clip(double (*poly)[REFL__GCI_FLOATS], int n, const double pl[4],
+                          double (*tmp)[REFL__GCI_FLOATS]) {
+    int i, k, m = 0;
+    for (i = 0; i < n; ++i) {
+        const double *a = poly[i], *b = poly[(i + 1) % n];
+        double ea = pl[0] * a[0] + pl[1] * a[1] + pl[2] * a[2] + pl[3];
+        double eb = pl[0] * b[0] + pl[1] * b[1] + pl[2] * b[2] + pl[3];
+        if (ea >= 0.0) memcpy(tmp[m++], a, sizeof tmp[0]);
+        if ((ea >= 0.0) != (eb >= 0.0)) {
+            double t = ea / (ea - eb);
+            for (k = 0; k < REFL__GCI_FLOATS; ++k) tmp[m][k] = a[k] + t * (b[k] - a[k]);
+            ++m;
+        }
+    }
+    memcpy(poly, tmp, (size_t)m * sizeof tmp[0]);
+    return m;
+}
+
+static int refl__gci_grow(const refl_allocator *al, void **arr, int *cap, int need, size_t size) {
+    void *n;
+    int c = *cap ? *cap : 64;
+    if (need <= *cap) return 1;
+    while (c < need) c *= 2;
+    n = refl__alloc(al, (size_t)c * size);
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, (size_t)*cap * size);
+    refl__free(al, *arr);
+    *arr = n;
+    *cap = c;
+    return 1;
+}
+
+/* Sorts object `object`'s triangles for frustum f: wholly inside (the
+   planes the rasteriser does not clip), clipped into pieces, or out. */
+static refl_result refl__gci_collect(const refl_allocator *al, const refl_graphcam *cam, int f,
+                                     refl__gci_draw *d) {
+    const refl_graphcam_frustum *fr = &cam->frusta[f];
+    const refl_mesh *m = d->dc.mesh;
+    int t, k, j;
+    for (t = 0; t < m->triangle_count; ++t) {
+        const uint32_t *tri = m->indices + 3 * t;
+        double poly[REFL__GCI_MAX_POLY][REFL__GCI_FLOATS], tmp[REFL__GCI_MAX_POLY][REFL__GCI_FLOATS];
+        int n = 3, all_in = 1, out = 0;
+        for (k = 0; k < 3; ++k) {
+            uint32_t v = tri[k];
+            refl_vec3 p = refl_mat4_point(d->dc.model, refl_v3(m->positions[3 * v], m->positions[3 * v + 1],
+                                                                m->positions[3 * v + 2]));
+            refl_vec3 nn = refl_mat4_dir(d->dc.normal_m, refl_v3(m->normals[3 * v], m->normals[3 * v + 1],
+                                                                 m->normals[3 * v + 2]));
+            poly[k][0] = p.x; poly[k][1] = p.y; poly[k][2] = p.z;
+            poly[k][3] = nn.x; poly[k][4] = nn.y; poly[k][5] = nn.z;
+            poly[k][6] = m->texcoords ? m->texcoords[2 * v] : 0.0f;
+            poly[k][7] = m->texcoords ? m->texcoords[2 * v + 1] : 0.0f;
+        }
+        for (j = 0; j < fr->plane_count && !out; ++j) {
+            const double *pl = fr->planes[j];
+            int below = 0;
+            for (k = 0; k < 3; ++k) below += pl[0] * poly[k][0] + pl[1] * poly[k][1] + pl[2] * poly[k][2] + pl[3] < 0.0;
+            if (below == 3) out = 1;
+            else if (below && j >= fr->rast_clipped) all_in = 0;
+        }
+        if (out) continue;
+        if (all_in) {
+            if (!refl__gci_grow(al, (void **)&d->inside, &d->inside_cap, d->inside_count + 3, sizeof(uint32_t)))
+                return REFL_ERROR_OUT_OF_MEMORY;
+            for (k = 0; k < 3; ++k) d->inside[d->inside_count++] = tri[k];
+            continue;
+        }
+        for (j = fr->rast_clipped; j < fr->plane_count && n >= 3; ++j) n = refl__gci_clip(poly, n, fr->planes[j], tmp);
+        if (n < 3) continue;
+        if (!refl__gci_grow(al, (void **)&d->pieces, &d->piece_cap, d->piece_count + 3 * (n - 2),
+                            REFL__GCI_FLOATS * sizeof(float)))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        for (k = 1; k + 1 < n; ++k) { /* a fan */
+            const int corner[3] = {0, k, k + 1};
+            int c, e;
+            for (c = 0; c < 3; ++c) {
+                float *o = d->pieces + (size_t)REFL__GCI_FLOATS * (size_t)d->piece_count++;
+                for (e = 0; e < REFL__GCI_FLOATS; ++e) o[e] = (float)poly[corner[c]][e];
+            }
+        }
+    }
+    return REFL_OK;
+}
+
+REFL_API void refl_graphcam_impostor_destroy(refl_graphcam_impostor *imp) {
+    refl_allocator al;
+    if (!imp) return;
+    al = imp->allocator;
+    refl__free(&al, imp->rgba);
+    refl__free(&al, imp->depth);
+    refl__free(&al, imp->frustum);
+    refl__free(&al, imp);
+}
+
+/* Whether object i's box reaches frustum f's box. */
+static int refl__gci_overlaps(const refl_scene *s, int i, const refl_graphcam_frustum *f) {
+    refl_vec3 lo, hi, wlo, whi;
+    int c;
+    refl_mesh_bounds(s->meshes[s->objects[i].mesh], &lo, &hi);
+    for (c = 0; c < 8; ++c) {
+        refl_vec3 p = refl_mat4_point(s->objects[i].transform,
+                                      refl_v3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z));
+        wlo = c ? refl__v3_min(wlo, p) : p;
+        whi = c ? refl__v3_max(whi, p) : p;
+    }
+    return !(whi.x < f->lo.x || wlo.x > f->hi.x || whi.y < f->lo.y || wlo.y > f->hi.y || whi.z < f->lo.z ||
+             wlo.z > f->hi.z);
+}
+
+/* The impostor drawn with rc (its targets rebound to the impostor's). */
+static refl_result refl__gci_build(const refl_scene *scene, const refl_graphcam *cam, const uint8_t *skip,
+                                   rast_context *rc, refl_graphcam_impostor **out) {
+    const refl_allocator *al;
+    refl_graphcam_impostor *imp;
+    refl__gci_draw *draws = NULL;
+    rast_targets t;
+    size_t npx;
+    int f, i, nd = 0;
+    refl_result r = REFL_OK;
+    rast_result rr = RAST_OK;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    al = &scene->allocator;
+    npx = (size_t)cam->width * (size_t)cam->height;
+    imp = (refl_graphcam_impostor *)refl__calloc(al, 1, sizeof *imp);
+    if (!imp) return REFL_ERROR_OUT_OF_MEMORY;
+    imp->allocator = refl__allocator(al);
+    imp->width = cam->width;
+    imp->height = cam->height;
+    imp->rgba = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+    imp->depth = (float *)refl__calloc(al, npx, sizeof(float));
+    imp->frustum = (uint8_t *)refl__calloc(al, npx, 1);
+    draws = (refl__gci_draw *)refl__calloc(al, (size_t)cam->count * (size_t)REFL__MAX(scene->object_count, 1),
+                                           sizeof *draws);
+    if (!imp->rgba || !imp->depth || !imp->frustum || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        /* a frame's layout: colour, depth, and the frustum ids as its stencil */
+        refl_frame as_frame;
+        memset(&as_frame, 0, sizeof as_frame);
+        as_frame.width = cam->width;
+        as_frame.height = cam->height;
+        as_frame.rgba = imp->rgba;
+        as_frame.depth = imp->depth;
+        as_frame.stencil = imp->frustum;
+        t = refl__frame_targets(&as_frame);
+        rr = rast_set_targets(rc, &t);
+        if (rr == RAST_OK) rr = refl__em_clear(rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL);
+    }
+    for (f = 0; r == REFL_OK && rr == RAST_OK && f < cam->count; ++f)
+        for (i = 0; r == REFL_OK && rr == RAST_OK && i < scene->object_count; ++i) {
+            refl__gci_draw *d = &draws[nd];
+            rast_state s;
+            const refl_material *mat = &scene->materials[scene->objects[i].material];
+            if ((skip && skip[i]) || refl__is_reflector(mat)) continue;
+            if (!refl__gci_overlaps(scene, i, &cam->frusta[f])) continue;
+            ++nd;
+            d->m = refl__gc_draw_matrix(cam, f);
+            refl__draw_ctx_init(&d->dc, scene, i, d->m);
+            if ((r = refl__gci_collect(al, cam, f, d)) != REFL_OK) break;
+            memset(&s, 0, sizeof s);
+            s.depth_test = 1;
+            s.stencil_test = 1;
+            s.stencil_front.func = RAST_ALWAYS;
+            s.stencil_front.pass = RAST_REPLACE;
+            s.stencil_front.ref = (uint8_t)(f + 1);
+            s.stencil_back = s.stencil_front;
+            s.fragment_fn = refl__base_fragment;
+            s.fragment_user = &d->dc;
+            if (d->inside_count) {
+                s.vertex_fn = refl__base_vertex;
+                s.vertex_user = &d->dc;
+                rr = rast_set_state(rc, &s);
+                if (rr == RAST_OK) rr = refl__draw_mesh(rc, d->dc.mesh, d->inside, d->inside_count, REFL__BASE_VARYINGS);
+            }
+            if (rr == RAST_OK && d->piece_count) {
+                rast_draw_desc dd;
+                s.vertex_fn = refl__gci_piece_vertex;
+                s.vertex_user = d;
+                rr = rast_set_state(rc, &s);
+                memset(&dd, 0, sizeof dd);
+                dd.primitive = RAST_TRIANGLES;
+                dd.vertices = d->pieces;
+                dd.vertex_count = d->piece_count;
+                dd.stride = REFL__GCI_FLOATS;
+                dd.position_size = 3;
+                dd.num_varyings = REFL__BASE_VARYINGS;
+                if (rr == RAST_OK) rr = rast_draw(rc, &dd);
+            }
+            imp->triangles += d->inside_count / 3 + d->piece_count / 3;
+        }
+    /* always finished before the draws' memory goes, also after a failure:
+       queued work points into it */
+    {
+        rast_result fin = rast_finish(rc);
+        if (rr == RAST_OK) rr = fin;
+    }
+    if (r == REFL_OK && rr != RAST_OK) r = refl__result_from_rast(rr);
+    for (i = 0; draws && i < nd; ++i) {
+        refl__free(al, draws[i].inside);
+        refl__free(al, draws[i].pieces);
+    }
+    refl__free(al, draws);
+    if (r != REFL_OK) {
+        refl_graphcam_impostor_destroy(imp);
+        return r;
+    }
+    *out = imp;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const refl_graphcam *cam,
+                                                  const uint8_t *skip, int threads, refl_graphcam_impostor **out) {
+    rast_context *rc = NULL;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!scene || !cam || cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA || cam->width <= 0 ||
+        cam->height <= 0 || threads < 0 || threads > RAST_MAX_THREADS)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__context_create(scene, threads, &rc)) != REFL_OK) return r;
+    r = refl__gci_build(scene, cam, skip, rc, out);
+    rast_context_destroy(rc);
+    return r;
+}
+
+/* ---- intersection --------------------------------------------------------------- */
+
+/* What a march keeps between two samples. */
+typedef struct refl__gci_sample {
+    int valid;                    /* the pixel shows this sample's frustum */
+    int frustum;
+    double t;                     /* along the ray */
+    double gd, GD;                /* the ray's depth, the impostor's */
+    int px, py;
+} refl__gci_sample;
+
+typedef struct refl__gci_march {
+    const refl_graphcam *cam;
+    const refl_graphcam_impostor *imp;
+    refl_vec3 o, d;
+} refl__gci_march;
+
+/* The impostor's depth slope at pixel (x, y) of frustum f: per axis the
+   smaller of the two one-sided differences (so a silhouette's jump on one
+   side does not count), the larger over the axes. */
+static double refl__gci_slope(const refl_graphcam_impostor *imp, int f, int x, int y) {
+    double best = 0.0, g = imp->depth[(size_t)y * (size_t)imp->width + (size_t)x];
+    int axis;
+    for (axis = 0; axis < 2; ++axis) {
+        double side = HUGE_VAL;
+        int k;
+        for (k = -1; k <= 1; k += 2) {
+            int nx = x + (axis ? 0 : k), ny = y + (axis ? k : 0);
+            size_t i;
+            if (nx < 0 || ny < 0 || nx >= imp->width || ny >= imp->height) continue;
+            i = (size_t)ny * (size_t)imp->width + (size_t)nx;
+            if (imp->frustum[i] != f + 1) continue;
+            side = REFL__MIN(side, fabs(imp->depth[i] - g));
+        }
+        if (side < HUGE_VAL) best = REFL__MAX(best, side);
+    }
+    return best;
+}
+
+/* Whether the ray crosses the impostor's depth between samples a and b
+   (both valid, one frustum): the ray in front at a, behind at b, and the
+   stored depth continuous between their pixels: a jump larger than three
+   times the ray's own depth change plus twice the surface's slope over
+   the pixels between is the "skin" between two depth layers at a
+   silhouette, not a surface. *s: the crossing's fraction from a to b. */
+static int refl__gci_crossing(refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b, double *s) {
+    double da = a->gd - a->GD, db = b->gd - b->GD, px;
+    if (!a->valid || !b->valid || a->frustum != b->frustum || !(da < 0.0) || !(db >= 0.0)) return 0;
+    px = REFL__MAX(b->px > a->px ? b->px - a->px : a->px - b->px, b->py > a->py ? b->py - a->py : a->py - b->py);
+    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * refl__gci_slope(mc->imp, b->frustum, b->px, b->py))
+        return 0;
+    *s = da / (da - db);
+    return 1;
+}
+
+/* The ray's point at t. */
+static refl_vec3 refl__gci_ray_at(const refl__gci_march *mc, double t) {
+    return refl_v3((float)(mc->o.x + t * mc->d.x), (float)(mc->o.y + t * mc->d.y), (float)(mc->o.z + t * mc->d.z));
+}
+
+/* Fills sample x for the ray at t, seen through frustum f (-1: none). */
+static void refl__gci_sample_at(refl__gci_march *mc, int f, double t, refl__gci_sample *x) {
+    refl_vec3 p = refl__gci_ray_at(mc, t);
+    double c[4];
+    x->valid = 0;
+    x->frustum = f;
+    x->t = t;
+    if (f < 0) return;
+    refl__gc_clip(mc->cam, f, p, c);
+    if (!(c[3] > 0.0)) return;
+    {
+        double u = (c[0] / c[3] + 1.0) * 0.5 * mc->cam->width, v = (1.0 - c[1] / c[3]) * 0.5 * mc->cam->height;
+        size_t i;
+        if (!(u >= 0.0 && v >= 0.0 && u < mc->cam->width && v < mc->cam->height)) return;
+        x->px = (int)u;
+        x->py = (int)v;
+        i = (size_t)x->py * (size_t)mc->imp->width + (size_t)x->px;
+        if (mc->imp->frustum[i] != f + 1) return;
+        x->gd = (c[2] / c[3] + 1.0) * 0.5;
+        x->GD = mc->imp->depth[i];
+        x->valid = 1;
+    }
+}
+
+static void refl__gci_fill_hit(refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b, double s,
+                               refl_graphcam_hit *hit) {
+    const float *px = mc->imp->rgba + 4 * ((size_t)b->py * (size_t)mc->imp->width + (size_t)b->px);
+    double t = a->t + s * (b->t - a->t);
+    hit->t = (float)t;
+    hit->point = refl__gci_ray_at(mc, t);
+    hit->rgb[0] = px[0];
+    hit->rgb[1] = px[1];
+    hit->rgb[2] = px[2];
+    hit->frustum = b->frustum;
+}
+
+/* Samples a march takes over a length at `step` a sample (at least 1, at most 10^6). */
+static long long refl__gci_samples(double length, double step) {
+    double n = ceil(length / step);
+    return n < 1.0 ? 1 : n > 1e6 ? 1000000 : (long long)n;
+}
+
+/* One march step: sample b after a (k: b's index); 1 when the ray crosses
+   the impostor between them (the hit filled in), else b becomes a. */
+static int refl__gci_step(refl__gci_march *mc, refl__gci_sample *a, const refl__gci_sample *b, long long k,
+                          refl_graphcam_hit *hit) {
+    double s;
+    hit->steps++;
+    if (k > 0 && refl__gci_crossing(mc, a, b, &s)) {
+        refl__gci_fill_hit(mc, a, b, s, hit);
+        return 1;
+    }
+    *a = *b;
+    return 0;
+}
+
+/* Algorithm 1: uniform steps of `step` world units over the part of the
+   ray inside the camera's bounds. */
+static int refl__gci_uniform(refl__gci_march *mc, double t0, double t1, double step, refl_graphcam_hit *hit) {
+    refl__gci_sample a, b;
+    long long n, k;
+    if (!(t1 > t0)) return 0;
+    n = refl__gci_samples(t1 - t0, step);
+    memset(&a, 0, sizeof a);
+    for (k = 0; k <= n; ++k) {
+        double t = t0 + (t1 - t0) * (double)k / (double)n;
+        refl__gci_sample_at(mc, refl_graphcam_locate(mc->cam, refl__gci_ray_at(mc, t)), t, &b);
+        if (refl__gci_step(mc, &a, &b, k, hit)) return 1;
+    }
+    return 0;
+}
+
+/* Algorithm 2 in one frustum: the ray's piece [t0, t1] in it projects to a
+   straight image segment, walked `step` pixels at a time (the point of
+   each step found by perspective-correct interpolation). */
+static int refl__gci_segment(refl__gci_march *mc, int f, double t0, double t1, double step, refl_graphcam_hit *hit) {
+    refl__gci_sample a, b;
+    double ca[4], cb[4], du, dv;
+    long long n, k;
+    refl__gc_clip(mc->cam, f, refl__gci_ray_at(mc, t0), ca);
+    refl__gc_clip(mc->cam, f, refl__gci_ray_at(mc, t1), cb);
+    if (!(ca[3] > 0.0) || !(cb[3] > 0.0)) return 0;
+    du = (cb[0] / cb[3] - ca[0] / ca[3]) * 0.5 * mc->cam->width;
+    dv = (cb[1] / cb[3] - ca[1] / ca[3]) * 0.5 * mc->cam->height;
+    n = refl__gci_samples(sqrt(du * du + dv * dv), step);
+    memset(&a, 0, sizeof a);
+    for (k = 0; k <= n; ++k) {
+        /* image fraction sf -> ray fraction: homogeneous interpolation */
+        double sf = (double)k / (double)n, den = (1.0 - sf) * cb[3] + sf * ca[3];
+        double tf = den > 0.0 ? sf * ca[3] / den : sf;
+        refl__gci_sample_at(mc, f, t0 + (t1 - t0) * tf, &b);
+        if (refl__gci_step(mc, &a, &b, k, hit)) return 1;
+    }
+    return 0;
+}
+
+REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
+                                     float step, refl_graphcam_hit *hit) {
+    refl__gci_march mc;
+    refl_graphcam_hit h;
+    refl_vec3 lo, hi;
+    double t0 = tmin, t1 = tmax;
+    int k, found = 0;
+    memset(&h, 0, sizeof h);
+    h.frustum = -1;
+    if (hit) *hit = h;
+    if (!cam || !imp || !hit || imp->width != cam->width || imp->height != cam->height || !refl__v3_finite(o) ||
+        !refl__v3_finite(dir) || !(refl_v3_dot(dir, dir) > 0.0f) || !(tmax > tmin) || !(step >= 0.0f))
+        return 0;
+    mc.cam = cam;
+    mc.imp = imp;
+    mc.o = o;
+    mc.d = dir;
+    refl_graphcam_bounds(cam, &lo, &hi);
+    /* the ray inside the camera's bounds (slabs) */
+    for (k = 0; k < 3; ++k) {
+        double oc = k == 0 ? o.x : k == 1 ? o.y : o.z, dc = k == 0 ? dir.x : k == 1 ? dir.y : dir.z;
+        double l = k == 0 ? lo.x : k == 1 ? lo.y : lo.z, u = k == 0 ? hi.x : k == 1 ? hi.y : hi.z;
+        if (dc == 0.0) {
+            if (oc < l || oc > u) return 0;
+        } else {
+            double a = (l - oc) / dc, b = (u - oc) / dc;
+            if (a > b) { double tt = a; a = b; b = tt; }
+            t0 = REFL__MAX(t0, a);
+            t1 = REFL__MIN(t1, b);
+        }
+    }
+    if (!(t1 > t0)) return 0;
+    if (algorithm == REFL_GRAPHCAM_UNIFORM) {
+        double st = step > 0.0f ? step : refl_v3_length(refl_v3_sub(hi, lo)) / 2048.0;
+        found = refl__gci_uniform(&mc, t0, t1, st / refl_v3_length(dir), &h);
+    } else {
+        /* the pieces of the ray in each frustum, nearest first; a piece
+           starting past the best hit so far cannot improve it (regions
+           may overlap, so every earlier piece is searched) */
+        double best = HUGE_VAL, ta[REFL_GRAPHCAM_MAX_FRUSTA], tb[REFL_GRAPHCAM_MAX_FRUSTA];
+        int order[REFL_GRAPHCAM_MAX_FRUSTA], pieces = 0, j;
+        refl_vec3 a = refl__gci_ray_at(&mc, t0), b = refl__gci_ray_at(&mc, t1);
+        for (k = 0; k < cam->count; ++k) {
+            float s0, s1;
+            if (!refl_graphcam_clip_segment(cam, k, a, b, &s0, &s1)) continue;
+            ta[k] = t0 + (t1 - t0) * s0;
+            tb[k] = t0 + (t1 - t0) * s1;
+            for (j = pieces++; j > 0 && ta[order[j - 1]] > ta[k]; --j) order[j] = order[j - 1]; /* stable */
+            order[j] = k;
+        }
+        for (j = 0; j < pieces; ++j) {
+            refl_graphcam_hit hk;
+            k = order[j];
+            if (ta[k] >= best) break;
+            memset(&hk, 0, sizeof hk);
+            if (refl__gci_segment(&mc, k, ta[k], tb[k], step > 0.0f ? step : 1.0, &hk) && hk.t < best) {
+                long long steps = h.steps + hk.steps;
+                best = hk.t;
+                h = hk;
+                h.steps = steps;
+                found = 1;
+            } else {
+                h.steps += hk.steps;
+            }
+        }
+    }
+    *hit = h;
+    if (!found) hit->frustum = -1;
+    return found;
+}
+
+/* ---- the method ----------------------------------------------------------------- */
+
+typedef struct refl__gcm {
+    refl__pass *p;
+    refl__em em;
+    const refl_graphcam *cam;
+    const refl_graphcam_impostor *imp;
+    long long *steps, *max_steps, *rays, *hits; /* per row */
+} refl__gcm;
+
+/* One frame row: each reflector pixel's reflected ray against the impostor. */
+static void refl__gcm_row(void *arg, int y) {
+    refl__gcm *g = (refl__gcm *)arg;
+    const refl__pass *p = g->p;
+    refl_frame *fr = p->frame;
+    refl_vec3 lo, hi;
+    float eps;
+    int x;
+    refl_graphcam_bounds(g->cam, &lo, &hi);
+    eps = 1e-4f * (refl_v3_length(refl_v3_sub(hi, lo)) + 1.0f);
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *gb = g->em.gbuf + 4 * i;
+        const float *q = g->em.surface + 3 * i;
+        refl_vec3 o, d, n, s;
+        refl_graphcam_hit hit;
+        float tmax;
+        if (fabsf(gb[3]) < 1.0f) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        s = refl_v3(q[0], q[1], q[2]);
+        g->rays[y]++;
+        if (refl_graphcam_intersect(g->cam, g->imp, s, refl_v3_reflect(d, n), eps, 1e30f,
+                                    (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit)) {
+            g->hits[y]++;
+            refl__em_composite(p, gb, x, y, hit.rgb, hit.point);
+        } else {
+            refl__em_composite(p, gb, x, y, NULL, refl_v3(NAN, NAN, NAN));
+        }
+        g->steps[y] += hit.steps;
+        if (hit.steps > g->max_steps[y]) g->max_steps[y] = hit.steps;
+    }
+}
+
+static const char *refl__options_graphcam(refl_render_desc *d) {
+    const refl_graphcam_options *o = &d->graphcam;
+    if (o->size < 0 || o->size > 8192) return "graphcam.size: 0 (twice the frame's width) to 8192";
+    if (o->algorithm < 0 || o->algorithm > 1) return "graphcam.algorithm: 0 (SEGMENTS) or 1 (UNIFORM)";
+    if (!(o->step >= 0.0f) || !refl__isfinite(o->step)) return "graphcam.step: finite, 0 or more";
+    if (o->camera && (o->camera->count <= 0 || o->camera->count > REFL_GRAPHCAM_MAX_FRUSTA ||
+                      o->camera->width <= 0 || o->camera->height <= 0 || o->camera->width > 16384 ||
+                      o->camera->height > 16384))
+        return "graphcam.camera: a camera made by refl_graphcam_init";
+    return NULL;
+}
+
+static refl_result refl__method_graphcam(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__gcm g;
+    refl_graphcam *own = NULL;
+    refl_graphcam_impostor *imp = NULL;
+    unsigned char *seen = NULL;
+    double t0 = refl__now_ms(), t1;
+    refl_result r = REFL_OK;
+    int any = 0, y;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    memset(&g, 0, sizeof g);
+    g.p = p;
+    g.em.p = p;
+    r = refl__em_gbuffer_new(&g.em, &seen, &any);
+    if (r == REFL_OK && any) {
+        g.cam = p->desc.graphcam.camera;
+        if (!g.cam) { /* the view's pinhole */
+            refl_view v = *p->view;
+            int w = p->desc.graphcam.size > 0 ? p->desc.graphcam.size : 2 * fr->width;
+            int h = (int)((long long)w * fr->height / fr->width);
+            own = (refl_graphcam *)refl__alloc(al, sizeof *own);
+            if (!own) r = REFL_ERROR_OUT_OF_MEMORY;
+            v.znear = p->rays.znear;
+            v.zfar = p->rays.zfar;
+            if (r == REFL_OK) r = refl_graphcam_init(own, &v, w, REFL__MAX(h, 1));
+            g.cam = own;
+        }
+        g.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        g.steps = (long long *)refl__calloc(al, (size_t)fr->height, 4 * sizeof(long long));
+        if (r == REFL_OK && (!g.em.surface || !g.steps)) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) {
+            g.max_steps = g.steps + fr->height;
+            g.rays = g.max_steps + fr->height;
+            g.hits = g.rays + fr->height;
+            /* the impostor replaces the diffuse scene; reflectors stay out */
+            t1 = refl__now_ms();
+            fr->stats.ms_reflect += t1 - t0;
+            r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
+            t0 = refl__now_ms();
+            fr->stats.ms_build += t0 - t1;
+        }
+        if (r == REFL_OK) {
+            g.imp = imp;
+            fr->stats.graphcam.frusta = g.cam->count;
+            fr->stats.graphcam.triangles = imp->triangles;
+            fr->stats.model_bytes += (long long)((size_t)imp->width * (size_t)imp->height * (4 * sizeof(float) + sizeof(float) + 1));
+            rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &g.em);
+            rast_run_jobs(p->rc, fr->height, refl__gcm_row, &g);
+            for (y = 0; y < fr->height; ++y) {
+                fr->stats.graphcam.steps += g.steps[y];
+                fr->stats.graphcam.rays += g.rays[y];
+                fr->stats.graphcam.hits += g.hits[y];
+                if (g.max_steps[y] > fr->stats.graphcam.max_steps) fr->stats.graphcam.max_steps = g.max_steps[y];
+            }
+        }
+    }
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl_graphcam_impostor_destroy(imp);
+    refl__free(al, own);
+    refl__free(al, g.steps);
+    refl__free(al, g.em.surface);
+    refl__free(al, g.em.gbuf);
+    refl__free(al, g.em.draws);
+    refl__free(al, seen);
     return r;
 }
 /* ---- src/reflect/m_planar.c ---- */
@@ -12472,6 +13906,7 @@ static const refl__method_row refl__methods[] = {
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
+    {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -15659,7 +17094,7 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -15889,6 +17324,80 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* maze: paper 004's maze (docs/graphcam.md): the corridors of
+   refl__maze_layout walled with boxes 0.15 thick and REFL__MAZE_WALL_H
+   high, no ceiling, on a checker floor; a teapot, a sphere, a torus and a
+   box in the corridors; a mirror sphere near the entrance, where the
+   view looks. refl_graphcam_maze is its graph camera. */
+static refl_result refl__scene_maze(refl_scene *s, const refl_allocator *a, int tess) {
+    static const float wall_rgb[4][3] = {{0.85f, 0.8f, 0.7f}, {0.6f, 0.7f, 0.85f}, {0.6f, 0.82f, 0.6f}, {0.85f, 0.65f, 0.7f}};
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
+    refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
+    refl_material green = refl__material(REFL_DIFFUSE, 0.15f, 0.7f, 0.2f, "green");
+    refl_material blue = refl__material(REFL_DIFFUSE, 0.15f, 0.25f, 0.8f, "blue");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.5f, 0.1f, "orange");
+    refl__maze_corridor c[REFL__MAZE_CORRIDORS];
+    refl_mesh *m = NULL;
+    refl_result r;
+    float *checker;
+    int k, i, tex, n = 340;
+    const float thick = 0.15f, h = REFL__MAZE_WALL_H;
+    if ((r = refl__stage(s, a, 40.0f, refl_v3(0.7f, 1.3f, 2.2f), refl_v3(0.2f, 0.6f, -1.6f))) != REFL_OK) return r;
+    /* the floor: a 1 x 1 checker (the plane spans 40, its texture 40 x 40 cells of 8 texels) */
+    n = 320;
+    checker = (float *)refl__alloc(a, (size_t)n * (size_t)n * 4 * sizeof(float));
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n * n; ++i) {
+        float v = ((i % n) / 8 + (i / n) / 8) & 1 ? 0.75f : 0.25f;
+        checker[4 * i] = checker[4 * i + 1] = checker[4 * i + 2] = v;
+        checker[4 * i + 3] = 1.0f;
+    }
+    tex = refl_scene_add_texture(s, n, n, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    s->materials[s->objects[0].material].texture = tex;
+    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
+        s->materials[s->objects[0].material].color[2] = 1.0f;
+    refl__maze_layout(c);
+    for (i = 0; i < REFL__MAZE_CORRIDORS; ++i) {
+        const refl__maze_corridor *k0 = &c[i];
+        refl_material wall = refl__material(REFL_DIFFUSE, wall_rgb[k0->level][0], wall_rgb[k0->level][1],
+                                            wall_rgb[k0->level][2], "wall");
+        float along = i < 7 ? k0->length - 2.0f : k0->length; /* the side walls stop at a junction */
+        float lx = -k0->d[1], lz = k0->d[0];
+        int side;
+        for (side = -1; side <= 1; ++side) {
+            /* side = 0: the end wall across the corridor's far end */
+            float len = side ? along + thick : 2.0f + thick;
+            float t = side ? 0.5f * along : k0->length;
+            float x = k0->s[0] + k0->d[0] * t + (float)side * lx, z = k0->s[1] + k0->d[1] * t + (float)side * lz;
+            int across = side == 0;
+            float sx = (k0->d[0] != 0.0f) != across ? len : thick, sz = (k0->d[0] != 0.0f) != across ? thick : len;
+            if ((k = refl__add(s, refl_mesh_box(refl_v3(sx, h, sz), a, &m), &m, &wall, refl__at(x, 0.5f * h, z), "wall")) < 0)
+                return (refl_result)k;
+        }
+    }
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_sphere(0.5f, 48, 24, a, &m), &m, &mirror, refl__at(0.3f, 0.5f, -1.6f),
+                       "mirror sphere")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
+                       refl_mat4_mul(refl__at(-0.45f, 0.0f, -4.0f),
+                                     refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 2.2f), refl_mat4_scale(refl_v3(0.3f, 0.3f, 0.3f)))),
+                       "teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_sphere(0.45f, 32, 16, a, &m), &m, &green, refl__at(4.0f, 0.45f, -9.0f),
+                       "sphere")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_torus(0.45f, 0.18f, 32, 16, a, &m), &m, &red,
+                       refl_mat4_mul(refl__at(-4.5f, 0.6f, -9.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 1.2f)), "torus")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(0.7f, 0.7f, 0.7f), a, &m), &m, &blue,
+                       refl_mat4_mul(refl__at(8.0f, 0.35f, -5.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 0.5f)), "box")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc, refl_scene **out_scene) {
     refl_builtin_desc d;
     refl_scene *s;
@@ -15898,12 +17407,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (!name) return REFL_ERROR_INVALID_ARGUMENT;
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
-    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass"))
+    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
+        strcmp(name, "maze"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

@@ -60,7 +60,7 @@ ok "--tonemap reinhard maps the sky of 4 to sRGB 231" bash -c \
 refuses "--tonemap of an unknown name" "expected clamp, reinhard or aces" "$bin" render --builtin default --tonemap x
 refuses "--exposure out of range" "expected -64..64" "$bin" render --builtin default --exposure 100
 
-for s in default mirror-room concave glass; do
+for s in default mirror-room concave glass maze; do
     ok "render $s" "$bin" render --builtin "$s" --size 96x64 --threads 2 --out "$tmp/$s.png"
     ok "$s.png is a 96x64 image" bash -c "oiiotool --info '$tmp/$s.png' | grep -q '96 x  *64'"
 done
@@ -81,7 +81,7 @@ if [ -d "$assets" ]; then
     # no NaN (alpha's minimum 1 and no NaN count in the linear EXR)
     for scene in "$assets"/*.glb --builtin=default --builtin=mirror-room --builtin=concave --builtin=glass; do
         case $scene in --builtin=*) src=(--builtin "${scene#--builtin=}") ;; *) src=("$scene") ;; esac
-        for m in direct raytrace envmap planar c3rc sbc; do
+        for m in direct raytrace envmap planar c3rc sbc graphcam; do
             ok "$(basename -- "$scene") with $m: every pixel opaque, no NaN" bash -c \
                 "'$bin' render $(printf "'%s' " "${src[@]}") --method $m --size 32x24 --depth 2 --envmap-size 16 --out '$tmp/alpha.exr' 2>/dev/null &&
                  oiiotool '$tmp/alpha.exr' --printstats | grep -qE 'Stats Min: [^ ]+ [^ ]+ [^ ]+ 1\.000000' &&
@@ -100,6 +100,10 @@ fi
 for m in raytrace envmap planar c3rc; do
     ok "render --method $m" "$bin" render --builtin mirror-room --method $m --size 48x36 --depth 2 --out "$tmp/m-$m.png"
 done
+ok "render the maze through its graph camera, both algorithms" bash -c \
+    "'$bin' render --builtin maze --method graphcam --graphcam-size 480 --size 48x36 --depth 1 --out '$tmp/gc.png' --stats | grep -q 'frusta       15' &&
+     '$bin' render --builtin maze --method graphcam --graphcam-size 480 --graphcam-alg uniform --size 48x36 --depth 1 --out '$tmp/gc1.png'"
+refuses "--graphcam-alg of an unknown name" "segments or uniform" "$bin" render --builtin maze --method graphcam --graphcam-alg x
 ok "render planar with soft shadows" "$bin" render --builtin mirror-room --method planar --shadows --soft-shadows 4 \
     --light-radius 0.3 --size 48x36 --out "$tmp/soft.png"
 ok "render planar --no-culling counts renderings" bash -c \

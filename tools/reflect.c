@@ -40,8 +40,9 @@ static const char *const usage_main =
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
-    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc\n"
+    "                     or graphcam\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
@@ -74,6 +75,13 @@ static const char *const usage_render =
     "  --sbc-paper        SBC: the paper's method, no search of the scene (heads where\n"
     "                     the rays leave its box); default: SBC-traced, every ray map\n"
     "                     sample traced against the scene's BVH\n"
+    "  --graphcam-size N  GRAPHCAM: the impostor's width, 16..8192 (the maze's graph camera:\n"
+    "                     default 1920 x 1176; other scenes: one frustum, the view's own\n"
+    "                     pinhole, default twice the frame's width)\n"
+    "  --graphcam-alg A   GRAPHCAM: segments (the paper's algorithm 2, default) or\n"
+    "                     uniform (algorithm 1)\n"
+    "  --graphcam-step S  GRAPHCAM: segments: pixels a step (default 1); uniform: world\n"
+    "                     units a step (default: the camera's bounds' diagonal / 2048)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -127,6 +135,8 @@ typedef struct options {
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
     int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper;
+    int graphcam_size, graphcam_alg;
+    float graphcam_step;
     float density, camera_split, error_px;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
@@ -176,7 +186,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    NULL};
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
 
@@ -301,6 +311,14 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_float(v, 1e-9f, 1e9f, &o->density)) return fail("--density: not a positive density: %s", v);
         } else if (!strcmp(a, "--leaf-points")) {
             if (!parse_int(v, 1, 1 << 24, &o->leaf_points)) return fail("--leaf-points: expected 1..16777216, got %s", v);
+        } else if (!strcmp(a, "--graphcam-size")) {
+            if (!parse_int(v, 16, 8192, &o->graphcam_size)) return fail("--graphcam-size: expected 16..8192, got %s", v);
+        } else if (!strcmp(a, "--graphcam-alg")) {
+            if (!strcmp(v, "segments")) o->graphcam_alg = REFL_GRAPHCAM_SEGMENTS;
+            else if (!strcmp(v, "uniform")) o->graphcam_alg = REFL_GRAPHCAM_UNIFORM;
+            else return fail("--graphcam-alg: segments or uniform, got %s", v);
+        } else if (!strcmp(a, "--graphcam-step")) {
+            if (!parse_float(v, 0.0f, 1e6f, &o->graphcam_step)) return fail("--graphcam-step: expected 0..1e6, got %s", v);
         } else if (!strcmp(a, "--camera-split")) {
             if (!parse_float(v, -1.0f, 1e6f, &o->camera_split)) return fail("--camera-split: expected -1..1e6, got %s", v);
         } else if (!strcmp(a, "--error-px")) {
@@ -516,6 +534,7 @@ out:
 
 static int cmd_render(const options *o) {
     refl_scene *s = load_scene(o, NULL);
+    refl_graphcam *maze_cam = NULL; /* the maze's graph camera, for GRAPHCAM on --builtin maze */
     refl_frame *f = NULL;
     refl_view v;
     refl_render_desc d;
@@ -576,6 +595,18 @@ static int cmd_render(const options *o) {
     d.sbc.ray_factor = o->ray_factor;
     d.sbc.trace_fallback = o->trace_fallback;
     d.sbc.mode = o->sbc_paper ? REFL_SBC_PAPER : REFL_SBC_TRACED;
+    d.graphcam.size = o->graphcam_size;
+    d.graphcam.algorithm = o->graphcam_alg;
+    d.graphcam.step = o->graphcam_step;
+    if (o->builtin && !strcmp(o->builtin, "maze")) {
+        int w = o->graphcam_size ? o->graphcam_size : 1920;
+        maze_cam = (refl_graphcam *)malloc(sizeof *maze_cam);
+        if (!maze_cam || refl_graphcam_maze(maze_cam, w, (int)((long)w * 1176 / 1920)) != REFL_OK) {
+            fprintf(stderr, "reflect: the maze's graph camera could not be built\n");
+            goto done;
+        }
+        d.graphcam.camera = maze_cam;
+    }
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -663,10 +694,17 @@ static int cmd_render(const options *o) {
             printf("projections  %lld (valid %lld, %.1f%%)\n", b->projections, b->projected,
                    b->projections ? 100.0 * (double)b->projected / (double)b->projections : 0.0);
         }
+        if (st->graphcam.frusta) {
+            const refl_graphcam_frame_stats *g = &st->graphcam;
+            printf("frusta       %d\nimpostor     %lld triangles\nrays         %lld (hit %lld)\n"
+                   "steps        %lld (at most %lld a ray)\n", g->frusta, g->triangles, g->rays, g->hits, g->steps,
+                   g->max_steps);
+        }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }
     code = 0;
 done:
+    free(maze_cam);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
     return code;

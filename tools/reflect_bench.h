@@ -37,6 +37,12 @@ int refl_bench_sbc_sweep(const char *dir, int threads, int repeats, int full);
    failure, or when the two give other bytes. */
 int refl_bench_path(const char *dir, int threads);
 
+/* Paper 004's maze through its graph camera (tools/reflect_bench_graphcam.c):
+   construction and frame time of both intersection algorithms, ENVMAP and
+   RAYTRACE (ours, Embree) with their error against RAYTRACE, along a short
+   path; a table on stdout and dir/graphcam_maze.csv; 0 on failure. */
+int refl_bench_graphcam(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

@@ -356,7 +356,13 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o1 = vec4(n > 0 ? refl_c3rc_image(u_data, u_base, cam, pr[0]) : vec3(0.0), float(n));\n"
     "    gl_Position = vec4(0.0);\n"
     "}\n",
-    NULL, NULL};
+    NULL, NULL,
+    "void main() {\n"
+    "    int f;\n"
+    "    v_o0 = refl_graphcam_project(u_data, u_base, a_p.xyz, f);\n"
+    "    v_o1 = vec4(float(f), 0.0, 0.0, 0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
+    "}\n"};
 
 static const char rgl__vs_main_sbc[] =
     "void main() {\n"
@@ -385,6 +391,8 @@ typedef struct rgl_fixture {
     refl_sbc_ray *rays;
     uint8_t *valid;
     int map_w, map_h;
+    /* graph camera */
+    refl_graphcam *graph;
 } rgl_fixture;
 
 static void rgl__fixture_free(rgl_fixture *f) {
@@ -393,12 +401,14 @@ static void rgl__fixture_free(rgl_fixture *f) {
     refl_sbc_destroy(f->sbc);
     free(f->rays);
     free(f->valid);
+    free(f->graph);
     memset(f, 0, sizeof *f);
 }
 
 static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
     long long need = f->kind == REFL_GL_MIRROR ? refl_gl_pack_mirror(f->vp, refl_v3((float)f->n[0], (float)f->n[1], (float)f->n[2]), (float)f->d, NULL, 0)
                      : f->kind == REFL_GL_C3RC ? refl_gl_pack_c3rc(f->cams, f->cam_count, NULL, 0)
+                     : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
     f->packed = (float *)malloc((size_t)need * sizeof(float));
@@ -408,6 +418,8 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
         refl_gl_pack_mirror(f->vp, refl_v3((float)f->n[0], (float)f->n[1], (float)f->n[2]), (float)f->d, f->packed, need);
     else if (f->kind == REFL_GL_C3RC)
         refl_gl_pack_c3rc(f->cams, f->cam_count, f->packed, need);
+    else if (f->kind == REFL_GL_GRAPHCAM)
+        refl_gl_pack_graphcam(f->graph, f->packed, need);
     else
         refl_gl_pack_sbc(f->sbc, f->packed, need);
     return 0;
@@ -461,6 +473,12 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
             }
         }
         snprintf(note, note_n, "%d C3RCs of a unit sphere's triangles", f->cam_count);
+    } else if (which == 4) {
+        f->kind = REFL_GL_GRAPHCAM;
+        f->graph = (refl_graphcam *)malloc(sizeof *f->graph);
+        if (!f->graph) return rgl__fail(err, n, "out of memory");
+        if (refl_graphcam_maze(f->graph, 960, 588) != REFL_OK) return rgl__fail(err, n, "refl_graphcam_maze failed");
+        snprintf(note, note_n, "the maze's graph camera, %d frusta at 960x588", f->graph->count);
     } else {
         refl_sbc_desc desc;
         refl_sbc_stats st;
@@ -522,6 +540,12 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
                                 refl_v3_add(refl_v3_scale(refl_v3_add(cc->v[1], refl_v3_scale(cc->d[1], (float)t)), (float)a),
                                             refl_v3_scale(refl_v3_add(cc->v[2], refl_v3_scale(cc->d[2], (float)t)), (float)b)));
             }
+        } else if (f->kind == REFL_GL_GRAPHCAM) {
+            refl_vec3 lo, hi;
+            refl_graphcam_bounds(f->graph, &lo, &hi);
+            if (in_volume)
+                p = refl_v3((float)rgl__range(&r, lo.x, hi.x), (float)rgl__range(&r, lo.y, hi.y),
+                            (float)rgl__range(&r, lo.z, hi.z));
         } else if (f->kind == REFL_GL_SBC && in_volume && nvalid) {
             const refl_sbc_ray *ray = &f->rays[valid_list[(int)(rgl__rand(&r) * nvalid)]];
             double s = rgl__range(&r, 0.0, 1.0);
@@ -566,6 +590,17 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
         *err = RGL_MAXD(sqrt(e / len), fabs(s - gl[4]) / RGL_SCENE_SIZE);
         return 1;
     }
+    if (f->kind == REFL_GL_GRAPHCAM) {
+        /* the frustum, then the image point and gd, relative to the image */
+        float c[3];
+        int fc = -1, ok = refl_graphcam_project(f->graph, pv, c, &fc), fg = (int)gl[4];
+        if (fc != fg) return -1;
+        if (!ok || !(gl[3] > 0.0f)) return ok ? -1 : 0;
+        *err = RGL_MAXD(RGL_MAXD(fabs(c[0] - (gl[0] / gl[3] + 1.0) * 0.5 * f->graph->width) / f->graph->width,
+                                 fabs(c[1] - (1.0 - gl[1] / gl[3]) * 0.5 * f->graph->height) / f->graph->height),
+                        fabs(c[2] - (gl[2] / gl[3] + 1.0) * 0.5));
+        return 1;
+    }
     if (f->kind == REFL_GL_C3RC) {
         refl_c3rc_projection pr[3];
         const refl_c3rc *cam = &f->cams[(int)p[3]];
@@ -605,6 +640,9 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_C3RC) {
             refl_c3rc_projection pr[3];
             sink += (float)refl_c3rc_project(&f->cams[(int)pts[4 * i + 3]], p, pr);
+        } else if (f->kind == REFL_GL_GRAPHCAM) {
+            float c[3];
+            sink += (float)refl_graphcam_project(f->graph, p, c, NULL);
         } else {
             refl_vec3 first;
             float z;
@@ -616,7 +654,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 }
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
-    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave"};
+    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

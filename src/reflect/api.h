@@ -374,7 +374,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "maze"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -733,6 +733,141 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
                                                    refl_vec3 *first, float *dist, uint8_t *status,
                                                    long long *ambiguous);
 
+/* ---- graph camera (paper 004, section 5; docs/graphcam.md) --------------------
+   A tree of planar pinhole frusta grown from a root pinhole by bending: a
+   bend's child frustum starts at a planar portal quad inside its parent and
+   holds the points P beyond the portal (seen from the child's eye C) whose
+   line from C crosses the portal; P is imaged where that line meets the
+   portal, as the parent images that point. Every frustum is one 4x4 matrix
+   to the root's image (the concatenated projections). A mirror bend's
+   child eye is the parent's eye mirrored in the portal's plane: the
+   frustum is then PLANAR's mirrored camera (matrix parent * reflection).
+   A split is several bends of one parent. Merges are not modelled.
+
+   A frustum's region is convex: its entry plane (the root's near plane, a
+   child's portal plane), four side planes, a far plane and any bounds added
+   with refl_graphcam_bound. A bend does not cut its parent's region: where
+   regions overlap (a parent reaching past its portal; a mirror bend's
+   child, which lies on its parent's side of the mirror) a point belongs to
+   the first frustum, in creation order, that holds it, and the impostor
+   shows it in both; bounds make the regions disjoint (the maze's
+   corridors). Depth: frustum f at level k (bends from the root)
+   of L levels takes window depth gd in [k / L, (k + 1) / L), so depth
+   rises along every camera ray from frustum to frustum. */
+#define REFL_GRAPHCAM_MAX_FRUSTA 64
+#define REFL_GRAPHCAM_MAX_PLANES 16
+
+typedef struct refl_graphcam_frustum {
+    int parent;              /* -1: the root */
+    int level;               /* bends from the root */
+    int mirror;              /* made by a mirror bend */
+    refl_vec3 eye;           /* its centre of projection */
+    refl_vec3 portal[4];     /* its entry quad (the root: the near plane's corners) */
+    refl_mat4 m;             /* world to the root image's clip space; z / w is -1 on the
+                                entry plane, rising along the frustum's rays (no level) */
+    double planes[REFL_GRAPHCAM_MAX_PLANES][4]; /* inside: n . x + d >= 0; [0] the entry,
+                                [1..4] the sides, [5] the far plane, then the bounds */
+    int plane_count;
+    int rast_clipped;        /* planes [0..rast_clipped) are the rasteriser's own clip
+                                (the root's near and side planes), not clipped again */
+    refl_vec3 lo, hi;        /* the region's bounding box */
+} refl_graphcam_frustum;
+
+typedef struct refl_graphcam {
+    int width, height;       /* the image in pixels */
+    int levels;              /* L: the deepest level + 1 */
+    int count;
+    refl_graphcam_frustum frusta[REFL_GRAPHCAM_MAX_FRUSTA];
+    /* point location (the paper's floor map): a grid over the frusta's x, z
+       bounds, per cell the frusta whose box reaches it (bit f) */
+    int map_w, map_h;
+    float map_lo[2], map_cell[2];
+    unsigned long long map[64 * 64];
+} refl_graphcam;
+
+/* The root: the view's pinhole (fovy 0: 45; znear and zfar must be set,
+   0 < znear < zfar) seen at width x height pixels. */
+REFL_API refl_result refl_graphcam_init(refl_graphcam *cam, const refl_view *view, int width, int height);
+/* A child of `parent` entering at the planar quad portal (corners in order
+   around it, every one inside the parent's region up to 1e-3 of its size)
+   with centre of projection eye (off the portal's plane), reaching `far`
+   beyond the portal's plane; its index into *out. */
+REFL_API refl_result refl_graphcam_bend(refl_graphcam *cam, int parent, const refl_vec3 portal[4], refl_vec3 eye,
+                                        float far, int *out);
+/* A bend whose eye is the parent's mirrored in the portal's plane. */
+REFL_API refl_result refl_graphcam_bend_mirror(refl_graphcam *cam, int parent, const refl_vec3 portal[4], float far,
+                                               int *out);
+/* count bends of one parent (portals[i], eyes[i]): indices *first .. + count - 1. */
+REFL_API refl_result refl_graphcam_split(refl_graphcam *cam, int parent, const refl_vec3 (*portals)[4],
+                                         const refl_vec3 *eyes, int count, float far, int *first);
+/* Restricts a frustum's region to n . x + d >= 0. */
+REFL_API refl_result refl_graphcam_bound(refl_graphcam *cam, int frustum, refl_vec3 n, float d);
+/* The frustum that holds p (the floor map, then plane tests), or -1. */
+REFL_API int refl_graphcam_locate(const refl_graphcam *cam, refl_vec3 p);
+/* Whether frustum f's region holds p. */
+REFL_API int refl_graphcam_contains(const refl_graphcam *cam, int f, refl_vec3 p);
+/* p through frustum f (whether or not it holds p): out = (u, v, gd), u, v in
+   pixels (0, 0 the top left corner), gd the window depth with f's level;
+   0 behind the frustum's eye. */
+REFL_API int refl_graphcam_project_in(const refl_graphcam *cam, int f, refl_vec3 p, float out[3]);
+/* p through the frustum that holds it (*frustum, may be NULL); 0 when none does. */
+REFL_API int refl_graphcam_project(const refl_graphcam *cam, refl_vec3 p, float out[3], int *frustum);
+/* The point of frustum f at image (u, v) and window depth gd; 0 when singular. */
+REFL_API int refl_graphcam_unproject(const refl_graphcam *cam, int f, float u, float v, float gd, refl_vec3 *p);
+/* The part [*t0, *t1] of a + t (b - a), t in [0, 1], in frustum f's region; 0: none. */
+REFL_API int refl_graphcam_clip_segment(const refl_graphcam *cam, int f, refl_vec3 a, refl_vec3 b, float *t0,
+                                        float *t1);
+/* The box around every frustum's region. */
+REFL_API void refl_graphcam_bounds(const refl_graphcam *cam, refl_vec3 *lo, refl_vec3 *hi);
+/* A graph-camera impostor (paper 004, section 3): the scene's diffuse
+   objects (reflectors and glass left out, and objects with skip[i] set)
+   drawn through the graph camera, each triangle clipped to each frustum's
+   region and rasterised with that frustum's matrix: colour (the shared
+   diffuse shading), window depth gd and the frustum each pixel shows. */
+typedef struct refl_graphcam_impostor {
+    int width, height;
+    float *rgba;             /* linear colour, 4 floats a pixel, rows top first */
+    float *depth;            /* gd; 1 where nothing was drawn */
+    uint8_t *frustum;        /* frustum + 1; 0 where nothing was drawn */
+    long long triangles;     /* triangles drawn (clipped pieces counted) */
+    refl_allocator allocator;
+} refl_graphcam_impostor;
+
+REFL_API refl_result refl_graphcam_impostor_build(const refl_scene *scene, const refl_graphcam *cam,
+                                                  const uint8_t *skip, int threads, refl_graphcam_impostor **out);
+REFL_API void refl_graphcam_impostor_destroy(refl_graphcam_impostor *imp);
+
+typedef enum refl_graphcam_algorithm {
+    REFL_GRAPHCAM_SEGMENTS = 0, /* the paper's algorithm 2: the ray clipped to each frustum,
+                                   each piece walked along its straight image segment */
+    REFL_GRAPHCAM_UNIFORM = 1   /* algorithm 1: uniform steps in 3-D, each point located and
+                                   projected */
+} refl_graphcam_algorithm;
+
+typedef struct refl_graphcam_hit {
+    refl_vec3 point;         /* on the ray, where it crosses the impostor's depth */
+    float t;                 /* along the ray (direction as given) */
+    float rgb[3];            /* the impostor's colour there */
+    int frustum;
+    long long steps;         /* samples taken */
+} refl_graphcam_hit;
+
+/* The first crossing of the ray o + t dir, t in (tmin, tmax], with the
+   impostor's depth (the ray in front of the stored depth at one sample,
+   behind it at the next, both in pixels of the sample's own frustum),
+   except where the stored depth jumps between the two samples' pixels by
+   more than three times the ray's own depth change plus twice the
+   surface's local slope: the "skins" between depth layers. step: REFL_GRAPHCAM_SEGMENTS: pixels a step (0: 1);
+   REFL_GRAPHCAM_UNIFORM: world units a step (0: the camera's bounds'
+   diagonal / 2048). 1 when hit; hit->steps counts either way. */
+REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
+                                     float step, refl_graphcam_hit *hit);
+
+/* The built-in scene "maze"'s graph camera: 15 frusta, one per corridor,
+   each bounded by its corridor; the image width x height (0: 1920 x 1176). */
+REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int height);
+
 /* ---- GL hooks: the cameras in a GL vertex program (docs/gl.md) ---------------
    Each camera packs into plain floats, read in GLSL 3.30 as a buffer texture
    of vec4 (GL_RGBA32F, texelFetch on a samplerBuffer), and refl_gl_glsl
@@ -751,15 +886,19 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
 #define REFL_GL_SBC_CAM_TEXELS 16
 #define REFL_GL_SBC_QUAD_TEXELS 20
 #define REFL_GL_SBC_INDEX_TEXELS 6
+#define REFL_GL_GRAPHCAM_TEXELS (5 + REFL_GRAPHCAM_MAX_PLANES) /* per frustum, after 2 header texels */
 typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
-    REFL_GL_SBC              /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
+    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
              (a, b, c, t) ascending in t; vec3 refl_c3rc_image(samplerBuffer, int base, int cam, vec4 proj)
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
+         vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
+             the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -768,6 +907,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap);
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
+REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -832,6 +972,15 @@ typedef struct refl_sbc_frame_stats {
     int groups;              /* reflection groups (a history's pieces within tiles) */
 } refl_sbc_frame_stats;
 
+typedef struct refl_graphcam_frame_stats {
+    int frusta;              /* the graph camera's */
+    long long triangles;     /* drawn into the impostor (clipped pieces counted) */
+    long long rays;          /* reflected rays intersected with it */
+    long long hits;          /* of those, the ones that met it */
+    long long steps;         /* march samples in all */
+    long long max_steps;     /* the most one ray took */
+} refl_graphcam_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -851,6 +1000,7 @@ typedef struct refl_stats {
     refl_planar_frame_stats planar;
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
+    refl_graphcam_frame_stats graphcam;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1020,6 +1170,19 @@ typedef struct refl_sbc_options {
                                 and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
+/* GRAPHCAM (paper 004, section 5): mirrors reflect a graph-camera
+   impostor of the scene's diffuse objects, rebuilt every frame. */
+typedef struct refl_graphcam_options {
+    const refl_graphcam *camera; /* NULL: one frustum, the view's own pinhole (a plain depth
+                                    image, the paper's Fig. 6 baseline) at size x size * height
+                                    / width pixels */
+    int size;                /* with camera NULL: the impostor's width, at most 8192; 0: twice
+                                the frame's */
+    int algorithm;           /* refl_graphcam_algorithm; 0: REFL_GRAPHCAM_SEGMENTS */
+    float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
+                                (0: the camera's bounds' diagonal / 2048) */
+} refl_graphcam_options;
+
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
     int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
@@ -1074,6 +1237,7 @@ typedef struct refl_render_desc {
     refl_planar_options planar;
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
+    refl_graphcam_options graphcam;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows

@@ -195,6 +195,36 @@ REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long c
     return refl__gl_sbc(&o, sbc);
 }
 
+/* ---- the graph camera ------------------------------------------------------------ */
+
+static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
+    refl__gl_out o = *op;
+    int f, k;
+    if (!cam || cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_GRAPHCAM, REFL_GL_LAYOUT_VERSION, cam->count, cam->levels);
+    refl__gl_put4(&o, cam->width, cam->height, 0, 0);
+    for (f = 0; f < cam->count; ++f) {
+        const refl_graphcam_frustum *fr = &cam->frusta[f];
+        refl_mat4 m = refl__gc_draw_matrix(cam, f); /* what the impostor is drawn with */
+        refl__gl_put4(&o, fr->plane_count, fr->level, fr->parent, 0);
+        for (k = 0; k < 16; ++k) refl__gl_put(&o, m.m[k]);
+        for (k = 0; k < REFL_GRAPHCAM_MAX_PLANES; ++k) {
+            if (k < fr->plane_count) refl__gl_put3d(&o, fr->planes[k], fr->planes[k][3]);
+            else refl__gl_put4(&o, 0, 0, 0, 1);
+        }
+    }
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_graphcam(&o, cam);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_graphcam(&o, cam);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -457,11 +487,36 @@ static const char refl__gl_glsl_sbc[] =
     "                         texelFetch(data, nodes + node * 4 + 3), p, first, z);\n"
     "}\n";
 
+static const char refl__gl_glsl_graphcam[] =
+    "/* reflect.h GL hook: the graph camera (layout version 1): the first frustum\n"
+    "   whose region holds p (cam_graph.c's locate), then its matrix. */\n"
+    "vec4 refl_graphcam_project(samplerBuffer data, int base, vec3 p, out int frustum) {\n"
+    "    int count = int(texelFetch(data, base).z);\n"
+    "    frustum = -1;\n"
+    "    for (int f = 0; f < count; ++f) {\n"
+    "        int b = base + 2 + f * 21;\n"
+    "        int planes = int(texelFetch(data, b).x);\n"
+    "        bool inside = true;\n"
+    "        for (int k = 0; k < planes && inside; ++k) {\n"
+    "            vec4 pl = texelFetch(data, b + 5 + k);\n"
+    "            inside = dot(pl.xyz, p) + pl.w >= 0.0;\n"
+    "        }\n"
+    "        if (inside) {\n"
+    "            frustum = f;\n"
+    "            mat4 m = mat4(texelFetch(data, b + 1), texelFetch(data, b + 2),\n"
+    "                          texelFetch(data, b + 3), texelFetch(data, b + 4));\n"
+    "            return m * vec4(p, 1.0);\n"
+    "        }\n"
+    "    }\n"
+    "    return vec4(0.0);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
+    case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     }
     return NULL;
 }

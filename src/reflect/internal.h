@@ -474,6 +474,26 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
    not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
+/* ---- the graph camera (cam_graph.c) and the maze built on it (scene.c) ---- */
+
+/* The maze's layout: REFL__MAZE_CORRIDORS corridors, breadth first, the
+   entrance first; corridor i < 7 ends in a T whose branches are 2i + 1 and
+   2i + 2. s: the middle of its entry edge (x, z); d: its unit direction
+   (x, z); length: along d, its 2 x 2 junction square included. */
+enum { REFL__MAZE_CORRIDORS = 15 };
+#define REFL__MAZE_WALL_H 2.5f
+typedef struct refl__maze_corridor {
+    float s[2], d[2], length;
+    int level, parent;
+} refl__maze_corridor;
+static void refl__maze_layout(refl__maze_corridor out[REFL__MAZE_CORRIDORS]);
+/* Frustum f's matrix with its level folded into z (what the impostor is
+   drawn with; window depth = gd), p in its clip space with that level,
+   and a 4x4's inverse in double (0 when singular). */
+static refl_mat4 refl__gc_draw_matrix(const refl_graphcam *cam, int f);
+static void refl__gc_clip(const refl_graphcam *cam, int f, refl_vec3 p, double c[4]);
+static int refl__gc_invert(const refl_mat4 *m, double inv[16]);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
@@ -484,6 +504,8 @@ static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
+static refl_result refl__method_graphcam(refl__pass *p);
+static const char *refl__options_graphcam(refl_render_desc *d);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);

@@ -338,7 +338,7 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -568,6 +568,80 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* maze: paper 004's maze (docs/graphcam.md): the corridors of
+   refl__maze_layout walled with boxes 0.15 thick and REFL__MAZE_WALL_H
+   high, no ceiling, on a checker floor; a teapot, a sphere, a torus and a
+   box in the corridors; a mirror sphere near the entrance, where the
+   view looks. refl_graphcam_maze is its graph camera. */
+static refl_result refl__scene_maze(refl_scene *s, const refl_allocator *a, int tess) {
+    static const float wall_rgb[4][3] = {{0.85f, 0.8f, 0.7f}, {0.6f, 0.7f, 0.85f}, {0.6f, 0.82f, 0.6f}, {0.85f, 0.65f, 0.7f}};
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror");
+    refl_material red = refl__material(REFL_DIFFUSE, 0.8f, 0.15f, 0.1f, "red");
+    refl_material green = refl__material(REFL_DIFFUSE, 0.15f, 0.7f, 0.2f, "green");
+    refl_material blue = refl__material(REFL_DIFFUSE, 0.15f, 0.25f, 0.8f, "blue");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.5f, 0.1f, "orange");
+    refl__maze_corridor c[REFL__MAZE_CORRIDORS];
+    refl_mesh *m = NULL;
+    refl_result r;
+    float *checker;
+    int k, i, tex, n = 340;
+    const float thick = 0.15f, h = REFL__MAZE_WALL_H;
+    if ((r = refl__stage(s, a, 40.0f, refl_v3(0.7f, 1.3f, 2.2f), refl_v3(0.2f, 0.6f, -1.6f))) != REFL_OK) return r;
+    /* the floor: a 1 x 1 checker (the plane spans 40, its texture 40 x 40 cells of 8 texels) */
+    n = 320;
+    checker = (float *)refl__alloc(a, (size_t)n * (size_t)n * 4 * sizeof(float));
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < n * n; ++i) {
+        float v = ((i % n) / 8 + (i / n) / 8) & 1 ? 0.75f : 0.25f;
+        checker[4 * i] = checker[4 * i + 1] = checker[4 * i + 2] = v;
+        checker[4 * i + 3] = 1.0f;
+    }
+    tex = refl_scene_add_texture(s, n, n, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    s->materials[s->objects[0].material].texture = tex;
+    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
+        s->materials[s->objects[0].material].color[2] = 1.0f;
+    refl__maze_layout(c);
+    for (i = 0; i < REFL__MAZE_CORRIDORS; ++i) {
+        const refl__maze_corridor *k0 = &c[i];
+        refl_material wall = refl__material(REFL_DIFFUSE, wall_rgb[k0->level][0], wall_rgb[k0->level][1],
+                                            wall_rgb[k0->level][2], "wall");
+        float along = i < 7 ? k0->length - 2.0f : k0->length; /* the side walls stop at a junction */
+        float lx = -k0->d[1], lz = k0->d[0];
+        int side;
+        for (side = -1; side <= 1; ++side) {
+            /* side = 0: the end wall across the corridor's far end */
+            float len = side ? along + thick : 2.0f + thick;
+            float t = side ? 0.5f * along : k0->length;
+            float x = k0->s[0] + k0->d[0] * t + (float)side * lx, z = k0->s[1] + k0->d[1] * t + (float)side * lz;
+            int across = side == 0;
+            float sx = (k0->d[0] != 0.0f) != across ? len : thick, sz = (k0->d[0] != 0.0f) != across ? thick : len;
+            if ((k = refl__add(s, refl_mesh_box(refl_v3(sx, h, sz), a, &m), &m, &wall, refl__at(x, 0.5f * h, z), "wall")) < 0)
+                return (refl_result)k;
+        }
+    }
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_sphere(0.5f, 48, 24, a, &m), &m, &mirror, refl__at(0.3f, 0.5f, -1.6f),
+                       "mirror sphere")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
+                       refl_mat4_mul(refl__at(-0.45f, 0.0f, -4.0f),
+                                     refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 2.2f), refl_mat4_scale(refl_v3(0.3f, 0.3f, 0.3f)))),
+                       "teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_sphere(0.45f, 32, 16, a, &m), &m, &green, refl__at(4.0f, 0.45f, -9.0f),
+                       "sphere")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_torus(0.45f, 0.18f, 32, 16, a, &m), &m, &red,
+                       refl_mat4_mul(refl__at(-4.5f, 0.6f, -9.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 1.2f)), "torus")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_box(refl_v3(0.7f, 0.7f, 0.7f), a, &m), &m, &blue,
+                       refl_mat4_mul(refl__at(8.0f, 0.35f, -5.0f), refl_mat4_rotate(refl_v3(0, 1, 0), 0.5f)), "box")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc, refl_scene **out_scene) {
     refl_builtin_desc d;
     refl_scene *s;
@@ -577,12 +651,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (!name) return REFL_ERROR_INVALID_ARGUMENT;
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
-    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass"))
+    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
+        strcmp(name, "maze"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);
