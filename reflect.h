@@ -7708,6 +7708,15 @@ static void refl__c3_min(uint64_t *slot, uint64_t key) {
 #endif
 }
 
+/* Sets a per-pixel flag that any thread may set (only ever to 1). */
+static void refl__c3_mark(uint8_t *slot) {
+#if defined(__GNUC__) || defined(__clang__)
+    __atomic_store_n(slot, (uint8_t)1, __ATOMIC_RELAXED);
+#else
+#error "C3RC needs atomic stores (GCC or Clang builtins)"
+#endif
+}
+
 /* A float's bits: non-negative floats order as their bits do. */
 static uint32_t refl__c3_bits(float f) {
     uint32_t u;
@@ -7887,7 +7896,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                is not drawn, refl__c3_near_self, so what the ray meets
                there may have no point at all) */
             if (c3->s->object[i] != k->object && !refl__c3_ray_meets(c3, j, pt, np, disc)) {
-                __atomic_store_n(&c3->touched[j], (uint8_t)1, __ATOMIC_RELAXED);
+                refl__c3_mark(&c3->touched[j]);
                 continue;
             }
             depth = refl__c3_depth_at(k, refl_v3(r[0], r[1], r[2]), pt, np, pr->t, reach) +
