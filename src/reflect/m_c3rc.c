@@ -22,7 +22,10 @@
         (the paper's push-back) wins each pixel, its depth taken where the
         pixel's own ray meets the point's tangent plane (refl__c3_depth_at).
         A camera does not draw its reflector's own points within one
-        triangle edge (refl__c3_near_self).
+        triangle edge (refl__c3_near_self). Where a pixel's reflected ray
+        turns fast from its neighbours', a point shows on it only if that
+        ray meets the point's surfel (refl__c3_ray_meets); a pixel whose
+        splats all missed shows its neighbours' nearest point.
    Pixels no point reaches show the environment along their reflected ray
    (the paper's environment-mapped background). One bounce, as the paper.
 
@@ -59,6 +62,13 @@
    one surface then compare by how near they project, and a surface
    behind by more than that slope stays hidden. */
 #define REFL__C3_SAME_SURFACE_SLOPE 4.0f
+/* Where a reflector pixel's reflected ray turns from a neighbour's by more
+   than this (radians), a point splatted on it must be a surfel its ray
+   meets (refl__c3_ray_meets): the disc about the point in its tangent
+   plane, of radius REFL__C3_DISC per point spacing of its object. */
+#define REFL__C3_TURN_TEST 0.05f
+#define REFL__C3_DISC 1.0f
+#define REFL__C3_GRAZE 0.2f         /* |cos| below which a ray grazes a point's tangent plane */
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
    corners as barycentrics of the triangle's vertices (rows: corners). */
@@ -108,6 +118,8 @@ typedef struct refl__c3 {
     refl__pass *p;
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
+    uint8_t *touched;             /* per pixel: a splat reached it whose surfel its ray missed */
+    float *ray;                   /* per pixel: reflected ray, its turn to the neighbours' (refl__c3_ray_row) */
     refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
     float tmax;                   /* longest possible sweep: the scene's diagonal */
@@ -148,6 +160,15 @@ static void refl__c3_min(uint64_t *slot, uint64_t key) {
     }
 #else
 #error "C3RC needs an atomic compare-and-swap (GCC or Clang builtins)"
+#endif
+}
+
+/* Sets a per-pixel flag that any thread may set (only ever to 1). */
+static void refl__c3_mark(uint8_t *slot) {
+#if defined(__GNUC__) || defined(__clang__)
+    __atomic_store_n(slot, (uint8_t)1, __ATOMIC_RELAXED);
+#else
+#error "C3RC needs atomic stores (GCC or Clang builtins)"
 #endif
 }
 
@@ -206,6 +227,68 @@ static float refl__c3_depth_at(const refl__c3_cam *k, refl_vec3 r, refl_vec3 pt,
     return REFL__CLAMP(s, t - reach, t + reach);
 }
 
+/* The reflected ray of reflector pixel (x, y), as the composite
+   reflects it (its G-buffer normal turned to the viewer); 0 where it has
+   no normal. */
+static int refl__c3_pixel_ray(const refl__c3 *c3, int x, int y, refl_vec3 *u) {
+    const float *g = c3->em.gbuf + 4 * ((size_t)y * (size_t)c3->p->frame->width + (size_t)x);
+    refl_vec3 o, d, n;
+    float tmax;
+    refl__view_rays_get(&c3->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+    n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+    if (refl_v3_dot(n, n) == 0.0f) return 0;
+    if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+    *u = refl_v3_normalize(refl_v3_reflect(d, n));
+    return 1;
+}
+
+/* A row job: per reflector pixel, its reflected ray and how far (radians)
+   it turns to its 4-neighbours' on the same side of the same reflector
+   (the most of them; -1: no ray). */
+static void refl__c3_ray_row(void *arg, int y) {
+    refl__c3 *c3 = (refl__c3 *)arg;
+    int w = c3->p->frame->width, h = c3->p->frame->height, x, k;
+    for (x = 0; x < w; ++x) {
+        size_t i = (size_t)y * (size_t)w + (size_t)x;
+        float *out = c3->ray + 4 * i, turn = 0.0f;
+        refl_vec3 u, v;
+        out[3] = -1.0f;
+        if (fabsf(c3->em.gbuf[4 * i + 3]) < 1.0f || !refl__c3_pixel_ray(c3, x, y, &u)) continue;
+        for (k = 0; k < 4; ++k) {
+            int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+            if (xs < 0 || ys < 0 || xs >= w || ys >= h ||
+                c3->em.gbuf[4 * ((size_t)ys * (size_t)w + (size_t)xs) + 3] != c3->em.gbuf[4 * i + 3] ||
+                !refl__c3_pixel_ray(c3, xs, ys, &v))
+                continue;
+            turn = REFL__MAX(turn, refl_v3_length(refl_v3_sub(u, v)));
+        }
+        out[0] = u.x;
+        out[1] = u.y;
+        out[2] = u.z;
+        out[3] = turn;
+    }
+}
+
+/* Whether reflector pixel j's reflected ray (refl__c3_ray_row) meets the
+   disc of radius `radius` about point pt in its tangent plane (normal np),
+   where the ray turns fast (REFL__C3_TURN_TEST). There a pixel's footprint
+   spans far apart parts of the scene, its neighbours' rays skip past
+   whole objects, and a camera's interpolated rays stray most from the
+   true ones, so a splat reaches pixels whose own ray sees something else
+   (an object squeezed to a sliver beside the sky, the far edge of the
+   floor): a point is then a surfel, shown only where the pixel's ray
+   meets it. Where the ray grazes the plane, its distance from pt counts. */
+static int refl__c3_ray_meets(const refl__c3 *c3, size_t j, refl_vec3 pt, refl_vec3 np, float radius) {
+    const float *ray = c3->ray + 4 * j, *r = c3->em.surface + 3 * j;
+    refl_vec3 u = refl_v3(ray[0], ray[1], ray[2]), w = refl_v3_sub(pt, refl_v3(r[0], r[1], r[2]));
+    float un = refl_v3_dot(u, np), s;
+    if (!(ray[3] >= REFL__C3_TURN_TEST)) return 1; /* a slowly turning ray, or none */
+    s = fabsf(un) > REFL__C3_GRAZE ? refl_v3_dot(w, np) / un : refl_v3_dot(w, u);
+    if (!(s > 0.0f)) return 0;
+    w = refl_v3_sub(w, refl_v3_scale(u, s));
+    return refl_v3_dot(w, w) <= radius * radius;
+}
+
 /* Splats point i, projected at pr, into the pixels of the camera's
    reflector around its reflector point. */
 static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_projection *pr, float density) {
@@ -217,7 +300,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
                               refl_v3_scale(c->v[2], pr->c));
     const float *tq = c3->s->tree->positions + 3 * (size_t)i;
     refl_vec3 pt = refl_v3(tq[0], tq[1], tq[2]), np = refl_v3(0.0f, 0.0f, 0.0f);
-    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, facing = 0.0f, reach;
+    float px, py, tol, plane_tol, pix, spacing = 0.0f, pix_sweep = 0.0f, facing = 0.0f, reach, disc;
     if (!refl__c3_window(p, q, &px, &py)) return;
     {   /* the point spacing on screen: a point's share of surface, turned
            into the sweep plane along the ray, then into pixels */
@@ -254,6 +337,7 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
     plane_tol = 2.0f * pix;
     tol = k->edge + (float)side * pix;
     reach = (float)side * pix_sweep / REFL__MAX(facing, 0.2f);
+    disc = density > 0.0f ? REFL__C3_DISC / sqrtf(density) : INFINITY;
     for (y = REFL__MAX(y0, 0); y < REFL__MIN(y0 + side, h); ++y)
         for (x = REFL__MAX(x0, 0); x < REFL__MIN(x0 + side, w); ++x) {
             size_t j = (size_t)y * (size_t)w + (size_t)x;
@@ -263,6 +347,13 @@ static void refl__c3_splat(const refl__c3_cam *k, int i, const refl_c3rc_project
             if (c3->em.gbuf[4 * j + 3] != k->id) continue; /* its object, the side it faces */
             dq = refl_v3_sub(q, refl_v3(r[0], r[1], r[2]));
             if (refl_v3_dot(dq, dq) > tol * tol || fabsf(refl_v3_dot(dq, k->base_normal)) > plane_tol) continue;
+            /* (the reflector's own points are spared: its neighbourhood
+               is not drawn, refl__c3_near_self, so what the ray meets
+               there may have no point at all) */
+            if (c3->s->object[i] != k->object && !refl__c3_ray_meets(c3, j, pt, np, disc)) {
+                refl__c3_mark(&c3->touched[j]);
+                continue;
+            }
             depth = refl__c3_depth_at(k, refl_v3(r[0], r[1], r[2]), pt, np, pr->t, reach) +
                     REFL__C3_SAME_SURFACE_SLOPE * pix_sweep * hypotf((float)x + 0.5f - px, (float)y + 0.5f - py);
             refl__c3_min(&((refl__c3 *)c3)->key[j], ((uint64_t)refl__c3_bits(depth) << 32) | (uint64_t)(uint32_t)i);
@@ -763,8 +854,24 @@ static void refl__c3_resolve_row(void *arg, int y) {
     int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
-        if (c3->key[i] != REFL__C3_EMPTY) {
-            size_t k = (size_t)(c3->key[i] & 0xffffffffu);
+        uint64_t key = c3->key[i];
+        if (key == REFL__C3_EMPTY && c3->touched[i]) {
+            /* splats reached it but its ray met none: it shows what its
+               4-neighbours on the reflector show nearest, not a hole */
+            int n;
+            uint64_t best = REFL__C3_EMPTY;
+            for (n = 0; n < 4; ++n) {
+                int xs = x + (n == 0) - (n == 1), ys = y + (n == 2) - (n == 3);
+                size_t j = (size_t)ys * (size_t)fr->width + (size_t)xs;
+                if (xs < 0 || ys < 0 || xs >= fr->width || ys >= fr->height ||
+                    c3->em.gbuf[4 * j + 3] != c3->em.gbuf[4 * i + 3])
+                    continue;
+                best = REFL__MIN(best, c3->key[j]);
+            }
+            key = best;
+        }
+        if (key != REFL__C3_EMPTY) {
+            size_t k = (size_t)(key & 0xffffffffu);
             const float *q = c3->s->tree->positions + 3 * k;
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
         } else {
@@ -1005,7 +1112,9 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     if (r == REFL_OK && any) {
         c3.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
-        if (!c3.em.surface || !c3.key) r = REFL_ERROR_OUT_OF_MEMORY;
+        c3.ray = (float *)refl__alloc(al, npx * 4 * sizeof(float));
+        c3.touched = (uint8_t *)refl__calloc(al, npx, 1);
+        if (!c3.em.surface || !c3.key || !c3.ray || !c3.touched) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
         refl__models *models = p->models;
@@ -1014,6 +1123,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
                                                         : refl__c3_auto_density(&c3, seen);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
+        rast_run_jobs(p->rc, fr->height, refl__c3_ray_row, &c3);
         t1 = refl__now_ms();
         r = refl__c3_jobs(&c3, seen, &jobs); /* the cameras, before the points: they size the densities */
         t_jobs = refl__now_ms() - t1;
@@ -1072,6 +1182,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__free(al, seen);
     refl__free(al, c3.em.surface);
     refl__free(al, c3.key);
+    refl__free(al, c3.ray);
+    refl__free(al, c3.touched);
     refl__free(al, c3.jobs);
     refl__free(al, c3.counts);
     return r;

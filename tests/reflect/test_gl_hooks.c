@@ -63,6 +63,10 @@ static void validate(int which) {
     cr_assert_gt(v.projected, v.points / 2, "%s: %lld of %lld project", v.camera, v.projected, v.points);
     cr_assert(rgl_validation_ok(&v), "%s: %lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.camera, v.disagree,
               v.points, v.max_rel, v.p999_rel);
+    if (which == 1) { /* C3RC, its cubic in the triangle's frame (docs/gl.md): float rounding, no more */
+        cr_assert(v.max_rel <= 1e-4, "c3rc: max rel %.2e", v.max_rel);
+        cr_assert((double)v.disagree <= 1e-5 * (double)v.points, "c3rc: %lld of %lld disagree", v.disagree, v.points);
+    }
     if (which >= 2) { /* SBC: both leaf kinds carry points */
         cr_assert_gt(v.pinhole_points, 1000);
         if (which == 2) cr_assert_gt(v.raylist_points, 1000);
