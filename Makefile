@@ -81,6 +81,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_raylist.c \
                  src/reflect/gbuffer.c \
                  src/reflect/gl_hooks.c \
+                 src/reflect/greedy_path.c \
                  src/reflect/kdtree.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \

@@ -939,7 +939,55 @@ typedef struct refl_ray_caster {
 /* Each method's options; zero everywhere means its defaults. */
 typedef struct refl_raytrace_options {
     refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+    int greedy;              /* paper 001's two-term greedy ray paths (refl_greedy_paths): an
+                                eye ray meeting glass splits into a reflected and a refracted
+                                path, and every later interface follows only its child of the
+                                larger Fresnel coefficient (ties: reflection). 0: the full ray
+                                tree, both children everywhere. Mirrors have one child either
+                                way, so mirror-only scenes render the same bytes */
 } refl_raytrace_options;
+
+/* ---- paper 001's greedy ray paths through a lens system ----------------------- */
+
+enum { REFL_GREEDY_MAX_INTERFACES = 32 };
+
+/* One greedy path: the interfaces it met, the child it took at each, what
+   it carries and the ray it leaves the lens system by. */
+typedef struct refl_greedy_path {
+    int exited;              /* 1: left the lens system (the exit ray below is valid); 0: it
+                                met max_interfaces interfaces first */
+    int length;              /* interfaces met, the first (where the eye ray split) included */
+    unsigned int reflected;  /* bit i: 1 where interface i reflected, 0 where it refracted */
+    float fresnel;           /* F: product of the coefficients of the children taken */
+    float attenuation[3];    /* G: glass tint on entering times exp(-attenuation * length)
+                                inside, per channel */
+    refl_vec3 exit_origin;   /* the last interface's point (the eye ray's origin when none) */
+    refl_vec3 exit_direction; /* unit */
+    float inside_length;     /* glass traversed */
+} refl_greedy_path;
+
+/* The two terms of paper 001's shading model for one eye ray: T F_T G_T +
+   R F_R G_R, T and R the radiance along the exit rays. */
+typedef struct refl_greedy_paths_result {
+    int terms;               /* 0: the ray met no lens (diffuse or nothing first); 1: a mirror
+                                first (reflect only); 2: glass first (both) */
+    int object;              /* the lens object met first, -1 when none */
+    refl_vec3 first_point;   /* where, NaN when none */
+    refl_greedy_path reflect, refract; /* a term that does not exist has fresnel 0 */
+} refl_greedy_paths_result;
+
+/* Traces the greedy paths of the ray origin + t dir (dir unit) through the
+   scene's lens objects (mirror, partial and glass materials) with `caster`
+   (one over the scene's objects; a diffuse object met, or nothing, ends a
+   path: the ray leaves the lens system). At the first interface the ray
+   starts a reflected path and, at glass, a refracted one; at every later
+   interface each takes the child of the larger Fresnel coefficient (total
+   internal reflection: reflection; a mirror: reflection, times its
+   reflectance). max_interfaces: 0 means REFL_GREEDY_MAX_INTERFACES, and
+   larger is clamped to it. *rays (may be NULL) counts the rays cast. */
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays);
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -1674,6 +1722,10 @@ typedef struct refl__rt {
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
 static void refl__rt_end(refl__rt *rt);
+/* Where a secondary ray leaving point p (on a triangle of largest
+   |coordinate| magnitude) along the side n starts: off its surface by the
+   rounding of the hit (trace.c; greedy_path.c's rays start the same way). */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
 /* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
    shows (NaN: none), window depth and stencil as the base pass writes
    them; *rays counts the rays cast. */
@@ -6851,6 +6903,185 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     }
     return NULL;
+}
+/* ---- src/reflect/greedy_path.c ---- */
+/* Paper 001's shading model (Hakura and Snyder, section 3): instead of the
+   binary ray tree glass spawns, two greedy ray paths. An eye ray meeting a
+   lens object (mirror or glass) starts a path by reflection and, at glass,
+   one by refraction; at every later interface a path follows only the child
+   of the larger Fresnel coefficient until it leaves the lens system. Each
+   path carries the product of the coefficients taken (F) and the glass's
+   transparency attenuation (G), and ends in an exit ray whose radiance the
+   caller looks up (ray tracing, or the layered environment maps):
+   pixel = T F_T G_T + R F_R G_R. Pure geometry: a path depends on nothing
+   but its ray, so callers on any thread count get the same answers. */
+
+/* The lens surface a path ray met. */
+typedef struct refl__gp_hit {
+    refl_vec3 p, ng, ns;
+    float magnitude;             /* largest |coordinate| of the triangle (offsets) */
+    const refl_material *material;
+    int object, triangle;
+    float t;
+} refl__gp_hit;
+
+/* The closest hit along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *h, or 0 for none. */
+static int refl__gp_cast(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
+    refl_hit hit;
+    float tmin = 0.0f;
+    int tries, k;
+    if (rays) ++*rays;
+    for (tries = 0; tries < 4; ++tries) {
+        const refl_object *obj;
+        refl_mat4 nm;
+        refl__hit_geom g;
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &hit)) return 0;
+        if (hit.object == skip_object && hit.triangle == skip_triangle) {
+            tmin = hit.t;
+            continue;
+        }
+        if (hit.object < 0 || hit.object >= scene->object_count) return 0;
+        obj = &scene->objects[hit.object];
+        nm = refl__normal_matrix(obj->transform);
+        refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
+        if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
+        h->p = g.p;
+        h->ng = g.ng;
+        h->ns = g.ns;
+        h->magnitude = 0.0f;
+        for (k = 0; k < 3; ++k)
+            h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+        h->material = &scene->materials[obj->material];
+        h->object = hit.object;
+        h->triangle = hit.triangle;
+        h->t = hit.t;
+        return 1;
+    }
+    return 0;
+}
+
+/* The two children of an interface for a ray along unit d: the reflected
+   and (glass, below the critical angle) refracted directions, the
+   reflected share f, and whether the ray enters the material. */
+typedef struct refl__gp_children {
+    refl_vec3 reflect, refract;
+    float f;                     /* reflected share; the refracted carries 1 - f */
+    int refracts, entering;
+} refl__gp_children;
+
+static void refl__gp_interface(const refl__gp_hit *h, refl_vec3 d, refl__gp_children *c) {
+    const refl_material *m = h->material;
+    refl_vec3 n = h->ns, ng = h->ng;
+    float cos_i;
+    c->entering = refl_v3_dot(d, ng) < 0.0f;
+    if (!c->entering) {
+        n = refl_v3_scale(n, -1.0f);
+        ng = refl_v3_scale(ng, -1.0f);
+    }
+    if (refl_v3_dot(d, n) > 0.0f) n = ng; /* shading normal faces away: trust the geometry (as trace.c) */
+    cos_i = -refl_v3_dot(d, n);
+    c->reflect = refl_v3_reflect(d, n);
+    c->refracts = 0;
+    c->refract = d;
+    if (m->type != REFL_GLASS) {
+        if (refl_v3_dot(c->reflect, ng) <= 0.0f) c->reflect = refl_v3_reflect(d, ng);
+        c->f = refl_material_reflectance(m, cos_i);
+        return;
+    }
+    {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f;
+        float n1 = c->entering ? 1.0f : ior, n2 = c->entering ? ior : 1.0f;
+        c->f = refl_fresnel_dielectric(cos_i, n1, n2);
+        c->refracts = c->f < 1.0f && refl_v3_refract(d, n, n1 / n2, &c->refract);
+        if (!c->refracts) c->f = 1.0f; /* total internal reflection */
+    }
+}
+
+/* A path taking child `reflect` (0: refraction) of the interface at h:
+   its F and G, and the ray it continues by. */
+static void refl__gp_take(refl_greedy_path *path, const refl__gp_hit *h, const refl__gp_children *c, int reflect,
+                          refl_vec3 *o, refl_vec3 *d) {
+    const refl_material *m = h->material;
+    refl_vec3 side;
+    int k;
+    if (path->length < 32 && reflect) path->reflected |= 1u << path->length;
+    ++path->length;
+    path->fresnel *= reflect ? c->f : 1.0f - c->f;
+    if (!reflect && c->entering) /* entering glass: tinted once (as trace.c) */
+        for (k = 0; k < 3; ++k)
+            path->attenuation[k] *= m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[k] : 1.0f;
+    *d = reflect ? c->reflect : c->refract;
+    path->exit_origin = h->p;
+    path->exit_direction = *d;
+    side = refl_v3_dot(*d, h->ng) >= 0.0f ? h->ng : refl_v3_scale(h->ng, -1.0f);
+    *o = refl__rt_offset(h->p, side, h->magnitude);
+}
+
+/* Follows a path from the ray (o, d) that left interface `from` until it
+   leaves the lens system or meets max interfaces. */
+static void refl__gp_follow(const refl_scene *scene, const refl_ray_caster *caster, refl_greedy_path *path,
+                            refl_vec3 o, refl_vec3 d, refl__gp_hit from, int max_interfaces, long long *rays) {
+    refl__gp_hit h;
+    refl__gp_children c;
+    int k;
+    while (path->length < max_interfaces) {
+        if (!refl__gp_cast(scene, caster, o, d, from.object, from.triangle, &h, rays) ||
+            !refl__is_reflector(h.material)) {
+            path->exited = 1;
+            return;
+        }
+        refl__gp_interface(&h, d, &c);
+        if (!c.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
+            float a = REFL__MAX(h.material->attenuation, 0.0f), len = h.t * refl_v3_length(d);
+            path->inside_length += len;
+            if (a > 0.0f)
+                for (k = 0; k < 3; ++k) path->attenuation[k] *= expf(-a * len);
+        }
+        /* the larger coefficient; a tie reflects */
+        refl__gp_take(path, &h, &c, !c.refracts || c.f >= 1.0f - c.f, &o, &d);
+        from = h;
+    }
+}
+
+static void refl__gp_start(refl_greedy_path *path, refl_vec3 o, refl_vec3 d) {
+    memset(path, 0, sizeof *path);
+    path->fresnel = 1.0f;
+    path->attenuation[0] = path->attenuation[1] = path->attenuation[2] = 1.0f;
+    path->exit_origin = o;
+    path->exit_direction = d;
+}
+
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays) {
+    refl__gp_hit h;
+    refl__gp_children c;
+    refl_vec3 o, d;
+    if (!out) return;
+    memset(out, 0, sizeof *out);
+    out->object = -1;
+    out->first_point = refl_v3(NAN, NAN, NAN);
+    refl__gp_start(&out->reflect, origin, dir);
+    refl__gp_start(&out->refract, origin, dir);
+    out->reflect.fresnel = out->refract.fresnel = 0.0f;
+    if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
+    max_interfaces = max_interfaces <= 0 || max_interfaces > REFL_GREEDY_MAX_INTERFACES ? REFL_GREEDY_MAX_INTERFACES
+                                                                                         : max_interfaces;
+    if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
+    out->object = h.object;
+    out->first_point = h.p;
+    refl__gp_interface(&h, dir, &c);
+    out->terms = h.material->type == REFL_GLASS ? 2 : 1;
+    out->reflect.fresnel = 1.0f;
+    refl__gp_take(&out->reflect, &h, &c, 1, &o, &d);
+    refl__gp_follow(scene, caster, &out->reflect, o, d, h, max_interfaces, rays);
+    if (out->terms == 2 && c.refracts) {
+        out->refract.fresnel = 1.0f;
+        refl__gp_take(&out->refract, &h, &c, 0, &o, &d);
+        refl__gp_follow(scene, caster, &out->refract, o, d, h, max_interfaces, rays);
+    }
 }
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
@@ -17670,7 +17901,8 @@ REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_alloc
    fallback renders the pixels it cannot resolve with. A primary ray per
    pixel centre, mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
-   absorption, optional hard or soft shadows (soft: a shadow ray per
+   absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
+   two greedy paths), optional hard or soft shadows (soft: a shadow ray per
    jittered light sample, refl__rt_diffuse), the light planar mirrors
    reflect (light_volumes), the environment on a miss. Shading is the
    shared model of shade.c, and each surface's colour is clamped to [0, 1]
@@ -17874,6 +18106,9 @@ typedef struct refl__rt_medium {
     float fog;
     refl_vec3 fog_p, fog_n;
     const float *fog_rgb;
+    /* desc.raytrace.greedy, past the eye ray's first interface: glass
+       spawns only its child of the larger Fresnel coefficient (paper 001) */
+    int greedy;
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -17923,6 +18158,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
         refl_vec3 rd = refl_v3_reflect(d, n);
+        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         /* near a silhouette the smooth normal can send the ray into the
            surface itself: reflect about the true surface instead */
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
@@ -17940,18 +18176,25 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         refl_vec3 t;
         int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
         int point_on_refraction = refracts && f < 0.5f;
+        /* greedy: the one child of the larger coefficient (a tie reflects),
+           as refl_greedy_paths takes it; the first interface spawns both */
+        int greedy_reflect = !medium.greedy || !refracts || f >= 1.0f - f;
+        int greedy_refract = !medium.greedy || (refracts && f < 1.0f - f);
         /* inside translucent glass the fog scatters what reflects within
            (PLANAR's slab has no inner reflections either) */
         int scattered = !entering && medium.fog > 0.0f && refracts;
         refl__rt_medium through;
         if (!refracts) f = 1.0f; /* total internal reflection */
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
+        medium.greedy = rt->p->desc.raytrace.greedy; /* both children of this interface go greedy */
+        if (!scattered && greedy_reflect &&
+            (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
-        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+        if (refracts && greedy_refract &&
+            ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
             through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;

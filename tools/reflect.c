@@ -70,6 +70,8 @@ static const char *const usage_render =
     "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
     "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
     "                     and those whose point the ray map's samples contradict\n"
+    "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
+    "                     instead of the full ray tree\n"
     "  --sbc-paper        SBC: the paper's method, no search of the scene (heads where\n"
     "                     the rays leave its box); default: SBC-traced, every ray map\n"
     "                     sample traced against the scene's BVH\n"
@@ -121,7 +123,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy;
     float density, camera_split, error_px;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
@@ -170,7 +172,8 @@ static const char *const value_options[] = {
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
-                                           "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
+                                           "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
+                                           "--greedy", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -312,6 +315,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--sbc-paper")) {
             o->sbc_paper = 1;
+            continue;
+        } else if (!strcmp(a, "--greedy")) {
+            o->greedy = 1;
             continue;
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
@@ -529,6 +535,7 @@ static int cmd_render(const options *o) {
     d.sbc.ray_factor = o->ray_factor;
     d.sbc.trace_fallback = o->trace_fallback;
     d.sbc.mode = o->sbc_paper ? REFL_SBC_PAPER : REFL_SBC_TRACED;
+    d.raytrace.greedy = o->greedy;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

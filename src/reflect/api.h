@@ -937,7 +937,55 @@ typedef struct refl_ray_caster {
 /* Each method's options; zero everywhere means its defaults. */
 typedef struct refl_raytrace_options {
     refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+    int greedy;              /* paper 001's two-term greedy ray paths (refl_greedy_paths): an
+                                eye ray meeting glass splits into a reflected and a refracted
+                                path, and every later interface follows only its child of the
+                                larger Fresnel coefficient (ties: reflection). 0: the full ray
+                                tree, both children everywhere. Mirrors have one child either
+                                way, so mirror-only scenes render the same bytes */
 } refl_raytrace_options;
+
+/* ---- paper 001's greedy ray paths through a lens system ----------------------- */
+
+enum { REFL_GREEDY_MAX_INTERFACES = 32 };
+
+/* One greedy path: the interfaces it met, the child it took at each, what
+   it carries and the ray it leaves the lens system by. */
+typedef struct refl_greedy_path {
+    int exited;              /* 1: left the lens system (the exit ray below is valid); 0: it
+                                met max_interfaces interfaces first */
+    int length;              /* interfaces met, the first (where the eye ray split) included */
+    unsigned int reflected;  /* bit i: 1 where interface i reflected, 0 where it refracted */
+    float fresnel;           /* F: product of the coefficients of the children taken */
+    float attenuation[3];    /* G: glass tint on entering times exp(-attenuation * length)
+                                inside, per channel */
+    refl_vec3 exit_origin;   /* the last interface's point (the eye ray's origin when none) */
+    refl_vec3 exit_direction; /* unit */
+    float inside_length;     /* glass traversed */
+} refl_greedy_path;
+
+/* The two terms of paper 001's shading model for one eye ray: T F_T G_T +
+   R F_R G_R, T and R the radiance along the exit rays. */
+typedef struct refl_greedy_paths_result {
+    int terms;               /* 0: the ray met no lens (diffuse or nothing first); 1: a mirror
+                                first (reflect only); 2: glass first (both) */
+    int object;              /* the lens object met first, -1 when none */
+    refl_vec3 first_point;   /* where, NaN when none */
+    refl_greedy_path reflect, refract; /* a term that does not exist has fresnel 0 */
+} refl_greedy_paths_result;
+
+/* Traces the greedy paths of the ray origin + t dir (dir unit) through the
+   scene's lens objects (mirror, partial and glass materials) with `caster`
+   (one over the scene's objects; a diffuse object met, or nothing, ends a
+   path: the ray leaves the lens system). At the first interface the ray
+   starts a reflected path and, at glass, a refracted one; at every later
+   interface each takes the child of the larger Fresnel coefficient (total
+   internal reflection: reflection; a mirror: reflection, times its
+   reflectance). max_interfaces: 0 means REFL_GREEDY_MAX_INTERFACES, and
+   larger is clamped to it. *rays (may be NULL) counts the rays cast. */
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays);
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

@@ -454,6 +454,10 @@ typedef struct refl__rt {
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
 static void refl__rt_end(refl__rt *rt);
+/* Where a secondary ray leaving point p (on a triangle of largest
+   |coordinate| magnitude) along the side n starts: off its surface by the
+   rounding of the hit (trace.c; greedy_path.c's rays start the same way). */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
 /* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
    shows (NaN: none), window depth and stencil as the base pass writes
    them; *rays counts the rays cast. */
