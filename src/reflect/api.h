@@ -987,6 +987,57 @@ REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *
                                 refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
                                 long long *rays);
 
+/* Paper 001's adaptive tessellation (section 5) of one lens object for a
+   view: only the vertices of its front-facing triangles are traced (both
+   greedy paths, from the vertex with its own normal, and a visibility ray
+   from the eye); a triangle is split at its edge midpoints (1 to 4, or 1
+   to 3 and 1 to 2 where some edges project shorter than edge_px) while
+   its vertices' paths differ in topology (terms, length, the choice at an
+   interface, leaving or not) or their exit rays by more than
+   angle_degrees, in either term, unless all three vertices are hidden. An
+   edge table gives every midpoint once; the leaves are then
+   re-triangulated around the vertices their neighbours put on their
+   edges, so the mesh conforms. Levels are split one at a time and each
+   level's new vertices traced in parallel: the same mesh for any thread
+   count. */
+typedef struct refl_lens_tess_desc {
+    float angle_degrees;     /* 0: 3 */
+    float edge_px;           /* t: edges projected shorter are not split, in pixels of the
+                                view; 0: 1 (the paper's t = 3 subpixels at 3x3) */
+    int max_level;           /* splits of a mesh triangle at most; 0: 12 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+    int threads;             /* 0: one per CPU */
+} refl_lens_tess_desc;
+
+typedef struct refl_lens_vertex {
+    refl_vec3 position, normal; /* world; normal unit */
+    float window[2];         /* pixel coordinates in the view; NaN behind the eye */
+    int visible;             /* nothing between the eye and the vertex */
+    int level;               /* 0: the mesh's; k: made splitting a level k - 1 triangle */
+    refl_greedy_paths_result paths;
+} refl_lens_vertex;
+
+typedef struct refl_lens_tess {
+    refl_lens_vertex *vertices;
+    int vertex_count;        /* each traced once */
+    uint32_t *indices;       /* 3 per triangle, wound as the mesh */
+    int triangle_count;
+    int front_triangles;     /* the mesh's front-facing triangles it started from */
+    int splits;              /* triangles split */
+    int topology_splits;     /* of which because a path's topology changed */
+    int junction_fixes;      /* leaves re-triangulated around a T-junction */
+    long long rays;          /* visibility and path rays cast */
+    refl_allocator allocator;
+} refl_lens_tess;
+
+/* Tessellates scene object `object` (a lens: mirror or glass) for view
+   through caster (one over the scene, as for refl_greedy_paths). desc NULL:
+   the defaults. */
+REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                          const refl_view *view, const refl_lens_tess_desc *desc,
+                                          refl_lens_tess **out);
+REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
+
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
                                 each face: 1.2 GB); 0: 256 */

@@ -10,15 +10,6 @@
    but its ray, so callers on any thread count get the same answers. */
 #include "internal.h"
 
-/* The lens surface a path ray met. */
-typedef struct refl__gp_hit {
-    refl_vec3 p, ng, ns;
-    float magnitude;             /* largest |coordinate| of the triangle (offsets) */
-    const refl_material *material;
-    int object, triangle;
-    float t;
-} refl__gp_hit;
-
 /* The closest hit along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 for none. */
 static int refl__gp_cast(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
@@ -147,33 +138,45 @@ static void refl__gp_start(refl_greedy_path *path, refl_vec3 o, refl_vec3 d) {
     path->exit_direction = d;
 }
 
-REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
-                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
-                                long long *rays) {
-    refl__gp_hit h;
+/* The two paths of a ray along unit `dir` meeting lens surface h first. */
+static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                    const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays) {
     refl__gp_children c;
     refl_vec3 o, d;
-    if (!out) return;
+    max_interfaces = max_interfaces <= 0 || max_interfaces > REFL_GREEDY_MAX_INTERFACES ? REFL_GREEDY_MAX_INTERFACES
+                                                                                         : max_interfaces;
+    out->object = h->object;
+    out->first_point = h->p;
+    refl__gp_interface(h, dir, &c);
+    out->terms = h->material->type == REFL_GLASS ? 2 : 1;
+    out->reflect.fresnel = 1.0f;
+    refl__gp_take(&out->reflect, h, &c, 1, &o, &d);
+    refl__gp_follow(scene, caster, &out->reflect, o, d, *h, max_interfaces, rays);
+    if (out->terms == 2 && c.refracts) {
+        out->refract.fresnel = 1.0f;
+        refl__gp_take(&out->refract, h, &c, 0, &o, &d);
+        refl__gp_follow(scene, caster, &out->refract, o, d, *h, max_interfaces, rays);
+    }
+}
+
+/* No terms yet: both paths empty, the exit rays the eye ray itself. */
+static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out) {
     memset(out, 0, sizeof *out);
     out->object = -1;
     out->first_point = refl_v3(NAN, NAN, NAN);
     refl__gp_start(&out->reflect, origin, dir);
     refl__gp_start(&out->refract, origin, dir);
     out->reflect.fresnel = out->refract.fresnel = 0.0f;
+}
+
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays) {
+    refl__gp_hit h;
+    if (!out) return;
+    refl__greedy_paths_none(origin, dir, out);
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
-    max_interfaces = max_interfaces <= 0 || max_interfaces > REFL_GREEDY_MAX_INTERFACES ? REFL_GREEDY_MAX_INTERFACES
-                                                                                         : max_interfaces;
     if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
-    out->object = h.object;
-    out->first_point = h.p;
-    refl__gp_interface(&h, dir, &c);
-    out->terms = h.material->type == REFL_GLASS ? 2 : 1;
-    out->reflect.fresnel = 1.0f;
-    refl__gp_take(&out->reflect, &h, &c, 1, &o, &d);
-    refl__gp_follow(scene, caster, &out->reflect, o, d, h, max_interfaces, rays);
-    if (out->terms == 2 && c.refracts) {
-        out->refract.fresnel = 1.0f;
-        refl__gp_take(&out->refract, &h, &c, 0, &o, &d);
-        refl__gp_follow(scene, caster, &out->refract, o, d, h, max_interfaces, rays);
-    }
+    refl__greedy_paths_from(scene, caster, dir, &h, max_interfaces, out, rays);
 }

@@ -467,6 +467,25 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
    not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
+/* ---- paper 001's greedy ray paths (greedy_path.c) ---- */
+
+/* The lens surface a path meets: its point, geometric and shading normals
+   (unit), the largest |coordinate| of its triangle (ray offsets), material,
+   object, triangle and the ray's distance to it. */
+typedef struct refl__gp_hit {
+    refl_vec3 p, ng, ns;
+    float magnitude;
+    const refl_material *material;
+    int object, triangle;
+    float t;
+} refl__gp_hit;
+/* Both greedy paths of a ray along unit dir whose first lens interface is
+   h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
+static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                    const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays);
+static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
