@@ -83,6 +83,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/gl_hooks.c \
                  src/reflect/greedy_path.c \
                  src/reflect/kdtree.c \
+                 src/reflect/lem_infer.c \
                  src/reflect/lens_tess.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \

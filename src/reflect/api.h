@@ -1038,6 +1038,87 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
                                           refl_lens_tess **out);
 REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
 
+/* ---- paper 001's inferred environment maps (section 4) ------------------------- */
+
+/* One environment layer: a sphere shell around a lens object, textured as
+   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
+   side, texel (face, x, y) at face * size^2 + y * size + x). */
+typedef struct refl_lem_shell {
+    refl_vec3 center;
+    float radius;
+    int face_size;
+} refl_lem_shell;
+
+/* How the runtime samples the shell for an exit ray (origin inside or
+   outside, dir unit): the ray's far hit on the sphere, its offset from the
+   centre as the cube-map index, bilinear on the face (clamped at its
+   edges). 1 with four texels and weights summing to 1, or 0 when the ray
+   misses the sphere. The rendering matrix is made of exactly these. */
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]);
+
+/* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
+   theta_m the largest angle between any two of the pixel's exit rays
+   (dirs unit); theta_c_degrees 0 means 5. 1 for fewer than two rays. */
+REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees);
+
+/* A sparse least-squares system C A x = C b over RGBA texels: each row a
+   pixel of one term, its texels and weights (A), its target colour (b)
+   and confidence (C). */
+typedef struct refl_lem_system refl_lem_system;
+REFL_API refl_result refl_lem_system_create(int texels, const refl_allocator *a, refl_lem_system **out);
+REFL_API void refl_lem_system_destroy(refl_lem_system *system);
+/* Appends a row; texels out of range, non-finite weights or targets are
+   refused (INVALID_ARGUMENT), a confidence of 0 adds nothing. */
+REFL_API refl_result refl_lem_system_add_row(refl_lem_system *system, const uint32_t *texels, const float *weights,
+                                             int count, const float target[4], float confidence);
+REFL_API int refl_lem_system_rows(const refl_lem_system *system);
+
+typedef struct refl_lem_solve_desc {
+    int iterations;          /* at most; 0: 200 */
+    float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
+                                start, in every channel; 0: 1e-6 */
+} refl_lem_solve_desc;
+
+typedef struct refl_lem_solve_stats {
+    int iterations;
+    double residual[4];      /* |C (A x - b)| per channel at the end */
+    double initial[4];       /* and at x = 0 */
+} refl_lem_solve_stats;
+
+/* Least squares by conjugate gradients on the normal equations (CGLS),
+   the four channels at once, from x = 0: texels no row reaches stay 0.
+   Sequential sums in double: the same x on every run. x: 4 floats per
+   texel. stats may be NULL. */
+REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,
+                                    refl_lem_solve_stats *stats);
+
+/* Section 4.1's records of one viewpoint sample, as rows for one layer:
+   every pixel whose centre ray meets lens object `object` first traces
+   supersample^2 subsamples' greedy paths; per term, the row is the
+   runtime's lookup of the pixel centre's exit ray, the target the mean
+   radiance where the subsamples' exit rays meet the scene (diffuse shading
+   as RAYTRACE's without shadows, the environment past everything), alpha
+   the share of subsamples with that term, and the confidence that of the
+   subsamples' exit rays. */
+typedef struct refl_lem_record_desc {
+    int object;              /* the lens object */
+    int supersample;         /* 0: 3 */
+    float theta_c_degrees;   /* 0: 5 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+} refl_lem_record_desc;
+
+typedef struct refl_lem_record_stats {
+    int pixels;              /* lens pixels recorded */
+    int rows;                /* rows added (both terms) */
+    long long rays;
+} refl_lem_record_stats;
+
+REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
+                                          const refl_ray_caster *caster, const refl_view *view,
+                                          const refl_lem_shell *shell, const refl_lem_record_desc *desc,
+                                          refl_lem_record_stats *stats);
+
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
                                 each face: 1.2 GB); 0: 256 */
