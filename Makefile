@@ -88,6 +88,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_envmap.c \
+                 src/reflect/m_layered_em.c \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \

@@ -953,7 +953,7 @@ enum { REFL_GREEDY_MAX_INTERFACES = 32 };
    it carries and the ray it leaves the lens system by. */
 typedef struct refl_greedy_path {
     int exited;              /* 1: left the lens system (the exit ray below is valid); 0: it
-                                met max_interfaces interfaces first */
+                                met one more interface after max_interfaces */
     int length;              /* interfaces met, the first (where the eye ray split) included */
     unsigned int reflected;  /* bit i: 1 where interface i reflected, 0 where it refracted */
     float fresnel;           /* F: product of the coefficients of the children taken */
@@ -1119,6 +1119,25 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
                                           const refl_lem_shell *shell, const refl_lem_record_desc *desc,
                                           refl_lem_record_stats *stats);
 
+/* LAYERED_EM (paper 001): lens objects traced at adaptively tessellated
+   vertices with the two greedy paths, the environment from a sphere-shell
+   map per viewpoint sample inferred by least squares to match ray-traced
+   records there, the two samples nearest the eye blended. */
+typedef struct refl_layered_em_options {
+    int samples;             /* viewpoint samples on the circle around each lens object's centre
+                                through the eye, at its height: 0: 45 (8 degrees apart) */
+    int face_size;           /* shell cube-map face side in texels, at most 1024; 0: half the
+                                square root of the lens's pixels at the first sample */
+    int supersample;         /* records' subsamples per pixel side, 1 to 8; 0: 1 */
+    float edge_px;           /* tessellation's t in pixels; 0: 1 */
+    float angle_degrees;     /* tessellation's exit-ray angle; 0: 3 */
+    float theta_c_degrees;   /* confidence's angle; 0: 5 */
+    int iterations;          /* CG iterations at most; 0: 200 */
+    int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
+                                views half a spacing either side (the paper's simultaneous
+                                inference, against disocclusions between samples) */
+} refl_layered_em_options;
+
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
                                 each face: 1.2 GB); 0: 256 */
@@ -1249,6 +1268,7 @@ typedef struct refl_render_desc {
     refl_planar_options planar;
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
+    refl_layered_em_options layered_em;
     refl_debug_options debug;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;

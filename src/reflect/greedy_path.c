@@ -105,18 +105,19 @@ static void refl__gp_take(refl_greedy_path *path, const refl__gp_hit *h, const r
 }
 
 /* Follows a path from the ray (o, d) that left interface `from` until it
-   leaves the lens system or meets max interfaces. */
+   leaves the lens system, or meets an interface past max_interfaces. */
 static void refl__gp_follow(const refl_scene *scene, const refl_ray_caster *caster, refl_greedy_path *path,
                             refl_vec3 o, refl_vec3 d, refl__gp_hit from, int max_interfaces, long long *rays) {
     refl__gp_hit h;
     refl__gp_children c;
     int k;
-    while (path->length < max_interfaces) {
+    for (;;) {
         if (!refl__gp_cast(scene, caster, o, d, from.object, from.triangle, &h, rays) ||
             !refl__is_reflector(h.material)) {
             path->exited = 1;
             return;
         }
+        if (path->length >= max_interfaces) return; /* one interface too many: it ends inside */
         refl__gp_interface(&h, d, &c);
         if (!c.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
             float a = REFL__MAX(h.material->attenuation, 0.0f), len = h.t * refl_v3_length(d);

@@ -486,6 +486,22 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_cast
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
 
+/* ---- paper 001's tessellation and inferred maps (lens_tess.c, lem_infer.c) ---- */
+
+/* refl_lens_tessellate on the pass's threads (rc), into *out (its
+   allocator set; its arrays freed by the caller, also on failure). */
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                         const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
+                                         refl_lens_tess *out);
+/* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
+   does not meet `object` first; else per term the target (rgba) and its
+   confidence (-1: none) in out[5 term ...], environment hit distances
+   from `centre` summed into *dist_sum, *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
@@ -501,6 +517,8 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static refl_result refl__method_layered_em(refl__pass *p);
+static const char *refl__options_layered_em(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */

@@ -267,11 +267,13 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
 
 /* ---- records of a viewpoint sample --------------------------------------------- */
 
+enum { REFL__LEM_MAX_SS = 8 };
+
 /* The radiance where an exit ray meets the scene past the lens: a diffuse
    surface shaded as RAYTRACE shades it without shadows, else the
    environment. */
 static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                                    float rgb[3], long long *rays) {
+                                    float rgb[3], refl_vec3 *hit, long long *rays) {
     refl_hit h;
     float tmin = 0.0f;
     int tries, k;
@@ -303,66 +305,97 @@ static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_cast
         }
         refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, rgb);
         for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+        *hit = g.p;
         return;
     }
+    *hit = refl_v3(NAN, NAN, NAN);
     refl_environment_lookup(&scene->environment, d, rgb);
     for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+}
+
+/* The records of pixel (x, y) of a view (section 4.1): 0 when its centre
+   ray does not meet lens object `object` first; else 1, the centre's
+   paths, and per term (R, T) the target (mean radiance where the
+   subsamples' exit rays meet the scene, alpha the share of subsamples with
+   the term) and its confidence (-1: no subsample has the term) in
+   out[5 term .. 5 term + 4]. Each environment hit adds its distance from
+   `centre` to *dist_sum and one to *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays) {
+    refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
+    refl_greedy_paths_result sub;
+    float sum[2][3];
+    int n[2] = {0, 0}, i, j, k, term;
+    refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
+    refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
+    if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    memset(sum, 0, sizeof sum);
+    for (j = 0; j < ss; ++j)
+        for (i = 0; i < ss; ++i) {
+            refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss, (float)y + ((float)j + 0.5f) / (float)ss,
+                          &o, &d, NULL);
+            refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
+            if (sub.object != object) continue;
+            for (term = 0; term < 2; ++term) {
+                const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
+                float rgb[3];
+                refl_vec3 hit;
+                if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
+                refl__lem_exit_radiance(scene, caster, sp->exit_origin, sp->exit_direction, rgb, &hit, rays);
+                if (refl__v3_finite(hit)) {
+                    *dist_sum += (double)refl_v3_length(refl_v3_sub(hit, centre));
+                    ++*dist_n;
+                }
+                for (k = 0; k < 3; ++k) sum[term][k] += rgb[k];
+                dirs[term][n[term]++] = sp->exit_direction;
+            }
+        }
+    for (term = 0; term < 2; ++term) {
+        float *t = out + 5 * term;
+        t[4] = -1.0f;
+        if (!n[term]) continue;
+        for (k = 0; k < 3; ++k) t[k] = sum[term][k] / (float)n[term];
+        t[3] = (float)n[term] / (float)(ss * ss);
+        t[4] = refl_lem_confidence(dirs[term], n[term], theta_c);
+    }
+    return 1;
 }
 
 REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
                                           const refl_ray_caster *caster, const refl_view *view,
                                           const refl_lem_shell *shell, const refl_lem_record_desc *desc,
                                           refl_lem_record_stats *stats) {
-    enum { MAX_SS = 8 };
     refl_lem_record_stats st;
-    refl_vec3 dirs[2][MAX_SS * MAX_SS];
-    int ss, x, y, i, j, term, k;
-    float theta_c;
+    int ss, x, y, term;
     refl_result r = REFL_OK;
+    double dist_sum = 0.0;
+    long long dist_n = 0;
     memset(&st, 0, sizeof st);
     if (stats) *stats = st;
     if (!system || !scene || !caster || !caster->intersect || !view || !shell || !desc) return REFL_ERROR_INVALID_ARGUMENT;
     if (desc->object < 0 || desc->object >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
     if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
-    ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, MAX_SS) : 3;
-    theta_c = desc->theta_c_degrees;
+    ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
-            refl_greedy_paths_result centre, sub;
-            refl_vec3 o, d;
-            float sum[2][3];
-            int n[2] = {0, 0};
-            refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
-            refl_greedy_paths(scene, caster, o, d, desc->max_interfaces, &centre, &st.rays);
-            if (centre.terms == 0 || centre.object != desc->object) continue;
+            refl_greedy_paths_result centre;
+            float rec[10];
+            if (!refl__lem_pixel_records(scene, caster, view, x, y, desc->object, ss, desc->theta_c_degrees,
+                                         desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
+                                         &st.rays))
+                continue;
             ++st.pixels;
-            memset(sum, 0, sizeof sum);
-            for (j = 0; j < ss; ++j)
-                for (i = 0; i < ss; ++i) {
-                    refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss,
-                                  (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, NULL);
-                    refl_greedy_paths(scene, caster, o, d, desc->max_interfaces, &sub, &st.rays);
-                    if (sub.object != desc->object) continue;
-                    for (term = 0; term < 2; ++term) {
-                        const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
-                        float rgb[3];
-                        if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
-                        refl__lem_exit_radiance(scene, caster, sp->exit_origin, sp->exit_direction, rgb, &st.rays);
-                        for (k = 0; k < 3; ++k) sum[term][k] += rgb[k];
-                        dirs[term][n[term]++] = sp->exit_direction;
-                    }
-                }
             for (term = 0; term < 2 && r == REFL_OK; ++term) {
                 const refl_greedy_path *cp = term ? &centre.refract : &centre.reflect;
                 uint32_t tex[4];
-                float w[4], target[4];
-                if (!(cp->fresnel > 0.0f) || !cp->exited || !n[term] ||
+                float w[4];
+                if (!(cp->fresnel > 0.0f) || !cp->exited || rec[5 * term + 4] < 0.0f ||
                     !refl_lem_shell_lookup(shell, cp->exit_origin, cp->exit_direction, tex, w))
                     continue;
-                for (k = 0; k < 3; ++k) target[k] = sum[term][k] / (float)n[term];
-                target[3] = (float)n[term] / (float)(ss * ss);
-                r = refl_lem_system_add_row(system, tex, w, 4, target, refl_lem_confidence(dirs[term], n[term], theta_c));
+                r = refl_lem_system_add_row(system, tex, w, 4, rec + 5 * term, rec[5 * term + 4]);
                 if (r == REFL_OK) ++st.rows;
             }
         }

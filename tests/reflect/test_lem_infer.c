@@ -213,11 +213,13 @@ static double hybrid_psnr(const refl_scene *s, const refl_ray_caster *caster, co
     return err.psnr;
 }
 
-/* The view at azimuth `degrees` on a circle of radius 3 around the lens. */
-static refl_view orbit_view(float degrees) {
+/* The w x h view at azimuth `degrees` on a circle of radius 3 around the lens. */
+static refl_view orbit_view_sized(float degrees, int w, int h) {
     float a = degrees * DEG;
-    return tu_refl_view(refl_v3(3.0f * sinf(a), 0.6f, 3.0f * cosf(a)), refl_v3(0, 0, 0), 96, 72);
+    return tu_refl_view(refl_v3(3.0f * sinf(a), 0.6f, 3.0f * cosf(a)), refl_v3(0, 0, 0), w, h);
 }
+
+static refl_view orbit_view(float degrees) { return orbit_view_sized(degrees, 96, 72); }
 
 Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     refl_scene *s = exact_shell_scene();
@@ -264,4 +266,68 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     refl_lem_system_destroy(sys);
     refl_bvh_destroy(bvh);
     refl_scene_destroy(s);
+}
+
+/* ---- the method ------------------------------------------------------------------ */
+
+static refl_frame *render_lem(const refl_scene *s, const refl_view *v, int threads) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    d.threads = threads;
+    return tu_refl_render(s, v, &d);
+}
+
+Test(layered_em, exact_shell_off_sample_matches_greedy_raytrace) {
+    /* 45 samples 8 degrees apart, each inferred from its view and those 4
+       degrees either side: at 3 degrees, between two samples and no view
+       any map was inferred from */
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(3.0f, 128, 96);
+    refl_render_desc d;
+    refl_frame *truth, *lem;
+    refl_image_error err;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, &v, &d);
+    lem = render_lem(s, &v, 2);
+    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
+    cr_assert_gt(err.pixels, 4000);
+    cr_assert_geq(err.psnr, 35.0, "between samples: PSNR %.2f dB over %lld lens pixels", err.psnr, err.pixels);
+    for (i = 0; i < 4 * n; ++i) cr_assert(lem->rgba[i] == lem->rgba[i], "no NaN");
+    cr_assert_gt(lem->stats.rays, 0);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem);
+    refl_scene_destroy(s);
+}
+
+Test(layered_em, same_bytes_any_threads) {
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(5.0f, 64, 48);
+    refl_frame *a = render_lem(s, &v, 1), *b = render_lem(s, &v, 3);
+    cr_assert_eq(tu_refl_digest(a), tu_refl_digest(b));
+    refl_frame_destroy(a);
+    refl_frame_destroy(b);
+    refl_scene_destroy(s);
+}
+
+Test(layered_em, options_validated) {
+    refl_render_desc d;
+    const char *why = NULL;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_OK);
+    cr_assert(refl_method_is_built(REFL_LAYERED_EM));
+    d.layered_em.samples = -1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_str_eq(why, "layered_em.samples: 0 (45) to 3600");
+    d.layered_em.samples = 0;
+    d.layered_em.edge_px = NAN;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.edge_px = 0.0f;
+    d.layered_em.supersample = 9;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
 }
