@@ -40,7 +40,8 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc or\n"
+    "                     layered-em (paper 001, one shell layer)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
@@ -222,7 +223,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--method")) {
             refl_method m = refl_method_from_name(v);
-            if (!m) return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc)", v);
+            if (!m)
+                return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc, layered-em)", v);
             if (!refl_method_is_built(m)) return fail("--method: '%s' is not built yet", v);
             o->method = v;
         } else if (!strcmp(a, "--mirror") || !strcmp(a, "--glass")) {

@@ -196,6 +196,7 @@ typedef struct refl__lem_records {
     int object, ss, max_interfaces;
     float theta_c;
     refl_vec3 centre;
+    int rect[4];                 /* x0, y0, x1, y1: the pixels the lens's bounds may cover */
     float *rec;                  /* 10 per pixel; confidence -1 where none */
     double *row_dist;
     long long *row_hits, *row_rays;
@@ -207,11 +208,39 @@ static void refl__lem_records_row(void *arg, int y) {
     for (x = 0; x < w; ++x) {
         float *out = r->rec + 10 * ((size_t)y * (size_t)w + (size_t)x);
         refl_greedy_paths_result centre;
-        if (!refl__lem_pixel_records(r->scene, r->caster, r->view, x, y, r->object, r->ss, r->theta_c,
+        if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
+            !refl__lem_pixel_records(r->scene, r->caster, r->view, x, y, r->object, r->ss, r->theta_c,
                                      r->max_interfaces, r->centre, out, &centre, &r->row_dist[y], &r->row_hits[y],
                                      &r->row_rays[y]))
             out[4] = out[9] = -1.0f;
     }
+}
+
+/* The pixel rectangle [x0, x1) x [y0, y1) of view vp (w x h) that the box
+   of corners lo, hi may cover: its corners' projections and a pixel more;
+   the whole view when a corner lies behind the eye. */
+static void refl__lem_screen_rect(refl_mat4 vp, refl_vec3 lo, refl_vec3 hi, int w, int h, int rect[4]) {
+    const float *m = vp.m;
+    float x0 = FLT_MAX, y0 = FLT_MAX, x1 = -FLT_MAX, y1 = -FLT_MAX;
+    int k, c;
+    for (k = 0; k < 8; ++k) {
+        refl_vec3 p = refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
+        float clip[4], sx, sy;
+        for (c = 0; c < 4; ++c) clip[c] = m[c] * p.x + m[4 + c] * p.y + m[8 + c] * p.z + m[12 + c];
+        if (!(clip[3] > 1e-6f)) {
+            rect[0] = rect[1] = 0;
+            rect[2] = w;
+            rect[3] = h;
+            return;
+        }
+        sx = (clip[0] / clip[3] * 0.5f + 0.5f) * (float)w;
+        sy = (0.5f - clip[1] / clip[3] * 0.5f) * (float)h;
+        x0 = REFL__MIN(x0, sx), x1 = REFL__MAX(x1, sx), y0 = REFL__MIN(y0, sy), y1 = REFL__MAX(y1, sy);
+    }
+    rect[0] = (int)REFL__CLAMP(floorf(x0) - 1.0f, 0.0f, (float)w);
+    rect[1] = (int)REFL__CLAMP(floorf(y0) - 1.0f, 0.0f, (float)h);
+    rect[2] = (int)REFL__CLAMP(ceilf(x1) + 1.0f, 0.0f, (float)w);
+    rect[3] = (int)REFL__CLAMP(ceilf(y1) + 1.0f, 0.0f, (float)h);
 }
 
 /* One viewpoint sample of a lens object. */
@@ -231,7 +260,7 @@ static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_vie
 }
 
 /* The world bounds' centre and half diagonal of object i. */
-static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, float *radius) {
+static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, float *radius, refl_vec3 box[2]) {
     const refl_object *o = &scene->objects[i];
     refl_vec3 lo, hi, wlo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), whi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
     int k;
@@ -241,6 +270,8 @@ static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, 
         wlo = refl_v3(REFL__MIN(wlo.x, c.x), REFL__MIN(wlo.y, c.y), REFL__MIN(wlo.z, c.z));
         whi = refl_v3(REFL__MAX(whi.x, c.x), REFL__MAX(whi.y, c.y), REFL__MAX(whi.z, c.z));
     }
+    box[0] = wlo;
+    box[1] = whi;
     *centre = refl_v3_scale(refl_v3_add(wlo, whi), 0.5f);
     *radius = 0.5f * refl_v3_length(refl_v3_sub(whi, wlo));
 }
@@ -293,6 +324,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     refl__lem_draw dr;
     refl_lens_tess_desc td;
     refl_lens_tess frame_tess;
+    refl_vec3 box[2];
     float weight[2], lens_radius, *color = NULL, *depth = NULL, *maps[2] = {NULL, NULL};
     double dist = 0.0;
     long long hits = 0;
@@ -306,7 +338,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
-    refl__lem_bounds(scene, i, &dr.shell.center, &lens_radius);
+    refl__lem_bounds(scene, i, &dr.shell.center, &lens_radius, box);
     n = refl__lem_views(p, dr.shell.center, o->samples > 0 ? o->samples : 45, !o->single_view, views, &per, weight);
     nv = n * per;
     color = (float *)refl__calloc(al, 4 * np, sizeof(float));
@@ -328,6 +360,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         rec.theta_c = o->theta_c_degrees;
         rec.max_interfaces = p->desc.depth;
         rec.centre = dr.shell.center;
+        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
         sv[s].rec = rec.rec = (float *)refl__calloc(al, 10 * np, sizeof(float));
         rec.row_dist = (double *)refl__calloc(al, (size_t)h, sizeof(double));
         rec.row_hits = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));

@@ -14,32 +14,13 @@
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
-static int bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
-    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
-}
-
-/* A scene of one object and its BVH as a caster. */
-typedef struct lens_fixture {
-    refl_scene *scene;
-    refl_bvh *bvh;
-    refl_ray_caster caster;
-} lens_fixture;
+typedef tu_refl_traced lens_fixture;
 
 static lens_fixture fixture(refl_mesh *mesh, const refl_material *m, refl_mat4 transform) {
-    lens_fixture f;
-    memset(&f, 0, sizeof f);
-    cr_assert_eq(refl_scene_create(NULL, &f.scene), REFL_OK);
-    cr_assert_geq(refl_scene_add(f.scene, mesh, m, transform), 0);
-    cr_assert_eq(refl_bvh_build(f.scene, NULL, &f.bvh), REFL_OK);
-    f.caster.intersect = bvh_intersect;
-    f.caster.user = f.bvh;
-    return f;
+    return tu_refl_traced_object(mesh, m, transform);
 }
 
-static void fixture_free(lens_fixture *f) {
-    refl_bvh_destroy(f->bvh);
-    refl_scene_destroy(f->scene);
-}
+static void fixture_free(lens_fixture *f) { tu_refl_traced_free(f); }
 
 static refl_material absorbing_glass(float attenuation) {
     refl_material g = refl_material_glass(1.5f);

@@ -132,10 +132,6 @@ Test(lem_infer, confidence_weighs_rows) {
 
 /* ---- the exact-shell scene ------------------------------------------------------ */
 
-static int bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
-    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
-}
-
 /* A glass sphere of radius 1 (object 1) at the centre of a checkered
    sphere of radius 5 (object 0) lit by ambient light alone. */
 static refl_scene *exact_shell_scene(void) {
@@ -222,9 +218,9 @@ static refl_view orbit_view_sized(float degrees, int w, int h) {
 static refl_view orbit_view(float degrees) { return orbit_view_sized(degrees, 96, 72); }
 
 Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
-    refl_scene *s = exact_shell_scene();
-    refl_bvh *bvh = NULL;
-    refl_ray_caster caster;
+    tu_refl_traced tr = tu_refl_traced_scene(exact_shell_scene());
+    refl_scene *s = tr.scene;
+    refl_ray_caster caster = tr.caster;
     refl_lem_shell sh;
     refl_lem_system *sys = NULL;
     refl_lem_record_desc rd;
@@ -234,10 +230,6 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     float *x;
     double at_sample, between;
     int k;
-    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
-    memset(&caster, 0, sizeof caster);
-    caster.intersect = bvh_intersect;
-    caster.user = bvh;
     sh.center = refl_v3(0, 0, 0);
     sh.radius = 5.0f;
     sh.face_size = 24; /* about a texel per pixel of the lens's view: finer is underdetermined between samples */
@@ -264,8 +256,7 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     cr_assert_geq(between, 35.0, "between samples: PSNR %.2f dB", between);
     free(x);
     refl_lem_system_destroy(sys);
-    refl_bvh_destroy(bvh);
-    refl_scene_destroy(s);
+    tu_refl_traced_free(&tr);
 }
 
 /* ---- the method ------------------------------------------------------------------ */
@@ -306,7 +297,7 @@ Test(layered_em, exact_shell_off_sample_matches_greedy_raytrace) {
 
 Test(layered_em, same_bytes_any_threads) {
     refl_scene *s = exact_shell_scene();
-    refl_view v = orbit_view_sized(5.0f, 64, 48);
+    refl_view v = orbit_view_sized(5.0f, 40, 30);
     refl_frame *a = render_lem(s, &v, 1), *b = render_lem(s, &v, 3);
     cr_assert_eq(tu_refl_digest(a), tu_refl_digest(b));
     refl_frame_destroy(a);

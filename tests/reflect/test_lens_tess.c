@@ -12,33 +12,24 @@
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
-static int bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
-    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
-}
-
+/* One lens object, its BVH and a 160 x 120 view of it from eye. */
 typedef struct lens_scene {
+    tu_refl_traced t;
     refl_scene *scene;
-    refl_bvh *bvh;
     refl_ray_caster caster;
     refl_view view;
 } lens_scene;
 
 static lens_scene lens(refl_mesh *mesh, const refl_material *m, refl_mat4 transform, refl_vec3 eye) {
     lens_scene l;
-    memset(&l, 0, sizeof l);
-    cr_assert_eq(refl_scene_create(NULL, &l.scene), REFL_OK);
-    cr_assert_eq(refl_scene_add(l.scene, mesh, m, transform), 0);
-    cr_assert_eq(refl_bvh_build(l.scene, NULL, &l.bvh), REFL_OK);
-    l.caster.intersect = bvh_intersect;
-    l.caster.user = l.bvh;
+    l.t = tu_refl_traced_object(mesh, m, transform);
+    l.scene = l.t.scene;
+    l.caster = l.t.caster;
     l.view = tu_refl_view(eye, refl_v3(0, 0, 0), 160, 120);
     return l;
 }
 
-static void lens_free(lens_scene *l) {
-    refl_bvh_destroy(l->bvh);
-    refl_scene_destroy(l->scene);
-}
+static void lens_free(lens_scene *l) { tu_refl_traced_free(&l->t); }
 
 static refl_lens_tess *tessellate(const lens_scene *l, float edge_px, float angle, int threads) {
     refl_lens_tess_desc d;
