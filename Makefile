@@ -82,11 +82,15 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_raylist.c \
                  src/reflect/gbuffer.c \
                  src/reflect/gl_hooks.c \
+                 src/reflect/greedy_path.c \
                  src/reflect/kdtree.c \
+                 src/reflect/lem_infer.c \
+                 src/reflect/lens_tess.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_envmap.c \
                  src/reflect/m_graphcam.c \
+                 src/reflect/m_layered_em.c \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \

@@ -1094,7 +1094,206 @@ typedef struct refl_ray_caster {
 /* Each method's options; zero everywhere means its defaults. */
 typedef struct refl_raytrace_options {
     refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+    int greedy;              /* paper 001's two-term greedy ray paths (refl_greedy_paths): an
+                                eye ray meeting glass splits into a reflected and a refracted
+                                path, and every later interface follows only its child of the
+                                larger Fresnel coefficient (ties: reflection). 0: the full ray
+                                tree, both children everywhere. Mirrors have one child either
+                                way, so mirror-only scenes render the same bytes */
 } refl_raytrace_options;
+
+/* ---- paper 001's greedy ray paths through a lens system ----------------------- */
+
+enum { REFL_GREEDY_MAX_INTERFACES = 32 };
+
+/* One greedy path: the interfaces it met, the child it took at each, what
+   it carries and the ray it leaves the lens system by. */
+typedef struct refl_greedy_path {
+    int exited;              /* 1: left the lens system (the exit ray below is valid); 0: it
+                                met one more interface after max_interfaces */
+    int length;              /* interfaces met, the first (where the eye ray split) included */
+    unsigned int reflected;  /* bit i: 1 where interface i reflected, 0 where it refracted */
+    float fresnel;           /* F: product of the coefficients of the children taken */
+    float attenuation[3];    /* G: glass tint on entering times exp(-attenuation * length)
+                                inside, per channel */
+    refl_vec3 exit_origin;   /* the last interface's point (the eye ray's origin when none) */
+    refl_vec3 exit_direction; /* unit */
+    float inside_length;     /* glass traversed */
+} refl_greedy_path;
+
+/* The two terms of paper 001's shading model for one eye ray: T F_T G_T +
+   R F_R G_R, T and R the radiance along the exit rays. */
+typedef struct refl_greedy_paths_result {
+    int terms;               /* 0: the ray met no lens (diffuse or nothing first); 1: a mirror
+                                first (reflect only); 2: glass first (both) */
+    int object;              /* the lens object met first, -1 when none */
+    refl_vec3 first_point;   /* where, NaN when none */
+    refl_greedy_path reflect, refract; /* a term that does not exist has fresnel 0 */
+} refl_greedy_paths_result;
+
+/* Traces the greedy paths of the ray origin + t dir (dir unit) through the
+   scene's lens objects (mirror, partial and glass materials) with `caster`
+   (one over the scene's objects; a diffuse object met, or nothing, ends a
+   path: the ray leaves the lens system). At the first interface the ray
+   starts a reflected path and, at glass, a refracted one; at every later
+   interface each takes the child of the larger Fresnel coefficient (total
+   internal reflection: reflection; a mirror: reflection, times its
+   reflectance). max_interfaces: 0 means REFL_GREEDY_MAX_INTERFACES, and
+   larger is clamped to it. *rays (may be NULL) counts the rays cast. */
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays);
+
+/* Paper 001's adaptive tessellation (section 5) of one lens object for a
+   view: only the vertices of its front-facing triangles are traced (both
+   greedy paths, from the vertex with its own normal, and a visibility ray
+   from the eye); a triangle is split at its edge midpoints (1 to 4, or 1
+   to 3 and 1 to 2 where some edges project shorter than edge_px) while
+   its vertices' paths differ in topology (terms, length, the choice at an
+   interface, leaving or not) or their exit rays by more than
+   angle_degrees, in either term, unless all three vertices are hidden. An
+   edge table gives every midpoint once; the leaves are then
+   re-triangulated around the vertices their neighbours put on their
+   edges, so the mesh conforms. Levels are split one at a time and each
+   level's new vertices traced in parallel: the same mesh for any thread
+   count. */
+typedef struct refl_lens_tess_desc {
+    float angle_degrees;     /* 0: 3 */
+    float edge_px;           /* t: edges projected shorter are not split, in pixels of the
+                                view; 0: 1 (the paper's t = 3 subpixels at 3x3) */
+    int max_level;           /* splits of a mesh triangle at most; 0: 12 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+    int threads;             /* 0: one per CPU */
+} refl_lens_tess_desc;
+
+typedef struct refl_lens_vertex {
+    refl_vec3 position, normal; /* world; normal unit */
+    float window[2];         /* pixel coordinates in the view; NaN behind the eye */
+    int visible;             /* nothing between the eye and the vertex */
+    int level;               /* 0: the mesh's; k: made splitting a level k - 1 triangle */
+    refl_greedy_paths_result paths;
+} refl_lens_vertex;
+
+typedef struct refl_lens_tess {
+    refl_lens_vertex *vertices;
+    int vertex_count;        /* each traced once */
+    uint32_t *indices;       /* 3 per triangle, wound as the mesh */
+    int triangle_count;
+    int front_triangles;     /* the mesh's front-facing triangles it started from */
+    int splits;              /* triangles split */
+    int topology_splits;     /* of which because a path's topology changed */
+    int junction_fixes;      /* leaves re-triangulated around a T-junction */
+    long long rays;          /* visibility and path rays cast */
+    refl_allocator allocator;
+} refl_lens_tess;
+
+/* Tessellates scene object `object` (a lens: mirror or glass) for view
+   through caster (one over the scene, as for refl_greedy_paths). desc NULL:
+   the defaults. */
+REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                          const refl_view *view, const refl_lens_tess_desc *desc,
+                                          refl_lens_tess **out);
+REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
+
+/* ---- paper 001's inferred environment maps (section 4) ------------------------- */
+
+/* One environment layer: a sphere shell around a lens object, textured as
+   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
+   side, texel (face, x, y) at face * size^2 + y * size + x). */
+typedef struct refl_lem_shell {
+    refl_vec3 center;
+    float radius;
+    int face_size;
+} refl_lem_shell;
+
+/* How the runtime samples the shell for an exit ray (origin inside or
+   outside, dir unit): the ray's far hit on the sphere, its offset from the
+   centre as the cube-map index, bilinear on the face (clamped at its
+   edges). 1 with four texels and weights summing to 1, or 0 when the ray
+   misses the sphere. The rendering matrix is made of exactly these. */
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]);
+
+/* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
+   theta_m the largest angle between any two of the pixel's exit rays
+   (dirs unit); theta_c_degrees 0 means 5. 1 for fewer than two rays. */
+REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees);
+
+/* A sparse least-squares system C A x = C b over RGBA texels: each row a
+   pixel of one term, its texels and weights (A), its target colour (b)
+   and confidence (C). */
+typedef struct refl_lem_system refl_lem_system;
+REFL_API refl_result refl_lem_system_create(int texels, const refl_allocator *a, refl_lem_system **out);
+REFL_API void refl_lem_system_destroy(refl_lem_system *system);
+/* Appends a row; texels out of range, non-finite weights or targets are
+   refused (INVALID_ARGUMENT), a confidence of 0 adds nothing. */
+REFL_API refl_result refl_lem_system_add_row(refl_lem_system *system, const uint32_t *texels, const float *weights,
+                                             int count, const float target[4], float confidence);
+REFL_API int refl_lem_system_rows(const refl_lem_system *system);
+
+typedef struct refl_lem_solve_desc {
+    int iterations;          /* at most; 0: 200 */
+    float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
+                                start, in every channel; 0: 1e-6 */
+} refl_lem_solve_desc;
+
+typedef struct refl_lem_solve_stats {
+    int iterations;
+    double residual[4];      /* |C (A x - b)| per channel at the end */
+    double initial[4];       /* and at x = 0 */
+} refl_lem_solve_stats;
+
+/* Least squares by conjugate gradients on the normal equations (CGLS),
+   the four channels at once, from x = 0: texels no row reaches stay 0.
+   Sequential sums in double: the same x on every run. x: 4 floats per
+   texel. stats may be NULL. */
+REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,
+                                    refl_lem_solve_stats *stats);
+
+/* Section 4.1's records of one viewpoint sample, as rows for one layer:
+   every pixel whose centre ray meets lens object `object` first traces
+   supersample^2 subsamples' greedy paths; per term, the row is the
+   runtime's lookup of the pixel centre's exit ray, the target the mean
+   radiance where the subsamples' exit rays meet the scene (diffuse shading
+   as RAYTRACE's without shadows, the environment past everything), alpha
+   the share of subsamples with that term, and the confidence that of the
+   subsamples' exit rays. */
+typedef struct refl_lem_record_desc {
+    int object;              /* the lens object */
+    int supersample;         /* 0: 3 */
+    float theta_c_degrees;   /* 0: 5 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+} refl_lem_record_desc;
+
+typedef struct refl_lem_record_stats {
+    int pixels;              /* lens pixels recorded */
+    int rows;                /* rows added (both terms) */
+    long long rays;
+} refl_lem_record_stats;
+
+REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
+                                          const refl_ray_caster *caster, const refl_view *view,
+                                          const refl_lem_shell *shell, const refl_lem_record_desc *desc,
+                                          refl_lem_record_stats *stats);
+
+/* LAYERED_EM (paper 001): lens objects traced at adaptively tessellated
+   vertices with the two greedy paths, the environment from a sphere-shell
+   map per viewpoint sample inferred by least squares to match ray-traced
+   records there, the two samples nearest the eye blended. */
+typedef struct refl_layered_em_options {
+    int samples;             /* viewpoint samples on the circle around each lens object's centre
+                                through the eye, at its height: 0: 45 (8 degrees apart) */
+    int face_size;           /* shell cube-map face side in texels, at most 1024; 0: half the
+                                square root of the lens's pixels at the first sample */
+    int supersample;         /* records' subsamples per pixel side, 1 to 8; 0: 1 */
+    float edge_px;           /* tessellation's t in pixels; 0: 1 */
+    float angle_degrees;     /* tessellation's exit-ray angle; 0: 3 */
+    float theta_c_degrees;   /* confidence's angle; 0: 5 */
+    int iterations;          /* CG iterations at most; 0: 200 */
+    int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
+                                views half a spacing either side (the paper's simultaneous
+                                inference, against disocclusions between samples) */
+} refl_layered_em_options;
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -1240,6 +1439,7 @@ typedef struct refl_render_desc {
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
     refl_graphcam_options graphcam;
+    refl_layered_em_options layered_em;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows
@@ -1873,6 +2073,10 @@ typedef struct refl__rt {
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
 static void refl__rt_end(refl__rt *rt);
+/* Where a secondary ray leaving point p (on a triangle of largest
+   |coordinate| magnitude) along the side n starts: off its surface by the
+   rounding of the hit (trace.c; greedy_path.c's rays start the same way). */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
 /* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
    shows (NaN: none), window depth and stencil as the base pass writes
    them; *rays counts the rays cast. */
@@ -1901,6 +2105,40 @@ static void refl__maze_layout(refl__maze_corridor out[REFL__MAZE_CORRIDORS]);
 static refl_mat4 refl__gc_draw_matrix(const refl_graphcam *cam, int f);
 static void refl__gc_clip(const refl_graphcam *cam, int f, refl_vec3 p, double c[4]);
 static int refl__gc_invert(const refl_mat4 *m, double inv[16]);
+/* ---- paper 001's greedy ray paths (greedy_path.c) ---- */
+
+/* The lens surface a path meets: its point, geometric and shading normals
+   (unit), the largest |coordinate| of its triangle (ray offsets), material,
+   object, triangle and the ray's distance to it. */
+typedef struct refl__gp_hit {
+    refl_vec3 p, ng, ns;
+    float magnitude;
+    const refl_material *material;
+    int object, triangle;
+    float t;
+} refl__gp_hit;
+/* Both greedy paths of a ray along unit dir whose first lens interface is
+   h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
+static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                    const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays);
+static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+
+/* ---- paper 001's tessellation and inferred maps (lens_tess.c, lem_infer.c) ---- */
+
+/* refl_lens_tessellate on the pass's threads (rc), into *out (its
+   allocator set; its arrays freed by the caller, also on failure). */
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                         const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
+                                         refl_lens_tess *out);
+/* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
+   does not meet `object` first; else per term the target (rgba) and its
+   confidence (-1: none) in out[5 term ...], environment hit distances
+   from `centre` summed into *dist_sum, *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -1919,6 +2157,8 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static refl_result refl__method_layered_em(refl__pass *p);
+static const char *refl__options_layered_em(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
@@ -7700,6 +7940,189 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     }
     return NULL;
 }
+/* ---- src/reflect/greedy_path.c ---- */
+/* Paper 001's shading model (Hakura and Snyder, section 3): instead of the
+   binary ray tree glass spawns, two greedy ray paths. An eye ray meeting a
+   lens object (mirror or glass) starts a path by reflection and, at glass,
+   one by refraction; at every later interface a path follows only the child
+   of the larger Fresnel coefficient until it leaves the lens system. Each
+   path carries the product of the coefficients taken (F) and the glass's
+   transparency attenuation (G), and ends in an exit ray whose radiance the
+   caller looks up (ray tracing, or the layered environment maps):
+   pixel = T F_T G_T + R F_R G_R. Pure geometry: a path depends on nothing
+   but its ray, so callers on any thread count get the same answers. */
+
+/* The closest hit along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *h, or 0 for none. */
+static int refl__gp_cast(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
+    refl_hit hit;
+    float tmin = 0.0f;
+    int tries, k;
+    if (rays) ++*rays;
+    for (tries = 0; tries < 4; ++tries) {
+        const refl_object *obj;
+        refl_mat4 nm;
+        refl__hit_geom g;
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &hit)) return 0;
+        if (hit.object == skip_object && hit.triangle == skip_triangle) {
+            tmin = hit.t;
+            continue;
+        }
+        if (hit.object < 0 || hit.object >= scene->object_count) return 0;
+        obj = &scene->objects[hit.object];
+        nm = refl__normal_matrix(obj->transform);
+        refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
+        if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
+        h->p = g.p;
+        h->ng = g.ng;
+        h->ns = g.ns;
+        h->magnitude = 0.0f;
+        for (k = 0; k < 3; ++k)
+            h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+        h->material = &scene->materials[obj->material];
+        h->object = hit.object;
+        h->triangle = hit.triangle;
+        h->t = hit.t;
+        return 1;
+    }
+    return 0;
+}
+
+/* The two children of an interface for a ray along unit d: the reflected
+   and (glass, below the critical angle) refracted directions, the
+   reflected share f, and whether the ray enters the material. */
+typedef struct refl__gp_children {
+    refl_vec3 reflect, refract;
+    float f;                     /* reflected share; the refracted carries 1 - f */
+    int refracts, entering;
+} refl__gp_children;
+
+static void refl__gp_interface(const refl__gp_hit *h, refl_vec3 d, refl__gp_children *c) {
+    const refl_material *m = h->material;
+    refl_vec3 n = h->ns, ng = h->ng;
+    float cos_i;
+    c->entering = refl_v3_dot(d, ng) < 0.0f;
+    if (!c->entering) {
+        n = refl_v3_scale(n, -1.0f);
+        ng = refl_v3_scale(ng, -1.0f);
+    }
+    if (refl_v3_dot(d, n) > 0.0f) n = ng; /* shading normal faces away: trust the geometry (as trace.c) */
+    cos_i = -refl_v3_dot(d, n);
+    c->reflect = refl_v3_reflect(d, n);
+    c->refracts = 0;
+    c->refract = d;
+    if (m->type != REFL_GLASS) {
+        if (refl_v3_dot(c->reflect, ng) <= 0.0f) c->reflect = refl_v3_reflect(d, ng);
+        c->f = refl_material_reflectance(m, cos_i);
+        return;
+    }
+    {
+        float ior = m->ior > 0.0f ? m->ior : 1.5f;
+        float n1 = c->entering ? 1.0f : ior, n2 = c->entering ? ior : 1.0f;
+        c->f = refl_fresnel_dielectric(cos_i, n1, n2);
+        c->refracts = c->f < 1.0f && refl_v3_refract(d, n, n1 / n2, &c->refract);
+        if (!c->refracts) c->f = 1.0f; /* total internal reflection */
+    }
+}
+
+/* A path taking child `reflect` (0: refraction) of the interface at h:
+   its F and G, and the ray it continues by. */
+static void refl__gp_take(refl_greedy_path *path, const refl__gp_hit *h, const refl__gp_children *c, int reflect,
+                          refl_vec3 *o, refl_vec3 *d) {
+    const refl_material *m = h->material;
+    refl_vec3 side;
+    int k;
+    if (path->length < 32 && reflect) path->reflected |= 1u << path->length;
+    ++path->length;
+    path->fresnel *= reflect ? c->f : 1.0f - c->f;
+    if (!reflect && c->entering) /* entering glass: tinted once (as trace.c) */
+        for (k = 0; k < 3; ++k)
+            path->attenuation[k] *= m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[k] : 1.0f;
+    *d = reflect ? c->reflect : c->refract;
+    path->exit_origin = h->p;
+    path->exit_direction = *d;
+    side = refl_v3_dot(*d, h->ng) >= 0.0f ? h->ng : refl_v3_scale(h->ng, -1.0f);
+    *o = refl__rt_offset(h->p, side, h->magnitude);
+}
+
+/* Follows a path from the ray (o, d) that left interface `from` until it
+   leaves the lens system, or meets an interface past max_interfaces. */
+static void refl__gp_follow(const refl_scene *scene, const refl_ray_caster *caster, refl_greedy_path *path,
+                            refl_vec3 o, refl_vec3 d, refl__gp_hit from, int max_interfaces, long long *rays) {
+    refl__gp_hit h;
+    refl__gp_children c;
+    int k;
+    for (;;) {
+        if (!refl__gp_cast(scene, caster, o, d, from.object, from.triangle, &h, rays) ||
+            !refl__is_reflector(h.material)) {
+            path->exited = 1;
+            return;
+        }
+        if (path->length >= max_interfaces) return; /* one interface too many: it ends inside */
+        refl__gp_interface(&h, d, &c);
+        if (!c.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
+            float a = REFL__MAX(h.material->attenuation, 0.0f), len = h.t * refl_v3_length(d);
+            path->inside_length += len;
+            if (a > 0.0f)
+                for (k = 0; k < 3; ++k) path->attenuation[k] *= expf(-a * len);
+        }
+        /* the larger coefficient; a tie reflects */
+        refl__gp_take(path, &h, &c, !c.refracts || c.f >= 1.0f - c.f, &o, &d);
+        from = h;
+    }
+}
+
+static void refl__gp_start(refl_greedy_path *path, refl_vec3 o, refl_vec3 d) {
+    memset(path, 0, sizeof *path);
+    path->fresnel = 1.0f;
+    path->attenuation[0] = path->attenuation[1] = path->attenuation[2] = 1.0f;
+    path->exit_origin = o;
+    path->exit_direction = d;
+}
+
+/* The two paths of a ray along unit `dir` meeting lens surface h first. */
+static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                    const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays) {
+    refl__gp_children c;
+    refl_vec3 o, d;
+    max_interfaces = max_interfaces <= 0 || max_interfaces > REFL_GREEDY_MAX_INTERFACES ? REFL_GREEDY_MAX_INTERFACES
+                                                                                         : max_interfaces;
+    out->object = h->object;
+    out->first_point = h->p;
+    refl__gp_interface(h, dir, &c);
+    out->terms = h->material->type == REFL_GLASS ? 2 : 1;
+    out->reflect.fresnel = 1.0f;
+    refl__gp_take(&out->reflect, h, &c, 1, &o, &d);
+    refl__gp_follow(scene, caster, &out->reflect, o, d, *h, max_interfaces, rays);
+    if (out->terms == 2 && c.refracts) {
+        out->refract.fresnel = 1.0f;
+        refl__gp_take(&out->refract, h, &c, 0, &o, &d);
+        refl__gp_follow(scene, caster, &out->refract, o, d, *h, max_interfaces, rays);
+    }
+}
+
+/* No terms yet: both paths empty, the exit rays the eye ray itself. */
+static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out) {
+    memset(out, 0, sizeof *out);
+    out->object = -1;
+    out->first_point = refl_v3(NAN, NAN, NAN);
+    refl__gp_start(&out->reflect, origin, dir);
+    refl__gp_start(&out->refract, origin, dir);
+    out->reflect.fresnel = out->refract.fresnel = 0.0f;
+}
+
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays) {
+    refl__gp_hit h;
+    if (!out) return;
+    refl__greedy_paths_none(origin, dir, out);
+    if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
+    if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
+    refl__greedy_paths_from(scene, caster, dir, &h, max_interfaces, out, rays);
+}
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
    method's scene subdivision for the diffuse point samples.
@@ -8014,6 +8437,934 @@ REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn
         }
     }
     return tests;
+}
+/* ---- src/reflect/lem_infer.c ---- */
+/* Paper 001's inferred environment maps (Hakura and Snyder, section 4.3),
+   one layer: a sphere shell around the lens object, cube-map textured,
+   whose texels are found by least squares so that hybrid rendering with
+   it matches ray-traced images. Rendering is linear in the texels: a
+   pixel's term is the bilinear lookup of its exit ray on the shell
+   (refl_lem_shell_lookup), one row of the rendering matrix A, recorded
+   with exactly the weights the runtime samples with. The records of a
+   viewpoint sample (section 4.1) give the targets b: the mean radiance
+   where the pixel's subsamples' exit rays meet the scene, weighed by the
+   paper's confidence, which distrusts pixels whose exit rays diverge.
+   C A x = C b is solved by conjugate gradients on the normal equations,
+   sequentially in double, so the texels are the same on every run. */
+
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]) {
+    refl_vec3 oc, hit;
+    float b, c, disc, t, dv[3], s, tt, x, y, fx, fy;
+    int face, n, x0, y0, x1, y1;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(origin) ||
+        !refl__v3_finite(dir))
+        return 0;
+    n = shell->face_size;
+    /* |o + t d - c| = r, the larger root */
+    oc = refl_v3_sub(origin, shell->center);
+    b = refl_v3_dot(oc, dir);
+    c = refl_v3_dot(oc, oc) - shell->radius * shell->radius;
+    disc = b * b - c * refl_v3_dot(dir, dir);
+    if (!(disc >= 0.0f) || !(refl_v3_dot(dir, dir) > 0.0f)) return 0;
+    t = (-b + sqrtf(disc)) / refl_v3_dot(dir, dir);
+    if (!(t >= 0.0f)) return 0;
+    hit = refl_v3_add(oc, refl_v3_scale(dir, t));
+    dv[0] = hit.x;
+    dv[1] = hit.y;
+    dv[2] = hit.z;
+    if (dv[0] == 0.0f && dv[1] == 0.0f && dv[2] == 0.0f) return 0;
+    face = rast_cube_face(dv, &s, &tt);
+    /* bilinear, taps clamped to the face (as refl_environment_lookup) */
+    x = REFL__CLAMP(s, 0.0f, 1.0f) * (float)n - 0.5f;
+    y = REFL__CLAMP(tt, 0.0f, 1.0f) * (float)n - 0.5f;
+    fx = x - floorf(x);
+    fy = y - floorf(y);
+    x0 = (int)floorf(x);
+    y0 = (int)floorf(y);
+    x1 = REFL__MIN(x0 + 1, n - 1);
+    y1 = REFL__MIN(y0 + 1, n - 1);
+    x0 = REFL__CLAMP(x0, 0, n - 1);
+    y0 = REFL__CLAMP(y0, 0, n - 1);
+    {
+        uint32_t base = (uint32_t)face * (uint32_t)n * (uint32_t)n;
+        texel[0] = base + (uint32_t)(y0 * n + x0);
+        texel[1] = base + (uint32_t)(y0 * n + x1);
+        texel[2] = base + (uint32_t)(y1 * n + x0);
+        texel[3] = base + (uint32_t)(y1 * n + x1);
+    }
+    weight[0] = (1.0f - fx) * (1.0f - fy);
+    weight[1] = fx * (1.0f - fy);
+    weight[2] = (1.0f - fx) * fy;
+    weight[3] = fx * fy;
+    return 1;
+}
+
+REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
+    double tc = (theta_c_degrees > 0.0f ? theta_c_degrees : 5.0f) * REFL__PI / 180.0, tm = 0.0;
+    int i, j;
+    if (!dirs || count < 2) return 1.0f;
+    for (i = 0; i < count; ++i)
+        for (j = i + 1; j < count; ++j) {
+            /* the angle from the chord: accurate for small angles, where acos is not */
+            double dx = (double)dirs[i].x - dirs[j].x, dy = (double)dirs[i].y - dirs[j].y,
+                   dz = (double)dirs[i].z - dirs[j].z, chord = sqrt(dx * dx + dy * dy + dz * dz);
+            double a = 2.0 * asin(REFL__MIN(chord * 0.5, 1.0));
+            if (a > tm) tm = a;
+        }
+    tm = REFL__MIN(tm, tc);
+    return (float)(1.0 - tm * tm / (tc * tc));
+}
+
+/* ---- the sparse system ------------------------------------------------------- */
+
+struct refl_lem_system {
+    refl_allocator allocator;
+    int texels, rows, row_cap;
+    long long entries, entry_cap;
+    long long *row_start;        /* rows + 1 */
+    uint32_t *col;
+    float *w;                    /* confidence included */
+    float *b;                    /* 4 per row, confidence included */
+};
+
+REFL_API refl_result refl_lem_system_create(int texels, const refl_allocator *a, refl_lem_system **out) {
+    refl_lem_system *s;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (texels <= 0 || texels > (1 << 28)) return REFL_ERROR_INVALID_SIZE;
+    s = (refl_lem_system *)refl__calloc(a, 1, sizeof *s);
+    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
+    if (a) s->allocator = *a;
+    s->texels = texels;
+    s->row_start = (long long *)refl__calloc(a, 1, sizeof(long long));
+    if (!s->row_start) {
+        refl__free(a, s);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    *out = s;
+    return REFL_OK;
+}
+
+REFL_API void refl_lem_system_destroy(refl_lem_system *s) {
+    refl_allocator a;
+    if (!s) return;
+    a = s->allocator;
+    refl__free(&a, s->row_start);
+    refl__free(&a, s->col);
+    refl__free(&a, s->w);
+    refl__free(&a, s->b);
+    refl__free(&a, s);
+}
+
+REFL_API int refl_lem_system_rows(const refl_lem_system *s) { return s ? s->rows : 0; }
+
+/* Grows an array of `size`-byte items from cap to at least need. */
+static int refl__lem_grow(const refl_allocator *a, void **arr, long long cap, long long need, size_t size,
+                          long long *new_cap) {
+    long long c = cap ? cap : 256;
+    void *n;
+    while (c < need) c *= 2;
+    if (c == cap) return 1;
+    n = refl__calloc(a, (size_t)c, size);
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, (size_t)cap * size);
+    refl__free(a, *arr);
+    *arr = n;
+    *new_cap = c;
+    return 1;
+}
+
+REFL_API refl_result refl_lem_system_add_row(refl_lem_system *s, const uint32_t *texels, const float *weights,
+                                             int count, const float target[4], float confidence) {
+    const refl_allocator *a;
+    int i;
+    if (!s || !texels || !weights || !target || count <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__isfinite(confidence) || confidence < 0.0f) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < count; ++i)
+        if (texels[i] >= (uint32_t)s->texels || !refl__isfinite(weights[i])) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < 4; ++i)
+        if (!refl__isfinite(target[i])) return REFL_ERROR_INVALID_ARGUMENT;
+    if (confidence == 0.0f) return REFL_OK;
+    a = &s->allocator;
+    if (s->rows + 1 > s->row_cap) {
+        long long nc = s->row_cap ? 2LL * s->row_cap : 256, got;
+        if (!refl__lem_grow(a, (void **)&s->row_start, s->row_cap + 1LL, nc + 1, sizeof(long long), &got) ||
+            !refl__lem_grow(a, (void **)&s->b, 4LL * s->row_cap, 4 * nc, sizeof(float), &got))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        s->row_cap = (int)nc;
+    }
+    if (s->entries + count > s->entry_cap) {
+        long long got = s->entry_cap;
+        if (!refl__lem_grow(a, (void **)&s->col, s->entry_cap, s->entries + count, sizeof(uint32_t), &got) ||
+            !refl__lem_grow(a, (void **)&s->w, s->entry_cap, s->entries + count, sizeof(float), &got))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        s->entry_cap = got;
+    }
+    for (i = 0; i < count; ++i) {
+        s->col[s->entries + i] = texels[i];
+        s->w[s->entries + i] = weights[i] * confidence;
+    }
+    for (i = 0; i < 4; ++i) s->b[4 * (size_t)s->rows + (size_t)i] = target[i] * confidence;
+    s->entries += count;
+    ++s->rows;
+    s->row_start[s->rows] = s->entries;
+    return REFL_OK;
+}
+
+/* q = A p (rows x 4) */
+static void refl__lem_mul(const refl_lem_system *s, const double *p, double *q) {
+    int r, c;
+    long long e;
+    for (r = 0; r < s->rows; ++r) {
+        double acc[4] = {0, 0, 0, 0};
+        for (e = s->row_start[r]; e < s->row_start[r + 1]; ++e)
+            for (c = 0; c < 4; ++c) acc[c] += (double)s->w[e] * p[4 * (size_t)s->col[e] + (size_t)c];
+        for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c];
+    }
+}
+
+/* g = A^T r (texels x 4), in row order */
+static void refl__lem_mul_t(const refl_lem_system *s, const double *r, double *g) {
+    int row, c;
+    long long e;
+    memset(g, 0, sizeof(double) * 4 * (size_t)s->texels);
+    for (row = 0; row < s->rows; ++row)
+        for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e)
+            for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += (double)s->w[e] * r[4 * (size_t)row + (size_t)c];
+}
+
+static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
+    size_t i;
+    int c;
+    for (c = 0; c < 4; ++c) out[c] = 0.0;
+    for (i = 0; i < n; ++i)
+        for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
+}
+
+REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_solve_desc *desc, float *x,
+                                    refl_lem_solve_stats *stats) {
+    const refl_allocator *a;
+    size_t nt, nr;
+    double *xd, *r, *g, *p, *q, gamma[4], gamma0[4], qq[4], rr[4];
+    int it, max_it = desc && desc->iterations > 0 ? desc->iterations : 200, c, i;
+    double tol = desc && desc->tolerance > 0.0f ? desc->tolerance : 1e-6;
+    if (!s || !x) return REFL_ERROR_INVALID_ARGUMENT;
+    a = &s->allocator;
+    nt = (size_t)s->texels;
+    nr = (size_t)REFL__MAX(s->rows, 1);
+    xd = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    g = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    p = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    r = (double *)refl__calloc(a, 4 * nr, sizeof(double));
+    q = (double *)refl__calloc(a, 4 * nr, sizeof(double));
+    if (!xd || !g || !p || !r || !q) {
+        refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < 4 * s->rows; ++i) r[i] = s->b[i]; /* r = b - A 0 */
+    refl__lem_norm2(r, (size_t)s->rows, rr);
+    if (stats)
+        for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
+    refl__lem_mul_t(s, r, g);
+    memcpy(p, g, sizeof(double) * 4 * nt);
+    refl__lem_norm2(g, nt, gamma);
+    memcpy(gamma0, gamma, sizeof gamma);
+    for (it = 0; it < max_it; ++it) {
+        int done = 1;
+        for (c = 0; c < 4; ++c) done &= gamma[c] <= tol * tol * gamma0[c];
+        if (done) break;
+        refl__lem_mul(s, p, q);
+        refl__lem_norm2(q, (size_t)s->rows, qq);
+        for (c = 0; c < 4; ++c) {
+            /* a channel already solved (or empty) stands still */
+            double alpha = qq[c] > 0.0 && gamma[c] > tol * tol * gamma0[c] ? gamma[c] / qq[c] : 0.0;
+            size_t k;
+            for (k = 0; k < nt; ++k) xd[4 * k + (size_t)c] += alpha * p[4 * k + (size_t)c];
+            for (k = 0; k < (size_t)s->rows; ++k) r[4 * k + (size_t)c] -= alpha * q[4 * k + (size_t)c];
+        }
+        refl__lem_mul_t(s, r, g);
+        {
+            double gn[4];
+            size_t k;
+            refl__lem_norm2(g, nt, gn);
+            for (c = 0; c < 4; ++c) {
+                double beta = gamma[c] > 0.0 ? gn[c] / gamma[c] : 0.0;
+                for (k = 0; k < nt; ++k) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta * p[4 * k + (size_t)c];
+                gamma[c] = gn[c];
+            }
+        }
+    }
+    for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
+    if (stats) {
+        stats->iterations = it;
+        refl__lem_norm2(r, (size_t)s->rows, rr);
+        for (c = 0; c < 4; ++c) stats->residual[c] = sqrt(rr[c]);
+    }
+    refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+    return REFL_OK;
+}
+
+/* ---- records of a viewpoint sample --------------------------------------------- */
+
+enum { REFL__LEM_MAX_SS = 8 };
+
+/* The radiance where an exit ray meets the scene past the lens: a diffuse
+   surface shaded as RAYTRACE shades it without shadows, else the
+   environment. */
+static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                                    float rgb[3], refl_vec3 *hit, long long *rays) {
+    refl_hit h;
+    float tmin = 0.0f;
+    int tries, k;
+    ++*rays;
+    for (tries = 0; tries < 8; ++tries) {
+        const refl_object *obj;
+        const refl_mesh *m;
+        const refl_material *mat;
+        refl_mat4 nm;
+        refl__hit_geom g;
+        float uv[2] = {0.0f, 0.0f};
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &h) || h.object < 0 || h.object >= scene->object_count)
+            break;
+        obj = &scene->objects[h.object];
+        mat = &scene->materials[obj->material];
+        if (refl__is_reflector(mat)) { /* the lens the ray leaves, met again at its start */
+            tmin = h.t;
+            continue;
+        }
+        m = scene->meshes[obj->mesh];
+        nm = refl__normal_matrix(obj->transform);
+        refl__hit_surface(m, &obj->transform, &nm, &h, &g);
+        if (m->texcoords) {
+            const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
+            for (k = 0; k < 3; ++k) {
+                uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+                uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+            }
+        }
+        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, rgb);
+        for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+        *hit = g.p;
+        return;
+    }
+    *hit = refl_v3(NAN, NAN, NAN);
+    refl_environment_lookup(&scene->environment, d, rgb);
+    for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+}
+
+/* The records of pixel (x, y) of a view (section 4.1): 0 when its centre
+   ray does not meet lens object `object` first; else 1, the centre's
+   paths, and per term (R, T) the target (mean radiance where the
+   subsamples' exit rays meet the scene, alpha the share of subsamples with
+   the term) and its confidence (-1: no subsample has the term) in
+   out[5 term .. 5 term + 4]. Each environment hit adds its distance from
+   `centre` to *dist_sum and one to *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays) {
+    refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
+    refl_greedy_paths_result sub;
+    float sum[2][3];
+    int n[2] = {0, 0}, i, j, k, term;
+    refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
+    refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
+    if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    memset(sum, 0, sizeof sum);
+    for (j = 0; j < ss; ++j)
+        for (i = 0; i < ss; ++i) {
+            refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss, (float)y + ((float)j + 0.5f) / (float)ss,
+                          &o, &d, NULL);
+            refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
+            if (sub.object != object) continue;
+            for (term = 0; term < 2; ++term) {
+                const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
+                float rgb[3];
+                refl_vec3 hit;
+                if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
+                refl__lem_exit_radiance(scene, caster, sp->exit_origin, sp->exit_direction, rgb, &hit, rays);
+                if (refl__v3_finite(hit)) {
+                    *dist_sum += (double)refl_v3_length(refl_v3_sub(hit, centre));
+                    ++*dist_n;
+                }
+                for (k = 0; k < 3; ++k) sum[term][k] += rgb[k];
+                dirs[term][n[term]++] = sp->exit_direction;
+            }
+        }
+    for (term = 0; term < 2; ++term) {
+        float *t = out + 5 * term;
+        t[4] = -1.0f;
+        if (!n[term]) continue;
+        for (k = 0; k < 3; ++k) t[k] = sum[term][k] / (float)n[term];
+        t[3] = (float)n[term] / (float)(ss * ss);
+        t[4] = refl_lem_confidence(dirs[term], n[term], theta_c);
+    }
+    return 1;
+}
+
+REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
+                                          const refl_ray_caster *caster, const refl_view *view,
+                                          const refl_lem_shell *shell, const refl_lem_record_desc *desc,
+                                          refl_lem_record_stats *stats) {
+    refl_lem_record_stats st;
+    int ss, x, y, term;
+    refl_result r = REFL_OK;
+    double dist_sum = 0.0;
+    long long dist_n = 0;
+    memset(&st, 0, sizeof st);
+    if (stats) *stats = st;
+    if (!system || !scene || !caster || !caster->intersect || !view || !shell || !desc) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc->object < 0 || desc->object >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
+    if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
+    ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
+    for (y = 0; y < view->height && r == REFL_OK; ++y)
+        for (x = 0; x < view->width && r == REFL_OK; ++x) {
+            refl_greedy_paths_result centre;
+            float rec[10];
+            if (!refl__lem_pixel_records(scene, caster, view, x, y, desc->object, ss, desc->theta_c_degrees,
+                                         desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
+                                         &st.rays))
+                continue;
+            ++st.pixels;
+            for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                const refl_greedy_path *cp = term ? &centre.refract : &centre.reflect;
+                uint32_t tex[4];
+                float w[4];
+                if (!(cp->fresnel > 0.0f) || !cp->exited || rec[5 * term + 4] < 0.0f ||
+                    !refl_lem_shell_lookup(shell, cp->exit_origin, cp->exit_direction, tex, w))
+                    continue;
+                r = refl_lem_system_add_row(system, tex, w, 4, rec + 5 * term, rec[5 * term + 4]);
+                if (r == REFL_OK) ++st.rows;
+            }
+        }
+    if (stats) *stats = st;
+    return r;
+}
+/* ---- src/reflect/lens_tess.c ---- */
+/* Paper 001's adaptive tessellation (Hakura and Snyder, section 5): ray
+   paths are traced at a lens object's vertices only, and a triangle is
+   split where the paths at its vertices differ, so rays follow the places
+   where the lens maps incoming rays very differently (high curvature, more
+   interfaces, total internal reflection) and nowhere else.
+
+   Stages: mark the mesh's front-facing triangles and trace their vertices
+   (a seam's twin vertices, at one position with one normal, welded so
+   both sides share their edges);
+   then, one level at a time, decide for every pending triangle whether it
+   splits and which of its edges (those projected at least edge_px long),
+   creating each edge midpoint once through the edge table, trace the
+   level's new vertices in parallel, and queue the children; finally every
+   leaf collects the vertices its neighbours put on its edges (recursive
+   queries of the edge table) and is re-triangulated around them: a fan
+   from a corner whose two edges are whole, else from a new, traced centre
+   vertex. Decisions are made in a fixed order and tracing only fills in
+   vertices already placed, so any thread count gives the same mesh. */
+
+/* What a vertex keeps besides its public record: the surface it lies on
+   (for tracing from it). */
+typedef struct refl__lt_vertex {
+    refl_vec3 face_normal;       /* of a front-facing triangle it lies on (world, unit) */
+    float magnitude;             /* largest |coordinate| of that triangle */
+    int triangle;                /* that triangle, in the mesh */
+} refl__lt_vertex;
+
+typedef struct refl__lt_tri {
+    uint32_t v[3];
+    int level;
+    refl__lt_vertex surface;     /* the mesh triangle it is part of */
+} refl__lt_tri;
+
+typedef struct refl__lt {
+    const refl_scene *scene;
+    const refl_ray_caster *caster;
+    const refl_material *material;
+    int object;
+    refl_vec3 eye, forward;
+    refl_mat4 view_proj;
+    int width, height;
+    float cos_angle, edge_px;
+    int max_level, max_interfaces;
+    const refl_allocator *al;
+    refl_lens_vertex *v;
+    refl__lt_vertex *vx;
+    int vcount, vcap;
+    refl__lt_tri *tris;          /* pending, then leaves, grown as needed */
+    int tcount, tcap;
+    uint64_t *keys;              /* edge table: (min << 32 | max) + 1, 0 empty */
+    uint32_t *mids;
+    size_t hcap, hcount;
+    long long *chunk_rays;
+    int trace_first;             /* the vertices a tracing job covers start here */
+} refl__lt;
+
+enum { REFL__LT_CHUNK = 32 };
+
+static int refl__lt_grow(const refl_allocator *al, void **arr, int *cap, int need, size_t size) {
+    void *n;
+    int c = *cap ? *cap : 64;
+    if (need <= *cap) return 1;
+    while (c < need) {
+        if (c > (1 << 28)) return 0;
+        c *= 2;
+    }
+    n = refl__calloc(al, (size_t)c, size);
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, (size_t)*cap * size);
+    refl__free(al, *arr);
+    *arr = n;
+    *cap = c;
+    return 1;
+}
+
+/* A new, untraced vertex: -1 when out of memory. */
+static int refl__lt_add_vertex(refl__lt *t, refl_vec3 p, refl_vec3 n, refl__lt_vertex surface, int level) {
+    int cap = t->vcap;
+    refl_lens_vertex *v;
+    if (t->vcount >= cap) {
+        if (!refl__lt_grow(t->al, (void **)&t->v, &t->vcap, t->vcount + 1, sizeof *t->v)) return -1;
+        if (!refl__lt_grow(t->al, (void **)&t->vx, &cap, t->vcount + 1, sizeof *t->vx)) return -1;
+    }
+    v = &t->v[t->vcount];
+    memset(v, 0, sizeof *v);
+    v->position = p;
+    v->normal = refl_v3_normalize(n);
+    v->level = level;
+    t->vx[t->vcount] = surface;
+    return t->vcount++;
+}
+
+/* ---- the edge table ---------------------------------------------------------- */
+
+static uint64_t refl__lt_key(uint32_t a, uint32_t b) {
+    return a < b ? ((uint64_t)a << 32 | b) + 1 : ((uint64_t)b << 32 | a) + 1;
+}
+
+static size_t refl__lt_slot(const refl__lt *t, uint64_t key) {
+    size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 17) & (t->hcap - 1);
+    while (t->keys[h] && t->keys[h] != key) h = (h + 1) & (t->hcap - 1);
+    return h;
+}
+
+/* The midpoint recorded for edge (a, b), or -1. */
+static int refl__lt_mid_get(const refl__lt *t, uint32_t a, uint32_t b) {
+    size_t h;
+    if (!t->hcap) return -1;
+    h = refl__lt_slot(t, refl__lt_key(a, b));
+    return t->keys[h] ? (int)t->mids[h] : -1;
+}
+
+static int refl__lt_mid_put(refl__lt *t, uint32_t a, uint32_t b, uint32_t m) {
+    size_t h, i;
+    if (2 * (t->hcount + 1) > t->hcap) { /* grow to keep it half empty */
+        uint64_t *ok = t->keys;
+        uint32_t *om = t->mids;
+        size_t oc = t->hcap;
+        t->hcap = oc ? 2 * oc : 1024;
+        t->keys = (uint64_t *)refl__calloc(t->al, t->hcap, sizeof *t->keys);
+        t->mids = (uint32_t *)refl__calloc(t->al, t->hcap, sizeof *t->mids);
+        if (!t->keys || !t->mids) {
+            refl__free(t->al, ok);
+            refl__free(t->al, om);
+            return 0;
+        }
+        for (i = 0; i < oc; ++i)
+            if (ok[i]) {
+                h = refl__lt_slot(t, ok[i]);
+                t->keys[h] = ok[i];
+                t->mids[h] = om[i];
+            }
+        refl__free(t->al, ok);
+        refl__free(t->al, om);
+    }
+    h = refl__lt_slot(t, refl__lt_key(a, b));
+    t->keys[h] = refl__lt_key(a, b);
+    t->mids[h] = m;
+    ++t->hcount;
+    return 1;
+}
+
+/* Edge (a, b)'s midpoint, made (untraced) on first use: -1 out of memory. */
+static int refl__lt_midpoint(refl__lt *t, uint32_t a, uint32_t b, int level, refl__lt_vertex surface) {
+    int m = refl__lt_mid_get(t, a, b);
+    if (m >= 0) return m;
+    m = refl__lt_add_vertex(t, refl_v3_scale(refl_v3_add(t->v[a].position, t->v[b].position), 0.5f),
+                            refl_v3_add(t->v[a].normal, t->v[b].normal), surface, level);
+    if (m < 0 || !refl__lt_mid_put(t, a, b, (uint32_t)m)) return -1;
+    return m;
+}
+
+/* ---- tracing ----------------------------------------------------------------- */
+
+/* Vertex i: its window position, visibility and both greedy paths, from
+   the vertex itself as the first interface. */
+static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
+    refl_lens_vertex *v = &t->v[i];
+    const refl__lt_vertex *x = &t->vx[i];
+    refl_vec3 to = refl_v3_sub(v->position, t->eye), d, w;
+    float dist = refl_v3_length(to);
+    refl__gp_hit h;
+    refl_hit hit;
+    d = dist > 0.0f ? refl_v3_scale(to, 1.0f / dist) : t->forward;
+    v->window[0] = v->window[1] = NAN;
+    if (refl_v3_dot(to, t->forward) > 0.0f) {
+        w = refl_mat4_point(t->view_proj, v->position);
+        v->window[0] = (w.x * 0.5f + 0.5f) * (float)t->width;
+        v->window[1] = (0.5f - w.y * 0.5f) * (float)t->height;
+    }
+    ++*rays;
+    v->visible = !(t->caster->occluded
+                       ? t->caster->occluded(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f))
+                       : t->caster->intersect(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f), &hit));
+    refl__greedy_paths_none(t->eye, d, &v->paths);
+    h.p = v->position;
+    h.ng = x->face_normal;
+    h.ns = v->normal;
+    h.magnitude = x->magnitude;
+    h.material = t->material;
+    h.object = t->object;
+    h.triangle = x->triangle;
+    h.t = dist;
+    refl__greedy_paths_from(t->scene, t->caster, d, &h, t->max_interfaces, &v->paths, rays);
+}
+
+static void refl__lt_trace_job(void *arg, int job) {
+    refl__lt *t = (refl__lt *)arg;
+    int i = t->trace_first + job * REFL__LT_CHUNK, end = REFL__MIN(i + REFL__LT_CHUNK, t->vcount);
+    long long rays = 0;
+    for (; i < end; ++i) refl__lt_trace_vertex(t, i, &rays);
+    t->chunk_rays[job] = rays;
+}
+
+/* Traces vertices [first, vcount) on rc's threads. */
+static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, long long *rays) {
+    int jobs = (t->vcount - first + REFL__LT_CHUNK - 1) / REFL__LT_CHUNK, j;
+    if (jobs <= 0) return 1;
+    t->chunk_rays = (long long *)refl__calloc(t->al, (size_t)jobs, sizeof(long long));
+    if (!t->chunk_rays) return 0;
+    t->trace_first = first;
+    rast_run_jobs(rc, jobs, refl__lt_trace_job, t);
+    for (j = 0; j < jobs; ++j) *rays += t->chunk_rays[j];
+    refl__free(t->al, t->chunk_rays);
+    t->chunk_rays = NULL;
+    return 1;
+}
+
+/* ---- the split criterion ----------------------------------------------------- */
+
+/* Whether two vertices' paths differ: 2 in topology, 1 only by the angle
+   between exit rays, 0 not. */
+static int refl__lt_path_differs(const refl__lt *t, const refl_greedy_path *a, const refl_greedy_path *b,
+                                 int a_has, int b_has) {
+    if (a_has != b_has) return 2;
+    if (!a_has) return 0;
+    if (a->exited != b->exited || a->length != b->length || a->reflected != b->reflected) return 2;
+    return refl_v3_dot(a->exit_direction, b->exit_direction) < t->cos_angle ? 1 : 0;
+}
+
+static int refl__lt_differs(const refl__lt *t, const refl_lens_vertex *a, const refl_lens_vertex *b) {
+    const refl_greedy_paths_result *p = &a->paths, *q = &b->paths;
+    int r, tt;
+    if (p->terms != q->terms) return 2;
+    r = refl__lt_path_differs(t, &p->reflect, &q->reflect, p->terms > 0, q->terms > 0);
+    tt = refl__lt_path_differs(t, &p->refract, &q->refract, p->refract.fresnel > 0.0f, q->refract.fresnel > 0.0f);
+    return REFL__MAX(r, tt);
+}
+
+static float refl__lt_edge_px(const refl__lt *t, uint32_t a, uint32_t b) {
+    float dx = t->v[a].window[0] - t->v[b].window[0], dy = t->v[a].window[1] - t->v[b].window[1];
+    float len = sqrtf(dx * dx + dy * dy);
+    return len == len ? len : 0.0f; /* behind the eye: never split for size */
+}
+
+/* ---- T-junctions ------------------------------------------------------------- */
+
+/* Appends the vertices strictly inside edge (a, b), in order from a. */
+static int refl__lt_collect(const refl__lt *t, uint32_t a, uint32_t b, uint32_t *out, int n, int cap) {
+    int m = refl__lt_mid_get(t, a, b);
+    if (m < 0 || n >= cap) return n;
+    n = refl__lt_collect(t, a, (uint32_t)m, out, n, cap);
+    if (n < cap) out[n++] = (uint32_t)m;
+    return refl__lt_collect(t, (uint32_t)m, b, out, n, cap);
+}
+
+static int refl__lt_emit(const refl__lt *t, uint32_t **idx, int *count, int *cap, uint32_t a, uint32_t b,
+                         uint32_t c) {
+    if (!refl__lt_grow(t->al, (void **)idx, cap, 3 * (*count + 1), sizeof(uint32_t))) return 0;
+    (*idx)[3 * *count] = a;
+    (*idx)[3 * *count + 1] = b;
+    (*idx)[3 * *count + 2] = c;
+    ++*count;
+    return 1;
+}
+
+/* ---- the whole ---------------------------------------------------------------- */
+
+static void refl__lt_free(refl__lt *t) {
+    refl__free(t->al, t->vx);
+    refl__free(t->al, t->tris);
+    refl__free(t->al, t->keys);
+    refl__free(t->al, t->mids);
+    refl__free(t->al, t->chunk_rays);
+}
+
+/* Splits the pending triangles [first, end) of t->tris one level: appends
+   their children and moves the leaves to leaves[]. */
+static int refl__lt_level(refl__lt *t, refl_lens_tess *out, int first, int end, refl__lt_tri **leaves, int *nleaves,
+                          int *leaf_cap) {
+    int i, k;
+    for (i = first; i < end; ++i) {
+        refl__lt_tri tri = t->tris[i];
+        uint32_t *v = tri.v;
+        int differ = 0, hidden = !t->v[v[0]].visible && !t->v[v[1]].visible && !t->v[v[2]].visible;
+        int longe[3], nlong = 0, m[3] = {-1, -1, -1}, r;
+        for (k = 0; k < 3; ++k) differ = REFL__MAX(differ, refl__lt_differs(t, &t->v[v[k]], &t->v[v[(k + 1) % 3]]));
+        for (k = 0; k < 3; ++k) nlong += longe[k] = refl__lt_edge_px(t, v[k], v[(k + 1) % 3]) >= t->edge_px;
+        if (!differ || hidden || tri.level >= t->max_level || nlong == 0) {
+            if (!refl__lt_grow(t->al, (void **)leaves, leaf_cap, *nleaves + 1, sizeof **leaves)) return 0;
+            (*leaves)[(*nleaves)++] = tri;
+            continue;
+        }
+        ++out->splits;
+        if (differ == 2) ++out->topology_splits;
+        for (k = 0; k < 3; ++k)
+            if (longe[k]) {
+                m[k] = refl__lt_midpoint(t, v[k], v[(k + 1) % 3], tri.level + 1, tri.surface);
+                if (m[k] < 0) return 0;
+            }
+        /* children, wound as the parent: rotate so the split edges come first
+           (one: edge 0; two: edges 0 and 1) */
+        for (r = 0; r < 3 && nlong < 3; ++r) {
+            int ok = nlong == 1 ? m[0] >= 0 : (m[0] >= 0 && m[1] >= 0);
+            if (ok) break;
+            {
+                uint32_t sv = v[0];
+                int sm = m[0];
+                v[0] = v[1], v[1] = v[2], v[2] = sv;
+                m[0] = m[1], m[1] = m[2], m[2] = sm;
+            }
+        }
+        if (!refl__lt_grow(t->al, (void **)&t->tris, &t->tcap, t->tcount + 4, sizeof *t->tris)) return 0;
+        {
+            refl__lt_tri *c = t->tris + t->tcount;
+            uint32_t a = v[0], b = v[1], cc = v[2];
+            int lv = tri.level + 1;
+            uint32_t m0 = (uint32_t)m[0], m1 = (uint32_t)m[1], m2 = (uint32_t)m[2];
+            int n = 0;
+#define REFL__LT_CHILD(x, y, z) \
+    (c[n].v[0] = (x), c[n].v[1] = (y), c[n].v[2] = (z), c[n].level = lv, c[n].surface = tri.surface, ++n)
+            if (nlong == 3) {
+                REFL__LT_CHILD(a, m0, m2);
+                REFL__LT_CHILD(m0, b, m1);
+                REFL__LT_CHILD(m2, m1, cc);
+                REFL__LT_CHILD(m0, m1, m2);
+            } else if (nlong == 2) { /* edges ab and bc split, ca whole */
+                REFL__LT_CHILD(m0, b, m1);
+                REFL__LT_CHILD(a, m0, m1);
+                REFL__LT_CHILD(a, m1, cc);
+            } else {
+                REFL__LT_CHILD(a, m0, cc);
+                REFL__LT_CHILD(m0, b, cc);
+            }
+#undef REFL__LT_CHILD
+            t->tcount += n;
+        }
+    }
+    return 1;
+}
+
+/* The leaves, re-triangulated around the vertices on their edges. */
+static int refl__lt_conform(refl__lt *t, rast_context *rc, refl_lens_tess *out, const refl__lt_tri *leaves,
+                            int nleaves) {
+    enum { CAP = 3 * 4096 };
+    uint32_t *poly = (uint32_t *)refl__calloc(t->al, CAP + 3, sizeof(uint32_t));
+    uint32_t *idx = NULL;
+    int count = 0, cap = 0, i, k, first_centre = t->vcount, ok = 1;
+    if (!poly) return 0;
+    for (i = 0; i < nleaves && ok; ++i) {
+        const uint32_t *v = leaves[i].v;
+        int n = 0, corner[3], inner[3], j, fan = -1;
+        for (k = 0; k < 3; ++k) {
+            int before = n;
+            corner[k] = n;
+            poly[n++] = v[k];
+            n = refl__lt_collect(t, v[k], v[(k + 1) % 3], poly, n, CAP);
+            inner[k] = n - before - 1;
+        }
+        if (!inner[0] && !inner[1] && !inner[2]) {
+            ok = refl__lt_emit(t, &idx, &count, &cap, v[0], v[1], v[2]);
+            continue;
+        }
+        ++out->junction_fixes;
+        for (k = 0; k < 3 && fan < 0; ++k)
+            if (!inner[k] && !inner[(k + 2) % 3]) fan = corner[k]; /* both edges at corner k whole */
+        if (fan >= 0) {
+            for (j = 1; j + 1 < n && ok; ++j)
+                ok = refl__lt_emit(t, &idx, &count, &cap, poly[fan], poly[(fan + j) % n], poly[(fan + j + 1) % n]);
+        } else {
+            refl_vec3 p = refl_v3_scale(
+                refl_v3_add(refl_v3_add(t->v[v[0]].position, t->v[v[1]].position), t->v[v[2]].position), 1.0f / 3.0f);
+            refl_vec3 nn = refl_v3_add(refl_v3_add(t->v[v[0]].normal, t->v[v[1]].normal), t->v[v[2]].normal);
+            int c = refl__lt_add_vertex(t, p, nn, leaves[i].surface, leaves[i].level + 1);
+            if (c < 0) ok = 0;
+            for (j = 0; j < n && ok; ++j)
+                ok = refl__lt_emit(t, &idx, &count, &cap, (uint32_t)c, poly[j], poly[(j + 1) % n]);
+        }
+    }
+    refl__free(t->al, poly);
+    if (ok) ok = refl__lt_trace(t, rc, first_centre, &out->rays);
+    out->indices = idx;
+    out->triangle_count = count;
+    return ok;
+}
+
+/* The tessellation's vertex for mesh vertex (p, n): one already made at
+   exactly p with a normal within 25 degrees (a seam's twin), else a new
+   one; -1 out of memory. weld: 2^k slots of vertex ids (-1 empty). */
+static int refl__lt_weld(refl__lt *t, int *weld, size_t cap, refl_vec3 p, refl_vec3 n, refl__lt_vertex surface) {
+    uint32_t b[3];
+    size_t h;
+    memcpy(&b[0], &p.x, 4);
+    memcpy(&b[1], &p.y, 4);
+    memcpy(&b[2], &p.z, 4);
+    h = (size_t)(((uint64_t)b[0] * 0x9E3779B97F4A7C15ull ^ (uint64_t)b[1] * 0xC2B2AE3D27D4EB4Full ^
+                  (uint64_t)b[2] * 0x165667B19E3779F9ull) >> 20) & (cap - 1);
+    for (; weld[h] >= 0; h = (h + 1) & (cap - 1)) {
+        const refl_lens_vertex *v = &t->v[weld[h]];
+        if (v->position.x == p.x && v->position.y == p.y && v->position.z == p.z &&
+            refl_v3_dot(v->normal, refl_v3_normalize(n)) >= 0.9f)
+            return weld[h];
+    }
+    weld[h] = refl__lt_add_vertex(t, p, n, surface, 0);
+    return weld[h];
+}
+
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                         const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
+                                         refl_lens_tess *out) {
+    const refl_object *obj = &scene->objects[object];
+    const refl_mesh *mesh = scene->meshes[obj->mesh];
+    refl_mat4 nm = refl__normal_matrix(obj->transform), vm, pm;
+    refl__lt t;
+    int *map = NULL, *weld = NULL, i, k, first = 0, nleaves = 0, leaf_cap = 0;
+    size_t weld_cap = 16;
+    refl__lt_tri *leaves = NULL;
+    refl_result r = REFL_ERROR_OUT_OF_MEMORY;
+    float angle = desc && desc->angle_degrees > 0.0f ? desc->angle_degrees : 3.0f;
+    memset(&t, 0, sizeof t);
+    t.scene = scene;
+    t.caster = caster;
+    t.material = &scene->materials[obj->material];
+    t.object = object;
+    t.eye = view->eye;
+    t.forward = refl_v3_normalize(refl_v3_sub(view->target, view->eye));
+    refl_view_matrices(view, scene, &vm, &pm);
+    t.view_proj = refl_mat4_mul(pm, vm);
+    t.width = view->width;
+    t.height = view->height;
+    t.cos_angle = cosf(REFL__MIN(angle, 180.0f) * (float)(REFL__PI / 180.0));
+    t.edge_px = desc && desc->edge_px > 0.0f ? desc->edge_px : 1.0f;
+    t.max_level = desc && desc->max_level > 0 ? REFL__MIN(desc->max_level, 30) : 12;
+    t.max_interfaces = desc ? desc->max_interfaces : 0;
+    t.al = &out->allocator;
+    map = (int *)refl__calloc(t.al, (size_t)REFL__MAX(mesh->vertex_count, 1), sizeof(int));
+    if (!map) goto done;
+    while (weld_cap < 2 * (size_t)mesh->vertex_count) weld_cap *= 2;
+    weld = (int *)refl__calloc(t.al, weld_cap, sizeof(int));
+    if (!weld) goto done;
+    for (i = 0; i < mesh->vertex_count; ++i) map[i] = -1;
+    for (i = 0; i < (int)weld_cap; ++i) weld[i] = -1;
+    /* the front-facing triangles and their vertices, each once */
+    for (i = 0; i < mesh->triangle_count; ++i) {
+        const uint32_t *tri = mesh->indices + 3 * (size_t)i;
+        refl_vec3 p[3], n;
+        refl__lt_vertex x;
+        refl__lt_tri lt;
+        for (k = 0; k < 3; ++k)
+            p[k] = refl_mat4_point(obj->transform, refl_v3(mesh->positions[3 * (size_t)tri[k]],
+                                                          mesh->positions[3 * (size_t)tri[k] + 1],
+                                                          mesh->positions[3 * (size_t)tri[k] + 2]));
+        n = refl_v3_cross(refl_v3_sub(p[1], p[0]), refl_v3_sub(p[2], p[0]));
+        if (!(refl_v3_dot(n, n) > 0.0f) || refl_v3_dot(n, refl_v3_sub(t.eye, p[0])) <= 0.0f) continue;
+        x.face_normal = refl_v3_normalize(n);
+        x.triangle = i;
+        x.magnitude = 0.0f;
+        for (k = 0; k < 3; ++k)
+            x.magnitude = REFL__MAX(x.magnitude, REFL__MAX(fabsf(p[k].x), REFL__MAX(fabsf(p[k].y), fabsf(p[k].z))));
+        for (k = 0; k < 3; ++k) {
+            if (map[tri[k]] < 0) {
+                const float *mn = mesh->normals + 3 * (size_t)tri[k];
+                map[tri[k]] = refl__lt_weld(&t, weld, weld_cap, p[k], refl_mat4_dir(nm, refl_v3(mn[0], mn[1], mn[2])), x);
+                if (map[tri[k]] < 0) goto done;
+            }
+            lt.v[k] = (uint32_t)map[tri[k]];
+        }
+        lt.level = 0;
+        lt.surface = x;
+        if (!refl__lt_grow(t.al, (void **)&t.tris, &t.tcap, t.tcount + 1, sizeof *t.tris)) goto done;
+        t.tris[t.tcount++] = lt;
+        ++out->front_triangles;
+    }
+    if (!refl__lt_trace(&t, rc, 0, &out->rays)) goto done;
+    /* level by level: decide in order, then trace the level's new vertices */
+    while (first < t.tcount) {
+        int end = t.tcount, traced = t.vcount;
+        if (!refl__lt_level(&t, out, first, end, &leaves, &nleaves, &leaf_cap)) goto done;
+        if (!refl__lt_trace(&t, rc, traced, &out->rays)) goto done;
+        first = end;
+    }
+    if (!refl__lt_conform(&t, rc, out, leaves, nleaves)) goto done;
+    r = REFL_OK;
+done:
+    out->vertices = t.v;
+    out->vertex_count = t.vcount;
+    refl__free(t.al, map);
+    refl__free(t.al, weld);
+    refl__free(t.al, leaves);
+    refl__lt_free(&t);
+    return r;
+}
+
+REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess) {
+    refl_allocator al;
+    if (!tess) return;
+    al = tess->allocator;
+    refl__free(&al, tess->vertices);
+    refl__free(&al, tess->indices);
+    refl__free(&al, tess);
+}
+
+REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                          const refl_view *view, const refl_lens_tess_desc *desc,
+                                          refl_lens_tess **out) {
+    rast_context_desc cd;
+    rast_context *rc = NULL;
+    refl_lens_tess *t;
+    refl_result r;
+    if (out) *out = NULL;
+    if (!scene || !caster || !caster->intersect || !view || !out || object < 0 || object >= scene->object_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
+    if (!refl__v3_finite(view->eye) || !refl__v3_finite(view->target)) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__is_reflector(&scene->materials[scene->objects[object].material])) return REFL_ERROR_INVALID_ARGUMENT;
+    t = (refl_lens_tess *)refl__calloc(&scene->allocator, 1, sizeof *t);
+    if (!t) return REFL_ERROR_OUT_OF_MEMORY;
+    t->allocator = scene->allocator;
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = desc ? desc->threads : 0;
+    if (rast_context_create(&cd, &rc) != RAST_OK) {
+        refl_lens_tess_destroy(t);
+        return REFL_ERROR_RASTER;
+    }
+    r = refl__lens_tessellate(scene, caster, object, view, desc, rc, t);
+    rast_context_destroy(rc);
+    if (r != REFL_OK) {
+        refl_lens_tess_destroy(t);
+        return r;
+    }
+    *out = t;
+    return REFL_OK;
 }
 /* ---- src/reflect/light_volume.c ---- */
 /* Light volumes and caustics (paper 002): light a planar mirror reflects
@@ -10651,6 +12002,498 @@ static refl_result refl__method_graphcam(refl__pass *p) {
     refl__free(al, g.em.gbuf);
     refl__free(al, g.em.draws);
     refl__free(al, seen);
+    return r;
+}
+/* ---- src/reflect/m_layered_em.c ---- */
+/* LAYERED_EM: Hakura and Snyder's hybrid rendering (paper 001) with one
+   environment layer. Per lens object (a reflector of this pass) and frame:
+
+   1. the viewpoint samples: points on a circle around the lens's centre
+      through the eye, at its height, `samples` of them evenly; the two
+      bracketing the eye's azimuth are used, blended by angular distance;
+   2. per sample, the records (section 4.1: greedy paths of every lens
+      pixel, the radiance where their exit rays meet the scene) give the
+      targets; the shell's radius is the mean distance of those hits from
+      the centre (LBG with one cluster);
+   3. per sample, the lens is tessellated (lens_tess.c) and drawn with
+      rast.h at the sample's view, interpolating each vertex's shell index
+      (exit ray's hit on the shell minus the centre) as the runtime does:
+      each pixel's lookup of that index is its row of the rendering matrix,
+      so the matrix is exactly how the runtime samples the map; C A x = C b
+      is solved by CGLS (lem_infer.c);
+   4. the frame: the lens tessellated for the eye, drawn with per-vertex
+      F G and shell indices of both terms, each fragment T F_T G_T + R F_R
+      G_R from the blended maps, added over the base pass where the lens
+      shows; lens pixels no triangle covered are ray traced.
+
+   Every stage runs in a fixed order or per pixel, so any thread count
+   gives the same bytes. Left out (see the issue): several layers by LBG,
+   quads, continued rays, multi-view and direct images, maps kept across
+   frames. */
+
+enum { REFL__LEM_VARYINGS = 14 }; /* per term: shell index (3), F G (3); then both terms' presence */
+
+static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
+    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
+}
+
+static int refl__lem_bvh_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
+}
+
+static const char *refl__options_layered_em(refl_render_desc *d) {
+    const refl_layered_em_options *o = &d->layered_em;
+    if (o->samples < 0 || o->samples > 3600) return "layered_em.samples: 0 (45) to 3600";
+    if (o->face_size < 0 || o->face_size > 1024) return "layered_em.face_size: 0 (from the lens's size) to 1024";
+    if (o->supersample < 0 || o->supersample > 8) return "layered_em.supersample: 0 (1) to 8";
+    if (!(o->edge_px >= 0.0f) || !refl__isfinite(o->edge_px)) return "layered_em.edge_px: finite, 0 or more";
+    if (!(o->angle_degrees >= 0.0f && o->angle_degrees <= 180.0f)) return "layered_em.angle_degrees: 0 (3) to 180";
+    if (!(o->theta_c_degrees >= 0.0f && o->theta_c_degrees <= 180.0f))
+        return "layered_em.theta_c_degrees: 0 (5) to 180";
+    if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
+    if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
+    return NULL;
+}
+
+/* The shell's index of an exit ray: its far hit on the sphere minus the
+   centre (0: none). */
+static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
+    refl_vec3 oc = refl_v3_sub(o, sh->center);
+    float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
+    float disc = b * b - c * dd, t;
+    if (!(disc >= 0.0f) || !(dd > 0.0f)) return 0;
+    t = (-b + sqrtf(disc)) / dd;
+    *index = refl_v3_add(oc, refl_v3_scale(d, t));
+    return refl__v3_finite(*index) && t >= 0.0f;
+}
+
+/* What the lens's draws share: the shell, the maps of the samples and
+   their blend weights, and the term drawn in record mode. */
+typedef struct refl__lem_draw {
+    refl_lem_shell shell;
+    const float *maps[2];
+    float weight[2];
+    int record_term;             /* 0, 1: write that term's index; -1: shade */
+} refl__lem_draw;
+
+static float refl__lem_sample(const refl__lem_draw *dr, const float *map, refl_vec3 index, int c) {
+    uint32_t tex[4];
+    float w[4], l = 0.0f;
+    int k;
+    if (!refl_lem_shell_lookup(&dr->shell, dr->shell.center, index, tex, w)) return 0.0f;
+    for (k = 0; k < 4; ++k) l += w[k] * map[4 * tex[k] + (uint32_t)c];
+    return l;
+}
+
+static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__lem_draw *dr = (const refl__lem_draw *)user;
+    const float *v = in->varyings;
+    int term, c, s;
+    if (dr->record_term >= 0) {
+        const float *t = v + 6 * dr->record_term;
+        rgba[0] = t[0];
+        rgba[1] = t[1];
+        rgba[2] = t[2];
+        rgba[3] = v[12 + dr->record_term];
+        return 1;
+    }
+    rgba[0] = rgba[1] = rgba[2] = 0.0f;
+    rgba[3] = 1.0f;
+    for (term = 0; term < 2; ++term) {
+        const float *t = v + 6 * term;
+        refl_vec3 index = refl_v3(t[0], t[1], t[2]);
+        for (c = 0; c < 3; ++c) {
+            float l = 0.0f;
+            if (!(t[3 + c] > 0.0f)) continue;
+            for (s = 0; s < 2; ++s)
+                if (dr->weight[s] > 0.0f) l += dr->weight[s] * refl__lem_sample(dr, dr->maps[s], index, c);
+            rgba[c] += t[3 + c] * l;
+        }
+    }
+    return 1;
+}
+
+/* Draws tessellation t seen through vp into the w x h RGBA32F colour and
+   depth buffers (cleared here), with stencil (may be NULL) tested equal
+   to ref. */
+static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, refl_mat4 vp, refl__lem_draw *dr,
+                                    float *color, float *depth, uint8_t *stencil, uint8_t ref, int w, int h,
+                                    const refl_allocator *al) {
+    const int stride = 4 + REFL__LEM_VARYINGS;
+    float *verts = (float *)refl__calloc(al, (size_t)REFL__MAX(t->vertex_count, 1) * (size_t)stride, sizeof(float));
+    rast_targets tg;
+    rast_state s;
+    rast_draw_desc d;
+    rast_clear_desc clear;
+    rast_result rr;
+    const float *m = vp.m;
+    int i, k, term;
+    if (!verts) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < t->vertex_count; ++i) {
+        const refl_lens_vertex *v = &t->vertices[i];
+        float *o = verts + (size_t)i * (size_t)stride;
+        refl_vec3 p = v->position;
+        for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
+        for (term = 0; term < 2; ++term) {
+            const refl_greedy_path *path = term ? &v->paths.refract : &v->paths.reflect;
+            float *q = o + 4 + 6 * term;
+            refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
+            int has = path->fresnel > 0.0f && path->exited &&
+                      refl__lem_index(&dr->shell, path->exit_origin, path->exit_direction, &index);
+            q[0] = index.x;
+            q[1] = index.y;
+            q[2] = index.z;
+            for (k = 0; k < 3; ++k) q[3 + k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
+            o[4 + 12 + term] = (float)has;
+        }
+    }
+    memset(&tg, 0, sizeof tg);
+    tg.color.ptr = color;
+    tg.color.width = w;
+    tg.color.height = h;
+    tg.color.stride = 4 * (int)sizeof(float) * w;
+    tg.color_format = RAST_COLOR_RGBA32F;
+    tg.depth.ptr = depth;
+    tg.depth.width = w;
+    tg.depth.height = h;
+    tg.depth.stride = (int)sizeof(float) * w;
+    if (stencil) {
+        tg.stencil.ptr = stencil;
+        tg.stencil.width = w;
+        tg.stencil.height = h;
+        tg.stencil.stride = w;
+    }
+    memset(&s, 0, sizeof s);
+    memset(&clear, 0, sizeof clear);
+    clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
+    clear.depth = 1.0f;
+    rr = rast_set_targets(rc, &tg);
+    if (rr == RAST_OK) rr = rast_set_state(rc, &s);
+    if (rr == RAST_OK) rr = rast_clear(rc, &clear);
+    s.depth_test = 1;
+    s.fragment_fn = refl__lem_fragment;
+    s.fragment_user = dr;
+    if (stencil) {
+        s.stencil_test = 1;
+        s.stencil_front.func = s.stencil_back.func = RAST_EQUAL;
+        s.stencil_front.ref = s.stencil_back.ref = ref;
+    }
+    memset(&d, 0, sizeof d);
+    d.primitive = RAST_TRIANGLES;
+    d.vertices = verts;
+    d.vertex_count = t->vertex_count;
+    d.stride = stride;
+    d.num_varyings = REFL__LEM_VARYINGS;
+    d.indices = t->indices;
+    d.index_count = 3 * t->triangle_count;
+    if (rr == RAST_OK) rr = rast_set_state(rc, &s);
+    if (rr == RAST_OK && t->triangle_count > 0) rr = rast_draw(rc, &d);
+    if (rr == RAST_OK) rr = rast_finish(rc);
+    refl__free(al, verts);
+    return refl__result_from_rast(rr);
+}
+
+/* ---- records of a sample, on the pass's threads --------------------------------- */
+
+typedef struct refl__lem_records {
+    const refl_scene *scene;
+    const refl_ray_caster *caster;
+    const refl_view *view;
+    int object, ss, max_interfaces;
+    float theta_c;
+    refl_vec3 centre;
+    int rect[4];                 /* x0, y0, x1, y1: the pixels the lens's bounds may cover */
+    float *rec;                  /* 10 per pixel; confidence -1 where none */
+    double *row_dist;
+    long long *row_hits, *row_rays;
+} refl__lem_records;
+
+static void refl__lem_records_row(void *arg, int y) {
+    refl__lem_records *r = (refl__lem_records *)arg;
+    int x, w = r->view->width;
+    for (x = 0; x < w; ++x) {
+        float *out = r->rec + 10 * ((size_t)y * (size_t)w + (size_t)x);
+        refl_greedy_paths_result centre;
+        if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
+            !refl__lem_pixel_records(r->scene, r->caster, r->view, x, y, r->object, r->ss, r->theta_c,
+                                     r->max_interfaces, r->centre, out, &centre, &r->row_dist[y], &r->row_hits[y],
+                                     &r->row_rays[y]))
+            out[4] = out[9] = -1.0f;
+    }
+}
+
+/* The pixel rectangle [x0, x1) x [y0, y1) of view vp (w x h) that the box
+   of corners lo, hi may cover: its corners' projections and a pixel more;
+   the whole view when a corner lies behind the eye. */
+static void refl__lem_screen_rect(refl_mat4 vp, refl_vec3 lo, refl_vec3 hi, int w, int h, int rect[4]) {
+    const float *m = vp.m;
+    float x0 = FLT_MAX, y0 = FLT_MAX, x1 = -FLT_MAX, y1 = -FLT_MAX;
+    int k, c;
+    for (k = 0; k < 8; ++k) {
+        refl_vec3 p = refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
+        float clip[4], sx, sy;
+        for (c = 0; c < 4; ++c) clip[c] = m[c] * p.x + m[4 + c] * p.y + m[8 + c] * p.z + m[12 + c];
+        if (!(clip[3] > 1e-6f)) {
+            rect[0] = rect[1] = 0;
+            rect[2] = w;
+            rect[3] = h;
+            return;
+        }
+        sx = (clip[0] / clip[3] * 0.5f + 0.5f) * (float)w;
+        sy = (0.5f - clip[1] / clip[3] * 0.5f) * (float)h;
+        x0 = REFL__MIN(x0, sx), x1 = REFL__MAX(x1, sx), y0 = REFL__MIN(y0, sy), y1 = REFL__MAX(y1, sy);
+    }
+    rect[0] = (int)REFL__CLAMP(floorf(x0) - 1.0f, 0.0f, (float)w);
+    rect[1] = (int)REFL__CLAMP(floorf(y0) - 1.0f, 0.0f, (float)h);
+    rect[2] = (int)REFL__CLAMP(ceilf(x1) + 1.0f, 0.0f, (float)w);
+    rect[3] = (int)REFL__CLAMP(ceilf(y1) + 1.0f, 0.0f, (float)h);
+}
+
+/* One viewpoint sample of a lens object. */
+typedef struct refl__lem_sample_view {
+    refl_view view;
+    refl_mat4 vp;
+    refl_lens_tess tess;
+    float *rec;
+    int lens_pixels;
+} refl__lem_sample_view;
+
+static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_view *s) {
+    refl__free(al, s->tess.vertices);
+    refl__free(al, s->tess.indices);
+    refl__free(al, s->rec);
+    memset(s, 0, sizeof *s);
+}
+
+/* The world bounds' centre and half diagonal of object i. */
+static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, float *radius, refl_vec3 box[2]) {
+    const refl_object *o = &scene->objects[i];
+    refl_vec3 lo, hi, wlo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), whi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    int k;
+    refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+    for (k = 0; k < 8; ++k) {
+        refl_vec3 c = refl_mat4_point(o->transform, refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z));
+        wlo = refl_v3(REFL__MIN(wlo.x, c.x), REFL__MIN(wlo.y, c.y), REFL__MIN(wlo.z, c.z));
+        whi = refl_v3(REFL__MAX(whi.x, c.x), REFL__MAX(whi.y, c.y), REFL__MAX(whi.z, c.z));
+    }
+    box[0] = wlo;
+    box[1] = whi;
+    *centre = refl_v3_scale(refl_v3_add(wlo, whi), 0.5f);
+    *radius = 0.5f * refl_v3_length(refl_v3_sub(whi, wlo));
+}
+
+/* The views whose records infer the maps of the two samples bracketing
+   the eye's azimuth around centre c: per sample, the sample itself and,
+   with multi-view inference, the views half a spacing either side (the
+   paper's simultaneous inference against disocclusion), `per` views per
+   sample; the samples' blend weights. One sample, the eye's own view, when
+   the eye is on the circle's axis. The sample count. */
+static int refl__lem_views(const refl__pass *p, refl_vec3 c, int samples, int multiview, refl_view out[6], int *per,
+                           float weight[2]) {
+    const refl_view *v = p->view;
+    float dx = v->eye.x - c.x, dz = v->eye.z - c.z, rho = sqrtf(dx * dx + dz * dz);
+    double step = 2.0 * REFL__PI / samples, phi = atan2((double)dx, (double)dz), f;
+    int k0, k, j, n;
+    for (k = 0; k < 6; ++k) out[k] = *v;
+    weight[0] = 1.0f;
+    weight[1] = 0.0f;
+    *per = 1;
+    if (!(rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))))) return 1;
+    if (phi < 0.0) phi += 2.0 * REFL__PI;
+    f = phi / step;
+    k0 = (int)floor(f);
+    weight[1] = (float)(f - k0);
+    weight[0] = 1.0f - weight[1];
+    n = weight[1] > 0.0f ? 2 : 1;
+    *per = multiview ? 3 : 1;
+    for (k = 0; k < n; ++k)
+        for (j = 0; j < *per; ++j) {
+            refl_view *o = &out[k * *per + j];
+            double a = (k0 + k) * step + (j == 0 ? 0.0 : j == 1 ? -0.5 * step : 0.5 * step);
+            o->eye = refl_v3(c.x + rho * (float)sin(a), v->eye.y, c.z + rho * (float)cos(a));
+            o->target = c;
+        }
+    return n;
+}
+
+/* Lens object i: samples, maps, the frame's draw. marked: lens pixels
+   left to the tracer. */
+static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, uint8_t *marked) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    refl_frame *f = p->frame;
+    int w = f->width, h = f->height, n, s, k, y, term, face, per, nv, j;
+    size_t np = (size_t)w * (size_t)h, px;
+    refl__lem_sample_view sv[6];
+    refl_view views[6];
+    refl__lem_draw dr;
+    refl_lens_tess_desc td;
+    refl_lens_tess frame_tess;
+    refl_vec3 box[2];
+    float weight[2], lens_radius, *color = NULL, *depth = NULL, *maps[2] = {NULL, NULL};
+    double dist = 0.0;
+    long long hits = 0;
+    uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+    refl_result r = REFL_OK;
+    double t0 = refl__now_ms();
+    memset(sv, 0, sizeof sv);
+    memset(&frame_tess, 0, sizeof frame_tess);
+    memset(&dr, 0, sizeof dr);
+    memset(&td, 0, sizeof td);
+    td.edge_px = o->edge_px;
+    td.angle_degrees = o->angle_degrees;
+    td.max_interfaces = p->desc.depth;
+    refl__lem_bounds(scene, i, &dr.shell.center, &lens_radius, box);
+    n = refl__lem_views(p, dr.shell.center, o->samples > 0 ? o->samples : 45, !o->single_view, views, &per, weight);
+    nv = n * per;
+    color = (float *)refl__calloc(al, 4 * np, sizeof(float));
+    depth = (float *)refl__calloc(al, np, sizeof(float));
+    if (!color || !depth) r = REFL_ERROR_OUT_OF_MEMORY;
+    /* the records of each view, in rows on the pass's threads */
+    for (s = 0; s < nv && r == REFL_OK; ++s) {
+        refl__lem_records rec;
+        refl_mat4 vm, pm;
+        sv[s].view = views[s];
+        refl_view_matrices(&sv[s].view, scene, &vm, &pm);
+        sv[s].vp = refl_mat4_mul(pm, vm);
+        memset(&rec, 0, sizeof rec);
+        rec.scene = scene;
+        rec.caster = caster;
+        rec.view = &sv[s].view;
+        rec.object = i;
+        rec.ss = o->supersample > 0 ? o->supersample : 1;
+        rec.theta_c = o->theta_c_degrees;
+        rec.max_interfaces = p->desc.depth;
+        rec.centre = dr.shell.center;
+        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
+        sv[s].rec = rec.rec = (float *)refl__calloc(al, 10 * np, sizeof(float));
+        rec.row_dist = (double *)refl__calloc(al, (size_t)h, sizeof(double));
+        rec.row_hits = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
+        rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
+        if (!rec.rec || !rec.row_dist || !rec.row_hits || !rec.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) {
+            rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
+            for (y = 0; y < h; ++y) {
+                dist += rec.row_dist[y];
+                hits += rec.row_hits[y];
+                f->stats.rays += rec.row_rays[y];
+            }
+            for (px = 0; px < np; ++px) sv[s].lens_pixels += rec.rec[10 * px + 4] >= 0.0f || rec.rec[10 * px + 9] >= 0.0f;
+        }
+        refl__free(al, rec.row_dist);
+        refl__free(al, rec.row_hits);
+        refl__free(al, rec.row_rays);
+        if (r == REFL_OK) {
+            sv[s].tess.allocator = *al;
+            r = refl__lens_tessellate(scene, caster, i, &sv[s].view, &td, p->rc, &sv[s].tess);
+            f->stats.rays += sv[s].tess.rays;
+        }
+    }
+    /* the one shell: at the mean distance of the records' hits */
+    dr.shell.radius = hits > 0 ? (float)(dist / (double)hits) : 0.0f;
+    if (!(dr.shell.radius > lens_radius)) dr.shell.radius = REFL__MAX(10.0f * lens_radius, 1e-3f);
+    face = o->face_size > 0 ? o->face_size
+                            : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
+    dr.shell.face_size = face;
+    /* each sample's map: rows from the runtime's own lookups at its views */
+    for (s = 0; s < n && r == REFL_OK; ++s) {
+        refl_lem_system *sys = NULL;
+        refl_lem_solve_desc sd;
+        float *index[2] = {NULL, NULL};
+        r = refl_lem_system_create(6 * face * face, al, &sys);
+        for (term = 0; term < 2 && r == REFL_OK; ++term) {
+            index[term] = (float *)refl__calloc(al, 4 * np, sizeof(float));
+            if (!index[term]) r = REFL_ERROR_OUT_OF_MEMORY;
+        }
+        for (j = 0; j < per && r == REFL_OK; ++j) {
+            const refl__lem_sample_view *view = &sv[s * per + j];
+            for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                dr.record_term = term;
+                r = refl__lem_raster(p->rc, &view->tess, view->vp, &dr, index[term], depth, NULL, 0, w, h, al);
+            }
+            for (px = 0; px < np && r == REFL_OK; ++px)
+                for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                    const float *rec = view->rec + 10 * px + 5 * term, *ix = index[term] + 4 * px;
+                    uint32_t tex[4];
+                    float wt[4];
+                    /* a row where the records have the term and all three vertices gave it an index */
+                    if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
+                        !refl_lem_shell_lookup(&dr.shell, dr.shell.center, refl_v3(ix[0], ix[1], ix[2]), tex, wt))
+                        continue;
+                    r = refl_lem_system_add_row(sys, tex, wt, 4, rec, rec[4]);
+                }
+        }
+        maps[s] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float)) : NULL;
+        if (r == REFL_OK && !maps[s]) r = REFL_ERROR_OUT_OF_MEMORY;
+        memset(&sd, 0, sizeof sd);
+        sd.iterations = o->iterations;
+        if (r == REFL_OK) r = refl_lem_solve(sys, &sd, maps[s], NULL);
+        refl_lem_system_destroy(sys);
+        refl__free(al, index[0]);
+        refl__free(al, index[1]);
+    }
+    f->stats.ms_build += refl__now_ms() - t0;
+    t0 = refl__now_ms();
+    /* the frame: tessellated for the eye, both terms from the blended maps */
+    if (r == REFL_OK) {
+        frame_tess.allocator = *al;
+        r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &frame_tess);
+        f->stats.rays += frame_tess.rays;
+        f->stats.triangles += frame_tess.triangle_count;
+    }
+    if (r == REFL_OK) {
+        dr.record_term = -1;
+        for (s = 0; s < 2; ++s) {
+            dr.maps[s] = s < n ? maps[s] : NULL;
+            dr.weight[s] = s < n ? weight[s] : 0.0f;
+        }
+        r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+    }
+    for (px = 0; px < np && r == REFL_OK; ++px) {
+        if (f->stencil[px] != ref) continue;
+        if (!(color[4 * px + 3] > 0.0f)) {
+            marked[px] = 1; /* no triangle here: traced */
+            continue;
+        }
+        for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[4 * px + (size_t)k];
+    }
+    f->stats.ms_reflect += refl__now_ms() - t0;
+    refl__free(al, frame_tess.vertices);
+    refl__free(al, frame_tess.indices);
+    for (s = 0; s < 6; ++s) refl__lem_sample_free(al, &sv[s]);
+    refl__free(al, maps[0]);
+    refl__free(al, maps[1]);
+    refl__free(al, color);
+    refl__free(al, depth);
+    return r;
+}
+
+static refl_result refl__method_layered_em(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    refl_frame *f = p->frame;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_ray_caster caster;
+    uint8_t *marked = NULL;
+    size_t np = (size_t)f->width * (size_t)f->height, k;
+    int i, any = 0;
+    refl_result r = refl__models_bvh(p, &bvh, &owned);
+    rast_targets t = refl__frame_targets(f);
+    if (r != REFL_OK) return r;
+    memset(&caster, 0, sizeof caster);
+    caster.intersect = refl__lem_bvh_intersect;
+    caster.occluded = refl__lem_bvh_occluded;
+    caster.user = bvh;
+    marked = (uint8_t *)refl__calloc(&scene->allocator, np, 1);
+    if (!marked) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl__pass_draws(p, i))
+            r = refl__lem_object(p, &caster, i, marked);
+    if (r == REFL_OK) r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    for (k = 0; k < np && r == REFL_OK; ++k) any |= marked[k];
+    if (r == REFL_OK && any) r = refl__trace_marked(p, marked);
+    refl__free(&scene->allocator, marked);
+    refl_bvh_destroy(owned);
     return r;
 }
 /* ---- src/reflect/m_planar.c ---- */
@@ -14025,6 +15868,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
+    {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -19446,7 +21290,8 @@ REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_alloc
    fallback renders the pixels it cannot resolve with. A primary ray per
    pixel centre, mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
-   absorption, optional hard or soft shadows (soft: a shadow ray per
+   absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
+   two greedy paths), optional hard or soft shadows (soft: a shadow ray per
    jittered light sample, refl__rt_diffuse), the light planar mirrors
    reflect (light_volumes), the environment on a miss. Shading is the
    shared model of shade.c, and each surface's colour is clamped to [0, 1]
@@ -19650,6 +21495,9 @@ typedef struct refl__rt_medium {
     float fog;
     refl_vec3 fog_p, fog_n;
     const float *fog_rgb;
+    /* desc.raytrace.greedy, past the eye ray's first interface: glass
+       spawns only its child of the larger Fresnel coefficient (paper 001) */
+    int greedy;
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -19699,6 +21547,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
         refl_vec3 rd = refl_v3_reflect(d, n);
+        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         /* near a silhouette the smooth normal can send the ray into the
            surface itself: reflect about the true surface instead */
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
@@ -19716,18 +21565,25 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         refl_vec3 t;
         int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
         int point_on_refraction = refracts && f < 0.5f;
+        /* greedy: the one child of the larger coefficient (a tie reflects),
+           as refl_greedy_paths takes it; the first interface spawns both */
+        int greedy_reflect = !medium.greedy || !refracts || f >= 1.0f - f;
+        int greedy_refract = !medium.greedy || (refracts && f < 1.0f - f);
         /* inside translucent glass the fog scatters what reflects within
            (PLANAR's slab has no inner reflections either) */
         int scattered = !entering && medium.fog > 0.0f && refracts;
         refl__rt_medium through;
         if (!refracts) f = 1.0f; /* total internal reflection */
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
+        medium.greedy = rt->p->desc.raytrace.greedy; /* both children of this interface go greedy */
+        if (!scattered && greedy_reflect &&
+            (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
-        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+        if (refracts && greedy_refract &&
+            ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
             through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;

@@ -160,6 +160,8 @@ ok "--mirror and --glass make diffuse objects reflective" bash -c \
 ok "--error-px at the bound the help gives" "$bin" render --builtin default --method sbc --error-px 0.001 --size 16x12 --out "$tmp/ep.png"
 exits2 "--size past int" "expected WxH" "$bin" render --builtin default --size 4294967297x2
 ok "--sbc-paper renders" "$bin" render --builtin default --method sbc --sbc-paper --size 32x24 --out "$tmp/sp.png"
+ok "--greedy renders" "$bin" render --builtin glass --method raytrace --greedy --size 32x24 --out "$tmp/gr.png"
+ok "layered-em renders" "$bin" render --builtin glass --method layered-em --size 32x24 --out "$tmp/le.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has

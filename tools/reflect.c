@@ -41,8 +41,8 @@ static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc\n"
-    "                     or graphcam\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc,\n"
+    "                     graphcam or layered-em (paper 001, one shell layer)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
@@ -72,6 +72,8 @@ static const char *const usage_render =
     "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
     "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
     "                     and those whose point the ray map's samples contradict\n"
+    "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
+    "                     instead of the full ray tree\n"
     "  --sbc-paper        SBC: the paper's method, no search of the scene (heads where\n"
     "                     the rays leave its box); default: SBC-traced, every ray map\n"
     "                     sample traced against the scene's BVH\n"
@@ -134,7 +136,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy;
     int graphcam_size, graphcam_alg;
     float graphcam_step;
     float density, camera_split, error_px;
@@ -188,7 +190,8 @@ static const char *const value_options[] = {
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
     "--graphcam-size", "--graphcam-alg", "--graphcam-step", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
-                                           "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
+                                           "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
+                                           "--greedy", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -347,6 +350,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--sbc-paper")) {
             o->sbc_paper = 1;
+            continue;
+        } else if (!strcmp(a, "--greedy")) {
+            o->greedy = 1;
             continue;
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
@@ -607,6 +613,7 @@ static int cmd_render(const options *o) {
         }
         d.graphcam.camera = maze_cam;
     }
+    d.raytrace.greedy = o->greedy;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

@@ -1092,7 +1092,206 @@ typedef struct refl_ray_caster {
 /* Each method's options; zero everywhere means its defaults. */
 typedef struct refl_raytrace_options {
     refl_ray_caster caster;  /* zero: refl_bvh over the scene */
+    int greedy;              /* paper 001's two-term greedy ray paths (refl_greedy_paths): an
+                                eye ray meeting glass splits into a reflected and a refracted
+                                path, and every later interface follows only its child of the
+                                larger Fresnel coefficient (ties: reflection). 0: the full ray
+                                tree, both children everywhere. Mirrors have one child either
+                                way, so mirror-only scenes render the same bytes */
 } refl_raytrace_options;
+
+/* ---- paper 001's greedy ray paths through a lens system ----------------------- */
+
+enum { REFL_GREEDY_MAX_INTERFACES = 32 };
+
+/* One greedy path: the interfaces it met, the child it took at each, what
+   it carries and the ray it leaves the lens system by. */
+typedef struct refl_greedy_path {
+    int exited;              /* 1: left the lens system (the exit ray below is valid); 0: it
+                                met one more interface after max_interfaces */
+    int length;              /* interfaces met, the first (where the eye ray split) included */
+    unsigned int reflected;  /* bit i: 1 where interface i reflected, 0 where it refracted */
+    float fresnel;           /* F: product of the coefficients of the children taken */
+    float attenuation[3];    /* G: glass tint on entering times exp(-attenuation * length)
+                                inside, per channel */
+    refl_vec3 exit_origin;   /* the last interface's point (the eye ray's origin when none) */
+    refl_vec3 exit_direction; /* unit */
+    float inside_length;     /* glass traversed */
+} refl_greedy_path;
+
+/* The two terms of paper 001's shading model for one eye ray: T F_T G_T +
+   R F_R G_R, T and R the radiance along the exit rays. */
+typedef struct refl_greedy_paths_result {
+    int terms;               /* 0: the ray met no lens (diffuse or nothing first); 1: a mirror
+                                first (reflect only); 2: glass first (both) */
+    int object;              /* the lens object met first, -1 when none */
+    refl_vec3 first_point;   /* where, NaN when none */
+    refl_greedy_path reflect, refract; /* a term that does not exist has fresnel 0 */
+} refl_greedy_paths_result;
+
+/* Traces the greedy paths of the ray origin + t dir (dir unit) through the
+   scene's lens objects (mirror, partial and glass materials) with `caster`
+   (one over the scene's objects; a diffuse object met, or nothing, ends a
+   path: the ray leaves the lens system). At the first interface the ray
+   starts a reflected path and, at glass, a refracted one; at every later
+   interface each takes the child of the larger Fresnel coefficient (total
+   internal reflection: reflection; a mirror: reflection, times its
+   reflectance). max_interfaces: 0 means REFL_GREEDY_MAX_INTERFACES, and
+   larger is clamped to it. *rays (may be NULL) counts the rays cast. */
+REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
+                                refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                long long *rays);
+
+/* Paper 001's adaptive tessellation (section 5) of one lens object for a
+   view: only the vertices of its front-facing triangles are traced (both
+   greedy paths, from the vertex with its own normal, and a visibility ray
+   from the eye); a triangle is split at its edge midpoints (1 to 4, or 1
+   to 3 and 1 to 2 where some edges project shorter than edge_px) while
+   its vertices' paths differ in topology (terms, length, the choice at an
+   interface, leaving or not) or their exit rays by more than
+   angle_degrees, in either term, unless all three vertices are hidden. An
+   edge table gives every midpoint once; the leaves are then
+   re-triangulated around the vertices their neighbours put on their
+   edges, so the mesh conforms. Levels are split one at a time and each
+   level's new vertices traced in parallel: the same mesh for any thread
+   count. */
+typedef struct refl_lens_tess_desc {
+    float angle_degrees;     /* 0: 3 */
+    float edge_px;           /* t: edges projected shorter are not split, in pixels of the
+                                view; 0: 1 (the paper's t = 3 subpixels at 3x3) */
+    int max_level;           /* splits of a mesh triangle at most; 0: 12 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+    int threads;             /* 0: one per CPU */
+} refl_lens_tess_desc;
+
+typedef struct refl_lens_vertex {
+    refl_vec3 position, normal; /* world; normal unit */
+    float window[2];         /* pixel coordinates in the view; NaN behind the eye */
+    int visible;             /* nothing between the eye and the vertex */
+    int level;               /* 0: the mesh's; k: made splitting a level k - 1 triangle */
+    refl_greedy_paths_result paths;
+} refl_lens_vertex;
+
+typedef struct refl_lens_tess {
+    refl_lens_vertex *vertices;
+    int vertex_count;        /* each traced once */
+    uint32_t *indices;       /* 3 per triangle, wound as the mesh */
+    int triangle_count;
+    int front_triangles;     /* the mesh's front-facing triangles it started from */
+    int splits;              /* triangles split */
+    int topology_splits;     /* of which because a path's topology changed */
+    int junction_fixes;      /* leaves re-triangulated around a T-junction */
+    long long rays;          /* visibility and path rays cast */
+    refl_allocator allocator;
+} refl_lens_tess;
+
+/* Tessellates scene object `object` (a lens: mirror or glass) for view
+   through caster (one over the scene, as for refl_greedy_paths). desc NULL:
+   the defaults. */
+REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                          const refl_view *view, const refl_lens_tess_desc *desc,
+                                          refl_lens_tess **out);
+REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
+
+/* ---- paper 001's inferred environment maps (section 4) ------------------------- */
+
+/* One environment layer: a sphere shell around a lens object, textured as
+   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
+   side, texel (face, x, y) at face * size^2 + y * size + x). */
+typedef struct refl_lem_shell {
+    refl_vec3 center;
+    float radius;
+    int face_size;
+} refl_lem_shell;
+
+/* How the runtime samples the shell for an exit ray (origin inside or
+   outside, dir unit): the ray's far hit on the sphere, its offset from the
+   centre as the cube-map index, bilinear on the face (clamped at its
+   edges). 1 with four texels and weights summing to 1, or 0 when the ray
+   misses the sphere. The rendering matrix is made of exactly these. */
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]);
+
+/* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
+   theta_m the largest angle between any two of the pixel's exit rays
+   (dirs unit); theta_c_degrees 0 means 5. 1 for fewer than two rays. */
+REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees);
+
+/* A sparse least-squares system C A x = C b over RGBA texels: each row a
+   pixel of one term, its texels and weights (A), its target colour (b)
+   and confidence (C). */
+typedef struct refl_lem_system refl_lem_system;
+REFL_API refl_result refl_lem_system_create(int texels, const refl_allocator *a, refl_lem_system **out);
+REFL_API void refl_lem_system_destroy(refl_lem_system *system);
+/* Appends a row; texels out of range, non-finite weights or targets are
+   refused (INVALID_ARGUMENT), a confidence of 0 adds nothing. */
+REFL_API refl_result refl_lem_system_add_row(refl_lem_system *system, const uint32_t *texels, const float *weights,
+                                             int count, const float target[4], float confidence);
+REFL_API int refl_lem_system_rows(const refl_lem_system *system);
+
+typedef struct refl_lem_solve_desc {
+    int iterations;          /* at most; 0: 200 */
+    float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
+                                start, in every channel; 0: 1e-6 */
+} refl_lem_solve_desc;
+
+typedef struct refl_lem_solve_stats {
+    int iterations;
+    double residual[4];      /* |C (A x - b)| per channel at the end */
+    double initial[4];       /* and at x = 0 */
+} refl_lem_solve_stats;
+
+/* Least squares by conjugate gradients on the normal equations (CGLS),
+   the four channels at once, from x = 0: texels no row reaches stay 0.
+   Sequential sums in double: the same x on every run. x: 4 floats per
+   texel. stats may be NULL. */
+REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,
+                                    refl_lem_solve_stats *stats);
+
+/* Section 4.1's records of one viewpoint sample, as rows for one layer:
+   every pixel whose centre ray meets lens object `object` first traces
+   supersample^2 subsamples' greedy paths; per term, the row is the
+   runtime's lookup of the pixel centre's exit ray, the target the mean
+   radiance where the subsamples' exit rays meet the scene (diffuse shading
+   as RAYTRACE's without shadows, the environment past everything), alpha
+   the share of subsamples with that term, and the confidence that of the
+   subsamples' exit rays. */
+typedef struct refl_lem_record_desc {
+    int object;              /* the lens object */
+    int supersample;         /* 0: 3 */
+    float theta_c_degrees;   /* 0: 5 */
+    int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
+} refl_lem_record_desc;
+
+typedef struct refl_lem_record_stats {
+    int pixels;              /* lens pixels recorded */
+    int rows;                /* rows added (both terms) */
+    long long rays;
+} refl_lem_record_stats;
+
+REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
+                                          const refl_ray_caster *caster, const refl_view *view,
+                                          const refl_lem_shell *shell, const refl_lem_record_desc *desc,
+                                          refl_lem_record_stats *stats);
+
+/* LAYERED_EM (paper 001): lens objects traced at adaptively tessellated
+   vertices with the two greedy paths, the environment from a sphere-shell
+   map per viewpoint sample inferred by least squares to match ray-traced
+   records there, the two samples nearest the eye blended. */
+typedef struct refl_layered_em_options {
+    int samples;             /* viewpoint samples on the circle around each lens object's centre
+                                through the eye, at its height: 0: 45 (8 degrees apart) */
+    int face_size;           /* shell cube-map face side in texels, at most 1024; 0: half the
+                                square root of the lens's pixels at the first sample */
+    int supersample;         /* records' subsamples per pixel side, 1 to 8; 0: 1 */
+    float edge_px;           /* tessellation's t in pixels; 0: 1 */
+    float angle_degrees;     /* tessellation's exit-ray angle; 0: 3 */
+    float theta_c_degrees;   /* confidence's angle; 0: 5 */
+    int iterations;          /* CG iterations at most; 0: 200 */
+    int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
+                                views half a spacing either side (the paper's simultaneous
+                                inference, against disocclusions between samples) */
+} refl_layered_em_options;
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -1238,6 +1437,7 @@ typedef struct refl_render_desc {
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
     refl_graphcam_options graphcam;
+    refl_layered_em_options layered_em;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows

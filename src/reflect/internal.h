@@ -465,6 +465,10 @@ typedef struct refl__rt {
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
 static void refl__rt_end(refl__rt *rt);
+/* Where a secondary ray leaving point p (on a triangle of largest
+   |coordinate| magnitude) along the side n starts: off its surface by the
+   rounding of the hit (trace.c; greedy_path.c's rays start the same way). */
+static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
 /* Pixel (x, y) as RAYTRACE renders it: colour, the point its reflector
    shows (NaN: none), window depth and stencil as the base pass writes
    them; *rays counts the rays cast. */
@@ -493,6 +497,40 @@ static void refl__maze_layout(refl__maze_corridor out[REFL__MAZE_CORRIDORS]);
 static refl_mat4 refl__gc_draw_matrix(const refl_graphcam *cam, int f);
 static void refl__gc_clip(const refl_graphcam *cam, int f, refl_vec3 p, double c[4]);
 static int refl__gc_invert(const refl_mat4 *m, double inv[16]);
+/* ---- paper 001's greedy ray paths (greedy_path.c) ---- */
+
+/* The lens surface a path meets: its point, geometric and shading normals
+   (unit), the largest |coordinate| of its triangle (ray offsets), material,
+   object, triangle and the ray's distance to it. */
+typedef struct refl__gp_hit {
+    refl_vec3 p, ng, ns;
+    float magnitude;
+    const refl_material *material;
+    int object, triangle;
+    float t;
+} refl__gp_hit;
+/* Both greedy paths of a ray along unit dir whose first lens interface is
+   h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
+static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                    const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays);
+static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+
+/* ---- paper 001's tessellation and inferred maps (lens_tess.c, lem_infer.c) ---- */
+
+/* refl_lens_tessellate on the pass's threads (rc), into *out (its
+   allocator set; its arrays freed by the caller, also on failure). */
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+                                         const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
+                                         refl_lens_tess *out);
+/* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
+   does not meet `object` first; else per term the target (rgba) and its
+   confidence (-1: none) in out[5 term ...], environment hit distances
+   from `centre` summed into *dist_sum, *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -511,6 +549,8 @@ static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static refl_result refl__method_layered_em(refl__pass *p);
+static const char *refl__options_layered_em(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */

@@ -3,7 +3,8 @@
    fallback renders the pixels it cannot resolve with. A primary ray per
    pixel centre, mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
-   absorption, optional hard or soft shadows (soft: a shadow ray per
+   absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
+   two greedy paths), optional hard or soft shadows (soft: a shadow ray per
    jittered light sample, refl__rt_diffuse), the light planar mirrors
    reflect (light_volumes), the environment on a miss. Shading is the
    shared model of shade.c, and each surface's colour is clamped to [0, 1]
@@ -208,6 +209,9 @@ typedef struct refl__rt_medium {
     float fog;
     refl_vec3 fog_p, fog_n;
     const float *fog_rgb;
+    /* desc.raytrace.greedy, past the eye ray's first interface: glass
+       spawns only its child of the larger Fresnel coefficient (paper 001) */
+    int greedy;
 } refl__rt_medium;
 
 static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const refl__rt_surface *from,
@@ -257,6 +261,7 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
         refl_vec3 rd = refl_v3_reflect(d, n);
+        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         /* near a silhouette the smooth normal can send the ray into the
            surface itself: reflect about the true surface instead */
         if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
@@ -274,18 +279,25 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         refl_vec3 t;
         int refracts = f < 1.0f && refl_v3_refract(d, n, n1 / n2, &t);
         int point_on_refraction = refracts && f < 0.5f;
+        /* greedy: the one child of the larger coefficient (a tie reflects),
+           as refl_greedy_paths takes it; the first interface spawns both */
+        int greedy_reflect = !medium.greedy || !refracts || f >= 1.0f - f;
+        int greedy_refract = !medium.greedy || (refracts && f < 1.0f - f);
         /* inside translucent glass the fog scatters what reflects within
            (PLANAR's slab has no inner reflections either) */
         int scattered = !entering && medium.fog > 0.0f && refracts;
         refl__rt_medium through;
         if (!refracts) f = 1.0f; /* total internal reflection */
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
-        if (!scattered && (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
+        medium.greedy = rt->p->desc.raytrace.greedy; /* both children of this interface go greedy */
+        if (!scattered && greedy_reflect &&
+            (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
-        if (refracts && ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+        if (refracts && greedy_refract &&
+            ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
             through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;

@@ -141,4 +141,40 @@ static inline void tu_assert_reflector_frame(const refl_frame *f, const refl_fra
     }
 }
 
+/* A scene of objects and a BVH over them as a ray caster (refl_greedy_paths,
+   refl_lens_tessellate, refl_lem_record_view). */
+typedef struct tu_refl_traced {
+    refl_scene *scene;
+    refl_bvh *bvh;
+    refl_ray_caster caster;
+} tu_refl_traced;
+
+static inline int tu_refl_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
+    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
+}
+
+/* Scene s (taken: tu_refl_traced_free destroys it) and its BVH. */
+static inline tu_refl_traced tu_refl_traced_scene(refl_scene *s) {
+    tu_refl_traced t;
+    memset(&t, 0, sizeof t);
+    t.scene = s;
+    cr_assert_eq(refl_bvh_build(s, NULL, &t.bvh), REFL_OK);
+    t.caster.intersect = tu_refl_bvh_intersect;
+    t.caster.user = t.bvh;
+    return t;
+}
+
+/* A new scene of the one object (mesh taken) and its BVH. */
+static inline tu_refl_traced tu_refl_traced_object(refl_mesh *mesh, const refl_material *m, refl_mat4 transform) {
+    refl_scene *s = NULL;
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, mesh, m, transform), 0);
+    return tu_refl_traced_scene(s);
+}
+
+static inline void tu_refl_traced_free(tu_refl_traced *t) {
+    refl_bvh_destroy(t->bvh);
+    refl_scene_destroy(t->scene);
+}
+
 #endif

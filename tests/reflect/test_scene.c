@@ -229,7 +229,7 @@ Test(refl_scene, render_rejects_bad_input) {
     cr_assert_eq(refl_render(NULL, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.method = REFL_METHOD_COUNT;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.method = REFL_LAYERED_EM; /* not built yet */
+    d.method = REFL_AUTO; /* not built yet */
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_UNSUPPORTED);
     d.method = REFL_DIRECT;
     v.width = 65;

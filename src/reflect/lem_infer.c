@@ -1,0 +1,404 @@
+/* Paper 001's inferred environment maps (Hakura and Snyder, section 4.3),
+   one layer: a sphere shell around the lens object, cube-map textured,
+   whose texels are found by least squares so that hybrid rendering with
+   it matches ray-traced images. Rendering is linear in the texels: a
+   pixel's term is the bilinear lookup of its exit ray on the shell
+   (refl_lem_shell_lookup), one row of the rendering matrix A, recorded
+   with exactly the weights the runtime samples with. The records of a
+   viewpoint sample (section 4.1) give the targets b: the mean radiance
+   where the pixel's subsamples' exit rays meet the scene, weighed by the
+   paper's confidence, which distrusts pixels whose exit rays diverge.
+   C A x = C b is solved by conjugate gradients on the normal equations,
+   sequentially in double, so the texels are the same on every run. */
+#include "internal.h"
+
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]) {
+    refl_vec3 oc, hit;
+    float b, c, disc, t, dv[3], s, tt, x, y, fx, fy;
+    int face, n, x0, y0, x1, y1;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(origin) ||
+        !refl__v3_finite(dir))
+        return 0;
+    n = shell->face_size;
+    /* |o + t d - c| = r, the larger root */
+    oc = refl_v3_sub(origin, shell->center);
+    b = refl_v3_dot(oc, dir);
+    c = refl_v3_dot(oc, oc) - shell->radius * shell->radius;
+    disc = b * b - c * refl_v3_dot(dir, dir);
+    if (!(disc >= 0.0f) || !(refl_v3_dot(dir, dir) > 0.0f)) return 0;
+    t = (-b + sqrtf(disc)) / refl_v3_dot(dir, dir);
+    if (!(t >= 0.0f)) return 0;
+    hit = refl_v3_add(oc, refl_v3_scale(dir, t));
+    dv[0] = hit.x;
+    dv[1] = hit.y;
+    dv[2] = hit.z;
+    if (dv[0] == 0.0f && dv[1] == 0.0f && dv[2] == 0.0f) return 0;
+    face = rast_cube_face(dv, &s, &tt);
+    /* bilinear, taps clamped to the face (as refl_environment_lookup) */
+    x = REFL__CLAMP(s, 0.0f, 1.0f) * (float)n - 0.5f;
+    y = REFL__CLAMP(tt, 0.0f, 1.0f) * (float)n - 0.5f;
+    fx = x - floorf(x);
+    fy = y - floorf(y);
+    x0 = (int)floorf(x);
+    y0 = (int)floorf(y);
+    x1 = REFL__MIN(x0 + 1, n - 1);
+    y1 = REFL__MIN(y0 + 1, n - 1);
+    x0 = REFL__CLAMP(x0, 0, n - 1);
+    y0 = REFL__CLAMP(y0, 0, n - 1);
+    {
+        uint32_t base = (uint32_t)face * (uint32_t)n * (uint32_t)n;
+        texel[0] = base + (uint32_t)(y0 * n + x0);
+        texel[1] = base + (uint32_t)(y0 * n + x1);
+        texel[2] = base + (uint32_t)(y1 * n + x0);
+        texel[3] = base + (uint32_t)(y1 * n + x1);
+    }
+    weight[0] = (1.0f - fx) * (1.0f - fy);
+    weight[1] = fx * (1.0f - fy);
+    weight[2] = (1.0f - fx) * fy;
+    weight[3] = fx * fy;
+    return 1;
+}
+
+REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
+    double tc = (theta_c_degrees > 0.0f ? theta_c_degrees : 5.0f) * REFL__PI / 180.0, tm = 0.0;
+    int i, j;
+    if (!dirs || count < 2) return 1.0f;
+    for (i = 0; i < count; ++i)
+        for (j = i + 1; j < count; ++j) {
+            /* the angle from the chord: accurate for small angles, where acos is not */
+            double dx = (double)dirs[i].x - dirs[j].x, dy = (double)dirs[i].y - dirs[j].y,
+                   dz = (double)dirs[i].z - dirs[j].z, chord = sqrt(dx * dx + dy * dy + dz * dz);
+            double a = 2.0 * asin(REFL__MIN(chord * 0.5, 1.0));
+            if (a > tm) tm = a;
+        }
+    tm = REFL__MIN(tm, tc);
+    return (float)(1.0 - tm * tm / (tc * tc));
+}
+
+/* ---- the sparse system ------------------------------------------------------- */
+
+struct refl_lem_system {
+    refl_allocator allocator;
+    int texels, rows, row_cap;
+    long long entries, entry_cap;
+    long long *row_start;        /* rows + 1 */
+    uint32_t *col;
+    float *w;                    /* confidence included */
+    float *b;                    /* 4 per row, confidence included */
+};
+
+REFL_API refl_result refl_lem_system_create(int texels, const refl_allocator *a, refl_lem_system **out) {
+    refl_lem_system *s;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (texels <= 0 || texels > (1 << 28)) return REFL_ERROR_INVALID_SIZE;
+    s = (refl_lem_system *)refl__calloc(a, 1, sizeof *s);
+    if (!s) return REFL_ERROR_OUT_OF_MEMORY;
+    if (a) s->allocator = *a;
+    s->texels = texels;
+    s->row_start = (long long *)refl__calloc(a, 1, sizeof(long long));
+    if (!s->row_start) {
+        refl__free(a, s);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    *out = s;
+    return REFL_OK;
+}
+
+REFL_API void refl_lem_system_destroy(refl_lem_system *s) {
+    refl_allocator a;
+    if (!s) return;
+    a = s->allocator;
+    refl__free(&a, s->row_start);
+    refl__free(&a, s->col);
+    refl__free(&a, s->w);
+    refl__free(&a, s->b);
+    refl__free(&a, s);
+}
+
+REFL_API int refl_lem_system_rows(const refl_lem_system *s) { return s ? s->rows : 0; }
+
+/* Grows an array of `size`-byte items from cap to at least need. */
+static int refl__lem_grow(const refl_allocator *a, void **arr, long long cap, long long need, size_t size,
+                          long long *new_cap) {
+    long long c = cap ? cap : 256;
+    void *n;
+    while (c < need) c *= 2;
+    if (c == cap) return 1;
+    n = refl__calloc(a, (size_t)c, size);
+    if (!n) return 0;
+    if (*arr) memcpy(n, *arr, (size_t)cap * size);
+    refl__free(a, *arr);
+    *arr = n;
+    *new_cap = c;
+    return 1;
+}
+
+REFL_API refl_result refl_lem_system_add_row(refl_lem_system *s, const uint32_t *texels, const float *weights,
+                                             int count, const float target[4], float confidence) {
+    const refl_allocator *a;
+    int i;
+    if (!s || !texels || !weights || !target || count <= 0) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__isfinite(confidence) || confidence < 0.0f) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < count; ++i)
+        if (texels[i] >= (uint32_t)s->texels || !refl__isfinite(weights[i])) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < 4; ++i)
+        if (!refl__isfinite(target[i])) return REFL_ERROR_INVALID_ARGUMENT;
+    if (confidence == 0.0f) return REFL_OK;
+    a = &s->allocator;
+    if (s->rows + 1 > s->row_cap) {
+        long long nc = s->row_cap ? 2LL * s->row_cap : 256, got;
+        if (!refl__lem_grow(a, (void **)&s->row_start, s->row_cap + 1LL, nc + 1, sizeof(long long), &got) ||
+            !refl__lem_grow(a, (void **)&s->b, 4LL * s->row_cap, 4 * nc, sizeof(float), &got))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        s->row_cap = (int)nc;
+    }
+    if (s->entries + count > s->entry_cap) {
+        long long got = s->entry_cap;
+        if (!refl__lem_grow(a, (void **)&s->col, s->entry_cap, s->entries + count, sizeof(uint32_t), &got) ||
+            !refl__lem_grow(a, (void **)&s->w, s->entry_cap, s->entries + count, sizeof(float), &got))
+            return REFL_ERROR_OUT_OF_MEMORY;
+        s->entry_cap = got;
+    }
+    for (i = 0; i < count; ++i) {
+        s->col[s->entries + i] = texels[i];
+        s->w[s->entries + i] = weights[i] * confidence;
+    }
+    for (i = 0; i < 4; ++i) s->b[4 * (size_t)s->rows + (size_t)i] = target[i] * confidence;
+    s->entries += count;
+    ++s->rows;
+    s->row_start[s->rows] = s->entries;
+    return REFL_OK;
+}
+
+/* q = A p (rows x 4) */
+static void refl__lem_mul(const refl_lem_system *s, const double *p, double *q) {
+    int r, c;
+    long long e;
+    for (r = 0; r < s->rows; ++r) {
+        double acc[4] = {0, 0, 0, 0};
+        for (e = s->row_start[r]; e < s->row_start[r + 1]; ++e)
+            for (c = 0; c < 4; ++c) acc[c] += (double)s->w[e] * p[4 * (size_t)s->col[e] + (size_t)c];
+        for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c];
+    }
+}
+
+/* g = A^T r (texels x 4), in row order */
+static void refl__lem_mul_t(const refl_lem_system *s, const double *r, double *g) {
+    int row, c;
+    long long e;
+    memset(g, 0, sizeof(double) * 4 * (size_t)s->texels);
+    for (row = 0; row < s->rows; ++row)
+        for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e)
+            for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += (double)s->w[e] * r[4 * (size_t)row + (size_t)c];
+}
+
+static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
+    size_t i;
+    int c;
+    for (c = 0; c < 4; ++c) out[c] = 0.0;
+    for (i = 0; i < n; ++i)
+        for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
+}
+
+REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_solve_desc *desc, float *x,
+                                    refl_lem_solve_stats *stats) {
+    const refl_allocator *a;
+    size_t nt, nr;
+    double *xd, *r, *g, *p, *q, gamma[4], gamma0[4], qq[4], rr[4];
+    int it, max_it = desc && desc->iterations > 0 ? desc->iterations : 200, c, i;
+    double tol = desc && desc->tolerance > 0.0f ? desc->tolerance : 1e-6;
+    if (!s || !x) return REFL_ERROR_INVALID_ARGUMENT;
+    a = &s->allocator;
+    nt = (size_t)s->texels;
+    nr = (size_t)REFL__MAX(s->rows, 1);
+    xd = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    g = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    p = (double *)refl__calloc(a, 4 * nt, sizeof(double));
+    r = (double *)refl__calloc(a, 4 * nr, sizeof(double));
+    q = (double *)refl__calloc(a, 4 * nr, sizeof(double));
+    if (!xd || !g || !p || !r || !q) {
+        refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < 4 * s->rows; ++i) r[i] = s->b[i]; /* r = b - A 0 */
+    refl__lem_norm2(r, (size_t)s->rows, rr);
+    if (stats)
+        for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
+    refl__lem_mul_t(s, r, g);
+    memcpy(p, g, sizeof(double) * 4 * nt);
+    refl__lem_norm2(g, nt, gamma);
+    memcpy(gamma0, gamma, sizeof gamma);
+    for (it = 0; it < max_it; ++it) {
+        int done = 1;
+        for (c = 0; c < 4; ++c) done &= gamma[c] <= tol * tol * gamma0[c];
+        if (done) break;
+        refl__lem_mul(s, p, q);
+        refl__lem_norm2(q, (size_t)s->rows, qq);
+        for (c = 0; c < 4; ++c) {
+            /* a channel already solved (or empty) stands still */
+            double alpha = qq[c] > 0.0 && gamma[c] > tol * tol * gamma0[c] ? gamma[c] / qq[c] : 0.0;
+            size_t k;
+            for (k = 0; k < nt; ++k) xd[4 * k + (size_t)c] += alpha * p[4 * k + (size_t)c];
+            for (k = 0; k < (size_t)s->rows; ++k) r[4 * k + (size_t)c] -= alpha * q[4 * k + (size_t)c];
+        }
+        refl__lem_mul_t(s, r, g);
+        {
+            double gn[4];
+            size_t k;
+            refl__lem_norm2(g, nt, gn);
+            for (c = 0; c < 4; ++c) {
+                double beta = gamma[c] > 0.0 ? gn[c] / gamma[c] : 0.0;
+                for (k = 0; k < nt; ++k) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta * p[4 * k + (size_t)c];
+                gamma[c] = gn[c];
+            }
+        }
+    }
+    for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
+    if (stats) {
+        stats->iterations = it;
+        refl__lem_norm2(r, (size_t)s->rows, rr);
+        for (c = 0; c < 4; ++c) stats->residual[c] = sqrt(rr[c]);
+    }
+    refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+    return REFL_OK;
+}
+
+/* ---- records of a viewpoint sample --------------------------------------------- */
+
+enum { REFL__LEM_MAX_SS = 8 };
+
+/* The radiance where an exit ray meets the scene past the lens: a diffuse
+   surface shaded as RAYTRACE shades it without shadows, else the
+   environment. */
+static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                                    float rgb[3], refl_vec3 *hit, long long *rays) {
+    refl_hit h;
+    float tmin = 0.0f;
+    int tries, k;
+    ++*rays;
+    for (tries = 0; tries < 8; ++tries) {
+        const refl_object *obj;
+        const refl_mesh *m;
+        const refl_material *mat;
+        refl_mat4 nm;
+        refl__hit_geom g;
+        float uv[2] = {0.0f, 0.0f};
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &h) || h.object < 0 || h.object >= scene->object_count)
+            break;
+        obj = &scene->objects[h.object];
+        mat = &scene->materials[obj->material];
+        if (refl__is_reflector(mat)) { /* the lens the ray leaves, met again at its start */
+            tmin = h.t;
+            continue;
+        }
+        m = scene->meshes[obj->mesh];
+        nm = refl__normal_matrix(obj->transform);
+        refl__hit_surface(m, &obj->transform, &nm, &h, &g);
+        if (m->texcoords) {
+            const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
+            for (k = 0; k < 3; ++k) {
+                uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+                uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+            }
+        }
+        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, rgb);
+        for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+        *hit = g.p;
+        return;
+    }
+    *hit = refl_v3(NAN, NAN, NAN);
+    refl_environment_lookup(&scene->environment, d, rgb);
+    for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+}
+
+/* The records of pixel (x, y) of a view (section 4.1): 0 when its centre
+   ray does not meet lens object `object` first; else 1, the centre's
+   paths, and per term (R, T) the target (mean radiance where the
+   subsamples' exit rays meet the scene, alpha the share of subsamples with
+   the term) and its confidence (-1: no subsample has the term) in
+   out[5 term .. 5 term + 4]. Each environment hit adds its distance from
+   `centre` to *dist_sum and one to *dist_n. */
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                   int x, int y, int object, int ss, float theta_c, int max_interfaces,
+                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
+                                   double *dist_sum, long long *dist_n, long long *rays) {
+    refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
+    refl_greedy_paths_result sub;
+    float sum[2][3];
+    int n[2] = {0, 0}, i, j, k, term;
+    refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
+    refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
+    if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    memset(sum, 0, sizeof sum);
+    for (j = 0; j < ss; ++j)
+        for (i = 0; i < ss; ++i) {
+            refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss, (float)y + ((float)j + 0.5f) / (float)ss,
+                          &o, &d, NULL);
+            refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
+            if (sub.object != object) continue;
+            for (term = 0; term < 2; ++term) {
+                const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
+                float rgb[3];
+                refl_vec3 hit;
+                if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
+                refl__lem_exit_radiance(scene, caster, sp->exit_origin, sp->exit_direction, rgb, &hit, rays);
+                if (refl__v3_finite(hit)) {
+                    *dist_sum += (double)refl_v3_length(refl_v3_sub(hit, centre));
+                    ++*dist_n;
+                }
+                for (k = 0; k < 3; ++k) sum[term][k] += rgb[k];
+                dirs[term][n[term]++] = sp->exit_direction;
+            }
+        }
+    for (term = 0; term < 2; ++term) {
+        float *t = out + 5 * term;
+        t[4] = -1.0f;
+        if (!n[term]) continue;
+        for (k = 0; k < 3; ++k) t[k] = sum[term][k] / (float)n[term];
+        t[3] = (float)n[term] / (float)(ss * ss);
+        t[4] = refl_lem_confidence(dirs[term], n[term], theta_c);
+    }
+    return 1;
+}
+
+REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_scene *scene,
+                                          const refl_ray_caster *caster, const refl_view *view,
+                                          const refl_lem_shell *shell, const refl_lem_record_desc *desc,
+                                          refl_lem_record_stats *stats) {
+    refl_lem_record_stats st;
+    int ss, x, y, term;
+    refl_result r = REFL_OK;
+    double dist_sum = 0.0;
+    long long dist_n = 0;
+    memset(&st, 0, sizeof st);
+    if (stats) *stats = st;
+    if (!system || !scene || !caster || !caster->intersect || !view || !shell || !desc) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc->object < 0 || desc->object >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
+    if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
+    if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
+    ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
+    for (y = 0; y < view->height && r == REFL_OK; ++y)
+        for (x = 0; x < view->width && r == REFL_OK; ++x) {
+            refl_greedy_paths_result centre;
+            float rec[10];
+            if (!refl__lem_pixel_records(scene, caster, view, x, y, desc->object, ss, desc->theta_c_degrees,
+                                         desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
+                                         &st.rays))
+                continue;
+            ++st.pixels;
+            for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                const refl_greedy_path *cp = term ? &centre.refract : &centre.reflect;
+                uint32_t tex[4];
+                float w[4];
+                if (!(cp->fresnel > 0.0f) || !cp->exited || rec[5 * term + 4] < 0.0f ||
+                    !refl_lem_shell_lookup(shell, cp->exit_origin, cp->exit_direction, tex, w))
+                    continue;
+                r = refl_lem_system_add_row(system, tex, w, 4, rec + 5 * term, rec[5 * term + 4]);
+                if (r == REFL_OK) ++st.rows;
+            }
+        }
+    if (stats) *stats = st;
+    return r;
+}

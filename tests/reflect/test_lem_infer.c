@@ -1,0 +1,324 @@
+/* Paper 001's inferred environment maps, one sphere shell: the shell
+   lookup (the far root, bilinear weights), the confidence formula, the
+   least-squares solver recovering a known texture from images rendered
+   with it (and weighing rows by confidence exactly), and the whole chain
+   on an exact-shell scene (a glass lens at the centre of a textured
+   sphere): records of a view, inference, and the two-term hybrid pixel
+   T F_T G_T + R F_R G_R with the inferred shell against greedy RAYTRACE. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "../../reflect.h"
+#include "refl_test_util.h"
+
+static const float DEG = 3.14159265f / 180.0f;
+
+Test(lem_infer, shell_lookup_far_root) {
+    refl_lem_shell sh;
+    uint32_t tex[4], tc[4];
+    float w[4], wc[4];
+    refl_vec3 o = refl_v3(0.4f, -0.3f, 0.2f), d = refl_v3_normalize(refl_v3(0.3f, 0.5f, -0.8f)), hit, oc;
+    float b, c, t;
+    int k;
+    sh.center = refl_v3(1.0f, 2.0f, 3.0f);
+    sh.radius = 2.5f;
+    sh.face_size = 16;
+    o = refl_v3_add(o, sh.center);
+    cr_assert(refl_lem_shell_lookup(&sh, o, d, tex, w));
+    /* the same texels and weights as the ray from the centre to the far hit */
+    oc = refl_v3_sub(o, sh.center);
+    b = refl_v3_dot(oc, d);
+    c = refl_v3_dot(oc, oc) - sh.radius * sh.radius;
+    t = -b + sqrtf(b * b - c);
+    hit = refl_v3_add(oc, refl_v3_scale(d, t));
+    cr_assert(refl_lem_shell_lookup(&sh, sh.center, refl_v3_normalize(hit), tc, wc));
+    for (k = 0; k < 4; ++k) {
+        cr_assert_eq(tex[k], tc[k]);
+        cr_assert_float_eq(w[k], wc[k], 1e-4f);
+        cr_assert_geq(w[k], 0.0f);
+        cr_assert_lt(tex[k], 6u * 16u * 16u);
+    }
+    cr_assert_float_eq(w[0] + w[1] + w[2] + w[3], 1.0f, 1e-6f);
+    /* from outside, away from it: no hit; bad shells and rays: none */
+    cr_assert_not(refl_lem_shell_lookup(&sh, refl_v3(10, 2, 3), refl_v3(1, 0, 0), tex, w));
+    cr_assert_not(refl_lem_shell_lookup(&sh, o, refl_v3(NAN, 0, 0), tex, w));
+    sh.face_size = 0;
+    cr_assert_not(refl_lem_shell_lookup(&sh, o, d, tex, w));
+}
+
+Test(lem_infer, confidence_formula) {
+    refl_vec3 dirs[3];
+    dirs[0] = refl_v3(0, 0, -1);
+    cr_assert_eq(refl_lem_confidence(dirs, 1, 0.0f), 1.0f);
+    dirs[1] = dirs[0];
+    cr_assert_float_eq(refl_lem_confidence(dirs, 2, 0.0f), 1.0f, 1e-6f);
+    /* theta_m = 2.5 degrees of theta_c = 5: 1 - 0.25 */
+    dirs[1] = refl_v3(sinf(2.5f * DEG), 0, -cosf(2.5f * DEG));
+    cr_assert_float_eq(refl_lem_confidence(dirs, 2, 0.0f), 0.75f, 1e-5f);
+    cr_assert_float_eq(refl_lem_confidence(dirs, 2, 10.0f), 1.0f - 0.0625f, 1e-5f);
+    /* the largest pair counts: 1 degree to one side, 3 to the other (4 apart) */
+    dirs[1] = refl_v3(sinf(-1.0f * DEG), 0, -cosf(1.0f * DEG));
+    dirs[2] = refl_v3(sinf(3.0f * DEG), 0, -cosf(3.0f * DEG));
+    cr_assert_float_eq(refl_lem_confidence(dirs, 3, 5.0f), 1.0f - 16.0f / 25.0f, 1e-4f);
+    /* theta_c and beyond: 0 */
+    dirs[1] = refl_v3(sinf(7.0f * DEG), 0, -cosf(7.0f * DEG));
+    cr_assert_eq(refl_lem_confidence(dirs, 2, 5.0f), 0.0f);
+}
+
+Test(lem_infer, least_squares_recovers_known_texture) {
+    const int n = 4, texels = 6 * 4 * 4, rays = 4000;
+    refl_lem_shell sh;
+    refl_lem_system *sys = NULL;
+    refl_lem_solve_stats st;
+    refl_rng rng = refl_rng_seed(7);
+    float *truth = (float *)malloc(sizeof(float) * 4 * (size_t)texels);
+    float *x = (float *)malloc(sizeof(float) * 4 * (size_t)texels), *x2 = (float *)malloc(sizeof(float) * 4 * (size_t)texels);
+    int i, k, c;
+    double worst = 0.0;
+    sh.center = refl_v3(0, 0, 0);
+    sh.radius = 3.0f;
+    sh.face_size = n;
+    for (i = 0; i < 4 * texels; ++i) truth[i] = refl_rng_float(&rng);
+    cr_assert_eq(refl_lem_system_create(texels, NULL, &sys), REFL_OK);
+    /* images rendered with the texture: rows from exit rays leaving points
+       inside the shell in every direction, their pixels A x_true */
+    for (i = 0; i < rays; ++i) {
+        refl_vec3 o = refl_v3(refl_rng_float(&rng) - 0.5f, refl_rng_float(&rng) - 0.5f, refl_rng_float(&rng) - 0.5f);
+        refl_vec3 d = refl_v3_normalize(refl_v3(2.0f * refl_rng_float(&rng) - 1.0f, 2.0f * refl_rng_float(&rng) - 1.0f,
+                                                2.0f * refl_rng_float(&rng) - 1.0f));
+        uint32_t tex[4];
+        float w[4], b[4] = {0, 0, 0, 0};
+        cr_assert(refl_lem_shell_lookup(&sh, o, d, tex, w));
+        for (k = 0; k < 4; ++k)
+            for (c = 0; c < 4; ++c) b[c] += w[k] * truth[4 * tex[k] + (uint32_t)c];
+        cr_assert_eq(refl_lem_system_add_row(sys, tex, w, 4, b, 1.0f), REFL_OK);
+    }
+    cr_assert_eq(refl_lem_system_rows(sys), rays);
+    cr_assert_eq(refl_lem_solve(sys, NULL, x, &st), REFL_OK);
+    for (i = 0; i < 4 * texels; ++i) worst = fmax(worst, fabs((double)x[i] - truth[i]));
+    cr_assert_lt(worst, 1e-3, "largest texel error %g after %d iterations", worst, st.iterations);
+    for (c = 0; c < 4; ++c) cr_assert_lt(st.residual[c], 1e-4 * st.initial[c]);
+    /* the same texels again */
+    cr_assert_eq(refl_lem_solve(sys, NULL, x2, NULL), REFL_OK);
+    cr_assert_eq(memcmp(x, x2, sizeof(float) * 4 * (size_t)texels), 0);
+    refl_lem_system_destroy(sys);
+    free(truth);
+    free(x);
+    free(x2);
+}
+
+Test(lem_infer, confidence_weighs_rows) {
+    /* one texel told 1 with confidence 1 and 0 with confidence 0.5:
+       least squares of (x - 1)^2 + 0.25 x^2 gives 0.8; confidence 0 adds nothing */
+    refl_lem_system *sys = NULL;
+    uint32_t t = 0;
+    float w = 1.0f, one[4] = {1, 1, 1, 1}, zero[4] = {0, 0, 0, 0}, x[4];
+    cr_assert_eq(refl_lem_system_create(1, NULL, &sys), REFL_OK);
+    cr_assert_eq(refl_lem_system_add_row(sys, &t, &w, 1, one, 1.0f), REFL_OK);
+    cr_assert_eq(refl_lem_system_add_row(sys, &t, &w, 1, zero, 0.5f), REFL_OK);
+    cr_assert_eq(refl_lem_system_add_row(sys, &t, &w, 1, zero, 0.0f), REFL_OK);
+    cr_assert_eq(refl_lem_system_rows(sys), 2);
+    cr_assert_eq(refl_lem_solve(sys, NULL, x, NULL), REFL_OK);
+    cr_assert_float_eq(x[0], 0.8f, 1e-6f);
+    /* bad rows refused */
+    t = 1;
+    cr_assert_eq(refl_lem_system_add_row(sys, &t, &w, 1, one, 1.0f), REFL_ERROR_INVALID_ARGUMENT);
+    t = 0;
+    w = NAN;
+    cr_assert_eq(refl_lem_system_add_row(sys, &t, &w, 1, one, 1.0f), REFL_ERROR_INVALID_ARGUMENT);
+    refl_lem_system_destroy(sys);
+}
+
+/* ---- the exact-shell scene ------------------------------------------------------ */
+
+/* A glass sphere of radius 1 (object 1) at the centre of a checkered
+   sphere of radius 5 (object 0) lit by ambient light alone. */
+static refl_scene *exact_shell_scene(void) {
+    enum { W = 64, H = 32 };
+    refl_scene *s = NULL;
+    refl_mesh *shell = NULL, *lens = NULL;
+    refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
+    static float tex[W * H * 4];
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            float *p = tex + 4 * (y * W + x);
+            int odd = ((x / 4) + (y / 4)) & 1;
+            p[0] = odd ? 0.9f : 0.2f;
+            p[1] = 0.2f + 0.6f * (float)x / W;
+            p[2] = 0.2f + 0.6f * (float)y / H;
+            p[3] = 1.0f;
+        }
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    paper.texture = refl_scene_add_texture(s, W, H, tex);
+    cr_assert_gt(paper.texture, 0);
+    cr_assert_eq(refl_mesh_sphere(5.0f, 96, 48, NULL, &shell), REFL_OK);
+    cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, shell, &paper, refl_mat4_identity()), 0);
+    glass.tint[0] = 1.0f, glass.tint[1] = 0.9f, glass.tint[2] = 0.8f;
+    glass.attenuation = 0.1f;
+    cr_assert_eq(refl_scene_add(s, lens, &glass, refl_mat4_identity()), 1);
+    s->ambient[0] = s->ambient[1] = s->ambient[2] = 1.0f;
+    return s;
+}
+
+/* PSNR over the lens pixels of view v of the hybrid frame against greedy
+   RAYTRACE: the truth's frame with every lens pixel made of the two
+   terms, each its path's F G times the inferred shell's lookup. */
+static double hybrid_psnr(const refl_scene *s, const refl_ray_caster *caster, const refl_view *v,
+                          const refl_lem_shell *sh, const float *x) {
+    refl_render_desc d;
+    refl_frame *truth, *hybrid;
+    refl_image_error err;
+    int px, py, k, c;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, v, &d);
+    hybrid = tu_refl_render(s, v, &d);
+    for (py = 0; py < v->height; ++py)
+        for (px = 0; px < v->width; ++px) {
+            size_t i = (size_t)py * (size_t)v->width + (size_t)px;
+            refl_greedy_paths_result g;
+            refl_vec3 o, dir;
+            float rgb[3] = {0, 0, 0};
+            int term;
+            if (truth->stencil[i] != 2) continue;
+            refl_view_ray(v, s, (float)px + 0.5f, (float)py + 0.5f, &o, &dir, NULL);
+            refl_greedy_paths(s, caster, o, dir, 0, &g, NULL);
+            for (term = 0; term < 2; ++term) {
+                const refl_greedy_path *p = term ? &g.refract : &g.reflect;
+                uint32_t tex[4];
+                float w[4];
+                if (!(p->fresnel > 0.0f) || !refl_lem_shell_lookup(sh, p->exit_origin, p->exit_direction, tex, w))
+                    continue;
+                for (c = 0; c < 3; ++c) {
+                    float l = 0.0f;
+                    for (k = 0; k < 4; ++k) l += w[k] * x[4 * tex[k] + (uint32_t)c];
+                    rgb[c] += p->fresnel * p->attenuation[c] * l;
+                }
+            }
+            for (c = 0; c < 3; ++c) hybrid->rgba[4 * i + (size_t)c] = rgb[c];
+        }
+    cr_assert_eq(refl_measure_image_error(hybrid, truth, 1, 0.0f, &err), REFL_OK);
+    cr_assert_gt(err.pixels, 500);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(hybrid);
+    return err.psnr;
+}
+
+/* The w x h view at azimuth `degrees` on a circle of radius 3 around the lens. */
+static refl_view orbit_view_sized(float degrees, int w, int h) {
+    float a = degrees * DEG;
+    return tu_refl_view(refl_v3(3.0f * sinf(a), 0.6f, 3.0f * cosf(a)), refl_v3(0, 0, 0), w, h);
+}
+
+static refl_view orbit_view(float degrees) { return orbit_view_sized(degrees, 96, 72); }
+
+Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
+    tu_refl_traced tr = tu_refl_traced_scene(exact_shell_scene());
+    refl_scene *s = tr.scene;
+    refl_ray_caster caster = tr.caster;
+    refl_lem_shell sh;
+    refl_lem_system *sys = NULL;
+    refl_lem_record_desc rd;
+    refl_lem_record_stats rs;
+    refl_lem_solve_stats st;
+    refl_view v = orbit_view(0.0f);
+    float *x;
+    double at_sample, between;
+    int k;
+    sh.center = refl_v3(0, 0, 0);
+    sh.radius = 5.0f;
+    sh.face_size = 24; /* about a texel per pixel of the lens's view: finer is underdetermined between samples */
+    cr_assert_eq(refl_lem_system_create(6 * 24 * 24, NULL, &sys), REFL_OK);
+    memset(&rd, 0, sizeof rd);
+    rd.object = 1;
+    rd.supersample = 1;
+    cr_assert_eq(refl_lem_record_view(sys, s, &caster, &v, &sh, &rd, &rs), REFL_OK);
+    cr_assert_gt(rs.pixels, 500);
+    cr_assert_gt(rs.rows, 19 * rs.pixels / 10, "%d rows of %d pixels: nearly every lens pixel has both terms", rs.rows,
+                 rs.pixels);
+    /* simultaneous inference over views 8 degrees either side */
+    for (k = -1; k <= 1; k += 2) {
+        refl_view w = orbit_view(8.0f * (float)k);
+        cr_assert_eq(refl_lem_record_view(sys, s, &caster, &w, &sh, &rd, NULL), REFL_OK);
+    }
+    x = (float *)malloc(sizeof(float) * 4 * 6 * 24 * 24);
+    cr_assert_eq(refl_lem_solve(sys, NULL, x, &st), REFL_OK);
+    at_sample = hybrid_psnr(s, &caster, &v, &sh, x);
+    cr_assert_geq(at_sample, 35.0, "at the sample: PSNR %.2f dB (CG: %d iterations)", at_sample, st.iterations);
+    /* midway between samples: a viewpoint no record was made from */
+    v = orbit_view(4.0f);
+    between = hybrid_psnr(s, &caster, &v, &sh, x);
+    cr_assert_geq(between, 35.0, "between samples: PSNR %.2f dB", between);
+    free(x);
+    refl_lem_system_destroy(sys);
+    tu_refl_traced_free(&tr);
+}
+
+/* ---- the method ------------------------------------------------------------------ */
+
+static refl_frame *render_lem(const refl_scene *s, const refl_view *v, int threads) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    d.threads = threads;
+    return tu_refl_render(s, v, &d);
+}
+
+Test(layered_em, exact_shell_off_sample_matches_greedy_raytrace) {
+    /* 45 samples 8 degrees apart, each inferred from its view and those 4
+       degrees either side: at 3 degrees, between two samples and no view
+       any map was inferred from */
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(3.0f, 128, 96);
+    refl_render_desc d;
+    refl_frame *truth, *lem;
+    refl_image_error err;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, &v, &d);
+    lem = render_lem(s, &v, 2);
+    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
+    cr_assert_gt(err.pixels, 4000);
+    cr_assert_geq(err.psnr, 35.0, "between samples: PSNR %.2f dB over %lld lens pixels", err.psnr, err.pixels);
+    for (i = 0; i < 4 * n; ++i) cr_assert(lem->rgba[i] == lem->rgba[i], "no NaN");
+    cr_assert_gt(lem->stats.rays, 0);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem);
+    refl_scene_destroy(s);
+}
+
+Test(layered_em, same_bytes_any_threads) {
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(5.0f, 40, 30);
+    refl_frame *a = render_lem(s, &v, 1), *b = render_lem(s, &v, 3);
+    cr_assert_eq(tu_refl_digest(a), tu_refl_digest(b));
+    refl_frame_destroy(a);
+    refl_frame_destroy(b);
+    refl_scene_destroy(s);
+}
+
+Test(layered_em, options_validated) {
+    refl_render_desc d;
+    const char *why = NULL;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_OK);
+    cr_assert(refl_method_is_built(REFL_LAYERED_EM));
+    d.layered_em.samples = -1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_str_eq(why, "layered_em.samples: 0 (45) to 3600");
+    d.layered_em.samples = 0;
+    d.layered_em.edge_px = NAN;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.edge_px = 0.0f;
+    d.layered_em.supersample = 9;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+}
