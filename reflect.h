@@ -2343,22 +2343,44 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* ---- src/reflect/bvh.c ---- */
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
    for the RAYTRACE reference and every method that needs exact rays.
-   Build: binned SAH (Wald 2007), iterative, deterministic. Traversal:
-   explicit stack, nearer child first. Triangles: the watertight test of
-   Woop, Benthin and Wald 2013, so rays never slip through shared edges. */
+   Build: binned SAH (Wald 2007), iterative, deterministic, into a binary
+   tree, then collapsed into a 4-wide tree (Wald, Benthin and Boulos 2008)
+   whose four child boxes one SSE2 slab test checks at once (RAST_NO_SIMD:
+   the same arithmetic lane by lane, the same bits). Traversal: explicit
+   stack, nearer children first. Triangles: the watertight test of Woop,
+   Benthin and Wald 2013, so rays never slip through shared edges. The
+   closest hit is the least (t, object, triangle), whatever order the
+   boxes are visited in, so the binary and the wide tree, scalar or SIMD,
+   name the same hit. */
+
+#if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAST_NO_SIMD)
+#include <emmintrin.h>
+#define REFL__BVH_SSE2 1
+#endif
 
 #define REFL__BVH_BINS 16
 #define REFL__BVH_LEAF 4          /* always a leaf at or below this many */
 #define REFL__BVH_MAX_LEAF 32     /* never a leaf above this, unless too deep */
-#define REFL__BVH_MAX_DEPTH 60    /* keeps traversal within its 64-entry stack */
+#define REFL__BVH_MAX_DEPTH 60    /* keeps traversal within its stacks */
 #define REFL__BVH_STACK 64
+/* A wide node pushes up to 3 of its 4 children and is no deeper than the
+   binary node it was collapsed from. */
+#define REFL__BVH4_STACK (3 * REFL__BVH_MAX_DEPTH + 8)
 
 /* 32 bytes: children are adjacent, so one index names both. */
 typedef struct refl__bvh_node {
     float lo[3], hi[3];
-    int32_t index;                /* interior: first child; leaf: first in order[] */
+    int32_t index;                /* interior: first child; leaf: first in tris[] */
     int32_t count;                /* 0: interior; else triangles in the leaf */
 } refl__bvh_node;
+
+/* 128 bytes: four children's boxes, one SIMD lane per child. An unused
+   lane has an empty box (lo +inf, hi -inf), which no ray enters. */
+typedef struct refl__bvh4_node {
+    float box[6][4];              /* lo x, y, z, then hi x, y, z */
+    int32_t child[4];             /* interior: node index; leaf: first in tris[] */
+    int32_t count[4];             /* 0: interior (or unused, child -1); else triangles in the leaf */
+} refl__bvh4_node;
 
 typedef struct refl__bvh_tri {
     float v[9];                   /* world-space vertices 0, 1, 2 */
@@ -2367,10 +2389,11 @@ typedef struct refl__bvh_tri {
 
 struct refl_bvh {
     refl_allocator allocator;
-    refl__bvh_node *nodes;
+    refl__bvh_node *nodes;        /* the binary tree: kept only for the tests (refl__bvh_build_ex) */
     int node_count;
-    refl__bvh_tri *tris;
-    int32_t *order;               /* leaf ranges index this; entries index tris */
+    refl__bvh4_node *wide;        /* the tree every trace walks */
+    int wide_count;
+    refl__bvh_tri *tris;          /* in leaf order: a leaf is a range of them */
     int tri_count;
 };
 
@@ -2424,7 +2447,7 @@ static int refl__bvh_bin(float c, float cmin, float scale) {
 
 typedef struct refl__bvh_task { int node, begin, end, depth; } refl__bvh_task;
 
-static void refl__bvh_build_tree(refl_bvh *bvh, const float *centroid) {
+static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const float *centroid) {
     refl__bvh_task stack[2 * REFL__BVH_MAX_DEPTH + 8];
     int sp = 0;
     bvh->node_count = 1;
@@ -2441,7 +2464,7 @@ static void refl__bvh_build_tree(refl_bvh *bvh, const float *centroid) {
         refl__box_empty(&cbox);
         for (i = task.begin; i < task.end; ++i) {
             refl__bvh_box tb;
-            int t = bvh->order[i];
+            int t = order[i];
             refl__tri_box(&bvh->tris[t], &tb);
             refl__box_merge(&box, &tb);
             refl__box_grow(&cbox, centroid + 3 * t);
@@ -2465,7 +2488,7 @@ static void refl__bvh_build_tree(refl_bvh *bvh, const float *centroid) {
             for (b = 0; b < REFL__BVH_BINS; ++b) { refl__box_empty(&bins[b]); counts[b] = 0; }
             for (i = task.begin; i < task.end; ++i) {
                 refl__bvh_box tb;
-                int t = bvh->order[i];
+                int t = order[i];
                 b = refl__bvh_bin(centroid[3 * t + k], cbox.lo[k], s);
                 refl__tri_box(&bvh->tris[t], &tb);
                 refl__box_merge(&bins[b], &tb);
@@ -2504,12 +2527,12 @@ static void refl__bvh_build_tree(refl_bvh *bvh, const float *centroid) {
             /* In-place partition by bin; both sides are non-empty by construction. */
             int lo = task.begin, hi = task.end - 1;
             while (lo <= hi) {
-                int t = bvh->order[lo];
+                int t = order[lo];
                 if (refl__bvh_bin(centroid[3 * t + axis], cbox.lo[axis], scale) <= split_bin) {
                     ++lo;
                 } else {
-                    bvh->order[lo] = bvh->order[hi];
-                    bvh->order[hi] = t;
+                    order[lo] = order[hi];
+                    order[hi] = t;
                     --hi;
                 }
             }
@@ -2550,14 +2573,90 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     if (!bvh) return;
     a = bvh->allocator;
     refl__free(&a, bvh->nodes);
+    refl__free(&a, bvh->wide);
     refl__free(&a, bvh->tris);
-    refl__free(&a, bvh->order);
     refl__free(&a, bvh);
 }
 
-REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
+/* ---- collapse into the wide tree ------------------------------------------------ */
+
+static float refl__bvh_node_area(const refl__bvh_node *n) {
+    refl__bvh_box b;
+    int k;
+    for (k = 0; k < 3; ++k) { b.lo[k] = n->lo[k]; b.hi[k] = n->hi[k]; }
+    return refl__box_area(&b);
+}
+
+/* Each wide node starts from a binary interior node's two children and
+   opens the interior one with the largest box until it has four (or
+   only leaves): the larger a box, the more rays enter it (SAH), so those
+   are the levels most worth skipping. A wide node is thus no deeper than
+   the binary node it starts from. */
+static void refl__bvh_collapse(refl_bvh *bvh) {
+    struct { int binary, wide; } stack[REFL__BVH4_STACK];
+    const refl__bvh_node *nodes = bvh->nodes;
+    int sp = 1;
+    stack[0].binary = 0;
+    stack[0].wide = 0;
+    bvh->wide_count = 1;
+    while (sp > 0) {
+        int b, w, slot[4], n = 0, k, lane;
+        refl__bvh4_node *node;
+        --sp;
+        b = stack[sp].binary;
+        w = stack[sp].wide;
+        node = &bvh->wide[w];
+        if (nodes[b].count > 0) {
+            slot[n++] = b; /* the root alone is a leaf */
+        } else {
+            slot[n++] = nodes[b].index;
+            slot[n++] = nodes[b].index + 1;
+        }
+        while (n < 4) {
+            int best = -1;
+            float best_area = -1.0f;
+            for (k = 0; k < n; ++k)
+                if (nodes[slot[k]].count == 0 && refl__bvh_node_area(&nodes[slot[k]]) > best_area) {
+                    best = k;
+                    best_area = refl__bvh_node_area(&nodes[slot[k]]);
+                }
+            if (best < 0) break;
+            k = nodes[slot[best]].index;
+            slot[best] = k;
+            slot[n++] = k + 1;
+        }
+        for (lane = 0; lane < 4; ++lane) {
+            const refl__bvh_node *c = lane < n ? &nodes[slot[lane]] : NULL;
+            for (k = 0; k < 3; ++k) {
+                node->box[k][lane] = c ? c->lo[k] : INFINITY;
+                node->box[3 + k][lane] = c ? c->hi[k] : -INFINITY;
+            }
+            if (!c) {
+                node->child[lane] = -1;
+                node->count[lane] = 0;
+            } else if (c->count > 0) {
+                node->child[lane] = c->index;
+                node->count[lane] = c->count;
+            } else {
+                REFL_ASSERT(sp < REFL__BVH4_STACK);
+                node->child[lane] = bvh->wide_count++;
+                node->count[lane] = 0;
+                stack[sp].binary = slot[lane];
+                stack[sp].wide = node->child[lane];
+                ++sp;
+            }
+        }
+    }
+}
+
+/* keep_binary: keep the binary tree too, for the tests that compare the
+   two (refl__bvh_intersect_binary). */
+static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
+                                      refl_bvh **out_bvh) {
     refl_bvh *bvh;
     float *centroid = NULL;
+    int32_t *order = NULL;
+    refl__bvh_tri *sorted = NULL;
     long long total = 0;
     int i, n = 0;
 
@@ -2613,11 +2712,12 @@ REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocato
     bvh->tri_count = n;
     if (n == 0) { *out_bvh = bvh; return REFL_OK; }
 
-    bvh->order = (int32_t *)refl__calloc(a, (size_t)n, sizeof *bvh->order);
+    order = (int32_t *)refl__calloc(a, (size_t)n, sizeof *order);
     bvh->nodes = (refl__bvh_node *)refl__calloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
     centroid = (float *)refl__calloc(a, (size_t)n * 3, sizeof *centroid);
-    if (!bvh->order || !bvh->nodes || !centroid) {
+    if (!order || !bvh->nodes || !centroid) {
         refl__free(a, centroid);
+        refl__free(a, order);
         refl_bvh_destroy(bvh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -2626,23 +2726,52 @@ REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocato
         int k;
         refl__tri_box(&bvh->tris[i], &b);
         for (k = 0; k < 3; ++k) centroid[3 * i + k] = 0.5f * (b.lo[k] + b.hi[k]);
-        bvh->order[i] = i;
+        order[i] = i;
     }
-    refl__bvh_build_tree(bvh, centroid);
+    refl__bvh_build_tree(bvh, order, centroid);
     refl__free(a, centroid);
+
+    /* Triangles in leaf order, so a leaf reads a contiguous range. */
+    sorted = (refl__bvh_tri *)refl__calloc(a, (size_t)n, sizeof *sorted);
+    /* A full binary tree of L leaves has L - 1 interior nodes, and each
+       wide node starts from a different one (one node for a lone leaf). */
+    bvh->wide = (refl__bvh4_node *)refl__calloc(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
+                                                sizeof *bvh->wide);
+    if (!sorted || !bvh->wide) {
+        refl__free(a, sorted);
+        refl__free(a, order);
+        refl_bvh_destroy(bvh);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < n; ++i) sorted[i] = bvh->tris[order[i]];
+    refl__free(a, order);
+    refl__free(a, bvh->tris);
+    bvh->tris = sorted;
+
+    refl__bvh_collapse(bvh);
+    if (!keep_binary) {
+        refl__free(a, bvh->nodes);
+        bvh->nodes = NULL;
+        bvh->node_count = 0;
+    }
     *out_bvh = bvh;
     return REFL_OK;
 }
 
+REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
+    return refl__bvh_build_ex(scene, a, 0, out_bvh);
+}
+
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles) {
-    if (nodes) *nodes = bvh ? bvh->node_count : 0;
+    if (nodes) *nodes = bvh ? bvh->wide_count : 0;
     if (triangles) *triangles = bvh ? bvh->tri_count : 0;
 }
 
 static long long refl__bvh_bytes(const refl_bvh *bvh) {
-    long long nodes = 0, tris = 0;
-    refl_bvh_stats(bvh, &nodes, &tris);
-    return nodes * (long long)sizeof(refl__bvh_node) + tris * (long long)(sizeof(refl__bvh_tri) + sizeof(int32_t));
+    if (!bvh) return 0;
+    return (long long)bvh->wide_count * (long long)sizeof(refl__bvh4_node) +
+           (long long)bvh->node_count * (long long)sizeof(refl__bvh_node) +
+           (long long)bvh->tri_count * (long long)sizeof(refl__bvh_tri);
 }
 
 /* ---- traversal ---------------------------------------------------------------- */
@@ -2704,7 +2833,7 @@ static int refl__bvh_slab(const refl__bvh_ray *r, const refl__bvh_node *n, float
 }
 
 /* Watertight ray/triangle test. Returns 1 with t, u, v when the ray hits
-   within (tmin, tmax). */
+   with tmin < t <= tmax (a tie at tmax is for the caller: refl__bvh_leaf). */
 static int refl__bvh_tri_hit(const refl__bvh_ray *r, const refl__bvh_tri *tri, float tmin, float tmax,
                              float *t_out, float *u_out, float *v_out) {
     const float *v = tri->v;
@@ -2739,7 +2868,7 @@ static int refl__bvh_tri_hit(const refl__bvh_ray *r, const refl__bvh_tri *tri, f
     {
         float inv = 1.0f / det;
         float t = tt * inv;
-        if (!(t > tmin) || !(t < tmax)) return 0;
+        if (!(t > tmin) || !(t <= tmax)) return 0;
         *t_out = t;
         *u_out = e1 * inv;
         *v_out = e2 * inv;
@@ -2747,43 +2876,67 @@ static int refl__bvh_tri_hit(const refl__bvh_ray *r, const refl__bvh_tri *tri, f
     return 1;
 }
 
-/* Shared traversal: closest hit, or the first one when any_hit. */
-static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
-                           int any_hit, refl_hit *hit) {
-    refl__bvh_ray r;
+/* The closest hit so far. */
+typedef struct refl__bvh_best {
+    int found;
+    float t, u, v;
+    int32_t object, triangle;
+} refl__bvh_best;
+
+/* The bound boxes are culled against once a hit at tmax is known: a hair
+   beyond it, more than the rounding of a box's entry distance and of a
+   triangle's t together, so a box holding a triangle that ties with (or
+   by rounding just beats) the best is still entered, whichever tree and
+   order the boxes come in. */
+static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6f; }
+
+/* Tests leaf triangles [first, first + count) and keeps each hit that
+   comes before the best so far in (t, object, triangle) order, narrowing
+   *tmax to it: so the closest hit does not depend on the order leaves are
+   visited in. Returns 1 when any_hit and a hit was found. */
+static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, int first, int count, float tmin,
+                          float *tmax, int any_hit, refl__bvh_best *best) {
+    int i;
+    for (i = first; i < first + count; ++i) {
+        const refl__bvh_tri *tri = &bvh->tris[i];
+        float t, u, v;
+        if (!refl__bvh_tri_hit(r, tri, tmin, *tmax, &t, &u, &v)) continue;
+        /* t == *tmax: the caller's bound excludes it; a tie with the best
+           goes to the lower object, then triangle */
+        if (!(t < *tmax) && !(best->found && (tri->object < best->object ||
+                                              (tri->object == best->object && tri->triangle < best->triangle))))
+            continue;
+        best->found = 1;
+        best->t = t;
+        best->u = u;
+        best->v = v;
+        best->object = tri->object;
+        best->triangle = tri->triangle;
+        *tmax = t;
+        if (any_hit) return 1;
+    }
+    return 0;
+}
+
+/* The binary tree's traversal, which the tests compare the wide one with:
+   nearer child first, farther one culled when a closer hit is known. */
+static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, float tmin, float tmax, int any_hit,
+                                  refl__bvh_best *best) {
     int stack[REFL__BVH_STACK];
     float stack_t[REFL__BVH_STACK]; /* entry distances, to skip boxes behind a closer hit */
-    int sp = 0, node = 0, found = 0;
-    float tentry;
-    if (!bvh || bvh->node_count == 0) return 0;
-    if (!(tmin < tmax) || tmin != tmin) return 0;
-    if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
-    if (!refl__bvh_slab(&r, &bvh->nodes[0], tmin, tmax, &tentry)) return 0;
+    int sp = 0, node = 0;
+    float tentry, tcull = tmax;
+    if (!refl__bvh_slab(r, &bvh->nodes[0], tmin, tcull, &tentry)) return 0;
     for (;;) {
         const refl__bvh_node *n = &bvh->nodes[node];
         if (n->count > 0) {
-            int i;
-            for (i = n->index; i < n->index + n->count; ++i) {
-                const refl__bvh_tri *tri = &bvh->tris[bvh->order[i]];
-                float t, u, v;
-                if (refl__bvh_tri_hit(&r, tri, tmin, tmax, &t, &u, &v)) {
-                    found = 1;
-                    tmax = t;
-                    if (hit) {
-                        hit->t = t;
-                        hit->object = tri->object;
-                        hit->triangle = tri->triangle;
-                        hit->u = u;
-                        hit->v = v;
-                    }
-                    if (any_hit) return 1;
-                }
-            }
+            if (refl__bvh_leaf(bvh, r, n->index, n->count, tmin, &tmax, any_hit, best)) return 1;
+            if (best->found) tcull = refl__bvh_cull_bound(tmax);
         } else {
             float t0, t1;
             int c0 = n->index, c1 = n->index + 1;
-            int h0 = refl__bvh_slab(&r, &bvh->nodes[c0], tmin, tmax, &t0);
-            int h1 = refl__bvh_slab(&r, &bvh->nodes[c1], tmin, tmax, &t1);
+            int h0 = refl__bvh_slab(r, &bvh->nodes[c0], tmin, tcull, &t0);
+            int h1 = refl__bvh_slab(r, &bvh->nodes[c1], tmin, tcull, &t1);
             if (h0 && h1) {
                 /* Nearer first, so the far one is often culled by tmax;
                    the build's depth limit keeps the stack within bounds. */
@@ -2798,23 +2951,167 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
             if (h1) { node = c1; continue; }
         }
         do {
-            if (sp == 0) return found;
+            if (sp == 0) return best->found;
             --sp;
-        } while (stack_t[sp] > tmax);
+        } while (stack_t[sp] > tcull);
         node = stack[sp];
     }
 }
 
+/* A ray as the wide traversal needs it: which of a node's box rows is
+   the near and which the far plane on each axis, and with SSE2 the
+   origin and inverse direction in every lane. */
+typedef struct refl__bvh4_ray {
+    int near_row[3], far_row[3];
+#ifdef REFL__BVH_SSE2
+    __m128 org4[3], inv4[3];
+#endif
+} refl__bvh4_ray;
+
+static void refl__bvh4_ray_setup(refl__bvh4_ray *w, const refl__bvh_ray *r) {
+    int k;
+    for (k = 0; k < 3; ++k) {
+        w->near_row[k] = r->near_lo[k] ? k : 3 + k;
+        w->far_row[k] = r->near_lo[k] ? 3 + k : k;
+#ifdef REFL__BVH_SSE2
+        w->org4[k] = _mm_set1_ps(r->org[k]);
+        w->inv4[k] = _mm_set1_ps(r->inv[k]);
+#endif
+    }
+}
+
+/* refl__bvh_slab on each of the node's four boxes: bit k of the result
+   set when the ray enters box k within [tmin, tmax], t[k] its entry. */
+static int refl__bvh4_boxes_scalar(const refl__bvh_ray *r, const refl__bvh4_ray *w, const refl__bvh4_node *n,
+                                   float tmin, float tmax, float t[4]) {
+    int lane, k, mask = 0;
+    for (lane = 0; lane < 4; ++lane) {
+        float lo = tmin, hi = tmax;
+        for (k = 0; k < 3; ++k) {
+            float t0 = (n->box[w->near_row[k]][lane] - r->org[k]) * r->inv[k];
+            float t1 = (n->box[w->far_row[k]][lane] - r->org[k]) * r->inv[k];
+            if (t0 > lo) lo = t0;
+            t1 *= 1.0000004f;
+            if (t1 < hi) hi = t1;
+        }
+        t[lane] = lo;
+        mask |= (lo <= hi) << lane;
+    }
+    return mask;
+}
+
+#ifdef REFL__BVH_SSE2
+/* The same in SSE2, bit for bit: max_ps(a, b) is a > b ? a : b and
+   min_ps(a, b) a < b ? a : b, NaN included, as the scalar comparisons. */
+static int refl__bvh4_boxes_sse2(const refl__bvh4_ray *w, const refl__bvh4_node *n, float tmin, float tmax,
+                                 float t[4]) {
+    __m128 lo = _mm_set1_ps(tmin), hi = _mm_set1_ps(tmax), widen = _mm_set1_ps(1.0000004f);
+    int k;
+    for (k = 0; k < 3; ++k) {
+        __m128 t0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->box[w->near_row[k]]), w->org4[k]), w->inv4[k]);
+        __m128 t1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->box[w->far_row[k]]), w->org4[k]), w->inv4[k]);
+        lo = _mm_max_ps(t0, lo);
+        hi = _mm_min_ps(_mm_mul_ps(t1, widen), hi);
+    }
+    _mm_storeu_ps(t, lo);
+    return _mm_movemask_ps(_mm_cmple_ps(lo, hi));
+}
+#endif
+
+typedef struct refl__bvh4_entry {
+    int32_t child, count;         /* as in refl__bvh4_node */
+    float t;                      /* entry distance: skipped once a hit is closer */
+} refl__bvh4_entry;
+
+/* The wide tree's traversal: the children a node's rays enter, nearest
+   first, the others stacked farthest first. scalar: box tests lane by
+   lane even where SSE2 is built in (the tests compare the two). */
+static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, float tmin, float tmax, int any_hit,
+                            int scalar, refl__bvh_best *best) {
+    refl__bvh4_ray w;
+    refl__bvh4_entry stack[REFL__BVH4_STACK];
+    int sp = 1;
+    float tcull = tmax;           /* the caller's bound, then refl__bvh_cull_bound of the best hit's */
+    refl__bvh4_ray_setup(&w, r);
+    (void)scalar;
+    stack[0].child = 0;
+    stack[0].count = 0;
+    stack[0].t = tmin;
+    while (sp > 0) {
+        refl__bvh4_entry e = stack[--sp];
+        if (e.t > tcull) continue;
+        while (e.count == 0) {
+            const refl__bvh4_node *n = &bvh->wide[e.child];
+            float t[4];
+            int mask, lanes[4], m = 0, k, j;
+#ifdef REFL__BVH_SSE2
+            mask = scalar ? refl__bvh4_boxes_scalar(r, &w, n, tmin, tcull, t)
+                          : refl__bvh4_boxes_sse2(&w, n, tmin, tcull, t);
+#else
+            mask = refl__bvh4_boxes_scalar(r, &w, n, tmin, tcull, t);
+#endif
+            if (!mask) break;
+            /* entered lanes, farthest first (equal entries: lane order) */
+            for (k = 0; k < 4; ++k)
+                if (mask >> k & 1) {
+                    for (j = m++; j > 0 && t[lanes[j - 1]] < t[k]; --j) lanes[j] = lanes[j - 1];
+                    lanes[j] = k;
+                }
+            REFL_ASSERT(sp + m - 1 <= REFL__BVH4_STACK);
+            for (j = 0; j < m - 1; ++j) {
+                stack[sp].child = n->child[lanes[j]];
+                stack[sp].count = n->count[lanes[j]];
+                stack[sp].t = t[lanes[j]];
+                ++sp;
+            }
+            e.child = n->child[lanes[m - 1]];
+            e.count = n->count[lanes[m - 1]];
+        }
+        if (e.count > 0) {
+            if (refl__bvh_leaf(bvh, r, e.child, e.count, tmin, &tmax, any_hit, best)) return 1;
+            if (best->found) tcull = refl__bvh_cull_bound(tmax);
+        }
+    }
+    return best->found;
+}
+
+/* Which traversal a trace takes: the wide tree (SIMD box tests where
+   built), the wide tree lane by lane, or the binary tree (tests only). */
+enum { REFL__BVH_WIDE = 0, REFL__BVH_WIDE_SCALAR, REFL__BVH_BINARY };
+
+/* Closest hit, or the first one found when any_hit. */
+static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                           int any_hit, int path, refl_hit *hit) {
+    refl__bvh_ray r;
+    refl__bvh_best best;
+    int found;
+    if (!bvh || bvh->wide_count == 0) return 0;
+    if (!(tmin < tmax) || tmin != tmin) return 0;
+    if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
+    best.found = 0;
+    if (path == REFL__BVH_BINARY) {
+        if (!bvh->nodes) return 0;
+        found = refl__bvh_trace_binary(bvh, &r, tmin, tmax, any_hit, &best);
+    } else {
+        found = refl__bvh4_trace(bvh, &r, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
+    }
+    if (found && hit) {
+        hit->t = best.t;
+        hit->object = best.object;
+        hit->triangle = best.triangle;
+        hit->u = best.u;
+        hit->v = best.v;
+    }
+    return found;
+}
+
 REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                 refl_hit *hit) {
-    refl_hit h;
-    int r = refl__bvh_trace(bvh, origin, dir, tmin, tmax, 0, &h);
-    if (r && hit) *hit = h;
-    return r;
+    return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 0, REFL__BVH_WIDE, hit);
 }
 
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
-    return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, NULL);
+    return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
 }
 
 /* The surface at hit h on mesh m placed by `model` (normals by
