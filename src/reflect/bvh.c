@@ -28,7 +28,7 @@
 /* 32 bytes: children are adjacent, so one index names both. */
 typedef struct refl__bvh_node {
     float lo[3], hi[3];
-    int32_t index;                /* interior: first child; leaf: first in tris[] */
+    int32_t index;                /* interior: first child; leaf: first in order[], then in blocks[] */
     int32_t count;                /* 0: interior; else triangles in the leaf */
 } refl__bvh_node;
 
@@ -36,7 +36,7 @@ typedef struct refl__bvh_node {
    lane has an empty box (lo +inf, hi -inf), which no ray enters. */
 typedef struct refl__bvh4_node {
     float box[6][4];              /* lo x, y, z, then hi x, y, z */
-    int32_t child[4];             /* interior: node index; leaf: first in tris[] */
+    int32_t child[4];             /* interior: node index; leaf: first in blocks[] */
     int32_t count[4];             /* 0: interior (or unused, child -1); else triangles in the leaf */
 } refl__bvh4_node;
 
@@ -45,14 +45,24 @@ typedef struct refl__bvh_tri {
     int32_t object, triangle;
 } refl__bvh_tri;
 
+/* 176 bytes: four triangles of a leaf, one SIMD lane each. A leaf of n
+   triangles is ceil(n / 4) consecutive blocks, the last one's spare lanes
+   unused (object -1). */
+typedef struct refl__bvh_tri4 {
+    float v[9][4];                /* row 3 j + k: coordinate k of vertex j */
+    int32_t object[4], triangle[4];
+} refl__bvh_tri4;
+
 struct refl_bvh {
     refl_allocator allocator;
     refl__bvh_node *nodes;        /* the binary tree: kept only for the tests (refl__bvh_build_ex) */
     int node_count;
     refl__bvh4_node *wide;        /* the tree every trace walks */
     int wide_count;
-    refl__bvh_tri *tris;          /* in leaf order: a leaf is a range of them */
+    refl__bvh_tri *tris;          /* while building: the triangles, which order[] sorts */
     int tri_count;
+    refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks */
+    int block_count;
 };
 
 /* ---- build ------------------------------------------------------------------ */
@@ -233,7 +243,28 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh->nodes);
     refl__free(&a, bvh->wide);
     refl__free(&a, bvh->tris);
+    refl__free(&a, bvh->blocks);
     refl__free(&a, bvh);
+}
+
+/* Each leaf's triangles into its blocks, in order[]'s order; the leaf
+   then names its first block. */
+static void refl__bvh_fill_blocks(refl_bvh *bvh, const int32_t *order) {
+    int i, b = 0, j, k;
+    for (i = 0; i < bvh->node_count; ++i) {
+        refl__bvh_node *leaf = &bvh->nodes[i];
+        if (leaf->count == 0) continue;
+        for (j = 0; j < leaf->count; ++j) {
+            const refl__bvh_tri *t = &bvh->tris[order[leaf->index + j]];
+            refl__bvh_tri4 *q = &bvh->blocks[b + j / 4];
+            for (k = 0; k < 9; ++k) q->v[k][j % 4] = t->v[k];
+            q->object[j % 4] = t->object;
+            q->triangle[j % 4] = t->triangle;
+        }
+        for (; j % 4; ++j) bvh->blocks[b + j / 4].object[j % 4] = -1;
+        leaf->index = b;
+        b += (leaf->count + 3) / 4;
+    }
 }
 
 /* ---- collapse into the wide tree ------------------------------------------------ */
@@ -314,7 +345,6 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     refl_bvh *bvh;
     float *centroid = NULL;
     int32_t *order = NULL;
-    refl__bvh_tri *sorted = NULL;
     long long total = 0;
     int i, n = 0;
 
@@ -389,22 +419,21 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     refl__bvh_build_tree(bvh, order, centroid);
     refl__free(a, centroid);
 
-    /* Triangles in leaf order, so a leaf reads a contiguous range. */
-    sorted = (refl__bvh_tri *)refl__calloc(a, (size_t)n, sizeof *sorted);
+    for (i = 0; i < bvh->node_count; ++i) bvh->block_count += (bvh->nodes[i].count + 3) / 4;
+    bvh->blocks = (refl__bvh_tri4 *)refl__calloc(a, (size_t)bvh->block_count, sizeof *bvh->blocks);
     /* A full binary tree of L leaves has L - 1 interior nodes, and each
        wide node starts from a different one (one node for a lone leaf). */
     bvh->wide = (refl__bvh4_node *)refl__calloc(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
                                                 sizeof *bvh->wide);
-    if (!sorted || !bvh->wide) {
-        refl__free(a, sorted);
+    if (!bvh->blocks || !bvh->wide) {
         refl__free(a, order);
         refl_bvh_destroy(bvh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (i = 0; i < n; ++i) sorted[i] = bvh->tris[order[i]];
+    refl__bvh_fill_blocks(bvh, order);
     refl__free(a, order);
     refl__free(a, bvh->tris);
-    bvh->tris = sorted;
+    bvh->tris = NULL;
 
     refl__bvh_collapse(bvh);
     if (!keep_binary) {
@@ -429,7 +458,7 @@ static long long refl__bvh_bytes(const refl_bvh *bvh) {
     if (!bvh) return 0;
     return (long long)bvh->wide_count * (long long)sizeof(refl__bvh4_node) +
            (long long)bvh->node_count * (long long)sizeof(refl__bvh_node) +
-           (long long)bvh->tri_count * (long long)sizeof(refl__bvh_tri);
+           (long long)bvh->block_count * (long long)sizeof(refl__bvh_tri4);
 }
 
 /* ---- traversal ---------------------------------------------------------------- */
@@ -492,9 +521,8 @@ static int refl__bvh_slab(const refl__bvh_ray *r, const refl__bvh_node *n, float
 
 /* Watertight ray/triangle test. Returns 1 with t, u, v when the ray hits
    with tmin < t <= tmax (a tie at tmax is for the caller: refl__bvh_leaf). */
-static int refl__bvh_tri_hit(const refl__bvh_ray *r, const refl__bvh_tri *tri, float tmin, float tmax,
-                             float *t_out, float *u_out, float *v_out) {
-    const float *v = tri->v;
+static int refl__bvh_tri_hit(const refl__bvh_ray *r, const float v[9], float tmin, float tmax, float *t_out,
+                             float *u_out, float *v_out) {
     int kx = r->kx, ky = r->ky, kz = r->kz;
     float ax, ay, bx, by, cx, cy, az, bz, cz, e0, e1, e2, det, tt;
     float a[3], b[3], c[3];
@@ -534,6 +562,105 @@ static int refl__bvh_tri_hit(const refl__bvh_ray *r, const refl__bvh_tri *tri, f
     return 1;
 }
 
+/* A ray as the wide traversal and the four-triangle test need it: which
+   of a node's box rows is the near and which the far plane on each axis,
+   and with SSE2 the origin, inverse direction and shear in every lane. */
+typedef struct refl__bvh4_ray {
+    int near_row[3], far_row[3];
+#ifdef REFL__BVH_SSE2
+    __m128 org4[3], inv4[3], sx4, sy4, sz4;
+#endif
+} refl__bvh4_ray;
+
+static void refl__bvh4_ray_setup(refl__bvh4_ray *w, const refl__bvh_ray *r) {
+    int k;
+    for (k = 0; k < 3; ++k) {
+        w->near_row[k] = r->near_lo[k] ? k : 3 + k;
+        w->far_row[k] = r->near_lo[k] ? 3 + k : k;
+#ifdef REFL__BVH_SSE2
+        w->org4[k] = _mm_set1_ps(r->org[k]);
+        w->inv4[k] = _mm_set1_ps(r->inv[k]);
+#endif
+    }
+#ifdef REFL__BVH_SSE2
+    w->sx4 = _mm_set1_ps(r->sx);
+    w->sy4 = _mm_set1_ps(r->sy);
+    w->sz4 = _mm_set1_ps(r->sz);
+#endif
+}
+
+/* refl__bvh_tri_hit on the first `lanes` triangles of block q: bit k of
+   the result set when triangle k is hit, with t[k], u[k], v[k]. */
+static int refl__bvh_tri4_hit_scalar(const refl__bvh_ray *r, const refl__bvh_tri4 *q, int lanes, float tmin,
+                                     float tmax, float t[4], float u[4], float v[4]) {
+    int lane, k, mask = 0;
+    for (lane = 0; lane < lanes; ++lane) {
+        float tri[9];
+        for (k = 0; k < 9; ++k) tri[k] = q->v[k][lane];
+        if (refl__bvh_tri_hit(r, tri, tmin, tmax, &t[lane], &u[lane], &v[lane])) mask |= 1 << lane;
+    }
+    return mask;
+}
+
+#ifdef REFL__BVH_SSE2
+/* The same in SSE2, bit for bit: each lane does refl__bvh_tri_hit's
+   operations in its order, and a lane with an edge function of exactly
+   zero has all three redone in double as there. */
+static int refl__bvh_tri4_hit_sse2(const refl__bvh_ray *r, const refl__bvh4_ray *w, const refl__bvh_tri4 *q,
+                                   int lanes, float tmin, float tmax, float t[4], float u[4], float v[4]) {
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+    const __m128 zero = _mm_setzero_ps();
+    __m128 az = _mm_sub_ps(_mm_loadu_ps(q->v[kz]), w->org4[kz]);
+    __m128 bz = _mm_sub_ps(_mm_loadu_ps(q->v[3 + kz]), w->org4[kz]);
+    __m128 cz = _mm_sub_ps(_mm_loadu_ps(q->v[6 + kz]), w->org4[kz]);
+    __m128 ax = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[kx]), w->org4[kx]), _mm_mul_ps(w->sx4, az));
+    __m128 ay = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[ky]), w->org4[ky]), _mm_mul_ps(w->sy4, az));
+    __m128 bx = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[3 + kx]), w->org4[kx]), _mm_mul_ps(w->sx4, bz));
+    __m128 by = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[3 + ky]), w->org4[ky]), _mm_mul_ps(w->sy4, bz));
+    __m128 cx = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[6 + kx]), w->org4[kx]), _mm_mul_ps(w->sx4, cz));
+    __m128 cy = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(q->v[6 + ky]), w->org4[ky]), _mm_mul_ps(w->sy4, cz));
+    __m128 e0 = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
+    __m128 e1 = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
+    __m128 e2 = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
+    __m128 det, tt, inv, tv, ok;
+    int valid = (1 << lanes) - 1, exact;
+    exact = _mm_movemask_ps(_mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(e0, zero), _mm_cmpeq_ps(e1, zero)),
+                                      _mm_cmpeq_ps(e2, zero))) & valid;
+    if (exact) {
+        float fax[4], fay[4], fbx[4], fby[4], fcx[4], fcy[4], f0[4], f1[4], f2[4];
+        int lane;
+        _mm_storeu_ps(fax, ax); _mm_storeu_ps(fay, ay);
+        _mm_storeu_ps(fbx, bx); _mm_storeu_ps(fby, by);
+        _mm_storeu_ps(fcx, cx); _mm_storeu_ps(fcy, cy);
+        _mm_storeu_ps(f0, e0); _mm_storeu_ps(f1, e1); _mm_storeu_ps(f2, e2);
+        for (lane = 0; lane < 4; ++lane)
+            if (exact >> lane & 1) {
+                f0[lane] = (float)((double)fcx[lane] * fby[lane] - (double)fcy[lane] * fbx[lane]);
+                f1[lane] = (float)((double)fax[lane] * fcy[lane] - (double)fay[lane] * fcx[lane]);
+                f2[lane] = (float)((double)fbx[lane] * fay[lane] - (double)fby[lane] * fax[lane]);
+            }
+        e0 = _mm_loadu_ps(f0);
+        e1 = _mm_loadu_ps(f1);
+        e2 = _mm_loadu_ps(f2);
+    }
+    /* rejected: edge functions of both signs, or det == 0 */
+    ok = _mm_andnot_ps(
+        _mm_and_ps(_mm_or_ps(_mm_or_ps(_mm_cmplt_ps(e0, zero), _mm_cmplt_ps(e1, zero)), _mm_cmplt_ps(e2, zero)),
+                   _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(e0, zero), _mm_cmpgt_ps(e1, zero)), _mm_cmpgt_ps(e2, zero))),
+        _mm_cmpneq_ps(det = _mm_add_ps(_mm_add_ps(e0, e1), e2), zero));
+    if (!(_mm_movemask_ps(ok) & valid)) return 0;
+    tt = _mm_add_ps(_mm_add_ps(_mm_mul_ps(e0, _mm_mul_ps(w->sz4, az)), _mm_mul_ps(e1, _mm_mul_ps(w->sz4, bz))),
+                    _mm_mul_ps(e2, _mm_mul_ps(w->sz4, cz)));
+    inv = _mm_div_ps(_mm_set1_ps(1.0f), det);
+    tv = _mm_mul_ps(tt, inv);
+    ok = _mm_and_ps(ok, _mm_and_ps(_mm_cmpgt_ps(tv, _mm_set1_ps(tmin)), _mm_cmple_ps(tv, _mm_set1_ps(tmax))));
+    _mm_storeu_ps(t, tv);
+    _mm_storeu_ps(u, _mm_mul_ps(e1, inv));
+    _mm_storeu_ps(v, _mm_mul_ps(e2, inv));
+    return _mm_movemask_ps(ok) & valid;
+}
+#endif
+
 /* The closest hit so far. */
 typedef struct refl__bvh_best {
     int found;
@@ -548,38 +675,54 @@ typedef struct refl__bvh_best {
    order the boxes come in. */
 static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6f; }
 
-/* Tests leaf triangles [first, first + count) and keeps each hit that
-   comes before the best so far in (t, object, triangle) order, narrowing
-   *tmax to it: so the closest hit does not depend on the order leaves are
-   visited in. Returns 1 when any_hit and a hit was found. */
-static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, int first, int count, float tmin,
-                          float *tmax, int any_hit, refl__bvh_best *best) {
-    int i;
-    for (i = first; i < first + count; ++i) {
-        const refl__bvh_tri *tri = &bvh->tris[i];
-        float t, u, v;
-        if (!refl__bvh_tri_hit(r, tri, tmin, *tmax, &t, &u, &v)) continue;
-        /* t == *tmax: the caller's bound excludes it; a tie with the best
-           goes to the lower object, then triangle */
-        if (!(t < *tmax) && !(best->found && (tri->object < best->object ||
-                                              (tri->object == best->object && tri->triangle < best->triangle))))
-            continue;
-        best->found = 1;
-        best->t = t;
-        best->u = u;
-        best->v = v;
-        best->object = tri->object;
-        best->triangle = tri->triangle;
-        *tmax = t;
-        if (any_hit) return 1;
+/* Tests a leaf's `count` triangles from block `first` (scalar: lane by
+   lane) and keeps each hit that comes before the best so far in (t,
+   object, triangle) order, narrowing *tmax to it: so the closest hit does
+   not depend on the order leaves are visited in. Returns 1 when any_hit
+   and a hit was found. */
+static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, int first,
+                          int count, float tmin, float *tmax, int any_hit, int scalar, refl__bvh_best *best) {
+    const refl__bvh_tri4 *q;
+    (void)w;
+    (void)scalar;
+    for (q = &bvh->blocks[first]; count > 0; ++q, count -= 4) {
+        float t[4], u[4], v[4];
+        int lanes = count < 4 ? count : 4, lane, mask;
+#ifdef REFL__BVH_SSE2
+        mask = scalar ? refl__bvh_tri4_hit_scalar(r, q, lanes, tmin, *tmax, t, u, v)
+                      : refl__bvh_tri4_hit_sse2(r, w, q, lanes, tmin, *tmax, t, u, v);
+#else
+        mask = refl__bvh_tri4_hit_scalar(r, q, lanes, tmin, *tmax, t, u, v);
+#endif
+        for (lane = 0; mask; ++lane, mask >>= 1) {
+            if (!(mask & 1)) continue;
+            /* the block's lanes were tested against *tmax before any of
+               them narrowed it; at t == *tmax the caller's bound excludes
+               it, and a tie with the best goes to the lower object, then
+               triangle */
+            if (!(t[lane] < *tmax) &&
+                !(t[lane] == *tmax && best->found &&
+                  (q->object[lane] < best->object ||
+                   (q->object[lane] == best->object && q->triangle[lane] < best->triangle))))
+                continue;
+            best->found = 1;
+            best->t = t[lane];
+            best->u = u[lane];
+            best->v = v[lane];
+            best->object = q->object[lane];
+            best->triangle = q->triangle[lane];
+            *tmax = t[lane];
+            if (any_hit) return 1;
+        }
     }
     return 0;
 }
 
 /* The binary tree's traversal, which the tests compare the wide one with:
-   nearer child first, farther one culled when a closer hit is known. */
-static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, float tmin, float tmax, int any_hit,
-                                  refl__bvh_best *best) {
+   nearer child first, farther one culled when a closer hit is known;
+   triangles lane by lane. */
+static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, float tmin,
+                                  float tmax, int any_hit, refl__bvh_best *best) {
     int stack[REFL__BVH_STACK];
     float stack_t[REFL__BVH_STACK]; /* entry distances, to skip boxes behind a closer hit */
     int sp = 0, node = 0;
@@ -588,7 +731,7 @@ static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, f
     for (;;) {
         const refl__bvh_node *n = &bvh->nodes[node];
         if (n->count > 0) {
-            if (refl__bvh_leaf(bvh, r, n->index, n->count, tmin, &tmax, any_hit, best)) return 1;
+            if (refl__bvh_leaf(bvh, r, w, n->index, n->count, tmin, &tmax, any_hit, 1, best)) return 1;
             if (best->found) tcull = refl__bvh_cull_bound(tmax);
         } else {
             float t0, t1;
@@ -613,28 +756,6 @@ static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, f
             --sp;
         } while (stack_t[sp] > tcull);
         node = stack[sp];
-    }
-}
-
-/* A ray as the wide traversal needs it: which of a node's box rows is
-   the near and which the far plane on each axis, and with SSE2 the
-   origin and inverse direction in every lane. */
-typedef struct refl__bvh4_ray {
-    int near_row[3], far_row[3];
-#ifdef REFL__BVH_SSE2
-    __m128 org4[3], inv4[3];
-#endif
-} refl__bvh4_ray;
-
-static void refl__bvh4_ray_setup(refl__bvh4_ray *w, const refl__bvh_ray *r) {
-    int k;
-    for (k = 0; k < 3; ++k) {
-        w->near_row[k] = r->near_lo[k] ? k : 3 + k;
-        w->far_row[k] = r->near_lo[k] ? 3 + k : k;
-#ifdef REFL__BVH_SSE2
-        w->org4[k] = _mm_set1_ps(r->org[k]);
-        w->inv4[k] = _mm_set1_ps(r->inv[k]);
-#endif
     }
 }
 
@@ -682,16 +803,13 @@ typedef struct refl__bvh4_entry {
 } refl__bvh4_entry;
 
 /* The wide tree's traversal: the children a node's rays enter, nearest
-   first, the others stacked farthest first. scalar: box tests lane by
-   lane even where SSE2 is built in (the tests compare the two). */
-static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, float tmin, float tmax, int any_hit,
-                            int scalar, refl__bvh_best *best) {
-    refl__bvh4_ray w;
+   first, the others stacked farthest first. scalar: box and triangle
+   tests lane by lane even where SSE2 is built in (the tests compare). */
+static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, float tmin,
+                            float tmax, int any_hit, int scalar, refl__bvh_best *best) {
     refl__bvh4_entry stack[REFL__BVH4_STACK];
     int sp = 1;
     float tcull = tmax;           /* the caller's bound, then refl__bvh_cull_bound of the best hit's */
-    refl__bvh4_ray_setup(&w, r);
-    (void)scalar;
     stack[0].child = 0;
     stack[0].count = 0;
     stack[0].t = tmin;
@@ -703,10 +821,9 @@ static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, float t
             float t[4];
             int mask, lanes[4], m = 0, k, j;
 #ifdef REFL__BVH_SSE2
-            mask = scalar ? refl__bvh4_boxes_scalar(r, &w, n, tmin, tcull, t)
-                          : refl__bvh4_boxes_sse2(&w, n, tmin, tcull, t);
+            mask = scalar ? refl__bvh4_boxes_scalar(r, w, n, tmin, tcull, t) : refl__bvh4_boxes_sse2(w, n, tmin, tcull, t);
 #else
-            mask = refl__bvh4_boxes_scalar(r, &w, n, tmin, tcull, t);
+            mask = refl__bvh4_boxes_scalar(r, w, n, tmin, tcull, t);
 #endif
             if (!mask) break;
             /* entered lanes, farthest first (equal entries: lane order) */
@@ -726,7 +843,7 @@ static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, float t
             e.count = n->count[lanes[m - 1]];
         }
         if (e.count > 0) {
-            if (refl__bvh_leaf(bvh, r, e.child, e.count, tmin, &tmax, any_hit, best)) return 1;
+            if (refl__bvh_leaf(bvh, r, w, e.child, e.count, tmin, &tmax, any_hit, scalar, best)) return 1;
             if (best->found) tcull = refl__bvh_cull_bound(tmax);
         }
     }
@@ -741,17 +858,19 @@ enum { REFL__BVH_WIDE = 0, REFL__BVH_WIDE_SCALAR, REFL__BVH_BINARY };
 static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                            int any_hit, int path, refl_hit *hit) {
     refl__bvh_ray r;
+    refl__bvh4_ray w;
     refl__bvh_best best;
     int found;
     if (!bvh || bvh->wide_count == 0) return 0;
     if (!(tmin < tmax) || tmin != tmin) return 0;
     if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
+    refl__bvh4_ray_setup(&w, &r);
     best.found = 0;
     if (path == REFL__BVH_BINARY) {
         if (!bvh->nodes) return 0;
-        found = refl__bvh_trace_binary(bvh, &r, tmin, tmax, any_hit, &best);
+        found = refl__bvh_trace_binary(bvh, &r, &w, tmin, tmax, any_hit, &best);
     } else {
-        found = refl__bvh4_trace(bvh, &r, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
+        found = refl__bvh4_trace(bvh, &r, &w, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
     }
     if (found && hit) {
         hit->t = best.t;
