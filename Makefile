@@ -236,8 +236,8 @@ $(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
 $(BENCH_BIN): $(BENCH_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(GL_LIBS) $(LDLIBS)
 
-$(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS)
-	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(LDLIBS)
+$(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS) build/tools/gltf_load.o
+	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(TINYGLTF_LIBS) -lstdc++ $(LDLIBS)
 
 # The test binaries compare refl_bvh with Embree (tests/tools/test_embree.c)
 # and check the bench's cost lines (tests/tools/test_bench_cost_fit.c).

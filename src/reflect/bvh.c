@@ -67,11 +67,13 @@ struct refl_bvh {
 
 /* ---- build ------------------------------------------------------------------ */
 
-typedef struct refl__bvh_box { float lo[3], hi[3]; } refl__bvh_box;
+/* Four floats a side, the fourth kept empty, so a compiler can merge
+   boxes with one SIMD min and max. */
+typedef struct refl__bvh_box { float lo[4], hi[4]; } refl__bvh_box;
 
 static void refl__box_empty(refl__bvh_box *b) {
     int k;
-    for (k = 0; k < 3; ++k) { b->lo[k] = FLT_MAX; b->hi[k] = -FLT_MAX; }
+    for (k = 0; k < 4; ++k) { b->lo[k] = FLT_MAX; b->hi[k] = -FLT_MAX; }
 }
 
 static void refl__box_grow(refl__bvh_box *b, const float *p) {
@@ -84,7 +86,7 @@ static void refl__box_grow(refl__bvh_box *b, const float *p) {
 
 static void refl__box_merge(refl__bvh_box *b, const refl__bvh_box *o) {
     int k;
-    for (k = 0; k < 3; ++k) {
+    for (k = 0; k < 4; ++k) {
         b->lo[k] = REFL__MIN(b->lo[k], o->lo[k]);
         b->hi[k] = REFL__MAX(b->hi[k], o->hi[k]);
     }
@@ -113,29 +115,42 @@ static int refl__bvh_bin(float c, float cmin, float scale) {
     return (int)f;
 }
 
-typedef struct refl__bvh_task { int node, begin, end, depth; } refl__bvh_task;
+/* A node to build: its range of order[], and when `bounded` its box and
+   its centroids' box, which the parent's split found already. */
+typedef struct refl__bvh_task {
+    int node, begin, end, depth, bounded;
+    refl__bvh_box box, cbox;
+} refl__bvh_task;
 
-static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const float *centroid) {
+/* A triangle as the build sees it: its box and centroid, found once. */
+typedef struct refl__bvh_prim {
+    refl__bvh_box box;
+    float c[3];
+} refl__bvh_prim;
+
+static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const refl__bvh_prim *prim) {
     refl__bvh_task stack[2 * REFL__BVH_MAX_DEPTH + 8];
     int sp = 0;
     bvh->node_count = 1;
     stack[sp].node = 0; stack[sp].begin = 0; stack[sp].end = bvh->tri_count; stack[sp].depth = 0;
+    stack[sp].bounded = 0;
     ++sp;
     while (sp > 0) {
         refl__bvh_task task = stack[--sp];
         refl__bvh_node *node = &bvh->nodes[task.node];
-        int n = task.end - task.begin, i, k, axis = -1, split_bin = 0, mid;
-        refl__bvh_box box, cbox;
-        float best_cost = FLT_MAX, leaf_cost, scale = 0;
+        int n = task.end - task.begin, i, k, axis = -1, split_bin = 0, mid, split_bounded = 0;
+        refl__bvh_box box = task.box, cbox = task.cbox, bins3[3][REFL__BVH_BINS], lcbox, rcbox;
+        int counts3[3][REFL__BVH_BINS];
+        float best_cost = FLT_MAX, leaf_cost, scale = 0, s3[3];
 
-        refl__box_empty(&box);
-        refl__box_empty(&cbox);
-        for (i = task.begin; i < task.end; ++i) {
-            refl__bvh_box tb;
-            int t = order[i];
-            refl__tri_box(&bvh->tris[t], &tb);
-            refl__box_merge(&box, &tb);
-            refl__box_grow(&cbox, centroid + 3 * t);
+        if (!task.bounded) {
+            refl__box_empty(&box);
+            refl__box_empty(&cbox);
+            for (i = task.begin; i < task.end; ++i) {
+                const refl__bvh_prim *p = &prim[order[i]];
+                refl__box_merge(&box, &p->box);
+                refl__box_grow(&cbox, p->c);
+            }
         }
         for (k = 0; k < 3; ++k) { node->lo[k] = box.lo[k]; node->hi[k] = box.hi[k]; }
         node->index = task.begin;
@@ -145,67 +160,84 @@ static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const float *cen
         /* SAH with traversal cost 1 and intersection cost 1, relative to
            the parent's area: a leaf costs n. */
         leaf_cost = (float)n;
-        for (k = 0; k < 3; ++k) {
-            refl__bvh_box bins[REFL__BVH_BINS], acc;
-            int counts[REFL__BVH_BINS], b, left_n;
-            float right_area[REFL__BVH_BINS], extent = cbox.hi[k] - cbox.lo[k], s, parea;
-            int right_n[REFL__BVH_BINS];
-            if (!(extent > 0)) continue;
-            s = (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent;
-            if (!refl__isfinite(s)) continue; /* denormal extent */
-            for (b = 0; b < REFL__BVH_BINS; ++b) { refl__box_empty(&bins[b]); counts[b] = 0; }
-            for (i = task.begin; i < task.end; ++i) {
-                refl__bvh_box tb;
-                int t = order[i];
-                b = refl__bvh_bin(centroid[3 * t + k], cbox.lo[k], s);
-                refl__tri_box(&bvh->tris[t], &tb);
-                refl__box_merge(&bins[b], &tb);
-                counts[b]++;
+        {
+            /* one pass bins the three axes (an axis without extent: s 0) */
+            int b;
+            for (k = 0; k < 3; ++k) {
+                float extent = cbox.hi[k] - cbox.lo[k];
+                s3[k] = extent > 0 ? (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent : 0.0f;
+                if (!refl__isfinite(s3[k])) s3[k] = 0.0f; /* denormal extent */
+                for (b = 0; b < REFL__BVH_BINS; ++b) { refl__box_empty(&bins3[k][b]); counts3[k][b] = 0; }
             }
-            /* Sweep from the right, then from the left: split after bin b. */
-            refl__box_empty(&acc);
-            right_n[REFL__BVH_BINS - 1] = 0;
-            right_area[REFL__BVH_BINS - 1] = 0;
-            {
-                int rn = 0;
-                for (b = REFL__BVH_BINS - 1; b > 0; --b) {
-                    refl__box_merge(&acc, &bins[b]);
-                    rn += counts[b];
-                    right_n[b - 1] = rn;
-                    right_area[b - 1] = refl__box_area(&acc);
+            for (i = task.begin; i < task.end; ++i) {
+                const refl__bvh_prim *p = &prim[order[i]];
+                for (k = 0; k < 3; ++k) {
+                    if (s3[k] == 0.0f) continue;
+                    b = refl__bvh_bin(p->c[k], cbox.lo[k], s3[k]);
+                    refl__box_merge(&bins3[k][b], &p->box);
+                    counts3[k][b]++;
                 }
             }
-            parea = refl__box_area(&box);
-            refl__box_empty(&acc);
-            left_n = 0;
-            for (b = 0; b < REFL__BVH_BINS - 1; ++b) {
-                float cost;
-                refl__box_merge(&acc, &bins[b]);
-                left_n += counts[b];
-                if (left_n == 0 || right_n[b] == 0) continue;
-                cost = parea > 0
-                           ? 1.0f + (refl__box_area(&acc) * (float)left_n + right_area[b] * (float)right_n[b]) / parea
-                           : 1.0f + (float)n; /* flat cluster: any split is as good */
-                if (cost < best_cost) { best_cost = cost; axis = k; split_bin = b; scale = s; }
+            for (k = 0; k < 3; ++k) {
+                refl__bvh_box *bins = bins3[k], acc;
+                int *counts = counts3[k], left_n;
+                float right_area[REFL__BVH_BINS], s = s3[k], parea;
+                int right_n[REFL__BVH_BINS];
+                if (s == 0.0f) continue;
+                /* Sweep from the right, then from the left: split after bin b. */
+                refl__box_empty(&acc);
+                right_n[REFL__BVH_BINS - 1] = 0;
+                right_area[REFL__BVH_BINS - 1] = 0;
+                {
+                    int rn = 0;
+                    for (b = REFL__BVH_BINS - 1; b > 0; --b) {
+                        refl__box_merge(&acc, &bins[b]);
+                        rn += counts[b];
+                        right_n[b - 1] = rn;
+                        right_area[b - 1] = refl__box_area(&acc);
+                    }
+                }
+                parea = refl__box_area(&box);
+                refl__box_empty(&acc);
+                left_n = 0;
+                for (b = 0; b < REFL__BVH_BINS - 1; ++b) {
+                    float cost;
+                    refl__box_merge(&acc, &bins[b]);
+                    left_n += counts[b];
+                    if (left_n == 0 || right_n[b] == 0) continue;
+                    cost = parea > 0
+                               ? 1.0f + (refl__box_area(&acc) * (float)left_n + right_area[b] * (float)right_n[b]) / parea
+                               : 1.0f + (float)n; /* flat cluster: any split is as good */
+                    if (cost < best_cost) { best_cost = cost; axis = k; split_bin = b; scale = s; }
+                }
             }
         }
         if (axis >= 0 && best_cost >= leaf_cost && n <= REFL__BVH_MAX_LEAF) continue;
 
         if (axis >= 0) {
-            /* In-place partition by bin; both sides are non-empty by construction. */
+            /* In-place partition by bin; both sides are non-empty by
+               construction. Each side's centroid box on the way. */
             int lo = task.begin, hi = task.end - 1;
+            refl__box_empty(&lcbox);
+            refl__box_empty(&rcbox);
             while (lo <= hi) {
                 int t = order[lo];
-                if (refl__bvh_bin(centroid[3 * t + axis], cbox.lo[axis], scale) <= split_bin) {
+                if (refl__bvh_bin(prim[t].c[axis], cbox.lo[axis], scale) <= split_bin) {
+                    refl__box_grow(&lcbox, prim[t].c);
                     ++lo;
                 } else {
+                    refl__box_grow(&rcbox, prim[t].c);
                     order[lo] = order[hi];
                     order[hi] = t;
                     --hi;
                 }
             }
             mid = lo;
-            if (mid == task.begin || mid == task.end) mid = task.begin + n / 2;
+            split_bounded = 1;
+            if (mid == task.begin || mid == task.end) {
+                mid = task.begin + n / 2;
+                split_bounded = 0;
+            }
         } else {
             /* Every centroid coincides: no axis separates them, so halve the range. */
             mid = task.begin + n / 2;
@@ -217,10 +249,21 @@ static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const float *cen
         /* Left on top, so it is built first: nodes land in depth-first order. */
         stack[sp].node = node->index + 1; stack[sp].begin = mid; stack[sp].end = task.end;
         stack[sp].depth = task.depth + 1;
-        ++sp;
-        stack[sp].node = node->index; stack[sp].begin = task.begin; stack[sp].end = mid;
-        stack[sp].depth = task.depth + 1;
-        ++sp;
+        stack[sp + 1] = stack[sp];
+        stack[sp + 1].node = node->index; stack[sp + 1].begin = task.begin; stack[sp + 1].end = mid;
+        stack[sp].bounded = stack[sp + 1].bounded = split_bounded;
+        if (split_bounded) {
+            /* the sides' boxes are their bins' (min and max are exact:
+               the same floats as a pass over the triangles) */
+            int b;
+            refl__box_empty(&stack[sp].box);
+            refl__box_empty(&stack[sp + 1].box);
+            for (b = 0; b < REFL__BVH_BINS; ++b)
+                refl__box_merge(b <= split_bin ? &stack[sp + 1].box : &stack[sp].box, &bins3[axis][b]);
+            stack[sp].cbox = rcbox;
+            stack[sp + 1].cbox = lcbox;
+        }
+        sp += 2;
     }
 }
 
@@ -343,7 +386,7 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
                                       refl_bvh **out_bvh) {
     refl_bvh *bvh;
-    float *centroid = NULL;
+    refl__bvh_prim *prim = NULL;
     int32_t *order = NULL;
     long long total = 0;
     int i, n = 0;
@@ -402,22 +445,21 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
 
     order = (int32_t *)refl__calloc(a, (size_t)n, sizeof *order);
     bvh->nodes = (refl__bvh_node *)refl__calloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
-    centroid = (float *)refl__calloc(a, (size_t)n * 3, sizeof *centroid);
-    if (!order || !bvh->nodes || !centroid) {
-        refl__free(a, centroid);
+    prim = (refl__bvh_prim *)refl__calloc(a, (size_t)n, sizeof *prim);
+    if (!order || !bvh->nodes || !prim) {
+        refl__free(a, prim);
         refl__free(a, order);
         refl_bvh_destroy(bvh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < n; ++i) {
-        refl__bvh_box b;
         int k;
-        refl__tri_box(&bvh->tris[i], &b);
-        for (k = 0; k < 3; ++k) centroid[3 * i + k] = 0.5f * (b.lo[k] + b.hi[k]);
+        refl__tri_box(&bvh->tris[i], &prim[i].box);
+        for (k = 0; k < 3; ++k) prim[i].c[k] = 0.5f * (prim[i].box.lo[k] + prim[i].box.hi[k]);
         order[i] = i;
     }
-    refl__bvh_build_tree(bvh, order, centroid);
-    refl__free(a, centroid);
+    refl__bvh_build_tree(bvh, order, prim);
+    refl__free(a, prim);
 
     for (i = 0; i < bvh->node_count; ++i) bvh->block_count += (bvh->nodes[i].count + 3) / 4;
     bvh->blocks = (refl__bvh_tri4 *)refl__calloc(a, (size_t)bvh->block_count, sizeof *bvh->blocks);
