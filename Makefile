@@ -443,6 +443,8 @@ bench: deps
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
 	$(BENCH_RAYS_BIN) --csv out/bench_rays.csv
+	if [ -f ../shared/assets/xyzrgb_dragon_100k.glb ]; then \
+	  $(BENCH_RAYS_BIN) --asset ../shared/assets/xyzrgb_dragon_100k.glb --csv out/bench_rays_dragon.csv; fi
 	$(REFLECT_BIN) bench --out out/bench
 
 # The demo: every built-in scene through the `reflect` command with every

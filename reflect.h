@@ -430,13 +430,16 @@ typedef struct refl_hit {
     float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
 } refl_hit;
 
-/* Builds a bounding volume hierarchy (binned SAH) over every object's
-   triangles in world space. Deterministic: the same scene gives the same
-   tree. Degenerate and non-finite triangles are left out. */
+/* Builds a bounding volume hierarchy (binned SAH, collapsed to four
+   children a node, SSE2 box and triangle tests; plain C under
+   RAST_NO_SIMD, with the same hits) over every object's triangles in world
+   space. Deterministic: the same scene gives the same tree. Degenerate
+   and non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
 REFL_API void refl_bvh_destroy(refl_bvh *bvh);
 /* Closest hit of origin + t * dir with tmin < t < tmax: 1 and *hit, or 0.
-   Watertight: a ray through a shared edge or vertex hits one triangle. */
+   Watertight: a ray through a shared edge or vertex hits one triangle.
+   Hits at the same t go to the lower object, then triangle. */
 REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
@@ -3070,6 +3073,9 @@ static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6
    object, triangle) order, narrowing *tmax to it: so the closest hit does
    not depend on the order leaves are visited in. Returns 1 when any_hit
    and a hit was found. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline)) inline
+#endif
 static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, int first,
                           int count, float tmin, float *tmax, int any_hit, int scalar, refl__bvh_best *best) {
     const refl__bvh_tri4 *q;
@@ -3255,7 +3261,7 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
     if (!(tmin < tmax) || tmin != tmin) return 0;
     if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
     refl__bvh4_ray_setup(&w, &r);
-    best.found = 0;
+    memset(&best, 0, sizeof best);
     if (path == REFL__BVH_BINARY) {
         if (!bvh->nodes) return 0;
         found = refl__bvh_trace_binary(bvh, &r, &w, tmin, tmax, any_hit, &best);

@@ -728,6 +728,9 @@ static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6
    object, triangle) order, narrowing *tmax to it: so the closest hit does
    not depend on the order leaves are visited in. Returns 1 when any_hit
    and a hit was found. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((always_inline)) inline
+#endif
 static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, int first,
                           int count, float tmin, float *tmax, int any_hit, int scalar, refl__bvh_best *best) {
     const refl__bvh_tri4 *q;
@@ -913,7 +916,7 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
     if (!(tmin < tmax) || tmin != tmin) return 0;
     if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
     refl__bvh4_ray_setup(&w, &r);
-    best.found = 0;
+    memset(&best, 0, sizeof best);
     if (path == REFL__BVH_BINARY) {
         if (!bvh->nodes) return 0;
         found = refl__bvh_trace_binary(bvh, &r, &w, tmin, tmax, any_hit, &best);
