@@ -1,6 +1,6 @@
 /* bench_rays - rays per second of refl_bvh against Embree 3 (single-ray
    and stream API), on a built-in scene ("default" unless --scene) or a
-   glTF file (--asset) from its own camera (else a view framing it); the
+   glTF file (--asset) from its own camera (else refl_scene_complete's); the
    build times of both; and whole RAYTRACE frames with refl_bvh and with
    Embree as the ray caster.
 
@@ -282,26 +282,6 @@ static double frame_ms(const refl_scene *s, const refl_view *v, int which, int t
     return (now_s() - t0) * 1e3;
 }
 
-/* A view framing the scene's bounds, for files without a camera (as the
-   `reflect` command frames them). */
-static refl_view framing_view(const refl_scene *s) {
-    refl_view v = s->camera;
-    if (!s->has_camera) {
-        refl_vec3 lo, hi, c;
-        float diag;
-        refl_scene_bounds(s, &lo, &hi);
-        c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-        diag = refl_v3_length(refl_v3_sub(hi, lo));
-        memset(&v, 0, sizeof v);
-        v.eye = refl_v3_add(c, refl_v3(0.35f * diag, 0.45f * diag, 1.1f * diag));
-        v.target = c;
-        v.up = refl_v3(0, 1, 0);
-        v.fovy_degrees = 45.0f;
-    }
-    if (refl_v3_length(v.up) == 0) v.up = refl_v3(0, 1, 0);
-    return v;
-}
-
 static int parse_size(const char *s, int *w, int *h) {
     return sscanf(s, "%dx%d", w, h) == 2 && *w > 0 && *h > 0 && *w <= 16384 && *h <= 16384;
 }
@@ -351,6 +331,7 @@ int main(int argc, char **argv) {
             fprintf(stderr, "bench_rays: %s\n", gerr);
             return 2;
         }
+        refl_scene_complete(scene); /* a camera framing it, where the file has none */
     } else {
         res = refl_scene_builtin(scene_name, NULL, &scene);
         if (res != REFL_OK) {
@@ -358,7 +339,7 @@ int main(int argc, char **argv) {
             return 2;
         }
     }
-    view = framing_view(scene);
+    view = scene->camera;
     view.width = width;
     view.height = height;
 
