@@ -365,6 +365,23 @@ Test(refl_bvh, deterministic) {
 /* Tests run from the repository root. */
 #define BVH_ASSETS "../shared/assets"
 
+/* Random rays per scene, and the primary grid's divisor: fewer under the
+   sanitizers, whose run has a time bound (make test). */
+#if defined(__SANITIZE_ADDRESS__)
+#define BVH_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define BVH_SANITIZED 1
+#endif
+#endif
+#ifdef BVH_SANITIZED
+#define BVH_RANDOM_RAYS 2000
+#define BVH_GRID_DIV 2
+#else
+#define BVH_RANDOM_RAYS 20000
+#define BVH_GRID_DIV 1
+#endif
+
 /* One ray through the three traversals (tests/reflect_testing.h): the wide
    tree with SIMD box tests (where built), lane by lane, and the binary
    tree must return the same hit, bit for bit. Returns the hit flag. */
@@ -407,6 +424,8 @@ static void check_wide_matches_binary(const char *name, const refl_scene *s, int
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     diag = refl_v3_length(refl_v3_sub(hi, lo));
     cr_assert(s->has_camera, "%s", name);
+    w /= BVH_GRID_DIV;
+    h /= BVH_GRID_DIV;
     for (y = 0; y < h; ++y)
         for (x = 0; x < w; ++x, ++i) {
             refl_vec3 d = camera_ray(&v, w, h, x + 0.5f, y + 0.5f), ng, p;
@@ -437,14 +456,14 @@ static void check_wide_matches_binary(const char *name, const refl_scene *s, int
                                     refl_v3_reflect(refl_v3_normalize(d), ng), 0, INFINITY, "mirror", i, NULL);
             }
         }
-    for (i = 0; i < 20000; ++i) {
+    for (i = 0; i < BVH_RANDOM_RAYS; ++i) {
         refl_vec3 o = refl_v3_add(c, refl_v3_scale(rnd_dir(&r), rnd(&r, 0, diag)));
         refl_vec3 d = rnd_dir(&r);
         if (refl_rng_u32(&r) % 8 == 0) d.x = 0; /* infinite inverse directions */
         same_hit_three_ways(bvh, o, d, 0, i % 3 ? INFINITY : rnd(&r, 0, diag), "random", i, NULL);
     }
     cr_log_info("%s: wide, lane-by-lane and binary traversals agree on %dx%d primary rays (%lld hits), their "
-                "mirror rays and 20000 random rays", name, w, h, hits);
+                "mirror rays and %d random rays", name, w, h, hits, BVH_RANDOM_RAYS);
     refl_bvh_destroy(bvh);
 }
 
