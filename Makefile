@@ -242,8 +242,8 @@ $(ASAN_TEST_BIN): $(ASAN_TEST_OBJS)
 $(BENCH_BIN): $(BENCH_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(GL_LIBS) $(LDLIBS)
 
-$(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS)
-	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(LDLIBS)
+$(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS) build/tools/gltf_load.o
+	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(TINYGLTF_LIBS) -lstdc++ $(LDLIBS)
 
 # The test binaries compare refl_bvh with Embree (tests/tools/test_embree.c)
 # and check the bench's cost lines (tests/tools/test_bench_cost_fit.c).
@@ -462,6 +462,8 @@ bench: deps
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
 	$(BENCH_RAYS_BIN) --csv out/bench_rays.csv
+	if [ -f ../shared/assets/xyzrgb_dragon_100k.glb ]; then \
+	  $(BENCH_RAYS_BIN) --asset ../shared/assets/xyzrgb_dragon_100k.glb --csv out/bench_rays_dragon.csv; fi
 	$(REFLECT_BIN) bench --out out/bench
 
 # The demo: every built-in scene through the `reflect` command with every

@@ -1,15 +1,19 @@
 /* bench_rays - rays per second of refl_bvh against Embree 3 (single-ray
-   and stream API), on the built-in "default" scene from its own camera.
+   and stream API), on a built-in scene ("default" unless --scene) or a
+   glTF file (--asset) from its own camera (else refl_scene_complete's); the
+   build times of both; and whole RAYTRACE frames with refl_bvh and with
+   Embree as the ray caster.
 
-   Usage: bench_rays [--csv FILE] [--runs N] [--size WxH]
+   Usage: bench_rays [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb]
+                     [--frame WxH]
 
    Ray sets:
      primary   one ray through each pixel centre (1920x1080 unless --size):
                coherent
      mirror    the mirror ray of every primary hit on a reflector (material
-               not diffuse: the default scene's teapot), about the
-               interpolated normal, starting just off the surface:
-               incoherent
+               not diffuse: the default scene's teapot; in a scene without
+               one, of every primary hit), about the interpolated normal,
+               starting just off the surface: incoherent
    Tracers, closest hit for every ray, written to a hit array:
      refl_bvh       refl_bvh_intersect per ray
      embree_single  rtcIntersect1 per ray (robust scene, high build quality)
@@ -24,11 +28,23 @@
    The hits are checked too: all three must find the same number, and rays
    where refl_bvh and Embree name different triangles are counted (only
    rays grazing an edge may differ; tests/tools/test_embree.c classifies them).
-   Exit status 1 when the hit counts differ by more than 1 in 10^4. */
+   Exit status 1 when the hit counts differ by more than 1 in 10^4.
+
+   Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
+   robust) with 1 thread and with all, median of N each.
+
+   Frames (--frame, default 640x480; 0x0: none): refl_render of RAYTRACE
+   (one bounce, no shadows) with its own BVH built inside the frame, with
+   a refl_bvh built beforehand as its caster, and with Embree's scene
+   built beforehand as its caster (what a CPU user without this library
+   would trace with), 1 and 2 threads, taking turns within each of N runs;
+   medians, and Embree's time / ours as the median of per-run ratios (above
+   1: ours is faster). */
 #define _POSIX_C_SOURCE 200809L
 /* The implementations come from tests/reflect_impl.c and tests/rast_impl.c
    (linked in by the Makefile). */
 #include "../reflect.h"
+#include "../tools/gltf_load.h"
 #include "embree_peer.h"
 
 #include <errno.h>
@@ -142,6 +158,10 @@ static ray_set mirror_rays(const refl_scene *s, const ray_set *primary, const re
     refl_vec3 lo, hi;
     float offset;
     long long i;
+    int any_reflector = 0;
+    for (i = 0; i < primary->count && !any_reflector; ++i)
+        any_reflector = hits[i].object >= 0 &&
+                        s->materials[s->objects[hits[i].object].material].type != REFL_DIFFUSE;
     refl_scene_bounds(s, &lo, &hi);
     offset = 1e-5f * refl_v3_length(refl_v3_sub(hi, lo));
     r.count = 0;
@@ -157,7 +177,7 @@ static ray_set mirror_rays(const refl_scene *s, const ray_set *primary, const re
         int k;
         if (h->object < 0) continue;
         o = &s->objects[h->object];
-        if (s->materials[o->material].type == REFL_DIFFUSE) continue;
+        if (any_reflector && s->materials[o->material].type == REFL_DIFFUSE) continue;
         m = s->meshes[o->mesh];
         tri = m->indices + 3 * (size_t)h->triangle;
         n = refl_v3(0, 0, 0);
@@ -195,13 +215,80 @@ static long long count_different(const refl_hit *a, const refl_hit *b, long long
     return k;
 }
 
+/* ---- builds and whole frames ---------------------------------------------------- */
+
+static double build_ours_ms(const refl_scene *s) {
+    refl_bvh *b = NULL;
+    double t0 = now_s(), ms;
+    if (refl_bvh_build(s, NULL, &b) != REFL_OK) {
+        fprintf(stderr, "bench_rays: refl_bvh_build failed\n");
+        exit(2);
+    }
+    ms = (now_s() - t0) * 1e3;
+    refl_bvh_destroy(b);
+    return ms;
+}
+
+static double build_embree_ms(const refl_scene *s, int threads) {
+    char err[256];
+    double t0 = now_s(), ms;
+    refl_embree *e = refl_embree_create(s, threads, err, sizeof err);
+    if (!e) {
+        fprintf(stderr, "bench_rays: %s\n", err);
+        exit(2);
+    }
+    ms = (now_s() - t0) * 1e3;
+    refl_embree_destroy(e);
+    return ms;
+}
+
+static int bvh_caster_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
+    return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
+}
+
+static int bvh_caster_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
+}
+
+enum { FRAME_OURS_BUILT_IN, FRAME_OURS_PREBUILT, FRAME_EMBREE, FRAME_COUNT };
+static const char *frame_names[FRAME_COUNT] = {"refl_bvh (built in the frame)", "refl_bvh (prebuilt)",
+                                               "Embree (prebuilt)"};
+
+/* Wall milliseconds of one RAYTRACE frame through tracer `which`. */
+static double frame_ms(const refl_scene *s, const refl_view *v, int which, int threads, refl_bvh *bvh,
+                       refl_embree *emb, refl_frame *f) {
+    refl_render_desc d;
+    refl_result r;
+    double t0;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = threads;
+    d.depth = 1;
+    if (which == FRAME_OURS_PREBUILT) {
+        d.raytrace.caster.intersect = bvh_caster_intersect;
+        d.raytrace.caster.occluded = bvh_caster_occluded;
+        d.raytrace.caster.user = bvh;
+    } else if (which == FRAME_EMBREE) {
+        d.raytrace.caster.intersect = refl_embree_intersect;
+        d.raytrace.caster.occluded = refl_embree_occluded;
+        d.raytrace.caster.user = emb;
+    }
+    t0 = now_s();
+    r = refl_render(s, v, &d, f);
+    if (r != REFL_OK) {
+        fprintf(stderr, "bench_rays: RAYTRACE: %s\n", refl_result_string(r));
+        exit(2);
+    }
+    return (now_s() - t0) * 1e3;
+}
+
 static int parse_size(const char *s, int *w, int *h) {
     return sscanf(s, "%dx%d", w, h) == 2 && *w > 0 && *h > 0 && *w <= 16384 && *h <= 16384;
 }
 
 int main(int argc, char **argv) {
-    const char *csv = NULL;
-    int runs = 5, width = 1920, height = 1080, i, set, ti, tracer, status = 0;
+    const char *csv = NULL, *scene_name = "default", *asset = NULL;
+    int runs = 5, width = 1920, height = 1080, frame_w = 640, frame_h = 480, i, set, ti, tracer, status = 0;
     refl_scene *scene = NULL;
     refl_bvh *bvh = NULL;
     refl_embree *emb;
@@ -221,16 +308,36 @@ int main(int argc, char **argv) {
             ;
         else if (!strcmp(argv[i], "--size") && i + 1 < argc && parse_size(argv[++i], &width, &height))
             ;
+        else if (!strcmp(argv[i], "--scene") && i + 1 < argc)
+            scene_name = argv[++i];
+        else if (!strcmp(argv[i], "--asset") && i + 1 < argc)
+            scene_name = asset = argv[++i];
+        else if (!strcmp(argv[i], "--frame") && i + 1 < argc &&
+                 (!strcmp(argv[i + 1], "0x0") ? (frame_w = frame_h = 0, ++i, 1)
+                                               : parse_size(argv[++i], &frame_w, &frame_h)))
+            ;
         else {
-            fprintf(stderr, "usage: %s [--csv FILE] [--runs N] [--size WxH]\n", argv[0]);
+            fprintf(stderr,
+                    "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH]\n",
+                    argv[0]);
             return 2;
         }
     }
 
-    res = refl_scene_builtin("default", NULL, &scene);
-    if (res != REFL_OK) {
-        fprintf(stderr, "bench_rays: refl_scene_builtin: %s\n", refl_result_string(res));
-        return 2;
+    if (asset) {
+        char gerr[1024];
+        res = refl_gltf_load(asset, NULL, &scene, gerr, sizeof gerr);
+        if (res != REFL_OK) {
+            fprintf(stderr, "bench_rays: %s\n", gerr);
+            return 2;
+        }
+        refl_scene_complete(scene); /* a camera framing it, where the file has none */
+    } else {
+        res = refl_scene_builtin(scene_name, NULL, &scene);
+        if (res != REFL_OK) {
+            fprintf(stderr, "bench_rays: refl_scene_builtin(\"%s\"): %s\n", scene_name, refl_result_string(res));
+            return 2;
+        }
     }
     view = scene->camera;
     view.width = width;
@@ -258,9 +365,9 @@ int main(int argc, char **argv) {
     trace(TRACER_OURS, bvh, emb, 1, &rays[SET_PRIMARY], 2, hits[TRACER_OURS]);
     rays[SET_MIRROR] = mirror_rays(scene, &rays[SET_PRIMARY], hits[TRACER_OURS]);
 
-    printf("bench_rays: scene \"default\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
+    printf("bench_rays: scene \"%s\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
            "warm-up\n",
-           tris, width, height, runs);
+           scene_name, tris, width, height, runs);
     printf("machine: nproc %ld; builds: refl_bvh %.1f ms (1 thread, %lld nodes), Embree %.1f ms (all threads, "
            "high quality, robust)\n\n",
            sysconf(_SC_NPROCESSORS_ONLN), bvh_ms, nodes, embree_ms);
@@ -320,6 +427,54 @@ int main(int argc, char **argv) {
             printf("%-8s %7d %9lld %9.2f %14.2f %14.2f %13.2f %13.2f\n", set_names[set], thread_counts[ti],
                    rays[set].count, m[0], m[1], m[2], q[1], q[2]);
         }
+
+    /* Builds, taking turns within each run. */
+    {
+        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 3);
+        int run;
+        for (run = 0; run < runs; ++run) {
+            bt[run] = build_ours_ms(scene);
+            bt[runs + run] = build_embree_ms(scene, 1);
+            bt[2 * runs + run] = build_embree_ms(scene, 0);
+        }
+        printf("\nbuild ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld threads)\n",
+               runs, median(bt, runs), median(bt + runs, runs), median(bt + 2 * runs, runs),
+               sysconf(_SC_NPROCESSORS_ONLN));
+        free(bt);
+    }
+
+    /* Whole RAYTRACE frames, the three casters taking turns within each run. */
+    if (frame_w > 0) {
+        refl_view fv = view;
+        refl_frame *f = NULL;
+        double *ft = (double *)xmalloc(sizeof(double) * (size_t)runs * FRAME_COUNT);
+        double *fr = (double *)xmalloc(sizeof(double) * (size_t)runs);
+        int which, run;
+        fv.width = frame_w;
+        fv.height = frame_h;
+        if (refl_frame_create(frame_w, frame_h, NULL, &f) != REFL_OK) return 2;
+        printf("\nRAYTRACE %dx%d, one bounce, no shadows; wall ms, median of %d after 1 warm-up; ratio = Embree's "
+               "time / ours (above 1: ours faster), median of per-run ratios\n",
+               frame_w, frame_h, runs);
+        printf("%-7s %30s %20s %18s %22s %20s\n", "threads", frame_names[0], frame_names[1], frame_names[2],
+               "ratio (built in frame)", "ratio (prebuilt)");
+        for (ti = 0; ti < THREAD_ROWS; ++ti) {
+            double med[FRAME_COUNT], q[2];
+            for (which = 0; which < FRAME_COUNT; ++which) frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, f);
+            for (run = 0; run < runs; ++run)
+                for (which = 0; which < FRAME_COUNT; ++which)
+                    ft[which * runs + run] = frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, f);
+            for (which = 0; which < 2; ++which) {
+                for (run = 0; run < runs; ++run) fr[run] = ft[FRAME_EMBREE * runs + run] / ft[which * runs + run];
+                q[which] = median(fr, runs);
+            }
+            for (which = 0; which < FRAME_COUNT; ++which) med[which] = median(ft + which * runs, runs);
+            printf("%-7d %30.1f %20.1f %18.1f %22.2f %20.2f\n", thread_counts[ti], med[0], med[1], med[2], q[0], q[1]);
+        }
+        refl_frame_destroy(f);
+        free(ft);
+        free(fr);
+    }
 
     if (csv) {
         FILE *f;

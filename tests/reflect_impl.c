@@ -56,3 +56,12 @@ void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float p
     refl__view_rays_init(&r, v, scene);
     refl__view_rays_get(&r, px, py, origin, dir, tmax);
 }
+
+refl_result refl__testing_bvh_build_binary_too(const refl_scene *scene, refl_bvh **out_bvh) {
+    return refl__bvh_build_ex(scene, NULL, 1, out_bvh);
+}
+
+int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     int path, refl_hit *hit) {
+    return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 0, path, hit);
+}

@@ -35,6 +35,14 @@ refl_result refl__testing_draw_scene(rast_context *rc, const refl_scene *scene, 
 void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float px, float py, refl_vec3 *origin,
                             refl_vec3 *dir, float *tmax);
 
+/* refl_bvh_build keeping the binary tree besides the wide one, and a
+   trace through one of the three traversals of bvh.c: 0 the wide tree
+   (SIMD box tests where built), 1 the wide tree lane by lane, 2 the
+   binary tree (only in a tree built by the former). */
+refl_result refl__testing_bvh_build_binary_too(const refl_scene *scene, refl_bvh **out_bvh);
+int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     int path, refl_hit *hit);
+
 #ifndef REFL_IMPLEMENTATION
 /* The internals under their own names, as the tests call them. The mode
    values are checked against the implementation's in reflect_impl.c. */

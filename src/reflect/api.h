@@ -431,13 +431,16 @@ typedef struct refl_hit {
     float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
 } refl_hit;
 
-/* Builds a bounding volume hierarchy (binned SAH) over every object's
-   triangles in world space. Deterministic: the same scene gives the same
-   tree. Degenerate and non-finite triangles are left out. */
+/* Builds a bounding volume hierarchy (binned SAH, collapsed to four
+   children a node, SSE2 box and triangle tests; plain C under
+   RAST_NO_SIMD, with the same hits) over every object's triangles in world
+   space. Deterministic: the same scene gives the same tree. Degenerate
+   and non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
 REFL_API void refl_bvh_destroy(refl_bvh *bvh);
 /* Closest hit of origin + t * dir with tmin < t < tmax: 1 and *hit, or 0.
-   Watertight: a ray through a shared edge or vertex hits one triangle. */
+   Watertight: a ray through a shared edge or vertex hits one triangle.
+   Hits at the same t go to the lower object, then triangle. */
 REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */

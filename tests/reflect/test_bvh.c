@@ -1,15 +1,20 @@
 /* The triangle BVH: agreement with brute force, watertightness on closed
    meshes (rays through vertices and edges included), occlusion against
-   intersection, the default scene, determinism, bad input and allocation
-   failure at every allocation. */
+   intersection, the default scene, determinism, the wide tree against the
+   binary one and its SIMD box tests against the scalar ones (every
+   built-in scene and the shared assets), bad input and allocation failure
+   at every allocation. */
 #define _POSIX_C_SOURCE 200809L
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include "../../reflect.h"
+#include "../../tools/gltf_load.h"
+#include "../reflect_testing.h"
 #include "../test_util.h"
 #include "refl_test_util.h"
 
@@ -354,6 +359,166 @@ Test(refl_bvh, deterministic) {
     refl_bvh_destroy(b);
     refl_scene_destroy(s);
 }
+
+/* ---- the wide tree against the binary one ----------------------------------- */
+
+/* Tests run from the repository root. */
+#define BVH_ASSETS "../shared/assets"
+
+/* Random rays per scene, and the primary grid's divisor: fewer under the
+   sanitizers, whose run has a time bound (make test). */
+#if defined(__SANITIZE_ADDRESS__)
+#define BVH_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define BVH_SANITIZED 1
+#endif
+#endif
+#ifdef BVH_SANITIZED
+#define BVH_RANDOM_RAYS 2000
+#define BVH_GRID_DIV 2
+#else
+#define BVH_RANDOM_RAYS 20000
+#define BVH_GRID_DIV 1
+#endif
+
+/* One ray through the three traversals (tests/reflect_testing.h): the wide
+   tree with SIMD box tests (where built), lane by lane, and the binary
+   tree must return the same hit, bit for bit. Returns the hit flag. */
+static int same_hit_three_ways(const refl_bvh *bvh, refl_vec3 o, refl_vec3 d, float tmin, float tmax,
+                               const char *what, long long i, refl_hit *out) {
+    refl_hit h[3];
+    int r[3], k;
+    for (k = 0; k < 3; ++k) {
+        memset(&h[k], 0, sizeof h[k]);
+        r[k] = refl__testing_bvh_intersect_path(bvh, o, d, tmin, tmax, k, &h[k]);
+    }
+    for (k = 1; k < 3; ++k) {
+        cr_assert_eq(r[k], r[0], "%s ray %lld: traversal %d hit %d, wide %d", what, i, k, r[k], r[0]);
+        cr_assert_eq(memcmp(&h[k], &h[0], sizeof h[0]), 0,
+                     "%s ray %lld: traversal %d names object %d triangle %d t %.9g, wide object %d triangle %d "
+                     "t %.9g", what, i, k, h[k].object, h[k].triangle, h[k].t, h[0].object, h[0].triangle, h[0].t);
+    }
+    /* the public entry points take the wide tree */
+    cr_assert_eq(refl_bvh_intersect(bvh, o, d, tmin, tmax, &h[1]), r[0]);
+    cr_assert(!r[0] || memcmp(&h[1], &h[0], sizeof h[0]) == 0);
+    cr_assert_eq(refl_bvh_occluded(bvh, o, d, tmin, tmax), r[0], "%s ray %lld: occluded", what, i);
+    if (out) *out = h[0];
+    return r[0];
+}
+
+/* Primary rays through the pixel centres of w x h from the scene's
+   camera, the mirror ray of each hit about the
+   geometric normal, and random rays across the bounds, some with a finite
+   tmax, some starting at a hit's distance (ties at tmin). */
+static void check_wide_matches_binary(const char *name, const refl_scene *s, int w, int h) {
+    refl_bvh *bvh = NULL;
+    refl_view v = s->camera;
+    refl_vec3 lo, hi, c;
+    refl_rng r = refl_rng_seed(2024);
+    float diag;
+    long long i = 0, hits = 0;
+    int x, y;
+    cr_assert_eq(refl__testing_bvh_build_binary_too(s, &bvh), REFL_OK, "%s", name);
+    refl_scene_bounds(s, &lo, &hi);
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    diag = refl_v3_length(refl_v3_sub(hi, lo));
+    cr_assert(s->has_camera, "%s", name);
+    w /= BVH_GRID_DIV;
+    h /= BVH_GRID_DIV;
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x, ++i) {
+            refl_vec3 d = camera_ray(&v, w, h, x + 0.5f, y + 0.5f), ng, p;
+            refl_hit a;
+            float e[3][3];
+            int k;
+            if (!same_hit_three_ways(bvh, v.eye, d, 0, INFINITY, "primary", i, &a)) continue;
+            ++hits;
+            /* the same ray again from its hit's distance, and up to it */
+            same_hit_three_ways(bvh, v.eye, d, a.t, INFINITY, "from the hit", i, NULL);
+            same_hit_three_ways(bvh, v.eye, d, 0, a.t, "up to the hit", i, NULL);
+            /* the mirror ray about the geometric normal, from the hit */
+            {
+                const refl_object *o = &s->objects[a.object];
+                const refl_mesh *m = s->meshes[o->mesh];
+                for (k = 0; k < 3; ++k) {
+                    const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)a.triangle + k];
+                    refl_vec3 wv = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+                    e[k][0] = wv.x;
+                    e[k][1] = wv.y;
+                    e[k][2] = wv.z;
+                }
+                ng = refl_v3_normalize(refl_v3_cross(refl_v3(e[1][0] - e[0][0], e[1][1] - e[0][1], e[1][2] - e[0][2]),
+                                                     refl_v3(e[2][0] - e[0][0], e[2][1] - e[0][1], e[2][2] - e[0][2])));
+                p = refl_v3_add(v.eye, refl_v3_scale(d, a.t));
+                if (refl_v3_dot(ng, d) > 0) ng = refl_v3_scale(ng, -1);
+                same_hit_three_ways(bvh, refl_v3_add(p, refl_v3_scale(ng, 1e-5f * diag)),
+                                    refl_v3_reflect(refl_v3_normalize(d), ng), 0, INFINITY, "mirror", i, NULL);
+            }
+        }
+    for (i = 0; i < BVH_RANDOM_RAYS; ++i) {
+        refl_vec3 o = refl_v3_add(c, refl_v3_scale(rnd_dir(&r), rnd(&r, 0, diag)));
+        refl_vec3 d = rnd_dir(&r);
+        if (refl_rng_u32(&r) % 8 == 0) d.x = 0; /* infinite inverse directions */
+        same_hit_three_ways(bvh, o, d, 0, i % 3 ? INFINITY : rnd(&r, 0, diag), "random", i, NULL);
+    }
+    cr_log_info("%s: wide, lane-by-lane and binary traversals agree on %dx%d primary rays (%lld hits), their "
+                "mirror rays and %d random rays", name, w, h, hits, BVH_RANDOM_RAYS);
+    refl_bvh_destroy(bvh);
+}
+
+Test(refl_bvh, wide_matches_binary_on_builtin_scenes) {
+    const char *const *names = refl_builtin_names();
+    int i;
+    for (i = 0; names[i]; ++i) {
+        refl_scene *s = NULL;
+        cr_assert_eq(refl_scene_builtin(names[i], NULL, &s), REFL_OK, "%s", names[i]);
+        check_wide_matches_binary(names[i], s, 160, 120);
+        refl_scene_destroy(s);
+    }
+    /* coincident copies of one triangle: every hit a tie, broken by index */
+    {
+        refl_scene *s = random_scene(555, 3, 40);
+        int k;
+        for (k = 0; k < 2; ++k) {
+            refl_object o = s->objects[0];
+            cr_assert(refl_scene_add_object(s, &o) >= 0);
+        }
+        refl_scene_complete(s);
+        check_wide_matches_binary("coincident copies", s, 64, 48);
+        refl_scene_destroy(s);
+    }
+}
+
+static void check_asset(const char *file) {
+    struct stat st;
+    char path[512], err[1024];
+    refl_scene *s = NULL;
+    refl_result r;
+    if (stat(BVH_ASSETS, &st) != 0 || !S_ISDIR(st.st_mode))
+        cr_skip_test("%s is absent: the asset tests need the shared assets next to the repository", BVH_ASSETS);
+    snprintf(path, sizeof path, "%s/%s", BVH_ASSETS, file);
+    r = refl_gltf_load(path, NULL, &s, err, sizeof err);
+    cr_assert_eq(r, REFL_OK, "%s: %d (%s)", path, r, err);
+    refl_scene_complete(s); /* a camera framing it, where the file has none */
+    check_wide_matches_binary(file, s, 96, 72);
+    refl_scene_destroy(s);
+}
+
+/* The assets of test_gltf.c but MetalRoughSpheres' million triangles (too
+   slow to build under the sanitizers), one test each so they run in
+   parallel. */
+Test(refl_bvh_wide, teapot) { check_asset("teapot.glb"); }
+Test(refl_bvh_wide, bunny) { check_asset("bunny.glb"); }
+Test(refl_bvh_wide, bunny_10k) { check_asset("bunny_10k.glb"); }
+Test(refl_bvh_wide, xyzrgb_dragon_100k) { check_asset("xyzrgb_dragon_100k.glb"); }
+Test(refl_bvh_wide, box) { check_asset("Box.glb"); }
+Test(refl_bvh_wide, duck) { check_asset("Duck.glb"); }
+Test(refl_bvh_wide, suzanne) { check_asset("Suzanne.glb"); }
+Test(refl_bvh_wide, water_bottle) { check_asset("WaterBottle.glb"); }
+Test(refl_bvh_wide, transmission_test) { check_asset("TransmissionTest.glb"); }
+Test(refl_bvh_wide, attenuation_test) { check_asset("AttenuationTest.glb"); }
+Test(refl_bvh_wide, toy_car) { check_asset("ToyCar.glb"); }
 
 /* Degenerate and non-finite triangles are dropped; thousands of copies of
    one triangle (every centroid equal) still build within the depth limit
