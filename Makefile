@@ -79,6 +79,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_fit.c \
                  src/reflect/cam_sbc_morph.c \
                  src/reflect/cam_sbc_raylist.c \
+                 src/reflect/cam_spoc.c \
                  src/reflect/gbuffer.c \
                  src/reflect/gl_hooks.c \
                  src/reflect/kdtree.c \

@@ -537,6 +537,61 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
    Conservative: never 0 for a box holding a point that projects. */
 REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
 
+/* ---- single-pole occlusion camera (paper 004, section 4) ---------------------
+   A planar pinhole at `eye` looking at the object's bounding-sphere centre
+   (`center`, `radius`), square image of `size` pixels, whose image point is
+   then pushed radially away from the pole p0 (the centre's projection, the
+   image centre) by a displacement that grows with depth, so samples just
+   behind the silhouette become visible. With (x, y, z) the point in the
+   pinhole's frame (z along the view axis), f the focal length in pixels,
+   rho = f (x, -y) / z (pinhole pixels from the pole), r = |rho|:
+       gd(z)    = (1/zn - 1/z) / (1/zn - 1/zf)     zn, zf = D -/+ radius
+       delta(z) = strength * f * baseline * (1/zn - 1/z) = delta_max * gd
+       image    = p0 + rho * (1 + max(delta, 0) * min(1, r / ramp) / r)
+   delta is the parallax a viewpoint moved sideways by `baseline` (the radius
+   of the region the query rays start from) sees between depth z and the
+   near depth zn; strength 0 is the plain depth image. Within `ramp` pixels
+   of the pole the push fades linearly to 0, so the image stays continuous
+   there. gd is the pinhole's window depth (affine in 1/z, so delta is
+   affine in gd); for a fixed gd the radial map is strictly increasing, so
+   (u, v, gd) -> point is closed-form and one-to-one. f is chosen so that
+   the bounding sphere, pushed, fills the image (one pixel margin). */
+typedef struct refl_spoc {
+    refl_vec3 eye, center;
+    float radius, baseline, strength;
+    int size;
+    /* derived by refl_spoc_init */
+    refl_vec3 right, up, forward; /* the pinhole's frame (unit) */
+    float focal;             /* f, pixels */
+    float znear, zfar;       /* depth range of the bounding sphere along forward */
+    float delta_max;         /* the push at gd = 1, pixels */
+    float ramp;              /* pixels from the pole over which the push fades in */
+    float pole[2];           /* image of the centre: (size / 2, size / 2) */
+} refl_spoc;
+
+/* REFL_ERROR_INVALID_ARGUMENT for NULL, non-finite input, radius <= 0,
+   baseline or strength < 0, eye within 1.001 radius of the centre;
+   REFL_ERROR_INVALID_SIZE for size < 8 or > 16384. */
+REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 center, float radius,
+                                    float baseline, float strength, int size);
+/* p to (u, v, gd): u, v in image pixels (row 0 at the top), gd as above (0
+   at zn, 1 at zf). 0 when p is not in front of the eye (z <= 0). */
+REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]);
+/* The inverse: the point projecting to (u, v, gd); 0 for gd at or beyond
+   the eye plane's (1/z <= 0). */
+REFL_API int refl_spoc_unproject(const refl_spoc *cam, const float uvd[3], refl_vec3 *out);
+/* Image rectangle (u0, v0, u1, v1) holding the projection of the bounding
+   sphere, and its gd range [0, 1]. */
+REFL_API void refl_spoc_bounds(const refl_spoc *cam, float rect[4]);
+/* Folds of the radial map on a mesh (after `transform`, may be NULL): the
+   triangles that face the eye whose image is mirrored by the push (their
+   pinhole and SPOC windings differ), where the surface comes towards the
+   eye faster than the push grows (delta'(z) |dz/dr| > 1) and the SPOC
+   would hide what the plain depth image shows. Returns that count and
+   writes the count of eye-facing triangles to *facing (may be NULL). */
+REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *mesh, const refl_mat4 *transform,
+                                         long long *facing);
+
 /* ---- sample-based camera (paper 003) -----------------------------------------
    One reflection group's projection function: a BSP tree whose leaves hold
    planar pinhole cameras fitted to the group's reflected rays (or, where no
