@@ -82,6 +82,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_spoc.c \
                  src/reflect/gbuffer.c \
                  src/reflect/gl_hooks.c \
+                 src/reflect/impostor.c \
                  src/reflect/kdtree.c \
                  src/reflect/light_volume.c \
                  src/reflect/m_c3rc.c \

@@ -592,6 +592,82 @@ REFL_API void refl_spoc_bounds(const refl_spoc *cam, float rect[4]);
 REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *mesh, const refl_mat4 *transform,
                                          long long *facing);
 
+/* ---- non-pinhole impostors (paper 004, section 3) ------------------------------
+   An impostor is an image of some objects taken with a camera whose
+   projection is fast and gives (u, v, gd), gd a depth linear in image
+   space: colour, gd and (optionally) world normal per texel. It is built by
+   projecting the objects' triangles, subdivided until their edges span
+   about max_edge_px texels, with rast.h's vertex callback (clip position
+   (2u/W - 1, 1 - 2v/H, 2 gd - 1, 1): affine interpolation, so gd is
+   interpolated linearly in the image, as the marching assumes). A ray
+   meets it by walking the ray's curved projection (refl_impostor_intersect).
+   The camera is any project/unproject pair with a bounding sphere of what
+   it images; the pointer `cam` must outlive the impostor. */
+typedef struct refl_impostor_camera {
+    int (*project)(const void *cam, refl_vec3 p, float out[3]);
+    int (*unproject)(const void *cam, const float uvd[3], refl_vec3 *out);
+    const void *cam;
+    int width, height;       /* image size in texels */
+    refl_vec3 center;        /* bounding sphere of everything imaged: the rays are */
+    float radius;            /* clipped to it before walking */
+} refl_impostor_camera;
+
+/* A SPOC as an impostor camera (size x size, its bounding sphere). */
+REFL_API refl_impostor_camera refl_spoc_impostor_camera(const refl_spoc *cam);
+
+typedef struct refl_impostor_desc {
+    float max_edge_px;       /* subdivision: triangle edges of about this many texels at
+                                most; 0: 4 */
+    int normals;             /* 1: store world normals too (reflective objects) */
+    int threads;             /* rasterisation threads; 0: one per CPU */
+    refl_allocator allocator;
+} refl_impostor_desc;
+
+typedef struct refl_impostor {
+    int width, height;
+    float *color;            /* RGBA per texel: the shared diffuse shading (no shadows),
+                                alpha 1 where a surface is stored, 0 where none */
+    float *depth;            /* gd per texel (1 where none) */
+    float *normal;           /* 3 per texel (world, unit), or NULL */
+    refl_impostor_camera camera;
+    float depth_tolerance;   /* gd a surface may change per texel and still be one surface
+                                (4 / width): larger jumps are skins between layers */
+    long long triangles;     /* drawn, after subdivision */
+    refl_allocator allocator;
+} refl_impostor;
+
+/* Images objects[0 .. count) of the scene (any materials, drawn with the
+   shared diffuse shading). desc may be NULL (defaults). */
+REFL_API refl_result refl_impostor_build(const refl_scene *scene, const int *objects, int count,
+                                         const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                         refl_impostor **out);
+REFL_API void refl_impostor_destroy(refl_impostor *imp);
+
+typedef struct refl_impostor_hit {
+    float t;                 /* along dir (as given, unnormalised) */
+    refl_vec3 point;         /* origin + t dir */
+    float color[4];          /* the stored texel's colour */
+    refl_vec3 normal;        /* stored normal (zero without normals) */
+    float uvd[3];            /* the point's projection */
+} refl_impostor_hit;
+
+/* Section 3.2: the ray origin + t dir, tmin < t < tmax, is clipped to the
+   bounding sphere, its ends projected, and the clipped segment cut in n
+   equal pieces in 3-D, n = step_scale (0: 1) times the length in texels of
+   its projection measured along 4 pieces, at least 2. Walking from near to
+   far, each end s_k is projected to (u_k, v_k, gd_k) and compared with the
+   stored depth GD at its texel (nearest, never blended): the first piece
+   where the ray goes from in front of the stored surface (gd < GD) to
+   behind it (gd >= GD) is a hit, at the zero of gd - GD interpolated in t,
+   unless GD jumps between the two texels by more than 3 times the ray's
+   own change of gd plus depth_tolerance (a skin between depth layers at a
+   silhouette: the ray passes behind it). Entering a stored texel from an
+   empty one counts when the ray is within its own change of gd plus the
+   tolerance behind the surface. 1 and *hit on a hit; *steps (may be NULL)
+   gets the pieces walked (0 when the ray misses the sphere). */
+REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     float step_scale, refl_impostor_hit *hit, int *steps);
+
 /* ---- sample-based camera (paper 003) -----------------------------------------
    One reflection group's projection function: a BSP tree whose leaves hold
    planar pinhole cameras fitted to the group's reflected rays (or, where no
