@@ -90,6 +90,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \
+                 src/reflect/m_spoc.c \
                  src/reflect/math.c \
                  src/reflect/mesh.c \
                  src/reflect/metrics.c \

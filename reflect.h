@@ -373,7 +373,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "teapots"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -962,6 +962,12 @@ typedef struct refl_sbc_frame_stats {
     int groups;              /* reflection groups (a history's pieces within tiles) */
 } refl_sbc_frame_stats;
 
+typedef struct refl_spoc_frame_stats {
+    long long impostors;     /* SPOC impostors built (one per reflector and compact diffuse object) */
+    long long steps;         /* ray-marching pieces walked over all impostors (paper 004's n) */
+    long long max_steps;     /* the most one ray walked in one impostor */
+} refl_spoc_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -981,6 +987,7 @@ typedef struct refl_stats {
     refl_planar_frame_stats planar;
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
+    refl_spoc_frame_stats spoc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1148,6 +1155,16 @@ typedef struct refl_sbc_options {
                                 and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
+typedef struct refl_spoc_options {
+    int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
+    float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
+                                (a plain depth image, the paper's Fig. 6) */
+    float step_scale;        /* ray-marching pieces per texel of a ray's projection, at most
+                                16; 0: 1 (the paper's n) */
+    float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
+                                this many texels, 0.5 to 64; 0: 4 */
+} refl_spoc_options;
+
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
     int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
@@ -1202,6 +1219,7 @@ typedef struct refl_render_desc {
     refl_planar_options planar;
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
+    refl_spoc_options spoc;
     refl_debug_options debug;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;
@@ -1814,6 +1832,14 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
    not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
+/* ---- impostors (impostor.c) ---- */
+
+/* refl_impostor_build with the caller's rast context (left with no
+   targets bound). */
+static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                        const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                        refl_impostor **out);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
@@ -1824,13 +1850,16 @@ static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
+static refl_result refl__method_spoc(refl__pass *p);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/cam_sbc_internal.h ---- */
@@ -6270,7 +6299,7 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across) {
    project and unproject are each other's inverse to float precision. */
 
 /* The pinhole part: p in the camera frame (x right, y up, z forward). */
-static void refl__spoc_frame(const refl_spoc *cam, refl_vec3 p, double q[3]) {
+static void refl__spoc_camera_frame(const refl_spoc *cam, refl_vec3 p, double q[3]) {
     double d[3] = {(double)p.x - cam->eye.x, (double)p.y - cam->eye.y, (double)p.z - cam->eye.z};
     q[0] = d[0] * cam->right.x + d[1] * cam->right.y + d[2] * cam->right.z;
     q[1] = d[0] * cam->up.x + d[1] * cam->up.y + d[2] * cam->up.z;
@@ -6332,7 +6361,7 @@ REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 cen
 REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]) {
     double q[3], rx, ry, r, gd, push, scale;
     if (!cam || !out) return 0;
-    refl__spoc_frame(cam, p, q);
+    refl__spoc_camera_frame(cam, p, q);
     if (!(q[2] > 0.0)) return 0;
     rx = cam->focal * q[0] / q[2];
     ry = -cam->focal * q[1] / q[2];
@@ -6401,7 +6430,7 @@ REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *
             const float *v = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
             p[k] = refl_v3(v[0], v[1], v[2]);
             if (transform) p[k] = refl_mat4_point(*transform, p[k]);
-            refl__spoc_frame(cam, p[k], q);
+            refl__spoc_camera_frame(cam, p[k], q);
             if (!(q[2] > 0.0) || !refl_spoc_project(cam, p[k], img[k])) { ok = 0; break; }
             pin[k][0] = q[0] / q[2];
             pin[k][1] = -q[1] / q[2];
@@ -7388,6 +7417,18 @@ static long refl__imp_texel(const refl_impostor *imp, float u, float v) {
     return (long)fv * imp->width + (long)fu;
 }
 
+/* How much the stored depth changes over one texel beyond image point cur,
+   continuing from prev (0 where that texel is empty or the points meet):
+   the slope of the surface stored at cur, along the ray's projection. */
+static float refl__imp_slope(const refl_impostor *imp, const float prev[3], const float cur[3], float gd_cur) {
+    float du = cur[0] - prev[0], dv = cur[1] - prev[1], len = sqrtf(du * du + dv * dv);
+    long t;
+    if (!(len > 1e-6f)) return 0.0f;
+    t = refl__imp_texel(imp, cur[0] + du / len, cur[1] + dv / len);
+    if (t < 0 || imp->color[4 * t + 3] <= 0.0f) return 0.0f;
+    return fabsf(imp->depth[t] - gd_cur);
+}
+
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      float step_scale, refl_impostor_hit *hit, int *steps) {
     const refl_impostor_camera *cam;
@@ -7429,17 +7470,15 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
         if (tex >= 0 && imp->color[4 * tex + 3] <= 0.0f) tex = -1;
         gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f;
         d = cur[2] - gd_stored;
-        if (k > 0 && tex >= 0 && d >= 0.0f) {
-            float ray_change = fabsf(cur[2] - prev_gd), f = -1.0f;
-            if (prev_tex >= 0 && prev_d < 0.0f) {
-                /* a crossing, unless the stored depth jumps: a skin */
-                if (fabsf(gd_stored - imp->depth[prev_tex]) <= 3.0f * ray_change + imp->depth_tolerance)
-                    f = prev_d / (prev_d - d);
-            } else if (prev_tex < 0 && d <= ray_change + imp->depth_tolerance) {
-                /* entering the stored surface from an empty texel, at its edge */
-                float d0 = prev_gd - gd_stored;
-                f = d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
-            }
+        if (k > 0 && tex >= 0 && d >= 0.0f && (prev_tex < 0 || prev_d < 0.0f)) {
+            /* the ray went from in front of what texel k-1 stores (or from
+               an empty texel) to behind what texel k stores. A hit, unless
+               texel k's surface is nearer and the ray was already behind
+               it extended back by its own slope: a skin */
+            float d0 = prev_gd - gd_stored, f = -1.0f;
+            int farther = prev_tex >= 0 && gd_stored >= imp->depth[prev_tex];
+            if (farther || d0 <= refl__imp_slope(imp, prev, cur, gd_stored) + imp->depth_tolerance)
+                f = prev_tex >= 0 ? prev_d / (prev_d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
             if (f >= 0.0f) {
                 double th = t0 + (t1 - t0) * ((k - 1) + (double)f) / n;
                 long at;
@@ -7455,6 +7494,7 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
             }
         }
         prev_tex = tex;
+        memcpy(prev, cur, sizeof prev);
         prev_gd = cur[2];
         prev_d = d;
         if (steps && k > 0) ++*steps;
@@ -10926,6 +10966,318 @@ static refl_result refl__sb_run(refl__pass *p) {
 }
 
 static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
+/* ---- src/reflect/m_spoc.c ---- */
+/* SPOC: reflections of impostored diffuse objects in mirrors (paper 004,
+   sections 4 and 6). Per reflector seen, every compact diffuse object gets
+   an SPOC impostor (impostor.c) taken from the centre of the reflector's
+   world bounding box, looking at the centre of the object's, of radius its
+   half diagonal; the baseline is the reflector's half diagonal (the
+   region its reflected rays start from), so the push is the parallax of a
+   viewpoint moved across the reflector. Each reflector pixel's reflected
+   ray (G-buffer normal, the surface point from the base pass's depth)
+   meets the nearest of:
+   - the impostors, marched (refl_impostor_intersect);
+   - the rest of the scene, intersected exactly: flat objects (the floor,
+     the paper's billboard impostor, which it calls exact), objects whose
+     bounding sphere holds the reflector's centre (no SPOC can see them
+     from there), and the reflectors themselves, which show as DIRECT
+     draws them (one bounce: a mirror is black, a partial reflector its
+     diffuse share);
+   and what meets nothing shows the environment. Colours are composited
+   as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
+   does; frame->points gets the point the ray met (an impostor's: its own
+   estimate on the ray). Impostor colours are the shared diffuse shading
+   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   independent and step counts are summed per row, so any thread count
+   gives the same bytes and stats. */
+
+/* One reflector's frame: its impostors and the exact part of the scene. */
+typedef struct refl__spoc_frame {
+    refl__em em;
+    refl_spoc *cams;              /* per impostor */
+    refl_impostor **imps;
+    int imp_count;
+    refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
+    int *exact_object;            /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
+    int object;                   /* the reflector being drawn */
+    float offset;                 /* reflected rays start this far off their surface */
+    long long *row_steps, *row_max, *row_rays;
+} refl__spoc_frame;
+
+/* World bounding box of object i's vertices. */
+static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i gets an impostor seen from `eye`: diffuse, not flat
+   (its box's smallest side at least 1% of its largest), and the eye
+   outside its bounding sphere. */
+static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
+    refl_vec3 lo, hi, size, c;
+    float small, large;
+    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
+    refl__spoc_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+}
+
+/* Builds reflector `object`'s impostors and exact BVH. */
+static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
+    refl__pass *p = sf->em.p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_spoc_options *opt = &p->desc.spoc;
+    refl_vec3 lo, hi, eye;
+    refl_scene sub;
+    refl_object *objs;
+    float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
+    int i, n = 0;
+    refl_result r = REFL_OK;
+    refl__spoc_box(scene, object, &lo, &hi);
+    eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        if (refl__spoc_impostored(scene, i, eye)) {
+            refl_vec3 olo, ohi;
+            refl_impostor_camera ic;
+            refl_impostor_desc d;
+            refl_spoc *cam = &sf->cams[sf->imp_count];
+            refl__spoc_box(scene, i, &olo, &ohi);
+            r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
+                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
+            if (r != REFL_OK) break;
+            ic = refl_spoc_impostor_camera(cam);
+            memset(&d, 0, sizeof d);
+            d.max_edge_px = opt->max_edge_px;
+            d.allocator = *al;
+            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &sf->imps[sf->imp_count]);
+            if (r != REFL_OK) break;
+            p->frame->stats.triangles += sf->imps[sf->imp_count]->triangles;
+            p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * 5 * sizeof(float));
+            ++p->frame->stats.spoc.impostors;
+            ++sf->imp_count;
+        } else {
+            sf->exact_object[n] = i;
+            objs[n++] = scene->objects[i];
+        }
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &sf->exact);
+        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(sf->exact);
+    }
+    refl__free(al, objs);
+    return r;
+}
+
+static void refl__spoc_release(refl__spoc_frame *sf) {
+    int i;
+    for (i = 0; i < sf->imp_count; ++i) refl_impostor_destroy(sf->imps[i]);
+    sf->imp_count = 0;
+    refl_bvh_destroy(sf->exact);
+    sf->exact = NULL;
+}
+
+/* What the reflected ray o + t d meets first: its colour (clamped to
+   [0, 1]) and point; 0 for nothing. */
+static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, float rgb[3], refl_vec3 *shown,
+                            long long *steps, long long *max_steps) {
+    const refl__pass *p = sf->em.p;
+    float best = FLT_MAX;
+    int i, c, found = 0;
+    refl_hit h;
+    for (i = 0; i < sf->imp_count; ++i) {
+        refl_impostor_hit ih;
+        int n = 0;
+        if (refl_impostor_intersect(sf->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
+            best = ih.t;
+            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(ih.color[c], 0.0f, 1.0f);
+            *shown = ih.point;
+            found = 1;
+        }
+        *steps += n;
+        if (n > *max_steps) *max_steps = n;
+    }
+    if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
+        int object = sf->exact_object[h.object];
+        const refl__rt_object *ro = &sf->objects[object];
+        const refl_material *m = ro->material;
+        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
+        refl__hit_geom g;
+        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+        int k;
+        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
+        if (ro->mesh->texcoords)
+            for (k = 0; k < 3; ++k) {
+                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+            }
+        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+            rgba[0] = rgba[1] = rgba[2] = 0.0f;
+        } else {
+            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
+            refl__surface_rgba(m, col, rgba);
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
+        *shown = g.p;
+        found = 1;
+    }
+    return found;
+}
+
+/* One frame row: every pixel of the current reflector. */
+static void refl__spoc_row(void *arg, int y) {
+    refl__spoc_frame *sf = (refl__spoc_frame *)arg;
+    const refl__pass *p = sf->em.p;
+    const refl_frame *fr = p->frame;
+    float id = (float)(sf->object + 1);
+    long long steps = 0, max_steps = 0, rays = 0;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = sf->em.gbuf + 4 * i;
+        float rgb[3], tmax;
+        refl_vec3 o, d, n, s, shown = refl_v3(NAN, NAN, NAN);
+        if (fabsf(g[3]) != id) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
+        s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
+        ++rays;
+        if (refl__spoc_trace(sf, s, refl_v3_reflect(d, n), rgb, &shown, &steps, &max_steps))
+            refl__em_composite(p, g, x, y, rgb, shown);
+        else
+            refl__em_composite(p, g, x, y, NULL, shown);
+    }
+    sf->row_steps[y] += steps;
+    sf->row_rays[y] += rays;
+    if (max_steps > sf->row_max[y]) sf->row_max[y] = max_steps;
+}
+
+static const char *refl__options_spoc(refl_render_desc *d) {
+    refl_spoc_options *o = &d->spoc;
+    if (o->size < 0 || o->size > 4096) return "spoc.size: 0 (512) or 8 to 4096";
+    if (o->size == 0) o->size = 512;
+    if (o->size < 8) return "spoc.size: 0 (512) or 8 to 4096";
+    if (!refl__isfinite(o->strength) || o->strength > 64.0f) return "spoc.strength: finite, at most 64";
+    if (o->strength == 0.0f) o->strength = 1.0f;
+    if (!refl__isfinite(o->step_scale) || o->step_scale < 0.0f || o->step_scale > 16.0f)
+        return "spoc.step_scale: 0 (1) to 16";
+    if (o->step_scale == 0.0f) o->step_scale = 1.0f;
+    if (!refl__isfinite(o->max_edge_px) || o->max_edge_px < 0.0f || (o->max_edge_px > 0.0f && o->max_edge_px < 0.5f) ||
+        o->max_edge_px > 64.0f)
+        return "spoc.max_edge_px: 0 (4) or 0.5 to 64";
+    if (o->max_edge_px == 0.0f) o->max_edge_px = 4.0f;
+    return NULL;
+}
+
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
+static refl_result refl__method_spoc(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__spoc_frame sf;
+    unsigned char *seen = NULL;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    double t0 = refl__now_ms(), t1;
+    refl_vec3 lo, hi;
+    refl_result r;
+    int i, y, any = 0;
+    memset(&sf, 0, sizeof sf);
+    sf.em.p = p;
+    r = refl__em_gbuffer_new(&sf.em, &seen, &any);
+    if (r == REFL_OK && any) {
+        size_t npx = (size_t)fr->width * (size_t)fr->height;
+        sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        sf.cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
+        sf.imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
+        sf.exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+        sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+        sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sf.em.surface || !sf.cams || !sf.imps || !sf.exact_object || !sf.objects || !sf.row_steps ||
+            !sf.row_max || !sf.row_rays)
+            r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        for (i = 0; i < scene->object_count; ++i) {
+            const refl_object *o = &scene->objects[i];
+            sf.objects[i].mesh = scene->meshes[o->mesh];
+            sf.objects[i].material = &scene->materials[o->material];
+            sf.objects[i].model = o->transform;
+            sf.objects[i].normal_m = refl__normal_matrix(o->transform);
+        }
+        refl_scene_bounds(scene, &lo, &hi);
+        sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+        rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &sf.em);
+    }
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
+    for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
+        if (!seen[i] || !refl__pass_draws(p, i)) continue;
+        r = refl__spoc_build(&sf, i);
+        t0 = refl__now_ms();
+        fr->stats.ms_build += t0 - t1;
+        if (r == REFL_OK) {
+            sf.object = i;
+            rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
+        }
+        refl__spoc_release(&sf);
+        t1 = refl__now_ms();
+        fr->stats.ms_reflect += t1 - t0;
+    }
+    if (r == REFL_OK && any)
+        for (y = 0; y < fr->height; ++y) {
+            fr->stats.spoc.steps += sf.row_steps[y];
+            fr->stats.rays += sf.row_rays[y];
+            if (sf.row_max[y] > fr->stats.spoc.max_steps) fr->stats.spoc.max_steps = sf.row_max[y];
+        }
+    /* leave the frame bound, as the method found it (the impostors bound their own buffers) */
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__spoc_release(&sf);
+    refl__free(al, sf.em.gbuf);
+    refl__free(al, sf.em.draws);
+    refl__free(al, sf.em.surface);
+    refl__free(al, seen);
+    refl__free(al, sf.cams);
+    refl__free(al, sf.imps);
+    refl__free(al, sf.exact_object);
+    refl__free(al, sf.objects);
+    refl__free(al, sf.row_steps);
+    refl__free(al, sf.row_max);
+    refl__free(al, sf.row_rays);
+    return r;
+}
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -12974,6 +13326,7 @@ static const refl__method_row refl__methods[] = {
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
+    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 1},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -16123,7 +16476,7 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "teapots", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -16353,6 +16706,44 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* teapots: paper 004's two-teapot scene (Fig. 1): a mirror teapot and a
+   diffuse teapot beside it, turned, both at half size, on a checker floor
+   (a 256 x 256 texture of 16 x 16 tiles over the floor). */
+static refl_result refl__scene_teapots(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror teapot");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.45f, 0.12f, "diffuse teapot");
+    refl_mat4 half = refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f));
+    refl_mesh *m = NULL;
+    refl_result r;
+    float *checker;
+    int k, x, y, tex;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(-0.6f, 2.8f, 6.0f), refl_v3(-0.3f, 0.5f, 0.2f))) != REFL_OK) return r;
+    checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = 0; y < 256; ++y)
+        for (x = 0; x < 256; ++x) {
+            float v = ((x / 16) + (y / 16)) & 1 ? 0.95f : 0.15f;
+            float *px = checker + 4 * (256 * y + x);
+            px[0] = px[1] = px[2] = v;
+            px[3] = 1.0f;
+        }
+    tex = refl_scene_add_texture(s, 256, 256, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    s->materials[s->objects[0].material].texture = tex;
+    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
+        s->materials[s->objects[0].material].color[2] = 1.0f;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_mul(refl__at(-1.2f, 0.0f, -0.2f), half), "mirror teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
+                       refl_mat4_mul(refl__at(1.1f, 0.0f, 1.5f),
+                                     refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 2.2f), half)),
+                       "diffuse teapot")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc, refl_scene **out_scene) {
     refl_builtin_desc d;
     refl_scene *s;
@@ -16362,12 +16753,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (!name) return REFL_ERROR_INVALID_ARGUMENT;
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
-    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass"))
+    if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
+        strcmp(name, "teapots"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "teapots")) r = refl__scene_teapots(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

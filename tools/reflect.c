@@ -39,8 +39,8 @@ static const char *const usage_main =
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
-    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc or sbc\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, teapots\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc or spoc\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
@@ -112,6 +112,10 @@ static const char *const usage_compare =
     "threshold. Exit status 0 when compared, 2 on bad usage or unreadable or\n"
     "mismatched images.\n"
     "\n"
+    "  --spoc-size N      SPOC: impostor size in texels, 8..4096 (default 512)\n"
+    "  --spoc-strength K  SPOC: the push, 0..64 (default 1; 0: a plain depth image)\n"
+    "  --spoc-step S      SPOC: marching pieces per texel of a ray's projection,\n"
+    "                     1/16..16 (default 1)\n"
     "  --mask M           compare only the pixels where M (same size) is not black\n"
     "  --threshold T      per channel, 0..1 or a fraction like 4/255 (default\n"
     "                     2/255); 0 counts any difference\n";
@@ -123,6 +127,8 @@ typedef struct options {
     float translucency;
     int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper;
     float density, camera_split, error_px;
+    int spoc_size;                /* --spoc-size, --spoc-strength (-1: unset), --spoc-step */
+    float spoc_strength, spoc_step;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
@@ -168,7 +174,7 @@ static const char *const value_options[] = {
     "--builtin", "--normalize", "--tess", "--method", "--size", "--eye", "--target", "--up", "--fov", "--env",
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
-    "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
+    "--error-px", "--ray-factor", "--max-splat", "--spoc-size", "--spoc-strength", "--spoc-step", "--exposure", "--tonemap", "--mirror", "--glass", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper", NULL};
 
@@ -183,6 +189,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     int i;
     memset(o, 0, sizeof(*o));
     o->out = "out.png";
+    o->spoc_strength = -1.0f;
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL, *eq = strchr(a, '=');
         char name[32];
@@ -219,7 +226,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--method")) {
             refl_method m = refl_method_from_name(v);
-            if (!m) return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc)", v);
+            if (!m) return fail("--method: no method '%s' (direct, raytrace, envmap, planar, c3rc, sbc, spoc)", v);
             if (!refl_method_is_built(m)) return fail("--method: '%s' is not built yet", v);
             o->method = v;
         } else if (!strcmp(a, "--mirror") || !strcmp(a, "--glass")) {
@@ -278,6 +285,12 @@ static int parse(int argc, char **argv, int is_render, options *o) {
                 return fail("--spp: expected a square 1..64 (1, 4, 9 ... 64), got %s", v);
         } else if (!strcmp(a, "--max-renderings")) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
+        } else if (!strcmp(a, "--spoc-size")) {
+            if (!parse_int(v, 8, 4096, &o->spoc_size)) return fail("--spoc-size: expected 8..4096, got %s", v);
+        } else if (!strcmp(a, "--spoc-strength")) {
+            if (!parse_float(v, 0.0f, 64.0f, &o->spoc_strength)) return fail("--spoc-strength: expected 0..64, got %s", v);
+        } else if (!strcmp(a, "--spoc-step")) {
+            if (!parse_float(v, 0.0625f, 16.0f, &o->spoc_step)) return fail("--spoc-step: expected 0.0625..16, got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 2048, &o->envmap_size)) return fail("--envmap-size: expected 1..2048, got %s", v);
         } else if (!strcmp(a, "--density")) {
@@ -515,6 +528,10 @@ static int cmd_render(const options *o) {
     d.spp = o->spp;
     d.lighting.shadows = o->shadows;
     d.envmap.size = o->envmap_size;
+    d.spoc.size = o->spoc_size;
+    /* the desc's 0 is the default strength and a negative one the plain depth image */
+    d.spoc.strength = o->spoc_strength < 0.0f ? 0.0f : o->spoc_strength == 0.0f ? -1.0f : o->spoc_strength;
+    d.spoc.step_scale = o->spoc_step;
     d.planar.no_culling = o->no_culling;
     d.planar.max_renderings = o->max_renderings;
     d.lighting.light_volumes = o->light_volumes;
@@ -585,6 +602,9 @@ static int cmd_render(const options *o) {
         printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
         if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);
+        if (st->spoc.impostors)
+            printf("impostors    %lld\nsteps        %lld (at most %lld per ray and impostor)\n", st->spoc.impostors,
+                   st->spoc.steps, st->spoc.max_steps);
         if (st->planar.renderings || st->planar.culled)
             printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,
                    st->planar.deepest, st->planar.culled);

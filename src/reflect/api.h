@@ -371,7 +371,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "teapots"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -960,6 +960,12 @@ typedef struct refl_sbc_frame_stats {
     int groups;              /* reflection groups (a history's pieces within tiles) */
 } refl_sbc_frame_stats;
 
+typedef struct refl_spoc_frame_stats {
+    long long impostors;     /* SPOC impostors built (one per reflector and compact diffuse object) */
+    long long steps;         /* ray-marching pieces walked over all impostors (paper 004's n) */
+    long long max_steps;     /* the most one ray walked in one impostor */
+} refl_spoc_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -979,6 +985,7 @@ typedef struct refl_stats {
     refl_planar_frame_stats planar;
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
+    refl_spoc_frame_stats spoc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1146,6 +1153,16 @@ typedef struct refl_sbc_options {
                                 and frame->message saying what exceeded it. 0: 2048 */
 } refl_sbc_options;
 
+typedef struct refl_spoc_options {
+    int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
+    float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
+                                (a plain depth image, the paper's Fig. 6) */
+    float step_scale;        /* ray-marching pieces per texel of a ray's projection, at most
+                                16; 0: 1 (the paper's n) */
+    float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
+                                this many texels, 0.5 to 64; 0: 4 */
+} refl_spoc_options;
+
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
     int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
@@ -1200,6 +1217,7 @@ typedef struct refl_render_desc {
     refl_planar_options planar;
     refl_c3rc_options c3rc;
     refl_sbc_options sbc;
+    refl_spoc_options spoc;
     refl_debug_options debug;
     void (*progress)(void *user, float done); /* optional, done in [0, 1] */
     void *progress_user;

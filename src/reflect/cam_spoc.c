@@ -13,7 +13,7 @@
 #include "internal.h"
 
 /* The pinhole part: p in the camera frame (x right, y up, z forward). */
-static void refl__spoc_frame(const refl_spoc *cam, refl_vec3 p, double q[3]) {
+static void refl__spoc_camera_frame(const refl_spoc *cam, refl_vec3 p, double q[3]) {
     double d[3] = {(double)p.x - cam->eye.x, (double)p.y - cam->eye.y, (double)p.z - cam->eye.z};
     q[0] = d[0] * cam->right.x + d[1] * cam->right.y + d[2] * cam->right.z;
     q[1] = d[0] * cam->up.x + d[1] * cam->up.y + d[2] * cam->up.z;
@@ -75,7 +75,7 @@ REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 cen
 REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]) {
     double q[3], rx, ry, r, gd, push, scale;
     if (!cam || !out) return 0;
-    refl__spoc_frame(cam, p, q);
+    refl__spoc_camera_frame(cam, p, q);
     if (!(q[2] > 0.0)) return 0;
     rx = cam->focal * q[0] / q[2];
     ry = -cam->focal * q[1] / q[2];
@@ -144,7 +144,7 @@ REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *
             const float *v = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
             p[k] = refl_v3(v[0], v[1], v[2]);
             if (transform) p[k] = refl_mat4_point(*transform, p[k]);
-            refl__spoc_frame(cam, p[k], q);
+            refl__spoc_camera_frame(cam, p[k], q);
             if (!(q[2] > 0.0) || !refl_spoc_project(cam, p[k], img[k])) { ok = 0; break; }
             pin[k][0] = q[0] / q[2];
             pin[k][1] = -q[1] / q[2];

@@ -238,6 +238,18 @@ static long refl__imp_texel(const refl_impostor *imp, float u, float v) {
     return (long)fv * imp->width + (long)fu;
 }
 
+/* How much the stored depth changes over one texel beyond image point cur,
+   continuing from prev (0 where that texel is empty or the points meet):
+   the slope of the surface stored at cur, along the ray's projection. */
+static float refl__imp_slope(const refl_impostor *imp, const float prev[3], const float cur[3], float gd_cur) {
+    float du = cur[0] - prev[0], dv = cur[1] - prev[1], len = sqrtf(du * du + dv * dv);
+    long t;
+    if (!(len > 1e-6f)) return 0.0f;
+    t = refl__imp_texel(imp, cur[0] + du / len, cur[1] + dv / len);
+    if (t < 0 || imp->color[4 * t + 3] <= 0.0f) return 0.0f;
+    return fabsf(imp->depth[t] - gd_cur);
+}
+
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      float step_scale, refl_impostor_hit *hit, int *steps) {
     const refl_impostor_camera *cam;
@@ -279,17 +291,15 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
         if (tex >= 0 && imp->color[4 * tex + 3] <= 0.0f) tex = -1;
         gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f;
         d = cur[2] - gd_stored;
-        if (k > 0 && tex >= 0 && d >= 0.0f) {
-            float ray_change = fabsf(cur[2] - prev_gd), f = -1.0f;
-            if (prev_tex >= 0 && prev_d < 0.0f) {
-                /* a crossing, unless the stored depth jumps: a skin */
-                if (fabsf(gd_stored - imp->depth[prev_tex]) <= 3.0f * ray_change + imp->depth_tolerance)
-                    f = prev_d / (prev_d - d);
-            } else if (prev_tex < 0 && d <= ray_change + imp->depth_tolerance) {
-                /* entering the stored surface from an empty texel, at its edge */
-                float d0 = prev_gd - gd_stored;
-                f = d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
-            }
+        if (k > 0 && tex >= 0 && d >= 0.0f && (prev_tex < 0 || prev_d < 0.0f)) {
+            /* the ray went from in front of what texel k-1 stores (or from
+               an empty texel) to behind what texel k stores. A hit, unless
+               texel k's surface is nearer and the ray was already behind
+               it extended back by its own slope: a skin */
+            float d0 = prev_gd - gd_stored, f = -1.0f;
+            int farther = prev_tex >= 0 && gd_stored >= imp->depth[prev_tex];
+            if (farther || d0 <= refl__imp_slope(imp, prev, cur, gd_stored) + imp->depth_tolerance)
+                f = prev_tex >= 0 ? prev_d / (prev_d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
             if (f >= 0.0f) {
                 double th = t0 + (t1 - t0) * ((k - 1) + (double)f) / n;
                 long at;
@@ -305,6 +315,7 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
             }
         }
         prev_tex = tex;
+        memcpy(prev, cur, sizeof prev);
         prev_gd = cur[2];
         prev_d = d;
         if (steps && k > 0) ++*steps;

@@ -463,6 +463,14 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
    not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
 
+/* ---- impostors (impostor.c) ---- */
+
+/* refl_impostor_build with the caller's rast context (left with no
+   targets bound). */
+static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                        const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                        refl_impostor **out);
+
 /* ---- the methods (m_*.c) ---- */
 
 /* The methods, one module each, and their rows in the method table
@@ -473,12 +481,15 @@ static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
+static refl_result refl__method_spoc(refl__pass *p);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
+static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
