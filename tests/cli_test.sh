@@ -125,7 +125,7 @@ exits2 "unknown option" "unknown option" "$bin" render --builtin default --frobn
 exits2 "no scene" "give one scene" "$bin" render
 refuses "unknown command" "unknown command" "$bin" paint
 refuses "missing environment" "nothing.hdr" "$bin" render --builtin default --env "$tmp/nothing.hdr" --out "$tmp/y.png"
-exits2 "method not built yet" "not built yet" "$bin" render --builtin default --method spoc --out "$tmp/z.png"
+exits2 "method not built yet" "not built yet" "$bin" render --builtin default --method layered-em --out "$tmp/z.png"
 
 # the command line's manners: --version, --name=value, method names in any
 # case, an unknown option named as such wherever it stands, exit status 2

@@ -189,3 +189,53 @@ Test(spoc_method, options_validated) {
     d.spoc.step_scale = 0.0f;
     cr_expect_eq(refl_validate_render_desc(&d, &why), REFL_OK);
 }
+
+/* Where the paper says the method degrades: the push's strength (up to
+   where the map folds much of the surface) and the marching step. Every
+   frame stays finite; steps scale with step_scale. */
+Test(spoc_method, sweeps_stay_finite, .timeout = 120) {
+    static const float strengths[] = {-1.0f, 0.5f, 4.0f, 16.0f, 64.0f};
+    static const float steps[] = {0.25f, 4.0f};
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc rt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth;
+    long long base_steps;
+    size_t k, npx;
+    int i;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    v = teapots_view(s);
+    v.width = 160;
+    v.height = 120;
+    npx = (size_t)v.width * (size_t)v.height;
+    truth = tu_refl_render(s, &v, &rt);
+    {
+        refl_render_desc d = tu_refl_one_bounce(REFL_SPOC, 2);
+        refl_frame *f;
+        d.spoc.size = 256;
+        f = tu_refl_render(s, &v, &d);
+        base_steps = f->stats.spoc.steps;
+        refl_frame_destroy(f);
+    }
+    for (i = 0; i < 7; ++i) {
+        refl_render_desc d = tu_refl_one_bounce(REFL_SPOC, 2);
+        refl_reflection_error e;
+        refl_frame *f;
+        d.spoc.size = 256;
+        if (i < 5) d.spoc.strength = strengths[i];
+        else d.spoc.step_scale = steps[i - 5];
+        f = tu_refl_render(s, &v, &d);
+        for (k = 0; k < 4 * npx; ++k) cr_assert(isfinite(f->rgba[k]), "setting %d: pixel %zu not finite", i, k / 4);
+        cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
+        cr_expect(isfinite(e.mean) && e.wrong + e.empty < 0.2, "setting %d: mean %g wrong %g empty %g", i, e.mean,
+                  e.wrong, e.empty);
+        cr_log_info("teapots 160x120, impostor 256, %s %g: mean %.3f px, wrong %.4f, empty %.4f, steps %lld\n",
+                    i < 5 ? "strength" : "step_scale", i < 5 ? strengths[i] : steps[i - 5], e.mean, e.wrong, e.empty,
+                    f->stats.spoc.steps);
+        if (i == 5) cr_expect(f->stats.spoc.steps < base_steps / 2, "%lld vs %lld", f->stats.spoc.steps, base_steps);
+        if (i == 6) cr_expect(f->stats.spoc.steps > base_steps * 3, "%lld vs %lld", f->stats.spoc.steps, base_steps);
+        refl_frame_destroy(f);
+    }
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
