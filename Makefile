@@ -80,9 +80,11 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_fit.c \
                  src/reflect/cam_sbc_morph.c \
                  src/reflect/cam_sbc_raylist.c \
+                 src/reflect/cam_spoc.c \
                  src/reflect/gbuffer.c \
                  src/reflect/gl_hooks.c \
                  src/reflect/greedy_path.c \
+                 src/reflect/impostor.c \
                  src/reflect/kdtree.c \
                  src/reflect/lem_infer.c \
                  src/reflect/lens_tess.c \
@@ -94,6 +96,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/m_planar.c \
                  src/reflect/m_raytrace.c \
                  src/reflect/m_sbc.c \
+                 src/reflect/m_spoc.c \
                  src/reflect/math.c \
                  src/reflect/mesh.c \
                  src/reflect/metrics.c \

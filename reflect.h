@@ -376,7 +376,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass", "maze"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "maze", "teapots"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -544,6 +544,137 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
    tmax is finite) the box misses the bounds of the truncated volume.
    Conservative: never 0 for a box holding a point that projects. */
 REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
+
+/* ---- single-pole occlusion camera (paper 004, section 4) ---------------------
+   A planar pinhole at `eye` looking at the object's bounding-sphere centre
+   (`center`, `radius`), square image of `size` pixels, whose image point is
+   then pushed radially away from the pole p0 (the centre's projection, the
+   image centre) by a displacement that grows with depth, so samples just
+   behind the silhouette become visible. With (x, y, z) the point in the
+   pinhole's frame (z along the view axis), f the focal length in pixels,
+   rho = f (x, -y) / z (pinhole pixels from the pole), r = |rho|:
+       gd(z)    = (1/zn - 1/z) / (1/zn - 1/zf)     zn, zf = D -/+ radius
+       delta(z) = strength * f * baseline * (1/zn - 1/z) = delta_max * gd
+       image    = p0 + rho * (1 + max(delta, 0) * min(1, r / ramp) / r)
+   delta is the parallax a viewpoint moved sideways by `baseline` (the radius
+   of the region the query rays start from) sees between depth z and the
+   near depth zn; strength 0 is the plain depth image. Within `ramp` pixels
+   of the pole the push fades linearly to 0, so the image stays continuous
+   there. gd is the pinhole's window depth (affine in 1/z, so delta is
+   affine in gd); for a fixed gd the radial map is strictly increasing, so
+   (u, v, gd) -> point is closed-form and one-to-one. f is chosen so that
+   the bounding sphere, pushed, fills the image (one pixel margin). */
+typedef struct refl_spoc {
+    refl_vec3 eye, center;
+    float radius, baseline, strength;
+    int size;
+    /* derived by refl_spoc_init */
+    refl_vec3 right, up, forward; /* the pinhole's frame (unit) */
+    float focal;             /* f, pixels */
+    float znear, zfar;       /* depth range of the bounding sphere along forward */
+    float delta_max;         /* the push at gd = 1, pixels */
+    float ramp;              /* pixels from the pole over which the push fades in */
+    float pole[2];           /* image of the centre: (size / 2, size / 2) */
+} refl_spoc;
+
+/* REFL_ERROR_INVALID_ARGUMENT for NULL, non-finite input, radius <= 0,
+   baseline or strength < 0, eye within 1.001 radius of the centre;
+   REFL_ERROR_INVALID_SIZE for size < 8 or > 16384. */
+REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 center, float radius,
+                                    float baseline, float strength, int size);
+/* p to (u, v, gd): u, v in image pixels (row 0 at the top), gd as above (0
+   at zn, 1 at zf). 0 when p is not in front of the eye (z <= 0). */
+REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]);
+/* The inverse: the point projecting to (u, v, gd); 0 for gd at or beyond
+   the eye plane's (1/z <= 0). */
+REFL_API int refl_spoc_unproject(const refl_spoc *cam, const float uvd[3], refl_vec3 *out);
+/* Image rectangle (u0, v0, u1, v1) holding the projection of the bounding
+   sphere, and its gd range [0, 1]. */
+REFL_API void refl_spoc_bounds(const refl_spoc *cam, float rect[4]);
+/* Folds of the radial map on a mesh (after `transform`, may be NULL): the
+   triangles that face the eye whose image is mirrored by the push (their
+   pinhole and SPOC windings differ), where the surface comes towards the
+   eye faster than the push grows (delta'(z) |dz/dr| > 1) and the SPOC
+   would hide what the plain depth image shows. Returns that count and
+   writes the count of eye-facing triangles to *facing (may be NULL). */
+REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *mesh, const refl_mat4 *transform,
+                                         long long *facing);
+
+/* ---- non-pinhole impostors (paper 004, section 3) ------------------------------
+   An impostor is an image of some objects taken with a camera whose
+   projection is fast and gives (u, v, gd), gd a depth linear in image
+   space: colour, gd and (optionally) world normal per texel. It is built by
+   projecting the objects' triangles, subdivided until their edges span
+   about max_edge_px texels, with rast.h's vertex callback (clip position
+   (2u/W - 1, 1 - 2v/H, 2 gd - 1, 1): affine interpolation, so gd is
+   interpolated linearly in the image, as the marching assumes). A ray
+   meets it by walking the ray's curved projection (refl_impostor_intersect).
+   The camera is any project/unproject pair with a bounding sphere of what
+   it images; the pointer `cam` must outlive the impostor. */
+typedef struct refl_impostor_camera {
+    int (*project)(const void *cam, refl_vec3 p, float out[3]);
+    int (*unproject)(const void *cam, const float uvd[3], refl_vec3 *out);
+    const void *cam;
+    int width, height;       /* image size in texels */
+    refl_vec3 center;        /* bounding sphere of everything imaged: the rays are */
+    float radius;            /* clipped to it before walking */
+} refl_impostor_camera;
+
+/* A SPOC as an impostor camera (size x size, its bounding sphere). */
+REFL_API refl_impostor_camera refl_spoc_impostor_camera(const refl_spoc *cam);
+
+typedef struct refl_impostor_desc {
+    float max_edge_px;       /* subdivision: triangle edges of about this many texels at
+                                most; 0: 4 */
+    int normals;             /* 1: store world normals too (reflective objects) */
+    int threads;             /* rasterisation threads; 0: one per CPU */
+    refl_allocator allocator;
+} refl_impostor_desc;
+
+typedef struct refl_impostor {
+    int width, height;
+    float *color;            /* RGBA per texel: the shared diffuse shading (no shadows),
+                                alpha 1 where a surface is stored, 0 where none */
+    float *depth;            /* gd per texel (1 where none) */
+    float *normal;           /* 3 per texel (world, unit), or NULL */
+    refl_impostor_camera camera;
+    float depth_tolerance;   /* gd a surface may change per texel and still be one surface
+                                (4 / width): larger jumps are skins between layers */
+    long long triangles;     /* drawn, after subdivision */
+    refl_allocator allocator;
+} refl_impostor;
+
+/* Images objects[0 .. count) of the scene (any materials, drawn with the
+   shared diffuse shading). desc may be NULL (defaults). */
+REFL_API refl_result refl_impostor_build(const refl_scene *scene, const int *objects, int count,
+                                         const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                         refl_impostor **out);
+REFL_API void refl_impostor_destroy(refl_impostor *imp);
+
+typedef struct refl_impostor_hit {
+    float t;                 /* along dir (as given, unnormalised) */
+    refl_vec3 point;         /* origin + t dir */
+    float color[4];          /* the stored texel's colour */
+    refl_vec3 normal;        /* stored normal (zero without normals) */
+    float uvd[3];            /* the point's projection */
+} refl_impostor_hit;
+
+/* Section 3.2: the ray origin + t dir, tmin < t < tmax, is clipped to the
+   bounding sphere, its ends projected, and the clipped segment cut in n
+   equal pieces in 3-D, n = step_scale (0: 1) times the length in texels of
+   its projection measured along 4 pieces, at least 2. Walking from near to
+   far, each end s_k is projected to (u_k, v_k, gd_k) and compared with the
+   stored depth GD at its texel (nearest, never blended): the first piece
+   where the ray goes from in front of the stored surface (gd < GD) to
+   behind it (gd >= GD) is a hit, at the zero of gd - GD interpolated in t,
+   unless GD jumps between the two texels by more than 3 times the ray's
+   own change of gd plus depth_tolerance (a skin between depth layers at a
+   silhouette: the ray passes behind it). Entering a stored texel from an
+   empty one counts when the ray is within its own change of gd plus the
+   tolerance behind the surface. 1 and *hit on a hit; *steps (may be NULL)
+   gets the pieces walked (0 when the ray misses the sphere). */
+REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     float step_scale, refl_impostor_hit *hit, int *steps);
 
 /* ---- sample-based camera (paper 003) -----------------------------------------
    One reflection group's projection function: a BSP tree whose leaves hold
@@ -985,6 +1116,11 @@ typedef struct refl_graphcam_frame_stats {
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;
+typedef struct refl_spoc_frame_stats {
+    long long impostors;     /* SPOC impostors built (one per reflector and compact diffuse object) */
+    long long steps;         /* ray-marching pieces walked over all impostors (paper 004's n) */
+    long long max_steps;     /* the most one ray walked in one impostor */
+} refl_spoc_frame_stats;
 
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
@@ -1006,6 +1142,7 @@ typedef struct refl_stats {
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
     refl_graphcam_frame_stats graphcam;
+    refl_spoc_frame_stats spoc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1386,6 +1523,15 @@ typedef struct refl_graphcam_options {
     float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
                                 (0: the camera's bounds' diagonal / 2048) */
 } refl_graphcam_options;
+typedef struct refl_spoc_options {
+    int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
+    float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
+                                (a plain depth image, the paper's Fig. 6) */
+    float step_scale;        /* ray-marching pieces per texel of a ray's projection, at most
+                                16; 0: 1 (the paper's n) */
+    float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
+                                this many texels, 0.5 to 64; 0: 4 */
+} refl_spoc_options;
 
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
@@ -1443,6 +1589,7 @@ typedef struct refl_render_desc {
     refl_sbc_options sbc;
     refl_graphcam_options graphcam;
     refl_layered_em_options layered_em;
+    refl_spoc_options spoc;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows
@@ -2142,6 +2289,13 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays);
+/* ---- impostors (impostor.c) ---- */
+
+/* refl_impostor_build with the caller's rast context (left with no
+   targets bound). */
+static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                        const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                        refl_impostor **out);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -2155,6 +2309,7 @@ static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
 static refl_result refl__method_graphcam(refl__pass *p);
 static const char *refl__options_graphcam(refl_render_desc *d);
+static refl_result refl__method_spoc(refl__pass *p);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
@@ -2162,8 +2317,10 @@ static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__method_layered_em(refl__pass *p);
 static const char *refl__options_layered_em(refl_render_desc *d);
+static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/cam_sbc_internal.h ---- */
@@ -7621,6 +7778,171 @@ static int refl__sbc_sheet_image(int mask, int sheet, int *across) {
     if (mask >> (sheet + 1) & 1) return sheet + 1;
     return -1;
 }
+/* ---- src/reflect/cam_spoc.c ---- */
+/* cam_spoc: the single-pole occlusion camera (SPOC) of paper 004, section 4.
+   The paper defers the model to [MPS05]; the one here is explicit (api.h,
+   refl_spoc): a planar pinhole whose image point is pushed radially away
+   from the pole by the parallax delta(z) a viewpoint moved sideways by the
+   baseline sees between depth z and the bounding sphere's near depth zn,
+   faded in linearly over `ramp` pixels around the pole. For a fixed depth
+   the radial map r -> r' is
+       r' = r (1 + D / ramp)   r <  ramp
+       r' = r + D              r >= ramp          (D = max(delta, 0))
+   strictly increasing and continuous, so unprojection inverts it piece by
+   piece. Everything is computed in double from the stored floats so that
+   project and unproject are each other's inverse to float precision. */
+
+/* The pinhole part: p in the camera frame (x right, y up, z forward). */
+static void refl__spoc_camera_frame(const refl_spoc *cam, refl_vec3 p, double q[3]) {
+    double d[3] = {(double)p.x - cam->eye.x, (double)p.y - cam->eye.y, (double)p.z - cam->eye.z};
+    q[0] = d[0] * cam->right.x + d[1] * cam->right.y + d[2] * cam->right.z;
+    q[1] = d[0] * cam->up.x + d[1] * cam->up.y + d[2] * cam->up.z;
+    q[2] = d[0] * cam->forward.x + d[1] * cam->forward.y + d[2] * cam->forward.z;
+}
+
+/* gd of a depth z > 0 (affine in 1/z). */
+static double refl__spoc_gd(const refl_spoc *cam, double z) {
+    double in = 1.0 / cam->znear, inf = 1.0 / cam->zfar;
+    return (in - 1.0 / z) / (in - inf);
+}
+
+/* The push at gd, in pixels, before the ramp. */
+static double refl__spoc_push(const refl_spoc *cam, double gd) {
+    return gd > 0.0 ? (double)cam->delta_max * gd : 0.0;
+}
+
+REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 center, float radius,
+                                    float baseline, float strength, int size) {
+    refl_vec3 fwd, up, right, world_up;
+    double dist, cone, parallax, zn, zf;
+    if (!cam) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!isfinite(eye.x) || !isfinite(eye.y) || !isfinite(eye.z) || !isfinite(center.x) ||
+        !isfinite(center.y) || !isfinite(center.z) || !isfinite(radius) || !isfinite(baseline) ||
+        !isfinite(strength) || !(radius > 0.0f) || baseline < 0.0f || strength < 0.0f)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if (size < 8 || size > 16384) return REFL_ERROR_INVALID_SIZE;
+    dist = refl_v3_length(refl_v3_sub(center, eye));
+    if (!(dist > 1.001 * radius)) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(cam, 0, sizeof *cam);
+    cam->eye = eye;
+    cam->center = center;
+    cam->radius = radius;
+    cam->baseline = baseline;
+    cam->strength = strength;
+    cam->size = size;
+    fwd = refl_v3_normalize(refl_v3_sub(center, eye));
+    world_up = fabsf(fwd.y) < 0.9f ? refl_v3(0, 1, 0) : refl_v3(1, 0, 0);
+    right = refl_v3_normalize(refl_v3_cross(fwd, world_up));
+    up = refl_v3_cross(right, fwd);
+    cam->forward = fwd;
+    cam->right = right;
+    cam->up = up;
+    zn = dist - radius;
+    zf = dist + radius;
+    cam->znear = (float)zn;
+    cam->zfar = (float)zf;
+    /* per unit focal length: the sphere's tangent cone radius on the image
+       plane, and the push at zf; both scale with f */
+    cone = radius / sqrt(dist * dist - (double)radius * radius);
+    parallax = (double)strength * baseline * (1.0 / cam->znear - 1.0 / cam->zfar);
+    cam->focal = (float)((0.5 * size - 1.0) / (cone + parallax));
+    cam->delta_max = (float)((double)cam->focal * parallax);
+    cam->ramp = (float)(0.25 * cam->focal * cone);
+    cam->pole[0] = cam->pole[1] = 0.5f * (float)size;
+    return REFL_OK;
+}
+
+REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]) {
+    double q[3], rx, ry, r, gd, push, scale;
+    if (!cam || !out) return 0;
+    refl__spoc_camera_frame(cam, p, q);
+    if (!(q[2] > 0.0)) return 0;
+    rx = cam->focal * q[0] / q[2];
+    ry = -cam->focal * q[1] / q[2];
+    r = sqrt(rx * rx + ry * ry);
+    gd = refl__spoc_gd(cam, q[2]);
+    push = refl__spoc_push(cam, gd);
+    /* r' / r: 1 + push / ramp inside the ramp, 1 + push / r outside */
+    scale = r < cam->ramp ? 1.0 + push / cam->ramp : 1.0 + push / r;
+    out[0] = (float)(cam->pole[0] + rx * scale);
+    out[1] = (float)(cam->pole[1] + ry * scale);
+    out[2] = (float)gd;
+    return 1;
+}
+
+REFL_API int refl_spoc_unproject(const refl_spoc *cam, const float uvd[3], refl_vec3 *out) {
+    double in, inf, inv_z, z, push, rx, ry, r2, r, x, y;
+    if (!cam || !uvd || !out) return 0;
+    in = 1.0 / cam->znear;
+    inf = 1.0 / cam->zfar;
+    inv_z = in - (double)uvd[2] * (in - inf);
+    if (!(inv_z > 0.0)) return 0;
+    z = 1.0 / inv_z;
+    push = refl__spoc_push(cam, uvd[2]);
+    rx = (double)uvd[0] - cam->pole[0];
+    ry = (double)uvd[1] - cam->pole[1];
+    r2 = sqrt(rx * rx + ry * ry);
+    /* invert r' = r (1 + push / ramp) below ramp + push, r' = r + push above */
+    if (r2 < cam->ramp + push) r = r2 / (1.0 + push / cam->ramp);
+    else r = r2 - push;
+    if (r2 > 0.0) {
+        rx *= r / r2;
+        ry *= r / r2;
+    }
+    x = rx * z / cam->focal;
+    y = -ry * z / cam->focal;
+    out->x = (float)(cam->eye.x + x * cam->right.x + y * cam->up.x + z * cam->forward.x);
+    out->y = (float)(cam->eye.y + x * cam->right.y + y * cam->up.y + z * cam->forward.y);
+    out->z = (float)(cam->eye.z + x * cam->right.z + y * cam->up.z + z * cam->forward.z);
+    return 1;
+}
+
+REFL_API void refl_spoc_bounds(const refl_spoc *cam, float rect[4]) {
+    double dist, cone, extent;
+    if (!cam || !rect) return;
+    dist = 0.5 * ((double)cam->znear + cam->zfar);
+    cone = cam->radius / sqrt(dist * dist - (double)cam->radius * cam->radius);
+    extent = cam->focal * cone + cam->delta_max;
+    rect[0] = (float)(cam->pole[0] - extent);
+    rect[1] = (float)(cam->pole[1] - extent);
+    rect[2] = (float)(cam->pole[0] + extent);
+    rect[3] = (float)(cam->pole[1] + extent);
+}
+
+REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *mesh, const refl_mat4 *transform,
+                                         long long *facing) {
+    long long folds = 0, front = 0;
+    int t, k;
+    if (facing) *facing = 0;
+    if (!cam || !mesh) return 0;
+    for (t = 0; t < mesh->triangle_count; ++t) {
+        refl_vec3 p[3];
+        float img[3][3];
+        double pin[3][2], q[3], area_pin, area_spoc;
+        int ok = 1;
+        for (k = 0; k < 3; ++k) {
+            const float *v = mesh->positions + 3 * (size_t)mesh->indices[3 * t + k];
+            p[k] = refl_v3(v[0], v[1], v[2]);
+            if (transform) p[k] = refl_mat4_point(*transform, p[k]);
+            refl__spoc_camera_frame(cam, p[k], q);
+            if (!(q[2] > 0.0) || !refl_spoc_project(cam, p[k], img[k])) { ok = 0; break; }
+            pin[k][0] = q[0] / q[2];
+            pin[k][1] = -q[1] / q[2];
+        }
+        if (!ok) continue;
+        /* image rows grow downwards: an eye-facing (counter-clockwise seen
+           from outside) triangle has negative signed area in (u, v) */
+        area_pin = (pin[1][0] - pin[0][0]) * (pin[2][1] - pin[0][1]) -
+                   (pin[2][0] - pin[0][0]) * (pin[1][1] - pin[0][1]);
+        if (!(area_pin < 0.0)) continue;
+        ++front;
+        area_spoc = ((double)img[1][0] - img[0][0]) * ((double)img[2][1] - img[0][1]) -
+                    ((double)img[2][0] - img[0][0]) * ((double)img[1][1] - img[0][1]);
+        if (area_spoc > 0.0) ++folds;
+    }
+    if (facing) *facing = front;
+    return folds;
+}
 /* ---- src/reflect/gbuffer.c ---- */
 /* The reflectors' G-buffer and the mirror share's composite, shared by
    ENVMAP, C3RC and SBC: the methods differ in where a reflected ray lands
@@ -8592,6 +8914,330 @@ REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
     if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
     refl__greedy_paths_from(scene, caster, dir, &h, max_interfaces, out, rays);
+}
+/* ---- src/reflect/impostor.c ---- */
+/* impostor: the generic non-pinhole impostor of paper 004, section 3 (api.h,
+   refl_impostor). Construction (3.1): each object's mesh, subdivided in
+   object space until its edges are about max_edge_px texels long (a texel
+   measured as the bounding sphere's diameter over the image width), is
+   drawn with a vertex program that projects world points through the
+   camera and writes w = 1, so colour, depth and normals interpolate
+   affinely in the image; a second pass with depth EQUAL stores normals.
+   Intersection (3.2) walks the ray in 3-D and compares in (t, gd), with
+   the skin test the paper leaves out (refl_impostor_intersect in api.h). */
+
+/* One object's draw: the base pass's context (mesh: the subdivided one),
+   then the camera. */
+typedef struct refl__imp_draw {
+    refl__draw_ctx dc;
+    const refl_impostor_camera *cam;
+} refl__imp_draw;
+
+static int refl__imp_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
+    const refl__imp_draw *d = (const refl__imp_draw *)user;
+    const refl_mesh *m = d->dc.mesh;
+    refl_vec3 p = refl_v3(vertex[0], vertex[1], vertex[2]);
+    refl_vec3 n = refl_v3(m->normals[3 * index], m->normals[3 * index + 1], m->normals[3 * index + 2]);
+    refl_vec3 wp = refl_mat4_point(d->dc.model, p), wn = refl_mat4_dir(d->dc.normal_m, n);
+    float uvd[3];
+    (void)max_out;
+    if (!d->cam->project(d->cam->cam, wp, uvd)) return 0;
+    out->position[0] = 2.0f * uvd[0] / (float)d->cam->width - 1.0f;
+    out->position[1] = 1.0f - 2.0f * uvd[1] / (float)d->cam->height;
+    out->position[2] = 2.0f * uvd[2] - 1.0f;
+    out->position[3] = 1.0f;
+    out->varyings[0] = wp.x; out->varyings[1] = wp.y; out->varyings[2] = wp.z;
+    out->varyings[3] = wn.x; out->varyings[4] = wn.y; out->varyings[5] = wn.z;
+    out->varyings[6] = m->texcoords ? m->texcoords[2 * index] : 0.0f;
+    out->varyings[7] = m->texcoords ? m->texcoords[2 * index + 1] : 0.0f;
+    return 1;
+}
+
+/* The colour pass shades with the shared diffuse model; alpha 1 marks a
+   stored texel. */
+static int refl__imp_color_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__draw_ctx *d = (const refl__draw_ctx *)user;
+    const float *v = in->varyings;
+    float rgb[3];
+    int c;
+    refl_shade_diffuse(d->scene, d->material, refl_v3(v[0], v[1], v[2]), refl_v3(v[3], v[4], v[5]), v + 6, rgb);
+    for (c = 0; c < 3; ++c) rgba[c] = REFL__RADIANCE(rgb[c]);
+    rgba[3] = 1.0f;
+    return 1;
+}
+
+static int refl__imp_normal_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    refl_vec3 n = refl_v3_normalize(refl_v3(in->varyings[3], in->varyings[4], in->varyings[5]));
+    (void)user;
+    rgba[0] = n.x;
+    rgba[1] = n.y;
+    rgba[2] = n.z;
+    rgba[3] = 1.0f;
+    return 1;
+}
+
+static int refl__imp_spoc_project(const void *cam, refl_vec3 p, float out[3]) {
+    return refl_spoc_project((const refl_spoc *)cam, p, out);
+}
+static int refl__imp_spoc_unproject(const void *cam, const float uvd[3], refl_vec3 *out) {
+    return refl_spoc_unproject((const refl_spoc *)cam, uvd, out);
+}
+
+REFL_API refl_impostor_camera refl_spoc_impostor_camera(const refl_spoc *cam) {
+    refl_impostor_camera c;
+    memset(&c, 0, sizeof c);
+    if (!cam) return c;
+    c.project = refl__imp_spoc_project;
+    c.unproject = refl__imp_spoc_unproject;
+    c.cam = cam;
+    c.width = c.height = cam->size;
+    c.center = cam->center;
+    c.radius = cam->radius;
+    return c;
+}
+
+/* The largest factor by which the transform stretches lengths (its
+   columns' lengths bound it for the rigid and scaled transforms scenes use). */
+static float refl__imp_scale(refl_mat4 m) {
+    float s = 0.0f;
+    int c;
+    for (c = 0; c < 3; ++c)
+        s = REFL__MAX(s, sqrtf(m.m[4 * c] * m.m[4 * c] + m.m[4 * c + 1] * m.m[4 * c + 1] + m.m[4 * c + 2] * m.m[4 * c + 2]));
+    return s > 0.0f ? s : 1.0f;
+}
+
+/* Draws the objects into the impostor's buffers with rc. */
+static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                      refl_impostor *imp, float max_edge_px, int normals) {
+    const refl_allocator *al = &scene->allocator;
+    refl_mesh **sub = (refl_mesh **)refl__calloc(al, (size_t)REFL__MAX(count, 1), sizeof(refl_mesh *));
+    refl__imp_draw *draws = (refl__imp_draw *)refl__calloc(al, (size_t)REFL__MAX(count, 1), sizeof(refl__imp_draw));
+    float *scratch = NULL;
+    float texel = 2.0f * imp->camera.radius / (float)imp->camera.width;
+    refl_result r = REFL_OK;
+    rast_result rr = RAST_OK;
+    rast_targets t;
+    rast_state s;
+    rast_clear_desc cl;
+    int i, pass;
+    if (!sub || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < count; ++i) {
+        const refl_object *o = &scene->objects[objects[i]];
+        float edge = max_edge_px * texel / refl__imp_scale(o->transform);
+        r = refl_mesh_subdivide(scene->meshes[o->mesh], edge, &sub[i]);
+        if (r != REFL_OK) break;
+        refl__draw_ctx_init(&draws[i].dc, scene, objects[i], refl_mat4_identity());
+        draws[i].dc.mesh = sub[i];
+        draws[i].cam = &imp->camera;
+        imp->triangles += sub[i]->triangle_count;
+    }
+    if (r == REFL_OK && normals) {
+        scratch = (float *)refl__calloc(al, (size_t)imp->width * (size_t)imp->height, 4 * sizeof(float));
+        if (!scratch) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (pass = 0; r == REFL_OK && pass < (normals ? 2 : 1); ++pass) {
+        memset(&t, 0, sizeof t);
+        t.color.ptr = pass ? scratch : imp->color;
+        t.color.width = imp->width;
+        t.color.height = imp->height;
+        t.color.stride = 4 * (int)sizeof(float) * imp->width;
+        t.color_format = RAST_COLOR_RGBA32F;
+        t.depth.ptr = imp->depth;
+        t.depth.width = imp->width;
+        t.depth.height = imp->height;
+        t.depth.stride = (int)sizeof(float) * imp->width;
+        if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
+        memset(&s, 0, sizeof s);
+        if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
+        memset(&cl, 0, sizeof cl);
+        cl.flags = pass ? RAST_CLEAR_COLOR : RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
+        cl.depth = 1.0f;
+        if ((rr = rast_clear(rc, &cl)) != RAST_OK) break;
+        s.depth_test = 1;
+        s.depth_func = pass ? RAST_EQUAL : RAST_LESS;
+        s.depth_write_disabled = pass;
+        s.vertex_fn = refl__imp_vertex;
+        s.fragment_fn = pass ? refl__imp_normal_fragment : refl__imp_color_fragment;
+        for (i = 0; i < count; ++i) {
+            s.vertex_user = s.fragment_user = &draws[i];
+            if ((rr = rast_set_state(rc, &s)) != RAST_OK ||
+                (rr = refl__draw_mesh(rc, sub[i], NULL, 0, REFL__BASE_VARYINGS)) != RAST_OK)
+                break;
+        }
+        if (rr == RAST_OK) rr = rast_finish(rc);
+        if (rr != RAST_OK) break;
+        if (pass) {
+            size_t k, nn = (size_t)imp->width * (size_t)imp->height;
+            for (k = 0; k < nn; ++k) {
+                imp->normal[3 * k] = scratch[4 * k];
+                imp->normal[3 * k + 1] = scratch[4 * k + 1];
+                imp->normal[3 * k + 2] = scratch[4 * k + 2];
+            }
+        }
+    }
+    if (r == REFL_OK && rr != RAST_OK) r = refl__result_from_rast(rr);
+    /* unbind: nothing queued may point at the buffers freed here */
+    memset(&t, 0, sizeof t);
+    rast_set_targets(rc, &t);
+    for (i = 0; sub && i < count; ++i) refl_mesh_destroy(sub[i]);
+    refl__free(al, sub);
+    refl__free(al, draws);
+    refl__free(al, scratch);
+    return r;
+}
+
+/* Builds with a caller's rast context (the methods', with their threads). */
+static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                        const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                        refl_impostor **out) {
+    const refl_allocator *al = desc && (desc->allocator.alloc || desc->allocator.free) ? &desc->allocator
+                                                                                        : &scene->allocator;
+    refl_impostor *imp;
+    size_t nn;
+    float max_edge = desc && desc->max_edge_px > 0.0f ? desc->max_edge_px : 4.0f;
+    int i, normals = desc && desc->normals;
+    refl_result r;
+    *out = NULL;
+    if (!camera->project || !camera->unproject || camera->width < 1 || camera->height < 1 ||
+        camera->width > 16384 || camera->height > 16384 || !(camera->radius > 0.0f))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < count; ++i)
+        if (objects[i] < 0 || objects[i] >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
+    imp = (refl_impostor *)refl__calloc(al, 1, sizeof *imp);
+    if (!imp) return REFL_ERROR_OUT_OF_MEMORY;
+    imp->allocator = *al;
+    imp->width = camera->width;
+    imp->height = camera->height;
+    imp->camera = *camera;
+    imp->depth_tolerance = 4.0f / (float)camera->width;
+    nn = (size_t)imp->width * (size_t)imp->height;
+    imp->color = (float *)refl__calloc(al, nn, 4 * sizeof(float));
+    imp->depth = (float *)refl__calloc(al, nn, sizeof(float));
+    if (normals) imp->normal = (float *)refl__calloc(al, nn, 3 * sizeof(float));
+    if (!imp->color || !imp->depth || (normals && !imp->normal)) r = REFL_ERROR_OUT_OF_MEMORY;
+    else r = refl__imp_draw_all(rc, scene, objects, count, imp, max_edge, normals);
+    if (r != REFL_OK) {
+        refl_impostor_destroy(imp);
+        return r;
+    }
+    *out = imp;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_impostor_build(const refl_scene *scene, const int *objects, int count,
+                                         const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                         refl_impostor **out) {
+    rast_context *rc = NULL;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!scene || !camera || count < 0 || (count > 0 && !objects)) return REFL_ERROR_INVALID_ARGUMENT;
+    if ((r = refl__context_create(scene, desc ? desc->threads : 0, &rc)) != REFL_OK) return r;
+    r = refl__impostor_build(rc, scene, objects, count, camera, desc, out);
+    rast_context_destroy(rc);
+    return r;
+}
+
+REFL_API void refl_impostor_destroy(refl_impostor *imp) {
+    refl_allocator al;
+    if (!imp) return;
+    al = imp->allocator;
+    refl__free(&al, imp->color);
+    refl__free(&al, imp->depth);
+    refl__free(&al, imp->normal);
+    refl__free(&al, imp);
+}
+
+/* The texel holding image point (u, v): its index, or -1 off the image. */
+static long refl__imp_texel(const refl_impostor *imp, float u, float v) {
+    float fu = floorf(u), fv = floorf(v);
+    if (!(fu >= 0.0f && fv >= 0.0f && fu < (float)imp->width && fv < (float)imp->height)) return -1;
+    return (long)fv * imp->width + (long)fu;
+}
+
+/* How much the stored depth changes over one texel beyond image point cur,
+   continuing from prev (0 where that texel is empty or the points meet):
+   the slope of the surface stored at cur, along the ray's projection. */
+static float refl__imp_slope(const refl_impostor *imp, const float prev[3], const float cur[3], float gd_cur) {
+    float du = cur[0] - prev[0], dv = cur[1] - prev[1], len = sqrtf(du * du + dv * dv);
+    long t;
+    if (!(len > 1e-6f)) return 0.0f;
+    t = refl__imp_texel(imp, cur[0] + du / len, cur[1] + dv / len);
+    if (t < 0 || imp->color[4 * t + 3] <= 0.0f) return 0.0f;
+    return fabsf(imp->depth[t] - gd_cur);
+}
+
+REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     float step_scale, refl_impostor_hit *hit, int *steps) {
+    const refl_impostor_camera *cam;
+    refl_vec3 oc;
+    double a, b, c, disc, sq, t0, t1, len = 0.0;
+    float prev[3], cur[3], prev_gd = 0.0f, prev_d = 0.0f;
+    long prev_tex = -1;
+    int n, k, found = 0;
+    if (steps) *steps = 0;
+    if (!imp || !hit) return 0;
+    cam = &imp->camera;
+    /* 1. clip to the bounding sphere */
+    oc = refl_v3_sub(origin, cam->center);
+    a = refl_v3_dot(dir, dir);
+    b = refl_v3_dot(oc, dir);
+    c = refl_v3_dot(oc, oc) - (double)cam->radius * cam->radius;
+    disc = b * b - a * c;
+    if (!(a > 0.0) || !(disc > 0.0)) return 0;
+    sq = sqrt(disc);
+    t0 = REFL__MAX((-b - sq) / a, (double)tmin);
+    t1 = REFL__MIN((-b + sq) / a, (double)tmax);
+    if (!(t0 < t1)) return 0;
+    /* 2. the length of the projection, along 4 pieces, sets n */
+    for (k = 0; k <= 4; ++k) {
+        double t = t0 + (t1 - t0) * k / 4.0;
+        if (!cam->project(cam->cam, refl_v3_add(origin, refl_v3_scale(dir, (float)t)), cur)) return 0;
+        if (k) len += sqrt((double)(cur[0] - prev[0]) * (cur[0] - prev[0]) + (double)(cur[1] - prev[1]) * (cur[1] - prev[1]));
+        memcpy(prev, cur, sizeof prev);
+    }
+    len *= step_scale > 0.0f ? step_scale : 1.0f;
+    n = len < 2.0 ? 2 : len > 4.0 * (imp->width + imp->height) ? 4 * (imp->width + imp->height) : (int)ceil(len);
+    /* 3. walk from near to far */
+    for (k = 0; k <= n && !found; ++k) {
+        double t = t0 + (t1 - t0) * k / n;
+        long tex;
+        float gd_stored, d;
+        if (!cam->project(cam->cam, refl_v3_add(origin, refl_v3_scale(dir, (float)t)), cur)) return 0;
+        tex = refl__imp_texel(imp, cur[0], cur[1]);
+        if (tex >= 0 && imp->color[4 * tex + 3] <= 0.0f) tex = -1;
+        gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f;
+        d = cur[2] - gd_stored;
+        if (k > 0 && tex >= 0 && d >= 0.0f && (prev_tex < 0 || prev_d < 0.0f)) {
+            /* the ray went from in front of what texel k-1 stores (or from
+               an empty texel) to behind what texel k stores. A hit, unless
+               texel k's surface is nearer and the ray was already behind
+               it extended back by its own slope: a skin */
+            float d0 = prev_gd - gd_stored, f = -1.0f;
+            int farther = prev_tex >= 0 && gd_stored >= imp->depth[prev_tex];
+            if (farther || d0 <= refl__imp_slope(imp, prev, cur, gd_stored) + imp->depth_tolerance)
+                f = prev_tex >= 0 ? prev_d / (prev_d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
+            if (f >= 0.0f) {
+                double th = t0 + (t1 - t0) * ((k - 1) + (double)f) / n;
+                long at;
+                hit->t = (float)th;
+                hit->point = refl_v3_add(origin, refl_v3_scale(dir, hit->t));
+                if (!cam->project(cam->cam, hit->point, hit->uvd)) memcpy(hit->uvd, cur, sizeof cur);
+                at = refl__imp_texel(imp, hit->uvd[0], hit->uvd[1]);
+                if (at < 0 || imp->color[4 * at + 3] <= 0.0f) at = tex;
+                memcpy(hit->color, imp->color + 4 * at, 4 * sizeof(float));
+                hit->normal = imp->normal ? refl_v3(imp->normal[3 * at], imp->normal[3 * at + 1], imp->normal[3 * at + 2])
+                                          : refl_v3(0.0f, 0.0f, 0.0f);
+                found = 1;
+            }
+        }
+        prev_tex = tex;
+        memcpy(prev, cur, sizeof prev);
+        prev_gd = cur[2];
+        prev_d = d;
+        if (steps && k > 0) ++*steps;
+    }
+    return found;
 }
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
@@ -14237,6 +14883,318 @@ static refl_result refl__sb_run(refl__pass *p) {
 }
 
 static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
+/* ---- src/reflect/m_spoc.c ---- */
+/* SPOC: reflections of impostored diffuse objects in mirrors (paper 004,
+   sections 4 and 6). Per reflector seen, every compact diffuse object gets
+   an SPOC impostor (impostor.c) taken from the centre of the reflector's
+   world bounding box, looking at the centre of the object's, of radius its
+   half diagonal; the baseline is the reflector's half diagonal (the
+   region its reflected rays start from), so the push is the parallax of a
+   viewpoint moved across the reflector. Each reflector pixel's reflected
+   ray (G-buffer normal, the surface point from the base pass's depth)
+   meets the nearest of:
+   - the impostors, marched (refl_impostor_intersect);
+   - the rest of the scene, intersected exactly: flat objects (the floor,
+     the paper's billboard impostor, which it calls exact), objects whose
+     bounding sphere holds the reflector's centre (no SPOC can see them
+     from there), and the reflectors themselves, which show as DIRECT
+     draws them (one bounce: a mirror is black, a partial reflector its
+     diffuse share);
+   and what meets nothing shows the environment. Colours are composited
+   as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
+   does; frame->points gets the point the ray met (an impostor's: its own
+   estimate on the ray). Impostor colours are the shared diffuse shading
+   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   independent and step counts are summed per row, so any thread count
+   gives the same bytes and stats. */
+
+/* One reflector's frame: its impostors and the exact part of the scene. */
+typedef struct refl__spoc_frame {
+    refl__em em;
+    refl_spoc *cams;              /* per impostor */
+    refl_impostor **imps;
+    int imp_count;
+    refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
+    int *exact_object;            /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
+    int object;                   /* the reflector being drawn */
+    float offset;                 /* reflected rays start this far off their surface */
+    long long *row_steps, *row_max, *row_rays;
+} refl__spoc_frame;
+
+/* World bounding box of object i's vertices. */
+static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i gets an impostor seen from `eye`: diffuse, not flat
+   (its box's smallest side at least 1% of its largest), and the eye
+   outside its bounding sphere. */
+static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
+    refl_vec3 lo, hi, size, c;
+    float small, large;
+    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
+    refl__spoc_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+}
+
+/* Builds reflector `object`'s impostors and exact BVH. */
+static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
+    refl__pass *p = sf->em.p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_spoc_options *opt = &p->desc.spoc;
+    refl_vec3 lo, hi, eye;
+    refl_scene sub;
+    refl_object *objs;
+    float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
+    int i, n = 0;
+    refl_result r = REFL_OK;
+    refl__spoc_box(scene, object, &lo, &hi);
+    eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        if (refl__spoc_impostored(scene, i, eye)) {
+            refl_vec3 olo, ohi;
+            refl_impostor_camera ic;
+            refl_impostor_desc d;
+            refl_spoc *cam = &sf->cams[sf->imp_count];
+            refl__spoc_box(scene, i, &olo, &ohi);
+            r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
+                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
+            if (r != REFL_OK) break;
+            ic = refl_spoc_impostor_camera(cam);
+            memset(&d, 0, sizeof d);
+            d.max_edge_px = opt->max_edge_px;
+            d.allocator = *al;
+            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &sf->imps[sf->imp_count]);
+            if (r != REFL_OK) break;
+            p->frame->stats.triangles += sf->imps[sf->imp_count]->triangles;
+            p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * 5 * sizeof(float));
+            ++p->frame->stats.spoc.impostors;
+            ++sf->imp_count;
+        } else {
+            sf->exact_object[n] = i;
+            objs[n++] = scene->objects[i];
+        }
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &sf->exact);
+        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(sf->exact);
+    }
+    refl__free(al, objs);
+    return r;
+}
+
+static void refl__spoc_release(refl__spoc_frame *sf) {
+    int i;
+    for (i = 0; i < sf->imp_count; ++i) refl_impostor_destroy(sf->imps[i]);
+    sf->imp_count = 0;
+    refl_bvh_destroy(sf->exact);
+    sf->exact = NULL;
+}
+
+/* What the reflected ray o + t d meets first: its colour (clamped to
+   [0, 1]) and point; 0 for nothing. */
+static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, float rgb[3], refl_vec3 *shown,
+                            long long *steps, long long *max_steps) {
+    const refl__pass *p = sf->em.p;
+    float best = FLT_MAX;
+    int i, c, found = 0;
+    refl_hit h;
+    for (i = 0; i < sf->imp_count; ++i) {
+        refl_impostor_hit ih;
+        int n = 0;
+        if (refl_impostor_intersect(sf->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
+            best = ih.t;
+            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(ih.color[c], 0.0f, 1.0f);
+            *shown = ih.point;
+            found = 1;
+        }
+        *steps += n;
+        if (n > *max_steps) *max_steps = n;
+    }
+    if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
+        int object = sf->exact_object[h.object];
+        const refl__rt_object *ro = &sf->objects[object];
+        const refl_material *m = ro->material;
+        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
+        refl__hit_geom g;
+        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+        int k;
+        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
+        if (ro->mesh->texcoords)
+            for (k = 0; k < 3; ++k) {
+                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+            }
+        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+            rgba[0] = rgba[1] = rgba[2] = 0.0f;
+        } else {
+            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
+            refl__surface_rgba(m, col, rgba);
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
+        *shown = g.p;
+        found = 1;
+    }
+    return found;
+}
+
+/* One frame row: every pixel of the current reflector. */
+static void refl__spoc_row(void *arg, int y) {
+    refl__spoc_frame *sf = (refl__spoc_frame *)arg;
+    const refl__pass *p = sf->em.p;
+    const refl_frame *fr = p->frame;
+    float id = (float)(sf->object + 1);
+    long long steps = 0, max_steps = 0, rays = 0;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = sf->em.gbuf + 4 * i;
+        float rgb[3], tmax;
+        refl_vec3 o, d, n, s, shown = refl_v3(NAN, NAN, NAN);
+        if (fabsf(g[3]) != id) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
+        s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
+        ++rays;
+        if (refl__spoc_trace(sf, s, refl_v3_reflect(d, n), rgb, &shown, &steps, &max_steps))
+            refl__em_composite(p, g, x, y, rgb, shown);
+        else
+            refl__em_composite(p, g, x, y, NULL, shown);
+    }
+    sf->row_steps[y] += steps;
+    sf->row_rays[y] += rays;
+    if (max_steps > sf->row_max[y]) sf->row_max[y] = max_steps;
+}
+
+static const char *refl__options_spoc(refl_render_desc *d) {
+    refl_spoc_options *o = &d->spoc;
+    if (o->size < 0 || o->size > 4096) return "spoc.size: 0 (512) or 8 to 4096";
+    if (o->size == 0) o->size = 512;
+    if (o->size < 8) return "spoc.size: 0 (512) or 8 to 4096";
+    if (!refl__isfinite(o->strength) || o->strength > 64.0f) return "spoc.strength: finite, at most 64";
+    if (o->strength == 0.0f) o->strength = 1.0f;
+    if (!refl__isfinite(o->step_scale) || o->step_scale < 0.0f || o->step_scale > 16.0f)
+        return "spoc.step_scale: 0 (1) to 16";
+    if (o->step_scale == 0.0f) o->step_scale = 1.0f;
+    if (!refl__isfinite(o->max_edge_px) || o->max_edge_px < 0.0f || (o->max_edge_px > 0.0f && o->max_edge_px < 0.5f) ||
+        o->max_edge_px > 64.0f)
+        return "spoc.max_edge_px: 0 (4) or 0.5 to 64";
+    if (o->max_edge_px == 0.0f) o->max_edge_px = 4.0f;
+    return NULL;
+}
+
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
+static refl_result refl__method_spoc(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__spoc_frame sf;
+    unsigned char *seen = NULL;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    double t0 = refl__now_ms(), t1;
+    refl_vec3 lo, hi;
+    refl_result r;
+    int i, y, any = 0;
+    memset(&sf, 0, sizeof sf);
+    sf.em.p = p;
+    r = refl__em_gbuffer_new(&sf.em, &seen, &any);
+    if (r == REFL_OK && any) {
+        size_t npx = (size_t)fr->width * (size_t)fr->height;
+        sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        sf.cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
+        sf.imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
+        sf.exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+        sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+        sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sf.em.surface || !sf.cams || !sf.imps || !sf.exact_object || !sf.objects || !sf.row_steps ||
+            !sf.row_max || !sf.row_rays)
+            r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        for (i = 0; i < scene->object_count; ++i) {
+            const refl_object *o = &scene->objects[i];
+            sf.objects[i].mesh = scene->meshes[o->mesh];
+            sf.objects[i].material = &scene->materials[o->material];
+            sf.objects[i].model = o->transform;
+            sf.objects[i].normal_m = refl__normal_matrix(o->transform);
+        }
+        refl_scene_bounds(scene, &lo, &hi);
+        sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+        rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &sf.em);
+    }
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
+    for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
+        if (!seen[i] || !refl__pass_draws(p, i)) continue;
+        r = refl__spoc_build(&sf, i);
+        t0 = refl__now_ms();
+        fr->stats.ms_build += t0 - t1;
+        if (r == REFL_OK) {
+            sf.object = i;
+            rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
+        }
+        refl__spoc_release(&sf);
+        t1 = refl__now_ms();
+        fr->stats.ms_reflect += t1 - t0;
+    }
+    if (r == REFL_OK && any)
+        for (y = 0; y < fr->height; ++y) {
+            fr->stats.spoc.steps += sf.row_steps[y];
+            fr->stats.rays += sf.row_rays[y];
+            if (sf.row_max[y] > fr->stats.spoc.max_steps) fr->stats.spoc.max_steps = sf.row_max[y];
+        }
+    /* leave the frame bound, as the method found it (the impostors bound their own buffers) */
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__spoc_release(&sf);
+    refl__free(al, sf.em.gbuf);
+    refl__free(al, sf.em.draws);
+    refl__free(al, sf.em.surface);
+    refl__free(al, seen);
+    refl__free(al, sf.cams);
+    refl__free(al, sf.imps);
+    refl__free(al, sf.exact_object);
+    refl__free(al, sf.objects);
+    refl__free(al, sf.row_steps);
+    refl__free(al, sf.row_max);
+    refl__free(al, sf.row_rays);
+    return r;
+}
 /* ---- src/reflect/math.c ---- */
 /* Math: vectors, column-major 4x4 matrices with GL's conventions,
    quaternions, the robust quadratic and cubic solvers, least squares by
@@ -16337,6 +17295,7 @@ static const refl__method_row refl__methods[] = {
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
+    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 1},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
 };
@@ -19526,7 +20485,7 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -19756,6 +20715,44 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* teapots: paper 004's two-teapot scene (Fig. 1): a mirror teapot and a
+   diffuse teapot beside it, turned, both at half size, on a checker floor
+   (a 256 x 256 texture of 16 x 16 tiles over the floor). */
+static refl_result refl__scene_teapots(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror teapot");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.45f, 0.12f, "diffuse teapot");
+    refl_mat4 half = refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f));
+    refl_mesh *m = NULL;
+    refl_result r;
+    float *checker;
+    int k, x, y, tex;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(-0.6f, 2.8f, 6.0f), refl_v3(-0.3f, 0.5f, 0.2f))) != REFL_OK) return r;
+    checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = 0; y < 256; ++y)
+        for (x = 0; x < 256; ++x) {
+            float v = ((x / 16) + (y / 16)) & 1 ? 0.95f : 0.15f;
+            float *px = checker + 4 * (256 * y + x);
+            px[0] = px[1] = px[2] = v;
+            px[3] = 1.0f;
+        }
+    tex = refl_scene_add_texture(s, 256, 256, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    s->materials[s->objects[0].material].texture = tex;
+    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
+        s->materials[s->objects[0].material].color[2] = 1.0f;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_mul(refl__at(-1.2f, 0.0f, -0.2f), half), "mirror teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
+                       refl_mat4_mul(refl__at(1.1f, 0.0f, 1.5f),
+                                     refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 2.2f), half)),
+                       "diffuse teapot")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
 /* maze: paper 004's maze (docs/graphcam.md): the corridors of
    refl__maze_layout walled with boxes 0.15 thick and REFL__MAZE_WALL_H
    high, no ceiling, on a checker floor; a teapot, a sphere, a torus and a
@@ -19840,13 +20837,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
     if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
-        strcmp(name, "maze"))
+        strcmp(name, "maze") && strcmp(name, "teapots"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "teapots")) r = refl__scene_teapots(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

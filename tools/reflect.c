@@ -40,8 +40,8 @@ static const char *const usage_main =
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
-    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze\n"
-    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc,\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots\n"
+    "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
     "                     graphcam or layered-em (paper 001, one shell layer)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
@@ -70,6 +70,10 @@ static const char *const usage_render =
     "                     exceeds PX pixels (default 0.1; -1: one camera per triangle)\n"
     "  --error-px E       SBC: largest camera error in pixels (default 1)\n"
     "  --ray-factor F     SBC: one reflected ray per F x F pixels, 1..64 (default 2)\n"
+    "  --spoc-size N      SPOC: impostor size in texels, 8..4096 (default 512)\n"
+    "  --spoc-strength K  SPOC: the push, 0..64 (default 1; 0: a plain depth image)\n"
+    "  --spoc-step S      SPOC: marching pieces per texel of a ray's projection,\n"
+    "                     1/16..16 (default 1)\n"
     "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
     "                     and those whose point the ray map's samples contradict\n"
     "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
@@ -140,6 +144,8 @@ typedef struct options {
     int graphcam_size, graphcam_alg;
     float graphcam_step;
     float density, camera_split, error_px;
+    int spoc_size;                /* --spoc-size, --spoc-strength (-1: unset), --spoc-step */
+    float spoc_strength, spoc_step;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
     float fov, normalize, light_radius;
@@ -188,7 +194,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", NULL};
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
                                            "--greedy", NULL};
@@ -204,6 +210,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
     int i;
     memset(o, 0, sizeof(*o));
     o->out = "out.png";
+    o->spoc_strength = -1.0f;
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL, *eq = strchr(a, '=');
         char name[32];
@@ -308,6 +315,12 @@ static int parse(int argc, char **argv, int is_render, options *o) {
                 return fail("--spp: expected a square 1..64 (1, 4, 9 ... 64), got %s", v);
         } else if (!strcmp(a, "--max-renderings")) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
+        } else if (!strcmp(a, "--spoc-size")) {
+            if (!parse_int(v, 8, 4096, &o->spoc_size)) return fail("--spoc-size: expected 8..4096, got %s", v);
+        } else if (!strcmp(a, "--spoc-strength")) {
+            if (!parse_float(v, 0.0f, 64.0f, &o->spoc_strength)) return fail("--spoc-strength: expected 0..64, got %s", v);
+        } else if (!strcmp(a, "--spoc-step")) {
+            if (!parse_float(v, 0.0625f, 16.0f, &o->spoc_step)) return fail("--spoc-step: expected 0.0625..16, got %s", v);
         } else if (!strcmp(a, "--envmap-size")) {
             if (!parse_int(v, 1, 2048, &o->envmap_size)) return fail("--envmap-size: expected 1..2048, got %s", v);
         } else if (!strcmp(a, "--density")) {
@@ -587,6 +600,10 @@ static int cmd_render(const options *o) {
     d.spp = o->spp;
     d.lighting.shadows = o->shadows;
     d.envmap.size = o->envmap_size;
+    d.spoc.size = o->spoc_size;
+    /* the desc's 0 is the default strength and a negative one the plain depth image */
+    d.spoc.strength = o->spoc_strength < 0.0f ? 0.0f : o->spoc_strength == 0.0f ? -1.0f : o->spoc_strength;
+    d.spoc.step_scale = o->spoc_step;
     d.planar.no_culling = o->no_culling;
     d.planar.max_renderings = o->max_renderings;
     d.lighting.light_volumes = o->light_volumes;
@@ -681,6 +698,9 @@ static int cmd_render(const options *o) {
         printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
         if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);
+        if (st->spoc.impostors)
+            printf("impostors    %lld\nsteps        %lld (at most %lld per ray and impostor)\n", st->spoc.impostors,
+                   st->spoc.steps, st->spoc.max_steps);
         if (st->planar.renderings || st->planar.culled)
             printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,
                    st->planar.deepest, st->planar.culled);

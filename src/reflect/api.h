@@ -374,7 +374,7 @@ typedef struct refl_builtin_desc {
     refl_allocator allocator;
 } refl_builtin_desc;
 
-/* "default", "mirror-room", "concave", "glass", "maze"; NULL-terminated list. */
+/* "default", "mirror-room", "concave", "glass", "maze", "teapots"; NULL-terminated list. */
 REFL_API const char *const *refl_builtin_names(void);
 REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_desc *desc,
                                         refl_scene **out_scene);
@@ -542,6 +542,137 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
    tmax is finite) the box misses the bounds of the truncated volume.
    Conservative: never 0 for a box holding a point that projects. */
 REFL_API int refl_c3rc_box_visible(const refl_c3rc *cam, refl_vec3 lo, refl_vec3 hi, float tmax);
+
+/* ---- single-pole occlusion camera (paper 004, section 4) ---------------------
+   A planar pinhole at `eye` looking at the object's bounding-sphere centre
+   (`center`, `radius`), square image of `size` pixels, whose image point is
+   then pushed radially away from the pole p0 (the centre's projection, the
+   image centre) by a displacement that grows with depth, so samples just
+   behind the silhouette become visible. With (x, y, z) the point in the
+   pinhole's frame (z along the view axis), f the focal length in pixels,
+   rho = f (x, -y) / z (pinhole pixels from the pole), r = |rho|:
+       gd(z)    = (1/zn - 1/z) / (1/zn - 1/zf)     zn, zf = D -/+ radius
+       delta(z) = strength * f * baseline * (1/zn - 1/z) = delta_max * gd
+       image    = p0 + rho * (1 + max(delta, 0) * min(1, r / ramp) / r)
+   delta is the parallax a viewpoint moved sideways by `baseline` (the radius
+   of the region the query rays start from) sees between depth z and the
+   near depth zn; strength 0 is the plain depth image. Within `ramp` pixels
+   of the pole the push fades linearly to 0, so the image stays continuous
+   there. gd is the pinhole's window depth (affine in 1/z, so delta is
+   affine in gd); for a fixed gd the radial map is strictly increasing, so
+   (u, v, gd) -> point is closed-form and one-to-one. f is chosen so that
+   the bounding sphere, pushed, fills the image (one pixel margin). */
+typedef struct refl_spoc {
+    refl_vec3 eye, center;
+    float radius, baseline, strength;
+    int size;
+    /* derived by refl_spoc_init */
+    refl_vec3 right, up, forward; /* the pinhole's frame (unit) */
+    float focal;             /* f, pixels */
+    float znear, zfar;       /* depth range of the bounding sphere along forward */
+    float delta_max;         /* the push at gd = 1, pixels */
+    float ramp;              /* pixels from the pole over which the push fades in */
+    float pole[2];           /* image of the centre: (size / 2, size / 2) */
+} refl_spoc;
+
+/* REFL_ERROR_INVALID_ARGUMENT for NULL, non-finite input, radius <= 0,
+   baseline or strength < 0, eye within 1.001 radius of the centre;
+   REFL_ERROR_INVALID_SIZE for size < 8 or > 16384. */
+REFL_API refl_result refl_spoc_init(refl_spoc *cam, refl_vec3 eye, refl_vec3 center, float radius,
+                                    float baseline, float strength, int size);
+/* p to (u, v, gd): u, v in image pixels (row 0 at the top), gd as above (0
+   at zn, 1 at zf). 0 when p is not in front of the eye (z <= 0). */
+REFL_API int refl_spoc_project(const refl_spoc *cam, refl_vec3 p, float out[3]);
+/* The inverse: the point projecting to (u, v, gd); 0 for gd at or beyond
+   the eye plane's (1/z <= 0). */
+REFL_API int refl_spoc_unproject(const refl_spoc *cam, const float uvd[3], refl_vec3 *out);
+/* Image rectangle (u0, v0, u1, v1) holding the projection of the bounding
+   sphere, and its gd range [0, 1]. */
+REFL_API void refl_spoc_bounds(const refl_spoc *cam, float rect[4]);
+/* Folds of the radial map on a mesh (after `transform`, may be NULL): the
+   triangles that face the eye whose image is mirrored by the push (their
+   pinhole and SPOC windings differ), where the surface comes towards the
+   eye faster than the push grows (delta'(z) |dz/dr| > 1) and the SPOC
+   would hide what the plain depth image shows. Returns that count and
+   writes the count of eye-facing triangles to *facing (may be NULL). */
+REFL_API long long refl_spoc_count_folds(const refl_spoc *cam, const refl_mesh *mesh, const refl_mat4 *transform,
+                                         long long *facing);
+
+/* ---- non-pinhole impostors (paper 004, section 3) ------------------------------
+   An impostor is an image of some objects taken with a camera whose
+   projection is fast and gives (u, v, gd), gd a depth linear in image
+   space: colour, gd and (optionally) world normal per texel. It is built by
+   projecting the objects' triangles, subdivided until their edges span
+   about max_edge_px texels, with rast.h's vertex callback (clip position
+   (2u/W - 1, 1 - 2v/H, 2 gd - 1, 1): affine interpolation, so gd is
+   interpolated linearly in the image, as the marching assumes). A ray
+   meets it by walking the ray's curved projection (refl_impostor_intersect).
+   The camera is any project/unproject pair with a bounding sphere of what
+   it images; the pointer `cam` must outlive the impostor. */
+typedef struct refl_impostor_camera {
+    int (*project)(const void *cam, refl_vec3 p, float out[3]);
+    int (*unproject)(const void *cam, const float uvd[3], refl_vec3 *out);
+    const void *cam;
+    int width, height;       /* image size in texels */
+    refl_vec3 center;        /* bounding sphere of everything imaged: the rays are */
+    float radius;            /* clipped to it before walking */
+} refl_impostor_camera;
+
+/* A SPOC as an impostor camera (size x size, its bounding sphere). */
+REFL_API refl_impostor_camera refl_spoc_impostor_camera(const refl_spoc *cam);
+
+typedef struct refl_impostor_desc {
+    float max_edge_px;       /* subdivision: triangle edges of about this many texels at
+                                most; 0: 4 */
+    int normals;             /* 1: store world normals too (reflective objects) */
+    int threads;             /* rasterisation threads; 0: one per CPU */
+    refl_allocator allocator;
+} refl_impostor_desc;
+
+typedef struct refl_impostor {
+    int width, height;
+    float *color;            /* RGBA per texel: the shared diffuse shading (no shadows),
+                                alpha 1 where a surface is stored, 0 where none */
+    float *depth;            /* gd per texel (1 where none) */
+    float *normal;           /* 3 per texel (world, unit), or NULL */
+    refl_impostor_camera camera;
+    float depth_tolerance;   /* gd a surface may change per texel and still be one surface
+                                (4 / width): larger jumps are skins between layers */
+    long long triangles;     /* drawn, after subdivision */
+    refl_allocator allocator;
+} refl_impostor;
+
+/* Images objects[0 .. count) of the scene (any materials, drawn with the
+   shared diffuse shading). desc may be NULL (defaults). */
+REFL_API refl_result refl_impostor_build(const refl_scene *scene, const int *objects, int count,
+                                         const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                         refl_impostor **out);
+REFL_API void refl_impostor_destroy(refl_impostor *imp);
+
+typedef struct refl_impostor_hit {
+    float t;                 /* along dir (as given, unnormalised) */
+    refl_vec3 point;         /* origin + t dir */
+    float color[4];          /* the stored texel's colour */
+    refl_vec3 normal;        /* stored normal (zero without normals) */
+    float uvd[3];            /* the point's projection */
+} refl_impostor_hit;
+
+/* Section 3.2: the ray origin + t dir, tmin < t < tmax, is clipped to the
+   bounding sphere, its ends projected, and the clipped segment cut in n
+   equal pieces in 3-D, n = step_scale (0: 1) times the length in texels of
+   its projection measured along 4 pieces, at least 2. Walking from near to
+   far, each end s_k is projected to (u_k, v_k, gd_k) and compared with the
+   stored depth GD at its texel (nearest, never blended): the first piece
+   where the ray goes from in front of the stored surface (gd < GD) to
+   behind it (gd >= GD) is a hit, at the zero of gd - GD interpolated in t,
+   unless GD jumps between the two texels by more than 3 times the ray's
+   own change of gd plus depth_tolerance (a skin between depth layers at a
+   silhouette: the ray passes behind it). Entering a stored texel from an
+   empty one counts when the ray is within its own change of gd plus the
+   tolerance behind the surface. 1 and *hit on a hit; *steps (may be NULL)
+   gets the pieces walked (0 when the ray misses the sphere). */
+REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
+                                     float step_scale, refl_impostor_hit *hit, int *steps);
 
 /* ---- sample-based camera (paper 003) -----------------------------------------
    One reflection group's projection function: a BSP tree whose leaves hold
@@ -983,6 +1114,11 @@ typedef struct refl_graphcam_frame_stats {
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;
+typedef struct refl_spoc_frame_stats {
+    long long impostors;     /* SPOC impostors built (one per reflector and compact diffuse object) */
+    long long steps;         /* ray-marching pieces walked over all impostors (paper 004's n) */
+    long long max_steps;     /* the most one ray walked in one impostor */
+} refl_spoc_frame_stats;
 
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
@@ -1004,6 +1140,7 @@ typedef struct refl_stats {
     refl_c3rc_frame_stats c3rc;
     refl_sbc_frame_stats sbc;
     refl_graphcam_frame_stats graphcam;
+    refl_spoc_frame_stats spoc;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1384,6 +1521,15 @@ typedef struct refl_graphcam_options {
     float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
                                 (0: the camera's bounds' diagonal / 2048) */
 } refl_graphcam_options;
+typedef struct refl_spoc_options {
+    int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
+    float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
+                                (a plain depth image, the paper's Fig. 6) */
+    float step_scale;        /* ray-marching pieces per texel of a ray's projection, at most
+                                16; 0: 1 (the paper's n) */
+    float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
+                                this many texels, 0.5 to 64; 0: 4 */
+} refl_spoc_options;
 
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
@@ -1441,6 +1587,7 @@ typedef struct refl_render_desc {
     refl_sbc_options sbc;
     refl_graphcam_options graphcam;
     refl_layered_em_options layered_em;
+    refl_spoc_options spoc;
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows

@@ -531,6 +531,13 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays);
+/* ---- impostors (impostor.c) ---- */
+
+/* refl_impostor_build with the caller's rast context (left with no
+   targets bound). */
+static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scene, const int *objects, int count,
+                                        const refl_impostor_camera *camera, const refl_impostor_desc *desc,
+                                        refl_impostor **out);
 
 /* ---- the methods (m_*.c) ---- */
 
@@ -544,6 +551,7 @@ static refl_result refl__method_sbc(refl__pass *p);
 static refl_result refl__method_planar(refl__pass *p);
 static refl_result refl__method_graphcam(refl__pass *p);
 static const char *refl__options_graphcam(refl_render_desc *d);
+static refl_result refl__method_spoc(refl__pass *p);
 static const char *refl__options_raytrace(refl_render_desc *d);
 static const char *refl__options_envmap(refl_render_desc *d);
 static const char *refl__options_planar(refl_render_desc *d);
@@ -551,7 +559,9 @@ static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__method_layered_em(refl__pass *p);
 static const char *refl__options_layered_em(refl_render_desc *d);
+static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

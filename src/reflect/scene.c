@@ -338,7 +338,7 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -568,6 +568,44 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* teapots: paper 004's two-teapot scene (Fig. 1): a mirror teapot and a
+   diffuse teapot beside it, turned, both at half size, on a checker floor
+   (a 256 x 256 texture of 16 x 16 tiles over the floor). */
+static refl_result refl__scene_teapots(refl_scene *s, const refl_allocator *a, int tess) {
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror teapot");
+    refl_material orange = refl__material(REFL_DIFFUSE, 0.9f, 0.45f, 0.12f, "diffuse teapot");
+    refl_mat4 half = refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f));
+    refl_mesh *m = NULL;
+    refl_result r;
+    float *checker;
+    int k, x, y, tex;
+    if ((r = refl__stage(s, a, 12.0f, refl_v3(-0.6f, 2.8f, 6.0f), refl_v3(-0.3f, 0.5f, 0.2f))) != REFL_OK) return r;
+    checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = 0; y < 256; ++y)
+        for (x = 0; x < 256; ++x) {
+            float v = ((x / 16) + (y / 16)) & 1 ? 0.95f : 0.15f;
+            float *px = checker + 4 * (256 * y + x);
+            px[0] = px[1] = px[2] = v;
+            px[3] = 1.0f;
+        }
+    tex = refl_scene_add_texture(s, 256, 256, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    s->materials[s->objects[0].material].texture = tex;
+    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
+        s->materials[s->objects[0].material].color[2] = 1.0f;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_mul(refl__at(-1.2f, 0.0f, -0.2f), half), "mirror teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &orange,
+                       refl_mat4_mul(refl__at(1.1f, 0.0f, 1.5f),
+                                     refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 2.2f), half)),
+                       "diffuse teapot")) < 0)
+        return (refl_result)k;
+    return REFL_OK;
+}
+
 /* maze: paper 004's maze (docs/graphcam.md): the corridors of
    refl__maze_layout walled with boxes 0.15 thick and REFL__MAZE_WALL_H
    high, no ceiling, on a checker floor; a teapot, a sphere, a torus and a
@@ -652,13 +690,14 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
     if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
-        strcmp(name, "maze"))
+        strcmp(name, "maze") && strcmp(name, "teapots"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "mirror-room")) r = refl__scene_mirror_room(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "teapots")) r = refl__scene_teapots(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

@@ -1,0 +1,312 @@
+/* SPOC: reflections of impostored diffuse objects in mirrors (paper 004,
+   sections 4 and 6). Per reflector seen, every compact diffuse object gets
+   an SPOC impostor (impostor.c) taken from the centre of the reflector's
+   world bounding box, looking at the centre of the object's, of radius its
+   half diagonal; the baseline is the reflector's half diagonal (the
+   region its reflected rays start from), so the push is the parallax of a
+   viewpoint moved across the reflector. Each reflector pixel's reflected
+   ray (G-buffer normal, the surface point from the base pass's depth)
+   meets the nearest of:
+   - the impostors, marched (refl_impostor_intersect);
+   - the rest of the scene, intersected exactly: flat objects (the floor,
+     the paper's billboard impostor, which it calls exact), objects whose
+     bounding sphere holds the reflector's centre (no SPOC can see them
+     from there), and the reflectors themselves, which show as DIRECT
+     draws them (one bounce: a mirror is black, a partial reflector its
+     diffuse share);
+   and what meets nothing shows the environment. Colours are composited
+   as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
+   does; frame->points gets the point the ray met (an impostor's: its own
+   estimate on the ray). Impostor colours are the shared diffuse shading
+   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   independent and step counts are summed per row, so any thread count
+   gives the same bytes and stats. */
+#include "internal.h"
+
+/* One reflector's frame: its impostors and the exact part of the scene. */
+typedef struct refl__spoc_frame {
+    refl__em em;
+    refl_spoc *cams;              /* per impostor */
+    refl_impostor **imps;
+    int imp_count;
+    refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
+    int *exact_object;            /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
+    int object;                   /* the reflector being drawn */
+    float offset;                 /* reflected rays start this far off their surface */
+    long long *row_steps, *row_max, *row_rays;
+} refl__spoc_frame;
+
+/* World bounding box of object i's vertices. */
+static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i gets an impostor seen from `eye`: diffuse, not flat
+   (its box's smallest side at least 1% of its largest), and the eye
+   outside its bounding sphere. */
+static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
+    refl_vec3 lo, hi, size, c;
+    float small, large;
+    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
+    refl__spoc_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+}
+
+/* Builds reflector `object`'s impostors and exact BVH. */
+static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
+    refl__pass *p = sf->em.p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_spoc_options *opt = &p->desc.spoc;
+    refl_vec3 lo, hi, eye;
+    refl_scene sub;
+    refl_object *objs;
+    float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
+    int i, n = 0;
+    refl_result r = REFL_OK;
+    refl__spoc_box(scene, object, &lo, &hi);
+    eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        if (refl__spoc_impostored(scene, i, eye)) {
+            refl_vec3 olo, ohi;
+            refl_impostor_camera ic;
+            refl_impostor_desc d;
+            refl_spoc *cam = &sf->cams[sf->imp_count];
+            refl__spoc_box(scene, i, &olo, &ohi);
+            r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
+                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
+            if (r != REFL_OK) break;
+            ic = refl_spoc_impostor_camera(cam);
+            memset(&d, 0, sizeof d);
+            d.max_edge_px = opt->max_edge_px;
+            d.allocator = *al;
+            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &sf->imps[sf->imp_count]);
+            if (r != REFL_OK) break;
+            p->frame->stats.triangles += sf->imps[sf->imp_count]->triangles;
+            p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * 5 * sizeof(float));
+            ++p->frame->stats.spoc.impostors;
+            ++sf->imp_count;
+        } else {
+            sf->exact_object[n] = i;
+            objs[n++] = scene->objects[i];
+        }
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &sf->exact);
+        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(sf->exact);
+    }
+    refl__free(al, objs);
+    return r;
+}
+
+static void refl__spoc_release(refl__spoc_frame *sf) {
+    int i;
+    for (i = 0; i < sf->imp_count; ++i) refl_impostor_destroy(sf->imps[i]);
+    sf->imp_count = 0;
+    refl_bvh_destroy(sf->exact);
+    sf->exact = NULL;
+}
+
+/* What the reflected ray o + t d meets first: its colour (clamped to
+   [0, 1]) and point; 0 for nothing. */
+static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, float rgb[3], refl_vec3 *shown,
+                            long long *steps, long long *max_steps) {
+    const refl__pass *p = sf->em.p;
+    float best = FLT_MAX;
+    int i, c, found = 0;
+    refl_hit h;
+    for (i = 0; i < sf->imp_count; ++i) {
+        refl_impostor_hit ih;
+        int n = 0;
+        if (refl_impostor_intersect(sf->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
+            best = ih.t;
+            for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(ih.color[c], 0.0f, 1.0f);
+            *shown = ih.point;
+            found = 1;
+        }
+        *steps += n;
+        if (n > *max_steps) *max_steps = n;
+    }
+    if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
+        int object = sf->exact_object[h.object];
+        const refl__rt_object *ro = &sf->objects[object];
+        const refl_material *m = ro->material;
+        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
+        refl__hit_geom g;
+        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+        int k;
+        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
+        if (ro->mesh->texcoords)
+            for (k = 0; k < 3; ++k) {
+                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+            }
+        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+            rgba[0] = rgba[1] = rgba[2] = 0.0f;
+        } else {
+            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
+            refl__surface_rgba(m, col, rgba);
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
+        *shown = g.p;
+        found = 1;
+    }
+    return found;
+}
+
+/* One frame row: every pixel of the current reflector. */
+static void refl__spoc_row(void *arg, int y) {
+    refl__spoc_frame *sf = (refl__spoc_frame *)arg;
+    const refl__pass *p = sf->em.p;
+    const refl_frame *fr = p->frame;
+    float id = (float)(sf->object + 1);
+    long long steps = 0, max_steps = 0, rays = 0;
+    int x;
+    for (x = 0; x < fr->width; ++x) {
+        size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
+        const float *g = sf->em.gbuf + 4 * i;
+        float rgb[3], tmax;
+        refl_vec3 o, d, n, s, shown = refl_v3(NAN, NAN, NAN);
+        if (fabsf(g[3]) != id) continue;
+        refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+        n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
+        if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
+        if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+        s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
+        s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
+        ++rays;
+        if (refl__spoc_trace(sf, s, refl_v3_reflect(d, n), rgb, &shown, &steps, &max_steps))
+            refl__em_composite(p, g, x, y, rgb, shown);
+        else
+            refl__em_composite(p, g, x, y, NULL, shown);
+    }
+    sf->row_steps[y] += steps;
+    sf->row_rays[y] += rays;
+    if (max_steps > sf->row_max[y]) sf->row_max[y] = max_steps;
+}
+
+static const char *refl__options_spoc(refl_render_desc *d) {
+    refl_spoc_options *o = &d->spoc;
+    if (o->size < 0 || o->size > 4096) return "spoc.size: 0 (512) or 8 to 4096";
+    if (o->size == 0) o->size = 512;
+    if (o->size < 8) return "spoc.size: 0 (512) or 8 to 4096";
+    if (!refl__isfinite(o->strength) || o->strength > 64.0f) return "spoc.strength: finite, at most 64";
+    if (o->strength == 0.0f) o->strength = 1.0f;
+    if (!refl__isfinite(o->step_scale) || o->step_scale < 0.0f || o->step_scale > 16.0f)
+        return "spoc.step_scale: 0 (1) to 16";
+    if (o->step_scale == 0.0f) o->step_scale = 1.0f;
+    if (!refl__isfinite(o->max_edge_px) || o->max_edge_px < 0.0f || (o->max_edge_px > 0.0f && o->max_edge_px < 0.5f) ||
+        o->max_edge_px > 64.0f)
+        return "spoc.max_edge_px: 0 (4) or 0.5 to 64";
+    if (o->max_edge_px == 0.0f) o->max_edge_px = 4.0f;
+    return NULL;
+}
+
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
+static refl_result refl__method_spoc(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    refl__spoc_frame sf;
+    unsigned char *seen = NULL;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    double t0 = refl__now_ms(), t1;
+    refl_vec3 lo, hi;
+    refl_result r;
+    int i, y, any = 0;
+    memset(&sf, 0, sizeof sf);
+    sf.em.p = p;
+    r = refl__em_gbuffer_new(&sf.em, &seen, &any);
+    if (r == REFL_OK && any) {
+        size_t npx = (size_t)fr->width * (size_t)fr->height;
+        sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
+        sf.cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
+        sf.imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
+        sf.exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+        sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+        sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sf.em.surface || !sf.cams || !sf.imps || !sf.exact_object || !sf.objects || !sf.row_steps ||
+            !sf.row_max || !sf.row_rays)
+            r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        for (i = 0; i < scene->object_count; ++i) {
+            const refl_object *o = &scene->objects[i];
+            sf.objects[i].mesh = scene->meshes[o->mesh];
+            sf.objects[i].material = &scene->materials[o->material];
+            sf.objects[i].model = o->transform;
+            sf.objects[i].normal_m = refl__normal_matrix(o->transform);
+        }
+        refl_scene_bounds(scene, &lo, &hi);
+        sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+        rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &sf.em);
+    }
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
+    for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
+        if (!seen[i] || !refl__pass_draws(p, i)) continue;
+        r = refl__spoc_build(&sf, i);
+        t0 = refl__now_ms();
+        fr->stats.ms_build += t0 - t1;
+        if (r == REFL_OK) {
+            sf.object = i;
+            rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
+        }
+        refl__spoc_release(&sf);
+        t1 = refl__now_ms();
+        fr->stats.ms_reflect += t1 - t0;
+    }
+    if (r == REFL_OK && any)
+        for (y = 0; y < fr->height; ++y) {
+            fr->stats.spoc.steps += sf.row_steps[y];
+            fr->stats.rays += sf.row_rays[y];
+            if (sf.row_max[y] > fr->stats.spoc.max_steps) fr->stats.spoc.max_steps = sf.row_max[y];
+        }
+    /* leave the frame bound, as the method found it (the impostors bound their own buffers) */
+    if (r == REFL_OK) {
+        rast_targets t = refl__frame_targets(fr);
+        r = refl__result_from_rast(rast_set_targets(p->rc, &t));
+    }
+    refl__spoc_release(&sf);
+    refl__free(al, sf.em.gbuf);
+    refl__free(al, sf.em.draws);
+    refl__free(al, sf.em.surface);
+    refl__free(al, seen);
+    refl__free(al, sf.cams);
+    refl__free(al, sf.imps);
+    refl__free(al, sf.exact_object);
+    refl__free(al, sf.objects);
+    refl__free(al, sf.row_steps);
+    refl__free(al, sf.row_max);
+    refl__free(al, sf.row_rays);
+    return r;
+}

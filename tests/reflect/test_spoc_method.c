@@ -1,0 +1,241 @@
+/* Method SPOC (paper 004) on the built-in "teapots" scene, against RAYTRACE
+   with one bounce: the impostor the method builds holds the points of the
+   diffuse teapot that RAYTRACE's reflected rays meet (the paper's claim
+   that an SPOC impostor is "sufficient to intercept all reflected rays":
+   most, here, and more than a plain depth image); the reflection error and PSNR
+   over the mirror; the same bytes for any thread count. */
+#include <criterion/criterion.h>
+
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../reflect.h"
+#include "../test_util.h"
+#include "refl_test_util.h"
+
+static int object_named(const refl_scene *s, const char *name) {
+    int i;
+    for (i = 0; i < s->object_count; ++i)
+        if (!strcmp(s->objects[i].name, name)) return i;
+    cr_assert_fail("no object %s", name);
+    return -1;
+}
+
+static void world_box(const refl_scene *s, int object, refl_vec3 *lo, refl_vec3 *hi) {
+    int n = refl_object_world_positions(s, object, NULL), k;
+    float *p = (float *)malloc(3 * sizeof(float) * (size_t)n);
+    cr_assert(n > 0 && p);
+    refl_object_world_positions(s, object, p);
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (k = 0; k < n; ++k) {
+        lo->x = fminf(lo->x, p[3 * k]); lo->y = fminf(lo->y, p[3 * k + 1]); lo->z = fminf(lo->z, p[3 * k + 2]);
+        hi->x = fmaxf(hi->x, p[3 * k]); hi->y = fmaxf(hi->y, p[3 * k + 1]); hi->z = fmaxf(hi->z, p[3 * k + 2]);
+    }
+    free(p);
+}
+
+/* The fraction of the truth's reflected points on the diffuse teapot that
+   an impostor built as the method builds it (strength K) stores: the
+   point's texel, or one of its 8 neighbours, holds its depth within the
+   impostor's depth tolerance. */
+static double held_fraction(const refl_scene *s, const refl_frame *truth, float strength, long long *counted) {
+    int mirror = object_named(s, "mirror teapot"), diffuse = object_named(s, "diffuse teapot");
+    refl_vec3 mlo, mhi, dlo, dhi;
+    refl_spoc cam;
+    refl_impostor_camera ic;
+    refl_impostor *imp = NULL;
+    refl_impostor_desc d;
+    long long held = 0, n = 0;
+    size_t i, npx = (size_t)truth->width * (size_t)truth->height;
+    world_box(s, mirror, &mlo, &mhi);
+    world_box(s, diffuse, &dlo, &dhi);
+    cr_assert_eq(refl_spoc_init(&cam, refl_v3_scale(refl_v3_add(mlo, mhi), 0.5f), refl_v3_scale(refl_v3_add(dlo, dhi), 0.5f),
+                                0.5f * refl_v3_length(refl_v3_sub(dhi, dlo)),
+                                0.5f * refl_v3_length(refl_v3_sub(mhi, mlo)), strength, 512),
+                 REFL_OK);
+    ic = refl_spoc_impostor_camera(&cam);
+    memset(&d, 0, sizeof d);
+    d.threads = 2;
+    cr_assert_eq(refl_impostor_build(s, &diffuse, 1, &ic, &d, &imp), REFL_OK);
+    for (i = 0; i < npx; ++i) {
+        const float *q = truth->points + 3 * i;
+        float o[3];
+        int du, dv, ok = 0;
+        if (truth->stencil[i] != mirror + 1 || !isfinite(q[0])) continue;
+        /* on the diffuse teapot: inside its box, above the floor */
+        if (q[0] < dlo.x - 1e-3f || q[0] > dhi.x + 1e-3f || q[2] < dlo.z - 1e-3f || q[2] > dhi.z + 1e-3f ||
+            q[1] < 1e-3f || q[1] > dhi.y + 1e-3f)
+            continue;
+        ++n;
+        cr_assert(refl_spoc_project(&cam, refl_v3(q[0], q[1], q[2]), o));
+        for (dv = -1; dv <= 1 && !ok; ++dv)
+            for (du = -1; du <= 1 && !ok; ++du) {
+                int u = (int)floorf(o[0]) + du, v = (int)floorf(o[1]) + dv;
+                size_t t;
+                if (u < 0 || v < 0 || u >= imp->width || v >= imp->height) continue;
+                t = (size_t)v * imp->width + u;
+                ok = imp->color[4 * t + 3] > 0.0f && fabsf(imp->depth[t] - o[2]) <= imp->depth_tolerance;
+            }
+        held += ok;
+    }
+    refl_impostor_destroy(imp);
+    *counted = n;
+    return n ? (double)held / (double)n : 0.0;
+}
+
+static refl_view teapots_view(const refl_scene *s) {
+    refl_view v = s->camera;
+    v.width = 320;
+    v.height = 240;
+    return v;
+}
+
+Test(spoc_method, impostor_holds_the_reflected_points) {
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc rd = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth;
+    long long n0, n1;
+    double plain, spoc;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    v = teapots_view(s);
+    truth = tu_refl_render(s, &v, &rd);
+    plain = held_fraction(s, truth, 0.0f, &n0);
+    spoc = held_fraction(s, truth, 1.0f, &n1);
+    cr_log_info("teapots: reflected points on the diffuse teapot held: plain depth image %.4f, SPOC %.4f (of %lld)\n",
+                plain, spoc, n1);
+    cr_expect(n1 > 300, "only %lld reflected points on the diffuse teapot", n1);
+    /* the paper's "all reflected rays" is not met here: the points missed
+       lie on the diffuse teapot's spout, which points at the mirror, behind
+       other parts of it as the SPOC sees them (where the impostor stores a
+       nearer surface) */
+    cr_expect(spoc >= 0.94, "SPOC holds %.4f of the reflected points", spoc);
+    cr_expect(spoc > plain, "SPOC %.4f, plain depth image %.4f", spoc, plain);
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
+
+Test(spoc_method, error_against_raytrace) {
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc rt = tu_refl_one_bounce(REFL_RAYTRACE, 2), sp = tu_refl_one_bounce(REFL_SPOC, 2);
+    refl_frame *truth, *test;
+    refl_reflection_error e;
+    refl_image_error ie;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    v = teapots_view(s);
+    truth = tu_refl_render(s, &v, &rt);
+    test = tu_refl_render(s, &v, &sp);
+    cr_expect_eq(test->stats.spoc.impostors, 1);
+    cr_expect(test->stats.spoc.steps > 0 && test->stats.spoc.max_steps > 0);
+    cr_assert_eq(refl_measure_reflection_error(test, truth, NULL, &e), REFL_OK);
+    cr_assert_eq(refl_measure_image_error(test, truth, 1, 0.0f, &ie), REFL_OK);
+    cr_log_info("teapots 320x240: reflection error mean %.3f p95 %.3f max %.3f px, wrong %.4f, empty %.4f; "
+                "PSNR %.2f dB over the mirror\n",
+                e.mean, e.p95, e.max, e.wrong, e.empty, ie.psnr);
+    cr_expect(e.mean < 0.1 && e.p95 < 0.5, "mean %g p95 %g", e.mean, e.p95);
+    cr_expect(e.wrong < 0.005 && e.empty < 0.02, "wrong %g empty %g", e.wrong, e.empty);
+    /* the differences are scattered pixels: grazing reflections at the
+       mirror's silhouette (the normal is the G-buffer's), and the rays the
+       impostor misses (empty) */
+    cr_expect(ie.psnr > 24.0, "PSNR %g", ie.psnr);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(test);
+    refl_scene_destroy(s);
+}
+
+Test(spoc_method, same_bytes_for_any_thread_count) {
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc a = tu_refl_one_bounce(REFL_SPOC, 1), b = tu_refl_one_bounce(REFL_SPOC, 3);
+    refl_frame *fa, *fb;
+    size_t npx;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    v = teapots_view(s);
+    v.width = 160;
+    v.height = 120;
+    a.spoc.size = b.spoc.size = 256;
+    fa = tu_refl_render(s, &v, &a);
+    fb = tu_refl_render(s, &v, &b);
+    npx = (size_t)v.width * (size_t)v.height;
+    cr_expect(!memcmp(fa->rgba, fb->rgba, 4 * sizeof(float) * npx));
+    cr_expect(!memcmp(fa->points, fb->points, 3 * sizeof(float) * npx));
+    cr_expect_eq(fa->stats.spoc.steps, fb->stats.spoc.steps);
+    cr_expect_eq(fa->stats.spoc.max_steps, fb->stats.spoc.max_steps);
+    refl_frame_destroy(fa);
+    refl_frame_destroy(fb);
+    refl_scene_destroy(s);
+}
+
+Test(spoc_method, options_validated) {
+    refl_render_desc d;
+    const char *why = NULL;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_SPOC;
+    d.spoc.size = 4;
+    cr_expect_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    cr_expect(why && strstr(why, "spoc.size"));
+    d.spoc.size = 0;
+    d.spoc.strength = NAN;
+    cr_expect_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.spoc.strength = -1.0f;
+    d.spoc.step_scale = 32.0f;
+    cr_expect_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.spoc.step_scale = 0.0f;
+    cr_expect_eq(refl_validate_render_desc(&d, &why), REFL_OK);
+}
+
+/* Where the paper says the method degrades: the push's strength (up to
+   where the map folds much of the surface) and the marching step. Every
+   frame stays finite; steps scale with step_scale. */
+Test(spoc_method, sweeps_stay_finite, .timeout = 120) {
+    static const float strengths[] = {-1.0f, 0.5f, 4.0f, 16.0f, 64.0f};
+    static const float steps[] = {0.25f, 4.0f};
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc rt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth;
+    long long base_steps;
+    size_t k, npx;
+    int i;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    v = teapots_view(s);
+    v.width = 160;
+    v.height = 120;
+    npx = (size_t)v.width * (size_t)v.height;
+    truth = tu_refl_render(s, &v, &rt);
+    {
+        refl_render_desc d = tu_refl_one_bounce(REFL_SPOC, 2);
+        refl_frame *f;
+        d.spoc.size = 256;
+        f = tu_refl_render(s, &v, &d);
+        base_steps = f->stats.spoc.steps;
+        refl_frame_destroy(f);
+    }
+    for (i = 0; i < 7; ++i) {
+        refl_render_desc d = tu_refl_one_bounce(REFL_SPOC, 2);
+        refl_reflection_error e;
+        refl_frame *f;
+        d.spoc.size = 256;
+        if (i < 5) d.spoc.strength = strengths[i];
+        else d.spoc.step_scale = steps[i - 5];
+        f = tu_refl_render(s, &v, &d);
+        for (k = 0; k < 4 * npx; ++k) cr_assert(isfinite(f->rgba[k]), "setting %d: pixel %zu not finite", i, k / 4);
+        cr_assert_eq(refl_measure_reflection_error(f, truth, NULL, &e), REFL_OK);
+        cr_expect(isfinite(e.mean) && e.wrong + e.empty < 0.2, "setting %d: mean %g wrong %g empty %g", i, e.mean,
+                  e.wrong, e.empty);
+        cr_log_info("teapots 160x120, impostor 256, %s %g: mean %.3f px, wrong %.4f, empty %.4f, steps %lld\n",
+                    i < 5 ? "strength" : "step_scale", i < 5 ? strengths[i] : steps[i - 5], e.mean, e.wrong, e.empty,
+                    f->stats.spoc.steps);
+        if (i == 5) cr_expect(f->stats.spoc.steps < base_steps / 2, "%lld vs %lld", f->stats.spoc.steps, base_steps);
+        if (i == 6) cr_expect(f->stats.spoc.steps > base_steps * 3, "%lld vs %lld", f->stats.spoc.steps, base_steps);
+        refl_frame_destroy(f);
+    }
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
