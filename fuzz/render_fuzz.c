@@ -7,9 +7,11 @@
    message where the API promises one; no crash, sanitizer report, leak or
    hang. `make fuzz` runs it after the loader's target.
 
-   Only the frame's size is bounded here (at most 24 x 24): the
-   rasteriser's limits are tested elsewhere, and a fuzzer needs many runs a
-   second. Every other value reaches the API as the bytes give it. */
+   The frame's size is bounded here (at most 24 x 24), and valid but costly
+   counts (samples, cube size, point density) are cut to small ones: the
+   fuzzer looks for wrong answers and crashes, and needs many runs a second;
+   the work bounds have their own tests. Every other value, refused ones
+   included, reaches the API as the bytes give it. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -33,6 +35,14 @@ static uint8_t take_u8(bytes *b) {
 }
 
 static int take_i16(bytes *b) { return (int16_t)(take_u8(b) | take_u8(b) << 8); }
+
+/* A count the API accepts up to `valid` and that costs in proportion to
+   it: valid but large values are cut to `cheap`, so that a run stays
+   short; negative and too-large (refused) values pass as they are. */
+static int take_count(bytes *b, int cheap, int valid) {
+    int v = take_i16(b);
+    return v > cheap && v <= valid ? cheap : v;
+}
 
 /* A float: mostly a small one near `usual`, sometimes any bit pattern. */
 static float take_float(bytes *b, float usual) {
@@ -92,18 +102,19 @@ static void take_desc(bytes *b, refl_render_desc *d) {
     d->spp = take_u8(b) % 12;
     if (take_u8(b) & 1) {
         d->lighting.shadows = take_u8(b) & 1;
-        d->lighting.soft_shadow_samples = take_i16(b);
+        d->lighting.soft_shadow_samples = take_count(b, 16, 1024);
         d->lighting.light_volumes = take_u8(b) & 1;
-        d->lighting.caustic_samples = take_i16(b);
+        d->lighting.caustic_samples = take_count(b, 16, 1024);
         d->lighting.translucency = take_float(b, 0);
     }
     if (take_u8(b) & 1) {
-        d->envmap.size = take_i16(b);
+        d->envmap.size = take_count(b, 64, 2048);
         d->planar.no_culling = take_u8(b) & 1;
         d->planar.max_renderings = take_i16(b);
     }
     if (take_u8(b) & 1) {
         d->c3rc.point_density = take_float(b, 0);
+        if (d->c3rc.point_density > 1e4f && d->c3rc.point_density < 1e12f) d->c3rc.point_density = 1e4f;
         d->c3rc.kd_leaf_points = take_i16(b);
         d->c3rc.max_splat = (int8_t)take_u8(b);
         d->c3rc.camera_split_px = take_float(b, 0);
