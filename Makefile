@@ -473,15 +473,18 @@ bench: deps
 # The demo: every built-in scene through the `reflect` command with every
 # method built so far (and SBC with its ray-traced fallback on the default
 # scene), the speed-against-accuracy chart of the default scene (a quick
-# `reflect bench`), and the rasteriser's own demo picture.
-DEMO_SCENES  = default mirror-room concave glass
-DEMO_METHODS = direct raytrace envmap planar c3rc sbc
+# `reflect bench`), and the rasteriser's own demo picture. LAYERED_EM
+# infers its maps every frame (seconds per 10^5 pixels), so it renders at
+# 320x240.
+DEMO_SCENES  = default mirror-room concave glass maze teapots
+DEMO_METHODS = direct raytrace envmap planar c3rc sbc spoc graphcam layered-em
 demo: deps
 	@$(MAKE) --no-print-directory build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out
 	@for s in $(DEMO_SCENES); do for m in $(DEMO_METHODS); do \
-	  echo "$(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png"; \
-	  $(REFLECT_BIN) render --builtin $$s --method $$m --size 960x720 --out out/$$s-$$m.png || exit 1; \
+	  size=960x720; [ $$m = layered-em ] && size=320x240; \
+	  echo "$(REFLECT_BIN) render --builtin $$s --method $$m --size $$size --out out/$$s-$$m.png"; \
+	  $(REFLECT_BIN) render --builtin $$s --method $$m --size $$size --out out/$$s-$$m.png || exit 1; \
 	done; done
 	$(REFLECT_BIN) render --builtin default --method sbc --trace-fallback --size 960x720 --out out/default-sbc-fallback.png
 	$(REFLECT_BIN) bench --repeats 1 --out out/bench
