@@ -2319,8 +2319,6 @@ static refl_result refl__method_layered_em(refl__pass *p);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
-static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
-static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);
 /* ---- src/reflect/cam_sbc_internal.h ---- */
@@ -10902,7 +10900,7 @@ done:
    Visibility is a per-pixel atomic minimum of (t, point index), so the
    image is the same for any thread count and order.
 
-   Glass is declined (refl__c3_handles) and goes to RAYTRACE's tracer: a
+   Glass is declined (refl__declines_glass) and goes to RAYTRACE's tracer: a
    C3RC interpolates rays that leave the reflector straight, while light
    through a glass object bends again at its back surface, and the exit
    rays of one triangle's three corners can leave through different back
@@ -11872,12 +11870,6 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
-/* Whether C3RC draws reflector `object` (*can): mirrors and partial
-   mirrors; not glass (see the top of this file). */
-static refl_result refl__c3_handles(const refl__pass *p, int object, int *can) {
-    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
-    return REFL_OK;
-}
 
 /* Each object's sampling density (c3->s->object_density): the frame's,
    raised (when `magnify`) where a folding camera (section 5.1: its rays
@@ -15110,11 +15102,6 @@ static const char *refl__options_spoc(refl_render_desc *d) {
     return NULL;
 }
 
-static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
-    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
-    return REFL_OK;
-}
-
 static refl_result refl__method_spoc(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -17284,6 +17271,13 @@ typedef struct refl__method_row {
 
 enum { REFL__ANY_DEPTH = 1 << 30 };
 
+/* A `handles` of the methods that draw mirrors and partial mirrors and hand
+   glass to RAYTRACE's tracer (C3RC, SPOC). */
+static refl_result refl__declines_glass(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
+    return REFL_OK;
+}
+
 /* The built methods, in the order a frame runs them. A method without a
    row returns REFL_ERROR_UNSUPPORTED. */
 static const refl__method_row refl__methods[] = {
@@ -17293,9 +17287,9 @@ static const refl__method_row refl__methods[] = {
     {REFL_ENVMAP, REFL__PER_REFLECTOR, refl__method_envmap, refl__options_envmap, NULL, 1},
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
      REFL__ANY_DEPTH},
-    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__c3_handles, 1},
+    {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
-    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 1},
+    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 1},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
 };

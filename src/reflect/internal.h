@@ -561,7 +561,5 @@ static refl_result refl__method_layered_em(refl__pass *p);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
-static refl_result refl__c3_handles(const refl__pass *p, int object, int *can);
-static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

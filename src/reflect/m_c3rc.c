@@ -45,7 +45,7 @@
    Visibility is a per-pixel atomic minimum of (t, point index), so the
    image is the same for any thread count and order.
 
-   Glass is declined (refl__c3_handles) and goes to RAYTRACE's tracer: a
+   Glass is declined (refl__declines_glass) and goes to RAYTRACE's tracer: a
    C3RC interpolates rays that leave the reflector straight, while light
    through a glass object bends again at its back surface, and the exit
    rays of one triangle's three corners can leave through different back
@@ -1016,12 +1016,6 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
-/* Whether C3RC draws reflector `object` (*can): mirrors and partial
-   mirrors; not glass (see the top of this file). */
-static refl_result refl__c3_handles(const refl__pass *p, int object, int *can) {
-    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
-    return REFL_OK;
-}
 
 /* Each object's sampling density (c3->s->object_density): the frame's,
    raised (when `magnify`) where a folding camera (section 5.1: its rays

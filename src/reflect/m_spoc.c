@@ -225,11 +225,6 @@ static const char *refl__options_spoc(refl_render_desc *d) {
     return NULL;
 }
 
-static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
-    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
-    return REFL_OK;
-}
-
 static refl_result refl__method_spoc(refl__pass *p) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
