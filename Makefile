@@ -49,6 +49,10 @@ ASAN_CFLAGS = -std=c99 -O1 -g -Wall -Wextra -Werror -pthread \
 ASAN_ENV = ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 CRITERION_FLAGS = --jobs 2
+# Builds started by `make`, `make test`, `bench`, `demo` and `fuzz` use every
+# core (JOBS) unless the caller chose with -j.
+JOBS ?= $(shell nproc 2>/dev/null || echo 1)
+PARALLEL = $(if $(filter -j% j%,$(MAKEFLAGS)),,-j$(JOBS))
 # Seconds per test run (plain, then sanitized), so `make test` stays bounded.
 TEST_TIMEOUT = 450
 
@@ -164,7 +168,7 @@ CHECK_CXXFLAGS = -std=c++11 -O0 -Wall -Wextra -Werror -pthread
 .PHONY: all build-all headers check-headers compile-check deps test bench demo clean
 
 all: headers
-	@$(MAKE) --no-print-directory build-all
+	@$(MAKE) --no-print-directory $(PARALLEL) build-all
 
 build-all: compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(EXAMPLES) $(REFLECT_BIN) $(REFLECT_GL_BIN)
 
@@ -379,13 +383,13 @@ $(FUZZ_BIN): $(FUZZ_OBJS)
 
 .PHONY: fuzz fuzz-short
 fuzz: deps
-	@$(MAKE) --no-print-directory $(FUZZ_BIN) $(RENDER_FUZZ_BIN)
+	@$(MAKE) --no-print-directory $(PARALLEL) $(FUZZ_BIN) $(RENDER_FUZZ_BIN)
 	bash fuzz/run.sh $(FUZZ_BIN) $(FUZZ_SECONDS)
 	bash fuzz/run.sh $(RENDER_FUZZ_BIN) $(FUZZ_SECONDS)
 
 fuzz-short:
 	@if bash fuzz/run.sh --available; then \
-	  $(MAKE) --no-print-directory $(FUZZ_BIN) && bash fuzz/run.sh $(FUZZ_BIN) 60; \
+	  $(MAKE) --no-print-directory $(PARALLEL) $(FUZZ_BIN) && bash fuzz/run.sh $(FUZZ_BIN) 60; \
 	else echo "fuzz: $(FUZZ_CXX) cannot build a libFuzzer target (Debian: clang libclang-rt-14-dev); skipped"; fi
 
 -include $(FUZZ_OBJS:.o=.d) build/fuzz/render_fuzz.d
@@ -443,7 +447,7 @@ $(ASAN_TEST_BIN): build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_fram
 # has counted the test as passed. Third-party leaks: tests/lsan.supp.
 test: deps
 	@$(MAKE) --no-print-directory check-headers
-	@$(MAKE) --no-print-directory compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN) $(REFLECT_GL_BIN)
+	@$(MAKE) --no-print-directory $(PARALLEL) compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN) $(REFLECT_GL_BIN)
 	bash tests/cli_test.sh $(REFLECT_BIN)
 	@rm -rf build/tests/digest build/portable/digest; mkdir -p build/tests/digest build/portable/digest
 	RAST_TEST_DIGEST_DIR=build/tests/digest timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
@@ -462,7 +466,7 @@ test: deps
 # method against the ray-traced reference (`reflect bench`: CSV and charts
 # in out/bench/; `reflect bench --full` runs every scene and size).
 bench: deps
-	@$(MAKE) --no-print-directory $(BENCH_BIN) $(BENCH_RAYS_BIN) $(REFLECT_BIN)
+	@$(MAKE) --no-print-directory $(PARALLEL) $(BENCH_BIN) $(BENCH_RAYS_BIN) $(REFLECT_BIN)
 	@mkdir -p out
 	$(BENCH_BIN) --csv out/bench_rast.csv
 	$(BENCH_RAYS_BIN) --csv out/bench_rays.csv
@@ -479,7 +483,7 @@ bench: deps
 DEMO_SCENES  = default mirror-room concave glass maze teapots
 DEMO_METHODS = direct raytrace envmap planar c3rc sbc spoc graphcam layered-em
 demo: deps
-	@$(MAKE) --no-print-directory build/examples/rast_demo $(REFLECT_BIN)
+	@$(MAKE) --no-print-directory $(PARALLEL) build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out
 	@for s in $(DEMO_SCENES); do for m in $(DEMO_METHODS); do \
 	  size=960x720; [ $$m = layered-em ] && size=320x240; \

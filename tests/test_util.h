@@ -28,6 +28,17 @@
 
 #include "../rast.h"
 
+/* TU_SANITIZED: defined in the AddressSanitizer build. That run looks for
+   memory errors; the plain and portable runs check the same bytes, so a
+   test whose size only adds time under the sanitizers may do less there. */
+#if defined(__SANITIZE_ADDRESS__)
+#define TU_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define TU_SANITIZED 1
+#endif
+#endif
+
 /* ---- failure accumulation ------------------------------------------------ */
 
 typedef struct tu_check {

@@ -367,14 +367,7 @@ Test(refl_bvh, deterministic) {
 
 /* Random rays per scene, and the primary grid's divisor: fewer under the
    sanitizers, whose run has a time bound (make test). */
-#if defined(__SANITIZE_ADDRESS__)
-#define BVH_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define BVH_SANITIZED 1
-#endif
-#endif
-#ifdef BVH_SANITIZED
+#ifdef TU_SANITIZED
 #define BVH_RANDOM_RAYS 2000
 #define BVH_GRID_DIV 2
 #else

@@ -15,16 +15,9 @@
 #include "../test_util.h"
 #include "refl_test_util.h"
 
-/* Under AddressSanitizer the 640x480 accuracy test takes half a minute:
-   the sanitized run leaves it to the plain one (every other test here
-   runs the same code under the sanitizers). */
-#if defined(__SANITIZE_ADDRESS__)
-#define C3_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define C3_SANITIZED 1
-#endif
-#endif
+/* Under AddressSanitizer a 640x480 accuracy test takes half a minute: the
+   sanitized run leaves them to the plain one (every other test here runs
+   the same code under the sanitizers). */
 
 static refl_render_desc desc_of(refl_method m, int threads) { return tu_refl_one_bounce(m, threads); }
 
@@ -86,7 +79,7 @@ Test(refl_c3rc, default_scene_within_a_pixel) {
     refl_reflection_error ce;
     c3_result r;
     int teapot_tris = s->meshes[s->objects[1].mesh]->triangle_count;
-#ifdef C3_SANITIZED
+#ifdef TU_SANITIZED
     refl_scene_destroy(s);
     cr_skip_test("the 640x480 accuracy test runs in the plain build");
 #endif
@@ -124,7 +117,7 @@ Test(refl_c3rc, default_density_within_a_pixel_on_average) {
     refl_scene *s = builtin("default", 8);
     refl_view v = s->camera;
     c3_result r;
-#ifdef C3_SANITIZED
+#ifdef TU_SANITIZED
     refl_scene_destroy(s);
     cr_skip_test("the 640x480 accuracy test runs in the plain build");
 #endif
@@ -255,7 +248,7 @@ Test(refl_c3rc, concave_focus_at_640x480) {
     refl_scene *s = builtin("concave", 0);
     refl_view v = s->camera;
     c3_result r;
-#ifdef C3_SANITIZED
+#ifdef TU_SANITIZED
     refl_scene_destroy(s);
     cr_skip_test("the 640x480 accuracy test runs in the plain build");
 #endif
