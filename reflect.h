@@ -1130,10 +1130,12 @@ typedef struct refl_stats {
     int reflectors;          /* reflector objects in the scene */
     int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
                                 drawn by RAYTRACE's tracer instead */
-    int depth;               /* bounces the frame models: desc.depth, or fewer where the
-                                method of some reflector models fewer (DIRECT: 0;
-                                ENVMAP, C3RC: 1; SBC: 8). Compare a frame with truth
-                                of this depth */
+    int depth;               /* bounces the frame shows: desc.depth, or 0 where DIRECT
+                                draws a reflector. Compare a frame with truth of this
+                                depth */
+    long long traced_beyond; /* reflector pixels whose path goes past the bounces their
+                                method models (ENVMAP, C3RC, SPOC, GRAPHCAM: 1; SBC: 8)
+                                and meets a reflector there: drawn by RAYTRACE's tracer */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from
                                 an earlier frame */
@@ -1914,6 +1916,11 @@ typedef struct refl__pass {
     const uint8_t *mine;          /* per object: 1 where this method draws the reflector;
                                      NULL: every reflector is the method's */
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
+    uint8_t *trace;               /* per pixel, when some reflector's method models fewer
+                                     bounces than desc.depth (else NULL): REFL__TRACE_COLOUR
+                                     where a method's own path met a reflector it cannot
+                                     follow; refl__trace_beyond traces them after every
+                                     method drew */
 } refl__pass;
 
 /* Writes a message with numbers into frame->message_text and points
@@ -2232,9 +2239,22 @@ static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
    them; *rays counts the rays cast. */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
+/* Whether pixel (x, y)'s exact path, after the modelled[object] mirror
+   reflections of the method of the reflector it shows, meets a reflector
+   again; *rays counts the rays cast. */
+static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *modelled, long long *rays);
 /* RAYTRACE's colour and point for the pixels of pass p that `marked` is
-   not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
+   REFL__TRACE_ALL on, its colour alone where REFL__TRACE_COLOUR (the point
+   the method found stays, so the metrics measure the method)
+   (m_raytrace.c): what a method hands over pixel by pixel. */
+enum { REFL__TRACE_ALL = 1, REFL__TRACE_COLOUR = 2 };
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
+/* The bounces past a method's own: every reflector pixel p->trace marks,
+   and every one whose exact path, after the modelled[object] mirror
+   reflections its method models, meets a reflector again, gets RAYTRACE's
+   colour (m_raytrace.c). modelled[i] 0 (DIRECT) or desc.depth or more:
+   left alone. */
+static refl_result refl__trace_beyond(refl__pass *p, const int *modelled);
 
 /* ---- the graph camera (cam_graph.c) and the maze built on it (scene.c) ---- */
 
@@ -10882,7 +10902,9 @@ done:
         ray meets the point's surfel (refl__c3_ray_meets); a pixel whose
         splats all missed shows its neighbours' nearest point.
    Pixels no point reaches show the environment along their reflected ray
-   (the paper's environment-mapped background). One bounce, as the paper.
+   (the paper's environment-mapped background). One bounce, as the paper:
+   with desc.depth > 1 a pixel showing a reflector's point goes on through
+   RAYTRACE's tracer (refl__trace_beyond).
 
    Splats: the side grows with the point spacing the camera shows on
    screen, estimated per projection from the sweeping triangle's area at t
@@ -11728,6 +11750,8 @@ static void refl__c3_resolve_row(void *arg, int y) {
             size_t k = (size_t)(key & 0xffffffffu);
             const float *q = c3->s->tree->positions + 3 * k;
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
+            /* a reflector's point: the path goes on past C3RC's one bounce */
+            if (c3->p->trace && !c3->s->diffuse[k]) c3->p->trace[i] = REFL__TRACE_COLOUR;
         } else {
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
@@ -14650,6 +14674,7 @@ static void refl__rt_marked_row(void *arg, int y) {
         refl__rt_pixel(&m->rt, x, y, &m->row_rays[y], rgb, &shown, &depth, &stencil);
         for (c = 0; c < 3; ++c) f->rgba[4 * i + (size_t)c] = rgb[c];
         f->rgba[4 * i + 3] = 1.0f;
+        if (m->marked[i] == REFL__TRACE_COLOUR) continue;
         f->points[3 * i] = shown.x;
         f->points[3 * i + 1] = shown.y;
         f->points[3 * i + 2] = shown.z;
@@ -14675,6 +14700,52 @@ static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
     }
     refl__free(al, m.row_rays);
     refl__rt_end(&m.rt);
+    return r;
+}
+
+/* ---- bounces past a method's own -------------------------------------------------- */
+
+typedef struct refl__rt_beyond {
+    refl__rt rt;
+    const int *modelled;
+    uint8_t *marked;
+    long long *row_rays;
+} refl__rt_beyond;
+
+static void refl__rt_beyond_row(void *arg, int y) {
+    const refl__rt_beyond *b = (const refl__rt_beyond *)arg;
+    const refl_frame *f = b->rt.p->frame;
+    int x;
+    for (x = 0; x < f->width; ++x) {
+        size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+        if (f->stencil[i] && !b->marked[i] && refl__rt_goes_beyond(&b->rt, x, y, b->modelled, &b->row_rays[y]))
+            b->marked[i] = REFL__TRACE_COLOUR;
+    }
+}
+
+static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *f = p->frame;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    refl__rt_beyond b;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    int y;
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&b.rt, p, bvh);
+    b.rt.bvh = owned; /* freed with rt */
+    b.modelled = modelled;
+    b.marked = p->trace;
+    b.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
+    if (r == REFL_OK && !b.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        rast_run_jobs(p->rc, f->height, refl__rt_beyond_row, &b);
+        for (y = 0; y < f->height; ++y) f->stats.rays += b.row_rays[y];
+        for (i = 0; i < n; ++i) f->stats.traced_beyond += b.marked[i] != 0;
+    }
+    refl__rt_end(&b.rt);
+    if (r == REFL_OK && f->stats.traced_beyond) r = refl__trace_marked(p, b.marked);
+    refl__free(al, b.row_rays);
     return r;
 }
 /* ---- src/reflect/m_sbc.c ---- */
@@ -17266,13 +17337,15 @@ typedef struct refl__method_row {
     /* NULL: it draws any reflector; else whether it can draw object i
        (those it cannot go to RAYTRACE's tracer, stats.handed_over) */
     refl_result (*handles)(const refl__pass *p, int object, int *can);
-    int max_depth;                /* bounces it models at most (stats.depth) */
+    int max_depth;                /* bounces it models at most; those past it are traced
+                                     (refl__trace_beyond) */
 } refl__method_row;
 
 enum { REFL__ANY_DEPTH = 1 << 30 };
 
 /* A `handles` of the methods that draw mirrors and partial mirrors and hand
-   glass to RAYTRACE's tracer (C3RC, SPOC). */
+   glass to RAYTRACE's tracer (C3RC, SPOC, GRAPHCAM: one bounce cannot
+   leave a glass object). */
 static refl_result refl__declines_glass(const refl__pass *p, int object, int *can) {
     *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
     return REFL_OK;
@@ -17290,7 +17363,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
     {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 1},
-    {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
+    {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
@@ -17468,15 +17541,28 @@ static refl_result refl__drawn_by(const refl__pass *p, int i, uint8_t *by) {
 static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
     uint8_t *by = NULL;
+    int *modelled = NULL;         /* per object: the bounces its method models */
     refl_result r = REFL_OK;
-    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0;
+    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0, beyond = 0;
     by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
-    if (!by) return REFL_ERROR_OUT_OF_MEMORY;
+    modelled = (int *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    if (!by || !modelled) {
+        refl__free(&scene->allocator, modelled);
+        refl__free(&scene->allocator, by);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
         r = refl__drawn_by(p, i, &by[i]);
         mixed |= by[i] != (uint8_t)p->desc.method;
         if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
+        modelled[i] = refl__method_row_of((refl_method)by[i])->max_depth;
+        if (modelled[i] == 0) depth = 0;
+        beyond |= modelled[i] > 0 && modelled[i] < p->desc.depth;
+    }
+    if (beyond && r == REFL_OK) {
+        p->trace = (uint8_t *)refl__calloc(&scene->allocator, (size_t)p->frame->width * (size_t)p->frame->height, 1);
+        if (!p->trace) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     for (row = 0; row < REFL__METHOD_ROWS; ++row)
         for (i = 0; i < scene->object_count; ++i)
@@ -17493,15 +17579,18 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
             mine[i] = by[i] == (uint8_t)m->method;
             any |= mine[i];
         }
-        if (any) depth = REFL__MIN(depth, m->max_depth);
         if (!any || !m->draw) continue;
         p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
         r = m->draw(p);
         if (r == REFL_OK && ++rows_done < rows_used && refl__progress(p, (float)rows_done / (float)rows_used))
             r = REFL_ERROR_CANCELLED;
     }
-    p->frame->stats.depth = depth;
     p->mine = NULL;
+    if (r == REFL_OK && beyond) r = refl__trace_beyond(p, modelled);
+    p->frame->stats.depth = depth;
+    refl__free(&scene->allocator, p->trace);
+    p->trace = NULL;
+    refl__free(&scene->allocator, modelled);
     refl__free(&scene->allocator, by);
     return r;
 }
@@ -22976,6 +23065,18 @@ static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_v
                    first_point, hit_t);
 }
 
+/* The mirror direction of unit d at s: about the shading normal turned to
+   face d; near a silhouette, where that sends the ray into the surface
+   itself, about the true surface instead. */
+static refl_vec3 refl__rt_mirror(const refl__rt_surface *s, refl_vec3 d) {
+    int entering = refl_v3_dot(d, s->ng) < 0.0f;
+    refl_vec3 n = entering ? s->ns : refl_v3_scale(s->ns, -1.0f), ng = entering ? s->ng : refl_v3_scale(s->ng, -1.0f);
+    refl_vec3 rd;
+    if (refl_v3_dot(d, n) > 0.0f) n = ng;
+    rd = refl_v3_reflect(d, n);
+    return refl_v3_dot(rd, ng) <= 0.0f ? refl_v3_reflect(d, ng) : rd;
+}
+
 /* Colour of surface s seen along unit d with `depth` bounces left,
    clamped to [0, 1]. first_point (may be NULL) receives the first point
    outside glass that the reflected or refracted light comes from, along
@@ -23008,12 +23109,9 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
-        refl_vec3 rd = refl_v3_reflect(d, n);
-        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
-        /* near a silhouette the smooth normal can send the ray into the
-           surface itself: reflect about the true surface instead */
-        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
+        refl_vec3 rd = refl__rt_mirror(s, d);
         float t = INFINITY;
+        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         r = refl_material_reflectance(m, cos_i);
         if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
             refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
@@ -23132,6 +23230,37 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     } else {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
     }
+}
+
+/* Whether pixel (x, y)'s exact path, after the modelled[object] mirror
+   reflections its reflector's method models, meets a reflector again
+   (refl__trace_beyond). Glass met on the way is the method's own. */
+static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *modelled, long long *rays) {
+    refl_vec3 o, d;
+    float len;
+    refl_hit h;
+    refl__rt_surface s;
+    int k, j;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &len);
+    ++*rays;
+    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, len, &h) || h.object < 0 ||
+        h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
+        return 0;
+    k = modelled[s.object];
+    if (k <= 0 || k >= rt->p->desc.depth) return 0;
+    for (j = 0; j < k; ++j) {
+        refl_vec3 rd, side;
+        refl__rt_surface from = s;
+        if (s.material->type == REFL_DIFFUSE || s.material->type == REFL_GLASS) return 0;
+        rd = refl__rt_mirror(&s, d);
+        side = refl_v3_dot(rd, s.ng) >= 0.0f ? s.ng : refl_v3_scale(s.ng, -1.0f);
+        ++*rays;
+        if (!refl__rt_cast(rt, refl__rt_offset(s.p, side, s.magnitude), rd, FLT_MAX, &from, &h) || h.object < 0 ||
+            h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
+            return 0;
+        d = rd;
+    }
+    return refl__is_reflector(s.material);
 }
 
 /* What tracing a frame of pass p needs besides the tiles: the objects'

@@ -676,12 +676,11 @@ static int cmd_render(const options *o) {
                 f->message[0] ? ": " : "", f->message);
         goto done;
     }
-    if (d.method != REFL_DIRECT && d.method != REFL_METHOD_DEFAULT && f->stats.depth < (d.depth ? d.depth : REFL_DEFAULT_DEPTH))
-        fprintf(stderr, "reflect: %s models %d bounce%s of the %d asked; deeper ones show what direct shows\n",
-                refl_method_name(d.method), f->stats.depth, f->stats.depth == 1 ? "" : "s",
-                d.depth ? d.depth : REFL_DEFAULT_DEPTH);
+    if (f->stats.traced_beyond)
+        fprintf(stderr, "reflect: %lld reflector pixels whose path goes past the bounces %s models ray traced\n",
+                f->stats.traced_beyond, refl_method_name(d.method));
     if (f->stats.handed_over)
-        fprintf(stderr, "reflect: %d reflector%s %s cannot draw (curved) ray traced instead\n", f->stats.handed_over,
+        fprintf(stderr, "reflect: %d reflector%s %s cannot draw ray traced instead\n", f->stats.handed_over,
                 f->stats.handed_over > 1 ? "s" : "", refl_method_name(d.method));
     if ((r = write_frame(o->out, f, &o->display, err, sizeof err)) != REFL_OK) {
         fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
@@ -697,6 +696,7 @@ static int cmd_render(const options *o) {
         printf("depth        %d bounce%s\n", st->depth, st->depth == 1 ? "" : "s");
         printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
         if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
+        if (st->traced_beyond) printf("ray traced   %lld pixel(s) past the method's bounces\n", st->traced_beyond);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);
         if (st->spoc.impostors)
             printf("impostors    %lld\nsteps        %lld (at most %lld per ray and impostor)\n", st->spoc.impostors,

@@ -1128,10 +1128,12 @@ typedef struct refl_stats {
     int reflectors;          /* reflector objects in the scene */
     int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
                                 drawn by RAYTRACE's tracer instead */
-    int depth;               /* bounces the frame models: desc.depth, or fewer where the
-                                method of some reflector models fewer (DIRECT: 0;
-                                ENVMAP, C3RC: 1; SBC: 8). Compare a frame with truth
-                                of this depth */
+    int depth;               /* bounces the frame shows: desc.depth, or 0 where DIRECT
+                                draws a reflector. Compare a frame with truth of this
+                                depth */
+    long long traced_beyond; /* reflector pixels whose path goes past the bounces their
+                                method models (ENVMAP, C3RC, SPOC, GRAPHCAM: 1; SBC: 8)
+                                and meets a reflector there: drawn by RAYTRACE's tracer */
     int scene_models_built;  /* the scene-wide models built for this frame (the BVH, C3RC's
                                 points and kd-tree); 0 when a renderer kept them all from
                                 an earlier frame */

@@ -156,6 +156,11 @@ typedef struct refl__pass {
     const uint8_t *mine;          /* per object: 1 where this method draws the reflector;
                                      NULL: every reflector is the method's */
     refl__models *models;         /* NULL: nothing kept (a metric's own frame) */
+    uint8_t *trace;               /* per pixel, when some reflector's method models fewer
+                                     bounces than desc.depth (else NULL): REFL__TRACE_COLOUR
+                                     where a method's own path met a reflector it cannot
+                                     follow; refl__trace_beyond traces them after every
+                                     method drew */
 } refl__pass;
 
 /* Writes a message with numbers into frame->message_text and points
@@ -474,9 +479,22 @@ static refl_vec3 refl__rt_offset(refl_vec3 p, refl_vec3 n, float magnitude);
    them; *rays counts the rays cast. */
 static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, float rgb[3], refl_vec3 *shown,
                            float *depth, uint8_t *stencil);
+/* Whether pixel (x, y)'s exact path, after the modelled[object] mirror
+   reflections of the method of the reflector it shows, meets a reflector
+   again; *rays counts the rays cast. */
+static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *modelled, long long *rays);
 /* RAYTRACE's colour and point for the pixels of pass p that `marked` is
-   not 0 on (m_raytrace.c): what a method hands over pixel by pixel. */
+   REFL__TRACE_ALL on, its colour alone where REFL__TRACE_COLOUR (the point
+   the method found stays, so the metrics measure the method)
+   (m_raytrace.c): what a method hands over pixel by pixel. */
+enum { REFL__TRACE_ALL = 1, REFL__TRACE_COLOUR = 2 };
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked);
+/* The bounces past a method's own: every reflector pixel p->trace marks,
+   and every one whose exact path, after the modelled[object] mirror
+   reflections its method models, meets a reflector again, gets RAYTRACE's
+   colour (m_raytrace.c). modelled[i] 0 (DIRECT) or desc.depth or more:
+   left alone. */
+static refl_result refl__trace_beyond(refl__pass *p, const int *modelled);
 
 /* ---- the graph camera (cam_graph.c) and the maze built on it (scene.c) ---- */
 

@@ -27,7 +27,9 @@
         ray meets the point's surfel (refl__c3_ray_meets); a pixel whose
         splats all missed shows its neighbours' nearest point.
    Pixels no point reaches show the environment along their reflected ray
-   (the paper's environment-mapped background). One bounce, as the paper.
+   (the paper's environment-mapped background). One bounce, as the paper:
+   with desc.depth > 1 a pixel showing a reflector's point goes on through
+   RAYTRACE's tracer (refl__trace_beyond).
 
    Splats: the side grows with the point spacing the camera shows on
    screen, estimated per projection from the sweeping triangle's area at t
@@ -874,6 +876,8 @@ static void refl__c3_resolve_row(void *arg, int y) {
             size_t k = (size_t)(key & 0xffffffffu);
             const float *q = c3->s->tree->positions + 3 * k;
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
+            /* a reflector's point: the path goes on past C3RC's one bounce */
+            if (c3->p->trace && !c3->s->diffuse[k]) c3->p->trace[i] = REFL__TRACE_COLOUR;
         } else {
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }

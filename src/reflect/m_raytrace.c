@@ -134,6 +134,7 @@ static void refl__rt_marked_row(void *arg, int y) {
         refl__rt_pixel(&m->rt, x, y, &m->row_rays[y], rgb, &shown, &depth, &stencil);
         for (c = 0; c < 3; ++c) f->rgba[4 * i + (size_t)c] = rgb[c];
         f->rgba[4 * i + 3] = 1.0f;
+        if (m->marked[i] == REFL__TRACE_COLOUR) continue;
         f->points[3 * i] = shown.x;
         f->points[3 * i + 1] = shown.y;
         f->points[3 * i + 2] = shown.z;
@@ -159,5 +160,51 @@ static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
     }
     refl__free(al, m.row_rays);
     refl__rt_end(&m.rt);
+    return r;
+}
+
+/* ---- bounces past a method's own -------------------------------------------------- */
+
+typedef struct refl__rt_beyond {
+    refl__rt rt;
+    const int *modelled;
+    uint8_t *marked;
+    long long *row_rays;
+} refl__rt_beyond;
+
+static void refl__rt_beyond_row(void *arg, int y) {
+    const refl__rt_beyond *b = (const refl__rt_beyond *)arg;
+    const refl_frame *f = b->rt.p->frame;
+    int x;
+    for (x = 0; x < f->width; ++x) {
+        size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+        if (f->stencil[i] && !b->marked[i] && refl__rt_goes_beyond(&b->rt, x, y, b->modelled, &b->row_rays[y]))
+            b->marked[i] = REFL__TRACE_COLOUR;
+    }
+}
+
+static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *f = p->frame;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    refl__rt_beyond b;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    int y;
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&b.rt, p, bvh);
+    b.rt.bvh = owned; /* freed with rt */
+    b.modelled = modelled;
+    b.marked = p->trace;
+    b.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
+    if (r == REFL_OK && !b.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        rast_run_jobs(p->rc, f->height, refl__rt_beyond_row, &b);
+        for (y = 0; y < f->height; ++y) f->stats.rays += b.row_rays[y];
+        for (i = 0; i < n; ++i) f->stats.traced_beyond += b.marked[i] != 0;
+    }
+    refl__rt_end(&b.rt);
+    if (r == REFL_OK && f->stats.traced_beyond) r = refl__trace_marked(p, b.marked);
+    refl__free(al, b.row_rays);
     return r;
 }

@@ -196,13 +196,15 @@ typedef struct refl__method_row {
     /* NULL: it draws any reflector; else whether it can draw object i
        (those it cannot go to RAYTRACE's tracer, stats.handed_over) */
     refl_result (*handles)(const refl__pass *p, int object, int *can);
-    int max_depth;                /* bounces it models at most (stats.depth) */
+    int max_depth;                /* bounces it models at most; those past it are traced
+                                     (refl__trace_beyond) */
 } refl__method_row;
 
 enum { REFL__ANY_DEPTH = 1 << 30 };
 
 /* A `handles` of the methods that draw mirrors and partial mirrors and hand
-   glass to RAYTRACE's tracer (C3RC, SPOC). */
+   glass to RAYTRACE's tracer (C3RC, SPOC, GRAPHCAM: one bounce cannot
+   leave a glass object). */
 static refl_result refl__declines_glass(const refl__pass *p, int object, int *can) {
     *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS;
     return REFL_OK;
@@ -220,7 +222,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
     {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 1},
-    {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, NULL, 1},
+    {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
@@ -398,15 +400,28 @@ static refl_result refl__drawn_by(const refl__pass *p, int i, uint8_t *by) {
 static refl_result refl__draw_reflectors(refl__pass *p) {
     const refl_scene *scene = p->scene;
     uint8_t *by = NULL;
+    int *modelled = NULL;         /* per object: the bounces its method models */
     refl_result r = REFL_OK;
-    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0;
+    int row, i, mixed = 0, depth = p->desc.depth, rows_used = 0, rows_done = 0, beyond = 0;
     by = (uint8_t *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), 2);
-    if (!by) return REFL_ERROR_OUT_OF_MEMORY;
+    modelled = (int *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    if (!by || !modelled) {
+        refl__free(&scene->allocator, modelled);
+        refl__free(&scene->allocator, by);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
         r = refl__drawn_by(p, i, &by[i]);
         mixed |= by[i] != (uint8_t)p->desc.method;
         if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
+        modelled[i] = refl__method_row_of((refl_method)by[i])->max_depth;
+        if (modelled[i] == 0) depth = 0;
+        beyond |= modelled[i] > 0 && modelled[i] < p->desc.depth;
+    }
+    if (beyond && r == REFL_OK) {
+        p->trace = (uint8_t *)refl__calloc(&scene->allocator, (size_t)p->frame->width * (size_t)p->frame->height, 1);
+        if (!p->trace) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     for (row = 0; row < REFL__METHOD_ROWS; ++row)
         for (i = 0; i < scene->object_count; ++i)
@@ -423,15 +438,18 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
             mine[i] = by[i] == (uint8_t)m->method;
             any |= mine[i];
         }
-        if (any) depth = REFL__MIN(depth, m->max_depth);
         if (!any || !m->draw) continue;
         p->mine = mixed ? mine : NULL; /* NULL: every reflector is the frame method's */
         r = m->draw(p);
         if (r == REFL_OK && ++rows_done < rows_used && refl__progress(p, (float)rows_done / (float)rows_used))
             r = REFL_ERROR_CANCELLED;
     }
-    p->frame->stats.depth = depth;
     p->mine = NULL;
+    if (r == REFL_OK && beyond) r = refl__trace_beyond(p, modelled);
+    p->frame->stats.depth = depth;
+    refl__free(&scene->allocator, p->trace);
+    p->trace = NULL;
+    refl__free(&scene->allocator, modelled);
     refl__free(&scene->allocator, by);
     return r;
 }

@@ -228,6 +228,18 @@ static void refl__rt_spawn(const refl__rt *rt, const refl__rt_surface *s, refl_v
                    first_point, hit_t);
 }
 
+/* The mirror direction of unit d at s: about the shading normal turned to
+   face d; near a silhouette, where that sends the ray into the surface
+   itself, about the true surface instead. */
+static refl_vec3 refl__rt_mirror(const refl__rt_surface *s, refl_vec3 d) {
+    int entering = refl_v3_dot(d, s->ng) < 0.0f;
+    refl_vec3 n = entering ? s->ns : refl_v3_scale(s->ns, -1.0f), ng = entering ? s->ng : refl_v3_scale(s->ng, -1.0f);
+    refl_vec3 rd;
+    if (refl_v3_dot(d, n) > 0.0f) n = ng;
+    rd = refl_v3_reflect(d, n);
+    return refl_v3_dot(rd, ng) <= 0.0f ? refl_v3_reflect(d, ng) : rd;
+}
+
 /* Colour of surface s seen along unit d with `depth` bounces left,
    clamped to [0, 1]. first_point (may be NULL) receives the first point
    outside glass that the reflected or refracted light comes from, along
@@ -260,12 +272,9 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
     if (m->type != REFL_GLASS) {
-        refl_vec3 rd = refl_v3_reflect(d, n);
-        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
-        /* near a silhouette the smooth normal can send the ray into the
-           surface itself: reflect about the true surface instead */
-        if (refl_v3_dot(rd, ng) <= 0.0f) rd = refl_v3_reflect(d, ng);
+        refl_vec3 rd = refl__rt_mirror(s, d);
         float t = INFINITY;
+        medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         r = refl_material_reflectance(m, cos_i);
         if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
             refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
@@ -384,6 +393,37 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     } else {
         refl_environment_lookup(&rt->scene->environment, d, rgb);
     }
+}
+
+/* Whether pixel (x, y)'s exact path, after the modelled[object] mirror
+   reflections its reflector's method models, meets a reflector again
+   (refl__trace_beyond). Glass met on the way is the method's own. */
+static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *modelled, long long *rays) {
+    refl_vec3 o, d;
+    float len;
+    refl_hit h;
+    refl__rt_surface s;
+    int k, j;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &len);
+    ++*rays;
+    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, len, &h) || h.object < 0 ||
+        h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
+        return 0;
+    k = modelled[s.object];
+    if (k <= 0 || k >= rt->p->desc.depth) return 0;
+    for (j = 0; j < k; ++j) {
+        refl_vec3 rd, side;
+        refl__rt_surface from = s;
+        if (s.material->type == REFL_DIFFUSE || s.material->type == REFL_GLASS) return 0;
+        rd = refl__rt_mirror(&s, d);
+        side = refl_v3_dot(rd, s.ng) >= 0.0f ? s.ng : refl_v3_scale(s.ng, -1.0f);
+        ++*rays;
+        if (!refl__rt_cast(rt, refl__rt_offset(s.p, side, s.magnitude), rd, FLT_MAX, &from, &h) || h.object < 0 ||
+            h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
+            return 0;
+        d = rd;
+    }
+    return refl__is_reflector(s.material);
 }
 
 /* What tracing a frame of pass p needs besides the tiles: the objects'

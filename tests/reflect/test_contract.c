@@ -242,13 +242,14 @@ Test(refl_contract, every_bad_option_is_refused_by_name) {
     refl_scene_destroy(s);
 }
 
-/* stats.depth: the bounces asked, or fewer where the method of some
-   reflector models fewer; what the bench compares against truth of. */
-Test(refl_contract, every_frame_says_the_depth_it_models) {
-    static const struct { refl_method m; int asked, modelled; } rows[] = {
+/* stats.depth: the bounces asked (past a method's own, RAYTRACE's tracer
+   colours the pixels), or 0 where DIRECT draws a reflector; what the bench
+   compares against truth of. */
+Test(refl_contract, every_frame_says_the_depth_it_shows) {
+    static const struct { refl_method m; int asked, shown; } rows[] = {
         {REFL_DIRECT, 3, 0},  {REFL_RAYTRACE, 3, 3}, {REFL_RAYTRACE, 0, REFL_DEFAULT_DEPTH},
-        {REFL_ENVMAP, 3, 1},  {REFL_C3RC, 3, 1},     {REFL_PLANAR, 3, 3},
-        {REFL_SBC, 3, 3},     {REFL_SBC, 12, 8},
+        {REFL_ENVMAP, 3, 3},  {REFL_C3RC, 3, 3},     {REFL_PLANAR, 3, 3},
+        {REFL_SBC, 3, 3},     {REFL_SBC, 12, 12},
     };
     size_t k;
     for (k = 0; k < sizeof rows / sizeof rows[0]; ++k) {
@@ -258,15 +259,53 @@ Test(refl_contract, every_frame_says_the_depth_it_models) {
         refl_frame *f;
         d.depth = rows[k].asked;
         f = tu_refl_render(s, &v, &d);
-        cr_assert_eq(f->stats.depth, rows[k].modelled, "%s asked %d: %d", refl_method_name(rows[k].m), rows[k].asked,
+        cr_assert_eq(f->stats.depth, rows[k].shown, "%s asked %d: %d", refl_method_name(rows[k].m), rows[k].asked,
                      f->stats.depth);
         refl_frame_destroy(f);
         refl_scene_destroy(s);
     }
 }
 
-/* A frame of several methods models what its shallowest one does. */
-Test(refl_contract, a_mixed_frame_models_its_shallowest_method_s_depth) {
+/* A one-bounce method asked for more: the pixels whose path meets a
+   reflector past its bounce take RAYTRACE's colour (the same tracer, so
+   the same floats), while every point stays the method's own, as at
+   depth 1, so the metrics measure the method. */
+Test(refl_contract, bounces_past_a_method_s_own_are_traced) {
+    static const refl_method one_bounce[] = {REFL_ENVMAP, REFL_C3RC, REFL_SPOC, REFL_GRAPHCAM};
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("mirror-room", &v, 48, 36);
+    refl_render_desc td = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth;
+    size_t k, i, n = (size_t)v.width * (size_t)v.height;
+    td.depth = 3;
+    truth = tu_refl_render(s, &v, &td);
+    for (k = 0; k < sizeof one_bounce / sizeof one_bounce[0]; ++k) {
+        refl_render_desc d = tu_refl_one_bounce(one_bounce[k], 2);
+        refl_frame *one = tu_refl_render(s, &v, &d), *three;
+        long long same = 0;
+        const char *name = refl_method_name(one_bounce[k]);
+        d.depth = 3;
+        three = tu_refl_render(s, &v, &d);
+        cr_assert_eq(one->stats.traced_beyond, 0, "%s at depth 1", name);
+        cr_assert_gt(three->stats.traced_beyond, (long long)(n / 10), "%s: %lld traced of %zu", name,
+                     three->stats.traced_beyond, n);
+        for (i = 0; i < n; ++i) {
+            same += three->stencil[i] && !memcmp(three->rgba + 4 * i, truth->rgba + 4 * i, 3 * sizeof(float));
+            cr_assert(!memcmp(three->points + 3 * i, one->points + 3 * i, 3 * sizeof(float)),
+                      "%s: pixel %zu shows another point at depth 3", name, i);
+        }
+        cr_assert_geq(same, three->stats.traced_beyond, "%s: %lld pixels of RAYTRACE's colour, %lld traced", name,
+                      same, three->stats.traced_beyond);
+        refl_frame_destroy(one);
+        refl_frame_destroy(three);
+    }
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
+
+/* A frame of several methods shows every bounce asked, and 0 where one of
+   them is DIRECT. */
+Test(refl_contract, a_mixed_frame_shows_the_bounces_asked) {
     refl_view v;
     refl_scene *s = tu_refl_builtin("mirror-room", &v, 16, 12);
     refl_method per_object[64];
@@ -284,7 +323,11 @@ Test(refl_contract, a_mixed_frame_models_its_shallowest_method_s_depth) {
     d.object_methods = per_object;
     d.object_method_count = s->object_count;
     f = tu_refl_render(s, &v, &d);
-    cr_assert_eq(f->stats.depth, 1);
+    cr_assert_eq(f->stats.depth, 4);
+    refl_frame_destroy(f);
+    per_object[first] = REFL_DIRECT;
+    f = tu_refl_render(s, &v, &d);
+    cr_assert_eq(f->stats.depth, 0);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }

@@ -30,6 +30,7 @@ static refl_frame *render_with(const refl_scene *s, const refl_view *view, refl_
     d.method = method;
     d.threads = threads;
     d.envmap.size = envmap_size;
+    d.depth = 1; /* ENVMAP's own pixels: past one bounce RAYTRACE's tracer colours them */
     cr_assert_eq(refl_frame_create(view->width, view->height, NULL, &f), REFL_OK);
     r = refl_render(s, view, &d, f);
     cr_assert_eq(r, REFL_OK, "refl_render: %s", refl_result_string(r));
