@@ -5,7 +5,7 @@
    Embree as the ray caster.
 
    Usage: bench_rays [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb]
-                     [--frame WxH]
+                     [--frame WxH] [--only primary|mirror]
 
    Ray sets:
      primary   one ray through each pixel centre (1920x1080 unless --size):
@@ -29,6 +29,7 @@
    where refl_bvh and Embree name different triangles are counted (only
    rays grazing an edge may differ; tests/tools/test_embree.c classifies them).
    Exit status 1 when the hit counts differ by more than 1 in 10^4.
+   --only times one ray set (the other is still traced once, for its hits).
 
    Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
    robust) with 1 thread and with all, median of N each.
@@ -287,7 +288,7 @@ static int parse_size(const char *s, int *w, int *h) {
 }
 
 int main(int argc, char **argv) {
-    const char *csv = NULL, *scene_name = "default", *asset = NULL;
+    const char *csv = NULL, *scene_name = "default", *asset = NULL, *only = NULL;
     int runs = 5, width = 1920, height = 1080, frame_w = 640, frame_h = 480, i, set, ti, tracer, status = 0;
     refl_scene *scene = NULL;
     refl_bvh *bvh = NULL;
@@ -312,13 +313,17 @@ int main(int argc, char **argv) {
             scene_name = argv[++i];
         else if (!strcmp(argv[i], "--asset") && i + 1 < argc)
             scene_name = asset = argv[++i];
+        else if (!strcmp(argv[i], "--only") && i + 1 < argc &&
+                 (!strcmp(argv[i + 1], set_names[SET_PRIMARY]) || !strcmp(argv[i + 1], set_names[SET_MIRROR])))
+            only = argv[++i];
         else if (!strcmp(argv[i], "--frame") && i + 1 < argc &&
                  (!strcmp(argv[i + 1], "0x0") ? (frame_w = frame_h = 0, ++i, 1)
                                                : parse_size(argv[++i], &frame_w, &frame_h)))
             ;
         else {
             fprintf(stderr,
-                    "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH]\n",
+                    "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH] "
+                    "[--only primary|mirror]\n",
                     argv[0]);
             return 2;
         }
@@ -397,9 +402,12 @@ int main(int argc, char **argv) {
        per-run ratios. */
     times = (double *)xmalloc(sizeof(double) * (size_t)runs * TRACER_COUNT);
     ratios = (double *)xmalloc(sizeof(double) * (size_t)runs);
+    memset(mrays, 0, sizeof mrays);
+    memset(ratio, 0, sizeof ratio);
     for (set = 0; set < SET_COUNT; ++set)
         for (ti = 0; ti < THREAD_ROWS; ++ti) {
             int run;
+            if (only && strcmp(only, set_names[set])) continue;
             for (tracer = 0; tracer < TRACER_COUNT; ++tracer) /* warm-up */
                 trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], thread_counts[ti], hits[tracer]);
             for (run = 0; run < runs; ++run)
@@ -424,6 +432,7 @@ int main(int argc, char **argv) {
     for (set = 0; set < SET_COUNT; ++set)
         for (ti = 0; ti < THREAD_ROWS; ++ti) {
             const double *m = mrays[set][ti], *q = ratio[set][ti];
+            if (only && strcmp(only, set_names[set])) continue;
             printf("%-8s %7d %9lld %9.2f %14.2f %14.2f %13.2f %13.2f\n", set_names[set], thread_counts[ti],
                    rays[set].count, m[0], m[1], m[2], q[1], q[2]);
         }
@@ -495,6 +504,7 @@ int main(int argc, char **argv) {
         for (set = 0; set < SET_COUNT; ++set)
             for (ti = 0; ti < THREAD_ROWS; ++ti) {
                 const double *m = mrays[set][ti], *q = ratio[set][ti];
+                if (only && strcmp(only, set_names[set])) continue;
                 fprintf(f, "%s,%d,%lld,%.3f,%.3f,%.3f,%.3f,%.3f\n", set_names[set], thread_counts[ti],
                         rays[set].count, m[0], m[1], m[2], q[1], q[2]);
             }
