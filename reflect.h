@@ -2988,10 +2988,14 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
    for the RAYTRACE reference and every method that needs exact rays.
    Build: binned SAH (Wald 2007), iterative, deterministic, into a binary
-   tree, then collapsed into a 4-wide tree (Wald, Benthin and Boulos 2008)
-   whose four child boxes one SSE2 slab test checks at once (RAST_NO_SIMD:
+   tree, then collapsed into an 8-wide tree (Wald, Benthin and Boulos
+   2008) whose eight child boxes one AVX2 slab test checks at once where
+   the CPU has it (chosen at run time), else two SSE2 ones (RAST_NO_SIMD:
    the same arithmetic lane by lane, the same bits). Traversal: explicit
-   stack, nearer children first. Triangles: the watertight test of Woop,
+   stack, nearest child next, the others' memory prefetched as they are
+   stacked. A ray's work is mostly a chain of dependent loads and tests,
+   so the wider node, which halves the chain's length, pays more than it
+   costs in box tests. Triangles: the watertight test of Woop,
    Benthin and Wald 2013, so rays never slip through shared edges. The
    closest hit is the least (t, object, triangle), whatever order the
    boxes are visited in, so the binary and the wide tree, scalar or SIMD,
@@ -3000,6 +3004,20 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 #if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAST_NO_SIMD)
 #include <emmintrin.h>
 #define REFL__BVH_SSE2 1
+/* AVX2 where the CPU has it, chosen per trace at run time (GCC and
+   clang's target attribute), whatever the flags the user compiles with. */
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__x86_64__) || defined(__i386__))
+#include <immintrin.h>
+#define REFL__BVH_AVX2 1
+#endif
+#endif
+
+/* Inlined into each traversal, the AVX2 one included, so that the ray's
+   values stay in registers. */
+#if defined(__GNUC__) || defined(__clang__)
+#define REFL__BVH_INLINE __attribute__((always_inline)) inline
+#else
+#define REFL__BVH_INLINE
 #endif
 
 #define REFL__BVH_BINS 16
@@ -3008,13 +3026,14 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 #define REFL__BVH_MAX_DEPTH 60    /* keeps traversal within its stacks */
 #define REFL__BVH_STACK 64
 /* SAH cost of a leaf of n triangles, against 1 for a box: they are
-   tested four at a time (refl__bvh_leaf), a block costing about as much
-   as a wide node's four boxes; measured best between 0.5 and 1 per block
-   on the 100k-triangle dragon. */
+   tested four at a time (refl__bvh_leaf); on the 100k-triangle dragon
+   anything between 0.5 and 1 per block of four measured about the same. */
 #define REFL__BVH_LEAF_COST(n) (0.75f * (float)(((n) + 3) / 4))
-/* A wide node pushes up to 3 of its 4 children and is no deeper than the
-   binary node it was collapsed from. */
-#define REFL__BVH4_STACK (3 * REFL__BVH_MAX_DEPTH + 8)
+/* Children of a wide node: the AVX2 box test's lanes, two SSE2 tests'. */
+#define REFL__BVH_W 8
+/* A wide node pushes up to W - 1 of its children and is no deeper than
+   the binary node it was collapsed from. */
+#define REFL__BVHW_STACK ((REFL__BVH_W - 1) * REFL__BVH_MAX_DEPTH + 8)
 
 /* 32 bytes: children are adjacent, so one index names both. */
 typedef struct refl__bvh_node {
@@ -3023,36 +3042,40 @@ typedef struct refl__bvh_node {
     int32_t count;                /* 0: interior; else triangles in the leaf */
 } refl__bvh_node;
 
-/* 128 bytes: four children's boxes, one SIMD lane per child. An unused
-   lane has an empty box (lo +inf, hi -inf), which no ray enters. */
-typedef struct refl__bvh4_node {
-    float box[6][4];              /* lo x, y, z, then hi x, y, z */
-    int32_t child[4];             /* interior: node index; leaf: first in blocks[] */
-    int32_t count[4];             /* 0: interior (or unused, child -1); else triangles in the leaf */
-} refl__bvh4_node;
+/* 256 bytes, four cache lines: eight children's boxes, one SIMD lane per
+   child. An unused lane has an empty box (lo +inf, hi -inf), which no ray
+   enters. */
+typedef struct refl__bvhw_node {
+    float box[6][REFL__BVH_W];    /* lo x, y, z, then hi x, y, z */
+    int32_t child[REFL__BVH_W];   /* interior: node index; leaf: first in blocks[] */
+    int32_t count[REFL__BVH_W];   /* 0: interior (or unused, child -1); else triangles in the leaf */
+} refl__bvhw_node;
 
 typedef struct refl__bvh_tri {
     float v[9];                   /* world-space vertices 0, 1, 2 */
     int32_t object, triangle;
 } refl__bvh_tri;
 
-/* 176 bytes: four triangles of a leaf, one SIMD lane each. A leaf of n
-   triangles is ceil(n / 4) consecutive blocks, the last one's spare lanes
-   unused (object -1). */
+/* 192 bytes, three cache lines: four triangles of a leaf, one SIMD lane
+   each. A leaf of n triangles is ceil(n / 4) consecutive blocks, the last
+   one's spare lanes unused (object -1). */
 typedef struct refl__bvh_tri4 {
     float v[9][4];                /* row 3 j + k: coordinate k of vertex j */
     int32_t object[4], triangle[4];
+    int32_t pad[4];               /* to a whole number of cache lines */
 } refl__bvh_tri4;
 
 struct refl_bvh {
     refl_allocator allocator;
     refl__bvh_node *nodes;        /* the binary tree: kept only for the tests (refl__bvh_build_ex) */
     int node_count;
-    refl__bvh4_node *wide;        /* the tree every trace walks */
+    refl__bvhw_node *wide;        /* the tree every trace walks (cache-line aligned in wide_mem) */
+    void *wide_mem;
     int wide_count;
     refl__bvh_tri *tris;          /* while building: the triangles, which order[] sorts */
     int tri_count;
-    refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks */
+    refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
+    void *blocks_mem;
     int block_count;
 };
 
@@ -3276,9 +3299,9 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     if (!bvh) return;
     a = bvh->allocator;
     refl__free(&a, bvh->nodes);
-    refl__free(&a, bvh->wide);
+    refl__free(&a, bvh->wide_mem);
     refl__free(&a, bvh->tris);
-    refl__free(&a, bvh->blocks);
+    refl__free(&a, bvh->blocks_mem);
     refl__free(&a, bvh);
 }
 
@@ -3312,20 +3335,20 @@ static float refl__bvh_node_area(const refl__bvh_node *n) {
 }
 
 /* Each wide node starts from a binary interior node's two children and
-   opens the interior one with the largest box until it has four (or
+   opens the interior one with the largest box until it has eight (or
    only leaves): the larger a box, the more rays enter it (SAH), so those
    are the levels most worth skipping. A wide node is thus no deeper than
    the binary node it starts from. */
 static void refl__bvh_collapse(refl_bvh *bvh) {
-    struct { int binary, wide; } stack[REFL__BVH4_STACK];
+    struct { int binary, wide; } stack[REFL__BVHW_STACK];
     const refl__bvh_node *nodes = bvh->nodes;
     int sp = 1;
     stack[0].binary = 0;
     stack[0].wide = 0;
     bvh->wide_count = 1;
     while (sp > 0) {
-        int b, w, slot[4], n = 0, k, lane;
-        refl__bvh4_node *node;
+        int b, w, slot[REFL__BVH_W], n = 0, k, lane;
+        refl__bvhw_node *node;
         --sp;
         b = stack[sp].binary;
         w = stack[sp].wide;
@@ -3336,7 +3359,7 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
             slot[n++] = nodes[b].index;
             slot[n++] = nodes[b].index + 1;
         }
-        while (n < 4) {
+        while (n < REFL__BVH_W) {
             int best = -1;
             float best_area = -1.0f;
             for (k = 0; k < n; ++k)
@@ -3349,7 +3372,7 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
             slot[best] = k;
             slot[n++] = k + 1;
         }
-        for (lane = 0; lane < 4; ++lane) {
+        for (lane = 0; lane < REFL__BVH_W; ++lane) {
             const refl__bvh_node *c = lane < n ? &nodes[slot[lane]] : NULL;
             for (k = 0; k < 3; ++k) {
                 node->box[k][lane] = c ? c->lo[k] : INFINITY;
@@ -3362,7 +3385,7 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
                 node->child[lane] = c->index;
                 node->count[lane] = c->count;
             } else {
-                REFL_ASSERT(sp < REFL__BVH4_STACK);
+                REFL_ASSERT(sp < REFL__BVHW_STACK);
                 node->child[lane] = bvh->wide_count++;
                 node->count[lane] = 0;
                 stack[sp].binary = slot[lane];
@@ -3371,6 +3394,18 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
             }
         }
     }
+}
+
+/* A zeroed array starting on a 64-byte cache line, so that each node
+   and block, a whole number of lines, touches no line more than it must;
+   *mem receives what to free. */
+static void *refl__bvh_calloc_lines(const refl_allocator *a, size_t count, size_t size, void **mem) {
+    uintptr_t p;
+    if (size && count > ((size_t)-1 - 64) / size) return NULL;
+    *mem = refl__calloc(a, count * size + 64, 1);
+    if (!*mem) return NULL;
+    p = (uintptr_t)*mem;
+    return (void *)(p + (64 - p % 64) % 64);
 }
 
 /* keep_binary: keep the binary tree too, for the tests that compare the
@@ -3454,11 +3489,12 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     refl__free(a, prim);
 
     for (i = 0; i < bvh->node_count; ++i) bvh->block_count += (bvh->nodes[i].count + 3) / 4;
-    bvh->blocks = (refl__bvh_tri4 *)refl__calloc(a, (size_t)bvh->block_count, sizeof *bvh->blocks);
+    bvh->blocks = (refl__bvh_tri4 *)refl__bvh_calloc_lines(a, (size_t)bvh->block_count, sizeof *bvh->blocks,
+                                                           &bvh->blocks_mem);
     /* A full binary tree of L leaves has L - 1 interior nodes, and each
        wide node starts from a different one (one node for a lone leaf). */
-    bvh->wide = (refl__bvh4_node *)refl__calloc(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
-                                                sizeof *bvh->wide);
+    bvh->wide = (refl__bvhw_node *)refl__bvh_calloc_lines(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
+                                                          sizeof *bvh->wide, &bvh->wide_mem);
     if (!bvh->blocks || !bvh->wide) {
         refl__free(a, order);
         refl_bvh_destroy(bvh);
@@ -3490,7 +3526,7 @@ REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *t
 
 static long long refl__bvh_bytes(const refl_bvh *bvh) {
     if (!bvh) return 0;
-    return (long long)bvh->wide_count * (long long)sizeof(refl__bvh4_node) +
+    return (long long)bvh->wide_count * (long long)sizeof(refl__bvhw_node) +
            (long long)bvh->node_count * (long long)sizeof(refl__bvh_node) +
            (long long)bvh->block_count * (long long)sizeof(refl__bvh_tri4);
 }
@@ -3513,10 +3549,6 @@ static int refl__bvh_ray_setup(refl__bvh_ray *r, refl_vec3 o, refl_vec3 d) {
     for (k = 0; k < 3; ++k) {
         if (!refl__isfinite(r->org[k]) || !refl__isfinite(r->dir[k])) return 0;
         ad[k] = fabsf(r->dir[k]);
-        /* A zero component gives an infinite inverse; the slab test skips
-           the NaN that 0 * inf makes. */
-        r->inv[k] = 1.0f / r->dir[k];
-        r->near_lo[k] = !(r->inv[k] < 0);
     }
     r->kz = ad[0] >= ad[1] ? (ad[0] >= ad[2] ? 0 : 2) : (ad[1] >= ad[2] ? 1 : 2);
     if (ad[r->kz] == 0) return 0;
@@ -3525,9 +3557,26 @@ static int refl__bvh_ray_setup(refl__bvh_ray *r, refl_vec3 o, refl_vec3 d) {
     /* Keep the winding (edge function signs) of the paper; no culling
        here, but it costs nothing. */
     if (r->dir[r->kz] < 0) { t = r->kx; r->kx = r->ky; r->ky = t; }
+    /* A zero component gives an infinite inverse; the slab test skips
+       the NaN that 0 * inf makes. Divisions round exactly, so doing them
+       four at a time gives the same bits. */
+#ifdef REFL__BVH_SSE2
+    {
+        float q[4], s[4];
+        _mm_storeu_ps(q, _mm_div_ps(_mm_set1_ps(1.0f), _mm_setr_ps(r->dir[0], r->dir[1], r->dir[2], r->dir[r->kz])));
+        _mm_storeu_ps(s, _mm_div_ps(_mm_setr_ps(r->dir[r->kx], r->dir[r->ky], 0.0f, 0.0f), _mm_set1_ps(r->dir[r->kz])));
+        for (k = 0; k < 3; ++k) r->inv[k] = q[k];
+        r->sz = q[3];
+        r->sx = s[0];
+        r->sy = s[1];
+    }
+#else
+    for (k = 0; k < 3; ++k) r->inv[k] = 1.0f / r->dir[k];
     r->sx = r->dir[r->kx] / r->dir[r->kz];
     r->sy = r->dir[r->ky] / r->dir[r->kz];
     r->sz = 1.0f / r->dir[r->kz];
+#endif
+    for (k = 0; k < 3; ++k) r->near_lo[k] = !(r->inv[k] < 0);
     return 1;
 }
 
@@ -3599,14 +3648,14 @@ static int refl__bvh_tri_hit(const refl__bvh_ray *r, const float v[9], float tmi
 /* A ray as the wide traversal and the four-triangle test need it: which
    of a node's box rows is the near and which the far plane on each axis,
    and with SSE2 the origin, inverse direction and shear in every lane. */
-typedef struct refl__bvh4_ray {
+typedef struct refl__bvhw_ray {
     int near_row[3], far_row[3];
 #ifdef REFL__BVH_SSE2
     __m128 org4[3], inv4[3], sx4, sy4, sz4;
 #endif
-} refl__bvh4_ray;
+} refl__bvhw_ray;
 
-static void refl__bvh4_ray_setup(refl__bvh4_ray *w, const refl__bvh_ray *r) {
+static void refl__bvhw_ray_setup(refl__bvhw_ray *w, const refl__bvh_ray *r) {
     int k;
     for (k = 0; k < 3; ++k) {
         w->near_row[k] = r->near_lo[k] ? k : 3 + k;
@@ -3640,7 +3689,8 @@ static int refl__bvh_tri4_hit_scalar(const refl__bvh_ray *r, const refl__bvh_tri
 /* The same in SSE2, bit for bit: each lane does refl__bvh_tri_hit's
    operations in its order, and a lane with an edge function of exactly
    zero has all three redone in double as there. */
-static int refl__bvh_tri4_hit_sse2(const refl__bvh_ray *r, const refl__bvh4_ray *w, const refl__bvh_tri4 *q,
+REFL__BVH_INLINE
+static int refl__bvh_tri4_hit_sse2(const refl__bvh_ray *r, const refl__bvhw_ray *w, const refl__bvh_tri4 *q,
                                    int lanes, float tmin, float tmax, float t[4], float u[4], float v[4]) {
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     const __m128 zero = _mm_setzero_ps();
@@ -3714,10 +3764,8 @@ static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6
    object, triangle) order, narrowing *tmax to it: so the closest hit does
    not depend on the order leaves are visited in. Returns 1 when any_hit
    and a hit was found. */
-#if defined(__GNUC__) || defined(__clang__)
-__attribute__((always_inline)) inline
-#endif
-static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, int first,
+REFL__BVH_INLINE
+static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w, int first,
                           int count, float tmin, float *tmax, int any_hit, int scalar, refl__bvh_best *best) {
     const refl__bvh_tri4 *q;
     (void)w;
@@ -3758,7 +3806,7 @@ static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const ref
 /* The binary tree's traversal, which the tests compare the wide one with:
    nearer child first, farther one culled when a closer hit is known;
    triangles lane by lane. */
-static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, float tmin,
+static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w, float tmin,
                                   float tmax, int any_hit, refl__bvh_best *best) {
     int stack[REFL__BVH_STACK];
     float stack_t[REFL__BVH_STACK]; /* entry distances, to skip boxes behind a closer hit */
@@ -3796,12 +3844,12 @@ static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, c
     }
 }
 
-/* refl__bvh_slab on each of the node's four boxes: bit k of the result
+/* refl__bvh_slab on each of the node's boxes: bit k of the result
    set when the ray enters box k within [tmin, tmax], t[k] its entry. */
-static int refl__bvh4_boxes_scalar(const refl__bvh_ray *r, const refl__bvh4_ray *w, const refl__bvh4_node *n,
-                                   float tmin, float tmax, float t[4]) {
+static int refl__bvhw_boxes_scalar(const refl__bvh_ray *r, const refl__bvhw_ray *w, const refl__bvhw_node *n,
+                                   float tmin, float tmax, float t[REFL__BVH_W]) {
     int lane, k, mask = 0;
-    for (lane = 0; lane < 4; ++lane) {
+    for (lane = 0; lane < REFL__BVH_W; ++lane) {
         float lo = tmin, hi = tmax;
         for (k = 0; k < 3; ++k) {
             float t0 = (n->box[w->near_row[k]][lane] - r->org[k]) * r->inv[k];
@@ -3818,96 +3866,221 @@ static int refl__bvh4_boxes_scalar(const refl__bvh_ray *r, const refl__bvh4_ray 
 
 #ifdef REFL__BVH_SSE2
 /* The same in SSE2, bit for bit: max_ps(a, b) is a > b ? a : b and
-   min_ps(a, b) a < b ? a : b, NaN included, as the scalar comparisons. */
-static int refl__bvh4_boxes_sse2(const refl__bvh4_ray *w, const refl__bvh4_node *n, float tmin, float tmax,
-                                 float t[4]) {
-    __m128 lo = _mm_set1_ps(tmin), hi = _mm_set1_ps(tmax), widen = _mm_set1_ps(1.0000004f);
+   min_ps(a, b) a < b ? a : b, NaN included, as the scalar comparisons.
+   tmin and tmax come broadcast, as the traversal keeps them. */
+static int refl__bvhw_boxes_sse2(const refl__bvhw_ray *w, const refl__bvhw_node *n, __m128 tmin, __m128 tmax,
+                                 float t[REFL__BVH_W]) {
+    const __m128 widen = _mm_set1_ps(1.0000004f);
+    const float *nx = n->box[w->near_row[0]], *ny = n->box[w->near_row[1]], *nz = n->box[w->near_row[2]];
+    const float *fx = n->box[w->far_row[0]], *fy = n->box[w->far_row[1]], *fz = n->box[w->far_row[2]];
+    int h, mask = 0;
+    for (h = 0; h < REFL__BVH_W; h += 4) {
+        __m128 lo = tmin, hi = tmax;
+        lo = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(nx + h), w->org4[0]), w->inv4[0]), lo);
+        lo = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(ny + h), w->org4[1]), w->inv4[1]), lo);
+        lo = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(nz + h), w->org4[2]), w->inv4[2]), lo);
+        hi = _mm_min_ps(_mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(fx + h), w->org4[0]), w->inv4[0]), widen), hi);
+        hi = _mm_min_ps(_mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(fy + h), w->org4[1]), w->inv4[1]), widen), hi);
+        hi = _mm_min_ps(_mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_load_ps(fz + h), w->org4[2]), w->inv4[2]), widen), hi);
+        _mm_storeu_ps(t + h, lo);
+        mask |= _mm_movemask_ps(_mm_cmple_ps(lo, hi)) << h;
+    }
+    return mask;
+}
+#endif
+
+/* Asks for a stacked child's node or first triangle block ahead of its
+   turn, so its cache misses overlap the work before it. */
+static void refl__bvh_prefetch(const refl_bvh *bvh, int32_t child, int32_t count) {
+#ifdef REFL__BVH_SSE2
+    const char *p = count ? (const char *)&bvh->blocks[child] : (const char *)&bvh->wide[child];
+    size_t size = count ? sizeof(refl__bvh_tri4) : sizeof(refl__bvhw_node), at;
+    for (at = 0; at < size; at += 64) _mm_prefetch(p + at, _MM_HINT_T0);
+#else
+    (void)bvh;
+    (void)child;
+    (void)count;
+#endif
+}
+
+#ifdef REFL__BVH_AVX2
+/* The same with AVX2, all eight boxes at once: the same operations per
+   lane, so the same bits (_CMP_LE_OS is cmpleps's predicate). */
+typedef char refl__bvhw_avx2_takes_eight[REFL__BVH_W == 8 ? 1 : -1];
+__attribute__((target("avx2"))) static int refl__bvhw_boxes_avx2(const refl__bvh_ray *r, const refl__bvhw_ray *w,
+                                                                const refl__bvhw_node *n, float tmin, float tmax,
+                                                                float t[REFL__BVH_W]) {
+    const __m256 widen = _mm256_set1_ps(1.0000004f);
+    __m256 lo = _mm256_set1_ps(tmin), hi = _mm256_set1_ps(tmax);
     int k;
     for (k = 0; k < 3; ++k) {
-        __m128 t0 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->box[w->near_row[k]]), w->org4[k]), w->inv4[k]);
-        __m128 t1 = _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(n->box[w->far_row[k]]), w->org4[k]), w->inv4[k]);
-        lo = _mm_max_ps(t0, lo);
-        hi = _mm_min_ps(_mm_mul_ps(t1, widen), hi);
+        __m256 o = _mm256_broadcast_ss(&r->org[k]), inv = _mm256_broadcast_ss(&r->inv[k]);
+        lo = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->box[w->near_row[k]]), o), inv), lo);
+        hi = _mm256_min_ps(
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->box[w->far_row[k]]), o), inv), widen), hi);
     }
-    _mm_storeu_ps(t, lo);
-    return _mm_movemask_ps(_mm_cmple_ps(lo, hi));
+    _mm256_storeu_ps(t, lo);
+    return _mm256_movemask_ps(_mm256_cmp_ps(lo, hi, _CMP_LE_OS));
 }
 #endif
 
-typedef struct refl__bvh4_entry {
-    int32_t child, count;         /* as in refl__bvh4_node */
+typedef struct refl__bvhw_entry {
+    int32_t child, count;         /* as in refl__bvhw_node */
     float t;                      /* entry distance: skipped once a hit is closer */
-} refl__bvh4_entry;
+} refl__bvhw_entry;
 
-/* The wide tree's traversal: the children a node's rays enter, nearest
-   first, the others stacked farthest first. scalar: box and triangle
-   tests lane by lane even where SSE2 is built in (the tests compare). */
-static int refl__bvh4_trace(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvh4_ray *w, float tmin,
-                            float tmax, int any_hit, int scalar, refl__bvh_best *best) {
-    refl__bvh4_entry stack[REFL__BVH4_STACK];
-    int sp = 1;
-    float tcull = tmax;           /* the caller's bound, then refl__bvh_cull_bound of the best hit's */
-    stack[0].child = 0;
-    stack[0].count = 0;
-    stack[0].t = tmin;
-    while (sp > 0) {
-        refl__bvh4_entry e = stack[--sp];
-        if (e.t > tcull) continue;
-        while (e.count == 0) {
-            const refl__bvh4_node *n = &bvh->wide[e.child];
-            float t[4];
-            int mask, lanes[4], m = 0, k, j;
-#ifdef REFL__BVH_SSE2
-            mask = scalar ? refl__bvh4_boxes_scalar(r, w, n, tmin, tcull, t) : refl__bvh4_boxes_sse2(w, n, tmin, tcull, t);
+/* The lowest lane set in a nonzero mask. */
+static int refl__bvh_first_lane(unsigned mask) {
+#if defined(__GNUC__) || defined(__clang__)
+    return __builtin_ctz(mask);
 #else
-            mask = refl__bvh4_boxes_scalar(r, w, n, tmin, tcull, t);
+    int k = 0;
+    while (!(mask >> k & 1)) ++k;
+    return k;
 #endif
-            if (!mask) break;
-            /* entered lanes, farthest first (equal entries: lane order) */
-            for (k = 0; k < 4; ++k)
-                if (mask >> k & 1) {
-                    for (j = m++; j > 0 && t[lanes[j - 1]] < t[k]; --j) lanes[j] = lanes[j - 1];
-                    lanes[j] = k;
-                }
-            REFL_ASSERT(sp + m - 1 <= REFL__BVH4_STACK);
-            for (j = 0; j < m - 1; ++j) {
-                stack[sp].child = n->child[lanes[j]];
-                stack[sp].count = n->count[lanes[j]];
-                stack[sp].t = t[lanes[j]];
-                ++sp;
-            }
-            e.child = n->child[lanes[m - 1]];
-            e.count = n->count[lanes[m - 1]];
-        }
-        if (e.count > 0) {
-            if (refl__bvh_leaf(bvh, r, w, e.child, e.count, tmin, &tmax, any_hit, scalar, best)) return 1;
-            if (best->found) tcull = refl__bvh_cull_bound(tmax);
-        }
-    }
-    return best->found;
 }
 
-/* Which traversal a trace takes: the wide tree (SIMD box tests where
-   built), the wide tree lane by lane, or the binary tree (tests only). */
-enum { REFL__BVH_WIDE = 0, REFL__BVH_WIDE_SCALAR, REFL__BVH_BINARY };
+/* How a traversal tests a node's boxes. */
+enum { REFL__BVH_BOXES_SCALAR, REFL__BVH_BOXES_SSE2, REFL__BVH_BOXES_AVX2 };
+
+/* The wide tree's traversal: of the children a node's ray enters, the
+   nearest next and the others stacked farthest first (one or two entered,
+   the common cases, without sorting). `boxes` picks the box test (a
+   constant in each caller below); triangles go lane by lane with the
+   scalar box test, four at a time otherwise. */
+REFL__BVH_INLINE
+static int refl__bvhw_trace_body(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w, float tmin,
+                                 float tmax, int any_hit, int boxes, refl__bvh_best *best) {
+    refl__bvhw_entry stack[REFL__BVHW_STACK];
+    int sp = 0;
+    int32_t child = 0, count = 0;
+    float tcull = tmax;           /* the caller's bound, then refl__bvh_cull_bound of the best hit's */
+#ifdef REFL__BVH_SSE2
+    const __m128 tmin4 = _mm_set1_ps(tmin);
+    __m128 tcull4 = _mm_set1_ps(tcull);
+#endif
+    for (;;) {
+        while (count == 0) {
+            const refl__bvhw_node *n = &bvh->wide[child];
+            float t[REFL__BVH_W];
+            int mask, k0, k1;
+#ifdef REFL__BVH_AVX2
+            if (boxes == REFL__BVH_BOXES_AVX2)
+                mask = refl__bvhw_boxes_avx2(r, w, n, tmin, tcull, t);
+            else
+#endif
+#ifdef REFL__BVH_SSE2
+            if (boxes == REFL__BVH_BOXES_SSE2)
+                mask = refl__bvhw_boxes_sse2(w, n, tmin4, tcull4, t);
+            else
+#endif
+                mask = refl__bvhw_boxes_scalar(r, w, n, tmin, tcull, t);
+            if (!mask) goto pop;
+            k0 = refl__bvh_first_lane((unsigned)mask);
+            mask &= mask - 1;
+            if (!mask) {
+                child = n->child[k0];
+                count = n->count[k0];
+                continue;
+            }
+            k1 = refl__bvh_first_lane((unsigned)mask);
+            mask &= mask - 1;
+            if (!mask) {
+                /* two: the nearer next, the farther stacked */
+                if (t[k1] < t[k0]) { int s = k0; k0 = k1; k1 = s; }
+                REFL_ASSERT(sp < REFL__BVHW_STACK);
+                stack[sp].child = n->child[k1];
+                stack[sp].count = n->count[k1];
+                stack[sp].t = t[k1];
+                refl__bvh_prefetch(bvh, stack[sp].child, stack[sp].count);
+                ++sp;
+                child = n->child[k0];
+                count = n->count[k0];
+                continue;
+            }
+            {
+                /* three or more: sorted farthest first (equal entries: lane order) */
+                int lanes[REFL__BVH_W], m = 0, k, j;
+                mask |= 1 << k0 | 1 << k1;
+                for (k = 0; k < REFL__BVH_W; ++k)
+                    if (mask >> k & 1) {
+                        for (j = m++; j > 0 && t[lanes[j - 1]] < t[k]; --j) lanes[j] = lanes[j - 1];
+                        lanes[j] = k;
+                    }
+                REFL_ASSERT(sp + m - 1 <= REFL__BVHW_STACK);
+                for (j = 0; j < m - 1; ++j) {
+                    stack[sp].child = n->child[lanes[j]];
+                    stack[sp].count = n->count[lanes[j]];
+                    stack[sp].t = t[lanes[j]];
+                    refl__bvh_prefetch(bvh, stack[sp].child, stack[sp].count);
+                    ++sp;
+                }
+                child = n->child[lanes[m - 1]];
+                count = n->count[lanes[m - 1]];
+            }
+        }
+        if (refl__bvh_leaf(bvh, r, w, child, count, tmin, &tmax, any_hit, boxes == REFL__BVH_BOXES_SCALAR, best))
+            return 1;
+        if (best->found) {
+            tcull = refl__bvh_cull_bound(tmax);
+#ifdef REFL__BVH_SSE2
+            tcull4 = _mm_set1_ps(tcull);
+#endif
+        }
+    pop:
+        do {
+            if (sp == 0) return best->found;
+            --sp;
+        } while (stack[sp].t > tcull);
+        child = stack[sp].child;
+        count = stack[sp].count;
+    }
+}
+
+static int refl__bvhw_trace(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w, float tmin,
+                            float tmax, int any_hit, int scalar, refl__bvh_best *best) {
+    return refl__bvhw_trace_body(bvh, r, w, tmin, tmax, any_hit,
+                                 scalar ? REFL__BVH_BOXES_SCALAR : REFL__BVH_BOXES_SSE2, best);
+}
+
+#ifdef REFL__BVH_AVX2
+__attribute__((target("avx2"))) static int refl__bvhw_trace_avx2(const refl_bvh *bvh, const refl__bvh_ray *r,
+                                                                const refl__bvhw_ray *w, float tmin, float tmax,
+                                                                int any_hit, refl__bvh_best *best) {
+    return refl__bvhw_trace_body(bvh, r, w, tmin, tmax, any_hit, REFL__BVH_BOXES_AVX2, best);
+}
+
+/* Whether this CPU (and its OS) runs AVX2. */
+static int refl__bvh_has_avx2(void) { return __builtin_cpu_supports("avx2"); }
+#endif
+
+/* Which traversal a trace takes: the wide tree (AVX2 box tests where the
+   CPU has them, else SSE2 where built), the wide tree lane by lane, the
+   binary tree (tests only), or the wide tree without AVX2 (tests only). */
+enum { REFL__BVH_WIDE = 0, REFL__BVH_WIDE_SCALAR, REFL__BVH_BINARY, REFL__BVH_WIDE_SSE2 };
 
 /* Closest hit, or the first one found when any_hit. */
 static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                            int any_hit, int path, refl_hit *hit) {
     refl__bvh_ray r;
-    refl__bvh4_ray w;
+    refl__bvhw_ray w;
     refl__bvh_best best;
     int found;
     if (!bvh || bvh->wide_count == 0) return 0;
     if (!(tmin < tmax) || tmin != tmin) return 0;
     if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
-    refl__bvh4_ray_setup(&w, &r);
+    refl__bvhw_ray_setup(&w, &r);
     memset(&best, 0, sizeof best);
     if (path == REFL__BVH_BINARY) {
         if (!bvh->nodes) return 0;
         found = refl__bvh_trace_binary(bvh, &r, &w, tmin, tmax, any_hit, &best);
     } else {
-        found = refl__bvh4_trace(bvh, &r, &w, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
+#ifdef REFL__BVH_AVX2
+        if (path == REFL__BVH_WIDE && refl__bvh_has_avx2())
+            found = refl__bvhw_trace_avx2(bvh, &r, &w, tmin, tmax, any_hit, &best);
+        else
+#endif
+            found = refl__bvhw_trace(bvh, &r, &w, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
     }
     if (found && hit) {
         hit->t = best.t;

@@ -36,9 +36,10 @@ void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float p
                             refl_vec3 *dir, float *tmax);
 
 /* refl_bvh_build keeping the binary tree besides the wide one, and a
-   trace through one of the three traversals of bvh.c: 0 the wide tree
-   (SIMD box tests where built), 1 the wide tree lane by lane, 2 the
-   binary tree (only in a tree built by the former). */
+   trace through one of the traversals of bvh.c: 0 the wide tree (SIMD box
+   tests where built, AVX2 where the CPU has it), 1 the wide tree lane by
+   lane, 2 the binary tree (only in a tree built by the former), 3 the
+   wide tree without AVX2. */
 refl_result refl__testing_bvh_build_binary_too(const refl_scene *scene, refl_bvh **out_bvh);
 int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      int path, refl_hit *hit);

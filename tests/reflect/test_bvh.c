@@ -375,18 +375,19 @@ Test(refl_bvh, deterministic) {
 #define BVH_GRID_DIV 1
 #endif
 
-/* One ray through the three traversals (tests/reflect_testing.h): the wide
-   tree with SIMD box tests (where built), lane by lane, and the binary
-   tree must return the same hit, bit for bit. Returns the hit flag. */
-static int same_hit_three_ways(const refl_bvh *bvh, refl_vec3 o, refl_vec3 d, float tmin, float tmax,
-                               const char *what, long long i, refl_hit *out) {
-    refl_hit h[3];
-    int r[3], k;
-    for (k = 0; k < 3; ++k) {
+/* One ray through the four traversals (tests/reflect_testing.h): the wide
+   tree with SIMD box tests (AVX2 where the CPU has it), lane by lane, the
+   binary tree, and the wide tree with SSE2 alone must return the same
+   hit, bit for bit. Returns the hit flag. */
+static int same_hit_every_way(const refl_bvh *bvh, refl_vec3 o, refl_vec3 d, float tmin, float tmax,
+                              const char *what, long long i, refl_hit *out) {
+    refl_hit h[4];
+    int r[4], k;
+    for (k = 0; k < 4; ++k) {
         memset(&h[k], 0, sizeof h[k]);
         r[k] = refl__testing_bvh_intersect_path(bvh, o, d, tmin, tmax, k, &h[k]);
     }
-    for (k = 1; k < 3; ++k) {
+    for (k = 1; k < 4; ++k) {
         cr_assert_eq(r[k], r[0], "%s ray %lld: traversal %d hit %d, wide %d", what, i, k, r[k], r[0]);
         cr_assert_eq(memcmp(&h[k], &h[0], sizeof h[0]), 0,
                      "%s ray %lld: traversal %d names object %d triangle %d t %.9g, wide object %d triangle %d "
@@ -425,11 +426,11 @@ static void check_wide_matches_binary(const char *name, const refl_scene *s, int
             refl_hit a;
             float e[3][3];
             int k;
-            if (!same_hit_three_ways(bvh, v.eye, d, 0, INFINITY, "primary", i, &a)) continue;
+            if (!same_hit_every_way(bvh, v.eye, d, 0, INFINITY, "primary", i, &a)) continue;
             ++hits;
             /* the same ray again from its hit's distance, and up to it */
-            same_hit_three_ways(bvh, v.eye, d, a.t, INFINITY, "from the hit", i, NULL);
-            same_hit_three_ways(bvh, v.eye, d, 0, a.t, "up to the hit", i, NULL);
+            same_hit_every_way(bvh, v.eye, d, a.t, INFINITY, "from the hit", i, NULL);
+            same_hit_every_way(bvh, v.eye, d, 0, a.t, "up to the hit", i, NULL);
             /* the mirror ray about the geometric normal, from the hit */
             {
                 const refl_object *o = &s->objects[a.object];
@@ -445,7 +446,7 @@ static void check_wide_matches_binary(const char *name, const refl_scene *s, int
                                                      refl_v3(e[2][0] - e[0][0], e[2][1] - e[0][1], e[2][2] - e[0][2])));
                 p = refl_v3_add(v.eye, refl_v3_scale(d, a.t));
                 if (refl_v3_dot(ng, d) > 0) ng = refl_v3_scale(ng, -1);
-                same_hit_three_ways(bvh, refl_v3_add(p, refl_v3_scale(ng, 1e-5f * diag)),
+                same_hit_every_way(bvh, refl_v3_add(p, refl_v3_scale(ng, 1e-5f * diag)),
                                     refl_v3_reflect(refl_v3_normalize(d), ng), 0, INFINITY, "mirror", i, NULL);
             }
         }
@@ -453,7 +454,7 @@ static void check_wide_matches_binary(const char *name, const refl_scene *s, int
         refl_vec3 o = refl_v3_add(c, refl_v3_scale(rnd_dir(&r), rnd(&r, 0, diag)));
         refl_vec3 d = rnd_dir(&r);
         if (refl_rng_u32(&r) % 8 == 0) d.x = 0; /* infinite inverse directions */
-        same_hit_three_ways(bvh, o, d, 0, i % 3 ? INFINITY : rnd(&r, 0, diag), "random", i, NULL);
+        same_hit_every_way(bvh, o, d, 0, i % 3 ? INFINITY : rnd(&r, 0, diag), "random", i, NULL);
     }
     cr_log_info("%s: wide, lane-by-lane and binary traversals agree on %dx%d primary rays (%lld hits), their "
                 "mirror rays and %d random rays", name, w, h, hits, BVH_RANDOM_RAYS);
