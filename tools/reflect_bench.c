@@ -21,6 +21,7 @@
 
 static const char *const usage_bench =
     "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
     "(ENVMAP: cube sizes, C3RC: densities, SBC: ray map factors), times each\n"
@@ -52,12 +53,19 @@ static const char *const usage_bench =
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
     "  --depth N     reflection bounces, the same for every method (default 1:\n"
-    "                what single-bounce methods such as ENVMAP model)\n";
+    "                what single-bounce methods such as ENVMAP model)\n"
+    "  --report DIR  instead: a static HTML page DIR/index.html (charts of time\n"
+    "                against error, PSNR and holes per scene, a picture grid, error\n"
+    "                heat maps, the worst frames along camera paths, cost growth and\n"
+    "                time by phase; 320x240, every built-in scene)\n"
+    "  --quick       with --report: two scenes at 64x48, few settings, one run each\n";
 
 typedef struct bench_opts {
     int full, repeats, threads, depth;
     char out[512];
     char only[16];                /* "c3rc", "sbc", "path" or "graphcam": just those tables; "": everything */
+    const char *report;           /* --report DIR: the HTML page instead (tools/reflect_report.c) */
+    int quick;                    /* --quick: the report's small version */
 } bench_opts;
 
 /* One measured setting: a CSV row and a chart point. */
@@ -521,6 +529,11 @@ int refl_cli_bench(int argc, char **argv) {
             return 0;
         } else if (!strcmp(a, "--full")) {
             o.full = 1;
+        } else if (!strcmp(a, "--report") && v) {
+            o.report = v;
+            ++i;
+        } else if (!strcmp(a, "--quick")) {
+            o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam")) {
                 fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path or graphcam, not '%s'\n", v);
@@ -548,6 +561,11 @@ int refl_cli_bench(int argc, char **argv) {
         }
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
+    if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
+    if (o.quick) {
+        fprintf(stderr, "reflect bench: --quick goes with --report\n");
+        return 2;
+    }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {
         fprintf(stderr, "reflect bench: cannot create %s: %s\n", o.out, strerror(errno));
         return 1;
