@@ -406,7 +406,7 @@ static int growth_methods(bench_method *m, const char *sweep) {
     return n;
 }
 
-static refl_scene *builtin(const char *name, int tess) {
+refl_scene *refl_bench_builtin(const char *name, int tess) {
     refl_builtin_desc bd;
     refl_scene *s = NULL;
     memset(&bd, 0, sizeof bd);
@@ -578,7 +578,7 @@ int refl_cli_bench(int argc, char **argv) {
     scenes = o.full ? refl_builtin_names() : scenes_quick;
     n = base_methods(methods, o.full);
     for (i = 0; ok && scenes[i]; ++i) {
-        refl_scene *s = builtin(scenes[i], 0);
+        refl_scene *s = refl_bench_builtin(scenes[i], 0);
         refl_view v;
         if (!s) { ok = 0; break; }
         v = view_of(s, 640, 480);
@@ -588,7 +588,7 @@ int refl_cli_bench(int argc, char **argv) {
     /* (b) cost growth on the default scene */
     if (ok) {
         static const int sizes[][2] = {{320, 240}, {640, 480}, {1280, 720}, {1920, 1080}};
-        refl_scene *s = builtin("default", 0);
+        refl_scene *s = refl_bench_builtin("default", 0);
         n = growth_methods(methods, "resolution");
         for (i = 0; ok && s && i < 4; ++i) {
             refl_view v = view_of(s, sizes[i][0], sizes[i][1]);
@@ -600,7 +600,7 @@ int refl_cli_bench(int argc, char **argv) {
         static const float edges[] = {0.0f, 1.0f, 0.5f, 0.25f, 0.125f};
         n = growth_methods(methods, "diffuse");
         for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
-            refl_scene *s = builtin("default", 0);
+            refl_scene *s = refl_bench_builtin("default", 0);
             refl_view v;
             if (!s || (edges[i] > 0.0f && !subdivide_diffuse(s, edges[i]))) ok = 0;
             if (ok) {
@@ -614,7 +614,7 @@ int refl_cli_bench(int argc, char **argv) {
         static const int tess[] = {4, 8, 16, 32, 64};
         n = growth_methods(methods, "reflector");
         for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
-            refl_scene *s = builtin("default", tess[i]);
+            refl_scene *s = refl_bench_builtin("default", tess[i]);
             refl_view v;
             if (!s) { ok = 0; break; }
             v = view_of(s, 640, 480);
@@ -625,7 +625,7 @@ int refl_cli_bench(int argc, char **argv) {
     if (ok) {
         /* paper 002's cost: recursion depth in the mirror room, beside
            RAYTRACE at the same depth */
-        refl_scene *s = builtin("mirror-room", 0);
+        refl_scene *s = refl_bench_builtin("mirror-room", 0);
         bench_opts od = o;
         memset(methods, 0, 3 * sizeof methods[0]);
         methods[0].method = "planar"; methods[0].series = "planar"; methods[0].param = "depth";

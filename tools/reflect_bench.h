@@ -56,6 +56,10 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick);
    report's heat maps and reflect compare --diff. */
 void refl_heat_map(const uint8_t *a, const uint8_t *b, long long count, int channels, int full_scale, uint8_t *rgb);
 
+/* Built-in scene NAME with its teapots tessellated tess (0: the default);
+   NULL on failure. */
+refl_scene *refl_bench_builtin(const char *name, int tess);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

@@ -147,15 +147,6 @@ static void report_settings(report *rp) {
     }
 }
 
-static refl_scene *report_scene(const char *name, int tess) {
-    refl_builtin_desc bd;
-    refl_scene *s = NULL;
-    memset(&bd, 0, sizeof bd);
-    bd.teapot_tess = tess;
-    if (refl_scene_builtin(name, &bd, &s) != REFL_OK) return NULL;
-    return s;
-}
-
 static long long reflector_triangles(const refl_scene *s) {
     long long n = 0;
     int i;
@@ -305,11 +296,14 @@ static double axis_holes(const report_row *r) { return 100.0 * r->rerr.empty; }
 static double axis_pixels(const report_row *r) { return (double)r->width * r->height; }
 static double axis_reflector(const report_row *r) { return (double)r->reflector_tris; }
 
-/* One colour per method on every chart (gnuplot's line colour index):
-   its place in the method enum, Embree after them. */
-static int series_color(const char *series) {
+/* One colour per method on every chart, by its place in the method enum;
+   Embree last. */
+static const char *series_color(const char *series) {
+    static const char *const palette[] = {"#999999", "#808000", "#000000", "#1f77b4", "#ff7f0e", "#2ca02c",
+                                          "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f"};
     refl_method m = refl_method_from_name(series);
-    return m ? (int)m : (int)REFL_METHOD_COUNT;
+    const int last = (int)(sizeof palette / sizeof palette[0]) - 1;
+    return palette[m > 0 && (int)m < last ? (int)m : last];
 }
 
 /* The rows of one scene and sweep that reflect something. */
@@ -362,11 +356,11 @@ static int series_chart(const report *rp, const char *scene, const char *sweep, 
     len += (size_t)snprintf(script + len, sizeof script - len, "plot ");
     for (j = 0; j < n && len < sizeof script; ++j) {
         len += (size_t)snprintf(script + len, sizeof script - len,
-                                "%s'%s' index %d using 1:2 with linespoints pt 7 lw 2 lc %d title '%s'", j ? ", " : "",
+                                "%s'%s' index %d using 1:2 with linespoints pt 7 lw 2 lc rgb '%s' title '%s'", j ? ", " : "",
                                 path, j, series_color(names[j]), names[j]);
         if (labels && len < sizeof script)
             len += (size_t)snprintf(script + len, sizeof script - len,
-                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,0.6 left font ',8' tc lt %d "
+                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,0.6 left font ',8' tc rgb '%s' "
                                     "notitle",
                                     path, j, series_color(names[j]));
     }
@@ -498,8 +492,8 @@ static int path_chart(const report *rp, const char *sub, const char *title, cons
                            rp->dir, sub, title);
     for (j = 0; j < n && len < sizeof script; ++j)
         len += (size_t)snprintf(script + len, sizeof script - len,
-                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc %d title '%s', "
-                                "'%s' index %d using 1:($3 > 0 ? $2 : 1/0) with points pt 6 ps 2.5 lc %d notitle",
+                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s', "
+                                "'%s' index %d using 1:($3 > 0 ? $2 : 1/0) with points pt 6 ps 2.5 lc rgb '%s' notitle",
                                 j ? ", " : "", path, j, series_color(names[j]), names[j], path, j,
                                 series_color(names[j]));
     if (len >= sizeof script - 2) return 0;
@@ -752,7 +746,7 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
     if (!(rp.rows = (report_row *)calloc(REPORT_MAX_ROWS, sizeof *rp.rows))) return 0;
     /* per scene at the report's size, with pictures */
     for (i = 0; ok && scenes[i]; ++i) {
-        refl_scene *s = report_scene(scenes[i], 0);
+        refl_scene *s = refl_bench_builtin(scenes[i], 0);
         refl_view v;
         if (!s) { ok = 0; break; }
         v = s->camera;
@@ -763,7 +757,7 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
     }
     /* cost growth on the default scene: pixels, then reflector triangles */
     for (i = 0; ok && i < (quick ? 2 : 3); ++i) {
-        refl_scene *s = report_scene("default", 0);
+        refl_scene *s = refl_bench_builtin("default", 0);
         refl_view v;
         if (!s) { ok = 0; break; }
         v = s->camera;
@@ -773,7 +767,7 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
         refl_scene_destroy(s);
     }
     for (i = 0; ok && i < (quick ? 2 : 4); ++i) {
-        refl_scene *s = report_scene("default", quick ? quick_tess[i] : full_tess[i]);
+        refl_scene *s = refl_bench_builtin("default", quick ? quick_tess[i] : full_tess[i]);
         refl_view v;
         if (!s) { ok = 0; break; }
         v = s->camera;
