@@ -90,6 +90,7 @@ typedef struct report {
     refl_embree *embree;          /* for the current scene */
     FILE *html;
     int images;                   /* <img> written, for the page's own check */
+    char skipped[4096];           /* settings whose render failed, as HTML list items */
 } report;
 
 static void add_setting(report *rp, refl_method m, const char *series, const char *label, int picture) {
@@ -105,7 +106,7 @@ static void add_setting(report *rp, refl_method m, const char *series, const cha
    truth, yet also a point: exact, and its time), over its settings. */
 static void report_settings(report *rp) {
     static const int envmap_quick[] = {32, 128}, envmap_full[] = {16, 32, 64, 128, 256};
-    static const float c3rc_quick[] = {60.0f, 120.0f}, c3rc_full[] = {250.0f, 1000.0f, 0.0f};
+    static const float c3rc_quick[] = {30.0f, 60.0f}, c3rc_full[] = {250.0f, 1000.0f, 0.0f};
     static const int sbc_factors[] = {4, 2};
     refl_method m;
     int k, n;
@@ -209,10 +210,14 @@ static int measure(report *rp, const refl_scene *s, const refl_view *v, const re
         d.raytrace.caster.user = rp->embree;
     }
     r = refl_bench_timed_render(s, v, &d, rp->repeats, f, &ms, &fastest);
-    if (r != REFL_OK) {
+    if (r != REFL_OK) { /* left out, and said so on the page */
+        size_t used = strlen(rp->skipped);
         fprintf(stderr, "reflect bench: report: %s (%s) on %s: %s %s\n", set->series, set->label, row->scene,
                 refl_result_string(r), f->message);
-        return r == REFL_ERROR_UNSUPPORTED ? -1 : 0;
+        if (r != REFL_ERROR_UNSUPPORTED && used + 200 < sizeof rp->skipped)
+            snprintf(rp->skipped + used, sizeof rp->skipped - used, "<li>%s (%s) on %s, %dx%d: %s</li>\n",
+                     set->series, set->label, row->scene, v->width, v->height, refl_result_string(r));
+        return -1;
     }
     row->set = set;
     row->width = v->width;
@@ -348,6 +353,7 @@ static int series_chart(const report *rp, const char *scene, const char *sweep, 
                            "set grid\nset key outside right\nset offsets graph 0.05, graph 0.05, graph 0.08, graph 0.08\n",
                            rp->dir, name, title, xlabel, ylabel, logx ? "set logscale x\n" : "",
                            logy ? "set logscale y\n" : "");
+    if (!logy) len += (size_t)snprintf(script + len, sizeof script - len, "set yrange [0:*]\n");
     if (exact_x > 0.0)
         len += (size_t)snprintf(script + len, sizeof script - len,
                                 "set arrow from %g, graph 0 to %g, graph 1 nohead dashtype 2 lc rgb 'gray50'\n"
@@ -488,8 +494,8 @@ static int path_chart(const report *rp, const char *sub, const char *title, cons
                            "set terminal pngcairo size 900,480 noenhanced\nset output '%s/%s/flicker.png'\n"
                            "set title '%s'\nset xlabel 'frame'\n"
                            "set ylabel 'flicker: mean excess change over the truth (8-bit levels)'\n"
-                           "set grid\nset key outside right\nplot ",
-                           rp->dir, sub, title);
+                           "set grid\nset key outside right\nset xtics %d\nplot ",
+                           rp->dir, sub, title, count > 10 * n ? 5 : 1);
     for (j = 0; j < n && len < sizeof script; ++j)
         len += (size_t)snprintf(script + len, sizeof script - len,
                                 "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s', "
@@ -543,7 +549,7 @@ static void page_head(report *rp, const char *const *scenes) {
     fprintf(rp->html,
             "<p>Written by <code>reflect bench --report%s</code>: frames of %dx%d, one reflection bounce, each "
             "time the median of %d frame%s on %s. Error is measured against RAYTRACE of the same scene, view and "
-            "size (<a href=\"../docs/metrics.md\">docs/metrics.md</a> in the repository): the <b>reflection "
+            "size (docs/metrics.md in the repository): the <b>reflection "
             "error</b> is how far, in pixels, each reflected point lands from where the truth shows it; "
             "<b>holes</b> are reflector pixels where the truth shows a point and the method none; <b>PSNR</b> is "
             "over the reflector pixels. Scenes:",
@@ -722,7 +728,8 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
     static const report_path quick_paths[] = {{"default", "orbit", "path-default-orbit"}};
     static const report_path full_paths[] = {{"default", "orbit", "path-default-orbit"},
                                              {"concave", "focus", "path-concave-focus"},
-                                             {"concave", "dolly", "path-concave-dolly"}};
+                                             {"concave", "rim", "path-concave-rim"},
+                                             {"glass", "orbit", "path-glass-orbit"}};
     static const int quick_sizes[][2] = {{32, 24}, {64, 48}}, full_sizes[][2] = {{160, 120}, {320, 240}, {640, 480}};
     static const int quick_tess[] = {4, 8}, full_tess[] = {4, 8, 16, 32};
     const char *const *scenes = quick ? quick_scenes : refl_builtin_names();
@@ -825,7 +832,8 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
                          "frame with the largest reflection error.</p>\n");
     }
     paths = quick ? quick_paths : full_paths;
-    path_count = quick ? 1 : 3;
+    path_count = quick ? (int)(sizeof quick_paths / sizeof quick_paths[0])
+                       : (int)(sizeof full_paths / sizeof full_paths[0]);
     for (i = 0; ok && i < path_count; ++i) ok = stability_section(&rp, &paths[i], quick ? 6 : 30, quick ? 48 : 160,
                                                                   quick ? 36 : 120);
     if (ok) {
@@ -856,6 +864,7 @@ int refl_bench_report(const char *dir, int threads, int repeats, int quick) {
             if (ok) chart_or_note(&rp, name, alt);
         }
     }
+    if (ok && rp.skipped[0]) fprintf(rp.html, "<h2>Not measured</h2>\n<ul>\n%s</ul>\n", rp.skipped);
     if (ok) page_tail(&rp);
     if (rp.html && fclose(rp.html) != 0) ok = 0;
     if (ok) fprintf(stderr, "wrote %s (%d images)\n", path, rp.images);
