@@ -8,12 +8,16 @@
    --images the numbered frames DIR/METHOD-0000.png ... for a video.
 
    A pop is a frame that changes far more than the path's usual frame does
-   (a sample, group or model switch): frame k > 0 pops when its flicker
-   exceeds POP_FACTOR times the median flicker over the path and
-   POP_FLICKER_FLOOR levels, or its mean reflection error moved from frame
-   k - 1 by more than POP_FACTOR times the median such move and
-   POP_ERROR_FLOOR pixels. The floors keep a method that follows the truth
-   almost exactly (median near 0) from popping on noise. */
+   around it (a sample, group or model switch): frame k > 0 pops when its
+   flicker exceeds POP_FACTOR times the median flicker of the frames within
+   POP_WINDOW of it (k itself left out) and POP_FLICKER_FLOOR levels, or
+   its mean reflection error moved from frame k - 1 by more than POP_FACTOR
+   times the median such move within POP_WINDOW and POP_ERROR_FLOOR pixels
+   (no move counts to or from a frame where no point matched: its mean is 0).
+   Medians of the neighbours, not of the whole path: an error that grows
+   steadily faster (a dolly into a focus) is a trend, not a pop. The floors
+   keep a method that follows the truth almost exactly (medians near 0) from
+   popping on noise. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -226,7 +230,7 @@ typedef struct path_sample {
     int pop;
 } path_sample;
 
-enum { POP_FACTOR = 3 };
+enum { POP_FACTOR = 3, POP_WINDOW = 4 };
 static const double POP_FLICKER_FLOOR = 2.0, POP_ERROR_FLOOR = 0.25;
 
 static int cmp_double(const void *a, const void *b) {
@@ -234,29 +238,36 @@ static int cmp_double(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+/* The median of v[k - POP_WINDOW .. k + POP_WINDOW] without v[k], over
+   indices 1 .. n - 1 (v[0] is not a change). */
+static double local_median(const double *v, int n, int k) {
+    double near[2 * POP_WINDOW];
+    int j, m = 0;
+    for (j = k - POP_WINDOW; j <= k + POP_WINDOW; ++j)
+        if (j >= 1 && j < n && j != k) near[m++] = v[j];
+    if (!m) return 0.0;
+    qsort(near, (size_t)m, sizeof(double), cmp_double);
+    return m % 2 ? near[m / 2] : 0.5 * (near[m / 2 - 1] + near[m / 2]);
+}
+
 /* Marks the pops of one method's frames (the rule at the top of the file);
    returns how many. */
 static int mark_pops(path_sample *f, int n) {
     double *flicker = (double *)malloc((size_t)n * sizeof(double)), *moved = (double *)malloc((size_t)n * sizeof(double));
-    double med_flicker, med_moved;
     int k, pops = 0;
-    if (!flicker || !moved || n < 2) {
+    if (!flicker || !moved) {
         free(flicker);
         free(moved);
         return 0;
     }
     for (k = 1; k < n; ++k) {
-        flicker[k - 1] = f[k].fl.mean;
-        moved[k - 1] = fabs(f[k].e.mean - f[k - 1].e.mean);
+        flicker[k] = f[k].fl.mean;
+        /* a frame where nothing matched has mean 0: no move to or from it */
+        moved[k] = f[k].e.matched && f[k - 1].e.matched ? fabs(f[k].e.mean - f[k - 1].e.mean) : 0.0;
     }
-    qsort(flicker, (size_t)(n - 1), sizeof(double), cmp_double);
-    qsort(moved, (size_t)(n - 1), sizeof(double), cmp_double);
-    med_flicker = flicker[(n - 1) / 2];
-    med_moved = moved[(n - 1) / 2];
     for (k = 1; k < n; ++k) {
-        double m = fabs(f[k].e.mean - f[k - 1].e.mean);
-        f[k].pop = (f[k].fl.mean > POP_FACTOR * med_flicker && f[k].fl.mean > POP_FLICKER_FLOOR) ||
-                   (m > POP_FACTOR * med_moved && m > POP_ERROR_FLOOR);
+        f[k].pop = (flicker[k] > POP_FACTOR * local_median(flicker, n, k) && flicker[k] > POP_FLICKER_FLOOR) ||
+                   (moved[k] > POP_FACTOR * local_median(moved, n, k) && moved[k] > POP_ERROR_FLOOR);
         pops += f[k].pop;
     }
     free(flicker);
