@@ -7,8 +7,8 @@
    worst frame of each method, and the frames where it pops), and with
    --images the numbered frames DIR/METHOD-0000.png ... for a video.
 
-   A pop is a frame that changes far more than the path's usual frame does
-   around it (a sample, group or model switch): frame k > 0 pops when its
+   A pop is a frame that changes far more than the frames around it (a
+   sample, group or model switch): frame k > 0 pops when its
    flicker exceeds POP_FACTOR times the median flicker of the frames within
    POP_WINDOW of it (k itself left out) and POP_FLICKER_FLOOR levels, or
    its mean reflection error moved from frame k - 1 by more than POP_FACTOR
