@@ -400,7 +400,7 @@ fuzz-short:
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
-               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o
+               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_report.o
 REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h
@@ -449,6 +449,7 @@ test: deps
 	@$(MAKE) --no-print-directory check-headers
 	@$(MAKE) --no-print-directory $(PARALLEL) compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN) $(REFLECT_GL_BIN)
 	bash tests/cli_test.sh $(REFLECT_BIN)
+	bash tests/report_test.sh $(REFLECT_BIN)
 	@rm -rf build/tests/digest build/portable/digest; mkdir -p build/tests/digest build/portable/digest
 	RAST_TEST_DIGEST_DIR=build/tests/digest timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
 	RAST_TEST_NO_THREADS=1 RAST_TEST_DIGEST_DIR=build/portable/digest \

@@ -138,9 +138,16 @@ refuses "--time-limit stops a long render and writes nothing" "stopped at the ti
 ok "nothing written after the time limit" test ! -e "$tmp/limited.png"
 ok "path: every frame of each method against the truth" bash -c "'$bin' path --builtin default --frames 3 --size 32x24 \
     --methods envmap,PLANAR --out '$tmp/path' --images >/dev/null && [ \$(wc -l <'$tmp/path/orbit.csv') = 7 ] && \
-    grep -q '^orbit,planar,2,.*,0.0000,0.0000,0.00000,0.00000,999.000,0.0000,0.0$' '$tmp/path/orbit.csv' && \
+    grep -q '^orbit,planar,2,.*,0.0000,0.0000,0.00000,0.00000,999.000,0.0000,0.0,0$' '$tmp/path/orbit.csv' && \
     [ -s '$tmp/path/envmap-0002.png' ] && [ -s '$tmp/path/raytrace-0000.png' ]"
-exits2 "path: an unknown path" "orbit, dolly, pan or focus" "$bin" path --path spiral
+exits2 "path: an unknown path" "orbit, dolly, pan, focus or rim" "$bin" path --path spiral
+ok "path: the rim path moves the view" bash -c "'$bin' path --builtin concave --path rim --frames 2 --size 16x12 \
+    --methods planar --out '$tmp/rim' --images >/dev/null && ! cmp -s '$tmp/rim/raytrace-0000.png' '$tmp/rim/raytrace-0001.png'"
+# pops (reflect path's rule, tools/reflect_path.c): the CSV's last column,
+# a count per method in the summary; an exact method has none
+ok "path: the pop column" bash -c "'$bin' path --builtin concave --path focus --frames 4 --size 24x18 \
+    --methods planar --out '$tmp/pop' >'$tmp/pop.txt' && head -1 '$tmp/pop/focus.csv' | grep -q ',pop$' && \
+    grep -qE '^planar .* 0$' '$tmp/pop.txt'"
 refuses "a device is not a scene file" "/dev/zero: not a regular file" "$bin" info /dev/zero
 exits2 "method not built yet" "not built yet: .auto.; the methods are: direct raytrace" "$bin" render --builtin default --method auto --out "$tmp/z.png"
 
@@ -183,6 +190,40 @@ prints() { # prints NAME PATTERN... -- CMD...: exit 0 and every pattern on stdou
     else fail=$((fail + 1)); echo "FAIL $name: exit $code, missing$missing; stdout:"; cat "$tmp/out" "$tmp/err"; fi
 }
 ok "compare --help" "$bin" compare --help
+status() { # status NAME CODE PATTERN CMD...: exit status CODE, stdout matches PATTERN
+    local name=$1 want=$2 pattern=$3; shift 3
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local code=$?
+    if [ $code -eq "$want" ] && grep -qE "$pattern" "$tmp/out"; then pass=$((pass + 1))
+    else fail=$((fail + 1)); echo "FAIL $name: exit $code (want $want), stdout:"; cat "$tmp/out" "$tmp/err"; fi
+}
+# thresholds: 3 pixels of b differ from a by more than 9/255, 2 by more than 10/255
+status "compare --warn: within" 0 '^result +PASS$' "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --warn 1
+status "compare --warn: over" 1 '^result +WARN$' "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --warn 9/255
+status "compare --fail: over" 3 '^result +FAIL$' "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --warn 9/255 --fail 9/255
+status "compare --fail-percent: 2 of 8 within 30%" 0 '^result +PASS$' \
+    "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --fail 10/255 --fail-percent 30
+status "compare --fail-percent: 3 of 8 over 30%" 3 '^result +FAIL$' \
+    "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --fail 9/255 --fail-percent 30
+status "compare --warn-percent" 0 '^result +PASS$' "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --warn 0 --warn-percent 37.5
+status "compare without limits prints no result" 0 '^over threshold' "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm"
+exits2 "compare bad --fail" "fail: expected" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --fail 2
+exits2 "compare bad --warn-percent" "percent: 0..100" "$bin" compare "$tmp/a.ppm" "$tmp/b.ppm" --warn 0 --warn-percent 101
+# --diff: 255 off is white, 10 off a dark blue (10/64 of the way to blue), equal is black
+ok "compare --diff" bash -c "'$bin' compare '$tmp/a.ppm' '$tmp/b.ppm' --diff '$tmp/d.ppm' >/dev/null && \
+    [ \"\$(tail -c 24 '$tmp/d.ppm' | od -An -tu1 | tr -s ' \n' ' ')\" = \
+      ' 255 255 255 16 16 143 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 255 255 255 ' ]"
+ok "compare --diff with a mask: black outside it" bash -c "'$bin' compare '$tmp/a.ppm' '$tmp/b.ppm' \
+    --mask '$tmp/mask.ppm' --diff '$tmp/dm.ppm' >/dev/null && \
+    [ \"\$(tail -c 24 '$tmp/dm.ppm' | od -An -tu1 | tr -s ' \n' ' ')\" = \
+      ' 255 255 255 16 16 143 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 ' ]"
+# alpha: a transparent black pixel differs from an opaque black one
+oiiotool --pattern constant:color=0,0,0,1 4x2 4 -d uint8 -o "$tmp/opaque.png"
+oiiotool --pattern constant:color=0,0,0,0 4x2 4 -d uint8 -o "$tmp/clear.png"
+prints "compare alpha" '^channels +RGBA$' '^max diff +1\.000000' '^over threshold +1\.000000' -- \
+    "$bin" compare "$tmp/opaque.png" "$tmp/clear.png"
+prints "compare opaque images by RGB" '^channels +RGB$' '^psnr +inf' -- "$bin" compare "$tmp/opaque.png" "$tmp/a.ppm"
+status "compare alpha --fail" 3 '^result +FAIL$' "$bin" compare "$tmp/opaque.png" "$tmp/clear.png" --fail 0
 prints "compare identical" '^pixels +8$' '^rmse +0\.000000$' '^psnr +inf' '^max diff +0\.000000' \
     '^over threshold +0\.000000 \(0 pixels' -- "$bin" compare "$tmp/a.ppm" "$tmp/a.ppm"
 prints "compare a render with itself (96x64)" '^psnr +inf' '^over threshold +0\.000000' '^pixels +6144$' -- \

@@ -2,7 +2,8 @@
 
      reflect render [SCENE.glb | --builtin NAME] [options]   render one frame
      reflect info   [SCENE.glb | --builtin NAME]             describe a scene
-     reflect compare A B [--mask M] [--threshold T]          image error of B against A
+     reflect compare A B [--mask M] [--threshold T] [--diff OUT] [--warn X] [--fail X]
+                                                             image error of B against A
      reflect --help | reflect COMMAND --help
 
    Scenes come from glTF files (tools/gltf_load) or the built-in scenes;
@@ -122,18 +123,33 @@ static const char *const usage_info =
     "lights, the camera and the scene's bounds.\n";
 
 static const char *const usage_compare =
-    "usage: reflect compare A B [--mask M] [--threshold T]\n"
+    "usage: reflect compare A B [--mask M] [--threshold T] [--diff OUT]\n"
+    "                           [--warn X [--warn-percent P]] [--fail X [--fail-percent P]]\n"
     "\n"
-    "Compares two images of one size by their R, G and B as stored in 8 bits\n"
-    "(alpha ignored) and prints the pixels compared, the RMSE and the largest\n"
+    "Compares two images of one size by their channels as stored in 8 bits:\n"
+    "R, G and B, and alpha too when either image has a pixel that is not\n"
+    "opaque (a transparent pixel differs from an opaque one of its colour).\n"
+    "Prints the channels and pixels compared, the RMSE and the largest\n"
     "difference (in channel units, 0..1), the PSNR (dB; inf when identical)\n"
     "and the fraction of pixels with a channel differing by more than the\n"
-    "threshold. Exit status 0 when compared, 2 on bad usage or unreadable or\n"
-    "mismatched images.\n"
+    "threshold; with --warn or --fail, a last line: result PASS, WARN or FAIL.\n"
+    "\n"
+    "Exit status (as idiff's, where this command's usage errors keep 2):\n"
+    "  0  compared, and within --warn and --fail\n"
+    "  1  over the --warn limit, within --fail\n"
+    "  2  bad usage, or an unreadable or mismatched image\n"
+    "  3  over the --fail limit\n"
     "\n"
     "  --mask M           compare only the pixels where M (same size) is not black\n"
     "  --threshold T      per channel, 0..1 or a fraction like 4/255 (default\n"
-    "                     2/255); 0 counts any difference\n";
+    "                     2/255); 0 counts any difference\n"
+    "  --diff OUT         write a heat map of the difference: per pixel the largest\n"
+    "                     channel difference, black (0) through blue, red and\n"
+    "                     yellow to white (64/255 or more); outside --mask, black\n"
+    "  --warn X           warn when more than --warn-percent of the pixels (default\n"
+    "                     0: any) have a channel differing by more than X (0..1 or N/255)\n"
+    "  --fail X           fail likewise, beyond --fail-percent (default 0)\n"
+    "  --warn-percent P, --fail-percent P   0..100\n";
 
 typedef struct options {
     const char *file, *builtin, *method, *env, *out;
@@ -767,22 +783,83 @@ static uint8_t *read_rgba8(const char *path, int *width, int *height) {
     return px;
 }
 
-static int cmd_compare(int argc, char **argv) {
-    const char *path[3] = {NULL, NULL, NULL}; /* A, B, mask */
-    uint8_t *px[3] = {NULL, NULL, NULL};
-    int w[3] = {0, 0, 0}, h[3] = {0, 0, 0}, images = 0, count, i, k, code = 2;
-    double threshold = 2.0 / 255.0;
-    refl_image_diff d;
+/* Two RGBA8 images compared over their first `channels` channels: the
+   numbers refl_image_compare gives for RGB, and per pixel the largest
+   difference in levels (worst[i]). */
+static void compare_pixels(const uint8_t *a, const uint8_t *b, int count, int channels, double threshold,
+                           refl_image_diff *d, uint8_t *worst) {
+    double sum = 0.0;
+    int i, c, max_diff = 0;
+    memset(d, 0, sizeof *d);
+    for (i = 0; i < count; ++i) {
+        int w = 0;
+        for (c = 0; c < channels; ++c) {
+            int x = abs((int)a[4 * i + c] - (int)b[4 * i + c]);
+            sum += (double)x * x;
+            if (x > w) w = x;
+        }
+        worst[i] = (uint8_t)w;
+        if (w > max_diff) max_diff = w;
+        if (w / 255.0 > threshold) d->pixels_over++;
+    }
+    d->rmse = sqrt(sum / ((double)channels * count)) / 255.0;
+    d->psnr = d->rmse > 0.0 ? 20.0 * log10(1.0 / d->rmse) : INFINITY;
+    d->max_error = max_diff / 255.0;
+    d->fraction_over = (double)d->pixels_over / count;
+}
+
+/* Pixels whose largest channel difference exceeds limit, as a fraction. */
+static double fraction_over(const uint8_t *worst, int count, double limit) {
+    long long n = 0;
+    int i;
+    for (i = 0; i < count; ++i) n += worst[i] / 255.0 > limit + 1e-6 / 255.0;
+    return (double)n / count;
+}
+
+static int write_diff(const char *path, const uint8_t *a, const uint8_t *b, const uint8_t *mask, int w, int h,
+                      int channels) {
+    uint8_t *rgb = (uint8_t *)malloc((size_t)w * (size_t)h * 3);
+    char err[512] = "";
     refl_result r;
+    int i;
+    if (!rgb) return 0;
+    refl_heat_map(a, b, (long long)w * h, channels, 64, rgb);
+    for (i = 0; mask && i < w * h; ++i)
+        if (!(mask[4 * i] | mask[4 * i + 1] | mask[4 * i + 2])) memset(rgb + 3 * i, 0, 3);
+    r = refl_image_write(path, w, h, 3, rgb, NULL, err, sizeof err);
+    free(rgb);
+    if (r != REFL_OK) fprintf(stderr, "reflect: %s\n", err[0] ? err : refl_result_string(r));
+    return r == REFL_OK;
+}
+
+static int cmd_compare(int argc, char **argv) {
+    const char *path[3] = {NULL, NULL, NULL}, *diff = NULL; /* A, B, mask */
+    uint8_t *px[3] = {NULL, NULL, NULL}, *worst = NULL;
+    int w[3] = {0, 0, 0}, h[3] = {0, 0, 0}, images = 0, count, channels = 3, i, k, code = 2;
+    double threshold = 2.0 / 255.0, warn = -1.0, failx = -1.0, warn_pct = 0.0, fail_pct = 0.0;
+    refl_image_diff d;
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        float pct;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(usage_compare, stdout);
             return 0;
-        } else if (!strcmp(a, "--mask") || !strcmp(a, "--threshold")) {
+        } else if (!strcmp(a, "--mask") || !strcmp(a, "--threshold") || !strcmp(a, "--diff") || !strcmp(a, "--warn") ||
+                   !strcmp(a, "--fail") || !strcmp(a, "--warn-percent") || !strcmp(a, "--fail-percent")) {
             if (!v) return fail("%s needs a value", a);
-            if (a[2] == 'm') path[2] = v;
-            else if (!parse_threshold(v, &threshold)) return fail("--threshold: expected 0..1 or N/255, got %s", v);
+            if (!strcmp(a, "--mask")) path[2] = v;
+            else if (!strcmp(a, "--diff")) diff = v;
+            else if (!strcmp(a, "--threshold") && !parse_threshold(v, &threshold))
+                return fail("--threshold: expected 0..1 or N/255, got %s", v);
+            else if (!strcmp(a, "--warn") && !parse_threshold(v, &warn))
+                return fail("--warn: expected 0..1 or N/255, got %s", v);
+            else if (!strcmp(a, "--fail") && !parse_threshold(v, &failx))
+                return fail("--fail: expected 0..1 or N/255, got %s", v);
+            else if (strstr(a, "-percent")) {
+                if (!parse_float(v, 0.0f, 100.0f, &pct)) return fail("--warn-percent, --fail-percent: 0..100, not %s", v);
+                if (a[2] == 'w') warn_pct = pct;
+                else fail_pct = pct;
+            }
             ++i;
         } else if (a[0] == '-' && a[1] != '\0') {
             return fail("compare: unknown option %s (see reflect compare --help)", a);
@@ -801,6 +878,9 @@ static int cmd_compare(int argc, char **argv) {
         }
     }
     count = w[0] * h[0];
+    for (i = 0; i < count; ++i) /* alpha counts where either image has any */
+        if (px[0][4 * i + 3] != 255 || px[1][4 * i + 3] != 255) channels = 4;
+    if (diff && !write_diff(diff, px[0], px[1], px[2], w[0], h[0], channels)) goto done;
     if (px[2]) { /* keep the masked pixels of both, packed in place */
         int n = 0;
         for (i = 0; i < count; ++i)
@@ -815,21 +895,23 @@ static int cmd_compare(int argc, char **argv) {
         }
         count = n;
     }
+    if (!(worst = (uint8_t *)malloc((size_t)count))) goto done;
     /* as reflect.h's refl_measure_image_error: a difference of exactly the
        threshold is not over it, whatever the rounding of T */
-    r = refl_image_compare(px[0], px[1], count, 1, threshold + 1e-6 / 255.0, &d);
-    if (r != REFL_OK) {
-        fprintf(stderr, "reflect: compare: %s\n", refl_result_string(r));
-        goto done;
-    }
+    compare_pixels(px[0], px[1], count, channels, threshold + 1e-6 / 255.0, &d, worst);
+    printf("channels        %s\n", channels == 4 ? "RGBA" : "RGB");
     printf("pixels          %d\n", count);
     printf("rmse            %.6f\n", d.rmse);
     printf("psnr            %.2f dB\n", d.psnr);
     printf("max diff        %.6f (%d/255)\n", d.max_error, (int)(d.max_error * 255.0 + 0.5));
     printf("over threshold  %.6f (%lld pixels over %.6f)\n", d.fraction_over, d.pixels_over, threshold);
     code = 0;
+    if (failx >= 0.0 && 100.0 * fraction_over(worst, count, failx) > fail_pct) code = 3;
+    else if (warn >= 0.0 && 100.0 * fraction_over(worst, count, warn) > warn_pct) code = 1;
+    if (failx >= 0.0 || warn >= 0.0) printf("result          %s\n", code == 3 ? "FAIL" : code == 1 ? "WARN" : "PASS");
 done:
     for (k = 0; k < 3; ++k) free(px[k]);
+    free(worst);
     return code;
 }
 

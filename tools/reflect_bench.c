@@ -21,6 +21,7 @@
 
 static const char *const usage_bench =
     "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
     "(ENVMAP: cube sizes, C3RC: densities, SBC: ray map factors), times each\n"
@@ -52,12 +53,19 @@ static const char *const usage_bench =
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
     "  --depth N     reflection bounces, the same for every method (default 1:\n"
-    "                what single-bounce methods such as ENVMAP model)\n";
+    "                what single-bounce methods such as ENVMAP model)\n"
+    "  --report DIR  instead: a static HTML page DIR/index.html (charts of time\n"
+    "                against error, PSNR and holes per scene, a picture grid, error\n"
+    "                heat maps, the worst frames along camera paths, cost growth and\n"
+    "                time by phase; 320x240, every built-in scene)\n"
+    "  --quick       with --report: two scenes at 64x48, few settings, one run each\n";
 
 typedef struct bench_opts {
     int full, repeats, threads, depth;
     char out[512];
     char only[16];                /* "c3rc", "sbc", "path" or "graphcam": just those tables; "": everything */
+    const char *report;           /* --report DIR: the HTML page instead (tools/reflect_report.c) */
+    int quick;                    /* --quick: the report's small version */
 } bench_opts;
 
 /* One measured setting: a CSV row and a chart point. */
@@ -398,7 +406,7 @@ static int growth_methods(bench_method *m, const char *sweep) {
     return n;
 }
 
-static refl_scene *builtin(const char *name, int tess) {
+refl_scene *refl_bench_builtin(const char *name, int tess) {
     refl_builtin_desc bd;
     refl_scene *s = NULL;
     memset(&bd, 0, sizeof bd);
@@ -521,6 +529,11 @@ int refl_cli_bench(int argc, char **argv) {
             return 0;
         } else if (!strcmp(a, "--full")) {
             o.full = 1;
+        } else if (!strcmp(a, "--report") && v) {
+            o.report = v;
+            ++i;
+        } else if (!strcmp(a, "--quick")) {
+            o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam")) {
                 fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path or graphcam, not '%s'\n", v);
@@ -548,6 +561,11 @@ int refl_cli_bench(int argc, char **argv) {
         }
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
+    if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
+    if (o.quick) {
+        fprintf(stderr, "reflect bench: --quick goes with --report\n");
+        return 2;
+    }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {
         fprintf(stderr, "reflect bench: cannot create %s: %s\n", o.out, strerror(errno));
         return 1;
@@ -560,7 +578,7 @@ int refl_cli_bench(int argc, char **argv) {
     scenes = o.full ? refl_builtin_names() : scenes_quick;
     n = base_methods(methods, o.full);
     for (i = 0; ok && scenes[i]; ++i) {
-        refl_scene *s = builtin(scenes[i], 0);
+        refl_scene *s = refl_bench_builtin(scenes[i], 0);
         refl_view v;
         if (!s) { ok = 0; break; }
         v = view_of(s, 640, 480);
@@ -570,7 +588,7 @@ int refl_cli_bench(int argc, char **argv) {
     /* (b) cost growth on the default scene */
     if (ok) {
         static const int sizes[][2] = {{320, 240}, {640, 480}, {1280, 720}, {1920, 1080}};
-        refl_scene *s = builtin("default", 0);
+        refl_scene *s = refl_bench_builtin("default", 0);
         n = growth_methods(methods, "resolution");
         for (i = 0; ok && s && i < 4; ++i) {
             refl_view v = view_of(s, sizes[i][0], sizes[i][1]);
@@ -582,7 +600,7 @@ int refl_cli_bench(int argc, char **argv) {
         static const float edges[] = {0.0f, 1.0f, 0.5f, 0.25f, 0.125f};
         n = growth_methods(methods, "diffuse");
         for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
-            refl_scene *s = builtin("default", 0);
+            refl_scene *s = refl_bench_builtin("default", 0);
             refl_view v;
             if (!s || (edges[i] > 0.0f && !subdivide_diffuse(s, edges[i]))) ok = 0;
             if (ok) {
@@ -596,7 +614,7 @@ int refl_cli_bench(int argc, char **argv) {
         static const int tess[] = {4, 8, 16, 32, 64};
         n = growth_methods(methods, "reflector");
         for (i = 0; ok && i < (o.full ? 5 : 4); ++i) {
-            refl_scene *s = builtin("default", tess[i]);
+            refl_scene *s = refl_bench_builtin("default", tess[i]);
             refl_view v;
             if (!s) { ok = 0; break; }
             v = view_of(s, 640, 480);
@@ -607,7 +625,7 @@ int refl_cli_bench(int argc, char **argv) {
     if (ok) {
         /* paper 002's cost: recursion depth in the mirror room, beside
            RAYTRACE at the same depth */
-        refl_scene *s = builtin("mirror-room", 0);
+        refl_scene *s = refl_bench_builtin("mirror-room", 0);
         bench_opts od = o;
         memset(methods, 0, 3 * sizeof methods[0]);
         methods[0].method = "planar"; methods[0].series = "planar"; methods[0].param = "depth";

@@ -43,6 +43,23 @@ int refl_bench_path(const char *dir, int threads);
    path; a table on stdout and dir/graphcam_maze.csv; 0 on failure. */
 int refl_bench_graphcam(const char *dir, int threads);
 
+/* reflect bench --report DIR (tools/reflect_report.c): measures every
+   method on the built-in scenes, along camera paths and across sizes, and
+   writes the static page DIR/index.html with its charts and pictures.
+   quick: two scenes at 64x48, few settings, one run each (for tests).
+   0 on failure. */
+int refl_bench_report(const char *dir, int threads, int repeats, int quick);
+
+/* Per pixel of two RGBA8 images, the largest difference over their first
+   `channels` channels, coloured black (0) through blue, red and yellow to
+   white (full_scale levels or more), into rgb (3 bytes a pixel). The
+   report's heat maps and reflect compare --diff. */
+void refl_heat_map(const uint8_t *a, const uint8_t *b, long long count, int channels, int full_scale, uint8_t *rgb);
+
+/* Built-in scene NAME with its teapots tessellated tess (0: the default);
+   NULL on failure. */
+refl_scene *refl_bench_builtin(const char *name, int tess);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

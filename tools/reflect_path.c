@@ -4,8 +4,20 @@
    reflector pixels change from frame to frame than the truth's do). Each
    method renders through one renderer kept along the path, as an
    application would. Writes DIR/PATH.csv, a summary table on stdout (the
-   worst frame of each method is where it pops), and with --images the
-   numbered frames DIR/METHOD-0000.png ... for a video. */
+   worst frame of each method, and the frames where it pops), and with
+   --images the numbered frames DIR/METHOD-0000.png ... for a video.
+
+   A pop is a frame that changes far more than the frames around it (a
+   sample, group or model switch): frame k > 0 pops when its
+   flicker exceeds POP_FACTOR times the median flicker of the frames within
+   POP_WINDOW of it (k itself left out) and POP_FLICKER_FLOOR levels, or
+   its mean reflection error moved from frame k - 1 by more than POP_FACTOR
+   times the median such move within POP_WINDOW and POP_ERROR_FLOOR pixels
+   (no move counts to or from a frame where no point matched: its mean is 0).
+   Medians of the neighbours, not of the whole path: an error that grows
+   steadily faster (a dolly into a focus) is a trend, not a pop. The floors
+   keep a method that follows the truth almost exactly (medians near 0) from
+   popping on noise. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -28,7 +40,11 @@ static const char *const usage_path =
     "                     dolly: towards the target, from 1 to 0.3 of its distance;\n"
     "                     pan: the target swept sideways across half the view;\n"
     "                     focus: towards the target to 0.05 of its distance\n"
-    "                     (into a concave mirror's focus)\n"
+    "                     (into a concave mirror's focus);\n"
+    "                     rim: from half the distance, eye and target sideways from\n"
+    "                     the largest reflector's middle to 1.5 of its half-width\n"
+    "                     beyond it: the view crosses the reflector's edge, where its\n"
+    "                     curvature ends (the concave bowl's rim)\n"
     "  --frames N         frames along the path, 2..10000 (default 30)\n"
     "  --methods LIST     comma-separated method names (default: every built method\n"
     "                     but raytrace and direct)\n"
@@ -84,8 +100,8 @@ static int parse_path_options(int argc, char **argv, path_options *o) {
         } else if (!strcmp(a, "--builtin")) {
             o->builtin = v;
         } else if (!strcmp(a, "--path")) {
-            if (strcmp(v, "orbit") && strcmp(v, "dolly") && strcmp(v, "pan") && strcmp(v, "focus"))
-                return path_fail("--path: orbit, dolly, pan or focus, not ", v);
+            if (strcmp(v, "orbit") && strcmp(v, "dolly") && strcmp(v, "pan") && strcmp(v, "focus") && strcmp(v, "rim"))
+                return path_fail("--path: orbit, dolly, pan, focus or rim, not ", v);
             o->path = v;
         } else if (!strcmp(a, "--frames")) {
             if (sscanf(v, "%d%c", &o->frames, &extra) != 1 || o->frames < 2 || o->frames > 10000)
@@ -122,10 +138,34 @@ static int parse_path_options(int argc, char **argv, path_options *o) {
     return 0;
 }
 
+/* The world-space middle and half-width (along `side`) of the reflector
+   with the most triangles; 0 when the scene has none. */
+static float largest_reflector(const refl_scene *s, refl_vec3 side, refl_vec3 *middle) {
+    int i, best = -1, v;
+    float lo = 0.0f, hi = 0.0f;
+    refl_vec3 a = refl_v3(0, 0, 0), b = refl_v3(0, 0, 0);
+    for (i = 0; i < s->object_count; ++i)
+        if (s->materials[s->objects[i].material].type != REFL_DIFFUSE &&
+            (best < 0 || s->meshes[s->objects[i].mesh]->triangle_count > s->meshes[s->objects[best].mesh]->triangle_count))
+            best = i;
+    if (best < 0) return 0.0f;
+    for (v = 0; v < s->meshes[s->objects[best].mesh]->vertex_count; ++v) {
+        const float *q = s->meshes[s->objects[best].mesh]->positions + 3 * v;
+        refl_vec3 p = refl_mat4_point(s->objects[best].transform, refl_v3(q[0], q[1], q[2]));
+        float t = refl_v3_dot(p, side);
+        if (!v || t < lo) { lo = t; a = p; }
+        if (!v || t > hi) { hi = t; b = p; }
+    }
+    *middle = refl_v3_scale(refl_v3_add(a, b), 0.5f);
+    return 0.5f * (hi - lo);
+}
+
 /* Frame k of n along the path, from the scene's camera. */
 static refl_view path_view(const refl_scene *s, const path_options *o, int k) {
     refl_view v = s->camera;
     refl_vec3 off = refl_v3_sub(v.eye, v.target);
+    refl_vec3 up = refl_v3_length(v.up) > 0.0f ? v.up : refl_v3(0, 1, 0);
+    refl_vec3 side = refl_v3_normalize(refl_v3_cross(off, up));
     float u = (float)k / (float)(o->frames - 1);
     if (!strcmp(o->path, "orbit")) {
         float a = u * 1.04719755f, c = cosf(a), sn = sinf(a); /* 60 degrees about +y */
@@ -133,11 +173,16 @@ static refl_view path_view(const refl_scene *s, const path_options *o, int k) {
     } else if (!strcmp(o->path, "dolly") || !strcmp(o->path, "focus")) {
         float end = !strcmp(o->path, "dolly") ? 0.3f : 0.05f;
         v.eye = refl_v3_add(v.target, refl_v3_scale(off, 1.0f + (end - 1.0f) * u));
+    } else if (!strcmp(o->path, "rim")) { /* from the reflector's middle out over its edge */
+        refl_vec3 middle = v.target, shift;
+        float half = largest_reflector(s, side, &middle);
+        float along = refl_v3_dot(refl_v3_sub(middle, v.target), side);
+        shift = refl_v3_scale(side, along + 1.5f * half * u);
+        v.target = refl_v3_add(v.target, shift);
+        v.eye = refl_v3_add(v.target, refl_v3_scale(off, 0.5f));
     } else { /* pan: eye and target sideways, across half the view's width at the target */
         float fov = v.fovy_degrees > 0.0f ? v.fovy_degrees : 45.0f;
         float half = refl_v3_length(off) * tanf(fov * 0.00872664626f) * (float)o->width / (float)o->height;
-        refl_vec3 up = refl_v3_length(v.up) > 0.0f ? v.up : refl_v3(0, 1, 0);
-        refl_vec3 side = refl_v3_normalize(refl_v3_cross(off, up));
         refl_vec3 shift = refl_v3_scale(side, half * (u - 0.5f));
         v.eye = refl_v3_add(v.eye, shift);
         v.target = refl_v3_add(v.target, shift);
@@ -177,31 +222,73 @@ static int write_png(const char *dir, const char *method, int k, const refl_fram
     return r == REFL_OK;
 }
 
-/* One method's running totals along the path. */
-typedef struct path_totals {
-    double ms, mean_px, flicker_mean, flicker_p95, worst_flicker;
-    int worst_frame, frames;
-} path_totals;
+/* One method's figures for one frame (flicker: 0 at frame 0). */
+typedef struct path_sample {
+    double ms, psnr;
+    refl_reflection_error e;
+    refl_flicker fl;
+    int pop;
+} path_sample;
+
+enum { POP_FACTOR = 3, POP_WINDOW = 4 };
+static const double POP_FLICKER_FLOOR = 2.0, POP_ERROR_FLOOR = 0.25;
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The median of v[k - POP_WINDOW .. k + POP_WINDOW] without v[k], over
+   indices 1 .. n - 1 (v[0] is not a change). */
+static double local_median(const double *v, int n, int k) {
+    double near[2 * POP_WINDOW];
+    int j, m = 0;
+    for (j = k - POP_WINDOW; j <= k + POP_WINDOW; ++j)
+        if (j >= 1 && j < n && j != k) near[m++] = v[j];
+    if (!m) return 0.0;
+    qsort(near, (size_t)m, sizeof(double), cmp_double);
+    return m % 2 ? near[m / 2] : 0.5 * (near[m / 2 - 1] + near[m / 2]);
+}
+
+/* Marks the pops of one method's frames (the rule at the top of the file);
+   returns how many. */
+static int mark_pops(path_sample *f, int n) {
+    double *flicker = (double *)malloc((size_t)n * sizeof(double)), *moved = (double *)malloc((size_t)n * sizeof(double));
+    int k, pops = 0;
+    if (!flicker || !moved) {
+        free(flicker);
+        free(moved);
+        return 0;
+    }
+    for (k = 1; k < n; ++k) {
+        flicker[k] = f[k].fl.mean;
+        /* a frame where nothing matched has mean 0: no move to or from it */
+        moved[k] = f[k].e.matched && f[k - 1].e.matched ? fabs(f[k].e.mean - f[k - 1].e.mean) : 0.0;
+    }
+    for (k = 1; k < n; ++k) {
+        f[k].pop = (flicker[k] > POP_FACTOR * local_median(flicker, n, k) && flicker[k] > POP_FLICKER_FLOOR) ||
+                   (moved[k] > POP_FACTOR * local_median(moved, n, k) && moved[k] > POP_ERROR_FLOOR);
+        pops += f[k].pop;
+    }
+    free(flicker);
+    free(moved);
+    return pops;
+}
 
 int refl_cli_path(int argc, char **argv) {
     path_options o;
     refl_scene *s;
     refl_renderer *rr[REFL_METHOD_COUNT + 1] = {0};
     refl_frame *now[REFL_METHOD_COUNT + 1] = {0}, *prev[REFL_METHOD_COUNT + 1] = {0};
-    path_totals tot[REFL_METHOD_COUNT];
+    path_sample *samples = NULL; /* [method][frame] */
     char csv_path[1024];
     FILE *csv = NULL;
     int code = 1, k, m, r = parse_path_options(argc, argv, &o);
     if (r) return r == 1 ? 0 : 2;
     if (!(s = path_scene(&o))) return 1;
-    memset(tot, 0, sizeof tot);
     mkdir(o.out, 0777); /* may exist */
     snprintf(csv_path, sizeof csv_path, "%s/%s.csv", o.out, o.path);
-    if (!(csv = fopen(csv_path, "w"))) {
-        fprintf(stderr, "reflect path: cannot write %s\n", csv_path);
-        goto done;
-    }
-    fprintf(csv, "path,method,frame,ms,mean_px,p95_px,wrong,empty,psnr_db,flicker_mean,flicker_p95\n");
+    if (!(samples = (path_sample *)calloc((size_t)o.method_count * (size_t)o.frames, sizeof *samples))) goto done;
     /* renderer o.method_count is the truth's */
     for (m = 0; m <= o.method_count; ++m) {
         refl_render_desc d;
@@ -225,31 +312,18 @@ int refl_cli_path(int argc, char **argv) {
         }
         for (m = 0; m < o.method_count; ++m) {
             const char *name = refl_method_name(o.methods[m]);
-            refl_reflection_error e;
+            path_sample *f = &samples[(size_t)m * (size_t)o.frames + (size_t)k];
             refl_image_error ie;
-            refl_flicker fl;
             refl_result rm = refl_renderer_render(rr[m], &v, now[m]);
             if (rm != REFL_OK) {
                 fprintf(stderr, "reflect path: frame %d: %s: %s %s\n", k, name, refl_result_string(rm), now[m]->message);
                 goto done;
             }
-            refl_measure_reflection_error(now[m], truth, NULL, &e);
+            refl_measure_reflection_error(now[m], truth, NULL, &f->e);
             refl_measure_image_error(now[m], truth, 1, 0.0f, &ie);
-            memset(&fl, 0, sizeof fl);
-            if (k > 0) refl_measure_flicker(prev[m], now[m], prev[o.method_count], truth, &fl);
-            fprintf(csv, "%s,%s,%d,%.3f,%.4f,%.4f,%.5f,%.5f,%.3f,%.4f,%.1f\n", o.path, name, k, now[m]->stats.ms_total,
-                    e.mean, e.p95, e.wrong, e.empty, isinf(ie.psnr) ? 999.0 : ie.psnr, fl.mean, fl.p95);
-            tot[m].ms += now[m]->stats.ms_total;
-            tot[m].mean_px += e.mean;
-            tot[m].frames++;
-            if (k > 0) {
-                tot[m].flicker_mean += fl.mean;
-                tot[m].flicker_p95 += fl.p95;
-                if (fl.mean > tot[m].worst_flicker) {
-                    tot[m].worst_flicker = fl.mean;
-                    tot[m].worst_frame = k;
-                }
-            }
+            if (k > 0) refl_measure_flicker(prev[m], now[m], prev[o.method_count], truth, &f->fl);
+            f->ms = now[m]->stats.ms_total;
+            f->psnr = isinf(ie.psnr) ? 999.0 : ie.psnr;
             if (o.images && !write_png(o.out, name, k, now[m])) goto done;
         }
         if (o.images && !write_png(o.out, "raytrace", k, truth)) goto done;
@@ -261,21 +335,47 @@ int refl_cli_path(int argc, char **argv) {
         if (isatty(2)) fprintf(stderr, "\rreflect path: %s, frame %d of %d%s", o.path, k + 1, o.frames,
                                k + 1 == o.frames ? "\n" : "");
     }
-    printf("%-12s %10s %10s %14s %13s %s\n", "method", "mean ms", "mean px", "flicker mean", "flicker p95",
-           "worst frame (flicker)");
-    for (m = 0; m < o.method_count; ++m)
-        printf("%-12s %10.2f %10.3f %14.3f %13.2f %d (%.3f)\n", refl_method_name(o.methods[m]), tot[m].ms / tot[m].frames,
-               tot[m].mean_px / tot[m].frames, tot[m].flicker_mean / (tot[m].frames - 1),
-               tot[m].flicker_p95 / (tot[m].frames - 1), tot[m].worst_frame, tot[m].worst_flicker);
+    if (!(csv = fopen(csv_path, "w"))) {
+        fprintf(stderr, "reflect path: cannot write %s\n", csv_path);
+        goto done;
+    }
+    fprintf(csv, "path,method,frame,ms,mean_px,p95_px,wrong,empty,psnr_db,flicker_mean,flicker_p95,pop\n");
+    printf("%-12s %10s %10s %14s %13s %-22s %s\n", "method", "mean ms", "mean px", "flicker mean", "flicker p95",
+           "worst frame (flicker)", "pops (frames)");
+    for (m = 0; m < o.method_count; ++m) {
+        path_sample *f = &samples[(size_t)m * (size_t)o.frames];
+        double ms = 0.0, px = 0.0, fm = 0.0, fp = 0.0;
+        int worst = 1, pops = mark_pops(f, o.frames), printed = 0;
+        char worst_text[64];
+        for (k = 0; k < o.frames; ++k) {
+            fprintf(csv, "%s,%s,%d,%.3f,%.4f,%.4f,%.5f,%.5f,%.3f,%.4f,%.1f,%d\n", o.path, refl_method_name(o.methods[m]),
+                    k, f[k].ms, f[k].e.mean, f[k].e.p95, f[k].e.wrong, f[k].e.empty, f[k].psnr, f[k].fl.mean,
+                    f[k].fl.p95, f[k].pop);
+            ms += f[k].ms;
+            px += f[k].e.mean;
+            if (k > 0) {
+                fm += f[k].fl.mean;
+                fp += f[k].fl.p95;
+                if (f[k].fl.mean > f[worst].fl.mean) worst = k;
+            }
+        }
+        snprintf(worst_text, sizeof worst_text, "%d (%.3f)", worst, f[worst].fl.mean);
+        printf("%-12s %10.2f %10.3f %14.3f %13.2f %-22s %d", refl_method_name(o.methods[m]), ms / o.frames,
+               px / o.frames, fm / (o.frames - 1), fp / (o.frames - 1), worst_text, pops);
+        for (k = 1; k < o.frames; ++k)
+            if (f[k].pop && printed++ < 8) printf("%s%d", printed == 1 ? " (" : ", ", k);
+        printf("%s\n", printed > 8 ? ", ...)" : printed ? ")" : "");
+    }
     printf("per frame: %s\n", csv_path);
     code = 0;
 done:
-    if (csv) fclose(csv);
+    if (csv && fclose(csv) != 0) code = 1;
     for (m = 0; m <= o.method_count; ++m) {
         refl_renderer_destroy(rr[m]);
         refl_frame_destroy(now[m]);
         refl_frame_destroy(prev[m]);
     }
+    free(samples);
     refl_scene_destroy(s);
     return code;
 }
