@@ -1120,6 +1120,12 @@ typedef struct refl_spoc_frame_stats {
     long long max_steps;     /* the most one ray walked in one impostor */
 } refl_spoc_frame_stats;
 
+typedef struct refl_layered_em_frame_stats {
+    int maps_inferred;       /* viewpoint samples' maps inferred by this frame (or prebuild) */
+    int maps_kept;           /* maps this frame took as its renderer kept them */
+    int maps_held;           /* maps the renderer (or this frame, alone) holds after it */
+} refl_layered_em_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -1141,6 +1147,7 @@ typedef struct refl_stats {
     refl_sbc_frame_stats sbc;
     refl_graphcam_frame_stats graphcam;
     refl_spoc_frame_stats spoc;
+    refl_layered_em_frame_stats layered_em;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1610,7 +1617,7 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* A renderer lives across the frames of one scene and one desc (a camera
    path) and keeps what does not depend on the view: the thread pool, the
-   BVH, C3RC's points and kd-tree. What the scene's changes invalidate:
+   BVH, C3RC's points and kd-tree, LAYERED_EM's maps. What the scene's changes invalidate:
    every refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
    built at rebuilds them all; code that writes the scene's arrays itself
@@ -1625,6 +1632,16 @@ REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_re
                                           refl_renderer **out_renderer);
 REFL_API refl_result refl_renderer_render(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 REFL_API void refl_renderer_destroy(refl_renderer *renderer);
+/* Builds ahead what the renderer's frames around view will take as kept:
+   LAYERED_EM's maps of every viewpoint sample (layered_em.samples) on the
+   circle through view's eye, for every lens the desc's methods give
+   LAYERED_EM (the maps are per scene and sample, not per frame; inferring
+   them is most of a first frame's time). Other methods: nothing to build.
+   frame (view's size) receives the stats (ms_build, rays, layered_em) and
+   the message; its pixels are not an image. Reports progress through the
+   desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
+   stop (the maps finished so far stay kept). */
+REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
