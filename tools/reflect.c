@@ -40,7 +40,8 @@ static const char *const usage_main =
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
-    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots,\n"
+    "                     hybrid\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
     "                     graphcam or layered-em (paper 001, one shell layer)\n"
     "                     (in any case)\n"
