@@ -1126,6 +1126,13 @@ typedef struct refl_layered_em_frame_stats {
     int maps_inferred;       /* viewpoint samples' maps inferred by this frame (or prebuild) */
     int maps_kept;           /* maps this frame took as its renderer kept them */
     int maps_held;           /* maps the renderer (or this frame, alone) holds after it */
+    /* the frame's own work, the maps' inference aside (that is ms_build):
+       paper 001's section 6 phases */
+    double ms_trace;         /* tracing the tessellation's vertices (both greedy paths) */
+    double ms_tessellate;    /* the rest of the adaptive tessellation */
+    double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
+    long long vertices;      /* vertices traced */
+    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
 } refl_layered_em_frame_stats;
 
 typedef struct refl_stats {
@@ -1331,6 +1338,7 @@ typedef struct refl_lens_tess {
     int topology_splits;     /* of which because a path's topology changed */
     int junction_fixes;      /* leaves re-triangulated around a T-junction */
     long long rays;          /* visibility and path rays cast */
+    double ms_trace;         /* of its time, tracing the vertices (stats only) */
     refl_allocator allocator;
 } refl_lens_tess;
 
@@ -10176,17 +10184,20 @@ static void refl__lt_trace_job(void *arg, int job) {
     t->chunk_rays[job] = rays;
 }
 
-/* Traces vertices [first, vcount) on rc's threads. */
-static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, long long *rays) {
+/* Traces vertices [first, vcount) on rc's threads; the rays and the time
+   go into out's counts. */
+static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, refl_lens_tess *out) {
     int jobs = (t->vcount - first + REFL__LT_CHUNK - 1) / REFL__LT_CHUNK, j;
+    double t0 = refl__now_ms();
     if (jobs <= 0) return 1;
     t->chunk_rays = (long long *)refl__calloc(t->al, (size_t)jobs, sizeof(long long));
     if (!t->chunk_rays) return 0;
     t->trace_first = first;
     rast_run_jobs(rc, jobs, refl__lt_trace_job, t);
-    for (j = 0; j < jobs; ++j) *rays += t->chunk_rays[j];
+    for (j = 0; j < jobs; ++j) out->rays += t->chunk_rays[j];
     refl__free(t->al, t->chunk_rays);
     t->chunk_rays = NULL;
+    out->ms_trace += refl__now_ms() - t0;
     return 1;
 }
 
@@ -10352,7 +10363,7 @@ static int refl__lt_conform(refl__lt *t, rast_context *rc, refl_lens_tess *out, 
         }
     }
     refl__free(t->al, poly);
-    if (ok) ok = refl__lt_trace(t, rc, first_centre, &out->rays);
+    if (ok) ok = refl__lt_trace(t, rc, first_centre, out);
     out->indices = idx;
     out->triangle_count = count;
     return ok;
@@ -10445,12 +10456,12 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
         t.tris[t.tcount++] = lt;
         ++out->front_triangles;
     }
-    if (!refl__lt_trace(&t, rc, 0, &out->rays)) goto done;
+    if (!refl__lt_trace(&t, rc, 0, out)) goto done;
     /* level by level: decide in order, then trace the level's new vertices */
     while (first < t.tcount) {
         int end = t.tcount, traced = t.vcount;
         if (!refl__lt_level(&t, out, first, end, &leaves, &nleaves, &leaf_cap)) goto done;
-        if (!refl__lt_trace(&t, rc, traced, &out->rays)) goto done;
+        if (!refl__lt_trace(&t, rc, traced, out)) goto done;
         first = end;
     }
     if (!refl__lt_conform(&t, rc, out, leaves, nleaves)) goto done;
@@ -13688,7 +13699,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     float weight[2] = {1.0f, 0.0f}, lens_radius, *color[2] = {NULL, NULL}, *depth = NULL;
     uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
     refl_result r = REFL_OK;
-    double t0;
+    double t0, t1;
     memset(&frame_tess, 0, sizeof frame_tess);
     memset(&td, 0, sizeof td);
     td.edge_px = o->edge_px;
@@ -13716,11 +13727,16 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     if (!depth) r = REFL_ERROR_OUT_OF_MEMORY;
     /* the frame: tessellated for the eye, both terms from each map */
     if (r == REFL_OK) {
+        t1 = refl__now_ms();
         frame_tess.allocator = *al;
         r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &frame_tess);
         f->stats.rays += frame_tess.rays;
         f->stats.triangles += frame_tess.triangle_count;
+        f->stats.layered_em.vertices += frame_tess.vertex_count;
+        f->stats.layered_em.ms_trace += frame_tess.ms_trace;
+        f->stats.layered_em.ms_tessellate += refl__now_ms() - t1 - frame_tess.ms_trace;
     }
+    t1 = refl__now_ms();
     for (s = 0; s < n && r == REFL_OK; ++s) {
         const refl__lem_map *m = &maps->maps[at[s]];
         memset(&dr, 0, sizeof dr);
@@ -13734,11 +13750,13 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         if (f->stencil[px] != ref) continue;
         if (!(color[0][4 * px + 3] > 0.0f)) {
             marked[px] = 1; /* no triangle here: traced */
+            f->stats.layered_em.traced_pixels++;
             continue;
         }
         for (s = 0; s < n; ++s)
             for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[s][4 * px + (size_t)k];
     }
+    f->stats.layered_em.ms_draw += refl__now_ms() - t1;
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, frame_tess.vertices);
     refl__free(al, frame_tess.indices);

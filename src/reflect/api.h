@@ -1124,6 +1124,13 @@ typedef struct refl_layered_em_frame_stats {
     int maps_inferred;       /* viewpoint samples' maps inferred by this frame (or prebuild) */
     int maps_kept;           /* maps this frame took as its renderer kept them */
     int maps_held;           /* maps the renderer (or this frame, alone) holds after it */
+    /* the frame's own work, the maps' inference aside (that is ms_build):
+       paper 001's section 6 phases */
+    double ms_trace;         /* tracing the tessellation's vertices (both greedy paths) */
+    double ms_tessellate;    /* the rest of the adaptive tessellation */
+    double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
+    long long vertices;      /* vertices traced */
+    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
 } refl_layered_em_frame_stats;
 
 typedef struct refl_stats {
@@ -1329,6 +1336,7 @@ typedef struct refl_lens_tess {
     int topology_splits;     /* of which because a path's topology changed */
     int junction_fixes;      /* leaves re-triangulated around a T-junction */
     long long rays;          /* visibility and path rays cast */
+    double ms_trace;         /* of its time, tracing the vertices (stats only) */
     refl_allocator allocator;
 } refl_lens_tess;
 

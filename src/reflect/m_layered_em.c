@@ -549,7 +549,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     float weight[2] = {1.0f, 0.0f}, lens_radius, *color[2] = {NULL, NULL}, *depth = NULL;
     uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
     refl_result r = REFL_OK;
-    double t0;
+    double t0, t1;
     memset(&frame_tess, 0, sizeof frame_tess);
     memset(&td, 0, sizeof td);
     td.edge_px = o->edge_px;
@@ -577,11 +577,16 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     if (!depth) r = REFL_ERROR_OUT_OF_MEMORY;
     /* the frame: tessellated for the eye, both terms from each map */
     if (r == REFL_OK) {
+        t1 = refl__now_ms();
         frame_tess.allocator = *al;
         r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &frame_tess);
         f->stats.rays += frame_tess.rays;
         f->stats.triangles += frame_tess.triangle_count;
+        f->stats.layered_em.vertices += frame_tess.vertex_count;
+        f->stats.layered_em.ms_trace += frame_tess.ms_trace;
+        f->stats.layered_em.ms_tessellate += refl__now_ms() - t1 - frame_tess.ms_trace;
     }
+    t1 = refl__now_ms();
     for (s = 0; s < n && r == REFL_OK; ++s) {
         const refl__lem_map *m = &maps->maps[at[s]];
         memset(&dr, 0, sizeof dr);
@@ -595,11 +600,13 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         if (f->stencil[px] != ref) continue;
         if (!(color[0][4 * px + 3] > 0.0f)) {
             marked[px] = 1; /* no triangle here: traced */
+            f->stats.layered_em.traced_pixels++;
             continue;
         }
         for (s = 0; s < n; ++s)
             for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[s][4 * px + (size_t)k];
     }
+    f->stats.layered_em.ms_draw += refl__now_ms() - t1;
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, frame_tess.vertices);
     refl__free(al, frame_tess.indices);
