@@ -1627,8 +1627,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* A renderer lives across the frames of one scene and one desc (a camera
    path) and keeps what does not depend on the view: the thread pool, the
-   BVH, C3RC's points and kd-tree, LAYERED_EM's maps. What the scene's changes invalidate:
-   every refl_scene_* function that changes the scene bumps scene->version,
+   BVH, C3RC's points and kd-tree, LAYERED_EM's maps of the viewpoint
+   samples its frames used. What the scene's changes invalidate: every
+   refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
    built at rebuilds them all; code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
@@ -1650,7 +1651,8 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). */
+   stop (the maps finished so far stay kept). A renderer keeps up to 512
+   MiB of maps: past that, a frame drops the oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
@@ -13451,11 +13453,30 @@ static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps 
     refl__free(al, m);
 }
 
+/* RGBA floats on six faces. */
+static long long refl__lem_map_bytes(const refl__lem_map *m) { return 96LL * m->shell.face_size * m->shell.face_size; }
+
 static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     long long b = 0;
     int k;
-    for (k = 0; m && k < m->count; ++k) b += 24LL * m->maps[k].shell.face_size * m->maps[k].shell.face_size * 4;
+    for (k = 0; m && k < m->count; ++k) b += refl__lem_map_bytes(&m->maps[k]);
     return b;
+}
+
+/* What a renderer keeps of maps at the start of a frame: the oldest go
+   first past this (a dolly or a crane makes new samples every frame; a
+   dropped map is inferred again, the same bytes, when a frame needs it). */
+#define REFL__LEM_KEPT_BYTES (512LL << 20)
+
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+    int drop = 0, k;
+    long long bytes = refl__lem_maps_bytes(m);
+    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+        bytes -= refl__lem_map_bytes(&m->maps[drop]);
+        refl__free(al, m->maps[drop++].texels);
+    }
+    for (k = drop; k < m->count; ++k) m->maps[k - drop] = m->maps[k];
+    m->count -= drop;
 }
 
 static int refl__lem_same_view(const refl_view *a, const refl_view *b) {
@@ -13790,6 +13811,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl_result r = refl__lem_caster(p, &caster, &owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)

@@ -1625,8 +1625,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* A renderer lives across the frames of one scene and one desc (a camera
    path) and keeps what does not depend on the view: the thread pool, the
-   BVH, C3RC's points and kd-tree, LAYERED_EM's maps. What the scene's changes invalidate:
-   every refl_scene_* function that changes the scene bumps scene->version,
+   BVH, C3RC's points and kd-tree, LAYERED_EM's maps of the viewpoint
+   samples its frames used. What the scene's changes invalidate: every
+   refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
    built at rebuilds them all; code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
@@ -1648,7 +1649,8 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). */
+   stop (the maps finished so far stay kept). A renderer keeps up to 512
+   MiB of maps: past that, a frame drops the oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */

@@ -301,11 +301,30 @@ static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps 
     refl__free(al, m);
 }
 
+/* RGBA floats on six faces. */
+static long long refl__lem_map_bytes(const refl__lem_map *m) { return 96LL * m->shell.face_size * m->shell.face_size; }
+
 static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     long long b = 0;
     int k;
-    for (k = 0; m && k < m->count; ++k) b += 24LL * m->maps[k].shell.face_size * m->maps[k].shell.face_size * 4;
+    for (k = 0; m && k < m->count; ++k) b += refl__lem_map_bytes(&m->maps[k]);
     return b;
+}
+
+/* What a renderer keeps of maps at the start of a frame: the oldest go
+   first past this (a dolly or a crane makes new samples every frame; a
+   dropped map is inferred again, the same bytes, when a frame needs it). */
+#define REFL__LEM_KEPT_BYTES (512LL << 20)
+
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+    int drop = 0, k;
+    long long bytes = refl__lem_maps_bytes(m);
+    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+        bytes -= refl__lem_map_bytes(&m->maps[drop]);
+        refl__free(al, m->maps[drop++].texels);
+    }
+    for (k = drop; k < m->count; ++k) m->maps[k - drop] = m->maps[k];
+    m->count -= drop;
 }
 
 static int refl__lem_same_view(const refl_view *a, const refl_view *b) {
@@ -640,6 +659,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl_result r = refl__lem_caster(p, &caster, &owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
