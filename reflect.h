@@ -1635,7 +1635,11 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene, and what
+   points would otherwise be re-sampled every frame), and LAYERED_EM's
+   circle of viewpoint samples around a lens is the one through the eye of
+   the first frame (or prebuild) that drew the lens (the paper's maps are
+   parameterised by one circle; later eyes off it take the samples of their
+   azimuth on it). The scene, and what
    the desc points to (object_methods, sbc.morphs), must outlive the
    renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;
@@ -13440,9 +13444,17 @@ typedef struct refl__lem_map {
     float *texels;               /* 4 floats per texel of the shell */
 } refl__lem_map;
 
+/* A lens's circle of viewpoint samples as a renderer fixed it. */
+typedef struct refl__lem_ring {
+    int object;
+    float rho, height;
+} refl__lem_ring;
+
 struct refl__lem_maps {
     refl__lem_map *maps;
     int count;
+    refl__lem_ring *rings;       /* a renderer's: the circle of each lens, from its first frame */
+    int ring_count;
 };
 
 static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m) {
@@ -13450,6 +13462,7 @@ static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps 
     if (!m) return;
     for (k = 0; k < m->count; ++k) refl__free(al, m->maps[k].texels);
     refl__free(al, m->maps);
+    refl__free(al, m->rings);
     refl__free(al, m);
 }
 
@@ -13646,11 +13659,14 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster
 
 /* ---- viewpoint samples ------------------------------------------------------------- */
 
-/* The circle of viewpoint samples around c through view v's eye, level
-   with it: its radius and height snapped to 1/1024 of the lens's radius, so
-   that every frame of an orbit, and a fresh renderer at any of them, puts
-   the samples at exactly the same views. 0 when the eye is on the circle's
-   axis. */
+/* The circle of viewpoint samples around c, level with the eye and
+   through it: its radius and height snapped to 1/1024 of the lens's
+   radius, so that every frame of an orbit, and a fresh renderer at any of
+   them, puts the samples at exactly the same views. A renderer fixes each
+   lens's circle at the first frame (or prebuild) that draws it (rings),
+   as the paper parameterises its maps by one circle: later eyes off it
+   take the samples of their azimuth on it. 0 when the eye is on the
+   circle's axis (its azimuth undefined). */
 typedef struct refl__lem_circle {
     refl_vec3 c;
     float rho, height;
@@ -13658,10 +13674,13 @@ typedef struct refl__lem_circle {
     int samples, per;            /* per: views a map is inferred from (1, or 3 multi-view) */
 } refl__lem_circle;
 
-static int refl__lem_circle_of(const refl__pass *p, refl_vec3 c, float lens_radius, refl__lem_circle *out) {
+static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, float lens_radius,
+                               struct refl__lem_maps *rings, refl__lem_circle *out) {
     const refl_view *v = p->view;
     float dx = v->eye.x - c.x, dz = v->eye.z - c.z, rho = sqrtf(dx * dx + dz * dz);
     float grid = REFL__MAX(lens_radius, 1e-6f) / 1024.0f;
+    refl__lem_ring ring;
+    int k;
     out->c = c;
     out->samples = p->desc.layered_em.samples > 0 ? p->desc.layered_em.samples : 45;
     out->per = p->desc.layered_em.single_view ? 1 : 3;
@@ -13670,8 +13689,20 @@ static int refl__lem_circle_of(const refl__pass *p, refl_vec3 c, float lens_radi
     if (out->phi < 0.0) out->phi += 2.0 * REFL__PI;
     out->rho = roundf(rho / grid) * grid;
     out->height = roundf(v->eye.y / grid) * grid;
-    return rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))) && out->rho > 0.0f &&
-           refl__isfinite(out->height);
+    if (!(rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))) && out->rho > 0.0f &&
+          refl__isfinite(out->height)))
+        return 0;
+    for (k = 0; rings && k < rings->ring_count; ++k)
+        if (rings->rings[k].object == object) {
+            out->rho = rings->rings[k].rho;
+            out->height = rings->rings[k].height;
+            return 1;
+        }
+    ring.object = object;
+    ring.rho = out->rho;
+    ring.height = out->height;
+    if (rings) refl__push(&p->scene->allocator, (void **)&rings->rings, &rings->ring_count, sizeof ring, &ring);
+    return 1; /* a ring not kept (no memory) only costs later frames their reuse */
 }
 
 /* The views sample k's map is inferred from: the sample's own (at azimuth
@@ -13727,7 +13758,8 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
     refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-    if (!refl__lem_circle_of(p, centre, lens_radius, &cc)) { /* on the axis: the eye's own view, one map */
+    if (!refl__lem_circle_of(p, i, centre, lens_radius, p->models ? maps : NULL, &cc)) {
+        /* on the axis: the eye's own view, one map */
         views[0] = *p->view;
         r = refl__lem_map_of(p, caster, i, views, 1, maps, &at[0]);
     } else {
@@ -13849,7 +13881,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
         float lens_radius;
         if (!refl__pass_draws(p, i)) continue;
         refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-        if (!refl__lem_circle_of(p, centre, lens_radius, &cc)) {
+        if (!refl__lem_circle_of(p, i, centre, lens_radius, maps, &cc)) {
             views[0] = *p->view;
             r = refl__lem_map_of(p, &caster, i, views, 1, maps, &at);
             ++done;

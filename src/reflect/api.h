@@ -1633,7 +1633,11 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene, and what
+   points would otherwise be re-sampled every frame), and LAYERED_EM's
+   circle of viewpoint samples around a lens is the one through the eye of
+   the first frame (or prebuild) that drew the lens (the paper's maps are
+   parameterised by one circle; later eyes off it take the samples of their
+   azimuth on it). The scene, and what
    the desc points to (object_methods, sbc.morphs), must outlive the
    renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;

@@ -359,6 +359,14 @@ Test(layered_em, a_kept_renderer_reuses_its_maps_with_a_fresh_ones_bytes) {
     fresh = tu_refl_render(s, &v30, &d);
     cr_assert_eq(tu_refl_digest(f), tu_refl_digest(fresh), "kept maps give a fresh renderer's bytes");
     cr_assert_eq(fresh->stats.layered_em.maps_inferred, 2);
+    {
+        /* nearer the lens and higher: the first frame's circle of samples still serves */
+        refl_view near = tu_refl_view(refl_v3(2.5f * sinf(20.0f * DEG), 1.0f, 2.5f * cosf(20.0f * DEG)),
+                                      refl_v3(0, 0, 0), 48, 36);
+        cr_assert_eq(refl_renderer_render(rr, &near, f), REFL_OK);
+        cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "an eye off the circle takes its samples");
+        cr_assert_eq(f->stats.layered_em.maps_kept, 2);
+    }
     refl_scene_touch(s);
     cr_assert_eq(refl_renderer_render(rr, &v30, f), REFL_OK);
     cr_assert_eq(f->stats.layered_em.maps_inferred, 2, "a changed scene drops the maps");
