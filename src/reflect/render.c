@@ -623,6 +623,7 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl_result r;
     double t0 = refl__now_ms();
     int side, i, lem = 0;
+    uint8_t *mine;
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
     frame->message = "";
     if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
@@ -635,14 +636,15 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl__models_current(rr);
     memset(&target->stats, 0, sizeof target->stats);
     refl__pass_init(&p, rr->scene, &fine_view, &rr->desc, target, rr->rc, &rr->models);
-    p.mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
-    if (!p.mine) return REFL_ERROR_OUT_OF_MEMORY;
+    mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p.mine = mine;
     for (i = 0; i < rr->scene->object_count; ++i) {
-        ((uint8_t *)p.mine)[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
-        lem |= p.mine[i] && refl__pass_draws(&p, i);
+        mine[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
+        lem |= mine[i] && refl__pass_draws(&p, i);
     }
     if (lem) r = refl__prebuild_layered_em(&p);
-    refl__free(&rr->scene->allocator, (void *)p.mine);
+    refl__free(&rr->scene->allocator, mine);
     if (target != frame) frame->stats = target->stats;
     frame->stats.ms_total = refl__now_ms() - t0;
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
