@@ -1122,6 +1122,19 @@ typedef struct refl_spoc_frame_stats {
     long long max_steps;     /* the most one ray walked in one impostor */
 } refl_spoc_frame_stats;
 
+typedef struct refl_layered_em_frame_stats {
+    int maps_inferred;       /* viewpoint samples' maps inferred by this frame (or prebuild) */
+    int maps_kept;           /* maps this frame took as its renderer kept them */
+    int maps_held;           /* maps the renderer (or this frame, alone) holds after it */
+    /* the frame's own work, the maps' inference aside (that is ms_build):
+       paper 001's section 6 phases */
+    double ms_trace;         /* tracing the tessellation's vertices (both greedy paths) */
+    double ms_tessellate;    /* the rest of the adaptive tessellation */
+    double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
+    long long vertices;      /* vertices traced */
+    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
+} refl_layered_em_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -1145,6 +1158,7 @@ typedef struct refl_stats {
     refl_sbc_frame_stats sbc;
     refl_graphcam_frame_stats graphcam;
     refl_spoc_frame_stats spoc;
+    refl_layered_em_frame_stats layered_em;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1326,6 +1340,7 @@ typedef struct refl_lens_tess {
     int topology_splits;     /* of which because a path's topology changed */
     int junction_fixes;      /* leaves re-triangulated around a T-junction */
     long long rays;          /* visibility and path rays cast */
+    double ms_trace;         /* of its time, tracing the vertices (stats only) */
     refl_allocator allocator;
 } refl_lens_tess;
 
@@ -1614,14 +1629,19 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* A renderer lives across the frames of one scene and one desc (a camera
    path) and keeps what does not depend on the view: the thread pool, the
-   BVH, C3RC's points and kd-tree. What the scene's changes invalidate:
-   every refl_scene_* function that changes the scene bumps scene->version,
+   BVH, C3RC's points and kd-tree, LAYERED_EM's maps of the viewpoint
+   samples its frames used. What the scene's changes invalidate: every
+   refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
    built at rebuilds them all; code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene, and what
+   points would otherwise be re-sampled every frame), and LAYERED_EM's
+   circle of viewpoint samples around a lens is the one through the eye of
+   the first frame (or prebuild) that drew the lens (the paper's maps are
+   parameterised by one circle; later eyes off it take the samples of their
+   azimuth on it). The scene, and what
    the desc points to (object_methods, sbc.morphs), must outlive the
    renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;
@@ -1629,6 +1649,17 @@ REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_re
                                           refl_renderer **out_renderer);
 REFL_API refl_result refl_renderer_render(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 REFL_API void refl_renderer_destroy(refl_renderer *renderer);
+/* Builds ahead what the renderer's frames around view will take as kept:
+   LAYERED_EM's maps of every viewpoint sample (layered_em.samples) on the
+   circle through view's eye, for every lens the desc's methods give
+   LAYERED_EM (the maps are per scene and sample, not per frame; inferring
+   them is most of a first frame's time). Other methods: nothing to build.
+   frame (view's size) receives the stats (ms_build, rays, layered_em) and
+   the message; its pixels are not an image. Reports progress through the
+   desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
+   stop (the maps finished so far stay kept). A renderer keeps up to 512
+   MiB of maps: past that, a frame drops the oldest first. */
+REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
@@ -1897,6 +1928,7 @@ typedef struct refl__models {
     refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
     struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
     float c3_density;             /* the density they were sampled at; 0: none yet */
+    struct refl__lem_maps *lem;   /* LAYERED_EM's inferred maps, per viewpoint sample (m_layered_em.c) */
 } refl__models;
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
@@ -2305,7 +2337,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
    does not meet `object` first; else per term the target (rgba) and its
    confidence (-1: none) in out[5 term ...], environment hit distances
    from `centre` summed into *dist_sum, *dist_n. */
-static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays);
@@ -2336,6 +2368,11 @@ static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__method_layered_em(refl__pass *p);
+/* LAYERED_EM's maps of every viewpoint sample around the pass's eye, for
+   the lenses the pass draws, into p->models (refl_renderer_prebuild). */
+static refl_result refl__prebuild_layered_em(refl__pass *p);
+/* Frees what refl__models keeps of LAYERED_EM (m_layered_em.c). */
+static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
@@ -10067,22 +10104,22 @@ static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_cast
    the term) and its confidence (-1: no subsample has the term) in
    out[5 term .. 5 term + 4]. Each environment hit adds its distance from
    `centre` to *dist_sum and one to *dist_n. */
-static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays) {
     refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
     refl_greedy_paths_result sub;
-    float sum[2][3];
+    float sum[2][3], tmax;
     int n[2] = {0, 0}, i, j, k, term;
-    refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
+    refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
     refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
     if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
     memset(sum, 0, sizeof sum);
     for (j = 0; j < ss; ++j)
         for (i = 0; i < ss; ++i) {
-            refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss, (float)y + ((float)j + 0.5f) / (float)ss,
-                          &o, &d, NULL);
+            refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
+                                (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
             refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
@@ -10115,6 +10152,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
                                           const refl_lem_shell *shell, const refl_lem_record_desc *desc,
                                           refl_lem_record_stats *stats) {
     refl_lem_record_stats st;
+    refl__view_rays rays;
     int ss, x, y, term;
     refl_result r = REFL_OK;
     double dist_sum = 0.0;
@@ -10126,11 +10164,12 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
     if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
     ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
+    refl__view_rays_init(&rays, view, scene);
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
             refl_greedy_paths_result centre;
             float rec[10];
-            if (!refl__lem_pixel_records(scene, caster, view, x, y, desc->object, ss, desc->theta_c_degrees,
+            if (!refl__lem_pixel_records(scene, caster, &rays, x, y, desc->object, ss, desc->theta_c_degrees,
                                          desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
                                          &st.rays))
                 continue;
@@ -10344,17 +10383,20 @@ static void refl__lt_trace_job(void *arg, int job) {
     t->chunk_rays[job] = rays;
 }
 
-/* Traces vertices [first, vcount) on rc's threads. */
-static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, long long *rays) {
+/* Traces vertices [first, vcount) on rc's threads; the rays and the time
+   go into out's counts. */
+static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, refl_lens_tess *out) {
     int jobs = (t->vcount - first + REFL__LT_CHUNK - 1) / REFL__LT_CHUNK, j;
+    double t0 = refl__now_ms();
     if (jobs <= 0) return 1;
     t->chunk_rays = (long long *)refl__calloc(t->al, (size_t)jobs, sizeof(long long));
     if (!t->chunk_rays) return 0;
     t->trace_first = first;
     rast_run_jobs(rc, jobs, refl__lt_trace_job, t);
-    for (j = 0; j < jobs; ++j) *rays += t->chunk_rays[j];
+    for (j = 0; j < jobs; ++j) out->rays += t->chunk_rays[j];
     refl__free(t->al, t->chunk_rays);
     t->chunk_rays = NULL;
+    out->ms_trace += refl__now_ms() - t0;
     return 1;
 }
 
@@ -10520,7 +10562,7 @@ static int refl__lt_conform(refl__lt *t, rast_context *rc, refl_lens_tess *out, 
         }
     }
     refl__free(t->al, poly);
-    if (ok) ok = refl__lt_trace(t, rc, first_centre, &out->rays);
+    if (ok) ok = refl__lt_trace(t, rc, first_centre, out);
     out->indices = idx;
     out->triangle_count = count;
     return ok;
@@ -10613,12 +10655,12 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
         t.tris[t.tcount++] = lt;
         ++out->front_triangles;
     }
-    if (!refl__lt_trace(&t, rc, 0, &out->rays)) goto done;
+    if (!refl__lt_trace(&t, rc, 0, out)) goto done;
     /* level by level: decide in order, then trace the level's new vertices */
     while (first < t.tcount) {
         int end = t.tcount, traced = t.vcount;
         if (!refl__lt_level(&t, out, first, end, &leaves, &nleaves, &leaf_cap)) goto done;
-        if (!refl__lt_trace(&t, rc, traced, &out->rays)) goto done;
+        if (!refl__lt_trace(&t, rc, traced, out)) goto done;
         first = end;
     }
     if (!refl__lt_conform(&t, rc, out, leaves, nleaves)) goto done;
@@ -13311,30 +13353,34 @@ static refl_result refl__method_graphcam(refl__pass *p) {
 }
 /* ---- src/reflect/m_layered_em.c ---- */
 /* LAYERED_EM: Hakura and Snyder's hybrid rendering (paper 001) with one
-   environment layer. Per lens object (a reflector of this pass) and frame:
+   environment layer. Per lens object (a reflector of this pass):
 
    1. the viewpoint samples: points on a circle around the lens's centre
       through the eye, at its height, `samples` of them evenly; the two
       bracketing the eye's azimuth are used, blended by angular distance;
-   2. per sample, the records (section 4.1: greedy paths of every lens
-      pixel, the radiance where their exit rays meet the scene) give the
-      targets; the shell's radius is the mean distance of those hits from
-      the centre (LBG with one cluster);
-   3. per sample, the lens is tessellated (lens_tess.c) and drawn with
-      rast.h at the sample's view, interpolating each vertex's shell index
-      (exit ray's hit on the shell minus the centre) as the runtime does:
-      each pixel's lookup of that index is its row of the rendering matrix,
-      so the matrix is exactly how the runtime samples the map; C A x = C b
-      is solved by CGLS (lem_infer.c);
-   4. the frame: the lens tessellated for the eye, drawn with per-vertex
-      F G and shell indices of both terms, each fragment T F_T G_T + R F_R
-      G_R from the blended maps, added over the base pass where the lens
-      shows; lens pixels no triangle covered are ray traced.
+   2. each sample's map (per scene and sample, not per frame: a renderer
+      keeps them in its models, keyed by the object, the sample's view, the
+      options and the depth; refl_renderer_prebuild infers them all):
+      a. the records (section 4.1: greedy paths of every lens pixel, the
+         radiance where their exit rays meet the scene) give the targets;
+         the shell's radius is the mean distance of those hits from the
+         centre (LBG with one cluster);
+      b. the lens is tessellated (lens_tess.c) and drawn with rast.h at
+         the sample's views, interpolating each vertex's shell index (exit
+         ray's hit on the shell minus the centre) as the runtime does: each
+         pixel's lookup of that index is its row of the rendering matrix,
+         so the matrix is exactly how the runtime samples the map;
+         C A x = C b is solved by CGLS (lem_infer.c);
+   3. the frame: the lens tessellated for the eye, drawn once per map with
+      per-vertex F G and that map's shell indices of both terms, each
+      fragment the map's weight times T F_T G_T + R F_R G_R, the draws
+      added over the base pass where the lens shows; lens pixels no
+      triangle covered are ray traced.
 
-   Every stage runs in a fixed order or per pixel, so any thread count
-   gives the same bytes. Left out (see the issue): several layers by LBG,
-   quads, continued rays, multi-view and direct images, maps kept across
-   frames. */
+   Every stage runs in a fixed order or per pixel, and a map depends only on
+   what keys it, so any thread count, and a kept map or a fresh one, gives
+   the same bytes. Left out (see the issue): several layers by LBG, quads,
+   continued rays, direct images. */
 
 enum { REFL__LEM_VARYINGS = 14 }; /* per term: shell index (3), F G (3); then both terms' presence */
 
@@ -13372,28 +13418,28 @@ static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, r
     return refl__v3_finite(*index) && t >= 0.0f;
 }
 
-/* What the lens's draws share: the shell, the maps of the samples and
-   their blend weights, and the term drawn in record mode. */
+/* What one draw of the lens shares: the shell, the map it looks up and
+   the map's blend weight, and the term drawn in record mode. */
 typedef struct refl__lem_draw {
     refl_lem_shell shell;
-    const float *maps[2];
-    float weight[2];
+    const float *map;
+    float weight;
     int record_term;             /* 0, 1: write that term's index; -1: shade */
 } refl__lem_draw;
 
-static float refl__lem_sample(const refl__lem_draw *dr, const float *map, refl_vec3 index, int c) {
+static float refl__lem_sample(const refl__lem_draw *dr, refl_vec3 index, int c) {
     uint32_t tex[4];
     float w[4], l = 0.0f;
     int k;
     if (!refl_lem_shell_lookup(&dr->shell, dr->shell.center, index, tex, w)) return 0.0f;
-    for (k = 0; k < 4; ++k) l += w[k] * map[4 * tex[k] + (uint32_t)c];
+    for (k = 0; k < 4; ++k) l += w[k] * dr->map[4 * tex[k] + (uint32_t)c];
     return l;
 }
 
 static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__lem_draw *dr = (const refl__lem_draw *)user;
     const float *v = in->varyings;
-    int term, c, s;
+    int term, c;
     if (dr->record_term >= 0) {
         const float *t = v + 6 * dr->record_term;
         rgba[0] = t[0];
@@ -13407,13 +13453,8 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
     for (term = 0; term < 2; ++term) {
         const float *t = v + 6 * term;
         refl_vec3 index = refl_v3(t[0], t[1], t[2]);
-        for (c = 0; c < 3; ++c) {
-            float l = 0.0f;
-            if (!(t[3 + c] > 0.0f)) continue;
-            for (s = 0; s < 2; ++s)
-                if (dr->weight[s] > 0.0f) l += dr->weight[s] * refl__lem_sample(dr, dr->maps[s], index, c);
-            rgba[c] += t[3 + c] * l;
-        }
+        for (c = 0; c < 3; ++c)
+            if (t[3 + c] > 0.0f) rgba[c] += t[3 + c] * (dr->weight * refl__lem_sample(dr, index, c));
     }
     return 1;
 }
@@ -13503,7 +13544,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
 typedef struct refl__lem_records {
     const refl_scene *scene;
     const refl_ray_caster *caster;
-    const refl_view *view;
+    refl__view_rays rays;
     int object, ss, max_interfaces;
     float theta_c;
     refl_vec3 centre;
@@ -13515,12 +13556,12 @@ typedef struct refl__lem_records {
 
 static void refl__lem_records_row(void *arg, int y) {
     refl__lem_records *r = (refl__lem_records *)arg;
-    int x, w = r->view->width;
+    int x, w = r->rays.width;
     for (x = 0; x < w; ++x) {
         float *out = r->rec + 10 * ((size_t)y * (size_t)w + (size_t)x);
         refl_greedy_paths_result centre;
         if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
-            !refl__lem_pixel_records(r->scene, r->caster, r->view, x, y, r->object, r->ss, r->theta_c,
+            !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
                                      r->max_interfaces, r->centre, out, &centre, &r->row_dist[y], &r->row_hits[y],
                                      &r->row_rays[y]))
             out[4] = out[9] = -1.0f;
@@ -13554,9 +13595,8 @@ static void refl__lem_screen_rect(refl_mat4 vp, refl_vec3 lo, refl_vec3 hi, int 
     rect[3] = (int)REFL__CLAMP(ceilf(y1) + 1.0f, 0.0f, (float)h);
 }
 
-/* One viewpoint sample of a lens object. */
+/* One view whose records a map is inferred from. */
 typedef struct refl__lem_sample_view {
-    refl_view view;
     refl_mat4 vp;
     refl_lens_tess tess;
     float *rec;
@@ -13587,85 +13627,128 @@ static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, 
     *radius = 0.5f * refl_v3_length(refl_v3_sub(whi, wlo));
 }
 
-/* The views whose records infer the maps of the two samples bracketing
-   the eye's azimuth around centre c: per sample, the sample itself and,
-   with multi-view inference, the views half a spacing either side (the
-   paper's simultaneous inference against disocclusion), `per` views per
-   sample; the samples' blend weights. One sample, the eye's own view, when
-   the eye is on the circle's axis. The sample count. */
-static int refl__lem_views(const refl__pass *p, refl_vec3 c, int samples, int multiview, refl_view out[6], int *per,
-                           float weight[2]) {
-    const refl_view *v = p->view;
-    float dx = v->eye.x - c.x, dz = v->eye.z - c.z, rho = sqrtf(dx * dx + dz * dz);
-    double step = 2.0 * REFL__PI / samples, phi = atan2((double)dx, (double)dz), f;
-    int k0, k, j, n;
-    for (k = 0; k < 6; ++k) out[k] = *v;
-    weight[0] = 1.0f;
-    weight[1] = 0.0f;
-    *per = 1;
-    if (!(rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))))) return 1;
-    if (phi < 0.0) phi += 2.0 * REFL__PI;
-    f = phi / step;
-    k0 = (int)floor(f);
-    weight[1] = (float)(f - k0);
-    weight[0] = 1.0f - weight[1];
-    n = weight[1] > 0.0f ? 2 : 1;
-    *per = multiview ? 3 : 1;
-    for (k = 0; k < n; ++k)
-        for (j = 0; j < *per; ++j) {
-            refl_view *o = &out[k * *per + j];
-            double a = (k0 + k) * step + (j == 0 ? 0.0 : j == 1 ? -0.5 * step : 0.5 * step);
-            o->eye = refl_v3(c.x + rho * (float)sin(a), v->eye.y, c.z + rho * (float)cos(a));
-            o->target = c;
-        }
-    return n;
+/* ---- the maps a renderer keeps ---------------------------------------------------- */
+
+/* One viewpoint sample's inferred map and what shaped it: the lens
+   object, the sample's view, the options and the bounces. A map depends on
+   nothing else (the scene's version aside, which drops them all), so a
+   frame that needs it again takes it as it is. */
+typedef struct refl__lem_map {
+    int object, depth;
+    refl_view view;
+    refl_layered_em_options options;
+    refl_lem_shell shell;
+    float *texels;               /* 4 floats per texel of the shell */
+} refl__lem_map;
+
+/* A lens's circle of viewpoint samples as a renderer fixed it. */
+typedef struct refl__lem_ring {
+    int object;
+    float rho, height;
+} refl__lem_ring;
+
+struct refl__lem_maps {
+    refl__lem_map *maps;
+    int count;
+    refl__lem_ring *rings;       /* a renderer's: the circle of each lens, from its first frame */
+    int ring_count;
+};
+
+static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m) {
+    int k;
+    if (!m) return;
+    for (k = 0; k < m->count; ++k) refl__free(al, m->maps[k].texels);
+    refl__free(al, m->maps);
+    refl__free(al, m->rings);
+    refl__free(al, m);
 }
 
-/* Lens object i: samples, maps, the frame's draw. marked: lens pixels
-   left to the tracer. */
-static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, uint8_t *marked) {
+/* RGBA floats on six faces. */
+static long long refl__lem_map_bytes(const refl__lem_map *m) { return 96LL * m->shell.face_size * m->shell.face_size; }
+
+static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
+    long long b = 0;
+    int k;
+    for (k = 0; m && k < m->count; ++k) b += refl__lem_map_bytes(&m->maps[k]);
+    return b;
+}
+
+/* What a renderer keeps of maps at the start of a frame: the oldest go
+   first past this (a dolly or a crane makes new samples every frame; a
+   dropped map is inferred again, the same bytes, when a frame needs it). */
+#define REFL__LEM_KEPT_BYTES (512LL << 20)
+
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+    int drop = 0, k;
+    long long bytes = refl__lem_maps_bytes(m);
+    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+        bytes -= refl__lem_map_bytes(&m->maps[drop]);
+        refl__free(al, m->maps[drop++].texels);
+    }
+    for (k = drop; k < m->count; ++k) m->maps[k - drop] = m->maps[k];
+    m->count -= drop;
+}
+
+static int refl__lem_same_view(const refl_view *a, const refl_view *b) {
+    return a->eye.x == b->eye.x && a->eye.y == b->eye.y && a->eye.z == b->eye.z && a->target.x == b->target.x &&
+           a->target.y == b->target.y && a->target.z == b->target.z && a->up.x == b->up.x && a->up.y == b->up.y &&
+           a->up.z == b->up.z && a->fovy_degrees == b->fovy_degrees && a->width == b->width &&
+           a->height == b->height && a->znear == b->znear && a->zfar == b->zfar;
+}
+
+/* The map of object i at sample view v under pass p's options in m, or -1. */
+static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, int i, const refl_view *v) {
+    int k;
+    for (k = 0; m && k < m->count; ++k) {
+        const refl__lem_map *e = &m->maps[k];
+        if (e->object == i && e->depth == p->desc.depth && refl__lem_same_view(&e->view, v) &&
+            !memcmp(&e->options, &p->desc.layered_em, sizeof e->options))
+            return k;
+    }
+    return -1;
+}
+
+/* ---- inferring one sample's map ----------------------------------------------------- */
+
+/* Infers object i's map for the sample whose views are views[0 .. per)
+   (the sample's own first): the records and tessellation of each view, the
+   shell at the mean distance of their hits, rows from the runtime's own
+   lookups at those views, solved by CGLS. out->texels is allocated. */
+static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views, int per,
+                                   refl__lem_map *out) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_layered_em_options *o = &p->desc.layered_em;
-    refl_frame *f = p->frame;
-    int w = f->width, h = f->height, n, s, k, y, term, face, per, nv, j;
+    refl_stats *st = &p->frame->stats;
+    int w = views[0].width, h = views[0].height, s, y, term, face;
     size_t np = (size_t)w * (size_t)h, px;
-    refl__lem_sample_view sv[6];
-    refl_view views[6];
-    refl__lem_draw dr;
+    refl__lem_sample_view sv[3];
     refl_lens_tess_desc td;
-    refl_lens_tess frame_tess;
+    refl__lem_draw dr;
+    refl_lem_system *sys = NULL;
+    refl_lem_solve_desc sd;
     refl_vec3 box[2];
-    float weight[2], lens_radius, *color = NULL, *depth = NULL, *maps[2] = {NULL, NULL};
+    float lens_radius, *depth = NULL, *index[2] = {NULL, NULL};
     double dist = 0.0;
     long long hits = 0;
-    uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
     refl_result r = REFL_OK;
-    double t0 = refl__now_ms();
     memset(sv, 0, sizeof sv);
-    memset(&frame_tess, 0, sizeof frame_tess);
-    memset(&dr, 0, sizeof dr);
     memset(&td, 0, sizeof td);
+    memset(&dr, 0, sizeof dr);
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
     refl__lem_bounds(scene, i, &dr.shell.center, &lens_radius, box);
-    n = refl__lem_views(p, dr.shell.center, o->samples > 0 ? o->samples : 45, !o->single_view, views, &per, weight);
-    nv = n * per;
-    color = (float *)refl__calloc(al, 4 * np, sizeof(float));
-    depth = (float *)refl__calloc(al, np, sizeof(float));
-    if (!color || !depth) r = REFL_ERROR_OUT_OF_MEMORY;
-    /* the records of each view, in rows on the pass's threads */
-    for (s = 0; s < nv && r == REFL_OK; ++s) {
+    /* the records and tessellation of each view, in rows on the pass's threads */
+    for (s = 0; s < per && r == REFL_OK; ++s) {
         refl__lem_records rec;
         refl_mat4 vm, pm;
-        sv[s].view = views[s];
-        refl_view_matrices(&sv[s].view, scene, &vm, &pm);
+        refl_view_matrices(&views[s], scene, &vm, &pm);
         sv[s].vp = refl_mat4_mul(pm, vm);
         memset(&rec, 0, sizeof rec);
         rec.scene = scene;
         rec.caster = caster;
-        rec.view = &sv[s].view;
+        refl__view_rays_init(&rec.rays, &views[s], scene);
         rec.object = i;
         rec.ss = o->supersample > 0 ? o->supersample : 1;
         rec.theta_c = o->theta_c_degrees;
@@ -13682,7 +13765,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
             for (y = 0; y < h; ++y) {
                 dist += rec.row_dist[y];
                 hits += rec.row_hits[y];
-                f->stats.rays += rec.row_rays[y];
+                st->rays += rec.row_rays[y];
             }
             for (px = 0; px < np; ++px) sv[s].lens_pixels += rec.rec[10 * px + 4] >= 0.0f || rec.rec[10 * px + 9] >= 0.0f;
         }
@@ -13691,113 +13774,326 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, caster, i, &sv[s].view, &td, p->rc, &sv[s].tess);
-            f->stats.rays += sv[s].tess.rays;
+            r = refl__lens_tessellate(scene, caster, i, &views[s], &td, p->rc, &sv[s].tess);
+            st->rays += sv[s].tess.rays;
         }
     }
-    /* the one shell: at the mean distance of the records' hits */
+    /* the shell: at the mean distance of the records' hits */
     dr.shell.radius = hits > 0 ? (float)(dist / (double)hits) : 0.0f;
     if (!(dr.shell.radius > lens_radius)) dr.shell.radius = REFL__MAX(10.0f * lens_radius, 1e-3f);
     face = o->face_size > 0 ? o->face_size
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
     dr.shell.face_size = face;
-    /* each sample's map: rows from the runtime's own lookups at its views */
-    for (s = 0; s < n && r == REFL_OK; ++s) {
-        refl_lem_system *sys = NULL;
-        refl_lem_solve_desc sd;
-        float *index[2] = {NULL, NULL};
-        r = refl_lem_system_create(6 * face * face, al, &sys);
-        for (term = 0; term < 2 && r == REFL_OK; ++term) {
-            index[term] = (float *)refl__calloc(al, 4 * np, sizeof(float));
-            if (!index[term]) r = REFL_ERROR_OUT_OF_MEMORY;
-        }
-        for (j = 0; j < per && r == REFL_OK; ++j) {
-            const refl__lem_sample_view *view = &sv[s * per + j];
-            for (term = 0; term < 2 && r == REFL_OK; ++term) {
-                dr.record_term = term;
-                r = refl__lem_raster(p->rc, &view->tess, view->vp, &dr, index[term], depth, NULL, 0, w, h, al);
-            }
-            for (px = 0; px < np && r == REFL_OK; ++px)
-                for (term = 0; term < 2 && r == REFL_OK; ++term) {
-                    const float *rec = view->rec + 10 * px + 5 * term, *ix = index[term] + 4 * px;
-                    uint32_t tex[4];
-                    float wt[4];
-                    /* a row where the records have the term and all three vertices gave it an index */
-                    if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                        !refl_lem_shell_lookup(&dr.shell, dr.shell.center, refl_v3(ix[0], ix[1], ix[2]), tex, wt))
-                        continue;
-                    r = refl_lem_system_add_row(sys, tex, wt, 4, rec, rec[4]);
-                }
-        }
-        maps[s] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float)) : NULL;
-        if (r == REFL_OK && !maps[s]) r = REFL_ERROR_OUT_OF_MEMORY;
-        memset(&sd, 0, sizeof sd);
-        sd.iterations = o->iterations;
-        if (r == REFL_OK) r = refl_lem_solve(sys, &sd, maps[s], NULL);
-        refl_lem_system_destroy(sys);
-        refl__free(al, index[0]);
-        refl__free(al, index[1]);
+    out->shell = dr.shell;
+    /* rows from the runtime's own lookups at the views */
+    if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys);
+    depth = r == REFL_OK ? (float *)refl__calloc(al, np, sizeof(float)) : NULL;
+    for (term = 0; term < 2 && r == REFL_OK; ++term) {
+        index[term] = (float *)refl__calloc(al, 4 * np, sizeof(float));
+        if (!index[term] || !depth) r = REFL_ERROR_OUT_OF_MEMORY;
     }
-    f->stats.ms_build += refl__now_ms() - t0;
+    for (s = 0; s < per && r == REFL_OK; ++s) {
+        for (term = 0; term < 2 && r == REFL_OK; ++term) {
+            dr.record_term = term;
+            r = refl__lem_raster(p->rc, &sv[s].tess, sv[s].vp, &dr, index[term], depth, NULL, 0, w, h, al);
+        }
+        for (px = 0; px < np && r == REFL_OK; ++px)
+            for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                const float *rec = sv[s].rec + 10 * px + 5 * term, *ix = index[term] + 4 * px;
+                uint32_t tex[4];
+                float wt[4];
+                /* a row where the records have the term and all three vertices gave it an index */
+                if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
+                    !refl_lem_shell_lookup(&dr.shell, dr.shell.center, refl_v3(ix[0], ix[1], ix[2]), tex, wt))
+                    continue;
+                r = refl_lem_system_add_row(sys, tex, wt, 4, rec, rec[4]);
+            }
+    }
+    out->texels = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float)) : NULL;
+    if (r == REFL_OK && !out->texels) r = REFL_ERROR_OUT_OF_MEMORY;
+    memset(&sd, 0, sizeof sd);
+    sd.iterations = o->iterations;
+    if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels, NULL);
+    refl_lem_system_destroy(sys);
+    refl__free(al, index[0]);
+    refl__free(al, index[1]);
+    refl__free(al, depth);
+    for (s = 0; s < 3; ++s) refl__lem_sample_free(al, &sv[s]);
+    if (r != REFL_OK) {
+        refl__free(al, out->texels);
+        out->texels = NULL;
+    }
+    return r;
+}
+
+/* The index in *maps of object i's map for the sample of views[0 .. per):
+   the one kept when pass p's renderer has it, else inferred and added. */
+static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views,
+                                    int per, struct refl__lem_maps *maps, int *at) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl__lem_map m;
+    refl_result r;
+    double t0 = refl__now_ms();
+    *at = refl__lem_find(maps, p, i, &views[0]);
+    if (*at >= 0) {
+        p->frame->stats.layered_em.maps_kept++;
+        return REFL_OK;
+    }
+    memset(&m, 0, sizeof m);
+    m.object = i;
+    m.depth = p->desc.depth;
+    m.view = views[0];
+    m.options = p->desc.layered_em;
+    r = refl__lem_infer(p, caster, i, views, per, &m);
+    if (r == REFL_OK && (*at = refl__push(al, (void **)&maps->maps, &maps->count, sizeof m, &m)) < 0) {
+        refl__free(al, m.texels);
+        r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK) p->frame->stats.layered_em.maps_inferred++;
+    p->frame->stats.ms_build += refl__now_ms() - t0;
+    return r;
+}
+
+/* ---- viewpoint samples ------------------------------------------------------------- */
+
+/* The circle of viewpoint samples around c, level with the eye and
+   through it: its radius and height snapped to 1/1024 of the lens's
+   radius, so that every frame of an orbit, and a fresh renderer at any of
+   them, puts the samples at exactly the same views. A renderer fixes each
+   lens's circle at the first frame (or prebuild) that draws it (rings),
+   as the paper parameterises its maps by one circle: later eyes off it
+   take the samples of their azimuth on it. 0 when the eye is on the
+   circle's axis (its azimuth undefined). */
+typedef struct refl__lem_circle {
+    refl_vec3 c;
+    float rho, height;
+    double step, phi;            /* spacing; the eye's azimuth in [0, 2 pi) */
+    int samples, per;            /* per: views a map is inferred from (1, or 3 multi-view) */
+} refl__lem_circle;
+
+static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, float lens_radius,
+                               struct refl__lem_maps *rings, refl__lem_circle *out) {
+    const refl_view *v = p->view;
+    float dx = v->eye.x - c.x, dz = v->eye.z - c.z, rho = sqrtf(dx * dx + dz * dz);
+    float grid = REFL__MAX(lens_radius, 1e-6f) / 1024.0f;
+    refl__lem_ring ring;
+    int k;
+    out->c = c;
+    out->samples = p->desc.layered_em.samples > 0 ? p->desc.layered_em.samples : 45;
+    out->per = p->desc.layered_em.single_view ? 1 : 3;
+    out->step = 2.0 * REFL__PI / out->samples;
+    out->phi = atan2((double)dx, (double)dz);
+    if (out->phi < 0.0) out->phi += 2.0 * REFL__PI;
+    out->rho = roundf(rho / grid) * grid;
+    out->height = roundf(v->eye.y / grid) * grid;
+    if (!(rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))) && out->rho > 0.0f &&
+          refl__isfinite(out->height)))
+        return 0;
+    for (k = 0; rings && k < rings->ring_count; ++k)
+        if (rings->rings[k].object == object) {
+            out->rho = rings->rings[k].rho;
+            out->height = rings->rings[k].height;
+            return 1;
+        }
+    ring.object = object;
+    ring.rho = out->rho;
+    ring.height = out->height;
+    if (rings) refl__push(&p->scene->allocator, (void **)&rings->rings, &rings->ring_count, sizeof ring, &ring);
+    return 1; /* a ring not kept (no memory) only costs later frames their reuse */
+}
+
+/* The views sample k's map is inferred from: the sample's own (at azimuth
+   k step) and, multi-view, the views half a spacing either side (the
+   paper's simultaneous inference, against disocclusions between samples). */
+static void refl__lem_sample_views(const refl__pass *p, const refl__lem_circle *cc, int k, refl_view out[3]) {
+    int j;
+    k %= cc->samples; /* past the last: the first again, at exactly its view */
+    for (j = 0; j < cc->per; ++j) {
+        double a = k * cc->step + (j == 0 ? 0.0 : j == 1 ? -0.5 * cc->step : 0.5 * cc->step);
+        out[j] = *p->view;
+        out[j].eye = refl_v3(cc->c.x + cc->rho * (float)sin(a), cc->height, cc->c.z + cc->rho * (float)cos(a));
+        out[j].target = cc->c;
+    }
+}
+
+/* Where the pass keeps maps: its renderer's, else `own` (this frame's). */
+static refl_result refl__lem_store(refl__pass *p, struct refl__lem_maps *own, struct refl__lem_maps **out) {
+    *out = own;
+    if (!p->models) return REFL_OK;
+    if (!p->models->lem) p->models->lem = (struct refl__lem_maps *)refl__calloc(&p->scene->allocator, 1, sizeof *own);
+    if (!p->models->lem) return REFL_ERROR_OUT_OF_MEMORY;
+    *out = p->models->lem;
+    return REFL_OK;
+}
+
+/* ---- the frame ------------------------------------------------------------------------ */
+
+/* Lens object i: the maps of the two samples bracketing the eye (kept or
+   inferred), the eye's tessellation drawn once per map, weighed by the
+   blend, added over the base pass. marked: lens pixels left to the tracer. */
+static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+                                    uint8_t *marked) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    refl_frame *f = p->frame;
+    int w = f->width, h = f->height, n = 1, s, k, at[2] = {-1, -1};
+    size_t np = (size_t)w * (size_t)h, px;
+    refl__lem_circle cc;
+    refl__lem_draw dr;
+    refl_lens_tess_desc td;
+    refl_lens_tess frame_tess;
+    refl_vec3 box[2], centre;
+    refl_view views[3];
+    float weight[2] = {1.0f, 0.0f}, lens_radius, *color[2] = {NULL, NULL}, *depth = NULL;
+    uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+    refl_result r = REFL_OK;
+    double t0, t1;
+    memset(&frame_tess, 0, sizeof frame_tess);
+    memset(&td, 0, sizeof td);
+    td.edge_px = o->edge_px;
+    td.angle_degrees = o->angle_degrees;
+    td.max_interfaces = p->desc.depth;
+    refl__lem_bounds(scene, i, &centre, &lens_radius, box);
+    if (!refl__lem_circle_of(p, i, centre, lens_radius, p->models ? maps : NULL, &cc)) {
+        /* on the axis: the eye's own view, one map */
+        views[0] = *p->view;
+        r = refl__lem_map_of(p, caster, i, views, 1, maps, &at[0]);
+    } else {
+        double fk = cc.phi / cc.step;
+        int k0 = (int)floor(fk);
+        weight[1] = (float)(fk - k0);
+        weight[0] = 1.0f - weight[1];
+        n = weight[1] > 0.0f ? 2 : 1;
+        for (s = 0; s < n && r == REFL_OK; ++s) {
+            refl__lem_sample_views(p, &cc, k0 + s, views);
+            r = refl__lem_map_of(p, caster, i, views, cc.per, maps, &at[s]);
+        }
+    }
     t0 = refl__now_ms();
-    /* the frame: tessellated for the eye, both terms from the blended maps */
+    for (s = 0; s < n && r == REFL_OK; ++s)
+        if (!(color[s] = (float *)refl__calloc(al, 4 * np, sizeof(float)))) r = REFL_ERROR_OUT_OF_MEMORY;
+    depth = (float *)refl__calloc(al, np, sizeof(float));
+    if (!depth) r = REFL_ERROR_OUT_OF_MEMORY;
+    /* the frame: tessellated for the eye, both terms from each map */
     if (r == REFL_OK) {
+        t1 = refl__now_ms();
         frame_tess.allocator = *al;
         r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &frame_tess);
         f->stats.rays += frame_tess.rays;
         f->stats.triangles += frame_tess.triangle_count;
+        f->stats.layered_em.vertices += frame_tess.vertex_count;
+        f->stats.layered_em.ms_trace += frame_tess.ms_trace;
+        f->stats.layered_em.ms_tessellate += refl__now_ms() - t1 - frame_tess.ms_trace;
     }
-    if (r == REFL_OK) {
+    t1 = refl__now_ms();
+    for (s = 0; s < n && r == REFL_OK; ++s) {
+        const refl__lem_map *m = &maps->maps[at[s]];
+        memset(&dr, 0, sizeof dr);
+        dr.shell = m->shell;
+        dr.map = m->texels;
+        dr.weight = weight[s];
         dr.record_term = -1;
-        for (s = 0; s < 2; ++s) {
-            dr.maps[s] = s < n ? maps[s] : NULL;
-            dr.weight[s] = s < n ? weight[s] : 0.0f;
-        }
-        r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+        r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color[s], depth, f->stencil, ref, w, h, al);
     }
     for (px = 0; px < np && r == REFL_OK; ++px) {
         if (f->stencil[px] != ref) continue;
-        if (!(color[4 * px + 3] > 0.0f)) {
+        if (!(color[0][4 * px + 3] > 0.0f)) {
             marked[px] = 1; /* no triangle here: traced */
+            f->stats.layered_em.traced_pixels++;
             continue;
         }
-        for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[4 * px + (size_t)k];
+        for (s = 0; s < n; ++s)
+            for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[s][4 * px + (size_t)k];
     }
+    f->stats.layered_em.ms_draw += refl__now_ms() - t1;
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, frame_tess.vertices);
     refl__free(al, frame_tess.indices);
-    for (s = 0; s < 6; ++s) refl__lem_sample_free(al, &sv[s]);
-    refl__free(al, maps[0]);
-    refl__free(al, maps[1]);
-    refl__free(al, color);
+    refl__free(al, color[0]);
+    refl__free(al, color[1]);
     refl__free(al, depth);
+    return r;
+}
+
+/* The ray caster over the scene's BVH (kept by the renderer, else *owned). */
+static refl_result refl__lem_caster(refl__pass *p, refl_ray_caster *caster, refl_bvh **owned) {
+    refl_bvh *bvh = NULL;
+    refl_result r = refl__models_bvh(p, &bvh, owned);
+    memset(caster, 0, sizeof *caster);
+    caster->intersect = refl__lem_bvh_intersect;
+    caster->occluded = refl__lem_bvh_occluded;
+    caster->user = bvh;
     return r;
 }
 
 static refl_result refl__method_layered_em(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_bvh *owned = NULL;
     refl_ray_caster caster;
+    struct refl__lem_maps own, *maps = NULL;
     uint8_t *marked = NULL;
     size_t np = (size_t)f->width * (size_t)f->height, k;
     int i, any = 0;
-    refl_result r = refl__models_bvh(p, &bvh, &owned);
     rast_targets t = refl__frame_targets(f);
-    if (r != REFL_OK) return r;
-    memset(&caster, 0, sizeof caster);
-    caster.intersect = refl__lem_bvh_intersect;
-    caster.occluded = refl__lem_bvh_occluded;
-    caster.user = bvh;
-    marked = (uint8_t *)refl__calloc(&scene->allocator, np, 1);
-    if (!marked) r = REFL_ERROR_OUT_OF_MEMORY;
+    refl_result r = refl__lem_caster(p, &caster, &owned);
+    memset(&own, 0, sizeof own);
+    if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
+    marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
+    if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
-        if (refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl__pass_draws(p, i))
-            r = refl__lem_object(p, &caster, i, marked);
+        if (refl__pass_draws(p, i)) r = refl__lem_object(p, &caster, i, maps, marked);
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     for (k = 0; k < np && r == REFL_OK; ++k) any |= marked[k];
     if (r == REFL_OK && any) r = refl__trace_marked(p, marked);
+    f->stats.layered_em.maps_held = maps ? maps->count : 0;
+    f->stats.model_bytes += refl__lem_maps_bytes(maps);
+    for (k = 0; k < (size_t)own.count; ++k) refl__free(&scene->allocator, own.maps[k].texels);
+    refl__free(&scene->allocator, own.maps);
     refl__free(&scene->allocator, marked);
+    refl_bvh_destroy(owned);
+    return r;
+}
+
+/* Every viewpoint sample's map of every lens object the pass draws, on
+   the circle through the pass's eye, into the renderer's models; progress
+   after each map, cancelled when the callback asks. */
+static refl_result refl__prebuild_layered_em(refl__pass *p) {
+    const refl_scene *scene = p->scene;
+    refl_bvh *owned = NULL;
+    refl_ray_caster caster;
+    struct refl__lem_maps *maps = NULL, none;
+    refl_view views[3];
+    int i, k, at, lenses = 0, done = 0;
+    refl_result r = refl__lem_caster(p, &caster, &owned);
+    memset(&none, 0, sizeof none);
+    if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
+    if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
+    for (i = 0; i < scene->object_count; ++i) lenses += refl__pass_draws(p, i);
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        refl__lem_circle cc;
+        refl_vec3 box[2], centre;
+        float lens_radius;
+        if (!refl__pass_draws(p, i)) continue;
+        refl__lem_bounds(scene, i, &centre, &lens_radius, box);
+        if (!refl__lem_circle_of(p, i, centre, lens_radius, maps, &cc)) {
+            views[0] = *p->view;
+            r = refl__lem_map_of(p, &caster, i, views, 1, maps, &at);
+            ++done;
+            continue;
+        }
+        for (k = 0; k < cc.samples && r == REFL_OK; ++k) {
+            refl__lem_sample_views(p, &cc, k, views);
+            r = refl__lem_map_of(p, &caster, i, views, cc.per, maps, &at);
+            if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
+                r = REFL_ERROR_CANCELLED;
+        }
+        ++done;
+    }
+    p->frame->stats.layered_em.maps_held = maps && maps != &none ? maps->count : 0;
+    p->frame->stats.model_bytes += maps && maps != &none ? refl__lem_maps_bytes(maps) : 0;
     refl_bvh_destroy(owned);
     return r;
 }
@@ -17655,6 +17951,21 @@ static refl_result refl__check_frame(const refl_scene *scene, const refl_view *v
                                                                         : REFL_ERROR_INVALID_ARGUMENT;
 }
 
+/* p for a frame of scene from view into frame, nothing drawn yet. */
+static void refl__pass_init(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                            const refl_render_desc *desc, refl_frame *frame, rast_context *rc, refl__models *models) {
+    memset(p, 0, sizeof *p);
+    p->desc = *desc;
+    p->scene = scene;
+    p->view = view;
+    p->frame = frame;
+    p->rc = rc;
+    p->models = models;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
+}
+
 static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
                                    const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
                                    refl__models *models) {
@@ -17665,17 +17976,8 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     refl_result r;
     double t0 = refl__now_ms();
     size_t n = (size_t)frame->width * (size_t)frame->height, k;
-    memset(p, 0, sizeof *p);
-    p->desc = *desc;
-    p->scene = scene;
-    p->view = view;
-    p->frame = frame;
-    p->rc = rc;
-    p->models = models;
+    refl__pass_init(p, scene, view, desc, frame, rc, models);
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
-    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
-    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
-    refl__view_rays_init(&p->rays, view, scene);
     t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
@@ -17788,6 +18090,7 @@ struct refl_renderer {
 static void refl__models_free(const refl_scene *scene, refl__models *m) {
     refl_bvh_destroy(m->bvh);
     refl__c3_samples_free(&scene->allocator, m->c3);
+    refl__lem_maps_free(&scene->allocator, m->lem);
     memset(m, 0, sizeof *m);
 }
 
@@ -17865,6 +18168,13 @@ static refl_result refl__cancelled(refl_frame *frame) {
     return REFL_ERROR_CANCELLED;
 }
 
+/* The renderer's models dropped when the scene changed since they were built. */
+static void refl__models_current(refl_renderer *rr) {
+    if (rr->models.scene_version == rr->scene->version) return;
+    refl__models_free(rr->scene, &rr->models);
+    rr->models.scene_version = rr->scene->version;
+}
+
 /* One render of view into frame, a sample per pixel. */
 static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     const refl_scene *scene = rr->scene;
@@ -17873,10 +18183,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     refl_result r;
     double t0 = refl__now_ms();
     int i;
-    if (rr->models.scene_version != scene->version) {
-        refl__models_free(scene, &rr->models);
-        rr->models.scene_version = scene->version;
-    }
+    refl__models_current(rr);
     memset(&frame->stats, 0, sizeof(frame->stats));
     row = refl__method_row_of(rr->desc.method);
     if (rr->desc.progress && rr->desc.progress(rr->desc.progress_user, 0.0f)) return refl__cancelled(frame);
@@ -17917,6 +18224,62 @@ static void refl__resolve_spp(const refl_frame *fine, refl_frame *frame, int sid
         }
 }
 
+/* With spp > 1: view at sqrt(spp) times its size into *fine_view, and
+   rr->fine made that size. */
+static refl_result refl__fine_frame(refl_renderer *rr, const refl_view *view, int side, refl_frame *frame,
+                                    refl_view *fine_view) {
+    *fine_view = *view;
+    fine_view->width = view->width * side;
+    fine_view->height = view->height * side;
+    if (fine_view->width > RAST_MAX_TARGET_SIZE || fine_view->height > RAST_MAX_TARGET_SIZE) {
+        frame->message = "spp: the frame's side times sqrt(spp) above RAST_MAX_TARGET_SIZE";
+        return REFL_ERROR_INVALID_SIZE;
+    }
+    if (rr->fine && (rr->fine->width != fine_view->width || rr->fine->height != fine_view->height)) {
+        refl_frame_destroy(rr->fine);
+        rr->fine = NULL;
+    }
+    if (!rr->fine)
+        return refl_frame_create(fine_view->width, fine_view->height, &rr->scene->allocator, &rr->fine);
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    refl_view fine_view;
+    refl_frame *target = frame;
+    refl__pass p;
+    refl_result r;
+    double t0 = refl__now_ms();
+    int side, i, lem = 0;
+    uint8_t *mine;
+    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
+    side = refl__spp_side(rr->desc.spp);
+    fine_view = *view;
+    if (side > 1) { /* the maps of the views the frames render */
+        if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
+        target = rr->fine;
+    }
+    refl__models_current(rr);
+    memset(&target->stats, 0, sizeof target->stats);
+    refl__pass_init(&p, rr->scene, &fine_view, &rr->desc, target, rr->rc, &rr->models);
+    mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p.mine = mine;
+    for (i = 0; i < rr->scene->object_count; ++i) {
+        mine[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
+        lem |= mine[i] && refl__pass_draws(&p, i);
+    }
+    if (lem) r = refl__prebuild_layered_em(&p);
+    refl__free(&rr->scene->allocator, mine);
+    if (target != frame) frame->stats = target->stats;
+    frame->stats.ms_total = refl__now_ms() - t0;
+    if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
+    if (r == REFL_OK && rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
+    return r;
+}
+
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     refl_view fine_view;
     refl_result r;
@@ -17927,19 +18290,7 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     side = refl__spp_side(rr->desc.spp);
     if (side == 1) return refl__render_samples(rr, view, frame);
     t0 = refl__now_ms();
-    fine_view = *view;
-    fine_view.width = view->width * side;
-    fine_view.height = view->height * side;
-    if (fine_view.width > RAST_MAX_TARGET_SIZE || fine_view.height > RAST_MAX_TARGET_SIZE) {
-        frame->message = "spp: the frame's side times sqrt(spp) above RAST_MAX_TARGET_SIZE";
-        return REFL_ERROR_INVALID_SIZE;
-    }
-    if (rr->fine && (rr->fine->width != fine_view.width || rr->fine->height != fine_view.height)) {
-        refl_frame_destroy(rr->fine);
-        rr->fine = NULL;
-    }
-    if (!rr->fine && (r = refl_frame_create(fine_view.width, fine_view.height, &rr->scene->allocator, &rr->fine)) != REFL_OK)
-        return r;
+    if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
         if (rr->fine->message == rr->fine->message_text) refl__frame_say(frame, "%s", rr->fine->message_text);
         else frame->message = rr->fine->message;
@@ -20741,7 +21092,8 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots",
+                                                   "hybrid", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -20971,6 +21323,145 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* A 256 x 256 checker of cells x cells tiles (light and dark grey) as the
+   texture of object 0's material (the stage's floor), its colour white. */
+static refl_result refl__checker_floor(refl_scene *s, const refl_allocator *a, int cells) {
+    float *checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
+    int x, y, tex, side = 256 / cells;
+    refl_material *floor_m = &s->materials[s->objects[0].material];
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = 0; y < 256; ++y)
+        for (x = 0; x < 256; ++x) {
+            float v = ((x / side) + (y / side)) & 1 ? 0.95f : 0.15f;
+            float *px = checker + 4 * (256 * y + x);
+            px[0] = px[1] = px[2] = v;
+            px[3] = 1.0f;
+        }
+    tex = refl_scene_add_texture(s, 256, 256, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    floor_m->texture = tex;
+    floor_m->color[0] = floor_m->color[1] = floor_m->color[2] = 1.0f;
+    return REFL_OK;
+}
+
+/* A cup without a handle standing on y = 0 around the y axis: outer and
+   inner walls (wall thick), the rim, the inside floor and the bottom, each
+   part its own vertices with its own normals so the edges stay sharp. */
+static refl_result refl__mesh_cup(float radius, float height, float wall, int slices, const refl_allocator *a,
+                                  refl_mesh **out) {
+    int nv = 8 * (slices + 1) + 2, ni = 3 * 8 * slices, v = 0, t = 0, i, part;
+    float *pos = (float *)refl__calloc(a, (size_t)nv * 6, sizeof(float)), *nrm = pos ? pos + 3 * nv : NULL;
+    uint32_t *idx = (uint32_t *)refl__calloc(a, (size_t)ni, sizeof(uint32_t));
+    const float ri = radius - wall;
+    refl_mesh_desc d;
+    refl_result r;
+    if (!pos || !idx) {
+        refl__free(a, pos);
+        refl__free(a, idx);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+#define REFL__CUP_VERTEX(px, py, pz, nx, ny, nz)                                                                      \
+    (pos[3 * v] = (px), pos[3 * v + 1] = (py), pos[3 * v + 2] = (pz), nrm[3 * v] = (nx), nrm[3 * v + 1] = (ny),        \
+     nrm[3 * v + 2] = (nz), v++)
+#define REFL__CUP_TRI(i0, i1, i2) (idx[t] = (uint32_t)(i0), idx[t + 1] = (uint32_t)(i1), idx[t + 2] = (uint32_t)(i2), t += 3)
+    /* the walls and the rim: two rings each, (lower or inner, upper or outer) per angle */
+    for (part = 0; part < 3; ++part) {
+        int base = v;
+        for (i = 0; i <= slices; ++i) {
+            float an = 2.0f * (float)REFL__PI * (float)i / (float)slices, c = cosf(an), sn = sinf(an);
+            if (part == 0) { /* outer wall, bottom then top */
+                REFL__CUP_VERTEX(radius * c, 0.0f, radius * sn, c, 0.0f, sn);
+                REFL__CUP_VERTEX(radius * c, height, radius * sn, c, 0.0f, sn);
+            } else if (part == 1) { /* inner wall, its floor then top */
+                REFL__CUP_VERTEX(ri * c, wall, ri * sn, -c, 0.0f, -sn);
+                REFL__CUP_VERTEX(ri * c, height, ri * sn, -c, 0.0f, -sn);
+            } else { /* rim, inner then outer */
+                REFL__CUP_VERTEX(ri * c, height, ri * sn, 0.0f, 1.0f, 0.0f);
+                REFL__CUP_VERTEX(radius * c, height, radius * sn, 0.0f, 1.0f, 0.0f);
+            }
+        }
+        for (i = 0; i < slices; ++i) {
+            int b0 = base + 2 * i, t0 = b0 + 1, b1 = b0 + 2, t1 = b0 + 3;
+            if (part == 0) REFL__CUP_TRI(b0, t0, t1), REFL__CUP_TRI(b0, t1, b1);
+            else if (part == 1) REFL__CUP_TRI(b0, t1, t0), REFL__CUP_TRI(b0, b1, t1);
+            else REFL__CUP_TRI(t0, b0, b1), REFL__CUP_TRI(t0, b1, t1);
+        }
+    }
+    /* the inside floor (up) and the bottom (down): a centre and a ring each */
+    for (part = 0; part < 2; ++part) {
+        float y = part ? 0.0f : wall, rr = part ? radius : ri, ny = part ? -1.0f : 1.0f;
+        int centre = v;
+        REFL__CUP_VERTEX(0.0f, y, 0.0f, 0.0f, ny, 0.0f);
+        for (i = 0; i <= slices; ++i) {
+            float an = 2.0f * (float)REFL__PI * (float)i / (float)slices;
+            REFL__CUP_VERTEX(rr * cosf(an), y, rr * sinf(an), 0.0f, ny, 0.0f);
+        }
+        for (i = 0; i < slices; ++i) {
+            if (part) REFL__CUP_TRI(centre, centre + 1 + i, centre + 2 + i);
+            else REFL__CUP_TRI(centre, centre + 2 + i, centre + 1 + i);
+        }
+    }
+#undef REFL__CUP_VERTEX
+#undef REFL__CUP_TRI
+    memset(&d, 0, sizeof d);
+    d.positions = pos;
+    d.normals = nrm;
+    d.indices = idx;
+    d.vertex_count = v;
+    d.index_count = t;
+    if (a) d.allocator = *a;
+    r = refl_mesh_create(&d, out);
+    refl__free(a, pos);
+    refl__free(a, idx);
+    return r;
+}
+
+/* hybrid: paper 001's scene (section 6): a glass teapot and a mirror cup
+   inside a ring of ten columns, walls far around them, on a checker floor.
+   The teapot and the cup float 0.005 above the floor: bottoms in its plane
+   would make rays seen through the glass choose between coincident
+   triangles, which two ray casters may break differently. */
+static refl_result refl__scene_hybrid(refl_scene *s, const refl_allocator *a, int tess) {
+    static const float column_rgb[2][3] = {{0.85f, 0.75f, 0.55f}, {0.45f, 0.55f, 0.8f}};
+    static const float wall_rgb[4][3] = {{0.8f, 0.35f, 0.3f}, {0.35f, 0.7f, 0.4f}, {0.85f, 0.8f, 0.45f},
+                                         {0.55f, 0.45f, 0.75f}};
+    refl_material glass = refl__material(REFL_GLASS, 0.95f, 0.97f, 1.0f, "glass teapot");
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror cup");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k, i;
+    if ((r = refl__stage(s, a, 34.0f, refl_v3(0.9f, 1.9f, 4.8f), refl_v3(0.4f, 0.45f, 0.0f))) != REFL_OK) return r;
+    if ((r = refl__checker_floor(s, a, 16)) != REFL_OK) return r;
+    glass.ior = 1.5f;
+    glass.fresnel = 1;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &glass,
+                       refl_mat4_mul(refl__at(-0.2f, 0.005f, 0.0f), refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f))),
+                       "glass teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl__mesh_cup(0.3f, 0.55f, 0.03f, 48, a, &m), &m, &mirror, refl__at(1.2f, 0.005f, 0.7f),
+                       "mirror cup")) < 0)
+        return (refl_result)k;
+    for (i = 0; i < 10; ++i) {
+        float an = 2.0f * (float)REFL__PI * ((float)i + 0.5f) / 10.0f;
+        refl_material col = refl__material(REFL_DIFFUSE, column_rgb[i & 1][0], column_rgb[i & 1][1],
+                                           column_rgb[i & 1][2], "column");
+        if ((k = refl__add(s, refl_mesh_box(refl_v3(0.35f, 2.8f, 0.35f), a, &m), &m, &col,
+                           refl__at(6.0f * sinf(an), 1.4f, 6.0f * cosf(an)), "column")) < 0)
+            return (refl_result)k;
+    }
+    for (i = 0; i < 4; ++i) {
+        float an = 0.5f * (float)REFL__PI * (float)i;
+        refl_material wall = refl__material(REFL_DIFFUSE, wall_rgb[i][0], wall_rgb[i][1], wall_rgb[i][2], "wall");
+        if ((k = refl__add(s, refl_mesh_box(refl_v3(30.0f, 5.0f, 0.3f), a, &m), &m, &wall,
+                           refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), an), refl__at(0.0f, 2.5f, -15.0f)),
+                           "wall")) < 0)
+            return (refl_result)k;
+    }
+    return REFL_OK;
+}
+
 /* teapots: paper 004's two-teapot scene (Fig. 1): a mirror teapot and a
    diffuse teapot beside it, turned, both at half size, on a checker floor
    (a 256 x 256 texture of 16 x 16 tiles over the floor). */
@@ -20980,24 +21471,9 @@ static refl_result refl__scene_teapots(refl_scene *s, const refl_allocator *a, i
     refl_mat4 half = refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f));
     refl_mesh *m = NULL;
     refl_result r;
-    float *checker;
-    int k, x, y, tex;
+    int k;
     if ((r = refl__stage(s, a, 12.0f, refl_v3(-0.6f, 2.8f, 6.0f), refl_v3(-0.3f, 0.5f, 0.2f))) != REFL_OK) return r;
-    checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
-    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
-    for (y = 0; y < 256; ++y)
-        for (x = 0; x < 256; ++x) {
-            float v = ((x / 16) + (y / 16)) & 1 ? 0.95f : 0.15f;
-            float *px = checker + 4 * (256 * y + x);
-            px[0] = px[1] = px[2] = v;
-            px[3] = 1.0f;
-        }
-    tex = refl_scene_add_texture(s, 256, 256, checker);
-    refl__free(a, checker);
-    if (tex < 0) return (refl_result)tex;
-    s->materials[s->objects[0].material].texture = tex;
-    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
-        s->materials[s->objects[0].material].color[2] = 1.0f;
+    if ((r = refl__checker_floor(s, a, 16)) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
     if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_mul(refl__at(-1.2f, 0.0f, -0.2f), half), "mirror teapot")) < 0)
         return (refl_result)k;
@@ -21093,7 +21569,7 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
     if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
-        strcmp(name, "maze") && strcmp(name, "teapots"))
+        strcmp(name, "maze") && strcmp(name, "teapots") && strcmp(name, "hybrid"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
@@ -21101,6 +21577,7 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "teapots")) r = refl__scene_teapots(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "hybrid")) r = refl__scene_hybrid(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

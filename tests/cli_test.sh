@@ -169,6 +169,11 @@ exits2 "--size past int" "expected WxH" "$bin" render --builtin default --size 4
 ok "--sbc-paper renders" "$bin" render --builtin default --method sbc --sbc-paper --size 32x24 --out "$tmp/sp.png"
 ok "--greedy renders" "$bin" render --builtin glass --method raytrace --greedy --size 32x24 --out "$tmp/gr.png"
 ok "layered-em renders" "$bin" render --builtin glass --method layered-em --size 32x24 --out "$tmp/le.png"
+ok "layered-em --prebuild renders from every sample's map" bash -c \
+    "'$bin' render --builtin glass --method layered-em --lem-samples 4 --prebuild --stats --size 32x24 --out '$tmp/lp.png' | grep -q 'maps         0 inferred, 4 kept, 8 held'"
+ok "--frames 2: the second frame takes the first's maps" bash -c \
+    "'$bin' render --builtin glass --method layered-em --lem-samples 4 --frames 2 --stats --size 32x24 --out '$tmp/lf.png' | grep -q 'maps         0 inferred, 4 kept, 4 held'"
+refuses "--lem-samples out of range" "lem-samples" "$bin" render --builtin glass --lem-samples 0 --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has

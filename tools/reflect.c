@@ -41,7 +41,8 @@ static const char *const usage_main =
 static const char *const usage_render =
     "usage: reflect render [SCENE.glb | --builtin NAME] [options]\n"
     "\n"
-    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots\n"
+    "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots,\n"
+    "                     hybrid\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
     "                     graphcam or layered-em (paper 001, one shell layer)\n"
     "                     (in any case)\n"
@@ -79,6 +80,14 @@ static const char *const usage_render =
     "                     and those whose point the ray map's samples contradict\n"
     "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
     "                     instead of the full ray tree\n"
+    "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
+    "                     1..3600 (default 45)\n"
+    "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
+    "                     project under PX pixels, 0.05..1000 (default 1)\n"
+    "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
+    "                     progress), then render the frame from them\n"
+    "  --frames N         render the frame N times with one renderer, 1..1000, and\n"
+    "                     keep (and report) the last: a kept renderer's frame\n"
     "  --sbc-paper        SBC: the paper's method, no search of the scene (heads where\n"
     "                     the rays leave its box); default: SBC-traced, every ray map\n"
     "                     sample traced against the scene's BVH\n"
@@ -156,7 +165,9 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples;
+    float lem_edge;
+    int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
     float graphcam_step;
     float density, camera_split, error_px;
@@ -210,10 +221,10 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", NULL};
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
-                                           "--greedy", NULL};
+                                           "--greedy", "--prebuild", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -311,6 +322,12 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 64, &o->depth)) return fail("--depth: expected 1..64, got %s", v);
         } else if (!strcmp(a, "--soft-shadows")) {
             if (!parse_int(v, 1, 1024, &o->soft_samples)) return fail("--soft-shadows: expected 1..1024, got %s", v);
+        } else if (!strcmp(a, "--lem-samples")) {
+            if (!parse_int(v, 1, 3600, &o->lem_samples)) return fail("--lem-samples: expected 1..3600, got %s", v);
+        } else if (!strcmp(a, "--frames")) {
+            if (!parse_int(v, 1, 1000, &o->frames)) return fail("--frames: expected 1..1000, got %s", v);
+        } else if (!strcmp(a, "--lem-edge")) {
+            if (!parse_float(v, 0.05f, 1000.0f, &o->lem_edge)) return fail("--lem-edge: expected 0.05..1000 pixels, got %s", v);
         } else if (!strcmp(a, "--caustics")) {
             if (!parse_int(v, 1, 1024, &o->caustic_samples)) return fail("--caustics: expected 1..1024, got %s", v);
         } else if (!strcmp(a, "--translucency")) {
@@ -382,6 +399,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--greedy")) {
             o->greedy = 1;
+            continue;
+        } else if (!strcmp(a, "--prebuild")) {
+            o->prebuild = 1;
             continue;
         } else {
             if (o->file) return fail("render: more than one scene given (%s)", a);
@@ -466,6 +486,23 @@ static int progress(void *user, float done) {
         ps->stopped = 1;
     }
     return ps->stopped;
+}
+
+/* --prebuild and --frames: one renderer, its maps built ahead (LAYERED_EM;
+   the prebuild's time and maps printed with --stats), then the frame
+   rendered `frames` times, the last one kept. */
+static refl_result render_kept(const refl_scene *s, const refl_view *v, const refl_render_desc *d, refl_frame *f,
+                               int prebuild, int frames, int stats) {
+    refl_renderer *rr = NULL;
+    refl_result r = refl_renderer_create(s, d, &rr);
+    int k;
+    if (r != REFL_OK) return r;
+    if (prebuild) r = refl_renderer_prebuild(rr, v, f);
+    if (r == REFL_OK && prebuild && stats)
+        printf("prebuild ms  %.2f (%d maps inferred)\n", f->stats.ms_total, f->stats.layered_em.maps_inferred);
+    for (k = 0; k < frames && r == REFL_OK; ++k) r = refl_renderer_render(rr, v, f);
+    refl_renderer_destroy(rr);
+    return r;
 }
 
 /* --mirror and --glass: the objects named `name`, or whose material is,
@@ -647,6 +684,8 @@ static int cmd_render(const options *o) {
         d.graphcam.camera = maze_cam;
     }
     d.raytrace.greedy = o->greedy;
+    d.layered_em.samples = o->lem_samples;
+    d.layered_em.edge_px = o->lem_edge;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -682,7 +721,9 @@ static int cmd_render(const options *o) {
         fprintf(stderr, "reflect: frame %dx%d: %s\n", v.width, v.height, refl_result_string(r));
         goto done;
     }
-    if ((r = refl_render(s, &v, &d, f)) == REFL_ERROR_CANCELLED && ps.stopped) {
+    r = o->prebuild || o->frames > 1 ? render_kept(s, &v, &d, f, o->prebuild, o->frames > 1 ? o->frames : 1, o->stats)
+                                     : refl_render(s, &v, &d, f);
+    if (r == REFL_ERROR_CANCELLED && ps.stopped) {
         fprintf(stderr, "reflect: render with %s stopped at the time limit (--time-limit %g); nothing written\n",
                 refl_method_name(d.method), (double)o->time_limit);
         goto done;
@@ -742,6 +783,13 @@ static int cmd_render(const options *o) {
             printf("frusta       %d\nimpostor     %lld triangles\nrays         %lld (hit %lld)\n"
                    "steps        %lld (at most %lld a ray)\n", g->frusta, g->triangles, g->rays, g->hits, g->steps,
                    g->max_steps);
+        }
+        if (st->layered_em.maps_held) {
+            const refl_layered_em_frame_stats *l = &st->layered_em;
+            printf("maps         %d inferred, %d kept, %d held\n", l->maps_inferred, l->maps_kept, l->maps_held);
+            printf("  trace ms   %.2f (%lld vertices)\n  tess ms    %.2f\n  draw ms    %.2f\n"
+                   "traced px   %lld (no triangle covered them)\n",
+                   l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
     }

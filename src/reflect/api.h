@@ -1120,6 +1120,19 @@ typedef struct refl_spoc_frame_stats {
     long long max_steps;     /* the most one ray walked in one impostor */
 } refl_spoc_frame_stats;
 
+typedef struct refl_layered_em_frame_stats {
+    int maps_inferred;       /* viewpoint samples' maps inferred by this frame (or prebuild) */
+    int maps_kept;           /* maps this frame took as its renderer kept them */
+    int maps_held;           /* maps the renderer (or this frame, alone) holds after it */
+    /* the frame's own work, the maps' inference aside (that is ms_build):
+       paper 001's section 6 phases */
+    double ms_trace;         /* tracing the tessellation's vertices (both greedy paths) */
+    double ms_tessellate;    /* the rest of the adaptive tessellation */
+    double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
+    long long vertices;      /* vertices traced */
+    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
+} refl_layered_em_frame_stats;
+
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
@@ -1143,6 +1156,7 @@ typedef struct refl_stats {
     refl_sbc_frame_stats sbc;
     refl_graphcam_frame_stats graphcam;
     refl_spoc_frame_stats spoc;
+    refl_layered_em_frame_stats layered_em;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1324,6 +1338,7 @@ typedef struct refl_lens_tess {
     int topology_splits;     /* of which because a path's topology changed */
     int junction_fixes;      /* leaves re-triangulated around a T-junction */
     long long rays;          /* visibility and path rays cast */
+    double ms_trace;         /* of its time, tracing the vertices (stats only) */
     refl_allocator allocator;
 } refl_lens_tess;
 
@@ -1612,14 +1627,19 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
 
 /* A renderer lives across the frames of one scene and one desc (a camera
    path) and keeps what does not depend on the view: the thread pool, the
-   BVH, C3RC's points and kd-tree. What the scene's changes invalidate:
-   every refl_scene_* function that changes the scene bumps scene->version,
+   BVH, C3RC's points and kd-tree, LAYERED_EM's maps of the viewpoint
+   samples its frames used. What the scene's changes invalidate: every
+   refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
    built at rebuilds them all; code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
-   points would otherwise be re-sampled every frame). The scene, and what
+   points would otherwise be re-sampled every frame), and LAYERED_EM's
+   circle of viewpoint samples around a lens is the one through the eye of
+   the first frame (or prebuild) that drew the lens (the paper's maps are
+   parameterised by one circle; later eyes off it take the samples of their
+   azimuth on it). The scene, and what
    the desc points to (object_methods, sbc.morphs), must outlive the
    renderer; one thread at a time renders with it. */
 typedef struct refl_renderer refl_renderer;
@@ -1627,6 +1647,17 @@ REFL_API refl_result refl_renderer_create(const refl_scene *scene, const refl_re
                                           refl_renderer **out_renderer);
 REFL_API refl_result refl_renderer_render(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 REFL_API void refl_renderer_destroy(refl_renderer *renderer);
+/* Builds ahead what the renderer's frames around view will take as kept:
+   LAYERED_EM's maps of every viewpoint sample (layered_em.samples) on the
+   circle through view's eye, for every lens the desc's methods give
+   LAYERED_EM (the maps are per scene and sample, not per frame; inferring
+   them is most of a first frame's time). Other methods: nothing to build.
+   frame (view's size) receives the stats (ms_build, rays, layered_em) and
+   the message; its pixels are not an image. Reports progress through the
+   desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
+   stop (the maps finished so far stay kept). A renderer keeps up to 512
+   MiB of maps: past that, a frame drops the oldest first. */
+REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 

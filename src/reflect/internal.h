@@ -137,6 +137,7 @@ typedef struct refl__models {
     refl_bvh *bvh;                /* RAYTRACE (without a caster of its own) and SBC */
     struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
     float c3_density;             /* the density they were sampled at; 0: none yet */
+    struct refl__lem_maps *lem;   /* LAYERED_EM's inferred maps, per viewpoint sample (m_layered_em.c) */
 } refl__models;
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
@@ -545,7 +546,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
    does not meet `object` first; else per term the target (rgba) and its
    confidence (-1: none) in out[5 term ...], environment hit distances
    from `centre` summed into *dist_sum, *dist_n. */
-static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays);
@@ -576,6 +577,11 @@ static const char *refl__options_planar(refl_render_desc *d);
 static const char *refl__options_c3rc(refl_render_desc *d);
 static const char *refl__options_sbc(refl_render_desc *d);
 static refl_result refl__method_layered_em(refl__pass *p);
+/* LAYERED_EM's maps of every viewpoint sample around the pass's eye, for
+   the lenses the pass draws, into p->models (refl_renderer_prebuild). */
+static refl_result refl__prebuild_layered_em(refl__pass *p);
+/* Frees what refl__models keeps of LAYERED_EM (m_layered_em.c). */
+static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);

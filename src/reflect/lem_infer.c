@@ -320,22 +320,22 @@ static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_cast
    the term) and its confidence (-1: no subsample has the term) in
    out[5 term .. 5 term + 4]. Each environment hit adds its distance from
    `centre` to *dist_sum and one to *dist_n. */
-static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
                                    double *dist_sum, long long *dist_n, long long *rays) {
     refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
     refl_greedy_paths_result sub;
-    float sum[2][3];
+    float sum[2][3], tmax;
     int n[2] = {0, 0}, i, j, k, term;
-    refl_view_ray(view, scene, (float)x + 0.5f, (float)y + 0.5f, &o, &d, NULL);
+    refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
     refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
     if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
     memset(sum, 0, sizeof sum);
     for (j = 0; j < ss; ++j)
         for (i = 0; i < ss; ++i) {
-            refl_view_ray(view, scene, (float)x + ((float)i + 0.5f) / (float)ss, (float)y + ((float)j + 0.5f) / (float)ss,
-                          &o, &d, NULL);
+            refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
+                                (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
             refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
@@ -368,6 +368,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
                                           const refl_lem_shell *shell, const refl_lem_record_desc *desc,
                                           refl_lem_record_stats *stats) {
     refl_lem_record_stats st;
+    refl__view_rays rays;
     int ss, x, y, term;
     refl_result r = REFL_OK;
     double dist_sum = 0.0;
@@ -379,11 +380,12 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     if (view->width <= 0 || view->height <= 0) return REFL_ERROR_INVALID_SIZE;
     if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
     ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
+    refl__view_rays_init(&rays, view, scene);
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
             refl_greedy_paths_result centre;
             float rec[10];
-            if (!refl__lem_pixel_records(scene, caster, view, x, y, desc->object, ss, desc->theta_c_degrees,
+            if (!refl__lem_pixel_records(scene, caster, &rays, x, y, desc->object, ss, desc->theta_c_degrees,
                                          desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
                                          &st.rays))
                 continue;

@@ -193,17 +193,20 @@ static void refl__lt_trace_job(void *arg, int job) {
     t->chunk_rays[job] = rays;
 }
 
-/* Traces vertices [first, vcount) on rc's threads. */
-static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, long long *rays) {
+/* Traces vertices [first, vcount) on rc's threads; the rays and the time
+   go into out's counts. */
+static int refl__lt_trace(refl__lt *t, rast_context *rc, int first, refl_lens_tess *out) {
     int jobs = (t->vcount - first + REFL__LT_CHUNK - 1) / REFL__LT_CHUNK, j;
+    double t0 = refl__now_ms();
     if (jobs <= 0) return 1;
     t->chunk_rays = (long long *)refl__calloc(t->al, (size_t)jobs, sizeof(long long));
     if (!t->chunk_rays) return 0;
     t->trace_first = first;
     rast_run_jobs(rc, jobs, refl__lt_trace_job, t);
-    for (j = 0; j < jobs; ++j) *rays += t->chunk_rays[j];
+    for (j = 0; j < jobs; ++j) out->rays += t->chunk_rays[j];
     refl__free(t->al, t->chunk_rays);
     t->chunk_rays = NULL;
+    out->ms_trace += refl__now_ms() - t0;
     return 1;
 }
 
@@ -369,7 +372,7 @@ static int refl__lt_conform(refl__lt *t, rast_context *rc, refl_lens_tess *out, 
         }
     }
     refl__free(t->al, poly);
-    if (ok) ok = refl__lt_trace(t, rc, first_centre, &out->rays);
+    if (ok) ok = refl__lt_trace(t, rc, first_centre, out);
     out->indices = idx;
     out->triangle_count = count;
     return ok;
@@ -462,12 +465,12 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
         t.tris[t.tcount++] = lt;
         ++out->front_triangles;
     }
-    if (!refl__lt_trace(&t, rc, 0, &out->rays)) goto done;
+    if (!refl__lt_trace(&t, rc, 0, out)) goto done;
     /* level by level: decide in order, then trace the level's new vertices */
     while (first < t.tcount) {
         int end = t.tcount, traced = t.vcount;
         if (!refl__lt_level(&t, out, first, end, &leaves, &nleaves, &leaf_cap)) goto done;
-        if (!refl__lt_trace(&t, rc, traced, &out->rays)) goto done;
+        if (!refl__lt_trace(&t, rc, traced, out)) goto done;
         first = end;
     }
     if (!refl__lt_conform(&t, rc, out, leaves, nleaves)) goto done;

@@ -341,6 +341,21 @@ static refl_result refl__check_frame(const refl_scene *scene, const refl_view *v
                                                                         : REFL_ERROR_INVALID_ARGUMENT;
 }
 
+/* p for a frame of scene from view into frame, nothing drawn yet. */
+static void refl__pass_init(refl__pass *p, const refl_scene *scene, const refl_view *view,
+                            const refl_render_desc *desc, refl_frame *frame, rast_context *rc, refl__models *models) {
+    memset(p, 0, sizeof *p);
+    p->desc = *desc;
+    p->scene = scene;
+    p->view = view;
+    p->frame = frame;
+    p->rc = rc;
+    p->models = models;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
+}
+
 static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const refl_view *view,
                                    const refl_render_desc *desc, refl_frame *frame, rast_context *rc,
                                    refl__models *models) {
@@ -351,17 +366,8 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     refl_result r;
     double t0 = refl__now_ms();
     size_t n = (size_t)frame->width * (size_t)frame->height, k;
-    memset(p, 0, sizeof *p);
-    p->desc = *desc;
-    p->scene = scene;
-    p->view = view;
-    p->frame = frame;
-    p->rc = rc;
-    p->models = models;
+    refl__pass_init(p, scene, view, desc, frame, rc, models);
     for (k = 0; k < 3 * n; ++k) frame->points[k] = NAN;
-    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
-    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
-    refl__view_rays_init(&p->rays, view, scene);
     t = refl__frame_targets(frame);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL;
@@ -474,6 +480,7 @@ struct refl_renderer {
 static void refl__models_free(const refl_scene *scene, refl__models *m) {
     refl_bvh_destroy(m->bvh);
     refl__c3_samples_free(&scene->allocator, m->c3);
+    refl__lem_maps_free(&scene->allocator, m->lem);
     memset(m, 0, sizeof *m);
 }
 
@@ -551,6 +558,13 @@ static refl_result refl__cancelled(refl_frame *frame) {
     return REFL_ERROR_CANCELLED;
 }
 
+/* The renderer's models dropped when the scene changed since they were built. */
+static void refl__models_current(refl_renderer *rr) {
+    if (rr->models.scene_version == rr->scene->version) return;
+    refl__models_free(rr->scene, &rr->models);
+    rr->models.scene_version = rr->scene->version;
+}
+
 /* One render of view into frame, a sample per pixel. */
 static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     const refl_scene *scene = rr->scene;
@@ -559,10 +573,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     refl_result r;
     double t0 = refl__now_ms();
     int i;
-    if (rr->models.scene_version != scene->version) {
-        refl__models_free(scene, &rr->models);
-        rr->models.scene_version = scene->version;
-    }
+    refl__models_current(rr);
     memset(&frame->stats, 0, sizeof(frame->stats));
     row = refl__method_row_of(rr->desc.method);
     if (rr->desc.progress && rr->desc.progress(rr->desc.progress_user, 0.0f)) return refl__cancelled(frame);
@@ -603,6 +614,62 @@ static void refl__resolve_spp(const refl_frame *fine, refl_frame *frame, int sid
         }
 }
 
+/* With spp > 1: view at sqrt(spp) times its size into *fine_view, and
+   rr->fine made that size. */
+static refl_result refl__fine_frame(refl_renderer *rr, const refl_view *view, int side, refl_frame *frame,
+                                    refl_view *fine_view) {
+    *fine_view = *view;
+    fine_view->width = view->width * side;
+    fine_view->height = view->height * side;
+    if (fine_view->width > RAST_MAX_TARGET_SIZE || fine_view->height > RAST_MAX_TARGET_SIZE) {
+        frame->message = "spp: the frame's side times sqrt(spp) above RAST_MAX_TARGET_SIZE";
+        return REFL_ERROR_INVALID_SIZE;
+    }
+    if (rr->fine && (rr->fine->width != fine_view->width || rr->fine->height != fine_view->height)) {
+        refl_frame_destroy(rr->fine);
+        rr->fine = NULL;
+    }
+    if (!rr->fine)
+        return refl_frame_create(fine_view->width, fine_view->height, &rr->scene->allocator, &rr->fine);
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
+    refl_view fine_view;
+    refl_frame *target = frame;
+    refl__pass p;
+    refl_result r;
+    double t0 = refl__now_ms();
+    int side, i, lem = 0;
+    uint8_t *mine;
+    if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
+    side = refl__spp_side(rr->desc.spp);
+    fine_view = *view;
+    if (side > 1) { /* the maps of the views the frames render */
+        if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
+        target = rr->fine;
+    }
+    refl__models_current(rr);
+    memset(&target->stats, 0, sizeof target->stats);
+    refl__pass_init(&p, rr->scene, &fine_view, &rr->desc, target, rr->rc, &rr->models);
+    mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p.mine = mine;
+    for (i = 0; i < rr->scene->object_count; ++i) {
+        mine[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
+        lem |= mine[i] && refl__pass_draws(&p, i);
+    }
+    if (lem) r = refl__prebuild_layered_em(&p);
+    refl__free(&rr->scene->allocator, mine);
+    if (target != frame) frame->stats = target->stats;
+    frame->stats.ms_total = refl__now_ms() - t0;
+    if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
+    if (r == REFL_OK && rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
+    return r;
+}
+
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     refl_view fine_view;
     refl_result r;
@@ -613,19 +680,7 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     side = refl__spp_side(rr->desc.spp);
     if (side == 1) return refl__render_samples(rr, view, frame);
     t0 = refl__now_ms();
-    fine_view = *view;
-    fine_view.width = view->width * side;
-    fine_view.height = view->height * side;
-    if (fine_view.width > RAST_MAX_TARGET_SIZE || fine_view.height > RAST_MAX_TARGET_SIZE) {
-        frame->message = "spp: the frame's side times sqrt(spp) above RAST_MAX_TARGET_SIZE";
-        return REFL_ERROR_INVALID_SIZE;
-    }
-    if (rr->fine && (rr->fine->width != fine_view.width || rr->fine->height != fine_view.height)) {
-        refl_frame_destroy(rr->fine);
-        rr->fine = NULL;
-    }
-    if (!rr->fine && (r = refl_frame_create(fine_view.width, fine_view.height, &rr->scene->allocator, &rr->fine)) != REFL_OK)
-        return r;
+    if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
         if (rr->fine->message == rr->fine->message_text) refl__frame_say(frame, "%s", rr->fine->message_text);
         else frame->message = rr->fine->message;

@@ -338,7 +338,8 @@ REFL_API long long refl_scene_triangles(const refl_scene *s) {
 
 /* ---- built-in scenes ------------------------------------------------------ */
 
-static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots", NULL};
+static const char *const refl__builtin_names[] = {"default", "mirror-room", "concave", "glass", "maze", "teapots",
+                                                   "hybrid", NULL};
 
 REFL_API const char *const *refl_builtin_names(void) { return refl__builtin_names; }
 
@@ -568,6 +569,145 @@ static refl_result refl__scene_glass(refl_scene *s, const refl_allocator *a, int
     return REFL_OK;
 }
 
+/* A 256 x 256 checker of cells x cells tiles (light and dark grey) as the
+   texture of object 0's material (the stage's floor), its colour white. */
+static refl_result refl__checker_floor(refl_scene *s, const refl_allocator *a, int cells) {
+    float *checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
+    int x, y, tex, side = 256 / cells;
+    refl_material *floor_m = &s->materials[s->objects[0].material];
+    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
+    for (y = 0; y < 256; ++y)
+        for (x = 0; x < 256; ++x) {
+            float v = ((x / side) + (y / side)) & 1 ? 0.95f : 0.15f;
+            float *px = checker + 4 * (256 * y + x);
+            px[0] = px[1] = px[2] = v;
+            px[3] = 1.0f;
+        }
+    tex = refl_scene_add_texture(s, 256, 256, checker);
+    refl__free(a, checker);
+    if (tex < 0) return (refl_result)tex;
+    floor_m->texture = tex;
+    floor_m->color[0] = floor_m->color[1] = floor_m->color[2] = 1.0f;
+    return REFL_OK;
+}
+
+/* A cup without a handle standing on y = 0 around the y axis: outer and
+   inner walls (wall thick), the rim, the inside floor and the bottom, each
+   part its own vertices with its own normals so the edges stay sharp. */
+static refl_result refl__mesh_cup(float radius, float height, float wall, int slices, const refl_allocator *a,
+                                  refl_mesh **out) {
+    int nv = 8 * (slices + 1) + 2, ni = 3 * 8 * slices, v = 0, t = 0, i, part;
+    float *pos = (float *)refl__calloc(a, (size_t)nv * 6, sizeof(float)), *nrm = pos ? pos + 3 * nv : NULL;
+    uint32_t *idx = (uint32_t *)refl__calloc(a, (size_t)ni, sizeof(uint32_t));
+    const float ri = radius - wall;
+    refl_mesh_desc d;
+    refl_result r;
+    if (!pos || !idx) {
+        refl__free(a, pos);
+        refl__free(a, idx);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+#define REFL__CUP_VERTEX(px, py, pz, nx, ny, nz)                                                                      \
+    (pos[3 * v] = (px), pos[3 * v + 1] = (py), pos[3 * v + 2] = (pz), nrm[3 * v] = (nx), nrm[3 * v + 1] = (ny),        \
+     nrm[3 * v + 2] = (nz), v++)
+#define REFL__CUP_TRI(i0, i1, i2) (idx[t] = (uint32_t)(i0), idx[t + 1] = (uint32_t)(i1), idx[t + 2] = (uint32_t)(i2), t += 3)
+    /* the walls and the rim: two rings each, (lower or inner, upper or outer) per angle */
+    for (part = 0; part < 3; ++part) {
+        int base = v;
+        for (i = 0; i <= slices; ++i) {
+            float an = 2.0f * (float)REFL__PI * (float)i / (float)slices, c = cosf(an), sn = sinf(an);
+            if (part == 0) { /* outer wall, bottom then top */
+                REFL__CUP_VERTEX(radius * c, 0.0f, radius * sn, c, 0.0f, sn);
+                REFL__CUP_VERTEX(radius * c, height, radius * sn, c, 0.0f, sn);
+            } else if (part == 1) { /* inner wall, its floor then top */
+                REFL__CUP_VERTEX(ri * c, wall, ri * sn, -c, 0.0f, -sn);
+                REFL__CUP_VERTEX(ri * c, height, ri * sn, -c, 0.0f, -sn);
+            } else { /* rim, inner then outer */
+                REFL__CUP_VERTEX(ri * c, height, ri * sn, 0.0f, 1.0f, 0.0f);
+                REFL__CUP_VERTEX(radius * c, height, radius * sn, 0.0f, 1.0f, 0.0f);
+            }
+        }
+        for (i = 0; i < slices; ++i) {
+            int b0 = base + 2 * i, t0 = b0 + 1, b1 = b0 + 2, t1 = b0 + 3;
+            if (part == 0) REFL__CUP_TRI(b0, t0, t1), REFL__CUP_TRI(b0, t1, b1);
+            else if (part == 1) REFL__CUP_TRI(b0, t1, t0), REFL__CUP_TRI(b0, b1, t1);
+            else REFL__CUP_TRI(t0, b0, b1), REFL__CUP_TRI(t0, b1, t1);
+        }
+    }
+    /* the inside floor (up) and the bottom (down): a centre and a ring each */
+    for (part = 0; part < 2; ++part) {
+        float y = part ? 0.0f : wall, rr = part ? radius : ri, ny = part ? -1.0f : 1.0f;
+        int centre = v;
+        REFL__CUP_VERTEX(0.0f, y, 0.0f, 0.0f, ny, 0.0f);
+        for (i = 0; i <= slices; ++i) {
+            float an = 2.0f * (float)REFL__PI * (float)i / (float)slices;
+            REFL__CUP_VERTEX(rr * cosf(an), y, rr * sinf(an), 0.0f, ny, 0.0f);
+        }
+        for (i = 0; i < slices; ++i) {
+            if (part) REFL__CUP_TRI(centre, centre + 1 + i, centre + 2 + i);
+            else REFL__CUP_TRI(centre, centre + 2 + i, centre + 1 + i);
+        }
+    }
+#undef REFL__CUP_VERTEX
+#undef REFL__CUP_TRI
+    memset(&d, 0, sizeof d);
+    d.positions = pos;
+    d.normals = nrm;
+    d.indices = idx;
+    d.vertex_count = v;
+    d.index_count = t;
+    if (a) d.allocator = *a;
+    r = refl_mesh_create(&d, out);
+    refl__free(a, pos);
+    refl__free(a, idx);
+    return r;
+}
+
+/* hybrid: paper 001's scene (section 6): a glass teapot and a mirror cup
+   inside a ring of ten columns, walls far around them, on a checker floor.
+   The teapot and the cup float 0.005 above the floor: bottoms in its plane
+   would make rays seen through the glass choose between coincident
+   triangles, which two ray casters may break differently. */
+static refl_result refl__scene_hybrid(refl_scene *s, const refl_allocator *a, int tess) {
+    static const float column_rgb[2][3] = {{0.85f, 0.75f, 0.55f}, {0.45f, 0.55f, 0.8f}};
+    static const float wall_rgb[4][3] = {{0.8f, 0.35f, 0.3f}, {0.35f, 0.7f, 0.4f}, {0.85f, 0.8f, 0.45f},
+                                         {0.55f, 0.45f, 0.75f}};
+    refl_material glass = refl__material(REFL_GLASS, 0.95f, 0.97f, 1.0f, "glass teapot");
+    refl_material mirror = refl__material(REFL_MIRROR, 0.9f, 0.9f, 0.9f, "mirror cup");
+    refl_mesh *m = NULL;
+    refl_result r;
+    int k, i;
+    if ((r = refl__stage(s, a, 34.0f, refl_v3(0.9f, 1.9f, 4.8f), refl_v3(0.4f, 0.45f, 0.0f))) != REFL_OK) return r;
+    if ((r = refl__checker_floor(s, a, 16)) != REFL_OK) return r;
+    glass.ior = 1.5f;
+    glass.fresnel = 1;
+    mirror.reflectance = 0.9f;
+    if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &glass,
+                       refl_mat4_mul(refl__at(-0.2f, 0.005f, 0.0f), refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f))),
+                       "glass teapot")) < 0)
+        return (refl_result)k;
+    if ((k = refl__add(s, refl__mesh_cup(0.3f, 0.55f, 0.03f, 48, a, &m), &m, &mirror, refl__at(1.2f, 0.005f, 0.7f),
+                       "mirror cup")) < 0)
+        return (refl_result)k;
+    for (i = 0; i < 10; ++i) {
+        float an = 2.0f * (float)REFL__PI * ((float)i + 0.5f) / 10.0f;
+        refl_material col = refl__material(REFL_DIFFUSE, column_rgb[i & 1][0], column_rgb[i & 1][1],
+                                           column_rgb[i & 1][2], "column");
+        if ((k = refl__add(s, refl_mesh_box(refl_v3(0.35f, 2.8f, 0.35f), a, &m), &m, &col,
+                           refl__at(6.0f * sinf(an), 1.4f, 6.0f * cosf(an)), "column")) < 0)
+            return (refl_result)k;
+    }
+    for (i = 0; i < 4; ++i) {
+        float an = 0.5f * (float)REFL__PI * (float)i;
+        refl_material wall = refl__material(REFL_DIFFUSE, wall_rgb[i][0], wall_rgb[i][1], wall_rgb[i][2], "wall");
+        if ((k = refl__add(s, refl_mesh_box(refl_v3(30.0f, 5.0f, 0.3f), a, &m), &m, &wall,
+                           refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), an), refl__at(0.0f, 2.5f, -15.0f)),
+                           "wall")) < 0)
+            return (refl_result)k;
+    }
+    return REFL_OK;
+}
+
 /* teapots: paper 004's two-teapot scene (Fig. 1): a mirror teapot and a
    diffuse teapot beside it, turned, both at half size, on a checker floor
    (a 256 x 256 texture of 16 x 16 tiles over the floor). */
@@ -577,24 +717,9 @@ static refl_result refl__scene_teapots(refl_scene *s, const refl_allocator *a, i
     refl_mat4 half = refl_mat4_scale(refl_v3(0.5f, 0.5f, 0.5f));
     refl_mesh *m = NULL;
     refl_result r;
-    float *checker;
-    int k, x, y, tex;
+    int k;
     if ((r = refl__stage(s, a, 12.0f, refl_v3(-0.6f, 2.8f, 6.0f), refl_v3(-0.3f, 0.5f, 0.2f))) != REFL_OK) return r;
-    checker = (float *)refl__calloc(a, 256 * 256, 4 * sizeof(float));
-    if (!checker) return REFL_ERROR_OUT_OF_MEMORY;
-    for (y = 0; y < 256; ++y)
-        for (x = 0; x < 256; ++x) {
-            float v = ((x / 16) + (y / 16)) & 1 ? 0.95f : 0.15f;
-            float *px = checker + 4 * (256 * y + x);
-            px[0] = px[1] = px[2] = v;
-            px[3] = 1.0f;
-        }
-    tex = refl_scene_add_texture(s, 256, 256, checker);
-    refl__free(a, checker);
-    if (tex < 0) return (refl_result)tex;
-    s->materials[s->objects[0].material].texture = tex;
-    s->materials[s->objects[0].material].color[0] = s->materials[s->objects[0].material].color[1] =
-        s->materials[s->objects[0].material].color[2] = 1.0f;
+    if ((r = refl__checker_floor(s, a, 16)) != REFL_OK) return r;
     mirror.reflectance = 0.9f;
     if ((k = refl__add(s, refl_mesh_teapot(tess, a, &m), &m, &mirror, refl_mat4_mul(refl__at(-1.2f, 0.0f, -0.2f), half), "mirror teapot")) < 0)
         return (refl_result)k;
@@ -690,7 +815,7 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     if (desc) d = *desc;
     else memset(&d, 0, sizeof d);
     if (strcmp(name, "default") && strcmp(name, "mirror-room") && strcmp(name, "concave") && strcmp(name, "glass") &&
-        strcmp(name, "maze") && strcmp(name, "teapots"))
+        strcmp(name, "maze") && strcmp(name, "teapots") && strcmp(name, "hybrid"))
         return REFL_ERROR_UNKNOWN_NAME;
     if ((r = refl_scene_create(&d.allocator, &s)) != REFL_OK) return r;
     if (!strcmp(name, "default")) r = refl__scene_default(s, &d.allocator, d.teapot_tess);
@@ -698,6 +823,7 @@ REFL_API refl_result refl_scene_builtin(const char *name, const refl_builtin_des
     else if (!strcmp(name, "concave")) r = refl__scene_concave(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "maze")) r = refl__scene_maze(s, &d.allocator, d.teapot_tess);
     else if (!strcmp(name, "teapots")) r = refl__scene_teapots(s, &d.allocator, d.teapot_tess);
+    else if (!strcmp(name, "hybrid")) r = refl__scene_hybrid(s, &d.allocator, d.teapot_tess);
     else r = refl__scene_glass(s, &d.allocator, d.teapot_tess);
     if (r != REFL_OK) {
         refl_scene_destroy(s);

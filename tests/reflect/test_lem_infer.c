@@ -322,3 +322,105 @@ Test(layered_em, options_validated) {
     d.layered_em.supersample = 9;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
 }
+
+/* ---- maps kept by a renderer -------------------------------------------------------- */
+
+static refl_render_desc lem_desc(int samples) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    d.threads = 2;
+    d.layered_em.samples = samples;
+    return d;
+}
+
+Test(layered_em, a_kept_renderer_reuses_its_maps_with_a_fresh_ones_bytes) {
+    /* 8 samples 45 degrees apart: views at 10 and 30 degrees share the
+       samples at 0 and 45 */
+    refl_scene *s = exact_shell_scene();
+    refl_render_desc d = lem_desc(8);
+    refl_renderer *rr = NULL;
+    refl_view v10 = orbit_view_sized(10.0f, 48, 36), v30 = orbit_view_sized(30.0f, 48, 36);
+    refl_frame *f = NULL, *fresh;
+    unsigned long long first;
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_frame_create(48, 36, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_renderer_render(rr, &v10, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 2);
+    cr_assert_eq(f->stats.layered_em.maps_kept, 0);
+    cr_assert_eq(f->stats.layered_em.maps_held, 2);
+    first = tu_refl_digest(f);
+    cr_assert_eq(refl_renderer_render(rr, &v10, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "the second frame infers nothing");
+    cr_assert_eq(f->stats.layered_em.maps_kept, 2);
+    cr_assert_eq(tu_refl_digest(f), first);
+    cr_assert_eq(refl_renderer_render(rr, &v30, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "another view between the same samples");
+    fresh = tu_refl_render(s, &v30, &d);
+    cr_assert_eq(tu_refl_digest(f), tu_refl_digest(fresh), "kept maps give a fresh renderer's bytes");
+    cr_assert_eq(fresh->stats.layered_em.maps_inferred, 2);
+    {
+        /* nearer the lens and higher: the first frame's circle of samples still serves */
+        refl_view near = tu_refl_view(refl_v3(2.5f * sinf(20.0f * DEG), 1.0f, 2.5f * cosf(20.0f * DEG)),
+                                      refl_v3(0, 0, 0), 48, 36);
+        cr_assert_eq(refl_renderer_render(rr, &near, f), REFL_OK);
+        cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "an eye off the circle takes its samples");
+        cr_assert_eq(f->stats.layered_em.maps_kept, 2);
+    }
+    refl_scene_touch(s);
+    cr_assert_eq(refl_renderer_render(rr, &v30, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 2, "a changed scene drops the maps");
+    cr_assert_eq(f->stats.layered_em.maps_held, 2);
+    refl_frame_destroy(fresh);
+    refl_frame_destroy(f);
+    refl_renderer_destroy(rr);
+    refl_scene_destroy(s);
+}
+
+typedef struct lem_progress {
+    int calls, stop_after;
+    float last;
+    int decreased;
+} lem_progress;
+
+static int lem_progress_fn(void *user, float done) {
+    lem_progress *p = (lem_progress *)user;
+    p->decreased |= done < p->last;
+    p->last = done;
+    return p->stop_after > 0 && ++p->calls >= p->stop_after;
+}
+
+Test(layered_em, prebuild_infers_every_sample_once_and_cancels) {
+    refl_scene *s = exact_shell_scene();
+    refl_render_desc d = lem_desc(6);
+    refl_renderer *rr = NULL;
+    refl_view v = orbit_view_sized(0.0f, 40, 30), w = orbit_view_sized(200.0f, 40, 30);
+    refl_frame *f = NULL;
+    lem_progress pr;
+    memset(&pr, 0, sizeof pr);
+    d.layered_em.single_view = 1;
+    d.progress = lem_progress_fn;
+    d.progress_user = &pr;
+    cr_assert_eq(refl_frame_create(40, 30, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_renderer_prebuild(rr, &v, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 6);
+    cr_assert_eq(f->stats.layered_em.maps_held, 6);
+    cr_assert_gt(f->stats.model_bytes, 0);
+    cr_assert_eq(pr.last, 1.0f);
+    cr_assert(!pr.decreased, "progress only grows");
+    cr_assert_eq(refl_renderer_render(rr, &w, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "any view on the circle finds its maps built");
+    cr_assert_eq(f->stats.layered_em.maps_kept, 2);
+    refl_renderer_destroy(rr);
+    /* a callback that stops it after the second map */
+    memset(&pr, 0, sizeof pr);
+    pr.stop_after = 2;
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_renderer_prebuild(rr, &v, f), REFL_ERROR_CANCELLED);
+    cr_assert_str_eq(f->message, "cancelled by the progress callback");
+    cr_assert_eq(f->stats.layered_em.maps_held, 2, "the maps finished stay kept");
+    refl_renderer_destroy(rr);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}

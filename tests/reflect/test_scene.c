@@ -46,7 +46,7 @@ Test(refl_scene, every_builtin_builds_and_unknown_names_fail) {
         cr_assert(reflectors >= 1, "%s has no reflector", names[n]);
         refl_scene_destroy(s);
     }
-    cr_assert_eq(n, 6);
+    cr_assert_eq(n, 7);
     cr_assert_eq(refl_scene_builtin("no-such-scene", NULL, &s), REFL_ERROR_UNKNOWN_NAME);
     cr_assert_null(s);
     cr_assert_eq(refl_scene_builtin(NULL, NULL, &s), REFL_ERROR_INVALID_ARGUMENT);
