@@ -1027,7 +1027,9 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SBC_MORPH = 6    /* an SBC morph grid's tetrahedron for one eye and piece: its four
+                                nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1035,6 +1037,8 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
+             refl_sbc_morph_project's blend (one image per node and piece)
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1044,6 +1048,11 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* The tetrahedron of the grid that holds eye, for piece `piece`: what
+   refl_sbc_morph_project reads (REFL_ERROR_INVALID_ARGUMENT where the eye
+   locates nowhere or the piece is out of range). */
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -7152,6 +7161,107 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
     if (ambiguous) *ambiguous = amb;
     return REFL_OK;
 }
+
+/* ---- GL hook (gl_hooks.c; docs/gl.md, "SBC morph grid") ---------------------------
+   The eye's tetrahedron for one piece: its four weights, and per node of
+   positive weight its position, the piece's box there, its face SBCs (each
+   a whole SBC block, refl_gl_pack_sbc) and the face maps of its unextended
+   rays' directions (refl__sbm_ahead's check). A node of no weight, not
+   built or without the piece's cameras has offset -1 (it projects
+   nothing, as refl__sbm_node_project). */
+typedef struct refl__sbm_gl {
+    float *out;
+    long long cap, n;        /* floats */
+} refl__sbm_gl;
+
+static void refl__sbm_gl_put(refl__sbm_gl *o, double v) {
+    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the caller sizes first: it always fits */
+    ++o->n;
+}
+
+static void refl__sbm_gl_put4(refl__sbm_gl *o, double a, double b, double c, double d) {
+    refl__sbm_gl_put(o, a); refl__sbm_gl_put(o, b); refl__sbm_gl_put(o, c); refl__sbm_gl_put(o, d);
+}
+
+/* The texel offsets (from the block's header) of a node's parts, laid out
+   in order: node header (7 texels), the faces' SBC blocks, the faces'
+   direction maps (W x W texels each, W = face + 2). */
+static long long refl__sbm_gl_node(refl__sbm_gl *o, const refl__sbm_node *nd, int piece) {
+    long long at = o->n / 4, sbc_at[6], dir_at[6], next, need;
+    int f, W = nd->face + 2, i;
+    const float *bx = nd->box + 6 * (size_t)piece;
+    next = at + 7;
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        sbc_at[f] = -1;
+        if (!s) continue;
+        if ((need = refl_gl_pack_sbc(s, NULL, 0)) < 0) return need;
+        sbc_at[f] = next;
+        next += need / 4;
+    }
+    for (f = 0; f < 6; ++f) {
+        dir_at[f] = nd->dirs && nd->dirs[(size_t)piece * 6 + (size_t)f] ? next : -1;
+        if (dir_at[f] >= 0) next += (long long)W * W;
+    }
+    refl__sbm_gl_put4(o, nd->pos.x, nd->pos.y, nd->pos.z, nd->face);
+    refl__sbm_gl_put4(o, bx[0], bx[1], bx[2], 0);
+    refl__sbm_gl_put4(o, bx[3], bx[4], bx[5], 0);
+    refl__sbm_gl_put4(o, sbc_at[0], sbc_at[1], sbc_at[2], sbc_at[3]);
+    refl__sbm_gl_put4(o, sbc_at[4], sbc_at[5], -1, -1);
+    refl__sbm_gl_put4(o, dir_at[0], dir_at[1], dir_at[2], dir_at[3]);
+    refl__sbm_gl_put4(o, dir_at[4], dir_at[5], -1, -1);
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        long long n;
+        if (!s) continue;
+        n = refl_gl_pack_sbc(s, o->out ? o->out + o->n : NULL, o->out ? o->cap - o->n : 0);
+        o->n += n;
+    }
+    for (f = 0; f < 6; ++f) {
+        const signed char *dm = dir_at[f] >= 0 ? nd->dirs[(size_t)piece * 6 + (size_t)f] : NULL;
+        for (i = 0; dm && i < W * W; ++i) refl__sbm_gl_put4(o, dm[3 * i], dm[3 * i + 1], dm[3 * i + 2], 0);
+    }
+    return next;
+}
+
+static long long refl__sbm_gl_pack(refl__sbm_gl *o, const refl_sbc_morph *m, refl_vec3 eye, int piece) {
+    int nodes[4], k;
+    float w[4];
+    long long at[4], next = 6;
+    if (!m || piece < 0 || piece >= m->piece_count || refl_sbc_morph_locate(m, eye, nodes, w) < 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (k = 0; k < 4; ++k) {
+        const refl__sbm_node *nd = &m->nodes[nodes[k]];
+        at[k] = -1;
+        if (!(w[k] > 0.0f) || !nd->built || !nd->sbc) continue;
+        at[k] = next; /* sized below, with a counting pass of its own */
+        {
+            refl__sbm_gl count = {NULL, 0, next * 4};
+            long long r = refl__sbm_gl_node(&count, nd, piece);
+            if (r < 0) return r;
+            next = count.n / 4;
+        }
+    }
+    if (next >= 16777216) return REFL_ERROR_INVALID_ARGUMENT; /* offsets stored as floats */
+    refl__sbm_gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
+    refl__sbm_gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
+                      w[3] > 0.0f ? w[3] : 0.0f);
+    for (k = 0; k < 4; ++k) refl__sbm_gl_put4(o, at[k], 0, 0, 0);
+    for (k = 0; k < 4; ++k)
+        if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    return o->n;
+}
+
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap) {
+    refl__sbm_gl o = {NULL, 0, 0};
+    long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    o.n = 0;
+    return refl__sbm_gl_pack(&o, morph, eye, piece);
+}
 /* ---- src/reflect/cam_sbc_raylist.c ---- */
 /* cam_sbc_raylist: the sample-based camera's ray-list leaves, where no
    pinhole camera fits, and their sheets (paper 003 IV and VII-C;
@@ -8721,12 +8831,88 @@ static const char refl__gl_glsl_graphcam[] =
     "    return vec4(0.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_sbc_morph[] =
+    "/* reflect.h GL hook: an SBC morph grid (layout version 1), cam_sbc_morph.c's\n"
+    "   refl_sbc_morph_project in float: the eye's tetrahedron of nodes, each node's\n"
+    "   face SBCs (refl_sbc_project, REFL_GL_SBC's source), the blend. */\n"
+    "int refl_sbm_face_of(vec3 v) {\n"
+    "    vec3 a = abs(v);\n"
+    "    if (a.x >= a.y && a.x >= a.z) return v.x >= 0.0 ? 0 : 1;\n"
+    "    if (a.y >= a.z) return v.y >= 0.0 ? 2 : 3;\n"
+    "    return v.z >= 0.0 ? 4 : 5;\n"
+    "}\n"
+    "/* whether p lies ahead of first point q along the unextended ray of the\n"
+    "   node's face sample q lands on (cam_sbc_morph.c's refl__sbm_ahead) */\n"
+    "bool refl_sbm_ahead(samplerBuffer data, int base, int nb, vec3 pos, int face, vec3 p, vec3 q) {\n"
+    "    const vec3 fws[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0), vec3(0, 0, 1), vec3(0, 0, -1));\n"
+    "    const vec3 ups[6] = vec3[6](vec3(0, 1, 0), vec3(0, 1, 0), vec3(0, 0, -1), vec3(0, 0, 1), vec3(0, 1, 0), vec3(0, 1, 0));\n"
+    "    vec3 v = q - pos;\n"
+    "    int f = refl_sbm_face_of(v), W = face + 2;\n"
+    "    float dm = texelFetch(data, nb + 5 + f / 4)[f % 4];\n"
+    "    if (dm < 0.0) return true;\n"
+    "    vec3 fw = fws[f], rt = normalize(cross(fw, ups[f])), up = cross(rt, fw);\n"
+    "    float w = dot(v, fw);\n"
+    "    if (!(w > 0.0)) return true;\n"
+    "    float x = dot(v, rt) / w, y = dot(v, up) / w;\n"
+    "    int i = int(clamp(floor((x + 1.0) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    int j = int(clamp(floor((1.0 - y) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    vec3 dr = texelFetch(data, base + int(dm) + j * W + i).xyz;\n"
+    "    if (dr == vec3(0.0)) return true;\n"
+    "    return dot(p - q, dr) > 0.0;\n"
+    "}\n"
+    "/* p at one node (its block at nb): the face owning the answer first */\n"
+    "bool refl_sbm_node_project(samplerBuffer data, int base, int nb, vec3 p, out vec3 first) {\n"
+    "    vec4 pos = texelFetch(data, nb);\n"
+    "    first = vec3(0.0);\n"
+    "    if (any(lessThan(p, texelFetch(data, nb + 1).xyz)) || any(greaterThan(p, texelFetch(data, nb + 2).xyz)))\n"
+    "        return false;\n"
+    "    bool got = false;\n"
+    "    vec3 keep = vec3(0.0);\n"
+    "    for (int f = 0; f < 6; ++f) {\n"
+    "        float so = texelFetch(data, nb + 3 + f / 4)[f % 4];\n"
+    "        vec3 q;\n"
+    "        float z;\n"
+    "        int kind;\n"
+    "        if (so < 0.0 || !refl_sbc_project(data, base + int(so), p, q, z, kind)) continue;\n"
+    "        if (!refl_sbm_ahead(data, base, nb, pos.xyz, int(pos.w), p, q)) continue;\n"
+    "        if (refl_sbm_face_of(q - pos.xyz) == f) { first = q; return true; }\n"
+    "        if (!got) keep = q;\n"
+    "        got = true;\n"
+    "    }\n"
+    "    first = keep;\n"
+    "    return got;\n"
+    "}\n"
+    "/* p's blended first reflector point and distance for the packed eye and\n"
+    "   piece; false where a node of positive weight does not project it */\n"
+    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "    vec4 w = texelFetch(data, base + 1);\n"
+    "    vec3 f = vec3(0.0);\n"
+    "    float dd = 0.0;\n"
+    "    bool any_node = false;\n"
+    "    first = vec3(0.0);\n"
+    "    dist = 0.0;\n"
+    "    for (int k = 0; k < 4; ++k) {\n"
+    "        if (!(w[k] > 0.0)) continue;\n"
+    "        float nb = texelFetch(data, base + 2 + k).x;\n"
+    "        vec3 q;\n"
+    "        if (nb < 0.0 || !refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        f += w[k] * q;\n"
+    "        dd += w[k] * length(p - q);\n"
+    "        any_node = true;\n"
+    "    }\n"
+    "    if (!any_node) return false;\n"
+    "    first = f;\n"
+    "    dist = dd;\n"
+    "    return true;\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
+    case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
     }
     return NULL;
 }

@@ -1025,7 +1025,9 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SBC_MORPH = 6    /* an SBC morph grid's tetrahedron for one eye and piece: its four
+                                nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1033,6 +1035,8 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
+             refl_sbc_morph_project's blend (one image per node and piece)
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1042,6 +1046,11 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* The tetrahedron of the grid that holds eye, for piece `piece`: what
+   refl_sbc_morph_project reads (REFL_ERROR_INVALID_ARGUMENT where the eye
+   locates nowhere or the piece is out of range). */
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 

@@ -77,3 +77,62 @@ Test(refl_gl_hooks, mirror_glsl_matches_c, .timeout = 120) { validate(0); }
 Test(refl_gl_hooks, c3rc_glsl_matches_c, .timeout = 120) { validate(1); }
 Test(refl_gl_hooks, sbc_glsl_matches_c, .timeout = 120) { validate(2); }
 Test(refl_gl_hooks, sbc_bowl_glsl_matches_c, .timeout = 120) { validate(3); }
+
+/* The SBC morph grid's hook (cam_sbc_morph.c): the layout's header and
+   refusals, then its GLSL blend against refl_sbc_morph_project on 10^5
+   points of the default scene's teapot (tools/reflect_gl.c's fixture 5). */
+Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
+    refl_scene *s = NULL;
+    refl_sbc_morph *m = NULL;
+    refl_sbc_morph_desc md;
+    refl_vec3 eye = {0.3f, 4.5f, 8.9f};
+    int nodes[4];
+    float w[4], *buf;
+    long long need, k;
+    memset(&md, 0, sizeof md);
+    md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
+    md.region_lo = refl_v3(-1.0f, 3.8f, 7.4f);
+    md.region_hi = refl_v3(1.0f, 5.3f, 9.4f);
+    md.face_size = 16;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    cr_assert_eq(refl_sbc_morph_build(s, 1, &md, &m), REFL_OK);
+    need = refl_gl_pack_sbc_morph(m, eye, 0, NULL, 0);
+    cr_assert_gt(need, 24);
+    cr_assert_eq(need % 4, 0);
+    buf = malloc((size_t)need * sizeof(float));
+    cr_assert_not_null(buf);
+    cr_assert_eq(refl_gl_pack_sbc_morph(m, eye, 0, buf, need), need);
+    cr_assert_eq(buf[0], (float)REFL_GL_SBC_MORPH);
+    cr_assert_eq(buf[1], (float)REFL_GL_LAYOUT_VERSION);
+    cr_assert_eq(buf[3], (float)(need / 4), "texel count in the header");
+    /* the eye's weights, and each node of weight a block of its own */
+    cr_assert_geq(refl_sbc_morph_locate(m, eye, nodes, w), 0);
+    for (k = 0; k < 4; ++k) {
+        cr_assert_float_eq(buf[4 + k], w[k] > 0.0f ? w[k] : 0.0f, 1e-6f);
+        if (w[k] > 0.0f) cr_assert_geq(buf[4 * (2 + k)], 6.0f);
+    }
+    cr_assert_lt(refl_gl_pack_sbc_morph(m, eye, -1, NULL, 0), 0);
+    cr_assert_lt(refl_gl_pack_sbc_morph(m, refl_v3(0, 100, 0), 0, NULL, 0), 0);
+    cr_assert_lt(refl_gl_pack_sbc_morph(NULL, eye, 0, NULL, 0), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_SBC_MORPH));
+    free(buf);
+    refl_sbc_morph_destroy(m);
+    refl_scene_destroy(s);
+}
+
+Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) {
+    rgl_context *g = tu_gl_context("test_gl_hooks");
+    rgl_validation v;
+    char err[1024];
+    int r;
+    LSAN_OFF();
+    r = rgl_validate(g, 5, 100000, 1, &v, err, sizeof err);
+    rgl_destroy(g);
+    LSAN_ON();
+    cr_assert_eq(r, 0, "%s", err);
+    cr_log_info("%s: %lld points, %lld project, %lld disagree, max rel %.2e, p99.9 %.2e [%s]", v.camera, v.points,
+                v.projected, v.disagree, v.max_rel, v.p999_rel, v.note);
+    cr_assert_gt(v.projected, v.points / 2, "%lld of %lld project", v.projected, v.points);
+    cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.disagree, v.points,
+              v.max_rel, v.p999_rel);
+}
