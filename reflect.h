@@ -1028,8 +1028,10 @@ typedef enum refl_gl_camera {
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
     REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
-    REFL_GL_SBC_MORPH = 6    /* an SBC morph grid's tetrahedron for one eye and piece: its four
+    REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
+                                and optionally the layer's inferred map */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1039,6 +1041,11 @@ typedef enum refl_gl_camera {
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
          bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
              refl_sbc_morph_project's blend (one image per node and piece)
+         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
+             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
+         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
+             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
+             int base, vec3 index): per fragment, the packed map at an interpolated index
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1362,6 +1369,10 @@ typedef struct refl_lem_shell {
    misses the sphere. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
+   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_lookup's order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
    theta_m the largest angle between any two of the pixel's exit rays
@@ -1690,6 +1701,24 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                     const refl_frame *truth, float split_px,
                                                     refl_reflection_error *out);
+
+/* The cameras C3RC builds for the view, for a host that draws them itself
+   (the GL path, tools/reflect_gl_c3rc.c): every piece of every reflector
+   triangle, split as split_px asks (refl_render_desc.c3rc.camera_split_px:
+   0 the default, negative never), whichever side the view sees; the
+   method draws those of the triangles its G-buffer shows. Allocated with
+   the scene's allocator: free with refl_c3rc_view_cameras_free. */
+typedef struct refl_c3rc_view_camera {
+    refl_c3rc cam;
+    int object, triangle;
+    int back;                /* the triangle's back face is the side seen */
+    float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
+    float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
+    float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+} refl_c3rc_view_camera;
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count);
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
@@ -8539,6 +8568,30 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     return refl__gl_graphcam(&o, cam);
 }
 
+/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+
+static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+    refl__gl_out o = *op;
+    long long i, texels;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    texels = 6LL * shell->face_size * shell->face_size;
+    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
+    refl__gl_put_v3(&o, shell->center, shell->radius);
+    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_lem_shell(&o, shell, map);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_lem_shell(&o, shell, map);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -8906,6 +8959,60 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    return true;\n"
     "}\n";
 
+static const char refl__gl_glsl_lem_shell[] =
+    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "    vec3 oc = origin - sh.xyz;\n"
+    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    index = vec3(0.0);\n"
+    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
+    "    float t = (-b + sqrt(disc)) / dd;\n"
+    "    if (!(t >= 0.0)) return false;\n"
+    "    index = oc + dir * t;\n"
+    "    return true;\n"
+    "}\n"
+    "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
+    "int refl_lem_cube_face(vec3 v, out vec2 st) {\n"
+    "    vec3 a = abs(v);\n"
+    "    float sc, tc, ma;\n"
+    "    int face;\n"
+    "    if (a.z >= a.x && a.z >= a.y) { face = v.z >= 0.0 ? 4 : 5; sc = v.z >= 0.0 ? v.x : -v.x; tc = -v.y; ma = a.z; }\n"
+    "    else if (a.y >= a.x) { face = v.y >= 0.0 ? 2 : 3; sc = v.x; tc = v.y >= 0.0 ? v.z : -v.z; ma = a.y; }\n"
+    "    else { face = v.x >= 0.0 ? 0 : 1; sc = v.x >= 0.0 ? -v.z : v.z; tc = -v.y; ma = a.x; }\n"
+    "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
+    "    return face;\n"
+    "}\n"
+    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
+    "   runtime samples for the exit ray; false where it misses the shell */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
+    "    int n = int(texelFetch(data, base).z);\n"
+    "    vec3 hit;\n"
+    "    vec2 st;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
+    "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
+    "    p0 = clamp(p0, 0, n - 1);\n"
+    "    int b = face * n * n;\n"
+    "    texel = ivec4(b + p0.y * n + p0.x, b + p0.y * n + p1.x, b + p1.y * n + p0.x, b + p1.y * n + p1.x);\n"
+    "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
+    "    return true;\n"
+    "}\n"
+    "/* per fragment: the packed map at an interpolated index (the shell's\n"
+    "   centre as the origin, as the runtime samples); 0 without a map */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
+    "        return vec4(0.0);\n"
+    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
+    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -8913,6 +9020,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
+    case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     }
     return NULL;
 }
@@ -12358,6 +12466,77 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     refl__free(al, cell_list);
     refl__free(al, errors);
     return r;
+}
+
+/* ---- the view's cameras, for a host that draws them (the GL path) --------------- */
+
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count) {
+    const refl_allocator *al;
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl_c3rc_view_camera *cams;
+    refl_vec3 lo, hi;
+    float tmax;
+    int i, t, n = 0;
+    refl_result r = REFL_OK;
+    if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    *count = 0;
+    if (!scene || !view || view->width < 1 || view->height < 1 || !refl__isfinite(split_px))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    memset(&p, 0, sizeof p);
+    memset(&shape, 0, sizeof shape);
+    shape.width = view->width; /* the pass reads the frame's size only */
+    shape.height = view->height;
+    p.scene = scene;
+    p.view = view;
+    p.frame = &shape;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(&p, i, t, tmax, split_px, &list);
+    cams = r == REFL_OK ? (refl_c3rc_view_camera *)refl__calloc(al, (size_t)(list.count ? list.count : 1), sizeof *cams)
+                        : NULL;
+    if (r == REFL_OK && !cams) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < list.count; ++i) {
+        refl__c3_cam k;
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(&p, &list.v[i], &k)) continue;
+        cams[n].cam = k.cam;
+        cams[n].object = k.object;
+        cams[n].triangle = k.triangle;
+        cams[n].back = k.id < 0.0f;
+        cams[n].screen_area = k.screen_area;
+        cams[n].screen_edge = k.screen_edge;
+        cams[n].near_self = k.near_self;
+        ++n;
+    }
+    refl__free(al, list.v);
+    if (r != REFL_OK) {
+        refl__free(al, cams);
+        return r;
+    }
+    *out = cams;
+    *count = n;
+    return REFL_OK;
+}
+
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams) {
+    if (scene && cams) refl__free(&scene->allocator, cams);
 }
 /* ---- src/reflect/m_envmap.c ---- */
 /* ENVMAP: the classic baseline. Per reflector, a cube map is rendered with

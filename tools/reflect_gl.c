@@ -370,6 +370,14 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = vec4(f, d);\n"
     "    v_o1 = vec4(ok ? 1.0 : 0.0, 0.0, 0.0, 0.0);\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    refl_lem_shell_lookup(u_data, u_base, a_p.xyz, a_p.xyz - vec3(0.5, 0.25, -0.75), t, w);\n"
+    "    v_o0 = vec4(t);\n"
+    "    v_o1 = w;\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -408,7 +416,11 @@ typedef struct rgl_fixture {
     refl_vec3 eye, lo, hi;
     int piece;
     double size;
+    /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
+    refl_lem_shell shell;
 } rgl_fixture;
+
+#define RGL_LEM_AIM refl_v3(0.5f, 0.25f, -0.75f)
 
 static void rgl__fixture_free(rgl_fixture *f) {
     free(f->packed);
@@ -427,6 +439,7 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
                      : f->kind == REFL_GL_C3RC ? refl_gl_pack_c3rc(f->cams, f->cam_count, NULL, 0)
                      : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
                      : f->kind == REFL_GL_SBC_MORPH ? refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, NULL, 0)
+                     : f->kind == REFL_GL_LEM_SHELL ? refl_gl_pack_lem_shell(&f->shell, NULL, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
     f->packed = (float *)malloc((size_t)need * sizeof(float));
@@ -440,6 +453,8 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
         refl_gl_pack_graphcam(f->graph, f->packed, need);
     else if (f->kind == REFL_GL_SBC_MORPH)
         refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, f->packed, need);
+    else if (f->kind == REFL_GL_LEM_SHELL)
+        refl_gl_pack_lem_shell(&f->shell, NULL, f->packed, need);
     else
         refl_gl_pack_sbc(f->sbc, f->packed, need);
     return 0;
@@ -493,6 +508,13 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
             }
         }
         snprintf(note, note_n, "%d C3RCs of a unit sphere's triangles", f->cam_count);
+    } else if (which == 6) {
+        /* a shell about an off-centre point; rays from inside and outside it */
+        f->kind = REFL_GL_LEM_SHELL;
+        f->shell.center = refl_v3(0.3f, -0.2f, 0.1f);
+        f->shell.radius = 2.5f;
+        f->shell.face_size = 32;
+        snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
     } else if (which == 5) {
         /* the default scene's teapot in a one-cell grid beside the view
            (tests/reflect/test_sbc_morph.c's), the eye inside the cell */
@@ -603,6 +625,8 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
             if (in_volume)
                 p = refl_v3((float)rgl__range(&r, lo.x, hi.x), (float)rgl__range(&r, lo.y, hi.y),
                             (float)rgl__range(&r, lo.z, hi.z));
+        } else if (f->kind == REFL_GL_LEM_SHELL) {
+            if (in_volume) p = refl_v3_scale(p, 0.5f); /* [-2, 2]^3: mostly inside the shell */
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             /* in the teapot's box, grown; "in the volume": drawn until the C
                projects it (at most 64 tries) */
@@ -669,6 +693,21 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
                         fabs(c[2] - (gl[2] / gl[3] + 1.0) * 0.5));
         return 1;
     }
+    if (f->kind == REFL_GL_LEM_SHELL) {
+        /* the same four texels, their weights within float rounding */
+        uint32_t tex[4];
+        float w[4];
+        int ok = refl_lem_shell_lookup(&f->shell, pv, refl_v3_sub(pv, RGL_LEM_AIM), tex, w), k;
+        double e = 0.0;
+        if (ok != (gl[0] >= 0.0f)) return -1;
+        if (!ok) return 0;
+        for (k = 0; k < 4; ++k) {
+            if ((float)tex[k] != gl[k]) return -1;
+            e = RGL_MAXD(e, fabs(w[k] - gl[4 + k]));
+        }
+        *err = e;
+        return 1;
+    }
     if (f->kind == REFL_GL_SBC_MORPH) {
         refl_vec3 first;
         float dd;
@@ -725,6 +764,10 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
             refl_vec3 q;
             float dd;
             sink += (float)refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL);
+        } else if (f->kind == REFL_GL_LEM_SHELL) {
+            uint32_t tex[4];
+            float w[4];
+            sink += (float)refl_lem_shell_lookup(&f->shell, p, refl_v3_sub(p, RGL_LEM_AIM), tex, w);
         } else {
             refl_vec3 first;
             float z;
@@ -737,7 +780,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
     static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam",
-                                                   "sbc-morph"};
+                                                   "sbc-morph", "lem-shell"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

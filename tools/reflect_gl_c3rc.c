@@ -44,6 +44,7 @@
 #endif
 
 #define RGL_C3_AUTO_POINTS 2e6    /* the most points the default density samples */
+#define RGL_C3_TURN_TEST "0.05"  /* radians: the CPU path's REFL__C3_TURN_TEST */
 #define RGL_C3_LEAF_POINTS 128    /* kd-tree leaf size: the box test culls per leaf (the paper: 122) */
 enum { RGL_C3_POINT_FLOATS = 8 }; /* position, tree index; normal, object (+ 0.5 on a diffuse one) */
 
@@ -54,11 +55,12 @@ static const char rgl__c3_vs_head[] =
     "uniform samplerBuffer u_data;\n"
     "uniform int u_cam;\n"
     "uniform mat4 u_vp;\n"
-    "uniform float u_tmax, u_screen_area, u_density, u_near_self;\n"
+    "uniform float u_tmax, u_screen_area, u_density, u_near_self, u_fold, u_fold_splat;\n"
     "uniform int u_object;\n"
     "uniform int u_hull_count;\n"
     "uniform vec4 u_hull[20];\n"
-    "flat out float v_index; flat out float v_t; flat out float v_side; flat out float v_pix_sweep;\n";
+    "flat out float v_index; flat out float v_t; flat out float v_side; flat out float v_pix_sweep;\n"
+    "flat out vec3 v_pt; flat out vec3 v_np; flat out float v_reach; flat out float v_self;\n";
 
 static const char rgl__c3_vs_main[] =
     "void main() {\n"
@@ -66,6 +68,7 @@ static const char rgl__c3_vs_main[] =
     "    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);\n" /* outside: culled */
     "    gl_PointSize = 1.0;\n"
     "    v_index = a_p.w; v_t = 0.0; v_side = 1.0; v_pix_sweep = 0.0;\n"
+    "    v_pt = a_p.xyz; v_np = a_n.xyz; v_reach = 0.0; v_self = 0.0;\n"
     /* outside the truncated volume's hull: no projection (the CPU path's test) */
     "    for (int i = 0; i < u_hull_count; ++i)\n"
     "        if (dot(u_hull[i].xyz, a_p.xyz) > u_hull[i].w) return;\n"
@@ -89,24 +92,53 @@ static const char rgl__c3_vs_main[] =
     "    if (cp > 0.0 && diffuse) return;\n" /* a diffuse surface's back */
     "    float spacing = sweep > 0.0 && u_density > 0.0 ?\n"
     "        sqrt(abs(cp) / max(cs, 0.05) * u_screen_area / (sweep * u_density)) : 0.0;\n"
-    /* the CPU path's splat: 1.5 per point spacing, at most its default max_splat 8 */
-    "    float side = clamp(ceil(1.5 * min(spacing, 1e4)), 1.0, 8.0);\n"
+    /* the CPU path's splat: 1.5 per point spacing, at most its default max_splat 8,
+       from the camera's first fold interval on its size on screen */
+    "    float side = clamp(ceil(1.5 * min(spacing, 1e4)), 1.0, r.w >= u_fold ? u_fold_splat : 8.0);\n"
     "    v_t = r.w; v_side = side;\n"
     "    v_pix_sweep = u_screen_area > 0.0 ? sqrt(sweep / u_screen_area) : 0.0;\n"
+    "    v_reach = side * v_pix_sweep / max(abs(cp), 0.2);\n"
+    "    v_self = object == u_object ? 1.0 : 0.0;\n"
     "    gl_Position = vec4(clip.xy / clip.w, 0.0, 1.0);\n"
     "    gl_PointSize = side;\n"
     "}\n";
 
+/* Per pixel (textures of the base pass, rows bottom first): the reflector
+   point and how far its reflected ray turns to its neighbours' (u_surf),
+   the reflected ray (u_ray). As the CPU path: a splat's depth is where the
+   pixel's ray meets the point's tangent plane (within its reach of the
+   point's t), plus the same-surface slope off the splat's centre; where
+   the ray turns fast, another object's point shows only where the ray
+   meets its surfel (a disc of u_disc per point spacing); a pixel all of
+   whose splats missed is marked (-1), and shows its neighbours' nearest
+   point (rgl__c3_touched). */
 static const char rgl__c3_fs[] =
     "#version 330 core\n"
     "flat in float v_index; flat in float v_t; flat in float v_side; flat in float v_pix_sweep;\n"
-    "uniform float u_tmax;\n"
+    "flat in vec3 v_pt; flat in vec3 v_np; flat in float v_reach; flat in float v_self;\n"
+    "uniform float u_tmax, u_disc;\n"
+    "uniform sampler2D u_surf, u_ray;\n"
     "layout(location = 0) out vec4 o_point;\n"
     "void main() {\n"
+    "    ivec2 px = ivec2(gl_FragCoord.xy);\n"
+    "    vec4 r = texelFetch(u_surf, px, 0);\n"
+    "    vec3 u = texelFetch(u_ray, px, 0).xyz;\n"
+    "    vec3 w = v_pt - r.xyz;\n"
+    "    float un = dot(u, v_np);\n"
+    "    if (r.w >= " RGL_C3_TURN_TEST " && v_self < 0.5) {\n"
+    "        float s = abs(un) > 0.2 ? dot(w, v_np) / un : dot(w, u);\n"
+    "        if (!(s > 0.0) || length(w - s * u) > u_disc) {\n"
+    /* missed: marks the pixel touched, behind every splat that shows */
+    "            gl_FragDepth = 0.999999;\n"
+    "            o_point = vec4(0.0, 0.0, 0.0, -1.0);\n"
+    "            return;\n"
+    "        }\n"
+    "    }\n"
+    "    float depth = abs(un) > 0.2 ? clamp(dot(w, v_np) / un, v_t - v_reach, v_t + v_reach) : v_t;\n"
     "    vec2 off = (gl_PointCoord - 0.5) * v_side;\n"
     /* the CPU path's same-surface slope: 4 pixel sweeps per pixel off the centre */
-    "    gl_FragDepth = clamp((v_t + 4.0 * v_pix_sweep * length(off)) / u_tmax, 0.0, 1.0);\n"
-    "    o_point = vec4(0.0, 0.0, 0.0, v_index + 1.0);\n"
+    "    gl_FragDepth = clamp((depth + 4.0 * v_pix_sweep * length(off)) / u_tmax, 0.0, 0.99999);\n"
+    "    o_point = vec4(depth, 0.0, 0.0, v_index + 1.0);\n"
     "}\n";
 
 /* The sampled points: tree order, with colour and attributes for GL. */
@@ -238,12 +270,95 @@ done:
     return rc;
 }
 
-/* One reflector triangle's camera, as the CPU path sets one up, and the
-   planes bounding its volume up to tmax (n . p <= d inside). */
+/* The per-pixel textures of rgl__c3_fs from the base pass: the reflector
+   point and its ray's turn, the reflected ray; tex[0], tex[1] on units 1
+   and 2. */
+static int rgl__c3_pixel_textures(const rgl_pass *p, GLuint tex[2]) {
+    int w = p->w, h = p->h, x, y, k, t;
+    float *surf = (float *)calloc((size_t)w * h, 4 * sizeof(float)), *ray = (float *)calloc((size_t)w * h, 4 * sizeof(float));
+    if (!surf || !ray) {
+        free(surf);
+        free(ray);
+        return -1;
+    }
+    for (y = 0; y < h; ++y) /* rays first (GL's rows: bottom first) */
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            float *o = ray + 4 * ((size_t)(h - 1 - y) * w + x);
+            const float *n = p->base[1] + 4 * (size_t)i;
+            refl_vec3 u;
+            if (!p->marks[i]) continue;
+            u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
+            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
+        }
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            size_t g = (size_t)(h - 1 - y) * w + x;
+            float *s = surf + 4 * g, turn = 0.0f;
+            const float *u = ray + 4 * g;
+            if (!p->marks[i]) continue;
+            for (k = 0; k < 4; ++k) {
+                int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+                const float *v;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->base[0][4 * ((size_t)ys * w + xs) + 3] != p->base[0][4 * (size_t)i + 3])
+                    continue;
+                v = ray + 4 * ((size_t)(h - 1 - ys) * w + xs);
+                if (v[3] == 0.0f) continue;
+                turn = fmaxf(turn, sqrtf((u[0] - v[0]) * (u[0] - v[0]) + (u[1] - v[1]) * (u[1] - v[1]) + (u[2] - v[2]) * (u[2] - v[2])));
+            }
+            for (t = 0; t < 3; ++t) s[t] = p->base[0][4 * (size_t)i + t];
+            s[3] = turn;
+        }
+    rgl.GenTextures(2, tex);
+    for (k = 0; k < 2; ++k) {
+        rgl.ActiveTexture(GL_TEXTURE1 + k);
+        rgl.BindTexture(GL_TEXTURE_2D, tex[k]);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        rgl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, k ? ray : surf);
+    }
+    rgl.ActiveTexture(GL_TEXTURE0);
+    free(surf);
+    free(ray);
+    return 0;
+}
+
+/* The pixels marked touched (every splat missed their surfels) show the
+   nearest point (least t) of their 8 neighbours', as the CPU path's. */
+static void rgl__c3_touched(const rgl_pass *p, float *drawn) {
+    int w = p->w, h = p->h, x, y, k;
+    float *fill = (float *)malloc((size_t)w * h * sizeof(float));
+    if (!fill) return;
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t i = (size_t)y * w + x;
+            float best = INFINITY, at = 0.0f;
+            fill[i] = drawn[4 * i + 3];
+            if (drawn[4 * i + 3] != -1.0f) continue;
+            for (k = 0; k < 9; ++k) {
+                int xs = x + k % 3 - 1, ys = y + k / 3 - 1;
+                const float *q;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->marks[(size_t)ys * w + xs] != p->marks[i]) continue;
+                q = drawn + 4 * ((size_t)ys * w + xs);
+                if (q[3] >= 1.0f && q[0] < best) {
+                    best = q[0];
+                    at = q[3];
+                }
+            }
+            fill[i] = at;
+        }
+    for (y = 0; y < w * h; ++y) drawn[4 * (size_t)y + 3] = fill[y];
+    free(fill);
+}
+
+/* One camera of the CPU path's (refl_c3rc_view_cameras), the start of its
+   first fold interval, and the planes bounding its volume up to tmax
+   (n . p <= d inside). */
 typedef struct rgl_c3_cam {
     refl_c3rc cam;
     int object, folds, hull_count;
-    float screen_area, near_self;
+    float screen_area, screen_edge, near_self, fold;
     float hull[20][4];
 } rgl_c3_cam;
 
@@ -298,33 +413,25 @@ static int rgl__c3_window(const rgl_pass *p, refl_vec3 q, float *x, float *y) {
     return 1;
 }
 
-/* Triangle t of reflector object o (geometry's first + 3 t): its camera when
-   it faces the eye and is on screen. */
-static int rgl__c3_camera(const rgl_pass *p, int o, long long t, float tmax, rgl_c3_cam *k) {
-    const float *a = p->geo.v + (p->geo.first[o] + 3 * t) * RGL_VERTEX_FLOATS;
-    refl_vec3 v[3], d[3], ng, eye = p->view->eye;
-    float sx[3], sy[3], edge = 0.0f, intervals[4][2];
-    int i, on = 1;
-    for (i = 0; i < 3; ++i) v[i] = refl_v3(a[i * RGL_VERTEX_FLOATS], a[i * RGL_VERTEX_FLOATS + 1], a[i * RGL_VERTEX_FLOATS + 2]);
-    ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
-    if (!(refl_v3_dot(ng, refl_v3_sub(eye, v[0])) > 0.0f)) return 0; /* its back, or edge on */
-    for (i = 0; i < 3; ++i) {
-        const float *nn = a + i * RGL_VERTEX_FLOATS + 3;
-        refl_vec3 u = refl_v3_normalize(refl_v3_sub(v[i], eye)), n = refl_v3(nn[0], nn[1], nn[2]);
-        if (!(refl_v3_dot(u, n) < 0.0f)) n = ng;
-        d[i] = refl_v3_reflect(u, n);
-        on &= rgl__c3_window(p, v[i], &sx[i], &sy[i]);
-        edge = fmaxf(edge, refl_v3_length(refl_v3_sub(v[(i + 1) % 3], v[i])));
-    }
-    if (!on) return 0;
+/* View camera vc for drawing: 0 where its side seen is the back (the CPU
+   path draws an open mesh's inside where its G-buffer shows it; here
+   front faces only) or it lies off the screen. */
+static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, float tmax, rgl_c3_cam *k) {
+    float sx[3], sy[3], intervals[4][2];
+    int i;
+    if (vc->back || !(vc->screen_area > 0.0f)) return 0;
+    for (i = 0; i < 3; ++i)
+        if (!rgl__c3_window(p, vc->cam.v[i], &sx[i], &sy[i])) return 0;
     if ((sx[0] < 0 && sx[1] < 0 && sx[2] < 0) || (sy[0] < 0 && sy[1] < 0 && sy[2] < 0) ||
         (sx[0] > p->w && sx[1] > p->w && sx[2] > p->w) || (sy[0] > p->h && sy[1] > p->h && sy[2] > p->h))
         return 0;
-    if (refl_c3rc_init(&k->cam, v, d) != REFL_OK) return 0;
-    k->object = o;
-    k->near_self = edge;
-    k->screen_area = 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]));
+    k->cam = vc->cam;
+    k->object = vc->object;
+    k->near_self = vc->near_self;
+    k->screen_area = vc->screen_area;
+    k->screen_edge = vc->screen_edge;
     k->folds = refl_c3rc_multiple_intervals(&k->cam, tmax, intervals);
+    k->fold = k->folds > 0 ? intervals[0][0] : INFINITY;
     rgl__c3_hull(k, tmax);
     return 1;
 }
@@ -372,14 +479,14 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     const char *vs[3], *fs[1] = {rgl__c3_fs};
     int w = view->width, h = view->height, o, rc = -1, c;
     size_t np = (size_t)w * (size_t)h, i;
-    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0;
+    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
     float *drawn = NULL, *cam_data = NULL, tmax;
     rgl_c3_cam *cams = NULL;
     rgl_c3_points pts;
     rgl_pass ps;
     refl_vec3 lo, hi;
-    long long cam_count = 0, cap = 0, t, floats;
+    long long cam_count = 0, t, floats;
     double t0 = rgl_now(), t_cpu = 0.0, t1;
     memset(st, 0, sizeof *st);
     memset(&ps, 0, sizeof ps);
@@ -400,17 +507,18 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         snprintf(err, n, "sampling the scene's points failed");
         goto done;
     }
-    for (o = 0; o < scene->object_count; ++o) {
-        if (!mark[o]) continue;
-        for (t = 0; 3 * t + 2 < ps.geo.first[o + 1] - ps.geo.first[o]; ++t) {
-            if (cam_count == cap) {
-                rgl_c3_cam *nc;
-                cap = cap ? 2 * cap : 256;
-                if (!(nc = (rgl_c3_cam *)realloc(cams, (size_t)cap * sizeof *cams))) goto oom;
-                cams = nc;
-            }
-            cam_count += rgl__c3_camera(&ps, o, t, tmax, &cams[cam_count]);
+    {
+        refl_c3rc_view_camera *vcams = NULL;
+        int vcount = 0;
+        if (refl_c3rc_view_cameras(scene, view, 0.0f, &vcams, &vcount) != REFL_OK) goto oom;
+        cams = (rgl_c3_cam *)malloc((size_t)(vcount ? vcount : 1) * sizeof *cams);
+        if (!cams) {
+            refl_c3rc_view_cameras_free(scene, vcams);
+            goto oom;
         }
+        for (t = 0; t < vcount; ++t)
+            if (vcams[t].object < 254 && mark[vcams[t].object]) cam_count += rgl__c3_camera(&ps, &vcams[t], tmax, &cams[cam_count]);
+        refl_c3rc_view_cameras_free(scene, vcams);
     }
     {
         refl_c3rc *list = (refl_c3rc *)malloc((size_t)(cam_count ? cam_count : 1) * sizeof *list);
@@ -454,10 +562,15 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmax"), tmax);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_density"), pts.density);
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_disc"), pts.density > 0.0f ? 1.0f / sqrtf(pts.density) : 1e30f);
+    if (rgl__c3_pixel_textures(&ps, pix_tex) != 0) goto oom;
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
     {
         GLint u_cam = rgl.GetUniformLocation(prog, "u_cam"), u_area = rgl.GetUniformLocation(prog, "u_screen_area");
         GLint u_near = rgl.GetUniformLocation(prog, "u_near_self"), u_obj = rgl.GetUniformLocation(prog, "u_object");
         GLint u_hull = rgl.GetUniformLocation(prog, "u_hull"), u_hull_count = rgl.GetUniformLocation(prog, "u_hull_count");
+        GLint u_fold = rgl.GetUniformLocation(prog, "u_fold"), u_fold_splat = rgl.GetUniformLocation(prog, "u_fold_splat");
         rgl_c3_runs q;
         long long *runs_end = (long long *)malloc((size_t)(cam_count ? cam_count : 1) * sizeof(long long)), r = 0;
         memset(&q, 0, sizeof q);
@@ -485,6 +598,8 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             rgl.Uniform1i(u_obj, cams[t].object);
             rgl.Uniform1i(u_hull_count, cams[t].hull_count);
             if (cams[t].hull_count) rgl.Uniform4fv(u_hull, cams[t].hull_count, cams[t].hull[0]);
+            rgl.Uniform1f(u_fold, cams[t].fold < 1e30f ? cams[t].fold : 1e30f);
+            rgl.Uniform1f(u_fold_splat, fmaxf(8.0f, ceilf(2.0f * cams[t].screen_edge)));
             rgl.StencilFunc(GL_EQUAL, mark[cams[t].object], 0xFF);
             for (; r < runs_end[t]; ++r) {
                 rgl.DrawArraysInstanced(GL_POINTS, q.run[2 * r], q.run[2 * r + 1], instances);
@@ -498,6 +613,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     if (!(drawn = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
     rgl_pass_read(&ps, 0, drawn);
     if (rgl_pass_check("drawing the C3RC splats", err, n) != 0) goto done;
+    rgl__c3_touched(&ps, drawn);
     st->gl_seconds = rgl_now() - t0 - t_cpu;
     st->mirrors = (int)cam_count;
 
@@ -535,6 +651,7 @@ oom:
     snprintf(err, n, "out of memory");
 done:
     if (tex) rgl.DeleteTextures(1, &tex);
+    if (pix_tex[0]) rgl.DeleteTextures(2, pix_tex);
     if (tbuf) rgl.DeleteBuffers(1, &tbuf);
     if (vbo) rgl.DeleteBuffers(1, &vbo);
     if (vao) rgl.DeleteVertexArrays(1, &vao);

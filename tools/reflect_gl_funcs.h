@@ -69,6 +69,8 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, GenTextures, (GLsizei, GLuint *)) \
     X(void, BindTexture, (GLenum, GLuint)) \
     X(void, TexBuffer, (GLenum, GLenum, GLuint)) \
+    X(void, TexImage2D, (GLenum, GLint, GLint, GLsizei, GLsizei, GLint, GLenum, GLenum, const void *)) \
+    X(void, TexParameteri, (GLenum, GLenum, GLint)) \
     X(void, DeleteTextures, (GLsizei, const GLuint *)) \
     X(void, ActiveTexture, (GLenum)) \
     X(void, GenVertexArrays, (GLsizei, GLuint *)) \

@@ -225,6 +225,30 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     return refl__gl_graphcam(&o, cam);
 }
 
+/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+
+static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+    refl__gl_out o = *op;
+    long long i, texels;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    texels = 6LL * shell->face_size * shell->face_size;
+    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
+    refl__gl_put_v3(&o, shell->center, shell->radius);
+    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_lem_shell(&o, shell, map);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_lem_shell(&o, shell, map);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -592,6 +616,60 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    return true;\n"
     "}\n";
 
+static const char refl__gl_glsl_lem_shell[] =
+    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "    vec3 oc = origin - sh.xyz;\n"
+    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    index = vec3(0.0);\n"
+    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
+    "    float t = (-b + sqrt(disc)) / dd;\n"
+    "    if (!(t >= 0.0)) return false;\n"
+    "    index = oc + dir * t;\n"
+    "    return true;\n"
+    "}\n"
+    "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
+    "int refl_lem_cube_face(vec3 v, out vec2 st) {\n"
+    "    vec3 a = abs(v);\n"
+    "    float sc, tc, ma;\n"
+    "    int face;\n"
+    "    if (a.z >= a.x && a.z >= a.y) { face = v.z >= 0.0 ? 4 : 5; sc = v.z >= 0.0 ? v.x : -v.x; tc = -v.y; ma = a.z; }\n"
+    "    else if (a.y >= a.x) { face = v.y >= 0.0 ? 2 : 3; sc = v.x; tc = v.y >= 0.0 ? v.z : -v.z; ma = a.y; }\n"
+    "    else { face = v.x >= 0.0 ? 0 : 1; sc = v.x >= 0.0 ? -v.z : v.z; tc = -v.y; ma = a.x; }\n"
+    "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
+    "    return face;\n"
+    "}\n"
+    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
+    "   runtime samples for the exit ray; false where it misses the shell */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
+    "    int n = int(texelFetch(data, base).z);\n"
+    "    vec3 hit;\n"
+    "    vec2 st;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
+    "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
+    "    p0 = clamp(p0, 0, n - 1);\n"
+    "    int b = face * n * n;\n"
+    "    texel = ivec4(b + p0.y * n + p0.x, b + p0.y * n + p1.x, b + p1.y * n + p0.x, b + p1.y * n + p1.x);\n"
+    "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
+    "    return true;\n"
+    "}\n"
+    "/* per fragment: the packed map at an interpolated index (the shell's\n"
+    "   centre as the origin, as the runtime samples); 0 without a map */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
+    "        return vec4(0.0);\n"
+    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
+    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -599,6 +677,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
+    case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     }
     return NULL;
 }

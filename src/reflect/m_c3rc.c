@@ -1319,3 +1319,74 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     refl__free(al, errors);
     return r;
 }
+
+/* ---- the view's cameras, for a host that draws them (the GL path) --------------- */
+
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count) {
+    const refl_allocator *al;
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl_c3rc_view_camera *cams;
+    refl_vec3 lo, hi;
+    float tmax;
+    int i, t, n = 0;
+    refl_result r = REFL_OK;
+    if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    *count = 0;
+    if (!scene || !view || view->width < 1 || view->height < 1 || !refl__isfinite(split_px))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    al = &scene->allocator;
+    memset(&p, 0, sizeof p);
+    memset(&shape, 0, sizeof shape);
+    shape.width = view->width; /* the pass reads the frame's size only */
+    shape.height = view->height;
+    p.scene = scene;
+    p.view = view;
+    p.frame = &shape;
+    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
+    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
+    refl__view_rays_init(&p.rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    memset(&list, 0, sizeof list);
+    list.al = al;
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(&p, i, t, tmax, split_px, &list);
+    cams = r == REFL_OK ? (refl_c3rc_view_camera *)refl__calloc(al, (size_t)(list.count ? list.count : 1), sizeof *cams)
+                        : NULL;
+    if (r == REFL_OK && !cams) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < list.count; ++i) {
+        refl__c3_cam k;
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(&p, &list.v[i], &k)) continue;
+        cams[n].cam = k.cam;
+        cams[n].object = k.object;
+        cams[n].triangle = k.triangle;
+        cams[n].back = k.id < 0.0f;
+        cams[n].screen_area = k.screen_area;
+        cams[n].screen_edge = k.screen_edge;
+        cams[n].near_self = k.near_self;
+        ++n;
+    }
+    refl__free(al, list.v);
+    if (r != REFL_OK) {
+        refl__free(al, cams);
+        return r;
+    }
+    *out = cams;
+    *count = n;
+    return REFL_OK;
+}
+
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams) {
+    if (scene && cams) refl__free(&scene->allocator, cams);
+}

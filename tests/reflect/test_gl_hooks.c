@@ -136,3 +136,40 @@ Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) {
     cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.disagree, v.points,
               v.max_rel, v.p999_rel);
 }
+
+/* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
+   texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
+Test(refl_gl_hooks, lem_shell_layout) {
+    refl_lem_shell sh = {{1.0f, 2.0f, 3.0f}, 4.0f, 2};
+    float map[4 * 24], buf[8 + 4 * 24];
+    int i;
+    for (i = 0; i < 4 * 24; ++i) map[i] = (float)i;
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 8);
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, NULL, 0), 8 + 4 * 24);
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, buf, 8 + 4 * 24), 8 + 4 * 24);
+    cr_assert_eq(buf[0], (float)REFL_GL_LEM_SHELL);
+    cr_assert_eq(buf[2], 2.0f);
+    cr_assert_eq(buf[3], 1.0f);
+    cr_assert_eq(buf[7], 4.0f);
+    cr_assert_eq(buf[8 + 4 * 5 + 2], 22.0f); /* texel 5's blue */
+    sh.radius = 0.0f;
+    cr_assert_lt(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_LEM_SHELL));
+}
+
+Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) {
+    rgl_context *g = tu_gl_context("test_gl_hooks");
+    rgl_validation v;
+    char err[1024];
+    int r;
+    LSAN_OFF();
+    r = rgl_validate(g, 6, 100000, 1, &v, err, sizeof err);
+    rgl_destroy(g);
+    LSAN_ON();
+    cr_assert_eq(r, 0, "%s", err);
+    cr_log_info("%s: %lld rays, %lld meet the shell, %lld disagree, max weight error %.2e [%s]", v.camera, v.points,
+                v.projected, v.disagree, v.max_rel, v.note);
+    cr_assert_gt(v.projected, v.points / 2, "%lld of %lld meet the shell", v.projected, v.points);
+    cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max %.2e, p99.9 %.2e", v.disagree, v.points, v.max_rel,
+              v.p999_rel);
+}
