@@ -18,6 +18,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "name_in_list.h"
 #include "reflect_gl_funcs.h"
 
 #ifndef EGL_PLATFORM_SURFACELESS_MESA
@@ -39,17 +40,6 @@ struct rgl_context {
 static int rgl__fail(char *err, size_t n, const char *what) {
     if (err && n) snprintf(err, n, "%s", what);
     return -1;
-}
-
-static int rgl__has_ext(const char *list, const char *name) {
-    size_t n = strlen(name);
-    const char *s = list;
-    if (!list) return 0;
-    while ((s = strstr(s, name)) != NULL) {
-        if ((s == list || s[-1] == ' ') && (s[n] == ' ' || s[n] == '\0')) return 1;
-        s += n;
-    }
-    return 0;
 }
 
 /* A GL 3.3 core context on dpy, made current without a surface; 0 on success. */
@@ -106,7 +96,7 @@ int rgl_create(rgl_context **out, char *err, size_t n) {
     snprintf(err, n, "no EGL display (client extensions: %s)", cext ? cext : "(none)");
     /* a device first (a GPU's driver lists its GPUs), then Mesa's
        surfaceless platform, then the default display */
-    if (get_display && rgl__has_ext(cext, "EGL_EXT_platform_device")) {
+    if (get_display && name_in_list(cext, "EGL_EXT_platform_device", ' ')) {
         PFNEGLQUERYDEVICESEXTPROC query_devices = (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
         EGLDeviceEXT devs[16];
         EGLint nd = 0, i;
@@ -120,7 +110,7 @@ int rgl_create(rgl_context **out, char *err, size_t n) {
             }
         }
     }
-    if (!ok && get_display && rgl__has_ext(cext, "EGL_MESA_platform_surfaceless")) {
+    if (!ok && get_display && name_in_list(cext, "EGL_MESA_platform_surfaceless", ' ')) {
         EGLDisplay d = get_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
         if (d != EGL_NO_DISPLAY && rgl__context_on(g, d, err, n) == 0) {
             ok = 1;

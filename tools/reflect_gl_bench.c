@@ -13,6 +13,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "name_in_list.h"
+
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv) {
     int i, failed = 0;
     char err[1024];
@@ -111,16 +113,8 @@ static const struct {
     {"sbc", "default", REFL_SBC},
 };
 
-static int rgl_listed(const char *list, const char *name) {
-    size_t len = strlen(name);
-    const char *p = list;
-    if (!list || !*list) return 1;
-    while ((p = strstr(p, name)) != NULL) {
-        if ((p == list || p[-1] == ',') && (p[len] == ',' || p[len] == 0)) return 1;
-        p += len;
-    }
-    return 0;
-}
+/* Whether method `name` is in the comma-separated list (NULL or empty: all). */
+static int rgl_listed(const char *list, const char *name) { return !list || !*list || name_in_list(list, name, ','); }
 
 int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv) {
     int ri, failed = 0;

@@ -1,27 +1,32 @@
 /* reflect_gl_c3rc.c - a frame of C3RC through GL (reflect_gl.h, docs/gl.md),
    the paper's split: the CPU culls, GL projects and rasterises.
      1. the base pass (reflect_gl_frame.c): each reflector marks its pixels
-        with its object number;
+        with its object number; per reflector pixel the CPU turns the
+        read-back into its reflected ray and how fast it turns (textures
+        for the fragment shader);
      2. the scene's surfaces sampled with points (refl_mesh_sample_points at
         the CPU path's default density: a point per 2 x 2 pixels at the
         reflectors' distance), each shaded once as DIRECT shows it, in a
-        kd-tree;
-     3. per reflector triangle facing the eye, one continuous 3-ray camera
-        (refl_c3rc_init, the reflected rays at its vertices); the kd-tree's
-        leaves its box test (refl_c3rc_box_visible) keeps are drawn as
-        GL_POINTS through the C3RC hook (refl_c3rc_project in the vertex
-        shader; one instance per projection, three where the camera folds):
+        kd-tree (leaves of 128 points, the paper's size);
+     3. the CPU path's cameras (refl_c3rc_view_cameras: every reflector
+        triangle facing the eye, split as C3RC splits it); per camera the
+        kd-tree's leaves its box test (refl_c3rc_box_visible) keeps are
+        drawn as GL_POINTS through the C3RC hook (refl_c3rc_project in the
+        vertex shader, after a test against the planes of its volume's
+        hull; one instance per projection, three where the camera folds):
         each projection a square splat at its reflector point, sized by the
-        point spacing the camera shows there (the CPU path's estimate), its
-        depth the sweep t plus the CPU's same-surface slope, stencilled to
-        the reflector's pixels; the reflector's own points within one edge
-        are left out, as the CPU leaves them;
-     4. the CPU composites: reflectance times the nearest point's colour,
-        the environment along the reflected ray where no point landed.
-   Left out against the CPU path: splitting a triangle's camera, the
-   push-back to the pixel's own ray (refl__c3_depth_at), the surfel test at
-   fast-turning pixels, raised densities on magnified objects, level of
-   detail. One bounce, as the paper; glass is drawn as DIRECT draws it. */
+        point spacing the camera shows there as the CPU path sizes it; per
+        fragment its depth pushed back to where the pixel's own ray meets
+        the point's tangent plane, and, where the pixel's ray turns fast,
+        only a surfel the ray meets shown; stencilled to the reflector's
+        pixels; the reflector's own points within one edge left out;
+     4. the CPU composites: pixels whose splats all missed take their
+        neighbours' nearest point, then reflectance times the point's
+        colour, the environment along the reflected ray where no point
+        landed.
+   Left out against the CPU path: raised densities on objects a folding
+   camera magnifies, level of detail, the back faces of an open mesh's
+   inside. One bounce, as the paper; glass is drawn as DIRECT draws it. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
 #include "reflect_gl.h"
@@ -270,60 +275,6 @@ done:
     return rc;
 }
 
-/* The per-pixel textures of rgl__c3_fs from the base pass: the reflector
-   point and its ray's turn, the reflected ray; tex[0], tex[1] on units 1
-   and 2. */
-static int rgl__c3_pixel_textures(const rgl_pass *p, GLuint tex[2]) {
-    int w = p->w, h = p->h, x, y, k, t;
-    float *surf = (float *)calloc((size_t)w * h, 4 * sizeof(float)), *ray = (float *)calloc((size_t)w * h, 4 * sizeof(float));
-    if (!surf || !ray) {
-        free(surf);
-        free(ray);
-        return -1;
-    }
-    for (y = 0; y < h; ++y) /* rays first (GL's rows: bottom first) */
-        for (x = 0; x < w; ++x) {
-            int i = y * w + x;
-            float *o = ray + 4 * ((size_t)(h - 1 - y) * w + x);
-            const float *n = p->base[1] + 4 * (size_t)i;
-            refl_vec3 u;
-            if (!p->marks[i]) continue;
-            u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
-            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
-        }
-    for (y = 0; y < h; ++y)
-        for (x = 0; x < w; ++x) {
-            int i = y * w + x;
-            size_t g = (size_t)(h - 1 - y) * w + x;
-            float *s = surf + 4 * g, turn = 0.0f;
-            const float *u = ray + 4 * g;
-            if (!p->marks[i]) continue;
-            for (k = 0; k < 4; ++k) {
-                int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
-                const float *v;
-                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->base[0][4 * ((size_t)ys * w + xs) + 3] != p->base[0][4 * (size_t)i + 3])
-                    continue;
-                v = ray + 4 * ((size_t)(h - 1 - ys) * w + xs);
-                if (v[3] == 0.0f) continue;
-                turn = fmaxf(turn, sqrtf((u[0] - v[0]) * (u[0] - v[0]) + (u[1] - v[1]) * (u[1] - v[1]) + (u[2] - v[2]) * (u[2] - v[2])));
-            }
-            for (t = 0; t < 3; ++t) s[t] = p->base[0][4 * (size_t)i + t];
-            s[3] = turn;
-        }
-    rgl.GenTextures(2, tex);
-    for (k = 0; k < 2; ++k) {
-        rgl.ActiveTexture(GL_TEXTURE1 + k);
-        rgl.BindTexture(GL_TEXTURE_2D, tex[k]);
-        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-        rgl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, k ? ray : surf);
-    }
-    rgl.ActiveTexture(GL_TEXTURE0);
-    free(surf);
-    free(ray);
-    return 0;
-}
-
 /* The pixels marked touched (every splat missed their surfels) show the
    nearest point (least t) of their 8 neighbours', as the CPU path's. */
 static void rgl__c3_touched(const rgl_pass *p, float *drawn) {
@@ -402,26 +353,18 @@ static void rgl__c3_hull(rgl_c3_cam *k, float tmax) {
             }
 }
 
-static int rgl__c3_window(const rgl_pass *p, refl_vec3 q, float *x, float *y) {
-    const float *m = p->vp.m;
-    float cx = m[0] * q.x + m[4] * q.y + m[8] * q.z + m[12];
-    float cy = m[1] * q.x + m[5] * q.y + m[9] * q.z + m[13];
-    float cw = m[3] * q.x + m[7] * q.y + m[11] * q.z + m[15];
-    if (!(cw > 0.0f)) return 0;
-    *x = (cx / cw + 1.0f) * 0.5f * (float)p->w;
-    *y = (1.0f - cy / cw) * 0.5f * (float)p->h;
-    return 1;
-}
-
 /* View camera vc for drawing: 0 where its side seen is the back (the CPU
    path draws an open mesh's inside where its G-buffer shows it; here
    front faces only) or it lies off the screen. */
 static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, float tmax, rgl_c3_cam *k) {
     float sx[3], sy[3], intervals[4][2];
     int i;
-    if (vc->back || !(vc->screen_area > 0.0f)) return 0;
-    for (i = 0; i < 3; ++i)
-        if (!rgl__c3_window(p, vc->cam.v[i], &sx[i], &sy[i])) return 0;
+    if (vc->back || !(vc->screen_area > 0.0f)) return 0; /* (an area: its corners lie before the eye) */
+    for (i = 0; i < 3; ++i) {
+        refl_vec3 q = refl_mat4_point(p->vp, vc->cam.v[i]);
+        sx[i] = (q.x + 1.0f) * 0.5f * (float)p->w;
+        sy[i] = (1.0f - q.y) * 0.5f * (float)p->h;
+    }
     if ((sx[0] < 0 && sx[1] < 0 && sx[2] < 0) || (sy[0] < 0 && sy[1] < 0 && sy[2] < 0) ||
         (sx[0] > p->w && sx[1] > p->w && sx[2] > p->w) || (sy[0] > p->h && sy[1] > p->h && sy[2] > p->h))
         return 0;
@@ -563,7 +506,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmax"), tmax);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_density"), pts.density);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_disc"), pts.density > 0.0f ? 1.0f / sqrtf(pts.density) : 1e30f);
-    if (rgl__c3_pixel_textures(&ps, pix_tex) != 0) goto oom;
+    if (rgl_pass_ray_textures(&ps, pix_tex) != 0) goto oom;
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
     {
@@ -620,29 +563,10 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     /* composite on the CPU */
     t1 = rgl_now();
     for (i = 0; i < np; ++i) {
-        const float *bp = ps.base[0] + 4 * i, *bn = ps.base[1] + 4 * i;
-        refl_vec3 d = rgl_pass_ray(&ps, (int)i);
-        float col[3];
-        int m_at = ps.marks[i];
-        frame->stencil[i] = 0;
-        for (c = 0; c < 3; ++c) frame->points[3 * i + c] = NAN;
-        rgl_shade(scene, bp, bn, ps.base[2] + 4 * i, d, col);
-        if (m_at) {
-            const refl_material *m = &scene->materials[scene->objects[m_at - 1].material];
-            refl_vec3 nrm = refl_v3(bn[0], bn[1], bn[2]);
-            float sub[3], wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, refl_v3_normalize(nrm))));
-            long long at = (long long)drawn[4 * i + 3] - 1;
-            if (at >= 0 && at < pts.tree->point_count) {
-                memcpy(sub, pts.rgb + 3 * at, sizeof sub);
-                for (c = 0; c < 3; ++c) frame->points[3 * i + c] = pts.tree->positions[3 * at + c];
-            } else {
-                refl_environment_lookup(&scene->environment, rgl_reflect(d, nrm), sub);
-                for (c = 0; c < 3; ++c) sub[c] = sub[c] > 0.0f ? sub[c] : 0.0f;
-            }
-            for (c = 0; c < 3; ++c) col[c] += wgt * sub[c];
-            frame->stencil[i] = (uint8_t)m_at;
-        }
-        for (c = 0; c < 3; ++c) rgb[3 * i + c] = col[c];
+        long long at = ps.marks[i] ? (long long)drawn[4 * i + 3] - 1 : -1;
+        int shows = at >= 0 && at < pts.tree->point_count;
+        rgl_composite(&ps, (int)i, shows ? pts.rgb + 3 * at : NULL, shows ? pts.tree->positions + 3 * at : NULL, frame,
+                      rgb);
     }
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;

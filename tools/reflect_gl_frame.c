@@ -198,6 +198,81 @@ refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal) {
     return refl_v3_reflect(d, nrm);
 }
 
+void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at, refl_frame *frame, float *rgb) {
+    const float *bp = p->base[0] + 4 * (size_t)i, *bn = p->base[1] + 4 * (size_t)i;
+    refl_vec3 d = rgl_pass_ray(p, i), nrm = refl_v3(bn[0], bn[1], bn[2]);
+    float col[3], env[3];
+    int m_at = p->marks[i], c;
+    frame->stencil[i] = 0;
+    for (c = 0; c < 3; ++c) frame->points[3 * (size_t)i + c] = NAN;
+    rgl_shade(p->scene, bp, bn, p->base[2] + 4 * (size_t)i, d, col);
+    if (m_at) {
+        const refl_material *m = &p->scene->materials[p->scene->objects[m_at - 1].material];
+        float wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, refl_v3_normalize(nrm))));
+        if (!shown) {
+            refl_environment_lookup(&p->scene->environment, rgl_reflect(d, nrm), env);
+            for (c = 0; c < 3; ++c) env[c] = env[c] > 0.0f ? env[c] : 0.0f;
+            shown = env;
+        } else {
+            for (c = 0; c < 3; ++c) frame->points[3 * (size_t)i + c] = at[c];
+        }
+        for (c = 0; c < 3; ++c) col[c] += wgt * shown[c]; /* col: the reflector's diffuse share */
+        frame->stencil[i] = (uint8_t)m_at;
+    }
+    for (c = 0; c < 3; ++c) rgb[3 * (size_t)i + c] = col[c];
+}
+
+int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]) {
+    int w = p->w, h = p->h, x, y, k, t;
+    float *surf = (float *)calloc((size_t)w * h, 4 * sizeof(float)), *ray = (float *)calloc((size_t)w * h, 4 * sizeof(float));
+    if (!surf || !ray) {
+        free(surf);
+        free(ray);
+        return -1;
+    }
+    for (y = 0; y < h; ++y) /* rays first (GL's rows: bottom first) */
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            float *o = ray + 4 * ((size_t)(h - 1 - y) * w + x);
+            const float *n = p->base[1] + 4 * (size_t)i;
+            refl_vec3 u;
+            if (!p->marks[i]) continue;
+            u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
+            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
+        }
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            size_t g = (size_t)(h - 1 - y) * w + x;
+            float *s = surf + 4 * g, turn = 0.0f;
+            const float *u = ray + 4 * g;
+            if (!p->marks[i]) continue;
+            for (k = 0; k < 4; ++k) {
+                int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+                const float *v;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->base[0][4 * ((size_t)ys * w + xs) + 3] != p->base[0][4 * (size_t)i + 3])
+                    continue;
+                v = ray + 4 * ((size_t)(h - 1 - ys) * w + xs);
+                if (v[3] == 0.0f) continue;
+                turn = fmaxf(turn, sqrtf((u[0] - v[0]) * (u[0] - v[0]) + (u[1] - v[1]) * (u[1] - v[1]) + (u[2] - v[2]) * (u[2] - v[2])));
+            }
+            for (t = 0; t < 3; ++t) s[t] = p->base[0][4 * (size_t)i + t];
+            s[3] = turn;
+        }
+    rgl.GenTextures(2, tex);
+    for (k = 0; k < 2; ++k) {
+        rgl.ActiveTexture(GL_TEXTURE1 + k);
+        rgl.BindTexture(GL_TEXTURE_2D, tex[k]);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        rgl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, k ? ray : surf);
+    }
+    rgl.ActiveTexture(GL_TEXTURE0);
+    free(surf);
+    free(ray);
+    return 0;
+}
+
 refl_vec3 rgl_pass_ray(const rgl_pass *p, int i) {
     int x = i % p->w, y = i / p->w;
     float nx = (2.0f * ((float)x + 0.5f)) / (float)p->w - 1.0f, ny = 1.0f - (2.0f * ((float)y + 0.5f)) / (float)p->h;

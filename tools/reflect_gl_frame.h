@@ -59,6 +59,12 @@ void rgl_pass_end(rgl_context *g, rgl_pass *p);
 void rgl_pass_read(const rgl_pass *p, int a, float *out);
 /* The eye ray through pixel i's centre (unit direction). */
 refl_vec3 rgl_pass_ray(const rgl_pass *p, int i);
+/* Per reflector pixel of the base pass, as 2-D RGBA32F textures (rows
+   bottom first, as GL's): tex[0] its reflector point and how far its
+   reflected ray turns to its 4-neighbours' on the same object (the
+   largest distance between the unit rays), tex[1] its reflected ray; bound
+   to texture units 1 and 2. Nonzero when out of memory. */
+int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]);
 /* Nonzero with the reason in err when GL reported an error. */
 int rgl_pass_check(const char *what, char *err, size_t n);
 
@@ -66,6 +72,12 @@ int rgl_pass_check(const char *what, char *err, size_t n);
    DIRECT shows it (a reflector's diffuse share only), or the environment
    along dir where it shows nothing; clamped below at 0. */
 void rgl_shade(const refl_scene *s, const float *pt, const float *nrm, const float *uv, refl_vec3 dir, float rgb[3]);
+/* The reflector methods' composite of pixel i (C3RC, SBC): the base pass
+   shaded, and on a reflector pixel (its mark: object + 1) its reflectance
+   times `shown` (the colour of what it shows, at world point `at`), or
+   times the environment along its reflected ray where shown is NULL;
+   frame's stencil and points, and rgb. */
+void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at, refl_frame *frame, float *rgb);
 /* The reflected eye ray at a reflector pixel: d reflected in the normal
    turned towards the eye. */
 refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal);

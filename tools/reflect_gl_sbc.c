@@ -14,9 +14,12 @@
         reflector's pixels; a triangle with a vertex no leaf projects is
         dropped;
      4. the CPU composites as the CPU path's resolve does with
-        trace_fallback: reflectance times what was drawn, and each
-        reflector pixel nothing was drawn on traced (refl_bvh) after the
-        read-back, the environment where the trace leaves the scene.
+        trace_fallback (SBC-traced): reflectance times what was drawn, and
+        each reflector pixel nothing was drawn on, whose nearest fragment
+        lies off the pixel's reflected ray, or whose drawn point the ray
+        meets something before (one occlusion ray), traced (refl_bvh)
+        after the read-back, the environment where the trace leaves the
+        scene.
    One bounce; glass is drawn as DIRECT draws it. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
@@ -36,6 +39,7 @@
 
 #define RGL_SB_FACTOR 2          /* ray map samples per pixel side, as the CPU path's default */
 #define RGL_SB_SPLIT 64.0f       /* triangles split to at most the scene's diagonal over this */
+#define RGL_SB_RAY_TOL "3.0"     /* a fragment's distance from its pixel's ray, in the ray's spread */
 #define RGL_SB_TILE 16           /* a tile's side in ray map samples, as the CPU path's groups */
 #define RGL_SB_OWN_NEAR 0.25f    /* the reflector's own vertex this near (in edges) its image: its surface */
 #define RGL_SB_CREASE 0.70710678f /* cos 45 degrees: neighbours on one smooth piece */
@@ -65,14 +69,36 @@ static const char rgl__sb_vs_main[] =
     "    gl_Position = vec4(clip.xy, (2.0 * clamp(z * u_zscale, 0.0, 1.0) - 1.0) * clip.w, clip.w);\n"
     "}\n";
 
+/* A fragment shows only what lies near its pixel's own reflected ray
+   (rgl_pass_ray_textures): within RGL_SB_RAY_TOL times the larger of the
+   pixel's angle and its ray's turn to its neighbours', per unit of
+   distance along it. Where the nearest fragment lies farther off (a
+   reflected triangle spanning leaves that send its vertices far apart,
+   or interpolated across a strongly bent image) the pixel is marked
+   contradicted (-1) and traced, as the CPU path traces contradicted
+   pixels; the mark keeps its depth, so nothing behind it shows. */
 static const char rgl__sb_fs[] =
     "#version 330 core\n"
     "in vec3 v_p; in vec3 v_n; in vec2 v_uv; flat in float v_id; in float v_ok;\n"
+    "uniform sampler2D u_surf, u_ray;\n"
+    "uniform float u_pixel_angle, u_own_near;\n"
+    "uniform int u_object;\n"
     "layout(location = 0) out vec4 o_point;\n"
     "layout(location = 1) out vec4 o_normal;\n"
     "layout(location = 2) out vec4 o_uv;\n"
     "void main() {\n"
     "    if (v_ok < 0.999) discard;\n" /* a vertex no leaf projects */
+    "    ivec2 px = ivec2(gl_FragCoord.xy);\n"
+    "    vec4 r = texelFetch(u_surf, px, 0);\n"
+    "    vec3 u = texelFetch(u_ray, px, 0).xyz, w = v_p - r.xyz;\n"
+    "    float s = dot(w, u);\n"
+    /* the reflector's own surface where the ray leaves it (grazing at a silhouette) */
+    "    if (int(v_id) == u_object + 1 && s < u_own_near) discard;\n"
+    "    if (!(s > 0.0) || length(w - s * u) > " RGL_SB_RAY_TOL " * max(r.w, u_pixel_angle) * s) {\n"
+    "        o_point = vec4(0.0, 0.0, 0.0, -1.0);\n" /* contradicted: traced, and hides what lies behind */
+    "        o_normal = vec4(0.0); o_uv = vec4(0.0);\n"
+    "        return;\n"
+    "    }\n"
     "    o_point = vec4(v_p, v_id); o_normal = vec4(v_n, 0.0); o_uv = vec4(v_uv, 0.0, 0.0);\n"
     "}\n";
 
@@ -244,6 +270,15 @@ done:
     return rc;
 }
 
+/* Whether the point drawn at a reflector pixel (q its surface point, dir
+   its reflected ray) lies behind something the ray meets first: the
+   SBC-traced check of the CPU path (a self-reflection the projection
+   missed, the knob in the lid, lets what lies behind it through). */
+static int rgl__sb_hidden(const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, const float *drawn) {
+    float s = refl_v3_dot(refl_v3_sub(refl_v3(drawn[0], drawn[1], drawn[2]), q), dir);
+    return s > 0.0f && refl_bvh_occluded(bvh, q, dir, 1e-4f, 0.99f * s);
+}
+
 /* A reflector pixel nothing was drawn on: traced along its reflected ray
    into pt, nrm, uv (what the G-buffer holds); id 0 where it leaves. */
 static void rgl__sb_trace(const rgl_pass *p, const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, float pt[4], float nrm[4],
@@ -321,7 +356,7 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     const char *vs[3], *fs[1] = {rgl__sb_fs};
     int w = view->width, h = view->height, o, rc = -1, c;
     size_t np = (size_t)w * (size_t)h, i;
-    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0;
+    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
     float *drawn[3] = {NULL, NULL, NULL}, *split = NULL, *data = NULL, diag;
     long long *first = NULL;
@@ -374,6 +409,12 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_base"), 0);
     rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_zscale"), 0.5f / diag);
+    if (rgl_pass_ray_textures(&ps, pix_tex) != 0) goto oom;
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"),
+                  2.0f * tanf(0.5f * (view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f) * 3.14159265f / 180.0f) /
+                      (float)h);
     rgl.Enable(GL_SCISSOR_TEST);
     for (o = 0; o < scene->object_count; ++o) {
         int mw = (w + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, mh = (h + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, tu, tv;
@@ -407,33 +448,24 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     /* composite on the CPU; holes traced */
     t1 = rgl_now();
     for (i = 0; i < np; ++i) {
-        const float *bp = ps.base[0] + 4 * i, *bn = ps.base[1] + 4 * i;
-        refl_vec3 d = rgl_pass_ray(&ps, (int)i);
-        float col[3];
-        int m_at = ps.marks[i];
-        frame->stencil[i] = 0;
-        for (c = 0; c < 3; ++c) frame->points[3 * i + c] = NAN;
-        rgl_shade(scene, bp, bn, ps.base[2] + 4 * i, d, col);
-        if (m_at) {
-            const refl_material *m = &scene->materials[scene->objects[m_at - 1].material];
-            refl_vec3 nrm = refl_v3(bn[0], bn[1], bn[2]), dir = rgl_reflect(d, nrm);
-            float sub[3], wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, refl_v3_normalize(nrm))));
-            float tp[4], tn[4] = {0, 0, 0, 0}, tuv[4] = {0, 0, 0, 0};
-            const float *pp = drawn[0] + 4 * i, *pn = drawn[1] + 4 * i, *puv = drawn[2] + 4 * i;
-            if (!((int)pp[3] >= 1)) { /* a hole: the fallback traces it */
-                if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
-                rgl__sb_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
-                pp = tp;
-                pn = tn;
-                puv = tuv;
-            }
-            rgl_shade(scene, pp, pn, puv, dir, sub);
-            if ((int)pp[3] >= 1)
-                for (c = 0; c < 3; ++c) frame->points[3 * i + c] = pp[c];
-            for (c = 0; c < 3; ++c) col[c] += wgt * sub[c];
-            frame->stencil[i] = (uint8_t)m_at;
+        const float *pp = drawn[0] + 4 * i, *pn = drawn[1] + 4 * i, *puv = drawn[2] + 4 * i, *bp = ps.base[0] + 4 * i;
+        float tp[4], tn[4] = {0, 0, 0, 0}, tuv[4] = {0, 0, 0, 0}, sub[3];
+        refl_vec3 dir;
+        if (!ps.marks[i]) {
+            rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+            continue;
         }
-        for (c = 0; c < 3; ++c) rgb[3 * i + c] = col[c];
+        dir = rgl_reflect(rgl_pass_ray(&ps, (int)i), refl_v3(ps.base[1][4 * i], ps.base[1][4 * i + 1], ps.base[1][4 * i + 2]));
+        if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
+        if (!((int)pp[3] >= 1) || rgl__sb_hidden(bvh, refl_v3(bp[0], bp[1], bp[2]), dir, pp)) {
+            /* a hole, contradicted, or hidden: the fallback traces it */
+            rgl__sb_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
+            pp = tp;
+            pn = tn;
+            puv = tuv;
+        }
+        rgl_shade(scene, pp, pn, puv, dir, sub);
+        rgl_composite(&ps, (int)i, (int)pp[3] >= 1 ? sub : NULL, pp, frame, rgb);
     }
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;
@@ -442,6 +474,7 @@ oom:
     snprintf(err, n, "out of memory");
 done:
     if (tex) rgl.DeleteTextures(1, &tex);
+    if (pix_tex[0]) rgl.DeleteTextures(2, pix_tex);
     if (tbuf) rgl.DeleteBuffers(1, &tbuf);
     if (vbo) rgl.DeleteBuffers(1, &vbo);
     if (vao) rgl.DeleteVertexArrays(1, &vao);
