@@ -2557,6 +2557,23 @@ static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 
 /* The image sheet `sheet` draws of a point with images `mask`, or -1
    (cam_sbc_raylist.c). */
 static int refl__sbc_sheet_image(int mask, int sheet, int *across);
+
+/* The GL hooks' packers' output (gl_hooks.c, and cam_sbc_morph.c's grid):
+   floats written while they fit, counted always; out NULL while a packer
+   only sizes its block. */
+typedef struct refl__gl_out {
+    float *out;
+    long long cap, n;
+} refl__gl_out;
+
+static inline void refl__gl_put(refl__gl_out *o, double v) {
+    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
+    ++o->n;
+}
+
+static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
+    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}
 /* ---- src/reflect/sbc_internal.h ---- */
 /* Private declarations of the SBC method (paper 003; docs/methods/sbc.md):
    a frame's state and the entry points its stages share.
@@ -7198,24 +7215,10 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
    rays' directions (refl__sbm_ahead's check). A node of no weight, not
    built or without the piece's cameras has offset -1 (it projects
    nothing, as refl__sbm_node_project). */
-typedef struct refl__sbm_gl {
-    float *out;
-    long long cap, n;        /* floats */
-} refl__sbm_gl;
-
-static void refl__sbm_gl_put(refl__sbm_gl *o, double v) {
-    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the caller sizes first: it always fits */
-    ++o->n;
-}
-
-static void refl__sbm_gl_put4(refl__sbm_gl *o, double a, double b, double c, double d) {
-    refl__sbm_gl_put(o, a); refl__sbm_gl_put(o, b); refl__sbm_gl_put(o, c); refl__sbm_gl_put(o, d);
-}
-
 /* The texel offsets (from the block's header) of a node's parts, laid out
    in order: node header (7 texels), the faces' SBC blocks, the faces'
    direction maps (W x W texels each, W = face + 2). */
-static long long refl__sbm_gl_node(refl__sbm_gl *o, const refl__sbm_node *nd, int piece) {
+static long long refl__sbm_gl_node(refl__gl_out *o, const refl__sbm_node *nd, int piece) {
     long long at = o->n / 4, sbc_at[6], dir_at[6], next, need;
     int f, W = nd->face + 2, i;
     const float *bx = nd->box + 6 * (size_t)piece;
@@ -7232,13 +7235,13 @@ static long long refl__sbm_gl_node(refl__sbm_gl *o, const refl__sbm_node *nd, in
         dir_at[f] = nd->dirs && nd->dirs[(size_t)piece * 6 + (size_t)f] ? next : -1;
         if (dir_at[f] >= 0) next += (long long)W * W;
     }
-    refl__sbm_gl_put4(o, nd->pos.x, nd->pos.y, nd->pos.z, nd->face);
-    refl__sbm_gl_put4(o, bx[0], bx[1], bx[2], 0);
-    refl__sbm_gl_put4(o, bx[3], bx[4], bx[5], 0);
-    refl__sbm_gl_put4(o, sbc_at[0], sbc_at[1], sbc_at[2], sbc_at[3]);
-    refl__sbm_gl_put4(o, sbc_at[4], sbc_at[5], -1, -1);
-    refl__sbm_gl_put4(o, dir_at[0], dir_at[1], dir_at[2], dir_at[3]);
-    refl__sbm_gl_put4(o, dir_at[4], dir_at[5], -1, -1);
+    refl__gl_put4(o, nd->pos.x, nd->pos.y, nd->pos.z, nd->face);
+    refl__gl_put4(o, bx[0], bx[1], bx[2], 0);
+    refl__gl_put4(o, bx[3], bx[4], bx[5], 0);
+    refl__gl_put4(o, sbc_at[0], sbc_at[1], sbc_at[2], sbc_at[3]);
+    refl__gl_put4(o, sbc_at[4], sbc_at[5], -1, -1);
+    refl__gl_put4(o, dir_at[0], dir_at[1], dir_at[2], dir_at[3]);
+    refl__gl_put4(o, dir_at[4], dir_at[5], -1, -1);
     for (f = 0; f < 6; ++f) {
         const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
         long long n;
@@ -7248,12 +7251,12 @@ static long long refl__sbm_gl_node(refl__sbm_gl *o, const refl__sbm_node *nd, in
     }
     for (f = 0; f < 6; ++f) {
         const signed char *dm = dir_at[f] >= 0 ? nd->dirs[(size_t)piece * 6 + (size_t)f] : NULL;
-        for (i = 0; dm && i < W * W; ++i) refl__sbm_gl_put4(o, dm[3 * i], dm[3 * i + 1], dm[3 * i + 2], 0);
+        for (i = 0; dm && i < W * W; ++i) refl__gl_put4(o, dm[3 * i], dm[3 * i + 1], dm[3 * i + 2], 0);
     }
     return next;
 }
 
-static long long refl__sbm_gl_pack(refl__sbm_gl *o, const refl_sbc_morph *m, refl_vec3 eye, int piece) {
+static long long refl__sbm_gl_pack(refl__gl_out *o, const refl_sbc_morph *m, refl_vec3 eye, int piece) {
     int nodes[4], k;
     float w[4];
     long long at[4], next = 6;
@@ -7265,17 +7268,17 @@ static long long refl__sbm_gl_pack(refl__sbm_gl *o, const refl_sbc_morph *m, ref
         if (!(w[k] > 0.0f) || !nd->built || !nd->sbc) continue;
         at[k] = next; /* sized below, with a counting pass of its own */
         {
-            refl__sbm_gl count = {NULL, 0, next * 4};
+            refl__gl_out count = {NULL, 0, next * 4};
             long long r = refl__sbm_gl_node(&count, nd, piece);
             if (r < 0) return r;
             next = count.n / 4;
         }
     }
     if (next >= 16777216) return REFL_ERROR_INVALID_ARGUMENT; /* offsets stored as floats */
-    refl__sbm_gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
-    refl__sbm_gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
+    refl__gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
+    refl__gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
                       w[3] > 0.0f ? w[3] : 0.0f);
-    for (k = 0; k < 4; ++k) refl__sbm_gl_put4(o, at[k], 0, 0, 0);
+    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], 0, 0, 0);
     for (k = 0; k < 4; ++k)
         if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
     return o->n;
@@ -7283,7 +7286,7 @@ static long long refl__sbm_gl_pack(refl__sbm_gl *o, const refl_sbc_morph *m, ref
 
 REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
                                           long long cap) {
-    refl__sbm_gl o = {NULL, 0, 0};
+    refl__gl_out o = {NULL, 0, 0};
     long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
     if (need < 0 || !out || cap < need) return need;
     o.out = out;
@@ -8361,20 +8364,7 @@ static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int 
 
 #define REFL__GL_INT_MAX 16777216.0 /* 2^24: integers stored as floats are exact below */
 
-/* A packer's output: out NULL while it only counts. */
-typedef struct refl__gl_out {
-    float *out;
-    long long cap, n;
-} refl__gl_out;
-
-static void refl__gl_put(refl__gl_out *o, double v) {
-    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
-    ++o->n;
-}
-
-static void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
-    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
-}
+/* (refl__gl_out, refl__gl_put and refl__gl_put4: cam_sbc_internal.h) */
 
 /* A double[3] and a fourth value: one texel. */
 static void refl__gl_put3d(refl__gl_out *o, const double *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }

@@ -353,6 +353,15 @@ int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, 
     return rgl_pass_check("drawing the base pass", err, n);
 }
 
+void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]) {
+    if (tex) rgl.DeleteTextures(1, &tex);
+    if (ray_tex[0]) rgl.DeleteTextures(2, ray_tex);
+    if (tbuf) rgl.DeleteBuffers(1, &tbuf);
+    if (vbo) rgl.DeleteBuffers(1, &vbo);
+    if (vao) rgl.DeleteVertexArrays(1, &vao);
+    if (prog) rgl.DeleteProgram(prog);
+}
+
 void rgl_pass_end(rgl_context *g, rgl_pass *p) {
     int i;
     rgl.Disable(GL_STENCIL_TEST);

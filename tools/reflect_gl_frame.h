@@ -55,6 +55,9 @@ extern const char rgl_frame_fs[];
 int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
                    size_t n);
 void rgl_pass_end(rgl_context *g, rgl_pass *p);
+/* Deletes a method's own GL objects (0: none): its program, vertex array
+   and buffer, camera data texture and buffer, ray textures. */
+void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]);
 /* Reads colour attachment a (4 floats per pixel), rows top first. */
 void rgl_pass_read(const rgl_pass *p, int a, float *out);
 /* The eye ray through pixel i's centre (unit direction). */

@@ -473,12 +473,7 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
 oom:
     snprintf(err, n, "out of memory");
 done:
-    if (tex) rgl.DeleteTextures(1, &tex);
-    if (pix_tex[0]) rgl.DeleteTextures(2, pix_tex);
-    if (tbuf) rgl.DeleteBuffers(1, &tbuf);
-    if (vbo) rgl.DeleteBuffers(1, &vbo);
-    if (vao) rgl.DeleteVertexArrays(1, &vao);
-    if (prog) rgl.DeleteProgram(prog);
+    rgl_pass_delete(prog, vao, vbo, tex, tbuf, pix_tex);
     rgl_pass_end(g, &ps);
     refl_bvh_destroy(bvh);
     for (c = 0; c < 3; ++c) free(drawn[c]);

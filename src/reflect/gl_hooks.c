@@ -18,20 +18,7 @@
 
 #define REFL__GL_INT_MAX 16777216.0 /* 2^24: integers stored as floats are exact below */
 
-/* A packer's output: out NULL while it only counts. */
-typedef struct refl__gl_out {
-    float *out;
-    long long cap, n;
-} refl__gl_out;
-
-static void refl__gl_put(refl__gl_out *o, double v) {
-    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
-    ++o->n;
-}
-
-static void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
-    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
-}
+/* (refl__gl_out, refl__gl_put and refl__gl_put4: cam_sbc_internal.h) */
 
 /* A double[3] and a fourth value: one texel. */
 static void refl__gl_put3d(refl__gl_out *o, const double *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }

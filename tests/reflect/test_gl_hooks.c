@@ -67,7 +67,7 @@ static void validate(int which) {
         cr_assert(v.max_rel <= 1e-4, "c3rc: max rel %.2e", v.max_rel);
         cr_assert((double)v.disagree <= 1e-5 * (double)v.points, "c3rc: %lld of %lld disagree", v.disagree, v.points);
     }
-    if (which >= 2) { /* SBC: both leaf kinds carry points */
+    if (which == 2 || which == 3) { /* SBC: both leaf kinds carry points */
         cr_assert_gt(v.pinhole_points, 1000);
         if (which == 2) cr_assert_gt(v.raylist_points, 1000);
     }
@@ -120,22 +120,7 @@ Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
     refl_scene_destroy(s);
 }
 
-Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) {
-    rgl_context *g = tu_gl_context("test_gl_hooks");
-    rgl_validation v;
-    char err[1024];
-    int r;
-    LSAN_OFF();
-    r = rgl_validate(g, 5, 100000, 1, &v, err, sizeof err);
-    rgl_destroy(g);
-    LSAN_ON();
-    cr_assert_eq(r, 0, "%s", err);
-    cr_log_info("%s: %lld points, %lld project, %lld disagree, max rel %.2e, p99.9 %.2e [%s]", v.camera, v.points,
-                v.projected, v.disagree, v.max_rel, v.p999_rel, v.note);
-    cr_assert_gt(v.projected, v.points / 2, "%lld of %lld project", v.projected, v.points);
-    cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.disagree, v.points,
-              v.max_rel, v.p999_rel);
-}
+Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) { validate(5); }
 
 /* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
    texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
@@ -157,19 +142,5 @@ Test(refl_gl_hooks, lem_shell_layout) {
     cr_assert_not_null(refl_gl_glsl(REFL_GL_LEM_SHELL));
 }
 
-Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) {
-    rgl_context *g = tu_gl_context("test_gl_hooks");
-    rgl_validation v;
-    char err[1024];
-    int r;
-    LSAN_OFF();
-    r = rgl_validate(g, 6, 100000, 1, &v, err, sizeof err);
-    rgl_destroy(g);
-    LSAN_ON();
-    cr_assert_eq(r, 0, "%s", err);
-    cr_log_info("%s: %lld rays, %lld meet the shell, %lld disagree, max weight error %.2e [%s]", v.camera, v.points,
-                v.projected, v.disagree, v.max_rel, v.note);
-    cr_assert_gt(v.projected, v.points / 2, "%lld of %lld meet the shell", v.projected, v.points);
-    cr_assert(rgl_validation_ok(&v), "%lld of %lld disagree, max %.2e, p99.9 %.2e", v.disagree, v.points, v.max_rel,
-              v.p999_rel);
-}
+/* (the shell's error: the largest weight difference; another texel disagrees) */
+Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) { validate(6); }
