@@ -107,7 +107,7 @@ static const char rgl__sb_fs[] =
    attributes interpolated). first: per object, and one past the last. */
 static float *rgl__sb_split(const rgl_geometry *geo, int objects, float len, long long *first) {
     long long total = 0, at = 0, i;
-    float *out;
+    float *out = NULL;
     int o, pass;
     for (pass = 0; pass < 2; ++pass) {
         if (pass == 1 && !(out = (float *)malloc((size_t)(total ? total : 1) * RGL_VERTEX_FLOATS * sizeof(float))))
