@@ -420,14 +420,16 @@ $(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IM
 # GPU machine by tools/gl_device_check.sh); the tests and `reflect` link the
 # host too.
 REFLECT_GL_BIN  = build/bin/reflect_gl
-REFLECT_GL_OBJS = build/tools/reflect_gl.o build/tools/reflect_gl_frame.o build/tools/reflect_gl_bench.o
+REFLECT_GL_OBJS = build/tools/reflect_gl.o build/tools/reflect_gl_frame.o build/tools/reflect_gl_bench.o \
+                  build/tools/reflect_gl_c3rc.o build/tools/reflect_gl_sbc.o
+ASAN_GL_OBJS    = $(patsubst build/%,build/asan/%,$(REFLECT_GL_OBJS))
 EGL_LIBS        = -lEGL
 
 $(REFLECT_GL_OBJS) build/tools/reflect_gl_main.o: build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 
-build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_frame.o build/asan/tools/reflect_gl_bench.o: build/asan/tools/%.o: tools/%.c | rast.h reflect.h
+$(ASAN_GL_OBJS): build/asan/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)
 	$(CC) $(ASAN_CFLAGS) $(DEPFLAGS) -c $< -o $@
 
@@ -436,9 +438,8 @@ $(REFLECT_GL_BIN): build/tools/reflect_gl_main.o $(REFLECT_GL_OBJS) $(IMPL_OBJS)
 	$(CC) $(CFLAGS) $^ -o $@ $(EGL_LIBS) $(LDLIBS)
 
 $(TEST_BIN) $(REFLECT_BIN): $(REFLECT_GL_OBJS)
-$(ASAN_TEST_BIN): build/asan/tools/reflect_gl.o build/asan/tools/reflect_gl_frame.o build/asan/tools/reflect_gl_bench.o
--include $(REFLECT_GL_OBJS:.o=.d) build/tools/reflect_gl_main.d build/asan/tools/reflect_gl.d build/asan/tools/reflect_gl_frame.d \
-           build/asan/tools/reflect_gl_bench.d
+$(ASAN_TEST_BIN): $(ASAN_GL_OBJS)
+-include $(REFLECT_GL_OBJS:.o=.d) build/tools/reflect_gl_main.d $(ASAN_GL_OBJS:.o=.d)
 
 # ---- running ----
 

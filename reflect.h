@@ -1027,7 +1027,11 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
+                                nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
+                                and optionally the layer's inferred map */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1035,6 +1039,13 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
+             refl_sbc_morph_project's blend (one image per node and piece)
+         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
+             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
+         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
+             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
+             int base, vec3 index): per fragment, the packed map at an interpolated index
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1044,6 +1055,11 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* The tetrahedron of the grid that holds eye, for piece `piece`: what
+   refl_sbc_morph_project reads (REFL_ERROR_INVALID_ARGUMENT where the eye
+   locates nowhere or the piece is out of range). */
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -1370,6 +1386,10 @@ typedef struct refl_lem_shell {
    misses the sphere. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
+   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_lookup's order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
    theta_m the largest angle between any two of the pixel's exit rays
@@ -1714,6 +1734,24 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                     const refl_frame *truth, float split_px,
                                                     refl_reflection_error *out);
+
+/* The cameras C3RC builds for the view, for a host that draws them itself
+   (the GL path, tools/reflect_gl_c3rc.c): every piece of every reflector
+   triangle, split as split_px asks (refl_render_desc.c3rc.camera_split_px:
+   0 the default, negative never), whichever side the view sees; the
+   method draws those of the triangles its G-buffer shows. Allocated with
+   the scene's allocator: free with refl_c3rc_view_cameras_free. */
+typedef struct refl_c3rc_view_camera {
+    refl_c3rc cam;
+    int object, triangle;
+    int back;                /* the triangle's back face is the side seen */
+    float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
+    float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
+    float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+} refl_c3rc_view_camera;
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count);
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
@@ -2576,6 +2614,23 @@ static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 
 /* The image sheet `sheet` draws of a point with images `mask`, or -1
    (cam_sbc_raylist.c). */
 static int refl__sbc_sheet_image(int mask, int sheet, int *across);
+
+/* The GL hooks' packers' output (gl_hooks.c, and cam_sbc_morph.c's grid):
+   floats written while they fit, counted always; out NULL while a packer
+   only sizes its block. */
+typedef struct refl__gl_out {
+    float *out;
+    long long cap, n;
+} refl__gl_out;
+
+static inline void refl__gl_put(refl__gl_out *o, double v) {
+    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
+    ++o->n;
+}
+
+static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
+    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}
 /* ---- src/reflect/sbc_internal.h ---- */
 /* Private declarations of the SBC method (paper 003; docs/methods/sbc.md):
    a frame's state and the entry points its stages share.
@@ -7382,6 +7437,93 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
     if (ambiguous) *ambiguous = amb;
     return REFL_OK;
 }
+
+/* ---- GL hook (gl_hooks.c; docs/gl.md, "SBC morph grid") ---------------------------
+   The eye's tetrahedron for one piece: its four weights, and per node of
+   positive weight its position, the piece's box there, its face SBCs (each
+   a whole SBC block, refl_gl_pack_sbc) and the face maps of its unextended
+   rays' directions (refl__sbm_ahead's check). A node of no weight, not
+   built or without the piece's cameras has offset -1 (it projects
+   nothing, as refl__sbm_node_project). */
+/* The texel offsets (from the block's header) of a node's parts, laid out
+   in order: node header (7 texels), the faces' SBC blocks, the faces'
+   direction maps (W x W texels each, W = face + 2). */
+static long long refl__sbm_gl_node(refl__gl_out *o, const refl__sbm_node *nd, int piece) {
+    long long at = o->n / 4, sbc_at[6], dir_at[6], next, need;
+    int f, W = nd->face + 2, i;
+    const float *bx = nd->box + 6 * (size_t)piece;
+    next = at + 7;
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        sbc_at[f] = -1;
+        if (!s) continue;
+        if ((need = refl_gl_pack_sbc(s, NULL, 0)) < 0) return need;
+        sbc_at[f] = next;
+        next += need / 4;
+    }
+    for (f = 0; f < 6; ++f) {
+        dir_at[f] = nd->dirs && nd->dirs[(size_t)piece * 6 + (size_t)f] ? next : -1;
+        if (dir_at[f] >= 0) next += (long long)W * W;
+    }
+    refl__gl_put4(o, nd->pos.x, nd->pos.y, nd->pos.z, nd->face);
+    refl__gl_put4(o, bx[0], bx[1], bx[2], 0);
+    refl__gl_put4(o, bx[3], bx[4], bx[5], 0);
+    refl__gl_put4(o, sbc_at[0], sbc_at[1], sbc_at[2], sbc_at[3]);
+    refl__gl_put4(o, sbc_at[4], sbc_at[5], -1, -1);
+    refl__gl_put4(o, dir_at[0], dir_at[1], dir_at[2], dir_at[3]);
+    refl__gl_put4(o, dir_at[4], dir_at[5], -1, -1);
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        long long n;
+        if (!s) continue;
+        n = refl_gl_pack_sbc(s, o->out ? o->out + o->n : NULL, o->out ? o->cap - o->n : 0);
+        o->n += n;
+    }
+    for (f = 0; f < 6; ++f) {
+        const signed char *dm = dir_at[f] >= 0 ? nd->dirs[(size_t)piece * 6 + (size_t)f] : NULL;
+        for (i = 0; dm && i < W * W; ++i) refl__gl_put4(o, dm[3 * i], dm[3 * i + 1], dm[3 * i + 2], 0);
+    }
+    return next;
+}
+
+static long long refl__sbm_gl_pack(refl__gl_out *o, const refl_sbc_morph *m, refl_vec3 eye, int piece) {
+    int nodes[4], k;
+    float w[4];
+    long long at[4], next = 6;
+    if (!m || piece < 0 || piece >= m->piece_count || refl_sbc_morph_locate(m, eye, nodes, w) < 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (k = 0; k < 4; ++k) {
+        const refl__sbm_node *nd = &m->nodes[nodes[k]];
+        at[k] = -1;
+        if (!(w[k] > 0.0f) || !nd->built || !nd->sbc) continue;
+        at[k] = next; /* sized below, with a counting pass of its own */
+        {
+            refl__gl_out count = {NULL, 0, next * 4};
+            long long r = refl__sbm_gl_node(&count, nd, piece);
+            if (r < 0) return r;
+            next = count.n / 4;
+        }
+    }
+    if (next >= 16777216) return REFL_ERROR_INVALID_ARGUMENT; /* offsets stored as floats */
+    refl__gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
+    refl__gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
+                      w[3] > 0.0f ? w[3] : 0.0f);
+    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], 0, 0, 0);
+    for (k = 0; k < 4; ++k)
+        if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    return o->n;
+}
+
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    o.n = 0;
+    return refl__sbm_gl_pack(&o, morph, eye, piece);
+}
 /* ---- src/reflect/cam_sbc_raylist.c ---- */
 /* cam_sbc_raylist: the sample-based camera's ray-list leaves, where no
    pinhole camera fits, and their sheets (paper 003 IV and VII-C;
@@ -8452,20 +8594,7 @@ static refl_result refl__em_gbuffer_new(refl__em *em, unsigned char **seen, int 
 
 #define REFL__GL_INT_MAX 16777216.0 /* 2^24: integers stored as floats are exact below */
 
-/* A packer's output: out NULL while it only counts. */
-typedef struct refl__gl_out {
-    float *out;
-    long long cap, n;
-} refl__gl_out;
-
-static void refl__gl_put(refl__gl_out *o, double v) {
-    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
-    ++o->n;
-}
-
-static void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
-    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
-}
+/* (refl__gl_out, refl__gl_put and refl__gl_put4: cam_sbc_internal.h) */
 
 /* A double[3] and a fourth value: one texel. */
 static void refl__gl_put3d(refl__gl_out *o, const double *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }
@@ -8657,6 +8786,30 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     o.out = out;
     o.cap = cap;
     return refl__gl_graphcam(&o, cam);
+}
+
+/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+
+static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+    refl__gl_out o = *op;
+    long long i, texels;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    texels = 6LL * shell->face_size * shell->face_size;
+    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
+    refl__gl_put_v3(&o, shell->center, shell->radius);
+    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_lem_shell(&o, shell, map);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_lem_shell(&o, shell, map);
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
@@ -8951,12 +9104,143 @@ static const char refl__gl_glsl_graphcam[] =
     "    return vec4(0.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_sbc_morph[] =
+    "/* reflect.h GL hook: an SBC morph grid (layout version 1), cam_sbc_morph.c's\n"
+    "   refl_sbc_morph_project in float: the eye's tetrahedron of nodes, each node's\n"
+    "   face SBCs (refl_sbc_project, REFL_GL_SBC's source), the blend. */\n"
+    "int refl_sbm_face_of(vec3 v) {\n"
+    "    vec3 a = abs(v);\n"
+    "    if (a.x >= a.y && a.x >= a.z) return v.x >= 0.0 ? 0 : 1;\n"
+    "    if (a.y >= a.z) return v.y >= 0.0 ? 2 : 3;\n"
+    "    return v.z >= 0.0 ? 4 : 5;\n"
+    "}\n"
+    "/* whether p lies ahead of first point q along the unextended ray of the\n"
+    "   node's face sample q lands on (cam_sbc_morph.c's refl__sbm_ahead) */\n"
+    "bool refl_sbm_ahead(samplerBuffer data, int base, int nb, vec3 pos, int face, vec3 p, vec3 q) {\n"
+    "    const vec3 fws[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0), vec3(0, 0, 1), vec3(0, 0, -1));\n"
+    "    const vec3 ups[6] = vec3[6](vec3(0, 1, 0), vec3(0, 1, 0), vec3(0, 0, -1), vec3(0, 0, 1), vec3(0, 1, 0), vec3(0, 1, 0));\n"
+    "    vec3 v = q - pos;\n"
+    "    int f = refl_sbm_face_of(v), W = face + 2;\n"
+    "    float dm = texelFetch(data, nb + 5 + f / 4)[f % 4];\n"
+    "    if (dm < 0.0) return true;\n"
+    "    vec3 fw = fws[f], rt = normalize(cross(fw, ups[f])), up = cross(rt, fw);\n"
+    "    float w = dot(v, fw);\n"
+    "    if (!(w > 0.0)) return true;\n"
+    "    float x = dot(v, rt) / w, y = dot(v, up) / w;\n"
+    "    int i = int(clamp(floor((x + 1.0) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    int j = int(clamp(floor((1.0 - y) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    vec3 dr = texelFetch(data, base + int(dm) + j * W + i).xyz;\n"
+    "    if (dr == vec3(0.0)) return true;\n"
+    "    return dot(p - q, dr) > 0.0;\n"
+    "}\n"
+    "/* p at one node (its block at nb): the face owning the answer first */\n"
+    "bool refl_sbm_node_project(samplerBuffer data, int base, int nb, vec3 p, out vec3 first) {\n"
+    "    vec4 pos = texelFetch(data, nb);\n"
+    "    first = vec3(0.0);\n"
+    "    if (any(lessThan(p, texelFetch(data, nb + 1).xyz)) || any(greaterThan(p, texelFetch(data, nb + 2).xyz)))\n"
+    "        return false;\n"
+    "    bool got = false;\n"
+    "    vec3 keep = vec3(0.0);\n"
+    "    for (int f = 0; f < 6; ++f) {\n"
+    "        float so = texelFetch(data, nb + 3 + f / 4)[f % 4];\n"
+    "        vec3 q;\n"
+    "        float z;\n"
+    "        int kind;\n"
+    "        if (so < 0.0 || !refl_sbc_project(data, base + int(so), p, q, z, kind)) continue;\n"
+    "        if (!refl_sbm_ahead(data, base, nb, pos.xyz, int(pos.w), p, q)) continue;\n"
+    "        if (refl_sbm_face_of(q - pos.xyz) == f) { first = q; return true; }\n"
+    "        if (!got) keep = q;\n"
+    "        got = true;\n"
+    "    }\n"
+    "    first = keep;\n"
+    "    return got;\n"
+    "}\n"
+    "/* p's blended first reflector point and distance for the packed eye and\n"
+    "   piece; false where a node of positive weight does not project it */\n"
+    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "    vec4 w = texelFetch(data, base + 1);\n"
+    "    vec3 f = vec3(0.0);\n"
+    "    float dd = 0.0;\n"
+    "    bool any_node = false;\n"
+    "    first = vec3(0.0);\n"
+    "    dist = 0.0;\n"
+    "    for (int k = 0; k < 4; ++k) {\n"
+    "        if (!(w[k] > 0.0)) continue;\n"
+    "        float nb = texelFetch(data, base + 2 + k).x;\n"
+    "        vec3 q;\n"
+    "        if (nb < 0.0 || !refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        f += w[k] * q;\n"
+    "        dd += w[k] * length(p - q);\n"
+    "        any_node = true;\n"
+    "    }\n"
+    "    if (!any_node) return false;\n"
+    "    first = f;\n"
+    "    dist = dd;\n"
+    "    return true;\n"
+    "}\n";
+
+static const char refl__gl_glsl_lem_shell[] =
+    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "    vec3 oc = origin - sh.xyz;\n"
+    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    index = vec3(0.0);\n"
+    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
+    "    float t = (-b + sqrt(disc)) / dd;\n"
+    "    if (!(t >= 0.0)) return false;\n"
+    "    index = oc + dir * t;\n"
+    "    return true;\n"
+    "}\n"
+    "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
+    "int refl_lem_cube_face(vec3 v, out vec2 st) {\n"
+    "    vec3 a = abs(v);\n"
+    "    float sc, tc, ma;\n"
+    "    int face;\n"
+    "    if (a.z >= a.x && a.z >= a.y) { face = v.z >= 0.0 ? 4 : 5; sc = v.z >= 0.0 ? v.x : -v.x; tc = -v.y; ma = a.z; }\n"
+    "    else if (a.y >= a.x) { face = v.y >= 0.0 ? 2 : 3; sc = v.x; tc = v.y >= 0.0 ? v.z : -v.z; ma = a.y; }\n"
+    "    else { face = v.x >= 0.0 ? 0 : 1; sc = v.x >= 0.0 ? -v.z : v.z; tc = -v.y; ma = a.x; }\n"
+    "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
+    "    return face;\n"
+    "}\n"
+    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
+    "   runtime samples for the exit ray; false where it misses the shell */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
+    "    int n = int(texelFetch(data, base).z);\n"
+    "    vec3 hit;\n"
+    "    vec2 st;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
+    "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
+    "    p0 = clamp(p0, 0, n - 1);\n"
+    "    int b = face * n * n;\n"
+    "    texel = ivec4(b + p0.y * n + p0.x, b + p0.y * n + p1.x, b + p1.y * n + p0.x, b + p1.y * n + p1.x);\n"
+    "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
+    "    return true;\n"
+    "}\n"
+    "/* per fragment: the packed map at an interpolated index (the shell's\n"
+    "   centre as the origin, as the runtime samples); 0 without a map */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
+    "        return vec4(0.0);\n"
+    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
+    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
+    case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
+    case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     }
     return NULL;
 }
@@ -12278,6 +12562,42 @@ static refl_result refl__method_c3rc(refl__pass *p) {
 
 /* ---- the cameras' own error ----------------------------------------------------- */
 
+/* Every piece of every reflector triangle C3RC builds a camera for, seen
+   from the view (the pass p set up on a frame `shape` of the view's size,
+   which it only reads the size of): what refl_c3rc_measure_camera_error
+   and refl_c3rc_view_cameras share. */
+static refl_result refl__c3_view_jobs(const refl_scene *scene, const refl_view *view, float split_px, refl__pass *p,
+                                      refl_frame *shape, refl__c3_list *list) {
+    refl_vec3 lo, hi;
+    float tmax;
+    int i, t;
+    refl_result r = REFL_OK;
+    memset(p, 0, sizeof *p);
+    memset(shape, 0, sizeof *shape);
+    memset(list, 0, sizeof *list);
+    list->al = &scene->allocator;
+    if (!refl__isfinite(split_px)) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    shape->width = view->width;
+    shape->height = view->height;
+    p->scene = scene;
+    p->view = view;
+    p->frame = shape;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(p, i, t, tmax, split_px, list);
+    return r;
+}
+
 enum { REFL__C3_CELL = 8, REFL__C3_REACH = 8 };
 
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
@@ -12291,41 +12611,17 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     int *cell_start = NULL, *cell_list = NULL;
     double *errors = NULL, sum = 0.0;
     long long counted = 0, matched = 0;
-    refl_vec3 lo, hi;
-    float tmax;
-    int w, h, cw, ch, cells, i, t, c, x, y, n;
-    refl_result r = REFL_OK;
+    int w, h, cw, ch, cells, i, c, x, y, n;
+    refl_result r;
     if (!out) return REFL_ERROR_INVALID_ARGUMENT;
     memset(out, 0, sizeof *out);
     if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
-    if (!refl__isfinite(split_px)) return REFL_ERROR_INVALID_ARGUMENT;
-    for (i = 0; i < scene->object_count; ++i)
-        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
-            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return REFL_ERROR_INVALID_ARGUMENT;
     al = &scene->allocator;
     w = truth->width;
     h = truth->height;
-    memset(&p, 0, sizeof p);
-    memset(&shape, 0, sizeof shape);
-    shape.width = w; /* the pass reads the frame's size only */
-    shape.height = h;
-    p.scene = scene;
-    p.view = view;
-    p.frame = &shape;
-    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
-    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
-    refl__view_rays_init(&p.rays, view, scene);
-    refl_scene_bounds(scene, &lo, &hi);
-    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     /* every reflector triangle's cameras, as C3RC builds them */
-    memset(&list, 0, sizeof list);
-    list.al = al;
-    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
-        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
-            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
-                r = refl__c3_add_triangle(&p, i, t, tmax, split_px, &list);
+    r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
     /* binned by their screen boxes grown by REFL__C3_REACH, in cells of
        REFL__C3_CELL pixels */
     cw = (w + REFL__C3_CELL - 1) / REFL__C3_CELL;
@@ -12411,6 +12707,51 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     refl__free(al, cell_list);
     refl__free(al, errors);
     return r;
+}
+
+/* ---- the view's cameras, for a host that draws them (the GL path) --------------- */
+
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count) {
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl_c3rc_view_camera *cams = NULL;
+    int i, n = 0;
+    refl_result r;
+    if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    *count = 0;
+    if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
+    if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
+                                                                       (size_t)(list.count ? list.count : 1), sizeof *cams)))
+        r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < list.count; ++i) {
+        refl__c3_cam k;
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(&p, &list.v[i], &k)) continue;
+        cams[n].cam = k.cam;
+        cams[n].object = k.object;
+        cams[n].triangle = k.triangle;
+        cams[n].back = k.id < 0.0f;
+        cams[n].screen_area = k.screen_area;
+        cams[n].screen_edge = k.screen_edge;
+        cams[n].near_self = k.near_self;
+        ++n;
+    }
+    refl__free(&scene->allocator, list.v);
+    if (r != REFL_OK) {
+        refl__free(&scene->allocator, cams);
+        return r;
+    }
+    *out = cams;
+    *count = n;
+    return REFL_OK;
+}
+
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams) {
+    if (scene && cams) refl__free(&scene->allocator, cams);
 }
 /* ---- src/reflect/m_envmap.c ---- */
 /* ENVMAP: the classic baseline. Per reflector, a cube map is rendered with

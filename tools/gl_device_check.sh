@@ -19,10 +19,18 @@
 # Writes: info.txt (EGL vendor, GL renderer and version, the libraries
 # resolved), validate.txt and validate.csv (every camera's GLSL projection
 # against its C projection on 10^5 points), bench.txt and bench.csv (the
-# projection rate on 4 x 10^6 points per camera, GL beside one CPU thread),
-# frames.txt and frames.csv (PLANAR frames of mirror-room through GL
-# against the CPU path on every core at 640x480, 1920x1080 and 3840x2160).
-# Each step has its own time limit; the whole run stays under 4 minutes.
+# projection rate on 4 x 10^6 points per camera, GL beside one CPU thread:
+# SBC's rows against the paper's 20 M vertices/s), frames.txt and
+# frames.csv (PLANAR on mirror-room, C3RC and SBC on default, through GL
+# against the CPU path on every core at 640x480, 1920x1080 and 3840x2160:
+# C3RC's GL frame against the paper's 48-650 ms, SBC's vertex rate in
+# gl_mvertices_per_s), and, when build/bin/reflect's libraries resolve
+# (Embree, OpenImageIO, tinygltf: install them or carry them in
+# GL_LIBS_DIR), embree/ (reflect bench --only sbc: RAYTRACE through our BVH
+# and through Embree beside SBC on the CPU, default scene, the same three
+# sizes, DIR/sbc_resolution.csv) and summary.txt (the rows to compare, side
+# by side). Each step has its own time limit; the whole run stays under 9
+# minutes.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 OUT=${OUT:-out/gl_device}
@@ -72,9 +80,34 @@ echo "=== bench: projection rate (4 x 10^6 points per camera, GL best of 5)"
 timeout -k 5 90 "$BIN" bench --points 4000000 --repeats 5 --csv "$OUT/bench.csv" >"$OUT/bench.txt" 2>&1 || status=1
 cat "$OUT/bench.txt"
 
-echo "=== frames: PLANAR through GL against the CPU path (RAYTRACE as truth at 640x480)"
-timeout -k 5 80 "$BIN" frames --sizes 640x480,1920x1080,3840x2160 --truth-max-pixels 307200 \
-  --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
+echo "=== frames: PLANAR, C3RC and SBC through GL against the CPU path (RAYTRACE as truth at 640x480)"
+timeout -k 5 240 "$BIN" frames --sizes 640x480,1920x1080,3840x2160 --methods planar,c3rc,sbc \
+  --truth-max-pixels 307200 --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
 cat "$OUT/frames.txt"
+
+echo "=== Embree: RAYTRACE (our BVH, Embree) and SBC on the CPU at the same sizes (reflect bench --only sbc)"
+REFLECT=build/bin/reflect
+missing=""
+if [ -x "$REFLECT" ] && command -v ldd >/dev/null; then
+  missing=$(ldd "$REFLECT" 2>&1 | grep "not found" | awk '{print $1}' | tr '\n' ' ')
+elif [ ! -x "$REFLECT" ]; then
+  missing="$REFLECT itself"
+fi
+if [ -z "$missing" ]; then
+  timeout -k 5 240 "$REFLECT" bench --only sbc --out "$OUT/embree" >"$OUT/embree.txt" 2>&1 || status=1
+  grep -i "resolution\|embree\|raytrace\|crossover" "$OUT/embree.txt" | head -40
+else
+  echo "skipped: missing $missing(carry them in GL_LIBS_DIR)" | tee "$OUT/embree.txt"
+fi
+
+{
+  echo "--- SBC projection rate (GL, M vertices/s) against the paper's 20 M/s"
+  grep "^sbc" "$OUT/bench.txt"
+  echo "--- frames: GL frame against the CPU path (C3RC against the paper's 48-650 ms)"
+  grep -E "^(planar|c3rc|sbc) " "$OUT/frames.txt"
+  echo "--- Embree and our BVH at the same sizes (default scene; embree/sbc_resolution.csv)"
+  if [ -f "$OUT/embree/sbc_resolution.csv" ]; then cat "$OUT/embree/sbc_resolution.csv"; else cat "$OUT/embree.txt"; fi
+} >"$OUT/summary.txt" 2>&1
+cat "$OUT/summary.txt"
 echo "gl_device_check: results in $OUT (exit $status)"
 exit $status

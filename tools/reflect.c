@@ -49,7 +49,8 @@ static const char *const usage_render =
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
-    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, one bounce\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC or SBC,\n"
+    "                     one bounce\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -558,7 +559,8 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
-/* --gl: PLANAR through the GL host (one bounce), written as any frame is. */
+/* --gl: PLANAR, C3RC or SBC through the GL host (one bounce), written as
+   any frame is. */
 static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
     rgl_context *g = NULL;
     refl_frame *f = NULL;
@@ -567,8 +569,8 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     float *rgb = NULL;
     char err[1024];
     int code = 1;
-    if (m != REFL_PLANAR) {
-        fprintf(stderr, "reflect: --gl draws PLANAR only (--method planar)\n");
+    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC) {
+        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC and SBC only (--method planar, c3rc or sbc)\n");
         return 2;
     }
     if (rgl_create(&g, err, sizeof err) != 0) {
@@ -580,7 +582,7 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         fprintf(stderr, "reflect: out of memory\n");
         goto out;
     }
-    if (rgl_render_planar(g, s, v, f, rgb, &st, err, sizeof err) != 0) {
+    if (rgl_render(g, m, s, v, f, rgb, &st, err, sizeof err) != 0) {
         fprintf(stderr, "reflect: --gl: %s\n", err);
         goto out;
     }
@@ -593,9 +595,11 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         goto out;
     }
     if (o->stats)
-        printf("method       planar (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\nmirrors      %d\n"
-               "GL ms        %.2f\nshading ms   %.2f\n",
-               rgl_renderer(g), v->width, v->height, st.mirrors, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
+        printf("method       %s (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\n%s %d\n"
+               "GL vertices  %lld\nGL ms        %.2f\nCPU ms       %.2f\n",
+               m == REFL_PLANAR ? "planar" : m == REFL_C3RC ? "c3rc" : "sbc", rgl_renderer(g), v->width, v->height,
+               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : "reflectors  ", st.mirrors,
+               st.vertices, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
     code = 0;
 out:
     free(rgb);

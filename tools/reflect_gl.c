@@ -18,6 +18,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "name_in_list.h"
 #include "reflect_gl_funcs.h"
 
 #ifndef EGL_PLATFORM_SURFACELESS_MESA
@@ -39,17 +40,6 @@ struct rgl_context {
 static int rgl__fail(char *err, size_t n, const char *what) {
     if (err && n) snprintf(err, n, "%s", what);
     return -1;
-}
-
-static int rgl__has_ext(const char *list, const char *name) {
-    size_t n = strlen(name);
-    const char *s = list;
-    if (!list) return 0;
-    while ((s = strstr(s, name)) != NULL) {
-        if ((s == list || s[-1] == ' ') && (s[n] == ' ' || s[n] == '\0')) return 1;
-        s += n;
-    }
-    return 0;
 }
 
 /* A GL 3.3 core context on dpy, made current without a surface; 0 on success. */
@@ -106,7 +96,7 @@ int rgl_create(rgl_context **out, char *err, size_t n) {
     snprintf(err, n, "no EGL display (client extensions: %s)", cext ? cext : "(none)");
     /* a device first (a GPU's driver lists its GPUs), then Mesa's
        surfaceless platform, then the default display */
-    if (get_display && rgl__has_ext(cext, "EGL_EXT_platform_device")) {
+    if (get_display && name_in_list(cext, "EGL_EXT_platform_device", ' ')) {
         PFNEGLQUERYDEVICESEXTPROC query_devices = (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
         EGLDeviceEXT devs[16];
         EGLint nd = 0, i;
@@ -120,7 +110,7 @@ int rgl_create(rgl_context **out, char *err, size_t n) {
             }
         }
     }
-    if (!ok && get_display && rgl__has_ext(cext, "EGL_MESA_platform_surfaceless")) {
+    if (!ok && get_display && name_in_list(cext, "EGL_MESA_platform_surfaceless", ' ')) {
         EGLDisplay d = get_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
         if (d != EGL_NO_DISPLAY && rgl__context_on(g, d, err, n) == 0) {
             ok = 1;
@@ -362,6 +352,22 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = refl_graphcam_project(u_data, u_base, a_p.xyz, f);\n"
     "    v_o1 = vec4(float(f), 0.0, 0.0, 0.0);\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n"
+    "    vec3 f;\n"
+    "    float d;\n"
+    "    bool ok = refl_sbc_morph_project(u_data, u_base, a_p.xyz, f, d);\n"
+    "    v_o0 = vec4(f, d);\n"
+    "    v_o1 = vec4(ok ? 1.0 : 0.0, 0.0, 0.0, 0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    refl_lem_shell_lookup(u_data, u_base, a_p.xyz, a_p.xyz - vec3(0.5, 0.25, -0.75), t, w);\n"
+    "    v_o0 = vec4(t);\n"
+    "    v_o1 = w;\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -393,7 +399,18 @@ typedef struct rgl_fixture {
     int map_w, map_h;
     /* graph camera */
     refl_graphcam *graph;
+    /* SBC morph grid: the default scene's teapot, one eye and piece; the
+       test points' box and the scene size errors are relative to */
+    refl_scene *scene;
+    refl_sbc_morph *morph;
+    refl_vec3 eye, lo, hi;
+    int piece;
+    double size;
+    /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
+    refl_lem_shell shell;
 } rgl_fixture;
+
+#define RGL_LEM_AIM refl_v3(0.5f, 0.25f, -0.75f)
 
 static void rgl__fixture_free(rgl_fixture *f) {
     free(f->packed);
@@ -402,6 +419,8 @@ static void rgl__fixture_free(rgl_fixture *f) {
     free(f->rays);
     free(f->valid);
     free(f->graph);
+    refl_sbc_morph_destroy(f->morph);
+    refl_scene_destroy(f->scene);
     memset(f, 0, sizeof *f);
 }
 
@@ -409,6 +428,8 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
     long long need = f->kind == REFL_GL_MIRROR ? refl_gl_pack_mirror(f->vp, refl_v3((float)f->n[0], (float)f->n[1], (float)f->n[2]), (float)f->d, NULL, 0)
                      : f->kind == REFL_GL_C3RC ? refl_gl_pack_c3rc(f->cams, f->cam_count, NULL, 0)
                      : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
+                     : f->kind == REFL_GL_SBC_MORPH ? refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, NULL, 0)
+                     : f->kind == REFL_GL_LEM_SHELL ? refl_gl_pack_lem_shell(&f->shell, NULL, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
     f->packed = (float *)malloc((size_t)need * sizeof(float));
@@ -420,6 +441,10 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
         refl_gl_pack_c3rc(f->cams, f->cam_count, f->packed, need);
     else if (f->kind == REFL_GL_GRAPHCAM)
         refl_gl_pack_graphcam(f->graph, f->packed, need);
+    else if (f->kind == REFL_GL_SBC_MORPH)
+        refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, f->packed, need);
+    else if (f->kind == REFL_GL_LEM_SHELL)
+        refl_gl_pack_lem_shell(&f->shell, NULL, f->packed, need);
     else
         refl_gl_pack_sbc(f->sbc, f->packed, need);
     return 0;
@@ -473,6 +498,50 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
             }
         }
         snprintf(note, note_n, "%d C3RCs of a unit sphere's triangles", f->cam_count);
+    } else if (which == 6) {
+        /* a shell about an off-centre point; rays from inside and outside it */
+        f->kind = REFL_GL_LEM_SHELL;
+        f->shell.center = refl_v3(0.3f, -0.2f, 0.1f);
+        f->shell.radius = 2.5f;
+        f->shell.face_size = 32;
+        snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
+    } else if (which == 5) {
+        /* the default scene's teapot in a one-cell grid beside the view
+           (tests/reflect/test_sbc_morph.c's), the eye inside the cell */
+        refl_sbc_morph_desc md;
+        refl_sbc_morph_stats st;
+        refl_vec3 c, lo, hi;
+        int k;
+        f->kind = REFL_GL_SBC_MORPH;
+        if (refl_scene_builtin("default", NULL, &f->scene) != REFL_OK) return rgl__fail(err, n, "no default scene");
+        memset(&md, 0, sizeof md);
+        md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
+        md.region_lo = refl_v3(-1.0f, 3.8f, 7.4f);
+        md.region_hi = refl_v3(1.0f, 5.3f, 9.4f);
+        md.face_size = 64;
+        if (refl_sbc_morph_build(f->scene, 1, &md, &f->morph) != REFL_OK) return rgl__fail(err, n, "refl_sbc_morph_build failed");
+        refl_mesh_bounds(f->scene->meshes[f->scene->objects[1].mesh], &lo, &hi);
+        f->lo = refl_v3(1e30f, 1e30f, 1e30f);
+        f->hi = refl_v3(-1e30f, -1e30f, -1e30f);
+        for (k = 0; k < 8; ++k) { /* the teapot's world box, grown by its size */
+            refl_vec3 q = refl_mat4_point(f->scene->objects[1].transform,
+                                          refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z));
+            f->lo = refl_v3(fminf(f->lo.x, q.x), fminf(f->lo.y, q.y), fminf(f->lo.z, q.z));
+            f->hi = refl_v3(fmaxf(f->hi.x, q.x), fmaxf(f->hi.y, q.y), fmaxf(f->hi.z, q.z));
+        }
+        f->size = refl_v3_length(refl_v3_sub(f->hi, f->lo));
+        c = refl_v3_scale(refl_v3_add(f->lo, f->hi), 0.5f);
+        f->lo = refl_v3_sub(f->lo, refl_v3(1.0f, 1.0f, 1.0f));
+        f->hi = refl_v3_add(f->hi, refl_v3(1.0f, 1.0f, 1.0f));
+        f->size = refl_v3_length(refl_v3_sub(f->hi, f->lo));
+        f->eye = refl_v3(0.3f, 4.5f, 8.9f);
+        f->piece = refl_sbc_morph_piece_at(f->morph, f->eye, refl_v3_sub(c, f->eye));
+        if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the teapot");
+        refl_sbc_morph_get_stats(f->morph, &st);
+        if (rgl__pack(f, err, n) != 0) return -1;
+        snprintf(note, note_n, "the default scene's teapot, one grid cell of %d nodes, %d pieces, %d SBCs, face 64; "
+                 "piece %d, %.0f texels", st.nodes_built, st.pieces, st.sbcs, f->piece, (double)f->floats / 4.0);
+        return 0;
     } else if (which == 4) {
         f->kind = REFL_GL_GRAPHCAM;
         f->graph = (refl_graphcam *)malloc(sizeof *f->graph);
@@ -546,6 +615,19 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
             if (in_volume)
                 p = refl_v3((float)rgl__range(&r, lo.x, hi.x), (float)rgl__range(&r, lo.y, hi.y),
                             (float)rgl__range(&r, lo.z, hi.z));
+        } else if (f->kind == REFL_GL_LEM_SHELL) {
+            if (in_volume) p = refl_v3_scale(p, 0.5f); /* [-2, 2]^3: mostly inside the shell */
+        } else if (f->kind == REFL_GL_SBC_MORPH) {
+            /* in the teapot's box, grown; "in the volume": drawn until the C
+               projects it (at most 64 tries) */
+            int tries;
+            for (tries = 0; tries < (in_volume ? 64 : 1); ++tries) {
+                refl_vec3 q;
+                float dd;
+                p = refl_v3((float)rgl__range(&r, f->lo.x, f->hi.x), (float)rgl__range(&r, f->lo.y, f->hi.y),
+                            (float)rgl__range(&r, f->lo.z, f->hi.z));
+                if (refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL)) break;
+            }
         } else if (f->kind == REFL_GL_SBC && in_volume && nvalid) {
             const refl_sbc_ray *ray = &f->rays[valid_list[(int)(rgl__rand(&r) * nvalid)]];
             double s = rgl__range(&r, 0.0, 1.0);
@@ -601,6 +683,31 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
                         fabs(c[2] - (gl[2] / gl[3] + 1.0) * 0.5));
         return 1;
     }
+    if (f->kind == REFL_GL_LEM_SHELL) {
+        /* the same four texels, their weights within float rounding */
+        uint32_t tex[4];
+        float w[4];
+        int ok = refl_lem_shell_lookup(&f->shell, pv, refl_v3_sub(pv, RGL_LEM_AIM), tex, w), k;
+        double e = 0.0;
+        if (ok != (gl[0] >= 0.0f)) return -1;
+        if (!ok) return 0;
+        for (k = 0; k < 4; ++k) {
+            if ((float)tex[k] != gl[k]) return -1;
+            e = RGL_MAXD(e, fabs(w[k] - gl[4 + k]));
+        }
+        *err = e;
+        return 1;
+    }
+    if (f->kind == REFL_GL_SBC_MORPH) {
+        refl_vec3 first;
+        float dd;
+        int ok = refl_sbc_morph_project(f->morph, f->eye, f->piece, pv, &first, &dd, NULL);
+        double fd[3] = {first.x, first.y, first.z};
+        if (ok != (gl[4] > 0.5f)) return -1;
+        if (!ok) return 0;
+        *err = RGL_MAXD(rgl__dist3(fd, gl), fabs(dd - gl[3])) / f->size;
+        return 1;
+    }
     if (f->kind == REFL_GL_C3RC) {
         refl_c3rc_projection pr[3];
         const refl_c3rc *cam = &f->cams[(int)p[3]];
@@ -643,6 +750,14 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_GRAPHCAM) {
             float c[3];
             sink += (float)refl_graphcam_project(f->graph, p, c, NULL);
+        } else if (f->kind == REFL_GL_SBC_MORPH) {
+            refl_vec3 q;
+            float dd;
+            sink += (float)refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL);
+        } else if (f->kind == REFL_GL_LEM_SHELL) {
+            uint32_t tex[4];
+            float w[4];
+            sink += (float)refl_lem_shell_lookup(&f->shell, p, refl_v3_sub(p, RGL_LEM_AIM), tex, w);
         } else {
             refl_vec3 first;
             float z;
@@ -654,7 +769,8 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 }
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
-    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam"};
+    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam",
+                                                   "sbc-morph", "lem-shell"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;
@@ -676,11 +792,12 @@ int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_v
     }
     rgl__points(&f, points, pts);
     {
-        const char *vs[3];
+        const char *vs[4];
         vs[0] = rgl__vs_head;
-        vs[1] = refl_gl_glsl(f.kind);
-        vs[2] = f.kind == REFL_GL_SBC ? rgl__vs_main_sbc : rgl__vs_main[which];
-        prog = rgl_program(vs, 3, NULL, 0, varyings, 2, err, n);
+        vs[1] = refl_gl_glsl(f.kind == REFL_GL_SBC_MORPH ? REFL_GL_SBC : f.kind); /* the morph grid's nodes are SBCs */
+        vs[2] = f.kind == REFL_GL_SBC_MORPH ? refl_gl_glsl(REFL_GL_SBC_MORPH) : "";
+        vs[3] = f.kind == REFL_GL_SBC ? rgl__vs_main_sbc : rgl__vs_main[which];
+        prog = rgl_program(vs, 4, NULL, 0, varyings, 2, err, n);
         if (!prog) goto done;
     }
     tex = rgl_buffer_texture(f.packed, f.floats, &data_buf, err, n);

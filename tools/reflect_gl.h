@@ -31,7 +31,7 @@ const char *rgl_egl_vendor(const rgl_context *g); /* EGL_VENDOR, and the EGL pla
    C3RC images), and the largest and 99.9th-percentile error of the
    agreeing ones, relative to the fixture's scene size (docs/gl.md). */
 typedef struct rgl_validation {
-    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam" */
+    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "sbc-morph", "lem-shell" */
     long long points, projected, disagree;
     long long pinhole_points, raylist_points; /* SBC: agreeing points per leaf kind */
     double max_rel, p999_rel;
@@ -40,7 +40,7 @@ typedef struct rgl_validation {
     char note[160];          /* the fixture: cameras, leaves */
 } rgl_validation;
 
-enum { RGL_CAMERAS = 5 };
+enum { RGL_CAMERAS = 7 };
 /* Fixture i (0 .. RGL_CAMERAS - 1): builds it, projects `points` points
    both ways (GL `repeats` times, the best time kept). 0 on success. */
 int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_validation *out, char *err,
@@ -62,6 +62,21 @@ typedef struct rgl_frame_stats {
 int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                       rgl_frame_stats *st, char *err, size_t err_size);
 
+/* C3RC and SBC through GL (tools/reflect_gl_c3rc.c, reflect_gl_sbc.c;
+   docs/gl.md): the base pass as above, then each reflector's projection
+   in the vertex shader (the C3RC and SBC hooks) and GL's rasteriser, the
+   CPU compositing as the CPU path does. The same outputs as
+   rgl_render_planar: stencil on every mirror and partial reflector (object
+   + 1), points where a reflector shows a surface. st->mirrors counts the
+   cameras (C3RC) or the reflectors' SBCs. rgl_render dispatches on the
+   method (PLANAR, C3RC, SBC; else nonzero). */
+int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                    rgl_frame_stats *st, char *err, size_t err_size);
+int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                   rgl_frame_stats *st, char *err, size_t err_size);
+int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, const refl_view *view, refl_frame *frame,
+               float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
+
 /* PSNR (dB) of a GL frame's colours (rgb, from rgl_render_planar) against
    the CPU frame's over the planar mirrors' pixels (gl's stencil), both
    encoded to sRGB8; NaN without mirror pixels. */
@@ -71,11 +86,12 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    and, when csv is not NULL, a CSV header and rows. rgl_bench_projection:
    every camera's validation on `points` points, GL timed best of
    `repeats` (check: nonzero when one fails rgl_validation_ok).
-   rgl_bench_frames: PLANAR frames of mirror-room through GL against the
-   CPU path at each size of "WxH,WxH,...", RAYTRACE as the truth up to
-   truth_max pixels. Return 0 on success. */
+   rgl_bench_frames: frames through GL against the CPU path (PLANAR on
+   mirror-room, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
+   part of it, NULL all) at each size of "WxH,WxH,...", RAYTRACE as the
+   truth up to truth_max pixels. Return 0 on success. */
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
-int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv);
+int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv);
 
 /* `reflect bench --gl [--out DIR] [--sizes ...] [--points N] [--repeats R]`:
    both of the above into DIR/gl_projection.csv and DIR/gl_frames.csv. */

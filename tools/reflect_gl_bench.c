@@ -1,6 +1,6 @@
 /* reflect_gl_bench.c - the GL path's numbers (reflect_gl.h): every
-   camera's projection, GLSL against C, and PLANAR frames through GL
-   against the CPU path; a line per row on stdout and CSV rows. Shared by
+   camera's projection, GLSL against C, and PLANAR, C3RC and SBC frames
+   through GL against the CPU path; a line per row on stdout and CSV rows. Shared by
    reflect_gl (tools/reflect_gl_main.c) and `reflect bench --gl`. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
@@ -12,6 +12,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#include "name_in_list.h"
 
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv) {
     int i, failed = 0;
@@ -86,29 +88,44 @@ static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_metho
     return f;
 }
 
-/* The GL frame three times (the first compiles llvmpipe's shader
-   variants), the least times kept. */
-static int rgl_render_planar_best(rgl_context *g, const refl_scene *s, const refl_view *v, refl_frame *f, float *rgb,
-                                  rgl_frame_stats *st, char *err, size_t n) {
+/* The GL frame, best of three where one takes under a second (the first
+   compiles llvmpipe's shader variants). */
+static int rgl_render_best(rgl_context *g, refl_method m, const refl_scene *s, const refl_view *v, refl_frame *f,
+                           float *rgb, rgl_frame_stats *st, char *err, size_t n) {
     rgl_frame_stats best;
     int k;
     for (k = 0; k < 3; ++k) {
-        if (rgl_render_planar(g, s, v, f, rgb, st, err, n) != 0) return -1;
+        if (rgl_render(g, m, s, v, f, rgb, st, err, n) != 0) return -1;
         if (k == 0 || st->gl_seconds + st->shade_seconds < best.gl_seconds + best.shade_seconds) best = *st;
+        if (best.gl_seconds + best.shade_seconds > 1.0) break;
     }
     *st = best;
     return 0;
 }
 
-int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FILE *csv) {
-    static const char *const scenes[] = {"mirror-room"};
-    int si, failed = 0;
+/* The frames benched: each method on the scene it is measured on. */
+static const struct {
+    const char *name, *scene;
+    refl_method m;
+} rgl_frame_rows[] = {
+    {"planar", "mirror-room", REFL_PLANAR},
+    {"c3rc", "default", REFL_C3RC},
+    {"sbc", "default", REFL_SBC},
+};
+
+/* Whether method `name` is in the comma-separated list (NULL or empty: all). */
+static int rgl_listed(const char *list, const char *name) { return !list || !*list || name_in_list(list, name, ','); }
+
+int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv) {
+    int ri, failed = 0;
     if (csv)
-        fprintf(csv, "renderer,scene,width,height,mirrors,gl_frame_s,gl_draw_s,cpu_shade_s,cpu_planar_s,"
+        fprintf(csv, "renderer,scene,method,width,height,cameras,gl_frame_s,gl_draw_s,cpu_share_s,cpu_method_s,"
                      "gl_vs_cpu_mean_px,gl_vs_cpu_wrong,gl_vs_cpu_empty,psnr_reflectors_db,gl_vs_truth_mean_px,"
                      "cpu_vs_truth_mean_px,gl_mvertices_per_s\n");
-    for (si = 0; si < (int)(sizeof scenes / sizeof scenes[0]); ++si) {
-        const char *p = sizes;
+    for (ri = 0; ri < (int)(sizeof rgl_frame_rows / sizeof rgl_frame_rows[0]); ++ri) {
+        const char *p = sizes, *scene = rgl_frame_rows[ri].scene, *name = rgl_frame_rows[ri].name;
+        refl_method m = rgl_frame_rows[ri].m;
+        if (!rgl_listed(methods, name)) continue;
         while (*p) {
             int w = 0, h = 0;
             refl_scene *s = NULL;
@@ -125,7 +142,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
             }
             p = strchr(p, ',');
             p = p ? p + 1 : "";
-            if (refl_scene_builtin(scenes[si], NULL, &s) != REFL_OK) return 1;
+            if (refl_scene_builtin(scene, NULL, &s) != REFL_OK) return 1;
             v = s->camera;
             v.width = w;
             v.height = h;
@@ -133,11 +150,11 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
             memset(&e_ct, 0, sizeof e_ct);
             rgb = (float *)malloc((size_t)w * h * 3 * sizeof(float));
             if (!rgb || refl_frame_create(w, h, NULL, &gf) != REFL_OK) return 1;
-            if (rgl_render_planar_best(g, s, &v, gf, rgb, &st, err, sizeof err) != 0) {
-                fprintf(stderr, "reflect_gl: %s %dx%d: %s\n", scenes[si], w, h, err);
+            if (rgl_render_best(g, m, s, &v, gf, rgb, &st, err, sizeof err) != 0) {
+                fprintf(stderr, "reflect_gl: %s %s %dx%d: %s\n", name, scene, w, h, err);
                 failed = 1;
-            } else if (!(cf = cpu_frame(s, &v, REFL_PLANAR, &cpu_s))) {
-                fprintf(stderr, "reflect_gl: the CPU PLANAR frame failed\n");
+            } else if (!(cf = cpu_frame(s, &v, m, &cpu_s))) {
+                fprintf(stderr, "reflect_gl: the CPU %s frame failed\n", name);
                 failed = 1;
             } else {
                 refl_measure_reflection_error(gf, cf, NULL, &e_gc);
@@ -146,17 +163,19 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
                     refl_measure_reflection_error(gf, tf, NULL, &e_gt);
                     refl_measure_reflection_error(cf, tf, NULL, &e_ct);
                 }
-                printf("%-11s %4dx%-4d %d mirrors: GL frame %.1f ms (draw %.1f, CPU shading %.1f), CPU PLANAR %.1f ms; "
-                       "GL vs CPU: %lld px matched, mean %.3f px, wrong %.4f, empty %.4f, PSNR %.1f dB over mirrors",
-                       scenes[si], w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
-                       1e3 * st.shade_seconds, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
+                printf("%-6s %-11s %4dx%-4d %5d cameras: GL frame %.1f ms (GL %.1f, CPU's share %.1f), CPU %s %.1f ms; "
+                       "GL vs CPU: %lld px matched, mean %.3f px, wrong %.4f, empty %.4f, PSNR %.1f dB over reflectors",
+                       name, scene, w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
+                       1e3 * st.shade_seconds, name, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
                 if (tf) printf("; vs RAYTRACE: GL %.3f px, CPU %.3f px", e_gt.mean, e_ct.mean);
                 printf("\n");
                 if (csv)
-                    fprintf(csv, "\"%s\",%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f\n",
-                            rgl_renderer(g), scenes[si], w, h, st.mirrors, st.gl_seconds + st.shade_seconds,
+                    fprintf(csv, "\"%s\",%s,%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f\n",
+                            rgl_renderer(g), scene, name, w, h, st.mirrors, st.gl_seconds + st.shade_seconds,
                             st.gl_seconds, st.shade_seconds, cpu_s, e_gc.mean, e_gc.wrong, e_gc.empty, psnr,
                             tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6);
+                fflush(stdout);
+                if (csv) fflush(csv);
             }
             free(rgb);
             refl_frame_destroy(gf);
@@ -170,7 +189,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, long long truth_max, FIL
 
 
 int rgl_cli_bench(int argc, char **argv) {
-    const char *dir = "out/bench", *sizes = "320x240,640x480";
+    const char *dir = "out/bench", *sizes = "320x240,640x480", *methods = NULL;
     long long points = 1000000;
     int repeats = 5, i, failed;
     rgl_context *g = NULL;
@@ -180,12 +199,15 @@ int rgl_cli_bench(int argc, char **argv) {
         if (!strcmp(argv[i], "--gl")) continue;
         if (!strcmp(argv[i], "--out") && i + 1 < argc) dir = argv[++i];
         else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
+        else if (!strcmp(argv[i], "--methods") && i + 1 < argc) methods = argv[++i];
         else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--points N] [--repeats R]\n"
+            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc]\n"
+                            "                         [--points N] [--repeats R]\n"
                             "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
-                            "  DIR/gl_frames.csv: PLANAR frames through GL against the CPU path\n");
+                            "  DIR/gl_frames.csv: PLANAR (mirror-room), C3RC and SBC (default) frames through GL\n"
+                            "                     against the CPU path\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;
         }
     }
@@ -211,7 +233,7 @@ int rgl_cli_bench(int argc, char **argv) {
         rgl_destroy(g);
         return 1;
     }
-    failed |= rgl_bench_frames(g, sizes, 640 * 480, csv);
+    failed |= rgl_bench_frames(g, sizes, methods, 640 * 480, csv);
     fclose(csv);
     rgl_destroy(g);
     printf("wrote %s/gl_projection.csv and %s/gl_frames.csv\n", dir, dir);

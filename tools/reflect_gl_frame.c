@@ -1,8 +1,10 @@
-/* reflect_gl_frame.c - a frame of PLANAR through GL (reflect_gl.h,
-   docs/gl.md). GL draws, the CPU shades:
+/* reflect_gl_frame.c - the GL path's shared frame (reflect_gl_frame.h)
+   and PLANAR through GL (reflect_gl.h, docs/gl.md). GL draws, the CPU
+   shades:
      1. base pass from the eye: every object's world point, normal, uv and
-        id into float targets; each planar mirror marks its pixels in the
-        stencil with its number;
+        id into float targets; each object marks its pixels in the stencil
+        with the mark its method gives it (PLANAR: each planar mirror its
+        number);
      2. per mirror: the scene again through the mirrored pinhole (the GL
         hook, refl_mirror_project in the vertex shader, its plane as
         gl_ClipDistance), stencil-tested to the mirror's pixels;
@@ -25,8 +27,7 @@
 #include <string.h>
 
 #include "reflect_gl_funcs.h"
-
-enum { RGL_VERTEX_FLOATS = 9 }; /* world position, normal, uv, object id */
+#include "reflect_gl_frame.h"
 
 static const char rgl__frame_vs_base[] =
     "#version 330 core\n"
@@ -40,7 +41,7 @@ static const char rgl__frame_vs_base[] =
     "    gl_Position = u_vp * vec4(a_p, 1.0);\n"
     "}\n";
 
-static const char rgl__frame_vs_mirror_head[] =
+const char rgl_frame_vs_head[] =
     "#version 330 core\n"
     "layout(location = 0) in vec3 a_p;\n"
     "layout(location = 1) in vec3 a_n;\n"
@@ -55,29 +56,13 @@ static const char rgl__frame_vs_mirror_main[] =
     "    gl_Position = refl_mirror_project(u_data, u_base, a_p, gl_ClipDistance[0]);\n"
     "}\n";
 
-static const char rgl__frame_fs[] =
+const char rgl_frame_fs[] =
     "#version 330 core\n"
     "in vec3 v_p; in vec3 v_n; in vec2 v_uv; flat in float v_id;\n"
     "layout(location = 0) out vec4 o_point;\n"
     "layout(location = 1) out vec4 o_normal;\n"
     "layout(location = 2) out vec4 o_uv;\n"
     "void main() { o_point = vec4(v_p, v_id); o_normal = vec4(v_n, 0.0); o_uv = vec4(v_uv, 0.0, 0.0); }\n";
-
-/* A planar mirror object: its world plane n . x = d, n towards the eye. */
-typedef struct rgl_mirror {
-    int object;
-    double n[3], d;
-} rgl_mirror;
-
-/* The scene's triangles in world space (RGL_VERTEX_FLOATS per vertex),
-   each object's range, and its planar mirrors seen from the front. */
-typedef struct rgl_geometry {
-    float *v;
-    long long vertex_count;
-    long long *first;        /* per object, and one past the last */
-    rgl_mirror *mirrors;
-    int mirror_count;
-} rgl_geometry;
 
 static void rgl__geometry_free(rgl_geometry *g) {
     free(g->v);
@@ -127,7 +112,7 @@ static int rgl__geometry(const refl_scene *s, refl_vec3 eye, rgl_geometry *g) {
     for (o = 0; o < s->object_count; ++o) total += 3LL * s->meshes[s->objects[o].mesh]->triangle_count;
     g->v = (float *)malloc((size_t)(total ? total : 1) * RGL_VERTEX_FLOATS * sizeof(float));
     g->first = (long long *)malloc((size_t)(s->object_count + 1) * sizeof(long long));
-    g->mirrors = (rgl_mirror *)malloc((size_t)(s->object_count ? s->object_count : 1) * sizeof(rgl_mirror));
+    g->mirrors = (rgl_mirror *)malloc((size_t)(s->object_count > 0 ? s->object_count : 1) * sizeof(rgl_mirror));
     if (!g->v || !g->first || !g->mirrors) return -1;
     for (o = 0; o < s->object_count; ++o) {
         const refl_object *ob = &s->objects[o];
@@ -172,9 +157,8 @@ static int rgl__geometry(const refl_scene *s, refl_vec3 eye, rgl_geometry *g) {
     return 0;
 }
 
-/* Reads attachment `a` (4 floats per pixel) with rows top first. */
-static void rgl__read(int a, int w, int h, float *out) {
-    int y;
+void rgl_pass_read(const rgl_pass *p, int a, float *out) {
+    int y, w = p->w, h = p->h;
     rgl.ReadBuffer(GL_COLOR_ATTACHMENT0 + a);
     rgl.ReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, out);
     for (y = 0; y < h / 2; ++y) { /* GL's row 0 is the bottom one */
@@ -194,10 +178,7 @@ static void rgl__read_stencil(int w, int h, uint8_t *out) {
     }
 }
 
-/* The CPU side: shade pixel data (point + id, normal, uv) into rgb, or
-   the environment along dir where it shows nothing; clamped to [0, 1]. */
-static void rgl__shade(const refl_scene *s, const float *pt, const float *nrm, const float *uv, refl_vec3 dir,
-                       float rgb[3]) {
+void rgl_shade(const refl_scene *s, const float *pt, const float *nrm, const float *uv, refl_vec3 dir, float rgb[3]) {
     int id = (int)pt[3], c;
     if (id >= 1 && id <= s->object_count) {
         const refl_material *m = &s->materials[s->objects[id - 1].material];
@@ -211,82 +192,146 @@ static void rgl__shade(const refl_scene *s, const float *pt, const float *nrm, c
     for (c = 0; c < 3; ++c) rgb[c] = rgb[c] > 0.0f ? rgb[c] : 0.0f; /* as the CPU path keeps colour */
 }
 
-int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
-                      rgl_frame_stats *st, char *err, size_t n) {
-    static const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-    static const char *const mirror_vs[3] = {rgl__frame_vs_mirror_head, NULL, rgl__frame_vs_mirror_main};
-    const char *base_vs[1] = {rgl__frame_vs_base}, *fs[1] = {rgl__frame_fs}, *mvs[3];
-    int w = view->width, h = view->height, i, k, rc = -1;
-    size_t np = (size_t)w * (size_t)h;
-    GLuint fbo = 0, rb[4] = {0, 0, 0, 0}, base_prog = 0, mirror_prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0;
-    float *base[3] = {NULL, NULL, NULL}, *refl[3] = {NULL, NULL, NULL}, mirror_data[24];
-    uint8_t *marks = NULL;
-    refl_mat4 view_m, proj_m, vp, vp_inv, mirror_vp;
-    rgl_geometry geo;
-    double t0;
-    (void)g;
-    memset(st, 0, sizeof *st);
-    if (w < 1 || h < 1 || frame->width != w || frame->height != h) return rgl__frame_fail(err, n, "bad frame size");
-    if (rgl__geometry(scene, view->eye, &geo) != 0) {
-        rgl__geometry_free(&geo);
-        return rgl__frame_fail(err, n, "out of memory");
-    }
-    for (i = 0; i < 3; ++i) {
-        base[i] = (float *)malloc(np * 4 * sizeof(float));
-        refl[i] = (float *)malloc(np * 4 * sizeof(float));
-        if (!base[i] || !refl[i]) goto oom;
-    }
-    marks = (uint8_t *)malloc(np);
-    if (!marks) goto oom;
-    mvs[0] = mirror_vs[0];
-    mvs[1] = refl_gl_glsl(REFL_GL_MIRROR);
-    mvs[2] = mirror_vs[2];
-    base_prog = rgl_program(base_vs, 1, fs, 1, NULL, 0, err, n);
-    mirror_prog = base_prog ? rgl_program(mvs, 3, fs, 1, NULL, 0, err, n) : 0;
-    if (!mirror_prog) goto done;
-    refl_view_matrices(view, scene, &view_m, &proj_m);
-    vp = refl_mat4_mul(proj_m, view_m);
-    {
-        /* the mirrored scene lies further away: PLANAR's far plane, doubled
-           (near and far read back from the perspective matrix) */
-        float zn = proj_m.m[14] / (proj_m.m[10] - 1.0f), zf = proj_m.m[14] / (proj_m.m[10] + 1.0f);
-        float fovy = view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f;
-        mirror_vp = refl_mat4_mul(refl_mat4_perspective(fovy * 3.14159265f / 180.0f, (float)w / (float)h, zn, 2.0f * zf),
-                                  view_m);
-    }
-    if (!refl_mat4_invert(vp, &vp_inv)) {
-        rgl__frame_fail(err, n, "singular view");
-        goto done;
-    }
+refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal) {
+    refl_vec3 nrm = refl_v3_normalize(normal);
+    if (refl_v3_dot(nrm, d) > 0.0f) nrm = refl_v3_scale(nrm, -1.0f);
+    return refl_v3_reflect(d, nrm);
+}
 
-    t0 = rgl_now();
-    rgl.GenFramebuffers(1, &fbo);
-    rgl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
-    rgl.GenRenderbuffers(4, rb);
+void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at, refl_frame *frame, float *rgb) {
+    const float *bp = p->base[0] + 4 * (size_t)i, *bn = p->base[1] + 4 * (size_t)i;
+    refl_vec3 d = rgl_pass_ray(p, i), nrm = refl_v3(bn[0], bn[1], bn[2]);
+    float col[3], env[3];
+    int m_at = p->marks[i], c;
+    frame->stencil[i] = 0;
+    for (c = 0; c < 3; ++c) frame->points[3 * (size_t)i + c] = NAN;
+    rgl_shade(p->scene, bp, bn, p->base[2] + 4 * (size_t)i, d, col);
+    if (m_at) {
+        const refl_material *m = &p->scene->materials[p->scene->objects[m_at - 1].material];
+        float wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, refl_v3_normalize(nrm))));
+        if (!shown) {
+            refl_environment_lookup(&p->scene->environment, rgl_reflect(d, nrm), env);
+            for (c = 0; c < 3; ++c) env[c] = env[c] > 0.0f ? env[c] : 0.0f;
+            shown = env;
+        } else {
+            for (c = 0; c < 3; ++c) frame->points[3 * (size_t)i + c] = at[c];
+        }
+        for (c = 0; c < 3; ++c) col[c] += wgt * shown[c]; /* col: the reflector's diffuse share */
+        frame->stencil[i] = (uint8_t)m_at;
+    }
+    for (c = 0; c < 3; ++c) rgb[3 * (size_t)i + c] = col[c];
+}
+
+int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]) {
+    int w = p->w, h = p->h, x, y, k, t;
+    float *surf = (float *)calloc((size_t)w * h, 4 * sizeof(float)), *ray = (float *)calloc((size_t)w * h, 4 * sizeof(float));
+    if (!surf || !ray) {
+        free(surf);
+        free(ray);
+        return -1;
+    }
+    for (y = 0; y < h; ++y) /* rays first (GL's rows: bottom first) */
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            float *o = ray + 4 * ((size_t)(h - 1 - y) * w + x);
+            const float *n = p->base[1] + 4 * (size_t)i;
+            refl_vec3 u;
+            if (!p->marks[i]) continue;
+            u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
+            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
+        }
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            int i = y * w + x;
+            size_t g = (size_t)(h - 1 - y) * w + x;
+            float *s = surf + 4 * g, turn = 0.0f;
+            const float *u = ray + 4 * g;
+            if (!p->marks[i]) continue;
+            for (k = 0; k < 4; ++k) {
+                int xs = x + (k == 0) - (k == 1), ys = y + (k == 2) - (k == 3);
+                const float *v;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->base[0][4 * ((size_t)ys * w + xs) + 3] != p->base[0][4 * (size_t)i + 3])
+                    continue;
+                v = ray + 4 * ((size_t)(h - 1 - ys) * w + xs);
+                if (v[3] == 0.0f) continue;
+                turn = fmaxf(turn, sqrtf((u[0] - v[0]) * (u[0] - v[0]) + (u[1] - v[1]) * (u[1] - v[1]) + (u[2] - v[2]) * (u[2] - v[2])));
+            }
+            for (t = 0; t < 3; ++t) s[t] = p->base[0][4 * (size_t)i + t];
+            s[3] = turn;
+        }
+    rgl.GenTextures(2, tex);
+    for (k = 0; k < 2; ++k) {
+        rgl.ActiveTexture(GL_TEXTURE1 + k);
+        rgl.BindTexture(GL_TEXTURE_2D, tex[k]);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        rgl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, k ? ray : surf);
+    }
+    rgl.ActiveTexture(GL_TEXTURE0);
+    free(surf);
+    free(ray);
+    return 0;
+}
+
+refl_vec3 rgl_pass_ray(const rgl_pass *p, int i) {
+    int x = i % p->w, y = i / p->w;
+    float nx = (2.0f * ((float)x + 0.5f)) / (float)p->w - 1.0f, ny = 1.0f - (2.0f * ((float)y + 0.5f)) / (float)p->h;
+    refl_vec3 o = refl_mat4_point(p->vp_inv, refl_v3(nx, ny, -1.0f));
+    return refl_v3_normalize(refl_v3_sub(refl_mat4_point(p->vp_inv, refl_v3(nx, ny, 1.0f)), o));
+}
+
+int rgl_pass_check(const char *what, char *err, size_t n) {
+    GLenum e = rgl.GetError();
+    if (e == GL_NO_ERROR) return 0;
+    snprintf(err, n, "GL error 0x%x while %s", (unsigned)e, what);
+    return -1;
+}
+
+int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
+                   size_t n) {
+    static const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    const char *base_vs[1] = {rgl__frame_vs_base}, *fs[1] = {rgl_frame_fs};
+    size_t np;
+    int i;
+    memset(p, 0, sizeof *p);
+    p->scene = scene;
+    p->view = view;
+    p->w = view->width;
+    p->h = view->height;
+    np = (size_t)p->w * (size_t)p->h;
+    if (p->w < 1 || p->h < 1) return rgl__frame_fail(err, n, "bad frame size");
+    if (rgl__geometry(scene, view->eye, &p->geo) != 0) return rgl__frame_fail(err, n, "out of memory");
+    for (i = 0; i < 3; ++i)
+        if (!(p->base[i] = (float *)malloc(np * 4 * sizeof(float)))) return rgl__frame_fail(err, n, "out of memory");
+    if (!(p->marks = (uint8_t *)malloc(np))) return rgl__frame_fail(err, n, "out of memory");
+    if (!(p->base_prog = rgl_program(base_vs, 1, fs, 1, NULL, 0, err, n))) return -1;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    if (!refl_mat4_invert(p->vp, &p->vp_inv)) return rgl__frame_fail(err, n, "singular view");
+    rgl.GenFramebuffers(1, &p->fbo);
+    rgl.BindFramebuffer(GL_FRAMEBUFFER, p->fbo);
+    rgl.GenRenderbuffers(4, p->rb);
     for (i = 0; i < 4; ++i) {
-        rgl.BindRenderbuffer(GL_RENDERBUFFER, rb[i]);
-        rgl.RenderbufferStorage(GL_RENDERBUFFER, i < 3 ? GL_RGBA32F : GL_DEPTH24_STENCIL8, w, h);
+        rgl.BindRenderbuffer(GL_RENDERBUFFER, p->rb[i]);
+        rgl.RenderbufferStorage(GL_RENDERBUFFER, i < 3 ? GL_RGBA32F : GL_DEPTH24_STENCIL8, p->w, p->h);
         rgl.FramebufferRenderbuffer(GL_FRAMEBUFFER, i < 3 ? GL_COLOR_ATTACHMENT0 + i : GL_DEPTH_STENCIL_ATTACHMENT,
-                                    GL_RENDERBUFFER, rb[i]);
+                                    GL_RENDERBUFFER, p->rb[i]);
     }
-    if (rgl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-        rgl__frame_fail(err, n, "float G-buffer framebuffer incomplete");
-        goto done;
-    }
+    if (rgl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return rgl__frame_fail(err, n, "float G-buffer framebuffer incomplete");
     rgl.DrawBuffers(3, bufs);
-    rgl.Viewport(0, 0, w, h);
-    rgl.GenVertexArrays(1, &vao);
-    rgl.BindVertexArray(vao);
-    rgl.GenBuffers(1, &vbo);
-    rgl.BindBuffer(GL_ARRAY_BUFFER, vbo);
-    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(geo.vertex_count * RGL_VERTEX_FLOATS * (long long)sizeof(float)),
-                   geo.v, GL_STATIC_DRAW);
+    rgl.Viewport(0, 0, p->w, p->h);
+    rgl.GenVertexArrays(1, &p->vao);
+    rgl.BindVertexArray(p->vao);
+    rgl.GenBuffers(1, &p->vbo);
+    rgl.BindBuffer(GL_ARRAY_BUFFER, p->vbo);
+    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(p->geo.vertex_count * RGL_VERTEX_FLOATS * (long long)sizeof(float)),
+                   p->geo.v, GL_STATIC_DRAW);
     for (i = 0; i < 3; ++i) {
         rgl.EnableVertexAttribArray((GLuint)i);
         rgl.VertexAttribPointer((GLuint)i, 3, GL_FLOAT, GL_FALSE, RGL_VERTEX_FLOATS * sizeof(float),
                                 (const void *)(size_t)(i * 3 * sizeof(float)));
     }
-    /* 1. the base pass: mirrors mark their pixels */
     rgl.ClearColor(0, 0, 0, 0);
     rgl.ClearDepth(1.0);
     rgl.ClearStencil(0);
@@ -297,18 +342,87 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
     rgl.DepthFunc(GL_LESS);
     rgl.Enable(GL_STENCIL_TEST);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
-    rgl.UseProgram(base_prog);
-    rgl.UniformMatrix4fv(rgl.GetUniformLocation(base_prog, "u_vp"), 1, GL_FALSE, vp.m);
+    rgl.UseProgram(p->base_prog);
+    rgl.UniformMatrix4fv(rgl.GetUniformLocation(p->base_prog, "u_vp"), 1, GL_FALSE, p->vp.m);
     for (i = 0; i < scene->object_count; ++i) {
-        int mark = 0;
-        for (k = 0; k < geo.mirror_count; ++k)
-            if (geo.mirrors[k].object == i) mark = k + 1;
-        rgl.StencilFunc(GL_ALWAYS, mark, 0xFF);
-        rgl.DrawArrays(GL_TRIANGLES, (GLint)geo.first[i], (GLsizei)(geo.first[i + 1] - geo.first[i]));
-        st->vertices += geo.first[i + 1] - geo.first[i];
+        rgl.StencilFunc(GL_ALWAYS, mark ? mark[i] : 0, 0xFF);
+        rgl.DrawArrays(GL_TRIANGLES, (GLint)p->geo.first[i], (GLsizei)(p->geo.first[i + 1] - p->geo.first[i]));
     }
-    for (i = 0; i < 3; ++i) rgl__read(i, w, h, base[i]);
-    rgl__read_stencil(w, h, marks);
+    for (i = 0; i < 3; ++i) rgl_pass_read(p, i, p->base[i]);
+    rgl__read_stencil(p->w, p->h, p->marks);
+    return rgl_pass_check("drawing the base pass", err, n);
+}
+
+void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]) {
+    if (tex) rgl.DeleteTextures(1, &tex);
+    if (ray_tex[0]) rgl.DeleteTextures(2, ray_tex);
+    if (tbuf) rgl.DeleteBuffers(1, &tbuf);
+    if (vbo) rgl.DeleteBuffers(1, &vbo);
+    if (vao) rgl.DeleteVertexArrays(1, &vao);
+    if (prog) rgl.DeleteProgram(prog);
+}
+
+void rgl_pass_end(rgl_context *g, rgl_pass *p) {
+    int i;
+    rgl.Disable(GL_STENCIL_TEST);
+    rgl.Disable(GL_DEPTH_TEST);
+    if (p->vbo) rgl.DeleteBuffers(1, &p->vbo);
+    if (p->vao) rgl.DeleteVertexArrays(1, &p->vao);
+    if (p->base_prog) rgl.DeleteProgram(p->base_prog);
+    if (p->fbo) {
+        rgl.BindFramebuffer(GL_FRAMEBUFFER, rgl_default_framebuffer(g));
+        rgl.DeleteFramebuffers(1, &p->fbo);
+    }
+    if (p->rb[0]) rgl.DeleteRenderbuffers(4, p->rb);
+    for (i = 0; i < 3; ++i) free(p->base[i]);
+    free(p->marks);
+    rgl__geometry_free(&p->geo);
+    memset(p, 0, sizeof *p);
+}
+
+int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                      rgl_frame_stats *st, char *err, size_t n) {
+    static const char *const mirror_vs[3] = {rgl_frame_vs_head, NULL, rgl__frame_vs_mirror_main};
+    const char *fs[1] = {rgl_frame_fs}, *mvs[3];
+    int w = view->width, h = view->height, i, k, rc = -1;
+    size_t np = (size_t)w * (size_t)h;
+    GLuint mirror_prog = 0, tex = 0, tbuf = 0;
+    float *refl[3] = {NULL, NULL, NULL}, mirror_data[24];
+    uint8_t *mark = NULL;
+    refl_mat4 mirror_vp;
+    rgl_pass ps;
+    double t0;
+    memset(st, 0, sizeof *st);
+    memset(&ps, 0, sizeof ps);
+    if (w < 1 || h < 1 || frame->width != w || frame->height != h) return rgl__frame_fail(err, n, "bad frame size");
+    t0 = rgl_now();
+    /* the mirrors are known once the geometry is: a first look finds them */
+    if (rgl__geometry(scene, view->eye, &ps.geo) != 0) {
+        rgl__geometry_free(&ps.geo);
+        return rgl__frame_fail(err, n, "out of memory");
+    }
+    mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1);
+    if (mark)
+        for (k = 0; k < ps.geo.mirror_count; ++k) mark[ps.geo.mirrors[k].object] = (uint8_t)(k + 1);
+    rgl__geometry_free(&ps.geo);
+    if (!mark) return rgl__frame_fail(err, n, "out of memory");
+    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
+    for (i = 0; i < 3; ++i)
+        if (!(refl[i] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
+    mvs[0] = mirror_vs[0];
+    mvs[1] = refl_gl_glsl(REFL_GL_MIRROR);
+    mvs[2] = mirror_vs[2];
+    if (!(mirror_prog = rgl_program(mvs, 3, fs, 1, NULL, 0, err, n))) goto done;
+    {
+        /* the mirrored scene lies further away: PLANAR's far plane, doubled
+           (near and far read back from the perspective matrix) */
+        const refl_mat4 *pm = &ps.proj_m;
+        float zn = pm->m[14] / (pm->m[10] - 1.0f), zf = pm->m[14] / (pm->m[10] + 1.0f);
+        float fovy = view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f;
+        mirror_vp = refl_mat4_mul(refl_mat4_perspective(fovy * 3.14159265f / 180.0f, (float)w / (float)h, zn, 2.0f * zf),
+                                  ps.view_m);
+    }
+    st->vertices = ps.geo.vertex_count;
     /* 2. per mirror: the scene through its mirrored pinhole, in its pixels */
     rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
@@ -316,8 +430,8 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
     rgl.UseProgram(mirror_prog);
     rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_data"), 0);
     rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_base"), 0);
-    for (k = 0; k < geo.mirror_count; ++k) {
-        const rgl_mirror *mr = &geo.mirrors[k];
+    for (k = 0; k < ps.geo.mirror_count; ++k) {
+        const rgl_mirror *mr = &ps.geo.mirrors[k];
         if (refl_gl_pack_mirror(mirror_vp, refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]), (float)mr->d,
                                 mirror_data, 24) != 24) {
             rgl__frame_fail(err, n, "refl_gl_pack_mirror refused a mirror");
@@ -332,43 +446,32 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
         rgl.StencilFunc(GL_EQUAL, k + 1, 0xFF);
         for (i = 0; i < scene->object_count; ++i) {
             if (i == mr->object) continue;
-            rgl.DrawArrays(GL_TRIANGLES, (GLint)geo.first[i], (GLsizei)(geo.first[i + 1] - geo.first[i]));
-            st->vertices += geo.first[i + 1] - geo.first[i];
+            rgl.DrawArrays(GL_TRIANGLES, (GLint)ps.geo.first[i], (GLsizei)(ps.geo.first[i + 1] - ps.geo.first[i]));
+            st->vertices += ps.geo.first[i + 1] - ps.geo.first[i];
         }
     }
     rgl.Disable(GL_CLIP_DISTANCE0);
-    rgl.Disable(GL_STENCIL_TEST);
-    rgl.Disable(GL_DEPTH_TEST);
-    for (i = 0; i < 3; ++i) rgl__read(i, w, h, refl[i]);
-    {
-        GLenum e = rgl.GetError();
-        if (e != GL_NO_ERROR) {
-            snprintf(err, n, "GL error 0x%x while drawing the frame", (unsigned)e);
-            goto done;
-        }
-    }
+    for (i = 0; i < 3; ++i) rgl_pass_read(&ps, i, refl[i]);
+    if (rgl_pass_check("drawing the frame", err, n) != 0) goto done;
     st->gl_seconds = rgl_now() - t0;
-    st->mirrors = geo.mirror_count;
+    st->mirrors = ps.geo.mirror_count;
 
     /* 3. shade and composite on the CPU */
     t0 = rgl_now();
     for (i = 0; i < (int)np; ++i) {
-        int x = i % w, y = i / w, mark = marks[i], c;
-        refl_vec3 o, d;
+        int m_at = ps.marks[i], c;
+        refl_vec3 d = rgl_pass_ray(&ps, i);
         float col[3];
-        float nx = (2.0f * ((float)x + 0.5f)) / (float)w - 1.0f, ny = 1.0f - (2.0f * ((float)y + 0.5f)) / (float)h;
-        o = refl_mat4_point(vp_inv, refl_v3(nx, ny, -1.0f));
-        d = refl_v3_normalize(refl_v3_sub(refl_mat4_point(vp_inv, refl_v3(nx, ny, 1.0f)), o));
         frame->stencil[i] = 0;
         for (c = 0; c < 3; ++c) frame->points[3 * i + c] = NAN;
-        rgl__shade(scene, base[0] + 4 * i, base[1] + 4 * i, base[2] + 4 * i, d, col);
-        if (mark) {
-            const rgl_mirror *mr = &geo.mirrors[mark - 1];
+        rgl_shade(scene, ps.base[0] + 4 * i, ps.base[1] + 4 * i, ps.base[2] + 4 * i, d, col);
+        if (m_at) {
+            const rgl_mirror *mr = &ps.geo.mirrors[m_at - 1];
             const refl_material *m = &scene->materials[scene->objects[mr->object].material];
             refl_vec3 nrm = refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]);
             float sub[3], wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, nrm)));
             const float *rp = refl[0] + 4 * i;
-            rgl__shade(scene, rp, refl[1] + 4 * i, refl[2] + 4 * i, refl_v3_reflect(d, nrm), sub);
+            rgl_shade(scene, rp, refl[1] + 4 * i, refl[2] + 4 * i, refl_v3_reflect(d, nrm), sub);
             for (c = 0; c < 3; ++c) col[c] += wgt * sub[c]; /* col: the mirror's diffuse share */
             frame->stencil[i] = (uint8_t)(mr->object + 1 < 255 ? mr->object + 1 : 255);
             if ((int)rp[3] >= 1)
@@ -384,20 +487,21 @@ oom:
 done:
     if (tex) rgl.DeleteTextures(1, &tex);
     if (tbuf) rgl.DeleteBuffers(1, &tbuf);
-    if (vbo) rgl.DeleteBuffers(1, &vbo);
-    if (vao) rgl.DeleteVertexArrays(1, &vao);
-    if (base_prog) rgl.DeleteProgram(base_prog);
     if (mirror_prog) rgl.DeleteProgram(mirror_prog);
-    if (fbo) {
-        rgl.BindFramebuffer(GL_FRAMEBUFFER, rgl_default_framebuffer(g));
-        rgl.DeleteFramebuffers(1, &fbo);
-    }
-    if (rb[0]) rgl.DeleteRenderbuffers(4, rb);
-    for (i = 0; i < 3; ++i) {
-        free(base[i]);
-        free(refl[i]);
-    }
-    free(marks);
-    rgl__geometry_free(&geo);
+    rgl_pass_end(g, &ps);
+    for (i = 0; i < 3; ++i) free(refl[i]);
+    free(mark);
     return rc;
+}
+
+int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, const refl_view *view, refl_frame *frame,
+               float *rgb, rgl_frame_stats *st, char *err, size_t n) {
+    switch (method) {
+    case REFL_PLANAR: return rgl_render_planar(g, scene, view, frame, rgb, st, err, n);
+    case REFL_C3RC: return rgl_render_c3rc(g, scene, view, frame, rgb, st, err, n);
+    case REFL_SBC: return rgl_render_sbc(g, scene, view, frame, rgb, st, err, n);
+    default: break;
+    }
+    snprintf(err, n, "the GL path draws PLANAR, C3RC and SBC only");
+    return -1;
 }

@@ -21,6 +21,7 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, Disable, (GLenum)) \
     X(void, Finish, (void)) \
     X(void, Viewport, (GLint, GLint, GLsizei, GLsizei)) \
+    X(void, Scissor, (GLint, GLint, GLsizei, GLsizei)) \
     X(void, ClearColor, (GLfloat, GLfloat, GLfloat, GLfloat)) \
     X(void, ClearDepth, (GLdouble)) \
     X(void, ClearStencil, (GLint)) \
@@ -34,6 +35,7 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, ReadPixels, (GLint, GLint, GLsizei, GLsizei, GLenum, GLenum, void *)) \
     X(void, PixelStorei, (GLenum, GLint)) \
     X(void, DrawArrays, (GLenum, GLint, GLsizei)) \
+    X(void, DrawArraysInstanced, (GLenum, GLint, GLsizei, GLsizei)) \
     X(void, DrawBuffers, (GLsizei, const GLenum *)) \
     X(void, ReadBuffer, (GLenum)) \
     X(void, DrawElements, (GLenum, GLsizei, GLenum, const void *)) \
@@ -56,6 +58,7 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, Uniform1f, (GLint, GLfloat)) \
     X(void, Uniform3f, (GLint, GLfloat, GLfloat, GLfloat)) \
     X(void, Uniform4f, (GLint, GLfloat, GLfloat, GLfloat, GLfloat)) \
+    X(void, Uniform4fv, (GLint, GLsizei, const GLfloat *)) \
     X(void, UniformMatrix4fv, (GLint, GLsizei, GLboolean, const GLfloat *)) \
     X(void, GenBuffers, (GLsizei, GLuint *)) \
     X(void, BindBuffer, (GLenum, GLuint)) \
@@ -66,6 +69,8 @@ typedef ptrdiff_t GLintptr_rgl;
     X(void, GenTextures, (GLsizei, GLuint *)) \
     X(void, BindTexture, (GLenum, GLuint)) \
     X(void, TexBuffer, (GLenum, GLenum, GLuint)) \
+    X(void, TexImage2D, (GLenum, GLint, GLint, GLsizei, GLsizei, GLint, GLenum, GLenum, const void *)) \
+    X(void, TexParameteri, (GLenum, GLenum, GLint)) \
     X(void, DeleteTextures, (GLsizei, const GLuint *)) \
     X(void, ActiveTexture, (GLenum)) \
     X(void, GenVertexArrays, (GLsizei, GLuint *)) \

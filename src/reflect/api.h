@@ -1025,7 +1025,11 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
+                                nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
+                                and optionally the layer's inferred map */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1033,6 +1037,13 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
+             refl_sbc_morph_project's blend (one image per node and piece)
+         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
+             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
+         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
+             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
+             int base, vec3 index): per fragment, the packed map at an interpolated index
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1042,6 +1053,11 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* The tetrahedron of the grid that holds eye, for piece `piece`: what
+   refl_sbc_morph_project reads (REFL_ERROR_INVALID_ARGUMENT where the eye
+   locates nowhere or the piece is out of range). */
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -1368,6 +1384,10 @@ typedef struct refl_lem_shell {
    misses the sphere. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
+   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_lookup's order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
    theta_m the largest angle between any two of the pixel's exit rays
@@ -1712,6 +1732,24 @@ REFL_API refl_result refl_measure_reflection_error(const refl_frame *test, const
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
                                                     const refl_frame *truth, float split_px,
                                                     refl_reflection_error *out);
+
+/* The cameras C3RC builds for the view, for a host that draws them itself
+   (the GL path, tools/reflect_gl_c3rc.c): every piece of every reflector
+   triangle, split as split_px asks (refl_render_desc.c3rc.camera_split_px:
+   0 the default, negative never), whichever side the view sees; the
+   method draws those of the triangles its G-buffer shows. Allocated with
+   the scene's allocator: free with refl_c3rc_view_cameras_free. */
+typedef struct refl_c3rc_view_camera {
+    refl_c3rc cam;
+    int object, triangle;
+    int back;                /* the triangle's back face is the side seen */
+    float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
+    float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
+    float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+} refl_c3rc_view_camera;
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count);
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`

@@ -196,3 +196,20 @@ static int refl__sbc_smooth(refl_vec3 t1, refl_vec3 n1, refl_vec3 t2, refl_vec3 
 /* The image sheet `sheet` draws of a point with images `mask`, or -1
    (cam_sbc_raylist.c). */
 static int refl__sbc_sheet_image(int mask, int sheet, int *across);
+
+/* The GL hooks' packers' output (gl_hooks.c, and cam_sbc_morph.c's grid):
+   floats written while they fit, counted always; out NULL while a packer
+   only sizes its block. */
+typedef struct refl__gl_out {
+    float *out;
+    long long cap, n;
+} refl__gl_out;
+
+static inline void refl__gl_put(refl__gl_out *o, double v) {
+    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
+    ++o->n;
+}
+
+static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
+    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}

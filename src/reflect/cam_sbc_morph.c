@@ -1070,3 +1070,90 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
     if (ambiguous) *ambiguous = amb;
     return REFL_OK;
 }
+
+/* ---- GL hook (gl_hooks.c; docs/gl.md, "SBC morph grid") ---------------------------
+   The eye's tetrahedron for one piece: its four weights, and per node of
+   positive weight its position, the piece's box there, its face SBCs (each
+   a whole SBC block, refl_gl_pack_sbc) and the face maps of its unextended
+   rays' directions (refl__sbm_ahead's check). A node of no weight, not
+   built or without the piece's cameras has offset -1 (it projects
+   nothing, as refl__sbm_node_project). */
+/* The texel offsets (from the block's header) of a node's parts, laid out
+   in order: node header (7 texels), the faces' SBC blocks, the faces'
+   direction maps (W x W texels each, W = face + 2). */
+static long long refl__sbm_gl_node(refl__gl_out *o, const refl__sbm_node *nd, int piece) {
+    long long at = o->n / 4, sbc_at[6], dir_at[6], next, need;
+    int f, W = nd->face + 2, i;
+    const float *bx = nd->box + 6 * (size_t)piece;
+    next = at + 7;
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        sbc_at[f] = -1;
+        if (!s) continue;
+        if ((need = refl_gl_pack_sbc(s, NULL, 0)) < 0) return need;
+        sbc_at[f] = next;
+        next += need / 4;
+    }
+    for (f = 0; f < 6; ++f) {
+        dir_at[f] = nd->dirs && nd->dirs[(size_t)piece * 6 + (size_t)f] ? next : -1;
+        if (dir_at[f] >= 0) next += (long long)W * W;
+    }
+    refl__gl_put4(o, nd->pos.x, nd->pos.y, nd->pos.z, nd->face);
+    refl__gl_put4(o, bx[0], bx[1], bx[2], 0);
+    refl__gl_put4(o, bx[3], bx[4], bx[5], 0);
+    refl__gl_put4(o, sbc_at[0], sbc_at[1], sbc_at[2], sbc_at[3]);
+    refl__gl_put4(o, sbc_at[4], sbc_at[5], -1, -1);
+    refl__gl_put4(o, dir_at[0], dir_at[1], dir_at[2], dir_at[3]);
+    refl__gl_put4(o, dir_at[4], dir_at[5], -1, -1);
+    for (f = 0; f < 6; ++f) {
+        const refl_sbc *s = nd->sbc[(size_t)piece * 6 + (size_t)f];
+        long long n;
+        if (!s) continue;
+        n = refl_gl_pack_sbc(s, o->out ? o->out + o->n : NULL, o->out ? o->cap - o->n : 0);
+        o->n += n;
+    }
+    for (f = 0; f < 6; ++f) {
+        const signed char *dm = dir_at[f] >= 0 ? nd->dirs[(size_t)piece * 6 + (size_t)f] : NULL;
+        for (i = 0; dm && i < W * W; ++i) refl__gl_put4(o, dm[3 * i], dm[3 * i + 1], dm[3 * i + 2], 0);
+    }
+    return next;
+}
+
+static long long refl__sbm_gl_pack(refl__gl_out *o, const refl_sbc_morph *m, refl_vec3 eye, int piece) {
+    int nodes[4], k;
+    float w[4];
+    long long at[4], next = 6;
+    if (!m || piece < 0 || piece >= m->piece_count || refl_sbc_morph_locate(m, eye, nodes, w) < 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    for (k = 0; k < 4; ++k) {
+        const refl__sbm_node *nd = &m->nodes[nodes[k]];
+        at[k] = -1;
+        if (!(w[k] > 0.0f) || !nd->built || !nd->sbc) continue;
+        at[k] = next; /* sized below, with a counting pass of its own */
+        {
+            refl__gl_out count = {NULL, 0, next * 4};
+            long long r = refl__sbm_gl_node(&count, nd, piece);
+            if (r < 0) return r;
+            next = count.n / 4;
+        }
+    }
+    if (next >= 16777216) return REFL_ERROR_INVALID_ARGUMENT; /* offsets stored as floats */
+    refl__gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
+    refl__gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
+                      w[3] > 0.0f ? w[3] : 0.0f);
+    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], 0, 0, 0);
+    for (k = 0; k < 4; ++k)
+        if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
+    return o->n;
+}
+
+REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
+                                          long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    o.n = 0;
+    return refl__sbm_gl_pack(&o, morph, eye, piece);
+}

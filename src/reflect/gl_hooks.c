@@ -18,20 +18,7 @@
 
 #define REFL__GL_INT_MAX 16777216.0 /* 2^24: integers stored as floats are exact below */
 
-/* A packer's output: out NULL while it only counts. */
-typedef struct refl__gl_out {
-    float *out;
-    long long cap, n;
-} refl__gl_out;
-
-static void refl__gl_put(refl__gl_out *o, double v) {
-    if (o->out && o->n < o->cap) o->out[o->n] = (float)v; /* the callers size first: it always fits */
-    ++o->n;
-}
-
-static void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
-    refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
-}
+/* (refl__gl_out, refl__gl_put and refl__gl_put4: cam_sbc_internal.h) */
 
 /* A double[3] and a fourth value: one texel. */
 static void refl__gl_put3d(refl__gl_out *o, const double *v, double w) { refl__gl_put4(o, v[0], v[1], v[2], w); }
@@ -223,6 +210,30 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     o.out = out;
     o.cap = cap;
     return refl__gl_graphcam(&o, cam);
+}
+
+/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+
+static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+    refl__gl_out o = *op;
+    long long i, texels;
+    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    texels = 6LL * shell->face_size * shell->face_size;
+    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
+    refl__gl_put_v3(&o, shell->center, shell->radius);
+    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_lem_shell(&o, shell, map);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_lem_shell(&o, shell, map);
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
@@ -517,12 +528,143 @@ static const char refl__gl_glsl_graphcam[] =
     "    return vec4(0.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_sbc_morph[] =
+    "/* reflect.h GL hook: an SBC morph grid (layout version 1), cam_sbc_morph.c's\n"
+    "   refl_sbc_morph_project in float: the eye's tetrahedron of nodes, each node's\n"
+    "   face SBCs (refl_sbc_project, REFL_GL_SBC's source), the blend. */\n"
+    "int refl_sbm_face_of(vec3 v) {\n"
+    "    vec3 a = abs(v);\n"
+    "    if (a.x >= a.y && a.x >= a.z) return v.x >= 0.0 ? 0 : 1;\n"
+    "    if (a.y >= a.z) return v.y >= 0.0 ? 2 : 3;\n"
+    "    return v.z >= 0.0 ? 4 : 5;\n"
+    "}\n"
+    "/* whether p lies ahead of first point q along the unextended ray of the\n"
+    "   node's face sample q lands on (cam_sbc_morph.c's refl__sbm_ahead) */\n"
+    "bool refl_sbm_ahead(samplerBuffer data, int base, int nb, vec3 pos, int face, vec3 p, vec3 q) {\n"
+    "    const vec3 fws[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0), vec3(0, 0, 1), vec3(0, 0, -1));\n"
+    "    const vec3 ups[6] = vec3[6](vec3(0, 1, 0), vec3(0, 1, 0), vec3(0, 0, -1), vec3(0, 0, 1), vec3(0, 1, 0), vec3(0, 1, 0));\n"
+    "    vec3 v = q - pos;\n"
+    "    int f = refl_sbm_face_of(v), W = face + 2;\n"
+    "    float dm = texelFetch(data, nb + 5 + f / 4)[f % 4];\n"
+    "    if (dm < 0.0) return true;\n"
+    "    vec3 fw = fws[f], rt = normalize(cross(fw, ups[f])), up = cross(rt, fw);\n"
+    "    float w = dot(v, fw);\n"
+    "    if (!(w > 0.0)) return true;\n"
+    "    float x = dot(v, rt) / w, y = dot(v, up) / w;\n"
+    "    int i = int(clamp(floor((x + 1.0) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    int j = int(clamp(floor((1.0 - y) * 0.5 * float(face)) + 1.0, 0.0, float(W - 1)));\n"
+    "    vec3 dr = texelFetch(data, base + int(dm) + j * W + i).xyz;\n"
+    "    if (dr == vec3(0.0)) return true;\n"
+    "    return dot(p - q, dr) > 0.0;\n"
+    "}\n"
+    "/* p at one node (its block at nb): the face owning the answer first */\n"
+    "bool refl_sbm_node_project(samplerBuffer data, int base, int nb, vec3 p, out vec3 first) {\n"
+    "    vec4 pos = texelFetch(data, nb);\n"
+    "    first = vec3(0.0);\n"
+    "    if (any(lessThan(p, texelFetch(data, nb + 1).xyz)) || any(greaterThan(p, texelFetch(data, nb + 2).xyz)))\n"
+    "        return false;\n"
+    "    bool got = false;\n"
+    "    vec3 keep = vec3(0.0);\n"
+    "    for (int f = 0; f < 6; ++f) {\n"
+    "        float so = texelFetch(data, nb + 3 + f / 4)[f % 4];\n"
+    "        vec3 q;\n"
+    "        float z;\n"
+    "        int kind;\n"
+    "        if (so < 0.0 || !refl_sbc_project(data, base + int(so), p, q, z, kind)) continue;\n"
+    "        if (!refl_sbm_ahead(data, base, nb, pos.xyz, int(pos.w), p, q)) continue;\n"
+    "        if (refl_sbm_face_of(q - pos.xyz) == f) { first = q; return true; }\n"
+    "        if (!got) keep = q;\n"
+    "        got = true;\n"
+    "    }\n"
+    "    first = keep;\n"
+    "    return got;\n"
+    "}\n"
+    "/* p's blended first reflector point and distance for the packed eye and\n"
+    "   piece; false where a node of positive weight does not project it */\n"
+    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "    vec4 w = texelFetch(data, base + 1);\n"
+    "    vec3 f = vec3(0.0);\n"
+    "    float dd = 0.0;\n"
+    "    bool any_node = false;\n"
+    "    first = vec3(0.0);\n"
+    "    dist = 0.0;\n"
+    "    for (int k = 0; k < 4; ++k) {\n"
+    "        if (!(w[k] > 0.0)) continue;\n"
+    "        float nb = texelFetch(data, base + 2 + k).x;\n"
+    "        vec3 q;\n"
+    "        if (nb < 0.0 || !refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        f += w[k] * q;\n"
+    "        dd += w[k] * length(p - q);\n"
+    "        any_node = true;\n"
+    "    }\n"
+    "    if (!any_node) return false;\n"
+    "    first = f;\n"
+    "    dist = dd;\n"
+    "    return true;\n"
+    "}\n";
+
+static const char refl__gl_glsl_lem_shell[] =
+    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "    vec3 oc = origin - sh.xyz;\n"
+    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    index = vec3(0.0);\n"
+    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
+    "    float t = (-b + sqrt(disc)) / dd;\n"
+    "    if (!(t >= 0.0)) return false;\n"
+    "    index = oc + dir * t;\n"
+    "    return true;\n"
+    "}\n"
+    "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
+    "int refl_lem_cube_face(vec3 v, out vec2 st) {\n"
+    "    vec3 a = abs(v);\n"
+    "    float sc, tc, ma;\n"
+    "    int face;\n"
+    "    if (a.z >= a.x && a.z >= a.y) { face = v.z >= 0.0 ? 4 : 5; sc = v.z >= 0.0 ? v.x : -v.x; tc = -v.y; ma = a.z; }\n"
+    "    else if (a.y >= a.x) { face = v.y >= 0.0 ? 2 : 3; sc = v.x; tc = v.y >= 0.0 ? v.z : -v.z; ma = a.y; }\n"
+    "    else { face = v.x >= 0.0 ? 0 : 1; sc = v.x >= 0.0 ? -v.z : v.z; tc = -v.y; ma = a.x; }\n"
+    "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
+    "    return face;\n"
+    "}\n"
+    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
+    "   runtime samples for the exit ray; false where it misses the shell */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
+    "    int n = int(texelFetch(data, base).z);\n"
+    "    vec3 hit;\n"
+    "    vec2 st;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
+    "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
+    "    p0 = clamp(p0, 0, n - 1);\n"
+    "    int b = face * n * n;\n"
+    "    texel = ivec4(b + p0.y * n + p0.x, b + p0.y * n + p1.x, b + p1.y * n + p0.x, b + p1.y * n + p1.x);\n"
+    "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
+    "    return true;\n"
+    "}\n"
+    "/* per fragment: the packed map at an interpolated index (the shell's\n"
+    "   centre as the origin, as the runtime samples); 0 without a map */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "    ivec4 t;\n"
+    "    vec4 w;\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
+    "        return vec4(0.0);\n"
+    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
+    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
+    case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
+    case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     }
     return NULL;
 }

@@ -1189,6 +1189,42 @@ static refl_result refl__method_c3rc(refl__pass *p) {
 
 /* ---- the cameras' own error ----------------------------------------------------- */
 
+/* Every piece of every reflector triangle C3RC builds a camera for, seen
+   from the view (the pass p set up on a frame `shape` of the view's size,
+   which it only reads the size of): what refl_c3rc_measure_camera_error
+   and refl_c3rc_view_cameras share. */
+static refl_result refl__c3_view_jobs(const refl_scene *scene, const refl_view *view, float split_px, refl__pass *p,
+                                      refl_frame *shape, refl__c3_list *list) {
+    refl_vec3 lo, hi;
+    float tmax;
+    int i, t;
+    refl_result r = REFL_OK;
+    memset(p, 0, sizeof *p);
+    memset(shape, 0, sizeof *shape);
+    memset(list, 0, sizeof *list);
+    list->al = &scene->allocator;
+    if (!refl__isfinite(split_px)) return REFL_ERROR_INVALID_ARGUMENT;
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return REFL_ERROR_INVALID_ARGUMENT;
+    shape->width = view->width;
+    shape->height = view->height;
+    p->scene = scene;
+    p->view = view;
+    p->frame = shape;
+    refl_view_matrices(view, scene, &p->view_m, &p->proj_m);
+    p->vp = refl_mat4_mul(p->proj_m, p->view_m);
+    refl__view_rays_init(&p->rays, view, scene);
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
+            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
+                r = refl__c3_add_triangle(p, i, t, tmax, split_px, list);
+    return r;
+}
+
 enum { REFL__C3_CELL = 8, REFL__C3_REACH = 8 };
 
 REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, const refl_view *view,
@@ -1202,41 +1238,17 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     int *cell_start = NULL, *cell_list = NULL;
     double *errors = NULL, sum = 0.0;
     long long counted = 0, matched = 0;
-    refl_vec3 lo, hi;
-    float tmax;
-    int w, h, cw, ch, cells, i, t, c, x, y, n;
-    refl_result r = REFL_OK;
+    int w, h, cw, ch, cells, i, c, x, y, n;
+    refl_result r;
     if (!out) return REFL_ERROR_INVALID_ARGUMENT;
     memset(out, 0, sizeof *out);
     if (!scene || !view || !truth || !truth->points || !truth->stencil) return REFL_ERROR_INVALID_ARGUMENT;
     if (view->width != truth->width || view->height != truth->height) return REFL_ERROR_INVALID_SIZE;
-    if (!refl__isfinite(split_px)) return REFL_ERROR_INVALID_ARGUMENT;
-    for (i = 0; i < scene->object_count; ++i)
-        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
-            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return REFL_ERROR_INVALID_ARGUMENT;
     al = &scene->allocator;
     w = truth->width;
     h = truth->height;
-    memset(&p, 0, sizeof p);
-    memset(&shape, 0, sizeof shape);
-    shape.width = w; /* the pass reads the frame's size only */
-    shape.height = h;
-    p.scene = scene;
-    p.view = view;
-    p.frame = &shape;
-    refl_view_matrices(view, scene, &p.view_m, &p.proj_m);
-    p.vp = refl_mat4_mul(p.proj_m, p.view_m);
-    refl__view_rays_init(&p.rays, view, scene);
-    refl_scene_bounds(scene, &lo, &hi);
-    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     /* every reflector triangle's cameras, as C3RC builds them */
-    memset(&list, 0, sizeof list);
-    list.al = al;
-    for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
-        if (refl__is_reflector(&scene->materials[scene->objects[i].material]))
-            for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count && r == REFL_OK; ++t)
-                r = refl__c3_add_triangle(&p, i, t, tmax, split_px, &list);
+    r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
     /* binned by their screen boxes grown by REFL__C3_REACH, in cells of
        REFL__C3_CELL pixels */
     cw = (w + REFL__C3_CELL - 1) / REFL__C3_CELL;
@@ -1322,4 +1334,49 @@ REFL_API refl_result refl_c3rc_measure_camera_error(const refl_scene *scene, con
     refl__free(al, cell_list);
     refl__free(al, errors);
     return r;
+}
+
+/* ---- the view's cameras, for a host that draws them (the GL path) --------------- */
+
+REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
+                                            refl_c3rc_view_camera **out, int *count) {
+    refl__pass p;
+    refl_frame shape;
+    refl__c3_list list;
+    refl_c3rc_view_camera *cams = NULL;
+    int i, n = 0;
+    refl_result r;
+    if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    *count = 0;
+    if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
+    if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
+                                                                       (size_t)(list.count ? list.count : 1), sizeof *cams)))
+        r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < list.count; ++i) {
+        refl__c3_cam k;
+        memset(&k, 0, sizeof k);
+        if (!refl__c3_setup(&p, &list.v[i], &k)) continue;
+        cams[n].cam = k.cam;
+        cams[n].object = k.object;
+        cams[n].triangle = k.triangle;
+        cams[n].back = k.id < 0.0f;
+        cams[n].screen_area = k.screen_area;
+        cams[n].screen_edge = k.screen_edge;
+        cams[n].near_self = k.near_self;
+        ++n;
+    }
+    refl__free(&scene->allocator, list.v);
+    if (r != REFL_OK) {
+        refl__free(&scene->allocator, cams);
+        return r;
+    }
+    *out = cams;
+    *count = n;
+    return REFL_OK;
+}
+
+REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams) {
+    if (scene && cams) refl__free(&scene->allocator, cams);
 }

@@ -47,6 +47,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../tools/name_in_list.h"
+
 /* Mesa's EGL/GL stack keeps (and at eglTerminate drops) a few small
    allocations that LeakSanitizer reports as leaks from an unloaded module,
    which no suppression can name. Under ASan, allocations made while the
@@ -95,17 +97,6 @@ typedef struct gl_peer {
 static inline int gl_peer__fail(gl_peer *p, const char *what) {
     snprintf(p->err, sizeof p->err, "%s", what);
     return -1;
-}
-
-static inline int gl_peer__has_ext(const char *list, const char *name) {
-    size_t n = strlen(name);
-    const char *s = list;
-    if (!list) return 0;
-    while ((s = strstr(s, name)) != NULL) {
-        if ((s == list || s[-1] == ' ') && (s[n] == ' ' || s[n] == '\0')) return 1;
-        s += n;
-    }
-    return 0;
 }
 
 static inline GLuint gl_peer__shader(gl_peer *p, GLenum type, const char *src) {
@@ -181,10 +172,10 @@ static inline EGLDisplay gl_peer__display(gl_peer *p) {
     PFNEGLGETPLATFORMDISPLAYEXTPROC get_platform_display =
         (PFNEGLGETPLATFORMDISPLAYEXTPROC)eglGetProcAddress("eglGetPlatformDisplayEXT");
     EGLDisplay dpy = EGL_NO_DISPLAY;
-    if (get_platform_display && gl_peer__has_ext(cext, "EGL_MESA_platform_surfaceless"))
+    if (get_platform_display && name_in_list(cext, "EGL_MESA_platform_surfaceless", ' '))
         dpy = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
     if (dpy == EGL_NO_DISPLAY && get_platform_display &&
-        gl_peer__has_ext(cext, "EGL_EXT_platform_device")) {
+        name_in_list(cext, "EGL_EXT_platform_device", ' ')) {
         PFNEGLQUERYDEVICESEXTPROC query_devices =
             (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
         EGLDeviceEXT devs[8];

@@ -1,8 +1,10 @@
 /* PLANAR through GL (tools/reflect_gl_frame.c) against PLANAR on the CPU:
    the same points in the mirrors (reflection error in pixels, with the
    CPU frame as the truth) and the same colours there (PSNR over the
-   mirrors' pixels). Skipped, saying why, where no EGL device exists
-   (test_gl_context.h). */
+   mirrors' pixels). C3RC and SBC through GL (reflect_gl_c3rc.c,
+   reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
+   within a pixel of the CPU path's. Skipped, saying why, where no EGL
+   device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
 #include "../../tools/reflect_gl.h"
@@ -43,3 +45,45 @@ Test(refl_gl_frame, planar_matches_cpu, .timeout = 120) {
     refl_frame_destroy(cpu);
     refl_scene_destroy(s);
 }
+
+/* Method m through GL and on the CPU, both measured against one-bounce
+   RAYTRACE on built-in scene `scene` at 160 x 120: the GL frame's mean
+   reflection error within 1 px of the CPU frame's, with most reflector
+   pixels matched. */
+static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin(scene, &v, 160, 120);
+    refl_render_desc d = tu_refl_one_bounce(m, 2), dt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *cpu = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
+    refl_reflection_error eg, ec;
+    rgl_frame_stats st;
+    rgl_context *g = tu_gl_context("test_gl_frame");
+    float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
+    char err[1024];
+    int r;
+    cr_assert_not_null(rgb);
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
+    LSAN_OFF();
+    r = rgl_render(g, m, s, &v, gl, rgb, &st, err, sizeof err);
+    rgl_destroy(g);
+    LSAN_ON();
+    cr_assert_eq(r, 0, "%s", err);
+    cr_assert_eq(refl_measure_reflection_error(gl, truth, NULL, &eg), REFL_OK);
+    cr_assert_eq(refl_measure_reflection_error(cpu, truth, NULL, &ec), REFL_OK);
+    cr_log_info("%s on %s against RAYTRACE: GL %lld matched, mean %.3f px (wrong %.4f, empty %.4f); "
+                "CPU %lld matched, mean %.3f px (wrong %.4f, empty %.4f)",
+                refl_method_name(m), scene, eg.matched, eg.mean, eg.wrong, eg.empty, ec.matched, ec.mean, ec.wrong,
+                ec.empty);
+    cr_assert_gt(eg.matched, min_matched, "%s on %s: %lld pixels matched", refl_method_name(m), scene, eg.matched);
+    cr_assert_leq(eg.mean, ec.mean + 1.0, "%s on %s: GL %.3f px, CPU %.3f px", refl_method_name(m), scene, eg.mean,
+                  ec.mean);
+    free(rgb);
+    refl_frame_destroy(gl);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(cpu);
+    refl_scene_destroy(s);
+}
+
+Test(refl_gl_frame, c3rc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_C3RC, 500); }
+
+Test(refl_gl_frame, sbc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_SBC, 500); }

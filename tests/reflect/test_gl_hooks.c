@@ -67,7 +67,7 @@ static void validate(int which) {
         cr_assert(v.max_rel <= 1e-4, "c3rc: max rel %.2e", v.max_rel);
         cr_assert((double)v.disagree <= 1e-5 * (double)v.points, "c3rc: %lld of %lld disagree", v.disagree, v.points);
     }
-    if (which >= 2) { /* SBC: both leaf kinds carry points */
+    if (which == 2 || which == 3) { /* SBC: both leaf kinds carry points */
         cr_assert_gt(v.pinhole_points, 1000);
         if (which == 2) cr_assert_gt(v.raylist_points, 1000);
     }
@@ -77,3 +77,70 @@ Test(refl_gl_hooks, mirror_glsl_matches_c, .timeout = 120) { validate(0); }
 Test(refl_gl_hooks, c3rc_glsl_matches_c, .timeout = 120) { validate(1); }
 Test(refl_gl_hooks, sbc_glsl_matches_c, .timeout = 120) { validate(2); }
 Test(refl_gl_hooks, sbc_bowl_glsl_matches_c, .timeout = 120) { validate(3); }
+
+/* The SBC morph grid's hook (cam_sbc_morph.c): the layout's header and
+   refusals, then its GLSL blend against refl_sbc_morph_project on 10^5
+   points of the default scene's teapot (tools/reflect_gl.c's fixture 5). */
+Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
+    refl_scene *s = NULL;
+    refl_sbc_morph *m = NULL;
+    refl_sbc_morph_desc md;
+    refl_vec3 eye = {0.3f, 4.5f, 8.9f};
+    int nodes[4];
+    float w[4], *buf;
+    long long need, k;
+    memset(&md, 0, sizeof md);
+    md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
+    md.region_lo = refl_v3(-1.0f, 3.8f, 7.4f);
+    md.region_hi = refl_v3(1.0f, 5.3f, 9.4f);
+    md.face_size = 16;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    cr_assert_eq(refl_sbc_morph_build(s, 1, &md, &m), REFL_OK);
+    need = refl_gl_pack_sbc_morph(m, eye, 0, NULL, 0);
+    cr_assert_gt(need, 24);
+    cr_assert_eq(need % 4, 0);
+    buf = malloc((size_t)need * sizeof(float));
+    cr_assert_not_null(buf);
+    cr_assert_eq(refl_gl_pack_sbc_morph(m, eye, 0, buf, need), need);
+    cr_assert_eq(buf[0], (float)REFL_GL_SBC_MORPH);
+    cr_assert_eq(buf[1], (float)REFL_GL_LAYOUT_VERSION);
+    cr_assert_eq(buf[3], (float)(need / 4), "texel count in the header");
+    /* the eye's weights, and each node of weight a block of its own */
+    cr_assert_geq(refl_sbc_morph_locate(m, eye, nodes, w), 0);
+    for (k = 0; k < 4; ++k) {
+        cr_assert_float_eq(buf[4 + k], w[k] > 0.0f ? w[k] : 0.0f, 1e-6f);
+        if (w[k] > 0.0f) cr_assert_geq(buf[4 * (2 + k)], 6.0f);
+    }
+    cr_assert_lt(refl_gl_pack_sbc_morph(m, eye, -1, NULL, 0), 0);
+    cr_assert_lt(refl_gl_pack_sbc_morph(m, refl_v3(0, 100, 0), 0, NULL, 0), 0);
+    cr_assert_lt(refl_gl_pack_sbc_morph(NULL, eye, 0, NULL, 0), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_SBC_MORPH));
+    free(buf);
+    refl_sbc_morph_destroy(m);
+    refl_scene_destroy(s);
+}
+
+Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) { validate(5); }
+
+/* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
+   texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
+Test(refl_gl_hooks, lem_shell_layout) {
+    refl_lem_shell sh = {{1.0f, 2.0f, 3.0f}, 4.0f, 2};
+    float map[4 * 24], buf[8 + 4 * 24];
+    int i;
+    for (i = 0; i < 4 * 24; ++i) map[i] = (float)i;
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 8);
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, NULL, 0), 8 + 4 * 24);
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, buf, 8 + 4 * 24), 8 + 4 * 24);
+    cr_assert_eq(buf[0], (float)REFL_GL_LEM_SHELL);
+    cr_assert_eq(buf[2], 2.0f);
+    cr_assert_eq(buf[3], 1.0f);
+    cr_assert_eq(buf[7], 4.0f);
+    cr_assert_eq(buf[8 + 4 * 5 + 2], 22.0f); /* texel 5's blue */
+    sh.radius = 0.0f;
+    cr_assert_lt(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_LEM_SHELL));
+}
+
+/* (the shell's error: the largest weight difference; another texel disagrees) */
+Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) { validate(6); }

@@ -1,0 +1,88 @@
+/* reflect_gl_frame.h - what the GL path's methods share (inside the GL
+   host; tools/reflect_gl_frame.c): the scene's triangles in world space
+   for GL, the float G-buffer framebuffer, the base pass from the eye (each
+   object's stencil mark chosen by the method) read back, the pixels' eye
+   rays, and the CPU's shading of what a pixel shows. PLANAR
+   (reflect_gl_frame.c), C3RC (reflect_gl_c3rc.c) and SBC (reflect_gl_sbc.c)
+   draw their reflections into the same framebuffer after the base pass.
+   Include after reflect.h, reflect_gl.h and reflect_gl_funcs.h. */
+#ifndef REFLECT_GL_FRAME_H
+#define REFLECT_GL_FRAME_H
+
+#include <stdint.h>
+
+enum { RGL_VERTEX_FLOATS = 9 }; /* world position, normal, uv, object id + 1 */
+
+/* A planar mirror object: its world plane n . x = d, n towards the eye. */
+typedef struct rgl_mirror {
+    int object;
+    double n[3], d;
+} rgl_mirror;
+
+/* The scene's triangles in world space (RGL_VERTEX_FLOATS per vertex),
+   each object's range, and its planar mirrors seen from the front. */
+typedef struct rgl_geometry {
+    float *v;
+    long long vertex_count;
+    long long *first;        /* per object, and one past the last */
+    rgl_mirror *mirrors;
+    int mirror_count;
+} rgl_geometry;
+
+/* A frame in progress: the framebuffer (3 RGBA32F targets: world point and
+   object id + 1, normal, uv; depth and stencil), the geometry's vertex
+   buffer bound at attributes 0-2, and the base pass read back. */
+typedef struct rgl_pass {
+    const refl_scene *scene;
+    const refl_view *view;
+    int w, h;
+    rgl_geometry geo;
+    refl_mat4 view_m, proj_m, vp, vp_inv;
+    GLuint fbo, rb[4], vao, vbo, base_prog;
+    float *base[3];          /* the base pass: point + id, normal, uv; rows top first */
+    uint8_t *marks;          /* the base pass's stencil: each pixel's object's mark */
+} rgl_pass;
+
+/* The G-buffer shaders: a vertex shader's inputs and outputs (the caller
+   writes gl_Position) and the fragment shader writing the three targets. */
+extern const char rgl_frame_vs_head[];
+extern const char rgl_frame_fs[];
+
+/* Builds the geometry, the framebuffer and the vertex buffer, draws the
+   base pass with object o marking its pixels with mark[o] (0: none) and
+   reads it back. On failure: nonzero, the reason in err, p left for
+   rgl_pass_end. */
+int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
+                   size_t n);
+void rgl_pass_end(rgl_context *g, rgl_pass *p);
+/* Deletes a method's own GL objects (0: none): its program, vertex array
+   and buffer, camera data texture and buffer, ray textures. */
+void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]);
+/* Reads colour attachment a (4 floats per pixel), rows top first. */
+void rgl_pass_read(const rgl_pass *p, int a, float *out);
+/* The eye ray through pixel i's centre (unit direction). */
+refl_vec3 rgl_pass_ray(const rgl_pass *p, int i);
+/* Per reflector pixel of the base pass, as 2-D RGBA32F textures (rows
+   bottom first, as GL's): tex[0] its reflector point and how far its
+   reflected ray turns to its 4-neighbours' on the same object (the
+   largest distance between the unit rays), tex[1] its reflected ray; bound
+   to texture units 1 and 2. Nonzero when out of memory. */
+int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]);
+/* Nonzero with the reason in err when GL reported an error. */
+int rgl_pass_check(const char *what, char *err, size_t n);
+
+/* The CPU side: shade pixel data (point + id, normal, uv) into rgb as
+   DIRECT shows it (a reflector's diffuse share only), or the environment
+   along dir where it shows nothing; clamped below at 0. */
+void rgl_shade(const refl_scene *s, const float *pt, const float *nrm, const float *uv, refl_vec3 dir, float rgb[3]);
+/* The reflector methods' composite of pixel i (C3RC, SBC): the base pass
+   shaded, and on a reflector pixel (its mark: object + 1) its reflectance
+   times `shown` (the colour of what it shows, at world point `at`), or
+   times the environment along its reflected ray where shown is NULL;
+   frame's stencil and points, and rgb. */
+void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at, refl_frame *frame, float *rgb);
+/* The reflected eye ray at a reflector pixel: d reflected in the normal
+   turned towards the eye. */
+refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal);
+
+#endif
