@@ -43,6 +43,11 @@ int refl_bench_path(const char *dir, int threads);
    path; a table on stdout and dir/graphcam_maze.csv; 0 on failure. */
 int refl_bench_graphcam(const char *dir, int threads);
 
+/* `reflect bench --fit-auto FILE` and `--auto-table` (tools/reflect_bench_auto.c):
+   AUTO's models fitted, and AUTO against every method; argv[1] is "bench";
+   returns the process exit status. */
+int refl_bench_auto(int argc, char **argv);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);
