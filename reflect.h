@@ -3083,12 +3083,33 @@ REFL_API void refl_auto_predict(const refl_auto_model *m, const refl_auto_featur
    comment, pasted here (docs/methods/auto.md). */
 static const char refl__auto_builtin_text[] =
     /* BEGIN reflect-auto-models */
+    "# AUTO's models: reflect bench --fit-auto at 160x120, 1 thread, the least CPU time of 3 runs;\n"
+    "# 212 measurements. Format: docs/methods/auto.md\n"
     "reflect-auto-models 1\n"
-    "model raytrace planar samples 1 cost 1 0 0 error 0 0 0\n"
-    "model raytrace convex samples 1 cost 1 0 0 error 0 0 0\n"
-    "model raytrace concave samples 1 cost 1 0 0 error 0 0 0\n"
-    "model raytrace glass samples 1 cost 1 0 0 error 0 0 0\n"
-    "model raytrace partial samples 1 cost 1 0 0 error 0 0 0\n"
+    "model raytrace planar samples 8 cost 1.69923878 0.657090485 0 error 0.0255867951 5.4017808e-05 0\n"
+    "model raytrace convex samples 16 cost 0 0.520092964 0.434100598 error 0.0558749549 0 9.69357861e-05\n"
+    "model raytrace concave samples 4 cost 2.92499113 0.663136125 0 error 0 -0 0\n"
+    "model raytrace glass samples 8 cost 0.452366054 3.96235514 0 error 0 0 -0\n"
+    "model envmap planar samples 8 cost 25.1100559 0.803261817 0 error 42.0566635 0.135937497 0\n"
+    "model envmap convex samples 16 cost 0 0 6.04222918 error 10.4428024 0.254280061 0.153021693\n"
+    "model envmap concave samples 4 cost 60.1990356 0 0 error 10.9808044 0.681709051 0\n"
+    "model envmap glass samples 8 cost 34.1655846 0.605068326 0 error 2.34098625 0 0.388204217\n"
+    "model planar planar samples 8 cost 0.287785351 0.127045631 0 error 0.0127738575 3.89133784e-05 0\n"
+    "model planar glass samples 4 cost 37.2470779 5.86550617 0 error 1.40949059 0.086932607 0\n"
+    "model sbc planar samples 8 cost 59.1790199 9.36832619 0 error 0.16132459 0.00111101801 0\n"
+    "model sbc convex samples 16 cost 0 43.9701309 9.16328716 error 6.26951313 0.0554523543 0\n"
+    "model sbc concave samples 4 cost 1216.44043 13.6005545 0 error 4.64633226 0 0\n"
+    "model sbc glass samples 8 cost 0 122.024498 0 error 5.29267502 0.314187318 0\n"
+    "model c3rc planar samples 8 cost 14.7185965 4.7759099 0 error 1.04147041 0.0189721938 0\n"
+    "model c3rc convex samples 16 cost 0 28.5223598 46.205513 error 2.36943698 0.000472092011 0.0360843614\n"
+    "model c3rc concave samples 4 cost 780.244324 48.2322121 0 error 3.72968388 0.0134966373 0\n"
+    "model spoc planar samples 8 cost 68.9291611 2.4692893 0 error 0.0214943737 0.000117957883 0\n"
+    "model spoc convex samples 16 cost 0 0 79.7404556 error 0.432193398 0.000809125835 0.00472097797\n"
+    "model spoc concave samples 4 cost 32.1080551 6.33877039 0 error 0.581579924 0.0131509025 0\n"
+    "model graphcam planar samples 8 cost 2.98861861 4.36571932 0 error 3.21290588 0.877150536 0\n"
+    "model graphcam convex samples 16 cost 0 2.16058493 1.29759347 error 23.9275856 0.629537046 0\n"
+    "model graphcam concave samples 4 cost 0 5.99687433 0 error 2.81971741 0.955968916 0\n"
+    "model graphcam glass samples 8 cost 2.23721528 3.31186533 0 error 0.189174652 0.970949054 0.0351584181\n"
     /* END reflect-auto-models */
     ;
 

@@ -58,6 +58,42 @@ Test(refl_auto, planar_mirrors_go_to_planar_by_the_built_in_models) {
     refl_scene_destroy(s);
 }
 
+/* A mirror sphere with everything else far off has a nearness near 0; a
+   mirror wall in a room, one near 1/2. */
+Test(refl_auto, nearness_tells_a_far_environment_from_a_room) {
+    refl_scene *s = NULL, *room;
+    refl_mesh *m = NULL;
+    refl_material mirror = refl_material_mirror(0.9f), box = refl_material_diffuse(0.6f, 0.4f, 0.2f);
+    refl_render_desc d = tu_refl_one_bounce(REFL_AUTO, 2);
+    refl_view v = tu_refl_view(refl_v3(0.0f, 1.4f, 2.6f), refl_v3(0.0f, 1.0f, 0.0f), 64, 48);
+    refl_frame *f;
+    const refl_auto_choice *c;
+    int k;
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_sphere(0.5f, 48, 24, NULL, &m), REFL_OK);
+    cr_assert_geq(refl_scene_add(s, m, &mirror, refl_mat4_translate(refl_v3(0.0f, 1.0f, 0.0f))), 0);
+    for (k = 0; k < 4; ++k) {
+        cr_assert_eq(refl_mesh_box(refl_v3(2.0f, 2.0f, 2.0f), NULL, &m), REFL_OK);
+        cr_assert_geq(refl_scene_add(s, m, &box, refl_mat4_translate(refl_v3(k & 1 ? 12.0f : -12.0f, 1.0f,
+                                                                            k & 2 ? 12.0f : -12.0f))), 0);
+    }
+    refl_scene_complete(s);
+    f = tu_refl_render(s, &v, &d);
+    c = choice_of(f, 0);
+    cr_expect_eq(c->features.reflector_class, REFL_AUTO_CONVEX);
+    cr_expect_lt(c->features.nearness, 0.05f);
+    cr_expect_gt(c->features.pixels, 100);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+    room = tu_refl_builtin("mirror-room", &v, 64, 48);
+    f = tu_refl_render(room, &v, &d);
+    cr_expect(f->stats.automatic.choices[0].features.nearness > 0.3f &&
+                  f->stats.automatic.choices[0].features.nearness < 0.7f,
+              "%g", (double)f->stats.automatic.choices[0].features.nearness);
+    refl_frame_destroy(f);
+    refl_scene_destroy(room);
+}
+
 /* With a model that makes ENVMAP cheap and exact, AUTO takes it, and its
    frame is the frame of ENVMAP given that reflector by hand. */
 Test(refl_auto, a_cheap_model_picks_the_cheap_method_and_draws_as_it_would) {
@@ -136,6 +172,14 @@ Test(refl_auto, the_frame_is_the_same_for_any_thread_count) {
     d.depth = 0;
     d.automatic.error_budget_px = 2.0f;
     one = tu_refl_render(s, &v, &d);
+    cr_assert_eq(one->stats.automatic.count, 2);
+    for (t = 0; t < 2; ++t) { /* glass goes to a method that draws glass */
+        const refl_auto_choice *c = &one->stats.automatic.choices[t];
+        cr_expect_eq(c->features.reflector_class, REFL_AUTO_GLASS);
+        cr_expect_eq(c->candidate[c->method], 1, "%s", refl_method_name(c->method));
+        cr_expect_leq(c->candidate[REFL_C3RC], 0, "C3RC declines glass");
+    }
+    cr_expect_eq(one->stats.handed_over, 0);
     for (t = 2; t <= 3; ++t) {
         d.threads = t;
         more = tu_refl_render(s, &v, &d);
