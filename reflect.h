@@ -1079,7 +1079,8 @@ REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render 
    --fit-auto FILE` fits them from its own measurements; the library has a
    fit built in. A method without a model for a class is never chosen. */
 typedef enum refl_auto_class {
-    REFL_AUTO_PLANAR = 0,    /* a mirror of a few planes that PLANAR draws */
+    REFL_AUTO_PLANAR = 0,    /* a reflector of a few planes that PLANAR draws, the eye in front
+                                of one of its mirror faces (or it has glass ones) */
     REFL_AUTO_CONVEX,        /* curved, its normals mostly away from its centre */
     REFL_AUTO_CONCAVE,       /* curved, its normals mostly towards its centre */
     REFL_AUTO_GLASS,         /* glass (any shape) */
@@ -1251,10 +1252,10 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
-/* AUTO's features of scene object `object` in a rendered frame of the
-   scene (its stencil gives the pixels). */
-REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_frame *frame, int object,
-                                                  refl_auto_features *out);
+/* AUTO's features of scene object `object` in a frame of the scene
+   rendered from view (its stencil gives the pixels). */
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out);
 /* How linear colour becomes display colour: scaled by 2^exposure, tone
    mapped, clamped to [0, 1], sRGB-encoded. {0}: exposure 0, no tone map. */
 typedef enum refl_tonemap {
@@ -2420,8 +2421,10 @@ static const char *refl__options_auto(refl_render_desc *d);
 static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out);
 static refl_result refl__method_can_draw(const refl__pass *p, refl_method m, int object, int *can);
 /* AUTO's models (auto_model.c): object i's features with `pixels` on
-   screen; the pixels of object i in a stencil; whether a model may name m. */
-static refl_result refl__auto_features(const refl_scene *s, int i, long long pixels, refl_auto_features *out);
+   screen, seen from eye; the pixels of object i in a stencil; whether a
+   model may name m. */
+static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
+                                       refl_auto_features *out);
 static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object);
 static int refl__auto_modelled(refl_method m);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
@@ -3029,25 +3032,43 @@ static refl_result refl__auto_nearness(const refl_scene *s, int object, float *o
     return REFL_OK;
 }
 
-/* The features of object i with `pixels` pixels on screen. */
-static refl_result refl__auto_features(const refl_scene *s, int i, long long pixels, refl_auto_features *out) {
+/* Whether PLANAR would show object i from eye: it has planar faces (PLANAR
+   draws it) and the eye is in front of one of its mirror faces or it has
+   glass ones (PLANAR shows a mirror seen from behind as nothing). */
+static refl_result refl__auto_planar_seen(const refl_scene *s, int i, refl_vec3 eye, int *out) {
+    refl__planar_face *faces = NULL;
+    uint8_t *only = (uint8_t *)refl__calloc(&s->allocator, (size_t)s->object_count, 1);
+    int count = 0, k;
+    refl_result r;
+    *out = 0;
+    if (!only) return REFL_ERROR_OUT_OF_MEMORY;
+    only[i] = 1;
+    r = refl__planar_find_faces(s, only, &faces, &count);
+    for (k = 0; r == REFL_OK && k < count; ++k)
+        *out |= faces[k].glass || faces[k].n[0] * eye.x + faces[k].n[1] * eye.y + faces[k].n[2] * eye.z > faces[k].d;
+    if (r == REFL_OK) refl__planar_free_faces(s, faces, count);
+    refl__free(&s->allocator, only);
+    return r;
+}
+
+/* The features of object i with `pixels` pixels on screen, seen from eye. */
+static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
+                                       refl_auto_features *out) {
     const refl_material *mat = &s->materials[s->objects[i].material];
+    int planar = 0;
+    refl_result r;
     memset(out, 0, sizeof *out);
     out->pixels = pixels;
     out->scene_triangles = (float)refl_scene_triangles(s);
     if (refl__auto_nearness(s, i, &out->nearness) != REFL_OK) return REFL_ERROR_OUT_OF_MEMORY;
-    if (mat->type == REFL_GLASS) out->reflector_class = REFL_AUTO_GLASS;
-    else {
-        refl__pass scene_only; /* what PLANAR's handles reads of a pass */
-        int planar = 0;
-        refl_result r;
-        memset(&scene_only, 0, sizeof scene_only);
-        scene_only.scene = s;
-        if ((r = refl__planar_handles(&scene_only, i, &planar)) != REFL_OK) return r;
-        out->reflector_class = planar                      ? REFL_AUTO_PLANAR
-                               : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
-                                                           : refl__auto_curvature_class(s, i);
+    if (mat->type == REFL_GLASS) {
+        out->reflector_class = REFL_AUTO_GLASS;
+        return REFL_OK;
     }
+    if ((r = refl__auto_planar_seen(s, i, eye, &planar)) != REFL_OK) return r;
+    out->reflector_class = planar                      ? REFL_AUTO_PLANAR
+                           : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
+                                                       : refl__auto_curvature_class(s, i);
     return REFL_OK;
 }
 
@@ -3060,10 +3081,11 @@ static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object)
     return count;
 }
 
-REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_frame *frame, int object,
-                                                  refl_auto_features *out) {
-    if (!scene || !frame || !out || object < 0 || object >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__auto_features(scene, object,
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out) {
+    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__auto_features(scene, object, view->eye,
                                refl__auto_pixels(frame->stencil, (size_t)frame->width * (size_t)frame->height, object),
                                out);
 }
@@ -11362,7 +11384,7 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
         refl_auto_models_builtin(&builtin);
         models = &builtin;
     }
-    r = refl__auto_features(p->scene, object,
+    r = refl__auto_features(p->scene, object, p->view->eye,
                             refl__auto_pixels(p->frame->stencil,
                                               (size_t)p->frame->width * (size_t)p->frame->height, object),
                             &ch.features);

@@ -166,7 +166,7 @@ static int measure_view(const refl_scene *s, const refl_view *v, const auto_opts
         if (s->materials[s->objects[i].material].type == REFL_DIFFUSE) continue;
         memset(ar, 0, sizeof *ar);
         ar->object = i;
-        if (refl_auto_reflector_features(s, test, i, &ar->features) != REFL_OK) goto done;
+        if (refl_auto_reflector_features(s, v, test, i, &ar->features) != REFL_OK) goto done;
         if (ar->features.pixels == 0) continue;
         out->count++;
     }
@@ -578,7 +578,10 @@ static int table_scene(const char *name, const auto_opts *o, const void *user, F
             d.automatic.error_budget_px = budgets[bi];
             d.automatic.models = models;
             if (timed(s, &v, &d, 1, f, &ms_auto) != REFL_OK) { ok = 0; break; }
+            /* reflectors off screen (not measured: no pixel to judge) keep AUTO's choice */
             for (i = 0; i < s->object_count; ++i) per[i] = REFL_DIRECT;
+            for (k = 0; k < f->stats.automatic.count && k < REFL_AUTO_MAX_CHOICES; ++k)
+                per[f->stats.automatic.choices[k].object] = f->stats.automatic.choices[k].method;
             for (i = 0; i < av.count; ++i) {
                 const auto_reflector *ar = &av.r[i];
                 int best = -1, met = 0;
@@ -602,7 +605,7 @@ static int table_scene(const char *name, const auto_opts *o, const void *user, F
             if (!(hit = cached(&given_times, oracle))) {
                 refl_render_desc g = d;
                 ms_oracle = 1e300;
-                g.method = REFL_DIRECT; /* reflectors off screen stay DIRECT: AUTO draws nothing there either */
+                g.method = REFL_DIRECT;
                 g.object_methods = per;
                 g.object_method_count = s->object_count;
                 for (k = 0; k < o->repeats && ok; ++k) {

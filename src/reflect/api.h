@@ -1077,7 +1077,8 @@ REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render 
    --fit-auto FILE` fits them from its own measurements; the library has a
    fit built in. A method without a model for a class is never chosen. */
 typedef enum refl_auto_class {
-    REFL_AUTO_PLANAR = 0,    /* a mirror of a few planes that PLANAR draws */
+    REFL_AUTO_PLANAR = 0,    /* a reflector of a few planes that PLANAR draws, the eye in front
+                                of one of its mirror faces (or it has glass ones) */
     REFL_AUTO_CONVEX,        /* curved, its normals mostly away from its centre */
     REFL_AUTO_CONCAVE,       /* curved, its normals mostly towards its centre */
     REFL_AUTO_GLASS,         /* glass (any shape) */
@@ -1249,10 +1250,10 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
-/* AUTO's features of scene object `object` in a rendered frame of the
-   scene (its stencil gives the pixels). */
-REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_frame *frame, int object,
-                                                  refl_auto_features *out);
+/* AUTO's features of scene object `object` in a frame of the scene
+   rendered from view (its stencil gives the pixels). */
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out);
 /* How linear colour becomes display colour: scaled by 2^exposure, tone
    mapped, clamped to [0, 1], sRGB-encoded. {0}: exposure 0, no tone map. */
 typedef enum refl_tonemap {

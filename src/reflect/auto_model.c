@@ -107,25 +107,43 @@ static refl_result refl__auto_nearness(const refl_scene *s, int object, float *o
     return REFL_OK;
 }
 
-/* The features of object i with `pixels` pixels on screen. */
-static refl_result refl__auto_features(const refl_scene *s, int i, long long pixels, refl_auto_features *out) {
+/* Whether PLANAR would show object i from eye: it has planar faces (PLANAR
+   draws it) and the eye is in front of one of its mirror faces or it has
+   glass ones (PLANAR shows a mirror seen from behind as nothing). */
+static refl_result refl__auto_planar_seen(const refl_scene *s, int i, refl_vec3 eye, int *out) {
+    refl__planar_face *faces = NULL;
+    uint8_t *only = (uint8_t *)refl__calloc(&s->allocator, (size_t)s->object_count, 1);
+    int count = 0, k;
+    refl_result r;
+    *out = 0;
+    if (!only) return REFL_ERROR_OUT_OF_MEMORY;
+    only[i] = 1;
+    r = refl__planar_find_faces(s, only, &faces, &count);
+    for (k = 0; r == REFL_OK && k < count; ++k)
+        *out |= faces[k].glass || faces[k].n[0] * eye.x + faces[k].n[1] * eye.y + faces[k].n[2] * eye.z > faces[k].d;
+    if (r == REFL_OK) refl__planar_free_faces(s, faces, count);
+    refl__free(&s->allocator, only);
+    return r;
+}
+
+/* The features of object i with `pixels` pixels on screen, seen from eye. */
+static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
+                                       refl_auto_features *out) {
     const refl_material *mat = &s->materials[s->objects[i].material];
+    int planar = 0;
+    refl_result r;
     memset(out, 0, sizeof *out);
     out->pixels = pixels;
     out->scene_triangles = (float)refl_scene_triangles(s);
     if (refl__auto_nearness(s, i, &out->nearness) != REFL_OK) return REFL_ERROR_OUT_OF_MEMORY;
-    if (mat->type == REFL_GLASS) out->reflector_class = REFL_AUTO_GLASS;
-    else {
-        refl__pass scene_only; /* what PLANAR's handles reads of a pass */
-        int planar = 0;
-        refl_result r;
-        memset(&scene_only, 0, sizeof scene_only);
-        scene_only.scene = s;
-        if ((r = refl__planar_handles(&scene_only, i, &planar)) != REFL_OK) return r;
-        out->reflector_class = planar                      ? REFL_AUTO_PLANAR
-                               : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
-                                                           : refl__auto_curvature_class(s, i);
+    if (mat->type == REFL_GLASS) {
+        out->reflector_class = REFL_AUTO_GLASS;
+        return REFL_OK;
     }
+    if ((r = refl__auto_planar_seen(s, i, eye, &planar)) != REFL_OK) return r;
+    out->reflector_class = planar                      ? REFL_AUTO_PLANAR
+                           : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
+                                                       : refl__auto_curvature_class(s, i);
     return REFL_OK;
 }
 
@@ -138,10 +156,11 @@ static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object)
     return count;
 }
 
-REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_frame *frame, int object,
-                                                  refl_auto_features *out) {
-    if (!scene || !frame || !out || object < 0 || object >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__auto_features(scene, object,
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out) {
+    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__auto_features(scene, object, view->eye,
                                refl__auto_pixels(frame->stencil, (size_t)frame->width * (size_t)frame->height, object),
                                out);
 }

@@ -29,7 +29,7 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
         refl_auto_models_builtin(&builtin);
         models = &builtin;
     }
-    r = refl__auto_features(p->scene, object,
+    r = refl__auto_features(p->scene, object, p->view->eye,
                             refl__auto_pixels(p->frame->stencil,
                                               (size_t)p->frame->width * (size_t)p->frame->height, object),
                             &ch.features);
