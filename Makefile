@@ -76,6 +76,7 @@ REFLECT_PUBLIC = src/reflect/api.h
 REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/cam_sbc_internal.h \
                  src/reflect/sbc_internal.h \
+                 src/reflect/auto_model.c \
                  src/reflect/base_pass.c \
                  src/reflect/bvh.c \
                  src/reflect/cam_c3rc.c \
@@ -93,6 +94,7 @@ REFLECT_IMPL   = src/reflect/internal.h \
                  src/reflect/lem_infer.c \
                  src/reflect/lens_tess.c \
                  src/reflect/light_volume.c \
+                 src/reflect/m_auto.c \
                  src/reflect/m_c3rc.c \
                  src/reflect/m_envmap.c \
                  src/reflect/m_graphcam.c \
@@ -400,7 +402,8 @@ fuzz-short:
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
-               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_report.o
+               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_report.o \
+               build/tools/reflect_bench_auto.o
 REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h

@@ -44,7 +44,8 @@ static const char *const usage_render =
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots,\n"
     "                     hybrid\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
-    "                     graphcam or layered-em (paper 001, one shell layer)\n"
+    "                     graphcam, layered-em (paper 001, one shell layer) or auto (per\n"
+    "                     reflector, the cheapest predicted to meet --error-budget)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
@@ -99,6 +100,10 @@ static const char *const usage_render =
     "                     uniform (algorithm 1)\n"
     "  --graphcam-step S  GRAPHCAM: segments: pixels a step (default 1); uniform: world\n"
     "                     units a step (default: the camera's bounds' diagonal / 2048)\n"
+    "  --error-budget PX  AUTO: the reflection error in pixels a method may be predicted\n"
+    "                     to make (default 1); --stats prints each reflector's choice\n"
+    "  --auto-models FILE AUTO: cost and error models (reflect bench --fit-auto writes\n"
+    "                     them; default: those built in)\n"
     "  --size WxH         image size (default: the scene camera's, else 640x480)\n"
     "  --eye X,Y,Z        camera position     } default: the scene's camera,\n"
     "  --target X,Y,Z     point looked at     } else one framing the scene\n"
@@ -183,6 +188,8 @@ typedef struct options {
     int gl;                       /* --gl: the GL path (tools/reflect_gl_frame.c) */
     int camera;                   /* --camera: which glTF camera */
     float time_limit;             /* --time-limit: seconds; 0 none */
+    float error_budget;           /* --error-budget: AUTO's; 0: its default */
+    const char *auto_models;      /* --auto-models FILE */
     float fresnel[2];             /* --fresnel: min, max; max 0: off */
     refl_vec3 fade;               /* --fade: distance, min, max; distance 0: off */
 } options;
@@ -222,7 +229,8 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames", NULL};
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames",
+    "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
                                            "--greedy", "--prebuild", NULL};
@@ -351,6 +359,10 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
         } else if (!strcmp(a, "--spoc-size")) {
             if (!parse_int(v, 8, 4096, &o->spoc_size)) return fail("--spoc-size: expected 8..4096, got %s", v);
+        } else if (!strcmp(a, "--error-budget")) {
+            if (!parse_float(v, 1e-6f, 1e6f, &o->error_budget)) return fail("--error-budget: expected pixels above 0, got %s", v);
+        } else if (!strcmp(a, "--auto-models")) {
+            o->auto_models = v;
         } else if (!strcmp(a, "--spoc-strength")) {
             if (!parse_float(v, 0.0f, 64.0f, &o->spoc_strength)) return fail("--spoc-strength: expected 0..64, got %s", v);
         } else if (!strcmp(a, "--spoc-step")) {
@@ -608,7 +620,34 @@ out:
     return code;
 }
 
+/* AUTO's choices, one line a reflector: the features, the method and its
+   predictions, and the cheaper methods it passed over and why. */
+static void print_auto_choices(const refl_scene *s, const refl_auto_frame_stats *a) {
+    int i, m;
+    if (a->count) printf("auto         budget %g px; per reflector: class, pixels, nearness -> choice\n", (double)a->budget_px);
+    for (i = 0; i < a->count && i < REFL_AUTO_MAX_CHOICES; ++i) {
+        const refl_auto_choice *c = &a->choices[i];
+        int first = 1;
+        printf("  %-10.32s %s, %lld px, near %.2f -> %s (%.2f px, %.1f ms%s)", s->objects[c->object].name,
+               refl_auto_class_name(c->features.reflector_class), c->features.pixels, (double)c->features.nearness,
+               refl_method_name(c->method), (double)c->error_px[c->method], (double)c->cost_ms[c->method],
+               c->over_budget ? ", over budget: the least error" : "");
+        for (m = 0; m < REFL_METHOD_COUNT; ++m) {
+            if (m == (int)c->method || !c->candidate[m] ||
+                (c->candidate[m] > 0 && c->cost_ms[m] >= c->cost_ms[c->method]))
+                continue;
+            printf("%s%s ", first ? "; cheaper: " : ", ", refl_method_name((refl_method)m));
+            if (c->candidate[m] < 0) printf("cannot draw it");
+            else printf("%.2f px over budget (%.1f ms)", (double)c->error_px[m], (double)c->cost_ms[m]);
+            first = 0;
+        }
+        printf("\n");
+    }
+    if (a->count > REFL_AUTO_MAX_CHOICES) printf("  (%d more)\n", a->count - REFL_AUTO_MAX_CHOICES);
+}
+
 static int cmd_render(const options *o) {
+    static refl_auto_models auto_models; /* --auto-models */
     refl_scene *s = load_scene(o, NULL);
     refl_graphcam *maze_cam = NULL; /* the maze's graph camera, for GRAPHCAM on --builtin maze */
     refl_frame *f = NULL;
@@ -710,6 +749,15 @@ static int cmd_render(const options *o) {
         }
     }
     if (o->method) d.method = refl_method_from_name(o->method); /* checked by parse */
+    d.automatic.error_budget_px = o->error_budget;
+    if (o->auto_models) {
+        char msg[200];
+        if (refl_auto_models_load(o->auto_models, &auto_models, msg, sizeof msg) != REFL_OK) {
+            fprintf(stderr, "reflect: --auto-models: %s\n", msg);
+            goto done;
+        }
+        d.automatic.models = &auto_models;
+    }
     if (o->gl) {
         code = render_gl(o, s, &v, d.method);
         goto done;
@@ -796,6 +844,7 @@ static int cmd_render(const options *o) {
                    l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
+        print_auto_choices(s, &st->automatic);
     }
     code = 0;
 done:
@@ -1017,6 +1066,7 @@ int main(int argc, char **argv) {
         int i;
         for (i = 2; i < argc; ++i)
             if (!strcmp(argv[i], "--gl")) return rgl_cli_bench(argc, argv);
+            else if (!strcmp(argv[i], "--fit-auto") || !strcmp(argv[i], "--auto-table")) return refl_bench_auto(argc, argv);
         return refl_cli_bench(argc, argv);
     }
     fprintf(stderr, "reflect: unknown command '%s'\n\n%s", argv[1], usage_main);

@@ -60,6 +60,11 @@ void refl_heat_map(const uint8_t *a, const uint8_t *b, long long count, int chan
    NULL on failure. */
 refl_scene *refl_bench_builtin(const char *name, int tess);
 
+/* `reflect bench --fit-auto FILE` and `--auto-table` (tools/reflect_bench_auto.c):
+   AUTO's models fitted, and AUTO against every method; argv[1] is "bench";
+   returns the process exit status. */
+int refl_bench_auto(int argc, char **argv);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

@@ -1072,13 +1072,76 @@ typedef enum refl_method {
     REFL_SPOC,               /* paper 004 */
     REFL_GRAPHCAM,           /* paper 004 */
     REFL_LAYERED_EM,         /* paper 001 */
-    REFL_AUTO,
+    REFL_AUTO,               /* per reflector, the cheapest method predicted to meet
+                                desc.automatic's error budget */
     REFL_METHOD_COUNT
 } refl_method;
 
 REFL_API const char *refl_method_name(refl_method m);          /* "direct", ... */
 REFL_API refl_method refl_method_from_name(const char *name);  /* any case; 0 when unknown */
 REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render draws with it */
+
+/* ---- AUTO: per reflector, the cheapest method whose predicted error meets
+   a budget (docs/methods/auto.md) ---------------------------------------------
+   Each reflector is described by its features: its class, its pixels on
+   screen (the base pass's stencil), and how near what it reflects is. Per
+   (method, class), a model predicts the method's frame cost and reflection
+   error from them:
+       cost_ms  = cost[0] + cost[1] * pixels / 1000 + cost[2] * triangles / 1000
+       error_px = error[0] + error[1] * s + error[2] * s * nearness
+   with s = sqrt(pixels) and triangles the scene's. `reflect bench
+   --fit-auto FILE` fits them from its own measurements; the library has a
+   fit built in. A method without a model for a class is never chosen. */
+typedef enum refl_auto_class {
+    REFL_AUTO_PLANAR = 0,    /* a reflector of a few planes that PLANAR draws, the eye in front
+                                of one of its mirror faces (or it has glass ones) */
+    REFL_AUTO_CONVEX,        /* curved, its normals mostly away from its centre */
+    REFL_AUTO_CONCAVE,       /* curved, its normals mostly towards its centre */
+    REFL_AUTO_GLASS,         /* glass (any shape) */
+    REFL_AUTO_PARTIAL,       /* a curved partial reflector */
+    REFL_AUTO_CLASS_COUNT
+} refl_auto_class;
+REFL_API const char *refl_auto_class_name(int reflector_class); /* "planar", ...; "unknown" */
+
+typedef struct refl_auto_features {
+    int reflector_class;     /* refl_auto_class */
+    long long pixels;        /* its pixels in the frame (the stencil's) */
+    float nearness;          /* how near what it reflects is, in [0, 1]: the mean over 26
+                                directions from its bounding sphere's centre of min(1, r / D),
+                                r the sphere's radius, D the distance to the first other
+                                object's bounding box that way (none: 0) */
+    float scene_triangles;   /* the scene's, in all */
+} refl_auto_features;
+
+typedef struct refl_auto_model {
+    int fitted;              /* 0: no model (the method is no candidate for the class) */
+    int samples;             /* measurements it was fitted to */
+    float cost[3];           /* the formulas above */
+    float error[3];
+} refl_auto_model;
+typedef struct refl_auto_models {
+    refl_auto_model model[REFL_METHOD_COUNT][REFL_AUTO_CLASS_COUNT];
+} refl_auto_models;
+
+/* The predictions of one model (cost at least 0.001 ms, error at least 0). */
+REFL_API void refl_auto_predict(const refl_auto_model *model, const refl_auto_features *f, float *error_px,
+                                float *cost_ms);
+/* The models built into the library (a fit by `reflect bench --fit-auto`). */
+REFL_API void refl_auto_models_builtin(refl_auto_models *out);
+/* The text format (docs/methods/auto.md): '#' comments and blank lines,
+   a first line "reflect-auto-models 1", then one line per model:
+       model METHOD CLASS samples N cost C0 C1 C2 error E0 E1 E2
+   REFL_ERROR_INVALID_ARGUMENT on anything else, with the line and the
+   rule it broke in message (may be NULL; message_size bytes, cut). */
+REFL_API refl_result refl_auto_models_parse(const char *text, size_t length, refl_auto_models *out, char *message,
+                                            size_t message_size);
+/* The same from a file; a file that cannot be read is named in message. */
+REFL_API refl_result refl_auto_models_load(const char *path, refl_auto_models *out, char *message,
+                                           size_t message_size);
+/* The models as text into out (cap bytes, NUL-terminated when it fits; out
+   may be NULL): the length of the whole text. Parsing it gives the same
+   floats back. */
+REFL_API size_t refl_auto_models_format(const refl_auto_models *models, char *out, size_t cap);
 
 /* What a frame cost and what it drew. The first fields mean the same for
    every method; each method's own figures are in its sub-struct (zero for
@@ -1148,6 +1211,24 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels no triangle covered, ray traced */
 } refl_layered_em_frame_stats;
+/* AUTO's choice for one reflector, and why. */
+typedef struct refl_auto_choice {
+    int object;
+    refl_method method;      /* the chosen */
+    int over_budget;         /* 1: no candidate's predicted error met the budget: the least
+                                predicted error was chosen */
+    refl_auto_features features;
+    /* per method: 1 a candidate (predicted below), 0 no model for the class, -1 a
+       model but it cannot draw this reflector (PLANAR: curved; C3RC: glass) */
+    signed char candidate[REFL_METHOD_COUNT];
+    float error_px[REFL_METHOD_COUNT], cost_ms[REFL_METHOD_COUNT];
+} refl_auto_choice;
+#define REFL_AUTO_MAX_CHOICES 16
+typedef struct refl_auto_frame_stats {
+    float budget_px;
+    int count;               /* reflectors AUTO chose for; the first REFL_AUTO_MAX_CHOICES below */
+    refl_auto_choice choices[REFL_AUTO_MAX_CHOICES];
+} refl_auto_frame_stats;
 
 typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
@@ -1173,6 +1254,7 @@ typedef struct refl_stats {
     refl_graphcam_frame_stats graphcam;
     refl_spoc_frame_stats spoc;
     refl_layered_em_frame_stats layered_em;
+    refl_auto_frame_stats automatic;
 } refl_stats;
 
 typedef struct refl_frame {
@@ -1199,6 +1281,10 @@ typedef struct refl_frame {
 REFL_API refl_result refl_frame_create(int width, int height, const refl_allocator *a,
                                        refl_frame **out_frame);
 REFL_API void refl_frame_destroy(refl_frame *frame);
+/* AUTO's features of scene object `object` in a frame of the scene
+   rendered from view (its stencil gives the pixels). */
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out);
 /* How linear colour becomes display colour: scaled by 2^exposure, tone
    mapped, clamped to [0, 1], sRGB-encoded. {0}: exposure 0, no tone map. */
 typedef enum refl_tonemap {
@@ -1568,6 +1654,13 @@ typedef struct refl_spoc_options {
                                 this many texels, 0.5 to 64; 0: 4 */
 } refl_spoc_options;
 
+typedef struct refl_auto_options {
+    float error_budget_px;   /* the reflection error (refl_measure_reflection_error's mean, a
+                                wrong point or hole counting as the reflector's linear size)
+                                a method may be predicted to make; 0: 1 */
+    const refl_auto_models *models; /* NULL: refl_auto_models_builtin's */
+} refl_auto_options;
+
 /* Hooks for tests and benchmarks. */
 typedef struct refl_debug_options {
     int points_last;         /* RAYTRACE and SBC: 1: frame->points holds, per reflector pixel,
@@ -1625,6 +1718,7 @@ typedef struct refl_render_desc {
     refl_graphcam_options graphcam;
     refl_layered_em_options layered_em;
     refl_spoc_options spoc;
+    refl_auto_options automatic; /* method AUTO (named so: auto is a C keyword) */
     refl_debug_options debug;
     /* optional: called from the rendering thread with done in [0, 1], at the
        start, between the phases and reflector methods, and per band of rows

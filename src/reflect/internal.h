@@ -585,5 +585,18 @@ static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps 
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
+/* AUTO (m_auto.c): the method it picks for reflector `object`, its reason
+   appended to the frame's stats; and whether method m has a row that
+   draws reflectors and can draw that one (render.c). */
+static const char *refl__options_auto(refl_render_desc *d);
+static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out);
+static refl_result refl__method_can_draw(const refl__pass *p, refl_method m, int object, int *can);
+/* AUTO's models (auto_model.c): object i's features with `pixels` on
+   screen, seen from eye; the pixels of object i in a stencil; whether a
+   model may name m. */
+static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
+                                       refl_auto_features *out);
+static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object);
+static int refl__auto_modelled(refl_method m);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
 static void refl__c3_samples_free(const refl_allocator *al, struct refl__c3_samples *pts);

@@ -224,6 +224,8 @@ static const refl__method_row refl__methods[] = {
     {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 1},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
+    /* draws nothing itself: each of its reflectors goes to the method it picks (refl__drawn_by) */
+    {REFL_AUTO, REFL__PER_REFLECTOR, NULL, refl__options_auto, NULL, REFL__ANY_DEPTH},
 };
 enum { REFL__METHOD_ROWS = (int)(sizeof refl__methods / sizeof refl__methods[0]) };
 
@@ -390,15 +392,25 @@ static refl_result refl__base_pass(refl__pass *p, const refl_scene *scene, const
     return r;
 }
 
-/* The method that draws reflector object i (*by): its own or the frame's,
-   or RAYTRACE's tracer where that one cannot draw it. */
-static refl_result refl__drawn_by(const refl__pass *p, int i, uint8_t *by) {
+/* The method that draws reflector object i (*by): its own or the frame's
+   (AUTO: the one it picks), or RAYTRACE's tracer where that one cannot
+   draw it (*handed_over). */
+static refl_result refl__drawn_by(refl__pass *p, int i, uint8_t *by, int *handed_over) {
     refl_method m = refl__object_method(&p->desc, i);
-    const refl__method_row *row = refl__method_row_of(m);
+    const refl__method_row *row;
     int can = 1;
-    refl_result r = row->handles ? row->handles(p, i, &can) : REFL_OK;
+    refl_result r = m == REFL_AUTO ? refl__auto_choose(p, i, &m) : REFL_OK;
+    row = refl__method_row_of(m);
+    if (r == REFL_OK && row->handles) r = row->handles(p, i, &can);
     *by = (uint8_t)(can ? m : REFL_RAYTRACE);
+    *handed_over = !can;
     return r;
+}
+
+static refl_result refl__method_can_draw(const refl__pass *p, refl_method m, int object, int *can) {
+    const refl__method_row *row = refl__method_row_of(m);
+    *can = row && (row->kind & REFL__PER_REFLECTOR) && row->draw;
+    return *can && row->handles ? row->handles(p, object, can) : REFL_OK;
 }
 
 /* The per-reflector methods of the frame, in table order, each given the
@@ -417,10 +429,11 @@ static refl_result refl__draw_reflectors(refl__pass *p) {
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        int handed_over;
         if (!refl__is_reflector(&scene->materials[scene->objects[i].material])) continue;
-        r = refl__drawn_by(p, i, &by[i]);
+        r = refl__drawn_by(p, i, &by[i], &handed_over);
         mixed |= by[i] != (uint8_t)p->desc.method;
-        if (by[i] != (uint8_t)refl__object_method(&p->desc, i)) p->frame->stats.handed_over++;
+        p->frame->stats.handed_over += handed_over;
         modelled[i] = refl__method_row_of((refl_method)by[i])->max_depth;
         if (modelled[i] == 0) depth = 0;
         beyond |= modelled[i] > 0 && modelled[i] < p->desc.depth;

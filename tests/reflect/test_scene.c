@@ -229,8 +229,6 @@ Test(refl_scene, render_rejects_bad_input) {
     cr_assert_eq(refl_render(NULL, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
     d.method = REFL_METHOD_COUNT;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
-    d.method = REFL_AUTO; /* not built yet */
-    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_UNSUPPORTED);
     d.method = REFL_DIRECT;
     v.width = 65;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_SIZE);

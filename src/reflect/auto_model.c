@@ -1,0 +1,393 @@
+/* AUTO's cost and error models (docs/methods/auto.md): what describes a
+   reflector (its features), the per (method, class) formulas, their text
+   format, and the fit built into the library. m_auto.c makes the choice. */
+#include "internal.h"
+
+#include <stdlib.h> /* strtod */
+
+static const char *const refl__auto_class_names[REFL_AUTO_CLASS_COUNT] = {"planar", "convex", "concave", "glass",
+                                                                          "partial"};
+
+REFL_API const char *refl_auto_class_name(int c) {
+    return c >= 0 && c < REFL_AUTO_CLASS_COUNT ? refl__auto_class_names[c] : "unknown";
+}
+
+/* ---- features ---------------------------------------------------------------- */
+
+/* World bounds of object i. */
+static void refl__auto_object_box(const refl_scene *s, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_mesh *m = s->meshes[s->objects[i].mesh];
+    int v;
+    *lo = refl_v3(INFINITY, INFINITY, INFINITY);
+    *hi = refl_v3(-INFINITY, -INFINITY, -INFINITY);
+    for (v = 0; v < m->vertex_count; ++v) {
+        refl_vec3 p = refl_mat4_point(s->objects[i].transform,
+                                      refl_v3(m->positions[3 * v], m->positions[3 * v + 1], m->positions[3 * v + 2]));
+        *lo = refl__v3_min(*lo, p);
+        *hi = refl__v3_max(*hi, p);
+    }
+}
+
+/* Convex or concave: whether the area-weighted faces look away from the
+   surface's area centroid (a sphere, a teapot) or towards it (a bowl
+   seen from inside), by their winding's normals. */
+static int refl__auto_curvature_class(const refl_scene *s, int i) {
+    const refl_mesh *m = s->meshes[s->objects[i].mesh];
+    const refl_mat4 *t = &s->objects[i].transform;
+    refl_vec3 c = refl_v3(0, 0, 0);
+    double area = 0.0, away = 0.0;
+    int pass, k, j;
+    for (pass = 0; pass < 2; ++pass) {
+        if (pass == 1 && area > 0.0) c = refl_v3_scale(c, (float)(1.0 / area));
+        for (k = 0; k < m->triangle_count; ++k) {
+            refl_vec3 v[3], n, mid;
+            float a;
+            for (j = 0; j < 3; ++j) {
+                const float *q = m->positions + 3 * m->indices[3 * k + j];
+                v[j] = refl_mat4_point(*t, refl_v3(q[0], q[1], q[2]));
+            }
+            n = refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0]));
+            a = refl_v3_length(n);
+            if (!(a > 0.0f)) continue;
+            mid = refl_v3_scale(refl_v3_add(v[0], refl_v3_add(v[1], v[2])), 1.0f / 3.0f);
+            if (pass == 0) {
+                c = refl_v3_add(c, refl_v3_scale(mid, a));
+                area += a;
+            } else {
+                away += refl_v3_dot(refl_v3_sub(mid, c), n) >= 0.0f ? a : -a;
+            }
+        }
+    }
+    return away >= 0.0 ? REFL_AUTO_CONVEX : REFL_AUTO_CONCAVE;
+}
+
+/* The first positive distance along dir from o to the box (o inside: where
+   the ray leaves it); INFINITY when it misses. */
+static float refl__auto_box_distance(refl_vec3 o, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi) {
+    float t0 = -INFINITY, t1 = INFINITY;
+    const float oo[3] = {o.x, o.y, o.z}, dd[3] = {dir.x, dir.y, dir.z}, l[3] = {lo.x, lo.y, lo.z},
+                h[3] = {hi.x, hi.y, hi.z};
+    int a;
+    for (a = 0; a < 3; ++a) {
+        if (dd[a] == 0.0f) {
+            if (oo[a] < l[a] || oo[a] > h[a]) return INFINITY;
+            continue;
+        }
+        {
+            float ta = (l[a] - oo[a]) / dd[a], tb = (h[a] - oo[a]) / dd[a];
+            t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
+            t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
+        }
+    }
+    if (t1 < t0 || t1 <= 0.0f) return INFINITY;
+    return t0 > 0.0f ? t0 : t1;
+}
+
+/* r / D (see refl_auto_features.nearness). */
+static refl_result refl__auto_nearness(const refl_scene *s, int object, float *out) {
+    refl_vec3 *box = (refl_vec3 *)refl__calloc(&s->allocator, (size_t)s->object_count, 2 * sizeof(refl_vec3)), c;
+    float r, sum = 0.0f;
+    int x, y, z, o;
+    if (!box) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < s->object_count; ++o) refl__auto_object_box(s, o, &box[2 * o], &box[2 * o + 1]);
+    c = refl_v3_scale(refl_v3_add(box[2 * object], box[2 * object + 1]), 0.5f);
+    r = 0.5f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object]));
+    for (x = -1; x <= 1; ++x)
+        for (y = -1; y <= 1; ++y)
+            for (z = -1; z <= 1; ++z) {
+                refl_vec3 d = refl_v3_normalize(refl_v3((float)x, (float)y, (float)z));
+                float best = INFINITY;
+                if (!x && !y && !z) continue;
+                for (o = 0; o < s->object_count; ++o)
+                    if (o != object) best = REFL__MIN(best, refl__auto_box_distance(c, d, box[2 * o], box[2 * o + 1]));
+                sum += best > r ? r / best : 1.0f; /* a miss: 0 */
+            }
+    refl__free(&s->allocator, box);
+    *out = sum / 26.0f;
+    return REFL_OK;
+}
+
+/* Whether PLANAR would show object i from eye: it has planar faces (PLANAR
+   draws it) and the eye is in front of one of its mirror faces or it has
+   glass ones (PLANAR shows a mirror seen from behind as nothing). */
+static refl_result refl__auto_planar_seen(const refl_scene *s, int i, refl_vec3 eye, int *out) {
+    refl__planar_face *faces = NULL;
+    uint8_t *only = (uint8_t *)refl__calloc(&s->allocator, (size_t)s->object_count, 1);
+    int count = 0, k;
+    refl_result r;
+    *out = 0;
+    if (!only) return REFL_ERROR_OUT_OF_MEMORY;
+    only[i] = 1;
+    r = refl__planar_find_faces(s, only, &faces, &count);
+    for (k = 0; r == REFL_OK && k < count; ++k)
+        *out |= faces[k].glass || faces[k].n[0] * eye.x + faces[k].n[1] * eye.y + faces[k].n[2] * eye.z > faces[k].d;
+    if (r == REFL_OK) refl__planar_free_faces(s, faces, count);
+    refl__free(&s->allocator, only);
+    return r;
+}
+
+/* The features of object i with `pixels` pixels on screen, seen from eye. */
+static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
+                                       refl_auto_features *out) {
+    const refl_material *mat = &s->materials[s->objects[i].material];
+    int planar = 0;
+    refl_result r;
+    memset(out, 0, sizeof *out);
+    out->pixels = pixels;
+    out->scene_triangles = (float)refl_scene_triangles(s);
+    if (refl__auto_nearness(s, i, &out->nearness) != REFL_OK) return REFL_ERROR_OUT_OF_MEMORY;
+    if (mat->type == REFL_GLASS) {
+        out->reflector_class = REFL_AUTO_GLASS;
+        return REFL_OK;
+    }
+    if ((r = refl__auto_planar_seen(s, i, eye, &planar)) != REFL_OK) return r;
+    out->reflector_class = planar                      ? REFL_AUTO_PLANAR
+                           : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
+                                                       : refl__auto_curvature_class(s, i);
+    return REFL_OK;
+}
+
+/* Pixels of object i in a stencil (ids past 254 share 255). */
+static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object) {
+    uint8_t id = (uint8_t)(object < 254 ? object + 1 : 255);
+    long long count = 0;
+    size_t k;
+    for (k = 0; k < n; ++k) count += stencil[k] == id;
+    return count;
+}
+
+REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
+                                                  const refl_frame *frame, int object, refl_auto_features *out) {
+    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    return refl__auto_features(scene, object, view->eye,
+                               refl__auto_pixels(frame->stencil, (size_t)frame->width * (size_t)frame->height, object),
+                               out);
+}
+
+/* ---- models ------------------------------------------------------------------ */
+
+REFL_API void refl_auto_predict(const refl_auto_model *m, const refl_auto_features *f, float *error_px,
+                                float *cost_ms) {
+    double px = (double)f->pixels, s = sqrt(px);
+    double cost = m->cost[0] + m->cost[1] * px / 1000.0 + m->cost[2] * f->scene_triangles / 1000.0;
+    double err = m->error[0] + m->error[1] * s + m->error[2] * s * f->nearness;
+    if (cost_ms) *cost_ms = (float)REFL__MAX(cost, 0.001);
+    if (error_px) *error_px = (float)REFL__MAX(err, 0.0);
+}
+
+/* The fit built in: `reflect bench --fit-auto FILE` at the settings in its
+   comment, pasted here (docs/methods/auto.md). */
+static const char refl__auto_builtin_text[] =
+    /* BEGIN reflect-auto-models */
+    "# AUTO's models: reflect bench --fit-auto at 160x120, 1 thread, the least CPU time of 3 runs;\n"
+    "# 212 measurements. Format: docs/methods/auto.md\n"
+    "reflect-auto-models 1\n"
+    "model raytrace planar samples 8 cost 1.69923878 0.657090485 0 error 0.0255867951 5.4017808e-05 0\n"
+    "model raytrace convex samples 16 cost 0 0.520092964 0.434100598 error 0.0558749549 0 9.69357861e-05\n"
+    "model raytrace concave samples 4 cost 2.92499113 0.663136125 0 error 0 -0 0\n"
+    "model raytrace glass samples 8 cost 0.452366054 3.96235514 0 error 0 0 -0\n"
+    "model envmap planar samples 8 cost 25.1100559 0.803261817 0 error 42.0566635 0.135937497 0\n"
+    "model envmap convex samples 16 cost 0 0 6.04222918 error 10.4428024 0.254280061 0.153021693\n"
+    "model envmap concave samples 4 cost 60.1990356 0 0 error 10.9808044 0.681709051 0\n"
+    "model envmap glass samples 8 cost 34.1655846 0.605068326 0 error 2.34098625 0 0.388204217\n"
+    "model planar planar samples 8 cost 0.287785351 0.127045631 0 error 0.0127738575 3.89133784e-05 0\n"
+    "model planar glass samples 4 cost 37.2470779 5.86550617 0 error 1.40949059 0.086932607 0\n"
+    "model sbc planar samples 8 cost 59.1790199 9.36832619 0 error 0.16132459 0.00111101801 0\n"
+    "model sbc convex samples 16 cost 0 43.9701309 9.16328716 error 6.26951313 0.0554523543 0\n"
+    "model sbc concave samples 4 cost 1216.44043 13.6005545 0 error 4.64633226 0 0\n"
+    "model sbc glass samples 8 cost 0 122.024498 0 error 5.29267502 0.314187318 0\n"
+    "model c3rc planar samples 8 cost 14.7185965 4.7759099 0 error 1.04147041 0.0189721938 0\n"
+    "model c3rc convex samples 16 cost 0 28.5223598 46.205513 error 2.36943698 0.000472092011 0.0360843614\n"
+    "model c3rc concave samples 4 cost 780.244324 48.2322121 0 error 3.72968388 0.0134966373 0\n"
+    "model spoc planar samples 8 cost 68.9291611 2.4692893 0 error 0.0214943737 0.000117957883 0\n"
+    "model spoc convex samples 16 cost 0 0 79.7404556 error 0.432193398 0.000809125835 0.00472097797\n"
+    "model spoc concave samples 4 cost 32.1080551 6.33877039 0 error 0.581579924 0.0131509025 0\n"
+    "model graphcam planar samples 8 cost 2.98861861 4.36571932 0 error 3.21290588 0.877150536 0\n"
+    "model graphcam convex samples 16 cost 0 2.16058493 1.29759347 error 23.9275856 0.629537046 0\n"
+    "model graphcam concave samples 4 cost 0 5.99687433 0 error 2.81971741 0.955968916 0\n"
+    "model graphcam glass samples 8 cost 2.23721528 3.31186533 0 error 0.189174652 0.970949054 0.0351584181\n"
+    /* END reflect-auto-models */
+    ;
+
+REFL_API void refl_auto_models_builtin(refl_auto_models *out) {
+    refl_result r;
+    if (!out) return;
+    r = refl_auto_models_parse(refl__auto_builtin_text, sizeof refl__auto_builtin_text - 1, out, NULL, 0);
+    REFL_ASSERT(r == REFL_OK);
+    (void)r;
+}
+
+static void refl__auto_say(char *message, size_t size, const char *fmt, ...) {
+    va_list ap;
+    if (!message || !size) return;
+    va_start(ap, fmt);
+    vsnprintf(message, size, fmt, ap);
+    va_end(ap);
+}
+
+/* The methods a model may name: those that draw reflectors themselves. */
+static int refl__auto_modelled(refl_method m) { return m != REFL_METHOD_DEFAULT && m != REFL_DIRECT && m != REFL_AUTO; }
+
+/* One token of at most 31 characters from *s (spaces and tabs between). */
+static int refl__auto_token(const char **s, const char *end, char out[32]) {
+    int n = 0;
+    while (*s < end && (**s == ' ' || **s == '\t' || **s == '\r')) ++*s;
+    while (*s < end && **s != ' ' && **s != '\t' && **s != '\r' && **s != '\n') {
+        if (n < 31) out[n] = **s;
+        ++n;
+        ++*s;
+    }
+    out[n < 31 ? n : 31] = 0;
+    return n;
+}
+
+static int refl__auto_number(const char *tok, float *out) {
+    char *end;
+    double v = strtod(tok, &end);
+    if (!*tok || *end || !(v - v == 0.0) || fabs(v) > FLT_MAX) return 0;
+    *out = (float)v;
+    return 1;
+}
+
+/* One model line's tokens after "model" into out; the rule it broke, or NULL. */
+static const char *refl__auto_model_line(const char *s, const char *end, refl_auto_models *out, char *bad) {
+    static const char *const keys[3] = {"samples", "cost", "error"};
+    char tok[32];
+    refl_method m;
+    refl_auto_model model;
+    int c, k, j;
+    float v[7];
+    memset(&model, 0, sizeof model);
+    if (!refl__auto_token(&s, end, tok)) return "a method name after 'model'";
+    m = refl_method_from_name(tok);
+    memcpy(bad, tok, 32);
+    if (m == REFL_METHOD_DEFAULT) return "not a method";
+    if (!refl__auto_modelled(m)) return "a method that does not draw reflectors itself";
+    if (!refl__auto_token(&s, end, tok)) return "a reflector class after the method";
+    memcpy(bad, tok, 32);
+    for (c = 0; c < REFL_AUTO_CLASS_COUNT && strcmp(tok, refl__auto_class_names[c]); ++c) {}
+    if (c == REFL_AUTO_CLASS_COUNT) return "not a class (planar, convex, concave, glass, partial)";
+    if (out->model[m][c].fitted) return "a second model for this method and class";
+    for (k = 0, j = 0; k < 3; ++k) {
+        int count = k == 0 ? 1 : 3, i;
+        if (!refl__auto_token(&s, end, tok) || strcmp(tok, keys[k])) {
+            memcpy(bad, tok, 32);
+            return k == 0 ? "'samples' after the class" : k == 1 ? "'cost' after the samples" : "'error' after the costs";
+        }
+        for (i = 0; i < count; ++i, ++j) {
+            if (!refl__auto_token(&s, end, tok) || !refl__auto_number(tok, &v[j])) {
+                memcpy(bad, tok, 32);
+                return "a finite number";
+            }
+        }
+    }
+    if (refl__auto_token(&s, end, tok)) {
+        memcpy(bad, tok, 32);
+        return "the end of the line after the three error terms";
+    }
+    if (!(v[0] >= 0.0f) || v[0] != floorf(v[0]) || v[0] > 1e9f) {
+        snprintf(bad, 32, "%g", v[0]);
+        return "a whole count of samples, 0 or more";
+    }
+    model.fitted = 1;
+    model.samples = (int)v[0];
+    for (j = 0; j < 3; ++j) {
+        model.cost[j] = v[1 + j];
+        model.error[j] = v[4 + j];
+    }
+    out->model[m][c] = model;
+    return NULL;
+}
+
+REFL_API refl_result refl_auto_models_parse(const char *text, size_t length, refl_auto_models *out, char *message,
+                                            size_t message_size) {
+    const char *s = text, *end = text + length;
+    int line = 0, header = 0;
+    refl__auto_say(message, message_size, "%s", "");
+    if (!out || (!text && length)) return REFL_ERROR_INVALID_ARGUMENT;
+    memset(out, 0, sizeof *out);
+    while (s < end) {
+        const char *eol = (const char *)memchr(s, '\n', (size_t)(end - s)), *q = s;
+        char tok[32], bad[32] = "";
+        const char *why = NULL;
+        if (!eol) eol = end;
+        ++line;
+        if (memchr(s, 0, (size_t)(eol - s))) why = "text without NUL bytes";
+        else if (!refl__auto_token(&q, eol, tok) || tok[0] == '#') {
+            /* blank or comment */
+        } else if (!header) {
+            if (strcmp(tok, "reflect-auto-models") || !refl__auto_token(&q, eol, tok) || strcmp(tok, "1") ||
+                refl__auto_token(&q, eol, tok))
+                why = "the header 'reflect-auto-models 1' first";
+            header = 1;
+        } else if (strcmp(tok, "model")) {
+            memcpy(bad, tok, 32);
+            why = "'model' (or a '#' comment)";
+        } else {
+            why = refl__auto_model_line(q, eol, out, bad);
+        }
+        if (why) {
+            if (bad[0]) refl__auto_say(message, message_size, "auto models, line %d: '%s': expected %s", line, bad, why);
+            else refl__auto_say(message, message_size, "auto models, line %d: expected %s", line, why);
+            memset(out, 0, sizeof *out);
+            return REFL_ERROR_INVALID_ARGUMENT;
+        }
+        s = eol + 1;
+    }
+    if (!header) {
+        refl__auto_say(message, message_size, "%s", "auto models: empty (no 'reflect-auto-models 1' header)");
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_auto_models_load(const char *path, refl_auto_models *out, char *message,
+                                           size_t message_size) {
+    FILE *f;
+    char *text;
+    long size;
+    size_t got;
+    refl_result r;
+    refl__auto_say(message, message_size, "%s", "");
+    if (!path || !out) return REFL_ERROR_INVALID_ARGUMENT;
+    f = fopen(path, "rb");
+    if (!f || fseek(f, 0, SEEK_END) != 0 || (size = ftell(f)) < 0 || size > (1L << 20) || fseek(f, 0, SEEK_SET) != 0) {
+        refl__auto_say(message, message_size, "auto models: %s: %s", path,
+                       !f ? "cannot be opened" : "not a readable file of at most 1 MiB");
+        if (f) fclose(f);
+        return REFL_ERROR_INVALID_ARGUMENT;
+    }
+    text = (char *)refl__alloc(NULL, (size_t)size + 1);
+    if (!text) {
+        fclose(f);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
+    got = fread(text, 1, (size_t)size, f);
+    fclose(f);
+    r = refl_auto_models_parse(text, got, out, message, message_size);
+    refl__free(NULL, text);
+    return r;
+}
+
+REFL_API size_t refl_auto_models_format(const refl_auto_models *models, char *out, size_t cap) {
+    size_t n = 0;
+    int m, c;
+    char line[320];
+    const char *head = "reflect-auto-models 1\n";
+    if (!models) return 0;
+    for (m = -1; m < REFL_METHOD_COUNT; ++m)
+        for (c = 0; c < (m < 0 ? 1 : REFL_AUTO_CLASS_COUNT); ++c) {
+            const refl_auto_model *a = m < 0 ? NULL : &models->model[m][c];
+            int len;
+            if (a && !a->fitted) continue;
+            len = a ? snprintf(line, sizeof line, "model %s %s samples %d cost %.9g %.9g %.9g error %.9g %.9g %.9g\n",
+                               refl_method_name((refl_method)m), refl__auto_class_names[c], a->samples,
+                               (double)a->cost[0], (double)a->cost[1], (double)a->cost[2], (double)a->error[0],
+                               (double)a->error[1], (double)a->error[2])
+                    : snprintf(line, sizeof line, "%s", head);
+            if (out && n + (size_t)len < cap) memcpy(out + n, line, (size_t)len + 1);
+            n += (size_t)len;
+        }
+    return n;
+}
