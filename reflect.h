@@ -9237,6 +9237,66 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     }
     return found;
 }
+
+/* ---- billboard impostors: flat objects, intersected exactly ------------------------
+   Paper 004 models the floor under its SPOC-impostored objects as a
+   billboard impostor, "which captures it perfectly": a flat object's
+   impostor is the object itself. Both impostor methods intersect such
+   objects exactly through a BVH of their own and shade the hit here. */
+
+/* World bounding box of object i's vertices. */
+static void refl__object_world_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i is flat (its box's smallest side under 1% of its
+   largest, or no extent): a billboard. */
+static int refl__object_flat(const refl_scene *scene, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    refl__object_world_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
+}
+
+/* The colour (clamped to [0, 1], as RAYTRACE clamps) and point of an exact
+   hit h on object ro: the shared diffuse shading without shadows; a mirror
+   or glass shows black (one bounce, as DIRECT draws them). */
+static void refl__exact_hit_shade(const refl_scene *scene, const refl__rt_object *ro, const refl_hit *h, float rgb[3],
+                                  refl_vec3 *point) {
+    const refl_material *m = ro->material;
+    const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h->triangle;
+    refl__hit_geom g;
+    float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+    int k;
+    refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, h, &g);
+    if (ro->mesh->texcoords)
+        for (k = 0; k < 3; ++k) {
+            uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+            uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+        }
+    if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+        rgba[0] = rgba[1] = rgba[2] = 0.0f;
+    } else {
+        refl_shade_diffuse(scene, m, g.p, g.ns, uv, col);
+        refl__surface_rgba(m, col, rgba);
+    }
+    for (k = 0; k < 3; ++k) rgb[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f);
+    *point = g.p;
+}
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
    method's scene subdivision for the diffuse point samples.
@@ -12489,8 +12549,10 @@ static refl_result refl__method_envmap(refl__pass *p) {
    (triangles wholly inside go through the base pass's programs
    unchanged). Each mirror pixel's reflected ray is then intersected with
    the impostor by one of the paper's two algorithms, and composited as
-   ENVMAP composites (gbuffer.c); a ray that meets nothing shows the
-   environment. One bounce (stats.depth 1).
+   ENVMAP composites (gbuffer.c). What lies outside every frustum is not
+   in the impostor: there the flat diffuse objects (the floor reaching out
+   of the maze) are billboards, intersected exactly (impostor.c), and a
+   ray that meets nothing shows the environment. One bounce (stats.depth 1).
 
    The impostor's construction and its ray march are the graph camera's
    own here; the generic impostor of the SPOC method could share the
@@ -12988,8 +13050,44 @@ typedef struct refl__gcm {
     refl__em em;
     const refl_graphcam *cam;
     const refl_graphcam_impostor *imp;
+    refl_bvh *flat;               /* the flat diffuse objects (NULL: none) */
+    int *flat_object;             /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     long long *steps, *max_steps, *rays, *hits; /* per row */
 } refl__gcm;
+
+/* The flat diffuse objects as billboards: their BVH, for the parts of them
+   outside the graph camera. */
+static refl_result refl__gcm_billboards(refl__gcm *g) {
+    const refl_scene *scene = g->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    refl_object *objs = (refl_object *)refl__calloc(al, objects, sizeof(refl_object));
+    refl_scene sub;
+    refl_result r = REFL_OK;
+    int i, n = 0;
+    g->flat_object = (int *)refl__calloc(al, objects, sizeof(int));
+    g->objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+    if (!objs || !g->flat_object || !g->objects) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        g->objects[i].mesh = scene->meshes[o->mesh];
+        g->objects[i].material = &scene->materials[o->material];
+        g->objects[i].model = o->transform;
+        g->objects[i].normal_m = refl__normal_matrix(o->transform);
+        if (refl__is_reflector(&scene->materials[o->material]) || !refl__object_flat(scene, i)) continue;
+        g->flat_object[n] = i;
+        objs[n++] = *o;
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &g->flat);
+    }
+    refl__free(al, objs);
+    return r;
+}
 
 /* One frame row: each reflector pixel's reflected ray against the impostor. */
 static void refl__gcm_row(void *arg, int y) {
@@ -13007,7 +13105,9 @@ static void refl__gcm_row(void *arg, int y) {
         const float *q = g->em.surface + 3 * i;
         refl_vec3 o, d, n, s;
         refl_graphcam_hit hit;
+        refl_hit h;
         float tmax;
+        int found;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
@@ -13015,8 +13115,21 @@ static void refl__gcm_row(void *arg, int y) {
         if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
         s = refl_v3(q[0], q[1], q[2]);
         g->rays[y]++;
-        if (refl_graphcam_intersect(g->cam, g->imp, s, refl_v3_reflect(d, n), eps, 1e30f,
-                                    (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit)) {
+        d = refl_v3_reflect(d, n);
+        found = refl_graphcam_intersect(g->cam, g->imp, s, d, eps, 1e30f,
+                                        (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit);
+        /* the first flat surface the ray meets, where no frustum holds it */
+        if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
+            refl_vec3 at;
+            float rgb[3];
+            refl__exact_hit_shade(p->scene, &g->objects[g->flat_object[h.object]], &h, rgb, &at);
+            if (refl_graphcam_locate(g->cam, at) < 0) {
+                memcpy(hit.rgb, rgb, sizeof rgb);
+                hit.point = at;
+                found = 1;
+            }
+        }
+        if (found) {
             g->hits[y]++;
             refl__em_composite(p, gb, x, y, hit.rgb, hit.point);
         } else {
@@ -13079,11 +13192,13 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
             r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
+            if (r == REFL_OK) r = refl__gcm_billboards(&g);
             t0 = refl__now_ms();
             fr->stats.ms_build += t0 - t1;
         }
         if (r == REFL_OK) {
             g.imp = imp;
+            if (g.flat) fr->stats.model_bytes += refl__bvh_bytes(g.flat);
             fr->stats.graphcam.frusta = g.cam->count;
             fr->stats.graphcam.triangles = imp->triangles;
             fr->stats.model_bytes += (long long)((size_t)imp->width * (size_t)imp->height * (4 * sizeof(float) + sizeof(float) + 1));
@@ -13104,6 +13219,9 @@ static refl_result refl__method_graphcam(refl__pass *p) {
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl_graphcam_impostor_destroy(imp);
+    refl_bvh_destroy(g.flat);
+    refl__free(al, g.flat_object);
+    refl__free(al, g.objects);
     refl__free(al, own);
     refl__free(al, g.steps);
     refl__free(al, g.em.surface);
@@ -14914,36 +15032,15 @@ typedef struct refl__spoc_frame {
     long long *row_steps, *row_max, *row_rays;
 } refl__spoc_frame;
 
-/* World bounding box of object i's vertices. */
-static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
-}
-
 /* Whether object i gets an impostor seen from `eye`: diffuse, not flat
    (its box's smallest side at least 1% of its largest), and the eye
    outside its bounding sphere. */
 static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
-    refl_vec3 lo, hi, size, c;
-    float small, large;
-    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
-    refl__spoc_box(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+    refl_vec3 lo, hi, c;
+    if (refl__is_reflector(&scene->materials[scene->objects[i].material]) || refl__object_flat(scene, i)) return 0;
+    refl__object_world_box(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
 
 /* Builds reflector `object`'s impostors and exact BVH. */
@@ -14958,7 +15055,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
     int i, n = 0;
     refl_result r = REFL_OK;
-    refl__spoc_box(scene, object, &lo, &hi);
+    refl__object_world_box(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
@@ -14969,7 +15066,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             refl_impostor_camera ic;
             refl_impostor_desc d;
             refl_spoc *cam = &sf->cams[sf->imp_count];
-            refl__spoc_box(scene, i, &olo, &ohi);
+            refl__object_world_box(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;
@@ -15028,27 +15125,7 @@ static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d
         if (n > *max_steps) *max_steps = n;
     }
     if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
-        int object = sf->exact_object[h.object];
-        const refl__rt_object *ro = &sf->objects[object];
-        const refl_material *m = ro->material;
-        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
-        refl__hit_geom g;
-        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
-        int k;
-        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
-        if (ro->mesh->texcoords)
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
-            }
-        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
-            rgba[0] = rgba[1] = rgba[2] = 0.0f;
-        } else {
-            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
-            refl__surface_rgba(m, col, rgba);
-        }
-        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
-        *shown = g.p;
+        refl__exact_hit_shade(p->scene, &sf->objects[sf->exact_object[h.object]], &h, rgb, shown);
         found = 1;
     }
     return found;

@@ -37,36 +37,15 @@ typedef struct refl__spoc_frame {
     long long *row_steps, *row_max, *row_rays;
 } refl__spoc_frame;
 
-/* World bounding box of object i's vertices. */
-static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
-}
-
 /* Whether object i gets an impostor seen from `eye`: diffuse, not flat
    (its box's smallest side at least 1% of its largest), and the eye
    outside its bounding sphere. */
 static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
-    refl_vec3 lo, hi, size, c;
-    float small, large;
-    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
-    refl__spoc_box(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+    refl_vec3 lo, hi, c;
+    if (refl__is_reflector(&scene->materials[scene->objects[i].material]) || refl__object_flat(scene, i)) return 0;
+    refl__object_world_box(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
 
 /* Builds reflector `object`'s impostors and exact BVH. */
@@ -81,7 +60,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
     int i, n = 0;
     refl_result r = REFL_OK;
-    refl__spoc_box(scene, object, &lo, &hi);
+    refl__object_world_box(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
@@ -92,7 +71,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             refl_impostor_camera ic;
             refl_impostor_desc d;
             refl_spoc *cam = &sf->cams[sf->imp_count];
-            refl__spoc_box(scene, i, &olo, &ohi);
+            refl__object_world_box(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;
@@ -151,27 +130,7 @@ static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d
         if (n > *max_steps) *max_steps = n;
     }
     if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
-        int object = sf->exact_object[h.object];
-        const refl__rt_object *ro = &sf->objects[object];
-        const refl_material *m = ro->material;
-        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
-        refl__hit_geom g;
-        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
-        int k;
-        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
-        if (ro->mesh->texcoords)
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
-            }
-        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
-            rgba[0] = rgba[1] = rgba[2] = 0.0f;
-        } else {
-            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
-            refl__surface_rgba(m, col, rgba);
-        }
-        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
-        *shown = g.p;
+        refl__exact_hit_shade(p->scene, &sf->objects[sf->exact_object[h.object]], &h, rgb, shown);
         found = 1;
     }
     return found;
