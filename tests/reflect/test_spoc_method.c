@@ -116,6 +116,19 @@ Test(spoc_method, impostor_holds_the_reflected_points) {
        nearer surface) */
     cr_expect(spoc >= 0.94, "SPOC holds %.4f of the reflected points", spoc);
     cr_expect(spoc > plain, "SPOC %.4f, plain depth image %.4f", spoc, plain);
+    {
+        /* no strength reaches the aim: the points missed are hidden from
+           the reflector's centre, and a push away from the pole shows
+           only what viewpoints moved away from it see */
+        static const float strengths[] = {0.25f, 0.5f, 2.0f};
+        int k;
+        for (k = 0; k < 3; ++k) {
+            long long nk;
+            double h = held_fraction(s, truth, strengths[k], &nk);
+            cr_log_info("teapots: SPOC strength %.2f holds %.4f\n", strengths[k], h);
+            cr_expect(h >= 0.93, "strength %g holds %.4f", strengths[k], h);
+        }
+    }
     refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
