@@ -1027,7 +1027,8 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SPOC             /* one SPOC: its pinhole frame, focal length, push and ramp */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1035,6 +1036,8 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
+             (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1044,6 +1047,9 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
+   (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -8429,6 +8435,30 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     return refl__gl_graphcam(&o, cam);
 }
 
+/* ---- the SPOC ------------------------------------------------------------------- */
+
+static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
+    refl__gl_out o = *op;
+    if (!cam || !(cam->focal > 0.0f) || !(cam->znear > 0.0f) || !(cam->zfar > cam->znear))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SPOC, REFL_GL_LAYOUT_VERSION, 0, 0);
+    refl__gl_put_v3(&o, cam->eye, cam->focal);
+    refl__gl_put_v3(&o, cam->right, cam->ramp);
+    refl__gl_put_v3(&o, cam->up, cam->delta_max);
+    refl__gl_put_v3(&o, cam->forward, 0.0);
+    refl__gl_put4(&o, 1.0 / cam->znear, 1.0 / cam->zfar, cam->pole[0], cam->pole[1]);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_spoc(&o, cam);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return refl__gl_spoc(&o, cam);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -8721,12 +8751,30 @@ static const char refl__gl_glsl_graphcam[] =
     "    return vec4(0.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_spoc[] =
+    "/* reflect.h GL hook: the SPOC (layout version 1; cam_spoc.c): the pinhole,\n"
+    "   then the push delta_max * gd away from the pole, faded in over ramp. */\n"
+    "vec4 refl_spoc_project(samplerBuffer data, int base, vec3 p) {\n"
+    "    vec4 eye = texelFetch(data, base + 1), right = texelFetch(data, base + 2);\n"
+    "    vec4 up = texelFetch(data, base + 3), fwd = texelFetch(data, base + 4);\n"
+    "    vec4 k = texelFetch(data, base + 5);\n"
+    "    vec3 q = p - eye.xyz;\n"
+    "    float z = dot(q, fwd.xyz);\n"
+    "    if (!(z > 0.0)) return vec4(0.0);\n"
+    "    vec2 rho = eye.w * vec2(dot(q, right.xyz), -dot(q, up.xyz)) / z;\n"
+    "    float r = length(rho), gd = (k.x - 1.0 / z) / (k.x - k.y);\n"
+    "    float push = gd > 0.0 ? up.w * gd : 0.0;\n"
+    "    float scale = r < right.w ? 1.0 + push / right.w : 1.0 + push / r;\n"
+    "    return vec4(k.zw + rho * scale, gd, 1.0);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
     case REFL_GL_C3RC: return refl__gl_glsl_c3rc;
     case REFL_GL_SBC: return refl__gl_glsl_sbc;
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
+    case REFL_GL_SPOC: return refl__gl_glsl_spoc;
     }
     return NULL;
 }

@@ -362,6 +362,11 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = refl_graphcam_project(u_data, u_base, a_p.xyz, f);\n"
     "    v_o1 = vec4(float(f), 0.0, 0.0, 0.0);\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n"
+    "    v_o0 = refl_spoc_project(u_data, u_base, a_p.xyz);\n"
+    "    v_o1 = vec4(0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -393,6 +398,8 @@ typedef struct rgl_fixture {
     int map_w, map_h;
     /* graph camera */
     refl_graphcam *graph;
+    /* spoc */
+    refl_spoc spoc;
 } rgl_fixture;
 
 static void rgl__fixture_free(rgl_fixture *f) {
@@ -409,6 +416,7 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
     long long need = f->kind == REFL_GL_MIRROR ? refl_gl_pack_mirror(f->vp, refl_v3((float)f->n[0], (float)f->n[1], (float)f->n[2]), (float)f->d, NULL, 0)
                      : f->kind == REFL_GL_C3RC ? refl_gl_pack_c3rc(f->cams, f->cam_count, NULL, 0)
                      : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
+                     : f->kind == REFL_GL_SPOC ? refl_gl_pack_spoc(&f->spoc, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
     f->packed = (float *)malloc((size_t)need * sizeof(float));
@@ -420,6 +428,8 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
         refl_gl_pack_c3rc(f->cams, f->cam_count, f->packed, need);
     else if (f->kind == REFL_GL_GRAPHCAM)
         refl_gl_pack_graphcam(f->graph, f->packed, need);
+    else if (f->kind == REFL_GL_SPOC)
+        refl_gl_pack_spoc(&f->spoc, f->packed, need);
     else
         refl_gl_pack_sbc(f->sbc, f->packed, need);
     return 0;
@@ -479,6 +489,12 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         if (!f->graph) return rgl__fail(err, n, "out of memory");
         if (refl_graphcam_maze(f->graph, 960, 588) != REFL_OK) return rgl__fail(err, n, "refl_graphcam_maze failed");
         snprintf(note, note_n, "the maze's graph camera, %d frusta at 960x588", f->graph->count);
+    } else if (which == 5) {
+        /* a unit sphere seen from the view's eye, pushed with strength 1 */
+        f->kind = REFL_GL_SPOC;
+        if (refl_spoc_init(&f->spoc, v.eye, refl_v3(0, 0, 0), 1.0f, 1.0f, 1.0f, 512) != REFL_OK)
+            return rgl__fail(err, n, "refl_spoc_init failed");
+        snprintf(note, note_n, "a unit sphere's SPOC at 512x512, strength 1, baseline 1");
     } else {
         refl_sbc_desc desc;
         refl_sbc_stats st;
@@ -546,6 +562,11 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
             if (in_volume)
                 p = refl_v3((float)rgl__range(&r, lo.x, hi.x), (float)rgl__range(&r, lo.y, hi.y),
                             (float)rgl__range(&r, lo.z, hi.z));
+        } else if (f->kind == REFL_GL_SPOC && in_volume) {
+            /* in the bounding sphere */
+            do p = refl_v3((float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0));
+            while (refl_v3_dot(p, p) > 1.0f);
+            p = refl_v3_add(p, f->spoc.center);
         } else if (f->kind == REFL_GL_SBC && in_volume && nvalid) {
             const refl_sbc_ray *ray = &f->rays[valid_list[(int)(rgl__rand(&r) * nvalid)]];
             double s = rgl__range(&r, 0.0, 1.0);
@@ -601,6 +622,19 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
                         fabs(c[2] - (gl[2] / gl[3] + 1.0) * 0.5));
         return 1;
     }
+    if (f->kind == REFL_GL_SPOC) {
+        /* the image point relative to the image (or to itself, far off it:
+           points near the eye plane), and gd relative to its range (or to
+           itself) */
+        float c[3];
+        int ok = refl_spoc_project(&f->spoc, pv, c);
+        double scale = RGL_MAXD(f->spoc.size, RGL_MAXD(fabs(c[0]), fabs(c[1])));
+        if (ok != (gl[3] > 0.5f)) return -1;
+        if (!ok) return 0;
+        *err = RGL_MAXD(RGL_MAXD(fabs(c[0] - gl[0]), fabs(c[1] - gl[1])) / scale,
+                        fabs(c[2] - gl[2]) / RGL_MAXD(1.0, fabs(c[2])));
+        return 1;
+    }
     if (f->kind == REFL_GL_C3RC) {
         refl_c3rc_projection pr[3];
         const refl_c3rc *cam = &f->cams[(int)p[3]];
@@ -643,6 +677,9 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_GRAPHCAM) {
             float c[3];
             sink += (float)refl_graphcam_project(f->graph, p, c, NULL);
+        } else if (f->kind == REFL_GL_SPOC) {
+            float c[3];
+            sink += (float)refl_spoc_project(&f->spoc, p, c);
         } else {
             refl_vec3 first;
             float z;
@@ -654,7 +691,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 }
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
-    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam"};
+    static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "spoc"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

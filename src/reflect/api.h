@@ -1025,7 +1025,8 @@ typedef enum refl_gl_camera {
     REFL_GL_MIRROR = 1,      /* PLANAR's mirrored pinhole */
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
-    REFL_GL_GRAPHCAM         /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SPOC             /* one SPOC: its pinhole frame, focal length, push and ramp */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1033,6 +1034,8 @@ typedef enum refl_gl_camera {
          bool refl_sbc_project(samplerBuffer, int base, vec3 p, out vec3 first, out float z, out int leaf_kind)
          vec4 refl_graphcam_project(samplerBuffer, int base, vec3 p, out int frustum)
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
+         vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
+             (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1042,6 +1045,9 @@ REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, fl
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap);
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap);
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap);
+/* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
+   (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
