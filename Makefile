@@ -396,7 +396,7 @@ fuzz-short:
 # `reflect bench` (tools/reflect_bench.c) runs Embree through bench/embree_peer.c.
 REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
-               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o
+               build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_bench_spoc.o
 REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h

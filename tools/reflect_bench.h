@@ -43,6 +43,13 @@ int refl_bench_path(const char *dir, int threads);
    path; a table on stdout and dir/graphcam_maze.csv; 0 on failure. */
 int refl_bench_graphcam(const char *dir, int threads);
 
+/* Paper 004's Tables 1 and 2 on the two-teapot scene (tools/reflect_bench_spoc.c):
+   SPOC's construction and frame time (average, min, max) along a 60-frame
+   path at four output and four impostor sizes, the longest ray march,
+   RAYTRACE (ours, Embree) on the same frames, and the error against
+   RAYTRACE; a table on stdout and dir/spoc_teapots.csv; 0 on failure. */
+int refl_bench_spoc(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);
