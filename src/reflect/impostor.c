@@ -357,11 +357,12 @@ static int refl__object_flat(const refl_scene *scene, int i) {
     return !(small >= 0.01f * large) || !(large > 0.0f);
 }
 
-/* The colour (clamped to [0, 1], as RAYTRACE clamps) and point of an exact
-   hit h on object ro: the shared diffuse shading without shadows; a mirror
-   or glass shows black (one bounce, as DIRECT draws them). */
+/* The colour (clamped to [0, 1], as RAYTRACE clamps), point and shading
+   normal (may be NULL) of an exact hit h on object ro: the shared diffuse
+   shading without shadows; a mirror or glass shows black (one bounce, as
+   DIRECT draws them). */
 static void refl__exact_hit_shade(const refl_scene *scene, const refl__rt_object *ro, const refl_hit *h, float rgb[3],
-                                  refl_vec3 *point) {
+                                  refl_vec3 *point, refl_vec3 *normal) {
     const refl_material *m = ro->material;
     const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h->triangle;
     refl__hit_geom g;
@@ -381,4 +382,5 @@ static void refl__exact_hit_shade(const refl_scene *scene, const refl__rt_object
     }
     for (k = 0; k < 3; ++k) rgb[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f);
     *point = g.p;
+    if (normal) *normal = g.ns;
 }

@@ -580,7 +580,7 @@ static void refl__gcm_row(void *arg, int y) {
         if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
             refl_vec3 at;
             float rgb[3];
-            refl__exact_hit_shade(p->scene, &g->objects[g->flat_object[h.object]], &h, rgb, &at);
+            refl__exact_hit_shade(p->scene, &g->objects[g->flat_object[h.object]], &h, rgb, &at, NULL);
             if (refl_graphcam_locate(g->cam, at) < 0) {
                 memcpy(hit.rgb, rgb, sizeof rgb);
                 hit.point = at;
