@@ -75,8 +75,7 @@ static void sp_row(FILE *csv, const char *table, const char *method, int w, int 
     printf("%-6s %-9s %4dx%-4d %8d %9.1f %9.1f %8.1f %8.1f %7.2f %8.2f %8.3f %7.4f %9lld\n", table, method, w, h, imp,
            a->build / n, a->total / n, a->mn, a->mx, rt_avg > 0 ? (a->total / n) / rt_avg : 0.0, a->psnr / n,
            a->emean / n, a->empty / n, a->max_steps);
-    if (csv)
-        fprintf(csv, "%s,%s,%d,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.3f,%.4f,%.4f,%.5f,%.5f,%.2f,%lld\n", table,
+    fprintf(csv, "%s,%s,%d,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.3f,%.4f,%.4f,%.5f,%.5f,%.2f,%lld\n", table,
                 method, w, h, imp, a->n, a->build / n, a->total / n, a->mn, a->mx, a->reflect / n,
                 rt_avg > 0 ? (a->total / n) / rt_avg : 0.0, a->psnr / n, a->emean / n, a->ep95 / n, a->wrong / n,
                 a->empty / n, a->rays ? (double)a->steps / (double)a->rays : 0.0, a->max_steps);
@@ -107,15 +106,15 @@ int refl_bench_spoc(const char *dir, int threads) {
         return 0;
     }
     snprintf(path, sizeof path, "%s/spoc_teapots.csv", dir);
-    csv = fopen(path, "w");
-    if (!csv) {
+    if (!(csv = fopen(path, "w"))) {
         fprintf(stderr, "reflect bench: cannot write %s\n", path);
-        ok = 0;
-    } else {
-        fprintf(csv, "table,method,width,height,impostor,frames,construct_ms_avg,frame_ms_avg,frame_ms_min,frame_ms_max,"
-                     "reflect_ms_avg,time_over_raytrace,psnr_db,error_px_mean,error_px_p95,wrong,empty,steps_per_ray,"
-                     "max_steps\n");
+        refl_embree_destroy(emb);
+        refl_scene_destroy(s);
+        return 0;
     }
+    fprintf(csv, "table,method,width,height,impostor,frames,construct_ms_avg,frame_ms_avg,frame_ms_min,frame_ms_max,"
+                 "reflect_ms_avg,time_over_raytrace,psnr_db,error_px_mean,error_px_p95,wrong,empty,steps_per_ray,"
+                 "max_steps\n");
     printf("teapots (paper 004 Tables 1 and 2), %d frames along a path, one bounce, %s threads\n", SP_FRAMES,
            threads ? "given" : "all");
     printf("%-6s %-9s %9s %8s %9s %9s %8s %8s %7s %8s %8s %7s %9s\n", "table", "method", "output", "impostor",
@@ -176,7 +175,7 @@ int refl_bench_spoc(const char *dir, int threads) {
         for (i = 0; i < SP_SIZES; ++i) printf("  %d: %.1f, %d", sp_imp[i], sp_paper_t2_fps[i], sp_paper_t2_len[i]);
         printf("\n");
     }
-    if (csv) fclose(csv);
+    fclose(csv);
     if (ok) fprintf(stderr, "wrote %s\n", path);
     refl_frame_destroy(truth);
     refl_frame_destroy(f);
