@@ -1028,6 +1028,7 @@ typedef enum refl_gl_camera {
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
     REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
     REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
@@ -1046,6 +1047,8 @@ typedef enum refl_gl_camera {
          bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
              out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
              int base, vec3 index): per fragment, the packed map at an interpolated index
+         vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
+             (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1060,6 +1063,9 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
    locates nowhere or the piece is out of range). */
 REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
                                           long long cap);
+/* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
+   (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -9312,6 +9318,38 @@ REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const flo
     return refl__gl_lem_shell(&o, shell, map);
 }
 
+/* ---- the SPOC ------------------------------------------------------------------- */
+
+static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
+    refl__gl_out o = *op;
+    if (!cam || !(cam->focal > 0.0f) || !(cam->znear > 0.0f) || !(cam->zfar > cam->znear))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SPOC, REFL_GL_LAYOUT_VERSION, 0, 0);
+    refl__gl_put_v3(&o, cam->eye, cam->focal);
+    refl__gl_put_v3(&o, cam->right, cam->ramp);
+    refl__gl_put_v3(&o, cam->up, cam->delta_max);
+    refl__gl_put_v3(&o, cam->forward, 0.0);
+    refl__gl_put4(&o, 1.0 / cam->znear, 1.0 / cam->zfar, cam->pole[0], cam->pole[1]);
+    return refl__gl_done(&o);
+}
+
+/* A packer's two runs: sizing, then writing when cap holds it all. */
+static long long refl__gl_pack(long long (*pack)(refl__gl_out *, const void *), const void *cam, float *out,
+                               long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = pack(&o, cam);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return pack(&o, cam);
+}
+
+static long long refl__gl_spoc_any(refl__gl_out *o, const void *cam) { return refl__gl_spoc(o, (const refl_spoc *)cam); }
+
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
+    return refl__gl_pack(refl__gl_spoc_any, cam, out, cap);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -9733,6 +9771,23 @@ static const char refl__gl_glsl_lem_shell[] =
     "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
     "}\n";
 
+static const char refl__gl_glsl_spoc[] =
+    "/* reflect.h GL hook: the SPOC (layout version 1; cam_spoc.c): the pinhole,\n"
+    "   then the push delta_max * gd away from the pole, faded in over ramp. */\n"
+    "vec4 refl_spoc_project(samplerBuffer data, int base, vec3 p) {\n"
+    "    vec4 eye = texelFetch(data, base + 1), right = texelFetch(data, base + 2);\n"
+    "    vec4 up = texelFetch(data, base + 3), fwd = texelFetch(data, base + 4);\n"
+    "    vec4 k = texelFetch(data, base + 5);\n"
+    "    vec3 q = p - eye.xyz;\n"
+    "    float z = dot(q, fwd.xyz);\n"
+    "    if (!(z > 0.0)) return vec4(0.0);\n"
+    "    vec2 rho = eye.w * vec2(dot(q, right.xyz), -dot(q, up.xyz)) / z;\n"
+    "    float r = length(rho), gd = (k.x - 1.0 / z) / (k.x - k.y);\n"
+    "    float push = gd > 0.0 ? up.w * gd : 0.0;\n"
+    "    float scale = r < right.w ? 1.0 + push / right.w : 1.0 + push / r;\n"
+    "    return vec4(k.zw + rho * scale, gd, 1.0);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -9741,6 +9796,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
     case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
+    case REFL_GL_SPOC: return refl__gl_glsl_spoc;
     }
     return NULL;
 }
@@ -10250,6 +10306,68 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
         if (steps && k > 0) ++*steps;
     }
     return found;
+}
+
+/* ---- billboard impostors: flat objects, intersected exactly ------------------------
+   Paper 004 models the floor under its SPOC-impostored objects as a
+   billboard impostor, "which captures it perfectly": a flat object's
+   impostor is the object itself. Both impostor methods intersect such
+   objects exactly through a BVH of their own and shade the hit here. */
+
+/* World bounding box of object i's vertices. */
+static void refl__object_world_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i is flat (its box's smallest side under 1% of its
+   largest, or no extent): a billboard. */
+static int refl__object_flat(const refl_scene *scene, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    refl__object_world_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
+}
+
+/* The colour (clamped to [0, 1], as RAYTRACE clamps), point and shading
+   normal (may be NULL) of an exact hit h on object ro: the shared diffuse
+   shading without shadows; a mirror or glass shows black (one bounce, as
+   DIRECT draws them). */
+static void refl__exact_hit_shade(const refl_scene *scene, const refl__rt_object *ro, const refl_hit *h, float rgb[3],
+                                  refl_vec3 *point, refl_vec3 *normal) {
+    const refl_material *m = ro->material;
+    const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h->triangle;
+    refl__hit_geom g;
+    float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+    int k;
+    refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, h, &g);
+    if (ro->mesh->texcoords)
+        for (k = 0; k < 3; ++k) {
+            uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+            uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+        }
+    if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+        rgba[0] = rgba[1] = rgba[2] = 0.0f;
+    } else {
+        refl_shade_diffuse(scene, m, g.p, g.ns, uv, col);
+        refl__surface_rgba(m, col, rgba);
+    }
+    for (k = 0; k < 3; ++k) rgb[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f);
+    *point = g.p;
+    if (normal) *normal = g.ns;
 }
 /* ---- src/reflect/kdtree.c ---- */
 /* kd-tree over points: paper 000, section 4 (see api.h). The hybrid
@@ -13629,8 +13747,10 @@ static refl_result refl__method_envmap(refl__pass *p) {
    (triangles wholly inside go through the base pass's programs
    unchanged). Each mirror pixel's reflected ray is then intersected with
    the impostor by one of the paper's two algorithms, and composited as
-   ENVMAP composites (gbuffer.c); a ray that meets nothing shows the
-   environment. One bounce (stats.depth 1).
+   ENVMAP composites (gbuffer.c). What lies outside every frustum is not
+   in the impostor: there the flat diffuse objects (the floor reaching out
+   of the maze) are billboards, intersected exactly (impostor.c), and a
+   ray that meets nothing shows the environment. One bounce (stats.depth 1).
 
    The impostor's construction and its ray march are the graph camera's
    own here; the generic impostor of the SPOC method could share the
@@ -14128,8 +14248,44 @@ typedef struct refl__gcm {
     refl__em em;
     const refl_graphcam *cam;
     const refl_graphcam_impostor *imp;
+    refl_bvh *flat;               /* the flat diffuse objects (NULL: none) */
+    int *flat_object;             /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     long long *steps, *max_steps, *rays, *hits; /* per row */
 } refl__gcm;
+
+/* The flat diffuse objects as billboards: their BVH, for the parts of them
+   outside the graph camera. */
+static refl_result refl__gcm_billboards(refl__gcm *g) {
+    const refl_scene *scene = g->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    refl_object *objs = (refl_object *)refl__calloc(al, objects, sizeof(refl_object));
+    refl_scene sub;
+    refl_result r = REFL_OK;
+    int i, n = 0;
+    g->flat_object = (int *)refl__calloc(al, objects, sizeof(int));
+    g->objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+    if (!objs || !g->flat_object || !g->objects) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        g->objects[i].mesh = scene->meshes[o->mesh];
+        g->objects[i].material = &scene->materials[o->material];
+        g->objects[i].model = o->transform;
+        g->objects[i].normal_m = refl__normal_matrix(o->transform);
+        if (refl__is_reflector(&scene->materials[o->material]) || !refl__object_flat(scene, i)) continue;
+        g->flat_object[n] = i;
+        objs[n++] = *o;
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &g->flat);
+    }
+    refl__free(al, objs);
+    return r;
+}
 
 /* One frame row: each reflector pixel's reflected ray against the impostor. */
 static void refl__gcm_row(void *arg, int y) {
@@ -14147,7 +14303,9 @@ static void refl__gcm_row(void *arg, int y) {
         const float *q = g->em.surface + 3 * i;
         refl_vec3 o, d, n, s;
         refl_graphcam_hit hit;
+        refl_hit h;
         float tmax;
+        int found;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
@@ -14155,8 +14313,21 @@ static void refl__gcm_row(void *arg, int y) {
         if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
         s = refl_v3(q[0], q[1], q[2]);
         g->rays[y]++;
-        if (refl_graphcam_intersect(g->cam, g->imp, s, refl_v3_reflect(d, n), eps, 1e30f,
-                                    (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit)) {
+        d = refl_v3_reflect(d, n);
+        found = refl_graphcam_intersect(g->cam, g->imp, s, d, eps, 1e30f,
+                                        (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit);
+        /* the first flat surface the ray meets, where no frustum holds it */
+        if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
+            refl_vec3 at;
+            float rgb[3];
+            refl__exact_hit_shade(p->scene, &g->objects[g->flat_object[h.object]], &h, rgb, &at, NULL);
+            if (refl_graphcam_locate(g->cam, at) < 0) {
+                memcpy(hit.rgb, rgb, sizeof rgb);
+                hit.point = at;
+                found = 1;
+            }
+        }
+        if (found) {
             g->hits[y]++;
             refl__em_composite(p, gb, x, y, hit.rgb, hit.point);
         } else {
@@ -14219,11 +14390,13 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
             r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
+            if (r == REFL_OK) r = refl__gcm_billboards(&g);
             t0 = refl__now_ms();
             fr->stats.ms_build += t0 - t1;
         }
         if (r == REFL_OK) {
             g.imp = imp;
+            if (g.flat) fr->stats.model_bytes += refl__bvh_bytes(g.flat);
             fr->stats.graphcam.frusta = g.cam->count;
             fr->stats.graphcam.triangles = imp->triangles;
             fr->stats.model_bytes += (long long)((size_t)imp->width * (size_t)imp->height * (4 * sizeof(float) + sizeof(float) + 1));
@@ -14244,6 +14417,9 @@ static refl_result refl__method_graphcam(refl__pass *p) {
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl_graphcam_impostor_destroy(imp);
+    refl_bvh_destroy(g.flat);
+    refl__free(al, g.flat_object);
+    refl__free(al, g.objects);
     refl__free(al, own);
     refl__free(al, g.steps);
     refl__free(al, g.em.surface);
@@ -16333,7 +16509,14 @@ static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
      from there), and the reflectors themselves, which show as DIRECT
      draws them (one bounce: a mirror is black, a partial reflector its
      diffuse share);
-   and what meets nothing shows the environment. Colours are composited
+   and what meets nothing shows the environment. With two bounces (depth
+   2) every compact mirror other than the reflector is an impostor that
+   stores normals instead (the paper's second-order reflections): a ray
+   that meets one is reflected about the stored normal at its hit, one
+   that meets an exact mirror (the reflector itself, a planar mirror)
+   about its surface normal, and meets that mirror's own impostors and
+   exact part, weighted by the mirror's reflectance; a mirror met on the
+   last bounce is black. Colours are composited
    as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
    does; frame->points gets the point the ray met (an impostor's: its own
    estimate on the ray). Impostor colours are the shared diffuse shading
@@ -16341,55 +16524,55 @@ static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
    independent and step counts are summed per row, so any thread count
    gives the same bytes and stats. */
 
-/* One reflector's frame: its impostors and the exact part of the scene. */
-typedef struct refl__spoc_frame {
-    refl__em em;
+/* What rays leaving one reflector meet: its impostors and the exact part
+   of the scene. */
+typedef struct refl__spoc_set {
     refl_spoc *cams;              /* per impostor */
     refl_impostor **imps;
+    int *imp_object;              /* per impostor: the scene object */
     int imp_count;
     refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
     int *exact_object;            /* its object index -> scene object */
+    int built;
+} refl__spoc_set;
+
+typedef struct refl__spoc_frame {
+    refl__em em;
+    refl__spoc_set *sets;         /* per scene object; built for reflectors */
     refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     int object;                   /* the reflector being drawn */
+    int bounces;                  /* 1, or 2: mirrors met are reflected through once more */
     float offset;                 /* reflected rays start this far off their surface */
     long long *row_steps, *row_max, *row_rays;
 } refl__spoc_frame;
 
-/* World bounding box of object i's vertices. */
-static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+/* Whether object i is a mirror whose impostor stores normals: second-order
+   reflections, compact mirrors only (planar ones are exact and black). */
+static int refl__spoc_mirror_impostor(const refl__spoc_frame *sf, int i) {
+    const refl_scene *scene = sf->em.p->scene;
+    return sf->bounces > 1 && scene->materials[scene->objects[i].material].type == REFL_MIRROR &&
+           !refl__object_flat(scene, i);
 }
 
-/* Whether object i gets an impostor seen from `eye`: diffuse, not flat
-   (its box's smallest side at least 1% of its largest), and the eye
-   outside its bounding sphere. */
-static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
-    refl_vec3 lo, hi, size, c;
-    float small, large;
-    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
-    refl__spoc_box(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+/* Whether object i gets an impostor seen from `eye`: diffuse (or a mirror
+   with two bounces), not flat (its box's smallest side at least 1% of its
+   largest), and the eye outside its bounding sphere. */
+static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 eye) {
+    const refl_scene *scene = sf->em.p->scene;
+    refl_vec3 lo, hi, c;
+    if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
+        refl__object_flat(scene, i))
+        return 0;
+    refl__object_world_box(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
 
-/* Builds reflector `object`'s impostors and exact BVH. */
+/* Builds reflector `object`'s impostors and exact BVH (once). */
 static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     refl__pass *p = sf->em.p;
+    refl__spoc_set *set = &sf->sets[object];
+    size_t objects = (size_t)REFL__MAX(p->scene->object_count, 1);
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_spoc_options *opt = &p->desc.spoc;
@@ -16399,33 +16582,42 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
     int i, n = 0;
     refl_result r = REFL_OK;
-    refl__spoc_box(scene, object, &lo, &hi);
+    if (set->built) return REFL_OK;
+    set->built = 1;
+    set->cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
+    set->imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
+    set->imp_object = (int *)refl__calloc(al, objects, sizeof(int));
+    set->exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+    if (!set->cams || !set->imps || !set->imp_object || !set->exact_object) return REFL_ERROR_OUT_OF_MEMORY;
+    refl__object_world_box(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
     if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
-        if (refl__spoc_impostored(scene, i, eye)) {
+        if (i != object && refl__spoc_impostored(sf, i, eye)) {
             refl_vec3 olo, ohi;
             refl_impostor_camera ic;
             refl_impostor_desc d;
-            refl_spoc *cam = &sf->cams[sf->imp_count];
-            refl__spoc_box(scene, i, &olo, &ohi);
+            refl_spoc *cam = &set->cams[set->imp_count];
+            refl__object_world_box(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;
             ic = refl_spoc_impostor_camera(cam);
             memset(&d, 0, sizeof d);
             d.max_edge_px = opt->max_edge_px;
+            d.normals = refl__spoc_mirror_impostor(sf, i);
             d.allocator = *al;
-            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &sf->imps[sf->imp_count]);
+            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &set->imps[set->imp_count]);
             if (r != REFL_OK) break;
-            p->frame->stats.triangles += sf->imps[sf->imp_count]->triangles;
-            p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * 5 * sizeof(float));
+            p->frame->stats.triangles += set->imps[set->imp_count]->triangles;
+            p->frame->stats.model_bytes +=
+                (long long)((size_t)opt->size * (size_t)opt->size * (d.normals ? 8 : 5) * sizeof(float));
             ++p->frame->stats.spoc.impostors;
-            ++sf->imp_count;
+            set->imp_object[set->imp_count++] = i;
         } else {
-            sf->exact_object[n] = i;
+            set->exact_object[n] = i;
             objs[n++] = scene->objects[i];
         }
     }
@@ -16433,64 +16625,83 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
         sub = *scene;
         sub.objects = objs;
         sub.object_count = n;
-        r = refl_bvh_build(&sub, al, &sf->exact);
-        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(sf->exact);
+        r = refl_bvh_build(&sub, al, &set->exact);
+        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(set->exact);
     }
     refl__free(al, objs);
     return r;
 }
 
-static void refl__spoc_release(refl__spoc_frame *sf) {
+static void refl__spoc_release(refl__spoc_frame *sf, int object) {
+    const refl_allocator *al = &sf->em.p->scene->allocator;
+    refl__spoc_set *set = &sf->sets[object];
     int i;
-    for (i = 0; i < sf->imp_count; ++i) refl_impostor_destroy(sf->imps[i]);
-    sf->imp_count = 0;
-    refl_bvh_destroy(sf->exact);
-    sf->exact = NULL;
+    for (i = 0; i < set->imp_count; ++i) refl_impostor_destroy(set->imps[i]);
+    refl_bvh_destroy(set->exact);
+    refl__free(al, set->cams);
+    refl__free(al, set->imps);
+    refl__free(al, set->imp_object);
+    refl__free(al, set->exact_object);
+    memset(set, 0, sizeof *set);
 }
 
-/* What the reflected ray o + t d meets first: its colour (clamped to
-   [0, 1]) and point; 0 for nothing. */
-static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, float rgb[3], refl_vec3 *shown,
-                            long long *steps, long long *max_steps) {
+/* What the ray o + t d leaving reflector `from` meets first: its colour
+   (clamped to [0, 1]) and point; 0 for nothing. A mirror met (an impostor:
+   its stored normal; an exact one, the reflector itself included: its
+   surface's) shows what the ray reflected there meets, leaving that mirror
+   (bounce `bounce` of sf->bounces), times its reflectance; on the last
+   bounce it is black. */
+static int refl__spoc_trace(const refl__spoc_frame *sf, int from, int bounce, refl_vec3 o, refl_vec3 d, float exact_tmin,
+                            float rgb[3], refl_vec3 *shown, long long *steps, long long *max_steps) {
     const refl__pass *p = sf->em.p;
+    const refl__spoc_set *set = &sf->sets[from];
     float best = FLT_MAX;
-    int i, c, found = 0;
+    int i, c, found = 0, mirror = -1;
+    float footprint = 0.0f;       /* the mirror impostor met: 2 texels, in world units */
+    refl_vec3 normal = refl_v3(0.0f, 0.0f, 0.0f);
     refl_hit h;
-    for (i = 0; i < sf->imp_count; ++i) {
+    for (i = 0; i < set->imp_count; ++i) {
         refl_impostor_hit ih;
         int n = 0;
-        if (refl_impostor_intersect(sf->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
+        if (refl_impostor_intersect(set->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
             best = ih.t;
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(ih.color[c], 0.0f, 1.0f);
             *shown = ih.point;
+            mirror = set->imps[i]->normal ? set->imp_object[i] : -1;
+            normal = ih.normal;
+            footprint = 4.0f * set->cams[i].radius / (float)set->cams[i].size;
             found = 1;
         }
         *steps += n;
         if (n > *max_steps) *max_steps = n;
     }
-    if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
-        int object = sf->exact_object[h.object];
-        const refl__rt_object *ro = &sf->objects[object];
-        const refl_material *m = ro->material;
-        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
-        refl__hit_geom g;
-        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
-        int k;
-        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
-        if (ro->mesh->texcoords)
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
-            }
-        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
-            rgba[0] = rgba[1] = rgba[2] = 0.0f;
-        } else {
-            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
-            refl__surface_rgba(m, col, rgba);
-        }
-        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
-        *shown = g.p;
+    if (set->exact && refl_bvh_intersect(set->exact, o, d, exact_tmin, best, &h)) {
+        int object = set->exact_object[h.object];
+        refl__exact_hit_shade(p->scene, &sf->objects[object], &h, rgb, shown, &normal);
+        mirror = sf->objects[object].material->type == REFL_MIRROR ? object : -1;
+        footprint = 0.0f;
         found = 1;
+    }
+    if (mirror >= 0) {
+        const refl_material *m = sf->objects[mirror].material;
+        float sub[3] = {0.0f, 0.0f, 0.0f}, w = 0.0f;
+        refl_vec3 n = refl_v3_normalize(normal), at = *shown, met;
+        if (bounce < sf->bounces && refl_v3_dot(n, n) > 0.0f) {
+            refl_vec3 r;
+            if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+            w = refl_material_reflectance(m, REFL__CLAMP(-refl_v3_dot(refl_v3_normalize(d), n), 0.0f, 1.0f));
+            r = refl_v3_reflect(d, n);
+            /* an impostor's hit is its estimate, off the mirror's own surface by
+               up to its footprint: the exact mirror is not met again that near */
+            if (refl__spoc_trace(sf, mirror, bounce + 1, refl_v3_add(at, refl_v3_scale(n, sf->offset)), r, footprint, sub,
+                                 &met, steps, max_steps)) {
+                w *= refl_material_fade(m, refl_v3_length(refl_v3_sub(met, at)));
+            } else {
+                refl_environment_lookup(&p->scene->environment, r, sub);
+                for (c = 0; c < 3; ++c) sub[c] = REFL__RADIANCE(sub[c]);
+            }
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(w * sub[c], 0.0f, 1.0f);
     }
     return found;
 }
@@ -16516,7 +16727,7 @@ static void refl__spoc_row(void *arg, int y) {
         s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
         s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
         ++rays;
-        if (refl__spoc_trace(sf, s, refl_v3_reflect(d, n), rgb, &shown, &steps, &max_steps))
+        if (refl__spoc_trace(sf, sf->object, 1, s, refl_v3_reflect(d, n), 0.0f, rgb, &shown, &steps, &max_steps))
             refl__em_composite(p, g, x, y, rgb, shown);
         else
             refl__em_composite(p, g, x, y, NULL, shown);
@@ -16560,14 +16771,12 @@ static refl_result refl__method_spoc(refl__pass *p) {
     if (r == REFL_OK && any) {
         size_t npx = (size_t)fr->width * (size_t)fr->height;
         sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-        sf.cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
-        sf.imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
-        sf.exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+        sf.sets = (refl__spoc_set *)refl__calloc(al, objects, sizeof(refl__spoc_set));
         sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
-        if (!sf.em.surface || !sf.cams || !sf.imps || !sf.exact_object || !sf.objects || !sf.row_steps ||
+        if (!sf.em.surface || !sf.sets || !sf.objects || !sf.row_steps ||
             !sf.row_max || !sf.row_rays)
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -16581,10 +16790,15 @@ static refl_result refl__method_spoc(refl__pass *p) {
         }
         refl_scene_bounds(scene, &lo, &hi);
         sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+        sf.bounces = REFL__MIN(p->desc.depth, 2);
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &sf.em);
     }
     t1 = refl__now_ms();
     fr->stats.ms_reflect += t1 - t0;
+    /* with two bounces, rays leave every mirror: their sets are kept for
+       the whole frame */
+    for (i = 0; r == REFL_OK && any && sf.bounces > 1 && i < scene->object_count; ++i)
+        if (scene->materials[scene->objects[i].material].type == REFL_MIRROR) r = refl__spoc_build(&sf, i);
     for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
         if (!seen[i] || !refl__pass_draws(p, i)) continue;
         r = refl__spoc_build(&sf, i);
@@ -16594,7 +16808,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
             sf.object = i;
             rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
         }
-        refl__spoc_release(&sf);
+        if (sf.bounces == 1) refl__spoc_release(&sf, i);
         t1 = refl__now_ms();
         fr->stats.ms_reflect += t1 - t0;
     }
@@ -16609,14 +16823,12 @@ static refl_result refl__method_spoc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    refl__spoc_release(&sf);
+    for (i = 0; sf.sets && i < scene->object_count; ++i) refl__spoc_release(&sf, i);
+    refl__free(al, sf.sets);
     refl__free(al, sf.em.gbuf);
     refl__free(al, sf.em.draws);
     refl__free(al, sf.em.surface);
     refl__free(al, seen);
-    refl__free(al, sf.cams);
-    refl__free(al, sf.imps);
-    refl__free(al, sf.exact_object);
     refl__free(al, sf.objects);
     refl__free(al, sf.row_steps);
     refl__free(al, sf.row_max);
@@ -18732,7 +18944,7 @@ static const refl__method_row refl__methods[] = {
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
-    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 1},
+    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 2},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
     /* draws nothing itself: each of its reflectors goes to the method it picks (refl__drawn_by) */

@@ -64,6 +64,12 @@ refl_scene *refl_bench_builtin(const char *name, int tess);
    AUTO's models fitted, and AUTO against every method; argv[1] is "bench";
    returns the process exit status. */
 int refl_bench_auto(int argc, char **argv);
+/* Paper 004's Tables 1 and 2 on the two-teapot scene (tools/reflect_bench_spoc.c):
+   SPOC's construction and frame time (average, min, max) along a 60-frame
+   path at four output and four impostor sizes, the longest ray march,
+   RAYTRACE (ours, Embree) on the same frames, and the error against
+   RAYTRACE; a table on stdout and dir/spoc_teapots.csv; 0 on failure. */
+int refl_bench_spoc(const char *dir, int threads);
 
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);

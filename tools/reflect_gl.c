@@ -368,6 +368,11 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = vec4(t);\n"
     "    v_o1 = w;\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n"
+    "    v_o0 = refl_spoc_project(u_data, u_base, a_p.xyz);\n"
+    "    v_o1 = vec4(0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -408,6 +413,8 @@ typedef struct rgl_fixture {
     double size;
     /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
     refl_lem_shell shell;
+    /* spoc */
+    refl_spoc spoc;
 } rgl_fixture;
 
 #define RGL_LEM_AIM refl_v3(0.5f, 0.25f, -0.75f)
@@ -430,6 +437,7 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
                      : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
                      : f->kind == REFL_GL_SBC_MORPH ? refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, NULL, 0)
                      : f->kind == REFL_GL_LEM_SHELL ? refl_gl_pack_lem_shell(&f->shell, NULL, NULL, 0)
+                     : f->kind == REFL_GL_SPOC ? refl_gl_pack_spoc(&f->spoc, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
     f->packed = (float *)malloc((size_t)need * sizeof(float));
@@ -445,6 +453,8 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
         refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, f->packed, need);
     else if (f->kind == REFL_GL_LEM_SHELL)
         refl_gl_pack_lem_shell(&f->shell, NULL, f->packed, need);
+    else if (f->kind == REFL_GL_SPOC)
+        refl_gl_pack_spoc(&f->spoc, f->packed, need);
     else
         refl_gl_pack_sbc(f->sbc, f->packed, need);
     return 0;
@@ -548,6 +558,12 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         if (!f->graph) return rgl__fail(err, n, "out of memory");
         if (refl_graphcam_maze(f->graph, 960, 588) != REFL_OK) return rgl__fail(err, n, "refl_graphcam_maze failed");
         snprintf(note, note_n, "the maze's graph camera, %d frusta at 960x588", f->graph->count);
+    } else if (which == 7) {
+        /* a unit sphere seen from the view's eye, pushed with strength 1 */
+        f->kind = REFL_GL_SPOC;
+        if (refl_spoc_init(&f->spoc, v.eye, refl_v3(0, 0, 0), 1.0f, 1.0f, 1.0f, 512) != REFL_OK)
+            return rgl__fail(err, n, "refl_spoc_init failed");
+        snprintf(note, note_n, "a unit sphere's SPOC at 512x512, strength 1, baseline 1");
     } else {
         refl_sbc_desc desc;
         refl_sbc_stats st;
@@ -628,6 +644,11 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
                             (float)rgl__range(&r, f->lo.z, f->hi.z));
                 if (refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL)) break;
             }
+        } else if (f->kind == REFL_GL_SPOC && in_volume) {
+            /* in the bounding sphere */
+            do p = refl_v3((float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0));
+            while (refl_v3_dot(p, p) > 1.0f);
+            p = refl_v3_add(p, f->spoc.center);
         } else if (f->kind == REFL_GL_SBC && in_volume && nvalid) {
             const refl_sbc_ray *ray = &f->rays[valid_list[(int)(rgl__rand(&r) * nvalid)]];
             double s = rgl__range(&r, 0.0, 1.0);
@@ -708,6 +729,19 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
         *err = RGL_MAXD(rgl__dist3(fd, gl), fabs(dd - gl[3])) / f->size;
         return 1;
     }
+    if (f->kind == REFL_GL_SPOC) {
+        /* the image point relative to the image (or to itself, far off it:
+           points near the eye plane), and gd relative to its range (or to
+           itself) */
+        float c[3];
+        int ok = refl_spoc_project(&f->spoc, pv, c);
+        double scale = RGL_MAXD(f->spoc.size, RGL_MAXD(fabs(c[0]), fabs(c[1])));
+        if (ok != (gl[3] > 0.5f)) return -1;
+        if (!ok) return 0;
+        *err = RGL_MAXD(RGL_MAXD(fabs(c[0] - gl[0]), fabs(c[1] - gl[1])) / scale,
+                        fabs(c[2] - gl[2]) / RGL_MAXD(1.0, fabs(c[2])));
+        return 1;
+    }
     if (f->kind == REFL_GL_C3RC) {
         refl_c3rc_projection pr[3];
         const refl_c3rc *cam = &f->cams[(int)p[3]];
@@ -758,6 +792,9 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
             uint32_t tex[4];
             float w[4];
             sink += (float)refl_lem_shell_lookup(&f->shell, p, refl_v3_sub(p, RGL_LEM_AIM), tex, w);
+        } else if (f->kind == REFL_GL_SPOC) {
+            float c[3];
+            sink += (float)refl_spoc_project(&f->spoc, p, c);
         } else {
             refl_vec3 first;
             float z;
@@ -770,7 +807,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
     static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam",
-                                                   "sbc-morph", "lem-shell"};
+                                                   "sbc-morph", "lem-shell", "spoc"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

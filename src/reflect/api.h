@@ -1026,6 +1026,7 @@ typedef enum refl_gl_camera {
     REFL_GL_C3RC,            /* an array of C3RCs */
     REFL_GL_SBC,             /* one SBC: its BSP tree, pinhole and ray-list leaves */
     REFL_GL_GRAPHCAM,        /* a graph camera: per frustum its region's planes and matrix */
+    REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
     REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
@@ -1044,6 +1045,8 @@ typedef enum refl_gl_camera {
          bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
              out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
              int base, vec3 index): per fragment, the packed map at an interpolated index
+         vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
+             (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1058,6 +1061,9 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
    locates nowhere or the piece is out of range). */
 REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3 eye, int piece, float *out,
                                           long long cap);
+/* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
+   (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 

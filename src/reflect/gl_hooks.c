@@ -236,6 +236,38 @@ REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const flo
     return refl__gl_lem_shell(&o, shell, map);
 }
 
+/* ---- the SPOC ------------------------------------------------------------------- */
+
+static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
+    refl__gl_out o = *op;
+    if (!cam || !(cam->focal > 0.0f) || !(cam->znear > 0.0f) || !(cam->zfar > cam->znear))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SPOC, REFL_GL_LAYOUT_VERSION, 0, 0);
+    refl__gl_put_v3(&o, cam->eye, cam->focal);
+    refl__gl_put_v3(&o, cam->right, cam->ramp);
+    refl__gl_put_v3(&o, cam->up, cam->delta_max);
+    refl__gl_put_v3(&o, cam->forward, 0.0);
+    refl__gl_put4(&o, 1.0 / cam->znear, 1.0 / cam->zfar, cam->pole[0], cam->pole[1]);
+    return refl__gl_done(&o);
+}
+
+/* A packer's two runs: sizing, then writing when cap holds it all. */
+static long long refl__gl_pack(long long (*pack)(refl__gl_out *, const void *), const void *cam, float *out,
+                               long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = pack(&o, cam);
+    if (need < 0 || !out || cap < need) return need;
+    o.out = out;
+    o.cap = cap;
+    return pack(&o, cam);
+}
+
+static long long refl__gl_spoc_any(refl__gl_out *o, const void *cam) { return refl__gl_spoc(o, (const refl_spoc *)cam); }
+
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
+    return refl__gl_pack(refl__gl_spoc_any, cam, out, cap);
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -657,6 +689,23 @@ static const char refl__gl_glsl_lem_shell[] =
     "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
     "}\n";
 
+static const char refl__gl_glsl_spoc[] =
+    "/* reflect.h GL hook: the SPOC (layout version 1; cam_spoc.c): the pinhole,\n"
+    "   then the push delta_max * gd away from the pole, faded in over ramp. */\n"
+    "vec4 refl_spoc_project(samplerBuffer data, int base, vec3 p) {\n"
+    "    vec4 eye = texelFetch(data, base + 1), right = texelFetch(data, base + 2);\n"
+    "    vec4 up = texelFetch(data, base + 3), fwd = texelFetch(data, base + 4);\n"
+    "    vec4 k = texelFetch(data, base + 5);\n"
+    "    vec3 q = p - eye.xyz;\n"
+    "    float z = dot(q, fwd.xyz);\n"
+    "    if (!(z > 0.0)) return vec4(0.0);\n"
+    "    vec2 rho = eye.w * vec2(dot(q, right.xyz), -dot(q, up.xyz)) / z;\n"
+    "    float r = length(rho), gd = (k.x - 1.0 / z) / (k.x - k.y);\n"
+    "    float push = gd > 0.0 ? up.w * gd : 0.0;\n"
+    "    float scale = r < right.w ? 1.0 + push / right.w : 1.0 + push / r;\n"
+    "    return vec4(k.zw + rho * scale, gd, 1.0);\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -665,6 +714,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_GRAPHCAM: return refl__gl_glsl_graphcam;
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
     case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
+    case REFL_GL_SPOC: return refl__gl_glsl_spoc;
     }
     return NULL;
 }

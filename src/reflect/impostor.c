@@ -322,3 +322,65 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     }
     return found;
 }
+
+/* ---- billboard impostors: flat objects, intersected exactly ------------------------
+   Paper 004 models the floor under its SPOC-impostored objects as a
+   billboard impostor, "which captures it perfectly": a flat object's
+   impostor is the object itself. Both impostor methods intersect such
+   objects exactly through a BVH of their own and shade the hit here. */
+
+/* World bounding box of object i's vertices. */
+static void refl__object_world_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i is flat (its box's smallest side under 1% of its
+   largest, or no extent): a billboard. */
+static int refl__object_flat(const refl_scene *scene, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    refl__object_world_box(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
+}
+
+/* The colour (clamped to [0, 1], as RAYTRACE clamps), point and shading
+   normal (may be NULL) of an exact hit h on object ro: the shared diffuse
+   shading without shadows; a mirror or glass shows black (one bounce, as
+   DIRECT draws them). */
+static void refl__exact_hit_shade(const refl_scene *scene, const refl__rt_object *ro, const refl_hit *h, float rgb[3],
+                                  refl_vec3 *point, refl_vec3 *normal) {
+    const refl_material *m = ro->material;
+    const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h->triangle;
+    refl__hit_geom g;
+    float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
+    int k;
+    refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, h, &g);
+    if (ro->mesh->texcoords)
+        for (k = 0; k < 3; ++k) {
+            uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
+            uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
+        }
+    if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
+        rgba[0] = rgba[1] = rgba[2] = 0.0f;
+    } else {
+        refl_shade_diffuse(scene, m, g.p, g.ns, uv, col);
+        refl__surface_rgba(m, col, rgba);
+    }
+    for (k = 0; k < 3; ++k) rgb[k] = REFL__CLAMP(rgba[k], 0.0f, 1.0f);
+    *point = g.p;
+    if (normal) *normal = g.ns;
+}

@@ -6,8 +6,10 @@
    (triangles wholly inside go through the base pass's programs
    unchanged). Each mirror pixel's reflected ray is then intersected with
    the impostor by one of the paper's two algorithms, and composited as
-   ENVMAP composites (gbuffer.c); a ray that meets nothing shows the
-   environment. One bounce (stats.depth 1).
+   ENVMAP composites (gbuffer.c). What lies outside every frustum is not
+   in the impostor: there the flat diffuse objects (the floor reaching out
+   of the maze) are billboards, intersected exactly (impostor.c), and a
+   ray that meets nothing shows the environment. One bounce (stats.depth 1).
 
    The impostor's construction and its ray march are the graph camera's
    own here; the generic impostor of the SPOC method could share the
@@ -506,8 +508,44 @@ typedef struct refl__gcm {
     refl__em em;
     const refl_graphcam *cam;
     const refl_graphcam_impostor *imp;
+    refl_bvh *flat;               /* the flat diffuse objects (NULL: none) */
+    int *flat_object;             /* its object index -> scene object */
+    refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     long long *steps, *max_steps, *rays, *hits; /* per row */
 } refl__gcm;
+
+/* The flat diffuse objects as billboards: their BVH, for the parts of them
+   outside the graph camera. */
+static refl_result refl__gcm_billboards(refl__gcm *g) {
+    const refl_scene *scene = g->p->scene;
+    const refl_allocator *al = &scene->allocator;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    refl_object *objs = (refl_object *)refl__calloc(al, objects, sizeof(refl_object));
+    refl_scene sub;
+    refl_result r = REFL_OK;
+    int i, n = 0;
+    g->flat_object = (int *)refl__calloc(al, objects, sizeof(int));
+    g->objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+    if (!objs || !g->flat_object || !g->objects) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        g->objects[i].mesh = scene->meshes[o->mesh];
+        g->objects[i].material = &scene->materials[o->material];
+        g->objects[i].model = o->transform;
+        g->objects[i].normal_m = refl__normal_matrix(o->transform);
+        if (refl__is_reflector(&scene->materials[o->material]) || !refl__object_flat(scene, i)) continue;
+        g->flat_object[n] = i;
+        objs[n++] = *o;
+    }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, &g->flat);
+    }
+    refl__free(al, objs);
+    return r;
+}
 
 /* One frame row: each reflector pixel's reflected ray against the impostor. */
 static void refl__gcm_row(void *arg, int y) {
@@ -525,7 +563,9 @@ static void refl__gcm_row(void *arg, int y) {
         const float *q = g->em.surface + 3 * i;
         refl_vec3 o, d, n, s;
         refl_graphcam_hit hit;
+        refl_hit h;
         float tmax;
+        int found;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
@@ -533,8 +573,21 @@ static void refl__gcm_row(void *arg, int y) {
         if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
         s = refl_v3(q[0], q[1], q[2]);
         g->rays[y]++;
-        if (refl_graphcam_intersect(g->cam, g->imp, s, refl_v3_reflect(d, n), eps, 1e30f,
-                                    (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit)) {
+        d = refl_v3_reflect(d, n);
+        found = refl_graphcam_intersect(g->cam, g->imp, s, d, eps, 1e30f,
+                                        (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit);
+        /* the first flat surface the ray meets, where no frustum holds it */
+        if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
+            refl_vec3 at;
+            float rgb[3];
+            refl__exact_hit_shade(p->scene, &g->objects[g->flat_object[h.object]], &h, rgb, &at, NULL);
+            if (refl_graphcam_locate(g->cam, at) < 0) {
+                memcpy(hit.rgb, rgb, sizeof rgb);
+                hit.point = at;
+                found = 1;
+            }
+        }
+        if (found) {
             g->hits[y]++;
             refl__em_composite(p, gb, x, y, hit.rgb, hit.point);
         } else {
@@ -597,11 +650,13 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
             r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
+            if (r == REFL_OK) r = refl__gcm_billboards(&g);
             t0 = refl__now_ms();
             fr->stats.ms_build += t0 - t1;
         }
         if (r == REFL_OK) {
             g.imp = imp;
+            if (g.flat) fr->stats.model_bytes += refl__bvh_bytes(g.flat);
             fr->stats.graphcam.frusta = g.cam->count;
             fr->stats.graphcam.triangles = imp->triangles;
             fr->stats.model_bytes += (long long)((size_t)imp->width * (size_t)imp->height * (4 * sizeof(float) + sizeof(float) + 1));
@@ -622,6 +677,9 @@ static refl_result refl__method_graphcam(refl__pass *p) {
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
     refl_graphcam_impostor_destroy(imp);
+    refl_bvh_destroy(g.flat);
+    refl__free(al, g.flat_object);
+    refl__free(al, g.objects);
     refl__free(al, own);
     refl__free(al, g.steps);
     refl__free(al, g.em.surface);

@@ -14,7 +14,14 @@
      from there), and the reflectors themselves, which show as DIRECT
      draws them (one bounce: a mirror is black, a partial reflector its
      diffuse share);
-   and what meets nothing shows the environment. Colours are composited
+   and what meets nothing shows the environment. With two bounces (depth
+   2) every compact mirror other than the reflector is an impostor that
+   stores normals instead (the paper's second-order reflections): a ray
+   that meets one is reflected about the stored normal at its hit, one
+   that meets an exact mirror (the reflector itself, a planar mirror)
+   about its surface normal, and meets that mirror's own impostors and
+   exact part, weighted by the mirror's reflectance; a mirror met on the
+   last bounce is black. Colours are composited
    as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
    does; frame->points gets the point the ray met (an impostor's: its own
    estimate on the ray). Impostor colours are the shared diffuse shading
@@ -23,55 +30,55 @@
    gives the same bytes and stats. */
 #include "internal.h"
 
-/* One reflector's frame: its impostors and the exact part of the scene. */
-typedef struct refl__spoc_frame {
-    refl__em em;
+/* What rays leaving one reflector meet: its impostors and the exact part
+   of the scene. */
+typedef struct refl__spoc_set {
     refl_spoc *cams;              /* per impostor */
     refl_impostor **imps;
+    int *imp_object;              /* per impostor: the scene object */
     int imp_count;
     refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
     int *exact_object;            /* its object index -> scene object */
+    int built;
+} refl__spoc_set;
+
+typedef struct refl__spoc_frame {
+    refl__em em;
+    refl__spoc_set *sets;         /* per scene object; built for reflectors */
     refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     int object;                   /* the reflector being drawn */
+    int bounces;                  /* 1, or 2: mirrors met are reflected through once more */
     float offset;                 /* reflected rays start this far off their surface */
     long long *row_steps, *row_max, *row_rays;
 } refl__spoc_frame;
 
-/* World bounding box of object i's vertices. */
-static void refl__spoc_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+/* Whether object i is a mirror whose impostor stores normals: second-order
+   reflections, compact mirrors only (planar ones are exact and black). */
+static int refl__spoc_mirror_impostor(const refl__spoc_frame *sf, int i) {
+    const refl_scene *scene = sf->em.p->scene;
+    return sf->bounces > 1 && scene->materials[scene->objects[i].material].type == REFL_MIRROR &&
+           !refl__object_flat(scene, i);
 }
 
-/* Whether object i gets an impostor seen from `eye`: diffuse, not flat
-   (its box's smallest side at least 1% of its largest), and the eye
-   outside its bounding sphere. */
-static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye) {
-    refl_vec3 lo, hi, size, c;
-    float small, large;
-    if (refl__is_reflector(&scene->materials[scene->objects[i].material])) return 0;
-    refl__spoc_box(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    if (!(small >= 0.01f * large) || !(large > 0.0f)) return 0;
+/* Whether object i gets an impostor seen from `eye`: diffuse (or a mirror
+   with two bounces), not flat (its box's smallest side at least 1% of its
+   largest), and the eye outside its bounding sphere. */
+static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 eye) {
+    const refl_scene *scene = sf->em.p->scene;
+    refl_vec3 lo, hi, c;
+    if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
+        refl__object_flat(scene, i))
+        return 0;
+    refl__object_world_box(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(size);
+    return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
 
-/* Builds reflector `object`'s impostors and exact BVH. */
+/* Builds reflector `object`'s impostors and exact BVH (once). */
 static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     refl__pass *p = sf->em.p;
+    refl__spoc_set *set = &sf->sets[object];
+    size_t objects = (size_t)REFL__MAX(p->scene->object_count, 1);
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_spoc_options *opt = &p->desc.spoc;
@@ -81,33 +88,42 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
     int i, n = 0;
     refl_result r = REFL_OK;
-    refl__spoc_box(scene, object, &lo, &hi);
+    if (set->built) return REFL_OK;
+    set->built = 1;
+    set->cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
+    set->imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
+    set->imp_object = (int *)refl__calloc(al, objects, sizeof(int));
+    set->exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+    if (!set->cams || !set->imps || !set->imp_object || !set->exact_object) return REFL_ERROR_OUT_OF_MEMORY;
+    refl__object_world_box(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
     if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
-        if (refl__spoc_impostored(scene, i, eye)) {
+        if (i != object && refl__spoc_impostored(sf, i, eye)) {
             refl_vec3 olo, ohi;
             refl_impostor_camera ic;
             refl_impostor_desc d;
-            refl_spoc *cam = &sf->cams[sf->imp_count];
-            refl__spoc_box(scene, i, &olo, &ohi);
+            refl_spoc *cam = &set->cams[set->imp_count];
+            refl__object_world_box(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;
             ic = refl_spoc_impostor_camera(cam);
             memset(&d, 0, sizeof d);
             d.max_edge_px = opt->max_edge_px;
+            d.normals = refl__spoc_mirror_impostor(sf, i);
             d.allocator = *al;
-            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &sf->imps[sf->imp_count]);
+            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &set->imps[set->imp_count]);
             if (r != REFL_OK) break;
-            p->frame->stats.triangles += sf->imps[sf->imp_count]->triangles;
-            p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * 5 * sizeof(float));
+            p->frame->stats.triangles += set->imps[set->imp_count]->triangles;
+            p->frame->stats.model_bytes +=
+                (long long)((size_t)opt->size * (size_t)opt->size * (d.normals ? 8 : 5) * sizeof(float));
             ++p->frame->stats.spoc.impostors;
-            ++sf->imp_count;
+            set->imp_object[set->imp_count++] = i;
         } else {
-            sf->exact_object[n] = i;
+            set->exact_object[n] = i;
             objs[n++] = scene->objects[i];
         }
     }
@@ -115,64 +131,83 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
         sub = *scene;
         sub.objects = objs;
         sub.object_count = n;
-        r = refl_bvh_build(&sub, al, &sf->exact);
-        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(sf->exact);
+        r = refl_bvh_build(&sub, al, &set->exact);
+        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(set->exact);
     }
     refl__free(al, objs);
     return r;
 }
 
-static void refl__spoc_release(refl__spoc_frame *sf) {
+static void refl__spoc_release(refl__spoc_frame *sf, int object) {
+    const refl_allocator *al = &sf->em.p->scene->allocator;
+    refl__spoc_set *set = &sf->sets[object];
     int i;
-    for (i = 0; i < sf->imp_count; ++i) refl_impostor_destroy(sf->imps[i]);
-    sf->imp_count = 0;
-    refl_bvh_destroy(sf->exact);
-    sf->exact = NULL;
+    for (i = 0; i < set->imp_count; ++i) refl_impostor_destroy(set->imps[i]);
+    refl_bvh_destroy(set->exact);
+    refl__free(al, set->cams);
+    refl__free(al, set->imps);
+    refl__free(al, set->imp_object);
+    refl__free(al, set->exact_object);
+    memset(set, 0, sizeof *set);
 }
 
-/* What the reflected ray o + t d meets first: its colour (clamped to
-   [0, 1]) and point; 0 for nothing. */
-static int refl__spoc_trace(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, float rgb[3], refl_vec3 *shown,
-                            long long *steps, long long *max_steps) {
+/* What the ray o + t d leaving reflector `from` meets first: its colour
+   (clamped to [0, 1]) and point; 0 for nothing. A mirror met (an impostor:
+   its stored normal; an exact one, the reflector itself included: its
+   surface's) shows what the ray reflected there meets, leaving that mirror
+   (bounce `bounce` of sf->bounces), times its reflectance; on the last
+   bounce it is black. */
+static int refl__spoc_trace(const refl__spoc_frame *sf, int from, int bounce, refl_vec3 o, refl_vec3 d, float exact_tmin,
+                            float rgb[3], refl_vec3 *shown, long long *steps, long long *max_steps) {
     const refl__pass *p = sf->em.p;
+    const refl__spoc_set *set = &sf->sets[from];
     float best = FLT_MAX;
-    int i, c, found = 0;
+    int i, c, found = 0, mirror = -1;
+    float footprint = 0.0f;       /* the mirror impostor met: 2 texels, in world units */
+    refl_vec3 normal = refl_v3(0.0f, 0.0f, 0.0f);
     refl_hit h;
-    for (i = 0; i < sf->imp_count; ++i) {
+    for (i = 0; i < set->imp_count; ++i) {
         refl_impostor_hit ih;
         int n = 0;
-        if (refl_impostor_intersect(sf->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
+        if (refl_impostor_intersect(set->imps[i], o, d, 0.0f, best, p->desc.spoc.step_scale, &ih, &n) && ih.t < best) {
             best = ih.t;
             for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(ih.color[c], 0.0f, 1.0f);
             *shown = ih.point;
+            mirror = set->imps[i]->normal ? set->imp_object[i] : -1;
+            normal = ih.normal;
+            footprint = 4.0f * set->cams[i].radius / (float)set->cams[i].size;
             found = 1;
         }
         *steps += n;
         if (n > *max_steps) *max_steps = n;
     }
-    if (sf->exact && refl_bvh_intersect(sf->exact, o, d, 0.0f, best, &h)) {
-        int object = sf->exact_object[h.object];
-        const refl__rt_object *ro = &sf->objects[object];
-        const refl_material *m = ro->material;
-        const uint32_t *tri = ro->mesh->indices + 3 * (size_t)h.triangle;
-        refl__hit_geom g;
-        float uv[2] = {0.0f, 0.0f}, col[3], rgba[4];
-        int k;
-        refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
-        if (ro->mesh->texcoords)
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * ro->mesh->texcoords[2 * (size_t)tri[k] + 1];
-            }
-        if (m->type == REFL_MIRROR || m->type == REFL_GLASS) {
-            rgba[0] = rgba[1] = rgba[2] = 0.0f;
-        } else {
-            refl_shade_diffuse(p->scene, m, g.p, g.ns, uv, col);
-            refl__surface_rgba(m, col, rgba);
-        }
-        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(rgba[c], 0.0f, 1.0f);
-        *shown = g.p;
+    if (set->exact && refl_bvh_intersect(set->exact, o, d, exact_tmin, best, &h)) {
+        int object = set->exact_object[h.object];
+        refl__exact_hit_shade(p->scene, &sf->objects[object], &h, rgb, shown, &normal);
+        mirror = sf->objects[object].material->type == REFL_MIRROR ? object : -1;
+        footprint = 0.0f;
         found = 1;
+    }
+    if (mirror >= 0) {
+        const refl_material *m = sf->objects[mirror].material;
+        float sub[3] = {0.0f, 0.0f, 0.0f}, w = 0.0f;
+        refl_vec3 n = refl_v3_normalize(normal), at = *shown, met;
+        if (bounce < sf->bounces && refl_v3_dot(n, n) > 0.0f) {
+            refl_vec3 r;
+            if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
+            w = refl_material_reflectance(m, REFL__CLAMP(-refl_v3_dot(refl_v3_normalize(d), n), 0.0f, 1.0f));
+            r = refl_v3_reflect(d, n);
+            /* an impostor's hit is its estimate, off the mirror's own surface by
+               up to its footprint: the exact mirror is not met again that near */
+            if (refl__spoc_trace(sf, mirror, bounce + 1, refl_v3_add(at, refl_v3_scale(n, sf->offset)), r, footprint, sub,
+                                 &met, steps, max_steps)) {
+                w *= refl_material_fade(m, refl_v3_length(refl_v3_sub(met, at)));
+            } else {
+                refl_environment_lookup(&p->scene->environment, r, sub);
+                for (c = 0; c < 3; ++c) sub[c] = REFL__RADIANCE(sub[c]);
+            }
+        }
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(w * sub[c], 0.0f, 1.0f);
     }
     return found;
 }
@@ -198,7 +233,7 @@ static void refl__spoc_row(void *arg, int y) {
         s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
         s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
         ++rays;
-        if (refl__spoc_trace(sf, s, refl_v3_reflect(d, n), rgb, &shown, &steps, &max_steps))
+        if (refl__spoc_trace(sf, sf->object, 1, s, refl_v3_reflect(d, n), 0.0f, rgb, &shown, &steps, &max_steps))
             refl__em_composite(p, g, x, y, rgb, shown);
         else
             refl__em_composite(p, g, x, y, NULL, shown);
@@ -242,14 +277,12 @@ static refl_result refl__method_spoc(refl__pass *p) {
     if (r == REFL_OK && any) {
         size_t npx = (size_t)fr->width * (size_t)fr->height;
         sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-        sf.cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
-        sf.imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
-        sf.exact_object = (int *)refl__calloc(al, objects, sizeof(int));
+        sf.sets = (refl__spoc_set *)refl__calloc(al, objects, sizeof(refl__spoc_set));
         sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
-        if (!sf.em.surface || !sf.cams || !sf.imps || !sf.exact_object || !sf.objects || !sf.row_steps ||
+        if (!sf.em.surface || !sf.sets || !sf.objects || !sf.row_steps ||
             !sf.row_max || !sf.row_rays)
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
@@ -263,10 +296,15 @@ static refl_result refl__method_spoc(refl__pass *p) {
         }
         refl_scene_bounds(scene, &lo, &hi);
         sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+        sf.bounces = REFL__MIN(p->desc.depth, 2);
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &sf.em);
     }
     t1 = refl__now_ms();
     fr->stats.ms_reflect += t1 - t0;
+    /* with two bounces, rays leave every mirror: their sets are kept for
+       the whole frame */
+    for (i = 0; r == REFL_OK && any && sf.bounces > 1 && i < scene->object_count; ++i)
+        if (scene->materials[scene->objects[i].material].type == REFL_MIRROR) r = refl__spoc_build(&sf, i);
     for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
         if (!seen[i] || !refl__pass_draws(p, i)) continue;
         r = refl__spoc_build(&sf, i);
@@ -276,7 +314,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
             sf.object = i;
             rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
         }
-        refl__spoc_release(&sf);
+        if (sf.bounces == 1) refl__spoc_release(&sf, i);
         t1 = refl__now_ms();
         fr->stats.ms_reflect += t1 - t0;
     }
@@ -291,14 +329,12 @@ static refl_result refl__method_spoc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    refl__spoc_release(&sf);
+    for (i = 0; sf.sets && i < scene->object_count; ++i) refl__spoc_release(&sf, i);
+    refl__free(al, sf.sets);
     refl__free(al, sf.em.gbuf);
     refl__free(al, sf.em.draws);
     refl__free(al, sf.em.surface);
     refl__free(al, seen);
-    refl__free(al, sf.cams);
-    refl__free(al, sf.imps);
-    refl__free(al, sf.exact_object);
     refl__free(al, sf.objects);
     refl__free(al, sf.row_steps);
     refl__free(al, sf.row_max);

@@ -63,6 +63,8 @@ static void validate(int which) {
     cr_assert_gt(v.projected, v.points / 2, "%s: %lld of %lld project", v.camera, v.projected, v.points);
     cr_assert(rgl_validation_ok(&v), "%s: %lld of %lld disagree, max rel %.2e, p99.9 %.2e", v.camera, v.disagree,
               v.points, v.max_rel, v.p999_rel);
+    if (which == 7) /* SPOC: float rounding of the pinhole, the push and gd */
+        cr_assert(v.max_rel <= 1e-4, "spoc: max rel %.2e", v.max_rel);
     if (which == 1) { /* C3RC, its cubic in the triangle's frame (docs/gl.md): float rounding, no more */
         cr_assert(v.max_rel <= 1e-4, "c3rc: max rel %.2e", v.max_rel);
         cr_assert((double)v.disagree <= 1e-5 * (double)v.points, "c3rc: %lld of %lld disagree", v.disagree, v.points);
@@ -144,3 +146,21 @@ Test(refl_gl_hooks, lem_shell_layout) {
 
 /* (the shell's error: the largest weight difference; another texel disagrees) */
 Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) { validate(6); }
+
+Test(refl_gl_hooks, spoc_layout) {
+    refl_spoc cam;
+    float buf[32];
+    cr_assert_eq(refl_spoc_init(&cam, refl_v3(0, 0.5f, 4), refl_v3(0, 0, 0), 1.0f, 1.0f, 1.0f, 256), REFL_OK);
+    cr_assert_eq(refl_gl_pack_spoc(&cam, NULL, 0), 24);
+    cr_assert_eq(refl_gl_pack_spoc(&cam, buf, 32), 24);
+    cr_assert_eq(buf[0], (float)REFL_GL_SPOC);
+    cr_assert_eq(buf[1], (float)REFL_GL_LAYOUT_VERSION);
+    cr_assert_eq(buf[7], cam.focal);
+    cr_assert_eq(buf[15], cam.delta_max);
+    cr_assert_eq(buf[22], cam.pole[0]);
+    cr_assert_lt(refl_gl_pack_spoc(NULL, buf, 32), 0);
+    cr_assert_not_null(refl_gl_glsl(REFL_GL_SPOC));
+}
+
+/* the SPOC's projection in float against the C's in double */
+Test(refl_gl_hooks, spoc_glsl_matches_c, .timeout = 120) { validate(7); }

@@ -306,7 +306,9 @@ static refl_frame *maze_frame(const refl_scene *s, const refl_view *v, refl_meth
 
 /* GRAPHCAM on the maze against RAYTRACE (one bounce) over the mirror:
    well ahead of ENVMAP in PSNR and reflection error, with both
-   algorithms; the same bytes on 1, 2 and 3 threads. */
+   algorithms; under 1% of the mirror empty (the floor outside the maze,
+   which no frustum holds, is met as a billboard); the same bytes on 1, 2
+   and 3 threads. */
 Test(graphcam, maze_against_raytrace_and_envmap_and_the_same_bytes_for_any_thread_count, .timeout = 240) {
     refl_view v;
     refl_scene *s = tu_refl_builtin("maze", &v, 160, 120);
@@ -330,7 +332,7 @@ Test(graphcam, maze_against_raytrace_and_envmap_and_the_same_bytes_for_any_threa
         cr_assert_eq(g->stats.graphcam.frusta, 15);
         cr_assert_gt(ie.psnr, ie_em.psnr + 6.0);
         cr_assert_lt(re.mean, 0.25 * re_em.mean);
-        cr_assert_lt(re.empty, 0.08);
+        cr_assert_lt(re.empty, 0.01);
         cr_assert_lt(re.wrong, 0.01);
         for (t = 1; alg == 0 && t <= 3; t += 2) {
             refl_frame *o = maze_frame(s, &v, REFL_GRAPHCAM, cam, alg, t);
