@@ -105,6 +105,12 @@ Test(refl_contract, allocation_failure_at_every_allocation, .timeout = 600) {
             d.depth = 2;
             d.envmap.size = 16;
             d.sbc.trace_fallback = 1;
+            /* models sized to the 24x18 frame: every allocation fails in turn,
+               each a frame and a renderer's worth of work */
+            d.spoc.size = 32;
+            d.graphcam.size = 48;
+            d.layered_em.face_size = 8;
+            d.layered_em.iterations = 20;
             r = refl_frame_create(24, 18, &bd.allocator, &f);
             if (r == REFL_OK) r = refl_renderer_create(s, &d, &rr);
             for (frame = 0; r == REFL_OK && frame < 2; ++frame) {
