@@ -16201,14 +16201,43 @@ static refl_result refl__method_raytrace(refl__pass *p) {
 
 /* ---- pixels handed over ---------------------------------------------------------- */
 
-typedef struct refl__rt_marked {
+/* Rows of pixels through the tracer: `marked` per pixel, `modelled` per
+   object (refl__trace_beyond), and the rays each row cast, summed after. */
+typedef struct refl__rt_rows {
     refl__rt rt;
-    const uint8_t *marked;
+    uint8_t *marked;
+    const int *modelled;
     long long *row_rays;
-} refl__rt_marked;
+} refl__rt_rows;
+
+/* Runs row(rows, y) for every row of p's frame on the thread pool, with
+   the tracer set up for p. */
+static refl_result refl__rt_run_rows(refl__pass *p, void (*row)(void *, int), uint8_t *marked,
+                                     const int *modelled) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_frame *f = p->frame;
+    refl__rt_rows rows;
+    refl_bvh *bvh = NULL, *owned = NULL;
+    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
+    int y;
+    if (r != REFL_OK) return r;
+    r = refl__rt_begin(&rows.rt, p, bvh);
+    rows.rt.bvh = owned; /* freed with rt */
+    rows.marked = marked;
+    rows.modelled = modelled;
+    rows.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
+    if (r == REFL_OK && !rows.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        rast_run_jobs(p->rc, f->height, row, &rows);
+        for (y = 0; y < f->height; ++y) f->stats.rays += rows.row_rays[y];
+    }
+    refl__free(al, rows.row_rays);
+    refl__rt_end(&rows.rt);
+    return r;
+}
 
 static void refl__rt_marked_row(void *arg, int y) {
-    const refl__rt_marked *m = (const refl__rt_marked *)arg;
+    const refl__rt_rows *m = (const refl__rt_rows *)arg;
     refl_frame *f = m->rt.p->frame;
     int x, c;
     for (x = 0; x < f->width; ++x) {
@@ -16228,38 +16257,13 @@ static void refl__rt_marked_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
-    const refl_allocator *al = &p->scene->allocator;
-    refl_frame *f = p->frame;
-    refl__rt_marked m;
-    refl_bvh *bvh = NULL, *owned = NULL;
-    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
-    int y;
-    if (r != REFL_OK) return r;
-    r = refl__rt_begin(&m.rt, p, bvh);
-    m.rt.bvh = owned; /* freed with rt */
-    m.marked = marked;
-    m.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
-    if (r == REFL_OK && !m.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) {
-        rast_run_jobs(p->rc, f->height, refl__rt_marked_row, &m);
-        for (y = 0; y < f->height; ++y) f->stats.rays += m.row_rays[y];
-    }
-    refl__free(al, m.row_rays);
-    refl__rt_end(&m.rt);
-    return r;
+    return refl__rt_run_rows(p, refl__rt_marked_row, (uint8_t *)marked, NULL);
 }
 
 /* ---- bounces past a method's own -------------------------------------------------- */
 
-typedef struct refl__rt_beyond {
-    refl__rt rt;
-    const int *modelled;
-    uint8_t *marked;
-    long long *row_rays;
-} refl__rt_beyond;
-
 static void refl__rt_beyond_row(void *arg, int y) {
-    const refl__rt_beyond *b = (const refl__rt_beyond *)arg;
+    const refl__rt_rows *b = (const refl__rt_rows *)arg;
     const refl_frame *f = b->rt.p->frame;
     int x;
     for (x = 0; x < f->width; ++x) {
@@ -16270,29 +16274,11 @@ static void refl__rt_beyond_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
-    const refl_allocator *al = &p->scene->allocator;
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
-    refl__rt_beyond b;
-    refl_bvh *bvh = NULL, *owned = NULL;
-    refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
-    int y;
-    if (r != REFL_OK) return r;
-    r = refl__rt_begin(&b.rt, p, bvh);
-    b.rt.bvh = owned; /* freed with rt */
-    b.modelled = modelled;
-    b.marked = p->trace;
-    b.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
-    if (r == REFL_OK && !b.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) {
-        rast_run_jobs(p->rc, f->height, refl__rt_beyond_row, &b);
-        for (y = 0; y < f->height; ++y) f->stats.rays += b.row_rays[y];
-        for (i = 0; i < n; ++i) f->stats.traced_beyond += b.marked[i] != 0;
-    }
-    refl__rt_end(&b.rt);
-    if (r == REFL_OK && f->stats.traced_beyond) r = refl__trace_marked(p, b.marked);
-    refl__free(al, b.row_rays);
-    return r;
+    refl_result r = refl__rt_run_rows(p, refl__rt_beyond_row, p->trace, modelled);
+    for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
+    return r == REFL_OK && f->stats.traced_beyond ? refl__trace_marked(p, p->trace) : r;
 }
 /* ---- src/reflect/m_sbc.c ---- */
 /* SBC: Popescu, Sacks and Mei's sample-based camera reflections (paper
