@@ -485,8 +485,8 @@ bench: deps
 # `reflect bench`), and the rasteriser's own demo picture. LAYERED_EM
 # infers its maps every frame (seconds per 10^5 pixels), so it renders at
 # 320x240.
-DEMO_SCENES  = default mirror-room concave glass maze teapots
-DEMO_METHODS = direct raytrace envmap planar c3rc sbc spoc graphcam layered-em
+DEMO_SCENES  = default mirror-room concave glass maze teapots hybrid
+DEMO_METHODS = direct raytrace envmap planar c3rc sbc spoc graphcam layered-em auto
 demo: deps
 	@$(MAKE) --no-print-directory $(PARALLEL) build/examples/rast_demo $(REFLECT_BIN)
 	@mkdir -p out
