@@ -2027,18 +2027,26 @@ static inline refl_mat4 refl__normal_matrix(refl_mat4 m) {
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
-/* The frame's colour, depth and stencil as rast.h targets. */
-static inline rast_targets refl__frame_targets(const refl_frame *f) {
+/* rast.h targets of w x h pixels: linear float RGBA colour, float depth,
+   and a stencil unless it is NULL. */
+static inline rast_targets refl__float_targets(float *rgba, float *depth, uint8_t *stencil, int w, int h) {
     rast_targets t;
     memset(&t, 0, sizeof t);
-    t.color.ptr = f->rgba; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color.ptr = rgba; t.color.width = w; t.color.height = h;
+    t.color.stride = 4 * (int)sizeof(float) * w;
     t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
-    t.stencil.stride = f->width;
+    t.depth.ptr = depth; t.depth.width = w; t.depth.height = h;
+    t.depth.stride = (int)sizeof(float) * w;
+    if (stencil) {
+        t.stencil.ptr = stencil; t.stencil.width = w; t.stencil.height = h;
+        t.stencil.stride = w;
+    }
     return t;
+}
+
+/* The frame's colour, depth and stencil as rast.h targets. */
+static inline rast_targets refl__frame_targets(const refl_frame *f) {
+    return refl__float_targets(f->rgba, f->depth, f->stencil, f->width, f->height);
 }
 
 /* A pinhole view's rays, set up once (render.c): through window point
@@ -9017,20 +9025,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     rast_result rr;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
     int i;
-    memset(&t, 0, sizeof t);
-    t.color.ptr = em->gbuf;
-    t.color.width = fr->width;
-    t.color.height = fr->height;
-    t.color.stride = 4 * (int)sizeof(float) * fr->width;
-    t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = fr->depth;
-    t.depth.width = fr->width;
-    t.depth.height = fr->height;
-    t.depth.stride = (int)sizeof(float) * fr->width;
-    t.stencil.ptr = fr->stencil;
-    t.stencil.width = fr->width;
-    t.stencil.height = fr->height;
-    t.stencil.stride = fr->width;
+    t = refl__float_targets(em->gbuf, fr->depth, fr->stencil, fr->width, fr->height);
     if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR)) != RAST_OK)
         return refl__result_from_rast(rr);
     /* the frame's depth and stencil are only read */
@@ -10104,16 +10099,7 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
         if (!scratch) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     for (pass = 0; r == REFL_OK && pass < (normals ? 2 : 1); ++pass) {
-        memset(&t, 0, sizeof t);
-        t.color.ptr = pass ? scratch : imp->color;
-        t.color.width = imp->width;
-        t.color.height = imp->height;
-        t.color.stride = 4 * (int)sizeof(float) * imp->width;
-        t.color_format = RAST_COLOR_RGBA32F;
-        t.depth.ptr = imp->depth;
-        t.depth.width = imp->width;
-        t.depth.height = imp->height;
-        t.depth.stride = (int)sizeof(float) * imp->width;
+        t = refl__float_targets(pass ? scratch : imp->color, imp->depth, NULL, imp->width, imp->height);
         if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
         memset(&s, 0, sizeof s);
         if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
@@ -13553,14 +13539,7 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
         float *points = cb->cube_points + 3 * nn * (size_t)f;
         rast_targets t;
         rast_state s;
-        memset(&t, 0, sizeof t);
-        t.color.ptr = color;
-        t.color.width = t.color.height = cb->n;
-        t.color.stride = 4 * (int)sizeof(float) * cb->n;
-        t.color_format = RAST_COLOR_RGBA32F;
-        t.depth.ptr = cb->face_depth;
-        t.depth.width = t.depth.height = cb->n;
-        t.depth.stride = (int)sizeof(float) * cb->n;
+        t = refl__float_targets(color, cb->face_depth, NULL, cb->n, cb->n);
         if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK ||
             (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH)) != RAST_OK)
             return refl__result_from_rast(rr);
@@ -13924,15 +13903,8 @@ static refl_result refl__gci_build(const refl_scene *scene, const refl_graphcam 
                                            sizeof *draws);
     if (!imp->rgba || !imp->depth || !imp->frustum || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) {
-        /* a frame's layout: colour, depth, and the frustum ids as its stencil */
-        refl_frame as_frame;
-        memset(&as_frame, 0, sizeof as_frame);
-        as_frame.width = cam->width;
-        as_frame.height = cam->height;
-        as_frame.rgba = imp->rgba;
-        as_frame.depth = imp->depth;
-        as_frame.stencil = imp->frustum;
-        t = refl__frame_targets(&as_frame);
+        /* colour, depth, and the frustum ids as the stencil */
+        t = refl__float_targets(imp->rgba, imp->depth, imp->frustum, cam->width, cam->height);
         rr = rast_set_targets(rc, &t);
         if (rr == RAST_OK) rr = refl__em_clear(rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL);
     }
@@ -14570,22 +14542,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
             o[4 + 12 + term] = (float)has;
         }
     }
-    memset(&tg, 0, sizeof tg);
-    tg.color.ptr = color;
-    tg.color.width = w;
-    tg.color.height = h;
-    tg.color.stride = 4 * (int)sizeof(float) * w;
-    tg.color_format = RAST_COLOR_RGBA32F;
-    tg.depth.ptr = depth;
-    tg.depth.width = w;
-    tg.depth.height = h;
-    tg.depth.stride = (int)sizeof(float) * w;
-    if (stencil) {
-        tg.stencil.ptr = stencil;
-        tg.stencil.width = w;
-        tg.stencil.height = h;
-        tg.stencil.stride = w;
-    }
+    tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
@@ -16037,15 +15994,7 @@ static refl_result refl__method_planar(refl__pass *p) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
-    memset(&pl.targets, 0, sizeof pl.targets);
-    t = pl.targets;
-    t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * (int)sizeof(float) * f->width;
-    t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = pl.stencil; t.stencil.width = f->width; t.stencil.height = f->height;
-    t.stencil.stride = f->width;
+    t = refl__float_targets(pl.color, f->depth, pl.stencil, f->width, f->height);
     pl.targets = t;
     r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     if (r != REFL_OK) goto done;

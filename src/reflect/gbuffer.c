@@ -196,20 +196,7 @@ static refl_result refl__em_gbuffer(refl__em *em, unsigned char *seen, int *any)
     rast_result rr;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
     int i;
-    memset(&t, 0, sizeof t);
-    t.color.ptr = em->gbuf;
-    t.color.width = fr->width;
-    t.color.height = fr->height;
-    t.color.stride = 4 * (int)sizeof(float) * fr->width;
-    t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = fr->depth;
-    t.depth.width = fr->width;
-    t.depth.height = fr->height;
-    t.depth.stride = (int)sizeof(float) * fr->width;
-    t.stencil.ptr = fr->stencil;
-    t.stencil.width = fr->width;
-    t.stencil.height = fr->height;
-    t.stencil.stride = fr->width;
+    t = refl__float_targets(em->gbuf, fr->depth, fr->stencil, fr->width, fr->height);
     if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK || (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR)) != RAST_OK)
         return refl__result_from_rast(rr);
     /* the frame's depth and stencil are only read */

@@ -119,16 +119,7 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
         if (!scratch) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     for (pass = 0; r == REFL_OK && pass < (normals ? 2 : 1); ++pass) {
-        memset(&t, 0, sizeof t);
-        t.color.ptr = pass ? scratch : imp->color;
-        t.color.width = imp->width;
-        t.color.height = imp->height;
-        t.color.stride = 4 * (int)sizeof(float) * imp->width;
-        t.color_format = RAST_COLOR_RGBA32F;
-        t.depth.ptr = imp->depth;
-        t.depth.width = imp->width;
-        t.depth.height = imp->height;
-        t.depth.stride = (int)sizeof(float) * imp->width;
+        t = refl__float_targets(pass ? scratch : imp->color, imp->depth, NULL, imp->width, imp->height);
         if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
         memset(&s, 0, sizeof s);
         if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;

@@ -98,18 +98,26 @@ static inline refl_mat4 refl__normal_matrix(refl_mat4 m) {
 
 static inline int refl__is_reflector(const refl_material *m) { return m->type != REFL_DIFFUSE; }
 
-/* The frame's colour, depth and stencil as rast.h targets. */
-static inline rast_targets refl__frame_targets(const refl_frame *f) {
+/* rast.h targets of w x h pixels: linear float RGBA colour, float depth,
+   and a stencil unless it is NULL. */
+static inline rast_targets refl__float_targets(float *rgba, float *depth, uint8_t *stencil, int w, int h) {
     rast_targets t;
     memset(&t, 0, sizeof t);
-    t.color.ptr = f->rgba; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * (int)sizeof(float) * f->width;
+    t.color.ptr = rgba; t.color.width = w; t.color.height = h;
+    t.color.stride = 4 * (int)sizeof(float) * w;
     t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = f->stencil; t.stencil.width = f->width; t.stencil.height = f->height;
-    t.stencil.stride = f->width;
+    t.depth.ptr = depth; t.depth.width = w; t.depth.height = h;
+    t.depth.stride = (int)sizeof(float) * w;
+    if (stencil) {
+        t.stencil.ptr = stencil; t.stencil.width = w; t.stencil.height = h;
+        t.stencil.stride = w;
+    }
     return t;
+}
+
+/* The frame's colour, depth and stencil as rast.h targets. */
+static inline rast_targets refl__frame_targets(const refl_frame *f) {
+    return refl__float_targets(f->rgba, f->depth, f->stencil, f->width, f->height);
 }
 
 /* A pinhole view's rays, set up once (render.c): through window point

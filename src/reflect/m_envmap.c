@@ -120,14 +120,7 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
         float *points = cb->cube_points + 3 * nn * (size_t)f;
         rast_targets t;
         rast_state s;
-        memset(&t, 0, sizeof t);
-        t.color.ptr = color;
-        t.color.width = t.color.height = cb->n;
-        t.color.stride = 4 * (int)sizeof(float) * cb->n;
-        t.color_format = RAST_COLOR_RGBA32F;
-        t.depth.ptr = cb->face_depth;
-        t.depth.width = t.depth.height = cb->n;
-        t.depth.stride = (int)sizeof(float) * cb->n;
+        t = refl__float_targets(color, cb->face_depth, NULL, cb->n, cb->n);
         if ((rr = rast_set_targets(p->rc, &t)) != RAST_OK ||
             (rr = refl__em_clear(p->rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH)) != RAST_OK)
             return refl__result_from_rast(rr);

@@ -184,15 +184,8 @@ static refl_result refl__gci_build(const refl_scene *scene, const refl_graphcam 
                                            sizeof *draws);
     if (!imp->rgba || !imp->depth || !imp->frustum || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) {
-        /* a frame's layout: colour, depth, and the frustum ids as its stencil */
-        refl_frame as_frame;
-        memset(&as_frame, 0, sizeof as_frame);
-        as_frame.width = cam->width;
-        as_frame.height = cam->height;
-        as_frame.rgba = imp->rgba;
-        as_frame.depth = imp->depth;
-        as_frame.stencil = imp->frustum;
-        t = refl__frame_targets(&as_frame);
+        /* colour, depth, and the frustum ids as the stencil */
+        t = refl__float_targets(imp->rgba, imp->depth, imp->frustum, cam->width, cam->height);
         rr = rast_set_targets(rc, &t);
         if (rr == RAST_OK) rr = refl__em_clear(rc, RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH | RAST_CLEAR_STENCIL);
     }

@@ -140,22 +140,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
             o[4 + 12 + term] = (float)has;
         }
     }
-    memset(&tg, 0, sizeof tg);
-    tg.color.ptr = color;
-    tg.color.width = w;
-    tg.color.height = h;
-    tg.color.stride = 4 * (int)sizeof(float) * w;
-    tg.color_format = RAST_COLOR_RGBA32F;
-    tg.depth.ptr = depth;
-    tg.depth.width = w;
-    tg.depth.height = h;
-    tg.depth.stride = (int)sizeof(float) * w;
-    if (stencil) {
-        tg.stencil.ptr = stencil;
-        tg.stencil.width = w;
-        tg.stencil.height = h;
-        tg.stencil.stride = w;
-    }
+    tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
     memset(&clear, 0, sizeof clear);
     clear.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;

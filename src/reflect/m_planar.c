@@ -861,15 +861,7 @@ static refl_result refl__method_planar(refl__pass *p) {
         r = REFL_ERROR_OUT_OF_MEMORY;
         goto done;
     }
-    memset(&pl.targets, 0, sizeof pl.targets);
-    t = pl.targets;
-    t.color.ptr = pl.color; t.color.width = f->width; t.color.height = f->height;
-    t.color.stride = 4 * (int)sizeof(float) * f->width;
-    t.color_format = RAST_COLOR_RGBA32F;
-    t.depth.ptr = f->depth; t.depth.width = f->width; t.depth.height = f->height;
-    t.depth.stride = (int)sizeof(float) * f->width;
-    t.stencil.ptr = pl.stencil; t.stencil.width = f->width; t.stencil.height = f->height;
-    t.stencil.stride = f->width;
+    t = refl__float_targets(pl.color, f->depth, pl.stencil, f->width, f->height);
     pl.targets = t;
     r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     if (r != REFL_OK) goto done;
