@@ -9328,21 +9328,13 @@ static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
     return refl__gl_done(&o);
 }
 
-/* A packer's two runs: sizing, then writing when cap holds it all. */
-static long long refl__gl_pack(long long (*pack)(refl__gl_out *, const void *), const void *cam, float *out,
-                               long long cap) {
+REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
-    long long need = pack(&o, cam);
+    long long need = refl__gl_spoc(&o, cam);
     if (need < 0 || !out || cap < need) return need;
     o.out = out;
     o.cap = cap;
-    return pack(&o, cam);
-}
-
-static long long refl__gl_spoc_any(refl__gl_out *o, const void *cam) { return refl__gl_spoc(o, (const refl_spoc *)cam); }
-
-REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
-    return refl__gl_pack(refl__gl_spoc_any, cam, out, cap);
+    return refl__gl_spoc(&o, cam);
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
