@@ -13419,7 +13419,10 @@ REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_vie
    large for objects close to the reflector.
 
    One bounce: other reflectors appear in a cube as DIRECT draws them
-   (black, or a partial reflector's diffuse share).
+   (black, or a partial reflector's diffuse share). With depth > 1, a pixel
+   whose lookup lands on another reflector's texel goes to RAYTRACE's
+   tracer for its colour (refl__trace_beyond), as the cube cannot follow
+   the path further; its point stays the cube's.
 
    Per reflector pixel, the normal comes from the reflectors' G-buffer
    (gbuffer.c), the view direction from the pixel's camera ray. Colour is
@@ -13440,11 +13443,10 @@ REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_vie
 
 /* Cube faces: the world position a texel shows. */
 static int refl__em_position_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
-    (void)user;
     rgba[0] = in->varyings[0];
     rgba[1] = in->varyings[1];
     rgba[2] = in->varyings[2];
-    rgba[3] = 1.0f;
+    rgba[3] = ((const refl__em_draw *)user)->id; /* object index + 1 */
     return 1;
 }
 
@@ -13498,6 +13500,7 @@ typedef struct refl__em_cube {
     int n;                        /* face size */
     float *cube_color;            /* 6 faces of n x n linear RGBA */
     float *cube_points;           /* 6 faces of n x n world points (NaN: environment) */
+    uint8_t *cube_reflector;      /* 6 faces of n x n: 1 where a texel shows a reflector */
     float *face_depth;            /* n x n */
     float *face_pos;              /* n x n RGBA32F */
     int object;                   /* the reflector being looked up */
@@ -13529,6 +13532,7 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
         refl_mat4 vp = refl_mat4_mul(proj, refl__em_face_view(f, c)), inv;
         float *color = cb->cube_color + 4 * nn * (size_t)f;
         float *points = cb->cube_points + 3 * nn * (size_t)f;
+        uint8_t *reflector = cb->cube_reflector + nn * (size_t)f;
         rast_targets t;
         rast_state s;
         t = refl__float_targets(color, cb->face_depth, NULL, cb->n, cb->n);
@@ -13561,6 +13565,12 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
             points[3 * k] = shown ? cb->face_pos[4 * k] : NAN;
             points[3 * k + 1] = shown ? cb->face_pos[4 * k + 1] : NAN;
             points[3 * k + 2] = shown ? cb->face_pos[4 * k + 2] : NAN;
+            reflector[k] = 0;
+            if (shown) {
+                int o = (int)cb->face_pos[4 * k + 3] - 1;
+                reflector[k] = (uint8_t)(o >= 0 && o < scene->object_count &&
+                                         refl__is_reflector(&scene->materials[scene->objects[o].material]));
+            }
         }
     }
     return REFL_OK;
@@ -13568,11 +13578,12 @@ static refl_result refl__em_build_cube(refl__em_cube *cb, int object, refl_vec3 
 
 /* Bilinear colour of the cube along dir (within its face, clamped at the
    face's edges as GL samples cube maps), and the world point of the
-   nearest texel. */
-static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3], refl_vec3 *point) {
+   nearest texel; nonzero when a texel the colour mixes shows a reflector. */
+static int refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3], refl_vec3 *point) {
     float v[3], s, t, x, y, fx, fy;
     int face, x0, y0, x1, y1, c, n = cb->n, ix, iy;
     size_t base;
+    const uint8_t *mirror;
     const float *px;
     const float *pt;
     v[0] = dir.x; v[1] = dir.y; v[2] = dir.z;
@@ -13600,6 +13611,11 @@ static void refl__em_lookup(const refl__em_cube *cb, refl_vec3 dir, float rgb[3]
     iy = REFL__CLAMP((int)(t * (float)n), 0, n - 1);
     pt = cb->cube_points + 3 * (base + (size_t)iy * (size_t)n + (size_t)ix);
     *point = refl_v3(pt[0], pt[1], pt[2]);
+    mirror = cb->cube_reflector + base;
+    return (fx < 1.0f && fy < 1.0f && mirror[(size_t)y0 * (size_t)n + (size_t)x0]) ||
+           (fx > 0.0f && fy < 1.0f && mirror[(size_t)y0 * (size_t)n + (size_t)x1]) ||
+           (fx < 1.0f && fy > 0.0f && mirror[(size_t)y1 * (size_t)n + (size_t)x0]) ||
+           (fx > 0.0f && fy > 0.0f && mirror[(size_t)y1 * (size_t)n + (size_t)x1]);
 }
 
 /* One frame row: every pixel of the current reflector gets its reflection
@@ -13616,6 +13632,7 @@ static void refl__em_row(void *arg, int y) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         const float *g = cb->em.gbuf + 4 * i;
         float rgb[3], sub[3], cos_i, w, tmax;
+        int beyond;                   /* the lookup met a reflector the cube cannot follow */
         refl_vec3 o, d, n, shown;
         if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
@@ -13624,7 +13641,7 @@ static void refl__em_row(void *arg, int y) {
         if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);  /* the side the viewer sees */
         cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
         w = refl_material_reflectance(m, cos_i);
-        refl__em_lookup(cb, refl_v3_reflect(d, n), sub, &shown);
+        beyond = refl__em_lookup(cb, refl_v3_reflect(d, n), sub, &shown) && w > 0.0f;
         if (m->type == REFL_GLASS) {
             float ior = m->ior > 0.0f ? m->ior : 1.5f, tint[3], tsub[3];
             int tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
@@ -13632,7 +13649,7 @@ static void refl__em_row(void *arg, int y) {
             if (!refl_v3_refract(d, n, 1.0f / ior, &t)) w = 1.0f; /* total internal reflection */
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
             if (w < 1.0f) {
-                refl__em_lookup(cb, t, tsub, &tshown);
+                beyond |= refl__em_lookup(cb, t, tsub, &tshown);
                 for (c = 0; c < 3; ++c) {
                     tint[c] = tinted ? m->tint[c] : 1.0f;
                     rgb[c] += (1.0f - w) * tint[c] * tsub[c];
@@ -13644,11 +13661,12 @@ static void refl__em_row(void *arg, int y) {
             for (c = 0; c < 3; ++c) rgb[c] = w * sub[c];
         }
         refl__em_put(fr, i, rgb, shown);
+        if (beyond && p->trace) p->trace[i] = REFL__TRACE_COLOUR;
     }
 }
 
 static const char *refl__options_envmap(refl_render_desc *d) {
-    /* six faces of float colour, points, depth and positions: 48 bytes a texel */
+    /* six faces of float colour and points, a reflector flag, depth and positions: 49 bytes a texel */
     if (d->envmap.size < 0 || d->envmap.size > 2048) return "envmap.size: 0 (256) to 2048 (1.2 GB of cube buffers)";
     if (d->envmap.size == 0) d->envmap.size = 256;
     return NULL;
@@ -13675,9 +13693,10 @@ static refl_result refl__method_envmap(refl__pass *p) {
     if (r == REFL_OK && any) {
         cb.cube_color = (float *)refl__calloc(al, 6 * nn, 4 * sizeof(float));
         cb.cube_points = (float *)refl__calloc(al, 6 * nn, 3 * sizeof(float));
+        cb.cube_reflector = (uint8_t *)refl__calloc(al, 6 * nn, 1);
         cb.face_depth = (float *)refl__calloc(al, nn, sizeof(float));
         cb.face_pos = (float *)refl__calloc(al, nn, 4 * sizeof(float));
-        if (!cb.cube_color || !cb.cube_points || !cb.face_depth || !cb.face_pos) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!cb.cube_color || !cb.cube_points || !cb.cube_reflector || !cb.face_depth || !cb.face_pos) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     t1 = refl__now_ms();
     fr->stats.ms_reflect += t1 - t0;
@@ -13688,7 +13707,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
         fr->stats.ms_build += t0 - t1;
         if (r != REFL_OK) break;
         fr->stats.envmap.cube_faces += 6;
-        fr->stats.model_bytes += (long long)(6 * nn * (4 + 3 * sizeof(float)));
+        fr->stats.model_bytes += (long long)(6 * nn * (4 + 3 * sizeof(float) + 1));
         cb.object = i;
         rast_run_jobs(p->rc, fr->height, refl__em_row, &cb);
         t1 = refl__now_ms();
@@ -13705,6 +13724,7 @@ static refl_result refl__method_envmap(refl__pass *p) {
     refl__free(al, seen);
     refl__free(al, cb.cube_color);
     refl__free(al, cb.cube_points);
+    refl__free(al, cb.cube_reflector);
     refl__free(al, cb.face_depth);
     refl__free(al, cb.face_pos);
     return r;

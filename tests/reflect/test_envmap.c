@@ -235,7 +235,7 @@ Test(refl_envmap, mirror_in_face_environment_matches_the_true_reflection) {
     cr_assert(off * 1000 <= px * 3, "%d of %d pixels differ from the true reflection", off, px);
     for (k = 0; k < 6; ++k) cr_assert(faces_seen[k], "face %d never reflected", k);
     cr_assert_eq(f->stats.envmap.cube_faces, 6);
-    cr_assert_eq(f->stats.model_bytes, 6LL * 32 * 32 * (4 + 3 * (long long)sizeof(float)));
+    cr_assert_eq(f->stats.model_bytes, 6LL * 32 * 32 * (4 + 3 * (long long)sizeof(float) + 1));
     refl_bvh_destroy(bvh);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
@@ -445,12 +445,39 @@ Test(refl_envmap, default_scene) {
     cr_assert(px > 2000 && finite > px / 10 && finite < px, "%d teapot pixels, %d with points", px, finite);
     cr_assert_eq(f->stats.envmap.cube_faces, 6);
     cr_assert_eq(f->stats.reflectors, 1);
-    cr_assert_eq(f->stats.model_bytes, 6LL * 256 * 256 * (4 + 3 * (long long)sizeof(float)));
+    cr_assert_eq(f->stats.model_bytes, 6LL * 256 * 256 * (4 + 3 * (long long)sizeof(float) + 1));
     cr_assert(f->stats.triangles > 12 * (direct->stats.triangles - s->meshes[s->objects[teapot].mesh]->triangle_count),
               "%lld triangles", f->stats.triangles);
     cr_assert(f->stats.ms_build >= 0.0 && f->stats.ms_reflect >= 0.0);
     refl_frame_destroy(direct);
     refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
+
+/* mirror-room at depth 3: a lookup that lands on another mirror's texel
+   (drawn black, as DIRECT draws mirrors) goes to the tracer, so no mirror
+   pixel is black where the exact path shows something lit. */
+Test(refl_envmap, a_mirror_in_the_cube_is_traced_past_one_bounce) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("mirror-room", &v, 96, 72);
+    refl_render_desc d = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth, *f;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    int black = 0, mirror = 0;
+    d.depth = 3;
+    truth = tu_refl_render(s, &v, &d);
+    d.method = REFL_ENVMAP;
+    f = tu_refl_render(s, &v, &d);
+    for (i = 0; i < n; ++i) {
+        const float *c = f->rgba + 4 * i, *t = truth->rgba + 4 * i;
+        if (!f->stencil[i]) continue;
+        ++mirror;
+        black += c[0] + c[1] + c[2] < 1e-3f && t[0] + t[1] + t[2] > 0.05f;
+    }
+    cr_assert_gt(mirror, (int)(n / 4));
+    cr_assert_eq(black, 0, "%d of %d mirror pixels black where RAYTRACE's are lit", black, mirror);
+    refl_frame_destroy(f);
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
 
@@ -481,7 +508,7 @@ Test(refl_envmap, edge_sizes_and_views) {
     f = render_with(s, &v, REFL_ENVMAP, 3, 1);
     for (i = 0; i < 64 * 48; ++i)
         if (f->stencil[i]) cr_assert_eq(tu_unorm8(f->rgba[4 * i + 3]), 255);
-    cr_assert_eq(f->stats.model_bytes, 6LL * (4 + 3 * (long long)sizeof(float)));
+    cr_assert_eq(f->stats.model_bytes, 6LL * (4 + 3 * (long long)sizeof(float) + 1));
     refl_frame_destroy(f);
     /* the teapot behind the camera */
     v.target = refl_v3(v.eye.x, v.eye.y, v.eye.z + 1.0f);
