@@ -1196,6 +1196,10 @@ typedef struct refl_graphcam_frame_stats {
     long long triangles;     /* drawn into the impostor (clipped pieces counted) */
     long long rays;          /* reflected rays intersected with it */
     long long hits;          /* of those, the ones that met it */
+    long long traced;        /* reflector pixels whose ray the impostor could not answer (it
+                                met the scene past what the impostor holds, or a mirror or
+                                glass first; past one bounce those are traced_beyond's), drawn
+                                by RAYTRACE's tracer */
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;
