@@ -832,8 +832,8 @@ static int cmd_render(const options *o) {
         }
         if (st->graphcam.frusta) {
             const refl_graphcam_frame_stats *g = &st->graphcam;
-            printf("frusta       %d\nimpostor     %lld triangles\nrays         %lld (hit %lld)\n"
-                   "steps        %lld (at most %lld a ray)\n", g->frusta, g->triangles, g->rays, g->hits, g->steps,
+            printf("frusta       %d\nimpostor     %lld triangles\nrays         %lld (hit %lld, %lld ray traced)\n"
+                   "steps        %lld (at most %lld a ray)\n", g->frusta, g->triangles, g->rays, g->hits, g->traced, g->steps,
                    g->max_steps);
         }
         if (st->layered_em.maps_held) {

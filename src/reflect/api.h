@@ -876,7 +876,10 @@ REFL_API refl_result refl_sbc_morph_project_points(const refl_sbc_morph *morph, 
    to the root's image (the concatenated projections). A mirror bend's
    child eye is the parent's eye mirrored in the portal's plane: the
    frustum is then PLANAR's mirrored camera (matrix parent * reflection).
-   A split is several bends of one parent. Merges are not modelled.
+   A split is several bends of one parent. A merge joins two frusta into
+   one (two corridors meeting): one eye, a portal in each parent, the two
+   portals sharing an edge; stored as its two halves (each a bend of its
+   parent), both at the level after the deeper parent's.
 
    A frustum's region is convex: its entry plane (the root's near plane, a
    child's portal plane), four side planes, a far plane and any bounds added
@@ -895,6 +898,7 @@ typedef struct refl_graphcam_frustum {
     int parent;              /* -1: the root */
     int level;               /* bends from the root */
     int mirror;              /* made by a mirror bend */
+    int merged_with;         /* a merge's half: the other half's index + 1; else 0 */
     refl_vec3 eye;           /* its centre of projection */
     refl_vec3 portal[4];     /* its entry quad (the root: the near plane's corners) */
     refl_mat4 m;             /* world to the root image's clip space; z / w is -1 on the
@@ -934,6 +938,14 @@ REFL_API refl_result refl_graphcam_bend_mirror(refl_graphcam *cam, int parent, c
 /* count bends of one parent (portals[i], eyes[i]): indices *first .. + count - 1. */
 REFL_API refl_result refl_graphcam_split(refl_graphcam *cam, int parent, const refl_vec3 (*portals)[4],
                                          const refl_vec3 *eyes, int count, float far, int *first);
+/* A merge of frusta a and b into one frustum with centre of projection
+   eye: its halves enter at portal_a (inside a) and portal_b (inside b),
+   which share an edge (two corners each, equal within 1e-4 of their size)
+   and lie on either side of the plane through eye and that edge. The
+   halves are indices *first and *first + 1, both at the level after the
+   deeper parent's; a and b each end at their half's portal plane. */
+REFL_API refl_result refl_graphcam_merge(refl_graphcam *cam, int a, int b, const refl_vec3 portal_a[4],
+                                         const refl_vec3 portal_b[4], refl_vec3 eye, float far, int *first);
 /* Restricts a frustum's region to n . x + d >= 0. */
 REFL_API refl_result refl_graphcam_bound(refl_graphcam *cam, int frustum, refl_vec3 n, float d);
 /* The frustum that holds p (the floor map, then plane tests), or -1. */
@@ -1196,6 +1208,10 @@ typedef struct refl_graphcam_frame_stats {
     long long triangles;     /* drawn into the impostor (clipped pieces counted) */
     long long rays;          /* reflected rays intersected with it */
     long long hits;          /* of those, the ones that met it */
+    long long traced;        /* reflector pixels whose ray the impostor could not answer (it
+                                met the scene past what the impostor holds, or a mirror or
+                                glass first; past one bounce those are traced_beyond's), drawn
+                                by RAYTRACE's tracer */
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;

@@ -349,6 +349,68 @@ REFL_API refl_result refl_graphcam_split(refl_graphcam *cam, int parent, const r
     return REFL_OK;
 }
 
+/* A merge: a bend of a at portal_a and a bend of b at portal_b with one
+   eye, the two portals sharing an edge and lying on either side of the
+   plane through the eye and that edge, so the two halves are adjacent and
+   disjoint. Both halves take the level after the deeper parent's, and each
+   parent ends at its half's portal plane. */
+REFL_API refl_result refl_graphcam_merge(refl_graphcam *cam, int a, int b, const refl_vec3 portal_a[4],
+                                         const refl_vec3 portal_b[4], refl_vec3 eye, float far, int *first) {
+    const refl_vec3 *portal[2];
+    refl_vec3 edge[2], mid[2];
+    double size = 0.0, split[4];
+    int parent[2], half[2], j, k, shared = 0, count, levels, level;
+    refl_result r = REFL_OK;
+    if (first) *first = -1;
+    if (!cam || !portal_a || !portal_b || a < 0 || b < 0 || a >= cam->count || b >= cam->count || a == b ||
+        cam->count + 2 > REFL_GRAPHCAM_MAX_FRUSTA || cam->frusta[a].plane_count >= REFL_GRAPHCAM_MAX_PLANES ||
+        cam->frusta[b].plane_count >= REFL_GRAPHCAM_MAX_PLANES || !refl__v3_finite(eye))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    portal[0] = portal_a;
+    portal[1] = portal_b;
+    parent[0] = a;
+    parent[1] = b;
+    for (j = 0; j < 2; ++j) {
+        mid[j] = refl_v3(0, 0, 0);
+        for (k = 0; k < 4; ++k) {
+            if (!refl__v3_finite(portal[j][k])) return REFL_ERROR_INVALID_ARGUMENT;
+            size = REFL__MAX(size, (double)refl_v3_length(refl_v3_sub(portal[j][k], portal[j][(k + 1) & 3])));
+            mid[j] = refl_v3_add(mid[j], refl_v3_scale(portal[j][k], 0.25f));
+        }
+    }
+    for (j = 0; j < 4; ++j) /* the shared edge: two corners of portal_a that are corners of portal_b */
+        for (k = 0; k < 4; ++k)
+            if (shared < 2 && refl_v3_length(refl_v3_sub(portal_a[j], portal_b[k])) <= 1e-4 * size)
+                edge[shared++] = portal_a[j];
+    if (shared < 2 || !refl__gc_plane3(eye, edge[0], edge[1], split) ||
+        !(refl__gc_plane_eval(split, mid[0]) * refl__gc_plane_eval(split, mid[1]) < 0.0))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    count = cam->count;
+    levels = cam->levels;
+    for (j = 0; j < 2 && r == REFL_OK; ++j) r = refl__gc_bend(cam, parent[j], portal[j], eye, 0, far, &half[j]);
+    if (r != REFL_OK) { /* as it was */
+        cam->count = count;
+        cam->levels = levels;
+        refl__gc_build_map(cam);
+        return r;
+    }
+    level = REFL__MAX(cam->frusta[a].level, cam->frusta[b].level) + 1;
+    for (j = 0; j < 2; ++j) {
+        refl_graphcam_frustum *h = &cam->frusta[half[j]];
+        double end[4];
+        for (k = 0; k < 4; ++k) end[k] = -h->planes[0][k];
+        h->level = level;
+        h->merged_with = half[1 - j] + 1;
+        refl__gc_add_plane(&cam->frusta[parent[j]], end);
+    }
+    for (j = 0; j < 2; ++j) {
+        refl__gc_update(cam, parent[j]);
+        refl__gc_update(cam, half[j]);
+    }
+    if (first) *first = half[0];
+    return REFL_OK;
+}
+
 REFL_API refl_result refl_graphcam_bound(refl_graphcam *cam, int frustum, refl_vec3 n, float d) {
     double pl[4], len;
     if (!cam || frustum < 0 || frustum >= cam->count || !refl__v3_finite(n) || !refl__isfinite(d))

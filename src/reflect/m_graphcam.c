@@ -8,8 +8,11 @@
    the impostor by one of the paper's two algorithms, and composited as
    ENVMAP composites (gbuffer.c). What lies outside every frustum is not
    in the impostor: there the flat diffuse objects (the floor reaching out
-   of the maze) are billboards, intersected exactly (impostor.c), and a
-   ray that meets nothing shows the environment. One bounce (stats.depth 1).
+   of the maze) are billboards, intersected exactly (impostor.c). A ray
+   the impostor cannot answer (it meets neither and yet meets the scene,
+   or meets a mirror or glass first, which the impostor leaves out) goes
+   to RAYTRACE's tracer; only a ray that escapes the scene shows the
+   environment. One bounce (stats.depth 1).
 
    The impostor's construction and its ray march are the graph camera's
    own here; the generic impostor of the SPOC method could share the
@@ -503,13 +506,18 @@ typedef struct refl__gcm {
     const refl_graphcam_impostor *imp;
     refl_bvh *flat;               /* the flat diffuse objects (NULL: none) */
     int *flat_object;             /* its object index -> scene object */
+    refl_bvh *unheld;             /* the mirrors and glass, which the impostor leaves out (NULL: none) */
+    int *unheld_object;
+    const refl_bvh *scene_bvh;    /* the whole scene: does a ray the impostor misses escape? */
+    refl_bvh *scene_owned;
+    uint8_t *handed;              /* per pixel: REFL__TRACE_ALL where RAYTRACE's tracer draws it */
     refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
-    long long *steps, *max_steps, *rays, *hits; /* per row */
+    long long *steps, *max_steps, *rays, *hits, *traced; /* per row */
 } refl__gcm;
 
-/* The flat diffuse objects as billboards: their BVH, for the parts of them
-   outside the graph camera. */
-static refl_result refl__gcm_billboards(refl__gcm *g) {
+/* The BVH of the scene objects `keep` accepts, and its object index ->
+   scene object (*out NULL: none). */
+static refl_result refl__gcm_sub_bvh(refl__gcm *g, int (*keep)(const refl_scene *, int), refl_bvh **out, int **map) {
     const refl_scene *scene = g->p->scene;
     const refl_allocator *al = &scene->allocator;
     size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
@@ -517,26 +525,53 @@ static refl_result refl__gcm_billboards(refl__gcm *g) {
     refl_scene sub;
     refl_result r = REFL_OK;
     int i, n = 0;
-    g->flat_object = (int *)refl__calloc(al, objects, sizeof(int));
-    g->objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
-    if (!objs || !g->flat_object || !g->objects) r = REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
+    *map = (int *)refl__calloc(al, objects, sizeof(int));
+    if (!objs || !*map) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; r == REFL_OK && i < scene->object_count; ++i)
+        if (keep(scene, i)) {
+            (*map)[n] = i;
+            objs[n++] = scene->objects[i];
+        }
+    if (r == REFL_OK && n) {
+        sub = *scene;
+        sub.objects = objs;
+        sub.object_count = n;
+        r = refl_bvh_build(&sub, al, out);
+    }
+    refl__free(al, objs);
+    return r;
+}
+
+static int refl__gcm_is_billboard(const refl_scene *scene, int i) {
+    return !refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl__object_flat(scene, i);
+}
+
+static int refl__gcm_is_unheld(const refl_scene *scene, int i) {
+    return refl__is_reflector(&scene->materials[scene->objects[i].material]);
+}
+
+/* What the reflected rays meet besides the impostor: the flat diffuse
+   objects as billboards (for their parts outside the graph camera), the
+   mirrors and glass, and the whole scene. */
+static refl_result refl__gcm_exact(refl__gcm *g) {
+    const refl_scene *scene = g->p->scene;
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    refl_bvh *bvh = NULL;
+    refl_result r;
+    int i;
+    g->objects = (refl__rt_object *)refl__calloc(&scene->allocator, objects, sizeof(refl__rt_object));
+    if (!g->objects) return REFL_ERROR_OUT_OF_MEMORY;
+    for (i = 0; i < scene->object_count; ++i) {
         const refl_object *o = &scene->objects[i];
         g->objects[i].mesh = scene->meshes[o->mesh];
         g->objects[i].material = &scene->materials[o->material];
         g->objects[i].model = o->transform;
         g->objects[i].normal_m = refl__normal_matrix(o->transform);
-        if (refl__is_reflector(&scene->materials[o->material]) || !refl__object_flat(scene, i)) continue;
-        g->flat_object[n] = i;
-        objs[n++] = *o;
     }
-    if (r == REFL_OK && n) {
-        sub = *scene;
-        sub.objects = objs;
-        sub.object_count = n;
-        r = refl_bvh_build(&sub, al, &g->flat);
-    }
-    refl__free(al, objs);
+    r = refl__gcm_sub_bvh(g, refl__gcm_is_billboard, &g->flat, &g->flat_object);
+    if (r == REFL_OK) r = refl__gcm_sub_bvh(g, refl__gcm_is_unheld, &g->unheld, &g->unheld_object);
+    if (r == REFL_OK) r = refl__models_bvh(g->p, &bvh, &g->scene_owned);
+    g->scene_bvh = bvh;
     return r;
 }
 
@@ -554,11 +589,11 @@ static void refl__gcm_row(void *arg, int y) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         const float *gb = g->em.gbuf + 4 * i;
         const float *q = g->em.surface + 3 * i;
-        refl_vec3 o, d, n, s;
+        refl_vec3 o, d, n, s, off;
         refl_graphcam_hit hit;
         refl_hit h;
         float tmax;
-        int found;
+        int found, hand;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(gb[0], gb[1], gb[2]));
@@ -577,8 +612,36 @@ static void refl__gcm_row(void *arg, int y) {
             if (refl_graphcam_locate(g->cam, at) < 0) {
                 memcpy(hit.rgb, rgb, sizeof rgb);
                 hit.point = at;
+                hit.t = h.t;
                 found = 1;
             }
+        }
+        g->steps[y] += hit.steps;
+        if (hit.steps > g->max_steps[y]) g->max_steps[y] = hit.steps;
+        /* What the impostor cannot answer goes to RAYTRACE's tracer: a ray
+           it does not stop that still meets the scene (it left every
+           frustum, or passed behind what the impostor shows), and a mirror
+           or glass met first (the impostor holds neither; past one bounce
+           that path is refl__trace_beyond's). Only a ray that escapes the
+           scene shows the environment. The exact rays start off the
+           surface on the mirror's side: the G-buffer's point may lie a
+           hair behind it, where a ray into a corner slips out of the scene. */
+        hand = 0;
+        off = refl_v3_add(s, refl_v3_scale(n, eps));
+        if (!found) {
+            if (refl_bvh_intersect(g->scene_bvh, off, d, 0.0f, 1e30f, &h))
+                hand = refl__is_reflector(g->objects[h.object].material) ? 2 : 1;
+        } else if (g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) {
+            hand = 2;
+        }
+        if (hand == 2 && p->trace) {
+            p->trace[i] = REFL__TRACE_ALL;
+            continue;
+        }
+        if (hand) {
+            g->handed[i] = REFL__TRACE_ALL;
+            g->traced[y]++;
+            continue;
         }
         if (found) {
             g->hits[y]++;
@@ -586,8 +649,6 @@ static void refl__gcm_row(void *arg, int y) {
         } else {
             refl__em_composite(p, gb, x, y, NULL, refl_v3(NAN, NAN, NAN));
         }
-        g->steps[y] += hit.steps;
-        if (hit.steps > g->max_steps[y]) g->max_steps[y] = hit.steps;
     }
 }
 
@@ -614,6 +675,7 @@ static refl_result refl__method_graphcam(refl__pass *p) {
     double t0 = refl__now_ms(), t1;
     refl_result r = REFL_OK;
     int any = 0, y;
+    long long handed = 0;
     size_t npx = (size_t)fr->width * (size_t)fr->height;
     memset(&g, 0, sizeof g);
     g.p = p;
@@ -633,23 +695,26 @@ static refl_result refl__method_graphcam(refl__pass *p) {
             g.cam = own;
         }
         g.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-        g.steps = (long long *)refl__calloc(al, (size_t)fr->height, 4 * sizeof(long long));
-        if (r == REFL_OK && (!g.em.surface || !g.steps)) r = REFL_ERROR_OUT_OF_MEMORY;
+        g.steps = (long long *)refl__calloc(al, (size_t)fr->height, 5 * sizeof(long long));
+        g.handed = (uint8_t *)refl__calloc(al, npx, 1);
+        if (r == REFL_OK && (!g.em.surface || !g.steps || !g.handed)) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             g.max_steps = g.steps + fr->height;
             g.rays = g.max_steps + fr->height;
             g.hits = g.rays + fr->height;
+            g.traced = g.hits + fr->height;
             /* the impostor replaces the diffuse scene; reflectors stay out */
             t1 = refl__now_ms();
             fr->stats.ms_reflect += t1 - t0;
             r = refl__gci_build(scene, g.cam, NULL, p->rc, &imp);
-            if (r == REFL_OK) r = refl__gcm_billboards(&g);
+            if (r == REFL_OK) r = refl__gcm_exact(&g);
             t0 = refl__now_ms();
             fr->stats.ms_build += t0 - t1;
         }
         if (r == REFL_OK) {
             g.imp = imp;
             if (g.flat) fr->stats.model_bytes += refl__bvh_bytes(g.flat);
+            if (g.unheld) fr->stats.model_bytes += refl__bvh_bytes(g.unheld);
             fr->stats.graphcam.frusta = g.cam->count;
             fr->stats.graphcam.triangles = imp->triangles;
             fr->stats.model_bytes += (long long)((size_t)imp->width * (size_t)imp->height * (4 * sizeof(float) + sizeof(float) + 1));
@@ -659,19 +724,26 @@ static refl_result refl__method_graphcam(refl__pass *p) {
                 fr->stats.graphcam.steps += g.steps[y];
                 fr->stats.graphcam.rays += g.rays[y];
                 fr->stats.graphcam.hits += g.hits[y];
+                fr->stats.graphcam.traced += g.traced[y];
+                handed += g.traced[y];
                 if (g.max_steps[y] > fr->stats.graphcam.max_steps) fr->stats.graphcam.max_steps = g.max_steps[y];
             }
         }
     }
-    t1 = refl__now_ms();
-    fr->stats.ms_reflect += t1 - t0;
     if (r == REFL_OK) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
+    if (r == REFL_OK && handed) r = refl__trace_marked(p, g.handed);
+    t1 = refl__now_ms();
+    fr->stats.ms_reflect += t1 - t0;
     refl_graphcam_impostor_destroy(imp);
     refl_bvh_destroy(g.flat);
     refl__free(al, g.flat_object);
+    refl_bvh_destroy(g.unheld);
+    refl__free(al, g.unheld_object);
+    refl_bvh_destroy(g.scene_owned);
+    refl__free(al, g.handed);
     refl__free(al, g.objects);
     refl__free(al, own);
     refl__free(al, g.steps);
