@@ -1096,6 +1096,7 @@ REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render 
    (method, class), a model predicts the method's frame cost and reflection
    error from them:
        cost_ms  = cost[0] + cost[1] * pixels / 1000 + cost[2] * triangles / 1000
+                + cost[3] * pixels * beyond / 1000
        error_px = error[0] + error[1] * s + error[2] * s * nearness
    with s = sqrt(pixels) and triangles the scene's. `reflect bench
    --fit-auto FILE` fits them from its own measurements; the library has a
@@ -1119,12 +1120,18 @@ typedef struct refl_auto_features {
                                 r the sphere's radius, D the distance to the first other
                                 object's bounding box that way (none: 0) */
     float scene_triangles;   /* the scene's, in all */
+    float beyond;            /* the share of its pixels whose path meets another reflector after
+                                its first bounce (what a one-bounce method hands the tracer at
+                                depth 2 and more), in [0, 1]: over at most 256 of its pixels, the
+                                mirror ray from the point and normal the depth buffer gives,
+                                against the other objects' bounding boxes; 0 for glass (its
+                                paths are the tracer's) and, in AUTO, at depth 1 */
 } refl_auto_features;
 
 typedef struct refl_auto_model {
     int fitted;              /* 0: no model (the method is no candidate for the class) */
     int samples;             /* measurements it was fitted to */
-    float cost[3];           /* the formulas above */
+    float cost[4];           /* the formulas above */
     float error[3];
 } refl_auto_model;
 typedef struct refl_auto_models {
@@ -1138,7 +1145,8 @@ REFL_API void refl_auto_predict(const refl_auto_model *model, const refl_auto_fe
 REFL_API void refl_auto_models_builtin(refl_auto_models *out);
 /* The text format (docs/methods/auto.md): '#' comments and blank lines,
    a first line "reflect-auto-models 1", then one line per model:
-       model METHOD CLASS samples N cost C0 C1 C2 error E0 E1 E2
+       model METHOD CLASS samples N cost C0 C1 C2 [C3] error E0 E1 E2
+   (C3 absent: 0)
    REFL_ERROR_INVALID_ARGUMENT on anything else, with the line and the
    rule it broke in message (may be NULL; message_size bytes, cut). */
 REFL_API refl_result refl_auto_models_parse(const char *text, size_t length, refl_auto_models *out, char *message,
@@ -2529,10 +2537,10 @@ static const char *refl__options_auto(refl_render_desc *d);
 static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out);
 static refl_result refl__method_can_draw(const refl__pass *p, refl_method m, int object, int *can);
 /* AUTO's models (auto_model.c): object i's features with `pixels` on
-   screen, seen from eye; the pixels of object i in a stencil; whether a
-   model may name m. */
-static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
-                                       refl_auto_features *out);
+   screen in frame f (its stencil and depth), seen along rays; the pixels
+   of object i in a stencil; whether a model may name m. */
+static refl_result refl__auto_features(const refl_scene *s, int i, const refl__view_rays *rays, const refl_frame *f,
+                                       long long pixels, refl_auto_features *out);
 static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object);
 static int refl__auto_modelled(refl_method m);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */
@@ -3133,15 +3141,12 @@ static float refl__auto_box_distance(refl_vec3 o, refl_vec3 dir, refl_vec3 lo, r
     return t0 > 0.0f ? t0 : t1;
 }
 
-/* r / D (see refl_auto_features.nearness). */
-static refl_result refl__auto_nearness(const refl_scene *s, int object, float *out) {
-    refl_vec3 *box = (refl_vec3 *)refl__calloc(&s->allocator, (size_t)s->object_count, 2 * sizeof(refl_vec3)), c;
-    float r, sum = 0.0f;
+/* r / D (see refl_auto_features.nearness), box[] the objects' world bounds
+   (lo, hi per object). */
+static float refl__auto_nearness(const refl_scene *s, int object, const refl_vec3 *box) {
+    refl_vec3 c = refl_v3_scale(refl_v3_add(box[2 * object], box[2 * object + 1]), 0.5f);
+    float r = 0.5f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object])), sum = 0.0f;
     int x, y, z, o;
-    if (!box) return REFL_ERROR_OUT_OF_MEMORY;
-    for (o = 0; o < s->object_count; ++o) refl__auto_object_box(s, o, &box[2 * o], &box[2 * o + 1]);
-    c = refl_v3_scale(refl_v3_add(box[2 * object], box[2 * object + 1]), 0.5f);
-    r = 0.5f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object]));
     for (x = -1; x <= 1; ++x)
         for (y = -1; y <= 1; ++y)
             for (z = -1; z <= 1; ++z) {
@@ -3152,9 +3157,107 @@ static refl_result refl__auto_nearness(const refl_scene *s, int object, float *o
                     if (o != object) best = REFL__MIN(best, refl__auto_box_distance(c, d, box[2 * o], box[2 * o + 1]));
                 sum += best > r ? r / best : 1.0f; /* a miss: 0 */
             }
-    refl__free(&s->allocator, box);
-    *out = sum / 26.0f;
-    return REFL_OK;
+    return sum / 26.0f;
+}
+
+/* The scene point a pixel's depth puts on its view ray (the eye-space
+   distance along forward undone from the window depth of a perspective
+   projection with the rays' near and far planes). */
+static refl_vec3 refl__auto_pixel_point(const refl__view_rays *r, const refl_frame *f, int x, int y) {
+    float nx = 2.0f * ((float)x + 0.5f) / (float)r->width - 1.0f, ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)r->height;
+    float zn = 2.0f * f->depth[(size_t)y * (size_t)f->width + (size_t)x] - 1.0f, n = r->znear, fa = r->zfar;
+    float z = 2.0f * n * fa / ((fa + n) - zn * (fa - n));
+    refl_vec3 d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    return refl_v3_add(r->eye, refl_v3_scale(d, z));
+}
+
+static int refl__auto_inside(refl_vec3 p, refl_vec3 lo, refl_vec3 hi) {
+    return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
+}
+
+/* Whether the ray o + t d, tmin < t < tmax, meets a triangle of object i
+   (the ray taken into the object's own space, where t means the same). */
+static int refl__auto_ray_meets_object(const refl_scene *s, int i, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    const refl_mesh *m = s->meshes[s->objects[i].mesh];
+    refl_mat4 inv;
+    int k;
+    if (!refl_mat4_invert(s->objects[i].transform, &inv)) return 0;
+    o = refl_mat4_point(inv, o);
+    d = refl_mat4_dir(inv, d);
+    for (k = 0; k < m->triangle_count; ++k) {
+        const float *a = m->positions + 3 * m->indices[3 * k], *b = m->positions + 3 * m->indices[3 * k + 1],
+                    *c = m->positions + 3 * m->indices[3 * k + 2];
+        refl_vec3 e1 = refl_v3(b[0] - a[0], b[1] - a[1], b[2] - a[2]), e2 = refl_v3(c[0] - a[0], c[1] - a[1], c[2] - a[2]);
+        refl_vec3 q = refl_v3_cross(d, e2), sv, r;
+        float det = refl_v3_dot(e1, q), u, v, t;
+        if (det == 0.0f) continue;
+        sv = refl_v3(o.x - a[0], o.y - a[1], o.z - a[2]);
+        u = refl_v3_dot(sv, q) / det;
+        if (u < 0.0f || u > 1.0f) continue;
+        r = refl_v3_cross(sv, e1);
+        v = refl_v3_dot(d, r) / det;
+        if (v < 0.0f || u + v > 1.0f) continue;
+        t = refl_v3_dot(e2, r) / det;
+        if (t > tmin && t < tmax) return 1;
+    }
+    return 0;
+}
+
+/* Whether the mirror ray from p (on object i) along d meets a reflector's
+   triangles before a diffuse object's box (a diffuse box around p, such as
+   the wall a mirror hangs on, hides nothing): another reflector, or with
+   `self` (a concave one) object i again past `gap`. Reflectors are tested
+   only where the ray meets their box. */
+static int refl__auto_meets_reflector(const refl_scene *s, int object, int self, float gap, const refl_vec3 *box,
+                                      refl_vec3 p, refl_vec3 d) {
+    float diffuse = INFINITY;
+    int o;
+    for (o = 0; o < s->object_count; ++o)
+        if (!refl__is_reflector(&s->materials[s->objects[o].material]) && !refl__auto_inside(p, box[2 * o], box[2 * o + 1]))
+            diffuse = REFL__MIN(diffuse, refl__auto_box_distance(p, d, box[2 * o], box[2 * o + 1]));
+    for (o = 0; o < s->object_count; ++o) {
+        if (!refl__is_reflector(&s->materials[s->objects[o].material]) || (o == object && !self)) continue;
+        if (!refl__auto_inside(p, box[2 * o], box[2 * o + 1]) &&
+            !(refl__auto_box_distance(p, d, box[2 * o], box[2 * o + 1]) < diffuse))
+            continue;
+        if (refl__auto_ray_meets_object(s, o, p, d, o == object ? gap : 0.0f, diffuse)) return 1;
+    }
+    return 0;
+}
+
+/* refl_auto_features.beyond: over at most 32 of object i's pixels, evenly
+   through the stencil, the share whose mirror ray (from the surface's point
+   and normal the depth buffer gives) meets a reflector: another, or a
+   concave one itself. */
+#define REFL__AUTO_BEYOND_SAMPLES 32
+static float refl__auto_beyond(const refl_scene *s, const refl__view_rays *rays, const refl_frame *f, int object,
+                               int concave, long long pixels, const refl_vec3 *box) {
+    uint8_t id = (uint8_t)(object < 254 ? object + 1 : 255);
+    long long step = pixels / REFL__AUTO_BEYOND_SAMPLES + 1, seen = 0;
+    float gap = 0.01f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object]));
+    int x, y, sampled = 0, met = 0;
+    for (y = 0; y < f->height; ++y)
+        for (x = 0; x < f->width; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            int dx = x + 1 < f->width && f->stencil[i + 1] == id ? 1 : x > 0 && f->stencil[i - 1] == id ? -1 : 0;
+            int dy = y + 1 < f->height && f->stencil[i + (size_t)f->width] == id       ? 1
+                     : y > 0 && f->stencil[i - (size_t)f->width] == id ? -1
+                                                                        : 0;
+            refl_vec3 p, n, view;
+            if (f->stencil[i] != id || seen++ % step) continue;
+            if (!dx || !dy || !(f->depth[i] < 1.0f)) continue; /* no surface to take a normal from */
+            p = refl__auto_pixel_point(rays, f, x, y);
+            n = refl_v3_cross(refl_v3_scale(refl_v3_sub(refl__auto_pixel_point(rays, f, x + dx, y), p), (float)dx),
+                              refl_v3_scale(refl_v3_sub(refl__auto_pixel_point(rays, f, x, y + dy), p), (float)dy));
+            view = refl_v3_normalize(refl_v3_sub(p, rays->eye));
+            n = refl_v3_normalize(n);
+            if (!(refl_v3_length(n) > 0.5f)) continue;
+            if (refl_v3_dot(n, view) > 0.0f) n = refl_v3_scale(n, -1.0f);
+            sampled++;
+            met += refl__auto_meets_reflector(s, object, concave, gap, box, p,
+                                              refl_v3_sub(view, refl_v3_scale(n, 2.0f * refl_v3_dot(view, n))));
+        }
+    return sampled ? (float)met / (float)sampled : 0.0f;
 }
 
 /* Whether PLANAR would show object i from eye: it has planar faces (PLANAR
@@ -3176,25 +3279,30 @@ static refl_result refl__auto_planar_seen(const refl_scene *s, int i, refl_vec3 
     return r;
 }
 
-/* The features of object i with `pixels` pixels on screen, seen from eye. */
-static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
-                                       refl_auto_features *out) {
+/* The features of object i with `pixels` pixels on screen in frame f (its
+   stencil and depth, the base pass's), seen along rays. */
+static refl_result refl__auto_features(const refl_scene *s, int i, const refl__view_rays *rays, const refl_frame *f,
+                                       long long pixels, refl_auto_features *out) {
     const refl_material *mat = &s->materials[s->objects[i].material];
-    int planar = 0;
-    refl_result r;
+    refl_vec3 *box = (refl_vec3 *)refl__calloc(&s->allocator, (size_t)s->object_count, 2 * sizeof(refl_vec3));
+    int planar = 0, o;
+    refl_result r = REFL_OK;
     memset(out, 0, sizeof *out);
+    if (!box) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < s->object_count; ++o) refl__auto_object_box(s, o, &box[2 * o], &box[2 * o + 1]);
     out->pixels = pixels;
     out->scene_triangles = (float)refl_scene_triangles(s);
-    if (refl__auto_nearness(s, i, &out->nearness) != REFL_OK) return REFL_ERROR_OUT_OF_MEMORY;
+    out->nearness = refl__auto_nearness(s, i, box);
     if (mat->type == REFL_GLASS) {
-        out->reflector_class = REFL_AUTO_GLASS;
-        return REFL_OK;
+        out->reflector_class = REFL_AUTO_GLASS; /* the tracer takes no bounce past glass's own (trace.c) */
+    } else if ((r = refl__auto_planar_seen(s, i, rays->eye, &planar)) == REFL_OK) {
+        out->reflector_class = planar                      ? REFL_AUTO_PLANAR
+                               : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
+                                                           : refl__auto_curvature_class(s, i);
+        out->beyond = refl__auto_beyond(s, rays, f, i, out->reflector_class == REFL_AUTO_CONCAVE, pixels, box);
     }
-    if ((r = refl__auto_planar_seen(s, i, eye, &planar)) != REFL_OK) return r;
-    out->reflector_class = planar                      ? REFL_AUTO_PLANAR
-                           : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
-                                                       : refl__auto_curvature_class(s, i);
-    return REFL_OK;
+    refl__free(&s->allocator, box);
+    return r;
 }
 
 /* Pixels of object i in a stencil (ids past 254 share 255). */
@@ -3208,9 +3316,12 @@ static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object)
 
 REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
                                                   const refl_frame *frame, int object, refl_auto_features *out) {
-    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count)
+    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count ||
+        view->width != frame->width || view->height != frame->height)
         return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__auto_features(scene, object, view->eye,
+    refl__view_rays rays;
+    refl__view_rays_init(&rays, view, scene);
+    return refl__auto_features(scene, object, &rays, frame,
                                refl__auto_pixels(frame->stencil, (size_t)frame->width * (size_t)frame->height, object),
                                out);
 }
@@ -3220,7 +3331,8 @@ REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const
 REFL_API void refl_auto_predict(const refl_auto_model *m, const refl_auto_features *f, float *error_px,
                                 float *cost_ms) {
     double px = (double)f->pixels, s = sqrt(px);
-    double cost = m->cost[0] + m->cost[1] * px / 1000.0 + m->cost[2] * f->scene_triangles / 1000.0;
+    double cost = m->cost[0] + m->cost[1] * px / 1000.0 + m->cost[2] * f->scene_triangles / 1000.0 +
+                  m->cost[3] * px * f->beyond / 1000.0;
     double err = m->error[0] + m->error[1] * s + m->error[2] * s * f->nearness;
     if (cost_ms) *cost_ms = (float)REFL__MAX(cost, 0.001);
     if (error_px) *error_px = (float)REFL__MAX(err, 0.0);
@@ -3300,14 +3412,25 @@ static int refl__auto_number(const char *tok, float *out) {
     return 1;
 }
 
+/* count numbers from *s into v; 0, with the token that is none in bad, if one is not. */
+static int refl__auto_numbers(const char **s, const char *end, float *v, int count, char *bad) {
+    char tok[32];
+    int i;
+    for (i = 0; i < count; ++i)
+        if (!refl__auto_token(s, end, tok) || !refl__auto_number(tok, &v[i])) {
+            memcpy(bad, tok, 32);
+            return 0;
+        }
+    return 1;
+}
+
 /* One model line's tokens after "model" into out; the rule it broke, or NULL. */
 static const char *refl__auto_model_line(const char *s, const char *end, refl_auto_models *out, char *bad) {
-    static const char *const keys[3] = {"samples", "cost", "error"};
     char tok[32];
     refl_method m;
     refl_auto_model model;
-    int c, k, j;
-    float v[7];
+    int c, j;
+    float v[8] = {0};
     memset(&model, 0, sizeof model);
     if (!refl__auto_token(&s, end, tok)) return "a method name after 'model'";
     m = refl_method_from_name(tok);
@@ -3319,19 +3442,23 @@ static const char *refl__auto_model_line(const char *s, const char *end, refl_au
     for (c = 0; c < REFL_AUTO_CLASS_COUNT && strcmp(tok, refl__auto_class_names[c]); ++c) {}
     if (c == REFL_AUTO_CLASS_COUNT) return "not a class (planar, convex, concave, glass, partial)";
     if (out->model[m][c].fitted) return "a second model for this method and class";
-    for (k = 0, j = 0; k < 3; ++k) {
-        int count = k == 0 ? 1 : 3, i;
-        if (!refl__auto_token(&s, end, tok) || strcmp(tok, keys[k])) {
-            memcpy(bad, tok, 32);
-            return k == 0 ? "'samples' after the class" : k == 1 ? "'cost' after the samples" : "'error' after the costs";
-        }
-        for (i = 0; i < count; ++i, ++j) {
-            if (!refl__auto_token(&s, end, tok) || !refl__auto_number(tok, &v[j])) {
-                memcpy(bad, tok, 32);
-                return "a finite number";
-            }
-        }
+    /* v: samples, cost[0..3] (the fourth optional: files without it read as 0), error[0..2] */
+    if (!refl__auto_token(&s, end, tok) || strcmp(tok, "samples")) {
+        memcpy(bad, tok, 32);
+        return "'samples' after the class";
     }
+    if (!refl__auto_numbers(&s, end, v, 1, bad)) return "a finite number";
+    if (!refl__auto_token(&s, end, tok) || strcmp(tok, "cost")) {
+        memcpy(bad, tok, 32);
+        return "'cost' after the samples";
+    }
+    if (!refl__auto_numbers(&s, end, v + 1, 3, bad)) return "a finite number";
+    if (refl__auto_token(&s, end, tok) && refl__auto_number(tok, &v[4])) refl__auto_token(&s, end, tok);
+    if (strcmp(tok, "error")) {
+        memcpy(bad, tok, 32);
+        return "'error' after the costs";
+    }
+    if (!refl__auto_numbers(&s, end, v + 5, 3, bad)) return "a finite number";
     if (refl__auto_token(&s, end, tok)) {
         memcpy(bad, tok, 32);
         return "the end of the line after the three error terms";
@@ -3342,10 +3469,8 @@ static const char *refl__auto_model_line(const char *s, const char *end, refl_au
     }
     model.fitted = 1;
     model.samples = (int)v[0];
-    for (j = 0; j < 3; ++j) {
-        model.cost[j] = v[1 + j];
-        model.error[j] = v[4 + j];
-    }
+    for (j = 0; j < 4; ++j) model.cost[j] = v[1 + j];
+    for (j = 0; j < 3; ++j) model.error[j] = v[5 + j];
     out->model[m][c] = model;
     return NULL;
 }
@@ -3431,9 +3556,11 @@ REFL_API size_t refl_auto_models_format(const refl_auto_models *models, char *ou
             const refl_auto_model *a = m < 0 ? NULL : &models->model[m][c];
             int len;
             if (a && !a->fitted) continue;
-            len = a ? snprintf(line, sizeof line, "model %s %s samples %d cost %.9g %.9g %.9g error %.9g %.9g %.9g\n",
+            len = a ? snprintf(line, sizeof line,
+                               "model %s %s samples %d cost %.9g %.9g %.9g %.9g error %.9g %.9g %.9g\n",
                                refl_method_name((refl_method)m), refl__auto_class_names[c], a->samples,
-                               (double)a->cost[0], (double)a->cost[1], (double)a->cost[2], (double)a->error[0],
+                               (double)a->cost[0], (double)a->cost[1], (double)a->cost[2], (double)a->cost[3],
+                               (double)a->error[0],
                                (double)a->error[1], (double)a->error[2])
                     : snprintf(line, sizeof line, "%s", head);
             if (out && n + (size_t)len < cap) memcpy(out + n, line, (size_t)len + 1);
@@ -11998,11 +12125,12 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
         refl_auto_models_builtin(&builtin);
         models = &builtin;
     }
-    r = refl__auto_features(p->scene, object, p->view->eye,
+    r = refl__auto_features(p->scene, object, &p->rays, p->frame,
                             refl__auto_pixels(p->frame->stencil,
                                               (size_t)p->frame->width * (size_t)p->frame->height, object),
                             &ch.features);
     if (r != REFL_OK) return r;
+    if (p->desc.depth < 2) ch.features.beyond = 0.0f; /* no bounce past the first is followed */
     ch.object = object;
     for (m = 0; m < REFL_METHOD_COUNT; ++m) {
         const refl_auto_model *model = &models->model[m][ch.features.reflector_class];

@@ -247,20 +247,20 @@ typedef struct auto_sample {
     double ms, error;
 } auto_sample;
 
-/* Least squares of y on the rows' three terms with no coefficient below
-   zero (a cost or an error that falls as a reflector grows is an artefact
-   of few samples, and extrapolates to nonsense): while the solution has a
-   negative coefficient, its most negative term is dropped and the rest
-   solved again; terms the samples leave singular are dropped too. c[] is
-   zero for dropped terms. */
-static void fit_terms(const double (*x)[3], const double *y, int n, float c[3]) {
-    double *a = (double *)malloc((size_t)n * 3 * sizeof(double)), sol[3];
-    int use[3] = {1, 1, 1}, i, j, cols, tries;
-    c[0] = c[1] = c[2] = 0.0f;
+/* Least squares of y on the rows' `terms` terms (at most 4) with no
+   coefficient below zero (a cost or an error that falls as a reflector
+   grows is an artefact of few samples, and extrapolates to nonsense): while
+   the solution has a negative coefficient, its most negative term is
+   dropped and the rest solved again; terms the samples leave singular are
+   dropped too. c[] is zero for dropped terms. */
+static void fit_terms(const double (*x)[4], const double *y, int n, int terms, float *c) {
+    double *a = (double *)malloc((size_t)n * 4 * sizeof(double)), sol[4];
+    int use[4] = {1, 1, 1, 1}, i, j, cols, tries;
+    for (j = 0; j < terms; ++j) c[j] = 0.0f;
     if (!a) return;
-    for (tries = 0; tries < 3; ++tries) {
-        int worst = -1, col[3];
-        for (cols = 0, j = 0; j < 3; ++j)
+    for (tries = 0; tries < terms; ++tries) {
+        int worst = -1, col[4];
+        for (cols = 0, j = 0; j < terms; ++j)
             if (use[j]) col[cols++] = j;
         if (!cols || cols > n) {
             if (cols) use[col[cols - 1]] = 0;
@@ -284,7 +284,7 @@ static void fit_terms(const double (*x)[3], const double *y, int n, float c[3]) 
 }
 
 static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
-    double (*x)[3] = (double(*)[3])malloc((size_t)(n ? n : 1) * sizeof *x);
+    double (*x)[4] = (double(*)[4])malloc((size_t)(n ? n : 1) * sizeof *x);
     double *y = (double *)malloc((size_t)(n ? n : 1) * sizeof(double));
     int m, c, i, k;
     memset(out, 0, sizeof *out);
@@ -302,9 +302,10 @@ static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
                 x[k][0] = 1.0;
                 x[k][1] = (double)own[k]->f.pixels / 1000.0;
                 x[k][2] = own[k]->f.scene_triangles / 1000.0;
+                x[k][3] = (double)own[k]->f.pixels * own[k]->f.beyond / 1000.0;
                 y[k] = own[k]->ms;
             }
-            fit_terms((const double(*)[3])x, y, count, md->cost);
+            fit_terms((const double(*)[4])x, y, count, 4, md->cost);
             for (k = 0; k < count; ++k) {
                 double sq = sqrt((double)own[k]->f.pixels);
                 x[k][0] = 1.0;
@@ -312,7 +313,7 @@ static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
                 x[k][2] = sq * own[k]->f.nearness;
                 y[k] = own[k]->error;
             }
-            fit_terms((const double(*)[3])x, y, count, md->error);
+            fit_terms((const double(*)[4])x, y, count, 3, md->error);
             md->fitted = 1;
             md->samples = count;
             /* an upper envelope: no measurement above its prediction */
@@ -448,11 +449,11 @@ static int samples_write(const fit_state *st, const char *path) {
     FILE *f = fopen(path, "w");
     int i;
     if (!f) return 0;
-    fprintf(f, "method,class,pixels,nearness,scene_triangles,ms,error_px\n");
+    fprintf(f, "method,class,pixels,nearness,scene_triangles,ms,error_px,beyond\n");
     for (i = 0; i < st->n; ++i)
-        fprintf(f, "%s,%s,%lld,%.9g,%.9g,%.9g,%.9g\n", refl_method_name((refl_method)st->smp[i].method),
+        fprintf(f, "%s,%s,%lld,%.9g,%.9g,%.9g,%.9g,%.9g\n", refl_method_name((refl_method)st->smp[i].method),
                 refl_auto_class_name(st->smp[i].cls), st->smp[i].f.pixels, (double)st->smp[i].f.nearness,
-                (double)st->smp[i].f.scene_triangles, st->smp[i].ms, st->smp[i].error);
+                (double)st->smp[i].f.scene_triangles, st->smp[i].ms, st->smp[i].error, (double)st->smp[i].f.beyond);
     return fclose(f) == 0;
 }
 
@@ -462,11 +463,13 @@ static int samples_read(fit_state *st, const char *path) {
     if (!f) return 0;
     while (fgets(line, sizeof line, f)) {
         auto_sample smp;
-        float near, tris;
+        float near, tris, beyond = 0.0f;
         memset(&smp, 0, sizeof smp);
-        if (sscanf(line, "%31[^,],%31[^,],%lld,%f,%f,%lf,%lf", method, cls, &smp.f.pixels, &near, &tris, &smp.ms,
-                   &smp.error) != 7)
+        /* the beyond column is the last; files without it read as 0 */
+        if (sscanf(line, "%31[^,],%31[^,],%lld,%f,%f,%lf,%lf,%f", method, cls, &smp.f.pixels, &near, &tris, &smp.ms,
+                   &smp.error, &beyond) < 7)
             continue; /* the header */
+        smp.f.beyond = beyond;
         smp.method = (int)refl_method_from_name(method);
         for (smp.cls = 0; smp.cls < REFL_AUTO_CLASS_COUNT && strcmp(cls, refl_auto_class_name(smp.cls)); ++smp.cls) {}
         smp.f.reflector_class = smp.cls;
