@@ -151,7 +151,7 @@ ok "path: the pop column" bash -c "'$bin' path --builtin concave --path focus --
 refuses "a device is not a scene file" "/dev/zero: not a regular file" "$bin" info /dev/zero
 ok "render auto --stats: each reflector's choice and why" bash -c \
     "'$bin' render --builtin mirror-room --method auto --error-budget 2 --size 64x48 --out '$tmp/au.png' --stats |
-     grep -qE '^  wall mirror planar, [1-9][0-9]* px, near [0-9.]+ -> planar \\('"
+     grep -qE '^  wall mirror planar, [1-9][0-9]* px, near [0-9.]+, beyond [0-9.]+ -> planar \\('"
 refuses "auto models that do not parse" "reflect: .-auto-models: auto models, line 2: 'round': expected not a class" bash -c \
     "printf 'reflect-auto-models 1\\nmodel envmap round samples 1 cost 1 0 0 error 0 0 0\\n' >'$tmp/bad.txt' &&
      '$bin' render --builtin default --method auto --auto-models '$tmp/bad.txt' --size 16x12 --out '$tmp/z.png'"

@@ -624,12 +624,13 @@ out:
    predictions, and the cheaper methods it passed over and why. */
 static void print_auto_choices(const refl_scene *s, const refl_auto_frame_stats *a) {
     int i, m;
-    if (a->count) printf("auto         budget %g px; per reflector: class, pixels, nearness -> choice\n", (double)a->budget_px);
+    if (a->count) printf("auto         budget %g px; per reflector: class, pixels, nearness, beyond -> choice\n", (double)a->budget_px);
     for (i = 0; i < a->count && i < REFL_AUTO_MAX_CHOICES; ++i) {
         const refl_auto_choice *c = &a->choices[i];
         int first = 1;
-        printf("  %-10.32s %s, %lld px, near %.2f -> %s (%.2f px, %.1f ms%s)", s->objects[c->object].name,
+        printf("  %-10.32s %s, %lld px, near %.2f, beyond %.2f -> %s (%.2f px, %.1f ms%s)", s->objects[c->object].name,
                refl_auto_class_name(c->features.reflector_class), c->features.pixels, (double)c->features.nearness,
+               (double)c->features.beyond,
                refl_method_name(c->method), (double)c->error_px[c->method], (double)c->cost_ms[c->method],
                c->over_budget ? ", over budget: the least error" : "");
         for (m = 0; m < REFL_METHOD_COUNT; ++m) {

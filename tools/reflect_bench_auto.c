@@ -18,12 +18,13 @@
 
 static const char *const usage_auto =
     "usage: reflect bench --fit-auto FILE [--size WxH] [--threads N] [--repeats N] [--jobs N] [--methods LIST]\n"
-    "                                    [--fit-from FILE.csv]\n"
+    "                                    [--depth N] [--scenes LIST] [--fit-from FILE.csv]\n"
     "       reflect bench --auto-table [--models FILE] [--size WxH] [--threads N] [--repeats N] [--jobs N]\n"
-    "                                  [--methods LIST] [--out FILE.md]\n"
+    "                                  [--methods LIST] [--depth N] [--scenes LIST] [--out FILE.md]\n"
     "\n"
-    "The scenes: every built-in one and \"open\" (a mirror sphere with\n"
-    "everything else far away).\n"
+    "The scenes: every built-in one, \"open\" (a mirror sphere with\n"
+    "everything else far away) and \"pair\" (two mirror spheres side by side,\n"
+    "each reflecting the other, among the same far boxes).\n"
     "\n"
     "--fit-auto: renders every scene from its own camera and two\n"
     "fit cameras (orbited and dollied) at WxH and its own camera at half\n"
@@ -46,8 +47,12 @@ static const char *const usage_auto =
     "\n"
     "  --size WxH     frame size (default 320x240)\n"
     "  --threads N    worker threads (default 1); times are the process's CPU time\n"
+    "  --depth N      bounces of every frame, the truth's too (default 0: the library's, 6);\n"
+    "                 fit at the depth AUTO will draw at: past a method's own bounces the\n"
+    "                 tracer follows the path, at a cost\n"
     "  --repeats N    runs per timing, the fastest kept (default 3)\n"
     "  --jobs N       scenes measured at once, each in a process of its own (default 1)\n"
+    "  --scenes LIST  comma-separated scenes (default: every built-in one, open and pair)\n"
     "  --methods LIST comma-separated methods measured (default\n"
     "                 raytrace,envmap,planar,c3rc,sbc,spoc,graphcam; layered-em\n"
     "                 takes tens of seconds a frame)\n"
@@ -57,10 +62,12 @@ static const char *const usage_auto =
 
 typedef struct auto_opts {
     int width, height, threads, repeats;
+    int depth;                  /* --depth: bounces of every frame, the truth's too (0: the default) */
     refl_method methods[REFL_METHOD_COUNT];
     int method_count;
     const char *fit_path, *models_path, *out_path;
     const char *fit_from;       /* --fit-from CSV: the measurements of an earlier fit */
+    const char *scenes;         /* --scenes LIST; NULL: every built-in one, open and pair */
     int table;
     int jobs;                   /* scenes measured at once, in child processes */
 } auto_opts;
@@ -153,6 +160,7 @@ static int measure_view(const refl_scene *s, const refl_view *v, const auto_opts
     memset(out, 0, sizeof *out);
     memset(&d, 0, sizeof d);
     d.threads = o->threads;
+    d.depth = o->depth;
     if (!per || refl_frame_create(v->width, v->height, NULL, &truth) != REFL_OK ||
         refl_frame_create(v->width, v->height, NULL, &test) != REFL_OK ||
         refl_frame_create(v->width, v->height, NULL, &masked) != REFL_OK)
@@ -198,11 +206,16 @@ done:
     return ok;
 }
 
-/* "open", a scene of the bench's own beside the built-in ones: a mirror
+/* Two scenes of the bench's own beside the built-in ones: "open", a mirror
    sphere with everything else far away (boxes 15 to 25 of its radii off,
-   the sky behind), where what it reflects is effectively at infinity. */
-static refl_scene *open_scene(void) {
+   the sky behind), where what it reflects is effectively at infinity; and
+   "pair", the same sphere with the two nearest boxes brought to either side
+   of it and made mirrors, so that a part of each one's reflection is
+   another mirror (its paths go past the first bounce: the `beyond`
+   feature). */
+static refl_scene *bench_scene(int pair) {
     static const float at[4][3] = {{9.0f, 1.0f, 0.0f}, {-7.0f, 3.0f, -8.0f}, {0.0f, -6.0f, -10.0f}, {4.0f, 6.0f, 8.0f}};
+    static const float near_at[2][3] = {{1.4f, 1.0f, -0.4f}, {-1.4f, 1.0f, -0.4f}};
     refl_scene *s = NULL;
     refl_mesh *m = NULL;
     refl_material mirror = refl_material_mirror(0.9f);
@@ -215,14 +228,16 @@ static refl_scene *open_scene(void) {
     }
     for (k = 0; k < 4; ++k) {
         refl_material box = refl_material_diffuse(0.2f + 0.2f * (float)k, 0.7f - 0.15f * (float)k, 0.3f);
+        const float *p = pair && k < 2 ? near_at[k] : at[k];
         m = NULL;
         if (refl_mesh_box(refl_v3(2.0f, 2.0f, 2.0f), NULL, &m) != REFL_OK ||
-            refl_scene_add(s, m, &box, refl_mat4_translate(refl_v3(at[k][0], at[k][1], at[k][2]))) < 0) {
+            refl_scene_add(s, m, pair && k < 2 ? &mirror : &box, refl_mat4_translate(refl_v3(p[0], p[1], p[2]))) <
+                0) {
             refl_scene_destroy(s);
             return NULL;
         }
     }
-    s->camera.eye = refl_v3(0.0f, 1.4f, 2.6f);
+    s->camera.eye = refl_v3(0.0f, 1.4f, pair ? 3.4f : 2.6f);
     s->camera.target = refl_v3(0.0f, 1.0f, 0.0f);
     s->camera.up = refl_v3(0.0f, 1.0f, 0.0f);
     s->camera.fovy_degrees = 45.0f;
@@ -234,7 +249,7 @@ static refl_scene *open_scene(void) {
 static refl_scene *load_builtin(const char *name) {
     refl_scene *s = NULL;
     refl_builtin_desc bd;
-    if (!strcmp(name, "open")) return open_scene();
+    if (!strcmp(name, "open") || !strcmp(name, "pair")) return bench_scene(name[0] == 'p');
     memset(&bd, 0, sizeof bd);
     return refl_scene_builtin(name, &bd, &s) == REFL_OK ? s : NULL;
 }
@@ -247,20 +262,20 @@ typedef struct auto_sample {
     double ms, error;
 } auto_sample;
 
-/* Least squares of y on the rows' three terms with no coefficient below
-   zero (a cost or an error that falls as a reflector grows is an artefact
-   of few samples, and extrapolates to nonsense): while the solution has a
-   negative coefficient, its most negative term is dropped and the rest
-   solved again; terms the samples leave singular are dropped too. c[] is
-   zero for dropped terms. */
-static void fit_terms(const double (*x)[3], const double *y, int n, float c[3]) {
-    double *a = (double *)malloc((size_t)n * 3 * sizeof(double)), sol[3];
-    int use[3] = {1, 1, 1}, i, j, cols, tries;
-    c[0] = c[1] = c[2] = 0.0f;
+/* Least squares of y on the rows' `terms` terms (at most 4) with no
+   coefficient below zero (a cost or an error that falls as a reflector
+   grows is an artefact of few samples, and extrapolates to nonsense): while
+   the solution has a negative coefficient, its most negative term is
+   dropped and the rest solved again; terms the samples leave singular are
+   dropped too. c[] is zero for dropped terms. */
+static void fit_terms(const double (*x)[4], const double *y, int n, int terms, float *c) {
+    double *a = (double *)malloc((size_t)n * 4 * sizeof(double)), sol[4];
+    int use[4] = {1, 1, 1, 1}, i, j, cols, tries;
+    for (j = 0; j < terms; ++j) c[j] = 0.0f;
     if (!a) return;
-    for (tries = 0; tries < 3; ++tries) {
-        int worst = -1, col[3];
-        for (cols = 0, j = 0; j < 3; ++j)
+    for (tries = 0; tries < terms; ++tries) {
+        int worst = -1, col[4];
+        for (cols = 0, j = 0; j < terms; ++j)
             if (use[j]) col[cols++] = j;
         if (!cols || cols > n) {
             if (cols) use[col[cols - 1]] = 0;
@@ -284,7 +299,7 @@ static void fit_terms(const double (*x)[3], const double *y, int n, float c[3]) 
 }
 
 static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
-    double (*x)[3] = (double(*)[3])malloc((size_t)(n ? n : 1) * sizeof *x);
+    double (*x)[4] = (double(*)[4])malloc((size_t)(n ? n : 1) * sizeof *x);
     double *y = (double *)malloc((size_t)(n ? n : 1) * sizeof(double));
     int m, c, i, k;
     memset(out, 0, sizeof *out);
@@ -302,9 +317,10 @@ static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
                 x[k][0] = 1.0;
                 x[k][1] = (double)own[k]->f.pixels / 1000.0;
                 x[k][2] = own[k]->f.scene_triangles / 1000.0;
+                x[k][3] = (double)own[k]->f.pixels * own[k]->f.beyond / 1000.0;
                 y[k] = own[k]->ms;
             }
-            fit_terms((const double(*)[3])x, y, count, md->cost);
+            fit_terms((const double(*)[4])x, y, count, 4, md->cost);
             for (k = 0; k < count; ++k) {
                 double sq = sqrt((double)own[k]->f.pixels);
                 x[k][0] = 1.0;
@@ -312,7 +328,7 @@ static void fit_models(const auto_sample *smp, int n, refl_auto_models *out) {
                 x[k][2] = sq * own[k]->f.nearness;
                 y[k] = own[k]->error;
             }
-            fit_terms((const double(*)[3])x, y, count, md->error);
+            fit_terms((const double(*)[4])x, y, count, 3, md->error);
             md->fitted = 1;
             md->samples = count;
             /* an upper envelope: no measurement above its prediction */
@@ -343,7 +359,7 @@ static int parse_methods(const char *list, auto_opts *o) {
     return o->method_count > 0;
 }
 
-/* Runs scene_fn on every built-in scene and "open", `jobs` scenes at a time in child
+/* Runs scene_fn on every built-in scene, "open" and "pair", `jobs` scenes at a time in child
    processes (fork), each writing to a temporary file of its own; then
    hands the files, in scene order, to collect. 0 when a scene failed. */
 typedef int (*scene_fn)(const char *scene, const auto_opts *o, const void *user, FILE *out);
@@ -360,6 +376,22 @@ static int each_scene(const auto_opts *o, scene_fn fn, const void *user, collect
         ++n;
     }
     names[n++] = "open";
+    names[n++] = "pair";
+    if (o->scenes) { /* the listed ones, in the order above */
+        char list[520];
+        int kept = 0;
+        snprintf(list, sizeof list, ",%s,", o->scenes);
+        for (i = 0; i < n; ++i) {
+            char key[80];
+            snprintf(key, sizeof key, ",%s,", names[i]);
+            if (strstr(list, key)) names[kept++] = names[i];
+        }
+        n = kept;
+        if (!n) {
+            fprintf(stderr, "reflect bench: --scenes '%s' names no built-in scene (nor open, pair)\n", o->scenes);
+            return 0;
+        }
+    }
     for (i = 0; i < n; ++i) {
         files[i] = tmpfile();
         pids[i] = -1;
@@ -448,11 +480,11 @@ static int samples_write(const fit_state *st, const char *path) {
     FILE *f = fopen(path, "w");
     int i;
     if (!f) return 0;
-    fprintf(f, "method,class,pixels,nearness,scene_triangles,ms,error_px\n");
+    fprintf(f, "method,class,pixels,nearness,scene_triangles,ms,error_px,beyond\n");
     for (i = 0; i < st->n; ++i)
-        fprintf(f, "%s,%s,%lld,%.9g,%.9g,%.9g,%.9g\n", refl_method_name((refl_method)st->smp[i].method),
+        fprintf(f, "%s,%s,%lld,%.9g,%.9g,%.9g,%.9g,%.9g\n", refl_method_name((refl_method)st->smp[i].method),
                 refl_auto_class_name(st->smp[i].cls), st->smp[i].f.pixels, (double)st->smp[i].f.nearness,
-                (double)st->smp[i].f.scene_triangles, st->smp[i].ms, st->smp[i].error);
+                (double)st->smp[i].f.scene_triangles, st->smp[i].ms, st->smp[i].error, (double)st->smp[i].f.beyond);
     return fclose(f) == 0;
 }
 
@@ -462,11 +494,13 @@ static int samples_read(fit_state *st, const char *path) {
     if (!f) return 0;
     while (fgets(line, sizeof line, f)) {
         auto_sample smp;
-        float near, tris;
+        float near, tris, beyond = 0.0f;
         memset(&smp, 0, sizeof smp);
-        if (sscanf(line, "%31[^,],%31[^,],%lld,%f,%f,%lf,%lf", method, cls, &smp.f.pixels, &near, &tris, &smp.ms,
-                   &smp.error) != 7)
+        /* the beyond column is the last; files without it read as 0 */
+        if (sscanf(line, "%31[^,],%31[^,],%lld,%f,%f,%lf,%lf,%f", method, cls, &smp.f.pixels, &near, &tris, &smp.ms,
+                   &smp.error, &beyond) < 7)
             continue; /* the header */
+        smp.f.beyond = beyond;
         smp.method = (int)refl_method_from_name(method);
         for (smp.cls = 0; smp.cls < REFL_AUTO_CLASS_COUNT && strcmp(cls, refl_auto_class_name(smp.cls)); ++smp.cls) {}
         smp.f.reflector_class = smp.cls;
@@ -513,9 +547,10 @@ static int run_fit(const auto_opts *o) {
         free(text);
         return 0;
     }
-    fprintf(f, "# AUTO's models: reflect bench --fit-auto at %dx%d, %d thread%s, the least CPU time of %d runs;\n"
+    fprintf(f, "# AUTO's models: reflect bench --fit-auto at %dx%d, depth %d, %d thread%s, the least CPU time of %d runs;\n"
                "# %d measurements. Format: docs/methods/auto.md\n",
-            o->width, o->height, o->threads, o->threads == 1 ? "" : "s", o->repeats, st.n);
+            o->width, o->height, o->depth ? o->depth : REFL_DEFAULT_DEPTH, o->threads, o->threads == 1 ? "" : "s",
+            o->repeats, st.n);
     fputs(text, f);
     fclose(f);
     fputs(text, stdout);
@@ -574,6 +609,7 @@ static int table_scene(const char *name, const auto_opts *o, const void *user, F
             int over_here = 0;
             memset(&d, 0, sizeof d);
             d.threads = o->threads;
+            d.depth = o->depth;
             d.method = REFL_AUTO;
             d.automatic.error_budget_px = budgets[bi];
             d.automatic.models = models;
@@ -700,10 +736,10 @@ static int run_table(const auto_opts *o) {
     ok = each_scene(o, table_scene, &models, table_collect, &st);
     if (ok) {
         snprintf(line, sizeof line,
-                 "\n%d rows at %dx%d, %d thread%s a frame: AUTO over 1.2x the fastest in %d, worst %.2fx; over "
-                 "budget where a method meets it in %d.\n",
-                 st.all.rows, o->width, o->height, o->threads, o->threads == 1 ? "" : "s", st.all.slow, st.all.worst,
-                 st.all.over);
+                 "\n%d rows at %dx%d, depth %d, %d thread%s a frame: AUTO over 1.2x the fastest in %d, worst "
+                 "%.2fx; over budget where a method meets it in %d.\n",
+                 st.all.rows, o->width, o->height, o->depth ? o->depth : REFL_DEFAULT_DEPTH, o->threads,
+                 o->threads == 1 ? "" : "s", st.all.slow, st.all.worst, st.all.over);
         fputs(line, stdout);
         if (st.md) fputs(line, st.md);
     }
@@ -740,6 +776,9 @@ int refl_bench_auto(int argc, char **argv) {
         } else if (!strcmp(a, "--out") && v) {
             o.out_path = v;
             ++i;
+        } else if (!strcmp(a, "--scenes") && v) {
+            o.scenes = v;
+            ++i;
         } else if (!strcmp(a, "--methods") && v) {
             if (!parse_methods(v, &o)) return 2;
             ++i;
@@ -750,15 +789,18 @@ int refl_bench_auto(int argc, char **argv) {
                 return 2;
             }
             ++i;
-        } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats") || !strcmp(a, "--jobs")) && v) {
+        } else if ((!strcmp(a, "--threads") || !strcmp(a, "--repeats") || !strcmp(a, "--jobs") ||
+                    !strcmp(a, "--depth")) &&
+                   v) {
             char *end;
             long x = strtol(v, &end, 10);
-            if (*end || x < (a[2] == 't' ? 0 : 1) || x > (a[2] == 'r' ? 32 : 64)) {
+            if (*end || x < (a[2] == 't' || a[2] == 'd' ? 0 : 1) || x > (a[2] == 'r' ? 32 : 64)) {
                 fprintf(stderr, "reflect bench: bad %s '%s'\n", a, v);
                 return 2;
             }
             if (a[2] == 'r') o.repeats = (int)x;
             else if (a[2] == 'j') o.jobs = (int)x;
+            else if (a[2] == 'd') o.depth = (int)x;
             else o.threads = (int)x;
             ++i;
         } else {

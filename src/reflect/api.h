@@ -1106,6 +1106,7 @@ REFL_API int refl_method_is_built(refl_method m);             /* 1: refl_render 
    (method, class), a model predicts the method's frame cost and reflection
    error from them:
        cost_ms  = cost[0] + cost[1] * pixels / 1000 + cost[2] * triangles / 1000
+                + cost[3] * pixels * beyond / 1000
        error_px = error[0] + error[1] * s + error[2] * s * nearness
    with s = sqrt(pixels) and triangles the scene's. `reflect bench
    --fit-auto FILE` fits them from its own measurements; the library has a
@@ -1129,12 +1130,18 @@ typedef struct refl_auto_features {
                                 r the sphere's radius, D the distance to the first other
                                 object's bounding box that way (none: 0) */
     float scene_triangles;   /* the scene's, in all */
+    float beyond;            /* the share of its pixels whose path meets another reflector after
+                                its first bounce (what a one-bounce method hands the tracer at
+                                depth 2 and more), in [0, 1]: over at most 256 of its pixels, the
+                                mirror ray from the point and normal the depth buffer gives,
+                                against the other objects' bounding boxes; 0 for glass (its
+                                paths are the tracer's) and, in AUTO, at depth 1 */
 } refl_auto_features;
 
 typedef struct refl_auto_model {
     int fitted;              /* 0: no model (the method is no candidate for the class) */
     int samples;             /* measurements it was fitted to */
-    float cost[3];           /* the formulas above */
+    float cost[4];           /* the formulas above */
     float error[3];
 } refl_auto_model;
 typedef struct refl_auto_models {
@@ -1148,7 +1155,8 @@ REFL_API void refl_auto_predict(const refl_auto_model *model, const refl_auto_fe
 REFL_API void refl_auto_models_builtin(refl_auto_models *out);
 /* The text format (docs/methods/auto.md): '#' comments and blank lines,
    a first line "reflect-auto-models 1", then one line per model:
-       model METHOD CLASS samples N cost C0 C1 C2 error E0 E1 E2
+       model METHOD CLASS samples N cost C0 C1 C2 [C3] error E0 E1 E2
+   (C3 absent: 0)
    REFL_ERROR_INVALID_ARGUMENT on anything else, with the line and the
    rule it broke in message (may be NULL; message_size bytes, cut). */
 REFL_API refl_result refl_auto_models_parse(const char *text, size_t length, refl_auto_models *out, char *message,

@@ -83,15 +83,12 @@ static float refl__auto_box_distance(refl_vec3 o, refl_vec3 dir, refl_vec3 lo, r
     return t0 > 0.0f ? t0 : t1;
 }
 
-/* r / D (see refl_auto_features.nearness). */
-static refl_result refl__auto_nearness(const refl_scene *s, int object, float *out) {
-    refl_vec3 *box = (refl_vec3 *)refl__calloc(&s->allocator, (size_t)s->object_count, 2 * sizeof(refl_vec3)), c;
-    float r, sum = 0.0f;
+/* r / D (see refl_auto_features.nearness), box[] the objects' world bounds
+   (lo, hi per object). */
+static float refl__auto_nearness(const refl_scene *s, int object, const refl_vec3 *box) {
+    refl_vec3 c = refl_v3_scale(refl_v3_add(box[2 * object], box[2 * object + 1]), 0.5f);
+    float r = 0.5f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object])), sum = 0.0f;
     int x, y, z, o;
-    if (!box) return REFL_ERROR_OUT_OF_MEMORY;
-    for (o = 0; o < s->object_count; ++o) refl__auto_object_box(s, o, &box[2 * o], &box[2 * o + 1]);
-    c = refl_v3_scale(refl_v3_add(box[2 * object], box[2 * object + 1]), 0.5f);
-    r = 0.5f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object]));
     for (x = -1; x <= 1; ++x)
         for (y = -1; y <= 1; ++y)
             for (z = -1; z <= 1; ++z) {
@@ -102,9 +99,107 @@ static refl_result refl__auto_nearness(const refl_scene *s, int object, float *o
                     if (o != object) best = REFL__MIN(best, refl__auto_box_distance(c, d, box[2 * o], box[2 * o + 1]));
                 sum += best > r ? r / best : 1.0f; /* a miss: 0 */
             }
-    refl__free(&s->allocator, box);
-    *out = sum / 26.0f;
-    return REFL_OK;
+    return sum / 26.0f;
+}
+
+/* The scene point a pixel's depth puts on its view ray (the eye-space
+   distance along forward undone from the window depth of a perspective
+   projection with the rays' near and far planes). */
+static refl_vec3 refl__auto_pixel_point(const refl__view_rays *r, const refl_frame *f, int x, int y) {
+    float nx = 2.0f * ((float)x + 0.5f) / (float)r->width - 1.0f, ny = 1.0f - 2.0f * ((float)y + 0.5f) / (float)r->height;
+    float zn = 2.0f * f->depth[(size_t)y * (size_t)f->width + (size_t)x] - 1.0f, n = r->znear, fa = r->zfar;
+    float z = 2.0f * n * fa / ((fa + n) - zn * (fa - n));
+    refl_vec3 d = refl_v3_add(r->forward, refl_v3_add(refl_v3_scale(r->right, nx), refl_v3_scale(r->up, ny)));
+    return refl_v3_add(r->eye, refl_v3_scale(d, z));
+}
+
+static int refl__auto_inside(refl_vec3 p, refl_vec3 lo, refl_vec3 hi) {
+    return p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z;
+}
+
+/* Whether the ray o + t d, tmin < t < tmax, meets a triangle of object i
+   (the ray taken into the object's own space, where t means the same). */
+static int refl__auto_ray_meets_object(const refl_scene *s, int i, refl_vec3 o, refl_vec3 d, float tmin, float tmax) {
+    const refl_mesh *m = s->meshes[s->objects[i].mesh];
+    refl_mat4 inv;
+    int k;
+    if (!refl_mat4_invert(s->objects[i].transform, &inv)) return 0;
+    o = refl_mat4_point(inv, o);
+    d = refl_mat4_dir(inv, d);
+    for (k = 0; k < m->triangle_count; ++k) {
+        const float *a = m->positions + 3 * m->indices[3 * k], *b = m->positions + 3 * m->indices[3 * k + 1],
+                    *c = m->positions + 3 * m->indices[3 * k + 2];
+        refl_vec3 e1 = refl_v3(b[0] - a[0], b[1] - a[1], b[2] - a[2]), e2 = refl_v3(c[0] - a[0], c[1] - a[1], c[2] - a[2]);
+        refl_vec3 q = refl_v3_cross(d, e2), sv, r;
+        float det = refl_v3_dot(e1, q), u, v, t;
+        if (det == 0.0f) continue;
+        sv = refl_v3(o.x - a[0], o.y - a[1], o.z - a[2]);
+        u = refl_v3_dot(sv, q) / det;
+        if (u < 0.0f || u > 1.0f) continue;
+        r = refl_v3_cross(sv, e1);
+        v = refl_v3_dot(d, r) / det;
+        if (v < 0.0f || u + v > 1.0f) continue;
+        t = refl_v3_dot(e2, r) / det;
+        if (t > tmin && t < tmax) return 1;
+    }
+    return 0;
+}
+
+/* Whether the mirror ray from p (on object i) along d meets a reflector's
+   triangles before a diffuse object's box (a diffuse box around p, such as
+   the wall a mirror hangs on, hides nothing): another reflector, or with
+   `self` (a concave one) object i again past `gap`. Reflectors are tested
+   only where the ray meets their box. */
+static int refl__auto_meets_reflector(const refl_scene *s, int object, int self, float gap, const refl_vec3 *box,
+                                      refl_vec3 p, refl_vec3 d) {
+    float diffuse = INFINITY;
+    int o;
+    for (o = 0; o < s->object_count; ++o)
+        if (!refl__is_reflector(&s->materials[s->objects[o].material]) && !refl__auto_inside(p, box[2 * o], box[2 * o + 1]))
+            diffuse = REFL__MIN(diffuse, refl__auto_box_distance(p, d, box[2 * o], box[2 * o + 1]));
+    for (o = 0; o < s->object_count; ++o) {
+        if (!refl__is_reflector(&s->materials[s->objects[o].material]) || (o == object && !self)) continue;
+        if (!refl__auto_inside(p, box[2 * o], box[2 * o + 1]) &&
+            !(refl__auto_box_distance(p, d, box[2 * o], box[2 * o + 1]) < diffuse))
+            continue;
+        if (refl__auto_ray_meets_object(s, o, p, d, o == object ? gap : 0.0f, diffuse)) return 1;
+    }
+    return 0;
+}
+
+/* refl_auto_features.beyond: over at most 32 of object i's pixels, evenly
+   through the stencil, the share whose mirror ray (from the surface's point
+   and normal the depth buffer gives) meets a reflector: another, or a
+   concave one itself. */
+#define REFL__AUTO_BEYOND_SAMPLES 32
+static float refl__auto_beyond(const refl_scene *s, const refl__view_rays *rays, const refl_frame *f, int object,
+                               int concave, long long pixels, const refl_vec3 *box) {
+    uint8_t id = (uint8_t)(object < 254 ? object + 1 : 255);
+    long long step = pixels / REFL__AUTO_BEYOND_SAMPLES + 1, seen = 0;
+    float gap = 0.01f * refl_v3_length(refl_v3_sub(box[2 * object + 1], box[2 * object]));
+    int x, y, sampled = 0, met = 0;
+    for (y = 0; y < f->height; ++y)
+        for (x = 0; x < f->width; ++x) {
+            size_t i = (size_t)y * (size_t)f->width + (size_t)x;
+            int dx = x + 1 < f->width && f->stencil[i + 1] == id ? 1 : x > 0 && f->stencil[i - 1] == id ? -1 : 0;
+            int dy = y + 1 < f->height && f->stencil[i + (size_t)f->width] == id       ? 1
+                     : y > 0 && f->stencil[i - (size_t)f->width] == id ? -1
+                                                                        : 0;
+            refl_vec3 p, n, view;
+            if (f->stencil[i] != id || seen++ % step) continue;
+            if (!dx || !dy || !(f->depth[i] < 1.0f)) continue; /* no surface to take a normal from */
+            p = refl__auto_pixel_point(rays, f, x, y);
+            n = refl_v3_cross(refl_v3_scale(refl_v3_sub(refl__auto_pixel_point(rays, f, x + dx, y), p), (float)dx),
+                              refl_v3_scale(refl_v3_sub(refl__auto_pixel_point(rays, f, x, y + dy), p), (float)dy));
+            view = refl_v3_normalize(refl_v3_sub(p, rays->eye));
+            n = refl_v3_normalize(n);
+            if (!(refl_v3_length(n) > 0.5f)) continue;
+            if (refl_v3_dot(n, view) > 0.0f) n = refl_v3_scale(n, -1.0f);
+            sampled++;
+            met += refl__auto_meets_reflector(s, object, concave, gap, box, p,
+                                              refl_v3_sub(view, refl_v3_scale(n, 2.0f * refl_v3_dot(view, n))));
+        }
+    return sampled ? (float)met / (float)sampled : 0.0f;
 }
 
 /* Whether PLANAR would show object i from eye: it has planar faces (PLANAR
@@ -126,25 +221,30 @@ static refl_result refl__auto_planar_seen(const refl_scene *s, int i, refl_vec3 
     return r;
 }
 
-/* The features of object i with `pixels` pixels on screen, seen from eye. */
-static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
-                                       refl_auto_features *out) {
+/* The features of object i with `pixels` pixels on screen in frame f (its
+   stencil and depth, the base pass's), seen along rays. */
+static refl_result refl__auto_features(const refl_scene *s, int i, const refl__view_rays *rays, const refl_frame *f,
+                                       long long pixels, refl_auto_features *out) {
     const refl_material *mat = &s->materials[s->objects[i].material];
-    int planar = 0;
-    refl_result r;
+    refl_vec3 *box = (refl_vec3 *)refl__calloc(&s->allocator, (size_t)s->object_count, 2 * sizeof(refl_vec3));
+    int planar = 0, o;
+    refl_result r = REFL_OK;
     memset(out, 0, sizeof *out);
+    if (!box) return REFL_ERROR_OUT_OF_MEMORY;
+    for (o = 0; o < s->object_count; ++o) refl__auto_object_box(s, o, &box[2 * o], &box[2 * o + 1]);
     out->pixels = pixels;
     out->scene_triangles = (float)refl_scene_triangles(s);
-    if (refl__auto_nearness(s, i, &out->nearness) != REFL_OK) return REFL_ERROR_OUT_OF_MEMORY;
+    out->nearness = refl__auto_nearness(s, i, box);
     if (mat->type == REFL_GLASS) {
-        out->reflector_class = REFL_AUTO_GLASS;
-        return REFL_OK;
+        out->reflector_class = REFL_AUTO_GLASS; /* the tracer takes no bounce past glass's own (trace.c) */
+    } else if ((r = refl__auto_planar_seen(s, i, rays->eye, &planar)) == REFL_OK) {
+        out->reflector_class = planar                      ? REFL_AUTO_PLANAR
+                               : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
+                                                           : refl__auto_curvature_class(s, i);
+        out->beyond = refl__auto_beyond(s, rays, f, i, out->reflector_class == REFL_AUTO_CONCAVE, pixels, box);
     }
-    if ((r = refl__auto_planar_seen(s, i, eye, &planar)) != REFL_OK) return r;
-    out->reflector_class = planar                      ? REFL_AUTO_PLANAR
-                           : mat->type == REFL_PARTIAL ? REFL_AUTO_PARTIAL
-                                                       : refl__auto_curvature_class(s, i);
-    return REFL_OK;
+    refl__free(&s->allocator, box);
+    return r;
 }
 
 /* Pixels of object i in a stencil (ids past 254 share 255). */
@@ -158,9 +258,12 @@ static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object)
 
 REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const refl_view *view,
                                                   const refl_frame *frame, int object, refl_auto_features *out) {
-    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count)
+    if (!scene || !view || !frame || !out || object < 0 || object >= scene->object_count ||
+        view->width != frame->width || view->height != frame->height)
         return REFL_ERROR_INVALID_ARGUMENT;
-    return refl__auto_features(scene, object, view->eye,
+    refl__view_rays rays;
+    refl__view_rays_init(&rays, view, scene);
+    return refl__auto_features(scene, object, &rays, frame,
                                refl__auto_pixels(frame->stencil, (size_t)frame->width * (size_t)frame->height, object),
                                out);
 }
@@ -170,7 +273,8 @@ REFL_API refl_result refl_auto_reflector_features(const refl_scene *scene, const
 REFL_API void refl_auto_predict(const refl_auto_model *m, const refl_auto_features *f, float *error_px,
                                 float *cost_ms) {
     double px = (double)f->pixels, s = sqrt(px);
-    double cost = m->cost[0] + m->cost[1] * px / 1000.0 + m->cost[2] * f->scene_triangles / 1000.0;
+    double cost = m->cost[0] + m->cost[1] * px / 1000.0 + m->cost[2] * f->scene_triangles / 1000.0 +
+                  m->cost[3] * px * f->beyond / 1000.0;
     double err = m->error[0] + m->error[1] * s + m->error[2] * s * f->nearness;
     if (cost_ms) *cost_ms = (float)REFL__MAX(cost, 0.001);
     if (error_px) *error_px = (float)REFL__MAX(err, 0.0);
@@ -180,33 +284,32 @@ REFL_API void refl_auto_predict(const refl_auto_model *m, const refl_auto_featur
    comment, pasted here (docs/methods/auto.md). */
 static const char refl__auto_builtin_text[] =
     /* BEGIN reflect-auto-models */
-    "# AUTO's models: reflect bench --fit-auto at 160x120, 1 thread, the least CPU time of 3 runs;\n"
-    "# 212 measurements. Format: docs/methods/auto.md\n"
+    "# AUTO's models: reflect bench --fit-auto at 160x120, depth 6, 1 thread, the least CPU time of 3 runs;\n"
+    "# 320 measurements. Format: docs/methods/auto.md\n"
     "reflect-auto-models 1\n"
-    "model raytrace planar samples 8 cost 1.69923878 0.657090485 0 error 0.0255867951 5.4017808e-05 0\n"
-    "model raytrace convex samples 16 cost 0 0.520092964 0.434100598 error 0.0558749549 0 9.69357861e-05\n"
-    "model raytrace concave samples 4 cost 2.92499113 0.663136125 0 error 0 -0 0\n"
-    "model raytrace glass samples 8 cost 0.452366054 3.96235514 0 error 0 0 -0\n"
-    "model envmap planar samples 8 cost 25.1100559 0.803261817 0 error 42.0566635 0.135937497 0\n"
-    "model envmap convex samples 16 cost 0 0 6.04222918 error 10.4428024 0.254280061 0.153021693\n"
-    "model envmap concave samples 4 cost 60.1990356 0 0 error 10.9808044 0.681709051 0\n"
-    "model envmap glass samples 8 cost 34.1655846 0.605068326 0 error 2.34098625 0 0.388204217\n"
-    "model planar planar samples 8 cost 0.287785351 0.127045631 0 error 0.0127738575 3.89133784e-05 0\n"
-    "model planar glass samples 4 cost 37.2470779 5.86550617 0 error 1.40949059 0.086932607 0\n"
-    "model sbc planar samples 8 cost 59.1790199 9.36832619 0 error 0.16132459 0.00111101801 0\n"
-    "model sbc convex samples 16 cost 0 43.9701309 9.16328716 error 6.26951313 0.0554523543 0\n"
-    "model sbc concave samples 4 cost 1216.44043 13.6005545 0 error 4.64633226 0 0\n"
-    "model sbc glass samples 8 cost 0 122.024498 0 error 5.29267502 0.314187318 0\n"
-    "model c3rc planar samples 8 cost 14.7185965 4.7759099 0 error 1.04147041 0.0189721938 0\n"
-    "model c3rc convex samples 16 cost 0 28.5223598 46.205513 error 2.36943698 0.000472092011 0.0360843614\n"
-    "model c3rc concave samples 4 cost 780.244324 48.2322121 0 error 3.72968388 0.0134966373 0\n"
-    "model spoc planar samples 8 cost 68.9291611 2.4692893 0 error 0.0214943737 0.000117957883 0\n"
-    "model spoc convex samples 16 cost 0 0 79.7404556 error 0.432193398 0.000809125835 0.00472097797\n"
-    "model spoc concave samples 4 cost 32.1080551 6.33877039 0 error 0.581579924 0.0131509025 0\n"
-    "model graphcam planar samples 8 cost 2.98861861 4.36571932 0 error 3.21290588 0.877150536 0\n"
-    "model graphcam convex samples 16 cost 0 2.16058493 1.29759347 error 23.9275856 0.629537046 0\n"
-    "model graphcam concave samples 4 cost 0 5.99687433 0 error 2.81971741 0.955968916 0\n"
-    "model graphcam glass samples 8 cost 2.23721528 3.31186533 0 error 0.189174652 0.970949054 0.0351584181\n"
+    "model raytrace planar samples 16 cost 0 0.229857787 0.331870317 0.769566357 error 0.0256169215 0 0.000114816816\n"
+    "model raytrace convex samples 24 cost 0 0.413993895 0.442787409 0.359825253 error 0.0558485948 3.7902857e-05 0\n"
+    "model raytrace concave samples 4 cost 2.2200501 0.635280371 0 0 error 0 -0 0\n"
+    "model raytrace glass samples 12 cost 0 3.81223226 0.295747995 0 error 0.0146860834 4.11042638e-05 0\n"
+    "model envmap planar samples 16 cost 0.780414939 0.831084609 5.45806074 0.546987414 error 61.1364632 0.295978576 0\n"
+    "model envmap convex samples 24 cost 4.63702965 0 5.87319803 16.3155193 error 10.7442989 0.262971252 0.115641475\n"
+    "model envmap concave samples 4 cost 52.978672 1.25240171 0 0 error 10.9808044 0.681709051 0\n"
+    "model envmap glass samples 12 cost 0 0.862420022 7.331954 0 error 4.06330967 0 0.33362934\n"
+    "model planar planar samples 16 cost 0.24776791 0.0823579729 0 0.0767873079 error 0.011730846 0 0.000114916584\n"
+    "model planar glass samples 4 cost 36.8570175 3.52878523 0 0 error 1.40949059 0.086932607 0\n"
+    "model sbc planar samples 16 cost 0 0 8.39239216 16.684124 error 12.6745625 0 0\n"
+    "model sbc convex samples 24 cost 0 40.4239388 7.94839525 0 error 6.16473103 0.0596741363 0\n"
+    "model sbc concave samples 4 cost 985.877747 21.3622475 0 0 error 4.64633226 0 0\n"
+    "model sbc glass samples 12 cost 0 130.498383 6.61770964 0 error 6.27913094 0.367760509 0\n"
+    "model c3rc planar samples 16 cost 7.09109926 2.68237281 0.0222942214 7.22612476 error 15.5080442 0 0\n"
+    "model c3rc convex samples 24 cost 0 27.2432098 44.2042503 0 error 2.18970299 0.00907940138 0.0375215895\n"
+    "model c3rc concave samples 4 cost 721.566467 49.3271332 0 0 error 3.72968388 0.0134966373 0\n"
+    "model spoc planar samples 16 cost 417.680542 13.9533224 0 0 error 0.560441554 0.000389479945 0\n"
+    "model spoc convex samples 24 cost 0 0 70.0944595 576.679626 error 0.457812905 0.00120876753 0.00508444943\n"
+    "model spoc concave samples 4 cost 31.6627445 7.05282354 0 0 error 0.581579924 0.0131509025 0\n"
+    "model graphcam planar samples 16 cost 0 1.68148148 0.488390297 6.78706837 error 46.283989 0.457413614 0.249593347\n"
+    "model graphcam convex samples 24 cost 0 2.86256862 1.58406329 1.47137225 error 30.3653221 0.533707261 0\n"
+    "model graphcam concave samples 4 cost 0 6.58830833 0 0 error 19.0323677 0.720156431 0\n"
     /* END reflect-auto-models */
     ;
 
@@ -250,14 +353,25 @@ static int refl__auto_number(const char *tok, float *out) {
     return 1;
 }
 
+/* count numbers from *s into v; 0, with the token that is none in bad, if one is not. */
+static int refl__auto_numbers(const char **s, const char *end, float *v, int count, char *bad) {
+    char tok[32];
+    int i;
+    for (i = 0; i < count; ++i)
+        if (!refl__auto_token(s, end, tok) || !refl__auto_number(tok, &v[i])) {
+            memcpy(bad, tok, 32);
+            return 0;
+        }
+    return 1;
+}
+
 /* One model line's tokens after "model" into out; the rule it broke, or NULL. */
 static const char *refl__auto_model_line(const char *s, const char *end, refl_auto_models *out, char *bad) {
-    static const char *const keys[3] = {"samples", "cost", "error"};
     char tok[32];
     refl_method m;
     refl_auto_model model;
-    int c, k, j;
-    float v[7];
+    int c, j;
+    float v[8] = {0};
     memset(&model, 0, sizeof model);
     if (!refl__auto_token(&s, end, tok)) return "a method name after 'model'";
     m = refl_method_from_name(tok);
@@ -269,19 +383,23 @@ static const char *refl__auto_model_line(const char *s, const char *end, refl_au
     for (c = 0; c < REFL_AUTO_CLASS_COUNT && strcmp(tok, refl__auto_class_names[c]); ++c) {}
     if (c == REFL_AUTO_CLASS_COUNT) return "not a class (planar, convex, concave, glass, partial)";
     if (out->model[m][c].fitted) return "a second model for this method and class";
-    for (k = 0, j = 0; k < 3; ++k) {
-        int count = k == 0 ? 1 : 3, i;
-        if (!refl__auto_token(&s, end, tok) || strcmp(tok, keys[k])) {
-            memcpy(bad, tok, 32);
-            return k == 0 ? "'samples' after the class" : k == 1 ? "'cost' after the samples" : "'error' after the costs";
-        }
-        for (i = 0; i < count; ++i, ++j) {
-            if (!refl__auto_token(&s, end, tok) || !refl__auto_number(tok, &v[j])) {
-                memcpy(bad, tok, 32);
-                return "a finite number";
-            }
-        }
+    /* v: samples, cost[0..3] (the fourth optional: files without it read as 0), error[0..2] */
+    if (!refl__auto_token(&s, end, tok) || strcmp(tok, "samples")) {
+        memcpy(bad, tok, 32);
+        return "'samples' after the class";
     }
+    if (!refl__auto_numbers(&s, end, v, 1, bad)) return "a finite number";
+    if (!refl__auto_token(&s, end, tok) || strcmp(tok, "cost")) {
+        memcpy(bad, tok, 32);
+        return "'cost' after the samples";
+    }
+    if (!refl__auto_numbers(&s, end, v + 1, 3, bad)) return "a finite number";
+    if (refl__auto_token(&s, end, tok) && refl__auto_number(tok, &v[4])) refl__auto_token(&s, end, tok);
+    if (strcmp(tok, "error")) {
+        memcpy(bad, tok, 32);
+        return "'error' after the costs";
+    }
+    if (!refl__auto_numbers(&s, end, v + 5, 3, bad)) return "a finite number";
     if (refl__auto_token(&s, end, tok)) {
         memcpy(bad, tok, 32);
         return "the end of the line after the three error terms";
@@ -292,10 +410,8 @@ static const char *refl__auto_model_line(const char *s, const char *end, refl_au
     }
     model.fitted = 1;
     model.samples = (int)v[0];
-    for (j = 0; j < 3; ++j) {
-        model.cost[j] = v[1 + j];
-        model.error[j] = v[4 + j];
-    }
+    for (j = 0; j < 4; ++j) model.cost[j] = v[1 + j];
+    for (j = 0; j < 3; ++j) model.error[j] = v[5 + j];
     out->model[m][c] = model;
     return NULL;
 }
@@ -381,9 +497,11 @@ REFL_API size_t refl_auto_models_format(const refl_auto_models *models, char *ou
             const refl_auto_model *a = m < 0 ? NULL : &models->model[m][c];
             int len;
             if (a && !a->fitted) continue;
-            len = a ? snprintf(line, sizeof line, "model %s %s samples %d cost %.9g %.9g %.9g error %.9g %.9g %.9g\n",
+            len = a ? snprintf(line, sizeof line,
+                               "model %s %s samples %d cost %.9g %.9g %.9g %.9g error %.9g %.9g %.9g\n",
                                refl_method_name((refl_method)m), refl__auto_class_names[c], a->samples,
-                               (double)a->cost[0], (double)a->cost[1], (double)a->cost[2], (double)a->error[0],
+                               (double)a->cost[0], (double)a->cost[1], (double)a->cost[2], (double)a->cost[3],
+                               (double)a->error[0],
                                (double)a->error[1], (double)a->error[2])
                     : snprintf(line, sizeof line, "%s", head);
             if (out && n + (size_t)len < cap) memcpy(out + n, line, (size_t)len + 1);

@@ -600,10 +600,10 @@ static const char *refl__options_auto(refl_render_desc *d);
 static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out);
 static refl_result refl__method_can_draw(const refl__pass *p, refl_method m, int object, int *can);
 /* AUTO's models (auto_model.c): object i's features with `pixels` on
-   screen, seen from eye; the pixels of object i in a stencil; whether a
-   model may name m. */
-static refl_result refl__auto_features(const refl_scene *s, int i, refl_vec3 eye, long long pixels,
-                                       refl_auto_features *out);
+   screen in frame f (its stencil and depth), seen along rays; the pixels
+   of object i in a stencil; whether a model may name m. */
+static refl_result refl__auto_features(const refl_scene *s, int i, const refl__view_rays *rays, const refl_frame *f,
+                                       long long pixels, refl_auto_features *out);
 static long long refl__auto_pixels(const uint8_t *stencil, size_t n, int object);
 static int refl__auto_modelled(refl_method m);
 /* Frees what refl__models keeps of C3RC (m_c3rc.c). */

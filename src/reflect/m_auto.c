@@ -29,11 +29,12 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
         refl_auto_models_builtin(&builtin);
         models = &builtin;
     }
-    r = refl__auto_features(p->scene, object, p->view->eye,
+    r = refl__auto_features(p->scene, object, &p->rays, p->frame,
                             refl__auto_pixels(p->frame->stencil,
                                               (size_t)p->frame->width * (size_t)p->frame->height, object),
                             &ch.features);
     if (r != REFL_OK) return r;
+    if (p->desc.depth < 2) ch.features.beyond = 0.0f; /* no bounce past the first is followed */
     ch.object = object;
     for (m = 0; m < REFL_METHOD_COUNT; ++m) {
         const refl_auto_model *model = &models->model[m][ch.features.reflector_class];

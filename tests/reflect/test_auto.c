@@ -58,17 +58,22 @@ Test(refl_auto, planar_mirrors_go_to_planar_by_the_built_in_models) {
     refl_scene_destroy(s);
 }
 
-/* A mirror sphere with everything else far off has a nearness near 0; a
-   mirror wall in a room, one near 1/2. */
-Test(refl_auto, nearness_tells_a_far_environment_from_a_room) {
+/* A mirror sphere with everything else far off has a nearness near 0 and
+   no path past its bounce; a mirror wall in a room facing another, a
+   nearness near 1/2 and about half its paths meeting a mirror again (as
+   RAYTRACE's tracer counts them past ENVMAP's one bounce), none at depth 1. */
+Test(refl_auto, nearness_and_beyond_tell_a_far_environment_from_a_room) {
     refl_scene *s = NULL, *room;
     refl_mesh *m = NULL;
     refl_material mirror = refl_material_mirror(0.9f), box = refl_material_diffuse(0.6f, 0.4f, 0.2f);
     refl_render_desc d = tu_refl_one_bounce(REFL_AUTO, 2);
     refl_view v = tu_refl_view(refl_v3(0.0f, 1.4f, 2.6f), refl_v3(0.0f, 1.0f, 0.0f), 64, 48);
-    refl_frame *f;
+    refl_frame *f, *one;
     const refl_auto_choice *c;
+    long long pixels = 0;
+    float share = 0.0f;
     int k;
+    d.depth = 0;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(0.5f, 48, 24, NULL, &m), REFL_OK);
     cr_assert_geq(refl_scene_add(s, m, &mirror, refl_mat4_translate(refl_v3(0.0f, 1.0f, 0.0f))), 0);
@@ -83,6 +88,7 @@ Test(refl_auto, nearness_tells_a_far_environment_from_a_room) {
     cr_expect_eq(c->features.reflector_class, REFL_AUTO_CONVEX);
     cr_expect_lt(c->features.nearness, 0.05f);
     cr_expect_gt(c->features.pixels, 100);
+    cr_expect_eq(c->features.beyond, 0.0f);
     refl_frame_destroy(f);
     refl_scene_destroy(s);
     room = tu_refl_builtin("mirror-room", &v, 64, 48);
@@ -90,6 +96,23 @@ Test(refl_auto, nearness_tells_a_far_environment_from_a_room) {
     cr_expect(f->stats.automatic.choices[0].features.nearness > 0.3f &&
                   f->stats.automatic.choices[0].features.nearness < 0.7f,
               "%g", (double)f->stats.automatic.choices[0].features.nearness);
+    for (k = 0; k < f->stats.automatic.count; ++k) {
+        c = &f->stats.automatic.choices[k];
+        pixels += c->features.pixels;
+        share += c->features.beyond * (float)c->features.pixels;
+    }
+    d.method = REFL_ENVMAP;
+    one = tu_refl_render(room, &v, &d);
+    cr_assert_gt(pixels, 0);
+    cr_expect(fabsf(share / (float)pixels - (float)one->stats.traced_beyond / (float)pixels) < 0.15f,
+              "beyond %g, traced past ENVMAP's bounce %g", (double)(share / (float)pixels),
+              (double)one->stats.traced_beyond / (double)pixels);
+    refl_frame_destroy(one);
+    refl_frame_destroy(f);
+    d.method = REFL_AUTO;
+    d.depth = 1;
+    f = tu_refl_render(room, &v, &d);
+    for (k = 0; k < f->stats.automatic.count; ++k) cr_expect_eq(f->stats.automatic.choices[k].features.beyond, 0.0f);
     refl_frame_destroy(f);
     refl_scene_destroy(room);
 }
@@ -197,9 +220,15 @@ Test(refl_auto, models_round_trip_through_text_and_a_file) {
     size_t n;
     FILE *fp;
     int fd;
+    a = models_of("reflect-auto-models 1\nmodel envmap convex samples 1 cost 1 2 3 4 error 5 6 7\n"
+                  "model c3rc convex samples 1 cost 1 2 3 error 5 6 7\n");
+    cr_expect(a.model[REFL_ENVMAP][REFL_AUTO_CONVEX].cost[3] == 4.0f &&
+              a.model[REFL_ENVMAP][REFL_AUTO_CONVEX].error[0] == 5.0f);
+    cr_expect(a.model[REFL_C3RC][REFL_AUTO_CONVEX].cost[3] == 0.0f, "a missing fourth cost term reads as 0");
     refl_auto_models_builtin(&a);
     cr_assert(a.model[REFL_RAYTRACE][REFL_AUTO_CONVEX].fitted, "the built-in fit models RAYTRACE");
     a.model[REFL_ENVMAP][REFL_AUTO_GLASS].error[2] = 1.0f / 3.0f; /* a float that needs nine digits */
+    a.model[REFL_ENVMAP][REFL_AUTO_GLASS].cost[3] = 2.0f / 3.0f;
     a.model[REFL_ENVMAP][REFL_AUTO_GLASS].fitted = 1;
     n = refl_auto_models_format(&a, NULL, 0);
     cr_assert_gt(n, 20u);
@@ -238,6 +267,7 @@ Test(refl_auto, malformed_model_text_is_refused_naming_line_and_rule) {
         {"reflect-auto-models 1\nmodel envmap convex samples 1 cost 1 0 1e999 error 0 0 0\n", "'1e999'"},
         {"reflect-auto-models 1\nmodel envmap convex samples 1.5 cost 1 0 0 error 0 0 0\n", "a whole count"},
         {"reflect-auto-models 1\nmodel envmap convex samples 1 cost 1 0 0 error 0 0 0 7\n", "'7': expected the end of the line"},
+        {"reflect-auto-models 1\nmodel envmap convex samples 1 cost 1 0 0 2 3 error 0 0 0\n", "'3': expected 'error' after the costs"},
         {"reflect-auto-models 1\nmodel envmap convex samples 1 cost 1 0 0 error 0 0 0\n"
          "model envmap convex samples 1 cost 1 0 0 error 0 0 0\n", "line 3: 'convex': expected a second model"},
     };
