@@ -114,12 +114,13 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             memset(&d, 0, sizeof d);
             d.max_edge_px = opt->max_edge_px;
             d.normals = refl__spoc_mirror_impostor(sf, i);
+            d.layers = opt->layers;
             d.allocator = *al;
             r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &set->imps[set->imp_count]);
             if (r != REFL_OK) break;
             p->frame->stats.triangles += set->imps[set->imp_count]->triangles;
             p->frame->stats.model_bytes +=
-                (long long)((size_t)opt->size * (size_t)opt->size * (d.normals ? 8 : 5) * sizeof(float));
+                (long long)((size_t)opt->size * (size_t)opt->size * (size_t)opt->layers * (d.normals ? 8 : 5) * sizeof(float));
             ++p->frame->stats.spoc.impostors;
             set->imp_object[set->imp_count++] = i;
         } else {
@@ -257,6 +258,8 @@ static const char *refl__options_spoc(refl_render_desc *d) {
         o->max_edge_px > 64.0f)
         return "spoc.max_edge_px: 0 (4) or 0.5 to 64";
     if (o->max_edge_px == 0.0f) o->max_edge_px = 4.0f;
+    if (o->layers < 0 || o->layers > REFL_IMPOSTOR_MAX_LAYERS) return "spoc.layers: 0 (3) or 1 to 4";
+    if (o->layers == 0) o->layers = 3;
     return NULL;
 }
 
