@@ -1659,6 +1659,18 @@ typedef struct refl_graphcam_options {
     float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
                                 (0: the camera's bounds' diagonal / 2048) */
 } refl_graphcam_options;
+/* SPOC's glass (paper 004 section 6, refraction after Wyman 2005): handed to
+   RAYTRACE's tracer (stats.handed_over); or refracted in at each pixel and
+   out where the ray leaves, estimated from the view's image of the glass's
+   back faces (depth and normals) or found exactly on its mesh (to tell the
+   impostors' error from the estimate's), the emerging ray meeting the
+   impostors. Two interfaces: with depth 1 only the Fresnel reflection. */
+typedef enum refl_spoc_glass {
+    REFL_SPOC_GLASS_TRACED = 0,
+    REFL_SPOC_GLASS_ESTIMATE,
+    REFL_SPOC_GLASS_EXACT_EXIT
+} refl_spoc_glass;
+
 typedef struct refl_spoc_options {
     int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
     float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
@@ -1668,6 +1680,7 @@ typedef struct refl_spoc_options {
     float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
                                 this many texels, 0.5 to 64; 0: 4 */
     int layers;              /* impostor depth layers (refl_impostor_desc), 1 to 4; 0: 3 */
+    int glass;               /* refl_spoc_glass: how glass reflectors are drawn */
 } refl_spoc_options;
 
 typedef struct refl_auto_options {
