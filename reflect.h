@@ -16525,7 +16525,9 @@ static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
    as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
    does; frame->points gets the point the ray met (an impostor's: its own
    estimate on the ray). Impostor colours are the shared diffuse shading
-   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   without shadows; each impostor has spoc.layers depth layers. Glass is
+   handed to RAYTRACE's tracer, or with spoc.glass refracted in and out
+   here (refl__spoc_glass). Rows are
    independent and step counts are summed per row, so any thread count
    gives the same bytes and stats. */
 

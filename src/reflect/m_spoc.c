@@ -25,7 +25,9 @@
    as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
    does; frame->points gets the point the ray met (an impostor's: its own
    estimate on the ray). Impostor colours are the shared diffuse shading
-   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   without shadows; each impostor has spoc.layers depth layers. Glass is
+   handed to RAYTRACE's tracer, or with spoc.glass refracted in and out
+   here (refl__spoc_glass). Rows are
    independent and step counts are summed per row, so any thread count
    gives the same bytes and stats. */
 #include "internal.h"
