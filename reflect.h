@@ -629,7 +629,11 @@ typedef struct refl_impostor_desc {
     int normals;             /* 1: store world normals too (reflective objects) */
     int threads;             /* rasterisation threads; 0: one per CPU */
     refl_allocator allocator;
+    int layers;              /* depth layers, 1 to REFL_IMPOSTOR_MAX_LAYERS; 0: 1. Layer k
+                                is peeled: per texel the nearest surface behind layer k - 1's */
 } refl_impostor_desc;
+
+enum { REFL_IMPOSTOR_MAX_LAYERS = 4 };
 
 typedef struct refl_impostor {
     int width, height;
@@ -642,6 +646,8 @@ typedef struct refl_impostor {
                                 (4 / width): larger jumps are skins between layers */
     long long triangles;     /* drawn, after subdivision */
     refl_allocator allocator;
+    int layers;              /* color, depth and normal hold this many images, nearest first
+                                (layer k's texel i at index k * width * height + i) */
 } refl_impostor;
 
 /* Images objects[0 .. count) of the scene (any materials, drawn with the
@@ -657,6 +663,7 @@ typedef struct refl_impostor_hit {
     float color[4];          /* the stored texel's colour */
     refl_vec3 normal;        /* stored normal (zero without normals) */
     float uvd[3];            /* the point's projection */
+    int layer;               /* the depth layer met */
 } refl_impostor_hit;
 
 /* Section 3.2: the ray origin + t dir, tmin < t < tmax, is clipped to the
@@ -671,7 +678,9 @@ typedef struct refl_impostor_hit {
    own change of gd plus depth_tolerance (a skin between depth layers at a
    silhouette: the ray passes behind it). Entering a stored texel from an
    empty one counts when the ray is within its own change of gd plus the
-   tolerance behind the surface. 1 and *hit on a hit; *steps (may be NULL)
+   tolerance behind the surface. With several layers each is compared on
+   the same ends, as if alone, and the walk stops at the first piece where
+   any layer is crossed (the nearest crossing on it). 1 and *hit on a hit; *steps (may be NULL)
    gets the pieces walked (0 when the ray misses the sphere). */
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      float step_scale, refl_impostor_hit *hit, int *steps);
@@ -1676,6 +1685,18 @@ typedef struct refl_graphcam_options {
     float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
                                 (0: the camera's bounds' diagonal / 2048) */
 } refl_graphcam_options;
+/* SPOC's glass (paper 004 section 6, refraction after Wyman 2005): handed to
+   RAYTRACE's tracer (stats.handed_over); or refracted in at each pixel and
+   out where the ray leaves, estimated from the view's image of the glass's
+   back faces (depth and normals) or found exactly on its mesh (to tell the
+   impostors' error from the estimate's), the emerging ray meeting the
+   impostors. Two interfaces: with depth 1 only the Fresnel reflection. */
+typedef enum refl_spoc_glass {
+    REFL_SPOC_GLASS_TRACED = 0,
+    REFL_SPOC_GLASS_ESTIMATE,
+    REFL_SPOC_GLASS_EXACT_EXIT
+} refl_spoc_glass;
+
 typedef struct refl_spoc_options {
     int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
     float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
@@ -1684,6 +1705,8 @@ typedef struct refl_spoc_options {
                                 16; 0: 1 (the paper's n) */
     float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
                                 this many texels, 0.5 to 64; 0: 4 */
+    int layers;              /* impostor depth layers (refl_impostor_desc), 1 to 4; 0: 3 */
+    int glass;               /* refl_spoc_glass: how glass reflectors are drawn */
 } refl_spoc_options;
 
 typedef struct refl_auto_options {
@@ -2545,6 +2568,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p);
 static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 /* AUTO (m_auto.c): the method it picks for reflector `object`, its reason
    appended to the frame's stats; and whether method m has a row that
@@ -10182,14 +10206,17 @@ REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *
    drawn with a vertex program that projects world points through the
    camera and writes w = 1, so colour, depth and normals interpolate
    affinely in the image; a second pass with depth EQUAL stores normals.
-   Intersection (3.2) walks the ray in 3-D and compares in (t, gd), with
-   the skin test the paper leaves out (refl_impostor_intersect in api.h). */
+   With several layers, each further layer is peeled: the nearest surface
+   behind the layer before it, texel by texel. Intersection (3.2) walks the
+   ray in 3-D and compares in (t, gd) with every layer, with the skin test
+   the paper leaves out (refl_impostor_intersect in api.h). */
 
 /* One object's draw: the base pass's context (mesh: the subdivided one),
-   then the camera. */
+   then the camera, and the depth layer being peeled behind (NULL: none). */
 typedef struct refl__imp_draw {
     refl__draw_ctx dc;
     const refl_impostor_camera *cam;
+    const float *peel;
 } refl__imp_draw;
 
 static int refl__imp_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
@@ -10223,6 +10250,15 @@ static int refl__imp_color_fragment(void *user, const rast_fragment_in *in, floa
     for (c = 0; c < 3; ++c) rgba[c] = REFL__RADIANCE(rgb[c]);
     rgba[3] = 1.0f;
     return 1;
+}
+
+/* A peeled layer keeps only what lies behind the layer before it (which
+   has a surface there: nothing lies behind an empty texel). */
+static int refl__imp_peel_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__imp_draw *d = (const refl__imp_draw *)user;
+    float before = d->peel[(size_t)in->y * (size_t)d->cam->width + (size_t)in->x];
+    if (!(in->z > before) || before >= 1.0f) return 0;
+    return refl__imp_color_fragment(user, in, rgba);
 }
 
 static int refl__imp_normal_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -10265,7 +10301,9 @@ static float refl__imp_scale(refl_mat4 m) {
     return s > 0.0f ? s : 1.0f;
 }
 
-/* Draws the objects into the impostor's buffers with rc. */
+/* Draws the objects into the impostor's buffers with rc: per layer, the
+   colour pass (layers after the first peeled behind the one before), then
+   with normals the normal pass (depth EQUAL). */
 static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene, const int *objects, int count,
                                       refl_impostor *imp, float max_edge_px, int normals) {
     const refl_allocator *al = &scene->allocator;
@@ -10273,12 +10311,13 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
     refl__imp_draw *draws = (refl__imp_draw *)refl__calloc(al, (size_t)REFL__MAX(count, 1), sizeof(refl__imp_draw));
     float *scratch = NULL;
     float texel = 2.0f * imp->camera.radius / (float)imp->camera.width;
+    size_t nn = (size_t)imp->width * (size_t)imp->height;
     refl_result r = REFL_OK;
     rast_result rr = RAST_OK;
     rast_targets t;
     rast_state s;
     rast_clear_desc cl;
-    int i, pass;
+    int i, pass, layer;
     if (!sub || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; r == REFL_OK && i < count; ++i) {
         const refl_object *o = &scene->objects[objects[i]];
@@ -10291,37 +10330,42 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
         imp->triangles += sub[i]->triangle_count;
     }
     if (r == REFL_OK && normals) {
-        scratch = (float *)refl__calloc(al, (size_t)imp->width * (size_t)imp->height, 4 * sizeof(float));
+        scratch = (float *)refl__calloc(al, nn, 4 * sizeof(float));
         if (!scratch) r = REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (pass = 0; r == REFL_OK && pass < (normals ? 2 : 1); ++pass) {
-        t = refl__float_targets(pass ? scratch : imp->color, imp->depth, NULL, imp->width, imp->height);
-        if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
-        memset(&s, 0, sizeof s);
-        if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
-        memset(&cl, 0, sizeof cl);
-        cl.flags = pass ? RAST_CLEAR_COLOR : RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
-        cl.depth = 1.0f;
-        if ((rr = rast_clear(rc, &cl)) != RAST_OK) break;
-        s.depth_test = 1;
-        s.depth_func = pass ? RAST_EQUAL : RAST_LESS;
-        s.depth_write_disabled = pass;
-        s.vertex_fn = refl__imp_vertex;
-        s.fragment_fn = pass ? refl__imp_normal_fragment : refl__imp_color_fragment;
-        for (i = 0; i < count; ++i) {
-            s.vertex_user = s.fragment_user = &draws[i];
-            if ((rr = rast_set_state(rc, &s)) != RAST_OK ||
-                (rr = refl__draw_mesh(rc, sub[i], NULL, 0, REFL__BASE_VARYINGS)) != RAST_OK)
-                break;
-        }
-        if (rr == RAST_OK) rr = rast_finish(rc);
-        if (rr != RAST_OK) break;
-        if (pass) {
-            size_t k, nn = (size_t)imp->width * (size_t)imp->height;
-            for (k = 0; k < nn; ++k) {
-                imp->normal[3 * k] = scratch[4 * k];
-                imp->normal[3 * k + 1] = scratch[4 * k + 1];
-                imp->normal[3 * k + 2] = scratch[4 * k + 2];
+    for (layer = 0; r == REFL_OK && rr == RAST_OK && layer < imp->layers; ++layer) {
+        float *color = imp->color + 4 * nn * (size_t)layer, *depth = imp->depth + nn * (size_t)layer;
+        for (i = 0; i < count; ++i) draws[i].peel = layer ? depth - nn : NULL;
+        for (pass = 0; pass < (normals ? 2 : 1); ++pass) {
+            t = refl__float_targets(pass ? scratch : color, depth, NULL, imp->width, imp->height);
+            if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
+            memset(&s, 0, sizeof s);
+            if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
+            memset(&cl, 0, sizeof cl);
+            cl.flags = pass ? RAST_CLEAR_COLOR : RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
+            cl.depth = 1.0f;
+            if ((rr = rast_clear(rc, &cl)) != RAST_OK) break;
+            s.depth_test = 1;
+            s.depth_func = pass ? RAST_EQUAL : RAST_LESS;
+            s.depth_write_disabled = pass;
+            s.vertex_fn = refl__imp_vertex;
+            s.fragment_fn = pass ? refl__imp_normal_fragment : layer ? refl__imp_peel_fragment : refl__imp_color_fragment;
+            for (i = 0; i < count; ++i) {
+                s.vertex_user = s.fragment_user = &draws[i];
+                if ((rr = rast_set_state(rc, &s)) != RAST_OK ||
+                    (rr = refl__draw_mesh(rc, sub[i], NULL, 0, REFL__BASE_VARYINGS)) != RAST_OK)
+                    break;
+            }
+            if (rr == RAST_OK) rr = rast_finish(rc);
+            if (rr != RAST_OK) break;
+            if (pass) {
+                float *normal = imp->normal + 3 * nn * (size_t)layer;
+                size_t k;
+                for (k = 0; k < nn; ++k) {
+                    normal[3 * k] = scratch[4 * k];
+                    normal[3 * k + 1] = scratch[4 * k + 1];
+                    normal[3 * k + 2] = scratch[4 * k + 2];
+                }
             }
         }
     }
@@ -10345,9 +10389,10 @@ static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scen
     refl_impostor *imp;
     size_t nn;
     float max_edge = desc && desc->max_edge_px > 0.0f ? desc->max_edge_px : 4.0f;
-    int i, normals = desc && desc->normals;
+    int i, normals = desc && desc->normals, layers = desc && desc->layers > 0 ? desc->layers : 1;
     refl_result r;
     *out = NULL;
+    if (layers > REFL_IMPOSTOR_MAX_LAYERS) return REFL_ERROR_INVALID_ARGUMENT;
     if (!camera->project || !camera->unproject || camera->width < 1 || camera->height < 1 ||
         camera->width > 16384 || camera->height > 16384 || !(camera->radius > 0.0f))
         return REFL_ERROR_INVALID_ARGUMENT;
@@ -10358,9 +10403,10 @@ static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scen
     imp->allocator = *al;
     imp->width = camera->width;
     imp->height = camera->height;
+    imp->layers = layers;
     imp->camera = *camera;
     imp->depth_tolerance = 4.0f / (float)camera->width;
-    nn = (size_t)imp->width * (size_t)imp->height;
+    nn = (size_t)imp->width * (size_t)imp->height * (size_t)layers;
     imp->color = (float *)refl__calloc(al, nn, 4 * sizeof(float));
     imp->depth = (float *)refl__calloc(al, nn, sizeof(float));
     if (normals) imp->normal = (float *)refl__calloc(al, nn, 3 * sizeof(float));
@@ -10405,16 +10451,53 @@ static long refl__imp_texel(const refl_impostor *imp, float u, float v) {
     return (long)fv * imp->width + (long)fu;
 }
 
+/* The texel of layer `base` / (width * height) holding (u, v) if it stores
+   a surface, else -1; base is the layer's first texel. */
+static long refl__imp_stored(const refl_impostor *imp, long base, float u, float v) {
+    long t = refl__imp_texel(imp, u, v);
+    return t >= 0 && imp->color[4 * (base + t) + 3] > 0.0f ? base + t : -1;
+}
+
 /* How much the stored depth changes over one texel beyond image point cur,
    continuing from prev (0 where that texel is empty or the points meet):
-   the slope of the surface stored at cur, along the ray's projection. */
-static float refl__imp_slope(const refl_impostor *imp, const float prev[3], const float cur[3], float gd_cur) {
+   the slope of the surface stored at cur in the layer at base, along the
+   ray's projection. */
+static float refl__imp_slope(const refl_impostor *imp, long base, const float prev[3], const float cur[3],
+                             float gd_cur) {
     float du = cur[0] - prev[0], dv = cur[1] - prev[1], len = sqrtf(du * du + dv * dv);
     long t;
     if (!(len > 1e-6f)) return 0.0f;
-    t = refl__imp_texel(imp, cur[0] + du / len, cur[1] + dv / len);
-    if (t < 0 || imp->color[4 * t + 3] <= 0.0f) return 0.0f;
-    return fabsf(imp->depth[t] - gd_cur);
+    t = refl__imp_stored(imp, base, cur[0] + du / len, cur[1] + dv / len);
+    return t < 0 ? 0.0f : fabsf(imp->depth[t] - gd_cur);
+}
+
+/* One layer's side of the walk: the texel the last end fell in (-1: none
+   stored) and the ray's gd minus the stored depth there. */
+typedef struct refl__imp_walk {
+    long tex;
+    float d;
+} refl__imp_walk;
+
+/* Where on the piece from prev to cur the ray crosses behind the surface
+   layer `base` stores at cur, as a fraction of the piece, or -1 (no
+   crossing, or a skin); w is the layer's state at prev, updated to cur. */
+static float refl__imp_cross(const refl_impostor *imp, long base, refl__imp_walk *w, const float prev[3],
+                             const float cur[3], int first) {
+    long tex = refl__imp_stored(imp, base, cur[0], cur[1]);
+    float gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f, d = cur[2] - gd_stored, f = -1.0f;
+    if (!first && tex >= 0 && d >= 0.0f && (w->tex < 0 || w->d < 0.0f)) {
+        /* the ray went from in front of what texel k-1 stores (or from
+           an empty texel) to behind what texel k stores. A hit, unless
+           texel k's surface is nearer and the ray was already behind
+           it extended back by its own slope: a skin */
+        float d0 = prev[2] - gd_stored;
+        int farther = w->tex >= 0 && gd_stored >= imp->depth[w->tex];
+        if (farther || d0 <= refl__imp_slope(imp, base, prev, cur, gd_stored) + imp->depth_tolerance)
+            f = w->tex >= 0 ? w->d / (w->d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
+    }
+    w->tex = tex;
+    w->d = d;
+    return f;
 }
 
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
@@ -10422,12 +10505,14 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     const refl_impostor_camera *cam;
     refl_vec3 oc;
     double a, b, c, disc, sq, t0, t1, len = 0.0;
-    float prev[3], cur[3], prev_gd = 0.0f, prev_d = 0.0f;
-    long prev_tex = -1;
-    int n, k, found = 0;
+    float prev[3], cur[3];
+    refl__imp_walk walk[REFL_IMPOSTOR_MAX_LAYERS];
+    long nn;
+    int n, k, layer, found = 0;
     if (steps) *steps = 0;
     if (!imp || !hit) return 0;
     cam = &imp->camera;
+    nn = (long)imp->width * imp->height;
     /* 1. clip to the bounding sphere */
     oc = refl_v3_sub(origin, cam->center);
     a = refl_v3_dot(dir, dir);
@@ -10448,43 +10533,36 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     }
     len *= step_scale > 0.0f ? step_scale : 1.0f;
     n = len < 2.0 ? 2 : len > 4.0 * (imp->width + imp->height) ? 4 * (imp->width + imp->height) : (int)ceil(len);
-    /* 3. walk from near to far */
+    /* 3. walk from near to far, every layer on the same ends: the first
+       piece where the ray crosses behind a layer's surface, at the
+       nearest crossing on it */
     for (k = 0; k <= n && !found; ++k) {
         double t = t0 + (t1 - t0) * k / n;
-        long tex;
-        float gd_stored, d;
+        float best = 2.0f;
+        int best_layer = -1;
         if (!cam->project(cam->cam, refl_v3_add(origin, refl_v3_scale(dir, (float)t)), cur)) return 0;
-        tex = refl__imp_texel(imp, cur[0], cur[1]);
-        if (tex >= 0 && imp->color[4 * tex + 3] <= 0.0f) tex = -1;
-        gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f;
-        d = cur[2] - gd_stored;
-        if (k > 0 && tex >= 0 && d >= 0.0f && (prev_tex < 0 || prev_d < 0.0f)) {
-            /* the ray went from in front of what texel k-1 stores (or from
-               an empty texel) to behind what texel k stores. A hit, unless
-               texel k's surface is nearer and the ray was already behind
-               it extended back by its own slope: a skin */
-            float d0 = prev_gd - gd_stored, f = -1.0f;
-            int farther = prev_tex >= 0 && gd_stored >= imp->depth[prev_tex];
-            if (farther || d0 <= refl__imp_slope(imp, prev, cur, gd_stored) + imp->depth_tolerance)
-                f = prev_tex >= 0 ? prev_d / (prev_d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
-            if (f >= 0.0f) {
-                double th = t0 + (t1 - t0) * ((k - 1) + (double)f) / n;
-                long at;
-                hit->t = (float)th;
-                hit->point = refl_v3_add(origin, refl_v3_scale(dir, hit->t));
-                if (!cam->project(cam->cam, hit->point, hit->uvd)) memcpy(hit->uvd, cur, sizeof cur);
-                at = refl__imp_texel(imp, hit->uvd[0], hit->uvd[1]);
-                if (at < 0 || imp->color[4 * at + 3] <= 0.0f) at = tex;
-                memcpy(hit->color, imp->color + 4 * at, 4 * sizeof(float));
-                hit->normal = imp->normal ? refl_v3(imp->normal[3 * at], imp->normal[3 * at + 1], imp->normal[3 * at + 2])
-                                          : refl_v3(0.0f, 0.0f, 0.0f);
-                found = 1;
+        for (layer = 0; layer < imp->layers; ++layer) {
+            float f = refl__imp_cross(imp, layer * nn, &walk[layer], prev, cur, k == 0);
+            if (f >= 0.0f && f < best) {
+                best = f;
+                best_layer = layer;
             }
         }
-        prev_tex = tex;
+        if (best_layer >= 0) {
+            double th = t0 + (t1 - t0) * ((k - 1) + (double)best) / n;
+            long at;
+            hit->t = (float)th;
+            hit->point = refl_v3_add(origin, refl_v3_scale(dir, hit->t));
+            if (!cam->project(cam->cam, hit->point, hit->uvd)) memcpy(hit->uvd, cur, sizeof cur);
+            at = refl__imp_stored(imp, best_layer * nn, hit->uvd[0], hit->uvd[1]);
+            if (at < 0) at = walk[best_layer].tex;
+            memcpy(hit->color, imp->color + 4 * at, 4 * sizeof(float));
+            hit->normal = imp->normal ? refl_v3(imp->normal[3 * at], imp->normal[3 * at + 1], imp->normal[3 * at + 2])
+                                      : refl_v3(0.0f, 0.0f, 0.0f);
+            hit->layer = best_layer;
+            found = 1;
+        }
         memcpy(prev, cur, sizeof prev);
-        prev_gd = cur[2];
-        prev_d = d;
         if (steps && k > 0) ++*steps;
     }
     return found;
@@ -16744,7 +16822,9 @@ static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
    as ENVMAP's (gbuffer.c), each clamped to [0, 1] first as RAYTRACE
    does; frame->points gets the point the ray met (an impostor's: its own
    estimate on the ray). Impostor colours are the shared diffuse shading
-   without shadows. Glass is handed to RAYTRACE's tracer. Rows are
+   without shadows; each impostor has spoc.layers depth layers. Glass is
+   handed to RAYTRACE's tracer, or with spoc.glass refracted in and out
+   here (refl__spoc_glass). Rows are
    independent and step counts are summed per row, so any thread count
    gives the same bytes and stats. */
 
@@ -16768,6 +16848,11 @@ typedef struct refl__spoc_frame {
     int bounces;                  /* 1, or 2: mirrors met are reflected through once more */
     float offset;                 /* reflected rays start this far off their surface */
     long long *row_steps, *row_max, *row_rays;
+    /* the glass reflector being drawn (refl__spoc_glass_begin) */
+    float *back;                  /* per pixel: the nearest back face's world normal and distance
+                                     along the pixel's ray (0: none) */
+    float *back_depth;            /* the back-face pass's depth buffer */
+    refl_bvh *self;               /* the glass object alone, for the exact exit */
 } refl__spoc_frame;
 
 /* Whether object i is a mirror whose impostor stores normals: second-order
@@ -16832,15 +16917,17 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             memset(&d, 0, sizeof d);
             d.max_edge_px = opt->max_edge_px;
             d.normals = refl__spoc_mirror_impostor(sf, i);
+            d.layers = opt->layers;
             d.allocator = *al;
             r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &set->imps[set->imp_count]);
             if (r != REFL_OK) break;
             p->frame->stats.triangles += set->imps[set->imp_count]->triangles;
             p->frame->stats.model_bytes +=
-                (long long)((size_t)opt->size * (size_t)opt->size * (d.normals ? 8 : 5) * sizeof(float));
+                (long long)((size_t)opt->size * (size_t)opt->size * (size_t)opt->layers * (d.normals ? 8 : 5) * sizeof(float));
             ++p->frame->stats.spoc.impostors;
             set->imp_object[set->imp_count++] = i;
-        } else {
+        } else if (i != object || scene->materials[scene->objects[i].material].type != REFL_GLASS) {
+            /* a glass reflector's rays leave it for good (refl__spoc_glass) */
             set->exact_object[n] = i;
             objs[n++] = scene->objects[i];
         }
@@ -16930,6 +17017,253 @@ static int refl__spoc_trace(const refl__spoc_frame *sf, int from, int bounce, re
     return found;
 }
 
+/* ---- glass (spoc.glass ESTIMATE or EXACT_EXIT) ----------------------------------
+   Paper 004 refracts through glass with Wyman's image-space approximation
+   [Wym05]: a first pass stores the depth and normals of the refractor's
+   back faces, the second refracts each front pixel's ray in, estimates
+   where it leaves from them, refracts it out there and intersects the
+   emerging ray with the impostors. */
+
+/* The back-face pass's fragment: the object's faces turned away from the
+   eye (by the interpolated normal, whatever the winding), as the world
+   normal and the distance along the pixel's ray. */
+typedef struct refl__spoc_back_draw {
+    refl__draw_ctx dc;
+    const refl__view_rays *rays;
+} refl__spoc_back_draw;
+
+static int refl__spoc_back_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__spoc_back_draw *b = (const refl__spoc_back_draw *)user;
+    refl_vec3 o, d, wp = refl_v3(in->varyings[0], in->varyings[1], in->varyings[2]);
+    refl_vec3 n = refl_v3_normalize(refl_v3(in->varyings[3], in->varyings[4], in->varyings[5]));
+    float tmax;
+    refl__view_rays_get(b->rays, (float)in->x + 0.5f, (float)in->y + 0.5f, &o, &d, &tmax);
+    if (!(refl_v3_dot(n, d) > 0.0f)) return 0;
+    rgba[0] = n.x;
+    rgba[1] = n.y;
+    rgba[2] = n.z;
+    rgba[3] = REFL__MAX(refl_v3_dot(refl_v3_sub(wp, o), d), 1e-6f);
+    return 1;
+}
+
+/* Before glass reflector `object`'s rows: the object alone in a BVH (the
+   exact exit; the estimate's d_N), and for the estimate its back faces
+   (the first pass). */
+static refl_result refl__spoc_glass_begin(refl__spoc_frame *sf, int object) {
+    refl__pass *p = sf->em.p;
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_frame *fr = p->frame;
+    size_t npx = (size_t)fr->width * (size_t)fr->height;
+    refl_result r = REFL_OK;
+    refl_scene sub = *scene;
+    sub.objects = &scene->objects[object];
+    sub.object_count = 1;
+    r = refl_bvh_build(&sub, al, &sf->self);
+    if (r == REFL_OK) fr->stats.model_bytes += refl__bvh_bytes(sf->self);
+    if (r == REFL_OK && p->desc.spoc.glass == REFL_SPOC_GLASS_ESTIMATE) {
+        refl__spoc_back_draw b;
+        rast_targets t;
+        rast_state st;
+        rast_clear_desc cl;
+        rast_result rr;
+        if (!sf->back) sf->back = (float *)refl__calloc(al, npx, 4 * sizeof(float));
+        if (!sf->back_depth) sf->back_depth = (float *)refl__calloc(al, npx, sizeof(float));
+        if (!sf->back || !sf->back_depth) return REFL_ERROR_OUT_OF_MEMORY;
+        refl__draw_ctx_init(&b.dc, scene, object, p->vp);
+        b.rays = &p->rays;
+        t = refl__float_targets(sf->back, sf->back_depth, NULL, fr->width, fr->height);
+        memset(&st, 0, sizeof st);
+        memset(&cl, 0, sizeof cl);
+        cl.flags = RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
+        cl.depth = 1.0f;
+        if ((rr = rast_set_targets(p->rc, &t)) == RAST_OK && (rr = rast_set_state(p->rc, &st)) == RAST_OK &&
+            (rr = rast_clear(p->rc, &cl)) == RAST_OK) {
+            st.depth_test = 1;
+            st.depth_func = RAST_LESS;
+            st.vertex_fn = refl__base_vertex;
+            st.fragment_fn = refl__spoc_back_fragment;
+            st.vertex_user = st.fragment_user = &b;
+            if ((rr = rast_set_state(p->rc, &st)) == RAST_OK &&
+                (rr = refl__draw_mesh(p->rc, b.dc.mesh, NULL, 0, REFL__BASE_VARYINGS)) == RAST_OK)
+                rr = rast_finish(p->rc);
+        }
+        memset(&t, 0, sizeof t);
+        rast_set_targets(p->rc, &t);
+        r = refl__result_from_rast(rr);
+        fr->stats.model_bytes += (long long)(npx * 5 * sizeof(float));
+    }
+    return r;
+}
+
+static void refl__spoc_glass_end(refl__spoc_frame *sf) {
+    refl_bvh_destroy(sf->self);
+    sf->self = NULL;
+}
+
+/* The pixel (u, v) the view sees point q at; 0 behind the eye. */
+static int refl__spoc_pixel_of(const refl__view_rays *r, refl_vec3 q, float *u, float *v) {
+    refl_vec3 e = refl_v3_sub(q, r->eye);
+    float z = refl_v3_dot(e, r->forward);
+    if (!(z > 0.0f)) return 0;
+    *u = 0.5f * (1.0f + refl_v3_dot(e, r->right) / (z * refl_v3_dot(r->right, r->right))) * (float)r->width;
+    *v = 0.5f * (1.0f - refl_v3_dot(e, r->up) / (z * refl_v3_dot(r->up, r->up))) * (float)r->height;
+    return 1;
+}
+
+/* The back face stored at pixel (u, v): a point on it and its normal; 0
+   where none is. */
+static int refl__spoc_back_at(const refl__spoc_frame *sf, float u, float v, refl_vec3 *point, refl_vec3 *normal) {
+    const refl__view_rays *r = &sf->em.p->rays;
+    const float *b;
+    refl_vec3 o, d;
+    float fu = floorf(u), fv = floorf(v), tmax;
+    if (!(fu >= 0.0f && fv >= 0.0f && fu < (float)r->width && fv < (float)r->height)) return 0;
+    b = sf->back + 4 * ((size_t)fv * (size_t)r->width + (size_t)fu);
+    if (!(b[3] > 0.0f)) return 0;
+    refl__view_rays_get(r, fu + 0.5f, fv + 0.5f, &o, &d, &tmax);
+    *point = refl_v3_add(o, refl_v3_scale(d, b[3]));
+    *normal = refl_v3(b[0], b[1], b[2]);
+    return 1;
+}
+
+enum { REFL__SPOC_EXIT_STEPS = 2 };
+
+/* Where the ray p1 + t dir (dir unit, refracted in at pixel (x, y) whose
+   view direction d meets the surface at normal n) leaves the glass,
+   estimated from the back faces: first Wyman's distance
+   d~ = (theta_t / theta_i) d_V + (1 - theta_t / theta_i) d_N,
+   d_V the distance from p1 to the back face along the pixel's ray, d_N
+   the distance through the object along -n (Wyman precomputes it per
+   vertex and interpolates it; here it is cast per pixel), theta_i and
+   theta_t the angles of incidence and refraction; then
+   REFL__SPOC_EXIT_STEPS times the ray met with the tangent plane of the
+   back face stored where the estimate projects (Wyman's point alone lies
+   off the stored back faces, and the normal read there is another
+   point's). The normal is the back face's where the point projects (else
+   at the pixel's own back face). *exit and its outward normal; 0 where
+   the pixel sees no back face. */
+static int refl__spoc_exit_estimate(const refl__spoc_frame *sf, int x, int y, refl_vec3 p1, refl_vec3 n,
+                                    refl_vec3 d, refl_vec3 dir, float ior, refl_vec3 *exit, refl_vec3 *normal) {
+    refl_vec3 b, bn;
+    refl_hit h;
+    float u, v, d_v, d_n, ti, tt, ratio, dist;
+    int k;
+    if (!refl__spoc_back_at(sf, (float)x + 0.5f, (float)y + 0.5f, &b, normal)) return 0;
+    d_v = REFL__MAX(refl_v3_dot(refl_v3_sub(b, p1), d), 0.0f);
+    d_n = refl_bvh_intersect(sf->self, refl_v3_sub(p1, refl_v3_scale(n, sf->offset)), refl_v3_scale(n, -1.0f), 0.0f,
+                             FLT_MAX, &h) ? h.t : d_v;
+    ti = acosf(REFL__CLAMP(-refl_v3_dot(d, n), -1.0f, 1.0f));
+    tt = acosf(REFL__CLAMP(-refl_v3_dot(dir, n), -1.0f, 1.0f));
+    ratio = ti > 1e-4f ? REFL__CLAMP(tt / ti, 0.0f, 1.0f) : 1.0f / ior;
+    dist = ratio * d_v + (1.0f - ratio) * d_n;
+    for (k = 0; k < REFL__SPOC_EXIT_STEPS; ++k) {
+        float den, t;
+        if (!refl__spoc_pixel_of(&sf->em.p->rays, refl_v3_add(p1, refl_v3_scale(dir, dist)), &u, &v) ||
+            !refl__spoc_back_at(sf, u, v, &b, &bn))
+            break;
+        den = refl_v3_dot(dir, bn);
+        t = den > 1e-3f ? refl_v3_dot(refl_v3_sub(b, p1), bn) / den : -1.0f;
+        if (!(t > 0.0f)) break;
+        dist = t;
+    }
+    *exit = refl_v3_add(p1, refl_v3_scale(dir, dist));
+    if (refl__spoc_pixel_of(&sf->em.p->rays, *exit, &u, &v) && refl__spoc_back_at(sf, u, v, &b, &bn)) *normal = bn;
+    *normal = refl_v3_normalize(*normal);
+    return 1;
+}
+
+/* The same, exactly: the glass object's own surface met (its shading
+   normal, the geometric one where that faces the ray, as RAYTRACE). */
+static int refl__spoc_exit_exact(const refl__spoc_frame *sf, int object, refl_vec3 p1, refl_vec3 dir,
+                                 refl_vec3 *exit, refl_vec3 *normal) {
+    const refl__rt_object *ro = &sf->objects[object];
+    refl_hit h;
+    refl__hit_geom g;
+    if (!refl_bvh_intersect(sf->self, p1, dir, 0.0f, FLT_MAX, &h)) return 0;
+    refl__hit_surface(ro->mesh, &ro->model, &ro->normal_m, &h, &g);
+    if (refl_v3_dot(g.ng, dir) < 0.0f) g.ng = refl_v3_scale(g.ng, -1.0f);
+    if (refl_v3_dot(g.ns, g.ng) < 0.0f) g.ns = refl_v3_scale(g.ns, -1.0f);
+    *exit = g.p;
+    *normal = refl_v3_dot(dir, g.ns) > 0.0f ? refl_v3_normalize(g.ns) : g.ng;
+    return 1;
+}
+
+/* What the ray o + t d meets leaving glass `object` (bounce `bounce`),
+   else the environment: its colour and point (NaN: none). With `self`,
+   the glass object met again first is black (RAYTRACE's, with no bounce
+   left to go through it); without, the ray ignores it. */
+static void refl__spoc_glass_ray(const refl__spoc_frame *sf, int object, int bounce, refl_vec3 o, refl_vec3 d, int self,
+                                 float rgb[3], refl_vec3 *shown, long long *steps, long long *max_steps) {
+    refl_hit h;
+    int c, met;
+    *shown = refl_v3(NAN, NAN, NAN);
+    met = refl__spoc_trace(sf, object, bounce, o, d, 0.0f, rgb, shown, steps, max_steps);
+    if (self && refl_bvh_intersect(sf->self, o, d, 0.0f, met ? refl_v3_dot(refl_v3_sub(*shown, o), d) : FLT_MAX, &h)) {
+        rgb[0] = rgb[1] = rgb[2] = 0.0f;
+        *shown = refl_v3_add(o, refl_v3_scale(d, h.t));
+    } else if (!met) {
+        refl_environment_lookup(&sf->em.p->scene->environment, d, rgb);
+        for (c = 0; c < 3; ++c) rgb[c] = REFL__CLAMP(REFL__RADIANCE(rgb[c]), 0.0f, 1.0f);
+        *shown = refl_v3(NAN, NAN, NAN);
+    }
+}
+
+/* Glass pixel (x, y) as RAYTRACE's two interfaces show it: the Fresnel
+   share F of the reflection, and 1 - F, tinted and absorbed along the
+   inside, of the ray refracted in at the pixel's surface point p1 (normal
+   n facing the eye, view direction d) and out where it leaves
+   (estimated or exact), times the exit's own 1 - F (internally reflected
+   light is black: two bounces). One bounce: the refracted share is black.
+   The point is that of the branch with the larger coefficient at each
+   interface, as RAYTRACE's. */
+static void refl__spoc_glass(const refl__spoc_frame *sf, int x, int y, refl_vec3 p1, refl_vec3 n, refl_vec3 d,
+                             float rgb[3], refl_vec3 *shown, long long *steps, long long *max_steps) {
+    const refl__pass *p = sf->em.p;
+    const refl_material *m = sf->objects[sf->object].material;
+    float ior = m->ior > 0.0f ? m->ior : 1.5f, sub[3], f = 1.0f, cos_i = REFL__CLAMP(-refl_v3_dot(d, n), 0.0f, 1.0f);
+    refl_vec3 t1, t2, exit, out_n, met;
+    int c, tinted = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f;
+    int refracts = refl_v3_refract(d, n, 1.0f / ior, &t1);
+    if (refracts) f = refl_fresnel_dielectric(cos_i, 1.0f, ior);
+    if (!(f < 1.0f)) refracts = 0, f = 1.0f;
+    refl__spoc_glass_ray(sf, sf->object, 1, refl_v3_add(p1, refl_v3_scale(n, sf->offset)), refl_v3_reflect(d, n), 1,
+                         sub, &met, steps, max_steps);
+    for (c = 0; c < 3; ++c) rgb[c] = f * sub[c];
+    *shown = refracts && f < 0.5f ? refl_v3(NAN, NAN, NAN) : met;
+    if (!refracts || sf->bounces < 2) return;
+    t1 = refl_v3_normalize(t1);
+    {
+        refl_vec3 inside = refl_v3_sub(p1, refl_v3_scale(n, sf->offset));
+        int found = p->desc.spoc.glass == REFL_SPOC_GLASS_EXACT_EXIT
+                        ? refl__spoc_exit_exact(sf, sf->object, inside, t1, &exit, &out_n)
+                        : refl__spoc_exit_estimate(sf, x, y, p1, n, d, t1, ior, &exit, &out_n);
+        float k = 1.0f - f, f2 = 0.0f, cos2;
+        if (!found) {
+            /* leaves through no face (an open mesh): the environment, unabsorbed */
+            refl_environment_lookup(&p->scene->environment, t1, sub);
+            for (c = 0; c < 3; ++c) rgb[c] += k * (tinted ? m->tint[c] : 1.0f) * REFL__RADIANCE(sub[c]);
+            return;
+        }
+        if (m->attenuation > 0.0f) k *= expf(-m->attenuation * refl_v3_length(refl_v3_sub(exit, p1)));
+        /* out: from inside, about the normal turned against the ray */
+        cos2 = REFL__CLAMP(refl_v3_dot(t1, out_n), 0.0f, 1.0f);
+        if (!refl_v3_refract(t1, refl_v3_scale(out_n, -1.0f), ior, &t2) ||
+            !((f2 = refl_fresnel_dielectric(cos2, ior, 1.0f)) < 1.0f)) {
+            /* totally reflected inside: black with two bounces */
+            if (f < 0.5f) *shown = refl_v3(NAN, NAN, NAN);
+            return;
+        }
+        /* the estimated exit may lie inside the surface: the glass is not met again */
+        refl__spoc_glass_ray(sf, sf->object, 2, refl_v3_add(exit, refl_v3_scale(out_n, sf->offset)),
+                             refl_v3_normalize(t2), p->desc.spoc.glass == REFL_SPOC_GLASS_EXACT_EXIT, sub, &met, steps,
+                             max_steps);
+        k *= 1.0f - f2;
+        for (c = 0; c < 3; ++c) rgb[c] += k * (tinted ? m->tint[c] : 1.0f) * sub[c];
+        if (f < 0.5f) *shown = f2 < 0.5f ? met : refl_v3(NAN, NAN, NAN);
+    }
+}
+
 /* One frame row: every pixel of the current reflector. */
 static void refl__spoc_row(void *arg, int y) {
     refl__spoc_frame *sf = (refl__spoc_frame *)arg;
@@ -16937,7 +17271,7 @@ static void refl__spoc_row(void *arg, int y) {
     const refl_frame *fr = p->frame;
     float id = (float)(sf->object + 1);
     long long steps = 0, max_steps = 0, rays = 0;
-    int x;
+    int x, k;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         const float *g = sf->em.gbuf + 4 * i;
@@ -16949,8 +17283,14 @@ static void refl__spoc_row(void *arg, int y) {
         if (refl_v3_dot(n, n) == 0.0f) n = refl_v3_scale(d, -1.0f);
         if (refl_v3_dot(d, n) > 0.0f) n = refl_v3_scale(n, -1.0f);
         s = refl_v3(sf->em.surface[3 * i], sf->em.surface[3 * i + 1], sf->em.surface[3 * i + 2]);
-        s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
         ++rays;
+        if (sf->objects[sf->object].material->type == REFL_GLASS) {
+            refl__spoc_glass(sf, x, y, s, n, d, rgb, &shown, &steps, &max_steps);
+            for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+            refl__em_put(p->frame, i, rgb, shown);
+            continue;
+        }
+        s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
         if (refl__spoc_trace(sf, sf->object, 1, s, refl_v3_reflect(d, n), 0.0f, rgb, &shown, &steps, &max_steps))
             refl__em_composite(p, g, x, y, rgb, shown);
         else
@@ -16975,7 +17315,18 @@ static const char *refl__options_spoc(refl_render_desc *d) {
         o->max_edge_px > 64.0f)
         return "spoc.max_edge_px: 0 (4) or 0.5 to 64";
     if (o->max_edge_px == 0.0f) o->max_edge_px = 4.0f;
+    if (o->layers < 0 || o->layers > REFL_IMPOSTOR_MAX_LAYERS) return "spoc.layers: 0 (3) or 1 to 4";
+    if (o->layers == 0) o->layers = 3;
+    if (o->glass < REFL_SPOC_GLASS_TRACED || o->glass > REFL_SPOC_GLASS_EXACT_EXIT)
+        return "spoc.glass: REFL_SPOC_GLASS_TRACED, _ESTIMATE or _EXACT_EXIT";
     return NULL;
+}
+
+/* Glass is SPOC's with spoc.glass ESTIMATE or EXACT_EXIT, else RAYTRACE's. */
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS ||
+           p->desc.spoc.glass != REFL_SPOC_GLASS_TRACED;
+    return REFL_OK;
 }
 
 static refl_result refl__method_spoc(refl__pass *p) {
@@ -17026,12 +17377,15 @@ static refl_result refl__method_spoc(refl__pass *p) {
     for (i = 0; r == REFL_OK && any && i < scene->object_count; ++i) {
         if (!seen[i] || !refl__pass_draws(p, i)) continue;
         r = refl__spoc_build(&sf, i);
+        if (r == REFL_OK && scene->materials[scene->objects[i].material].type == REFL_GLASS)
+            r = refl__spoc_glass_begin(&sf, i);
         t0 = refl__now_ms();
         fr->stats.ms_build += t0 - t1;
         if (r == REFL_OK) {
             sf.object = i;
             rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
         }
+        refl__spoc_glass_end(&sf);
         if (sf.bounces == 1) refl__spoc_release(&sf, i);
         t1 = refl__now_ms();
         fr->stats.ms_reflect += t1 - t0;
@@ -17057,6 +17411,8 @@ static refl_result refl__method_spoc(refl__pass *p) {
     refl__free(al, sf.row_steps);
     refl__free(al, sf.row_max);
     refl__free(al, sf.row_rays);
+    refl__free(al, sf.back);
+    refl__free(al, sf.back_depth);
     return r;
 }
 /* ---- src/reflect/math.c ---- */
@@ -19168,7 +19524,7 @@ static const refl__method_row refl__methods[] = {
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
     {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
-    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__declines_glass, 2},
+    {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 2},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
     /* draws nothing itself: each of its reflectors goes to the method it picks (refl__drawn_by) */

@@ -104,6 +104,9 @@ ok "render the maze through its graph camera, both algorithms" bash -c \
     "'$bin' render --builtin maze --method graphcam --graphcam-size 480 --size 48x36 --depth 1 --out '$tmp/gc.png' --stats | grep -q 'frusta       15' &&
      '$bin' render --builtin maze --method graphcam --graphcam-size 480 --graphcam-alg uniform --size 48x36 --depth 1 --out '$tmp/gc1.png'"
 refuses "--graphcam-alg of an unknown name" "segments or uniform" "$bin" render --builtin maze --method graphcam --graphcam-alg x
+ok "render glass through SPOC's refraction, two layers" bash -c \
+    "'$bin' render --builtin glass --method spoc --spoc-glass estimate --spoc-layers 2 --spoc-size 64 --size 48x36 --depth 2 --stats --out '$tmp/sg.png' 2>&1 | grep -q 'impostors    64'"
+refuses "--spoc-glass of an unknown name" "traced, estimate or exact" "$bin" render --builtin glass --method spoc --spoc-glass x
 ok "render planar with soft shadows" "$bin" render --builtin mirror-room --method planar --shadows --soft-shadows 4 \
     --light-radius 0.3 --size 48x36 --out "$tmp/soft.png"
 ok "render planar --no-culling counts renderings" bash -c \

@@ -78,6 +78,10 @@ static const char *const usage_render =
     "  --spoc-strength K  SPOC: the push, 0..64 (default 1; 0: a plain depth image)\n"
     "  --spoc-step S      SPOC: marching pieces per texel of a ray's projection,\n"
     "                     1/16..16 (default 1)\n"
+    "  --spoc-layers N    SPOC: impostor depth layers, 1..4 (default 3)\n"
+    "  --spoc-glass G     SPOC: glass traced (default: RAYTRACE's tracer), estimate\n"
+    "                     (the paper's: the exit from the back faces' depth and\n"
+    "                     normals) or exact (the exit on the mesh)\n"
     "  --trace-fallback   SBC: ray trace the reflector pixels nothing was drawn on,\n"
     "                     and those whose point the ray map's samples contradict\n"
     "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
@@ -177,7 +181,8 @@ typedef struct options {
     int graphcam_size, graphcam_alg;
     float graphcam_step;
     float density, camera_split, error_px;
-    int spoc_size;                /* --spoc-size, --spoc-strength (-1: unset), --spoc-step */
+    int spoc_size, spoc_layers;   /* --spoc-size, --spoc-layers, --spoc-strength (-1: unset), --spoc-step */
+    int spoc_glass;               /* --spoc-glass: refl_spoc_glass */
     float spoc_strength, spoc_step;
     int has_eye, has_target, has_up;
     refl_vec3 eye, target, up;
@@ -229,7 +234,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -359,6 +364,13 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 1 << 30, &o->max_renderings)) return fail("--max-renderings: expected 1..2^30, got %s", v);
         } else if (!strcmp(a, "--spoc-size")) {
             if (!parse_int(v, 8, 4096, &o->spoc_size)) return fail("--spoc-size: expected 8..4096, got %s", v);
+        } else if (!strcmp(a, "--spoc-glass")) {
+            if (!strcmp(v, "traced")) o->spoc_glass = REFL_SPOC_GLASS_TRACED;
+            else if (!strcmp(v, "estimate")) o->spoc_glass = REFL_SPOC_GLASS_ESTIMATE;
+            else if (!strcmp(v, "exact")) o->spoc_glass = REFL_SPOC_GLASS_EXACT_EXIT;
+            else return fail("--spoc-glass: expected traced, estimate or exact, got %s", v);
+        } else if (!strcmp(a, "--spoc-layers")) {
+            if (!parse_int(v, 1, 4, &o->spoc_layers)) return fail("--spoc-layers: expected 1..4, got %s", v);
         } else if (!strcmp(a, "--error-budget")) {
             if (!parse_float(v, 1e-6f, 1e6f, &o->error_budget)) return fail("--error-budget: expected pixels above 0, got %s", v);
         } else if (!strcmp(a, "--auto-models")) {
@@ -698,6 +710,8 @@ static int cmd_render(const options *o) {
     d.lighting.shadows = o->shadows;
     d.envmap.size = o->envmap_size;
     d.spoc.size = o->spoc_size;
+    d.spoc.layers = o->spoc_layers;
+    d.spoc.glass = o->spoc_glass;
     /* the desc's 0 is the default strength and a negative one the plain depth image */
     d.spoc.strength = o->spoc_strength < 0.0f ? 0.0f : o->spoc_strength == 0.0f ? -1.0f : o->spoc_strength;
     d.spoc.step_scale = o->spoc_step;

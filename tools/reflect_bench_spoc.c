@@ -5,8 +5,8 @@
    the longest ray projection (marching steps of one ray through one
    impostor). Beside each SPOC row, RAYTRACE (ours and Embree's) on the same
    frames, and the reflection error and PSNR over the mirror against
-   RAYTRACE, which the paper does not report. One bounce, as the paper's
-   reflections. A table on stdout (the paper's rows beside ours) and
+   RAYTRACE, which the paper does not report. One bounce and one depth
+   layer (spoc.layers 1), as the paper's reflections and impostors. A table on stdout (the paper's rows beside ours) and
    dir/spoc_teapots.csv. */
 #include <math.h>
 #include <stdio.h>
@@ -149,6 +149,7 @@ int refl_bench_spoc(const char *dir, int threads) {
             if (ok) sp_add(&em, f, NULL);
             memset(&d.raytrace, 0, sizeof d.raytrace);
             d.method = REFL_SPOC;
+            d.spoc.layers = 1; /* the paper's impostor: one depth layer */
             for (j = 0; ok && j < SP_SIZES; ++j) {
                 if (i > 0 && sp_imp[j] != 512) continue;
                 d.spoc.size = sp_imp[j];

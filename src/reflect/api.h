@@ -627,7 +627,11 @@ typedef struct refl_impostor_desc {
     int normals;             /* 1: store world normals too (reflective objects) */
     int threads;             /* rasterisation threads; 0: one per CPU */
     refl_allocator allocator;
+    int layers;              /* depth layers, 1 to REFL_IMPOSTOR_MAX_LAYERS; 0: 1. Layer k
+                                is peeled: per texel the nearest surface behind layer k - 1's */
 } refl_impostor_desc;
+
+enum { REFL_IMPOSTOR_MAX_LAYERS = 4 };
 
 typedef struct refl_impostor {
     int width, height;
@@ -640,6 +644,8 @@ typedef struct refl_impostor {
                                 (4 / width): larger jumps are skins between layers */
     long long triangles;     /* drawn, after subdivision */
     refl_allocator allocator;
+    int layers;              /* color, depth and normal hold this many images, nearest first
+                                (layer k's texel i at index k * width * height + i) */
 } refl_impostor;
 
 /* Images objects[0 .. count) of the scene (any materials, drawn with the
@@ -655,6 +661,7 @@ typedef struct refl_impostor_hit {
     float color[4];          /* the stored texel's colour */
     refl_vec3 normal;        /* stored normal (zero without normals) */
     float uvd[3];            /* the point's projection */
+    int layer;               /* the depth layer met */
 } refl_impostor_hit;
 
 /* Section 3.2: the ray origin + t dir, tmin < t < tmax, is clipped to the
@@ -669,7 +676,9 @@ typedef struct refl_impostor_hit {
    own change of gd plus depth_tolerance (a skin between depth layers at a
    silhouette: the ray passes behind it). Entering a stored texel from an
    empty one counts when the ray is within its own change of gd plus the
-   tolerance behind the surface. 1 and *hit on a hit; *steps (may be NULL)
+   tolerance behind the surface. With several layers each is compared on
+   the same ends, as if alone, and the walk stops at the first piece where
+   any layer is crossed (the nearest crossing on it). 1 and *hit on a hit; *steps (may be NULL)
    gets the pieces walked (0 when the ray misses the sphere). */
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      float step_scale, refl_impostor_hit *hit, int *steps);
@@ -1674,6 +1683,18 @@ typedef struct refl_graphcam_options {
     float step;              /* SEGMENTS: pixels a step (0: 1); UNIFORM: world units a step
                                 (0: the camera's bounds' diagonal / 2048) */
 } refl_graphcam_options;
+/* SPOC's glass (paper 004 section 6, refraction after Wyman 2005): handed to
+   RAYTRACE's tracer (stats.handed_over); or refracted in at each pixel and
+   out where the ray leaves, estimated from the view's image of the glass's
+   back faces (depth and normals) or found exactly on its mesh (to tell the
+   impostors' error from the estimate's), the emerging ray meeting the
+   impostors. Two interfaces: with depth 1 only the Fresnel reflection. */
+typedef enum refl_spoc_glass {
+    REFL_SPOC_GLASS_TRACED = 0,
+    REFL_SPOC_GLASS_ESTIMATE,
+    REFL_SPOC_GLASS_EXACT_EXIT
+} refl_spoc_glass;
+
 typedef struct refl_spoc_options {
     int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
     float strength;          /* the SPOC's push K (refl_spoc), at most 64; 0: 1; negative: 0
@@ -1682,6 +1703,8 @@ typedef struct refl_spoc_options {
                                 16; 0: 1 (the paper's n) */
     float max_edge_px;       /* impostor construction: triangles subdivided to edges of about
                                 this many texels, 0.5 to 64; 0: 4 */
+    int layers;              /* impostor depth layers (refl_impostor_desc), 1 to 4; 0: 3 */
+    int glass;               /* refl_spoc_glass: how glass reflectors are drawn */
 } refl_spoc_options;
 
 typedef struct refl_auto_options {

@@ -5,15 +5,18 @@
    drawn with a vertex program that projects world points through the
    camera and writes w = 1, so colour, depth and normals interpolate
    affinely in the image; a second pass with depth EQUAL stores normals.
-   Intersection (3.2) walks the ray in 3-D and compares in (t, gd), with
-   the skin test the paper leaves out (refl_impostor_intersect in api.h). */
+   With several layers, each further layer is peeled: the nearest surface
+   behind the layer before it, texel by texel. Intersection (3.2) walks the
+   ray in 3-D and compares in (t, gd) with every layer, with the skin test
+   the paper leaves out (refl_impostor_intersect in api.h). */
 #include "internal.h"
 
 /* One object's draw: the base pass's context (mesh: the subdivided one),
-   then the camera. */
+   then the camera, and the depth layer being peeled behind (NULL: none). */
 typedef struct refl__imp_draw {
     refl__draw_ctx dc;
     const refl_impostor_camera *cam;
+    const float *peel;
 } refl__imp_draw;
 
 static int refl__imp_vertex(void *user, const float *vertex, int index, rast_vertex_out *out, int max_out) {
@@ -47,6 +50,15 @@ static int refl__imp_color_fragment(void *user, const rast_fragment_in *in, floa
     for (c = 0; c < 3; ++c) rgba[c] = REFL__RADIANCE(rgb[c]);
     rgba[3] = 1.0f;
     return 1;
+}
+
+/* A peeled layer keeps only what lies behind the layer before it (which
+   has a surface there: nothing lies behind an empty texel). */
+static int refl__imp_peel_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__imp_draw *d = (const refl__imp_draw *)user;
+    float before = d->peel[(size_t)in->y * (size_t)d->cam->width + (size_t)in->x];
+    if (!(in->z > before) || before >= 1.0f) return 0;
+    return refl__imp_color_fragment(user, in, rgba);
 }
 
 static int refl__imp_normal_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
@@ -89,7 +101,9 @@ static float refl__imp_scale(refl_mat4 m) {
     return s > 0.0f ? s : 1.0f;
 }
 
-/* Draws the objects into the impostor's buffers with rc. */
+/* Draws the objects into the impostor's buffers with rc: per layer, the
+   colour pass (layers after the first peeled behind the one before), then
+   with normals the normal pass (depth EQUAL). */
 static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene, const int *objects, int count,
                                       refl_impostor *imp, float max_edge_px, int normals) {
     const refl_allocator *al = &scene->allocator;
@@ -97,12 +111,13 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
     refl__imp_draw *draws = (refl__imp_draw *)refl__calloc(al, (size_t)REFL__MAX(count, 1), sizeof(refl__imp_draw));
     float *scratch = NULL;
     float texel = 2.0f * imp->camera.radius / (float)imp->camera.width;
+    size_t nn = (size_t)imp->width * (size_t)imp->height;
     refl_result r = REFL_OK;
     rast_result rr = RAST_OK;
     rast_targets t;
     rast_state s;
     rast_clear_desc cl;
-    int i, pass;
+    int i, pass, layer;
     if (!sub || !draws) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; r == REFL_OK && i < count; ++i) {
         const refl_object *o = &scene->objects[objects[i]];
@@ -115,37 +130,42 @@ static refl_result refl__imp_draw_all(rast_context *rc, const refl_scene *scene,
         imp->triangles += sub[i]->triangle_count;
     }
     if (r == REFL_OK && normals) {
-        scratch = (float *)refl__calloc(al, (size_t)imp->width * (size_t)imp->height, 4 * sizeof(float));
+        scratch = (float *)refl__calloc(al, nn, 4 * sizeof(float));
         if (!scratch) r = REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (pass = 0; r == REFL_OK && pass < (normals ? 2 : 1); ++pass) {
-        t = refl__float_targets(pass ? scratch : imp->color, imp->depth, NULL, imp->width, imp->height);
-        if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
-        memset(&s, 0, sizeof s);
-        if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
-        memset(&cl, 0, sizeof cl);
-        cl.flags = pass ? RAST_CLEAR_COLOR : RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
-        cl.depth = 1.0f;
-        if ((rr = rast_clear(rc, &cl)) != RAST_OK) break;
-        s.depth_test = 1;
-        s.depth_func = pass ? RAST_EQUAL : RAST_LESS;
-        s.depth_write_disabled = pass;
-        s.vertex_fn = refl__imp_vertex;
-        s.fragment_fn = pass ? refl__imp_normal_fragment : refl__imp_color_fragment;
-        for (i = 0; i < count; ++i) {
-            s.vertex_user = s.fragment_user = &draws[i];
-            if ((rr = rast_set_state(rc, &s)) != RAST_OK ||
-                (rr = refl__draw_mesh(rc, sub[i], NULL, 0, REFL__BASE_VARYINGS)) != RAST_OK)
-                break;
-        }
-        if (rr == RAST_OK) rr = rast_finish(rc);
-        if (rr != RAST_OK) break;
-        if (pass) {
-            size_t k, nn = (size_t)imp->width * (size_t)imp->height;
-            for (k = 0; k < nn; ++k) {
-                imp->normal[3 * k] = scratch[4 * k];
-                imp->normal[3 * k + 1] = scratch[4 * k + 1];
-                imp->normal[3 * k + 2] = scratch[4 * k + 2];
+    for (layer = 0; r == REFL_OK && rr == RAST_OK && layer < imp->layers; ++layer) {
+        float *color = imp->color + 4 * nn * (size_t)layer, *depth = imp->depth + nn * (size_t)layer;
+        for (i = 0; i < count; ++i) draws[i].peel = layer ? depth - nn : NULL;
+        for (pass = 0; pass < (normals ? 2 : 1); ++pass) {
+            t = refl__float_targets(pass ? scratch : color, depth, NULL, imp->width, imp->height);
+            if ((rr = rast_set_targets(rc, &t)) != RAST_OK) break;
+            memset(&s, 0, sizeof s);
+            if ((rr = rast_set_state(rc, &s)) != RAST_OK) break;
+            memset(&cl, 0, sizeof cl);
+            cl.flags = pass ? RAST_CLEAR_COLOR : RAST_CLEAR_COLOR | RAST_CLEAR_DEPTH;
+            cl.depth = 1.0f;
+            if ((rr = rast_clear(rc, &cl)) != RAST_OK) break;
+            s.depth_test = 1;
+            s.depth_func = pass ? RAST_EQUAL : RAST_LESS;
+            s.depth_write_disabled = pass;
+            s.vertex_fn = refl__imp_vertex;
+            s.fragment_fn = pass ? refl__imp_normal_fragment : layer ? refl__imp_peel_fragment : refl__imp_color_fragment;
+            for (i = 0; i < count; ++i) {
+                s.vertex_user = s.fragment_user = &draws[i];
+                if ((rr = rast_set_state(rc, &s)) != RAST_OK ||
+                    (rr = refl__draw_mesh(rc, sub[i], NULL, 0, REFL__BASE_VARYINGS)) != RAST_OK)
+                    break;
+            }
+            if (rr == RAST_OK) rr = rast_finish(rc);
+            if (rr != RAST_OK) break;
+            if (pass) {
+                float *normal = imp->normal + 3 * nn * (size_t)layer;
+                size_t k;
+                for (k = 0; k < nn; ++k) {
+                    normal[3 * k] = scratch[4 * k];
+                    normal[3 * k + 1] = scratch[4 * k + 1];
+                    normal[3 * k + 2] = scratch[4 * k + 2];
+                }
             }
         }
     }
@@ -169,9 +189,10 @@ static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scen
     refl_impostor *imp;
     size_t nn;
     float max_edge = desc && desc->max_edge_px > 0.0f ? desc->max_edge_px : 4.0f;
-    int i, normals = desc && desc->normals;
+    int i, normals = desc && desc->normals, layers = desc && desc->layers > 0 ? desc->layers : 1;
     refl_result r;
     *out = NULL;
+    if (layers > REFL_IMPOSTOR_MAX_LAYERS) return REFL_ERROR_INVALID_ARGUMENT;
     if (!camera->project || !camera->unproject || camera->width < 1 || camera->height < 1 ||
         camera->width > 16384 || camera->height > 16384 || !(camera->radius > 0.0f))
         return REFL_ERROR_INVALID_ARGUMENT;
@@ -182,9 +203,10 @@ static refl_result refl__impostor_build(rast_context *rc, const refl_scene *scen
     imp->allocator = *al;
     imp->width = camera->width;
     imp->height = camera->height;
+    imp->layers = layers;
     imp->camera = *camera;
     imp->depth_tolerance = 4.0f / (float)camera->width;
-    nn = (size_t)imp->width * (size_t)imp->height;
+    nn = (size_t)imp->width * (size_t)imp->height * (size_t)layers;
     imp->color = (float *)refl__calloc(al, nn, 4 * sizeof(float));
     imp->depth = (float *)refl__calloc(al, nn, sizeof(float));
     if (normals) imp->normal = (float *)refl__calloc(al, nn, 3 * sizeof(float));
@@ -229,16 +251,53 @@ static long refl__imp_texel(const refl_impostor *imp, float u, float v) {
     return (long)fv * imp->width + (long)fu;
 }
 
+/* The texel of layer `base` / (width * height) holding (u, v) if it stores
+   a surface, else -1; base is the layer's first texel. */
+static long refl__imp_stored(const refl_impostor *imp, long base, float u, float v) {
+    long t = refl__imp_texel(imp, u, v);
+    return t >= 0 && imp->color[4 * (base + t) + 3] > 0.0f ? base + t : -1;
+}
+
 /* How much the stored depth changes over one texel beyond image point cur,
    continuing from prev (0 where that texel is empty or the points meet):
-   the slope of the surface stored at cur, along the ray's projection. */
-static float refl__imp_slope(const refl_impostor *imp, const float prev[3], const float cur[3], float gd_cur) {
+   the slope of the surface stored at cur in the layer at base, along the
+   ray's projection. */
+static float refl__imp_slope(const refl_impostor *imp, long base, const float prev[3], const float cur[3],
+                             float gd_cur) {
     float du = cur[0] - prev[0], dv = cur[1] - prev[1], len = sqrtf(du * du + dv * dv);
     long t;
     if (!(len > 1e-6f)) return 0.0f;
-    t = refl__imp_texel(imp, cur[0] + du / len, cur[1] + dv / len);
-    if (t < 0 || imp->color[4 * t + 3] <= 0.0f) return 0.0f;
-    return fabsf(imp->depth[t] - gd_cur);
+    t = refl__imp_stored(imp, base, cur[0] + du / len, cur[1] + dv / len);
+    return t < 0 ? 0.0f : fabsf(imp->depth[t] - gd_cur);
+}
+
+/* One layer's side of the walk: the texel the last end fell in (-1: none
+   stored) and the ray's gd minus the stored depth there. */
+typedef struct refl__imp_walk {
+    long tex;
+    float d;
+} refl__imp_walk;
+
+/* Where on the piece from prev to cur the ray crosses behind the surface
+   layer `base` stores at cur, as a fraction of the piece, or -1 (no
+   crossing, or a skin); w is the layer's state at prev, updated to cur. */
+static float refl__imp_cross(const refl_impostor *imp, long base, refl__imp_walk *w, const float prev[3],
+                             const float cur[3], int first) {
+    long tex = refl__imp_stored(imp, base, cur[0], cur[1]);
+    float gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f, d = cur[2] - gd_stored, f = -1.0f;
+    if (!first && tex >= 0 && d >= 0.0f && (w->tex < 0 || w->d < 0.0f)) {
+        /* the ray went from in front of what texel k-1 stores (or from
+           an empty texel) to behind what texel k stores. A hit, unless
+           texel k's surface is nearer and the ray was already behind
+           it extended back by its own slope: a skin */
+        float d0 = prev[2] - gd_stored;
+        int farther = w->tex >= 0 && gd_stored >= imp->depth[w->tex];
+        if (farther || d0 <= refl__imp_slope(imp, base, prev, cur, gd_stored) + imp->depth_tolerance)
+            f = w->tex >= 0 ? w->d / (w->d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
+    }
+    w->tex = tex;
+    w->d = d;
+    return f;
 }
 
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
@@ -246,12 +305,14 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     const refl_impostor_camera *cam;
     refl_vec3 oc;
     double a, b, c, disc, sq, t0, t1, len = 0.0;
-    float prev[3], cur[3], prev_gd = 0.0f, prev_d = 0.0f;
-    long prev_tex = -1;
-    int n, k, found = 0;
+    float prev[3], cur[3];
+    refl__imp_walk walk[REFL_IMPOSTOR_MAX_LAYERS];
+    long nn;
+    int n, k, layer, found = 0;
     if (steps) *steps = 0;
     if (!imp || !hit) return 0;
     cam = &imp->camera;
+    nn = (long)imp->width * imp->height;
     /* 1. clip to the bounding sphere */
     oc = refl_v3_sub(origin, cam->center);
     a = refl_v3_dot(dir, dir);
@@ -272,43 +333,36 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
     }
     len *= step_scale > 0.0f ? step_scale : 1.0f;
     n = len < 2.0 ? 2 : len > 4.0 * (imp->width + imp->height) ? 4 * (imp->width + imp->height) : (int)ceil(len);
-    /* 3. walk from near to far */
+    /* 3. walk from near to far, every layer on the same ends: the first
+       piece where the ray crosses behind a layer's surface, at the
+       nearest crossing on it */
     for (k = 0; k <= n && !found; ++k) {
         double t = t0 + (t1 - t0) * k / n;
-        long tex;
-        float gd_stored, d;
+        float best = 2.0f;
+        int best_layer = -1;
         if (!cam->project(cam->cam, refl_v3_add(origin, refl_v3_scale(dir, (float)t)), cur)) return 0;
-        tex = refl__imp_texel(imp, cur[0], cur[1]);
-        if (tex >= 0 && imp->color[4 * tex + 3] <= 0.0f) tex = -1;
-        gd_stored = tex >= 0 ? imp->depth[tex] : 1.0f;
-        d = cur[2] - gd_stored;
-        if (k > 0 && tex >= 0 && d >= 0.0f && (prev_tex < 0 || prev_d < 0.0f)) {
-            /* the ray went from in front of what texel k-1 stores (or from
-               an empty texel) to behind what texel k stores. A hit, unless
-               texel k's surface is nearer and the ray was already behind
-               it extended back by its own slope: a skin */
-            float d0 = prev_gd - gd_stored, f = -1.0f;
-            int farther = prev_tex >= 0 && gd_stored >= imp->depth[prev_tex];
-            if (farther || d0 <= refl__imp_slope(imp, prev, cur, gd_stored) + imp->depth_tolerance)
-                f = prev_tex >= 0 ? prev_d / (prev_d - d) : d0 < 0.0f ? d0 / (d0 - d) : 0.0f;
-            if (f >= 0.0f) {
-                double th = t0 + (t1 - t0) * ((k - 1) + (double)f) / n;
-                long at;
-                hit->t = (float)th;
-                hit->point = refl_v3_add(origin, refl_v3_scale(dir, hit->t));
-                if (!cam->project(cam->cam, hit->point, hit->uvd)) memcpy(hit->uvd, cur, sizeof cur);
-                at = refl__imp_texel(imp, hit->uvd[0], hit->uvd[1]);
-                if (at < 0 || imp->color[4 * at + 3] <= 0.0f) at = tex;
-                memcpy(hit->color, imp->color + 4 * at, 4 * sizeof(float));
-                hit->normal = imp->normal ? refl_v3(imp->normal[3 * at], imp->normal[3 * at + 1], imp->normal[3 * at + 2])
-                                          : refl_v3(0.0f, 0.0f, 0.0f);
-                found = 1;
+        for (layer = 0; layer < imp->layers; ++layer) {
+            float f = refl__imp_cross(imp, layer * nn, &walk[layer], prev, cur, k == 0);
+            if (f >= 0.0f && f < best) {
+                best = f;
+                best_layer = layer;
             }
         }
-        prev_tex = tex;
+        if (best_layer >= 0) {
+            double th = t0 + (t1 - t0) * ((k - 1) + (double)best) / n;
+            long at;
+            hit->t = (float)th;
+            hit->point = refl_v3_add(origin, refl_v3_scale(dir, hit->t));
+            if (!cam->project(cam->cam, hit->point, hit->uvd)) memcpy(hit->uvd, cur, sizeof cur);
+            at = refl__imp_stored(imp, best_layer * nn, hit->uvd[0], hit->uvd[1]);
+            if (at < 0) at = walk[best_layer].tex;
+            memcpy(hit->color, imp->color + 4 * at, 4 * sizeof(float));
+            hit->normal = imp->normal ? refl_v3(imp->normal[3 * at], imp->normal[3 * at + 1], imp->normal[3 * at + 2])
+                                      : refl_v3(0.0f, 0.0f, 0.0f);
+            hit->layer = best_layer;
+            found = 1;
+        }
         memcpy(prev, cur, sizeof prev);
-        prev_gd = cur[2];
-        prev_d = d;
         if (steps && k > 0) ++*steps;
     }
     return found;

@@ -592,6 +592,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p);
 static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);
 static const char *refl__options_spoc(refl_render_desc *d);
+static refl_result refl__spoc_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__planar_handles(const refl__pass *p, int object, int *can);
 /* AUTO (m_auto.c): the method it picks for reflector `object`, its reason
    appended to the frame's stats; and whether method m has a row that

@@ -2,8 +2,9 @@
    cameras: ray-impostor hits on a plane (strength 0, a plain depth image)
    and on a sphere (strength 1) agree with the analytic intersection within
    a texel's footprint; a ray passing behind a silhouette does not stop on
-   the skin between the depth layers; a ray missing the bounding sphere
-   takes no step; and the paper's Fig. 7: the SPOC stores more of the
+   the skin between the depth layers; peeled layers hold the wall a box
+   hides, and rays passing behind the box meet it there; a ray missing the
+   bounding sphere takes no step; and the paper's Fig. 7: the SPOC stores more of the
    teapot's area-uniform samples than the plain depth image. */
 #include <criterion/criterion.h>
 
@@ -24,14 +25,21 @@ static refl_scene *imp_scene(void) {
     return s;
 }
 
-static refl_impostor *imp_build(refl_scene *s, const int *objects, int count, const refl_spoc *cam) {
+static refl_impostor *imp_build_layers(refl_scene *s, const int *objects, int count, const refl_spoc *cam,
+                                      int layers) {
     refl_impostor_camera ic = refl_spoc_impostor_camera(cam);
     refl_impostor_desc d;
     refl_impostor *imp = NULL;
     memset(&d, 0, sizeof d);
     d.threads = 2;
+    d.layers = layers;
     cr_assert_eq(refl_impostor_build(s, objects, count, &ic, &d, &imp), REFL_OK);
+    cr_assert_eq(imp->layers, layers > 0 ? layers : 1);
     return imp;
+}
+
+static refl_impostor *imp_build(refl_scene *s, const int *objects, int count, const refl_spoc *cam) {
+    return imp_build_layers(s, objects, count, cam, 1);
 }
 
 /* World size of a texel at depth z (pinhole pixels; the push only
@@ -120,16 +128,11 @@ Test(impostor, sphere_hits_match_analytic) {
     refl_scene_destroy(s);
 }
 
-/* A box in front of a back wall, seen by a plain depth image. A ray that
-   enters the box's image behind the box (the box hides where it goes)
-   and then meets the wall must not stop at the box's silhouette. */
-Test(impostor, no_hit_on_skins) {
-    refl_scene *s = imp_scene();
+/* A box in front of a back wall (the objects of s), seen from (0, 0, 4)
+   by a plain depth image. */
+static void box_and_wall(refl_scene *s, int objs[2], refl_spoc *cam) {
     refl_mesh *box = NULL, *wall = NULL;
     refl_material mat = refl_material_diffuse(0.5f, 0.5f, 0.5f);
-    refl_spoc cam;
-    refl_impostor *imp;
-    int objs[2], i, false_hits = 0, wall_hits = 0;
     cr_assert_eq(refl_mesh_box(refl_v3(0.4f, 0.4f, 0.4f), NULL, &box), REFL_OK);
     cr_assert_eq(refl_mesh_plane(1.6f, 4, NULL, &wall), REFL_OK);
     objs[0] = refl_scene_add(s, box, &mat, refl_mat4_translate(refl_v3(0, 0, 0.3f)));
@@ -137,7 +140,17 @@ Test(impostor, no_hit_on_skins) {
     objs[1] = refl_scene_add(s, wall, &mat,
                              refl_mat4_mul(refl_mat4_translate(refl_v3(0, 0, -0.5f)),
                                            refl_mat4_rotate(refl_v3(1, 0, 0), 1.5707963f)));
-    cr_assert_eq(refl_spoc_init(&cam, refl_v3(0, 0, 4.0f), refl_v3(0, 0, 0), 1.2f, 0.5f, 0.0f, 256), REFL_OK);
+    cr_assert_eq(refl_spoc_init(cam, refl_v3(0, 0, 4.0f), refl_v3(0, 0, 0), 1.2f, 0.5f, 0.0f, 256), REFL_OK);
+}
+
+/* A ray that enters the box's image behind the box (the box hides where
+   it goes) and then meets the wall must not stop at the box's silhouette. */
+Test(impostor, no_hit_on_skins) {
+    refl_scene *s = imp_scene();
+    refl_spoc cam;
+    refl_impostor *imp;
+    int objs[2], i, false_hits = 0, wall_hits = 0;
+    box_and_wall(s, objs, &cam);
     imp = imp_build(s, objs, 2, &cam);
     for (i = 0; i < 200; ++i) {
         /* from beside the box, slanting behind it (z from 0.05 down to -0.5) towards the wall */
@@ -152,6 +165,48 @@ Test(impostor, no_hit_on_skins) {
     cr_expect_eq(false_hits, 0, "%d rays stopped on a skin (%d on the wall)", false_hits, wall_hits);
     cr_expect(wall_hits > 150, "%d of 200 rays met the wall", wall_hits);
     refl_impostor_destroy(imp);
+    refl_scene_destroy(s);
+}
+
+/* Depth peeling: layer 1 holds the box's far side, layer 2 the wall the
+   box hides. Rays from beside the box that pass behind it and meet the
+   hidden wall miss a one-layer impostor and meet the wall in a three-layer
+   one, within a texel's footprint, stopping on no skin between the
+   layers. */
+Test(impostor, peeled_layers_hold_the_hidden_wall) {
+    refl_scene *s = imp_scene();
+    refl_spoc cam;
+    refl_impostor *one, *three;
+    int objs[2], i, one_wall = 0, wall_hits = 0, false_hits = 0, layer2 = 0;
+    long long centre;
+    box_and_wall(s, objs, &cam);
+    one = imp_build(s, objs, 2, &cam);
+    three = imp_build_layers(s, objs, 2, &cam, 3);
+    /* the image centre: the box's near face, its far face, the wall */
+    centre = (long long)(cam.size / 2) * cam.size + cam.size / 2;
+    cr_expect(three->depth[centre] < three->depth[centre + (long long)cam.size * cam.size] &&
+              three->depth[centre + (long long)cam.size * cam.size] <
+                  three->depth[centre + 2LL * cam.size * cam.size] &&
+              three->color[4 * (centre + 2LL * cam.size * cam.size) + 3] > 0.0f);
+    for (i = 0; i < 100; ++i) {
+        /* from beside the box, below its far face (z < 0.1), to the wall where the box hides it */
+        float y = -0.12f + 0.24f * (float)i / 99.0f;
+        refl_vec3 origin = refl_v3(0.8f, y, -0.1f), target = refl_v3(-0.1f + 0.002f * (float)i, y, -0.5f);
+        refl_vec3 dir = refl_v3_normalize(refl_v3_sub(target, origin));
+        refl_impostor_hit h;
+        double foot = 2.0 * texel_at(&cam, target) / fabs(dir.z);
+        if (refl_impostor_intersect(one, origin, dir, 0.0f, 100.0f, 1.0f, &h, NULL) && fabsf(h.point.z + 0.5f) < 0.02f)
+            ++one_wall;
+        if (!refl_impostor_intersect(three, origin, dir, 0.0f, 100.0f, 1.0f, &h, NULL)) continue;
+        if (refl_v3_length(refl_v3_sub(h.point, target)) <= foot) ++wall_hits;
+        else ++false_hits;
+        layer2 += h.layer == 2;
+    }
+    cr_expect(one_wall < 5, "%d rays met the hidden wall in one layer", one_wall);
+    cr_expect(wall_hits >= 98 && false_hits == 0, "%d rays met the wall, %d elsewhere", wall_hits, false_hits);
+    cr_expect(layer2 >= 98, "%d hits on layer 2", layer2);
+    refl_impostor_destroy(one);
+    refl_impostor_destroy(three);
     refl_scene_destroy(s);
 }
 
