@@ -1151,9 +1151,5 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
                                           long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    o.n = 0;
-    return refl__sbm_gl_pack(&o, morph, eye, piece);
+    return refl__gl_fill(&o, need, out, cap) ? refl__sbm_gl_pack(&o, morph, eye, piece) : need;
 }

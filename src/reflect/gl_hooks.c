@@ -50,10 +50,7 @@ static long long refl__gl_mirror(refl__gl_out *op, refl_mat4 view_proj, refl_vec
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_mirror(&o, view_proj, normal, d);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_mirror(&o, view_proj, normal, d);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_mirror(&o, view_proj, normal, d) : need;
 }
 
 /* ---- C3RC -------------------------------------------------------------------- */
@@ -96,10 +93,7 @@ static long long refl__gl_c3rc(refl__gl_out *op, const refl_c3rc *cams, int coun
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_c3rc(&o, cams, count);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_c3rc(&o, cams, count);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_c3rc(&o, cams, count) : need;
 }
 
 /* ---- SBC --------------------------------------------------------------------- */
@@ -176,10 +170,7 @@ static long long refl__gl_sbc(refl__gl_out *op, const refl_sbc *sbc) {
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_sbc(&o, sbc);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_sbc(&o, sbc);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_sbc(&o, sbc) : need;
 }
 
 /* ---- the graph camera ------------------------------------------------------------ */
@@ -206,10 +197,7 @@ static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_graphcam(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_graphcam(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
 /* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
@@ -254,10 +242,7 @@ static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_spoc(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_spoc(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
