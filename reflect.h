@@ -1848,10 +1848,19 @@ typedef struct refl_c3rc_view_camera {
     float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
     float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
     float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+    float sweep;             /* the largest t a scene point can have (INFINITY: unbounded): past the
+                                scene's diagonal where the rays converge */
 } refl_c3rc_view_camera;
 REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
                                             refl_c3rc_view_camera **out, int *count);
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
+/* Each object's C3RC sampling density (out: scene->object_count points
+   per unit area) as the method samples them at frame density `density`:
+   raised on a diffuse object where one of the `count` cameras (those drawn)
+   folds and shows it magnified, to a point per 4 pixels there, at most 64
+   times `density`, all objects together at most 2e6 points. */
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
@@ -2751,6 +2760,17 @@ static inline void refl__gl_put(refl__gl_out *o, double v) {
 
 static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
     refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}
+
+/* A packer runs twice: first counting (out NULL), then writing. After the
+   count `need`, readies o for the second run and says whether there is
+   one: need valid and cap holding it (else the packer returns need). */
+static inline int refl__gl_fill(refl__gl_out *o, long long need, float *out, long long cap) {
+    if (need < 0 || !out || cap < need) return 0;
+    o->out = out;
+    o->cap = cap;
+    o->n = 0;
+    return 1;
 }
 /* ---- src/reflect/sbc_internal.h ---- */
 /* Private declarations of the SBC method (paper 003; docs/methods/sbc.md):
@@ -8032,11 +8052,7 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
                                           long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    o.n = 0;
-    return refl__sbm_gl_pack(&o, morph, eye, piece);
+    return refl__gl_fill(&o, need, out, cap) ? refl__sbm_gl_pack(&o, morph, eye, piece) : need;
 }
 /* ---- src/reflect/cam_sbc_raylist.c ---- */
 /* cam_sbc_raylist: the sample-based camera's ray-list leaves, where no
@@ -9127,10 +9143,7 @@ static long long refl__gl_mirror(refl__gl_out *op, refl_mat4 view_proj, refl_vec
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_mirror(&o, view_proj, normal, d);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_mirror(&o, view_proj, normal, d);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_mirror(&o, view_proj, normal, d) : need;
 }
 
 /* ---- C3RC -------------------------------------------------------------------- */
@@ -9173,10 +9186,7 @@ static long long refl__gl_c3rc(refl__gl_out *op, const refl_c3rc *cams, int coun
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_c3rc(&o, cams, count);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_c3rc(&o, cams, count);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_c3rc(&o, cams, count) : need;
 }
 
 /* ---- SBC --------------------------------------------------------------------- */
@@ -9253,10 +9263,7 @@ static long long refl__gl_sbc(refl__gl_out *op, const refl_sbc *sbc) {
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_sbc(&o, sbc);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_sbc(&o, sbc);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_sbc(&o, sbc) : need;
 }
 
 /* ---- the graph camera ------------------------------------------------------------ */
@@ -9283,10 +9290,7 @@ static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_graphcam(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_graphcam(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
 /* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
@@ -9331,10 +9335,7 @@ static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_spoc(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_spoc(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
@@ -12716,6 +12717,15 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
     return refl__c3_split(p, &t, &job, tmax, split_px == 0.0f ? REFL__C3_SPLIT_PX : split_px, 0, out);
 }
 
+/* The largest sweep t a point within tmax of the camera's base can have
+   (INFINITY: unbounded): t = distance / |a d1 + b d2 + c d3| >= distance
+   / sqrt(min di . dj); converging rays sweep past tmax. */
+static float refl__c3_sweep_bound(const refl_c3rc *c, float tmax) {
+    float dmin = REFL__MIN(refl_v3_dot(c->d[0], c->d[1]),
+                           REFL__MIN(refl_v3_dot(c->d[1], c->d[2]), refl_v3_dot(c->d[2], c->d[0])));
+    return dmin > 0.25f ? tmax / sqrtf(dmin) : INFINITY;
+}
+
 /* One camera: reflector triangle jobs[index], built and drawn. */
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
@@ -12724,12 +12734,7 @@ static void refl__c3_camera(void *arg, int index) {
     k.c3 = c3;
     k.n = &((refl__c3 *)c3)->counts[index];
     if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
-    {   /* a scene point lies within tmax of the base, and t = distance /
-           |a d1 + b d2 + c d3| >= distance / sqrt(min di . dj) */
-        float dmin = REFL__MIN(refl_v3_dot(k.cam.d[0], k.cam.d[1]),
-                               REFL__MIN(refl_v3_dot(k.cam.d[1], k.cam.d[2]), refl_v3_dot(k.cam.d[2], k.cam.d[0])));
-        k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
-    }
+    k.sweep = refl__c3_sweep_bound(&k.cam, c3->tmax);
     refl__c3_hull(&k);
     k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
     k.lod = k.folds == 0;
@@ -13050,60 +13055,72 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
 }
 
 
+/* Raises dens (per object, points per unit area) where camera cam, of
+   screen_area pixels, folds (section 5.1: its rays converge, the paper's
+   quasi-convergence region) and shows an object magnified, to one point
+   per REFL__C3_PIXELS_PER_POINT pixels there: the magnification at the
+   object's centre and box corners is the camera's screen area over its
+   sweeping triangle's area at their t. Diffuse objects only (a
+   reflector's own points show black); at most REFL__C3_MAX_BOOST times
+   the frame's density. */
+static void refl__c3_raise_densities(const refl_scene *scene, const refl_c3rc *cam, float screen_area, float density,
+                                     float tmax, float *dens) {
+    float folds[4][2];
+    int i, corner;
+    if (!(screen_area > 0.0f) || refl_c3rc_multiple_intervals(cam, 4.0f * tmax, folds) == 0) return;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_vec3 lo, hi;
+        if (refl__is_reflector(&scene->materials[o->material])) continue;
+        refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+        for (corner = 0; corner < 9; ++corner) {
+            refl_c3rc_projection pr[3];
+            refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                      : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+            int m = refl_c3rc_project(cam, refl_mat4_point(o->transform, q), pr), r;
+            for (r = 0; r < m; ++r) {
+                double sweep = refl__c3_sweep_area(cam, pr[r].t);
+                float want = sweep > 0.0 ? (float)((double)screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
+                dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * density));
+            }
+        }
+    }
+}
+
+/* The budget: all objects together at most REFL__C3_AUTO_POINTS points,
+   the raises above the frame's density scaled down together. */
+static void refl__c3_density_budget(const refl_scene *scene, float density, float *dens) {
+    double total = 0.0, area_all = 0.0;
+    int i;
+    for (i = 0; i < scene->object_count; ++i) {
+        double area = refl__c3_object_area(scene, i);
+        total += area * (double)dens[i];
+        area_all += area * (double)density;
+    }
+    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
+        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
+        for (i = 0; i < scene->object_count; ++i) dens[i] = density + (float)(keep * (double)(dens[i] - density));
+    }
+}
+
 /* Each object's sampling density (c3->s->object_density): the frame's,
-   raised (when `magnify`) where a folding camera (section 5.1: its rays
-   converge, the paper's quasi-convergence region) shows the object
-   magnified, to one point per REFL__C3_PIXELS_PER_POINT pixels there: the
-   magnification at the object's centre and box corners is the camera's
-   screen area over its sweeping triangle's area at their t. Diffuse
-   objects only (a reflector's own points show black). At most
-   REFL__C3_MAX_BOOST times the frame's density, and all objects together
-   at most REFL__C3_AUTO_POINTS points. */
+   raised (when `magnify`) where a folding camera shows the object
+   magnified (refl__c3_raise_densities), within the budget. */
 static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
     float *dens = (float *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(float));
-    double total = 0.0, area_all = 0.0;
-    int i, j, corner;
+    int i, j;
     if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
     c3->s->object_density = dens;
     for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
     if (!magnify) return REFL_OK;
     for (j = 0; j < jobs; ++j) {
         refl__c3_cam k;
-        float folds[4][2];
         memset(&k, 0, sizeof k);
-        if (!refl__c3_setup(p, &c3->jobs[j], &k) || !(k.screen_area > 0.0f) ||
-            refl_c3rc_multiple_intervals(&k.cam, 4.0f * c3->tmax, folds) == 0)
-            continue;
-        for (i = 0; i < scene->object_count; ++i) {
-            const refl_object *o = &scene->objects[i];
-            refl_vec3 lo, hi;
-            if (refl__is_reflector(&scene->materials[o->material])) continue;
-            refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
-            for (corner = 0; corner < 9; ++corner) {
-                refl_c3rc_projection pr[3];
-                refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
-                                          : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
-                int m = refl_c3rc_project(&k.cam, refl_mat4_point(o->transform, q), pr), r;
-                for (r = 0; r < m; ++r) {
-                    double sweep = refl__c3_sweep_area(&k.cam, pr[r].t);
-                    float want = sweep > 0.0 ? (float)((double)k.screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
-                    dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * c3->density));
-                }
-            }
-        }
+        if (refl__c3_setup(p, &c3->jobs[j], &k)) refl__c3_raise_densities(scene, &k.cam, k.screen_area, c3->density, c3->tmax, dens);
     }
-    for (i = 0; i < scene->object_count; ++i) { /* the budget: scale the raises down together */
-        double area = refl__c3_object_area(scene, i);
-        total += area * (double)dens[i];
-        area_all += area * (double)c3->density;
-    }
-    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
-        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
-        for (i = 0; i < scene->object_count; ++i)
-            dens[i] = c3->density + (float)(keep * (double)(dens[i] - c3->density));
-    }
+    refl__c3_density_budget(scene, c3->density, dens);
     return REFL_OK;
 }
 
@@ -13373,6 +13390,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     refl_frame shape;
     refl__c3_list list;
     refl_c3rc_view_camera *cams = NULL;
+    refl_vec3 lo, hi;
     int i, n = 0;
     refl_result r;
     if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
@@ -13380,6 +13398,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     *count = 0;
     if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
     r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
+    refl_scene_bounds(scene, &lo, &hi);
     if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
                                                                        (size_t)(list.count ? list.count : 1), sizeof *cams)))
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -13394,6 +13413,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
         cams[n].screen_area = k.screen_area;
         cams[n].screen_edge = k.screen_edge;
         cams[n].near_self = k.near_self;
+        cams[n].sweep = refl__c3_sweep_bound(&k.cam, 1.01f * refl_v3_length(refl_v3_sub(hi, lo)));
         ++n;
     }
     refl__free(&scene->allocator, list.v);
@@ -13403,6 +13423,21 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     }
     *out = cams;
     *count = n;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out) {
+    refl_vec3 lo, hi;
+    float tmax;
+    int i;
+    if (!scene || !out || count < 0 || (count > 0 && !cams) || !(density >= 0.0f) || !refl__isfinite(density))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < scene->object_count; ++i) out[i] = density;
+    for (i = 0; i < count; ++i) refl__c3_raise_densities(scene, &cams[i].cam, cams[i].screen_area, density, tmax, out);
+    refl__c3_density_budget(scene, density, out);
     return REFL_OK;
 }
 

@@ -88,10 +88,13 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
    mirror-room, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
-   part of it, NULL all) at each size of "WxH,WxH,...", RAYTRACE as the
+   part of it, NULL all; `scenes` a comma-separated list of built-in
+   scenes each method runs on instead, "all" every one, NULL or "" each
+   method's own) at each size of "WxH,WxH,...", RAYTRACE as the
    truth up to truth_max pixels. Return 0 on success. */
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
-int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv);
+int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, const char *scenes, long long truth_max,
+                     FILE *csv);
 
 /* `reflect bench --gl [--out DIR] [--sizes ...] [--points N] [--repeats R]`:
    both of the above into DIR/gl_projection.csv and DIR/gl_frames.csv. */

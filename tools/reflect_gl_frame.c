@@ -62,7 +62,11 @@ const char rgl_frame_fs[] =
     "layout(location = 0) out vec4 o_point;\n"
     "layout(location = 1) out vec4 o_normal;\n"
     "layout(location = 2) out vec4 o_uv;\n"
-    "void main() { o_point = vec4(v_p, v_id); o_normal = vec4(v_n, 0.0); o_uv = vec4(v_uv, 0.0, 0.0); }\n";
+    "void main() {\n"
+    "    o_point = vec4(v_p, v_id);\n"
+    "    o_normal = vec4(v_n, gl_FrontFacing ? 0.0 : 1.0);\n" /* the side seen: 1 a back face */
+    "    o_uv = vec4(v_uv, 0.0, 0.0);\n"
+    "}\n";
 
 static void rgl__geometry_free(rgl_geometry *g) {
     free(g->v);
@@ -238,7 +242,7 @@ int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]) {
             refl_vec3 u;
             if (!p->marks[i]) continue;
             u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
-            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
+            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = n[3] > 0.5f ? -1.0f : 1.0f;
         }
     for (y = 0; y < h; ++y)
         for (x = 0; x < w; ++x) {

@@ -30,7 +30,7 @@ typedef struct rgl_geometry {
 } rgl_geometry;
 
 /* A frame in progress: the framebuffer (3 RGBA32F targets: world point and
-   object id + 1, normal, uv; depth and stencil), the geometry's vertex
+   object id + 1, normal and the side seen (1: a back face), uv; depth and stencil), the geometry's vertex
    buffer bound at attributes 0-2, and the base pass read back. */
 typedef struct rgl_pass {
     const refl_scene *scene;
@@ -65,7 +65,8 @@ refl_vec3 rgl_pass_ray(const rgl_pass *p, int i);
 /* Per reflector pixel of the base pass, as 2-D RGBA32F textures (rows
    bottom first, as GL's): tex[0] its reflector point and how far its
    reflected ray turns to its 4-neighbours' on the same object (the
-   largest distance between the unit rays), tex[1] its reflected ray; bound
+   largest distance between the unit rays), tex[1] its reflected ray and
+   the side of its surface seen (1 front, -1 back: an open mesh's inside); bound
    to texture units 1 and 2. Nonzero when out of memory. */
 int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]);
 /* Nonzero with the reason in err when GL reported an error. */

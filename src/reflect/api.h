@@ -1846,10 +1846,19 @@ typedef struct refl_c3rc_view_camera {
     float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
     float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
     float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+    float sweep;             /* the largest t a scene point can have (INFINITY: unbounded): past the
+                                scene's diagonal where the rays converge */
 } refl_c3rc_view_camera;
 REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
                                             refl_c3rc_view_camera **out, int *count);
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
+/* Each object's C3RC sampling density (out: scene->object_count points
+   per unit area) as the method samples them at frame density `density`:
+   raised on a diffuse object where one of the `count` cameras (those drawn)
+   folds and shows it magnified, to a point per 4 pixels there, at most 64
+   times `density`, all objects together at most 2e6 points. */
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
