@@ -181,19 +181,13 @@ static int rgl__c3_is_reflector(const refl_scene *s, int o) {
     return t == REFL_MIRROR || t == REFL_PARTIAL;
 }
 
-/* A pixel's size per unit of distance from the eye. */
-static float rgl__c3_pixel_angle(const rgl_pass *p) {
-    float fovy = p->view->fovy_degrees > 0.0f ? p->view->fovy_degrees : 45.0f;
-    return 2.0f * tanf(0.5f * fovy * 3.14159265f / 180.0f) / (float)p->h;
-}
-
 /* The CPU path's default density: a point per 2 x 2 pixels at the
    reflectors' nearest box corner or centre, at most RGL_C3_AUTO_POINTS over
    the scene's area. */
 static float rgl__c3_density(const rgl_pass *p) {
     const refl_scene *s = p->scene;
     double area = 0.0;
-    float nearest = FLT_MAX, size, zn, pixel_angle = rgl__c3_pixel_angle(p);
+    float nearest = FLT_MAX, size, zn, pixel_angle = rgl_pass_pixel_angle(p);
     long long i;
     int o, corner;
     for (o = 0; o < s->object_count; ++o) {
@@ -465,8 +459,9 @@ static void rgl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_
 int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t n) {
     static const char *const vs_parts[3] = {rgl__c3_vs_head, NULL, rgl__c3_vs_main};
+    static const int point_sizes[3] = {4, 4, 1}; /* RGL_C3_POINT_FLOATS: a_p, a_n, a_density */
     const char *vs[3], *fs[1] = {rgl__c3_fs};
-    int w = view->width, h = view->height, o, rc = -1, c;
+    int w = view->width, h = view->height, rc = -1;
     size_t np = (size_t)w * (size_t)h, i;
     GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
@@ -480,14 +475,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     memset(st, 0, sizeof *st);
     memset(&ps, 0, sizeof ps);
     memset(&pts, 0, sizeof pts);
-    if (w < 1 || h < 1 || frame->width != w || frame->height != h) {
-        snprintf(err, n, "bad frame size");
-        return -1;
-    }
-    if (!(mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1))) goto oom;
-    for (o = 0; o < scene->object_count; ++o)
-        if (rgl__c3_is_reflector(scene, o) && o < 254) mark[o] = (uint8_t)(o + 1);
-    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
+    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
     refl_scene_bounds(scene, &lo, &hi);
     tmax = refl_v3_length(refl_v3_sub(hi, lo)) * 1.01f + 1e-3f; /* the longest sweep: the scene's diagonal */
     /* the CPU's share: points, cameras (timed apart from GL) */
@@ -534,33 +522,15 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     vs[2] = vs_parts[2];
     if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
     if (!(tex = rgl_buffer_texture(cam_data, floats, &tbuf, err, n))) goto done;
-    rgl.GenVertexArrays(1, &vao);
-    rgl.BindVertexArray(vao);
-    rgl.GenBuffers(1, &vbo);
-    rgl.BindBuffer(GL_ARRAY_BUFFER, vbo);
-    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((long long)pts.tree->point_count * RGL_C3_POINT_FLOATS * 4), pts.gl,
-                   GL_STATIC_DRAW);
-    for (c = 0; c < 3; ++c) {
-        rgl.EnableVertexAttribArray((GLuint)c);
-        rgl.VertexAttribPointer((GLuint)c, c < 2 ? 4 : 1, GL_FLOAT, GL_FALSE, RGL_C3_POINT_FLOATS * sizeof(float),
-                                (const void *)(size_t)(c * 4 * sizeof(float)));
-    }
+    rgl_pass_vertices(pts.gl, pts.tree->point_count, RGL_C3_POINT_FLOATS, point_sizes, 3, &vao, &vbo);
     /* the splats: nearest t wins, within each reflector's own pixels */
-    rgl.ClearColor(0, 0, 0, 0);
-    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
     rgl.Enable(GL_PROGRAM_POINT_SIZE);
-    rgl.UseProgram(prog);
     rgl.ActiveTexture(GL_TEXTURE0);
     rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
-    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmax"), tmax);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl__c3_pixel_angle(&ps));
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(&ps));
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_eye"), view->eye.x, view->eye.y, view->eye.z);
-    if (rgl_pass_ray_textures(&ps, pix_tex) != 0) goto oom;
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
     {
         GLint u_cam = rgl.GetUniformLocation(prog, "u_cam"), u_area = rgl.GetUniformLocation(prog, "u_screen_area");
         GLint u_near = rgl.GetUniformLocation(prog, "u_near_self"), u_obj = rgl.GetUniformLocation(prog, "u_object");

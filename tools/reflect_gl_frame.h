@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 enum { RGL_VERTEX_FLOATS = 9 }; /* world position, normal, uv, object id + 1 */
+extern const int rgl_vertex_sizes[3]; /* its attributes' floats: 3, 3, 3 */
 
 /* A planar mirror object: its world plane n . x = d, n towards the eye. */
 typedef struct rgl_mirror {
@@ -55,6 +56,26 @@ extern const char rgl_frame_fs[];
 int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
                    size_t n);
 void rgl_pass_end(rgl_context *g, rgl_pass *p);
+/* The reflector methods' (C3RC, SBC) start: frame checked against the
+   view's size, each mirror and partial reflector (objects below 254)
+   marking its pixels with its object + 1 in *mark (allocated, object_count
+   bytes, the caller frees it), the base pass drawn. Nonzero on failure,
+   the reason in err. */
+int rgl_pass_begin_reflectors(rgl_pass *p, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
+                              uint8_t **mark, char *err, size_t n);
+/* A method's vertices: `count` of `stride` floats uploaded to a new buffer
+   (*vbo) in a new vertex array (*vao), left bound; attribute i (0 ..
+   attribs - 1) takes sizes[i] floats after attribute i - 1's. */
+void rgl_pass_vertices(const float *v, long long count, int stride, const int *sizes, int attribs, GLuint *vao,
+                       GLuint *vbo);
+/* The reflections' draw starts (after the base pass): colour and depth
+   cleared, the stencil (the marks) kept, prog in use with u_data on
+   texture unit 0, u_vp the view's, and the pixels' rays
+   (rgl_pass_ray_textures) as u_surf and u_ray. Nonzero when out of
+   memory. */
+int rgl_pass_reflect_begin(const rgl_pass *p, GLuint prog, GLuint ray_tex[2]);
+/* A pixel's size per unit of distance from the eye. */
+float rgl_pass_pixel_angle(const rgl_pass *p);
 /* Deletes a method's own GL objects (0: none): its program, vertex array
    and buffer, camera data texture and buffer, ray textures. */
 void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]);
