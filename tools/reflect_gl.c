@@ -373,6 +373,15 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = refl_spoc_project(u_data, u_base, a_p.xyz);\n"
     "    v_o1 = vec4(0.0);\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n" /* the morph grid per sheet: the point's sheet in a_p.w */
+    "    vec3 f;\n"
+    "    float d;\n"
+    "    bool across;\n"
+    "    bool ok = refl_sbc_morph_project_sheet(u_data, u_base, a_p.xyz, int(a_p.w), f, d, across);\n"
+    "    v_o0 = vec4(f, d);\n"
+    "    v_o1 = vec4(ok ? 1.0 : 0.0, across ? 1.0 : 0.0, 0.0, 0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -410,6 +419,7 @@ typedef struct rgl_fixture {
     refl_sbc_morph *morph;
     refl_vec3 eye, lo, hi;
     int piece;
+    int sheets;              /* the per-sheet fixture: the piece's sheets (each point carries its own) */
     double size;
     /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
     refl_lem_shell shell;
@@ -515,7 +525,7 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->shell.radius = 2.5f;
         f->shell.face_size = 32;
         snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
-    } else if (which == 5) {
+    } else if (which == 5 || which == 8) {
         /* the default scene's teapot in a one-cell grid beside the view
            (tests/reflect/test_sbc_morph.c's), the eye inside the cell */
         refl_sbc_morph_desc md;
@@ -548,9 +558,11 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->piece = refl_sbc_morph_piece_at(f->morph, f->eye, refl_v3_sub(c, f->eye));
         if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the teapot");
         refl_sbc_morph_get_stats(f->morph, &st);
+        if (which == 8) f->sheets = refl_sbc_morph_sheets(f->morph, f->eye, f->piece);
         if (rgl__pack(f, err, n) != 0) return -1;
         snprintf(note, note_n, "the default scene's teapot, one grid cell of %d nodes, %d pieces, %d SBCs, face 64; "
                  "piece %d, %.0f texels", st.nodes_built, st.pieces, st.sbcs, f->piece, (double)f->floats / 4.0);
+        if (which == 8) snprintf(note + strlen(note), note_n - strlen(note), "; per sheet, of %d", f->sheets);
         return 0;
     } else if (which == 4) {
         f->kind = REFL_GL_GRAPHCAM;
@@ -600,7 +612,17 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
     return rgl__pack(f, err, n);
 }
 
-/* The test points of a fixture: 4 floats each (xyz, and the C3RC camera). */
+/* The morph grid's C projection of p: in sheet `sheet` when the fixture
+   has sheets (*across then as refl_sbc_morph_project_sheet's), else one
+   image per node. */
+static int rgl__morph_project(const rgl_fixture *f, refl_vec3 p, int sheet, refl_vec3 *first, float *dist, int *across) {
+    *across = 0;
+    if (f->sheets) return refl_sbc_morph_project_sheet(f->morph, f->eye, f->piece, sheet, p, first, dist, across);
+    return refl_sbc_morph_project(f->morph, f->eye, f->piece, p, first, dist, NULL);
+}
+
+/* The test points of a fixture: 4 floats each (xyz, and the C3RC camera
+   or the morph grid's sheet). */
 static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
     rgl_rng r = {0x5eed1234abcdULL};
     long long i;
@@ -636,14 +658,15 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             /* in the teapot's box, grown; "in the volume": drawn until the C
                projects it (at most 64 tries) */
-            int tries;
+            int tries, sheet = f->sheets ? (int)(rgl__rand(&r) * f->sheets) : 0, across;
             for (tries = 0; tries < (in_volume ? 64 : 1); ++tries) {
                 refl_vec3 q;
                 float dd;
                 p = refl_v3((float)rgl__range(&r, f->lo.x, f->hi.x), (float)rgl__range(&r, f->lo.y, f->hi.y),
                             (float)rgl__range(&r, f->lo.z, f->hi.z));
-                if (refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL)) break;
+                if (rgl__morph_project(f, p, sheet, &q, &dd, &across)) break;
             }
+            cam = (float)sheet;
         } else if (f->kind == REFL_GL_SPOC && in_volume) {
             /* in the bounding sphere */
             do p = refl_v3((float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0));
@@ -720,11 +743,11 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
         return 1;
     }
     if (f->kind == REFL_GL_SBC_MORPH) {
-        refl_vec3 first;
-        float dd;
-        int ok = refl_sbc_morph_project(f->morph, f->eye, f->piece, pv, &first, &dd, NULL);
+        refl_vec3 first = {0.0f, 0.0f, 0.0f};
+        float dd = 0.0f;
+        int across, ok = rgl__morph_project(f, pv, (int)p[3], &first, &dd, &across);
         double fd[3] = {first.x, first.y, first.z};
-        if (ok != (gl[4] > 0.5f)) return -1;
+        if (ok != (gl[4] > 0.5f) || (ok && across != (gl[5] > 0.5f))) return -1;
         if (!ok) return 0;
         *err = RGL_MAXD(rgl__dist3(fd, gl), fabs(dd - gl[3])) / f->size;
         return 1;
@@ -787,7 +810,8 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             refl_vec3 q;
             float dd;
-            sink += (float)refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL);
+            int across;
+            sink += (float)rgl__morph_project(f, p, (int)pts[4 * i + 3], &q, &dd, &across);
         } else if (f->kind == REFL_GL_LEM_SHELL) {
             uint32_t tex[4];
             float w[4];
@@ -807,7 +831,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
     static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam",
-                                                   "sbc-morph", "lem-shell", "spoc"};
+                                                   "sbc-morph", "lem-shell", "spoc", "sbc-morph-sheets"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

@@ -31,7 +31,8 @@ const char *rgl_egl_vendor(const rgl_context *g); /* EGL_VENDOR, and the EGL pla
    C3RC images), and the largest and 99.9th-percentile error of the
    agreeing ones, relative to the fixture's scene size (docs/gl.md). */
 typedef struct rgl_validation {
-    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "sbc-morph", "lem-shell", "spoc" */
+    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "sbc-morph", "lem-shell", "spoc",
+                                "sbc-morph-sheets" (the morph grid per sheet, as refl_render blends it) */
     long long points, projected, disagree;
     long long pinhole_points, raylist_points; /* SBC: agreeing points per leaf kind */
     double max_rel, p999_rel;
@@ -40,7 +41,7 @@ typedef struct rgl_validation {
     char note[160];          /* the fixture: cameras, leaves */
 } rgl_validation;
 
-enum { RGL_CAMERAS = 8 };
+enum { RGL_CAMERAS = 9 };
 /* Fixture i (0 .. RGL_CAMERAS - 1): builds it, projects `points` points
    both ways (GL `repeats` times, the best time kept). 0 on success. */
 int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_validation *out, char *err,

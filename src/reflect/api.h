@@ -844,6 +844,17 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
    an argument is bad. Thread-safe. */
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
                                     refl_vec3 *first, float *dist, int *ambiguous);
+/* The sheets the piece's face SBCs have at the eye's nodes (1 where no
+   ray folds, at most REFL_SBC_SHEETS; 0 when the eye locates nowhere or an
+   argument is bad), and p projected into sheet `sheet` of them as
+   refl_render's SBC blends a morph grid (one image per node and sheet,
+   refl_sbc_project_sheets, blended sheet by sheet): 1 with *first, *dist
+   and *across (may be NULL; 1 where a node's image came from a sheet a
+   fold away, where the sheets meet), 0 where a node of positive weight
+   has no image in it or beside it. Thread-safe. */
+REFL_API int refl_sbc_morph_sheets(const refl_sbc_morph *morph, refl_vec3 eye, int piece);
+REFL_API int refl_sbc_morph_project_sheet(const refl_sbc_morph *morph, refl_vec3 eye, int piece, int sheet, refl_vec3 p,
+                                          refl_vec3 *first, float *dist, int *across);
 /* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
    with *first and *dist, 0 when it does not project there, the node is
    out of range or not built (its cells overlap the reflector's box). */
