@@ -526,19 +526,22 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->shell.face_size = 32;
         snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
     } else if (which == 5 || which == 8) {
-        /* the default scene's teapot in a one-cell grid beside the view
-           (tests/reflect/test_sbc_morph.c's), the eye inside the cell */
+        /* 5: the default scene's teapot in a one-cell grid beside the view
+           (tests/reflect/test_sbc_morph.c's), the eye inside the cell; 8:
+           the concave bowl's, about the scene's eye, per sheet (its rays
+           fold: three sheets) */
         refl_sbc_morph_desc md;
         refl_sbc_morph_stats st;
         refl_vec3 c, lo, hi;
         int k;
         f->kind = REFL_GL_SBC_MORPH;
-        if (refl_scene_builtin("default", NULL, &f->scene) != REFL_OK) return rgl__fail(err, n, "no default scene");
+        if (refl_scene_builtin(which == 8 ? "concave" : "default", NULL, &f->scene) != REFL_OK)
+            return rgl__fail(err, n, "no built-in scene");
         memset(&md, 0, sizeof md);
         md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
-        md.region_lo = refl_v3(-1.0f, 3.8f, 7.4f);
-        md.region_hi = refl_v3(1.0f, 5.3f, 9.4f);
-        md.face_size = 64;
+        md.region_lo = which == 8 ? refl_v3(-0.5f, 3.0f, 5.5f) : refl_v3(-1.0f, 3.8f, 7.4f);
+        md.region_hi = which == 8 ? refl_v3(0.5f, 4.0f, 6.5f) : refl_v3(1.0f, 5.3f, 9.4f);
+        md.face_size = which == 8 ? 32 : 64;
         if (refl_sbc_morph_build(f->scene, 1, &md, &f->morph) != REFL_OK) return rgl__fail(err, n, "refl_sbc_morph_build failed");
         refl_mesh_bounds(f->scene->meshes[f->scene->objects[1].mesh], &lo, &hi);
         f->lo = refl_v3(1e30f, 1e30f, 1e30f);
@@ -554,15 +557,16 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->lo = refl_v3_sub(f->lo, refl_v3(1.0f, 1.0f, 1.0f));
         f->hi = refl_v3_add(f->hi, refl_v3(1.0f, 1.0f, 1.0f));
         f->size = refl_v3_length(refl_v3_sub(f->hi, f->lo));
-        f->eye = refl_v3(0.3f, 4.5f, 8.9f);
+        f->eye = which == 8 ? refl_v3(0.1f, 3.5f, 6.0f) : refl_v3(0.3f, 4.5f, 8.9f);
         f->piece = refl_sbc_morph_piece_at(f->morph, f->eye, refl_v3_sub(c, f->eye));
-        if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the teapot");
+        if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the reflector");
         refl_sbc_morph_get_stats(f->morph, &st);
         if (which == 8) f->sheets = refl_sbc_morph_sheets(f->morph, f->eye, f->piece);
         if (rgl__pack(f, err, n) != 0) return -1;
-        snprintf(note, note_n, "the default scene's teapot, one grid cell of %d nodes, %d pieces, %d SBCs, face 64; "
-                 "piece %d, %.0f texels", st.nodes_built, st.pieces, st.sbcs, f->piece, (double)f->floats / 4.0);
-        if (which == 8) snprintf(note + strlen(note), note_n - strlen(note), "; per sheet, of %d", f->sheets);
+        snprintf(note, note_n, "%s, one grid cell of %d nodes, %d pieces, %d SBCs, face %d; piece %d, %.0f texels",
+                 which == 8 ? "the concave bowl" : "the default scene's teapot", st.nodes_built, st.pieces, st.sbcs,
+                 md.face_size, f->piece, (double)f->floats / 4.0);
+        if (which == 8) snprintf(note + strlen(note), note_n - strlen(note), "; per sheet, %d sheets", f->sheets);
         return 0;
     } else if (which == 4) {
         f->kind = REFL_GL_GRAPHCAM;

@@ -127,9 +127,9 @@ Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
 Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) { validate(5); }
 
 /* The blend per sheet, as refl_render draws a morph grid
-   (refl_sbc_morph_project_sheet), on the same teapot: each point in one
-   of the piece's sheets, its image, distance and whether it came from
-   across a fold. */
+   (refl_sbc_morph_project_sheet), on the concave bowl's grid (its rays
+   fold: three sheets; fixture 8): each point in one of the sheets, its
+   image, distance and whether it came from across a fold. */
 Test(refl_gl_hooks, sbc_morph_sheets_glsl_matches_c, .timeout = 120) { validate(8); }
 
 /* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
