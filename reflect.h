@@ -855,6 +855,17 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
    an argument is bad. Thread-safe. */
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
                                     refl_vec3 *first, float *dist, int *ambiguous);
+/* The sheets the piece's face SBCs have at the eye's nodes (1 where no
+   ray folds, at most REFL_SBC_SHEETS; 0 when the eye locates nowhere or an
+   argument is bad), and p projected into sheet `sheet` of them as
+   refl_render's SBC blends a morph grid (one image per node and sheet,
+   refl_sbc_project_sheets, blended sheet by sheet): 1 with *first, *dist
+   and *across (may be NULL; 1 where a node's image came from a sheet a
+   fold away, where the sheets meet), 0 where a node of positive weight
+   has no image in it or beside it. Thread-safe. */
+REFL_API int refl_sbc_morph_sheets(const refl_sbc_morph *morph, refl_vec3 eye, int piece);
+REFL_API int refl_sbc_morph_project_sheet(const refl_sbc_morph *morph, refl_vec3 eye, int piece, int sheet, refl_vec3 p,
+                                          refl_vec3 *first, float *dist, int *across);
 /* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
    with *first and *dist, 0 when it does not project there, the node is
    out of range or not built (its cells overlap the reflector's box). */
@@ -1895,10 +1906,19 @@ typedef struct refl_c3rc_view_camera {
     float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
     float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
     float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+    float sweep;             /* the largest t a scene point can have (INFINITY: unbounded): past the
+                                scene's diagonal where the rays converge */
 } refl_c3rc_view_camera;
 REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
                                             refl_c3rc_view_camera **out, int *count);
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
+/* Each object's C3RC sampling density (out: scene->object_count points
+   per unit area) as the method samples them at frame density `density`:
+   raised on a diffuse object where one of the `count` cameras (those drawn)
+   folds and shows it magnified, to a point per 4 pixels there, at most 64
+   times `density`, all objects together at most 2e6 points. */
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
@@ -2799,6 +2819,17 @@ static inline void refl__gl_put(refl__gl_out *o, double v) {
 
 static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
     refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
+}
+
+/* A packer runs twice: first counting (out NULL), then writing. After the
+   count `need`, readies o for the second run and says whether there is
+   one: need valid and cap holding it (else the packer returns need). */
+static inline int refl__gl_fill(refl__gl_out *o, long long need, float *out, long long cap) {
+    if (need < 0 || !out || cap < need) return 0;
+    o->out = out;
+    o->cap = cap;
+    o->n = 0;
+    return 1;
 }
 /* ---- src/reflect/sbc_internal.h ---- */
 /* Private declarations of the SBC method (paper 003; docs/methods/sbc.md):
@@ -8105,6 +8136,31 @@ REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, 
     return 1;
 }
 
+REFL_API int refl_sbc_morph_sheets(const refl_sbc_morph *morph, refl_vec3 eye, int piece) {
+    int nodes[4];
+    float w[4];
+    if (!morph || piece < 0 || piece >= morph->piece_count || refl_sbc_morph_locate(morph, eye, nodes, w) < 0) return 0;
+    return refl__sbm_piece_sheets(morph, nodes, w, piece);
+}
+
+REFL_API int refl_sbc_morph_project_sheet(const refl_sbc_morph *morph, refl_vec3 eye, int piece, int sheet, refl_vec3 p,
+                                          refl_vec3 *first, float *dist, int *across) {
+    int nodes[4], masks[4], sheets, a;
+    float w[4], slot[4 * 4 * REFL_SBC_SHEETS], dd;
+    refl_vec3 f;
+    if (across) *across = 0;
+    if (!morph || piece < 0 || piece >= morph->piece_count || refl_sbc_morph_locate(morph, eye, nodes, w) < 0)
+        return 0;
+    sheets = refl__sbm_piece_sheets(morph, nodes, w, piece);
+    if (sheet < 0 || sheet >= sheets) return 0;
+    refl__sbm_project4_sheets(morph, nodes, w, piece, p, sheets, slot, masks);
+    if (!refl__sbm_blend_sheet(slot, masks, w, sheet, &f, &dd, &a, NULL)) return 0;
+    if (first) *first = f;
+    if (dist) *dist = dd;
+    if (across) *across = a;
+    return 1;
+}
+
 REFL_API refl_result refl_sbc_morph_cache_create(const refl_allocator *a, refl_sbc_morph_cache **out_cache) {
     refl_sbc_morph_cache *c;
     refl_allocator al = refl__allocator(a);
@@ -8250,7 +8306,8 @@ static long long refl__sbm_gl_pack(refl__gl_out *o, const refl_sbc_morph *m, ref
     refl__gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
     refl__gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
                       w[3] > 0.0f ? w[3] : 0.0f);
-    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], 0, 0, 0);
+    /* the node offsets; node 0's texel also holds the piece's sheets */
+    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], k == 0 ? refl__sbm_piece_sheets(m, nodes, w, piece) : 0, 0, 0);
     for (k = 0; k < 4; ++k)
         if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
     return o->n;
@@ -8260,11 +8317,7 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
                                           long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    o.n = 0;
-    return refl__sbm_gl_pack(&o, morph, eye, piece);
+    return refl__gl_fill(&o, need, out, cap) ? refl__sbm_gl_pack(&o, morph, eye, piece) : need;
 }
 /* ---- src/reflect/cam_sbc_raylist.c ---- */
 /* cam_sbc_raylist: the sample-based camera's ray-list leaves, where no
@@ -9355,10 +9408,7 @@ static long long refl__gl_mirror(refl__gl_out *op, refl_mat4 view_proj, refl_vec
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_mirror(&o, view_proj, normal, d);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_mirror(&o, view_proj, normal, d);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_mirror(&o, view_proj, normal, d) : need;
 }
 
 /* ---- C3RC -------------------------------------------------------------------- */
@@ -9401,10 +9451,7 @@ static long long refl__gl_c3rc(refl__gl_out *op, const refl_c3rc *cams, int coun
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_c3rc(&o, cams, count);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_c3rc(&o, cams, count);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_c3rc(&o, cams, count) : need;
 }
 
 /* ---- SBC --------------------------------------------------------------------- */
@@ -9481,10 +9528,7 @@ static long long refl__gl_sbc(refl__gl_out *op, const refl_sbc *sbc) {
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_sbc(&o, sbc);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_sbc(&o, sbc);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_sbc(&o, sbc) : need;
 }
 
 /* ---- the graph camera ------------------------------------------------------------ */
@@ -9511,10 +9555,7 @@ static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_graphcam(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_graphcam(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
 /* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
@@ -9559,10 +9600,7 @@ static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_spoc(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_spoc(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
@@ -9675,7 +9713,8 @@ static const char refl__gl_glsl_c3rc[] =
 
 static const char refl__gl_glsl_sbc[] =
     "/* reflect.h GL hook: SBC (layout version 1); cam_sbc.c's BSP descent, cam_sbc_fit.c's\n"
-    "   pinhole leaves and cam_sbc_raylist.c's ray-list leaves (one sheet) in float. */\n"
+    "   pinhole leaves and cam_sbc_raylist.c's ray-list leaves (one sheet for all, or\n"
+    "   per sheet) in float. */\n"
     "float refl_sbc_cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }\n"
     "int refl_sbc_quadratic(float a, float b, float c, out vec2 r) {\n"
     "    if (abs(a) <= 1e-6 * (abs(b) + abs(c))) {\n"
@@ -9733,8 +9772,14 @@ static const char refl__gl_glsl_sbc[] =
     "    return true;\n"
     "}\n"
     "float refl_sbc_int(samplerBuffer data, int at, int i) { return texelFetch(data, at + i / 4)[i % 4]; }\n"
-    "bool refl_sbc_rays(samplerBuffer data, int base, vec4 nd1, vec4 nd2, vec4 nd3, vec3 p, out vec3 first, out float z) {\n"
-    "    if (any(lessThan(p, nd2.xyz)) || any(greaterThan(p, nd3.xyz))) return false;\n"
+    "/* a ray-list leaf per sheet (sheets 0: one for all, as if no ray folded;\n"
+    "   cam_sbc_raylist.c's refl__sbc_rays_project): the mask of the sheets p\n"
+    "   projects in, first[i] and z[i] sheet i's answer */\n"
+    "int refl_sbc_rays_sheets(samplerBuffer data, int base, vec4 nd1, vec4 nd2, vec4 nd3, vec3 p, int sheets,\n"
+    "                         out vec3 first[3], out float z[3]) {\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    z = float[3](0.0, 0.0, 0.0);\n"
+    "    if (any(lessThan(p, nd2.xyz)) || any(greaterThan(p, nd3.xyz))) return 0;\n"
     "    vec4 h1 = texelFetch(data, base + 1), h2 = texelFetch(data, base + 2), th = texelFetch(data, base + 3);\n"
     "    int from = 0, to = int(nd1.w), grid = int(nd2.w), quads = base + int(h1.z);\n"
     "    int list = -1;\n"
@@ -9745,17 +9790,19 @@ static const char refl__gl_glsl_sbc[] =
     "        vec3 w = p - i0.xyz;\n"
     "        float t = (dot(w, i1.xyz) - i0.w) * i1.w, x = (dot(w, i2.xyz) - i2.w) * i3.w;\n"
     "        float y = (dot(w, i3.xyz) - i4.x) * i4.y;\n"
-    "        if (!(t >= 0.0 && t < i4.z && x >= 0.0 && x < i4.w && y >= 0.0 && y < i4.w)) return false;\n"
+    "        if (!(t >= 0.0 && t < i4.z && x >= 0.0 && x < i4.w && y >= 0.0 && y < i4.w)) return 0;\n"
     "        int cells = int(i4.w);\n"
     "        int at = int(i5.x) + (int(t) * cells + int(y)) * cells + int(x);\n"
     "        from = int(refl_sbc_int(data, base + int(h2.x), at));\n"
     "        to = int(refl_sbc_int(data, base + int(h2.x), at + 1));\n"
     "        list = base + int(h2.y);\n"
     "    }\n"
-    "    /* per rank (0 inside a quad, 1 near one): off the surface, how far outside, depth */\n"
-    "    bool off[2] = bool[2](false, false);\n"
-    "    float outv[2] = float[2](3.0e38, 3.0e38), zz[2] = float[2](3.0e38, 3.0e38);\n"
-    "    vec3 fp[2];\n"
+    "    /* per sheet and rank (2 sheet + 0 inside a quad, + 1 near one): off the\n"
+    "       surface, how far outside, depth */\n"
+    "    bool off[6] = bool[6](false, false, false, false, false, false);\n"
+    "    float outv[6] = float[6](3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38);\n"
+    "    float zz[6] = float[6](3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38);\n"
+    "    vec3 fp[6];\n"
     "    for (int at = from; at < to; ++at) {\n"
     "        int q = quads + (int(nd1.z) + (list >= 0 ? int(refl_sbc_int(data, list, at)) : at)) * 20;\n"
     "        vec4 lo = texelFetch(data, q + 7), hi = texelFetch(data, q + 8);\n"
@@ -9764,6 +9811,9 @@ static const char refl__gl_glsl_sbc[] =
     "        vec4 tf = texelFetch(data, q + 4), b0 = texelFetch(data, q + 5), b1 = texelFetch(data, q + 6);\n"
     "        float tau = dot(w, texelFetch(data, q + 1).xyz);\n"
     "        if (!(tau >= tf.x && tau <= tf.y)) continue;\n"
+    "        int sheet = sheets > 0 ? int(tau > tf.z) + int(tau > tf.w) : 0;\n" /* past its folds */
+    "        if (sheets > 0 && sheet >= sheets) continue;\n"
+    "        int b = 2 * sheet;\n"
     "        float fr = (tau - tf.x) / (tf.y - tf.x);\n"
     "        float x = dot(w, texelFetch(data, q + 2).xyz);\n"
     "        if (!(x >= b0.x + fr * (b1.x - b0.x) && x <= b0.y + fr * (b1.y - b0.y))) continue;\n"
@@ -9782,13 +9832,13 @@ static const char refl__gl_glsl_sbc[] =
     "        }\n"
     "        vec2 st;\n"
     "        float o;\n"
-    "        if (!refl_sbc_inv_bilinear(c4[0], c4[1], c4[2], c4[3], vec2(x, y), zz[0] < 3.0e38 ? th.x : 0.5, st, o))\n"
+    "        if (!refl_sbc_inv_bilinear(c4[0], c4[1], c4[2], c4[3], vec2(x, y), zz[b] < 3.0e38 ? th.x : 0.5, st, o))\n"
     "            continue;\n"
     "        vec4 wt = vec4((1.0 - st.x) * (1.0 - st.y), st.x * (1.0 - st.y), (1.0 - st.x) * st.y, st.x * st.y);\n"
-    "        int k = o > th.x ? 1 : 0;\n"
+    "        int k = b + (o > th.x ? 1 : 0);\n"
     "        o = 0.0;\n"
-    "        if (k == 1 && zz[0] < 3.0e38) continue;\n"
-    "        if (k == 1) {\n"
+    "        if (k > b && zz[b] < 3.0e38) continue;\n"
+    "        if (k > b) {\n"
     "            vec2 d = vec2(x, y) - (wt.x * c4[0] + wt.y * c4[1] + wt.z * c4[2] + wt.w * c4[3]);\n"
     "            vec2 d1 = c4[3] - c4[0], d2 = c4[2] - c4[1];\n"
     "            o = dot(d, d) / max(dot(d1, d1), dot(d2, d2));\n"
@@ -9807,30 +9857,58 @@ static const char refl__gl_glsl_sbc[] =
     "        fp[k] = wt.x * texelFetch(data, q + 16).xyz + wt.y * texelFetch(data, q + 17).xyz +\n"
     "                wt.z * texelFetch(data, q + 18).xyz + wt.w * texelFetch(data, q + 19).xyz;\n"
     "    }\n"
-    "    int k = zz[0] < 3.0e38 ? 0 : 1;\n"
-    "    if (!(zz[k] < 3.0e38)) return false;\n"
-    "    first = fp[k];\n"
-    "    z = max(zz[k], 0.0);\n"
-    "    return true;\n"
+    "    int mask = 0;\n"
+    "    for (int i = 0; i < max(sheets, 1); ++i) {\n"
+    "        int k = zz[2 * i] < 3.0e38 ? 2 * i : 2 * i + 1;\n"
+    "        if (!(zz[k] < 3.0e38)) continue;\n"
+    "        first[i] = fp[k];\n"
+    "        z[i] = max(zz[k], 0.0);\n"
+    "        mask |= 1 << i;\n"
+    "    }\n"
+    "    return mask;\n"
     "}\n"
-    "/* p's projection through the SBC block at `base`: true with the first\n"
-    "   reflector point and the visibility offset z, false when p lies in no\n"
-    "   leaf's frustum. leaf_kind: 1 pinhole, 0 ray list. */\n"
-    "bool refl_sbc_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float z, out int leaf_kind) {\n"
-    "    vec4 h1 = texelFetch(data, base + 1);\n"
-    "    int nodes = base + int(h1.x), node = 0;\n"
+    "/* the BSP descent: the node index of the leaf holding p */\n"
+    "int refl_sbc_leaf(samplerBuffer data, int base, vec3 p) {\n"
+    "    int nodes = base + int(texelFetch(data, base + 1).x), node = 0;\n"
     "    vec4 nd1 = texelFetch(data, nodes + 1);\n"
     "    while (int(nd1.y) == 2) {\n"
     "        vec4 pl = texelFetch(data, nodes + node * 4);\n"
     "        node = int(nd1.x) + (dot(pl.xyz, p) + pl.w >= 0.0 ? 0 : 1);\n"
     "        nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
     "    }\n"
+    "    return node;\n"
+    "}\n"
+    "/* p's projection through the SBC block at `base`: true with the first\n"
+    "   reflector point and the visibility offset z, false when p lies in no\n"
+    "   leaf's frustum. leaf_kind: 1 pinhole, 0 ray list. */\n"
+    "bool refl_sbc_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float z, out int leaf_kind) {\n"
+    "    vec4 h1 = texelFetch(data, base + 1);\n"
+    "    int nodes = base + int(h1.x), node = refl_sbc_leaf(data, base, p);\n"
+    "    vec4 nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
+    "    vec3 fs[3];\n"
+    "    float zs[3];\n"
     "    first = vec3(0.0);\n"
     "    z = 0.0;\n"
     "    leaf_kind = int(nd1.y);\n"
     "    if (leaf_kind == 1) return refl_sbc_pinhole(data, base + int(h1.y) + int(nd1.z) * 16, p, first, z);\n"
-    "    return refl_sbc_rays(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
-    "                         texelFetch(data, nodes + node * 4 + 3), p, first, z);\n"
+    "    if (refl_sbc_rays_sheets(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
+    "                             texelFetch(data, nodes + node * 4 + 3), p, 0, fs, zs) == 0)\n"
+    "        return false;\n"
+    "    first = fs[0];\n"
+    "    z = zs[0];\n"
+    "    return true;\n"
+    "}\n"
+    "/* p's projection in each of `sheets` sheets (1 .. 3; refl_sbc_project_sheets):\n"
+    "   the mask of the sheets it projects in (a pinhole leaf: sheet 0 alone) */\n"
+    "int refl_sbc_project_sheets(samplerBuffer data, int base, vec3 p, int sheets, out vec3 first[3], out float z[3]) {\n"
+    "    vec4 h1 = texelFetch(data, base + 1);\n"
+    "    int nodes = base + int(h1.x), node = refl_sbc_leaf(data, base, p);\n"
+    "    vec4 nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    z = float[3](0.0, 0.0, 0.0);\n"
+    "    if (int(nd1.y) == 1) return refl_sbc_pinhole(data, base + int(h1.y) + int(nd1.z) * 16, p, first[0], z[0]) ? 1 : 0;\n"
+    "    return refl_sbc_rays_sheets(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
+    "                                texelFetch(data, nodes + node * 4 + 3), p, clamp(sheets, 1, 3), first, z);\n"
     "}\n";
 
 static const char refl__gl_glsl_graphcam[] =
@@ -9908,20 +9986,74 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    first = keep;\n"
     "    return got;\n"
     "}\n"
-    "/* p's blended first reflector point and distance for the packed eye and\n"
-    "   piece; false where a node of positive weight does not project it */\n"
-    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "/* p at one node in each of `sheets` sheets of its face SBCs, a sheet\n"
+    "   choosing among the faces as refl_sbm_node_project does\n"
+    "   (refl__sbm_node_sheets): the mask of the sheets with an image */\n"
+    "int refl_sbm_node_sheets(samplerBuffer data, int base, int nb, vec3 p, int sheets, out vec3 first[3]) {\n"
+    "    vec4 pos = texelFetch(data, nb);\n"
+    "    int mask = 0, own = 0;\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    if (any(lessThan(p, texelFetch(data, nb + 1).xyz)) || any(greaterThan(p, texelFetch(data, nb + 2).xyz)))\n"
+    "        return 0;\n"
+    "    for (int f = 0; f < 6; ++f) {\n"
+    "        float so = texelFetch(data, nb + 3 + f / 4)[f % 4];\n"
+    "        vec3 q[3];\n"
+    "        float z[3];\n"
+    "        if (so < 0.0) continue;\n"
+    "        int got = refl_sbc_project_sheets(data, base + int(so), p, sheets, q, z);\n"
+    "        for (int k = 0; k < sheets; ++k) {\n"
+    "            if (((got >> k) & 1) == 0 || ((own >> k) & 1) != 0 ||\n"
+    "                !refl_sbm_ahead(data, base, nb, pos.xyz, int(pos.w), p, q[k]))\n"
+    "                continue;\n"
+    "            if (refl_sbm_face_of(q[k] - pos.xyz) == f) {\n"
+    "                own |= 1 << k;\n"
+    "                first[k] = q[k];\n"
+    "            } else if (((mask >> k) & 1) == 0) {\n"
+    "                first[k] = q[k];\n"
+    "            }\n"
+    "            mask |= 1 << k;\n"
+    "        }\n"
+    "    }\n"
+    "    return mask;\n"
+    "}\n"
+    "/* the image sheet `sheet` draws of a point with images `mask`: its own,\n"
+    "   else one a fold away (across), -1 none (refl__sbc_sheet_image) */\n"
+    "int refl_sbc_sheet_image(int mask, int sheet, out bool across) {\n"
+    "    across = ((mask >> sheet) & 1) == 0;\n"
+    "    if (!across) return sheet;\n"
+    "    if (sheet > 0 && ((mask >> (sheet - 1)) & 1) != 0) return sheet - 1;\n"
+    "    if (((mask >> (sheet + 1)) & 1) != 0) return sheet + 1;\n"
+    "    return -1;\n"
+    "}\n"
+    "/* the blend over the nodes of positive weight of each one's image of p:\n"
+    "   sheet < 0 one per node (refl_sbm_node_project), else its image in that\n"
+    "   sheet, or one a fold away (across); false where a node has none, or\n"
+    "   past the piece's sheets */\n"
+    "bool refl_sbm_blend(samplerBuffer data, int base, vec3 p, int sheet, out vec3 first, out float dist, out bool across) {\n"
     "    vec4 w = texelFetch(data, base + 1);\n"
+    "    int sheets = int(texelFetch(data, base + 2).y);\n"
     "    vec3 f = vec3(0.0);\n"
     "    float dd = 0.0;\n"
     "    bool any_node = false;\n"
     "    first = vec3(0.0);\n"
     "    dist = 0.0;\n"
+    "    across = false;\n"
+    "    if (sheet >= sheets) return false;\n"
     "    for (int k = 0; k < 4; ++k) {\n"
     "        if (!(w[k] > 0.0)) continue;\n"
     "        float nb = texelFetch(data, base + 2 + k).x;\n"
     "        vec3 q;\n"
-    "        if (nb < 0.0 || !refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        if (nb < 0.0) return false;\n"
+    "        if (sheet < 0) {\n"
+    "            if (!refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        } else {\n"
+    "            vec3 qs[3];\n"
+    "            bool a;\n"
+    "            int image = refl_sbc_sheet_image(refl_sbm_node_sheets(data, base, base + int(nb), p, sheets, qs), sheet, a);\n"
+    "            if (image < 0) return false;\n"
+    "            q = qs[image];\n"
+    "            across = across || a;\n"
+    "        }\n"
     "        f += w[k] * q;\n"
     "        dd += w[k] * length(p - q);\n"
     "        any_node = true;\n"
@@ -9930,6 +10062,21 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    first = f;\n"
     "    dist = dd;\n"
     "    return true;\n"
+    "}\n"
+    "/* p's blended first reflector point and distance for the packed eye and\n"
+    "   piece (one image per node: refl_sbc_morph_project); false where a node\n"
+    "   of positive weight does not project it */\n"
+    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "    bool across;\n"
+    "    return refl_sbm_blend(data, base, p, -1, first, dist, across);\n"
+    "}\n"
+    "/* p in sheet `sheet` of the piece's face SBCs, blended as refl_render blends\n"
+    "   a morph grid's sheets (refl_sbc_morph_project_sheet): each node of\n"
+    "   positive weight its image in that sheet, else one a fold away\n"
+    "   (across); false where one has neither, or past the piece's sheets */\n"
+    "bool refl_sbc_morph_project_sheet(samplerBuffer data, int base, vec3 p, int sheet, out vec3 first, out float dist,\n"
+    "                                  out bool across) {\n"
+    "    return refl_sbm_blend(data, base, p, sheet < 0 ? 3 : sheet, first, dist, across);\n" /* (3: past every piece's sheets) */
     "}\n";
 
 static const char refl__gl_glsl_lem_shell[] =
@@ -12999,6 +13146,15 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
     return refl__c3_split(p, &t, &job, tmax, split_px == 0.0f ? REFL__C3_SPLIT_PX : split_px, 0, out);
 }
 
+/* The largest sweep t a point within tmax of the camera's base can have
+   (INFINITY: unbounded): t = distance / |a d1 + b d2 + c d3| >= distance
+   / sqrt(min di . dj); converging rays sweep past tmax. */
+static float refl__c3_sweep_bound(const refl_c3rc *c, float tmax) {
+    float dmin = REFL__MIN(refl_v3_dot(c->d[0], c->d[1]),
+                           REFL__MIN(refl_v3_dot(c->d[1], c->d[2]), refl_v3_dot(c->d[2], c->d[0])));
+    return dmin > 0.25f ? tmax / sqrtf(dmin) : INFINITY;
+}
+
 /* One camera: reflector triangle jobs[index], built and drawn. */
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
@@ -13007,12 +13163,7 @@ static void refl__c3_camera(void *arg, int index) {
     k.c3 = c3;
     k.n = &((refl__c3 *)c3)->counts[index];
     if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
-    {   /* a scene point lies within tmax of the base, and t = distance /
-           |a d1 + b d2 + c d3| >= distance / sqrt(min di . dj) */
-        float dmin = REFL__MIN(refl_v3_dot(k.cam.d[0], k.cam.d[1]),
-                               REFL__MIN(refl_v3_dot(k.cam.d[1], k.cam.d[2]), refl_v3_dot(k.cam.d[2], k.cam.d[0])));
-        k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
-    }
+    k.sweep = refl__c3_sweep_bound(&k.cam, c3->tmax);
     refl__c3_hull(&k);
     k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
     k.lod = k.folds == 0;
@@ -13333,60 +13484,72 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
 }
 
 
+/* Raises dens (per object, points per unit area) where camera cam, of
+   screen_area pixels, folds (section 5.1: its rays converge, the paper's
+   quasi-convergence region) and shows an object magnified, to one point
+   per REFL__C3_PIXELS_PER_POINT pixels there: the magnification at the
+   object's centre and box corners is the camera's screen area over its
+   sweeping triangle's area at their t. Diffuse objects only (a
+   reflector's own points show black); at most REFL__C3_MAX_BOOST times
+   the frame's density. */
+static void refl__c3_raise_densities(const refl_scene *scene, const refl_c3rc *cam, float screen_area, float density,
+                                     float tmax, float *dens) {
+    float folds[4][2];
+    int i, corner;
+    if (!(screen_area > 0.0f) || refl_c3rc_multiple_intervals(cam, 4.0f * tmax, folds) == 0) return;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_vec3 lo, hi;
+        if (refl__is_reflector(&scene->materials[o->material])) continue;
+        refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+        for (corner = 0; corner < 9; ++corner) {
+            refl_c3rc_projection pr[3];
+            refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                      : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+            int m = refl_c3rc_project(cam, refl_mat4_point(o->transform, q), pr), r;
+            for (r = 0; r < m; ++r) {
+                double sweep = refl__c3_sweep_area(cam, pr[r].t);
+                float want = sweep > 0.0 ? (float)((double)screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
+                dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * density));
+            }
+        }
+    }
+}
+
+/* The budget: all objects together at most REFL__C3_AUTO_POINTS points,
+   the raises above the frame's density scaled down together. */
+static void refl__c3_density_budget(const refl_scene *scene, float density, float *dens) {
+    double total = 0.0, area_all = 0.0;
+    int i;
+    for (i = 0; i < scene->object_count; ++i) {
+        double area = refl__c3_object_area(scene, i);
+        total += area * (double)dens[i];
+        area_all += area * (double)density;
+    }
+    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
+        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
+        for (i = 0; i < scene->object_count; ++i) dens[i] = density + (float)(keep * (double)(dens[i] - density));
+    }
+}
+
 /* Each object's sampling density (c3->s->object_density): the frame's,
-   raised (when `magnify`) where a folding camera (section 5.1: its rays
-   converge, the paper's quasi-convergence region) shows the object
-   magnified, to one point per REFL__C3_PIXELS_PER_POINT pixels there: the
-   magnification at the object's centre and box corners is the camera's
-   screen area over its sweeping triangle's area at their t. Diffuse
-   objects only (a reflector's own points show black). At most
-   REFL__C3_MAX_BOOST times the frame's density, and all objects together
-   at most REFL__C3_AUTO_POINTS points. */
+   raised (when `magnify`) where a folding camera shows the object
+   magnified (refl__c3_raise_densities), within the budget. */
 static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
     float *dens = (float *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(float));
-    double total = 0.0, area_all = 0.0;
-    int i, j, corner;
+    int i, j;
     if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
     c3->s->object_density = dens;
     for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
     if (!magnify) return REFL_OK;
     for (j = 0; j < jobs; ++j) {
         refl__c3_cam k;
-        float folds[4][2];
         memset(&k, 0, sizeof k);
-        if (!refl__c3_setup(p, &c3->jobs[j], &k) || !(k.screen_area > 0.0f) ||
-            refl_c3rc_multiple_intervals(&k.cam, 4.0f * c3->tmax, folds) == 0)
-            continue;
-        for (i = 0; i < scene->object_count; ++i) {
-            const refl_object *o = &scene->objects[i];
-            refl_vec3 lo, hi;
-            if (refl__is_reflector(&scene->materials[o->material])) continue;
-            refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
-            for (corner = 0; corner < 9; ++corner) {
-                refl_c3rc_projection pr[3];
-                refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
-                                          : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
-                int m = refl_c3rc_project(&k.cam, refl_mat4_point(o->transform, q), pr), r;
-                for (r = 0; r < m; ++r) {
-                    double sweep = refl__c3_sweep_area(&k.cam, pr[r].t);
-                    float want = sweep > 0.0 ? (float)((double)k.screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
-                    dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * c3->density));
-                }
-            }
-        }
+        if (refl__c3_setup(p, &c3->jobs[j], &k)) refl__c3_raise_densities(scene, &k.cam, k.screen_area, c3->density, c3->tmax, dens);
     }
-    for (i = 0; i < scene->object_count; ++i) { /* the budget: scale the raises down together */
-        double area = refl__c3_object_area(scene, i);
-        total += area * (double)dens[i];
-        area_all += area * (double)c3->density;
-    }
-    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
-        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
-        for (i = 0; i < scene->object_count; ++i)
-            dens[i] = c3->density + (float)(keep * (double)(dens[i] - c3->density));
-    }
+    refl__c3_density_budget(scene, c3->density, dens);
     return REFL_OK;
 }
 
@@ -13656,6 +13819,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     refl_frame shape;
     refl__c3_list list;
     refl_c3rc_view_camera *cams = NULL;
+    refl_vec3 lo, hi;
     int i, n = 0;
     refl_result r;
     if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
@@ -13663,6 +13827,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     *count = 0;
     if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
     r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
+    refl_scene_bounds(scene, &lo, &hi);
     if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
                                                                        (size_t)(list.count ? list.count : 1), sizeof *cams)))
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -13677,6 +13842,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
         cams[n].screen_area = k.screen_area;
         cams[n].screen_edge = k.screen_edge;
         cams[n].near_self = k.near_self;
+        cams[n].sweep = refl__c3_sweep_bound(&k.cam, 1.01f * refl_v3_length(refl_v3_sub(hi, lo)));
         ++n;
     }
     refl__free(&scene->allocator, list.v);
@@ -13686,6 +13852,21 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     }
     *out = cams;
     *count = n;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out) {
+    refl_vec3 lo, hi;
+    float tmax;
+    int i;
+    if (!scene || !out || count < 0 || (count > 0 && !cams) || !(density >= 0.0f) || !refl__isfinite(density))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < scene->object_count; ++i) out[i] = density;
+    for (i = 0; i < count; ++i) refl__c3_raise_densities(scene, &cams[i].cam, cams[i].screen_area, density, tmax, out);
+    refl__c3_density_budget(scene, density, out);
     return REFL_OK;
 }
 

@@ -8,7 +8,7 @@
 #   bash tools/gl_device_check.sh            from the repository root
 #
 # Environment:
-#   OUT           where the results go (default out/gl_device); 7 files
+#   OUT           where the results go (default out/gl_device); 9 files
 #   GL_LIBS_DIR   optional: folders (colon-separated) holding libEGL.so.1 and
 #                 libGLdispatch.so.0 unpacked from .deb files; put first on
 #                 LD_LIBRARY_PATH
@@ -18,19 +18,22 @@
 #
 # Writes: info.txt (EGL vendor, GL renderer and version, the libraries
 # resolved), validate.txt and validate.csv (every camera's GLSL projection
-# against its C projection on 10^5 points), bench.txt and bench.csv (the
+# against its C projection on 10^5 points, the SBC morph grid's per-sheet
+# blend among them), bench.txt and bench.csv (the
 # projection rate on 4 x 10^6 points per camera, GL beside one CPU thread:
 # SBC's rows against the paper's 20 M vertices/s), frames.txt and
 # frames.csv (PLANAR on mirror-room, C3RC and SBC on default, through GL
 # against the CPU path on every core at 640x480, 1920x1080 and 3840x2160:
 # C3RC's GL frame against the paper's 48-650 ms, SBC's vertex rate in
-# gl_mvertices_per_s), and, when build/bin/reflect's libraries resolve
+# gl_mvertices_per_s), scenes.txt and scenes.csv (PLANAR, C3RC and SBC on
+# every built-in scene at 640x480: the GL frame's and the CPU frame's mean
+# reflection error against RAYTRACE, which the GL path holds within 1 px
+# of the CPU's), and, when build/bin/reflect's libraries resolve
 # (Embree, OpenImageIO, tinygltf: install them or carry them in
 # GL_LIBS_DIR), embree/ (reflect bench --only sbc: RAYTRACE through our BVH
 # and through Embree beside SBC on the CPU, default scene, the same three
 # sizes, DIR/sbc_resolution.csv) and summary.txt (the rows to compare, side
-# by side). Each step has its own time limit; the whole run stays under 9
-# minutes.
+# by side). Each step has its own time limit, 12 minutes in all.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 OUT=${OUT:-out/gl_device}
@@ -85,6 +88,11 @@ timeout -k 5 240 "$BIN" frames --sizes 640x480,1920x1080,3840x2160 --methods pla
   --truth-max-pixels 307200 --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
 cat "$OUT/frames.txt"
 
+echo "=== scenes: PLANAR, C3RC and SBC on every built-in scene at 640x480, GL and CPU against RAYTRACE"
+timeout -k 5 120 "$BIN" frames --sizes 640x480 --methods planar,c3rc,sbc --scenes all \
+  --csv "$OUT/scenes.csv" >"$OUT/scenes.txt" 2>&1 || status=1
+cat "$OUT/scenes.txt"
+
 echo "=== Embree: RAYTRACE (our BVH, Embree) and SBC on the CPU at the same sizes (reflect bench --only sbc)"
 REFLECT=build/bin/reflect
 missing=""
@@ -105,6 +113,8 @@ fi
   grep "^sbc" "$OUT/bench.txt"
   echo "--- frames: GL frame against the CPU path (C3RC against the paper's 48-650 ms)"
   grep -E "^(planar|c3rc|sbc) " "$OUT/frames.txt"
+  echo "--- every built-in scene at 640x480: mean reflection error against RAYTRACE, GL and CPU"
+  grep -E "^(planar|c3rc|sbc) " "$OUT/scenes.txt" | sed -E 's/ cameras:.*vs RAYTRACE:/:/'
   echo "--- Embree and our BVH at the same sizes (default scene; embree/sbc_resolution.csv)"
   if [ -f "$OUT/embree/sbc_resolution.csv" ]; then cat "$OUT/embree/sbc_resolution.csv"; else cat "$OUT/embree.txt"; fi
 } >"$OUT/summary.txt" 2>&1

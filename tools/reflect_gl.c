@@ -373,6 +373,15 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "    v_o0 = refl_spoc_project(u_data, u_base, a_p.xyz);\n"
     "    v_o1 = vec4(0.0);\n"
     "    gl_Position = vec4(0.0);\n"
+    "}\n",
+    "void main() {\n" /* the morph grid per sheet: the point's sheet in a_p.w */
+    "    vec3 f;\n"
+    "    float d;\n"
+    "    bool across;\n"
+    "    bool ok = refl_sbc_morph_project_sheet(u_data, u_base, a_p.xyz, int(a_p.w), f, d, across);\n"
+    "    v_o0 = vec4(f, d);\n"
+    "    v_o1 = vec4(ok ? 1.0 : 0.0, across ? 1.0 : 0.0, 0.0, 0.0);\n"
+    "    gl_Position = vec4(0.0);\n"
     "}\n"};
 
 static const char rgl__vs_main_sbc[] =
@@ -410,6 +419,7 @@ typedef struct rgl_fixture {
     refl_sbc_morph *morph;
     refl_vec3 eye, lo, hi;
     int piece;
+    int sheets;              /* the per-sheet fixture: the piece's sheets (each point carries its own) */
     double size;
     /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
     refl_lem_shell shell;
@@ -515,20 +525,23 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->shell.radius = 2.5f;
         f->shell.face_size = 32;
         snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
-    } else if (which == 5) {
-        /* the default scene's teapot in a one-cell grid beside the view
-           (tests/reflect/test_sbc_morph.c's), the eye inside the cell */
+    } else if (which == 5 || which == 8) {
+        /* 5: the default scene's teapot in a one-cell grid beside the view
+           (tests/reflect/test_sbc_morph.c's), the eye inside the cell; 8:
+           the concave bowl's, about the scene's eye, per sheet (its rays
+           fold: three sheets) */
         refl_sbc_morph_desc md;
         refl_sbc_morph_stats st;
         refl_vec3 c, lo, hi;
         int k;
         f->kind = REFL_GL_SBC_MORPH;
-        if (refl_scene_builtin("default", NULL, &f->scene) != REFL_OK) return rgl__fail(err, n, "no default scene");
+        if (refl_scene_builtin(which == 8 ? "concave" : "default", NULL, &f->scene) != REFL_OK)
+            return rgl__fail(err, n, "no built-in scene");
         memset(&md, 0, sizeof md);
         md.nodes[0] = md.nodes[1] = md.nodes[2] = 2;
-        md.region_lo = refl_v3(-1.0f, 3.8f, 7.4f);
-        md.region_hi = refl_v3(1.0f, 5.3f, 9.4f);
-        md.face_size = 64;
+        md.region_lo = which == 8 ? refl_v3(-0.5f, 3.0f, 5.5f) : refl_v3(-1.0f, 3.8f, 7.4f);
+        md.region_hi = which == 8 ? refl_v3(0.5f, 4.0f, 6.5f) : refl_v3(1.0f, 5.3f, 9.4f);
+        md.face_size = which == 8 ? 32 : 64;
         if (refl_sbc_morph_build(f->scene, 1, &md, &f->morph) != REFL_OK) return rgl__fail(err, n, "refl_sbc_morph_build failed");
         refl_mesh_bounds(f->scene->meshes[f->scene->objects[1].mesh], &lo, &hi);
         f->lo = refl_v3(1e30f, 1e30f, 1e30f);
@@ -544,13 +557,16 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
         f->lo = refl_v3_sub(f->lo, refl_v3(1.0f, 1.0f, 1.0f));
         f->hi = refl_v3_add(f->hi, refl_v3(1.0f, 1.0f, 1.0f));
         f->size = refl_v3_length(refl_v3_sub(f->hi, f->lo));
-        f->eye = refl_v3(0.3f, 4.5f, 8.9f);
+        f->eye = which == 8 ? refl_v3(0.1f, 3.5f, 6.0f) : refl_v3(0.3f, 4.5f, 8.9f);
         f->piece = refl_sbc_morph_piece_at(f->morph, f->eye, refl_v3_sub(c, f->eye));
-        if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the teapot");
+        if (f->piece < 0) return rgl__fail(err, n, "the eye sees no piece of the reflector");
         refl_sbc_morph_get_stats(f->morph, &st);
+        if (which == 8) f->sheets = refl_sbc_morph_sheets(f->morph, f->eye, f->piece);
         if (rgl__pack(f, err, n) != 0) return -1;
-        snprintf(note, note_n, "the default scene's teapot, one grid cell of %d nodes, %d pieces, %d SBCs, face 64; "
-                 "piece %d, %.0f texels", st.nodes_built, st.pieces, st.sbcs, f->piece, (double)f->floats / 4.0);
+        snprintf(note, note_n, "%s, one grid cell of %d nodes, %d pieces, %d SBCs, face %d; piece %d, %.0f texels",
+                 which == 8 ? "the concave bowl" : "the default scene's teapot", st.nodes_built, st.pieces, st.sbcs,
+                 md.face_size, f->piece, (double)f->floats / 4.0);
+        if (which == 8) snprintf(note + strlen(note), note_n - strlen(note), "; per sheet, %d sheets", f->sheets);
         return 0;
     } else if (which == 4) {
         f->kind = REFL_GL_GRAPHCAM;
@@ -600,7 +616,17 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
     return rgl__pack(f, err, n);
 }
 
-/* The test points of a fixture: 4 floats each (xyz, and the C3RC camera). */
+/* The morph grid's C projection of p: in sheet `sheet` when the fixture
+   has sheets (*across then as refl_sbc_morph_project_sheet's), else one
+   image per node. */
+static int rgl__morph_project(const rgl_fixture *f, refl_vec3 p, int sheet, refl_vec3 *first, float *dist, int *across) {
+    *across = 0;
+    if (f->sheets) return refl_sbc_morph_project_sheet(f->morph, f->eye, f->piece, sheet, p, first, dist, across);
+    return refl_sbc_morph_project(f->morph, f->eye, f->piece, p, first, dist, NULL);
+}
+
+/* The test points of a fixture: 4 floats each (xyz, and the C3RC camera
+   or the morph grid's sheet). */
 static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
     rgl_rng r = {0x5eed1234abcdULL};
     long long i;
@@ -636,14 +662,15 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             /* in the teapot's box, grown; "in the volume": drawn until the C
                projects it (at most 64 tries) */
-            int tries;
+            int tries, sheet = f->sheets ? (int)(rgl__rand(&r) * f->sheets) : 0, across;
             for (tries = 0; tries < (in_volume ? 64 : 1); ++tries) {
                 refl_vec3 q;
                 float dd;
                 p = refl_v3((float)rgl__range(&r, f->lo.x, f->hi.x), (float)rgl__range(&r, f->lo.y, f->hi.y),
                             (float)rgl__range(&r, f->lo.z, f->hi.z));
-                if (refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL)) break;
+                if (rgl__morph_project(f, p, sheet, &q, &dd, &across)) break;
             }
+            cam = (float)sheet;
         } else if (f->kind == REFL_GL_SPOC && in_volume) {
             /* in the bounding sphere */
             do p = refl_v3((float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0), (float)rgl__range(&r, -1.0, 1.0));
@@ -720,11 +747,11 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
         return 1;
     }
     if (f->kind == REFL_GL_SBC_MORPH) {
-        refl_vec3 first;
-        float dd;
-        int ok = refl_sbc_morph_project(f->morph, f->eye, f->piece, pv, &first, &dd, NULL);
+        refl_vec3 first = {0.0f, 0.0f, 0.0f};
+        float dd = 0.0f;
+        int across, ok = rgl__morph_project(f, pv, (int)p[3], &first, &dd, &across);
         double fd[3] = {first.x, first.y, first.z};
-        if (ok != (gl[4] > 0.5f)) return -1;
+        if (ok != (gl[4] > 0.5f) || (ok && across != (gl[5] > 0.5f))) return -1;
         if (!ok) return 0;
         *err = RGL_MAXD(rgl__dist3(fd, gl), fabs(dd - gl[3])) / f->size;
         return 1;
@@ -787,7 +814,8 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             refl_vec3 q;
             float dd;
-            sink += (float)refl_sbc_morph_project(f->morph, f->eye, f->piece, p, &q, &dd, NULL);
+            int across;
+            sink += (float)rgl__morph_project(f, p, (int)pts[4 * i + 3], &q, &dd, &across);
         } else if (f->kind == REFL_GL_LEM_SHELL) {
             uint32_t tex[4];
             float w[4];
@@ -807,7 +835,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
 
 int rgl_validate(rgl_context *g, int which, long long points, int repeats, rgl_validation *out, char *err, size_t n) {
     static const char *const names[RGL_CAMERAS] = {"mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam",
-                                                   "sbc-morph", "lem-shell", "spoc"};
+                                                   "sbc-morph", "lem-shell", "spoc", "sbc-morph-sheets"};
     static const char *const varyings[2] = {"v_o0", "v_o1"};
     rgl_fixture f;
     float *pts = NULL, *res = NULL;

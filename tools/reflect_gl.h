@@ -31,7 +31,8 @@ const char *rgl_egl_vendor(const rgl_context *g); /* EGL_VENDOR, and the EGL pla
    C3RC images), and the largest and 99.9th-percentile error of the
    agreeing ones, relative to the fixture's scene size (docs/gl.md). */
 typedef struct rgl_validation {
-    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "sbc-morph", "lem-shell", "spoc" */
+    const char *camera;      /* "mirror", "c3rc", "sbc-convex", "sbc-concave", "graphcam", "sbc-morph", "lem-shell", "spoc",
+                                "sbc-morph-sheets" (the morph grid per sheet, as refl_render blends it) */
     long long points, projected, disagree;
     long long pinhole_points, raylist_points; /* SBC: agreeing points per leaf kind */
     double max_rel, p999_rel;
@@ -40,7 +41,7 @@ typedef struct rgl_validation {
     char note[160];          /* the fixture: cameras, leaves */
 } rgl_validation;
 
-enum { RGL_CAMERAS = 8 };
+enum { RGL_CAMERAS = 9 };
 /* Fixture i (0 .. RGL_CAMERAS - 1): builds it, projects `points` points
    both ways (GL `repeats` times, the best time kept). 0 on success. */
 int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_validation *out, char *err,
@@ -88,10 +89,13 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
    mirror-room, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
-   part of it, NULL all) at each size of "WxH,WxH,...", RAYTRACE as the
+   part of it, NULL all; `scenes` a comma-separated list of built-in
+   scenes each method runs on instead, "all" every one, NULL or "" each
+   method's own) at each size of "WxH,WxH,...", RAYTRACE as the
    truth up to truth_max pixels. Return 0 on success. */
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv);
-int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv);
+int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, const char *scenes, long long truth_max,
+                     FILE *csv);
 
 /* `reflect bench --gl [--out DIR] [--sizes ...] [--points N] [--repeats R]`:
    both of the above into DIR/gl_projection.csv and DIR/gl_frames.csv. */

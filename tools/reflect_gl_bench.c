@@ -103,7 +103,8 @@ static int rgl_render_best(rgl_context *g, refl_method m, const refl_scene *s, c
     return 0;
 }
 
-/* The frames benched: each method on the scene it is measured on. */
+/* The frames benched: each method on the scene it is measured on, unless
+   a scene list names others. */
 static const struct {
     const char *name, *scene;
     refl_method m;
@@ -116,14 +117,38 @@ static const struct {
 /* Whether method `name` is in the comma-separated list (NULL or empty: all). */
 static int rgl_listed(const char *list, const char *name) { return !list || !*list || name_in_list(list, name, ','); }
 
-int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, long long truth_max, FILE *csv) {
-    int ri, failed = 0;
+/* The built-in scenes `--scenes all` stands for. */
+static const char *const rgl_all_scenes = "default,mirror-room,concave,glass,maze,teapots,hybrid";
+
+/* The n-th name of the comma-separated list into buf; 0 past its end. */
+static int rgl_list_item(const char *list, int n, char *buf, size_t size) {
+    const char *p = list, *end;
+    for (; n > 0 && p; --n) {
+        p = strchr(p, ',');
+        if (p) ++p;
+    }
+    if (!p || !*p) return 0;
+    end = strchr(p, ',');
+    if (!end) end = p + strlen(p);
+    if ((size_t)(end - p) >= size) return 0;
+    memcpy(buf, p, (size_t)(end - p));
+    buf[end - p] = 0;
+    return 1;
+}
+
+int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, const char *scenes, long long truth_max,
+                     FILE *csv) {
+    int ri, si, failed = 0;
+    char scene_buf[64];
+    if (scenes && !strcmp(scenes, "all")) scenes = rgl_all_scenes;
     if (csv)
         fprintf(csv, "renderer,scene,method,width,height,cameras,gl_frame_s,gl_draw_s,cpu_share_s,cpu_method_s,"
                      "gl_vs_cpu_mean_px,gl_vs_cpu_wrong,gl_vs_cpu_empty,psnr_reflectors_db,gl_vs_truth_mean_px,"
                      "cpu_vs_truth_mean_px,gl_mvertices_per_s\n");
-    for (ri = 0; ri < (int)(sizeof rgl_frame_rows / sizeof rgl_frame_rows[0]); ++ri) {
-        const char *p = sizes, *scene = rgl_frame_rows[ri].scene, *name = rgl_frame_rows[ri].name;
+    for (ri = 0; ri < (int)(sizeof rgl_frame_rows / sizeof rgl_frame_rows[0]); ++ri)
+        for (si = 0; scenes && *scenes ? rgl_list_item(scenes, si, scene_buf, sizeof scene_buf) : si == 0; ++si) {
+        const char *p = sizes, *scene = scenes && *scenes ? scene_buf : rgl_frame_rows[ri].scene;
+        const char *name = rgl_frame_rows[ri].name;
         refl_method m = rgl_frame_rows[ri].m;
         if (!rgl_listed(methods, name)) continue;
         while (*p) {
@@ -142,7 +167,10 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, lon
             }
             p = strchr(p, ',');
             p = p ? p + 1 : "";
-            if (refl_scene_builtin(scene, NULL, &s) != REFL_OK) return 1;
+            if (refl_scene_builtin(scene, NULL, &s) != REFL_OK) {
+                fprintf(stderr, "reflect_gl: no built-in scene %s\n", scene);
+                return 2;
+            }
             v = s->camera;
             v.width = w;
             v.height = h;
@@ -167,7 +195,9 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, lon
                        "GL vs CPU: %lld px matched, mean %.3f px, wrong %.4f, empty %.4f, PSNR %.1f dB over reflectors",
                        name, scene, w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
                        1e3 * st.shade_seconds, name, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
-                if (tf) printf("; vs RAYTRACE: GL %.3f px, CPU %.3f px", e_gt.mean, e_ct.mean);
+                if (tf)
+                    printf("; vs RAYTRACE: GL %.3f px (%lld px matched), CPU %.3f px (%lld px matched)", e_gt.mean,
+                           e_gt.matched, e_ct.mean, e_ct.matched);
                 printf("\n");
                 if (csv)
                     fprintf(csv, "\"%s\",%s,%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f\n",
@@ -189,7 +219,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, lon
 
 
 int rgl_cli_bench(int argc, char **argv) {
-    const char *dir = "out/bench", *sizes = "320x240,640x480", *methods = NULL;
+    const char *dir = "out/bench", *sizes = "320x240,640x480", *methods = NULL, *scenes = NULL;
     long long points = 1000000;
     int repeats = 5, i, failed;
     rgl_context *g = NULL;
@@ -200,14 +230,16 @@ int rgl_cli_bench(int argc, char **argv) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) dir = argv[++i];
         else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
         else if (!strcmp(argv[i], "--methods") && i + 1 < argc) methods = argv[++i];
+        else if (!strcmp(argv[i], "--scenes") && i + 1 < argc) scenes = argv[++i];
         else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else {
             fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc]\n"
-                            "                         [--points N] [--repeats R]\n"
+                            "                         [--scenes NAME,...|all] [--points N] [--repeats R]\n"
                             "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
                             "  DIR/gl_frames.csv: PLANAR (mirror-room), C3RC and SBC (default) frames through GL\n"
-                            "                     against the CPU path\n");
+                            "                     against the CPU path (--scenes: every method on these\n"
+                            "                     built-in scenes instead)\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;
         }
     }
@@ -233,7 +265,7 @@ int rgl_cli_bench(int argc, char **argv) {
         rgl_destroy(g);
         return 1;
     }
-    failed |= rgl_bench_frames(g, sizes, methods, 640 * 480, csv);
+    failed |= rgl_bench_frames(g, sizes, methods, scenes, 640 * 480, csv);
     fclose(csv);
     rgl_destroy(g);
     printf("wrote %s/gl_projection.csv and %s/gl_frames.csv\n", dir, dir);

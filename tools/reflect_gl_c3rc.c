@@ -51,21 +51,25 @@
 #define RGL_C3_AUTO_POINTS 2e6    /* the most points the default density samples */
 #define RGL_C3_TURN_TEST "0.05"  /* radians: the CPU path's REFL__C3_TURN_TEST */
 #define RGL_C3_LEAF_POINTS 128    /* kd-tree leaf size: the box test culls per leaf (the paper: 122) */
-enum { RGL_C3_POINT_FLOATS = 8 }; /* position, tree index; normal, object (+ 0.5 on a diffuse one) */
+enum { RGL_C3_POINT_FLOATS = 9 }; /* position, tree index; normal, object (+ 0.5 on a diffuse one); density */
 
 static const char rgl__c3_vs_head[] =
     "#version 330 core\n"
     "layout(location = 0) in vec4 a_p;\n" /* position, tree index */
     "layout(location = 1) in vec4 a_n;\n" /* normal, object (+ 0.5 when diffuse) */
+    "layout(location = 2) in float a_density;\n" /* its object's points per unit area */
     "uniform samplerBuffer u_data;\n"
     "uniform int u_cam;\n"
     "uniform mat4 u_vp;\n"
-    "uniform float u_tmax, u_screen_area, u_density, u_near_self, u_fold, u_fold_splat;\n"
+    "uniform float u_tmax, u_screen_area, u_near_self, u_fold, u_fold_splat;\n"
     "uniform int u_object;\n"
     "uniform int u_hull_count;\n"
+    "uniform float u_edge, u_pixel_angle;\n" /* the camera's longest edge (world); a pixel's size per unit of distance */
+    "uniform vec3 u_eye;\n"
     "uniform vec4 u_hull[20];\n"
     "flat out float v_index; flat out float v_t; flat out float v_side; flat out float v_pix_sweep;\n"
-    "flat out vec3 v_pt; flat out vec3 v_np; flat out float v_reach; flat out float v_self;\n";
+    "flat out vec3 v_pt; flat out vec3 v_np; flat out float v_reach; flat out float v_self; flat out float v_disc;\n"
+    "flat out vec3 v_q; flat out float v_tol;\n";
 
 static const char rgl__c3_vs_main[] =
     "void main() {\n"
@@ -73,7 +77,8 @@ static const char rgl__c3_vs_main[] =
     "    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);\n" /* outside: culled */
     "    gl_PointSize = 1.0;\n"
     "    v_index = a_p.w; v_t = 0.0; v_side = 1.0; v_pix_sweep = 0.0;\n"
-    "    v_pt = a_p.xyz; v_np = a_n.xyz; v_reach = 0.0; v_self = 0.0;\n"
+    "    v_pt = a_p.xyz; v_np = a_n.xyz; v_reach = 0.0; v_self = 0.0; v_q = vec3(0.0); v_tol = 0.0;\n"
+    "    v_disc = a_density > 0.0 ? inversesqrt(a_density) : 1e30;\n"
     /* outside the truncated volume's hull: no projection (the CPU path's test) */
     "    for (int i = 0; i < u_hull_count; ++i)\n"
     "        if (dot(u_hull[i].xyz, a_p.xyz) > u_hull[i].w) return;\n"
@@ -95,8 +100,8 @@ static const char rgl__c3_vs_main[] =
     "    vec3 dir = normalize(a_p.xyz - q);\n"
     "    float cs = sweep > 0.0 ? abs(dot(ns, dir)) / (2.0 * sweep) : 1.0, cp = dot(a_n.xyz, dir);\n"
     "    if (cp > 0.0 && diffuse) return;\n" /* a diffuse surface's back */
-    "    float spacing = sweep > 0.0 && u_density > 0.0 ?\n"
-    "        sqrt(abs(cp) / max(cs, 0.05) * u_screen_area / (sweep * u_density)) : 0.0;\n"
+    "    float spacing = sweep > 0.0 && a_density > 0.0 ?\n"
+    "        sqrt(abs(cp) / max(cs, 0.05) * u_screen_area / (sweep * a_density)) : 0.0;\n"
     /* the CPU path's splat: 1.5 per point spacing, at most its default max_splat 8,
        from the camera's first fold interval on its size on screen */
     "    float side = clamp(ceil(1.5 * min(spacing, 1e4)), 1.0, r.w >= u_fold ? u_fold_splat : 8.0);\n"
@@ -104,6 +109,7 @@ static const char rgl__c3_vs_main[] =
     "    v_pix_sweep = u_screen_area > 0.0 ? sqrt(sweep / u_screen_area) : 0.0;\n"
     "    v_reach = side * v_pix_sweep / max(abs(cp), 0.2);\n"
     "    v_self = object == u_object ? 1.0 : 0.0;\n"
+    "    v_q = q; v_tol = u_edge + side * u_pixel_angle * length(q - u_eye);\n"
     "    gl_Position = vec4(clip.xy / clip.w, 0.0, 1.0);\n"
     "    gl_PointSize = side;\n"
     "}\n";
@@ -114,25 +120,35 @@ static const char rgl__c3_vs_main[] =
    pixel's ray meets the point's tangent plane (within its reach of the
    point's t), plus the same-surface slope off the splat's centre; where
    the ray turns fast, another object's point shows only where the ray
-   meets its surfel (a disc of u_disc per point spacing); a pixel all of
+   meets its surfel (a disc of one point spacing of its object's); a pixel all of
    whose splats missed is marked (-1), and shows its neighbours' nearest
    point (rgl__c3_touched). */
 static const char rgl__c3_fs[] =
     "#version 330 core\n"
     "flat in float v_index; flat in float v_t; flat in float v_side; flat in float v_pix_sweep;\n"
-    "flat in vec3 v_pt; flat in vec3 v_np; flat in float v_reach; flat in float v_self;\n"
-    "uniform float u_tmax, u_disc;\n"
+    "flat in vec3 v_pt; flat in vec3 v_np; flat in float v_reach; flat in float v_self; flat in float v_disc;\n"
+    "flat in vec3 v_q; flat in float v_tol;\n"
+    "uniform vec3 u_plane_n, u_eye;\n" /* the camera's reflector plane's unit normal */
+    "uniform float u_pixel_angle;\n"
+    "uniform float u_tmax, u_side;\n"
     "uniform sampler2D u_surf, u_ray;\n"
     "layout(location = 0) out vec4 o_point;\n"
     "void main() {\n"
     "    ivec2 px = ivec2(gl_FragCoord.xy);\n"
     "    vec4 r = texelFetch(u_surf, px, 0);\n"
-    "    vec3 u = texelFetch(u_ray, px, 0).xyz;\n"
+    "    vec4 ray = texelFetch(u_ray, px, 0);\n"
+    "    vec3 u = ray.xyz;\n"
+    "    if (ray.w != u_side) discard;\n" /* the other side of the reflector (an open mesh) */
+    /* the surface seen there must be this camera's triangle's: within two
+       pixels of its plane and of the splat's size from its centre (the
+       CPU path's test; another part of the reflector in front is not) */
+    "    vec3 dq = v_q - r.xyz;\n"
+    "    if (length(dq) > v_tol || abs(dot(dq, u_plane_n)) > 2.0 * u_pixel_angle * length(v_q - u_eye)) discard;\n"
     "    vec3 w = v_pt - r.xyz;\n"
     "    float un = dot(u, v_np);\n"
     "    if (r.w >= " RGL_C3_TURN_TEST " && v_self < 0.5) {\n"
     "        float s = abs(un) > 0.2 ? dot(w, v_np) / un : dot(w, u);\n"
-    "        if (!(s > 0.0) || length(w - s * u) > u_disc) {\n"
+    "        if (!(s > 0.0) || length(w - s * u) > v_disc) {\n"
     /* missed: marks the pixel touched, behind every splat that shows */
     "            gl_FragDepth = 0.999999;\n"
     "            o_point = vec4(0.0, 0.0, 0.0, -1.0);\n"
@@ -151,7 +167,6 @@ typedef struct rgl_c3_points {
     refl_kdtree *tree;
     float *gl;               /* RGL_C3_POINT_FLOATS per tree point */
     float *rgb;              /* per tree point */
-    float density;
 } rgl_c3_points;
 
 static void rgl__c3_points_free(rgl_c3_points *s) {
@@ -172,8 +187,7 @@ static int rgl__c3_is_reflector(const refl_scene *s, int o) {
 static float rgl__c3_density(const rgl_pass *p) {
     const refl_scene *s = p->scene;
     double area = 0.0;
-    float nearest = FLT_MAX, fovy = p->view->fovy_degrees > 0.0f ? p->view->fovy_degrees : 45.0f, size, zn;
-    float pixel_angle = 2.0f * tanf(0.5f * fovy * 3.14159265f / 180.0f) / (float)p->h;
+    float nearest = FLT_MAX, size, zn, pixel_angle = rgl_pass_pixel_angle(p);
     long long i;
     int o, corner;
     for (o = 0; o < s->object_count; ++o) {
@@ -212,18 +226,18 @@ static void rgl__c3_uv(const rgl_pass *p, int o, uint32_t t, const float *q, flo
     uv[1] = (1.0f - v - u) * a[7] + v * b[7] + u * c[7];
 }
 
-static int rgl__c3_points(const rgl_pass *p, rgl_c3_points *out) {
+/* The scene's points, object o sampled at density[o] points per unit area. */
+static int rgl__c3_points(const rgl_pass *p, const float *density, rgl_c3_points *out) {
     const refl_scene *s = p->scene;
     refl_points **pts = (refl_points **)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), sizeof *pts);
     float *pos = NULL, *col = NULL, *nrm = NULL, *obj = NULL;
     long long total = 0, at = 0, i;
     int o, rc = -1;
     memset(out, 0, sizeof *out);
-    out->density = rgl__c3_density(p);
     if (!pts) return -1;
     for (o = 0; o < s->object_count; ++o) {
         const refl_object *ob = &s->objects[o];
-        if (refl_mesh_sample_points(s->meshes[ob->mesh], &ob->transform, out->density, 0x5eed + (uint64_t)o, NULL,
+        if (refl_mesh_sample_points(s->meshes[ob->mesh], &ob->transform, density[o], 0x5eed + (uint64_t)o, NULL,
                                     &pts[o]) != REFL_OK)
             goto done;
         total += pts[o]->count;
@@ -262,6 +276,7 @@ static int rgl__c3_points(const rgl_pass *p, rgl_c3_points *out) {
         g[3] = (float)i;
         memcpy(g + 4, nrm + 3 * (size_t)src, 3 * sizeof(float));
         g[7] = obj[src];
+        g[8] = density[(int)obj[src]];
         memcpy(out->rgb + 3 * i, col + 3 * (size_t)src, 3 * sizeof(float));
     }
     rc = 0;
@@ -303,13 +318,15 @@ static void rgl__c3_touched(const rgl_pass *p, float *drawn) {
     free(fill);
 }
 
-/* One camera of the CPU path's (refl_c3rc_view_cameras), the start of its
-   first fold interval, and the planes bounding its volume up to tmax
-   (n . p <= d inside). */
+/* One camera of the CPU path's (refl_c3rc_view_cameras), the largest t
+   a scene point can have, the start of its first fold interval, and the
+   planes bounding its volume up to that t (n . p <= d inside; none where
+   it is unbounded). */
 typedef struct rgl_c3_cam {
     refl_c3rc cam;
-    int object, folds, hull_count;
-    float screen_area, screen_edge, near_self, fold;
+    int object, back, folds, hull_count;
+    float screen_area, screen_edge, near_self, sweep, fold, edge;
+    refl_vec3 plane_n;       /* its reflector plane's unit normal */
     float hull[20][4];
 } rgl_c3_cam;
 
@@ -353,13 +370,28 @@ static void rgl__c3_hull(rgl_c3_cam *k, float tmax) {
             }
 }
 
-/* View camera vc for drawing: 0 where its side seen is the back (the CPU
-   path draws an open mesh's inside where its G-buffer shows it; here
-   front faces only) or it lies off the screen. */
+/* Whether the base pass shows a back face of object o (an open mesh's
+   inside) in the screen box (x0, y0)-(x1, y1), as the CPU path's
+   refl__c3_back_seen asks; boxes over 4096 pixels are not scanned. */
+static int rgl__c3_back_seen(const rgl_pass *p, int o, float x0, float y0, float x1, float y1) {
+    int xa = (int)fmaxf(floorf(x0), 0.0f), ya = (int)fmaxf(floorf(y0), 0.0f);
+    int xb = (int)fminf(floorf(x1) + 1.0f, (float)p->w), yb = (int)fminf(floorf(y1) + 1.0f, (float)p->h), x, y;
+    if ((long long)(xb - xa) * (yb - ya) > 4096) return 1;
+    for (y = ya; y < yb; ++y)
+        for (x = xa; x < xb; ++x) {
+            size_t i = (size_t)y * p->w + x;
+            if (p->marks[i] == o + 1 && p->base[1][4 * i + 3] > 0.5f) return 1;
+        }
+    return 0;
+}
+
+/* View camera vc for drawing: 0 where it lies off the screen, or its side
+   seen is the back and the base pass shows none of its object's back
+   faces about it (the CPU path draws an open mesh's inside so). */
 static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, float tmax, rgl_c3_cam *k) {
     float sx[3], sy[3], intervals[4][2];
     int i;
-    if (vc->back || !(vc->screen_area > 0.0f)) return 0; /* (an area: its corners lie before the eye) */
+    if (!(vc->screen_area > 0.0f)) return 0; /* (an area: its corners lie before the eye) */
     for (i = 0; i < 3; ++i) {
         refl_vec3 q = refl_mat4_point(p->vp, vc->cam.v[i]);
         sx[i] = (q.x + 1.0f) * 0.5f * (float)p->w;
@@ -368,14 +400,23 @@ static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, fl
     if ((sx[0] < 0 && sx[1] < 0 && sx[2] < 0) || (sy[0] < 0 && sy[1] < 0 && sy[2] < 0) ||
         (sx[0] > p->w && sx[1] > p->w && sx[2] > p->w) || (sy[0] > p->h && sy[1] > p->h && sy[2] > p->h))
         return 0;
+    if (vc->back && !rgl__c3_back_seen(p, vc->object, fminf(sx[0], fminf(sx[1], sx[2])), fminf(sy[0], fminf(sy[1], sy[2])),
+                                       fmaxf(sx[0], fmaxf(sx[1], sx[2])), fmaxf(sy[0], fmaxf(sy[1], sy[2]))))
+        return 0;
     k->cam = vc->cam;
     k->object = vc->object;
+    k->back = vc->back;
     k->near_self = vc->near_self;
     k->screen_area = vc->screen_area;
     k->screen_edge = vc->screen_edge;
-    k->folds = refl_c3rc_multiple_intervals(&k->cam, tmax, intervals);
+    k->sweep = vc->sweep;
+    k->folds = refl_c3rc_multiple_intervals(&k->cam, fminf(k->sweep, 4.0f * tmax), intervals);
     k->fold = k->folds > 0 ? intervals[0][0] : INFINITY;
-    rgl__c3_hull(k, tmax);
+    k->hull_count = 0;
+    if (k->sweep < FLT_MAX) rgl__c3_hull(k, k->sweep);
+    k->plane_n = refl_v3_normalize(refl_v3_cross(refl_v3_sub(k->cam.v[1], k->cam.v[0]), refl_v3_sub(k->cam.v[2], k->cam.v[0])));
+    k->edge = 0.0f;
+    for (i = 0; i < 3; ++i) k->edge = fmaxf(k->edge, refl_v3_length(refl_v3_sub(k->cam.v[(i + 1) % 3], k->cam.v[i])));
     return 1;
 }
 
@@ -383,7 +424,6 @@ static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, fl
    (leaves next to each other go in one draw call), appended to a list. */
 typedef struct rgl_c3_runs {
     const rgl_c3_cam *k;
-    float tmax;
     int *run;                /* first, count pairs */
     long long count, cap;
     int failed;
@@ -391,7 +431,7 @@ typedef struct rgl_c3_runs {
 
 static int rgl__c3_box(void *user, const float lo[3], const float hi[3]) {
     const rgl_c3_runs *q = (const rgl_c3_runs *)user;
-    return refl_c3rc_box_visible(&q->k->cam, refl_v3(lo[0], lo[1], lo[2]), refl_v3(hi[0], hi[1], hi[2]), q->tmax);
+    return refl_c3rc_box_visible(&q->k->cam, refl_v3(lo[0], lo[1], lo[2]), refl_v3(hi[0], hi[1], hi[2]), q->k->sweep);
 }
 
 static void rgl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
@@ -419,12 +459,13 @@ static void rgl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_
 int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t n) {
     static const char *const vs_parts[3] = {rgl__c3_vs_head, NULL, rgl__c3_vs_main};
+    static const int point_sizes[3] = {4, 4, 1}; /* RGL_C3_POINT_FLOATS: a_p, a_n, a_density */
     const char *vs[3], *fs[1] = {rgl__c3_fs};
-    int w = view->width, h = view->height, o, rc = -1, c;
+    int w = view->width, h = view->height, rc = -1;
     size_t np = (size_t)w * (size_t)h, i;
     GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
-    float *drawn = NULL, *cam_data = NULL, tmax;
+    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax;
     rgl_c3_cam *cams = NULL;
     rgl_c3_points pts;
     rgl_pass ps;
@@ -434,22 +475,11 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     memset(st, 0, sizeof *st);
     memset(&ps, 0, sizeof ps);
     memset(&pts, 0, sizeof pts);
-    if (w < 1 || h < 1 || frame->width != w || frame->height != h) {
-        snprintf(err, n, "bad frame size");
-        return -1;
-    }
-    if (!(mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1))) goto oom;
-    for (o = 0; o < scene->object_count; ++o)
-        if (rgl__c3_is_reflector(scene, o) && o < 254) mark[o] = (uint8_t)(o + 1);
-    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
+    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
     refl_scene_bounds(scene, &lo, &hi);
     tmax = refl_v3_length(refl_v3_sub(hi, lo)) * 1.01f + 1e-3f; /* the longest sweep: the scene's diagonal */
     /* the CPU's share: points, cameras (timed apart from GL) */
     t1 = rgl_now();
-    if (rgl__c3_points(&ps, &pts) != 0) {
-        snprintf(err, n, "sampling the scene's points failed");
-        goto done;
-    }
     {
         refl_c3rc_view_camera *vcams = NULL;
         int vcount = 0;
@@ -460,7 +490,17 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             goto oom;
         }
         for (t = 0; t < vcount; ++t)
-            if (vcams[t].object < 254 && mark[vcams[t].object]) cam_count += rgl__c3_camera(&ps, &vcams[t], tmax, &cams[cam_count]);
+            if (vcams[t].object < 254 && mark[vcams[t].object] &&
+                rgl__c3_camera(&ps, &vcams[t], tmax, &cams[cam_count]))
+                vcams[cam_count++] = vcams[t];
+        /* the points: denser on the objects a folding camera magnifies */
+        if (!(density = (float *)malloc((size_t)(scene->object_count > 0 ? scene->object_count : 1) * sizeof(float))) ||
+            refl_c3rc_object_densities(scene, vcams, (int)cam_count, rgl__c3_density(&ps), density) != REFL_OK ||
+            rgl__c3_points(&ps, density, &pts) != 0) {
+            refl_c3rc_view_cameras_free(scene, vcams);
+            snprintf(err, n, "sampling the scene's points failed");
+            goto done;
+        }
         refl_c3rc_view_cameras_free(scene, vcams);
     }
     {
@@ -482,45 +522,28 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     vs[2] = vs_parts[2];
     if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
     if (!(tex = rgl_buffer_texture(cam_data, floats, &tbuf, err, n))) goto done;
-    rgl.GenVertexArrays(1, &vao);
-    rgl.BindVertexArray(vao);
-    rgl.GenBuffers(1, &vbo);
-    rgl.BindBuffer(GL_ARRAY_BUFFER, vbo);
-    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((long long)pts.tree->point_count * RGL_C3_POINT_FLOATS * 4), pts.gl,
-                   GL_STATIC_DRAW);
-    for (c = 0; c < 2; ++c) {
-        rgl.EnableVertexAttribArray((GLuint)c);
-        rgl.VertexAttribPointer((GLuint)c, 4, GL_FLOAT, GL_FALSE, RGL_C3_POINT_FLOATS * sizeof(float),
-                                (const void *)(size_t)(c * 4 * sizeof(float)));
-    }
+    rgl_pass_vertices(pts.gl, pts.tree->point_count, RGL_C3_POINT_FLOATS, point_sizes, 3, &vao, &vbo);
     /* the splats: nearest t wins, within each reflector's own pixels */
-    rgl.ClearColor(0, 0, 0, 0);
-    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
     rgl.Enable(GL_PROGRAM_POINT_SIZE);
-    rgl.UseProgram(prog);
     rgl.ActiveTexture(GL_TEXTURE0);
     rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
-    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmax"), tmax);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_density"), pts.density);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_disc"), pts.density > 0.0f ? 1.0f / sqrtf(pts.density) : 1e30f);
-    if (rgl_pass_ray_textures(&ps, pix_tex) != 0) goto oom;
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(&ps));
+    rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_eye"), view->eye.x, view->eye.y, view->eye.z);
     {
         GLint u_cam = rgl.GetUniformLocation(prog, "u_cam"), u_area = rgl.GetUniformLocation(prog, "u_screen_area");
         GLint u_near = rgl.GetUniformLocation(prog, "u_near_self"), u_obj = rgl.GetUniformLocation(prog, "u_object");
         GLint u_hull = rgl.GetUniformLocation(prog, "u_hull"), u_hull_count = rgl.GetUniformLocation(prog, "u_hull_count");
         GLint u_fold = rgl.GetUniformLocation(prog, "u_fold"), u_fold_splat = rgl.GetUniformLocation(prog, "u_fold_splat");
+        GLint u_side = rgl.GetUniformLocation(prog, "u_side"), u_plane_n = rgl.GetUniformLocation(prog, "u_plane_n");
+        GLint u_edge = rgl.GetUniformLocation(prog, "u_edge");
         rgl_c3_runs q;
         long long *runs_end = (long long *)malloc((size_t)(cam_count ? cam_count : 1) * sizeof(long long)), r = 0;
         memset(&q, 0, sizeof q);
         if (!runs_end) goto oom;
         /* the CPU culls: every camera's leaves */
         t1 = rgl_now();
-        q.tmax = tmax;
         for (t = 0; t < cam_count; ++t) {
             q.k = &cams[t];
             refl_kdtree_query(pts.tree, rgl__c3_box, rgl__c3_leaf, &q);
@@ -539,6 +562,9 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             rgl.Uniform1f(u_area, cams[t].screen_area);
             rgl.Uniform1f(u_near, cams[t].near_self);
             rgl.Uniform1i(u_obj, cams[t].object);
+            rgl.Uniform1f(u_side, cams[t].back ? -1.0f : 1.0f);
+            rgl.Uniform3f(u_plane_n, cams[t].plane_n.x, cams[t].plane_n.y, cams[t].plane_n.z);
+            rgl.Uniform1f(u_edge, cams[t].edge);
             rgl.Uniform1i(u_hull_count, cams[t].hull_count);
             if (cams[t].hull_count) rgl.Uniform4fv(u_hull, cams[t].hull_count, cams[t].hull[0]);
             rgl.Uniform1f(u_fold, cams[t].fold < 1e30f ? cams[t].fold : 1e30f);
@@ -579,6 +605,7 @@ done:
     rgl__c3_points_free(&pts);
     free(cams);
     free(cam_data);
+    free(density);
     free(drawn);
     free(mark);
     return rc;

@@ -41,6 +41,8 @@ static const char rgl__frame_vs_base[] =
     "    gl_Position = u_vp * vec4(a_p, 1.0);\n"
     "}\n";
 
+const int rgl_vertex_sizes[3] = {3, 3, 3};
+
 const char rgl_frame_vs_head[] =
     "#version 330 core\n"
     "layout(location = 0) in vec3 a_p;\n"
@@ -62,7 +64,11 @@ const char rgl_frame_fs[] =
     "layout(location = 0) out vec4 o_point;\n"
     "layout(location = 1) out vec4 o_normal;\n"
     "layout(location = 2) out vec4 o_uv;\n"
-    "void main() { o_point = vec4(v_p, v_id); o_normal = vec4(v_n, 0.0); o_uv = vec4(v_uv, 0.0, 0.0); }\n";
+    "void main() {\n"
+    "    o_point = vec4(v_p, v_id);\n"
+    "    o_normal = vec4(v_n, gl_FrontFacing ? 0.0 : 1.0);\n" /* the side seen: 1 a back face */
+    "    o_uv = vec4(v_uv, 0.0, 0.0);\n"
+    "}\n";
 
 static void rgl__geometry_free(rgl_geometry *g) {
     free(g->v);
@@ -238,7 +244,7 @@ int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]) {
             refl_vec3 u;
             if (!p->marks[i]) continue;
             u = refl_v3_normalize(rgl_reflect(rgl_pass_ray(p, i), refl_v3(n[0], n[1], n[2])));
-            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = 1.0f;
+            o[0] = u.x; o[1] = u.y; o[2] = u.z; o[3] = n[3] > 0.5f ? -1.0f : 1.0f;
         }
     for (y = 0; y < h; ++y)
         for (x = 0; x < w; ++x) {
@@ -321,17 +327,7 @@ int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, 
         return rgl__frame_fail(err, n, "float G-buffer framebuffer incomplete");
     rgl.DrawBuffers(3, bufs);
     rgl.Viewport(0, 0, p->w, p->h);
-    rgl.GenVertexArrays(1, &p->vao);
-    rgl.BindVertexArray(p->vao);
-    rgl.GenBuffers(1, &p->vbo);
-    rgl.BindBuffer(GL_ARRAY_BUFFER, p->vbo);
-    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(p->geo.vertex_count * RGL_VERTEX_FLOATS * (long long)sizeof(float)),
-                   p->geo.v, GL_STATIC_DRAW);
-    for (i = 0; i < 3; ++i) {
-        rgl.EnableVertexAttribArray((GLuint)i);
-        rgl.VertexAttribPointer((GLuint)i, 3, GL_FLOAT, GL_FALSE, RGL_VERTEX_FLOATS * sizeof(float),
-                                (const void *)(size_t)(i * 3 * sizeof(float)));
-    }
+    rgl_pass_vertices(p->geo.v, p->geo.vertex_count, RGL_VERTEX_FLOATS, rgl_vertex_sizes, 3, &p->vao, &p->vbo);
     rgl.ClearColor(0, 0, 0, 0);
     rgl.ClearDepth(1.0);
     rgl.ClearStencil(0);
@@ -351,6 +347,56 @@ int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, 
     for (i = 0; i < 3; ++i) rgl_pass_read(p, i, p->base[i]);
     rgl__read_stencil(p->w, p->h, p->marks);
     return rgl_pass_check("drawing the base pass", err, n);
+}
+
+int rgl_pass_begin_reflectors(rgl_pass *p, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
+                              uint8_t **mark, char *err, size_t n) {
+    int o;
+    memset(p, 0, sizeof *p);
+    *mark = NULL;
+    if (view->width < 1 || view->height < 1 || frame->width != view->width || frame->height != view->height)
+        return rgl__frame_fail(err, n, "bad frame size");
+    if (!(*mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)))
+        return rgl__frame_fail(err, n, "out of memory");
+    for (o = 0; o < scene->object_count && o < 254; ++o) {
+        int type = scene->materials[scene->objects[o].material].type;
+        if (type == REFL_MIRROR || type == REFL_PARTIAL) (*mark)[o] = (uint8_t)(o + 1);
+    }
+    return rgl_pass_begin(p, scene, view, *mark, err, n);
+}
+
+void rgl_pass_vertices(const float *v, long long count, int stride, const int *sizes, int attribs, GLuint *vao,
+                       GLuint *vbo) {
+    int i, at = 0;
+    rgl.GenVertexArrays(1, vao);
+    rgl.BindVertexArray(*vao);
+    rgl.GenBuffers(1, vbo);
+    rgl.BindBuffer(GL_ARRAY_BUFFER, *vbo);
+    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(count * stride * (long long)sizeof(float)), v, GL_STATIC_DRAW);
+    for (i = 0; i < attribs; ++i) {
+        rgl.EnableVertexAttribArray((GLuint)i);
+        rgl.VertexAttribPointer((GLuint)i, sizes[i], GL_FLOAT, GL_FALSE, stride * (GLsizei)sizeof(float),
+                                (const void *)(size_t)(at * sizeof(float)));
+        at += sizes[i];
+    }
+}
+
+int rgl_pass_reflect_begin(const rgl_pass *p, GLuint prog, GLuint ray_tex[2]) {
+    rgl.ClearColor(0, 0, 0, 0);
+    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    rgl.UseProgram(prog);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
+    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, p->vp.m);
+    if (rgl_pass_ray_textures(p, ray_tex) != 0) return -1;
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
+    return 0;
+}
+
+float rgl_pass_pixel_angle(const rgl_pass *p) {
+    float fovy = p->view->fovy_degrees > 0.0f ? p->view->fovy_degrees : 45.0f;
+    return 2.0f * tanf(0.5f * fovy * 3.14159265f / 180.0f) / (float)p->h;
 }
 
 void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]) {

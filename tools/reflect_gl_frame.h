@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 enum { RGL_VERTEX_FLOATS = 9 }; /* world position, normal, uv, object id + 1 */
+extern const int rgl_vertex_sizes[3]; /* its attributes' floats: 3, 3, 3 */
 
 /* A planar mirror object: its world plane n . x = d, n towards the eye. */
 typedef struct rgl_mirror {
@@ -30,7 +31,7 @@ typedef struct rgl_geometry {
 } rgl_geometry;
 
 /* A frame in progress: the framebuffer (3 RGBA32F targets: world point and
-   object id + 1, normal, uv; depth and stencil), the geometry's vertex
+   object id + 1, normal and the side seen (1: a back face), uv; depth and stencil), the geometry's vertex
    buffer bound at attributes 0-2, and the base pass read back. */
 typedef struct rgl_pass {
     const refl_scene *scene;
@@ -55,6 +56,26 @@ extern const char rgl_frame_fs[];
 int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
                    size_t n);
 void rgl_pass_end(rgl_context *g, rgl_pass *p);
+/* The reflector methods' (C3RC, SBC) start: frame checked against the
+   view's size, each mirror and partial reflector (objects below 254)
+   marking its pixels with its object + 1 in *mark (allocated, object_count
+   bytes, the caller frees it), the base pass drawn. Nonzero on failure,
+   the reason in err. */
+int rgl_pass_begin_reflectors(rgl_pass *p, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
+                              uint8_t **mark, char *err, size_t n);
+/* A method's vertices: `count` of `stride` floats uploaded to a new buffer
+   (*vbo) in a new vertex array (*vao), left bound; attribute i (0 ..
+   attribs - 1) takes sizes[i] floats after attribute i - 1's. */
+void rgl_pass_vertices(const float *v, long long count, int stride, const int *sizes, int attribs, GLuint *vao,
+                       GLuint *vbo);
+/* The reflections' draw starts (after the base pass): colour and depth
+   cleared, the stencil (the marks) kept, prog in use with u_data on
+   texture unit 0, u_vp the view's, and the pixels' rays
+   (rgl_pass_ray_textures) as u_surf and u_ray. Nonzero when out of
+   memory. */
+int rgl_pass_reflect_begin(const rgl_pass *p, GLuint prog, GLuint ray_tex[2]);
+/* A pixel's size per unit of distance from the eye. */
+float rgl_pass_pixel_angle(const rgl_pass *p);
 /* Deletes a method's own GL objects (0: none): its program, vertex array
    and buffer, camera data texture and buffer, ray textures. */
 void rgl_pass_delete(GLuint prog, GLuint vao, GLuint vbo, GLuint tex, GLuint tbuf, const GLuint ray_tex[2]);
@@ -65,7 +86,8 @@ refl_vec3 rgl_pass_ray(const rgl_pass *p, int i);
 /* Per reflector pixel of the base pass, as 2-D RGBA32F textures (rows
    bottom first, as GL's): tex[0] its reflector point and how far its
    reflected ray turns to its 4-neighbours' on the same object (the
-   largest distance between the unit rays), tex[1] its reflected ray; bound
+   largest distance between the unit rays), tex[1] its reflected ray and
+   the side of its surface seen (1 front, -1 back: an open mesh's inside); bound
    to texture units 1 and 2. Nonzero when out of memory. */
 int rgl_pass_ray_textures(const rgl_pass *p, GLuint tex[2]);
 /* Nonzero with the reason in err when GL reported an error. */

@@ -9,9 +9,10 @@
                                         they disagree beyond the bounds of docs/gl.md
      reflect_gl bench [--points N] [--repeats R] [--csv FILE]
                                         projection rate of every camera, GL beside C
-     reflect_gl frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--truth-max-pixels N] [--csv FILE]
-                                        PLANAR (mirror-room), C3RC and SBC (default) frames
-                                        through GL
+     reflect_gl frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--scenes NAME,...|all]
+                       [--truth-max-pixels N] [--csv FILE]
+                                        PLANAR (mirror-room), C3RC and SBC (default) frames,
+                                        or each on the built-in scenes listed, through GL
                                         against the CPU path (reflection error, PSNR
                                         over reflector pixels, frame times); RAYTRACE
                                         as the truth up to N pixels (default 640x480)
@@ -27,7 +28,7 @@
 #include <string.h>
 
 int main(int argc, char **argv) {
-    const char *cmd = argc > 1 ? argv[1] : "", *csv_path = NULL, *sizes = "640x480", *methods = NULL;
+    const char *cmd = argc > 1 ? argv[1] : "", *csv_path = NULL, *sizes = "640x480", *methods = NULL, *scenes = NULL;
     long long points = -1, truth_max = 640 * 480;
     int repeats = 5, i, failed = 0;
     rgl_context *g = NULL;
@@ -36,7 +37,8 @@ int main(int argc, char **argv) {
     if (strcmp(cmd, "info") && strcmp(cmd, "validate") && strcmp(cmd, "bench") && strcmp(cmd, "frames")) {
         fprintf(stderr, "usage: reflect_gl info | validate [--points N] [--csv FILE] |"
                         " bench [--points N] [--repeats R] [--csv FILE] |"
-                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--truth-max-pixels N] [--csv FILE]\n");
+                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--scenes NAME,...|all]"
+                        " [--truth-max-pixels N] [--csv FILE]\n");
         return 2;
     }
     for (i = 2; i < argc; ++i) {
@@ -45,6 +47,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--csv") && i + 1 < argc) csv_path = argv[++i];
         else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];
         else if (!strcmp(argv[i], "--methods") && i + 1 < argc) methods = argv[++i];
+        else if (!strcmp(argv[i], "--scenes") && i + 1 < argc) scenes = argv[++i];
         else if (!strcmp(argv[i], "--truth-max-pixels") && i + 1 < argc) truth_max = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--help")) {
             printf("see the top of tools/reflect_gl_main.c\n");
@@ -70,7 +73,7 @@ int main(int argc, char **argv) {
         rgl_destroy(g);
         return 2;
     }
-    failed = !strcmp(cmd, "frames") ? rgl_bench_frames(g, sizes, methods, truth_max, csv)
+    failed = !strcmp(cmd, "frames") ? rgl_bench_frames(g, sizes, methods, scenes, truth_max, csv)
                                     : rgl_bench_projection(g, points, !strcmp(cmd, "bench") ? repeats : 1,
                                                            !strcmp(cmd, "validate"), csv);
     if (csv) fclose(csv);

@@ -366,16 +366,7 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     double t0 = rgl_now(), t_cpu = 0.0, t1;
     memset(st, 0, sizeof *st);
     memset(&ps, 0, sizeof ps);
-    if (w < 1 || h < 1 || frame->width != w || frame->height != h) {
-        snprintf(err, n, "bad frame size");
-        return -1;
-    }
-    if (!(mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1))) goto oom;
-    for (o = 0; o < scene->object_count && o < 254; ++o) {
-        int type = scene->materials[scene->objects[o].material].type;
-        if (type == REFL_MIRROR || type == REFL_PARTIAL) mark[o] = (uint8_t)(o + 1);
-    }
-    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
+    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
     refl_scene_bounds(scene, &lo, &hi);
     grow = refl_v3_add(refl_v3_scale(refl_v3_sub(hi, lo), 0.01f), refl_v3(1e-4f, 1e-4f, 1e-4f));
     lo = refl_v3_sub(lo, grow);
@@ -390,31 +381,11 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     vs[1] = refl_gl_glsl(REFL_GL_SBC);
     vs[2] = rgl__sb_vs_main;
     if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
-    rgl.GenVertexArrays(1, &vao);
-    rgl.BindVertexArray(vao);
-    rgl.GenBuffers(1, &vbo);
-    rgl.BindBuffer(GL_ARRAY_BUFFER, vbo);
-    rgl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(first[scene->object_count] * RGL_VERTEX_FLOATS * (long long)sizeof(float)),
-                   split, GL_STATIC_DRAW);
-    for (c = 0; c < 3; ++c) {
-        rgl.EnableVertexAttribArray((GLuint)c);
-        rgl.VertexAttribPointer((GLuint)c, 3, GL_FLOAT, GL_FALSE, RGL_VERTEX_FLOATS * sizeof(float),
-                                (const void *)(size_t)(c * 3 * sizeof(float)));
-    }
-    rgl.ClearColor(0, 0, 0, 0);
-    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
-    rgl.UseProgram(prog);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
+    rgl_pass_vertices(split, first[scene->object_count], RGL_VERTEX_FLOATS, rgl_vertex_sizes, 3, &vao, &vbo);
+    if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_base"), 0);
-    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_zscale"), 0.5f / diag);
-    if (rgl_pass_ray_textures(&ps, pix_tex) != 0) goto oom;
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_surf"), 1);
-    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_ray"), 2);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"),
-                  2.0f * tanf(0.5f * (view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f) * 3.14159265f / 180.0f) /
-                      (float)h);
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(&ps));
     rgl.Enable(GL_SCISSOR_TEST);
     for (o = 0; o < scene->object_count; ++o) {
         int mw = (w + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, mh = (h + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, tu, tv;

@@ -853,6 +853,17 @@ REFL_API int refl_sbc_morph_piece_at(const refl_sbc_morph *morph, refl_vec3 orig
    an argument is bad. Thread-safe. */
 REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, int piece, refl_vec3 p,
                                     refl_vec3 *first, float *dist, int *ambiguous);
+/* The sheets the piece's face SBCs have at the eye's nodes (1 where no
+   ray folds, at most REFL_SBC_SHEETS; 0 when the eye locates nowhere or an
+   argument is bad), and p projected into sheet `sheet` of them as
+   refl_render's SBC blends a morph grid (one image per node and sheet,
+   refl_sbc_project_sheets, blended sheet by sheet): 1 with *first, *dist
+   and *across (may be NULL; 1 where a node's image came from a sheet a
+   fold away, where the sheets meet), 0 where a node of positive weight
+   has no image in it or beside it. Thread-safe. */
+REFL_API int refl_sbc_morph_sheets(const refl_sbc_morph *morph, refl_vec3 eye, int piece);
+REFL_API int refl_sbc_morph_project_sheet(const refl_sbc_morph *morph, refl_vec3 eye, int piece, int sheet, refl_vec3 p,
+                                          refl_vec3 *first, float *dist, int *across);
 /* p projected by node (i, j, k)'s SBCs alone (what the blend weighs): 1
    with *first and *dist, 0 when it does not project there, the node is
    out of range or not built (its cells overlap the reflector's box). */
@@ -1893,10 +1904,19 @@ typedef struct refl_c3rc_view_camera {
     float screen_area;       /* the piece's area in pixels; 0 where it crosses the eye's plane */
     float screen_edge;       /* its longest edge in pixels (the splat's bound past a fold) */
     float near_self;         /* the reflector's own points nearer (in t) are not drawn */
+    float sweep;             /* the largest t a scene point can have (INFINITY: unbounded): past the
+                                scene's diagonal where the rays converge */
 } refl_c3rc_view_camera;
 REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
                                             refl_c3rc_view_camera **out, int *count);
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
+/* Each object's C3RC sampling density (out: scene->object_count points
+   per unit area) as the method samples them at frame density `density`:
+   raised on a diffuse object where one of the `count` cameras (those drawn)
+   folds and shows it magnified, to a point per 4 pixels there, at most 64
+   times `density`, all objects together at most 2e6 points. */
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`

@@ -213,3 +213,14 @@ static inline void refl__gl_put(refl__gl_out *o, double v) {
 static inline void refl__gl_put4(refl__gl_out *o, double a, double b, double c, double d) {
     refl__gl_put(o, a); refl__gl_put(o, b); refl__gl_put(o, c); refl__gl_put(o, d);
 }
+
+/* A packer runs twice: first counting (out NULL), then writing. After the
+   count `need`, readies o for the second run and says whether there is
+   one: need valid and cap holding it (else the packer returns need). */
+static inline int refl__gl_fill(refl__gl_out *o, long long need, float *out, long long cap) {
+    if (need < 0 || !out || cap < need) return 0;
+    o->out = out;
+    o->cap = cap;
+    o->n = 0;
+    return 1;
+}

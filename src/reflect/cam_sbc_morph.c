@@ -996,6 +996,31 @@ REFL_API int refl_sbc_morph_project(const refl_sbc_morph *morph, refl_vec3 eye, 
     return 1;
 }
 
+REFL_API int refl_sbc_morph_sheets(const refl_sbc_morph *morph, refl_vec3 eye, int piece) {
+    int nodes[4];
+    float w[4];
+    if (!morph || piece < 0 || piece >= morph->piece_count || refl_sbc_morph_locate(morph, eye, nodes, w) < 0) return 0;
+    return refl__sbm_piece_sheets(morph, nodes, w, piece);
+}
+
+REFL_API int refl_sbc_morph_project_sheet(const refl_sbc_morph *morph, refl_vec3 eye, int piece, int sheet, refl_vec3 p,
+                                          refl_vec3 *first, float *dist, int *across) {
+    int nodes[4], masks[4], sheets, a;
+    float w[4], slot[4 * 4 * REFL_SBC_SHEETS], dd;
+    refl_vec3 f;
+    if (across) *across = 0;
+    if (!morph || piece < 0 || piece >= morph->piece_count || refl_sbc_morph_locate(morph, eye, nodes, w) < 0)
+        return 0;
+    sheets = refl__sbm_piece_sheets(morph, nodes, w, piece);
+    if (sheet < 0 || sheet >= sheets) return 0;
+    refl__sbm_project4_sheets(morph, nodes, w, piece, p, sheets, slot, masks);
+    if (!refl__sbm_blend_sheet(slot, masks, w, sheet, &f, &dd, &a, NULL)) return 0;
+    if (first) *first = f;
+    if (dist) *dist = dd;
+    if (across) *across = a;
+    return 1;
+}
+
 REFL_API refl_result refl_sbc_morph_cache_create(const refl_allocator *a, refl_sbc_morph_cache **out_cache) {
     refl_sbc_morph_cache *c;
     refl_allocator al = refl__allocator(a);
@@ -1141,7 +1166,8 @@ static long long refl__sbm_gl_pack(refl__gl_out *o, const refl_sbc_morph *m, ref
     refl__gl_put4(o, REFL_GL_SBC_MORPH, REFL_GL_LAYOUT_VERSION, piece, next);
     refl__gl_put4(o, w[0] > 0.0f ? w[0] : 0.0f, w[1] > 0.0f ? w[1] : 0.0f, w[2] > 0.0f ? w[2] : 0.0f,
                       w[3] > 0.0f ? w[3] : 0.0f);
-    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], 0, 0, 0);
+    /* the node offsets; node 0's texel also holds the piece's sheets */
+    for (k = 0; k < 4; ++k) refl__gl_put4(o, at[k], k == 0 ? refl__sbm_piece_sheets(m, nodes, w, piece) : 0, 0, 0);
     for (k = 0; k < 4; ++k)
         if (at[k] >= 0 && refl__sbm_gl_node(o, &m->nodes[nodes[k]], piece) < 0) return REFL_ERROR_INVALID_ARGUMENT;
     return o->n;
@@ -1151,9 +1177,5 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
                                           long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__sbm_gl_pack(&o, morph, eye, piece);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    o.n = 0;
-    return refl__sbm_gl_pack(&o, morph, eye, piece);
+    return refl__gl_fill(&o, need, out, cap) ? refl__sbm_gl_pack(&o, morph, eye, piece) : need;
 }

@@ -50,10 +50,7 @@ static long long refl__gl_mirror(refl__gl_out *op, refl_mat4 view_proj, refl_vec
 REFL_API long long refl_gl_pack_mirror(refl_mat4 view_proj, refl_vec3 normal, float d, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_mirror(&o, view_proj, normal, d);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_mirror(&o, view_proj, normal, d);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_mirror(&o, view_proj, normal, d) : need;
 }
 
 /* ---- C3RC -------------------------------------------------------------------- */
@@ -96,10 +93,7 @@ static long long refl__gl_c3rc(refl__gl_out *op, const refl_c3rc *cams, int coun
 REFL_API long long refl_gl_pack_c3rc(const refl_c3rc *cams, int count, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_c3rc(&o, cams, count);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_c3rc(&o, cams, count);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_c3rc(&o, cams, count) : need;
 }
 
 /* ---- SBC --------------------------------------------------------------------- */
@@ -176,10 +170,7 @@ static long long refl__gl_sbc(refl__gl_out *op, const refl_sbc *sbc) {
 REFL_API long long refl_gl_pack_sbc(const refl_sbc *sbc, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_sbc(&o, sbc);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_sbc(&o, sbc);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_sbc(&o, sbc) : need;
 }
 
 /* ---- the graph camera ------------------------------------------------------------ */
@@ -206,10 +197,7 @@ static long long refl__gl_graphcam(refl__gl_out *op, const refl_graphcam *cam) {
 REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_graphcam(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_graphcam(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
 /* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
@@ -254,10 +242,7 @@ static long long refl__gl_spoc(refl__gl_out *op, const refl_spoc *cam) {
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
     long long need = refl__gl_spoc(&o, cam);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_spoc(&o, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
 /* ---- GLSL -------------------------------------------------------------------- */
@@ -370,7 +355,8 @@ static const char refl__gl_glsl_c3rc[] =
 
 static const char refl__gl_glsl_sbc[] =
     "/* reflect.h GL hook: SBC (layout version 1); cam_sbc.c's BSP descent, cam_sbc_fit.c's\n"
-    "   pinhole leaves and cam_sbc_raylist.c's ray-list leaves (one sheet) in float. */\n"
+    "   pinhole leaves and cam_sbc_raylist.c's ray-list leaves (one sheet for all, or\n"
+    "   per sheet) in float. */\n"
     "float refl_sbc_cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }\n"
     "int refl_sbc_quadratic(float a, float b, float c, out vec2 r) {\n"
     "    if (abs(a) <= 1e-6 * (abs(b) + abs(c))) {\n"
@@ -428,8 +414,14 @@ static const char refl__gl_glsl_sbc[] =
     "    return true;\n"
     "}\n"
     "float refl_sbc_int(samplerBuffer data, int at, int i) { return texelFetch(data, at + i / 4)[i % 4]; }\n"
-    "bool refl_sbc_rays(samplerBuffer data, int base, vec4 nd1, vec4 nd2, vec4 nd3, vec3 p, out vec3 first, out float z) {\n"
-    "    if (any(lessThan(p, nd2.xyz)) || any(greaterThan(p, nd3.xyz))) return false;\n"
+    "/* a ray-list leaf per sheet (sheets 0: one for all, as if no ray folded;\n"
+    "   cam_sbc_raylist.c's refl__sbc_rays_project): the mask of the sheets p\n"
+    "   projects in, first[i] and z[i] sheet i's answer */\n"
+    "int refl_sbc_rays_sheets(samplerBuffer data, int base, vec4 nd1, vec4 nd2, vec4 nd3, vec3 p, int sheets,\n"
+    "                         out vec3 first[3], out float z[3]) {\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    z = float[3](0.0, 0.0, 0.0);\n"
+    "    if (any(lessThan(p, nd2.xyz)) || any(greaterThan(p, nd3.xyz))) return 0;\n"
     "    vec4 h1 = texelFetch(data, base + 1), h2 = texelFetch(data, base + 2), th = texelFetch(data, base + 3);\n"
     "    int from = 0, to = int(nd1.w), grid = int(nd2.w), quads = base + int(h1.z);\n"
     "    int list = -1;\n"
@@ -440,17 +432,19 @@ static const char refl__gl_glsl_sbc[] =
     "        vec3 w = p - i0.xyz;\n"
     "        float t = (dot(w, i1.xyz) - i0.w) * i1.w, x = (dot(w, i2.xyz) - i2.w) * i3.w;\n"
     "        float y = (dot(w, i3.xyz) - i4.x) * i4.y;\n"
-    "        if (!(t >= 0.0 && t < i4.z && x >= 0.0 && x < i4.w && y >= 0.0 && y < i4.w)) return false;\n"
+    "        if (!(t >= 0.0 && t < i4.z && x >= 0.0 && x < i4.w && y >= 0.0 && y < i4.w)) return 0;\n"
     "        int cells = int(i4.w);\n"
     "        int at = int(i5.x) + (int(t) * cells + int(y)) * cells + int(x);\n"
     "        from = int(refl_sbc_int(data, base + int(h2.x), at));\n"
     "        to = int(refl_sbc_int(data, base + int(h2.x), at + 1));\n"
     "        list = base + int(h2.y);\n"
     "    }\n"
-    "    /* per rank (0 inside a quad, 1 near one): off the surface, how far outside, depth */\n"
-    "    bool off[2] = bool[2](false, false);\n"
-    "    float outv[2] = float[2](3.0e38, 3.0e38), zz[2] = float[2](3.0e38, 3.0e38);\n"
-    "    vec3 fp[2];\n"
+    "    /* per sheet and rank (2 sheet + 0 inside a quad, + 1 near one): off the\n"
+    "       surface, how far outside, depth */\n"
+    "    bool off[6] = bool[6](false, false, false, false, false, false);\n"
+    "    float outv[6] = float[6](3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38);\n"
+    "    float zz[6] = float[6](3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38, 3.0e38);\n"
+    "    vec3 fp[6];\n"
     "    for (int at = from; at < to; ++at) {\n"
     "        int q = quads + (int(nd1.z) + (list >= 0 ? int(refl_sbc_int(data, list, at)) : at)) * 20;\n"
     "        vec4 lo = texelFetch(data, q + 7), hi = texelFetch(data, q + 8);\n"
@@ -459,6 +453,9 @@ static const char refl__gl_glsl_sbc[] =
     "        vec4 tf = texelFetch(data, q + 4), b0 = texelFetch(data, q + 5), b1 = texelFetch(data, q + 6);\n"
     "        float tau = dot(w, texelFetch(data, q + 1).xyz);\n"
     "        if (!(tau >= tf.x && tau <= tf.y)) continue;\n"
+    "        int sheet = sheets > 0 ? int(tau > tf.z) + int(tau > tf.w) : 0;\n" /* past its folds */
+    "        if (sheets > 0 && sheet >= sheets) continue;\n"
+    "        int b = 2 * sheet;\n"
     "        float fr = (tau - tf.x) / (tf.y - tf.x);\n"
     "        float x = dot(w, texelFetch(data, q + 2).xyz);\n"
     "        if (!(x >= b0.x + fr * (b1.x - b0.x) && x <= b0.y + fr * (b1.y - b0.y))) continue;\n"
@@ -477,13 +474,13 @@ static const char refl__gl_glsl_sbc[] =
     "        }\n"
     "        vec2 st;\n"
     "        float o;\n"
-    "        if (!refl_sbc_inv_bilinear(c4[0], c4[1], c4[2], c4[3], vec2(x, y), zz[0] < 3.0e38 ? th.x : 0.5, st, o))\n"
+    "        if (!refl_sbc_inv_bilinear(c4[0], c4[1], c4[2], c4[3], vec2(x, y), zz[b] < 3.0e38 ? th.x : 0.5, st, o))\n"
     "            continue;\n"
     "        vec4 wt = vec4((1.0 - st.x) * (1.0 - st.y), st.x * (1.0 - st.y), (1.0 - st.x) * st.y, st.x * st.y);\n"
-    "        int k = o > th.x ? 1 : 0;\n"
+    "        int k = b + (o > th.x ? 1 : 0);\n"
     "        o = 0.0;\n"
-    "        if (k == 1 && zz[0] < 3.0e38) continue;\n"
-    "        if (k == 1) {\n"
+    "        if (k > b && zz[b] < 3.0e38) continue;\n"
+    "        if (k > b) {\n"
     "            vec2 d = vec2(x, y) - (wt.x * c4[0] + wt.y * c4[1] + wt.z * c4[2] + wt.w * c4[3]);\n"
     "            vec2 d1 = c4[3] - c4[0], d2 = c4[2] - c4[1];\n"
     "            o = dot(d, d) / max(dot(d1, d1), dot(d2, d2));\n"
@@ -502,30 +499,58 @@ static const char refl__gl_glsl_sbc[] =
     "        fp[k] = wt.x * texelFetch(data, q + 16).xyz + wt.y * texelFetch(data, q + 17).xyz +\n"
     "                wt.z * texelFetch(data, q + 18).xyz + wt.w * texelFetch(data, q + 19).xyz;\n"
     "    }\n"
-    "    int k = zz[0] < 3.0e38 ? 0 : 1;\n"
-    "    if (!(zz[k] < 3.0e38)) return false;\n"
-    "    first = fp[k];\n"
-    "    z = max(zz[k], 0.0);\n"
-    "    return true;\n"
+    "    int mask = 0;\n"
+    "    for (int i = 0; i < max(sheets, 1); ++i) {\n"
+    "        int k = zz[2 * i] < 3.0e38 ? 2 * i : 2 * i + 1;\n"
+    "        if (!(zz[k] < 3.0e38)) continue;\n"
+    "        first[i] = fp[k];\n"
+    "        z[i] = max(zz[k], 0.0);\n"
+    "        mask |= 1 << i;\n"
+    "    }\n"
+    "    return mask;\n"
     "}\n"
-    "/* p's projection through the SBC block at `base`: true with the first\n"
-    "   reflector point and the visibility offset z, false when p lies in no\n"
-    "   leaf's frustum. leaf_kind: 1 pinhole, 0 ray list. */\n"
-    "bool refl_sbc_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float z, out int leaf_kind) {\n"
-    "    vec4 h1 = texelFetch(data, base + 1);\n"
-    "    int nodes = base + int(h1.x), node = 0;\n"
+    "/* the BSP descent: the node index of the leaf holding p */\n"
+    "int refl_sbc_leaf(samplerBuffer data, int base, vec3 p) {\n"
+    "    int nodes = base + int(texelFetch(data, base + 1).x), node = 0;\n"
     "    vec4 nd1 = texelFetch(data, nodes + 1);\n"
     "    while (int(nd1.y) == 2) {\n"
     "        vec4 pl = texelFetch(data, nodes + node * 4);\n"
     "        node = int(nd1.x) + (dot(pl.xyz, p) + pl.w >= 0.0 ? 0 : 1);\n"
     "        nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
     "    }\n"
+    "    return node;\n"
+    "}\n"
+    "/* p's projection through the SBC block at `base`: true with the first\n"
+    "   reflector point and the visibility offset z, false when p lies in no\n"
+    "   leaf's frustum. leaf_kind: 1 pinhole, 0 ray list. */\n"
+    "bool refl_sbc_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float z, out int leaf_kind) {\n"
+    "    vec4 h1 = texelFetch(data, base + 1);\n"
+    "    int nodes = base + int(h1.x), node = refl_sbc_leaf(data, base, p);\n"
+    "    vec4 nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
+    "    vec3 fs[3];\n"
+    "    float zs[3];\n"
     "    first = vec3(0.0);\n"
     "    z = 0.0;\n"
     "    leaf_kind = int(nd1.y);\n"
     "    if (leaf_kind == 1) return refl_sbc_pinhole(data, base + int(h1.y) + int(nd1.z) * 16, p, first, z);\n"
-    "    return refl_sbc_rays(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
-    "                         texelFetch(data, nodes + node * 4 + 3), p, first, z);\n"
+    "    if (refl_sbc_rays_sheets(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
+    "                             texelFetch(data, nodes + node * 4 + 3), p, 0, fs, zs) == 0)\n"
+    "        return false;\n"
+    "    first = fs[0];\n"
+    "    z = zs[0];\n"
+    "    return true;\n"
+    "}\n"
+    "/* p's projection in each of `sheets` sheets (1 .. 3; refl_sbc_project_sheets):\n"
+    "   the mask of the sheets it projects in (a pinhole leaf: sheet 0 alone) */\n"
+    "int refl_sbc_project_sheets(samplerBuffer data, int base, vec3 p, int sheets, out vec3 first[3], out float z[3]) {\n"
+    "    vec4 h1 = texelFetch(data, base + 1);\n"
+    "    int nodes = base + int(h1.x), node = refl_sbc_leaf(data, base, p);\n"
+    "    vec4 nd1 = texelFetch(data, nodes + node * 4 + 1);\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    z = float[3](0.0, 0.0, 0.0);\n"
+    "    if (int(nd1.y) == 1) return refl_sbc_pinhole(data, base + int(h1.y) + int(nd1.z) * 16, p, first[0], z[0]) ? 1 : 0;\n"
+    "    return refl_sbc_rays_sheets(data, base, nd1, texelFetch(data, nodes + node * 4 + 2),\n"
+    "                                texelFetch(data, nodes + node * 4 + 3), p, clamp(sheets, 1, 3), first, z);\n"
     "}\n";
 
 static const char refl__gl_glsl_graphcam[] =
@@ -603,20 +628,74 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    first = keep;\n"
     "    return got;\n"
     "}\n"
-    "/* p's blended first reflector point and distance for the packed eye and\n"
-    "   piece; false where a node of positive weight does not project it */\n"
-    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "/* p at one node in each of `sheets` sheets of its face SBCs, a sheet\n"
+    "   choosing among the faces as refl_sbm_node_project does\n"
+    "   (refl__sbm_node_sheets): the mask of the sheets with an image */\n"
+    "int refl_sbm_node_sheets(samplerBuffer data, int base, int nb, vec3 p, int sheets, out vec3 first[3]) {\n"
+    "    vec4 pos = texelFetch(data, nb);\n"
+    "    int mask = 0, own = 0;\n"
+    "    first = vec3[3](vec3(0.0), vec3(0.0), vec3(0.0));\n"
+    "    if (any(lessThan(p, texelFetch(data, nb + 1).xyz)) || any(greaterThan(p, texelFetch(data, nb + 2).xyz)))\n"
+    "        return 0;\n"
+    "    for (int f = 0; f < 6; ++f) {\n"
+    "        float so = texelFetch(data, nb + 3 + f / 4)[f % 4];\n"
+    "        vec3 q[3];\n"
+    "        float z[3];\n"
+    "        if (so < 0.0) continue;\n"
+    "        int got = refl_sbc_project_sheets(data, base + int(so), p, sheets, q, z);\n"
+    "        for (int k = 0; k < sheets; ++k) {\n"
+    "            if (((got >> k) & 1) == 0 || ((own >> k) & 1) != 0 ||\n"
+    "                !refl_sbm_ahead(data, base, nb, pos.xyz, int(pos.w), p, q[k]))\n"
+    "                continue;\n"
+    "            if (refl_sbm_face_of(q[k] - pos.xyz) == f) {\n"
+    "                own |= 1 << k;\n"
+    "                first[k] = q[k];\n"
+    "            } else if (((mask >> k) & 1) == 0) {\n"
+    "                first[k] = q[k];\n"
+    "            }\n"
+    "            mask |= 1 << k;\n"
+    "        }\n"
+    "    }\n"
+    "    return mask;\n"
+    "}\n"
+    "/* the image sheet `sheet` draws of a point with images `mask`: its own,\n"
+    "   else one a fold away (across), -1 none (refl__sbc_sheet_image) */\n"
+    "int refl_sbc_sheet_image(int mask, int sheet, out bool across) {\n"
+    "    across = ((mask >> sheet) & 1) == 0;\n"
+    "    if (!across) return sheet;\n"
+    "    if (sheet > 0 && ((mask >> (sheet - 1)) & 1) != 0) return sheet - 1;\n"
+    "    if (((mask >> (sheet + 1)) & 1) != 0) return sheet + 1;\n"
+    "    return -1;\n"
+    "}\n"
+    "/* the blend over the nodes of positive weight of each one's image of p:\n"
+    "   sheet < 0 one per node (refl_sbm_node_project), else its image in that\n"
+    "   sheet, or one a fold away (across); false where a node has none, or\n"
+    "   past the piece's sheets */\n"
+    "bool refl_sbm_blend(samplerBuffer data, int base, vec3 p, int sheet, out vec3 first, out float dist, out bool across) {\n"
     "    vec4 w = texelFetch(data, base + 1);\n"
+    "    int sheets = int(texelFetch(data, base + 2).y);\n"
     "    vec3 f = vec3(0.0);\n"
     "    float dd = 0.0;\n"
     "    bool any_node = false;\n"
     "    first = vec3(0.0);\n"
     "    dist = 0.0;\n"
+    "    across = false;\n"
+    "    if (sheet >= sheets) return false;\n"
     "    for (int k = 0; k < 4; ++k) {\n"
     "        if (!(w[k] > 0.0)) continue;\n"
     "        float nb = texelFetch(data, base + 2 + k).x;\n"
     "        vec3 q;\n"
-    "        if (nb < 0.0 || !refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        if (nb < 0.0) return false;\n"
+    "        if (sheet < 0) {\n"
+    "            if (!refl_sbm_node_project(data, base, base + int(nb), p, q)) return false;\n"
+    "        } else {\n"
+    "            vec3 qs[3];\n"
+    "            bool a;\n"
+    "            int image = refl_sbc_sheet_image(refl_sbm_node_sheets(data, base, base + int(nb), p, sheets, qs), sheet, a);\n"
+    "            if (image < 0) return false;\n"
+    "            q = qs[image];\n"
+    "            across = across || a;\n"
+    "        }\n"
     "        f += w[k] * q;\n"
     "        dd += w[k] * length(p - q);\n"
     "        any_node = true;\n"
@@ -625,6 +704,21 @@ static const char refl__gl_glsl_sbc_morph[] =
     "    first = f;\n"
     "    dist = dd;\n"
     "    return true;\n"
+    "}\n"
+    "/* p's blended first reflector point and distance for the packed eye and\n"
+    "   piece (one image per node: refl_sbc_morph_project); false where a node\n"
+    "   of positive weight does not project it */\n"
+    "bool refl_sbc_morph_project(samplerBuffer data, int base, vec3 p, out vec3 first, out float dist) {\n"
+    "    bool across;\n"
+    "    return refl_sbm_blend(data, base, p, -1, first, dist, across);\n"
+    "}\n"
+    "/* p in sheet `sheet` of the piece's face SBCs, blended as refl_render blends\n"
+    "   a morph grid's sheets (refl_sbc_morph_project_sheet): each node of\n"
+    "   positive weight its image in that sheet, else one a fold away\n"
+    "   (across); false where one has neither, or past the piece's sheets */\n"
+    "bool refl_sbc_morph_project_sheet(samplerBuffer data, int base, vec3 p, int sheet, out vec3 first, out float dist,\n"
+    "                                  out bool across) {\n"
+    "    return refl_sbm_blend(data, base, p, sheet < 0 ? 3 : sheet, first, dist, across);\n" /* (3: past every piece's sheets) */
     "}\n";
 
 static const char refl__gl_glsl_lem_shell[] =

@@ -687,6 +687,15 @@ static refl_result refl__c3_add_triangle(const refl__pass *p, int object, int tr
     return refl__c3_split(p, &t, &job, tmax, split_px == 0.0f ? REFL__C3_SPLIT_PX : split_px, 0, out);
 }
 
+/* The largest sweep t a point within tmax of the camera's base can have
+   (INFINITY: unbounded): t = distance / |a d1 + b d2 + c d3| >= distance
+   / sqrt(min di . dj); converging rays sweep past tmax. */
+static float refl__c3_sweep_bound(const refl_c3rc *c, float tmax) {
+    float dmin = REFL__MIN(refl_v3_dot(c->d[0], c->d[1]),
+                           REFL__MIN(refl_v3_dot(c->d[1], c->d[2]), refl_v3_dot(c->d[2], c->d[0])));
+    return dmin > 0.25f ? tmax / sqrtf(dmin) : INFINITY;
+}
+
 /* One camera: reflector triangle jobs[index], built and drawn. */
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
@@ -695,12 +704,7 @@ static void refl__c3_camera(void *arg, int index) {
     k.c3 = c3;
     k.n = &((refl__c3 *)c3)->counts[index];
     if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
-    {   /* a scene point lies within tmax of the base, and t = distance /
-           |a d1 + b d2 + c d3| >= distance / sqrt(min di . dj) */
-        float dmin = REFL__MIN(refl_v3_dot(k.cam.d[0], k.cam.d[1]),
-                               REFL__MIN(refl_v3_dot(k.cam.d[1], k.cam.d[2]), refl_v3_dot(k.cam.d[2], k.cam.d[0])));
-        k.sweep = dmin > 0.25f ? c3->tmax / sqrtf(dmin) : INFINITY;
-    }
+    k.sweep = refl__c3_sweep_bound(&k.cam, c3->tmax);
     refl__c3_hull(&k);
     k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
     k.lod = k.folds == 0;
@@ -1021,60 +1025,72 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
 }
 
 
+/* Raises dens (per object, points per unit area) where camera cam, of
+   screen_area pixels, folds (section 5.1: its rays converge, the paper's
+   quasi-convergence region) and shows an object magnified, to one point
+   per REFL__C3_PIXELS_PER_POINT pixels there: the magnification at the
+   object's centre and box corners is the camera's screen area over its
+   sweeping triangle's area at their t. Diffuse objects only (a
+   reflector's own points show black); at most REFL__C3_MAX_BOOST times
+   the frame's density. */
+static void refl__c3_raise_densities(const refl_scene *scene, const refl_c3rc *cam, float screen_area, float density,
+                                     float tmax, float *dens) {
+    float folds[4][2];
+    int i, corner;
+    if (!(screen_area > 0.0f) || refl_c3rc_multiple_intervals(cam, 4.0f * tmax, folds) == 0) return;
+    for (i = 0; i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        refl_vec3 lo, hi;
+        if (refl__is_reflector(&scene->materials[o->material])) continue;
+        refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+        for (corner = 0; corner < 9; ++corner) {
+            refl_c3rc_projection pr[3];
+            refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
+                                      : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
+            int m = refl_c3rc_project(cam, refl_mat4_point(o->transform, q), pr), r;
+            for (r = 0; r < m; ++r) {
+                double sweep = refl__c3_sweep_area(cam, pr[r].t);
+                float want = sweep > 0.0 ? (float)((double)screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
+                dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * density));
+            }
+        }
+    }
+}
+
+/* The budget: all objects together at most REFL__C3_AUTO_POINTS points,
+   the raises above the frame's density scaled down together. */
+static void refl__c3_density_budget(const refl_scene *scene, float density, float *dens) {
+    double total = 0.0, area_all = 0.0;
+    int i;
+    for (i = 0; i < scene->object_count; ++i) {
+        double area = refl__c3_object_area(scene, i);
+        total += area * (double)dens[i];
+        area_all += area * (double)density;
+    }
+    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
+        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
+        for (i = 0; i < scene->object_count; ++i) dens[i] = density + (float)(keep * (double)(dens[i] - density));
+    }
+}
+
 /* Each object's sampling density (c3->s->object_density): the frame's,
-   raised (when `magnify`) where a folding camera (section 5.1: its rays
-   converge, the paper's quasi-convergence region) shows the object
-   magnified, to one point per REFL__C3_PIXELS_PER_POINT pixels there: the
-   magnification at the object's centre and box corners is the camera's
-   screen area over its sweeping triangle's area at their t. Diffuse
-   objects only (a reflector's own points show black). At most
-   REFL__C3_MAX_BOOST times the frame's density, and all objects together
-   at most REFL__C3_AUTO_POINTS points. */
+   raised (when `magnify`) where a folding camera shows the object
+   magnified (refl__c3_raise_densities), within the budget. */
 static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
     float *dens = (float *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(float));
-    double total = 0.0, area_all = 0.0;
-    int i, j, corner;
+    int i, j;
     if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
     c3->s->object_density = dens;
     for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
     if (!magnify) return REFL_OK;
     for (j = 0; j < jobs; ++j) {
         refl__c3_cam k;
-        float folds[4][2];
         memset(&k, 0, sizeof k);
-        if (!refl__c3_setup(p, &c3->jobs[j], &k) || !(k.screen_area > 0.0f) ||
-            refl_c3rc_multiple_intervals(&k.cam, 4.0f * c3->tmax, folds) == 0)
-            continue;
-        for (i = 0; i < scene->object_count; ++i) {
-            const refl_object *o = &scene->objects[i];
-            refl_vec3 lo, hi;
-            if (refl__is_reflector(&scene->materials[o->material])) continue;
-            refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
-            for (corner = 0; corner < 9; ++corner) {
-                refl_c3rc_projection pr[3];
-                refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
-                                          : refl_v3(corner & 1 ? hi.x : lo.x, corner & 2 ? hi.y : lo.y, corner & 4 ? hi.z : lo.z);
-                int m = refl_c3rc_project(&k.cam, refl_mat4_point(o->transform, q), pr), r;
-                for (r = 0; r < m; ++r) {
-                    double sweep = refl__c3_sweep_area(&k.cam, pr[r].t);
-                    float want = sweep > 0.0 ? (float)((double)k.screen_area / (sweep * REFL__C3_PIXELS_PER_POINT)) : FLT_MAX;
-                    dens[i] = REFL__MAX(dens[i], REFL__MIN(want, REFL__C3_MAX_BOOST * c3->density));
-                }
-            }
-        }
+        if (refl__c3_setup(p, &c3->jobs[j], &k)) refl__c3_raise_densities(scene, &k.cam, k.screen_area, c3->density, c3->tmax, dens);
     }
-    for (i = 0; i < scene->object_count; ++i) { /* the budget: scale the raises down together */
-        double area = refl__c3_object_area(scene, i);
-        total += area * (double)dens[i];
-        area_all += area * (double)c3->density;
-    }
-    if (total > REFL__C3_AUTO_POINTS && total > area_all) {
-        double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
-        for (i = 0; i < scene->object_count; ++i)
-            dens[i] = c3->density + (float)(keep * (double)(dens[i] - c3->density));
-    }
+    refl__c3_density_budget(scene, c3->density, dens);
     return REFL_OK;
 }
 
@@ -1344,6 +1360,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     refl_frame shape;
     refl__c3_list list;
     refl_c3rc_view_camera *cams = NULL;
+    refl_vec3 lo, hi;
     int i, n = 0;
     refl_result r;
     if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
@@ -1351,6 +1368,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     *count = 0;
     if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
     r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
+    refl_scene_bounds(scene, &lo, &hi);
     if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
                                                                        (size_t)(list.count ? list.count : 1), sizeof *cams)))
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -1365,6 +1383,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
         cams[n].screen_area = k.screen_area;
         cams[n].screen_edge = k.screen_edge;
         cams[n].near_self = k.near_self;
+        cams[n].sweep = refl__c3_sweep_bound(&k.cam, 1.01f * refl_v3_length(refl_v3_sub(hi, lo)));
         ++n;
     }
     refl__free(&scene->allocator, list.v);
@@ -1374,6 +1393,21 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     }
     *out = cams;
     *count = n;
+    return REFL_OK;
+}
+
+REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
+                                                float density, float *out) {
+    refl_vec3 lo, hi;
+    float tmax;
+    int i;
+    if (!scene || !out || count < 0 || (count > 0 && !cams) || !(density >= 0.0f) || !refl__isfinite(density))
+        return REFL_ERROR_INVALID_ARGUMENT;
+    refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < scene->object_count; ++i) out[i] = density;
+    for (i = 0; i < count; ++i) refl__c3_raise_densities(scene, &cams[i].cam, cams[i].screen_area, density, tmax, out);
+    refl__c3_density_budget(scene, density, out);
     return REFL_OK;
 }
 

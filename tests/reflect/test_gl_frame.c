@@ -3,7 +3,8 @@
    CPU frame as the truth) and the same colours there (PSNR over the
    mirrors' pixels). C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
-   within a pixel of the CPU path's. Skipped, saying why, where no EGL
+   within a pixel of the CPU path's, on the default scene and the concave
+   bowl. Skipped, saying why, where no EGL
    device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
@@ -87,3 +88,13 @@ static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long
 Test(refl_gl_frame, c3rc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_C3RC, 500); }
 
 Test(refl_gl_frame, sbc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_SBC, 500); }
+
+/* The concave bowl: its cameras fold (C3RC's points denser on the ball it
+   magnifies, its sweep past the scene's diagonal) and it shows itself. */
+Test(refl_gl_frame, c3rc_concave_within_a_pixel_of_cpu, .timeout = 240) {
+    gl_within_a_pixel_of_cpu("concave", REFL_C3RC, 5000);
+}
+
+Test(refl_gl_frame, sbc_concave_within_a_pixel_of_cpu, .timeout = 240) {
+    gl_within_a_pixel_of_cpu("concave", REFL_SBC, 5000);
+}

@@ -113,6 +113,8 @@ Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
         cr_assert_float_eq(buf[4 + k], w[k] > 0.0f ? w[k] : 0.0f, 1e-6f);
         if (w[k] > 0.0f) cr_assert_geq(buf[4 * (2 + k)], 6.0f);
     }
+    cr_assert_eq(buf[9], (float)refl_sbc_morph_sheets(m, eye, 0), "the piece's sheets in texel 2");
+    cr_assert_geq(buf[9], 1.0f);
     cr_assert_lt(refl_gl_pack_sbc_morph(m, eye, -1, NULL, 0), 0);
     cr_assert_lt(refl_gl_pack_sbc_morph(m, refl_v3(0, 100, 0), 0, NULL, 0), 0);
     cr_assert_lt(refl_gl_pack_sbc_morph(NULL, eye, 0, NULL, 0), 0);
@@ -123,6 +125,12 @@ Test(refl_gl_hooks, sbc_morph_layout, .timeout = 60) {
 }
 
 Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) { validate(5); }
+
+/* The blend per sheet, as refl_render draws a morph grid
+   (refl_sbc_morph_project_sheet), on the concave bowl's grid (its rays
+   fold: three sheets; fixture 8): each point in one of the sheets, its
+   image, distance and whether it came from across a fold. */
+Test(refl_gl_hooks, sbc_morph_sheets_glsl_matches_c, .timeout = 120) { validate(8); }
 
 /* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
    texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
