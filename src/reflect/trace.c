@@ -1,7 +1,8 @@
 /* The per-pixel tracer: Whitted ray tracing through the BVH (or a caller's
    refl_ray_caster), what RAYTRACE renders every pixel with and SBC's
    fallback renders the pixels it cannot resolve with. A primary ray per
-   pixel centre, mirror reflections to desc.depth bounces, glass with
+   pixel centre (its first hit sought near the surfaces the rasteriser drew
+   there where the tracer was given them, refl__rt_first_hit), mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
    absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
    two greedy paths), optional hard or soft shadows (soft: a shadow ray per
@@ -362,6 +363,58 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     }
 }
 
+/* Eye depth (along the view axis) of window depth w, as GL's perspective
+   projection maps it. */
+static float refl__rt_eye_depth(const refl__view_rays *vr, float w) {
+    float n = vr->znear, f = vr->zfar;
+    return 2.0f * f * n / ((f + n) - (2.0f * w - 1.0f) * (f - n));
+}
+
+/* The stretch [*lo, *hi] of pixel (x, y)'s primary ray (length len)
+   within which its first hit lies, from the rasteriser's window depths:
+   from the nearest surface the pixel and its eight neighbours show to a
+   hair past the pixel's own, widened by the depth buffer's rounding.
+   0 where the pixel shows the background (the whole ray is traced). */
+static int refl__rt_first_window(const refl__rt *rt, int x, int y, float len, float *lo, float *hi) {
+    /* window depth and eye depth slack: many times the rasteriser's rounding */
+    const float dw = 1.0f / 262144.0f, dz = 1e-4f;
+    const refl__view_rays *vr = &rt->p->rays;
+    const refl_frame *f = rt->p->frame;
+    const float *z = rt->first;
+    float own = z[(size_t)y * (size_t)f->width + (size_t)x], nearest = own, per_depth;
+    int i, j;
+    if (!(own < 1.0f)) return 0;
+    for (j = REFL__MAX(y - 1, 0); j <= REFL__MIN(y + 1, f->height - 1); ++j)
+        for (i = REFL__MAX(x - 1, 0); i <= REFL__MIN(x + 1, f->width - 1); ++i)
+            nearest = REFL__MIN(nearest, z[(size_t)j * (size_t)f->width + (size_t)i]);
+    per_depth = len / (vr->zfar - vr->znear); /* ray length per unit of eye depth */
+    *lo = (refl__rt_eye_depth(vr, REFL__MAX(nearest - dw, 0.0f)) * (1.0f - dz) - vr->znear) * per_depth;
+    *hi = own + dw < 1.0f ? (refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * per_depth : len;
+    *lo = REFL__MAX(*lo, 0.0f);
+    *hi = REFL__MIN(*hi, len);
+    return *lo < *hi;
+}
+
+/* Pixel (x, y)'s primary ray (from the near plane to the far plane, as
+   the rasteriser clips) and its first hit. With the rasteriser's depths
+   (rt->first) the hit is sought within refl__rt_first_window only: the
+   closest hit is the least (t, object, triangle) on the ray (bvh.c), so
+   wherever the whole ray's hit lies in that stretch it is the same hit,
+   bit for bit. The whole ray is traced where the stretch holds none. What
+   this cannot see: a surface the ray meets before every one the nine
+   pixels show, which the rasteriser drew at none of them: an edge within
+   the rasteriser's subpixel snapping of the pixel centre, sliver or
+   subpixel geometry. */
+static int refl__rt_first_hit(const refl__rt *rt, int x, int y, refl_vec3 *o, refl_vec3 *d, float *len,
+                              refl_hit *h) {
+    float lo, hi;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, o, d, len);
+    if (rt->first && refl__rt_first_window(rt, x, y, *len, &lo, &hi) &&
+        rt->caster.intersect(rt->caster.user, *o, *d, lo, hi, h))
+        return 1;
+    return rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, *len, h);
+}
+
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
@@ -378,9 +431,8 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     *shown = refl_v3(NAN, NAN, NAN);
     *depth = 1.0f;
     *stencil = 0;
-    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
     ++*rays;
-    if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
+    if (refl__rt_first_hit(rt, x, y, &a, &d, &len, &h) && h.object >= 0 &&
         h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
         /* GL's window depth of the eye distance along the axis */
         const refl__view_rays *vr = &rt->p->rays;
@@ -404,9 +456,8 @@ static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *mod
     refl_hit h;
     refl__rt_surface s;
     int k, j;
-    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &len);
     ++*rays;
-    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, len, &h) || h.object < 0 ||
+    if (!refl__rt_first_hit(rt, x, y, &o, &d, &len, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
         return 0;
     k = modelled[s.object];
@@ -465,6 +516,7 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
 static void refl__rt_end(refl__rt *rt) {
     if (!rt->scene) return;
     refl_bvh_destroy(rt->bvh);
+    refl__free(&rt->scene->allocator, rt->first);
     if (rt->faces) refl__planar_free_faces(rt->scene, rt->faces, rt->face_count);
     refl__free(&rt->scene->allocator, rt->objects);
     rt->scene = NULL;

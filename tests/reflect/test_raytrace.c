@@ -527,3 +527,110 @@ Test(refl_raytrace, allocation_failure_at_every_allocation_leaks_nothing) {
     refl_scene_destroy(s);
     cr_assert_eq(c.allocs, c.frees);
 }
+
+/* Primary visibility comes from the rasteriser (m_raytrace.c): the
+   tracer seeks each pixel's first hit only near the surfaces the
+   rasteriser drew at the pixel and its neighbours. A caller's caster
+   traces every primary ray whole, so the two frames side by side compare
+   the rasterised first hits with the traced ones. They are the same hits,
+   so the same bytes, on every built-in scene: with supersampling, in a
+   frame of several methods (AUTO's, RAYTRACE drawing some reflectors),
+   and where the tracer follows C3RC's bounces beyond its own. Where they
+   can differ is
+   refl__rt_first_hit's to say: geometry the rasteriser drops, below. */
+static refl_frame *render_with(const refl_scene *s, const refl_view *v, refl_render_desc d, const refl_bvh *traced) {
+    if (traced) {
+        d.raytrace.caster.intersect = cast_intersect;
+        d.raytrace.caster.occluded = cast_occluded;
+        d.raytrace.caster.user = (void *)traced;
+    }
+    return tu_refl_render(s, v, &d);
+}
+
+Test(refl_raytrace, rasterised_first_hits_are_the_traced_ones_on_every_builtin_scene) {
+    const char *const *names = refl_builtin_names();
+    struct { const char *scene; refl_method method; int spp, depth; } hybrid[] = {
+        {"default", REFL_RAYTRACE, 4, 0}, {"hybrid", REFL_AUTO, 0, 3}, {"mirror-room", REFL_C3RC, 0, 3}};
+    int k, n_names;
+    for (n_names = 0; names[n_names]; ++n_names) {}
+    for (k = 0; k < n_names + 3; ++k) {
+        const char *name = k < n_names ? names[k] : hybrid[k - n_names].scene;
+        refl_render_desc d;
+        refl_view v;
+        refl_scene *s = tu_refl_builtin(name, &v, 64, 48);
+        refl_bvh *bvh;
+        refl_frame *rasterised, *traced;
+        char what[96];
+        memset(&d, 0, sizeof d);
+        d.method = k < n_names ? REFL_RAYTRACE : hybrid[k - n_names].method;
+        d.spp = k < n_names ? 0 : hybrid[k - n_names].spp;
+        d.depth = k < n_names ? 0 : hybrid[k - n_names].depth;
+        d.lighting.shadows = 1;
+        d.threads = 2;
+        cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+        rasterised = render_with(s, &v, d, NULL);
+        traced = render_with(s, &v, d, bvh);
+        snprintf(what, sizeof what, "%s, %s, spp %d", name, refl_method_name(d.method), d.spp);
+        expect_same_frames(rasterised, traced, what);
+        refl_frame_destroy(traced);
+        refl_frame_destroy(rasterised);
+        refl_bvh_destroy(bvh);
+        refl_scene_destroy(s);
+    }
+}
+
+/* What rasterised first hits cannot see: a triangle thinner than the
+   rasteriser's subpixel grid (RAST_SUBPIXEL_BITS) covers no pixel, yet a
+   ray through a pixel centre inside it meets it. A sliver 0.003 pixels
+   wide down the middle column of pixel centres, in front of a wall:
+   traced primary rays meet it in that column, the rasterised ones see the
+   wall, and nowhere else do the frames differ. */
+Test(refl_raytrace, rasterised_first_hits_miss_only_subpixel_slivers) {
+    const float wall_xyz[] = {-5, -5, -6, 5, -5, -6, 5, 5, -6, -5, 5, -6};
+    const float sliver_xyz[] = {-1e-4f, -1, -5, 1e-4f, -1, -5, 0, 1, -5};
+    const uint32_t wall_idx[] = {0, 1, 2, 0, 2, 3};
+    const float grey[3] = {0.5f, 0.5f, 0.5f}, red[3] = {1, 0, 0};
+    refl_mesh_desc md;
+    refl_mesh *wall, *sliver;
+    refl_scene *s;
+    refl_bvh *bvh;
+    refl_view v = tu_refl_view(refl_v3(0, 0, 0), refl_v3(0, 0, -1), 65, 49); /* column 32's centres: x = 0 */
+    refl_render_desc d;
+    refl_frame *rasterised, *traced;
+    int x, y, differ = 0;
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    memset(&md, 0, sizeof md);
+    md.positions = wall_xyz;
+    md.vertex_count = 4;
+    md.indices = wall_idx;
+    md.index_count = 6;
+    cr_assert_eq(refl_mesh_create(&md, &wall), REFL_OK);
+    memset(&md, 0, sizeof md);
+    md.positions = sliver_xyz;
+    md.vertex_count = 3;
+    cr_assert_eq(refl_mesh_create(&md, &sliver), REFL_OK);
+    tu_refl_add_object(s, wall, REFL_DIFFUSE, grey, refl_mat4_identity());
+    tu_refl_add_object(s, sliver, REFL_DIFFUSE, red, refl_mat4_identity());
+    tu_refl_add_point_light(s, refl_v3(0, 0, 0), 20.0f, 0.0f);
+    cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    rasterised = render_with(s, &v, d, NULL);
+    traced = render_with(s, &v, d, bvh);
+    for (y = 0; y < v.height; ++y)
+        for (x = 0; x < v.width; ++x) {
+            size_t i = (size_t)y * (size_t)v.width + (size_t)x;
+            if (!memcmp(rasterised->rgba + 4 * i, traced->rgba + 4 * i, 4 * sizeof(float)) &&
+                rasterised->depth[i] == traced->depth[i])
+                continue;
+            cr_assert_eq(x, 32, "pixel (%d, %d) differs off the sliver's column", x, y);
+            cr_assert(traced->depth[i] < rasterised->depth[i], "(%d, %d): the traced ray meets the sliver", x, y);
+            ++differ;
+        }
+    /* the sliver spans 2 of the 4.1 units the view sees at its distance */
+    cr_assert(differ > 0 && differ <= 25, "%d pixels differ", differ);
+    refl_frame_destroy(traced);
+    refl_frame_destroy(rasterised);
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
