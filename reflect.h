@@ -433,8 +433,8 @@ typedef struct refl_hit {
     float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
 } refl_hit;
 
-/* Builds a bounding volume hierarchy (binned SAH, collapsed to four
-   children a node, SSE2 box and triangle tests; plain C under
+/* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
+   children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
    space. Deterministic: the same scene gives the same tree. Degenerate
    and non-finite triangles are left out. */
@@ -447,6 +447,15 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Refits the tree to the scene's current positions (rigid or any other
+   motion of the vertices) without rebuilding it: every triangle taken
+   again from its mesh and transform, every box recomputed around them.
+   The hits are those of a BVH built anew (the closest hit does not depend
+   on the tree), only found more slowly where the motion made boxes
+   overlap. REFL_ERROR_UNSUPPORTED (the tree then unusable: build anew)
+   where the scene no longer has the objects and triangle counts it was
+   built over, or a triangle became degenerate or stopped being one. */
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene);
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
 
@@ -1753,7 +1762,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    samples its frames used. What the scene's changes invalidate: every
    refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
-   built at rebuilds them all; code that writes the scene's arrays itself
+   built at rebuilds them all, but for the BVH, refit where the objects
+   and their triangle counts are those it was built over (refl_bvh_refit:
+   objects moved); code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
@@ -2402,7 +2413,7 @@ typedef struct refl__rt {
     refl__lv lv;                  /* and their virtual lights (none when off) */
     float *first;                 /* per pixel of the pass's frame, the window depth of the
                                      first surface the rasteriser drew there (m_raytrace.c),
-                                     near which its primary ray's hit is sought; NULL:
+                                     as far as which its primary ray is traced; NULL:
                                      primary rays traced whole. Freed by refl__rt_end */
 } refl__rt;
 
@@ -3687,6 +3698,8 @@ struct refl_bvh {
     refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
     void *blocks_mem;
     int block_count;
+    int *object_tris;             /* per object of the scene built from: its triangle count (refit) */
+    int object_count;
 };
 
 /* ---- build ------------------------------------------------------------------ */
@@ -3912,6 +3925,7 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh->wide_mem);
     refl__free(&a, bvh->tris);
     refl__free(&a, bvh->blocks_mem);
+    refl__free(&a, bvh->object_tris);
     refl__free(&a, bvh);
 }
 
@@ -4018,6 +4032,23 @@ static void *refl__bvh_calloc_lines(const refl_allocator *a, size_t count, size_
     return (void *)(p + (64 - p % 64) % 64);
 }
 
+/* Triangle t of object i in world space into v (0: an index out of range). */
+static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *mesh = scene->meshes[o->mesh];
+    int j;
+    for (j = 0; j < 3; ++j) {
+        uint32_t vi = mesh->indices[3 * t + j];
+        const float *p;
+        refl_vec3 w;
+        if (vi >= (uint32_t)mesh->vertex_count) return 0;
+        p = mesh->positions + 3 * (size_t)vi;
+        w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
+        v[3 * j] = w.x; v[3 * j + 1] = w.y; v[3 * j + 2] = w.z;
+    }
+    return 1;
+}
+
 /* keep_binary: keep the binary tree too, for the tests that compare the
    two (refl__bvh_intersect_binary). */
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
@@ -4052,25 +4083,17 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->tris = (refl__bvh_tri *)refl__calloc(a, (size_t)total, sizeof *bvh->tris);
     if (!bvh->tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
 
+    bvh->object_count = scene->object_count;
+    bvh->object_tris = (int *)refl__calloc(a, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    if (!bvh->object_tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
+    for (i = 0; i < scene->object_count; ++i) bvh->object_tris[i] = scene->meshes[scene->objects[i].mesh]->triangle_count;
     /* World space once, so triangles sharing a vertex share its exact
        floats: the watertight test relies on that. */
     for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *mesh = scene->meshes[o->mesh];
-        int t, j;
-        for (t = 0; t < mesh->triangle_count; ++t) {
+        int t;
+        for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count; ++t) {
             refl__bvh_tri *dst = &bvh->tris[n];
-            int bad = 0;
-            for (j = 0; j < 3; ++j) {
-                uint32_t vi = mesh->indices[3 * t + j];
-                const float *p;
-                refl_vec3 w;
-                if (vi >= (uint32_t)mesh->vertex_count) { bad = 1; break; }
-                p = mesh->positions + 3 * (size_t)vi;
-                w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
-                dst->v[3 * j] = w.x; dst->v[3 * j + 1] = w.y; dst->v[3 * j + 2] = w.z;
-            }
-            if (bad) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
+            if (!refl__bvh_world_tri(scene, i, t, dst->v)) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
             if (!refl__tri_ok(dst->v)) continue;
             dst->object = i;
             dst->triangle = t;
@@ -4127,6 +4150,85 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
     return refl__bvh_build_ex(scene, a, 0, out_bvh);
+}
+
+/* ---- refit ------------------------------------------------------------------- */
+
+/* Whether the scene has the objects and triangle counts the BVH was built
+   over, with the same triangles left out as degenerate. */
+static int refl__bvh_refit_fits(const refl_bvh *bvh, const refl_scene *scene) {
+    int i, t, ok = 0;
+    float v[9];
+    if (!bvh->object_tris || scene->object_count != bvh->object_count) return 0;
+    for (i = 0; i < scene->object_count; ++i) {
+        int m = scene->objects[i].mesh;
+        const refl_mesh *mesh = m >= 0 && m < scene->mesh_count && scene->meshes ? scene->meshes[m] : NULL;
+        if (!mesh || mesh->triangle_count != bvh->object_tris[i] ||
+            (mesh->triangle_count > 0 && (!mesh->positions || !mesh->indices)))
+            return 0;
+    }
+    for (i = 0; i < scene->object_count; ++i)
+        for (t = 0; t < bvh->object_tris[i]; ++t) {
+            if (!refl__bvh_world_tri(scene, i, t, v)) return 0;
+            ok += refl__tri_ok(v);
+        }
+    return ok == bvh->tri_count;
+}
+
+/* Box of the `count` triangles of the leaf at blocks[first] into lo, hi. */
+static void refl__bvh_leaf_box(const refl_bvh *bvh, int first, int count, float lo[3], float hi[3]) {
+    int j, k;
+    for (k = 0; k < 3; ++k) { lo[k] = INFINITY; hi[k] = -INFINITY; }
+    for (j = 0; j < count; ++j) {
+        const refl__bvh_tri4 *q = &bvh->blocks[first + j / 4];
+        for (k = 0; k < 9; ++k) {
+            lo[k % 3] = REFL__MIN(lo[k % 3], q->v[k][j % 4]);
+            hi[k % 3] = REFL__MAX(hi[k % 3], q->v[k][j % 4]);
+        }
+    }
+}
+
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene) {
+    int b, lane, w, k;
+    if (!bvh || !scene) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__bvh_refit_fits(bvh, scene)) return REFL_ERROR_UNSUPPORTED;
+    for (b = 0; b < bvh->block_count; ++b) {
+        refl__bvh_tri4 *q = &bvh->blocks[b];
+        for (lane = 0; lane < 4; ++lane) {
+            float v[9];
+            if (q->object[lane] < 0) continue;
+            refl__bvh_world_tri(scene, q->object[lane], q->triangle[lane], v);
+            if (!refl__tri_ok(v)) return REFL_ERROR_UNSUPPORTED; /* left half refit: the caller rebuilds */
+            for (k = 0; k < 9; ++k) q->v[k][lane] = v[k];
+        }
+    }
+    /* children come after their parent (refl__bvh_collapse): bottom-up is backwards */
+    for (w = bvh->wide_count - 1; w >= 0; --w) {
+        refl__bvhw_node *n = &bvh->wide[w];
+        for (lane = 0; lane < REFL__BVH_W; ++lane) {
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            if (n->count[lane] > 0) {
+                refl__bvh_leaf_box(bvh, n->child[lane], n->count[lane], lo, hi);
+            } else if (n->child[lane] >= 0) {
+                const refl__bvhw_node *c = &bvh->wide[n->child[lane]];
+                int cl;
+                for (cl = 0; cl < REFL__BVH_W; ++cl)
+                    for (k = 0; k < 3; ++k) {
+                        lo[k] = REFL__MIN(lo[k], c->box[k][cl]);
+                        hi[k] = REFL__MAX(hi[k], c->box[3 + k][cl]);
+                    }
+            }
+            for (k = 0; k < 3; ++k) {
+                n->box[k][lane] = lo[k];
+                n->box[3 + k][lane] = hi[k];
+            }
+        }
+    }
+    /* the binary tree (tests only) no longer matches: dropped */
+    refl__free(&bvh->allocator, bvh->nodes);
+    bvh->nodes = NULL;
+    bvh->node_count = 0;
+    return REFL_OK;
 }
 
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles) {
@@ -16037,9 +16139,9 @@ done:
    independent, so any thread count gives the same bytes.
 
    Primary visibility comes from the rasteriser: the scene drawn depth-only
-   with the base pass's clip positions tells the tracer where along each
-   pixel's ray its first hit lies (refl__rt_first_hit), so the primary ray
-   is traced over a short stretch, not through the whole scene. */
+   with the base pass's clip positions tells the tracer how far along each
+   pixel's ray its first hit lies at most (refl__rt_first_hit), so the
+   traversal skips everything behind that surface from the start. */
 
 enum { REFL__RT_TILE = 16 };
 /* Fewer pixels than one in this many of the frame are traced with whole
@@ -19306,10 +19408,15 @@ static refl_result refl__cancelled(refl_frame *frame) {
     return REFL_ERROR_CANCELLED;
 }
 
-/* The renderer's models dropped when the scene changed since they were built. */
+/* The renderer's models dropped when the scene changed since they were
+   built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
+    refl_bvh *bvh = rr->models.bvh;
     if (rr->models.scene_version == rr->scene->version) return;
+    rr->models.bvh = NULL;
     refl__models_free(rr->scene, &rr->models);
+    if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
+    else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;
 }
 
@@ -24995,47 +25102,34 @@ static float refl__rt_eye_depth(const refl__view_rays *vr, float w) {
     return 2.0f * f * n / ((f + n) - (2.0f * w - 1.0f) * (f - n));
 }
 
-/* The stretch [*lo, *hi] of pixel (x, y)'s primary ray (length len)
-   within which its first hit lies, from the rasteriser's window depths:
-   from the nearest surface the pixel and its eight neighbours show to a
-   hair past the pixel's own, widened by the depth buffer's rounding.
-   0 where the pixel shows the background (the whole ray is traced). */
-static int refl__rt_first_window(const refl__rt *rt, int x, int y, float len, float *lo, float *hi) {
+/* How far along pixel (x, y)'s primary ray (length len) its first hit
+   lies at most, from the rasteriser's window depth there: a hair past
+   the surface drawn, widened by the depth buffer's rounding. 0 where the
+   pixel shows the background (the whole ray is traced). */
+static int refl__rt_first_bound(const refl__rt *rt, int x, int y, float len, float *hi) {
     /* window depth and eye depth slack: many times the rasteriser's rounding */
     const float dw = 1.0f / 262144.0f, dz = 1e-4f;
     const refl__view_rays *vr = &rt->p->rays;
-    const refl_frame *f = rt->p->frame;
-    const float *z = rt->first;
-    float own = z[(size_t)y * (size_t)f->width + (size_t)x], nearest = own, per_depth;
-    int i, j;
-    if (!(own < 1.0f)) return 0;
-    for (j = REFL__MAX(y - 1, 0); j <= REFL__MIN(y + 1, f->height - 1); ++j)
-        for (i = REFL__MAX(x - 1, 0); i <= REFL__MIN(x + 1, f->width - 1); ++i)
-            nearest = REFL__MIN(nearest, z[(size_t)j * (size_t)f->width + (size_t)i]);
-    per_depth = len / (vr->zfar - vr->znear); /* ray length per unit of eye depth */
-    *lo = (refl__rt_eye_depth(vr, REFL__MAX(nearest - dw, 0.0f)) * (1.0f - dz) - vr->znear) * per_depth;
-    *hi = own + dw < 1.0f ? (refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * per_depth : len;
-    *lo = REFL__MAX(*lo, 0.0f);
-    *hi = REFL__MIN(*hi, len);
-    return *lo < *hi;
+    float own = rt->first[(size_t)y * (size_t)rt->p->frame->width + (size_t)x];
+    if (!(own + dw < 1.0f)) return 0;
+    *hi = REFL__MIN((refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * (len / (vr->zfar - vr->znear)), len);
+    return 1;
 }
 
 /* Pixel (x, y)'s primary ray (from the near plane to the far plane, as
    the rasteriser clips) and its first hit. With the rasteriser's depths
-   (rt->first) the hit is sought within refl__rt_first_window only: the
-   closest hit is the least (t, object, triangle) on the ray (bvh.c), so
-   wherever the whole ray's hit lies in that stretch it is the same hit,
-   bit for bit. The whole ray is traced where the stretch holds none. What
-   this cannot see: a surface the ray meets before every one the nine
-   pixels show, which the rasteriser drew at none of them: an edge within
-   the rasteriser's subpixel snapping of the pixel centre, sliver or
-   subpixel geometry. */
+   (rt->first) the ray is traced only as far as the surface drawn there
+   (refl__rt_first_bound), so the traversal skips everything behind it
+   from the start. The closest hit is the least (t, object, triangle) on
+   the ray (bvh.c), so wherever the whole ray's hit lies within that
+   stretch it is the same hit, bit for bit; where the stretch holds none
+   (the ray passes a silhouette the rasteriser covered) the whole ray is
+   traced. Either way, the hit of the whole ray. */
 static int refl__rt_first_hit(const refl__rt *rt, int x, int y, refl_vec3 *o, refl_vec3 *d, float *len,
                               refl_hit *h) {
-    float lo, hi;
+    float hi;
     refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, o, d, len);
-    if (rt->first && refl__rt_first_window(rt, x, y, *len, &lo, &hi) &&
-        rt->caster.intersect(rt->caster.user, *o, *d, lo, hi, h))
+    if (rt->first && refl__rt_first_bound(rt, x, y, *len, &hi) && rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, hi, h))
         return 1;
     return rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, *len, h);
 }

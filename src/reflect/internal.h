@@ -473,7 +473,7 @@ typedef struct refl__rt {
     refl__lv lv;                  /* and their virtual lights (none when off) */
     float *first;                 /* per pixel of the pass's frame, the window depth of the
                                      first surface the rasteriser drew there (m_raytrace.c),
-                                     near which its primary ray's hit is sought; NULL:
+                                     as far as which its primary ray is traced; NULL:
                                      primary rays traced whole. Freed by refl__rt_end */
 } refl__rt;
 

@@ -5,9 +5,9 @@
    independent, so any thread count gives the same bytes.
 
    Primary visibility comes from the rasteriser: the scene drawn depth-only
-   with the base pass's clip positions tells the tracer where along each
-   pixel's ray its first hit lies (refl__rt_first_hit), so the primary ray
-   is traced over a short stretch, not through the whole scene. */
+   with the base pass's clip positions tells the tracer how far along each
+   pixel's ray its first hit lies at most (refl__rt_first_hit), so the
+   traversal skips everything behind that surface from the start. */
 #include "internal.h"
 
 enum { REFL__RT_TILE = 16 };

@@ -370,47 +370,34 @@ static float refl__rt_eye_depth(const refl__view_rays *vr, float w) {
     return 2.0f * f * n / ((f + n) - (2.0f * w - 1.0f) * (f - n));
 }
 
-/* The stretch [*lo, *hi] of pixel (x, y)'s primary ray (length len)
-   within which its first hit lies, from the rasteriser's window depths:
-   from the nearest surface the pixel and its eight neighbours show to a
-   hair past the pixel's own, widened by the depth buffer's rounding.
-   0 where the pixel shows the background (the whole ray is traced). */
-static int refl__rt_first_window(const refl__rt *rt, int x, int y, float len, float *lo, float *hi) {
+/* How far along pixel (x, y)'s primary ray (length len) its first hit
+   lies at most, from the rasteriser's window depth there: a hair past
+   the surface drawn, widened by the depth buffer's rounding. 0 where the
+   pixel shows the background (the whole ray is traced). */
+static int refl__rt_first_bound(const refl__rt *rt, int x, int y, float len, float *hi) {
     /* window depth and eye depth slack: many times the rasteriser's rounding */
     const float dw = 1.0f / 262144.0f, dz = 1e-4f;
     const refl__view_rays *vr = &rt->p->rays;
-    const refl_frame *f = rt->p->frame;
-    const float *z = rt->first;
-    float own = z[(size_t)y * (size_t)f->width + (size_t)x], nearest = own, per_depth;
-    int i, j;
-    if (!(own < 1.0f)) return 0;
-    for (j = REFL__MAX(y - 1, 0); j <= REFL__MIN(y + 1, f->height - 1); ++j)
-        for (i = REFL__MAX(x - 1, 0); i <= REFL__MIN(x + 1, f->width - 1); ++i)
-            nearest = REFL__MIN(nearest, z[(size_t)j * (size_t)f->width + (size_t)i]);
-    per_depth = len / (vr->zfar - vr->znear); /* ray length per unit of eye depth */
-    *lo = (refl__rt_eye_depth(vr, REFL__MAX(nearest - dw, 0.0f)) * (1.0f - dz) - vr->znear) * per_depth;
-    *hi = own + dw < 1.0f ? (refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * per_depth : len;
-    *lo = REFL__MAX(*lo, 0.0f);
-    *hi = REFL__MIN(*hi, len);
-    return *lo < *hi;
+    float own = rt->first[(size_t)y * (size_t)rt->p->frame->width + (size_t)x];
+    if (!(own + dw < 1.0f)) return 0;
+    *hi = REFL__MIN((refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * (len / (vr->zfar - vr->znear)), len);
+    return 1;
 }
 
 /* Pixel (x, y)'s primary ray (from the near plane to the far plane, as
    the rasteriser clips) and its first hit. With the rasteriser's depths
-   (rt->first) the hit is sought within refl__rt_first_window only: the
-   closest hit is the least (t, object, triangle) on the ray (bvh.c), so
-   wherever the whole ray's hit lies in that stretch it is the same hit,
-   bit for bit. The whole ray is traced where the stretch holds none. What
-   this cannot see: a surface the ray meets before every one the nine
-   pixels show, which the rasteriser drew at none of them: an edge within
-   the rasteriser's subpixel snapping of the pixel centre, sliver or
-   subpixel geometry. */
+   (rt->first) the ray is traced only as far as the surface drawn there
+   (refl__rt_first_bound), so the traversal skips everything behind it
+   from the start. The closest hit is the least (t, object, triangle) on
+   the ray (bvh.c), so wherever the whole ray's hit lies within that
+   stretch it is the same hit, bit for bit; where the stretch holds none
+   (the ray passes a silhouette the rasteriser covered) the whole ray is
+   traced. Either way, the hit of the whole ray. */
 static int refl__rt_first_hit(const refl__rt *rt, int x, int y, refl_vec3 *o, refl_vec3 *d, float *len,
                               refl_hit *h) {
-    float lo, hi;
+    float hi;
     refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, o, d, len);
-    if (rt->first && refl__rt_first_window(rt, x, y, *len, &lo, &hi) &&
-        rt->caster.intersect(rt->caster.user, *o, *d, lo, hi, h))
+    if (rt->first && refl__rt_first_bound(rt, x, y, *len, &hi) && rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, hi, h))
         return 1;
     return rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, *len, h);
 }

@@ -529,8 +529,8 @@ Test(refl_raytrace, allocation_failure_at_every_allocation_leaks_nothing) {
 }
 
 /* Primary visibility comes from the rasteriser (m_raytrace.c): the
-   tracer seeks each pixel's first hit only near the surfaces the
-   rasteriser drew at the pixel and its neighbours. A caller's caster
+   tracer traces each pixel's primary ray only as far as the surface the
+   rasteriser drew there (the whole ray where that holds no hit). A caller's caster
    traces every primary ray whole, so the two frames side by side compare
    the rasterised first hits with the traced ones. They are the same hits,
    so the same bytes, on every built-in scene: with supersampling, in a
@@ -579,13 +579,13 @@ Test(refl_raytrace, rasterised_first_hits_are_the_traced_ones_on_every_builtin_s
     }
 }
 
-/* What rasterised first hits cannot see: a triangle thinner than the
-   rasteriser's subpixel grid (RAST_SUBPIXEL_BITS) covers no pixel, yet a
-   ray through a pixel centre inside it meets it. A sliver 0.003 pixels
-   wide down the middle column of pixel centres, in front of a wall:
-   traced primary rays meet it in that column, the rasterised ones see the
-   wall, and nowhere else do the frames differ. */
-Test(refl_raytrace, rasterised_first_hits_miss_only_subpixel_slivers) {
+/* Geometry the rasteriser drops: a triangle thinner than its subpixel
+   grid (RAST_SUBPIXEL_BITS) covers no pixel, yet a ray through a pixel
+   centre inside it meets it. A sliver 0.003 pixels wide down the middle
+   column of pixel centres, in front of a wall: the rasteriser draws the
+   wall there, and the rasterised first hits still find the sliver, as the
+   traced rays do (the rasteriser only bounds how far a ray is traced). */
+Test(refl_raytrace, rasterised_first_hits_find_subpixel_slivers) {
     const float wall_xyz[] = {-5, -5, -6, 5, -5, -6, 5, 5, -6, -5, 5, -6};
     const float sliver_xyz[] = {-1e-4f, -1, -5, 1e-4f, -1, -5, 0, 1, -5};
     const uint32_t wall_idx[] = {0, 1, 2, 0, 2, 3};
@@ -597,7 +597,7 @@ Test(refl_raytrace, rasterised_first_hits_miss_only_subpixel_slivers) {
     refl_view v = tu_refl_view(refl_v3(0, 0, 0), refl_v3(0, 0, -1), 65, 49); /* column 32's centres: x = 0 */
     refl_render_desc d;
     refl_frame *rasterised, *traced;
-    int x, y, differ = 0;
+    int y, differ = 0;
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     memset(&md, 0, sizeof md);
     md.positions = wall_xyz;
@@ -617,18 +617,11 @@ Test(refl_raytrace, rasterised_first_hits_miss_only_subpixel_slivers) {
     d.method = REFL_RAYTRACE;
     rasterised = render_with(s, &v, d, NULL);
     traced = render_with(s, &v, d, bvh);
-    for (y = 0; y < v.height; ++y)
-        for (x = 0; x < v.width; ++x) {
-            size_t i = (size_t)y * (size_t)v.width + (size_t)x;
-            if (!memcmp(rasterised->rgba + 4 * i, traced->rgba + 4 * i, 4 * sizeof(float)) &&
-                rasterised->depth[i] == traced->depth[i])
-                continue;
-            cr_assert_eq(x, 32, "pixel (%d, %d) differs off the sliver's column", x, y);
-            cr_assert(traced->depth[i] < rasterised->depth[i], "(%d, %d): the traced ray meets the sliver", x, y);
-            ++differ;
-        }
+    expect_same_frames(rasterised, traced, "sliver");
+    for (y = 0; y < v.height; ++y) /* the sliver shows in the middle column */
+        differ += traced->depth[(size_t)y * (size_t)v.width + 32] < traced->depth[(size_t)y * (size_t)v.width + 31];
     /* the sliver spans 2 of the 4.1 units the view sees at its distance */
-    cr_assert(differ > 0 && differ <= 25, "%d pixels differ", differ);
+    cr_assert(differ > 15 && differ <= 25, "%d pixels show the sliver", differ);
     refl_frame_destroy(traced);
     refl_frame_destroy(rasterised);
     refl_bvh_destroy(bvh);
