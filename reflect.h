@@ -2411,10 +2411,6 @@ typedef struct refl__rt {
     refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
     int face_count;
     refl__lv lv;                  /* and their virtual lights (none when off) */
-    float *first;                 /* per pixel of the pass's frame, the window depth of the
-                                     first surface the rasteriser drew there (m_raytrace.c),
-                                     as far as which its primary ray is traced; NULL:
-                                     primary rays traced whole. Freed by refl__rt_end */
 } refl__rt;
 
 /* What tracing pass p needs: the objects' transforms and materials, the
@@ -16136,58 +16132,9 @@ done:
    pixel is rendered by the per-pixel tracer (trace.c), in tiles of
    REFL__RT_TILE pixels square run on the thread pool, a band of tile rows
    at a time so progress is reported from the calling thread. Pixels are
-   independent, so any thread count gives the same bytes.
-
-   Primary visibility comes from the rasteriser: the scene drawn depth-only
-   with the base pass's clip positions tells the tracer how far along each
-   pixel's ray its first hit lies at most (refl__rt_first_hit), so the
-   traversal skips everything behind that surface from the start. */
+   independent, so any thread count gives the same bytes. */
 
 enum { REFL__RT_TILE = 16 };
-/* Fewer pixels than one in this many of the frame are traced with whole
-   primary rays: drawing the scene again would cost more than it saves. */
-enum { REFL__RT_FIRST_SHARE = 16 };
-
-/* rt->first: the window depth of the first surface at every pixel of the
-   pass's frame, the scene drawn depth-only into a buffer of its own (the
-   frame's depth may hold what a method drew since the base pass), then the
-   frame bound again as the context's targets. Only with the library's own
-   BVH: a caller's caster traces every ray itself. */
-static refl_result refl__rt_raster_first(refl__rt *rt) {
-    const refl__pass *p = rt->p;
-    const refl_scene *scene = p->scene;
-    const refl_allocator *al = &scene->allocator;
-    refl_frame *f = p->frame;
-    refl__em_draw *draws;
-    rast_targets t;
-    rast_state s;
-    rast_result rr;
-    int i;
-    if (p->desc.raytrace.caster.intersect) return REFL_OK;
-    rt->first = (float *)refl__calloc(al, (size_t)f->width * (size_t)f->height, sizeof(float));
-    draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
-    if (!rt->first || !draws) {
-        refl__free(al, draws);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    t = refl__float_targets(NULL, rt->first, NULL, f->width, f->height);
-    rr = rast_set_targets(p->rc, &t);
-    if (rr == RAST_OK) rr = refl__em_clear(p->rc, RAST_CLEAR_DEPTH);
-    memset(&s, 0, sizeof s);
-    s.depth_test = 1;
-    s.vertex_fn = refl__em_vertex;
-    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
-        refl__em_setup_draw(&draws[i], scene, i, p->vp, 0);
-        s.vertex_user = &draws[i];
-        rr = rast_set_state(p->rc, &s);
-        if (rr == RAST_OK) rr = refl__em_submit(p->rc, &draws[i]);
-    }
-    if (rr == RAST_OK) rr = rast_finish(p->rc);
-    t = refl__frame_targets(f);
-    if (rr == RAST_OK) rr = rast_set_targets(p->rc, &t);
-    refl__free(al, draws);
-    return refl__result_from_rast(rr);
-}
 
 /* A frame's tracing: the tracer, and the rays each tile cast (summed
    after: no shared counter). */
@@ -16255,17 +16202,11 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     refl__rt_frame tf;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
-    size_t pixels, k;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
     if (r != REFL_OK) return r;
     r = refl__rt_begin(&tf.rt, p, bvh);
     tf.rt.bvh = owned; /* freed with rt */
-    pixels = (size_t)f->width * (size_t)f->height;
-    if (p->mine) /* its own reflectors' pixels only */
-        for (k = pixels, pixels = 0; k-- > 0;) pixels += refl__rt_mine(p, f->stencil[k]);
-    if (r == REFL_OK && pixels * REFL__RT_FIRST_SHARE >= (size_t)f->width * (size_t)f->height)
-        r = refl__rt_raster_first(&tf.rt);
     if (r != REFL_OK) {
         refl__rt_end(&tf.rt);
         return r;
@@ -16312,10 +16253,9 @@ typedef struct refl__rt_rows {
     long long *row_rays;
 } refl__rt_rows;
 
-/* The tracer set up for p's frame, `pixels` of which it is to trace
-   (rasterised primary visibility when they are enough); refl__rt_rows_end
-   frees it, also after a failure. */
-static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p, size_t pixels) {
+/* The tracer set up for p's frame; refl__rt_rows_end frees it, also
+   after a failure. */
+static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p) {
     const refl_frame *f = p->frame;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
@@ -16323,10 +16263,7 @@ static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p, size_
     if (r != REFL_OK) return r;
     r = refl__rt_begin(&rows->rt, p, bvh);
     rows->rt.bvh = owned; /* freed with rt */
-    if (r == REFL_OK && pixels * REFL__RT_FIRST_SHARE >= (size_t)f->width * (size_t)f->height)
-        r = refl__rt_raster_first(&rows->rt);
-    rows->row_rays = r == REFL_OK ? (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long))
-                                  : NULL;
+    if (r == REFL_OK) rows->row_rays = (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long));
     return r == REFL_OK && !rows->row_rays ? REFL_ERROR_OUT_OF_MEMORY : r;
 }
 
@@ -16367,11 +16304,8 @@ static void refl__rt_marked_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
-    size_t i, n = (size_t)p->frame->width * (size_t)p->frame->height, pixels = 0;
     refl__rt_rows rows;
-    refl_result r;
-    for (i = 0; i < n; ++i) pixels += marked[i] != 0;
-    r = refl__rt_rows_begin(&rows, p, pixels);
+    refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = (uint8_t *)marked;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_marked_row);
     refl__rt_rows_end(&rows);
@@ -16395,11 +16329,9 @@ static void refl__rt_beyond_row(void *arg, int y) {
    their colour (with the pixels the methods marked). */
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
-    size_t i, n = (size_t)f->width * (size_t)f->height, pixels = 0;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
     refl__rt_rows rows;
-    refl_result r;
-    for (i = 0; i < n; ++i) pixels += f->stencil[i] && !p->trace[i];
-    r = refl__rt_rows_begin(&rows, p, pixels);
+    refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = p->trace;
     rows.modelled = modelled;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);
@@ -24734,8 +24666,7 @@ REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_alloc
 /* The per-pixel tracer: Whitted ray tracing through the BVH (or a caller's
    refl_ray_caster), what RAYTRACE renders every pixel with and SBC's
    fallback renders the pixels it cannot resolve with. A primary ray per
-   pixel centre (its first hit sought near the surfaces the rasteriser drew
-   there where the tracer was given them, refl__rt_first_hit), mirror reflections to desc.depth bounces, glass with
+   pixel centre, mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
    absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
    two greedy paths), optional hard or soft shadows (soft: a shadow ray per
@@ -25095,45 +25026,6 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     }
 }
 
-/* Eye depth (along the view axis) of window depth w, as GL's perspective
-   projection maps it. */
-static float refl__rt_eye_depth(const refl__view_rays *vr, float w) {
-    float n = vr->znear, f = vr->zfar;
-    return 2.0f * f * n / ((f + n) - (2.0f * w - 1.0f) * (f - n));
-}
-
-/* How far along pixel (x, y)'s primary ray (length len) its first hit
-   lies at most, from the rasteriser's window depth there: a hair past
-   the surface drawn, widened by the depth buffer's rounding. 0 where the
-   pixel shows the background (the whole ray is traced). */
-static int refl__rt_first_bound(const refl__rt *rt, int x, int y, float len, float *hi) {
-    /* window depth and eye depth slack: many times the rasteriser's rounding */
-    const float dw = 1.0f / 262144.0f, dz = 1e-4f;
-    const refl__view_rays *vr = &rt->p->rays;
-    float own = rt->first[(size_t)y * (size_t)rt->p->frame->width + (size_t)x];
-    if (!(own + dw < 1.0f)) return 0;
-    *hi = REFL__MIN((refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * (len / (vr->zfar - vr->znear)), len);
-    return 1;
-}
-
-/* Pixel (x, y)'s primary ray (from the near plane to the far plane, as
-   the rasteriser clips) and its first hit. With the rasteriser's depths
-   (rt->first) the ray is traced only as far as the surface drawn there
-   (refl__rt_first_bound), so the traversal skips everything behind it
-   from the start. The closest hit is the least (t, object, triangle) on
-   the ray (bvh.c), so wherever the whole ray's hit lies within that
-   stretch it is the same hit, bit for bit; where the stretch holds none
-   (the ray passes a silhouette the rasteriser covered) the whole ray is
-   traced. Either way, the hit of the whole ray. */
-static int refl__rt_first_hit(const refl__rt *rt, int x, int y, refl_vec3 *o, refl_vec3 *d, float *len,
-                              refl_hit *h) {
-    float hi;
-    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, o, d, len);
-    if (rt->first && refl__rt_first_bound(rt, x, y, *len, &hi) && rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, hi, h))
-        return 1;
-    return rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, *len, h);
-}
-
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
@@ -25150,8 +25042,9 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     *shown = refl_v3(NAN, NAN, NAN);
     *depth = 1.0f;
     *stencil = 0;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
     ++*rays;
-    if (refl__rt_first_hit(rt, x, y, &a, &d, &len, &h) && h.object >= 0 &&
+    if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
         h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
         /* GL's window depth of the eye distance along the axis */
         const refl__view_rays *vr = &rt->p->rays;
@@ -25175,8 +25068,9 @@ static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *mod
     refl_hit h;
     refl__rt_surface s;
     int k, j;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &len);
     ++*rays;
-    if (!refl__rt_first_hit(rt, x, y, &o, &d, &len, &h) || h.object < 0 ||
+    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, len, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
         return 0;
     k = modelled[s.object];
@@ -25235,7 +25129,6 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
 static void refl__rt_end(refl__rt *rt) {
     if (!rt->scene) return;
     refl_bvh_destroy(rt->bvh);
-    refl__free(&rt->scene->allocator, rt->first);
     if (rt->faces) refl__planar_free_faces(rt->scene, rt->faces, rt->face_count);
     refl__free(&rt->scene->allocator, rt->objects);
     rt->scene = NULL;

@@ -471,10 +471,6 @@ typedef struct refl__rt {
     refl__planar_face *faces;     /* light_volumes: the planar mirror faces */
     int face_count;
     refl__lv lv;                  /* and their virtual lights (none when off) */
-    float *first;                 /* per pixel of the pass's frame, the window depth of the
-                                     first surface the rasteriser drew there (m_raytrace.c),
-                                     as far as which its primary ray is traced; NULL:
-                                     primary rays traced whole. Freed by refl__rt_end */
 } refl__rt;
 
 /* What tracing pass p needs: the objects' transforms and materials, the

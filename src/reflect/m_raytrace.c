@@ -2,59 +2,10 @@
    pixel is rendered by the per-pixel tracer (trace.c), in tiles of
    REFL__RT_TILE pixels square run on the thread pool, a band of tile rows
    at a time so progress is reported from the calling thread. Pixels are
-   independent, so any thread count gives the same bytes.
-
-   Primary visibility comes from the rasteriser: the scene drawn depth-only
-   with the base pass's clip positions tells the tracer how far along each
-   pixel's ray its first hit lies at most (refl__rt_first_hit), so the
-   traversal skips everything behind that surface from the start. */
+   independent, so any thread count gives the same bytes. */
 #include "internal.h"
 
 enum { REFL__RT_TILE = 16 };
-/* Fewer pixels than one in this many of the frame are traced with whole
-   primary rays: drawing the scene again would cost more than it saves. */
-enum { REFL__RT_FIRST_SHARE = 16 };
-
-/* rt->first: the window depth of the first surface at every pixel of the
-   pass's frame, the scene drawn depth-only into a buffer of its own (the
-   frame's depth may hold what a method drew since the base pass), then the
-   frame bound again as the context's targets. Only with the library's own
-   BVH: a caller's caster traces every ray itself. */
-static refl_result refl__rt_raster_first(refl__rt *rt) {
-    const refl__pass *p = rt->p;
-    const refl_scene *scene = p->scene;
-    const refl_allocator *al = &scene->allocator;
-    refl_frame *f = p->frame;
-    refl__em_draw *draws;
-    rast_targets t;
-    rast_state s;
-    rast_result rr;
-    int i;
-    if (p->desc.raytrace.caster.intersect) return REFL_OK;
-    rt->first = (float *)refl__calloc(al, (size_t)f->width * (size_t)f->height, sizeof(float));
-    draws = (refl__em_draw *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__em_draw));
-    if (!rt->first || !draws) {
-        refl__free(al, draws);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    t = refl__float_targets(NULL, rt->first, NULL, f->width, f->height);
-    rr = rast_set_targets(p->rc, &t);
-    if (rr == RAST_OK) rr = refl__em_clear(p->rc, RAST_CLEAR_DEPTH);
-    memset(&s, 0, sizeof s);
-    s.depth_test = 1;
-    s.vertex_fn = refl__em_vertex;
-    for (i = 0; i < scene->object_count && rr == RAST_OK; ++i) {
-        refl__em_setup_draw(&draws[i], scene, i, p->vp, 0);
-        s.vertex_user = &draws[i];
-        rr = rast_set_state(p->rc, &s);
-        if (rr == RAST_OK) rr = refl__em_submit(p->rc, &draws[i]);
-    }
-    if (rr == RAST_OK) rr = rast_finish(p->rc);
-    t = refl__frame_targets(f);
-    if (rr == RAST_OK) rr = rast_set_targets(p->rc, &t);
-    refl__free(al, draws);
-    return refl__result_from_rast(rr);
-}
 
 /* A frame's tracing: the tracer, and the rays each tile cast (summed
    after: no shared counter). */
@@ -122,17 +73,11 @@ static refl_result refl__method_raytrace(refl__pass *p) {
     refl__rt_frame tf;
     double t0 = refl__now_ms(), t1;
     int i, tiles, rows_done;
-    size_t pixels, k;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
     if (r != REFL_OK) return r;
     r = refl__rt_begin(&tf.rt, p, bvh);
     tf.rt.bvh = owned; /* freed with rt */
-    pixels = (size_t)f->width * (size_t)f->height;
-    if (p->mine) /* its own reflectors' pixels only */
-        for (k = pixels, pixels = 0; k-- > 0;) pixels += refl__rt_mine(p, f->stencil[k]);
-    if (r == REFL_OK && pixels * REFL__RT_FIRST_SHARE >= (size_t)f->width * (size_t)f->height)
-        r = refl__rt_raster_first(&tf.rt);
     if (r != REFL_OK) {
         refl__rt_end(&tf.rt);
         return r;
@@ -179,10 +124,9 @@ typedef struct refl__rt_rows {
     long long *row_rays;
 } refl__rt_rows;
 
-/* The tracer set up for p's frame, `pixels` of which it is to trace
-   (rasterised primary visibility when they are enough); refl__rt_rows_end
-   frees it, also after a failure. */
-static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p, size_t pixels) {
+/* The tracer set up for p's frame; refl__rt_rows_end frees it, also
+   after a failure. */
+static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p) {
     const refl_frame *f = p->frame;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
@@ -190,10 +134,7 @@ static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p, size_
     if (r != REFL_OK) return r;
     r = refl__rt_begin(&rows->rt, p, bvh);
     rows->rt.bvh = owned; /* freed with rt */
-    if (r == REFL_OK && pixels * REFL__RT_FIRST_SHARE >= (size_t)f->width * (size_t)f->height)
-        r = refl__rt_raster_first(&rows->rt);
-    rows->row_rays = r == REFL_OK ? (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long))
-                                  : NULL;
+    if (r == REFL_OK) rows->row_rays = (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long));
     return r == REFL_OK && !rows->row_rays ? REFL_ERROR_OUT_OF_MEMORY : r;
 }
 
@@ -234,11 +175,8 @@ static void refl__rt_marked_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
-    size_t i, n = (size_t)p->frame->width * (size_t)p->frame->height, pixels = 0;
     refl__rt_rows rows;
-    refl_result r;
-    for (i = 0; i < n; ++i) pixels += marked[i] != 0;
-    r = refl__rt_rows_begin(&rows, p, pixels);
+    refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = (uint8_t *)marked;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_marked_row);
     refl__rt_rows_end(&rows);
@@ -262,11 +200,9 @@ static void refl__rt_beyond_row(void *arg, int y) {
    their colour (with the pixels the methods marked). */
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
-    size_t i, n = (size_t)f->width * (size_t)f->height, pixels = 0;
+    size_t i, n = (size_t)f->width * (size_t)f->height;
     refl__rt_rows rows;
-    refl_result r;
-    for (i = 0; i < n; ++i) pixels += f->stencil[i] && !p->trace[i];
-    r = refl__rt_rows_begin(&rows, p, pixels);
+    refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = p->trace;
     rows.modelled = modelled;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);

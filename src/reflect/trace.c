@@ -1,8 +1,7 @@
 /* The per-pixel tracer: Whitted ray tracing through the BVH (or a caller's
    refl_ray_caster), what RAYTRACE renders every pixel with and SBC's
    fallback renders the pixels it cannot resolve with. A primary ray per
-   pixel centre (its first hit sought near the surfaces the rasteriser drew
-   there where the tracer was given them, refl__rt_first_hit), mirror reflections to desc.depth bounces, glass with
+   pixel centre, mirror reflections to desc.depth bounces, glass with
    Fresnel reflection, refraction, total internal reflection and Beer's-law
    absorption (the full ray tree, or with desc.raytrace.greedy paper 001's
    two greedy paths), optional hard or soft shadows (soft: a shadow ray per
@@ -363,45 +362,6 @@ static void refl__rt_trace(const refl__rt *rt, refl_vec3 o, refl_vec3 d, const r
     }
 }
 
-/* Eye depth (along the view axis) of window depth w, as GL's perspective
-   projection maps it. */
-static float refl__rt_eye_depth(const refl__view_rays *vr, float w) {
-    float n = vr->znear, f = vr->zfar;
-    return 2.0f * f * n / ((f + n) - (2.0f * w - 1.0f) * (f - n));
-}
-
-/* How far along pixel (x, y)'s primary ray (length len) its first hit
-   lies at most, from the rasteriser's window depth there: a hair past
-   the surface drawn, widened by the depth buffer's rounding. 0 where the
-   pixel shows the background (the whole ray is traced). */
-static int refl__rt_first_bound(const refl__rt *rt, int x, int y, float len, float *hi) {
-    /* window depth and eye depth slack: many times the rasteriser's rounding */
-    const float dw = 1.0f / 262144.0f, dz = 1e-4f;
-    const refl__view_rays *vr = &rt->p->rays;
-    float own = rt->first[(size_t)y * (size_t)rt->p->frame->width + (size_t)x];
-    if (!(own + dw < 1.0f)) return 0;
-    *hi = REFL__MIN((refl__rt_eye_depth(vr, own + dw) * (1.0f + dz) - vr->znear) * (len / (vr->zfar - vr->znear)), len);
-    return 1;
-}
-
-/* Pixel (x, y)'s primary ray (from the near plane to the far plane, as
-   the rasteriser clips) and its first hit. With the rasteriser's depths
-   (rt->first) the ray is traced only as far as the surface drawn there
-   (refl__rt_first_bound), so the traversal skips everything behind it
-   from the start. The closest hit is the least (t, object, triangle) on
-   the ray (bvh.c), so wherever the whole ray's hit lies within that
-   stretch it is the same hit, bit for bit; where the stretch holds none
-   (the ray passes a silhouette the rasteriser covered) the whole ray is
-   traced. Either way, the hit of the whole ray. */
-static int refl__rt_first_hit(const refl__rt *rt, int x, int y, refl_vec3 *o, refl_vec3 *d, float *len,
-                              refl_hit *h) {
-    float hi;
-    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, o, d, len);
-    if (rt->first && refl__rt_first_bound(rt, x, y, *len, &hi) && rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, hi, h))
-        return 1;
-    return rt->caster.intersect(rt->caster.user, *o, *d, 0.0f, *len, h);
-}
-
 /* Pixel (x, y) as RAYTRACE renders it: a primary ray from the near plane
    to the far plane (what the rasteriser clips to); colour, the point its
    reflector shows (NaN: none, or no reflector), window depth and stencil
@@ -418,8 +378,9 @@ static void refl__rt_pixel(const refl__rt *rt, int x, int y, long long *rays, fl
     *shown = refl_v3(NAN, NAN, NAN);
     *depth = 1.0f;
     *stencil = 0;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &a, &d, &len);
     ++*rays;
-    if (refl__rt_first_hit(rt, x, y, &a, &d, &len, &h) && h.object >= 0 &&
+    if (rt->caster.intersect(rt->caster.user, a, d, 0.0f, len, &h) && h.object >= 0 &&
         h.object < rt->scene->object_count && refl__rt_surface_at(rt, &h, &s)) {
         /* GL's window depth of the eye distance along the axis */
         const refl__view_rays *vr = &rt->p->rays;
@@ -443,8 +404,9 @@ static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *mod
     refl_hit h;
     refl__rt_surface s;
     int k, j;
+    refl__view_rays_get(&rt->p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &len);
     ++*rays;
-    if (!refl__rt_first_hit(rt, x, y, &o, &d, &len, &h) || h.object < 0 ||
+    if (!rt->caster.intersect(rt->caster.user, o, d, 0.0f, len, &h) || h.object < 0 ||
         h.object >= rt->scene->object_count || !refl__rt_surface_at(rt, &h, &s))
         return 0;
     k = modelled[s.object];
@@ -503,7 +465,6 @@ static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *b
 static void refl__rt_end(refl__rt *rt) {
     if (!rt->scene) return;
     refl_bvh_destroy(rt->bvh);
-    refl__free(&rt->scene->allocator, rt->first);
     if (rt->faces) refl__planar_free_faces(rt->scene, rt->faces, rt->face_count);
     refl__free(&rt->scene->allocator, rt->objects);
     rt->scene = NULL;
