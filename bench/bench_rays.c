@@ -275,18 +275,24 @@ static const char *frame_names[FRAME_COUNT] = {"ours (BVH built in frame)", "our
                                                "refl_bvh as caster", "Embree as caster"};
 static int frame_depth = 1, frame_shadows;
 
-/* Milliseconds (wall, or CPU with --cpu-time) of one RAYTRACE frame
-   through tracer `which`; FRAME_OURS_KEPT renders with rr. */
-static double frame_ms(const refl_scene *s, const refl_view *v, int which, int threads, refl_bvh *bvh,
-                       refl_embree *emb, refl_renderer *rr, refl_frame *f) {
+/* The frames' RAYTRACE desc on `threads` threads. */
+static refl_render_desc frame_desc(int threads) {
     refl_render_desc d;
-    refl_result r;
-    double t0;
     memset(&d, 0, sizeof d);
     d.method = REFL_RAYTRACE;
     d.threads = threads;
     d.depth = frame_depth;
     d.lighting.shadows = frame_shadows;
+    return d;
+}
+
+/* Milliseconds (wall, or CPU with --cpu-time) of one RAYTRACE frame
+   through tracer `which`; FRAME_OURS_KEPT renders with rr. */
+static double frame_ms(const refl_scene *s, const refl_view *v, int which, int threads, refl_bvh *bvh,
+                       refl_embree *emb, refl_renderer *rr, refl_frame *f) {
+    refl_render_desc d = frame_desc(threads);
+    refl_result r;
+    double t0;
     if (which == FRAME_OURS_PREBUILT) {
         d.raytrace.caster.intersect = bvh_caster_intersect;
         d.raytrace.caster.occluded = bvh_caster_occluded;
@@ -305,15 +311,10 @@ static double frame_ms(const refl_scene *s, const refl_view *v, int which, int t
     return (ray_clock_s() - t0) * 1e3;
 }
 
-/* The renderer of FRAME_OURS_KEPT, with frame_ms's desc. */
+/* The renderer of FRAME_OURS_KEPT. */
 static refl_renderer *frame_renderer(const refl_scene *s, int threads) {
-    refl_render_desc d;
+    refl_render_desc d = frame_desc(threads);
     refl_renderer *rr = NULL;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = threads;
-    d.depth = frame_depth;
-    d.lighting.shadows = frame_shadows;
     if (refl_renderer_create(s, &d, &rr) != REFL_OK) {
         fprintf(stderr, "bench_rays: refl_renderer_create failed\n");
         exit(2);
