@@ -433,8 +433,8 @@ typedef struct refl_hit {
     float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
 } refl_hit;
 
-/* Builds a bounding volume hierarchy (binned SAH, collapsed to four
-   children a node, SSE2 box and triangle tests; plain C under
+/* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
+   children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
    space. Deterministic: the same scene gives the same tree. Degenerate
    and non-finite triangles are left out. */
@@ -447,6 +447,15 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Refits the tree to the scene's current positions (rigid or any other
+   motion of the vertices) without rebuilding it: every triangle taken
+   again from its mesh and transform, every box recomputed around them.
+   The hits are those of a BVH built anew (the closest hit does not depend
+   on the tree), only found more slowly where the motion made boxes
+   overlap. REFL_ERROR_UNSUPPORTED (the tree then unusable: build anew)
+   where the scene no longer has the objects and triangle counts it was
+   built over, or a triangle became degenerate or stopped being one. */
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene);
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
 
@@ -1811,7 +1820,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    samples its frames used. What the scene's changes invalidate: every
    refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
-   built at rebuilds them all; code that writes the scene's arrays itself
+   built at rebuilds them all, but for the BVH, refit where the objects
+   and their triangle counts are those it was built over (refl_bvh_refit:
+   objects moved); code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the
@@ -3880,6 +3891,8 @@ struct refl_bvh {
     refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
     void *blocks_mem;
     int block_count;
+    int *object_tris;             /* per object of the scene built from: its triangle count (refit) */
+    int object_count;
 };
 
 /* ---- build ------------------------------------------------------------------ */
@@ -4105,6 +4118,7 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh->wide_mem);
     refl__free(&a, bvh->tris);
     refl__free(&a, bvh->blocks_mem);
+    refl__free(&a, bvh->object_tris);
     refl__free(&a, bvh);
 }
 
@@ -4211,6 +4225,23 @@ static void *refl__bvh_calloc_lines(const refl_allocator *a, size_t count, size_
     return (void *)(p + (64 - p % 64) % 64);
 }
 
+/* Triangle t of object i in world space into v (0: an index out of range). */
+static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *mesh = scene->meshes[o->mesh];
+    int j;
+    for (j = 0; j < 3; ++j) {
+        uint32_t vi = mesh->indices[3 * t + j];
+        const float *p;
+        refl_vec3 w;
+        if (vi >= (uint32_t)mesh->vertex_count) return 0;
+        p = mesh->positions + 3 * (size_t)vi;
+        w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
+        v[3 * j] = w.x; v[3 * j + 1] = w.y; v[3 * j + 2] = w.z;
+    }
+    return 1;
+}
+
 /* keep_binary: keep the binary tree too, for the tests that compare the
    two (refl__bvh_intersect_binary). */
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
@@ -4245,25 +4276,17 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->tris = (refl__bvh_tri *)refl__calloc(a, (size_t)total, sizeof *bvh->tris);
     if (!bvh->tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
 
+    bvh->object_count = scene->object_count;
+    bvh->object_tris = (int *)refl__calloc(a, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    if (!bvh->object_tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
+    for (i = 0; i < scene->object_count; ++i) bvh->object_tris[i] = scene->meshes[scene->objects[i].mesh]->triangle_count;
     /* World space once, so triangles sharing a vertex share its exact
        floats: the watertight test relies on that. */
     for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *mesh = scene->meshes[o->mesh];
-        int t, j;
-        for (t = 0; t < mesh->triangle_count; ++t) {
+        int t;
+        for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count; ++t) {
             refl__bvh_tri *dst = &bvh->tris[n];
-            int bad = 0;
-            for (j = 0; j < 3; ++j) {
-                uint32_t vi = mesh->indices[3 * t + j];
-                const float *p;
-                refl_vec3 w;
-                if (vi >= (uint32_t)mesh->vertex_count) { bad = 1; break; }
-                p = mesh->positions + 3 * (size_t)vi;
-                w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
-                dst->v[3 * j] = w.x; dst->v[3 * j + 1] = w.y; dst->v[3 * j + 2] = w.z;
-            }
-            if (bad) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
+            if (!refl__bvh_world_tri(scene, i, t, dst->v)) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
             if (!refl__tri_ok(dst->v)) continue;
             dst->object = i;
             dst->triangle = t;
@@ -4320,6 +4343,85 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
     return refl__bvh_build_ex(scene, a, 0, out_bvh);
+}
+
+/* ---- refit ------------------------------------------------------------------- */
+
+/* Whether the scene has the objects and triangle counts the BVH was built
+   over, with the same triangles left out as degenerate. */
+static int refl__bvh_refit_fits(const refl_bvh *bvh, const refl_scene *scene) {
+    int i, t, ok = 0;
+    float v[9];
+    if (!bvh->object_tris || scene->object_count != bvh->object_count) return 0;
+    for (i = 0; i < scene->object_count; ++i) {
+        int m = scene->objects[i].mesh;
+        const refl_mesh *mesh = m >= 0 && m < scene->mesh_count && scene->meshes ? scene->meshes[m] : NULL;
+        if (!mesh || mesh->triangle_count != bvh->object_tris[i] ||
+            (mesh->triangle_count > 0 && (!mesh->positions || !mesh->indices)))
+            return 0;
+    }
+    for (i = 0; i < scene->object_count; ++i)
+        for (t = 0; t < bvh->object_tris[i]; ++t) {
+            if (!refl__bvh_world_tri(scene, i, t, v)) return 0;
+            ok += refl__tri_ok(v);
+        }
+    return ok == bvh->tri_count;
+}
+
+/* Box of the `count` triangles of the leaf at blocks[first] into lo, hi. */
+static void refl__bvh_leaf_box(const refl_bvh *bvh, int first, int count, float lo[3], float hi[3]) {
+    int j, k;
+    for (k = 0; k < 3; ++k) { lo[k] = INFINITY; hi[k] = -INFINITY; }
+    for (j = 0; j < count; ++j) {
+        const refl__bvh_tri4 *q = &bvh->blocks[first + j / 4];
+        for (k = 0; k < 9; ++k) {
+            lo[k % 3] = REFL__MIN(lo[k % 3], q->v[k][j % 4]);
+            hi[k % 3] = REFL__MAX(hi[k % 3], q->v[k][j % 4]);
+        }
+    }
+}
+
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene) {
+    int b, lane, w, k;
+    if (!bvh || !scene) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__bvh_refit_fits(bvh, scene)) return REFL_ERROR_UNSUPPORTED;
+    for (b = 0; b < bvh->block_count; ++b) {
+        refl__bvh_tri4 *q = &bvh->blocks[b];
+        for (lane = 0; lane < 4; ++lane) {
+            float v[9];
+            if (q->object[lane] < 0) continue;
+            refl__bvh_world_tri(scene, q->object[lane], q->triangle[lane], v);
+            if (!refl__tri_ok(v)) return REFL_ERROR_UNSUPPORTED; /* left half refit: the caller rebuilds */
+            for (k = 0; k < 9; ++k) q->v[k][lane] = v[k];
+        }
+    }
+    /* children come after their parent (refl__bvh_collapse): bottom-up is backwards */
+    for (w = bvh->wide_count - 1; w >= 0; --w) {
+        refl__bvhw_node *n = &bvh->wide[w];
+        for (lane = 0; lane < REFL__BVH_W; ++lane) {
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            if (n->count[lane] > 0) {
+                refl__bvh_leaf_box(bvh, n->child[lane], n->count[lane], lo, hi);
+            } else if (n->child[lane] >= 0) {
+                const refl__bvhw_node *c = &bvh->wide[n->child[lane]];
+                int cl;
+                for (cl = 0; cl < REFL__BVH_W; ++cl)
+                    for (k = 0; k < 3; ++k) {
+                        lo[k] = REFL__MIN(lo[k], c->box[k][cl]);
+                        hi[k] = REFL__MAX(hi[k], c->box[3 + k][cl]);
+                    }
+            }
+            for (k = 0; k < 3; ++k) {
+                n->box[k][lane] = lo[k];
+                n->box[3 + k][lane] = hi[k];
+            }
+        }
+    }
+    /* the binary tree (tests only) no longer matches: dropped */
+    refl__free(&bvh->allocator, bvh->nodes);
+    bvh->nodes = NULL;
+    bvh->node_count = 0;
+    return REFL_OK;
 }
 
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles) {
@@ -16707,30 +16809,34 @@ typedef struct refl__rt_rows {
     long long *row_rays;
 } refl__rt_rows;
 
-/* Runs row(rows, y) for every row of p's frame on the thread pool, with
-   the tracer set up for p. */
-static refl_result refl__rt_run_rows(refl__pass *p, void (*row)(void *, int), uint8_t *marked,
-                                     const int *modelled) {
-    const refl_allocator *al = &p->scene->allocator;
-    refl_frame *f = p->frame;
-    refl__rt_rows rows;
+/* The tracer set up for p's frame; refl__rt_rows_end frees it, also
+   after a failure. */
+static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p) {
+    const refl_frame *f = p->frame;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
-    int y;
+    memset(rows, 0, sizeof *rows);
     if (r != REFL_OK) return r;
-    r = refl__rt_begin(&rows.rt, p, bvh);
-    rows.rt.bvh = owned; /* freed with rt */
-    rows.marked = marked;
-    rows.modelled = modelled;
-    rows.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
-    if (r == REFL_OK && !rows.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) {
-        rast_run_jobs(p->rc, f->height, row, &rows);
-        for (y = 0; y < f->height; ++y) f->stats.rays += rows.row_rays[y];
+    r = refl__rt_begin(&rows->rt, p, bvh);
+    rows->rt.bvh = owned; /* freed with rt */
+    if (r == REFL_OK) rows->row_rays = (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long));
+    return r == REFL_OK && !rows->row_rays ? REFL_ERROR_OUT_OF_MEMORY : r;
+}
+
+/* Runs row(rows, y) for every row of the frame on the thread pool. */
+static void refl__rt_rows_run(refl__rt_rows *rows, void (*row)(void *, int)) {
+    const refl__pass *p = rows->rt.p;
+    int y;
+    rast_run_jobs(p->rc, p->frame->height, row, rows);
+    for (y = 0; y < p->frame->height; ++y) {
+        p->frame->stats.rays += rows->row_rays[y];
+        rows->row_rays[y] = 0;
     }
-    refl__free(al, rows.row_rays);
-    refl__rt_end(&rows.rt);
-    return r;
+}
+
+static void refl__rt_rows_end(refl__rt_rows *rows) {
+    if (rows->rt.scene) refl__free(&rows->rt.scene->allocator, rows->row_rays);
+    refl__rt_end(&rows->rt);
 }
 
 static void refl__rt_marked_row(void *arg, int y) {
@@ -16754,7 +16860,12 @@ static void refl__rt_marked_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
-    return refl__rt_run_rows(p, refl__rt_marked_row, (uint8_t *)marked, NULL);
+    refl__rt_rows rows;
+    refl_result r = refl__rt_rows_begin(&rows, p);
+    rows.marked = (uint8_t *)marked;
+    if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    refl__rt_rows_end(&rows);
+    return r;
 }
 
 /* ---- bounces past a method's own -------------------------------------------------- */
@@ -16770,12 +16881,20 @@ static void refl__rt_beyond_row(void *arg, int y) {
     }
 }
 
+/* One tracer for both passes: which reflector pixels go beyond, then
+   their colour (with the pixels the methods marked). */
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
-    refl_result r = refl__rt_run_rows(p, refl__rt_beyond_row, p->trace, modelled);
+    refl__rt_rows rows;
+    refl_result r = refl__rt_rows_begin(&rows, p);
+    rows.marked = p->trace;
+    rows.modelled = modelled;
+    if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);
     for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
-    return r == REFL_OK && f->stats.traced_beyond ? refl__trace_marked(p, p->trace) : r;
+    if (r == REFL_OK && f->stats.traced_beyond) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    refl__rt_rows_end(&rows);
+    return r;
 }
 /* ---- src/reflect/m_sbc.c ---- */
 /* SBC: Popescu, Sacks and Mei's sample-based camera reflections (paper
@@ -20055,10 +20174,15 @@ static refl_result refl__cancelled(refl_frame *frame) {
     return REFL_ERROR_CANCELLED;
 }
 
-/* The renderer's models dropped when the scene changed since they were built. */
+/* The renderer's models dropped when the scene changed since they were
+   built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
+    refl_bvh *bvh = rr->models.bvh;
     if (rr->models.scene_version == rr->scene->version) return;
+    rr->models.bvh = NULL;
     refl__models_free(rr->scene, &rr->models);
+    if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
+    else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;
 }
 

@@ -5,7 +5,8 @@
    Embree as the ray caster.
 
    Usage: bench_rays [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb]
-                     [--frame WxH] [--only primary|mirror] [--cpu-time]
+                     [--frame WxH] [--frame-depth N] [--shadows] [--only primary|mirror|frames]
+                     [--cpu-time]
 
    Ray sets:
      primary   one ray through each pixel centre (1920x1080 unless --size):
@@ -29,20 +30,24 @@
    where refl_bvh and Embree name different triangles are counted (only
    rays grazing an edge may differ; tests/tools/test_embree.c classifies them).
    Exit status 1 when the hit counts differ by more than 1 in 10^4.
-   --only times one ray set (the other is still traced once, for its hits);
-   --cpu-time times the ray sets in process CPU time (Mrays/s then per CPU
-   second of all threads together) instead of wall time.
+   --only times one ray set (the other is still traced once, for its hits),
+   or (frames) the frames alone, no ray sets nor builds;
+   --cpu-time times the ray sets and the frames in process CPU time (Mrays/s
+   then per CPU second of all threads together) instead of wall time.
 
    Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
    robust) with 1 thread and with all, median of N each.
 
-   Frames (--frame, default 640x480; 0x0: none): refl_render of RAYTRACE
-   (one bounce, no shadows) with its own BVH built inside the frame, with
-   a refl_bvh built beforehand as its caster, and with Embree's scene
-   built beforehand as its caster (what a CPU user without this library
-   would trace with), 1 and 2 threads, taking turns within each of N runs;
-   medians, and Embree's time / ours as the median of per-run ratios (above
-   1: ours is faster). */
+   Frames (--frame, default 640x480; 0x0: none): RAYTRACE (--frame-depth
+   bounces, default 1; shadows with --shadows) four ways: refl_render
+   with its own BVH built inside the frame; a refl_renderer's frame, its
+   BVH kept from the frame before (what an application rendering frame
+   after frame gets); a refl_bvh built beforehand as a caller's caster;
+   and Embree's scene built beforehand as the caster, primary and
+   secondary rays all through Embree (what a CPU user without this library
+   would trace with). 1 and 2 threads, taking
+   turns within each of N runs; medians, and Embree's time / ours as the
+   median of per-run ratios (above 1: ours is faster). */
 #define _POSIX_C_SOURCE 200809L
 /* The implementations come from tests/reflect_impl.c and tests/rast_impl.c
    (linked in by the Makefile). */
@@ -265,20 +270,29 @@ static int bvh_caster_occluded(void *user, refl_vec3 o, refl_vec3 d, float tmin,
     return refl_bvh_occluded((const refl_bvh *)user, o, d, tmin, tmax);
 }
 
-enum { FRAME_OURS_BUILT_IN, FRAME_OURS_PREBUILT, FRAME_EMBREE, FRAME_COUNT };
-static const char *frame_names[FRAME_COUNT] = {"refl_bvh (built in the frame)", "refl_bvh (prebuilt)",
-                                               "Embree (prebuilt)"};
+enum { FRAME_OURS_BUILT_IN, FRAME_OURS_KEPT, FRAME_OURS_PREBUILT, FRAME_EMBREE, FRAME_COUNT };
+static const char *frame_names[FRAME_COUNT] = {"ours (BVH built in frame)", "ours (renderer, BVH kept)",
+                                               "refl_bvh as caster", "Embree as caster"};
+static int frame_depth = 1, frame_shadows;
 
-/* Wall milliseconds of one RAYTRACE frame through tracer `which`. */
-static double frame_ms(const refl_scene *s, const refl_view *v, int which, int threads, refl_bvh *bvh,
-                       refl_embree *emb, refl_frame *f) {
+/* The frames' RAYTRACE desc on `threads` threads. */
+static refl_render_desc frame_desc(int threads) {
     refl_render_desc d;
-    refl_result r;
-    double t0;
     memset(&d, 0, sizeof d);
     d.method = REFL_RAYTRACE;
     d.threads = threads;
-    d.depth = 1;
+    d.depth = frame_depth;
+    d.lighting.shadows = frame_shadows;
+    return d;
+}
+
+/* Milliseconds (wall, or CPU with --cpu-time) of one RAYTRACE frame
+   through tracer `which`; FRAME_OURS_KEPT renders with rr. */
+static double frame_ms(const refl_scene *s, const refl_view *v, int which, int threads, refl_bvh *bvh,
+                       refl_embree *emb, refl_renderer *rr, refl_frame *f) {
+    refl_render_desc d = frame_desc(threads);
+    refl_result r;
+    double t0;
     if (which == FRAME_OURS_PREBUILT) {
         d.raytrace.caster.intersect = bvh_caster_intersect;
         d.raytrace.caster.occluded = bvh_caster_occluded;
@@ -288,13 +302,24 @@ static double frame_ms(const refl_scene *s, const refl_view *v, int which, int t
         d.raytrace.caster.occluded = refl_embree_occluded;
         d.raytrace.caster.user = emb;
     }
-    t0 = now_s();
-    r = refl_render(s, v, &d, f);
+    t0 = ray_clock_s();
+    r = which == FRAME_OURS_KEPT ? refl_renderer_render(rr, v, f) : refl_render(s, v, &d, f);
     if (r != REFL_OK) {
         fprintf(stderr, "bench_rays: RAYTRACE: %s\n", refl_result_string(r));
         exit(2);
     }
-    return (now_s() - t0) * 1e3;
+    return (ray_clock_s() - t0) * 1e3;
+}
+
+/* The renderer of FRAME_OURS_KEPT. */
+static refl_renderer *frame_renderer(const refl_scene *s, int threads) {
+    refl_render_desc d = frame_desc(threads);
+    refl_renderer *rr = NULL;
+    if (refl_renderer_create(s, &d, &rr) != REFL_OK) {
+        fprintf(stderr, "bench_rays: refl_renderer_create failed\n");
+        exit(2);
+    }
+    return rr;
 }
 
 static int parse_size(const char *s, int *w, int *h) {
@@ -315,6 +340,7 @@ int main(int argc, char **argv) {
     double t0, bvh_ms, embree_ms, *times, *ratios;
     long long nodes, tris;
     char err[256];
+    int frames_only;
 
     for (i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--csv") && i + 1 < argc)
@@ -330,8 +356,14 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--cpu-time"))
             use_cpu_time = 1;
         else if (!strcmp(argv[i], "--only") && i + 1 < argc &&
-                 (!strcmp(argv[i + 1], set_names[SET_PRIMARY]) || !strcmp(argv[i + 1], set_names[SET_MIRROR])))
+                 (!strcmp(argv[i + 1], set_names[SET_PRIMARY]) || !strcmp(argv[i + 1], set_names[SET_MIRROR]) ||
+                  !strcmp(argv[i + 1], "frames")))
             only = argv[++i];
+        else if (!strcmp(argv[i], "--frame-depth") && i + 1 < argc && (frame_depth = atoi(argv[++i])) >= 0 &&
+                 frame_depth <= 16)
+            ;
+        else if (!strcmp(argv[i], "--shadows"))
+            frame_shadows = 1;
         else if (!strcmp(argv[i], "--frame") && i + 1 < argc &&
                  (!strcmp(argv[i + 1], "0x0") ? (frame_w = frame_h = 0, ++i, 1)
                                                : parse_size(argv[++i], &frame_w, &frame_h)))
@@ -339,12 +371,13 @@ int main(int argc, char **argv) {
         else {
             fprintf(stderr,
                     "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH] "
-                    "[--only primary|mirror] [--cpu-time]\n",
+                    "[--frame-depth N] [--shadows] [--only primary|mirror|frames] [--cpu-time]\n",
                     argv[0]);
             return 2;
         }
     }
 
+    frames_only = only && !strcmp(only, "frames");
     if (asset) {
         char gerr[1024];
         res = refl_gltf_load(asset, NULL, &scene, gerr, sizeof gerr);
@@ -380,96 +413,100 @@ int main(int argc, char **argv) {
     }
     refl_bvh_stats(bvh, &nodes, &tris);
 
-    rays[SET_PRIMARY] = primary_rays(scene, &view);
-    for (tracer = 0; tracer < TRACER_COUNT; ++tracer)
-        hits[tracer] = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)rays[SET_PRIMARY].count);
-    trace(TRACER_OURS, bvh, emb, 1, &rays[SET_PRIMARY], 2, hits[TRACER_OURS]);
-    rays[SET_MIRROR] = mirror_rays(scene, &rays[SET_PRIMARY], hits[TRACER_OURS]);
+    memset(rays, 0, sizeof rays);
+    memset(hits, 0, sizeof hits);
+    if (!frames_only) {
+        rays[SET_PRIMARY] = primary_rays(scene, &view);
+        for (tracer = 0; tracer < TRACER_COUNT; ++tracer)
+            hits[tracer] = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)rays[SET_PRIMARY].count);
+        trace(TRACER_OURS, bvh, emb, 1, &rays[SET_PRIMARY], 2, hits[TRACER_OURS]);
+        rays[SET_MIRROR] = mirror_rays(scene, &rays[SET_PRIMARY], hits[TRACER_OURS]);
 
-    printf("bench_rays: scene \"%s\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
-           "warm-up\n",
-           scene_name, tris, width, height, runs);
-    printf("machine: nproc %ld; builds: refl_bvh %.1f ms (1 thread, %lld nodes), Embree %.1f ms (all threads, "
-           "high quality, robust)\n\n",
-           sysconf(_SC_NPROCESSORS_ONLN), bvh_ms, nodes, embree_ms);
+        printf("bench_rays: scene \"%s\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
+               "warm-up\n",
+               scene_name, tris, width, height, runs);
+        printf("machine: nproc %ld; builds: refl_bvh %.1f ms (1 thread, %lld nodes), Embree %.1f ms (all threads, "
+               "high quality, robust)\n\n",
+               sysconf(_SC_NPROCESSORS_ONLN), bvh_ms, nodes, embree_ms);
 
-    /* Hits: the three must agree before their speeds mean anything. */
-    for (set = 0; set < SET_COUNT; ++set) {
-        long long n = rays[set].count, h[TRACER_COUNT];
-        for (tracer = 0; tracer < TRACER_COUNT; ++tracer) {
-            trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], 2, hits[tracer]);
-            h[tracer] = count_hits(hits[tracer], n);
-        }
-        printf("%-8s %9lld rays: hits refl_bvh %lld, embree_single %lld, embree_stream %lld; rays where "
-               "refl_bvh and Embree differ: %lld (single), %lld (stream)\n",
-               set_names[set], n, h[0], h[1], h[2], count_different(hits[0], hits[1], n),
-               count_different(hits[0], hits[2], n));
-        for (tracer = 1; tracer < TRACER_COUNT; ++tracer)
-            if (llabs(h[tracer] - h[0]) * 10000 > n) {
-                fprintf(stderr, "bench_rays: %s: %s finds %lld hits, refl_bvh %lld\n", set_names[set],
-                        tracer_names[tracer], h[tracer], h[0]);
-                status = 1;
+        /* Hits: the three must agree before their speeds mean anything. */
+        for (set = 0; set < SET_COUNT; ++set) {
+            long long n = rays[set].count, h[TRACER_COUNT];
+            for (tracer = 0; tracer < TRACER_COUNT; ++tracer) {
+                trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], 2, hits[tracer]);
+                h[tracer] = count_hits(hits[tracer], n);
             }
-    }
-    printf("\n");
-
-    /* The tracers take turns within each run, so a busy moment of a shared
-       machine falls on all three alike; the ratios are medians of the
-       per-run ratios. */
-    times = (double *)xmalloc(sizeof(double) * (size_t)runs * TRACER_COUNT);
-    ratios = (double *)xmalloc(sizeof(double) * (size_t)runs);
-    memset(mrays, 0, sizeof mrays);
-    memset(ratio, 0, sizeof ratio);
-    for (set = 0; set < SET_COUNT; ++set)
-        for (ti = 0; ti < THREAD_ROWS; ++ti) {
-            int run;
-            if (only && strcmp(only, set_names[set])) continue;
-            for (tracer = 0; tracer < TRACER_COUNT; ++tracer) /* warm-up */
-                trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], thread_counts[ti], hits[tracer]);
-            for (run = 0; run < runs; ++run)
-                for (tracer = 0; tracer < TRACER_COUNT; ++tracer) {
-                    t0 = ray_clock_s();
-                    trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], thread_counts[ti], hits[tracer]);
-                    times[tracer * runs + run] = ray_clock_s() - t0;
+            printf("%-8s %9lld rays: hits refl_bvh %lld, embree_single %lld, embree_stream %lld; rays where "
+                   "refl_bvh and Embree differ: %lld (single), %lld (stream)\n",
+                   set_names[set], n, h[0], h[1], h[2], count_different(hits[0], hits[1], n),
+                   count_different(hits[0], hits[2], n));
+            for (tracer = 1; tracer < TRACER_COUNT; ++tracer)
+                if (llabs(h[tracer] - h[0]) * 10000 > n) {
+                    fprintf(stderr, "bench_rays: %s: %s finds %lld hits, refl_bvh %lld\n", set_names[set],
+                            tracer_names[tracer], h[tracer], h[0]);
+                    status = 1;
                 }
-            for (tracer = 1; tracer < TRACER_COUNT; ++tracer) {
-                for (run = 0; run < runs; ++run) ratios[run] = times[tracer * runs + run] / times[run];
-                ratio[set][ti][tracer] = median(ratios, runs);
+        }
+        printf("\n");
+
+        /* The tracers take turns within each run, so a busy moment of a shared
+           machine falls on all three alike; the ratios are medians of the
+           per-run ratios. */
+        times = (double *)xmalloc(sizeof(double) * (size_t)runs * TRACER_COUNT);
+        ratios = (double *)xmalloc(sizeof(double) * (size_t)runs);
+        memset(mrays, 0, sizeof mrays);
+        memset(ratio, 0, sizeof ratio);
+        for (set = 0; set < SET_COUNT; ++set)
+            for (ti = 0; ti < THREAD_ROWS; ++ti) {
+                int run;
+                if (only && strcmp(only, set_names[set])) continue;
+                for (tracer = 0; tracer < TRACER_COUNT; ++tracer) /* warm-up */
+                    trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], thread_counts[ti], hits[tracer]);
+                for (run = 0; run < runs; ++run)
+                    for (tracer = 0; tracer < TRACER_COUNT; ++tracer) {
+                        t0 = ray_clock_s();
+                        trace(tracer, bvh, emb, set == SET_PRIMARY, &rays[set], thread_counts[ti], hits[tracer]);
+                        times[tracer * runs + run] = ray_clock_s() - t0;
+                    }
+                for (tracer = 1; tracer < TRACER_COUNT; ++tracer) {
+                    for (run = 0; run < runs; ++run) ratios[run] = times[tracer * runs + run] / times[run];
+                    ratio[set][ti][tracer] = median(ratios, runs);
+                }
+                for (tracer = 0; tracer < TRACER_COUNT; ++tracer)
+                    mrays[set][ti][tracer] = (double)rays[set].count / median(times + tracer * runs, runs) * 1e-6;
             }
-            for (tracer = 0; tracer < TRACER_COUNT; ++tracer)
-                mrays[set][ti][tracer] = (double)rays[set].count / median(times + tracer * runs, runs) * 1e-6;
-        }
-    free(times);
-    free(ratios);
+        free(times);
+        free(ratios);
 
-    printf("Mrays/s%s (higher is faster); ratio = refl_bvh speed / Embree speed, median of per-run ratios\n",
-           use_cpu_time ? " per CPU second" : "");
-    printf("%-8s %7s %9s %9s %14s %14s %13s %13s\n", "rays", "threads", "count", "refl_bvh", "embree_single",
-           "embree_stream", "ratio_single", "ratio_stream");
-    for (set = 0; set < SET_COUNT; ++set)
-        for (ti = 0; ti < THREAD_ROWS; ++ti) {
-            const double *m = mrays[set][ti], *q = ratio[set][ti];
-            if (only && strcmp(only, set_names[set])) continue;
-            printf("%-8s %7d %9lld %9.2f %14.2f %14.2f %13.2f %13.2f\n", set_names[set], thread_counts[ti],
-                   rays[set].count, m[0], m[1], m[2], q[1], q[2]);
-        }
+        printf("Mrays/s%s (higher is faster); ratio = refl_bvh speed / Embree speed, median of per-run ratios\n",
+               use_cpu_time ? " per CPU second" : "");
+        printf("%-8s %7s %9s %9s %14s %14s %13s %13s\n", "rays", "threads", "count", "refl_bvh", "embree_single",
+               "embree_stream", "ratio_single", "ratio_stream");
+        for (set = 0; set < SET_COUNT; ++set)
+            for (ti = 0; ti < THREAD_ROWS; ++ti) {
+                const double *m = mrays[set][ti], *q = ratio[set][ti];
+                if (only && strcmp(only, set_names[set])) continue;
+                printf("%-8s %7d %9lld %9.2f %14.2f %14.2f %13.2f %13.2f\n", set_names[set], thread_counts[ti],
+                       rays[set].count, m[0], m[1], m[2], q[1], q[2]);
+            }
 
-    /* Builds, taking turns within each run. */
-    {
-        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 3);
-        int run;
-        for (run = 0; run < runs; ++run) {
-            bt[run] = build_ours_ms(scene);
-            bt[runs + run] = build_embree_ms(scene, 1);
-            bt[2 * runs + run] = build_embree_ms(scene, 0);
+        /* Builds, taking turns within each run. */
+        {
+            double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 3);
+            int run;
+            for (run = 0; run < runs; ++run) {
+                bt[run] = build_ours_ms(scene);
+                bt[runs + run] = build_embree_ms(scene, 1);
+                bt[2 * runs + run] = build_embree_ms(scene, 0);
+            }
+            printf("\nbuild ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld threads)\n",
+                   runs, median(bt, runs), median(bt + runs, runs), median(bt + 2 * runs, runs),
+                   sysconf(_SC_NPROCESSORS_ONLN));
+            free(bt);
         }
-        printf("\nbuild ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld threads)\n",
-               runs, median(bt, runs), median(bt + runs, runs), median(bt + 2 * runs, runs),
-               sysconf(_SC_NPROCESSORS_ONLN));
-        free(bt);
     }
 
-    /* Whole RAYTRACE frames, the three casters taking turns within each run. */
+    /* Whole RAYTRACE frames, the four taking turns within each run. */
     if (frame_w > 0) {
         refl_view fv = view;
         refl_frame *f = NULL;
@@ -479,30 +516,35 @@ int main(int argc, char **argv) {
         fv.width = frame_w;
         fv.height = frame_h;
         if (refl_frame_create(frame_w, frame_h, NULL, &f) != REFL_OK) return 2;
-        printf("\nRAYTRACE %dx%d, one bounce, no shadows; wall ms, median of %d after 1 warm-up; ratio = Embree's "
-               "time / ours (above 1: ours faster), median of per-run ratios\n",
-               frame_w, frame_h, runs);
-        printf("%-7s %30s %20s %18s %22s %20s\n", "threads", frame_names[0], frame_names[1], frame_names[2],
-               "ratio (built in frame)", "ratio (prebuilt)");
+        printf("\nRAYTRACE %dx%d of \"%s\", %d bounce(s), %s; %s ms, median of %d after 1 warm-up; ratio = "
+               "Embree's time / ours (above 1: ours faster), median of per-run ratios\n",
+               frame_w, frame_h, scene_name, frame_depth, frame_shadows ? "shadows" : "no shadows",
+               use_cpu_time ? "CPU" : "wall", runs);
+        printf("%-7s %26s %26s %19s %17s %12s %12s %12s\n", "threads", frame_names[0], frame_names[1], frame_names[2],
+               frame_names[3], "ratio_built", "ratio_kept", "ratio_caster");
         for (ti = 0; ti < THREAD_ROWS; ++ti) {
-            double med[FRAME_COUNT], q[2];
-            for (which = 0; which < FRAME_COUNT; ++which) frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, f);
+            double med[FRAME_COUNT], q[FRAME_EMBREE];
+            refl_renderer *rr = frame_renderer(scene, thread_counts[ti]);
+            for (which = 0; which < FRAME_COUNT; ++which) /* warm-up; the renderer builds its BVH */
+                frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, rr, f);
             for (run = 0; run < runs; ++run)
                 for (which = 0; which < FRAME_COUNT; ++which)
-                    ft[which * runs + run] = frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, f);
-            for (which = 0; which < 2; ++which) {
+                    ft[which * runs + run] = frame_ms(scene, &fv, which, thread_counts[ti], bvh, emb, rr, f);
+            for (which = 0; which < FRAME_EMBREE; ++which) {
                 for (run = 0; run < runs; ++run) fr[run] = ft[FRAME_EMBREE * runs + run] / ft[which * runs + run];
                 q[which] = median(fr, runs);
             }
             for (which = 0; which < FRAME_COUNT; ++which) med[which] = median(ft + which * runs, runs);
-            printf("%-7d %30.1f %20.1f %18.1f %22.2f %20.2f\n", thread_counts[ti], med[0], med[1], med[2], q[0], q[1]);
+            printf("%-7d %26.1f %26.1f %19.1f %17.1f %12.2f %12.2f %12.2f\n", thread_counts[ti], med[0], med[1],
+                   med[2], med[3], q[0], q[1], q[2]);
+            refl_renderer_destroy(rr);
         }
         refl_frame_destroy(f);
         free(ft);
         free(fr);
     }
 
-    if (csv) {
+    if (csv && !frames_only) {
         FILE *f;
         char dir[1024], *slash;
         snprintf(dir, sizeof dir, "%s", csv);

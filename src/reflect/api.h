@@ -431,8 +431,8 @@ typedef struct refl_hit {
     float u, v;              /* barycentrics of the triangle's vertices 1 and 2 */
 } refl_hit;
 
-/* Builds a bounding volume hierarchy (binned SAH, collapsed to four
-   children a node, SSE2 box and triangle tests; plain C under
+/* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
+   children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
    space. Deterministic: the same scene gives the same tree. Degenerate
    and non-finite triangles are left out. */
@@ -445,6 +445,15 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Refits the tree to the scene's current positions (rigid or any other
+   motion of the vertices) without rebuilding it: every triangle taken
+   again from its mesh and transform, every box recomputed around them.
+   The hits are those of a BVH built anew (the closest hit does not depend
+   on the tree), only found more slowly where the motion made boxes
+   overlap. REFL_ERROR_UNSUPPORTED (the tree then unusable: build anew)
+   where the scene no longer has the objects and triangle counts it was
+   built over, or a triangle became degenerate or stopped being one. */
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene);
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
 
@@ -1809,7 +1818,9 @@ REFL_API refl_result refl_render(const refl_scene *scene, const refl_view *view,
    samples its frames used. What the scene's changes invalidate: every
    refl_scene_* function that changes the scene bumps scene->version,
    and a frame whose scene version differs from the one the models were
-   built at rebuilds them all; code that writes the scene's arrays itself
+   built at rebuilds them all, but for the BVH, refit where the objects
+   and their triangle counts are those it was built over (refl_bvh_refit:
+   objects moved); code that writes the scene's arrays itself
    calls refl_scene_touch. A frame renders the same bytes as refl_render
    with the same desc, except that C3RC's default point density is the one
    of the renderer's first frame (the density follows the view, and the

@@ -91,6 +91,8 @@ struct refl_bvh {
     refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
     void *blocks_mem;
     int block_count;
+    int *object_tris;             /* per object of the scene built from: its triangle count (refit) */
+    int object_count;
 };
 
 /* ---- build ------------------------------------------------------------------ */
@@ -316,6 +318,7 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh->wide_mem);
     refl__free(&a, bvh->tris);
     refl__free(&a, bvh->blocks_mem);
+    refl__free(&a, bvh->object_tris);
     refl__free(&a, bvh);
 }
 
@@ -422,6 +425,23 @@ static void *refl__bvh_calloc_lines(const refl_allocator *a, size_t count, size_
     return (void *)(p + (64 - p % 64) % 64);
 }
 
+/* Triangle t of object i in world space into v (0: an index out of range). */
+static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *mesh = scene->meshes[o->mesh];
+    int j;
+    for (j = 0; j < 3; ++j) {
+        uint32_t vi = mesh->indices[3 * t + j];
+        const float *p;
+        refl_vec3 w;
+        if (vi >= (uint32_t)mesh->vertex_count) return 0;
+        p = mesh->positions + 3 * (size_t)vi;
+        w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
+        v[3 * j] = w.x; v[3 * j + 1] = w.y; v[3 * j + 2] = w.z;
+    }
+    return 1;
+}
+
 /* keep_binary: keep the binary tree too, for the tests that compare the
    two (refl__bvh_intersect_binary). */
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
@@ -456,25 +476,17 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->tris = (refl__bvh_tri *)refl__calloc(a, (size_t)total, sizeof *bvh->tris);
     if (!bvh->tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
 
+    bvh->object_count = scene->object_count;
+    bvh->object_tris = (int *)refl__calloc(a, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
+    if (!bvh->object_tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
+    for (i = 0; i < scene->object_count; ++i) bvh->object_tris[i] = scene->meshes[scene->objects[i].mesh]->triangle_count;
     /* World space once, so triangles sharing a vertex share its exact
        floats: the watertight test relies on that. */
     for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *mesh = scene->meshes[o->mesh];
-        int t, j;
-        for (t = 0; t < mesh->triangle_count; ++t) {
+        int t;
+        for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count; ++t) {
             refl__bvh_tri *dst = &bvh->tris[n];
-            int bad = 0;
-            for (j = 0; j < 3; ++j) {
-                uint32_t vi = mesh->indices[3 * t + j];
-                const float *p;
-                refl_vec3 w;
-                if (vi >= (uint32_t)mesh->vertex_count) { bad = 1; break; }
-                p = mesh->positions + 3 * (size_t)vi;
-                w = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
-                dst->v[3 * j] = w.x; dst->v[3 * j + 1] = w.y; dst->v[3 * j + 2] = w.z;
-            }
-            if (bad) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
+            if (!refl__bvh_world_tri(scene, i, t, dst->v)) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
             if (!refl__tri_ok(dst->v)) continue;
             dst->object = i;
             dst->triangle = t;
@@ -531,6 +543,85 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
     return refl__bvh_build_ex(scene, a, 0, out_bvh);
+}
+
+/* ---- refit ------------------------------------------------------------------- */
+
+/* Whether the scene has the objects and triangle counts the BVH was built
+   over, with the same triangles left out as degenerate. */
+static int refl__bvh_refit_fits(const refl_bvh *bvh, const refl_scene *scene) {
+    int i, t, ok = 0;
+    float v[9];
+    if (!bvh->object_tris || scene->object_count != bvh->object_count) return 0;
+    for (i = 0; i < scene->object_count; ++i) {
+        int m = scene->objects[i].mesh;
+        const refl_mesh *mesh = m >= 0 && m < scene->mesh_count && scene->meshes ? scene->meshes[m] : NULL;
+        if (!mesh || mesh->triangle_count != bvh->object_tris[i] ||
+            (mesh->triangle_count > 0 && (!mesh->positions || !mesh->indices)))
+            return 0;
+    }
+    for (i = 0; i < scene->object_count; ++i)
+        for (t = 0; t < bvh->object_tris[i]; ++t) {
+            if (!refl__bvh_world_tri(scene, i, t, v)) return 0;
+            ok += refl__tri_ok(v);
+        }
+    return ok == bvh->tri_count;
+}
+
+/* Box of the `count` triangles of the leaf at blocks[first] into lo, hi. */
+static void refl__bvh_leaf_box(const refl_bvh *bvh, int first, int count, float lo[3], float hi[3]) {
+    int j, k;
+    for (k = 0; k < 3; ++k) { lo[k] = INFINITY; hi[k] = -INFINITY; }
+    for (j = 0; j < count; ++j) {
+        const refl__bvh_tri4 *q = &bvh->blocks[first + j / 4];
+        for (k = 0; k < 9; ++k) {
+            lo[k % 3] = REFL__MIN(lo[k % 3], q->v[k][j % 4]);
+            hi[k % 3] = REFL__MAX(hi[k % 3], q->v[k][j % 4]);
+        }
+    }
+}
+
+REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene) {
+    int b, lane, w, k;
+    if (!bvh || !scene) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!refl__bvh_refit_fits(bvh, scene)) return REFL_ERROR_UNSUPPORTED;
+    for (b = 0; b < bvh->block_count; ++b) {
+        refl__bvh_tri4 *q = &bvh->blocks[b];
+        for (lane = 0; lane < 4; ++lane) {
+            float v[9];
+            if (q->object[lane] < 0) continue;
+            refl__bvh_world_tri(scene, q->object[lane], q->triangle[lane], v);
+            if (!refl__tri_ok(v)) return REFL_ERROR_UNSUPPORTED; /* left half refit: the caller rebuilds */
+            for (k = 0; k < 9; ++k) q->v[k][lane] = v[k];
+        }
+    }
+    /* children come after their parent (refl__bvh_collapse): bottom-up is backwards */
+    for (w = bvh->wide_count - 1; w >= 0; --w) {
+        refl__bvhw_node *n = &bvh->wide[w];
+        for (lane = 0; lane < REFL__BVH_W; ++lane) {
+            float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+            if (n->count[lane] > 0) {
+                refl__bvh_leaf_box(bvh, n->child[lane], n->count[lane], lo, hi);
+            } else if (n->child[lane] >= 0) {
+                const refl__bvhw_node *c = &bvh->wide[n->child[lane]];
+                int cl;
+                for (cl = 0; cl < REFL__BVH_W; ++cl)
+                    for (k = 0; k < 3; ++k) {
+                        lo[k] = REFL__MIN(lo[k], c->box[k][cl]);
+                        hi[k] = REFL__MAX(hi[k], c->box[3 + k][cl]);
+                    }
+            }
+            for (k = 0; k < 3; ++k) {
+                n->box[k][lane] = lo[k];
+                n->box[3 + k][lane] = hi[k];
+            }
+        }
+    }
+    /* the binary tree (tests only) no longer matches: dropped */
+    refl__free(&bvh->allocator, bvh->nodes);
+    bvh->nodes = NULL;
+    bvh->node_count = 0;
+    return REFL_OK;
 }
 
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles) {

@@ -124,30 +124,34 @@ typedef struct refl__rt_rows {
     long long *row_rays;
 } refl__rt_rows;
 
-/* Runs row(rows, y) for every row of p's frame on the thread pool, with
-   the tracer set up for p. */
-static refl_result refl__rt_run_rows(refl__pass *p, void (*row)(void *, int), uint8_t *marked,
-                                     const int *modelled) {
-    const refl_allocator *al = &p->scene->allocator;
-    refl_frame *f = p->frame;
-    refl__rt_rows rows;
+/* The tracer set up for p's frame; refl__rt_rows_end frees it, also
+   after a failure. */
+static refl_result refl__rt_rows_begin(refl__rt_rows *rows, refl__pass *p) {
+    const refl_frame *f = p->frame;
     refl_bvh *bvh = NULL, *owned = NULL;
     refl_result r = p->desc.raytrace.caster.intersect ? REFL_OK : refl__models_bvh(p, &bvh, &owned);
-    int y;
+    memset(rows, 0, sizeof *rows);
     if (r != REFL_OK) return r;
-    r = refl__rt_begin(&rows.rt, p, bvh);
-    rows.rt.bvh = owned; /* freed with rt */
-    rows.marked = marked;
-    rows.modelled = modelled;
-    rows.row_rays = r == REFL_OK ? (long long *)refl__calloc(al, (size_t)f->height, sizeof(long long)) : NULL;
-    if (r == REFL_OK && !rows.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) {
-        rast_run_jobs(p->rc, f->height, row, &rows);
-        for (y = 0; y < f->height; ++y) f->stats.rays += rows.row_rays[y];
+    r = refl__rt_begin(&rows->rt, p, bvh);
+    rows->rt.bvh = owned; /* freed with rt */
+    if (r == REFL_OK) rows->row_rays = (long long *)refl__calloc(&p->scene->allocator, (size_t)f->height, sizeof(long long));
+    return r == REFL_OK && !rows->row_rays ? REFL_ERROR_OUT_OF_MEMORY : r;
+}
+
+/* Runs row(rows, y) for every row of the frame on the thread pool. */
+static void refl__rt_rows_run(refl__rt_rows *rows, void (*row)(void *, int)) {
+    const refl__pass *p = rows->rt.p;
+    int y;
+    rast_run_jobs(p->rc, p->frame->height, row, rows);
+    for (y = 0; y < p->frame->height; ++y) {
+        p->frame->stats.rays += rows->row_rays[y];
+        rows->row_rays[y] = 0;
     }
-    refl__free(al, rows.row_rays);
-    refl__rt_end(&rows.rt);
-    return r;
+}
+
+static void refl__rt_rows_end(refl__rt_rows *rows) {
+    if (rows->rt.scene) refl__free(&rows->rt.scene->allocator, rows->row_rays);
+    refl__rt_end(&rows->rt);
 }
 
 static void refl__rt_marked_row(void *arg, int y) {
@@ -171,7 +175,12 @@ static void refl__rt_marked_row(void *arg, int y) {
 }
 
 static refl_result refl__trace_marked(refl__pass *p, const uint8_t *marked) {
-    return refl__rt_run_rows(p, refl__rt_marked_row, (uint8_t *)marked, NULL);
+    refl__rt_rows rows;
+    refl_result r = refl__rt_rows_begin(&rows, p);
+    rows.marked = (uint8_t *)marked;
+    if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    refl__rt_rows_end(&rows);
+    return r;
 }
 
 /* ---- bounces past a method's own -------------------------------------------------- */
@@ -187,10 +196,18 @@ static void refl__rt_beyond_row(void *arg, int y) {
     }
 }
 
+/* One tracer for both passes: which reflector pixels go beyond, then
+   their colour (with the pixels the methods marked). */
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
-    refl_result r = refl__rt_run_rows(p, refl__rt_beyond_row, p->trace, modelled);
+    refl__rt_rows rows;
+    refl_result r = refl__rt_rows_begin(&rows, p);
+    rows.marked = p->trace;
+    rows.modelled = modelled;
+    if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);
     for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
-    return r == REFL_OK && f->stats.traced_beyond ? refl__trace_marked(p, p->trace) : r;
+    if (r == REFL_OK && f->stats.traced_beyond) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    refl__rt_rows_end(&rows);
+    return r;
 }

@@ -571,10 +571,15 @@ static refl_result refl__cancelled(refl_frame *frame) {
     return REFL_ERROR_CANCELLED;
 }
 
-/* The renderer's models dropped when the scene changed since they were built. */
+/* The renderer's models dropped when the scene changed since they were
+   built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
+    refl_bvh *bvh = rr->models.bvh;
     if (rr->models.scene_version == rr->scene->version) return;
+    rr->models.bvh = NULL;
     refl__models_free(rr->scene, &rr->models);
+    if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
+    else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;
 }
 

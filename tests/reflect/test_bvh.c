@@ -605,3 +605,81 @@ Test(refl_bvh, allocation_failure_at_every_allocation) {
     }
     refl_scene_destroy(s);
 }
+
+/* Refitting (refl_bvh_refit): after an object of the default scene moves
+   (turned and shifted), the refit tree finds, bit for bit, the hits and
+   occlusions of a tree built anew, since the closest hit does not depend
+   on the tree; a scene with another object cannot be refit. */
+static refl_mat4 moved(refl_mat4 m) {
+    return refl_mat4_mul(refl_mat4_translate(refl_v3(0.3f, 0.1f, -0.2f)),
+                         refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 0.7f), m));
+}
+
+Test(refl_bvh, a_refit_tree_finds_the_hits_of_a_rebuilt_one) {
+    refl_scene *s;
+    refl_bvh *refit, *rebuilt;
+    refl_rng rng;
+    refl_vec3 lo, hi;
+    int i, k, most = 0, hits = 0;
+    cr_assert_eq(refl_scene_builtin("default", NULL, &s), REFL_OK);
+    cr_assert_eq(refl_bvh_build(s, NULL, &refit), REFL_OK);
+    for (k = 1; k < s->object_count; ++k) /* the object of most triangles (the teapot) */
+        if (s->meshes[s->objects[k].mesh]->triangle_count > s->meshes[s->objects[most].mesh]->triangle_count) most = k;
+    s->objects[most].transform = moved(s->objects[most].transform);
+    refl_scene_touch(s);
+    cr_assert_eq(refl_bvh_refit(refit, s), REFL_OK);
+    cr_assert_eq(refl_bvh_build(s, NULL, &rebuilt), REFL_OK);
+    refl_scene_bounds(s, &lo, &hi);
+    rng = refl_rng_seed(24);
+    for (i = 0; i < 3000; ++i) {
+        refl_vec3 o = refl_v3(rnd(&rng, lo.x, hi.x), rnd(&rng, lo.y, hi.y), rnd(&rng, lo.z, hi.z)), d = rnd_dir(&rng);
+        refl_hit a, b;
+        int ha = refl_bvh_intersect(refit, o, d, 0.0f, 1e30f, &a), hb = refl_bvh_intersect(rebuilt, o, d, 0.0f, 1e30f, &b);
+        cr_assert_eq(ha, hb, "ray %d", i);
+        if (ha) {
+            cr_assert(a.t == b.t && a.object == b.object && a.triangle == b.triangle && a.u == b.u && a.v == b.v,
+                      "ray %d: (%d, %d) at %g against (%d, %d) at %g", i, a.object, a.triangle, a.t, b.object,
+                      b.triangle, b.t);
+            hits += a.object == most;
+        }
+        cr_assert_eq(refl_bvh_occluded(refit, o, d, 0.0f, 2.0f), refl_bvh_occluded(rebuilt, o, d, 0.0f, 2.0f));
+    }
+    cr_assert(hits > 100, "the moved object is met (%d rays)", hits);
+    {
+        refl_mesh *box;
+        cr_assert_eq(refl_mesh_box(refl_v3(1, 1, 1), NULL, &box), REFL_OK);
+        add_object(s, box, refl_mat4_identity());
+        cr_assert_eq(refl_bvh_refit(rebuilt, s), REFL_ERROR_UNSUPPORTED);
+    }
+    refl_bvh_destroy(rebuilt);
+    refl_bvh_destroy(refit);
+    refl_scene_destroy(s);
+}
+
+/* Through the persistent renderer: a moved object's frame is refit, not
+   built (stats.scene_models_built), and has the bytes of refl_render's. */
+Test(refl_bvh, the_renderer_refits_its_bvh_when_an_object_moves) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("default", &v, 64, 48);
+    refl_render_desc d = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_renderer *rr;
+    refl_frame *f, *fresh;
+    int k;
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_renderer_render(rr, &v, f), REFL_OK);
+    cr_assert_eq(f->stats.scene_models_built, 1);
+    for (k = 0; k < s->object_count; ++k)
+        if (s->materials[s->objects[k].material].type != REFL_DIFFUSE) break;
+    cr_assert(k < s->object_count);
+    s->objects[k].transform = moved(s->objects[k].transform);
+    refl_scene_touch(s);
+    cr_assert_eq(refl_renderer_render(rr, &v, f), REFL_OK);
+    cr_assert_eq(f->stats.scene_models_built, 0, "refit, not built");
+    fresh = tu_refl_render(s, &v, &d);
+    cr_assert_eq(tu_refl_digest(f), tu_refl_digest(fresh));
+    refl_frame_destroy(fresh);
+    refl_frame_destroy(f);
+    refl_renderer_destroy(rr);
+    refl_scene_destroy(s);
+}
