@@ -190,7 +190,12 @@ static void refl__rt_beyond_row(void *arg, int y) {
 static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
+    int any = 0;
     refl_result r = refl__rt_run_rows(p, refl__rt_beyond_row, p->trace, modelled);
-    for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
-    return r == REFL_OK && f->stats.traced_beyond ? refl__trace_marked(p, p->trace) : r;
+    /* (REFL__TRACE_ALL: a method's own pixels for the tracer, counted by it) */
+    for (i = 0; r == REFL_OK && i < n; ++i) {
+        f->stats.traced_beyond += p->trace[i] == REFL__TRACE_COLOUR;
+        any |= p->trace[i] != 0;
+    }
+    return r == REFL_OK && any ? refl__trace_marked(p, p->trace) : r;
 }
