@@ -1227,6 +1227,8 @@ typedef struct refl_c3rc_frame_stats {
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
+    long long traced;        /* reflector pixels in a gap of a nearer surface's points (or
+                                empty inside them), handed to RAYTRACE's tracer */
     double ms_cull, ms_project; /* thread time in the box tests and in projection and
                                    splatting, summed over threads */
 } refl_c3rc_frame_stats;
@@ -2984,10 +2986,13 @@ typedef struct refl__sb_canvas {
     float *points, *points_depth;
 } refl__sb_canvas;
 
-/* desc.sbc.trace_fallback's tracer (sbc_resolve.c), while the composite runs. */
+/* The fallback's tracer (sbc_resolve.c), while the composite runs: for
+   every pixel with desc.sbc.trace_fallback, else (SBC-traced) for the
+   pixels of groups whose rays fold (refl__sb_checked). */
 typedef struct refl__sb_tracer {
     struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
     long long *rays;              /* per row, the rays the fallback cast */
+    int folds_only;               /* only the pixels of folding groups */
 } refl__sb_tracer;
 
 typedef struct refl__sb {
@@ -12589,7 +12594,11 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
         ray meets the point's surfel (refl__c3_ray_meets); a pixel whose
         splats all missed shows its neighbours' nearest point.
    Pixels no point reaches show the environment along their reflected ray
-   (the paper's environment-mapped background). One bounce, as the paper:
+   (the paper's environment-mapped background), unless a nearer surface's
+   points surround them: a pixel in such a gap, empty or showing a surface
+   behind (where a reflection magnifies, the random points leave gaps their
+   splats do not close), goes to RAYTRACE's tracer (refl__c3_gap,
+   stats.c3rc.traced). One bounce, as the paper:
    with desc.depth > 1 a pixel showing a reflector's point goes on through
    RAYTRACE's tracer (refl__trace_beyond).
 
@@ -12632,6 +12641,9 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
 #define REFL__C3_TURN_TEST 0.05f
 #define REFL__C3_DISC 1.0f
 #define REFL__C3_GRAZE 0.2f         /* |cos| below which a ray grazes a point's tangent plane */
+/* A pixel's point is in a gap of another surface's points where those
+   around it are nearer than this share of its depth (refl__c3_gap). */
+#define REFL__C3_GAP_NEARER 0.9f
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
    corners as barycentrics of the triangle's vertices (rows: corners). */
@@ -12682,6 +12694,7 @@ typedef struct refl__c3 {
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     uint8_t *touched;             /* per pixel: a splat reached it whose surfel its ray missed */
+    uint8_t *gap;                 /* per pixel: REFL__TRACE_ALL in a gap of the points (refl__c3_gap) */
     float *ray;                   /* per pixel: reflected ray, its turn to the neighbours' (refl__c3_ray_row) */
     refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
@@ -13413,8 +13426,56 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     return r;
 }
 
+/* The depth a key holds (refl__c3_splat). */
+static float refl__c3_key_depth(uint64_t key) {
+    uint32_t u = (uint32_t)(key >> 32);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+/* Whether reflector pixel (x, y), showing `key` (REFL__C3_EMPTY: no
+   point), lies in a gap of a nearer surface's points: along a row, a
+   column or a diagonal through it, both ways within `reach` pixels of the
+   same reflector side, the first pixel showing another object's point
+   (any point, for an empty pixel) shows it nearer (REFL__C3_GAP_NEARER).
+   Where a reflection magnifies, the random points leave gaps their
+   splats do not close, and a gap shows the environment or the surface
+   behind the one the ray meets (the floor behind a concave bowl, the
+   bowl behind the ball at its focus): no point tells C3RC what the ray
+   meets there, so the pixel goes to the tracer. A pixel that nearer
+   points do not surround keeps what it shows: an object's silhouette
+   over what lies behind it, the environment where the rays leave the
+   scene. */
+static int refl__c3_gap(const refl__c3 *c3, int x, int y, uint64_t key, int reach) {
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    const refl_frame *fr = c3->p->frame;
+    int w = fr->width, h = fr->height, a, side, s;
+    float id = c3->em.gbuf[4 * ((size_t)y * (size_t)w + (size_t)x) + 3];
+    float depth = key == REFL__C3_EMPTY ? INFINITY : refl__c3_key_depth(key);
+    int32_t object = key == REFL__C3_EMPTY ? -1 : c3->s->object[key & 0xffffffffu];
+    for (a = 0; a < 4; ++a) {
+        int nearer = 0;
+        for (side = -1; side <= 1; side += 2)
+            for (s = 1; s <= reach; ++s) {
+                int xs = x + side * s * dir[a][0], ys = y + side * s * dir[a][1];
+                size_t j = (size_t)ys * (size_t)w + (size_t)xs;
+                uint64_t kj;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || c3->em.gbuf[4 * j + 3] != id) break;
+                kj = c3->key[j];
+                if (kj == REFL__C3_EMPTY || c3->s->object[kj & 0xffffffffu] == object) continue;
+                nearer += refl__c3_key_depth(kj) < REFL__C3_GAP_NEARER * depth;
+                break;
+            }
+        if (nearer == 2) return 1;
+    }
+    return 0;
+}
+
 /* Composites one row: the winning point's colour (or the environment
-   along the reflected ray) times the reflectance, as ENVMAP composites. */
+   along the reflected ray) times the reflectance, as ENVMAP composites;
+   a pixel in a gap of the points (refl__c3_gap) is marked for the
+   tracer instead. */
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     const refl_frame *fr = c3->p->frame;
@@ -13437,7 +13498,11 @@ static void refl__c3_resolve_row(void *arg, int y) {
             }
             key = best;
         }
-        if (key != REFL__C3_EMPTY) {
+        if (refl__c3_gap(c3, x, y, key, 2 * c3->max_splat)) {
+            /* RAYTRACE's colour and point: here, or with the bounces past
+               C3RC's when the frame traces them (refl__trace_beyond) */
+            (c3->p->trace ? c3->p->trace : c3->gap)[i] = REFL__TRACE_ALL;
+        } else if (key != REFL__C3_EMPTY) {
             size_t k = (size_t)(key & 0xffffffffu);
             const float *q = c3->s->tree->positions + 3 * k;
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
@@ -13689,7 +13754,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
         c3.ray = (float *)refl__alloc(al, npx * 4 * sizeof(float));
         c3.touched = (uint8_t *)refl__calloc(al, npx, 1);
-        if (!c3.em.surface || !c3.key || !c3.ray || !c3.touched) r = REFL_ERROR_OUT_OF_MEMORY;
+        c3.gap = (uint8_t *)refl__calloc(al, npx, 1);
+        if (!c3.em.surface || !c3.key || !c3.ray || !c3.touched || !c3.gap) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
         refl__models *models = p->models;
@@ -13745,6 +13811,9 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             t0 = t1;
             rast_run_jobs(p->rc, fr->height, refl__c3_resolve_row, &c3);
             fr->stats.ms_composite += refl__now_ms() - t0;
+            for (k = 0; k < npx; ++k)
+                fr->stats.c3rc.traced += (p->trace ? p->trace[k] : c3.gap[k]) == REFL__TRACE_ALL;
+            if (fr->stats.c3rc.traced && !p->trace) r = refl__trace_marked(p, c3.gap);
         }
     }
     if (r == REFL_OK) {
@@ -13759,6 +13828,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__free(al, c3.key);
     refl__free(al, c3.ray);
     refl__free(al, c3.touched);
+    refl__free(al, c3.gap);
     refl__free(al, c3.jobs);
     refl__free(al, c3.counts);
     return r;
@@ -16887,12 +16957,17 @@ static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
     refl__rt_rows rows;
+    int any = 0;
     refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = p->trace;
     rows.modelled = modelled;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);
-    for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
-    if (r == REFL_OK && f->stats.traced_beyond) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    /* (REFL__TRACE_ALL: a method's own pixels for the tracer, counted by it) */
+    for (i = 0; r == REFL_OK && i < n; ++i) {
+        f->stats.traced_beyond += p->trace[i] == REFL__TRACE_COLOUR;
+        any |= p->trace[i] != 0;
+    }
+    if (r == REFL_OK && any) refl__rt_rows_run(&rows, refl__rt_marked_row);
     refl__rt_rows_end(&rows);
     return r;
 }
@@ -22506,7 +22581,9 @@ static void refl__sb_ray_maps_free(refl__sb *sb) {
    reflection, or whose first-order point the samples around it contradict
    (refl__sb_fallback), is rendered as RAYTRACE renders it (refl__rt_pixel)
    when its reflected ray meets anything; mixed triangles are then not
-   split (sbc_project.c), their pixels traced.
+   split (sbc_project.c), their pixels traced. SBC-traced checks the
+   pixels of groups whose rays fold so even without the option
+   (refl__sb_checked).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -22636,6 +22713,21 @@ static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first
     return !met_shown || d < lo || d > hi;
 }
 
+/* Whether pixel i goes through the fallback's checks (refl__sb_fallback):
+   every pixel with desc.sbc.trace_fallback; by default (SBC-traced) those
+   of a first-layer group of the frame's ray map (not a morphing grid's)
+   whose rays fold. A reflected triangle that
+   straddles a fold wider than REFL__SB_FOLD_SAMPLES is not drawn (its
+   images part at the caustic), and where it was the nearest surface the
+   depth test shows what lies behind it (the far side of the ball at the
+   concave bowl's focus, smeared into a ring) or nothing: the samples
+   contradict such a point, and RAYTRACE's tracer renders the pixel. */
+static int refl__sb_checked(const refl__sb *sb, size_t i) {
+    if (!sb->tracer.rt) return 0;
+    if (!sb->tracer.folds_only) return 1;
+    return sb->group_of[i] && !sb->groups[sb->group_of[i] - 1].morph && sb->groups[sb->group_of[i] - 1].sheets > 1;
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
@@ -22645,7 +22737,7 @@ static void refl__sb_resolve_row(void *arg, int y) {
         float sub[3];
         if (sb->em->gbuf[4 * i + 3] == 0.0f) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
+        if (refl__sb_checked(sb, i) && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
@@ -22685,11 +22777,11 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && !sb->tracer.folds_only && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
-        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
+        if (refl__sb_checked(sb, i) && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
             refl__sb_trace_pixel(sb, x, y))
             continue;
         m = &scene->materials[scene->objects[object].material];
@@ -22740,15 +22832,18 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     }
 }
 
-/* The composite, a job per row; with desc.sbc.trace_fallback, RAYTRACE's
-   tracer for the pixels it traces, begun and ended here. */
+/* The composite, a job per row; with desc.sbc.trace_fallback, or where a
+   group's rays fold (refl__sb_checked), RAYTRACE's tracer for the pixels
+   it traces, begun and ended here. */
 static refl_result refl__sb_resolve(refl__sb *sb) {
     refl__pass *p = sb->p;
     refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     refl_result r = REFL_OK;
-    int i;
-    if (p->desc.sbc.trace_fallback) {
+    int i, folds = 0;
+    for (i = 0; i < sb->group_count; ++i) folds |= sb->groups[i].sheets > 1;
+    sb->tracer.folds_only = !p->desc.sbc.trace_fallback;
+    if (p->desc.sbc.trace_fallback || (folds && sb->bvh)) {
         sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
         sb->tracer.rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         if (!sb->tracer.rt || !sb->tracer.rays) r = REFL_ERROR_OUT_OF_MEMORY;

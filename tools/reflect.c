@@ -837,6 +837,7 @@ static int cmd_render(const options *o) {
                    c->projections, c->projected,
                    c->projections ? 100.0 * (double)c->projected / (double)c->projections : 0.0, c->box_tests,
                    c->box_tests ? 100.0 * (double)c->culled / (double)c->box_tests : 0.0, c->ms_cull, c->ms_project);
+            if (c->traced) printf("ray traced   %lld pixels in gaps of the points\n", c->traced);
         }
         if (st->sbc.histories) {
             const refl_sbc_frame_stats *b = &st->sbc;

@@ -1225,6 +1225,8 @@ typedef struct refl_c3rc_frame_stats {
     long long projected;     /* valid projections found (a point may have several) */
     long long multiple;      /* projections beyond a point's first in one camera
                                 (section 5.1's multiple projections, all drawn) */
+    long long traced;        /* reflector pixels in a gap of a nearer surface's points (or
+                                empty inside them), handed to RAYTRACE's tracer */
     double ms_cull, ms_project; /* thread time in the box tests and in projection and
                                    splatting, summed over threads */
 } refl_c3rc_frame_stats;

@@ -27,7 +27,11 @@
         ray meets the point's surfel (refl__c3_ray_meets); a pixel whose
         splats all missed shows its neighbours' nearest point.
    Pixels no point reaches show the environment along their reflected ray
-   (the paper's environment-mapped background). One bounce, as the paper:
+   (the paper's environment-mapped background), unless a nearer surface's
+   points surround them: a pixel in such a gap, empty or showing a surface
+   behind (where a reflection magnifies, the random points leave gaps their
+   splats do not close), goes to RAYTRACE's tracer (refl__c3_gap,
+   stats.c3rc.traced). One bounce, as the paper:
    with desc.depth > 1 a pixel showing a reflector's point goes on through
    RAYTRACE's tracer (refl__trace_beyond).
 
@@ -71,6 +75,9 @@
 #define REFL__C3_TURN_TEST 0.05f
 #define REFL__C3_DISC 1.0f
 #define REFL__C3_GRAZE 0.2f         /* |cos| below which a ray grazes a point's tangent plane */
+/* A pixel's point is in a gap of another surface's points where those
+   around it are nearer than this share of its depth (refl__c3_gap). */
+#define REFL__C3_GAP_NEARER 0.9f
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
    corners as barycentrics of the triangle's vertices (rows: corners). */
@@ -121,6 +128,7 @@ typedef struct refl__c3 {
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     uint8_t *touched;             /* per pixel: a splat reached it whose surfel its ray missed */
+    uint8_t *gap;                 /* per pixel: REFL__TRACE_ALL in a gap of the points (refl__c3_gap) */
     float *ray;                   /* per pixel: reflected ray, its turn to the neighbours' (refl__c3_ray_row) */
     refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
@@ -852,8 +860,56 @@ static refl_result refl__c3_points(refl__c3 *c3) {
     return r;
 }
 
+/* The depth a key holds (refl__c3_splat). */
+static float refl__c3_key_depth(uint64_t key) {
+    uint32_t u = (uint32_t)(key >> 32);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+/* Whether reflector pixel (x, y), showing `key` (REFL__C3_EMPTY: no
+   point), lies in a gap of a nearer surface's points: along a row, a
+   column or a diagonal through it, both ways within `reach` pixels of the
+   same reflector side, the first pixel showing another object's point
+   (any point, for an empty pixel) shows it nearer (REFL__C3_GAP_NEARER).
+   Where a reflection magnifies, the random points leave gaps their
+   splats do not close, and a gap shows the environment or the surface
+   behind the one the ray meets (the floor behind a concave bowl, the
+   bowl behind the ball at its focus): no point tells C3RC what the ray
+   meets there, so the pixel goes to the tracer. A pixel that nearer
+   points do not surround keeps what it shows: an object's silhouette
+   over what lies behind it, the environment where the rays leave the
+   scene. */
+static int refl__c3_gap(const refl__c3 *c3, int x, int y, uint64_t key, int reach) {
+    static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    const refl_frame *fr = c3->p->frame;
+    int w = fr->width, h = fr->height, a, side, s;
+    float id = c3->em.gbuf[4 * ((size_t)y * (size_t)w + (size_t)x) + 3];
+    float depth = key == REFL__C3_EMPTY ? INFINITY : refl__c3_key_depth(key);
+    int32_t object = key == REFL__C3_EMPTY ? -1 : c3->s->object[key & 0xffffffffu];
+    for (a = 0; a < 4; ++a) {
+        int nearer = 0;
+        for (side = -1; side <= 1; side += 2)
+            for (s = 1; s <= reach; ++s) {
+                int xs = x + side * s * dir[a][0], ys = y + side * s * dir[a][1];
+                size_t j = (size_t)ys * (size_t)w + (size_t)xs;
+                uint64_t kj;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || c3->em.gbuf[4 * j + 3] != id) break;
+                kj = c3->key[j];
+                if (kj == REFL__C3_EMPTY || c3->s->object[kj & 0xffffffffu] == object) continue;
+                nearer += refl__c3_key_depth(kj) < REFL__C3_GAP_NEARER * depth;
+                break;
+            }
+        if (nearer == 2) return 1;
+    }
+    return 0;
+}
+
 /* Composites one row: the winning point's colour (or the environment
-   along the reflected ray) times the reflectance, as ENVMAP composites. */
+   along the reflected ray) times the reflectance, as ENVMAP composites;
+   a pixel in a gap of the points (refl__c3_gap) is marked for the
+   tracer instead. */
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     const refl_frame *fr = c3->p->frame;
@@ -876,7 +932,11 @@ static void refl__c3_resolve_row(void *arg, int y) {
             }
             key = best;
         }
-        if (key != REFL__C3_EMPTY) {
+        if (refl__c3_gap(c3, x, y, key, 2 * c3->max_splat)) {
+            /* RAYTRACE's colour and point: here, or with the bounces past
+               C3RC's when the frame traces them (refl__trace_beyond) */
+            (c3->p->trace ? c3->p->trace : c3->gap)[i] = REFL__TRACE_ALL;
+        } else if (key != REFL__C3_EMPTY) {
             size_t k = (size_t)(key & 0xffffffffu);
             const float *q = c3->s->tree->positions + 3 * k;
             refl__em_composite(c3->p, c3->em.gbuf + 4 * i, x, y, c3->s->rgb + 3 * k, refl_v3(q[0], q[1], q[2]));
@@ -1128,7 +1188,8 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         c3.key = (uint64_t *)refl__alloc(al, npx * sizeof(uint64_t));
         c3.ray = (float *)refl__alloc(al, npx * 4 * sizeof(float));
         c3.touched = (uint8_t *)refl__calloc(al, npx, 1);
-        if (!c3.em.surface || !c3.key || !c3.ray || !c3.touched) r = REFL_ERROR_OUT_OF_MEMORY;
+        c3.gap = (uint8_t *)refl__calloc(al, npx, 1);
+        if (!c3.em.surface || !c3.key || !c3.ray || !c3.touched || !c3.gap) r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK && any) {
         refl__models *models = p->models;
@@ -1184,6 +1245,9 @@ static refl_result refl__method_c3rc(refl__pass *p) {
             t0 = t1;
             rast_run_jobs(p->rc, fr->height, refl__c3_resolve_row, &c3);
             fr->stats.ms_composite += refl__now_ms() - t0;
+            for (k = 0; k < npx; ++k)
+                fr->stats.c3rc.traced += (p->trace ? p->trace[k] : c3.gap[k]) == REFL__TRACE_ALL;
+            if (fr->stats.c3rc.traced && !p->trace) r = refl__trace_marked(p, c3.gap);
         }
     }
     if (r == REFL_OK) {
@@ -1198,6 +1262,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
     refl__free(al, c3.key);
     refl__free(al, c3.ray);
     refl__free(al, c3.touched);
+    refl__free(al, c3.gap);
     refl__free(al, c3.jobs);
     refl__free(al, c3.counts);
     return r;

