@@ -1251,8 +1251,7 @@ typedef struct refl_graphcam_frame_stats {
     long long hits;          /* of those, the ones that met it */
     long long traced;        /* reflector pixels whose ray the impostor could not answer (it
                                 met the scene past what the impostor holds, or a mirror or
-                                glass first; past one bounce those are traced_beyond's), drawn
-                                by RAYTRACE's tracer */
+                                glass first), drawn by RAYTRACE's tracer */
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;
@@ -15001,12 +15000,8 @@ static void refl__gcm_row(void *arg, int y) {
         } else if (g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) {
             hand = 2;
         }
-        if (hand == 2 && p->trace) {
-            p->trace[i] = REFL__TRACE_ALL;
-            continue;
-        }
         if (hand) {
-            g->handed[i] = REFL__TRACE_ALL;
+            (hand == 2 && p->trace ? p->trace : g->handed)[i] = REFL__TRACE_ALL;
             g->traced[y]++;
             continue;
         }

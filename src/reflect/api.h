@@ -1249,8 +1249,7 @@ typedef struct refl_graphcam_frame_stats {
     long long hits;          /* of those, the ones that met it */
     long long traced;        /* reflector pixels whose ray the impostor could not answer (it
                                 met the scene past what the impostor holds, or a mirror or
-                                glass first; past one bounce those are traced_beyond's), drawn
-                                by RAYTRACE's tracer */
+                                glass first), drawn by RAYTRACE's tracer */
     long long steps;         /* march samples in all */
     long long max_steps;     /* the most one ray took */
 } refl_graphcam_frame_stats;

@@ -634,12 +634,8 @@ static void refl__gcm_row(void *arg, int y) {
         } else if (g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) {
             hand = 2;
         }
-        if (hand == 2 && p->trace) {
-            p->trace[i] = REFL__TRACE_ALL;
-            continue;
-        }
         if (hand) {
-            g->handed[i] = REFL__TRACE_ALL;
+            (hand == 2 && p->trace ? p->trace : g->handed)[i] = REFL__TRACE_ALL;
             g->traced[y]++;
             continue;
         }

@@ -288,20 +288,22 @@ Test(refl_contract, bounces_past_a_method_s_own_are_traced) {
     for (k = 0; k < sizeof one_bounce / sizeof one_bounce[0]; ++k) {
         refl_render_desc d = tu_refl_one_bounce(one_bounce[k], 2);
         refl_frame *one = tu_refl_render(s, &v, &d), *three;
-        long long same = 0;
+        long long same = 0, traced;
         const char *name = refl_method_name(one_bounce[k]);
         d.depth = 3;
         three = tu_refl_render(s, &v, &d);
         cr_assert_eq(one->stats.traced_beyond, 0, "%s at depth 1", name);
-        cr_assert_gt(three->stats.traced_beyond, (long long)(n / 10), "%s: %lld traced of %zu", name,
-                     three->stats.traced_beyond, n);
+        /* past one bounce: RAYTRACE's pixels, by refl__trace_beyond or by the
+           method's own hand-over (C3RC's gaps, what GRAPHCAM's impostor
+           cannot answer) */
+        traced = three->stats.traced_beyond + three->stats.c3rc.traced + three->stats.graphcam.traced;
+        cr_assert_gt(traced, (long long)(n / 10), "%s: %lld traced of %zu", name, traced, n);
         for (i = 0; i < n; ++i) {
             same += three->stencil[i] && !memcmp(three->rgba + 4 * i, truth->rgba + 4 * i, 3 * sizeof(float));
             cr_assert(!memcmp(three->points + 3 * i, one->points + 3 * i, 3 * sizeof(float)),
                       "%s: pixel %zu shows another point at depth 3", name, i);
         }
-        cr_assert_geq(same, three->stats.traced_beyond, "%s: %lld pixels of RAYTRACE's colour, %lld traced", name,
-                      same, three->stats.traced_beyond);
+        cr_assert_geq(same, traced, "%s: %lld pixels of RAYTRACE's colour, %lld traced", name, same, traced);
         refl_frame_destroy(one);
         refl_frame_destroy(three);
     }
