@@ -840,7 +840,7 @@ static int cmd_render(const options *o) {
             const refl_layered_em_frame_stats *l = &st->layered_em;
             printf("maps         %d inferred, %d kept, %d held\n", l->maps_inferred, l->maps_kept, l->maps_held);
             printf("  trace ms   %.2f (%lld vertices)\n  tess ms    %.2f\n  draw ms    %.2f\n"
-                   "traced px   %lld (no triangle covered them)\n",
+                   "traced px   %lld (no triangle covered them, or their paths left through another lens)\n",
                    l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);

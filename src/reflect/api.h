@@ -1215,7 +1215,8 @@ typedef struct refl_layered_em_frame_stats {
     double ms_tessellate;    /* the rest of the adaptive tessellation */
     double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
     long long vertices;      /* vertices traced */
-    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
+    long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
+                                vertex's path left through another lens beyond the shells */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {

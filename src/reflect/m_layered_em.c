@@ -29,7 +29,9 @@
    continued rays, direct images. */
 #include "internal.h"
 
-enum { REFL__LEM_VARYINGS = 14 }; /* per term: shell index (3), F G (3); then both terms' presence */
+/* per term: shell index (3), F G (3); then both terms' presence, and 1 at a
+   vertex where a term has an exit ray the shell cannot look up */
+enum { REFL__LEM_VARYINGS = 15 };
 
 static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
     return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
@@ -54,12 +56,15 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
 }
 
 /* The shell's index of an exit ray: its far hit on the sphere minus the
-   centre (0: none). */
+   centre (0: none). An exit ray that starts outside the shell has none: its
+   path left the lens through another lens object beyond the shell, where
+   the map knows nothing of what the ray meets (the frame hands such pixels
+   to the tracer). */
 static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
     refl_vec3 oc = refl_v3_sub(o, sh->center);
     float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
     float disc = b * b - c * dd, t;
-    if (!(disc >= 0.0f) || !(dd > 0.0f)) return 0;
+    if (!(c <= 0.0f) || !(disc >= 0.0f) || !(dd > 0.0f)) return 0;
     t = (-b + sqrtf(disc)) / dd;
     *index = refl_v3_add(oc, refl_v3_scale(d, t));
     return refl__v3_finite(*index) && t >= 0.0f;
@@ -96,7 +101,7 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
-    rgba[3] = 1.0f;
+    rgba[3] = v[14] > 0.0f ? 2.0f : 1.0f; /* 2: a vertex's term had no lookup, the pixel is traced */
     for (term = 0; term < 2; ++term) {
         const float *t = v + 6 * term;
         refl_vec3 index = refl_v3(t[0], t[1], t[2]);
@@ -127,17 +132,19 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
         float *o = verts + (size_t)i * (size_t)stride;
         refl_vec3 p = v->position;
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
+        o[4 + 14] = 0.0f;
         for (term = 0; term < 2; ++term) {
             const refl_greedy_path *path = term ? &v->paths.refract : &v->paths.reflect;
             float *q = o + 4 + 6 * term;
             refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
-            int has = path->fresnel > 0.0f && path->exited &&
-                      refl__lem_index(&dr->shell, path->exit_origin, path->exit_direction, &index);
+            int exits = path->fresnel > 0.0f && path->exited;
+            int has = exits && refl__lem_index(&dr->shell, path->exit_origin, path->exit_direction, &index);
             q[0] = index.x;
             q[1] = index.y;
             q[2] = index.z;
             for (k = 0; k < 3; ++k) q[3 + k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
             o[4 + 12 + term] = (float)has;
+            if (exits && !has) o[4 + 14] = 1.0f;
         }
     }
     tg = refl__float_targets(color, depth, stencil, w, h);
@@ -630,8 +637,8 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     }
     for (px = 0; px < np && r == REFL_OK; ++px) {
         if (f->stencil[px] != ref) continue;
-        if (!(color[0][4 * px + 3] > 0.0f)) {
-            marked[px] = 1; /* no triangle here: traced */
+        if (!(color[0][4 * px + 3] > 0.0f) || color[0][4 * px + 3] > 1.0f || (n > 1 && color[1][4 * px + 3] > 1.0f)) {
+            marked[px] = 1; /* no triangle here, or an exit ray off the maps: traced */
             f->stats.layered_em.traced_pixels++;
             continue;
         }

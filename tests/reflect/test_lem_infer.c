@@ -424,3 +424,61 @@ Test(layered_em, prebuild_infers_every_sample_once_and_cancels) {
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
+
+/* ---- a path leaving through another lens ------------------------------------------- */
+
+Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
+    /* the hybrid scene's mirror cup (object 2) reflects the glass teapot
+       (object 1): those greedy paths leave the lens system from the
+       teapot, beyond the cup's shell, where its map knows nothing; the
+       frame hands their pixels to the tracer instead of showing black */
+    refl_builtin_desc bd;
+    refl_scene *s0 = NULL;
+    tu_refl_traced tr;
+    refl_render_desc d;
+    refl_view v;
+    refl_frame *truth, *lem;
+    refl_vec3 cup = refl_v3(1.2f, 0.28f, 0.7f);
+    int x, y, beyond = 0, dark = 0;
+    double err = 0.0;
+    memset(&bd, 0, sizeof bd);
+    cr_assert_eq(refl_scene_builtin("hybrid", &bd, &s0), REFL_OK);
+    tr = tu_refl_traced_scene(s0);
+    v = tr.scene->camera;
+    v.width = 120;
+    v.height = 90;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    truth = tu_refl_render(tr.scene, &v, &d);
+    d = lem_desc(0);
+    d.layered_em.single_view = 1;
+    d.layered_em.face_size = 16;
+    lem = tu_refl_render(tr.scene, &v, &d);
+    for (y = 0; y < v.height; ++y)
+        for (x = 0; x < v.width; ++x) {
+            size_t i = (size_t)y * (size_t)v.width + (size_t)x;
+            refl_greedy_paths_result g;
+            refl_vec3 o, dir;
+            float t = 0.0f, l = 0.0f;
+            int c;
+            refl_view_ray(&v, tr.scene, (float)x + 0.5f, (float)y + 0.5f, &o, &dir, NULL);
+            refl_greedy_paths(tr.scene, &tr.caster, o, dir, d.depth, &g, NULL);
+            if (g.object != 2 || !g.reflect.exited || refl_v3_length(refl_v3_sub(g.reflect.exit_origin, cup)) < 0.6f)
+                continue;
+            ++beyond;
+            for (c = 0; c < 3; ++c) {
+                t += truth->rgba[4 * i + (size_t)c] / 3.0f;
+                l += lem->rgba[4 * i + (size_t)c] / 3.0f;
+            }
+            err += fabs((double)t - (double)l);
+            dark += t > 0.1f && l < 0.02f;
+        }
+    cr_assert_gt(beyond, 10, "%d cup pixels show the teapot", beyond);
+    cr_assert_eq(dark, 0, "%d of %d pixels black where the truth is not", dark, beyond);
+    cr_assert_lt(err / beyond, 0.15, "mean error %.3f over %d pixels", err / beyond, beyond);
+    cr_assert_gt(lem->stats.layered_em.traced_pixels, 0);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem);
+    tu_refl_traced_free(&tr);
+}
