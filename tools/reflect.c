@@ -84,6 +84,7 @@ static const char *const usage_render =
     "                     instead of the full ray tree\n"
     "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
     "                     1..3600 (default 45)\n"
+    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..3 (default 1)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -171,7 +172,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples, lem_layers;
     float lem_edge;
     int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
@@ -229,7 +230,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -333,6 +334,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 1024, &o->soft_samples)) return fail("--soft-shadows: expected 1..1024, got %s", v);
         } else if (!strcmp(a, "--lem-samples")) {
             if (!parse_int(v, 1, 3600, &o->lem_samples)) return fail("--lem-samples: expected 1..3600, got %s", v);
+        } else if (!strcmp(a, "--lem-layers")) {
+            if (!parse_int(v, 1, 3, &o->lem_layers)) return fail("--lem-layers: expected 1..3, got %s", v);
         } else if (!strcmp(a, "--frames")) {
             if (!parse_int(v, 1, 1000, &o->frames)) return fail("--frames: expected 1..1000, got %s", v);
         } else if (!strcmp(a, "--lem-edge")) {
@@ -728,6 +731,7 @@ static int cmd_render(const options *o) {
     }
     d.raytrace.greedy = o->greedy;
     d.layered_em.samples = o->lem_samples;
+    d.layered_em.layers = o->lem_layers;
     d.layered_em.edge_px = o->lem_edge;
     if (o->light_radius > 0.0f) {
         int i;
