@@ -1536,9 +1536,9 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
    supersample^2 subsamples' greedy paths; per term, the row is the
    runtime's lookup of the pixel centre's exit ray, the target the mean
    radiance where the subsamples' exit rays meet the scene (diffuse shading
-   as RAYTRACE's without shadows, the environment past everything), alpha
-   the share of subsamples with that term, and the confidence that of the
-   subsamples' exit rays. */
+   as RAYTRACE's without shadows, the environment past everything), alpha 1
+   (the one layer is opaque), and the confidence that of the subsamples'
+   exit rays. */
 typedef struct refl_lem_record_desc {
     int object;              /* the lens object */
     int supersample;         /* 0: 3 */

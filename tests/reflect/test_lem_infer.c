@@ -321,6 +321,10 @@ Test(layered_em, options_validated) {
     d.layered_em.edge_px = 0.0f;
     d.layered_em.supersample = 9;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.supersample = 0;
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS + 1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 3");
 }
 
 /* ---- maps kept by a renderer -------------------------------------------------------- */
