@@ -88,6 +88,7 @@ static const char *const usage_render =
     "                     instead of the full ray tree\n"
     "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
     "                     1..3600 (default 45)\n"
+    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..3 (default 1)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -175,7 +176,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples, lem_layers;
     float lem_edge;
     int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
@@ -234,7 +235,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-edge", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -338,6 +339,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_int(v, 1, 1024, &o->soft_samples)) return fail("--soft-shadows: expected 1..1024, got %s", v);
         } else if (!strcmp(a, "--lem-samples")) {
             if (!parse_int(v, 1, 3600, &o->lem_samples)) return fail("--lem-samples: expected 1..3600, got %s", v);
+        } else if (!strcmp(a, "--lem-layers")) {
+            if (!parse_int(v, 1, 3, &o->lem_layers)) return fail("--lem-layers: expected 1..3, got %s", v);
         } else if (!strcmp(a, "--frames")) {
             if (!parse_int(v, 1, 1000, &o->frames)) return fail("--frames: expected 1..1000, got %s", v);
         } else if (!strcmp(a, "--lem-edge")) {
@@ -743,6 +746,7 @@ static int cmd_render(const options *o) {
     }
     d.raytrace.greedy = o->greedy;
     d.layered_em.samples = o->lem_samples;
+    d.layered_em.layers = o->lem_layers;
     d.layered_em.edge_px = o->lem_edge;
     if (o->light_radius > 0.0f) {
         int i;
@@ -856,7 +860,7 @@ static int cmd_render(const options *o) {
             const refl_layered_em_frame_stats *l = &st->layered_em;
             printf("maps         %d inferred, %d kept, %d held\n", l->maps_inferred, l->maps_kept, l->maps_held);
             printf("  trace ms   %.2f (%lld vertices)\n  tess ms    %.2f\n  draw ms    %.2f\n"
-                   "traced px   %lld (no triangle covered them)\n",
+                   "traced px   %lld (no triangle covered them, or their paths left through another lens)\n",
                    l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);

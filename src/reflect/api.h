@@ -1269,7 +1269,8 @@ typedef struct refl_layered_em_frame_stats {
     double ms_tessellate;    /* the rest of the adaptive tessellation */
     double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
     long long vertices;      /* vertices traced */
-    long long traced_pixels; /* lens pixels no triangle covered, ray traced */
+    long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
+                                vertex's path left through another lens beyond the shells */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1571,14 +1572,27 @@ typedef struct refl_lem_solve_stats {
 REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,
                                     refl_lem_solve_stats *stats);
 
+/* Section 4.2's layers: LBG (1-D k-means, Lloyd's iterations from the
+   quantiles until no hit moves) over the distances of `count` hits from a
+   lens's centre, then every object's hits moved to the layer holding most
+   of them (object may be NULL: no objects), and each layer's shell at the
+   mean distance of its hits, a continued ray's (ray[i]: the exit ray of
+   hit i, its hits together and nearest first; may be NULL) counted by its
+   front-most hit in the layer. Returns the layers made (empty ones
+   dropped; 0 on bad arguments or no memory), their radii ascending in
+   radius[], and, when layer_of is not NULL, each hit's layer. */
+enum { REFL_LEM_MAX_LAYERS = 3 };
+REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
+                                     const refl_allocator *a, float *radius, int *layer_of);
+
 /* Section 4.1's records of one viewpoint sample, as rows for one layer:
    every pixel whose centre ray meets lens object `object` first traces
    supersample^2 subsamples' greedy paths; per term, the row is the
    runtime's lookup of the pixel centre's exit ray, the target the mean
    radiance where the subsamples' exit rays meet the scene (diffuse shading
-   as RAYTRACE's without shadows, the environment past everything), alpha
-   the share of subsamples with that term, and the confidence that of the
-   subsamples' exit rays. */
+   as RAYTRACE's without shadows, the environment past everything), alpha 1
+   (the one layer is opaque), and the confidence that of the subsamples'
+   exit rays. */
 typedef struct refl_lem_record_desc {
     int object;              /* the lens object */
     int supersample;         /* 0: 3 */
@@ -1614,6 +1628,9 @@ typedef struct refl_layered_em_options {
     int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
                                 views half a spacing either side (the paper's simultaneous
                                 inference, against disocclusions between samples) */
+    int layers;              /* environment layers (sphere shells) per lens, 1 to
+                                REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
+                                from every sample on the circle; 0: 1 */
 } refl_layered_em_options;
 
 typedef struct refl_envmap_options {

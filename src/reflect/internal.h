@@ -550,14 +550,41 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
 static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
                                          const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
                                          refl_lens_tess *out);
+/* The layers of a lens's maps: the shells' radii (ascending) around
+   centre, and the layer each scene object's hits belong to (-1: the
+   shell nearest the hit's distance). */
+typedef struct refl__lem_layering {
+    int layers;
+    float radius[REFL_LEM_MAX_LAYERS];
+    refl_vec3 centre;
+    const signed char *object_layer;
+    int object_count;
+} refl__lem_layering;
+enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
+/* One front-facing surface an exit ray meets, continued through the others. */
+typedef struct refl__lem_hit {
+    float rgb[3], distance;      /* distance from the layering's centre */
+    int object;
+} refl__lem_hit;
+/* Hits gathered for the clustering: distance, object and exit ray of each. */
+typedef struct refl__lem_hits {
+    const refl_allocator *al;
+    float *distance;
+    int *object, *ray;
+    int count, cap, rays;
+} refl__lem_hits;
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
-   does not meet `object` first; else per term the target (rgba) and its
-   confidence (-1: none) in out[5 term ...], environment hit distances
-   from `centre` summed into *dist_sum, *dist_n. */
+   does not meet `object` first; else per term and layer l the target
+   (rgba: the mean colour of the subsamples' first hits in the layer, alpha
+   their share; the outermost layer opaque, the environment where nothing
+   of it was met) and the term's confidence (-1: no subsample has the term)
+   in out[5 (term layers + l) ...]. */
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
-                                   double *dist_sum, long long *dist_n, long long *rays);
+                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
+                                   long long *rays);
+static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no

@@ -267,18 +267,21 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
 
 /* ---- records of a viewpoint sample --------------------------------------------- */
 
-enum { REFL__LEM_MAX_SS = 8 };
 
-/* The radiance where an exit ray meets the scene past the lens: a diffuse
-   surface shaded as RAYTRACE shades it without shadows, else the
-   environment. */
-static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                                    float rgb[3], refl_vec3 *hit, long long *rays) {
+/* Every surface an exit ray meets past the lens, continued through them
+   (section 4.1, Figure 4c; the back of an object the ray entered is not
+   one, an open shell's inside is): up to REFL__LEM_MAX_HITS, nearest
+   first, each shaded as RAYTRACE shades a diffuse surface without shadows.
+   Lens objects are passed through (the ray's own lens met again, or a
+   mirror or glass beyond, whose own paths the tracer would follow).
+   Returns the count. */
+static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                               refl_vec3 centre, refl__lem_hit *hits, long long *rays) {
     refl_hit h;
     float tmin = 0.0f;
-    int tries, k;
+    int tries, k, n = 0;
     ++*rays;
-    for (tries = 0; tries < 8; ++tries) {
+    for (tries = 0; tries < 4 * REFL__LEM_MAX_HITS && n < REFL__LEM_MAX_HITS; ++tries) {
         const refl_object *obj;
         const refl_mesh *m;
         const refl_material *mat;
@@ -287,15 +290,18 @@ static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_cast
         float uv[2] = {0.0f, 0.0f};
         if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &h) || h.object < 0 || h.object >= scene->object_count)
             break;
+        tmin = h.t;
         obj = &scene->objects[h.object];
         mat = &scene->materials[obj->material];
-        if (refl__is_reflector(mat)) { /* the lens the ray leaves, met again at its start */
-            tmin = h.t;
-            continue;
-        }
+        if (refl__is_reflector(mat)) continue;
         m = scene->meshes[obj->mesh];
         nm = refl__normal_matrix(obj->transform);
         refl__hit_surface(m, &obj->transform, &nm, &h, &g);
+        if (refl_v3_dot(g.ng, d) >= 0.0f) { /* leaving an object the ray entered: its inside, not seen */
+            for (k = 0; k < n && hits[k].object != h.object; ++k) {
+            }
+            if (k < n) continue;
+        }
         if (m->texcoords) {
             const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
             for (k = 0; k < 3; ++k) {
@@ -303,35 +309,39 @@ static void refl__lem_exit_radiance(const refl_scene *scene, const refl_ray_cast
                 uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
             }
         }
-        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, rgb);
-        for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
-        *hit = g.p;
-        return;
+        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
+        for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
+        hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
+        hits[n].object = h.object;
+        ++n;
     }
-    *hit = refl_v3(NAN, NAN, NAN);
-    refl_environment_lookup(&scene->environment, d, rgb);
-    for (k = 0; k < 3; ++k) rgb[k] = REFL__RADIANCE(rgb[k]);
+    return n;
 }
 
-/* The records of pixel (x, y) of a view (section 4.1): 0 when its centre
-   ray does not meet lens object `object` first; else 1, the centre's
-   paths, and per term (R, T) the target (mean radiance where the
-   subsamples' exit rays meet the scene, alpha the share of subsamples with
-   the term) and its confidence (-1: no subsample has the term) in
-   out[5 term .. 5 term + 4]. Each environment hit adds its distance from
-   `centre` to *dist_sum and one to *dist_n. */
+/* The layer of a hit: its object's, else the shell nearest its distance. */
+static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hit *h) {
+    int l, best = 0;
+    if (lay->object_layer && h->object >= 0 && h->object < lay->object_count && lay->object_layer[h->object] >= 0)
+        return lay->object_layer[h->object];
+    for (l = 1; l < lay->layers; ++l)
+        if (fabsf(h->distance - lay->radius[l]) < fabsf(h->distance - lay->radius[best])) best = l;
+    return best;
+}
+
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   refl_vec3 centre, float out[10], refl_greedy_paths_result *centre_paths,
-                                   double *dist_sum, long long *dist_n, long long *rays) {
+                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
+                                   long long *rays) {
     refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
     refl_greedy_paths_result sub;
-    float sum[2][3], tmax;
-    int n[2] = {0, 0}, i, j, k, term;
+    refl__lem_hit hits[REFL__LEM_MAX_HITS];
+    float sum[2][REFL_LEM_MAX_LAYERS][3], tmax;
+    int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers;
     refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
     refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
     if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
     memset(sum, 0, sizeof sum);
+    memset(seen, 0, sizeof seen);
     for (j = 0; j < ss; ++j)
         for (i = 0; i < ss; ++i) {
             refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
@@ -340,26 +350,177 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
-                float rgb[3];
-                refl_vec3 hit;
+                int nh, got[REFL_LEM_MAX_LAYERS];
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
-                refl__lem_exit_radiance(scene, caster, sp->exit_origin, sp->exit_direction, rgb, &hit, rays);
-                if (refl__v3_finite(hit)) {
-                    *dist_sum += (double)refl_v3_length(refl_v3_sub(hit, centre));
-                    ++*dist_n;
+                nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
+                memset(got, 0, sizeof got);
+                /* each layer takes the ray's first hit in it (section 4.3) */
+                for (k = 0; k < nh; ++k) {
+                    l = refl__lem_hit_layer(lay, &hits[k]);
+                    if (got[l]) continue;
+                    got[l] = 1;
+                    ++seen[term][l];
+                    for (c = 0; c < 3; ++c) sum[term][l][c] += hits[k].rgb[c];
                 }
-                for (k = 0; k < 3; ++k) sum[term][k] += rgb[k];
+                if (!got[L - 1]) { /* the outermost layer is opaque: the environment past everything */
+                    float rgb[3];
+                    refl_environment_lookup(&scene->environment, sp->exit_direction, rgb);
+                    for (k = 0; k < 3; ++k) sum[term][L - 1][k] += REFL__RADIANCE(rgb[k]);
+                    ++seen[term][L - 1];
+                }
                 dirs[term][n[term]++] = sp->exit_direction;
             }
         }
     for (term = 0; term < 2; ++term) {
-        float *t = out + 5 * term;
-        t[4] = -1.0f;
-        if (!n[term]) continue;
-        for (k = 0; k < 3; ++k) t[k] = sum[term][k] / (float)n[term];
-        t[3] = (float)n[term] / (float)(ss * ss);
-        t[4] = refl_lem_confidence(dirs[term], n[term], theta_c);
+        float conf = n[term] ? refl_lem_confidence(dirs[term], n[term], theta_c) : -1.0f;
+        for (l = 0; l < L; ++l) {
+            float *t = out + 5 * (term * L + l);
+            t[0] = t[1] = t[2] = t[3] = 0.0f;
+            t[4] = conf;
+            if (!n[term]) continue;
+            /* premultiplied: what the layer adds where it covers, so texels
+               interpolate across its edges as "over" composites them */
+            for (k = 0; k < 3; ++k) t[k] = sum[term][l][k] / (float)n[term];
+            t[3] = (float)seen[term][l] / (float)n[term];
+        }
     }
+    return 1;
+}
+
+/* ---- layers: LBG over hit distances ------------------------------------------------ */
+
+static int refl__lem_cmp_float(const void *a, const void *b) {
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
+                                     const refl_allocator *a, float *radius, int *layer_of) {
+    double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
+    long long cnt[REFL_LEM_MAX_LAYERS];
+    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS];
+    float *sorted = NULL;
+    if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
+    layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
+    own = layer_of ? layer_of : (int *)refl__calloc(a, (size_t)count, sizeof(int));
+    sorted = (float *)refl__calloc(a, (size_t)count, sizeof(float));
+    if (!own || !sorted) {
+        if (own != layer_of) refl__free(a, own);
+        refl__free(a, sorted);
+        return 0;
+    }
+    /* start from the quantiles (deterministic where the paper draws at random) */
+    memcpy(sorted, distance, sizeof(float) * (size_t)count);
+    qsort(sorted, (size_t)count, sizeof(float), refl__lem_cmp_float);
+    for (l = 0; l < layers; ++l) mean[l] = sorted[(size_t)(((double)l + 0.5) / layers * count)];
+    for (i = 0; i < count; ++i) own[i] = -1;
+    /* Lloyd's iterations until no hit moves */
+    for (it = 0; it < 200 && changed; ++it) {
+        changed = 0;
+        for (i = 0; i < count; ++i) {
+            int best = 0;
+            for (l = 1; l < layers; ++l)
+                if (fabs(distance[i] - mean[l]) < fabs(distance[i] - mean[best])) best = l;
+            changed |= own[i] != best;
+            own[i] = best;
+        }
+        for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
+        for (i = 0; i < count; ++i) acc[own[i]] += distance[i], ++cnt[own[i]];
+        for (l = 0; l < layers; ++l)
+            if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
+    }
+    /* whole objects in one layer: the one holding most of their hits */
+    if (object) {
+        for (i = 0; i < count; ++i) objects = REFL__MAX(objects, object[i] + 1);
+        for (k = 0; k < objects; ++k) {
+            long long votes[REFL_LEM_MAX_LAYERS] = {0};
+            int best = 0, any = 0;
+            for (i = 0; i < count; ++i)
+                if (object[i] == k) ++votes[own[i]], any = 1;
+            if (!any) continue;
+            for (l = 1; l < layers; ++l)
+                if (votes[l] > votes[best]) best = l;
+            for (i = 0; i < count; ++i)
+                if (object[i] == k) own[i] = best;
+        }
+    }
+    /* the shells: the mean distance of each layer's hits, a continued ray
+       counted by its front-most hit in the layer (hits of a ray come
+       together, nearest first) */
+    for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
+    for (i = 0; i < count; ++i) {
+        int j, front = 1;
+        for (j = i - 1; ray && j >= 0 && ray[j] == ray[i]; --j)
+            if (own[j] == own[i]) front = 0;
+        if (front) acc[own[i]] += distance[i], ++cnt[own[i]];
+    }
+    /* empty layers dropped, the rest by distance */
+    k = 0;
+    for (l = 0; l < layers; ++l)
+        if (cnt[l]) mean[k] = acc[l] / (double)cnt[l], remap[l] = k++;
+        else remap[l] = -1;
+    for (i = 0; i < count; ++i) own[i] = remap[own[i]];
+    for (l = 0; l < k; ++l) radius[l] = (float)mean[l];
+    for (l = 1; l < k; ++l) /* insertion sort, carrying the assignment */
+        for (i = l; i > 0 && radius[i] < radius[i - 1]; --i) {
+            float t = radius[i];
+            int h;
+            radius[i] = radius[i - 1], radius[i - 1] = t;
+            for (h = 0; h < count; ++h)
+                own[h] = own[h] == i ? i - 1 : own[h] == i - 1 ? i : own[h];
+        }
+    if (own != layer_of) refl__free(a, own);
+    refl__free(a, sorted);
+    return k;
+}
+
+/* The hits of the centre rays of a view's lens pixels, in pixel order, for
+   the clustering: appended to the arrays of *h. 0 when out of memory. */
+static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
+                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays) {
+    refl__view_rays vr;
+    int x, y, term, k;
+    refl__view_rays_init(&vr, view, scene);
+    for (y = 0; y < view->height; ++y)
+        for (x = 0; x < view->width; ++x) {
+            refl_greedy_paths_result g;
+            refl_vec3 o, d;
+            float tmax;
+            refl__view_rays_get(&vr, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
+            refl_greedy_paths(scene, caster, o, d, max_interfaces, &g, rays);
+            if (g.terms == 0 || g.object != object) continue;
+            for (term = 0; term < 2; ++term) {
+                const refl_greedy_path *p = term ? &g.refract : &g.reflect;
+                refl__lem_hit hits[REFL__LEM_MAX_HITS];
+                int n;
+                if (!(p->fresnel > 0.0f) || !p->exited) continue;
+                n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, hits, rays);
+                for (k = 0; k < n; ++k) {
+                    if (h->count == h->cap) {
+                        int cap = h->cap ? 2 * h->cap : 1024;
+                        float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
+                        int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
+                        int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
+                        if (!nd || !no || !nr) {
+                            refl__free(h->al, nd), refl__free(h->al, no), refl__free(h->al, nr);
+                            return 0;
+                        }
+                        if (h->count) {
+                            memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
+                            memcpy(no, h->object, sizeof(int) * (size_t)h->count);
+                            memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
+                        }
+                        refl__free(h->al, h->distance), refl__free(h->al, h->object), refl__free(h->al, h->ray);
+                        h->distance = nd, h->object = no, h->ray = nr, h->cap = cap;
+                    }
+                    h->distance[h->count] = hits[k].distance;
+                    h->object[h->count] = hits[k].object;
+                    h->ray[h->count] = h->rays;
+                    ++h->count;
+                }
+                ++h->rays;
+            }
+        }
     return 1;
 }
 
@@ -369,10 +530,9 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
                                           refl_lem_record_stats *stats) {
     refl_lem_record_stats st;
     refl__view_rays rays;
+    refl__lem_layering one;
     int ss, x, y, term;
     refl_result r = REFL_OK;
-    double dist_sum = 0.0;
-    long long dist_n = 0;
     memset(&st, 0, sizeof st);
     if (stats) *stats = st;
     if (!system || !scene || !caster || !caster->intersect || !view || !shell || !desc) return REFL_ERROR_INVALID_ARGUMENT;
@@ -381,13 +541,16 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     if (6LL * shell->face_size * shell->face_size != system->texels) return REFL_ERROR_INVALID_ARGUMENT;
     ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
     refl__view_rays_init(&rays, view, scene);
+    memset(&one, 0, sizeof one);
+    one.layers = 1;
+    one.radius[0] = shell->radius;
+    one.centre = shell->center;
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
             refl_greedy_paths_result centre;
             float rec[10];
             if (!refl__lem_pixel_records(scene, caster, &rays, x, y, desc->object, ss, desc->theta_c_degrees,
-                                         desc->max_interfaces, shell->center, rec, &centre, &dist_sum, &dist_n,
-                                         &st.rays))
+                                         desc->max_interfaces, &one, rec, &centre, &st.rays))
                 continue;
             ++st.pixels;
             for (term = 0; term < 2 && r == REFL_OK; ++term) {

@@ -29,7 +29,10 @@
    continued rays, direct images. */
 #include "internal.h"
 
-enum { REFL__LEM_VARYINGS = 14 }; /* per term: shell index (3), F G (3); then both terms' presence */
+/* One draw is one term: per layer its shell index (3), then F G (3), the
+   term's presence, and 1 at a vertex whose term has an exit ray the shells
+   cannot look up: 3 layers + 5 varyings. */
+static int refl__lem_varyings(int layers) { return 3 * layers + 5; }
 
 static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
     return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
@@ -50,59 +53,75 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.theta_c_degrees: 0 (5) to 180";
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
+    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
     return NULL;
 }
 
 /* The shell's index of an exit ray: its far hit on the sphere minus the
-   centre (0: none). */
+   centre (0: none). An exit ray that starts outside the shell has none: its
+   path left the lens through another lens object beyond the shell, where
+   the map knows nothing of what the ray meets (the frame hands such pixels
+   to the tracer). */
 static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
     refl_vec3 oc = refl_v3_sub(o, sh->center);
     float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
     float disc = b * b - c * dd, t;
-    if (!(disc >= 0.0f) || !(dd > 0.0f)) return 0;
+    if (!(c <= 0.0f) || !(disc >= 0.0f) || !(dd > 0.0f)) return 0;
     t = (-b + sqrtf(disc)) / dd;
     *index = refl_v3_add(oc, refl_v3_scale(d, t));
     return refl__v3_finite(*index) && t >= 0.0f;
 }
 
-/* What one draw of the lens shares: the shell, the map it looks up and
-   the map's blend weight, and the term drawn in record mode. */
+/* What one draw of the lens shares: the layers' shells, the maps it looks
+   up and the blend weight, the term drawn, and in record mode the layer
+   whose index it writes. */
 typedef struct refl__lem_draw {
-    refl_lem_shell shell;
-    const float *map;
+    int layers;
+    refl_lem_shell shell[REFL_LEM_MAX_LAYERS];
+    const float *map[REFL_LEM_MAX_LAYERS];
     float weight;
-    int record_term;             /* 0, 1: write that term's index; -1: shade */
+    int term;                    /* 0 reflection, 1 refraction */
+    int record_layer;            /* -1: shade; else write that layer's index and the presence */
 } refl__lem_draw;
 
-static float refl__lem_sample(const refl__lem_draw *dr, refl_vec3 index, int c) {
+/* Layer l's bilinear RGBA at a shell index. */
+static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, float rgba[4]) {
     uint32_t tex[4];
-    float w[4], l = 0.0f;
-    int k;
-    if (!refl_lem_shell_lookup(&dr->shell, dr->shell.center, index, tex, w)) return 0.0f;
-    for (k = 0; k < 4; ++k) l += w[k] * dr->map[4 * tex[k] + (uint32_t)c];
-    return l;
+    float w[4];
+    int k, c;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    if (!refl_lem_shell_lookup(&dr->shell[l], dr->shell[l].center, index, tex, w)) return;
+    for (k = 0; k < 4; ++k)
+        for (c = 0; c < 4; ++c) rgba[c] += w[k] * dr->map[l][4 * tex[k] + (uint32_t)c];
 }
 
+/* The term's colour: the layers composited front to back, L1 over L2 over
+   ... (the outermost opaque), times F G, times the map's weight. Alpha 1,
+   or 2 where a vertex had no lookup (the pixel goes to the tracer). */
 static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
     const refl__lem_draw *dr = (const refl__lem_draw *)user;
-    const float *v = in->varyings;
-    int term, c;
-    if (dr->record_term >= 0) {
-        const float *t = v + 6 * dr->record_term;
+    const float *v = in->varyings, *fg = v + 3 * dr->layers;
+    float through = 1.0f, layer[4];
+    int l, c;
+    if (dr->record_layer >= 0) {
+        const float *t = v + 3 * dr->record_layer;
         rgba[0] = t[0];
         rgba[1] = t[1];
         rgba[2] = t[2];
-        rgba[3] = v[12 + dr->record_term];
+        rgba[3] = fg[3];
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
-    rgba[3] = 1.0f;
-    for (term = 0; term < 2; ++term) {
-        const float *t = v + 6 * term;
-        refl_vec3 index = refl_v3(t[0], t[1], t[2]);
-        for (c = 0; c < 3; ++c)
-            if (t[3 + c] > 0.0f) rgba[c] += t[3 + c] * (dr->weight * refl__lem_sample(dr, index, c));
+    rgba[3] = fg[4] > 0.0f ? 2.0f : 1.0f;
+    if (!(fg[0] > 0.0f || fg[1] > 0.0f || fg[2] > 0.0f)) return 1;
+    for (l = 0; l < dr->layers && through > 0.0f; ++l) {
+        float a;
+        refl__lem_sample(dr, l, refl_v3(v[3 * l], v[3 * l + 1], v[3 * l + 2]), layer);
+        a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(layer[3], 0.0f, 1.0f);
+        for (c = 0; c < 3; ++c) rgba[c] += through * layer[c]; /* premultiplied */
+        through *= 1.0f - a;
     }
+    for (c = 0; c < 3; ++c) rgba[c] *= REFL__MAX(fg[c], 0.0f) * dr->weight;
     return 1;
 }
 
@@ -112,7 +131,7 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
 static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, refl_mat4 vp, refl__lem_draw *dr,
                                     float *color, float *depth, uint8_t *stencil, uint8_t ref, int w, int h,
                                     const refl_allocator *al) {
-    const int stride = 4 + REFL__LEM_VARYINGS;
+    const int nv = refl__lem_varyings(dr->layers), stride = 4 + nv;
     float *verts = (float *)refl__calloc(al, (size_t)REFL__MAX(t->vertex_count, 1) * (size_t)stride, sizeof(float));
     rast_targets tg;
     rast_state s;
@@ -120,25 +139,25 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
     rast_clear_desc clear;
     rast_result rr;
     const float *m = vp.m;
-    int i, k, term;
+    int i, k, l;
     if (!verts) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < t->vertex_count; ++i) {
         const refl_lens_vertex *v = &t->vertices[i];
-        float *o = verts + (size_t)i * (size_t)stride;
+        const refl_greedy_path *path = dr->term ? &v->paths.refract : &v->paths.reflect;
+        float *o = verts + (size_t)i * (size_t)stride, *fg = o + 4 + 3 * dr->layers;
         refl_vec3 p = v->position;
+        int exits = path->fresnel > 0.0f && path->exited, has = exits;
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
-        for (term = 0; term < 2; ++term) {
-            const refl_greedy_path *path = term ? &v->paths.refract : &v->paths.reflect;
-            float *q = o + 4 + 6 * term;
+        for (l = 0; l < dr->layers; ++l) {
             refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
-            int has = path->fresnel > 0.0f && path->exited &&
-                      refl__lem_index(&dr->shell, path->exit_origin, path->exit_direction, &index);
-            q[0] = index.x;
-            q[1] = index.y;
-            q[2] = index.z;
-            for (k = 0; k < 3; ++k) q[3 + k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
-            o[4 + 12 + term] = (float)has;
+            has = has && refl__lem_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            o[4 + 3 * l] = index.x;
+            o[4 + 3 * l + 1] = index.y;
+            o[4 + 3 * l + 2] = index.z;
         }
+        for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
+        fg[3] = (float)has;
+        fg[4] = (float)(exits && !has);
     }
     tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
@@ -161,7 +180,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
     d.vertices = verts;
     d.vertex_count = t->vertex_count;
     d.stride = stride;
-    d.num_varyings = REFL__LEM_VARYINGS;
+    d.num_varyings = nv;
     d.indices = t->indices;
     d.index_count = 3 * t->triangle_count;
     if (rr == RAST_OK) rr = rast_set_state(rc, &s);
@@ -179,24 +198,22 @@ typedef struct refl__lem_records {
     refl__view_rays rays;
     int object, ss, max_interfaces;
     float theta_c;
-    refl_vec3 centre;
+    const refl__lem_layering *lay;
     int rect[4];                 /* x0, y0, x1, y1: the pixels the lens's bounds may cover */
-    float *rec;                  /* 10 per pixel; confidence -1 where none */
-    double *row_dist;
-    long long *row_hits, *row_rays;
+    float *rec;                  /* 10 layers per pixel; confidence -1 where none */
+    long long *row_rays;
 } refl__lem_records;
 
 static void refl__lem_records_row(void *arg, int y) {
     refl__lem_records *r = (refl__lem_records *)arg;
-    int x, w = r->rays.width;
+    int x, w = r->rays.width, n = 10 * r->lay->layers, k;
     for (x = 0; x < w; ++x) {
-        float *out = r->rec + 10 * ((size_t)y * (size_t)w + (size_t)x);
+        float *out = r->rec + (size_t)n * ((size_t)y * (size_t)w + (size_t)x);
         refl_greedy_paths_result centre;
         if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
             !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
-                                     r->max_interfaces, r->centre, out, &centre, &r->row_dist[y], &r->row_hits[y],
-                                     &r->row_rays[y]))
-            out[4] = out[9] = -1.0f;
+                                     r->max_interfaces, r->lay, out, &centre, &r->row_rays[y]))
+            for (k = 4; k < n; k += 5) out[k] = -1.0f;
     }
 }
 
@@ -261,22 +278,27 @@ static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, 
 
 /* ---- the maps a renderer keeps ---------------------------------------------------- */
 
-/* One viewpoint sample's inferred map and what shaped it: the lens
-   object, the sample's view, the options and the bounces. A map depends on
-   nothing else (the scene's version aside, which drops them all), so a
-   frame that needs it again takes it as it is. */
+/* One viewpoint sample's inferred maps (one per layer) and what shaped
+   them: the lens object, the sample's view, the options and the bounces
+   (the layers' shells come from the lens's ring). They depend on nothing
+   else (the scene's version aside, which drops them all), so a frame that
+   needs them again takes them as they are. */
 typedef struct refl__lem_map {
     int object, depth;
     refl_view view;
     refl_layered_em_options options;
-    refl_lem_shell shell;
-    float *texels;               /* 4 floats per texel of the shell */
+    int layers;
+    refl_lem_shell shell[REFL_LEM_MAX_LAYERS];
+    float *texels[REFL_LEM_MAX_LAYERS]; /* 4 floats per texel of each shell */
 } refl__lem_map;
 
-/* A lens's circle of viewpoint samples as a renderer fixed it. */
+/* A lens's circle of viewpoint samples as a renderer fixed it, and the
+   layers clustered over every sample on it. */
 typedef struct refl__lem_ring {
     int object;
     float rho, height;
+    refl__lem_layering lay;
+    signed char *object_layer;   /* lay's, owned */
 } refl__lem_ring;
 
 struct refl__lem_maps {
@@ -286,17 +308,34 @@ struct refl__lem_maps {
     int ring_count;
 };
 
-static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m) {
+static void refl__lem_map_free(const refl_allocator *al, refl__lem_map *m) {
+    int l;
+    for (l = 0; l < REFL_LEM_MAX_LAYERS; ++l) refl__free(al, m->texels[l]), m->texels[l] = NULL;
+}
+
+/* Frees what m holds (not m). */
+static void refl__lem_maps_clear(const refl_allocator *al, struct refl__lem_maps *m) {
     int k;
-    if (!m) return;
-    for (k = 0; k < m->count; ++k) refl__free(al, m->maps[k].texels);
+    for (k = 0; k < m->count; ++k) refl__lem_map_free(al, &m->maps[k]);
+    for (k = 0; k < m->ring_count; ++k) refl__free(al, m->rings[k].object_layer);
     refl__free(al, m->maps);
     refl__free(al, m->rings);
+    memset(m, 0, sizeof *m);
+}
+
+static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m) {
+    if (!m) return;
+    refl__lem_maps_clear(al, m);
     refl__free(al, m);
 }
 
-/* RGBA floats on six faces. */
-static long long refl__lem_map_bytes(const refl__lem_map *m) { return 96LL * m->shell.face_size * m->shell.face_size; }
+/* RGBA floats on six faces, per layer. */
+static long long refl__lem_map_bytes(const refl__lem_map *m) {
+    long long b = 0;
+    int l;
+    for (l = 0; l < m->layers; ++l) b += 96LL * m->shell[l].face_size * m->shell[l].face_size;
+    return b;
+}
 
 static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     long long b = 0;
@@ -315,7 +354,7 @@ static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
     long long bytes = refl__lem_maps_bytes(m);
     while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
         bytes -= refl__lem_map_bytes(&m->maps[drop]);
-        refl__free(al, m->maps[drop++].texels);
+        refl__lem_map_free(al, &m->maps[drop++]);
     }
     for (k = drop; k < m->count; ++k) m->maps[k - drop] = m->maps[k];
     m->count -= drop;
@@ -340,37 +379,37 @@ static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, i
     return -1;
 }
 
-/* ---- inferring one sample's map ----------------------------------------------------- */
+/* ---- inferring one sample's maps ---------------------------------------------------- */
 
-/* Infers object i's map for the sample whose views are views[0 .. per)
-   (the sample's own first): the records and tessellation of each view, the
-   shell at the mean distance of their hits, rows from the runtime's own
-   lookups at those views, solved by CGLS. out->texels is allocated. */
+/* Infers object i's maps for the sample whose views are views[0 .. per)
+   (the sample's own first) on the layers' shells: the records and
+   tessellation of each view, then per layer rows from the runtime's own
+   lookups at those views (both terms), solved by CGLS. out->texels are
+   allocated. */
 static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views, int per,
-                                   refl__lem_map *out) {
+                                   const refl__lem_layering *lay, refl__lem_map *out) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_layered_em_options *o = &p->desc.layered_em;
     refl_stats *st = &p->frame->stats;
-    int w = views[0].width, h = views[0].height, s, y, term, face;
-    size_t np = (size_t)w * (size_t)h, px;
+    int w = views[0].width, h = views[0].height, s, y, term, face, l, L = lay->layers, k;
+    size_t np = (size_t)w * (size_t)h, px, nrec = 10 * (size_t)L;
     refl__lem_sample_view sv[3];
     refl_lens_tess_desc td;
     refl__lem_draw dr;
-    refl_lem_system *sys = NULL;
+    refl_lem_system *sys[REFL_LEM_MAX_LAYERS];
     refl_lem_solve_desc sd;
-    refl_vec3 box[2];
+    refl_vec3 box[2], centre;
     float lens_radius, *depth = NULL, *index[2] = {NULL, NULL};
-    double dist = 0.0;
-    long long hits = 0;
     refl_result r = REFL_OK;
     memset(sv, 0, sizeof sv);
+    memset(sys, 0, sizeof sys);
     memset(&td, 0, sizeof td);
     memset(&dr, 0, sizeof dr);
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
-    refl__lem_bounds(scene, i, &dr.shell.center, &lens_radius, box);
+    refl__lem_bounds(scene, i, &centre, &lens_radius, box);
     /* the records and tessellation of each view, in rows on the pass's threads */
     for (s = 0; s < per && r == REFL_OK; ++s) {
         refl__lem_records rec;
@@ -385,24 +424,17 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
         rec.ss = o->supersample > 0 ? o->supersample : 1;
         rec.theta_c = o->theta_c_degrees;
         rec.max_interfaces = p->desc.depth;
-        rec.centre = dr.shell.center;
+        rec.lay = lay;
         refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
-        sv[s].rec = rec.rec = (float *)refl__calloc(al, 10 * np, sizeof(float));
-        rec.row_dist = (double *)refl__calloc(al, (size_t)h, sizeof(double));
-        rec.row_hits = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
+        sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
-        if (!rec.rec || !rec.row_dist || !rec.row_hits || !rec.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!rec.rec || !rec.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
-            for (y = 0; y < h; ++y) {
-                dist += rec.row_dist[y];
-                hits += rec.row_hits[y];
-                st->rays += rec.row_rays[y];
-            }
-            for (px = 0; px < np; ++px) sv[s].lens_pixels += rec.rec[10 * px + 4] >= 0.0f || rec.rec[10 * px + 9] >= 0.0f;
+            for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
+            for (px = 0; px < np; ++px)
+                sv[s].lens_pixels += rec.rec[nrec * px + 4] >= 0.0f || rec.rec[nrec * px + 5 * (size_t)L + 4] >= 0.0f;
         }
-        refl__free(al, rec.row_dist);
-        refl__free(al, rec.row_hits);
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
             sv[s].tess.allocator = *al;
@@ -410,58 +442,62 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
             st->rays += sv[s].tess.rays;
         }
     }
-    /* the shell: at the mean distance of the records' hits */
-    dr.shell.radius = hits > 0 ? (float)(dist / (double)hits) : 0.0f;
-    if (!(dr.shell.radius > lens_radius)) dr.shell.radius = REFL__MAX(10.0f * lens_radius, 1e-3f);
     face = o->face_size > 0 ? o->face_size
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
-    dr.shell.face_size = face;
-    out->shell = dr.shell;
-    /* rows from the runtime's own lookups at the views */
-    if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys);
+    out->layers = dr.layers = L;
+    for (l = 0; l < L; ++l) {
+        dr.shell[l].center = lay->centre;
+        dr.shell[l].radius = lay->radius[l];
+        dr.shell[l].face_size = face;
+        out->shell[l] = dr.shell[l];
+        if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
+    }
+    /* rows from the runtime's own lookups at the views, per layer */
     depth = r == REFL_OK ? (float *)refl__calloc(al, np, sizeof(float)) : NULL;
     for (term = 0; term < 2 && r == REFL_OK; ++term) {
         index[term] = (float *)refl__calloc(al, 4 * np, sizeof(float));
         if (!index[term] || !depth) r = REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (s = 0; s < per && r == REFL_OK; ++s) {
-        for (term = 0; term < 2 && r == REFL_OK; ++term) {
-            dr.record_term = term;
-            r = refl__lem_raster(p->rc, &sv[s].tess, sv[s].vp, &dr, index[term], depth, NULL, 0, w, h, al);
-        }
-        for (px = 0; px < np && r == REFL_OK; ++px)
+    for (s = 0; s < per && r == REFL_OK; ++s)
+        for (l = 0; l < L && r == REFL_OK; ++l) {
             for (term = 0; term < 2 && r == REFL_OK; ++term) {
-                const float *rec = sv[s].rec + 10 * px + 5 * term, *ix = index[term] + 4 * px;
-                uint32_t tex[4];
-                float wt[4];
-                /* a row where the records have the term and all three vertices gave it an index */
-                if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                    !refl_lem_shell_lookup(&dr.shell, dr.shell.center, refl_v3(ix[0], ix[1], ix[2]), tex, wt))
-                    continue;
-                r = refl_lem_system_add_row(sys, tex, wt, 4, rec, rec[4]);
+                dr.term = term;
+                dr.record_layer = l;
+                r = refl__lem_raster(p->rc, &sv[s].tess, sv[s].vp, &dr, index[term], depth, NULL, 0, w, h, al);
             }
-    }
-    out->texels = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float)) : NULL;
-    if (r == REFL_OK && !out->texels) r = REFL_ERROR_OUT_OF_MEMORY;
+            for (px = 0; px < np && r == REFL_OK; ++px)
+                for (term = 0; term < 2 && r == REFL_OK; ++term) {
+                    const float *rec = sv[s].rec + nrec * px + 5 * (size_t)(term * L + l), *ix = index[term] + 4 * px;
+                    uint32_t tex[4];
+                    float wt[4];
+                    /* a row where the records have the term and all three vertices gave it an index */
+                    if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
+                        !refl_lem_shell_lookup(&dr.shell[l], dr.shell[l].center, refl_v3(ix[0], ix[1], ix[2]), tex,
+                                               wt))
+                        continue;
+                    r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
+                }
+        }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
-    if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels, NULL);
-    refl_lem_system_destroy(sys);
+    for (l = 0; l < L && r == REFL_OK; ++l) {
+        out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float));
+        if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (r == REFL_OK) r = refl_lem_solve(sys[l], &sd, out->texels[l], NULL);
+    }
+    for (k = 0; k < L; ++k) refl_lem_system_destroy(sys[k]);
     refl__free(al, index[0]);
     refl__free(al, index[1]);
     refl__free(al, depth);
     for (s = 0; s < 3; ++s) refl__lem_sample_free(al, &sv[s]);
-    if (r != REFL_OK) {
-        refl__free(al, out->texels);
-        out->texels = NULL;
-    }
+    if (r != REFL_OK) refl__lem_map_free(al, out);
     return r;
 }
 
 /* The index in *maps of object i's map for the sample of views[0 .. per):
    the one kept when pass p's renderer has it, else inferred and added. */
 static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views,
-                                    int per, struct refl__lem_maps *maps, int *at) {
+                                    int per, const refl__lem_layering *lay, struct refl__lem_maps *maps, int *at) {
     const refl_allocator *al = &p->scene->allocator;
     refl__lem_map m;
     refl_result r;
@@ -476,9 +512,9 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster
     m.depth = p->desc.depth;
     m.view = views[0];
     m.options = p->desc.layered_em;
-    r = refl__lem_infer(p, caster, i, views, per, &m);
+    r = refl__lem_infer(p, caster, i, views, per, lay, &m);
     if (r == REFL_OK && (*at = refl__push(al, (void **)&maps->maps, &maps->count, sizeof m, &m)) < 0) {
-        refl__free(al, m.texels);
+        refl__lem_map_free(al, &m);
         r = REFL_ERROR_OUT_OF_MEMORY;
     }
     if (r == REFL_OK) p->frame->stats.layered_em.maps_inferred++;
@@ -491,16 +527,17 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster
 /* The circle of viewpoint samples around c, level with the eye and
    through it: its radius and height snapped to 1/1024 of the lens's
    radius, so that every frame of an orbit, and a fresh renderer at any of
-   them, puts the samples at exactly the same views. A renderer fixes each
-   lens's circle at the first frame (or prebuild) that draws it (rings),
-   as the paper parameterises its maps by one circle: later eyes off it
-   take the samples of their azimuth on it. 0 when the eye is on the
-   circle's axis (its azimuth undefined). */
+   them, puts the samples at exactly the same views. The maps' store fixes
+   each lens's circle at the first frame (or prebuild) that draws it
+   (rings), as the paper parameterises its maps by one circle: later eyes
+   off it take the samples of their azimuth on it. 0 when the eye is on
+   the circle's axis (its azimuth undefined). */
 typedef struct refl__lem_circle {
     refl_vec3 c;
     float rho, height;
     double step, phi;            /* spacing; the eye's azimuth in [0, 2 pi) */
     int samples, per;            /* per: views a map is inferred from (1, or 3 multi-view) */
+    int ring;                    /* in the store's rings, -1: none (no memory) */
 } refl__lem_circle;
 
 static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, float lens_radius,
@@ -511,6 +548,7 @@ static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, flo
     refl__lem_ring ring;
     int k;
     out->c = c;
+    out->ring = -1;
     out->samples = p->desc.layered_em.samples > 0 ? p->desc.layered_em.samples : 45;
     out->per = p->desc.layered_em.single_view ? 1 : 3;
     out->step = 2.0 * REFL__PI / out->samples;
@@ -521,16 +559,18 @@ static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, flo
     if (!(rho > 1e-6f * (1.0f + refl_v3_length(refl_v3_sub(v->eye, c))) && out->rho > 0.0f &&
           refl__isfinite(out->height)))
         return 0;
-    for (k = 0; rings && k < rings->ring_count; ++k)
+    for (k = 0; k < rings->ring_count; ++k)
         if (rings->rings[k].object == object) {
             out->rho = rings->rings[k].rho;
             out->height = rings->rings[k].height;
+            out->ring = k;
             return 1;
         }
+    memset(&ring, 0, sizeof ring);
     ring.object = object;
     ring.rho = out->rho;
     ring.height = out->height;
-    if (rings) refl__push(&p->scene->allocator, (void **)&rings->rings, &rings->ring_count, sizeof ring, &ring);
+    out->ring = refl__push(&p->scene->allocator, (void **)&rings->rings, &rings->ring_count, sizeof ring, &ring);
     return 1; /* a ring not kept (no memory) only costs later frames their reuse */
 }
 
@@ -548,6 +588,72 @@ static void refl__lem_sample_views(const refl__pass *p, const refl__lem_circle *
     }
 }
 
+/* Views of the circle the layers are clustered over. */
+enum { REFL__LEM_CLUSTER_VIEWS = 16 };
+
+/* Section 4.2's layers of lens object i (centre c, half diagonal
+   lens_radius) over its viewpoint samples at once: the hits of the views
+   of up to REFL__LEM_CLUSTER_VIEWS samples evenly around the circle (each
+   a quarter of its size, 16 to 64 pixels wide: the clustering needs
+   distances, not detail) clustered by
+   refl_lem_cluster_layers, each object's layer kept. No hits (only the
+   environment): one shell at 10 lens radii. Shells are kept outside the
+   lens, each beyond the one before. */
+static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
+                                     float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl__lem_hits h;
+    refl__lem_layering *lay = &ring->lay;
+    int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l;
+    int want = p->desc.layered_em.layers > 0 ? p->desc.layered_em.layers : 1;
+    int *layer_of = NULL;
+    refl_result r = REFL_OK;
+    memset(&h, 0, sizeof h);
+    h.al = al;
+    for (k = 0; k < n && r == REFL_OK; ++k) {
+        refl_view v[3];
+        int w;
+        if (cc) refl__lem_sample_views(p, cc, (int)((long long)k * cc->samples / n), v);
+        else v[0] = *p->view;
+        w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
+        v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
+        v[0].width = w;
+        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, c, &h, &p->frame->stats.rays))
+            r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    memset(lay, 0, sizeof *lay);
+    lay->centre = c;
+    lay->object_count = scene->object_count;
+    ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
+                                      : NULL;
+    if (r == REFL_OK && !ring->object_layer) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) {
+        memset(ring->object_layer, -1, (size_t)scene->object_count);
+        lay->object_layer = ring->object_layer;
+        lay->layers = 1;
+        lay->radius[0] = 0.0f;
+    }
+    if (r == REFL_OK && h.count > 0) {
+        layer_of = (int *)refl__calloc(al, (size_t)h.count, sizeof(int));
+        lay->layers = layer_of ? refl_lem_cluster_layers(h.distance, h.object, h.ray, h.count, want, al, lay->radius,
+                                                         layer_of)
+                               : 0;
+        if (!lay->layers) r = REFL_ERROR_OUT_OF_MEMORY;
+        for (k = 0; k < h.count && r == REFL_OK; ++k)
+            if (h.object[k] >= 0 && h.object[k] < scene->object_count)
+                ring->object_layer[h.object[k]] = (signed char)layer_of[k];
+    }
+    if (!(lay->radius[0] > lens_radius)) lay->radius[0] = REFL__MAX(10.0f * lens_radius, 1e-3f);
+    for (l = 1; l < lay->layers; ++l)
+        if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    refl__free(al, layer_of);
+    refl__free(al, h.distance);
+    refl__free(al, h.object);
+    refl__free(al, h.ray);
+    return r;
+}
+
 /* Where the pass keeps maps: its renderer's, else `own` (this frame's). */
 static refl_result refl__lem_store(refl__pass *p, struct refl__lem_maps *own, struct refl__lem_maps **out) {
     *out = own;
@@ -560,37 +666,56 @@ static refl_result refl__lem_store(refl__pass *p, struct refl__lem_maps *own, st
 
 /* ---- the frame ------------------------------------------------------------------------ */
 
+/* Lens object i's circle (0 on its axis: cc unset) and its layers, in
+   *lay: the ring's (clustered at its first use), else clustered into
+   *spare (its object_layer freed by the caller). */
+static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 centre, float lens_radius,
+                             struct refl__lem_maps *maps, refl__lem_circle *cc, refl__lem_layering *lay,
+                             refl__lem_ring *spare, refl_result *r) {
+    int on = refl__lem_circle_of(p, i, centre, lens_radius, maps, cc);
+    refl__lem_ring *ring = on && cc->ring >= 0 ? &maps->rings[cc->ring] : spare;
+    *r = REFL_OK;
+    if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
+    *lay = ring->lay;
+    return on;
+}
+
 /* Lens object i: the maps of the two samples bracketing the eye (kept or
-   inferred), the eye's tessellation drawn once per map, weighed by the
-   blend, added over the base pass. marked: lens pixels left to the tracer. */
+   inferred), the eye's tessellation drawn once per map and term, weighed
+   by the blend, added over the base pass. marked: lens pixels left to the
+   tracer (no triangle there, or a path off the maps). */
 static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
                                     uint8_t *marked) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_layered_em_options *o = &p->desc.layered_em;
     refl_frame *f = p->frame;
-    int w = f->width, h = f->height, n = 1, s, k, at[2] = {-1, -1};
+    int w = f->width, h = f->height, n = 1, s, k, at[2] = {-1, -1}, term, terms;
     size_t np = (size_t)w * (size_t)h, px;
     refl__lem_circle cc;
+    refl__lem_ring spare;
+    refl__lem_layering lay;
     refl__lem_draw dr;
     refl_lens_tess_desc td;
     refl_lens_tess frame_tess;
     refl_vec3 box[2], centre;
     refl_view views[3];
-    float weight[2] = {1.0f, 0.0f}, lens_radius, *color[2] = {NULL, NULL}, *depth = NULL;
-    uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255);
+    float weight[2] = {1.0f, 0.0f}, lens_radius, *color = NULL, *sum = NULL, *depth = NULL;
+    uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255), *seen = NULL;
     refl_result r = REFL_OK;
     double t0, t1;
     memset(&frame_tess, 0, sizeof frame_tess);
     memset(&td, 0, sizeof td);
+    memset(&spare, 0, sizeof spare);
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
+    terms = scene->materials[scene->objects[i].material].type == REFL_GLASS ? 2 : 1;
     refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-    if (!refl__lem_circle_of(p, i, centre, lens_radius, p->models ? maps : NULL, &cc)) {
+    if (!refl__lem_ring_of(p, caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
         /* on the axis: the eye's own view, one map */
         views[0] = *p->view;
-        r = refl__lem_map_of(p, caster, i, views, 1, maps, &at[0]);
+        if (r == REFL_OK) r = refl__lem_map_of(p, caster, i, views, 1, &lay, maps, &at[0]);
     } else {
         double fk = cc.phi / cc.step;
         int k0 = (int)floor(fk);
@@ -599,14 +724,15 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         n = weight[1] > 0.0f ? 2 : 1;
         for (s = 0; s < n && r == REFL_OK; ++s) {
             refl__lem_sample_views(p, &cc, k0 + s, views);
-            r = refl__lem_map_of(p, caster, i, views, cc.per, maps, &at[s]);
+            r = refl__lem_map_of(p, caster, i, views, cc.per, &lay, maps, &at[s]);
         }
     }
     t0 = refl__now_ms();
-    for (s = 0; s < n && r == REFL_OK; ++s)
-        if (!(color[s] = (float *)refl__calloc(al, 4 * np, sizeof(float)))) r = REFL_ERROR_OUT_OF_MEMORY;
+    color = (float *)refl__calloc(al, 4 * np, sizeof(float));
+    sum = (float *)refl__calloc(al, 4 * np, sizeof(float));
     depth = (float *)refl__calloc(al, np, sizeof(float));
-    if (!depth) r = REFL_ERROR_OUT_OF_MEMORY;
+    seen = (uint8_t *)refl__calloc(al, np, 1);
+    if (!color || !sum || !depth || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
     /* the frame: tessellated for the eye, both terms from each map */
     if (r == REFL_OK) {
         t1 = refl__now_ms();
@@ -619,32 +745,45 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         f->stats.layered_em.ms_tessellate += refl__now_ms() - t1 - frame_tess.ms_trace;
     }
     t1 = refl__now_ms();
-    for (s = 0; s < n && r == REFL_OK; ++s) {
-        const refl__lem_map *m = &maps->maps[at[s]];
-        memset(&dr, 0, sizeof dr);
-        dr.shell = m->shell;
-        dr.map = m->texels;
-        dr.weight = weight[s];
-        dr.record_term = -1;
-        r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color[s], depth, f->stencil, ref, w, h, al);
-    }
+    /* seen: 1 a triangle covers the pixel, 2 some vertex's path was off the maps */
+    for (s = 0; s < n && r == REFL_OK; ++s)
+        for (term = 0; term < terms && r == REFL_OK; ++term) {
+            const refl__lem_map *m = &maps->maps[at[s]];
+            memset(&dr, 0, sizeof dr);
+            dr.layers = m->layers;
+            for (k = 0; k < m->layers; ++k) {
+                dr.shell[k] = m->shell[k];
+                dr.map[k] = m->texels[k];
+            }
+            dr.weight = weight[s];
+            dr.term = term;
+            dr.record_layer = -1;
+            r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+            for (px = 0; px < np && r == REFL_OK; ++px) {
+                float a = color[4 * px + 3];
+                if (f->stencil[px] != ref || !(a > 0.0f)) continue;
+                seen[px] = (uint8_t)REFL__MAX(seen[px], a > 1.0f ? 2 : 1);
+                for (k = 0; k < 3; ++k) sum[4 * px + (size_t)k] += color[4 * px + (size_t)k];
+            }
+        }
     for (px = 0; px < np && r == REFL_OK; ++px) {
         if (f->stencil[px] != ref) continue;
-        if (!(color[0][4 * px + 3] > 0.0f)) {
-            marked[px] = 1; /* no triangle here: traced */
+        if (seen[px] != 1) {
+            marked[px] = 1; /* no triangle here, or an exit ray off the maps: traced */
             f->stats.layered_em.traced_pixels++;
             continue;
         }
-        for (s = 0; s < n; ++s)
-            for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += color[s][4 * px + (size_t)k];
+        for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += sum[4 * px + (size_t)k];
     }
     f->stats.layered_em.ms_draw += refl__now_ms() - t1;
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, frame_tess.vertices);
     refl__free(al, frame_tess.indices);
-    refl__free(al, color[0]);
-    refl__free(al, color[1]);
+    refl__free(al, color);
+    refl__free(al, sum);
     refl__free(al, depth);
+    refl__free(al, seen);
+    refl__free(al, spare.object_layer);
     return r;
 }
 
@@ -682,8 +821,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     if (r == REFL_OK && any) r = refl__trace_marked(p, marked);
     f->stats.layered_em.maps_held = maps ? maps->count : 0;
     f->stats.model_bytes += refl__lem_maps_bytes(maps);
-    for (k = 0; k < (size_t)own.count; ++k) refl__free(&scene->allocator, own.maps[k].texels);
-    refl__free(&scene->allocator, own.maps);
+    refl__lem_maps_clear(&scene->allocator, &own);
     refl__free(&scene->allocator, marked);
     refl_bvh_destroy(owned);
     return r;
@@ -706,22 +844,26 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     for (i = 0; i < scene->object_count; ++i) lenses += refl__pass_draws(p, i);
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         refl__lem_circle cc;
+        refl__lem_ring spare;
+        refl__lem_layering lay;
         refl_vec3 box[2], centre;
         float lens_radius;
+        int on;
         if (!refl__pass_draws(p, i)) continue;
         refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-        if (!refl__lem_circle_of(p, i, centre, lens_radius, maps, &cc)) {
+        memset(&spare, 0, sizeof spare);
+        on = refl__lem_ring_of(p, &caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
+        if (!on && r == REFL_OK) {
             views[0] = *p->view;
-            r = refl__lem_map_of(p, &caster, i, views, 1, maps, &at);
-            ++done;
-            continue;
+            r = refl__lem_map_of(p, &caster, i, views, 1, &lay, maps, &at);
         }
-        for (k = 0; k < cc.samples && r == REFL_OK; ++k) {
+        for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
             refl__lem_sample_views(p, &cc, k, views);
-            r = refl__lem_map_of(p, &caster, i, views, cc.per, maps, &at);
+            r = refl__lem_map_of(p, &caster, i, views, cc.per, &lay, maps, &at);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }
+        refl__free(&scene->allocator, spare.object_layer);
         ++done;
     }
     p->frame->stats.layered_em.maps_held = maps && maps != &none ? maps->count : 0;

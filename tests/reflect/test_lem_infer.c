@@ -321,6 +321,10 @@ Test(layered_em, options_validated) {
     d.layered_em.edge_px = 0.0f;
     d.layered_em.supersample = 9;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.supersample = 0;
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS + 1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 3");
 }
 
 /* ---- maps kept by a renderer -------------------------------------------------------- */
@@ -422,5 +426,167 @@ Test(layered_em, prebuild_infers_every_sample_once_and_cancels) {
     cr_assert_eq(f->stats.layered_em.maps_held, 2, "the maps finished stay kept");
     refl_renderer_destroy(rr);
     refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
+
+/* ---- a path leaving through another lens ------------------------------------------- */
+
+Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
+    /* the hybrid scene's mirror cup (object 2) reflects the glass teapot
+       (object 1): those greedy paths leave the lens system from the
+       teapot, beyond the cup's shell, where its map knows nothing; the
+       frame hands their pixels to the tracer instead of showing black */
+    refl_builtin_desc bd;
+    refl_scene *s0 = NULL;
+    tu_refl_traced tr;
+    refl_render_desc d;
+    refl_view v;
+    refl_frame *truth, *lem;
+    refl_vec3 cup = refl_v3(1.2f, 0.28f, 0.7f);
+    int x, y, beyond = 0, dark = 0;
+    double err = 0.0;
+    memset(&bd, 0, sizeof bd);
+    cr_assert_eq(refl_scene_builtin("hybrid", &bd, &s0), REFL_OK);
+    tr = tu_refl_traced_scene(s0);
+    v = tr.scene->camera;
+    v.width = 120;
+    v.height = 90;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    truth = tu_refl_render(tr.scene, &v, &d);
+    d = lem_desc(0);
+    d.layered_em.single_view = 1;
+    d.layered_em.face_size = 16;
+    lem = tu_refl_render(tr.scene, &v, &d);
+    for (y = 0; y < v.height; ++y)
+        for (x = 0; x < v.width; ++x) {
+            size_t i = (size_t)y * (size_t)v.width + (size_t)x;
+            refl_greedy_paths_result g;
+            refl_vec3 o, dir;
+            float t = 0.0f, l = 0.0f;
+            int c;
+            refl_view_ray(&v, tr.scene, (float)x + 0.5f, (float)y + 0.5f, &o, &dir, NULL);
+            refl_greedy_paths(tr.scene, &tr.caster, o, dir, d.depth, &g, NULL);
+            if (g.object != 2 || !g.reflect.exited || refl_v3_length(refl_v3_sub(g.reflect.exit_origin, cup)) < 0.6f)
+                continue;
+            ++beyond;
+            for (c = 0; c < 3; ++c) {
+                t += truth->rgba[4 * i + (size_t)c] / 3.0f;
+                l += lem->rgba[4 * i + (size_t)c] / 3.0f;
+            }
+            err += fabs((double)t - (double)l);
+            dark += t > 0.1f && l < 0.02f;
+        }
+    cr_assert_gt(beyond, 10, "%d cup pixels show the teapot", beyond);
+    cr_assert_eq(dark, 0, "%d of %d pixels black where the truth is not", dark, beyond);
+    cr_assert_lt(err / beyond, 0.15, "mean error %.3f over %d pixels", err / beyond, beyond);
+    cr_assert_gt(lem->stats.layered_em.traced_pixels, 0);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem);
+    tu_refl_traced_free(&tr);
+}
+
+/* ---- several layers ------------------------------------------------------------------ */
+
+Test(lem_infer, lbg_separates_two_distance_groups_keeping_objects_whole) {
+    /* object 0 near 2, object 1 near 10; object 2 mostly near 10 with a
+       few hits near 3, which the whole-object rule keeps with the rest;
+       ray 7 meets layer 1 twice (10 then 14): only the front one counts */
+    float dist[24], radius[REFL_LEM_MAX_LAYERS];
+    int obj[24], ray[24], layer[24], n = 0, i, k;
+    for (i = 0; i < 8; ++i) dist[n] = 1.9f + 0.025f * (float)i, obj[n] = 0, ray[n] = i, ++n;
+    for (i = 0; i < 6; ++i) dist[n] = 9.5f + 0.2f * (float)i, obj[n] = 1, ray[n] = 8 + i, ++n;
+    for (i = 0; i < 5; ++i) dist[n] = 10.0f, obj[n] = 2, ray[n] = 14 + i, ++n;
+    for (i = 0; i < 2; ++i) dist[n] = 3.0f, obj[n] = 2, ray[n] = 19 + i, ++n;
+    /* ray 7 (object 0 at 2.075) continues to object 1 at 10 and 14 */
+    dist[n] = 10.0f, obj[n] = 1, ray[n] = 7, ++n;
+    dist[n] = 14.0f, obj[n] = 1, ray[n] = 7, ++n;
+    /* put ray 7's continued hits right after its first (hits of a ray come together) */
+    {
+        float d7[3] = {dist[7], dist[n - 2], dist[n - 1]};
+        int o7[3] = {obj[7], obj[n - 2], obj[n - 1]};
+        for (k = n - 1; k > 9; --k) dist[k] = dist[k - 2], obj[k] = obj[k - 2], ray[k] = ray[k - 2];
+        for (k = 0; k < 3; ++k) dist[7 + k] = d7[k], obj[7 + k] = o7[k], ray[7 + k] = 7;
+    }
+    cr_assert_eq(refl_lem_cluster_layers(dist, obj, ray, n, 2, NULL, radius, layer), 2);
+    for (i = 0; i < n; ++i)
+        cr_assert_eq(layer[i], obj[i] == 0 ? 0 : 1, "hit %d (object %d at %.2f) in layer %d", i, obj[i], dist[i],
+                     layer[i]);
+    {
+        /* layer 1's front-most hits: object 1's six, ray 7's 10, object 2's five at 10 and two at 3 */
+        double want = 0.0;
+        for (i = 0; i < 6; ++i) want += 9.5 + 0.2 * i;
+        want = (want + 10.0 + 5 * 10.0 + 2 * 3.0) / 14.0;
+        cr_assert_float_eq(radius[0], 1.9f + 0.025f * 3.5f, 1e-4f);
+        cr_assert_float_eq(radius[1], (float)want, 1e-4f, "%f against %f", radius[1], want);
+    }
+    /* one layer: the mean of every ray's front-most hit */
+    cr_assert_eq(refl_lem_cluster_layers(dist, obj, ray, n, 1, NULL, radius, layer), 1);
+    for (i = 0; i < n; ++i) cr_assert_eq(layer[i], 0);
+    /* more layers asked than there are distances apart: none left empty */
+    cr_assert_eq(refl_lem_cluster_layers(dist, NULL, NULL, 3, 3, NULL, radius, NULL), 3);
+    cr_assert_eq(refl_lem_cluster_layers(dist, NULL, NULL, 0, 2, NULL, radius, NULL), 0);
+}
+
+/* The exact-shell scene with an inner partial shell: the cap (z < -1.2,
+   behind the lens from the orbit's views, where the refraction looks) of
+   a sphere of radius 2.5 (object 2), checkered as the outer one. */
+static refl_scene *inner_shell_scene(void) {
+    refl_scene *s = exact_shell_scene();
+    refl_mesh *sphere = NULL, *half = NULL;
+    refl_mesh_desc md;
+    refl_material inner = s->materials[s->objects[0].material];
+    uint32_t *idx;
+    int t, n = 0;
+    cr_assert_eq(refl_mesh_sphere(2.5f, 64, 32, NULL, &sphere), REFL_OK);
+    idx = (uint32_t *)malloc(sizeof(uint32_t) * 3 * (size_t)sphere->triangle_count);
+    for (t = 0; t < sphere->triangle_count; ++t) {
+        const uint32_t *tri = sphere->indices + 3 * t;
+        float cx = sphere->positions[3 * tri[0]] + sphere->positions[3 * tri[1]] + sphere->positions[3 * tri[2]];
+        float cz = sphere->positions[3 * tri[0] + 2] + sphere->positions[3 * tri[1] + 2] +
+                   sphere->positions[3 * tri[2] + 2];
+        (void)cx;
+        if (cz >= -3.6f) continue;
+        memcpy(idx + 3 * n++, tri, 3 * sizeof(uint32_t));
+    }
+    memset(&md, 0, sizeof md);
+    md.positions = sphere->positions;
+    md.vertex_count = sphere->vertex_count;
+    md.texcoords = sphere->texcoords;
+    md.indices = idx;
+    md.index_count = 3 * n;
+    cr_assert_eq(refl_mesh_create(&md, &half), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, half, &inner, refl_mat4_identity()), 2);
+    free(idx);
+    refl_mesh_destroy(sphere);
+    return s;
+}
+
+Test(layered_em, an_inner_partial_shell_needs_two_layers) {
+    /* at a sample: one sphere shell must stand for both the inner cap and
+       the outer sphere, two fit them exactly */
+    refl_scene *s = inner_shell_scene();
+    refl_view v = orbit_view_sized(0.0f, 96, 72);
+    refl_render_desc d;
+    refl_frame *truth, *lem;
+    refl_image_error err[2];
+    int layers;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, &v, &d);
+    for (layers = 1; layers <= 2; ++layers) {
+        d = lem_desc(0);
+        d.layered_em.layers = layers;
+        lem = tu_refl_render(s, &v, &d);
+        cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err[layers - 1]), REFL_OK);
+        refl_frame_destroy(lem);
+    }
+    cr_assert_gt(err[1].pixels, 2000);
+    cr_assert_lt(err[0].psnr, 35.0, "one layer: PSNR %.2f dB", err[0].psnr);
+    cr_assert_geq(err[1].psnr, 35.0, "two layers: PSNR %.2f dB (one: %.2f dB)", err[1].psnr, err[0].psnr);
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
