@@ -829,6 +829,7 @@ static int cmd_render(const options *o) {
         if (st->spoc.impostors)
             printf("impostors    %lld\nsteps        %lld (at most %lld per ray and impostor)\n", st->spoc.impostors,
                    st->spoc.steps, st->spoc.max_steps);
+        if (st->spoc.traced) printf("ray traced   %lld pixel(s) whose march missed its object\n", st->spoc.traced);
         if (st->planar.renderings || st->planar.culled)
             printf("renderings   %lld (deepest level %lld, culled %lld)\n", st->planar.renderings,
                    st->planar.deepest, st->planar.culled);

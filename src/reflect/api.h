@@ -1257,6 +1257,9 @@ typedef struct refl_spoc_frame_stats {
     long long impostors;     /* SPOC impostors built (one per reflector and compact diffuse object) */
     long long steps;         /* ray-marching pieces walked over all impostors (paper 004's n) */
     long long max_steps;     /* the most one ray walked in one impostor */
+    long long traced;        /* mirror pixels whose reflected ray's march missed an impostored
+                                object in front (meeting nothing, or what lies behind it),
+                                drawn by RAYTRACE's tracer */
 } refl_spoc_frame_stats;
 
 typedef struct refl_layered_em_frame_stats {

@@ -27,7 +27,11 @@
    estimate on the ray). Impostor colours are the shared diffuse shading
    without shadows; each impostor has spoc.layers depth layers. Glass is
    handed to RAYTRACE's tracer, or with spoc.glass refracted in and out
-   here (refl__spoc_glass). Rows are
+   here (refl__spoc_glass). A mirror's ray whose march missed an
+   impostored object the scene puts in front (as rays near the pole can),
+   and so meets nothing or what lies behind it, is RAYTRACE's tracer's
+   (stats.spoc.traced, refl__spoc_missed): only a ray that escapes the
+   scene shows the environment. Rows are
    independent and step counts are summed per row, so any thread count
    gives the same bytes and stats. */
 #include "internal.h"
@@ -57,6 +61,10 @@ typedef struct refl__spoc_frame {
                                      along the pixel's ray (0: none) */
     float *back_depth;            /* the back-face pass's depth buffer */
     refl_bvh *self;               /* the glass object alone, for the exact exit */
+    const refl_bvh *scene_bvh;    /* the whole scene: does a ray SPOC met nothing with escape? */
+    refl_bvh *scene_owned;
+    uint8_t *handed;              /* per pixel: REFL__TRACE_ALL where RAYTRACE's tracer draws it */
+    long long *row_traced;
 } refl__spoc_frame;
 
 /* Whether object i is a mirror whose impostor stores normals: second-order
@@ -468,19 +476,37 @@ static void refl__spoc_glass(const refl__spoc_frame *sf, int x, int y, refl_vec3
     }
 }
 
+/* Whether the ray o + t d leaving the current reflector, which SPOC
+   answered with `shown` (NaN: nothing), missed an impostored object the
+   scene puts in front: the ray meets the scene where SPOC met nothing, or
+   meets an impostored object more than two of its texels nearer than
+   what SPOC shows. */
+static int refl__spoc_missed(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, refl_vec3 shown) {
+    const refl__spoc_set *set = &sf->sets[sf->object];
+    refl_hit h;
+    int i;
+    if (!refl_bvh_intersect(sf->scene_bvh, o, d, 0.0f, 1e30f, &h)) return 0;
+    if (!refl__isfinite(shown.x)) return 1;
+    for (i = 0; i < set->imp_count; ++i)
+        if (set->imp_object[i] == h.object)
+            return h.t * refl_v3_length(d) < refl_v3_length(refl_v3_sub(shown, o)) -
+                                                  4.0f * set->cams[i].radius / (float)set->cams[i].size;
+    return 0;
+}
+
 /* One frame row: every pixel of the current reflector. */
 static void refl__spoc_row(void *arg, int y) {
     refl__spoc_frame *sf = (refl__spoc_frame *)arg;
     const refl__pass *p = sf->em.p;
     const refl_frame *fr = p->frame;
     float id = (float)(sf->object + 1);
-    long long steps = 0, max_steps = 0, rays = 0;
-    int x, k;
+    long long steps = 0, max_steps = 0, rays = 0, traced = 0;
+    int x, k, met;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         const float *g = sf->em.gbuf + 4 * i;
         float rgb[3], tmax;
-        refl_vec3 o, d, n, s, shown = refl_v3(NAN, NAN, NAN);
+        refl_vec3 o, d, n, s, r, shown = refl_v3(NAN, NAN, NAN);
         if (fabsf(g[3]) != id) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
         n = refl_v3_normalize(refl_v3(g[0], g[1], g[2]));
@@ -495,11 +521,16 @@ static void refl__spoc_row(void *arg, int y) {
             continue;
         }
         s = refl_v3_add(s, refl_v3_scale(n, sf->offset));
-        if (refl__spoc_trace(sf, sf->object, 1, s, refl_v3_reflect(d, n), 0.0f, rgb, &shown, &steps, &max_steps))
-            refl__em_composite(p, g, x, y, rgb, shown);
-        else
-            refl__em_composite(p, g, x, y, NULL, shown);
+        r = refl_v3_reflect(d, n);
+        met = refl__spoc_trace(sf, sf->object, 1, s, r, 0.0f, rgb, &shown, &steps, &max_steps);
+        if (refl__spoc_missed(sf, s, r, met ? shown : refl_v3(NAN, NAN, NAN))) {
+            (p->trace ? p->trace : sf->handed)[i] = REFL__TRACE_ALL;
+            traced++;
+        } else {
+            refl__em_composite(p, g, x, y, met ? rgb : NULL, shown);
+        }
     }
+    sf->row_traced[y] += traced;
     sf->row_steps[y] += steps;
     sf->row_rays[y] += rays;
     if (max_steps > sf->row_max[y]) sf->row_max[y] = max_steps;
@@ -555,9 +586,16 @@ static refl_result refl__method_spoc(refl__pass *p) {
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.row_traced = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        sf.handed = (uint8_t *)refl__calloc(al, npx, 1);
         if (!sf.em.surface || !sf.sets || !sf.objects || !sf.row_steps ||
-            !sf.row_max || !sf.row_rays)
+            !sf.row_max || !sf.row_rays || !sf.row_traced || !sf.handed)
             r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    if (r == REFL_OK && any) {
+        refl_bvh *bvh = NULL;
+        r = refl__models_bvh(p, &bvh, &sf.scene_owned);
+        sf.scene_bvh = bvh;
     }
     if (r == REFL_OK && any) {
         for (i = 0; i < scene->object_count; ++i) {
@@ -598,8 +636,11 @@ static refl_result refl__method_spoc(refl__pass *p) {
         for (y = 0; y < fr->height; ++y) {
             fr->stats.spoc.steps += sf.row_steps[y];
             fr->stats.rays += sf.row_rays[y];
+            fr->stats.spoc.traced += sf.row_traced[y];
             if (sf.row_max[y] > fr->stats.spoc.max_steps) fr->stats.spoc.max_steps = sf.row_max[y];
         }
+    /* past one bounce, refl__trace_beyond traces what was marked in p->trace */
+    if (r == REFL_OK && any && !p->trace && fr->stats.spoc.traced) r = refl__trace_marked(p, sf.handed);
     /* leave the frame bound, as the method found it (the impostors bound their own buffers) */
     if (r == REFL_OK) {
         rast_targets t = refl__frame_targets(fr);
@@ -615,6 +656,9 @@ static refl_result refl__method_spoc(refl__pass *p) {
     refl__free(al, sf.row_steps);
     refl__free(al, sf.row_max);
     refl__free(al, sf.row_rays);
+    refl__free(al, sf.row_traced);
+    refl__free(al, sf.handed);
+    refl_bvh_destroy(sf.scene_owned);
     refl__free(al, sf.back);
     refl__free(al, sf.back_depth);
     return r;

@@ -439,49 +439,6 @@ Test(graphcam, maze_against_raytrace_and_envmap_and_the_same_bytes_for_any_threa
     refl_scene_destroy(s);
 }
 
-/* GRAPHCAM with its default one-frustum impostor, where many reflected
-   rays leave the frustum (the mirror room's floor reflection) or meet a
-   mirror the impostor leaves out (the concave bowl meeting itself): what
-   the impostor cannot answer goes to RAYTRACE's tracer, so no reflector
-   pixel shows the environment where RAYTRACE's reflected ray meets the
-   scene; the same bytes on 1 and 3 threads. */
-Test(graphcam, what_the_impostor_cannot_answer_is_traced_not_the_environment, .timeout = 120) {
-    static const char *const scenes[] = {"concave", "mirror-room"};
-    size_t k;
-    for (k = 0; k < sizeof scenes / sizeof scenes[0]; ++k) {
-        refl_view v;
-        refl_scene *s = tu_refl_builtin(scenes[k], &v, 96, 72);
-        refl_render_desc td = tu_refl_one_bounce(REFL_RAYTRACE, 2), gd = tu_refl_one_bounce(REFL_GRAPHCAM, 1);
-        refl_frame *truth = tu_refl_render(s, &v, &td), *g = tu_refl_render(s, &v, &gd), *g3;
-        refl_reflection_error re;
-        size_t i, n = (size_t)v.width * (size_t)v.height;
-        long long met = 0, sky = 0;
-        for (i = 0; i < n; ++i) {
-            /* a reflector in both (at an edge the rasteriser and the tracer may differ) */
-            if (!truth->stencil[i] || !g->stencil[i] || isnan(truth->points[3 * i])) continue;
-            ++met;
-            sky += isnan(g->points[3 * i]);
-        }
-        cr_assert_eq(refl_measure_reflection_error(g, truth, NULL, &re), REFL_OK);
-        cr_log_info("%s: %lld reflector pixels meet the scene in RAYTRACE, %lld of them show the environment; "
-                    "%lld rays, %lld hit the impostor, %lld traced; reflection error mean %.3f px, wrong %.4f, empty %.4f",
-                    scenes[k], met, sky, g->stats.graphcam.rays, g->stats.graphcam.hits, g->stats.graphcam.traced,
-                    re.mean, re.wrong, re.empty);
-        cr_assert_gt(met, 1000);
-        cr_assert_eq(sky, 0, "%s: %lld pixels show the environment where RAYTRACE meets the scene", scenes[k], sky);
-        cr_assert_gt(g->stats.graphcam.traced, 0);
-        cr_assert_leq(g->stats.graphcam.traced + g->stats.graphcam.hits, g->stats.graphcam.rays);
-        cr_assert_eq(g->stats.traced_beyond, 0);
-        gd.threads = 3;
-        g3 = tu_refl_render(s, &v, &gd);
-        cr_assert_eq(tu_refl_digest(g3), tu_refl_digest(g), "%s: 3 threads give other bytes than 1", scenes[k]);
-        refl_frame_destroy(g3);
-        refl_frame_destroy(g);
-        refl_frame_destroy(truth);
-        refl_scene_destroy(s);
-    }
-}
-
 /* Bends the validator refuses; options GRAPHCAM refuses by name. */
 Test(graphcam, bad_bends_and_options_are_refused) {
     refl_graphcam *cam = malloc(sizeof *cam);
