@@ -20,7 +20,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -44,7 +44,8 @@ static const char *const usage_bench =
     "of both intersection algorithms against RAYTRACE (DIR/graphcam_maze.csv),\n"
     "and, with --full or --only spoc, its Tables 1 and 2 on the two teapots:\n"
     "SPOC frame times along a 60-frame path at four output and four impostor\n"
-    "sizes (DIR/spoc_teapots.csv).\n"
+    "sizes (DIR/spoc_teapots.csv), and SPOC's stability sweeps on them (orbit,\n"
+    "touching teapots, impostor size, thin glass; DIR/spoc_sweeps.csv).\n"
     "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
@@ -52,7 +53,8 @@ static const char *const usage_bench =
     "                SBC's resolution sweep runs 3840x2160 once unless --full\n"
     "  --only NAME   only c3rc's tables, sbc's (Fig. 19 and the resolution\n"
     "                sweep), the camera path (path), the maze (graphcam) or\n"
-    "                the teapots' SPOC tables (spoc)\n"
+    "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
+    "                sweeps (spoc-sweeps)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -67,7 +69,8 @@ static const char *const usage_bench =
 typedef struct bench_opts {
     int full, repeats, threads, depth;
     char out[512];
-    char only[16];                /* "c3rc", "sbc", "path", "graphcam" or "spoc": just those tables; "": everything */
+    char only[16];                /* "c3rc", "sbc", "path", "graphcam", "spoc" or "spoc-sweeps": just those
+                                     tables; "": everything */
     const char *report;           /* --report DIR: the HTML page instead (tools/reflect_report.c) */
     int quick;                    /* --quick: the report's small version */
 } bench_opts;
@@ -516,6 +519,10 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the SPOC tables failed\n");
         return 0;
     }
+    if (((!o->only[0] && o->full) || !strcmp(o->only, "spoc-sweeps")) && !refl_bench_spoc_sweeps(o->out, o->threads)) {
+        fprintf(stderr, "reflect bench: the SPOC sweeps failed\n");
+        return 0;
+    }
     return 1;
 }
 
@@ -544,8 +551,10 @@ int refl_cli_bench(int argc, char **argv) {
         } else if (!strcmp(a, "--quick")) {
             o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
-            if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") && strcmp(v, "spoc")) {
-                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam or spoc, not '%s'\n", v);
+            if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
+                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps")) {
+                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc or spoc-sweeps, "
+                                "not '%s'\n", v);
                 return 2;
             }
             snprintf(o.only, sizeof o.only, "%s", v);

@@ -71,6 +71,14 @@ int refl_bench_auto(int argc, char **argv);
    RAYTRACE; a table on stdout and dir/spoc_teapots.csv; 0 on failure. */
 int refl_bench_spoc(const char *dir, int threads);
 
+/* SPOC (and GRAPHCAM where its camera applies) where paper 004 says
+   impostors fail (tools/reflect_bench_spoc.c): the teapots at 160x120
+   with the camera orbiting them, the diffuse teapot moved until it
+   touches the mirror, the impostor's size and a thin glass refractor,
+   against RAYTRACE; a table on stdout and dir/spoc_sweeps.csv; 0 on
+   failure or a non-finite pixel. */
+int refl_bench_spoc_sweeps(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);
