@@ -146,6 +146,7 @@ typedef struct refl__sb_canvas {
 typedef struct refl__sb_tracer {
     struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
     long long *rays;              /* per row, the rays the fallback cast */
+    long long *pixels;            /* per row, the pixels it rendered */
     int folds_only;               /* only the pixels of folding groups */
 } refl__sb_tracer;
 

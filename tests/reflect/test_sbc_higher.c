@@ -529,3 +529,29 @@ Test(sbc_higher, depth_1_unchanged, .timeout = 120) {
     refl_frame_destroy(f6);
     refl_scene_destroy(s);
 }
+
+/* The concave bowl at depth 6: its outer rim is seen through more bounces
+   than any ray map sample takes, so the last order sampled draws the bowl
+   itself there (a mirror, transparent black). Its path goes on: those
+   pixels go to RAYTRACE's tracer, and none is black where the truth is
+   lit (they were, a dotted black arc along the rim). */
+Test(sbc_higher, concave_rim_past_the_last_order_is_traced, .timeout = 120) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("concave", &v, 128, 96);
+    refl_render_desc d = desc_of(REFL_SBC, 6, 2), t = desc_of(REFL_RAYTRACE, 6, 2);
+    refl_frame *f, *truth;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    long long black = 0;
+    d.debug.points_last = t.debug.points_last = 0;
+    f = tu_refl_render(s, &v, &d);
+    truth = tu_refl_render(s, &v, &t);
+    for (i = 0; i < n; ++i) {
+        const float *a = f->rgba + 4 * i, *b = truth->rgba + 4 * i;
+        black += truth->stencil[i] && a[0] + a[1] + a[2] < 0.01f && b[0] + b[1] + b[2] > 0.1f;
+    }
+    cr_assert_eq(black, 0, "%lld reflector pixels black where RAYTRACE's are lit", black);
+    cr_assert(f->stats.sbc.traced > 0);
+    refl_frame_destroy(f);
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
