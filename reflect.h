@@ -3142,6 +3142,8 @@ typedef struct refl__sb_path {
 } refl__sb_path;
 static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                 refl__sb_path *pa);
+/* What a path from o along unit d meets first among the mirrors and glass. */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h);
 /* A path refracted through glass (refl__sb_refract_path). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
@@ -22979,7 +22981,9 @@ static void refl__sb_ray_maps_free(refl__sb *sb) {
    split (sbc_project.c), their pixels traced. SBC-traced checks the
    pixels of groups whose rays fold so even without the option
    (refl__sb_checked), and renders so every pixel whose last order drawn
-   shows a mirror while the depth goes on (refl__sb_goes_past).
+   shows a mirror while the depth goes on (refl__sb_goes_past), and every
+   hole past the first order whose path's last ray meets a mirror or glass
+   (refl__sb_hole_goes_on).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -23085,6 +23089,17 @@ static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
    searches no scene). */
 static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
     return sb->bvh && sb->orders < sb->budget && sb->drawn.depth[src] < 1.0f && sb->drawn.color[4 * src + 3] == 0.0f;
+}
+
+/* Whether a hole's path (pa, traced through the mirrors and glass)
+   goes on: its last reflected ray meets a mirror or glass. No layer drew
+   what it meets there (the seams between mirror-room's wall mirrors, high
+   up, through six bounces), and the environment along that ray is not
+   what the path shows: RAYTRACE's tracer renders the pixel (SBC-traced;
+   its black where the depth runs out, its reflection where it goes on). */
+static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
+    refl_hit h;
+    return sb->bvh && refl__sb_mirror_hit(sb, pa->q[pa->count - 1], pa->out, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
@@ -23199,6 +23214,10 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
             continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
+        if (refl__sb_hole(sb, i, src) && sb->tracer.rt && refl__sb_hole_goes_on(sb, &pa)) {
+            refl__sb_render_pixel(sb, x, y);
+            continue;
+        }
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;
             k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
@@ -23260,7 +23279,8 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     int i, traces = 0;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
     for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
-    for (k = 0; k < npx && !traces; ++k) traces |= refl__sb_goes_past(sb, k);
+    for (k = 0; k < npx && !traces; ++k)
+        traces |= refl__sb_goes_past(sb, k) || (sb->layers > 1 && sb->group_of[k] && !(sb->drawn.depth[k] < 1.0f));
     sb->tracer.folds_only = !p->desc.sbc.trace_fallback;
     if (p->desc.sbc.trace_fallback || (traces && sb->bvh)) {
         sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
