@@ -1242,6 +1242,9 @@ typedef struct refl_sbc_frame_stats {
     int histories;           /* reflection histories sampled (paper 003's A, B, AB, BA, ...;
                                 a refraction through glass counts as one) */
     int groups;              /* reflection groups (a history's pieces within tiles) */
+    long long traced;        /* reflector pixels rendered by RAYTRACE's tracer: the fallback's,
+                                and those showing a mirror at the last order sampled while
+                                the frame's depth goes on */
 } refl_sbc_frame_stats;
 
 typedef struct refl_graphcam_frame_stats {
@@ -3038,6 +3041,7 @@ typedef struct refl__sb_canvas {
 typedef struct refl__sb_tracer {
     struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
     long long *rays;              /* per row, the rays the fallback cast */
+    long long *pixels;            /* per row, the pixels it rendered */
     int folds_only;               /* only the pixels of folding groups */
 } refl__sb_tracer;
 
@@ -3138,6 +3142,8 @@ typedef struct refl__sb_path {
 } refl__sb_path;
 static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                 refl__sb_path *pa);
+/* What a path from o along unit d meets first among the mirrors and glass. */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h);
 /* A path refracted through glass (refl__sb_refract_path). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
@@ -22974,7 +22980,10 @@ static void refl__sb_ray_maps_free(refl__sb *sb) {
    when its reflected ray meets anything; mixed triangles are then not
    split (sbc_project.c), their pixels traced. SBC-traced checks the
    pixels of groups whose rays fold so even without the option
-   (refl__sb_checked).
+   (refl__sb_checked), and renders so every pixel whose last order drawn
+   shows a mirror while the depth goes on (refl__sb_goes_past), and every
+   hole past the first order whose path's last ray meets a mirror or glass
+   (refl__sb_hole_goes_on).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -23041,6 +23050,7 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
     uint8_t stencil;
     int c;
     refl__rt_pixel(sb->tracer.rt, x, y, &sb->tracer.rays[y], rgb, &shown, &depth, &stencil);
+    sb->tracer.pixels[y]++;
     for (c = 0; c < 3; ++c) fr->rgba[4 * i + (size_t)c] = rgb[c];
     fr->rgba[4 * i + 3] = 1.0f;
     fr->points[3 * i] = shown.x;
@@ -23067,6 +23077,29 @@ static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, r
    its reflection comes from, itself or a crack's neighbour). */
 static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
     return !(sb->group_of[i] && sb->drawn.depth[src] < 1.0f);
+}
+
+/* Whether what is drawn at pixel src is a mirror or glass (transparent
+   black) while the frame's depth allows another bounce. Lower orders pass
+   such pixels on (refl__sb_pass_through), so it lies in the last order
+   the ray map's samples reached (sb->orders, the longest history
+   sampled), and its path goes on past every group (the concave bowl's
+   outer rim, seen through more bounces than any sample took). It is not
+   black there: RAYTRACE's tracer renders the pixel (SBC-traced; SBC-paper
+   searches no scene). */
+static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
+    return sb->bvh && sb->orders < sb->budget && sb->drawn.depth[src] < 1.0f && sb->drawn.color[4 * src + 3] == 0.0f;
+}
+
+/* Whether a hole's path (pa, traced through the mirrors and glass)
+   goes on: its last reflected ray meets a mirror or glass. No layer drew
+   what it meets there (the seams between mirror-room's wall mirrors, high
+   up, through six bounces), and the environment along that ray is not
+   what the path shows: RAYTRACE's tracer renders the pixel (SBC-traced;
+   its black where the depth runs out, its reflection where it goes on). */
+static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
+    refl_hit h;
+    return sb->bvh && refl__sb_mirror_hit(sb, pa->q[pa->count - 1], pa->out, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
@@ -23129,6 +23162,10 @@ static void refl__sb_resolve_row(void *arg, int y) {
         if (sb->em->gbuf[4 * i + 3] == 0.0f) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         if (refl__sb_checked(sb, i) && refl__sb_fallback(sb, i, src, 1) && refl__sb_trace_pixel(sb, x, y)) continue;
+        if (sb->group_of[i] && refl__sb_goes_past(sb, src)) {
+            refl__sb_render_pixel(sb, x, y);
+            continue;
+        }
         /* a pixel of no group (its tile's samples lie on other surfaces)
            shows the environment, as one nothing reflects in */
         if (!refl__sb_hole(sb, i, src)) {
@@ -23177,9 +23214,17 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
             continue;
         m = &scene->materials[scene->objects[object].material];
         refl__sb_trace_path(sb, q, n, d, g[3], &pa);
+        if (refl__sb_hole(sb, i, src) && sb->tracer.rt && refl__sb_hole_goes_on(sb, &pa)) {
+            refl__sb_render_pixel(sb, x, y);
+            continue;
+        }
         if (!refl__sb_hole(sb, i, src)) {
             const float *pt = sb->drawn.points + 4 * src;
             k = REFL__CLAMP((int)(sb->drawn.depth[src] * (float)sb->orders), 0, pa.count - 1);
+            if (refl__sb_goes_past(sb, src)) {
+                refl__sb_render_pixel(sb, x, y);
+                continue;
+            }
             for (c = 0; c < 3; ++c) sub[c] = sb->drawn.color[4 * src + (size_t)c];
             shown = refl_v3(pt[0], pt[1], pt[2]);
         } else {
@@ -23231,21 +23276,27 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     refl_result r = REFL_OK;
-    int i, folds = 0;
-    for (i = 0; i < sb->group_count; ++i) folds |= sb->groups[i].sheets > 1;
+    int i, traces = 0;
+    size_t k, npx = (size_t)fr->width * (size_t)fr->height;
+    for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
+    for (k = 0; k < npx && !traces; ++k)
+        traces |= refl__sb_goes_past(sb, k) || (sb->layers > 1 && sb->group_of[k] && !(sb->drawn.depth[k] < 1.0f));
     sb->tracer.folds_only = !p->desc.sbc.trace_fallback;
-    if (p->desc.sbc.trace_fallback || (folds && sb->bvh)) {
+    if (p->desc.sbc.trace_fallback || (traces && sb->bvh)) {
         sb->tracer.rt = (refl__rt *)refl__calloc(al, 1, sizeof(refl__rt));
         sb->tracer.rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
-        if (!sb->tracer.rt || !sb->tracer.rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        sb->tracer.pixels = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
+        if (!sb->tracer.rt || !sb->tracer.rays || !sb->tracer.pixels) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) r = refl__rt_begin(sb->tracer.rt, p, sb->bvh);
     }
     if (r == REFL_OK)
         rast_run_jobs(p->rc, fr->height, sb->layers > 1 ? refl__sb_resolve_row_deep : refl__sb_resolve_row, sb);
     for (i = 0; sb->tracer.rays && i < fr->height; ++i) fr->stats.rays += sb->tracer.rays[i];
+    for (i = 0; sb->tracer.pixels && i < fr->height; ++i) fr->stats.sbc.traced += sb->tracer.pixels[i];
     if (sb->tracer.rt) refl__rt_end(sb->tracer.rt);
     refl__free(al, sb->tracer.rt);
     refl__free(al, sb->tracer.rays);
+    refl__free(al, sb->tracer.pixels);
     memset(&sb->tracer, 0, sizeof sb->tracer);
     return r;
 }

@@ -850,6 +850,7 @@ static int cmd_render(const options *o) {
                    b->groups, b->pinhole_leaves, b->ray_leaves);
             printf("projections  %lld (valid %lld, %.1f%%)\n", b->projections, b->projected,
                    b->projections ? 100.0 * (double)b->projected / (double)b->projections : 0.0);
+            if (b->traced) printf("ray traced   %lld pixels\n", b->traced);
         }
         if (st->graphcam.frusta) {
             const refl_graphcam_frame_stats *g = &st->graphcam;

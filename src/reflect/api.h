@@ -1240,6 +1240,9 @@ typedef struct refl_sbc_frame_stats {
     int histories;           /* reflection histories sampled (paper 003's A, B, AB, BA, ...;
                                 a refraction through glass counts as one) */
     int groups;              /* reflection groups (a history's pieces within tiles) */
+    long long traced;        /* reflector pixels rendered by RAYTRACE's tracer: the fallback's,
+                                and those showing a mirror at the last order sampled while
+                                the frame's depth goes on */
 } refl_sbc_frame_stats;
 
 typedef struct refl_graphcam_frame_stats {

@@ -146,6 +146,7 @@ typedef struct refl__sb_canvas {
 typedef struct refl__sb_tracer {
     struct refl__rt *rt;          /* how RAYTRACE renders a pixel; NULL: no fallback */
     long long *rays;              /* per row, the rays the fallback cast */
+    long long *pixels;            /* per row, the pixels it rendered */
     int folds_only;               /* only the pixels of folding groups */
 } refl__sb_tracer;
 
@@ -246,6 +247,8 @@ typedef struct refl__sb_path {
 } refl__sb_path;
 static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                 refl__sb_path *pa);
+/* What a path from o along unit d meets first among the mirrors and glass. */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h);
 /* A path refracted through glass (refl__sb_refract_path). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
