@@ -1161,10 +1161,11 @@ typedef struct refl_auto_features {
     float scene_triangles;   /* the scene's, in all */
     float beyond;            /* the share of its pixels whose path meets another reflector after
                                 its first bounce (what a one-bounce method hands the tracer at
-                                depth 2 and more), in [0, 1]: over at most 256 of its pixels, the
+                                depth 2 and more), in [0, 1]: over at most 32 of its pixels, the
                                 mirror ray from the point and normal the depth buffer gives,
-                                against the other objects' bounding boxes; 0 for glass (its
-                                paths are the tracer's) and, in AUTO, at depth 1 */
+                                against the reflectors' triangles (a concave one's own
+                                too); 0 for glass (its paths are the tracer's) and, in
+                                AUTO, at depth 1 */
 } refl_auto_features;
 
 typedef struct refl_auto_model {
