@@ -12891,6 +12891,9 @@ typedef struct refl__c3_samples {
     uint8_t *diffuse;             /* on a diffuse object (culled when facing away) */
     float *object_density;        /* per object: the points per unit area it was sampled at */
     int32_t *object, *triangle;   /* where it was sampled */
+    float spacing_scale;          /* >= 1: how much farther apart the points lie than the default
+                                     density wanted, where REFL__C3_AUTO_POINTS capped it (the
+                                     gaps refl__c3_gap looks across grow with it) */
 } refl__c3_samples;
 
 static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
@@ -12914,6 +12917,7 @@ typedef struct refl__c3 {
     float *ray;                   /* per pixel: reflected ray, its turn to the neighbours' (refl__c3_ray_row) */
     refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
+    float wanted_density;         /* the default density before REFL__C3_AUTO_POINTS capped it */
     float tmax;                   /* longest possible sweep: the scene's diagonal */
     float pixel_angle;            /* world size of a pixel per unit of distance */
     int max_splat;
@@ -13695,6 +13699,9 @@ static int refl__c3_gap(const refl__c3 *c3, int x, int y, uint64_t key, int reac
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     const refl_frame *fr = c3->p->frame;
+    /* the splats close gaps up to max_splat across; points spaced wider
+       than the density wanted leave wider ones */
+    int reach = (int)REFL__MIN(ceilf(2.0f * (float)c3->max_splat * c3->s->spacing_scale), 256.0f);
     int x;
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
@@ -13714,7 +13721,7 @@ static void refl__c3_resolve_row(void *arg, int y) {
             }
             key = best;
         }
-        if (refl__c3_gap(c3, x, y, key, 2 * c3->max_splat)) {
+        if (refl__c3_gap(c3, x, y, key, reach)) {
             /* RAYTRACE's colour and point: here, or with the bounces past
                C3RC's when the frame traces them (refl__trace_beyond) */
             (c3->p->trace ? c3->p->trace : c3->gap)[i] = REFL__TRACE_ALL;
@@ -13839,8 +13846,9 @@ static double refl__c3_object_area(const refl_scene *scene, int i) {
 
 /* The default density: one point per 2 x 2 pixels where the reflectors
    are (the footprint at the distance of their nearest bounds), at most
-   REFL__C3_AUTO_POINTS in all; splats grow where that is too few. */
-static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen) {
+   REFL__C3_AUTO_POINTS in all; splats grow where that is too few.
+   *wanted: the density before that cap. */
+static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen, float *wanted) {
     const refl__pass *p = c3->p;
     const refl_scene *scene = p->scene;
     float nearest = FLT_MAX, size;
@@ -13862,7 +13870,9 @@ static float refl__c3_auto_density(const refl__c3 *c3, const unsigned char *seen
     /* at most REFL__C3_AUTO_POINTS over the whole scene (a viewer close to
        a mirror would ask for tens of millions) */
     for (i = 0; i < scene->object_count; ++i) area += refl__c3_object_area(scene, i);
+    *wanted = 0.0f;
     if (!(size > 0.0f)) return 0.0f;
+    *wanted = (float)(1.0 / ((double)size * size));
     return (float)REFL__MIN(1.0 / ((double)size * size), area > 0.0 ? REFL__C3_AUTO_POINTS / area : 0.0);
 }
 
@@ -13900,9 +13910,11 @@ static void refl__c3_raise_densities(const refl_scene *scene, const refl_c3rc *c
 }
 
 /* The budget: all objects together at most REFL__C3_AUTO_POINTS points,
-   the raises above the frame's density scaled down together. */
-static void refl__c3_density_budget(const refl_scene *scene, float density, float *dens) {
+   the raises above the frame's density scaled down together. Returns the
+   largest factor an object's density was scaled down by (1: none). */
+static float refl__c3_density_budget(const refl_scene *scene, float density, float *dens) {
     double total = 0.0, area_all = 0.0;
+    float most = 1.0f;
     int i;
     for (i = 0; i < scene->object_count; ++i) {
         double area = refl__c3_object_area(scene, i);
@@ -13911,8 +13923,13 @@ static void refl__c3_density_budget(const refl_scene *scene, float density, floa
     }
     if (total > REFL__C3_AUTO_POINTS && total > area_all) {
         double keep = REFL__MAX(0.0, (REFL__C3_AUTO_POINTS - area_all) / (total - area_all));
-        for (i = 0; i < scene->object_count; ++i) dens[i] = density + (float)(keep * (double)(dens[i] - density));
+        for (i = 0; i < scene->object_count; ++i) {
+            float kept = density + (float)(keep * (double)(dens[i] - density));
+            if (kept > 0.0f) most = REFL__MAX(most, dens[i] / kept);
+            dens[i] = kept;
+        }
     }
+    return most;
 }
 
 /* Each object's sampling density (c3->s->object_density): the frame's,
@@ -13926,13 +13943,15 @@ static refl_result refl__c3_object_densities(refl__c3 *c3, int jobs, int magnify
     if (!dens) return REFL_ERROR_OUT_OF_MEMORY;
     c3->s->object_density = dens;
     for (i = 0; i < scene->object_count; ++i) dens[i] = c3->density;
+    c3->s->spacing_scale = c3->density > 0.0f && c3->wanted_density > c3->density
+                               ? sqrtf(c3->wanted_density / c3->density) : 1.0f;
     if (!magnify) return REFL_OK;
     for (j = 0; j < jobs; ++j) {
         refl__c3_cam k;
         memset(&k, 0, sizeof k);
         if (refl__c3_setup(p, &c3->jobs[j], &k)) refl__c3_raise_densities(scene, &k.cam, k.screen_area, c3->density, c3->tmax, dens);
     }
-    refl__c3_density_budget(scene, c3->density, dens);
+    c3->s->spacing_scale *= sqrtf(refl__c3_density_budget(scene, c3->density, dens));
     return REFL_OK;
 }
 
@@ -13977,7 +13996,7 @@ static refl_result refl__method_c3rc(refl__pass *p) {
         refl__models *models = p->models;
         c3.density = p->desc.c3rc.point_density > 0.0f ? p->desc.c3rc.point_density
                      : models && models->c3             ? models->c3_density
-                                                        : refl__c3_auto_density(&c3, seen);
+                                                        : refl__c3_auto_density(&c3, seen, &c3.wanted_density);
         for (k = 0; k < npx; ++k) c3.key[k] = REFL__C3_EMPTY;
         rast_run_jobs(p->rc, fr->height, refl__em_surface_row, &c3.em);
         rast_run_jobs(p->rc, fr->height, refl__c3_ray_row, &c3);
