@@ -2510,6 +2510,9 @@ typedef struct refl__rt {
    built here) and, with light volumes, the mirror faces and their virtual
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
+/* Every scene object's mesh, material and transforms for shading hits
+   (refl__exact_hit_shade and the tracer); NULL when out of memory. */
+static refl__rt_object *refl__rt_objects_new(const refl_scene *scene);
 static void refl__rt_end(refl__rt *rt);
 /* Where a secondary ray leaving point p (on a triangle of largest
    |coordinate| magnitude) along the side n starts: off its surface by the
@@ -15156,20 +15159,10 @@ static int refl__gcm_is_unheld(const refl_scene *scene, int i) {
    objects as billboards (for their parts outside the graph camera), the
    mirrors and glass, and the whole scene. */
 static refl_result refl__gcm_exact(refl__gcm *g) {
-    const refl_scene *scene = g->p->scene;
-    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
     refl_bvh *bvh = NULL;
     refl_result r;
-    int i;
-    g->objects = (refl__rt_object *)refl__calloc(&scene->allocator, objects, sizeof(refl__rt_object));
+    g->objects = refl__rt_objects_new(g->p->scene);
     if (!g->objects) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        g->objects[i].mesh = scene->meshes[o->mesh];
-        g->objects[i].material = &scene->materials[o->material];
-        g->objects[i].model = o->transform;
-        g->objects[i].normal_m = refl__normal_matrix(o->transform);
-    }
     r = refl__gcm_sub_bvh(g, refl__gcm_is_billboard, &g->flat, &g->flat_object);
     if (r == REFL_OK) r = refl__gcm_sub_bvh(g, refl__gcm_is_unheld, &g->unheld, &g->unheld_object);
     if (r == REFL_OK) r = refl__models_bvh(g->p, &bvh, &g->scene_owned);
@@ -18126,7 +18119,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
         size_t npx = (size_t)fr->width * (size_t)fr->height;
         sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         sf.sets = (refl__spoc_set *)refl__calloc(al, objects, sizeof(refl__spoc_set));
-        sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+        sf.objects = refl__rt_objects_new(scene);
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
@@ -18142,13 +18135,6 @@ static refl_result refl__method_spoc(refl__pass *p) {
         sf.scene_bvh = bvh;
     }
     if (r == REFL_OK && any) {
-        for (i = 0; i < scene->object_count; ++i) {
-            const refl_object *o = &scene->objects[i];
-            sf.objects[i].mesh = scene->meshes[o->mesh];
-            sf.objects[i].material = &scene->materials[o->material];
-            sf.objects[i].model = o->transform;
-            sf.objects[i].normal_m = refl__normal_matrix(o->transform);
-        }
         refl_scene_bounds(scene, &lo, &hi);
         sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
         sf.bounces = REFL__MIN(p->desc.depth, 2);
@@ -26486,24 +26472,29 @@ static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *mod
    has built one of the scene, else a BVH built here), and with light
    volumes the planar mirror faces and their virtual lights. refl__rt_end
    frees it. */
+static refl__rt_object *refl__rt_objects_new(const refl_scene *scene) {
+    refl__rt_object *objects = (refl__rt_object *)refl__calloc(
+        &scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__rt_object));
+    int i;
+    for (i = 0; objects && i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        objects[i].mesh = scene->meshes[o->mesh];
+        objects[i].material = &scene->materials[o->material];
+        objects[i].model = o->transform;
+        objects[i].normal_m = refl__normal_matrix(o->transform);
+    }
+    return objects;
+}
+
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh) {
     const refl_scene *scene = p->scene;
     refl_result r = REFL_OK;
-    int i;
     memset(rt, 0, sizeof *rt);
     rt->p = p;
     rt->scene = scene;
     rt->caster = p->desc.raytrace.caster;
-    rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                                  sizeof(refl__rt_object));
+    rt->objects = refl__rt_objects_new(scene);
     if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        rt->objects[i].mesh = scene->meshes[o->mesh];
-        rt->objects[i].material = &scene->materials[o->material];
-        rt->objects[i].model = o->transform;
-        rt->objects[i].normal_m = refl__normal_matrix(o->transform);
-    }
     if (!rt->caster.intersect) {
         if (!bvh && (r = refl_bvh_build(scene, &scene->allocator, &rt->bvh)) != REFL_OK) return r;
         rt->caster.intersect = refl__rt_bvh_intersect;

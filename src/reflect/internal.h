@@ -478,6 +478,9 @@ typedef struct refl__rt {
    built here) and, with light volumes, the mirror faces and their virtual
    lights. refl__rt_end frees it (also after a failed begin). */
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh);
+/* Every scene object's mesh, material and transforms for shading hits
+   (refl__exact_hit_shade and the tracer); NULL when out of memory. */
+static refl__rt_object *refl__rt_objects_new(const refl_scene *scene);
 static void refl__rt_end(refl__rt *rt);
 /* Where a secondary ray leaving point p (on a triangle of largest
    |coordinate| magnitude) along the side n starts: off its surface by the

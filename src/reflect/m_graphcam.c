@@ -554,20 +554,10 @@ static int refl__gcm_is_unheld(const refl_scene *scene, int i) {
    objects as billboards (for their parts outside the graph camera), the
    mirrors and glass, and the whole scene. */
 static refl_result refl__gcm_exact(refl__gcm *g) {
-    const refl_scene *scene = g->p->scene;
-    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
     refl_bvh *bvh = NULL;
     refl_result r;
-    int i;
-    g->objects = (refl__rt_object *)refl__calloc(&scene->allocator, objects, sizeof(refl__rt_object));
+    g->objects = refl__rt_objects_new(g->p->scene);
     if (!g->objects) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        g->objects[i].mesh = scene->meshes[o->mesh];
-        g->objects[i].material = &scene->materials[o->material];
-        g->objects[i].model = o->transform;
-        g->objects[i].normal_m = refl__normal_matrix(o->transform);
-    }
     r = refl__gcm_sub_bvh(g, refl__gcm_is_billboard, &g->flat, &g->flat_object);
     if (r == REFL_OK) r = refl__gcm_sub_bvh(g, refl__gcm_is_unheld, &g->unheld, &g->unheld_object);
     if (r == REFL_OK) r = refl__models_bvh(g->p, &bvh, &g->scene_owned);

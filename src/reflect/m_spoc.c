@@ -582,7 +582,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
         size_t npx = (size_t)fr->width * (size_t)fr->height;
         sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
         sf.sets = (refl__spoc_set *)refl__calloc(al, objects, sizeof(refl__spoc_set));
-        sf.objects = (refl__rt_object *)refl__calloc(al, objects, sizeof(refl__rt_object));
+        sf.objects = refl__rt_objects_new(scene);
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_rays = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
@@ -598,13 +598,6 @@ static refl_result refl__method_spoc(refl__pass *p) {
         sf.scene_bvh = bvh;
     }
     if (r == REFL_OK && any) {
-        for (i = 0; i < scene->object_count; ++i) {
-            const refl_object *o = &scene->objects[i];
-            sf.objects[i].mesh = scene->meshes[o->mesh];
-            sf.objects[i].material = &scene->materials[o->material];
-            sf.objects[i].model = o->transform;
-            sf.objects[i].normal_m = refl__normal_matrix(o->transform);
-        }
         refl_scene_bounds(scene, &lo, &hi);
         sf.offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
         sf.bounces = REFL__MIN(p->desc.depth, 2);

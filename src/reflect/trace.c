@@ -431,24 +431,29 @@ static int refl__rt_goes_beyond(const refl__rt *rt, int x, int y, const int *mod
    has built one of the scene, else a BVH built here), and with light
    volumes the planar mirror faces and their virtual lights. refl__rt_end
    frees it. */
+static refl__rt_object *refl__rt_objects_new(const refl_scene *scene) {
+    refl__rt_object *objects = (refl__rt_object *)refl__calloc(
+        &scene->allocator, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl__rt_object));
+    int i;
+    for (i = 0; objects && i < scene->object_count; ++i) {
+        const refl_object *o = &scene->objects[i];
+        objects[i].mesh = scene->meshes[o->mesh];
+        objects[i].material = &scene->materials[o->material];
+        objects[i].model = o->transform;
+        objects[i].normal_m = refl__normal_matrix(o->transform);
+    }
+    return objects;
+}
+
 static refl_result refl__rt_begin(refl__rt *rt, const refl__pass *p, refl_bvh *bvh) {
     const refl_scene *scene = p->scene;
     refl_result r = REFL_OK;
-    int i;
     memset(rt, 0, sizeof *rt);
     rt->p = p;
     rt->scene = scene;
     rt->caster = p->desc.raytrace.caster;
-    rt->objects = (refl__rt_object *)refl__calloc(&scene->allocator, (size_t)REFL__MAX(scene->object_count, 1),
-                                                  sizeof(refl__rt_object));
+    rt->objects = refl__rt_objects_new(scene);
     if (!rt->objects) return REFL_ERROR_OUT_OF_MEMORY;
-    for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        rt->objects[i].mesh = scene->meshes[o->mesh];
-        rt->objects[i].material = &scene->materials[o->material];
-        rt->objects[i].model = o->transform;
-        rt->objects[i].normal_m = refl__normal_matrix(o->transform);
-    }
     if (!rt->caster.intersect) {
         if (!bvh && (r = refl_bvh_build(scene, &scene->allocator, &rt->bvh)) != REFL_OK) return r;
         rt->caster.intersect = refl__rt_bvh_intersect;
