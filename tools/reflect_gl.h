@@ -49,16 +49,21 @@ int rgl_validate(rgl_context *g, int i, long long points, int repeats, rgl_valid
 
 /* A frame of PLANAR through GL (tools/reflect_gl_frame.c): GL draws the
    base pass and each planar mirror through refl_mirror_project, the CPU
-   shades with reflect.h's shading and composites as PLANAR does. Fills
-   frame's stencil (on the planar mirrors' pixels: the mirror object + 1;
-   0 elsewhere, curved reflectors included) and points (what each mirror
-   pixel shows, NaN elsewhere), and rgb (3 linear floats per pixel, rows
-   top first); frame is the view's size. One bounce. 0 on success. */
+   shades with reflect.h's shading and composites as PLANAR does; the
+   other mirrors and partial reflectors (curved ones) the CPU fills as
+   CPU PLANAR hands them over, traced (docs/gl.md). Fills frame's stencil
+   (on the reflectors' pixels: the object + 1; 0 elsewhere) and points
+   (what each reflector pixel shows, NaN elsewhere), and rgb (3 linear
+   floats per pixel, rows top first); frame is the view's size. One
+   bounce. 0 on success. */
 typedef struct rgl_frame_stats {
     int mirrors;             /* planar mirrors drawn through */
     long long vertices;      /* vertices GL transformed, every pass */
     double gl_seconds;       /* upload, both passes and the read-backs */
-    double shade_seconds;    /* the CPU's shading and compositing */
+    double shade_seconds;    /* the CPU's shading and compositing (PLANAR: its hand-over's frame too) */
+    int handed;              /* PLANAR: reflectors left to the CPU's PLANAR (not planar mirrors) */
+    int handed_over;         /* PLANAR: of those, the ones it handed to the tracer (curved) */
+    long long traced;        /* PLANAR: pixels the CPU filled */
 } rgl_frame_stats;
 int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                       rgl_frame_stats *st, char *err, size_t err_size);

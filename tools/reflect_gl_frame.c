@@ -426,6 +426,75 @@ void rgl_pass_end(rgl_context *g, rgl_pass *p) {
     memset(p, 0, sizeof *p);
 }
 
+/* The reflectors GL does not draw through a mirrored pinhole (curved
+   mirrors and partial reflectors, glass) go to the CPU exactly as CPU
+   PLANAR hands them over: a one-bounce refl_render of method PLANAR with
+   GL's mirrors set to DIRECT (object_methods), where PLANAR's own
+   `handles` sends each curved reflector to RAYTRACE's tracer
+   (stats.handed_over) and draws the planar glass itself. Its pixels of
+   those objects (as its stencil or GL's base pass has them) replace GL's:
+   colour, stencil and point. */
+static int rgl__planar_hand_over(const rgl_pass *ps, refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err,
+                                 size_t n) {
+    const refl_scene *s = ps->scene;
+    int o, k, c, any = 0;
+    size_t i, np = (size_t)ps->w * (size_t)ps->h;
+    refl_method *methods = (refl_method *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), sizeof *methods);
+    uint8_t *handed = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 1);
+    refl_render_desc d;
+    refl_frame *cpu = NULL;
+    int rc = -1;
+    if (!methods || !handed) goto oom;
+    for (o = 0; o < s->object_count; ++o) {
+        handed[o] = s->materials[s->objects[o].material].type != REFL_DIFFUSE;
+        st->handed += handed[o];
+    }
+    for (k = 0; k < ps->geo.mirror_count; ++k) {
+        st->handed -= handed[ps->geo.mirrors[k].object];
+        handed[ps->geo.mirrors[k].object] = 0;
+    }
+    for (o = 0; o < s->object_count; ++o) methods[o] = handed[o] ? REFL_PLANAR : REFL_DIRECT;
+    for (i = 0; i < np && !any; ++i) {
+        int id = (int)ps->base[0][4 * i + 3];
+        any = id >= 1 && id <= s->object_count && handed[id - 1];
+    }
+    if (!any) { /* none in view */
+        rc = 0;
+        goto done;
+    }
+    memset(&d, 0, sizeof d);
+    d.method = REFL_PLANAR;
+    d.depth = 1; /* one bounce, as the GL frame */
+    d.object_methods = methods;
+    d.object_method_count = s->object_count;
+    if (refl_frame_create(ps->w, ps->h, NULL, &cpu) != REFL_OK) goto oom;
+    if (refl_render(s, ps->view, &d, cpu) != REFL_OK) {
+        snprintf(err, n, "the CPU's PLANAR frame for the curved reflectors failed");
+        goto done;
+    }
+    st->handed_over = cpu->stats.handed_over;
+    for (i = 0; i < np; ++i) {
+        int id = (int)ps->base[0][4 * i + 3], sid = cpu->stencil[i];
+        if (!(id >= 1 && id <= s->object_count && handed[id - 1]) && !(sid >= 1 && sid <= s->object_count && handed[sid - 1]))
+            continue;
+        for (c = 0; c < 3; ++c) {
+            rgb[3 * i + c] = cpu->rgba[4 * i + c];
+            frame->points[3 * i + c] = cpu->points[3 * i + c];
+        }
+        frame->stencil[i] = cpu->stencil[i];
+        st->traced++;
+    }
+    rc = 0;
+    goto done;
+oom:
+    snprintf(err, n, "out of memory");
+done:
+    refl_frame_destroy(cpu);
+    free(handed);
+    free(methods);
+    return rc;
+}
+
 int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                       rgl_frame_stats *st, char *err, size_t n) {
     static const char *const mirror_vs[3] = {rgl_frame_vs_head, NULL, rgl__frame_vs_mirror_main};
@@ -525,6 +594,7 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
         }
         for (c = 0; c < 3; ++c) rgb[3 * i + c] = col[c];
     }
+    if (rgl__planar_hand_over(&ps, frame, rgb, st, err, n) != 0) goto done;
     st->shade_seconds = rgl_now() - t0;
     rc = 0;
     goto done;

@@ -1,7 +1,8 @@
 /* PLANAR through GL (tools/reflect_gl_frame.c) against PLANAR on the CPU:
    the same points in the mirrors (reflection error in pixels, with the
    CPU frame as the truth) and the same colours there (PSNR over the
-   mirrors' pixels). C3RC and SBC through GL (reflect_gl_c3rc.c,
+   mirrors' pixels), and a curved mirror's pixels handed to the CPU as CPU
+   PLANAR hands them over. C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
    within a pixel of the CPU path's, on the default scene and the concave
    bowl. Skipped, saying why, where no EGL
@@ -97,4 +98,10 @@ Test(refl_gl_frame, c3rc_concave_within_a_pixel_of_cpu, .timeout = 240) {
 
 Test(refl_gl_frame, sbc_concave_within_a_pixel_of_cpu, .timeout = 240) {
     gl_within_a_pixel_of_cpu("concave", REFL_SBC, 5000);
+}
+
+/* The default scene's teapot is curved: PLANAR through GL hands it to the
+   CPU as CPU PLANAR does (its tracer), so its reflection is there too. */
+Test(refl_gl_frame, planar_curved_within_a_pixel_of_cpu, .timeout = 120) {
+    gl_within_a_pixel_of_cpu("default", REFL_PLANAR, 500);
 }
