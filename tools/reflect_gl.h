@@ -64,6 +64,8 @@ typedef struct rgl_frame_stats {
     int handed;              /* PLANAR: reflectors left to the CPU's PLANAR (not planar mirrors) */
     int handed_over;         /* PLANAR: of those, the ones it handed to the tracer (curved) */
     long long traced;        /* PLANAR: pixels the CPU filled */
+    long long points;        /* C3RC: the scene's points */
+    long long projections;   /* C3RC: points of the leaves the cameras' box tests kept, after level of detail */
 } rgl_frame_stats;
 int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                       rgl_frame_stats *st, char *err, size_t err_size);

@@ -195,6 +195,9 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                        "GL vs CPU: %lld px matched, mean %.3f px, wrong %.4f, empty %.4f, PSNR %.1f dB over reflectors",
                        name, scene, w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
                        1e3 * st.shade_seconds, name, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
+                if (m == REFL_C3RC)
+                    printf("; points: GL %lld (%lld projected), CPU %lld (%lld projected)", st.points, st.projections,
+                           cf->stats.c3rc.points, cf->stats.c3rc.projections);
                 if (m == REFL_PLANAR && st.handed)
                     printf("; %d reflectors to the CPU (%d traced), %lld px", st.handed, st.handed_over, st.traced);
                 if (tf)

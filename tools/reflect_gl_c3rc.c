@@ -522,6 +522,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     vs[2] = vs_parts[2];
     if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
     if (!(tex = rgl_buffer_texture(cam_data, floats, &tbuf, err, n))) goto done;
+    st->points = pts.tree->point_count;
     rgl_pass_vertices(pts.gl, pts.tree->point_count, RGL_C3_POINT_FLOATS, point_sizes, 3, &vao, &vbo);
     /* the splats: nearest t wins, within each reflector's own pixels */
     if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
@@ -573,6 +574,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             for (; r < runs_end[t]; ++r) {
                 rgl.DrawArraysInstanced(GL_POINTS, q.run[2 * r], q.run[2 * r + 1], instances);
                 st->vertices += (long long)q.run[2 * r + 1] * instances;
+                st->projections += q.run[2 * r + 1];
             }
         }
         free(q.run);
