@@ -24,9 +24,8 @@
         neighbours' nearest point, then reflectance times the point's
         colour, the environment along the reflected ray where no point
         landed.
-   Left out against the CPU path: raised densities on objects a folding
-   camera magnifies, level of detail, the back faces of an open mesh's
-   inside. One bounce, as the paper; glass is drawn as DIRECT draws it. */
+   Left out against the CPU path: the gaps it hands to the tracer. One
+   bounce, as the paper; glass is drawn as DIRECT draws it. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
 #include "reflect_gl.h"
@@ -323,6 +322,7 @@ static void rgl__c3_touched(const rgl_pass *p, float *drawn) {
    planes bounding its volume up to that t (n . p <= d inside; none where
    it is unbounded). */
 typedef struct rgl_c3_cam {
+    refl_c3rc_view_camera view; /* the CPU path's camera, for its level of detail */
     refl_c3rc cam;
     int object, back, folds, hull_count;
     float screen_area, screen_edge, near_self, sweep, fold, edge;
@@ -403,6 +403,7 @@ static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, fl
     if (vc->back && !rgl__c3_back_seen(p, vc->object, fminf(sx[0], fminf(sx[1], sx[2])), fminf(sy[0], fminf(sy[1], sy[2])),
                                        fmaxf(sx[0], fmaxf(sx[1], sx[2])), fmaxf(sy[0], fmaxf(sy[1], sy[2]))))
         return 0;
+    k->view = *vc;
     k->cam = vc->cam;
     k->object = vc->object;
     k->back = vc->back;
@@ -420,10 +421,14 @@ static int rgl__c3_camera(const rgl_pass *p, const refl_c3rc_view_camera *vc, fl
     return 1;
 }
 
-/* The leaves a camera's box test keeps, as runs of the tree's order
-   (leaves next to each other go in one draw call), appended to a list. */
+/* The leaves a camera's box test keeps, each thinned as the CPU path
+   thins it (refl_c3rc_view_camera_lod at the frame's density: a prefix of
+   its shuffled points where the camera minifies it), as runs of the
+   tree's order (leaves next to each other go in one draw call), appended
+   to a list. */
 typedef struct rgl_c3_runs {
     const rgl_c3_cam *k;
+    float density;           /* the frame's, before the magnified objects' raise */
     int *run;                /* first, count pairs */
     long long count, cap;
     int failed;
@@ -436,10 +441,11 @@ static int rgl__c3_box(void *user, const float lo[3], const float hi[3]) {
 
 static void rgl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
     rgl_c3_runs *q = (rgl_c3_runs *)user;
+    int count = refl_c3rc_view_camera_lod(&q->k->view, leaf->lo, leaf->hi, leaf->count, q->density);
     (void)tree;
-    if (leaf->count <= 0 || q->failed) return;
+    if (count <= 0 || q->failed) return;
     if (q->count > 0 && q->run[2 * q->count - 2] + q->run[2 * q->count - 1] == leaf->first) {
-        q->run[2 * q->count - 1] += leaf->count;
+        q->run[2 * q->count - 1] += count;
         return;
     }
     if (q->count == q->cap) {
@@ -452,7 +458,7 @@ static void rgl__c3_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_
         q->cap = q->cap ? 2 * q->cap : 1024;
     }
     q->run[2 * q->count] = leaf->first;
-    q->run[2 * q->count + 1] = leaf->count;
+    q->run[2 * q->count + 1] = count;
     q->count++;
 }
 
@@ -465,7 +471,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     size_t np = (size_t)w * (size_t)h, i;
     GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
-    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax;
+    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax, frame_density;
     rgl_c3_cam *cams = NULL;
     rgl_c3_points pts;
     rgl_pass ps;
@@ -476,6 +482,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     memset(&ps, 0, sizeof ps);
     memset(&pts, 0, sizeof pts);
     if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
+    frame_density = rgl__c3_density(&ps);
     refl_scene_bounds(scene, &lo, &hi);
     tmax = refl_v3_length(refl_v3_sub(hi, lo)) * 1.01f + 1e-3f; /* the longest sweep: the scene's diagonal */
     /* the CPU's share: points, cameras (timed apart from GL) */
@@ -495,7 +502,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
                 vcams[cam_count++] = vcams[t];
         /* the points: denser on the objects a folding camera magnifies */
         if (!(density = (float *)malloc((size_t)(scene->object_count > 0 ? scene->object_count : 1) * sizeof(float))) ||
-            refl_c3rc_object_densities(scene, vcams, (int)cam_count, rgl__c3_density(&ps), density) != REFL_OK ||
+            refl_c3rc_object_densities(scene, vcams, (int)cam_count, frame_density, density) != REFL_OK ||
             rgl__c3_points(&ps, density, &pts) != 0) {
             refl_c3rc_view_cameras_free(scene, vcams);
             snprintf(err, n, "sampling the scene's points failed");
@@ -542,6 +549,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         rgl_c3_runs q;
         long long *runs_end = (long long *)malloc((size_t)(cam_count ? cam_count : 1) * sizeof(long long)), r = 0;
         memset(&q, 0, sizeof q);
+        q.density = frame_density;
         if (!runs_end) goto oom;
         /* the CPU culls: every camera's leaves */
         t1 = rgl_now();

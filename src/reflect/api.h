@@ -1942,10 +1942,20 @@ typedef struct refl_c3rc_view_camera {
     float near_self;         /* the reflector's own points nearer (in t) are not drawn */
     float sweep;             /* the largest t a scene point can have (INFINITY: unbounded): past the
                                 scene's diagonal where the rays converge */
+    refl_vec3 base_normal;   /* the piece's unit normal, the side its rays leave */
+    int lod;                 /* 1: its rays do not fold, so a leaf it minifies is thinned
+                                (refl_c3rc_view_camera_lod) */
 } refl_c3rc_view_camera;
 REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_view *view, float split_px,
                                             refl_c3rc_view_camera **out, int *count);
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams);
+/* C3RC's level of detail: how many of a kd-tree leaf's `count` points
+   (shuffled, as refl_kdtree_build leaves them) the method projects with
+   camera vc, the leaf's box lo-hi, at frame density `density` (points per
+   unit area): all, or, where vc->lod and the camera minifies the whole
+   box, a prefix at half a pixel between points. */
+REFL_API int refl_c3rc_view_camera_lod(const refl_c3rc_view_camera *vc, const float lo[3], const float hi[3], int count,
+                                       float density);
 /* Each object's C3RC sampling density (out: scene->object_count points
    per unit area) as the method samples them at frame density `density`:
    raised on a diffuse object where one of the `count` cameras (those drawn)

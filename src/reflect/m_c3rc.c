@@ -153,7 +153,6 @@ typedef struct refl__c3_cam {
     float near_self;              /* its reflector's own points nearer (in t) are not drawn */
     float bary[4];                /* barycentric solve of the base: e1.e1, e1.e2, e2.e2, 1 / det */
     refl_vec3 base_normal;        /* unit, the side the rays leave */
-    float dn_min, dn_max;         /* range of di . base_normal */
     int lod;                      /* thinning allowed: no multiple projections */
     float fold[4][2];             /* section 5.1's sweep intervals where the rays fold */
     int folds;
@@ -430,36 +429,49 @@ static int refl__c3_box(void *user, const float lo[3], const float hi[3]) {
     return seen;
 }
 
-/* How many of a leaf's (shuffled) points to draw: all, or where the
-   camera minifies the whole box, enough for REFL__C3_LOD_SPACING pixels
-   between points. The sweep t of any point in the box lies between its
-   distances from the base plane over the largest and smallest di . n. */
-static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *leaf) {
-    const refl_c3rc *c = &k->cam;
-    float dmin = FLT_MAX, dmax = -FLT_MAX, t_lo, t_hi, area, spacing, keep;
+/* How many of a leaf's `count` (shuffled) points camera c draws, its
+   piece's screen area and base normal given, at frame density `density`:
+   all, or where the camera minifies the whole box lo-hi, enough for
+   REFL__C3_LOD_SPACING pixels between points. The sweep t of any point in
+   the box lies between its distances from the base plane over the largest
+   and smallest di . n. */
+static int refl__c3_lod_keep(const refl_c3rc *c, refl_vec3 base_normal, float screen_area, float density,
+                             const float lo[3], const float hi[3], int count) {
+    float dmin = FLT_MAX, dmax = -FLT_MAX, dn_min = FLT_MAX, dn_max = -FLT_MAX, t_lo, t_hi, area, spacing, keep;
     double a0, a1, a2;
-    int corner;
-    if (!k->lod || leaf->count < 16 || !(k->dn_min > 0.05f) || !(k->screen_area > 0.0f)) return leaf->count;
+    int corner, i;
+    for (i = 0; i < 3; ++i) {
+        float dn = refl_v3_dot(c->d[i], base_normal);
+        dn_min = REFL__MIN(dn_min, dn);
+        dn_max = REFL__MAX(dn_max, dn);
+    }
+    if (count < 16 || !(dn_min > 0.05f) || !(screen_area > 0.0f)) return count;
     for (corner = 0; corner < 8; ++corner) {
-        refl_vec3 q = refl_v3(corner & 1 ? leaf->hi[0] : leaf->lo[0], corner & 2 ? leaf->hi[1] : leaf->lo[1],
-                              corner & 4 ? leaf->hi[2] : leaf->lo[2]);
-        float d = refl_v3_dot(refl_v3_sub(q, c->v[0]), k->base_normal);
+        refl_vec3 q = refl_v3(corner & 1 ? hi[0] : lo[0], corner & 2 ? hi[1] : lo[1], corner & 4 ? hi[2] : lo[2]);
+        float d = refl_v3_dot(refl_v3_sub(q, c->v[0]), base_normal);
         dmin = REFL__MIN(dmin, d);
         dmax = REFL__MAX(dmax, d);
     }
-    if (!(dmax > 0.0f)) return leaf->count;
-    t_lo = REFL__MAX(dmin, 0.0f) / k->dn_max;
-    t_hi = dmax / k->dn_min;
+    if (!(dmax > 0.0f)) return count;
+    t_lo = REFL__MAX(dmin, 0.0f) / dn_max;
+    t_hi = dmax / dn_min;
     a0 = refl__c3_sweep_area(c, t_lo);
     a1 = refl__c3_sweep_area(c, 0.5f * (t_lo + t_hi));
     a2 = refl__c3_sweep_area(c, t_hi);
     area = (float)REFL__MIN(a0, REFL__MIN(a1, a2));
-    if (!(area > 0.0f)) return leaf->count;
+    if (!(area > 0.0f)) return count;
     /* the densest the box's points can appear: every surface facing the ray */
-    spacing = sqrtf(k->screen_area / (area * k->c3->density));
-    if (spacing >= REFL__C3_LOD_SPACING) return leaf->count;
+    spacing = sqrtf(screen_area / (area * density));
+    if (spacing >= REFL__C3_LOD_SPACING) return count;
     keep = (spacing / REFL__C3_LOD_SPACING) * (spacing / REFL__C3_LOD_SPACING);
-    return REFL__MAX(1, (int)ceilf(keep * (float)leaf->count));
+    return REFL__MAX(1, (int)ceilf(keep * (float)count));
+}
+
+/* How many of a leaf's (shuffled) points camera k draws: thinned only
+   where its rays do not fold. */
+static int refl__c3_lod_count(const refl__c3_cam *k, const refl_kdtree_node *leaf) {
+    if (!k->lod) return leaf->count;
+    return refl__c3_lod_keep(&k->cam, k->base_normal, k->screen_area, k->c3->density, leaf->lo, leaf->hi, leaf->count);
 }
 
 /* Whether tree point i, seen by camera k at sweep t, is its reflector's
@@ -581,13 +593,6 @@ static int refl__c3_setup(const refl__pass *p, const refl__c3_job *job, refl__c3
     k->screen_area = on_screen ? 0.5f * fabsf((sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]))
                                : 0.0f;
     k->base_normal = t.ng;
-    k->dn_min = FLT_MAX;
-    k->dn_max = -FLT_MAX;
-    for (i = 0; i < 3; ++i) {
-        float dn = refl_v3_dot(k->cam.d[i], t.ng);
-        k->dn_min = REFL__MIN(k->dn_min, dn);
-        k->dn_max = REFL__MAX(k->dn_max, dn);
-    }
     return 1;
 }
 
@@ -1468,6 +1473,12 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
         cams[n].screen_edge = k.screen_edge;
         cams[n].near_self = k.near_self;
         cams[n].sweep = refl__c3_sweep_bound(&k.cam, 1.01f * refl_v3_length(refl_v3_sub(hi, lo)));
+        cams[n].base_normal = k.base_normal;
+        {
+            float fold[4][2]; /* as refl__c3_camera decides k.lod */
+            cams[n].lod = refl_c3rc_multiple_intervals(
+                              &k.cam, REFL__MIN(cams[n].sweep, 4.0f * 1.01f * refl_v3_length(refl_v3_sub(hi, lo))), fold) == 0;
+        }
         ++n;
     }
     refl__free(&scene->allocator, list.v);
@@ -1497,4 +1508,10 @@ REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const r
 
 REFL_API void refl_c3rc_view_cameras_free(const refl_scene *scene, refl_c3rc_view_camera *cams) {
     if (scene && cams) refl__free(&scene->allocator, cams);
+}
+
+REFL_API int refl_c3rc_view_camera_lod(const refl_c3rc_view_camera *vc, const float lo[3], const float hi[3], int count,
+                                       float density) {
+    if (!vc || !lo || !hi || !vc->lod) return count;
+    return refl__c3_lod_keep(&vc->cam, vc->base_normal, vc->screen_area, density, lo, hi, count);
 }
