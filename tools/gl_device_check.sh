@@ -12,6 +12,14 @@
 #   GL_LIBS_DIR   optional: folders (colon-separated) holding libEGL.so.1 and
 #                 libGLdispatch.so.0 unpacked from .deb files; put first on
 #                 LD_LIBRARY_PATH
+#   GL_CHECK_SIZES, GL_CHECK_SCENE_SIZE, GL_CHECK_POINTS, GL_CHECK_VALIDATE_POINTS
+#                 the frames' sizes (default 640x480,1920x1080,3840x2160),
+#                 the every-scene size (640x480), the projection bench's points
+#                 per camera (4000000) and the validation's (100000): smaller
+#                 ones try the script out on llvmpipe, e.g.
+#                 GL_CHECK_SIZES=160x120 GL_CHECK_SCENE_SIZE=160x120
+#                 GL_CHECK_POINTS=20000 GL_CHECK_VALIDATE_POINTS=20000
+#   GL_CHECK_EMBREE=0  skips the Embree step
 # When /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json exists,
 # GLVND's EGL is pointed at it (and /usr/local/nvidia/lib64 and lib join
 # LD_LIBRARY_PATH), so the NVIDIA driver answers rather than Mesa.
@@ -22,7 +30,7 @@
 # blend among them), bench.txt and bench.csv (the
 # projection rate on 4 x 10^6 points per camera, GL beside one CPU thread:
 # SBC's rows against the paper's 20 M vertices/s), frames.txt and
-# frames.csv (PLANAR on mirror-room, C3RC and SBC on default, through GL
+# frames.csv (PLANAR on mirror-room and default, C3RC and SBC on default, through GL
 # against the CPU path on every core at 640x480, 1920x1080 and 3840x2160:
 # C3RC's GL frame against the paper's 48-650 ms, SBC's vertex rate in
 # gl_mvertices_per_s), scenes.txt and scenes.csv (PLANAR, C3RC and SBC on
@@ -37,6 +45,10 @@
 set -u
 cd "$(dirname "$0")/.." || exit 1
 OUT=${OUT:-out/gl_device}
+SIZES=${GL_CHECK_SIZES:-640x480,1920x1080,3840x2160}
+SCENE_SIZE=${GL_CHECK_SCENE_SIZE:-640x480}
+POINTS=${GL_CHECK_POINTS:-4000000}
+VALIDATE_POINTS=${GL_CHECK_VALIDATE_POINTS:-100000}
 mkdir -p "$OUT"
 BIN=build/bin/reflect_gl
 VENDOR_JSON=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
@@ -75,21 +87,21 @@ if [ $rc -ne 0 ]; then
 fi
 
 status=0
-echo "=== validate (10^5 points per camera)"
-timeout -k 5 60 "$BIN" validate --points 100000 --csv "$OUT/validate.csv" >"$OUT/validate.txt" 2>&1 || status=1
+echo "=== validate ($VALIDATE_POINTS points per camera)"
+timeout -k 5 60 "$BIN" validate --points "$VALIDATE_POINTS" --csv "$OUT/validate.csv" >"$OUT/validate.txt" 2>&1 || status=1
 cat "$OUT/validate.txt"
 
-echo "=== bench: projection rate (4 x 10^6 points per camera, GL best of 5)"
-timeout -k 5 90 "$BIN" bench --points 4000000 --repeats 5 --csv "$OUT/bench.csv" >"$OUT/bench.txt" 2>&1 || status=1
+echo "=== bench: projection rate ($POINTS points per camera, GL best of 5)"
+timeout -k 5 90 "$BIN" bench --points "$POINTS" --repeats 5 --csv "$OUT/bench.csv" >"$OUT/bench.txt" 2>&1 || status=1
 cat "$OUT/bench.txt"
 
-echo "=== frames: PLANAR, C3RC and SBC through GL against the CPU path (RAYTRACE as truth at 640x480)"
-timeout -k 5 240 "$BIN" frames --sizes 640x480,1920x1080,3840x2160 --methods planar,c3rc,sbc \
+echo "=== frames: PLANAR, C3RC and SBC through GL against the CPU path (RAYTRACE as truth up to 640x480)"
+timeout -k 5 240 "$BIN" frames --sizes "$SIZES" --methods planar,c3rc,sbc \
   --truth-max-pixels 307200 --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
 cat "$OUT/frames.txt"
 
-echo "=== scenes: PLANAR, C3RC and SBC on every built-in scene at 640x480, GL and CPU against RAYTRACE"
-timeout -k 5 120 "$BIN" frames --sizes 640x480 --methods planar,c3rc,sbc --scenes all \
+echo "=== scenes: PLANAR, C3RC and SBC on every built-in scene at $SCENE_SIZE, GL and CPU against RAYTRACE"
+timeout -k 5 120 "$BIN" frames --sizes "$SCENE_SIZE" --methods planar,c3rc,sbc --scenes all \
   --csv "$OUT/scenes.csv" >"$OUT/scenes.txt" 2>&1 || status=1
 cat "$OUT/scenes.txt"
 
@@ -101,7 +113,9 @@ if [ -x "$REFLECT" ] && command -v ldd >/dev/null; then
 elif [ ! -x "$REFLECT" ]; then
   missing="$REFLECT itself"
 fi
-if [ -z "$missing" ]; then
+if [ "${GL_CHECK_EMBREE:-1}" = 0 ]; then
+  echo "skipped: GL_CHECK_EMBREE=0" | tee "$OUT/embree.txt"
+elif [ -z "$missing" ]; then
   timeout -k 5 240 "$REFLECT" bench --only sbc --out "$OUT/embree" >"$OUT/embree.txt" 2>&1 || status=1
   grep -i "resolution\|embree\|raytrace\|crossover" "$OUT/embree.txt" | head -40
 else
@@ -113,7 +127,7 @@ fi
   grep "^sbc" "$OUT/bench.txt"
   echo "--- frames: GL frame against the CPU path (C3RC against the paper's 48-650 ms)"
   grep -E "^(planar|c3rc|sbc) " "$OUT/frames.txt"
-  echo "--- every built-in scene at 640x480: mean reflection error against RAYTRACE, GL and CPU"
+  echo "--- every built-in scene at $SCENE_SIZE: mean reflection error against RAYTRACE, GL and CPU"
   grep -E "^(planar|c3rc|sbc) " "$OUT/scenes.txt" | sed -E 's/ cameras:.*vs RAYTRACE:/:/'
   echo "--- Embree and our BVH at the same sizes (default scene; embree/sbc_resolution.csv)"
   if [ -f "$OUT/embree/sbc_resolution.csv" ]; then cat "$OUT/embree/sbc_resolution.csv"; else cat "$OUT/embree.txt"; fi

@@ -95,7 +95,7 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    every camera's validation on `points` points, GL timed best of
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
-   mirror-room, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
+   mirror-room and default, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
    part of it, NULL all; `scenes` a comma-separated list of built-in
    scenes each method runs on instead, "all" every one, NULL or "" each
    method's own) at each size of "WxH,WxH,...", RAYTRACE as the

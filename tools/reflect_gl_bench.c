@@ -103,13 +103,14 @@ static int rgl_render_best(rgl_context *g, refl_method m, const refl_scene *s, c
     return 0;
 }
 
-/* The frames benched: each method on the scene it is measured on, unless
-   a scene list names others. */
+/* The frames benched: each method on the scenes it is measured on (a
+   comma-separated list: PLANAR's planar mirrors, and the default scene's
+   curved one it hands to the CPU), unless a scene list names others. */
 static const struct {
-    const char *name, *scene;
+    const char *name, *scenes;
     refl_method m;
 } rgl_frame_rows[] = {
-    {"planar", "mirror-room", REFL_PLANAR},
+    {"planar", "mirror-room,default", REFL_PLANAR},
     {"c3rc", "default", REFL_C3RC},
     {"sbc", "default", REFL_SBC},
 };
@@ -144,10 +145,12 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
     if (csv)
         fprintf(csv, "renderer,scene,method,width,height,cameras,gl_frame_s,gl_draw_s,cpu_share_s,cpu_method_s,"
                      "gl_vs_cpu_mean_px,gl_vs_cpu_wrong,gl_vs_cpu_empty,psnr_reflectors_db,gl_vs_truth_mean_px,"
-                     "cpu_vs_truth_mean_px,gl_mvertices_per_s\n");
+                     "cpu_vs_truth_mean_px,gl_mvertices_per_s,gl_points,gl_projections,cpu_points,cpu_projections,"
+                     "cpu_filled_px\n");
     for (ri = 0; ri < (int)(sizeof rgl_frame_rows / sizeof rgl_frame_rows[0]); ++ri)
-        for (si = 0; scenes && *scenes ? rgl_list_item(scenes, si, scene_buf, sizeof scene_buf) : si == 0; ++si) {
-        const char *p = sizes, *scene = scenes && *scenes ? scene_buf : rgl_frame_rows[ri].scene;
+        for (si = 0; rgl_list_item(scenes && *scenes ? scenes : rgl_frame_rows[ri].scenes, si, scene_buf, sizeof scene_buf);
+             ++si) {
+        const char *p = sizes, *scene = scene_buf;
         const char *name = rgl_frame_rows[ri].name;
         refl_method m = rgl_frame_rows[ri].m;
         if (!rgl_listed(methods, name)) continue;
@@ -205,10 +208,12 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                            e_gt.matched, e_ct.mean, e_ct.matched);
                 printf("\n");
                 if (csv)
-                    fprintf(csv, "\"%s\",%s,%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f\n",
+                    fprintf(csv, "\"%s\",%s,%s,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.4f,%.5f,%.5f,%.2f,%.4f,%.4f,%.3f,%lld,%lld,%lld,%lld,%lld\n",
                             rgl_renderer(g), scene, name, w, h, st.mirrors, st.gl_seconds + st.shade_seconds,
                             st.gl_seconds, st.shade_seconds, cpu_s, e_gc.mean, e_gc.wrong, e_gc.empty, psnr,
-                            tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6);
+                            tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6, st.points,
+                            st.projections, m == REFL_C3RC ? cf->stats.c3rc.points : 0,
+                            m == REFL_C3RC ? cf->stats.c3rc.projections : 0, st.traced);
                 fflush(stdout);
                 if (csv) fflush(csv);
             }
@@ -242,7 +247,7 @@ int rgl_cli_bench(int argc, char **argv) {
             fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc]\n"
                             "                         [--scenes NAME,...|all] [--points N] [--repeats R]\n"
                             "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
-                            "  DIR/gl_frames.csv: PLANAR (mirror-room), C3RC and SBC (default) frames through GL\n"
+                            "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default) frames through GL\n"
                             "                     against the CPU path (--scenes: every method on these\n"
                             "                     built-in scenes instead)\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;

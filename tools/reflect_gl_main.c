@@ -11,7 +11,7 @@
                                         projection rate of every camera, GL beside C
      reflect_gl frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--scenes NAME,...|all]
                        [--truth-max-pixels N] [--csv FILE]
-                                        PLANAR (mirror-room), C3RC and SBC (default) frames,
+                                        PLANAR (mirror-room, default), C3RC and SBC (default),
                                         or each on the built-in scenes listed, through GL
                                         against the CPU path (reflection error, PSNR
                                         over reflector pixels, frame times); RAYTRACE
