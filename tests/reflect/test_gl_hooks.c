@@ -172,3 +172,35 @@ Test(refl_gl_hooks, spoc_layout) {
 
 /* the SPOC's projection in float against the C's in double */
 Test(refl_gl_hooks, spoc_glsl_matches_c, .timeout = 120) { validate(7); }
+
+/* C3RC's level of detail as the GL path draws it
+   (refl_c3rc_view_camera_lod, the CPU path's rule): a leaf's prefix
+   shrinks as the density grows, never below one point; small leaves and
+   cameras whose rays fold keep every point. */
+Test(refl_gl_hooks, c3rc_level_of_detail) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("default", &v, 160, 120);
+    refl_c3rc_view_camera *cams = NULL, folded;
+    refl_vec3 lo3, hi3;
+    float lo[3], hi[3], density;
+    int count = 0, i, found = -1, last = 1000, k;
+    cr_assert_eq(refl_c3rc_view_cameras(s, &v, 0.0f, &cams, &count), REFL_OK);
+    for (i = 0; i < count && found < 0; ++i)
+        if (cams[i].lod && cams[i].screen_area > 1.0f) found = i;
+    cr_assert_geq(found, 0, "a camera of the teapot that does not fold");
+    refl_scene_bounds(s, &lo3, &hi3);
+    lo[0] = lo3.x; lo[1] = lo3.y; lo[2] = lo3.z;
+    hi[0] = hi3.x; hi[1] = hi3.y; hi[2] = hi3.z;
+    for (density = 1.0f; density <= 1e6f; density *= 10.0f) {
+        k = refl_c3rc_view_camera_lod(&cams[found], lo, hi, 1000, density);
+        cr_assert(k >= 1 && k <= last, "density %g: %d points of 1000 (before: %d)", density, k, last);
+        last = k;
+    }
+    cr_assert_lt(last, 1000, "a dense leaf is thinned");
+    cr_assert_eq(refl_c3rc_view_camera_lod(&cams[found], lo, hi, 15, 1e6f), 15);
+    folded = cams[found];
+    folded.lod = 0;
+    cr_assert_eq(refl_c3rc_view_camera_lod(&folded, lo, hi, 1000, 1e6f), 1000);
+    refl_c3rc_view_cameras_free(s, cams);
+    refl_scene_destroy(s);
+}
