@@ -4085,6 +4085,16 @@ typedef struct refl__bvh_bins {
    taken in turns, then added up, so that consecutive triangles falling
    into one bin do not wait on each other's stores (min and max of the
    same floats in any order: the same boxes). */
+/* One triangle (lo, hi) into d's bin bin[k] on axis k: a macro, so that
+   the three axes' loads and stores interleave freely. */
+#define REFL__BVH_BIN_INTO(k)                                                                                       \
+    do {                                                                                                            \
+        refl__bvh_box *to = &d->box[k][bin[k]];                                                                     \
+        refl__v4_store(to->lo, refl__v4_min(refl__v4_load(to->lo), lo));                                            \
+        refl__v4_store(to->hi, refl__v4_max(refl__v4_load(to->hi), hi));                                            \
+        d->count[k][bin[k]]++;                                                                                      \
+    } while (0)
+
 static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, refl__v4 cmin, refl__v4 scale,
                                 refl__bvh_bins bins[2]) {
     int sets = end - begin >= 128 ? 2 : 1, s, i, k, b;
@@ -4100,12 +4110,9 @@ static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, r
         refl__bvh_bins *d = &bins[(i - begin) & (sets - 1)];
         int bin[3];
         refl__bvh_bins_of(refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(lo, hi)), cmin, scale, bin);
-        for (k = 0; k < 3; ++k) {
-            refl__bvh_box *to = &d->box[k][bin[k]];
-            refl__v4_store(to->lo, refl__v4_min(refl__v4_load(to->lo), lo));
-            refl__v4_store(to->hi, refl__v4_max(refl__v4_load(to->hi), hi));
-            d->count[k][bin[k]]++;
-        }
+        REFL__BVH_BIN_INTO(0);
+        REFL__BVH_BIN_INTO(1);
+        REFL__BVH_BIN_INTO(2);
     }
     if (sets == 2)
         for (k = 0; k < 3; ++k)
@@ -4114,6 +4121,7 @@ static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, r
                 bins[0].count[k][b] += bins[1].count[k][b];
             }
 }
+#undef REFL__BVH_BIN_INTO
 
 /* Moves triangles [begin, end) whose bin on `axis` is at most split_bin
    before the others, each side in its order; each side's centroid box
