@@ -3863,7 +3863,8 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
    for the RAYTRACE reference and every method that needs exact rays.
    Build: binned SAH (Wald 2007), iterative, deterministic, into a binary
-   tree, then collapsed into an 8-wide tree (Wald, Benthin and Boulos
+   tree (the triangles' boxes move with the partitions, so that every
+   pass reads memory in order; SSE2 where built), then collapsed into an 8-wide tree (Wald, Benthin and Boulos
    2008) whose eight child boxes one AVX2 slab test checks at once where
    the CPU has it (chosen at run time), else two SSE2 ones (RAST_NO_SIMD:
    the same arithmetic lane by lane, the same bits). Traversal: explicit
@@ -3913,7 +3914,7 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* 32 bytes: children are adjacent, so one index names both. */
 typedef struct refl__bvh_node {
     float lo[3], hi[3];
-    int32_t index;                /* interior: first child; leaf: first in order[], then in blocks[] */
+    int32_t index;                /* interior: first child; leaf: first of the build's triangles, then in blocks[] */
     int32_t count;                /* 0: interior; else triangles in the leaf */
 } refl__bvh_node;
 
@@ -3947,7 +3948,7 @@ struct refl_bvh {
     refl__bvhw_node *wide;        /* the tree every trace walks (cache-line aligned in wide_mem) */
     void *wide_mem;
     int wide_count;
-    refl__bvh_tri *tris;          /* while building: the triangles, which order[] sorts */
+    refl__bvh_tri *tris;          /* while building: the triangles, named by the build's ids */
     int tri_count;
     refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
     void *blocks_mem;
