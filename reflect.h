@@ -4422,6 +4422,13 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
     }
 }
 
+/* An array of count * size bytes, not zeroed (the build fills what it
+   reads); NULL on overflow or failure. */
+static void *refl__bvh_alloc(const refl_allocator *a, size_t count, size_t size) {
+    if (size && count > (size_t)-1 / size) return NULL;
+    return refl__alloc(a, count * size);
+}
+
 /* An array (not zeroed: its writer fills every byte) starting on a
    64-byte cache line, so that each node and block, a whole number of
    lines, touches no line more than it must; *mem receives what to free. */
@@ -4483,8 +4490,8 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->allocator = refl__allocator(a);
     if (total == 0) { *out_bvh = bvh; return REFL_OK; }
 
-    bvh->tris = (refl__bvh_tri *)refl__alloc(a, (size_t)total * sizeof *bvh->tris);
-    world = (refl_vec3 *)refl__alloc(a, (size_t)REFL__MAX(most_vertices, 0) * sizeof *world);
+    bvh->tris = (refl__bvh_tri *)refl__bvh_alloc(a, (size_t)total, sizeof *bvh->tris);
+    world = (refl_vec3 *)refl__bvh_alloc(a, (size_t)REFL__MAX(most_vertices, 0), sizeof *world);
     if (!bvh->tris || !world) {
         refl__free(a, world);
         refl_bvh_destroy(bvh);
@@ -4529,11 +4536,11 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->tri_count = n;
     if (n == 0) { *out_bvh = bvh; return REFL_OK; }
 
-    bvh->nodes = (refl__bvh_node *)refl__alloc(a, (size_t)(2 * n - 1) * sizeof *bvh->nodes);
-    pr.box = (refl__bvh_box *)refl__alloc(a, (size_t)n * sizeof *pr.box);
-    pr.id = (int32_t *)refl__alloc(a, (size_t)n * sizeof *pr.id);
-    spare.box = (refl__bvh_box *)refl__alloc(a, (size_t)n * sizeof *spare.box);
-    spare.id = (int32_t *)refl__alloc(a, (size_t)n * sizeof *spare.id);
+    bvh->nodes = (refl__bvh_node *)refl__bvh_alloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
+    pr.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.box);
+    pr.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.id);
+    spare.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.box);
+    spare.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.id);
     if (!bvh->nodes || !pr.box || !pr.id || !spare.box || !spare.id) {
         refl__free(a, pr.box);
         refl__free(a, pr.id);
