@@ -3873,7 +3873,8 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* bvh: a bounding volume hierarchy over the scene's world-space triangles,
    for the RAYTRACE reference and every method that needs exact rays.
    Build: binned SAH (Wald 2007), iterative, deterministic, into a binary
-   tree, then collapsed into an 8-wide tree (Wald, Benthin and Boulos
+   tree (the triangles' boxes move with the partitions, so that every
+   pass reads memory in order; SSE2 where built), then collapsed into an 8-wide tree (Wald, Benthin and Boulos
    2008) whose eight child boxes one AVX2 slab test checks at once where
    the CPU has it (chosen at run time), else two SSE2 ones (RAST_NO_SIMD:
    the same arithmetic lane by lane, the same bits). Traversal: explicit
@@ -3923,7 +3924,7 @@ static void refl__draw_background(float *color, const float *depth, int width, i
 /* 32 bytes: children are adjacent, so one index names both. */
 typedef struct refl__bvh_node {
     float lo[3], hi[3];
-    int32_t index;                /* interior: first child; leaf: first in order[], then in blocks[] */
+    int32_t index;                /* interior: first child; leaf: first of the build's triangles, then in blocks[] */
     int32_t count;                /* 0: interior; else triangles in the leaf */
 } refl__bvh_node;
 
@@ -3957,7 +3958,7 @@ struct refl_bvh {
     refl__bvhw_node *wide;        /* the tree every trace walks (cache-line aligned in wide_mem) */
     void *wide_mem;
     int wide_count;
-    refl__bvh_tri *tris;          /* while building: the triangles, which order[] sorts */
+    refl__bvh_tri *tris;          /* while building: the triangles, named by the build's ids */
     int tri_count;
     refl__bvh_tri4 *blocks;       /* leaves' triangles: a leaf is a range of blocks (aligned in blocks_mem) */
     void *blocks_mem;
@@ -3968,9 +3969,57 @@ struct refl_bvh {
 
 /* ---- build ------------------------------------------------------------------ */
 
-/* Four floats a side, the fourth kept empty, so a compiler can merge
-   boxes with one SIMD min and max. */
+/* Four floats a side, the fourth unused, so that one SIMD min and max
+   merge two boxes. */
 typedef struct refl__bvh_box { float lo[4], hi[4]; } refl__bvh_box;
+
+/* Four floats the build computes on at once: SSE2's, or lane by lane with
+   the same operations (min and max as MINPS and MAXPS: a < b ? a : b and
+   a > b ? a : b), so that either builds the same tree. */
+#ifdef REFL__BVH_SSE2
+typedef __m128 refl__v4;
+#define refl__v4_load _mm_loadu_ps
+#define refl__v4_store _mm_storeu_ps
+#define refl__v4_set1 _mm_set1_ps
+#define refl__v4_add _mm_add_ps
+#define refl__v4_sub _mm_sub_ps
+#define refl__v4_mul _mm_mul_ps
+#define refl__v4_min _mm_min_ps
+#define refl__v4_max _mm_max_ps
+/* Lanes 0 to 2 truncated to integers, each in [0, 2^15). */
+REFL__BVH_INLINE static void refl__v4_to_small_int3(refl__v4 a, int out[3]) {
+    __m128i i = _mm_cvttps_epi32(a);
+    out[0] = _mm_extract_epi16(i, 0);
+    out[1] = _mm_extract_epi16(i, 2);
+    out[2] = _mm_extract_epi16(i, 4);
+}
+/* which ? a : b, which 0 or 1 */
+REFL__BVH_INLINE static refl__v4 refl__v4_select(int which, refl__v4 a, refl__v4 b) {
+    __m128 m = _mm_castsi128_ps(_mm_set1_epi32(-which));
+    return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b));
+}
+#else
+typedef struct refl__v4 { float v[4]; } refl__v4;
+#define REFL__V4_LANES(expr)                                                                                        \
+    refl__v4 r;                                                                                                     \
+    int k;                                                                                                          \
+    for (k = 0; k < 4; ++k) r.v[k] = (expr);                                                                        \
+    return r
+static refl__v4 refl__v4_load(const float *p) { REFL__V4_LANES(p[k]); }
+static void refl__v4_store(float *p, refl__v4 a) { memcpy(p, a.v, sizeof a.v); }
+static refl__v4 refl__v4_set1(float x) { REFL__V4_LANES(x); }
+static refl__v4 refl__v4_add(refl__v4 a, refl__v4 b) { REFL__V4_LANES(a.v[k] + b.v[k]); }
+static refl__v4 refl__v4_sub(refl__v4 a, refl__v4 b) { REFL__V4_LANES(a.v[k] - b.v[k]); }
+static refl__v4 refl__v4_mul(refl__v4 a, refl__v4 b) { REFL__V4_LANES(a.v[k] * b.v[k]); }
+static refl__v4 refl__v4_min(refl__v4 a, refl__v4 b) { REFL__V4_LANES(a.v[k] < b.v[k] ? a.v[k] : b.v[k]); }
+static refl__v4 refl__v4_max(refl__v4 a, refl__v4 b) { REFL__V4_LANES(a.v[k] > b.v[k] ? a.v[k] : b.v[k]); }
+static refl__v4 refl__v4_select(int which, refl__v4 a, refl__v4 b) { return which ? a : b; }
+static void refl__v4_to_small_int3(refl__v4 a, int out[3]) {
+    int k;
+    for (k = 0; k < 3; ++k) out[k] = (int)a.v[k];
+}
+#undef REFL__V4_LANES
+#endif
 
 static void refl__box_empty(refl__bvh_box *b) {
     int k;
@@ -3985,19 +4034,24 @@ static void refl__box_grow(refl__bvh_box *b, const float *p) {
     }
 }
 
+REFL__BVH_INLINE
 static void refl__box_merge(refl__bvh_box *b, const refl__bvh_box *o) {
-    int k;
-    for (k = 0; k < 4; ++k) {
-        b->lo[k] = REFL__MIN(b->lo[k], o->lo[k]);
-        b->hi[k] = REFL__MAX(b->hi[k], o->hi[k]);
-    }
+    refl__v4_store(b->lo, refl__v4_min(refl__v4_load(b->lo), refl__v4_load(o->lo)));
+    refl__v4_store(b->hi, refl__v4_max(refl__v4_load(b->hi), refl__v4_load(o->hi)));
+}
+
+/* Half the surface area of a box that holds something (an empty one's is
+   meaningless), without a branch. */
+static float refl__box_area_full(const refl__bvh_box *b) {
+    float dx = b->hi[0] - b->lo[0], dy = b->hi[1] - b->lo[1], dz = b->hi[2] - b->lo[2];
+    return dx * dy + dy * dz + dz * dx;
 }
 
 /* Half the surface area; an empty box (lo > hi) has none. */
 static float refl__box_area(const refl__bvh_box *b) {
     float dx = b->hi[0] - b->lo[0], dy = b->hi[1] - b->lo[1], dz = b->hi[2] - b->lo[2];
     if (dx < 0 || dy < 0 || dz < 0) return 0;
-    return dx * dy + dy * dz + dz * dx;
+    return refl__box_area_full(b);
 }
 
 static void refl__tri_box(const refl__bvh_tri *t, refl__bvh_box *b) {
@@ -4007,30 +4061,132 @@ static void refl__tri_box(const refl__bvh_tri *t, refl__bvh_box *b) {
     refl__box_grow(b, t->v + 6);
 }
 
-/* The bin of a centroid coordinate; binning and partitioning must agree,
-   so both go through here. */
-static int refl__bvh_bin(float c, float cmin, float scale) {
-    float f = (c - cmin) * scale;
-    if (!(f > 0)) return 0;       /* clamp in float: converting a huge value is undefined */
-    if (f >= (float)(REFL__BVH_BINS - 1)) return REFL__BVH_BINS - 1;
-    return (int)f;
+/* The build's triangles: each one's box and its index in tris[], which
+   the partitions move together, so that every pass reads them in memory
+   order. A centroid is 0.5 (lo + hi), computed where needed. */
+typedef struct refl__bvh_prims {
+    refl__bvh_box *box;
+    int32_t *id;
+} refl__bvh_prims;
+
+REFL__BVH_INLINE
+static refl__v4 refl__bvh_centroid(const refl__bvh_box *b) {
+    return refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(refl__v4_load(b->lo), refl__v4_load(b->hi)));
 }
 
-/* A node to build: its range of order[], and when `bounded` its box and
-   its centroids' box, which the parent's split found already. */
+/* A centroid's bin on each axis, (c - cmin) scale clamped to the bins in
+   float (converting a huge value is undefined; a NaN goes to bin 0, as
+   MAXPS gives its second operand). Binning and partitioning both go
+   through here, so they agree. */
+REFL__BVH_INLINE
+static void refl__bvh_bins_of(refl__v4 c, refl__v4 cmin, refl__v4 scale, int bin[3]) {
+    refl__v4 f = refl__v4_mul(refl__v4_sub(c, cmin), scale);
+    refl__v4_to_small_int3(
+        refl__v4_min(refl__v4_max(f, refl__v4_set1(0.0f)), refl__v4_set1((float)(REFL__BVH_BINS - 1))), bin);
+}
+
+/* A node's bins on each axis: the box and count of the triangles whose
+   centroids fall in each. */
+typedef struct refl__bvh_bins {
+    refl__bvh_box box[3][REFL__BVH_BINS];
+    int count[3][REFL__BVH_BINS];
+} refl__bvh_bins;
+
+/* Bins triangles [begin, end) into bins[0]; a large range into two sets
+   taken in turns, then added up, so that consecutive triangles falling
+   into one bin do not wait on each other's stores (min and max of the
+   same floats in any order: the same boxes). */
+/* One triangle (lo, hi) into d's bin bin[k] on axis k: a macro, so that
+   the three axes' loads and stores interleave freely. */
+#define REFL__BVH_BIN_INTO(k)                                                                                       \
+    do {                                                                                                            \
+        refl__bvh_box *to = &d->box[k][bin[k]];                                                                     \
+        refl__v4_store(to->lo, refl__v4_min(refl__v4_load(to->lo), lo));                                            \
+        refl__v4_store(to->hi, refl__v4_max(refl__v4_load(to->hi), hi));                                            \
+        d->count[k][bin[k]]++;                                                                                      \
+    } while (0)
+
+static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, refl__v4 cmin, refl__v4 scale,
+                                refl__bvh_bins bins[2]) {
+    int sets = end - begin >= 128 ? 2 : 1, s, i, k, b;
+    for (s = 0; s < sets; ++s)
+        for (k = 0; k < 3; ++k)
+            for (b = 0; b < REFL__BVH_BINS; ++b) {
+                refl__box_empty(&bins[s].box[k][b]);
+                bins[s].count[k][b] = 0;
+            }
+    for (i = begin; i < end; ++i) {
+        /* the box in registers: the stores into the bins might alias it */
+        const refl__v4 lo = refl__v4_load(pr->box[i].lo), hi = refl__v4_load(pr->box[i].hi);
+        refl__bvh_bins *d = &bins[(i - begin) & (sets - 1)];
+        int bin[3];
+        refl__bvh_bins_of(refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(lo, hi)), cmin, scale, bin);
+        REFL__BVH_BIN_INTO(0);
+        REFL__BVH_BIN_INTO(1);
+        REFL__BVH_BIN_INTO(2);
+    }
+    if (sets == 2)
+        for (k = 0; k < 3; ++k)
+            for (b = 0; b < REFL__BVH_BINS; ++b) {
+                refl__box_merge(&bins[0].box[k][b], &bins[1].box[k][b]);
+                bins[0].count[k][b] += bins[1].count[k][b];
+            }
+}
+#undef REFL__BVH_BIN_INTO
+
+/* Moves triangles [begin, end) whose bin on `axis` is at most split_bin
+   before the others, each side in its order; each side's centroid box
+   into lcbox and rcbox. Returns where the second side starts. Every
+   triangle is written both to its place on the left (which the reading
+   has passed) and to the right side's place in `spare`, and only its
+   side's count moves on: no branch on the side, which no predictor
+   guesses. The right side then follows the left. */
+static int refl__bvh_partition(refl__bvh_prims *pr, refl__bvh_prims *spare, int begin, int end, int axis,
+                               int split_bin, refl__v4 cmin, refl__v4 scale, refl__bvh_box *lcbox,
+                               refl__bvh_box *rcbox) {
+    const refl__v4 big = refl__v4_set1(FLT_MAX), small = refl__v4_set1(-FLT_MAX);
+    refl__v4 llo = big, lhi = small, rlo = big, rhi = small;
+    int i, left = begin, right = 0;
+    for (i = begin; i < end; ++i) {
+        refl__v4 blo = refl__v4_load(pr->box[i].lo), bhi = refl__v4_load(pr->box[i].hi);
+        refl__v4 c = refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(blo, bhi));
+        int32_t id = pr->id[i];
+        int bin[3], r;
+        refl__bvh_bins_of(c, cmin, scale, bin);
+        r = bin[axis] > split_bin;
+        /* the other side's box grows by an empty box's corner: not at all */
+        llo = refl__v4_min(llo, refl__v4_select(r, big, c));
+        lhi = refl__v4_max(lhi, refl__v4_select(r, small, c));
+        rlo = refl__v4_min(rlo, refl__v4_select(r, c, big));
+        rhi = refl__v4_max(rhi, refl__v4_select(r, c, small));
+        refl__v4_store(pr->box[left].lo, blo);
+        refl__v4_store(pr->box[left].hi, bhi);
+        pr->id[left] = id;
+        refl__v4_store(spare->box[right].lo, blo);
+        refl__v4_store(spare->box[right].hi, bhi);
+        spare->id[right] = id;
+        left += 1 - r;
+        right += r;
+    }
+    memcpy(&pr->box[left], spare->box, sizeof *pr->box * (size_t)right);
+    memcpy(&pr->id[left], spare->id, sizeof *pr->id * (size_t)right);
+    refl__v4_store(lcbox->lo, llo);
+    refl__v4_store(lcbox->hi, lhi);
+    refl__v4_store(rcbox->lo, rlo);
+    refl__v4_store(rcbox->hi, rhi);
+    return left;
+}
+
+/* A node to build: its range of the triangles, and when `bounded` its box
+   and its centroids' box, which the parent's split found already. */
 typedef struct refl__bvh_task {
     int node, begin, end, depth, bounded;
     refl__bvh_box box, cbox;
 } refl__bvh_task;
 
-/* A triangle as the build sees it: its box and centroid, found once. */
-typedef struct refl__bvh_prim {
-    refl__bvh_box box;
-    float c[3];
-} refl__bvh_prim;
-
-static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const refl__bvh_prim *prim) {
+static void refl__bvh_build_tree(refl_bvh *bvh, refl__bvh_prims *pr, refl__bvh_prims *spare) {
     refl__bvh_task stack[2 * REFL__BVH_MAX_DEPTH + 8];
+    refl__bvh_bins bins[2];
     int sp = 0;
     bvh->node_count = 1;
     stack[sp].node = 0; stack[sp].begin = 0; stack[sp].end = bvh->tri_count; stack[sp].depth = 0;
@@ -4040,18 +4196,23 @@ static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const refl__bvh_
         refl__bvh_task task = stack[--sp];
         refl__bvh_node *node = &bvh->nodes[task.node];
         int n = task.end - task.begin, i, k, axis = -1, split_bin = 0, mid, split_bounded = 0;
-        refl__bvh_box box = task.box, cbox = task.cbox, bins3[3][REFL__BVH_BINS], lcbox, rcbox;
-        int counts3[3][REFL__BVH_BINS];
-        float best_cost = FLT_MAX, leaf_cost, scale = 0, s3[3];
+        refl__bvh_box box = task.box, cbox = task.cbox, lcbox, rcbox;
+        float best_cost = FLT_MAX, leaf_cost, s3[4], parea;
+        refl__v4 cmin, scale;
 
         if (!task.bounded) {
-            refl__box_empty(&box);
-            refl__box_empty(&cbox);
+            refl__v4 blo = refl__v4_set1(FLT_MAX), bhi = refl__v4_set1(-FLT_MAX), clo = blo, chi = bhi;
             for (i = task.begin; i < task.end; ++i) {
-                const refl__bvh_prim *p = &prim[order[i]];
-                refl__box_merge(&box, &p->box);
-                refl__box_grow(&cbox, p->c);
+                refl__v4 c = refl__bvh_centroid(&pr->box[i]);
+                blo = refl__v4_min(blo, refl__v4_load(pr->box[i].lo));
+                bhi = refl__v4_max(bhi, refl__v4_load(pr->box[i].hi));
+                clo = refl__v4_min(clo, c);
+                chi = refl__v4_max(chi, c);
             }
+            refl__v4_store(box.lo, blo);
+            refl__v4_store(box.hi, bhi);
+            refl__v4_store(cbox.lo, clo);
+            refl__v4_store(cbox.hi, chi);
         }
         for (k = 0; k < 3; ++k) { node->lo[k] = box.lo[k]; node->hi[k] = box.hi[k]; }
         node->index = task.begin;
@@ -4059,82 +4220,64 @@ static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const refl__bvh_
         if (n <= REFL__BVH_LEAF || task.depth >= REFL__BVH_MAX_DEPTH) continue;
 
         /* SAH with traversal cost 1 and REFL__BVH_LEAF_COST, relative to
-           the parent's area. */
+           the parent's area. One pass bins the three axes (an axis
+           without extent: scale 0, not split). */
         leaf_cost = REFL__BVH_LEAF_COST(n);
-        {
-            /* one pass bins the three axes (an axis without extent: s 0) */
-            int b;
-            for (k = 0; k < 3; ++k) {
-                float extent = cbox.hi[k] - cbox.lo[k];
-                s3[k] = extent > 0 ? (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent : 0.0f;
-                if (!refl__isfinite(s3[k])) s3[k] = 0.0f; /* denormal extent */
-                for (b = 0; b < REFL__BVH_BINS; ++b) { refl__box_empty(&bins3[k][b]); counts3[k][b] = 0; }
+        for (k = 0; k < 3; ++k) {
+            float extent = cbox.hi[k] - cbox.lo[k];
+            s3[k] = extent > 0 ? (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent : 0.0f;
+            if (!refl__isfinite(s3[k])) s3[k] = 0.0f; /* denormal extent */
+        }
+        s3[3] = 0.0f;
+        cmin = refl__v4_load(cbox.lo);
+        scale = refl__v4_load(s3);
+        refl__bvh_bin_range(pr, task.begin, task.end, cmin, scale, bins);
+        parea = refl__box_area(&box);
+        for (k = 0; k < 3; ++k) {
+            const refl__bvh_box *b = bins[0].box[k];
+            const int *counts = bins[0].count[k];
+            int full[REFL__BVH_BINS], m = 0, j, left_n[REFL__BVH_BINS], right_n[REFL__BVH_BINS];
+            float left_area[REFL__BVH_BINS], right_area[REFL__BVH_BINS], cost[REFL__BVH_BINS];
+            refl__bvh_box acc;
+            if (s3[k] == 0.0f) continue;
+            /* The bins holding triangles: a split after an empty bin
+               costs what the split before it does, and the first of equal
+               costs wins, so only splits after these are costed. */
+            for (j = 0; j < REFL__BVH_BINS; ++j) {
+                full[m] = j;
+                m += counts[j] > 0;
             }
-            for (i = task.begin; i < task.end; ++i) {
-                const refl__bvh_prim *p = &prim[order[i]];
-                for (k = 0; k < 3; ++k) {
-                    if (s3[k] == 0.0f) continue;
-                    b = refl__bvh_bin(p->c[k], cbox.lo[k], s3[k]);
-                    refl__box_merge(&bins3[k][b], &p->box);
-                    counts3[k][b]++;
-                }
+            /* Sweep from the right, then from the left: split i is after
+               bin full[i]. Then each split's cost, apart from the sweeps'
+               chains of dependent merges, so that they overlap. */
+            refl__box_empty(&acc);
+            for (j = m - 1; j > 0; --j) {
+                refl__box_merge(&acc, &b[full[j]]);
+                right_n[j - 1] = counts[full[j]] + (j < m - 1 ? right_n[j] : 0);
+                right_area[j - 1] = refl__box_area_full(&acc);
             }
-            for (k = 0; k < 3; ++k) {
-                refl__bvh_box *bins = bins3[k], acc;
-                int *counts = counts3[k], left_n;
-                float right_area[REFL__BVH_BINS], s = s3[k], parea;
-                int right_n[REFL__BVH_BINS];
-                if (s == 0.0f) continue;
-                /* Sweep from the right, then from the left: split after bin b. */
-                refl__box_empty(&acc);
-                right_n[REFL__BVH_BINS - 1] = 0;
-                right_area[REFL__BVH_BINS - 1] = 0;
-                {
-                    int rn = 0;
-                    for (b = REFL__BVH_BINS - 1; b > 0; --b) {
-                        refl__box_merge(&acc, &bins[b]);
-                        rn += counts[b];
-                        right_n[b - 1] = rn;
-                        right_area[b - 1] = refl__box_area(&acc);
-                    }
-                }
-                parea = refl__box_area(&box);
-                refl__box_empty(&acc);
-                left_n = 0;
-                for (b = 0; b < REFL__BVH_BINS - 1; ++b) {
-                    float cost;
-                    refl__box_merge(&acc, &bins[b]);
-                    left_n += counts[b];
-                    if (left_n == 0 || right_n[b] == 0) continue;
-                    cost = parea > 0
-                               ? 1.0f + (refl__box_area(&acc) * REFL__BVH_LEAF_COST(left_n) +
-                                         right_area[b] * REFL__BVH_LEAF_COST(right_n[b])) / parea
-                               : 1.0f + REFL__BVH_LEAF_COST(n); /* flat cluster: any split is as good */
-                    if (cost < best_cost) { best_cost = cost; axis = k; split_bin = b; scale = s; }
-                }
+            refl__box_empty(&acc);
+            for (j = 0; j < m - 1; ++j) {
+                refl__box_merge(&acc, &b[full[j]]);
+                left_n[j] = counts[full[j]] + (j > 0 ? left_n[j - 1] : 0);
+                left_area[j] = refl__box_area_full(&acc);
             }
+            for (j = 0; j < m - 1; ++j)
+                cost[j] = parea > 0 ? 1.0f + (left_area[j] * REFL__BVH_LEAF_COST(left_n[j]) +
+                                              right_area[j] * REFL__BVH_LEAF_COST(right_n[j])) / parea
+                                    : 1.0f + REFL__BVH_LEAF_COST(n); /* flat cluster: any split is as good */
+            for (j = 0; j < m - 1; ++j)
+                if (cost[j] < best_cost) {
+                    best_cost = cost[j];
+                    axis = k;
+                    split_bin = full[j];
+                }
         }
         if (axis >= 0 && best_cost >= leaf_cost && n <= REFL__BVH_MAX_LEAF) continue;
 
         if (axis >= 0) {
-            /* In-place partition by bin; both sides are non-empty by
-               construction. Each side's centroid box on the way. */
-            int lo = task.begin, hi = task.end - 1;
-            refl__box_empty(&lcbox);
-            refl__box_empty(&rcbox);
-            while (lo <= hi) {
-                int t = order[lo];
-                if (refl__bvh_bin(prim[t].c[axis], cbox.lo[axis], scale) <= split_bin) {
-                    refl__box_grow(&lcbox, prim[t].c);
-                    ++lo;
-                } else {
-                    refl__box_grow(&rcbox, prim[t].c);
-                    order[lo] = order[hi];
-                    order[hi] = t;
-                    --hi;
-                }
-            }
-            mid = lo;
+            /* Both sides are non-empty by construction. */
+            mid = refl__bvh_partition(pr, spare, task.begin, task.end, axis, split_bin, cmin, scale, &lcbox, &rcbox);
             split_bounded = 1;
             if (mid == task.begin || mid == task.end) {
                 mid = task.begin + n / 2;
@@ -4157,11 +4300,11 @@ static void refl__bvh_build_tree(refl_bvh *bvh, int32_t *order, const refl__bvh_
         if (split_bounded) {
             /* the sides' boxes are their bins' (min and max are exact:
                the same floats as a pass over the triangles) */
-            int b;
+            int j;
             refl__box_empty(&stack[sp].box);
             refl__box_empty(&stack[sp + 1].box);
-            for (b = 0; b < REFL__BVH_BINS; ++b)
-                refl__box_merge(b <= split_bin ? &stack[sp + 1].box : &stack[sp].box, &bins3[axis][b]);
+            for (j = 0; j < REFL__BVH_BINS; ++j)
+                refl__box_merge(j <= split_bin ? &stack[sp + 1].box : &stack[sp].box, &bins[0].box[axis][j]);
             stack[sp].cbox = rcbox;
             stack[sp + 1].cbox = lcbox;
         }
@@ -4193,15 +4336,20 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh);
 }
 
-/* Each leaf's triangles into its blocks, in order[]'s order; the leaf
-   then names its first block. */
-static void refl__bvh_fill_blocks(refl_bvh *bvh, const int32_t *order) {
+/* Each leaf's triangles into its blocks, in the order the build left
+   them in (id[]); the leaf then names its first block. */
+static void refl__bvh_fill_blocks(refl_bvh *bvh, const int32_t *id) {
     int i, b = 0, j, k;
     for (i = 0; i < bvh->node_count; ++i) {
         refl__bvh_node *leaf = &bvh->nodes[i];
         if (leaf->count == 0) continue;
+        memset(&bvh->blocks[b], 0, sizeof *bvh->blocks * (size_t)((leaf->count + 3) / 4));
         for (j = 0; j < leaf->count; ++j) {
-            const refl__bvh_tri *t = &bvh->tris[order[leaf->index + j]];
+            const refl__bvh_tri *t = &bvh->tris[id[leaf->index + j]];
+#ifdef REFL__BVH_SSE2
+            /* the triangles are scattered over tris[]: ask for those a few leaves on */
+            if (leaf->index + j + 16 < bvh->tri_count) _mm_prefetch((const char *)&bvh->tris[id[leaf->index + j + 16]], _MM_HINT_T0);
+#endif
             refl__bvh_tri4 *q = &bvh->blocks[b + j / 4];
             for (k = 0; k < 9; ++k) q->v[k][j % 4] = t->v[k];
             q->object[j % 4] = t->object;
@@ -4284,13 +4432,20 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
     }
 }
 
-/* A zeroed array starting on a 64-byte cache line, so that each node
-   and block, a whole number of lines, touches no line more than it must;
-   *mem receives what to free. */
-static void *refl__bvh_calloc_lines(const refl_allocator *a, size_t count, size_t size, void **mem) {
+/* An array of count * size bytes, not zeroed (the build fills what it
+   reads); NULL on overflow or failure. */
+static void *refl__bvh_alloc(const refl_allocator *a, size_t count, size_t size) {
+    if (size && count > (size_t)-1 / size) return NULL;
+    return refl__alloc(a, count * size);
+}
+
+/* An array (not zeroed: its writer fills every byte) starting on a
+   64-byte cache line, so that each node and block, a whole number of
+   lines, touches no line more than it must; *mem receives what to free. */
+static void *refl__bvh_alloc_lines(const refl_allocator *a, size_t count, size_t size, void **mem) {
     uintptr_t p;
     if (size && count > ((size_t)-1 - 64) / size) return NULL;
-    *mem = refl__calloc(a, count * size + 64, 1);
+    *mem = refl__alloc(a, count * size + 64);
     if (!*mem) return NULL;
     p = (uintptr_t)*mem;
     return (void *)(p + (64 - p % 64) % 64);
@@ -4318,10 +4473,10 @@ static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
                                       refl_bvh **out_bvh) {
     refl_bvh *bvh;
-    refl__bvh_prim *prim = NULL;
-    int32_t *order = NULL;
+    refl__bvh_prims pr, spare;
+    refl_vec3 *world = NULL;
     long long total = 0;
-    int i, n = 0;
+    int i, n = 0, most_vertices = 0;
 
     if (out_bvh) *out_bvh = NULL;
     if (!scene || !out_bvh) return REFL_ERROR_INVALID_ARGUMENT;
@@ -4335,6 +4490,7 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
         if (mesh->triangle_count < 0 || (mesh->triangle_count > 0 && (!mesh->positions || !mesh->indices)))
             return REFL_ERROR_BAD_MESH;
         total += mesh->triangle_count;
+        most_vertices = REFL__MAX(most_vertices, mesh->vertex_count);
     }
     /* 2n - 1 nodes must fit an int32 index. */
     if (total > INT_MAX / 4) return REFL_ERROR_INVALID_SIZE;
@@ -4344,61 +4500,88 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->allocator = refl__allocator(a);
     if (total == 0) { *out_bvh = bvh; return REFL_OK; }
 
-    bvh->tris = (refl__bvh_tri *)refl__calloc(a, (size_t)total, sizeof *bvh->tris);
-    if (!bvh->tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
+    bvh->tris = (refl__bvh_tri *)refl__bvh_alloc(a, (size_t)total, sizeof *bvh->tris);
+    world = (refl_vec3 *)refl__bvh_alloc(a, (size_t)REFL__MAX(most_vertices, 0), sizeof *world);
+    if (!bvh->tris || !world) {
+        refl__free(a, world);
+        refl_bvh_destroy(bvh);
+        return REFL_ERROR_OUT_OF_MEMORY;
+    }
 
     bvh->object_count = scene->object_count;
     bvh->object_tris = (int *)refl__calloc(a, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
-    if (!bvh->object_tris) { refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
+    if (!bvh->object_tris) { refl__free(a, world); refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
     for (i = 0; i < scene->object_count; ++i) bvh->object_tris[i] = scene->meshes[scene->objects[i].mesh]->triangle_count;
-    /* World space once, so triangles sharing a vertex share its exact
-       floats: the watertight test relies on that. */
+    /* World space once per vertex (refl__bvh_world_tri's floats), so
+       triangles sharing a vertex share its exact floats: the watertight
+       test relies on that. */
     for (i = 0; i < scene->object_count; ++i) {
-        int t;
-        for (t = 0; t < scene->meshes[scene->objects[i].mesh]->triangle_count; ++t) {
+        const refl_object *o = &scene->objects[i];
+        const refl_mesh *mesh = scene->meshes[o->mesh];
+        int t, j;
+        for (j = 0; mesh->triangle_count > 0 && j < mesh->vertex_count; ++j) {
+            const float *p = mesh->positions + 3 * (size_t)j;
+            world[j] = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
+        }
+        for (t = 0; t < mesh->triangle_count; ++t) {
             refl__bvh_tri *dst = &bvh->tris[n];
-            if (!refl__bvh_world_tri(scene, i, t, dst->v)) { refl_bvh_destroy(bvh); return REFL_ERROR_BAD_MESH; }
+            for (j = 0; j < 3; ++j) {
+                uint32_t vi = mesh->indices[3 * (size_t)t + j];
+                if (vi >= (uint32_t)mesh->vertex_count) {
+                    refl__free(a, world);
+                    refl_bvh_destroy(bvh);
+                    return REFL_ERROR_BAD_MESH;
+                }
+                dst->v[3 * j] = world[vi].x;
+                dst->v[3 * j + 1] = world[vi].y;
+                dst->v[3 * j + 2] = world[vi].z;
+            }
             if (!refl__tri_ok(dst->v)) continue;
             dst->object = i;
             dst->triangle = t;
             ++n;
         }
     }
+    refl__free(a, world);
     bvh->tri_count = n;
     if (n == 0) { *out_bvh = bvh; return REFL_OK; }
 
-    order = (int32_t *)refl__calloc(a, (size_t)n, sizeof *order);
-    bvh->nodes = (refl__bvh_node *)refl__calloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
-    prim = (refl__bvh_prim *)refl__calloc(a, (size_t)n, sizeof *prim);
-    if (!order || !bvh->nodes || !prim) {
-        refl__free(a, prim);
-        refl__free(a, order);
+    bvh->nodes = (refl__bvh_node *)refl__bvh_alloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
+    pr.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.box);
+    pr.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.id);
+    spare.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.box);
+    spare.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.id);
+    if (!bvh->nodes || !pr.box || !pr.id || !spare.box || !spare.id) {
+        refl__free(a, pr.box);
+        refl__free(a, pr.id);
+        refl__free(a, spare.box);
+        refl__free(a, spare.id);
         refl_bvh_destroy(bvh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
     for (i = 0; i < n; ++i) {
-        int k;
-        refl__tri_box(&bvh->tris[i], &prim[i].box);
-        for (k = 0; k < 3; ++k) prim[i].c[k] = 0.5f * (prim[i].box.lo[k] + prim[i].box.hi[k]);
-        order[i] = i;
+        refl__tri_box(&bvh->tris[i], &pr.box[i]);
+        pr.id[i] = i;
     }
-    refl__bvh_build_tree(bvh, order, prim);
-    refl__free(a, prim);
+    refl__bvh_build_tree(bvh, &pr, &spare);
+    refl__free(a, pr.box);
+    refl__free(a, spare.box);
+    refl__free(a, spare.id);
 
     for (i = 0; i < bvh->node_count; ++i) bvh->block_count += (bvh->nodes[i].count + 3) / 4;
-    bvh->blocks = (refl__bvh_tri4 *)refl__bvh_calloc_lines(a, (size_t)bvh->block_count, sizeof *bvh->blocks,
+    bvh->blocks = (refl__bvh_tri4 *)refl__bvh_alloc_lines(a, (size_t)bvh->block_count, sizeof *bvh->blocks,
                                                            &bvh->blocks_mem);
     /* A full binary tree of L leaves has L - 1 interior nodes, and each
        wide node starts from a different one (one node for a lone leaf). */
-    bvh->wide = (refl__bvhw_node *)refl__bvh_calloc_lines(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
+    bvh->wide = (refl__bvhw_node *)refl__bvh_alloc_lines(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
                                                           sizeof *bvh->wide, &bvh->wide_mem);
     if (!bvh->blocks || !bvh->wide) {
-        refl__free(a, order);
+        refl__free(a, pr.id);
         refl_bvh_destroy(bvh);
         return REFL_ERROR_OUT_OF_MEMORY;
     }
-    refl__bvh_fill_blocks(bvh, order);
-    refl__free(a, order);
+    refl__bvh_fill_blocks(bvh, pr.id);
+    refl__free(a, pr.id);
     refl__free(a, bvh->tris);
     bvh->tris = NULL;
 

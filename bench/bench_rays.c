@@ -5,8 +5,8 @@
    Embree as the ray caster.
 
    Usage: bench_rays [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb]
-                     [--frame WxH] [--frame-depth N] [--shadows] [--only primary|mirror|frames]
-                     [--cpu-time]
+                     [--frame WxH] [--frame-depth N] [--shadows] [--only primary|mirror|frames|build]
+                     [--cpu-time] [--subdivide N]
 
    Ray sets:
      primary   one ray through each pixel centre (1920x1080 unless --size):
@@ -31,12 +31,18 @@
    rays grazing an edge may differ; tests/tools/test_embree.c classifies them).
    Exit status 1 when the hit counts differ by more than 1 in 10^4.
    --only times one ray set (the other is still traced once, for its hits),
-   or (frames) the frames alone, no ray sets nor builds;
-   --cpu-time times the ray sets and the frames in process CPU time (Mrays/s
-   then per CPU second of all threads together) instead of wall time.
+   or (frames) the frames alone, no ray sets nor builds, or (build) the
+   builds alone;
+   --cpu-time times the ray sets, the builds and the frames in process CPU
+   time (Mrays/s then per CPU second of all threads together) instead of
+   wall time;
+   --subdivide N splits every triangle of the scene into four, N times
+   (the 100k-triangle dragon with N 2: 1.6 million), for a larger mesh.
 
    Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
-   robust) with 1 thread and with all, median of N each.
+   robust) with 1 thread and with all, median of N each, and ours / Embree
+   with 1 thread in time (above 1: ours is slower) as the median of the
+   per-run ratios.
 
    Frames (--frame, default 640x480; 0x0: none): RAYTRACE (--frame-depth
    bounces, default 1; shadows with --shadows) four ways: refl_render
@@ -235,29 +241,127 @@ static long long count_different(const refl_hit *a, const refl_hit *b, long long
     return k;
 }
 
+/* ---- a larger mesh: every triangle split into four ----------------------------- */
+
+typedef struct edge_key {
+    uint32_t a, b;                /* a < b: the edge's vertices */
+    long long slot;               /* 3 * triangle + edge */
+} edge_key;
+
+static int compare_edges(const void *x, const void *y) {
+    const edge_key *p = (const edge_key *)x, *q = (const edge_key *)y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    if (p->b != q->b) return p->b < q->b ? -1 : 1;
+    return (p->slot > q->slot) - (p->slot < q->slot);
+}
+
+/* Each triangle into four at its edges' midpoints, a midpoint shared by
+   the edge's two triangles (no cracks); positions and normals
+   interpolated. Deterministic: --subdivide N gives the same mesh every time. */
+static refl_mesh *split_in_four(const refl_mesh *m) {
+    long long nt = m->triangle_count, e, i, nv = m->vertex_count;
+    edge_key *edges = (edge_key *)xmalloc(sizeof(edge_key) * (size_t)(3 * nt));
+    uint32_t *mid = (uint32_t *)xmalloc(sizeof(uint32_t) * (size_t)(3 * nt));
+    uint32_t *idx = (uint32_t *)xmalloc(sizeof(uint32_t) * (size_t)(12 * nt));
+    /* positions, normals, texcoords and colours: each vertex attribute, its
+       midpoints after the mesh's vertices */
+    const float *src[4];
+    float *dst[4];
+    const int dims[4] = {3, 3, 2, 4};
+    int a;
+    refl_mesh_desc d;
+    refl_mesh *out = NULL;
+    for (i = 0; i < nt; ++i)
+        for (e = 0; e < 3; ++e) {
+            uint32_t a = m->indices[3 * i + e], b = m->indices[3 * i + (e + 1) % 3];
+            edges[3 * i + e].a = a < b ? a : b;
+            edges[3 * i + e].b = a < b ? b : a;
+            edges[3 * i + e].slot = 3 * i + e;
+        }
+    qsort(edges, (size_t)(3 * nt), sizeof *edges, compare_edges);
+    src[0] = m->positions;
+    src[1] = m->normals;
+    src[2] = m->texcoords;
+    src[3] = m->colors;
+    for (a = 0; a < 4; ++a) {
+        dst[a] = src[a] ? (float *)xmalloc(sizeof(float) * (size_t)dims[a] * (size_t)(nv + 3 * nt)) : NULL;
+        if (src[a]) memcpy(dst[a], src[a], sizeof(float) * (size_t)dims[a] * (size_t)nv);
+    }
+    for (e = 0; e < 3 * nt; ++e) {
+        int k;
+        if (e == 0 || edges[e].a != edges[e - 1].a || edges[e].b != edges[e - 1].b) {
+            for (a = 0; a < 4; ++a)
+                for (k = 0; src[a] && k < dims[a]; ++k)
+                    dst[a][dims[a] * nv + k] =
+                        0.5f * (src[a][dims[a] * edges[e].a + k] + src[a][dims[a] * edges[e].b + k]);
+            ++nv;
+        }
+        mid[edges[e].slot] = (uint32_t)(nv - 1);
+    }
+    for (i = 0; i < nt; ++i) {
+        const uint32_t *v = m->indices + 3 * i, *c = mid + 3 * i; /* c[e]: midpoint of edge v[e] v[e + 1] */
+        uint32_t *q = idx + 12 * i;
+        q[0] = v[0]; q[1] = c[0]; q[2] = c[2];
+        q[3] = c[0]; q[4] = v[1]; q[5] = c[1];
+        q[6] = c[2]; q[7] = c[1]; q[8] = v[2];
+        q[9] = c[0]; q[10] = c[1]; q[11] = c[2];
+    }
+    memset(&d, 0, sizeof d);
+    d.positions = dst[0];
+    d.normals = dst[1];
+    d.texcoords = dst[2];
+    d.colors = dst[3];
+    d.indices = idx;
+    d.vertex_count = (int)nv;
+    d.index_count = (int)(12 * nt);
+    if (refl_mesh_create(&d, &out) != REFL_OK) {
+        fprintf(stderr, "bench_rays: --subdivide: refl_mesh_create failed\n");
+        exit(2);
+    }
+    free(edges);
+    free(mid);
+    free(idx);
+    for (a = 0; a < 4; ++a) free(dst[a]);
+    return out;
+}
+
+/* --subdivide N: every mesh of the scene split N times (4^N triangles
+   each). */
+static void subdivide_scene(refl_scene *s, int times) {
+    int i, k;
+    for (i = 0; i < s->mesh_count; ++i)
+        for (k = 0; k < times; ++k) {
+            refl_mesh *m = split_in_four(s->meshes[i]);
+            refl_mesh_destroy(s->meshes[i]);
+            s->meshes[i] = m;
+        }
+    refl_scene_touch(s);
+}
+
 /* ---- builds and whole frames ---------------------------------------------------- */
 
+/* Build times: wall, or process CPU time with --cpu-time (ray_clock_s). */
 static double build_ours_ms(const refl_scene *s) {
     refl_bvh *b = NULL;
-    double t0 = now_s(), ms;
+    double t0 = ray_clock_s(), ms;
     if (refl_bvh_build(s, NULL, &b) != REFL_OK) {
         fprintf(stderr, "bench_rays: refl_bvh_build failed\n");
         exit(2);
     }
-    ms = (now_s() - t0) * 1e3;
+    ms = (ray_clock_s() - t0) * 1e3;
     refl_bvh_destroy(b);
     return ms;
 }
 
 static double build_embree_ms(const refl_scene *s, int threads) {
     char err[256];
-    double t0 = now_s(), ms;
+    double t0 = ray_clock_s(), ms;
     refl_embree *e = refl_embree_create(s, threads, err, sizeof err);
     if (!e) {
         fprintf(stderr, "bench_rays: %s\n", err);
         exit(2);
     }
-    ms = (now_s() - t0) * 1e3;
+    ms = (ray_clock_s() - t0) * 1e3;
     refl_embree_destroy(e);
     return ms;
 }
@@ -340,7 +444,7 @@ int main(int argc, char **argv) {
     double t0, bvh_ms, embree_ms, *times, *ratios;
     long long nodes, tris;
     char err[256];
-    int frames_only;
+    int frames_only, build_only, subdivide = 0;
 
     for (i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--csv") && i + 1 < argc)
@@ -357,8 +461,11 @@ int main(int argc, char **argv) {
             use_cpu_time = 1;
         else if (!strcmp(argv[i], "--only") && i + 1 < argc &&
                  (!strcmp(argv[i + 1], set_names[SET_PRIMARY]) || !strcmp(argv[i + 1], set_names[SET_MIRROR]) ||
-                  !strcmp(argv[i + 1], "frames")))
+                  !strcmp(argv[i + 1], "frames") || !strcmp(argv[i + 1], "build")))
             only = argv[++i];
+        else if (!strcmp(argv[i], "--subdivide") && i + 1 < argc && (subdivide = atoi(argv[++i])) >= 0 &&
+                 subdivide <= 4)
+            ;
         else if (!strcmp(argv[i], "--frame-depth") && i + 1 < argc && (frame_depth = atoi(argv[++i])) >= 0 &&
                  frame_depth <= 16)
             ;
@@ -371,13 +478,14 @@ int main(int argc, char **argv) {
         else {
             fprintf(stderr,
                     "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH] "
-                    "[--frame-depth N] [--shadows] [--only primary|mirror|frames] [--cpu-time]\n",
+                    "[--frame-depth N] [--shadows] [--only primary|mirror|frames|build] [--cpu-time] [--subdivide N]\n",
                     argv[0]);
             return 2;
         }
     }
 
     frames_only = only && !strcmp(only, "frames");
+    build_only = only && !strcmp(only, "build");
     if (asset) {
         char gerr[1024];
         res = refl_gltf_load(asset, NULL, &scene, gerr, sizeof gerr);
@@ -393,6 +501,7 @@ int main(int argc, char **argv) {
             return 2;
         }
     }
+    if (subdivide > 0) subdivide_scene(scene, subdivide);
     view = scene->camera;
     view.width = width;
     view.height = height;
@@ -415,7 +524,9 @@ int main(int argc, char **argv) {
 
     memset(rays, 0, sizeof rays);
     memset(hits, 0, sizeof hits);
-    if (!frames_only) {
+    if (build_only)
+        printf("bench_rays: scene \"%s\" (%lld triangles); builds only, median of %d\n", scene_name, tris, runs);
+    if (!frames_only && !build_only) {
         rays[SET_PRIMARY] = primary_rays(scene, &view);
         for (tracer = 0; tracer < TRACER_COUNT; ++tracer)
             hits[tracer] = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)rays[SET_PRIMARY].count);
@@ -489,25 +600,29 @@ int main(int argc, char **argv) {
                 printf("%-8s %7d %9lld %9.2f %14.2f %14.2f %13.2f %13.2f\n", set_names[set], thread_counts[ti],
                        rays[set].count, m[0], m[1], m[2], q[1], q[2]);
             }
+    }
 
-        /* Builds, taking turns within each run. */
-        {
-            double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 3);
-            int run;
-            for (run = 0; run < runs; ++run) {
-                bt[run] = build_ours_ms(scene);
-                bt[runs + run] = build_embree_ms(scene, 1);
-                bt[2 * runs + run] = build_embree_ms(scene, 0);
-            }
-            printf("\nbuild ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld threads)\n",
-                   runs, median(bt, runs), median(bt + runs, runs), median(bt + 2 * runs, runs),
-                   sysconf(_SC_NPROCESSORS_ONLN));
-            free(bt);
+    /* Builds, taking turns within each run (after one warm-up each). */
+    if (!frames_only) {
+        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 4);
+        int run;
+        build_ours_ms(scene);
+        build_embree_ms(scene, 1);
+        for (run = 0; run < runs; ++run) {
+            bt[run] = build_ours_ms(scene);
+            bt[runs + run] = build_embree_ms(scene, 1);
+            bt[2 * runs + run] = build_embree_ms(scene, 0);
+            bt[3 * runs + run] = bt[run] / bt[runs + run];
         }
+        printf("\nbuild %s ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld "
+               "threads); refl_bvh / Embree 1 thread %.2f (median of per-run ratios)\n",
+               use_cpu_time ? "CPU" : "wall", runs, median(bt, runs), median(bt + runs, runs),
+               median(bt + 2 * runs, runs), sysconf(_SC_NPROCESSORS_ONLN), median(bt + 3 * runs, runs));
+        free(bt);
     }
 
     /* Whole RAYTRACE frames, the four taking turns within each run. */
-    if (frame_w > 0) {
+    if (frame_w > 0 && !build_only) {
         refl_view fv = view;
         refl_frame *f = NULL;
         double *ft = (double *)xmalloc(sizeof(double) * (size_t)runs * FRAME_COUNT);
@@ -544,7 +659,7 @@ int main(int argc, char **argv) {
         free(fr);
     }
 
-    if (csv && !frames_only) {
+    if (csv && !frames_only && !build_only) {
         FILE *f;
         char dir[1024], *slash;
         snprintf(dir, sizeof dir, "%s", csv);
