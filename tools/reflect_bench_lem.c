@@ -417,7 +417,7 @@ static int lem_sweeps_write(const lem_sweeps *sw, const char *dir) {
                 "|---|---|---|---|---|---|---|---|---|\n");
     for (i = 0; i < sw->count; ++i) {
         const lem_sweep_row *r = &sw->rows[i];
-        fprintf(csv, "%s,%s,%s,%g,%.3f,%.3f,%lld,%lld,%lld,%.1f,%lld\n", r->sweep, r->series, r->setting, r->x,
+        fprintf(csv, "%s,%s,\"%s\",%g,%.3f,%.3f,%lld,%lld,%lld,%.1f,%lld\n", r->sweep, r->series, r->setting, r->x,
                 r->e.psnr, r->e.mean_abs, r->e.pixels, r->traced, r->rays, r->ms, r->e.nonfinite);
         fprintf(md, "| %s | %s | %s | %.2f | %.2f | %lld | %lld | %lld | %.0f |\n", r->sweep, r->series, r->setting,
                 r->e.psnr, r->e.mean_abs, r->e.pixels, r->traced, r->rays, r->ms);
