@@ -201,12 +201,12 @@ int refl_bench_lem(const char *dir, int threads, int quick) {
     printf("full ray tree RAYTRACE: %.0f ms, %lld rays, %lld triangle tests, %.2f dB from greedy\n", fs.ms_total,
            fs.rays, fs.triangle_tests, full_err.psnr);
     fflush(stdout);
-    /* layers 1 .. REFL_LEM_MAX_LAYERS, then the default (0) */
-    for (k = 1; ok && k <= REFL_LEM_MAX_LAYERS + 1; ++k)
+    /* layers REFL_LEM_MAX_LAYERS down to 1, then the default (0) */
+    for (k = REFL_LEM_MAX_LAYERS; ok && k >= 0; --k)
         for (i = 0; ok && i < 2; ++i) {
             lem_col *c = &cols[ncols];
             memset(c, 0, sizeof *c);
-            c->layers = k <= REFL_LEM_MAX_LAYERS ? k : 0;
+            c->layers = k;
             c->t = ts[i];
             fprintf(stderr, "reflect bench: LAYERED_EM layers %d t %.0f ...\n", c->layers, c->t);
             if (!lem_table_col(s, &v, threads, greedy, full, f, c)) {
