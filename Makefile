@@ -403,7 +403,7 @@ fuzz-short:
 REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/reflect_bench_c3rc.o \
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
                build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_report.o \
-               build/tools/reflect_bench_auto.o build/tools/reflect_bench_spoc.o
+               build/tools/reflect_bench_auto.o build/tools/reflect_bench_spoc.o build/tools/reflect_bench_lem.o
 REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h

@@ -1304,6 +1304,9 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
     long long rays;          /* rays traced (primary, secondary and shadow) */
+    long long triangle_tests; /* ray-triangle tests of the refl_bvh traces during the frame (every
+                                 lane of the 4-triangle blocks visited), any thread's: a caller's
+                                 caster over refl_bvh_intersect counts, Embree does not */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
     int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
@@ -1640,6 +1643,11 @@ typedef struct refl_layered_em_options {
     int layers;              /* environment layers (sphere shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
+    int keep_stale_maps;     /* 1: a renderer keeps its maps (and circles and layers) when the
+                                scene changes, for measuring the stale maps paper 001 warns of
+                                (an environment object moved after the maps were built); only
+                                for scenes whose objects moved (none added or removed). 0: the
+                                maps are dropped and inferred again */
 } refl_layered_em_options;
 
 typedef struct refl_envmap_options {
@@ -2268,6 +2276,9 @@ static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const 
                               refl__hit_geom *g);
 /* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
 static long long refl__bvh_bytes(const refl_bvh *bvh);
+/* Triangle tests of every BVH trace of the process so far (bvh.c): a
+   frame's are the difference across it (stats.triangle_tests). */
+static long long refl__bvh_tests_counted(void);
 
 /* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
 
@@ -4909,7 +4920,81 @@ typedef struct refl__bvh_best {
     int found;
     float t, u, v;
     int32_t object, triangle;
+    long long tests;              /* triangles tested (lanes of the blocks visited) */
 } refl__bvh_best;
+
+/* Triangle tests counted for the frame's stats (stats.triangle_tests):
+   a ray adds its count once, to a counter its thread owns (one cache line
+   each, so threads share no line, and its owner's alone to write: a
+   plain add, where a locked one per ray costs a measurable share of a
+   ray), and a frame sums the counters before and after
+   (refl__bvh_tests_counted). A thread claims a free counter at its first
+   ray and frees it at its exit (a pthread key's destructor), the next
+   owner adding on; past REFL__BVH_TEST_SLOTS live threads, or without
+   pthreads, threads share the last counter with atomic adds. Sums of
+   integers, so the same for any thread count; a frame rendered at the
+   same time in another thread of the process counts into the same sum.
+   Compilers without GCC's atomics and thread-local storage count
+   nothing. */
+#if defined(__GNUC__) || defined(__clang__)
+#define REFL__BVH_TEST_SLOTS 64
+typedef struct refl__bvh_test_slot {
+    long long n;
+    int owned;
+    char pad[64 - sizeof(long long) - sizeof(int)];
+} refl__bvh_test_slot;
+static refl__bvh_test_slot refl__bvh_test_slots[REFL__BVH_TEST_SLOTS + 1]; /* the last: shared */
+static __thread refl__bvh_test_slot *refl__bvh_test_mine;
+
+#ifndef RAST_NO_THREADS
+#include <pthread.h>
+static pthread_key_t refl__bvh_test_key;
+static pthread_once_t refl__bvh_test_once = PTHREAD_ONCE_INIT;
+static int refl__bvh_test_key_made;
+
+static void refl__bvh_test_release(void *slot) {
+    __atomic_store_n(&((refl__bvh_test_slot *)slot)->owned, 0, __ATOMIC_RELEASE);
+}
+
+static void refl__bvh_test_make_key(void) {
+    refl__bvh_test_key_made = pthread_key_create(&refl__bvh_test_key, refl__bvh_test_release) == 0;
+}
+#endif
+
+static refl__bvh_test_slot *refl__bvh_test_claim(void) {
+#ifndef RAST_NO_THREADS
+    int k;
+    pthread_once(&refl__bvh_test_once, refl__bvh_test_make_key);
+    for (k = 0; refl__bvh_test_key_made && k < REFL__BVH_TEST_SLOTS; ++k) {
+        int free_slot = 0;
+        if (!__atomic_compare_exchange_n(&refl__bvh_test_slots[k].owned, &free_slot, 1, 0, __ATOMIC_ACQUIRE,
+                                         __ATOMIC_RELAXED))
+            continue;
+        if (pthread_setspecific(refl__bvh_test_key, &refl__bvh_test_slots[k]) == 0) return &refl__bvh_test_slots[k];
+        refl__bvh_test_release(&refl__bvh_test_slots[k]);
+        break;
+    }
+#endif
+    return &refl__bvh_test_slots[REFL__BVH_TEST_SLOTS];
+}
+
+static void refl__bvh_count_tests(long long n) {
+    refl__bvh_test_slot *s = refl__bvh_test_mine;
+    if (!s) s = refl__bvh_test_mine = refl__bvh_test_claim();
+    if (s == &refl__bvh_test_slots[REFL__BVH_TEST_SLOTS]) __atomic_fetch_add(&s->n, n, __ATOMIC_RELAXED);
+    else __atomic_store_n(&s->n, __atomic_load_n(&s->n, __ATOMIC_RELAXED) + n, __ATOMIC_RELAXED);
+}
+
+static long long refl__bvh_tests_counted(void) {
+    long long sum = 0;
+    int k;
+    for (k = 0; k <= REFL__BVH_TEST_SLOTS; ++k) sum += __atomic_load_n(&refl__bvh_test_slots[k].n, __ATOMIC_RELAXED);
+    return sum;
+}
+#else
+static void refl__bvh_count_tests(long long n) { (void)n; }
+static long long refl__bvh_tests_counted(void) { return 0; }
+#endif
 
 /* The bound boxes are culled against once a hit at tmax is known: a hair
    beyond it, more than the rounding of a box's entry distance and of a
@@ -4932,6 +5017,7 @@ static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const ref
     for (q = &bvh->blocks[first]; count > 0; ++q, count -= 4) {
         float t[4], u[4], v[4];
         int lanes = count < 4 ? count : 4, lane, mask;
+        best->tests += lanes;
 #ifdef REFL__BVH_SSE2
         mask = scalar ? refl__bvh_tri4_hit_scalar(r, q, lanes, tmin, *tmax, t, u, v)
                       : refl__bvh_tri4_hit_sse2(r, w, q, lanes, tmin, *tmax, t, u, v);
@@ -5241,6 +5327,7 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
 #endif
             found = refl__bvhw_trace(bvh, &r, &w, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
     }
+    refl__bvh_count_tests(best.tests);
     if (found && hit) {
         hit->t = best.t;
         hit->object = best.object;
@@ -20866,9 +20953,12 @@ static refl_result refl__cancelled(refl_frame *frame) {
    built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
     refl_bvh *bvh = rr->models.bvh;
+    struct refl__lem_maps *stale = rr->desc.layered_em.keep_stale_maps ? rr->models.lem : NULL;
     if (rr->models.scene_version == rr->scene->version) return;
     rr->models.bvh = NULL;
+    rr->models.lem = stale ? NULL : rr->models.lem;
     refl__models_free(rr->scene, &rr->models);
+    rr->models.lem = stale;
     if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
     else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;
@@ -20881,6 +20971,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     refl__pass p;
     refl_result r;
     double t0 = refl__now_ms();
+    long long tests0 = refl__bvh_tests_counted();
     int i;
     refl__models_current(rr);
     memset(&frame->stats, 0, sizeof(frame->stats));
@@ -20895,6 +20986,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     if (r != REFL_OK) return r;
     refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;
+    frame->stats.triangle_tests = refl__bvh_tests_counted() - tests0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
@@ -20949,6 +21041,7 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl__pass p;
     refl_result r;
     double t0 = refl__now_ms();
+    long long tests0 = refl__bvh_tests_counted();
     int side, i, lem = 0;
     uint8_t *mine;
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
@@ -20974,6 +21067,7 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl__free(&rr->scene->allocator, mine);
     if (target != frame) frame->stats = target->stats;
     frame->stats.ms_total = refl__now_ms() - t0;
+    frame->stats.triangle_tests = refl__bvh_tests_counted() - tests0;
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r == REFL_OK && rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
     return r;

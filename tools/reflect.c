@@ -822,7 +822,7 @@ static int cmd_render(const options *o) {
         printf("  build ms   %.2f\n  base ms    %.2f\n  reflect ms %.2f\n  compose ms %.2f\n", st->ms_build,
                st->ms_base, st->ms_reflect, st->ms_composite);
         printf("depth        %d bounce%s\n", st->depth, st->depth == 1 ? "" : "s");
-        printf("triangles    %lld\nrays         %lld\n", st->triangles, st->rays);
+        printf("triangles    %lld\nrays         %lld\ntri tests    %lld\n", st->triangles, st->rays, st->triangle_tests);
         if (st->handed_over) printf("ray traced   %d reflector(s) the method cannot draw\n", st->handed_over);
         if (st->traced_beyond) printf("ray traced   %lld pixel(s) past the method's bounces\n", st->traced_beyond);
         if (st->envmap.cube_faces) printf("cube faces   %lld\n", st->envmap.cube_faces);

@@ -20,7 +20,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -46,6 +46,11 @@ static const char *const usage_bench =
     "SPOC frame times along a 60-frame path at four output and four impostor\n"
     "sizes (DIR/spoc_teapots.csv), and SPOC's stability sweeps on them (orbit,\n"
     "touching teapots, impostor size, thin glass; DIR/spoc_sweeps.csv).\n"
+    "With --full or --only lem, paper 001's section 6 table on the hybrid\n"
+    "scene (LAYERED_EM's phases, rays and triangle tests at 640x480 3x3\n"
+    "subsampled, t = 3 and 5, against greedy RAYTRACE; DIR/lem_table.{csv,md}),\n"
+    "and with --only lem-sweeps LAYERED_EM's stability sweeps at 160x120\n"
+    "(DIR/lem_sweeps.{csv,md,png}).\n"
     "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
@@ -54,7 +59,8 @@ static const char *const usage_bench =
     "  --only NAME   only c3rc's tables, sbc's (Fig. 19 and the resolution\n"
     "                sweep), the camera path (path), the maze (graphcam) or\n"
     "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
-    "                sweeps (spoc-sweeps)\n"
+    "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
+    "                (lem) or its stability sweeps (lem-sweeps)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -64,7 +70,8 @@ static const char *const usage_bench =
     "                against error, PSNR and holes per scene, a picture grid, error\n"
     "                heat maps, the worst frames along camera paths, cost growth and\n"
     "                time by phase; 320x240, every built-in scene)\n"
-    "  --quick       with --report: two scenes at 64x48, few settings, one run each\n";
+    "  --quick       with --report: two scenes at 64x48, few settings, one run each;\n"
+    "                with --only lem: 160x120 instead of 640x480\n";
 
 typedef struct bench_opts {
     int full, repeats, threads, depth;
@@ -523,6 +530,14 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the SPOC sweeps failed\n");
         return 0;
     }
+    if (((!o->only[0] && o->full) || !strcmp(o->only, "lem")) && !refl_bench_lem(o->out, o->threads, o->quick)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM table failed\n");
+        return 0;
+    }
+    if (!strcmp(o->only, "lem-sweeps") && !refl_bench_lem_sweeps(o->out, o->threads)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM sweeps failed\n");
+        return 0;
+    }
     return 1;
 }
 
@@ -552,9 +567,9 @@ int refl_cli_bench(int argc, char **argv) {
             o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
-                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps")) {
-                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc or spoc-sweeps, "
-                                "not '%s'\n", v);
+                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps")) {
+                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem or "
+                                "lem-sweeps, not '%s'\n", v);
                 return 2;
             }
             snprintf(o.only, sizeof o.only, "%s", v);
@@ -580,8 +595,8 @@ int refl_cli_bench(int argc, char **argv) {
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
     if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
-    if (o.quick) {
-        fprintf(stderr, "reflect bench: --quick goes with --report\n");
+    if (o.quick && strcmp(o.only, "lem")) {
+        fprintf(stderr, "reflect bench: --quick goes with --report or --only lem\n");
         return 2;
     }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {

@@ -79,6 +79,21 @@ int refl_bench_spoc(const char *dir, int threads);
    failure or a non-finite pixel. */
 int refl_bench_spoc_sweeps(const char *dir, int threads);
 
+/* Paper 001's section 6 table on the hybrid scene (tools/reflect_bench_lem.c):
+   LAYERED_EM's phases, rays and triangle tests with its maps kept, at
+   640x480 3x3 subsampled (quick: 160x120) for t = 3 and 5 and each layer
+   count, against greedy RAYTRACE and the full ray tree; a table on stdout,
+   dir/lem_table.csv and dir/lem_table.md; 0 on failure or a non-finite
+   pixel. */
+int refl_bench_lem(const char *dir, int threads, int quick);
+
+/* LAYERED_EM where paper 001 says it fails (tools/reflect_bench_lem.c):
+   off-sample eyes, sample spacing, layers, a column moved up to the lens,
+   the tessellation's thresholds, a column moved after the maps were built;
+   error against greedy RAYTRACE over the lens pixels at 160x120;
+   dir/lem_sweeps.{csv,md,png}; 0 on failure or a non-finite pixel. */
+int refl_bench_lem_sweeps(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

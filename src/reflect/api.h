@@ -1302,6 +1302,9 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
     long long rays;          /* rays traced (primary, secondary and shadow) */
+    long long triangle_tests; /* ray-triangle tests of the refl_bvh traces during the frame (every
+                                 lane of the 4-triangle blocks visited), any thread's: a caller's
+                                 caster over refl_bvh_intersect counts, Embree does not */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */
     int handed_over;         /* reflectors the method cannot draw (PLANAR: curved ones; C3RC: glass),
@@ -1638,6 +1641,11 @@ typedef struct refl_layered_em_options {
     int layers;              /* environment layers (sphere shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
+    int keep_stale_maps;     /* 1: a renderer keeps its maps (and circles and layers) when the
+                                scene changes, for measuring the stale maps paper 001 warns of
+                                (an environment object moved after the maps were built); only
+                                for scenes whose objects moved (none added or removed). 0: the
+                                maps are dropped and inferred again */
 } refl_layered_em_options;
 
 typedef struct refl_envmap_options {

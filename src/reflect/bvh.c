@@ -1038,7 +1038,81 @@ typedef struct refl__bvh_best {
     int found;
     float t, u, v;
     int32_t object, triangle;
+    long long tests;              /* triangles tested (lanes of the blocks visited) */
 } refl__bvh_best;
+
+/* Triangle tests counted for the frame's stats (stats.triangle_tests):
+   a ray adds its count once, to a counter its thread owns (one cache line
+   each, so threads share no line, and its owner's alone to write: a
+   plain add, where a locked one per ray costs a measurable share of a
+   ray), and a frame sums the counters before and after
+   (refl__bvh_tests_counted). A thread claims a free counter at its first
+   ray and frees it at its exit (a pthread key's destructor), the next
+   owner adding on; past REFL__BVH_TEST_SLOTS live threads, or without
+   pthreads, threads share the last counter with atomic adds. Sums of
+   integers, so the same for any thread count; a frame rendered at the
+   same time in another thread of the process counts into the same sum.
+   Compilers without GCC's atomics and thread-local storage count
+   nothing. */
+#if defined(__GNUC__) || defined(__clang__)
+#define REFL__BVH_TEST_SLOTS 64
+typedef struct refl__bvh_test_slot {
+    long long n;
+    int owned;
+    char pad[64 - sizeof(long long) - sizeof(int)];
+} refl__bvh_test_slot;
+static refl__bvh_test_slot refl__bvh_test_slots[REFL__BVH_TEST_SLOTS + 1]; /* the last: shared */
+static __thread refl__bvh_test_slot *refl__bvh_test_mine;
+
+#ifndef RAST_NO_THREADS
+#include <pthread.h>
+static pthread_key_t refl__bvh_test_key;
+static pthread_once_t refl__bvh_test_once = PTHREAD_ONCE_INIT;
+static int refl__bvh_test_key_made;
+
+static void refl__bvh_test_release(void *slot) {
+    __atomic_store_n(&((refl__bvh_test_slot *)slot)->owned, 0, __ATOMIC_RELEASE);
+}
+
+static void refl__bvh_test_make_key(void) {
+    refl__bvh_test_key_made = pthread_key_create(&refl__bvh_test_key, refl__bvh_test_release) == 0;
+}
+#endif
+
+static refl__bvh_test_slot *refl__bvh_test_claim(void) {
+#ifndef RAST_NO_THREADS
+    int k;
+    pthread_once(&refl__bvh_test_once, refl__bvh_test_make_key);
+    for (k = 0; refl__bvh_test_key_made && k < REFL__BVH_TEST_SLOTS; ++k) {
+        int free_slot = 0;
+        if (!__atomic_compare_exchange_n(&refl__bvh_test_slots[k].owned, &free_slot, 1, 0, __ATOMIC_ACQUIRE,
+                                         __ATOMIC_RELAXED))
+            continue;
+        if (pthread_setspecific(refl__bvh_test_key, &refl__bvh_test_slots[k]) == 0) return &refl__bvh_test_slots[k];
+        refl__bvh_test_release(&refl__bvh_test_slots[k]);
+        break;
+    }
+#endif
+    return &refl__bvh_test_slots[REFL__BVH_TEST_SLOTS];
+}
+
+static void refl__bvh_count_tests(long long n) {
+    refl__bvh_test_slot *s = refl__bvh_test_mine;
+    if (!s) s = refl__bvh_test_mine = refl__bvh_test_claim();
+    if (s == &refl__bvh_test_slots[REFL__BVH_TEST_SLOTS]) __atomic_fetch_add(&s->n, n, __ATOMIC_RELAXED);
+    else __atomic_store_n(&s->n, __atomic_load_n(&s->n, __ATOMIC_RELAXED) + n, __ATOMIC_RELAXED);
+}
+
+static long long refl__bvh_tests_counted(void) {
+    long long sum = 0;
+    int k;
+    for (k = 0; k <= REFL__BVH_TEST_SLOTS; ++k) sum += __atomic_load_n(&refl__bvh_test_slots[k].n, __ATOMIC_RELAXED);
+    return sum;
+}
+#else
+static void refl__bvh_count_tests(long long n) { (void)n; }
+static long long refl__bvh_tests_counted(void) { return 0; }
+#endif
 
 /* The bound boxes are culled against once a hit at tmax is known: a hair
    beyond it, more than the rounding of a box's entry distance and of a
@@ -1061,6 +1135,7 @@ static int refl__bvh_leaf(const refl_bvh *bvh, const refl__bvh_ray *r, const ref
     for (q = &bvh->blocks[first]; count > 0; ++q, count -= 4) {
         float t[4], u[4], v[4];
         int lanes = count < 4 ? count : 4, lane, mask;
+        best->tests += lanes;
 #ifdef REFL__BVH_SSE2
         mask = scalar ? refl__bvh_tri4_hit_scalar(r, q, lanes, tmin, *tmax, t, u, v)
                       : refl__bvh_tri4_hit_sse2(r, w, q, lanes, tmin, *tmax, t, u, v);
@@ -1370,6 +1445,7 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
 #endif
             found = refl__bvhw_trace(bvh, &r, &w, tmin, tmax, any_hit, path == REFL__BVH_WIDE_SCALAR, &best);
     }
+    refl__bvh_count_tests(best.tests);
     if (found && hit) {
         hit->t = best.t;
         hit->object = best.object;

@@ -226,6 +226,9 @@ static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const 
                               refl__hit_geom *g);
 /* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
 static long long refl__bvh_bytes(const refl_bvh *bvh);
+/* Triangle tests of every BVH trace of the process so far (bvh.c): a
+   frame's are the difference across it (stats.triangle_tests). */
+static long long refl__bvh_tests_counted(void);
 
 /* ---- the base pass's drawing (base_pass.c), shared by every rasterising method ---- */
 

@@ -575,9 +575,12 @@ static refl_result refl__cancelled(refl_frame *frame) {
    built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
     refl_bvh *bvh = rr->models.bvh;
+    struct refl__lem_maps *stale = rr->desc.layered_em.keep_stale_maps ? rr->models.lem : NULL;
     if (rr->models.scene_version == rr->scene->version) return;
     rr->models.bvh = NULL;
+    rr->models.lem = stale ? NULL : rr->models.lem;
     refl__models_free(rr->scene, &rr->models);
+    rr->models.lem = stale;
     if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
     else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;
@@ -590,6 +593,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     refl__pass p;
     refl_result r;
     double t0 = refl__now_ms();
+    long long tests0 = refl__bvh_tests_counted();
     int i;
     refl__models_current(rr);
     memset(&frame->stats, 0, sizeof(frame->stats));
@@ -604,6 +608,7 @@ static refl_result refl__render_samples(refl_renderer *rr, const refl_view *view
     if (r != REFL_OK) return r;
     refl__opaque(frame);
     frame->stats.ms_total = refl__now_ms() - t0;
+    frame->stats.triangle_tests = refl__bvh_tests_counted() - tests0;
     for (i = 0; i < scene->object_count; ++i)
         if (refl__is_reflector(&scene->materials[scene->objects[i].material])) frame->stats.reflectors++;
     if (rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
@@ -658,6 +663,7 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl__pass p;
     refl_result r;
     double t0 = refl__now_ms();
+    long long tests0 = refl__bvh_tests_counted();
     int side, i, lem = 0;
     uint8_t *mine;
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
@@ -683,6 +689,7 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     refl__free(&rr->scene->allocator, mine);
     if (target != frame) frame->stats = target->stats;
     frame->stats.ms_total = refl__now_ms() - t0;
+    frame->stats.triangle_tests = refl__bvh_tests_counted() - tests0;
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r == REFL_OK && rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
     return r;

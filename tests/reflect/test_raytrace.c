@@ -3,7 +3,8 @@
    glass slab shifts what is behind it by Snell's law, shadows fall where
    the geometry says, the Fresnel terms give their textbook values,
    exhausted bounces show what DIRECT shows, another ray caster gives the
-   same bytes, and the output is the same for every thread count. */
+   same bytes, and the output (and the triangle tests counted) is the same
+   for every thread count. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
@@ -414,11 +415,13 @@ Test(refl_raytrace, same_bytes_for_every_thread_count) {
         n = (size_t)v.width * (size_t)v.height;
         for (i = 0; i < 4 * n; ++i) cr_assert(tu_unorm8(one->rgba[i]) <= 255);
         for (i = 0; i < n; ++i) cr_assert(one->depth[i] >= 0.0f && one->depth[i] <= 1.0f, "%s", names[k]);
+        cr_assert(one->stats.triangle_tests > 0, "%s: triangle tests counted", names[k]);
         for (t = 0; t < 3; ++t) {
             refl_frame *other = render_rt(s, &v, 0, 1, threads[t]);
             char what[64];
             snprintf(what, sizeof what, "%s, %d threads", names[k], threads[t]);
             expect_same_frames(one, other, what);
+            cr_assert_eq(other->stats.triangle_tests, one->stats.triangle_tests, "%s: triangle tests", what);
             refl_frame_destroy(other);
         }
         refl_frame_destroy(one);

@@ -301,3 +301,36 @@ Test(refl_renderer, a_finished_frame_is_left_alone_by_the_next, .timeout = 120) 
         refl_scene_destroy(s);
     }
 }
+
+/* layered_em.keep_stale_maps: a renderer keeps LAYERED_EM's maps through
+   a scene change (the stale maps `reflect bench --only lem-sweeps`
+   measures), where it would otherwise infer them again. */
+Test(refl_renderer, layered_em_stale_maps_are_kept_when_asked, .timeout = 60) {
+    refl_scene *s = NULL;
+    refl_renderer *rr = NULL;
+    refl_frame *f = NULL;
+    refl_render_desc d;
+    refl_view v;
+    int held;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_LAYERED_EM;
+    d.threads = 2;
+    d.layered_em.samples = 8;
+    d.layered_em.keep_stale_maps = 1;
+    cr_assert_eq(refl_scene_builtin("glass", NULL, &s), REFL_OK);
+    v = s->camera;
+    v.width = 48;
+    v.height = 36;
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &f), REFL_OK);
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    cr_assert_eq(refl_renderer_render(rr, &v, f), REFL_OK);
+    held = f->stats.layered_em.maps_held;
+    cr_assert(held > 0 && f->stats.layered_em.maps_inferred == held);
+    refl_scene_touch(s);
+    cr_assert_eq(refl_renderer_render(rr, &v, f), REFL_OK);
+    cr_assert_eq(f->stats.layered_em.maps_inferred, 0, "the stale maps kept");
+    cr_assert_eq(f->stats.layered_em.maps_kept, held);
+    refl_frame_destroy(f);
+    refl_renderer_destroy(rr);
+    refl_scene_destroy(s);
+}

@@ -1,0 +1,670 @@
+/* reflect bench --only lem and --only lem-sweeps: paper 001 (Hakura and
+   Snyder's hybrid rendering) measured the paper's way.
+
+   lem: its section 6 table on the `hybrid` scene (a glass teapot, a mirror
+   cup, a ring of columns, distant walls), 640x480 3x3 subsampled (spp 9:
+   the tessellation's t in subpixels), t = 3 and 5, per layer count (1 to
+   REFL_LEM_MAX_LAYERS, and the default): each a renderer's second frame,
+   its maps kept (the paper's frame times leave the precomputed maps out),
+   its phases (vertex ray tracing, texture coordinates and drawing,
+   tessellation, the frame), rays and triangle tests, against greedy
+   RAYTRACE of the same frame (desc.raytrace.greedy, the paper's
+   reference), the reduction factors beside the paper's and the full ray
+   tree's extra cost. A table on stdout, dir/lem_table.csv and
+   dir/lem_table.md.
+
+   lem-sweeps: where the paper says the method fails, at 160x120: eyes off
+   the samples (azimuth between them, elevation off the circle), the
+   samples' spacing, the layers, a diffuse column moved from its place to
+   touching the teapot, the tessellation's t and angle, and a column moved
+   after the maps were built (the renderer keeps its stale maps:
+   layered_em.keep_stale_maps, beside fresh maps of the moved scene). Per
+   setting the PSNR and the mean absolute error over the lens pixels
+   against greedy RAYTRACE, the traced pixels (lens pixels no tessellation
+   triangle covered, or whose paths left through the other lens), rays and
+   time; every pixel must be finite. dir/lem_sweeps.csv, dir/lem_sweeps.md
+   and the chart dir/lem_sweeps.png. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "reflect_bench.h"
+
+enum { LEM_DEPTH = 6 };        /* reflect render's default bounces, enough for the greedy paths */
+#define LEM_PI 3.14159265358979
+
+/* ---- shared -------------------------------------------------------------------------- */
+
+/* Error of f against truth over the lens pixels (the truth's reflector
+   stencil), on colour clamped to [0, 1]: PSNR, and the mean absolute
+   channel difference in 8-bit levels. Non-finite channels of f anywhere
+   are counted. */
+typedef struct lem_error {
+    double psnr, mean_abs;
+    long long pixels, nonfinite;
+} lem_error;
+
+static float lem_clamp01(float x) { return x < 0.0f ? 0.0f : x > 1.0f ? 1.0f : x; }
+
+static lem_error lem_measure(const refl_frame *f, const refl_frame *truth) {
+    lem_error e;
+    double se = 0.0, ae = 0.0;
+    long long i, n = (long long)f->width * f->height;
+    int c;
+    memset(&e, 0, sizeof e);
+    for (i = 0; i < 4 * n; ++i) e.nonfinite += !isfinite(f->rgba[i]);
+    for (i = 0; i < n; ++i) {
+        if (!truth->stencil[i]) continue;
+        ++e.pixels;
+        for (c = 0; c < 3; ++c) {
+            double d = (double)lem_clamp01(f->rgba[4 * i + c]) - (double)lem_clamp01(truth->rgba[4 * i + c]);
+            if (!isfinite(d)) continue;
+            se += d * d;
+            ae += fabs(d);
+        }
+    }
+    if (e.pixels) {
+        double mse = se / (3.0 * (double)e.pixels);
+        e.psnr = mse > 0.0 ? 10.0 * log10(1.0 / mse) : 99.0;
+        e.mean_abs = 255.0 * ae / (3.0 * (double)e.pixels);
+    }
+    return e;
+}
+
+static int lem_object(const refl_scene *s, const char *name) {
+    int i;
+    for (i = 0; i < s->object_count; ++i)
+        if (!strcmp(s->objects[i].name, name)) return i;
+    return -1;
+}
+
+/* An object's world-space bounds. */
+static void lem_bounds(const refl_scene *s, int object, refl_vec3 *lo, refl_vec3 *hi) {
+    int n = refl_object_world_positions(s, object, NULL), k;
+    float *p = n > 0 ? (float *)malloc(3 * sizeof(float) * (size_t)n) : NULL;
+    *lo = refl_v3(1e30f, 1e30f, 1e30f);
+    *hi = refl_v3(-1e30f, -1e30f, -1e30f);
+    if (!p) return;
+    refl_object_world_positions(s, object, p);
+    for (k = 0; k < n; ++k) {
+        *lo = refl_v3(fminf(lo->x, p[3 * k]), fminf(lo->y, p[3 * k + 1]), fminf(lo->z, p[3 * k + 2]));
+        *hi = refl_v3(fmaxf(hi->x, p[3 * k]), fmaxf(hi->y, p[3 * k + 1]), fmaxf(hi->z, p[3 * k + 2]));
+    }
+    free(p);
+}
+
+static refl_vec3 lem_centre(const refl_scene *s, int object) {
+    refl_vec3 lo, hi;
+    lem_bounds(s, object, &lo, &hi);
+    return refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+}
+
+/* The view with its eye turned about the vertical through c by azimuth
+   degrees and raised about c by elevation degrees (its distance from c
+   kept), looking where it looked. */
+static refl_view lem_turned(refl_view v, refl_vec3 c, double azimuth, double elevation) {
+    refl_vec3 off = refl_v3_sub(v.eye, c);
+    float a = (float)(azimuth * LEM_PI / 180.0), e = (float)(elevation * LEM_PI / 180.0);
+    float r = sqrtf(off.x * off.x + off.z * off.z), el0 = atan2f(off.y, r), len = refl_v3_length(off);
+    float az = atan2f(off.x, off.z) + a, el = el0 + e;
+    v.eye = refl_v3_add(c, refl_v3(len * cosf(el) * sinf(az), len * sinf(el), len * cosf(el) * cosf(az)));
+    return v;
+}
+
+static refl_render_desc lem_desc(int threads, int spp) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.threads = threads;
+    d.depth = LEM_DEPTH;
+    d.spp = spp;
+    return d;
+}
+
+/* ---- section 6's table ------------------------------------------------------------------ */
+
+typedef struct lem_col {
+    int layers;                   /* 0: the default */
+    float t;
+    double ms_first, ms_trace, ms_draw, ms_tess, ms_base, ms_frame;
+    long long rays, tests, traced, vertices;
+    lem_error greedy, full;
+} lem_col;
+
+/* A renderer's first frame (inferring its maps) and second (keeping
+   them) of v; the second's stats and error into c. */
+static int lem_table_col(const refl_scene *s, const refl_view *v, int threads, const refl_frame *greedy,
+                         const refl_frame *full, refl_frame *f, lem_col *c) {
+    refl_render_desc d = lem_desc(threads, 9);
+    refl_renderer *rr = NULL;
+    int ok;
+    d.method = REFL_LAYERED_EM;
+    d.layered_em.layers = c->layers;
+    d.layered_em.edge_px = c->t;
+    ok = refl_renderer_create(s, &d, &rr) == REFL_OK && refl_renderer_render(rr, v, f) == REFL_OK;
+    c->ms_first = f->stats.ms_total;
+    ok = ok && refl_renderer_render(rr, v, f) == REFL_OK;
+    refl_renderer_destroy(rr);
+    if (!ok) return 0;
+    c->ms_trace = f->stats.layered_em.ms_trace;
+    c->ms_draw = f->stats.layered_em.ms_draw;
+    c->ms_tess = f->stats.layered_em.ms_tessellate;
+    c->ms_base = f->stats.ms_base;
+    c->ms_frame = f->stats.ms_total;
+    c->rays = f->stats.rays;
+    c->tests = f->stats.triangle_tests;
+    c->traced = f->stats.layered_em.traced_pixels;
+    c->vertices = f->stats.layered_em.vertices;
+    c->greedy = lem_measure(f, greedy);
+    c->full = lem_measure(f, full);
+    return c->greedy.nonfinite == 0;
+}
+
+static double lem_ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
+
+int refl_bench_lem(const char *dir, int threads, int quick) {
+    enum { MAX_COLS = 2 * (REFL_LEM_MAX_LAYERS + 1) };
+    static const float ts[2] = {3.0f, 5.0f};
+    static const double paper_rays[2] = {6.0, 10.8}, paper_tests[2] = {14.2, 25.7};
+    const int w = quick ? 160 : 640, h = quick ? 120 : 480;
+    refl_scene *s = refl_bench_builtin("hybrid", 0);
+    refl_frame *greedy = NULL, *full = NULL, *f = NULL;
+    refl_render_desc d = lem_desc(threads, 9);
+    lem_col cols[MAX_COLS];
+    refl_stats gs, fs;
+    lem_error full_err;
+    refl_view v;
+    char path[1024];
+    FILE *csv = NULL, *md = NULL;
+    int ncols = 0, i, k, best = -1, ok = 1;
+    if (!s || refl_frame_create(w, h, NULL, &greedy) != REFL_OK || refl_frame_create(w, h, NULL, &full) != REFL_OK ||
+        refl_frame_create(w, h, NULL, &f) != REFL_OK) {
+        fprintf(stderr, "reflect bench: the hybrid scene could not be set up\n");
+        ok = 0;
+        goto done;
+    }
+    v = s->camera;
+    v.width = w;
+    v.height = h;
+    printf("hybrid (paper 001 section 6), %dx%d 3x3 subsampled, depth %d, %s threads\n", w, h, LEM_DEPTH,
+           threads ? "given" : "all");
+    d.method = REFL_RAYTRACE;
+    d.raytrace.greedy = 1;
+    if (refl_render(s, &v, &d, greedy) != REFL_OK) ok = 0;
+    gs = greedy->stats;
+    printf("greedy RAYTRACE: %.0f ms, %lld rays, %lld triangle tests\n", gs.ms_total, gs.rays, gs.triangle_tests);
+    fflush(stdout);
+    d.raytrace.greedy = 0;
+    if (ok && refl_render(s, &v, &d, full) != REFL_OK) ok = 0;
+    fs = full->stats;
+    full_err = lem_measure(full, greedy);
+    printf("full ray tree RAYTRACE: %.0f ms, %lld rays, %lld triangle tests, %.2f dB from greedy\n", fs.ms_total,
+           fs.rays, fs.triangle_tests, full_err.psnr);
+    fflush(stdout);
+    /* layers REFL_LEM_MAX_LAYERS down to 1, then the default (0) */
+    for (k = REFL_LEM_MAX_LAYERS; ok && k >= 0; --k)
+        for (i = 0; ok && i < 2; ++i) {
+            lem_col *c = &cols[ncols];
+            memset(c, 0, sizeof *c);
+            c->layers = k;
+            c->t = ts[i];
+            fprintf(stderr, "reflect bench: LAYERED_EM layers %d t %.0f ...\n", c->layers, c->t);
+            if (!lem_table_col(s, &v, threads, greedy, full, f, c)) {
+                fprintf(stderr, "reflect bench: LAYERED_EM layers %d t %.0f failed (or a non-finite pixel)\n",
+                        c->layers, c->t);
+                ok = 0;
+                break;
+            }
+            printf("layers %d t %.0f: first frame %.0f ms; kept: trace %.0f, draw %.0f, tessellate %.0f, base %.0f, "
+                   "frame %.0f ms; %lld rays, %lld tests, %lld traced px; %.2f dB (full tree %.2f dB)\n",
+                   c->layers, c->t, c->ms_first, c->ms_trace, c->ms_draw, c->ms_tess, c->ms_base, c->ms_frame, c->rays,
+                   c->tests, c->traced, c->greedy.psnr, c->full.psnr);
+            fflush(stdout);
+            ++ncols;
+        }
+    if (!ok) goto done;
+    /* the best layer count: the highest PSNR against greedy RAYTRACE at t = 3 */
+    for (i = 0; i < ncols; i += 2)
+        if (cols[i].layers && (best < 0 || cols[i].greedy.psnr > cols[best].greedy.psnr)) best = i;
+
+    snprintf(path, sizeof path, "%s/lem_table.csv", dir);
+    csv = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/lem_table.md", dir);
+    md = fopen(path, "w");
+    if (!csv || !md) {
+        fprintf(stderr, "reflect bench: cannot write %s/lem_table.{csv,md}\n", dir);
+        ok = 0;
+        goto done;
+    }
+    fprintf(csv, "method,layers,t_subpx,width,height,first_frame_ms,trace_ms,draw_ms,tessellate_ms,base_ms,frame_ms,"
+                 "rays,triangle_tests,traced_pixels,vertices,psnr_greedy_db,mean_abs_greedy,psnr_full_db,"
+                 "time_reduction,ray_reduction,test_reduction\n");
+    fprintf(csv, "raytrace-greedy,,,%d,%d,,,,,,%.1f,%lld,%lld,,,,,,,,\n", w, h, gs.ms_total, gs.rays, gs.triangle_tests);
+    fprintf(csv, "raytrace-full,,,%d,%d,,,,,,%.1f,%lld,%lld,,,%.3f,%.3f,,,,\n", w, h, fs.ms_total, fs.rays,
+            fs.triangle_tests, full_err.psnr, full_err.mean_abs);
+    for (i = 0; i < ncols; ++i) {
+        const lem_col *c = &cols[i];
+        fprintf(csv, "layered-em,%d,%.0f,%d,%d,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%lld,%lld,%lld,%lld,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n",
+                c->layers, c->t, w, h, c->ms_first, c->ms_trace, c->ms_draw, c->ms_tess, c->ms_base, c->ms_frame,
+                c->rays, c->tests, c->traced, c->vertices, c->greedy.psnr, c->greedy.mean_abs, c->full.psnr,
+                lem_ratio(gs.ms_total, c->ms_frame), lem_ratio((double)gs.rays, (double)c->rays),
+                lem_ratio((double)gs.triangle_tests, (double)c->tests));
+    }
+    /* the markdown table: the paper's columns, then ours */
+    fprintf(md, "`hybrid`, %dx%d 3x3 subsampled (t in subpixels), depth %d; LAYERED_EM: a renderer's second frame "
+                "(maps kept); layers 0 is the default; best (by PSNR at t = 3): %d layer%s\n\n",
+            w, h, LEM_DEPTH, cols[best].layers, cols[best].layers == 1 ? "" : "s");
+    fprintf(md, "| | paper t = 3 | paper t = 5 |");
+    for (i = 0; i < ncols; ++i) fprintf(md, " layers %d t = %.0f%s |", cols[i].layers, cols[i].t, i / 2 == best / 2 ? " (best)" : "");
+    fprintf(md, "\n|---|---|---|");
+    for (i = 0; i < ncols; ++i) fprintf(md, "---|");
+#define LEM_ROW(label, p3, p5, fmt, expr)                                                                              \
+    do {                                                                                                               \
+        fprintf(md, "\n| %s | %s | %s |", label, p3, p5);                                                              \
+        for (i = 0; i < ncols; ++i) {                                                                                  \
+            const lem_col *c = &cols[i];                                                                               \
+            (void)c;                                                                                                   \
+            fprintf(md, " " fmt " |", expr);                                                                           \
+        }                                                                                                              \
+    } while (0)
+    LEM_ROW("ray tracing at vertices (ms)", "13480", "7820", "%.0f", c->ms_trace);
+    LEM_ROW("texture coordinates + rendering (ms)", "3280", "1830", "%.0f", c->ms_draw);
+    LEM_ROW("tessellation (ms)", "2110", "830", "%.0f", c->ms_tess);
+    LEM_ROW("base pass: the rest of the scene rasterised (ms)", "", "", "%.0f", c->ms_base);
+    LEM_ROW("frame (ms)", "18870", "10480", "%.0f", c->ms_frame);
+    LEM_ROW("first frame, inferring the maps (ms)", "", "", "%.0f", c->ms_first);
+    LEM_ROW("greedy ray tracing of the frame (ms)", "480000", "480000", "%.0f", gs.ms_total);
+    LEM_ROW("time reduction", "×25.4", "×45.8", "×%.2f", lem_ratio(gs.ms_total, c->ms_frame));
+    LEM_ROW("rays", "1,023,876", "570,481", "%lld", c->rays);
+    LEM_ROW("greedy ray tracing's rays", "6,153,735", "6,153,735", "%lld", gs.rays);
+    LEM_ROW("ray reduction", "×6", "×10.8", "×%.2f", lem_ratio((double)gs.rays, (double)c->rays));
+    LEM_ROW("triangle tests", "11,878,133", "6,543,993", "%lld", c->tests);
+    LEM_ROW("greedy ray tracing's triangle tests", "168,313,768", "168,313,768", "%lld", gs.triangle_tests);
+    LEM_ROW("triangle test reduction", "×14.2", "×25.7", "×%.2f", lem_ratio((double)gs.triangle_tests, (double)c->tests));
+    LEM_ROW("lens pixels traced", "", "", "%lld", c->traced);
+    LEM_ROW("PSNR over the lenses against greedy RAYTRACE (dB)", "", "", "%.2f", c->greedy.psnr);
+    LEM_ROW("mean abs error over the lenses (8-bit levels)", "", "", "%.2f", c->greedy.mean_abs);
+    LEM_ROW("PSNR over the lenses against full RAYTRACE (dB)", "", "", "%.2f", c->full.psnr);
+#undef LEM_ROW
+    fprintf(md, "\n\nThe full ray tree (RAYTRACE's default) against greedy RAYTRACE of the same frame: %.0f ms against "
+                "%.0f (×%.2f; paper ×5), %lld rays (×%.2f), %lld triangle tests (×%.2f); %.2f dB over the lenses.\n",
+            fs.ms_total, gs.ms_total, lem_ratio(fs.ms_total, gs.ms_total), fs.rays,
+            lem_ratio((double)fs.rays, (double)gs.rays), fs.triangle_tests,
+            lem_ratio((double)fs.triangle_tests, (double)gs.triangle_tests), full_err.psnr);
+    for (i = 0; i < ncols; ++i) {
+        const lem_col *c = &cols[i];
+        double rr = lem_ratio((double)gs.rays, (double)c->rays), tr = lem_ratio((double)gs.triangle_tests, (double)c->tests);
+        double pr = paper_rays[i & 1], pt = paper_tests[i & 1];
+        fprintf(md, "\nlayers %d t = %.0f: ray reduction ×%.2f against the paper's ×%.1f (%s a factor of 1.5), "
+                    "triangle tests ×%.2f against ×%.1f (%s).",
+                c->layers, c->t, rr, pr, rr >= pr / 1.5 && rr <= pr * 1.5 ? "within" : "outside", tr, pt,
+                tr >= pt / 1.5 && tr <= pt * 1.5 ? "within" : "outside");
+    }
+    fprintf(md, "\n");
+    fputs("\n", stdout);
+    fclose(md);
+    md = NULL;
+    snprintf(path, sizeof path, "%s/lem_table.md", dir);
+    {
+        FILE *in = fopen(path, "r");
+        char line[4096];
+        while (in && fgets(line, sizeof line, in)) fputs(line, stdout);
+        if (in) fclose(in);
+    }
+    fprintf(stderr, "wrote %s/lem_table.csv and %s\n", dir, path);
+done:
+    if (csv) fclose(csv);
+    if (md) fclose(md);
+    refl_frame_destroy(greedy);
+    refl_frame_destroy(full);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+    return ok;
+}
+
+/* ---- the stability sweeps -------------------------------------------------------------- */
+
+enum { SW_LEM_W = 160, SW_LEM_H = 120, SW_LEM_MAX_ROWS = 128 };
+
+typedef struct lem_sweep_row {
+    char sweep[16], series[16], setting[48];
+    double x, ms;
+    lem_error e;
+    long long traced, rays;
+} lem_sweep_row;
+
+typedef struct lem_sweeps {
+    const refl_scene *s;
+    int threads;
+    refl_frame *truth, *f;
+    lem_sweep_row rows[SW_LEM_MAX_ROWS];
+    int count;
+} lem_sweeps;
+
+/* Greedy RAYTRACE of v into sw->truth. */
+static int lem_truth(lem_sweeps *sw, const refl_view *v) {
+    refl_render_desc d = lem_desc(sw->threads, 1);
+    d.method = REFL_RAYTRACE;
+    d.raytrace.greedy = 1;
+    return refl_render(sw->s, v, &d, sw->truth) == REFL_OK;
+}
+
+/* Renders v (through rr, else refl_render with d: maps of its own) and
+   measures it against sw->truth; 0 on failure or a non-finite pixel. */
+static int lem_sweep_row_add(lem_sweeps *sw, const char *sweep, const char *series, const char *setting, double x,
+                             refl_renderer *rr, const refl_render_desc *d, const refl_view *v) {
+    lem_sweep_row *r;
+    refl_result res = rr ? refl_renderer_render(rr, v, sw->f) : refl_render(sw->s, v, d, sw->f);
+    if (res != REFL_OK || sw->count >= SW_LEM_MAX_ROWS) {
+        fprintf(stderr, "reflect bench: %s %s %s: %s\n", sweep, series, setting,
+                res != REFL_OK ? refl_result_string(res) : "too many rows");
+        return 0;
+    }
+    r = &sw->rows[sw->count++];
+    snprintf(r->sweep, sizeof r->sweep, "%s", sweep);
+    snprintf(r->series, sizeof r->series, "%s", series);
+    snprintf(r->setting, sizeof r->setting, "%s", setting);
+    r->x = x;
+    r->e = lem_measure(sw->f, sw->truth);
+    r->ms = sw->f->stats.ms_total;
+    r->traced = sw->f->stats.layered_em.traced_pixels;
+    r->rays = sw->f->stats.rays;
+    printf("%-10s %-8s %-26s %7.2f %7.2f %6lld %6lld %8lld %8.0f %4lld\n", r->sweep, r->series, r->setting, r->e.psnr,
+           r->e.mean_abs, r->e.pixels, r->traced, r->rays, r->ms, r->e.nonfinite);
+    fflush(stdout);
+    if (r->e.nonfinite) fprintf(stderr, "reflect bench: %s %s: %lld non-finite channels\n", sweep, setting, r->e.nonfinite);
+    return r->e.nonfinite == 0;
+}
+
+/* A renderer of d for the sweep; NULL on failure. */
+static refl_renderer *lem_renderer(const lem_sweeps *sw, const refl_render_desc *d) {
+    refl_renderer *rr = NULL;
+    return refl_renderer_create(sw->s, d, &rr) == REFL_OK ? rr : NULL;
+}
+
+/* Writes the CSV, the markdown table and the chart (PSNR per setting, a
+   panel per sweep). */
+static int lem_sweeps_write(const lem_sweeps *sw, const char *dir) {
+    static const char *const panels[][3] = {
+        {"azimuth", "eye turned about the teapot (degrees from the first frame)", "PSNR (dB)"},
+        {"elevation", "eye raised off the circle (degrees)", "PSNR (dB)"},
+        {"spacing", "sample spacing (degrees); mean over 6 eyes", "PSNR (dB)"},
+        {"layers", "layers", "PSNR (dB)"},
+        {"near", "gap between the column and the teapot (scene units)", "PSNR (dB)"},
+        {"edge", "tessellation t (pixels)", "PSNR (dB)"},
+        {"angle", "tessellation angle (degrees)", "PSNR (dB)"},
+        {"moved", "column moved after the maps (scene units)", "PSNR (dB)"},
+    };
+    char path[1024], dat[1024], script[16384];
+    FILE *csv, *md, *dp;
+    size_t len = 0;
+    int i, j, p, ok = 1;
+    snprintf(path, sizeof path, "%s/lem_sweeps.csv", dir);
+    csv = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/lem_sweeps.md", dir);
+    md = fopen(path, "w");
+    snprintf(dat, sizeof dat, "%s/lem_sweeps.dat", dir);
+    dp = fopen(dat, "w");
+    if (!csv || !md || !dp) {
+        fprintf(stderr, "reflect bench: cannot write the sweeps' files in %s\n", dir);
+        if (csv) fclose(csv);
+        if (md) fclose(md);
+        if (dp) fclose(dp);
+        return 0;
+    }
+    fprintf(csv, "sweep,series,setting,x,psnr_db,mean_abs_levels,lens_pixels,traced_pixels,rays,frame_ms,nonfinite\n");
+    fprintf(md, "| sweep | series | setting | PSNR (dB) | mean abs (levels) | lens px | traced px | rays | ms |\n"
+                "|---|---|---|---|---|---|---|---|---|\n");
+    for (i = 0; i < sw->count; ++i) {
+        const lem_sweep_row *r = &sw->rows[i];
+        fprintf(csv, "%s,%s,\"%s\",%g,%.3f,%.3f,%lld,%lld,%lld,%.1f,%lld\n", r->sweep, r->series, r->setting, r->x,
+                r->e.psnr, r->e.mean_abs, r->e.pixels, r->traced, r->rays, r->ms, r->e.nonfinite);
+        fprintf(md, "| %s | %s | %s | %.2f | %.2f | %lld | %lld | %lld | %.0f |\n", r->sweep, r->series, r->setting,
+                r->e.psnr, r->e.mean_abs, r->e.pixels, r->traced, r->rays, r->ms);
+    }
+    fclose(csv);
+    fclose(md);
+    /* a gnuplot block per sweep and series, in the panels' order */
+    len += (size_t)snprintf(script + len, sizeof script - len,
+                            "set terminal pngcairo size 1400,1200 noenhanced\nset output '%s/lem_sweeps.png'\n"
+                            "set multiplot layout 3,3 title 'LAYERED_EM against greedy RAYTRACE over the lens pixels, "
+                            "hybrid %dx%d'\nset grid\nset key bottom left\n",
+                            dir, SW_LEM_W, SW_LEM_H);
+    for (p = 0, j = 0; p < (int)(sizeof panels / sizeof *panels); ++p) {
+        char series[8][16];
+        int ns = 0, k, first = 1;
+        for (i = 0; i < sw->count; ++i) {
+            int seen = 0;
+            if (strcmp(sw->rows[i].sweep, panels[p][0])) continue;
+            for (k = 0; k < ns; ++k) seen |= !strcmp(series[k], sw->rows[i].series);
+            if (!seen && ns < 8) snprintf(series[ns++], 16, "%s", sw->rows[i].series);
+        }
+        if (!ns) continue;
+        len += (size_t)snprintf(script + len, sizeof script - len, "set title '%s'\nset xlabel '%s'\nset ylabel '%s'\nplot ",
+                                panels[p][0], panels[p][1], panels[p][2]);
+        for (k = 0; k < ns; ++k, ++j) {
+            fprintf(dp, "# %s %s\n", panels[p][0], series[k]);
+            for (i = 0; i < sw->count; ++i)
+                if (!strcmp(sw->rows[i].sweep, panels[p][0]) && !strcmp(sw->rows[i].series, series[k]))
+                    fprintf(dp, "%g %g %g\n", sw->rows[i].x, sw->rows[i].e.psnr, sw->rows[i].e.mean_abs);
+            fprintf(dp, "\n\n");
+            len += (size_t)snprintf(script + len, sizeof script - len, "%s'%s' index %d using 1:2 with linespoints title '%s'",
+                                    first ? "" : ", ", dat, j, series[k]);
+            first = 0;
+        }
+        len += (size_t)snprintf(script + len, sizeof script - len, "\n");
+    }
+    snprintf(script + (len < sizeof script ? len : sizeof script - 1),
+             sizeof script - (len < sizeof script ? len : sizeof script - 1), "unset multiplot\n");
+    fclose(dp);
+    snprintf(path, sizeof path, "%s/lem_sweeps.gp", dir);
+    ok = refl_bench_gnuplot(path, script);
+    if (ok) fprintf(stderr, "wrote %s/lem_sweeps.csv, lem_sweeps.md and lem_sweeps.png\n", dir);
+    return ok;
+}
+
+int refl_bench_lem_sweeps(const char *dir, int threads) {
+    static const double azimuths[] = {0, 1, 2, 3, 4, 6, 8, 12, 16, 24};
+    static const double elevations[] = {0, 2.5, 5, 10, 20, 30, 45};
+    static const int samples[] = {90, 45, 30, 20, 15, 11}; /* 4 to 32.7 degrees apart */
+    static const double spacing_eyes[] = {0, 3, 6, 9, 12, 15};
+    static const float edges[] = {0.5f, 1.0f, 2.0f, 3.0f, 5.0f, 8.0f, 16.0f};
+    static const float angles[] = {1.0f, 3.0f, 6.0f, 12.0f, 24.0f, 48.0f};
+    static const float near_share[] = {0.0f, 0.5f, 0.75f, 0.9f, 1.0f};
+    static const float moved[] = {0.0f, 0.25f, 0.5f, 1.0f, 2.0f};
+    refl_scene *s = refl_bench_builtin("hybrid", 0);
+    lem_sweeps *sw = (lem_sweeps *)calloc(1, sizeof *sw);
+    refl_render_desc d = lem_desc(threads, 1);
+    refl_renderer *rr = NULL;
+    refl_view v0, v;
+    refl_vec3 teapot_c = refl_v3(0, 0, 0), along = refl_v3(0, 0, 0);
+    char setting[48];
+    int teapot = -1, column = -1, ok = 1, k;
+    size_t i, j;
+    if (s) teapot = lem_object(s, "glass teapot");
+    if (!s || !sw || teapot < 0 || refl_frame_create(SW_LEM_W, SW_LEM_H, NULL, &sw->truth) != REFL_OK ||
+        refl_frame_create(SW_LEM_W, SW_LEM_H, NULL, &sw->f) != REFL_OK) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM sweeps could not start\n");
+        ok = 0;
+        goto done;
+    }
+    sw->s = s;
+    sw->threads = threads;
+    d.method = REFL_LAYERED_EM;
+    v0 = s->camera;
+    v0.width = SW_LEM_W;
+    v0.height = SW_LEM_H;
+    teapot_c = lem_centre(s, teapot);
+    /* the column behind the teapot as the camera sees it: the most of it in the glass */
+    {
+        refl_vec3 look = refl_v3_sub(teapot_c, v0.eye);
+        float best = -2.0f;
+        look.y = 0.0f;
+        look = refl_v3_normalize(look);
+        for (k = 0; k < s->object_count; ++k) {
+            refl_vec3 to;
+            float a;
+            if (strcmp(s->objects[k].name, "column")) continue;
+            to = refl_v3_sub(lem_centre(s, k), teapot_c);
+            to.y = 0.0f;
+            a = refl_v3_dot(refl_v3_normalize(to), look);
+            if (a > best) best = a, column = k, along = refl_v3_normalize(to);
+        }
+    }
+    if (column < 0) {
+        fprintf(stderr, "reflect bench: hybrid has no column\n");
+        ok = 0;
+        goto done;
+    }
+    printf("hybrid %dx%d, LAYERED_EM against greedy RAYTRACE over the lens pixels, depth %d, %s threads\n", SW_LEM_W,
+           SW_LEM_H, LEM_DEPTH, threads ? "given" : "all");
+    printf("%-10s %-8s %-26s %7s %7s %6s %6s %8s %8s %4s\n", "sweep", "series", "setting", "PSNR", "abs", "lens",
+           "traced", "rays", "ms", "NaN");
+
+    /* 1. off-sample eyes: one renderer, its circles fixed at the first
+       frame's eye, the eye then turned about the teapot (between and past
+       the samples, 8 degrees apart) and raised off the circle */
+    rr = lem_renderer(sw, &d);
+    ok = rr != NULL;
+    for (i = 0; ok && i < sizeof azimuths / sizeof *azimuths; ++i) {
+        v = lem_turned(v0, teapot_c, azimuths[i], 0.0);
+        snprintf(setting, sizeof setting, "azimuth %+.0f", azimuths[i]);
+        ok = lem_truth(sw, &v) && lem_sweep_row_add(sw, "azimuth", "default", setting, azimuths[i], rr, &d, &v);
+    }
+    for (i = 0; ok && i < sizeof elevations / sizeof *elevations; ++i) {
+        v = lem_turned(v0, teapot_c, 0.0, elevations[i]);
+        snprintf(setting, sizeof setting, "elevation %+.1f", elevations[i]);
+        ok = lem_truth(sw, &v) && lem_sweep_row_add(sw, "elevation", "default", setting, elevations[i], rr, &d, &v);
+    }
+    refl_renderer_destroy(rr);
+    rr = NULL;
+
+    /* 2. the samples' spacing: per spacing a renderer, its error averaged
+       over eyes turned 0 to 15 degrees (each eye a row; the chart's point
+       is their mean) */
+    for (i = 0; ok && i < sizeof samples / sizeof *samples; ++i) {
+        double spacing = 360.0 / samples[i], sum_psnr = 0.0, sum_abs = 0.0;
+        int first = sw->count;
+        d.layered_em.samples = samples[i];
+        ok = (rr = lem_renderer(sw, &d)) != NULL;
+        for (j = 0; ok && j < sizeof spacing_eyes / sizeof *spacing_eyes; ++j) {
+            v = lem_turned(v0, teapot_c, spacing_eyes[j], 0.0);
+            snprintf(setting, sizeof setting, "%d samples (%.1f deg), eye %+.0f", samples[i], spacing, spacing_eyes[j]);
+            ok = lem_truth(sw, &v) && lem_sweep_row_add(sw, "spacing-eye", "default", setting, spacing, rr, &d, &v);
+            if (ok) sum_psnr += sw->rows[sw->count - 1].e.psnr, sum_abs += sw->rows[sw->count - 1].e.mean_abs;
+        }
+        refl_renderer_destroy(rr);
+        rr = NULL;
+        if (ok && sw->count < SW_LEM_MAX_ROWS) { /* the mean over the eyes, charted */
+            lem_sweep_row *r = &sw->rows[sw->count++];
+            int n = sw->count - 1 - first;
+            *r = sw->rows[first];
+            snprintf(r->sweep, sizeof r->sweep, "spacing");
+            snprintf(r->setting, sizeof r->setting, "%d samples (%.1f deg), mean", samples[i], spacing);
+            r->e.psnr = sum_psnr / n;
+            r->e.mean_abs = sum_abs / n;
+        }
+    }
+    d.layered_em.samples = 0;
+
+    /* 3. layers 1 to REFL_LEM_MAX_LAYERS, at the first eye and 4 degrees off */
+    for (k = 1; ok && k <= REFL_LEM_MAX_LAYERS; ++k) {
+        d.layered_em.layers = k;
+        ok = (rr = lem_renderer(sw, &d)) != NULL;
+        for (j = 0; ok && j < 2; ++j) {
+            v = lem_turned(v0, teapot_c, 4.0 * (double)j, 0.0);
+            snprintf(setting, sizeof setting, "%d layer%s, eye %+d", k, k == 1 ? "" : "s", 4 * (int)j);
+            ok = lem_truth(sw, &v) && lem_sweep_row_add(sw, "layers", j ? "eye +4" : "eye 0", setting, k, rr, &d, &v);
+        }
+        refl_renderer_destroy(rr);
+        rr = NULL;
+    }
+    d.layered_em.layers = 0;
+
+    /* 4. a diffuse column moved from its place towards the teapot until
+       it touches it (the first 0.02 step whose bounds gap is under 0.02);
+       each placement's maps its own */
+    if (ok) {
+        refl_mat4 original = s->objects[column].transform;
+        refl_vec3 tlo, thi, clo, chi;
+        float dist = 0.0f, gap0;
+        lem_bounds(s, teapot, &tlo, &thi);
+        lem_bounds(s, column, &clo, &chi);
+        /* the horizontal gap between the boxes along `along` (the column's
+           box is thin; the teapot's bounds, a little generous, stand for it) */
+        for (;; dist += 0.02f) {
+            refl_vec3 c = refl_v3_sub(refl_v3_scale(refl_v3_add(clo, chi), 0.5f), refl_v3_scale(along, dist));
+            float hx = 0.5f * (chi.x - clo.x), hz = 0.5f * (chi.z - clo.z);
+            float gx = fmaxf(0.0f, fmaxf(tlo.x - (c.x + hx), (c.x - hx) - thi.x));
+            float gz = fmaxf(0.0f, fmaxf(tlo.z - (c.z + hz), (c.z - hz) - thi.z));
+            if (sqrtf(gx * gx + gz * gz) < 0.02f || dist > 20.0f) break;
+        }
+        gap0 = dist;
+        for (i = 0; ok && i < sizeof near_share / sizeof *near_share; ++i) {
+            float m = near_share[i] * gap0;
+            s->objects[column].transform = refl_mat4_mul(refl_mat4_translate(refl_v3_scale(along, -m)), original);
+            refl_scene_touch(s);
+            snprintf(setting, sizeof setting, "moved %.2f, gap %.2f", m, gap0 - m);
+            ok = lem_truth(sw, &v0) && lem_sweep_row_add(sw, "near", "default", setting, gap0 - m, NULL, &d, &v0);
+        }
+        s->objects[column].transform = original;
+        refl_scene_touch(s);
+    }
+
+    /* 5. the tessellation's thresholds: t (pixels here: no subsampling) and the angle */
+    for (i = 0; ok && i < sizeof edges / sizeof *edges; ++i) {
+        d.layered_em.edge_px = edges[i];
+        snprintf(setting, sizeof setting, "t %.1f px", edges[i]);
+        ok = lem_truth(sw, &v0) && lem_sweep_row_add(sw, "edge", "default", setting, edges[i], NULL, &d, &v0);
+    }
+    d.layered_em.edge_px = 0.0f;
+    for (i = 0; ok && i < sizeof angles / sizeof *angles; ++i) {
+        d.layered_em.angle_degrees = angles[i];
+        snprintf(setting, sizeof setting, "angle %.0f deg", angles[i]);
+        ok = lem_truth(sw, &v0) && lem_sweep_row_add(sw, "angle", "default", setting, angles[i], NULL, &d, &v0);
+    }
+    d.layered_em.angle_degrees = 0.0f;
+
+    /* 6. a column moved sideways after the maps were built: a renderer
+       that keeps its maps through the change (layered_em.keep_stale_maps:
+       what the paper warns of), beside maps inferred for the moved scene */
+    if (ok) {
+        refl_mat4 original = s->objects[column].transform;
+        refl_vec3 side = refl_v3_normalize(refl_v3_cross(refl_v3(0, 1, 0), along));
+        refl_render_desc ds = d;
+        ds.layered_em.keep_stale_maps = 1;
+        ok = (rr = lem_renderer(sw, &ds)) != NULL && lem_truth(sw, &v0) &&
+             refl_renderer_render(rr, &v0, sw->f) == REFL_OK; /* the maps, of the column in place */
+        for (i = 0; ok && i < sizeof moved / sizeof *moved; ++i) {
+            s->objects[column].transform = refl_mat4_mul(refl_mat4_translate(refl_v3_scale(side, moved[i])), original);
+            refl_scene_touch(s);
+            snprintf(setting, sizeof setting, "moved %.2f", moved[i]);
+            ok = lem_truth(sw, &v0) && lem_sweep_row_add(sw, "moved", "stale", setting, moved[i], rr, &ds, &v0) &&
+                 lem_sweep_row_add(sw, "moved", "fresh", setting, moved[i], NULL, &d, &v0);
+        }
+        refl_renderer_destroy(rr);
+        rr = NULL;
+        s->objects[column].transform = original;
+        refl_scene_touch(s);
+    }
+
+    /* 7. TO BE FILLED BY THE LEAD after merging the `lem` branch (shell
+       kinds `--lem-shell`, direct images `--lem-direct`):
+       - "disocclusion" sweep: disocclusion prevention (continued rays and
+         simultaneous inference, plus direct images) on and off;
+       - "shell" sweep: each shell kind (sphere, cylinder, box, quad).
+       Each a row per setting through lem_sweep_row_add, at v0 and an eye
+       between samples, like the layers sweep above; add the panels to
+       lem_sweeps_write. No numbers until then. */
+
+    if (ok) ok = lem_sweeps_write(sw, dir);
+done:
+    refl_renderer_destroy(rr);
+    if (sw) {
+        refl_frame_destroy(sw->truth);
+        refl_frame_destroy(sw->f);
+    }
+    free(sw);
+    refl_scene_destroy(s);
+    return ok;
+}
