@@ -1280,6 +1280,9 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
+    long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
+                                away from it or past its rectangle): that layer is left out
+                                there, the next layer shows */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1524,20 +1527,52 @@ REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
 
 /* ---- paper 001's inferred environment maps (section 4) ------------------------- */
 
-/* One environment layer: a sphere shell around a lens object, textured as
-   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
-   side, texel (face, x, y) at face * size^2 + y * size + x). */
+/* The kinds of shell a layer is parameterised on (section 4.3: spheres,
+   cylinders, finite cubes, and quads for sparse layers). AUTO is the
+   options' "choose per layer"; a shell of kind 0 is a sphere. */
+typedef enum refl_lem_shell_kind {
+    REFL_LEM_SHELL_AUTO = 0,
+    REFL_LEM_SHELL_SPHERE,
+    REFL_LEM_SHELL_CYLINDER,
+    REFL_LEM_SHELL_BOX,
+    REFL_LEM_SHELL_QUAD
+} refl_lem_shell_kind;
+
+/* One environment layer: a shell around a lens object, textured as a cube
+   map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
+   texel (face, x, y) at face * size^2 + y * size + x) of the shell's
+   index of a point on it (refl_lem_shell_index). A sphere is center and
+   radius; the other kinds are placed by center, an orthonormal frame
+   axis[3] and half sizes extent[3] along it: a box its half sides; a
+   cylinder around axis[1], its radius extent[0] (= extent[2]) and half
+   height extent[1]; a quad in the plane of axis[0] and axis[1] (normal
+   axis[2]), extent[0] x extent[1] either side of its centre. */
 typedef struct refl_lem_shell {
     refl_vec3 center;
     float radius;
     int face_size;
+    int kind;                /* refl_lem_shell_kind; 0 or SPHERE: a sphere */
+    refl_vec3 axis[3];
+    float extent[3];
 } refl_lem_shell;
 
-/* How the runtime samples the shell for an exit ray (origin inside or
-   outside, dir unit): the ray's far hit on the sphere, its offset from the
-   centre as the cube-map index, bilinear on the face (clamped at its
-   edges). 1 with four texels and weights summing to 1, or 0 when the ray
-   misses the sphere. The rendering matrix is made of exactly these. */
+/* The shell's index of an exit ray: where the ray leaves the shell, as
+   the vector the cube map is looked up with (a sphere: the hit minus the
+   centre; a box or cylinder: the hit in the shell's frame over its half
+   sizes; a quad: (x / extent[0], y / extent[1], 1) of the hit in its
+   plane). The runtime interpolates it across a triangle (a quad's as
+   (0, 0, 0) where an exit ray misses it: its third component then the
+   share of the quad present, refl_lem_shell_texels dividing the first
+   two by it). 0 (no lookup)
+   when the ray starts outside a closed shell, or travels away from a quad
+   or misses its rectangle. */
+REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index);
+/* The four texels and bilinear weights (summing to 1) of an index: its
+   cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
+   zero or non-finite index or a bad shell. */
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
+/* How the runtime samples the shell for an exit ray (dir unit): its index,
+   then that index's texels. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
 /* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
@@ -1637,9 +1672,14 @@ typedef struct refl_layered_em_options {
     int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
                                 views half a spacing either side (the paper's simultaneous
                                 inference, against disocclusions between samples) */
-    int layers;              /* environment layers (sphere shells) per lens, 1 to
+    int layers;              /* environment layers (shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
+    int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
+                                the closed kind whose surface lies nearest the layer's hits on
+                                average, or a quad for an inner layer whose hits are sparse in
+                                direction and lie nearest a plane. QUAD: every inner layer a
+                                quad, the outermost AUTO's closed kind */
 } refl_layered_em_options;
 
 typedef struct refl_envmap_options {
@@ -2591,6 +2631,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
 typedef struct refl__lem_layering {
     int layers;
     float radius[REFL_LEM_MAX_LAYERS];
+    refl_lem_shell shell[REFL_LEM_MAX_LAYERS]; /* each layer's, face_size aside (refl__lem_fit_layers) */
     refl_vec3 centre;
     const signed char *object_layer;
     int object_count;
@@ -2599,15 +2640,22 @@ enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */
+    refl_vec3 position;
     int object;
 } refl__lem_hit;
 /* Hits gathered for the clustering: distance, object and exit ray of each. */
 typedef struct refl__lem_hits {
     const refl_allocator *al;
-    float *distance;
+    float *distance, *pos;       /* pos: 3 per hit */
     int *object, *ray;
     int count, cap, rays;
 } refl__lem_hits;
+/* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
+   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
+   closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
+   a sphere at lay->radius. 0 when out of memory. */
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
    does not meet `object` first; else per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
@@ -11268,27 +11316,82 @@ REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn
    C A x = C b is solved by conjugate gradients on the normal equations,
    sequentially in double, so the texels are the same on every run. */
 
-REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
-                                   float weight[4]) {
-    refl_vec3 oc, hit;
-    float b, c, disc, t, dv[3], s, tt, x, y, fx, fy;
+/* ---- shells: where an exit ray leaves one, and its texels -------------------------- */
+
+static int refl__lem_sphere_kind(const refl_lem_shell *sh) {
+    return sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
+}
+
+REFL_API int refl_lem_shell_index(const refl_lem_shell *sh, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index) {
+    refl_vec3 oc;
+    float dd, p[3], v[3], e[3], t = FLT_MAX;
+    int i;
+    if (!sh || !index || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return 0;
+    dd = refl_v3_dot(dir, dir);
+    oc = refl_v3_sub(origin, sh->center);
+    if (!(dd > 0.0f)) return 0;
+    if (refl__lem_sphere_kind(sh)) {
+        /* |o + t d - c| = r from inside: the larger root */
+        float b = refl_v3_dot(oc, dir), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, disc = b * b - c * dd;
+        if (!(sh->radius > 0.0f) || !(c <= 0.0f) || !(disc >= 0.0f)) return 0;
+        t = (-b + sqrtf(disc)) / dd;
+        *index = refl_v3_add(oc, refl_v3_scale(dir, t));
+        return refl__v3_finite(*index) && t >= 0.0f;
+    }
+    for (i = 0; i < 3; ++i) {
+        p[i] = refl_v3_dot(oc, sh->axis[i]);
+        v[i] = refl_v3_dot(dir, sh->axis[i]);
+        e[i] = sh->extent[i];
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX:
+        /* from inside: the nearest of the three slabs' exits */
+        for (i = 0; i < 3; ++i)
+            if (!(e[i] > 0.0f) || !(fabsf(p[i]) <= e[i])) return 0;
+        for (i = 0; i < 3; ++i)
+            if (v[i] != 0.0f) t = REFL__MIN(t, ((v[i] > 0.0f ? e[i] : -e[i]) - p[i]) / v[i]);
+        break;
+    case REFL_LEM_SHELL_CYLINDER: {
+        /* from inside: the side's larger root or a cap, the nearer */
+        float a = v[0] * v[0] + v[2] * v[2], b = p[0] * v[0] + p[2] * v[2];
+        float c = p[0] * p[0] + p[2] * p[2] - e[0] * e[0];
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || !(c <= 0.0f) || !(fabsf(p[1]) <= e[1])) return 0;
+        if (a > 0.0f) t = (-b + sqrtf(REFL__MAX(b * b - a * c, 0.0f))) / a;
+        if (v[1] != 0.0f) t = REFL__MIN(t, ((v[1] > 0.0f ? e[1] : -e[1]) - p[1]) / v[1]);
+        e[2] = e[0];
+        break;
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        /* the plane ahead, inside the rectangle */
+        float x, y;
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || v[2] == 0.0f) return 0;
+        t = -p[2] / v[2];
+        if (!(t > 0.0f)) return 0;
+        x = (p[0] + t * v[0]) / e[0];
+        y = (p[1] + t * v[1]) / e[1];
+        if (!(fabsf(x) <= 1.0f && fabsf(y) <= 1.0f)) return 0;
+        *index = refl_v3(x, y, 1.0f);
+        return 1;
+    }
+    default: return 0;
+    }
+    if (!(t >= 0.0f) || !(t < FLT_MAX)) return 0;
+    *index = refl_v3((p[0] + t * v[0]) / e[0], (p[1] + t * v[1]) / e[1], (p[2] + t * v[2]) / e[2]);
+    return refl__v3_finite(*index);
+}
+
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
+    float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(origin) ||
-        !refl__v3_finite(dir))
-        return 0;
+    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
+        if (!(index.z > 0.0f)) return 0;
+        index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
+    }
     n = shell->face_size;
-    /* |o + t d - c| = r, the larger root */
-    oc = refl_v3_sub(origin, shell->center);
-    b = refl_v3_dot(oc, dir);
-    c = refl_v3_dot(oc, oc) - shell->radius * shell->radius;
-    disc = b * b - c * refl_v3_dot(dir, dir);
-    if (!(disc >= 0.0f) || !(refl_v3_dot(dir, dir) > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / refl_v3_dot(dir, dir);
-    if (!(t >= 0.0f)) return 0;
-    hit = refl_v3_add(oc, refl_v3_scale(dir, t));
-    dv[0] = hit.x;
-    dv[1] = hit.y;
-    dv[2] = hit.z;
+    dv[0] = index.x;
+    dv[1] = index.y;
+    dv[2] = index.z;
     if (dv[0] == 0.0f && dv[1] == 0.0f && dv[2] == 0.0f) return 0;
     face = rast_cube_face(dv, &s, &tt);
     /* bilinear, taps clamped to the face (as refl_environment_lookup) */
@@ -11316,6 +11419,228 @@ REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin
     return 1;
 }
 
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]) {
+    refl_vec3 index;
+    return refl_lem_shell_index(shell, origin, dir, &index) && refl_lem_shell_texels(shell, index, texel, weight);
+}
+
+/* ---- fitting a layer's shell to its hits --------------------------------------------- */
+
+/* Distance from local point p (in the shell's frame) to the shell's surface. */
+static double refl__lem_surface_distance(const refl_lem_shell *sh, const double p[3]) {
+    int i;
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: {
+        double out = 0.0, in = DBL_MAX;
+        for (i = 0; i < 3; ++i) {
+            double d = fabs(p[i]) - sh->extent[i];
+            if (d > 0.0) out += d * d;
+            in = REFL__MIN(in, -d);
+        }
+        return out > 0.0 ? sqrt(out) : in;
+    }
+    case REFL_LEM_SHELL_CYLINDER: {
+        double rho = sqrt(p[0] * p[0] + p[2] * p[2]), dr = rho - sh->extent[0], dy = fabs(p[1]) - sh->extent[1];
+        if (dr <= 0.0 && dy <= 0.0) return REFL__MIN(-dr, -dy);
+        return sqrt(REFL__MAX(dr, 0.0) * REFL__MAX(dr, 0.0) + REFL__MAX(dy, 0.0) * REFL__MAX(dy, 0.0));
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        double dx = REFL__MAX(fabs(p[0]) - sh->extent[0], 0.0), dy = REFL__MAX(fabs(p[1]) - sh->extent[1], 0.0);
+        return sqrt(dx * dx + dy * dy + p[2] * p[2]);
+    }
+    default: return fabs(sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - sh->radius);
+    }
+}
+
+/* The mean distance of the hits pos[3 n] from the shell's surface. */
+static double refl__lem_fit_error(const refl_lem_shell *sh, const float *pos, int n) {
+    double acc = 0.0;
+    int k, i;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), sh->center);
+        double p[3];
+        for (i = 0; i < 3; ++i) p[i] = refl__lem_sphere_kind(sh) ? (&d.x)[i] : refl_v3_dot(d, sh->axis[i]);
+        acc += refl__lem_surface_distance(sh, p);
+    }
+    return n ? acc / n : 0.0;
+}
+
+/* Eigenvectors of the symmetric 3x3 m (cyclic Jacobi), as rows of v,
+   ordered by descending eigenvalue. */
+static void refl__lem_eigen3(double m[3][3], double v[3][3]) {
+    int sweep, p, q, k, i, j;
+    double ev[3];
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < 3; ++j) v[i][j] = i == j;
+    for (sweep = 0; sweep < 50; ++sweep) {
+        double off = fabs(m[0][1]) + fabs(m[0][2]) + fabs(m[1][2]);
+        if (off <= 1e-30) break;
+        for (p = 0; p < 2; ++p)
+            for (q = p + 1; q < 3; ++q) {
+                double theta, t, c, sn;
+                if (m[p][q] == 0.0) continue;
+                theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+                t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(t * t + 1.0);
+                sn = t * c;
+                for (k = 0; k < 3; ++k) { /* columns p, q of m, then rows */
+                    double a = m[k][p], b = m[k][q];
+                    m[k][p] = c * a - sn * b;
+                    m[k][q] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) {
+                    double a = m[p][k], b = m[q][k];
+                    m[p][k] = c * a - sn * b;
+                    m[q][k] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) { /* eigenvectors as rows */
+                    double a = v[p][k], b = v[q][k];
+                    v[p][k] = c * a - sn * b;
+                    v[q][k] = sn * a + c * b;
+                }
+            }
+    }
+    for (i = 0; i < 3; ++i) ev[i] = m[i][i];
+    for (i = 0; i < 3; ++i) /* selection sort, descending */
+        for (j = i + 1; j < 3; ++j)
+            if (ev[j] > ev[i]) {
+                double t = ev[i];
+                ev[i] = ev[j], ev[j] = t;
+                for (k = 0; k < 3; ++k) t = v[i][k], v[i][k] = v[j][k], v[j][k] = t;
+            }
+}
+
+/* The box of the hits and the lens's box (lo, hi) together, on the world axes. */
+static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z}, pad;
+    int k, i;
+    memset(&sh, 0, sizeof sh);
+    pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f;
+    for (i = 0; i < 3; ++i) a[i] -= pad, b[i] += pad;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) a[i] = REFL__MIN(a[i], pos[3 * k + i]), b[i] = REFL__MAX(b[i], pos[3 * k + i]);
+    sh.kind = REFL_LEM_SHELL_BOX;
+    sh.center = refl_v3(0.5f * (a[0] + b[0]), 0.5f * (a[1] + b[1]), 0.5f * (a[2] + b[2]));
+    for (i = 0; i < 3; ++i) {
+        sh.axis[i] = refl_v3(i == 0, i == 1, i == 2);
+        sh.extent[i] = 0.5f * (b[i] - a[i]);
+    }
+    return sh;
+}
+
+/* A cylinder around the vertical through the lens's centre c: its caps at
+   the hits' (and the lens's) lowest and highest, its radius the mean
+   horizontal distance of the hits off the caps (at least the lens's). */
+static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float y0 = lo.y, y1 = hi.y, pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f, rmin;
+    double acc = 0.0, all = 0.0;
+    int k, side = 0;
+    memset(&sh, 0, sizeof sh);
+    y0 -= pad, y1 += pad;
+    for (k = 0; k < n; ++k) y0 = REFL__MIN(y0, pos[3 * k + 1]), y1 = REFL__MAX(y1, pos[3 * k + 1]);
+    for (k = 0; k < n; ++k) {
+        double dx = pos[3 * k] - c.x, dz = pos[3 * k + 2] - c.z, rho = sqrt(dx * dx + dz * dz);
+        float y = pos[3 * k + 1];
+        all += rho;
+        if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0)) acc += rho, ++side;
+    }
+    rmin = pad + 0.5f * sqrtf((hi.x - lo.x) * (hi.x - lo.x) + (hi.z - lo.z) * (hi.z - lo.z));
+    sh.kind = REFL_LEM_SHELL_CYLINDER;
+    sh.center = refl_v3(c.x, 0.5f * (y0 + y1), c.z);
+    sh.axis[0] = refl_v3(1, 0, 0);
+    sh.axis[1] = refl_v3(0, 1, 0);
+    sh.axis[2] = refl_v3(0, 0, 1);
+    sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : n ? all / n : 0.0), rmin);
+    sh.extent[1] = 0.5f * (y1 - y0);
+    return sh;
+}
+
+/* The least-squares plane of the hits (the normal the covariance's least
+   eigenvector), bounded by the rectangle of their extents in it. A quad
+   with no area, or one passing within the lens's bounding sphere (c,
+   lens_radius), is returned with extent 0 (not a candidate). */
+static refl_lem_shell refl__lem_fit_quad(const float *pos, int n, refl_vec3 c, float lens_radius) {
+    refl_lem_shell sh;
+    double mean[3] = {0, 0, 0}, cov[3][3], ev[3][3], lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+    int k, i, j;
+    memset(&sh, 0, sizeof sh);
+    sh.kind = REFL_LEM_SHELL_QUAD;
+    if (n < 3) return sh;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) mean[i] += pos[3 * k + i] / (double)n;
+    memset(cov, 0, sizeof cov);
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i)
+            for (j = 0; j < 3; ++j) cov[i][j] += (pos[3 * k + i] - mean[i]) * (pos[3 * k + j] - mean[j]);
+    refl__lem_eigen3(cov, ev);
+    for (i = 0; i < 3; ++i) sh.axis[i] = refl_v3_normalize(refl_v3((float)ev[i][0], (float)ev[i][1], (float)ev[i][2]));
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 2; ++i) {
+            double d = 0.0;
+            for (j = 0; j < 3; ++j) d += (pos[3 * k + j] - mean[j]) * ev[i][j];
+            lo[i] = REFL__MIN(lo[i], d), hi[i] = REFL__MAX(hi[i], d);
+        }
+    sh.center = refl_v3((float)mean[0], (float)mean[1], (float)mean[2]);
+    for (i = 0; i < 2; ++i) {
+        sh.center = refl_v3_add(sh.center, refl_v3_scale(sh.axis[i], (float)(0.5 * (lo[i] + hi[i]))));
+        sh.extent[i] = (float)(0.5 * (hi[i] - lo[i]));
+    }
+    if (!(fabsf(refl_v3_dot(refl_v3_sub(c, sh.center), sh.axis[2])) > lens_radius) || !refl__v3_finite(sh.center))
+        sh.extent[0] = sh.extent[1] = 0.0f;
+    return sh;
+}
+
+/* How far the hits' directions from c spread: 1 minus the length of
+   their mean unit direction (0: all one way; near 1: all round). */
+static double refl__lem_spread(const float *pos, int n, refl_vec3 c) {
+    double m[3] = {0, 0, 0};
+    int k;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_normalize(refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), c));
+        m[0] += d.x / n, m[1] += d.y / n, m[2] += d.z / n;
+    }
+    return n ? 1.0 - sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) : 1.0;
+}
+
+/* A layer's hits at most half spread (their mean direction at least half
+   long) are "sparse in direction": a quad may hold them. */
+#define REFL__LEM_QUAD_SPREAD 0.5
+
+static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, refl_vec3 c, float sphere_radius,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
+    refl_lem_shell cand[4];
+    double err[4], best_err = DBL_MAX;
+    int k, m = 0, best = 0;
+    memset(cand, 0, sizeof cand);
+    if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
+    /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
+    if ((kind == REFL_LEM_SHELL_AUTO && inner && refl__lem_spread(pos, n, c) <= REFL__LEM_QUAD_SPREAD) ||
+        (kind == REFL_LEM_SHELL_QUAD && inner)) {
+        cand[m] = refl__lem_fit_quad(pos, n, c, lens_radius);
+        if (cand[m].extent[0] > 0.0f && cand[m].extent[1] > 0.0f) ++m;
+    }
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_BOX)
+        cand[m++] = refl__lem_fit_box(pos, n, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_CYLINDER)
+        cand[m++] = refl__lem_fit_cylinder(pos, n, c, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_SPHERE) {
+        cand[m].kind = REFL_LEM_SHELL_SPHERE;
+        cand[m].center = c;
+        cand[m++].radius = sphere_radius;
+    }
+    if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
+    for (k = 0; k < m; ++k) {
+        err[k] = refl__lem_fit_error(&cand[k], pos, n);
+        /* a later candidate must be clearly nearer */
+        if (k == 0 || err[k] < 0.99 * best_err) best = k, best_err = err[k];
+    }
+    *out = cand[best];
+    out->radius = sphere_radius; /* every kind keeps the layer's mean distance (the hits' fallback layer) */
+}
+
 REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
     double tc = (theta_c_degrees > 0.0f ? theta_c_degrees : 5.0f) * REFL__PI / 180.0, tm = 0.0;
     int i, j;
@@ -11330,6 +11655,21 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
         }
     tm = REFL__MIN(tm, tc);
     return (float)(1.0 - tm * tm / (tc * tc));
+}
+
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius) {
+    float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
+    int l, k, n;
+    if (h->count && !pos) return 0;
+    for (l = 0; l < lay->layers; ++l) {
+        for (k = n = 0; k < h->count; ++k)
+            if (layer_of && layer_of[k] == l) memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
+        refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, lay->centre, lay->radius[l], lo, hi, lens_radius,
+                            &lay->shell[l]);
+    }
+    refl__free(h->al, pos);
+    return 1;
 }
 
 /* ---- the sparse system ------------------------------------------------------- */
@@ -11568,6 +11908,7 @@ static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *c
         refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
         for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
+        hits[n].position = g.p;
         hits[n].object = h.object;
         ++n;
     }
@@ -11755,21 +12096,27 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
                     if (h->count == h->cap) {
                         int cap = h->cap ? 2 * h->cap : 1024;
                         float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
+                        float *np = (float *)refl__calloc(h->al, 3 * (size_t)cap, sizeof(float));
                         int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
                         int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        if (!nd || !no || !nr) {
-                            refl__free(h->al, nd), refl__free(h->al, no), refl__free(h->al, nr);
+                        if (!nd || !np || !no || !nr) {
+                            refl__free(h->al, nd), refl__free(h->al, np), refl__free(h->al, no), refl__free(h->al, nr);
                             return 0;
                         }
                         if (h->count) {
                             memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
+                            memcpy(np, h->pos, 3 * sizeof(float) * (size_t)h->count);
                             memcpy(no, h->object, sizeof(int) * (size_t)h->count);
                             memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
                         }
-                        refl__free(h->al, h->distance), refl__free(h->al, h->object), refl__free(h->al, h->ray);
-                        h->distance = nd, h->object = no, h->ray = nr, h->cap = cap;
+                        refl__free(h->al, h->distance), refl__free(h->al, h->pos);
+                        refl__free(h->al, h->object), refl__free(h->al, h->ray);
+                        h->distance = nd, h->pos = np, h->object = no, h->ray = nr, h->cap = cap;
                     }
                     h->distance[h->count] = hits[k].distance;
+                    h->pos[3 * (size_t)h->count] = hits[k].position.x;
+                    h->pos[3 * (size_t)h->count + 1] = hits[k].position.y;
+                    h->pos[3 * (size_t)h->count + 2] = hits[k].position.z;
                     h->object[h->count] = hits[k].object;
                     h->ray[h->count] = h->rays;
                     ++h->count;
@@ -11800,6 +12147,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     memset(&one, 0, sizeof one);
     one.layers = 1;
     one.radius[0] = shell->radius;
+    one.shell[0] = *shell;
     one.centre = shell->center;
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
@@ -15375,10 +15723,13 @@ static refl_result refl__method_graphcam(refl__pass *p) {
    the same bytes. Left out (see the issue): several layers by LBG, quads,
    continued rays, direct images. */
 
-/* One draw is one term: per layer its shell index (3), then F G (3), the
-   term's presence, and 1 at a vertex whose term has an exit ray the shells
-   cannot look up: 3 layers + 5 varyings. */
-static int refl__lem_varyings(int layers) { return 3 * layers + 5; }
+/* One draw is one term: per layer its shell index (3; a quad layer's
+   (0, 0, 0) where the exit ray misses it, so that its third component
+   interpolates to the share of the quad present), then shading F G (3)
+   and 1 at a vertex whose term has an exit ray a closed shell cannot look
+   up, or recording the term's presence: 3 layers + 4 varyings (16 at
+   REFL_LEM_MAX_LAYERS, rast.h's most). */
+static int refl__lem_varyings(int layers) { return 3 * layers + 4; }
 
 static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
     return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
@@ -15400,22 +15751,9 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
     if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
+    if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
+        return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
     return NULL;
-}
-
-/* The shell's index of an exit ray: its far hit on the sphere minus the
-   centre (0: none). An exit ray that starts outside the shell has none: its
-   path left the lens through another lens object beyond the shell, where
-   the map knows nothing of what the ray meets (the frame hands such pixels
-   to the tracer). */
-static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
-    refl_vec3 oc = refl_v3_sub(o, sh->center);
-    float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
-    float disc = b * b - c * dd, t;
-    if (!(c <= 0.0f) || !(disc >= 0.0f) || !(dd > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / dd;
-    *index = refl_v3_add(oc, refl_v3_scale(d, t));
-    return refl__v3_finite(*index) && t >= 0.0f;
 }
 
 /* What one draw of the lens shares: the layers' shells, the maps it looks
@@ -15428,7 +15766,18 @@ typedef struct refl__lem_draw {
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
     int record_layer;            /* -1: shade; else write that layer's index and the presence */
+    long long quad_misses;       /* out: vertices whose exit ray missed a quad layer */
+    refl_vec3 lens_box[2];       /* the lens's bounds, a little wider: an exit ray from
+                                    outside them left through another lens */
 } refl__lem_draw;
+
+/* dr's lens box: object i's bounds box[2], widened by a thousandth of
+   their diagonal. */
+static void refl__lem_draw_box(refl__lem_draw *dr, const refl_vec3 box[2]) {
+    float pad = 1e-3f * refl_v3_length(refl_v3_sub(box[1], box[0])) + 1e-6f;
+    dr->lens_box[0] = refl_v3_sub(box[0], refl_v3(pad, pad, pad));
+    dr->lens_box[1] = refl_v3_add(box[1], refl_v3(pad, pad, pad));
+}
 
 /* Layer l's bilinear RGBA at a shell index. */
 static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, float rgba[4]) {
@@ -15436,7 +15785,7 @@ static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, f
     float w[4];
     int k, c;
     rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
-    if (!refl_lem_shell_lookup(&dr->shell[l], dr->shell[l].center, index, tex, w)) return;
+    if (!refl_lem_shell_texels(&dr->shell[l], index, tex, w)) return;
     for (k = 0; k < 4; ++k)
         for (c = 0; c < 4; ++c) rgba[c] += w[k] * dr->map[l][4 * tex[k] + (uint32_t)c];
 }
@@ -15454,15 +15803,18 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         rgba[0] = t[0];
         rgba[1] = t[1];
         rgba[2] = t[2];
-        rgba[3] = fg[3];
+        rgba[3] = fg[0] * (dr->shell[dr->record_layer].kind == REFL_LEM_SHELL_QUAD ? t[2] : 1.0f);
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
-    rgba[3] = fg[4] > 0.0f ? 2.0f : 1.0f;
+    rgba[3] = fg[3] > 0.0f ? 2.0f : 1.0f;
     if (!(fg[0] > 0.0f || fg[1] > 0.0f || fg[2] > 0.0f)) return 1;
     for (l = 0; l < dr->layers && through > 0.0f; ++l) {
-        float a;
-        refl__lem_sample(dr, l, refl_v3(v[3 * l], v[3 * l + 1], v[3 * l + 2]), layer);
+        const float *t = v + 3 * l;
+        float a, present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        if (!(present > 0.0f)) continue; /* a quad layer the exit rays miss here */
+        refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
+        for (c = 0; c < 4; ++c) layer[c] *= present;
         a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(layer[3], 0.0f, 1.0f);
         for (c = 0; c < 3; ++c) rgba[c] += through * layer[c]; /* premultiplied */
         through *= 1.0f - a;
@@ -15492,18 +15844,34 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
         const refl_greedy_path *path = dr->term ? &v->paths.refract : &v->paths.reflect;
         float *o = verts + (size_t)i * (size_t)stride, *fg = o + 4 + 3 * dr->layers;
         refl_vec3 p = v->position;
-        int exits = path->fresnel > 0.0f && path->exited, has = exits;
+        refl_vec3 eo = path->exit_origin;
+        int exits = path->fresnel > 0.0f && path->exited;
+        int has = exits && eo.x >= dr->lens_box[0].x && eo.y >= dr->lens_box[0].y && eo.z >= dr->lens_box[0].z &&
+                  eo.x <= dr->lens_box[1].x && eo.y <= dr->lens_box[1].y && eo.z <= dr->lens_box[1].z;
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
         for (l = 0; l < dr->layers; ++l) {
-            refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
-            has = has && refl__lem_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            /* a closed shell without a lookup: the path left the lens through
+               another lens object beyond the shell, where the map knows
+               nothing of what the ray meets (the pixels go to the tracer); a
+               quad missed: the layer is left out at this vertex */
+            int quad = dr->shell[l].kind == REFL_LEM_SHELL_QUAD;
+            refl_vec3 index = refl_v3(0.0f, 0.0f, quad ? 0.0f : 1.0f);
+            int got = has && refl_lem_shell_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            if (quad)
+                dr->quad_misses += has && !got;
+            else
+                has = has && got;
+            if (quad && !got) index = refl_v3(0.0f, 0.0f, 0.0f);
             o[4 + 3 * l] = index.x;
             o[4 + 3 * l + 1] = index.y;
             o[4 + 3 * l + 2] = index.z;
         }
-        for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
-        fg[3] = (float)has;
-        fg[4] = (float)(exits && !has);
+        if (dr->record_layer >= 0) {
+            fg[0] = (float)has;
+        } else {
+            for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
+            fg[3] = (float)(exits && !has);
+        }
     }
     tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
@@ -15756,6 +16124,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
     refl__lem_bounds(scene, i, &centre, &lens_radius, box);
+    refl__lem_draw_box(&dr, box);
     /* the records and tessellation of each view, in rows on the pass's threads */
     for (s = 0; s < per && r == REFL_OK; ++s) {
         refl__lem_records rec;
@@ -15792,8 +16161,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
     out->layers = dr.layers = L;
     for (l = 0; l < L; ++l) {
-        dr.shell[l].center = lay->centre;
-        dr.shell[l].radius = lay->radius[l];
+        dr.shell[l] = lay->shell[l];
         dr.shell[l].face_size = face;
         out->shell[l] = dr.shell[l];
         if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
@@ -15818,8 +16186,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                     float wt[4];
                     /* a row where the records have the term and all three vertices gave it an index */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                        !refl_lem_shell_lookup(&dr.shell[l], dr.shell[l].center, refl_v3(ix[0], ix[1], ix[2]), tex,
-                                               wt))
+                        !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
                     r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
                 }
@@ -15943,8 +16310,10 @@ enum { REFL__LEM_CLUSTER_VIEWS = 16 };
    a quarter of its size, 16 to 64 pixels wide: the clustering needs
    distances, not detail) clustered by
    refl_lem_cluster_layers, each object's layer kept. No hits (only the
-   environment): one shell at 10 lens radii. Shells are kept outside the
-   lens, each beyond the one before. */
+   environment): one shell at 10 lens radii. Sphere radii are kept
+   outside the lens, each beyond the one before; then each layer's shell
+   is fitted to its hits (refl__lem_fit_layers), closed ones around the
+   lens's box. */
 static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
                                      float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
     const refl_scene *scene = p->scene;
@@ -15954,7 +16323,10 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l;
     int want = p->desc.layered_em.layers > 0 ? p->desc.layered_em.layers : 1;
     int *layer_of = NULL;
+    refl_vec3 box[2], bc;
+    float br;
     refl_result r = REFL_OK;
+    refl__lem_bounds(scene, i, &bc, &br, box);
     memset(&h, 0, sizeof h);
     h.al = al;
     for (k = 0; k < n && r == REFL_OK; ++k) {
@@ -15993,7 +16365,11 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     if (!(lay->radius[0] > lens_radius)) lay->radius[0] = REFL__MAX(10.0f * lens_radius, 1e-3f);
     for (l = 1; l < lay->layers; ++l)
         if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    if (r == REFL_OK &&
+        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
+        r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
+    refl__free(al, h.pos);
     refl__free(al, h.distance);
     refl__free(al, h.object);
     refl__free(al, h.ray);
@@ -16104,7 +16480,9 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
             dr.weight = weight[s];
             dr.term = term;
             dr.record_layer = -1;
+            refl__lem_draw_box(&dr, box);
             r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+            if (s == 0) f->stats.layered_em.quad_misses += dr.quad_misses;
             for (px = 0; px < np && r == REFL_OK; ++px) {
                 float a = color[4 * px + 3];
                 if (f->stencil[px] != ref || !(a > 0.0f)) continue;

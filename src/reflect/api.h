@@ -1278,6 +1278,9 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
+    long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
+                                away from it or past its rectangle): that layer is left out
+                                there, the next layer shows */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1522,20 +1525,52 @@ REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
 
 /* ---- paper 001's inferred environment maps (section 4) ------------------------- */
 
-/* One environment layer: a sphere shell around a lens object, textured as
-   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
-   side, texel (face, x, y) at face * size^2 + y * size + x). */
+/* The kinds of shell a layer is parameterised on (section 4.3: spheres,
+   cylinders, finite cubes, and quads for sparse layers). AUTO is the
+   options' "choose per layer"; a shell of kind 0 is a sphere. */
+typedef enum refl_lem_shell_kind {
+    REFL_LEM_SHELL_AUTO = 0,
+    REFL_LEM_SHELL_SPHERE,
+    REFL_LEM_SHELL_CYLINDER,
+    REFL_LEM_SHELL_BOX,
+    REFL_LEM_SHELL_QUAD
+} refl_lem_shell_kind;
+
+/* One environment layer: a shell around a lens object, textured as a cube
+   map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
+   texel (face, x, y) at face * size^2 + y * size + x) of the shell's
+   index of a point on it (refl_lem_shell_index). A sphere is center and
+   radius; the other kinds are placed by center, an orthonormal frame
+   axis[3] and half sizes extent[3] along it: a box its half sides; a
+   cylinder around axis[1], its radius extent[0] (= extent[2]) and half
+   height extent[1]; a quad in the plane of axis[0] and axis[1] (normal
+   axis[2]), extent[0] x extent[1] either side of its centre. */
 typedef struct refl_lem_shell {
     refl_vec3 center;
     float radius;
     int face_size;
+    int kind;                /* refl_lem_shell_kind; 0 or SPHERE: a sphere */
+    refl_vec3 axis[3];
+    float extent[3];
 } refl_lem_shell;
 
-/* How the runtime samples the shell for an exit ray (origin inside or
-   outside, dir unit): the ray's far hit on the sphere, its offset from the
-   centre as the cube-map index, bilinear on the face (clamped at its
-   edges). 1 with four texels and weights summing to 1, or 0 when the ray
-   misses the sphere. The rendering matrix is made of exactly these. */
+/* The shell's index of an exit ray: where the ray leaves the shell, as
+   the vector the cube map is looked up with (a sphere: the hit minus the
+   centre; a box or cylinder: the hit in the shell's frame over its half
+   sizes; a quad: (x / extent[0], y / extent[1], 1) of the hit in its
+   plane). The runtime interpolates it across a triangle (a quad's as
+   (0, 0, 0) where an exit ray misses it: its third component then the
+   share of the quad present, refl_lem_shell_texels dividing the first
+   two by it). 0 (no lookup)
+   when the ray starts outside a closed shell, or travels away from a quad
+   or misses its rectangle. */
+REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index);
+/* The four texels and bilinear weights (summing to 1) of an index: its
+   cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
+   zero or non-finite index or a bad shell. */
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
+/* How the runtime samples the shell for an exit ray (dir unit): its index,
+   then that index's texels. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
 /* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
@@ -1635,9 +1670,14 @@ typedef struct refl_layered_em_options {
     int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
                                 views half a spacing either side (the paper's simultaneous
                                 inference, against disocclusions between samples) */
-    int layers;              /* environment layers (sphere shells) per lens, 1 to
+    int layers;              /* environment layers (shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
+    int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
+                                the closed kind whose surface lies nearest the layer's hits on
+                                average, or a quad for an inner layer whose hits are sparse in
+                                direction and lie nearest a plane. QUAD: every inner layer a
+                                quad, the outermost AUTO's closed kind */
 } refl_layered_em_options;
 
 typedef struct refl_envmap_options {

@@ -135,9 +135,13 @@ Test(refl_gl_hooks, sbc_morph_sheets_glsl_matches_c, .timeout = 120) { validate(
 /* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
    texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
 Test(refl_gl_hooks, lem_shell_layout) {
-    refl_lem_shell sh = {{1.0f, 2.0f, 3.0f}, 4.0f, 2};
+    refl_lem_shell sh;
     float map[4 * 24], buf[8 + 4 * 24];
     int i;
+    memset(&sh, 0, sizeof sh);
+    sh.center = refl_v3(1.0f, 2.0f, 3.0f);
+    sh.radius = 4.0f;
+    sh.face_size = 2;
     for (i = 0; i < 4 * 24; ++i) map[i] = (float)i;
     cr_assert_eq(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 8);
     cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, NULL, 0), 8 + 4 * 24);
