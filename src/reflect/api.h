@@ -1278,6 +1278,7 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
+    long long direct_rows;   /* rows the direct images added to the maps inferred */
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
                                 there, the next layer shows */
@@ -1678,7 +1679,12 @@ typedef struct refl_layered_em_options {
                                 average, or a quad for an inner layer whose hits are sparse in
                                 direction and lie nearest a plane. QUAD: every inner layer a
                                 quad, the outermost AUTO's closed kind */
+    int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
+                                from the lens's centre towards every texel, weighed by how
+                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                (REFL_LEM_DIRECT_DEFAULT) */
 } refl_layered_em_options;
+enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

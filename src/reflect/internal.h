@@ -596,6 +596,17 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
                                  int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
+/* Section 4.3's direct images of the environment without the lens, from
+   its centre (lay->centre), as rows of layer `layer`'s system: one ray
+   towards every texel's point on the shell, its target the ray's first
+   hit in the layer (continued through the rest; alpha 0 where none, the
+   environment on the outermost layer), its confidence the share of the
+   texels the lens images' rows (already in sys) leave unheld: 1 minus
+   their coverage (the sum of their rows' weights), so the direct images
+   fill in only what the lens images miss. *added counts the rows. */
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no

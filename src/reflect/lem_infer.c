@@ -680,6 +680,91 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
     return 1;
 }
 
+/* ---- direct images against disocclusion (section 4.3) ----------------------------------- */
+
+/* The unit-cube point of texel (face, x, y)'s centre (rast_cube_face's inverse). */
+static refl_vec3 refl__lem_texel_direction(int face, int x, int y, int n) {
+    float sc = 2.0f * ((float)x + 0.5f) / (float)n - 1.0f, tc = 2.0f * ((float)y + 0.5f) / (float)n - 1.0f;
+    switch (face) {
+    case 0: return refl_v3(1.0f, -tc, -sc);
+    case 1: return refl_v3(-1.0f, -tc, sc);
+    case 2: return refl_v3(sc, 1.0f, tc);
+    case 3: return refl_v3(sc, -1.0f, -tc);
+    case 4: return refl_v3(sc, -tc, 1.0f);
+    default: return refl_v3(-sc, -tc, -1.0f);
+    }
+}
+
+/* The world point on the shell whose index points along q (a texel's
+   direction), 0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p) {
+    float k;
+    if (refl__lem_sphere_kind(sh)) {
+        *p = refl_v3_add(sh->center, refl_v3_scale(refl_v3_normalize(q), sh->radius));
+        return 1;
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: k = REFL__MAX(fabsf(q.x), REFL__MAX(fabsf(q.y), fabsf(q.z))); break;
+    case REFL_LEM_SHELL_CYLINDER: k = REFL__MAX(sqrtf(q.x * q.x + q.z * q.z), fabsf(q.y)); break;
+    case REFL_LEM_SHELL_QUAD:
+        if (!(q.z > 0.0f) || fabsf(q.x) > q.z || fabsf(q.y) > q.z) return 0;
+        k = q.z, q.z = 0.0f;
+        break;
+    default: return 0;
+    }
+    if (!(k > 0.0f)) return 0;
+    *p = refl_v3_add(sh->center,
+                     refl_v3_add(refl_v3_scale(sh->axis[0], sh->extent[0] * q.x / k),
+                                 refl_v3_add(refl_v3_scale(sh->axis[1], sh->extent[1] * q.y / k),
+                                             refl_v3_scale(sh->axis[2], sh->extent[2] * q.z / k))));
+    return 1;
+}
+
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added) {
+    const refl_allocator *a = &sys->allocator;
+    int n = shell->face_size, face, x, y, k, last = layer == lay->layers - 1;
+    float *cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+    long long e;
+    refl_result r = REFL_OK;
+    if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
+    /* how much of each texel the lens images' rows already hold */
+    for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    for (face = 0; face < 6 && r == REFL_OK; ++face)
+        for (y = 0; y < n && r == REFL_OK; ++y)
+            for (x = 0; x < n && r == REFL_OK; ++x) {
+                refl__lem_hit hits[REFL__LEM_MAX_HITS];
+                refl_vec3 p, d;
+                uint32_t tex[4];
+                float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
+                int nh, got = 0;
+                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
+                if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
+                for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
+                conf = 1.0f - REFL__MIN(held, 1.0f);
+                if (!(conf > 0.0f)) continue; /* the lens images hold it */
+                nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
+                for (k = 0; k < nh && !got; ++k)
+                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                        target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
+                        target[3] = 1.0f;
+                        got = 1;
+                    }
+                if (!got && last) { /* the outermost layer is opaque: the environment past everything */
+                    float rgb[3];
+                    refl_environment_lookup(&scene->environment, d, rgb);
+                    for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
+                    target[3] = 1.0f;
+                }
+                r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
+                if (r == REFL_OK) ++*added;
+            }
+    refl__free(a, cov);
+    return r;
+}
+
 /* ---- layers: LBG over hit distances ------------------------------------------------ */
 
 static int refl__lem_cmp_float(const void *a, const void *b) {

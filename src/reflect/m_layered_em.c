@@ -59,6 +59,7 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
+    if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     return NULL;
 }
 
@@ -497,6 +498,14 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                     r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
                 }
         }
+    /* where the lens images leave texels unheld, the direct images */
+    for (l = 0; l < L && r == REFL_OK &&
+                (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
+         ++l) {
+        int added = 0;
+        r = refl__lem_direct_rows(scene, caster, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        st->layered_em.direct_rows += added;
+    }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
     for (l = 0; l < L && r == REFL_OK; ++l) {

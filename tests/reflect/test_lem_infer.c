@@ -758,3 +758,48 @@ Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
     cr_assert_eq(automatic, quad, "AUTO takes the quad: %.2f dB against %.2f", automatic, quad);
     refl_scene_destroy(s);
 }
+
+/* ---- direct images against disocclusion ------------------------------------------------- */
+
+Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
+    /* 4 samples 90 degrees apart, each from its own view alone: at 45
+       degrees the lens shows parts of the sphere no sample's records met
+       (their texels stay empty); the direct images from the lens's centre
+       fill them */
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(45.0f, 96, 72);
+    refl_render_desc d;
+    refl_frame *truth, *lem[2];
+    refl_image_error err[2];
+    int dark[2] = {0, 0}, on, lens = 0;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, &v, &d);
+    for (on = 0; on < 2; ++on) {
+        d = lem_desc(4);
+        d.layered_em.single_view = 1;
+        d.layered_em.direct_images = on ? 1 : -1;
+        lem[on] = tu_refl_render(s, &v, &d);
+        cr_assert_eq(refl_measure_image_error(lem[on], truth, 1, 0.0f, &err[on]), REFL_OK);
+        cr_assert_eq(lem[on]->stats.layered_em.direct_rows > 0, on);
+        for (i = 0; i < n; ++i) {
+            const float *t = truth->rgba + 4 * i, *l = lem[on]->rgba + 4 * i;
+            if (truth->stencil[i] != 2) continue;
+            lens += !on;
+            dark[on] += t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
+        }
+    }
+    cr_log_info("disocclusion: without %.2f dB (%d dark), with %.2f dB (%d dark) of %d lens pixels", err[0].psnr, dark[0],
+                err[1].psnr, dark[1], lens);
+    cr_assert_geq(dark[0], 50, "without: %d dark pixels", dark[0]);
+    cr_assert_lt(err[0].psnr, 25.0, "without: %.2f dB", err[0].psnr);
+    cr_assert_eq(dark[1], 0, "with: %d dark pixels", dark[1]);
+    cr_assert_geq(err[1].psnr, 33.0, "with: %.2f dB", err[1].psnr);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem[0]);
+    refl_frame_destroy(lem[1]);
+    refl_scene_destroy(s);
+}
