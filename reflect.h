@@ -1626,7 +1626,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    front-most hit in the layer. Returns the layers made (empty ones
    dropped; 0 on bad arguments or no memory), their radii ascending in
    radius[], and, when layer_of is not NULL, each hit's layer. */
-enum { REFL_LEM_MAX_LAYERS = 3 };
+enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
 
@@ -15852,7 +15852,7 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.theta_c_degrees: 0 (5) to 180";
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
-    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
+    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";

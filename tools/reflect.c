@@ -88,7 +88,7 @@ static const char *const usage_render =
     "                     instead of the full ray tree\n"
     "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
     "                     1..3600 (default 45)\n"
-    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..3 (default 1)\n"
+    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..4 (default 1)\n"
     "  --lem-shell K      LAYERED_EM: every layer's shell, auto (per layer, from its\n"
     "                     hits), sphere, cylinder, box or quad (inner layers; the\n"
     "                     outermost auto's closed kind) (default auto)\n"
@@ -347,7 +347,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--lem-samples")) {
             if (!parse_int(v, 1, 3600, &o->lem_samples)) return fail("--lem-samples: expected 1..3600, got %s", v);
         } else if (!strcmp(a, "--lem-layers")) {
-            if (!parse_int(v, 1, 3, &o->lem_layers)) return fail("--lem-layers: expected 1..3, got %s", v);
+            if (!parse_int(v, 1, 4, &o->lem_layers)) return fail("--lem-layers: expected 1..4, got %s", v);
         } else if (!strcmp(a, "--lem-direct")) {
             int on;
             if (!parse_int(v, 0, 1, &on)) return fail("--lem-direct: expected 0 or 1, got %s", v);

@@ -1624,7 +1624,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    front-most hit in the layer. Returns the layers made (empty ones
    dropped; 0 on bad arguments or no memory), their radii ascending in
    radius[], and, when layer_of is not NULL, each hit's layer. */
-enum { REFL_LEM_MAX_LAYERS = 3 };
+enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
 

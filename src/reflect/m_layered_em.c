@@ -56,7 +56,7 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.theta_c_degrees: 0 (5) to 180";
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
-    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
+    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";

@@ -324,7 +324,17 @@ Test(layered_em, options_validated) {
     d.layered_em.supersample = 0;
     d.layered_em.layers = REFL_LEM_MAX_LAYERS + 1;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
-    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 3");
+    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 4");
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_OK);
+    d.layered_em.layers = -1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.layers = 0;
+    d.layered_em.shell = REFL_LEM_SHELL_QUAD + 1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.shell = 0;
+    d.layered_em.direct_images = 2;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
 }
 
 /* ---- maps kept by a renderer -------------------------------------------------------- */
@@ -587,6 +597,13 @@ Test(layered_em, an_inner_partial_shell_needs_two_layers) {
     cr_assert_gt(err[1].pixels, 2000);
     cr_assert_lt(err[0].psnr, 35.0, "one layer: PSNR %.2f dB", err[0].psnr);
     cr_assert_geq(err[1].psnr, 35.0, "two layers: PSNR %.2f dB (one: %.2f dB)", err[1].psnr, err[0].psnr);
+    /* the most layers: LBG splits the two groups further, still exact */
+    d = lem_desc(0);
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS;
+    lem = tu_refl_render(s, &v, &d);
+    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err[0]), REFL_OK);
+    cr_assert_geq(err[0].psnr, 35.0, "%d layers: PSNR %.2f dB", REFL_LEM_MAX_LAYERS, err[0].psnr);
+    refl_frame_destroy(lem);
     refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
