@@ -1070,8 +1070,8 @@ typedef enum refl_gl_camera {
     REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
-    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
-                                and optionally the layer's inferred map */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
+                                quad): the lookup of an exit ray, and optionally the maps */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1081,11 +1081,13 @@ typedef enum refl_gl_camera {
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
          bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
              refl_sbc_morph_project's blend (one image per node and piece)
-         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
-             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
-         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
-             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
-             int base, vec3 index): per fragment, the packed map at an interpolated index
+         bool refl_lem_shell_index(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out vec3 index) per vertex: refl_lem_shell_index (interpolate it); false (no
+             lookup) from outside a closed shell, or away from or past a quad
+         bool refl_lem_shell_lookup(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out ivec4 texel, out vec4 weight): refl_lem_shell_lookup; vec4
+             refl_lem_shell_sample(samplerBuffer, int base, int layer, vec3 index): per fragment,
+             the layer's packed map at an interpolated index; int refl_lem_layers(...)
          vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
              (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
@@ -1574,9 +1576,13 @@ REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index,
    then that index's texels. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
-/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
-   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
-   refl_lem_shell_lookup's order), packed as the other cameras are. */
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a lens's layers' shells (1 to
+   REFL_LEM_MAX_LAYERS, any kind) and, when maps is not NULL, each layer's
+   inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_texels' order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shells(const refl_lem_shell *shells, const float *const *maps, int layers,
+                                           float *out, long long cap);
+/* One layer's: refl_gl_pack_lem_shells of one shell (map may be NULL). */
 REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
