@@ -44,7 +44,7 @@ static const char *const usage_render =
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots,\n"
     "                     hybrid\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
-    "                     graphcam, layered-em (paper 001, one shell layer) or auto (per\n"
+    "                     graphcam, layered-em (paper 001, layered shells) or auto (per\n"
     "                     reflector, the cheapest predicted to meet --error-budget)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"

@@ -21,6 +21,7 @@ Test(lem_infer, shell_lookup_far_root) {
     refl_vec3 o = refl_v3(0.4f, -0.3f, 0.2f), d = refl_v3_normalize(refl_v3(0.3f, 0.5f, -0.8f)), hit, oc;
     float b, c, t;
     int k;
+    memset(&sh, 0, sizeof sh); /* kind 0: a sphere */
     sh.center = refl_v3(1.0f, 2.0f, 3.0f);
     sh.radius = 2.5f;
     sh.face_size = 16;
@@ -76,6 +77,7 @@ Test(lem_infer, least_squares_recovers_known_texture) {
     float *x = (float *)malloc(sizeof(float) * 4 * (size_t)texels), *x2 = (float *)malloc(sizeof(float) * 4 * (size_t)texels);
     int i, k, c;
     double worst = 0.0;
+    memset(&sh, 0, sizeof sh);
     sh.center = refl_v3(0, 0, 0);
     sh.radius = 3.0f;
     sh.face_size = n;
@@ -230,6 +232,7 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     float *x;
     double at_sample, between;
     int k;
+    memset(&sh, 0, sizeof sh);
     sh.center = refl_v3(0, 0, 0);
     sh.radius = 5.0f;
     sh.face_size = 24; /* about a texel per pixel of the lens's view: finer is underdetermined between samples */
