@@ -1072,8 +1072,8 @@ typedef enum refl_gl_camera {
     REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
-    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
-                                and optionally the layer's inferred map */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
+                                quad): the lookup of an exit ray, and optionally the maps */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1083,11 +1083,13 @@ typedef enum refl_gl_camera {
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
          bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
              refl_sbc_morph_project's blend (one image per node and piece)
-         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
-             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
-         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
-             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
-             int base, vec3 index): per fragment, the packed map at an interpolated index
+         bool refl_lem_shell_index(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out vec3 index) per vertex: refl_lem_shell_index (interpolate it); false (no
+             lookup) from outside a closed shell, or away from or past a quad
+         bool refl_lem_shell_lookup(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out ivec4 texel, out vec4 weight): refl_lem_shell_lookup; vec4
+             refl_lem_shell_sample(samplerBuffer, int base, int layer, vec3 index): per fragment,
+             the layer's packed map at an interpolated index; int refl_lem_layers(...)
          vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
              (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
@@ -1280,6 +1282,10 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
+    long long direct_rows;   /* rows the direct images added to the maps inferred */
+    long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
+                                away from it or past its rectangle): that layer is left out
+                                there, the next layer shows */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1527,25 +1533,61 @@ REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
 
 /* ---- paper 001's inferred environment maps (section 4) ------------------------- */
 
-/* One environment layer: a sphere shell around a lens object, textured as
-   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
-   side, texel (face, x, y) at face * size^2 + y * size + x). */
+/* The kinds of shell a layer is parameterised on (section 4.3: spheres,
+   cylinders, finite cubes, and quads for sparse layers). AUTO is the
+   options' "choose per layer"; a shell of kind 0 is a sphere. */
+typedef enum refl_lem_shell_kind {
+    REFL_LEM_SHELL_AUTO = 0,
+    REFL_LEM_SHELL_SPHERE,
+    REFL_LEM_SHELL_CYLINDER,
+    REFL_LEM_SHELL_BOX,
+    REFL_LEM_SHELL_QUAD
+} refl_lem_shell_kind;
+
+/* One environment layer: a shell around a lens object, textured as a cube
+   map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
+   texel (face, x, y) at face * size^2 + y * size + x) of the shell's
+   index of a point on it (refl_lem_shell_index). A sphere is center and
+   radius; the other kinds are placed by center, an orthonormal frame
+   axis[3] and half sizes extent[3] along it: a box its half sides; a
+   cylinder around axis[1], its radius extent[0] (= extent[2]) and half
+   height extent[1]; a quad in the plane of axis[0] and axis[1] (normal
+   axis[2]), extent[0] x extent[1] either side of its centre. */
 typedef struct refl_lem_shell {
     refl_vec3 center;
     float radius;
     int face_size;
+    int kind;                /* refl_lem_shell_kind; 0 or SPHERE: a sphere */
+    refl_vec3 axis[3];
+    float extent[3];
 } refl_lem_shell;
 
-/* How the runtime samples the shell for an exit ray (origin inside or
-   outside, dir unit): the ray's far hit on the sphere, its offset from the
-   centre as the cube-map index, bilinear on the face (clamped at its
-   edges). 1 with four texels and weights summing to 1, or 0 when the ray
-   misses the sphere. The rendering matrix is made of exactly these. */
+/* The shell's index of an exit ray: where the ray leaves the shell, as
+   the vector the cube map is looked up with (a sphere: the hit minus the
+   centre; a box or cylinder: the hit in the shell's frame over its half
+   sizes; a quad: (x / extent[0], y / extent[1], 1) of the hit in its
+   plane). The runtime interpolates it across a triangle (a quad's as
+   (0, 0, 0) where an exit ray misses it: its third component then the
+   share of the quad present, refl_lem_shell_texels dividing the first
+   two by it). 0 (no lookup)
+   when the ray starts outside a closed shell, or travels away from a quad
+   or misses its rectangle. */
+REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index);
+/* The four texels and bilinear weights (summing to 1) of an index: its
+   cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
+   zero or non-finite index or a bad shell. */
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
+/* How the runtime samples the shell for an exit ray (dir unit): its index,
+   then that index's texels. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
-/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
-   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
-   refl_lem_shell_lookup's order), packed as the other cameras are. */
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a lens's layers' shells (1 to
+   REFL_LEM_MAX_LAYERS, any kind) and, when maps is not NULL, each layer's
+   inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_texels' order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shells(const refl_lem_shell *shells, const float *const *maps, int layers,
+                                           float *out, long long cap);
+/* One layer's: refl_gl_pack_lem_shells of one shell (map may be NULL). */
 REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
@@ -1593,7 +1635,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    front-most hit in the layer. Returns the layers made (empty ones
    dropped; 0 on bad arguments or no memory), their radii ascending in
    radius[], and, when layer_of is not NULL, each hit's layer. */
-enum { REFL_LEM_MAX_LAYERS = 3 };
+enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
 
@@ -1640,7 +1682,7 @@ typedef struct refl_layered_em_options {
     int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
                                 views half a spacing either side (the paper's simultaneous
                                 inference, against disocclusions between samples) */
-    int layers;              /* environment layers (sphere shells) per lens, 1 to
+    int layers;              /* environment layers (shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
     int keep_stale_maps;     /* 1: a renderer keeps its maps (and circles and layers) when the
@@ -1648,7 +1690,17 @@ typedef struct refl_layered_em_options {
                                 (an environment object moved after the maps were built); only
                                 for scenes whose objects moved (none added or removed). 0: the
                                 maps are dropped and inferred again */
+    int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
+                                the closed kind whose surface lies nearest the layer's hits on
+                                average, or a quad for an inner layer whose hits are sparse in
+                                direction and lie nearest a plane. QUAD: every inner layer a
+                                quad, the outermost AUTO's closed kind */
+    int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
+                                from the lens's centre towards every texel, weighed by how
+                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                (REFL_LEM_DIRECT_DEFAULT) */
 } refl_layered_em_options;
+enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -2612,6 +2664,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
 typedef struct refl__lem_layering {
     int layers;
     float radius[REFL_LEM_MAX_LAYERS];
+    refl_lem_shell shell[REFL_LEM_MAX_LAYERS]; /* each layer's, face_size aside (refl__lem_fit_layers) */
     refl_vec3 centre;
     const signed char *object_layer;
     int object_count;
@@ -2620,15 +2673,22 @@ enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */
+    refl_vec3 position;
     int object;
 } refl__lem_hit;
 /* Hits gathered for the clustering: distance, object and exit ray of each. */
 typedef struct refl__lem_hits {
     const refl_allocator *al;
-    float *distance;
+    float *distance, *pos;       /* pos: 3 per hit */
     int *object, *ray;
     int count, cap, rays;
 } refl__lem_hits;
+/* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
+   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
+   closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
+   a sphere at lay->radius. 0 when out of memory. */
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
    does not meet `object` first; else per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
@@ -2641,6 +2701,17 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
                                  int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
+/* Section 4.3's direct images of the environment without the lens, from
+   its centre (lay->centre), as rows of layer `layer`'s system: one ray
+   towards every texel's point on the shell, its target the ray's first
+   hit in the layer (continued through the rest; alpha 0 where none, the
+   environment on the outermost layer), its confidence the share of the
+   texels the lens images' rows (already in sys) leave unheld: 1 minus
+   their coverage (the sum of their rows' weights), so the direct images
+   fill in only what the lens images miss. *added counts the rows. */
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no
@@ -10001,28 +10072,57 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
-/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+/* ---- LAYERED_EM: every layer's shell ------------------------------------------ */
 
-static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+/* Header (kind, version, layers, maps or 0), per layer 5 texels (face
+   size, shell kind, its map's offset from the header or 0, 0; centre and
+   radius; the frame's three axes, each with its half size), then the maps. */
+static long long refl__gl_lem_shells(refl__gl_out *op, const refl_lem_shell *shells, const float *const *maps,
+                                     int layers) {
     refl__gl_out o = *op;
-    long long i, texels;
-    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
-        return REFL_ERROR_INVALID_ARGUMENT;
-    texels = 6LL * shell->face_size * shell->face_size;
-    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
-    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
-    refl__gl_put_v3(&o, shell->center, shell->radius);
-    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    long long texels, at;
+    int l, k;
+    if (!shells || layers <= 0 || layers > REFL_LEM_MAX_LAYERS) return REFL_ERROR_INVALID_ARGUMENT;
+    at = 1 + 5LL * layers;
+    for (l = 0; l < layers; ++l) {
+        const refl_lem_shell *sh = &shells[l];
+        int sphere = sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
+        if (sh->face_size <= 0 || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
+            (sphere && !(sh->radius > 0.0f)))
+            return REFL_ERROR_INVALID_ARGUMENT;
+        for (k = 0; k < 3 && !sphere; ++k)
+            if (!refl__v3_finite(sh->axis[k]) || !refl__isfinite(sh->extent[k])) return REFL_ERROR_INVALID_ARGUMENT;
+        texels = 6LL * sh->face_size * sh->face_size;
+        if (maps && !maps[l]) return REFL_ERROR_INVALID_ARGUMENT;
+        if (at + (maps ? texels : 0) >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+        at += maps ? texels : 0;
+    }
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, layers, maps ? 1 : 0);
+    at = 1 + 5LL * layers;
+    for (l = 0; l < layers; ++l) {
+        const refl_lem_shell *sh = &shells[l];
+        refl__gl_put4(&o, sh->face_size, sh->kind == REFL_LEM_SHELL_AUTO ? REFL_LEM_SHELL_SPHERE : sh->kind,
+                      maps ? (double)at : 0.0, 0);
+        refl__gl_put_v3(&o, sh->center, sh->radius);
+        for (k = 0; k < 3; ++k) refl__gl_put_v3(&o, sh->axis[k], sh->extent[k]);
+        at += maps ? 6LL * sh->face_size * sh->face_size : 0;
+    }
+    for (l = 0; maps && l < layers; ++l) {
+        long long i, n = 4 * 6LL * shells[l].face_size * shells[l].face_size;
+        for (i = 0; i < n; ++i) refl__gl_put(&o, maps[l][i]);
+    }
     return refl__gl_done(&o);
 }
 
-REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+REFL_API long long refl_gl_pack_lem_shells(const refl_lem_shell *shells, const float *const *maps, int layers,
+                                           float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
-    long long need = refl__gl_lem_shell(&o, shell, map);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_lem_shell(&o, shell, map);
+    long long need = refl__gl_lem_shells(&o, shells, maps, layers);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_lem_shells(&o, shells, maps, layers) : need;
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    return refl_gl_pack_lem_shells(shell, map ? &map : NULL, 1, out, cap);
 }
 
 /* ---- the SPOC ------------------------------------------------------------------- */
@@ -10523,17 +10623,53 @@ static const char refl__gl_glsl_sbc_morph[] =
     "}\n";
 
 static const char refl__gl_glsl_lem_shell[] =
-    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
-    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
-    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
-    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "/* reflect.h GL hook: a LAYERED_EM lens's layers' shells (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_index and refl_lem_shell_texels in float\n"
+    "   (rast.h's cube faces). Kinds: 1 sphere, 2 cylinder, 3 box, 4 quad. */\n"
+    "int refl_lem_layers(samplerBuffer data, int base) { return int(texelFetch(data, base).z); }\n"
+    "/* the exit ray's index on layer `layer`'s shell (interpolate it per\n"
+    "   vertex); false (no lookup) from outside a closed shell, or away from\n"
+    "   or past a quad */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, int layer, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    int b = base + 1 + 5 * layer, kind = int(texelFetch(data, b).y);\n"
+    "    vec4 sh = texelFetch(data, b + 1);\n"
+    "    vec4 a0 = texelFetch(data, b + 2), a1 = texelFetch(data, b + 3), a2 = texelFetch(data, b + 4);\n"
     "    vec3 oc = origin - sh.xyz;\n"
-    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    float dd = dot(dir, dir), t = 3.402823e38;\n"
     "    index = vec3(0.0);\n"
-    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
-    "    float t = (-b + sqrt(disc)) / dd;\n"
-    "    if (!(t >= 0.0)) return false;\n"
-    "    index = oc + dir * t;\n"
+    "    if (!(dd > 0.0)) return false;\n"
+    "    if (kind == 1) {\n"
+    "        float b1 = dot(oc, dir), c = dot(oc, oc) - sh.w * sh.w, disc = b1 * b1 - c * dd;\n"
+    "        if (!(sh.w > 0.0) || !(c <= 0.0) || !(disc >= 0.0)) return false;\n"
+    "        t = (-b1 + sqrt(disc)) / dd;\n"
+    "        index = oc + dir * t;\n"
+    "        return t >= 0.0;\n"
+    "    }\n"
+    "    vec3 p = vec3(dot(oc, a0.xyz), dot(oc, a1.xyz), dot(oc, a2.xyz));\n"
+    "    vec3 v = vec3(dot(dir, a0.xyz), dot(dir, a1.xyz), dot(dir, a2.xyz));\n"
+    "    vec3 e = vec3(a0.w, a1.w, a2.w);\n"
+    "    if (kind == 3) {\n"
+    "        for (int i = 0; i < 3; ++i)\n"
+    "            if (!(e[i] > 0.0) || !(abs(p[i]) <= e[i])) return false;\n"
+    "        for (int i = 0; i < 3; ++i)\n"
+    "            if (v[i] != 0.0) t = min(t, ((v[i] > 0.0 ? e[i] : -e[i]) - p[i]) / v[i]);\n"
+    "    } else if (kind == 2) {\n"
+    "        float a = v.x * v.x + v.z * v.z, b1 = p.x * v.x + p.z * v.z, c = p.x * p.x + p.z * p.z - e.x * e.x;\n"
+    "        if (!(e.x > 0.0) || !(e.y > 0.0) || !(c <= 0.0) || !(abs(p.y) <= e.y)) return false;\n"
+    "        if (a > 0.0) t = (-b1 + sqrt(max(b1 * b1 - a * c, 0.0))) / a;\n"
+    "        if (v.y != 0.0) t = min(t, ((v.y > 0.0 ? e.y : -e.y) - p.y) / v.y);\n"
+    "        e.z = e.x;\n"
+    "    } else if (kind == 4) {\n"
+    "        if (!(e.x > 0.0) || !(e.y > 0.0) || v.z == 0.0) return false;\n"
+    "        t = -p.z / v.z;\n"
+    "        if (!(t > 0.0)) return false;\n"
+    "        vec2 q = (p.xy + t * v.xy) / e.xy;\n"
+    "        if (!(abs(q.x) <= 1.0 && abs(q.y) <= 1.0)) return false;\n"
+    "        index = vec3(q, 1.0);\n"
+    "        return true;\n"
+    "    } else return false;\n"
+    "    if (!(t >= 0.0) || !(t < 3.402823e38)) return false;\n"
+    "    index = (p + t * v) / e;\n"
     "    return true;\n"
     "}\n"
     "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
@@ -10547,16 +10683,21 @@ static const char refl__gl_glsl_lem_shell[] =
     "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
     "    return face;\n"
     "}\n"
-    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
-    "   runtime samples for the exit ray; false where it misses the shell */\n"
-    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
-    "    int n = int(texelFetch(data, base).z);\n"
-    "    vec3 hit;\n"
+    "/* the four texels (face-major, rows top first; within the layer's map)\n"
+    "   and bilinear weights of an index (a quad's (x, y, presence): the\n"
+    "   point (x, y) over its presence) */\n"
+    "bool refl_lem_shell_texels(samplerBuffer data, int base, int layer, vec3 index, out ivec4 texel, out vec4 weight) {\n"
+    "    vec4 h = texelFetch(data, base + 1 + 5 * layer);\n"
+    "    int n = int(h.x);\n"
     "    vec2 st;\n"
     "    texel = ivec4(-1);\n"
     "    weight = vec4(0.0);\n"
-    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
-    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    if (int(h.y) == 4) {\n"
+    "        if (!(index.z > 0.0)) return false;\n"
+    "        index = vec3(index.xy / index.z, 1.0);\n"
+    "    }\n"
+    "    if (index == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(index, st);\n"
     "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
     "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
     "    p0 = clamp(p0, 0, n - 1);\n"
@@ -10565,15 +10706,26 @@ static const char refl__gl_glsl_lem_shell[] =
     "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
     "    return true;\n"
     "}\n"
-    "/* per fragment: the packed map at an interpolated index (the shell's\n"
-    "   centre as the origin, as the runtime samples); 0 without a map */\n"
-    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "/* refl_lem_shell_lookup: the index, then its texels */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, int layer, vec3 origin, vec3 dir, out ivec4 texel,\n"
+    "                           out vec4 weight) {\n"
+    "    vec3 index;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    return refl_lem_shell_index(data, base, layer, origin, dir, index) &&\n"
+    "           refl_lem_shell_texels(data, base, layer, index, texel, weight);\n"
+    "}\n"
+    "/* per fragment: layer `layer`'s packed map at an interpolated index\n"
+    "   (premultiplied RGBA; a quad's scaled by its presence); 0 without maps */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, int layer, vec3 index) {\n"
+    "    vec4 h = texelFetch(data, base + 1 + 5 * layer);\n"
     "    ivec4 t;\n"
     "    vec4 w;\n"
-    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
-    "        return vec4(0.0);\n"
-    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
-    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_texels(data, base, layer, index, t, w)) return vec4(0.0);\n"
+    "    int m = base + int(h.z);\n"
+    "    vec4 c = w.x * texelFetch(data, m + t.x) + w.y * texelFetch(data, m + t.y) + w.z * texelFetch(data, m + t.z) +\n"
+    "             w.w * texelFetch(data, m + t.w);\n"
+    "    return int(h.y) == 4 ? c * clamp(index.z, 0.0, 1.0) : c;\n"
     "}\n";
 
 static const char refl__gl_glsl_spoc[] =
@@ -11548,27 +11700,82 @@ REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn
    C A x = C b is solved by conjugate gradients on the normal equations,
    sequentially in double, so the texels are the same on every run. */
 
-REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
-                                   float weight[4]) {
-    refl_vec3 oc, hit;
-    float b, c, disc, t, dv[3], s, tt, x, y, fx, fy;
+/* ---- shells: where an exit ray leaves one, and its texels -------------------------- */
+
+static int refl__lem_sphere_kind(const refl_lem_shell *sh) {
+    return sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
+}
+
+REFL_API int refl_lem_shell_index(const refl_lem_shell *sh, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index) {
+    refl_vec3 oc;
+    float dd, p[3], v[3], e[3], t = FLT_MAX;
+    int i;
+    if (!sh || !index || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return 0;
+    dd = refl_v3_dot(dir, dir);
+    oc = refl_v3_sub(origin, sh->center);
+    if (!(dd > 0.0f)) return 0;
+    if (refl__lem_sphere_kind(sh)) {
+        /* |o + t d - c| = r from inside: the larger root */
+        float b = refl_v3_dot(oc, dir), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, disc = b * b - c * dd;
+        if (!(sh->radius > 0.0f) || !(c <= 0.0f) || !(disc >= 0.0f)) return 0;
+        t = (-b + sqrtf(disc)) / dd;
+        *index = refl_v3_add(oc, refl_v3_scale(dir, t));
+        return refl__v3_finite(*index) && t >= 0.0f;
+    }
+    for (i = 0; i < 3; ++i) {
+        p[i] = refl_v3_dot(oc, sh->axis[i]);
+        v[i] = refl_v3_dot(dir, sh->axis[i]);
+        e[i] = sh->extent[i];
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX:
+        /* from inside: the nearest of the three slabs' exits */
+        for (i = 0; i < 3; ++i)
+            if (!(e[i] > 0.0f) || !(fabsf(p[i]) <= e[i])) return 0;
+        for (i = 0; i < 3; ++i)
+            if (v[i] != 0.0f) t = REFL__MIN(t, ((v[i] > 0.0f ? e[i] : -e[i]) - p[i]) / v[i]);
+        break;
+    case REFL_LEM_SHELL_CYLINDER: {
+        /* from inside: the side's larger root or a cap, the nearer */
+        float a = v[0] * v[0] + v[2] * v[2], b = p[0] * v[0] + p[2] * v[2];
+        float c = p[0] * p[0] + p[2] * p[2] - e[0] * e[0];
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || !(c <= 0.0f) || !(fabsf(p[1]) <= e[1])) return 0;
+        if (a > 0.0f) t = (-b + sqrtf(REFL__MAX(b * b - a * c, 0.0f))) / a;
+        if (v[1] != 0.0f) t = REFL__MIN(t, ((v[1] > 0.0f ? e[1] : -e[1]) - p[1]) / v[1]);
+        e[2] = e[0];
+        break;
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        /* the plane ahead, inside the rectangle */
+        float x, y;
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || v[2] == 0.0f) return 0;
+        t = -p[2] / v[2];
+        if (!(t > 0.0f)) return 0;
+        x = (p[0] + t * v[0]) / e[0];
+        y = (p[1] + t * v[1]) / e[1];
+        if (!(fabsf(x) <= 1.0f && fabsf(y) <= 1.0f)) return 0;
+        *index = refl_v3(x, y, 1.0f);
+        return 1;
+    }
+    default: return 0;
+    }
+    if (!(t >= 0.0f) || !(t < FLT_MAX)) return 0;
+    *index = refl_v3((p[0] + t * v[0]) / e[0], (p[1] + t * v[1]) / e[1], (p[2] + t * v[2]) / e[2]);
+    return refl__v3_finite(*index);
+}
+
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
+    float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(origin) ||
-        !refl__v3_finite(dir))
-        return 0;
+    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
+        if (!(index.z > 0.0f)) return 0;
+        index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
+    }
     n = shell->face_size;
-    /* |o + t d - c| = r, the larger root */
-    oc = refl_v3_sub(origin, shell->center);
-    b = refl_v3_dot(oc, dir);
-    c = refl_v3_dot(oc, oc) - shell->radius * shell->radius;
-    disc = b * b - c * refl_v3_dot(dir, dir);
-    if (!(disc >= 0.0f) || !(refl_v3_dot(dir, dir) > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / refl_v3_dot(dir, dir);
-    if (!(t >= 0.0f)) return 0;
-    hit = refl_v3_add(oc, refl_v3_scale(dir, t));
-    dv[0] = hit.x;
-    dv[1] = hit.y;
-    dv[2] = hit.z;
+    dv[0] = index.x;
+    dv[1] = index.y;
+    dv[2] = index.z;
     if (dv[0] == 0.0f && dv[1] == 0.0f && dv[2] == 0.0f) return 0;
     face = rast_cube_face(dv, &s, &tt);
     /* bilinear, taps clamped to the face (as refl_environment_lookup) */
@@ -11596,6 +11803,228 @@ REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin
     return 1;
 }
 
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]) {
+    refl_vec3 index;
+    return refl_lem_shell_index(shell, origin, dir, &index) && refl_lem_shell_texels(shell, index, texel, weight);
+}
+
+/* ---- fitting a layer's shell to its hits --------------------------------------------- */
+
+/* Distance from local point p (in the shell's frame) to the shell's surface. */
+static double refl__lem_surface_distance(const refl_lem_shell *sh, const double p[3]) {
+    int i;
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: {
+        double out = 0.0, in = DBL_MAX;
+        for (i = 0; i < 3; ++i) {
+            double d = fabs(p[i]) - sh->extent[i];
+            if (d > 0.0) out += d * d;
+            in = REFL__MIN(in, -d);
+        }
+        return out > 0.0 ? sqrt(out) : in;
+    }
+    case REFL_LEM_SHELL_CYLINDER: {
+        double rho = sqrt(p[0] * p[0] + p[2] * p[2]), dr = rho - sh->extent[0], dy = fabs(p[1]) - sh->extent[1];
+        if (dr <= 0.0 && dy <= 0.0) return REFL__MIN(-dr, -dy);
+        return sqrt(REFL__MAX(dr, 0.0) * REFL__MAX(dr, 0.0) + REFL__MAX(dy, 0.0) * REFL__MAX(dy, 0.0));
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        double dx = REFL__MAX(fabs(p[0]) - sh->extent[0], 0.0), dy = REFL__MAX(fabs(p[1]) - sh->extent[1], 0.0);
+        return sqrt(dx * dx + dy * dy + p[2] * p[2]);
+    }
+    default: return fabs(sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - sh->radius);
+    }
+}
+
+/* The mean distance of the hits pos[3 n] from the shell's surface. */
+static double refl__lem_fit_error(const refl_lem_shell *sh, const float *pos, int n) {
+    double acc = 0.0;
+    int k, i;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), sh->center);
+        double p[3];
+        for (i = 0; i < 3; ++i) p[i] = refl__lem_sphere_kind(sh) ? (&d.x)[i] : refl_v3_dot(d, sh->axis[i]);
+        acc += refl__lem_surface_distance(sh, p);
+    }
+    return n ? acc / n : 0.0;
+}
+
+/* Eigenvectors of the symmetric 3x3 m (cyclic Jacobi), as rows of v,
+   ordered by descending eigenvalue. */
+static void refl__lem_eigen3(double m[3][3], double v[3][3]) {
+    int sweep, p, q, k, i, j;
+    double ev[3];
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < 3; ++j) v[i][j] = i == j;
+    for (sweep = 0; sweep < 50; ++sweep) {
+        double off = fabs(m[0][1]) + fabs(m[0][2]) + fabs(m[1][2]);
+        if (off <= 1e-30) break;
+        for (p = 0; p < 2; ++p)
+            for (q = p + 1; q < 3; ++q) {
+                double theta, t, c, sn;
+                if (m[p][q] == 0.0) continue;
+                theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+                t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(t * t + 1.0);
+                sn = t * c;
+                for (k = 0; k < 3; ++k) { /* columns p, q of m, then rows */
+                    double a = m[k][p], b = m[k][q];
+                    m[k][p] = c * a - sn * b;
+                    m[k][q] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) {
+                    double a = m[p][k], b = m[q][k];
+                    m[p][k] = c * a - sn * b;
+                    m[q][k] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) { /* eigenvectors as rows */
+                    double a = v[p][k], b = v[q][k];
+                    v[p][k] = c * a - sn * b;
+                    v[q][k] = sn * a + c * b;
+                }
+            }
+    }
+    for (i = 0; i < 3; ++i) ev[i] = m[i][i];
+    for (i = 0; i < 3; ++i) /* selection sort, descending */
+        for (j = i + 1; j < 3; ++j)
+            if (ev[j] > ev[i]) {
+                double t = ev[i];
+                ev[i] = ev[j], ev[j] = t;
+                for (k = 0; k < 3; ++k) t = v[i][k], v[i][k] = v[j][k], v[j][k] = t;
+            }
+}
+
+/* The box of the hits and the lens's box (lo, hi) together, on the world axes. */
+static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z}, pad;
+    int k, i;
+    memset(&sh, 0, sizeof sh);
+    pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f;
+    for (i = 0; i < 3; ++i) a[i] -= pad, b[i] += pad;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) a[i] = REFL__MIN(a[i], pos[3 * k + i]), b[i] = REFL__MAX(b[i], pos[3 * k + i]);
+    sh.kind = REFL_LEM_SHELL_BOX;
+    sh.center = refl_v3(0.5f * (a[0] + b[0]), 0.5f * (a[1] + b[1]), 0.5f * (a[2] + b[2]));
+    for (i = 0; i < 3; ++i) {
+        sh.axis[i] = refl_v3(i == 0, i == 1, i == 2);
+        sh.extent[i] = 0.5f * (b[i] - a[i]);
+    }
+    return sh;
+}
+
+/* A cylinder around the vertical through the lens's centre c: its caps at
+   the hits' (and the lens's) lowest and highest, its radius the mean
+   horizontal distance of the hits off the caps (at least the lens's). */
+static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float y0 = lo.y, y1 = hi.y, pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f, rmin;
+    double acc = 0.0, all = 0.0;
+    int k, side = 0;
+    memset(&sh, 0, sizeof sh);
+    y0 -= pad, y1 += pad;
+    for (k = 0; k < n; ++k) y0 = REFL__MIN(y0, pos[3 * k + 1]), y1 = REFL__MAX(y1, pos[3 * k + 1]);
+    for (k = 0; k < n; ++k) {
+        double dx = pos[3 * k] - c.x, dz = pos[3 * k + 2] - c.z, rho = sqrt(dx * dx + dz * dz);
+        float y = pos[3 * k + 1];
+        all += rho;
+        if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0)) acc += rho, ++side;
+    }
+    rmin = pad + 0.5f * sqrtf((hi.x - lo.x) * (hi.x - lo.x) + (hi.z - lo.z) * (hi.z - lo.z));
+    sh.kind = REFL_LEM_SHELL_CYLINDER;
+    sh.center = refl_v3(c.x, 0.5f * (y0 + y1), c.z);
+    sh.axis[0] = refl_v3(1, 0, 0);
+    sh.axis[1] = refl_v3(0, 1, 0);
+    sh.axis[2] = refl_v3(0, 0, 1);
+    sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : n ? all / n : 0.0), rmin);
+    sh.extent[1] = 0.5f * (y1 - y0);
+    return sh;
+}
+
+/* The least-squares plane of the hits (the normal the covariance's least
+   eigenvector), bounded by the rectangle of their extents in it. A quad
+   with no area, or one passing within the lens's bounding sphere (c,
+   lens_radius), is returned with extent 0 (not a candidate). */
+static refl_lem_shell refl__lem_fit_quad(const float *pos, int n, refl_vec3 c, float lens_radius) {
+    refl_lem_shell sh;
+    double mean[3] = {0, 0, 0}, cov[3][3], ev[3][3], lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+    int k, i, j;
+    memset(&sh, 0, sizeof sh);
+    sh.kind = REFL_LEM_SHELL_QUAD;
+    if (n < 3) return sh;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) mean[i] += pos[3 * k + i] / (double)n;
+    memset(cov, 0, sizeof cov);
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i)
+            for (j = 0; j < 3; ++j) cov[i][j] += (pos[3 * k + i] - mean[i]) * (pos[3 * k + j] - mean[j]);
+    refl__lem_eigen3(cov, ev);
+    for (i = 0; i < 3; ++i) sh.axis[i] = refl_v3_normalize(refl_v3((float)ev[i][0], (float)ev[i][1], (float)ev[i][2]));
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 2; ++i) {
+            double d = 0.0;
+            for (j = 0; j < 3; ++j) d += (pos[3 * k + j] - mean[j]) * ev[i][j];
+            lo[i] = REFL__MIN(lo[i], d), hi[i] = REFL__MAX(hi[i], d);
+        }
+    sh.center = refl_v3((float)mean[0], (float)mean[1], (float)mean[2]);
+    for (i = 0; i < 2; ++i) {
+        sh.center = refl_v3_add(sh.center, refl_v3_scale(sh.axis[i], (float)(0.5 * (lo[i] + hi[i]))));
+        sh.extent[i] = (float)(0.5 * (hi[i] - lo[i]));
+    }
+    if (!(fabsf(refl_v3_dot(refl_v3_sub(c, sh.center), sh.axis[2])) > lens_radius) || !refl__v3_finite(sh.center))
+        sh.extent[0] = sh.extent[1] = 0.0f;
+    return sh;
+}
+
+/* How far the hits' directions from c spread: 1 minus the length of
+   their mean unit direction (0: all one way; near 1: all round). */
+static double refl__lem_spread(const float *pos, int n, refl_vec3 c) {
+    double m[3] = {0, 0, 0};
+    int k;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_normalize(refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), c));
+        m[0] += d.x / n, m[1] += d.y / n, m[2] += d.z / n;
+    }
+    return n ? 1.0 - sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) : 1.0;
+}
+
+/* A layer's hits at most half spread (their mean direction at least half
+   long) are "sparse in direction": a quad may hold them. */
+#define REFL__LEM_QUAD_SPREAD 0.5
+
+static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, refl_vec3 c, float sphere_radius,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
+    refl_lem_shell cand[4];
+    double err[4], best_err = DBL_MAX;
+    int k, m = 0, best = 0;
+    memset(cand, 0, sizeof cand);
+    if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
+    /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
+    if ((kind == REFL_LEM_SHELL_AUTO && inner && refl__lem_spread(pos, n, c) <= REFL__LEM_QUAD_SPREAD) ||
+        (kind == REFL_LEM_SHELL_QUAD && inner)) {
+        cand[m] = refl__lem_fit_quad(pos, n, c, lens_radius);
+        if (cand[m].extent[0] > 0.0f && cand[m].extent[1] > 0.0f) ++m;
+    }
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_BOX)
+        cand[m++] = refl__lem_fit_box(pos, n, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_CYLINDER)
+        cand[m++] = refl__lem_fit_cylinder(pos, n, c, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_SPHERE) {
+        cand[m].kind = REFL_LEM_SHELL_SPHERE;
+        cand[m].center = c;
+        cand[m++].radius = sphere_radius;
+    }
+    if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
+    for (k = 0; k < m; ++k) {
+        err[k] = refl__lem_fit_error(&cand[k], pos, n);
+        /* a later candidate must be clearly nearer */
+        if (k == 0 || err[k] < 0.99 * best_err) best = k, best_err = err[k];
+    }
+    *out = cand[best];
+    out->radius = sphere_radius; /* every kind keeps the layer's mean distance (the hits' fallback layer) */
+}
+
 REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
     double tc = (theta_c_degrees > 0.0f ? theta_c_degrees : 5.0f) * REFL__PI / 180.0, tm = 0.0;
     int i, j;
@@ -11610,6 +12039,21 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
         }
     tm = REFL__MIN(tm, tc);
     return (float)(1.0 - tm * tm / (tc * tc));
+}
+
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius) {
+    float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
+    int l, k, n;
+    if (h->count && !pos) return 0;
+    for (l = 0; l < lay->layers; ++l) {
+        for (k = n = 0; k < h->count; ++k)
+            if (layer_of && layer_of[k] == l) memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
+        refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, lay->centre, lay->radius[l], lo, hi, lens_radius,
+                            &lay->shell[l]);
+    }
+    refl__free(h->al, pos);
+    return 1;
 }
 
 /* ---- the sparse system ------------------------------------------------------- */
@@ -11848,6 +12292,7 @@ static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *c
         refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
         for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
+        hits[n].position = g.p;
         hits[n].object = h.object;
         ++n;
     }
@@ -11921,6 +12366,91 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         }
     }
     return 1;
+}
+
+/* ---- direct images against disocclusion (section 4.3) ----------------------------------- */
+
+/* The unit-cube point of texel (face, x, y)'s centre (rast_cube_face's inverse). */
+static refl_vec3 refl__lem_texel_direction(int face, int x, int y, int n) {
+    float sc = 2.0f * ((float)x + 0.5f) / (float)n - 1.0f, tc = 2.0f * ((float)y + 0.5f) / (float)n - 1.0f;
+    switch (face) {
+    case 0: return refl_v3(1.0f, -tc, -sc);
+    case 1: return refl_v3(-1.0f, -tc, sc);
+    case 2: return refl_v3(sc, 1.0f, tc);
+    case 3: return refl_v3(sc, -1.0f, -tc);
+    case 4: return refl_v3(sc, -tc, 1.0f);
+    default: return refl_v3(-sc, -tc, -1.0f);
+    }
+}
+
+/* The world point on the shell whose index points along q (a texel's
+   direction), 0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p) {
+    float k;
+    if (refl__lem_sphere_kind(sh)) {
+        *p = refl_v3_add(sh->center, refl_v3_scale(refl_v3_normalize(q), sh->radius));
+        return 1;
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: k = REFL__MAX(fabsf(q.x), REFL__MAX(fabsf(q.y), fabsf(q.z))); break;
+    case REFL_LEM_SHELL_CYLINDER: k = REFL__MAX(sqrtf(q.x * q.x + q.z * q.z), fabsf(q.y)); break;
+    case REFL_LEM_SHELL_QUAD:
+        if (!(q.z > 0.0f) || fabsf(q.x) > q.z || fabsf(q.y) > q.z) return 0;
+        k = q.z, q.z = 0.0f;
+        break;
+    default: return 0;
+    }
+    if (!(k > 0.0f)) return 0;
+    *p = refl_v3_add(sh->center,
+                     refl_v3_add(refl_v3_scale(sh->axis[0], sh->extent[0] * q.x / k),
+                                 refl_v3_add(refl_v3_scale(sh->axis[1], sh->extent[1] * q.y / k),
+                                             refl_v3_scale(sh->axis[2], sh->extent[2] * q.z / k))));
+    return 1;
+}
+
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added) {
+    const refl_allocator *a = &sys->allocator;
+    int n = shell->face_size, face, x, y, k, last = layer == lay->layers - 1;
+    float *cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+    long long e;
+    refl_result r = REFL_OK;
+    if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
+    /* how much of each texel the lens images' rows already hold */
+    for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    for (face = 0; face < 6 && r == REFL_OK; ++face)
+        for (y = 0; y < n && r == REFL_OK; ++y)
+            for (x = 0; x < n && r == REFL_OK; ++x) {
+                refl__lem_hit hits[REFL__LEM_MAX_HITS];
+                refl_vec3 p, d;
+                uint32_t tex[4];
+                float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
+                int nh, got = 0;
+                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
+                if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
+                for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
+                conf = 1.0f - REFL__MIN(held, 1.0f);
+                if (!(conf > 0.0f)) continue; /* the lens images hold it */
+                nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
+                for (k = 0; k < nh && !got; ++k)
+                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                        target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
+                        target[3] = 1.0f;
+                        got = 1;
+                    }
+                if (!got && last) { /* the outermost layer is opaque: the environment past everything */
+                    float rgb[3];
+                    refl_environment_lookup(&scene->environment, d, rgb);
+                    for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
+                    target[3] = 1.0f;
+                }
+                r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
+                if (r == REFL_OK) ++*added;
+            }
+    refl__free(a, cov);
+    return r;
 }
 
 /* ---- layers: LBG over hit distances ------------------------------------------------ */
@@ -12035,21 +12565,27 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
                     if (h->count == h->cap) {
                         int cap = h->cap ? 2 * h->cap : 1024;
                         float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
+                        float *np = (float *)refl__calloc(h->al, 3 * (size_t)cap, sizeof(float));
                         int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
                         int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        if (!nd || !no || !nr) {
-                            refl__free(h->al, nd), refl__free(h->al, no), refl__free(h->al, nr);
+                        if (!nd || !np || !no || !nr) {
+                            refl__free(h->al, nd), refl__free(h->al, np), refl__free(h->al, no), refl__free(h->al, nr);
                             return 0;
                         }
                         if (h->count) {
                             memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
+                            memcpy(np, h->pos, 3 * sizeof(float) * (size_t)h->count);
                             memcpy(no, h->object, sizeof(int) * (size_t)h->count);
                             memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
                         }
-                        refl__free(h->al, h->distance), refl__free(h->al, h->object), refl__free(h->al, h->ray);
-                        h->distance = nd, h->object = no, h->ray = nr, h->cap = cap;
+                        refl__free(h->al, h->distance), refl__free(h->al, h->pos);
+                        refl__free(h->al, h->object), refl__free(h->al, h->ray);
+                        h->distance = nd, h->pos = np, h->object = no, h->ray = nr, h->cap = cap;
                     }
                     h->distance[h->count] = hits[k].distance;
+                    h->pos[3 * (size_t)h->count] = hits[k].position.x;
+                    h->pos[3 * (size_t)h->count + 1] = hits[k].position.y;
+                    h->pos[3 * (size_t)h->count + 2] = hits[k].position.z;
                     h->object[h->count] = hits[k].object;
                     h->ray[h->count] = h->rays;
                     ++h->count;
@@ -12080,6 +12616,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     memset(&one, 0, sizeof one);
     one.layers = 1;
     one.radius[0] = shell->radius;
+    one.shell[0] = *shell;
     one.centre = shell->center;
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {
@@ -15672,10 +16209,13 @@ static refl_result refl__method_graphcam(refl__pass *p) {
    the same bytes. Left out (see the issue): several layers by LBG, quads,
    continued rays, direct images. */
 
-/* One draw is one term: per layer its shell index (3), then F G (3), the
-   term's presence, and 1 at a vertex whose term has an exit ray the shells
-   cannot look up: 3 layers + 5 varyings. */
-static int refl__lem_varyings(int layers) { return 3 * layers + 5; }
+/* One draw is one term: per layer its shell index (3; a quad layer's
+   (0, 0, 0) where the exit ray misses it, so that its third component
+   interpolates to the share of the quad present), then shading F G (3)
+   and 1 at a vertex whose term has an exit ray a closed shell cannot look
+   up, or recording the term's presence: 3 layers + 4 varyings (16 at
+   REFL_LEM_MAX_LAYERS, rast.h's most). */
+static int refl__lem_varyings(int layers) { return 3 * layers + 4; }
 
 static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
     return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
@@ -15696,23 +16236,11 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.theta_c_degrees: 0 (5) to 180";
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
-    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
+    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
+    if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
+        return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
+    if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     return NULL;
-}
-
-/* The shell's index of an exit ray: its far hit on the sphere minus the
-   centre (0: none). An exit ray that starts outside the shell has none: its
-   path left the lens through another lens object beyond the shell, where
-   the map knows nothing of what the ray meets (the frame hands such pixels
-   to the tracer). */
-static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
-    refl_vec3 oc = refl_v3_sub(o, sh->center);
-    float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
-    float disc = b * b - c * dd, t;
-    if (!(c <= 0.0f) || !(disc >= 0.0f) || !(dd > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / dd;
-    *index = refl_v3_add(oc, refl_v3_scale(d, t));
-    return refl__v3_finite(*index) && t >= 0.0f;
 }
 
 /* What one draw of the lens shares: the layers' shells, the maps it looks
@@ -15725,7 +16253,18 @@ typedef struct refl__lem_draw {
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
     int record_layer;            /* -1: shade; else write that layer's index and the presence */
+    long long quad_misses;       /* out: vertices whose exit ray missed a quad layer */
+    refl_vec3 lens_box[2];       /* the lens's bounds, a little wider: an exit ray from
+                                    outside them left through another lens */
 } refl__lem_draw;
+
+/* dr's lens box: object i's bounds box[2], widened by a thousandth of
+   their diagonal. */
+static void refl__lem_draw_box(refl__lem_draw *dr, const refl_vec3 box[2]) {
+    float pad = 1e-3f * refl_v3_length(refl_v3_sub(box[1], box[0])) + 1e-6f;
+    dr->lens_box[0] = refl_v3_sub(box[0], refl_v3(pad, pad, pad));
+    dr->lens_box[1] = refl_v3_add(box[1], refl_v3(pad, pad, pad));
+}
 
 /* Layer l's bilinear RGBA at a shell index. */
 static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, float rgba[4]) {
@@ -15733,7 +16272,7 @@ static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, f
     float w[4];
     int k, c;
     rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
-    if (!refl_lem_shell_lookup(&dr->shell[l], dr->shell[l].center, index, tex, w)) return;
+    if (!refl_lem_shell_texels(&dr->shell[l], index, tex, w)) return;
     for (k = 0; k < 4; ++k)
         for (c = 0; c < 4; ++c) rgba[c] += w[k] * dr->map[l][4 * tex[k] + (uint32_t)c];
 }
@@ -15751,15 +16290,18 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         rgba[0] = t[0];
         rgba[1] = t[1];
         rgba[2] = t[2];
-        rgba[3] = fg[3];
+        rgba[3] = fg[0] * (dr->shell[dr->record_layer].kind == REFL_LEM_SHELL_QUAD ? t[2] : 1.0f);
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
-    rgba[3] = fg[4] > 0.0f ? 2.0f : 1.0f;
+    rgba[3] = fg[3] > 0.0f ? 2.0f : 1.0f;
     if (!(fg[0] > 0.0f || fg[1] > 0.0f || fg[2] > 0.0f)) return 1;
     for (l = 0; l < dr->layers && through > 0.0f; ++l) {
-        float a;
-        refl__lem_sample(dr, l, refl_v3(v[3 * l], v[3 * l + 1], v[3 * l + 2]), layer);
+        const float *t = v + 3 * l;
+        float a, present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        if (!(present > 0.0f)) continue; /* a quad layer the exit rays miss here */
+        refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
+        for (c = 0; c < 4; ++c) layer[c] *= present;
         a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(layer[3], 0.0f, 1.0f);
         for (c = 0; c < 3; ++c) rgba[c] += through * layer[c]; /* premultiplied */
         through *= 1.0f - a;
@@ -15789,18 +16331,34 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
         const refl_greedy_path *path = dr->term ? &v->paths.refract : &v->paths.reflect;
         float *o = verts + (size_t)i * (size_t)stride, *fg = o + 4 + 3 * dr->layers;
         refl_vec3 p = v->position;
-        int exits = path->fresnel > 0.0f && path->exited, has = exits;
+        refl_vec3 eo = path->exit_origin;
+        int exits = path->fresnel > 0.0f && path->exited;
+        int has = exits && eo.x >= dr->lens_box[0].x && eo.y >= dr->lens_box[0].y && eo.z >= dr->lens_box[0].z &&
+                  eo.x <= dr->lens_box[1].x && eo.y <= dr->lens_box[1].y && eo.z <= dr->lens_box[1].z;
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
         for (l = 0; l < dr->layers; ++l) {
-            refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
-            has = has && refl__lem_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            /* a closed shell without a lookup: the path left the lens through
+               another lens object beyond the shell, where the map knows
+               nothing of what the ray meets (the pixels go to the tracer); a
+               quad missed: the layer is left out at this vertex */
+            int quad = dr->shell[l].kind == REFL_LEM_SHELL_QUAD;
+            refl_vec3 index = refl_v3(0.0f, 0.0f, quad ? 0.0f : 1.0f);
+            int got = has && refl_lem_shell_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            if (quad)
+                dr->quad_misses += has && !got;
+            else
+                has = has && got;
+            if (quad && !got) index = refl_v3(0.0f, 0.0f, 0.0f);
             o[4 + 3 * l] = index.x;
             o[4 + 3 * l + 1] = index.y;
             o[4 + 3 * l + 2] = index.z;
         }
-        for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
-        fg[3] = (float)has;
-        fg[4] = (float)(exits && !has);
+        if (dr->record_layer >= 0) {
+            fg[0] = (float)has;
+        } else {
+            for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
+            fg[3] = (float)(exits && !has);
+        }
     }
     tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
@@ -16053,6 +16611,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
     refl__lem_bounds(scene, i, &centre, &lens_radius, box);
+    refl__lem_draw_box(&dr, box);
     /* the records and tessellation of each view, in rows on the pass's threads */
     for (s = 0; s < per && r == REFL_OK; ++s) {
         refl__lem_records rec;
@@ -16089,8 +16648,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
     out->layers = dr.layers = L;
     for (l = 0; l < L; ++l) {
-        dr.shell[l].center = lay->centre;
-        dr.shell[l].radius = lay->radius[l];
+        dr.shell[l] = lay->shell[l];
         dr.shell[l].face_size = face;
         out->shell[l] = dr.shell[l];
         if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
@@ -16115,12 +16673,19 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                     float wt[4];
                     /* a row where the records have the term and all three vertices gave it an index */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                        !refl_lem_shell_lookup(&dr.shell[l], dr.shell[l].center, refl_v3(ix[0], ix[1], ix[2]), tex,
-                                               wt))
+                        !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
                     r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
                 }
         }
+    /* where the lens images leave texels unheld, the direct images */
+    for (l = 0; l < L && r == REFL_OK &&
+                (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
+         ++l) {
+        int added = 0;
+        r = refl__lem_direct_rows(scene, caster, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        st->layered_em.direct_rows += added;
+    }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
     for (l = 0; l < L && r == REFL_OK; ++l) {
@@ -16240,8 +16805,10 @@ enum { REFL__LEM_CLUSTER_VIEWS = 16 };
    a quarter of its size, 16 to 64 pixels wide: the clustering needs
    distances, not detail) clustered by
    refl_lem_cluster_layers, each object's layer kept. No hits (only the
-   environment): one shell at 10 lens radii. Shells are kept outside the
-   lens, each beyond the one before. */
+   environment): one shell at 10 lens radii. Sphere radii are kept
+   outside the lens, each beyond the one before; then each layer's shell
+   is fitted to its hits (refl__lem_fit_layers), closed ones around the
+   lens's box. */
 static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
                                      float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
     const refl_scene *scene = p->scene;
@@ -16251,7 +16818,10 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l;
     int want = p->desc.layered_em.layers > 0 ? p->desc.layered_em.layers : 1;
     int *layer_of = NULL;
+    refl_vec3 box[2], bc;
+    float br;
     refl_result r = REFL_OK;
+    refl__lem_bounds(scene, i, &bc, &br, box);
     memset(&h, 0, sizeof h);
     h.al = al;
     for (k = 0; k < n && r == REFL_OK; ++k) {
@@ -16290,7 +16860,11 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     if (!(lay->radius[0] > lens_radius)) lay->radius[0] = REFL__MAX(10.0f * lens_radius, 1e-3f);
     for (l = 1; l < lay->layers; ++l)
         if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    if (r == REFL_OK &&
+        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
+        r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
+    refl__free(al, h.pos);
     refl__free(al, h.distance);
     refl__free(al, h.object);
     refl__free(al, h.ray);
@@ -16401,7 +16975,9 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
             dr.weight = weight[s];
             dr.term = term;
             dr.record_layer = -1;
+            refl__lem_draw_box(&dr, box);
             r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+            if (s == 0) f->stats.layered_em.quad_misses += dr.quad_misses;
             for (px = 0; px < np && r == REFL_OK; ++px) {
                 float a = color[4 * px + 3];
                 if (f->stencil[px] != ref || !(a > 0.0f)) continue;

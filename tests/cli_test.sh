@@ -183,6 +183,9 @@ ok "layered-em --prebuild renders from every sample's map" bash -c \
 ok "--frames 2: the second frame takes the first's maps" bash -c \
     "'$bin' render --builtin glass --method layered-em --lem-samples 4 --frames 2 --stats --size 32x24 --out '$tmp/lf.png' | grep -q 'maps         0 inferred, 4 kept, 4 held'"
 refuses "--lem-samples out of range" "lem-samples" "$bin" render --builtin glass --lem-samples 0 --out "$tmp/x.png"
+ok "--lem-shell box --lem-direct 0 renders" "$bin" render --builtin glass --method layered-em --lem-shell box --lem-direct 0 --size 32x24 --out "$tmp/lb.png"
+refuses "--lem-shell of no kind" "lem-shell" "$bin" render --builtin glass --lem-shell cone --out "$tmp/x.png"
+refuses "--lem-direct out of range" "lem-direct" "$bin" render --builtin glass --lem-direct 2 --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has

@@ -44,7 +44,7 @@ static const char *const usage_render =
     "  --builtin NAME     a built-in scene: default, mirror-room, concave, glass, maze, teapots,\n"
     "                     hybrid\n"
     "  --method M         direct, raytrace (the reference), envmap, planar, c3rc, sbc, spoc,\n"
-    "                     graphcam, layered-em (paper 001, one shell layer) or auto (per\n"
+    "                     graphcam, layered-em (paper 001, layered shells) or auto (per\n"
     "                     reflector, the cheapest predicted to meet --error-budget)\n"
     "                     (in any case)\n"
     "  --depth N          reflection / refraction bounces (default 6)\n"
@@ -88,7 +88,12 @@ static const char *const usage_render =
     "                     instead of the full ray tree\n"
     "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
     "                     1..3600 (default 45)\n"
-    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..3 (default 1)\n"
+    "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..4 (default 1)\n"
+    "  --lem-shell K      LAYERED_EM: every layer's shell, auto (per layer, from its\n"
+    "                     hits), sphere, cylinder, box or quad (inner layers; the\n"
+    "                     outermost auto's closed kind) (default auto)\n"
+    "  --lem-direct 0|1   LAYERED_EM: direct images from the lens's centre against\n"
+    "                     disocclusion, off or on (default on)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -178,6 +183,8 @@ typedef struct options {
     float translucency;
     int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples, lem_layers;
     float lem_edge;
+    int lem_shell;                /* --lem-shell */
+    int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
     int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
     float graphcam_step;
@@ -235,7 +242,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-direct", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -340,7 +347,18 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--lem-samples")) {
             if (!parse_int(v, 1, 3600, &o->lem_samples)) return fail("--lem-samples: expected 1..3600, got %s", v);
         } else if (!strcmp(a, "--lem-layers")) {
-            if (!parse_int(v, 1, 3, &o->lem_layers)) return fail("--lem-layers: expected 1..3, got %s", v);
+            if (!parse_int(v, 1, 4, &o->lem_layers)) return fail("--lem-layers: expected 1..4, got %s", v);
+        } else if (!strcmp(a, "--lem-direct")) {
+            int on;
+            if (!parse_int(v, 0, 1, &on)) return fail("--lem-direct: expected 0 or 1, got %s", v);
+            o->lem_direct = on ? 1 : -1;
+        } else if (!strcmp(a, "--lem-shell")) {
+            if (!strcmp(v, "auto")) o->lem_shell = REFL_LEM_SHELL_AUTO;
+            else if (!strcmp(v, "sphere")) o->lem_shell = REFL_LEM_SHELL_SPHERE;
+            else if (!strcmp(v, "cylinder")) o->lem_shell = REFL_LEM_SHELL_CYLINDER;
+            else if (!strcmp(v, "box")) o->lem_shell = REFL_LEM_SHELL_BOX;
+            else if (!strcmp(v, "quad")) o->lem_shell = REFL_LEM_SHELL_QUAD;
+            else return fail("--lem-shell: expected auto, sphere, cylinder, box or quad, got %s", v);
         } else if (!strcmp(a, "--frames")) {
             if (!parse_int(v, 1, 1000, &o->frames)) return fail("--frames: expected 1..1000, got %s", v);
         } else if (!strcmp(a, "--lem-edge")) {
@@ -748,6 +766,8 @@ static int cmd_render(const options *o) {
     d.layered_em.samples = o->lem_samples;
     d.layered_em.layers = o->lem_layers;
     d.layered_em.edge_px = o->lem_edge;
+    d.layered_em.shell = o->lem_shell;
+    d.layered_em.direct_images = o->lem_direct;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;
@@ -864,6 +884,8 @@ static int cmd_render(const options *o) {
             printf("  trace ms   %.2f (%lld vertices)\n  tess ms    %.2f\n  draw ms    %.2f\n"
                    "traced px   %lld (no triangle covered them, or their paths left through another lens)\n",
                    l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
+            if (l->direct_rows) printf("direct rows  %lld (direct images' rows in the maps inferred)\n", l->direct_rows);
+            if (l->quad_misses) printf("quad misses  %lld (vertex terms past a quad layer)\n", l->quad_misses);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
         print_auto_choices(s, &st->automatic);

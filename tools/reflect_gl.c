@@ -364,7 +364,7 @@ static const char *const rgl__vs_main[RGL_CAMERAS] = {
     "void main() {\n"
     "    ivec4 t;\n"
     "    vec4 w;\n"
-    "    refl_lem_shell_lookup(u_data, u_base, a_p.xyz, a_p.xyz - vec3(0.5, 0.25, -0.75), t, w);\n"
+    "    refl_lem_shell_lookup(u_data, u_base, int(a_p.w), a_p.xyz, a_p.xyz - vec3(0.5, 0.25, -0.75), t, w);\n"
     "    v_o0 = vec4(t);\n"
     "    v_o1 = w;\n"
     "    gl_Position = vec4(0.0);\n"
@@ -421,8 +421,9 @@ typedef struct rgl_fixture {
     int piece;
     int sheets;              /* the per-sheet fixture: the piece's sheets (each point carries its own) */
     double size;
-    /* LAYERED_EM's shell: exit rays from the test point p along p - RGL_LEM_AIM */
-    refl_lem_shell shell;
+    /* LAYERED_EM's shells (one of each kind): exit rays from the test point p
+       along p - RGL_LEM_AIM, on the layer the point carries */
+    refl_lem_shell shells[4];
     /* spoc */
     refl_spoc spoc;
 } rgl_fixture;
@@ -446,7 +447,7 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
                      : f->kind == REFL_GL_C3RC ? refl_gl_pack_c3rc(f->cams, f->cam_count, NULL, 0)
                      : f->kind == REFL_GL_GRAPHCAM ? refl_gl_pack_graphcam(f->graph, NULL, 0)
                      : f->kind == REFL_GL_SBC_MORPH ? refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, NULL, 0)
-                     : f->kind == REFL_GL_LEM_SHELL ? refl_gl_pack_lem_shell(&f->shell, NULL, NULL, 0)
+                     : f->kind == REFL_GL_LEM_SHELL ? refl_gl_pack_lem_shells(f->shells, NULL, 4, NULL, 0)
                      : f->kind == REFL_GL_SPOC ? refl_gl_pack_spoc(&f->spoc, NULL, 0)
                                                : refl_gl_pack_sbc(f->sbc, NULL, 0);
     if (need <= 0) return rgl__fail(err, n, "packer refused the fixture");
@@ -462,7 +463,7 @@ static int rgl__pack(rgl_fixture *f, char *err, size_t n) {
     else if (f->kind == REFL_GL_SBC_MORPH)
         refl_gl_pack_sbc_morph(f->morph, f->eye, f->piece, f->packed, need);
     else if (f->kind == REFL_GL_LEM_SHELL)
-        refl_gl_pack_lem_shell(&f->shell, NULL, f->packed, need);
+        refl_gl_pack_lem_shells(f->shells, NULL, 4, f->packed, need);
     else if (f->kind == REFL_GL_SPOC)
         refl_gl_pack_spoc(&f->spoc, f->packed, need);
     else
@@ -521,10 +522,26 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
     } else if (which == 6) {
         /* a shell about an off-centre point; rays from inside and outside it */
         f->kind = REFL_GL_LEM_SHELL;
-        f->shell.center = refl_v3(0.3f, -0.2f, 0.1f);
-        f->shell.radius = 2.5f;
-        f->shell.face_size = 32;
-        snprintf(note, note_n, "a sphere shell of radius 2.5, 6 x 32^2 texels; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
+        /* a sphere, a cylinder and a box about off-centre points (the box
+           turned), and a quad: rays from inside and outside them */
+        refl_vec3 ax = refl_v3_normalize(refl_v3(0.8f, 0.0f, 0.6f)), ay = refl_v3_normalize(refl_v3(0.1f, 1.0f, 0.0f));
+        refl_vec3 az = refl_v3_normalize(refl_v3_cross(ax, ay));
+        int k;
+        ay = refl_v3_cross(az, ax);
+        for (k = 0; k < 4; ++k) {
+            refl_lem_shell *sh = &f->shells[k];
+            sh->kind = REFL_LEM_SHELL_SPHERE + k;
+            sh->face_size = 32;
+            sh->center = refl_v3(0.3f, -0.2f, 0.1f);
+            sh->radius = 2.5f;
+            sh->axis[0] = k == 2 || k == 3 ? ax : refl_v3(1, 0, 0);
+            sh->axis[1] = k == 2 || k == 3 ? ay : refl_v3(0, 1, 0);
+            sh->axis[2] = k == 2 || k == 3 ? az : refl_v3(0, 0, 1);
+            sh->extent[0] = 2.5f, sh->extent[1] = k == 2 ? 2.2f : 2.5f, sh->extent[2] = k == 2 ? 2.8f : 2.5f;
+        }
+        f->shells[3].center = refl_v3(-0.5f, 0.4f, -2.5f);
+        f->shells[3].extent[0] = f->shells[3].extent[1] = 8.0f;
+        snprintf(note, note_n, "a sphere, a cylinder, a turned box and a quad, 6 x 32^2 texels each; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
     } else if (which == 5 || which == 8) {
         /* 5: the default scene's teapot in a one-cell grid beside the view
            (tests/reflect/test_sbc_morph.c's), the eye inside the cell; 8:
@@ -659,6 +676,7 @@ static void rgl__points(const rgl_fixture *f, long long count, float *pts) {
                             (float)rgl__range(&r, lo.z, hi.z));
         } else if (f->kind == REFL_GL_LEM_SHELL) {
             if (in_volume) p = refl_v3_scale(p, 0.5f); /* [-2, 2]^3: mostly inside the shell */
+            cam = (float)(int)(rgl__rand(&r) * 4); /* the layer */
         } else if (f->kind == REFL_GL_SBC_MORPH) {
             /* in the teapot's box, grown; "in the volume": drawn until the C
                projects it (at most 64 tries) */
@@ -735,7 +753,7 @@ static int rgl__compare(const rgl_fixture *f, const float *p, const float *gl, d
         /* the same four texels, their weights within float rounding */
         uint32_t tex[4];
         float w[4];
-        int ok = refl_lem_shell_lookup(&f->shell, pv, refl_v3_sub(pv, RGL_LEM_AIM), tex, w), k;
+        int ok = refl_lem_shell_lookup(&f->shells[(int)p[3]], pv, refl_v3_sub(pv, RGL_LEM_AIM), tex, w), k;
         double e = 0.0;
         if (ok != (gl[0] >= 0.0f)) return -1;
         if (!ok) return 0;
@@ -819,7 +837,7 @@ static double rgl__c_seconds(const rgl_fixture *f, const float *pts, long long c
         } else if (f->kind == REFL_GL_LEM_SHELL) {
             uint32_t tex[4];
             float w[4];
-            sink += (float)refl_lem_shell_lookup(&f->shell, p, refl_v3_sub(p, RGL_LEM_AIM), tex, w);
+            sink += (float)refl_lem_shell_lookup(&f->shells[(int)pts[4 * i + 3]], p, refl_v3_sub(p, RGL_LEM_AIM), tex, w);
         } else if (f->kind == REFL_GL_SPOC) {
             float c[3];
             sink += (float)refl_spoc_project(&f->spoc, p, c);

@@ -1070,8 +1070,8 @@ typedef enum refl_gl_camera {
     REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
-    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM layer's sphere shell: the lookup of an exit ray,
-                                and optionally the layer's inferred map */
+    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
+                                quad): the lookup of an exit ray, and optionally the maps */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1081,11 +1081,13 @@ typedef enum refl_gl_camera {
              the clip position (window depth = gd), frustum -1 (and 0) where no frustum holds p
          bool refl_sbc_morph_project(samplerBuffer, int base, vec3 p, out vec3 first, out float dist)
              refl_sbc_morph_project's blend (one image per node and piece)
-         bool refl_lem_shell_index(samplerBuffer, int base, vec3 origin, vec3 dir, out vec3 index)
-             per vertex: the exit ray's far hit on the shell, from its centre (interpolate it)
-         bool refl_lem_shell_lookup(samplerBuffer, int base, vec3 origin, vec3 dir, out ivec4 texel,
-             out vec4 weight): refl_lem_shell_lookup; vec4 refl_lem_shell_sample(samplerBuffer,
-             int base, vec3 index): per fragment, the packed map at an interpolated index
+         bool refl_lem_shell_index(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out vec3 index) per vertex: refl_lem_shell_index (interpolate it); false (no
+             lookup) from outside a closed shell, or away from or past a quad
+         bool refl_lem_shell_lookup(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
+             out ivec4 texel, out vec4 weight): refl_lem_shell_lookup; vec4
+             refl_lem_shell_sample(samplerBuffer, int base, int layer, vec3 index): per fragment,
+             the layer's packed map at an interpolated index; int refl_lem_layers(...)
          vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
              (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
    NULL for an unknown camera. */
@@ -1278,6 +1280,10 @@ typedef struct refl_layered_em_frame_stats {
     long long vertices;      /* vertices traced */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
+    long long direct_rows;   /* rows the direct images added to the maps inferred */
+    long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
+                                away from it or past its rectangle): that layer is left out
+                                there, the next layer shows */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1525,25 +1531,61 @@ REFL_API void refl_lens_tess_destroy(refl_lens_tess *tess);
 
 /* ---- paper 001's inferred environment maps (section 4) ------------------------- */
 
-/* One environment layer: a sphere shell around a lens object, textured as
-   a cube map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a
-   side, texel (face, x, y) at face * size^2 + y * size + x). */
+/* The kinds of shell a layer is parameterised on (section 4.3: spheres,
+   cylinders, finite cubes, and quads for sparse layers). AUTO is the
+   options' "choose per layer"; a shell of kind 0 is a sphere. */
+typedef enum refl_lem_shell_kind {
+    REFL_LEM_SHELL_AUTO = 0,
+    REFL_LEM_SHELL_SPHERE,
+    REFL_LEM_SHELL_CYLINDER,
+    REFL_LEM_SHELL_BOX,
+    REFL_LEM_SHELL_QUAD
+} refl_lem_shell_kind;
+
+/* One environment layer: a shell around a lens object, textured as a cube
+   map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
+   texel (face, x, y) at face * size^2 + y * size + x) of the shell's
+   index of a point on it (refl_lem_shell_index). A sphere is center and
+   radius; the other kinds are placed by center, an orthonormal frame
+   axis[3] and half sizes extent[3] along it: a box its half sides; a
+   cylinder around axis[1], its radius extent[0] (= extent[2]) and half
+   height extent[1]; a quad in the plane of axis[0] and axis[1] (normal
+   axis[2]), extent[0] x extent[1] either side of its centre. */
 typedef struct refl_lem_shell {
     refl_vec3 center;
     float radius;
     int face_size;
+    int kind;                /* refl_lem_shell_kind; 0 or SPHERE: a sphere */
+    refl_vec3 axis[3];
+    float extent[3];
 } refl_lem_shell;
 
-/* How the runtime samples the shell for an exit ray (origin inside or
-   outside, dir unit): the ray's far hit on the sphere, its offset from the
-   centre as the cube-map index, bilinear on the face (clamped at its
-   edges). 1 with four texels and weights summing to 1, or 0 when the ray
-   misses the sphere. The rendering matrix is made of exactly these. */
+/* The shell's index of an exit ray: where the ray leaves the shell, as
+   the vector the cube map is looked up with (a sphere: the hit minus the
+   centre; a box or cylinder: the hit in the shell's frame over its half
+   sizes; a quad: (x / extent[0], y / extent[1], 1) of the hit in its
+   plane). The runtime interpolates it across a triangle (a quad's as
+   (0, 0, 0) where an exit ray misses it: its third component then the
+   share of the quad present, refl_lem_shell_texels dividing the first
+   two by it). 0 (no lookup)
+   when the ray starts outside a closed shell, or travels away from a quad
+   or misses its rectangle. */
+REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index);
+/* The four texels and bilinear weights (summing to 1) of an index: its
+   cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
+   zero or non-finite index or a bad shell. */
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
+/* How the runtime samples the shell for an exit ray (dir unit): its index,
+   then that index's texels. The rendering matrix is made of exactly these. */
 REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
                                    float weight[4]);
-/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a layer's shell and, when map is
-   not NULL, its inferred map (RGBA per texel, 6 face_size^2 texels in
-   refl_lem_shell_lookup's order), packed as the other cameras are. */
+/* GL hook (REFL_GL_LEM_SHELL, docs/gl.md): a lens's layers' shells (1 to
+   REFL_LEM_MAX_LAYERS, any kind) and, when maps is not NULL, each layer's
+   inferred map (RGBA per texel, 6 face_size^2 texels in
+   refl_lem_shell_texels' order), packed as the other cameras are. */
+REFL_API long long refl_gl_pack_lem_shells(const refl_lem_shell *shells, const float *const *maps, int layers,
+                                           float *out, long long cap);
+/* One layer's: refl_gl_pack_lem_shells of one shell (map may be NULL). */
 REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap);
 
 /* The paper's per-pixel confidence: 1 - min(theta_m, theta_c)^2 / theta_c^2,
@@ -1591,7 +1633,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    front-most hit in the layer. Returns the layers made (empty ones
    dropped; 0 on bad arguments or no memory), their radii ascending in
    radius[], and, when layer_of is not NULL, each hit's layer. */
-enum { REFL_LEM_MAX_LAYERS = 3 };
+enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
 
@@ -1638,7 +1680,7 @@ typedef struct refl_layered_em_options {
     int single_view;         /* 1: each sample's map from its own view alone; 0: also from the
                                 views half a spacing either side (the paper's simultaneous
                                 inference, against disocclusions between samples) */
-    int layers;              /* environment layers (sphere shells) per lens, 1 to
+    int layers;              /* environment layers (shells) per lens, 1 to
                                 REFL_LEM_MAX_LAYERS: refl_lem_cluster_layers over the hits seen
                                 from every sample on the circle; 0: 1 */
     int keep_stale_maps;     /* 1: a renderer keeps its maps (and circles and layers) when the
@@ -1646,7 +1688,17 @@ typedef struct refl_layered_em_options {
                                 (an environment object moved after the maps were built); only
                                 for scenes whose objects moved (none added or removed). 0: the
                                 maps are dropped and inferred again */
+    int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
+                                the closed kind whose surface lies nearest the layer's hits on
+                                average, or a quad for an inner layer whose hits are sparse in
+                                direction and lie nearest a plane. QUAD: every inner layer a
+                                quad, the outermost AUTO's closed kind */
+    int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
+                                from the lens's centre towards every texel, weighed by how
+                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                (REFL_LEM_DIRECT_DEFAULT) */
 } refl_layered_em_options;
+enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

@@ -200,28 +200,57 @@ REFL_API long long refl_gl_pack_graphcam(const refl_graphcam *cam, float *out, l
     return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam(&o, cam) : need;
 }
 
-/* ---- LAYERED_EM: a layer's sphere shell ------------------------------------------ */
+/* ---- LAYERED_EM: every layer's shell ------------------------------------------ */
 
-static long long refl__gl_lem_shell(refl__gl_out *op, const refl_lem_shell *shell, const float *map) {
+/* Header (kind, version, layers, maps or 0), per layer 5 texels (face
+   size, shell kind, its map's offset from the header or 0, 0; centre and
+   radius; the frame's three axes, each with its half size), then the maps. */
+static long long refl__gl_lem_shells(refl__gl_out *op, const refl_lem_shell *shells, const float *const *maps,
+                                     int layers) {
     refl__gl_out o = *op;
-    long long i, texels;
-    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(shell->center))
-        return REFL_ERROR_INVALID_ARGUMENT;
-    texels = 6LL * shell->face_size * shell->face_size;
-    if (texels + 2 >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
-    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, shell->face_size, map ? 1 : 0);
-    refl__gl_put_v3(&o, shell->center, shell->radius);
-    for (i = 0; map && i < 4 * texels; ++i) refl__gl_put(&o, map[i]);
+    long long texels, at;
+    int l, k;
+    if (!shells || layers <= 0 || layers > REFL_LEM_MAX_LAYERS) return REFL_ERROR_INVALID_ARGUMENT;
+    at = 1 + 5LL * layers;
+    for (l = 0; l < layers; ++l) {
+        const refl_lem_shell *sh = &shells[l];
+        int sphere = sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
+        if (sh->face_size <= 0 || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
+            (sphere && !(sh->radius > 0.0f)))
+            return REFL_ERROR_INVALID_ARGUMENT;
+        for (k = 0; k < 3 && !sphere; ++k)
+            if (!refl__v3_finite(sh->axis[k]) || !refl__isfinite(sh->extent[k])) return REFL_ERROR_INVALID_ARGUMENT;
+        texels = 6LL * sh->face_size * sh->face_size;
+        if (maps && !maps[l]) return REFL_ERROR_INVALID_ARGUMENT;
+        if (at + (maps ? texels : 0) >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+        at += maps ? texels : 0;
+    }
+    refl__gl_put4(&o, REFL_GL_LEM_SHELL, REFL_GL_LAYOUT_VERSION, layers, maps ? 1 : 0);
+    at = 1 + 5LL * layers;
+    for (l = 0; l < layers; ++l) {
+        const refl_lem_shell *sh = &shells[l];
+        refl__gl_put4(&o, sh->face_size, sh->kind == REFL_LEM_SHELL_AUTO ? REFL_LEM_SHELL_SPHERE : sh->kind,
+                      maps ? (double)at : 0.0, 0);
+        refl__gl_put_v3(&o, sh->center, sh->radius);
+        for (k = 0; k < 3; ++k) refl__gl_put_v3(&o, sh->axis[k], sh->extent[k]);
+        at += maps ? 6LL * sh->face_size * sh->face_size : 0;
+    }
+    for (l = 0; maps && l < layers; ++l) {
+        long long i, n = 4 * 6LL * shells[l].face_size * shells[l].face_size;
+        for (i = 0; i < n; ++i) refl__gl_put(&o, maps[l][i]);
+    }
     return refl__gl_done(&o);
 }
 
-REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+REFL_API long long refl_gl_pack_lem_shells(const refl_lem_shell *shells, const float *const *maps, int layers,
+                                           float *out, long long cap) {
     refl__gl_out o = {NULL, 0, 0};
-    long long need = refl__gl_lem_shell(&o, shell, map);
-    if (need < 0 || !out || cap < need) return need;
-    o.out = out;
-    o.cap = cap;
-    return refl__gl_lem_shell(&o, shell, map);
+    long long need = refl__gl_lem_shells(&o, shells, maps, layers);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_lem_shells(&o, shells, maps, layers) : need;
+}
+
+REFL_API long long refl_gl_pack_lem_shell(const refl_lem_shell *shell, const float *map, float *out, long long cap) {
+    return refl_gl_pack_lem_shells(shell, map ? &map : NULL, 1, out, cap);
 }
 
 /* ---- the SPOC ------------------------------------------------------------------- */
@@ -722,17 +751,53 @@ static const char refl__gl_glsl_sbc_morph[] =
     "}\n";
 
 static const char refl__gl_glsl_lem_shell[] =
-    "/* reflect.h GL hook: a LAYERED_EM layer's sphere shell (layout version 1),\n"
-    "   lem_infer.c's refl_lem_shell_lookup in float (rast.h's cube faces). */\n"
-    "bool refl_lem_shell_index(samplerBuffer data, int base, vec3 origin, vec3 dir, out vec3 index) {\n"
-    "    vec4 sh = texelFetch(data, base + 1);\n"
+    "/* reflect.h GL hook: a LAYERED_EM lens's layers' shells (layout version 1),\n"
+    "   lem_infer.c's refl_lem_shell_index and refl_lem_shell_texels in float\n"
+    "   (rast.h's cube faces). Kinds: 1 sphere, 2 cylinder, 3 box, 4 quad. */\n"
+    "int refl_lem_layers(samplerBuffer data, int base) { return int(texelFetch(data, base).z); }\n"
+    "/* the exit ray's index on layer `layer`'s shell (interpolate it per\n"
+    "   vertex); false (no lookup) from outside a closed shell, or away from\n"
+    "   or past a quad */\n"
+    "bool refl_lem_shell_index(samplerBuffer data, int base, int layer, vec3 origin, vec3 dir, out vec3 index) {\n"
+    "    int b = base + 1 + 5 * layer, kind = int(texelFetch(data, b).y);\n"
+    "    vec4 sh = texelFetch(data, b + 1);\n"
+    "    vec4 a0 = texelFetch(data, b + 2), a1 = texelFetch(data, b + 3), a2 = texelFetch(data, b + 4);\n"
     "    vec3 oc = origin - sh.xyz;\n"
-    "    float b = dot(oc, dir), dd = dot(dir, dir), disc = b * b - (dot(oc, oc) - sh.w * sh.w) * dd;\n"
+    "    float dd = dot(dir, dir), t = 3.402823e38;\n"
     "    index = vec3(0.0);\n"
-    "    if (!(disc >= 0.0) || !(dd > 0.0)) return false;\n"
-    "    float t = (-b + sqrt(disc)) / dd;\n"
-    "    if (!(t >= 0.0)) return false;\n"
-    "    index = oc + dir * t;\n"
+    "    if (!(dd > 0.0)) return false;\n"
+    "    if (kind == 1) {\n"
+    "        float b1 = dot(oc, dir), c = dot(oc, oc) - sh.w * sh.w, disc = b1 * b1 - c * dd;\n"
+    "        if (!(sh.w > 0.0) || !(c <= 0.0) || !(disc >= 0.0)) return false;\n"
+    "        t = (-b1 + sqrt(disc)) / dd;\n"
+    "        index = oc + dir * t;\n"
+    "        return t >= 0.0;\n"
+    "    }\n"
+    "    vec3 p = vec3(dot(oc, a0.xyz), dot(oc, a1.xyz), dot(oc, a2.xyz));\n"
+    "    vec3 v = vec3(dot(dir, a0.xyz), dot(dir, a1.xyz), dot(dir, a2.xyz));\n"
+    "    vec3 e = vec3(a0.w, a1.w, a2.w);\n"
+    "    if (kind == 3) {\n"
+    "        for (int i = 0; i < 3; ++i)\n"
+    "            if (!(e[i] > 0.0) || !(abs(p[i]) <= e[i])) return false;\n"
+    "        for (int i = 0; i < 3; ++i)\n"
+    "            if (v[i] != 0.0) t = min(t, ((v[i] > 0.0 ? e[i] : -e[i]) - p[i]) / v[i]);\n"
+    "    } else if (kind == 2) {\n"
+    "        float a = v.x * v.x + v.z * v.z, b1 = p.x * v.x + p.z * v.z, c = p.x * p.x + p.z * p.z - e.x * e.x;\n"
+    "        if (!(e.x > 0.0) || !(e.y > 0.0) || !(c <= 0.0) || !(abs(p.y) <= e.y)) return false;\n"
+    "        if (a > 0.0) t = (-b1 + sqrt(max(b1 * b1 - a * c, 0.0))) / a;\n"
+    "        if (v.y != 0.0) t = min(t, ((v.y > 0.0 ? e.y : -e.y) - p.y) / v.y);\n"
+    "        e.z = e.x;\n"
+    "    } else if (kind == 4) {\n"
+    "        if (!(e.x > 0.0) || !(e.y > 0.0) || v.z == 0.0) return false;\n"
+    "        t = -p.z / v.z;\n"
+    "        if (!(t > 0.0)) return false;\n"
+    "        vec2 q = (p.xy + t * v.xy) / e.xy;\n"
+    "        if (!(abs(q.x) <= 1.0 && abs(q.y) <= 1.0)) return false;\n"
+    "        index = vec3(q, 1.0);\n"
+    "        return true;\n"
+    "    } else return false;\n"
+    "    if (!(t >= 0.0) || !(t < 3.402823e38)) return false;\n"
+    "    index = (p + t * v) / e;\n"
     "    return true;\n"
     "}\n"
     "/* rast_cube_face: GL's table 8.19, ties to z, then y */\n"
@@ -746,16 +811,21 @@ static const char refl__gl_glsl_lem_shell[] =
     "    st = ma > 0.0 ? (vec2(sc, tc) / ma + 1.0) * 0.5 : vec2(0.5);\n"
     "    return face;\n"
     "}\n"
-    "/* the four texels (face-major, rows top first) and bilinear weights the\n"
-    "   runtime samples for the exit ray; false where it misses the shell */\n"
-    "bool refl_lem_shell_lookup(samplerBuffer data, int base, vec3 origin, vec3 dir, out ivec4 texel, out vec4 weight) {\n"
-    "    int n = int(texelFetch(data, base).z);\n"
-    "    vec3 hit;\n"
+    "/* the four texels (face-major, rows top first; within the layer's map)\n"
+    "   and bilinear weights of an index (a quad's (x, y, presence): the\n"
+    "   point (x, y) over its presence) */\n"
+    "bool refl_lem_shell_texels(samplerBuffer data, int base, int layer, vec3 index, out ivec4 texel, out vec4 weight) {\n"
+    "    vec4 h = texelFetch(data, base + 1 + 5 * layer);\n"
+    "    int n = int(h.x);\n"
     "    vec2 st;\n"
     "    texel = ivec4(-1);\n"
     "    weight = vec4(0.0);\n"
-    "    if (!refl_lem_shell_index(data, base, origin, dir, hit) || hit == vec3(0.0)) return false;\n"
-    "    int face = refl_lem_cube_face(hit, st);\n"
+    "    if (int(h.y) == 4) {\n"
+    "        if (!(index.z > 0.0)) return false;\n"
+    "        index = vec3(index.xy / index.z, 1.0);\n"
+    "    }\n"
+    "    if (index == vec3(0.0)) return false;\n"
+    "    int face = refl_lem_cube_face(index, st);\n"
     "    vec2 xy = clamp(st, 0.0, 1.0) * float(n) - 0.5, f = xy - floor(xy);\n"
     "    ivec2 p0 = ivec2(floor(xy)), p1 = min(p0 + 1, n - 1);\n"
     "    p0 = clamp(p0, 0, n - 1);\n"
@@ -764,15 +834,26 @@ static const char refl__gl_glsl_lem_shell[] =
     "    weight = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);\n"
     "    return true;\n"
     "}\n"
-    "/* per fragment: the packed map at an interpolated index (the shell's\n"
-    "   centre as the origin, as the runtime samples); 0 without a map */\n"
-    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, vec3 index) {\n"
+    "/* refl_lem_shell_lookup: the index, then its texels */\n"
+    "bool refl_lem_shell_lookup(samplerBuffer data, int base, int layer, vec3 origin, vec3 dir, out ivec4 texel,\n"
+    "                           out vec4 weight) {\n"
+    "    vec3 index;\n"
+    "    texel = ivec4(-1);\n"
+    "    weight = vec4(0.0);\n"
+    "    return refl_lem_shell_index(data, base, layer, origin, dir, index) &&\n"
+    "           refl_lem_shell_texels(data, base, layer, index, texel, weight);\n"
+    "}\n"
+    "/* per fragment: layer `layer`'s packed map at an interpolated index\n"
+    "   (premultiplied RGBA; a quad's scaled by its presence); 0 without maps */\n"
+    "vec4 refl_lem_shell_sample(samplerBuffer data, int base, int layer, vec3 index) {\n"
+    "    vec4 h = texelFetch(data, base + 1 + 5 * layer);\n"
     "    ivec4 t;\n"
     "    vec4 w;\n"
-    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_lookup(data, base, texelFetch(data, base + 1).xyz, index, t, w))\n"
-    "        return vec4(0.0);\n"
-    "    return w.x * texelFetch(data, base + 2 + t.x) + w.y * texelFetch(data, base + 2 + t.y) +\n"
-    "           w.z * texelFetch(data, base + 2 + t.z) + w.w * texelFetch(data, base + 2 + t.w);\n"
+    "    if (texelFetch(data, base).w < 0.5 || !refl_lem_shell_texels(data, base, layer, index, t, w)) return vec4(0.0);\n"
+    "    int m = base + int(h.z);\n"
+    "    vec4 c = w.x * texelFetch(data, m + t.x) + w.y * texelFetch(data, m + t.y) + w.z * texelFetch(data, m + t.z) +\n"
+    "             w.w * texelFetch(data, m + t.w);\n"
+    "    return int(h.y) == 4 ? c * clamp(index.z, 0.0, 1.0) : c;\n"
     "}\n";
 
 static const char refl__gl_glsl_spoc[] =

@@ -562,6 +562,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
 typedef struct refl__lem_layering {
     int layers;
     float radius[REFL_LEM_MAX_LAYERS];
+    refl_lem_shell shell[REFL_LEM_MAX_LAYERS]; /* each layer's, face_size aside (refl__lem_fit_layers) */
     refl_vec3 centre;
     const signed char *object_layer;
     int object_count;
@@ -570,15 +571,22 @@ enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */
+    refl_vec3 position;
     int object;
 } refl__lem_hit;
 /* Hits gathered for the clustering: distance, object and exit ray of each. */
 typedef struct refl__lem_hits {
     const refl_allocator *al;
-    float *distance;
+    float *distance, *pos;       /* pos: 3 per hit */
     int *object, *ray;
     int count, cap, rays;
 } refl__lem_hits;
+/* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
+   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
+   closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
+   a sphere at lay->radius. 0 when out of memory. */
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
    does not meet `object` first; else per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
@@ -591,6 +599,17 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
                                  int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
+/* Section 4.3's direct images of the environment without the lens, from
+   its centre (lay->centre), as rows of layer `layer`'s system: one ray
+   towards every texel's point on the shell, its target the ray's first
+   hit in the layer (continued through the rest; alpha 0 where none, the
+   environment on the outermost layer), its confidence the share of the
+   texels the lens images' rows (already in sys) leave unheld: 1 minus
+   their coverage (the sum of their rows' weights), so the direct images
+   fill in only what the lens images miss. *added counts the rows. */
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no

@@ -12,27 +12,82 @@
    sequentially in double, so the texels are the same on every run. */
 #include "internal.h"
 
-REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
-                                   float weight[4]) {
-    refl_vec3 oc, hit;
-    float b, c, disc, t, dv[3], s, tt, x, y, fx, fy;
+/* ---- shells: where an exit ray leaves one, and its texels -------------------------- */
+
+static int refl__lem_sphere_kind(const refl_lem_shell *sh) {
+    return sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
+}
+
+REFL_API int refl_lem_shell_index(const refl_lem_shell *sh, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index) {
+    refl_vec3 oc;
+    float dd, p[3], v[3], e[3], t = FLT_MAX;
+    int i;
+    if (!sh || !index || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return 0;
+    dd = refl_v3_dot(dir, dir);
+    oc = refl_v3_sub(origin, sh->center);
+    if (!(dd > 0.0f)) return 0;
+    if (refl__lem_sphere_kind(sh)) {
+        /* |o + t d - c| = r from inside: the larger root */
+        float b = refl_v3_dot(oc, dir), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, disc = b * b - c * dd;
+        if (!(sh->radius > 0.0f) || !(c <= 0.0f) || !(disc >= 0.0f)) return 0;
+        t = (-b + sqrtf(disc)) / dd;
+        *index = refl_v3_add(oc, refl_v3_scale(dir, t));
+        return refl__v3_finite(*index) && t >= 0.0f;
+    }
+    for (i = 0; i < 3; ++i) {
+        p[i] = refl_v3_dot(oc, sh->axis[i]);
+        v[i] = refl_v3_dot(dir, sh->axis[i]);
+        e[i] = sh->extent[i];
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX:
+        /* from inside: the nearest of the three slabs' exits */
+        for (i = 0; i < 3; ++i)
+            if (!(e[i] > 0.0f) || !(fabsf(p[i]) <= e[i])) return 0;
+        for (i = 0; i < 3; ++i)
+            if (v[i] != 0.0f) t = REFL__MIN(t, ((v[i] > 0.0f ? e[i] : -e[i]) - p[i]) / v[i]);
+        break;
+    case REFL_LEM_SHELL_CYLINDER: {
+        /* from inside: the side's larger root or a cap, the nearer */
+        float a = v[0] * v[0] + v[2] * v[2], b = p[0] * v[0] + p[2] * v[2];
+        float c = p[0] * p[0] + p[2] * p[2] - e[0] * e[0];
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || !(c <= 0.0f) || !(fabsf(p[1]) <= e[1])) return 0;
+        if (a > 0.0f) t = (-b + sqrtf(REFL__MAX(b * b - a * c, 0.0f))) / a;
+        if (v[1] != 0.0f) t = REFL__MIN(t, ((v[1] > 0.0f ? e[1] : -e[1]) - p[1]) / v[1]);
+        e[2] = e[0];
+        break;
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        /* the plane ahead, inside the rectangle */
+        float x, y;
+        if (!(e[0] > 0.0f) || !(e[1] > 0.0f) || v[2] == 0.0f) return 0;
+        t = -p[2] / v[2];
+        if (!(t > 0.0f)) return 0;
+        x = (p[0] + t * v[0]) / e[0];
+        y = (p[1] + t * v[1]) / e[1];
+        if (!(fabsf(x) <= 1.0f && fabsf(y) <= 1.0f)) return 0;
+        *index = refl_v3(x, y, 1.0f);
+        return 1;
+    }
+    default: return 0;
+    }
+    if (!(t >= 0.0f) || !(t < FLT_MAX)) return 0;
+    *index = refl_v3((p[0] + t * v[0]) / e[0], (p[1] + t * v[1]) / e[1], (p[2] + t * v[2]) / e[2]);
+    return refl__v3_finite(*index);
+}
+
+REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
+    float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || !(shell->radius > 0.0f) || shell->face_size <= 0 || !refl__v3_finite(origin) ||
-        !refl__v3_finite(dir))
-        return 0;
+    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
+        if (!(index.z > 0.0f)) return 0;
+        index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
+    }
     n = shell->face_size;
-    /* |o + t d - c| = r, the larger root */
-    oc = refl_v3_sub(origin, shell->center);
-    b = refl_v3_dot(oc, dir);
-    c = refl_v3_dot(oc, oc) - shell->radius * shell->radius;
-    disc = b * b - c * refl_v3_dot(dir, dir);
-    if (!(disc >= 0.0f) || !(refl_v3_dot(dir, dir) > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / refl_v3_dot(dir, dir);
-    if (!(t >= 0.0f)) return 0;
-    hit = refl_v3_add(oc, refl_v3_scale(dir, t));
-    dv[0] = hit.x;
-    dv[1] = hit.y;
-    dv[2] = hit.z;
+    dv[0] = index.x;
+    dv[1] = index.y;
+    dv[2] = index.z;
     if (dv[0] == 0.0f && dv[1] == 0.0f && dv[2] == 0.0f) return 0;
     face = rast_cube_face(dv, &s, &tt);
     /* bilinear, taps clamped to the face (as refl_environment_lookup) */
@@ -60,6 +115,228 @@ REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin
     return 1;
 }
 
+REFL_API int refl_lem_shell_lookup(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, uint32_t texel[4],
+                                   float weight[4]) {
+    refl_vec3 index;
+    return refl_lem_shell_index(shell, origin, dir, &index) && refl_lem_shell_texels(shell, index, texel, weight);
+}
+
+/* ---- fitting a layer's shell to its hits --------------------------------------------- */
+
+/* Distance from local point p (in the shell's frame) to the shell's surface. */
+static double refl__lem_surface_distance(const refl_lem_shell *sh, const double p[3]) {
+    int i;
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: {
+        double out = 0.0, in = DBL_MAX;
+        for (i = 0; i < 3; ++i) {
+            double d = fabs(p[i]) - sh->extent[i];
+            if (d > 0.0) out += d * d;
+            in = REFL__MIN(in, -d);
+        }
+        return out > 0.0 ? sqrt(out) : in;
+    }
+    case REFL_LEM_SHELL_CYLINDER: {
+        double rho = sqrt(p[0] * p[0] + p[2] * p[2]), dr = rho - sh->extent[0], dy = fabs(p[1]) - sh->extent[1];
+        if (dr <= 0.0 && dy <= 0.0) return REFL__MIN(-dr, -dy);
+        return sqrt(REFL__MAX(dr, 0.0) * REFL__MAX(dr, 0.0) + REFL__MAX(dy, 0.0) * REFL__MAX(dy, 0.0));
+    }
+    case REFL_LEM_SHELL_QUAD: {
+        double dx = REFL__MAX(fabs(p[0]) - sh->extent[0], 0.0), dy = REFL__MAX(fabs(p[1]) - sh->extent[1], 0.0);
+        return sqrt(dx * dx + dy * dy + p[2] * p[2]);
+    }
+    default: return fabs(sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - sh->radius);
+    }
+}
+
+/* The mean distance of the hits pos[3 n] from the shell's surface. */
+static double refl__lem_fit_error(const refl_lem_shell *sh, const float *pos, int n) {
+    double acc = 0.0;
+    int k, i;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), sh->center);
+        double p[3];
+        for (i = 0; i < 3; ++i) p[i] = refl__lem_sphere_kind(sh) ? (&d.x)[i] : refl_v3_dot(d, sh->axis[i]);
+        acc += refl__lem_surface_distance(sh, p);
+    }
+    return n ? acc / n : 0.0;
+}
+
+/* Eigenvectors of the symmetric 3x3 m (cyclic Jacobi), as rows of v,
+   ordered by descending eigenvalue. */
+static void refl__lem_eigen3(double m[3][3], double v[3][3]) {
+    int sweep, p, q, k, i, j;
+    double ev[3];
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < 3; ++j) v[i][j] = i == j;
+    for (sweep = 0; sweep < 50; ++sweep) {
+        double off = fabs(m[0][1]) + fabs(m[0][2]) + fabs(m[1][2]);
+        if (off <= 1e-30) break;
+        for (p = 0; p < 2; ++p)
+            for (q = p + 1; q < 3; ++q) {
+                double theta, t, c, sn;
+                if (m[p][q] == 0.0) continue;
+                theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+                t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(t * t + 1.0);
+                sn = t * c;
+                for (k = 0; k < 3; ++k) { /* columns p, q of m, then rows */
+                    double a = m[k][p], b = m[k][q];
+                    m[k][p] = c * a - sn * b;
+                    m[k][q] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) {
+                    double a = m[p][k], b = m[q][k];
+                    m[p][k] = c * a - sn * b;
+                    m[q][k] = sn * a + c * b;
+                }
+                for (k = 0; k < 3; ++k) { /* eigenvectors as rows */
+                    double a = v[p][k], b = v[q][k];
+                    v[p][k] = c * a - sn * b;
+                    v[q][k] = sn * a + c * b;
+                }
+            }
+    }
+    for (i = 0; i < 3; ++i) ev[i] = m[i][i];
+    for (i = 0; i < 3; ++i) /* selection sort, descending */
+        for (j = i + 1; j < 3; ++j)
+            if (ev[j] > ev[i]) {
+                double t = ev[i];
+                ev[i] = ev[j], ev[j] = t;
+                for (k = 0; k < 3; ++k) t = v[i][k], v[i][k] = v[j][k], v[j][k] = t;
+            }
+}
+
+/* The box of the hits and the lens's box (lo, hi) together, on the world axes. */
+static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z}, pad;
+    int k, i;
+    memset(&sh, 0, sizeof sh);
+    pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f;
+    for (i = 0; i < 3; ++i) a[i] -= pad, b[i] += pad;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) a[i] = REFL__MIN(a[i], pos[3 * k + i]), b[i] = REFL__MAX(b[i], pos[3 * k + i]);
+    sh.kind = REFL_LEM_SHELL_BOX;
+    sh.center = refl_v3(0.5f * (a[0] + b[0]), 0.5f * (a[1] + b[1]), 0.5f * (a[2] + b[2]));
+    for (i = 0; i < 3; ++i) {
+        sh.axis[i] = refl_v3(i == 0, i == 1, i == 2);
+        sh.extent[i] = 0.5f * (b[i] - a[i]);
+    }
+    return sh;
+}
+
+/* A cylinder around the vertical through the lens's centre c: its caps at
+   the hits' (and the lens's) lowest and highest, its radius the mean
+   horizontal distance of the hits off the caps (at least the lens's). */
+static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi) {
+    refl_lem_shell sh;
+    float y0 = lo.y, y1 = hi.y, pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f, rmin;
+    double acc = 0.0, all = 0.0;
+    int k, side = 0;
+    memset(&sh, 0, sizeof sh);
+    y0 -= pad, y1 += pad;
+    for (k = 0; k < n; ++k) y0 = REFL__MIN(y0, pos[3 * k + 1]), y1 = REFL__MAX(y1, pos[3 * k + 1]);
+    for (k = 0; k < n; ++k) {
+        double dx = pos[3 * k] - c.x, dz = pos[3 * k + 2] - c.z, rho = sqrt(dx * dx + dz * dz);
+        float y = pos[3 * k + 1];
+        all += rho;
+        if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0)) acc += rho, ++side;
+    }
+    rmin = pad + 0.5f * sqrtf((hi.x - lo.x) * (hi.x - lo.x) + (hi.z - lo.z) * (hi.z - lo.z));
+    sh.kind = REFL_LEM_SHELL_CYLINDER;
+    sh.center = refl_v3(c.x, 0.5f * (y0 + y1), c.z);
+    sh.axis[0] = refl_v3(1, 0, 0);
+    sh.axis[1] = refl_v3(0, 1, 0);
+    sh.axis[2] = refl_v3(0, 0, 1);
+    sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : n ? all / n : 0.0), rmin);
+    sh.extent[1] = 0.5f * (y1 - y0);
+    return sh;
+}
+
+/* The least-squares plane of the hits (the normal the covariance's least
+   eigenvector), bounded by the rectangle of their extents in it. A quad
+   with no area, or one passing within the lens's bounding sphere (c,
+   lens_radius), is returned with extent 0 (not a candidate). */
+static refl_lem_shell refl__lem_fit_quad(const float *pos, int n, refl_vec3 c, float lens_radius) {
+    refl_lem_shell sh;
+    double mean[3] = {0, 0, 0}, cov[3][3], ev[3][3], lo[2] = {DBL_MAX, DBL_MAX}, hi[2] = {-DBL_MAX, -DBL_MAX};
+    int k, i, j;
+    memset(&sh, 0, sizeof sh);
+    sh.kind = REFL_LEM_SHELL_QUAD;
+    if (n < 3) return sh;
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) mean[i] += pos[3 * k + i] / (double)n;
+    memset(cov, 0, sizeof cov);
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i)
+            for (j = 0; j < 3; ++j) cov[i][j] += (pos[3 * k + i] - mean[i]) * (pos[3 * k + j] - mean[j]);
+    refl__lem_eigen3(cov, ev);
+    for (i = 0; i < 3; ++i) sh.axis[i] = refl_v3_normalize(refl_v3((float)ev[i][0], (float)ev[i][1], (float)ev[i][2]));
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 2; ++i) {
+            double d = 0.0;
+            for (j = 0; j < 3; ++j) d += (pos[3 * k + j] - mean[j]) * ev[i][j];
+            lo[i] = REFL__MIN(lo[i], d), hi[i] = REFL__MAX(hi[i], d);
+        }
+    sh.center = refl_v3((float)mean[0], (float)mean[1], (float)mean[2]);
+    for (i = 0; i < 2; ++i) {
+        sh.center = refl_v3_add(sh.center, refl_v3_scale(sh.axis[i], (float)(0.5 * (lo[i] + hi[i]))));
+        sh.extent[i] = (float)(0.5 * (hi[i] - lo[i]));
+    }
+    if (!(fabsf(refl_v3_dot(refl_v3_sub(c, sh.center), sh.axis[2])) > lens_radius) || !refl__v3_finite(sh.center))
+        sh.extent[0] = sh.extent[1] = 0.0f;
+    return sh;
+}
+
+/* How far the hits' directions from c spread: 1 minus the length of
+   their mean unit direction (0: all one way; near 1: all round). */
+static double refl__lem_spread(const float *pos, int n, refl_vec3 c) {
+    double m[3] = {0, 0, 0};
+    int k;
+    for (k = 0; k < n; ++k) {
+        refl_vec3 d = refl_v3_normalize(refl_v3_sub(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), c));
+        m[0] += d.x / n, m[1] += d.y / n, m[2] += d.z / n;
+    }
+    return n ? 1.0 - sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) : 1.0;
+}
+
+/* A layer's hits at most half spread (their mean direction at least half
+   long) are "sparse in direction": a quad may hold them. */
+#define REFL__LEM_QUAD_SPREAD 0.5
+
+static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, refl_vec3 c, float sphere_radius,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
+    refl_lem_shell cand[4];
+    double err[4], best_err = DBL_MAX;
+    int k, m = 0, best = 0;
+    memset(cand, 0, sizeof cand);
+    if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
+    /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
+    if ((kind == REFL_LEM_SHELL_AUTO && inner && refl__lem_spread(pos, n, c) <= REFL__LEM_QUAD_SPREAD) ||
+        (kind == REFL_LEM_SHELL_QUAD && inner)) {
+        cand[m] = refl__lem_fit_quad(pos, n, c, lens_radius);
+        if (cand[m].extent[0] > 0.0f && cand[m].extent[1] > 0.0f) ++m;
+    }
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_BOX)
+        cand[m++] = refl__lem_fit_box(pos, n, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_CYLINDER)
+        cand[m++] = refl__lem_fit_cylinder(pos, n, c, lo, hi);
+    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_SPHERE) {
+        cand[m].kind = REFL_LEM_SHELL_SPHERE;
+        cand[m].center = c;
+        cand[m++].radius = sphere_radius;
+    }
+    if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
+    for (k = 0; k < m; ++k) {
+        err[k] = refl__lem_fit_error(&cand[k], pos, n);
+        /* a later candidate must be clearly nearer */
+        if (k == 0 || err[k] < 0.99 * best_err) best = k, best_err = err[k];
+    }
+    *out = cand[best];
+    out->radius = sphere_radius; /* every kind keeps the layer's mean distance (the hits' fallback layer) */
+}
+
 REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
     double tc = (theta_c_degrees > 0.0f ? theta_c_degrees : 5.0f) * REFL__PI / 180.0, tm = 0.0;
     int i, j;
@@ -74,6 +351,21 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
         }
     tm = REFL__MIN(tm, tc);
     return (float)(1.0 - tm * tm / (tc * tc));
+}
+
+static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
+                                refl_vec3 lo, refl_vec3 hi, float lens_radius) {
+    float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
+    int l, k, n;
+    if (h->count && !pos) return 0;
+    for (l = 0; l < lay->layers; ++l) {
+        for (k = n = 0; k < h->count; ++k)
+            if (layer_of && layer_of[k] == l) memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
+        refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, lay->centre, lay->radius[l], lo, hi, lens_radius,
+                            &lay->shell[l]);
+    }
+    refl__free(h->al, pos);
+    return 1;
 }
 
 /* ---- the sparse system ------------------------------------------------------- */
@@ -312,6 +604,7 @@ static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *c
         refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
         for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
+        hits[n].position = g.p;
         hits[n].object = h.object;
         ++n;
     }
@@ -385,6 +678,91 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         }
     }
     return 1;
+}
+
+/* ---- direct images against disocclusion (section 4.3) ----------------------------------- */
+
+/* The unit-cube point of texel (face, x, y)'s centre (rast_cube_face's inverse). */
+static refl_vec3 refl__lem_texel_direction(int face, int x, int y, int n) {
+    float sc = 2.0f * ((float)x + 0.5f) / (float)n - 1.0f, tc = 2.0f * ((float)y + 0.5f) / (float)n - 1.0f;
+    switch (face) {
+    case 0: return refl_v3(1.0f, -tc, -sc);
+    case 1: return refl_v3(-1.0f, -tc, sc);
+    case 2: return refl_v3(sc, 1.0f, tc);
+    case 3: return refl_v3(sc, -1.0f, -tc);
+    case 4: return refl_v3(sc, -tc, 1.0f);
+    default: return refl_v3(-sc, -tc, -1.0f);
+    }
+}
+
+/* The world point on the shell whose index points along q (a texel's
+   direction), 0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p) {
+    float k;
+    if (refl__lem_sphere_kind(sh)) {
+        *p = refl_v3_add(sh->center, refl_v3_scale(refl_v3_normalize(q), sh->radius));
+        return 1;
+    }
+    switch (sh->kind) {
+    case REFL_LEM_SHELL_BOX: k = REFL__MAX(fabsf(q.x), REFL__MAX(fabsf(q.y), fabsf(q.z))); break;
+    case REFL_LEM_SHELL_CYLINDER: k = REFL__MAX(sqrtf(q.x * q.x + q.z * q.z), fabsf(q.y)); break;
+    case REFL_LEM_SHELL_QUAD:
+        if (!(q.z > 0.0f) || fabsf(q.x) > q.z || fabsf(q.y) > q.z) return 0;
+        k = q.z, q.z = 0.0f;
+        break;
+    default: return 0;
+    }
+    if (!(k > 0.0f)) return 0;
+    *p = refl_v3_add(sh->center,
+                     refl_v3_add(refl_v3_scale(sh->axis[0], sh->extent[0] * q.x / k),
+                                 refl_v3_add(refl_v3_scale(sh->axis[1], sh->extent[1] * q.y / k),
+                                             refl_v3_scale(sh->axis[2], sh->extent[2] * q.z / k))));
+    return 1;
+}
+
+static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
+                                         const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                         refl_lem_system *sys, long long *rays, int *added) {
+    const refl_allocator *a = &sys->allocator;
+    int n = shell->face_size, face, x, y, k, last = layer == lay->layers - 1;
+    float *cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+    long long e;
+    refl_result r = REFL_OK;
+    if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
+    /* how much of each texel the lens images' rows already hold */
+    for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    for (face = 0; face < 6 && r == REFL_OK; ++face)
+        for (y = 0; y < n && r == REFL_OK; ++y)
+            for (x = 0; x < n && r == REFL_OK; ++x) {
+                refl__lem_hit hits[REFL__LEM_MAX_HITS];
+                refl_vec3 p, d;
+                uint32_t tex[4];
+                float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
+                int nh, got = 0;
+                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
+                if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
+                for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
+                conf = 1.0f - REFL__MIN(held, 1.0f);
+                if (!(conf > 0.0f)) continue; /* the lens images hold it */
+                nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
+                for (k = 0; k < nh && !got; ++k)
+                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                        target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
+                        target[3] = 1.0f;
+                        got = 1;
+                    }
+                if (!got && last) { /* the outermost layer is opaque: the environment past everything */
+                    float rgb[3];
+                    refl_environment_lookup(&scene->environment, d, rgb);
+                    for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
+                    target[3] = 1.0f;
+                }
+                r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
+                if (r == REFL_OK) ++*added;
+            }
+    refl__free(a, cov);
+    return r;
 }
 
 /* ---- layers: LBG over hit distances ------------------------------------------------ */
@@ -499,21 +877,27 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
                     if (h->count == h->cap) {
                         int cap = h->cap ? 2 * h->cap : 1024;
                         float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
+                        float *np = (float *)refl__calloc(h->al, 3 * (size_t)cap, sizeof(float));
                         int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
                         int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        if (!nd || !no || !nr) {
-                            refl__free(h->al, nd), refl__free(h->al, no), refl__free(h->al, nr);
+                        if (!nd || !np || !no || !nr) {
+                            refl__free(h->al, nd), refl__free(h->al, np), refl__free(h->al, no), refl__free(h->al, nr);
                             return 0;
                         }
                         if (h->count) {
                             memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
+                            memcpy(np, h->pos, 3 * sizeof(float) * (size_t)h->count);
                             memcpy(no, h->object, sizeof(int) * (size_t)h->count);
                             memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
                         }
-                        refl__free(h->al, h->distance), refl__free(h->al, h->object), refl__free(h->al, h->ray);
-                        h->distance = nd, h->object = no, h->ray = nr, h->cap = cap;
+                        refl__free(h->al, h->distance), refl__free(h->al, h->pos);
+                        refl__free(h->al, h->object), refl__free(h->al, h->ray);
+                        h->distance = nd, h->pos = np, h->object = no, h->ray = nr, h->cap = cap;
                     }
                     h->distance[h->count] = hits[k].distance;
+                    h->pos[3 * (size_t)h->count] = hits[k].position.x;
+                    h->pos[3 * (size_t)h->count + 1] = hits[k].position.y;
+                    h->pos[3 * (size_t)h->count + 2] = hits[k].position.z;
                     h->object[h->count] = hits[k].object;
                     h->ray[h->count] = h->rays;
                     ++h->count;
@@ -544,6 +928,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     memset(&one, 0, sizeof one);
     one.layers = 1;
     one.radius[0] = shell->radius;
+    one.shell[0] = *shell;
     one.centre = shell->center;
     for (y = 0; y < view->height && r == REFL_OK; ++y)
         for (x = 0; x < view->width && r == REFL_OK; ++x) {

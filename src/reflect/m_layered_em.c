@@ -29,10 +29,13 @@
    continued rays, direct images. */
 #include "internal.h"
 
-/* One draw is one term: per layer its shell index (3), then F G (3), the
-   term's presence, and 1 at a vertex whose term has an exit ray the shells
-   cannot look up: 3 layers + 5 varyings. */
-static int refl__lem_varyings(int layers) { return 3 * layers + 5; }
+/* One draw is one term: per layer its shell index (3; a quad layer's
+   (0, 0, 0) where the exit ray misses it, so that its third component
+   interpolates to the share of the quad present), then shading F G (3)
+   and 1 at a vertex whose term has an exit ray a closed shell cannot look
+   up, or recording the term's presence: 3 layers + 4 varyings (16 at
+   REFL_LEM_MAX_LAYERS, rast.h's most). */
+static int refl__lem_varyings(int layers) { return 3 * layers + 4; }
 
 static int refl__lem_bvh_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
     return refl_bvh_intersect((const refl_bvh *)user, o, d, tmin, tmax, hit);
@@ -53,23 +56,11 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.theta_c_degrees: 0 (5) to 180";
     if (o->iterations < 0 || o->iterations > 100000) return "layered_em.iterations: 0 (200) to 100000";
     if (o->single_view < 0 || o->single_view > 1) return "layered_em.single_view: 0 or 1";
-    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 3";
+    if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
+    if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
+        return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
+    if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     return NULL;
-}
-
-/* The shell's index of an exit ray: its far hit on the sphere minus the
-   centre (0: none). An exit ray that starts outside the shell has none: its
-   path left the lens through another lens object beyond the shell, where
-   the map knows nothing of what the ray meets (the frame hands such pixels
-   to the tracer). */
-static int refl__lem_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, refl_vec3 *index) {
-    refl_vec3 oc = refl_v3_sub(o, sh->center);
-    float b = refl_v3_dot(oc, d), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, dd = refl_v3_dot(d, d);
-    float disc = b * b - c * dd, t;
-    if (!(c <= 0.0f) || !(disc >= 0.0f) || !(dd > 0.0f)) return 0;
-    t = (-b + sqrtf(disc)) / dd;
-    *index = refl_v3_add(oc, refl_v3_scale(d, t));
-    return refl__v3_finite(*index) && t >= 0.0f;
 }
 
 /* What one draw of the lens shares: the layers' shells, the maps it looks
@@ -82,7 +73,18 @@ typedef struct refl__lem_draw {
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
     int record_layer;            /* -1: shade; else write that layer's index and the presence */
+    long long quad_misses;       /* out: vertices whose exit ray missed a quad layer */
+    refl_vec3 lens_box[2];       /* the lens's bounds, a little wider: an exit ray from
+                                    outside them left through another lens */
 } refl__lem_draw;
+
+/* dr's lens box: object i's bounds box[2], widened by a thousandth of
+   their diagonal. */
+static void refl__lem_draw_box(refl__lem_draw *dr, const refl_vec3 box[2]) {
+    float pad = 1e-3f * refl_v3_length(refl_v3_sub(box[1], box[0])) + 1e-6f;
+    dr->lens_box[0] = refl_v3_sub(box[0], refl_v3(pad, pad, pad));
+    dr->lens_box[1] = refl_v3_add(box[1], refl_v3(pad, pad, pad));
+}
 
 /* Layer l's bilinear RGBA at a shell index. */
 static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, float rgba[4]) {
@@ -90,7 +92,7 @@ static void refl__lem_sample(const refl__lem_draw *dr, int l, refl_vec3 index, f
     float w[4];
     int k, c;
     rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
-    if (!refl_lem_shell_lookup(&dr->shell[l], dr->shell[l].center, index, tex, w)) return;
+    if (!refl_lem_shell_texels(&dr->shell[l], index, tex, w)) return;
     for (k = 0; k < 4; ++k)
         for (c = 0; c < 4; ++c) rgba[c] += w[k] * dr->map[l][4 * tex[k] + (uint32_t)c];
 }
@@ -108,15 +110,18 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         rgba[0] = t[0];
         rgba[1] = t[1];
         rgba[2] = t[2];
-        rgba[3] = fg[3];
+        rgba[3] = fg[0] * (dr->shell[dr->record_layer].kind == REFL_LEM_SHELL_QUAD ? t[2] : 1.0f);
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
-    rgba[3] = fg[4] > 0.0f ? 2.0f : 1.0f;
+    rgba[3] = fg[3] > 0.0f ? 2.0f : 1.0f;
     if (!(fg[0] > 0.0f || fg[1] > 0.0f || fg[2] > 0.0f)) return 1;
     for (l = 0; l < dr->layers && through > 0.0f; ++l) {
-        float a;
-        refl__lem_sample(dr, l, refl_v3(v[3 * l], v[3 * l + 1], v[3 * l + 2]), layer);
+        const float *t = v + 3 * l;
+        float a, present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        if (!(present > 0.0f)) continue; /* a quad layer the exit rays miss here */
+        refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
+        for (c = 0; c < 4; ++c) layer[c] *= present;
         a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(layer[3], 0.0f, 1.0f);
         for (c = 0; c < 3; ++c) rgba[c] += through * layer[c]; /* premultiplied */
         through *= 1.0f - a;
@@ -146,18 +151,34 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
         const refl_greedy_path *path = dr->term ? &v->paths.refract : &v->paths.reflect;
         float *o = verts + (size_t)i * (size_t)stride, *fg = o + 4 + 3 * dr->layers;
         refl_vec3 p = v->position;
-        int exits = path->fresnel > 0.0f && path->exited, has = exits;
+        refl_vec3 eo = path->exit_origin;
+        int exits = path->fresnel > 0.0f && path->exited;
+        int has = exits && eo.x >= dr->lens_box[0].x && eo.y >= dr->lens_box[0].y && eo.z >= dr->lens_box[0].z &&
+                  eo.x <= dr->lens_box[1].x && eo.y <= dr->lens_box[1].y && eo.z <= dr->lens_box[1].z;
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
         for (l = 0; l < dr->layers; ++l) {
-            refl_vec3 index = refl_v3(0.0f, 0.0f, 1.0f);
-            has = has && refl__lem_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            /* a closed shell without a lookup: the path left the lens through
+               another lens object beyond the shell, where the map knows
+               nothing of what the ray meets (the pixels go to the tracer); a
+               quad missed: the layer is left out at this vertex */
+            int quad = dr->shell[l].kind == REFL_LEM_SHELL_QUAD;
+            refl_vec3 index = refl_v3(0.0f, 0.0f, quad ? 0.0f : 1.0f);
+            int got = has && refl_lem_shell_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
+            if (quad)
+                dr->quad_misses += has && !got;
+            else
+                has = has && got;
+            if (quad && !got) index = refl_v3(0.0f, 0.0f, 0.0f);
             o[4 + 3 * l] = index.x;
             o[4 + 3 * l + 1] = index.y;
             o[4 + 3 * l + 2] = index.z;
         }
-        for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
-        fg[3] = (float)has;
-        fg[4] = (float)(exits && !has);
+        if (dr->record_layer >= 0) {
+            fg[0] = (float)has;
+        } else {
+            for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
+            fg[3] = (float)(exits && !has);
+        }
     }
     tg = refl__float_targets(color, depth, stencil, w, h);
     memset(&s, 0, sizeof s);
@@ -410,6 +431,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
     refl__lem_bounds(scene, i, &centre, &lens_radius, box);
+    refl__lem_draw_box(&dr, box);
     /* the records and tessellation of each view, in rows on the pass's threads */
     for (s = 0; s < per && r == REFL_OK; ++s) {
         refl__lem_records rec;
@@ -446,8 +468,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
     out->layers = dr.layers = L;
     for (l = 0; l < L; ++l) {
-        dr.shell[l].center = lay->centre;
-        dr.shell[l].radius = lay->radius[l];
+        dr.shell[l] = lay->shell[l];
         dr.shell[l].face_size = face;
         out->shell[l] = dr.shell[l];
         if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
@@ -472,12 +493,19 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                     float wt[4];
                     /* a row where the records have the term and all three vertices gave it an index */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                        !refl_lem_shell_lookup(&dr.shell[l], dr.shell[l].center, refl_v3(ix[0], ix[1], ix[2]), tex,
-                                               wt))
+                        !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
                     r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
                 }
         }
+    /* where the lens images leave texels unheld, the direct images */
+    for (l = 0; l < L && r == REFL_OK &&
+                (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
+         ++l) {
+        int added = 0;
+        r = refl__lem_direct_rows(scene, caster, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        st->layered_em.direct_rows += added;
+    }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
     for (l = 0; l < L && r == REFL_OK; ++l) {
@@ -597,8 +625,10 @@ enum { REFL__LEM_CLUSTER_VIEWS = 16 };
    a quarter of its size, 16 to 64 pixels wide: the clustering needs
    distances, not detail) clustered by
    refl_lem_cluster_layers, each object's layer kept. No hits (only the
-   environment): one shell at 10 lens radii. Shells are kept outside the
-   lens, each beyond the one before. */
+   environment): one shell at 10 lens radii. Sphere radii are kept
+   outside the lens, each beyond the one before; then each layer's shell
+   is fitted to its hits (refl__lem_fit_layers), closed ones around the
+   lens's box. */
 static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
                                      float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
     const refl_scene *scene = p->scene;
@@ -608,7 +638,10 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l;
     int want = p->desc.layered_em.layers > 0 ? p->desc.layered_em.layers : 1;
     int *layer_of = NULL;
+    refl_vec3 box[2], bc;
+    float br;
     refl_result r = REFL_OK;
+    refl__lem_bounds(scene, i, &bc, &br, box);
     memset(&h, 0, sizeof h);
     h.al = al;
     for (k = 0; k < n && r == REFL_OK; ++k) {
@@ -647,7 +680,11 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     if (!(lay->radius[0] > lens_radius)) lay->radius[0] = REFL__MAX(10.0f * lens_radius, 1e-3f);
     for (l = 1; l < lay->layers; ++l)
         if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    if (r == REFL_OK &&
+        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
+        r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
+    refl__free(al, h.pos);
     refl__free(al, h.distance);
     refl__free(al, h.object);
     refl__free(al, h.ray);
@@ -758,7 +795,9 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
             dr.weight = weight[s];
             dr.term = term;
             dr.record_layer = -1;
+            refl__lem_draw_box(&dr, box);
             r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+            if (s == 0) f->stats.layered_em.quad_misses += dr.quad_misses;
             for (px = 0; px < np && r == REFL_OK; ++px) {
                 float a = color[4 * px + 3];
                 if (f->stencil[px] != ref || !(a > 0.0f)) continue;

@@ -132,27 +132,47 @@ Test(refl_gl_hooks, sbc_morph_glsl_matches_c, .timeout = 120) { validate(5); }
    image, distance and whether it came from across a fold. */
 Test(refl_gl_hooks, sbc_morph_sheets_glsl_matches_c, .timeout = 120) { validate(8); }
 
-/* LAYERED_EM's shell lookup (gl_hooks.c): the layout, then the GLSL lookup's
-   texels and weights against refl_lem_shell_lookup on 10^5 exit rays. */
+/* LAYERED_EM's shells (gl_hooks.c): the layout, then the GLSL lookup's
+   texels and weights against refl_lem_shell_lookup on 10^5 exit rays, a
+   quarter on each kind of shell (no lookup from outside a closed shell or
+   past the quad, on both sides). */
 Test(refl_gl_hooks, lem_shell_layout) {
-    refl_lem_shell sh = {{1.0f, 2.0f, 3.0f}, 4.0f, 2};
-    float map[4 * 24], buf[8 + 4 * 24];
+    refl_lem_shell sh[2];
+    float map[4 * 24], buf[44 + 8 * 24];
+    const float *maps[2] = {map, map};
     int i;
+    memset(sh, 0, sizeof sh);
+    sh[0].center = refl_v3(1.0f, 2.0f, 3.0f);
+    sh[0].radius = 4.0f;
+    sh[0].face_size = 2;
+    sh[1] = sh[0];
+    sh[1].kind = REFL_LEM_SHELL_BOX;
+    sh[1].axis[0] = refl_v3(1, 0, 0), sh[1].axis[1] = refl_v3(0, 1, 0), sh[1].axis[2] = refl_v3(0, 0, 1);
+    sh[1].extent[0] = 5.0f, sh[1].extent[1] = 6.0f, sh[1].extent[2] = 7.0f;
     for (i = 0; i < 4 * 24; ++i) map[i] = (float)i;
-    cr_assert_eq(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 8);
-    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, NULL, 0), 8 + 4 * 24);
-    cr_assert_eq(refl_gl_pack_lem_shell(&sh, map, buf, 8 + 4 * 24), 8 + 4 * 24);
+    /* a header texel, 5 a layer, then the maps */
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh[0], NULL, NULL, 0), 24);
+    cr_assert_eq(refl_gl_pack_lem_shell(&sh[0], map, NULL, 0), 24 + 4 * 24);
+    cr_assert_eq(refl_gl_pack_lem_shells(sh, maps, 2, NULL, 0), 44 + 8 * 24);
+    cr_assert_eq(refl_gl_pack_lem_shells(sh, maps, 2, buf, 44 + 8 * 24), 44 + 8 * 24);
     cr_assert_eq(buf[0], (float)REFL_GL_LEM_SHELL);
-    cr_assert_eq(buf[2], 2.0f);
-    cr_assert_eq(buf[3], 1.0f);
-    cr_assert_eq(buf[7], 4.0f);
-    cr_assert_eq(buf[8 + 4 * 5 + 2], 22.0f); /* texel 5's blue */
-    sh.radius = 0.0f;
-    cr_assert_lt(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 0);
+    cr_assert_eq(buf[2], 2.0f);                   /* layers */
+    cr_assert_eq(buf[3], 1.0f);                   /* maps */
+    cr_assert_eq(buf[4], 2.0f);                   /* layer 0: face size */
+    cr_assert_eq(buf[5], (float)REFL_LEM_SHELL_SPHERE);
+    cr_assert_eq(buf[6], 11.0f);                  /* its map at texel 11 */
+    cr_assert_eq(buf[11], 4.0f);                  /* radius */
+    cr_assert_eq(buf[24 + 1], (float)REFL_LEM_SHELL_BOX);
+    cr_assert_eq(buf[24 + 2], 11.0f + 24.0f);     /* layer 1's map after layer 0's */
+    cr_assert_eq(buf[24 + 4 * 4 + 3], 7.0f);      /* its third half size */
+    cr_assert_eq(buf[44 + 4 * 5 + 2], 22.0f);     /* layer 0's texel 5's blue */
+    sh[0].radius = 0.0f;
+    cr_assert_lt(refl_gl_pack_lem_shell(&sh[0], NULL, NULL, 0), 0);
+    cr_assert_lt(refl_gl_pack_lem_shells(sh, NULL, REFL_LEM_MAX_LAYERS + 1, NULL, 0), 0);
     cr_assert_not_null(refl_gl_glsl(REFL_GL_LEM_SHELL));
 }
 
-/* (the shell's error: the largest weight difference; another texel disagrees) */
+/* (the shells' error: the largest weight difference; another texel disagrees) */
 Test(refl_gl_hooks, lem_shell_glsl_matches_c, .timeout = 120) { validate(6); }
 
 Test(refl_gl_hooks, spoc_layout) {

@@ -21,6 +21,7 @@ Test(lem_infer, shell_lookup_far_root) {
     refl_vec3 o = refl_v3(0.4f, -0.3f, 0.2f), d = refl_v3_normalize(refl_v3(0.3f, 0.5f, -0.8f)), hit, oc;
     float b, c, t;
     int k;
+    memset(&sh, 0, sizeof sh); /* kind 0: a sphere */
     sh.center = refl_v3(1.0f, 2.0f, 3.0f);
     sh.radius = 2.5f;
     sh.face_size = 16;
@@ -76,6 +77,7 @@ Test(lem_infer, least_squares_recovers_known_texture) {
     float *x = (float *)malloc(sizeof(float) * 4 * (size_t)texels), *x2 = (float *)malloc(sizeof(float) * 4 * (size_t)texels);
     int i, k, c;
     double worst = 0.0;
+    memset(&sh, 0, sizeof sh);
     sh.center = refl_v3(0, 0, 0);
     sh.radius = 3.0f;
     sh.face_size = n;
@@ -230,6 +232,7 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
     float *x;
     double at_sample, between;
     int k;
+    memset(&sh, 0, sizeof sh);
     sh.center = refl_v3(0, 0, 0);
     sh.radius = 5.0f;
     sh.face_size = 24; /* about a texel per pixel of the lens's view: finer is underdetermined between samples */
@@ -324,7 +327,17 @@ Test(layered_em, options_validated) {
     d.layered_em.supersample = 0;
     d.layered_em.layers = REFL_LEM_MAX_LAYERS + 1;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
-    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 3");
+    cr_assert_str_eq(why, "layered_em.layers: 0 (1) to 4");
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_OK);
+    d.layered_em.layers = -1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.layers = 0;
+    d.layered_em.shell = REFL_LEM_SHELL_QUAD + 1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.shell = 0;
+    d.layered_em.direct_images = 2;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
 }
 
 /* ---- maps kept by a renderer -------------------------------------------------------- */
@@ -587,6 +600,226 @@ Test(layered_em, an_inner_partial_shell_needs_two_layers) {
     cr_assert_gt(err[1].pixels, 2000);
     cr_assert_lt(err[0].psnr, 35.0, "one layer: PSNR %.2f dB", err[0].psnr);
     cr_assert_geq(err[1].psnr, 35.0, "two layers: PSNR %.2f dB (one: %.2f dB)", err[1].psnr, err[0].psnr);
+    /* the most layers: LBG splits the two groups further, still exact */
+    d = lem_desc(0);
+    d.layered_em.layers = REFL_LEM_MAX_LAYERS;
+    lem = tu_refl_render(s, &v, &d);
+    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err[0]), REFL_OK);
+    cr_assert_geq(err[0].psnr, 35.0, "%d layers: PSNR %.2f dB", REFL_LEM_MAX_LAYERS, err[0].psnr);
+    refl_frame_destroy(lem);
     refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
+
+/* ---- shells of other kinds ------------------------------------------------------------ */
+
+static refl_lem_shell framed_shell(int kind, refl_vec3 centre, float e0, float e1, float e2) {
+    refl_lem_shell sh;
+    memset(&sh, 0, sizeof sh);
+    sh.kind = kind;
+    sh.center = centre;
+    sh.axis[0] = refl_v3(1, 0, 0);
+    sh.axis[1] = refl_v3(0, 1, 0);
+    sh.axis[2] = refl_v3(0, 0, 1);
+    sh.extent[0] = e0, sh.extent[1] = e1, sh.extent[2] = e2;
+    sh.face_size = 8;
+    return sh;
+}
+
+static void assert_index(const refl_lem_shell *sh, refl_vec3 o, refl_vec3 d, float x, float y, float z) {
+    refl_vec3 ix;
+    cr_assert(refl_lem_shell_index(sh, o, refl_v3_normalize(d), &ix), "kind %d: a lookup", sh->kind);
+    cr_assert(fabsf(ix.x - x) < 1e-5f && fabsf(ix.y - y) < 1e-5f && fabsf(ix.z - z) < 1e-5f,
+              "kind %d: index (%g %g %g), expected (%g %g %g)", sh->kind, ix.x, ix.y, ix.z, x, y, z);
+}
+
+Test(lem_infer, shell_index_of_every_kind) {
+    refl_lem_shell sh;
+    refl_vec3 ix, c = refl_v3(1, 2, 3);
+    uint32_t tex[4];
+    float w[4];
+    /* a sphere of radius 2: the hit minus the centre; none from outside */
+    memset(&sh, 0, sizeof sh);
+    sh.kind = REFL_LEM_SHELL_SPHERE, sh.center = c, sh.radius = 2.0f, sh.face_size = 8;
+    assert_index(&sh, c, refl_v3(1, 0, 0), 2, 0, 0);
+    assert_index(&sh, refl_v3(1, 2, 4), refl_v3(0, 0, 1), 0, 0, 2);
+    cr_assert_not(refl_lem_shell_index(&sh, refl_v3(5, 2, 3), refl_v3(-1, 0, 0), &ix));
+    /* a box of half sides 2, 3, 4: the nearest slab's exit, over the half sides */
+    sh = framed_shell(REFL_LEM_SHELL_BOX, c, 2, 3, 4);
+    assert_index(&sh, refl_v3(1.5f, 2, 3), refl_v3(1, 0, 0), 1, 0, 0);
+    assert_index(&sh, c, refl_v3(1, 1, 0), 1, 2.0f / 3.0f, 0);
+    assert_index(&sh, c, refl_v3(0, -1, -2), 0, -2.0f / 3.0f, -1); /* z first: at 2, y is -2 of 3 */
+    cr_assert_not(refl_lem_shell_index(&sh, refl_v3(4, 2, 3), refl_v3(-1, 0, 0), &ix));
+    /* a cylinder of radius 2 and half height 1 around y: side or cap, the nearer */
+    sh = framed_shell(REFL_LEM_SHELL_CYLINDER, c, 2, 1, 2);
+    assert_index(&sh, c, refl_v3(1, 0, 0), 1, 0, 0);
+    assert_index(&sh, c, refl_v3(0, 1, 0), 0, 1, 0);
+    assert_index(&sh, c, refl_v3(1, 1, 0), 0.5f, 1, 0);    /* the cap first: t = 1.41 < 2.83 */
+    assert_index(&sh, c, refl_v3(0, 0.25f, -1), 0, 0.5f, -1); /* the side first */
+    assert_index(&sh, refl_v3(2, 2, 3), refl_v3(0, 0, 1), 0.5f, 0, sqrtf(3.0f) / 2.0f);
+    cr_assert_not(refl_lem_shell_index(&sh, refl_v3(1, 3.5f, 3), refl_v3(0, -1, 0), &ix)); /* above it */
+    /* a quad 2 x 1 either side of (1, 2, 8), facing z: ahead and inside only */
+    sh = framed_shell(REFL_LEM_SHELL_QUAD, refl_v3(1, 2, 8), 2, 1, 0);
+    assert_index(&sh, c, refl_v3(0, 0, 1), 0, 0, 1);
+    assert_index(&sh, c, refl_v3(0.2f, 0.1f, 1), 0.5f, 0.5f, 1);
+    cr_assert_not(refl_lem_shell_index(&sh, c, refl_v3(0, 0, -1), &ix)); /* away from it */
+    cr_assert_not(refl_lem_shell_index(&sh, c, refl_v3(1, 0, 1), &ix));  /* past its side */
+    cr_assert_not(refl_lem_shell_index(&sh, c, refl_v3(1, 0, 0), &ix));  /* along it */
+    /* a quad's lookups all land on the +z face */
+    cr_assert(refl_lem_shell_lookup(&sh, c, refl_v3_normalize(refl_v3(-0.3f, 0.15f, 1)), tex, w));
+    cr_assert_geq(tex[0], 4u * 64u);
+    cr_assert_lt(tex[3], 5u * 64u);
+}
+
+/* A room (box of object 0, 10 x 6 x 8, checkered faces) around a glass
+   sphere of radius 1 at the origin, off the room's centre; ambient light. */
+static refl_scene *box_room_scene(void) {
+    enum { W = 32, H = 32 };
+    refl_scene *s = NULL;
+    refl_mesh *room = NULL, *lens = NULL;
+    refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
+    static float tex[W * H * 4];
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            float *p = tex + 4 * (y * W + x);
+            int odd = ((x / 4) + (y / 4)) & 1;
+            p[0] = odd ? 0.9f : 0.2f;
+            p[1] = 0.2f + 0.6f * (float)x / W;
+            p[2] = 0.2f + 0.6f * (float)y / H;
+            p[3] = 1.0f;
+        }
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    paper.texture = refl_scene_add_texture(s, W, H, tex);
+    cr_assert_eq(refl_mesh_box(refl_v3(10.0f, 6.0f, 8.0f), NULL, &room), REFL_OK);
+    cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, room, &paper, refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f))), 0);
+    glass.tint[0] = 1.0f, glass.tint[1] = 0.9f, glass.tint[2] = 0.8f;
+    glass.attenuation = 0.1f;
+    cr_assert_eq(refl_scene_add(s, lens, &glass, refl_mat4_identity()), 1);
+    s->ambient[0] = s->ambient[1] = s->ambient[2] = 1.0f;
+    return s;
+}
+
+/* PSNR over the lens of LAYERED_EM (shell kind, layers) against greedy RAYTRACE. */
+static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int layers, long long *quad_misses) {
+    refl_render_desc d;
+    refl_frame *truth, *lem;
+    refl_image_error err;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, v, &d);
+    d = lem_desc(0);
+    d.layered_em.shell = kind;
+    d.layered_em.layers = layers;
+    lem = tu_refl_render(s, v, &d);
+    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
+    cr_assert_gt(err.pixels, 1000);
+    if (quad_misses) *quad_misses = lem->stats.layered_em.quad_misses;
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem);
+    return err.psnr;
+}
+
+Test(layered_em, a_box_shell_fits_a_box_room_better_than_a_sphere) {
+    refl_scene *s = box_room_scene();
+    refl_view v = orbit_view_sized(3.0f, 96, 72);
+    double sphere = lem_psnr(s, &v, REFL_LEM_SHELL_SPHERE, 1, NULL), box = lem_psnr(s, &v, REFL_LEM_SHELL_BOX, 1, NULL);
+    double automatic = lem_psnr(s, &v, REFL_LEM_SHELL_AUTO, 1, NULL);
+    cr_log_info("box room: sphere %.2f dB, box %.2f dB, auto %.2f dB", sphere, box, automatic);
+    cr_assert_geq(box, sphere + 1.5, "box %.2f dB, sphere %.2f dB", box, sphere);
+    cr_assert_eq(automatic, box, "AUTO takes the box: %.2f dB against %.2f", automatic, box);
+    refl_scene_destroy(s);
+}
+
+/* A checkered wall 3 x 3 (object 2) at z = -2.5 behind the exact-shell
+   scene's glass sphere, facing it: a sparse inner layer. */
+static refl_scene *wall_scene(void) {
+    enum { W = 16, H = 16 };
+    refl_scene *s = exact_shell_scene();
+    refl_mesh *wall = NULL;
+    refl_material paint = refl_material_diffuse(1, 1, 1);
+    static float tex[W * H * 4];
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            float *p = tex + 4 * (y * W + x);
+            int odd = ((x / 4) + (y / 4)) & 1;
+            p[0] = 0.1f + 0.8f * (float)y / H;
+            p[1] = odd ? 0.1f : 0.8f;
+            p[2] = 0.1f + 0.8f * (float)x / W;
+            p[3] = 1.0f;
+        }
+    paint.texture = refl_scene_add_texture(s, W, H, tex);
+    cr_assert_eq(refl_mesh_plane(3.0f, 4, NULL, &wall), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, wall, &paint,
+                                refl_mat4_mul(refl_mat4_translate(refl_v3(0, 0, -2.5f)),
+                                              refl_mat4_rotate(refl_v3(1, 0, 0), 1.5707963f))),
+                 2);
+    return s;
+}
+
+Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
+    /* two layers, between samples: the wall on a sphere shell smears it
+       over directions it does not cover; on its quad it is exact, and the
+       exit rays past the quad see the outer sphere */
+    refl_scene *s = wall_scene();
+    refl_view v = orbit_view_sized(3.0f, 96, 72);
+    long long misses = 0;
+    double spheres = lem_psnr(s, &v, REFL_LEM_SHELL_SPHERE, 2, NULL), quad = lem_psnr(s, &v, REFL_LEM_SHELL_QUAD, 2, &misses);
+    double automatic = lem_psnr(s, &v, REFL_LEM_SHELL_AUTO, 2, NULL);
+    cr_log_info("wall: two spheres %.2f dB, quad + sphere %.2f dB (%lld misses), auto %.2f dB", spheres, quad, misses,
+                automatic);
+    cr_assert_geq(quad, spheres + 2.0, "quad %.2f dB, spheres %.2f dB", quad, spheres);
+    cr_assert_geq(quad, 33.0, "quad %.2f dB", quad);
+    cr_assert_gt(misses, 0, "exit rays past the quad are counted");
+    cr_assert_eq(automatic, quad, "AUTO takes the quad: %.2f dB against %.2f", automatic, quad);
+    refl_scene_destroy(s);
+}
+
+/* ---- direct images against disocclusion ------------------------------------------------- */
+
+Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
+    /* 4 samples 90 degrees apart, each from its own view alone: at 45
+       degrees the lens shows parts of the sphere no sample's records met
+       (their texels stay empty); the direct images from the lens's centre
+       fill them */
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(45.0f, 96, 72);
+    refl_render_desc d;
+    refl_frame *truth, *lem[2];
+    refl_image_error err[2];
+    int dark[2] = {0, 0}, on, lens = 0;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    truth = tu_refl_render(s, &v, &d);
+    for (on = 0; on < 2; ++on) {
+        d = lem_desc(4);
+        d.layered_em.single_view = 1;
+        d.layered_em.direct_images = on ? 1 : -1;
+        lem[on] = tu_refl_render(s, &v, &d);
+        cr_assert_eq(refl_measure_image_error(lem[on], truth, 1, 0.0f, &err[on]), REFL_OK);
+        cr_assert_eq(lem[on]->stats.layered_em.direct_rows > 0, on);
+        for (i = 0; i < n; ++i) {
+            const float *t = truth->rgba + 4 * i, *l = lem[on]->rgba + 4 * i;
+            if (truth->stencil[i] != 2) continue;
+            lens += !on;
+            dark[on] += t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
+        }
+    }
+    cr_log_info("disocclusion: without %.2f dB (%d dark), with %.2f dB (%d dark) of %d lens pixels", err[0].psnr, dark[0],
+                err[1].psnr, dark[1], lens);
+    cr_assert_geq(dark[0], 50, "without: %d dark pixels", dark[0]);
+    cr_assert_lt(err[0].psnr, 25.0, "without: %.2f dB", err[0].psnr);
+    cr_assert_eq(dark[1], 0, "with: %d dark pixels", dark[1]);
+    cr_assert_geq(err[1].psnr, 33.0, "with: %.2f dB", err[1].psnr);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem[0]);
+    refl_frame_destroy(lem[1]);
     refl_scene_destroy(s);
 }
