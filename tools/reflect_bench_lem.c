@@ -324,7 +324,7 @@ done:
 
 /* ---- the stability sweeps -------------------------------------------------------------- */
 
-enum { SW_LEM_W = 160, SW_LEM_H = 120, SW_LEM_MAX_ROWS = 128 };
+enum { SW_LEM_W = 160, SW_LEM_H = 120, SW_LEM_MAX_ROWS = 192 };
 
 typedef struct lem_sweep_row {
     char sweep[16], series[16], setting[48];
@@ -394,6 +394,8 @@ static int lem_sweeps_write(const lem_sweeps *sw, const char *dir) {
         {"edge", "tessellation t (pixels)", "PSNR (dB)"},
         {"angle", "tessellation angle (degrees)", "PSNR (dB)"},
         {"moved", "column moved after the maps (scene units)", "PSNR (dB)"},
+        {"disocclusion", "0 neither, 1 simultaneous inference, 2 direct images, 3 both (2 layers)", "PSNR (dB)"},
+        {"shell", "shell kind: 0 auto, 1 sphere, 2 cylinder, 3 box, 4 quad (2 layers)", "PSNR (dB)"},
     };
     char path[1024], dat[1024], script[16384];
     FILE *csv, *md, *dp;
@@ -426,8 +428,8 @@ static int lem_sweeps_write(const lem_sweeps *sw, const char *dir) {
     fclose(md);
     /* a gnuplot block per sweep and series, in the panels' order */
     len += (size_t)snprintf(script + len, sizeof script - len,
-                            "set terminal pngcairo size 1400,1200 noenhanced\nset output '%s/lem_sweeps.png'\n"
-                            "set multiplot layout 3,3 title 'LAYERED_EM against greedy RAYTRACE over the lens pixels, "
+                            "set terminal pngcairo size 1400,1600 noenhanced\nset output '%s/lem_sweeps.png'\n"
+                            "set multiplot layout 4,3 title 'LAYERED_EM against greedy RAYTRACE over the lens pixels, "
                             "hybrid %dx%d'\nset grid\nset key bottom left\n",
                             dir, SW_LEM_W, SW_LEM_H);
     for (p = 0, j = 0; p < (int)(sizeof panels / sizeof *panels); ++p) {
@@ -648,14 +650,34 @@ int refl_bench_lem_sweeps(const char *dir, int threads) {
         refl_scene_touch(s);
     }
 
-    /* 7. TO BE FILLED BY THE LEAD after merging the `lem` branch (shell
-       kinds `--lem-shell`, direct images `--lem-direct`):
-       - "disocclusion" sweep: disocclusion prevention (continued rays and
-         simultaneous inference, plus direct images) on and off;
-       - "shell" sweep: each shell kind (sphere, cylinder, box, quad).
-       Each a row per setting through lem_sweep_row_add, at v0 and an eye
-       between samples, like the layers sweep above; add the panels to
-       lem_sweeps_write. No numbers until then. */
+    /* 7. disocclusion prevention: each sample's maps from its own view
+       alone or from its neighbours' too (section 4.3's simultaneous
+       inference), with and without the direct images (x: 0 neither, 1
+       simultaneous, 2 direct images, 3 both, the default); and 8. every
+       shell kind (x: refl_lem_shell_kind). Each at the first eye and
+       halfway between two samples (4 degrees off), two layers. */
+    for (k = 0; ok && k < 4; ++k) {
+        static const char *const names[] = {"neither", "simultaneous", "direct images", "both"};
+        refl_render_desc dd = d;
+        dd.layered_em.layers = 2;
+        dd.layered_em.single_view = !(k & 1);
+        dd.layered_em.direct_images = k & 2 ? 1 : -1;
+        for (j = 0; ok && j < 2; ++j) {
+            v = lem_turned(v0, teapot_c, 4.0 * (double)j, 0.0);
+            ok = lem_truth(sw, &v) &&
+                 lem_sweep_row_add(sw, "disocclusion", j ? "eye +4" : "eye 0", names[k], k, NULL, &dd, &v);
+        }
+    }
+    for (k = REFL_LEM_SHELL_AUTO; ok && k <= REFL_LEM_SHELL_QUAD; ++k) {
+        static const char *const names[] = {"auto", "sphere", "cylinder", "box", "quad"};
+        refl_render_desc dd = d;
+        dd.layered_em.layers = 2;
+        dd.layered_em.shell = k;
+        for (j = 0; ok && j < 2; ++j) {
+            v = lem_turned(v0, teapot_c, 4.0 * (double)j, 0.0);
+            ok = lem_truth(sw, &v) && lem_sweep_row_add(sw, "shell", j ? "eye +4" : "eye 0", names[k], k, NULL, &dd, &v);
+        }
+    }
 
     if (ok) ok = lem_sweeps_write(sw, dir);
 done:
