@@ -322,15 +322,26 @@ static int take(const report_row *r, const char *scene, const char *sweep) {
 static int series_chart(const report *rp, const char *scene, const char *sweep, const char *name, const char *title,
                         const char *xlabel, const char *ylabel, report_axis x, report_axis y, int logx, int logy,
                         int labels, double exact_x) {
-    char path[1024], script[16384], names[REPORT_MAX_SERIES][24];
+    char path[1024], script[16384], names[REPORT_MAX_SERIES][24], keys[REPORT_MAX_SERIES][56],
+        first_label[REPORT_MAX_SERIES][24];
     FILE *fp;
     size_t len;
     int i, j, n = 0;
     for (i = 0; i < rp->row_count; ++i) {
-        int seen = 0;
+        int seen = -1;
         if (!take(&rp->rows[i], scene, sweep)) continue;
-        for (j = 0; j < n; ++j) seen |= !strcmp(names[j], rp->rows[i].set->series);
-        if (!seen && n < REPORT_MAX_SERIES) snprintf(names[n++], 24, "%s", rp->rows[i].set->series);
+        for (j = 0; j < n; ++j)
+            if (!strcmp(names[j], rp->rows[i].set->series)) seen = j;
+        if (seen < 0 && n < REPORT_MAX_SERIES) {
+            snprintf(names[n], 24, "%s", rp->rows[i].set->series);
+            snprintf(first_label[n], 24, "%s", rp->rows[i].set->label);
+            /* without point labels, the key names the series' one setting */
+            if (labels) snprintf(keys[n], sizeof keys[n], "%s", names[n]);
+            else snprintf(keys[n], sizeof keys[n], "%s (%s)", names[n], rp->rows[i].set->label);
+            ++n;
+        } else if (seen >= 0 && !labels && strcmp(rp->rows[i].set->label, first_label[seen])) {
+            snprintf(keys[seen], sizeof keys[seen], "%s (settings vary)", names[seen]);
+        }
     }
     if (!n) return 1; /* nothing to draw: the page says so */
     snprintf(path, sizeof path, "%s/%s.dat", rp->dir, name);
@@ -363,12 +374,13 @@ static int series_chart(const report *rp, const char *scene, const char *sweep, 
     for (j = 0; j < n && len < sizeof script; ++j) {
         len += (size_t)snprintf(script + len, sizeof script - len,
                                 "%s'%s' index %d using 1:2 with linespoints pt 7 lw 2 lc rgb '%s' title '%s'", j ? ", " : "",
-                                path, j, series_color(names[j]), names[j]);
+                                path, j, series_color(names[j]), keys[j]);
         if (labels && len < sizeof script)
             len += (size_t)snprintf(script + len, sizeof script - len,
-                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,0.6 left font ',8' tc rgb '%s' "
+                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,%g left font ',8' tc rgb '%s' "
                                     "notitle",
-                                    path, j, series_color(names[j]));
+                                    path, j, 0.6 + 0.9 * (j % 4), /* staggered: points of several series often coincide */
+                                    series_color(names[j]));
     }
     if (len >= sizeof script - 2) return 0;
     strcat(script, "\n");
@@ -389,7 +401,7 @@ static int phase_chart(const report *rp, const char *scene, const char *name) {
         const report_row *r = &rp->rows[i];
         double other = r->ms - r->ms_build - r->ms_base - r->ms_reflect - r->ms_composite;
         if (strcmp(r->scene, scene) || strcmp(r->sweep, "base") || !r->set->picture) continue;
-        fprintf(fp, "\"%s\" %g %g %g %g %g\n", r->set->series, r->ms_build, r->ms_base, r->ms_reflect,
+        fprintf(fp, "\"%s (%s)\" %g %g %g %g %g\n", r->set->series, r->set->label, r->ms_build, r->ms_base, r->ms_reflect,
                 r->ms_composite, other > 0 ? other : 0);
         ++rows;
     }
@@ -398,7 +410,7 @@ static int phase_chart(const report *rp, const char *scene, const char *name) {
     snprintf(script, sizeof script,
              "set terminal pngcairo size 900,520 noenhanced\nset output '%s/%s.png'\n"
              "set title '%s scene, %dx%d: where each method spends its frame (the setting in the picture grid)'\n"
-             "set xlabel 'method'\nset ylabel 'ms per frame (median frame of %d)'\nset grid ytics\n"
+             "set xlabel 'method (setting)'\nset ylabel 'ms per frame (median frame of %d)'\nset grid ytics\n"
              "set style data histograms\nset style histogram rowstacked\nset style fill solid 0.8 border -1\n"
              "set boxwidth 0.7\nset key outside right\nset xtics rotate by -30\n"
              "plot '%s' using 2:xtic(1) title 'build (models)', '' using 3 title 'base pass', "
@@ -491,14 +503,14 @@ static int path_chart(const report *rp, const char *sub, const char *title, cons
     }
     fclose(fp);
     len = (size_t)snprintf(script, sizeof script,
-                           "set terminal pngcairo size 900,480 noenhanced\nset output '%s/%s/flicker.png'\n"
+                           "set terminal pngcairo size 900,560 noenhanced\nset output '%s/%s/flicker.png'\n"
                            "set title '%s'\nset xlabel 'frame'\n"
-                           "set ylabel 'flicker: mean excess change over the truth (8-bit levels)'\n"
+                           "set ylabel 'flicker: mean excess over the truth (8-bit levels)'\n"
                            "set grid\nset key outside right\nset xtics %d\nplot ",
                            rp->dir, sub, title, count > 10 * n ? 5 : 1);
     for (j = 0; j < n && len < sizeof script; ++j)
         len += (size_t)snprintf(script + len, sizeof script - len,
-                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s', "
+                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s (default)', "
                                 "'%s' index %d using 1:($3 > 0 ? $2 : 1/0) with points pt 6 ps 2.5 lc rgb '%s' notitle",
                                 j ? ", " : "", path, j, series_color(names[j]), names[j], path, j,
                                 series_color(names[j]));
