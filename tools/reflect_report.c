@@ -379,8 +379,9 @@ static int series_chart(const report *rp, const char *scene, const char *sweep, 
             len += (size_t)snprintf(script + len, sizeof script - len,
                                     ", '%s' index %d using 1:2:3 with labels offset 0.6,%g left font ',8' tc rgb '%s' "
                                     "notitle",
-                                    path, j, 0.6 + 0.9 * (j % 4), /* staggered: points of several series often coincide */
-                                    series_color(names[j]));
+                                    /* on a linear axis, points of several series often share a value
+                                       (no holes, identical PSNR): their labels staggered */
+                                    path, j, 0.6 + (logy ? 0.0 : 0.9 * (j % 4)), series_color(names[j]));
     }
     if (len >= sizeof script - 2) return 0;
     strcat(script, "\n");
@@ -556,7 +557,10 @@ static void page_head(report *rp, const char *const *scenes) {
             "color:#222}\ntable{border-collapse:collapse;margin:0.5em 0}\ntd,th{border:1px solid #ccc;padding:2px "
             "6px;font-size:13px;text-align:right}\nth{background:#eee}\ntd.l,th.l{text-align:left}\n"
             ".grid td{text-align:center;vertical-align:top}\n.grid img{image-rendering:pixelated;display:block}\n"
-            "figure{margin:0.5em 0}\n.note{color:#666;font-style:italic}\nimg{max-width:100%%}\n</style>\n</head>\n"
+            "figure{margin:0.5em 0}\n.note{color:#666;font-style:italic}\nimg{max-width:100%%}\n</style>\n"
+            /* counted from the start: an image may fail before the page's end is parsed */
+            "<script>\nvar errors = 0;\nwindow.addEventListener('error', function () { errors++; }, true);\n</script>\n"
+            "</head>\n"
             "<body>\n<h1>reflect.h: every method against the ray-traced truth</h1>\n");
     fprintf(rp->html,
             "<p>Written by <code>reflect bench --report%s</code>: frames of %dx%d, one reflection bounce, each "
@@ -726,8 +730,7 @@ static int stability_section(report *rp, const report_path *p, int frames, int w
 static void page_tail(report *rp) {
     fprintf(rp->html,
             "<p id=check class=note>Images on this page: %d.</p>\n"
-            "<script>\nvar errors = 0;\nwindow.addEventListener('error', function () { errors++; }, true);\n"
-            "window.addEventListener('load', function () {\n  var imgs = document.images, broken = 0, i;\n"
+            "<script>\nwindow.addEventListener('load', function () {\n  var imgs = document.images, broken = 0, i;\n"
             "  for (i = 0; i < imgs.length; i++) if (!imgs[i].complete || imgs[i].naturalWidth === 0) broken++;\n"
             "  document.body.setAttribute('data-check', 'images=' + imgs.length + ' broken=' + broken + ' errors=' + "
             "errors);\n  document.getElementById('check').textContent = 'Images on this page: ' + imgs.length + ', "
