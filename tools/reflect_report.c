@@ -322,15 +322,26 @@ static int take(const report_row *r, const char *scene, const char *sweep) {
 static int series_chart(const report *rp, const char *scene, const char *sweep, const char *name, const char *title,
                         const char *xlabel, const char *ylabel, report_axis x, report_axis y, int logx, int logy,
                         int labels, double exact_x) {
-    char path[1024], script[16384], names[REPORT_MAX_SERIES][24];
+    char path[1024], script[16384], names[REPORT_MAX_SERIES][24], keys[REPORT_MAX_SERIES][56],
+        first_label[REPORT_MAX_SERIES][24];
     FILE *fp;
     size_t len;
     int i, j, n = 0;
     for (i = 0; i < rp->row_count; ++i) {
-        int seen = 0;
+        int seen = -1;
         if (!take(&rp->rows[i], scene, sweep)) continue;
-        for (j = 0; j < n; ++j) seen |= !strcmp(names[j], rp->rows[i].set->series);
-        if (!seen && n < REPORT_MAX_SERIES) snprintf(names[n++], 24, "%s", rp->rows[i].set->series);
+        for (j = 0; j < n; ++j)
+            if (!strcmp(names[j], rp->rows[i].set->series)) seen = j;
+        if (seen < 0 && n < REPORT_MAX_SERIES) {
+            snprintf(names[n], 24, "%s", rp->rows[i].set->series);
+            snprintf(first_label[n], 24, "%s", rp->rows[i].set->label);
+            /* without point labels, the key names the series' one setting */
+            if (labels) snprintf(keys[n], sizeof keys[n], "%s", names[n]);
+            else snprintf(keys[n], sizeof keys[n], "%s (%s)", names[n], rp->rows[i].set->label);
+            ++n;
+        } else if (seen >= 0 && !labels && strcmp(rp->rows[i].set->label, first_label[seen])) {
+            snprintf(keys[seen], sizeof keys[seen], "%s (settings vary)", names[seen]);
+        }
     }
     if (!n) return 1; /* nothing to draw: the page says so */
     snprintf(path, sizeof path, "%s/%s.dat", rp->dir, name);
@@ -363,12 +374,14 @@ static int series_chart(const report *rp, const char *scene, const char *sweep, 
     for (j = 0; j < n && len < sizeof script; ++j) {
         len += (size_t)snprintf(script + len, sizeof script - len,
                                 "%s'%s' index %d using 1:2 with linespoints pt 7 lw 2 lc rgb '%s' title '%s'", j ? ", " : "",
-                                path, j, series_color(names[j]), names[j]);
+                                path, j, series_color(names[j]), keys[j]);
         if (labels && len < sizeof script)
             len += (size_t)snprintf(script + len, sizeof script - len,
-                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,0.6 left font ',8' tc rgb '%s' "
+                                    ", '%s' index %d using 1:2:3 with labels offset 0.6,%g left font ',8' tc rgb '%s' "
                                     "notitle",
-                                    path, j, series_color(names[j]));
+                                    /* on a linear axis, points of several series often share a value
+                                       (no holes, identical PSNR): their labels staggered */
+                                    path, j, 0.6 + (logy ? 0.0 : 0.9 * (j % 4)), series_color(names[j]));
     }
     if (len >= sizeof script - 2) return 0;
     strcat(script, "\n");
@@ -389,7 +402,7 @@ static int phase_chart(const report *rp, const char *scene, const char *name) {
         const report_row *r = &rp->rows[i];
         double other = r->ms - r->ms_build - r->ms_base - r->ms_reflect - r->ms_composite;
         if (strcmp(r->scene, scene) || strcmp(r->sweep, "base") || !r->set->picture) continue;
-        fprintf(fp, "\"%s\" %g %g %g %g %g\n", r->set->series, r->ms_build, r->ms_base, r->ms_reflect,
+        fprintf(fp, "\"%s (%s)\" %g %g %g %g %g\n", r->set->series, r->set->label, r->ms_build, r->ms_base, r->ms_reflect,
                 r->ms_composite, other > 0 ? other : 0);
         ++rows;
     }
@@ -398,7 +411,7 @@ static int phase_chart(const report *rp, const char *scene, const char *name) {
     snprintf(script, sizeof script,
              "set terminal pngcairo size 900,520 noenhanced\nset output '%s/%s.png'\n"
              "set title '%s scene, %dx%d: where each method spends its frame (the setting in the picture grid)'\n"
-             "set xlabel 'method'\nset ylabel 'ms per frame (median frame of %d)'\nset grid ytics\n"
+             "set xlabel 'method (setting)'\nset ylabel 'ms per frame (median frame of %d)'\nset grid ytics\n"
              "set style data histograms\nset style histogram rowstacked\nset style fill solid 0.8 border -1\n"
              "set boxwidth 0.7\nset key outside right\nset xtics rotate by -30\n"
              "plot '%s' using 2:xtic(1) title 'build (models)', '' using 3 title 'base pass', "
@@ -491,14 +504,14 @@ static int path_chart(const report *rp, const char *sub, const char *title, cons
     }
     fclose(fp);
     len = (size_t)snprintf(script, sizeof script,
-                           "set terminal pngcairo size 900,480 noenhanced\nset output '%s/%s/flicker.png'\n"
+                           "set terminal pngcairo size 900,560 noenhanced\nset output '%s/%s/flicker.png'\n"
                            "set title '%s'\nset xlabel 'frame'\n"
-                           "set ylabel 'flicker: mean excess change over the truth (8-bit levels)'\n"
+                           "set ylabel 'flicker: mean excess over the truth (8-bit levels)'\n"
                            "set grid\nset key outside right\nset xtics %d\nplot ",
                            rp->dir, sub, title, count > 10 * n ? 5 : 1);
     for (j = 0; j < n && len < sizeof script; ++j)
         len += (size_t)snprintf(script + len, sizeof script - len,
-                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s', "
+                                "%s'%s' index %d using 1:2 with linespoints pt 7 ps 0.6 lc rgb '%s' title '%s (default)', "
                                 "'%s' index %d using 1:($3 > 0 ? $2 : 1/0) with points pt 6 ps 2.5 lc rgb '%s' notitle",
                                 j ? ", " : "", path, j, series_color(names[j]), names[j], path, j,
                                 series_color(names[j]));
@@ -544,7 +557,10 @@ static void page_head(report *rp, const char *const *scenes) {
             "color:#222}\ntable{border-collapse:collapse;margin:0.5em 0}\ntd,th{border:1px solid #ccc;padding:2px "
             "6px;font-size:13px;text-align:right}\nth{background:#eee}\ntd.l,th.l{text-align:left}\n"
             ".grid td{text-align:center;vertical-align:top}\n.grid img{image-rendering:pixelated;display:block}\n"
-            "figure{margin:0.5em 0}\n.note{color:#666;font-style:italic}\nimg{max-width:100%%}\n</style>\n</head>\n"
+            "figure{margin:0.5em 0}\n.note{color:#666;font-style:italic}\nimg{max-width:100%%}\n</style>\n"
+            /* counted from the start: an image may fail before the page's end is parsed */
+            "<script>\nvar errors = 0;\nwindow.addEventListener('error', function () { errors++; }, true);\n</script>\n"
+            "</head>\n"
             "<body>\n<h1>reflect.h: every method against the ray-traced truth</h1>\n");
     fprintf(rp->html,
             "<p>Written by <code>reflect bench --report%s</code>: frames of %dx%d, one reflection bounce, each "
@@ -714,8 +730,7 @@ static int stability_section(report *rp, const report_path *p, int frames, int w
 static void page_tail(report *rp) {
     fprintf(rp->html,
             "<p id=check class=note>Images on this page: %d.</p>\n"
-            "<script>\nvar errors = 0;\nwindow.addEventListener('error', function () { errors++; }, true);\n"
-            "window.addEventListener('load', function () {\n  var imgs = document.images, broken = 0, i;\n"
+            "<script>\nwindow.addEventListener('load', function () {\n  var imgs = document.images, broken = 0, i;\n"
             "  for (i = 0; i < imgs.length; i++) if (!imgs[i].complete || imgs[i].naturalWidth === 0) broken++;\n"
             "  document.body.setAttribute('data-check', 'images=' + imgs.length + ' broken=' + broken + ' errors=' + "
             "errors);\n  document.getElementById('check').textContent = 'Images on this page: ' + imgs.length + ', "

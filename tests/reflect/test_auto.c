@@ -251,6 +251,17 @@ Test(refl_auto, models_round_trip_through_text_and_a_file) {
     free(text);
 }
 
+/* The fit built into auto_model.c is the one docs/methods/auto.md shows
+   (reflect bench --fit-auto writes the file; its lines are pasted in). */
+Test(refl_auto, the_built_in_models_are_the_documented_fit) {
+    refl_auto_models builtin, file;
+    char msg[200];
+    refl_auto_models_builtin(&builtin);
+    cr_assert_eq(refl_auto_models_load("docs/methods/auto_models.txt", &file, msg, sizeof msg), REFL_OK, "%s", msg);
+    cr_expect_eq(memcmp(&builtin, &file, sizeof file), 0,
+                 "auto_model.c's built-in fit differs from docs/methods/auto_models.txt");
+}
+
 Test(refl_auto, malformed_model_text_is_refused_naming_line_and_rule) {
     static const struct {
         const char *text, *says;
