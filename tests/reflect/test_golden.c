@@ -93,7 +93,7 @@ static const golden_case golden_cases[] = {
     {"glass", "envmap", 0x40bd20800e314724ull},
     {"glass", "planar", 0x15c0d3e9e179024eull},
     {"glass", "c3rc", 0x5a2f0adc188cb550ull},
-    {"glass", "sbc", 0x7301c278b0b0fc13ull},
+    {"glass", "sbc", 0x87f022916ff369eaull},
     {"glass", "planar-no-culling", 0x8b477bff0cff4c60ull},
     {"glass", "raytrace-volumes", 0x62066197db78627aull},
 };
