@@ -138,7 +138,10 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
    its black where the depth runs out, its reflection where it goes on). */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     refl_hit h;
-    return sb->bvh && refl__sb_mirror_hit(sb, pa->q[pa->count - 1], pa->out, &h);
+    int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
+    refl_vec3 o = pa->q[pa->count - 1];
+    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
+                                          last, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
