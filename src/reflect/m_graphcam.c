@@ -314,13 +314,17 @@ static double refl__gci_slope(const refl_graphcam_impostor *imp, int f, int x, i
    stored depth continuous between their pixels: a jump larger than three
    times the ray's own depth change plus twice the surface's slope over
    the pixels between is the "skin" between two depth layers at a
-   silhouette, not a surface. *s: the crossing's fraction from a to b. */
+   silhouette, not a surface. The slope is the smaller of the two
+   samples' pixels': a feature a pixel thin (a far teapot's knob, seen
+   against the floor) has a steep "slope" on both sides, which let the
+   rays through the view ray behind it cross there, a dotted line of
+   points in mid-air. *s: the crossing's fraction from a to b. */
 static int refl__gci_crossing(refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b, double *s) {
-    double da = a->gd - a->GD, db = b->gd - b->GD, px;
+    double da = a->gd - a->GD, db = b->gd - b->GD, px, slope;
     if (!a->valid || !b->valid || a->frustum != b->frustum || !(da < 0.0) || !(db >= 0.0)) return 0;
+    slope = REFL__MIN(refl__gci_slope(mc->imp, a->frustum, a->px, a->py), refl__gci_slope(mc->imp, b->frustum, b->px, b->py));
     px = REFL__MAX(b->px > a->px ? b->px - a->px : a->px - b->px, b->py > a->py ? b->py - a->py : a->py - b->py);
-    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * refl__gci_slope(mc->imp, b->frustum, b->px, b->py))
-        return 0;
+    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * slope) return 0;
     *s = da / (da - db);
     return 1;
 }
