@@ -3239,7 +3239,9 @@ typedef struct refl__sb_path {
 static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                 refl__sb_path *pa);
 /* What a path from o along unit d meets first among the mirrors and glass. */
-static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h);
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 near, refl_vec3 d, int self, refl_hit *h);
+/* Where a path leaves the depth buffer's point q of object `object`, seen along d. */
+static refl_vec3 refl__sb_path_start(const refl__sb *sb, refl_vec3 q, refl_vec3 d, int object);
 /* A path refracted through glass (refl__sb_refract_path). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;
@@ -15723,6 +15725,7 @@ typedef struct refl__gci_march {
     const refl_graphcam *cam;
     const refl_graphcam_impostor *imp;
     refl_vec3 o, d;
+    double behind;                /* the smallest t where the ray passed behind a surface (refl__gci_behind) */
 } refl__gci_march;
 
 /* The impostor's depth slope at pixel (x, y) of frustum f: per axis the
@@ -15752,15 +15755,35 @@ static double refl__gci_slope(const refl_graphcam_impostor *imp, int f, int x, i
    stored depth continuous between their pixels: a jump larger than three
    times the ray's own depth change plus twice the surface's slope over
    the pixels between is the "skin" between two depth layers at a
-   silhouette, not a surface. *s: the crossing's fraction from a to b. */
+   silhouette, not a surface. The slope is the smaller of the two
+   samples' pixels': a feature a pixel thin (a far teapot's knob, seen
+   against the floor) has a steep "slope" on both sides, which let the
+   rays through the view ray behind it cross there, a dotted line of
+   points in mid-air. *s: the crossing's fraction from a to b. */
 static int refl__gci_crossing(refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b, double *s) {
-    double da = a->gd - a->GD, db = b->gd - b->GD, px;
+    double da = a->gd - a->GD, db = b->gd - b->GD, px, slope;
     if (!a->valid || !b->valid || a->frustum != b->frustum || !(da < 0.0) || !(db >= 0.0)) return 0;
+    slope = REFL__MIN(refl__gci_slope(mc->imp, a->frustum, a->px, a->py), refl__gci_slope(mc->imp, b->frustum, b->px, b->py));
     px = REFL__MAX(b->px > a->px ? b->px - a->px : a->px - b->px, b->py > a->py ? b->py - a->py : a->py - b->py);
-    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * refl__gci_slope(mc->imp, b->frustum, b->px, b->py))
-        return 0;
+    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * slope) return 0;
     *s = da / (da - db);
     return 1;
+}
+
+/* Whether sample b lies behind the impostor's surface by more than the
+   surface's thickness estimate: twice its depth spread over the pixel
+   (refl__gci_slope) plus the ray's own depth change since sample a (so a
+   ray grazing a surface, or just past a crossing, does not count). The
+   depth image holds no surface the view cannot see: such a ray has
+   entered the unseen space behind a surface (past a silhouette, which the
+   crossing test refuses as a skin) and may have gone through its back,
+   the ball's far side that the concave bowl reflects. */
+static int refl__gci_behind(const refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b) {
+    double thickness;
+    if (!b->valid || !(b->gd > b->GD)) return 0;
+    thickness = 2.0 * refl__gci_slope(mc->imp, b->frustum, b->px, b->py);
+    if (a->valid && a->frustum == b->frustum) thickness += fabs(b->gd - a->gd);
+    return b->gd - b->GD > thickness;
 }
 
 /* The ray's point at t. */
@@ -15820,6 +15843,7 @@ static int refl__gci_step(refl__gci_march *mc, refl__gci_sample *a, const refl__
         refl__gci_fill_hit(mc, a, b, s, hit);
         return 1;
     }
+    if (b->t < mc->behind && refl__gci_behind(mc, a, b)) mc->behind = b->t;
     *a = *b;
     return 0;
 }
@@ -15864,9 +15888,12 @@ static int refl__gci_segment(refl__gci_march *mc, int f, double t0, double t1, d
     return 0;
 }
 
-REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
-                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
-                                     float step, refl_graphcam_hit *hit) {
+/* refl_graphcam_intersect, and *behind: the smallest t before the hit
+   (any, without one) where the ray passed behind a surface by more than
+   its thickness estimate (refl__gci_behind); HUGE_VAL where it did not. */
+static int refl__gci_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                               refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm, float step,
+                               refl_graphcam_hit *hit, double *behind) {
     refl__gci_march mc;
     refl_graphcam_hit h;
     refl_vec3 lo, hi;
@@ -15874,6 +15901,7 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     int k, found = 0;
     memset(&h, 0, sizeof h);
     h.frustum = -1;
+    *behind = HUGE_VAL;
     if (hit) *hit = h;
     if (!cam || !imp || !hit || imp->width != cam->width || imp->height != cam->height || !refl__v3_finite(o) ||
         !refl__v3_finite(dir) || !(refl_v3_dot(dir, dir) > 0.0f) || !(tmax > tmin) || !(step >= 0.0f))
@@ -15882,6 +15910,7 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     mc.imp = imp;
     mc.o = o;
     mc.d = dir;
+    mc.behind = HUGE_VAL;
     refl_graphcam_bounds(cam, &lo, &hi);
     /* the ray inside the camera's bounds (slabs) */
     for (k = 0; k < 3; ++k) {
@@ -15933,7 +15962,15 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     }
     *hit = h;
     if (!found) hit->frustum = -1;
+    if (!found || mc.behind < h.t) *behind = mc.behind;
     return found;
+}
+
+REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
+                                     float step, refl_graphcam_hit *hit) {
+    double behind;
+    return refl__gci_intersect(cam, imp, o, dir, tmin, tmax, algorithm, step, hit, &behind);
 }
 
 /* ---- the method ----------------------------------------------------------------- */
@@ -16022,6 +16059,7 @@ static void refl__gcm_row(void *arg, int y) {
         refl_graphcam_hit hit;
         refl_hit h;
         float tmax;
+        double behind;
         int found, hand;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
@@ -16031,8 +16069,8 @@ static void refl__gcm_row(void *arg, int y) {
         s = refl_v3(q[0], q[1], q[2]);
         g->rays[y]++;
         d = refl_v3_reflect(d, n);
-        found = refl_graphcam_intersect(g->cam, g->imp, s, d, eps, 1e30f,
-                                        (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit);
+        found = refl__gci_intersect(g->cam, g->imp, s, d, eps, 1e30f, (refl_graphcam_algorithm)p->desc.graphcam.algorithm,
+                                    p->desc.graphcam.step, &hit, &behind);
         /* the first flat surface the ray meets, where no frustum holds it */
         if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
             refl_vec3 at;
@@ -16049,20 +16087,20 @@ static void refl__gcm_row(void *arg, int y) {
         if (hit.steps > g->max_steps[y]) g->max_steps[y] = hit.steps;
         /* What the impostor cannot answer goes to RAYTRACE's tracer: a ray
            it does not stop that still meets the scene (it left every
-           frustum, or passed behind what the impostor shows), and a mirror
-           or glass met first (the impostor holds neither; past one bounce
-           that path is refl__trace_beyond's). Only a ray that escapes the
-           scene shows the environment. The exact rays start off the
-           surface on the mirror's side: the G-buffer's point may lie a
-           hair behind it, where a ray into a corner slips out of the scene. */
+           frustum, or passed behind what the impostor shows), one that
+           passed behind a surface before what it meets (refl__gci_behind:
+           it may have gone through the surface's unseen back), and a
+           mirror or glass met first (the impostor holds neither; past one
+           bounce that path is refl__trace_beyond's). Only a ray that
+           escapes the scene shows the environment. The exact rays start
+           off the surface on the mirror's side: the G-buffer's point may
+           lie a hair behind it, where a ray into a corner slips out of the
+           scene. */
         hand = 0;
         off = refl_v3_add(s, refl_v3_scale(n, eps));
-        if (!found) {
-            if (refl_bvh_intersect(g->scene_bvh, off, d, 0.0f, 1e30f, &h))
-                hand = refl__is_reflector(g->objects[h.object].material) ? 2 : 1;
-        } else if (g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) {
-            hand = 2;
-        }
+        if ((!found || behind < hit.t) && refl_bvh_intersect(g->scene_bvh, off, d, 0.0f, 1e30f, &h))
+            hand = refl__is_reflector(g->objects[h.object].material) ? 2 : 1;
+        if (!hand && found && g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) hand = 2;
         if (hand) {
             (hand == 2 && p->trace ? p->trace : g->handed)[i] = REFL__TRACE_ALL;
             g->traced[y]++;
@@ -23374,6 +23412,8 @@ static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 
     return refl__sb_ray_dir(sb, q, refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d, ray, met);
 }
 
+static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns);
+
 /* Pixel i's view direction, surface point and unit normal towards the
    viewer (as the ray map and the composite take them). */
 static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n) {
@@ -23387,6 +23427,25 @@ static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl
     if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(*d, -1.0f); /* degenerate: face the eye */
     if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
     *q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+}
+
+/* Where a path seen along d at the depth buffer's point q of object
+   `object` leaves it: the point of the triangle the view ray meets there,
+   as RAYTRACE's path leaves it. The depth buffer's point lies up to ~1e-3
+   of the room off it; in a corner, past the neighbouring wall, where the
+   path then misses that wall and shows the environment. q where the view
+   ray meets no triangle of the object near q. */
+static refl_vec3 refl__sb_path_start(const refl__sb *sb, refl_vec3 q, refl_vec3 d, int object) {
+    float back = 1e-3f * sb->diagonal;
+    refl_hit h;
+    refl_vec3 p, ng, ns;
+    if (!sb->mirrors.bvh ||
+        !refl_bvh_intersect(sb->mirrors.bvh, refl_v3_sub(q, refl_v3_scale(d, back)), d, 0.0f, 2.0f * back, &h) ||
+        sb->mirrors.object[h.object] != object)
+        return q;
+    h.object = object;
+    refl__sb_surface(sb, &h, &p, &ng, &ns);
+    return p;
 }
 
 /* Side sd's ray map: a ray per sample showing the side (valid 1), with
@@ -23498,10 +23557,23 @@ static refl_result refl__sb_map_sides(refl__sb *sb, int first, int end) {
 static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIRROR || m->type == REFL_GLASS; }
 
 /* What a path from o along unit d meets first among the mirrors and glass
-   (h->object: the scene's index), within the scene's box. */
-static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
-    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d);
-    if (!sb->mirrors.bvh || !refl_bvh_intersect(sb->mirrors.bvh, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
+   (h->object: the scene's index), within the scene's box. The path starts
+   on object `self` (-1: none): the search skips 1e-4 of the box's
+   diagonal past o, where only another object counts, searched from
+   `near` (o, or where the path leaves a depth buffer's point o:
+   refl__sb_path_start) on, past 1e-6 of the diagonal (its own surface
+   there is the point it leaves, met again by rounding; a neighbouring
+   mirror there is the other wall of a corner). */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 near, refl_vec3 d, int self, refl_hit *h) {
+    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d), skip = 1e-4f * sb->diagonal;
+    float near_skip = skip + refl_v3_length(refl_v3_sub(near, o));
+    if (!sb->mirrors.bvh) return 0;
+    if (self >= 0 && refl_bvh_intersect(sb->mirrors.bvh, near, d, 1e-6f * sb->diagonal, REFL__MIN(near_skip, reach), h) &&
+        sb->mirrors.object[h->object] != self) {
+        h->object = sb->mirrors.object[h->object];
+        return 1;
+    }
+    if (!refl_bvh_intersect(sb->mirrors.bvh, o, d, skip, reach, h)) return 0;
     h->object = sb->mirrors.object[h->object];
     return 1;
 }
@@ -23548,7 +23620,9 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
         refl_vec3 p, ng, ns, rd;
         float edge;
         int front;
-        if (!refl__sb_mirror_hit(sb, pa->q[k - 1], r, &h)) break;
+        if (!refl__sb_mirror_hit(sb, pa->q[k - 1], k > 1 ? pa->q[k - 1] : refl__sb_path_start(sb, q, d, object), r,
+                                 (int)fabsf(pa->id[k - 1]) - 1, &h))
+            break;
         edge = refl__sb_surface(sb, &h, &p, &ng, &ns);
         front = refl_v3_dot(r, ng) < 0.0f;
         if (!front) {
@@ -23607,7 +23681,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
         refl_hit h, in;
         refl_vec3 p, ng, ns, t2, rd;
         int entering;
-        if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
+        if (!refl__sb_mirror_hit(sb, pos, pos, t, -1, &h) || h.object != object) return -1;
         /* a surface inside the glass (SBC-paper searches no scene: none) */
         if (refl_bvh_intersect(sb->bvh, pos, t, 1e-4f * sb->diagonal, h.t, &in) && in.object != object) {
             rp->tail = pos;
@@ -23945,12 +24019,16 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
 }
 
 /* Whether glass pixel i's refraction (view direction d, point q, normal
-   n, side id `id`) is a hole that desc.sbc.trace_fallback traces, as it
-   traces the reflections': it leaves the glass, or meets a surface inside
+   n, side id `id`) is a hole that SBC-traced traces, with or without
+   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
    it, with nothing drawn on the refraction layer there; or it meets
    another mirror or glass first, or stays inside (reflected within), which
-   no refraction group models. Past one bounce only: at depth 1 glass
-   shows the environment refracted once, as ENVMAP's. */
+   no refraction group models. A thick glass's refracted rays cross: its
+   refraction groups are mostly ray lists whose triangles across a fold are
+   dropped, and the environment beyond the glass in their place is flat
+   light patches with straight edges across the teapot. Past one bounce
+   only: at depth 1 glass shows the environment refracted once, as
+   ENVMAP's. */
 static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
     size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     refl__sb_refr rp;
@@ -23985,7 +24063,10 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
    its black where the depth runs out, its reflection where it goes on). */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     refl_hit h;
-    return sb->bvh && refl__sb_mirror_hit(sb, pa->q[pa->count - 1], pa->out, &h);
+    int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
+    refl_vec3 o = pa->q[pa->count - 1];
+    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
+                                          last, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
@@ -24091,7 +24172,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && !sb->tracer.folds_only && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
@@ -24162,8 +24243,10 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     refl_result r = REFL_OK;
-    int i, traces = 0;
+    int i, traces;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
+    /* a refraction layer's holes are traced (refl__sb_refraction_hole) */
+    traces = sb->layers > sb->orders;
     for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
     for (k = 0; k < npx && !traces; ++k)
         traces |= refl__sb_goes_past(sb, k) || (sb->layers > 1 && sb->group_of[k] && !(sb->drawn.depth[k] < 1.0f));

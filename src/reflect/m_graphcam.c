@@ -284,6 +284,7 @@ typedef struct refl__gci_march {
     const refl_graphcam *cam;
     const refl_graphcam_impostor *imp;
     refl_vec3 o, d;
+    double behind;                /* the smallest t where the ray passed behind a surface (refl__gci_behind) */
 } refl__gci_march;
 
 /* The impostor's depth slope at pixel (x, y) of frustum f: per axis the
@@ -313,15 +314,35 @@ static double refl__gci_slope(const refl_graphcam_impostor *imp, int f, int x, i
    stored depth continuous between their pixels: a jump larger than three
    times the ray's own depth change plus twice the surface's slope over
    the pixels between is the "skin" between two depth layers at a
-   silhouette, not a surface. *s: the crossing's fraction from a to b. */
+   silhouette, not a surface. The slope is the smaller of the two
+   samples' pixels': a feature a pixel thin (a far teapot's knob, seen
+   against the floor) has a steep "slope" on both sides, which let the
+   rays through the view ray behind it cross there, a dotted line of
+   points in mid-air. *s: the crossing's fraction from a to b. */
 static int refl__gci_crossing(refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b, double *s) {
-    double da = a->gd - a->GD, db = b->gd - b->GD, px;
+    double da = a->gd - a->GD, db = b->gd - b->GD, px, slope;
     if (!a->valid || !b->valid || a->frustum != b->frustum || !(da < 0.0) || !(db >= 0.0)) return 0;
+    slope = REFL__MIN(refl__gci_slope(mc->imp, a->frustum, a->px, a->py), refl__gci_slope(mc->imp, b->frustum, b->px, b->py));
     px = REFL__MAX(b->px > a->px ? b->px - a->px : a->px - b->px, b->py > a->py ? b->py - a->py : a->py - b->py);
-    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * refl__gci_slope(mc->imp, b->frustum, b->px, b->py))
-        return 0;
+    if (fabs(b->GD - a->GD) > 3.0 * fabs(b->gd - a->gd) + 2.0 * REFL__MAX(px, 1.0) * slope) return 0;
     *s = da / (da - db);
     return 1;
+}
+
+/* Whether sample b lies behind the impostor's surface by more than the
+   surface's thickness estimate: twice its depth spread over the pixel
+   (refl__gci_slope) plus the ray's own depth change since sample a (so a
+   ray grazing a surface, or just past a crossing, does not count). The
+   depth image holds no surface the view cannot see: such a ray has
+   entered the unseen space behind a surface (past a silhouette, which the
+   crossing test refuses as a skin) and may have gone through its back,
+   the ball's far side that the concave bowl reflects. */
+static int refl__gci_behind(const refl__gci_march *mc, const refl__gci_sample *a, const refl__gci_sample *b) {
+    double thickness;
+    if (!b->valid || !(b->gd > b->GD)) return 0;
+    thickness = 2.0 * refl__gci_slope(mc->imp, b->frustum, b->px, b->py);
+    if (a->valid && a->frustum == b->frustum) thickness += fabs(b->gd - a->gd);
+    return b->gd - b->GD > thickness;
 }
 
 /* The ray's point at t. */
@@ -381,6 +402,7 @@ static int refl__gci_step(refl__gci_march *mc, refl__gci_sample *a, const refl__
         refl__gci_fill_hit(mc, a, b, s, hit);
         return 1;
     }
+    if (b->t < mc->behind && refl__gci_behind(mc, a, b)) mc->behind = b->t;
     *a = *b;
     return 0;
 }
@@ -425,9 +447,12 @@ static int refl__gci_segment(refl__gci_march *mc, int f, double t0, double t1, d
     return 0;
 }
 
-REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
-                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
-                                     float step, refl_graphcam_hit *hit) {
+/* refl_graphcam_intersect, and *behind: the smallest t before the hit
+   (any, without one) where the ray passed behind a surface by more than
+   its thickness estimate (refl__gci_behind); HUGE_VAL where it did not. */
+static int refl__gci_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                               refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm, float step,
+                               refl_graphcam_hit *hit, double *behind) {
     refl__gci_march mc;
     refl_graphcam_hit h;
     refl_vec3 lo, hi;
@@ -435,6 +460,7 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     int k, found = 0;
     memset(&h, 0, sizeof h);
     h.frustum = -1;
+    *behind = HUGE_VAL;
     if (hit) *hit = h;
     if (!cam || !imp || !hit || imp->width != cam->width || imp->height != cam->height || !refl__v3_finite(o) ||
         !refl__v3_finite(dir) || !(refl_v3_dot(dir, dir) > 0.0f) || !(tmax > tmin) || !(step >= 0.0f))
@@ -443,6 +469,7 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     mc.imp = imp;
     mc.o = o;
     mc.d = dir;
+    mc.behind = HUGE_VAL;
     refl_graphcam_bounds(cam, &lo, &hi);
     /* the ray inside the camera's bounds (slabs) */
     for (k = 0; k < 3; ++k) {
@@ -494,7 +521,15 @@ REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphc
     }
     *hit = h;
     if (!found) hit->frustum = -1;
+    if (!found || mc.behind < h.t) *behind = mc.behind;
     return found;
+}
+
+REFL_API int refl_graphcam_intersect(const refl_graphcam *cam, const refl_graphcam_impostor *imp, refl_vec3 o,
+                                     refl_vec3 dir, float tmin, float tmax, refl_graphcam_algorithm algorithm,
+                                     float step, refl_graphcam_hit *hit) {
+    double behind;
+    return refl__gci_intersect(cam, imp, o, dir, tmin, tmax, algorithm, step, hit, &behind);
 }
 
 /* ---- the method ----------------------------------------------------------------- */
@@ -583,6 +618,7 @@ static void refl__gcm_row(void *arg, int y) {
         refl_graphcam_hit hit;
         refl_hit h;
         float tmax;
+        double behind;
         int found, hand;
         if (fabsf(gb[3]) < 1.0f) continue;
         refl__view_rays_get(&p->rays, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
@@ -592,8 +628,8 @@ static void refl__gcm_row(void *arg, int y) {
         s = refl_v3(q[0], q[1], q[2]);
         g->rays[y]++;
         d = refl_v3_reflect(d, n);
-        found = refl_graphcam_intersect(g->cam, g->imp, s, d, eps, 1e30f,
-                                        (refl_graphcam_algorithm)p->desc.graphcam.algorithm, p->desc.graphcam.step, &hit);
+        found = refl__gci_intersect(g->cam, g->imp, s, d, eps, 1e30f, (refl_graphcam_algorithm)p->desc.graphcam.algorithm,
+                                    p->desc.graphcam.step, &hit, &behind);
         /* the first flat surface the ray meets, where no frustum holds it */
         if (g->flat && refl_bvh_intersect(g->flat, s, d, eps, found ? hit.t : 1e30f, &h)) {
             refl_vec3 at;
@@ -610,20 +646,20 @@ static void refl__gcm_row(void *arg, int y) {
         if (hit.steps > g->max_steps[y]) g->max_steps[y] = hit.steps;
         /* What the impostor cannot answer goes to RAYTRACE's tracer: a ray
            it does not stop that still meets the scene (it left every
-           frustum, or passed behind what the impostor shows), and a mirror
-           or glass met first (the impostor holds neither; past one bounce
-           that path is refl__trace_beyond's). Only a ray that escapes the
-           scene shows the environment. The exact rays start off the
-           surface on the mirror's side: the G-buffer's point may lie a
-           hair behind it, where a ray into a corner slips out of the scene. */
+           frustum, or passed behind what the impostor shows), one that
+           passed behind a surface before what it meets (refl__gci_behind:
+           it may have gone through the surface's unseen back), and a
+           mirror or glass met first (the impostor holds neither; past one
+           bounce that path is refl__trace_beyond's). Only a ray that
+           escapes the scene shows the environment. The exact rays start
+           off the surface on the mirror's side: the G-buffer's point may
+           lie a hair behind it, where a ray into a corner slips out of the
+           scene. */
         hand = 0;
         off = refl_v3_add(s, refl_v3_scale(n, eps));
-        if (!found) {
-            if (refl_bvh_intersect(g->scene_bvh, off, d, 0.0f, 1e30f, &h))
-                hand = refl__is_reflector(g->objects[h.object].material) ? 2 : 1;
-        } else if (g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) {
-            hand = 2;
-        }
+        if ((!found || behind < hit.t) && refl_bvh_intersect(g->scene_bvh, off, d, 0.0f, 1e30f, &h))
+            hand = refl__is_reflector(g->objects[h.object].material) ? 2 : 1;
+        if (!hand && found && g->unheld && refl_bvh_occluded(g->unheld, off, d, 0.0f, hit.t)) hand = 2;
         if (hand) {
             (hand == 2 && p->trace ? p->trace : g->handed)[i] = REFL__TRACE_ALL;
             g->traced[y]++;

@@ -248,7 +248,9 @@ typedef struct refl__sb_path {
 static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 d, float id,
                                 refl__sb_path *pa);
 /* What a path from o along unit d meets first among the mirrors and glass. */
-static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h);
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 near, refl_vec3 d, int self, refl_hit *h);
+/* Where a path leaves the depth buffer's point q of object `object`, seen along d. */
+static refl_vec3 refl__sb_path_start(const refl__sb *sb, refl_vec3 q, refl_vec3 d, int object);
 /* A path refracted through glass (refl__sb_refract_path). */
 typedef struct refl__sb_refr {
     refl_vec3 tail, out, normal;

@@ -44,6 +44,8 @@ static int refl__sb_ray(const refl__sb *sb, refl_vec3 q, refl_vec3 n, refl_vec3 
     return refl__sb_ray_dir(sb, q, refl_v3_dot(d, n) < -1e-4f ? refl_v3_reflect(d, n) : d, ray, met);
 }
 
+static float refl__sb_surface(const refl__sb *sb, const refl_hit *h, refl_vec3 *p, refl_vec3 *ng, refl_vec3 *ns);
+
 /* Pixel i's view direction, surface point and unit normal towards the
    viewer (as the ray map and the composite take them). */
 static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl_vec3 *q, refl_vec3 *n) {
@@ -57,6 +59,25 @@ static void refl__sb_pixel_view(const refl__sb *sb, size_t i, refl_vec3 *d, refl
     if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(*d, -1.0f); /* degenerate: face the eye */
     if (refl_v3_dot(*n, *d) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
     *q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+}
+
+/* Where a path seen along d at the depth buffer's point q of object
+   `object` leaves it: the point of the triangle the view ray meets there,
+   as RAYTRACE's path leaves it. The depth buffer's point lies up to ~1e-3
+   of the room off it; in a corner, past the neighbouring wall, where the
+   path then misses that wall and shows the environment. q where the view
+   ray meets no triangle of the object near q. */
+static refl_vec3 refl__sb_path_start(const refl__sb *sb, refl_vec3 q, refl_vec3 d, int object) {
+    float back = 1e-3f * sb->diagonal;
+    refl_hit h;
+    refl_vec3 p, ng, ns;
+    if (!sb->mirrors.bvh ||
+        !refl_bvh_intersect(sb->mirrors.bvh, refl_v3_sub(q, refl_v3_scale(d, back)), d, 0.0f, 2.0f * back, &h) ||
+        sb->mirrors.object[h.object] != object)
+        return q;
+    h.object = object;
+    refl__sb_surface(sb, &h, &p, &ng, &ns);
+    return p;
 }
 
 /* Side sd's ray map: a ray per sample showing the side (valid 1), with
@@ -168,10 +189,23 @@ static refl_result refl__sb_map_sides(refl__sb *sb, int first, int end) {
 static int refl__sb_goes_on(const refl_material *m) { return m->type == REFL_MIRROR || m->type == REFL_GLASS; }
 
 /* What a path from o along unit d meets first among the mirrors and glass
-   (h->object: the scene's index), within the scene's box. */
-static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 d, refl_hit *h) {
-    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d);
-    if (!sb->mirrors.bvh || !refl_bvh_intersect(sb->mirrors.bvh, o, d, 1e-4f * sb->diagonal, reach, h)) return 0;
+   (h->object: the scene's index), within the scene's box. The path starts
+   on object `self` (-1: none): the search skips 1e-4 of the box's
+   diagonal past o, where only another object counts, searched from
+   `near` (o, or where the path leaves a depth buffer's point o:
+   refl__sb_path_start) on, past 1e-6 of the diagonal (its own surface
+   there is the point it leaves, met again by rounding; a neighbouring
+   mirror there is the other wall of a corner). */
+static int refl__sb_mirror_hit(const refl__sb *sb, refl_vec3 o, refl_vec3 near, refl_vec3 d, int self, refl_hit *h) {
+    float reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, o, d), skip = 1e-4f * sb->diagonal;
+    float near_skip = skip + refl_v3_length(refl_v3_sub(near, o));
+    if (!sb->mirrors.bvh) return 0;
+    if (self >= 0 && refl_bvh_intersect(sb->mirrors.bvh, near, d, 1e-6f * sb->diagonal, REFL__MIN(near_skip, reach), h) &&
+        sb->mirrors.object[h->object] != self) {
+        h->object = sb->mirrors.object[h->object];
+        return 1;
+    }
+    if (!refl_bvh_intersect(sb->mirrors.bvh, o, d, skip, reach, h)) return 0;
     h->object = sb->mirrors.object[h->object];
     return 1;
 }
@@ -218,7 +252,9 @@ static void refl__sb_trace_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, re
         refl_vec3 p, ng, ns, rd;
         float edge;
         int front;
-        if (!refl__sb_mirror_hit(sb, pa->q[k - 1], r, &h)) break;
+        if (!refl__sb_mirror_hit(sb, pa->q[k - 1], k > 1 ? pa->q[k - 1] : refl__sb_path_start(sb, q, d, object), r,
+                                 (int)fabsf(pa->id[k - 1]) - 1, &h))
+            break;
         edge = refl__sb_surface(sb, &h, &p, &ng, &ns);
         front = refl_v3_dot(r, ng) < 0.0f;
         if (!front) {
@@ -277,7 +313,7 @@ static int refl__sb_refract_path(const refl__sb *sb, refl_vec3 q, refl_vec3 n, r
         refl_hit h, in;
         refl_vec3 p, ng, ns, t2, rd;
         int entering;
-        if (!refl__sb_mirror_hit(sb, pos, t, &h) || h.object != object) return -1;
+        if (!refl__sb_mirror_hit(sb, pos, pos, t, -1, &h) || h.object != object) return -1;
         /* a surface inside the glass (SBC-paper searches no scene: none) */
         if (refl_bvh_intersect(sb->bvh, pos, t, 1e-4f * sb->diagonal, h.t, &in) && in.object != object) {
             rp->tail = pos;

@@ -94,12 +94,16 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
 }
 
 /* Whether glass pixel i's refraction (view direction d, point q, normal
-   n, side id `id`) is a hole that desc.sbc.trace_fallback traces, as it
-   traces the reflections': it leaves the glass, or meets a surface inside
+   n, side id `id`) is a hole that SBC-traced traces, with or without
+   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
    it, with nothing drawn on the refraction layer there; or it meets
    another mirror or glass first, or stays inside (reflected within), which
-   no refraction group models. Past one bounce only: at depth 1 glass
-   shows the environment refracted once, as ENVMAP's. */
+   no refraction group models. A thick glass's refracted rays cross: its
+   refraction groups are mostly ray lists whose triangles across a fold are
+   dropped, and the environment beyond the glass in their place is flat
+   light patches with straight edges across the teapot. Past one bounce
+   only: at depth 1 glass shows the environment refracted once, as
+   ENVMAP's. */
 static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
     size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     refl__sb_refr rp;
@@ -134,7 +138,10 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
    its black where the depth runs out, its reflection where it goes on). */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     refl_hit h;
-    return sb->bvh && refl__sb_mirror_hit(sb, pa->q[pa->count - 1], pa->out, &h);
+    int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
+    refl_vec3 o = pa->q[pa->count - 1];
+    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
+                                          last, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
@@ -240,7 +247,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && !sb->tracer.folds_only && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
@@ -311,8 +318,10 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     refl_frame *fr = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     refl_result r = REFL_OK;
-    int i, traces = 0;
+    int i, traces;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
+    /* a refraction layer's holes are traced (refl__sb_refraction_hole) */
+    traces = sb->layers > sb->orders;
     for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
     for (k = 0; k < npx && !traces; ++k)
         traces |= refl__sb_goes_past(sb, k) || (sb->layers > 1 && sb->group_of[k] && !(sb->drawn.depth[k] < 1.0f));
