@@ -134,6 +134,21 @@ Test(lem_infer, confidence_weighs_rows) {
 
 /* ---- the exact-shell scene ------------------------------------------------------ */
 
+/* A texture of 4-texel checks on a colour ramp (every texel different), added to s. */
+static int add_checker(refl_scene *s, float *tex, int w, int h) {
+    int x, y;
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            float *p = tex + 4 * (y * w + x);
+            int odd = ((x / 4) + (y / 4)) & 1;
+            p[0] = odd ? 0.9f : 0.2f;
+            p[1] = 0.2f + 0.6f * (float)x / w;
+            p[2] = 0.2f + 0.6f * (float)y / h;
+            p[3] = 1.0f;
+        }
+    return refl_scene_add_texture(s, w, h, tex);
+}
+
 /* A glass sphere of radius 1 (object 1) at the centre of a checkered
    sphere of radius 5 (object 0) lit by ambient light alone. */
 static refl_scene *exact_shell_scene(void) {
@@ -142,18 +157,8 @@ static refl_scene *exact_shell_scene(void) {
     refl_mesh *shell = NULL, *lens = NULL;
     refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
     static float tex[W * H * 4];
-    int x, y;
-    for (y = 0; y < H; ++y)
-        for (x = 0; x < W; ++x) {
-            float *p = tex + 4 * (y * W + x);
-            int odd = ((x / 4) + (y / 4)) & 1;
-            p[0] = odd ? 0.9f : 0.2f;
-            p[1] = 0.2f + 0.6f * (float)x / W;
-            p[2] = 0.2f + 0.6f * (float)y / H;
-            p[3] = 1.0f;
-        }
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
-    paper.texture = refl_scene_add_texture(s, W, H, tex);
+    paper.texture = add_checker(s, tex, W, H);
     cr_assert_gt(paper.texture, 0);
     cr_assert_eq(refl_mesh_sphere(5.0f, 96, 48, NULL, &shell), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens), REFL_OK);
@@ -679,18 +684,8 @@ static refl_scene *box_room_scene(void) {
     refl_mesh *room = NULL, *lens = NULL;
     refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
     static float tex[W * H * 4];
-    int x, y;
-    for (y = 0; y < H; ++y)
-        for (x = 0; x < W; ++x) {
-            float *p = tex + 4 * (y * W + x);
-            int odd = ((x / 4) + (y / 4)) & 1;
-            p[0] = odd ? 0.9f : 0.2f;
-            p[1] = 0.2f + 0.6f * (float)x / W;
-            p[2] = 0.2f + 0.6f * (float)y / H;
-            p[3] = 1.0f;
-        }
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
-    paper.texture = refl_scene_add_texture(s, W, H, tex);
+    paper.texture = add_checker(s, tex, W, H);
     cr_assert_eq(refl_mesh_box(refl_v3(10.0f, 6.0f, 8.0f), NULL, &room), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens), REFL_OK);
     cr_assert_eq(refl_scene_add(s, room, &paper, refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f))), 0);
