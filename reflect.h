@@ -14317,6 +14317,13 @@ static float refl__c3_sweep_bound(const refl_c3rc *c, float tmax) {
     return dmin > 0.25f ? tmax / sqrtf(dmin) : INFINITY;
 }
 
+/* Section 5.1's sweep intervals where camera c's rays fold (out: fold),
+   over its sweep bound and at most four scene diagonals (tmax); how many.
+   Level of detail thins only a camera with none. */
+static int refl__c3_folds(const refl_c3rc *c, float sweep, float tmax, float fold[4][2]) {
+    return refl_c3rc_multiple_intervals(c, REFL__MIN(sweep, 4.0f * tmax), fold);
+}
+
 /* One camera: reflector triangle jobs[index], built and drawn. */
 static void refl__c3_camera(void *arg, int index) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
@@ -14327,7 +14334,7 @@ static void refl__c3_camera(void *arg, int index) {
     if (!refl__c3_setup(c3->p, &c3->jobs[index], &k)) return;
     k.sweep = refl__c3_sweep_bound(&k.cam, c3->tmax);
     refl__c3_hull(&k);
-    k.folds = refl_c3rc_multiple_intervals(&k.cam, REFL__MIN(k.sweep, 4.0f * c3->tmax), k.fold);
+    k.folds = refl__c3_folds(&k.cam, k.sweep, c3->tmax, k.fold);
     k.lod = k.folds == 0;
     refl_kdtree_query(c3->s->tree, refl__c3_box, refl__c3_leaf, &k);
     k.n->ms_cull += k.t_cull;
@@ -15054,6 +15061,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     refl__c3_list list;
     refl_c3rc_view_camera *cams = NULL;
     refl_vec3 lo, hi;
+    float tmax, fold[4][2];
     int i, n = 0;
     refl_result r;
     if (!out || !count) return REFL_ERROR_INVALID_ARGUMENT;
@@ -15062,6 +15070,7 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
     if (!scene || !view || view->width < 1 || view->height < 1) return REFL_ERROR_INVALID_ARGUMENT;
     r = refl__c3_view_jobs(scene, view, split_px, &p, &shape, &list);
     refl_scene_bounds(scene, &lo, &hi);
+    tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo)); /* as refl__method_c3rc's c3.tmax */
     if (r == REFL_OK && !(cams = (refl_c3rc_view_camera *)refl__calloc(&scene->allocator,
                                                                        (size_t)(list.count ? list.count : 1), sizeof *cams)))
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -15076,13 +15085,9 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
         cams[n].screen_area = k.screen_area;
         cams[n].screen_edge = k.screen_edge;
         cams[n].near_self = k.near_self;
-        cams[n].sweep = refl__c3_sweep_bound(&k.cam, 1.01f * refl_v3_length(refl_v3_sub(hi, lo)));
+        cams[n].sweep = refl__c3_sweep_bound(&k.cam, tmax);
         cams[n].base_normal = k.base_normal;
-        {
-            float fold[4][2]; /* as refl__c3_camera decides k.lod */
-            cams[n].lod = refl_c3rc_multiple_intervals(
-                              &k.cam, REFL__MIN(cams[n].sweep, 4.0f * 1.01f * refl_v3_length(refl_v3_sub(hi, lo))), fold) == 0;
-        }
+        cams[n].lod = refl__c3_folds(&k.cam, cams[n].sweep, tmax, fold) == 0;
         ++n;
     }
     refl__free(&scene->allocator, list.v);
