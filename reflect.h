@@ -2022,9 +2022,34 @@ REFL_API int refl_c3rc_view_camera_lod(const refl_c3rc_view_camera *vc, const fl
    per unit area) as the method samples them at frame density `density`:
    raised on a diffuse object where one of the `count` cameras (those drawn)
    folds and shows it magnified, to a point per 4 pixels there, at most 64
-   times `density`, all objects together at most 2e6 points. */
+   times `density`, all objects together at most 2e6 points. scaled_down
+   (may be NULL): the largest factor that budget scaled a raised density
+   down by (1: none). */
 REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
-                                                float density, float *out);
+                                                float density, float *out, float *scaled_down);
+/* C3RC's hand-over to its tracer (refl_render's stats.c3rc.traced), for
+   a host that splats the points itself: the splatted frame as the test
+   reads it. */
+typedef struct refl_c3rc_splats {
+    int width, height;
+    const float *side;           /* per pixel, side_stride floats apart (rows top first): equal on the
+                                    pixels of one reflector's one side, another value elsewhere */
+    int side_stride;
+    const uint64_t *key;         /* per pixel the point splatted there: (the bits of its depth, a
+                                    positive float) << 32 | its index; all ones: none */
+    const int32_t *point_object; /* per point index its object */
+    int reach;                   /* pixels the test looks each way (refl_c3rc_gap_reach) */
+} refl_c3rc_splats;
+/* How far the gap test looks: the gaps the splats (at most max_splat
+   pixels across) leave, wider by spacing_scale where the points lie that
+   much farther apart than the frame's default density wants (the sqrt of
+   wanted over sampled density, times that of refl_c3rc_object_densities'
+   scaled_down). */
+REFL_API int refl_c3rc_gap_reach(int max_splat, float spacing_scale);
+/* Whether reflector pixel (x, y), showing point `shown` (a key as above:
+   its own, or what a pixel whose splats all missed shows instead), lies in
+   a gap of a nearer surface's points: the method traces it. */
+REFL_API int refl_c3rc_in_gap(const refl_c3rc_splats *f, int x, int y, uint64_t shown);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`
@@ -13635,7 +13660,7 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
    (the paper's environment-mapped background), unless a nearer surface's
    points surround them: a pixel in such a gap, empty or showing a surface
    behind (where a reflection magnifies, the random points leave gaps their
-   splats do not close), goes to RAYTRACE's tracer (refl__c3_gap,
+   splats do not close), goes to RAYTRACE's tracer (refl_c3rc_in_gap,
    stats.c3rc.traced). One bounce, as the paper:
    with desc.depth > 1 a pixel showing a reflector's point goes on through
    RAYTRACE's tracer (refl__trace_beyond).
@@ -13680,7 +13705,7 @@ static refl_result refl__auto_choose(refl__pass *p, int object, refl_method *out
 #define REFL__C3_DISC 1.0f
 #define REFL__C3_GRAZE 0.2f         /* |cos| below which a ray grazes a point's tangent plane */
 /* A pixel's point is in a gap of another surface's points where those
-   around it are nearer than this share of its depth (refl__c3_gap). */
+   around it are nearer than this share of its depth (refl_c3rc_in_gap). */
 #define REFL__C3_GAP_NEARER 0.9f
 
 /* A camera to build: a piece of reflector triangle `triangle`, its
@@ -13715,7 +13740,7 @@ typedef struct refl__c3_samples {
     int32_t *object, *triangle;   /* where it was sampled */
     float spacing_scale;          /* >= 1: how much farther apart the points lie than the default
                                      density wanted, where REFL__C3_AUTO_POINTS capped it (the
-                                     gaps refl__c3_gap looks across grow with it) */
+                                     gaps refl_c3rc_in_gap looks across grow with it) */
 } refl__c3_samples;
 
 static void refl__c3_samples_free(const refl_allocator *al, refl__c3_samples *pts) {
@@ -13735,7 +13760,7 @@ typedef struct refl__c3 {
     refl__em em;                  /* the reflectors' G-buffer (gbuffer.c) */
     uint64_t *key;                /* per pixel: t bits << 32 | tree point, REFL__C3_EMPTY */
     uint8_t *touched;             /* per pixel: a splat reached it whose surfel its ray missed */
-    uint8_t *gap;                 /* per pixel: REFL__TRACE_ALL in a gap of the points (refl__c3_gap) */
+    uint8_t *gap;                 /* per pixel: REFL__TRACE_ALL in a gap of the points (refl_c3rc_in_gap) */
     float *ray;                   /* per pixel: reflected ray, its turn to the neighbours' (refl__c3_ray_row) */
     refl__c3_samples *s;          /* the points: this frame's own or the renderer's */
     float density;
@@ -14488,9 +14513,9 @@ static float refl__c3_key_depth(uint64_t key) {
     return f;
 }
 
-/* Whether reflector pixel (x, y), showing `key` (REFL__C3_EMPTY: no
+/* Whether reflector pixel (x, y), showing `shown` (REFL__C3_EMPTY: no
    point), lies in a gap of a nearer surface's points: along a row, a
-   column or a diagonal through it, both ways within `reach` pixels of the
+   column or a diagonal through it, both ways within f->reach pixels of the
    same reflector side, the first pixel showing another object's point
    (any point, for an empty pixel) shows it nearer (REFL__C3_GAP_NEARER).
    Where a reflection magnifies, the random points leave gaps their
@@ -14500,24 +14525,23 @@ static float refl__c3_key_depth(uint64_t key) {
    meets there, so the pixel goes to the tracer. A pixel that nearer
    points do not surround keeps what it shows: an object's silhouette
    over what lies behind it, the environment where the rays leave the
-   scene. */
-static int refl__c3_gap(const refl__c3 *c3, int x, int y, uint64_t key, int reach) {
+   scene. The GL path (tools/reflect_gl_c3rc.c) asks it too. */
+REFL_API int refl_c3rc_in_gap(const refl_c3rc_splats *f, int x, int y, uint64_t shown) {
     static const int dir[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-    const refl_frame *fr = c3->p->frame;
-    int w = fr->width, h = fr->height, a, side, s;
-    float id = c3->em.gbuf[4 * ((size_t)y * (size_t)w + (size_t)x) + 3];
-    float depth = key == REFL__C3_EMPTY ? INFINITY : refl__c3_key_depth(key);
-    int32_t object = key == REFL__C3_EMPTY ? -1 : c3->s->object[key & 0xffffffffu];
+    int w = f->width, h = f->height, a, side, s;
+    float id = f->side[(size_t)f->side_stride * ((size_t)y * (size_t)w + (size_t)x)];
+    float depth = shown == REFL__C3_EMPTY ? INFINITY : refl__c3_key_depth(shown);
+    int32_t object = shown == REFL__C3_EMPTY ? -1 : f->point_object[shown & 0xffffffffu];
     for (a = 0; a < 4; ++a) {
         int nearer = 0;
         for (side = -1; side <= 1; side += 2)
-            for (s = 1; s <= reach; ++s) {
+            for (s = 1; s <= f->reach; ++s) {
                 int xs = x + side * s * dir[a][0], ys = y + side * s * dir[a][1];
                 size_t j = (size_t)ys * (size_t)w + (size_t)xs;
                 uint64_t kj;
-                if (xs < 0 || ys < 0 || xs >= w || ys >= h || c3->em.gbuf[4 * j + 3] != id) break;
-                kj = c3->key[j];
-                if (kj == REFL__C3_EMPTY || c3->s->object[kj & 0xffffffffu] == object) continue;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || f->side[(size_t)f->side_stride * j] != id) break;
+                kj = f->key[j];
+                if (kj == REFL__C3_EMPTY || f->point_object[kj & 0xffffffffu] == object) continue;
                 nearer += refl__c3_key_depth(kj) < REFL__C3_GAP_NEARER * depth;
                 break;
             }
@@ -14526,17 +14550,28 @@ static int refl__c3_gap(const refl__c3 *c3, int x, int y, uint64_t key, int reac
     return 0;
 }
 
+REFL_API int refl_c3rc_gap_reach(int max_splat, float spacing_scale) {
+    /* the splats close gaps up to max_splat across; points spaced wider
+       than the density wanted leave wider ones */
+    return (int)REFL__MIN(ceilf(2.0f * (float)max_splat * REFL__MAX(spacing_scale, 1.0f)), 256.0f);
+}
+
 /* Composites one row: the winning point's colour (or the environment
    along the reflected ray) times the reflectance, as ENVMAP composites;
-   a pixel in a gap of the points (refl__c3_gap) is marked for the
+   a pixel in a gap of the points (refl_c3rc_in_gap) is marked for the
    tracer instead. */
 static void refl__c3_resolve_row(void *arg, int y) {
     const refl__c3 *c3 = (const refl__c3 *)arg;
     const refl_frame *fr = c3->p->frame;
-    /* the splats close gaps up to max_splat across; points spaced wider
-       than the density wanted leave wider ones */
-    int reach = (int)REFL__MIN(ceilf(2.0f * (float)c3->max_splat * c3->s->spacing_scale), 256.0f);
+    refl_c3rc_splats splats;
     int x;
+    splats.width = fr->width;
+    splats.height = fr->height;
+    splats.side = c3->em.gbuf + 3;
+    splats.side_stride = 4;
+    splats.key = c3->key;
+    splats.point_object = c3->s->object;
+    splats.reach = refl_c3rc_gap_reach(c3->max_splat, c3->s->spacing_scale);
     for (x = 0; x < fr->width; ++x) {
         size_t i = (size_t)y * (size_t)fr->width + (size_t)x;
         uint64_t key = c3->key[i];
@@ -14555,7 +14590,7 @@ static void refl__c3_resolve_row(void *arg, int y) {
             }
             key = best;
         }
-        if (refl__c3_gap(c3, x, y, key, reach)) {
+        if (refl_c3rc_in_gap(&splats, x, y, key)) {
             /* RAYTRACE's colour and point: here, or with the bounces past
                C3RC's when the frame traces them (refl__trace_beyond) */
             (c3->p->trace ? c3->p->trace : c3->gap)[i] = REFL__TRACE_ALL;
@@ -15101,9 +15136,9 @@ REFL_API refl_result refl_c3rc_view_cameras(const refl_scene *scene, const refl_
 }
 
 REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
-                                                float density, float *out) {
+                                                float density, float *out, float *scaled_down) {
     refl_vec3 lo, hi;
-    float tmax;
+    float tmax, most;
     int i;
     if (!scene || !out || count < 0 || (count > 0 && !cams) || !(density >= 0.0f) || !refl__isfinite(density))
         return REFL_ERROR_INVALID_ARGUMENT;
@@ -15111,7 +15146,8 @@ REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const r
     tmax = 1.01f * refl_v3_length(refl_v3_sub(hi, lo));
     for (i = 0; i < scene->object_count; ++i) out[i] = density;
     for (i = 0; i < count; ++i) refl__c3_raise_densities(scene, &cams[i].cam, cams[i].screen_area, density, tmax, out);
-    refl__c3_density_budget(scene, density, out);
+    most = refl__c3_density_budget(scene, density, out);
+    if (scaled_down) *scaled_down = most;
     return REFL_OK;
 }
 

@@ -63,7 +63,7 @@ typedef struct rgl_frame_stats {
     double shade_seconds;    /* the CPU's shading and compositing (PLANAR: its hand-over's frame too) */
     int handed;              /* PLANAR: reflectors left to the CPU's PLANAR (not planar mirrors) */
     int handed_over;         /* PLANAR: of those, the ones it handed to the tracer (curved) */
-    long long traced;        /* PLANAR: pixels the CPU filled */
+    long long traced;        /* PLANAR: pixels the CPU filled; C3RC: the gaps' pixels traced on the CPU */
     long long points;        /* C3RC: the scene's points */
     long long projections;   /* C3RC: points of the leaves the cameras' box tests kept, after level of detail */
 } rgl_frame_stats;

@@ -199,8 +199,9 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                        name, scene, w, h, st.mirrors, 1e3 * (st.gl_seconds + st.shade_seconds), 1e3 * st.gl_seconds,
                        1e3 * st.shade_seconds, name, 1e3 * cpu_s, e_gc.matched, e_gc.mean, e_gc.wrong, e_gc.empty, psnr);
                 if (m == REFL_C3RC)
-                    printf("; points: GL %lld (%lld projected), CPU %lld (%lld projected)", st.points, st.projections,
-                           cf->stats.c3rc.points, cf->stats.c3rc.projections);
+                    printf("; points: GL %lld (%lld projected), CPU %lld (%lld projected); traced: GL %lld px, CPU %lld px",
+                           st.points, st.projections, cf->stats.c3rc.points, cf->stats.c3rc.projections, st.traced,
+                           cf->stats.c3rc.traced);
                 if (m == REFL_PLANAR && st.handed)
                     printf("; %d reflectors to the CPU (%d traced), %lld px", st.handed, st.handed_over, st.traced);
                 if (tf)

@@ -21,11 +21,12 @@
         only a surfel the ray meets shown; stencilled to the reflector's
         pixels; the reflector's own points within one edge left out;
      4. the CPU composites: pixels whose splats all missed take their
-        neighbours' nearest point, then reflectance times the point's
-        colour, the environment along the reflected ray where no point
-        landed.
-   Left out against the CPU path: the gaps it hands to the tracer. One
-   bounce, as the paper; glass is drawn as DIRECT draws it. */
+        neighbours' nearest point; a pixel in a gap of a nearer surface's
+        points (refl_c3rc_in_gap, the CPU path's test) is traced on the
+        CPU, as the CPU path hands it to its tracer; the others show
+        reflectance times the point's colour, the environment along the
+        reflected ray where no point landed.
+   One bounce, as the paper; glass is drawn as DIRECT draws it. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
 #include "reflect_gl.h"
@@ -48,6 +49,9 @@
 #endif
 
 #define RGL_C3_AUTO_POINTS 2e6    /* the most points the default density samples */
+#define RGL_C3_MAX_SPLAT 8        /* pixels: the CPU path's default max_splat */
+#define RGL_C3_STR(x) #x
+#define RGL_C3_GLSL_INT(x) RGL_C3_STR(x)
 #define RGL_C3_TURN_TEST "0.05"  /* radians: the CPU path's REFL__C3_TURN_TEST */
 #define RGL_C3_LEAF_POINTS 128    /* kd-tree leaf size: the box test culls per leaf (the paper: 122) */
 enum { RGL_C3_POINT_FLOATS = 9 }; /* position, tree index; normal, object (+ 0.5 on a diffuse one); density */
@@ -103,7 +107,8 @@ static const char rgl__c3_vs_main[] =
     "        sqrt(abs(cp) / max(cs, 0.05) * u_screen_area / (sweep * a_density)) : 0.0;\n"
     /* the CPU path's splat: 1.5 per point spacing, at most its default max_splat 8,
        from the camera's first fold interval on its size on screen */
-    "    float side = clamp(ceil(1.5 * min(spacing, 1e4)), 1.0, r.w >= u_fold ? u_fold_splat : 8.0);\n"
+    "    float side = clamp(ceil(1.5 * min(spacing, 1e4)), 1.0,\n"
+    "                       r.w >= u_fold ? u_fold_splat : float(" RGL_C3_GLSL_INT(RGL_C3_MAX_SPLAT) "));\n"
     "    v_t = r.w; v_side = side;\n"
     "    v_pix_sweep = u_screen_area > 0.0 ? sqrt(sweep / u_screen_area) : 0.0;\n"
     "    v_reach = side * v_pix_sweep / max(abs(cp), 0.2);\n"
@@ -121,7 +126,7 @@ static const char rgl__c3_vs_main[] =
    the ray turns fast, another object's point shows only where the ray
    meets its surfel (a disc of one point spacing of its object's); a pixel all of
    whose splats missed is marked (-1), and shows its neighbours' nearest
-   point (rgl__c3_touched). */
+   point (rgl__c3_resolve). */
 static const char rgl__c3_fs[] =
     "#version 330 core\n"
     "flat in float v_index; flat in float v_t; flat in float v_side; flat in float v_pix_sweep;\n"
@@ -157,7 +162,8 @@ static const char rgl__c3_fs[] =
     "    float depth = abs(un) > 0.2 ? clamp(dot(w, v_np) / un, v_t - v_reach, v_t + v_reach) : v_t;\n"
     "    vec2 off = (gl_PointCoord - 0.5) * v_side;\n"
     /* the CPU path's same-surface slope: 4 pixel sweeps per pixel off the centre */
-    "    gl_FragDepth = clamp((depth + 4.0 * v_pix_sweep * length(off)) / u_tmax, 0.0, 0.99999);\n"
+    "    depth += 4.0 * v_pix_sweep * length(off);\n"
+    "    gl_FragDepth = clamp(depth / u_tmax, 0.0, 0.99999);\n"
     "    o_point = vec4(depth, 0.0, 0.0, v_index + 1.0);\n"
     "}\n";
 
@@ -182,8 +188,8 @@ static int rgl__c3_is_reflector(const refl_scene *s, int o) {
 
 /* The CPU path's default density: a point per 2 x 2 pixels at the
    reflectors' nearest box corner or centre, at most RGL_C3_AUTO_POINTS over
-   the scene's area. */
-static float rgl__c3_density(const rgl_pass *p) {
+   the scene's area; *wanted the density before that cap. */
+static float rgl__c3_density(const rgl_pass *p, float *wanted) {
     const refl_scene *s = p->scene;
     double area = 0.0;
     float nearest = FLT_MAX, size, zn, pixel_angle = rgl_pass_pixel_angle(p);
@@ -207,7 +213,9 @@ static float rgl__c3_density(const rgl_pass *p) {
     }
     zn = p->proj_m.m[14] / (p->proj_m.m[10] - 1.0f);
     size = 2.0f * (nearest > zn ? nearest : zn) * pixel_angle;
+    *wanted = 0.0f;
     if (!(size > 0.0f) || nearest == FLT_MAX) return 0.0f;
+    *wanted = (float)(1.0 / ((double)size * size));
     return (float)fmin(1.0 / ((double)size * size), area > 0.0 ? RGL_C3_AUTO_POINTS / area : 0.0);
 }
 
@@ -289,32 +297,69 @@ done:
     return rc;
 }
 
-/* The pixels marked touched (every splat missed their surfels) show the
-   nearest point (least t) of their 8 neighbours', as the CPU path's. */
-static void rgl__c3_touched(const rgl_pass *p, float *drawn) {
-    int w = p->w, h = p->h, x, y, k;
-    float *fill = (float *)malloc((size_t)w * h * sizeof(float));
-    if (!fill) return;
+/* The splats read back as the CPU path's keys (refl_c3rc_splats), and
+   per pixel the key it shows: its own, or where every splat missed its
+   surfel (marked -1) the nearest of its 4-neighbours' on the same
+   reflector side, as the CPU path's. */
+typedef struct rgl_c3_keys {
+    refl_c3rc_splats splats;
+    uint64_t *key, *shown;
+    float *side;             /* per pixel: mark, negated on a back face; 0 off the reflectors */
+    int32_t *object;         /* per tree point */
+} rgl_c3_keys;
+
+static void rgl__c3_keys_free(rgl_c3_keys *k) {
+    free(k->key);
+    free(k->shown);
+    free(k->side);
+    free(k->object);
+    memset(k, 0, sizeof *k);
+}
+
+static uint64_t rgl__c3_key(float depth, long long index) {
+    uint32_t bits;
+    depth = depth > 0.0f ? depth : 0.0f; /* (a positive float's bits order as the float) */
+    memcpy(&bits, &depth, sizeof bits);
+    return (uint64_t)bits << 32 | (uint64_t)(uint32_t)index;
+}
+
+static int rgl__c3_resolve(const rgl_pass *p, const rgl_c3_points *pts, const float *drawn, float spacing_scale,
+                           rgl_c3_keys *k) {
+    int w = p->w, h = p->h, x, y, n;
+    size_t np = (size_t)w * (size_t)h, i;
+    long long count = pts->tree->point_count, j;
+    memset(k, 0, sizeof *k);
+    k->key = (uint64_t *)malloc(np * sizeof(uint64_t));
+    k->shown = (uint64_t *)malloc(np * sizeof(uint64_t));
+    k->side = (float *)malloc(np * sizeof(float));
+    k->object = (int32_t *)malloc((size_t)(count ? count : 1) * sizeof(int32_t));
+    if (!k->key || !k->shown || !k->side || !k->object) return -1;
+    for (j = 0; j < count; ++j) k->object[j] = (int32_t)pts->gl[j * RGL_C3_POINT_FLOATS + 7];
+    for (i = 0; i < np; ++i) {
+        long long at = p->marks[i] ? (long long)drawn[4 * i + 3] - 1 : -1;
+        k->key[i] = at >= 0 && at < count ? rgl__c3_key(drawn[4 * i], at) : ~(uint64_t)0;
+        k->side[i] = p->marks[i] ? (p->base[1][4 * i + 3] > 0.5f ? -(float)p->marks[i] : (float)p->marks[i]) : 0.0f;
+    }
     for (y = 0; y < h; ++y)
         for (x = 0; x < w; ++x) {
-            size_t i = (size_t)y * w + x;
-            float best = INFINITY, at = 0.0f;
-            fill[i] = drawn[4 * i + 3];
-            if (drawn[4 * i + 3] != -1.0f) continue;
-            for (k = 0; k < 9; ++k) {
-                int xs = x + k % 3 - 1, ys = y + k / 3 - 1;
-                const float *q;
-                if (xs < 0 || ys < 0 || xs >= w || ys >= h || p->marks[(size_t)ys * w + xs] != p->marks[i]) continue;
-                q = drawn + 4 * ((size_t)ys * w + xs);
-                if (q[3] >= 1.0f && q[0] < best) {
-                    best = q[0];
-                    at = q[3];
-                }
+            i = (size_t)y * w + x;
+            k->shown[i] = k->key[i];
+            if (!p->marks[i] || drawn[4 * i + 3] != -1.0f) continue;
+            for (n = 0; n < 4; ++n) {
+                int xs = x + (n == 0) - (n == 1), ys = y + (n == 2) - (n == 3);
+                size_t js = (size_t)ys * w + xs;
+                if (xs < 0 || ys < 0 || xs >= w || ys >= h || k->side[js] != k->side[i]) continue;
+                if (k->key[js] < k->shown[i]) k->shown[i] = k->key[js];
             }
-            fill[i] = at;
         }
-    for (y = 0; y < w * h; ++y) drawn[4 * (size_t)y + 3] = fill[y];
-    free(fill);
+    k->splats.width = w;
+    k->splats.height = h;
+    k->splats.side = k->side;
+    k->splats.side_stride = 1;
+    k->splats.key = k->key;
+    k->splats.point_object = k->object;
+    k->splats.reach = refl_c3rc_gap_reach(RGL_C3_MAX_SPLAT, spacing_scale);
+    return 0;
 }
 
 /* One camera of the CPU path's (refl_c3rc_view_cameras), the largest t
@@ -467,13 +512,15 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     static const char *const vs_parts[3] = {rgl__c3_vs_head, NULL, rgl__c3_vs_main};
     static const int point_sizes[3] = {4, 4, 1}; /* RGL_C3_POINT_FLOATS: a_p, a_n, a_density */
     const char *vs[3], *fs[1] = {rgl__c3_fs};
-    int w = view->width, h = view->height, rc = -1;
+    int w = view->width, h = view->height, rc = -1, x, y;
     size_t np = (size_t)w * (size_t)h, i;
     GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
     uint8_t *mark = NULL;
-    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax, frame_density;
+    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax, frame_density, wanted_density, scaled_down = 1.0f;
     rgl_c3_cam *cams = NULL;
     rgl_c3_points pts;
+    rgl_c3_keys keys;
+    refl_bvh *bvh = NULL;
     rgl_pass ps;
     refl_vec3 lo, hi;
     long long cam_count = 0, t, floats;
@@ -481,8 +528,9 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     memset(st, 0, sizeof *st);
     memset(&ps, 0, sizeof ps);
     memset(&pts, 0, sizeof pts);
+    memset(&keys, 0, sizeof keys);
     if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
-    frame_density = rgl__c3_density(&ps);
+    frame_density = rgl__c3_density(&ps, &wanted_density);
     refl_scene_bounds(scene, &lo, &hi);
     tmax = refl_v3_length(refl_v3_sub(hi, lo)) * 1.01f + 1e-3f; /* the longest sweep: the scene's diagonal */
     /* the CPU's share: points, cameras (timed apart from GL) */
@@ -502,7 +550,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
                 vcams[cam_count++] = vcams[t];
         /* the points: denser on the objects a folding camera magnifies */
         if (!(density = (float *)malloc((size_t)(scene->object_count > 0 ? scene->object_count : 1) * sizeof(float))) ||
-            refl_c3rc_object_densities(scene, vcams, (int)cam_count, frame_density, density) != REFL_OK ||
+            refl_c3rc_object_densities(scene, vcams, (int)cam_count, frame_density, density, &scaled_down) != REFL_OK ||
             rgl__c3_points(&ps, density, &pts) != 0) {
             refl_c3rc_view_cameras_free(scene, vcams);
             snprintf(err, n, "sampling the scene's points failed");
@@ -592,18 +640,39 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     if (!(drawn = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
     rgl_pass_read(&ps, 0, drawn);
     if (rgl_pass_check("drawing the C3RC splats", err, n) != 0) goto done;
-    rgl__c3_touched(&ps, drawn);
     st->gl_seconds = rgl_now() - t0 - t_cpu;
     st->mirrors = (int)cam_count;
 
-    /* composite on the CPU */
+    /* composite on the CPU; the gaps of nearer points traced, as the CPU path */
     t1 = rgl_now();
-    for (i = 0; i < np; ++i) {
-        long long at = ps.marks[i] ? (long long)drawn[4 * i + 3] - 1 : -1;
-        int shows = at >= 0 && at < pts.tree->point_count;
-        rgl_composite(&ps, (int)i, shows ? pts.rgb + 3 * at : NULL, shows ? pts.tree->positions + 3 * at : NULL, frame,
-                      rgb);
+    {
+        /* the points lie this much farther apart than the view wants (the
+           density's cap, the budget of the raised densities): wider gaps */
+        float spacing = frame_density > 0.0f && wanted_density > frame_density ? sqrtf(wanted_density / frame_density)
+                                                                                : 1.0f;
+        if (rgl__c3_resolve(&ps, &pts, drawn, spacing * sqrtf(scaled_down), &keys) != 0) goto oom;
     }
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            uint64_t key;
+            long long at;
+            i = (size_t)y * w + x;
+            key = keys.shown[i];
+            if (ps.marks[i] && refl_c3rc_in_gap(&keys.splats, x, y, key)) {
+                const float *bp = ps.base[0] + 4 * i, *bn = ps.base[1] + 4 * i;
+                float tp[4], tn[4] = {0, 0, 0, 0}, tuv[4] = {0, 0, 0, 0}, col[3];
+                refl_vec3 dir = rgl_reflect(rgl_pass_ray(&ps, (int)i), refl_v3(bn[0], bn[1], bn[2]));
+                if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
+                rgl_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
+                rgl_shade(scene, tp, tn, tuv, dir, col);
+                rgl_composite(&ps, (int)i, (int)tp[3] >= 1 ? col : NULL, tp, frame, rgb);
+                st->traced++;
+                continue;
+            }
+            at = key == ~(uint64_t)0 ? -1 : (long long)(key & 0xffffffffu);
+            rgl_composite(&ps, (int)i, at >= 0 ? pts.rgb + 3 * at : NULL, at >= 0 ? pts.tree->positions + 3 * at : NULL,
+                          frame, rgb);
+        }
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;
     goto done;
@@ -613,6 +682,8 @@ done:
     rgl_pass_delete(prog, vao, vbo, tex, tbuf, pix_tex);
     rgl_pass_end(g, &ps);
     rgl__c3_points_free(&pts);
+    rgl__c3_keys_free(&keys);
+    refl_bvh_destroy(bvh);
     free(cams);
     free(cam_data);
     free(density);

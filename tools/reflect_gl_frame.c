@@ -204,6 +204,26 @@ refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal) {
     return refl_v3_reflect(d, nrm);
 }
 
+void rgl_trace(const rgl_pass *p, const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, float pt[4], float nrm[4],
+               float uv[4]) {
+    refl_hit hit;
+    int f;
+    memset(pt, 0, 4 * sizeof(float));
+    if (!refl_bvh_intersect(bvh, q, dir, 1e-4f, INFINITY, &hit)) return;
+    {
+        const float *a = p->geo.v + (p->geo.first[hit.object] + 3 * (long long)hit.triangle) * RGL_VERTEX_FLOATS;
+        const float *b = a + RGL_VERTEX_FLOATS, *c = b + RGL_VERTEX_FLOATS;
+        float w0 = 1.0f - hit.u - hit.v;
+        for (f = 0; f < 3; ++f) {
+            pt[f] = w0 * a[f] + hit.u * b[f] + hit.v * c[f];
+            nrm[f] = w0 * a[3 + f] + hit.u * b[3 + f] + hit.v * c[3 + f];
+        }
+        uv[0] = w0 * a[6] + hit.u * b[6] + hit.v * c[6];
+        uv[1] = w0 * a[7] + hit.u * b[7] + hit.v * c[7];
+        pt[3] = (float)(hit.object + 1);
+    }
+}
+
 void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at, refl_frame *frame, float *rgb) {
     const float *bp = p->base[0] + 4 * (size_t)i, *bn = p->base[1] + 4 * (size_t)i;
     refl_vec3 d = rgl_pass_ray(p, i), nrm = refl_v3(bn[0], bn[1], bn[2]);

@@ -106,5 +106,10 @@ void rgl_composite(const rgl_pass *p, int i, const float *shown, const float *at
 /* The reflected eye ray at a reflector pixel: d reflected in the normal
    turned towards the eye. */
 refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal);
+/* The CPU's tracer for the reflector pixels GL's draw leaves to it (SBC's
+   holes, C3RC's gaps): the ray from q along dir traced (bvh of the scene)
+   into pt, nrm, uv as the G-buffer holds them; pt's id 0 where it leaves. */
+void rgl_trace(const rgl_pass *p, const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, float pt[4], float nrm[4],
+               float uv[4]);
 
 #endif

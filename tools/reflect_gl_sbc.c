@@ -279,28 +279,6 @@ static int rgl__sb_hidden(const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, const
     return s > 0.0f && refl_bvh_occluded(bvh, q, dir, 1e-4f, 0.99f * s);
 }
 
-/* A reflector pixel nothing was drawn on: traced along its reflected ray
-   into pt, nrm, uv (what the G-buffer holds); id 0 where it leaves. */
-static void rgl__sb_trace(const rgl_pass *p, const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, float pt[4], float nrm[4],
-                          float uv[4]) {
-    refl_hit hit;
-    int f;
-    memset(pt, 0, 4 * sizeof(float));
-    if (!refl_bvh_intersect(bvh, q, dir, 1e-4f, INFINITY, &hit)) return;
-    {
-        const float *a = p->geo.v + (p->geo.first[hit.object] + 3 * (long long)hit.triangle) * RGL_VERTEX_FLOATS;
-        const float *b = a + RGL_VERTEX_FLOATS, *c = b + RGL_VERTEX_FLOATS;
-        float w0 = 1.0f - hit.u - hit.v;
-        for (f = 0; f < 3; ++f) {
-            pt[f] = w0 * a[f] + hit.u * b[f] + hit.v * c[f];
-            nrm[f] = w0 * a[3 + f] + hit.u * b[3 + f] + hit.v * c[3 + f];
-        }
-        uv[0] = w0 * a[6] + hit.u * b[6] + hit.v * c[6];
-        uv[1] = w0 * a[7] + hit.u * b[7] + hit.v * c[7];
-        pt[3] = (float)(hit.object + 1);
-    }
-}
-
 /* One tile of reflector o: its camera built and packed, the scene's other
    objects drawn through it into the tile's pixels of the reflector. */
 static int rgl__sb_draw_tile(const rgl_pass *p, GLuint prog, int o, int mark, float own_near, const int tile[4], int tu, int tv,
@@ -430,7 +408,7 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
         if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
         if (!((int)pp[3] >= 1) || rgl__sb_hidden(bvh, refl_v3(bp[0], bp[1], bp[2]), dir, pp)) {
             /* a hole, contradicted, or hidden: the fallback traces it */
-            rgl__sb_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
+            rgl_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
             pp = tp;
             pn = tn;
             puv = tuv;

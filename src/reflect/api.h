@@ -2020,9 +2020,34 @@ REFL_API int refl_c3rc_view_camera_lod(const refl_c3rc_view_camera *vc, const fl
    per unit area) as the method samples them at frame density `density`:
    raised on a diffuse object where one of the `count` cameras (those drawn)
    folds and shows it magnified, to a point per 4 pixels there, at most 64
-   times `density`, all objects together at most 2e6 points. */
+   times `density`, all objects together at most 2e6 points. scaled_down
+   (may be NULL): the largest factor that budget scaled a raised density
+   down by (1: none). */
 REFL_API refl_result refl_c3rc_object_densities(const refl_scene *scene, const refl_c3rc_view_camera *cams, int count,
-                                                float density, float *out);
+                                                float density, float *out, float *scaled_down);
+/* C3RC's hand-over to its tracer (refl_render's stats.c3rc.traced), for
+   a host that splats the points itself: the splatted frame as the test
+   reads it. */
+typedef struct refl_c3rc_splats {
+    int width, height;
+    const float *side;           /* per pixel, side_stride floats apart (rows top first): equal on the
+                                    pixels of one reflector's one side, another value elsewhere */
+    int side_stride;
+    const uint64_t *key;         /* per pixel the point splatted there: (the bits of its depth, a
+                                    positive float) << 32 | its index; all ones: none */
+    const int32_t *point_object; /* per point index its object */
+    int reach;                   /* pixels the test looks each way (refl_c3rc_gap_reach) */
+} refl_c3rc_splats;
+/* How far the gap test looks: the gaps the splats (at most max_splat
+   pixels across) leave, wider by spacing_scale where the points lie that
+   much farther apart than the frame's default density wants (the sqrt of
+   wanted over sampled density, times that of refl_c3rc_object_densities'
+   scaled_down). */
+REFL_API int refl_c3rc_gap_reach(int max_splat, float spacing_scale);
+/* Whether reflector pixel (x, y), showing point `shown` (a key as above:
+   its own, or what a pixel whose splats all missed shows instead), lies in
+   a gap of a nearer surface's points: the method traces it. */
+REFL_API int refl_c3rc_in_gap(const refl_c3rc_splats *f, int x, int y, uint64_t shown);
 
 /* SBC's cameras alone, without rasterisation (paper 003's projection
    accuracy, section VII-A): for each reflector pixel x of `truth`

@@ -4,8 +4,8 @@
    mirrors' pixels), and a curved mirror's pixels handed to the CPU as CPU
    PLANAR hands them over. C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
-   within a pixel of the CPU path's, on the default scene and the concave
-   bowl. Skipped, saying why, where no EGL
+   within a pixel of the CPU path's, on the default scene, the concave
+   bowl and (C3RC, its gaps traced) hybrid. Skipped, saying why, where no EGL
    device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
@@ -49,12 +49,14 @@ Test(refl_gl_frame, planar_matches_cpu, .timeout = 120) {
 }
 
 /* Method m through GL and on the CPU, both measured against one-bounce
-   RAYTRACE on built-in scene `scene` at 160 x 120: the GL frame's mean
+   RAYTRACE on built-in scene `scene` at w x h: the GL frame's mean
    reflection error within 1 px of the CPU frame's, with most reflector
-   pixels matched. */
-static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
+   pixels matched. The GL frame's stats and the CPU frame's C3RC stats in
+   *st and *cpu_c3rc when not NULL. */
+static void gl_within_a_pixel_of_cpu_at(const char *scene, refl_method m, int w, int h, long long min_matched,
+                                        rgl_frame_stats *gl_st, refl_c3rc_frame_stats *cpu_c3rc) {
     refl_view v;
-    refl_scene *s = tu_refl_builtin(scene, &v, 160, 120);
+    refl_scene *s = tu_refl_builtin(scene, &v, w, h);
     refl_render_desc d = tu_refl_one_bounce(m, 2), dt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
     refl_frame *cpu = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
     refl_reflection_error eg, ec;
@@ -79,11 +81,17 @@ static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long
     cr_assert_gt(eg.matched, min_matched, "%s on %s: %lld pixels matched", refl_method_name(m), scene, eg.matched);
     cr_assert_leq(eg.mean, ec.mean + 1.0, "%s on %s: GL %.3f px, CPU %.3f px", refl_method_name(m), scene, eg.mean,
                   ec.mean);
+    if (gl_st) *gl_st = st;
+    if (cpu_c3rc) *cpu_c3rc = cpu->stats.c3rc;
     free(rgb);
     refl_frame_destroy(gl);
     refl_frame_destroy(truth);
     refl_frame_destroy(cpu);
     refl_scene_destroy(s);
+}
+
+static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
+    gl_within_a_pixel_of_cpu_at(scene, m, 160, 120, min_matched, NULL, NULL);
 }
 
 Test(refl_gl_frame, c3rc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_C3RC, 500); }
@@ -104,4 +112,22 @@ Test(refl_gl_frame, sbc_concave_within_a_pixel_of_cpu, .timeout = 240) {
    CPU as CPU PLANAR does (its tracer), so its reflection is there too. */
 Test(refl_gl_frame, planar_curved_within_a_pixel_of_cpu, .timeout = 120) {
     gl_within_a_pixel_of_cpu("default", REFL_PLANAR, 500);
+}
+
+/* Hybrid at 160 x 480 (a tall frame: the density of 480 rows on few
+   pixels): the 2 million points' cap spaces the points wider than the
+   view wants, and the floor behind the objects shows through gaps in
+   their points. The CPU path hands those pixels to its tracer; the GL
+   path finds them with the same test (refl_c3rc_in_gap) and traces them
+   on the CPU, about as many. */
+Test(refl_gl_frame, c3rc_hybrid_gaps_traced, .timeout = 240) {
+    rgl_frame_stats st;
+    refl_c3rc_frame_stats cpu;
+    memset(&st, 0, sizeof st);
+    memset(&cpu, 0, sizeof cpu);
+    gl_within_a_pixel_of_cpu_at("hybrid", REFL_C3RC, 160, 480, 1500, &st, &cpu);
+    cr_log_info("gap pixels traced: GL %lld, CPU %lld", st.traced, cpu.traced);
+    cr_assert_gt(cpu.traced, 100, "the CPU path traced %lld gap pixels", cpu.traced);
+    cr_assert(st.traced >= cpu.traced / 2 && st.traced <= 2 * cpu.traced, "gap pixels traced: GL %lld, CPU %lld",
+              st.traced, cpu.traced);
 }
