@@ -186,18 +186,25 @@ static int rgl__c3_is_reflector(const refl_scene *s, int o) {
     return t == REFL_MIRROR || t == REFL_PARTIAL;
 }
 
-/* The CPU path's default density: a point per 2 x 2 pixels at the
-   reflectors' nearest box corner or centre, at most RGL_C3_AUTO_POINTS over
-   the scene's area; *wanted the density before that cap. */
+/* The CPU path's default density: a point per 2 x 2 pixels at the nearest
+   box corner or centre of the reflectors the base pass shows, at most
+   RGL_C3_AUTO_POINTS over the scene's area; *wanted the density before
+   that cap. */
 static float rgl__c3_density(const rgl_pass *p, float *wanted) {
     const refl_scene *s = p->scene;
     double area = 0.0;
     float nearest = FLT_MAX, size, zn, pixel_angle = rgl_pass_pixel_angle(p);
     long long i;
+    size_t k, np = (size_t)p->w * (size_t)p->h;
     int o, corner;
+    uint8_t *seen = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 1);
+    *wanted = 0.0f;
+    if (!seen) return 0.0f;
+    for (k = 0; k < np; ++k)
+        if (p->marks[k] >= 1 && p->marks[k] <= s->object_count) seen[p->marks[k] - 1] = 1;
     for (o = 0; o < s->object_count; ++o) {
         refl_vec3 lo, hi;
-        if (!rgl__c3_is_reflector(s, o)) continue;
+        if (!seen[o] || !rgl__c3_is_reflector(s, o)) continue;
         refl_mesh_bounds(s->meshes[s->objects[o].mesh], &lo, &hi);
         for (corner = 0; corner < 9; ++corner) {
             refl_vec3 q = corner == 8 ? refl_v3_scale(refl_v3_add(lo, hi), 0.5f)
@@ -212,8 +219,8 @@ static float rgl__c3_density(const rgl_pass *p, float *wanted) {
         area += 0.5 * refl_v3_length(refl_v3_cross(e1, e2));
     }
     zn = p->proj_m.m[14] / (p->proj_m.m[10] - 1.0f);
+    free(seen);
     size = 2.0f * (nearest > zn ? nearest : zn) * pixel_angle;
-    *wanted = 0.0f;
     if (!(size > 0.0f) || nearest == FLT_MAX) return 0.0f;
     *wanted = (float)(1.0 / ((double)size * size));
     return (float)fmin(1.0 / ((double)size * size), area > 0.0 ? RGL_C3_AUTO_POINTS / area : 0.0);
