@@ -1934,6 +1934,38 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    stop (the maps finished so far stay kept). A renderer keeps up to 512
    MiB of maps: past that, a frame drops the oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
+/* LAYERED_EM's frame for a host that draws it itself (the GL path,
+   tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM
+   draws (its desc's method, or its object_methods), what the method's
+   draw takes: the maps of the one or two viewpoint samples the eye lies
+   between, inferred (or kept) as a frame of the renderer infers them,
+   with their blend weights, and the lens tessellated for the view, both
+   greedy paths per vertex. The frame draws each map and term once: per
+   vertex the term's path has a lookup where it left the lens system
+   (exited, fresnel > 0) from inside box and every closed layer's
+   refl_lem_shell_index finds it (a quad missed leaves that layer out
+   there, the index (0, 0, 0)); a fragment composites the layers front to
+   back (refl_lem_shell_sample, the outermost opaque), times the path's
+   F G (0 without a lookup) and the map's weight, the draws added over the
+   base pass. A lens pixel no triangle covers, or where a vertex whose path
+   left has no lookup, is traced. frame (view's size) takes the stats; spp
+   1 only. Free with refl_renderer_lem_lenses_free; the texels are the
+   renderer's, valid until its next frame. */
+typedef struct refl_lem_lens {
+    int object;
+    int terms;               /* 1: the reflected path; 2 (glass): reflected, then refracted */
+    int maps;                /* 1 or 2 */
+    float weight[2];         /* each map's share */
+    int layers;
+    refl_lem_shell shell[2][REFL_LEM_MAX_LAYERS]; /* per map, per layer */
+    const float *texels[2][REFL_LEM_MAX_LAYERS];  /* RGBA per texel, refl_lem_shell_texels' order */
+    refl_vec3 box[2];        /* an exit ray starting outside left through another lens */
+    refl_lens_tess tess;     /* the eye's tessellation */
+} refl_lem_lens;
+REFL_API refl_result refl_renderer_lem_lenses(refl_renderer *renderer, const refl_view *view, refl_frame *frame,
+                                              refl_lem_lens **out, int *count);
+REFL_API void refl_renderer_lem_lenses_free(refl_renderer *renderer, refl_lem_lens *lenses, int count);
+
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 
@@ -2767,6 +2799,7 @@ static refl_result refl__method_layered_em(refl__pass *p);
 /* LAYERED_EM's maps of every viewpoint sample around the pass's eye, for
    the lenses the pass draws, into p->models (refl_renderer_prebuild). */
 static refl_result refl__prebuild_layered_em(refl__pass *p);
+static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *count);
 /* Frees what refl__models keeps of LAYERED_EM (m_layered_em.c). */
 static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);
@@ -16976,86 +17009,113 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     return on;
 }
 
-/* Lens object i: the maps of the two samples bracketing the eye (kept or
-   inferred), the eye's tessellation drawn once per map and term, weighed
-   by the blend, added over the base pass. marked: lens pixels left to the
-   tracer (no triangle there, or a path off the maps). */
+/* What a frame draws of lens object i: the maps of the one or two
+   samples bracketing the eye (kept or inferred; indices into the store)
+   with their blend weights, the terms, the lens's bounds and the eye's
+   tessellation (frame_tess, allocated with the scene's allocator). */
+typedef struct refl__lem_plan {
+    int n, at[2], terms;
+    float weight[2];
+    refl_vec3 box[2];
+    refl_lens_tess frame_tess;
+    double ms_tessellate;    /* its time (the frame's reflection time; the maps' is build time) */
+} refl__lem_plan;
+
+static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+                                     refl__lem_plan *pl) {
+    const refl_scene *scene = p->scene;
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    refl_frame *f = p->frame;
+    int s;
+    refl__lem_circle cc;
+    refl__lem_ring spare;
+    refl__lem_layering lay;
+    refl_lens_tess_desc td;
+    refl_vec3 centre;
+    refl_view views[3];
+    float lens_radius;
+    refl_result r = REFL_OK;
+    double t1;
+    memset(pl, 0, sizeof *pl);
+    memset(&td, 0, sizeof td);
+    memset(&spare, 0, sizeof spare);
+    pl->n = 1;
+    pl->at[0] = pl->at[1] = -1;
+    pl->weight[0] = 1.0f;
+    td.edge_px = o->edge_px;
+    td.angle_degrees = o->angle_degrees;
+    td.max_interfaces = p->desc.depth;
+    pl->terms = scene->materials[scene->objects[i].material].type == REFL_GLASS ? 2 : 1;
+    refl__lem_bounds(scene, i, &centre, &lens_radius, pl->box);
+    if (!refl__lem_ring_of(p, caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
+        /* on the axis: the eye's own view, one map */
+        views[0] = *p->view;
+        if (r == REFL_OK) r = refl__lem_map_of(p, caster, i, views, 1, &lay, maps, &pl->at[0]);
+    } else {
+        double fk = cc.phi / cc.step;
+        int k0 = (int)floor(fk);
+        pl->weight[1] = (float)(fk - k0);
+        pl->weight[0] = 1.0f - pl->weight[1];
+        pl->n = pl->weight[1] > 0.0f ? 2 : 1;
+        for (s = 0; s < pl->n && r == REFL_OK; ++s) {
+            refl__lem_sample_views(p, &cc, k0 + s, views);
+            r = refl__lem_map_of(p, caster, i, views, cc.per, &lay, maps, &pl->at[s]);
+        }
+    }
+    refl__free(&scene->allocator, spare.object_layer);
+    /* the frame: tessellated for the eye */
+    if (r == REFL_OK) {
+        t1 = refl__now_ms();
+        pl->frame_tess.allocator = scene->allocator;
+        r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &pl->frame_tess);
+        f->stats.rays += pl->frame_tess.rays;
+        f->stats.triangles += pl->frame_tess.triangle_count;
+        f->stats.layered_em.vertices += pl->frame_tess.vertex_count;
+        f->stats.layered_em.ms_trace += pl->frame_tess.ms_trace;
+        pl->ms_tessellate = refl__now_ms() - t1;
+        f->stats.layered_em.ms_tessellate += pl->ms_tessellate - pl->frame_tess.ms_trace;
+    }
+    return r;
+}
+
+/* Lens object i: its plan (refl__lem_plan_of), the eye's tessellation
+   drawn once per map and term, weighed by the blend, added over the base
+   pass. marked: lens pixels left to the tracer (no triangle there, or a
+   path off the maps). */
 static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
                                     uint8_t *marked) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
-    const refl_layered_em_options *o = &p->desc.layered_em;
     refl_frame *f = p->frame;
-    int w = f->width, h = f->height, n = 1, s, k, at[2] = {-1, -1}, term, terms;
+    int w = f->width, h = f->height, s, k, term;
     size_t np = (size_t)w * (size_t)h, px;
-    refl__lem_circle cc;
-    refl__lem_ring spare;
-    refl__lem_layering lay;
+    refl__lem_plan pl;
     refl__lem_draw dr;
-    refl_lens_tess_desc td;
-    refl_lens_tess frame_tess;
-    refl_vec3 box[2], centre;
-    refl_view views[3];
-    float weight[2] = {1.0f, 0.0f}, lens_radius, *color = NULL, *sum = NULL, *depth = NULL;
+    float *color = NULL, *sum = NULL, *depth = NULL;
     uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255), *seen = NULL;
-    refl_result r = REFL_OK;
-    double t0, t1;
-    memset(&frame_tess, 0, sizeof frame_tess);
-    memset(&td, 0, sizeof td);
-    memset(&spare, 0, sizeof spare);
-    td.edge_px = o->edge_px;
-    td.angle_degrees = o->angle_degrees;
-    td.max_interfaces = p->desc.depth;
-    terms = scene->materials[scene->objects[i].material].type == REFL_GLASS ? 2 : 1;
-    refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-    if (!refl__lem_ring_of(p, caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
-        /* on the axis: the eye's own view, one map */
-        views[0] = *p->view;
-        if (r == REFL_OK) r = refl__lem_map_of(p, caster, i, views, 1, &lay, maps, &at[0]);
-    } else {
-        double fk = cc.phi / cc.step;
-        int k0 = (int)floor(fk);
-        weight[1] = (float)(fk - k0);
-        weight[0] = 1.0f - weight[1];
-        n = weight[1] > 0.0f ? 2 : 1;
-        for (s = 0; s < n && r == REFL_OK; ++s) {
-            refl__lem_sample_views(p, &cc, k0 + s, views);
-            r = refl__lem_map_of(p, caster, i, views, cc.per, &lay, maps, &at[s]);
-        }
-    }
-    t0 = refl__now_ms();
+    refl_result r = refl__lem_plan_of(p, caster, i, maps, &pl);
+    double t0 = refl__now_ms() - pl.ms_tessellate, t1;
     color = (float *)refl__calloc(al, 4 * np, sizeof(float));
     sum = (float *)refl__calloc(al, 4 * np, sizeof(float));
     depth = (float *)refl__calloc(al, np, sizeof(float));
     seen = (uint8_t *)refl__calloc(al, np, 1);
-    if (!color || !sum || !depth || !seen) r = REFL_ERROR_OUT_OF_MEMORY;
-    /* the frame: tessellated for the eye, both terms from each map */
-    if (r == REFL_OK) {
-        t1 = refl__now_ms();
-        frame_tess.allocator = *al;
-        r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &frame_tess);
-        f->stats.rays += frame_tess.rays;
-        f->stats.triangles += frame_tess.triangle_count;
-        f->stats.layered_em.vertices += frame_tess.vertex_count;
-        f->stats.layered_em.ms_trace += frame_tess.ms_trace;
-        f->stats.layered_em.ms_tessellate += refl__now_ms() - t1 - frame_tess.ms_trace;
-    }
+    if (r == REFL_OK && (!color || !sum || !depth || !seen)) r = REFL_ERROR_OUT_OF_MEMORY;
     t1 = refl__now_ms();
     /* seen: 1 a triangle covers the pixel, 2 some vertex's path was off the maps */
-    for (s = 0; s < n && r == REFL_OK; ++s)
-        for (term = 0; term < terms && r == REFL_OK; ++term) {
-            const refl__lem_map *m = &maps->maps[at[s]];
+    for (s = 0; s < pl.n && r == REFL_OK; ++s)
+        for (term = 0; term < pl.terms && r == REFL_OK; ++term) {
+            const refl__lem_map *m = &maps->maps[pl.at[s]];
             memset(&dr, 0, sizeof dr);
             dr.layers = m->layers;
             for (k = 0; k < m->layers; ++k) {
                 dr.shell[k] = m->shell[k];
                 dr.map[k] = m->texels[k];
             }
-            dr.weight = weight[s];
+            dr.weight = pl.weight[s];
             dr.term = term;
             dr.record_layer = -1;
-            refl__lem_draw_box(&dr, box);
-            r = refl__lem_raster(p->rc, &frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
+            refl__lem_draw_box(&dr, pl.box);
+            r = refl__lem_raster(p->rc, &pl.frame_tess, p->vp, &dr, color, depth, f->stencil, ref, w, h, al);
             if (s == 0) f->stats.layered_em.quad_misses += dr.quad_misses;
             for (px = 0; px < np && r == REFL_OK; ++px) {
                 float a = color[4 * px + 3];
@@ -17075,13 +17135,12 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     }
     f->stats.layered_em.ms_draw += refl__now_ms() - t1;
     f->stats.ms_reflect += refl__now_ms() - t0;
-    refl__free(al, frame_tess.vertices);
-    refl__free(al, frame_tess.indices);
+    refl__free(al, pl.frame_tess.vertices);
+    refl__free(al, pl.frame_tess.indices);
     refl__free(al, color);
     refl__free(al, sum);
     refl__free(al, depth);
     refl__free(al, seen);
-    refl__free(al, spare.object_layer);
     return r;
 }
 
@@ -17123,6 +17182,69 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl__free(&scene->allocator, marked);
     refl_bvh_destroy(owned);
     return r;
+}
+
+/* refl_renderer_lem_lenses' work (render.c sets the pass up): every lens
+   object the pass draws, planned as a frame plans it (refl__lem_plan_of). */
+static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *count) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    refl_bvh *owned = NULL;
+    refl_ray_caster caster;
+    struct refl__lem_maps own, *maps = NULL;
+    refl_lem_lens *lenses = NULL;
+    int i, s, l, n = 0, lens_count = 0;
+    refl_result r = refl__lem_caster(p, &caster, &owned);
+    *out = NULL;
+    *count = 0;
+    memset(&own, 0, sizeof own);
+    if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
+    if (r == REFL_OK && maps == &own) r = REFL_ERROR_INVALID_ARGUMENT; /* the maps must outlive this call */
+    if (r == REFL_OK) refl__lem_trim(al, maps);
+    for (i = 0; i < scene->object_count; ++i) lens_count += refl__pass_draws(p, i);
+    if (r == REFL_OK && lens_count > 0) {
+        lenses = (refl_lem_lens *)refl__calloc(al, (size_t)lens_count, sizeof *lenses);
+        if (!lenses) r = REFL_ERROR_OUT_OF_MEMORY;
+    }
+    for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
+        refl_lem_lens *ln;
+        refl__lem_plan pl;
+        refl__lem_draw dr;
+        if (!refl__pass_draws(p, i)) continue;
+        ln = &lenses[n++];
+        r = refl__lem_plan_of(p, &caster, i, maps, &pl);
+        ln->tess = pl.frame_tess;
+        if (r != REFL_OK) break;
+        ln->object = i;
+        ln->terms = pl.terms;
+        ln->maps = pl.n;
+        refl__lem_draw_box(&dr, pl.box);
+        ln->box[0] = dr.lens_box[0];
+        ln->box[1] = dr.lens_box[1];
+        for (s = 0; s < pl.n; ++s) {
+            const refl__lem_map *m = &maps->maps[pl.at[s]];
+            ln->weight[s] = pl.weight[s];
+            ln->layers = m->layers;
+            for (l = 0; l < m->layers; ++l) {
+                ln->shell[s][l] = m->shell[l];
+                ln->texels[s][l] = m->texels[l];
+            }
+        }
+    }
+    p->frame->stats.layered_em.maps_held = maps && maps != &own ? maps->count : 0;
+    refl__lem_maps_clear(al, &own);
+    refl_bvh_destroy(owned);
+    if (r != REFL_OK) {
+        for (i = 0; i < n; ++i) {
+            refl__free(al, lenses[i].tess.vertices);
+            refl__free(al, lenses[i].tess.indices);
+        }
+        refl__free(al, lenses);
+        return r;
+    }
+    *out = lenses;
+    *count = n;
+    return REFL_OK;
 }
 
 /* Every viewpoint sample's map of every lens object the pass draws, on
@@ -21726,6 +21848,40 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     if (r == REFL_ERROR_CANCELLED) return refl__cancelled(frame);
     if (r == REFL_OK && rr->desc.progress) rr->desc.progress(rr->desc.progress_user, 1.0f);
     return r;
+}
+
+REFL_API refl_result refl_renderer_lem_lenses(refl_renderer *rr, const refl_view *view, refl_frame *frame,
+                                              refl_lem_lens **out, int *count) {
+    refl__pass p;
+    refl_result r;
+    int i;
+    uint8_t *mine;
+    if (out) *out = NULL;
+    if (count) *count = 0;
+    if (!rr || !view || !frame || !out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
+    if (refl__spp_side(rr->desc.spp) != 1) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__models_current(rr);
+    memset(&frame->stats, 0, sizeof frame->stats);
+    refl__pass_init(&p, rr->scene, view, &rr->desc, frame, rr->rc, &rr->models);
+    mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p.mine = mine;
+    for (i = 0; i < rr->scene->object_count; ++i) mine[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
+    r = refl__lem_lenses(&p, out, count);
+    refl__free(&rr->scene->allocator, mine);
+    return r;
+}
+
+REFL_API void refl_renderer_lem_lenses_free(refl_renderer *rr, refl_lem_lens *lenses, int count) {
+    int i;
+    if (!rr || !lenses) return;
+    for (i = 0; i < count; ++i) {
+        refl__free(&rr->scene->allocator, lenses[i].tess.vertices);
+        refl__free(&rr->scene->allocator, lenses[i].tess.indices);
+    }
+    refl__free(&rr->scene->allocator, lenses);
 }
 
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {

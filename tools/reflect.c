@@ -51,7 +51,7 @@ static const char *const usage_render =
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
     "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC or SBC,\n"
-    "                     one bounce\n"
+    "                     one bounce; LAYERED_EM at its defaults\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -604,8 +604,8 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
-/* --gl: PLANAR, C3RC or SBC through the GL host (one bounce), written as
-   any frame is. */
+/* --gl: PLANAR, C3RC or SBC through the GL host (one bounce), or
+   LAYERED_EM (its defaults), written as any frame is. */
 static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
     rgl_context *g = NULL;
     refl_frame *f = NULL;
@@ -614,8 +614,9 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     float *rgb = NULL;
     char err[1024];
     int code = 1;
-    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC) {
-        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC and SBC only (--method planar, c3rc or sbc)\n");
+    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_LAYERED_EM) {
+        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC and LAYERED_EM only (--method planar, c3rc, sbc or "
+                        "layered-em)\n");
         return 2;
     }
     if (rgl_create(&g, err, sizeof err) != 0) {
@@ -640,10 +641,13 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         goto out;
     }
     if (o->stats)
-        printf("method       %s (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\n%s %d\n"
+        printf("method       %s (GL path, %s)\nrenderer     %s\nsize         %dx%d\n%s %d\n"
                "GL vertices  %lld\nGL ms        %.2f\nCPU ms       %.2f\n",
-               m == REFL_PLANAR ? "planar" : m == REFL_C3RC ? "c3rc" : "sbc", rgl_renderer(g), v->width, v->height,
-               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : "reflectors  ", st.mirrors,
+               refl_method_name(m), m == REFL_LAYERED_EM ? "its defaults" : "one bounce", rgl_renderer(g), v->width,
+               v->height,
+               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SBC ? "reflectors  "
+                                                                                                 : "lenses      ",
+               st.mirrors,
                st.vertices, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
     code = 0;
 out:

@@ -77,11 +77,23 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
    rgl_render_planar: stencil on every mirror and partial reflector (object
    + 1), points where a reflector shows a surface. st->mirrors counts the
    cameras (C3RC) or the reflectors' SBCs. rgl_render dispatches on the
-   method (PLANAR, C3RC, SBC; else nonzero). */
+   method (PLANAR, C3RC, SBC, LAYERED_EM; else nonzero). */
 int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t err_size);
 int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                    rgl_frame_stats *st, char *err, size_t err_size);
+/* LAYERED_EM through GL (tools/reflect_gl_lem.c; docs/gl.md): the CPU's
+   plan of each lens (refl_renderer_lem_lenses, a renderer of
+   rgl_lem_desc's desc: its maps inferred each call), GL's draws of its
+   tessellation through the layers' lookups (the LAYERED_EM shell hook),
+   composited on the CPU as the CPU path does; the pixels it traces taken
+   from RAYTRACE of the same desc. Stencil on every lens (object + 1);
+   st->mirrors counts the lenses, st->traced the pixels traced. */
+int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame,
+                          float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
+/* The desc of the GL path's LAYERED_EM frame (its defaults: depth 6): the
+   CPU frame it compares with. */
+void rgl_lem_desc(refl_render_desc *d);
 int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, const refl_view *view, refl_frame *frame,
                float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
 
@@ -95,8 +107,9 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    every camera's validation on `points` points, GL timed best of
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
-   mirror-room and default, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
-   part of it, NULL all; `scenes` a comma-separated list of built-in
+   mirror-room and default, C3RC and SBC on default, LAYERED_EM on hybrid
+   against its own CPU frame, PSNR only; `methods` "planar,c3rc,sbc,layered-em"
+   or a part of it, NULL all but layered-em; `scenes` a comma-separated list of built-in
    scenes each method runs on instead, "all" every one, NULL or "" each
    method's own) at each size of "WxH,WxH,...", RAYTRACE as the
    truth up to truth_max pixels. Return 0 on success. */

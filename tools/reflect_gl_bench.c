@@ -70,7 +70,8 @@ static double seconds_now(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* A CPU frame of method m (one bounce); NULL on failure. *secs: its time. */
+/* A CPU frame of method m (one bounce; LAYERED_EM as the GL path draws
+   it, rgl_lem_desc); NULL on failure. *secs: its time. */
 static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_method m, double *secs) {
     refl_render_desc d;
     refl_frame *f = NULL;
@@ -78,6 +79,7 @@ static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_metho
     memset(&d, 0, sizeof d);
     d.method = m;
     d.depth = 1;
+    if (m == REFL_LAYERED_EM) rgl_lem_desc(&d);
     if (refl_frame_create(v->width, v->height, NULL, &f) != REFL_OK) return NULL;
     t = seconds_now();
     if (refl_render(s, v, &d, f) != REFL_OK) {
@@ -113,6 +115,7 @@ static const struct {
     {"planar", "mirror-room,default", REFL_PLANAR},
     {"c3rc", "default", REFL_C3RC},
     {"sbc", "default", REFL_SBC},
+    {"layered-em", "hybrid", REFL_LAYERED_EM},
 };
 
 /* Whether method `name` is in the comma-separated list (NULL or empty: all). */
@@ -153,7 +156,8 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
         const char *p = sizes, *scene = scene_buf;
         const char *name = rgl_frame_rows[ri].name;
         refl_method m = rgl_frame_rows[ri].m;
-        if (!rgl_listed(methods, name)) continue;
+        /* (LAYERED_EM infers its maps on the CPU each frame: run when named) */
+        if (!rgl_listed(methods, name) || (m == REFL_LAYERED_EM && !(methods && *methods))) continue;
         while (*p) {
             int w = 0, h = 0;
             refl_scene *s = NULL;
@@ -190,7 +194,10 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
             } else {
                 refl_measure_reflection_error(gf, cf, NULL, &e_gc);
                 psnr = rgl_mirror_psnr(cf, gf, rgb);
-                if ((long long)w * h <= truth_max && (tf = cpu_frame(s, &v, REFL_RAYTRACE, &truth_s))) {
+                /* (LAYERED_EM is compared with its CPU frame alone: its lens pixels show
+                   no point) */
+                if (m != REFL_LAYERED_EM && (long long)w * h <= truth_max &&
+                    (tf = cpu_frame(s, &v, REFL_RAYTRACE, &truth_s))) {
                     refl_measure_reflection_error(gf, tf, NULL, &e_gt);
                     refl_measure_reflection_error(cf, tf, NULL, &e_ct);
                 }
@@ -202,6 +209,8 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                     printf("; points: GL %lld (%lld projected), CPU %lld (%lld projected); traced: GL %lld px, CPU %lld px",
                            st.points, st.projections, cf->stats.c3rc.points, cf->stats.c3rc.projections, st.traced,
                            cf->stats.c3rc.traced);
+                if (m == REFL_LAYERED_EM)
+                    printf("; traced: GL %lld px, CPU %lld px", st.traced, cf->stats.layered_em.traced_pixels);
                 if (m == REFL_PLANAR && st.handed)
                     printf("; %d reflectors to the CPU (%d traced), %lld px", st.handed, st.handed_over, st.traced);
                 if (tf)

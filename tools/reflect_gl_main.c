@@ -37,7 +37,7 @@ int main(int argc, char **argv) {
     if (strcmp(cmd, "info") && strcmp(cmd, "validate") && strcmp(cmd, "bench") && strcmp(cmd, "frames")) {
         fprintf(stderr, "usage: reflect_gl info | validate [--points N] [--csv FILE] |"
                         " bench [--points N] [--repeats R] [--csv FILE] |"
-                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--scenes NAME,...|all]"
+                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc,layered-em] [--scenes NAME,...|all]"
                         " [--truth-max-pixels N] [--csv FILE]\n");
         return 2;
     }

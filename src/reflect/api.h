@@ -1932,6 +1932,38 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    stop (the maps finished so far stay kept). A renderer keeps up to 512
    MiB of maps: past that, a frame drops the oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
+/* LAYERED_EM's frame for a host that draws it itself (the GL path,
+   tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM
+   draws (its desc's method, or its object_methods), what the method's
+   draw takes: the maps of the one or two viewpoint samples the eye lies
+   between, inferred (or kept) as a frame of the renderer infers them,
+   with their blend weights, and the lens tessellated for the view, both
+   greedy paths per vertex. The frame draws each map and term once: per
+   vertex the term's path has a lookup where it left the lens system
+   (exited, fresnel > 0) from inside box and every closed layer's
+   refl_lem_shell_index finds it (a quad missed leaves that layer out
+   there, the index (0, 0, 0)); a fragment composites the layers front to
+   back (refl_lem_shell_sample, the outermost opaque), times the path's
+   F G (0 without a lookup) and the map's weight, the draws added over the
+   base pass. A lens pixel no triangle covers, or where a vertex whose path
+   left has no lookup, is traced. frame (view's size) takes the stats; spp
+   1 only. Free with refl_renderer_lem_lenses_free; the texels are the
+   renderer's, valid until its next frame. */
+typedef struct refl_lem_lens {
+    int object;
+    int terms;               /* 1: the reflected path; 2 (glass): reflected, then refracted */
+    int maps;                /* 1 or 2 */
+    float weight[2];         /* each map's share */
+    int layers;
+    refl_lem_shell shell[2][REFL_LEM_MAX_LAYERS]; /* per map, per layer */
+    const float *texels[2][REFL_LEM_MAX_LAYERS];  /* RGBA per texel, refl_lem_shell_texels' order */
+    refl_vec3 box[2];        /* an exit ray starting outside left through another lens */
+    refl_lens_tess tess;     /* the eye's tessellation */
+} refl_lem_lens;
+REFL_API refl_result refl_renderer_lem_lenses(refl_renderer *renderer, const refl_view *view, refl_frame *frame,
+                                              refl_lem_lens **out, int *count);
+REFL_API void refl_renderer_lem_lenses_free(refl_renderer *renderer, refl_lem_lens *lenses, int count);
+
 
 /* ---- metrics: each method against the ray-traced reference ------------------ */
 

@@ -640,6 +640,7 @@ static refl_result refl__method_layered_em(refl__pass *p);
 /* LAYERED_EM's maps of every viewpoint sample around the pass's eye, for
    the lenses the pass draws, into p->models (refl_renderer_prebuild). */
 static refl_result refl__prebuild_layered_em(refl__pass *p);
+static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *count);
 /* Frees what refl__models keeps of LAYERED_EM (m_layered_em.c). */
 static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps *m);
 static const char *refl__options_layered_em(refl_render_desc *d);

@@ -695,6 +695,40 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *rr, const refl_view *
     return r;
 }
 
+REFL_API refl_result refl_renderer_lem_lenses(refl_renderer *rr, const refl_view *view, refl_frame *frame,
+                                              refl_lem_lens **out, int *count) {
+    refl__pass p;
+    refl_result r;
+    int i;
+    uint8_t *mine;
+    if (out) *out = NULL;
+    if (count) *count = 0;
+    if (!rr || !view || !frame || !out || !count) return REFL_ERROR_INVALID_ARGUMENT;
+    frame->message = "";
+    if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
+    if (refl__spp_side(rr->desc.spp) != 1) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__models_current(rr);
+    memset(&frame->stats, 0, sizeof frame->stats);
+    refl__pass_init(&p, rr->scene, view, &rr->desc, frame, rr->rc, &rr->models);
+    mine = (uint8_t *)refl__calloc(&rr->scene->allocator, (size_t)REFL__MAX(rr->scene->object_count, 1), 1);
+    if (!mine) return REFL_ERROR_OUT_OF_MEMORY;
+    p.mine = mine;
+    for (i = 0; i < rr->scene->object_count; ++i) mine[i] = refl__object_method(&rr->desc, i) == REFL_LAYERED_EM;
+    r = refl__lem_lenses(&p, out, count);
+    refl__free(&rr->scene->allocator, mine);
+    return r;
+}
+
+REFL_API void refl_renderer_lem_lenses_free(refl_renderer *rr, refl_lem_lens *lenses, int count) {
+    int i;
+    if (!rr || !lenses) return;
+    for (i = 0; i < count; ++i) {
+        refl__free(&rr->scene->allocator, lenses[i].tess.vertices);
+        refl__free(&rr->scene->allocator, lenses[i].tess.indices);
+    }
+    refl__free(&rr->scene->allocator, lenses);
+}
+
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     refl_view fine_view;
     refl_result r;
