@@ -1072,8 +1072,11 @@ typedef enum refl_gl_camera {
     REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
-    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
+    REFL_GL_LEM_SHELL = 7,   /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
                                 quad): the lookup of an exit ray, and optionally the maps */
+    REFL_GL_SPOC_IMPOSTOR = 8 /* a SPOC impostor: its SPOC, bounding sphere and depth layers
+                                (colour and gd), marched per fragment (needs REFL_GL_SPOC's
+                                source too) */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1092,6 +1095,10 @@ typedef enum refl_gl_camera {
              the layer's packed map at an interpolated index; int refl_lem_layers(...)
          vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
              (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
+         bool refl_spoc_impostor_intersect(samplerBuffer, int base, vec3 origin, vec3 dir,
+             float tmin, float tmax, float step_scale, out float t, out vec3 point,
+             out vec4 color, out int layer, out int steps): refl_impostor_intersect's
+             march, per fragment
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1109,6 +1116,14 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
 /* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
    (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
+/* A SPOC impostor (imp built with refl_spoc_impostor_camera(cam), so
+   imp->camera.cam == cam): the header (8, version, width, layers),
+   (centre, radius), (depth_tolerance, height, REFL_GL_SPOC_IMPOSTOR_TEXELS,
+   0), cam's 6-texel block, then per layer, nearest first, width x height
+   texels (r, g, b, gd) in rows top first; gd -1 where nothing is stored. */
+#define REFL_GL_SPOC_IMPOSTOR_TEXELS 9 /* the texels before the images */
+REFL_API long long refl_gl_pack_spoc_impostor(const refl_impostor *imp, const refl_spoc *cam, float *out,
+                                              long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 
@@ -10148,6 +10163,39 @@ REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long
     return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
+/* ---- the SPOC impostor ---------------------------------------------------------- */
+
+/* Everything refl_impostor_intersect reads of an impostor whose camera is
+   the SPOC cam: its sphere, tolerance, the camera's block, and per texel
+   colour and gd together (-1: nothing stored, where the C reads alpha 0). */
+static long long refl__gl_spoc_impostor(refl__gl_out *op, const refl_impostor *imp, const refl_spoc *cam) {
+    refl__gl_out o = *op;
+    long long nn, i, spoc;
+    if (!imp || !cam || imp->camera.cam != (const void *)cam || imp->width != cam->size || imp->height != cam->size ||
+        imp->layers < 1 || imp->layers > REFL_IMPOSTOR_MAX_LAYERS || !imp->color || !imp->depth)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    nn = (long long)imp->width * imp->height * imp->layers;
+    if ((double)(REFL_GL_SPOC_IMPOSTOR_TEXELS + nn) >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SPOC_IMPOSTOR, REFL_GL_LAYOUT_VERSION, imp->width, imp->layers);
+    refl__gl_put_v3(&o, imp->camera.center, imp->camera.radius);
+    refl__gl_put4(&o, imp->depth_tolerance, imp->height, REFL_GL_SPOC_IMPOSTOR_TEXELS, 0.0);
+    spoc = refl__gl_spoc(&o, cam);
+    if (spoc < 0) return spoc;
+    o.n = spoc;
+    for (i = 0; i < nn; ++i) {
+        const float *c = imp->color + 4 * i;
+        refl__gl_put4(&o, c[0], c[1], c[2], c[3] > 0.0f ? imp->depth[i] : -1.0);
+    }
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_spoc_impostor(const refl_impostor *imp, const refl_spoc *cam, float *out,
+                                              long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_spoc_impostor(&o, imp, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc_impostor(&o, imp, cam) : need;
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -10747,6 +10795,92 @@ static const char refl__gl_glsl_spoc[] =
     "    return vec4(k.zw + rho * scale, gd, 1.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_spoc_impostor[] =
+    "/* reflect.h GL hook: a SPOC impostor (layout version 1; impostor.c's\n"
+    "   refl_impostor_intersect step for step, in float; needs refl_spoc_project). */\n"
+    "/* The texel of `layer` holding image point uv if it stores a surface, else -1;\n"
+    "   its (r, g, b, gd) in texel. size: width, height, layers. */\n"
+    "int refl_spi_stored(samplerBuffer data, int img, ivec3 size, int layer, vec2 uv, out vec4 texel) {\n"
+    "    vec2 f = floor(uv);\n"
+    "    texel = vec4(0.0, 0.0, 0.0, -1.0);\n"
+    "    if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(size.x) && f.y < float(size.y))) return -1;\n"
+    "    int t = (layer * size.y + int(f.y)) * size.x + int(f.x);\n"
+    "    texel = texelFetch(data, img + t);\n"
+    "    return texel.w >= 0.0 ? t : -1;\n"
+    "}\n"
+    "/* The stored depth's change over one texel beyond cur, continuing from prev. */\n"
+    "float refl_spi_slope(samplerBuffer data, int img, ivec3 size, int layer, vec3 prev, vec3 cur, float gd_cur) {\n"
+    "    vec2 duv = cur.xy - prev.xy;\n"
+    "    float len = length(duv);\n"
+    "    vec4 texel;\n"
+    "    if (!(len > 1e-6)) return 0.0;\n"
+    "    return refl_spi_stored(data, img, size, layer, cur.xy + duv / len, texel) < 0 ? 0.0 : abs(texel.w - gd_cur);\n"
+    "}\n"
+    "bool refl_spoc_impostor_intersect(samplerBuffer data, int base, vec3 o, vec3 dir, float tmin, float tmax,\n"
+    "                                  float step_scale, out float t_hit, out vec3 point, out vec4 color,\n"
+    "                                  out int layer_hit, out int steps) {\n"
+    "    vec4 h = texelFetch(data, base), sph = texelFetch(data, base + 1), k = texelFetch(data, base + 2);\n"
+    "    ivec3 size = ivec3(int(h.z), int(k.y), int(h.w));\n"
+    "    int img = base + int(k.z), cam = base + 3, wtex[4];\n"
+    "    float wd[4], wgd[4];\n"
+    "    t_hit = 0.0; point = vec3(0.0); color = vec4(0.0); layer_hit = -1; steps = 0;\n"
+    /* 1. clip to the bounding sphere */
+    "    vec3 oc = o - sph.xyz;\n"
+    "    float a = dot(dir, dir), b = dot(oc, dir), c = dot(oc, oc) - sph.w * sph.w, disc = b * b - a * c;\n"
+    "    if (!(a > 0.0) || !(disc > 0.0)) return false;\n"
+    "    float sq = sqrt(disc), t0 = max((-b - sq) / a, tmin), t1 = min((-b + sq) / a, tmax);\n"
+    "    if (!(t0 < t1)) return false;\n"
+    /* 2. the projection's length along 4 pieces sets the pieces walked */
+    "    vec3 prev = vec3(0.0), cur;\n"
+    "    float len = 0.0;\n"
+    "    for (int i = 0; i <= 4; ++i) {\n"
+    "        vec4 q = refl_spoc_project(data, cam, o + dir * (t0 + (t1 - t0) * float(i) / 4.0));\n"
+    "        if (q.w == 0.0) return false;\n"
+    "        if (i > 0) len += length(q.xy - prev.xy);\n"
+    "        prev = q.xyz;\n"
+    "    }\n"
+    "    len *= step_scale > 0.0 ? step_scale : 1.0;\n"
+    "    int most = 4 * (size.x + size.y);\n"
+    "    int n = len < 2.0 ? 2 : len > float(most) ? most : int(ceil(len));\n"
+    "    for (int l = 0; l < 4; ++l) { wtex[l] = -1; wd[l] = 0.0; wgd[l] = 1.0; }\n"
+    /* 3. near to far, every layer on the same ends: the first piece that
+          crosses behind a layer (skins excepted), its nearest crossing */
+    "    for (int i = 0; i <= n; ++i) {\n"
+    "        vec4 q = refl_spoc_project(data, cam, o + dir * (t0 + (t1 - t0) * float(i) / float(n)));\n"
+    "        if (q.w == 0.0) return false;\n"
+    "        cur = q.xyz;\n"
+    "        float best = 2.0;\n"
+    "        int best_layer = -1;\n"
+    "        for (int l = 0; l < size.z; ++l) {\n"
+    "            vec4 texel;\n"
+    "            int tex = refl_spi_stored(data, img, size, l, cur.xy, texel);\n"
+    "            float gd = tex >= 0 ? texel.w : 1.0, d = cur.z - gd, f = -1.0;\n"
+    "            if (i > 0 && tex >= 0 && d >= 0.0 && (wtex[l] < 0 || wd[l] < 0.0)) {\n"
+    "                float d0 = prev.z - gd;\n"
+    "                bool farther = wtex[l] >= 0 && gd >= wgd[l];\n"
+    "                if (farther || d0 <= refl_spi_slope(data, img, size, l, prev, cur, gd) + k.x)\n"
+    "                    f = wtex[l] >= 0 ? wd[l] / (wd[l] - d) : d0 < 0.0 ? d0 / (d0 - d) : 0.0;\n"
+    "            }\n"
+    "            wtex[l] = tex; wd[l] = d; wgd[l] = gd;\n"
+    "            if (f >= 0.0 && f < best) { best = f; best_layer = l; }\n"
+    "        }\n"
+    "        if (i > 0) steps = i;\n"
+    "        if (best_layer >= 0) {\n"
+    "            vec4 texel;\n"
+    "            t_hit = t0 + (t1 - t0) * (float(i - 1) + best) / float(n);\n"
+    "            point = o + dir * t_hit;\n"
+    "            vec4 at = refl_spoc_project(data, cam, point);\n"
+    "            if (refl_spi_stored(data, img, size, best_layer, at.w != 0.0 ? at.xy : cur.xy, texel) < 0)\n"
+    "                texel = texelFetch(data, img + wtex[best_layer]);\n"
+    "            color = vec4(texel.rgb, 1.0);\n"
+    "            layer_hit = best_layer;\n"
+    "            return true;\n"
+    "        }\n"
+    "        prev = cur;\n"
+    "    }\n"
+    "    return false;\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -10756,6 +10890,7 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
     case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     case REFL_GL_SPOC: return refl__gl_glsl_spoc;
+    case REFL_GL_SPOC_IMPOSTOR: return refl__gl_glsl_spoc_impostor;
     }
     return NULL;
 }

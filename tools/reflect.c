@@ -50,8 +50,8 @@ static const char *const usage_render =
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
-    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC or SBC,\n"
-    "                     one bounce\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC, SBC or\n"
+    "                     SPOC, one bounce\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -604,7 +604,7 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
-/* --gl: PLANAR, C3RC or SBC through the GL host (one bounce), written as
+/* --gl: PLANAR, C3RC, SBC or SPOC through the GL host (one bounce), written as
    any frame is. */
 static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
     rgl_context *g = NULL;
@@ -614,8 +614,8 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     float *rgb = NULL;
     char err[1024];
     int code = 1;
-    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC) {
-        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC and SBC only (--method planar, c3rc or sbc)\n");
+    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_SPOC) {
+        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC and SPOC only (--method planar, c3rc, sbc or spoc)\n");
         return 2;
     }
     if (rgl_create(&g, err, sizeof err) != 0) {
@@ -642,9 +642,11 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     if (o->stats)
         printf("method       %s (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\n%s %d\n"
                "GL vertices  %lld\nGL ms        %.2f\nCPU ms       %.2f\n",
-               m == REFL_PLANAR ? "planar" : m == REFL_C3RC ? "c3rc" : "sbc", rgl_renderer(g), v->width, v->height,
-               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : "reflectors  ", st.mirrors,
+               refl_method_name(m), rgl_renderer(g), v->width, v->height,
+               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SPOC ? "impostors   " : "reflectors  ", st.mirrors,
                st.vertices, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
+    if (o->stats && m == REFL_SPOC)
+        printf("steps        %lld\nray traced   %lld pixel(s) whose march missed its object\n", st.projections, st.traced);
     code = 0;
 out:
     free(rgb);

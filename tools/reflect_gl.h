@@ -77,11 +77,26 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
    rgl_render_planar: stencil on every mirror and partial reflector (object
    + 1), points where a reflector shows a surface. st->mirrors counts the
    cameras (C3RC) or the reflectors' SBCs. rgl_render dispatches on the
-   method (PLANAR, C3RC, SBC; else nonzero). */
+   method (PLANAR, C3RC, SBC, SPOC; else nonzero). */
 int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t err_size);
 int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                    rgl_frame_stats *st, char *err, size_t err_size);
+/* SPOC through GL (tools/reflect_gl_impostor.c; docs/gl.md): the base
+   pass, then per reflector its SPOC impostors (built on the CPU as the CPU
+   method builds them) marched in a fragment shader
+   (refl_spoc_impostor_intersect) along each pixel's reflected ray, the
+   exact part of the scene and the rays the impostors missed on the CPU.
+   st->mirrors counts the impostors, st->traced the pixels traced,
+   st->projections the march's steps. */
+int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                    rgl_frame_stats *st, char *err, size_t err_size);
+/* The SPOC impostor hook's march (refl_spoc_impostor_intersect, one
+   fragment per ray) against refl_impostor_intersect on `rays` random rays
+   (a fixed seed) from the teapots' mirror teapot, 80% towards the diffuse
+   teapot's impostor: `disagree` rays hit on one side only, max_rel and
+   p999_rel the hit distance's error over the impostor's diameter. */
+int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t err_size);
 int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, const refl_view *view, refl_frame *frame,
                float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
 
@@ -95,7 +110,8 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    every camera's validation on `points` points, GL timed best of
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
-   mirror-room and default, C3RC and SBC on default; `methods` "planar,c3rc,sbc" or a
+   mirror-room and default, C3RC and SBC on default, SPOC on teapots; `methods`
+   "planar,c3rc,sbc,spoc" or a
    part of it, NULL all; `scenes` a comma-separated list of built-in
    scenes each method runs on instead, "all" every one, NULL or "" each
    method's own) at each size of "WxH,WxH,...", RAYTRACE as the

@@ -113,6 +113,7 @@ static const struct {
     {"planar", "mirror-room,default", REFL_PLANAR},
     {"c3rc", "default", REFL_C3RC},
     {"sbc", "default", REFL_SBC},
+    {"spoc", "teapots", REFL_SPOC},
 };
 
 /* Whether method `name` is in the comma-separated list (NULL or empty: all). */
@@ -201,6 +202,9 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                 if (m == REFL_C3RC)
                     printf("; points: GL %lld (%lld projected), CPU %lld (%lld projected)", st.points, st.projections,
                            cf->stats.c3rc.points, cf->stats.c3rc.projections);
+                if (m == REFL_SPOC)
+                    printf("; %d impostors; march steps: GL %lld, CPU %lld; traced: GL %lld px, CPU %lld px", st.mirrors,
+                           st.projections, cf->stats.spoc.steps, st.traced, cf->stats.spoc.traced);
                 if (m == REFL_PLANAR && st.handed)
                     printf("; %d reflectors to the CPU (%d traced), %lld px", st.handed, st.handed_over, st.traced);
                 if (tf)
@@ -213,7 +217,8 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                             st.gl_seconds, st.shade_seconds, cpu_s, e_gc.mean, e_gc.wrong, e_gc.empty, psnr,
                             tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6, st.points,
                             st.projections, m == REFL_C3RC ? cf->stats.c3rc.points : 0,
-                            m == REFL_C3RC ? cf->stats.c3rc.projections : 0, st.traced);
+                            m == REFL_C3RC ? cf->stats.c3rc.projections : m == REFL_SPOC ? cf->stats.spoc.steps : 0,
+                            st.traced);
                 fflush(stdout);
                 if (csv) fflush(csv);
             }
@@ -244,10 +249,11 @@ int rgl_cli_bench(int argc, char **argv) {
         else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc]\n"
+            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc,spoc]\n"
                             "                         [--scenes NAME,...|all] [--points N] [--repeats R]\n"
                             "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
-                            "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default) frames through GL\n"
+                            "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default),\n"
+                            "                     SPOC (teapots) frames through GL\n"
                             "                     against the CPU path (--scenes: every method on these\n"
                             "                     built-in scenes instead)\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;

@@ -616,8 +616,9 @@ int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, cons
     case REFL_PLANAR: return rgl_render_planar(g, scene, view, frame, rgb, st, err, n);
     case REFL_C3RC: return rgl_render_c3rc(g, scene, view, frame, rgb, st, err, n);
     case REFL_SBC: return rgl_render_sbc(g, scene, view, frame, rgb, st, err, n);
+    case REFL_SPOC: return rgl_render_spoc(g, scene, view, frame, rgb, st, err, n);
     default: break;
     }
-    snprintf(err, n, "the GL path draws PLANAR, C3RC and SBC only");
+    snprintf(err, n, "the GL path draws PLANAR, C3RC, SBC and SPOC only");
     return -1;
 }

@@ -5,7 +5,8 @@
    PLANAR hands them over. C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
    within a pixel of the CPU path's, on the default scene and the concave
-   bowl. Skipped, saying why, where no EGL
+   bowl; SPOC through GL (reflect_gl_impostor.c) likewise on the
+   teapots. Skipped, saying why, where no EGL
    device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
@@ -104,4 +105,10 @@ Test(refl_gl_frame, sbc_concave_within_a_pixel_of_cpu, .timeout = 240) {
    CPU as CPU PLANAR does (its tracer), so its reflection is there too. */
 Test(refl_gl_frame, planar_curved_within_a_pixel_of_cpu, .timeout = 120) {
     gl_within_a_pixel_of_cpu("default", REFL_PLANAR, 500);
+}
+
+/* SPOC's impostors marched per fragment (reflect_gl_impostor.c), the
+   exact part and the missed rays on the CPU, on paper 004's teapots. */
+Test(refl_gl_frame, spoc_teapots_within_a_pixel_of_cpu, .timeout = 120) {
+    gl_within_a_pixel_of_cpu("teapots", REFL_SPOC, 500);
 }
