@@ -50,8 +50,8 @@ static const char *const usage_render =
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
-    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC, SBC or\n"
-    "                     SPOC, one bounce\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC, SBC,\n"
+    "                     SPOC or GRAPHCAM, one bounce\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -604,9 +604,11 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
-/* --gl: PLANAR, C3RC, SBC or SPOC through the GL host (one bounce), written as
+/* --gl: PLANAR, C3RC, SBC, SPOC or GRAPHCAM (through gc, NULL: the view's
+   pinhole) through the GL host (one bounce), written as
    any frame is. */
-static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
+static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m,
+                     const refl_graphcam *gc) {
     rgl_context *g = NULL;
     refl_frame *f = NULL;
     rgl_frame_stats st;
@@ -614,8 +616,9 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     float *rgb = NULL;
     char err[1024];
     int code = 1;
-    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_SPOC) {
-        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC and SPOC only (--method planar, c3rc, sbc or spoc)\n");
+    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_SPOC && m != REFL_GRAPHCAM) {
+        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC, SPOC and GRAPHCAM only"
+                        " (--method planar, c3rc, sbc, spoc or graphcam)\n");
         return 2;
     }
     if (rgl_create(&g, err, sizeof err) != 0) {
@@ -627,7 +630,8 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         fprintf(stderr, "reflect: out of memory\n");
         goto out;
     }
-    if (rgl_render(g, m, s, v, f, rgb, &st, err, sizeof err) != 0) {
+    if ((m == REFL_GRAPHCAM ? rgl_render_graphcam(g, s, v, gc, f, rgb, &st, err, sizeof err)
+                            : rgl_render(g, m, s, v, f, rgb, &st, err, sizeof err)) != 0) {
         fprintf(stderr, "reflect: --gl: %s\n", err);
         goto out;
     }
@@ -643,10 +647,10 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         printf("method       %s (GL path, one bounce)\nrenderer     %s\nsize         %dx%d\n%s %d\n"
                "GL vertices  %lld\nGL ms        %.2f\nCPU ms       %.2f\n",
                refl_method_name(m), rgl_renderer(g), v->width, v->height,
-               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SPOC ? "impostors   " : "reflectors  ", st.mirrors,
+               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SPOC ? "impostors   " : m == REFL_GRAPHCAM ? "frusta      " : "reflectors  ", st.mirrors,
                st.vertices, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
-    if (o->stats && m == REFL_SPOC)
-        printf("steps        %lld\nray traced   %lld pixel(s) whose march missed its object\n", st.projections, st.traced);
+    if (o->stats && (m == REFL_SPOC || m == REFL_GRAPHCAM))
+        printf("steps        %lld\nray traced   %lld pixel(s) the impostor could not answer\n", st.projections, st.traced);
     code = 0;
 out:
     free(rgb);
@@ -800,7 +804,7 @@ static int cmd_render(const options *o) {
         d.automatic.models = &auto_models;
     }
     if (o->gl) {
-        code = render_gl(o, s, &v, d.method);
+        code = render_gl(o, s, &v, d.method, d.graphcam.camera);
         goto done;
     }
     ps.bar = isatty(2);

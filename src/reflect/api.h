@@ -1072,9 +1072,11 @@ typedef enum refl_gl_camera {
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
     REFL_GL_LEM_SHELL = 7,   /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
                                 quad): the lookup of an exit ray, and optionally the maps */
-    REFL_GL_SPOC_IMPOSTOR = 8 /* a SPOC impostor: its SPOC, bounding sphere and depth layers
+    REFL_GL_SPOC_IMPOSTOR = 8, /* a SPOC impostor: its SPOC, bounding sphere and depth layers
                                 (colour and gd), marched per fragment (needs REFL_GL_SPOC's
                                 source too) */
+    REFL_GL_GRAPHCAM_IMPOSTOR = 9 /* a graph camera's impostor: the camera, its bounds, colour,
+                                frustum id and gd per pixel, marched per fragment (algorithm 2) */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1097,6 +1099,12 @@ typedef enum refl_gl_camera {
              float tmin, float tmax, float step_scale, out float t, out vec3 point,
              out vec4 color, out int layer, out int steps): refl_impostor_intersect's
              march, per fragment
+         bool refl_graphcam_impostor_intersect(samplerBuffer, int base, vec3 origin, vec3 dir,
+             float tmin, float tmax, float step, out float t, out vec3 point, out vec3 color,
+             out int frustum, out float behind, out int steps): refl_graphcam_intersect with
+             REFL_GRAPHCAM_SEGMENTS per fragment; behind: the smallest t before the hit (any,
+             without one) where the ray passed behind a surface by more than its thickness
+             estimate (what the method hands to its tracer), 3.4e38 where none
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1122,6 +1130,16 @@ REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long
 #define REFL_GL_SPOC_IMPOSTOR_TEXELS 9 /* the texels before the images */
 REFL_API long long refl_gl_pack_spoc_impostor(const refl_impostor *imp, const refl_spoc *cam, float *out,
                                               long long cap);
+/* A graph camera's impostor (imp built with refl_graphcam_impostor_build
+   from cam): the header (9, version, width, height), (bounds' low corner,
+   the colour plane's offset), (bounds' high corner, the depth plane's
+   offset), cam's block (refl_gl_pack_graphcam) at texel
+   REFL_GL_GRAPHCAM_IMPOSTOR_CAMERA, the colour plane: per pixel (r, g, b,
+   frustum + 1, 0 where none) in rows top first, then the depth plane: gd
+   per pixel, 4 pixels a texel. */
+#define REFL_GL_GRAPHCAM_IMPOSTOR_CAMERA 3
+REFL_API long long refl_gl_pack_graphcam_impostor(const refl_graphcam *cam, const refl_graphcam_impostor *imp,
+                                                  float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 

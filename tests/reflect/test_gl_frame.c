@@ -5,8 +5,8 @@
    PLANAR hands them over. C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
    within a pixel of the CPU path's, on the default scene and the concave
-   bowl; SPOC through GL (reflect_gl_impostor.c) likewise on the
-   teapots. Skipped, saying why, where no EGL
+   bowl; SPOC and GRAPHCAM through GL (reflect_gl_impostor.c) likewise
+   on the teapots (SPOC), the maze and the default scene (GRAPHCAM). Skipped, saying why, where no EGL
    device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
@@ -52,22 +52,27 @@ Test(refl_gl_frame, planar_matches_cpu, .timeout = 120) {
 /* Method m through GL and on the CPU, both measured against one-bounce
    RAYTRACE on built-in scene `scene` at 160 x 120: the GL frame's mean
    reflection error within 1 px of the CPU frame's, with most reflector
-   pixels matched. */
-static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
+   pixels matched. GRAPHCAM draws with graph camera `gc` on both paths
+   (NULL: the view's pinhole). */
+static void gl_graphcam_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched,
+                                              const refl_graphcam *gc) {
     refl_view v;
     refl_scene *s = tu_refl_builtin(scene, &v, 160, 120);
     refl_render_desc d = tu_refl_one_bounce(m, 2), dt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
-    refl_frame *cpu = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
+    refl_frame *cpu, *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
     refl_reflection_error eg, ec;
     rgl_frame_stats st;
     rgl_context *g = tu_gl_context("test_gl_frame");
     float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
     char err[1024];
     int r;
+    d.graphcam.camera = gc;
+    cpu = tu_refl_render(s, &v, &d);
     cr_assert_not_null(rgb);
     cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
     LSAN_OFF();
-    r = rgl_render(g, m, s, &v, gl, rgb, &st, err, sizeof err);
+    r = m == REFL_GRAPHCAM ? rgl_render_graphcam(g, s, &v, gc, gl, rgb, &st, err, sizeof err)
+                           : rgl_render(g, m, s, &v, gl, rgb, &st, err, sizeof err);
     rgl_destroy(g);
     LSAN_ON();
     cr_assert_eq(r, 0, "%s", err);
@@ -85,6 +90,10 @@ static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long
     refl_frame_destroy(truth);
     refl_frame_destroy(cpu);
     refl_scene_destroy(s);
+}
+
+static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
+    gl_graphcam_within_a_pixel_of_cpu(scene, m, min_matched, NULL);
 }
 
 Test(refl_gl_frame, c3rc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_C3RC, 500); }
@@ -111,4 +120,19 @@ Test(refl_gl_frame, planar_curved_within_a_pixel_of_cpu, .timeout = 120) {
    exact part and the missed rays on the CPU, on paper 004's teapots. */
 Test(refl_gl_frame, spoc_teapots_within_a_pixel_of_cpu, .timeout = 120) {
     gl_within_a_pixel_of_cpu("teapots", REFL_SPOC, 500);
+}
+
+/* GRAPHCAM's impostor marched per fragment (reflect_gl_impostor.c): the
+   maze through its graph camera (15 frusta, 960 x 588), and the default
+   scene through the view's pinhole. */
+Test(refl_gl_frame, graphcam_maze_within_a_pixel_of_cpu, .timeout = 120) {
+    refl_graphcam *cam = malloc(sizeof *cam);
+    cr_assert_not_null(cam);
+    cr_assert_eq(refl_graphcam_maze(cam, 960, 588), REFL_OK);
+    gl_graphcam_within_a_pixel_of_cpu("maze", REFL_GRAPHCAM, 500, cam);
+    free(cam);
+}
+
+Test(refl_gl_frame, graphcam_within_a_pixel_of_cpu, .timeout = 120) {
+    gl_within_a_pixel_of_cpu("default", REFL_GRAPHCAM, 500);
 }
