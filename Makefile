@@ -424,7 +424,8 @@ $(REFLECT_BIN): $(REFLECT_OBJS) $(REFLECT_BENCH_OBJS) $(REFLECT_TOOLS_OBJS) $(IM
 # host too.
 REFLECT_GL_BIN  = build/bin/reflect_gl
 REFLECT_GL_OBJS = build/tools/reflect_gl.o build/tools/reflect_gl_frame.o build/tools/reflect_gl_bench.o \
-                  build/tools/reflect_gl_c3rc.o build/tools/reflect_gl_sbc.o build/tools/reflect_gl_lem.o
+                  build/tools/reflect_gl_c3rc.o build/tools/reflect_gl_sbc.o build/tools/reflect_gl_impostor.o \
+                  build/tools/reflect_gl_lem.o
 ASAN_GL_OBJS    = $(patsubst build/%,build/asan/%,$(REFLECT_GL_OBJS))
 EGL_LIBS        = -lEGL
 

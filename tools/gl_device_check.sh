@@ -100,8 +100,8 @@ timeout -k 5 240 "$BIN" frames --sizes "$SIZES" --methods planar,c3rc,sbc \
   --truth-max-pixels 307200 --csv "$OUT/frames.csv" >"$OUT/frames.txt" 2>&1 || status=1
 cat "$OUT/frames.txt"
 
-echo "=== scenes: PLANAR, C3RC and SBC on every built-in scene at $SCENE_SIZE, GL and CPU against RAYTRACE"
-timeout -k 5 120 "$BIN" frames --sizes "$SCENE_SIZE" --methods planar,c3rc,sbc --scenes all \
+echo "=== scenes: PLANAR, C3RC, SBC, SPOC and GRAPHCAM on every built-in scene at $SCENE_SIZE, GL and CPU against RAYTRACE"
+timeout -k 5 180 "$BIN" frames --sizes "$SCENE_SIZE" --methods planar,c3rc,sbc,spoc,graphcam --scenes all \
   --csv "$OUT/scenes.csv" >"$OUT/scenes.txt" 2>&1 || status=1
 cat "$OUT/scenes.txt"
 
@@ -128,7 +128,7 @@ fi
   echo "--- frames: GL frame against the CPU path (C3RC against the paper's 48-650 ms)"
   grep -E "^(planar|c3rc|sbc) " "$OUT/frames.txt"
   echo "--- every built-in scene at $SCENE_SIZE: mean reflection error against RAYTRACE, GL and CPU"
-  grep -E "^(planar|c3rc|sbc) " "$OUT/scenes.txt" | sed -E 's/ cameras:.*vs RAYTRACE:/:/'
+  grep -E "^(planar|c3rc|sbc|spoc|graphcam) " "$OUT/scenes.txt" | sed -E 's/ cameras:.*vs RAYTRACE:/:/'
   echo "--- Embree and our BVH at the same sizes (default scene; embree/sbc_resolution.csv)"
   if [ -f "$OUT/embree/sbc_resolution.csv" ]; then cat "$OUT/embree/sbc_resolution.csv"; else cat "$OUT/embree.txt"; fi
 } >"$OUT/summary.txt" 2>&1

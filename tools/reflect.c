@@ -50,8 +50,8 @@ static const char *const usage_render =
     "  --depth N          reflection / refraction bounces (default 6)\n"
     "  --spp N            samples per pixel, a square 1..64 (default 1): each pixel the\n"
     "                     mean of sqrt(N) x sqrt(N) samples\n"
-    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC or SBC,\n"
-    "                     one bounce; LAYERED_EM at its defaults\n"
+    "  --gl               draw through GL (headless EGL, docs/gl.md): PLANAR, C3RC, SBC,\n"
+    "                     SPOC or GRAPHCAM, one bounce; LAYERED_EM at its defaults\n"
     "  --shadows          hard shadows from every light\n"
     "  --soft-shadows N   soft shadows: N samples of every light (with --shadows)\n"
     "  --light-radius R   give every light this radius (directional: radians)\n"
@@ -604,9 +604,11 @@ static refl_result write_frame(const char *path, const refl_frame *f, const refl
     return r;
 }
 
-/* --gl: PLANAR, C3RC or SBC through the GL host (one bounce), or
-   LAYERED_EM (its defaults), written as any frame is. */
-static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m) {
+/* --gl: PLANAR, C3RC, SBC, SPOC or GRAPHCAM (through gc, NULL: the view's
+   pinhole) through the GL host (one bounce), or LAYERED_EM (its
+   defaults), written as any frame is. */
+static int render_gl(const options *o, const refl_scene *s, const refl_view *v, refl_method m,
+                     const refl_graphcam *gc) {
     rgl_context *g = NULL;
     refl_frame *f = NULL;
     rgl_frame_stats st;
@@ -614,9 +616,10 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
     float *rgb = NULL;
     char err[1024];
     int code = 1;
-    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_LAYERED_EM) {
-        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC and LAYERED_EM only (--method planar, c3rc, sbc or "
-                        "layered-em)\n");
+    if (m != REFL_PLANAR && m != REFL_C3RC && m != REFL_SBC && m != REFL_SPOC && m != REFL_GRAPHCAM &&
+        m != REFL_LAYERED_EM) {
+        fprintf(stderr, "reflect: --gl draws PLANAR, C3RC, SBC, SPOC, GRAPHCAM and LAYERED_EM only"
+                        " (--method planar, c3rc, sbc, spoc, graphcam or layered-em)\n");
         return 2;
     }
     if (rgl_create(&g, err, sizeof err) != 0) {
@@ -628,7 +631,8 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
         fprintf(stderr, "reflect: out of memory\n");
         goto out;
     }
-    if (rgl_render(g, m, s, v, f, rgb, &st, err, sizeof err) != 0) {
+    if ((m == REFL_GRAPHCAM ? rgl_render_graphcam(g, s, v, gc, f, rgb, &st, err, sizeof err)
+                            : rgl_render(g, m, s, v, f, rgb, &st, err, sizeof err)) != 0) {
         fprintf(stderr, "reflect: --gl: %s\n", err);
         goto out;
     }
@@ -645,10 +649,10 @@ static int render_gl(const options *o, const refl_scene *s, const refl_view *v, 
                "GL vertices  %lld\nGL ms        %.2f\nCPU ms       %.2f\n",
                refl_method_name(m), m == REFL_LAYERED_EM ? "its defaults" : "one bounce", rgl_renderer(g), v->width,
                v->height,
-               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SBC ? "reflectors  "
-                                                                                                 : "lenses      ",
-               st.mirrors,
+               m == REFL_PLANAR ? "mirrors     " : m == REFL_C3RC ? "cameras     " : m == REFL_SPOC ? "impostors   " : m == REFL_GRAPHCAM ? "frusta      " : m == REFL_LAYERED_EM ? "lenses      " : "reflectors  ", st.mirrors,
                st.vertices, 1e3 * st.gl_seconds, 1e3 * st.shade_seconds);
+    if (o->stats && (m == REFL_SPOC || m == REFL_GRAPHCAM))
+        printf("steps        %lld\nray traced   %lld pixel(s) the impostor could not answer\n", st.projections, st.traced);
     code = 0;
 out:
     free(rgb);
@@ -802,7 +806,7 @@ static int cmd_render(const options *o) {
         d.automatic.models = &auto_models;
     }
     if (o->gl) {
-        code = render_gl(o, s, &v, d.method);
+        code = render_gl(o, s, &v, d.method, d.graphcam.camera);
         goto done;
     }
     ps.bar = isatty(2);

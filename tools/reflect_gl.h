@@ -77,11 +77,43 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
    rgl_render_planar: stencil on every mirror and partial reflector (object
    + 1), points where a reflector shows a surface. st->mirrors counts the
    cameras (C3RC) or the reflectors' SBCs. rgl_render dispatches on the
-   method (PLANAR, C3RC, SBC, LAYERED_EM; else nonzero). */
+   method (PLANAR, C3RC, SBC, SPOC, GRAPHCAM, LAYERED_EM; else nonzero). */
 int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t err_size);
 int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                    rgl_frame_stats *st, char *err, size_t err_size);
+/* SPOC through GL (tools/reflect_gl_impostor.c; docs/gl.md): the base
+   pass, then per reflector its SPOC impostors (built on the CPU as the CPU
+   method builds them) marched in a fragment shader
+   (refl_spoc_impostor_intersect) along each pixel's reflected ray, the
+   exact part of the scene and the rays the impostors missed on the CPU.
+   st->mirrors counts the impostors, st->traced the pixels traced,
+   st->projections the march's steps. */
+int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                    rgl_frame_stats *st, char *err, size_t err_size);
+/* GRAPHCAM through GL (tools/reflect_gl_impostor.c; docs/gl.md): the base
+   pass, the graph camera's impostor (built on the CPU as the CPU method
+   builds it; camera NULL: the view's pinhole at twice the frame's width,
+   the CPU method's default) marched in a fragment shader along each
+   reflector pixel's reflected ray (refl_graphcam_impostor_intersect,
+   algorithm 2, 1 px a step), the billboards and the rays the impostor
+   cannot answer on the CPU. st->mirrors counts the frusta, st->traced
+   the pixels traced, st->projections the march's steps. rgl_render draws
+   GRAPHCAM with camera NULL. */
+int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view *view, const refl_graphcam *camera,
+                        refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
+/* The SPOC impostor hook's march (refl_spoc_impostor_intersect, one
+   fragment per ray) against refl_impostor_intersect on `rays` random rays
+   (a fixed seed) from the teapots' mirror teapot, 80% towards the diffuse
+   teapot's impostor: `disagree` rays hit on one side only, max_rel and
+   p999_rel the hit distance's error over the impostor's diameter. */
+int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t err_size);
+/* The graph camera impostor hook's march (refl_graphcam_impostor_intersect)
+   against refl_graphcam_intersect (segments, 1 px a step) on `rays`
+   random rays (a fixed seed) from around the maze's mirror sphere, the
+   maze's camera at 960 x 588: max_rel and p999_rel the hit distance's
+   error over the camera's bounds' diagonal. */
+int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t err_size);
 /* LAYERED_EM through GL (tools/reflect_gl_lem.c; docs/gl.md): the CPU's
    plan of each lens (refl_renderer_lem_lenses, a renderer of
    rgl_lem_desc's desc: its maps inferred each call), GL's draws of its
@@ -107,9 +139,11 @@ double rgl_mirror_psnr(const refl_frame *cpu, const refl_frame *gl, const float 
    every camera's validation on `points` points, GL timed best of
    `repeats` (check: nonzero when one fails rgl_validation_ok).
    rgl_bench_frames: frames through GL against the CPU path (PLANAR on
-   mirror-room and default, C3RC and SBC on default, LAYERED_EM on hybrid
-   against its own CPU frame, PSNR only; `methods` "planar,c3rc,sbc,layered-em"
-   or a part of it, NULL all but layered-em; `scenes` a comma-separated list of built-in
+   mirror-room and default, C3RC and SBC on default, SPOC on teapots, GRAPHCAM on
+   maze (its graph camera, 1920 x 1176) and default (the view's pinhole),
+   LAYERED_EM on hybrid against its own CPU frame, PSNR only; `methods`
+   "planar,c3rc,sbc,spoc,graphcam,layered-em" or a part of it, NULL all but
+   layered-em; `scenes` a comma-separated list of built-in
    scenes each method runs on instead, "all" every one, NULL or "" each
    method's own) at each size of "WxH,WxH,...", RAYTRACE as the
    truth up to truth_max pixels. Return 0 on success. */

@@ -70,15 +70,18 @@ static double seconds_now(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* A CPU frame of method m (one bounce; LAYERED_EM as the GL path draws
-   it, rgl_lem_desc); NULL on failure. *secs: its time. */
-static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_method m, double *secs) {
+/* A CPU frame of method m (one bounce; GRAPHCAM through graph camera gc,
+   NULL: the view's pinhole; LAYERED_EM as the GL path draws it,
+   rgl_lem_desc); NULL on failure. *secs: its time. */
+static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_method m, const refl_graphcam *gc,
+                             double *secs) {
     refl_render_desc d;
     refl_frame *f = NULL;
     double t;
     memset(&d, 0, sizeof d);
     d.method = m;
     d.depth = 1;
+    d.graphcam.camera = gc;
     if (m == REFL_LAYERED_EM) rgl_lem_desc(&d);
     if (refl_frame_create(v->width, v->height, NULL, &f) != REFL_OK) return NULL;
     t = seconds_now();
@@ -92,12 +95,14 @@ static refl_frame *cpu_frame(const refl_scene *s, const refl_view *v, refl_metho
 
 /* The GL frame, best of three where one takes under a second (the first
    compiles llvmpipe's shader variants). */
-static int rgl_render_best(rgl_context *g, refl_method m, const refl_scene *s, const refl_view *v, refl_frame *f,
-                           float *rgb, rgl_frame_stats *st, char *err, size_t n) {
+static int rgl_render_best(rgl_context *g, refl_method m, const refl_graphcam *gc, const refl_scene *s,
+                           const refl_view *v, refl_frame *f, float *rgb, rgl_frame_stats *st, char *err, size_t n) {
     rgl_frame_stats best;
     int k;
     for (k = 0; k < 3; ++k) {
-        if (rgl_render(g, m, s, v, f, rgb, st, err, n) != 0) return -1;
+        if ((m == REFL_GRAPHCAM ? rgl_render_graphcam(g, s, v, gc, f, rgb, st, err, n)
+                                : rgl_render(g, m, s, v, f, rgb, st, err, n)) != 0)
+            return -1;
         if (k == 0 || st->gl_seconds + st->shade_seconds < best.gl_seconds + best.shade_seconds) best = *st;
         if (best.gl_seconds + best.shade_seconds > 1.0) break;
     }
@@ -115,6 +120,8 @@ static const struct {
     {"planar", "mirror-room,default", REFL_PLANAR},
     {"c3rc", "default", REFL_C3RC},
     {"sbc", "default", REFL_SBC},
+    {"spoc", "teapots", REFL_SPOC},
+    {"graphcam", "maze,default", REFL_GRAPHCAM},
     {"layered-em", "hybrid", REFL_LAYERED_EM},
 };
 
@@ -144,6 +151,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                      FILE *csv) {
     int ri, si, failed = 0;
     char scene_buf[64];
+    refl_graphcam *gc = NULL; /* the maze's, made when first needed */
     if (scenes && !strcmp(scenes, "all")) scenes = rgl_all_scenes;
     if (csv)
         fprintf(csv, "renderer,scene,method,width,height,cameras,gl_frame_s,gl_draw_s,cpu_share_s,cpu_method_s,"
@@ -185,10 +193,19 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
             memset(&e_ct, 0, sizeof e_ct);
             rgb = (float *)malloc((size_t)w * h * 3 * sizeof(float));
             if (!rgb || refl_frame_create(w, h, NULL, &gf) != REFL_OK) return 1;
-            if (rgl_render_best(g, m, s, &v, gf, rgb, &st, err, sizeof err) != 0) {
+            /* GRAPHCAM on the maze: its graph camera at the paper's 1920 x 1176 */
+            if (m == REFL_GRAPHCAM && !strcmp(scene, "maze") && !gc &&
+                (!(gc = (refl_graphcam *)malloc(sizeof *gc)) || refl_graphcam_maze(gc, 0, 0) != REFL_OK)) {
+                free(rgb);
+                free(gc);
+                refl_frame_destroy(gf);
+                refl_scene_destroy(s);
+                return 1;
+            }
+            if (rgl_render_best(g, m, strcmp(scene, "maze") ? NULL : gc, s, &v, gf, rgb, &st, err, sizeof err) != 0) {
                 fprintf(stderr, "reflect_gl: %s %s %dx%d: %s\n", name, scene, w, h, err);
                 failed = 1;
-            } else if (!(cf = cpu_frame(s, &v, m, &cpu_s))) {
+            } else if (!(cf = cpu_frame(s, &v, m, strcmp(scene, "maze") ? NULL : gc, &cpu_s))) {
                 fprintf(stderr, "reflect_gl: the CPU %s frame failed\n", name);
                 failed = 1;
             } else {
@@ -197,7 +214,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                 /* (LAYERED_EM is compared with its CPU frame alone: its lens pixels show
                    no point) */
                 if (m != REFL_LAYERED_EM && (long long)w * h <= truth_max &&
-                    (tf = cpu_frame(s, &v, REFL_RAYTRACE, &truth_s))) {
+                    (tf = cpu_frame(s, &v, REFL_RAYTRACE, NULL, &truth_s))) {
                     refl_measure_reflection_error(gf, tf, NULL, &e_gt);
                     refl_measure_reflection_error(cf, tf, NULL, &e_ct);
                 }
@@ -211,6 +228,12 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                            cf->stats.c3rc.traced);
                 if (m == REFL_LAYERED_EM)
                     printf("; traced: GL %lld px, CPU %lld px", st.traced, cf->stats.layered_em.traced_pixels);
+                if (m == REFL_SPOC)
+                    printf("; %d impostors; march steps: GL %lld, CPU %lld; traced: GL %lld px, CPU %lld px", st.mirrors,
+                           st.projections, cf->stats.spoc.steps, st.traced, cf->stats.spoc.traced);
+                if (m == REFL_GRAPHCAM)
+                    printf("; %d frusta; march steps: GL %lld, CPU %lld; traced: GL %lld px, CPU %lld px", st.mirrors,
+                           st.projections, cf->stats.graphcam.steps, st.traced, cf->stats.graphcam.traced);
                 if (m == REFL_PLANAR && st.handed)
                     printf("; %d reflectors to the CPU (%d traced), %lld px", st.handed, st.handed_over, st.traced);
                 if (tf)
@@ -223,7 +246,10 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
                             st.gl_seconds, st.shade_seconds, cpu_s, e_gc.mean, e_gc.wrong, e_gc.empty, psnr,
                             tf ? e_gt.mean : NAN, tf ? e_ct.mean : NAN, st.vertices / st.gl_seconds * 1e-6, st.points,
                             st.projections, m == REFL_C3RC ? cf->stats.c3rc.points : 0,
-                            m == REFL_C3RC ? cf->stats.c3rc.projections : 0, st.traced);
+                            m == REFL_C3RC ? cf->stats.c3rc.projections : m == REFL_SPOC       ? cf->stats.spoc.steps
+                            : m == REFL_GRAPHCAM ? cf->stats.graphcam.steps
+                                                 : 0,
+                            st.traced);
                 fflush(stdout);
                 if (csv) fflush(csv);
             }
@@ -234,6 +260,7 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
             refl_scene_destroy(s);
         }
     }
+    free(gc);
     return failed;
 }
 
@@ -254,10 +281,11 @@ int rgl_cli_bench(int argc, char **argv) {
         else if (!strcmp(argv[i], "--points") && i + 1 < argc) points = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--repeats") && i + 1 < argc) repeats = atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc]\n"
+            fprintf(stderr, "usage: reflect bench --gl [--out DIR] [--sizes WxH,...] [--methods planar,c3rc,sbc,spoc,graphcam]\n"
                             "                         [--scenes NAME,...|all] [--points N] [--repeats R]\n"
                             "  DIR/gl_projection.csv: every camera's projection rate, GLSL beside C\n"
-                            "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default) frames through GL\n"
+                            "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default),\n"
+                            "                     SPOC (teapots), GRAPHCAM (maze, default) frames through GL\n"
                             "                     against the CPU path (--scenes: every method on these\n"
                             "                     built-in scenes instead)\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;

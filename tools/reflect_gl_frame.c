@@ -636,9 +636,11 @@ int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, cons
     case REFL_PLANAR: return rgl_render_planar(g, scene, view, frame, rgb, st, err, n);
     case REFL_C3RC: return rgl_render_c3rc(g, scene, view, frame, rgb, st, err, n);
     case REFL_SBC: return rgl_render_sbc(g, scene, view, frame, rgb, st, err, n);
+    case REFL_SPOC: return rgl_render_spoc(g, scene, view, frame, rgb, st, err, n);
+    case REFL_GRAPHCAM: return rgl_render_graphcam(g, scene, view, NULL, frame, rgb, st, err, n);
     case REFL_LAYERED_EM: return rgl_render_layered_em(g, scene, view, frame, rgb, st, err, n);
     default: break;
     }
-    snprintf(err, n, "the GL path draws PLANAR, C3RC, SBC and LAYERED_EM only");
+    snprintf(err, n, "the GL path draws PLANAR, C3RC, SBC, SPOC, GRAPHCAM and LAYERED_EM only");
     return -1;
 }

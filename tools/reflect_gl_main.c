@@ -9,9 +9,11 @@
                                         they disagree beyond the bounds of docs/gl.md
      reflect_gl bench [--points N] [--repeats R] [--csv FILE]
                                         projection rate of every camera, GL beside C
-     reflect_gl frames [--sizes WxH,...] [--methods planar,c3rc,sbc] [--scenes NAME,...|all]
+     reflect_gl frames [--sizes WxH,...] [--methods planar,c3rc,sbc,spoc,graphcam] [--scenes NAME,...|all]
                        [--truth-max-pixels N] [--csv FILE]
                                         PLANAR (mirror-room, default), C3RC and SBC (default),
+                                        SPOC (teapots), GRAPHCAM (maze: its graph
+                                        camera; default: the view's pinhole),
                                         or each on the built-in scenes listed, through GL
                                         against the CPU path (reflection error, PSNR
                                         over reflector pixels, frame times); RAYTRACE
@@ -37,7 +39,7 @@ int main(int argc, char **argv) {
     if (strcmp(cmd, "info") && strcmp(cmd, "validate") && strcmp(cmd, "bench") && strcmp(cmd, "frames")) {
         fprintf(stderr, "usage: reflect_gl info | validate [--points N] [--csv FILE] |"
                         " bench [--points N] [--repeats R] [--csv FILE] |"
-                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc,layered-em] [--scenes NAME,...|all]"
+                        " frames [--sizes WxH,...] [--methods planar,c3rc,sbc,spoc,graphcam,layered-em] [--scenes NAME,...|all]"
                         " [--truth-max-pixels N] [--csv FILE]\n");
         return 2;
     }

@@ -1070,8 +1070,13 @@ typedef enum refl_gl_camera {
     REFL_GL_SPOC = 5,        /* one SPOC: its pinhole frame, focal length, push and ramp */
     REFL_GL_SBC_MORPH = 6,   /* an SBC morph grid's tetrahedron for one eye and piece: its four
                                 nodes' face SBCs, blended (needs REFL_GL_SBC's source too) */
-    REFL_GL_LEM_SHELL = 7    /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
+    REFL_GL_LEM_SHELL = 7,   /* a LAYERED_EM lens's layers' shells (sphere, cylinder, box,
                                 quad): the lookup of an exit ray, and optionally the maps */
+    REFL_GL_SPOC_IMPOSTOR = 8, /* a SPOC impostor: its SPOC, bounding sphere and depth layers
+                                (colour and gd), marched per fragment (needs REFL_GL_SPOC's
+                                source too) */
+    REFL_GL_GRAPHCAM_IMPOSTOR = 9 /* a graph camera's impostor: the camera, its bounds, colour,
+                                frustum id and gd per pixel, marched per fragment (algorithm 2) */
 } refl_gl_camera;
 /* GLSL: vec4 refl_mirror_project(samplerBuffer, int base, vec3 p, out float clip_distance)
          int refl_c3rc_project(samplerBuffer, int base, int cam, vec3 p, out vec4 proj[3])
@@ -1090,6 +1095,16 @@ typedef enum refl_gl_camera {
              the layer's packed map at an interpolated index; int refl_lem_layers(...)
          vec4 refl_spoc_project(samplerBuffer, int base, vec3 p)
              (u, v, gd, 1) as refl_spoc_project, u, v in pixels; 0 where p is not in front
+         bool refl_spoc_impostor_intersect(samplerBuffer, int base, vec3 origin, vec3 dir,
+             float tmin, float tmax, float step_scale, out float t, out vec3 point,
+             out vec4 color, out int layer, out int steps): refl_impostor_intersect's
+             march, per fragment
+         bool refl_graphcam_impostor_intersect(samplerBuffer, int base, vec3 origin, vec3 dir,
+             float tmin, float tmax, float step, out float t, out vec3 point, out vec3 color,
+             out int frustum, out float behind, out int steps): refl_graphcam_intersect with
+             REFL_GRAPHCAM_SEGMENTS per fragment; behind: the smallest t before the hit (any,
+             without one) where the ray passed behind a surface by more than its thickness
+             estimate (what the method hands to its tracer), 3.4e38 where none
    NULL for an unknown camera. */
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera);
 /* The mirror plane n . x = d (n towards the mirror's front; need not be
@@ -1107,6 +1122,24 @@ REFL_API long long refl_gl_pack_sbc_morph(const refl_sbc_morph *morph, refl_vec3
 /* 6 texels: the header, (eye, focal), (right, ramp), (up, delta_max),
    (forward, 0), (1/znear, 1/zfar, pole u, pole v). */
 REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long cap);
+/* A SPOC impostor (imp built with refl_spoc_impostor_camera(cam), so
+   imp->camera.cam == cam): the header (8, version, width, layers),
+   (centre, radius), (depth_tolerance, height, REFL_GL_SPOC_IMPOSTOR_TEXELS,
+   0), cam's 6-texel block, then per layer, nearest first, width x height
+   texels (r, g, b, gd) in rows top first; gd -1 where nothing is stored. */
+#define REFL_GL_SPOC_IMPOSTOR_TEXELS 9 /* the texels before the images */
+REFL_API long long refl_gl_pack_spoc_impostor(const refl_impostor *imp, const refl_spoc *cam, float *out,
+                                              long long cap);
+/* A graph camera's impostor (imp built with refl_graphcam_impostor_build
+   from cam): the header (9, version, width, height), (bounds' low corner,
+   the colour plane's offset), (bounds' high corner, the depth plane's
+   offset), cam's block (refl_gl_pack_graphcam) at texel
+   REFL_GL_GRAPHCAM_IMPOSTOR_CAMERA, the colour plane: per pixel (r, g, b,
+   frustum + 1, 0 where none) in rows top first, then the depth plane: gd
+   per pixel, 4 pixels a texel. */
+#define REFL_GL_GRAPHCAM_IMPOSTOR_CAMERA 3
+REFL_API long long refl_gl_pack_graphcam_impostor(const refl_graphcam *cam, const refl_graphcam_impostor *imp,
+                                                  float *out, long long cap);
 
 /* ---- rendering -------------------------------------------------------------- */
 

@@ -274,6 +274,78 @@ REFL_API long long refl_gl_pack_spoc(const refl_spoc *cam, float *out, long long
     return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc(&o, cam) : need;
 }
 
+/* ---- the SPOC impostor ---------------------------------------------------------- */
+
+/* Everything refl_impostor_intersect reads of an impostor whose camera is
+   the SPOC cam: its sphere, tolerance, the camera's block, and per texel
+   colour and gd together (-1: nothing stored, where the C reads alpha 0). */
+static long long refl__gl_spoc_impostor(refl__gl_out *op, const refl_impostor *imp, const refl_spoc *cam) {
+    refl__gl_out o = *op;
+    long long nn, i, spoc;
+    if (!imp || !cam || imp->camera.cam != (const void *)cam || imp->width != cam->size || imp->height != cam->size ||
+        imp->layers < 1 || imp->layers > REFL_IMPOSTOR_MAX_LAYERS || !imp->color || !imp->depth)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    nn = (long long)imp->width * imp->height * imp->layers;
+    if ((double)(REFL_GL_SPOC_IMPOSTOR_TEXELS + nn) >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl__gl_put4(&o, REFL_GL_SPOC_IMPOSTOR, REFL_GL_LAYOUT_VERSION, imp->width, imp->layers);
+    refl__gl_put_v3(&o, imp->camera.center, imp->camera.radius);
+    refl__gl_put4(&o, imp->depth_tolerance, imp->height, REFL_GL_SPOC_IMPOSTOR_TEXELS, 0.0);
+    spoc = refl__gl_spoc(&o, cam);
+    if (spoc < 0) return spoc;
+    o.n = spoc;
+    for (i = 0; i < nn; ++i) {
+        const float *c = imp->color + 4 * i;
+        refl__gl_put4(&o, c[0], c[1], c[2], c[3] > 0.0f ? imp->depth[i] : -1.0);
+    }
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_spoc_impostor(const refl_impostor *imp, const refl_spoc *cam, float *out,
+                                              long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_spoc_impostor(&o, imp, cam);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_spoc_impostor(&o, imp, cam) : need;
+}
+
+/* ---- the graph camera's impostor ------------------------------------------------ */
+
+/* Everything refl_graphcam_intersect's algorithm 2 reads: the camera's
+   bounds (the ray's slab clip), its block, and per pixel colour, frustum
+   id and gd. */
+static long long refl__gl_graphcam_impostor(refl__gl_out *op, const refl_graphcam *cam,
+                                           const refl_graphcam_impostor *imp) {
+    refl__gl_out o = *op;
+    long long npx, i, cam_texels, color, depth;
+    refl_vec3 lo, hi;
+    if (!cam || !imp || imp->width != cam->width || imp->height != cam->height || !imp->rgba || !imp->depth ||
+        !imp->frustum)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    if (cam->count <= 0 || cam->count > REFL_GRAPHCAM_MAX_FRUSTA) return REFL_ERROR_INVALID_ARGUMENT;
+    cam_texels = 2 + (long long)REFL_GL_GRAPHCAM_TEXELS * cam->count; /* refl__gl_graphcam's block */
+    npx = (long long)imp->width * imp->height;
+    color = REFL_GL_GRAPHCAM_IMPOSTOR_CAMERA + cam_texels;
+    depth = color + npx;
+    if ((double)(depth + (npx + 3) / 4) >= REFL__GL_INT_MAX) return REFL_ERROR_INVALID_ARGUMENT;
+    refl_graphcam_bounds(cam, &lo, &hi);
+    refl__gl_put4(&o, REFL_GL_GRAPHCAM_IMPOSTOR, REFL_GL_LAYOUT_VERSION, imp->width, imp->height);
+    refl__gl_put_v3(&o, lo, (double)color);
+    refl__gl_put_v3(&o, hi, (double)depth);
+    o.n = refl__gl_graphcam(&o, cam);
+    for (i = 0; i < npx; ++i) {
+        const float *c = imp->rgba + 4 * i;
+        refl__gl_put4(&o, c[0], c[1], c[2], imp->frustum[i]);
+    }
+    for (i = 0; i < (npx + 3) / 4 * 4; ++i) refl__gl_put(&o, i < npx ? imp->depth[i] : 1.0);
+    return refl__gl_done(&o);
+}
+
+REFL_API long long refl_gl_pack_graphcam_impostor(const refl_graphcam *cam, const refl_graphcam_impostor *imp,
+                                                  float *out, long long cap) {
+    refl__gl_out o = {NULL, 0, 0};
+    long long need = refl__gl_graphcam_impostor(&o, cam, imp);
+    return refl__gl_fill(&o, need, out, cap) ? refl__gl_graphcam_impostor(&o, cam, imp) : need;
+}
+
 /* ---- GLSL -------------------------------------------------------------------- */
 
 static const char refl__gl_glsl_mirror[] =
@@ -873,6 +945,241 @@ static const char refl__gl_glsl_spoc[] =
     "    return vec4(k.zw + rho * scale, gd, 1.0);\n"
     "}\n";
 
+static const char refl__gl_glsl_spoc_impostor[] =
+    "/* reflect.h GL hook: a SPOC impostor (layout version 1; impostor.c's\n"
+    "   refl_impostor_intersect step for step, in float; needs refl_spoc_project). */\n"
+    "/* The texel of `layer` holding image point uv if it stores a surface, else -1;\n"
+    "   its (r, g, b, gd) in texel. size: width, height, layers. */\n"
+    "int refl_spi_stored(samplerBuffer data, int img, ivec3 size, int layer, vec2 uv, out vec4 texel) {\n"
+    "    vec2 f = floor(uv);\n"
+    "    texel = vec4(0.0, 0.0, 0.0, -1.0);\n"
+    "    if (!(f.x >= 0.0 && f.y >= 0.0 && f.x < float(size.x) && f.y < float(size.y))) return -1;\n"
+    "    int t = (layer * size.y + int(f.y)) * size.x + int(f.x);\n"
+    "    texel = texelFetch(data, img + t);\n"
+    "    return texel.w >= 0.0 ? t : -1;\n"
+    "}\n"
+    "/* The stored depth's change over one texel beyond cur, continuing from prev. */\n"
+    "float refl_spi_slope(samplerBuffer data, int img, ivec3 size, int layer, vec3 prev, vec3 cur, float gd_cur) {\n"
+    "    vec2 duv = cur.xy - prev.xy;\n"
+    "    float len = length(duv);\n"
+    "    vec4 texel;\n"
+    "    if (!(len > 1e-6)) return 0.0;\n"
+    "    return refl_spi_stored(data, img, size, layer, cur.xy + duv / len, texel) < 0 ? 0.0 : abs(texel.w - gd_cur);\n"
+    "}\n"
+    "bool refl_spoc_impostor_intersect(samplerBuffer data, int base, vec3 o, vec3 dir, float tmin, float tmax,\n"
+    "                                  float step_scale, out float t_hit, out vec3 point, out vec4 color,\n"
+    "                                  out int layer_hit, out int steps) {\n"
+    "    vec4 h = texelFetch(data, base), sph = texelFetch(data, base + 1), k = texelFetch(data, base + 2);\n"
+    "    ivec3 size = ivec3(int(h.z), int(k.y), int(h.w));\n"
+    "    int img = base + int(k.z), cam = base + 3, wtex[4];\n"
+    "    float wd[4], wgd[4];\n"
+    "    t_hit = 0.0; point = vec3(0.0); color = vec4(0.0); layer_hit = -1; steps = 0;\n"
+    /* 1. clip to the bounding sphere */
+    "    vec3 oc = o - sph.xyz;\n"
+    "    float a = dot(dir, dir), b = dot(oc, dir), c = dot(oc, oc) - sph.w * sph.w, disc = b * b - a * c;\n"
+    "    if (!(a > 0.0) || !(disc > 0.0)) return false;\n"
+    "    float sq = sqrt(disc), t0 = max((-b - sq) / a, tmin), t1 = min((-b + sq) / a, tmax);\n"
+    "    if (!(t0 < t1)) return false;\n"
+    /* 2. the projection's length along 4 pieces sets the pieces walked */
+    "    vec3 prev = vec3(0.0), cur;\n"
+    "    float len = 0.0;\n"
+    "    for (int i = 0; i <= 4; ++i) {\n"
+    "        vec4 q = refl_spoc_project(data, cam, o + dir * (t0 + (t1 - t0) * float(i) / 4.0));\n"
+    "        if (q.w == 0.0) return false;\n"
+    "        if (i > 0) len += length(q.xy - prev.xy);\n"
+    "        prev = q.xyz;\n"
+    "    }\n"
+    "    len *= step_scale > 0.0 ? step_scale : 1.0;\n"
+    "    int most = 4 * (size.x + size.y);\n"
+    "    int n = len < 2.0 ? 2 : len > float(most) ? most : int(ceil(len));\n"
+    "    for (int l = 0; l < 4; ++l) { wtex[l] = -1; wd[l] = 0.0; wgd[l] = 1.0; }\n"
+    /* 3. near to far, every layer on the same ends: the first piece that
+          crosses behind a layer (skins excepted), its nearest crossing */
+    "    for (int i = 0; i <= n; ++i) {\n"
+    "        vec4 q = refl_spoc_project(data, cam, o + dir * (t0 + (t1 - t0) * float(i) / float(n)));\n"
+    "        if (q.w == 0.0) return false;\n"
+    "        cur = q.xyz;\n"
+    "        float best = 2.0;\n"
+    "        int best_layer = -1;\n"
+    "        for (int l = 0; l < size.z; ++l) {\n"
+    "            vec4 texel;\n"
+    "            int tex = refl_spi_stored(data, img, size, l, cur.xy, texel);\n"
+    "            float gd = tex >= 0 ? texel.w : 1.0, d = cur.z - gd, f = -1.0;\n"
+    "            if (i > 0 && tex >= 0 && d >= 0.0 && (wtex[l] < 0 || wd[l] < 0.0)) {\n"
+    "                float d0 = prev.z - gd;\n"
+    "                bool farther = wtex[l] >= 0 && gd >= wgd[l];\n"
+    "                if (farther || d0 <= refl_spi_slope(data, img, size, l, prev, cur, gd) + k.x)\n"
+    "                    f = wtex[l] >= 0 ? wd[l] / (wd[l] - d) : d0 < 0.0 ? d0 / (d0 - d) : 0.0;\n"
+    "            }\n"
+    "            wtex[l] = tex; wd[l] = d; wgd[l] = gd;\n"
+    "            if (f >= 0.0 && f < best) { best = f; best_layer = l; }\n"
+    "        }\n"
+    "        if (i > 0) steps = i;\n"
+    "        if (best_layer >= 0) {\n"
+    "            vec4 texel;\n"
+    "            t_hit = t0 + (t1 - t0) * (float(i - 1) + best) / float(n);\n"
+    "            point = o + dir * t_hit;\n"
+    "            vec4 at = refl_spoc_project(data, cam, point);\n"
+    "            if (refl_spi_stored(data, img, size, best_layer, at.w != 0.0 ? at.xy : cur.xy, texel) < 0)\n"
+    "                texel = texelFetch(data, img + wtex[best_layer]);\n"
+    "            color = vec4(texel.rgb, 1.0);\n"
+    "            layer_hit = best_layer;\n"
+    "            return true;\n"
+    "        }\n"
+    "        prev = cur;\n"
+    "    }\n"
+    "    return false;\n"
+    "}\n";
+
+static const char refl__gl_glsl_graphcam_impostor[] =
+    "/* reflect.h GL hook: a graph camera's impostor (layout version 1;\n"
+    "   m_graphcam.c's refl_graphcam_intersect, algorithm 2, in float). */\n"
+    "struct refl_gci_sample { bool valid; int f; float t, gd, GD; ivec2 px; };\n"
+    "/* Pixel i's frustum + 1 (0: none) and gd; img: (colour plane, depth plane, width, height). */\n"
+    "int refl_gci_frustum(samplerBuffer data, ivec4 img, int i) { return int(texelFetch(data, img.x + i).w); }\n"
+    "float refl_gci_depth(samplerBuffer data, ivec4 img, int i) { return texelFetch(data, img.y + (i >> 2))[i & 3]; }\n"
+    "/* Frustum f's clip position of p (its matrix with its level in z). */\n"
+    "vec4 refl_gci_clip(samplerBuffer data, int cam, int f, vec3 p) {\n"
+    "    int b = cam + 2 + f * 21;\n"
+    "    return mat4(texelFetch(data, b + 1), texelFetch(data, b + 2), texelFetch(data, b + 3),\n"
+    "                texelFetch(data, b + 4)) * vec4(p, 1.0);\n"
+    "}\n"
+    "/* The depth slope at pixel px of frustum f: per axis the smaller one-sided\n"
+    "   difference to a pixel of the same frustum, the larger over the axes. */\n"
+    "float refl_gci_slope(samplerBuffer data, ivec4 img, int f, ivec2 px) {\n"
+    "    float g = refl_gci_depth(data, img, px.y * img.z + px.x), best = 0.0;\n"
+    "    for (int axis = 0; axis < 2; ++axis) {\n"
+    "        float side = 3.4e38;\n"
+    "        bool any = false;\n"
+    "        for (int k = -1; k <= 1; k += 2) {\n"
+    "            ivec2 q = px + (axis == 0 ? ivec2(k, 0) : ivec2(0, k));\n"
+    "            if (q.x < 0 || q.y < 0 || q.x >= img.z || q.y >= img.w) continue;\n"
+    "            int i = q.y * img.z + q.x;\n"
+    "            if (refl_gci_frustum(data, img, i) != f + 1) continue;\n"
+    "            side = min(side, abs(refl_gci_depth(data, img, i) - g));\n"
+    "            any = true;\n"
+    "        }\n"
+    "        if (any) best = max(best, side);\n"
+    "    }\n"
+    "    return best;\n"
+    "}\n"
+    "/* The sample at t seen through frustum f: valid where its pixel shows f. */\n"
+    "refl_gci_sample refl_gci_sample_at(samplerBuffer data, int cam, ivec4 img, int f, float t, vec3 o, vec3 d) {\n"
+    "    refl_gci_sample x;\n"
+    "    x.valid = false; x.f = f; x.t = t; x.gd = 0.0; x.GD = 0.0; x.px = ivec2(0);\n"
+    "    vec4 c = refl_gci_clip(data, cam, f, o + t * d);\n"
+    "    if (!(c.w > 0.0)) return x;\n"
+    "    float u = (c.x / c.w + 1.0) * 0.5 * float(img.z), v = (1.0 - c.y / c.w) * 0.5 * float(img.w);\n"
+    "    if (!(u >= 0.0 && v >= 0.0 && u < float(img.z) && v < float(img.w))) return x;\n"
+    "    x.px = ivec2(int(u), int(v));\n"
+    "    int i = x.px.y * img.z + x.px.x;\n"
+    "    if (refl_gci_frustum(data, img, i) != f + 1) return x;\n"
+    "    x.gd = (c.z / c.w + 1.0) * 0.5;\n"
+    "    x.GD = refl_gci_depth(data, img, i);\n"
+    "    x.valid = true;\n"
+    "    return x;\n"
+    "}\n"
+    "/* The ray crosses the stored depth from a to b (not a skin); s the fraction. */\n"
+    "bool refl_gci_crossing(samplerBuffer data, ivec4 img, refl_gci_sample a, refl_gci_sample b, out float s) {\n"
+    "    float da = a.gd - a.GD, db = b.gd - b.GD;\n"
+    "    s = 0.0;\n"
+    "    if (!a.valid || !b.valid || a.f != b.f || !(da < 0.0) || !(db >= 0.0)) return false;\n"
+    "    float slope = min(refl_gci_slope(data, img, a.f, a.px), refl_gci_slope(data, img, b.f, b.px));\n"
+    "    ivec2 dp = abs(b.px - a.px);\n"
+    "    float px = float(max(dp.x, dp.y));\n"
+    "    if (abs(b.GD - a.GD) > 3.0 * abs(b.gd - a.gd) + 2.0 * max(px, 1.0) * slope) return false;\n"
+    "    s = da / (da - db);\n"
+    "    return true;\n"
+    "}\n"
+    "/* b behind the stored surface by more than its thickness estimate. */\n"
+    "bool refl_gci_behind(samplerBuffer data, ivec4 img, refl_gci_sample a, refl_gci_sample b) {\n"
+    "    if (!b.valid || !(b.gd > b.GD)) return false;\n"
+    "    float thickness = 2.0 * refl_gci_slope(data, img, b.f, b.px);\n"
+    "    if (a.valid && a.f == b.f) thickness += abs(b.gd - a.gd);\n"
+    "    return b.gd - b.GD > thickness;\n"
+    "}\n"
+    "/* Algorithm 2 in frustum f: the piece [t0, t1] walked step pixels at a time. */\n"
+    "bool refl_gci_segment(samplerBuffer data, int cam, ivec4 img, int f, float t0, float t1, float step, vec3 o,\n"
+    "                      vec3 d, inout float behind, inout int steps, out float t_hit, out vec3 color) {\n"
+    "    vec4 ca = refl_gci_clip(data, cam, f, o + t0 * d), cb = refl_gci_clip(data, cam, f, o + t1 * d);\n"
+    "    t_hit = 0.0; color = vec3(0.0);\n"
+    "    if (!(ca.w > 0.0) || !(cb.w > 0.0)) return false;\n"
+    "    float du = (cb.x / cb.w - ca.x / ca.w) * 0.5 * float(img.z), dv = (cb.y / cb.w - ca.y / ca.w) * 0.5 * float(img.w);\n"
+    "    float len = ceil(sqrt(du * du + dv * dv) / step);\n"
+    "    int n = len < 1.0 ? 1 : len > 1e6 ? 1000000 : int(len);\n"
+    "    refl_gci_sample a;\n"
+    "    a.valid = false; a.f = 0; a.t = 0.0; a.gd = 0.0; a.GD = 0.0; a.px = ivec2(0);\n"
+    "    for (int k = 0; k <= n; ++k) {\n"
+    "        float sf = float(k) / float(n), den = (1.0 - sf) * cb.w + sf * ca.w, s;\n"
+    "        float tf = den > 0.0 ? sf * ca.w / den : sf;\n"
+    "        refl_gci_sample b = refl_gci_sample_at(data, cam, img, f, t0 + (t1 - t0) * tf, o, d);\n"
+    "        ++steps;\n"
+    "        if (k > 0 && refl_gci_crossing(data, img, a, b, s)) {\n"
+    "            t_hit = a.t + s * (b.t - a.t);\n"
+    "            color = texelFetch(data, img.x + b.px.y * img.z + b.px.x).rgb;\n"
+    "            return true;\n"
+    "        }\n"
+    "        if (b.t < behind && refl_gci_behind(data, img, a, b)) behind = b.t;\n"
+    "        a = b;\n"
+    "    }\n"
+    "    return false;\n"
+    "}\n"
+    "bool refl_graphcam_impostor_intersect(samplerBuffer data, int base, vec3 o, vec3 dir, float tmin, float tmax,\n"
+    "                                      float step, out float t_hit, out vec3 point, out vec3 color,\n"
+    "                                      out int frustum, out float behind, out int steps) {\n"
+    "    vec4 h = texelFetch(data, base), lo = texelFetch(data, base + 1), hi = texelFetch(data, base + 2);\n"
+    "    int cam = base + 3, count = int(texelFetch(data, cam).z), order[64], pieces = 0;\n"
+    "    ivec4 img = ivec4(base + int(lo.w), base + int(hi.w), int(h.z), int(h.w));\n"
+    "    float t0 = tmin, t1 = tmax, best = 3.4e38, ta[64], tb[64];\n"
+    "    bool found = false;\n"
+    "    t_hit = 0.0; point = vec3(0.0); color = vec3(0.0); frustum = -1; behind = 3.4e38; steps = 0;\n"
+    /* the ray inside the camera's bounds (slabs) */
+    "    for (int k = 0; k < 3; ++k) {\n"
+    "        if (dir[k] == 0.0) {\n"
+    "            if (o[k] < lo[k] || o[k] > hi[k]) return false;\n"
+    "        } else {\n"
+    "            float a = (lo[k] - o[k]) / dir[k], b = (hi[k] - o[k]) / dir[k];\n"
+    "            t0 = max(t0, min(a, b));\n"
+    "            t1 = min(t1, max(a, b));\n"
+    "        }\n"
+    "    }\n"
+    "    if (!(t1 > t0)) return false;\n"
+    /* the ray's piece in each frustum (refl_graphcam_clip_segment), nearest first */
+    "    vec3 pa = o + t0 * dir, pb = o + t1 * dir;\n"
+    "    for (int f = 0; f < count; ++f) {\n"
+    "        int b = cam + 2 + f * 21, planes = int(texelFetch(data, b).x);\n"
+    "        float s0 = 0.0, s1 = 1.0;\n"
+    "        bool in_f = true;\n"
+    "        for (int k = 0; k < planes && in_f; ++k) {\n"
+    "            vec4 pl = texelFetch(data, b + 5 + k);\n"
+    "            float ea = dot(pl.xyz, pa) + pl.w, eb = dot(pl.xyz, pb) + pl.w;\n"
+    "            if (ea < 0.0 && eb < 0.0) in_f = false;\n"
+    "            else if (ea < 0.0) s0 = max(s0, ea / (ea - eb));\n"
+    "            else if (eb < 0.0) s1 = min(s1, ea / (ea - eb));\n"
+    "            if (s0 > s1) in_f = false;\n"
+    "        }\n"
+    "        if (!in_f) continue;\n"
+    "        ta[f] = t0 + (t1 - t0) * s0;\n"
+    "        tb[f] = t0 + (t1 - t0) * s1;\n"
+    "        int j = pieces++;\n"
+    "        for (; j > 0 && ta[order[j - 1]] > ta[f]; --j) order[j] = order[j - 1];\n"
+    "        order[j] = f;\n"
+    "    }\n"
+    /* a piece starting past the best hit cannot improve it */
+    "    for (int j = 0; j < pieces; ++j) {\n"
+    "        int f = order[j];\n"
+    "        float t; vec3 c;\n"
+    "        if (ta[f] >= best) break;\n"
+    "        if (refl_gci_segment(data, cam, img, f, ta[f], tb[f], step > 0.0 ? step : 1.0, o, dir, behind, steps, t, c)\n"
+    "            && t < best) {\n"
+    "            best = t; t_hit = t; color = c; frustum = f; found = true;\n"
+    "        }\n"
+    "    }\n"
+    "    if (found) point = o + t_hit * dir;\n"
+    "    if (found && !(behind < t_hit)) behind = 3.4e38;\n"
+    "    return found;\n"
+    "}\n";
+
 REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     switch (camera) {
     case REFL_GL_MIRROR: return refl__gl_glsl_mirror;
@@ -882,6 +1189,8 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
     case REFL_GL_SBC_MORPH: return refl__gl_glsl_sbc_morph;
     case REFL_GL_LEM_SHELL: return refl__gl_glsl_lem_shell;
     case REFL_GL_SPOC: return refl__gl_glsl_spoc;
+    case REFL_GL_SPOC_IMPOSTOR: return refl__gl_glsl_spoc_impostor;
+    case REFL_GL_GRAPHCAM_IMPOSTOR: return refl__gl_glsl_graphcam_impostor;
     }
     return NULL;
 }

@@ -5,7 +5,8 @@
    PLANAR hands them over. C3RC and SBC through GL (reflect_gl_c3rc.c,
    reflect_gl_sbc.c): their reflection error against one-bounce RAYTRACE
    within a pixel of the CPU path's, on the default scene, the concave
-   bowl and (C3RC, its gaps traced) hybrid. Skipped, saying why, where no EGL
+   bowl and (C3RC, its gaps traced) hybrid; SPOC and GRAPHCAM through GL (reflect_gl_impostor.c) likewise
+   on the teapots (SPOC), the maze and the default scene (GRAPHCAM). Skipped, saying why, where no EGL
    device exists (test_gl_context.h). */
 #include <criterion/criterion.h>
 #include "../../reflect.h"
@@ -51,24 +52,29 @@ Test(refl_gl_frame, planar_matches_cpu, .timeout = 120) {
 /* Method m through GL and on the CPU, both measured against one-bounce
    RAYTRACE on built-in scene `scene` at w x h: the GL frame's mean
    reflection error within 1 px of the CPU frame's, with most reflector
-   pixels matched. The GL frame's stats and the CPU frame's C3RC stats in
-   *st and *cpu_c3rc when not NULL. */
+   pixels matched. GRAPHCAM draws with graph camera `gc` on both paths
+   (NULL: the view's pinhole). The GL frame's stats and the CPU frame's
+   C3RC stats in *gl_st and *cpu_c3rc when not NULL. */
 static void gl_within_a_pixel_of_cpu_at(const char *scene, refl_method m, int w, int h, long long min_matched,
-                                        rgl_frame_stats *gl_st, refl_c3rc_frame_stats *cpu_c3rc) {
+                                        const refl_graphcam *gc, rgl_frame_stats *gl_st,
+                                        refl_c3rc_frame_stats *cpu_c3rc) {
     refl_view v;
     refl_scene *s = tu_refl_builtin(scene, &v, w, h);
     refl_render_desc d = tu_refl_one_bounce(m, 2), dt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
-    refl_frame *cpu = tu_refl_render(s, &v, &d), *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
+    refl_frame *cpu, *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
     refl_reflection_error eg, ec;
     rgl_frame_stats st;
     rgl_context *g = tu_gl_context("test_gl_frame");
     float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
     char err[1024];
     int r;
+    d.graphcam.camera = gc;
+    cpu = tu_refl_render(s, &v, &d);
     cr_assert_not_null(rgb);
     cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
     LSAN_OFF();
-    r = rgl_render(g, m, s, &v, gl, rgb, &st, err, sizeof err);
+    r = m == REFL_GRAPHCAM ? rgl_render_graphcam(g, s, &v, gc, gl, rgb, &st, err, sizeof err)
+                           : rgl_render(g, m, s, &v, gl, rgb, &st, err, sizeof err);
     rgl_destroy(g);
     LSAN_ON();
     cr_assert_eq(r, 0, "%s", err);
@@ -90,8 +96,13 @@ static void gl_within_a_pixel_of_cpu_at(const char *scene, refl_method m, int w,
     refl_scene_destroy(s);
 }
 
+static void gl_graphcam_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched,
+                                              const refl_graphcam *gc) {
+    gl_within_a_pixel_of_cpu_at(scene, m, 160, 120, min_matched, gc, NULL, NULL);
+}
+
 static void gl_within_a_pixel_of_cpu(const char *scene, refl_method m, long long min_matched) {
-    gl_within_a_pixel_of_cpu_at(scene, m, 160, 120, min_matched, NULL, NULL);
+    gl_graphcam_within_a_pixel_of_cpu(scene, m, min_matched, NULL);
 }
 
 Test(refl_gl_frame, c3rc_within_a_pixel_of_cpu, .timeout = 240) { gl_within_a_pixel_of_cpu("default", REFL_C3RC, 500); }
@@ -114,6 +125,27 @@ Test(refl_gl_frame, planar_curved_within_a_pixel_of_cpu, .timeout = 120) {
     gl_within_a_pixel_of_cpu("default", REFL_PLANAR, 500);
 }
 
+/* SPOC's impostors marched per fragment (reflect_gl_impostor.c), the
+   exact part and the missed rays on the CPU, on paper 004's teapots. */
+Test(refl_gl_frame, spoc_teapots_within_a_pixel_of_cpu, .timeout = 120) {
+    gl_within_a_pixel_of_cpu("teapots", REFL_SPOC, 500);
+}
+
+/* GRAPHCAM's impostor marched per fragment (reflect_gl_impostor.c): the
+   maze through its graph camera (15 frusta, 960 x 588), and the default
+   scene through the view's pinhole. */
+Test(refl_gl_frame, graphcam_maze_within_a_pixel_of_cpu, .timeout = 120) {
+    refl_graphcam *cam = malloc(sizeof *cam);
+    cr_assert_not_null(cam);
+    cr_assert_eq(refl_graphcam_maze(cam, 960, 588), REFL_OK);
+    gl_graphcam_within_a_pixel_of_cpu("maze", REFL_GRAPHCAM, 500, cam);
+    free(cam);
+}
+
+Test(refl_gl_frame, graphcam_within_a_pixel_of_cpu, .timeout = 120) {
+    gl_within_a_pixel_of_cpu("default", REFL_GRAPHCAM, 500);
+}
+
 /* Hybrid at 160 x 480 (a tall frame: the density of 480 rows on few
    pixels): the 2 million points' cap spaces the points wider than the
    view wants, and the floor behind the objects shows through gaps in
@@ -125,7 +157,7 @@ Test(refl_gl_frame, c3rc_hybrid_gaps_traced, .timeout = 240) {
     refl_c3rc_frame_stats cpu;
     memset(&st, 0, sizeof st);
     memset(&cpu, 0, sizeof cpu);
-    gl_within_a_pixel_of_cpu_at("hybrid", REFL_C3RC, 160, 480, 1500, &st, &cpu);
+    gl_within_a_pixel_of_cpu_at("hybrid", REFL_C3RC, 160, 480, 1500, NULL, &st, &cpu);
     cr_log_info("gap pixels traced: GL %lld, CPU %lld", st.traced, cpu.traced);
     cr_assert_gt(cpu.traced, 100, "the CPU path traced %lld gap pixels", cpu.traced);
     cr_assert(st.traced >= cpu.traced / 2 && st.traced <= 2 * cpu.traced, "gap pixels traced: GL %lld, CPU %lld",

@@ -1,0 +1,1012 @@
+/* reflect_gl_impostor.c - frames of paper 004's impostor methods, SPOC
+   and GRAPHCAM, through GL (reflect_gl.h, docs/gl.md): the impostors built
+   on the CPU as the CPU methods build them, packed with their GL hooks,
+   and intersected in a pixel shader along each reflector pixel's
+   reflected ray; what the CPU method does besides the march (its exact
+   objects, the rays it hands to its tracer) on the CPU after the
+   read-back. SPOC:
+     1. the base pass (reflect_gl_frame.c): each mirror and partial
+        reflector marks its pixels with its object number;
+     2. per reflector seen, its impostors as the CPU method builds them
+        (m_spoc.c: every compact diffuse object whose bounding sphere does
+        not hold the reflector's box centre gets a SPOC from there, the
+        reflector's half diagonal as the baseline, spoc's default size,
+        strength, layers and subdivision), built with refl_impostor_build
+        and packed with the SPOC impostor hook (colour and gd per texel of
+        every depth layer, the camera, the sphere) into one buffer texture;
+     3. per reflector a full-screen triangle, stencilled to its pixels,
+        whose fragment shader takes the pixel's reflected ray (from the
+        read-back, a hair off the surface as the CPU method starts it) and
+        marches every impostor with refl_spoc_impostor_intersect (nearest
+        hit kept, later impostors cut at it, as the CPU's loop);
+     4. after the read-back the CPU does the rest of the CPU method's
+        refl__spoc_trace and refl__spoc_row: the exact part of the scene
+        (flat objects, those an SPOC cannot see from the reflector, the
+        reflectors, which show as DIRECT draws them) intersected through a
+        BVH up to the impostor's hit, and a ray that missed an impostored
+        object the scene puts in front (refl__spoc_missed) handed to the
+        tracer; then the composite.
+   GRAPHCAM: one impostor through the graph camera for every reflector,
+   marched with refl_graphcam_impostor_intersect (algorithm 2), then
+   m_graphcam.c's billboards and hand-over on the CPU.
+   One bounce; glass is drawn as DIRECT draws it, as the other GL paths.
+   Also the hooks' marches against the C ray by ray (rgl_validate_*). */
+#define _POSIX_C_SOURCE 200809L
+#include "../reflect.h"
+#include "reflect_gl.h"
+
+#include <EGL/egl.h>
+#include <GL/gl.h>
+
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "reflect_gl_funcs.h"
+#include "reflect_gl_frame.h"
+
+/* refl_spoc_options' defaults (refl__options_spoc), what the CPU path draws with */
+#define RGL_SP_SIZE 512
+#define RGL_SP_STRENGTH 1.0f
+#define RGL_SP_LAYERS 3
+#define RGL_SP_MAX_EDGE 4.0f
+#define RGL_SP_STEP_SCALE 1.0f
+
+/* A full-screen triangle; the stencil keeps the reflector's pixels. */
+static const char rgl__sp_vs[] =
+    "#version 330 core\n"
+    "void main() {\n"
+    "    gl_Position = vec4(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0, 0.0, 1.0);\n"
+    "}\n";
+
+static const char rgl__sp_fs_head[] = "#version 330 core\n";
+
+/* The reflector's data: texel 0 (impostors, 0, 0, 0), texel 1 + i the
+   offset of impostor i's block; each block as refl_gl_pack_spoc_impostor.
+   Out: the point met and 1 (0: none), its colour and t, the steps walked
+   and the impostor met (-1: none). */
+static const char rgl__sp_fs_main[] =
+    "uniform samplerBuffer u_data;\n"
+    "uniform sampler2D u_org, u_dir;\n"
+    "uniform float u_step_scale;\n"
+    "layout(location = 0) out vec4 o_point;\n"
+    "layout(location = 1) out vec4 o_color;\n"
+    "layout(location = 2) out vec4 o_steps;\n"
+    "void main() {\n"
+    "    ivec2 px = ivec2(gl_FragCoord.xy);\n"
+    "    vec3 o = texelFetch(u_org, px, 0).xyz, d = texelFetch(u_dir, px, 0).xyz, shown = vec3(0.0);\n"
+    "    int count = int(texelFetch(u_data, 0).x), steps = 0, met = -1;\n"
+    "    float best = 3.4e38;\n"
+    "    vec4 col = vec4(0.0);\n"
+    "    for (int i = 0; i < count; ++i) {\n"
+    "        float t; vec3 pt; vec4 c; int layer, n;\n"
+    "        if (refl_spoc_impostor_intersect(u_data, int(texelFetch(u_data, 1 + i).x), o, d, 0.0, best, u_step_scale,\n"
+    "                                         t, pt, c, layer, n) && t < best) {\n"
+    "            best = t; shown = pt; col = c; met = i;\n"
+    "        }\n"
+    "        steps += n;\n"
+    "    }\n"
+    "    o_point = vec4(shown, met >= 0 ? 1.0 : 0.0);\n"
+    "    o_color = vec4(col.rgb, best);\n"
+    "    o_steps = vec4(float(steps), float(met), 0.0, 0.0);\n"
+    "}\n";
+
+/* A marching program (the hooks' source, then main), in use, its samplers
+   on units 0 (the data), 1 and 2 (the rays' origins and directions); 0
+   with the reason in err. */
+static GLuint rgl__imp_program(const char *const *parts, int count, char *err, size_t n) {
+    const char *vs[1] = {rgl__sp_vs}, *fs[5];
+    GLuint prog;
+    int i;
+    fs[0] = rgl__sp_fs_head;
+    for (i = 0; i < count && i < 4; ++i) fs[1 + i] = parts[i];
+    if (!(prog = rgl_program(vs, 1, fs, 1 + i, NULL, 0, err, n))) return 0;
+    rgl.UseProgram(prog);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_org"), 1);
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_dir"), 2);
+    return prog;
+}
+
+static GLuint rgl__sp_program(char *err, size_t n) {
+    const char *parts[3];
+    GLuint prog;
+    parts[0] = refl_gl_glsl(REFL_GL_SPOC);
+    parts[1] = refl_gl_glsl(REFL_GL_SPOC_IMPOSTOR);
+    parts[2] = rgl__sp_fs_main;
+    if ((prog = rgl__imp_program(parts, 3, err, n)))
+        rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_step_scale"), RGL_SP_STEP_SCALE);
+    return prog;
+}
+
+/* Uploads w x h RGBA32F rows (bottom first) as the 2-D texture on unit `unit`. */
+static void rgl__sp_texture(GLuint tex, int unit, int w, int h, const float *rgba) {
+    rgl.ActiveTexture(GL_TEXTURE0 + unit);
+    rgl.BindTexture(GL_TEXTURE_2D, tex);
+    rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    rgl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    rgl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, rgba);
+    rgl.ActiveTexture(GL_TEXTURE0);
+}
+
+/* What rays leaving one reflector meet: its impostors and the exact part. */
+typedef struct rgl_sp_set {
+    refl_spoc *cams;
+    refl_impostor **imps;
+    int *imp_object;             /* per impostor: the scene object */
+    int imp_count;
+    refl_bvh *exact;             /* the exactly intersected objects (NULL: none) */
+    int *exact_object;           /* its object index -> scene object */
+} rgl_sp_set;
+
+static void rgl__sp_set_free(rgl_sp_set *set) {
+    int i;
+    for (i = 0; i < set->imp_count; ++i) refl_impostor_destroy(set->imps[i]);
+    refl_bvh_destroy(set->exact);
+    free(set->cams);
+    free(set->imps);
+    free(set->imp_object);
+    free(set->exact_object);
+    memset(set, 0, sizeof *set);
+}
+
+/* Object i's world bounding box, over its mesh's vertices (impostor.c's). */
+static void rgl__sp_world_box(const refl_scene *s, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &s->objects[i];
+    const refl_mesh *m = s->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl_v3(fminf(lo->x, w.x), fminf(lo->y, w.y), fminf(lo->z, w.z));
+        *hi = refl_v3(fmaxf(hi->x, w.x), fmaxf(hi->y, w.y), fmaxf(hi->z, w.z));
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+/* Whether object i is flat (impostor.c's rule: its box's smallest side
+   under 1% of its largest, or no extent), a billboard the impostor
+   methods intersect exactly. */
+static int rgl__imp_flat(const refl_scene *s, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    rgl__sp_world_box(s, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = fminf(size.x, fminf(size.y, size.z));
+    large = fmaxf(size.x, fmaxf(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
+}
+
+/* Whether object i gets an impostor seen from eye (m_spoc.c's rule, one
+   bounce): diffuse, not flat, the eye outside its bounding sphere. */
+static int rgl__sp_impostored(const refl_scene *s, int i, refl_vec3 eye) {
+    refl_vec3 lo, hi;
+    if (s->materials[s->objects[i].material].type != REFL_DIFFUSE || rgl__imp_flat(s, i)) return 0;
+    rgl__sp_world_box(s, i, &lo, &hi);
+    return refl_v3_length(refl_v3_sub(eye, refl_v3_scale(refl_v3_add(lo, hi), 0.5f))) >
+           1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+}
+
+/* The BVH of the objects keep[] marks (*bvh NULL: none) and its object
+   index -> scene object (*map, the caller frees it). Nonzero on failure. */
+static int rgl__imp_sub_bvh(const refl_scene *s, const uint8_t *keep, refl_bvh **bvh, int **map) {
+    size_t n_obj = (size_t)(s->object_count > 0 ? s->object_count : 1);
+    refl_object *objs = (refl_object *)calloc(n_obj, sizeof *objs);
+    int i, n = 0, rc = -1;
+    *bvh = NULL;
+    *map = (int *)calloc(n_obj, sizeof **map);
+    if (objs && *map) {
+        refl_scene sub = *s;
+        for (i = 0; i < s->object_count; ++i)
+            if (keep[i]) {
+                (*map)[n] = i;
+                objs[n++] = s->objects[i];
+            }
+        sub.objects = objs;
+        sub.object_count = n;
+        rc = n && refl_bvh_build(&sub, NULL, bvh) != REFL_OK ? -1 : 0;
+    }
+    free(objs);
+    return rc;
+}
+
+/* Reflector `object`'s impostors and exact BVH (m_spoc.c's refl__spoc_build). */
+static int rgl__sp_build(const refl_scene *s, int object, rgl_sp_set *set) {
+    size_t n_obj = (size_t)(s->object_count > 0 ? s->object_count : 1);
+    refl_vec3 lo, hi, eye;
+    uint8_t *exact = (uint8_t *)calloc(n_obj, 1);
+    float baseline;
+    int i, rc = -1;
+    memset(set, 0, sizeof *set);
+    set->cams = (refl_spoc *)calloc(n_obj, sizeof *set->cams);
+    set->imps = (refl_impostor **)calloc(n_obj, sizeof *set->imps);
+    set->imp_object = (int *)calloc(n_obj, sizeof *set->imp_object);
+    if (!exact || !set->cams || !set->imps || !set->imp_object) goto done;
+    rgl__sp_world_box(s, object, &lo, &hi);
+    eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    for (i = 0; i < s->object_count; ++i) {
+        if (i != object && rgl__sp_impostored(s, i, eye)) {
+            refl_vec3 olo, ohi;
+            refl_impostor_camera ic;
+            refl_impostor_desc d;
+            refl_spoc *cam = &set->cams[set->imp_count];
+            rgl__sp_world_box(s, i, &olo, &ohi);
+            if (refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
+                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, RGL_SP_STRENGTH,
+                               RGL_SP_SIZE) != REFL_OK)
+                goto done;
+            ic = refl_spoc_impostor_camera(cam);
+            memset(&d, 0, sizeof d);
+            d.max_edge_px = RGL_SP_MAX_EDGE;
+            d.layers = RGL_SP_LAYERS;
+            if (refl_impostor_build(s, &i, 1, &ic, &d, &set->imps[set->imp_count]) != REFL_OK) goto done;
+            set->imp_object[set->imp_count++] = i;
+        } else {
+            exact[i] = 1;
+        }
+    }
+    rc = rgl__imp_sub_bvh(s, exact, &set->exact, &set->exact_object);
+done:
+    free(exact);
+    return rc;
+}
+
+/* The set's impostors packed for the fragment shader (rgl__sp_fs_main's
+   layout); NULL when out of memory or refused. */
+static float *rgl__sp_pack(const rgl_sp_set *set, long long *floats) {
+    long long at = 4LL * (1 + set->imp_count), need = at, k;
+    float *data;
+    int i;
+    for (i = 0; i < set->imp_count; ++i) {
+        if ((k = refl_gl_pack_spoc_impostor(set->imps[i], &set->cams[i], NULL, 0)) < 0) return NULL;
+        need += k;
+    }
+    if (!(data = (float *)calloc((size_t)need, sizeof(float)))) return NULL;
+    data[0] = (float)set->imp_count;
+    for (i = 0; i < set->imp_count; ++i) {
+        data[4 * (1 + i)] = (float)(at / 4);
+        k = refl_gl_pack_spoc_impostor(set->imps[i], &set->cams[i], data + at, need - at);
+        at += k;
+    }
+    *floats = need;
+    return data;
+}
+
+/* Reflector pixel i's reflected ray as the CPU methods take it: from its
+   G-buffer point s, the normal n turned towards the eye, direction r. */
+static void rgl__imp_pixel_ray(const rgl_pass *p, size_t i, refl_vec3 *s, refl_vec3 *n, refl_vec3 *r) {
+    const float *bp = p->base[0] + 4 * i, *bn = p->base[1] + 4 * i;
+    refl_vec3 d = rgl_pass_ray(p, (int)i);
+    *n = refl_v3_normalize(refl_v3(bn[0], bn[1], bn[2]));
+    if (refl_v3_dot(*n, *n) == 0.0f) *n = refl_v3_scale(d, -1.0f);
+    if (refl_v3_dot(d, *n) > 0.0f) *n = refl_v3_scale(*n, -1.0f);
+    *s = refl_v3(bp[0], bp[1], bp[2]);
+    *r = refl_v3_reflect(d, *n);
+}
+
+/* Per reflector pixel, as 2-D RGBA32F textures on units 1 and 2 (rows
+   bottom first): its reflected ray's origin, `offset` off the surface on
+   the eye's side, and unit direction; the same rays into org and dir
+   (rows top first) for the CPU's share. */
+static int rgl__sp_rays(const rgl_pass *p, float offset, GLuint tex[2], float *org, float *dir) {
+    int w = p->w, h = p->h, x, y, k;
+    float *up[2];
+    up[0] = (float *)calloc((size_t)w * h, 4 * sizeof(float));
+    up[1] = (float *)calloc((size_t)w * h, 4 * sizeof(float));
+    if (!up[0] || !up[1]) {
+        free(up[0]);
+        free(up[1]);
+        return -1;
+    }
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t i = (size_t)y * w + x, g = (size_t)(h - 1 - y) * w + x;
+            refl_vec3 n, o, r;
+            if (!p->marks[i]) continue;
+            rgl__imp_pixel_ray(p, i, &o, &n, &r);
+            o = refl_v3_add(o, refl_v3_scale(n, offset));
+            org[3 * i] = up[0][4 * g] = o.x;
+            org[3 * i + 1] = up[0][4 * g + 1] = o.y;
+            org[3 * i + 2] = up[0][4 * g + 2] = o.z;
+            dir[3 * i] = up[1][4 * g] = r.x;
+            dir[3 * i + 1] = up[1][4 * g + 1] = r.y;
+            dir[3 * i + 2] = up[1][4 * g + 2] = r.z;
+        }
+    rgl.GenTextures(2, tex);
+    for (k = 0; k < 2; ++k) rgl__sp_texture(tex[k], 1 + k, w, h, up[k]);
+    free(up[0]);
+    free(up[1]);
+    return 0;
+}
+
+/* Hit h on scene object `object` as the G-buffer holds a surface (point +
+   id, normal, uv: interpolated from the GL geometry's vertices). */
+static void rgl__sp_hit_surface(const rgl_pass *p, int object, const refl_hit *h, float pt[4], float nrm[4],
+                                float uv[4]) {
+    const float *a = p->geo.v + (p->geo.first[object] + 3 * (long long)h->triangle) * RGL_VERTEX_FLOATS;
+    const float *b = a + RGL_VERTEX_FLOATS, *c = b + RGL_VERTEX_FLOATS;
+    float w0 = 1.0f - h->u - h->v;
+    int f;
+    memset(uv, 0, 4 * sizeof(float));
+    for (f = 0; f < 3; ++f) {
+        pt[f] = w0 * a[f] + h->u * b[f] + h->v * c[f];
+        nrm[f] = w0 * a[3 + f] + h->u * b[3 + f] + h->v * c[3 + f];
+    }
+    nrm[3] = 0.0f;
+    for (f = 0; f < 2; ++f) uv[f] = w0 * a[6 + f] + h->u * b[6 + f] + h->v * c[6 + f];
+    pt[3] = (float)(object + 1);
+}
+
+/* A scene surface's colour as a reflection shows it (refl__exact_hit_shade,
+   one bounce: the diffuse share, a mirror black), clamped to [0, 1]. */
+static void rgl__sp_shade_hit(const rgl_pass *p, int object, const refl_hit *h, refl_vec3 dir, float rgb[3],
+                              float at[3]) {
+    float pt[4], nrm[4], uv[4];
+    int c;
+    rgl__sp_hit_surface(p, object, h, pt, nrm, uv);
+    rgl_shade(p->scene, pt, nrm, uv, dir, rgb);
+    for (c = 0; c < 3; ++c) {
+        rgb[c] = fminf(rgb[c], 1.0f);
+        at[c] = pt[c];
+    }
+}
+
+/* Whether the ray o + t d, which the reflector's SPOC answered with the
+   point `shown` (met: 0, nothing), missed an impostored object the scene
+   puts in front (refl__spoc_missed); *h the scene's own first hit. */
+static int rgl__sp_missed(const rgl_sp_set *set, const refl_bvh *scene_bvh, refl_vec3 o, refl_vec3 d, int met,
+                          const float shown[3], refl_hit *h, int *hit) {
+    int i;
+    *hit = refl_bvh_intersect(scene_bvh, o, d, 0.0f, 1e30f, h);
+    if (!*hit) return 0;
+    if (!met) return 1;
+    for (i = 0; i < set->imp_count; ++i)
+        if (set->imp_object[i] == h->object)
+            return h->t * refl_v3_length(d) <
+                   refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), o)) -
+                       4.0f * set->cams[i].radius / (float)set->cams[i].size;
+    return 0;
+}
+
+/* The CPU's share for reflector o's pixels: the exact part up to the
+   impostor's hit, the missed rays traced, the composite. */
+static void rgl__sp_finish(const rgl_pass *p, int o, const rgl_sp_set *set, const refl_bvh *scene_bvh,
+                           float *const drawn[3], const float *org, const float *dir, refl_frame *frame, float *rgb,
+                           rgl_frame_stats *st) {
+    size_t i, np = (size_t)p->w * (size_t)p->h;
+    for (i = 0; i < np; ++i) {
+        const float *gp = drawn[0] + 4 * i, *gc = drawn[1] + 4 * i;
+        refl_vec3 ro = refl_v3(org[3 * i], org[3 * i + 1], org[3 * i + 2]);
+        refl_vec3 rd = refl_v3(dir[3 * i], dir[3 * i + 1], dir[3 * i + 2]);
+        float col[3] = {0.0f, 0.0f, 0.0f}, at[3] = {0.0f, 0.0f, 0.0f}, best = FLT_MAX;
+        int met = gp[3] > 0.5f, c, hit;
+        refl_hit h;
+        if (p->marks[i] != o + 1) continue;
+        if (met) {
+            best = gc[3];
+            for (c = 0; c < 3; ++c) {
+                col[c] = fminf(fmaxf(gc[c], 0.0f), 1.0f);
+                at[c] = gp[c];
+            }
+        }
+        st->projections += (long long)drawn[2][4 * i];
+        if (set->exact && refl_bvh_intersect(set->exact, ro, rd, 0.0f, best, &h)) {
+            rgl__sp_shade_hit(p, set->exact_object[h.object], &h, rd, col, at);
+            met = 1;
+        }
+        if (rgl__sp_missed(set, scene_bvh, ro, rd, met, at, &h, &hit)) {
+            /* the tracer's: the scene's first hit along the ray */
+            rgl__sp_shade_hit(p, h.object, &h, rd, col, at);
+            met = 1;
+            st->traced++;
+        }
+        rgl_composite(p, (int)i, met ? col : NULL, at, frame, rgb);
+    }
+}
+
+int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
+                    rgl_frame_stats *st, char *err, size_t n) {
+    int o, c, rc = -1;
+    size_t np = (size_t)view->width * (size_t)view->height, i;
+    GLuint prog = 0, tex = 0, tbuf = 0, ray_tex[2] = {0, 0};
+    uint8_t *mark = NULL, *seen = NULL;
+    float *drawn[3] = {NULL, NULL, NULL}, *org = NULL, *dir = NULL, *data = NULL, offset;
+    refl_bvh *scene_bvh = NULL;
+    rgl_sp_set set;
+    rgl_pass ps;
+    refl_vec3 lo, hi;
+    double t0 = rgl_now(), t_cpu = 0.0, t1;
+    memset(st, 0, sizeof *st);
+    memset(&ps, 0, sizeof ps);
+    memset(&set, 0, sizeof set);
+    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
+    t1 = rgl_now();
+    refl_scene_bounds(scene, &lo, &hi);
+    offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo)); /* m_spoc.c's */
+    for (c = 0; c < 3; ++c)
+        if (!(drawn[c] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
+    if (!(org = (float *)calloc(np, 3 * sizeof(float))) || !(dir = (float *)calloc(np, 3 * sizeof(float))) ||
+        !(seen = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)))
+        goto oom;
+    for (i = 0; i < np; ++i)
+        if (ps.marks[i]) seen[ps.marks[i] - 1] = 1;
+    if (refl_bvh_build(scene, NULL, &scene_bvh) != REFL_OK) goto oom;
+    t_cpu += rgl_now() - t1;
+    if (!(prog = rgl__sp_program(err, n))) goto done;
+    if (rgl__sp_rays(&ps, offset, ray_tex, org, dir) != 0) goto oom;
+    rgl.ClearColor(0, 0, 0, 0);
+    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    rgl.Disable(GL_DEPTH_TEST);
+    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    for (o = 0; o < scene->object_count; ++o) {
+        long long floats = 0;
+        if (!mark[o] || !seen[o]) continue;
+        t1 = rgl_now();
+        if (rgl__sp_build(scene, o, &set) != 0) {
+            snprintf(err, n, "building object %d's impostors failed", o);
+            goto done;
+        }
+        free(data);
+        if (!(data = rgl__sp_pack(&set, &floats))) {
+            snprintf(err, n, "refl_gl_pack_spoc_impostor refused object %d's impostors", o);
+            goto done;
+        }
+        st->mirrors += set.imp_count;
+        t_cpu += rgl_now() - t1;
+        if (set.imp_count) {
+            if (tex) rgl.DeleteTextures(1, &tex);
+            if (tbuf) rgl.DeleteBuffers(1, &tbuf);
+            tex = tbuf = 0;
+            if (!(tex = rgl_buffer_texture(data, floats, &tbuf, err, n))) goto done;
+            rgl.ActiveTexture(GL_TEXTURE0);
+            rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
+            rgl.StencilFunc(GL_EQUAL, mark[o], 0xFF);
+            rgl.DrawArrays(GL_TRIANGLES, 0, 3);
+            st->vertices += 3;
+        }
+        /* this reflector's pixels only: the later ones redraw theirs */
+        for (c = 0; c < 3; ++c) rgl_pass_read(&ps, c, drawn[c]);
+        if (rgl_pass_check("marching the SPOC impostors", err, n) != 0) goto done;
+        t1 = rgl_now();
+        rgl__sp_finish(&ps, o, &set, scene_bvh, drawn, org, dir, frame, rgb, st);
+        rgl__sp_set_free(&set);
+        t_cpu += rgl_now() - t1;
+    }
+    /* every other pixel: the base pass shaded */
+    t1 = rgl_now();
+    for (i = 0; i < np; ++i)
+        if (!ps.marks[i]) rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+    t_cpu += rgl_now() - t1;
+    st->gl_seconds = rgl_now() - t0 - t_cpu;
+    st->shade_seconds = t_cpu;
+    rc = 0;
+    goto done;
+oom:
+    snprintf(err, n, "out of memory");
+done:
+    rgl__sp_set_free(&set);
+    rgl_pass_delete(prog, 0, 0, tex, tbuf, ray_tex);
+    rgl_pass_end(g, &ps);
+    refl_bvh_destroy(scene_bvh);
+    for (c = 0; c < 3; ++c) free(drawn[c]);
+    free(org);
+    free(dir);
+    free(data);
+    free(seen);
+    free(mark);
+    return rc;
+}
+
+/* ---- GRAPHCAM through GL ----------------------------------------------------------- */
+
+/* One impostor for the frame: its block at texel 0. Out: the point met
+   and 1 (0: none), its colour and t, the steps walked, the frustum met
+   and `behind` (refl_graphcam_impostor_intersect's). */
+static const char rgl__gc_fs_main[] =
+    "uniform samplerBuffer u_data;\n"
+    "uniform sampler2D u_org, u_dir;\n"
+    "uniform float u_step, u_tmin;\n"
+    "layout(location = 0) out vec4 o_point;\n"
+    "layout(location = 1) out vec4 o_color;\n"
+    "layout(location = 2) out vec4 o_steps;\n"
+    "void main() {\n"
+    "    ivec2 px = ivec2(gl_FragCoord.xy);\n"
+    "    vec3 o = texelFetch(u_org, px, 0).xyz, d = texelFetch(u_dir, px, 0).xyz, pt, c;\n"
+    "    float t, behind;\n"
+    "    int f, steps;\n"
+    "    bool met = refl_graphcam_impostor_intersect(u_data, 0, o, d, u_tmin, 1e30, u_step, t, pt, c, f, behind, steps);\n"
+    "    o_point = vec4(pt, met ? 1.0 : 0.0);\n"
+    "    o_color = vec4(c, t);\n"
+    "    o_steps = vec4(float(steps), float(f), behind, 0.0);\n"
+    "}\n";
+
+/* The graph camera's marching program, in use: 1 px a step (graphcam.step's
+   default), from tmin on. */
+static GLuint rgl__gc_program(float tmin, char *err, size_t n) {
+    const char *parts[2];
+    GLuint prog;
+    parts[0] = refl_gl_glsl(REFL_GL_GRAPHCAM_IMPOSTOR);
+    parts[1] = rgl__gc_fs_main;
+    if (!(prog = rgl__imp_program(parts, 2, err, n))) return 0;
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_step"), 1.0f);
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmin"), tmin);
+    return prog;
+}
+
+/* The view's near and far planes as the renderer takes them (render.c's
+   refl__view_planes): GRAPHCAM's default camera is the view's pinhole. */
+static void rgl__gc_view_planes(const refl_view *v, const refl_scene *s, float *znear, float *zfar) {
+    refl_vec3 lo, hi, c;
+    float radius, dist;
+    *znear = v->znear;
+    *zfar = v->zfar;
+    if (*znear > 0.0f && *zfar > *znear) return;
+    refl_scene_bounds(s, &lo, &hi);
+    c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    radius = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    dist = refl_v3_length(refl_v3_sub(v->eye, c));
+    *zfar = fmaxf(dist + radius, 1e-3f) * 1.01f;
+    *znear = fmaxf(dist - radius, *zfar * 1e-3f);
+    *znear = fmaxf(*znear * 0.5f, *zfar * 1e-4f);
+}
+
+/* What the reflected rays meet besides the impostor (m_graphcam.c's
+   refl__gcm_exact): the flat diffuse objects (billboards, for their parts
+   outside every frustum), the reflectors (which the impostor leaves out),
+   the whole scene. */
+typedef struct rgl_gc_exact {
+    refl_bvh *flat, *unheld, *scene;
+    int *flat_object, *unheld_object;
+} rgl_gc_exact;
+
+static void rgl__gc_exact_free(rgl_gc_exact *x) {
+    refl_bvh_destroy(x->flat);
+    refl_bvh_destroy(x->unheld);
+    refl_bvh_destroy(x->scene);
+    free(x->flat_object);
+    free(x->unheld_object);
+    memset(x, 0, sizeof *x);
+}
+
+static int rgl__gc_exact_build(const refl_scene *s, rgl_gc_exact *x) {
+    uint8_t *keep = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 2);
+    int i, rc = -1;
+    memset(x, 0, sizeof *x);
+    if (!keep) return -1;
+    for (i = 0; i < s->object_count; ++i) {
+        int reflector = s->materials[s->objects[i].material].type != REFL_DIFFUSE;
+        keep[i] = !reflector && rgl__imp_flat(s, i);
+        keep[s->object_count + i] = (uint8_t)reflector;
+    }
+    if (rgl__imp_sub_bvh(s, keep, &x->flat, &x->flat_object) == 0 &&
+        rgl__imp_sub_bvh(s, keep + s->object_count, &x->unheld, &x->unheld_object) == 0 &&
+        refl_bvh_build(s, NULL, &x->scene) == REFL_OK)
+        rc = 0;
+    free(keep);
+    return rc;
+}
+
+/* The CPU's share of reflector pixel i (m_graphcam.c's refl__gcm_row after
+   the march): the first flat surface where no frustum holds it, the rays
+   the impostor cannot answer traced (none met where the scene has
+   something, passed behind a surface first, or a reflector met first),
+   the composite. */
+static void rgl__gc_finish(const rgl_pass *p, size_t i, const refl_graphcam *cam, const rgl_gc_exact *x, float eps,
+                           float *const drawn[3], refl_frame *frame, float *rgb, rgl_frame_stats *st) {
+    const float *gp = drawn[0] + 4 * i, *gc = drawn[1] + 4 * i;
+    float col[3], at[3], t = gc[3], behind = drawn[2][4 * i + 2];
+    int found = gp[3] > 0.5f, hand = 0, c;
+    refl_vec3 s, n, d, off;
+    refl_hit h;
+    rgl__imp_pixel_ray(p, i, &s, &n, &d);
+    st->projections += (long long)drawn[2][4 * i];
+    for (c = 0; c < 3; ++c) {
+        col[c] = gc[c];
+        at[c] = gp[c];
+    }
+    if (x->flat && refl_bvh_intersect(x->flat, s, d, eps, found ? t : 1e30f, &h)) {
+        float frgb[3], fat[3];
+        rgl__sp_shade_hit(p, x->flat_object[h.object], &h, d, frgb, fat);
+        if (refl_graphcam_locate(cam, refl_v3(fat[0], fat[1], fat[2])) < 0) {
+            memcpy(col, frgb, sizeof col);
+            memcpy(at, fat, sizeof at);
+            t = h.t;
+            found = 1;
+        }
+    }
+    off = refl_v3_add(s, refl_v3_scale(n, eps));
+    if ((!found || behind < t) && refl_bvh_intersect(x->scene, off, d, 0.0f, 1e30f, &h)) hand = 1;
+    if (!hand && found && x->unheld && refl_bvh_occluded(x->unheld, off, d, 0.0f, t))
+        hand = refl_bvh_intersect(x->scene, off, d, 0.0f, 1e30f, &h);
+    if (hand) {
+        /* the tracer's: the scene's first hit along the ray */
+        rgl__sp_shade_hit(p, h.object, &h, d, col, at);
+        found = 1;
+        st->traced++;
+    }
+    rgl_composite(p, (int)i, found ? col : NULL, at, frame, rgb);
+}
+
+int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view *view, const refl_graphcam *camera,
+                        refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err, size_t n) {
+    int c, rc = -1, any = 0;
+    size_t np = (size_t)view->width * (size_t)view->height, i;
+    GLuint prog = 0, tex = 0, tbuf = 0, ray_tex[2] = {0, 0};
+    uint8_t *mark = NULL;
+    float *drawn[3] = {NULL, NULL, NULL}, *org = NULL, *dir = NULL, *data = NULL, eps;
+    refl_graphcam *own = NULL;
+    refl_graphcam_impostor *imp = NULL;
+    rgl_gc_exact x;
+    rgl_pass ps;
+    refl_vec3 lo, hi;
+    long long floats = 0;
+    double t0 = rgl_now(), t_cpu = 0.0, t1;
+    memset(st, 0, sizeof *st);
+    memset(&ps, 0, sizeof ps);
+    memset(&x, 0, sizeof x);
+    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
+    for (i = 0; i < np && !any; ++i) any = ps.marks[i] != 0;
+    t1 = rgl_now();
+    if (!camera) { /* the view's pinhole at twice the frame's width, as the CPU method's default */
+        refl_view v = *view;
+        int w = 2 * view->width, h = (int)((long long)w * view->height / view->width);
+        if (!(own = (refl_graphcam *)malloc(sizeof *own))) goto oom;
+        rgl__gc_view_planes(view, scene, &v.znear, &v.zfar);
+        if (refl_graphcam_init(own, &v, w, h > 1 ? h : 1) != REFL_OK) {
+            snprintf(err, n, "the view's graph camera failed");
+            goto done;
+        }
+        camera = own;
+    }
+    for (c = 0; c < 3; ++c)
+        if (!(drawn[c] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
+    if (!(org = (float *)calloc(np, 3 * sizeof(float))) || !(dir = (float *)calloc(np, 3 * sizeof(float)))) goto oom;
+    if (any) {
+        if (refl_graphcam_impostor_build(scene, camera, NULL, 0, &imp) != REFL_OK) {
+            snprintf(err, n, "the graph camera's impostor failed");
+            goto done;
+        }
+        floats = refl_gl_pack_graphcam_impostor(camera, imp, NULL, 0);
+        if (floats < 0 || !(data = (float *)malloc((size_t)floats * sizeof(float))) ||
+            refl_gl_pack_graphcam_impostor(camera, imp, data, floats) != floats) {
+            snprintf(err, n, "refl_gl_pack_graphcam_impostor refused the impostor");
+            goto done;
+        }
+        if (rgl__gc_exact_build(scene, &x) != 0) goto oom;
+    }
+    st->mirrors = camera->count;
+    refl_graphcam_bounds(camera, &lo, &hi);
+    eps = 1e-4f * (refl_v3_length(refl_v3_sub(hi, lo)) + 1.0f); /* m_graphcam.c's */
+    t_cpu += rgl_now() - t1;
+    if (!(prog = rgl__gc_program(eps, err, n))) goto done;
+    if (rgl__sp_rays(&ps, 0.0f, ray_tex, org, dir) != 0) goto oom;
+    rgl.ClearColor(0, 0, 0, 0);
+    rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    rgl.Disable(GL_DEPTH_TEST);
+    rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    if (any) {
+        if (!(tex = rgl_buffer_texture(data, floats, &tbuf, err, n))) goto done;
+        rgl.ActiveTexture(GL_TEXTURE0);
+        rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
+        rgl.StencilFunc(GL_NOTEQUAL, 0, 0xFF); /* every reflector's pixels: one impostor */
+        rgl.DrawArrays(GL_TRIANGLES, 0, 3);
+        st->vertices += 3;
+    }
+    for (c = 0; c < 3; ++c) rgl_pass_read(&ps, c, drawn[c]);
+    if (rgl_pass_check("marching the graph camera's impostor", err, n) != 0) goto done;
+    st->gl_seconds = rgl_now() - t0 - t_cpu;
+    t1 = rgl_now();
+    for (i = 0; i < np; ++i) {
+        if (ps.marks[i]) rgl__gc_finish(&ps, i, camera, &x, eps, drawn, frame, rgb, st);
+        else rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+    }
+    st->shade_seconds = rgl_now() - t1 + t_cpu;
+    rc = 0;
+    goto done;
+oom:
+    snprintf(err, n, "out of memory");
+done:
+    rgl_pass_delete(prog, 0, 0, tex, tbuf, ray_tex);
+    rgl_pass_end(g, &ps);
+    rgl__gc_exact_free(&x);
+    refl_graphcam_impostor_destroy(imp);
+    for (c = 0; c < 3; ++c) free(drawn[c]);
+    free(org);
+    free(dir);
+    free(data);
+    free(mark);
+    free(own);
+    return rc;
+}
+
+/* ---- the hook's march against refl_impostor_intersect ------------------------------ */
+
+static double rgl__sp_rand(uint64_t *s) {
+    *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(*s >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static int rgl__sp_cmp(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* One fragment per ray: prog (in use, rgl__imp_program's) over the rays
+   (org, dir: 4 floats each, w rays a row, h rows) with data on unit 0;
+   its three outputs read back into back[0..2] (4 floats per ray, rows
+   bottom first, as the rays). *secs: the draw and read-back. */
+static int rgl__imp_march_rays(rgl_context *g, GLuint prog, const float *data, long long floats, const float *org,
+                               const float *dir, int w, int h, float *const back[3], double *secs, char *err,
+                               size_t n) {
+    static const GLenum bufs[3] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    GLuint fbo = 0, rb[3] = {0, 0, 0}, tex[2] = {0, 0}, dtex = 0, tbuf = 0, vao = 0;
+    int k, rc = -1;
+    double t0;
+    rgl.UseProgram(prog);
+    rgl.GenFramebuffers(1, &fbo);
+    rgl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+    rgl.GenRenderbuffers(3, rb);
+    for (k = 0; k < 3; ++k) {
+        rgl.BindRenderbuffer(GL_RENDERBUFFER, rb[k]);
+        rgl.RenderbufferStorage(GL_RENDERBUFFER, GL_RGBA32F, w, h);
+        rgl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + k, GL_RENDERBUFFER, rb[k]);
+    }
+    if (rgl.CheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+        snprintf(err, n, "the rays' framebuffer is incomplete");
+        goto done;
+    }
+    rgl.DrawBuffers(3, bufs);
+    rgl.Viewport(0, 0, w, h);
+    rgl.Disable(GL_DEPTH_TEST);
+    rgl.Disable(GL_STENCIL_TEST);
+    rgl.GenTextures(2, tex);
+    rgl__sp_texture(tex[0], 1, w, h, org);
+    rgl__sp_texture(tex[1], 2, w, h, dir);
+    if (!(dtex = rgl_buffer_texture(data, floats, &tbuf, err, n))) goto done;
+    rgl.ActiveTexture(GL_TEXTURE0);
+    rgl.BindTexture(GL_TEXTURE_BUFFER, dtex);
+    rgl.GenVertexArrays(1, &vao);
+    rgl.BindVertexArray(vao);
+    t0 = rgl_now();
+    rgl.DrawArrays(GL_TRIANGLES, 0, 3);
+    for (k = 0; k < 3; ++k) {
+        rgl.ReadBuffer(GL_COLOR_ATTACHMENT0 + k);
+        rgl.ReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, back[k]);
+    }
+    *secs = rgl_now() - t0;
+    rc = rgl_pass_check("marching the rays", err, n);
+done:
+    if (vao) rgl.DeleteVertexArrays(1, &vao);
+    if (fbo) {
+        rgl.BindFramebuffer(GL_FRAMEBUFFER, rgl_default_framebuffer(g));
+        rgl.DeleteFramebuffers(1, &fbo);
+    }
+    if (rb[0]) rgl.DeleteRenderbuffers(3, rb);
+    rgl_pass_delete(0, 0, 0, dtex, tbuf, tex);
+    return rc;
+}
+
+/* The rays' buffers: org and dir (4 floats a ray), back[3] for the
+   read-back, the errors; w rays a row. Nonzero when out of memory. */
+typedef struct rgl_imp_rays {
+    float *org, *dir, *back[3];
+    double *errs;
+    int w, h;
+} rgl_imp_rays;
+
+static void rgl__imp_rays_free(rgl_imp_rays *r) {
+    int k;
+    free(r->org);
+    free(r->dir);
+    for (k = 0; k < 3; ++k) free(r->back[k]);
+    free(r->errs);
+    memset(r, 0, sizeof *r);
+}
+
+static int rgl__imp_rays_new(rgl_imp_rays *r, long long rays) {
+    size_t np;
+    int k;
+    memset(r, 0, sizeof *r);
+    r->w = 256;
+    r->h = (int)((rays + r->w - 1) / r->w);
+    np = (size_t)r->w * (size_t)(r->h > 0 ? r->h : 1);
+    r->org = (float *)calloc(np, 4 * sizeof(float));
+    r->dir = (float *)calloc(np, 4 * sizeof(float));
+    r->errs = (double *)calloc(np, sizeof(double));
+    for (k = 0; k < 3; ++k) r->back[k] = (float *)malloc(np * 4 * sizeof(float));
+    return r->org && r->dir && r->errs && r->back[0] && r->back[1] && r->back[2] ? 0 : -1;
+}
+
+/* Ray i from o towards d (normalised). */
+static void rgl__imp_rays_put(rgl_imp_rays *r, size_t i, refl_vec3 o, refl_vec3 d) {
+    d = refl_v3_normalize(d);
+    r->org[4 * i] = o.x; r->org[4 * i + 1] = o.y; r->org[4 * i + 2] = o.z;
+    r->dir[4 * i] = d.x; r->dir[4 * i + 1] = d.y; r->dir[4 * i + 2] = d.z;
+}
+
+/* Ray i's origin and direction. */
+static void rgl__imp_rays_get(const rgl_imp_rays *r, size_t i, refl_vec3 *o, refl_vec3 *d) {
+    *o = refl_v3(r->org[4 * i], r->org[4 * i + 1], r->org[4 * i + 2]);
+    *d = refl_v3(r->dir[4 * i], r->dir[4 * i + 1], r->dir[4 * i + 2]);
+}
+
+/* A random point of the box [lo, hi]. */
+static refl_vec3 rgl__imp_rand_in(uint64_t *seed, refl_vec3 lo, refl_vec3 hi) {
+    float x = (float)(lo.x + (hi.x - lo.x) * rgl__sp_rand(seed)), y = (float)(lo.y + (hi.y - lo.y) * rgl__sp_rand(seed));
+    return refl_v3(x, y, (float)(lo.z + (hi.z - lo.z) * rgl__sp_rand(seed)));
+}
+
+/* A random direction, each coordinate in [-1, 1]. */
+static refl_vec3 rgl__imp_rand_dir(uint64_t *seed) {
+    float x = (float)(2.0 * rgl__sp_rand(seed) - 1.0), y = (float)(2.0 * rgl__sp_rand(seed) - 1.0);
+    return refl_v3(x, y, (float)(2.0 * rgl__sp_rand(seed) - 1.0));
+}
+
+/* The agreeing rays' errors (r->errs[0 .. agree)) into out's max and p99.9. */
+static void rgl__imp_rays_errors(rgl_imp_rays *r, long long agree, rgl_validation *out) {
+    out->projected = agree;
+    if (!agree) return;
+    qsort(r->errs, (size_t)agree, sizeof *r->errs, rgl__sp_cmp);
+    out->max_rel = r->errs[agree - 1];
+    out->p999_rel = r->errs[(size_t)((double)(agree - 1) * 0.999)];
+}
+
+int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t n) {
+    int reflector = -1, k, rc = -1;
+    size_t i;
+    refl_scene *s = NULL;
+    rgl_sp_set set;
+    rgl_imp_rays r;
+    float *data = NULL;
+    long long floats = 0, agree = 0;
+    GLuint prog = 0;
+    uint64_t seed = 0x5eedULL;
+    refl_vec3 lo, hi;
+    double t0;
+    memset(out, 0, sizeof *out);
+    memset(&set, 0, sizeof set);
+    memset(&r, 0, sizeof r);
+    out->camera = "spoc-impostor";
+    if (rays < 1) return 0;
+    if (refl_scene_builtin("teapots", NULL, &s) != REFL_OK) {
+        snprintf(err, n, "no teapots scene");
+        return -1;
+    }
+    for (k = 0; k < s->object_count && reflector < 0; ++k)
+        if (s->materials[s->objects[k].material].type == REFL_MIRROR) reflector = k;
+    if (reflector < 0 || rgl__sp_build(s, reflector, &set) != 0 || set.imp_count != 1) {
+        snprintf(err, n, "the teapots' impostor failed");
+        goto done;
+    }
+    if (!(data = rgl__sp_pack(&set, &floats)) || rgl__imp_rays_new(&r, rays) != 0) goto oom;
+    /* rays from the mirror teapot's box: 80% towards a point of the
+       impostor's sphere, the rest anywhere */
+    rgl__sp_world_box(s, reflector, &lo, &hi);
+    for (i = 0; i < (size_t)rays; ++i) {
+        const refl_impostor_camera *cam = &set.imps[0]->camera;
+        refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
+        refl_vec3 q = rgl__imp_rand_dir(&seed);
+        rgl__imp_rays_put(&r, i, o, rgl__sp_rand(&seed) < 0.8
+                                        ? refl_v3_sub(refl_v3_add(cam->center, refl_v3_scale(q, cam->radius)), o)
+                                        : q);
+    }
+    if (!(prog = rgl__sp_program(err, n)) ||
+        rgl__imp_march_rays(g, prog, data, floats, r.org, r.dir, r.w, r.h, r.back, &out->gl_seconds, err, n) != 0)
+        goto done;
+    /* C: refl_impostor_intersect; the error of t over the sphere's diameter */
+    t0 = rgl_now();
+    for (i = 0; i < (size_t)rays; ++i) {
+        refl_impostor_hit hit;
+        refl_vec3 o, d;
+        int c_hit;
+        rgl__imp_rays_get(&r, i, &o, &d);
+        c_hit = refl_impostor_intersect(set.imps[0], o, d, 0.0f, FLT_MAX, RGL_SP_STEP_SCALE, &hit, NULL);
+        if (c_hit != (r.back[0][4 * i + 3] > 0.5f)) out->disagree++;
+        else if (c_hit)
+            r.errs[agree++] = fabs((double)r.back[1][4 * i + 3] - hit.t) / (2.0 * set.imps[0]->camera.radius);
+    }
+    out->cpu_seconds = rgl_now() - t0;
+    out->points = rays;
+    rgl__imp_rays_errors(&r, agree, out);
+    snprintf(out->note, sizeof out->note, "the teapots' diffuse teapot from the mirror's centre, %dx%d x %d layers",
+             set.imps[0]->width, set.imps[0]->height, set.imps[0]->layers);
+    rc = 0;
+    goto done;
+oom:
+    snprintf(err, n, "out of memory");
+done:
+    if (prog) rgl.DeleteProgram(prog);
+    rgl__sp_set_free(&set);
+    refl_scene_destroy(s);
+    rgl__imp_rays_free(&r);
+    free(data);
+    return rc;
+}
+
+int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t n) {
+    int mirror = -1, k, rc = -1;
+    size_t i;
+    refl_scene *s = NULL;
+    refl_graphcam *cam = (refl_graphcam *)malloc(sizeof *cam);
+    refl_graphcam_impostor *imp = NULL;
+    rgl_imp_rays r;
+    float *data = NULL, eps;
+    long long floats = 0, agree = 0, c_steps = 0, gl_steps = 0;
+    GLuint prog = 0;
+    uint64_t seed = 0x9c0ffeeULL;
+    refl_vec3 lo, hi, clo, chi, c;
+    double t0;
+    memset(out, 0, sizeof *out);
+    memset(&r, 0, sizeof r);
+    out->camera = "graphcam-impostor";
+    if (rays < 1 || !cam) {
+        free(cam);
+        return rays < 1 ? 0 : -1;
+    }
+    if (refl_scene_builtin("maze", NULL, &s) != REFL_OK || refl_graphcam_maze(cam, 960, 588) != REFL_OK ||
+        refl_graphcam_impostor_build(s, cam, NULL, 0, &imp) != REFL_OK) {
+        snprintf(err, n, "the maze's graph camera impostor failed");
+        goto done;
+    }
+    for (k = 0; k < s->object_count && mirror < 0; ++k)
+        if (s->materials[s->objects[k].material].type == REFL_MIRROR) mirror = k;
+    floats = refl_gl_pack_graphcam_impostor(cam, imp, NULL, 0);
+    if (mirror < 0 || floats < 0) {
+        snprintf(err, n, "no maze mirror, or the impostor refused");
+        goto done;
+    }
+    if (!(data = (float *)malloc((size_t)floats * sizeof(float))) || rgl__imp_rays_new(&r, rays) != 0) goto oom;
+    refl_gl_pack_graphcam_impostor(cam, imp, data, floats);
+    /* rays from the mirror sphere's surface region (its box grown by a
+       quarter), in random directions, as the method's reflected rays */
+    rgl__sp_world_box(s, mirror, &lo, &hi);
+    c = refl_v3_scale(refl_v3_sub(hi, lo), 0.25f);
+    lo = refl_v3_sub(lo, c);
+    hi = refl_v3_add(hi, c);
+    for (i = 0; i < (size_t)rays; ++i) {
+        refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
+        rgl__imp_rays_put(&r, i, o, rgl__imp_rand_dir(&seed));
+    }
+    refl_graphcam_bounds(cam, &clo, &chi);
+    eps = 1e-4f * (refl_v3_length(refl_v3_sub(chi, clo)) + 1.0f);
+    if (!(prog = rgl__gc_program(eps, err, n)) ||
+        rgl__imp_march_rays(g, prog, data, floats, r.org, r.dir, r.w, r.h, r.back, &out->gl_seconds, err, n) != 0)
+        goto done;
+    /* C: refl_graphcam_intersect (segments, 1 px); the error of t over the camera's bounds */
+    t0 = rgl_now();
+    for (i = 0; i < (size_t)rays; ++i) {
+        refl_graphcam_hit hit;
+        refl_vec3 o, d;
+        int c_hit;
+        rgl__imp_rays_get(&r, i, &o, &d);
+        c_hit = refl_graphcam_intersect(cam, imp, o, d, eps, 1e30f, REFL_GRAPHCAM_SEGMENTS, 1.0f, &hit);
+        c_steps += hit.steps;
+        gl_steps += (long long)r.back[2][4 * i];
+        if (c_hit != (r.back[0][4 * i + 3] > 0.5f)) out->disagree++;
+        else if (c_hit)
+            r.errs[agree++] = fabs((double)r.back[1][4 * i + 3] - hit.t) / refl_v3_length(refl_v3_sub(chi, clo));
+    }
+    out->cpu_seconds = rgl_now() - t0;
+    out->points = rays;
+    rgl__imp_rays_errors(&r, agree, out);
+    snprintf(out->note, sizeof out->note, "the maze's camera, %d frusta at %dx%d; steps: C %lld, GL %lld",
+             cam->count, cam->width, cam->height, c_steps, gl_steps);
+    rc = 0;
+    goto done;
+oom:
+    snprintf(err, n, "out of memory");
+done:
+    if (prog) rgl.DeleteProgram(prog);
+    refl_graphcam_impostor_destroy(imp);
+    refl_scene_destroy(s);
+    rgl__imp_rays_free(&r);
+    free(data);
+    free(cam);
+    return rc;
+}
