@@ -61,8 +61,10 @@ typedef struct rgl_frame_stats {
     long long vertices;      /* vertices GL transformed, every pass */
     double gl_seconds;       /* upload, both passes and the read-backs */
     double shade_seconds;    /* the CPU's shading and compositing (PLANAR: its hand-over's frame too) */
-    int handed;              /* PLANAR: reflectors left to the CPU's PLANAR (not planar mirrors) */
-    int handed_over;         /* PLANAR: of those, the ones it handed to the tracer (curved) */
+    int handed;              /* reflectors left to the CPU: PLANAR's that are not planar mirrors (to the CPU's
+                                PLANAR); C3RC's, SBC's, SPOC's and GRAPHCAM's glass (to RAYTRACE's tracer) */
+    int handed_over;         /* of those, the ones the CPU's frame handed to the tracer (PLANAR: curved) */
+    long long handed_pixels; /* pixels of the glass the CPU traced (C3RC, SBC, SPOC, GRAPHCAM) */
     long long traced;        /* PLANAR: pixels the CPU filled; C3RC: the gaps' pixels traced on the CPU */
     long long points;        /* C3RC: the scene's points */
     long long projections;   /* C3RC: points of the leaves the cameras' box tests kept, after level of detail */

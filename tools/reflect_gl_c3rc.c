@@ -680,6 +680,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             rgl_composite(&ps, (int)i, at >= 0 ? pts.rgb + 3 * at : NULL, at >= 0 ? pts.tree->positions + 3 * at : NULL,
                           frame, rgb);
         }
+    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;
     goto done;

@@ -446,53 +446,39 @@ void rgl_pass_end(rgl_context *g, rgl_pass *p) {
     memset(p, 0, sizeof *p);
 }
 
-/* The reflectors GL does not draw through a mirrored pinhole (curved
-   mirrors and partial reflectors, glass) go to the CPU exactly as CPU
-   PLANAR hands them over: a one-bounce refl_render of method PLANAR with
-   GL's mirrors set to DIRECT (object_methods), where PLANAR's own
-   `handles` sends each curved reflector to RAYTRACE's tracer
-   (stats.handed_over) and draws the planar glass itself. Its pixels of
-   those objects (as its stencil or GL's base pass has them) replace GL's:
-   colour, stencil and point. */
-static int rgl__planar_hand_over(const rgl_pass *ps, refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err,
-                                 size_t n) {
+/* Pixels of the reflectors `handed` marks (one flag per object) drawn by
+   the CPU: a one-bounce refl_render of `cpu_method` with every other
+   object DIRECT (object_methods), whose pixels of those objects (as its
+   stencil or GL's base pass has them) replace GL's: colour, stencil and
+   point. Nothing is drawn when none of them is in view. */
+static int rgl__hand_over(const rgl_pass *ps, const uint8_t *handed, refl_method cpu_method, refl_frame *frame,
+                          float *rgb, rgl_frame_stats *st, long long *pixels, char *err, size_t n) {
     const refl_scene *s = ps->scene;
-    int o, k, c, any = 0;
+    int o, c, any = 0;
     size_t i, np = (size_t)ps->w * (size_t)ps->h;
-    refl_method *methods = (refl_method *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), sizeof *methods);
-    uint8_t *handed = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 1);
+    refl_method *methods;
     refl_render_desc d;
     refl_frame *cpu = NULL;
     int rc = -1;
-    if (!methods || !handed) goto oom;
-    for (o = 0; o < s->object_count; ++o) {
-        handed[o] = s->materials[s->objects[o].material].type != REFL_DIFFUSE;
-        st->handed += handed[o];
-    }
-    for (k = 0; k < ps->geo.mirror_count; ++k) {
-        st->handed -= handed[ps->geo.mirrors[k].object];
-        handed[ps->geo.mirrors[k].object] = 0;
-    }
-    for (o = 0; o < s->object_count; ++o) methods[o] = handed[o] ? REFL_PLANAR : REFL_DIRECT;
     for (i = 0; i < np && !any; ++i) {
         int id = (int)ps->base[0][4 * i + 3];
         any = id >= 1 && id <= s->object_count && handed[id - 1];
     }
-    if (!any) { /* none in view */
-        rc = 0;
-        goto done;
-    }
+    if (!any) return 0;
+    methods = (refl_method *)calloc((size_t)s->object_count, sizeof *methods);
+    if (!methods) goto oom;
+    for (o = 0; o < s->object_count; ++o) methods[o] = handed[o] ? cpu_method : REFL_DIRECT;
     memset(&d, 0, sizeof d);
-    d.method = REFL_PLANAR;
+    d.method = cpu_method == REFL_RAYTRACE ? REFL_DIRECT : cpu_method; /* RAYTRACE takes whole frames only */
     d.depth = 1; /* one bounce, as the GL frame */
     d.object_methods = methods;
     d.object_method_count = s->object_count;
     if (refl_frame_create(ps->w, ps->h, NULL, &cpu) != REFL_OK) goto oom;
     if (refl_render(s, ps->view, &d, cpu) != REFL_OK) {
-        snprintf(err, n, "the CPU's PLANAR frame for the curved reflectors failed");
+        snprintf(err, n, "the CPU's frame of the reflectors GL leaves to it failed: %s", cpu->message);
         goto done;
     }
-    st->handed_over = cpu->stats.handed_over;
+    st->handed_over += cpu->stats.handed_over;
     for (i = 0; i < np; ++i) {
         int id = (int)ps->base[0][4 * i + 3], sid = cpu->stencil[i];
         if (!(id >= 1 && id <= s->object_count && handed[id - 1]) && !(sid >= 1 && sid <= s->object_count && handed[sid - 1]))
@@ -502,7 +488,7 @@ static int rgl__planar_hand_over(const rgl_pass *ps, refl_frame *frame, float *r
             frame->points[3 * i + c] = cpu->points[3 * i + c];
         }
         frame->stencil[i] = cpu->stencil[i];
-        st->traced++;
+        ++*pixels;
     }
     rc = 0;
     goto done;
@@ -510,8 +496,45 @@ oom:
     snprintf(err, n, "out of memory");
 done:
     refl_frame_destroy(cpu);
-    free(handed);
     free(methods);
+    return rc;
+}
+
+/* The reflectors GL does not draw through a mirrored pinhole (curved
+   mirrors and partial reflectors, glass) go to the CPU exactly as CPU
+   PLANAR hands them over: PLANAR's own `handles` sends each curved
+   reflector to RAYTRACE's tracer (stats.handed_over) and draws the planar
+   glass itself. */
+static int rgl__planar_hand_over(const rgl_pass *ps, refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err,
+                                 size_t n) {
+    const refl_scene *s = ps->scene;
+    int o, k, rc;
+    uint8_t *handed = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 1);
+    if (!handed) return rgl__frame_fail(err, n, "out of memory");
+    for (o = 0; o < s->object_count; ++o) {
+        handed[o] = s->materials[s->objects[o].material].type != REFL_DIFFUSE;
+        st->handed += handed[o];
+    }
+    for (k = 0; k < ps->geo.mirror_count; ++k) {
+        st->handed -= handed[ps->geo.mirrors[k].object];
+        handed[ps->geo.mirrors[k].object] = 0;
+    }
+    rc = rgl__hand_over(ps, handed, REFL_PLANAR, frame, rgb, st, &st->traced, err, n);
+    free(handed);
+    return rc;
+}
+
+int rgl_hand_over_glass(const rgl_pass *ps, refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err, size_t n) {
+    const refl_scene *s = ps->scene;
+    int o, rc;
+    uint8_t *handed = (uint8_t *)calloc((size_t)(s->object_count > 0 ? s->object_count : 1), 1);
+    if (!handed) return rgl__frame_fail(err, n, "out of memory");
+    for (o = 0; o < s->object_count; ++o) {
+        handed[o] = s->materials[s->objects[o].material].type == REFL_GLASS;
+        st->handed += handed[o];
+    }
+    rc = st->handed ? rgl__hand_over(ps, handed, REFL_RAYTRACE, frame, rgb, st, &st->handed_pixels, err, n) : 0;
+    free(handed);
     return rc;
 }
 

@@ -111,5 +111,11 @@ refl_vec3 rgl_reflect(refl_vec3 d, refl_vec3 normal);
    into pt, nrm, uv as the G-buffer holds them; pt's id 0 where it leaves. */
 void rgl_trace(const rgl_pass *p, const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, float pt[4], float nrm[4],
                float uv[4]);
+/* The glass in view, which C3RC, SBC, SPOC and GRAPHCAM through GL do not
+   draw, from the CPU as the CPU methods hand it over: a one-bounce frame
+   with the glass through RAYTRACE's tracer, its pixels replacing GL's
+   (st->handed, handed_over, handed_pixels). Nonzero with the reason in
+   err on failure. */
+int rgl_hand_over_glass(const rgl_pass *ps, refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err, size_t n);
 
 #endif

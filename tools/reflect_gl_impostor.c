@@ -482,6 +482,7 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     t1 = rgl_now();
     for (i = 0; i < np; ++i)
         if (!ps.marks[i]) rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
     t_cpu += rgl_now() - t1;
     st->gl_seconds = rgl_now() - t0 - t_cpu;
     st->shade_seconds = t_cpu;
@@ -706,6 +707,7 @@ int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view
         if (ps.marks[i]) rgl__gc_finish(&ps, i, camera, &x, eps, drawn, frame, rgb, st);
         else rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
     }
+    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;
     goto done;

@@ -416,6 +416,7 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
         rgl_shade(scene, pp, pn, puv, dir, sub);
         rgl_composite(&ps, (int)i, (int)pp[3] >= 1 ? sub : NULL, pp, frame, rgb);
     }
+    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
     st->shade_seconds = rgl_now() - t1 + t_cpu;
     rc = 0;
     goto done;
