@@ -39,10 +39,10 @@
    --subdivide N splits every triangle of the scene into four, N times
    (the 100k-triangle dragon with N 2: 1.6 million), for a larger mesh.
 
-   Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
-   robust) with 1 thread and with all, median of N each, and ours / Embree
-   with 1 thread in time (above 1: ours is slower) as the median of the
-   per-run ratios.
+   Builds: refl_bvh_build_threads and Embree's scene (high quality,
+   robust), each with 1 thread and with all, taking turns, median of N
+   each, and ours / Embree at the same thread count in time (above 1:
+   ours is slower) as the median of the per-run ratios.
 
    Frames (--frame, default 640x480; 0x0: none): RAYTRACE (--frame-depth
    bounces, default 1; shadows with --shadows) four ways: refl_render
@@ -341,11 +341,11 @@ static void subdivide_scene(refl_scene *s, int times) {
 /* ---- builds and whole frames ---------------------------------------------------- */
 
 /* Build times: wall, or process CPU time with --cpu-time (ray_clock_s). */
-static double build_ours_ms(const refl_scene *s) {
+static double build_ours_ms(const refl_scene *s, int threads) {
     refl_bvh *b = NULL;
     double t0 = ray_clock_s(), ms;
-    if (refl_bvh_build(s, NULL, &b) != REFL_OK) {
-        fprintf(stderr, "bench_rays: refl_bvh_build failed\n");
+    if (refl_bvh_build_threads(s, NULL, threads, &b) != REFL_OK) {
+        fprintf(stderr, "bench_rays: refl_bvh_build_threads failed\n");
         exit(2);
     }
     ms = (ray_clock_s() - t0) * 1e3;
@@ -602,22 +602,26 @@ int main(int argc, char **argv) {
             }
     }
 
-    /* Builds, taking turns within each run (after one warm-up each). */
+    /* Builds, taking turns within each run (after one warm-up each): ours
+       and Embree's with 1 thread and with all, ratios at the same count. */
     if (!frames_only) {
-        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 4);
+        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 6);
         int run;
-        build_ours_ms(scene);
+        build_ours_ms(scene, 1);
         build_embree_ms(scene, 1);
         for (run = 0; run < runs; ++run) {
-            bt[run] = build_ours_ms(scene);
+            bt[run] = build_ours_ms(scene, 1);
             bt[runs + run] = build_embree_ms(scene, 1);
-            bt[2 * runs + run] = build_embree_ms(scene, 0);
-            bt[3 * runs + run] = bt[run] / bt[runs + run];
+            bt[2 * runs + run] = build_ours_ms(scene, 0);
+            bt[3 * runs + run] = build_embree_ms(scene, 0);
+            bt[4 * runs + run] = bt[run] / bt[runs + run];
+            bt[5 * runs + run] = bt[2 * runs + run] / bt[3 * runs + run];
         }
-        printf("\nbuild %s ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld "
-               "threads); refl_bvh / Embree 1 thread %.2f (median of per-run ratios)\n",
+        printf("\nbuild %s ms (median of %d): 1 thread: refl_bvh %.1f, Embree %.1f, refl_bvh / Embree %.2f; all %ld "
+               "threads: refl_bvh %.1f, Embree %.1f, refl_bvh / Embree %.2f (ratios: medians of per-run ratios)\n",
                use_cpu_time ? "CPU" : "wall", runs, median(bt, runs), median(bt + runs, runs),
-               median(bt + 2 * runs, runs), sysconf(_SC_NPROCESSORS_ONLN), median(bt + 3 * runs, runs));
+               median(bt + 4 * runs, runs), sysconf(_SC_NPROCESSORS_ONLN), median(bt + 2 * runs, runs),
+               median(bt + 3 * runs, runs), median(bt + 5 * runs, runs));
         free(bt);
     }
 

@@ -437,6 +437,12 @@ typedef struct refl_hit {
    space. Deterministic: the same scene gives the same tree. Degenerate
    and non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
+/* refl_bvh_build on `threads` threads (0: one per online CPU, 1: the
+   calling thread alone, as refl_bvh_build), started and stopped within
+   the call: the same tree, bit for bit, for every thread count.
+   REFL_ERROR_INVALID_ARGUMENT for threads outside 0 to RAST_MAX_THREADS. */
+REFL_API refl_result refl_bvh_build_threads(const refl_scene *scene, const refl_allocator *a, int threads,
+                                            refl_bvh **out_bvh);
 REFL_API void refl_bvh_destroy(refl_bvh *bvh);
 /* Closest hit of origin + t * dir with tmin < t < tmax: 1 and *hit, or 0.
    Watertight: a ray through a shared edge or vertex hits one triangle.

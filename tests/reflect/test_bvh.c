@@ -683,3 +683,69 @@ Test(refl_bvh, the_renderer_refits_its_bvh_when_an_object_moves) {
     refl_renderer_destroy(rr);
     refl_scene_destroy(s);
 }
+
+/* ---- the build on several threads ------------------------------------------- */
+
+/* refl_bvh_build_threads gives the tree of refl_bvh_build, byte for byte
+   (binary tree, wide tree, triangle blocks), for 1, 2 and 4 threads; with
+   a grain of `grain` triangles a job, so that a small scene takes the
+   parallel passes too. */
+static void check_same_tree_any_threads(const char *name, const refl_scene *s, int grain) {
+    static const int threads[] = {2, 4, 3};
+    refl_bvh *one = NULL;
+    int k;
+    cr_assert_eq(refl__testing_bvh_build_threads(s, NULL, 1, grain, &one), REFL_OK, "%s", name);
+    for (k = 0; k < 3; ++k) {
+        refl_bvh *more = NULL;
+        cr_assert_eq(refl__testing_bvh_build_threads(s, NULL, threads[k], grain, &more), REFL_OK, "%s", name);
+        cr_assert(refl__testing_bvh_same(one, more), "%s: %d threads (grain %d) build another tree", name, threads[k],
+                  grain);
+        refl_bvh_destroy(more);
+    }
+    refl_bvh_destroy(one);
+}
+
+Test(refl_bvh_threads, same_tree_for_every_thread_count) {
+    const char *const *names = refl_builtin_names();
+    refl_scene *s = NULL;
+    refl_bvh *bvh = (refl_bvh *)1;
+    struct stat st;
+    char err[1024];
+    int i;
+    for (i = 0; names[i]; ++i) {
+        cr_assert_eq(refl_scene_builtin(names[i], NULL, &s), REFL_OK, "%s", names[i]);
+        check_same_tree_any_threads(names[i], s, 64);
+        refl_scene_destroy(s);
+    }
+    /* random triangles of several objects: jobs that cross from one object to the next */
+    s = random_scene(77, 5, 400);
+    check_same_tree_any_threads("random", s, 16);
+    cr_assert_eq(refl_bvh_build_threads(s, NULL, -1, &bvh), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_null(bvh);
+    /* the parallel build fails cleanly at every allocation */
+    {
+        tu_alloc_counter c;
+        refl_allocator a;
+        long attempts, k;
+        memset(&c, 0, sizeof c);
+        a = tu_refl_counting(&c);
+        cr_assert_eq(refl__testing_bvh_build_threads(s, &a, 2, 16, &bvh), REFL_OK);
+        refl_bvh_destroy(bvh);
+        attempts = c.attempts;
+        for (k = 1; k <= attempts; ++k) {
+            memset(&c, 0, sizeof c);
+            c.fail_at = k;
+            cr_assert_eq(refl__testing_bvh_build_threads(s, &a, 2, 16, &bvh), REFL_ERROR_OUT_OF_MEMORY,
+                         "failing allocation %ld", k);
+            cr_assert_null(bvh);
+            cr_assert_eq(c.allocs, c.frees, "leak when allocation %ld fails", k);
+        }
+    }
+    refl_scene_destroy(s);
+    if (stat(BVH_ASSETS, &st) != 0 || !S_ISDIR(st.st_mode))
+        cr_skip_test("%s is absent: the asset tests need the shared assets next to the repository", BVH_ASSETS);
+    cr_assert_eq(refl_gltf_load(BVH_ASSETS "/xyzrgb_dragon_100k.glb", NULL, &s, err, sizeof err), REFL_OK, "%s", err);
+    check_same_tree_any_threads("xyzrgb_dragon_100k", s, 8192); /* the library's grain */
+    check_same_tree_any_threads("xyzrgb_dragon_100k", s, 500);
+    refl_scene_destroy(s);
+}
