@@ -66,6 +66,12 @@ refl_result refl__testing_bvh_build_threads(const refl_scene *scene, const refl_
     return refl__bvh_build_threads_ex(scene, a, threads, 1, grain, out_bvh);
 }
 
+unsigned refl__testing_bvh_trace4_path(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                       const float tmin[4], const float tmax[4], int any_hit, int path,
+                                       refl_hit hit[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, any_hit, path, hit);
+}
+
 int refl__testing_bvh_same(const refl_bvh *a, const refl_bvh *b) {
     return a->node_count == b->node_count && a->wide_count == b->wide_count && a->block_count == b->block_count &&
            a->tri_count == b->tri_count &&

@@ -451,6 +451,16 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Four rays at once, traced together down the tree (a node fetched once
+   for all the rays that enter it): what pays for coherent rays, such as
+   shadow rays to one light from neighbouring pixels. Bit k of the result
+   is set when ray k hits, with hit[k] (hit may be NULL), the same hit,
+   bit for bit, as refl_bvh_intersect's; the occluded form as
+   refl_bvh_occluded. */
+REFL_API unsigned refl_bvh_intersect4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                      const float tmin[4], const float tmax[4], refl_hit hit[4]);
+REFL_API unsigned refl_bvh_occluded4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                     const float tmin[4], const float tmax[4]);
 /* Refits the tree to the scene's current positions (rigid or any other
    motion of the vertices) without rebuilding it: every triangle taken
    again from its mesh and transform, every box recomputed around them.

@@ -2041,6 +2041,176 @@ REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
 }
 
+/* ---- packets of four rays ----------------------------------------------------- */
+
+typedef struct refl__bvhp_entry {
+    int32_t child, count;
+    unsigned rays;                /* the rays that entered its box */
+    float t[4];                   /* their entry distances */
+} refl__bvhp_entry;
+
+/* Four rays down the wide tree together: a node is fetched and its
+   children ordered once for all the rays that entered it; each ray's
+   boxes are tested by the single-ray test, each leaf's triangles by
+   refl__bvh_leaf for each ray that entered it, and each ray culls with
+   its own best hit. So each ray's closest hit is the single-ray trace's,
+   bit for bit: the least (t, object, triangle) in the boxes it enters,
+   whatever order they come in. Children go nearest first by the least
+   entry of their rays. Returns the mask of the rays that hit. */
+REFL__BVH_INLINE
+static unsigned refl__bvhp_trace_body(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w,
+                                      const float *tmin, float *tmax, unsigned active, int any_hit, int boxes,
+                                      refl__bvh_best *best) {
+    refl__bvhp_entry stack[REFL__BVHW_STACK];
+    float tcull[4];
+    unsigned rays = active, found = 0;
+    int sp = 0, k;
+    int32_t child = 0, count = 0;
+    for (k = 0; k < 4; ++k) tcull[k] = tmax[k];
+    for (;;) {
+        while (count == 0) {
+            const refl__bvhw_node *n = &bvh->wide[child];
+            float t[4][REFL__BVH_W], key[REFL__BVH_W];
+            unsigned lanes = 0, rays_of[REFL__BVH_W], left;
+            int m[4], lane, order[REFL__BVH_W], c = 0, j;
+            for (k = 0; k < 4; ++k) {
+                m[k] = 0;
+                if (!(rays >> k & 1)) continue;
+#ifdef REFL__BVH_AVX2
+                if (boxes == REFL__BVH_BOXES_AVX2)
+                    m[k] = refl__bvhw_boxes_avx2(&r[k], &w[k], n, tmin[k], tcull[k], t[k]);
+                else
+#endif
+#ifdef REFL__BVH_SSE2
+                if (boxes == REFL__BVH_BOXES_SSE2)
+                    m[k] = refl__bvhw_boxes_sse2(&w[k], n, _mm_set1_ps(tmin[k]), _mm_set1_ps(tcull[k]), t[k]);
+                else
+#endif
+                    m[k] = refl__bvhw_boxes_scalar(&r[k], &w[k], n, tmin[k], tcull[k], t[k]);
+                lanes |= (unsigned)m[k];
+            }
+            if (!lanes) goto pop;
+            for (left = lanes; left; left &= left - 1) {
+                lane = refl__bvh_first_lane(left);
+                rays_of[lane] = 0;
+                key[lane] = INFINITY;
+                for (k = 0; k < 4; ++k)
+                    if (m[k] >> lane & 1) {
+                        rays_of[lane] |= 1u << k;
+                        if (t[k][lane] < key[lane]) key[lane] = t[k][lane];
+                    }
+                /* farthest first (equal entries: lane order) */
+                for (j = c++; j > 0 && key[order[j - 1]] < key[lane]; --j) order[j] = order[j - 1];
+                order[j] = lane;
+            }
+            REFL_ASSERT(sp + c - 1 <= REFL__BVHW_STACK);
+            for (j = 0; j < c - 1; ++j) {
+                refl__bvhp_entry *e = &stack[sp++];
+                lane = order[j];
+                e->child = n->child[lane];
+                e->count = n->count[lane];
+                e->rays = rays_of[lane];
+                for (k = 0; k < 4; ++k) e->t[k] = t[k][lane];
+                refl__bvh_prefetch(bvh, e->child, e->count);
+            }
+            lane = order[c - 1];
+            child = n->child[lane];
+            count = n->count[lane];
+            rays = rays_of[lane];
+        }
+        for (k = 0; k < 4; ++k) {
+            if (!(rays >> k & 1)) continue;
+            if (refl__bvh_leaf(bvh, &r[k], &w[k], child, count, tmin[k], &tmax[k], any_hit,
+                               boxes == REFL__BVH_BOXES_SCALAR, &best[k])) {
+                active &= ~(1u << k); /* any_hit: answered */
+                continue;
+            }
+            if (best[k].found) tcull[k] = refl__bvh_cull_bound(tmax[k]);
+        }
+        if (!active) break;
+    pop:
+        do {
+            if (sp == 0) goto out;
+            --sp;
+            rays = stack[sp].rays & active;
+            for (k = 0; k < 4; ++k)
+                if ((rays >> k & 1) && stack[sp].t[k] > tcull[k]) rays &= ~(1u << k);
+        } while (!rays);
+        child = stack[sp].child;
+        count = stack[sp].count;
+    }
+out:
+    for (k = 0; k < 4; ++k) found |= (unsigned)(best[k].found != 0) << k;
+    return found;
+}
+
+static unsigned refl__bvhp_trace(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w,
+                                 const float *tmin, float *tmax, unsigned active, int any_hit, int scalar,
+                                 refl__bvh_best *best) {
+    return refl__bvhp_trace_body(bvh, r, w, tmin, tmax, active, any_hit,
+                                 scalar ? REFL__BVH_BOXES_SCALAR : REFL__BVH_BOXES_SSE2, best);
+}
+
+#ifdef REFL__BVH_AVX2
+__attribute__((target("avx2"))) static unsigned refl__bvhp_trace_avx2(const refl_bvh *bvh, const refl__bvh_ray *r,
+                                                                     const refl__bvhw_ray *w, const float *tmin,
+                                                                     float *tmax, unsigned active, int any_hit,
+                                                                     refl__bvh_best *best) {
+    return refl__bvhp_trace_body(bvh, r, w, tmin, tmax, active, any_hit, REFL__BVH_BOXES_AVX2, best);
+}
+#endif
+
+/* Four rays through one of the wide tree's traversals (path: REFL__BVH_WIDE,
+   REFL__BVH_WIDE_SCALAR or REFL__BVH_WIDE_SSE2). */
+static unsigned refl__bvh_trace4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                 const float tmin_in[4], const float tmax_in[4], int any_hit, int path,
+                                 refl_hit hit[4]) {
+    refl__bvh_ray r[4];
+    refl__bvhw_ray w[4];
+    refl__bvh_best best[4];
+    float tmin[4], tmax[4];
+    unsigned active = 0, found;
+    int k;
+    if (!bvh || bvh->wide_count == 0) return 0;
+    for (k = 0; k < 4; ++k) {
+        tmin[k] = tmin_in[k];
+        tmax[k] = tmax_in[k];
+        memset(&best[k], 0, sizeof best[k]);
+        if (!(tmin[k] < tmax[k]) || tmin[k] != tmin[k]) continue;
+        if (!refl__bvh_ray_setup(&r[k], origin[k], dir[k])) continue;
+        refl__bvhw_ray_setup(&w[k], &r[k]);
+        active |= 1u << k;
+    }
+    if (!active) return 0;
+#ifdef REFL__BVH_AVX2
+    if (path == REFL__BVH_WIDE && refl__bvh_has_avx2())
+        found = refl__bvhp_trace_avx2(bvh, r, w, tmin, tmax, active, any_hit, best);
+    else
+#endif
+        found = refl__bvhp_trace(bvh, r, w, tmin, tmax, active, any_hit, path == REFL__BVH_WIDE_SCALAR, best);
+    for (k = 0; k < 4; ++k) {
+        if (active >> k & 1) refl__bvh_count_tests(best[k].tests);
+        if (hit && (found >> k & 1)) {
+            hit[k].t = best[k].t;
+            hit[k].object = best[k].object;
+            hit[k].triangle = best[k].triangle;
+            hit[k].u = best[k].u;
+            hit[k].v = best[k].v;
+        }
+    }
+    return found;
+}
+
+REFL_API unsigned refl_bvh_intersect4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                      const float tmin[4], const float tmax[4], refl_hit hit[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, 0, REFL__BVH_WIDE, hit);
+}
+
+REFL_API unsigned refl_bvh_occluded4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                     const float tmin[4], const float tmax[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
+}
+
 /* The surface at hit h on mesh m placed by `model` (normals by
    `normal_m`): its triangle's corners in the world, the barycentric
    weights, the point (interpolated: more exact than origin + t dir), the
