@@ -436,8 +436,9 @@ typedef struct refl_hit {
 /* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
    children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
-   space. Deterministic: the same scene gives the same tree. Degenerate
-   and non-finite triangles are left out. */
+   space, on the calling thread (refl_bvh_build_threads: on several).
+   Deterministic: the same scene gives the same tree. Degenerate and
+   non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
 /* refl_bvh_build on `threads` threads (0: one per online CPU, 1: the
    calling thread alone, as refl_bvh_build), started and stopped within
@@ -5222,12 +5223,7 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
         bvh->node_count = 0;
     }
 done:
-    refl__free(a, pr.id);
-    refl__free(a, first_vertex);
-    refl__free(a, first_tri);
-    refl__free(a, job_ints);
-    *out_bvh = bvh;
-    return REFL_OK;
+    r = REFL_OK;
 fail:
     refl__free(a, in.world);
     refl__free(a, pr.box);
@@ -5237,8 +5233,12 @@ fail:
     refl__free(a, first_vertex);
     refl__free(a, first_tri);
     refl__free(a, job_ints);
-    refl_bvh_destroy(bvh);
-    return r;
+    if (r != REFL_OK) {
+        refl_bvh_destroy(bvh);
+        return r;
+    }
+    *out_bvh = bvh;
+    return REFL_OK;
 }
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {

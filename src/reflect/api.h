@@ -434,8 +434,9 @@ typedef struct refl_hit {
 /* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
    children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
-   space. Deterministic: the same scene gives the same tree. Degenerate
-   and non-finite triangles are left out. */
+   space, on the calling thread (refl_bvh_build_threads: on several).
+   Deterministic: the same scene gives the same tree. Degenerate and
+   non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
 /* refl_bvh_build on `threads` threads (0: one per online CPU, 1: the
    calling thread alone, as refl_bvh_build), started and stopped within

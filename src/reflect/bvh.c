@@ -1248,12 +1248,7 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
         bvh->node_count = 0;
     }
 done:
-    refl__free(a, pr.id);
-    refl__free(a, first_vertex);
-    refl__free(a, first_tri);
-    refl__free(a, job_ints);
-    *out_bvh = bvh;
-    return REFL_OK;
+    r = REFL_OK;
 fail:
     refl__free(a, in.world);
     refl__free(a, pr.box);
@@ -1263,8 +1258,12 @@ fail:
     refl__free(a, first_vertex);
     refl__free(a, first_tri);
     refl__free(a, job_ints);
-    refl_bvh_destroy(bvh);
-    return r;
+    if (r != REFL_OK) {
+        refl_bvh_destroy(bvh);
+        return r;
+    }
+    *out_bvh = bvh;
+    return REFL_OK;
 }
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
