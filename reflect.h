@@ -4215,6 +4215,7 @@ typedef struct refl__bvh_bins {
         d->count[k][bin[k]]++;                                                                                      \
     } while (0)
 
+REFL__BVH_INLINE
 static void refl__bvh_bin_sets(const refl__bvh_prims *pr, int begin, int end, int sets, refl__v4 cmin,
                                refl__v4 scale, refl__bvh_bins *bins) {
     int s, i, k, b;
@@ -4341,6 +4342,7 @@ static void refl__bvh_bound(const refl__bvh_prims *pr, int begin, int end, refl_
    split), and when it is split (returns 1) its two children's tasks,
    left first, into child (their node fields for the caller). Serial
    passes when ps is NULL; the same bits either way. */
+REFL__BVH_INLINE
 static int refl__bvh_split(refl__bvh_passes *ps, refl__bvh_prims *pr, refl__bvh_prims *spare,
                            const refl__bvh_task *task, refl__bvh_node *node, refl__bvh_task child[2]) {
     refl__bvh_bins bins[2];
