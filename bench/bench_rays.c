@@ -6,7 +6,7 @@
 
    Usage: bench_rays [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb]
                      [--frame WxH] [--frame-depth N] [--shadows] [--only primary|mirror|frames|build]
-                     [--cpu-time] [--subdivide N]
+                     [--cpu-time] [--subdivide N] [--packets]
 
    Ray sets:
      primary   one ray through each pixel centre (1920x1080 unless --size):
@@ -38,11 +38,17 @@
    wall time;
    --subdivide N splits every triangle of the scene into four, N times
    (the 100k-triangle dragon with N 2: 1.6 million), for a larger mesh.
+   --packets times, instead of all the above, refl_bvh's single rays
+   against its packets of four (refl_bvh_intersect4, refl_bvh_occluded4;
+   four consecutive rays of a set, which is in pixel order) on one
+   thread, taking turns within each run: the mirror rays, and shadow rays
+   from every primary hit to the scene's first point light (occlusion);
+   the hits must be the same, bit for bit (exit status 1 otherwise).
 
-   Builds: refl_bvh_build (one thread) and Embree's scene (high quality,
-   robust) with 1 thread and with all, median of N each, and ours / Embree
-   with 1 thread in time (above 1: ours is slower) as the median of the
-   per-run ratios.
+   Builds: refl_bvh_build_threads and Embree's scene (high quality,
+   robust), each with 1 thread and with all, taking turns, median of N
+   each, and ours / Embree at the same thread count in time (above 1:
+   ours is slower) as the median of the per-run ratios.
 
    Frames (--frame, default 640x480; 0x0: none): RAYTRACE (--frame-depth
    bounces, default 1; shadows with --shadows) four ways: refl_render
@@ -241,6 +247,102 @@ static long long count_different(const refl_hit *a, const refl_hit *b, long long
     return k;
 }
 
+/* ---- packets of four rays against single rays ----------------------------------- */
+
+/* From each primary hit towards the scene's first point light (the
+   origin where it has none), occlusion up to it, from just off the
+   surface. */
+static ray_set shadow_rays(const refl_scene *s, const ray_set *primary, const refl_hit *hits, float **tmax_out) {
+    ray_set r;
+    refl_vec3 lo, hi, light = refl_v3(0, 0, 0);
+    float offset, *tmax;
+    long long i;
+    int k;
+    for (k = 0; k < s->light_count; ++k)
+        if (s->lights[k].type == REFL_LIGHT_POINT) {
+            light = s->lights[k].position;
+            break;
+        }
+    refl_scene_bounds(s, &lo, &hi);
+    offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo));
+    r.count = 0;
+    r.origins = (refl_vec3 *)xmalloc(sizeof(refl_vec3) * (size_t)primary->count);
+    r.dirs = (refl_vec3 *)xmalloc(sizeof(refl_vec3) * (size_t)primary->count);
+    tmax = (float *)xmalloc(sizeof(float) * (size_t)primary->count);
+    for (i = 0; i < primary->count; ++i) {
+        refl_vec3 p, d;
+        if (hits[i].object < 0) continue;
+        p = refl_v3_add(primary->origins[i], refl_v3_scale(primary->dirs[i], hits[i].t));
+        d = refl_v3_sub(light, p);
+        p = refl_v3_add(p, refl_v3_scale(refl_v3_normalize(d), offset));
+        r.origins[r.count] = p;
+        r.dirs[r.count] = refl_v3_sub(light, p);
+        tmax[r.count++] = 1.0f;
+    }
+    *tmax_out = tmax;
+    return r;
+}
+
+/* One thread: single rays, then packets of four consecutive rays (the
+   sets are in pixel order), closest hits (mirror) or occlusion (shadow),
+   taking turns; the hits must be the same, bit for bit. */
+static int packets_experiment(const refl_bvh *bvh, const ray_set *mirror, const ray_set *shadow,
+                              const float *shadow_tmax, int runs) {
+    const ray_set *sets[2] = {mirror, shadow};
+    const char *names[2] = {"mirror", "shadow"};
+    int set, run, status = 0;
+    for (set = 0; set < 2; ++set) {
+        const ray_set *rs = sets[set];
+        long long n = rs->count - rs->count % 4, i, differ = 0;
+        refl_hit *a = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)(n + 1));
+        refl_hit *b = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)(n + 1));
+        double *t = (double *)xmalloc(sizeof(double) * (size_t)runs * 3);
+        int any = set == 1;
+        memset(a, 0, sizeof(refl_hit) * (size_t)(n + 1));
+        memset(b, 0, sizeof(refl_hit) * (size_t)(n + 1));
+        for (run = -1; run < runs; ++run) {
+            double t0 = ray_clock_s(), t1, t2;
+            for (i = 0; i < n; ++i) {
+                float tmax = any ? shadow_tmax[i] : INFINITY;
+                int h = any ? refl_bvh_occluded(bvh, rs->origins[i], rs->dirs[i], 0, tmax)
+                            : refl_bvh_intersect(bvh, rs->origins[i], rs->dirs[i], 0, tmax, &a[i]);
+                if (!h) a[i].object = -1;
+                else if (any) a[i].object = 1;
+            }
+            t1 = ray_clock_s();
+            for (i = 0; i < n; i += 4) {
+                float tmin[4] = {0, 0, 0, 0}, tmax[4];
+                unsigned h;
+                int k;
+                for (k = 0; k < 4; ++k) tmax[k] = any ? shadow_tmax[i + k] : INFINITY;
+                h = any ? refl_bvh_occluded4(bvh, rs->origins + i, rs->dirs + i, tmin, tmax)
+                        : refl_bvh_intersect4(bvh, rs->origins + i, rs->dirs + i, tmin, tmax, &b[i]);
+                for (k = 0; k < 4; ++k) {
+                    if (!(h >> k & 1)) b[i + k].object = -1;
+                    else if (any) b[i + k].object = 1;
+                }
+            }
+            t2 = ray_clock_s();
+            if (run < 0) continue;
+            t[run] = t1 - t0;
+            t[runs + run] = t2 - t1;
+            t[2 * runs + run] = (t1 - t0) / (t2 - t1);
+        }
+        for (i = 0; i < n; ++i)
+            differ += any ? a[i].object != b[i].object
+                          : (a[i].object != b[i].object || (a[i].object >= 0 && memcmp(&a[i], &b[i], sizeof a[i])));
+        printf("packets %-6s %9lld rays, 1 thread: single %.2f Mrays/s, packets of 4 %.2f Mrays/s, packets / single "
+               "%.2f (median of per-run ratios); rays whose hit differs: %lld\n",
+               names[set], n, n / median(t, runs) * 1e-6, n / median(t + runs, runs) * 1e-6,
+               median(t + 2 * runs, runs), differ);
+        if (differ) status = 1;
+        free(a);
+        free(b);
+        free(t);
+    }
+    return status;
+}
+
 /* ---- a larger mesh: every triangle split into four ----------------------------- */
 
 typedef struct edge_key {
@@ -341,11 +443,11 @@ static void subdivide_scene(refl_scene *s, int times) {
 /* ---- builds and whole frames ---------------------------------------------------- */
 
 /* Build times: wall, or process CPU time with --cpu-time (ray_clock_s). */
-static double build_ours_ms(const refl_scene *s) {
+static double build_ours_ms(const refl_scene *s, int threads) {
     refl_bvh *b = NULL;
     double t0 = ray_clock_s(), ms;
-    if (refl_bvh_build(s, NULL, &b) != REFL_OK) {
-        fprintf(stderr, "bench_rays: refl_bvh_build failed\n");
+    if (refl_bvh_build_threads(s, NULL, threads, &b) != REFL_OK) {
+        fprintf(stderr, "bench_rays: refl_bvh_build_threads failed\n");
         exit(2);
     }
     ms = (ray_clock_s() - t0) * 1e3;
@@ -444,7 +546,7 @@ int main(int argc, char **argv) {
     double t0, bvh_ms, embree_ms, *times, *ratios;
     long long nodes, tris;
     char err[256];
-    int frames_only, build_only, subdivide = 0;
+    int frames_only, build_only, subdivide = 0, packets = 0;
 
     for (i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--csv") && i + 1 < argc)
@@ -471,6 +573,8 @@ int main(int argc, char **argv) {
             ;
         else if (!strcmp(argv[i], "--shadows"))
             frame_shadows = 1;
+        else if (!strcmp(argv[i], "--packets"))
+            packets = 1;
         else if (!strcmp(argv[i], "--frame") && i + 1 < argc &&
                  (!strcmp(argv[i + 1], "0x0") ? (frame_w = frame_h = 0, ++i, 1)
                                                : parse_size(argv[++i], &frame_w, &frame_h)))
@@ -478,7 +582,8 @@ int main(int argc, char **argv) {
         else {
             fprintf(stderr,
                     "usage: %s [--csv FILE] [--runs N] [--size WxH] [--scene NAME | --asset FILE.glb] [--frame WxH] "
-                    "[--frame-depth N] [--shadows] [--only primary|mirror|frames|build] [--cpu-time] [--subdivide N]\n",
+                    "[--frame-depth N] [--shadows] [--only primary|mirror|frames|build] [--cpu-time] [--subdivide N] "
+                    "[--packets]\n",
                     argv[0]);
             return 2;
         }
@@ -532,6 +637,13 @@ int main(int argc, char **argv) {
             hits[tracer] = (refl_hit *)xmalloc(sizeof(refl_hit) * (size_t)rays[SET_PRIMARY].count);
         trace(TRACER_OURS, bvh, emb, 1, &rays[SET_PRIMARY], 2, hits[TRACER_OURS]);
         rays[SET_MIRROR] = mirror_rays(scene, &rays[SET_PRIMARY], hits[TRACER_OURS]);
+        if (packets) {
+            float *shadow_tmax;
+            ray_set shadow = shadow_rays(scene, &rays[SET_PRIMARY], hits[TRACER_OURS], &shadow_tmax);
+            printf("bench_rays: scene \"%s\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
+                   "warm-up\n", scene_name, tris, width, height, runs);
+            return packets_experiment(bvh, &rays[SET_MIRROR], &shadow, shadow_tmax, runs);
+        }
 
         printf("bench_rays: scene \"%s\" (%lld triangles), %dx%d from its camera; median of %d runs after 1 "
                "warm-up\n",
@@ -602,22 +714,26 @@ int main(int argc, char **argv) {
             }
     }
 
-    /* Builds, taking turns within each run (after one warm-up each). */
+    /* Builds, taking turns within each run (after one warm-up each): ours
+       and Embree's with 1 thread and with all, ratios at the same count. */
     if (!frames_only) {
-        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 4);
+        double *bt = (double *)xmalloc(sizeof(double) * (size_t)runs * 6);
         int run;
-        build_ours_ms(scene);
+        build_ours_ms(scene, 1);
         build_embree_ms(scene, 1);
         for (run = 0; run < runs; ++run) {
-            bt[run] = build_ours_ms(scene);
+            bt[run] = build_ours_ms(scene, 1);
             bt[runs + run] = build_embree_ms(scene, 1);
-            bt[2 * runs + run] = build_embree_ms(scene, 0);
-            bt[3 * runs + run] = bt[run] / bt[runs + run];
+            bt[2 * runs + run] = build_ours_ms(scene, 0);
+            bt[3 * runs + run] = build_embree_ms(scene, 0);
+            bt[4 * runs + run] = bt[run] / bt[runs + run];
+            bt[5 * runs + run] = bt[2 * runs + run] / bt[3 * runs + run];
         }
-        printf("\nbuild %s ms (median of %d): refl_bvh %.1f (1 thread), Embree %.1f (1 thread), %.1f (all %ld "
-               "threads); refl_bvh / Embree 1 thread %.2f (median of per-run ratios)\n",
+        printf("\nbuild %s ms (median of %d): 1 thread: refl_bvh %.1f, Embree %.1f, refl_bvh / Embree %.2f; all %ld "
+               "threads: refl_bvh %.1f, Embree %.1f, refl_bvh / Embree %.2f (ratios: medians of per-run ratios)\n",
                use_cpu_time ? "CPU" : "wall", runs, median(bt, runs), median(bt + runs, runs),
-               median(bt + 2 * runs, runs), sysconf(_SC_NPROCESSORS_ONLN), median(bt + 3 * runs, runs));
+               median(bt + 4 * runs, runs), sysconf(_SC_NPROCESSORS_ONLN), median(bt + 2 * runs, runs),
+               median(bt + 3 * runs, runs), median(bt + 5 * runs, runs));
         free(bt);
     }
 

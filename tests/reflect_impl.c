@@ -58,7 +58,26 @@ void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float p
 }
 
 refl_result refl__testing_bvh_build_binary_too(const refl_scene *scene, refl_bvh **out_bvh) {
-    return refl__bvh_build_ex(scene, NULL, 1, out_bvh);
+    return refl__bvh_build_ex(scene, NULL, 1, NULL, REFL__BVH_GRAIN, out_bvh);
+}
+
+refl_result refl__testing_bvh_build_threads(const refl_scene *scene, const refl_allocator *a, int threads, int grain,
+                                            refl_bvh **out_bvh) {
+    return refl__bvh_build_threads_ex(scene, a, threads, 1, grain, out_bvh);
+}
+
+unsigned refl__testing_bvh_trace4_path(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                       const float tmin[4], const float tmax[4], int any_hit, int path,
+                                       refl_hit hit[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, any_hit, path, hit);
+}
+
+int refl__testing_bvh_same(const refl_bvh *a, const refl_bvh *b) {
+    return a->node_count == b->node_count && a->wide_count == b->wide_count && a->block_count == b->block_count &&
+           a->tri_count == b->tri_count &&
+           memcmp(a->nodes, b->nodes, sizeof *a->nodes * (size_t)a->node_count) == 0 &&
+           memcmp(a->wide, b->wide, sizeof *a->wide * (size_t)a->wide_count) == 0 &&
+           memcmp(a->blocks, b->blocks, sizeof *a->blocks * (size_t)a->block_count) == 0;
 }
 
 int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,

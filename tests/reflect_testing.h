@@ -41,6 +41,19 @@ void refl__testing_view_ray(const refl_view *v, const refl_scene *scene, float p
    lane, 2 the binary tree (only in a tree built by the former), 3 the
    wide tree without AVX2. */
 refl_result refl__testing_bvh_build_binary_too(const refl_scene *scene, refl_bvh **out_bvh);
+/* refl_bvh_build_threads keeping the binary tree too, its parallel passes
+   taking jobs of `grain` triangles or more (so that small scenes take
+   the parallel path); whether two BVHs hold the same binary tree, wide
+   tree and triangle blocks, byte for byte. */
+refl_result refl__testing_bvh_build_threads(const refl_scene *scene, const refl_allocator *a, int threads, int grain,
+                                            refl_bvh **out_bvh);
+int refl__testing_bvh_same(const refl_bvh *a, const refl_bvh *b);
+/* Four rays together (refl_bvh_intersect4, or refl_bvh_occluded4 when
+   any_hit) through the wide tree's traversal `path` (0, 1 or 3 as in
+   refl__testing_bvh_intersect_path). */
+unsigned refl__testing_bvh_trace4_path(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                       const float tmin[4], const float tmax[4], int any_hit, int path,
+                                       refl_hit hit[4]);
 int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      int path, refl_hit *hit);
 

@@ -434,9 +434,16 @@ typedef struct refl_hit {
 /* Builds a bounding volume hierarchy (binned SAH, collapsed to eight
    children a node, AVX2 or SSE2 box and SSE2 triangle tests; plain C under
    RAST_NO_SIMD, with the same hits) over every object's triangles in world
-   space. Deterministic: the same scene gives the same tree. Degenerate
-   and non-finite triangles are left out. */
+   space, on the calling thread (refl_bvh_build_threads: on several).
+   Deterministic: the same scene gives the same tree. Degenerate and
+   non-finite triangles are left out. */
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh);
+/* refl_bvh_build on `threads` threads (0: one per online CPU, 1: the
+   calling thread alone, as refl_bvh_build), started and stopped within
+   the call: the same tree, bit for bit, for every thread count.
+   REFL_ERROR_INVALID_ARGUMENT for threads outside 0 to RAST_MAX_THREADS. */
+REFL_API refl_result refl_bvh_build_threads(const refl_scene *scene, const refl_allocator *a, int threads,
+                                            refl_bvh **out_bvh);
 REFL_API void refl_bvh_destroy(refl_bvh *bvh);
 /* Closest hit of origin + t * dir with tmin < t < tmax: 1 and *hit, or 0.
    Watertight: a ray through a shared edge or vertex hits one triangle.
@@ -445,6 +452,16 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
                                 refl_hit *hit);
 /* Any hit with tmin < t < tmax (shadow rays). */
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax);
+/* Four rays at once, traced together down the tree (a node fetched once
+   for all the rays that enter it): what pays for coherent rays, such as
+   shadow rays to one light from neighbouring pixels. Bit k of the result
+   is set when ray k hits, with hit[k] (hit may be NULL), the same hit,
+   bit for bit, as refl_bvh_intersect's; the occluded form as
+   refl_bvh_occluded. */
+REFL_API unsigned refl_bvh_intersect4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                      const float tmin[4], const float tmax[4], refl_hit hit[4]);
+REFL_API unsigned refl_bvh_occluded4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                     const float tmin[4], const float tmax[4]);
 /* Refits the tree to the scene's current positions (rigid or any other
    motion of the vertices) without rebuilding it: every triangle taken
    again from its mesh and transform, every box recomputed around them.

@@ -2,7 +2,12 @@
    for the RAYTRACE reference and every method that needs exact rays.
    Build: binned SAH (Wald 2007), iterative, deterministic, into a binary
    tree (the triangles' boxes move with the partitions, so that every
-   pass reads memory in order; SSE2 where built), then collapsed into an 8-wide tree (Wald, Benthin and Boulos
+   pass reads memory in order; SSE2 where built). On several threads the
+   tree's top is split one node at a time, each node's passes over its
+   triangles cut into pieces whose results merge in order, and the
+   subtrees below are built in one piece each, in parallel, then put
+   where the serial build puts them: the same tree, bit for bit, for any
+   number of threads. Then collapsed into an 8-wide tree (Wald, Benthin and Boulos
    2008) whose eight child boxes one AVX2 slab test checks at once where
    the CPU has it (chosen at run time), else two SSE2 ones (RAST_NO_SIMD:
    the same arithmetic lane by lane, the same bits). Traversal: explicit
@@ -36,6 +41,7 @@
 #endif
 
 #define REFL__BVH_BINS 16
+#define REFL__BVH_TWO_SETS 128   /* a node of this many triangles bins into two sets of bins (refl__bvh_bin_range) */
 #define REFL__BVH_LEAF 4          /* always a leaf at or below this many */
 #define REFL__BVH_MAX_LEAF 32     /* never a leaf above this, unless too deep */
 #define REFL__BVH_MAX_DEPTH 60    /* keeps traversal within its stacks */
@@ -221,10 +227,9 @@ typedef struct refl__bvh_bins {
     int count[3][REFL__BVH_BINS];
 } refl__bvh_bins;
 
-/* Bins triangles [begin, end) into bins[0]; a large range into two sets
-   taken in turns, then added up, so that consecutive triangles falling
-   into one bin do not wait on each other's stores (min and max of the
-   same floats in any order: the same boxes). */
+/* Bins triangles [begin, end) into `sets` sets of bins taken in turns
+   (triangle i into set (i - begin) % sets), so that consecutive triangles
+   falling into one bin do not wait on each other's stores. */
 /* One triangle (lo, hi) into d's bin bin[k] on axis k: a macro, so that
    the three axes' loads and stores interleave freely. */
 #define REFL__BVH_BIN_INTO(k)                                                                                       \
@@ -235,9 +240,10 @@ typedef struct refl__bvh_bins {
         d->count[k][bin[k]]++;                                                                                      \
     } while (0)
 
-static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, refl__v4 cmin, refl__v4 scale,
-                                refl__bvh_bins bins[2]) {
-    int sets = end - begin >= 128 ? 2 : 1, s, i, k, b;
+REFL__BVH_INLINE
+static void refl__bvh_bin_sets(const refl__bvh_prims *pr, int begin, int end, int sets, refl__v4 cmin,
+                               refl__v4 scale, refl__bvh_bins *bins) {
+    int s, i, k, b;
     for (s = 0; s < sets; ++s)
         for (k = 0; k < 3; ++k)
             for (b = 0; b < REFL__BVH_BINS; ++b) {
@@ -254,28 +260,45 @@ static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, r
         REFL__BVH_BIN_INTO(1);
         REFL__BVH_BIN_INTO(2);
     }
-    if (sets == 2)
-        for (k = 0; k < 3; ++k)
-            for (b = 0; b < REFL__BVH_BINS; ++b) {
-                refl__box_merge(&bins[0].box[k][b], &bins[1].box[k][b]);
-                bins[0].count[k][b] += bins[1].count[k][b];
-            }
 }
 #undef REFL__BVH_BIN_INTO
+
+/* Adds bins o into bins b. MINPS and MAXPS keep their second operand
+   between equals (+0 and -0 are equal), so merging in the order the
+   triangles come in gives the bits one pass over them in that order
+   gives: the parallel build's pieces, merged in order, make the serial
+   build's bins. */
+static void refl__bvh_bins_merge(refl__bvh_bins *b, const refl__bvh_bins *o) {
+    int k, j;
+    for (k = 0; k < 3; ++k)
+        for (j = 0; j < REFL__BVH_BINS; ++j) {
+            refl__box_merge(&b->box[k][j], &o->box[k][j]);
+            b->count[k][j] += o->count[k][j];
+        }
+}
+
+/* Bins triangles [begin, end) into bins[0]: a large range into two sets,
+   then merged. */
+static void refl__bvh_bin_range(const refl__bvh_prims *pr, int begin, int end, refl__v4 cmin, refl__v4 scale,
+                                refl__bvh_bins bins[2]) {
+    int sets = end - begin >= REFL__BVH_TWO_SETS ? 2 : 1;
+    refl__bvh_bin_sets(pr, begin, end, sets, cmin, scale, bins);
+    if (sets == 2) refl__bvh_bins_merge(&bins[0], &bins[1]);
+}
 
 /* Moves triangles [begin, end) whose bin on `axis` is at most split_bin
    before the others, each side in its order; each side's centroid box
    into lcbox and rcbox. Returns where the second side starts. Every
    triangle is written both to its place on the left (which the reading
-   has passed) and to the right side's place in `spare`, and only its
-   side's count moves on: no branch on the side, which no predictor
-   guesses. The right side then follows the left. */
+   has passed) and to the right side's place in `spare` (its same range),
+   and only its side's count moves on: no branch on the side, which no
+   predictor guesses. The right side then follows the left. */
 static int refl__bvh_partition(refl__bvh_prims *pr, refl__bvh_prims *spare, int begin, int end, int axis,
                                int split_bin, refl__v4 cmin, refl__v4 scale, refl__bvh_box *lcbox,
                                refl__bvh_box *rcbox) {
     const refl__v4 big = refl__v4_set1(FLT_MAX), small = refl__v4_set1(-FLT_MAX);
     refl__v4 llo = big, lhi = small, rlo = big, rhi = small;
-    int i, left = begin, right = 0;
+    int i, left = begin, right = begin;
     for (i = begin; i < end; ++i) {
         refl__v4 blo = refl__v4_load(pr->box[i].lo), bhi = refl__v4_load(pr->box[i].hi);
         refl__v4 c = refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(blo, bhi));
@@ -297,8 +320,8 @@ static int refl__bvh_partition(refl__bvh_prims *pr, refl__bvh_prims *spare, int 
         left += 1 - r;
         right += r;
     }
-    memcpy(&pr->box[left], spare->box, sizeof *pr->box * (size_t)right);
-    memcpy(&pr->id[left], spare->id, sizeof *pr->id * (size_t)right);
+    memcpy(&pr->box[left], &spare->box[begin], sizeof *pr->box * (size_t)(right - begin));
+    memcpy(&pr->id[left], &spare->id[begin], sizeof *pr->id * (size_t)(right - begin));
     refl__v4_store(lcbox->lo, llo);
     refl__v4_store(lcbox->hi, lhi);
     refl__v4_store(rcbox->lo, rlo);
@@ -313,132 +336,173 @@ typedef struct refl__bvh_task {
     refl__bvh_box box, cbox;
 } refl__bvh_task;
 
-static void refl__bvh_build_tree(refl_bvh *bvh, refl__bvh_prims *pr, refl__bvh_prims *spare) {
-    refl__bvh_task stack[2 * REFL__BVH_MAX_DEPTH + 8];
+/* A node's three passes over its triangles (its boxes, its bins, its
+   partition), the parallel build's (refl__bvh_par_*) or the serial ones. */
+typedef struct refl__bvh_passes refl__bvh_passes;
+static void refl__bvh_par_bound(refl__bvh_passes *ps, int begin, int end, refl__bvh_box *box, refl__bvh_box *cbox);
+static void refl__bvh_par_bin(refl__bvh_passes *ps, int begin, int end, refl__v4 cmin, refl__v4 scale,
+                              refl__bvh_bins *bins);
+static int refl__bvh_par_partition(refl__bvh_passes *ps, int begin, int end, int axis, int split_bin, refl__v4 cmin,
+                                   refl__v4 scale, const refl__bvh_bins *bins, refl__bvh_box *lcbox,
+                                   refl__bvh_box *rcbox);
+
+/* The boxes of triangles [begin, end) and of their centroids. */
+static void refl__bvh_bound(const refl__bvh_prims *pr, int begin, int end, refl__bvh_box *box, refl__bvh_box *cbox) {
+    refl__v4 blo = refl__v4_set1(FLT_MAX), bhi = refl__v4_set1(-FLT_MAX), clo = blo, chi = bhi;
+    int i;
+    for (i = begin; i < end; ++i) {
+        refl__v4 c = refl__bvh_centroid(&pr->box[i]);
+        blo = refl__v4_min(blo, refl__v4_load(pr->box[i].lo));
+        bhi = refl__v4_max(bhi, refl__v4_load(pr->box[i].hi));
+        clo = refl__v4_min(clo, c);
+        chi = refl__v4_max(chi, c);
+    }
+    refl__v4_store(box->lo, blo);
+    refl__v4_store(box->hi, bhi);
+    refl__v4_store(cbox->lo, clo);
+    refl__v4_store(cbox->hi, chi);
+}
+
+/* Builds one node: its box into *node (a leaf of the task's range until
+   split), and when it is split (returns 1) its two children's tasks,
+   left first, into child (their node fields for the caller). Serial
+   passes when ps is NULL; the same bits either way. */
+REFL__BVH_INLINE
+static int refl__bvh_split(refl__bvh_passes *ps, refl__bvh_prims *pr, refl__bvh_prims *spare,
+                           const refl__bvh_task *task, refl__bvh_node *node, refl__bvh_task child[2]) {
     refl__bvh_bins bins[2];
-    int sp = 0;
-    bvh->node_count = 1;
-    stack[sp].node = 0; stack[sp].begin = 0; stack[sp].end = bvh->tri_count; stack[sp].depth = 0;
-    stack[sp].bounded = 0;
-    ++sp;
+    int n = task->end - task->begin, j, k, axis = -1, split_bin = 0, mid, split_bounded = 0;
+    refl__bvh_box box = task->box, cbox = task->cbox, lcbox, rcbox;
+    float best_cost = FLT_MAX, leaf_cost, s3[4], parea;
+    refl__v4 cmin, scale;
+
+    if (!task->bounded) {
+        if (ps) refl__bvh_par_bound(ps, task->begin, task->end, &box, &cbox);
+        else refl__bvh_bound(pr, task->begin, task->end, &box, &cbox);
+    }
+    for (k = 0; k < 3; ++k) { node->lo[k] = box.lo[k]; node->hi[k] = box.hi[k]; }
+    node->index = task->begin;
+    node->count = n;
+    if (n <= REFL__BVH_LEAF || task->depth >= REFL__BVH_MAX_DEPTH) return 0;
+
+    /* SAH with traversal cost 1 and REFL__BVH_LEAF_COST, relative to
+       the parent's area. One pass bins the three axes (an axis
+       without extent: scale 0, not split). */
+    leaf_cost = REFL__BVH_LEAF_COST(n);
+    for (k = 0; k < 3; ++k) {
+        float extent = cbox.hi[k] - cbox.lo[k];
+        s3[k] = extent > 0 ? (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent : 0.0f;
+        if (!refl__isfinite(s3[k])) s3[k] = 0.0f; /* denormal extent */
+    }
+    s3[3] = 0.0f;
+    cmin = refl__v4_load(cbox.lo);
+    scale = refl__v4_load(s3);
+    if (ps) refl__bvh_par_bin(ps, task->begin, task->end, cmin, scale, bins);
+    else refl__bvh_bin_range(pr, task->begin, task->end, cmin, scale, bins);
+    parea = refl__box_area(&box);
+    for (k = 0; k < 3; ++k) {
+        const refl__bvh_box *b = bins[0].box[k];
+        const int *counts = bins[0].count[k];
+        int full[REFL__BVH_BINS], m = 0, left_n[REFL__BVH_BINS], right_n[REFL__BVH_BINS];
+        float left_area[REFL__BVH_BINS], right_area[REFL__BVH_BINS], cost[REFL__BVH_BINS];
+        refl__bvh_box acc;
+        if (s3[k] == 0.0f) continue;
+        /* The bins holding triangles: a split after an empty bin
+           costs what the split before it does, and the first of equal
+           costs wins, so only splits after these are costed. */
+        for (j = 0; j < REFL__BVH_BINS; ++j) {
+            full[m] = j;
+            m += counts[j] > 0;
+        }
+        /* Sweep from the right, then from the left: split i is after
+           bin full[i]. Then each split's cost, apart from the sweeps'
+           chains of dependent merges, so that they overlap. */
+        refl__box_empty(&acc);
+        for (j = m - 1; j > 0; --j) {
+            refl__box_merge(&acc, &b[full[j]]);
+            right_n[j - 1] = counts[full[j]] + (j < m - 1 ? right_n[j] : 0);
+            right_area[j - 1] = refl__box_area_full(&acc);
+        }
+        refl__box_empty(&acc);
+        for (j = 0; j < m - 1; ++j) {
+            refl__box_merge(&acc, &b[full[j]]);
+            left_n[j] = counts[full[j]] + (j > 0 ? left_n[j - 1] : 0);
+            left_area[j] = refl__box_area_full(&acc);
+        }
+        for (j = 0; j < m - 1; ++j)
+            cost[j] = parea > 0 ? 1.0f + (left_area[j] * REFL__BVH_LEAF_COST(left_n[j]) +
+                                          right_area[j] * REFL__BVH_LEAF_COST(right_n[j])) / parea
+                                : 1.0f + REFL__BVH_LEAF_COST(n); /* flat cluster: any split is as good */
+        for (j = 0; j < m - 1; ++j)
+            if (cost[j] < best_cost) {
+                best_cost = cost[j];
+                axis = k;
+                split_bin = full[j];
+            }
+    }
+    if (axis >= 0 && best_cost >= leaf_cost && n <= REFL__BVH_MAX_LEAF) return 0;
+
+    if (axis >= 0) {
+        /* Both sides are non-empty by construction. */
+        if (ps)
+            mid = refl__bvh_par_partition(ps, task->begin, task->end, axis, split_bin, cmin, scale, bins, &lcbox,
+                                          &rcbox);
+        else
+            mid = refl__bvh_partition(pr, spare, task->begin, task->end, axis, split_bin, cmin, scale, &lcbox,
+                                      &rcbox);
+        split_bounded = 1;
+        if (mid == task->begin || mid == task->end) {
+            mid = task->begin + n / 2;
+            split_bounded = 0;
+        }
+    } else {
+        /* Every centroid coincides: no axis separates them, so halve the range. */
+        mid = task->begin + n / 2;
+    }
+    child[0].begin = task->begin; child[0].end = mid;
+    child[1].begin = mid; child[1].end = task->end;
+    for (k = 0; k < 2; ++k) {
+        child[k].depth = task->depth + 1;
+        child[k].bounded = split_bounded;
+    }
+    if (split_bounded) {
+        /* the sides' boxes are their bins' (min and max are exact:
+           the same floats as a pass over the triangles) */
+        refl__box_empty(&child[0].box);
+        refl__box_empty(&child[1].box);
+        for (j = 0; j < REFL__BVH_BINS; ++j)
+            refl__box_merge(j <= split_bin ? &child[0].box : &child[1].box, &bins[0].box[axis][j]);
+        child[0].cbox = lcbox;
+        child[1].cbox = rcbox;
+    }
+    return 1;
+}
+
+/* Builds the subtree of task `root` into nodes[], depth first, left
+   child first: the root at nodes[0], the rest from nodes[1] on, each
+   interior node's children adjacent. Returns the number of nodes. The
+   whole tree built in one piece is refl_bvh_build's, node for node. */
+static int refl__bvh_build_subtree(refl__bvh_node *nodes, const refl__bvh_task *root, refl__bvh_prims *pr,
+                                   refl__bvh_prims *spare) {
+    refl__bvh_task stack[2 * REFL__BVH_MAX_DEPTH + 8];
+    int sp = 1, count = 1;
+    stack[0] = *root;
+    stack[0].node = 0;
     while (sp > 0) {
-        refl__bvh_task task = stack[--sp];
-        refl__bvh_node *node = &bvh->nodes[task.node];
-        int n = task.end - task.begin, i, k, axis = -1, split_bin = 0, mid, split_bounded = 0;
-        refl__bvh_box box = task.box, cbox = task.cbox, lcbox, rcbox;
-        float best_cost = FLT_MAX, leaf_cost, s3[4], parea;
-        refl__v4 cmin, scale;
-
-        if (!task.bounded) {
-            refl__v4 blo = refl__v4_set1(FLT_MAX), bhi = refl__v4_set1(-FLT_MAX), clo = blo, chi = bhi;
-            for (i = task.begin; i < task.end; ++i) {
-                refl__v4 c = refl__bvh_centroid(&pr->box[i]);
-                blo = refl__v4_min(blo, refl__v4_load(pr->box[i].lo));
-                bhi = refl__v4_max(bhi, refl__v4_load(pr->box[i].hi));
-                clo = refl__v4_min(clo, c);
-                chi = refl__v4_max(chi, c);
-            }
-            refl__v4_store(box.lo, blo);
-            refl__v4_store(box.hi, bhi);
-            refl__v4_store(cbox.lo, clo);
-            refl__v4_store(cbox.hi, chi);
-        }
-        for (k = 0; k < 3; ++k) { node->lo[k] = box.lo[k]; node->hi[k] = box.hi[k]; }
-        node->index = task.begin;
-        node->count = n;
-        if (n <= REFL__BVH_LEAF || task.depth >= REFL__BVH_MAX_DEPTH) continue;
-
-        /* SAH with traversal cost 1 and REFL__BVH_LEAF_COST, relative to
-           the parent's area. One pass bins the three axes (an axis
-           without extent: scale 0, not split). */
-        leaf_cost = REFL__BVH_LEAF_COST(n);
-        for (k = 0; k < 3; ++k) {
-            float extent = cbox.hi[k] - cbox.lo[k];
-            s3[k] = extent > 0 ? (float)REFL__BVH_BINS * (1.0f - 1e-6f) / extent : 0.0f;
-            if (!refl__isfinite(s3[k])) s3[k] = 0.0f; /* denormal extent */
-        }
-        s3[3] = 0.0f;
-        cmin = refl__v4_load(cbox.lo);
-        scale = refl__v4_load(s3);
-        refl__bvh_bin_range(pr, task.begin, task.end, cmin, scale, bins);
-        parea = refl__box_area(&box);
-        for (k = 0; k < 3; ++k) {
-            const refl__bvh_box *b = bins[0].box[k];
-            const int *counts = bins[0].count[k];
-            int full[REFL__BVH_BINS], m = 0, j, left_n[REFL__BVH_BINS], right_n[REFL__BVH_BINS];
-            float left_area[REFL__BVH_BINS], right_area[REFL__BVH_BINS], cost[REFL__BVH_BINS];
-            refl__bvh_box acc;
-            if (s3[k] == 0.0f) continue;
-            /* The bins holding triangles: a split after an empty bin
-               costs what the split before it does, and the first of equal
-               costs wins, so only splits after these are costed. */
-            for (j = 0; j < REFL__BVH_BINS; ++j) {
-                full[m] = j;
-                m += counts[j] > 0;
-            }
-            /* Sweep from the right, then from the left: split i is after
-               bin full[i]. Then each split's cost, apart from the sweeps'
-               chains of dependent merges, so that they overlap. */
-            refl__box_empty(&acc);
-            for (j = m - 1; j > 0; --j) {
-                refl__box_merge(&acc, &b[full[j]]);
-                right_n[j - 1] = counts[full[j]] + (j < m - 1 ? right_n[j] : 0);
-                right_area[j - 1] = refl__box_area_full(&acc);
-            }
-            refl__box_empty(&acc);
-            for (j = 0; j < m - 1; ++j) {
-                refl__box_merge(&acc, &b[full[j]]);
-                left_n[j] = counts[full[j]] + (j > 0 ? left_n[j - 1] : 0);
-                left_area[j] = refl__box_area_full(&acc);
-            }
-            for (j = 0; j < m - 1; ++j)
-                cost[j] = parea > 0 ? 1.0f + (left_area[j] * REFL__BVH_LEAF_COST(left_n[j]) +
-                                              right_area[j] * REFL__BVH_LEAF_COST(right_n[j])) / parea
-                                    : 1.0f + REFL__BVH_LEAF_COST(n); /* flat cluster: any split is as good */
-            for (j = 0; j < m - 1; ++j)
-                if (cost[j] < best_cost) {
-                    best_cost = cost[j];
-                    axis = k;
-                    split_bin = full[j];
-                }
-        }
-        if (axis >= 0 && best_cost >= leaf_cost && n <= REFL__BVH_MAX_LEAF) continue;
-
-        if (axis >= 0) {
-            /* Both sides are non-empty by construction. */
-            mid = refl__bvh_partition(pr, spare, task.begin, task.end, axis, split_bin, cmin, scale, &lcbox, &rcbox);
-            split_bounded = 1;
-            if (mid == task.begin || mid == task.end) {
-                mid = task.begin + n / 2;
-                split_bounded = 0;
-            }
-        } else {
-            /* Every centroid coincides: no axis separates them, so halve the range. */
-            mid = task.begin + n / 2;
-        }
-
-        node->index = bvh->node_count;
+        refl__bvh_task task = stack[--sp], child[2];
+        refl__bvh_node *node = &nodes[task.node];
+        if (!refl__bvh_split(NULL, pr, spare, &task, node, child)) continue;
+        node->index = count;
         node->count = 0;
-        bvh->node_count += 2;
+        count += 2;
         /* Left on top, so it is built first: nodes land in depth-first order. */
-        stack[sp].node = node->index + 1; stack[sp].begin = mid; stack[sp].end = task.end;
-        stack[sp].depth = task.depth + 1;
-        stack[sp + 1] = stack[sp];
-        stack[sp + 1].node = node->index; stack[sp + 1].begin = task.begin; stack[sp + 1].end = mid;
-        stack[sp].bounded = stack[sp + 1].bounded = split_bounded;
-        if (split_bounded) {
-            /* the sides' boxes are their bins' (min and max are exact:
-               the same floats as a pass over the triangles) */
-            int j;
-            refl__box_empty(&stack[sp].box);
-            refl__box_empty(&stack[sp + 1].box);
-            for (j = 0; j < REFL__BVH_BINS; ++j)
-                refl__box_merge(j <= split_bin ? &stack[sp + 1].box : &stack[sp].box, &bins[0].box[axis][j]);
-            stack[sp].cbox = rcbox;
-            stack[sp + 1].cbox = lcbox;
-        }
+        child[0].node = node->index;
+        child[1].node = node->index + 1;
+        stack[sp] = child[1];
+        stack[sp + 1] = child[0];
         sp += 2;
     }
+    return count;
 }
 
 static int refl__tri_ok(const float *v) {
@@ -463,31 +527,6 @@ REFL_API void refl_bvh_destroy(refl_bvh *bvh) {
     refl__free(&a, bvh->blocks_mem);
     refl__free(&a, bvh->object_tris);
     refl__free(&a, bvh);
-}
-
-/* Each leaf's triangles into its blocks, in the order the build left
-   them in (id[]); the leaf then names its first block. */
-static void refl__bvh_fill_blocks(refl_bvh *bvh, const int32_t *id) {
-    int i, b = 0, j, k;
-    for (i = 0; i < bvh->node_count; ++i) {
-        refl__bvh_node *leaf = &bvh->nodes[i];
-        if (leaf->count == 0) continue;
-        memset(&bvh->blocks[b], 0, sizeof *bvh->blocks * (size_t)((leaf->count + 3) / 4));
-        for (j = 0; j < leaf->count; ++j) {
-            const refl__bvh_tri *t = &bvh->tris[id[leaf->index + j]];
-#ifdef REFL__BVH_SSE2
-            /* the triangles are scattered over tris[]: ask for those a few leaves on */
-            if (leaf->index + j + 16 < bvh->tri_count) _mm_prefetch((const char *)&bvh->tris[id[leaf->index + j + 16]], _MM_HINT_T0);
-#endif
-            refl__bvh_tri4 *q = &bvh->blocks[b + j / 4];
-            for (k = 0; k < 9; ++k) q->v[k][j % 4] = t->v[k];
-            q->object[j % 4] = t->object;
-            q->triangle[j % 4] = t->triangle;
-        }
-        for (; j % 4; ++j) bvh->blocks[b + j / 4].object[j % 4] = -1;
-        leaf->index = b;
-        b += (leaf->count + 3) / 4;
-    }
 }
 
 /* ---- collapse into the wide tree ------------------------------------------------ */
@@ -580,6 +619,489 @@ static void *refl__bvh_alloc_lines(const refl_allocator *a, size_t count, size_t
     return (void *)(p + (64 - p % 64) % 64);
 }
 
+/* ---- the build on several threads ------------------------------------------------ */
+
+/* The fewest triangles a job of a parallel pass takes. */
+#define REFL__BVH_GRAIN 8192
+
+/* Jobs on the pool, or on the calling thread when there is none. */
+static void refl__bvh_run(rast_context *rc, int count, rast_job_fn job, void *arg) {
+    int i;
+    if (rc) rast_run_jobs(rc, count, job, arg);
+    else
+        for (i = 0; i < count; ++i) job(arg, i);
+}
+
+/* A node's pass over its range [begin, end), in `jobs` pieces of `piece`
+   triangles (an even number, so that a piece's two sets of bins take
+   the triangles the whole range's would), whose results are merged in
+   the pieces' order: the serial pass's bits. */
+struct refl__bvh_passes {
+    rast_context *rc;
+    int most_jobs, grain;
+    refl__bvh_prims *pr, *spare;
+    int begin, end, piece, jobs, axis, split_bin;
+    float cmin[4], scale[4];
+    refl__bvh_bins *bins;         /* two sets a job */
+    refl__bvh_box *boxes;         /* two a job: box and centroids' box, or the left and right centroids' boxes */
+    int *left_at, *right_at;      /* a job's first place on each side of a partition */
+};
+
+static void refl__bvh_pieces(refl__bvh_passes *ps, int begin, int end) {
+    int n = end - begin, piece = (n + ps->most_jobs - 1) / ps->most_jobs;
+    piece = REFL__MAX(piece, ps->grain);
+    piece += piece & 1;
+    ps->begin = begin;
+    ps->end = end;
+    ps->piece = piece;
+    ps->jobs = (n + piece - 1) / piece;
+}
+
+static void refl__bvh_piece(const refl__bvh_passes *ps, int job, int *begin, int *end) {
+    *begin = ps->begin + job * ps->piece;
+    *end = REFL__MIN(*begin + ps->piece, ps->end);
+}
+
+static void refl__bvh_bound_job(void *arg, int job) {
+    refl__bvh_passes *ps = (refl__bvh_passes *)arg;
+    int a, b;
+    refl__bvh_piece(ps, job, &a, &b);
+    refl__bvh_bound(ps->pr, a, b, &ps->boxes[2 * job], &ps->boxes[2 * job + 1]);
+}
+
+static void refl__bvh_par_bound(refl__bvh_passes *ps, int begin, int end, refl__bvh_box *box, refl__bvh_box *cbox) {
+    int j;
+    refl__bvh_pieces(ps, begin, end);
+    refl__bvh_run(ps->rc, ps->jobs, refl__bvh_bound_job, ps);
+    refl__box_empty(box);
+    refl__box_empty(cbox);
+    for (j = 0; j < ps->jobs; ++j) {
+        refl__box_merge(box, &ps->boxes[2 * j]);
+        refl__box_merge(cbox, &ps->boxes[2 * j + 1]);
+    }
+}
+
+static void refl__bvh_bin_job(void *arg, int job) {
+    refl__bvh_passes *ps = (refl__bvh_passes *)arg;
+    int a, b;
+    refl__bvh_piece(ps, job, &a, &b);
+    refl__bvh_bin_sets(ps->pr, a, b, 2, refl__v4_load(ps->cmin), refl__v4_load(ps->scale), &ps->bins[2 * job]);
+}
+
+/* refl__bvh_bin_range's bins (a range this long takes two sets). */
+static void refl__bvh_par_bin(refl__bvh_passes *ps, int begin, int end, refl__v4 cmin, refl__v4 scale,
+                              refl__bvh_bins *bins) {
+    int j;
+    REFL_ASSERT(end - begin >= REFL__BVH_TWO_SETS);
+    refl__bvh_pieces(ps, begin, end);
+    refl__v4_store(ps->cmin, cmin);
+    refl__v4_store(ps->scale, scale);
+    refl__bvh_run(ps->rc, ps->jobs, refl__bvh_bin_job, ps);
+    bins[0] = ps->bins[0];
+    bins[1] = ps->bins[1];
+    for (j = 1; j < ps->jobs; ++j) {
+        refl__bvh_bins_merge(&bins[0], &ps->bins[2 * j]);
+        refl__bvh_bins_merge(&bins[1], &ps->bins[2 * j + 1]);
+    }
+    refl__bvh_bins_merge(&bins[0], &bins[1]);
+}
+
+/* A piece's triangles to their sides' places in spare, each side in its
+   order, and each side's centroid box as refl__bvh_partition grows it. */
+static void refl__bvh_partition_job(void *arg, int job) {
+    refl__bvh_passes *ps = (refl__bvh_passes *)arg;
+    const refl__v4 big = refl__v4_set1(FLT_MAX), small = refl__v4_set1(-FLT_MAX);
+    const refl__v4 cmin = refl__v4_load(ps->cmin), scale = refl__v4_load(ps->scale);
+    refl__v4 llo = big, lhi = small, rlo = big, rhi = small;
+    int i, a, b, left = ps->left_at[job], right = ps->right_at[job];
+    refl__bvh_piece(ps, job, &a, &b);
+    for (i = a; i < b; ++i) {
+        refl__v4 blo = refl__v4_load(ps->pr->box[i].lo), bhi = refl__v4_load(ps->pr->box[i].hi);
+        refl__v4 c = refl__v4_mul(refl__v4_set1(0.5f), refl__v4_add(blo, bhi));
+        int bin[3], r, to;
+        refl__bvh_bins_of(c, cmin, scale, bin);
+        r = bin[ps->axis] > ps->split_bin;
+        llo = refl__v4_min(llo, refl__v4_select(r, big, c));
+        lhi = refl__v4_max(lhi, refl__v4_select(r, small, c));
+        rlo = refl__v4_min(rlo, refl__v4_select(r, c, big));
+        rhi = refl__v4_max(rhi, refl__v4_select(r, c, small));
+        to = r ? right++ : left++;
+        ps->spare->box[to] = ps->pr->box[i];
+        ps->spare->id[to] = ps->pr->id[i];
+    }
+    refl__v4_store(ps->boxes[2 * job].lo, llo);
+    refl__v4_store(ps->boxes[2 * job].hi, lhi);
+    refl__v4_store(ps->boxes[2 * job + 1].lo, rlo);
+    refl__v4_store(ps->boxes[2 * job + 1].hi, rhi);
+}
+
+static void refl__bvh_copy_back_job(void *arg, int job) {
+    refl__bvh_passes *ps = (refl__bvh_passes *)arg;
+    int a, b;
+    refl__bvh_piece(ps, job, &a, &b);
+    memcpy(&ps->pr->box[a], &ps->spare->box[a], sizeof *ps->pr->box * (size_t)(b - a));
+    memcpy(&ps->pr->id[a], &ps->spare->id[a], sizeof *ps->pr->id * (size_t)(b - a));
+}
+
+/* refl__bvh_partition's result. The pieces are those refl__bvh_par_bin
+   binned (the same range): each piece's count on each side is in its
+   bins, which place every piece's triangles at once. */
+static int refl__bvh_par_partition(refl__bvh_passes *ps, int begin, int end, int axis, int split_bin, refl__v4 cmin,
+                                   refl__v4 scale, const refl__bvh_bins *bins, refl__bvh_box *lcbox,
+                                   refl__bvh_box *rcbox) {
+    int j, b, left = begin, right, total_left = 0;
+    (void)cmin;
+    (void)scale;
+    REFL_ASSERT(ps->begin == begin && ps->end == end);
+    for (b = 0; b <= split_bin; ++b) total_left += bins[0].count[axis][b];
+    right = begin + total_left;
+    for (j = 0; j < ps->jobs; ++j) {
+        int a0, a1, n_left = 0;
+        refl__bvh_piece(ps, j, &a0, &a1);
+        for (b = 0; b <= split_bin; ++b) n_left += ps->bins[2 * j].count[axis][b] + ps->bins[2 * j + 1].count[axis][b];
+        ps->left_at[j] = left;
+        ps->right_at[j] = right;
+        left += n_left;
+        right += a1 - a0 - n_left;
+    }
+    ps->axis = axis;
+    ps->split_bin = split_bin;
+    refl__bvh_run(ps->rc, ps->jobs, refl__bvh_partition_job, ps);
+    refl__bvh_run(ps->rc, ps->jobs, refl__bvh_copy_back_job, ps);
+    refl__box_empty(lcbox);
+    refl__box_empty(rcbox);
+    for (j = 0; j < ps->jobs; ++j) {
+        refl__box_merge(lcbox, &ps->boxes[2 * j]);
+        refl__box_merge(rcbox, &ps->boxes[2 * j + 1]);
+    }
+    return begin + total_left;
+}
+
+/* A node of the tree's top, which the parallel build splits one at a time
+   with parallel passes, down to nodes small enough to build each as one
+   piece (deferred), on its own thread. */
+typedef struct refl__bvh_top {
+    refl__bvh_task task;
+    refl__bvh_node node;          /* as in the tree, but an interior node's index names its children in the tops */
+    int deferred;                 /* its subtree built in one piece (refl__bvh_build_subtree) */
+    int count;                    /* deferred: its subtree's nodes */
+    int at, first;                /* its node in the tree; deferred: where its subtree's other nodes start */
+} refl__bvh_top;
+
+typedef struct refl__bvh_subtrees {
+    refl__bvh_top *tops;
+    int *deferred;                /* the deferred tops, largest first */
+    refl__bvh_node *built;        /* a deferred top's subtree at 2 task.begin (room for its 2 n - 1 nodes) */
+    refl__bvh_node *nodes;        /* the tree */
+    refl__bvh_prims *pr, *spare;
+} refl__bvh_subtrees;
+
+static void refl__bvh_subtree_job(void *arg, int job) {
+    refl__bvh_subtrees *st = (refl__bvh_subtrees *)arg;
+    refl__bvh_top *t = &st->tops[st->deferred[job]];
+    t->count = refl__bvh_build_subtree(st->built + 2 * (size_t)t->task.begin, &t->task, st->pr, st->spare);
+}
+
+/* A subtree into its place: its root at `at`, its node k > 0 at
+   first + k - 1, where the whole tree built in one piece puts them. */
+static void refl__bvh_place_job(void *arg, int job) {
+    refl__bvh_subtrees *st = (refl__bvh_subtrees *)arg;
+    const refl__bvh_top *t = &st->tops[st->deferred[job]];
+    const refl__bvh_node *from = st->built + 2 * (size_t)t->task.begin;
+    int k;
+    for (k = 0; k < t->count; ++k) {
+        refl__bvh_node n = from[k];
+        if (n.count == 0) n.index += t->first - 1;
+        st->nodes[k ? t->first + k - 1 : t->at] = n;
+    }
+}
+
+/* The tree's nodes in refl__bvh_build_subtree's order: depth first, left
+   first, children numbered when their parent is reached. */
+static int refl__bvh_number_tops(refl__bvh_top *tops, refl__bvh_node *nodes) {
+    struct { int top, at; } stack[2 * REFL__BVH_MAX_DEPTH + 8];
+    int sp = 1, count = 1;
+    stack[0].top = 0;
+    stack[0].at = 0;
+    while (sp > 0) {
+        refl__bvh_top *t;
+        --sp;
+        t = &tops[stack[sp].top];
+        t->at = stack[sp].at;
+        if (t->deferred) {
+            t->first = count;
+            count += t->count - 1;
+        } else if (t->node.count > 0) {
+            nodes[t->at] = t->node;
+        } else {
+            nodes[t->at] = t->node;
+            nodes[t->at].index = count;
+            stack[sp].top = t->node.index + 1;
+            stack[sp].at = count + 1;
+            stack[sp + 1].top = t->node.index;
+            stack[sp + 1].at = count;
+            sp += 2;
+            count += 2;
+        }
+    }
+    return count;
+}
+
+typedef struct refl__bvh_sized { int size, top; } refl__bvh_sized;
+
+static int refl__bvh_larger_first(const void *a, const void *b) {
+    const refl__bvh_sized *x = (const refl__bvh_sized *)a, *y = (const refl__bvh_sized *)b;
+    if (x->size != y->size) return x->size > y->size ? -1 : 1;
+    return (x->top > y->top) - (x->top < y->top);
+}
+
+/* The binary tree over pr's n triangles into bvh->nodes (room for 2 n - 1),
+   on rc's threads: the tree's top split with parallel passes, the
+   subtrees below built in one piece each, in parallel, then put where
+   the serial build puts their nodes. The same nodes, bit for bit, as
+   refl__bvh_build_subtree's of the whole (`threads` 1). */
+static refl_result refl__bvh_build_tree(refl_bvh *bvh, const refl_allocator *a, rast_context *rc, int threads,
+                                        int grain, refl__bvh_prims *pr, refl__bvh_prims *spare) {
+    refl__bvh_task root;
+    refl__bvh_passes ps;
+    refl__bvh_subtrees st;
+    struct { int top; } stack[2 * REFL__BVH_MAX_DEPTH + 8];
+    int n = bvh->tri_count, cutoff, top_count = 1, capacity, sp = 1, deferred = 0, i, j;
+    refl__bvh_sized *order = NULL;
+    refl_result r = REFL_OK;
+
+    memset(&root, 0, sizeof root);
+    root.begin = 0;
+    root.end = n;
+    /* below this, a subtree is one job; above it, a node's passes are */
+    cutoff = REFL__MAX(REFL__MAX(2 * grain, REFL__BVH_TWO_SETS), n / (8 * threads));
+    if (threads <= 1 || n < cutoff) {
+        bvh->node_count = refl__bvh_build_subtree(bvh->nodes, &root, pr, spare);
+        return REFL_OK;
+    }
+    memset(&ps, 0, sizeof ps);
+    memset(&st, 0, sizeof st);
+    ps.rc = rc;
+    ps.most_jobs = 4 * threads;
+    ps.grain = grain;
+    ps.pr = pr;
+    ps.spare = spare;
+    capacity = 64;
+    ps.bins = (refl__bvh_bins *)refl__bvh_alloc(a, (size_t)ps.most_jobs * 2, sizeof *ps.bins);
+    ps.boxes = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)ps.most_jobs * 2, sizeof *ps.boxes);
+    ps.left_at = (int *)refl__bvh_alloc(a, (size_t)ps.most_jobs * 2, sizeof *ps.left_at);
+    st.tops = (refl__bvh_top *)refl__bvh_alloc(a, (size_t)capacity, sizeof *st.tops);
+    st.built = (refl__bvh_node *)refl__bvh_alloc(a, (size_t)(2 * n - 1), sizeof *st.built);
+    if (!ps.bins || !ps.boxes || !ps.left_at || !st.tops || !st.built) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    ps.right_at = ps.left_at + ps.most_jobs;
+
+    memset(&st.tops[0], 0, sizeof st.tops[0]);
+    st.tops[0].task = root;
+    stack[0].top = 0;
+    while (sp > 0) {
+        refl__bvh_task child[2];
+        refl__bvh_top *t;
+        int e = stack[--sp].top;
+        if (st.tops[e].task.end - st.tops[e].task.begin < cutoff) {
+            st.tops[e].deferred = 1;
+            ++deferred;
+            continue;
+        }
+        if (top_count + 2 > capacity) {
+            refl__bvh_top *more = (refl__bvh_top *)refl__bvh_alloc(a, (size_t)capacity * 2, sizeof *more);
+            if (!more) {
+                r = REFL_ERROR_OUT_OF_MEMORY;
+                goto done;
+            }
+            memcpy(more, st.tops, sizeof *more * (size_t)top_count);
+            refl__free(a, st.tops);
+            st.tops = more;
+            capacity *= 2;
+        }
+        t = &st.tops[e];
+        if (!refl__bvh_split(&ps, pr, spare, &t->task, &t->node, child)) continue;
+        t->node.index = top_count;
+        t->node.count = 0;
+        for (j = 0; j < 2; ++j) {
+            memset(&st.tops[top_count + j], 0, sizeof st.tops[0]);
+            st.tops[top_count + j].task = child[j];
+        }
+        stack[sp].top = top_count + 1;
+        stack[sp + 1].top = top_count;
+        sp += 2;
+        top_count += 2;
+    }
+
+    /* the subtrees, largest first, so that the last to start are short */
+    st.deferred = (int *)refl__bvh_alloc(a, (size_t)deferred, sizeof *st.deferred);
+    order = (refl__bvh_sized *)refl__bvh_alloc(a, (size_t)deferred, sizeof *order);
+    if (!st.deferred || !order) {
+        r = REFL_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    for (i = 0, j = 0; i < top_count; ++i)
+        if (st.tops[i].deferred) {
+            order[j].size = st.tops[i].task.end - st.tops[i].task.begin;
+            order[j++].top = i;
+        }
+    qsort(order, (size_t)deferred, sizeof *order, refl__bvh_larger_first);
+    for (i = 0; i < deferred; ++i) st.deferred[i] = order[i].top;
+    st.nodes = bvh->nodes;
+    st.pr = pr;
+    st.spare = spare;
+    refl__bvh_run(rc, deferred, refl__bvh_subtree_job, &st);
+    bvh->node_count = refl__bvh_number_tops(st.tops, bvh->nodes);
+    refl__bvh_run(rc, deferred, refl__bvh_place_job, &st);
+done:
+    refl__free(a, ps.bins);
+    refl__free(a, ps.boxes);
+    refl__free(a, ps.left_at);
+    refl__free(a, st.tops);
+    refl__free(a, st.built);
+    refl__free(a, st.deferred);
+    refl__free(a, order);
+    return r;
+}
+
+/* The build's input on several threads: every object's vertices in world
+   space, then its triangles, each at its place among all objects'
+   (tris[], `object` -1 for one left out as degenerate), then the kept
+   ones' boxes and places in order into pr. */
+typedef struct refl__bvh_input {
+    const refl_scene *scene;
+    refl__bvh_tri *tris;
+    refl_vec3 *world;
+    const size_t *first_vertex;   /* an object's first in world[] (one more: the total) */
+    const int *first_tri;         /* an object's first in tris[] (one more: the total) */
+    int jobs;
+    size_t vertex_piece;
+    int tri_piece;
+    int *kept;                    /* a job's triangles kept, then the first of its places in pr */
+    int *bad;                     /* a job's: a vertex index out of range */
+    refl__bvh_prims *pr;
+} refl__bvh_input;
+
+/* The object whose range of first[] holds `at`. */
+static int refl__bvh_object_at_tri(const refl__bvh_input *in, int at) {
+    int lo = 0, hi = in->scene->object_count - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (in->first_tri[mid] <= at) lo = mid;
+        else hi = mid - 1;
+    }
+    return lo;
+}
+
+static void refl__bvh_world_job(void *arg, int job) {
+    refl__bvh_input *in = (refl__bvh_input *)arg;
+    size_t total = in->first_vertex[in->scene->object_count];
+    size_t at = (size_t)job * in->vertex_piece, end = REFL__MIN(at + in->vertex_piece, total);
+    int lo = 0, hi = in->scene->object_count - 1;
+    if (at >= end) return;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (in->first_vertex[mid] <= at) lo = mid;
+        else hi = mid - 1;
+    }
+    for (; at < end; ++at) {
+        const refl_object *o;
+        const float *p;
+        while (in->first_vertex[lo + 1] <= at) ++lo;
+        o = &in->scene->objects[lo];
+        p = in->scene->meshes[o->mesh]->positions + 3 * (at - in->first_vertex[lo]);
+        in->world[at] = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
+    }
+}
+
+static void refl__bvh_tris_job(void *arg, int job) {
+    refl__bvh_input *in = (refl__bvh_input *)arg;
+    int total = in->first_tri[in->scene->object_count], at = job * in->tri_piece;
+    int end = REFL__MIN(at + in->tri_piece, total), i, kept = 0;
+    in->bad[job] = 0;
+    if (at < end) {
+        for (i = refl__bvh_object_at_tri(in, at); at < end; ++at) {
+            const refl_mesh *mesh;
+            const refl_vec3 *world;
+            refl__bvh_tri *dst = &in->tris[at];
+            int t, j;
+            while (in->first_tri[i + 1] <= at) ++i;
+            mesh = in->scene->meshes[in->scene->objects[i].mesh];
+            world = in->world + in->first_vertex[i];
+            t = at - in->first_tri[i];
+            for (j = 0; j < 3; ++j) {
+                uint32_t vi = mesh->indices[3 * (size_t)t + j];
+                if (vi >= (uint32_t)mesh->vertex_count) {
+                    in->bad[job] = 1;
+                    return;
+                }
+                dst->v[3 * j] = world[vi].x;
+                dst->v[3 * j + 1] = world[vi].y;
+                dst->v[3 * j + 2] = world[vi].z;
+            }
+            dst->object = refl__tri_ok(dst->v) ? i : -1;
+            dst->triangle = t;
+            kept += dst->object >= 0;
+        }
+    }
+    in->kept[job] = kept;
+}
+
+static void refl__bvh_prims_job(void *arg, int job) {
+    refl__bvh_input *in = (refl__bvh_input *)arg;
+    int total = in->first_tri[in->scene->object_count], at = job * in->tri_piece;
+    int end = REFL__MIN(at + in->tri_piece, total), k = in->kept[job];
+    for (; at < end; ++at) {
+        if (in->tris[at].object < 0) continue;
+        refl__tri_box(&in->tris[at], &in->pr->box[k]);
+        in->pr->id[k++] = at;
+    }
+}
+
+/* Each leaf's triangles into its blocks, in the order the build left
+   them in (id[]); the leaf then names its first block. A job takes
+   nodes [at[job], at[job + 1]) and its leaves' blocks from first[job]. */
+typedef struct refl__bvh_filling {
+    refl_bvh *bvh;
+    const int32_t *id;
+    int jobs, piece;
+    int *first;
+} refl__bvh_filling;
+
+static void refl__bvh_count_blocks_job(void *arg, int job) {
+    refl__bvh_filling *f = (refl__bvh_filling *)arg;
+    int i = job * f->piece, end = REFL__MIN(i + f->piece, f->bvh->node_count), blocks = 0;
+    for (; i < end; ++i) blocks += (f->bvh->nodes[i].count + 3) / 4;
+    f->first[job] = blocks;
+}
+
+static void refl__bvh_fill_blocks_job(void *arg, int job) {
+    refl__bvh_filling *f = (refl__bvh_filling *)arg;
+    refl_bvh *bvh = f->bvh;
+    int i = job * f->piece, end = REFL__MIN(i + f->piece, bvh->node_count), b = f->first[job], j, k;
+    for (; i < end; ++i) {
+        refl__bvh_node *leaf = &bvh->nodes[i];
+        if (leaf->count == 0) continue;
+        memset(&bvh->blocks[b], 0, sizeof *bvh->blocks * (size_t)((leaf->count + 3) / 4));
+        for (j = 0; j < leaf->count; ++j) {
+            const refl__bvh_tri *t = &bvh->tris[f->id[leaf->index + j]];
+#ifdef REFL__BVH_SSE2
+            /* the triangles are scattered over tris[]: ask for those a few leaves on */
+            if (leaf->index + j + 16 < bvh->tri_count) _mm_prefetch((const char *)&bvh->tris[f->id[leaf->index + j + 16]], _MM_HINT_T0);
+#endif
+            refl__bvh_tri4 *q = &bvh->blocks[b + j / 4];
+            for (k = 0; k < 9; ++k) q->v[k][j % 4] = t->v[k];
+            q->object[j % 4] = t->object;
+            q->triangle[j % 4] = t->triangle;
+        }
+        for (; j % 4; ++j) bvh->blocks[b + j / 4].object[j % 4] = -1;
+        leaf->index = b;
+        b += (leaf->count + 3) / 4;
+    }
+}
+
 /* Triangle t of object i in world space into v (0: an index out of range). */
 static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]) {
     const refl_object *o = &scene->objects[i];
@@ -598,14 +1120,20 @@ static int refl__bvh_world_tri(const refl_scene *scene, int i, int t, float v[9]
 }
 
 /* keep_binary: keep the binary tree too, for the tests that compare the
-   two (refl__bvh_intersect_binary). */
+   two (refl__bvh_intersect_binary). rc: the threads to build on (NULL:
+   the calling thread); grain: the fewest triangles a parallel job takes.
+   The same tree, bit for bit, whatever the threads and grain. */
 static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_allocator *a, int keep_binary,
-                                      refl_bvh **out_bvh) {
+                                      rast_context *rc, int grain, refl_bvh **out_bvh) {
     refl_bvh *bvh;
     refl__bvh_prims pr, spare;
-    refl_vec3 *world = NULL;
-    long long total = 0;
-    int i, n = 0, most_vertices = 0;
+    refl__bvh_input in;
+    refl__bvh_filling fill;
+    size_t *first_vertex = NULL;
+    int *first_tri = NULL, *job_ints = NULL;
+    long long total = 0, vertices = 0;
+    int i, n = 0, threads = rc ? rast_context_threads(rc) : 1;
+    refl_result r = REFL_ERROR_OUT_OF_MEMORY;
 
     if (out_bvh) *out_bvh = NULL;
     if (!scene || !out_bvh) return REFL_ERROR_INVALID_ARGUMENT;
@@ -619,7 +1147,7 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
         if (mesh->triangle_count < 0 || (mesh->triangle_count > 0 && (!mesh->positions || !mesh->indices)))
             return REFL_ERROR_BAD_MESH;
         total += mesh->triangle_count;
-        most_vertices = REFL__MAX(most_vertices, mesh->vertex_count);
+        if (mesh->triangle_count > 0) vertices += REFL__MAX(mesh->vertex_count, 0);
     }
     /* 2n - 1 nodes must fit an int32 index. */
     if (total > INT_MAX / 4) return REFL_ERROR_INVALID_SIZE;
@@ -628,89 +1156,90 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     if (!bvh) return REFL_ERROR_OUT_OF_MEMORY;
     bvh->allocator = refl__allocator(a);
     if (total == 0) { *out_bvh = bvh; return REFL_OK; }
-
-    bvh->tris = (refl__bvh_tri *)refl__bvh_alloc(a, (size_t)total, sizeof *bvh->tris);
-    world = (refl_vec3 *)refl__bvh_alloc(a, (size_t)REFL__MAX(most_vertices, 0), sizeof *world);
-    if (!bvh->tris || !world) {
-        refl__free(a, world);
-        refl_bvh_destroy(bvh);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
+    memset(&pr, 0, sizeof pr);
+    memset(&spare, 0, sizeof spare);
+    memset(&in, 0, sizeof in);
 
     bvh->object_count = scene->object_count;
     bvh->object_tris = (int *)refl__calloc(a, (size_t)REFL__MAX(scene->object_count, 1), sizeof(int));
-    if (!bvh->object_tris) { refl__free(a, world); refl_bvh_destroy(bvh); return REFL_ERROR_OUT_OF_MEMORY; }
-    for (i = 0; i < scene->object_count; ++i) bvh->object_tris[i] = scene->meshes[scene->objects[i].mesh]->triangle_count;
-    /* World space once per vertex (refl__bvh_world_tri's floats), so
-       triangles sharing a vertex share its exact floats: the watertight
-       test relies on that. */
+    bvh->tris = (refl__bvh_tri *)refl__bvh_alloc(a, (size_t)total, sizeof *bvh->tris);
+    in.world = (refl_vec3 *)refl__bvh_alloc(a, (size_t)REFL__MAX(vertices, 1), sizeof *in.world);
+    first_vertex = (size_t *)refl__bvh_alloc(a, (size_t)scene->object_count + 1, sizeof *first_vertex);
+    first_tri = (int *)refl__bvh_alloc(a, (size_t)scene->object_count + 1, sizeof *first_tri);
+    in.jobs = threads <= 1 ? 1 : (int)REFL__MIN((long long)4 * threads, (total + grain - 1) / grain);
+    job_ints = (int *)refl__bvh_alloc(a, (size_t)in.jobs * 2, sizeof *job_ints);
+    if (!bvh->object_tris || !bvh->tris || !in.world || !first_vertex || !first_tri || !job_ints) goto fail;
+    first_vertex[0] = 0;
+    first_tri[0] = 0;
     for (i = 0; i < scene->object_count; ++i) {
-        const refl_object *o = &scene->objects[i];
-        const refl_mesh *mesh = scene->meshes[o->mesh];
-        int t, j;
-        for (j = 0; mesh->triangle_count > 0 && j < mesh->vertex_count; ++j) {
-            const float *p = mesh->positions + 3 * (size_t)j;
-            world[j] = refl_mat4_point(o->transform, refl_v3(p[0], p[1], p[2]));
-        }
-        for (t = 0; t < mesh->triangle_count; ++t) {
-            refl__bvh_tri *dst = &bvh->tris[n];
-            for (j = 0; j < 3; ++j) {
-                uint32_t vi = mesh->indices[3 * (size_t)t + j];
-                if (vi >= (uint32_t)mesh->vertex_count) {
-                    refl__free(a, world);
-                    refl_bvh_destroy(bvh);
-                    return REFL_ERROR_BAD_MESH;
-                }
-                dst->v[3 * j] = world[vi].x;
-                dst->v[3 * j + 1] = world[vi].y;
-                dst->v[3 * j + 2] = world[vi].z;
-            }
-            if (!refl__tri_ok(dst->v)) continue;
-            dst->object = i;
-            dst->triangle = t;
-            ++n;
-        }
+        const refl_mesh *mesh = scene->meshes[scene->objects[i].mesh];
+        bvh->object_tris[i] = mesh->triangle_count;
+        first_vertex[i + 1] = first_vertex[i] + (mesh->triangle_count > 0 ? (size_t)REFL__MAX(mesh->vertex_count, 0) : 0);
+        first_tri[i + 1] = first_tri[i] + mesh->triangle_count;
     }
-    refl__free(a, world);
+    /* World space once per vertex, so triangles sharing a vertex share
+       its exact floats: the watertight test relies on that. */
+    in.scene = scene;
+    in.tris = bvh->tris;
+    in.first_vertex = first_vertex;
+    in.first_tri = first_tri;
+    in.vertex_piece = (size_t)((vertices + in.jobs - 1) / in.jobs);
+    in.tri_piece = (int)((total + in.jobs - 1) / in.jobs);
+    in.kept = job_ints;
+    in.bad = job_ints + in.jobs;
+    in.pr = &pr;
+    refl__bvh_run(rc, in.jobs, refl__bvh_world_job, &in);
+    refl__bvh_run(rc, in.jobs, refl__bvh_tris_job, &in);
+    for (i = 0; i < in.jobs; ++i) {
+        int kept = in.kept[i];
+        if (in.bad[i]) {
+            r = REFL_ERROR_BAD_MESH;
+            goto fail;
+        }
+        in.kept[i] = n;
+        n += kept;
+    }
+    refl__free(a, in.world);
+    in.world = NULL;
     bvh->tri_count = n;
-    if (n == 0) { *out_bvh = bvh; return REFL_OK; }
+    if (n == 0) goto done;
 
     bvh->nodes = (refl__bvh_node *)refl__bvh_alloc(a, (size_t)(2 * n - 1), sizeof *bvh->nodes);
     pr.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.box);
     pr.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *pr.id);
     spare.box = (refl__bvh_box *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.box);
     spare.id = (int32_t *)refl__bvh_alloc(a, (size_t)n, sizeof *spare.id);
-    if (!bvh->nodes || !pr.box || !pr.id || !spare.box || !spare.id) {
-        refl__free(a, pr.box);
-        refl__free(a, pr.id);
-        refl__free(a, spare.box);
-        refl__free(a, spare.id);
-        refl_bvh_destroy(bvh);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    for (i = 0; i < n; ++i) {
-        refl__tri_box(&bvh->tris[i], &pr.box[i]);
-        pr.id[i] = i;
-    }
-    refl__bvh_build_tree(bvh, &pr, &spare);
+    if (!bvh->nodes || !pr.box || !pr.id || !spare.box || !spare.id) goto fail;
+    refl__bvh_run(rc, in.jobs, refl__bvh_prims_job, &in);
+    r = refl__bvh_build_tree(bvh, a, rc, threads, grain, &pr, &spare);
+    if (r != REFL_OK) goto fail;
+    r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(a, pr.box);
     refl__free(a, spare.box);
     refl__free(a, spare.id);
+    pr.box = spare.box = NULL;
+    spare.id = NULL;
 
-    for (i = 0; i < bvh->node_count; ++i) bvh->block_count += (bvh->nodes[i].count + 3) / 4;
+    /* each job's share of the blocks, in node order */
+    fill.bvh = bvh;
+    fill.id = pr.id;
+    fill.jobs = in.jobs;
+    fill.piece = (bvh->node_count + in.jobs - 1) / in.jobs;
+    fill.first = job_ints;
+    refl__bvh_run(rc, fill.jobs, refl__bvh_count_blocks_job, &fill);
+    for (i = 0; i < fill.jobs; ++i) {
+        int blocks = fill.first[i];
+        fill.first[i] = bvh->block_count;
+        bvh->block_count += blocks;
+    }
     bvh->blocks = (refl__bvh_tri4 *)refl__bvh_alloc_lines(a, (size_t)bvh->block_count, sizeof *bvh->blocks,
                                                            &bvh->blocks_mem);
     /* A full binary tree of L leaves has L - 1 interior nodes, and each
        wide node starts from a different one (one node for a lone leaf). */
     bvh->wide = (refl__bvhw_node *)refl__bvh_alloc_lines(a, (size_t)REFL__MAX((bvh->node_count - 1) / 2, 1),
                                                           sizeof *bvh->wide, &bvh->wide_mem);
-    if (!bvh->blocks || !bvh->wide) {
-        refl__free(a, pr.id);
-        refl_bvh_destroy(bvh);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
-    refl__bvh_fill_blocks(bvh, pr.id);
-    refl__free(a, pr.id);
+    if (!bvh->blocks || !bvh->wide) goto fail;
+    refl__bvh_run(rc, fill.jobs, refl__bvh_fill_blocks_job, &fill);
     refl__free(a, bvh->tris);
     bvh->tris = NULL;
 
@@ -720,12 +1249,60 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
         bvh->nodes = NULL;
         bvh->node_count = 0;
     }
+done:
+    r = REFL_OK;
+fail:
+    refl__free(a, in.world);
+    refl__free(a, pr.box);
+    refl__free(a, pr.id);
+    refl__free(a, spare.box);
+    refl__free(a, spare.id);
+    refl__free(a, first_vertex);
+    refl__free(a, first_tri);
+    refl__free(a, job_ints);
+    if (r != REFL_OK) {
+        refl_bvh_destroy(bvh);
+        return r;
+    }
     *out_bvh = bvh;
     return REFL_OK;
 }
 
 REFL_API refl_result refl_bvh_build(const refl_scene *scene, const refl_allocator *a, refl_bvh **out_bvh) {
-    return refl__bvh_build_ex(scene, a, 0, out_bvh);
+    return refl__bvh_build_ex(scene, a, 0, NULL, REFL__BVH_GRAIN, out_bvh);
+}
+
+static refl_result refl__bvh_build_on(const refl_scene *scene, const refl_allocator *a, rast_context *rc,
+                                      refl_bvh **out_bvh) {
+    return refl__bvh_build_ex(scene, a, 0, rc, REFL__BVH_GRAIN, out_bvh);
+}
+
+/* refl_bvh_build_threads with the tests' choices: the binary tree kept
+   too, and the grain of the parallel passes. */
+static refl_result refl__bvh_build_threads_ex(const refl_scene *scene, const refl_allocator *a, int threads,
+                                              int keep_binary, int grain, refl_bvh **out_bvh) {
+    rast_context_desc cd;
+    rast_context *rc = NULL;
+    refl_result r;
+    if (out_bvh) *out_bvh = NULL;
+    if (threads < 0 || threads > RAST_MAX_THREADS || grain < 1) return REFL_ERROR_INVALID_ARGUMENT;
+    if (threads == 1) return refl__bvh_build_ex(scene, a, keep_binary, NULL, grain, out_bvh);
+    memset(&cd, 0, sizeof cd);
+    cd.num_threads = threads;
+    if (a) {
+        cd.allocator.alloc = a->alloc;
+        cd.allocator.free = a->free;
+        cd.allocator.user = a->user;
+    }
+    if ((r = refl__result_from_rast(rast_context_create(&cd, &rc))) != REFL_OK) return r;
+    r = refl__bvh_build_ex(scene, a, keep_binary, rc, grain, out_bvh);
+    rast_context_destroy(rc);
+    return r;
+}
+
+REFL_API refl_result refl_bvh_build_threads(const refl_scene *scene, const refl_allocator *a, int threads,
+                                            refl_bvh **out_bvh) {
+    return refl__bvh_build_threads_ex(scene, a, threads, 0, REFL__BVH_GRAIN, out_bvh);
 }
 
 /* ---- refit ------------------------------------------------------------------- */
@@ -1463,6 +2040,176 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
+}
+
+/* ---- packets of four rays ----------------------------------------------------- */
+
+typedef struct refl__bvhp_entry {
+    int32_t child, count;
+    unsigned rays;                /* the rays that entered its box */
+    float t[4];                   /* their entry distances */
+} refl__bvhp_entry;
+
+/* Four rays down the wide tree together: a node is fetched and its
+   children ordered once for all the rays that entered it; each ray's
+   boxes are tested by the single-ray test, each leaf's triangles by
+   refl__bvh_leaf for each ray that entered it, and each ray culls with
+   its own best hit. So each ray's closest hit is the single-ray trace's,
+   bit for bit: the least (t, object, triangle) in the boxes it enters,
+   whatever order they come in. Children go nearest first by the least
+   entry of their rays. Returns the mask of the rays that hit. */
+REFL__BVH_INLINE
+static unsigned refl__bvhp_trace_body(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w,
+                                      const float *tmin, float *tmax, unsigned active, int any_hit, int boxes,
+                                      refl__bvh_best *best) {
+    refl__bvhp_entry stack[REFL__BVHW_STACK];
+    float tcull[4];
+    unsigned rays = active, found = 0;
+    int sp = 0, k;
+    int32_t child = 0, count = 0;
+    for (k = 0; k < 4; ++k) tcull[k] = tmax[k];
+    for (;;) {
+        while (count == 0) {
+            const refl__bvhw_node *n = &bvh->wide[child];
+            float t[4][REFL__BVH_W], key[REFL__BVH_W];
+            unsigned lanes = 0, rays_of[REFL__BVH_W], left;
+            int m[4], lane, order[REFL__BVH_W], c = 0, j;
+            for (k = 0; k < 4; ++k) {
+                m[k] = 0;
+                if (!(rays >> k & 1)) continue;
+#ifdef REFL__BVH_AVX2
+                if (boxes == REFL__BVH_BOXES_AVX2)
+                    m[k] = refl__bvhw_boxes_avx2(&r[k], &w[k], n, tmin[k], tcull[k], t[k]);
+                else
+#endif
+#ifdef REFL__BVH_SSE2
+                if (boxes == REFL__BVH_BOXES_SSE2)
+                    m[k] = refl__bvhw_boxes_sse2(&w[k], n, _mm_set1_ps(tmin[k]), _mm_set1_ps(tcull[k]), t[k]);
+                else
+#endif
+                    m[k] = refl__bvhw_boxes_scalar(&r[k], &w[k], n, tmin[k], tcull[k], t[k]);
+                lanes |= (unsigned)m[k];
+            }
+            if (!lanes) goto pop;
+            for (left = lanes; left; left &= left - 1) {
+                lane = refl__bvh_first_lane(left);
+                rays_of[lane] = 0;
+                key[lane] = INFINITY;
+                for (k = 0; k < 4; ++k)
+                    if (m[k] >> lane & 1) {
+                        rays_of[lane] |= 1u << k;
+                        if (t[k][lane] < key[lane]) key[lane] = t[k][lane];
+                    }
+                /* farthest first (equal entries: lane order) */
+                for (j = c++; j > 0 && key[order[j - 1]] < key[lane]; --j) order[j] = order[j - 1];
+                order[j] = lane;
+            }
+            REFL_ASSERT(sp + c - 1 <= REFL__BVHW_STACK);
+            for (j = 0; j < c - 1; ++j) {
+                refl__bvhp_entry *e = &stack[sp++];
+                lane = order[j];
+                e->child = n->child[lane];
+                e->count = n->count[lane];
+                e->rays = rays_of[lane];
+                for (k = 0; k < 4; ++k) e->t[k] = t[k][lane];
+                refl__bvh_prefetch(bvh, e->child, e->count);
+            }
+            lane = order[c - 1];
+            child = n->child[lane];
+            count = n->count[lane];
+            rays = rays_of[lane];
+        }
+        for (k = 0; k < 4; ++k) {
+            if (!(rays >> k & 1)) continue;
+            if (refl__bvh_leaf(bvh, &r[k], &w[k], child, count, tmin[k], &tmax[k], any_hit,
+                               boxes == REFL__BVH_BOXES_SCALAR, &best[k])) {
+                active &= ~(1u << k); /* any_hit: answered */
+                continue;
+            }
+            if (best[k].found) tcull[k] = refl__bvh_cull_bound(tmax[k]);
+        }
+        if (!active) break;
+    pop:
+        do {
+            if (sp == 0) goto out;
+            --sp;
+            rays = stack[sp].rays & active;
+            for (k = 0; k < 4; ++k)
+                if ((rays >> k & 1) && stack[sp].t[k] > tcull[k]) rays &= ~(1u << k);
+        } while (!rays);
+        child = stack[sp].child;
+        count = stack[sp].count;
+    }
+out:
+    for (k = 0; k < 4; ++k) found |= (unsigned)(best[k].found != 0) << k;
+    return found;
+}
+
+static unsigned refl__bvhp_trace(const refl_bvh *bvh, const refl__bvh_ray *r, const refl__bvhw_ray *w,
+                                 const float *tmin, float *tmax, unsigned active, int any_hit, int scalar,
+                                 refl__bvh_best *best) {
+    return refl__bvhp_trace_body(bvh, r, w, tmin, tmax, active, any_hit,
+                                 scalar ? REFL__BVH_BOXES_SCALAR : REFL__BVH_BOXES_SSE2, best);
+}
+
+#ifdef REFL__BVH_AVX2
+__attribute__((target("avx2"))) static unsigned refl__bvhp_trace_avx2(const refl_bvh *bvh, const refl__bvh_ray *r,
+                                                                     const refl__bvhw_ray *w, const float *tmin,
+                                                                     float *tmax, unsigned active, int any_hit,
+                                                                     refl__bvh_best *best) {
+    return refl__bvhp_trace_body(bvh, r, w, tmin, tmax, active, any_hit, REFL__BVH_BOXES_AVX2, best);
+}
+#endif
+
+/* Four rays through one of the wide tree's traversals (path: REFL__BVH_WIDE,
+   REFL__BVH_WIDE_SCALAR or REFL__BVH_WIDE_SSE2). */
+static unsigned refl__bvh_trace4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                 const float tmin_in[4], const float tmax_in[4], int any_hit, int path,
+                                 refl_hit hit[4]) {
+    refl__bvh_ray r[4];
+    refl__bvhw_ray w[4];
+    refl__bvh_best best[4];
+    float tmin[4], tmax[4];
+    unsigned active = 0, found;
+    int k;
+    if (!bvh || bvh->wide_count == 0) return 0;
+    for (k = 0; k < 4; ++k) {
+        tmin[k] = tmin_in[k];
+        tmax[k] = tmax_in[k];
+        memset(&best[k], 0, sizeof best[k]);
+        if (!(tmin[k] < tmax[k]) || tmin[k] != tmin[k]) continue;
+        if (!refl__bvh_ray_setup(&r[k], origin[k], dir[k])) continue;
+        refl__bvhw_ray_setup(&w[k], &r[k]);
+        active |= 1u << k;
+    }
+    if (!active) return 0;
+#ifdef REFL__BVH_AVX2
+    if (path == REFL__BVH_WIDE && refl__bvh_has_avx2())
+        found = refl__bvhp_trace_avx2(bvh, r, w, tmin, tmax, active, any_hit, best);
+    else
+#endif
+        found = refl__bvhp_trace(bvh, r, w, tmin, tmax, active, any_hit, path == REFL__BVH_WIDE_SCALAR, best);
+    for (k = 0; k < 4; ++k) {
+        if (active >> k & 1) refl__bvh_count_tests(best[k].tests);
+        if (hit && (found >> k & 1)) {
+            hit[k].t = best[k].t;
+            hit[k].object = best[k].object;
+            hit[k].triangle = best[k].triangle;
+            hit[k].u = best[k].u;
+            hit[k].v = best[k].v;
+        }
+    }
+    return found;
+}
+
+REFL_API unsigned refl_bvh_intersect4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                      const float tmin[4], const float tmax[4], refl_hit hit[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, 0, REFL__BVH_WIDE, hit);
+}
+
+REFL_API unsigned refl_bvh_occluded4(const refl_bvh *bvh, const refl_vec3 origin[4], const refl_vec3 dir[4],
+                                     const float tmin[4], const float tmax[4]) {
+    return refl__bvh_trace4(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
 }
 
 /* The surface at hit h on mesh m placed by `model` (normals by

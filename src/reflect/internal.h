@@ -224,6 +224,9 @@ typedef struct refl__hit_geom {
 } refl__hit_geom;
 static void refl__hit_surface(const refl_mesh *m, const refl_mat4 *model, const refl_mat4 *normal_m, const refl_hit *h,
                               refl__hit_geom *g);
+/* refl_bvh_build on rc's threads (bvh.c): the same tree. */
+static refl_result refl__bvh_build_on(const refl_scene *scene, const refl_allocator *a, rast_context *rc,
+                                      refl_bvh **out_bvh);
 /* What a BVH holds in bytes (bvh.c): its nodes, triangles and leaf order. */
 static long long refl__bvh_bytes(const refl_bvh *bvh);
 /* Triangle tests of every BVH trace of the process so far (bvh.c): a

@@ -504,7 +504,7 @@ static refl_result refl__models_bvh(refl__pass *p, refl_bvh **out, refl_bvh **ow
         *out = p->models->bvh;
         return REFL_OK;
     }
-    r = refl_bvh_build(p->scene, &p->scene->allocator, out);
+    r = refl__bvh_build_on(p->scene, &p->scene->allocator, p->rc, out);
     if (r != REFL_OK) return r;
     p->frame->stats.scene_models_built++;
     if (p->models) p->models->bvh = *out;

@@ -683,3 +683,179 @@ Test(refl_bvh, the_renderer_refits_its_bvh_when_an_object_moves) {
     refl_renderer_destroy(rr);
     refl_scene_destroy(s);
 }
+
+/* ---- the build on several threads ------------------------------------------- */
+
+/* refl_bvh_build_threads gives the tree of refl_bvh_build, byte for byte
+   (binary tree, wide tree, triangle blocks), for 1, 2 and 4 threads; with
+   a grain of `grain` triangles a job, so that a small scene takes the
+   parallel passes too. */
+static void check_same_tree_any_threads(const char *name, const refl_scene *s, int grain) {
+    static const int threads[] = {2, 4, 3};
+    refl_bvh *one = NULL;
+    int k;
+    cr_assert_eq(refl__testing_bvh_build_threads(s, NULL, 1, grain, &one), REFL_OK, "%s", name);
+    for (k = 0; k < 3; ++k) {
+        refl_bvh *more = NULL;
+        cr_assert_eq(refl__testing_bvh_build_threads(s, NULL, threads[k], grain, &more), REFL_OK, "%s", name);
+        cr_assert(refl__testing_bvh_same(one, more), "%s: %d threads (grain %d) build another tree", name, threads[k],
+                  grain);
+        refl_bvh_destroy(more);
+    }
+    refl_bvh_destroy(one);
+}
+
+Test(refl_bvh_threads, same_tree_for_every_thread_count) {
+    const char *const *names = refl_builtin_names();
+    refl_scene *s = NULL;
+    refl_bvh *bvh = (refl_bvh *)1;
+    struct stat st;
+    char err[1024];
+    int i;
+    for (i = 0; names[i]; ++i) {
+        cr_assert_eq(refl_scene_builtin(names[i], NULL, &s), REFL_OK, "%s", names[i]);
+        check_same_tree_any_threads(names[i], s, 64);
+        refl_scene_destroy(s);
+    }
+    /* random triangles of several objects: jobs that cross from one object to the next */
+    s = random_scene(77, 5, 400);
+    check_same_tree_any_threads("random", s, 16);
+    cr_assert_eq(refl_bvh_build_threads(s, NULL, -1, &bvh), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert_null(bvh);
+    /* the parallel build fails cleanly at every allocation */
+    {
+        tu_alloc_counter c;
+        refl_allocator a;
+        long attempts, k;
+        memset(&c, 0, sizeof c);
+        a = tu_refl_counting(&c);
+        cr_assert_eq(refl__testing_bvh_build_threads(s, &a, 2, 16, &bvh), REFL_OK);
+        refl_bvh_destroy(bvh);
+        attempts = c.attempts;
+        for (k = 1; k <= attempts; ++k) {
+            memset(&c, 0, sizeof c);
+            c.fail_at = k;
+            cr_assert_eq(refl__testing_bvh_build_threads(s, &a, 2, 16, &bvh), REFL_ERROR_OUT_OF_MEMORY,
+                         "failing allocation %ld", k);
+            cr_assert_null(bvh);
+            cr_assert_eq(c.allocs, c.frees, "leak when allocation %ld fails", k);
+        }
+    }
+    refl_scene_destroy(s);
+    if (stat(BVH_ASSETS, &st) != 0 || !S_ISDIR(st.st_mode))
+        cr_skip_test("%s is absent: the asset tests need the shared assets next to the repository", BVH_ASSETS);
+    cr_assert_eq(refl_gltf_load(BVH_ASSETS "/xyzrgb_dragon_100k.glb", NULL, &s, err, sizeof err), REFL_OK, "%s", err);
+    check_same_tree_any_threads("xyzrgb_dragon_100k", s, 8192); /* the library's grain */
+    check_same_tree_any_threads("xyzrgb_dragon_100k", s, 500);
+    refl_scene_destroy(s);
+}
+
+/* ---- packets of four rays --------------------------------------------------- */
+
+/* Four rays together give each ray the single-ray hit, bit for bit, and
+   its occlusion, through every wide traversal (AVX2 where the CPU has it,
+   SSE2, lane by lane). */
+static void same_hits_as_single_rays(const refl_bvh *bvh, const refl_vec3 o[4], const refl_vec3 d[4],
+                                     const float tmin[4], const float tmax[4], const char *what, long long i) {
+    static const int paths[] = {0, 1, 3};
+    refl_hit one[4], four[4];
+    unsigned expect = 0, blocked = 0;
+    int k, p;
+    for (k = 0; k < 4; ++k) {
+        memset(&one[k], 0, sizeof one[k]);
+        expect |= (unsigned)refl_bvh_intersect(bvh, o[k], d[k], tmin[k], tmax[k], &one[k]) << k;
+        blocked |= (unsigned)refl_bvh_occluded(bvh, o[k], d[k], tmin[k], tmax[k]) << k;
+    }
+    for (p = 0; p < 3; ++p) {
+        unsigned got;
+        memset(four, 0, sizeof four);
+        got = refl__testing_bvh_trace4_path(bvh, o, d, tmin, tmax, 0, paths[p], four);
+        cr_assert_eq(got, expect, "%s %lld, path %d: hits %x, single rays %x", what, i, paths[p], got, expect);
+        for (k = 0; k < 4; ++k)
+            cr_assert(!(expect >> k & 1) || memcmp(&one[k], &four[k], sizeof one[k]) == 0,
+                      "%s %lld, path %d: ray %d names object %d triangle %d t %.9g, single object %d triangle %d "
+                      "t %.9g", what, i, paths[p], k, four[k].object, four[k].triangle, four[k].t, one[k].object,
+                      one[k].triangle, one[k].t);
+        got = refl__testing_bvh_trace4_path(bvh, o, d, tmin, tmax, 1, paths[p], NULL);
+        cr_assert_eq(got, blocked, "%s %lld, path %d: occluded %x, single rays %x", what, i, paths[p], got, blocked);
+    }
+    cr_assert_eq(refl_bvh_intersect4(bvh, o, d, tmin, tmax, four), expect);
+    cr_assert_eq(refl_bvh_occluded4(bvh, o, d, tmin, tmax), blocked);
+}
+
+/* Per built-in scene: primary rays of a 2 x 2 pixel block together, the
+   mirror rays of their hits about the geometric normal, shadow rays from
+   the hits to the first light (coherent packets), and random rays, some
+   with a bound or no direction (incoherent ones, dead lanes). */
+Test(refl_bvh_packets, same_hits_as_single_rays) {
+    const char *const *names = refl_builtin_names();
+    int si;
+    for (si = 0; names[si]; ++si) {
+        refl_scene *s = NULL;
+        refl_bvh *bvh = NULL;
+        refl_view v;
+        refl_vec3 lo, hi, c, light;
+        refl_rng r = refl_rng_seed(99);
+        float diag;
+        const int w = 64, h = 48;
+        long long i;
+        int x, y, k;
+        cr_assert_eq(refl_scene_builtin(names[si], NULL, &s), REFL_OK, "%s", names[si]);
+        cr_assert_eq(refl_bvh_build(s, NULL, &bvh), REFL_OK);
+        v = s->camera;
+        refl_scene_bounds(s, &lo, &hi);
+        c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+        diag = refl_v3_length(refl_v3_sub(hi, lo));
+        light = s->light_count > 0 && s->lights[0].type == REFL_LIGHT_POINT ? s->lights[0].position
+                                                                           : refl_v3_add(hi, refl_v3(0, diag, 0));
+        for (y = 0; y < h; y += 2)
+            for (x = 0; x < w; x += 2) {
+                refl_vec3 o[4], d[4], mo[4], md[4], so[4], sd[4];
+                float tmin[4] = {0, 0, 0, 0}, tmax[4] = {INFINITY, INFINITY, INFINITY, INFINITY}, smax[4];
+                for (k = 0; k < 4; ++k) {
+                    refl_hit a;
+                    o[k] = v.eye;
+                    d[k] = camera_ray(&v, w, h, x + (k & 1) + 0.5f, y + (k >> 1) + 0.5f);
+                    mo[k] = so[k] = v.eye;
+                    md[k] = sd[k] = d[k];
+                    smax[k] = 0.5f;
+                    if (refl_bvh_intersect(bvh, o[k], d[k], 0, INFINITY, &a)) {
+                        const refl_object *ob = &s->objects[a.object];
+                        const refl_mesh *m = s->meshes[ob->mesh];
+                        refl_vec3 e[3], ng, p = refl_v3_add(v.eye, refl_v3_scale(d[k], a.t));
+                        int j;
+                        for (j = 0; j < 3; ++j) {
+                            const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)a.triangle + j];
+                            e[j] = refl_mat4_point(ob->transform, refl_v3(q[0], q[1], q[2]));
+                        }
+                        ng = refl_v3_normalize(refl_v3_cross(refl_v3_sub(e[1], e[0]), refl_v3_sub(e[2], e[0])));
+                        if (refl_v3_dot(ng, d[k]) > 0) ng = refl_v3_scale(ng, -1);
+                        p = refl_v3_add(p, refl_v3_scale(ng, 1e-5f * diag));
+                        mo[k] = so[k] = p;
+                        md[k] = refl_v3_reflect(refl_v3_normalize(d[k]), ng);
+                        sd[k] = refl_v3_sub(light, p);
+                        smax[k] = 1.0f;
+                    }
+                }
+                i = (long long)y * w + x;
+                same_hits_as_single_rays(bvh, o, d, tmin, tmax, "primary", i);
+                same_hits_as_single_rays(bvh, mo, md, tmin, tmax, "mirror", i);
+                same_hits_as_single_rays(bvh, so, sd, tmin, smax, "shadow", i);
+            }
+        for (i = 0; i < 2000; ++i) {
+            refl_vec3 o[4], d[4];
+            float tmin[4], tmax[4];
+            for (k = 0; k < 4; ++k) {
+                o[k] = refl_v3_add(c, refl_v3_scale(rnd_dir(&r), rnd(&r, 0, diag)));
+                d[k] = rnd_dir(&r);
+                if (refl_rng_u32(&r) % 8 == 0) d[k].x = 0;
+                if (refl_rng_u32(&r) % 16 == 0) d[k] = refl_v3(0, 0, 0); /* no ray: a dead lane */
+                tmin[k] = refl_rng_u32(&r) % 4 ? 0.0f : rnd(&r, 0, 0.5f * diag);
+                tmax[k] = refl_rng_u32(&r) % 3 ? INFINITY : tmin[k] + rnd(&r, 0, diag);
+            }
+            same_hits_as_single_rays(bvh, o, d, tmin, tmax, "random", i);
+        }
+        refl_bvh_destroy(bvh);
+        refl_scene_destroy(s);
+    }
+}
