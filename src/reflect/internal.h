@@ -610,6 +610,9 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
                                          refl_lem_system *sys, long long *rays, int *added);
+/* The world point on the shell whose index points along q (lem_infer.c),
+   0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no
