@@ -716,10 +716,7 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
-    refl__free(al, h.pos);
-    refl__free(al, h.distance);
-    refl__free(al, h.object);
-    refl__free(al, h.ray);
+    refl__lem_hits_free(&h);
     return r;
 }
 

@@ -770,7 +770,10 @@ Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
     cr_assert_geq(quad, spheres + 2.0, "quad %.2f dB, spheres %.2f dB", quad, spheres);
     cr_assert_geq(quad, 33.0, "quad %.2f dB", quad);
     cr_assert_gt(misses, 0, "exit rays past the quad are counted");
-    cr_assert_eq(automatic, quad, "AUTO takes the quad: %.2f dB against %.2f", automatic, quad);
+    /* AUTO may take the box of the wall's hits and the lens (its back face
+       the wall's plane) instead: as exact on the wall, and its lookup is
+       defined past the wall's edges, where the quad leaves the layer out */
+    cr_assert_geq(automatic, quad, "AUTO recovers the wall as well as the quad: %.2f dB against %.2f", automatic, quad);
     refl_scene_destroy(s);
 }
 
