@@ -12470,13 +12470,19 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
-                int nh, got[REFL_LEM_MAX_LAYERS];
+                int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
                 nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
                 memset(got, 0, sizeof got);
-                /* each layer takes the ray's first hit in it (section 4.3) */
+                /* each layer takes the ray's first hit in it (section 4.3)
+                   that no nearer hit of a later layer hides: the runtime
+                   composites the layers in their order, so a hit behind a
+                   later layer's (an object kept whole in an earlier layer,
+                   the floor behind a teapot) would cover it */
                 for (k = 0; k < nh; ++k) {
                     l = refl__lem_hit_layer(lay, &hits[k]);
+                    if (l < deepest) continue;
+                    deepest = l;
                     if (got[l]) continue;
                     got[l] = 1;
                     ++seen[term][l];
@@ -12565,7 +12571,7 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 refl_vec3 p, d;
                 uint32_t tex[4];
                 float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
-                int nh, got = 0;
+                int nh, got = 0, deepest;
                 if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
                 d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
                 if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
@@ -12573,12 +12579,16 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 conf = 1.0f - REFL__MIN(held, 1.0f);
                 if (!(conf > 0.0f)) continue; /* the lens images hold it */
                 nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
-                for (k = 0; k < nh && !got; ++k)
-                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                /* the first hit in the layer, unless a later layer's hides it (as the records) */
+                for (k = 0, deepest = 0; k < nh && !got && deepest <= layer; ++k) {
+                    int hl = refl__lem_hit_layer(lay, &hits[k]);
+                    deepest = REFL__MAX(deepest, hl);
+                    if (hl == layer && deepest == layer) {
                         target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
                         target[3] = 1.0f;
                         got = 1;
                     }
+                }
                 if (!got && last) { /* the outermost layer is opaque: the environment past everything */
                     float rgb[3];
                     refl_environment_lookup(&scene->environment, d, rgb);
