@@ -2786,13 +2786,17 @@ typedef struct refl__lem_hit {
     refl_vec3 position;
     int object;
 } refl__lem_hit;
-/* Hits gathered for the clustering: distance, object and exit ray of each. */
+/* Hits gathered for the clustering: distance, object and exit ray of each;
+   its colour and the exit ray itself for choosing the shells. */
 typedef struct refl__lem_hits {
     const refl_allocator *al;
     float *distance, *pos;       /* pos: 3 per hit */
-    int *object, *ray;
-    int count, cap, rays;
+    float *rgb, *exit;           /* 3 per hit; 6 per hit: the exit ray's origin and direction */
+    int *object, *ray, *view;    /* view: which refl__lem_gather_hits call met it, 0 first */
+    int count, cap, rays, views;
 } refl__lem_hits;
+/* Frees the arrays of h (not h). */
+static void refl__lem_hits_free(refl__lem_hits *h);
 /* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
    the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
    closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
@@ -2822,6 +2826,9 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
                                          refl_lem_system *sys, long long *rays, int *added);
+/* The world point on the shell whose index points along q (lem_infer.c),
+   0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no
@@ -13158,15 +13165,117 @@ static double refl__lem_spread(const float *pos, int n, refl_vec3 c) {
     return n ? 1.0 - sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) : 1.0;
 }
 
+/* The records of a layer as the clustering met them: each exit ray's
+   first hit in the layer, its colour and the exit ray. */
+typedef struct refl__lem_front {
+    float *data;                 /* 10 per hit: rgb, exit origin, exit direction, view */
+    int count;
+} refl__lem_front;
+
+static int refl__lem_cmp_key(const void *a, const void *b) {
+    const uint32_t *x = (const uint32_t *)a, *y = (const uint32_t *)b;
+    int i;
+    for (i = 0; i < 3; ++i)
+        if (x[i] != y[i]) return (x[i] > y[i]) - (x[i] < y[i]);
+    return 0;
+}
+
+/* The conflicts of a layer's records on candidate shell sh at face size
+   n: each front hit predicted by the mean colour of the other views' hits
+   in the texel its exit ray looks up most (the layer's mean where there
+   are none, or the ray has no lookup); the mean squared error per hit. A
+   shell on which one scene point lands in different texels from
+   different views (parallax off its surface), or several points share a
+   texel, predicts badly: what no map inferred from some views can show
+   at others. -1 when out of memory. */
+static double refl__lem_conflicts(const refl_lem_shell *candidate, const refl__lem_front *f, int n,
+                                  const refl_allocator *al) {
+    refl_lem_shell sh = *candidate;
+    uint32_t *key = (uint32_t *)refl__calloc(al, 3 * (size_t)REFL__MAX(f->count, 1), sizeof(uint32_t));
+    double mean[3] = {0, 0, 0}, acc = 0.0;
+    int k, j, c, m = 0;
+    if (!key) return -1.0;
+    sh.face_size = n;
+    for (k = 0; k < f->count; ++k)
+        for (c = 0; c < 3; ++c) mean[c] += f->data[10 * (size_t)k + (size_t)c] / f->count;
+    /* (texel, view, hit) of every hit with a lookup, sorted: a texel's hits
+       in a row, each view's within them */
+    for (k = 0; k < f->count; ++k) {
+        const float *e = f->data + 10 * (size_t)k;
+        uint32_t tex[4];
+        float w[4];
+        int best = 0;
+        if (!refl_lem_shell_lookup(&sh, refl_v3(e[3], e[4], e[5]), refl_v3(e[6], e[7], e[8]), tex, w)) {
+            for (c = 0; c < 3; ++c) acc += (e[c] - mean[c]) * (e[c] - mean[c]);
+            continue;
+        }
+        for (j = 1; j < 4; ++j)
+            if (w[j] > w[best]) best = j;
+        key[3 * m] = tex[best];
+        key[3 * m + 1] = (uint32_t)e[9];
+        key[3 * m + 2] = (uint32_t)k;
+        ++m;
+    }
+    qsort(key, (size_t)m, 3 * sizeof(uint32_t), refl__lem_cmp_key);
+    for (k = 0; k < m;) {
+        double all[4] = {0, 0, 0, 0};
+        int end, v, i;
+        for (end = k; end < m && key[3 * end] == key[3 * k]; ++end) {
+            for (c = 0; c < 3; ++c) all[c] += f->data[10 * (size_t)key[3 * end + 2] + (size_t)c];
+            all[3] += 1.0;
+        }
+        for (v = k; v < end; v = i) { /* one view's hits, predicted by the others' */
+            double own[4] = {0, 0, 0, 0};
+            for (i = v; i < end && key[3 * i + 1] == key[3 * v + 1]; ++i) {
+                for (c = 0; c < 3; ++c) own[c] += f->data[10 * (size_t)key[3 * i + 2] + (size_t)c];
+                own[3] += 1.0;
+            }
+            for (j = v; j < i; ++j)
+                for (c = 0; c < 3; ++c) {
+                    double pred = all[3] > own[3] ? (all[c] - own[c]) / (all[3] - own[3]) : mean[c];
+                    double d = f->data[10 * (size_t)key[3 * j + 2] + (size_t)c] - pred;
+                    acc += d * d;
+                }
+        }
+        k = end;
+    }
+    refl__free(al, key);
+    return f->count ? acc / f->count : 0.0;
+}
+
 /* A layer's hits at most half spread (their mean direction at least half
    long) are "sparse in direction": a quad may hold them. */
 #define REFL__LEM_QUAD_SPREAD 0.5
 
-static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, refl_vec3 c, float sphere_radius,
-                                refl_vec3 lo, refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
+/* Kinds whose conflicts are within this factor of the fewest are not told
+   apart by them (below what the binning resolves). */
+#define REFL__LEM_SHELL_MARGIN 0.95
+
+/* A layer's conflicts on sh summed over three face sizes (1, 2 and 4
+   front hits a texel, were they spread evenly over the six faces): no one
+   resolution decides. -1 when out of memory. */
+static double refl__lem_shell_conflicts(const refl_lem_shell *sh, const refl__lem_front *front,
+                                        const refl_allocator *al) {
+    double per, sum = 0.0;
+    for (per = 1.0; per <= 4.0; per *= 2.0) {
+        int n = REFL__CLAMP((int)(sqrt(front->count / (6.0 * per)) + 0.5), 4, 64);
+        double e = refl__lem_conflicts(sh, front, n, al);
+        if (e < 0.0) return -1.0;
+        sum += e;
+    }
+    return sum;
+}
+
+/* Layer shell *out of the kind asked, AUTO choosing among the candidates
+   by the conflicts of the layer's records on their texels
+   (refl__lem_shell_conflicts), then by nearness to the hits among those
+   the conflicts do not tell apart. 0 when out of memory. */
+static int refl__lem_fit_shell(int kind, int inner, const float *pos, int n, const refl__lem_front *front,
+                               const refl_allocator *al, refl_vec3 c, float sphere_radius, refl_vec3 lo,
+                               refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
     refl_lem_shell cand[4];
-    double err[4], best_err = DBL_MAX;
-    int k, m = 0, best = 0;
+    double err[4], least = DBL_MAX, best_near = DBL_MAX;
+    int k, m = 0, best = -1;
     memset(cand, 0, sizeof cand);
     if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
     /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
@@ -13185,13 +13294,22 @@ static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, re
         cand[m++].radius = sphere_radius;
     }
     if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
-    for (k = 0; k < m; ++k) {
-        err[k] = refl__lem_fit_error(&cand[k], pos, n);
-        /* a later candidate must be clearly nearer */
-        if (k == 0 || err[k] < 0.99 * best_err) best = k, best_err = err[k];
+    for (k = 0; k < m && m > 1; ++k) {
+        if ((err[k] = refl__lem_shell_conflicts(&cand[k], front, al)) < 0.0) return 0;
+        least = REFL__MIN(least, err[k]);
     }
+    /* of the kinds within the margin of the fewest conflicts, the one whose
+       surface lies nearest the hits (a later one must be clearly nearer) */
+    for (k = 0; k < m && m > 1; ++k) {
+        double nearness;
+        if (!(REFL__LEM_SHELL_MARGIN * err[k] <= least)) continue;
+        nearness = refl__lem_fit_error(&cand[k], pos, n);
+        if (best < 0 || nearness < 0.99 * best_near) best = k, best_near = nearness;
+    }
+    if (best < 0) best = 0;
     *out = cand[best];
     out->radius = sphere_radius; /* every kind keeps the layer's mean distance (the hits' fallback layer) */
+    return 1;
 }
 
 REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
@@ -13213,16 +13331,35 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
                                 refl_vec3 lo, refl_vec3 hi, float lens_radius) {
     float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
+    refl__lem_front front;
     int l, k, n;
-    if (h->count && !pos) return 0;
+    memset(&front, 0, sizeof front);
+    front.data = h->count ? (float *)refl__calloc(h->al, 10 * (size_t)h->count, sizeof(float)) : NULL;
+    if (h->count && (!pos || !front.data)) {
+        refl__free(h->al, pos);
+        refl__free(h->al, front.data);
+        return 0;
+    }
     for (l = 0; l < lay->layers; ++l) {
-        for (k = n = 0; k < h->count; ++k)
-            if (layer_of && layer_of[k] == l) memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
-        refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, lay->centre, lay->radius[l], lo, hi, lens_radius,
-                            &lay->shell[l]);
+        int counted = -1;
+        for (k = n = front.count = 0; k < h->count; ++k) {
+            if (!layer_of || layer_of[k] != l) continue;
+            memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
+            /* a ray's hits are in a row, nearest first: its first in the layer */
+            if (h->ray[k] == counted) continue;
+            counted = h->ray[k];
+            memcpy(front.data + 10 * (size_t)front.count, h->rgb + 3 * (size_t)k, 3 * sizeof(float));
+            memcpy(front.data + 10 * (size_t)front.count + 3, h->exit + 6 * (size_t)k, 6 * sizeof(float));
+            front.data[10 * (size_t)front.count + 9] = (float)h->view[k];
+            ++front.count;
+        }
+        if (!refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, &front, h->al, lay->centre, lay->radius[l], lo,
+                                 hi, lens_radius, &lay->shell[l]))
+            break;
     }
     refl__free(h->al, pos);
-    return 1;
+    refl__free(h->al, front.data);
+    return l == lay->layers;
 }
 
 /* ---- the sparse system ------------------------------------------------------- */
@@ -13500,13 +13637,19 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
-                int nh, got[REFL_LEM_MAX_LAYERS];
+                int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
                 nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
                 memset(got, 0, sizeof got);
-                /* each layer takes the ray's first hit in it (section 4.3) */
+                /* each layer takes the ray's first hit in it (section 4.3)
+                   that no nearer hit of a later layer hides: the runtime
+                   composites the layers in their order, so a hit behind a
+                   later layer's (an object kept whole in an earlier layer,
+                   the floor behind a teapot) would cover it */
                 for (k = 0; k < nh; ++k) {
                     l = refl__lem_hit_layer(lay, &hits[k]);
+                    if (l < deepest) continue;
+                    deepest = l;
                     if (got[l]) continue;
                     got[l] = 1;
                     ++seen[term][l];
@@ -13595,7 +13738,7 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 refl_vec3 p, d;
                 uint32_t tex[4];
                 float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
-                int nh, got = 0;
+                int nh, got = 0, deepest;
                 if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
                 d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
                 if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
@@ -13603,12 +13746,16 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 conf = 1.0f - REFL__MIN(held, 1.0f);
                 if (!(conf > 0.0f)) continue; /* the lens images hold it */
                 nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
-                for (k = 0; k < nh && !got; ++k)
-                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                /* the first hit in the layer, unless a later layer's hides it (as the records) */
+                for (k = 0, deepest = 0; k < nh && !got && deepest <= layer; ++k) {
+                    int hl = refl__lem_hit_layer(lay, &hits[k]);
+                    deepest = REFL__MAX(deepest, hl);
+                    if (hl == layer && deepest == layer) {
                         target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
                         target[3] = 1.0f;
                         got = 1;
                     }
+                }
                 if (!got && last) { /* the outermost layer is opaque: the environment past everything */
                     float rgb[3];
                     refl_environment_lookup(&scene->environment, d, rgb);
@@ -13709,6 +13856,40 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
     return k;
 }
 
+/* A copy of n elements of `size` bytes of *arr in a new array of cap
+   (freeing the old); 0 when out of memory (*arr kept). */
+static int refl__lem_hits_array(const refl_allocator *al, void **arr, int n, int cap, size_t size) {
+    void *fresh = refl__calloc(al, (size_t)cap, size);
+    if (!fresh) return 0;
+    if (n) memcpy(fresh, *arr, (size_t)n * size);
+    refl__free(al, *arr);
+    *arr = fresh;
+    return 1;
+}
+
+/* h's arrays twice as long (1024 at first); 0 when out of memory. */
+static int refl__lem_hits_grow(refl__lem_hits *h) {
+    int cap = h->cap ? 2 * h->cap : 1024;
+    if (!refl__lem_hits_array(h->al, (void **)&h->distance, h->count, cap, sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->pos, h->count, cap, 3 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->rgb, h->count, cap, 3 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->exit, h->count, cap, 6 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->object, h->count, cap, sizeof(int)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->ray, h->count, cap, sizeof(int)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->view, h->count, cap, sizeof(int)))
+        return 0; /* the arrays grown so far are longer: harmless, cap stays */
+    h->cap = cap;
+    return 1;
+}
+
+static void refl__lem_hits_free(refl__lem_hits *h) {
+    refl__free(h->al, h->distance), refl__free(h->al, h->pos), refl__free(h->al, h->rgb);
+    refl__free(h->al, h->exit), refl__free(h->al, h->object), refl__free(h->al, h->ray);
+    refl__free(h->al, h->view);
+    h->distance = h->pos = h->rgb = h->exit = NULL;
+    h->object = h->ray = h->view = NULL;
+}
+
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
    the clustering: appended to the arrays of *h. 0 when out of memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
@@ -13731,37 +13912,23 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
                 if (!(p->fresnel > 0.0f) || !p->exited) continue;
                 n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, hits, rays);
                 for (k = 0; k < n; ++k) {
-                    if (h->count == h->cap) {
-                        int cap = h->cap ? 2 * h->cap : 1024;
-                        float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
-                        float *np = (float *)refl__calloc(h->al, 3 * (size_t)cap, sizeof(float));
-                        int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        if (!nd || !np || !no || !nr) {
-                            refl__free(h->al, nd), refl__free(h->al, np), refl__free(h->al, no), refl__free(h->al, nr);
-                            return 0;
-                        }
-                        if (h->count) {
-                            memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
-                            memcpy(np, h->pos, 3 * sizeof(float) * (size_t)h->count);
-                            memcpy(no, h->object, sizeof(int) * (size_t)h->count);
-                            memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
-                        }
-                        refl__free(h->al, h->distance), refl__free(h->al, h->pos);
-                        refl__free(h->al, h->object), refl__free(h->al, h->ray);
-                        h->distance = nd, h->pos = np, h->object = no, h->ray = nr, h->cap = cap;
-                    }
+                    if (h->count == h->cap && !refl__lem_hits_grow(h)) return 0;
                     h->distance[h->count] = hits[k].distance;
                     h->pos[3 * (size_t)h->count] = hits[k].position.x;
                     h->pos[3 * (size_t)h->count + 1] = hits[k].position.y;
                     h->pos[3 * (size_t)h->count + 2] = hits[k].position.z;
+                    memcpy(h->rgb + 3 * (size_t)h->count, hits[k].rgb, 3 * sizeof(float));
+                    memcpy(h->exit + 6 * (size_t)h->count, &p->exit_origin, sizeof p->exit_origin);
+                    memcpy(h->exit + 6 * (size_t)h->count + 3, &p->exit_direction, sizeof p->exit_direction);
                     h->object[h->count] = hits[k].object;
                     h->ray[h->count] = h->rays;
+                    h->view[h->count] = h->views;
                     ++h->count;
                 }
                 ++h->rays;
             }
         }
+    ++h->views;
     return 1;
 }
 
@@ -17474,6 +17641,7 @@ typedef struct refl__lem_draw {
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
     int record_layer;            /* -1: shade; else write that layer's index and the presence */
+    int points;                  /* shading's vertices, refl__lem_point_fragment's output */
     long long quad_misses;       /* out: vertices whose exit ray missed a quad layer */
     refl_vec3 lens_box[2];       /* the lens's bounds, a little wider: an exit ray from
                                     outside them left through another lens */
@@ -17528,6 +17696,37 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         through *= 1.0f - a;
     }
     for (c = 0; c < 3; ++c) rgba[c] *= REFL__MAX(fg[c], 0.0f) * dr->weight;
+    return 1;
+}
+
+/* The point the term shows, with its strength: the point on the shell
+   of the layer that gives most of the composite (front to back, as
+   refl__lem_fragment), and the sum of the interpolated F G; strength 0
+   where the term has no lookup. */
+static int refl__lem_point_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__lem_draw *dr = (const refl__lem_draw *)user;
+    const float *v = in->varyings, *fg = v + 3 * dr->layers, *t;
+    float through = 1.0f, layer[4], most = 0.0f, strength = fg[0] + fg[1] + fg[2];
+    int l, shown = -1;
+    refl_vec3 at;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    if (fg[3] > 0.0f || !(strength > 0.0f)) return 1;
+    for (l = 0; l < dr->layers && through > 0.0f; ++l) {
+        float a, present;
+        t = v + 3 * l;
+        present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        if (!(present > 0.0f)) continue;
+        refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
+        a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(present * layer[3], 0.0f, 1.0f);
+        if (through * a > most) most = through * a, shown = l;
+        through *= 1.0f - a;
+    }
+    t = v + 3 * (shown >= 0 ? shown : 0);
+    if (shown < 0 || !refl__lem_shell_point(&dr->shell[shown], refl_v3(t[0], t[1], t[2]), &at)) return 1;
+    rgba[0] = at.x;
+    rgba[1] = at.y;
+    rgba[2] = at.z;
+    rgba[3] = strength;
     return 1;
 }
 
@@ -17590,7 +17789,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
     if (rr == RAST_OK) rr = rast_set_state(rc, &s);
     if (rr == RAST_OK) rr = rast_clear(rc, &clear);
     s.depth_test = 1;
-    s.fragment_fn = refl__lem_fragment;
+    s.fragment_fn = dr->points ? refl__lem_point_fragment : refl__lem_fragment;
     s.fragment_user = dr;
     if (stencil) {
         s.stencil_test = 1;
@@ -18085,10 +18284,7 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
-    refl__free(al, h.pos);
-    refl__free(al, h.distance);
-    refl__free(al, h.object);
-    refl__free(al, h.ray);
+    refl__lem_hits_free(&h);
     return r;
 }
 
@@ -18116,6 +18312,44 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
     return on;
+}
+
+/* ---- the points the maps show (frame->points) ------------------------------------------ */
+
+/* frame->points at the lens pixels the maps drew (seen 1; the traced ones
+   get the tracer's): per pixel the point refl__lem_point_fragment gives
+   for the term of the larger F G, from map m (the blend's heavier
+   sample), so the reflection error measures where the model puts what
+   it shows. color and depth: scratch buffers of the frame's size. */
+static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, const refl__lem_map *m, int terms,
+                                    const refl_vec3 box[2], uint8_t ref, const uint8_t *seen, float *color,
+                                    float *depth) {
+    refl_frame *f = p->frame;
+    const refl_allocator *al = &p->scene->allocator;
+    size_t np = (size_t)f->width * (size_t)f->height, px;
+    float *strength = (float *)refl__calloc(al, np, sizeof(float));
+    refl__lem_draw dr;
+    refl_result r = strength ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+    int term, l;
+    memset(&dr, 0, sizeof dr);
+    dr.layers = m->layers;
+    for (l = 0; l < m->layers; ++l) dr.shell[l] = m->shell[l], dr.map[l] = m->texels[l];
+    dr.weight = 1.0f;
+    dr.record_layer = -1;
+    dr.points = 1;
+    refl__lem_draw_box(&dr, box);
+    for (term = 0; term < terms && r == REFL_OK; ++term) {
+        dr.term = term;
+        r = refl__lem_raster(p->rc, t, p->vp, &dr, color, depth, f->stencil, ref, f->width, f->height, al);
+        for (px = 0; px < np && r == REFL_OK; ++px) {
+            const float *c = color + 4 * px;
+            if (f->stencil[px] != ref || seen[px] != 1 || !(c[3] > strength[px])) continue;
+            strength[px] = c[3];
+            memcpy(f->points + 3 * px, c, 3 * sizeof(float));
+        }
+    }
+    refl__free(al, strength);
+    return r;
 }
 
 /* What a frame draws of lens object i: the maps of the one or two
@@ -18243,6 +18477,9 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += sum[4 * px + (size_t)k];
     }
     f->stats.layered_em.ms_draw += refl__now_ms() - t1;
+    if (r == REFL_OK)
+        r = refl__lem_points(p, &pl.frame_tess, &maps->maps[pl.at[pl.n > 1 && pl.weight[1] > pl.weight[0]]], pl.terms,
+                             pl.box, ref, seen, color, depth);
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, pl.frame_tess.vertices);
     refl__free(al, pl.frame_tess.indices);

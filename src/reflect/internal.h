@@ -577,13 +577,17 @@ typedef struct refl__lem_hit {
     refl_vec3 position;
     int object;
 } refl__lem_hit;
-/* Hits gathered for the clustering: distance, object and exit ray of each. */
+/* Hits gathered for the clustering: distance, object and exit ray of each;
+   its colour and the exit ray itself for choosing the shells. */
 typedef struct refl__lem_hits {
     const refl_allocator *al;
     float *distance, *pos;       /* pos: 3 per hit */
-    int *object, *ray;
-    int count, cap, rays;
+    float *rgb, *exit;           /* 3 per hit; 6 per hit: the exit ray's origin and direction */
+    int *object, *ray, *view;    /* view: which refl__lem_gather_hits call met it, 0 first */
+    int count, cap, rays, views;
 } refl__lem_hits;
+/* Frees the arrays of h (not h). */
+static void refl__lem_hits_free(refl__lem_hits *h);
 /* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
    the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
    closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
@@ -613,6 +617,9 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
                                          refl_lem_system *sys, long long *rays, int *added);
+/* The world point on the shell whose index points along q (lem_infer.c),
+   0 where none (a quad's other faces). */
+static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p);
 /* ---- impostors (impostor.c) ---- */
 
 /* refl_impostor_build with the caller's rast context (left with no

@@ -301,15 +301,117 @@ static double refl__lem_spread(const float *pos, int n, refl_vec3 c) {
     return n ? 1.0 - sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]) : 1.0;
 }
 
+/* The records of a layer as the clustering met them: each exit ray's
+   first hit in the layer, its colour and the exit ray. */
+typedef struct refl__lem_front {
+    float *data;                 /* 10 per hit: rgb, exit origin, exit direction, view */
+    int count;
+} refl__lem_front;
+
+static int refl__lem_cmp_key(const void *a, const void *b) {
+    const uint32_t *x = (const uint32_t *)a, *y = (const uint32_t *)b;
+    int i;
+    for (i = 0; i < 3; ++i)
+        if (x[i] != y[i]) return (x[i] > y[i]) - (x[i] < y[i]);
+    return 0;
+}
+
+/* The conflicts of a layer's records on candidate shell sh at face size
+   n: each front hit predicted by the mean colour of the other views' hits
+   in the texel its exit ray looks up most (the layer's mean where there
+   are none, or the ray has no lookup); the mean squared error per hit. A
+   shell on which one scene point lands in different texels from
+   different views (parallax off its surface), or several points share a
+   texel, predicts badly: what no map inferred from some views can show
+   at others. -1 when out of memory. */
+static double refl__lem_conflicts(const refl_lem_shell *candidate, const refl__lem_front *f, int n,
+                                  const refl_allocator *al) {
+    refl_lem_shell sh = *candidate;
+    uint32_t *key = (uint32_t *)refl__calloc(al, 3 * (size_t)REFL__MAX(f->count, 1), sizeof(uint32_t));
+    double mean[3] = {0, 0, 0}, acc = 0.0;
+    int k, j, c, m = 0;
+    if (!key) return -1.0;
+    sh.face_size = n;
+    for (k = 0; k < f->count; ++k)
+        for (c = 0; c < 3; ++c) mean[c] += f->data[10 * (size_t)k + (size_t)c] / f->count;
+    /* (texel, view, hit) of every hit with a lookup, sorted: a texel's hits
+       in a row, each view's within them */
+    for (k = 0; k < f->count; ++k) {
+        const float *e = f->data + 10 * (size_t)k;
+        uint32_t tex[4];
+        float w[4];
+        int best = 0;
+        if (!refl_lem_shell_lookup(&sh, refl_v3(e[3], e[4], e[5]), refl_v3(e[6], e[7], e[8]), tex, w)) {
+            for (c = 0; c < 3; ++c) acc += (e[c] - mean[c]) * (e[c] - mean[c]);
+            continue;
+        }
+        for (j = 1; j < 4; ++j)
+            if (w[j] > w[best]) best = j;
+        key[3 * m] = tex[best];
+        key[3 * m + 1] = (uint32_t)e[9];
+        key[3 * m + 2] = (uint32_t)k;
+        ++m;
+    }
+    qsort(key, (size_t)m, 3 * sizeof(uint32_t), refl__lem_cmp_key);
+    for (k = 0; k < m;) {
+        double all[4] = {0, 0, 0, 0};
+        int end, v, i;
+        for (end = k; end < m && key[3 * end] == key[3 * k]; ++end) {
+            for (c = 0; c < 3; ++c) all[c] += f->data[10 * (size_t)key[3 * end + 2] + (size_t)c];
+            all[3] += 1.0;
+        }
+        for (v = k; v < end; v = i) { /* one view's hits, predicted by the others' */
+            double own[4] = {0, 0, 0, 0};
+            for (i = v; i < end && key[3 * i + 1] == key[3 * v + 1]; ++i) {
+                for (c = 0; c < 3; ++c) own[c] += f->data[10 * (size_t)key[3 * i + 2] + (size_t)c];
+                own[3] += 1.0;
+            }
+            for (j = v; j < i; ++j)
+                for (c = 0; c < 3; ++c) {
+                    double pred = all[3] > own[3] ? (all[c] - own[c]) / (all[3] - own[3]) : mean[c];
+                    double d = f->data[10 * (size_t)key[3 * j + 2] + (size_t)c] - pred;
+                    acc += d * d;
+                }
+        }
+        k = end;
+    }
+    refl__free(al, key);
+    return f->count ? acc / f->count : 0.0;
+}
+
 /* A layer's hits at most half spread (their mean direction at least half
    long) are "sparse in direction": a quad may hold them. */
 #define REFL__LEM_QUAD_SPREAD 0.5
 
-static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, refl_vec3 c, float sphere_radius,
-                                refl_vec3 lo, refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
+/* Kinds whose conflicts are within this factor of the fewest are not told
+   apart by them (below what the binning resolves). */
+#define REFL__LEM_SHELL_MARGIN 0.95
+
+/* A layer's conflicts on sh summed over three face sizes (1, 2 and 4
+   front hits a texel, were they spread evenly over the six faces): no one
+   resolution decides. -1 when out of memory. */
+static double refl__lem_shell_conflicts(const refl_lem_shell *sh, const refl__lem_front *front,
+                                        const refl_allocator *al) {
+    double per, sum = 0.0;
+    for (per = 1.0; per <= 4.0; per *= 2.0) {
+        int n = REFL__CLAMP((int)(sqrt(front->count / (6.0 * per)) + 0.5), 4, 64);
+        double e = refl__lem_conflicts(sh, front, n, al);
+        if (e < 0.0) return -1.0;
+        sum += e;
+    }
+    return sum;
+}
+
+/* Layer shell *out of the kind asked, AUTO choosing among the candidates
+   by the conflicts of the layer's records on their texels
+   (refl__lem_shell_conflicts), then by nearness to the hits among those
+   the conflicts do not tell apart. 0 when out of memory. */
+static int refl__lem_fit_shell(int kind, int inner, const float *pos, int n, const refl__lem_front *front,
+                               const refl_allocator *al, refl_vec3 c, float sphere_radius, refl_vec3 lo,
+                               refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
     refl_lem_shell cand[4];
-    double err[4], best_err = DBL_MAX;
-    int k, m = 0, best = 0;
+    double err[4], least = DBL_MAX, best_near = DBL_MAX;
+    int k, m = 0, best = -1;
     memset(cand, 0, sizeof cand);
     if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
     /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
@@ -328,13 +430,22 @@ static void refl__lem_fit_shell(int kind, int inner, const float *pos, int n, re
         cand[m++].radius = sphere_radius;
     }
     if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
-    for (k = 0; k < m; ++k) {
-        err[k] = refl__lem_fit_error(&cand[k], pos, n);
-        /* a later candidate must be clearly nearer */
-        if (k == 0 || err[k] < 0.99 * best_err) best = k, best_err = err[k];
+    for (k = 0; k < m && m > 1; ++k) {
+        if ((err[k] = refl__lem_shell_conflicts(&cand[k], front, al)) < 0.0) return 0;
+        least = REFL__MIN(least, err[k]);
     }
+    /* of the kinds within the margin of the fewest conflicts, the one whose
+       surface lies nearest the hits (a later one must be clearly nearer) */
+    for (k = 0; k < m && m > 1; ++k) {
+        double nearness;
+        if (!(REFL__LEM_SHELL_MARGIN * err[k] <= least)) continue;
+        nearness = refl__lem_fit_error(&cand[k], pos, n);
+        if (best < 0 || nearness < 0.99 * best_near) best = k, best_near = nearness;
+    }
+    if (best < 0) best = 0;
     *out = cand[best];
     out->radius = sphere_radius; /* every kind keeps the layer's mean distance (the hits' fallback layer) */
+    return 1;
 }
 
 REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta_c_degrees) {
@@ -356,16 +467,35 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
                                 refl_vec3 lo, refl_vec3 hi, float lens_radius) {
     float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
+    refl__lem_front front;
     int l, k, n;
-    if (h->count && !pos) return 0;
+    memset(&front, 0, sizeof front);
+    front.data = h->count ? (float *)refl__calloc(h->al, 10 * (size_t)h->count, sizeof(float)) : NULL;
+    if (h->count && (!pos || !front.data)) {
+        refl__free(h->al, pos);
+        refl__free(h->al, front.data);
+        return 0;
+    }
     for (l = 0; l < lay->layers; ++l) {
-        for (k = n = 0; k < h->count; ++k)
-            if (layer_of && layer_of[k] == l) memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
-        refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, lay->centre, lay->radius[l], lo, hi, lens_radius,
-                            &lay->shell[l]);
+        int counted = -1;
+        for (k = n = front.count = 0; k < h->count; ++k) {
+            if (!layer_of || layer_of[k] != l) continue;
+            memcpy(pos + 3 * (size_t)n++, h->pos + 3 * (size_t)k, 3 * sizeof(float));
+            /* a ray's hits are in a row, nearest first: its first in the layer */
+            if (h->ray[k] == counted) continue;
+            counted = h->ray[k];
+            memcpy(front.data + 10 * (size_t)front.count, h->rgb + 3 * (size_t)k, 3 * sizeof(float));
+            memcpy(front.data + 10 * (size_t)front.count + 3, h->exit + 6 * (size_t)k, 6 * sizeof(float));
+            front.data[10 * (size_t)front.count + 9] = (float)h->view[k];
+            ++front.count;
+        }
+        if (!refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, &front, h->al, lay->centre, lay->radius[l], lo,
+                                 hi, lens_radius, &lay->shell[l]))
+            break;
     }
     refl__free(h->al, pos);
-    return 1;
+    refl__free(h->al, front.data);
+    return l == lay->layers;
 }
 
 /* ---- the sparse system ------------------------------------------------------- */
@@ -643,13 +773,19 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
-                int nh, got[REFL_LEM_MAX_LAYERS];
+                int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
                 nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
                 memset(got, 0, sizeof got);
-                /* each layer takes the ray's first hit in it (section 4.3) */
+                /* each layer takes the ray's first hit in it (section 4.3)
+                   that no nearer hit of a later layer hides: the runtime
+                   composites the layers in their order, so a hit behind a
+                   later layer's (an object kept whole in an earlier layer,
+                   the floor behind a teapot) would cover it */
                 for (k = 0; k < nh; ++k) {
                     l = refl__lem_hit_layer(lay, &hits[k]);
+                    if (l < deepest) continue;
+                    deepest = l;
                     if (got[l]) continue;
                     got[l] = 1;
                     ++seen[term][l];
@@ -738,7 +874,7 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 refl_vec3 p, d;
                 uint32_t tex[4];
                 float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
-                int nh, got = 0;
+                int nh, got = 0, deepest;
                 if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
                 d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
                 if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
@@ -746,12 +882,16 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                 conf = 1.0f - REFL__MIN(held, 1.0f);
                 if (!(conf > 0.0f)) continue; /* the lens images hold it */
                 nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
-                for (k = 0; k < nh && !got; ++k)
-                    if (refl__lem_hit_layer(lay, &hits[k]) == layer) {
+                /* the first hit in the layer, unless a later layer's hides it (as the records) */
+                for (k = 0, deepest = 0; k < nh && !got && deepest <= layer; ++k) {
+                    int hl = refl__lem_hit_layer(lay, &hits[k]);
+                    deepest = REFL__MAX(deepest, hl);
+                    if (hl == layer && deepest == layer) {
                         target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
                         target[3] = 1.0f;
                         got = 1;
                     }
+                }
                 if (!got && last) { /* the outermost layer is opaque: the environment past everything */
                     float rgb[3];
                     refl_environment_lookup(&scene->environment, d, rgb);
@@ -852,6 +992,40 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
     return k;
 }
 
+/* A copy of n elements of `size` bytes of *arr in a new array of cap
+   (freeing the old); 0 when out of memory (*arr kept). */
+static int refl__lem_hits_array(const refl_allocator *al, void **arr, int n, int cap, size_t size) {
+    void *fresh = refl__calloc(al, (size_t)cap, size);
+    if (!fresh) return 0;
+    if (n) memcpy(fresh, *arr, (size_t)n * size);
+    refl__free(al, *arr);
+    *arr = fresh;
+    return 1;
+}
+
+/* h's arrays twice as long (1024 at first); 0 when out of memory. */
+static int refl__lem_hits_grow(refl__lem_hits *h) {
+    int cap = h->cap ? 2 * h->cap : 1024;
+    if (!refl__lem_hits_array(h->al, (void **)&h->distance, h->count, cap, sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->pos, h->count, cap, 3 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->rgb, h->count, cap, 3 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->exit, h->count, cap, 6 * sizeof(float)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->object, h->count, cap, sizeof(int)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->ray, h->count, cap, sizeof(int)) ||
+        !refl__lem_hits_array(h->al, (void **)&h->view, h->count, cap, sizeof(int)))
+        return 0; /* the arrays grown so far are longer: harmless, cap stays */
+    h->cap = cap;
+    return 1;
+}
+
+static void refl__lem_hits_free(refl__lem_hits *h) {
+    refl__free(h->al, h->distance), refl__free(h->al, h->pos), refl__free(h->al, h->rgb);
+    refl__free(h->al, h->exit), refl__free(h->al, h->object), refl__free(h->al, h->ray);
+    refl__free(h->al, h->view);
+    h->distance = h->pos = h->rgb = h->exit = NULL;
+    h->object = h->ray = h->view = NULL;
+}
+
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
    the clustering: appended to the arrays of *h. 0 when out of memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
@@ -874,37 +1048,23 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
                 if (!(p->fresnel > 0.0f) || !p->exited) continue;
                 n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, hits, rays);
                 for (k = 0; k < n; ++k) {
-                    if (h->count == h->cap) {
-                        int cap = h->cap ? 2 * h->cap : 1024;
-                        float *nd = (float *)refl__calloc(h->al, (size_t)cap, sizeof(float));
-                        float *np = (float *)refl__calloc(h->al, 3 * (size_t)cap, sizeof(float));
-                        int *no = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        int *nr = (int *)refl__calloc(h->al, (size_t)cap, sizeof(int));
-                        if (!nd || !np || !no || !nr) {
-                            refl__free(h->al, nd), refl__free(h->al, np), refl__free(h->al, no), refl__free(h->al, nr);
-                            return 0;
-                        }
-                        if (h->count) {
-                            memcpy(nd, h->distance, sizeof(float) * (size_t)h->count);
-                            memcpy(np, h->pos, 3 * sizeof(float) * (size_t)h->count);
-                            memcpy(no, h->object, sizeof(int) * (size_t)h->count);
-                            memcpy(nr, h->ray, sizeof(int) * (size_t)h->count);
-                        }
-                        refl__free(h->al, h->distance), refl__free(h->al, h->pos);
-                        refl__free(h->al, h->object), refl__free(h->al, h->ray);
-                        h->distance = nd, h->pos = np, h->object = no, h->ray = nr, h->cap = cap;
-                    }
+                    if (h->count == h->cap && !refl__lem_hits_grow(h)) return 0;
                     h->distance[h->count] = hits[k].distance;
                     h->pos[3 * (size_t)h->count] = hits[k].position.x;
                     h->pos[3 * (size_t)h->count + 1] = hits[k].position.y;
                     h->pos[3 * (size_t)h->count + 2] = hits[k].position.z;
+                    memcpy(h->rgb + 3 * (size_t)h->count, hits[k].rgb, 3 * sizeof(float));
+                    memcpy(h->exit + 6 * (size_t)h->count, &p->exit_origin, sizeof p->exit_origin);
+                    memcpy(h->exit + 6 * (size_t)h->count + 3, &p->exit_direction, sizeof p->exit_direction);
                     h->object[h->count] = hits[k].object;
                     h->ray[h->count] = h->rays;
+                    h->view[h->count] = h->views;
                     ++h->count;
                 }
                 ++h->rays;
             }
         }
+    ++h->views;
     return 1;
 }
 

@@ -73,6 +73,7 @@ typedef struct refl__lem_draw {
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
     int record_layer;            /* -1: shade; else write that layer's index and the presence */
+    int points;                  /* shading's vertices, refl__lem_point_fragment's output */
     long long quad_misses;       /* out: vertices whose exit ray missed a quad layer */
     refl_vec3 lens_box[2];       /* the lens's bounds, a little wider: an exit ray from
                                     outside them left through another lens */
@@ -127,6 +128,37 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         through *= 1.0f - a;
     }
     for (c = 0; c < 3; ++c) rgba[c] *= REFL__MAX(fg[c], 0.0f) * dr->weight;
+    return 1;
+}
+
+/* The point the term shows, with its strength: the point on the shell
+   of the layer that gives most of the composite (front to back, as
+   refl__lem_fragment), and the sum of the interpolated F G; strength 0
+   where the term has no lookup. */
+static int refl__lem_point_fragment(void *user, const rast_fragment_in *in, float rgba[4]) {
+    const refl__lem_draw *dr = (const refl__lem_draw *)user;
+    const float *v = in->varyings, *fg = v + 3 * dr->layers, *t;
+    float through = 1.0f, layer[4], most = 0.0f, strength = fg[0] + fg[1] + fg[2];
+    int l, shown = -1;
+    refl_vec3 at;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+    if (fg[3] > 0.0f || !(strength > 0.0f)) return 1;
+    for (l = 0; l < dr->layers && through > 0.0f; ++l) {
+        float a, present;
+        t = v + 3 * l;
+        present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        if (!(present > 0.0f)) continue;
+        refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
+        a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(present * layer[3], 0.0f, 1.0f);
+        if (through * a > most) most = through * a, shown = l;
+        through *= 1.0f - a;
+    }
+    t = v + 3 * (shown >= 0 ? shown : 0);
+    if (shown < 0 || !refl__lem_shell_point(&dr->shell[shown], refl_v3(t[0], t[1], t[2]), &at)) return 1;
+    rgba[0] = at.x;
+    rgba[1] = at.y;
+    rgba[2] = at.z;
+    rgba[3] = strength;
     return 1;
 }
 
@@ -189,7 +221,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
     if (rr == RAST_OK) rr = rast_set_state(rc, &s);
     if (rr == RAST_OK) rr = rast_clear(rc, &clear);
     s.depth_test = 1;
-    s.fragment_fn = refl__lem_fragment;
+    s.fragment_fn = dr->points ? refl__lem_point_fragment : refl__lem_fragment;
     s.fragment_user = dr;
     if (stencil) {
         s.stencil_test = 1;
@@ -684,10 +716,7 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
-    refl__free(al, h.pos);
-    refl__free(al, h.distance);
-    refl__free(al, h.object);
-    refl__free(al, h.ray);
+    refl__lem_hits_free(&h);
     return r;
 }
 
@@ -715,6 +744,44 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
     return on;
+}
+
+/* ---- the points the maps show (frame->points) ------------------------------------------ */
+
+/* frame->points at the lens pixels the maps drew (seen 1; the traced ones
+   get the tracer's): per pixel the point refl__lem_point_fragment gives
+   for the term of the larger F G, from map m (the blend's heavier
+   sample), so the reflection error measures where the model puts what
+   it shows. color and depth: scratch buffers of the frame's size. */
+static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, const refl__lem_map *m, int terms,
+                                    const refl_vec3 box[2], uint8_t ref, const uint8_t *seen, float *color,
+                                    float *depth) {
+    refl_frame *f = p->frame;
+    const refl_allocator *al = &p->scene->allocator;
+    size_t np = (size_t)f->width * (size_t)f->height, px;
+    float *strength = (float *)refl__calloc(al, np, sizeof(float));
+    refl__lem_draw dr;
+    refl_result r = strength ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+    int term, l;
+    memset(&dr, 0, sizeof dr);
+    dr.layers = m->layers;
+    for (l = 0; l < m->layers; ++l) dr.shell[l] = m->shell[l], dr.map[l] = m->texels[l];
+    dr.weight = 1.0f;
+    dr.record_layer = -1;
+    dr.points = 1;
+    refl__lem_draw_box(&dr, box);
+    for (term = 0; term < terms && r == REFL_OK; ++term) {
+        dr.term = term;
+        r = refl__lem_raster(p->rc, t, p->vp, &dr, color, depth, f->stencil, ref, f->width, f->height, al);
+        for (px = 0; px < np && r == REFL_OK; ++px) {
+            const float *c = color + 4 * px;
+            if (f->stencil[px] != ref || seen[px] != 1 || !(c[3] > strength[px])) continue;
+            strength[px] = c[3];
+            memcpy(f->points + 3 * px, c, 3 * sizeof(float));
+        }
+    }
+    refl__free(al, strength);
+    return r;
 }
 
 /* What a frame draws of lens object i: the maps of the one or two
@@ -842,6 +909,9 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
         for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += sum[4 * px + (size_t)k];
     }
     f->stats.layered_em.ms_draw += refl__now_ms() - t1;
+    if (r == REFL_OK)
+        r = refl__lem_points(p, &pl.frame_tess, &maps->maps[pl.at[pl.n > 1 && pl.weight[1] > pl.weight[0]]], pl.terms,
+                             pl.box, ref, seen, color, depth);
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, pl.frame_tess.vertices);
     refl__free(al, pl.frame_tess.indices);
