@@ -2658,6 +2658,8 @@ typedef struct refl__gp_hit {
 typedef struct refl__gp_casters {
     const refl_ray_caster *scene, *lenses, *others;
 } refl__gp_casters;
+/* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
 /* Both greedy paths of a ray along unit dir whose first lens interface is
    h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
 static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,
@@ -10799,6 +10801,11 @@ static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec
     return 0;
 }
 
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax) {
+    refl_hit hit;
+    return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
+}
+
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -10810,7 +10817,7 @@ static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec
    (the split BVHs hold the scene's triangles as the same floats). */
 static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
                          int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
-    refl_hit hit, blocker;
+    refl_hit hit;
     const refl_object *obj;
     refl_mat4 nm;
     refl__hit_geom g;
@@ -10818,9 +10825,7 @@ static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, ref
     if (rays) ++*rays;
     if (c->lenses && c->others) {
         if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
-        if (c->others->occluded ? c->others->occluded(c->others->user, o, d, 0.0f, hit.t)
-                                : c->others->intersect(c->others->user, o, d, 0.0f, hit.t, &blocker))
-            return 0;
+        if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
     } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
         return 0;
     }
@@ -12715,7 +12720,7 @@ typedef struct refl__lt_tri {
 
 typedef struct refl__lt {
     const refl_scene *scene;
-    refl__gp_casters casters;    /* the visibility rays go through the scene's */
+    refl__gp_casters casters;
     const refl_material *material;
     int object;
     refl_vec3 eye, forward;
@@ -12839,11 +12844,10 @@ static int refl__lt_midpoint(refl__lt *t, uint32_t a, uint32_t b, int level, ref
 static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     refl_lens_vertex *v = &t->v[i];
     const refl__lt_vertex *x = &t->vx[i];
-    const refl_ray_caster *scene = t->casters.scene;
+    const refl__gp_casters *c = &t->casters;
     refl_vec3 to = refl_v3_sub(v->position, t->eye), d, w;
-    float dist = refl_v3_length(to);
+    float dist = refl_v3_length(to), near = dist * (1.0f - 1e-4f);
     refl__gp_hit h;
-    refl_hit hit;
     d = dist > 0.0f ? refl_v3_scale(to, 1.0f / dist) : t->forward;
     v->window[0] = v->window[1] = NAN;
     if (refl_v3_dot(to, t->forward) > 0.0f) {
@@ -12852,8 +12856,10 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
         v->window[1] = (0.5f - w.y * 0.5f) * (float)t->height;
     }
     ++*rays;
-    v->visible = !(scene->occluded ? scene->occluded(scene->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f))
-                                   : scene->intersect(scene->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f), &hit));
+    /* split: the same triangles in two BVHs, each asked */
+    v->visible = c->lenses && c->others ? !refl__caster_blocked(c->others, t->eye, d, near) &&
+                                              !refl__caster_blocked(c->lenses, t->eye, d, near)
+                                        : !refl__caster_blocked(c->scene, t->eye, d, near);
     refl__greedy_paths_none(t->eye, d, &v->paths);
     h.p = v->position;
     h.ng = x->face_normal;

@@ -24,6 +24,11 @@ static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec
     return 0;
 }
 
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax) {
+    refl_hit hit;
+    return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
+}
+
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -35,7 +40,7 @@ static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec
    (the split BVHs hold the scene's triangles as the same floats). */
 static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
                          int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
-    refl_hit hit, blocker;
+    refl_hit hit;
     const refl_object *obj;
     refl_mat4 nm;
     refl__hit_geom g;
@@ -43,9 +48,7 @@ static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, ref
     if (rays) ++*rays;
     if (c->lenses && c->others) {
         if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
-        if (c->others->occluded ? c->others->occluded(c->others->user, o, d, 0.0f, hit.t)
-                                : c->others->intersect(c->others->user, o, d, 0.0f, hit.t, &blocker))
-            return 0;
+        if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
     } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
         return 0;
     }

@@ -553,6 +553,8 @@ typedef struct refl__gp_hit {
 typedef struct refl__gp_casters {
     const refl_ray_caster *scene, *lenses, *others;
 } refl__gp_casters;
+/* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
 /* Both greedy paths of a ray along unit dir whose first lens interface is
    h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
 static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,

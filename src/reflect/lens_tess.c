@@ -34,7 +34,7 @@ typedef struct refl__lt_tri {
 
 typedef struct refl__lt {
     const refl_scene *scene;
-    refl__gp_casters casters;    /* the visibility rays go through the scene's */
+    refl__gp_casters casters;
     const refl_material *material;
     int object;
     refl_vec3 eye, forward;
@@ -158,11 +158,10 @@ static int refl__lt_midpoint(refl__lt *t, uint32_t a, uint32_t b, int level, ref
 static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     refl_lens_vertex *v = &t->v[i];
     const refl__lt_vertex *x = &t->vx[i];
-    const refl_ray_caster *scene = t->casters.scene;
+    const refl__gp_casters *c = &t->casters;
     refl_vec3 to = refl_v3_sub(v->position, t->eye), d, w;
-    float dist = refl_v3_length(to);
+    float dist = refl_v3_length(to), near = dist * (1.0f - 1e-4f);
     refl__gp_hit h;
-    refl_hit hit;
     d = dist > 0.0f ? refl_v3_scale(to, 1.0f / dist) : t->forward;
     v->window[0] = v->window[1] = NAN;
     if (refl_v3_dot(to, t->forward) > 0.0f) {
@@ -171,8 +170,10 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
         v->window[1] = (0.5f - w.y * 0.5f) * (float)t->height;
     }
     ++*rays;
-    v->visible = !(scene->occluded ? scene->occluded(scene->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f))
-                                   : scene->intersect(scene->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f), &hit));
+    /* split: the same triangles in two BVHs, each asked */
+    v->visible = c->lenses && c->others ? !refl__caster_blocked(c->others, t->eye, d, near) &&
+                                              !refl__caster_blocked(c->lenses, t->eye, d, near)
+                                        : !refl__caster_blocked(c->scene, t->eye, d, near);
     refl__greedy_paths_none(t->eye, d, &v->paths);
     h.p = v->position;
     h.ng = x->face_normal;
