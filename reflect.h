@@ -16287,11 +16287,12 @@ static refl_result refl__method_graphcam(refl__pass *p) {
          pixel's lookup of that index is its row of the rendering matrix,
          so the matrix is exactly how the runtime samples the map;
          C A x = C b is solved by CGLS (lem_infer.c);
-   3. the frame: the lens tessellated for the eye, drawn once per map with
-      per-vertex F G and that map's shell indices of both terms, each
-      fragment the map's weight times T F_T G_T + R F_R G_R, the draws
-      added over the base pass where the lens shows; lens pixels no
-      triangle covered are ray traced.
+   3. the frame: the lens tessellated for the eye (its vertex paths cast
+      at a BVH of the lens objects alone, refl__lem_split), drawn once
+      per map with per-vertex F G and that map's shell indices of both
+      terms, each fragment the map's weight times T F_T G_T + R F_R G_R,
+      the draws added over the base pass where the lens shows; lens
+      pixels no triangle covered are ray traced.
 
    Every stage runs in a fixed order or per pixel, and a map depends only on
    what keys it, so any thread count, and a kept map or a fresh one, gives
