@@ -1330,6 +1330,9 @@ typedef struct refl_layered_em_frame_stats {
     double ms_tessellate;    /* the rest of the adaptive tessellation */
     double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
     long long vertices;      /* vertices traced */
+    long long vertex_tests;  /* triangle tests of tracing them (as stats.triangle_tests):
+                                their visibility rays through the scene, their greedy paths
+                                through the lens objects alone */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */
@@ -2355,6 +2358,9 @@ typedef struct refl__models {
     struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
     float c3_density;             /* the density they were sampled at; 0: none yet */
     struct refl__lem_maps *lem;   /* LAYERED_EM's inferred maps, per viewpoint sample (m_layered_em.c) */
+    refl_bvh *split[2];           /* LAYERED_EM's BVHs of the lens objects alone and of the rest
+                                     (refl__lem_split) */
+    unsigned split_version;       /* the scene version they were built or refit at */
 } refl__models;
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
@@ -2754,9 +2760,19 @@ typedef struct refl__gp_hit {
     int object, triangle;
     float t;
 } refl__gp_hit;
+/* Where greedy paths are cast: scene, a caster over every object; and,
+   split (both or neither; refl__lem_split), lenses over the scene's lens
+   objects alone and others over the rest (the scene's object indices):
+   then a path's rays are cast at the lenses, and the rest asked only
+   whether it blocks the way to the lens surface met (any hit). */
+typedef struct refl__gp_casters {
+    const refl_ray_caster *scene, *lenses, *others;
+} refl__gp_casters;
+/* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
 /* Both greedy paths of a ray along unit dir whose first lens interface is
    h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
-static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
@@ -2765,7 +2781,7 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
 
 /* refl_lens_tessellate on the pass's threads (rc), into *out (its
    allocator set; its arrays freed by the caller, also on failure). */
-static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp_casters *casters, int object,
                                          const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
                                          refl_lens_tess *out);
 /* The layers of a lens's maps: the shells' radii (ascending) around
@@ -11945,41 +11961,65 @@ REFL_API const char *refl_gl_glsl(refl_gl_camera camera) {
    pixel = T F_T G_T + R F_R G_R. Pure geometry: a path depends on nothing
    but its ray, so callers on any thread count get the same answers. */
 
-/* The closest hit along o + t d skipping triangle (skip_object,
-   skip_triangle), the one the ray leaves: 1 and *h, or 0 for none. */
-static int refl__gp_cast(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
-    refl_hit hit;
+/* The closest hit of caster along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *hit, or 0 for none. */
+static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d, int skip_object,
+                            int skip_triangle, refl_hit *hit) {
     float tmin = 0.0f;
-    int tries, k;
-    if (rays) ++*rays;
+    int tries;
     for (tries = 0; tries < 4; ++tries) {
-        const refl_object *obj;
-        refl_mat4 nm;
-        refl__hit_geom g;
-        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &hit)) return 0;
-        if (hit.object == skip_object && hit.triangle == skip_triangle) {
-            tmin = hit.t;
-            continue;
-        }
-        if (hit.object < 0 || hit.object >= scene->object_count) return 0;
-        obj = &scene->objects[hit.object];
-        nm = refl__normal_matrix(obj->transform);
-        refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
-        if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
-        h->p = g.p;
-        h->ng = g.ng;
-        h->ns = g.ns;
-        h->magnitude = 0.0f;
-        for (k = 0; k < 3; ++k)
-            h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
-        h->material = &scene->materials[obj->material];
-        h->object = hit.object;
-        h->triangle = hit.triangle;
-        h->t = hit.t;
-        return 1;
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, hit)) return 0;
+        if (hit->object != skip_object || hit->triangle != skip_triangle) return 1;
+        tmin = hit->t;
     }
     return 0;
+}
+
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax) {
+    refl_hit hit;
+    return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
+}
+
+/* The next lens surface along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
+   leaves the lens system (it meets nothing, or another surface first).
+   With the split casters (c->lenses, c->others) the closest lens surface
+   is found among the lens triangles alone and the rest of the scene only
+   asked whether it has anything before it (any hit); a ray that meets no
+   lens costs no test of the rest at all (what it meets there is the
+   maps' to answer). Either way the answer is the scene's closest hit's
+   (the split BVHs hold the scene's triangles as the same floats). */
+static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
+                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
+    refl_hit hit;
+    const refl_object *obj;
+    refl_mat4 nm;
+    refl__hit_geom g;
+    int k;
+    if (rays) ++*rays;
+    if (c->lenses && c->others) {
+        if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
+        if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
+    } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
+        return 0;
+    }
+    if (hit.object < 0 || hit.object >= scene->object_count) return 0;
+    obj = &scene->objects[hit.object];
+    if (!refl__is_reflector(&scene->materials[obj->material])) return 0;
+    nm = refl__normal_matrix(obj->transform);
+    refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
+    if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
+    h->p = g.p;
+    h->ng = g.ng;
+    h->ns = g.ns;
+    h->magnitude = 0.0f;
+    for (k = 0; k < 3; ++k)
+        h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+    h->material = &scene->materials[obj->material];
+    h->object = hit.object;
+    h->triangle = hit.triangle;
+    h->t = hit.t;
+    return 1;
 }
 
 /* The two children of an interface for a ray along unit d: the reflected
@@ -12041,27 +12081,26 @@ static void refl__gp_take(refl_greedy_path *path, const refl__gp_hit *h, const r
 
 /* Follows a path from the ray (o, d) that left interface `from` until it
    leaves the lens system, or meets an interface past max_interfaces. */
-static void refl__gp_follow(const refl_scene *scene, const refl_ray_caster *caster, refl_greedy_path *path,
+static void refl__gp_follow(const refl_scene *scene, const refl__gp_casters *c, refl_greedy_path *path,
                             refl_vec3 o, refl_vec3 d, refl__gp_hit from, int max_interfaces, long long *rays) {
     refl__gp_hit h;
-    refl__gp_children c;
+    refl__gp_children ch;
     int k;
     for (;;) {
-        if (!refl__gp_cast(scene, caster, o, d, from.object, from.triangle, &h, rays) ||
-            !refl__is_reflector(h.material)) {
+        if (!refl__gp_cast(scene, c, o, d, from.object, from.triangle, &h, rays)) {
             path->exited = 1;
             return;
         }
         if (path->length >= max_interfaces) return; /* one interface too many: it ends inside */
-        refl__gp_interface(&h, d, &c);
-        if (!c.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
+        refl__gp_interface(&h, d, &ch);
+        if (!ch.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
             float a = REFL__MAX(h.material->attenuation, 0.0f), len = h.t * refl_v3_length(d);
             path->inside_length += len;
             if (a > 0.0f)
                 for (k = 0; k < 3; ++k) path->attenuation[k] *= expf(-a * len);
         }
         /* the larger coefficient; a tie reflects */
-        refl__gp_take(path, &h, &c, !c.refracts || c.f >= 1.0f - c.f, &o, &d);
+        refl__gp_take(path, &h, &ch, !ch.refracts || ch.f >= 1.0f - ch.f, &o, &d);
         from = h;
     }
 }
@@ -12075,7 +12114,7 @@ static void refl__gp_start(refl_greedy_path *path, refl_vec3 o, refl_vec3 d) {
 }
 
 /* The two paths of a ray along unit `dir` meeting lens surface h first. */
-static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays) {
     refl__gp_children c;
@@ -12088,11 +12127,11 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_cast
     out->terms = h->material->type == REFL_GLASS ? 2 : 1;
     out->reflect.fresnel = 1.0f;
     refl__gp_take(&out->reflect, h, &c, 1, &o, &d);
-    refl__gp_follow(scene, caster, &out->reflect, o, d, *h, max_interfaces, rays);
+    refl__gp_follow(scene, casters, &out->reflect, o, d, *h, max_interfaces, rays);
     if (out->terms == 2 && c.refracts) {
         out->refract.fresnel = 1.0f;
         refl__gp_take(&out->refract, h, &c, 0, &o, &d);
-        refl__gp_follow(scene, caster, &out->refract, o, d, *h, max_interfaces, rays);
+        refl__gp_follow(scene, casters, &out->refract, o, d, *h, max_interfaces, rays);
     }
 }
 
@@ -12109,12 +12148,15 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
 REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
                                 refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
                                 long long *rays) {
+    refl__gp_casters c;
     refl__gp_hit h;
     if (!out) return;
     refl__greedy_paths_none(origin, dir, out);
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
-    if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
-    refl__greedy_paths_from(scene, caster, dir, &h, max_interfaces, out, rays);
+    c.scene = caster;
+    c.lenses = c.others = NULL;
+    if (!refl__gp_cast(scene, &c, origin, dir, -1, -1, &h, rays)) return;
+    refl__greedy_paths_from(scene, &c, dir, &h, max_interfaces, out, rays);
 }
 /* ---- src/reflect/impostor.c ---- */
 /* impostor: the generic non-pinhole impostor of paper 004, section 3 (api.h,
@@ -14012,7 +14054,7 @@ typedef struct refl__lt_tri {
 
 typedef struct refl__lt {
     const refl_scene *scene;
-    const refl_ray_caster *caster;
+    refl__gp_casters casters;
     const refl_material *material;
     int object;
     refl_vec3 eye, forward;
@@ -14136,10 +14178,10 @@ static int refl__lt_midpoint(refl__lt *t, uint32_t a, uint32_t b, int level, ref
 static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     refl_lens_vertex *v = &t->v[i];
     const refl__lt_vertex *x = &t->vx[i];
+    const refl__gp_casters *c = &t->casters;
     refl_vec3 to = refl_v3_sub(v->position, t->eye), d, w;
-    float dist = refl_v3_length(to);
+    float dist = refl_v3_length(to), near = dist * (1.0f - 1e-4f);
     refl__gp_hit h;
-    refl_hit hit;
     d = dist > 0.0f ? refl_v3_scale(to, 1.0f / dist) : t->forward;
     v->window[0] = v->window[1] = NAN;
     if (refl_v3_dot(to, t->forward) > 0.0f) {
@@ -14148,9 +14190,10 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
         v->window[1] = (0.5f - w.y * 0.5f) * (float)t->height;
     }
     ++*rays;
-    v->visible = !(t->caster->occluded
-                       ? t->caster->occluded(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f))
-                       : t->caster->intersect(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f), &hit));
+    /* split: the same triangles in two BVHs, each asked */
+    v->visible = c->lenses && c->others ? !refl__caster_blocked(c->others, t->eye, d, near) &&
+                                              !refl__caster_blocked(c->lenses, t->eye, d, near)
+                                        : !refl__caster_blocked(c->scene, t->eye, d, near);
     refl__greedy_paths_none(t->eye, d, &v->paths);
     h.p = v->position;
     h.ng = x->face_normal;
@@ -14160,7 +14203,7 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     h.object = t->object;
     h.triangle = x->triangle;
     h.t = dist;
-    refl__greedy_paths_from(t->scene, t->caster, d, &h, t->max_interfaces, &v->paths, rays);
+    refl__greedy_paths_from(t->scene, &t->casters, d, &h, t->max_interfaces, &v->paths, rays);
 }
 
 static void refl__lt_trace_job(void *arg, int job) {
@@ -14377,7 +14420,7 @@ static int refl__lt_weld(refl__lt *t, int *weld, size_t cap, refl_vec3 p, refl_v
     return weld[h];
 }
 
-static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp_casters *casters, int object,
                                          const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
                                          refl_lens_tess *out) {
     const refl_object *obj = &scene->objects[object];
@@ -14391,7 +14434,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
     float angle = desc && desc->angle_degrees > 0.0f ? desc->angle_degrees : 3.0f;
     memset(&t, 0, sizeof t);
     t.scene = scene;
-    t.caster = caster;
+    t.casters = *casters;
     t.material = &scene->materials[obj->material];
     t.object = object;
     t.eye = view->eye;
@@ -14478,6 +14521,7 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
     rast_context_desc cd;
     rast_context *rc = NULL;
     refl_lens_tess *t;
+    refl__gp_casters casters;
     refl_result r;
     if (out) *out = NULL;
     if (!scene || !caster || !caster->intersect || !view || !out || object < 0 || object >= scene->object_count)
@@ -14494,7 +14538,9 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
         refl_lens_tess_destroy(t);
         return REFL_ERROR_RASTER;
     }
-    r = refl__lens_tessellate(scene, caster, object, view, desc, rc, t);
+    casters.scene = caster;
+    casters.lenses = NULL;
+    r = refl__lens_tessellate(scene, &casters, object, view, desc, rc, t);
     rast_context_destroy(rc);
     if (r != REFL_OK) {
         refl_lens_tess_destroy(t);
@@ -17586,11 +17632,12 @@ static refl_result refl__method_graphcam(refl__pass *p) {
          pixel's lookup of that index is its row of the rendering matrix,
          so the matrix is exactly how the runtime samples the map;
          C A x = C b is solved by CGLS (lem_infer.c);
-   3. the frame: the lens tessellated for the eye, drawn once per map with
-      per-vertex F G and that map's shell indices of both terms, each
-      fragment the map's weight times T F_T G_T + R F_R G_R, the draws
-      added over the base pass where the lens shows; lens pixels no
-      triangle covered are ray traced.
+   3. the frame: the lens tessellated for the eye (its vertex paths cast
+      at a BVH of the lens objects alone, refl__lem_split), drawn once
+      per map with per-vertex F G and that map's shell indices of both
+      terms, each fragment the map's weight times T F_T G_T + R F_R G_R,
+      the draws added over the base pass where the lens shows; lens
+      pixels no triangle covered are ray traced.
 
    Every stage runs in a fixed order or per pixel, and a map depends only on
    what keys it, so any thread count, and a kept map or a fresh one, gives
@@ -18007,7 +18054,7 @@ static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, i
    tessellation of each view, then per layer rows from the runtime's own
    lookups at those views (both terms), solved by CGLS. out->texels are
    allocated. */
-static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views, int per,
+static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views, int per,
                                    const refl__lem_layering *lay, refl__lem_map *out) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -18040,7 +18087,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
         sv[s].vp = refl_mat4_mul(pm, vm);
         memset(&rec, 0, sizeof rec);
         rec.scene = scene;
-        rec.caster = caster;
+        rec.caster = casters->scene;
         refl__view_rays_init(&rec.rays, &views[s], scene);
         rec.object = i;
         rec.ss = o->supersample > 0 ? o->supersample : 1;
@@ -18060,7 +18107,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, caster, i, &views[s], &td, p->rc, &sv[s].tess);
+            r = refl__lens_tessellate(scene, casters, i, &views[s], &td, p->rc, &sv[s].tess);
             st->rays += sv[s].tess.rays;
         }
     }
@@ -18103,7 +18150,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                 (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
          ++l) {
         int added = 0;
-        r = refl__lem_direct_rows(scene, caster, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
         st->layered_em.direct_rows += added;
     }
     memset(&sd, 0, sizeof sd);
@@ -18124,7 +18171,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
 
 /* The index in *maps of object i's map for the sample of views[0 .. per):
    the one kept when pass p's renderer has it, else inferred and added. */
-static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views,
+static refl_result refl__lem_map_of(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views,
                                     int per, const refl__lem_layering *lay, struct refl__lem_maps *maps, int *at) {
     const refl_allocator *al = &p->scene->allocator;
     refl__lem_map m;
@@ -18140,7 +18187,7 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster
     m.depth = p->desc.depth;
     m.view = views[0];
     m.options = p->desc.layered_em;
-    r = refl__lem_infer(p, caster, i, views, per, lay, &m);
+    r = refl__lem_infer(p, casters, i, views, per, lay, &m);
     if (r == REFL_OK && (*at = refl__push(al, (void **)&maps->maps, &maps->count, sizeof m, &m)) < 0) {
         refl__lem_map_free(al, &m);
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -18364,7 +18411,7 @@ typedef struct refl__lem_plan {
     double ms_tessellate;    /* its time (the frame's reflection time; the maps' is build time) */
 } refl__lem_plan;
 
-static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *casters, int i, struct refl__lem_maps *maps,
                                      refl__lem_plan *pl) {
     const refl_scene *scene = p->scene;
     const refl_layered_em_options *o = &p->desc.layered_em;
@@ -18390,10 +18437,10 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
     td.max_interfaces = p->desc.depth;
     pl->terms = scene->materials[scene->objects[i].material].type == REFL_GLASS ? 2 : 1;
     refl__lem_bounds(scene, i, &centre, &lens_radius, pl->box);
-    if (!refl__lem_ring_of(p, caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
+    if (!refl__lem_ring_of(p, casters->scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
         /* on the axis: the eye's own view, one map */
         views[0] = *p->view;
-        if (r == REFL_OK) r = refl__lem_map_of(p, caster, i, views, 1, &lay, maps, &pl->at[0]);
+        if (r == REFL_OK) r = refl__lem_map_of(p, casters, i, views, 1, &lay, maps, &pl->at[0]);
     } else {
         double fk = cc.phi / cc.step;
         int k0 = (int)floor(fk);
@@ -18402,15 +18449,17 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
         pl->n = pl->weight[1] > 0.0f ? 2 : 1;
         for (s = 0; s < pl->n && r == REFL_OK; ++s) {
             refl__lem_sample_views(p, &cc, k0 + s, views);
-            r = refl__lem_map_of(p, caster, i, views, cc.per, &lay, maps, &pl->at[s]);
+            r = refl__lem_map_of(p, casters, i, views, cc.per, &lay, maps, &pl->at[s]);
         }
     }
     refl__free(&scene->allocator, spare.object_layer);
     /* the frame: tessellated for the eye */
     if (r == REFL_OK) {
+        long long tests0 = refl__bvh_tests_counted();
         t1 = refl__now_ms();
         pl->frame_tess.allocator = scene->allocator;
-        r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &pl->frame_tess);
+        r = refl__lens_tessellate(scene, casters, i, p->view, &td, p->rc, &pl->frame_tess);
+        f->stats.layered_em.vertex_tests += refl__bvh_tests_counted() - tests0;
         f->stats.rays += pl->frame_tess.rays;
         f->stats.triangles += pl->frame_tess.triangle_count;
         f->stats.layered_em.vertices += pl->frame_tess.vertex_count;
@@ -18425,7 +18474,7 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
    drawn once per map and term, weighed by the blend, added over the base
    pass. marked: lens pixels left to the tracer (no triangle there, or a
    path off the maps). */
-static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+static refl_result refl__lem_object(refl__pass *p, const refl__gp_casters *casters, int i, struct refl__lem_maps *maps,
                                     uint8_t *marked) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -18436,7 +18485,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     refl__lem_draw dr;
     float *color = NULL, *sum = NULL, *depth = NULL;
     uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255), *seen = NULL;
-    refl_result r = refl__lem_plan_of(p, caster, i, maps, &pl);
+    refl_result r = refl__lem_plan_of(p, casters, i, maps, &pl);
     double t0 = refl__now_ms() - pl.ms_tessellate, t1;
     color = (float *)refl__calloc(al, 4 * np, sizeof(float));
     sum = (float *)refl__calloc(al, 4 * np, sizeof(float));
@@ -18490,35 +18539,110 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     return r;
 }
 
-/* The ray caster over the scene's BVH (kept by the renderer, else *owned). */
-static refl_result refl__lem_caster(refl__pass *p, refl_ray_caster *caster, refl_bvh **owned) {
-    refl_bvh *bvh = NULL;
-    refl_result r = refl__models_bvh(p, &bvh, owned);
+/* The scene with its lens objects (reflectors) alone (lenses 1) or with
+   the rest alone (0): every object left out keeps its index over an empty
+   mesh (out's last), so a BVH of it holds its triangles as the scene's
+   BVH does (the same world-space floats, objects and triangles: the same
+   hits) and nothing else. out's meshes and objects are allocated (the
+   caller frees them). */
+static refl_result refl__lem_part(const refl_scene *scene, int lenses, refl_mesh *empty, refl_scene *out) {
+    const refl_allocator *al = &scene->allocator;
+    int i;
+    *out = *scene;
+    memset(empty, 0, sizeof *empty);
+    out->meshes = (refl_mesh **)refl__calloc(al, (size_t)scene->mesh_count + 1, sizeof *out->meshes);
+    out->objects = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof *out->objects);
+    if (!out->meshes || !out->objects) return REFL_ERROR_OUT_OF_MEMORY;
+    if (scene->mesh_count > 0) memcpy(out->meshes, scene->meshes, (size_t)scene->mesh_count * sizeof *out->meshes);
+    out->meshes[scene->mesh_count] = empty;
+    out->mesh_count = scene->mesh_count + 1;
+    for (i = 0; i < scene->object_count; ++i) {
+        out->objects[i] = scene->objects[i];
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]) != lenses)
+            out->objects[i].mesh = scene->mesh_count;
+    }
+    return REFL_OK;
+}
+
+/* The vertex paths' BVHs, split[0] over the scene's lens objects and
+   split[1] over the rest (refl__lem_part): a renderer keeps them in its
+   models, refit when the scene changed and rebuilt only where their
+   triangles no longer fit them (an object added, removed, reshaped or
+   made a lens or not); without a renderer, built into owned[] for the
+   frame. */
+static refl_result refl__lem_split(refl__pass *p, refl_bvh *split[2], refl_bvh *owned[2]) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl__models *m = p->models;
+    refl_result r = REFL_OK;
+    int k;
+    for (k = 0; k < 2; ++k) {
+        refl_scene part;
+        refl_mesh empty;
+        owned[k] = NULL;
+        split[k] = m ? m->split[k] : NULL;
+        if (r != REFL_OK || (split[k] && m->split_version == p->scene->version)) continue;
+        r = refl__lem_part(p->scene, k == 0, &empty, &part);
+        if (r == REFL_OK && split[k] && refl_bvh_refit(split[k], &part) != REFL_OK) {
+            refl_bvh_destroy(split[k]);
+            split[k] = m->split[k] = NULL;
+        }
+        if (r == REFL_OK && !split[k]) {
+            r = refl_bvh_build(&part, al, &split[k]);
+            if (r == REFL_OK) p->frame->stats.scene_models_built++;
+            if (m) m->split[k] = split[k];
+            else owned[k] = split[k];
+        }
+        refl__free(al, part.meshes);
+        refl__free(al, part.objects);
+    }
+    if (r == REFL_OK && m) m->split_version = p->scene->version;
+    return r;
+}
+
+static void refl__lem_bvh_caster(refl_ray_caster *caster, refl_bvh *bvh) {
     memset(caster, 0, sizeof *caster);
     caster->intersect = refl__lem_bvh_intersect;
     caster->occluded = refl__lem_bvh_occluded;
     caster->user = bvh;
+}
+
+/* What LAYERED_EM casts through: the scene's BVH (the records, the
+   layers' hits, direct images, the vertices' visibility) and the split
+   ones (refl__lem_split: the vertex paths), in cast[0 .. 3), c pointing at
+   them; a BVH the renderer does not keep goes into owned[]. */
+static refl_result refl__lem_casters(refl__pass *p, refl_ray_caster cast[3], refl__gp_casters *c, refl_bvh *owned[3]) {
+    refl_bvh *bvh = NULL, *split[2] = {NULL, NULL};
+    refl_result r = refl__models_bvh(p, &bvh, &owned[0]);
+    owned[1] = owned[2] = NULL;
+    if (r == REFL_OK) r = refl__lem_split(p, split, owned + 1);
+    refl__lem_bvh_caster(&cast[0], bvh);
+    refl__lem_bvh_caster(&cast[1], split[0]);
+    refl__lem_bvh_caster(&cast[2], split[1]);
+    c->scene = &cast[0];
+    c->lenses = &cast[1];
+    c->others = &cast[2];
     return r;
 }
 
 static refl_result refl__method_layered_em(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps own, *maps = NULL;
     uint8_t *marked = NULL;
     size_t np = (size_t)f->width * (size_t)f->height, k;
     int i, any = 0;
     rast_targets t = refl__frame_targets(f);
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
     if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
-        if (refl__pass_draws(p, i)) r = refl__lem_object(p, &caster, i, maps, marked);
+        if (refl__pass_draws(p, i)) r = refl__lem_object(p, &casters, i, maps, marked);
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     for (k = 0; k < np && r == REFL_OK; ++k) any |= marked[k];
     if (r == REFL_OK && any) r = refl__trace_marked(p, marked);
@@ -18526,7 +18650,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     f->stats.model_bytes += refl__lem_maps_bytes(maps);
     refl__lem_maps_clear(&scene->allocator, &own);
     refl__free(&scene->allocator, marked);
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     return r;
 }
 
@@ -18535,12 +18659,13 @@ static refl_result refl__method_layered_em(refl__pass *p) {
 static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *count) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps own, *maps = NULL;
     refl_lem_lens *lenses = NULL;
     int i, s, l, n = 0, lens_count = 0;
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     *out = NULL;
     *count = 0;
     memset(&own, 0, sizeof own);
@@ -18558,7 +18683,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
         refl__lem_draw dr;
         if (!refl__pass_draws(p, i)) continue;
         ln = &lenses[n++];
-        r = refl__lem_plan_of(p, &caster, i, maps, &pl);
+        r = refl__lem_plan_of(p, &casters, i, maps, &pl);
         ln->tess = pl.frame_tess;
         if (r != REFL_OK) break;
         ln->object = i;
@@ -18579,7 +18704,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
     }
     p->frame->stats.layered_em.maps_held = maps && maps != &own ? maps->count : 0;
     refl__lem_maps_clear(al, &own);
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     if (r != REFL_OK) {
         for (i = 0; i < n; ++i) {
             refl__free(al, lenses[i].tess.vertices);
@@ -18598,12 +18723,13 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
    after each map, cancelled when the callback asks. */
 static refl_result refl__prebuild_layered_em(refl__pass *p) {
     const refl_scene *scene = p->scene;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
     int i, k, at, lenses = 0, done = 0;
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
     if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
     if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
@@ -18618,14 +18744,14 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
         if (!refl__pass_draws(p, i)) continue;
         refl__lem_bounds(scene, i, &centre, &lens_radius, box);
         memset(&spare, 0, sizeof spare);
-        on = refl__lem_ring_of(p, &caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
+        on = refl__lem_ring_of(p, casters.scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
         if (!on && r == REFL_OK) {
             views[0] = *p->view;
-            r = refl__lem_map_of(p, &caster, i, views, 1, &lay, maps, &at);
+            r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
         }
         for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
             refl__lem_sample_views(p, &cc, k, views);
-            r = refl__lem_map_of(p, &caster, i, views, cc.per, &lay, maps, &at);
+            r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }
@@ -18634,7 +18760,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     }
     p->frame->stats.layered_em.maps_held = maps && maps != &none ? maps->count : 0;
     p->frame->stats.model_bytes += maps && maps != &none ? refl__lem_maps_bytes(maps) : 0;
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     return r;
 }
 /* ---- src/reflect/m_planar.c ---- */
@@ -22993,6 +23119,8 @@ struct refl_renderer {
 
 static void refl__models_free(const refl_scene *scene, refl__models *m) {
     refl_bvh_destroy(m->bvh);
+    refl_bvh_destroy(m->split[0]);
+    refl_bvh_destroy(m->split[1]);
     refl__c3_samples_free(&scene->allocator, m->c3);
     refl__lem_maps_free(&scene->allocator, m->lem);
     memset(m, 0, sizeof *m);
@@ -23075,13 +23203,18 @@ static refl_result refl__cancelled(refl_frame *frame) {
 /* The renderer's models dropped when the scene changed since they were
    built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
-    refl_bvh *bvh = rr->models.bvh;
+    refl__models kept = rr->models;
     struct refl__lem_maps *stale = rr->desc.layered_em.keep_stale_maps ? rr->models.lem : NULL;
+    refl_bvh *bvh = kept.bvh;
     if (rr->models.scene_version == rr->scene->version) return;
-    rr->models.bvh = NULL;
+    rr->models.bvh = rr->models.split[0] = rr->models.split[1] = NULL;
     rr->models.lem = stale ? NULL : rr->models.lem;
     refl__models_free(rr->scene, &rr->models);
     rr->models.lem = stale;
+    /* refit, or rebuilt, by LAYERED_EM's next frame (refl__lem_split) */
+    rr->models.split[0] = kept.split[0];
+    rr->models.split[1] = kept.split[1];
+    rr->models.split_version = kept.split_version;
     if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
     else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;

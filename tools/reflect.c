@@ -889,9 +889,9 @@ static int cmd_render(const options *o) {
         if (st->layered_em.maps_held) {
             const refl_layered_em_frame_stats *l = &st->layered_em;
             printf("maps         %d inferred, %d kept, %d held\n", l->maps_inferred, l->maps_kept, l->maps_held);
-            printf("  trace ms   %.2f (%lld vertices)\n  tess ms    %.2f\n  draw ms    %.2f\n"
+            printf("  trace ms   %.2f (%lld vertices, %lld triangle tests)\n  tess ms    %.2f\n  draw ms    %.2f\n"
                    "traced px   %lld (no triangle covered them, or their paths left through another lens)\n",
-                   l->ms_trace, l->vertices, l->ms_tessellate, l->ms_draw, l->traced_pixels);
+                   l->ms_trace, l->vertices, l->vertex_tests, l->ms_tessellate, l->ms_draw, l->traced_pixels);
             if (l->direct_rows) printf("direct rows  %lld (direct images' rows in the maps inferred)\n", l->direct_rows);
             if (l->quad_misses) printf("quad misses  %lld (vertex terms past a quad layer)\n", l->quad_misses);
         }

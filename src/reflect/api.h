@@ -1328,6 +1328,9 @@ typedef struct refl_layered_em_frame_stats {
     double ms_tessellate;    /* the rest of the adaptive tessellation */
     double ms_draw;          /* per-vertex shell coordinates, drawing, compositing */
     long long vertices;      /* vertices traced */
+    long long vertex_tests;  /* triangle tests of tracing them (as stats.triangle_tests):
+                                their visibility rays through the scene, their greedy paths
+                                through the lens objects alone */
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */

@@ -10,41 +10,65 @@
    but its ray, so callers on any thread count get the same answers. */
 #include "internal.h"
 
-/* The closest hit along o + t d skipping triangle (skip_object,
-   skip_triangle), the one the ray leaves: 1 and *h, or 0 for none. */
-static int refl__gp_cast(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
-    refl_hit hit;
+/* The closest hit of caster along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *hit, or 0 for none. */
+static int refl__gp_closest(const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d, int skip_object,
+                            int skip_triangle, refl_hit *hit) {
     float tmin = 0.0f;
-    int tries, k;
-    if (rays) ++*rays;
+    int tries;
     for (tries = 0; tries < 4; ++tries) {
-        const refl_object *obj;
-        refl_mat4 nm;
-        refl__hit_geom g;
-        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &hit)) return 0;
-        if (hit.object == skip_object && hit.triangle == skip_triangle) {
-            tmin = hit.t;
-            continue;
-        }
-        if (hit.object < 0 || hit.object >= scene->object_count) return 0;
-        obj = &scene->objects[hit.object];
-        nm = refl__normal_matrix(obj->transform);
-        refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
-        if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
-        h->p = g.p;
-        h->ng = g.ng;
-        h->ns = g.ns;
-        h->magnitude = 0.0f;
-        for (k = 0; k < 3; ++k)
-            h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
-        h->material = &scene->materials[obj->material];
-        h->object = hit.object;
-        h->triangle = hit.triangle;
-        h->t = hit.t;
-        return 1;
+        if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, hit)) return 0;
+        if (hit->object != skip_object || hit->triangle != skip_triangle) return 1;
+        tmin = hit->t;
     }
     return 0;
+}
+
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax) {
+    refl_hit hit;
+    return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
+}
+
+/* The next lens surface along o + t d skipping triangle (skip_object,
+   skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
+   leaves the lens system (it meets nothing, or another surface first).
+   With the split casters (c->lenses, c->others) the closest lens surface
+   is found among the lens triangles alone and the rest of the scene only
+   asked whether it has anything before it (any hit); a ray that meets no
+   lens costs no test of the rest at all (what it meets there is the
+   maps' to answer). Either way the answer is the scene's closest hit's
+   (the split BVHs hold the scene's triangles as the same floats). */
+static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
+                         int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
+    refl_hit hit;
+    const refl_object *obj;
+    refl_mat4 nm;
+    refl__hit_geom g;
+    int k;
+    if (rays) ++*rays;
+    if (c->lenses && c->others) {
+        if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
+        if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
+    } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
+        return 0;
+    }
+    if (hit.object < 0 || hit.object >= scene->object_count) return 0;
+    obj = &scene->objects[hit.object];
+    if (!refl__is_reflector(&scene->materials[obj->material])) return 0;
+    nm = refl__normal_matrix(obj->transform);
+    refl__hit_surface(scene->meshes[obj->mesh], &obj->transform, &nm, &hit, &g);
+    if (!(refl_v3_dot(g.ng, g.ng) > 0.0f)) return 0;
+    h->p = g.p;
+    h->ng = g.ng;
+    h->ns = g.ns;
+    h->magnitude = 0.0f;
+    for (k = 0; k < 3; ++k)
+        h->magnitude = REFL__MAX(h->magnitude, REFL__MAX(fabsf(g.v[k].x), REFL__MAX(fabsf(g.v[k].y), fabsf(g.v[k].z))));
+    h->material = &scene->materials[obj->material];
+    h->object = hit.object;
+    h->triangle = hit.triangle;
+    h->t = hit.t;
+    return 1;
 }
 
 /* The two children of an interface for a ray along unit d: the reflected
@@ -106,27 +130,26 @@ static void refl__gp_take(refl_greedy_path *path, const refl__gp_hit *h, const r
 
 /* Follows a path from the ray (o, d) that left interface `from` until it
    leaves the lens system, or meets an interface past max_interfaces. */
-static void refl__gp_follow(const refl_scene *scene, const refl_ray_caster *caster, refl_greedy_path *path,
+static void refl__gp_follow(const refl_scene *scene, const refl__gp_casters *c, refl_greedy_path *path,
                             refl_vec3 o, refl_vec3 d, refl__gp_hit from, int max_interfaces, long long *rays) {
     refl__gp_hit h;
-    refl__gp_children c;
+    refl__gp_children ch;
     int k;
     for (;;) {
-        if (!refl__gp_cast(scene, caster, o, d, from.object, from.triangle, &h, rays) ||
-            !refl__is_reflector(h.material)) {
+        if (!refl__gp_cast(scene, c, o, d, from.object, from.triangle, &h, rays)) {
             path->exited = 1;
             return;
         }
         if (path->length >= max_interfaces) return; /* one interface too many: it ends inside */
-        refl__gp_interface(&h, d, &c);
-        if (!c.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
+        refl__gp_interface(&h, d, &ch);
+        if (!ch.entering && h.material->type == REFL_GLASS) { /* the segment just travelled was inside */
             float a = REFL__MAX(h.material->attenuation, 0.0f), len = h.t * refl_v3_length(d);
             path->inside_length += len;
             if (a > 0.0f)
                 for (k = 0; k < 3; ++k) path->attenuation[k] *= expf(-a * len);
         }
         /* the larger coefficient; a tie reflects */
-        refl__gp_take(path, &h, &c, !c.refracts || c.f >= 1.0f - c.f, &o, &d);
+        refl__gp_take(path, &h, &ch, !ch.refracts || ch.f >= 1.0f - ch.f, &o, &d);
         from = h;
     }
 }
@@ -140,7 +163,7 @@ static void refl__gp_start(refl_greedy_path *path, refl_vec3 o, refl_vec3 d) {
 }
 
 /* The two paths of a ray along unit `dir` meeting lens surface h first. */
-static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays) {
     refl__gp_children c;
@@ -153,11 +176,11 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_cast
     out->terms = h->material->type == REFL_GLASS ? 2 : 1;
     out->reflect.fresnel = 1.0f;
     refl__gp_take(&out->reflect, h, &c, 1, &o, &d);
-    refl__gp_follow(scene, caster, &out->reflect, o, d, *h, max_interfaces, rays);
+    refl__gp_follow(scene, casters, &out->reflect, o, d, *h, max_interfaces, rays);
     if (out->terms == 2 && c.refracts) {
         out->refract.fresnel = 1.0f;
         refl__gp_take(&out->refract, h, &c, 0, &o, &d);
-        refl__gp_follow(scene, caster, &out->refract, o, d, *h, max_interfaces, rays);
+        refl__gp_follow(scene, casters, &out->refract, o, d, *h, max_interfaces, rays);
     }
 }
 
@@ -174,10 +197,13 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
 REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
                                 refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
                                 long long *rays) {
+    refl__gp_casters c;
     refl__gp_hit h;
     if (!out) return;
     refl__greedy_paths_none(origin, dir, out);
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
-    if (!refl__gp_cast(scene, caster, origin, dir, -1, -1, &h, rays) || !refl__is_reflector(h.material)) return;
-    refl__greedy_paths_from(scene, caster, dir, &h, max_interfaces, out, rays);
+    c.scene = caster;
+    c.lenses = c.others = NULL;
+    if (!refl__gp_cast(scene, &c, origin, dir, -1, -1, &h, rays)) return;
+    refl__greedy_paths_from(scene, &c, dir, &h, max_interfaces, out, rays);
 }

@@ -146,6 +146,9 @@ typedef struct refl__models {
     struct refl__c3_samples *c3;   /* C3RC's samples, kd-tree and shading (m_c3rc.c) */
     float c3_density;             /* the density they were sampled at; 0: none yet */
     struct refl__lem_maps *lem;   /* LAYERED_EM's inferred maps, per viewpoint sample (m_layered_em.c) */
+    refl_bvh *split[2];           /* LAYERED_EM's BVHs of the lens objects alone and of the rest
+                                     (refl__lem_split) */
+    unsigned split_version;       /* the scene version they were built or refit at */
 } refl__models;
 
 /* A method either renders the whole frame itself (RAYTRACE) or fills the
@@ -545,9 +548,19 @@ typedef struct refl__gp_hit {
     int object, triangle;
     float t;
 } refl__gp_hit;
+/* Where greedy paths are cast: scene, a caster over every object; and,
+   split (both or neither; refl__lem_split), lenses over the scene's lens
+   objects alone and others over the rest (the scene's object indices):
+   then a path's rays are cast at the lenses, and the rest asked only
+   whether it blocks the way to the lens surface met (any hit). */
+typedef struct refl__gp_casters {
+    const refl_ray_caster *scene, *lenses, *others;
+} refl__gp_casters;
+/* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
+static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
 /* Both greedy paths of a ray along unit dir whose first lens interface is
    h (as refl_greedy_paths after its eye ray), e.g. a lens vertex. */
-static void refl__greedy_paths_from(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 dir,
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
@@ -556,7 +569,7 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
 
 /* refl_lens_tessellate on the pass's threads (rc), into *out (its
    allocator set; its arrays freed by the caller, also on failure). */
-static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp_casters *casters, int object,
                                          const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
                                          refl_lens_tess *out);
 /* The layers of a lens's maps: the shells' radii (ascending) around

@@ -34,7 +34,7 @@ typedef struct refl__lt_tri {
 
 typedef struct refl__lt {
     const refl_scene *scene;
-    const refl_ray_caster *caster;
+    refl__gp_casters casters;
     const refl_material *material;
     int object;
     refl_vec3 eye, forward;
@@ -158,10 +158,10 @@ static int refl__lt_midpoint(refl__lt *t, uint32_t a, uint32_t b, int level, ref
 static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     refl_lens_vertex *v = &t->v[i];
     const refl__lt_vertex *x = &t->vx[i];
+    const refl__gp_casters *c = &t->casters;
     refl_vec3 to = refl_v3_sub(v->position, t->eye), d, w;
-    float dist = refl_v3_length(to);
+    float dist = refl_v3_length(to), near = dist * (1.0f - 1e-4f);
     refl__gp_hit h;
-    refl_hit hit;
     d = dist > 0.0f ? refl_v3_scale(to, 1.0f / dist) : t->forward;
     v->window[0] = v->window[1] = NAN;
     if (refl_v3_dot(to, t->forward) > 0.0f) {
@@ -170,9 +170,10 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
         v->window[1] = (0.5f - w.y * 0.5f) * (float)t->height;
     }
     ++*rays;
-    v->visible = !(t->caster->occluded
-                       ? t->caster->occluded(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f))
-                       : t->caster->intersect(t->caster->user, t->eye, d, 0.0f, dist * (1.0f - 1e-4f), &hit));
+    /* split: the same triangles in two BVHs, each asked */
+    v->visible = c->lenses && c->others ? !refl__caster_blocked(c->others, t->eye, d, near) &&
+                                              !refl__caster_blocked(c->lenses, t->eye, d, near)
+                                        : !refl__caster_blocked(c->scene, t->eye, d, near);
     refl__greedy_paths_none(t->eye, d, &v->paths);
     h.p = v->position;
     h.ng = x->face_normal;
@@ -182,7 +183,7 @@ static void refl__lt_trace_vertex(const refl__lt *t, int i, long long *rays) {
     h.object = t->object;
     h.triangle = x->triangle;
     h.t = dist;
-    refl__greedy_paths_from(t->scene, t->caster, d, &h, t->max_interfaces, &v->paths, rays);
+    refl__greedy_paths_from(t->scene, &t->casters, d, &h, t->max_interfaces, &v->paths, rays);
 }
 
 static void refl__lt_trace_job(void *arg, int job) {
@@ -399,7 +400,7 @@ static int refl__lt_weld(refl__lt *t, int *weld, size_t cap, refl_vec3 p, refl_v
     return weld[h];
 }
 
-static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray_caster *caster, int object,
+static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp_casters *casters, int object,
                                          const refl_view *view, const refl_lens_tess_desc *desc, rast_context *rc,
                                          refl_lens_tess *out) {
     const refl_object *obj = &scene->objects[object];
@@ -413,7 +414,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl_ray
     float angle = desc && desc->angle_degrees > 0.0f ? desc->angle_degrees : 3.0f;
     memset(&t, 0, sizeof t);
     t.scene = scene;
-    t.caster = caster;
+    t.casters = *casters;
     t.material = &scene->materials[obj->material];
     t.object = object;
     t.eye = view->eye;
@@ -500,6 +501,7 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
     rast_context_desc cd;
     rast_context *rc = NULL;
     refl_lens_tess *t;
+    refl__gp_casters casters;
     refl_result r;
     if (out) *out = NULL;
     if (!scene || !caster || !caster->intersect || !view || !out || object < 0 || object >= scene->object_count)
@@ -516,7 +518,9 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
         refl_lens_tess_destroy(t);
         return REFL_ERROR_RASTER;
     }
-    r = refl__lens_tessellate(scene, caster, object, view, desc, rc, t);
+    casters.scene = caster;
+    casters.lenses = NULL;
+    r = refl__lens_tessellate(scene, &casters, object, view, desc, rc, t);
     rast_context_destroy(rc);
     if (r != REFL_OK) {
         refl_lens_tess_destroy(t);

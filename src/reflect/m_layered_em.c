@@ -17,11 +17,12 @@
          pixel's lookup of that index is its row of the rendering matrix,
          so the matrix is exactly how the runtime samples the map;
          C A x = C b is solved by CGLS (lem_infer.c);
-   3. the frame: the lens tessellated for the eye, drawn once per map with
-      per-vertex F G and that map's shell indices of both terms, each
-      fragment the map's weight times T F_T G_T + R F_R G_R, the draws
-      added over the base pass where the lens shows; lens pixels no
-      triangle covered are ray traced.
+   3. the frame: the lens tessellated for the eye (its vertex paths cast
+      at a BVH of the lens objects alone, refl__lem_split), drawn once
+      per map with per-vertex F G and that map's shell indices of both
+      terms, each fragment the map's weight times T F_T G_T + R F_R G_R,
+      the draws added over the base pass where the lens shows; lens
+      pixels no triangle covered are ray traced.
 
    Every stage runs in a fixed order or per pixel, and a map depends only on
    what keys it, so any thread count, and a kept map or a fresh one, gives
@@ -439,7 +440,7 @@ static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, i
    tessellation of each view, then per layer rows from the runtime's own
    lookups at those views (both terms), solved by CGLS. out->texels are
    allocated. */
-static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views, int per,
+static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views, int per,
                                    const refl__lem_layering *lay, refl__lem_map *out) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -472,7 +473,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
         sv[s].vp = refl_mat4_mul(pm, vm);
         memset(&rec, 0, sizeof rec);
         rec.scene = scene;
-        rec.caster = caster;
+        rec.caster = casters->scene;
         refl__view_rays_init(&rec.rays, &views[s], scene);
         rec.object = i;
         rec.ss = o->supersample > 0 ? o->supersample : 1;
@@ -492,7 +493,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, caster, i, &views[s], &td, p->rc, &sv[s].tess);
+            r = refl__lens_tessellate(scene, casters, i, &views[s], &td, p->rc, &sv[s].tess);
             st->rays += sv[s].tess.rays;
         }
     }
@@ -535,7 +536,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
                 (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
          ++l) {
         int added = 0;
-        r = refl__lem_direct_rows(scene, caster, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
         st->layered_em.direct_rows += added;
     }
     memset(&sd, 0, sizeof sd);
@@ -556,7 +557,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl_ray_caster *caster,
 
 /* The index in *maps of object i's map for the sample of views[0 .. per):
    the one kept when pass p's renderer has it, else inferred and added. */
-static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster, int i, const refl_view *views,
+static refl_result refl__lem_map_of(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views,
                                     int per, const refl__lem_layering *lay, struct refl__lem_maps *maps, int *at) {
     const refl_allocator *al = &p->scene->allocator;
     refl__lem_map m;
@@ -572,7 +573,7 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl_ray_caster *caster
     m.depth = p->desc.depth;
     m.view = views[0];
     m.options = p->desc.layered_em;
-    r = refl__lem_infer(p, caster, i, views, per, lay, &m);
+    r = refl__lem_infer(p, casters, i, views, per, lay, &m);
     if (r == REFL_OK && (*at = refl__push(al, (void **)&maps->maps, &maps->count, sizeof m, &m)) < 0) {
         refl__lem_map_free(al, &m);
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -796,7 +797,7 @@ typedef struct refl__lem_plan {
     double ms_tessellate;    /* its time (the frame's reflection time; the maps' is build time) */
 } refl__lem_plan;
 
-static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *casters, int i, struct refl__lem_maps *maps,
                                      refl__lem_plan *pl) {
     const refl_scene *scene = p->scene;
     const refl_layered_em_options *o = &p->desc.layered_em;
@@ -822,10 +823,10 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
     td.max_interfaces = p->desc.depth;
     pl->terms = scene->materials[scene->objects[i].material].type == REFL_GLASS ? 2 : 1;
     refl__lem_bounds(scene, i, &centre, &lens_radius, pl->box);
-    if (!refl__lem_ring_of(p, caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
+    if (!refl__lem_ring_of(p, casters->scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
         /* on the axis: the eye's own view, one map */
         views[0] = *p->view;
-        if (r == REFL_OK) r = refl__lem_map_of(p, caster, i, views, 1, &lay, maps, &pl->at[0]);
+        if (r == REFL_OK) r = refl__lem_map_of(p, casters, i, views, 1, &lay, maps, &pl->at[0]);
     } else {
         double fk = cc.phi / cc.step;
         int k0 = (int)floor(fk);
@@ -834,15 +835,17 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
         pl->n = pl->weight[1] > 0.0f ? 2 : 1;
         for (s = 0; s < pl->n && r == REFL_OK; ++s) {
             refl__lem_sample_views(p, &cc, k0 + s, views);
-            r = refl__lem_map_of(p, caster, i, views, cc.per, &lay, maps, &pl->at[s]);
+            r = refl__lem_map_of(p, casters, i, views, cc.per, &lay, maps, &pl->at[s]);
         }
     }
     refl__free(&scene->allocator, spare.object_layer);
     /* the frame: tessellated for the eye */
     if (r == REFL_OK) {
+        long long tests0 = refl__bvh_tests_counted();
         t1 = refl__now_ms();
         pl->frame_tess.allocator = scene->allocator;
-        r = refl__lens_tessellate(scene, caster, i, p->view, &td, p->rc, &pl->frame_tess);
+        r = refl__lens_tessellate(scene, casters, i, p->view, &td, p->rc, &pl->frame_tess);
+        f->stats.layered_em.vertex_tests += refl__bvh_tests_counted() - tests0;
         f->stats.rays += pl->frame_tess.rays;
         f->stats.triangles += pl->frame_tess.triangle_count;
         f->stats.layered_em.vertices += pl->frame_tess.vertex_count;
@@ -857,7 +860,7 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl_ray_caster *caste
    drawn once per map and term, weighed by the blend, added over the base
    pass. marked: lens pixels left to the tracer (no triangle there, or a
    path off the maps). */
-static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster, int i, struct refl__lem_maps *maps,
+static refl_result refl__lem_object(refl__pass *p, const refl__gp_casters *casters, int i, struct refl__lem_maps *maps,
                                     uint8_t *marked) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
@@ -868,7 +871,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     refl__lem_draw dr;
     float *color = NULL, *sum = NULL, *depth = NULL;
     uint8_t ref = (uint8_t)(i + 1 < 255 ? i + 1 : 255), *seen = NULL;
-    refl_result r = refl__lem_plan_of(p, caster, i, maps, &pl);
+    refl_result r = refl__lem_plan_of(p, casters, i, maps, &pl);
     double t0 = refl__now_ms() - pl.ms_tessellate, t1;
     color = (float *)refl__calloc(al, 4 * np, sizeof(float));
     sum = (float *)refl__calloc(al, 4 * np, sizeof(float));
@@ -922,35 +925,110 @@ static refl_result refl__lem_object(refl__pass *p, const refl_ray_caster *caster
     return r;
 }
 
-/* The ray caster over the scene's BVH (kept by the renderer, else *owned). */
-static refl_result refl__lem_caster(refl__pass *p, refl_ray_caster *caster, refl_bvh **owned) {
-    refl_bvh *bvh = NULL;
-    refl_result r = refl__models_bvh(p, &bvh, owned);
+/* The scene with its lens objects (reflectors) alone (lenses 1) or with
+   the rest alone (0): every object left out keeps its index over an empty
+   mesh (out's last), so a BVH of it holds its triangles as the scene's
+   BVH does (the same world-space floats, objects and triangles: the same
+   hits) and nothing else. out's meshes and objects are allocated (the
+   caller frees them). */
+static refl_result refl__lem_part(const refl_scene *scene, int lenses, refl_mesh *empty, refl_scene *out) {
+    const refl_allocator *al = &scene->allocator;
+    int i;
+    *out = *scene;
+    memset(empty, 0, sizeof *empty);
+    out->meshes = (refl_mesh **)refl__calloc(al, (size_t)scene->mesh_count + 1, sizeof *out->meshes);
+    out->objects = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof *out->objects);
+    if (!out->meshes || !out->objects) return REFL_ERROR_OUT_OF_MEMORY;
+    if (scene->mesh_count > 0) memcpy(out->meshes, scene->meshes, (size_t)scene->mesh_count * sizeof *out->meshes);
+    out->meshes[scene->mesh_count] = empty;
+    out->mesh_count = scene->mesh_count + 1;
+    for (i = 0; i < scene->object_count; ++i) {
+        out->objects[i] = scene->objects[i];
+        if (refl__is_reflector(&scene->materials[scene->objects[i].material]) != lenses)
+            out->objects[i].mesh = scene->mesh_count;
+    }
+    return REFL_OK;
+}
+
+/* The vertex paths' BVHs, split[0] over the scene's lens objects and
+   split[1] over the rest (refl__lem_part): a renderer keeps them in its
+   models, refit when the scene changed and rebuilt only where their
+   triangles no longer fit them (an object added, removed, reshaped or
+   made a lens or not); without a renderer, built into owned[] for the
+   frame. */
+static refl_result refl__lem_split(refl__pass *p, refl_bvh *split[2], refl_bvh *owned[2]) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl__models *m = p->models;
+    refl_result r = REFL_OK;
+    int k;
+    for (k = 0; k < 2; ++k) {
+        refl_scene part;
+        refl_mesh empty;
+        owned[k] = NULL;
+        split[k] = m ? m->split[k] : NULL;
+        if (r != REFL_OK || (split[k] && m->split_version == p->scene->version)) continue;
+        r = refl__lem_part(p->scene, k == 0, &empty, &part);
+        if (r == REFL_OK && split[k] && refl_bvh_refit(split[k], &part) != REFL_OK) {
+            refl_bvh_destroy(split[k]);
+            split[k] = m->split[k] = NULL;
+        }
+        if (r == REFL_OK && !split[k]) {
+            r = refl_bvh_build(&part, al, &split[k]);
+            if (r == REFL_OK) p->frame->stats.scene_models_built++;
+            if (m) m->split[k] = split[k];
+            else owned[k] = split[k];
+        }
+        refl__free(al, part.meshes);
+        refl__free(al, part.objects);
+    }
+    if (r == REFL_OK && m) m->split_version = p->scene->version;
+    return r;
+}
+
+static void refl__lem_bvh_caster(refl_ray_caster *caster, refl_bvh *bvh) {
     memset(caster, 0, sizeof *caster);
     caster->intersect = refl__lem_bvh_intersect;
     caster->occluded = refl__lem_bvh_occluded;
     caster->user = bvh;
+}
+
+/* What LAYERED_EM casts through: the scene's BVH (the records, the
+   layers' hits, direct images, the vertices' visibility) and the split
+   ones (refl__lem_split: the vertex paths), in cast[0 .. 3), c pointing at
+   them; a BVH the renderer does not keep goes into owned[]. */
+static refl_result refl__lem_casters(refl__pass *p, refl_ray_caster cast[3], refl__gp_casters *c, refl_bvh *owned[3]) {
+    refl_bvh *bvh = NULL, *split[2] = {NULL, NULL};
+    refl_result r = refl__models_bvh(p, &bvh, &owned[0]);
+    owned[1] = owned[2] = NULL;
+    if (r == REFL_OK) r = refl__lem_split(p, split, owned + 1);
+    refl__lem_bvh_caster(&cast[0], bvh);
+    refl__lem_bvh_caster(&cast[1], split[0]);
+    refl__lem_bvh_caster(&cast[2], split[1]);
+    c->scene = &cast[0];
+    c->lenses = &cast[1];
+    c->others = &cast[2];
     return r;
 }
 
 static refl_result refl__method_layered_em(refl__pass *p) {
     const refl_scene *scene = p->scene;
     refl_frame *f = p->frame;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps own, *maps = NULL;
     uint8_t *marked = NULL;
     size_t np = (size_t)f->width * (size_t)f->height, k;
     int i, any = 0;
     rast_targets t = refl__frame_targets(f);
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
     if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
-        if (refl__pass_draws(p, i)) r = refl__lem_object(p, &caster, i, maps, marked);
+        if (refl__pass_draws(p, i)) r = refl__lem_object(p, &casters, i, maps, marked);
     if (r == REFL_OK) r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     for (k = 0; k < np && r == REFL_OK; ++k) any |= marked[k];
     if (r == REFL_OK && any) r = refl__trace_marked(p, marked);
@@ -958,7 +1036,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     f->stats.model_bytes += refl__lem_maps_bytes(maps);
     refl__lem_maps_clear(&scene->allocator, &own);
     refl__free(&scene->allocator, marked);
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     return r;
 }
 
@@ -967,12 +1045,13 @@ static refl_result refl__method_layered_em(refl__pass *p) {
 static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *count) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps own, *maps = NULL;
     refl_lem_lens *lenses = NULL;
     int i, s, l, n = 0, lens_count = 0;
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     *out = NULL;
     *count = 0;
     memset(&own, 0, sizeof own);
@@ -990,7 +1069,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
         refl__lem_draw dr;
         if (!refl__pass_draws(p, i)) continue;
         ln = &lenses[n++];
-        r = refl__lem_plan_of(p, &caster, i, maps, &pl);
+        r = refl__lem_plan_of(p, &casters, i, maps, &pl);
         ln->tess = pl.frame_tess;
         if (r != REFL_OK) break;
         ln->object = i;
@@ -1011,7 +1090,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
     }
     p->frame->stats.layered_em.maps_held = maps && maps != &own ? maps->count : 0;
     refl__lem_maps_clear(al, &own);
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     if (r != REFL_OK) {
         for (i = 0; i < n; ++i) {
             refl__free(al, lenses[i].tess.vertices);
@@ -1030,12 +1109,13 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
    after each map, cancelled when the callback asks. */
 static refl_result refl__prebuild_layered_em(refl__pass *p) {
     const refl_scene *scene = p->scene;
-    refl_bvh *owned = NULL;
-    refl_ray_caster caster;
+    refl_bvh *owned[3] = {NULL, NULL, NULL};
+    refl_ray_caster cast[3];
+    refl__gp_casters casters;
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
     int i, k, at, lenses = 0, done = 0;
-    refl_result r = refl__lem_caster(p, &caster, &owned);
+    refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
     if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
     if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
@@ -1050,14 +1130,14 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
         if (!refl__pass_draws(p, i)) continue;
         refl__lem_bounds(scene, i, &centre, &lens_radius, box);
         memset(&spare, 0, sizeof spare);
-        on = refl__lem_ring_of(p, &caster, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
+        on = refl__lem_ring_of(p, casters.scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
         if (!on && r == REFL_OK) {
             views[0] = *p->view;
-            r = refl__lem_map_of(p, &caster, i, views, 1, &lay, maps, &at);
+            r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
         }
         for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
             refl__lem_sample_views(p, &cc, k, views);
-            r = refl__lem_map_of(p, &caster, i, views, cc.per, &lay, maps, &at);
+            r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }
@@ -1066,6 +1146,6 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     }
     p->frame->stats.layered_em.maps_held = maps && maps != &none ? maps->count : 0;
     p->frame->stats.model_bytes += maps && maps != &none ? refl__lem_maps_bytes(maps) : 0;
-    refl_bvh_destroy(owned);
+    for (i = 0; i < 3; ++i) refl_bvh_destroy(owned[i]);
     return r;
 }

@@ -492,6 +492,8 @@ struct refl_renderer {
 
 static void refl__models_free(const refl_scene *scene, refl__models *m) {
     refl_bvh_destroy(m->bvh);
+    refl_bvh_destroy(m->split[0]);
+    refl_bvh_destroy(m->split[1]);
     refl__c3_samples_free(&scene->allocator, m->c3);
     refl__lem_maps_free(&scene->allocator, m->lem);
     memset(m, 0, sizeof *m);
@@ -574,13 +576,18 @@ static refl_result refl__cancelled(refl_frame *frame) {
 /* The renderer's models dropped when the scene changed since they were
    built; the BVH refit instead where only positions moved (refl_bvh_refit). */
 static void refl__models_current(refl_renderer *rr) {
-    refl_bvh *bvh = rr->models.bvh;
+    refl__models kept = rr->models;
     struct refl__lem_maps *stale = rr->desc.layered_em.keep_stale_maps ? rr->models.lem : NULL;
+    refl_bvh *bvh = kept.bvh;
     if (rr->models.scene_version == rr->scene->version) return;
-    rr->models.bvh = NULL;
+    rr->models.bvh = rr->models.split[0] = rr->models.split[1] = NULL;
     rr->models.lem = stale ? NULL : rr->models.lem;
     refl__models_free(rr->scene, &rr->models);
     rr->models.lem = stale;
+    /* refit, or rebuilt, by LAYERED_EM's next frame (refl__lem_split) */
+    rr->models.split[0] = kept.split[0];
+    rr->models.split[1] = kept.split[1];
+    rr->models.split_version = kept.split_version;
     if (bvh && refl_bvh_refit(bvh, rr->scene) == REFL_OK) rr->models.bvh = bvh;
     else refl_bvh_destroy(bvh);
     rr->models.scene_version = rr->scene->version;

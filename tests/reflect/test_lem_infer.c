@@ -7,6 +7,8 @@
    T F_T G_T + R F_R G_R with the inferred shell against greedy RAYTRACE. */
 #include <criterion/criterion.h>
 #include <math.h>
+#include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "../../reflect.h"
@@ -869,4 +871,103 @@ Test(layered_em, shows_the_glass_scene_nearer_its_true_places_than_envmap) {
     refl_frame_destroy(lem);
     refl_frame_destroy(envmap);
     refl_scene_destroy(s);
+}
+
+/* ---- the vertex paths trace the lenses alone ------------------------------------------- */
+
+/* A glass sphere of radius 1 (object 0) alone, or (cloud 1) inside a
+   cloud of 20000 small diffuse triangles between radii 4 and 8 around it:
+   every path leaving the sphere crosses the cloud, while the eye, 3 from
+   the centre, sees the sphere past none of it. */
+static refl_scene *clouded_lens_scene(int cloud) {
+    enum { N = 20000 };
+    refl_scene *s = NULL;
+    refl_mesh *lens = NULL, *bits = NULL;
+    refl_material glass = refl_material_glass(1.5f), grey = refl_material_diffuse(0.6f, 0.6f, 0.6f);
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    cr_assert_eq(refl_mesh_sphere(1.0f, 24, 12, NULL, &lens), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, lens, &glass, refl_mat4_identity()), 0);
+    if (cloud) {
+        float *pos = (float *)malloc(9 * N * sizeof(float));
+        uint32_t seed = 12345u;
+        refl_mesh_desc md;
+        int i, k;
+        cr_assert(pos);
+        for (i = 0; i < N; ++i) { /* a random centre in the layer, corners within 0.15 of it */
+            float u[12], z, phi, r, c[3];
+            for (k = 0; k < 12; ++k) {
+                seed = seed * 1664525u + 1013904223u;
+                u[k] = (float)(seed >> 8) / 16777216.0f;
+            }
+            z = 2.0f * u[0] - 1.0f, phi = 6.2831853f * u[1], r = 4.0f + 4.0f * u[2];
+            c[0] = r * sqrtf(1.0f - z * z) * cosf(phi), c[1] = r * z, c[2] = r * sqrtf(1.0f - z * z) * sinf(phi);
+            for (k = 0; k < 9; ++k) pos[9 * i + k] = c[k % 3] + 0.3f * (u[3 + k] - 0.5f);
+        }
+        memset(&md, 0, sizeof md);
+        md.positions = pos;
+        md.vertex_count = 3 * N;
+        cr_assert_eq(refl_mesh_create(&md, &bits), REFL_OK);
+        free(pos);
+        cr_assert_eq(refl_scene_add(s, bits, &grey, refl_mat4_identity()), 1);
+    }
+    s->ambient[0] = s->ambient[1] = s->ambient[2] = 1.0f;
+    return s;
+}
+
+Test(layered_em, vertex_paths_test_the_lens_triangles_alone, .timeout = 120) {
+    /* the frame's vertices trace the same paths with the cloud or
+       without: through the lens's triangles alone, the rest of the scene
+       asked only whether it lies between two lens surfaces, so the cloud
+       every exit ray crosses costs them no triangle tests (traced through
+       the whole scene, each exit ray would test the cloud's) */
+    refl_view v;
+    refl_render_desc d = lem_desc(8);
+    refl_scene *plain = clouded_lens_scene(0), *clouded = clouded_lens_scene(1);
+    refl_frame *a, *b;
+    memset(&v, 0, sizeof v);
+    v.eye = refl_v3(0.0f, 0.5f, 3.0f);
+    v.up = refl_v3(0.0f, 1.0f, 0.0f);
+    v.fovy_degrees = 45.0f;
+    v.width = 64;
+    v.height = 48;
+    d.layered_em.single_view = 1;
+    d.layered_em.face_size = 16;
+    a = tu_refl_render(plain, &v, &d);
+    b = tu_refl_render(clouded, &v, &d);
+    cr_assert_gt(a->stats.layered_em.vertices, 100);
+    cr_assert_eq(b->stats.layered_em.vertices, a->stats.layered_em.vertices, "the cloud changed the paths");
+    cr_assert_gt(a->stats.layered_em.vertex_tests, 0);
+    cr_assert_leq(b->stats.layered_em.vertex_tests, a->stats.layered_em.vertex_tests + a->stats.layered_em.vertices,
+                  "the cloud cost the vertices %lld triangle tests (%lld without it, %lld vertices)",
+                  b->stats.layered_em.vertex_tests - a->stats.layered_em.vertex_tests,
+                  a->stats.layered_em.vertex_tests, a->stats.layered_em.vertices);
+    refl_frame_destroy(a);
+    refl_frame_destroy(b);
+    refl_scene_destroy(plain);
+    refl_scene_destroy(clouded);
+}
+
+Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
+    /* the vertex paths through the lenses' BVH, the rest asked for
+       occluders between lens surfaces, find what tracing them through the
+       whole scene found: the frames of mirror-room (mirrors seeing each
+       other past the room's furniture) and hybrid (glass, a mirror cup and
+       columns) are the bytes recorded from whole-scene tracing */
+    static const struct {
+        const char *scene;
+        uint64_t digest;
+    } cases[] = {{"mirror-room", 0xcbbf02602907fd7full}, {"hybrid", 0xa93a958e20b4349aull}};
+    uint64_t digest[2];
+    int k;
+    for (k = 0; k < 2; ++k) {
+        refl_view v;
+        refl_scene *s = tu_refl_builtin(cases[k].scene, &v, 64, 48);
+        refl_frame *f = render_lem(s, &v, 2);
+        digest[k] = tu_refl_digest(f);
+        if (getenv("REFL_GOLDEN_PRINT")) printf("%s 0x%016llxull\n", cases[k].scene, (unsigned long long)digest[k]);
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
+    for (k = 0; k < 2; ++k)
+        cr_assert_eq(digest[k], cases[k].digest, "%s: LAYERED_EM's bytes changed", cases[k].scene);
 }
