@@ -16,7 +16,7 @@
    pixels of groups whose rays fold so even without the option
    (refl__sb_checked), and renders so every pixel whose last order drawn
    shows a mirror while the depth goes on (refl__sb_goes_past), and every
-   hole past the first order whose path's last ray meets a mirror or glass
+   hole past the first order whose path's last ray meets a surface
    (refl__sb_hole_goes_on).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
@@ -131,17 +131,28 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
 }
 
 /* Whether a hole's path (pa, traced through the mirrors and glass)
-   goes on: its last reflected ray meets a mirror or glass. No layer drew
-   what it meets there (the seams between mirror-room's wall mirrors, high
-   up, through six bounces), and the environment along that ray is not
-   what the path shows: RAYTRACE's tracer renders the pixel (SBC-traced;
-   its black where the depth runs out, its reflection where it goes on). */
+   goes on: its last reflected ray meets a mirror or glass, or any other
+   surface. No layer drew what it meets there (the seams between
+   mirror-room's wall mirrors, high up, through six bounces; the floor a
+   hair below where a wall mirror meets it), and the environment along that
+   ray is not what the path shows: RAYTRACE's tracer renders the pixel
+   (SBC-traced; its black where the depth runs out, its reflection where
+   it goes on). The search starts at the point of the triangle the path
+   leaves (refl__sb_path_start), as RAYTRACE's does, and skips the surface
+   it leaves only past a hair (the ray map's samples skip 1e-4 of the
+   diagonal, and a surface that near would be missed). */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     refl_hit h;
     int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
-    refl_vec3 o = pa->q[pa->count - 1];
-    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
-                                          last, &h);
+    refl_vec3 o = pa->q[pa->count - 1], near;
+    float reach;
+    if (!sb->bvh) return 0;
+    near = pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last);
+    if (refl__sb_mirror_hit(sb, o, near, pa->out, last, &h)) return 1;
+    reach = refl__sbc_box_exit(sb->box_lo, sb->box_hi, near, pa->out);
+    if (!refl_bvh_intersect(sb->bvh, near, pa->out, 1e-6f * sb->diagonal, reach, &h)) return 0;
+    return h.object != last ||
+           refl_bvh_intersect(sb->bvh, near, pa->out, 1e-4f * sb->diagonal + h.t, reach, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
