@@ -600,7 +600,8 @@ Test(sbc_higher, mirror_room_seam_holes_follow_the_path, .timeout = 120) {
    such pixels. Where a wall mirror meets the floor, the floor a hair below
    the path's point is drawn by no group (a hole), and the hole's last
    reflected ray meets no mirror: it goes to the tracer too, as it meets a
-   surface (160x120: 4 pixels showed the environment there; 640x480: 16). */
+   surface within two pixels' footprint (160x120: 4 pixels showed the
+   environment there; 640x480: 16). */
 Test(sbc_higher, mirror_room_corner_paths_meet_the_next_wall, .timeout = 120) {
     refl_frame *f, *truth;
     refl_scene *s = sbc_and_truth_at_depth_6("mirror-room", 160, 120, &f, &truth);
