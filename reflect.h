@@ -24459,7 +24459,13 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the
-   straight-edge error the paper bounds by pre-subdividing). The
+   straight-edge error the paper bounds by pre-subdividing). In a group
+   whose rays fold, a triangle whose edges still bend more than
+   REFL__SB_FOLD_BEND_PX at the last level is not drawn (SBC-traced, the
+   frame's own groups): it lies across a fold, where the map is no longer
+   near linear, and its inside would show points that project elsewhere,
+   in front of the true ones; its pixels are holes, which the tracer
+   renders (sbc_resolve.c). The
    reflector's own triangles project too (the knob seen in the lid), except
    the surface the rays leave (refl__sb_own_surface). A morphing grid's
    group projects through the eye's tetrahedron of nodes, blended, with no
@@ -24470,6 +24476,7 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
+#define REFL__SB_FOLD_BEND_PX 1.0f /* a folding group's triangle bent this much at the last level: not drawn */
 #define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
 #define REFL__SB_MIXED_PX 1.0f      /* a mixed part is split while it may reach this many pixels ... */
 #define REFL__SB_MIXED_MAX 16       /* ... down to this level at most (a 64k-fold magnification) */
@@ -24815,6 +24822,28 @@ static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, con
     return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
 }
 
+/* How far the projected midpoints of triangle (a, b, c)'s edges (into
+   ab, bc, ca) lie from the midpoints of their projected ends at most, in
+   pixels squared: the straight-edge error; infinite when a midpoint does
+   not project. */
+static float refl__sb_bend(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
+                           const refl__sb_pv *b, const refl__sb_pv *c, refl__sb_pv *ab, refl__sb_pv *bc,
+                           refl__sb_pv *ca) {
+    const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
+    refl__sb_pv *mid[3];
+    float most = 0.0f;
+    int k;
+    mid[0] = ab; mid[1] = bc; mid[2] = ca;
+    for (k = 0; k < 3; ++k) {
+        float dx, dy;
+        *mid[k] = refl__sb_mid(sb, g, e[k][0], e[k][1], j);
+        dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
+        dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
+        most = mid[k]->ok ? REFL__MAX(most, dx * dx + dy * dy) : INFINITY;
+    }
+    return most;
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
    module comment says; scale: the pixels per unit of length an ancestor's
    projected edge had (0: none projected two vertices yet). */
@@ -24845,17 +24874,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         } else if (ok == 3 && across) { /* straddles a fold: finer where the sheets meet */
             split = level < REFL__SB_MIXED_LEVELS;
         } else if (ok == 3 && ext > 2.0f * REFL__SB_EDGE_PX) { /* smaller: no edge can bend further */
-            const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
-            refl__sb_pv *mid[3];
-            int k;
-            mid[0] = &ab; mid[1] = &bc; mid[2] = &ca;
-            for (k = 0; k < 3; ++k) {
-                float dx, dy;
-                *mid[k] = refl__sb_mid(sb, g, e[k][0], e[k][1], j);
-                dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
-                dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
-                if (!mid[k]->ok || dx * dx + dy * dy > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX) split = 1;
-            }
+            split = refl__sb_bend(sb, g, j, a, b, c, &ab, &bc, &ca) > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX;
             have_mid = 1;
         } else if (ok < 3) {
             int k;
@@ -24873,6 +24892,12 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         if (across && refl__sb_extent(a, b, c) > REFL__SB_FOLD_SAMPLES * (float)sb->factor) return;
         /* the reflector's own surface around the rays' tails */
         if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
+        /* where the rays fold, a triangle still bent at the last level lies
+           across a fold: its inside is no image of the scene (SBC-traced
+           traces its pixels; a morph group has no ray map to check) */
+        if (level >= REFL__SB_LEVELS && g->sheets > 1 && sb->bvh && !g->morph && refl__sb_extent(a, b, c) > 2.0f * REFL__SB_FOLD_BEND_PX &&
+            refl__sb_bend(sb, g, j, a, b, c, &ab, &bc, &ca) > REFL__SB_FOLD_BEND_PX * REFL__SB_FOLD_BEND_PX)
+            return;
         if (j->out_count + 3 > j->out_cap) {
             size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
             float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));
@@ -25618,8 +25643,8 @@ static void refl__sb_ray_maps_free(refl__sb *sb) {
    pixels of groups whose rays fold so even without the option
    (refl__sb_checked), and renders so every pixel whose last order drawn
    shows a mirror while the depth goes on (refl__sb_goes_past), and every
-   hole past the first order whose path's last ray meets a mirror or glass
-   (refl__sb_hole_goes_on).
+   hole past the first order whose path's last ray meets a mirror or glass,
+   or another surface a hair away (refl__sb_hole_goes_on).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -25631,6 +25656,8 @@ static void refl__sb_ray_maps_free(refl__sb *sb) {
    inside the glass short of total are left out. frame->points: the first
    point past the first reflector, as RAYTRACE's, or with
    desc.debug.points_last the last. */
+
+#define REFL__SB_HOLE_NEAR_PX 2.0f  /* a hole's last ray meeting a surface this near (pixels' footprint): traced */
 
 /* Where pixel (x, y) of a group, with nothing drawn on it, takes its
    reflection from (past the first order, its order too): the nearer of two drawn pixels of its
@@ -25732,17 +25759,31 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
 }
 
 /* Whether a hole's path (pa, traced through the mirrors and glass)
-   goes on: its last reflected ray meets a mirror or glass. No layer drew
-   what it meets there (the seams between mirror-room's wall mirrors, high
-   up, through six bounces), and the environment along that ray is not
-   what the path shows: RAYTRACE's tracer renders the pixel (SBC-traced;
-   its black where the depth runs out, its reflection where it goes on). */
+   goes on: its last reflected ray meets a mirror or glass, or another
+   surface within REFL__SB_HOLE_NEAR_PX pixels' footprint (at the path's
+   length) of the point it leaves. No layer drew what it meets there (the
+   seams between mirror-room's wall mirrors, high up, through six bounces;
+   the floor where a wall mirror meets it, whose reflection near the seam
+   is a sliver thinner than a pixel), and the environment along that ray is
+   not what the path shows: RAYTRACE's tracer renders the pixel
+   (SBC-traced; its black where the depth runs out, its reflection where it
+   goes on). The search starts at the point of the triangle the path
+   leaves (refl__sb_path_start), as RAYTRACE's does, and skips the surface
+   it leaves. */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
+    const refl_view *v = sb->p->view;
+    float fovy = (v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f) * (float)REFL__PI / 180.0f, length, reach;
+    int last = (int)fabsf(pa->id[pa->count - 1]) - 1, k;
+    refl_vec3 o = pa->q[pa->count - 1], near;
     refl_hit h;
-    int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
-    refl_vec3 o = pa->q[pa->count - 1];
-    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
-                                          last, &h);
+    if (!sb->bvh) return 0;
+    near = pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last);
+    if (refl__sb_mirror_hit(sb, o, near, pa->out, last, &h)) return 1;
+    length = refl_v3_length(refl_v3_sub(pa->q[0], v->eye));
+    for (k = 1; k < pa->count; ++k) length += refl_v3_length(refl_v3_sub(pa->q[k], pa->q[k - 1]));
+    reach = REFL__SB_HOLE_NEAR_PX * length * 2.0f * tanf(0.5f * fovy) / (float)v->height;
+    if (!refl_bvh_intersect(sb->bvh, near, pa->out, 1e-6f * sb->diagonal, reach, &h)) return 0;
+    return h.object != last || refl_bvh_intersect(sb->bvh, near, pa->out, 1e-4f * sb->diagonal + h.t, reach, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:

@@ -34,7 +34,13 @@
    projects but such a point lies inside (a group narrower than the
    triangle), and while an edge's projected midpoint lies more than
    REFL__SB_EDGE_PX from the midpoint of its projected ends (the
-   straight-edge error the paper bounds by pre-subdividing). The
+   straight-edge error the paper bounds by pre-subdividing). In a group
+   whose rays fold, a triangle whose edges still bend more than
+   REFL__SB_FOLD_BEND_PX at the last level is not drawn (SBC-traced, the
+   frame's own groups): it lies across a fold, where the map is no longer
+   near linear, and its inside would show points that project elsewhere,
+   in front of the true ones; its pixels are holes, which the tracer
+   renders (sbc_resolve.c). The
    reflector's own triangles project too (the knob seen in the lid), except
    the surface the rays leave (refl__sb_own_surface). A morphing grid's
    group projects through the eye's tetrahedron of nodes, blended, with no
@@ -46,6 +52,7 @@
 #define REFL__SB_CHUNK 256          /* scene triangles per emission job */
 #define REFL__SB_OWN_NEAR 0.25f     /* a reflector's triangle this near (in edges) to its reflection: its surface */
 #define REFL__SB_FOLD_SAMPLES 4.0f  /* a triangle straddling a fold wider than this (in samples): not drawn */
+#define REFL__SB_FOLD_BEND_PX 1.0f /* a folding group's triangle bent this much at the last level: not drawn */
 #define REFL__SB_ELSEWHERE_LEVELS 3 /* subdivisions, at most, of a triangle with its images in other sheets */
 #define REFL__SB_MIXED_PX 1.0f      /* a mixed part is split while it may reach this many pixels ... */
 #define REFL__SB_MIXED_MAX 16       /* ... down to this level at most (a 64k-fold magnification) */
@@ -391,6 +398,28 @@ static int refl__sb_mixed_split(const refl__sb *sb, const refl__sb_group *g, con
     return scale > 0.0f && reach > REFL__SB_MIXED_PX && refl__sb_mixed_near(sb, g, a, b, c, reach);
 }
 
+/* How far the projected midpoints of triangle (a, b, c)'s edges (into
+   ab, bc, ca) lie from the midpoints of their projected ends at most, in
+   pixels squared: the straight-edge error; infinite when a midpoint does
+   not project. */
+static float refl__sb_bend(const refl__sb *sb, const refl__sb_group *g, refl__sb_job *j, const refl__sb_pv *a,
+                           const refl__sb_pv *b, const refl__sb_pv *c, refl__sb_pv *ab, refl__sb_pv *bc,
+                           refl__sb_pv *ca) {
+    const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
+    refl__sb_pv *mid[3];
+    float most = 0.0f;
+    int k;
+    mid[0] = ab; mid[1] = bc; mid[2] = ca;
+    for (k = 0; k < 3; ++k) {
+        float dx, dy;
+        *mid[k] = refl__sb_mid(sb, g, e[k][0], e[k][1], j);
+        dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
+        dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
+        most = mid[k]->ok ? REFL__MAX(most, dx * dx + dy * dy) : INFINITY;
+    }
+    return most;
+}
+
 /* Emits triangle (a, b, c) at subdivision level `level`, split as the
    module comment says; scale: the pixels per unit of length an ancestor's
    projected edge had (0: none projected two vertices yet). */
@@ -421,17 +450,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         } else if (ok == 3 && across) { /* straddles a fold: finer where the sheets meet */
             split = level < REFL__SB_MIXED_LEVELS;
         } else if (ok == 3 && ext > 2.0f * REFL__SB_EDGE_PX) { /* smaller: no edge can bend further */
-            const refl__sb_pv *e[3][2] = {{a, b}, {b, c}, {c, a}};
-            refl__sb_pv *mid[3];
-            int k;
-            mid[0] = &ab; mid[1] = &bc; mid[2] = &ca;
-            for (k = 0; k < 3; ++k) {
-                float dx, dy;
-                *mid[k] = refl__sb_mid(sb, g, e[k][0], e[k][1], j);
-                dx = mid[k]->sx - 0.5f * (e[k][0]->sx + e[k][1]->sx);
-                dy = mid[k]->sy - 0.5f * (e[k][0]->sy + e[k][1]->sy);
-                if (!mid[k]->ok || dx * dx + dy * dy > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX) split = 1;
-            }
+            split = refl__sb_bend(sb, g, j, a, b, c, &ab, &bc, &ca) > REFL__SB_EDGE_PX * REFL__SB_EDGE_PX;
             have_mid = 1;
         } else if (ok < 3) {
             int k;
@@ -449,6 +468,12 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         if (across && refl__sb_extent(a, b, c) > REFL__SB_FOLD_SAMPLES * (float)sb->factor) return;
         /* the reflector's own surface around the rays' tails */
         if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
+        /* where the rays fold, a triangle still bent at the last level lies
+           across a fold: its inside is no image of the scene (SBC-traced
+           traces its pixels; a morph group has no ray map to check) */
+        if (level >= REFL__SB_LEVELS && g->sheets > 1 && sb->bvh && !g->morph && refl__sb_extent(a, b, c) > 2.0f * REFL__SB_FOLD_BEND_PX &&
+            refl__sb_bend(sb, g, j, a, b, c, &ab, &bc, &ca) > REFL__SB_FOLD_BEND_PX * REFL__SB_FOLD_BEND_PX)
+            return;
         if (j->out_count + 3 > j->out_cap) {
             size_t cap = j->out_cap ? 2 * j->out_cap : 3 * 256;
             float *o = (float *)refl__alloc(&sb->p->scene->allocator, cap * REFL__SB_FLOATS * sizeof(float));

@@ -16,8 +16,8 @@
    pixels of groups whose rays fold so even without the option
    (refl__sb_checked), and renders so every pixel whose last order drawn
    shows a mirror while the depth goes on (refl__sb_goes_past), and every
-   hole past the first order whose path's last ray meets a mirror or glass
-   (refl__sb_hole_goes_on).
+   hole past the first order whose path's last ray meets a mirror or glass,
+   or another surface a hair away (refl__sb_hole_goes_on).
 
    Past the first order (refl__sb_resolve_row_deep): the nearest order's
    colour (its order read off the offset), or the environment along the
@@ -30,6 +30,8 @@
    point past the first reflector, as RAYTRACE's, or with
    desc.debug.points_last the last. */
 #include "sbc_internal.h"
+
+#define REFL__SB_HOLE_NEAR_PX 2.0f  /* a hole's last ray meeting a surface this near (pixels' footprint): traced */
 
 /* Where pixel (x, y) of a group, with nothing drawn on it, takes its
    reflection from (past the first order, its order too): the nearer of two drawn pixels of its
@@ -131,17 +133,31 @@ static int refl__sb_goes_past(const refl__sb *sb, size_t src) {
 }
 
 /* Whether a hole's path (pa, traced through the mirrors and glass)
-   goes on: its last reflected ray meets a mirror or glass. No layer drew
-   what it meets there (the seams between mirror-room's wall mirrors, high
-   up, through six bounces), and the environment along that ray is not
-   what the path shows: RAYTRACE's tracer renders the pixel (SBC-traced;
-   its black where the depth runs out, its reflection where it goes on). */
+   goes on: its last reflected ray meets a mirror or glass, or another
+   surface within REFL__SB_HOLE_NEAR_PX pixels' footprint (at the path's
+   length) of the point it leaves. No layer drew what it meets there (the
+   seams between mirror-room's wall mirrors, high up, through six bounces;
+   the floor where a wall mirror meets it, whose reflection near the seam
+   is a sliver thinner than a pixel), and the environment along that ray is
+   not what the path shows: RAYTRACE's tracer renders the pixel
+   (SBC-traced; its black where the depth runs out, its reflection where it
+   goes on). The search starts at the point of the triangle the path
+   leaves (refl__sb_path_start), as RAYTRACE's does, and skips the surface
+   it leaves. */
 static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
+    const refl_view *v = sb->p->view;
+    float fovy = (v->fovy_degrees > 0.0f ? v->fovy_degrees : 45.0f) * (float)REFL__PI / 180.0f, length, reach;
+    int last = (int)fabsf(pa->id[pa->count - 1]) - 1, k;
+    refl_vec3 o = pa->q[pa->count - 1], near;
     refl_hit h;
-    int last = (int)fabsf(pa->id[pa->count - 1]) - 1;
-    refl_vec3 o = pa->q[pa->count - 1];
-    return sb->bvh && refl__sb_mirror_hit(sb, o, pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last), pa->out,
-                                          last, &h);
+    if (!sb->bvh) return 0;
+    near = pa->count > 1 ? o : refl__sb_path_start(sb, o, pa->d[0], last);
+    if (refl__sb_mirror_hit(sb, o, near, pa->out, last, &h)) return 1;
+    length = refl_v3_length(refl_v3_sub(pa->q[0], v->eye));
+    for (k = 1; k < pa->count; ++k) length += refl_v3_length(refl_v3_sub(pa->q[k], pa->q[k - 1]));
+    reach = REFL__SB_HOLE_NEAR_PX * length * 2.0f * tanf(0.5f * fovy) / (float)v->height;
+    if (!refl_bvh_intersect(sb->bvh, near, pa->out, 1e-6f * sb->diagonal, reach, &h)) return 0;
+    return h.object != last || refl_bvh_intersect(sb->bvh, near, pa->out, 1e-4f * sb->diagonal + h.t, reach, &h);
 }
 
 /* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
