@@ -2862,6 +2862,7 @@ static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
+static refl_result refl__sbc_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__method_planar(refl__pass *p);
 static refl_result refl__method_graphcam(refl__pass *p);
 static const char *refl__options_graphcam(refl_render_desc *d);
@@ -20081,6 +20082,17 @@ static refl_result refl__sb_run(refl__pass *p) {
 }
 
 static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
+
+/* At one bounce a ray refracted into glass cannot leave it, and no
+   refraction group is drawn: SBC-traced hands glass to RAYTRACE's tracer
+   there, as C3RC does, so the pixel shows what that one bounce meets
+   (the glass's inside, unlit); SBC-paper keeps the environment refracted
+   once. */
+static refl_result refl__sbc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS || p->desc.depth >= 2 ||
+           p->desc.sbc.mode == REFL_SBC_PAPER;
+    return REFL_OK;
+}
 /* ---- src/reflect/m_spoc.c ---- */
 /* SPOC: reflections of impostored diffuse objects in mirrors (paper 004,
    sections 4 and 6). Per reflector seen, every compact diffuse object gets
@@ -22847,7 +22859,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
-    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, refl__sbc_handles, REFL__SB_ORDERS},
     {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 2},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},
@@ -25730,8 +25742,8 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
    refraction groups are mostly ray lists whose triangles across a fold are
    dropped, and the environment beyond the glass in their place is flat
    light patches with straight edges across the teapot. Past one bounce
-   only: at depth 1 glass shows the environment refracted once, as
-   ENVMAP's. */
+   only: at depth 1 SBC-paper's glass shows the environment refracted
+   once, as ENVMAP's (SBC-traced hands glass to the tracer there). */
 static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
     size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     refl__sb_refr rp;

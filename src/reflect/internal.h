@@ -650,6 +650,7 @@ static refl_result refl__method_raytrace(refl__pass *p);
 static refl_result refl__method_envmap(refl__pass *p);
 static refl_result refl__method_c3rc(refl__pass *p);
 static refl_result refl__method_sbc(refl__pass *p);
+static refl_result refl__sbc_handles(const refl__pass *p, int object, int *can);
 static refl_result refl__method_planar(refl__pass *p);
 static refl_result refl__method_graphcam(refl__pass *p);
 static const char *refl__options_graphcam(refl_render_desc *d);

@@ -196,3 +196,14 @@ static refl_result refl__sb_run(refl__pass *p) {
 }
 
 static refl_result refl__method_sbc(refl__pass *p) { return refl__sb_run(p); }
+
+/* At one bounce a ray refracted into glass cannot leave it, and no
+   refraction group is drawn: SBC-traced hands glass to RAYTRACE's tracer
+   there, as C3RC does, so the pixel shows what that one bounce meets
+   (the glass's inside, unlit); SBC-paper keeps the environment refracted
+   once. */
+static refl_result refl__sbc_handles(const refl__pass *p, int object, int *can) {
+    *can = p->scene->materials[p->scene->objects[object].material].type != REFL_GLASS || p->desc.depth >= 2 ||
+           p->desc.sbc.mode == REFL_SBC_PAPER;
+    return REFL_OK;
+}

@@ -220,7 +220,7 @@ static const refl__method_row refl__methods[] = {
     {REFL_PLANAR, REFL__PER_REFLECTOR, refl__method_planar, refl__options_planar, refl__planar_handles,
      REFL__ANY_DEPTH},
     {REFL_C3RC, REFL__PER_REFLECTOR, refl__method_c3rc, refl__options_c3rc, refl__declines_glass, 1},
-    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, NULL, REFL__SB_ORDERS},
+    {REFL_SBC, REFL__PER_REFLECTOR, refl__method_sbc, refl__options_sbc, refl__sbc_handles, REFL__SB_ORDERS},
     {REFL_SPOC, REFL__PER_REFLECTOR, refl__method_spoc, refl__options_spoc, refl__spoc_handles, 2},
     {REFL_GRAPHCAM, REFL__PER_REFLECTOR, refl__method_graphcam, refl__options_graphcam, refl__declines_glass, 1},
     {REFL_LAYERED_EM, REFL__PER_REFLECTOR, refl__method_layered_em, refl__options_layered_em, NULL, REFL__ANY_DEPTH},

@@ -104,8 +104,8 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
    refraction groups are mostly ray lists whose triangles across a fold are
    dropped, and the environment beyond the glass in their place is flat
    light patches with straight edges across the teapot. Past one bounce
-   only: at depth 1 glass shows the environment refracted once, as
-   ENVMAP's. */
+   only: at depth 1 SBC-paper's glass shows the environment refracted
+   once, as ENVMAP's (SBC-traced hands glass to the tracer there). */
 static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
     size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
     refl__sb_refr rp;

@@ -645,3 +645,37 @@ Test(sbc_higher, hybrid_glass_drops_triangles_across_folds, .timeout = 120) {
     refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
+
+/* At one bounce SBC-traced hands glass to RAYTRACE's tracer (a ray
+   refracted into glass cannot leave it within the depth): the glass
+   pixels are RAYTRACE's at depth 1, bit for bit, not the environment
+   refracted once; SBC-paper keeps drawing the glass itself. */
+Test(sbc_higher, glass_at_one_bounce_goes_to_the_tracer) {
+    refl_scene *s = NULL;
+    refl_view v;
+    refl_render_desc d = desc_of(REFL_SBC, 1, 0), t = desc_of(REFL_RAYTRACE, 1, 0), paper = desc_of(REFL_SBC, 1, 0);
+    refl_frame *f, *truth, *pf;
+    int i, glass = 0, shown = 0;
+    cr_assert_eq(refl_scene_builtin("glass", NULL, &s), REFL_OK);
+    v = s->camera;
+    v.width = 96;
+    v.height = 72;
+    paper.sbc.mode = REFL_SBC_PAPER;
+    for (i = 0; i < s->object_count; ++i) glass += s->materials[s->objects[i].material].type == REFL_GLASS;
+    f = tu_refl_render(s, &v, &d);
+    truth = tu_refl_render(s, &v, &t);
+    pf = tu_refl_render(s, &v, &paper);
+    cr_assert_eq(f->stats.handed_over, glass, "%d handed over of %d glass objects", f->stats.handed_over, glass);
+    cr_assert_eq(pf->stats.handed_over, 0, "SBC-paper handed %d over", pf->stats.handed_over);
+    for (i = 0; i < v.width * v.height; ++i) {
+        int object = f->stencil[i] - 1;
+        if (object < 0 || s->materials[s->objects[object].material].type != REFL_GLASS) continue;
+        ++shown;
+        cr_assert_eq(memcmp(f->rgba + 4 * (size_t)i, truth->rgba + 4 * (size_t)i, 4 * sizeof(float)), 0, "pixel %d", i);
+    }
+    cr_assert(shown > 100, "%d glass pixels", shown);
+    refl_frame_destroy(f);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(pf);
+    refl_scene_destroy(s);
+}
