@@ -41,6 +41,24 @@ int rgl_bench_projection(rgl_context *g, long long points, int repeats, int chec
             failed = 1;
         }
     }
+    if (check) { /* validate: the impostor hooks' fragment-side marches too, one ray a point */
+        int (*const march[2])(rgl_context *, long long, rgl_validation *, char *, size_t) = {
+            rgl_validate_spoc_impostor, rgl_validate_graphcam_impostor};
+        for (i = 0; i < 2; ++i) {
+            rgl_validation v;
+            if (march[i](g, points, &v, err, sizeof err) != 0) {
+                fprintf(stderr, "reflect_gl: impostor march %d: %s\n", i, err);
+                failed = 1;
+                continue;
+            }
+            printf("%-12s %9lld rays,   %9lld hit both, %6lld disagree, max rel %.2e, p99.9 %.2e  [%s]\n", v.camera,
+                   v.points, v.projected, v.disagree, v.max_rel, v.p999_rel, v.note);
+            if (v.disagree > 0 || v.p999_rel > 1e-4) {
+                fprintf(stderr, "reflect_gl: %s: the GLSL march and C disagree beyond the bounds\n", v.camera);
+                failed = 1;
+            }
+        }
+    }
     return failed;
 }
 
