@@ -365,6 +365,9 @@ REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec
    NULL scene or an object or mesh index out of range. (The static points
    refl_sbc_morph_project_points reuses projections of.) */
 REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
+/* The tight world-space box of object i's vertices (its transform applied
+   to each; an object without vertices: its origin). */
+REFL_API void refl_object_world_bounds(const refl_scene *scene, int object, refl_vec3 *lo, refl_vec3 *hi);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
@@ -12535,28 +12538,12 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
    impostor is the object itself. Both impostor methods intersect such
    objects exactly through a BVH of their own and shade the hit here. */
 
-/* World bounding box of object i's vertices. */
-static void refl__object_world_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
-}
-
 /* Whether object i is flat (its box's smallest side under 1% of its
    largest, or no extent): a billboard. */
 static int refl__object_flat(const refl_scene *scene, int i) {
     refl_vec3 lo, hi, size;
     float small, large;
-    refl__object_world_box(scene, i, &lo, &hi);
+    refl_object_world_bounds(scene, i, &lo, &hi);
     size = refl_v3_sub(hi, lo);
     small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
     large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
@@ -20179,7 +20166,7 @@ static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 ey
     if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
         refl__object_flat(scene, i))
         return 0;
-    refl__object_world_box(scene, i, &lo, &hi);
+    refl_object_world_bounds(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
@@ -20205,7 +20192,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     set->imp_object = (int *)refl__calloc(al, objects, sizeof(int));
     set->exact_object = (int *)refl__calloc(al, objects, sizeof(int));
     if (!set->cams || !set->imps || !set->imp_object || !set->exact_object) return REFL_ERROR_OUT_OF_MEMORY;
-    refl__object_world_box(scene, object, &lo, &hi);
+    refl_object_world_bounds(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
@@ -20216,7 +20203,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             refl_impostor_camera ic;
             refl_impostor_desc d;
             refl_spoc *cam = &set->cams[set->imp_count];
-            refl__object_world_box(scene, i, &olo, &ohi);
+            refl_object_world_bounds(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;
@@ -26198,6 +26185,21 @@ REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *h
     if (l.x > h.x) l = h = refl_v3(0, 0, 0); /* empty scene */
     if (lo) *lo = l;
     if (hi) *hi = h;
+}
+
+REFL_API void refl_object_world_bounds(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
 }
 
 REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {

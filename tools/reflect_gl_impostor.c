@@ -153,29 +153,13 @@ static void rgl__sp_set_free(rgl_sp_set *set) {
     memset(set, 0, sizeof *set);
 }
 
-/* Object i's world bounding box, over its mesh's vertices (impostor.c's). */
-static void rgl__sp_world_box(const refl_scene *s, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &s->objects[i];
-    const refl_mesh *m = s->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl_v3(fminf(lo->x, w.x), fminf(lo->y, w.y), fminf(lo->z, w.z));
-        *hi = refl_v3(fmaxf(hi->x, w.x), fmaxf(hi->y, w.y), fmaxf(hi->z, w.z));
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
-}
-
 /* Whether object i is flat (impostor.c's rule: its box's smallest side
    under 1% of its largest, or no extent), a billboard the impostor
    methods intersect exactly. */
 static int rgl__imp_flat(const refl_scene *s, int i) {
     refl_vec3 lo, hi, size;
     float small, large;
-    rgl__sp_world_box(s, i, &lo, &hi);
+    refl_object_world_bounds(s, i, &lo, &hi);
     size = refl_v3_sub(hi, lo);
     small = fminf(size.x, fminf(size.y, size.z));
     large = fmaxf(size.x, fmaxf(size.y, size.z));
@@ -187,7 +171,7 @@ static int rgl__imp_flat(const refl_scene *s, int i) {
 static int rgl__sp_impostored(const refl_scene *s, int i, refl_vec3 eye) {
     refl_vec3 lo, hi;
     if (s->materials[s->objects[i].material].type != REFL_DIFFUSE || rgl__imp_flat(s, i)) return 0;
-    rgl__sp_world_box(s, i, &lo, &hi);
+    refl_object_world_bounds(s, i, &lo, &hi);
     return refl_v3_length(refl_v3_sub(eye, refl_v3_scale(refl_v3_add(lo, hi), 0.5f))) >
            1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
@@ -227,7 +211,7 @@ static int rgl__sp_build(const refl_scene *s, int object, rgl_sp_set *set) {
     set->imps = (refl_impostor **)calloc(n_obj, sizeof *set->imps);
     set->imp_object = (int *)calloc(n_obj, sizeof *set->imp_object);
     if (!exact || !set->cams || !set->imps || !set->imp_object) goto done;
-    rgl__sp_world_box(s, object, &lo, &hi);
+    refl_object_world_bounds(s, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     for (i = 0; i < s->object_count; ++i) {
@@ -236,7 +220,7 @@ static int rgl__sp_build(const refl_scene *s, int object, rgl_sp_set *set) {
             refl_impostor_camera ic;
             refl_impostor_desc d;
             refl_spoc *cam = &set->cams[set->imp_count];
-            rgl__sp_world_box(s, i, &olo, &ohi);
+            refl_object_world_bounds(s, i, &olo, &ohi);
             if (refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, RGL_SP_STRENGTH,
                                RGL_SP_SIZE) != REFL_OK)
@@ -889,7 +873,7 @@ int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *o
     if (!(data = rgl__sp_pack(&set, &floats)) || rgl__imp_rays_new(&r, rays) != 0) goto oom;
     /* rays from the mirror teapot's box: 80% towards a point of the
        impostor's sphere, the rest anywhere */
-    rgl__sp_world_box(s, reflector, &lo, &hi);
+    refl_object_world_bounds(s, reflector, &lo, &hi);
     for (i = 0; i < (size_t)rays; ++i) {
         const refl_impostor_camera *cam = &set.imps[0]->camera;
         refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
@@ -967,7 +951,7 @@ int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validatio
     refl_gl_pack_graphcam_impostor(cam, imp, data, floats);
     /* rays from the mirror sphere's surface region (its box grown by a
        quarter), in random directions, as the method's reflected rays */
-    rgl__sp_world_box(s, mirror, &lo, &hi);
+    refl_object_world_bounds(s, mirror, &lo, &hi);
     c = refl_v3_scale(refl_v3_sub(hi, lo), 0.25f);
     lo = refl_v3_sub(lo, c);
     hi = refl_v3_add(hi, c);

@@ -363,6 +363,9 @@ REFL_API void refl_scene_bounds(const refl_scene *scene, refl_vec3 *lo, refl_vec
    NULL scene or an object or mesh index out of range. (The static points
    refl_sbc_morph_project_points reuses projections of.) */
 REFL_API int refl_object_world_positions(const refl_scene *scene, int object, float *out);
+/* The tight world-space box of object i's vertices (its transform applied
+   to each; an object without vertices: its origin). */
+REFL_API void refl_object_world_bounds(const refl_scene *scene, int object, refl_vec3 *lo, refl_vec3 *hi);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);

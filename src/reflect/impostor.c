@@ -374,28 +374,12 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
    impostor is the object itself. Both impostor methods intersect such
    objects exactly through a BVH of their own and shade the hit here. */
 
-/* World bounding box of object i's vertices. */
-static void refl__object_world_box(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
-    const refl_object *o = &scene->objects[i];
-    const refl_mesh *m = scene->meshes[o->mesh];
-    int v;
-    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
-    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
-    for (v = 0; v < m->vertex_count; ++v) {
-        const float *q = m->positions + 3 * (size_t)v;
-        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
-        *lo = refl__v3_min(*lo, w);
-        *hi = refl__v3_max(*hi, w);
-    }
-    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
-}
-
 /* Whether object i is flat (its box's smallest side under 1% of its
    largest, or no extent): a billboard. */
 static int refl__object_flat(const refl_scene *scene, int i) {
     refl_vec3 lo, hi, size;
     float small, large;
-    refl__object_world_box(scene, i, &lo, &hi);
+    refl_object_world_bounds(scene, i, &lo, &hi);
     size = refl_v3_sub(hi, lo);
     small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
     large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));

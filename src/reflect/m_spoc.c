@@ -84,7 +84,7 @@ static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 ey
     if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
         refl__object_flat(scene, i))
         return 0;
-    refl__object_world_box(scene, i, &lo, &hi);
+    refl_object_world_bounds(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
@@ -110,7 +110,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     set->imp_object = (int *)refl__calloc(al, objects, sizeof(int));
     set->exact_object = (int *)refl__calloc(al, objects, sizeof(int));
     if (!set->cams || !set->imps || !set->imp_object || !set->exact_object) return REFL_ERROR_OUT_OF_MEMORY;
-    refl__object_world_box(scene, object, &lo, &hi);
+    refl_object_world_bounds(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
     objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
@@ -121,7 +121,7 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
             refl_impostor_camera ic;
             refl_impostor_desc d;
             refl_spoc *cam = &set->cams[set->imp_count];
-            refl__object_world_box(scene, i, &olo, &ohi);
+            refl_object_world_bounds(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
                                0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
             if (r != REFL_OK) break;

@@ -200,6 +200,21 @@ REFL_API void refl_scene_bounds(const refl_scene *s, refl_vec3 *lo, refl_vec3 *h
     if (hi) *hi = h;
 }
 
+REFL_API void refl_object_world_bounds(const refl_scene *scene, int i, refl_vec3 *lo, refl_vec3 *hi) {
+    const refl_object *o = &scene->objects[i];
+    const refl_mesh *m = scene->meshes[o->mesh];
+    int v;
+    *lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX);
+    *hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    for (v = 0; v < m->vertex_count; ++v) {
+        const float *q = m->positions + 3 * (size_t)v;
+        refl_vec3 w = refl_mat4_point(o->transform, refl_v3(q[0], q[1], q[2]));
+        *lo = refl__v3_min(*lo, w);
+        *hi = refl__v3_max(*hi, w);
+    }
+    if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
 REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {
     const refl_mesh *m;
     int i;
