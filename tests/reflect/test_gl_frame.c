@@ -206,3 +206,47 @@ Test(refl_gl_frame, layered_em_matches_cpu, .timeout = 120) {
     refl_frame_destroy(cpu);
     refl_scene_destroy(s);
 }
+
+/* The glass C3RC, SBC, SPOC and GRAPHCAM through GL do not draw comes from
+   the CPU as their CPU methods hand it over: on `glass` at one bounce,
+   every glass pixel of the GL frame is one-bounce RAYTRACE's, bit for
+   bit (not DIRECT's black), for each of the four. */
+Test(refl_gl_frame, glass_traced_as_the_cpu_methods_hand_it_over, .timeout = 240) {
+    static const refl_method methods[] = {REFL_C3RC, REFL_SBC, REFL_SPOC, REFL_GRAPHCAM};
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("glass", &v, 80, 60);
+    refl_render_desc dt = tu_refl_one_bounce(REFL_RAYTRACE, 2);
+    refl_frame *truth = tu_refl_render(s, &v, &dt), *gl = NULL;
+    rgl_context *g = tu_gl_context("test_gl_frame");
+    float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
+    char err[1024];
+    int k, i, c, r;
+    cr_assert_not_null(rgb);
+    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
+    for (k = 0; k < 4; ++k) {
+        rgl_frame_stats st;
+        long long glass = 0;
+        LSAN_OFF();
+        r = rgl_render(g, methods[k], s, &v, gl, rgb, &st, err, sizeof err);
+        LSAN_ON();
+        cr_assert_eq(r, 0, "%s: %s", refl_method_name(methods[k]), err);
+        cr_assert_eq(st.handed, 2, "%s: %d glass objects handed to the CPU", refl_method_name(methods[k]), st.handed);
+        for (i = 0; i < v.width * v.height; ++i) {
+            int object = truth->stencil[i] - 1;
+            if (object < 0 || s->materials[s->objects[object].material].type != REFL_GLASS) continue;
+            ++glass;
+            for (c = 0; c < 3; ++c)
+                cr_assert_eq(rgb[3 * i + c], truth->rgba[4 * i + c], "%s: pixel %d", refl_method_name(methods[k]), i);
+        }
+        cr_assert_gt(glass, 100, "%lld glass pixels", glass);
+        cr_assert_eq(st.handed_pixels, glass, "%s: %lld pixels traced, %lld glass", refl_method_name(methods[k]),
+                     st.handed_pixels, glass);
+    }
+    LSAN_OFF();
+    rgl_destroy(g);
+    LSAN_ON();
+    free(rgb);
+    refl_frame_destroy(gl);
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
+}
