@@ -15,6 +15,40 @@
 
 #include "name_in_list.h"
 
+/* DIR/gl_frames.png: each GL frame's time against the CPU path's (ms, log
+   axes, a point per method, scene and size, labelled so), and
+   DIR/gl_projection.png: each camera's GLSL projection rate against its
+   C one, from the two CSVs through gnuplot; the diagonal is "as fast". */
+static int rgl__frames_chart(const char *dir, const char *renderer) {
+    char path[1200], cmd[1300];
+    FILE *f;
+    int r;
+    snprintf(path, sizeof path, "%s/gl_frames.gp", dir);
+    if (!(f = fopen(path, "w"))) return -1;
+    fprintf(f,
+            "set terminal pngcairo size 1000,700\nset output '%s/gl_frames.png'\nset datafile separator comma\n"
+            "set logscale xy\nset grid\nset key top left\n"
+            "set title 'GL frame (GL + the CPU share) against the CPU path, %s'\n"
+            "set xlabel 'CPU path frame (ms)'\nset ylabel 'GL path frame (ms)'\n"
+            "plot '%s/gl_frames.csv' skip 1 using ($10*1e3):($7*1e3) with points pt 7 title 'method, scene, size', \\\n"
+            "     '' skip 1 using ($10*1e3):($7*1e3):(sprintf('%%s %%s %%dx%%d', strcol(3), strcol(2), $4, $5)) "
+            "with labels offset 1,0.5 left font ',8' notitle, \\\n"
+            "     x with lines dt 2 title 'as fast'\n"
+            "set output '%s/gl_projection.png'\n"
+            "set title 'Projection rate, GLSL (transform feedback) against C (one thread), %s'\n"
+            "set xlabel 'C projection (M points/s)'\nset ylabel 'GLSL projection (M points/s)'\n"
+            "plot '%s/gl_projection.csv' skip 1 using 11:9 with points pt 7 title 'camera', \\\n"
+            "     '' skip 1 using 11:9:2 with labels offset 1,0.5 left font ',8' notitle, \\\n"
+            "     x with lines dt 2 title 'as fast'\n",
+            dir, renderer, dir, dir, renderer, dir);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "gnuplot '%s'", path);
+    r = system(cmd);
+    if (r != 0) fprintf(stderr, "reflect bench --gl: gnuplot failed on %s (is gnuplot-nox installed?)\n", path);
+    else printf("wrote %s/gl_frames.png and %s/gl_projection.png\n", dir, dir);
+    return r != 0 ? -1 : 0;
+}
+
 int rgl_bench_projection(rgl_context *g, long long points, int repeats, int check, FILE *csv) {
     int i, failed = 0;
     char err[1024];
@@ -333,7 +367,8 @@ int rgl_cli_bench(int argc, char **argv) {
     }
     failed |= rgl_bench_frames(g, sizes, methods, scenes, 640 * 480, csv);
     fclose(csv);
-    rgl_destroy(g);
     printf("wrote %s/gl_projection.csv and %s/gl_frames.csv\n", dir, dir);
+    if (rgl__frames_chart(dir, rgl_renderer(g)) != 0) failed = 1;
+    rgl_destroy(g);
     return failed;
 }
