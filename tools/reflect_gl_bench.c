@@ -339,7 +339,8 @@ int rgl_cli_bench(int argc, char **argv) {
                             "  DIR/gl_frames.csv: PLANAR (mirror-room, default), C3RC and SBC (default),\n"
                             "                     SPOC (teapots), GRAPHCAM (maze, default) frames through GL\n"
                             "                     against the CPU path (--scenes: every method on these\n"
-                            "                     built-in scenes instead)\n");
+                            "                     built-in scenes instead)\n"
+                            "  DIR/gl_frames.png, DIR/gl_projection.png: their charts (gnuplot)\n");
             return !strcmp(argv[i], "--help") ? 0 : 2;
         }
     }
