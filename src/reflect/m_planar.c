@@ -81,6 +81,9 @@ typedef struct refl__planar_level {
     int warped;
     double h[9], h_inv[9];        /* 3 x 3, row vectors: [x y w] h */
     refl_mat4 vp_inv;             /* the refracted camera's clip to world */
+    /* seen through a slab (in-out refraction): light has left the slab,
+       its faces are not met again */
+    int left_slab;
     /* translucency: seen through a glass face from outside, fogged by
        the distance fog . (x, 1) behind it towards fog_rgb */
     int fogged;
@@ -522,9 +525,10 @@ static refl_result refl__planar_level_draw(refl__planar *pl, const refl__planar_
         refl_result r;
         int box[4], front = face->n[0] * eye.x + face->n[1] * eye.y + face->n[2] * eye.z - face->d > 0.0;
         if (f == lv->parent) continue;
-        /* through translucent glass, light has left the slab (in-out
-           refraction): its other faces are not met again */
-        if (lv->fogged && face->object == pl->faces[lv->parent].object) continue;
+        /* through a slab, or translucent glass, light has left the glass
+           (the slab's far faces are in its in-out refraction): its other
+           faces are not met again */
+        if ((lv->left_slab || lv->fogged) && face->object == pl->faces[lv->parent].object) continue;
         /* glass is seen from inside too (its far faces from outside fail
            the depth test and mark nothing) */
         if (!front && !face->glass && !pl->no_culling) { ++pl->culled; continue; }
@@ -742,6 +746,7 @@ static refl_result refl__planar_glass(refl__planar *pl, const refl__planar_level
             child.level = lv->level + 1;
             child.bounces = lv->bounces + 2;
             child.parent = f;
+            child.left_slab = 1;
             refl__planar_fog_setup(pl, &child, f, m, comp->eye);
             child.w = refl_mat4_mul(lv->w, refl_mat4_translate(refl_v3_scale(shift, -1.0f)));
             child.w_inv = refl_mat4_mul(refl_mat4_translate(shift), lv->w_inv);

@@ -91,7 +91,7 @@ static const golden_case golden_cases[] = {
     {"glass", "direct", 0x0ebe79c8a2045c18ull},
     {"glass", "raytrace", 0x6f87c7ac0f40daf3ull},
     {"glass", "envmap", 0x40bd20800e314724ull},
-    {"glass", "planar", 0x15c0d3e9e179024eull},
+    {"glass", "planar", 0x016d0d8ee8e0f9a5ull},
     {"glass", "c3rc", 0x5a2f0adc188cb550ull},
     {"glass", "sbc", 0x1d4ddf52fa555687ull},
     {"glass", "planar-no-culling", 0x8b477bff0cff4c60ull},
