@@ -368,6 +368,10 @@ REFL_API int refl_object_world_positions(const refl_scene *scene, int object, fl
 /* The tight world-space box of object i's vertices (its transform applied
    to each; an object without vertices: its origin). */
 REFL_API void refl_object_world_bounds(const refl_scene *scene, int object, refl_vec3 *lo, refl_vec3 *hi);
+/* Whether object i is flat: its world box's smallest side under 1% of its
+   largest, or no extent. The impostor methods (SPOC, GRAPHCAM) intersect
+   flat objects exactly, as billboards. */
+REFL_API int refl_object_is_flat(const refl_scene *scene, int object);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);
@@ -12538,18 +12542,6 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
    impostor is the object itself. Both impostor methods intersect such
    objects exactly through a BVH of their own and shade the hit here. */
 
-/* Whether object i is flat (its box's smallest side under 1% of its
-   largest, or no extent): a billboard. */
-static int refl__object_flat(const refl_scene *scene, int i) {
-    refl_vec3 lo, hi, size;
-    float small, large;
-    refl_object_world_bounds(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    return !(small >= 0.01f * large) || !(large > 0.0f);
-}
-
 /* The colour (clamped to [0, 1], as RAYTRACE clamps), point and shading
    normal (may be NULL) of an exact hit h on object ro: the shared diffuse
    shading without shadows; a mirror or glass shows black (one bounce, as
@@ -17403,7 +17395,7 @@ static refl_result refl__gcm_sub_bvh(refl__gcm *g, int (*keep)(const refl_scene 
 }
 
 static int refl__gcm_is_billboard(const refl_scene *scene, int i) {
-    return !refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl__object_flat(scene, i);
+    return !refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl_object_is_flat(scene, i);
 }
 
 static int refl__gcm_is_unheld(const refl_scene *scene, int i) {
@@ -20159,7 +20151,7 @@ typedef struct refl__spoc_frame {
 static int refl__spoc_mirror_impostor(const refl__spoc_frame *sf, int i) {
     const refl_scene *scene = sf->em.p->scene;
     return sf->bounces > 1 && scene->materials[scene->objects[i].material].type == REFL_MIRROR &&
-           !refl__object_flat(scene, i);
+           !refl_object_is_flat(scene, i);
 }
 
 /* Whether object i gets an impostor seen from `eye`: diffuse (or a mirror
@@ -20169,7 +20161,7 @@ static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 ey
     const refl_scene *scene = sf->em.p->scene;
     refl_vec3 lo, hi, c;
     if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
-        refl__object_flat(scene, i))
+        refl_object_is_flat(scene, i))
         return 0;
     refl_object_world_bounds(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
@@ -26205,6 +26197,16 @@ REFL_API void refl_object_world_bounds(const refl_scene *scene, int i, refl_vec3
         *hi = refl__v3_max(*hi, w);
     }
     if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
+}
+
+REFL_API int refl_object_is_flat(const refl_scene *scene, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    refl_object_world_bounds(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
 }
 
 REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {

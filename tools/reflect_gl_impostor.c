@@ -153,24 +153,11 @@ static void rgl__sp_set_free(rgl_sp_set *set) {
     memset(set, 0, sizeof *set);
 }
 
-/* Whether object i is flat (impostor.c's rule: its box's smallest side
-   under 1% of its largest, or no extent), a billboard the impostor
-   methods intersect exactly. */
-static int rgl__imp_flat(const refl_scene *s, int i) {
-    refl_vec3 lo, hi, size;
-    float small, large;
-    refl_object_world_bounds(s, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = fminf(size.x, fminf(size.y, size.z));
-    large = fmaxf(size.x, fmaxf(size.y, size.z));
-    return !(small >= 0.01f * large) || !(large > 0.0f);
-}
-
 /* Whether object i gets an impostor seen from eye (m_spoc.c's rule, one
    bounce): diffuse, not flat, the eye outside its bounding sphere. */
 static int rgl__sp_impostored(const refl_scene *s, int i, refl_vec3 eye) {
     refl_vec3 lo, hi;
-    if (s->materials[s->objects[i].material].type != REFL_DIFFUSE || rgl__imp_flat(s, i)) return 0;
+    if (s->materials[s->objects[i].material].type != REFL_DIFFUSE || refl_object_is_flat(s, i)) return 0;
     refl_object_world_bounds(s, i, &lo, &hi);
     return refl_v3_length(refl_v3_sub(eye, refl_v3_scale(refl_v3_add(lo, hi), 0.5f))) >
            1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
@@ -566,7 +553,7 @@ static int rgl__gc_exact_build(const refl_scene *s, rgl_gc_exact *x) {
     if (!keep) return -1;
     for (i = 0; i < s->object_count; ++i) {
         int reflector = s->materials[s->objects[i].material].type != REFL_DIFFUSE;
-        keep[i] = !reflector && rgl__imp_flat(s, i);
+        keep[i] = !reflector && refl_object_is_flat(s, i);
         keep[s->object_count + i] = (uint8_t)reflector;
     }
     if (rgl__imp_sub_bvh(s, keep, &x->flat, &x->flat_object) == 0 &&

@@ -366,6 +366,10 @@ REFL_API int refl_object_world_positions(const refl_scene *scene, int object, fl
 /* The tight world-space box of object i's vertices (its transform applied
    to each; an object without vertices: its origin). */
 REFL_API void refl_object_world_bounds(const refl_scene *scene, int object, refl_vec3 *lo, refl_vec3 *hi);
+/* Whether object i is flat: its world box's smallest side under 1% of its
+   largest, or no extent. The impostor methods (SPOC, GRAPHCAM) intersect
+   flat objects exactly, as billboards. */
+REFL_API int refl_object_is_flat(const refl_scene *scene, int object);
 /* Scales and moves every object (and the camera) so the scene's bounding
    box is centred on the origin with a diagonal of `size`. */
 REFL_API void refl_scene_normalize(refl_scene *scene, float size);

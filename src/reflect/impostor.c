@@ -374,18 +374,6 @@ REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin,
    impostor is the object itself. Both impostor methods intersect such
    objects exactly through a BVH of their own and shade the hit here. */
 
-/* Whether object i is flat (its box's smallest side under 1% of its
-   largest, or no extent): a billboard. */
-static int refl__object_flat(const refl_scene *scene, int i) {
-    refl_vec3 lo, hi, size;
-    float small, large;
-    refl_object_world_bounds(scene, i, &lo, &hi);
-    size = refl_v3_sub(hi, lo);
-    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
-    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
-    return !(small >= 0.01f * large) || !(large > 0.0f);
-}
-
 /* The colour (clamped to [0, 1], as RAYTRACE clamps), point and shading
    normal (may be NULL) of an exact hit h on object ro: the shared diffuse
    shading without shadows; a mirror or glass shows black (one bounce, as

@@ -578,7 +578,7 @@ static refl_result refl__gcm_sub_bvh(refl__gcm *g, int (*keep)(const refl_scene 
 }
 
 static int refl__gcm_is_billboard(const refl_scene *scene, int i) {
-    return !refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl__object_flat(scene, i);
+    return !refl__is_reflector(&scene->materials[scene->objects[i].material]) && refl_object_is_flat(scene, i);
 }
 
 static int refl__gcm_is_unheld(const refl_scene *scene, int i) {

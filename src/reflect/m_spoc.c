@@ -72,7 +72,7 @@ typedef struct refl__spoc_frame {
 static int refl__spoc_mirror_impostor(const refl__spoc_frame *sf, int i) {
     const refl_scene *scene = sf->em.p->scene;
     return sf->bounces > 1 && scene->materials[scene->objects[i].material].type == REFL_MIRROR &&
-           !refl__object_flat(scene, i);
+           !refl_object_is_flat(scene, i);
 }
 
 /* Whether object i gets an impostor seen from `eye`: diffuse (or a mirror
@@ -82,7 +82,7 @@ static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 ey
     const refl_scene *scene = sf->em.p->scene;
     refl_vec3 lo, hi, c;
     if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
-        refl__object_flat(scene, i))
+        refl_object_is_flat(scene, i))
         return 0;
     refl_object_world_bounds(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);

@@ -215,6 +215,16 @@ REFL_API void refl_object_world_bounds(const refl_scene *scene, int i, refl_vec3
     if (!m->vertex_count) *lo = *hi = refl_mat4_point(o->transform, refl_v3(0.0f, 0.0f, 0.0f));
 }
 
+REFL_API int refl_object_is_flat(const refl_scene *scene, int i) {
+    refl_vec3 lo, hi, size;
+    float small, large;
+    refl_object_world_bounds(scene, i, &lo, &hi);
+    size = refl_v3_sub(hi, lo);
+    small = REFL__MIN(size.x, REFL__MIN(size.y, size.z));
+    large = REFL__MAX(size.x, REFL__MAX(size.y, size.z));
+    return !(small >= 0.01f * large) || !(large > 0.0f);
+}
+
 REFL_API int refl_object_world_positions(const refl_scene *s, int object, float *out) {
     const refl_mesh *m;
     int i;
