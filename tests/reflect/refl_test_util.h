@@ -141,6 +141,19 @@ static inline void tu_assert_reflector_frame(const refl_frame *f, const refl_fra
     }
 }
 
+/* The glass pixels of f (by its stencil) are truth's colours, bit for bit
+   (a method that hands glass to RAYTRACE's tracer); how many there were. */
+static inline int tu_assert_glass_as_truth(const refl_scene *s, const refl_frame *f, const refl_frame *truth) {
+    int i, shown = 0;
+    for (i = 0; i < f->width * f->height; ++i) {
+        int object = f->stencil[i] - 1;
+        if (object < 0 || s->materials[s->objects[object].material].type != REFL_GLASS) continue;
+        ++shown;
+        cr_assert_eq(memcmp(f->rgba + 4 * (size_t)i, truth->rgba + 4 * (size_t)i, 4 * sizeof(float)), 0, "pixel %d", i);
+    }
+    return shown;
+}
+
 /* A scene of objects and a BVH over them as a ray caster (refl_greedy_paths,
    refl_lens_tessellate, refl_lem_record_view). */
 typedef struct tu_refl_traced {

@@ -323,12 +323,7 @@ Test(refl_c3rc, glass_goes_to_the_tracer) {
     f = tu_refl_render(s, &v, &d);
     truth = tu_refl_render(s, &v, &t);
     cr_assert_eq(f->stats.handed_over, glass, "%d handed over of %d glass objects", f->stats.handed_over, glass);
-    for (i = 0; i < v.width * v.height; ++i) {
-        int object = f->stencil[i] - 1;
-        if (object < 0 || s->materials[s->objects[object].material].type != REFL_GLASS) continue;
-        ++shown;
-        cr_assert_eq(memcmp(f->rgba + 4 * (size_t)i, truth->rgba + 4 * (size_t)i, 4 * sizeof(float)), 0, "pixel %d", i);
-    }
+    shown = tu_assert_glass_as_truth(s, f, truth);
     cr_assert(shown > 100, "%d glass pixels", shown);
     refl_frame_destroy(f);
     refl_frame_destroy(truth);
