@@ -1627,10 +1627,20 @@ typedef struct refl_lem_shell {
    plane). The runtime interpolates it across a triangle (a quad's as
    (0, 0, 0) where an exit ray misses it: its third component then the
    share of the quad present, refl_lem_shell_texels dividing the first
-   two by it). 0 (no lookup)
-   when the ray starts outside a closed shell, or travels away from a quad
-   or misses its rectangle. */
+   two by it). A sphere is met from where the ray starts: from inside,
+   where the ray leaves it; from outside (an inner layer's sphere within
+   the lens's bounds), where it enters it. 0 (no lookup) when the ray
+   starts outside a box or cylinder, misses a sphere from outside or
+   travels away from it, or travels away from a quad or misses its
+   rectangle. */
 REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin, refl_vec3 dir, refl_vec3 *index);
+/* 1 where an exit ray starting in box (a lens's bounds) may miss the
+   shell, which then leaves its layer out there: a quad, or a sphere that
+   does not hold the box (an inner layer whose hits lie within the lens's
+   bounds: the runtime interpolates its index as (0, 0, 0) where the exit
+   ray misses it, so the index's length over the radius is the share of
+   the sphere present). Closed shells holding the box: 0. */
+REFL_API int refl_lem_shell_partial(const refl_lem_shell *shell, const refl_vec3 box[2]);
 /* The four texels and bilinear weights (summing to 1) of an index: its
    cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
    zero or non-finite index or a bad shell. */

@@ -27,10 +27,12 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *sh, refl_vec3 origin, re
     oc = refl_v3_sub(origin, sh->center);
     if (!(dd > 0.0f)) return 0;
     if (refl__lem_sphere_kind(sh)) {
-        /* |o + t d - c| = r from inside: the larger root */
+        /* |o + t d - c| = r: from inside, where the ray leaves (the larger
+           root); from outside (an inner layer's sphere within the lens's
+           bounds), where it enters (the smaller) */
         float b = refl_v3_dot(oc, dir), c = refl_v3_dot(oc, oc) - sh->radius * sh->radius, disc = b * b - c * dd;
-        if (!(sh->radius > 0.0f) || !(c <= 0.0f) || !(disc >= 0.0f)) return 0;
-        t = (-b + sqrtf(disc)) / dd;
+        if (!(sh->radius > 0.0f) || !(disc >= 0.0f)) return 0;
+        t = (-b + (c <= 0.0f ? sqrtf(disc) : -sqrtf(disc))) / dd;
         *index = refl_v3_add(oc, refl_v3_scale(dir, t));
         return refl__v3_finite(*index) && t >= 0.0f;
     }
@@ -74,6 +76,18 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *sh, refl_vec3 origin, re
     if (!(t >= 0.0f) || !(t < FLT_MAX)) return 0;
     *index = refl_v3((p[0] + t * v[0]) / e[0], (p[1] + t * v[1]) / e[1], (p[2] + t * v[2]) / e[2]);
     return refl__v3_finite(*index);
+}
+
+REFL_API int refl_lem_shell_partial(const refl_lem_shell *sh, const refl_vec3 box[2]) {
+    int k;
+    if (!sh || !box) return 0;
+    if (sh->kind == REFL_LEM_SHELL_QUAD) return 1;
+    if (!refl__lem_sphere_kind(sh)) return 0;
+    for (k = 0; k < 8; ++k) {
+        refl_vec3 d = refl_v3_sub(refl_v3(box[k & 1].x, box[(k >> 1) & 1].y, box[(k >> 2) & 1].z), sh->center);
+        if (!(refl_v3_dot(d, d) <= sh->radius * sh->radius)) return 1;
+    }
+    return 0;
 }
 
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {

@@ -30,11 +30,13 @@
    continued rays, direct images. */
 #include "internal.h"
 
-/* One draw is one term: per layer its shell index (3; a quad layer's
-   (0, 0, 0) where the exit ray misses it, so that its third component
-   interpolates to the share of the quad present), then shading F G (3)
-   and 1 at a vertex whose term has an exit ray a closed shell cannot look
-   up, or recording the term's presence: 3 layers + 4 varyings (16 at
+/* One draw is one term: per layer its shell index (3; a partial layer's,
+   a quad or an inner sphere (refl_lem_shell_partial), (0, 0, 0) where the
+   exit ray misses it, so that a quad's third component, or an inner
+   sphere's length over its radius, interpolates to the share of the
+   layer present), then shading F G (3) and 1 at a vertex whose term has
+   an exit ray a closed shell cannot look up, or recording the term's
+   presence and the recorded layer's: 3 layers + 4 varyings (16 at
    REFL_LEM_MAX_LAYERS, rast.h's most). */
 static int refl__lem_varyings(int layers) { return 3 * layers + 4; }
 
@@ -70,6 +72,7 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
 typedef struct refl__lem_draw {
     int layers;
     refl_lem_shell shell[REFL_LEM_MAX_LAYERS];
+    int partial[REFL_LEM_MAX_LAYERS]; /* refl_lem_shell_partial, set by refl__lem_raster */
     const float *map[REFL_LEM_MAX_LAYERS];
     float weight;
     int term;                    /* 0 reflection, 1 refraction */
@@ -86,6 +89,15 @@ static void refl__lem_draw_box(refl__lem_draw *dr, const refl_vec3 box[2]) {
     float pad = 1e-3f * refl_v3_length(refl_v3_sub(box[1], box[0])) + 1e-6f;
     dr->lens_box[0] = refl_v3_sub(box[0], refl_v3(pad, pad, pad));
     dr->lens_box[1] = refl_v3_add(box[1], refl_v3(pad, pad, pad));
+}
+
+/* The share of partial layer l present at interpolated index t (a quad's
+   third component, an inner sphere's length over its radius); 1 on a
+   closed shell. */
+static float refl__lem_present(const refl__lem_draw *dr, int l, const float *t) {
+    if (!dr->partial[l]) return 1.0f;
+    if (dr->shell[l].kind == REFL_LEM_SHELL_QUAD) return REFL__CLAMP(t[2], 0.0f, 1.0f);
+    return REFL__CLAMP(sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]) / dr->shell[l].radius, 0.0f, 1.0f);
 }
 
 /* Layer l's bilinear RGBA at a shell index. */
@@ -112,7 +124,7 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
         rgba[0] = t[0];
         rgba[1] = t[1];
         rgba[2] = t[2];
-        rgba[3] = fg[0] * (dr->shell[dr->record_layer].kind == REFL_LEM_SHELL_QUAD ? t[2] : 1.0f);
+        rgba[3] = fg[0] * fg[1]; /* the term's lookup, times the share of the layer met */
         return 1;
     }
     rgba[0] = rgba[1] = rgba[2] = 0.0f;
@@ -120,8 +132,8 @@ static int refl__lem_fragment(void *user, const rast_fragment_in *in, float rgba
     if (!(fg[0] > 0.0f || fg[1] > 0.0f || fg[2] > 0.0f)) return 1;
     for (l = 0; l < dr->layers && through > 0.0f; ++l) {
         const float *t = v + 3 * l;
-        float a, present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
-        if (!(present > 0.0f)) continue; /* a quad layer the exit rays miss here */
+        float a, present = refl__lem_present(dr, l, t);
+        if (!(present > 0.0f)) continue; /* a partial layer the exit rays miss here */
         refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
         for (c = 0; c < 4; ++c) layer[c] *= present;
         a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(layer[3], 0.0f, 1.0f);
@@ -147,7 +159,7 @@ static int refl__lem_point_fragment(void *user, const rast_fragment_in *in, floa
     for (l = 0; l < dr->layers && through > 0.0f; ++l) {
         float a, present;
         t = v + 3 * l;
-        present = dr->shell[l].kind == REFL_LEM_SHELL_QUAD ? REFL__CLAMP(t[2], 0.0f, 1.0f) : 1.0f;
+        present = refl__lem_present(dr, l, t);
         if (!(present > 0.0f)) continue;
         refl__lem_sample(dr, l, refl_v3(t[0], t[1], t[2]), layer);
         a = l == dr->layers - 1 ? 1.0f : REFL__CLAMP(present * layer[3], 0.0f, 1.0f);
@@ -179,6 +191,7 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
     const float *m = vp.m;
     int i, k, l;
     if (!verts) return REFL_ERROR_OUT_OF_MEMORY;
+    for (l = 0; l < dr->layers; ++l) dr->partial[l] = refl_lem_shell_partial(&dr->shell[l], dr->lens_box);
     for (i = 0; i < t->vertex_count; ++i) {
         const refl_lens_vertex *v = &t->vertices[i];
         const refl_greedy_path *path = dr->term ? &v->paths.refract : &v->paths.reflect;
@@ -188,26 +201,27 @@ static refl_result refl__lem_raster(rast_context *rc, const refl_lens_tess *t, r
         int exits = path->fresnel > 0.0f && path->exited;
         int has = exits && eo.x >= dr->lens_box[0].x && eo.y >= dr->lens_box[0].y && eo.z >= dr->lens_box[0].z &&
                   eo.x <= dr->lens_box[1].x && eo.y <= dr->lens_box[1].y && eo.z <= dr->lens_box[1].z;
+        float met = 1.0f;        /* whether the exit ray meets the recorded layer's shell */
         for (k = 0; k < 4; ++k) o[k] = m[k] * p.x + m[4 + k] * p.y + m[8 + k] * p.z + m[12 + k];
         for (l = 0; l < dr->layers; ++l) {
             /* a closed shell without a lookup: the path left the lens through
                another lens object beyond the shell, where the map knows
                nothing of what the ray meets (the pixels go to the tracer); a
-               quad missed: the layer is left out at this vertex */
+               partial layer missed: the layer is left out at this vertex */
             int quad = dr->shell[l].kind == REFL_LEM_SHELL_QUAD;
             refl_vec3 index = refl_v3(0.0f, 0.0f, quad ? 0.0f : 1.0f);
             int got = has && refl_lem_shell_index(&dr->shell[l], path->exit_origin, path->exit_direction, &index);
-            if (quad)
-                dr->quad_misses += has && !got;
-            else
-                has = has && got;
-            if (quad && !got) index = refl_v3(0.0f, 0.0f, 0.0f);
+            if (quad) dr->quad_misses += has && !got;
+            if (!dr->partial[l]) has = has && got;
+            if (dr->partial[l] && !got) index = refl_v3(0.0f, 0.0f, 0.0f);
+            if (l == dr->record_layer && dr->partial[l]) met = (float)got;
             o[4 + 3 * l] = index.x;
             o[4 + 3 * l + 1] = index.y;
             o[4 + 3 * l + 2] = index.z;
         }
         if (dr->record_layer >= 0) {
             fg[0] = (float)has;
+            fg[1] = met;
         } else {
             for (k = 0; k < 3; ++k) fg[k] = has ? path->fresnel * path->attenuation[k] : 0.0f;
             fg[3] = (float)(exits && !has);
@@ -658,17 +672,17 @@ enum { REFL__LEM_CLUSTER_VIEWS = 16 };
    a quarter of its size, 16 to 64 pixels wide: the clustering needs
    distances, not detail) clustered by
    refl_lem_cluster_layers, each object's layer kept. No hits (only the
-   environment): one shell at 10 lens radii. Sphere radii are kept
-   outside the lens, each beyond the one before; then each layer's shell
-   is fitted to its hits (refl__lem_fit_layers), closed ones around the
-   lens's box. */
+   environment): one shell at 10 lens radii. Sphere radii ascend, the
+   outermost outside the lens; then each layer's shell is fitted to its
+   hits (refl__lem_fit_layers): boxes and cylinders around the lens's
+   box, an inner layer's sphere where its hits lie. */
 static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
                                      float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     refl__lem_hits h;
     refl__lem_layering *lay = &ring->lay;
-    int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l;
+    int n = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, k, l, top;
     int want = p->desc.layered_em.layers > 0 ? p->desc.layered_em.layers : 1;
     int *layer_of = NULL;
     refl_vec3 box[2], bc;
@@ -710,9 +724,16 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
             if (h.object[k] >= 0 && h.object[k] < scene->object_count)
                 ring->object_layer[h.object[k]] = (signed char)layer_of[k];
     }
-    if (!(lay->radius[0] > lens_radius)) lay->radius[0] = REFL__MAX(10.0f * lens_radius, 1e-3f);
+    /* inner layers at their hits' mean distance, within the lens's bounds
+       too (the paper's shells: a ball at a concave mirror's focus is an
+       inner sphere the exit rays enter); the outermost, opaque and closed
+       around the lens, beyond it */
+    if (!(lay->radius[0] > 0.0f)) lay->radius[0] = REFL__MAX(1e-3f * lens_radius, 1e-6f);
     for (l = 1; l < lay->layers; ++l)
         if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    top = REFL__MAX(lay->layers, 1) - 1;
+    if (!(lay->radius[top] > lens_radius))
+        lay->radius[top] = REFL__MAX(REFL__MAX(10.0f * lens_radius, 1e-3f), 1.05f * lay->radius[REFL__MAX(top - 1, 0)]);
     if (r == REFL_OK &&
         !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
