@@ -2440,6 +2440,10 @@ static double refl__now_ms(void);
 
 /* ---- small services of other modules ---- */
 
+/* The object-space box of the vertices a triangle of mesh uses (mesh.c;
+   a mesh may keep others, as the concave scene's bowl keeps its whole
+   sphere's); refl_mesh_bounds' without triangles. */
+static void refl__mesh_used_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi);
 /* rast.h's result as a refl_result (result.c). */
 static refl_result refl__result_from_rast(rast_result r);
 /* Appends one element of `size` bytes to *array (count *count), growing by
@@ -17945,12 +17949,14 @@ static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_vie
     memset(s, 0, sizeof *s);
 }
 
-/* The world bounds' centre and half diagonal of object i. */
+/* The world bounds' centre and half diagonal of object i: the box of the
+   vertices its triangles use (the paper's lens centre: the concave
+   scene's bowl's, at its focus, not that of the sphere its mesh keeps). */
 static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, float *radius, refl_vec3 box[2]) {
     const refl_object *o = &scene->objects[i];
     refl_vec3 lo, hi, wlo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), whi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
     int k;
-    refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+    refl__mesh_used_bounds(scene->meshes[o->mesh], &lo, &hi);
     for (k = 0; k < 8; ++k) {
         refl_vec3 c = refl_mat4_point(o->transform, refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z));
         wlo = refl_v3(REFL__MIN(wlo.x, c.x), REFL__MIN(wlo.y, c.y), REFL__MIN(wlo.z, c.z));
@@ -21693,6 +21699,22 @@ REFL_API refl_result refl_mesh_create(const refl_mesh_desc *desc, refl_mesh **ou
 }
 
 REFL_API void refl_mesh_destroy(refl_mesh *mesh) { refl__mesh_free(mesh); }
+
+static void refl__mesh_used_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi) {
+    refl_vec3 l = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), h = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    size_t k, count = mesh && mesh->indices ? 3 * (size_t)mesh->triangle_count : 0;
+    for (k = 0; k < count; ++k) {
+        const float *q = mesh->positions + 3 * (size_t)mesh->indices[k];
+        l = refl__v3_min(l, refl_v3(q[0], q[1], q[2]));
+        h = refl__v3_max(h, refl_v3(q[0], q[1], q[2]));
+    }
+    if (!count) {
+        refl_mesh_bounds(mesh, lo, hi);
+        return;
+    }
+    *lo = l;
+    *hi = h;
+}
 
 /* Empty or NULL meshes: both corners at the origin. */
 REFL_API void refl_mesh_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi) {

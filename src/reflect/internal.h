@@ -211,6 +211,10 @@ static double refl__now_ms(void);
 
 /* ---- small services of other modules ---- */
 
+/* The object-space box of the vertices a triangle of mesh uses (mesh.c;
+   a mesh may keep others, as the concave scene's bowl keeps its whole
+   sphere's); refl_mesh_bounds' without triangles. */
+static void refl__mesh_used_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi);
 /* rast.h's result as a refl_result (result.c). */
 static refl_result refl__result_from_rast(rast_result r);
 /* Appends one element of `size` bytes to *array (count *count), growing by

@@ -327,12 +327,14 @@ static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_vie
     memset(s, 0, sizeof *s);
 }
 
-/* The world bounds' centre and half diagonal of object i. */
+/* The world bounds' centre and half diagonal of object i: the box of the
+   vertices its triangles use (the paper's lens centre: the concave
+   scene's bowl's, at its focus, not that of the sphere its mesh keeps). */
 static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, float *radius, refl_vec3 box[2]) {
     const refl_object *o = &scene->objects[i];
     refl_vec3 lo, hi, wlo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), whi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
     int k;
-    refl_mesh_bounds(scene->meshes[o->mesh], &lo, &hi);
+    refl__mesh_used_bounds(scene->meshes[o->mesh], &lo, &hi);
     for (k = 0; k < 8; ++k) {
         refl_vec3 c = refl_mat4_point(o->transform, refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z));
         wlo = refl_v3(REFL__MIN(wlo.x, c.x), REFL__MIN(wlo.y, c.y), REFL__MIN(wlo.z, c.z));

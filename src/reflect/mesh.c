@@ -227,6 +227,22 @@ REFL_API refl_result refl_mesh_create(const refl_mesh_desc *desc, refl_mesh **ou
 
 REFL_API void refl_mesh_destroy(refl_mesh *mesh) { refl__mesh_free(mesh); }
 
+static void refl__mesh_used_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi) {
+    refl_vec3 l = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), h = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX);
+    size_t k, count = mesh && mesh->indices ? 3 * (size_t)mesh->triangle_count : 0;
+    for (k = 0; k < count; ++k) {
+        const float *q = mesh->positions + 3 * (size_t)mesh->indices[k];
+        l = refl__v3_min(l, refl_v3(q[0], q[1], q[2]));
+        h = refl__v3_max(h, refl_v3(q[0], q[1], q[2]));
+    }
+    if (!count) {
+        refl_mesh_bounds(mesh, lo, hi);
+        return;
+    }
+    *lo = l;
+    *hi = h;
+}
+
 /* Empty or NULL meshes: both corners at the origin. */
 REFL_API void refl_mesh_bounds(const refl_mesh *mesh, refl_vec3 *lo, refl_vec3 *hi) {
     refl_vec3 l = refl_v3(0.0f, 0.0f, 0.0f), h = l;
