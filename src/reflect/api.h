@@ -1701,8 +1701,11 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    mean distance of its hits, a continued ray's (ray[i]: the exit ray of
    hit i, its hits together and nearest first; may be NULL) counted by its
    front-most hit in the layer. Returns the layers made (empty ones
-   dropped; 0 on bad arguments or no memory), their radii ascending in
-   radius[], and, when layer_of is not NULL, each hit's layer. */
+   dropped; 0 on bad arguments or no memory) in the order they composite
+   in, front to back along the continued rays (a layer before another when
+   more rays meet its hits first; by mean distance where as many meet each
+   first), their radii in radius[], and, when layer_of is not NULL, each
+   hit's layer. */
 enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);

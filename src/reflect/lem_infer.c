@@ -930,7 +930,8 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
                                      const refl_allocator *a, float *radius, int *layer_of) {
     double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
     long long cnt[REFL_LEM_MAX_LAYERS];
-    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS];
+    long long ahead[REFL_LEM_MAX_LAYERS][REFL_LEM_MAX_LAYERS]; /* [a][b]: rays meeting a's hits before b's */
+    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
     float *sorted = NULL;
     if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
     layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
@@ -986,21 +987,37 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
             if (own[j] == own[i]) front = 0;
         if (front) acc[own[i]] += distance[i], ++cnt[own[i]];
     }
-    /* empty layers dropped, the rest by distance */
+    /* empty layers dropped */
     k = 0;
     for (l = 0; l < layers; ++l)
         if (cnt[l]) mean[k] = acc[l] / (double)cnt[l], remap[l] = k++;
         else remap[l] = -1;
     for (i = 0; i < count; ++i) own[i] = remap[own[i]];
-    for (l = 0; l < k; ++l) radius[l] = (float)mean[l];
-    for (l = 1; l < k; ++l) /* insertion sort, carrying the assignment */
-        for (i = l; i > 0 && radius[i] < radius[i - 1]; --i) {
-            float t = radius[i];
-            int h;
-            radius[i] = radius[i - 1], radius[i - 1] = t;
-            for (h = 0; h < count; ++h)
-                own[h] = own[h] == i ? i - 1 : own[h] == i - 1 ? i : own[h];
+    /* the order they composite in (L1 over L2 ...): front to back along
+       the continued rays, a layer before another when more rays meet its
+       hits first than the other's (a teapot standing on a floor hides the
+       floor behind it, the floor never the teapot, though the floor's hits
+       may lie nearer on average); by distance where the rays do not tell */
+    memset(ahead, 0, sizeof ahead);
+    for (i = 0; ray && i < count;) {
+        int end, seen = 0;
+        for (end = i; end < count && ray[end] == ray[i]; ++end) {
+            if (seen & (1 << own[end])) continue;
+            for (l = 0; l < k; ++l)
+                if (seen & (1 << l)) ++ahead[l][own[end]];
+            seen |= 1 << own[end];
         }
+        i = end;
+    }
+    for (l = 0; l < k; ++l) radius[l] = (float)mean[l], order[l] = l;
+    for (l = 1; l < k; ++l) /* insertion sort */
+        for (i = l; i > 0; --i) {
+            int a = order[i], b = order[i - 1], t;
+            if (!(ahead[a][b] > ahead[b][a] || (ahead[a][b] == ahead[b][a] && mean[a] < mean[b]))) break;
+            t = order[i], order[i] = order[i - 1], order[i - 1] = t;
+        }
+    for (l = 0; l < k; ++l) radius[l] = (float)mean[order[l]], remap[order[l]] = l;
+    for (i = 0; i < count; ++i) own[i] = remap[own[i]];
     if (own != layer_of) refl__free(a, own);
     refl__free(a, sorted);
     return k;
