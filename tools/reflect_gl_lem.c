@@ -55,23 +55,25 @@ static const char rgl__lem_vs_head[] =
     "uniform samplerBuffer u_data;\n"
     "uniform mat4 u_vp;\n"
     "uniform int u_layers;\n"
+    "uniform int u_partial;\n"  /* bit l: refl_lem_shell_partial of layer l */
     "out vec3 v_index[4];\n"
     "out vec4 v_fg;\n";
 
 /* As the CPU path's vertices (m_layered_em.c): layer by layer, a closed
-   shell without a lookup takes the vertex's lookup away; a quad missed
-   leaves its layer out there (index 0, interpolated: the share present). */
+   shell without a lookup takes the vertex's lookup away; a partial layer
+   (a quad, an inner sphere) missed leaves its layer out there (index 0,
+   interpolated: the share present). */
 static const char rgl__lem_vs_main[] =
     "void main() {\n"
     "    bool has = a_fg.w > 0.5;\n"
     "    gl_Position = u_vp * vec4(a_p, 1.0);\n"
     "    for (int l = 0; l < 4; ++l) v_index[l] = vec3(0.0);\n"
     "    for (int l = 0; l < u_layers; ++l) {\n"
-    "        bool quad = int(texelFetch(u_data, 1 + 5 * l).y) == 4;\n"
-    "        vec3 index = vec3(0.0, 0.0, quad ? 0.0 : 1.0), found;\n"
+    "        bool may_miss = ((u_partial >> l) & 1) != 0;\n"
+    "        vec3 index = vec3(0.0, 0.0, may_miss ? 0.0 : 1.0), found;\n"
     "        bool got = has && refl_lem_shell_index(u_data, 0, l, a_origin, a_dir, found);\n"
     "        if (got) index = found;\n"
-    "        if (!quad) has = has && got;\n"
+    "        if (!may_miss) has = has && got;\n"
     "        v_index[l] = index;\n"
     "    }\n"
     "    v_fg = vec4(has ? a_fg.xyz : vec3(0.0), a_exits > 0.5 && !has ? 1.0 : 0.0);\n"
@@ -83,21 +85,25 @@ static const char rgl__lem_fs_head[] =
     "in vec4 v_fg;\n"
     "uniform samplerBuffer u_data;\n"
     "uniform int u_layers;\n"
+    "uniform int u_partial;\n"
     "uniform float u_weight;\n"
     "layout(location = 0) out vec4 o_colour;\n";
 
 /* The CPU path's fragment (refl__lem_fragment): L1 over L2 over ...,
-   premultiplied, the outermost opaque, times F G and the map's weight;
-   alpha 2 where a vertex's path left with no lookup. */
+   premultiplied (an inner sphere's scaled by the share present: its
+   index's length over its radius), the outermost opaque, times F G and
+   the map's weight; alpha 2 where a vertex's path left with no lookup. */
 static const char rgl__lem_fs_main[] =
     "void main() {\n"
     "    float through = 1.0;\n"
     "    o_colour = vec4(0.0, 0.0, 0.0, v_fg.w > 0.0 ? 2.0 : 1.0);\n"
     "    if (!(v_fg.x > 0.0 || v_fg.y > 0.0 || v_fg.z > 0.0)) return;\n"
     "    for (int l = 0; l < u_layers && through > 0.0; ++l) {\n"
-    "        bool quad = int(texelFetch(u_data, 1 + 5 * l).y) == 4;\n"
-    "        if (quad && !(clamp(v_index[l].z, 0.0, 1.0) > 0.0)) continue;\n"
-    "        vec4 layer = refl_lem_shell_sample(u_data, 0, l, v_index[l]);\n"
+    "        bool quad = int(texelFetch(u_data, 1 + 5 * l).y) == 4, may_miss = ((u_partial >> l) & 1) != 0;\n"
+    "        float present = !may_miss ? 1.0 : quad ? clamp(v_index[l].z, 0.0, 1.0) :\n"
+    "                        clamp(length(v_index[l]) / texelFetch(u_data, 2 + 5 * l).w, 0.0, 1.0);\n"
+    "        if (!(present > 0.0)) continue;\n"
+    "        vec4 layer = refl_lem_shell_sample(u_data, 0, l, v_index[l]) * (quad ? 1.0 : present);\n"
     "        float a = l == u_layers - 1 ? 1.0 : clamp(layer.w, 0.0, 1.0);\n"
     "        o_colour.xyz += through * layer.xyz;\n"
     "        through *= 1.0 - a;\n"
@@ -141,7 +147,7 @@ static int rgl__lem_draw(const rgl_pass *ps, GLuint prog, const refl_lem_lens *l
     float *v = (float *)malloc((size_t)(ln->tess.vertex_count > 0 ? ln->tess.vertex_count : 1) * RGL_LEM_VERTEX_FLOATS *
                                sizeof(float));
     size_t np = (size_t)ps->w * (size_t)ps->h, i;
-    int k, rc = -1;
+    int k, rc = -1, partial;
     if (!data || !v || refl_gl_pack_lem_shells(ln->shell[s], ln->texels[s], ln->layers, data, floats) != floats) {
         snprintf(err, n, "refl_gl_pack_lem_shells refused object %d's maps", ln->object);
         goto done;
@@ -156,6 +162,8 @@ static int rgl__lem_draw(const rgl_pass *ps, GLuint prog, const refl_lem_lens *l
     rgl.ActiveTexture(GL_TEXTURE0);
     rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_layers"), ln->layers);
+    for (k = partial = 0; k < ln->layers; ++k) partial |= refl_lem_shell_partial(&ln->shell[s][k], ln->box) << k;
+    rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_partial"), partial);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_weight"), ln->weight[s]);
     rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     rgl.StencilFunc(GL_EQUAL, mark, 0xFF);
