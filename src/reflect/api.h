@@ -1112,7 +1112,8 @@ typedef enum refl_gl_camera {
              refl_sbc_morph_project's blend (one image per node and piece)
          bool refl_lem_shell_index(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
              out vec3 index) per vertex: refl_lem_shell_index (interpolate it); false (no
-             lookup) from outside a closed shell, or away from or past a quad
+             lookup) from outside a box or cylinder, past or away from a sphere from
+             outside, or away from or past a quad
          bool refl_lem_shell_lookup(samplerBuffer, int base, int layer, vec3 origin, vec3 dir,
              out ivec4 texel, out vec4 weight): refl_lem_shell_lookup; vec4
              refl_lem_shell_sample(samplerBuffer, int base, int layer, vec3 index): per fragment,
@@ -2014,9 +2015,11 @@ REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_
    greedy paths per vertex. The frame draws each map and term once: per
    vertex the term's path has a lookup where it left the lens system
    (exited, fresnel > 0) from inside box and every closed layer's
-   refl_lem_shell_index finds it (a quad missed leaves that layer out
+   refl_lem_shell_index finds it (a partial layer missed, a quad or an
+   inner sphere (refl_lem_shell_partial with box), leaves that layer out
    there, the index (0, 0, 0)); a fragment composites the layers front to
-   back (refl_lem_shell_sample, the outermost opaque), times the path's
+   back (refl_lem_shell_sample, an inner sphere's scaled by its index's
+   length over its radius, the outermost opaque), times the path's
    F G (0 without a lookup) and the map's weight, the draws added over the
    base pass. A lens pixel no triangle covers, or where a vertex whose path
    left has no lookup, is traced. frame (view's size) takes the stats; spp
