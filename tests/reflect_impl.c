@@ -84,3 +84,5 @@ int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl
                                      int path, refl_hit *hit) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 0, path, hit);
 }
+
+long long refl__testing_bvh_tests_counted(void) { return refl__bvh_tests_counted(); }

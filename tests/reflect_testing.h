@@ -56,6 +56,9 @@ unsigned refl__testing_bvh_trace4_path(const refl_bvh *bvh, const refl_vec3 orig
                                        refl_hit hit[4]);
 int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      int path, refl_hit *hit);
+/* refl__bvh_tests_counted: the triangle tests of every trace so far, summed
+   (a frame's stats.triangle_tests is its difference across the frame). */
+long long refl__testing_bvh_tests_counted(void);
 
 #ifndef REFL_IMPLEMENTATION
 /* The internals under their own names, as the tests call them. The mode

@@ -1369,8 +1369,9 @@ typedef struct refl_stats {
     double ms_total, ms_build, ms_base, ms_reflect, ms_composite;
     long long triangles;     /* scene triangles drawn or put in a BVH */
     long long rays;          /* rays traced (primary, secondary and shadow) */
-    long long triangle_tests; /* ray-triangle tests of the refl_bvh traces during the frame (every
-                                 lane of the 4-triangle blocks visited), any thread's: a caller's
+    long long triangle_tests; /* ray-triangle tests of the refl_bvh traces during the frame (one
+                                 per ray and triangle of each leaf it visits, hit or missed; a
+                                 leaf's spare block lanes not counted), any thread's: a caller's
                                  caster over refl_bvh_intersect counts, Embree does not */
     long long model_bytes;   /* memory of the models a method built (BVH, cube maps, trees) */
     int reflectors;          /* reflector objects in the scene */

@@ -1615,7 +1615,7 @@ typedef struct refl__bvh_best {
     int found;
     float t, u, v;
     int32_t object, triangle;
-    long long tests;              /* triangles tested (lanes of the blocks visited) */
+    long long tests;              /* triangles tested: those of the leaves visited, not their spare lanes */
 } refl__bvh_best;
 
 /* Triangle tests counted for the frame's stats (stats.triangle_tests):

@@ -859,3 +859,70 @@ Test(refl_bvh_packets, same_hits_as_single_rays) {
         refl_scene_destroy(s);
     }
 }
+
+/* stats.triangle_tests, the paper 001 way: one test per ray and real
+   triangle of every leaf the ray visits, the spare lanes of a leaf's last
+   4-triangle block not counted. Five triangles stacked a hair apart are
+   one leaf (no split saves area: SAH keeps them together) of two blocks,
+   three lanes spare: five tests per ray through them on every traversal,
+   single rays or packets; three are one block, one lane spare: three; a
+   ray that misses the tree's box tests none. */
+static refl_scene *stacked_triangles(int n) {
+    refl_scene *s = NULL;
+    refl_mesh_desc d;
+    refl_mesh *m = NULL;
+    float pos[9 * 5];
+    int k;
+    cr_assert(n <= 5);
+    for (k = 0; k < n; ++k) {
+        float z = -0.01f * (float)k, tri[9] = {-1, -1, 0, 1, -1, 0, 0, 1, 0};
+        int j;
+        for (j = 0; j < 3; ++j) tri[3 * j + 2] = z;
+        memcpy(pos + 9 * k, tri, sizeof tri);
+    }
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    memset(&d, 0, sizeof d);
+    d.positions = pos;
+    d.vertex_count = 3 * n;
+    cr_assert_eq(refl_mesh_create(&d, &m), REFL_OK);
+    add_object(s, m, refl_mat4_identity());
+    return s;
+}
+
+Test(refl_bvh, counts_one_test_per_ray_and_real_triangle) {
+    static const int sizes[] = {5, 3}, paths4[] = {0, 1, 3};
+    int si, p;
+    for (si = 0; si < 2; ++si) {
+        const int n = sizes[si];
+        refl_scene *s = stacked_triangles(n);
+        refl_bvh *bvh = NULL;
+        refl_vec3 o[4], d[4];
+        float tmin[4] = {0, 0, 0, 0}, tmax[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
+        refl_hit h, four[4];
+        long long before;
+        int k;
+        cr_assert_eq(refl__testing_bvh_build_binary_too(s, &bvh), REFL_OK);
+        for (k = 0; k < 4; ++k) {
+            o[k] = refl_v3(-0.2f + 0.1f * (float)k, 0.1f, 1.0f);
+            d[k] = refl_v3(0, 0, -1);
+        }
+        for (p = 0; p < 4; ++p) { /* wide (SIMD), wide lane by lane, binary, wide SSE2 */
+            before = refl__testing_bvh_tests_counted();
+            cr_assert(refl__testing_bvh_intersect_path(bvh, o[0], d[0], 0, INFINITY, p, &h));
+            cr_assert_eq(h.triangle, 0, "%d triangles, path %d: the nearest is the first", n, p);
+            cr_assert_eq(refl__testing_bvh_tests_counted() - before, n, "%d triangles, path %d: %lld tests", n, p,
+                         refl__testing_bvh_tests_counted() - before);
+        }
+        for (p = 0; p < 3; ++p) {
+            before = refl__testing_bvh_tests_counted();
+            cr_assert_eq(refl__testing_bvh_trace4_path(bvh, o, d, tmin, tmax, 0, paths4[p], four), 0xfu);
+            cr_assert_eq(refl__testing_bvh_tests_counted() - before, 4 * n, "%d triangles, packet path %d: %lld tests",
+                         n, paths4[p], refl__testing_bvh_tests_counted() - before);
+        }
+        before = refl__testing_bvh_tests_counted();
+        cr_assert(!refl_bvh_intersect(bvh, refl_v3(5, 5, 1), refl_v3(0, 0, -1), 0, INFINITY, &h));
+        cr_assert_eq(refl__testing_bvh_tests_counted() - before, 0, "%d triangles: a miss tests nothing", n);
+        refl_bvh_destroy(bvh);
+        refl_scene_destroy(s);
+    }
+}
