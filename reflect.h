@@ -23027,16 +23027,20 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
     if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
     if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
+    /* the objects before the view's matrices: the scene's bounds (its near
+       and far planes) read their meshes and transforms */
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return "scene.objects: a mesh or material index out of range";
+        else if (!refl__all_finite(scene->objects[i].transform.m, 16))
+            return "scene.objects: every transform finite";
     {
         refl_mat4 vm, pm;
         refl_view_matrices(v, scene, &vm, &pm);
         if (!refl__all_finite(vm.m, 16) || !refl__all_finite(pm.m, 16))
             return "view: its matrices overflow float (eye, near or far too large)";
     }
-    for (i = 0; i < scene->object_count; ++i)
-        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
-            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return "scene.objects: a mesh or material index out of range";
     for (i = 0; i < scene->material_count + scene->light_count; ++i) {
         const char *why = i < scene->material_count ? refl__material_rule(&scene->materials[i], scene->texture_count)
                                                     : refl__light_rule(&scene->lights[i - scene->material_count]);
@@ -24553,7 +24557,8 @@ REFL_API refl_result refl_sbc_measure_camera_error(const refl_scene *scene, cons
    frame's own groups): it lies across a fold, where the map is no longer
    near linear, and its inside would show points that project elsewhere,
    in front of the true ones; its pixels are holes, which the tracer
-   renders (sbc_resolve.c). The
+   renders (sbc_resolve.c). A refraction group leaves out the back faces
+   none of its rays meets (refl__sb_refraction_back_face). The
    reflector's own triangles project too (the knob seen in the lid), except
    the surface the rays leave (refl__sb_own_surface). A morphing grid's
    group projects through the eye's tetrahedron of nodes, blended, with no
@@ -24804,23 +24809,28 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
     o[10] = v->uv[0]; o[11] = v->uv[1];
 }
 
-/* Whether a reflector's triangle, projected into a group of its own, is
-   the surface the group's rays leave rather than a part of the reflector
-   they meet (the knob seen in the lid): it faces away from the point
-   every vertex's ray leaves (`from`), or lies nearer one than a fraction
-   of its edge. */
-static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
+/* Whether triangle (a, b, c), outwards as its vertex normals point, faces
+   away from the point every vertex's ray leaves (`from`): each ray meets
+   its back. */
+static int refl__sb_faces_away(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c) {
     const refl__sb_pv *v[3];
     refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
     int k;
     v[0] = a; v[1] = b; v[2] = c;
-    /* outwards, as the vertex normals point */
     if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
-    if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
-    if (met) return 0;
     for (k = 0; k < 3; ++k)
         if (refl_v3_dot(refl_v3_sub(v[k]->from, v[k]->world), n) > 0.0f) return 0;
     return 1;
+}
+
+/* Whether a reflector's triangle, projected into a group of its own, is
+   the surface the group's rays leave rather than a part of the reflector
+   they meet (the knob seen in the lid): it faces away from the point
+   every vertex's ray leaves, or lies nearer one than a fraction of its
+   edge. */
+static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
+    if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
+    return !met && refl__sb_faces_away(a, b, c);
 }
 
 /* A scene triangle being emitted into a group: whether it belongs to the
@@ -24832,6 +24842,21 @@ typedef struct refl__sb_tri {
     const refl__sbc_hit *hits;
     int hit_count;
 } refl__sb_tri;
+
+/* Whether a refraction group (SBC-traced) leaves out triangle (a, b, c)
+   as a back face: it faces away from its vertices' rays and none of the
+   group's rays meets it, so a surface in front hides it (the underside of
+   a floor tile seen through the glass, behind the tile's top). Where the
+   refracted rays fold, that surface's triangles across the fold are not
+   drawn, and the depth test showed the back face instead, dark lines
+   across the glass; left out, the pixel is a refraction hole, traced
+   (sbc_resolve.c), unless another surface was drawn there. A back face
+   the rays do meet (an open mesh's inside) is drawn; SBC-paper's rays
+   meet nothing, so it cannot tell and draws them all. */
+static int refl__sb_refraction_back_face(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
+                                         const refl__sb_pv *b, const refl__sb_pv *c, const refl__sb_tri *t) {
+    return !g->morph && sb->sides[g->side].kind && sb->bvh && !t->hit_count && refl__sb_faces_away(a, b, c);
+}
 
 /* Whether triangle (a, b, c) holds point p of its plane (its edges
    included, with a little room). */
@@ -24978,6 +25003,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         if (ok < 3) return;
         /* straddling a fold, drawn only where the sheets' images meet */
         if (across && refl__sb_extent(a, b, c) > REFL__SB_FOLD_SAMPLES * (float)sb->factor) return;
+        if (refl__sb_refraction_back_face(sb, g, a, b, c, t)) return;
         /* the reflector's own surface around the rays' tails */
         if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
         /* where the rays fold, a triangle still bent at the last level lies
@@ -25809,25 +25835,6 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
     fr->points[3 * i + 2] = shown.z;
 }
 
-/* Whether glass pixel i's refraction (view direction d, point q, normal
-   n, side id `id`) is a hole that SBC-traced traces, with or without
-   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
-   it, with nothing drawn on the refraction layer there; or it meets
-   another mirror or glass first, or stays inside (reflected within), which
-   no refraction group models. A thick glass's refracted rays cross: its
-   refraction groups are mostly ray lists whose triangles across a fold are
-   dropped, and the environment beyond the glass in their place is flat
-   light patches with straight edges across the teapot. Past one bounce
-   only: at depth 1 SBC-paper's glass shows the environment refracted
-   once, as ENVMAP's (SBC-traced hands glass to the tracer there). */
-static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
-    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
-    refl__sb_refr rp;
-    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
-    return refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
-           !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f);
-}
-
 /* Whether pixel i, of a group or not, shows nothing drawn (src: where
    its reflection comes from, itself or a crack's neighbour). */
 static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
@@ -25874,28 +25881,18 @@ static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     return h.object != last || refl_bvh_intersect(sb->bvh, near, pa->out, 1e-4f * sb->diagonal + h.t, reach, &h);
 }
 
-/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
-   what it shows is a first-order reflection): a hole, or a first-order
-   point the ray map's samples around the pixel contradict: on an object
-   none of their four rays meets, or nearer than the nearest of what they
-   meet or farther than the farthest. Where the reflection is continuous
-   between the samples, the distance to what it shows is too, and lies
-   between theirs; a point outside is a surface the samples do not see:
-   the floor drawn below the lid's rim where the truth sees the teapot's
-   own surface. A thin object between the samples is traced too: exact, at
-   a ray's cost. */
-static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
+/* Whether side sd's four ray map samples around pixel i contradict the
+   point drawn there (shown: world point, object + 1), seen from `from`
+   (where the pixel's ray leaves the last reflector): on an object none of
+   their rays meets, or nearer than the nearest of what they meet or
+   farther than the farthest. 0 where a sample does not show the side. */
+static int refl__sb_samples_contradict(const refl__sb *sb, const refl__sb_side *sd, size_t i, const float *shown,
+                                       refl_vec3 from) {
     const refl_frame *fr = sb->p->frame;
-    const refl__sb_side *sd;
-    const float *shown = sb->drawn.points + 4 * src;
     int x = (int)(i % (size_t)fr->width), y = (int)(i / (size_t)fr->width), f = sb->factor, k;
     int u0 = (x - f / 2 + f) / f - 1, v0 = (y - f / 2 + f) / f - 1; /* the samples around it: u0, u0 + 1 */
     float lo = INFINITY, hi = 0.0f, d;
     int met_shown = 0, object = (int)shown[3] - 1;
-    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
-    if (refl__sb_hole(sb, i, src)) return 1;
-    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
-    sd = &sb->sides[sb->groups[sb->group_of[i] - 1].side];
     for (k = 0; k < 4; ++k) {
         int u = u0 + (k & 1), v = v0 + (k >> 1);
         size_t at = (size_t)v * (size_t)sb->map_w + (size_t)u;
@@ -25905,8 +25902,54 @@ static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first
         hi = REFL__MAX(hi, d);
         met_shown |= sd->hits[at].object == object;
     }
-    d = refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), q));
+    d = refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), from));
     return !met_shown || d < lo || d > hi;
+}
+
+/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
+   what it shows is a first-order reflection): a hole, or a first-order
+   point the ray map's samples around the pixel contradict, seen from the
+   reflector's point (refl__sb_samples_contradict). Where the reflection is continuous
+   between the samples, the distance to what it shows is too, and lies
+   between theirs; a point outside is a surface the samples do not see:
+   the floor drawn below the lid's rim where the truth sees the teapot's
+   own surface. A thin object between the samples is traced too: exact, at
+   a ray's cost. */
+static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
+    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+    if (refl__sb_hole(sb, i, src)) return 1;
+    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
+    return refl__sb_samples_contradict(sb, &sb->sides[sb->groups[sb->group_of[i] - 1].side], i,
+                                       sb->drawn.points + 4 * src, q);
+}
+
+/* Whether glass pixel i's refraction (view direction d, point q, normal
+   n, side id `id`) is one that SBC-traced traces, with or without
+   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
+   it, with nothing drawn on the refraction layer there; or it meets
+   another mirror or glass first, or stays inside (reflected within), which
+   no refraction group models. A thick glass's refracted rays cross: its
+   refraction groups are mostly ray lists whose triangles across a fold are
+   dropped, and the environment beyond the glass in their place is flat
+   light patches with straight edges across the teapot. Where such a
+   triangle was the nearest surface, the depth test shows what lies behind
+   it (a floor tile's side face behind the next tile's top): in a group
+   whose rays fold (every group with the fallback), a point the refraction
+   side's samples around the pixel contradict, seen from the pixel's exit,
+   is traced too (refl__sb_samples_contradict). Past one bounce only: at
+   depth 1 SBC-paper's glass shows the environment refracted once, as
+   ENVMAP's (SBC-traced hands glass to the tracer there). */
+static int refl__sb_refraction_traced(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
+    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    const refl__sb_group *g;
+    refl__sb_refr rp;
+    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
+    if (refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
+        !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f))
+        return 1;
+    g = &sb->groups[sb->group_of[(size_t)sb->orders * npx + i] - 1];
+    return (!sb->tracer.folds_only || g->sheets > 1) && !g->morph &&
+           refl__sb_samples_contradict(sb, &sb->sides[g->side], i, sb->refr.points + 4 * i, rp.tail);
 }
 
 /* Whether pixel i goes through the fallback's checks (refl__sb_fallback):
@@ -25977,7 +26020,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && refl__sb_refraction_traced(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
@@ -26050,7 +26093,7 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     refl_result r = REFL_OK;
     int i, traces;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
-    /* a refraction layer's holes are traced (refl__sb_refraction_hole) */
+    /* a refraction layer's holes are traced (refl__sb_refraction_traced) */
     traces = sb->layers > sb->orders;
     for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
     for (k = 0; k < npx && !traces; ++k)

@@ -312,16 +312,20 @@ static const char *refl__frame_rule(const refl_scene *scene, const refl_view *v,
     if (!(refl_v3_length(fwd) > 0.0f)) return "view.target: away from the eye";
     if (!(refl_v3_length(refl_v3_cross(fwd, v->up)) > 0.0f)) return "view.up: not along the line of sight";
     if (!(v->fovy_degrees >= 0.0f && v->fovy_degrees < 180.0f)) return "view.fovy_degrees: 0 (45) up to 180";
+    /* the objects before the view's matrices: the scene's bounds (its near
+       and far planes) read their meshes and transforms */
+    for (i = 0; i < scene->object_count; ++i)
+        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
+            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
+            return "scene.objects: a mesh or material index out of range";
+        else if (!refl__all_finite(scene->objects[i].transform.m, 16))
+            return "scene.objects: every transform finite";
     {
         refl_mat4 vm, pm;
         refl_view_matrices(v, scene, &vm, &pm);
         if (!refl__all_finite(vm.m, 16) || !refl__all_finite(pm.m, 16))
             return "view: its matrices overflow float (eye, near or far too large)";
     }
-    for (i = 0; i < scene->object_count; ++i)
-        if (scene->objects[i].mesh < 0 || scene->objects[i].mesh >= scene->mesh_count ||
-            scene->objects[i].material < 0 || scene->objects[i].material >= scene->material_count)
-            return "scene.objects: a mesh or material index out of range";
     for (i = 0; i < scene->material_count + scene->light_count; ++i) {
         const char *why = i < scene->material_count ? refl__material_rule(&scene->materials[i], scene->texture_count)
                                                     : refl__light_rule(&scene->lights[i - scene->material_count]);

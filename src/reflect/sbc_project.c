@@ -40,7 +40,8 @@
    frame's own groups): it lies across a fold, where the map is no longer
    near linear, and its inside would show points that project elsewhere,
    in front of the true ones; its pixels are holes, which the tracer
-   renders (sbc_resolve.c). The
+   renders (sbc_resolve.c). A refraction group leaves out the back faces
+   none of its rays meets (refl__sb_refraction_back_face). The
    reflector's own triangles project too (the knob seen in the lid), except
    the surface the rays leave (refl__sb_own_surface). A morphing grid's
    group projects through the eye's tetrahedron of nodes, blended, with no
@@ -292,23 +293,28 @@ static void refl__sb_put(refl__sb_job *j, const refl__sb_pv *v) {
     o[10] = v->uv[0]; o[11] = v->uv[1];
 }
 
-/* Whether a reflector's triangle, projected into a group of its own, is
-   the surface the group's rays leave rather than a part of the reflector
-   they meet (the knob seen in the lid): it faces away from the point
-   every vertex's ray leaves (`from`), or lies nearer one than a fraction
-   of its edge. */
-static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
+/* Whether triangle (a, b, c), outwards as its vertex normals point, faces
+   away from the point every vertex's ray leaves (`from`): each ray meets
+   its back. */
+static int refl__sb_faces_away(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c) {
     const refl__sb_pv *v[3];
     refl_vec3 n = refl_v3_cross(refl_v3_sub(b->world, a->world), refl_v3_sub(c->world, a->world));
     int k;
     v[0] = a; v[1] = b; v[2] = c;
-    /* outwards, as the vertex normals point */
     if (refl_v3_dot(n, refl_v3_add(a->normal, refl_v3_add(b->normal, c->normal))) < 0.0f) n = refl_v3_scale(n, -1.0f);
-    if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
-    if (met) return 0;
     for (k = 0; k < 3; ++k)
         if (refl_v3_dot(refl_v3_sub(v[k]->from, v[k]->world), n) > 0.0f) return 0;
     return 1;
+}
+
+/* Whether a reflector's triangle, projected into a group of its own, is
+   the surface the group's rays leave rather than a part of the reflector
+   they meet (the knob seen in the lid): it faces away from the point
+   every vertex's ray leaves, or lies nearer one than a fraction of its
+   edge. */
+static int refl__sb_own_surface(const refl__sb_pv *a, const refl__sb_pv *b, const refl__sb_pv *c, float edge, int met) {
+    if (REFL__MIN(a->dist, REFL__MIN(b->dist, c->dist)) < REFL__SB_OWN_NEAR * edge) return 1;
+    return !met && refl__sb_faces_away(a, b, c);
 }
 
 /* A scene triangle being emitted into a group: whether it belongs to the
@@ -320,6 +326,21 @@ typedef struct refl__sb_tri {
     const refl__sbc_hit *hits;
     int hit_count;
 } refl__sb_tri;
+
+/* Whether a refraction group (SBC-traced) leaves out triangle (a, b, c)
+   as a back face: it faces away from its vertices' rays and none of the
+   group's rays meets it, so a surface in front hides it (the underside of
+   a floor tile seen through the glass, behind the tile's top). Where the
+   refracted rays fold, that surface's triangles across the fold are not
+   drawn, and the depth test showed the back face instead, dark lines
+   across the glass; left out, the pixel is a refraction hole, traced
+   (sbc_resolve.c), unless another surface was drawn there. A back face
+   the rays do meet (an open mesh's inside) is drawn; SBC-paper's rays
+   meet nothing, so it cannot tell and draws them all. */
+static int refl__sb_refraction_back_face(const refl__sb *sb, const refl__sb_group *g, const refl__sb_pv *a,
+                                         const refl__sb_pv *b, const refl__sb_pv *c, const refl__sb_tri *t) {
+    return !g->morph && sb->sides[g->side].kind && sb->bvh && !t->hit_count && refl__sb_faces_away(a, b, c);
+}
 
 /* Whether triangle (a, b, c) holds point p of its plane (its edges
    included, with a little room). */
@@ -466,6 +487,7 @@ static void refl__sb_emit(const refl__sb *sb, const refl__sb_group *g, refl__sb_
         if (ok < 3) return;
         /* straddling a fold, drawn only where the sheets' images meet */
         if (across && refl__sb_extent(a, b, c) > REFL__SB_FOLD_SAMPLES * (float)sb->factor) return;
+        if (refl__sb_refraction_back_face(sb, g, a, b, c, t)) return;
         /* the reflector's own surface around the rays' tails */
         if (t->self && refl__sb_own_surface(a, b, c, t->edge, t->hit_count > 0)) return;
         /* where the rays fold, a triangle still bent at the last level lies

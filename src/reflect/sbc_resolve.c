@@ -95,25 +95,6 @@ static void refl__sb_render_pixel(const refl__sb *sb, int x, int y) {
     fr->points[3 * i + 2] = shown.z;
 }
 
-/* Whether glass pixel i's refraction (view direction d, point q, normal
-   n, side id `id`) is a hole that SBC-traced traces, with or without
-   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
-   it, with nothing drawn on the refraction layer there; or it meets
-   another mirror or glass first, or stays inside (reflected within), which
-   no refraction group models. A thick glass's refracted rays cross: its
-   refraction groups are mostly ray lists whose triangles across a fold are
-   dropped, and the environment beyond the glass in their place is flat
-   light patches with straight edges across the teapot. Past one bounce
-   only: at depth 1 SBC-paper's glass shows the environment refracted
-   once, as ENVMAP's (SBC-traced hands glass to the tracer there). */
-static int refl__sb_refraction_hole(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
-    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
-    refl__sb_refr rp;
-    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
-    return refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
-           !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f);
-}
-
 /* Whether pixel i, of a group or not, shows nothing drawn (src: where
    its reflection comes from, itself or a crack's neighbour). */
 static int refl__sb_hole(const refl__sb *sb, size_t i, size_t src) {
@@ -160,28 +141,18 @@ static int refl__sb_hole_goes_on(const refl__sb *sb, const refl__sb_path *pa) {
     return h.object != last || refl_bvh_intersect(sb->bvh, near, pa->out, 1e-4f * sb->diagonal + h.t, reach, &h);
 }
 
-/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
-   what it shows is a first-order reflection): a hole, or a first-order
-   point the ray map's samples around the pixel contradict: on an object
-   none of their four rays meets, or nearer than the nearest of what they
-   meet or farther than the farthest. Where the reflection is continuous
-   between the samples, the distance to what it shows is too, and lies
-   between theirs; a point outside is a surface the samples do not see:
-   the floor drawn below the lid's rim where the truth sees the teapot's
-   own surface. A thin object between the samples is traced too: exact, at
-   a ray's cost. */
-static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
+/* Whether side sd's four ray map samples around pixel i contradict the
+   point drawn there (shown: world point, object + 1), seen from `from`
+   (where the pixel's ray leaves the last reflector): on an object none of
+   their rays meets, or nearer than the nearest of what they meet or
+   farther than the farthest. 0 where a sample does not show the side. */
+static int refl__sb_samples_contradict(const refl__sb *sb, const refl__sb_side *sd, size_t i, const float *shown,
+                                       refl_vec3 from) {
     const refl_frame *fr = sb->p->frame;
-    const refl__sb_side *sd;
-    const float *shown = sb->drawn.points + 4 * src;
     int x = (int)(i % (size_t)fr->width), y = (int)(i / (size_t)fr->width), f = sb->factor, k;
     int u0 = (x - f / 2 + f) / f - 1, v0 = (y - f / 2 + f) / f - 1; /* the samples around it: u0, u0 + 1 */
     float lo = INFINITY, hi = 0.0f, d;
     int met_shown = 0, object = (int)shown[3] - 1;
-    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
-    if (refl__sb_hole(sb, i, src)) return 1;
-    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
-    sd = &sb->sides[sb->groups[sb->group_of[i] - 1].side];
     for (k = 0; k < 4; ++k) {
         int u = u0 + (k & 1), v = v0 + (k >> 1);
         size_t at = (size_t)v * (size_t)sb->map_w + (size_t)u;
@@ -191,8 +162,54 @@ static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first
         hi = REFL__MAX(hi, d);
         met_shown |= sd->hits[at].object == object;
     }
-    d = refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), q));
+    d = refl_v3_length(refl_v3_sub(refl_v3(shown[0], shown[1], shown[2]), from));
     return !met_shown || d < lo || d > hi;
+}
+
+/* Whether desc.sbc.trace_fallback traces pixel i (src as above; first:
+   what it shows is a first-order reflection): a hole, or a first-order
+   point the ray map's samples around the pixel contradict, seen from the
+   reflector's point (refl__sb_samples_contradict). Where the reflection is continuous
+   between the samples, the distance to what it shows is too, and lies
+   between theirs; a point outside is a surface the samples do not see:
+   the floor drawn below the lid's rim where the truth sees the teapot's
+   own surface. A thin object between the samples is traced too: exact, at
+   a ray's cost. */
+static int refl__sb_fallback(const refl__sb *sb, size_t i, size_t src, int first) {
+    refl_vec3 q = refl_v3(sb->em->surface[3 * i], sb->em->surface[3 * i + 1], sb->em->surface[3 * i + 2]);
+    if (refl__sb_hole(sb, i, src)) return 1;
+    if (!first || sb->groups[sb->group_of[i] - 1].morph) return 0; /* a morph group has no samples here */
+    return refl__sb_samples_contradict(sb, &sb->sides[sb->groups[sb->group_of[i] - 1].side], i,
+                                       sb->drawn.points + 4 * src, q);
+}
+
+/* Whether glass pixel i's refraction (view direction d, point q, normal
+   n, side id `id`) is one that SBC-traced traces, with or without
+   desc.sbc.trace_fallback: it leaves the glass, or meets a surface inside
+   it, with nothing drawn on the refraction layer there; or it meets
+   another mirror or glass first, or stays inside (reflected within), which
+   no refraction group models. A thick glass's refracted rays cross: its
+   refraction groups are mostly ray lists whose triangles across a fold are
+   dropped, and the environment beyond the glass in their place is flat
+   light patches with straight edges across the teapot. Where such a
+   triangle was the nearest surface, the depth test shows what lies behind
+   it (a floor tile's side face behind the next tile's top): in a group
+   whose rays fold (every group with the fallback), a point the refraction
+   side's samples around the pixel contradict, seen from the pixel's exit,
+   is traced too (refl__sb_samples_contradict). Past one bounce only: at
+   depth 1 SBC-paper's glass shows the environment refracted once, as
+   ENVMAP's (SBC-traced hands glass to the tracer there). */
+static int refl__sb_refraction_traced(const refl__sb *sb, size_t i, refl_vec3 d, refl_vec3 q, refl_vec3 n, float id) {
+    size_t npx = (size_t)sb->p->frame->width * (size_t)sb->p->frame->height;
+    const refl__sb_group *g;
+    refl__sb_refr rp;
+    if (refl__sb_material(sb, id)->type != REFL_GLASS || sb->budget < 2) return 0;
+    if (refl__sb_refract_path(sb, q, n, d, id, &rp) <= 0 ||
+        !(sb->layers > sb->orders && sb->group_of[(size_t)sb->orders * npx + i] && sb->refr.depth[i] < 1.0f))
+        return 1;
+    g = &sb->groups[sb->group_of[(size_t)sb->orders * npx + i] - 1];
+    return (!sb->tracer.folds_only || g->sheets > 1) && !g->morph &&
+           refl__sb_samples_contradict(sb, &sb->sides[g->side], i, sb->refr.points + 4 * i, rp.tail);
 }
 
 /* Whether pixel i goes through the fallback's checks (refl__sb_fallback):
@@ -263,7 +280,7 @@ static void refl__sb_resolve_row_deep(void *arg, int y) {
         if (g[3] == 0.0f || object < 0 || object >= scene->object_count) continue;
         if (sb->group_of[i] && !(sb->drawn.depth[i] < 1.0f)) src = refl__sb_crack_source(sb, x, y);
         refl__sb_pixel_view(sb, i, &d, &q, &n);
-        if (sb->tracer.rt && refl__sb_refraction_hole(sb, i, d, q, n, g[3])) {
+        if (sb->tracer.rt && refl__sb_refraction_traced(sb, i, d, q, n, g[3])) {
             refl__sb_render_pixel(sb, x, y);
             continue;
         }
@@ -336,7 +353,7 @@ static refl_result refl__sb_resolve(refl__sb *sb) {
     refl_result r = REFL_OK;
     int i, traces;
     size_t k, npx = (size_t)fr->width * (size_t)fr->height;
-    /* a refraction layer's holes are traced (refl__sb_refraction_hole) */
+    /* a refraction layer's holes are traced (refl__sb_refraction_traced) */
     traces = sb->layers > sb->orders;
     for (i = 0; i < sb->group_count; ++i) traces |= sb->groups[i].sheets > 1;
     for (k = 0; k < npx && !traces; ++k)

@@ -93,7 +93,7 @@ static const golden_case golden_cases[] = {
     {"glass", "envmap", 0x40bd20800e314724ull},
     {"glass", "planar", 0x016d0d8ee8e0f9a5ull},
     {"glass", "c3rc", 0x5a2f0adc188cb550ull},
-    {"glass", "sbc", 0x1d4ddf52fa555687ull},
+    {"glass", "sbc", 0x998fe96c8eb94398ull},
     {"glass", "planar-no-culling", 0x8b477bff0cff4c60ull},
     {"glass", "raytrace-volumes", 0x62066197db78627aull},
 };

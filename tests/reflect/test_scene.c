@@ -271,6 +271,7 @@ Test(refl_scene, non_finite_numbers_are_refused_everywhere) {
         const refl_material saved_material = s->materials[0];
         const refl_light saved_light = s->lights[0];
         const float saved_ambient = s->ambient[1];
+        refl_mat4 saved_transform;
         m.color[1] = x;
         cr_assert_eq(refl_scene_add_material(s, &m), REFL_ERROR_INVALID_ARGUMENT);
         m = refl_material_glass(x);
@@ -302,12 +303,23 @@ Test(refl_scene, non_finite_numbers_are_refused_everywhere) {
         cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
         cr_assert(strstr(f->message, "ambient") != NULL, "%s", f->message);
         s->ambient[1] = saved_ambient;
+        saved_transform = s->objects[1].transform;
+        s->objects[1].transform.m[13] = x;
+        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+        cr_assert(strstr(f->message, "transform") != NULL, "%s", f->message);
+        s->objects[1].transform = saved_transform;
         v.up.x = x;
         cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
         cr_assert(strstr(f->message, "view.up") != NULL, "%s", f->message);
     }
     v = s->camera;
     v.width = 16; v.height = 12;
+    /* an object's mesh index written out of range: refused before the
+       scene's bounds (the view's near and far planes) would read it */
+    s->objects[1].mesh += s->mesh_count;
+    cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_INVALID_ARGUMENT);
+    cr_assert(strstr(f->message, "scene.objects") != NULL, "%s", f->message);
+    s->objects[1].mesh -= s->mesh_count;
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK, "the scene restored renders");
     refl_frame_destroy(f);
     refl_scene_destroy(s);
