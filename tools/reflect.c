@@ -92,7 +92,7 @@ static const char *const usage_render =
     "  --lem-shell K      LAYERED_EM: every layer's shell, auto (per layer, from its\n"
     "                     hits), sphere, cylinder, box or quad (inner layers; the\n"
     "                     outermost auto's closed kind) (default auto)\n"
-    "  --lem-direct 0|1   LAYERED_EM: direct images from the lens's centre against\n"
+    "  --lem-direct 0|1   LAYERED_EM: direct images (--lem-direct-from) against\n"
     "                     disocclusion, off or on (default on)\n"
     "  --lem-direct-from F  LAYERED_EM: direct images from the lens's centre, the\n"
     "                     viewpoint (the sample's views without the lens) or by\n"

@@ -1754,8 +1754,9 @@ typedef struct refl_layered_em_options {
                                 direction and lie nearest a plane. QUAD: every inner layer a
                                 quad, the outermost AUTO's closed kind */
     int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
-                                from the lens's centre towards every texel, weighed by how
-                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                of the environment without the lens (direct_from), weighed by
+                                how little the lens images hold what they see
+                                (direct_confidence). 1: on, -1: off, 0: the default
                                 (REFL_LEM_DIRECT_DEFAULT) */
     int lens_layers;         /* another lens a lens's path meets: 1 (paper 001 section 6) a surface of
                                 the lens's environment like any other, its records the colour the
@@ -1781,6 +1782,7 @@ typedef enum refl_lem_direct_confidence {
     REFL_LEM_DIRECT_DISTANCE = 2        /* paper 001: by the distance of the ray's hit from the
                                            nearest of the lens images' hits */
 } refl_lem_direct_confidence;
+/* the centre by coverage: they measure best (docs/methods/layered_em.md, "Direct images") */
 enum { REFL_LEM_DIRECT_FROM_DEFAULT = REFL_LEM_DIRECT_FROM_CENTRE,
        REFL_LEM_DIRECT_CONFIDENCE_DEFAULT = REFL_LEM_DIRECT_COVERAGE };
 enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */

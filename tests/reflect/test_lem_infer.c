@@ -507,6 +507,16 @@ Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
     tu_refl_traced_free(&tr);
 }
 
+/* Greedy RAYTRACE of v. */
+static refl_frame *greedy_truth(const refl_scene *s, const refl_view *v) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    return tu_refl_render(s, v, &d);
+}
+
 /* The exact-shell scene with a mirror sphere of radius 0.5 (object 2)
    beside the glass one, reflecting it towards an eye at +z. */
 static refl_scene *mirror_sees_glass_scene(void) {
@@ -527,15 +537,10 @@ Test(layered_em, another_lens_as_a_layer_needs_no_tracer) {
     tu_refl_traced tr = tu_refl_traced_scene(mirror_sees_glass_scene());
     refl_view v = tu_refl_view(refl_v3(0.0f, 0.6f, 3.5f), refl_v3(0.7f, 0.0f, 0.5f), 96, 72);
     refl_render_desc d;
-    refl_frame *truth, *lem[2];
+    refl_frame *truth = greedy_truth(tr.scene, &v), *lem[2];
     double se[2] = {0.0, 0.0}, psnr[2];
     long long traced[2];
     int mode, through = 0, x, y, c;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(tr.scene, &v, &d);
     for (mode = 0; mode < 2; ++mode) {
         d = lem_desc(8);
         d.layered_em.lens_layers = mode ? 1 : -1;
@@ -848,6 +853,17 @@ Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
 
 /* ---- direct images against disocclusion ------------------------------------------------- */
 
+/* Pixels of the lens (stencil 2) under half as bright as a bright truth. */
+static int dark_lens_pixels(const refl_frame *truth, const refl_frame *f) {
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    int dark = 0;
+    for (i = 0; i < n; ++i) {
+        const float *t = truth->rgba + 4 * i, *l = f->rgba + 4 * i;
+        dark += truth->stencil[i] == 2 && t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
+    }
+    return dark;
+}
+
 Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
     /* 4 samples 90 degrees apart, each from its own view alone: at 45
        degrees the lens shows parts of the sphere no sample's records met
@@ -856,15 +872,10 @@ Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
     refl_scene *s = exact_shell_scene();
     refl_view v = orbit_view_sized(45.0f, 96, 72);
     refl_render_desc d;
-    refl_frame *truth, *lem[2];
+    refl_frame *truth = greedy_truth(s, &v), *lem[2];
     refl_image_error err[2];
     int dark[2] = {0, 0}, on, lens = 0;
     size_t i, n = (size_t)v.width * (size_t)v.height;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
     for (on = 0; on < 2; ++on) {
         d = lem_desc(4);
         d.layered_em.single_view = 1;
@@ -872,13 +883,9 @@ Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
         lem[on] = tu_refl_render(s, &v, &d);
         cr_assert_eq(refl_measure_image_error(lem[on], truth, 1, 0.0f, &err[on]), REFL_OK);
         cr_assert_eq(lem[on]->stats.layered_em.direct_rows > 0, on);
-        for (i = 0; i < n; ++i) {
-            const float *t = truth->rgba + 4 * i, *l = lem[on]->rgba + 4 * i;
-            if (truth->stencil[i] != 2) continue;
-            lens += !on;
-            dark[on] += t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
-        }
+        dark[on] = dark_lens_pixels(truth, lem[on]);
     }
+    for (i = 0; i < n; ++i) lens += truth->stencil[i] == 2;
     cr_log_info("disocclusion: without %.2f dB (%d dark), with %.2f dB (%d dark) of %d lens pixels", err[0].psnr, dark[0],
                 err[1].psnr, dark[1], lens);
     cr_assert_geq(dark[0], 50, "without: %d dark pixels", dark[0]);
@@ -902,16 +909,10 @@ Test(layered_em, direct_images_from_the_viewpoint_and_by_distance) {
     refl_scene *s = exact_shell_scene();
     refl_view v = orbit_view_sized(45.0f, 96, 72);
     refl_render_desc d;
-    refl_frame *truth, *lem;
+    refl_frame *truth = greedy_truth(s, &v), *lem;
     refl_image_error err[3];
     long long rows[3];
     int k, dark = 0;
-    size_t i, n = (size_t)v.width * (size_t)v.height;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
     for (k = 0; k < 3; ++k) {
         d = lem_desc(4);
         d.layered_em.single_view = 1;
@@ -920,10 +921,7 @@ Test(layered_em, direct_images_from_the_viewpoint_and_by_distance) {
         lem = tu_refl_render(s, &v, &d);
         cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err[k]), REFL_OK);
         rows[k] = lem->stats.layered_em.direct_rows;
-        for (i = 0; i < n && k == 0; ++i) {
-            const float *t = truth->rgba + 4 * i, *l = lem->rgba + 4 * i;
-            dark += truth->stencil[i] == 2 && t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
-        }
+        if (k == 0) dark = dark_lens_pixels(truth, lem);
         refl_frame_destroy(lem);
     }
     cr_log_info("direct images: centre by distance %.2f dB (%lld rows, %d dark), viewpoint by distance %.2f dB (%lld), "
