@@ -1771,11 +1771,39 @@ typedef struct refl_layered_em_options {
                                 direction and lie nearest a plane. QUAD: every inner layer a
                                 quad, the outermost AUTO's closed kind */
     int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
-                                from the lens's centre towards every texel, weighed by how
-                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                of the environment without the lens (direct_from), weighed by
+                                how little the lens images hold what they see
+                                (direct_confidence). 1: on, -1: off, 0: the default
                                 (REFL_LEM_DIRECT_DEFAULT) */
+    int lens_layers;         /* another lens a lens's path meets: 1 (paper 001 section 6) a surface of
+                                the lens's environment like any other, its records the colour the
+                                greedy tracer sees of it, so its paths end where they leave the lens
+                                and look the other lens up in a layer; -1 the paths cross the whole
+                                lens system and a vertex whose path leaves through the other lens
+                                has no lookup (its pixels are traced); 0 the default
+                                (REFL_LEM_LENS_LAYERS_DEFAULT) */
+    int direct_from;         /* where the direct images look from, refl_lem_direct_from; 0: the
+                                default (REFL_LEM_DIRECT_FROM_DEFAULT) */
+    int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
+                                0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
 } refl_layered_em_options;
+typedef enum refl_lem_direct_from {
+    REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
+    REFL_LEM_DIRECT_FROM_VIEWPOINT = 2, /* the sample's views without the lens (paper 001: better
+                                           for refractive lenses) */
+    REFL_LEM_DIRECT_FROM_MATERIAL = 3   /* the paper's rule: the viewpoint for glass, the centre
+                                           for mirrors */
+} refl_lem_direct_from;
+typedef enum refl_lem_direct_confidence {
+    REFL_LEM_DIRECT_COVERAGE = 1,       /* 1 minus the texels' coverage by the lens images' rows */
+    REFL_LEM_DIRECT_DISTANCE = 2        /* paper 001: by the distance of the ray's hit from the
+                                           nearest of the lens images' hits */
+} refl_lem_direct_confidence;
+/* the centre by coverage: they measure best (docs/methods/layered_em.md, "Direct images") */
+enum { REFL_LEM_DIRECT_FROM_DEFAULT = REFL_LEM_DIRECT_FROM_CENTRE,
+       REFL_LEM_DIRECT_CONFIDENCE_DEFAULT = REFL_LEM_DIRECT_COVERAGE };
 enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
+enum { REFL_LEM_LENS_LAYERS_DEFAULT = -1 }; /* traced: it measures better (docs/methods/layered_em.md, "Lens to lens") */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -2792,9 +2820,14 @@ typedef struct refl__gp_hit {
    split (both or neither; refl__lem_split), lenses over the scene's lens
    objects alone and others over the rest (the scene's object indices):
    then a path's rays are cast at the lenses, and the rest asked only
-   whether it blocks the way to the lens surface met (any hit). */
+   whether it blocks the way to the lens surface met (any hit). own >= 0:
+   a path ends where it leaves lens object own, another lens met next
+   being part of own's environment (paper 001's "other lens as a layer",
+   refl_layered_em_options.lens_layers); -1: paths cross the whole lens
+   system. */
 typedef struct refl__gp_casters {
     const refl_ray_caster *scene, *lenses, *others;
+    int own;
 } refl__gp_casters;
 /* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
 static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
@@ -2804,6 +2837,18 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_cast
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+/* refl_greedy_paths through casters: the eye ray's first lens, then its
+   paths as casters->own says. */
+static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
+                                    refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays);
+/* The one greedy path (the child of the larger coefficient at every
+   interface, the first included) of a ray along unit dir whose closest
+   hit `hit` is on a lens object, through the whole lens system of
+   casters->scene, at most max_interfaces interfaces: what the greedy
+   tracer follows past a lens met beyond another lens's exit. */
+static void refl__greedy_path_on(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                 const refl_hit *hit, int max_interfaces, refl_greedy_path *path, long long *rays);
 
 /* ---- paper 001's tessellation and inferred maps (lens_tess.c, lem_infer.c) ---- */
 
@@ -2822,6 +2867,11 @@ typedef struct refl__lem_layering {
     refl_vec3 centre;
     const signed char *object_layer;
     int object_count;
+    /* the lens object whose environment this is where the other lenses
+       are layers of it (refl_layered_em_options.lens_layers; a pass's,
+       refl__lem_ring_of), else -1; and the pass's depth (greedy paths
+       beyond it) */
+    int own, depth;
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
@@ -2852,24 +2902,42 @@ static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
    their share; the outermost layer opaque, the environment where nothing
    of it was met) and the term's confidence (-1: no subsample has the term)
-   in out[5 (term layers + l) ...]. */
+   in out[5 (term layers + l) ...]; points (may be NULL): per term and
+   layer the first subsample's hit in the layer (NaN: none) in
+   points[3 (term layers + l) ...], for the direct images' distance
+   confidence. */
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
-                                   long long *rays);
+                                   const refl__lem_layering *lay, float *out, float *points,
+                                   refl_greedy_paths_result *centre_paths, long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
-/* Section 4.3's direct images of the environment without the lens, from
-   its centre (lay->centre), as rows of layer `layer`'s system: one ray
-   towards every texel's point on the shell, its target the ray's first
-   hit in the layer (continued through the rest; alpha 0 where none, the
-   environment on the outermost layer), its confidence the share of the
-   texels the lens images' rows (already in sys) leave unheld: 1 minus
-   their coverage (the sum of their rows' weights), so the direct images
-   fill in only what the lens images miss. *added counts the rows. */
+                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
+                                 long long *rays);
+/* Section 4.3's direct images of the environment without the lens: how
+   a map's are taken. From the lens's centre (lay->centre) one ray towards
+   every texel's point on the shell; from the viewpoint, each pixel (every
+   stride-th) of rect[s] (x0, y0, x1, y1) of the sample's views[s], the
+   lens left out, its ray taken from its point nearest the centre on (it
+   looks the shell up as an exit ray through the lens would). The
+   confidence: 1 minus the texels' coverage by the lens images' rows
+   (already in the system), or (distance) by the distance of the ray's
+   hit from the nearest of the lens images' hits in the layer (points,
+   3 per hit), the paper's. */
+typedef struct refl__lem_direct {
+    int viewpoint, distance;
+    const refl_view *views;
+    int per, stride, rect[3][4];
+    const float *points;
+    long long count;
+} refl__lem_direct;
+/* Layer `layer`'s direct images (how) as rows of its system: per ray its
+   lookup on the shell, its target the ray's first hit in the layer
+   (continued through the rest; alpha 0 where none, the environment on
+   the outermost layer). *added counts the rows. */
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
-                                         refl_lem_system *sys, long long *rays, int *added);
+                                         const refl__lem_direct *how, refl_lem_system *sys, long long *rays,
+                                         int *added);
 /* The world point on the shell whose index points along q (lem_infer.c),
    0 where none (a quad's other faces). */
 static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p);
@@ -12010,6 +12078,8 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
     return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
 }
 
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
+
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -12022,17 +12092,25 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
 static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
                          int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
     refl_hit hit;
-    const refl_object *obj;
-    refl_mat4 nm;
-    refl__hit_geom g;
-    int k;
     if (rays) ++*rays;
     if (c->lenses && c->others) {
         if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
+        if (c->own >= 0 && hit.object != c->own) return 0; /* leaves own: the rest is its environment */
         if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
     } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
         return 0;
     }
+    if (c->own >= 0 && hit.object != c->own) return 0;
+    return refl__gp_hit_of(scene, &hit, h);
+}
+
+/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit_in, refl__gp_hit *h) {
+    refl_hit hit = *hit_in;
+    const refl_object *obj;
+    refl_mat4 nm;
+    refl__hit_geom g;
+    int k;
     if (hit.object < 0 || hit.object >= scene->object_count) return 0;
     obj = &scene->objects[hit.object];
     if (!refl__is_reflector(&scene->materials[obj->material])) return 0;
@@ -12175,18 +12253,45 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
     out->reflect.fresnel = out->refract.fresnel = 0.0f;
 }
 
+static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
+                                    refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays) {
+    refl__gp_casters first = *casters;
+    refl__gp_hit h;
+    refl__greedy_paths_none(origin, dir, out);
+    first.own = -1; /* the eye ray meets any lens first */
+    if (!refl__gp_cast(scene, &first, origin, dir, -1, -1, &h, rays)) return;
+    refl__greedy_paths_from(scene, casters, dir, &h, max_interfaces, out, rays);
+}
+
+static void refl__greedy_path_on(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                 const refl_hit *hit, int max_interfaces, refl_greedy_path *path, long long *rays) {
+    refl__gp_casters c;
+    refl__gp_hit h;
+    refl__gp_children ch;
+    refl_vec3 o, d;
+    refl__gp_start(path, refl_v3(0.0f, 0.0f, 0.0f), dir);
+    c.scene = caster;
+    c.lenses = c.others = NULL;
+    c.own = -1;
+    if (max_interfaces <= 0 || !refl__gp_hit_of(scene, hit, &h)) return;
+    max_interfaces = REFL__MIN(max_interfaces, REFL_GREEDY_MAX_INTERFACES);
+    refl__gp_interface(&h, dir, &ch);
+    refl__gp_take(path, &h, &ch, !ch.refracts || ch.f >= 1.0f - ch.f, &o, &d);
+    refl__gp_follow(scene, &c, path, o, d, h, max_interfaces, rays);
+}
+
 REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
                                 refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
                                 long long *rays) {
     refl__gp_casters c;
-    refl__gp_hit h;
     if (!out) return;
     refl__greedy_paths_none(origin, dir, out);
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
     c.scene = caster;
     c.lenses = c.others = NULL;
-    if (!refl__gp_cast(scene, &c, origin, dir, -1, -1, &h, rays)) return;
-    refl__greedy_paths_from(scene, &c, dir, &h, max_interfaces, out, rays);
+    c.own = -1;
+    refl__greedy_paths_cast(scene, &c, origin, dir, max_interfaces, out, rays);
 }
 /* ---- src/reflect/impostor.c ---- */
 /* impostor: the generic non-pinhole impostor of paper 004, section 3 (api.h,
@@ -13612,32 +13717,72 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
 /* ---- records of a viewpoint sample --------------------------------------------- */
 
 
+static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                               refl_vec3 centre, int own, int depth, refl__lem_hit *hits, int max, long long *rays);
+
+/* The interfaces a greedy path may still meet past path (NULL: none yet)
+   under the pass's depth (0: REFL_GREEDY_MAX_INTERFACES). */
+static int refl__lem_depth_left(int depth, const refl_greedy_path *path) {
+    int all = depth > 0 ? REFL__MIN(depth, REFL_GREEDY_MAX_INTERFACES) : REFL_GREEDY_MAX_INTERFACES;
+    return all - (path ? path->length : 0);
+}
+
+/* The colour of lens `hit` (another lens than the one whose environment
+   it is) seen along unit d, as the greedy tracer shows it: its one
+   greedy path on (depth interfaces at most; black where it ends inside),
+   F G times what its exit ray meets first, shaded as the records shade
+   (refl__lem_exit_hits). */
+static void refl__lem_lens_colour(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 d,
+                                  const refl_hit *hit, int depth, float rgb[3], long long *rays) {
+    refl_greedy_path path;
+    refl__lem_hit end;
+    float seen[3];
+    int c;
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    refl__greedy_path_on(scene, caster, d, hit, depth, &path, rays);
+    if (!path.exited) return;
+    if (refl__lem_exit_hits(scene, caster, path.exit_origin, path.exit_direction, path.exit_origin, -1, 0, &end, 1,
+                            rays) == 1) {
+        memcpy(seen, end.rgb, sizeof seen);
+    } else {
+        refl_environment_lookup(&scene->environment, path.exit_direction, seen);
+        for (c = 0; c < 3; ++c) seen[c] = REFL__RADIANCE(seen[c]);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__RADIANCE(path.fresnel * path.attenuation[c] * seen[c]);
+}
+
 /* Every surface an exit ray meets past the lens, continued through them
    (section 4.1, Figure 4c; the back of an object the ray entered is not
-   one, an open shell's inside is): up to REFL__LEM_MAX_HITS, nearest
-   first, each shaded as RAYTRACE shades a diffuse surface without shadows.
-   Lens objects are passed through (the ray's own lens met again, or a
-   mirror or glass beyond, whose own paths the tracer would follow).
-   Returns the count. */
+   one, an open shell's inside is): up to max (at most
+   REFL__LEM_MAX_HITS), nearest first, each shaded as RAYTRACE shades a
+   diffuse surface without shadows. Lens objects are passed through where
+   own < 0 (the ray's own lens met again, or a mirror or glass beyond,
+   whose own paths the tracer would follow); with own >= 0 only own is,
+   and another lens is a surface of own's environment like any other,
+   its colour what the greedy tracer sees of it along the ray
+   (refl__lem_lens_colour, depth interfaces on). Returns the count. */
 static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                               refl_vec3 centre, refl__lem_hit *hits, long long *rays) {
+                               refl_vec3 centre, int own, int depth, refl__lem_hit *hits, int max, long long *rays) {
     refl_hit h;
     float tmin = 0.0f;
     int tries, k, n = 0;
     ++*rays;
-    for (tries = 0; tries < 4 * REFL__LEM_MAX_HITS && n < REFL__LEM_MAX_HITS; ++tries) {
+    max = REFL__MIN(max, REFL__LEM_MAX_HITS);
+    for (tries = 0; tries < 4 * REFL__LEM_MAX_HITS && n < max; ++tries) {
         const refl_object *obj;
         const refl_mesh *m;
         const refl_material *mat;
         refl_mat4 nm;
         refl__hit_geom g;
         float uv[2] = {0.0f, 0.0f};
+        int lens;
         if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &h) || h.object < 0 || h.object >= scene->object_count)
             break;
         tmin = h.t;
         obj = &scene->objects[h.object];
         mat = &scene->materials[obj->material];
-        if (refl__is_reflector(mat)) continue;
+        lens = refl__is_reflector(mat);
+        if (lens && (own < 0 || h.object == own)) continue;
         m = scene->meshes[obj->mesh];
         nm = refl__normal_matrix(obj->transform);
         refl__hit_surface(m, &obj->transform, &nm, &h, &g);
@@ -13646,15 +13791,19 @@ static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *c
             }
             if (k < n) continue;
         }
-        if (m->texcoords) {
-            const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+        if (lens) {
+            refl__lem_lens_colour(scene, caster, d, &h, depth, hits[n].rgb, rays);
+        } else {
+            if (m->texcoords) {
+                const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
+                for (k = 0; k < 3; ++k) {
+                    uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+                    uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+                }
             }
+            refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
+            for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         }
-        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
-        for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
         hits[n].position = g.p;
         hits[n].object = h.object;
@@ -13675,29 +13824,35 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
 
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
-                                   long long *rays) {
+                                   const refl__lem_layering *lay, float *out, float *points,
+                                   refl_greedy_paths_result *centre_paths, long long *rays) {
     refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
     refl_greedy_paths_result sub;
     refl__lem_hit hits[REFL__LEM_MAX_HITS];
     float sum[2][REFL_LEM_MAX_LAYERS][3], tmax;
     int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers;
+    refl__gp_casters paths;
+    paths.scene = caster;
+    paths.lenses = paths.others = NULL;
+    paths.own = lay->own;
     refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-    refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
+    refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, centre_paths, rays);
     if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    for (k = 0; points && k < 6 * L; ++k) points[k] = NAN;
     memset(sum, 0, sizeof sum);
     memset(seen, 0, sizeof seen);
     for (j = 0; j < ss; ++j)
         for (i = 0; i < ss; ++i) {
             refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
                                 (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
-            refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
+            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &sub, rays);
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
                 int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
-                nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
+                nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, lay->own,
+                                         refl__lem_depth_left(max_interfaces, sp), hits, REFL__LEM_MAX_HITS, rays);
                 memset(got, 0, sizeof got);
                 /* each layer takes the ray's first hit in it (section 4.3)
                    that no nearer hit of a later layer hides: the runtime
@@ -13710,6 +13865,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                     deepest = l;
                     if (got[l]) continue;
                     got[l] = 1;
+                    if (points && isnan(points[3 * (term * L + l)]))
+                        memcpy(points + 3 * (term * L + l), &hits[k].position, 3 * sizeof(float));
                     ++seen[term][l];
                     for (c = 0; c < 3; ++c) sum[term][l][c] += hits[k].rgb[c];
                 }
@@ -13778,52 +13935,189 @@ static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec
     return 1;
 }
 
+/* The nearest of a layer's record hits, for the distance confidence: the
+   hits hashed into cubes of side cell, sorted by cube. */
+typedef struct refl__lem_near {
+    float cell;
+    long long count;
+    uint64_t *key;               /* 2 per hit: cube, then the hit's index in pos */
+    const float *pos;
+} refl__lem_near;
+
+static uint64_t refl__lem_cube(const refl__lem_near *g, const float *p, int dx, int dy, int dz) {
+    /* 21 bits an axis, wrapped: cubes far apart may share a key, which
+       only adds candidates whose true distance is measured */
+    uint64_t x = (uint64_t)((long long)floorf(p[0] / g->cell) + dx) & 0x1fffff;
+    uint64_t y = (uint64_t)((long long)floorf(p[1] / g->cell) + dy) & 0x1fffff;
+    uint64_t z = (uint64_t)((long long)floorf(p[2] / g->cell) + dz) & 0x1fffff;
+    return x << 42 | y << 21 | z;
+}
+
+static int refl__lem_cmp_u64x2(const void *a, const void *b) {
+    const uint64_t *x = (const uint64_t *)a, *y = (const uint64_t *)b;
+    return x[0] != y[0] ? (x[0] > y[0]) - (x[0] < y[0]) : (x[1] > y[1]) - (x[1] < y[1]);
+}
+
+/* 0 when out of memory. */
+static int refl__lem_near_build(refl__lem_near *g, const float *pos, long long count, float cell,
+                                const refl_allocator *al) {
+    long long k;
+    memset(g, 0, sizeof *g);
+    g->cell = cell;
+    g->pos = pos;
+    if (count <= 0 || !(cell > 0.0f)) return 1;
+    g->key = (uint64_t *)refl__calloc(al, 2 * (size_t)count, sizeof(uint64_t));
+    if (!g->key) return 0;
+    g->count = count;
+    for (k = 0; k < count; ++k) {
+        g->key[2 * k] = refl__lem_cube(g, pos + 3 * k, 0, 0, 0);
+        g->key[2 * k + 1] = (uint64_t)k;
+    }
+    qsort(g->key, (size_t)count, 2 * sizeof(uint64_t), refl__lem_cmp_u64x2);
+    return 1;
+}
+
+/* The distance from p to the nearest hit, at most g->cell. */
+static float refl__lem_near_distance(const refl__lem_near *g, const float *p) {
+    double best = (double)g->cell * g->cell;
+    int dx, dy, dz;
+    for (dz = -1; dz <= 1; ++dz)
+        for (dy = -1; dy <= 1; ++dy)
+            for (dx = -1; dx <= 1; ++dx) {
+                uint64_t want = refl__lem_cube(g, p, dx, dy, dz);
+                long long lo = 0, hi = g->count;
+                while (lo < hi) { /* the first of the cube's hits */
+                    long long mid = (lo + hi) / 2;
+                    if (g->key[2 * mid] < want) lo = mid + 1;
+                    else hi = mid;
+                }
+                for (; lo < g->count && g->key[2 * lo] == want; ++lo) {
+                    const float *q = g->pos + 3 * g->key[2 * lo + 1];
+                    double ex = (double)p[0] - q[0], ey = (double)p[1] - q[1], ez = (double)p[2] - q[2];
+                    best = REFL__MIN(best, ex * ex + ey * ey + ez * ez);
+                }
+            }
+    return (float)sqrt(best);
+}
+
+/* Layer `layer`'s direct-image target along the ray (o, d), continued as
+   the records' exit rays are: its first hit in the layer that no nearer
+   hit of a later layer hides, at *at; 0 where none (target alpha 0; the
+   environment on the outermost layer, *at unset). */
+static int refl__lem_direct_target(const refl_scene *scene, const refl_ray_caster *caster,
+                                   const refl__lem_layering *lay, int layer, refl_vec3 o, refl_vec3 d,
+                                   float target[4], refl_vec3 *at, long long *rays) {
+    refl__lem_hit hits[REFL__LEM_MAX_HITS];
+    int nh, k, deepest, hl;
+    target[0] = target[1] = target[2] = target[3] = 0.0f;
+    nh = refl__lem_exit_hits(scene, caster, o, d, lay->centre, lay->own, refl__lem_depth_left(lay->depth, NULL), hits,
+                             REFL__LEM_MAX_HITS, rays);
+    for (k = 0, deepest = 0; k < nh && deepest <= layer; ++k) {
+        hl = refl__lem_hit_layer(lay, &hits[k]);
+        deepest = REFL__MAX(deepest, hl);
+        if (hl == layer && deepest == layer) {
+            memcpy(target, hits[k].rgb, 3 * sizeof(float));
+            target[3] = 1.0f;
+            *at = hits[k].position;
+            return 1;
+        }
+    }
+    if (layer == lay->layers - 1) { /* the outermost layer is opaque: the environment past everything */
+        float rgb[3];
+        refl_environment_lookup(&scene->environment, d, rgb);
+        for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
+        target[3] = 1.0f;
+    }
+    return 0;
+}
+
+/* One direct-image row: the ray (o, d)'s lookup on the shell, its target
+   (refl__lem_direct_target) weighed by how likely the lens images miss
+   it: 1 minus the texels' coverage by their rows (cov), or by the
+   distance of its hit from the nearest of their hits in the layer
+   (near: (distance / cell)^2, 1 from a cell on; a ray that meets nothing
+   in an inner layer adds nothing, one on the outermost layer is measured
+   from its point on the shell). */
+static refl_result refl__lem_direct_row(const refl_scene *scene, const refl_ray_caster *caster,
+                                        const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                        const float *cov, const refl__lem_near *near, refl_vec3 o, refl_vec3 d,
+                                        refl_lem_system *sys, long long *rays, int *added) {
+    refl_vec3 index, at;
+    uint32_t tex[4];
+    float w[4], target[4], held = 0.0f, conf = 1.0f;
+    int k, got;
+    refl_result r;
+    if (!refl_lem_shell_index(shell, o, d, &index) || !refl_lem_shell_texels(shell, index, tex, w)) return REFL_OK;
+    if (!near) {
+        for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
+        conf = 1.0f - REFL__MIN(held, 1.0f);
+        if (!(conf > 0.0f)) return REFL_OK; /* the lens images hold it */
+    }
+    got = refl__lem_direct_target(scene, caster, lay, layer, o, d, target, &at, rays);
+    if (near) {
+        float f;
+        if (!got && (layer < lay->layers - 1 || !refl__lem_shell_point(shell, index, &at))) return REFL_OK;
+        f = near->count ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
+        conf = f * f;
+    }
+    r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
+    if (r == REFL_OK && conf > 0.0f) ++*added;
+    return r;
+}
+
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
-                                         refl_lem_system *sys, long long *rays, int *added) {
+                                         const refl__lem_direct *how, refl_lem_system *sys, long long *rays,
+                                         int *added) {
     const refl_allocator *a = &sys->allocator;
-    int n = shell->face_size, face, x, y, k, last = layer == lay->layers - 1;
-    float *cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+    int n = shell->face_size, face, x, y, s;
+    float *cov = NULL;
+    refl__lem_near near;
     long long e;
     refl_result r = REFL_OK;
-    if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
-    /* how much of each texel the lens images' rows already hold */
-    for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
-    for (face = 0; face < 6 && r == REFL_OK; ++face)
-        for (y = 0; y < n && r == REFL_OK; ++y)
-            for (x = 0; x < n && r == REFL_OK; ++x) {
-                refl__lem_hit hits[REFL__LEM_MAX_HITS];
-                refl_vec3 p, d;
-                uint32_t tex[4];
-                float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
-                int nh, got = 0, deepest;
-                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
-                d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
-                if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
-                for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
-                conf = 1.0f - REFL__MIN(held, 1.0f);
-                if (!(conf > 0.0f)) continue; /* the lens images hold it */
-                nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
-                /* the first hit in the layer, unless a later layer's hides it (as the records) */
-                for (k = 0, deepest = 0; k < nh && !got && deepest <= layer; ++k) {
-                    int hl = refl__lem_hit_layer(lay, &hits[k]);
-                    deepest = REFL__MAX(deepest, hl);
-                    if (hl == layer && deepest == layer) {
-                        target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
-                        target[3] = 1.0f;
-                        got = 1;
-                    }
+    memset(&near, 0, sizeof near);
+    if (how->distance) {
+        /* a quarter of a texel's side at the layer's mean distance (2 r / n
+           at a face's centre): no farther than that from a lens image's
+           hit, a point is held by less (of two texels: worse than the
+           coverage on `hybrid` and `glass`, docs/methods/layered_em.md) */
+        float cell = 0.5f * REFL__MAX(shell->radius, 1e-6f) / (float)REFL__MAX(n, 1);
+        if (!refl__lem_near_build(&near, how->points, how->count, cell, a)) return REFL_ERROR_OUT_OF_MEMORY;
+    } else {
+        /* how much of each texel the lens images' rows already hold */
+        cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+        if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
+        for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    }
+    if (!how->viewpoint) /* from the lens's centre towards every texel's point on the shell */
+        for (face = 0; face < 6 && r == REFL_OK; ++face)
+            for (y = 0; y < n && r == REFL_OK; ++y)
+                for (x = 0; x < n && r == REFL_OK; ++x) {
+                    refl_vec3 p;
+                    if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                    r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov, how->distance ? &near : NULL,
+                                             lay->centre, refl_v3_normalize(refl_v3_sub(p, lay->centre)), sys, rays,
+                                             added);
                 }
-                if (!got && last) { /* the outermost layer is opaque: the environment past everything */
-                    float rgb[3];
-                    refl_environment_lookup(&scene->environment, d, rgb);
-                    for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
-                    target[3] = 1.0f;
-                }
-                r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
-                if (r == REFL_OK) ++*added;
+    for (s = 0; how->viewpoint && s < how->per && r == REFL_OK; ++s) {
+        /* from the sample's views, the lens left out: each pixel's ray
+           from its point nearest the lens's centre on */
+        const int *rect = how->rect[s];
+        refl__view_rays vr;
+        refl__view_rays_init(&vr, &how->views[s], scene);
+        for (y = rect[1]; y < rect[3] && r == REFL_OK; y += how->stride)
+            for (x = rect[0]; x < rect[2] && r == REFL_OK; x += how->stride) {
+                refl_vec3 o, d;
+                float tmax, t;
+                refl__view_rays_get(&vr, (float)x + 0.5f * how->stride, (float)y + 0.5f * how->stride, &o, &d, &tmax);
+                t = refl_v3_dot(refl_v3_sub(lay->centre, o), d) / refl_v3_dot(d, d);
+                if (!(t > 0.0f)) continue;
+                r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov, how->distance ? &near : NULL,
+                                         refl_v3_add(o, refl_v3_scale(d, t)), d, sys, rays, added);
             }
+    }
     refl__free(a, cov);
+    refl__free(a, near.key);
     return r;
 }
 
@@ -13968,9 +14262,14 @@ static void refl__lem_hits_free(refl__lem_hits *h) {
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
    the clustering: appended to the arrays of *h. 0 when out of memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays) {
+                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
+                                 long long *rays) {
     refl__view_rays vr;
+    refl__gp_casters paths;
     int x, y, term, k;
+    paths.scene = caster;
+    paths.lenses = paths.others = NULL;
+    paths.own = own;
     refl__view_rays_init(&vr, view, scene);
     for (y = 0; y < view->height; ++y)
         for (x = 0; x < view->width; ++x) {
@@ -13978,14 +14277,15 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
             refl_vec3 o, d;
             float tmax;
             refl__view_rays_get(&vr, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            refl_greedy_paths(scene, caster, o, d, max_interfaces, &g, rays);
+            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &g, rays);
             if (g.terms == 0 || g.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *p = term ? &g.refract : &g.reflect;
                 refl__lem_hit hits[REFL__LEM_MAX_HITS];
                 int n;
                 if (!(p->fresnel > 0.0f) || !p->exited) continue;
-                n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, hits, rays);
+                n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, own,
+                                        refl__lem_depth_left(max_interfaces, p), hits, REFL__LEM_MAX_HITS, rays);
                 for (k = 0; k < n; ++k) {
                     if (h->count == h->cap && !refl__lem_hits_grow(h)) return 0;
                     h->distance[h->count] = hits[k].distance;
@@ -14025,6 +14325,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
     refl__view_rays_init(&rays, view, scene);
     memset(&one, 0, sizeof one);
+    one.own = -1;
     one.layers = 1;
     one.radius[0] = shell->radius;
     one.shell[0] = *shell;
@@ -14034,7 +14335,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
             refl_greedy_paths_result centre;
             float rec[10];
             if (!refl__lem_pixel_records(scene, caster, &rays, x, y, desc->object, ss, desc->theta_c_degrees,
-                                         desc->max_interfaces, &one, rec, &centre, &st.rays))
+                                         desc->max_interfaces, &one, rec, NULL, &centre, &st.rays))
                 continue;
             ++st.pixels;
             for (term = 0; term < 2 && r == REFL_OK; ++term) {
@@ -14573,6 +14874,7 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
     }
     casters.scene = caster;
     casters.lenses = NULL;
+    casters.own = -1;
     r = refl__lens_tessellate(scene, &casters, object, view, desc, rc, t);
     rast_context_destroy(rc);
     if (r != REFL_OK) {
@@ -17710,7 +18012,26 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
+    if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
+    if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
+        return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
+    if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
+        return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
     return NULL;
+}
+
+/* The lens whose paths end where they leave it (lens_layers on: i, the
+   other lenses layers of its environment), else -1. */
+static int refl__lem_own(const refl__pass *p, int i) {
+    int on = p->desc.layered_em.lens_layers;
+    return on > 0 || (on == 0 && REFL_LEM_LENS_LAYERS_DEFAULT > 0) ? i : -1;
+}
+
+/* The casters of lens i's vertex paths (refl__lem_own). */
+static refl__gp_casters refl__lem_vertex_casters(const refl__pass *p, const refl__gp_casters *c, int i) {
+    refl__gp_casters own = *c;
+    own.own = refl__lem_own(p, i);
+    return own;
 }
 
 /* What one draw of the lens shares: the layers' shells, the maps it looks
@@ -17916,6 +18237,7 @@ typedef struct refl__lem_records {
     const refl__lem_layering *lay;
     int rect[4];                 /* x0, y0, x1, y1: the pixels the lens's bounds may cover */
     float *rec;                  /* 10 layers per pixel; confidence -1 where none */
+    float *points;               /* NULL, or 6 layers per pixel: refl__lem_pixel_records' points */
     long long *row_rays;
 } refl__lem_records;
 
@@ -17924,11 +18246,14 @@ static void refl__lem_records_row(void *arg, int y) {
     int x, w = r->rays.width, n = 10 * r->lay->layers, k;
     for (x = 0; x < w; ++x) {
         float *out = r->rec + (size_t)n * ((size_t)y * (size_t)w + (size_t)x);
+        float *pts = r->points ? r->points + (size_t)6 * r->lay->layers * ((size_t)y * (size_t)w + (size_t)x) : NULL;
         refl_greedy_paths_result centre;
         if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
             !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
-                                     r->max_interfaces, r->lay, out, &centre, &r->row_rays[y]))
+                                     r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
+            for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
+        }
     }
 }
 
@@ -17963,7 +18288,7 @@ static void refl__lem_screen_rect(refl_mat4 vp, refl_vec3 lo, refl_vec3 hi, int 
 typedef struct refl__lem_sample_view {
     refl_mat4 vp;
     refl_lens_tess tess;
-    float *rec;
+    float *rec, *points;         /* points: for the direct images' distance confidence */
     int lens_pixels;
 } refl__lem_sample_view;
 
@@ -17971,6 +18296,7 @@ static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_vie
     refl__free(al, s->tess.vertices);
     refl__free(al, s->tess.indices);
     refl__free(al, s->rec);
+    refl__free(al, s->points);
     memset(s, 0, sizeof *s);
 }
 
@@ -18098,6 +18424,22 @@ static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, i
 
 /* ---- inferring one sample's maps ---------------------------------------------------- */
 
+/* How lens i's direct images are taken (refl_layered_em_options'
+   direct_from and direct_confidence), from the sample's views[0 .. per)
+   where from the viewpoint (stride 1 and the rectangles set later). */
+static void refl__lem_direct_how(const refl__pass *p, int i, const refl_view *views, int per, refl__lem_direct *out) {
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    int from = o->direct_from ? o->direct_from : REFL_LEM_DIRECT_FROM_DEFAULT;
+    int conf = o->direct_confidence ? o->direct_confidence : REFL_LEM_DIRECT_CONFIDENCE_DEFAULT;
+    int glass = p->scene->materials[p->scene->objects[i].material].type == REFL_GLASS;
+    memset(out, 0, sizeof *out);
+    out->viewpoint = from == REFL_LEM_DIRECT_FROM_VIEWPOINT || (from == REFL_LEM_DIRECT_FROM_MATERIAL && glass);
+    out->distance = conf == REFL_LEM_DIRECT_DISTANCE;
+    out->views = views;
+    out->per = per;
+    out->stride = 1;
+}
+
 /* Infers object i's maps for the sample whose views are views[0 .. per)
    (the sample's own first) on the layers' shells: the records and
    tessellation of each view, then per layer rows from the runtime's own
@@ -18118,7 +18460,11 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
     refl_lem_solve_desc sd;
     refl_vec3 box[2], centre;
     float lens_radius, *depth = NULL, *index[2] = {NULL, NULL};
+    refl__lem_direct direct;
+    int direct_on = o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT > 0);
     refl_result r = REFL_OK;
+    refl__lem_direct_how(p, i, views, per, &direct);
+    direct.distance &= direct_on;
     memset(sv, 0, sizeof sv);
     memset(sys, 0, sizeof sys);
     memset(&td, 0, sizeof td);
@@ -18145,8 +18491,9 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         rec.lay = lay;
         refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
         sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
+        if (direct.distance) sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
-        if (!rec.rec || !rec.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!rec.rec || !rec.row_rays || (direct.distance && !rec.points)) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
             for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
@@ -18155,8 +18502,9 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         }
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
+            refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, casters, i, &views[s], &td, p->rc, &sv[s].tess);
+            r = refl__lens_tessellate(scene, &vc, i, &views[s], &td, p->rc, &sv[s].tess);
             st->rays += sv[s].tess.rays;
         }
     }
@@ -18195,12 +18543,38 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                 }
         }
     /* where the lens images leave texels unheld, the direct images */
-    for (l = 0; l < L && r == REFL_OK &&
-                (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
-         ++l) {
+    for (s = 0; s < per && direct.viewpoint; ++s) {
+        int *rc = direct.rect[s], cx, cy;
+        long long area;
+        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rc);
+        /* twice the lens's rectangle: what its exit rays see past its outline */
+        cx = (rc[0] + rc[2]) / 2, cy = (rc[1] + rc[3]) / 2;
+        rc[0] = REFL__MAX(2 * rc[0] - cx, 0), rc[2] = REFL__MIN(2 * rc[2] - cx, w);
+        rc[1] = REFL__MAX(2 * rc[1] - cy, 0), rc[3] = REFL__MIN(2 * rc[3] - cy, h);
+        /* at most about a ray per texel from each view */
+        area = (long long)(rc[2] - rc[0]) * (rc[3] - rc[1]);
+        direct.stride = REFL__MAX(direct.stride, (int)ceil(sqrt((double)area / (6.0 * face * face))));
+    }
+    for (l = 0; l < L && r == REFL_OK && direct_on; ++l) {
         int added = 0;
-        r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        float *pts = NULL;
+        long long n = 0;
+        if (direct.distance) { /* the lens images' hits in the layer, both terms */
+            pts = (float *)refl__calloc(al, 6 * (size_t)per * np + 1, sizeof(float));
+            if (!pts) r = REFL_ERROR_OUT_OF_MEMORY;
+            for (s = 0; s < per && pts; ++s)
+                for (px = 0; px < np; ++px)
+                    for (term = 0; term < 2; ++term) {
+                        const float *q = sv[s].points + 6 * (size_t)L * px + 3 * (size_t)(term * L + l);
+                        if (!isnan(q[0])) memcpy(pts + 3 * n++, q, 3 * sizeof(float));
+                    }
+        }
+        direct.points = pts;
+        direct.count = n;
+        if (r == REFL_OK)
+            r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, &direct, sys[l], &st->rays, &added);
         st->layered_em.direct_rows += added;
+        refl__free(al, pts);
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
@@ -18348,10 +18722,12 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
         v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
         v[0].width = w;
-        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, c, &h, &p->frame->stats.rays))
+        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i), c, &h,
+                                   &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
     memset(lay, 0, sizeof *lay);
+    lay->own = refl__lem_own(p, i);
     lay->centre = c;
     lay->object_count = scene->object_count;
     ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
@@ -18412,8 +18788,12 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     int on = refl__lem_circle_of(p, i, centre, lens_radius, maps, cc);
     refl__lem_ring *ring = on && cc->ring >= 0 ? &maps->rings[cc->ring] : spare;
     *r = REFL_OK;
+    /* a ring clustered with the other lenses' hits in or out (lens_layers)
+       does not serve the other way */
+    if (ring->lay.layers && ring->lay.own != refl__lem_own(p, i)) ring = spare;
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
+    lay->depth = p->desc.depth;
     return on;
 }
 
@@ -18512,9 +18892,10 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *cast
     /* the frame: tessellated for the eye */
     if (r == REFL_OK) {
         long long tests0 = refl__bvh_tests_counted();
+        refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
         t1 = refl__now_ms();
         pl->frame_tess.allocator = scene->allocator;
-        r = refl__lens_tessellate(scene, casters, i, p->view, &td, p->rc, &pl->frame_tess);
+        r = refl__lens_tessellate(scene, &vc, i, p->view, &td, p->rc, &pl->frame_tess);
         f->stats.layered_em.vertex_tests += refl__bvh_tests_counted() - tests0;
         f->stats.rays += pl->frame_tess.rays;
         f->stats.triangles += pl->frame_tess.triangle_count;
@@ -18677,6 +19058,7 @@ static refl_result refl__lem_casters(refl__pass *p, refl_ray_caster cast[3], ref
     c->scene = &cast[0];
     c->lenses = &cast[1];
     c->others = &cast[2];
+    c->own = -1;
     return r;
 }
 

@@ -186,6 +186,11 @@ refuses "--lem-samples out of range" "lem-samples" "$bin" render --builtin glass
 ok "--lem-shell box --lem-direct 0 renders" "$bin" render --builtin glass --method layered-em --lem-shell box --lem-direct 0 --size 32x24 --out "$tmp/lb.png"
 refuses "--lem-shell of no kind" "lem-shell" "$bin" render --builtin glass --lem-shell cone --out "$tmp/x.png"
 refuses "--lem-direct out of range" "lem-direct" "$bin" render --builtin glass --lem-direct 2 --out "$tmp/x.png"
+ok "--lem-direct-from viewpoint --lem-direct-conf distance renders" "$bin" render --builtin glass --method layered-em --lem-direct-from viewpoint --lem-direct-conf distance --size 32x24 --out "$tmp/ld.png"
+refuses "--lem-direct-from of no place" "lem-direct-from" "$bin" render --builtin glass --lem-direct-from above --out "$tmp/x.png"
+refuses "--lem-direct-conf of no kind" "lem-direct-conf" "$bin" render --builtin glass --lem-direct-conf guess --out "$tmp/x.png"
+ok "--lem-lens-layers 0 renders" "$bin" render --builtin hybrid --method layered-em --lem-lens-layers 0 --size 32x24 --out "$tmp/ll.png"
+refuses "--lem-lens-layers out of range" "lem-lens-layers" "$bin" render --builtin glass --lem-lens-layers 2 --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has

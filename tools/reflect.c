@@ -92,8 +92,17 @@ static const char *const usage_render =
     "  --lem-shell K      LAYERED_EM: every layer's shell, auto (per layer, from its\n"
     "                     hits), sphere, cylinder, box or quad (inner layers; the\n"
     "                     outermost auto's closed kind) (default auto)\n"
-    "  --lem-direct 0|1   LAYERED_EM: direct images from the lens's centre against\n"
+    "  --lem-direct 0|1   LAYERED_EM: direct images (--lem-direct-from) against\n"
     "                     disocclusion, off or on (default on)\n"
+    "  --lem-direct-from F  LAYERED_EM: direct images from the lens's centre, the\n"
+    "                     viewpoint (the sample's views without the lens) or by\n"
+    "                     material (the viewpoint for glass, the centre for mirrors):\n"
+    "                     centre, viewpoint or material (default centre)\n"
+    "  --lem-direct-conf C  LAYERED_EM: a direct image's pixel weighed by how little\n"
+    "                     the lens images' rows cover its texels, or by its hit's\n"
+    "                     distance from theirs: coverage or distance (default coverage)\n"
+    "  --lem-lens-layers 0|1  LAYERED_EM: another lens a lens's path meets, traced\n"
+    "                     (0) or a layer of the lens's environment (1) (default 0)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -185,6 +194,8 @@ typedef struct options {
     float lem_edge;
     int lem_shell;                /* --lem-shell */
     int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
+    int lem_lens_layers;          /* --lem-lens-layers: -1 traced, 1 layers, 0 unset */
+    int lem_direct_from, lem_direct_conf; /* --lem-direct-from, --lem-direct-conf: 0 unset */
     int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
     float graphcam_step;
@@ -242,7 +253,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-direct", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-direct", "--lem-lens-layers", "--lem-direct-from", "--lem-direct-conf", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -352,6 +363,19 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             int on;
             if (!parse_int(v, 0, 1, &on)) return fail("--lem-direct: expected 0 or 1, got %s", v);
             o->lem_direct = on ? 1 : -1;
+        } else if (!strcmp(a, "--lem-direct-from")) {
+            if (!strcmp(v, "centre")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_CENTRE;
+            else if (!strcmp(v, "viewpoint")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_VIEWPOINT;
+            else if (!strcmp(v, "material")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_MATERIAL;
+            else return fail("--lem-direct-from: expected centre, viewpoint or material, got %s", v);
+        } else if (!strcmp(a, "--lem-direct-conf")) {
+            if (!strcmp(v, "coverage")) o->lem_direct_conf = REFL_LEM_DIRECT_COVERAGE;
+            else if (!strcmp(v, "distance")) o->lem_direct_conf = REFL_LEM_DIRECT_DISTANCE;
+            else return fail("--lem-direct-conf: expected coverage or distance, got %s", v);
+        } else if (!strcmp(a, "--lem-lens-layers")) {
+            int on;
+            if (!parse_int(v, 0, 1, &on)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
+            o->lem_lens_layers = on ? 1 : -1;
         } else if (!strcmp(a, "--lem-shell")) {
             if (!strcmp(v, "auto")) o->lem_shell = REFL_LEM_SHELL_AUTO;
             else if (!strcmp(v, "sphere")) o->lem_shell = REFL_LEM_SHELL_SPHERE;
@@ -776,6 +800,9 @@ static int cmd_render(const options *o) {
     d.layered_em.edge_px = o->lem_edge;
     d.layered_em.shell = o->lem_shell;
     d.layered_em.direct_images = o->lem_direct;
+    d.layered_em.lens_layers = o->lem_lens_layers;
+    d.layered_em.direct_from = o->lem_direct_from;
+    d.layered_em.direct_confidence = o->lem_direct_conf;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

@@ -20,7 +20,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -50,7 +50,8 @@ static const char *const usage_bench =
     "scene (LAYERED_EM's phases, rays and triangle tests at 640x480 3x3\n"
     "subsampled, t = 3 and 5, against greedy RAYTRACE; DIR/lem_table.{csv,md}),\n"
     "and with --only lem-sweeps LAYERED_EM's stability sweeps at 160x120\n"
-    "(DIR/lem_sweeps.{csv,md,png}).\n"
+    "(DIR/lem_sweeps.{csv,md,png}), with --only lem-options its options beyond\n"
+    "the defaults on hybrid and glass (DIR/lem_options.md).\n"
     "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
@@ -60,7 +61,8 @@ static const char *const usage_bench =
     "                sweep), the camera path (path), the maze (graphcam) or\n"
     "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
     "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
-    "                (lem) or its stability sweeps (lem-sweeps)\n"
+    "                (lem), its stability sweeps (lem-sweeps) or its options\n"
+    "                (lem-options)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -71,7 +73,8 @@ static const char *const usage_bench =
     "                heat maps, the worst frames along camera paths, cost growth and\n"
     "                time by phase; 320x240, every built-in scene)\n"
     "  --quick       with --report: two scenes at 64x48, few settings, one run each;\n"
-    "                with --only lem: 160x120 instead of 640x480\n";
+    "                with --only lem: 160x120 instead of 640x480; with --only\n"
+    "                lem-options: 160x120 alone\n";
 
 typedef struct bench_opts {
     int full, repeats, threads, depth;
@@ -534,6 +537,10 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the LAYERED_EM table failed\n");
         return 0;
     }
+    if (!strcmp(o->only, "lem-options") && !refl_bench_lem_options(o->out, o->threads, o->quick)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM options failed\n");
+        return 0;
+    }
     if (!strcmp(o->only, "lem-sweeps") && !refl_bench_lem_sweeps(o->out, o->threads)) {
         fprintf(stderr, "reflect bench: the LAYERED_EM sweeps failed\n");
         return 0;
@@ -567,9 +574,10 @@ int refl_cli_bench(int argc, char **argv) {
             o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
-                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps")) {
-                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem or "
-                                "lem-sweeps, not '%s'\n", v);
+                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps") &&
+                strcmp(v, "lem-options")) {
+                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, "
+                                "lem-sweeps or lem-options, not '%s'\n", v);
                 return 2;
             }
             snprintf(o.only, sizeof o.only, "%s", v);
@@ -595,8 +603,8 @@ int refl_cli_bench(int argc, char **argv) {
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
     if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
-    if (o.quick && strcmp(o.only, "lem")) {
-        fprintf(stderr, "reflect bench: --quick goes with --report or --only lem\n");
+    if (o.quick && strcmp(o.only, "lem") && strcmp(o.only, "lem-options")) {
+        fprintf(stderr, "reflect bench: --quick goes with --report, --only lem or --only lem-options\n");
         return 2;
     }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {

@@ -94,6 +94,13 @@ int refl_bench_lem(const char *dir, int threads, int quick);
    dir/lem_sweeps.{csv,md,png}; 0 on failure or a non-finite pixel. */
 int refl_bench_lem_sweeps(const char *dir, int threads);
 
+/* LAYERED_EM's options beyond the defaults measured (tools/reflect_bench_lem.c):
+   the other lens as a layer (lens_layers) and the direct images' origin and
+   confidence, on `hybrid` and `glass` at 160x120 and 320x240 (quick: 160x120),
+   against greedy RAYTRACE over the lens pixels and over those the defaults
+   trace; dir/lem_options.md; 0 on failure or a non-finite pixel. */
+int refl_bench_lem_options(const char *dir, int threads, int quick);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

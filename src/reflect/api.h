@@ -1769,11 +1769,39 @@ typedef struct refl_layered_em_options {
                                 direction and lie nearest a plane. QUAD: every inner layer a
                                 quad, the outermost AUTO's closed kind */
     int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
-                                from the lens's centre towards every texel, weighed by how
-                                little the lens images hold it. 1: on, -1: off, 0: the default
+                                of the environment without the lens (direct_from), weighed by
+                                how little the lens images hold what they see
+                                (direct_confidence). 1: on, -1: off, 0: the default
                                 (REFL_LEM_DIRECT_DEFAULT) */
+    int lens_layers;         /* another lens a lens's path meets: 1 (paper 001 section 6) a surface of
+                                the lens's environment like any other, its records the colour the
+                                greedy tracer sees of it, so its paths end where they leave the lens
+                                and look the other lens up in a layer; -1 the paths cross the whole
+                                lens system and a vertex whose path leaves through the other lens
+                                has no lookup (its pixels are traced); 0 the default
+                                (REFL_LEM_LENS_LAYERS_DEFAULT) */
+    int direct_from;         /* where the direct images look from, refl_lem_direct_from; 0: the
+                                default (REFL_LEM_DIRECT_FROM_DEFAULT) */
+    int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
+                                0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
 } refl_layered_em_options;
+typedef enum refl_lem_direct_from {
+    REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
+    REFL_LEM_DIRECT_FROM_VIEWPOINT = 2, /* the sample's views without the lens (paper 001: better
+                                           for refractive lenses) */
+    REFL_LEM_DIRECT_FROM_MATERIAL = 3   /* the paper's rule: the viewpoint for glass, the centre
+                                           for mirrors */
+} refl_lem_direct_from;
+typedef enum refl_lem_direct_confidence {
+    REFL_LEM_DIRECT_COVERAGE = 1,       /* 1 minus the texels' coverage by the lens images' rows */
+    REFL_LEM_DIRECT_DISTANCE = 2        /* paper 001: by the distance of the ray's hit from the
+                                           nearest of the lens images' hits */
+} refl_lem_direct_confidence;
+/* the centre by coverage: they measure best (docs/methods/layered_em.md, "Direct images") */
+enum { REFL_LEM_DIRECT_FROM_DEFAULT = REFL_LEM_DIRECT_FROM_CENTRE,
+       REFL_LEM_DIRECT_CONFIDENCE_DEFAULT = REFL_LEM_DIRECT_COVERAGE };
 enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
+enum { REFL_LEM_LENS_LAYERS_DEFAULT = -1 }; /* traced: it measures better (docs/methods/layered_em.md, "Lens to lens") */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

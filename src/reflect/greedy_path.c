@@ -29,6 +29,8 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
     return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
 }
 
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
+
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -41,17 +43,25 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
 static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, refl_vec3 o, refl_vec3 d,
                          int skip_object, int skip_triangle, refl__gp_hit *h, long long *rays) {
     refl_hit hit;
-    const refl_object *obj;
-    refl_mat4 nm;
-    refl__hit_geom g;
-    int k;
     if (rays) ++*rays;
     if (c->lenses && c->others) {
         if (!refl__gp_closest(c->lenses, o, d, skip_object, skip_triangle, &hit)) return 0;
+        if (c->own >= 0 && hit.object != c->own) return 0; /* leaves own: the rest is its environment */
         if (refl__caster_blocked(c->others, o, d, hit.t)) return 0;
     } else if (!refl__gp_closest(c->scene, o, d, skip_object, skip_triangle, &hit)) {
         return 0;
     }
+    if (c->own >= 0 && hit.object != c->own) return 0;
+    return refl__gp_hit_of(scene, &hit, h);
+}
+
+/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit_in, refl__gp_hit *h) {
+    refl_hit hit = *hit_in;
+    const refl_object *obj;
+    refl_mat4 nm;
+    refl__hit_geom g;
+    int k;
     if (hit.object < 0 || hit.object >= scene->object_count) return 0;
     obj = &scene->objects[hit.object];
     if (!refl__is_reflector(&scene->materials[obj->material])) return 0;
@@ -194,16 +204,43 @@ static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy
     out->reflect.fresnel = out->refract.fresnel = 0.0f;
 }
 
+static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
+                                    refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays) {
+    refl__gp_casters first = *casters;
+    refl__gp_hit h;
+    refl__greedy_paths_none(origin, dir, out);
+    first.own = -1; /* the eye ray meets any lens first */
+    if (!refl__gp_cast(scene, &first, origin, dir, -1, -1, &h, rays)) return;
+    refl__greedy_paths_from(scene, casters, dir, &h, max_interfaces, out, rays);
+}
+
+static void refl__greedy_path_on(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                 const refl_hit *hit, int max_interfaces, refl_greedy_path *path, long long *rays) {
+    refl__gp_casters c;
+    refl__gp_hit h;
+    refl__gp_children ch;
+    refl_vec3 o, d;
+    refl__gp_start(path, refl_v3(0.0f, 0.0f, 0.0f), dir);
+    c.scene = caster;
+    c.lenses = c.others = NULL;
+    c.own = -1;
+    if (max_interfaces <= 0 || !refl__gp_hit_of(scene, hit, &h)) return;
+    max_interfaces = REFL__MIN(max_interfaces, REFL_GREEDY_MAX_INTERFACES);
+    refl__gp_interface(&h, dir, &ch);
+    refl__gp_take(path, &h, &ch, !ch.refracts || ch.f >= 1.0f - ch.f, &o, &d);
+    refl__gp_follow(scene, &c, path, o, d, h, max_interfaces, rays);
+}
+
 REFL_API void refl_greedy_paths(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 origin,
                                 refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
                                 long long *rays) {
     refl__gp_casters c;
-    refl__gp_hit h;
     if (!out) return;
     refl__greedy_paths_none(origin, dir, out);
     if (!scene || !caster || !caster->intersect || !refl__v3_finite(origin) || !refl__v3_finite(dir)) return;
     c.scene = caster;
     c.lenses = c.others = NULL;
-    if (!refl__gp_cast(scene, &c, origin, dir, -1, -1, &h, rays)) return;
-    refl__greedy_paths_from(scene, &c, dir, &h, max_interfaces, out, rays);
+    c.own = -1;
+    refl__greedy_paths_cast(scene, &c, origin, dir, max_interfaces, out, rays);
 }

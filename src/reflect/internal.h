@@ -556,9 +556,14 @@ typedef struct refl__gp_hit {
    split (both or neither; refl__lem_split), lenses over the scene's lens
    objects alone and others over the rest (the scene's object indices):
    then a path's rays are cast at the lenses, and the rest asked only
-   whether it blocks the way to the lens surface met (any hit). */
+   whether it blocks the way to the lens surface met (any hit). own >= 0:
+   a path ends where it leaves lens object own, another lens met next
+   being part of own's environment (paper 001's "other lens as a layer",
+   refl_layered_em_options.lens_layers); -1: paths cross the whole lens
+   system. */
 typedef struct refl__gp_casters {
     const refl_ray_caster *scene, *lenses, *others;
+    int own;
 } refl__gp_casters;
 /* Whether caster c has anything on o + t d, 0 < t < tmax (any hit). */
 static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3 d, float tmax);
@@ -568,6 +573,18 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_cast
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+/* refl_greedy_paths through casters: the eye ray's first lens, then its
+   paths as casters->own says. */
+static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
+                                    refl_vec3 dir, int max_interfaces, refl_greedy_paths_result *out,
+                                    long long *rays);
+/* The one greedy path (the child of the larger coefficient at every
+   interface, the first included) of a ray along unit dir whose closest
+   hit `hit` is on a lens object, through the whole lens system of
+   casters->scene, at most max_interfaces interfaces: what the greedy
+   tracer follows past a lens met beyond another lens's exit. */
+static void refl__greedy_path_on(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 dir,
+                                 const refl_hit *hit, int max_interfaces, refl_greedy_path *path, long long *rays);
 
 /* ---- paper 001's tessellation and inferred maps (lens_tess.c, lem_infer.c) ---- */
 
@@ -586,6 +603,11 @@ typedef struct refl__lem_layering {
     refl_vec3 centre;
     const signed char *object_layer;
     int object_count;
+    /* the lens object whose environment this is where the other lenses
+       are layers of it (refl_layered_em_options.lens_layers; a pass's,
+       refl__lem_ring_of), else -1; and the pass's depth (greedy paths
+       beyond it) */
+    int own, depth;
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
@@ -616,24 +638,42 @@ static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
    their share; the outermost layer opaque, the environment where nothing
    of it was met) and the term's confidence (-1: no subsample has the term)
-   in out[5 (term layers + l) ...]. */
+   in out[5 (term layers + l) ...]; points (may be NULL): per term and
+   layer the first subsample's hit in the layer (NaN: none) in
+   points[3 (term layers + l) ...], for the direct images' distance
+   confidence. */
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
-                                   long long *rays);
+                                   const refl__lem_layering *lay, float *out, float *points,
+                                   refl_greedy_paths_result *centre_paths, long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays);
-/* Section 4.3's direct images of the environment without the lens, from
-   its centre (lay->centre), as rows of layer `layer`'s system: one ray
-   towards every texel's point on the shell, its target the ray's first
-   hit in the layer (continued through the rest; alpha 0 where none, the
-   environment on the outermost layer), its confidence the share of the
-   texels the lens images' rows (already in sys) leave unheld: 1 minus
-   their coverage (the sum of their rows' weights), so the direct images
-   fill in only what the lens images miss. *added counts the rows. */
+                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
+                                 long long *rays);
+/* Section 4.3's direct images of the environment without the lens: how
+   a map's are taken. From the lens's centre (lay->centre) one ray towards
+   every texel's point on the shell; from the viewpoint, each pixel (every
+   stride-th) of rect[s] (x0, y0, x1, y1) of the sample's views[s], the
+   lens left out, its ray taken from its point nearest the centre on (it
+   looks the shell up as an exit ray through the lens would). The
+   confidence: 1 minus the texels' coverage by the lens images' rows
+   (already in the system), or (distance) by the distance of the ray's
+   hit from the nearest of the lens images' hits in the layer (points,
+   3 per hit), the paper's. */
+typedef struct refl__lem_direct {
+    int viewpoint, distance;
+    const refl_view *views;
+    int per, stride, rect[3][4];
+    const float *points;
+    long long count;
+} refl__lem_direct;
+/* Layer `layer`'s direct images (how) as rows of its system: per ray its
+   lookup on the shell, its target the ray's first hit in the layer
+   (continued through the rest; alpha 0 where none, the environment on
+   the outermost layer). *added counts the rows. */
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
-                                         refl_lem_system *sys, long long *rays, int *added);
+                                         const refl__lem_direct *how, refl_lem_system *sys, long long *rays,
+                                         int *added);
 /* The world point on the shell whose index points along q (lem_infer.c),
    0 where none (a quad's other faces). */
 static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec3 *p);

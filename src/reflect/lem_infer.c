@@ -704,32 +704,72 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
 /* ---- records of a viewpoint sample --------------------------------------------- */
 
 
+static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
+                               refl_vec3 centre, int own, int depth, refl__lem_hit *hits, int max, long long *rays);
+
+/* The interfaces a greedy path may still meet past path (NULL: none yet)
+   under the pass's depth (0: REFL_GREEDY_MAX_INTERFACES). */
+static int refl__lem_depth_left(int depth, const refl_greedy_path *path) {
+    int all = depth > 0 ? REFL__MIN(depth, REFL_GREEDY_MAX_INTERFACES) : REFL_GREEDY_MAX_INTERFACES;
+    return all - (path ? path->length : 0);
+}
+
+/* The colour of lens `hit` (another lens than the one whose environment
+   it is) seen along unit d, as the greedy tracer shows it: its one
+   greedy path on (depth interfaces at most; black where it ends inside),
+   F G times what its exit ray meets first, shaded as the records shade
+   (refl__lem_exit_hits). */
+static void refl__lem_lens_colour(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 d,
+                                  const refl_hit *hit, int depth, float rgb[3], long long *rays) {
+    refl_greedy_path path;
+    refl__lem_hit end;
+    float seen[3];
+    int c;
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    refl__greedy_path_on(scene, caster, d, hit, depth, &path, rays);
+    if (!path.exited) return;
+    if (refl__lem_exit_hits(scene, caster, path.exit_origin, path.exit_direction, path.exit_origin, -1, 0, &end, 1,
+                            rays) == 1) {
+        memcpy(seen, end.rgb, sizeof seen);
+    } else {
+        refl_environment_lookup(&scene->environment, path.exit_direction, seen);
+        for (c = 0; c < 3; ++c) seen[c] = REFL__RADIANCE(seen[c]);
+    }
+    for (c = 0; c < 3; ++c) rgb[c] = REFL__RADIANCE(path.fresnel * path.attenuation[c] * seen[c]);
+}
+
 /* Every surface an exit ray meets past the lens, continued through them
    (section 4.1, Figure 4c; the back of an object the ray entered is not
-   one, an open shell's inside is): up to REFL__LEM_MAX_HITS, nearest
-   first, each shaded as RAYTRACE shades a diffuse surface without shadows.
-   Lens objects are passed through (the ray's own lens met again, or a
-   mirror or glass beyond, whose own paths the tracer would follow).
-   Returns the count. */
+   one, an open shell's inside is): up to max (at most
+   REFL__LEM_MAX_HITS), nearest first, each shaded as RAYTRACE shades a
+   diffuse surface without shadows. Lens objects are passed through where
+   own < 0 (the ray's own lens met again, or a mirror or glass beyond,
+   whose own paths the tracer would follow); with own >= 0 only own is,
+   and another lens is a surface of own's environment like any other,
+   its colour what the greedy tracer sees of it along the ray
+   (refl__lem_lens_colour, depth interfaces on). Returns the count. */
 static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *caster, refl_vec3 o, refl_vec3 d,
-                               refl_vec3 centre, refl__lem_hit *hits, long long *rays) {
+                               refl_vec3 centre, int own, int depth, refl__lem_hit *hits, int max, long long *rays) {
     refl_hit h;
     float tmin = 0.0f;
     int tries, k, n = 0;
     ++*rays;
-    for (tries = 0; tries < 4 * REFL__LEM_MAX_HITS && n < REFL__LEM_MAX_HITS; ++tries) {
+    max = REFL__MIN(max, REFL__LEM_MAX_HITS);
+    for (tries = 0; tries < 4 * REFL__LEM_MAX_HITS && n < max; ++tries) {
         const refl_object *obj;
         const refl_mesh *m;
         const refl_material *mat;
         refl_mat4 nm;
         refl__hit_geom g;
         float uv[2] = {0.0f, 0.0f};
+        int lens;
         if (!caster->intersect(caster->user, o, d, tmin, FLT_MAX, &h) || h.object < 0 || h.object >= scene->object_count)
             break;
         tmin = h.t;
         obj = &scene->objects[h.object];
         mat = &scene->materials[obj->material];
-        if (refl__is_reflector(mat)) continue;
+        lens = refl__is_reflector(mat);
+        if (lens && (own < 0 || h.object == own)) continue;
         m = scene->meshes[obj->mesh];
         nm = refl__normal_matrix(obj->transform);
         refl__hit_surface(m, &obj->transform, &nm, &h, &g);
@@ -738,15 +778,19 @@ static int refl__lem_exit_hits(const refl_scene *scene, const refl_ray_caster *c
             }
             if (k < n) continue;
         }
-        if (m->texcoords) {
-            const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
-            for (k = 0; k < 3; ++k) {
-                uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
-                uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+        if (lens) {
+            refl__lem_lens_colour(scene, caster, d, &h, depth, hits[n].rgb, rays);
+        } else {
+            if (m->texcoords) {
+                const uint32_t *tri = m->indices + 3 * (size_t)h.triangle;
+                for (k = 0; k < 3; ++k) {
+                    uv[0] += g.w[k] * m->texcoords[2 * (size_t)tri[k]];
+                    uv[1] += g.w[k] * m->texcoords[2 * (size_t)tri[k] + 1];
+                }
             }
+            refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
+            for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         }
-        refl_shade_diffuse(scene, mat, g.p, g.ns, m->texcoords ? uv : NULL, hits[n].rgb);
-        for (k = 0; k < 3; ++k) hits[n].rgb[k] = REFL__RADIANCE(hits[n].rgb[k]);
         hits[n].distance = refl_v3_length(refl_v3_sub(g.p, centre));
         hits[n].position = g.p;
         hits[n].object = h.object;
@@ -767,29 +811,35 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
 
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
-                                   const refl__lem_layering *lay, float *out, refl_greedy_paths_result *centre_paths,
-                                   long long *rays) {
+                                   const refl__lem_layering *lay, float *out, float *points,
+                                   refl_greedy_paths_result *centre_paths, long long *rays) {
     refl_vec3 dirs[2][REFL__LEM_MAX_SS * REFL__LEM_MAX_SS], o, d;
     refl_greedy_paths_result sub;
     refl__lem_hit hits[REFL__LEM_MAX_HITS];
     float sum[2][REFL_LEM_MAX_LAYERS][3], tmax;
     int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers;
+    refl__gp_casters paths;
+    paths.scene = caster;
+    paths.lenses = paths.others = NULL;
+    paths.own = lay->own;
     refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-    refl_greedy_paths(scene, caster, o, d, max_interfaces, centre_paths, rays);
+    refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, centre_paths, rays);
     if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    for (k = 0; points && k < 6 * L; ++k) points[k] = NAN;
     memset(sum, 0, sizeof sum);
     memset(seen, 0, sizeof seen);
     for (j = 0; j < ss; ++j)
         for (i = 0; i < ss; ++i) {
             refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
                                 (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
-            refl_greedy_paths(scene, caster, o, d, max_interfaces, &sub, rays);
+            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &sub, rays);
             if (sub.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
                 int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
                 if (!(sp->fresnel > 0.0f) || !sp->exited) continue;
-                nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, hits, rays);
+                nh = refl__lem_exit_hits(scene, caster, sp->exit_origin, sp->exit_direction, lay->centre, lay->own,
+                                         refl__lem_depth_left(max_interfaces, sp), hits, REFL__LEM_MAX_HITS, rays);
                 memset(got, 0, sizeof got);
                 /* each layer takes the ray's first hit in it (section 4.3)
                    that no nearer hit of a later layer hides: the runtime
@@ -802,6 +852,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                     deepest = l;
                     if (got[l]) continue;
                     got[l] = 1;
+                    if (points && isnan(points[3 * (term * L + l)]))
+                        memcpy(points + 3 * (term * L + l), &hits[k].position, 3 * sizeof(float));
                     ++seen[term][l];
                     for (c = 0; c < 3; ++c) sum[term][l][c] += hits[k].rgb[c];
                 }
@@ -870,52 +922,189 @@ static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec
     return 1;
 }
 
+/* The nearest of a layer's record hits, for the distance confidence: the
+   hits hashed into cubes of side cell, sorted by cube. */
+typedef struct refl__lem_near {
+    float cell;
+    long long count;
+    uint64_t *key;               /* 2 per hit: cube, then the hit's index in pos */
+    const float *pos;
+} refl__lem_near;
+
+static uint64_t refl__lem_cube(const refl__lem_near *g, const float *p, int dx, int dy, int dz) {
+    /* 21 bits an axis, wrapped: cubes far apart may share a key, which
+       only adds candidates whose true distance is measured */
+    uint64_t x = (uint64_t)((long long)floorf(p[0] / g->cell) + dx) & 0x1fffff;
+    uint64_t y = (uint64_t)((long long)floorf(p[1] / g->cell) + dy) & 0x1fffff;
+    uint64_t z = (uint64_t)((long long)floorf(p[2] / g->cell) + dz) & 0x1fffff;
+    return x << 42 | y << 21 | z;
+}
+
+static int refl__lem_cmp_u64x2(const void *a, const void *b) {
+    const uint64_t *x = (const uint64_t *)a, *y = (const uint64_t *)b;
+    return x[0] != y[0] ? (x[0] > y[0]) - (x[0] < y[0]) : (x[1] > y[1]) - (x[1] < y[1]);
+}
+
+/* 0 when out of memory. */
+static int refl__lem_near_build(refl__lem_near *g, const float *pos, long long count, float cell,
+                                const refl_allocator *al) {
+    long long k;
+    memset(g, 0, sizeof *g);
+    g->cell = cell;
+    g->pos = pos;
+    if (count <= 0 || !(cell > 0.0f)) return 1;
+    g->key = (uint64_t *)refl__calloc(al, 2 * (size_t)count, sizeof(uint64_t));
+    if (!g->key) return 0;
+    g->count = count;
+    for (k = 0; k < count; ++k) {
+        g->key[2 * k] = refl__lem_cube(g, pos + 3 * k, 0, 0, 0);
+        g->key[2 * k + 1] = (uint64_t)k;
+    }
+    qsort(g->key, (size_t)count, 2 * sizeof(uint64_t), refl__lem_cmp_u64x2);
+    return 1;
+}
+
+/* The distance from p to the nearest hit, at most g->cell. */
+static float refl__lem_near_distance(const refl__lem_near *g, const float *p) {
+    double best = (double)g->cell * g->cell;
+    int dx, dy, dz;
+    for (dz = -1; dz <= 1; ++dz)
+        for (dy = -1; dy <= 1; ++dy)
+            for (dx = -1; dx <= 1; ++dx) {
+                uint64_t want = refl__lem_cube(g, p, dx, dy, dz);
+                long long lo = 0, hi = g->count;
+                while (lo < hi) { /* the first of the cube's hits */
+                    long long mid = (lo + hi) / 2;
+                    if (g->key[2 * mid] < want) lo = mid + 1;
+                    else hi = mid;
+                }
+                for (; lo < g->count && g->key[2 * lo] == want; ++lo) {
+                    const float *q = g->pos + 3 * g->key[2 * lo + 1];
+                    double ex = (double)p[0] - q[0], ey = (double)p[1] - q[1], ez = (double)p[2] - q[2];
+                    best = REFL__MIN(best, ex * ex + ey * ey + ez * ez);
+                }
+            }
+    return (float)sqrt(best);
+}
+
+/* Layer `layer`'s direct-image target along the ray (o, d), continued as
+   the records' exit rays are: its first hit in the layer that no nearer
+   hit of a later layer hides, at *at; 0 where none (target alpha 0; the
+   environment on the outermost layer, *at unset). */
+static int refl__lem_direct_target(const refl_scene *scene, const refl_ray_caster *caster,
+                                   const refl__lem_layering *lay, int layer, refl_vec3 o, refl_vec3 d,
+                                   float target[4], refl_vec3 *at, long long *rays) {
+    refl__lem_hit hits[REFL__LEM_MAX_HITS];
+    int nh, k, deepest, hl;
+    target[0] = target[1] = target[2] = target[3] = 0.0f;
+    nh = refl__lem_exit_hits(scene, caster, o, d, lay->centre, lay->own, refl__lem_depth_left(lay->depth, NULL), hits,
+                             REFL__LEM_MAX_HITS, rays);
+    for (k = 0, deepest = 0; k < nh && deepest <= layer; ++k) {
+        hl = refl__lem_hit_layer(lay, &hits[k]);
+        deepest = REFL__MAX(deepest, hl);
+        if (hl == layer && deepest == layer) {
+            memcpy(target, hits[k].rgb, 3 * sizeof(float));
+            target[3] = 1.0f;
+            *at = hits[k].position;
+            return 1;
+        }
+    }
+    if (layer == lay->layers - 1) { /* the outermost layer is opaque: the environment past everything */
+        float rgb[3];
+        refl_environment_lookup(&scene->environment, d, rgb);
+        for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
+        target[3] = 1.0f;
+    }
+    return 0;
+}
+
+/* One direct-image row: the ray (o, d)'s lookup on the shell, its target
+   (refl__lem_direct_target) weighed by how likely the lens images miss
+   it: 1 minus the texels' coverage by their rows (cov), or by the
+   distance of its hit from the nearest of their hits in the layer
+   (near: (distance / cell)^2, 1 from a cell on; a ray that meets nothing
+   in an inner layer adds nothing, one on the outermost layer is measured
+   from its point on the shell). */
+static refl_result refl__lem_direct_row(const refl_scene *scene, const refl_ray_caster *caster,
+                                        const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
+                                        const float *cov, const refl__lem_near *near, refl_vec3 o, refl_vec3 d,
+                                        refl_lem_system *sys, long long *rays, int *added) {
+    refl_vec3 index, at;
+    uint32_t tex[4];
+    float w[4], target[4], held = 0.0f, conf = 1.0f;
+    int k, got;
+    refl_result r;
+    if (!refl_lem_shell_index(shell, o, d, &index) || !refl_lem_shell_texels(shell, index, tex, w)) return REFL_OK;
+    if (!near) {
+        for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
+        conf = 1.0f - REFL__MIN(held, 1.0f);
+        if (!(conf > 0.0f)) return REFL_OK; /* the lens images hold it */
+    }
+    got = refl__lem_direct_target(scene, caster, lay, layer, o, d, target, &at, rays);
+    if (near) {
+        float f;
+        if (!got && (layer < lay->layers - 1 || !refl__lem_shell_point(shell, index, &at))) return REFL_OK;
+        f = near->count ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
+        conf = f * f;
+    }
+    r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
+    if (r == REFL_OK && conf > 0.0f) ++*added;
+    return r;
+}
+
 static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray_caster *caster,
                                          const refl__lem_layering *lay, const refl_lem_shell *shell, int layer,
-                                         refl_lem_system *sys, long long *rays, int *added) {
+                                         const refl__lem_direct *how, refl_lem_system *sys, long long *rays,
+                                         int *added) {
     const refl_allocator *a = &sys->allocator;
-    int n = shell->face_size, face, x, y, k, last = layer == lay->layers - 1;
-    float *cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+    int n = shell->face_size, face, x, y, s;
+    float *cov = NULL;
+    refl__lem_near near;
     long long e;
     refl_result r = REFL_OK;
-    if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
-    /* how much of each texel the lens images' rows already hold */
-    for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
-    for (face = 0; face < 6 && r == REFL_OK; ++face)
-        for (y = 0; y < n && r == REFL_OK; ++y)
-            for (x = 0; x < n && r == REFL_OK; ++x) {
-                refl__lem_hit hits[REFL__LEM_MAX_HITS];
-                refl_vec3 p, d;
-                uint32_t tex[4];
-                float w[4], target[4] = {0.0f, 0.0f, 0.0f, 0.0f}, held = 0.0f, conf;
-                int nh, got = 0, deepest;
-                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
-                d = refl_v3_normalize(refl_v3_sub(p, lay->centre));
-                if (!refl_lem_shell_lookup(shell, lay->centre, d, tex, w)) continue;
-                for (k = 0; k < 4; ++k) held += w[k] * cov[tex[k]];
-                conf = 1.0f - REFL__MIN(held, 1.0f);
-                if (!(conf > 0.0f)) continue; /* the lens images hold it */
-                nh = refl__lem_exit_hits(scene, caster, lay->centre, d, lay->centre, hits, rays);
-                /* the first hit in the layer, unless a later layer's hides it (as the records) */
-                for (k = 0, deepest = 0; k < nh && !got && deepest <= layer; ++k) {
-                    int hl = refl__lem_hit_layer(lay, &hits[k]);
-                    deepest = REFL__MAX(deepest, hl);
-                    if (hl == layer && deepest == layer) {
-                        target[0] = hits[k].rgb[0], target[1] = hits[k].rgb[1], target[2] = hits[k].rgb[2];
-                        target[3] = 1.0f;
-                        got = 1;
-                    }
+    memset(&near, 0, sizeof near);
+    if (how->distance) {
+        /* a quarter of a texel's side at the layer's mean distance (2 r / n
+           at a face's centre): no farther than that from a lens image's
+           hit, a point is held by less (of two texels: worse than the
+           coverage on `hybrid` and `glass`, docs/methods/layered_em.md) */
+        float cell = 0.5f * REFL__MAX(shell->radius, 1e-6f) / (float)REFL__MAX(n, 1);
+        if (!refl__lem_near_build(&near, how->points, how->count, cell, a)) return REFL_ERROR_OUT_OF_MEMORY;
+    } else {
+        /* how much of each texel the lens images' rows already hold */
+        cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+        if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
+        for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    }
+    if (!how->viewpoint) /* from the lens's centre towards every texel's point on the shell */
+        for (face = 0; face < 6 && r == REFL_OK; ++face)
+            for (y = 0; y < n && r == REFL_OK; ++y)
+                for (x = 0; x < n && r == REFL_OK; ++x) {
+                    refl_vec3 p;
+                    if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                    r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov, how->distance ? &near : NULL,
+                                             lay->centre, refl_v3_normalize(refl_v3_sub(p, lay->centre)), sys, rays,
+                                             added);
                 }
-                if (!got && last) { /* the outermost layer is opaque: the environment past everything */
-                    float rgb[3];
-                    refl_environment_lookup(&scene->environment, d, rgb);
-                    for (k = 0; k < 3; ++k) target[k] = REFL__RADIANCE(rgb[k]);
-                    target[3] = 1.0f;
-                }
-                r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
-                if (r == REFL_OK) ++*added;
+    for (s = 0; how->viewpoint && s < how->per && r == REFL_OK; ++s) {
+        /* from the sample's views, the lens left out: each pixel's ray
+           from its point nearest the lens's centre on */
+        const int *rect = how->rect[s];
+        refl__view_rays vr;
+        refl__view_rays_init(&vr, &how->views[s], scene);
+        for (y = rect[1]; y < rect[3] && r == REFL_OK; y += how->stride)
+            for (x = rect[0]; x < rect[2] && r == REFL_OK; x += how->stride) {
+                refl_vec3 o, d;
+                float tmax, t;
+                refl__view_rays_get(&vr, (float)x + 0.5f * how->stride, (float)y + 0.5f * how->stride, &o, &d, &tmax);
+                t = refl_v3_dot(refl_v3_sub(lay->centre, o), d) / refl_v3_dot(d, d);
+                if (!(t > 0.0f)) continue;
+                r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov, how->distance ? &near : NULL,
+                                         refl_v3_add(o, refl_v3_scale(d, t)), d, sys, rays, added);
             }
+    }
     refl__free(a, cov);
+    refl__free(a, near.key);
     return r;
 }
 
@@ -1060,9 +1249,14 @@ static void refl__lem_hits_free(refl__lem_hits *h) {
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
    the clustering: appended to the arrays of *h. 0 when out of memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, refl_vec3 centre, refl__lem_hits *h, long long *rays) {
+                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
+                                 long long *rays) {
     refl__view_rays vr;
+    refl__gp_casters paths;
     int x, y, term, k;
+    paths.scene = caster;
+    paths.lenses = paths.others = NULL;
+    paths.own = own;
     refl__view_rays_init(&vr, view, scene);
     for (y = 0; y < view->height; ++y)
         for (x = 0; x < view->width; ++x) {
@@ -1070,14 +1264,15 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
             refl_vec3 o, d;
             float tmax;
             refl__view_rays_get(&vr, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            refl_greedy_paths(scene, caster, o, d, max_interfaces, &g, rays);
+            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &g, rays);
             if (g.terms == 0 || g.object != object) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *p = term ? &g.refract : &g.reflect;
                 refl__lem_hit hits[REFL__LEM_MAX_HITS];
                 int n;
                 if (!(p->fresnel > 0.0f) || !p->exited) continue;
-                n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, hits, rays);
+                n = refl__lem_exit_hits(scene, caster, p->exit_origin, p->exit_direction, centre, own,
+                                        refl__lem_depth_left(max_interfaces, p), hits, REFL__LEM_MAX_HITS, rays);
                 for (k = 0; k < n; ++k) {
                     if (h->count == h->cap && !refl__lem_hits_grow(h)) return 0;
                     h->distance[h->count] = hits[k].distance;
@@ -1117,6 +1312,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
     ss = desc->supersample > 0 ? REFL__MIN(desc->supersample, REFL__LEM_MAX_SS) : 3;
     refl__view_rays_init(&rays, view, scene);
     memset(&one, 0, sizeof one);
+    one.own = -1;
     one.layers = 1;
     one.radius[0] = shell->radius;
     one.shell[0] = *shell;
@@ -1126,7 +1322,7 @@ REFL_API refl_result refl_lem_record_view(refl_lem_system *system, const refl_sc
             refl_greedy_paths_result centre;
             float rec[10];
             if (!refl__lem_pixel_records(scene, caster, &rays, x, y, desc->object, ss, desc->theta_c_degrees,
-                                         desc->max_interfaces, &one, rec, &centre, &st.rays))
+                                         desc->max_interfaces, &one, rec, NULL, &centre, &st.rays))
                 continue;
             ++st.pixels;
             for (term = 0; term < 2 && r == REFL_OK; ++term) {

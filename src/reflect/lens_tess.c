@@ -520,6 +520,7 @@ REFL_API refl_result refl_lens_tessellate(const refl_scene *scene, const refl_ra
     }
     casters.scene = caster;
     casters.lenses = NULL;
+    casters.own = -1;
     r = refl__lens_tessellate(scene, &casters, object, view, desc, rc, t);
     rast_context_destroy(rc);
     if (r != REFL_OK) {

@@ -63,7 +63,26 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
+    if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
+    if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
+        return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
+    if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
+        return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
     return NULL;
+}
+
+/* The lens whose paths end where they leave it (lens_layers on: i, the
+   other lenses layers of its environment), else -1. */
+static int refl__lem_own(const refl__pass *p, int i) {
+    int on = p->desc.layered_em.lens_layers;
+    return on > 0 || (on == 0 && REFL_LEM_LENS_LAYERS_DEFAULT > 0) ? i : -1;
+}
+
+/* The casters of lens i's vertex paths (refl__lem_own). */
+static refl__gp_casters refl__lem_vertex_casters(const refl__pass *p, const refl__gp_casters *c, int i) {
+    refl__gp_casters own = *c;
+    own.own = refl__lem_own(p, i);
+    return own;
 }
 
 /* What one draw of the lens shares: the layers' shells, the maps it looks
@@ -269,6 +288,7 @@ typedef struct refl__lem_records {
     const refl__lem_layering *lay;
     int rect[4];                 /* x0, y0, x1, y1: the pixels the lens's bounds may cover */
     float *rec;                  /* 10 layers per pixel; confidence -1 where none */
+    float *points;               /* NULL, or 6 layers per pixel: refl__lem_pixel_records' points */
     long long *row_rays;
 } refl__lem_records;
 
@@ -277,11 +297,14 @@ static void refl__lem_records_row(void *arg, int y) {
     int x, w = r->rays.width, n = 10 * r->lay->layers, k;
     for (x = 0; x < w; ++x) {
         float *out = r->rec + (size_t)n * ((size_t)y * (size_t)w + (size_t)x);
+        float *pts = r->points ? r->points + (size_t)6 * r->lay->layers * ((size_t)y * (size_t)w + (size_t)x) : NULL;
         refl_greedy_paths_result centre;
         if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
             !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
-                                     r->max_interfaces, r->lay, out, &centre, &r->row_rays[y]))
+                                     r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
+            for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
+        }
     }
 }
 
@@ -316,7 +339,7 @@ static void refl__lem_screen_rect(refl_mat4 vp, refl_vec3 lo, refl_vec3 hi, int 
 typedef struct refl__lem_sample_view {
     refl_mat4 vp;
     refl_lens_tess tess;
-    float *rec;
+    float *rec, *points;         /* points: for the direct images' distance confidence */
     int lens_pixels;
 } refl__lem_sample_view;
 
@@ -324,6 +347,7 @@ static void refl__lem_sample_free(const refl_allocator *al, refl__lem_sample_vie
     refl__free(al, s->tess.vertices);
     refl__free(al, s->tess.indices);
     refl__free(al, s->rec);
+    refl__free(al, s->points);
     memset(s, 0, sizeof *s);
 }
 
@@ -451,6 +475,22 @@ static int refl__lem_find(const struct refl__lem_maps *m, const refl__pass *p, i
 
 /* ---- inferring one sample's maps ---------------------------------------------------- */
 
+/* How lens i's direct images are taken (refl_layered_em_options'
+   direct_from and direct_confidence), from the sample's views[0 .. per)
+   where from the viewpoint (stride 1 and the rectangles set later). */
+static void refl__lem_direct_how(const refl__pass *p, int i, const refl_view *views, int per, refl__lem_direct *out) {
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    int from = o->direct_from ? o->direct_from : REFL_LEM_DIRECT_FROM_DEFAULT;
+    int conf = o->direct_confidence ? o->direct_confidence : REFL_LEM_DIRECT_CONFIDENCE_DEFAULT;
+    int glass = p->scene->materials[p->scene->objects[i].material].type == REFL_GLASS;
+    memset(out, 0, sizeof *out);
+    out->viewpoint = from == REFL_LEM_DIRECT_FROM_VIEWPOINT || (from == REFL_LEM_DIRECT_FROM_MATERIAL && glass);
+    out->distance = conf == REFL_LEM_DIRECT_DISTANCE;
+    out->views = views;
+    out->per = per;
+    out->stride = 1;
+}
+
 /* Infers object i's maps for the sample whose views are views[0 .. per)
    (the sample's own first) on the layers' shells: the records and
    tessellation of each view, then per layer rows from the runtime's own
@@ -471,7 +511,11 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
     refl_lem_solve_desc sd;
     refl_vec3 box[2], centre;
     float lens_radius, *depth = NULL, *index[2] = {NULL, NULL};
+    refl__lem_direct direct;
+    int direct_on = o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT > 0);
     refl_result r = REFL_OK;
+    refl__lem_direct_how(p, i, views, per, &direct);
+    direct.distance &= direct_on;
     memset(sv, 0, sizeof sv);
     memset(sys, 0, sizeof sys);
     memset(&td, 0, sizeof td);
@@ -498,8 +542,9 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         rec.lay = lay;
         refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
         sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
+        if (direct.distance) sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
-        if (!rec.rec || !rec.row_rays) r = REFL_ERROR_OUT_OF_MEMORY;
+        if (!rec.rec || !rec.row_rays || (direct.distance && !rec.points)) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
             for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
@@ -508,8 +553,9 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         }
         refl__free(al, rec.row_rays);
         if (r == REFL_OK) {
+            refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, casters, i, &views[s], &td, p->rc, &sv[s].tess);
+            r = refl__lens_tessellate(scene, &vc, i, &views[s], &td, p->rc, &sv[s].tess);
             st->rays += sv[s].tess.rays;
         }
     }
@@ -548,12 +594,38 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                 }
         }
     /* where the lens images leave texels unheld, the direct images */
-    for (l = 0; l < L && r == REFL_OK &&
-                (o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT));
-         ++l) {
+    for (s = 0; s < per && direct.viewpoint; ++s) {
+        int *rc = direct.rect[s], cx, cy;
+        long long area;
+        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rc);
+        /* twice the lens's rectangle: what its exit rays see past its outline */
+        cx = (rc[0] + rc[2]) / 2, cy = (rc[1] + rc[3]) / 2;
+        rc[0] = REFL__MAX(2 * rc[0] - cx, 0), rc[2] = REFL__MIN(2 * rc[2] - cx, w);
+        rc[1] = REFL__MAX(2 * rc[1] - cy, 0), rc[3] = REFL__MIN(2 * rc[3] - cy, h);
+        /* at most about a ray per texel from each view */
+        area = (long long)(rc[2] - rc[0]) * (rc[3] - rc[1]);
+        direct.stride = REFL__MAX(direct.stride, (int)ceil(sqrt((double)area / (6.0 * face * face))));
+    }
+    for (l = 0; l < L && r == REFL_OK && direct_on; ++l) {
         int added = 0;
-        r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, sys[l], &st->rays, &added);
+        float *pts = NULL;
+        long long n = 0;
+        if (direct.distance) { /* the lens images' hits in the layer, both terms */
+            pts = (float *)refl__calloc(al, 6 * (size_t)per * np + 1, sizeof(float));
+            if (!pts) r = REFL_ERROR_OUT_OF_MEMORY;
+            for (s = 0; s < per && pts; ++s)
+                for (px = 0; px < np; ++px)
+                    for (term = 0; term < 2; ++term) {
+                        const float *q = sv[s].points + 6 * (size_t)L * px + 3 * (size_t)(term * L + l);
+                        if (!isnan(q[0])) memcpy(pts + 3 * n++, q, 3 * sizeof(float));
+                    }
+        }
+        direct.points = pts;
+        direct.count = n;
+        if (r == REFL_OK)
+            r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, &direct, sys[l], &st->rays, &added);
         st->layered_em.direct_rows += added;
+        refl__free(al, pts);
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
@@ -701,10 +773,12 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
         v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
         v[0].width = w;
-        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, c, &h, &p->frame->stats.rays))
+        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i), c, &h,
+                                   &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
     memset(lay, 0, sizeof *lay);
+    lay->own = refl__lem_own(p, i);
     lay->centre = c;
     lay->object_count = scene->object_count;
     ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
@@ -765,8 +839,12 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     int on = refl__lem_circle_of(p, i, centre, lens_radius, maps, cc);
     refl__lem_ring *ring = on && cc->ring >= 0 ? &maps->rings[cc->ring] : spare;
     *r = REFL_OK;
+    /* a ring clustered with the other lenses' hits in or out (lens_layers)
+       does not serve the other way */
+    if (ring->lay.layers && ring->lay.own != refl__lem_own(p, i)) ring = spare;
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
+    lay->depth = p->desc.depth;
     return on;
 }
 
@@ -865,9 +943,10 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *cast
     /* the frame: tessellated for the eye */
     if (r == REFL_OK) {
         long long tests0 = refl__bvh_tests_counted();
+        refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
         t1 = refl__now_ms();
         pl->frame_tess.allocator = scene->allocator;
-        r = refl__lens_tessellate(scene, casters, i, p->view, &td, p->rc, &pl->frame_tess);
+        r = refl__lens_tessellate(scene, &vc, i, p->view, &td, p->rc, &pl->frame_tess);
         f->stats.layered_em.vertex_tests += refl__bvh_tests_counted() - tests0;
         f->stats.rays += pl->frame_tess.rays;
         f->stats.triangles += pl->frame_tess.triangle_count;
@@ -1030,6 +1109,7 @@ static refl_result refl__lem_casters(refl__pass *p, refl_ray_caster cast[3], ref
     c->scene = &cast[0];
     c->lenses = &cast[1];
     c->others = &cast[2];
+    c->own = -1;
     return r;
 }
 

@@ -507,6 +507,78 @@ Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
     tu_refl_traced_free(&tr);
 }
 
+/* Greedy RAYTRACE of v. */
+static refl_frame *greedy_truth(const refl_scene *s, const refl_view *v) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    return tu_refl_render(s, v, &d);
+}
+
+/* The exact-shell scene with a mirror sphere of radius 0.5 (object 2)
+   beside the glass one, reflecting it towards an eye at +z. */
+static refl_scene *mirror_sees_glass_scene(void) {
+    refl_scene *s = exact_shell_scene();
+    refl_mesh *ball = NULL;
+    refl_material mirror = refl_material_mirror(0.9f);
+    cr_assert_eq(refl_mesh_sphere(0.5f, 48, 24, NULL, &ball), REFL_OK);
+    cr_assert_eq(refl_scene_add(s, ball, &mirror, refl_mat4_translate(refl_v3(1.4f, 0.0f, 1.0f))), 2);
+    return s;
+}
+
+Test(layered_em, another_lens_as_a_layer_needs_no_tracer) {
+    /* the mirror's paths that meet the glass sphere leave the lens system
+       from the glass: traced (lens_layers -1; the full ray tree, 20.0 dB
+       against greedy RAYTRACE over those pixels), or with the glass a
+       layer of the mirror's environment (1) looked up like the rest (20.0
+       dB with two layers; asserted at most 0.5 dB under the tracer) */
+    tu_refl_traced tr = tu_refl_traced_scene(mirror_sees_glass_scene());
+    refl_view v = tu_refl_view(refl_v3(0.0f, 0.6f, 3.5f), refl_v3(0.7f, 0.0f, 0.5f), 96, 72);
+    refl_render_desc d;
+    refl_frame *truth = greedy_truth(tr.scene, &v), *lem[2];
+    double se[2] = {0.0, 0.0}, psnr[2];
+    long long traced[2];
+    int mode, through = 0, x, y, c;
+    for (mode = 0; mode < 2; ++mode) {
+        d = lem_desc(8);
+        d.layered_em.lens_layers = mode ? 1 : -1;
+        d.layered_em.layers = 2; /* the glass a layer of its own (one: merged with the shell) */
+        lem[mode] = tu_refl_render(tr.scene, &v, &d);
+        traced[mode] = lem[mode]->stats.layered_em.traced_pixels;
+    }
+    for (y = 0; y < v.height; ++y)
+        for (x = 0; x < v.width; ++x) {
+            size_t i = (size_t)y * (size_t)v.width + (size_t)x;
+            refl_greedy_paths_result g;
+            refl_vec3 o, dir;
+            refl_view_ray(&v, tr.scene, (float)x + 0.5f, (float)y + 0.5f, &o, &dir, NULL);
+            refl_greedy_paths(tr.scene, &tr.caster, o, dir, d.depth, &g, NULL);
+            if (g.object != 2 || !g.reflect.exited ||
+                refl_v3_length(refl_v3_sub(g.reflect.exit_origin, refl_v3(1.4f, 0.0f, 1.0f))) < 0.6f)
+                continue;
+            ++through;
+            for (mode = 0; mode < 2; ++mode)
+                for (c = 0; c < 3; ++c) {
+                    double e = fmin(fmax(lem[mode]->rgba[4 * i + (size_t)c], 0.0), 1.0) -
+                               fmin(fmax(truth->rgba[4 * i + (size_t)c], 0.0), 1.0);
+                    se[mode] += e * e;
+                }
+        }
+    for (mode = 0; mode < 2; ++mode) psnr[mode] = 10.0 * log10(3.0 * through / fmax(se[mode], 1e-12));
+    cr_log_info("mirror sees glass: %d pixels; traced %.2f dB (%lld traced), a layer %.2f dB (%lld traced)", through,
+                psnr[0], traced[0], psnr[1], traced[1]);
+    cr_assert_gt(through, 30, "%d mirror pixels show the glass", through);
+    cr_assert_geq(traced[0], through / 2, "traced: %lld of %d", traced[0], through);
+    cr_assert_lt(traced[1], through / 10, "a layer: %lld of %d still traced", traced[1], through);
+    cr_assert_geq(psnr[1], psnr[0] - 0.5, "a layer %.2f dB, traced %.2f dB", psnr[1], psnr[0]);
+    refl_frame_destroy(truth);
+    refl_frame_destroy(lem[0]);
+    refl_frame_destroy(lem[1]);
+    tu_refl_traced_free(&tr);
+}
+
 /* ---- several layers ------------------------------------------------------------------ */
 
 Test(lem_infer, lbg_separates_two_distance_groups_keeping_objects_whole) {
@@ -872,6 +944,17 @@ Test(layered_em, a_teapot_seen_in_a_mirror_stays_whole_on_three_layers) {
     cr_assert_geq(three, one - 1.0, "three layers %.2f dB, one %.2f dB", three, one);
 }
 
+/* Pixels of the lens (stencil 2) under half as bright as a bright truth. */
+static int dark_lens_pixels(const refl_frame *truth, const refl_frame *f) {
+    size_t i, n = (size_t)f->width * (size_t)f->height;
+    int dark = 0;
+    for (i = 0; i < n; ++i) {
+        const float *t = truth->rgba + 4 * i, *l = f->rgba + 4 * i;
+        dark += truth->stencil[i] == 2 && t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
+    }
+    return dark;
+}
+
 Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
     /* 4 samples 90 degrees apart, each from its own view alone: at 45
        degrees the lens shows parts of the sphere no sample's records met
@@ -880,15 +963,10 @@ Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
     refl_scene *s = exact_shell_scene();
     refl_view v = orbit_view_sized(45.0f, 96, 72);
     refl_render_desc d;
-    refl_frame *truth, *lem[2];
+    refl_frame *truth = greedy_truth(s, &v), *lem[2];
     refl_image_error err[2];
     int dark[2] = {0, 0}, on, lens = 0;
     size_t i, n = (size_t)v.width * (size_t)v.height;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
     for (on = 0; on < 2; ++on) {
         d = lem_desc(4);
         d.layered_em.single_view = 1;
@@ -896,13 +974,9 @@ Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
         lem[on] = tu_refl_render(s, &v, &d);
         cr_assert_eq(refl_measure_image_error(lem[on], truth, 1, 0.0f, &err[on]), REFL_OK);
         cr_assert_eq(lem[on]->stats.layered_em.direct_rows > 0, on);
-        for (i = 0; i < n; ++i) {
-            const float *t = truth->rgba + 4 * i, *l = lem[on]->rgba + 4 * i;
-            if (truth->stencil[i] != 2) continue;
-            lens += !on;
-            dark[on] += t[0] + t[1] + t[2] > 0.3f && l[0] + l[1] + l[2] < 0.5f * (t[0] + t[1] + t[2]);
-        }
+        dark[on] = dark_lens_pixels(truth, lem[on]);
     }
+    for (i = 0; i < n; ++i) lens += truth->stencil[i] == 2;
     cr_log_info("disocclusion: without %.2f dB (%d dark), with %.2f dB (%d dark) of %d lens pixels", err[0].psnr, dark[0],
                 err[1].psnr, dark[1], lens);
     cr_assert_geq(dark[0], 50, "without: %d dark pixels", dark[0]);
@@ -912,6 +986,46 @@ Test(layered_em, direct_images_fill_what_the_samples_never_saw) {
     refl_frame_destroy(truth);
     refl_frame_destroy(lem[0]);
     refl_frame_destroy(lem[1]);
+    refl_scene_destroy(s);
+}
+
+Test(layered_em, direct_images_from_the_viewpoint_and_by_distance) {
+    /* the scene above with the paper's other direct images: by the
+       distance of their hits from the lens images' (from the centre:
+       35.9 dB, none dark, above the coverage's 35.3), and from the
+       samples' viewpoints, the lens left out (22.8 dB by either weight):
+       they see what lies behind the glass, where its refracted exit rays
+       look, and none of what the reflected ones look at beside it, which
+       the samples never saw either (without direct images 18.9 dB) */
+    refl_scene *s = exact_shell_scene();
+    refl_view v = orbit_view_sized(45.0f, 96, 72);
+    refl_render_desc d;
+    refl_frame *truth = greedy_truth(s, &v), *lem;
+    refl_image_error err[3];
+    long long rows[3];
+    int k, dark = 0;
+    for (k = 0; k < 3; ++k) {
+        d = lem_desc(4);
+        d.layered_em.single_view = 1;
+        d.layered_em.direct_from = k == 0 ? REFL_LEM_DIRECT_FROM_CENTRE : REFL_LEM_DIRECT_FROM_VIEWPOINT;
+        d.layered_em.direct_confidence = k == 2 ? REFL_LEM_DIRECT_COVERAGE : REFL_LEM_DIRECT_DISTANCE;
+        lem = tu_refl_render(s, &v, &d);
+        cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err[k]), REFL_OK);
+        rows[k] = lem->stats.layered_em.direct_rows;
+        if (k == 0) dark = dark_lens_pixels(truth, lem);
+        refl_frame_destroy(lem);
+    }
+    cr_log_info("direct images: centre by distance %.2f dB (%lld rows, %d dark), viewpoint by distance %.2f dB (%lld), "
+                "by coverage %.2f dB (%lld)",
+                err[0].psnr, rows[0], dark, err[1].psnr, rows[1], err[2].psnr, rows[2]);
+    cr_assert_eq(dark, 0, "centre by distance: %d dark pixels", dark);
+    cr_assert_geq(err[0].psnr, 35.0, "centre by distance: %.2f dB", err[0].psnr);
+    for (k = 1; k < 3; ++k) {
+        cr_assert_gt(rows[k], 0);
+        cr_assert_geq(err[k].psnr, 21.0, "viewpoint: %.2f dB, above the 18.9 dB without", err[k].psnr);
+        cr_assert_lt(err[k].psnr, err[0].psnr - 5.0, "viewpoint: %.2f dB", err[k].psnr);
+    }
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
 
