@@ -186,6 +186,8 @@ refuses "--lem-samples out of range" "lem-samples" "$bin" render --builtin glass
 ok "--lem-shell box --lem-direct 0 renders" "$bin" render --builtin glass --method layered-em --lem-shell box --lem-direct 0 --size 32x24 --out "$tmp/lb.png"
 refuses "--lem-shell of no kind" "lem-shell" "$bin" render --builtin glass --lem-shell cone --out "$tmp/x.png"
 refuses "--lem-direct out of range" "lem-direct" "$bin" render --builtin glass --lem-direct 2 --out "$tmp/x.png"
+ok "--lem-frame fitted renders" "$bin" render --builtin glass --method layered-em --lem-shell cylinder --lem-frame fitted --size 32x24 --out "$tmp/lf.png"
+refuses "--lem-frame of no frame" "lem-frame" "$bin" render --builtin glass --lem-frame tilted --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
 
 # compare: PPMs written here, so every number is known. a is black; b has
