@@ -1606,6 +1606,16 @@ typedef enum refl_lem_shell_kind {
     REFL_LEM_SHELL_QUAD
 } refl_lem_shell_kind;
 
+/* The frames a box or cylinder shell is fitted on: AUTO both the world
+   axes (a cylinder around the vertical) and the frame fitted to the
+   layer's hits (the rotation whose box, or cylinder axis, lies nearest
+   them), the records' conflicts choosing; WORLD or FITTED only that one. */
+typedef enum refl_lem_shell_frame {
+    REFL_LEM_FRAME_AUTO = 0,
+    REFL_LEM_FRAME_WORLD,
+    REFL_LEM_FRAME_FITTED
+} refl_lem_shell_frame;
+
 /* One environment layer: a shell around a lens object, textured as a cube
    map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
    texel (face, x, y) at face * size^2 + y * size + x) of the shell's
@@ -1766,10 +1776,13 @@ typedef struct refl_layered_em_options {
                                 for scenes whose objects moved (none added or removed). 0: the
                                 maps are dropped and inferred again */
     int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
-                                the closed kind whose surface lies nearest the layer's hits on
-                                average, or a quad for an inner layer whose hits are sparse in
-                                direction and lie nearest a plane. QUAD: every inner layer a
-                                quad, the outermost AUTO's closed kind */
+                                the kind (and frame) on whose texels the layer's records
+                                conflict least, a quad a candidate for an inner layer whose hits
+                                are sparse in direction (docs/methods/layered_em.md). QUAD:
+                                every inner layer a quad, the outermost AUTO's closed kind */
+    int shell_frame;         /* refl_lem_shell_frame of the box and cylinder shells: 0 (AUTO):
+                                the world axes and the frame fitted to the layer's hits, the
+                                conflicts choosing */
     int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
                                 of the environment without the lens (direct_from), weighed by
                                 how little the lens images hold what they see
@@ -2892,11 +2905,12 @@ typedef struct refl__lem_hits {
 /* Frees the arrays of h (not h). */
 static void refl__lem_hits_free(refl__lem_hits *h);
 /* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
-   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
+   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer,
+   boxes and cylinders on the frames asked (shell_frame);
    closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
    a sphere at lay->radius. 0 when out of memory. */
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
-                                refl_vec3 lo, refl_vec3 hi, float lens_radius);
+                                int frame, refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
    does not meet `object` first; else per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
@@ -13234,51 +13248,207 @@ static void refl__lem_eigen3(double m[3][3], double v[3][3]) {
             }
 }
 
-/* The box of the hits and the lens's box (lo, hi) together, on the world axes. */
-static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, refl_vec3 hi) {
+/* The box of the hits and the lens's box (lo, hi) together, in the
+   orthonormal frame axis[3] (on the world axes, exactly the world box). */
+static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, refl_vec3 hi, const refl_vec3 axis[3]) {
     refl_lem_shell sh;
-    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z}, pad;
+    float a[3], b[3], pad;
     int k, i;
     memset(&sh, 0, sizeof sh);
     pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f;
-    for (i = 0; i < 3; ++i) a[i] -= pad, b[i] += pad;
-    for (k = 0; k < n; ++k)
-        for (i = 0; i < 3; ++i) a[i] = REFL__MIN(a[i], pos[3 * k + i]), b[i] = REFL__MAX(b[i], pos[3 * k + i]);
-    sh.kind = REFL_LEM_SHELL_BOX;
-    sh.center = refl_v3(0.5f * (a[0] + b[0]), 0.5f * (a[1] + b[1]), 0.5f * (a[2] + b[2]));
     for (i = 0; i < 3; ++i) {
-        sh.axis[i] = refl_v3(i == 0, i == 1, i == 2);
+        a[i] = FLT_MAX, b[i] = -FLT_MAX;
+        for (k = 0; k < 8; ++k) {
+            float d = refl_v3_dot(refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z), axis[i]);
+            a[i] = REFL__MIN(a[i], d), b[i] = REFL__MAX(b[i], d);
+        }
+        a[i] -= pad, b[i] += pad;
+    }
+    for (k = 0; k < n; ++k)
+        for (i = 0; i < 3; ++i) {
+            float d = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), axis[i]);
+            a[i] = REFL__MIN(a[i], d), b[i] = REFL__MAX(b[i], d);
+        }
+    sh.kind = REFL_LEM_SHELL_BOX;
+    for (i = 0; i < 3; ++i) {
+        sh.center = refl_v3_add(sh.center, refl_v3_scale(axis[i], 0.5f * (a[i] + b[i])));
+        sh.axis[i] = axis[i];
         sh.extent[i] = 0.5f * (b[i] - a[i]);
     }
     return sh;
 }
 
-/* A cylinder around the vertical through the lens's centre c: its caps at
-   the hits' (and the lens's) lowest and highest, its radius the mean
-   horizontal distance of the hits off the caps (at least the lens's). */
-static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi) {
+/* A cylinder around the line through the lens's centre c along axis[1]
+   (axis[0] and axis[2] span its cross-section): its caps at the hits'
+   (and the lens's) lowest and highest along the axis, its radius the mean
+   distance of the hits off the caps from the axis (at least the lens's).
+   On the world axes: around the vertical. */
+static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi,
+                                             const refl_vec3 axis[3]) {
     refl_lem_shell sh;
-    float y0 = lo.y, y1 = hi.y, pad = 0.01f * refl_v3_length(refl_v3_sub(hi, lo)) + 1e-6f, rmin;
-    double acc = 0.0, all = 0.0;
-    int k, side = 0;
+    refl_vec3 up = axis[1], q = refl_v3_sub(hi, lo);
+    float y0 = FLT_MAX, y1 = -FLT_MAX, pad = 0.01f * refl_v3_length(q) + 1e-6f, rmin = 0.0f;
+    double acc = 0.0, all = 0.0, u[3] = {up.x, up.y, up.z};
+    int k, i, side = 0;
     memset(&sh, 0, sizeof sh);
+    for (k = 0; k < 8; ++k) {
+        refl_vec3 corner = refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
+        refl_vec3 diag = refl_v3(k & 1 ? q.x : -q.x, k & 2 ? q.y : -q.y, q.z), r;
+        float d = refl_v3_dot(corner, up);
+        y0 = REFL__MIN(y0, d), y1 = REFL__MAX(y1, d);
+        r = refl_v3_sub(diag, refl_v3_scale(up, refl_v3_dot(diag, up))); /* the lens's diagonal across the axis */
+        rmin = REFL__MAX(rmin, refl_v3_dot(r, r));
+    }
     y0 -= pad, y1 += pad;
-    for (k = 0; k < n; ++k) y0 = REFL__MIN(y0, pos[3 * k + 1]), y1 = REFL__MAX(y1, pos[3 * k + 1]);
     for (k = 0; k < n; ++k) {
-        double dx = pos[3 * k] - c.x, dz = pos[3 * k + 2] - c.z, rho = sqrt(dx * dx + dz * dz);
-        float y = pos[3 * k + 1];
+        float y = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
+        y0 = REFL__MIN(y0, y), y1 = REFL__MAX(y1, y);
+    }
+    for (k = 0; k < n; ++k) {
+        double d[3] = {pos[3 * k] - c.x, pos[3 * k + 1] - c.y, pos[3 * k + 2] - c.z}, h, rho = 0.0;
+        float y = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
+        h = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+        for (i = 0; i < 3; ++i) rho += (d[i] - h * u[i]) * (d[i] - h * u[i]);
+        rho = sqrt(rho);
         all += rho;
         if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0)) acc += rho, ++side;
     }
-    rmin = pad + 0.5f * sqrtf((hi.x - lo.x) * (hi.x - lo.x) + (hi.z - lo.z) * (hi.z - lo.z));
+    rmin = pad + 0.5f * sqrtf(rmin);
     sh.kind = REFL_LEM_SHELL_CYLINDER;
-    sh.center = refl_v3(c.x, 0.5f * (y0 + y1), c.z);
-    sh.axis[0] = refl_v3(1, 0, 0);
-    sh.axis[1] = refl_v3(0, 1, 0);
-    sh.axis[2] = refl_v3(0, 0, 1);
+    sh.center = refl_v3_add(refl_v3_sub(c, refl_v3_scale(up, refl_v3_dot(c, up))), refl_v3_scale(up, 0.5f * (y0 + y1)));
+    for (i = 0; i < 3; ++i) sh.axis[i] = axis[i];
     sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : n ? all / n : 0.0), rmin);
     sh.extent[1] = 0.5f * (y1 - y0);
     return sh;
+}
+
+/* ---- oriented frames: a box's or cylinder's frame fitted to the hits --- */
+
+/* The frame rows f[3][3] turned by `radians` about its own axis i. */
+static void refl__lem_turn(const double f[3][3], int i, double radians, double out[3][3]) {
+    int j = (i + 1) % 3, k = (i + 2) % 3, c;
+    double cs = cos(radians), sn = sin(radians);
+    for (c = 0; c < 3; ++c) {
+        out[i][c] = f[i][c];
+        out[j][c] = cs * f[j][c] + sn * f[k][c];
+        out[k][c] = cs * f[k][c] - sn * f[j][c];
+    }
+}
+
+/* What a frame search fits: a box or cylinder (kind) to hits pos[3 n]
+   (a subsample of the layer's), around the lens (c, lo, hi). */
+typedef struct refl__lem_frame_fit {
+    int kind;
+    const float *pos;
+    int n;
+    refl_vec3 c, lo, hi;
+} refl__lem_frame_fit;
+
+static refl_lem_shell refl__lem_fit_in_frame(const refl__lem_frame_fit *x, const float *pos, int n,
+                                             const double f[3][3]) {
+    refl_vec3 axis[3];
+    int i;
+    for (i = 0; i < 3; ++i) axis[i] = refl_v3_normalize(refl_v3((float)f[i][0], (float)f[i][1], (float)f[i][2]));
+    return x->kind == REFL_LEM_SHELL_BOX ? refl__lem_fit_box(pos, n, x->lo, x->hi, axis)
+                                         : refl__lem_fit_cylinder(pos, n, x->c, x->lo, x->hi, axis);
+}
+
+static double refl__lem_frame_error(const refl__lem_frame_fit *x, const double f[3][3]) {
+    refl_lem_shell sh = refl__lem_fit_in_frame(x, x->pos, x->n, f);
+    return refl__lem_fit_error(&sh, x->pos, x->n);
+}
+
+static const double refl__lem_world_frame[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+
+/* Rows of Ry(yaw) Rx(pitch) Rz(roll)'s columns: a frame by its angles. */
+static void refl__lem_frame_of_angles(double yaw, double pitch, double roll, double f[3][3]) {
+    double a[3][3], b[3][3];
+    refl__lem_turn(refl__lem_world_frame, 2, roll, a);
+    refl__lem_turn(a, 0, pitch, b);
+    refl__lem_turn(b, 1, yaw, f);
+}
+
+/* The frame whose fitted box or cylinder lies nearest the hits (mean
+   distance, refl__lem_fit_error): a grid over the frames a box or a
+   cylinder's axis tells apart (7.5 degrees apart; a cylinder's axis over
+   the upper hemisphere), then turns about the frame's own axes halving
+   from 4 degrees to 1/16. */
+static void refl__lem_search_frame(const refl__lem_frame_fit *x, double best[3][3]) {
+    const double deg = REFL__PI / 180.0;
+    double err = DBL_MAX, f[3][3], step;
+    int i, j, k;
+    if (x->kind == REFL_LEM_SHELL_BOX) {
+        for (i = 0; i < 12; ++i)
+            for (j = 0; j < 12; ++j)
+                for (k = 0; k < 12; ++k) {
+                    double e;
+                    refl__lem_frame_of_angles(7.5 * deg * i, 7.5 * deg * (j - 6), 7.5 * deg * (k - 6), f);
+                    if ((e = refl__lem_frame_error(x, f)) < err) err = e, memcpy(best, f, sizeof f);
+                }
+    } else {
+        for (i = 0; i <= 12; ++i) /* the axis (row 1) tilted i steps off the vertical towards azimuth j */
+            for (j = 0; j < (i ? 48 : 1); ++j) {
+                double e;
+                refl__lem_frame_of_angles(7.5 * deg * j, 7.5 * deg * i, 0.0, f);
+                if ((e = refl__lem_frame_error(x, f)) < err) err = e, memcpy(best, f, sizeof f);
+            }
+    }
+    for (step = 4.0 * deg; step >= deg / 16.0; step *= 0.5) {
+        int moved = 1, rounds;
+        for (rounds = 0; moved && rounds < 16; ++rounds)
+            for (moved = 0, i = 0; i < 3; ++i) {
+                if (i == 1 && x->kind == REFL_LEM_SHELL_CYLINDER) continue; /* a turn about its own axis */
+                for (k = -1; k <= 1; k += 2) {
+                    double e;
+                    refl__lem_turn(best, i, k * step, f);
+                    if ((e = refl__lem_frame_error(x, f)) < err) err = e, memcpy(best, f, sizeof f), moved = 1;
+                }
+            }
+    }
+}
+
+/* The fitted frame lies on the world axes (within 2 degrees): a box's
+   three axes each along one, a cylinder's axis along the vertical. A
+   turn that small is within what the hits tell (a cylinder tilted a
+   degree moves a wall's far floor hits off its cap and into its radius). */
+static int refl__lem_frame_is_world(int kind, const double f[3][3]) {
+    const double c = cos(2.0 * REFL__PI / 180.0);
+    int i;
+    if (kind == REFL_LEM_SHELL_CYLINDER) return fabs(f[1][1]) >= c;
+    for (i = 0; i < 3; ++i)
+        if (!(REFL__MAX(fabs(f[i][0]), REFL__MAX(fabs(f[i][1]), fabs(f[i][2]))) >= c)) return 0;
+    return 1;
+}
+
+/* Hits a frame search looks at: every hit up to this many, else evenly strided. */
+#define REFL__LEM_FRAME_HITS 2048
+
+/* A fitted frame's shell must lie this much nearer the hits than the
+   world-axis one's to be a candidate: else the hits do not tell its
+   frame (a floor's hits lie on a box turned about the vertical as well). */
+#define REFL__LEM_FRAME_NEARER 0.9
+
+/* The box or cylinder (kind) of the hits on its fitted frame
+   (refl__lem_search_frame over a subsample) in *out: 1; 0 where that
+   frame is the world's or its shell lies not clearly nearer the hits
+   (REFL__LEM_FRAME_NEARER); -1 when out of memory. */
+static int refl__lem_fit_oriented(int kind, const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi,
+                                  const refl_allocator *al, refl_lem_shell *out) {
+    refl__lem_frame_fit x;
+    int m = REFL__MIN(n, REFL__LEM_FRAME_HITS), k;
+    float *sub = m ? (float *)refl__calloc(al, 3 * (size_t)m, sizeof(float)) : NULL;
+    double f[3][3];
+    int nearer;
+    if (!m) return 0;
+    if (!sub) return -1;
+    for (k = 0; k < m; ++k) memcpy(sub + 3 * (size_t)k, pos + 3 * ((long long)k * n / m), 3 * sizeof(float));
+    x.kind = kind, x.pos = sub, x.n = m, x.c = c, x.lo = lo, x.hi = hi;
+    refl__lem_search_frame(&x, f);
+    nearer = refl__lem_frame_error(&x, f) < REFL__LEM_FRAME_NEARER * refl__lem_frame_error(&x, refl__lem_world_frame);
+    refl__free(al, sub);
+    if (!nearer || refl__lem_frame_is_world(kind, f)) return 0;
+    *out = refl__lem_fit_in_frame(&x, pos, n, f);
+    return 1;
 }
 
 /* The least-squares plane of the hits (the normal the covariance's least
@@ -13432,35 +13602,54 @@ static double refl__lem_shell_conflicts(const refl_lem_shell *sh, const refl__le
 /* Layer shell *out of the kind asked, AUTO choosing among the candidates
    by the conflicts of the layer's records on their texels
    (refl__lem_shell_conflicts), then by nearness to the hits among those
-   the conflicts do not tell apart. 0 when out of memory. */
-static int refl__lem_fit_shell(int kind, int inner, const float *pos, int n, const refl__lem_front *front,
+   the conflicts do not tell apart. A box or cylinder is a candidate on
+   the world axes and on the frame fitted to the hits (frame, a
+   refl_lem_shell_frame), the conflicts choosing between them too. 0 when
+   out of memory. */
+static int refl__lem_fit_shell(int kind, int frame, int inner, const float *pos, int n, const refl__lem_front *front,
                                const refl_allocator *al, refl_vec3 c, float sphere_radius, refl_vec3 lo,
                                refl_vec3 hi, float lens_radius, refl_lem_shell *out) {
-    refl_lem_shell cand[4];
-    double err[4], least = DBL_MAX, best_near = DBL_MAX;
-    int k, m = 0, best = -1;
+    static const refl_vec3 world[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    refl_lem_shell cand[6];
+    double err[6], least = DBL_MAX, best_near = DBL_MAX;
+    int k, m = 0, best = -1, shape, twin[6] = {-1, -1, -1, -1, -1, -1}; /* a fitted one's world-axis twin */
     memset(cand, 0, sizeof cand);
     if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
-    /* candidates in order of preference on a tie: quad, box, cylinder, sphere */
+    /* candidates in order of preference on a tie: quad, box, cylinder
+       (each on the world axes, then fitted), sphere */
     if ((kind == REFL_LEM_SHELL_AUTO && inner && refl__lem_spread(pos, n, c) <= REFL__LEM_QUAD_SPREAD) ||
         (kind == REFL_LEM_SHELL_QUAD && inner)) {
         cand[m] = refl__lem_fit_quad(pos, n, c, lens_radius);
         if (cand[m].extent[0] > 0.0f && cand[m].extent[1] > 0.0f) ++m;
     }
-    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_BOX)
-        cand[m++] = refl__lem_fit_box(pos, n, lo, hi);
-    if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_CYLINDER)
-        cand[m++] = refl__lem_fit_cylinder(pos, n, c, lo, hi);
+    for (shape = REFL_LEM_SHELL_BOX; shape >= REFL_LEM_SHELL_CYLINDER; --shape) {
+        refl_lem_shell oriented;
+        int fitted;
+        if (kind != REFL_LEM_SHELL_AUTO && kind != REFL_LEM_SHELL_QUAD && kind != shape) continue;
+        fitted = frame == REFL_LEM_FRAME_WORLD ? 0 : refl__lem_fit_oriented(shape, pos, n, c, lo, hi, al, &oriented);
+        if (fitted < 0) return 0;
+        if (!fitted || frame != REFL_LEM_FRAME_FITTED)
+            cand[m++] = shape == REFL_LEM_SHELL_BOX ? refl__lem_fit_box(pos, n, lo, hi, world)
+                                                    : refl__lem_fit_cylinder(pos, n, c, lo, hi, world);
+        if (fitted) {
+            if (frame != REFL_LEM_FRAME_FITTED) twin[m] = m - 1;
+            cand[m++] = oriented;
+        }
+    }
     if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_SPHERE) {
+        memset(&cand[m], 0, sizeof cand[m]);
         cand[m].kind = REFL_LEM_SHELL_SPHERE;
         cand[m].center = c;
         cand[m++].radius = sphere_radius;
     }
     if (kind == REFL_LEM_SHELL_QUAD && cand[0].kind == REFL_LEM_SHELL_QUAD) m = 1; /* forced */
-    for (k = 0; k < m && m > 1; ++k) {
+    for (k = 0; k < m && m > 1; ++k)
         if ((err[k] = refl__lem_shell_conflicts(&cand[k], front, al)) < 0.0) return 0;
-        least = REFL__MIN(least, err[k]);
-    }
+    /* of a kind's two frames, the fitted one only where it has clearly
+       fewer conflicts (past the margin the binning resolves) */
+    for (k = 0; k < m && m > 1; ++k)
+        if (twin[k] >= 0) err[err[k] < REFL__LEM_SHELL_MARGIN * err[twin[k]] ? twin[k] : k] = DBL_MAX;
+    for (k = 0; k < m && m > 1; ++k) least = REFL__MIN(least, err[k]);
     /* of the kinds within the margin of the fewest conflicts, the one whose
        surface lies nearest the hits (a later one must be clearly nearer) */
     for (k = 0; k < m && m > 1; ++k) {
@@ -13492,7 +13681,7 @@ REFL_API float refl_lem_confidence(const refl_vec3 *dirs, int count, float theta
 }
 
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
-                                refl_vec3 lo, refl_vec3 hi, float lens_radius) {
+                                int frame, refl_vec3 lo, refl_vec3 hi, float lens_radius) {
     float *pos = h->count ? (float *)refl__calloc(h->al, 3 * (size_t)h->count, sizeof(float)) : NULL;
     refl__lem_front front;
     int l, k, n;
@@ -13516,8 +13705,8 @@ static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h
             front.data[10 * (size_t)front.count + 9] = (float)h->view[k];
             ++front.count;
         }
-        if (!refl__lem_fit_shell(kind, l < lay->layers - 1, pos, n, &front, h->al, lay->centre, lay->radius[l], lo,
-                                 hi, lens_radius, &lay->shell[l]))
+        if (!refl__lem_fit_shell(kind, frame, l < lay->layers - 1, pos, n, &front, h->al, lay->centre,
+                                 lay->radius[l], lo, hi, lens_radius, &lay->shell[l]))
             break;
     }
     refl__free(h->al, pos);
@@ -18011,6 +18200,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
+    if (o->shell_frame < REFL_LEM_FRAME_AUTO || o->shell_frame > REFL_LEM_FRAME_FITTED)
+        return "layered_em.shell_frame: AUTO, WORLD or FITTED";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
     if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
@@ -18760,7 +18951,7 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     if (!(lay->radius[top] > lens_radius))
         lay->radius[top] = REFL__MAX(REFL__MAX(10.0f * lens_radius, 1e-3f), 1.05f * lay->radius[REFL__MAX(top - 1, 0)]);
     if (r == REFL_OK &&
-        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
+        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, p->desc.layered_em.shell_frame, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
     refl__lem_hits_free(&h);

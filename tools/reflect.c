@@ -92,6 +92,9 @@ static const char *const usage_render =
     "  --lem-shell K      LAYERED_EM: every layer's shell, auto (per layer, from its\n"
     "                     hits), sphere, cylinder, box or quad (inner layers; the\n"
     "                     outermost auto's closed kind) (default auto)\n"
+    "  --lem-frame F      LAYERED_EM: box and cylinder shells on the world axes, on\n"
+    "                     the frame fitted to the layer's hits, or auto (both,\n"
+    "                     chosen per layer): world, fitted or auto (default auto)\n"
     "  --lem-direct 0|1   LAYERED_EM: direct images (--lem-direct-from) against\n"
     "                     disocclusion, off or on (default on)\n"
     "  --lem-direct-from F  LAYERED_EM: direct images from the lens's centre, the\n"
@@ -196,6 +199,7 @@ typedef struct options {
     int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
     int lem_lens_layers;          /* --lem-lens-layers: -1 traced, 1 layers, 0 unset */
     int lem_direct_from, lem_direct_conf; /* --lem-direct-from, --lem-direct-conf: 0 unset */
+    int lem_frame;                /* --lem-frame */
     int frames;                   /* --frames */
     int graphcam_size, graphcam_alg;
     float graphcam_step;
@@ -253,7 +257,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-direct", "--lem-lens-layers", "--lem-direct-from", "--lem-direct-conf", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-frame", "--lem-direct", "--lem-lens-layers", "--lem-direct-from", "--lem-direct-conf", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -376,6 +380,11 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             int on;
             if (!parse_int(v, 0, 1, &on)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
             o->lem_lens_layers = on ? 1 : -1;
+        } else if (!strcmp(a, "--lem-frame")) {
+            if (!strcmp(v, "auto")) o->lem_frame = REFL_LEM_FRAME_AUTO;
+            else if (!strcmp(v, "world")) o->lem_frame = REFL_LEM_FRAME_WORLD;
+            else if (!strcmp(v, "fitted")) o->lem_frame = REFL_LEM_FRAME_FITTED;
+            else return fail("--lem-frame: expected auto, world or fitted, got %s", v);
         } else if (!strcmp(a, "--lem-shell")) {
             if (!strcmp(v, "auto")) o->lem_shell = REFL_LEM_SHELL_AUTO;
             else if (!strcmp(v, "sphere")) o->lem_shell = REFL_LEM_SHELL_SPHERE;
@@ -803,6 +812,7 @@ static int cmd_render(const options *o) {
     d.layered_em.lens_layers = o->lem_lens_layers;
     d.layered_em.direct_from = o->lem_direct_from;
     d.layered_em.direct_confidence = o->lem_direct_conf;
+    d.layered_em.shell_frame = o->lem_frame;
     if (o->light_radius > 0.0f) {
         int i;
         for (i = 0; i < s->light_count; ++i) s->lights[i].radius = o->light_radius;

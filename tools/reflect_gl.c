@@ -522,8 +522,9 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
     } else if (which == 6) {
         /* a shell about an off-centre point; rays from inside and outside it */
         f->kind = REFL_GL_LEM_SHELL;
-        /* a sphere, a cylinder and a box about off-centre points (the box
-           turned), and a quad: rays from inside and outside them */
+        /* a sphere, a cylinder and a box about off-centre points (the
+           cylinder tilted off the vertical, the box turned), and a quad:
+           rays from inside and outside them */
         refl_vec3 ax = refl_v3_normalize(refl_v3(0.8f, 0.0f, 0.6f)), ay = refl_v3_normalize(refl_v3(0.1f, 1.0f, 0.0f));
         refl_vec3 az = refl_v3_normalize(refl_v3_cross(ax, ay));
         int k;
@@ -534,14 +535,14 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
             sh->face_size = 32;
             sh->center = refl_v3(0.3f, -0.2f, 0.1f);
             sh->radius = 2.5f;
-            sh->axis[0] = k == 2 || k == 3 ? ax : refl_v3(1, 0, 0);
-            sh->axis[1] = k == 2 || k == 3 ? ay : refl_v3(0, 1, 0);
-            sh->axis[2] = k == 2 || k == 3 ? az : refl_v3(0, 0, 1);
+            sh->axis[0] = k ? ax : refl_v3(1, 0, 0);
+            sh->axis[1] = k ? ay : refl_v3(0, 1, 0);
+            sh->axis[2] = k ? az : refl_v3(0, 0, 1);
             sh->extent[0] = 2.5f, sh->extent[1] = k == 2 ? 2.2f : 2.5f, sh->extent[2] = k == 2 ? 2.8f : 2.5f;
         }
         f->shells[3].center = refl_v3(-0.5f, 0.4f, -2.5f);
         f->shells[3].extent[0] = f->shells[3].extent[1] = 8.0f;
-        snprintf(note, note_n, "a sphere, a cylinder, a turned box and a quad, 6 x 32^2 texels each; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
+        snprintf(note, note_n, "a sphere, a tilted cylinder, a turned box and a quad, 6 x 32^2 texels each; rays from points of [-4, 4]^3 (80%% in [-2, 2]^3)");
     } else if (which == 5 || which == 8) {
         /* 5: the default scene's teapot in a one-cell grid beside the view
            (tests/reflect/test_sbc_morph.c's), the eye inside the cell; 8:

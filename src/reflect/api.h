@@ -1604,6 +1604,16 @@ typedef enum refl_lem_shell_kind {
     REFL_LEM_SHELL_QUAD
 } refl_lem_shell_kind;
 
+/* The frames a box or cylinder shell is fitted on: AUTO both the world
+   axes (a cylinder around the vertical) and the frame fitted to the
+   layer's hits (the rotation whose box, or cylinder axis, lies nearest
+   them), the records' conflicts choosing; WORLD or FITTED only that one. */
+typedef enum refl_lem_shell_frame {
+    REFL_LEM_FRAME_AUTO = 0,
+    REFL_LEM_FRAME_WORLD,
+    REFL_LEM_FRAME_FITTED
+} refl_lem_shell_frame;
+
 /* One environment layer: a shell around a lens object, textured as a cube
    map (faces +X -X +Y -Y +Z -Z, GL's layout, face_size texels a side,
    texel (face, x, y) at face * size^2 + y * size + x) of the shell's
@@ -1764,10 +1774,13 @@ typedef struct refl_layered_em_options {
                                 for scenes whose objects moved (none added or removed). 0: the
                                 maps are dropped and inferred again */
     int shell;               /* refl_lem_shell_kind of every layer's shell; 0 (AUTO): per layer
-                                the closed kind whose surface lies nearest the layer's hits on
-                                average, or a quad for an inner layer whose hits are sparse in
-                                direction and lie nearest a plane. QUAD: every inner layer a
-                                quad, the outermost AUTO's closed kind */
+                                the kind (and frame) on whose texels the layer's records
+                                conflict least, a quad a candidate for an inner layer whose hits
+                                are sparse in direction (docs/methods/layered_em.md). QUAD:
+                                every inner layer a quad, the outermost AUTO's closed kind */
+    int shell_frame;         /* refl_lem_shell_frame of the box and cylinder shells: 0 (AUTO):
+                                the world axes and the frame fitted to the layer's hits, the
+                                conflicts choosing */
     int direct_images;       /* section 4.3's direct images against disocclusion: rows of rays
                                 of the environment without the lens (direct_from), weighed by
                                 how little the lens images hold what they see

@@ -628,11 +628,12 @@ typedef struct refl__lem_hits {
 /* Frees the arrays of h (not h). */
 static void refl__lem_hits_free(refl__lem_hits *h);
 /* Each layer's shell (lay->shell) from the hits h of it (layer_of[k]):
-   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer;
+   the kind asked (refl_layered_em_options.shell), AUTO choosing per layer,
+   boxes and cylinders on the frames asked (shell_frame);
    closed shells hold the lens's box (lo, hi; half diagonal lens_radius),
    a sphere at lay->radius. 0 when out of memory. */
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
-                                refl_vec3 lo, refl_vec3 hi, float lens_radius);
+                                int frame, refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
    does not meet `object` first; else per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha

@@ -62,6 +62,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
     if (o->layers < 0 || o->layers > REFL_LEM_MAX_LAYERS) return "layered_em.layers: 0 (1) to 4";
     if (o->shell < REFL_LEM_SHELL_AUTO || o->shell > REFL_LEM_SHELL_QUAD)
         return "layered_em.shell: AUTO, SPHERE, CYLINDER, BOX or QUAD";
+    if (o->shell_frame < REFL_LEM_FRAME_AUTO || o->shell_frame > REFL_LEM_FRAME_FITTED)
+        return "layered_em.shell_frame: AUTO, WORLD or FITTED";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
     if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
@@ -811,7 +813,7 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     if (!(lay->radius[top] > lens_radius))
         lay->radius[top] = REFL__MAX(REFL__MAX(10.0f * lens_radius, 1e-3f), 1.05f * lay->radius[REFL__MAX(top - 1, 0)]);
     if (r == REFL_OK &&
-        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, box[0], box[1], lens_radius))
+        !refl__lem_fit_layers(lay, &h, layer_of, p->desc.layered_em.shell, p->desc.layered_em.shell_frame, box[0], box[1], lens_radius))
         r = REFL_ERROR_OUT_OF_MEMORY;
     refl__free(al, layer_of);
     refl__lem_hits_free(&h);

@@ -343,6 +343,9 @@ Test(layered_em, options_validated) {
     d.layered_em.shell = REFL_LEM_SHELL_QUAD + 1;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
     d.layered_em.shell = 0;
+    d.layered_em.shell_frame = REFL_LEM_FRAME_FITTED + 1;
+    cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
+    d.layered_em.shell_frame = 0;
     d.layered_em.direct_images = 2;
     cr_assert_eq(refl_validate_render_desc(&d, &why), REFL_ERROR_INVALID_ARGUMENT);
 }
@@ -785,19 +788,18 @@ Test(lem_infer, shell_index_of_every_kind) {
     cr_assert_lt(tex[3], 5u * 64u);
 }
 
-/* A room (box of object 0, 10 x 6 x 8, checkered faces) around a glass
-   sphere of radius 1 at the origin, off the room's centre; ambient light. */
-static refl_scene *box_room_scene(void) {
+/* A room (object 0: mesh `room`, checkered, placed by `place`) around a
+   glass sphere of radius 1 at the origin; ambient light. */
+static refl_scene *room_scene(refl_mesh *room, refl_mat4 place) {
     enum { W = 32, H = 32 };
     refl_scene *s = NULL;
-    refl_mesh *room = NULL, *lens = NULL;
+    refl_mesh *lens = NULL;
     refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
     static float tex[W * H * 4];
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
     paper.texture = add_checker(s, tex, W, H);
-    cr_assert_eq(refl_mesh_box(refl_v3(10.0f, 6.0f, 8.0f), NULL, &room), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens), REFL_OK);
-    cr_assert_eq(refl_scene_add(s, room, &paper, refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f))), 0);
+    cr_assert_eq(refl_scene_add(s, room, &paper, place), 0);
     glass.tint[0] = 1.0f, glass.tint[1] = 0.9f, glass.tint[2] = 0.8f;
     glass.attenuation = 0.1f;
     cr_assert_eq(refl_scene_add(s, lens, &glass, refl_mat4_identity()), 1);
@@ -805,8 +807,22 @@ static refl_scene *box_room_scene(void) {
     return s;
 }
 
-/* PSNR over the lens of LAYERED_EM (shell kind, layers) against greedy RAYTRACE. */
-static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int layers, long long *quad_misses) {
+/* A box room 10 x 6 x 8 placed by `place` around the lens. */
+static refl_scene *placed_box_room_scene(refl_mat4 place) {
+    refl_mesh *room = NULL;
+    cr_assert_eq(refl_mesh_box(refl_v3(10.0f, 6.0f, 8.0f), NULL, &room), REFL_OK);
+    return room_scene(room, place);
+}
+
+/* The room centred at (1.5, 1, -0.5), on the world axes: the lens off its centre. */
+static refl_scene *box_room_scene(void) {
+    return placed_box_room_scene(refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f)));
+}
+
+/* PSNR over the lens of LAYERED_EM (shell kind on frames `frame`, face
+   size, layers) against greedy RAYTRACE. */
+static double lem_psnr_framed(const refl_scene *s, const refl_view *v, int kind, int frame, int face, int layers,
+                              long long *quad_misses) {
     refl_render_desc d;
     refl_frame *truth, *lem;
     refl_image_error err;
@@ -817,6 +833,8 @@ static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int la
     truth = tu_refl_render(s, v, &d);
     d = lem_desc(0);
     d.layered_em.shell = kind;
+    d.layered_em.shell_frame = frame;
+    d.layered_em.face_size = face;
     d.layered_em.layers = layers;
     lem = tu_refl_render(s, v, &d);
     cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
@@ -825,6 +843,10 @@ static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int la
     refl_frame_destroy(truth);
     refl_frame_destroy(lem);
     return err.psnr;
+}
+
+static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int layers, long long *quad_misses) {
+    return lem_psnr_framed(s, v, kind, REFL_LEM_FRAME_AUTO, 0, layers, quad_misses);
 }
 
 Test(layered_em, a_box_shell_fits_a_box_room_better_than_a_sphere) {
@@ -836,6 +858,89 @@ Test(layered_em, a_box_shell_fits_a_box_room_better_than_a_sphere) {
     cr_assert_geq(box, sphere + 1.5, "box %.2f dB, sphere %.2f dB", box, sphere);
     cr_assert_eq(automatic, box, "AUTO takes the box: %.2f dB against %.2f", automatic, box);
     refl_scene_destroy(s);
+}
+
+/* A closed cylinder around the y axis (radius r, half height h, 48
+   slices), its side's texture once around, its caps' a disc. */
+static refl_mesh *cylinder_mesh(float r, float h) {
+    enum { S = 48, V = 2 * (S + 1) + 2 * (S + 2) };
+    static float pos[3 * V], uv[2 * V];
+    static uint32_t idx[3 * 4 * S];
+    refl_mesh_desc md;
+    refl_mesh *m = NULL;
+    int i, v = 0, t = 0, cap;
+    for (i = 0; i <= S; ++i) { /* the side: bottom and top rings */
+        float a = 2.0f * 3.14159265f * (float)i / S;
+        int k;
+        for (k = 0; k < 2; ++k, ++v) {
+            pos[3 * v] = r * cosf(a), pos[3 * v + 1] = k ? h : -h, pos[3 * v + 2] = r * sinf(a);
+            uv[2 * v] = (float)i / S, uv[2 * v + 1] = (float)k;
+        }
+        if (i < S) {
+            uint32_t b = (uint32_t)(2 * i);
+            idx[t++] = b, idx[t++] = b + 3, idx[t++] = b + 2; /* counter-clockwise from outside */
+            idx[t++] = b, idx[t++] = b + 1, idx[t++] = b + 3;
+        }
+    }
+    for (cap = 0; cap < 2; ++cap) { /* a centre and a ring each */
+        uint32_t c = (uint32_t)v;
+        float y = cap ? h : -h;
+        pos[3 * v] = 0.0f, pos[3 * v + 1] = y, pos[3 * v + 2] = 0.0f, uv[2 * v] = uv[2 * v + 1] = 0.5f, ++v;
+        for (i = 0; i <= S; ++i, ++v) {
+            float a = 2.0f * 3.14159265f * (float)i / S;
+            pos[3 * v] = r * cosf(a), pos[3 * v + 1] = y, pos[3 * v + 2] = r * sinf(a);
+            uv[2 * v] = 0.5f + 0.5f * cosf(a), uv[2 * v + 1] = 0.5f + 0.5f * sinf(a);
+            if (i < S) {
+                idx[t++] = c;
+                idx[t++] = c + 1 + (uint32_t)(cap ? i + 1 : i);
+                idx[t++] = c + 1 + (uint32_t)(cap ? i : i + 1);
+            }
+        }
+    }
+    memset(&md, 0, sizeof md);
+    md.positions = pos, md.texcoords = uv, md.indices = idx;
+    md.vertex_count = v, md.index_count = t;
+    cr_assert_eq(refl_mesh_create(&md, &m), REFL_OK);
+    return m;
+}
+
+/* A room turned off the world axes needs a box or cylinder shell off
+   them: the box room turned 30 degrees about the vertical and 20 about
+   its own x axis, and a cylinder room (radius 4.5, height 7) tilted 25
+   degrees off the vertical, each around the glass sphere off its centre,
+   seen between two samples (4 degrees) with 48-texel faces (fine enough
+   that the shell's place, not its texels, sets the error). The shell on
+   the frame fitted to the hits shows the room as the world-axis one
+   cannot, and AUTO takes it (on the cylinder room the box of the
+   cylinder's fitted frame or the cylinder, their conflicts within the
+   margin). */
+Test(layered_em, oriented_shells_fit_turned_rooms, .timeout = 120) {
+    refl_mat4 turn = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 30.0f * DEG),
+                                   refl_mat4_rotate(refl_v3(1, 0, 0), 20.0f * DEG));
+    refl_mat4 tilt = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 40.0f * DEG),
+                                   refl_mat4_rotate(refl_v3(0, 0, 1), 25.0f * DEG));
+    refl_scene *box = placed_box_room_scene(refl_mat4_mul(refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f)), turn));
+    refl_scene *cyl = room_scene(cylinder_mesh(4.5f, 3.5f),
+                                 refl_mat4_mul(refl_mat4_translate(refl_v3(0.8f, 0.5f, -0.6f)), tilt));
+    refl_view v = orbit_view_sized(4.0f, 96, 72);
+    const int world = REFL_LEM_FRAME_WORLD, fitted = REFL_LEM_FRAME_FITTED, any = REFL_LEM_FRAME_AUTO;
+    double box_world = lem_psnr_framed(box, &v, REFL_LEM_SHELL_BOX, world, 48, 1, NULL);
+    double box_fitted = lem_psnr_framed(box, &v, REFL_LEM_SHELL_BOX, fitted, 48, 1, NULL);
+    double box_auto = lem_psnr_framed(box, &v, REFL_LEM_SHELL_AUTO, any, 48, 1, NULL);
+    double cyl_world = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_CYLINDER, world, 48, 1, NULL);
+    double cyl_fitted = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_CYLINDER, fitted, 48, 1, NULL);
+    double cyl_auto = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_AUTO, any, 48, 1, NULL);
+    cr_log_info("turned box room: world-axis box %.2f dB, fitted %.2f, AUTO %.2f", box_world, box_fitted, box_auto);
+    cr_log_info("tilted cylinder room: world-axis cylinder %.2f dB, fitted %.2f, AUTO %.2f", cyl_world, cyl_fitted,
+                cyl_auto);
+    cr_assert_geq(box_fitted, 34.0, "fitted box %.2f dB", box_fitted);
+    cr_assert_geq(box_fitted, box_world + 2.5, "fitted box %.2f dB, world-axis %.2f", box_fitted, box_world);
+    cr_assert_eq(box_auto, box_fitted, "AUTO takes the fitted box: %.2f dB against %.2f", box_auto, box_fitted);
+    cr_assert_geq(cyl_fitted, 35.0, "fitted cylinder %.2f dB", cyl_fitted);
+    cr_assert_geq(cyl_fitted, cyl_world + 4.0, "fitted cylinder %.2f dB, world-axis %.2f", cyl_fitted, cyl_world);
+    cr_assert_geq(cyl_auto, cyl_fitted - 0.5, "AUTO %.2f dB, fitted cylinder %.2f", cyl_auto, cyl_fitted);
+    refl_scene_destroy(box);
+    refl_scene_destroy(cyl);
 }
 
 /* A checkered wall 3 x 3 (object 2) at z = -2.5 behind the exact-shell
