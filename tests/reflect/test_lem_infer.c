@@ -172,21 +172,26 @@ static refl_scene *exact_shell_scene(void) {
     return s;
 }
 
+/* Greedy RAYTRACE of v. */
+static refl_frame *greedy_truth(const refl_scene *s, const refl_view *v) {
+    refl_render_desc d;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.threads = 2;
+    d.raytrace.greedy = 1;
+    return tu_refl_render(s, v, &d);
+}
+
 /* PSNR over the lens pixels of view v of the hybrid frame against greedy
    RAYTRACE: the truth's frame with every lens pixel made of the two
    terms, each its path's F G times the inferred shell's lookup. */
 static double hybrid_psnr(const refl_scene *s, const refl_ray_caster *caster, const refl_view *v,
                           const refl_lem_shell *sh, const float *x) {
-    refl_render_desc d;
     refl_frame *truth, *hybrid;
     refl_image_error err;
     int px, py, k, c;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, v, &d);
-    hybrid = tu_refl_render(s, v, &d);
+    truth = greedy_truth(s, v);
+    hybrid = greedy_truth(s, v); /* overwritten pixel by pixel below */
     for (py = 0; py < v->height; ++py)
         for (px = 0; px < v->width; ++px) {
             size_t i = (size_t)py * (size_t)v->width + (size_t)px;
@@ -285,15 +290,10 @@ Test(layered_em, exact_shell_off_sample_matches_greedy_raytrace) {
        any map was inferred from */
     refl_scene *s = exact_shell_scene();
     refl_view v = orbit_view_sized(3.0f, 128, 96);
-    refl_render_desc d;
     refl_frame *truth, *lem;
     refl_image_error err;
     size_t i, n = (size_t)v.width * (size_t)v.height;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
+    truth = greedy_truth(s, &v);
     lem = render_lem(s, &v, 2);
     cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
     cr_assert_gt(err.pixels, 4000);
@@ -510,16 +510,6 @@ Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
     tu_refl_traced_free(&tr);
 }
 
-/* Greedy RAYTRACE of v. */
-static refl_frame *greedy_truth(const refl_scene *s, const refl_view *v) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    return tu_refl_render(s, v, &d);
-}
-
 /* The exact-shell scene with a mirror sphere of radius 0.5 (object 2)
    beside the glass one, reflecting it towards an eye at +z. */
 static refl_scene *mirror_sees_glass_scene(void) {
@@ -692,11 +682,7 @@ Test(layered_em, an_inner_partial_shell_needs_two_layers) {
     refl_frame *truth, *lem;
     refl_image_error err[2];
     int layers;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
+    truth = greedy_truth(s, &v);
     for (layers = 1; layers <= 2; ++layers) {
         d = lem_desc(0);
         d.layered_em.layers = layers;
@@ -826,11 +812,7 @@ static double lem_psnr_framed(const refl_scene *s, const refl_view *v, int kind,
     refl_render_desc d;
     refl_frame *truth, *lem;
     refl_image_error err;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, v, &d);
+    truth = greedy_truth(s, v);
     d = lem_desc(0);
     d.layered_em.shell = kind;
     d.layered_em.shell_frame = frame;
@@ -1002,11 +984,7 @@ static double builtin_lem_psnr(const char *name, int layers, refl_reflection_err
     refl_render_desc d;
     refl_frame *truth, *lem;
     refl_image_error img;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
+    truth = greedy_truth(s, &v);
     d = lem_desc(0);
     d.layered_em.layers = layers;
     lem = tu_refl_render(s, &v, &d);
@@ -1151,11 +1129,7 @@ Test(layered_em, shows_the_glass_scene_nearer_its_true_places_than_envmap) {
     v = s->camera;
     v.width = 80;
     v.height = 60;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
-    truth = tu_refl_render(s, &v, &d);
+    truth = greedy_truth(s, &v);
     d = lem_desc(0);
     lem = tu_refl_render(s, &v, &d);
     memset(&d, 0, sizeof d);
