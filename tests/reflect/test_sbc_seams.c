@@ -66,13 +66,12 @@ Test(refl_sbc_seams, glass_refraction_holes_traced_by_default, .timeout = 120) {
 
 /* Over the glass teapot of `glass` at 160x120, depth 6 (SBC-traced, no
    fallback), against RAYTRACE: the PSNR, and the pixels much darker than
-   the truth's (mean linear level under half and 0.2 below it). The floor
-   tiles seen through the teapot showed thin dark lines: where the refracted
-   rays fold, a tile top's triangles across the fold are not drawn, and the
-   depth test showed the tile's underside (a back face, now left out) or
-   the next tile's side face behind it (a point the refraction samples
-   contradict, now traced). Measured: 38 dark pixels and 22.2 dB (the lines:
-   127 and 17.3 dB). */
+   the truth's (mean linear level under half and 0.2 below it). Where the
+   refracted rays fold, a tile top's triangles across the fold are not
+   drawn; behind them lie the tile's underside (a back face, which
+   refraction groups leave out) and the next tile's side face (a point the
+   refraction samples contradict, which is traced). Drawn, either shows as
+   a thin dark line across the glass. */
 Test(refl_sbc_seams, glass_refraction_shows_no_hidden_faces, .timeout = 120) {
     refl_view v;
     refl_scene *s = tu_refl_builtin("glass", &v, 160, 120);
