@@ -1097,69 +1097,60 @@ static int refl__lem_shell_point(const refl_lem_shell *sh, refl_vec3 q, refl_vec
     return 1;
 }
 
-/* The nearest of a layer's record hits, for the distance confidence: the
-   hits hashed into cubes of side cell, sorted by cube. */
+/* The nearest of a layer's record hits, for the distance confidence:
+   the hits in a kd-tree (refl_kdtree_build), searched within cell. */
 typedef struct refl__lem_near {
     float cell;
-    long long count;
-    uint64_t *key;               /* 2 per hit: cube, then the hit's index in pos */
-    const float *pos;
+    refl_kdtree *tree;           /* NULL: no hits */
 } refl__lem_near;
-
-static uint64_t refl__lem_cube(const refl__lem_near *g, const float *p, int dx, int dy, int dz) {
-    /* 21 bits an axis, wrapped: cubes far apart may share a key, which
-       only adds candidates whose true distance is measured */
-    uint64_t x = (uint64_t)((long long)floorf(p[0] / g->cell) + dx) & 0x1fffff;
-    uint64_t y = (uint64_t)((long long)floorf(p[1] / g->cell) + dy) & 0x1fffff;
-    uint64_t z = (uint64_t)((long long)floorf(p[2] / g->cell) + dz) & 0x1fffff;
-    return x << 42 | y << 21 | z;
-}
-
-static int refl__lem_cmp_u64x2(const void *a, const void *b) {
-    const uint64_t *x = (const uint64_t *)a, *y = (const uint64_t *)b;
-    return x[0] != y[0] ? (x[0] > y[0]) - (x[0] < y[0]) : (x[1] > y[1]) - (x[1] < y[1]);
-}
 
 /* 0 when out of memory. */
 static int refl__lem_near_build(refl__lem_near *g, const float *pos, long long count, float cell,
                                 const refl_allocator *al) {
-    long long k;
+    refl_kdtree_desc kd;
     memset(g, 0, sizeof *g);
     g->cell = cell;
-    g->pos = pos;
     if (count <= 0 || !(cell > 0.0f)) return 1;
-    g->key = (uint64_t *)refl__calloc(al, 2 * (size_t)count, sizeof(uint64_t));
-    if (!g->key) return 0;
-    g->count = count;
-    for (k = 0; k < count; ++k) {
-        g->key[2 * k] = refl__lem_cube(g, pos + 3 * k, 0, 0, 0);
-        g->key[2 * k + 1] = (uint64_t)k;
+    memset(&kd, 0, sizeof kd);
+    kd.leaf_points = 16;
+    kd.allocator = *al;
+    return refl_kdtree_build(pos, (int)REFL__MIN(count, (long long)INT_MAX), &kd, &g->tree) == REFL_OK;
+}
+
+/* A search for the hit nearest p: the least squared distance so far. */
+typedef struct refl__lem_near_query {
+    const float *p;
+    double best;
+} refl__lem_near_query;
+
+static int refl__lem_near_box(void *user, const float lo[3], const float hi[3]) {
+    const refl__lem_near_query *q = (const refl__lem_near_query *)user;
+    double d2 = 0.0;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        double e = q->p[k] < lo[k] ? (double)lo[k] - q->p[k] : q->p[k] > hi[k] ? (double)q->p[k] - hi[k] : 0.0;
+        d2 += e * e;
     }
-    qsort(g->key, (size_t)count, 2 * sizeof(uint64_t), refl__lem_cmp_u64x2);
-    return 1;
+    return d2 < q->best;
+}
+
+static void refl__lem_near_leaf(void *user, const refl_kdtree *tree, const refl_kdtree_node *leaf) {
+    refl__lem_near_query *q = (refl__lem_near_query *)user;
+    int i;
+    for (i = leaf->first; i < leaf->first + leaf->count; ++i) {
+        const float *h = tree->positions + 3 * (size_t)i;
+        double ex = (double)q->p[0] - h[0], ey = (double)q->p[1] - h[1], ez = (double)q->p[2] - h[2];
+        q->best = REFL__MIN(q->best, ex * ex + ey * ey + ez * ez);
+    }
 }
 
 /* The distance from p to the nearest hit, at most g->cell. */
 static float refl__lem_near_distance(const refl__lem_near *g, const float *p) {
-    double best = (double)g->cell * g->cell;
-    int dx, dy, dz;
-    for (dz = -1; dz <= 1; ++dz)
-        for (dy = -1; dy <= 1; ++dy)
-            for (dx = -1; dx <= 1; ++dx) {
-                uint64_t want = refl__lem_cube(g, p, dx, dy, dz);
-                long long lo = 0, hi = g->count;
-                while (lo < hi) { /* the first of the cube's hits */
-                    long long mid = (lo + hi) / 2;
-                    if (g->key[2 * mid] < want) lo = mid + 1;
-                    else hi = mid;
-                }
-                for (; lo < g->count && g->key[2 * lo] == want; ++lo) {
-                    const float *q = g->pos + 3 * g->key[2 * lo + 1];
-                    double ex = (double)p[0] - q[0], ey = (double)p[1] - q[1], ez = (double)p[2] - q[2];
-                    best = REFL__MIN(best, ex * ex + ey * ey + ez * ez);
-                }
-            }
-    return (float)sqrt(best);
+    refl__lem_near_query q;
+    q.p = p;
+    q.best = (double)g->cell * g->cell;
+    refl_kdtree_query(g->tree, refl__lem_near_box, refl__lem_near_leaf, &q);
+    return (float)sqrt(q.best);
 }
 
 /* Layer `layer`'s direct-image target along the ray (o, d), continued as
@@ -1219,7 +1210,7 @@ static refl_result refl__lem_direct_row(const refl_scene *scene, const refl_ray_
     if (near) {
         float f;
         if (!got && (layer < lay->layers - 1 || !refl__lem_shell_point(shell, index, &at))) return REFL_OK;
-        f = near->count ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
+        f = near->tree ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
         conf = f * f;
     }
     r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
@@ -1279,7 +1270,7 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
             }
     }
     refl__free(a, cov);
-    refl__free(a, near.key);
+    refl_kdtree_destroy(near.tree);
     return r;
 }
 
