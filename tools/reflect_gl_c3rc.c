@@ -520,24 +520,24 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     static const int point_sizes[3] = {4, 4, 1}; /* RGL_C3_POINT_FLOATS: a_p, a_n, a_density */
     const char *vs[3], *fs[1] = {rgl__c3_fs};
     int w = view->width, h = view->height, rc = -1, x, y;
-    size_t np = (size_t)w * (size_t)h, i;
-    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
-    uint8_t *mark = NULL;
-    float *drawn = NULL, *cam_data = NULL, *density = NULL, tmax, frame_density, wanted_density, scaled_down = 1.0f;
+    size_t i;
+    float *cam_data = NULL, *density = NULL, tmax, frame_density, wanted_density, scaled_down = 1.0f;
     rgl_c3_cam *cams = NULL;
     rgl_c3_points pts;
     rgl_c3_keys keys;
     refl_bvh *bvh = NULL;
-    rgl_pass ps;
+    rgl_method_pass m;
+    const rgl_pass *ps = &m.ps;
+    const uint8_t *mark;
+    GLuint prog;
     refl_vec3 lo, hi;
     long long cam_count = 0, t, floats;
-    double t0 = rgl_now(), t_cpu = 0.0, t1;
-    memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
+    double t1;
     memset(&pts, 0, sizeof pts);
     memset(&keys, 0, sizeof keys);
-    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
-    frame_density = rgl__c3_density(&ps, &wanted_density);
+    if (rgl_method_begin(&m, scene, view, frame, st, err, n) != 0) goto done;
+    mark = m.mark;
+    frame_density = rgl__c3_density(ps, &wanted_density);
     refl_scene_bounds(scene, &lo, &hi);
     tmax = refl_v3_length(refl_v3_sub(hi, lo)) * 1.01f + 1e-3f; /* the longest sweep: the scene's diagonal */
     /* the CPU's share: points, cameras (timed apart from GL) */
@@ -553,12 +553,12 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         }
         for (t = 0; t < vcount; ++t)
             if (vcams[t].object < 254 && mark[vcams[t].object] &&
-                rgl__c3_camera(&ps, &vcams[t], tmax, &cams[cam_count]))
+                rgl__c3_camera(ps, &vcams[t], tmax, &cams[cam_count]))
                 vcams[cam_count++] = vcams[t];
         /* the points: denser on the objects a folding camera magnifies */
         if (!(density = (float *)malloc((size_t)(scene->object_count > 0 ? scene->object_count : 1) * sizeof(float))) ||
             refl_c3rc_object_densities(scene, vcams, (int)cam_count, frame_density, density, &scaled_down) != REFL_OK ||
-            rgl__c3_points(&ps, density, &pts) != 0) {
+            rgl__c3_points(ps, density, &pts) != 0) {
             refl_c3rc_view_cameras_free(scene, vcams);
             snprintf(err, n, "sampling the scene's points failed");
             goto done;
@@ -578,21 +578,19 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         }
         free(list);
     }
-    t_cpu += rgl_now() - t1;
+    m.t_cpu += rgl_now() - t1;
     vs[0] = vs_parts[0];
     vs[1] = refl_gl_glsl(REFL_GL_C3RC);
     vs[2] = vs_parts[2];
-    if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
-    if (!(tex = rgl_buffer_texture(cam_data, floats, &tbuf, err, n))) goto done;
+    if (!(m.prog = prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
+    if (rgl_method_data(&m, cam_data, floats, err, n) != 0) goto done;
     st->points = pts.tree->point_count;
-    rgl_pass_vertices(pts.gl, pts.tree->point_count, RGL_C3_POINT_FLOATS, point_sizes, 3, &vao, &vbo);
+    rgl_pass_vertices(pts.gl, pts.tree->point_count, RGL_C3_POINT_FLOATS, point_sizes, 3, &m.vao, &m.vbo);
     /* the splats: nearest t wins, within each reflector's own pixels */
-    if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
+    if (rgl_pass_reflect_begin(ps, prog, m.ray_tex) != 0) goto oom;
     rgl.Enable(GL_PROGRAM_POINT_SIZE);
-    rgl.ActiveTexture(GL_TEXTURE0);
-    rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_tmax"), tmax);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(&ps));
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(ps));
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_eye"), view->eye.x, view->eye.y, view->eye.z);
     {
         GLint u_cam = rgl.GetUniformLocation(prog, "u_cam"), u_area = rgl.GetUniformLocation(prog, "u_screen_area");
@@ -613,7 +611,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             refl_kdtree_query(pts.tree, rgl__c3_box, rgl__c3_leaf, &q);
             runs_end[t] = q.count;
         }
-        t_cpu += rgl_now() - t1;
+        m.t_cpu += rgl_now() - t1;
         if (q.failed) {
             free(q.run);
             free(runs_end);
@@ -644,10 +642,8 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         free(runs_end);
     }
     rgl.Disable(GL_PROGRAM_POINT_SIZE);
-    if (!(drawn = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
-    rgl_pass_read(&ps, 0, drawn);
-    if (rgl_pass_check("drawing the C3RC splats", err, n) != 0) goto done;
-    st->gl_seconds = rgl_now() - t0 - t_cpu;
+    if (rgl_method_read(&m, 1, "drawing the C3RC splats", err, n) != 0) goto done;
+    st->gl_seconds = rgl_now() - m.t0 - m.t_cpu;
     st->mirrors = (int)cam_count;
 
     /* composite on the CPU; the gaps of nearer points traced, as the CPU path */
@@ -657,7 +653,7 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
            density's cap, the budget of the raised densities): wider gaps */
         float spacing = frame_density > 0.0f && wanted_density > frame_density ? sqrtf(wanted_density / frame_density)
                                                                                 : 1.0f;
-        if (rgl__c3_resolve(&ps, &pts, drawn, spacing * sqrtf(scaled_down), &keys) != 0) goto oom;
+        if (rgl__c3_resolve(ps, &pts, m.drawn[0], spacing * sqrtf(scaled_down), &keys) != 0) goto oom;
     }
     for (y = 0; y < h; ++y)
         for (x = 0; x < w; ++x) {
@@ -665,37 +661,31 @@ int rgl_render_c3rc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             long long at;
             i = (size_t)y * w + x;
             key = keys.shown[i];
-            if (ps.marks[i] && refl_c3rc_in_gap(&keys.splats, x, y, key)) {
-                const float *bp = ps.base[0] + 4 * i, *bn = ps.base[1] + 4 * i;
+            if (ps->marks[i] && refl_c3rc_in_gap(&keys.splats, x, y, key)) {
+                const float *bp = ps->base[0] + 4 * i, *bn = ps->base[1] + 4 * i;
                 float tp[4], tn[4] = {0, 0, 0, 0}, tuv[4] = {0, 0, 0, 0}, col[3];
-                refl_vec3 dir = rgl_reflect(rgl_pass_ray(&ps, (int)i), refl_v3(bn[0], bn[1], bn[2]));
+                refl_vec3 dir = rgl_reflect(rgl_pass_ray(ps, (int)i), refl_v3(bn[0], bn[1], bn[2]));
                 if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
-                rgl_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
+                rgl_trace(ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
                 rgl_shade(scene, tp, tn, tuv, dir, col);
-                rgl_composite(&ps, (int)i, (int)tp[3] >= 1 ? col : NULL, tp, frame, rgb);
+                rgl_composite(ps, (int)i, (int)tp[3] >= 1 ? col : NULL, tp, frame, rgb);
                 st->traced++;
                 continue;
             }
             at = key == ~(uint64_t)0 ? -1 : (long long)(key & 0xffffffffu);
-            rgl_composite(&ps, (int)i, at >= 0 ? pts.rgb + 3 * at : NULL, at >= 0 ? pts.tree->positions + 3 * at : NULL,
+            rgl_composite(ps, (int)i, at >= 0 ? pts.rgb + 3 * at : NULL, at >= 0 ? pts.tree->positions + 3 * at : NULL,
                           frame, rgb);
         }
-    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
-    st->shade_seconds = rgl_now() - t1 + t_cpu;
-    rc = 0;
+    rc = rgl_method_finish(&m, frame, rgb, st, t1, err, n);
     goto done;
 oom:
     snprintf(err, n, "out of memory");
 done:
-    rgl_pass_delete(prog, vao, vbo, tex, tbuf, pix_tex);
-    rgl_pass_end(g, &ps);
     rgl__c3_points_free(&pts);
     rgl__c3_keys_free(&keys);
     refl_bvh_destroy(bvh);
     free(cams);
     free(cam_data);
     free(density);
-    free(drawn);
-    free(mark);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }

@@ -369,20 +369,59 @@ int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, 
     return rgl_pass_check("drawing the base pass", err, n);
 }
 
-int rgl_pass_begin_reflectors(rgl_pass *p, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
-                              uint8_t **mark, char *err, size_t n) {
+int rgl_method_begin(rgl_method_pass *m, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
+                     rgl_frame_stats *st, char *err, size_t n) {
     int o;
-    memset(p, 0, sizeof *p);
-    *mark = NULL;
+    memset(m, 0, sizeof *m);
+    memset(st, 0, sizeof *st);
+    m->t0 = rgl_now();
     if (view->width < 1 || view->height < 1 || frame->width != view->width || frame->height != view->height)
         return rgl__frame_fail(err, n, "bad frame size");
-    if (!(*mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)))
+    if (!(m->mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)))
         return rgl__frame_fail(err, n, "out of memory");
     for (o = 0; o < scene->object_count && o < 254; ++o) {
         int type = scene->materials[scene->objects[o].material].type;
-        if (type == REFL_MIRROR || type == REFL_PARTIAL) (*mark)[o] = (uint8_t)(o + 1);
+        if (type == REFL_MIRROR || type == REFL_PARTIAL) m->mark[o] = (uint8_t)(o + 1);
     }
-    return rgl_pass_begin(p, scene, view, *mark, err, n);
+    return rgl_pass_begin(&m->ps, scene, view, m->mark, err, n);
+}
+
+int rgl_method_data(rgl_method_pass *m, const float *data, long long floats, char *err, size_t n) {
+    if (m->tex) rgl.DeleteTextures(1, &m->tex);
+    if (m->tbuf) rgl.DeleteBuffers(1, &m->tbuf);
+    m->tex = m->tbuf = 0;
+    if (!(m->tex = rgl_buffer_texture(data, floats, &m->tbuf, err, n))) return -1;
+    rgl.ActiveTexture(GL_TEXTURE0);
+    rgl.BindTexture(GL_TEXTURE_BUFFER, m->tex);
+    return 0;
+}
+
+int rgl_method_read(rgl_method_pass *m, int count, const char *what, char *err, size_t n) {
+    size_t np = (size_t)m->ps.w * (size_t)m->ps.h;
+    int c;
+    for (c = 0; c < count && c < 3; ++c) {
+        if (!m->drawn[c] && !(m->drawn[c] = (float *)malloc(np * 4 * sizeof(float))))
+            return rgl__frame_fail(err, n, "out of memory");
+        rgl_pass_read(&m->ps, c, m->drawn[c]);
+    }
+    return rgl_pass_check(what, err, n);
+}
+
+int rgl_method_finish(const rgl_method_pass *m, refl_frame *frame, float *rgb, rgl_frame_stats *st, double t1,
+                      char *err, size_t n) {
+    if (rgl_hand_over_glass(&m->ps, frame, rgb, st, err, n) != 0) return -1;
+    st->shade_seconds = rgl_now() - t1 + m->t_cpu;
+    return 0;
+}
+
+int rgl_method_end(rgl_context *g, rgl_method_pass *m, int rc) {
+    int c;
+    rgl_pass_delete(m->prog, m->vao, m->vbo, m->tex, m->tbuf, m->ray_tex);
+    rgl_pass_end(g, &m->ps);
+    for (c = 0; c < 3; ++c) free(m->drawn[c]);
+    free(m->mark);
+    memset(m, 0, sizeof *m);
+    return rc;
 }
 
 void rgl_pass_vertices(const float *v, long long count, int stride, const int *sizes, int attribs, GLuint *vao,
@@ -544,43 +583,41 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
     const char *fs[1] = {rgl_frame_fs}, *mvs[3];
     int w = view->width, h = view->height, i, k, rc = -1;
     size_t np = (size_t)w * (size_t)h;
-    GLuint mirror_prog = 0, tex = 0, tbuf = 0;
-    float *refl[3] = {NULL, NULL, NULL}, mirror_data[24];
-    uint8_t *mark = NULL;
+    GLuint mirror_prog;
+    float mirror_data[24];
     refl_mat4 mirror_vp;
-    rgl_pass ps;
+    rgl_method_pass m;
+    rgl_pass *ps = &m.ps;
     double t0;
     memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
+    memset(&m, 0, sizeof m);
     if (w < 1 || h < 1 || frame->width != w || frame->height != h) return rgl__frame_fail(err, n, "bad frame size");
     t0 = rgl_now();
     /* the mirrors are known once the geometry is: a first look finds them */
-    if (rgl__geometry(scene, view->eye, &ps.geo) != 0) {
-        rgl__geometry_free(&ps.geo);
+    if (rgl__geometry(scene, view->eye, &ps->geo) != 0) {
+        rgl__geometry_free(&ps->geo);
         return rgl__frame_fail(err, n, "out of memory");
     }
-    mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1);
-    if (mark)
-        for (k = 0; k < ps.geo.mirror_count; ++k) mark[ps.geo.mirrors[k].object] = (uint8_t)(k + 1);
-    rgl__geometry_free(&ps.geo);
-    if (!mark) return rgl__frame_fail(err, n, "out of memory");
-    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
-    for (i = 0; i < 3; ++i)
-        if (!(refl[i] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
+    m.mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1);
+    if (m.mark)
+        for (k = 0; k < ps->geo.mirror_count; ++k) m.mark[ps->geo.mirrors[k].object] = (uint8_t)(k + 1);
+    rgl__geometry_free(&ps->geo);
+    if (!m.mark) return rgl__frame_fail(err, n, "out of memory");
+    if (rgl_pass_begin(ps, scene, view, m.mark, err, n) != 0) goto done;
     mvs[0] = mirror_vs[0];
     mvs[1] = refl_gl_glsl(REFL_GL_MIRROR);
     mvs[2] = mirror_vs[2];
-    if (!(mirror_prog = rgl_program(mvs, 3, fs, 1, NULL, 0, err, n))) goto done;
+    if (!(m.prog = mirror_prog = rgl_program(mvs, 3, fs, 1, NULL, 0, err, n))) goto done;
     {
         /* the mirrored scene lies further away: PLANAR's far plane, doubled
            (near and far read back from the perspective matrix) */
-        const refl_mat4 *pm = &ps.proj_m;
+        const refl_mat4 *pm = &ps->proj_m;
         float zn = pm->m[14] / (pm->m[10] - 1.0f), zf = pm->m[14] / (pm->m[10] + 1.0f);
         float fovy = view->fovy_degrees > 0.0f ? view->fovy_degrees : 45.0f;
         mirror_vp = refl_mat4_mul(refl_mat4_perspective(fovy * 3.14159265f / 180.0f, (float)w / (float)h, zn, 2.0f * zf),
-                                  ps.view_m);
+                                  ps->view_m);
     }
-    st->vertices = ps.geo.vertex_count;
+    st->vertices = ps->geo.vertex_count;
     /* 2. per mirror: the scene through its mirrored pinhole, in its pixels */
     rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
@@ -588,48 +625,42 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
     rgl.UseProgram(mirror_prog);
     rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_data"), 0);
     rgl.Uniform1i(rgl.GetUniformLocation(mirror_prog, "u_base"), 0);
-    for (k = 0; k < ps.geo.mirror_count; ++k) {
-        const rgl_mirror *mr = &ps.geo.mirrors[k];
+    for (k = 0; k < ps->geo.mirror_count; ++k) {
+        const rgl_mirror *mr = &ps->geo.mirrors[k];
         if (refl_gl_pack_mirror(mirror_vp, refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]), (float)mr->d,
                                 mirror_data, 24) != 24) {
             rgl__frame_fail(err, n, "refl_gl_pack_mirror refused a mirror");
             goto done;
         }
-        if (tex) rgl.DeleteTextures(1, &tex);
-        if (tbuf) rgl.DeleteBuffers(1, &tbuf);
-        tex = rgl_buffer_texture(mirror_data, 24, &tbuf, err, n);
-        if (!tex) goto done;
-        rgl.ActiveTexture(GL_TEXTURE0);
-        rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
+        if (rgl_method_data(&m, mirror_data, 24, err, n) != 0) goto done;
         rgl.StencilFunc(GL_EQUAL, k + 1, 0xFF);
         for (i = 0; i < scene->object_count; ++i) {
             if (i == mr->object) continue;
-            rgl.DrawArrays(GL_TRIANGLES, (GLint)ps.geo.first[i], (GLsizei)(ps.geo.first[i + 1] - ps.geo.first[i]));
-            st->vertices += ps.geo.first[i + 1] - ps.geo.first[i];
+            rgl.DrawArrays(GL_TRIANGLES, (GLint)ps->geo.first[i], (GLsizei)(ps->geo.first[i + 1] - ps->geo.first[i]));
+            st->vertices += ps->geo.first[i + 1] - ps->geo.first[i];
         }
     }
     rgl.Disable(GL_CLIP_DISTANCE0);
-    for (i = 0; i < 3; ++i) rgl_pass_read(&ps, i, refl[i]);
-    if (rgl_pass_check("drawing the frame", err, n) != 0) goto done;
+    if (rgl_method_read(&m, 3, "drawing the frame", err, n) != 0) goto done;
     st->gl_seconds = rgl_now() - t0;
-    st->mirrors = ps.geo.mirror_count;
+    st->mirrors = ps->geo.mirror_count;
 
     /* 3. shade and composite on the CPU */
     t0 = rgl_now();
     for (i = 0; i < (int)np; ++i) {
-        int m_at = ps.marks[i], c;
-        refl_vec3 d = rgl_pass_ray(&ps, i);
+        int m_at = ps->marks[i], c;
+        refl_vec3 d = rgl_pass_ray(ps, i);
         float col[3];
         frame->stencil[i] = 0;
         for (c = 0; c < 3; ++c) frame->points[3 * i + c] = NAN;
-        rgl_shade(scene, ps.base[0] + 4 * i, ps.base[1] + 4 * i, ps.base[2] + 4 * i, d, col);
+        rgl_shade(scene, ps->base[0] + 4 * i, ps->base[1] + 4 * i, ps->base[2] + 4 * i, d, col);
         if (m_at) {
-            const rgl_mirror *mr = &ps.geo.mirrors[m_at - 1];
-            const refl_material *m = &scene->materials[scene->objects[mr->object].material];
+            const rgl_mirror *mr = &ps->geo.mirrors[m_at - 1];
+            const refl_material *mat = &scene->materials[scene->objects[mr->object].material];
             refl_vec3 nrm = refl_v3((float)mr->n[0], (float)mr->n[1], (float)mr->n[2]);
-            float sub[3], wgt = refl_material_reflectance(m, fabsf(refl_v3_dot(d, nrm)));
-            const float *rp = refl[0] + 4 * i;
-            rgl_shade(scene, rp, refl[1] + 4 * i, refl[2] + 4 * i, refl_v3_reflect(d, nrm), sub);
+            float sub[3], wgt = refl_material_reflectance(mat, fabsf(refl_v3_dot(d, nrm)));
+            const float *rp = m.drawn[0] + 4 * i;
+            rgl_shade(scene, rp, m.drawn[1] + 4 * i, m.drawn[2] + 4 * i, refl_v3_reflect(d, nrm), sub);
             for (c = 0; c < 3; ++c) col[c] += wgt * sub[c]; /* col: the mirror's diffuse share */
             frame->stencil[i] = (uint8_t)(mr->object + 1 < 255 ? mr->object + 1 : 255);
             if ((int)rp[3] >= 1)
@@ -637,20 +668,11 @@ int rgl_render_planar(rgl_context *g, const refl_scene *scene, const refl_view *
         }
         for (c = 0; c < 3; ++c) rgb[3 * i + c] = col[c];
     }
-    if (rgl__planar_hand_over(&ps, frame, rgb, st, err, n) != 0) goto done;
+    if (rgl__planar_hand_over(ps, frame, rgb, st, err, n) != 0) goto done;
     st->shade_seconds = rgl_now() - t0;
     rc = 0;
-    goto done;
-oom:
-    rgl__frame_fail(err, n, "out of memory");
 done:
-    if (tex) rgl.DeleteTextures(1, &tex);
-    if (tbuf) rgl.DeleteBuffers(1, &tbuf);
-    if (mirror_prog) rgl.DeleteProgram(mirror_prog);
-    rgl_pass_end(g, &ps);
-    for (i = 0; i < 3; ++i) free(refl[i]);
-    free(mark);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }
 
 int rgl_render(rgl_context *g, refl_method method, const refl_scene *scene, const refl_view *view, refl_frame *frame,

@@ -56,13 +56,41 @@ extern const char rgl_frame_fs[];
 int rgl_pass_begin(rgl_pass *p, const refl_scene *scene, const refl_view *view, const uint8_t *mark, char *err,
                    size_t n);
 void rgl_pass_end(rgl_context *g, rgl_pass *p);
-/* The reflector methods' (C3RC, SBC) start: frame checked against the
-   view's size, each mirror and partial reflector (objects below 254)
-   marking its pixels with its object + 1 in *mark (allocated, object_count
-   bytes, the caller frees it), the base pass drawn. Nonzero on failure,
-   the reason in err. */
-int rgl_pass_begin_reflectors(rgl_pass *p, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
-                              uint8_t **mark, char *err, size_t n);
+/* A method's frame through GL from its base pass to its end: the pass,
+   the marks it was drawn with, the method's own GL objects (0: none) and
+   its reflections read back, which rgl_method_end releases, so a method's
+   error exit frees only what is its own; t0 and t_cpu time the frame. */
+typedef struct rgl_method_pass {
+    rgl_pass ps;
+    uint8_t *mark;           /* per object: the mark its pixels take (0: none) */
+    GLuint prog, vao, vbo;   /* the method's program and vertices */
+    GLuint tex, tbuf;        /* its data as a buffer texture (rgl_method_data) */
+    GLuint ray_tex[2];       /* its pixels' rays (rgl_pass_reflect_begin's) */
+    float *drawn[3];         /* colour attachments read back (rgl_method_read) */
+    double t0, t_cpu;        /* when the frame began; the CPU's share of it so far */
+} rgl_method_pass;
+/* The reflector methods' start (C3RC, SBC, SPOC, GRAPHCAM): *st zeroed,
+   the clock started, frame checked against the view's size, each mirror
+   and partial reflector (objects below 254) marking its pixels with its
+   object + 1 in m->mark, the base pass drawn. Nonzero on failure, the
+   reason in err, m left for rgl_method_end. */
+int rgl_method_begin(rgl_method_pass *m, const refl_scene *scene, const refl_view *view, const refl_frame *frame,
+                     rgl_frame_stats *st, char *err, size_t n);
+/* The method's data (`floats` floats) as its buffer texture, replacing
+   the last, bound on texture unit 0. Nonzero with the reason in err. */
+int rgl_method_data(rgl_method_pass *m, const float *data, long long floats, char *err, size_t n);
+/* Colour attachments 0 .. count - 1 (at most 3) read into m->drawn
+   (allocated on the first read), then GL's errors checked (`what`: the
+   draw, for err). Nonzero with the reason in err. */
+int rgl_method_read(rgl_method_pass *m, int count, const char *what, char *err, size_t n);
+/* The reflector methods' last step: the glass handed over
+   (rgl_hand_over_glass), st->shade_seconds the CPU's time since t1 plus
+   m->t_cpu. Nonzero with the reason in err. */
+int rgl_method_finish(const rgl_method_pass *m, refl_frame *frame, float *rgb, rgl_frame_stats *st, double t1,
+                      char *err, size_t n);
+/* Releases all m holds (the pass, its GL objects, the marks and
+   read-backs); returns rc, for a method's error exit. */
+int rgl_method_end(rgl_context *g, rgl_method_pass *m, int rc);
 /* A method's vertices: `count` of `stride` floats uploaded to a new buffer
    (*vbo) in a new vertex array (*vao), left bound; attribute i (0 ..
    attribs - 1) takes sizes[i] floats after attribute i - 1's. */

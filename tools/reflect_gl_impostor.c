@@ -383,41 +383,37 @@ static void rgl__sp_finish(const rgl_pass *p, int o, const rgl_sp_set *set, cons
 
 int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                     rgl_frame_stats *st, char *err, size_t n) {
-    int o, c, rc = -1;
+    int o, rc = -1;
     size_t np = (size_t)view->width * (size_t)view->height, i;
-    GLuint prog = 0, tex = 0, tbuf = 0, ray_tex[2] = {0, 0};
-    uint8_t *mark = NULL, *seen = NULL;
-    float *drawn[3] = {NULL, NULL, NULL}, *org = NULL, *dir = NULL, *data = NULL, offset;
+    uint8_t *seen = NULL;
+    float *org = NULL, *dir = NULL, *data = NULL, offset;
     refl_bvh *scene_bvh = NULL;
     rgl_sp_set set;
-    rgl_pass ps;
+    rgl_method_pass m;
+    const rgl_pass *ps = &m.ps;
     refl_vec3 lo, hi;
-    double t0 = rgl_now(), t_cpu = 0.0, t1;
-    memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
+    double t1;
     memset(&set, 0, sizeof set);
-    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
+    if (rgl_method_begin(&m, scene, view, frame, st, err, n) != 0) goto done;
     t1 = rgl_now();
     refl_scene_bounds(scene, &lo, &hi);
     offset = 1e-4f * refl_v3_length(refl_v3_sub(hi, lo)); /* m_spoc.c's */
-    for (c = 0; c < 3; ++c)
-        if (!(drawn[c] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
     if (!(org = (float *)calloc(np, 3 * sizeof(float))) || !(dir = (float *)calloc(np, 3 * sizeof(float))) ||
         !(seen = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)))
         goto oom;
     for (i = 0; i < np; ++i)
-        if (ps.marks[i]) seen[ps.marks[i] - 1] = 1;
+        if (ps->marks[i]) seen[ps->marks[i] - 1] = 1;
     if (refl_bvh_build(scene, NULL, &scene_bvh) != REFL_OK) goto oom;
-    t_cpu += rgl_now() - t1;
-    if (!(prog = rgl__sp_program(err, n))) goto done;
-    if (rgl__sp_rays(&ps, offset, ray_tex, org, dir) != 0) goto oom;
+    m.t_cpu += rgl_now() - t1;
+    if (!(m.prog = rgl__sp_program(err, n))) goto done;
+    if (rgl__sp_rays(ps, offset, m.ray_tex, org, dir) != 0) goto oom;
     rgl.ClearColor(0, 0, 0, 0);
     rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     rgl.Disable(GL_DEPTH_TEST);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
     for (o = 0; o < scene->object_count; ++o) {
         long long floats = 0;
-        if (!mark[o] || !seen[o]) continue;
+        if (!m.mark[o] || !seen[o]) continue;
         t1 = rgl_now();
         if (rgl__sp_build(scene, o, &set) != 0) {
             snprintf(err, n, "building object %d's impostors failed", o);
@@ -429,50 +425,37 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
             goto done;
         }
         st->mirrors += set.imp_count;
-        t_cpu += rgl_now() - t1;
+        m.t_cpu += rgl_now() - t1;
         if (set.imp_count) {
-            if (tex) rgl.DeleteTextures(1, &tex);
-            if (tbuf) rgl.DeleteBuffers(1, &tbuf);
-            tex = tbuf = 0;
-            if (!(tex = rgl_buffer_texture(data, floats, &tbuf, err, n))) goto done;
-            rgl.ActiveTexture(GL_TEXTURE0);
-            rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
-            rgl.StencilFunc(GL_EQUAL, mark[o], 0xFF);
+            if (rgl_method_data(&m, data, floats, err, n) != 0) goto done;
+            rgl.StencilFunc(GL_EQUAL, m.mark[o], 0xFF);
             rgl.DrawArrays(GL_TRIANGLES, 0, 3);
             st->vertices += 3;
         }
         /* this reflector's pixels only: the later ones redraw theirs */
-        for (c = 0; c < 3; ++c) rgl_pass_read(&ps, c, drawn[c]);
-        if (rgl_pass_check("marching the SPOC impostors", err, n) != 0) goto done;
+        if (rgl_method_read(&m, 3, "marching the SPOC impostors", err, n) != 0) goto done;
         t1 = rgl_now();
-        rgl__sp_finish(&ps, o, &set, scene_bvh, drawn, org, dir, frame, rgb, st);
+        rgl__sp_finish(ps, o, &set, scene_bvh, m.drawn, org, dir, frame, rgb, st);
         rgl__sp_set_free(&set);
-        t_cpu += rgl_now() - t1;
+        m.t_cpu += rgl_now() - t1;
     }
     /* every other pixel: the base pass shaded */
     t1 = rgl_now();
     for (i = 0; i < np; ++i)
-        if (!ps.marks[i]) rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
-    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
-    t_cpu += rgl_now() - t1;
-    st->gl_seconds = rgl_now() - t0 - t_cpu;
-    st->shade_seconds = t_cpu;
-    rc = 0;
+        if (!ps->marks[i]) rgl_composite(ps, (int)i, NULL, NULL, frame, rgb);
+    st->gl_seconds = t1 - m.t0 - m.t_cpu;
+    rc = rgl_method_finish(&m, frame, rgb, st, t1, err, n);
     goto done;
 oom:
     snprintf(err, n, "out of memory");
 done:
     rgl__sp_set_free(&set);
-    rgl_pass_delete(prog, 0, 0, tex, tbuf, ray_tex);
-    rgl_pass_end(g, &ps);
     refl_bvh_destroy(scene_bvh);
-    for (c = 0; c < 3; ++c) free(drawn[c]);
     free(org);
     free(dir);
     free(data);
     free(seen);
-    free(mark);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }
 
 /* ---- GRAPHCAM through GL ----------------------------------------------------------- */
@@ -607,23 +590,20 @@ static void rgl__gc_finish(const rgl_pass *p, size_t i, const refl_graphcam *cam
 
 int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view *view, const refl_graphcam *camera,
                         refl_frame *frame, float *rgb, rgl_frame_stats *st, char *err, size_t n) {
-    int c, rc = -1, any = 0;
+    int rc = -1, any = 0;
     size_t np = (size_t)view->width * (size_t)view->height, i;
-    GLuint prog = 0, tex = 0, tbuf = 0, ray_tex[2] = {0, 0};
-    uint8_t *mark = NULL;
-    float *drawn[3] = {NULL, NULL, NULL}, *org = NULL, *dir = NULL, *data = NULL, eps;
+    float *org = NULL, *dir = NULL, *data = NULL, eps;
     refl_graphcam *own = NULL;
     refl_graphcam_impostor *imp = NULL;
     rgl_gc_exact x;
-    rgl_pass ps;
+    rgl_method_pass m;
+    const rgl_pass *ps = &m.ps;
     refl_vec3 lo, hi;
     long long floats = 0;
-    double t0 = rgl_now(), t_cpu = 0.0, t1;
-    memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
+    double t1;
     memset(&x, 0, sizeof x);
-    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
-    for (i = 0; i < np && !any; ++i) any = ps.marks[i] != 0;
+    if (rgl_method_begin(&m, scene, view, frame, st, err, n) != 0) goto done;
+    for (i = 0; i < np && !any; ++i) any = ps->marks[i] != 0;
     t1 = rgl_now();
     if (!camera) { /* the view's pinhole at twice the frame's width, as the CPU method's default */
         refl_view v = *view;
@@ -636,8 +616,6 @@ int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view
         }
         camera = own;
     }
-    for (c = 0; c < 3; ++c)
-        if (!(drawn[c] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
     if (!(org = (float *)calloc(np, 3 * sizeof(float))) || !(dir = (float *)calloc(np, 3 * sizeof(float)))) goto oom;
     if (any) {
         if (refl_graphcam_impostor_build(scene, camera, NULL, 0, &imp) != REFL_OK) {
@@ -655,47 +633,38 @@ int rgl_render_graphcam(rgl_context *g, const refl_scene *scene, const refl_view
     st->mirrors = camera->count;
     refl_graphcam_bounds(camera, &lo, &hi);
     eps = 1e-4f * (refl_v3_length(refl_v3_sub(hi, lo)) + 1.0f); /* m_graphcam.c's */
-    t_cpu += rgl_now() - t1;
-    if (!(prog = rgl__gc_program(eps, err, n))) goto done;
-    if (rgl__sp_rays(&ps, 0.0f, ray_tex, org, dir) != 0) goto oom;
+    m.t_cpu += rgl_now() - t1;
+    if (!(m.prog = rgl__gc_program(eps, err, n))) goto done;
+    if (rgl__sp_rays(ps, 0.0f, m.ray_tex, org, dir) != 0) goto oom;
     rgl.ClearColor(0, 0, 0, 0);
     rgl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     rgl.Disable(GL_DEPTH_TEST);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
     if (any) {
-        if (!(tex = rgl_buffer_texture(data, floats, &tbuf, err, n))) goto done;
-        rgl.ActiveTexture(GL_TEXTURE0);
-        rgl.BindTexture(GL_TEXTURE_BUFFER, tex);
+        if (rgl_method_data(&m, data, floats, err, n) != 0) goto done;
         rgl.StencilFunc(GL_NOTEQUAL, 0, 0xFF); /* every reflector's pixels: one impostor */
         rgl.DrawArrays(GL_TRIANGLES, 0, 3);
         st->vertices += 3;
     }
-    for (c = 0; c < 3; ++c) rgl_pass_read(&ps, c, drawn[c]);
-    if (rgl_pass_check("marching the graph camera's impostor", err, n) != 0) goto done;
-    st->gl_seconds = rgl_now() - t0 - t_cpu;
+    if (rgl_method_read(&m, 3, "marching the graph camera's impostor", err, n) != 0) goto done;
+    st->gl_seconds = rgl_now() - m.t0 - m.t_cpu;
     t1 = rgl_now();
     for (i = 0; i < np; ++i) {
-        if (ps.marks[i]) rgl__gc_finish(&ps, i, camera, &x, eps, drawn, frame, rgb, st);
-        else rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+        if (ps->marks[i]) rgl__gc_finish(ps, i, camera, &x, eps, m.drawn, frame, rgb, st);
+        else rgl_composite(ps, (int)i, NULL, NULL, frame, rgb);
     }
-    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
-    st->shade_seconds = rgl_now() - t1 + t_cpu;
-    rc = 0;
+    rc = rgl_method_finish(&m, frame, rgb, st, t1, err, n);
     goto done;
 oom:
     snprintf(err, n, "out of memory");
 done:
-    rgl_pass_delete(prog, 0, 0, tex, tbuf, ray_tex);
-    rgl_pass_end(g, &ps);
     rgl__gc_exact_free(&x);
     refl_graphcam_impostor_destroy(imp);
-    for (c = 0; c < 3; ++c) free(drawn[c]);
     free(org);
     free(dir);
     free(data);
-    free(mark);
     free(own);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }
 
 /* ---- the hook's march against refl_impostor_intersect ------------------------------ */

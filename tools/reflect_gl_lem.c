@@ -221,17 +221,18 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
     const char *vs[3], *fs[3];
     int w = view->width, h = view->height, rc = -1, count = 0, o, s, term, c, any = 0;
     size_t np = (size_t)w * (size_t)h, i;
-    GLuint prog = 0;
-    uint8_t *mark = NULL, *seen = NULL, *traced = NULL;
+    GLuint prog;
+    uint8_t *mark, *seen = NULL, *traced = NULL;
     float *colour = NULL, *sum = NULL;
     refl_render_desc d;
     refl_renderer *rr = NULL;
     refl_frame *stats = NULL;
     refl_lem_lens *lenses = NULL;
-    rgl_pass ps;
+    rgl_method_pass m;
+    const rgl_pass *ps = &m.ps;
     double t0 = rgl_now(), t_cpu, t1;
     memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
+    memset(&m, 0, sizeof m);
     if (w < 1 || h < 1 || frame->width != w || frame->height != h) {
         snprintf(err, n, "bad frame size");
         return -1;
@@ -244,19 +245,19 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
         goto done;
     }
     t_cpu = rgl_now() - t0;
-    if (!(mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)) ||
+    if (!(mark = m.mark = (uint8_t *)calloc((size_t)(scene->object_count > 0 ? scene->object_count : 1), 1)) ||
         !(seen = (uint8_t *)calloc(np, 1)) || !(traced = (uint8_t *)calloc(np, 1)) ||
         !(colour = (float *)malloc(np * 4 * sizeof(float))) || !(sum = (float *)calloc(np * 3, sizeof(float))))
         goto oom;
     for (o = 0; o < count; ++o)
         if (lenses[o].object < 254) mark[lenses[o].object] = (uint8_t)(lenses[o].object + 1);
-    if (rgl_pass_begin(&ps, scene, view, mark, err, n) != 0) goto done;
+    if (rgl_pass_begin(&m.ps, scene, view, mark, err, n) != 0) goto done;
     vs[0] = vs_parts[0], vs[1] = refl_gl_glsl(REFL_GL_LEM_SHELL), vs[2] = vs_parts[2];
     fs[0] = fs_parts[0], fs[1] = vs[1], fs[2] = fs_parts[2];
-    if (!(prog = rgl_program(vs, 3, fs, 3, NULL, 0, err, n))) goto done;
+    if (!(m.prog = prog = rgl_program(vs, 3, fs, 3, NULL, 0, err, n))) goto done;
     rgl.UseProgram(prog);
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_data"), 0);
-    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps.vp.m);
+    rgl.UniformMatrix4fv(rgl.GetUniformLocation(prog, "u_vp"), 1, GL_FALSE, ps->vp.m);
     rgl.StencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
     rgl.ClearColor(0, 0, 0, 0);
     for (o = 0; o < count; ++o) {
@@ -265,7 +266,7 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
         st->mirrors++;
         for (s = 0; s < ln->maps; ++s)
             for (term = 0; term < ln->terms; ++term)
-                if (rgl__lem_draw(&ps, prog, ln, s, term, mark[ln->object], colour, sum, seen, st, err, n) != 0)
+                if (rgl__lem_draw(ps, prog, ln, s, term, mark[ln->object], colour, sum, seen, st, err, n) != 0)
                     goto done;
     }
     st->gl_seconds = rgl_now() - t0 - t_cpu;
@@ -273,18 +274,18 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
     /* composite on the CPU: the base pass, the draws added on the lenses */
     t1 = rgl_now();
     for (i = 0; i < np; ++i) {
-        const float *bp = ps.base[0] + 4 * i, *bn = ps.base[1] + 4 * i;
+        const float *bp = ps->base[0] + 4 * i, *bn = ps->base[1] + 4 * i;
         float col[3];
-        if (!ps.marks[i]) {
-            rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+        if (!ps->marks[i]) {
+            rgl_composite(ps, (int)i, NULL, NULL, frame, rgb);
             continue;
         }
-        rgl_shade(scene, bp, bn, ps.base[2] + 4 * i, rgl_pass_ray(&ps, (int)i), col);
+        rgl_shade(scene, bp, bn, ps->base[2] + 4 * i, rgl_pass_ray(ps, (int)i), col);
         for (c = 0; c < 3; ++c) {
             rgb[3 * i + c] = col[c] + sum[3 * i + c];
             frame->points[3 * i + c] = NAN;
         }
-        frame->stencil[i] = ps.marks[i];
+        frame->stencil[i] = ps->marks[i];
         traced[i] = seen[i] != 1;
         any |= traced[i];
     }
@@ -295,15 +296,12 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
 oom:
     snprintf(err, n, "out of memory");
 done:
-    if (prog) rgl.DeleteProgram(prog);
-    rgl_pass_end(g, &ps);
     refl_renderer_lem_lenses_free(rr, lenses, count);
     refl_renderer_destroy(rr);
     refl_frame_destroy(stats);
-    free(mark);
     free(seen);
     free(traced);
     free(colour);
     free(sum);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }

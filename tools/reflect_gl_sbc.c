@@ -281,9 +281,11 @@ static int rgl__sb_hidden(const refl_bvh *bvh, refl_vec3 q, refl_vec3 dir, const
 
 /* One tile of reflector o: its camera built and packed, the scene's other
    objects drawn through it into the tile's pixels of the reflector. */
-static int rgl__sb_draw_tile(const rgl_pass *p, GLuint prog, int o, int mark, float own_near, const int tile[4], int tu, int tv,
-                             refl_vec3 lo, refl_vec3 hi, const long long *first, float **data, GLuint *tex,
-                             GLuint *tbuf, rgl_frame_stats *st, double *t_cpu, char *err, size_t n) {
+static int rgl__sb_draw_tile(rgl_method_pass *m, int o, float own_near, const int tile[4], int tu, int tv, refl_vec3 lo,
+                             refl_vec3 hi, const long long *first, float **data, rgl_frame_stats *st, char *err,
+                             size_t n) {
+    const rgl_pass *p = &m->ps;
+    GLuint prog = m->prog;
     refl_sbc *sbc = NULL;
     refl_vec3 box[4];
     long long floats;
@@ -294,7 +296,7 @@ static int rgl__sb_draw_tile(const rgl_pass *p, GLuint prog, int o, int mark, fl
         return -1;
     }
     if (!sbc) {
-        *t_cpu += rgl_now() - t1;
+        m->t_cpu += rgl_now() - t1;
         return 0;
     }
     floats = refl_gl_pack_sbc(sbc, NULL, 0);
@@ -306,18 +308,13 @@ static int rgl__sb_draw_tile(const rgl_pass *p, GLuint prog, int o, int mark, fl
         return -1;
     }
     refl_sbc_destroy(sbc);
-    *t_cpu += rgl_now() - t1;
-    if (*tex) rgl.DeleteTextures(1, tex);
-    if (*tbuf) rgl.DeleteBuffers(1, tbuf);
-    *tex = *tbuf = 0;
-    if (!(*tex = rgl_buffer_texture(*data, floats, tbuf, err, n))) return -1;
-    rgl.ActiveTexture(GL_TEXTURE0);
-    rgl.BindTexture(GL_TEXTURE_BUFFER, *tex);
+    m->t_cpu += rgl_now() - t1;
+    if (rgl_method_data(m, *data, floats, err, n) != 0) return -1;
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_box_lo"), box[0].x, box[0].y, box[0].z);
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_box_hi"), box[1].x, box[1].y, box[1].z);
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_first_lo"), box[2].x, box[2].y, box[2].z);
     rgl.Uniform3f(rgl.GetUniformLocation(prog, "u_first_hi"), box[3].x, box[3].y, box[3].z);
-    rgl.StencilFunc(GL_EQUAL, mark, 0xFF);
+    rgl.StencilFunc(GL_EQUAL, m->mark[o], 0xFF);
     /* GL's rows count from the bottom */
     rgl.Scissor(x0, p->h - (y0 + side), side, side);
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_object"), o);
@@ -332,19 +329,17 @@ static int rgl__sb_draw_tile(const rgl_pass *p, GLuint prog, int o, int mark, fl
 int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame, float *rgb,
                    rgl_frame_stats *st, char *err, size_t n) {
     const char *vs[3], *fs[1] = {rgl__sb_fs};
-    int w = view->width, h = view->height, o, rc = -1, c;
+    int w = view->width, h = view->height, o, rc = -1;
     size_t np = (size_t)w * (size_t)h, i;
-    GLuint prog = 0, vao = 0, vbo = 0, tex = 0, tbuf = 0, pix_tex[2] = {0, 0};
-    uint8_t *mark = NULL;
-    float *drawn[3] = {NULL, NULL, NULL}, *split = NULL, *data = NULL, diag;
+    GLuint prog;
+    float *split = NULL, *data = NULL, diag;
     long long *first = NULL;
     refl_bvh *bvh = NULL;
-    rgl_pass ps;
+    rgl_method_pass m;
+    const rgl_pass *ps = &m.ps;
     refl_vec3 lo, hi, grow;
-    double t0 = rgl_now(), t_cpu = 0.0, t1;
-    memset(st, 0, sizeof *st);
-    memset(&ps, 0, sizeof ps);
-    if (rgl_pass_begin_reflectors(&ps, scene, view, frame, &mark, err, n) != 0) goto done;
+    double t1;
+    if (rgl_method_begin(&m, scene, view, frame, st, err, n) != 0) goto done;
     refl_scene_bounds(scene, &lo, &hi);
     grow = refl_v3_add(refl_v3_scale(refl_v3_sub(hi, lo), 0.01f), refl_v3(1e-4f, 1e-4f, 1e-4f));
     lo = refl_v3_sub(lo, grow);
@@ -352,23 +347,23 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
     diag = refl_v3_length(refl_v3_sub(hi, lo));
     t1 = rgl_now();
     if (!(first = (long long *)malloc((size_t)(scene->object_count + 1) * sizeof(long long))) ||
-        !(split = rgl__sb_split(&ps.geo, scene->object_count, diag / RGL_SB_SPLIT, first)))
+        !(split = rgl__sb_split(&ps->geo, scene->object_count, diag / RGL_SB_SPLIT, first)))
         goto oom;
-    t_cpu += rgl_now() - t1;
+    m.t_cpu += rgl_now() - t1;
     vs[0] = rgl_frame_vs_head;
     vs[1] = refl_gl_glsl(REFL_GL_SBC);
     vs[2] = rgl__sb_vs_main;
-    if (!(prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
-    rgl_pass_vertices(split, first[scene->object_count], RGL_VERTEX_FLOATS, rgl_vertex_sizes, 3, &vao, &vbo);
-    if (rgl_pass_reflect_begin(&ps, prog, pix_tex) != 0) goto oom;
+    if (!(m.prog = prog = rgl_program(vs, 3, fs, 1, NULL, 0, err, n))) goto done;
+    rgl_pass_vertices(split, first[scene->object_count], RGL_VERTEX_FLOATS, rgl_vertex_sizes, 3, &m.vao, &m.vbo);
+    if (rgl_pass_reflect_begin(ps, prog, m.ray_tex) != 0) goto oom;
     rgl.Uniform1i(rgl.GetUniformLocation(prog, "u_base"), 0);
     rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_zscale"), 0.5f / diag);
-    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(&ps));
+    rgl.Uniform1f(rgl.GetUniformLocation(prog, "u_pixel_angle"), rgl_pass_pixel_angle(ps));
     rgl.Enable(GL_SCISSOR_TEST);
     for (o = 0; o < scene->object_count; ++o) {
         int mw = (w + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, mh = (h + RGL_SB_FACTOR - 1) / RGL_SB_FACTOR, tu, tv;
         float own_near;
-        if (!mark[o]) continue;
+        if (!m.mark[o]) continue;
         own_near = RGL_SB_OWN_NEAR * rgl__sb_longest_edge(split, first[o], first[o + 1]);
         st->mirrors++;
         /* tiles of RGL_SB_TILE samples, each with its own camera and boxes
@@ -381,55 +376,43 @@ int rgl_render_sbc(rgl_context *g, const refl_scene *scene, const refl_view *vie
                 tile[1] = tv > 0 ? tv - 1 : 0;
                 tile[2] = tu + RGL_SB_TILE + 1 < mw ? tu + RGL_SB_TILE + 1 : mw;
                 tile[3] = tv + RGL_SB_TILE + 1 < mh ? tv + RGL_SB_TILE + 1 : mh;
-                if (rgl__sb_draw_tile(&ps, prog, o, mark[o], own_near, tile, tu, tv, lo, hi, first, &data, &tex, &tbuf, st,
-                                      &t_cpu, err, n) != 0)
-                    goto done;
+                if (rgl__sb_draw_tile(&m, o, own_near, tile, tu, tv, lo, hi, first, &data, st, err, n) != 0) goto done;
             }
     }
     rgl.Disable(GL_SCISSOR_TEST);
-    for (c = 0; c < 3; ++c) {
-        if (!(drawn[c] = (float *)malloc(np * 4 * sizeof(float)))) goto oom;
-        rgl_pass_read(&ps, c, drawn[c]);
-    }
-    if (rgl_pass_check("drawing the SBC reflections", err, n) != 0) goto done;
-    st->gl_seconds = rgl_now() - t0 - t_cpu;
+    if (rgl_method_read(&m, 3, "drawing the SBC reflections", err, n) != 0) goto done;
+    st->gl_seconds = rgl_now() - m.t0 - m.t_cpu;
 
     /* composite on the CPU; holes traced */
     t1 = rgl_now();
     for (i = 0; i < np; ++i) {
-        const float *pp = drawn[0] + 4 * i, *pn = drawn[1] + 4 * i, *puv = drawn[2] + 4 * i, *bp = ps.base[0] + 4 * i;
+        const float *pp = m.drawn[0] + 4 * i, *pn = m.drawn[1] + 4 * i, *puv = m.drawn[2] + 4 * i, *bp = ps->base[0] + 4 * i;
         float tp[4], tn[4] = {0, 0, 0, 0}, tuv[4] = {0, 0, 0, 0}, sub[3];
         refl_vec3 dir;
-        if (!ps.marks[i]) {
-            rgl_composite(&ps, (int)i, NULL, NULL, frame, rgb);
+        if (!ps->marks[i]) {
+            rgl_composite(ps, (int)i, NULL, NULL, frame, rgb);
             continue;
         }
-        dir = rgl_reflect(rgl_pass_ray(&ps, (int)i), refl_v3(ps.base[1][4 * i], ps.base[1][4 * i + 1], ps.base[1][4 * i + 2]));
+        dir = rgl_reflect(rgl_pass_ray(ps, (int)i), refl_v3(ps->base[1][4 * i], ps->base[1][4 * i + 1], ps->base[1][4 * i + 2]));
         if (!bvh && refl_bvh_build(scene, NULL, &bvh) != REFL_OK) goto oom;
         if (!((int)pp[3] >= 1) || rgl__sb_hidden(bvh, refl_v3(bp[0], bp[1], bp[2]), dir, pp)) {
             /* a hole, contradicted, or hidden: the fallback traces it */
-            rgl_trace(&ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
+            rgl_trace(ps, bvh, refl_v3(bp[0], bp[1], bp[2]), dir, tp, tn, tuv);
             pp = tp;
             pn = tn;
             puv = tuv;
         }
         rgl_shade(scene, pp, pn, puv, dir, sub);
-        rgl_composite(&ps, (int)i, (int)pp[3] >= 1 ? sub : NULL, pp, frame, rgb);
+        rgl_composite(ps, (int)i, (int)pp[3] >= 1 ? sub : NULL, pp, frame, rgb);
     }
-    if (rgl_hand_over_glass(&ps, frame, rgb, st, err, n) != 0) goto done;
-    st->shade_seconds = rgl_now() - t1 + t_cpu;
-    rc = 0;
+    rc = rgl_method_finish(&m, frame, rgb, st, t1, err, n);
     goto done;
 oom:
     snprintf(err, n, "out of memory");
 done:
-    rgl_pass_delete(prog, vao, vbo, tex, tbuf, pix_tex);
-    rgl_pass_end(g, &ps);
     refl_bvh_destroy(bvh);
-    for (c = 0; c < 3; ++c) free(drawn[c]);
     free(split);
     free(first);
     free(data);
-    free(mark);
-    return rc;
+    return rgl_method_end(g, &m, rc);
 }
