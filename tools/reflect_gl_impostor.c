@@ -734,48 +734,53 @@ done:
     return rc;
 }
 
-/* The rays' buffers: org and dir (4 floats a ray), back[3] for the
-   read-back, the errors; w rays a row. Nonzero when out of memory. */
-typedef struct rgl_imp_rays {
+/* A hook's march against its C intersector: the fixture's scene, the
+   hook's data and marching program, the rays (org and dir, 4 floats a
+   ray, w rays a row), GL's read-back of them (back[3], rows as the rays)
+   and the agreeing rays' errors; rgl__imp_check_free releases it all. */
+typedef struct rgl_imp_check {
+    refl_scene *scene;
+    float *data;
+    long long floats;
+    GLuint prog;
+    long long count;
     float *org, *dir, *back[3];
     double *errs;
     int w, h;
-} rgl_imp_rays;
+} rgl_imp_check;
 
-static void rgl__imp_rays_free(rgl_imp_rays *r) {
+static void rgl__imp_check_free(rgl_imp_check *c) {
     int k;
-    free(r->org);
-    free(r->dir);
-    for (k = 0; k < 3; ++k) free(r->back[k]);
-    free(r->errs);
-    memset(r, 0, sizeof *r);
+    if (c->prog) rgl.DeleteProgram(c->prog);
+    refl_scene_destroy(c->scene);
+    free(c->data);
+    free(c->org);
+    free(c->dir);
+    for (k = 0; k < 3; ++k) free(c->back[k]);
+    free(c->errs);
+    memset(c, 0, sizeof *c);
 }
 
-static int rgl__imp_rays_new(rgl_imp_rays *r, long long rays) {
+/* Room for `rays` rays. Nonzero when out of memory. */
+static int rgl__imp_check_rays(rgl_imp_check *c, long long rays) {
     size_t np;
     int k;
-    memset(r, 0, sizeof *r);
-    r->w = 256;
-    r->h = (int)((rays + r->w - 1) / r->w);
-    np = (size_t)r->w * (size_t)(r->h > 0 ? r->h : 1);
-    r->org = (float *)calloc(np, 4 * sizeof(float));
-    r->dir = (float *)calloc(np, 4 * sizeof(float));
-    r->errs = (double *)calloc(np, sizeof(double));
-    for (k = 0; k < 3; ++k) r->back[k] = (float *)malloc(np * 4 * sizeof(float));
-    return r->org && r->dir && r->errs && r->back[0] && r->back[1] && r->back[2] ? 0 : -1;
+    c->count = rays;
+    c->w = 256;
+    c->h = (int)((rays + c->w - 1) / c->w);
+    np = (size_t)c->w * (size_t)(c->h > 0 ? c->h : 1);
+    c->org = (float *)calloc(np, 4 * sizeof(float));
+    c->dir = (float *)calloc(np, 4 * sizeof(float));
+    c->errs = (double *)calloc(np, sizeof(double));
+    for (k = 0; k < 3; ++k) c->back[k] = (float *)malloc(np * 4 * sizeof(float));
+    return c->org && c->dir && c->errs && c->back[0] && c->back[1] && c->back[2] ? 0 : -1;
 }
 
 /* Ray i from o towards d (normalised). */
-static void rgl__imp_rays_put(rgl_imp_rays *r, size_t i, refl_vec3 o, refl_vec3 d) {
+static void rgl__imp_check_put(rgl_imp_check *c, size_t i, refl_vec3 o, refl_vec3 d) {
     d = refl_v3_normalize(d);
-    r->org[4 * i] = o.x; r->org[4 * i + 1] = o.y; r->org[4 * i + 2] = o.z;
-    r->dir[4 * i] = d.x; r->dir[4 * i + 1] = d.y; r->dir[4 * i + 2] = d.z;
-}
-
-/* Ray i's origin and direction. */
-static void rgl__imp_rays_get(const rgl_imp_rays *r, size_t i, refl_vec3 *o, refl_vec3 *d) {
-    *o = refl_v3(r->org[4 * i], r->org[4 * i + 1], r->org[4 * i + 2]);
-    *d = refl_v3(r->dir[4 * i], r->dir[4 * i + 1], r->dir[4 * i + 2]);
+    c->org[4 * i] = o.x; c->org[4 * i + 1] = o.y; c->org[4 * i + 2] = o.z;
+    c->dir[4 * i] = d.x; c->dir[4 * i + 1] = d.y; c->dir[4 * i + 2] = d.z;
 }
 
 /* A random point of the box [lo, hi]. */
@@ -790,72 +795,92 @@ static refl_vec3 rgl__imp_rand_dir(uint64_t *seed) {
     return refl_v3(x, y, (float)(2.0 * rgl__sp_rand(seed) - 1.0));
 }
 
-/* The agreeing rays' errors (r->errs[0 .. agree)) into out's max and p99.9. */
-static void rgl__imp_rays_errors(rgl_imp_rays *r, long long agree, rgl_validation *out) {
+/* A C intersector: the ray o + t d's hit (nonzero) and its t; *steps
+   the steps it walked, where it counts them. */
+typedef int (*rgl_imp_c_ray)(const void *user, refl_vec3 o, refl_vec3 d, double *t, long long *steps);
+
+/* The rays marched by the hook on GL (out->gl_seconds), then one by one
+   through c_ray (out->cpu_seconds): a ray that hits on one side only
+   disagrees, the others' error of t over `scale` goes into out's max and
+   p99.9; steps[0] and steps[1] sum the steps C and GL walked. Nonzero
+   with the reason in err when GL fails. */
+static int rgl__imp_check_run(rgl_context *g, rgl_imp_check *c, rgl_imp_c_ray c_ray, const void *user, double scale,
+                              long long steps[2], rgl_validation *out, char *err, size_t n) {
+    long long agree = 0;
+    size_t i;
+    double t0;
+    if (rgl__imp_march_rays(g, c->prog, c->data, c->floats, c->org, c->dir, c->w, c->h, c->back, &out->gl_seconds, err,
+                            n) != 0)
+        return -1;
+    t0 = rgl_now();
+    for (i = 0; i < (size_t)c->count; ++i) {
+        refl_vec3 o = refl_v3(c->org[4 * i], c->org[4 * i + 1], c->org[4 * i + 2]);
+        refl_vec3 d = refl_v3(c->dir[4 * i], c->dir[4 * i + 1], c->dir[4 * i + 2]);
+        double t = 0.0;
+        int c_hit = c_ray(user, o, d, &t, &steps[0]);
+        steps[1] += (long long)c->back[2][4 * i];
+        if (c_hit != (c->back[0][4 * i + 3] > 0.5f)) out->disagree++;
+        else if (c_hit) c->errs[agree++] = fabs((double)c->back[1][4 * i + 3] - t) / scale;
+    }
+    out->cpu_seconds = rgl_now() - t0;
+    out->points = c->count;
     out->projected = agree;
-    if (!agree) return;
-    qsort(r->errs, (size_t)agree, sizeof *r->errs, rgl__sp_cmp);
-    out->max_rel = r->errs[agree - 1];
-    out->p999_rel = r->errs[(size_t)((double)(agree - 1) * 0.999)];
+    if (!agree) return 0;
+    qsort(c->errs, (size_t)agree, sizeof *c->errs, rgl__sp_cmp);
+    out->max_rel = c->errs[agree - 1];
+    out->p999_rel = c->errs[(size_t)((double)(agree - 1) * 0.999)];
+    return 0;
+}
+
+/* The SPOC impostor's C march (refl_impostor_intersect); its steps not counted. */
+static int rgl__sp_c_ray(const void *imp, refl_vec3 o, refl_vec3 d, double *t, long long *steps) {
+    refl_impostor_hit hit;
+    int c_hit = refl_impostor_intersect((const refl_impostor *)imp, o, d, 0.0f, FLT_MAX, RGL_SP_STEP_SCALE, &hit, NULL);
+    (void)steps;
+    if (c_hit) *t = hit.t;
+    return c_hit;
 }
 
 int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t n) {
     int reflector = -1, k, rc = -1;
     size_t i;
-    refl_scene *s = NULL;
     rgl_sp_set set;
-    rgl_imp_rays r;
-    float *data = NULL;
-    long long floats = 0, agree = 0;
-    GLuint prog = 0;
+    rgl_imp_check c;
+    long long steps[2] = {0, 0};
     uint64_t seed = 0x5eedULL;
     refl_vec3 lo, hi;
-    double t0;
+    const refl_impostor_camera *cam;
     memset(out, 0, sizeof *out);
     memset(&set, 0, sizeof set);
-    memset(&r, 0, sizeof r);
+    memset(&c, 0, sizeof c);
     out->camera = "spoc-impostor";
     if (rays < 1) return 0;
-    if (refl_scene_builtin("teapots", NULL, &s) != REFL_OK) {
+    if (refl_scene_builtin("teapots", NULL, &c.scene) != REFL_OK) {
         snprintf(err, n, "no teapots scene");
         return -1;
     }
-    for (k = 0; k < s->object_count && reflector < 0; ++k)
-        if (s->materials[s->objects[k].material].type == REFL_MIRROR) reflector = k;
-    if (reflector < 0 || rgl__sp_build(s, reflector, &set) != 0 || set.imp_count != 1) {
+    for (k = 0; k < c.scene->object_count && reflector < 0; ++k)
+        if (c.scene->materials[c.scene->objects[k].material].type == REFL_MIRROR) reflector = k;
+    if (reflector < 0 || rgl__sp_build(c.scene, reflector, &set) != 0 || set.imp_count != 1) {
         snprintf(err, n, "the teapots' impostor failed");
         goto done;
     }
-    if (!(data = rgl__sp_pack(&set, &floats)) || rgl__imp_rays_new(&r, rays) != 0) goto oom;
+    if (!(c.data = rgl__sp_pack(&set, &c.floats)) || rgl__imp_check_rays(&c, rays) != 0) goto oom;
     /* rays from the mirror teapot's box: 80% towards a point of the
        impostor's sphere, the rest anywhere */
-    refl_object_world_bounds(s, reflector, &lo, &hi);
+    refl_object_world_bounds(c.scene, reflector, &lo, &hi);
+    cam = &set.imps[0]->camera;
     for (i = 0; i < (size_t)rays; ++i) {
-        const refl_impostor_camera *cam = &set.imps[0]->camera;
         refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
         refl_vec3 q = rgl__imp_rand_dir(&seed);
-        rgl__imp_rays_put(&r, i, o, rgl__sp_rand(&seed) < 0.8
-                                        ? refl_v3_sub(refl_v3_add(cam->center, refl_v3_scale(q, cam->radius)), o)
-                                        : q);
+        rgl__imp_check_put(&c, i, o, rgl__sp_rand(&seed) < 0.8
+                                         ? refl_v3_sub(refl_v3_add(cam->center, refl_v3_scale(q, cam->radius)), o)
+                                         : q);
     }
-    if (!(prog = rgl__sp_program(err, n)) ||
-        rgl__imp_march_rays(g, prog, data, floats, r.org, r.dir, r.w, r.h, r.back, &out->gl_seconds, err, n) != 0)
-        goto done;
     /* C: refl_impostor_intersect; the error of t over the sphere's diameter */
-    t0 = rgl_now();
-    for (i = 0; i < (size_t)rays; ++i) {
-        refl_impostor_hit hit;
-        refl_vec3 o, d;
-        int c_hit;
-        rgl__imp_rays_get(&r, i, &o, &d);
-        c_hit = refl_impostor_intersect(set.imps[0], o, d, 0.0f, FLT_MAX, RGL_SP_STEP_SCALE, &hit, NULL);
-        if (c_hit != (r.back[0][4 * i + 3] > 0.5f)) out->disagree++;
-        else if (c_hit)
-            r.errs[agree++] = fabs((double)r.back[1][4 * i + 3] - hit.t) / (2.0 * set.imps[0]->camera.radius);
-    }
-    out->cpu_seconds = rgl_now() - t0;
-    out->points = rays;
-    rgl__imp_rays_errors(&r, agree, out);
+    if (!(c.prog = rgl__sp_program(err, n)) ||
+        rgl__imp_check_run(g, &c, rgl__sp_c_ray, set.imps[0], 2.0 * cam->radius, steps, out, err, n) != 0)
+        goto done;
     snprintf(out->note, sizeof out->note, "the teapots' diffuse teapot from the mirror's centre, %dx%d x %d layers",
              set.imps[0]->width, set.imps[0]->height, set.imps[0]->layers);
     rc = 0;
@@ -863,92 +888,86 @@ int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *o
 oom:
     snprintf(err, n, "out of memory");
 done:
-    if (prog) rgl.DeleteProgram(prog);
     rgl__sp_set_free(&set);
-    refl_scene_destroy(s);
-    rgl__imp_rays_free(&r);
-    free(data);
+    rgl__imp_check_free(&c);
     return rc;
+}
+
+/* The graph camera impostor's C march (refl_graphcam_intersect, segments,
+   1 px a step, from eps on). */
+typedef struct rgl_gc_c_march {
+    const refl_graphcam *cam;
+    const refl_graphcam_impostor *imp;
+    float eps;
+} rgl_gc_c_march;
+
+static int rgl__gc_c_ray(const void *user, refl_vec3 o, refl_vec3 d, double *t, long long *steps) {
+    const rgl_gc_c_march *q = (const rgl_gc_c_march *)user;
+    refl_graphcam_hit hit;
+    int c_hit = refl_graphcam_intersect(q->cam, q->imp, o, d, q->eps, 1e30f, REFL_GRAPHCAM_SEGMENTS, 1.0f, &hit);
+    *steps += hit.steps;
+    if (c_hit) *t = hit.t;
+    return c_hit;
 }
 
 int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t n) {
     int mirror = -1, k, rc = -1;
     size_t i;
-    refl_scene *s = NULL;
     refl_graphcam *cam = (refl_graphcam *)malloc(sizeof *cam);
     refl_graphcam_impostor *imp = NULL;
-    rgl_imp_rays r;
-    float *data = NULL, eps;
-    long long floats = 0, agree = 0, c_steps = 0, gl_steps = 0;
-    GLuint prog = 0;
+    rgl_imp_check c;
+    rgl_gc_c_march march;
+    long long steps[2] = {0, 0};
     uint64_t seed = 0x9c0ffeeULL;
-    refl_vec3 lo, hi, clo, chi, c;
-    double t0;
+    refl_vec3 lo, hi, clo, chi, grow;
     memset(out, 0, sizeof *out);
-    memset(&r, 0, sizeof r);
+    memset(&c, 0, sizeof c);
     out->camera = "graphcam-impostor";
     if (rays < 1 || !cam) {
         free(cam);
         return rays < 1 ? 0 : -1;
     }
-    if (refl_scene_builtin("maze", NULL, &s) != REFL_OK || refl_graphcam_maze(cam, 960, 588) != REFL_OK ||
-        refl_graphcam_impostor_build(s, cam, NULL, 0, &imp) != REFL_OK) {
+    if (refl_scene_builtin("maze", NULL, &c.scene) != REFL_OK || refl_graphcam_maze(cam, 960, 588) != REFL_OK ||
+        refl_graphcam_impostor_build(c.scene, cam, NULL, 0, &imp) != REFL_OK) {
         snprintf(err, n, "the maze's graph camera impostor failed");
         goto done;
     }
-    for (k = 0; k < s->object_count && mirror < 0; ++k)
-        if (s->materials[s->objects[k].material].type == REFL_MIRROR) mirror = k;
-    floats = refl_gl_pack_graphcam_impostor(cam, imp, NULL, 0);
-    if (mirror < 0 || floats < 0) {
+    for (k = 0; k < c.scene->object_count && mirror < 0; ++k)
+        if (c.scene->materials[c.scene->objects[k].material].type == REFL_MIRROR) mirror = k;
+    c.floats = refl_gl_pack_graphcam_impostor(cam, imp, NULL, 0);
+    if (mirror < 0 || c.floats < 0) {
         snprintf(err, n, "no maze mirror, or the impostor refused");
         goto done;
     }
-    if (!(data = (float *)malloc((size_t)floats * sizeof(float))) || rgl__imp_rays_new(&r, rays) != 0) goto oom;
-    refl_gl_pack_graphcam_impostor(cam, imp, data, floats);
+    if (!(c.data = (float *)malloc((size_t)c.floats * sizeof(float))) || rgl__imp_check_rays(&c, rays) != 0) goto oom;
+    refl_gl_pack_graphcam_impostor(cam, imp, c.data, c.floats);
     /* rays from the mirror sphere's surface region (its box grown by a
        quarter), in random directions, as the method's reflected rays */
-    refl_object_world_bounds(s, mirror, &lo, &hi);
-    c = refl_v3_scale(refl_v3_sub(hi, lo), 0.25f);
-    lo = refl_v3_sub(lo, c);
-    hi = refl_v3_add(hi, c);
+    refl_object_world_bounds(c.scene, mirror, &lo, &hi);
+    grow = refl_v3_scale(refl_v3_sub(hi, lo), 0.25f);
+    lo = refl_v3_sub(lo, grow);
+    hi = refl_v3_add(hi, grow);
     for (i = 0; i < (size_t)rays; ++i) {
         refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
-        rgl__imp_rays_put(&r, i, o, rgl__imp_rand_dir(&seed));
+        rgl__imp_check_put(&c, i, o, rgl__imp_rand_dir(&seed));
     }
     refl_graphcam_bounds(cam, &clo, &chi);
-    eps = 1e-4f * (refl_v3_length(refl_v3_sub(chi, clo)) + 1.0f);
-    if (!(prog = rgl__gc_program(eps, err, n)) ||
-        rgl__imp_march_rays(g, prog, data, floats, r.org, r.dir, r.w, r.h, r.back, &out->gl_seconds, err, n) != 0)
+    march.cam = cam;
+    march.imp = imp;
+    march.eps = 1e-4f * (refl_v3_length(refl_v3_sub(chi, clo)) + 1.0f);
+    /* C: refl_graphcam_intersect; the error of t over the camera's bounds */
+    if (!(c.prog = rgl__gc_program(march.eps, err, n)) ||
+        rgl__imp_check_run(g, &c, rgl__gc_c_ray, &march, refl_v3_length(refl_v3_sub(chi, clo)), steps, out, err, n) != 0)
         goto done;
-    /* C: refl_graphcam_intersect (segments, 1 px); the error of t over the camera's bounds */
-    t0 = rgl_now();
-    for (i = 0; i < (size_t)rays; ++i) {
-        refl_graphcam_hit hit;
-        refl_vec3 o, d;
-        int c_hit;
-        rgl__imp_rays_get(&r, i, &o, &d);
-        c_hit = refl_graphcam_intersect(cam, imp, o, d, eps, 1e30f, REFL_GRAPHCAM_SEGMENTS, 1.0f, &hit);
-        c_steps += hit.steps;
-        gl_steps += (long long)r.back[2][4 * i];
-        if (c_hit != (r.back[0][4 * i + 3] > 0.5f)) out->disagree++;
-        else if (c_hit)
-            r.errs[agree++] = fabs((double)r.back[1][4 * i + 3] - hit.t) / refl_v3_length(refl_v3_sub(chi, clo));
-    }
-    out->cpu_seconds = rgl_now() - t0;
-    out->points = rays;
-    rgl__imp_rays_errors(&r, agree, out);
     snprintf(out->note, sizeof out->note, "the maze's camera, %d frusta at %dx%d; steps: C %lld, GL %lld",
-             cam->count, cam->width, cam->height, c_steps, gl_steps);
+             cam->count, cam->width, cam->height, steps[0], steps[1]);
     rc = 0;
     goto done;
 oom:
     snprintf(err, n, "out of memory");
 done:
-    if (prog) rgl.DeleteProgram(prog);
     refl_graphcam_impostor_destroy(imp);
-    refl_scene_destroy(s);
-    rgl__imp_rays_free(&r);
-    free(data);
+    rgl__imp_check_free(&c);
     free(cam);
     return rc;
 }
