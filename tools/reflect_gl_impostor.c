@@ -8,11 +8,10 @@
      1. the base pass (reflect_gl_frame.c): each mirror and partial
         reflector marks its pixels with its object number;
      2. per reflector seen, its impostors as the CPU method builds them
-        (m_spoc.c: every compact diffuse object whose bounding sphere does
-        not hold the reflector's box centre gets a SPOC from there, the
-        reflector's half diagonal as the baseline, spoc's default size,
-        strength, layers and subdivision), built with refl_impostor_build
-        and packed with the SPOC impostor hook (colour and gd per texel of
+        (refl_spoc_set_build at spoc's defaults: every compact diffuse
+        object whose bounding sphere does not hold the reflector's box
+        centre gets a SPOC from there, the rest of the scene exact),
+        packed with the SPOC impostor hook (colour and gd per texel of
         every depth layer, the camera, the sphere) into one buffer texture;
      3. per reflector a full-screen triangle, stencilled to its pixels,
         whose fragment shader takes the pixel's reflected ray (from the
@@ -48,11 +47,7 @@
 #include "reflect_gl_funcs.h"
 #include "reflect_gl_frame.h"
 
-/* refl_spoc_options' defaults (refl__options_spoc), what the CPU path draws with */
-#define RGL_SP_SIZE 512
-#define RGL_SP_STRENGTH 1.0f
-#define RGL_SP_LAYERS 3
-#define RGL_SP_MAX_EDGE 4.0f
+/* refl_spoc_options' default march (refl__options_spoc), what the CPU path draws with */
 #define RGL_SP_STEP_SCALE 1.0f
 
 /* A full-screen triangle; the stencil keeps the reflector's pixels. */
@@ -132,37 +127,6 @@ static void rgl__sp_texture(GLuint tex, int unit, int w, int h, const float *rgb
     rgl.ActiveTexture(GL_TEXTURE0);
 }
 
-/* What rays leaving one reflector meet: its impostors and the exact part. */
-typedef struct rgl_sp_set {
-    refl_spoc *cams;
-    refl_impostor **imps;
-    int *imp_object;             /* per impostor: the scene object */
-    int imp_count;
-    refl_bvh *exact;             /* the exactly intersected objects (NULL: none) */
-    int *exact_object;           /* its object index -> scene object */
-} rgl_sp_set;
-
-static void rgl__sp_set_free(rgl_sp_set *set) {
-    int i;
-    for (i = 0; i < set->imp_count; ++i) refl_impostor_destroy(set->imps[i]);
-    refl_bvh_destroy(set->exact);
-    free(set->cams);
-    free(set->imps);
-    free(set->imp_object);
-    free(set->exact_object);
-    memset(set, 0, sizeof *set);
-}
-
-/* Whether object i gets an impostor seen from eye (m_spoc.c's rule, one
-   bounce): diffuse, not flat, the eye outside its bounding sphere. */
-static int rgl__sp_impostored(const refl_scene *s, int i, refl_vec3 eye) {
-    refl_vec3 lo, hi;
-    if (s->materials[s->objects[i].material].type != REFL_DIFFUSE || refl_object_is_flat(s, i)) return 0;
-    refl_object_world_bounds(s, i, &lo, &hi);
-    return refl_v3_length(refl_v3_sub(eye, refl_v3_scale(refl_v3_add(lo, hi), 0.5f))) >
-           1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
-}
-
 /* The BVH of the objects keep[] marks (*bvh NULL: none) and its object
    index -> scene object (*map, the caller frees it). Nonzero on failure. */
 static int rgl__imp_sub_bvh(const refl_scene *s, const uint8_t *keep, refl_bvh **bvh, int **map) {
@@ -186,51 +150,9 @@ static int rgl__imp_sub_bvh(const refl_scene *s, const uint8_t *keep, refl_bvh *
     return rc;
 }
 
-/* Reflector `object`'s impostors and exact BVH (m_spoc.c's refl__spoc_build). */
-static int rgl__sp_build(const refl_scene *s, int object, rgl_sp_set *set) {
-    size_t n_obj = (size_t)(s->object_count > 0 ? s->object_count : 1);
-    refl_vec3 lo, hi, eye;
-    uint8_t *exact = (uint8_t *)calloc(n_obj, 1);
-    float baseline;
-    int i, rc = -1;
-    memset(set, 0, sizeof *set);
-    set->cams = (refl_spoc *)calloc(n_obj, sizeof *set->cams);
-    set->imps = (refl_impostor **)calloc(n_obj, sizeof *set->imps);
-    set->imp_object = (int *)calloc(n_obj, sizeof *set->imp_object);
-    if (!exact || !set->cams || !set->imps || !set->imp_object) goto done;
-    refl_object_world_bounds(s, object, &lo, &hi);
-    eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
-    baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
-    for (i = 0; i < s->object_count; ++i) {
-        if (i != object && rgl__sp_impostored(s, i, eye)) {
-            refl_vec3 olo, ohi;
-            refl_impostor_camera ic;
-            refl_impostor_desc d;
-            refl_spoc *cam = &set->cams[set->imp_count];
-            refl_object_world_bounds(s, i, &olo, &ohi);
-            if (refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
-                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, RGL_SP_STRENGTH,
-                               RGL_SP_SIZE) != REFL_OK)
-                goto done;
-            ic = refl_spoc_impostor_camera(cam);
-            memset(&d, 0, sizeof d);
-            d.max_edge_px = RGL_SP_MAX_EDGE;
-            d.layers = RGL_SP_LAYERS;
-            if (refl_impostor_build(s, &i, 1, &ic, &d, &set->imps[set->imp_count]) != REFL_OK) goto done;
-            set->imp_object[set->imp_count++] = i;
-        } else {
-            exact[i] = 1;
-        }
-    }
-    rc = rgl__imp_sub_bvh(s, exact, &set->exact, &set->exact_object);
-done:
-    free(exact);
-    return rc;
-}
-
 /* The set's impostors packed for the fragment shader (rgl__sp_fs_main's
    layout); NULL when out of memory or refused. */
-static float *rgl__sp_pack(const rgl_sp_set *set, long long *floats) {
+static float *rgl__sp_pack(const refl_spoc_set *set, long long *floats) {
     long long at = 4LL * (1 + set->imp_count), need = at, k;
     float *data;
     int i;
@@ -331,7 +253,7 @@ static void rgl__sp_shade_hit(const rgl_pass *p, int object, const refl_hit *h, 
 /* Whether the ray o + t d, which the reflector's SPOC answered with the
    point `shown` (met: 0, nothing), missed an impostored object the scene
    puts in front (refl__spoc_missed); *h the scene's own first hit. */
-static int rgl__sp_missed(const rgl_sp_set *set, const refl_bvh *scene_bvh, refl_vec3 o, refl_vec3 d, int met,
+static int rgl__sp_missed(const refl_spoc_set *set, const refl_bvh *scene_bvh, refl_vec3 o, refl_vec3 d, int met,
                           const float shown[3], refl_hit *h, int *hit) {
     int i;
     *hit = refl_bvh_intersect(scene_bvh, o, d, 0.0f, 1e30f, h);
@@ -347,7 +269,7 @@ static int rgl__sp_missed(const rgl_sp_set *set, const refl_bvh *scene_bvh, refl
 
 /* The CPU's share for reflector o's pixels: the exact part up to the
    impostor's hit, the missed rays traced, the composite. */
-static void rgl__sp_finish(const rgl_pass *p, int o, const rgl_sp_set *set, const refl_bvh *scene_bvh,
+static void rgl__sp_finish(const rgl_pass *p, int o, const refl_spoc_set *set, const refl_bvh *scene_bvh,
                            float *const drawn[3], const float *org, const float *dir, refl_frame *frame, float *rgb,
                            rgl_frame_stats *st) {
     size_t i, np = (size_t)p->w * (size_t)p->h;
@@ -388,12 +310,11 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
     uint8_t *seen = NULL;
     float *org = NULL, *dir = NULL, *data = NULL, offset;
     refl_bvh *scene_bvh = NULL;
-    rgl_sp_set set;
+    refl_spoc_set *set = NULL;
     rgl_method_pass m;
     const rgl_pass *ps = &m.ps;
     refl_vec3 lo, hi;
     double t1;
-    memset(&set, 0, sizeof set);
     if (rgl_method_begin(&m, scene, view, frame, st, err, n) != 0) goto done;
     t1 = rgl_now();
     refl_scene_bounds(scene, &lo, &hi);
@@ -415,18 +336,19 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         long long floats = 0;
         if (!m.mark[o] || !seen[o]) continue;
         t1 = rgl_now();
-        if (rgl__sp_build(scene, o, &set) != 0) {
+        /* the CPU method's set at spoc's defaults */
+        if (refl_spoc_set_build(scene, o, NULL, &set) != REFL_OK) {
             snprintf(err, n, "building object %d's impostors failed", o);
             goto done;
         }
         free(data);
-        if (!(data = rgl__sp_pack(&set, &floats))) {
+        if (!(data = rgl__sp_pack(set, &floats))) {
             snprintf(err, n, "refl_gl_pack_spoc_impostor refused object %d's impostors", o);
             goto done;
         }
-        st->mirrors += set.imp_count;
+        st->mirrors += set->imp_count;
         m.t_cpu += rgl_now() - t1;
-        if (set.imp_count) {
+        if (set->imp_count) {
             if (rgl_method_data(&m, data, floats, err, n) != 0) goto done;
             rgl.StencilFunc(GL_EQUAL, m.mark[o], 0xFF);
             rgl.DrawArrays(GL_TRIANGLES, 0, 3);
@@ -435,8 +357,9 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
         /* this reflector's pixels only: the later ones redraw theirs */
         if (rgl_method_read(&m, 3, "marching the SPOC impostors", err, n) != 0) goto done;
         t1 = rgl_now();
-        rgl__sp_finish(ps, o, &set, scene_bvh, m.drawn, org, dir, frame, rgb, st);
-        rgl__sp_set_free(&set);
+        rgl__sp_finish(ps, o, set, scene_bvh, m.drawn, org, dir, frame, rgb, st);
+        refl_spoc_set_destroy(set);
+        set = NULL;
         m.t_cpu += rgl_now() - t1;
     }
     /* every other pixel: the base pass shaded */
@@ -449,7 +372,7 @@ int rgl_render_spoc(rgl_context *g, const refl_scene *scene, const refl_view *vi
 oom:
     snprintf(err, n, "out of memory");
 done:
-    rgl__sp_set_free(&set);
+    refl_spoc_set_destroy(set);
     refl_bvh_destroy(scene_bvh);
     free(org);
     free(dir);
@@ -844,14 +767,13 @@ static int rgl__sp_c_ray(const void *imp, refl_vec3 o, refl_vec3 d, double *t, l
 int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *out, char *err, size_t n) {
     int reflector = -1, k, rc = -1;
     size_t i;
-    rgl_sp_set set;
+    refl_spoc_set *set = NULL;
     rgl_imp_check c;
     long long steps[2] = {0, 0};
     uint64_t seed = 0x5eedULL;
     refl_vec3 lo, hi;
     const refl_impostor_camera *cam;
     memset(out, 0, sizeof *out);
-    memset(&set, 0, sizeof set);
     memset(&c, 0, sizeof c);
     out->camera = "spoc-impostor";
     if (rays < 1) return 0;
@@ -861,15 +783,18 @@ int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *o
     }
     for (k = 0; k < c.scene->object_count && reflector < 0; ++k)
         if (c.scene->materials[c.scene->objects[k].material].type == REFL_MIRROR) reflector = k;
-    if (reflector < 0 || rgl__sp_build(c.scene, reflector, &set) != 0 || set.imp_count != 1) {
+    if (reflector < 0 || refl_spoc_set_build(c.scene, reflector, NULL, &set) != REFL_OK || set->imp_count != 1) {
         snprintf(err, n, "the teapots' impostor failed");
         goto done;
     }
-    if (!(c.data = rgl__sp_pack(&set, &c.floats)) || rgl__imp_check_rays(&c, rays) != 0) goto oom;
+    if (!(c.data = rgl__sp_pack(set, &c.floats)) || rgl__imp_check_rays(&c, rays) != 0) {
+        snprintf(err, n, "out of memory");
+        goto done;
+    }
     /* rays from the mirror teapot's box: 80% towards a point of the
        impostor's sphere, the rest anywhere */
     refl_object_world_bounds(c.scene, reflector, &lo, &hi);
-    cam = &set.imps[0]->camera;
+    cam = &set->imps[0]->camera;
     for (i = 0; i < (size_t)rays; ++i) {
         refl_vec3 o = rgl__imp_rand_in(&seed, lo, hi);
         refl_vec3 q = rgl__imp_rand_dir(&seed);
@@ -879,16 +804,13 @@ int rgl_validate_spoc_impostor(rgl_context *g, long long rays, rgl_validation *o
     }
     /* C: refl_impostor_intersect; the error of t over the sphere's diameter */
     if (!(c.prog = rgl__sp_program(err, n)) ||
-        rgl__imp_check_run(g, &c, rgl__sp_c_ray, set.imps[0], 2.0 * cam->radius, steps, out, err, n) != 0)
+        rgl__imp_check_run(g, &c, rgl__sp_c_ray, set->imps[0], 2.0 * cam->radius, steps, out, err, n) != 0)
         goto done;
     snprintf(out->note, sizeof out->note, "the teapots' diffuse teapot from the mirror's centre, %dx%d x %d layers",
-             set.imps[0]->width, set.imps[0]->height, set.imps[0]->layers);
+             set->imps[0]->width, set->imps[0]->height, set->imps[0]->layers);
     rc = 0;
-    goto done;
-oom:
-    snprintf(err, n, "out of memory");
 done:
-    rgl__sp_set_free(&set);
+    refl_spoc_set_destroy(set);
     rgl__imp_check_free(&c);
     return rc;
 }
@@ -939,7 +861,10 @@ int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validatio
         snprintf(err, n, "no maze mirror, or the impostor refused");
         goto done;
     }
-    if (!(c.data = (float *)malloc((size_t)c.floats * sizeof(float))) || rgl__imp_check_rays(&c, rays) != 0) goto oom;
+    if (!(c.data = (float *)malloc((size_t)c.floats * sizeof(float))) || rgl__imp_check_rays(&c, rays) != 0) {
+        snprintf(err, n, "out of memory");
+        goto done;
+    }
     refl_gl_pack_graphcam_impostor(cam, imp, c.data, c.floats);
     /* rays from the mirror sphere's surface region (its box grown by a
        quarter), in random directions, as the method's reflected rays */
@@ -962,9 +887,6 @@ int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validatio
     snprintf(out->note, sizeof out->note, "the maze's camera, %d frusta at %dx%d; steps: C %lld, GL %lld",
              cam->count, cam->width, cam->height, steps[0], steps[1]);
     rc = 0;
-    goto done;
-oom:
-    snprintf(err, n, "out of memory");
 done:
     refl_graphcam_impostor_destroy(imp);
     rgl__imp_check_free(&c);

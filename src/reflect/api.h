@@ -716,6 +716,46 @@ typedef struct refl_impostor_hit {
 REFL_API int refl_impostor_intersect(const refl_impostor *imp, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax,
                                      float step_scale, refl_impostor_hit *hit, int *steps);
 
+/* ---- SPOC's impostor set (paper 004, sections 4 and 6) ---------------------------
+   What the rays leaving one reflector meet, as the SPOC method builds it:
+   every object that gets an impostor seen from the centre of the
+   reflector's world box (the eye) - diffuse (or, with mirror_impostors, a
+   mirror, whose impostor stores normals), not flat (its box's smallest
+   side at least 1% of its largest), the eye outside its bounding sphere -
+   gets a SPOC from the eye at the centre of its world box, of radius its
+   half diagonal, the reflector's half diagonal as the baseline, imaged
+   alone (refl_impostor_build); every other object (the reflector too,
+   unless it is glass, whose rays leave it for good) is in one BVH,
+   intersected exactly. A ray meets the nearest of the impostors
+   (refl_impostor_intersect) and the exact part. */
+typedef struct refl_spoc_set_desc {
+    int size;                /* impostor image size (square), 8 to 4096; 0: 512 */
+    float strength;          /* the SPOC's push K, at most 64; 0: 1; negative: 0 (a plain depth image) */
+    int layers;              /* impostor depth layers, 1 to REFL_IMPOSTOR_MAX_LAYERS; 0: 3 */
+    float max_edge_px;       /* impostor subdivision (refl_impostor_desc), 0.5 to 64; 0: 4 */
+    int mirror_impostors;    /* 1: mirrors get impostors too (two bounces: rays reflect off them) */
+    int threads;             /* rasterisation threads; 0: one per CPU */
+    refl_allocator allocator; /* zero: the scene's */
+} refl_spoc_set_desc;
+
+typedef struct refl_spoc_set {
+    refl_spoc *cams;         /* per impostor: its SPOC */
+    refl_impostor **imps;    /* per impostor, imaged through cams[i] (refl_spoc_impostor_camera) */
+    int *imp_object;         /* per impostor: the scene object */
+    int imp_count;
+    refl_bvh *exact;         /* the objects intersected exactly (NULL: none) */
+    int *exact_object;       /* exact's object index -> scene object */
+    int exact_count;
+    refl_allocator allocator;
+} refl_spoc_set;
+
+/* Reflector `reflector`'s set; desc may be NULL (defaults).
+   REFL_ERROR_INVALID_ARGUMENT for NULL scene or out, reflector not one of
+   the scene's objects, desc's fields out of their ranges. */
+REFL_API refl_result refl_spoc_set_build(const refl_scene *scene, int reflector, const refl_spoc_set_desc *desc,
+                                         refl_spoc_set **out);
+REFL_API void refl_spoc_set_destroy(refl_spoc_set *set);
+
 /* ---- sample-based camera (paper 003) -----------------------------------------
    One reflection group's projection function: a BSP tree whose leaves hold
    planar pinhole cameras fitted to the group's reflected rays (or, where no

@@ -1,6 +1,7 @@
 /* SPOC: reflections of impostored diffuse objects in mirrors (paper 004,
-   sections 4 and 6). Per reflector seen, every compact diffuse object gets
-   an SPOC impostor (impostor.c) taken from the centre of the reflector's
+   sections 4 and 6). Per reflector seen (its set: refl_spoc_set_build,
+   public for the GL path), every compact diffuse object gets an SPOC
+   impostor (impostor.c) taken from the centre of the reflector's
    world bounding box, looking at the centre of the object's, of radius its
    half diagonal; the baseline is the reflector's half diagonal (the
    region its reflected rays start from), so the push is the parallax of a
@@ -36,21 +37,9 @@
    gives the same bytes and stats. */
 #include "internal.h"
 
-/* What rays leaving one reflector meet: its impostors and the exact part
-   of the scene. */
-typedef struct refl__spoc_set {
-    refl_spoc *cams;              /* per impostor */
-    refl_impostor **imps;
-    int *imp_object;              /* per impostor: the scene object */
-    int imp_count;
-    refl_bvh *exact;              /* the exactly intersected objects (NULL: none) */
-    int *exact_object;            /* its object index -> scene object */
-    int built;
-} refl__spoc_set;
-
 typedef struct refl__spoc_frame {
     refl__em em;
-    refl__spoc_set *sets;         /* per scene object; built for reflectors */
+    refl_spoc_set *sets;          /* per scene object; built for reflectors (cams set) */
     refl__rt_object *objects;     /* per scene object: transforms for hit surfaces */
     int object;                   /* the reflector being drawn */
     int bounces;                  /* 1, or 2: mirrors met are reflected through once more */
@@ -67,44 +56,30 @@ typedef struct refl__spoc_frame {
     long long *row_traced;
 } refl__spoc_frame;
 
-/* Whether object i is a mirror whose impostor stores normals: second-order
-   reflections, compact mirrors only (planar ones are exact and black). */
-static int refl__spoc_mirror_impostor(const refl__spoc_frame *sf, int i) {
-    const refl_scene *scene = sf->em.p->scene;
-    return sf->bounces > 1 && scene->materials[scene->objects[i].material].type == REFL_MIRROR &&
-           !refl_object_is_flat(scene, i);
-}
-
-/* Whether object i gets an impostor seen from `eye`: diffuse (or a mirror
-   with two bounces), not flat (its box's smallest side at least 1% of its
-   largest), and the eye outside its bounding sphere. */
-static int refl__spoc_impostored(const refl__spoc_frame *sf, int i, refl_vec3 eye) {
-    const refl_scene *scene = sf->em.p->scene;
+/* Whether object i gets an impostor seen from `eye`: diffuse (or, with
+   mirror_impostors, a mirror), not flat (its box's smallest side at least
+   1% of its largest), and the eye outside its bounding sphere. */
+static int refl__spoc_impostored(const refl_scene *scene, int i, refl_vec3 eye, int mirror_impostors) {
+    int type = scene->materials[scene->objects[i].material].type;
     refl_vec3 lo, hi, c;
-    if ((refl__is_reflector(&scene->materials[scene->objects[i].material]) && !refl__spoc_mirror_impostor(sf, i)) ||
-        refl_object_is_flat(scene, i))
-        return 0;
+    if ((type != REFL_DIFFUSE && !(mirror_impostors && type == REFL_MIRROR)) || refl_object_is_flat(scene, i)) return 0;
     refl_object_world_bounds(scene, i, &lo, &hi);
     c = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     return refl_v3_length(refl_v3_sub(eye, c)) > 1.01f * 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
 }
 
-/* Builds reflector `object`'s impostors and exact BVH (once). */
-static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
-    refl__pass *p = sf->em.p;
-    refl__spoc_set *set = &sf->sets[object];
-    size_t objects = (size_t)REFL__MAX(p->scene->object_count, 1);
-    const refl_scene *scene = p->scene;
-    const refl_allocator *al = &scene->allocator;
-    const refl_spoc_options *opt = &p->desc.spoc;
+/* Builds reflector `object`'s set into *set (zeroed, its allocator set)
+   with rc's threads; d's fields in range, its defaults filled. */
+static refl_result refl__spoc_set_build(rast_context *rc, const refl_scene *scene, int object,
+                                        const refl_spoc_set_desc *d, refl_spoc_set *set) {
+    size_t objects = (size_t)REFL__MAX(scene->object_count, 1);
+    const refl_allocator *al = &set->allocator;
     refl_vec3 lo, hi, eye;
     refl_scene sub;
     refl_object *objs;
-    float baseline, strength = opt->strength < 0.0f ? 0.0f : opt->strength;
+    float baseline, strength = d->strength < 0.0f ? 0.0f : d->strength;
     int i, n = 0;
     refl_result r = REFL_OK;
-    if (set->built) return REFL_OK;
-    set->built = 1;
     set->cams = (refl_spoc *)refl__calloc(al, objects, sizeof(refl_spoc));
     set->imps = (refl_impostor **)refl__calloc(al, objects, sizeof(refl_impostor *));
     set->imp_object = (int *)refl__calloc(al, objects, sizeof(int));
@@ -113,59 +88,125 @@ static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
     refl_object_world_bounds(scene, object, &lo, &hi);
     eye = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
     baseline = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
-    objs = (refl_object *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), sizeof(refl_object));
+    objs = (refl_object *)refl__calloc(al, objects, sizeof(refl_object));
     if (!objs) return REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; r == REFL_OK && i < scene->object_count; ++i) {
-        if (i != object && refl__spoc_impostored(sf, i, eye)) {
+        int type = scene->materials[scene->objects[i].material].type;
+        if (i != object && refl__spoc_impostored(scene, i, eye, d->mirror_impostors)) {
             refl_vec3 olo, ohi;
             refl_impostor_camera ic;
-            refl_impostor_desc d;
+            refl_impostor_desc id;
             refl_spoc *cam = &set->cams[set->imp_count];
             refl_object_world_bounds(scene, i, &olo, &ohi);
             r = refl_spoc_init(cam, eye, refl_v3_scale(refl_v3_add(olo, ohi), 0.5f),
-                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, opt->size);
+                               0.5f * refl_v3_length(refl_v3_sub(ohi, olo)), baseline, strength, d->size);
             if (r != REFL_OK) break;
             ic = refl_spoc_impostor_camera(cam);
-            memset(&d, 0, sizeof d);
-            d.max_edge_px = opt->max_edge_px;
-            d.normals = refl__spoc_mirror_impostor(sf, i);
-            d.layers = opt->layers;
-            d.allocator = *al;
-            r = refl__impostor_build(p->rc, scene, &i, 1, &ic, &d, &set->imps[set->imp_count]);
+            memset(&id, 0, sizeof id);
+            id.max_edge_px = d->max_edge_px;
+            id.normals = type == REFL_MIRROR;
+            id.layers = d->layers;
+            id.allocator = *al;
+            r = refl__impostor_build(rc, scene, &i, 1, &ic, &id, &set->imps[set->imp_count]);
             if (r != REFL_OK) break;
-            p->frame->stats.triangles += set->imps[set->imp_count]->triangles;
-            p->frame->stats.model_bytes +=
-                (long long)((size_t)opt->size * (size_t)opt->size * (size_t)opt->layers * (d.normals ? 8 : 5) * sizeof(float));
-            ++p->frame->stats.spoc.impostors;
             set->imp_object[set->imp_count++] = i;
-        } else if (i != object || scene->materials[scene->objects[i].material].type != REFL_GLASS) {
+        } else if (i != object || type != REFL_GLASS) {
             /* a glass reflector's rays leave it for good (refl__spoc_glass) */
             set->exact_object[n] = i;
             objs[n++] = scene->objects[i];
         }
     }
+    set->exact_count = n;
     if (r == REFL_OK && n) {
         sub = *scene;
         sub.objects = objs;
         sub.object_count = n;
         r = refl_bvh_build(&sub, al, &set->exact);
-        if (r == REFL_OK) p->frame->stats.model_bytes += refl__bvh_bytes(set->exact);
     }
     refl__free(al, objs);
     return r;
 }
 
-static void refl__spoc_release(refl__spoc_frame *sf, int object) {
-    const refl_allocator *al = &sf->em.p->scene->allocator;
-    refl__spoc_set *set = &sf->sets[object];
+static void refl__spoc_set_release(refl_spoc_set *set) {
+    refl_allocator al = set->allocator;
     int i;
     for (i = 0; i < set->imp_count; ++i) refl_impostor_destroy(set->imps[i]);
     refl_bvh_destroy(set->exact);
-    refl__free(al, set->cams);
-    refl__free(al, set->imps);
-    refl__free(al, set->imp_object);
-    refl__free(al, set->exact_object);
+    refl__free(&al, set->cams);
+    refl__free(&al, set->imps);
+    refl__free(&al, set->imp_object);
+    refl__free(&al, set->exact_object);
     memset(set, 0, sizeof *set);
+    set->allocator = al;
+}
+
+REFL_API refl_result refl_spoc_set_build(const refl_scene *scene, int reflector, const refl_spoc_set_desc *desc,
+                                         refl_spoc_set **out) {
+    refl_spoc_set_desc d;
+    refl_spoc_set *set;
+    rast_context *rc = NULL;
+    const refl_allocator *al;
+    refl_result r;
+    if (!out) return REFL_ERROR_INVALID_ARGUMENT;
+    *out = NULL;
+    if (!scene || reflector < 0 || reflector >= scene->object_count) return REFL_ERROR_INVALID_ARGUMENT;
+    if (desc) d = *desc;
+    else memset(&d, 0, sizeof d);
+    if (d.size == 0) d.size = 512;
+    if (d.strength == 0.0f) d.strength = 1.0f;
+    if (d.layers == 0) d.layers = 3;
+    if (d.max_edge_px == 0.0f) d.max_edge_px = 4.0f;
+    if (d.size < 8 || d.size > 4096 || !refl__isfinite(d.strength) || d.strength > 64.0f || d.layers < 1 ||
+        d.layers > REFL_IMPOSTOR_MAX_LAYERS || !(d.max_edge_px >= 0.5f && d.max_edge_px <= 64.0f) || d.threads < 0)
+        return REFL_ERROR_INVALID_ARGUMENT;
+    al = d.allocator.alloc || d.allocator.free ? &d.allocator : &scene->allocator;
+    if (!(set = (refl_spoc_set *)refl__calloc(al, 1, sizeof *set))) return REFL_ERROR_OUT_OF_MEMORY;
+    set->allocator = *al;
+    r = refl__context_create(scene, d.threads, &rc);
+    if (r == REFL_OK) r = refl__spoc_set_build(rc, scene, reflector, &d, set);
+    if (rc) rast_context_destroy(rc);
+    if (r != REFL_OK) {
+        refl_spoc_set_destroy(set);
+        return r;
+    }
+    *out = set;
+    return REFL_OK;
+}
+
+REFL_API void refl_spoc_set_destroy(refl_spoc_set *set) {
+    refl_allocator al;
+    if (!set) return;
+    refl__spoc_set_release(set);
+    al = set->allocator;
+    refl__free(&al, set);
+}
+
+/* Builds reflector `object`'s set (once) with the frame's options, its
+   impostors and memory counted in the frame's stats. */
+static refl_result refl__spoc_build(refl__spoc_frame *sf, int object) {
+    refl__pass *p = sf->em.p;
+    refl_spoc_set *set = &sf->sets[object];
+    const refl_spoc_options *opt = &p->desc.spoc;
+    refl_spoc_set_desc d;
+    refl_result r;
+    int k;
+    if (set->cams) return REFL_OK; /* built */
+    memset(&d, 0, sizeof d);
+    d.size = opt->size;
+    d.strength = opt->strength;
+    d.layers = opt->layers;
+    d.max_edge_px = opt->max_edge_px;
+    d.mirror_impostors = sf->bounces > 1;
+    set->allocator = p->scene->allocator;
+    r = refl__spoc_set_build(p->rc, p->scene, object, &d, set);
+    for (k = 0; k < set->imp_count; ++k) {
+        p->frame->stats.triangles += set->imps[k]->triangles;
+        p->frame->stats.model_bytes += (long long)((size_t)opt->size * (size_t)opt->size * (size_t)opt->layers *
+                                                   (set->imps[k]->normal ? 8 : 5) * sizeof(float));
+        ++p->frame->stats.spoc.impostors;
+    }
+    if (set->exact) p->frame->stats.model_bytes += refl__bvh_bytes(set->exact);
+    return r;
 }
 
 /* What the ray o + t d leaving reflector `from` meets first: its colour
@@ -177,7 +218,7 @@ static void refl__spoc_release(refl__spoc_frame *sf, int object) {
 static int refl__spoc_trace(const refl__spoc_frame *sf, int from, int bounce, refl_vec3 o, refl_vec3 d, float exact_tmin,
                             float rgb[3], refl_vec3 *shown, long long *steps, long long *max_steps) {
     const refl__pass *p = sf->em.p;
-    const refl__spoc_set *set = &sf->sets[from];
+    const refl_spoc_set *set = &sf->sets[from];
     float best = FLT_MAX;
     int i, c, found = 0, mirror = -1;
     float footprint = 0.0f;       /* the mirror impostor met: 2 texels, in world units */
@@ -482,7 +523,7 @@ static void refl__spoc_glass(const refl__spoc_frame *sf, int x, int y, refl_vec3
    meets an impostored object more than two of its texels nearer than
    what SPOC shows. */
 static int refl__spoc_missed(const refl__spoc_frame *sf, refl_vec3 o, refl_vec3 d, refl_vec3 shown) {
-    const refl__spoc_set *set = &sf->sets[sf->object];
+    const refl_spoc_set *set = &sf->sets[sf->object];
     refl_hit h;
     int i;
     if (!refl_bvh_intersect(sf->scene_bvh, o, d, 0.0f, 1e30f, &h)) return 0;
@@ -581,7 +622,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
     if (r == REFL_OK && any) {
         size_t npx = (size_t)fr->width * (size_t)fr->height;
         sf.em.surface = (float *)refl__calloc(al, npx, 3 * sizeof(float));
-        sf.sets = (refl__spoc_set *)refl__calloc(al, objects, sizeof(refl__spoc_set));
+        sf.sets = (refl_spoc_set *)refl__calloc(al, objects, sizeof(refl_spoc_set));
         sf.objects = refl__rt_objects_new(scene);
         sf.row_steps = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
         sf.row_max = (long long *)refl__calloc(al, (size_t)fr->height, sizeof(long long));
@@ -621,7 +662,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
             rast_run_jobs(p->rc, fr->height, refl__spoc_row, &sf);
         }
         refl__spoc_glass_end(&sf);
-        if (sf.bounces == 1) refl__spoc_release(&sf, i);
+        if (sf.bounces == 1) refl__spoc_set_release(&sf.sets[i]);
         t1 = refl__now_ms();
         fr->stats.ms_reflect += t1 - t0;
     }
@@ -639,7 +680,7 @@ static refl_result refl__method_spoc(refl__pass *p) {
         rast_targets t = refl__frame_targets(fr);
         r = refl__result_from_rast(rast_set_targets(p->rc, &t));
     }
-    for (i = 0; sf.sets && i < scene->object_count; ++i) refl__spoc_release(&sf, i);
+    for (i = 0; sf.sets && i < scene->object_count; ++i) refl__spoc_set_release(&sf.sets[i]);
     refl__free(al, sf.sets);
     refl__free(al, sf.em.gbuf);
     refl__free(al, sf.em.draws);

@@ -191,6 +191,77 @@ Test(spoc_method, same_bytes_for_any_thread_count) {
     refl_scene_destroy(s);
 }
 
+/* refl_spoc_set_build as documented: from the mirror teapot, the diffuse
+   teapot is the one impostor (imaged alone through its SPOC: the same
+   bytes as refl_impostor_build's), every other object exact; with
+   mirror_impostors, from the diffuse teapot, the mirror's impostor stores
+   normals. */
+Test(spoc_method, impostor_set_as_documented) {
+    refl_scene *s = NULL;
+    refl_spoc_set *set = NULL, unset;
+    refl_spoc_set_desc d;
+    refl_impostor_camera ic;
+    refl_impostor_desc id;
+    refl_impostor *alone = NULL;
+    refl_vec3 lo, hi;
+    int mirror, diffuse, k, n;
+    size_t texels;
+    cr_assert_eq(refl_scene_builtin("teapots", NULL, &s), REFL_OK);
+    mirror = object_named(s, "mirror teapot");
+    diffuse = object_named(s, "diffuse teapot");
+    memset(&d, 0, sizeof d);
+    d.size = 64;
+    d.threads = 2;
+    cr_assert_eq(refl_spoc_set_build(s, mirror, &d, &set), REFL_OK);
+    cr_assert_eq(set->imp_count, 1);
+    cr_expect_eq(set->imp_object[0], diffuse);
+    cr_expect_eq(set->imps[0]->layers, 3);
+    cr_expect_null(set->imps[0]->normal);
+    refl_object_world_bounds(s, mirror, &lo, &hi);
+    cr_expect_lt(refl_v3_length(refl_v3_sub(set->cams[0].eye, refl_v3_scale(refl_v3_add(lo, hi), 0.5f))), 1e-6f);
+    cr_expect_eq(set->cams[0].size, 64);
+    cr_expect_eq(set->exact_count, s->object_count - 1);
+    for (k = 0, n = 0; k < set->exact_count; ++k) n += set->exact_object[k] == diffuse;
+    cr_expect_eq(n, 0, "the impostored teapot is not exact");
+    ic = refl_spoc_impostor_camera(&set->cams[0]);
+    memset(&id, 0, sizeof id);
+    id.layers = 3;
+    id.threads = 1;
+    cr_assert_eq(refl_impostor_build(s, &diffuse, 1, &ic, &id, &alone), REFL_OK);
+    texels = (size_t)alone->width * (size_t)alone->height * (size_t)alone->layers;
+    cr_expect(!memcmp(alone->color, set->imps[0]->color, texels * 4 * sizeof(float)) &&
+              !memcmp(alone->depth, set->imps[0]->depth, texels * sizeof(float)));
+    refl_impostor_destroy(alone);
+    refl_spoc_set_destroy(set);
+    set = NULL;
+    d.mirror_impostors = 1;
+    cr_assert_eq(refl_spoc_set_build(s, diffuse, &d, &set), REFL_OK);
+    cr_assert_eq(set->imp_count, 1);
+    cr_expect_eq(set->imp_object[0], mirror);
+    cr_expect_not_null(set->imps[0]->normal);
+    refl_spoc_set_destroy(set);
+    set = &unset; /* a refusal sets it to NULL */
+    cr_expect_eq(refl_spoc_set_build(NULL, 0, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    cr_expect_null(set);
+    cr_expect_eq(refl_spoc_set_build(s, -1, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    cr_expect_eq(refl_spoc_set_build(s, s->object_count, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    cr_expect_eq(refl_spoc_set_build(s, mirror, &d, NULL), REFL_ERROR_INVALID_ARGUMENT);
+    d.size = 4;
+    cr_expect_eq(refl_spoc_set_build(s, mirror, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    d.size = 64;
+    d.layers = REFL_IMPOSTOR_MAX_LAYERS + 1;
+    cr_expect_eq(refl_spoc_set_build(s, mirror, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    d.layers = 0;
+    d.strength = NAN;
+    cr_expect_eq(refl_spoc_set_build(s, mirror, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    d.strength = 0.0f;
+    d.max_edge_px = 0.25f;
+    cr_expect_eq(refl_spoc_set_build(s, mirror, &d, &set), REFL_ERROR_INVALID_ARGUMENT);
+    cr_expect_null(set);
+    refl_spoc_set_destroy(NULL);
+    refl_scene_destroy(s);
+}
+
 Test(spoc_method, options_validated) {
     refl_render_desc d;
     const char *why = NULL;
