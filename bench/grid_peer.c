@@ -35,23 +35,7 @@ struct refl_grid {
     long long rays, tests;   /* counted with atomic adds */
 };
 
-/* refl_bvh's test for a usable triangle: finite, not degenerate (in double). */
-static int grid_tri_ok(const float *v) {
-    double e1[3], e2[3], c[3];
-    int k;
-    for (k = 0; k < 9; ++k)
-        if (!isfinite(v[k])) return 0;
-    for (k = 0; k < 3; ++k) {
-        e1[k] = (double)v[3 + k] - v[k];
-        e2[k] = (double)v[6 + k] - v[k];
-    }
-    c[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    c[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    c[2] = e1[0] * e2[1] - e1[1] * e2[0];
-    return c[0] != 0 || c[1] != 0 || c[2] != 0;
-}
-
-/* The chosen objects' usable world triangles into g->tris; 0 on failure. */
+/* The chosen objects' world triangles into g->tris; 0 on failure. */
 static int grid_gather(refl_grid *g, const refl_scene *s, const unsigned char *objects) {
     long long n = 0;
     int i, t, j, pass;
@@ -72,7 +56,8 @@ static int grid_gather(refl_grid *g, const refl_scene *s, const unsigned char *o
                     tri.v[3 * j + 1] = w.y;
                     tri.v[3 * j + 2] = w.z;
                 }
-                if (!grid_tri_ok(tri.v)) continue;
+                for (j = 0; j < 9 && isfinite(tri.v[j]); ++j) {}
+                if (j < 9) continue; /* as refl_bvh: a degenerate one stays, refl_ray_triangle never hits it */
                 if (pass == 1) {
                     tri.object = i;
                     tri.triangle = t;
@@ -194,69 +179,21 @@ void refl_grid_destroy(refl_grid *g) {
 
 /* ---- tracing --------------------------------------------------------------------- */
 
-/* A ray in refl_bvh's terms: Woop's ray space (kz the dominant axis, the
-   shear sx, sy and scale sz), computed as refl_bvh computes them. */
+/* A ray as the walk needs it. */
 typedef struct grid_ray {
+    refl_vec3 o, d;
     float org[3], dir[3];
-    int kx, ky, kz;
-    float sx, sy, sz;
 } grid_ray;
 
 static int grid_ray_setup(grid_ray *r, refl_vec3 o, refl_vec3 d) {
-    float ad[3];
-    int k, t;
+    int k;
+    r->o = o;
+    r->d = d;
     r->org[0] = o.x; r->org[1] = o.y; r->org[2] = o.z;
     r->dir[0] = d.x; r->dir[1] = d.y; r->dir[2] = d.z;
-    for (k = 0; k < 3; ++k) {
+    for (k = 0; k < 3; ++k)
         if (!isfinite(r->org[k]) || !isfinite(r->dir[k])) return 0;
-        ad[k] = fabsf(r->dir[k]);
-    }
-    r->kz = ad[0] >= ad[1] ? (ad[0] >= ad[2] ? 0 : 2) : (ad[1] >= ad[2] ? 1 : 2);
-    if (ad[r->kz] == 0) return 0;
-    r->kx = (r->kz + 1) % 3;
-    r->ky = (r->kx + 1) % 3;
-    if (r->dir[r->kz] < 0) { t = r->kx; r->kx = r->ky; r->ky = t; }
-    r->sx = r->dir[r->kx] / r->dir[r->kz];
-    r->sy = r->dir[r->ky] / r->dir[r->kz];
-    r->sz = 1.0f / r->dir[r->kz];
-    return 1;
-}
-
-/* refl_bvh's watertight test (Woop, Benthin and Wald 2013): 1 with t, u, v
-   when the ray hits with tmin < t <= tmax. */
-static int grid_tri_hit(const grid_ray *r, const float v[9], float tmin, float tmax, float *t_out, float *u_out,
-                        float *v_out) {
-    int kx = r->kx, ky = r->ky, kz = r->kz, k;
-    float ax, ay, bx, by, cx, cy, az, bz, cz, e0, e1, e2, det, tt, inv, t;
-    float a[3], b[3], c[3];
-    for (k = 0; k < 3; ++k) {
-        a[k] = v[k] - r->org[k];
-        b[k] = v[3 + k] - r->org[k];
-        c[k] = v[6 + k] - r->org[k];
-    }
-    ax = a[kx] - r->sx * a[kz]; ay = a[ky] - r->sy * a[kz];
-    bx = b[kx] - r->sx * b[kz]; by = b[ky] - r->sy * b[kz];
-    cx = c[kx] - r->sx * c[kz]; cy = c[ky] - r->sy * c[kz];
-    e0 = cx * by - cy * bx;
-    e1 = ax * cy - ay * cx;
-    e2 = bx * ay - by * ax;
-    if (e0 == 0.0f || e1 == 0.0f || e2 == 0.0f) { /* on an edge: decided in double, exactly */
-        e0 = (float)((double)cx * by - (double)cy * bx);
-        e1 = (float)((double)ax * cy - (double)ay * cx);
-        e2 = (float)((double)bx * ay - (double)by * ax);
-    }
-    if ((e0 < 0 || e1 < 0 || e2 < 0) && (e0 > 0 || e1 > 0 || e2 > 0)) return 0;
-    det = e0 + e1 + e2;
-    if (det == 0.0f) return 0;
-    az = r->sz * a[kz]; bz = r->sz * b[kz]; cz = r->sz * c[kz];
-    tt = e0 * az + e1 * bz + e2 * cz;
-    inv = 1.0f / det;
-    t = tt * inv;
-    if (!(t > tmin) || !(t <= tmax)) return 0;
-    *t_out = t;
-    *u_out = e1 * inv;
-    *v_out = e2 * inv;
-    return 1;
+    return r->dir[0] != 0.0f || r->dir[1] != 0.0f || r->dir[2] != 0.0f;
 }
 
 /* Whether cell c lies in triangle t's cells. */
@@ -304,19 +241,18 @@ static int grid_trace(const refl_grid *g, refl_vec3 o, refl_vec3 d, float tmin, 
         float texit = fminf(next[0], fminf(next[1], next[2]));
         for (j = g->start[c]; j < g->start[c + 1]; ++j) {
             const grid_tri *t = &g->tris[g->items[j]];
-            float th, u, v, bound = found ? best.t : tmax;
+            float bound = found ? best.t : tmax;
+            refl_hit th;
             if (have_prev && grid_tri_holds(t, prev)) continue; /* tested in an earlier cell */
             ++*tests;
-            if (!grid_tri_hit(&r, t->v, tmin, bound, &th, &u, &v)) continue;
+            if (!refl_ray_triangle(r.o, r.d, t->v, tmin, bound, &th)) continue;
             /* refl_bvh's order: closer first; a tie to the lower object, then triangle;
                tmax itself excluded */
-            if (!(th < bound) && !(th == bound && found &&
-                                   (t->object < best.object || (t->object == best.object && t->triangle < best.triangle))))
+            if (!(th.t < bound) && !(th.t == bound && found && (t->object < best.object ||
+                                                               (t->object == best.object && t->triangle < best.triangle))))
                 continue;
             found = 1;
-            best.t = th;
-            best.u = u;
-            best.v = v;
+            best = th;
             best.object = t->object;
             best.triangle = t->triangle;
             if (any_hit) return 1;

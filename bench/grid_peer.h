@@ -11,15 +11,16 @@
        refl_grid_counts(g, &rays, &tests);
        refl_grid_destroy(g);
 
-   The grid holds the chosen objects' world triangles (refl_mat4_point, the
-   degenerate and non-finite ones left out, as refl_bvh does) in cells of
+   The grid holds the chosen objects' world triangles (refl_mat4_point; the
+   non-finite ones left out, as refl_bvh does; a degenerate one, which
+   refl_bvh leaves out, is tested and never hit) in cells of
    one size over their bounds; a triangle goes into every cell its bounds
    overlap. A ray walks the cells it crosses in order (3D-DDA, Amanatides
    and Woo 1987) and tests each triangle once (mailboxing, without state:
    a triangle's cells along a ray are consecutive, so it is tested in the
    first of them, where the cell the ray came from is not one of its own),
-   with refl_bvh's watertight test and its order of ties (lower object,
-   then triangle): the same hits. Resolution: PBRT's GridAccel (Pharr and
+   with refl_bvh's watertight test (refl_ray_triangle) and its order of
+   ties (lower object, then triangle): the same hits. Resolution: PBRT's GridAccel (Pharr and
    Humphreys 2004), per_side times the cube root of the triangle count
    cells along the bounds' longest side, the other sides in proportion
    (cells near cubes), at least 1 and at most max_side a side. */

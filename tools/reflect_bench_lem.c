@@ -114,6 +114,14 @@ static refl_view lem_turned(refl_view v, refl_vec3 c, double azimuth, double ele
     return v;
 }
 
+/* The scene's camera at w x h. */
+static refl_view lem_camera(const refl_scene *s, int w, int h) {
+    refl_view v = s->camera;
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
 static refl_render_desc lem_desc(int threads, int spp) {
     refl_render_desc d;
     memset(&d, 0, sizeof d);
@@ -165,6 +173,28 @@ static int lem_table_col(const refl_scene *s, const refl_view *v, int threads, c
 
 static double lem_ratio(double a, double b) { return b > 0.0 ? a / b : 0.0; }
 
+/* dir/name.csv and dir/name.md opened for writing; 0 (and said) when not. */
+static int lem_open_pair(const char *dir, const char *name, FILE **csv, FILE **md) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s.csv", dir, name);
+    *csv = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/%s.md", dir, name);
+    *md = fopen(path, "w");
+    if (!*csv || !*md) fprintf(stderr, "reflect bench: cannot write %s/%s.{csv,md}\n", dir, name);
+    return *csv && *md;
+}
+
+/* dir/name.md, written, to stdout. */
+static void lem_echo(const char *dir, const char *name) {
+    char path[1024], line[4096];
+    FILE *in;
+    snprintf(path, sizeof path, "%s/%s.md", dir, name);
+    in = fopen(path, "r");
+    while (in && fgets(line, sizeof line, in)) fputs(line, stdout);
+    if (in) fclose(in);
+    fprintf(stderr, "wrote %s/%s.csv and %s\n", dir, name, path);
+}
+
 int refl_bench_lem(const char *dir, int threads, int quick) {
     enum { MAX_COLS = 2 * (REFL_LEM_MAX_LAYERS + 1) };
     static const float ts[2] = {3.0f, 5.0f};
@@ -177,7 +207,6 @@ int refl_bench_lem(const char *dir, int threads, int quick) {
     refl_stats gs, fs;
     lem_error full_err;
     refl_view v;
-    char path[1024];
     FILE *csv = NULL, *md = NULL;
     int ncols = 0, i, k, best = -1, ok = 1;
     if (!s || refl_frame_create(w, h, NULL, &greedy) != REFL_OK || refl_frame_create(w, h, NULL, &full) != REFL_OK ||
@@ -186,9 +215,7 @@ int refl_bench_lem(const char *dir, int threads, int quick) {
         ok = 0;
         goto done;
     }
-    v = s->camera;
-    v.width = w;
-    v.height = h;
+    v = lem_camera(s, w, h);
     printf("hybrid (paper 001 section 6), %dx%d 3x3 subsampled, depth %d, %s threads\n", w, h, LEM_DEPTH,
            threads ? "given" : "all");
     d.method = REFL_RAYTRACE;
@@ -230,12 +257,7 @@ int refl_bench_lem(const char *dir, int threads, int quick) {
     for (i = 0; i < ncols; i += 2)
         if (cols[i].layers && (best < 0 || cols[i].greedy.psnr > cols[best].greedy.psnr)) best = i;
 
-    snprintf(path, sizeof path, "%s/lem_table.csv", dir);
-    csv = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/lem_table.md", dir);
-    md = fopen(path, "w");
-    if (!csv || !md) {
-        fprintf(stderr, "reflect bench: cannot write %s/lem_table.{csv,md}\n", dir);
+    if (!lem_open_pair(dir, "lem_table", &csv, &md)) {
         ok = 0;
         goto done;
     }
@@ -313,14 +335,7 @@ int refl_bench_lem(const char *dir, int threads, int quick) {
     fputs("\n", stdout);
     fclose(md);
     md = NULL;
-    snprintf(path, sizeof path, "%s/lem_table.md", dir);
-    {
-        FILE *in = fopen(path, "r");
-        char line[4096];
-        while (in && fgets(line, sizeof line, in)) fputs(line, stdout);
-        if (in) fclose(in);
-    }
-    fprintf(stderr, "wrote %s/lem_table.csv and %s\n", dir, path);
+    lem_echo(dir, "lem_table");
 done:
     if (csv) fclose(csv);
     if (md) fclose(md);
@@ -905,7 +920,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     lg_row bvh_row, rows[LG_DENSITIES];
     lg_switch sw;
     refl_view v, fine;
-    char path[1024], first[512];
+    char first[512];
     FILE *csv = NULL, *md = NULL;
     int k, i, a, ok = 1;
     double t0;
@@ -918,9 +933,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
         ok = 0;
         goto done;
     }
-    v = s->camera;
-    v.width = w;
-    v.height = h;
+    v = lem_camera(s, w, h);
     fine = v; /* the method's view: spp 9 renders 3 times wider and higher */
     fine.width = 3 * w;
     fine.height = 3 * h;
@@ -1041,12 +1054,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     }
     if (!ok) goto done;
 
-    snprintf(path, sizeof path, "%s/lem_grid.csv", dir);
-    csv = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/lem_grid.md", dir);
-    md = fopen(path, "w");
-    if (!csv || !md) {
-        fprintf(stderr, "reflect bench: cannot write %s/lem_grid.{csv,md}\n", dir);
+    if (!lem_open_pair(dir, "lem_grid", &csv, &md)) {
         ok = 0;
         goto done;
     }
@@ -1138,15 +1146,8 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
             lem_ratio((double)bvh_row.rt_tests, (double)bvh_row.lem[1].tests), bvh_row.rt_ms);
     fclose(md);
     md = NULL;
-    snprintf(path, sizeof path, "%s/lem_grid.md", dir);
-    {
-        FILE *in = fopen(path, "r");
-        char line[4096];
-        fputs("\n", stdout);
-        while (in && fgets(line, sizeof line, in)) fputs(line, stdout);
-        if (in) fclose(in);
-    }
-    fprintf(stderr, "wrote %s/lem_grid.csv and %s\n", dir, path);
+    fputs("\n", stdout);
+    lem_echo(dir, "lem_grid");
 done:
     if (csv) fclose(csv);
     if (md) fclose(md);

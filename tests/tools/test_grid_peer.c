@@ -81,7 +81,7 @@ Test(grid_peer, tests_each_triangle_once_a_ray) {
     cr_assert(one && fine);
     refl_grid_shape(one, cells, &n, NULL);
     cr_assert(cells[0] == 1 && cells[1] == 1 && cells[2] == 1);
-    cr_assert_eq(n, refl_scene_triangles(s)); /* hybrid has no degenerate triangle */
+    cr_assert_eq(n, refl_scene_triangles(s));
     for (i = 0; i < 2000; ++i) { /* from the eye, over the teapot and cup and past them */
         refl_vec3 o = s->camera.eye, d = refl_v3_sub(refl_v3(-1.0f + 0.001f * (float)i, 0.3f + 0.0002f * (float)i, -0.5f), o);
         refl_hit h;
