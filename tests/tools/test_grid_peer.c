@@ -133,3 +133,18 @@ Test(grid_peer, raytrace_through_the_grid_is_deterministic) {
     refl_frame_destroy(f[1]);
     refl_scene_destroy(s);
 }
+
+/* refl_ray_triangle, the test the grid shares with refl_bvh: a hit's t, u
+   and v; the bounds exclusive at tmin, inclusive at tmax; no hit on a
+   degenerate triangle, which refl_bvh leaves out. */
+Test(grid_peer, ray_triangle_is_the_bvh_test) {
+    const float tri[9] = {0, 0, 2, 1, 0, 2, 0, 1, 2}, flat[9] = {0, 0, 2, 1, 1, 2, 2, 2, 2};
+    refl_hit h;
+    memset(&h, 0, sizeof h);
+    cr_assert(refl_ray_triangle(refl_v3(0.25f, 0.25f, 0), refl_v3(0, 0, 1), tri, 0.0f, FLT_MAX, &h));
+    cr_assert(h.t == 2.0f && h.u == 0.25f && h.v == 0.25f, "t %g u %g v %g", h.t, h.u, h.v);
+    cr_assert(refl_ray_triangle(refl_v3(0.25f, 0.25f, 0), refl_v3(0, 0, 1), tri, 0.0f, 2.0f, &h));
+    cr_assert(!refl_ray_triangle(refl_v3(0.25f, 0.25f, 0), refl_v3(0, 0, 1), tri, 2.0f, FLT_MAX, &h));
+    cr_assert(!refl_ray_triangle(refl_v3(0.75f, 0.75f, 0), refl_v3(0, 0, 1), tri, 0.0f, FLT_MAX, &h));
+    cr_assert(!refl_ray_triangle(refl_v3(1, 1, 0), refl_v3(0, 0, 1), flat, 0.0f, FLT_MAX, &h));
+}
