@@ -255,14 +255,15 @@ $(BENCH_RAYS_BIN): $(BENCH_RAYS_OBJS) build/tools/gltf_load.o
 	$(CC) $(CFLAGS) $^ -o $@ -lembree3 $(TINYGLTF_LIBS) -lstdc++ $(LDLIBS)
 
 # The test binaries compare refl_bvh with Embree (tests/tools/test_embree.c)
-# and check the bench's cost lines (tests/tools/test_bench_cost_fit.c).
-$(TEST_BIN): build/bench/embree_peer.o build/bench/cost_fit.o
-$(ASAN_TEST_BIN): build/asan/bench/embree_peer.o build/asan/bench/cost_fit.o
+# and with the uniform grid (tests/tools/test_grid_peer.c), and check the
+# bench's cost lines (tests/tools/test_bench_cost_fit.c).
+$(TEST_BIN): build/bench/embree_peer.o build/bench/cost_fit.o build/bench/grid_peer.o
+$(ASAN_TEST_BIN): build/asan/bench/embree_peer.o build/asan/bench/cost_fit.o build/asan/bench/grid_peer.o
 TEST_LIBS += -lembree3
 
 DEPFILES = $(COMPILE_CHECKS:.o=.d) $(TEST_OBJS:.o=.d) $(ASAN_TEST_OBJS:.o=.d) $(PORTABLE_IMPL_OBJ:.o=.d) \
            $(BENCH_OBJS:.o=.d) $(BENCH_RAYS_OBJS:.o=.d) build/asan/bench/embree_peer.d build/bench/cost_fit.d \
-           build/asan/bench/cost_fit.d $(EXAMPLES:=.d)
+           build/asan/bench/cost_fit.d build/bench/grid_peer.d build/asan/bench/grid_peer.d $(EXAMPLES:=.d)
 -include $(DEPFILES)
 
 # ---- packages ----
@@ -404,7 +405,7 @@ REFLECT_OBJS = build/tools/reflect.o build/tools/reflect_bench.o build/tools/ref
                build/tools/reflect_bench_sbc.o build/tools/reflect_bench_sbc_sweep.o build/tools/reflect_bench_path.o \
                build/tools/reflect_path.o build/tools/reflect_bench_graphcam.o build/tools/reflect_report.o \
                build/tools/reflect_bench_auto.o build/tools/reflect_bench_spoc.o build/tools/reflect_bench_lem.o
-REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o
+REFLECT_BENCH_OBJS = build/bench/embree_peer.o build/bench/cost_fit.o build/bench/grid_peer.o
 
 $(REFLECT_OBJS): build/tools/%.o: tools/%.c | rast.h reflect.h
 	@mkdir -p $(@D)

@@ -482,6 +482,14 @@ REFL_API unsigned refl_bvh_occluded4(const refl_bvh *bvh, const refl_vec3 origin
 REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene);
 /* Nodes and triangles in the tree (stats). */
 REFL_API void refl_bvh_stats(const refl_bvh *bvh, long long *nodes, long long *triangles);
+/* One world-space triangle (tri: 3 vertices, 9 floats) against the ray
+   origin + t dir, tmin < t <= tmax, with refl_bvh's own watertight test:
+   1 with hit's t, u and v (object and triangle left alone), bit for bit
+   what refl_bvh finds on that triangle; 0 on a miss, and for a triangle
+   refl_bvh leaves out (degenerate or not finite). For another
+   accelerator to find refl_bvh's hits (the bench's uniform grid). */
+REFL_API int refl_ray_triangle(refl_vec3 origin, refl_vec3 dir, const float tri[9], float tmin, float tmax,
+                               refl_hit *hit);
 
 /* ---- kd-tree over points (paper 000, section 4) ------------------------------
    The hybrid method's scene subdivision: points (the diffuse meshes' samples)
@@ -6284,6 +6292,13 @@ REFL_API int refl_bvh_intersect(const refl_bvh *bvh, refl_vec3 origin, refl_vec3
 
 REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir, float tmin, float tmax) {
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
+}
+
+REFL_API int refl_ray_triangle(refl_vec3 origin, refl_vec3 dir, const float tri[9], float tmin, float tmax,
+                               refl_hit *hit) {
+    refl__bvh_ray r;
+    return hit && refl__tri_ok(tri) && refl__bvh_ray_setup(&r, origin, dir) &&
+           refl__bvh_tri_hit(&r, tri, tmin, tmax, &hit->t, &hit->u, &hit->v);
 }
 
 /* ---- packets of four rays ----------------------------------------------------- */

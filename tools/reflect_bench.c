@@ -20,7 +20,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-grid] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -51,7 +51,9 @@ static const char *const usage_bench =
     "subsampled, t = 3 and 5, against greedy RAYTRACE; DIR/lem_table.{csv,md}),\n"
     "and with --only lem-sweeps LAYERED_EM's stability sweeps at 160x120\n"
     "(DIR/lem_sweeps.{csv,md,png}), with --only lem-options its options beyond\n"
-    "the defaults on hybrid and glass (DIR/lem_options.md).\n"
+    "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-grid\n"
+    "the table's rays and triangle tests with a uniform grid as the ray caster\n"
+    "beside our BVH, per grid resolution (DIR/lem_grid.{csv,md}).\n"
     "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
@@ -61,8 +63,9 @@ static const char *const usage_bench =
     "                sweep), the camera path (path), the maze (graphcam) or\n"
     "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
     "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
-    "                (lem), its stability sweeps (lem-sweeps) or its options\n"
-    "                (lem-options)\n"
+    "                (lem), its stability sweeps (lem-sweeps), its options\n"
+    "                (lem-options) or its triangle tests through uniform\n"
+    "                grids (lem-grid)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -73,8 +76,8 @@ static const char *const usage_bench =
     "                heat maps, the worst frames along camera paths, cost growth and\n"
     "                time by phase; 320x240, every built-in scene)\n"
     "  --quick       with --report: two scenes at 64x48, few settings, one run each;\n"
-    "                with --only lem: 160x120 instead of 640x480; with --only\n"
-    "                lem-options: 160x120 alone\n";
+    "                with --only lem or lem-grid: 160x120 instead of 640x480;\n"
+    "                with --only lem-options: 160x120 alone\n";
 
 typedef struct bench_opts {
     int full, repeats, threads, depth;
@@ -537,6 +540,10 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the LAYERED_EM table failed\n");
         return 0;
     }
+    if (!strcmp(o->only, "lem-grid") && !refl_bench_lem_grid(o->out, o->threads, o->quick)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM grid table failed\n");
+        return 0;
+    }
     if (!strcmp(o->only, "lem-options") && !refl_bench_lem_options(o->out, o->threads, o->quick)) {
         fprintf(stderr, "reflect bench: the LAYERED_EM options failed\n");
         return 0;
@@ -575,9 +582,9 @@ int refl_cli_bench(int argc, char **argv) {
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
                 strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps") &&
-                strcmp(v, "lem-options")) {
+                strcmp(v, "lem-options") && strcmp(v, "lem-grid")) {
                 fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, "
-                                "lem-sweeps or lem-options, not '%s'\n", v);
+                                "lem-sweeps, lem-options or lem-grid, not '%s'\n", v);
                 return 2;
             }
             snprintf(o.only, sizeof o.only, "%s", v);
@@ -603,8 +610,8 @@ int refl_cli_bench(int argc, char **argv) {
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
     if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
-    if (o.quick && strcmp(o.only, "lem") && strcmp(o.only, "lem-options")) {
-        fprintf(stderr, "reflect bench: --quick goes with --report, --only lem or --only lem-options\n");
+    if (o.quick && strcmp(o.only, "lem") && strcmp(o.only, "lem-options") && strcmp(o.only, "lem-grid")) {
+        fprintf(stderr, "reflect bench: --quick goes with --report, --only lem, lem-options or lem-grid\n");
         return 2;
     }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {

@@ -87,6 +87,14 @@ int refl_bench_spoc_sweeps(const char *dir, int threads);
    pixel. */
 int refl_bench_lem(const char *dir, int threads, int quick);
 
+/* The same table's rays and triangle tests (default layers, t = 3 and 5)
+   with a uniform grid as the ray caster (bench/grid_peer.h) beside
+   refl_bvh: greedy RAYTRACE through a grid of the scene, LAYERED_EM's
+   vertices through a grid of the lens objects alone, per grid resolution
+   (tools/reflect_bench_lem.c); dir/lem_grid.{csv,md}; 0 on failure, or
+   where a grid's hits are not refl_bvh's. */
+int refl_bench_lem_grid(const char *dir, int threads, int quick);
+
 /* LAYERED_EM where paper 001 says it fails (tools/reflect_bench_lem.c):
    off-sample eyes, sample spacing, layers, a column moved up to the lens,
    the tessellation's thresholds, a column moved after the maps were built;

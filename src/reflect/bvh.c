@@ -2042,6 +2042,13 @@ REFL_API int refl_bvh_occluded(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 
     return refl__bvh_trace(bvh, origin, dir, tmin, tmax, 1, REFL__BVH_WIDE, NULL);
 }
 
+REFL_API int refl_ray_triangle(refl_vec3 origin, refl_vec3 dir, const float tri[9], float tmin, float tmax,
+                               refl_hit *hit) {
+    refl__bvh_ray r;
+    return hit && refl__tri_ok(tri) && refl__bvh_ray_setup(&r, origin, dir) &&
+           refl__bvh_tri_hit(&r, tri, tmin, tmax, &hit->t, &hit->u, &hit->v);
+}
+
 /* ---- packets of four rays ----------------------------------------------------- */
 
 typedef struct refl__bvhp_entry {
