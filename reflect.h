@@ -1562,6 +1562,9 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
+/* Whatever the desc, a tessellation makes at most the mesh's vertices and
+   16 per pixel of the view (the default t makes one or two per lens
+   pixel): past that, no triangle splits. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */
@@ -1799,6 +1802,8 @@ typedef struct refl_layered_em_options {
                                 default (REFL_LEM_DIRECT_FROM_DEFAULT) */
     int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
+    int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
+                                to 1048576; 0: 512 */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -2047,8 +2052,12 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). A renderer keeps up to 512
-   MiB of maps: past that, a frame drops the oldest first. */
+   stop (the maps finished so far stay kept). A renderer keeps up to
+   layered_em.kept_mib (512) MiB of maps: prebuild infers a lens's samples
+   nearest the eye first and stops short of that (its share of it, per
+   lens; stats.layered_em.maps_held says how many it holds, the rest
+   inferred by the frames that need them), and past it a frame drops the
+   oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 /* LAYERED_EM's frame for a host that draws it itself (the GL path,
    tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM
@@ -14580,6 +14589,7 @@ typedef struct refl__lt {
     int width, height;
     float cos_angle, edge_px;
     int max_level, max_interfaces;
+    long long max_vertices;      /* past this no triangle splits (refl__lt_vertex_budget) */
     const refl_allocator *al;
     refl_lens_vertex *v;
     refl__lt_vertex *vx;
@@ -14594,6 +14604,16 @@ typedef struct refl__lt {
 } refl__lt;
 
 enum { REFL__LT_CHUNK = 32 };
+
+/* The vertices a tessellation makes at most: the mesh's and 16 per pixel
+   of the view (the default t, 1 pixel, makes one or two per lens pixel),
+   so that a t or angle near 0, which would split every triangle to
+   max_level, stays bounded in memory and time. */
+enum { REFL__LT_VERTICES_PER_PIXEL = 16 };
+static long long refl__lt_vertex_budget(int width, int height, int mesh_vertices) {
+    long long px = (long long)width * (long long)height;
+    return REFL__MIN(REFL__LT_VERTICES_PER_PIXEL * px, 1LL << 28) + mesh_vertices;
+}
 
 static int refl__lt_grow(const refl_allocator *al, void **arr, int *cap, int need, size_t size) {
     void *n;
@@ -14819,7 +14839,7 @@ static int refl__lt_level(refl__lt *t, refl_lens_tess *out, int first, int end, 
         int longe[3], nlong = 0, m[3] = {-1, -1, -1}, r;
         for (k = 0; k < 3; ++k) differ = REFL__MAX(differ, refl__lt_differs(t, &t->v[v[k]], &t->v[v[(k + 1) % 3]]));
         for (k = 0; k < 3; ++k) nlong += longe[k] = refl__lt_edge_px(t, v[k], v[(k + 1) % 3]) >= t->edge_px;
-        if (!differ || hidden || tri.level >= t->max_level || nlong == 0) {
+        if (!differ || hidden || tri.level >= t->max_level || nlong == 0 || t->vcount >= t->max_vertices) {
             if (!refl__lt_grow(t->al, (void **)leaves, leaf_cap, *nleaves + 1, sizeof **leaves)) return 0;
             (*leaves)[(*nleaves)++] = tri;
             continue;
@@ -14965,6 +14985,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp
     t.edge_px = desc && desc->edge_px > 0.0f ? desc->edge_px : 1.0f;
     t.max_level = desc && desc->max_level > 0 ? REFL__MIN(desc->max_level, 30) : 12;
     t.max_interfaces = desc ? desc->max_interfaces : 0;
+    t.max_vertices = refl__lt_vertex_budget(view->width, view->height, mesh->vertex_count);
     t.al = &out->allocator;
     map = (int *)refl__calloc(t.al, (size_t)REFL__MAX(mesh->vertex_count, 1), sizeof(int));
     if (!map) goto done;
@@ -18203,6 +18224,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
     if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
         return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
+    if (o->keep_stale_maps < 0 || o->keep_stale_maps > 1) return "layered_em.keep_stale_maps: 0 or 1";
+    if (o->kept_mib < 0 || o->kept_mib > (1 << 20)) return "layered_em.kept_mib: 0 (512) to 1048576";
     return NULL;
 }
 
@@ -18573,15 +18596,18 @@ static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     return b;
 }
 
-/* What a renderer keeps of maps at the start of a frame: the oldest go
-   first past this (a dolly or a crane makes new samples every frame; a
-   dropped map is inferred again, the same bytes, when a frame needs it). */
-#define REFL__LEM_KEPT_BYTES (512LL << 20)
+/* What a renderer keeps of maps at the start of a frame
+   (layered_em.kept_mib): the oldest go first past this (a dolly or a crane
+   makes new samples every frame; a dropped map is inferred again, the same
+   bytes, when a frame needs it). */
+static long long refl__lem_kept_bytes(const refl_layered_em_options *o) {
+    return (long long)(o->kept_mib > 0 ? o->kept_mib : 512) << 20;
+}
 
-static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m, long long kept) {
     int drop = 0, k;
     long long bytes = refl__lem_maps_bytes(m);
-    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+    while (drop < m->count && bytes > kept) {
         bytes -= refl__lem_map_bytes(&m->maps[drop]);
         refl__lem_map_free(al, &m->maps[drop++]);
     }
@@ -19262,7 +19288,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
-    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
@@ -19295,7 +19321,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
     if (r == REFL_OK && maps == &own) r = REFL_ERROR_INVALID_ARGUMENT; /* the maps must outlive this call */
-    if (r == REFL_OK) refl__lem_trim(al, maps);
+    if (r == REFL_OK) refl__lem_trim(al, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     for (i = 0; i < scene->object_count; ++i) lens_count += refl__pass_draws(p, i);
     if (r == REFL_OK && lens_count > 0) {
         lenses = (refl_lem_lens *)refl__calloc(al, (size_t)lens_count, sizeof *lenses);
@@ -19353,11 +19379,13 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
     int i, k, at, lenses = 0, done = 0;
+    long long share, last;
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
     if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
     if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
     for (i = 0; i < scene->object_count; ++i) lenses += refl__pass_draws(p, i);
+    share = refl__lem_kept_bytes(&p->desc.layered_em) / REFL__MAX(lenses, 1);
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         refl__lem_circle cc;
         refl__lem_ring spare;
@@ -19373,9 +19401,16 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
             views[0] = *p->view;
             r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
         }
-        for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
-            refl__lem_sample_views(p, &cc, k, views);
+        /* nearest the eye first (k0, k0 + 1, k0 - 1, ...), while the maps
+           held and one more like the last stay within this lens's share of
+           the budget: memory stays bounded whatever layered_em.samples */
+        for (k = 0, last = 0; on && k < cc.samples && r == REFL_OK; ++k) {
+            int k0 = (int)floor(cc.phi / cc.step), j = k0 + (k % 2 ? (k + 1) / 2 : -(k / 2));
+            long long held = refl__lem_maps_bytes(maps);
+            if (k > 0 && held + last > share * (done + 1)) break;
+            refl__lem_sample_views(p, &cc, (j % cc.samples + cc.samples) % cc.samples, views);
             r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
+            if (r == REFL_OK) last = refl__lem_map_bytes(&maps->maps[at]);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }

@@ -1560,6 +1560,9 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
+/* Whatever the desc, a tessellation makes at most the mesh's vertices and
+   16 per pixel of the view (the default t makes one or two per lens
+   pixel): past that, no triangle splits. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */
@@ -1797,6 +1800,8 @@ typedef struct refl_layered_em_options {
                                 default (REFL_LEM_DIRECT_FROM_DEFAULT) */
     int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
+    int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
+                                to 1048576; 0: 512 */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -2045,8 +2050,12 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). A renderer keeps up to 512
-   MiB of maps: past that, a frame drops the oldest first. */
+   stop (the maps finished so far stay kept). A renderer keeps up to
+   layered_em.kept_mib (512) MiB of maps: prebuild infers a lens's samples
+   nearest the eye first and stops short of that (its share of it, per
+   lens; stats.layered_em.maps_held says how many it holds, the rest
+   inferred by the frames that need them), and past it a frame drops the
+   oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 /* LAYERED_EM's frame for a host that draws it itself (the GL path,
    tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM
