@@ -1562,9 +1562,10 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
-/* Whatever the desc, a tessellation makes at most the mesh's vertices and
-   16 per pixel of the view (the default t makes one or two per lens
-   pixel): past that, no triangle splits. */
+/* Whatever the desc, a tessellation splits no triangle once it has made
+   the mesh's vertices and 16 per pixel of the view (the default t makes
+   one or two per lens pixel); re-triangulating the leaves adds at most a
+   centre vertex to each. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */
@@ -14605,10 +14606,11 @@ typedef struct refl__lt {
 
 enum { REFL__LT_CHUNK = 32 };
 
-/* The vertices a tessellation makes at most: the mesh's and 16 per pixel
-   of the view (the default t, 1 pixel, makes one or two per lens pixel),
-   so that a t or angle near 0, which would split every triangle to
-   max_level, stays bounded in memory and time. */
+/* The vertices past which no triangle splits: the mesh's and 16 per
+   pixel of the view (the default t, 1 pixel, makes one or two per lens
+   pixel), so that a t or angle near 0, which would split every triangle
+   to max_level, stays bounded in memory and time (the leaves' centre
+   vertices come on top, at most one each). */
 enum { REFL__LT_VERTICES_PER_PIXEL = 16 };
 static long long refl__lt_vertex_budget(int width, int height, int mesh_vertices) {
     long long px = (long long)width * (long long)height;

@@ -1560,9 +1560,10 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
-/* Whatever the desc, a tessellation makes at most the mesh's vertices and
-   16 per pixel of the view (the default t makes one or two per lens
-   pixel): past that, no triangle splits. */
+/* Whatever the desc, a tessellation splits no triangle once it has made
+   the mesh's vertices and 16 per pixel of the view (the default t makes
+   one or two per lens pixel); re-triangulating the leaves adds at most a
+   centre vertex to each. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */

@@ -58,10 +58,11 @@ typedef struct refl__lt {
 
 enum { REFL__LT_CHUNK = 32 };
 
-/* The vertices a tessellation makes at most: the mesh's and 16 per pixel
-   of the view (the default t, 1 pixel, makes one or two per lens pixel),
-   so that a t or angle near 0, which would split every triangle to
-   max_level, stays bounded in memory and time. */
+/* The vertices past which no triangle splits: the mesh's and 16 per
+   pixel of the view (the default t, 1 pixel, makes one or two per lens
+   pixel), so that a t or angle near 0, which would split every triangle
+   to max_level, stays bounded in memory and time (the leaves' centre
+   vertices come on top, at most one each). */
 enum { REFL__LT_VERTICES_PER_PIXEL = 16 };
 static long long refl__lt_vertex_budget(int width, int height, int mesh_vertices) {
     long long px = (long long)width * (long long)height;

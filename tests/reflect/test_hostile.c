@@ -34,11 +34,9 @@ static refl_mesh *hostile_sphere(void) {
     return m;
 }
 
+/* LAYERED_EM, one bounce, `samples` single-view samples. */
 static refl_render_desc hostile_lem_desc(int samples) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = 2;
+    refl_render_desc d = tu_refl_one_bounce(REFL_LAYERED_EM, 2);
     d.layered_em.samples = samples;
     d.layered_em.single_view = 1;
     return d;
@@ -109,6 +107,26 @@ Test(hostile, degenerate_lenses_render_finished_frames, .timeout = 60) {
             refl_frame_destroy(f);
             refl_scene_destroy(s);
         }
+}
+
+/* t and the angle near 0 would split every triangle to max_level (4^12
+   children each): the tessellation stops splitting at 16 vertices a pixel
+   (the leaves' centre vertices on top: at most one each, two leaves a
+   vertex or so). */
+Test(hostile, a_tessellation_asked_for_everything_stays_bounded, .timeout = 60) {
+    refl_view v;
+    refl_scene *s = hostile_scene(hostile_sphere(), 1, &v);
+    refl_render_desc d = hostile_lem_desc(1);
+    refl_frame *f;
+    d.layered_em.edge_px = 1e-6f;
+    d.layered_em.angle_degrees = 1e-6f;
+    f = tu_refl_render(s, &v, &d);
+    cr_assert_gt(f->stats.layered_em.vertices, 0);
+    cr_assert_leq(f->stats.layered_em.vertices, 3 * (16LL * v.width * v.height + s->meshes[2]->vertex_count), "%lld",
+                  f->stats.layered_em.vertices);
+    assert_finished(f, "the finest tessellation");
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
 }
 
 /* One renderer through lenses added and removed (kept stale maps too) and
