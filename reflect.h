@@ -1661,7 +1661,7 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin,
 REFL_API int refl_lem_shell_partial(const refl_lem_shell *shell, const refl_vec3 box[2]);
 /* The four texels and bilinear weights (summing to 1) of an index: its
    cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
-   zero or non-finite index or a bad shell. */
+   zero or non-finite index or a bad shell (face_size 1 to 16384). */
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
 /* How the runtime samples the shell for an exit ray (dir unit): its index,
    then that index's texels. The rendering matrix is made of exactly these. */
@@ -1723,7 +1723,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    in, front to back along the continued rays (a layer before another when
    more rays meet its hits first; by mean distance where as many meet each
    first), their radii in radius[], and, when layer_of is not NULL, each
-   hit's layer. */
+   hit's layer. A distance not finite is a bad argument. */
 enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
@@ -2897,6 +2897,8 @@ typedef struct refl__lem_layering {
     int own, depth;
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
+/* A shell's face side at most: its texels 6 side^2 numbered in uint32 */
+enum { REFL__LEM_MAX_FACE = 16384 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */
@@ -11095,7 +11097,7 @@ static long long refl__gl_lem_shells(refl__gl_out *op, const refl_lem_shell *she
     for (l = 0; l < layers; ++l) {
         const refl_lem_shell *sh = &shells[l];
         int sphere = sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
-        if (sh->face_size <= 0 || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
+        if (sh->face_size <= 0 || sh->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
             (sphere && !(sh->radius > 0.0f)))
             return REFL_ERROR_INVALID_ARGUMENT;
         for (k = 0; k < 3 && !sphere; ++k)
@@ -13134,7 +13136,7 @@ REFL_API int refl_lem_shell_partial(const refl_lem_shell *sh, const refl_vec3 bo
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
     float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (!shell || shell->face_size <= 0 || shell->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(index)) return 0;
     if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
         if (!(index.z > 0.0f)) return 0;
         index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
@@ -14322,14 +14324,43 @@ static int refl__lem_cmp_float(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+static int refl__lem_cmp_i64(const void *a, const void *b) {
+    long long x = *(const long long *)a, y = *(const long long *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Every object's hits (object[i] >= 0) moved to the layer holding most of
+   them (the first of equals): the hits sorted by object, one run each, so
+   the time is count log count whatever the object numbers. 0: no memory. */
+static int refl__lem_objects_whole(const int *object, int count, int layers, const refl_allocator *a, int *own) {
+    long long *key = (long long *)refl__calloc(a, (size_t)count, sizeof(long long));
+    int n = 0, i, j, l;
+    if (!key) return 0;
+    for (i = 0; i < count; ++i)
+        if (object[i] >= 0) key[n++] = (long long)object[i] << 32 | i;
+    qsort(key, (size_t)n, sizeof *key, refl__lem_cmp_i64);
+    for (i = 0; i < n; i = j) {
+        long long votes[REFL_LEM_MAX_LAYERS] = {0};
+        int best = 0;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) ++votes[own[key[j] & 0xffffffff]];
+        for (l = 1; l < layers; ++l)
+            if (votes[l] > votes[best]) best = l;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) own[key[j] & 0xffffffff] = best;
+    }
+    refl__free(a, key);
+    return 1;
+}
+
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of) {
     double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
     long long cnt[REFL_LEM_MAX_LAYERS];
     long long ahead[REFL_LEM_MAX_LAYERS][REFL_LEM_MAX_LAYERS]; /* [a][b]: rays meeting a's hits before b's */
-    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
+    int *own = NULL, i, l, it, changed = 1, k = 0, met = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
     float *sorted = NULL;
     if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
+    for (i = 0; i < count; ++i)
+        if (!refl__isfinite(distance[i])) return 0;
     layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
     own = layer_of ? layer_of : (int *)refl__calloc(a, (size_t)count, sizeof(int));
     sorted = (float *)refl__calloc(a, (size_t)count, sizeof(float));
@@ -14359,29 +14390,19 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
             if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
     }
     /* whole objects in one layer: the one holding most of their hits */
-    if (object) {
-        for (i = 0; i < count; ++i) objects = REFL__MAX(objects, object[i] + 1);
-        for (k = 0; k < objects; ++k) {
-            long long votes[REFL_LEM_MAX_LAYERS] = {0};
-            int best = 0, any = 0;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) ++votes[own[i]], any = 1;
-            if (!any) continue;
-            for (l = 1; l < layers; ++l)
-                if (votes[l] > votes[best]) best = l;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) own[i] = best;
-        }
+    if (object && !refl__lem_objects_whole(object, count, layers, a, own)) {
+        if (own != layer_of) refl__free(a, own);
+        refl__free(a, sorted);
+        return 0;
     }
     /* the shells: the mean distance of each layer's hits, a continued ray
        counted by its front-most hit in the layer (hits of a ray come
-       together, nearest first) */
+       together, nearest first: the layers its run has met so far) */
     for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
     for (i = 0; i < count; ++i) {
-        int j, front = 1;
-        for (j = i - 1; ray && j >= 0 && ray[j] == ray[i]; --j)
-            if (own[j] == own[i]) front = 0;
-        if (front) acc[own[i]] += distance[i], ++cnt[own[i]];
+        if (!ray || i == 0 || ray[i] != ray[i - 1]) met = 0;
+        if (!(met & 1 << own[i])) acc[own[i]] += distance[i], ++cnt[own[i]];
+        met |= 1 << own[i];
     }
     /* empty layers dropped */
     k = 0;

@@ -1659,7 +1659,7 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin,
 REFL_API int refl_lem_shell_partial(const refl_lem_shell *shell, const refl_vec3 box[2]);
 /* The four texels and bilinear weights (summing to 1) of an index: its
    cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
-   zero or non-finite index or a bad shell. */
+   zero or non-finite index or a bad shell (face_size 1 to 16384). */
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
 /* How the runtime samples the shell for an exit ray (dir unit): its index,
    then that index's texels. The rendering matrix is made of exactly these. */
@@ -1721,7 +1721,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    in, front to back along the continued rays (a layer before another when
    more rays meet its hits first; by mean distance where as many meet each
    first), their radii in radius[], and, when layer_of is not NULL, each
-   hit's layer. */
+   hit's layer. A distance not finite is a bad argument. */
 enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);

@@ -199,3 +199,40 @@ Test(hostile, prebuild_keeps_to_the_map_budget, .timeout = 60) {
     refl_frame_destroy(f);
     refl_scene_destroy(s);
 }
+
+/* refl_lem_cluster_layers whatever the object numbers (each object's hits
+   in one layer, in time of the hits, not of the largest number) and one
+   ray's run however long; a distance not finite is refused. */
+Test(hostile, layer_clustering_takes_any_object_numbers, .timeout = 60) {
+    enum { N = 4096 };
+    static float distance[N];
+    static int object[N], ray[N], layer_of[N], first[64];
+    float radius[REFL_LEM_MAX_LAYERS];
+    int i, layers;
+    for (i = 0; i < N; ++i) {
+        distance[i] = (i % 2 ? 10.0f : 1.0f) + 0.001f * (float)(i % 100);
+        object[i] = (i % 64) * 30000000; /* up to 1.9e9 */
+        ray[i] = 7;                      /* one run of every hit */
+    }
+    layers = refl_lem_cluster_layers(distance, object, ray, N, 2, NULL, radius, layer_of);
+    cr_assert_eq(layers, 2);
+    for (i = 0; i < 64; ++i) first[i] = layer_of[i];
+    for (i = 64; i < N; ++i) cr_assert_eq(layer_of[i], first[i % 64], "an object's hits in one layer");
+    distance[N / 2] = NAN;
+    cr_assert_eq(refl_lem_cluster_layers(distance, object, ray, N, 2, NULL, radius, layer_of), 0);
+}
+
+/* A shell's face side past 16384 would number its texels past uint32. */
+Test(hostile, a_shell_too_large_to_number_is_refused) {
+    refl_lem_shell sh;
+    uint32_t texel[4];
+    float weight[4];
+    memset(&sh, 0, sizeof sh);
+    sh.radius = 1.0f;
+    sh.face_size = 16385;
+    cr_assert_eq(refl_lem_shell_texels(&sh, refl_v3(0, 0, -1), texel, weight), 0);
+    cr_assert_lt(refl_gl_pack_lem_shell(&sh, NULL, NULL, 0), 0);
+    sh.face_size = 16384;
+    cr_assert_eq(refl_lem_shell_texels(&sh, refl_v3(0, 0, -1), texel, weight), 1);
+    cr_assert_lt(texel[3], 6u * 16384u * 16384u);
+}
