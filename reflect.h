@@ -1610,6 +1610,10 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
+/* Whatever the desc, a tessellation splits no triangle once it has made
+   the mesh's vertices and 16 per pixel of the view (the default t makes
+   one or two per lens pixel); re-triangulating the leaves adds at most a
+   centre vertex to each. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */
@@ -1705,7 +1709,7 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin,
 REFL_API int refl_lem_shell_partial(const refl_lem_shell *shell, const refl_vec3 box[2]);
 /* The four texels and bilinear weights (summing to 1) of an index: its
    cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
-   zero or non-finite index or a bad shell. */
+   zero or non-finite index or a bad shell (face_size 1 to 16384). */
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
 /* How the runtime samples the shell for an exit ray (dir unit): its index,
    then that index's texels. The rendering matrix is made of exactly these. */
@@ -1767,7 +1771,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    in, front to back along the continued rays (a layer before another when
    more rays meet its hits first; by mean distance where as many meet each
    first), their radii in radius[], and, when layer_of is not NULL, each
-   hit's layer. */
+   hit's layer. A distance not finite is a bad argument. */
 enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
@@ -1847,6 +1851,8 @@ typedef struct refl_layered_em_options {
                                 default (REFL_LEM_DIRECT_FROM_DEFAULT) */
     int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
+    int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
+                                to 1048576; 0: 512 */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -2095,8 +2101,12 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). A renderer keeps up to 512
-   MiB of maps: past that, a frame drops the oldest first. */
+   stop (the maps finished so far stay kept). A renderer keeps up to
+   layered_em.kept_mib (512) MiB of maps: prebuild infers a lens's samples
+   nearest the eye first and stops short of that (its share of it, per
+   lens; stats.layered_em.maps_held says how many it holds, the rest
+   inferred by the frames that need them), and past it a frame drops the
+   oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 /* LAYERED_EM's frame for a host that draws it itself (the GL path,
    tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM
@@ -2935,6 +2945,8 @@ typedef struct refl__lem_layering {
     int own, depth;
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
+/* A shell's face side at most: its texels 6 side^2 numbered in uint32 */
+enum { REFL__LEM_MAX_FACE = 16384 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */
@@ -11140,7 +11152,7 @@ static long long refl__gl_lem_shells(refl__gl_out *op, const refl_lem_shell *she
     for (l = 0; l < layers; ++l) {
         const refl_lem_shell *sh = &shells[l];
         int sphere = sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
-        if (sh->face_size <= 0 || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
+        if (sh->face_size <= 0 || sh->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
             (sphere && !(sh->radius > 0.0f)))
             return REFL_ERROR_INVALID_ARGUMENT;
         for (k = 0; k < 3 && !sphere; ++k)
@@ -13179,7 +13191,7 @@ REFL_API int refl_lem_shell_partial(const refl_lem_shell *sh, const refl_vec3 bo
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
     float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (!shell || shell->face_size <= 0 || shell->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(index)) return 0;
     if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
         if (!(index.z > 0.0f)) return 0;
         index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
@@ -14367,14 +14379,43 @@ static int refl__lem_cmp_float(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+static int refl__lem_cmp_i64(const void *a, const void *b) {
+    long long x = *(const long long *)a, y = *(const long long *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Every object's hits (object[i] >= 0) moved to the layer holding most of
+   them (the first of equals): the hits sorted by object, one run each, so
+   the time is count log count whatever the object numbers. 0: no memory. */
+static int refl__lem_objects_whole(const int *object, int count, int layers, const refl_allocator *a, int *own) {
+    long long *key = (long long *)refl__calloc(a, (size_t)count, sizeof(long long));
+    int n = 0, i, j, l;
+    if (!key) return 0;
+    for (i = 0; i < count; ++i)
+        if (object[i] >= 0) key[n++] = (long long)object[i] << 32 | i;
+    qsort(key, (size_t)n, sizeof *key, refl__lem_cmp_i64);
+    for (i = 0; i < n; i = j) {
+        long long votes[REFL_LEM_MAX_LAYERS] = {0};
+        int best = 0;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) ++votes[own[key[j] & 0xffffffff]];
+        for (l = 1; l < layers; ++l)
+            if (votes[l] > votes[best]) best = l;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) own[key[j] & 0xffffffff] = best;
+    }
+    refl__free(a, key);
+    return 1;
+}
+
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of) {
     double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
     long long cnt[REFL_LEM_MAX_LAYERS];
     long long ahead[REFL_LEM_MAX_LAYERS][REFL_LEM_MAX_LAYERS]; /* [a][b]: rays meeting a's hits before b's */
-    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
+    int *own = NULL, i, l, it, changed = 1, k = 0, met = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
     float *sorted = NULL;
     if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
+    for (i = 0; i < count; ++i)
+        if (!refl__isfinite(distance[i])) return 0;
     layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
     own = layer_of ? layer_of : (int *)refl__calloc(a, (size_t)count, sizeof(int));
     sorted = (float *)refl__calloc(a, (size_t)count, sizeof(float));
@@ -14404,29 +14445,19 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
             if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
     }
     /* whole objects in one layer: the one holding most of their hits */
-    if (object) {
-        for (i = 0; i < count; ++i) objects = REFL__MAX(objects, object[i] + 1);
-        for (k = 0; k < objects; ++k) {
-            long long votes[REFL_LEM_MAX_LAYERS] = {0};
-            int best = 0, any = 0;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) ++votes[own[i]], any = 1;
-            if (!any) continue;
-            for (l = 1; l < layers; ++l)
-                if (votes[l] > votes[best]) best = l;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) own[i] = best;
-        }
+    if (object && !refl__lem_objects_whole(object, count, layers, a, own)) {
+        if (own != layer_of) refl__free(a, own);
+        refl__free(a, sorted);
+        return 0;
     }
     /* the shells: the mean distance of each layer's hits, a continued ray
        counted by its front-most hit in the layer (hits of a ray come
-       together, nearest first) */
+       together, nearest first: the layers its run has met so far) */
     for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
     for (i = 0; i < count; ++i) {
-        int j, front = 1;
-        for (j = i - 1; ray && j >= 0 && ray[j] == ray[i]; --j)
-            if (own[j] == own[i]) front = 0;
-        if (front) acc[own[i]] += distance[i], ++cnt[own[i]];
+        if (!ray || i == 0 || ray[i] != ray[i - 1]) met = 0;
+        if (!(met & 1 << own[i])) acc[own[i]] += distance[i], ++cnt[own[i]];
+        met |= 1 << own[i];
     }
     /* empty layers dropped */
     k = 0;
@@ -14635,6 +14666,7 @@ typedef struct refl__lt {
     int width, height;
     float cos_angle, edge_px;
     int max_level, max_interfaces;
+    long long max_vertices;      /* past this no triangle splits (refl__lt_vertex_budget) */
     const refl_allocator *al;
     refl_lens_vertex *v;
     refl__lt_vertex *vx;
@@ -14649,6 +14681,17 @@ typedef struct refl__lt {
 } refl__lt;
 
 enum { REFL__LT_CHUNK = 32 };
+
+/* The vertices past which no triangle splits: the mesh's and 16 per
+   pixel of the view (the default t, 1 pixel, makes one or two per lens
+   pixel), so that a t or angle near 0, which would split every triangle
+   to max_level, stays bounded in memory and time (the leaves' centre
+   vertices come on top, at most one each). */
+enum { REFL__LT_VERTICES_PER_PIXEL = 16 };
+static long long refl__lt_vertex_budget(int width, int height, int mesh_vertices) {
+    long long px = (long long)width * (long long)height;
+    return REFL__MIN(REFL__LT_VERTICES_PER_PIXEL * px, 1LL << 28) + mesh_vertices;
+}
 
 static int refl__lt_grow(const refl_allocator *al, void **arr, int *cap, int need, size_t size) {
     void *n;
@@ -14874,7 +14917,7 @@ static int refl__lt_level(refl__lt *t, refl_lens_tess *out, int first, int end, 
         int longe[3], nlong = 0, m[3] = {-1, -1, -1}, r;
         for (k = 0; k < 3; ++k) differ = REFL__MAX(differ, refl__lt_differs(t, &t->v[v[k]], &t->v[v[(k + 1) % 3]]));
         for (k = 0; k < 3; ++k) nlong += longe[k] = refl__lt_edge_px(t, v[k], v[(k + 1) % 3]) >= t->edge_px;
-        if (!differ || hidden || tri.level >= t->max_level || nlong == 0) {
+        if (!differ || hidden || tri.level >= t->max_level || nlong == 0 || t->vcount >= t->max_vertices) {
             if (!refl__lt_grow(t->al, (void **)leaves, leaf_cap, *nleaves + 1, sizeof **leaves)) return 0;
             (*leaves)[(*nleaves)++] = tri;
             continue;
@@ -15020,6 +15063,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp
     t.edge_px = desc && desc->edge_px > 0.0f ? desc->edge_px : 1.0f;
     t.max_level = desc && desc->max_level > 0 ? REFL__MIN(desc->max_level, 30) : 12;
     t.max_interfaces = desc ? desc->max_interfaces : 0;
+    t.max_vertices = refl__lt_vertex_budget(view->width, view->height, mesh->vertex_count);
     t.al = &out->allocator;
     map = (int *)refl__calloc(t.al, (size_t)REFL__MAX(mesh->vertex_count, 1), sizeof(int));
     if (!map) goto done;
@@ -18258,6 +18302,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
     if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
         return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
+    if (o->keep_stale_maps < 0 || o->keep_stale_maps > 1) return "layered_em.keep_stale_maps: 0 or 1";
+    if (o->kept_mib < 0 || o->kept_mib > (1 << 20)) return "layered_em.kept_mib: 0 (512) to 1048576";
     return NULL;
 }
 
@@ -18628,15 +18674,18 @@ static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     return b;
 }
 
-/* What a renderer keeps of maps at the start of a frame: the oldest go
-   first past this (a dolly or a crane makes new samples every frame; a
-   dropped map is inferred again, the same bytes, when a frame needs it). */
-#define REFL__LEM_KEPT_BYTES (512LL << 20)
+/* What a renderer keeps of maps at the start of a frame
+   (layered_em.kept_mib): the oldest go first past this (a dolly or a crane
+   makes new samples every frame; a dropped map is inferred again, the same
+   bytes, when a frame needs it). */
+static long long refl__lem_kept_bytes(const refl_layered_em_options *o) {
+    return (long long)(o->kept_mib > 0 ? o->kept_mib : 512) << 20;
+}
 
-static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m, long long kept) {
     int drop = 0, k;
     long long bytes = refl__lem_maps_bytes(m);
-    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+    while (drop < m->count && bytes > kept) {
         bytes -= refl__lem_map_bytes(&m->maps[drop]);
         refl__lem_map_free(al, &m->maps[drop++]);
     }
@@ -19317,7 +19366,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
-    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
@@ -19350,7 +19399,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
     if (r == REFL_OK && maps == &own) r = REFL_ERROR_INVALID_ARGUMENT; /* the maps must outlive this call */
-    if (r == REFL_OK) refl__lem_trim(al, maps);
+    if (r == REFL_OK) refl__lem_trim(al, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     for (i = 0; i < scene->object_count; ++i) lens_count += refl__pass_draws(p, i);
     if (r == REFL_OK && lens_count > 0) {
         lenses = (refl_lem_lens *)refl__calloc(al, (size_t)lens_count, sizeof *lenses);
@@ -19408,11 +19457,13 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
     int i, k, at, lenses = 0, done = 0;
+    long long share, last;
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
     if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
     if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
     for (i = 0; i < scene->object_count; ++i) lenses += refl__pass_draws(p, i);
+    share = refl__lem_kept_bytes(&p->desc.layered_em) / REFL__MAX(lenses, 1);
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         refl__lem_circle cc;
         refl__lem_ring spare;
@@ -19428,9 +19479,16 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
             views[0] = *p->view;
             r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
         }
-        for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
-            refl__lem_sample_views(p, &cc, k, views);
+        /* nearest the eye first (k0, k0 + 1, k0 - 1, ...), while the maps
+           held and one more like the last stay within this lens's share of
+           the budget: memory stays bounded whatever layered_em.samples */
+        for (k = 0, last = 0; on && k < cc.samples && r == REFL_OK; ++k) {
+            int k0 = (int)floor(cc.phi / cc.step), j = k0 + (k % 2 ? (k + 1) / 2 : -(k / 2));
+            long long held = refl__lem_maps_bytes(maps);
+            if (k > 0 && held + last > share * (done + 1)) break;
+            refl__lem_sample_views(p, &cc, (j % cc.samples + cc.samples) % cc.samples, views);
             r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
+            if (r == REFL_OK) last = refl__lem_map_bytes(&maps->maps[at]);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }

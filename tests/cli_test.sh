@@ -194,6 +194,23 @@ refuses "--lem-lens-layers out of range" "lem-lens-layers" "$bin" render --built
 ok "--lem-frame fitted renders" "$bin" render --builtin glass --method layered-em --lem-shell cylinder --lem-frame fitted --size 32x24 --out "$tmp/lf.png"
 refuses "--lem-frame of no frame" "lem-frame" "$bin" render --builtin glass --lem-frame tilted --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing
+# hostile input: a value option given twice (the second would silently
+# win), an empty output name, and files that are not regular files (a
+# FIFO blocks its open, a directory reads as huge) as the scene, a glTF's
+# buffer or the environment: each refused at once
+exits2 "a value option given twice" "size: given twice" "$bin" render --builtin default --size 8x8 --size=16x12
+exits2 "two built-in scenes" "builtin: given twice" "$bin" render --builtin default --builtin glass
+exits2 "an empty --out" "out: expected a file name" "$bin" render --builtin default --out=
+mkdir "$tmp/hostile" && mkfifo "$tmp/hostile/fifo" && mkdir "$tmp/hostile/dir" &&
+for uri in fifo dir; do
+    sed "s#\"uri\": \"data:application/octet-stream;base64,[^\"]*\"#\"uri\": \"$uri\"#" \
+        "$(dirname "$0")/../fuzz/seeds/triangle.gltf" >"$tmp/hostile/$uri.gltf"
+    refuses "a glTF buffer naming a $uri" "hostile/$uri: not a regular file" \
+        timeout 20 "$bin" render "$tmp/hostile/$uri.gltf" --size 8x8 --out "$tmp/x.png"
+done
+refuses "a FIFO as the scene" "fifo: not a regular file" timeout 20 "$bin" info "$tmp/hostile/fifo"
+refuses "a FIFO as the environment" "fifo: cannot open: not a regular file" \
+    timeout 20 "$bin" render --builtin default --env "$tmp/hostile/fifo" --size 8x8 --out "$tmp/x.png"
 
 # compare: PPMs written here, so every number is known. a is black; b has
 # two pixels 255 off in red and one 10 off in green: RMSE

@@ -63,10 +63,13 @@ const long long kDefaultMaxTexturePixels = 1LL << 24;  // 4096 x 4096: 256 MiB a
 
 std::vector<unsigned char> read_file(const char *path) {
     struct Closer { void operator()(FILE *f) const { std::fclose(f); } };
+    // a device or pipe could stream without end (/dev/zero), a FIFO block
+    // the open itself until a writer comes, a directory read as huge:
+    // looked at before it is opened, and again (fstat) once it is
+    struct stat st;
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) fail(REFL_ERROR_INVALID_SIZE, "not a regular file");
     std::unique_ptr<FILE, Closer> f(std::fopen(path, "rb"));
     if (!f) fail(REFL_ERROR_UNKNOWN_NAME, format("cannot open: %s", std::strerror(errno)));
-    // a device or pipe could stream without end (/dev/zero)
-    struct stat st;
     if (fstat(fileno(f.get()), &st) != 0 || !S_ISREG(st.st_mode))
         fail(REFL_ERROR_INVALID_SIZE, "not a regular file");
     if (uint64_t(st.st_size) > kMaxFileBytes) fail(REFL_ERROR_INVALID_SIZE, "file larger than 2 GiB");
@@ -82,6 +85,26 @@ std::vector<unsigned char> read_file(const char *path) {
     if (std::ferror(f.get())) fail(REFL_ERROR_UNKNOWN_NAME, format("cannot read: %s", std::strerror(errno)));
     if (data.empty()) fail(REFL_ERROR_BAD_MESH, "empty file");
     return data;
+}
+
+// tinygltf's file callbacks for the files a glTF's URIs name (buffers,
+// images): whether one exists by stat (tinygltf's own opens it, which
+// blocks on a FIFO), and read_file's reading, so a URI naming a directory,
+// FIFO or device is refused as the glTF file itself would be, not read
+// without end or sized as huge.
+bool uri_file_exists(const std::string &path, void *) {
+    struct stat st;
+    return stat(path.c_str(), &st) == 0;
+}
+
+bool read_uri_file(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+    try {
+        *out = read_file(path.c_str());
+        return true;
+    } catch (const LoadError &e) {
+        if (err) *err += path + ": " + e.message + "\n";
+        return false;
+    }
 }
 
 uint32_t le32(const unsigned char *p) {
@@ -1116,6 +1139,9 @@ refl_result load(const char *path, const unsigned char *bytes, size_t size, cons
     ImageSink images;
     images.model = &model;
     gltf.SetImageLoader(defer_image, &images);
+    tinygltf::FsCallbacks fs = {&uri_file_exists, &tinygltf::ExpandFilePath, &read_uri_file,
+                                &tinygltf::WriteWholeFile, nullptr};
+    gltf.SetFsCallbacks(fs);
     std::string terr, twarn;
     bool ok;
     if (data.size() >= 4 && std::memcmp(data.data(), "glTF", 4) == 0) {

@@ -134,6 +134,8 @@ void check_exists(const std::string &path) {
     struct stat st;
     if (stat(path.c_str(), &st) != 0) fail(REFL_ERROR_UNKNOWN_NAME, path, format("cannot open: %s", std::strerror(errno)));
     if (S_ISDIR(st.st_mode)) fail(REFL_ERROR_UNKNOWN_NAME, path, "cannot open: is a directory");
+    // a FIFO blocks the open until a writer comes, a device streams without end
+    if (!S_ISREG(st.st_mode)) fail(REFL_ERROR_UNKNOWN_NAME, path, "cannot open: not a regular file");
 }
 
 // PNG files are checked whole (every chunk present, every CRC right) before

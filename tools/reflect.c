@@ -269,9 +269,21 @@ static int listed(const char *const *names, const char *a) {
     return 0;
 }
 
+/* the value options seen fit parse's mask */
+typedef char value_options_fit_a_mask[sizeof value_options / sizeof *value_options <= 65 ? 1 : -1];
+
+/* a's place in value_options, or -1 */
+static int value_option_index(const char *a) {
+    int i;
+    for (i = 0; value_options[i]; ++i)
+        if (!strcmp(value_options[i], a)) return i;
+    return -1;
+}
+
 /* Parses argv[2..]; returns 0, 1 after --help, or 2 after an error. */
 static int parse(int argc, char **argv, int is_render, options *o) {
     int i;
+    unsigned long long given = 0; /* the value options seen, by value_option_index */
     memset(o, 0, sizeof(*o));
     o->out = "out.png";
     o->spoc_strength = -1.0f;
@@ -293,6 +305,11 @@ static int parse(int argc, char **argv, int is_render, options *o) {
                                       : "info: unknown option %s (see reflect info --help)", a);
             } else if (!v) {
                 return fail("%s needs a value", a);
+            } else if (strcmp(a, "--mirror") && strcmp(a, "--glass")) {
+                /* a second value would silently replace the first */
+                int k = value_option_index(a);
+                if (given >> k & 1) return fail("%s: given twice", a);
+                given |= 1ull << k;
             }
         }
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -354,6 +371,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             else if (!strcmp(v, "aces")) o->display.tonemap = REFL_TONEMAP_ACES;
             else return fail("--tonemap: expected clamp, reinhard or aces, got %s", v);
         } else if (!strcmp(a, "--out")) {
+            if (!*v) return fail("%s", "--out: expected a file name, got an empty one");
             o->out = v;
         } else if (!strcmp(a, "--depth")) {
             if (!parse_int(v, 1, 64, &o->depth)) return fail("--depth: expected 1..64, got %s", v);

@@ -1608,6 +1608,10 @@ typedef struct refl_lens_tess_desc {
     int max_interfaces;      /* per path; 0: REFL_GREEDY_MAX_INTERFACES */
     int threads;             /* 0: one per CPU */
 } refl_lens_tess_desc;
+/* Whatever the desc, a tessellation splits no triangle once it has made
+   the mesh's vertices and 16 per pixel of the view (the default t makes
+   one or two per lens pixel); re-triangulating the leaves adds at most a
+   centre vertex to each. */
 
 typedef struct refl_lens_vertex {
     refl_vec3 position, normal; /* world; normal unit */
@@ -1703,7 +1707,7 @@ REFL_API int refl_lem_shell_index(const refl_lem_shell *shell, refl_vec3 origin,
 REFL_API int refl_lem_shell_partial(const refl_lem_shell *shell, const refl_vec3 box[2]);
 /* The four texels and bilinear weights (summing to 1) of an index: its
    cube-map face, bilinear on the face (taps clamped at its edges). 0 for a
-   zero or non-finite index or a bad shell. */
+   zero or non-finite index or a bad shell (face_size 1 to 16384). */
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]);
 /* How the runtime samples the shell for an exit ray (dir unit): its index,
    then that index's texels. The rendering matrix is made of exactly these. */
@@ -1765,7 +1769,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_le
    in, front to back along the continued rays (a layer before another when
    more rays meet its hits first; by mean distance where as many meet each
    first), their radii in radius[], and, when layer_of is not NULL, each
-   hit's layer. */
+   hit's layer. A distance not finite is a bad argument. */
 enum { REFL_LEM_MAX_LAYERS = 4 };
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of);
@@ -1845,6 +1849,8 @@ typedef struct refl_layered_em_options {
                                 default (REFL_LEM_DIRECT_FROM_DEFAULT) */
     int direct_confidence;   /* how a direct image's pixel is weighed, refl_lem_direct_confidence;
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
+    int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
+                                to 1048576; 0: 512 */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -2093,8 +2099,12 @@ REFL_API void refl_renderer_destroy(refl_renderer *renderer);
    frame (view's size) receives the stats (ms_build, rays, layered_em) and
    the message; its pixels are not an image. Reports progress through the
    desc's callback after each map; REFL_ERROR_CANCELLED when it asks to
-   stop (the maps finished so far stay kept). A renderer keeps up to 512
-   MiB of maps: past that, a frame drops the oldest first. */
+   stop (the maps finished so far stay kept). A renderer keeps up to
+   layered_em.kept_mib (512) MiB of maps: prebuild infers a lens's samples
+   nearest the eye first and stops short of that (its share of it, per
+   lens; stats.layered_em.maps_held says how many it holds, the rest
+   inferred by the frames that need them), and past it a frame drops the
+   oldest first. */
 REFL_API refl_result refl_renderer_prebuild(refl_renderer *renderer, const refl_view *view, refl_frame *frame);
 /* LAYERED_EM's frame for a host that draws it itself (the GL path,
    tools/reflect_gl_lem.c): per lens object the renderer's LAYERED_EM

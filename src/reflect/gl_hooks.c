@@ -215,7 +215,7 @@ static long long refl__gl_lem_shells(refl__gl_out *op, const refl_lem_shell *she
     for (l = 0; l < layers; ++l) {
         const refl_lem_shell *sh = &shells[l];
         int sphere = sh->kind == REFL_LEM_SHELL_AUTO || sh->kind == REFL_LEM_SHELL_SPHERE;
-        if (sh->face_size <= 0 || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
+        if (sh->face_size <= 0 || sh->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(sh->center) || sh->kind < 0 || sh->kind > REFL_LEM_SHELL_QUAD ||
             (sphere && !(sh->radius > 0.0f)))
             return REFL_ERROR_INVALID_ARGUMENT;
         for (k = 0; k < 3 && !sphere; ++k)

@@ -610,6 +610,8 @@ typedef struct refl__lem_layering {
     int own, depth;
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
+/* A shell's face side at most: its texels 6 side^2 numbered in uint32 */
+enum { REFL__LEM_MAX_FACE = 16384 };
 /* One front-facing surface an exit ray meets, continued through the others. */
 typedef struct refl__lem_hit {
     float rgb[3], distance;      /* distance from the layering's centre */

@@ -93,7 +93,7 @@ REFL_API int refl_lem_shell_partial(const refl_lem_shell *sh, const refl_vec3 bo
 REFL_API int refl_lem_shell_texels(const refl_lem_shell *shell, refl_vec3 index, uint32_t texel[4], float weight[4]) {
     float dv[3], s, tt, x, y, fx, fy;
     int face, n, x0, y0, x1, y1;
-    if (!shell || shell->face_size <= 0 || !refl__v3_finite(index)) return 0;
+    if (!shell || shell->face_size <= 0 || shell->face_size > REFL__LEM_MAX_FACE || !refl__v3_finite(index)) return 0;
     if (shell->kind == REFL_LEM_SHELL_QUAD) { /* (x, y, presence): the point is (x, y) over the presence */
         if (!(index.z > 0.0f)) return 0;
         index = refl_v3(index.x / index.z, index.y / index.z, 1.0f);
@@ -1281,14 +1281,43 @@ static int refl__lem_cmp_float(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+static int refl__lem_cmp_i64(const void *a, const void *b) {
+    long long x = *(const long long *)a, y = *(const long long *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Every object's hits (object[i] >= 0) moved to the layer holding most of
+   them (the first of equals): the hits sorted by object, one run each, so
+   the time is count log count whatever the object numbers. 0: no memory. */
+static int refl__lem_objects_whole(const int *object, int count, int layers, const refl_allocator *a, int *own) {
+    long long *key = (long long *)refl__calloc(a, (size_t)count, sizeof(long long));
+    int n = 0, i, j, l;
+    if (!key) return 0;
+    for (i = 0; i < count; ++i)
+        if (object[i] >= 0) key[n++] = (long long)object[i] << 32 | i;
+    qsort(key, (size_t)n, sizeof *key, refl__lem_cmp_i64);
+    for (i = 0; i < n; i = j) {
+        long long votes[REFL_LEM_MAX_LAYERS] = {0};
+        int best = 0;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) ++votes[own[key[j] & 0xffffffff]];
+        for (l = 1; l < layers; ++l)
+            if (votes[l] > votes[best]) best = l;
+        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) own[key[j] & 0xffffffff] = best;
+    }
+    refl__free(a, key);
+    return 1;
+}
+
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
                                      const refl_allocator *a, float *radius, int *layer_of) {
     double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
     long long cnt[REFL_LEM_MAX_LAYERS];
     long long ahead[REFL_LEM_MAX_LAYERS][REFL_LEM_MAX_LAYERS]; /* [a][b]: rays meeting a's hits before b's */
-    int *own = NULL, i, l, it, changed = 1, k = 0, objects = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
+    int *own = NULL, i, l, it, changed = 1, k = 0, met = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
     float *sorted = NULL;
     if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
+    for (i = 0; i < count; ++i)
+        if (!refl__isfinite(distance[i])) return 0;
     layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
     own = layer_of ? layer_of : (int *)refl__calloc(a, (size_t)count, sizeof(int));
     sorted = (float *)refl__calloc(a, (size_t)count, sizeof(float));
@@ -1318,29 +1347,19 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
             if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
     }
     /* whole objects in one layer: the one holding most of their hits */
-    if (object) {
-        for (i = 0; i < count; ++i) objects = REFL__MAX(objects, object[i] + 1);
-        for (k = 0; k < objects; ++k) {
-            long long votes[REFL_LEM_MAX_LAYERS] = {0};
-            int best = 0, any = 0;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) ++votes[own[i]], any = 1;
-            if (!any) continue;
-            for (l = 1; l < layers; ++l)
-                if (votes[l] > votes[best]) best = l;
-            for (i = 0; i < count; ++i)
-                if (object[i] == k) own[i] = best;
-        }
+    if (object && !refl__lem_objects_whole(object, count, layers, a, own)) {
+        if (own != layer_of) refl__free(a, own);
+        refl__free(a, sorted);
+        return 0;
     }
     /* the shells: the mean distance of each layer's hits, a continued ray
        counted by its front-most hit in the layer (hits of a ray come
-       together, nearest first) */
+       together, nearest first: the layers its run has met so far) */
     for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
     for (i = 0; i < count; ++i) {
-        int j, front = 1;
-        for (j = i - 1; ray && j >= 0 && ray[j] == ray[i]; --j)
-            if (own[j] == own[i]) front = 0;
-        if (front) acc[own[i]] += distance[i], ++cnt[own[i]];
+        if (!ray || i == 0 || ray[i] != ray[i - 1]) met = 0;
+        if (!(met & 1 << own[i])) acc[own[i]] += distance[i], ++cnt[own[i]];
+        met |= 1 << own[i];
     }
     /* empty layers dropped */
     k = 0;

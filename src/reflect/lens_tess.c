@@ -42,6 +42,7 @@ typedef struct refl__lt {
     int width, height;
     float cos_angle, edge_px;
     int max_level, max_interfaces;
+    long long max_vertices;      /* past this no triangle splits (refl__lt_vertex_budget) */
     const refl_allocator *al;
     refl_lens_vertex *v;
     refl__lt_vertex *vx;
@@ -56,6 +57,17 @@ typedef struct refl__lt {
 } refl__lt;
 
 enum { REFL__LT_CHUNK = 32 };
+
+/* The vertices past which no triangle splits: the mesh's and 16 per
+   pixel of the view (the default t, 1 pixel, makes one or two per lens
+   pixel), so that a t or angle near 0, which would split every triangle
+   to max_level, stays bounded in memory and time (the leaves' centre
+   vertices come on top, at most one each). */
+enum { REFL__LT_VERTICES_PER_PIXEL = 16 };
+static long long refl__lt_vertex_budget(int width, int height, int mesh_vertices) {
+    long long px = (long long)width * (long long)height;
+    return REFL__MIN(REFL__LT_VERTICES_PER_PIXEL * px, 1LL << 28) + mesh_vertices;
+}
 
 static int refl__lt_grow(const refl_allocator *al, void **arr, int *cap, int need, size_t size) {
     void *n;
@@ -281,7 +293,7 @@ static int refl__lt_level(refl__lt *t, refl_lens_tess *out, int first, int end, 
         int longe[3], nlong = 0, m[3] = {-1, -1, -1}, r;
         for (k = 0; k < 3; ++k) differ = REFL__MAX(differ, refl__lt_differs(t, &t->v[v[k]], &t->v[v[(k + 1) % 3]]));
         for (k = 0; k < 3; ++k) nlong += longe[k] = refl__lt_edge_px(t, v[k], v[(k + 1) % 3]) >= t->edge_px;
-        if (!differ || hidden || tri.level >= t->max_level || nlong == 0) {
+        if (!differ || hidden || tri.level >= t->max_level || nlong == 0 || t->vcount >= t->max_vertices) {
             if (!refl__lt_grow(t->al, (void **)leaves, leaf_cap, *nleaves + 1, sizeof **leaves)) return 0;
             (*leaves)[(*nleaves)++] = tri;
             continue;
@@ -427,6 +439,7 @@ static refl_result refl__lens_tessellate(const refl_scene *scene, const refl__gp
     t.edge_px = desc && desc->edge_px > 0.0f ? desc->edge_px : 1.0f;
     t.max_level = desc && desc->max_level > 0 ? REFL__MIN(desc->max_level, 30) : 12;
     t.max_interfaces = desc ? desc->max_interfaces : 0;
+    t.max_vertices = refl__lt_vertex_budget(view->width, view->height, mesh->vertex_count);
     t.al = &out->allocator;
     map = (int *)refl__calloc(t.al, (size_t)REFL__MAX(mesh->vertex_count, 1), sizeof(int));
     if (!map) goto done;

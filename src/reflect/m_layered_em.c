@@ -70,6 +70,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
     if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
         return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
+    if (o->keep_stale_maps < 0 || o->keep_stale_maps > 1) return "layered_em.keep_stale_maps: 0 or 1";
+    if (o->kept_mib < 0 || o->kept_mib > (1 << 20)) return "layered_em.kept_mib: 0 (512) to 1048576";
     return NULL;
 }
 
@@ -440,15 +442,18 @@ static long long refl__lem_maps_bytes(const struct refl__lem_maps *m) {
     return b;
 }
 
-/* What a renderer keeps of maps at the start of a frame: the oldest go
-   first past this (a dolly or a crane makes new samples every frame; a
-   dropped map is inferred again, the same bytes, when a frame needs it). */
-#define REFL__LEM_KEPT_BYTES (512LL << 20)
+/* What a renderer keeps of maps at the start of a frame
+   (layered_em.kept_mib): the oldest go first past this (a dolly or a crane
+   makes new samples every frame; a dropped map is inferred again, the same
+   bytes, when a frame needs it). */
+static long long refl__lem_kept_bytes(const refl_layered_em_options *o) {
+    return (long long)(o->kept_mib > 0 ? o->kept_mib : 512) << 20;
+}
 
-static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m) {
+static void refl__lem_trim(const refl_allocator *al, struct refl__lem_maps *m, long long kept) {
     int drop = 0, k;
     long long bytes = refl__lem_maps_bytes(m);
-    while (drop < m->count && bytes > REFL__LEM_KEPT_BYTES) {
+    while (drop < m->count && bytes > kept) {
         bytes -= refl__lem_map_bytes(&m->maps[drop]);
         refl__lem_map_free(al, &m->maps[drop++]);
     }
@@ -1129,7 +1134,7 @@ static refl_result refl__method_layered_em(refl__pass *p) {
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
-    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps);
+    if (r == REFL_OK) refl__lem_trim(&scene->allocator, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     marked = r == REFL_OK ? (uint8_t *)refl__calloc(&scene->allocator, np, 1) : NULL;
     if (r == REFL_OK && !marked) r = REFL_ERROR_OUT_OF_MEMORY;
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i)
@@ -1162,7 +1167,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
     memset(&own, 0, sizeof own);
     if (r == REFL_OK) r = refl__lem_store(p, &own, &maps);
     if (r == REFL_OK && maps == &own) r = REFL_ERROR_INVALID_ARGUMENT; /* the maps must outlive this call */
-    if (r == REFL_OK) refl__lem_trim(al, maps);
+    if (r == REFL_OK) refl__lem_trim(al, maps, refl__lem_kept_bytes(&p->desc.layered_em));
     for (i = 0; i < scene->object_count; ++i) lens_count += refl__pass_draws(p, i);
     if (r == REFL_OK && lens_count > 0) {
         lenses = (refl_lem_lens *)refl__calloc(al, (size_t)lens_count, sizeof *lenses);
@@ -1220,11 +1225,13 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
     int i, k, at, lenses = 0, done = 0;
+    long long share, last;
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
     if (r == REFL_OK) r = refl__lem_store(p, &none, &maps);
     if (r == REFL_OK && maps == &none) r = REFL_ERROR_INVALID_ARGUMENT; /* nowhere to keep them */
     for (i = 0; i < scene->object_count; ++i) lenses += refl__pass_draws(p, i);
+    share = refl__lem_kept_bytes(&p->desc.layered_em) / REFL__MAX(lenses, 1);
     for (i = 0; i < scene->object_count && r == REFL_OK; ++i) {
         refl__lem_circle cc;
         refl__lem_ring spare;
@@ -1240,9 +1247,16 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
             views[0] = *p->view;
             r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
         }
-        for (k = 0; on && k < cc.samples && r == REFL_OK; ++k) {
-            refl__lem_sample_views(p, &cc, k, views);
+        /* nearest the eye first (k0, k0 + 1, k0 - 1, ...), while the maps
+           held and one more like the last stay within this lens's share of
+           the budget: memory stays bounded whatever layered_em.samples */
+        for (k = 0, last = 0; on && k < cc.samples && r == REFL_OK; ++k) {
+            int k0 = (int)floor(cc.phi / cc.step), j = k0 + (k % 2 ? (k + 1) / 2 : -(k / 2));
+            long long held = refl__lem_maps_bytes(maps);
+            if (k > 0 && held + last > share * (done + 1)) break;
+            refl__lem_sample_views(p, &cc, (j % cc.samples + cc.samples) % cc.samples, views);
             r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
+            if (r == REFL_OK) last = refl__lem_map_bytes(&maps->maps[at]);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;
         }
