@@ -14384,26 +14384,119 @@ static int refl__lem_cmp_i64(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
-/* Every object's hits (object[i] >= 0) moved to the layer holding most of
-   them (the first of equals): the hits sorted by object, one run each, so
-   the time is count log count whatever the object numbers. 0: no memory. */
-static int refl__lem_objects_whole(const int *object, int count, int layers, const refl_allocator *a, int *own) {
+/* Each hit's object as a dense number (0 .. distinct objects - 1, in the
+   order of the objects' own numbers; -1 where object[i] < 0) into dense[]:
+   the hits sorted by object, so the time and memory are count log count
+   whatever the object numbers. The number of distinct objects, or -1 for
+   no memory. */
+static int refl__lem_dense_objects(const int *object, int count, const refl_allocator *a, int *dense) {
     long long *key = (long long *)refl__calloc(a, (size_t)count, sizeof(long long));
-    int n = 0, i, j, l;
-    if (!key) return 0;
-    for (i = 0; i < count; ++i)
+    int n = 0, i, objects = 0;
+    if (!key) return -1;
+    for (i = 0; i < count; ++i) {
+        dense[i] = -1;
         if (object[i] >= 0) key[n++] = (long long)object[i] << 32 | i;
+    }
     qsort(key, (size_t)n, sizeof *key, refl__lem_cmp_i64);
-    for (i = 0; i < n; i = j) {
-        long long votes[REFL_LEM_MAX_LAYERS] = {0};
-        int best = 0;
-        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) ++votes[own[key[j] & 0xffffffff]];
-        for (l = 1; l < layers; ++l)
-            if (votes[l] > votes[best]) best = l;
-        for (j = i; j < n && key[j] >> 32 == key[i] >> 32; ++j) own[key[j] & 0xffffffff] = best;
+    for (i = 0; i < n; ++i) {
+        if (i > 0 && key[i] >> 32 != key[i - 1] >> 32) ++objects;
+        dense[key[i] & 0xffffffff] = objects;
     }
     refl__free(a, key);
-    return 1;
+    return n > 0 ? objects + 1 : 0;
+}
+
+/* LBG's clustering state over the hits' distances: per layer the mean
+   distance and the count of hits; own[] each hit's layer. With object
+   ids, votes (objects x layers) is scratch for the whole-object rule. */
+typedef struct refl__lem_lbg {
+    const float *distance;
+    const int *object;
+    int count, layers, objects;
+    long long *votes;
+} refl__lem_lbg;
+
+/* The layer of the mean nearest distance d (the lower layer on a tie). */
+static int refl__lem_lbg_nearest(const refl__lem_lbg *g, const double *mean, float d) {
+    int l, best = 0;
+    for (l = 1; l < g->layers; ++l)
+        if (fabs(d - mean[l]) < fabs(d - mean[best])) best = l;
+    return best;
+}
+
+/* Each object's hits counted by layer: their layers own[], or with own
+   NULL the layers of their nearest means. */
+static void refl__lem_lbg_votes(const refl__lem_lbg *g, const int *own, const double *mean) {
+    int i;
+    memset(g->votes, 0, sizeof(long long) * (size_t)g->objects * (size_t)g->layers);
+    for (i = 0; i < g->count; ++i)
+        if (g->object[i] >= 0)
+            ++g->votes[(size_t)g->object[i] * (size_t)g->layers +
+                       (size_t)(own ? own[i] : refl__lem_lbg_nearest(g, mean, g->distance[i]))];
+}
+
+/* The paper's whole-object rule: the layer holding most of object o's
+   hits (the lower layer on a tie). */
+static int refl__lem_lbg_majority(const refl__lem_lbg *g, int o) {
+    const long long *v = g->votes + (size_t)o * (size_t)g->layers;
+    int l, best = 0;
+    for (l = 1; l < g->layers; ++l)
+        if (v[l] > v[best]) best = l;
+    return best;
+}
+
+/* Each layer's mean distance over its hits (an empty layer keeps its
+   mean); the distortion, the squared distances from them summed. */
+static double refl__lem_lbg_means(const refl__lem_lbg *g, const int *own, double *mean) {
+    double acc[REFL_LEM_MAX_LAYERS] = {0.0}, sum = 0.0;
+    long long cnt[REFL_LEM_MAX_LAYERS] = {0};
+    int i, l;
+    for (i = 0; i < g->count; ++i) acc[own[i]] += g->distance[i], ++cnt[own[i]];
+    for (l = 0; l < g->layers; ++l)
+        if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
+    for (i = 0; i < g->count; ++i) sum += (g->distance[i] - mean[own[i]]) * (g->distance[i] - mean[own[i]]);
+    return sum;
+}
+
+/* How many layers own[] leaves with hits. */
+static int refl__lem_lbg_used(const refl__lem_lbg *g, const int *own) {
+    int i, l, used = 0, mask = 0;
+    for (i = 0; i < g->count; ++i) mask |= 1 << own[i];
+    for (l = 0; l < g->layers; ++l) used += (mask >> l) & 1;
+    return used;
+}
+
+/* Lloyd's iterations from mean[]: each hit to its nearest mean, the means
+   recomputed, until no hit moves (at most 200). The whole-object rule
+   (with object ids) after every assignment when whole_each_step, else
+   once at the end. The distortion of the final layers own[]. */
+static double refl__lem_lbg_run(const refl__lem_lbg *g, double *mean, int whole_each_step, int *own) {
+    int i, it, changed = 1, whole = whole_each_step && g->objects;
+    for (i = 0; i < g->count; ++i) own[i] = -1;
+    for (it = 0; it < 200 && changed; ++it) {
+        changed = 0;
+        if (whole) refl__lem_lbg_votes(g, NULL, mean);
+        for (i = 0; i < g->count; ++i) {
+            int best = whole && g->object[i] >= 0 ? refl__lem_lbg_majority(g, g->object[i])
+                                                  : refl__lem_lbg_nearest(g, mean, g->distance[i]);
+            changed |= own[i] != best;
+            own[i] = best;
+        }
+        refl__lem_lbg_means(g, own, mean);
+    }
+    if (!whole && g->objects) {
+        refl__lem_lbg_votes(g, own, NULL);
+        for (i = 0; i < g->count; ++i)
+            if (g->object[i] >= 0) own[i] = refl__lem_lbg_majority(g, g->object[i]);
+    }
+    return refl__lem_lbg_means(g, own, mean);
+}
+
+/* The starts for `layers` means from sorted values v[0..n): their
+   quantiles (deterministic where the paper draws at random). */
+static void refl__lem_lbg_quantiles(const float *v, int n, int layers, double *mean) {
+    int l;
+    for (l = 0; l < layers; ++l) mean[l] = v[(size_t)(((double)l + 0.5) / layers * n)];
 }
 
 REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, const int *ray, int count, int layers,
@@ -14411,41 +14504,71 @@ REFL_API int refl_lem_cluster_layers(const float *distance, const int *object, c
     double mean[REFL_LEM_MAX_LAYERS], acc[REFL_LEM_MAX_LAYERS];
     long long cnt[REFL_LEM_MAX_LAYERS];
     long long ahead[REFL_LEM_MAX_LAYERS][REFL_LEM_MAX_LAYERS]; /* [a][b]: rays meeting a's hits before b's */
-    int *own = NULL, i, l, it, changed = 1, k = 0, met = 0, remap[REFL_LEM_MAX_LAYERS], order[REFL_LEM_MAX_LAYERS];
+    int *own = NULL, *other = NULL, *dense = NULL, i, l, k = 0, ok, met = 0, remap[REFL_LEM_MAX_LAYERS],
+        order[REFL_LEM_MAX_LAYERS];
     float *sorted = NULL;
+    double *object_acc = NULL;
+    refl__lem_lbg g;
     if (!distance || count <= 0 || layers <= 0 || !radius) return 0;
     for (i = 0; i < count; ++i)
         if (!refl__isfinite(distance[i])) return 0;
-    layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
+    memset(&g, 0, sizeof g);
+    g.distance = distance;
+    g.count = count;
+    g.layers = layers = REFL__MIN(layers, REFL_LEM_MAX_LAYERS);
     own = layer_of ? layer_of : (int *)refl__calloc(a, (size_t)count, sizeof(int));
     sorted = (float *)refl__calloc(a, (size_t)count, sizeof(float));
-    if (!own || !sorted) {
-        if (own != layer_of) refl__free(a, own);
-        refl__free(a, sorted);
-        return 0;
+    ok = own && sorted;
+    if (ok && object) { /* objects numbered densely: votes are objects x layers */
+        dense = (int *)refl__calloc(a, (size_t)count, sizeof(int));
+        ok = dense && (g.objects = refl__lem_dense_objects(object, count, a, dense)) >= 0;
+        g.object = dense;
     }
-    /* start from the quantiles (deterministic where the paper draws at random) */
-    memcpy(sorted, distance, sizeof(float) * (size_t)count);
-    qsort(sorted, (size_t)count, sizeof(float), refl__lem_cmp_float);
-    for (l = 0; l < layers; ++l) mean[l] = sorted[(size_t)(((double)l + 0.5) / layers * count)];
-    for (i = 0; i < count; ++i) own[i] = -1;
-    /* Lloyd's iterations until no hit moves */
-    for (it = 0; it < 200 && changed; ++it) {
-        changed = 0;
-        for (i = 0; i < count; ++i) {
-            int best = 0;
-            for (l = 1; l < layers; ++l)
-                if (fabs(distance[i] - mean[l]) < fabs(distance[i] - mean[best])) best = l;
-            changed |= own[i] != best;
-            own[i] = best;
+    if (ok && g.objects) {
+        other = (int *)refl__calloc(a, (size_t)count, sizeof(int));
+        g.votes = (long long *)refl__calloc(a, (size_t)g.objects * (size_t)layers, sizeof(long long));
+        object_acc = (double *)refl__calloc(a, 2 * (size_t)g.objects, sizeof(double));
+        ok = other && g.votes && object_acc;
+    }
+    if (ok) {
+        /* the paper's LBG: from the quantiles of the hits' distances, each
+           hit to its nearest layer until none moves, then every object whole
+           in the layer holding most of its hits */
+        double distortion;
+        memcpy(sorted, distance, sizeof(float) * (size_t)count);
+        qsort(sorted, (size_t)count, sizeof(float), refl__lem_cmp_float);
+        refl__lem_lbg_quantiles(sorted, count, layers, mean);
+        distortion = refl__lem_lbg_run(&g, mean, 0, own);
+        if (g.objects) {
+            /* A dense object's spread of distances holds those quantiles, and
+               Lloyd's iterations over its hits drag a small object's few hits
+               into one of its layers (a ball at a concave mirror's focus with
+               the near floor), where the whole-object rule then moves the
+               dense object too: a layer lost. A second start, from the
+               quantiles of the objects' mean distances (each object once),
+               the whole-object rule applied at every step so that objects,
+               not hits, move: kept where it leaves more layers than the
+               paper's start at a lower distortion */
+            double other_mean[REFL_LEM_MAX_LAYERS];
+            int m = 0;
+            for (i = 0; i < count; ++i)
+                if (dense[i] >= 0) object_acc[2 * dense[i]] += distance[i], object_acc[2 * dense[i] + 1] += 1.0;
+            for (i = 0; i < g.objects; ++i)
+                if (object_acc[2 * i + 1] > 0.0) sorted[m++] = (float)(object_acc[2 * i] / object_acc[2 * i + 1]);
+            qsort(sorted, (size_t)m, sizeof(float), refl__lem_cmp_float);
+            if (m > 0) {
+                refl__lem_lbg_quantiles(sorted, m, layers, other_mean);
+                if (refl__lem_lbg_run(&g, other_mean, 1, other) < distortion &&
+                    refl__lem_lbg_used(&g, other) > refl__lem_lbg_used(&g, own))
+                    memcpy(own, other, sizeof(int) * (size_t)count);
+            }
         }
-        for (l = 0; l < layers; ++l) acc[l] = 0.0, cnt[l] = 0;
-        for (i = 0; i < count; ++i) acc[own[i]] += distance[i], ++cnt[own[i]];
-        for (l = 0; l < layers; ++l)
-            if (cnt[l]) mean[l] = acc[l] / (double)cnt[l];
     }
-    /* whole objects in one layer: the one holding most of their hits */
-    if (object && !refl__lem_objects_whole(object, count, layers, a, own)) {
+    refl__free(a, other);
+    refl__free(a, dense);
+    refl__free(a, g.votes);
+    refl__free(a, object_acc);
+    if (!ok) {
         if (own != layer_of) refl__free(a, own);
         refl__free(a, sorted);
         return 0;
