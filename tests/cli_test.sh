@@ -211,6 +211,8 @@ done
 refuses "a FIFO as the scene" "fifo: not a regular file" timeout 20 "$bin" info "$tmp/hostile/fifo"
 refuses "a FIFO as the environment" "fifo: cannot open: not a regular file" \
     timeout 20 "$bin" render --builtin default --env "$tmp/hostile/fifo" --size 8x8 --out "$tmp/x.png"
+refuses "a FIFO as the auto models" "fifo: not a regular file" \
+    timeout 20 "$bin" render --builtin default --method auto --auto-models "$tmp/hostile/fifo" --size 8x8 --out "$tmp/x.png"
 
 # compare: PPMs written here, so every number is known. a is black; b has
 # two pixels 255 off in red and one 10 off in green: RMSE

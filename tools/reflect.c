@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static const char *const usage_main =
@@ -854,6 +855,12 @@ static int cmd_render(const options *o) {
     d.automatic.error_budget_px = o->error_budget;
     if (o->auto_models) {
         char msg[200];
+        struct stat st;
+        /* the library's loader opens what it is given: a FIFO would block it */
+        if (stat(o->auto_models, &st) == 0 && !S_ISREG(st.st_mode)) {
+            fprintf(stderr, "reflect: --auto-models: %s: not a regular file\n", o->auto_models);
+            goto done;
+        }
         if (refl_auto_models_load(o->auto_models, &auto_models, msg, sizeof msg) != REFL_OK) {
             fprintf(stderr, "reflect: --auto-models: %s\n", msg);
             goto done;
