@@ -753,10 +753,11 @@ enum { REFL__LEM_CLUSTER_VIEWS = 16 };
    a quarter of its size, 16 to 64 pixels wide: the clustering needs
    distances, not detail) clustered by
    refl_lem_cluster_layers, each object's layer kept. No hits (only the
-   environment): one shell at 10 lens radii. Sphere radii ascend, the
-   outermost outside the lens; then each layer's shell is fitted to its
-   hits (refl__lem_fit_layers): boxes and cylinders around the lens's
-   box, an inner layer's sphere where its hits lie. */
+   environment): one shell at 10 lens radii. Each layer's sphere lies at
+   its hits' mean distance, the outermost outside the lens; then each
+   layer's shell is fitted to its hits (refl__lem_fit_layers): boxes and
+   cylinders around the lens's box, an inner layer's sphere where its
+   hits lie. */
 static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 c,
                                      float lens_radius, const refl__lem_circle *cc, refl__lem_ring *ring) {
     const refl_scene *scene = p->scene;
@@ -807,13 +808,17 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
             if (h.object[k] >= 0 && h.object[k] < scene->object_count)
                 ring->object_layer[h.object[k]] = (signed char)layer_of[k];
     }
-    /* inner layers at their hits' mean distance, within the lens's bounds
-       too (the paper's shells: a ball at a concave mirror's focus is an
-       inner sphere the exit rays enter); the outermost, opaque and closed
-       around the lens, beyond it */
-    if (!(lay->radius[0] > 0.0f)) lay->radius[0] = REFL__MAX(1e-3f * lens_radius, 1e-6f);
-    for (l = 1; l < lay->layers; ++l)
-        if (!(lay->radius[l] > lay->radius[l - 1])) lay->radius[l] = 1.05f * lay->radius[l - 1];
+    /* every layer at its hits' mean distance, in whatever order the
+       layers composite (along the rays: `hybrid`'s floor comes after the
+       columns and walls its rays meet first, though it lies nearer the
+       teapot than they do; a sphere moved out beyond them puts the floor
+       far from where it is, and every viewpoint sees it in other texels);
+       an inner one within the lens's bounds too (the paper's shells: a
+       ball at a concave mirror's focus is an inner sphere the exit rays
+       enter); the outermost, opaque and closed around the lens, beyond
+       it */
+    for (l = 0; l < lay->layers; ++l)
+        if (!(lay->radius[l] > 0.0f)) lay->radius[l] = REFL__MAX(1e-3f * lens_radius, 1e-6f);
     top = REFL__MAX(lay->layers, 1) - 1;
     if (!(lay->radius[top] > lens_radius))
         lay->radius[top] = REFL__MAX(REFL__MAX(10.0f * lens_radius, 1e-3f), 1.05f * lay->radius[REFL__MAX(top - 1, 0)]);
