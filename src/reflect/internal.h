@@ -611,8 +611,10 @@ typedef struct refl__lem_layering {
        beyond it) */
     int own, depth;
     /* whether a sample's eye ray meeting something else before the lens is
-       continued to it (refl_layered_em_options.continue_incoming) */
+       continued to it (refl_layered_em_options.continue_incoming), and
+       the lens's world box, past which it is not */
     int continued;
+    refl_vec3 box[2];
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* One front-facing surface an exit ray meets, continued through the others. */
@@ -655,8 +657,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    const refl__lem_layering *lay, float *out, float *points,
                                    refl_greedy_paths_result *centre_paths, long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, int own, int continued, refl_vec3 centre,
-                                 refl__lem_hits *h, long long *rays);
+                                 int object, int max_interfaces, int own, const refl_vec3 *continue_box,
+                                 refl_vec3 centre, refl__lem_hits *h, long long *rays);
 /* Section 4.3's direct images of the environment without the lens: how
    a map's are taken. From the lens's centre (lay->centre) one ray towards
    every texel's point on the shell; from the viewpoint, each pixel (every

@@ -800,12 +800,14 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
         v[0].width = w;
         if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i),
-                                   refl__lem_continued(p), c, &h, &p->frame->stats.rays))
+                                   refl__lem_continued(p) ? box : NULL, c, &h, &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
     memset(lay, 0, sizeof *lay);
     lay->own = refl__lem_own(p, i);
     lay->continued = refl__lem_continued(p);
+    lay->box[0] = box[0];
+    lay->box[1] = box[1];
     lay->centre = c;
     lay->object_count = scene->object_count;
     ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
