@@ -1392,6 +1392,9 @@ typedef struct refl_layered_em_frame_stats {
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */
+    long long continued_pixels; /* sample pixels of the maps inferred whose eye ray met something
+                                   else first and was continued to the lens
+                                   (layered_em.continue_incoming) */
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
                                 there, the next layer shows */
@@ -1853,6 +1856,11 @@ typedef struct refl_layered_em_options {
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
     int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
                                 to 1048576; 0: 512 */
+    int continue_incoming;   /* paper 001 section 4.1, Figure 4b: a sample's eye ray meeting
+                                something else before its lens (the cup before the teapot) is
+                                continued through it to the lens, so the lens's hidden parts
+                                give records too. 1: on, -1: off, 0: the default
+                                (REFL_LEM_CONTINUE_DEFAULT) */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -1871,6 +1879,7 @@ enum { REFL_LEM_DIRECT_FROM_DEFAULT = REFL_LEM_DIRECT_FROM_CENTRE,
        REFL_LEM_DIRECT_CONFIDENCE_DEFAULT = REFL_LEM_DIRECT_COVERAGE };
 enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
 enum { REFL_LEM_LENS_LAYERS_DEFAULT = -1 }; /* traced: it measures better (docs/methods/layered_em.md, "Lens to lens") */
+enum { REFL_LEM_CONTINUE_DEFAULT = 1 }; /* on: it measures better (docs/methods/layered_em.md, "Continued eye rays") */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of
@@ -2908,6 +2917,8 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_cast
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
 /* refl_greedy_paths through casters: the eye ray's first lens, then its
    paths as casters->own says. */
 static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
@@ -2943,6 +2954,11 @@ typedef struct refl__lem_layering {
        refl__lem_ring_of), else -1; and the pass's depth (greedy paths
        beyond it) */
     int own, depth;
+    /* whether a sample's eye ray meeting something else before the lens is
+       continued to it (refl_layered_em_options.continue_incoming), and
+       the lens's world box, past which it is not */
+    int continued;
+    refl_vec3 box[2];
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* A shell's face side at most: its texels 6 side^2 numbered in uint32 */
@@ -2972,7 +2988,9 @@ static void refl__lem_hits_free(refl__lem_hits *h);
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
                                 int frame, refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
-   does not meet `object` first; else per term and layer l the target
+   does not meet `object` first (with lay->continued: does not reach it
+   through what it meets first, Figure 4b), 2 when it reaches it so, 1
+   when it meets it first; with 1 or 2 per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
    their share; the outermost layer opaque, the environment where nothing
    of it was met) and the term's confidence (-1: no subsample has the term)
@@ -2985,8 +3003,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    const refl__lem_layering *lay, float *out, float *points,
                                    refl_greedy_paths_result *centre_paths, long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
-                                 long long *rays);
+                                 int object, int max_interfaces, int own, const refl_vec3 *continue_box,
+                                 refl_vec3 centre, refl__lem_hits *h, long long *rays);
 /* Section 4.3's direct images of the environment without the lens: how
    a map's are taken. From the lens's centre (lay->centre) one ray towards
    every texel's point on the shell; from the viewpoint, each pixel (every
@@ -12163,8 +12181,6 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
     return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
 }
 
-static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
-
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -12189,7 +12205,6 @@ static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, ref
     return refl__gp_hit_of(scene, &hit, h);
 }
 
-/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
 static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit_in, refl__gp_hit *h) {
     refl_hit hit = *hit_in;
     const refl_object *obj;
@@ -14082,6 +14097,60 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
     return best;
 }
 
+/* Surfaces an eye ray is continued through on its way to the lens at most. */
+enum { REFL__LEM_MAX_CONTINUED = 32 };
+
+/* Where the ray o + t d leaves the box (lo, hi): its largest t in it, or
+   -1 where it misses it. */
+static float refl__lem_box_exit(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi) {
+    float t0 = 0.0f, t1 = FLT_MAX, oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (dd[k] == 0.0f) {
+            if (oo[k] < a[k] || oo[k] > b[k]) return -1.0f;
+            continue;
+        }
+        {
+            float ta = (a[k] - oo[k]) / dd[k], tb = (b[k] - oo[k]) / dd[k];
+            t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
+            t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
+        }
+    }
+    return t0 <= t1 ? t1 : -1.0f;
+}
+
+/* The greedy paths of a sample's eye ray (o, unit d) at lens `object`
+   (section 4.1): where the ray meets the lens first, its paths from there
+   (1); where it meets something else first (a diffuse occluder, another
+   lens: the cup before the teapot) and continue_box is the lens's world
+   box (NULL: not continued; Figure 4b), its paths from the lens's first
+   surface behind it, the occluders passed through as if absent (2), so
+   the lens's hidden parts give records as the runtime's rasterised lens
+   shows them to an eye that sees them; else 0 (*out then unset). A ray
+   is not continued past the box, where no lens surface can lie. */
+static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *paths, refl_vec3 o, refl_vec3 d,
+                               int object, int max_interfaces, const refl_vec3 *continue_box,
+                               refl_greedy_paths_result *out, long long *rays) {
+    refl_hit hit;
+    refl__gp_hit h;
+    float tmin = 0.0f, tbox = -1.0f;
+    int tries;
+    for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
+        ++*rays;
+        if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
+        if (hit.object == object) break;
+        if (!continue_box) return 0;
+        if (!tries) tbox = refl__lem_box_exit(o, d, continue_box[0], continue_box[1]);
+        if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
+        tmin = hit.t;
+    }
+    if (tries == REFL__LEM_MAX_CONTINUED || !refl__gp_hit_of(scene, &hit, &h)) return 0;
+    refl__greedy_paths_none(o, d, out);
+    refl__greedy_paths_from(scene, paths, d, &h, max_interfaces, out, rays);
+    return tries ? 2 : 1;
+}
+
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    const refl__lem_layering *lay, float *out, float *points,
@@ -14090,14 +14159,15 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
     refl_greedy_paths_result sub;
     refl__lem_hit hits[REFL__LEM_MAX_HITS];
     float sum[2][REFL_LEM_MAX_LAYERS][3], tmax;
-    int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers;
+    int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers, met;
+    const refl_vec3 *continue_box = lay->continued ? lay->box : NULL;
     refl__gp_casters paths;
     paths.scene = caster;
     paths.lenses = paths.others = NULL;
     paths.own = lay->own;
     refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-    refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, centre_paths, rays);
-    if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    met = refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, centre_paths, rays);
+    if (!met) return 0;
     for (k = 0; points && k < 6 * L; ++k) points[k] = NAN;
     memset(sum, 0, sizeof sum);
     memset(seen, 0, sizeof seen);
@@ -14105,8 +14175,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         for (i = 0; i < ss; ++i) {
             refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
                                 (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
-            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &sub, rays);
-            if (sub.object != object) continue;
+            if (!refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, &sub, rays))
+                continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
                 int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
@@ -14152,7 +14222,7 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             t[3] = (float)seen[term][l] / (float)n[term];
         }
     }
-    return 1;
+    return met;
 }
 
 /* ---- direct images against disocclusion (section 4.3) ----------------------------------- */
@@ -14653,10 +14723,13 @@ static void refl__lem_hits_free(refl__lem_hits *h) {
 }
 
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
-   the clustering: appended to the arrays of *h. 0 when out of memory. */
+   the clustering (with continue_box, the lens's world box, the pixels
+   whose eye ray reaches the lens through what hides it too:
+   refl__lem_eye_paths): appended to the arrays of *h. 0 when out of
+   memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
-                                 long long *rays) {
+                                 int object, int max_interfaces, int own, const refl_vec3 *continue_box,
+                                 refl_vec3 centre, refl__lem_hits *h, long long *rays) {
     refl__view_rays vr;
     refl__gp_casters paths;
     int x, y, term, k;
@@ -14670,8 +14743,7 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
             refl_vec3 o, d;
             float tmax;
             refl__view_rays_get(&vr, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &g, rays);
-            if (g.terms == 0 || g.object != object) continue;
+            if (!refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, &g, rays)) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *p = term ? &g.refract : &g.reflect;
                 refl__lem_hit hits[REFL__LEM_MAX_HITS];
@@ -18421,6 +18493,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.shell_frame: AUTO, WORLD or FITTED";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
+    if (o->continue_incoming < -1 || o->continue_incoming > 1)
+        return "layered_em.continue_incoming: -1 (off), 0 or 1 (on)";
     if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
         return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
     if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
@@ -18435,6 +18509,13 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
 static int refl__lem_own(const refl__pass *p, int i) {
     int on = p->desc.layered_em.lens_layers;
     return on > 0 || (on == 0 && REFL_LEM_LENS_LAYERS_DEFAULT > 0) ? i : -1;
+}
+
+/* Whether the samples' eye rays are continued to the lens through what
+   hides it (refl_layered_em_options.continue_incoming). */
+static int refl__lem_continued(const refl__pass *p) {
+    int on = p->desc.layered_em.continue_incoming;
+    return on > 0 || (on == 0 && REFL_LEM_CONTINUE_DEFAULT > 0);
 }
 
 /* The casters of lens i's vertex paths (refl__lem_own). */
@@ -18649,6 +18730,7 @@ typedef struct refl__lem_records {
     float *rec;                  /* 10 layers per pixel; confidence -1 where none */
     float *points;               /* NULL, or 6 layers per pixel: refl__lem_pixel_records' points */
     long long *row_rays;
+    int *row_continued;          /* per row, the pixels whose eye ray was continued to the lens */
 } refl__lem_records;
 
 static void refl__lem_records_row(void *arg, int y) {
@@ -18658,9 +18740,12 @@ static void refl__lem_records_row(void *arg, int y) {
         float *out = r->rec + (size_t)n * ((size_t)y * (size_t)w + (size_t)x);
         float *pts = r->points ? r->points + (size_t)6 * r->lay->layers * ((size_t)y * (size_t)w + (size_t)x) : NULL;
         refl_greedy_paths_result centre;
-        if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
-            !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
-                                     r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])) {
+        int met = x >= r->rect[0] && x < r->rect[2] && y >= r->rect[1] && y < r->rect[3]
+                      ? refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
+                                                r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])
+                      : 0;
+        r->row_continued[y] += met == 2;
+        if (!met) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
             for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
         }
@@ -18906,14 +18991,21 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
         if (direct.distance) sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
-        if (!rec.rec || !rec.row_rays || (direct.distance && !rec.points)) r = REFL_ERROR_OUT_OF_MEMORY;
+        rec.row_continued = (int *)refl__calloc(al, (size_t)h, sizeof(int));
+        if (!rec.rec || !rec.row_rays || !rec.row_continued || (direct.distance && !rec.points))
+            r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
             for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
             for (px = 0; px < np; ++px)
                 sv[s].lens_pixels += rec.rec[nrec * px + 4] >= 0.0f || rec.rec[nrec * px + 5 * (size_t)L + 4] >= 0.0f;
+            /* the face size follows the lens pixels the view sees: the
+               continued ones aside, so continuing leaves it as it was */
+            for (y = 0; y < h; ++y) sv[s].lens_pixels -= rec.row_continued[y];
+            for (y = 0; y < h; ++y) st->layered_em.continued_pixels += rec.row_continued[y];
         }
         refl__free(al, rec.row_rays);
+        refl__free(al, rec.row_continued);
         if (r == REFL_OK) {
             refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
             sv[s].tess.allocator = *al;
@@ -18948,7 +19040,11 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                     const float *rec = sv[s].rec + nrec * px + 5 * (size_t)(term * L + l), *ix = index[term] + 4 * px;
                     uint32_t tex[4];
                     float wt[4];
-                    /* a row where the records have the term and all three vertices gave it an index */
+                    /* a row where the records have the term and all three vertices gave it an index;
+                       the lens is drawn alone, so a pixel whose eye ray was continued
+                       to it through an occluder (refl__lem_eye_paths) gets the row of
+                       the lens surface its record is of: the tessellation leaves a
+                       hidden triangle whole but traces its vertices (section 5) */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
                         !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
@@ -19136,12 +19232,15 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
         v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
         v[0].width = w;
-        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i), c, &h,
-                                   &p->frame->stats.rays))
+        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i),
+                                   refl__lem_continued(p) ? box : NULL, c, &h, &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
     memset(lay, 0, sizeof *lay);
     lay->own = refl__lem_own(p, i);
+    lay->continued = refl__lem_continued(p);
+    lay->box[0] = box[0];
+    lay->box[1] = box[1];
     lay->centre = c;
     lay->object_count = scene->object_count;
     ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
@@ -19208,7 +19307,8 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     *r = REFL_OK;
     /* a ring clustered with the other lenses' hits in or out (lens_layers)
        does not serve the other way */
-    if (ring->lay.layers && ring->lay.own != refl__lem_own(p, i)) ring = spare;
+    if (ring->lay.layers && (ring->lay.own != refl__lem_own(p, i) || ring->lay.continued != refl__lem_continued(p)))
+        ring = spare;
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
     lay->depth = p->desc.depth;

@@ -107,6 +107,9 @@ static const char *const usage_render =
     "                     distance from theirs: coverage or distance (default coverage)\n"
     "  --lem-lens-layers 0|1  LAYERED_EM: another lens a lens's path meets, traced\n"
     "                     (0) or a layer of the lens's environment (1) (default 0)\n"
+    "  --lem-continue 0|1  LAYERED_EM: a sample's eye ray meeting something before\n"
+    "                     the lens continued through it, so hidden parts of the lens\n"
+    "                     give records too, off or on (default on)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -199,6 +202,7 @@ typedef struct options {
     int lem_shell;                /* --lem-shell */
     int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
     int lem_lens_layers;          /* --lem-lens-layers: -1 traced, 1 layers, 0 unset */
+    int lem_continue;             /* --lem-continue: -1 off, 1 on, 0 unset */
     int lem_direct_from, lem_direct_conf; /* --lem-direct-from, --lem-direct-conf: 0 unset */
     int lem_frame;                /* --lem-frame */
     int frames;                   /* --frames */
@@ -258,7 +262,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-frame", "--lem-direct", "--lem-lens-layers", "--lem-direct-from", "--lem-direct-conf", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-frame", "--lem-direct", "--lem-lens-layers", "--lem-continue", "--lem-direct-from", "--lem-direct-conf", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -399,6 +403,10 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             int on;
             if (!parse_int(v, 0, 1, &on)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
             o->lem_lens_layers = on ? 1 : -1;
+        } else if (!strcmp(a, "--lem-continue")) {
+            int on;
+            if (!parse_int(v, 0, 1, &on)) return fail("--lem-continue: expected 0 or 1, got %s", v);
+            o->lem_continue = on ? 1 : -1;
         } else if (!strcmp(a, "--lem-frame")) {
             if (!strcmp(v, "auto")) o->lem_frame = REFL_LEM_FRAME_AUTO;
             else if (!strcmp(v, "world")) o->lem_frame = REFL_LEM_FRAME_WORLD;
@@ -829,6 +837,7 @@ static int cmd_render(const options *o) {
     d.layered_em.shell = o->lem_shell;
     d.layered_em.direct_images = o->lem_direct;
     d.layered_em.lens_layers = o->lem_lens_layers;
+    d.layered_em.continue_incoming = o->lem_continue;
     d.layered_em.direct_from = o->lem_direct_from;
     d.layered_em.direct_confidence = o->lem_direct_conf;
     d.layered_em.shell_frame = o->lem_frame;
@@ -955,6 +964,9 @@ static int cmd_render(const options *o) {
                    "traced px   %lld (no triangle covered them, or their paths left through another lens)\n",
                    l->ms_trace, l->vertices, l->vertex_tests, l->ms_tessellate, l->ms_draw, l->traced_pixels);
             if (l->direct_rows) printf("direct rows  %lld (direct images' rows in the maps inferred)\n", l->direct_rows);
+            if (l->continued_pixels)
+                printf("continued    %lld (sample pixels whose eye ray reached the lens through what hid it)\n",
+                       l->continued_pixels);
             if (l->quad_misses) printf("quad misses  %lld (vertex terms past a quad layer)\n", l->quad_misses);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);

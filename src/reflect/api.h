@@ -1390,6 +1390,9 @@ typedef struct refl_layered_em_frame_stats {
     long long traced_pixels; /* lens pixels ray traced: no triangle covered them, or a
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */
+    long long continued_pixels; /* sample pixels of the maps inferred whose eye ray met something
+                                   else first and was continued to the lens
+                                   (layered_em.continue_incoming) */
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
                                 there, the next layer shows */
@@ -1851,6 +1854,11 @@ typedef struct refl_layered_em_options {
                                 0: the default (REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) */
     int kept_mib;            /* MiB of maps a renderer keeps at most (refl_renderer_prebuild), 1
                                 to 1048576; 0: 512 */
+    int continue_incoming;   /* paper 001 section 4.1, Figure 4b: a sample's eye ray meeting
+                                something else before its lens (the cup before the teapot) is
+                                continued through it to the lens, so the lens's hidden parts
+                                give records too. 1: on, -1: off, 0: the default
+                                (REFL_LEM_CONTINUE_DEFAULT) */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -1869,6 +1877,7 @@ enum { REFL_LEM_DIRECT_FROM_DEFAULT = REFL_LEM_DIRECT_FROM_CENTRE,
        REFL_LEM_DIRECT_CONFIDENCE_DEFAULT = REFL_LEM_DIRECT_COVERAGE };
 enum { REFL_LEM_DIRECT_DEFAULT = 1 }; /* on by default: it measurably helps (docs/methods/layered_em.md) */
 enum { REFL_LEM_LENS_LAYERS_DEFAULT = -1 }; /* traced: it measures better (docs/methods/layered_em.md, "Lens to lens") */
+enum { REFL_LEM_CONTINUE_DEFAULT = 1 }; /* on: it measures better (docs/methods/layered_em.md, "Continued eye rays") */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

@@ -29,8 +29,6 @@ static int refl__caster_blocked(const refl_ray_caster *c, refl_vec3 o, refl_vec3
     return c->occluded ? c->occluded(c->user, o, d, 0.0f, tmax) : c->intersect(c->user, o, d, 0.0f, tmax, &hit);
 }
 
-static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
-
 /* The next lens surface along o + t d skipping triangle (skip_object,
    skip_triangle), the one the ray leaves: 1 and *h, or 0 where the ray
    leaves the lens system (it meets nothing, or another surface first).
@@ -55,7 +53,6 @@ static int refl__gp_cast(const refl_scene *scene, const refl__gp_casters *c, ref
     return refl__gp_hit_of(scene, &hit, h);
 }
 
-/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
 static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit_in, refl__gp_hit *h) {
     refl_hit hit = *hit_in;
     const refl_object *obj;

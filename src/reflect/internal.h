@@ -573,6 +573,8 @@ static void refl__greedy_paths_from(const refl_scene *scene, const refl__gp_cast
                                     const refl__gp_hit *h, int max_interfaces, refl_greedy_paths_result *out,
                                     long long *rays);
 static void refl__greedy_paths_none(refl_vec3 origin, refl_vec3 dir, refl_greedy_paths_result *out);
+/* The lens surface of caster hit `hit` in *h; 0 where it is no lens's. */
+static int refl__gp_hit_of(const refl_scene *scene, const refl_hit *hit, refl__gp_hit *h);
 /* refl_greedy_paths through casters: the eye ray's first lens, then its
    paths as casters->own says. */
 static void refl__greedy_paths_cast(const refl_scene *scene, const refl__gp_casters *casters, refl_vec3 origin,
@@ -608,6 +610,11 @@ typedef struct refl__lem_layering {
        refl__lem_ring_of), else -1; and the pass's depth (greedy paths
        beyond it) */
     int own, depth;
+    /* whether a sample's eye ray meeting something else before the lens is
+       continued to it (refl_layered_em_options.continue_incoming), and
+       the lens's world box, past which it is not */
+    int continued;
+    refl_vec3 box[2];
 } refl__lem_layering;
 enum { REFL__LEM_MAX_SS = 8, REFL__LEM_MAX_HITS = 8 };
 /* A shell's face side at most: its texels 6 side^2 numbered in uint32 */
@@ -637,7 +644,9 @@ static void refl__lem_hits_free(refl__lem_hits *h);
 static int refl__lem_fit_layers(refl__lem_layering *lay, const refl__lem_hits *h, const int *layer_of, int kind,
                                 int frame, refl_vec3 lo, refl_vec3 hi, float lens_radius);
 /* Section 4.1's records of one pixel (lem_infer.c): 0 when its centre ray
-   does not meet `object` first; else per term and layer l the target
+   does not meet `object` first (with lay->continued: does not reach it
+   through what it meets first, Figure 4b), 2 when it reaches it so, 1
+   when it meets it first; with 1 or 2 per term and layer l the target
    (rgba: the mean colour of the subsamples' first hits in the layer, alpha
    their share; the outermost layer opaque, the environment where nothing
    of it was met) and the term's confidence (-1: no subsample has the term)
@@ -650,8 +659,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
                                    const refl__lem_layering *lay, float *out, float *points,
                                    refl_greedy_paths_result *centre_paths, long long *rays);
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
-                                 long long *rays);
+                                 int object, int max_interfaces, int own, const refl_vec3 *continue_box,
+                                 refl_vec3 centre, refl__lem_hits *h, long long *rays);
 /* Section 4.3's direct images of the environment without the lens: how
    a map's are taken. From the lens's centre (lay->centre) one ray towards
    every texel's point on the shell; from the viewpoint, each pixel (every

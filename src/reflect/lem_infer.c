@@ -984,6 +984,60 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
     return best;
 }
 
+/* Surfaces an eye ray is continued through on its way to the lens at most. */
+enum { REFL__LEM_MAX_CONTINUED = 32 };
+
+/* Where the ray o + t d leaves the box (lo, hi): its largest t in it, or
+   -1 where it misses it. */
+static float refl__lem_box_exit(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi) {
+    float t0 = 0.0f, t1 = FLT_MAX, oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+    int k;
+    for (k = 0; k < 3; ++k) {
+        if (dd[k] == 0.0f) {
+            if (oo[k] < a[k] || oo[k] > b[k]) return -1.0f;
+            continue;
+        }
+        {
+            float ta = (a[k] - oo[k]) / dd[k], tb = (b[k] - oo[k]) / dd[k];
+            t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
+            t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
+        }
+    }
+    return t0 <= t1 ? t1 : -1.0f;
+}
+
+/* The greedy paths of a sample's eye ray (o, unit d) at lens `object`
+   (section 4.1): where the ray meets the lens first, its paths from there
+   (1); where it meets something else first (a diffuse occluder, another
+   lens: the cup before the teapot) and continue_box is the lens's world
+   box (NULL: not continued; Figure 4b), its paths from the lens's first
+   surface behind it, the occluders passed through as if absent (2), so
+   the lens's hidden parts give records as the runtime's rasterised lens
+   shows them to an eye that sees them; else 0 (*out then unset). A ray
+   is not continued past the box, where no lens surface can lie. */
+static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *paths, refl_vec3 o, refl_vec3 d,
+                               int object, int max_interfaces, const refl_vec3 *continue_box,
+                               refl_greedy_paths_result *out, long long *rays) {
+    refl_hit hit;
+    refl__gp_hit h;
+    float tmin = 0.0f, tbox = -1.0f;
+    int tries;
+    for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
+        ++*rays;
+        if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
+        if (hit.object == object) break;
+        if (!continue_box) return 0;
+        if (!tries) tbox = refl__lem_box_exit(o, d, continue_box[0], continue_box[1]);
+        if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
+        tmin = hit.t;
+    }
+    if (tries == REFL__LEM_MAX_CONTINUED || !refl__gp_hit_of(scene, &hit, &h)) return 0;
+    refl__greedy_paths_none(o, d, out);
+    refl__greedy_paths_from(scene, paths, d, &h, max_interfaces, out, rays);
+    return tries ? 2 : 1;
+}
+
 static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caster *caster, const refl__view_rays *view,
                                    int x, int y, int object, int ss, float theta_c, int max_interfaces,
                                    const refl__lem_layering *lay, float *out, float *points,
@@ -992,14 +1046,15 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
     refl_greedy_paths_result sub;
     refl__lem_hit hits[REFL__LEM_MAX_HITS];
     float sum[2][REFL_LEM_MAX_LAYERS][3], tmax;
-    int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers;
+    int n[2] = {0, 0}, seen[2][REFL_LEM_MAX_LAYERS], i, j, k, l, c, term, L = lay->layers, met;
+    const refl_vec3 *continue_box = lay->continued ? lay->box : NULL;
     refl__gp_casters paths;
     paths.scene = caster;
     paths.lenses = paths.others = NULL;
     paths.own = lay->own;
     refl__view_rays_get(view, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-    refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, centre_paths, rays);
-    if (centre_paths->terms == 0 || centre_paths->object != object) return 0;
+    met = refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, centre_paths, rays);
+    if (!met) return 0;
     for (k = 0; points && k < 6 * L; ++k) points[k] = NAN;
     memset(sum, 0, sizeof sum);
     memset(seen, 0, sizeof seen);
@@ -1007,8 +1062,8 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         for (i = 0; i < ss; ++i) {
             refl__view_rays_get(view, (float)x + ((float)i + 0.5f) / (float)ss,
                                 (float)y + ((float)j + 0.5f) / (float)ss, &o, &d, &tmax);
-            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &sub, rays);
-            if (sub.object != object) continue;
+            if (!refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, &sub, rays))
+                continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *sp = term ? &sub.refract : &sub.reflect;
                 int nh, got[REFL_LEM_MAX_LAYERS], deepest = 0;
@@ -1054,7 +1109,7 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
             t[3] = (float)seen[term][l] / (float)n[term];
         }
     }
-    return 1;
+    return met;
 }
 
 /* ---- direct images against disocclusion (section 4.3) ----------------------------------- */
@@ -1555,10 +1610,13 @@ static void refl__lem_hits_free(refl__lem_hits *h) {
 }
 
 /* The hits of the centre rays of a view's lens pixels, in pixel order, for
-   the clustering: appended to the arrays of *h. 0 when out of memory. */
+   the clustering (with continue_box, the lens's world box, the pixels
+   whose eye ray reaches the lens through what hides it too:
+   refl__lem_eye_paths): appended to the arrays of *h. 0 when out of
+   memory. */
 static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster *caster, const refl_view *view,
-                                 int object, int max_interfaces, int own, refl_vec3 centre, refl__lem_hits *h,
-                                 long long *rays) {
+                                 int object, int max_interfaces, int own, const refl_vec3 *continue_box,
+                                 refl_vec3 centre, refl__lem_hits *h, long long *rays) {
     refl__view_rays vr;
     refl__gp_casters paths;
     int x, y, term, k;
@@ -1572,8 +1630,7 @@ static int refl__lem_gather_hits(const refl_scene *scene, const refl_ray_caster 
             refl_vec3 o, d;
             float tmax;
             refl__view_rays_get(&vr, (float)x + 0.5f, (float)y + 0.5f, &o, &d, &tmax);
-            refl__greedy_paths_cast(scene, &paths, o, d, max_interfaces, &g, rays);
-            if (g.terms == 0 || g.object != object) continue;
+            if (!refl__lem_eye_paths(scene, &paths, o, d, object, max_interfaces, continue_box, &g, rays)) continue;
             for (term = 0; term < 2; ++term) {
                 const refl_greedy_path *p = term ? &g.refract : &g.reflect;
                 refl__lem_hit hits[REFL__LEM_MAX_HITS];

@@ -66,6 +66,8 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.shell_frame: AUTO, WORLD or FITTED";
     if (o->direct_images < -1 || o->direct_images > 1) return "layered_em.direct_images: -1 (off), 0 or 1 (on)";
     if (o->lens_layers < -1 || o->lens_layers > 1) return "layered_em.lens_layers: -1 (traced), 0 or 1 (layers)";
+    if (o->continue_incoming < -1 || o->continue_incoming > 1)
+        return "layered_em.continue_incoming: -1 (off), 0 or 1 (on)";
     if (o->direct_from < 0 || o->direct_from > REFL_LEM_DIRECT_FROM_MATERIAL)
         return "layered_em.direct_from: 0 (default), CENTRE, VIEWPOINT or MATERIAL";
     if (o->direct_confidence < 0 || o->direct_confidence > REFL_LEM_DIRECT_DISTANCE)
@@ -80,6 +82,13 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
 static int refl__lem_own(const refl__pass *p, int i) {
     int on = p->desc.layered_em.lens_layers;
     return on > 0 || (on == 0 && REFL_LEM_LENS_LAYERS_DEFAULT > 0) ? i : -1;
+}
+
+/* Whether the samples' eye rays are continued to the lens through what
+   hides it (refl_layered_em_options.continue_incoming). */
+static int refl__lem_continued(const refl__pass *p) {
+    int on = p->desc.layered_em.continue_incoming;
+    return on > 0 || (on == 0 && REFL_LEM_CONTINUE_DEFAULT > 0);
 }
 
 /* The casters of lens i's vertex paths (refl__lem_own). */
@@ -294,6 +303,7 @@ typedef struct refl__lem_records {
     float *rec;                  /* 10 layers per pixel; confidence -1 where none */
     float *points;               /* NULL, or 6 layers per pixel: refl__lem_pixel_records' points */
     long long *row_rays;
+    int *row_continued;          /* per row, the pixels whose eye ray was continued to the lens */
 } refl__lem_records;
 
 static void refl__lem_records_row(void *arg, int y) {
@@ -303,9 +313,12 @@ static void refl__lem_records_row(void *arg, int y) {
         float *out = r->rec + (size_t)n * ((size_t)y * (size_t)w + (size_t)x);
         float *pts = r->points ? r->points + (size_t)6 * r->lay->layers * ((size_t)y * (size_t)w + (size_t)x) : NULL;
         refl_greedy_paths_result centre;
-        if (x < r->rect[0] || x >= r->rect[2] || y < r->rect[1] || y >= r->rect[3] ||
-            !refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
-                                     r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])) {
+        int met = x >= r->rect[0] && x < r->rect[2] && y >= r->rect[1] && y < r->rect[3]
+                      ? refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
+                                                r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])
+                      : 0;
+        r->row_continued[y] += met == 2;
+        if (!met) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
             for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
         }
@@ -551,14 +564,21 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
         if (direct.distance) sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
-        if (!rec.rec || !rec.row_rays || (direct.distance && !rec.points)) r = REFL_ERROR_OUT_OF_MEMORY;
+        rec.row_continued = (int *)refl__calloc(al, (size_t)h, sizeof(int));
+        if (!rec.rec || !rec.row_rays || !rec.row_continued || (direct.distance && !rec.points))
+            r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
             for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
             for (px = 0; px < np; ++px)
                 sv[s].lens_pixels += rec.rec[nrec * px + 4] >= 0.0f || rec.rec[nrec * px + 5 * (size_t)L + 4] >= 0.0f;
+            /* the face size follows the lens pixels the view sees: the
+               continued ones aside, so continuing leaves it as it was */
+            for (y = 0; y < h; ++y) sv[s].lens_pixels -= rec.row_continued[y];
+            for (y = 0; y < h; ++y) st->layered_em.continued_pixels += rec.row_continued[y];
         }
         refl__free(al, rec.row_rays);
+        refl__free(al, rec.row_continued);
         if (r == REFL_OK) {
             refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
             sv[s].tess.allocator = *al;
@@ -593,7 +613,11 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                     const float *rec = sv[s].rec + nrec * px + 5 * (size_t)(term * L + l), *ix = index[term] + 4 * px;
                     uint32_t tex[4];
                     float wt[4];
-                    /* a row where the records have the term and all three vertices gave it an index */
+                    /* a row where the records have the term and all three vertices gave it an index;
+                       the lens is drawn alone, so a pixel whose eye ray was continued
+                       to it through an occluder (refl__lem_eye_paths) gets the row of
+                       the lens surface its record is of: the tessellation leaves a
+                       hidden triangle whole but traces its vertices (section 5) */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
                         !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
@@ -781,12 +805,15 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
         w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
         v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
         v[0].width = w;
-        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i), c, &h,
-                                   &p->frame->stats.rays))
+        if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i),
+                                   refl__lem_continued(p) ? box : NULL, c, &h, &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
     }
     memset(lay, 0, sizeof *lay);
     lay->own = refl__lem_own(p, i);
+    lay->continued = refl__lem_continued(p);
+    lay->box[0] = box[0];
+    lay->box[1] = box[1];
     lay->centre = c;
     lay->object_count = scene->object_count;
     ring->object_layer = r == REFL_OK ? (signed char *)refl__calloc(al, (size_t)REFL__MAX(scene->object_count, 1), 1)
@@ -853,7 +880,8 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     *r = REFL_OK;
     /* a ring clustered with the other lenses' hits in or out (lens_layers)
        does not serve the other way */
-    if (ring->lay.layers && ring->lay.own != refl__lem_own(p, i)) ring = spare;
+    if (ring->lay.layers && (ring->lay.own != refl__lem_own(p, i) || ring->lay.continued != refl__lem_continued(p)))
+        ring = spare;
     if (!ring->lay.layers) *r = refl__lem_cluster(p, caster, i, centre, lens_radius, on ? cc : NULL, ring);
     *lay = ring->lay;
     lay->depth = p->desc.depth;
