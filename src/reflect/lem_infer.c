@@ -1364,8 +1364,9 @@ static int refl__lem_dense_objects(const int *object, int count, const refl_allo
 }
 
 /* LBG's clustering state over the hits' distances: per layer the mean
-   distance and the count of hits; own[] each hit's layer. With object
-   ids, votes (objects x layers) is scratch for the whole-object rule. */
+   distance and the count of hits; own[] each hit's layer. With objects
+   (numbered densely: refl__lem_dense_objects), votes (objects x layers)
+   is scratch for the whole-object rule. */
 typedef struct refl__lem_lbg {
     const float *distance;
     const int *object;
