@@ -248,6 +248,14 @@ static int parse_int(const char *s, int lo, int hi, int *out) {
     return 1;
 }
 
+/* "0" or "1" into an option's -1 (off) or 1 (on); its 0 stays "the default" */
+static int parse_on_off(const char *s, int *out) {
+    int on;
+    if (!parse_int(s, 0, 1, &on)) return 0;
+    *out = on ? 1 : -1;
+    return 1;
+}
+
 static int parse_float(const char *s, float lo, float hi, float *out) {
     char *end;
     float v = (float)strtod(s, &end); /* compared as floats: "0.001" is 1e-3f */
@@ -387,9 +395,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--lem-layers")) {
             if (!parse_int(v, 1, 4, &o->lem_layers)) return fail("--lem-layers: expected 1..4, got %s", v);
         } else if (!strcmp(a, "--lem-direct")) {
-            int on;
-            if (!parse_int(v, 0, 1, &on)) return fail("--lem-direct: expected 0 or 1, got %s", v);
-            o->lem_direct = on ? 1 : -1;
+            if (!parse_on_off(v, &o->lem_direct)) return fail("--lem-direct: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-direct-from")) {
             if (!strcmp(v, "centre")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_CENTRE;
             else if (!strcmp(v, "viewpoint")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_VIEWPOINT;
@@ -400,13 +406,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             else if (!strcmp(v, "distance")) o->lem_direct_conf = REFL_LEM_DIRECT_DISTANCE;
             else return fail("--lem-direct-conf: expected coverage or distance, got %s", v);
         } else if (!strcmp(a, "--lem-lens-layers")) {
-            int on;
-            if (!parse_int(v, 0, 1, &on)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
-            o->lem_lens_layers = on ? 1 : -1;
+            if (!parse_on_off(v, &o->lem_lens_layers)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-continue")) {
-            int on;
-            if (!parse_int(v, 0, 1, &on)) return fail("--lem-continue: expected 0 or 1, got %s", v);
-            o->lem_continue = on ? 1 : -1;
+            if (!parse_on_off(v, &o->lem_continue)) return fail("--lem-continue: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-frame")) {
             if (!strcmp(v, "auto")) o->lem_frame = REFL_LEM_FRAME_AUTO;
             else if (!strcmp(v, "world")) o->lem_frame = REFL_LEM_FRAME_WORLD;
