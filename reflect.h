@@ -13898,15 +13898,17 @@ REFL_API refl_result refl_lem_system_add_row(refl_lem_system *s, const uint32_t 
     return REFL_OK;
 }
 
-/* q = A p (rows x 4) */
-static void refl__lem_mul(const refl_lem_system *s, const double *p, double *q) {
+/* q = A p (rows x 4), and qq its squared norm per channel (summed in row
+   order, as refl__lem_norm2 sums: one pass over q instead of two) */
+static void refl__lem_mul(const refl_lem_system *s, const double *p, double *q, double qq[4]) {
     int r, c;
     long long e;
+    for (c = 0; c < 4; ++c) qq[c] = 0.0;
     for (r = 0; r < s->rows; ++r) {
         double acc[4] = {0, 0, 0, 0};
         for (e = s->row_start[r]; e < s->row_start[r + 1]; ++e)
             for (c = 0; c < 4; ++c) acc[c] += (double)s->w[e] * p[4 * (size_t)s->col[e] + (size_t)c];
-        for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c];
+        for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c], qq[c] += acc[c] * acc[c];
     }
 }
 
@@ -13960,25 +13962,30 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
         int done = 1;
         for (c = 0; c < 4; ++c) done &= gamma[c] <= tol * tol * gamma0[c];
         if (done) break;
-        refl__lem_mul(s, p, q);
-        refl__lem_norm2(q, (size_t)s->rows, qq);
-        for (c = 0; c < 4; ++c) {
-            /* a channel already solved (or empty) stands still */
-            double alpha = qq[c] > 0.0 && gamma[c] > tol * tol * gamma0[c] ? gamma[c] / qq[c] : 0.0;
+        refl__lem_mul(s, p, q, qq);
+        {
+            /* the four channels' updates in one pass over each vector (each
+               element's arithmetic as channel by channel) */
+            double alpha[4];
             size_t k;
-            for (k = 0; k < nt; ++k) xd[4 * k + (size_t)c] += alpha * p[4 * k + (size_t)c];
-            for (k = 0; k < (size_t)s->rows; ++k) r[4 * k + (size_t)c] -= alpha * q[4 * k + (size_t)c];
+            for (c = 0; c < 4; ++c) /* a channel already solved (or empty) stands still */
+                alpha[c] = qq[c] > 0.0 && gamma[c] > tol * tol * gamma0[c] ? gamma[c] / qq[c] : 0.0;
+            for (k = 0; k < nt; ++k)
+                for (c = 0; c < 4; ++c) xd[4 * k + (size_t)c] += alpha[c] * p[4 * k + (size_t)c];
+            for (k = 0; k < (size_t)s->rows; ++k)
+                for (c = 0; c < 4; ++c) r[4 * k + (size_t)c] -= alpha[c] * q[4 * k + (size_t)c];
         }
         refl__lem_mul_t(s, r, g);
         {
-            double gn[4];
+            double gn[4], beta[4];
             size_t k;
             refl__lem_norm2(g, nt, gn);
             for (c = 0; c < 4; ++c) {
-                double beta = gamma[c] > 0.0 ? gn[c] / gamma[c] : 0.0;
-                for (k = 0; k < nt; ++k) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta * p[4 * k + (size_t)c];
+                beta[c] = gamma[c] > 0.0 ? gn[c] / gamma[c] : 0.0;
                 gamma[c] = gn[c];
             }
+            for (k = 0; k < nt; ++k)
+                for (c = 0; c < 4; ++c) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta[c] * p[4 * k + (size_t)c];
         }
     }
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
