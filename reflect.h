@@ -2421,6 +2421,11 @@ static inline int refl__all_finite(const float *v, size_t n) {
     return 1;
 }
 static inline int refl__v3_finite(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
+/* The ray o + t d against the box [lo, hi] (math.c): 1 when it meets the
+   box at some t >= 0, from *t_in to *t_out. *t_out is where it leaves the
+   slabs of the axes d moves along (INFINITY when d is 0) whether or not
+   it meets the box: from inside, where it leaves the box. */
+static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out);
 /* The rules refl_scene_add_material and _add_light enforce (scene.c), also
    checked per frame since the scene's arrays are the caller's to edit:
    the rule a value breaks, or NULL. */
@@ -7839,11 +7844,9 @@ REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int heigh
 
 /* Where a ray from inside box [lo, hi] along d leaves it. */
 static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t = INFINITY, s;
-    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
-    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
-    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
-    return REFL__MAX(t, 0.0f);
+    float t_in, t_out;
+    refl__ray_box_span(o, d, lo, hi, &t_in, &t_out);
+    return REFL__MAX(t_out, 0.0f);
 }
 
 /* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,
@@ -14109,26 +14112,6 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
 /* Surfaces an eye ray is continued through on its way to the lens at most. */
 enum { REFL__LEM_MAX_CONTINUED = 32 };
 
-/* Where the ray o + t d leaves the box (lo, hi): its largest t in it, or
-   -1 where it misses it. */
-static float refl__lem_box_exit(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi) {
-    float t0 = 0.0f, t1 = FLT_MAX, oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
-    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
-    int k;
-    for (k = 0; k < 3; ++k) {
-        if (dd[k] == 0.0f) {
-            if (oo[k] < a[k] || oo[k] > b[k]) return -1.0f;
-            continue;
-        }
-        {
-            float ta = (a[k] - oo[k]) / dd[k], tb = (b[k] - oo[k]) / dd[k];
-            t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
-            t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
-        }
-    }
-    return t0 <= t1 ? t1 : -1.0f;
-}
-
 /* The greedy paths of a sample's eye ray (o, unit d) at lens `object`
    (section 4.1): where the ray meets the lens first, its paths from there
    (1); where it meets something else first (a diffuse occluder, another
@@ -14143,14 +14126,14 @@ static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *
                                refl_greedy_paths_result *out, long long *rays) {
     refl_hit hit;
     refl__gp_hit h;
-    float tmin = 0.0f, tbox = -1.0f;
+    float tmin = 0.0f, tbox = -1.0f, tin;
     int tries;
     for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
         ++*rays;
         if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
         if (hit.object == object) break;
         if (!continue_box) return 0;
-        if (!tries) tbox = refl__lem_box_exit(o, d, continue_box[0], continue_box[1]);
+        if (!tries && !refl__ray_box_span(o, d, continue_box[0], continue_box[1], &tin, &tbox)) tbox = -1.0f;
         if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
         tmin = hit.t;
     }
@@ -21838,6 +21821,33 @@ REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out
     if (k < 0.0f) return 0;
     if (out) *out = refl_v3_sub(refl_v3_scale(d, eta), refl_v3_scale(n, eta * c + sqrtf(k)));
     return 1;
+}
+
+/* ---- rays and boxes ---------------------------------------------------- */
+
+/* Slabs: per axis d moves along, the t where the ray crosses the box's
+   two planes; the ray is in the box from the latest entry to the earliest
+   exit. An axis d does not move along only checks o. The far plane's t is
+   computed as (plane - o) / d whichever side it is on, so a caller that
+   wants only where a ray from inside leaves gets exactly that quotient. */
+static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
+    float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+    float t0 = 0.0f, t1 = INFINITY;
+    int k, inside = 1;
+    for (k = 0; k < 3; ++k) {
+        float ta, tb;
+        if (dd[k] == 0.0f) {
+            if (oo[k] < a[k] || oo[k] > b[k]) inside = 0;
+            continue;
+        }
+        ta = (a[k] - oo[k]) / dd[k];
+        tb = (b[k] - oo[k]) / dd[k];
+        t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
+        t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
+    }
+    *t_in = t0;
+    *t_out = t1;
+    return inside && t0 <= t1;
 }
 
 /* ---- matrices ---------------------------------------------------------- */

@@ -30,6 +30,13 @@ exits2() { # exits2 NAME PATTERN CMD...: exit status 2 and stderr matches PATTER
     if [ $code -eq 2 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
     else fail=$((fail + 1)); echo "FAIL $name: exit $code (want 2), stderr:"; cat "$tmp/err"; fi
 }
+one_line() { # one_line NAME PATTERN CMD...: exit status 2, and stderr is one line matching PATTERN
+    local name=$1 pattern=$2; shift 2
+    "$@" >"$tmp/out" 2>"$tmp/err"
+    local code=$?
+    if [ $code -eq 2 ] && [ "$(wc -l <"$tmp/err")" -eq 1 ] && grep -qE "$pattern" "$tmp/err"; then pass=$((pass + 1))
+    else fail=$((fail + 1)); echo "FAIL $name: exit $code (want 2 and one line), stderr:"; cat "$tmp/err"; fi
+}
 
 # colour: a PNG is sRGB-encoded, so a constant grey sky (sRGB 128, decoded
 # to linear on load) comes out as 128 again; an EXR keeps linear values
@@ -202,6 +209,31 @@ exits2 "--mirror of no object" "no object or material" "$bin" render --builtin d
 # buffer or the environment: each refused at once
 exits2 "a value option given twice" "size: given twice" "$bin" render --builtin default --size 8x8 --size=16x12
 exits2 "two built-in scenes" "builtin: given twice" "$bin" render --builtin default --builtin glass
+# (each under a timeout: a run the parser let through would render for long)
+one_line "path: a value option given twice" "^reflect path: --size: given twice$" \
+    timeout 20 "$bin" path --builtin default --frames 2 --size 8x8 --size 16x12 --out "$tmp/p1"
+one_line "path: two built-in scenes" "^reflect path: --builtin: given twice$" \
+    timeout 20 "$bin" path --builtin default --builtin glass --frames 2 --size 8x8 --out "$tmp/p2"
+one_line "bench: a value option given twice" "^reflect bench: --out: given twice$" \
+    timeout 20 "$bin" bench --only c3rc --out "$tmp/b1" --out "$tmp/b2"
+one_line "bench --fit-auto: a value option given twice" "^reflect bench: --size: given twice$" \
+    timeout 20 "$bin" bench --fit-auto "$tmp/m.txt" --size 32x32 --size 64x64 --out "$tmp/b4"
+one_line "bench --gl: a value option given twice" "^reflect bench: --repeats: given twice$" \
+    timeout 20 "$bin" bench --gl --repeats 1 --repeats 2 --out "$tmp/b5"
+ok "a refused path or bench writes nothing" bash -c "[ -z \"\$(ls -d '$tmp'/p[12] '$tmp'/b[1245] '$tmp/m.txt' 2>/dev/null)\" ]"
+# an option whose value is one of a few names: refused in one line that
+# lists them all, inline value or not
+for opt in tonemap lem-direct-from lem-direct-conf lem-frame lem-shell spoc-glass graphcam-alg; do
+    one_line "--$opt of an unknown name lists the names" "^reflect: --$opt: expected [a-z]+(, [a-z]+)* or [a-z]+, got bogus$" \
+        "$bin" render --builtin glass --$opt bogus --out "$tmp/x.png"
+done
+one_line "--lem-shell= of an unknown name" "^reflect: --lem-shell: expected auto, sphere, cylinder, box or quad, got cone$" \
+    "$bin" render --builtin glass --lem-shell=cone --out "$tmp/x.png"
+one_line "path: an unknown path lists the paths" "^reflect path: --path: expected orbit, dolly, pan, focus or rim, got spiral$" \
+    timeout 20 "$bin" path --path spiral --frames 2 --size 8x8 --out "$tmp/p3"
+one_line "bench: --only of no table" \
+    "^reflect bench: --only: expected c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, lem-sweeps, lem-options or lem-grid, got nope$" \
+    timeout 20 "$bin" bench --only nope --out "$tmp/b3"
 exits2 "an empty --out" "out: expected a file name" "$bin" render --builtin default --out=
 mkdir "$tmp/hostile" && mkfifo "$tmp/hostile/fifo" && mkdir "$tmp/hostile/dir" &&
 for uri in fifo dir; do

@@ -12,6 +12,7 @@
    Makefile). */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
+#include "cli_options.h"
 #include "gltf_load.h"
 #include "image_io.h"
 #include "reflect_bench.h"
@@ -282,21 +283,38 @@ static int listed(const char *const *names, const char *a) {
     return 0;
 }
 
-/* the value options seen fit parse's mask */
+/* the value options seen fit cli_given_twice's mask */
 typedef char value_options_fit_a_mask[sizeof value_options / sizeof *value_options <= 65 ? 1 : -1];
 
-/* a's place in value_options, or -1 */
-static int value_option_index(const char *a) {
-    int i;
-    for (i = 0; value_options[i]; ++i)
-        if (!strcmp(value_options[i], a)) return i;
-    return -1;
-}
+/* The options whose value is one of a few names (parse_choice). */
+static const cli_choice tonemaps[] = {
+    {"clamp", REFL_TONEMAP_CLAMP}, {"reinhard", REFL_TONEMAP_REINHARD}, {"aces", REFL_TONEMAP_ACES}, {NULL, 0}};
+static const cli_choice lem_direct_froms[] = {{"centre", REFL_LEM_DIRECT_FROM_CENTRE},
+                                              {"viewpoint", REFL_LEM_DIRECT_FROM_VIEWPOINT},
+                                              {"material", REFL_LEM_DIRECT_FROM_MATERIAL},
+                                              {NULL, 0}};
+static const cli_choice lem_direct_confs[] = {
+    {"coverage", REFL_LEM_DIRECT_COVERAGE}, {"distance", REFL_LEM_DIRECT_DISTANCE}, {NULL, 0}};
+static const cli_choice lem_frames[] = {
+    {"auto", REFL_LEM_FRAME_AUTO}, {"world", REFL_LEM_FRAME_WORLD}, {"fitted", REFL_LEM_FRAME_FITTED}, {NULL, 0}};
+static const cli_choice lem_shells[] = {{"auto", REFL_LEM_SHELL_AUTO},
+                                        {"sphere", REFL_LEM_SHELL_SPHERE},
+                                        {"cylinder", REFL_LEM_SHELL_CYLINDER},
+                                        {"box", REFL_LEM_SHELL_BOX},
+                                        {"quad", REFL_LEM_SHELL_QUAD},
+                                        {NULL, 0}};
+static const cli_choice spoc_glasses[] = {{"traced", REFL_SPOC_GLASS_TRACED},
+                                          {"estimate", REFL_SPOC_GLASS_ESTIMATE},
+                                          {"exact", REFL_SPOC_GLASS_EXACT_EXIT},
+                                          {NULL, 0}};
+static const cli_choice graphcam_algs[] = {
+    {"segments", REFL_GRAPHCAM_SEGMENTS}, {"uniform", REFL_GRAPHCAM_UNIFORM}, {NULL, 0}};
 
 /* Parses argv[2..]; returns 0, 1 after --help, or 2 after an error. */
 static int parse(int argc, char **argv, int is_render, options *o) {
     int i;
-    unsigned long long given = 0; /* the value options seen, by value_option_index */
+    unsigned long long given = 0; /* the value options seen (cli_given_twice) */
+    int choice;
     memset(o, 0, sizeof(*o));
     o->out = "out.png";
     o->spoc_strength = -1.0f;
@@ -318,11 +336,9 @@ static int parse(int argc, char **argv, int is_render, options *o) {
                                       : "info: unknown option %s (see reflect info --help)", a);
             } else if (!v) {
                 return fail("%s needs a value", a);
-            } else if (strcmp(a, "--mirror") && strcmp(a, "--glass")) {
-                /* a second value would silently replace the first */
-                int k = value_option_index(a);
-                if (given >> k & 1) return fail("%s: given twice", a);
-                given |= 1ull << k;
+            } else if (strcmp(a, "--mirror") && strcmp(a, "--glass") &&
+                       cli_given_twice("reflect", value_options, a, &given)) {
+                return 2;
             }
         }
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -379,10 +395,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--exposure")) {
             if (!parse_float(v, -64.0f, 64.0f, &o->display.exposure)) return fail("--exposure: expected -64..64 stops, got %s", v);
         } else if (!strcmp(a, "--tonemap")) {
-            if (!strcmp(v, "clamp")) o->display.tonemap = REFL_TONEMAP_CLAMP;
-            else if (!strcmp(v, "reinhard")) o->display.tonemap = REFL_TONEMAP_REINHARD;
-            else if (!strcmp(v, "aces")) o->display.tonemap = REFL_TONEMAP_ACES;
-            else return fail("--tonemap: expected clamp, reinhard or aces, got %s", v);
+            if (!parse_choice("reflect", a, v, tonemaps, &choice)) return 2;
+            o->display.tonemap = (refl_tonemap)choice;
         } else if (!strcmp(a, "--out")) {
             if (!*v) return fail("%s", "--out: expected a file name, got an empty one");
             o->out = v;
@@ -397,30 +411,17 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--lem-direct")) {
             if (!parse_on_off(v, &o->lem_direct)) return fail("--lem-direct: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-direct-from")) {
-            if (!strcmp(v, "centre")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_CENTRE;
-            else if (!strcmp(v, "viewpoint")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_VIEWPOINT;
-            else if (!strcmp(v, "material")) o->lem_direct_from = REFL_LEM_DIRECT_FROM_MATERIAL;
-            else return fail("--lem-direct-from: expected centre, viewpoint or material, got %s", v);
+            if (!parse_choice("reflect", a, v, lem_direct_froms, &o->lem_direct_from)) return 2;
         } else if (!strcmp(a, "--lem-direct-conf")) {
-            if (!strcmp(v, "coverage")) o->lem_direct_conf = REFL_LEM_DIRECT_COVERAGE;
-            else if (!strcmp(v, "distance")) o->lem_direct_conf = REFL_LEM_DIRECT_DISTANCE;
-            else return fail("--lem-direct-conf: expected coverage or distance, got %s", v);
+            if (!parse_choice("reflect", a, v, lem_direct_confs, &o->lem_direct_conf)) return 2;
         } else if (!strcmp(a, "--lem-lens-layers")) {
             if (!parse_on_off(v, &o->lem_lens_layers)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-continue")) {
             if (!parse_on_off(v, &o->lem_continue)) return fail("--lem-continue: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-frame")) {
-            if (!strcmp(v, "auto")) o->lem_frame = REFL_LEM_FRAME_AUTO;
-            else if (!strcmp(v, "world")) o->lem_frame = REFL_LEM_FRAME_WORLD;
-            else if (!strcmp(v, "fitted")) o->lem_frame = REFL_LEM_FRAME_FITTED;
-            else return fail("--lem-frame: expected auto, world or fitted, got %s", v);
+            if (!parse_choice("reflect", a, v, lem_frames, &o->lem_frame)) return 2;
         } else if (!strcmp(a, "--lem-shell")) {
-            if (!strcmp(v, "auto")) o->lem_shell = REFL_LEM_SHELL_AUTO;
-            else if (!strcmp(v, "sphere")) o->lem_shell = REFL_LEM_SHELL_SPHERE;
-            else if (!strcmp(v, "cylinder")) o->lem_shell = REFL_LEM_SHELL_CYLINDER;
-            else if (!strcmp(v, "box")) o->lem_shell = REFL_LEM_SHELL_BOX;
-            else if (!strcmp(v, "quad")) o->lem_shell = REFL_LEM_SHELL_QUAD;
-            else return fail("--lem-shell: expected auto, sphere, cylinder, box or quad, got %s", v);
+            if (!parse_choice("reflect", a, v, lem_shells, &o->lem_shell)) return 2;
         } else if (!strcmp(a, "--frames")) {
             if (!parse_int(v, 1, 1000, &o->frames)) return fail("--frames: expected 1..1000, got %s", v);
         } else if (!strcmp(a, "--lem-edge")) {
@@ -448,10 +449,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--spoc-size")) {
             if (!parse_int(v, 8, 4096, &o->spoc_size)) return fail("--spoc-size: expected 8..4096, got %s", v);
         } else if (!strcmp(a, "--spoc-glass")) {
-            if (!strcmp(v, "traced")) o->spoc_glass = REFL_SPOC_GLASS_TRACED;
-            else if (!strcmp(v, "estimate")) o->spoc_glass = REFL_SPOC_GLASS_ESTIMATE;
-            else if (!strcmp(v, "exact")) o->spoc_glass = REFL_SPOC_GLASS_EXACT_EXIT;
-            else return fail("--spoc-glass: expected traced, estimate or exact, got %s", v);
+            if (!parse_choice("reflect", a, v, spoc_glasses, &o->spoc_glass)) return 2;
         } else if (!strcmp(a, "--spoc-layers")) {
             if (!parse_int(v, 1, 4, &o->spoc_layers)) return fail("--spoc-layers: expected 1..4, got %s", v);
         } else if (!strcmp(a, "--error-budget")) {
@@ -471,9 +469,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
         } else if (!strcmp(a, "--graphcam-size")) {
             if (!parse_int(v, 16, 8192, &o->graphcam_size)) return fail("--graphcam-size: expected 16..8192, got %s", v);
         } else if (!strcmp(a, "--graphcam-alg")) {
-            if (!strcmp(v, "segments")) o->graphcam_alg = REFL_GRAPHCAM_SEGMENTS;
-            else if (!strcmp(v, "uniform")) o->graphcam_alg = REFL_GRAPHCAM_UNIFORM;
-            else return fail("--graphcam-alg: segments or uniform, got %s", v);
+            if (!parse_choice("reflect", a, v, graphcam_algs, &o->graphcam_alg)) return 2;
         } else if (!strcmp(a, "--graphcam-step")) {
             if (!parse_float(v, 0.0f, 1e6f, &o->graphcam_step)) return fail("--graphcam-step: expected 0..1e6, got %s", v);
         } else if (!strcmp(a, "--camera-split")) {

@@ -8,6 +8,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
 #include "../bench/embree_peer.h"
+#include "cli_options.h"
 #include "reflect_bench.h"
 
 #include <errno.h>
@@ -555,6 +556,13 @@ static int paper_tables(const bench_opts *o) {
     return 1;
 }
 
+/* The options that take a value, and the paper tables --only runs (by
+   name: paper_tables compares it). */
+static const char *const bench_value_options[] = {"--report", "--only", "--out", "--repeats", "--threads", "--depth", NULL};
+static const cli_choice only_tables[] = {{"c3rc", 0},        {"sbc", 0},         {"path", 0},       {"graphcam", 0},
+                                         {"spoc", 0},        {"spoc-sweeps", 0}, {"lem", 0},        {"lem-sweeps", 0},
+                                         {"lem-options", 0}, {"lem-grid", 0},    {NULL, 0}};
+
 int refl_cli_bench(int argc, char **argv) {
     bench_opts o;
     bench_table table;
@@ -563,12 +571,14 @@ int refl_cli_bench(int argc, char **argv) {
     const char *scenes_quick[] = {"default", NULL};
     const char *const *scenes;
     int i, n, ok = 1;
+    unsigned long long given = 0; /* the value options seen (cli_given_twice) */
     memset(&o, 0, sizeof o);
     memset(&table, 0, sizeof table);
     snprintf(o.out, sizeof o.out, "out/bench");
     o.depth = 1;
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (v && cli_given_twice("reflect bench", bench_value_options, a, &given)) return 2;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(usage_bench, stdout);
             return 0;
@@ -580,13 +590,8 @@ int refl_cli_bench(int argc, char **argv) {
         } else if (!strcmp(a, "--quick")) {
             o.quick = 1;
         } else if (!strcmp(a, "--only") && v) {
-            if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
-                strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps") &&
-                strcmp(v, "lem-options") && strcmp(v, "lem-grid")) {
-                fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, "
-                                "lem-sweeps, lem-options or lem-grid, not '%s'\n", v);
-                return 2;
-            }
+            int table_index;
+            if (!parse_choice("reflect bench", a, v, only_tables, &table_index)) return 2;
             snprintf(o.only, sizeof o.only, "%s", v);
             ++i;
         } else if (!strcmp(a, "--out") && v) {

@@ -6,6 +6,7 @@
    that reflector's pixels alone. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
+#include "cli_options.h"
 #include "reflect_bench.h"
 
 #include <math.h>
@@ -747,9 +748,14 @@ static int run_table(const auto_opts *o) {
     return ok;
 }
 
+/* The options that take a value. */
+static const char *const auto_value_options[] = {"--fit-auto", "--fit-from", "--models",  "--out",  "--scenes", "--methods",
+                                                 "--size",     "--threads",  "--repeats", "--jobs", "--depth",  NULL};
+
 int refl_bench_auto(int argc, char **argv) {
     auto_opts o;
     int i;
+    unsigned long long given = 0; /* the value options seen (cli_given_twice) */
     memset(&o, 0, sizeof o);
     o.width = 320;
     o.height = 240;
@@ -759,6 +765,7 @@ int refl_bench_auto(int argc, char **argv) {
     parse_methods("raytrace,envmap,planar,c3rc,sbc,spoc,graphcam", &o);
     for (i = 2; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (v && cli_given_twice("reflect bench", auto_value_options, a, &given)) return 2;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(usage_auto, stdout);
             return 0;

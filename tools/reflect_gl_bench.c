@@ -4,6 +4,7 @@
    reflect_gl (tools/reflect_gl_main.c) and `reflect bench --gl`. */
 #define _POSIX_C_SOURCE 200809L
 #include "../reflect.h"
+#include "cli_options.h"
 #include "reflect_gl.h"
 
 #include <math.h>
@@ -317,14 +318,19 @@ int rgl_bench_frames(rgl_context *g, const char *sizes, const char *methods, con
 }
 
 
+/* The options that take a value. */
+static const char *const gl_value_options[] = {"--out", "--sizes", "--methods", "--scenes", "--points", "--repeats", NULL};
+
 int rgl_cli_bench(int argc, char **argv) {
     const char *dir = "out/bench", *sizes = "320x240,640x480", *methods = NULL, *scenes = NULL;
     long long points = 1000000;
     int repeats = 5, i, failed;
+    unsigned long long given = 0; /* the value options seen (cli_given_twice) */
     rgl_context *g = NULL;
     char err[1024], path[1024];
     FILE *csv;
     for (i = 2; i < argc; ++i) {
+        if (i + 1 < argc && cli_given_twice("reflect bench", gl_value_options, argv[i], &given)) return 2;
         if (!strcmp(argv[i], "--gl")) continue;
         if (!strcmp(argv[i], "--out") && i + 1 < argc) dir = argv[++i];
         else if (!strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = argv[++i];

@@ -26,6 +26,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "cli_options.h"
 #include "gltf_load.h"
 #include "image_io.h"
 #include "reflect_bench.h"
@@ -77,8 +78,15 @@ static int parse_methods(const char *list, path_options *o) {
     return o->method_count > 0;
 }
 
+/* The options that take a value, and the paths (their name is what is
+   kept: it names the CSV too). */
+static const char *const path_value_options[] = {"--builtin", "--path",    "--frames", "--methods",
+                                                 "--size",    "--depth",   "--threads", "--out", NULL};
+static const cli_choice paths[] = {{"orbit", 0}, {"dolly", 0}, {"pan", 0}, {"focus", 0}, {"rim", 0}, {NULL, 0}};
+
 static int parse_path_options(int argc, char **argv, path_options *o) {
-    int i;
+    int i, path;
+    unsigned long long given = 0; /* the value options seen (cli_given_twice) */
     memset(o, 0, sizeof *o);
     o->path = "orbit";
     o->out = "out/path";
@@ -91,6 +99,7 @@ static int parse_path_options(int argc, char **argv, path_options *o) {
         char extra;
         int takes = strcmp(a, "--images") && strcmp(a, "--help") && strcmp(a, "-h") && a[0] == '-';
         if (takes && !v) return path_fail("needs a value: ", a);
+        if (takes && cli_given_twice("reflect path", path_value_options, a, &given)) return 2;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(usage_path, stdout);
             return 1;
@@ -100,8 +109,7 @@ static int parse_path_options(int argc, char **argv, path_options *o) {
         } else if (!strcmp(a, "--builtin")) {
             o->builtin = v;
         } else if (!strcmp(a, "--path")) {
-            if (strcmp(v, "orbit") && strcmp(v, "dolly") && strcmp(v, "pan") && strcmp(v, "focus") && strcmp(v, "rim"))
-                return path_fail("--path: orbit, dolly, pan, focus or rim, not ", v);
+            if (!parse_choice("reflect path", a, v, paths, &path)) return 2;
             o->path = v;
         } else if (!strcmp(a, "--frames")) {
             if (sscanf(v, "%d%c", &o->frames, &extra) != 1 || o->frames < 2 || o->frames > 10000)

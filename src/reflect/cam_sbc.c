@@ -44,11 +44,9 @@
 
 /* Where a ray from inside box [lo, hi] along d leaves it. */
 static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t = INFINITY, s;
-    if (d.x != 0.0f) { s = ((d.x > 0.0f ? hi.x : lo.x) - o.x) / d.x; t = REFL__MIN(t, s); }
-    if (d.y != 0.0f) { s = ((d.y > 0.0f ? hi.y : lo.y) - o.y) / d.y; t = REFL__MIN(t, s); }
-    if (d.z != 0.0f) { s = ((d.z > 0.0f ? hi.z : lo.z) - o.z) / d.z; t = REFL__MIN(t, s); }
-    return REFL__MAX(t, 0.0f);
+    float t_in, t_out;
+    refl__ray_box_span(o, d, lo, hi, &t_in, &t_out);
+    return REFL__MAX(t_out, 0.0f);
 }
 
 /* The ray from q along unit r in a scene (its BVH, its box [lo, hi], grown,

@@ -994,26 +994,6 @@ static int refl__lem_hit_layer(const refl__lem_layering *lay, const refl__lem_hi
 /* Surfaces an eye ray is continued through on its way to the lens at most. */
 enum { REFL__LEM_MAX_CONTINUED = 32 };
 
-/* Where the ray o + t d leaves the box (lo, hi): its largest t in it, or
-   -1 where it misses it. */
-static float refl__lem_box_exit(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi) {
-    float t0 = 0.0f, t1 = FLT_MAX, oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
-    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
-    int k;
-    for (k = 0; k < 3; ++k) {
-        if (dd[k] == 0.0f) {
-            if (oo[k] < a[k] || oo[k] > b[k]) return -1.0f;
-            continue;
-        }
-        {
-            float ta = (a[k] - oo[k]) / dd[k], tb = (b[k] - oo[k]) / dd[k];
-            t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
-            t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
-        }
-    }
-    return t0 <= t1 ? t1 : -1.0f;
-}
-
 /* The greedy paths of a sample's eye ray (o, unit d) at lens `object`
    (section 4.1): where the ray meets the lens first, its paths from there
    (1); where it meets something else first (a diffuse occluder, another
@@ -1028,14 +1008,14 @@ static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *
                                refl_greedy_paths_result *out, long long *rays) {
     refl_hit hit;
     refl__gp_hit h;
-    float tmin = 0.0f, tbox = -1.0f;
+    float tmin = 0.0f, tbox = -1.0f, tin;
     int tries;
     for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
         ++*rays;
         if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
         if (hit.object == object) break;
         if (!continue_box) return 0;
-        if (!tries) tbox = refl__lem_box_exit(o, d, continue_box[0], continue_box[1]);
+        if (!tries && !refl__ray_box_span(o, d, continue_box[0], continue_box[1], &tin, &tbox)) tbox = -1.0f;
         if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
         tmin = hit.t;
     }

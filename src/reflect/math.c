@@ -67,6 +67,33 @@ REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out
     return 1;
 }
 
+/* ---- rays and boxes ---------------------------------------------------- */
+
+/* Slabs: per axis d moves along, the t where the ray crosses the box's
+   two planes; the ray is in the box from the latest entry to the earliest
+   exit. An axis d does not move along only checks o. The far plane's t is
+   computed as (plane - o) / d whichever side it is on, so a caller that
+   wants only where a ray from inside leaves gets exactly that quotient. */
+static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
+    float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+    float t0 = 0.0f, t1 = INFINITY;
+    int k, inside = 1;
+    for (k = 0; k < 3; ++k) {
+        float ta, tb;
+        if (dd[k] == 0.0f) {
+            if (oo[k] < a[k] || oo[k] > b[k]) inside = 0;
+            continue;
+        }
+        ta = (a[k] - oo[k]) / dd[k];
+        tb = (b[k] - oo[k]) / dd[k];
+        t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
+        t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
+    }
+    *t_in = t0;
+    *t_out = t1;
+    return inside && t0 <= t1;
+}
+
 /* ---- matrices ---------------------------------------------------------- */
 
 REFL_API refl_mat4 refl_mat4_identity(void) {

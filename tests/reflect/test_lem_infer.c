@@ -6,6 +6,7 @@
    sphere): records of a view, inference, and the two-term hybrid pixel
    T F_T G_T + R F_R G_R with the inferred shell against greedy RAYTRACE. */
 #include <criterion/criterion.h>
+#include <criterion/parameterized.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -806,13 +807,13 @@ static refl_scene *box_room_scene(void) {
 }
 
 /* PSNR over the lens of LAYERED_EM (shell kind on frames `frame`, face
-   size, layers) against greedy RAYTRACE. */
-static double lem_psnr_framed(const refl_scene *s, const refl_view *v, int kind, int frame, int face, int layers,
-                              long long *quad_misses) {
+   size, layers) against truth, greedy RAYTRACE's frame of the same view
+   (one for the shells a test compares). */
+static double lem_psnr_framed(const refl_scene *s, const refl_view *v, const refl_frame *truth, int kind, int frame,
+                              int face, int layers, long long *quad_misses) {
     refl_render_desc d;
-    refl_frame *truth, *lem;
+    refl_frame *lem;
     refl_image_error err;
-    truth = greedy_truth(s, v);
     d = lem_desc(0);
     d.layered_em.shell = kind;
     d.layered_em.shell_frame = frame;
@@ -822,23 +823,26 @@ static double lem_psnr_framed(const refl_scene *s, const refl_view *v, int kind,
     cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &err), REFL_OK);
     cr_assert_gt(err.pixels, 1000);
     if (quad_misses) *quad_misses = lem->stats.layered_em.quad_misses;
-    refl_frame_destroy(truth);
     refl_frame_destroy(lem);
     return err.psnr;
 }
 
-static double lem_psnr(const refl_scene *s, const refl_view *v, int kind, int layers, long long *quad_misses) {
-    return lem_psnr_framed(s, v, kind, REFL_LEM_FRAME_AUTO, 0, layers, quad_misses);
+static double lem_psnr(const refl_scene *s, const refl_view *v, const refl_frame *truth, int kind, int layers,
+                       long long *quad_misses) {
+    return lem_psnr_framed(s, v, truth, kind, REFL_LEM_FRAME_AUTO, 0, layers, quad_misses);
 }
 
 Test(layered_em, a_box_shell_fits_a_box_room_better_than_a_sphere) {
     refl_scene *s = box_room_scene();
     refl_view v = orbit_view_sized(3.0f, 96, 72);
-    double sphere = lem_psnr(s, &v, REFL_LEM_SHELL_SPHERE, 1, NULL), box = lem_psnr(s, &v, REFL_LEM_SHELL_BOX, 1, NULL);
-    double automatic = lem_psnr(s, &v, REFL_LEM_SHELL_AUTO, 1, NULL);
+    refl_frame *truth = greedy_truth(s, &v);
+    double sphere = lem_psnr(s, &v, truth, REFL_LEM_SHELL_SPHERE, 1, NULL);
+    double box = lem_psnr(s, &v, truth, REFL_LEM_SHELL_BOX, 1, NULL);
+    double automatic = lem_psnr(s, &v, truth, REFL_LEM_SHELL_AUTO, 1, NULL);
     cr_log_info("box room: sphere %.2f dB, box %.2f dB, auto %.2f dB", sphere, box, automatic);
     cr_assert_geq(box, sphere + 1.5, "box %.2f dB, sphere %.2f dB", box, sphere);
     cr_assert_eq(automatic, box, "AUTO takes the box: %.2f dB against %.2f", automatic, box);
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
 
@@ -895,34 +899,41 @@ static refl_mesh *cylinder_mesh(float r, float h) {
    the frame fitted to the hits shows the room as the world-axis one
    cannot, and AUTO takes it (on the cylinder room the box of the
    cylinder's fitted frame or the cylinder, their conflicts within the
-   margin). */
-Test(layered_em, oriented_shells_fit_turned_rooms, .timeout = 120) {
+   margin). Each room is a test of its own (run in parallel under --jobs),
+   its three shells measured against one truth. */
+ParameterizedTestParameters(layered_em, oriented_shells_fit_turned_rooms) {
+    static int kinds[] = {REFL_LEM_SHELL_BOX, REFL_LEM_SHELL_CYLINDER};
+    return cr_make_param_array(int, kinds, sizeof kinds / sizeof *kinds);
+}
+
+ParameterizedTest(int *kind, layered_em, oriented_shells_fit_turned_rooms, .timeout = 120) {
     refl_mat4 turn = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 30.0f * DEG),
                                    refl_mat4_rotate(refl_v3(1, 0, 0), 20.0f * DEG));
     refl_mat4 tilt = refl_mat4_mul(refl_mat4_rotate(refl_v3(0, 1, 0), 40.0f * DEG),
                                    refl_mat4_rotate(refl_v3(0, 0, 1), 25.0f * DEG));
-    refl_scene *box = placed_box_room_scene(refl_mat4_mul(refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f)), turn));
-    refl_scene *cyl = room_scene(cylinder_mesh(4.5f, 3.5f),
-                                 refl_mat4_mul(refl_mat4_translate(refl_v3(0.8f, 0.5f, -0.6f)), tilt));
+    int box = *kind == REFL_LEM_SHELL_BOX;
+    refl_scene *s = box ? placed_box_room_scene(refl_mat4_mul(refl_mat4_translate(refl_v3(1.5f, 1.0f, -0.5f)), turn))
+                        : room_scene(cylinder_mesh(4.5f, 3.5f),
+                                     refl_mat4_mul(refl_mat4_translate(refl_v3(0.8f, 0.5f, -0.6f)), tilt));
     refl_view v = orbit_view_sized(4.0f, 96, 72);
-    const int world = REFL_LEM_FRAME_WORLD, fitted = REFL_LEM_FRAME_FITTED, any = REFL_LEM_FRAME_AUTO;
-    double box_world = lem_psnr_framed(box, &v, REFL_LEM_SHELL_BOX, world, 48, 1, NULL);
-    double box_fitted = lem_psnr_framed(box, &v, REFL_LEM_SHELL_BOX, fitted, 48, 1, NULL);
-    double box_auto = lem_psnr_framed(box, &v, REFL_LEM_SHELL_AUTO, any, 48, 1, NULL);
-    double cyl_world = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_CYLINDER, world, 48, 1, NULL);
-    double cyl_fitted = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_CYLINDER, fitted, 48, 1, NULL);
-    double cyl_auto = lem_psnr_framed(cyl, &v, REFL_LEM_SHELL_AUTO, any, 48, 1, NULL);
-    cr_log_info("turned box room: world-axis box %.2f dB, fitted %.2f, AUTO %.2f", box_world, box_fitted, box_auto);
-    cr_log_info("tilted cylinder room: world-axis cylinder %.2f dB, fitted %.2f, AUTO %.2f", cyl_world, cyl_fitted,
-                cyl_auto);
-    cr_assert_geq(box_fitted, 34.0, "fitted box %.2f dB", box_fitted);
-    cr_assert_geq(box_fitted, box_world + 2.5, "fitted box %.2f dB, world-axis %.2f", box_fitted, box_world);
-    cr_assert_eq(box_auto, box_fitted, "AUTO takes the fitted box: %.2f dB against %.2f", box_auto, box_fitted);
-    cr_assert_geq(cyl_fitted, 35.0, "fitted cylinder %.2f dB", cyl_fitted);
-    cr_assert_geq(cyl_fitted, cyl_world + 4.0, "fitted cylinder %.2f dB, world-axis %.2f", cyl_fitted, cyl_world);
-    cr_assert_geq(cyl_auto, cyl_fitted - 0.5, "AUTO %.2f dB, fitted cylinder %.2f", cyl_auto, cyl_fitted);
-    refl_scene_destroy(box);
-    refl_scene_destroy(cyl);
+    refl_frame *truth = greedy_truth(s, &v);
+    double world = lem_psnr_framed(s, &v, truth, *kind, REFL_LEM_FRAME_WORLD, 48, 1, NULL);
+    double fitted = lem_psnr_framed(s, &v, truth, *kind, REFL_LEM_FRAME_FITTED, 48, 1, NULL);
+    double automatic = lem_psnr_framed(s, &v, truth, REFL_LEM_SHELL_AUTO, REFL_LEM_FRAME_AUTO, 48, 1, NULL);
+    if (box) {
+        cr_log_info("turned box room: world-axis box %.2f dB, fitted %.2f, AUTO %.2f", world, fitted, automatic);
+        cr_assert_geq(fitted, 34.0, "fitted box %.2f dB", fitted);
+        cr_assert_geq(fitted, world + 2.5, "fitted box %.2f dB, world-axis %.2f", fitted, world);
+        cr_assert_eq(automatic, fitted, "AUTO takes the fitted box: %.2f dB against %.2f", automatic, fitted);
+    } else {
+        cr_log_info("tilted cylinder room: world-axis cylinder %.2f dB, fitted %.2f, AUTO %.2f", world, fitted,
+                    automatic);
+        cr_assert_geq(fitted, 35.0, "fitted cylinder %.2f dB", fitted);
+        cr_assert_geq(fitted, world + 4.0, "fitted cylinder %.2f dB, world-axis %.2f", fitted, world);
+        cr_assert_geq(automatic, fitted - 0.5, "AUTO %.2f dB, fitted cylinder %.2f", automatic, fitted);
+    }
+    refl_frame_destroy(truth);
+    refl_scene_destroy(s);
 }
 
 /* A checkered wall 3 x 3 (object 2) at z = -2.5 behind the exact-shell
@@ -958,9 +969,11 @@ Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
        exit rays past the quad see the outer sphere */
     refl_scene *s = wall_scene();
     refl_view v = orbit_view_sized(3.0f, 96, 72);
+    refl_frame *truth = greedy_truth(s, &v);
     long long misses = 0;
-    double spheres = lem_psnr(s, &v, REFL_LEM_SHELL_SPHERE, 2, NULL), quad = lem_psnr(s, &v, REFL_LEM_SHELL_QUAD, 2, &misses);
-    double automatic = lem_psnr(s, &v, REFL_LEM_SHELL_AUTO, 2, NULL);
+    double spheres = lem_psnr(s, &v, truth, REFL_LEM_SHELL_SPHERE, 2, NULL);
+    double quad = lem_psnr(s, &v, truth, REFL_LEM_SHELL_QUAD, 2, &misses);
+    double automatic = lem_psnr(s, &v, truth, REFL_LEM_SHELL_AUTO, 2, NULL);
     cr_log_info("wall: two spheres %.2f dB, quad + sphere %.2f dB (%lld misses), auto %.2f dB", spheres, quad, misses,
                 automatic);
     cr_assert_geq(quad, spheres + 2.0, "quad %.2f dB, spheres %.2f dB", quad, spheres);
@@ -970,31 +983,35 @@ Test(layered_em, a_quad_layer_recovers_a_wall_behind_the_lens) {
        the wall's plane) instead: as exact on the wall, and its lookup is
        defined past the wall's edges, where the quad leaves the layer out */
     cr_assert_geq(automatic, quad, "AUTO recovers the wall as well as the quad: %.2f dB against %.2f", automatic, quad);
+    refl_frame_destroy(truth);
     refl_scene_destroy(s);
 }
 
 /* ---- direct images against disocclusion ------------------------------------------------- */
 
-/* LAYERED_EM on a built-in scene at 80 x 60 with `layers` layers against
-   greedy RAYTRACE: PSNR over the lens pixels, and the mean reflection
-   error when err is not NULL. */
-static double builtin_lem_psnr(const char *name, int layers, refl_reflection_error *err) {
+/* LAYERED_EM on a built-in scene at 80 x 60 with layers[0], then
+   layers[1] layers, against one greedy RAYTRACE frame: PSNR over the lens
+   pixels, and the reflection errors when err is not NULL. */
+static void builtin_lem_psnrs(const char *name, const int layers[2], double psnr[2], refl_reflection_error *err) {
     refl_view v;
     refl_scene *s = tu_refl_builtin(name, &v, 80, 60);
     refl_render_desc d;
     refl_frame *truth, *lem;
     refl_image_error img;
+    int k;
     truth = greedy_truth(s, &v);
-    d = lem_desc(0);
-    d.layered_em.layers = layers;
-    lem = tu_refl_render(s, &v, &d);
-    cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &img), REFL_OK);
-    cr_assert_gt(img.pixels, 1000);
-    if (err) cr_assert_eq(refl_measure_reflection_error(lem, truth, NULL, err), REFL_OK);
+    for (k = 0; k < 2; ++k) {
+        d = lem_desc(0);
+        d.layered_em.layers = layers[k];
+        lem = tu_refl_render(s, &v, &d);
+        cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &img), REFL_OK);
+        cr_assert_gt(img.pixels, 1000);
+        if (err) cr_assert_eq(refl_measure_reflection_error(lem, truth, NULL, &err[k]), REFL_OK);
+        psnr[k] = img.psnr;
+        refl_frame_destroy(lem);
+    }
     refl_frame_destroy(truth);
-    refl_frame_destroy(lem);
     refl_scene_destroy(s);
-    return img.psnr;
 }
 
 Test(layered_em, a_ball_at_a_concave_mirrors_focus_is_an_inner_layer) {
@@ -1006,12 +1023,15 @@ Test(layered_em, a_ball_at_a_concave_mirrors_focus_is_an_inner_layer) {
        cannot show it (a limit of a shell around the lens: the rays through
        the focus cross the same texels whether they meet the ball or pass
        it, and the map breaks into rings) */
-    refl_reflection_error one_err, three_err;
-    double one = builtin_lem_psnr("concave", 1, &one_err), three = builtin_lem_psnr("concave", 3, &three_err);
-    cr_log_info("concave 80x60: one layer %.2f dB, %.2f px; three %.2f dB, %.2f px", one, one_err.mean, three,
-                three_err.mean);
+    static const int layers[2] = {1, 3};
+    refl_reflection_error err[2];
+    double psnr[2], one, three;
+    builtin_lem_psnrs("concave", layers, psnr, err);
+    one = psnr[0], three = psnr[1];
+    cr_log_info("concave 80x60: one layer %.2f dB, %.2f px; three %.2f dB, %.2f px", one, err[0].mean, three,
+                err[1].mean);
     cr_assert_geq(three, 28.0, "three layers %.2f dB", three);
-    cr_assert_lt(three_err.mean, 1.5, "three layers %.2f px", three_err.mean);
+    cr_assert_lt(err[1].mean, 1.5, "three layers %.2f px", err[1].mean);
     cr_assert_lt(one, 22.0, "one layer %.2f dB: the rings are this method's limit, documented", one);
 }
 
@@ -1022,7 +1042,10 @@ Test(layered_em, a_teapot_seen_in_a_mirror_stays_whole_on_three_layers) {
        the floor's hits lie nearer on average: three layers show the scene
        as well as one (by mean distance the floor came first, its holes
        behind the teapot let a streaked teapot through, 5 dB under) */
-    double one = builtin_lem_psnr("mirror-room", 1, NULL), three = builtin_lem_psnr("mirror-room", 3, NULL);
+    static const int layers[2] = {1, 3};
+    double psnr[2], one, three;
+    builtin_lem_psnrs("mirror-room", layers, psnr, NULL);
+    one = psnr[0], three = psnr[1];
     cr_log_info("mirror-room 80x60: one layer %.2f dB, three %.2f dB", one, three);
     cr_assert_geq(three, one - 1.0, "three layers %.2f dB, one %.2f dB", three, one);
 }
