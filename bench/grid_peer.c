@@ -310,6 +310,70 @@ void refl_grid_shape(const refl_grid *g, int cells[3], long long *triangles, lon
     if (references) *references = g->references;
 }
 
+/* ---- the resolution for a target cost ------------------------------------------------ */
+
+/* cost(per_side) into fit; 0 on its failure or when no evaluation is left. */
+static int grid_fit_eval(refl_grid_cost cost, void *user, float per_side, int max_evaluations, refl_grid_fit *fit,
+                         double *c) {
+    if (fit->evaluations >= max_evaluations) return 0;
+    ++fit->evaluations;
+    *c = cost(user, per_side);
+    fit->per_side = per_side;
+    fit->cost = *c;
+    return *c > 0.0;
+}
+
+int refl_grid_fit_per_side(refl_grid_cost cost, void *user, double target, double tolerance, float lo, float hi,
+                           int max_evaluations, refl_grid_fit *fit) {
+    double clo, chi, c;
+    memset(fit, 0, sizeof *fit);
+    if (max_evaluations <= 0) max_evaluations = 40;
+    if (!cost || !(target > 0.0) || !(tolerance >= 0.0) || !(lo > 0.0f) || !(hi > lo)) return 0;
+#define GRID_FIT_DONE(x) (fabs((x) / target - 1.0) <= tolerance)
+    if (!grid_fit_eval(cost, user, lo, max_evaluations, fit, &clo)) return 0;
+    if (GRID_FIT_DONE(clo)) return fit->converged = 1;
+    if (clo < target) {
+        do { /* already finer than the target: coarser */
+            hi = lo;
+            chi = clo;
+            lo *= 0.5f;
+            if (!grid_fit_eval(cost, user, lo, max_evaluations, fit, &clo)) return 0;
+            if (GRID_FIT_DONE(clo)) return fit->converged = 1;
+        } while (clo < target);
+    } else {
+        if (!grid_fit_eval(cost, user, hi, max_evaluations, fit, &chi)) return 0;
+        if (GRID_FIT_DONE(chi)) return fit->converged = 1;
+        while (chi > target) { /* still coarser than the target: finer */
+            lo = hi;
+            clo = chi;
+            hi *= 2.0f;
+            if (!grid_fit_eval(cost, user, hi, max_evaluations, fit, &chi)) return 0;
+            if (GRID_FIT_DONE(chi)) return fit->converged = 1;
+        }
+    }
+    /* clo > target > chi */
+    while (hi - lo > 1e-4f * hi) {
+        double xl = log((double)lo), xh = log((double)hi), yl = log(clo), yh = log(chi);
+        double x = xl + (log(target) - yl) * (xh - xl) / (yh - yl), w = xh - xl;
+        float p;
+        if (!(x >= xl + 0.1 * w)) x = xl + 0.1 * w;
+        if (!(x <= xh - 0.1 * w)) x = xh - 0.1 * w;
+        p = (float)exp(x);
+        if (!(p > lo && p < hi)) break;
+        if (!grid_fit_eval(cost, user, p, max_evaluations, fit, &c)) return 0;
+        if (GRID_FIT_DONE(c)) return fit->converged = 1;
+        if (c > target) {
+            lo = p;
+            clo = c;
+        } else {
+            hi = p;
+            chi = c;
+        }
+    }
+#undef GRID_FIT_DONE
+    return 0;
+}
+
 /* ---- agreement with refl_bvh ------------------------------------------------------- */
 
 static unsigned grid_rand(unsigned *state) {
@@ -349,7 +413,7 @@ long long refl_grid_agreement(refl_grid *g, const refl_scene *s, const refl_bvh 
         refl_vec3 o = refl_v3(grid_uniform(&state, lo.x, hi.x), grid_uniform(&state, lo.y, hi.y),
                               grid_uniform(&state, lo.z, hi.z)),
                   d;
-        refl_hit a, b, c;
+        refl_hit a, b;
         float tmax;
         int ha, hb, oa, ob;
         if (g->tri_count && grid_rand(&state) % 2) {
@@ -366,7 +430,11 @@ long long refl_grid_agreement(refl_grid *g, const refl_scene *s, const refl_bvh 
         hb = grid_bvh_first(g, bvh, o, d, FLT_MAX, &b);
         tmax = grid_uniform(&state, 0.0f, 1.2f) * (hb ? b.t : 10.0f);
         oa = refl_grid_occluded(g, o, d, 0.0f, tmax);
-        ob = grid_bvh_first(g, bvh, o, d, tmax, &c);
+        /* whether refl_bvh's first hit lies before tmax, not its own query
+           bounded by tmax: that one culls boxes by their entry distance,
+           which rounds on the scale of the origin's coordinates, so a hit a
+           few 1e-5 from the origin just under tmax can be culled */
+        ob = hb && b.t < tmax;
         k = ha == hb && oa == ob &&
             (!ha || (a.object == b.object && a.triangle == b.triangle && a.t == b.t && a.u == b.u && a.v == b.v));
         if (k) continue;

@@ -61,12 +61,37 @@ void refl_grid_counts(const refl_grid *grid, long long *rays, long long *tests);
    cells counts k). Any pointer may be NULL. */
 void refl_grid_shape(const refl_grid *grid, int cells[3], long long *triangles, long long *references);
 
+/* A cost of the grid's resolution that falls as the cells get finer (the
+   bench's: a greedy RAYTRACE frame's triangle tests per ray through a grid
+   of the scene at per_side); below 0 on failure. */
+typedef double (*refl_grid_cost)(void *user, float per_side);
+
+typedef struct refl_grid_fit {
+    float per_side;          /* the last resolution tried; the fit where converged */
+    double cost;             /* its cost */
+    int evaluations;         /* the costs measured */
+    int converged;           /* |cost / target - 1| <= tolerance */
+} refl_grid_fit;
+
+/* The per_side at which cost comes within tolerance (a share: 0.01 is 1%)
+   of target: [lo, hi] widened (halved, doubled) until its costs bracket
+   the target, then narrowed by interpolation on log cost against log
+   per_side (a grid's cost is near a power of its cells), kept inside the
+   bracket's middle 80% so that it always shrinks. The cost is a step
+   function (cells come in whole numbers), so the target may fall in a step:
+   then it stops unconverged once the bracket is narrower than a share of
+   1e-4, or after max_evaluations (0: 40) costs, or on a cost's failure.
+   Returns fit->converged. */
+int refl_grid_fit_per_side(refl_grid_cost cost, void *user, double target, double tolerance, float lo, float hi,
+                           int max_evaluations, refl_grid_fit *fit);
+
 /* Agreement with refl_bvh (bvh over the whole scene) on `rays` random rays
    from seed: from random points in the scene's bounds, half towards a
    random point of a random triangle of the grid, half in random
    directions; each closest hit must be the first hit refl_bvh finds on
    the grid's objects (the object, triangle, t, u and v bit for bit: the
-   same test), each any-hit answer before a random distance the same.
+   same test), each any-hit answer before a random distance whether that
+   first hit lies before it.
    Returns the rays that disagree (0: all agree), the first described in
    first (may be NULL). Its rays count in the grid's counts. */
 long long refl_grid_agreement(refl_grid *grid, const refl_scene *scene, const refl_bvh *bvh, int rays,

@@ -21,7 +21,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-grid] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-grid|lem-grid-calib] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -54,7 +54,11 @@ static const char *const usage_bench =
     "(DIR/lem_sweeps.{csv,md,png}), with --only lem-options its options beyond\n"
     "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-grid\n"
     "the table's rays and triangle tests with a uniform grid as the ray caster\n"
-    "beside our BVH, per grid resolution (DIR/lem_grid.{csv,md}).\n"
+    "beside our BVH, per grid resolution, and with the grid's resolution\n"
+    "fitted to the paper's triangle tests a ray (DIR/lem_grid.{csv,md},\n"
+    "DIR/lem_grid_calibrated.{csv,md}); --only lem-grid-calib: the same without\n"
+    "the sweep, PBRT's resolution and the fitted one (DIR/lem_grid_calib.{csv,md},\n"
+    "DIR/lem_grid_calibrated.{csv,md}).\n"
     "RAYTRACE through Embree is a row in every table.\n"
     "\n"
     "  --full        every built-in scene, 5 runs each (default: the default\n"
@@ -66,7 +70,7 @@ static const char *const usage_bench =
     "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
     "                (lem), its stability sweeps (lem-sweeps), its options\n"
     "                (lem-options) or its triangle tests through uniform\n"
-    "                grids (lem-grid)\n"
+    "                grids (lem-grid; lem-grid-calib: without the sweep)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -77,7 +81,8 @@ static const char *const usage_bench =
     "                heat maps, the worst frames along camera paths, cost growth and\n"
     "                time by phase; 320x240, every built-in scene)\n"
     "  --quick       with --report: two scenes at 64x48, few settings, one run each;\n"
-    "                with --only lem or lem-grid: 160x120 instead of 640x480;\n"
+    "                with --only lem, lem-grid or lem-grid-calib: 160x120\n"
+    "                instead of 640x480;\n"
     "                with --only lem-options: 160x120 alone\n";
 
 typedef struct bench_opts {
@@ -541,7 +546,8 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the LAYERED_EM table failed\n");
         return 0;
     }
-    if (!strcmp(o->only, "lem-grid") && !refl_bench_lem_grid(o->out, o->threads, o->quick)) {
+    if ((!strcmp(o->only, "lem-grid") || !strcmp(o->only, "lem-grid-calib")) &&
+        !refl_bench_lem_grid(o->out, o->threads, o->quick, !strcmp(o->only, "lem-grid"))) {
         fprintf(stderr, "reflect bench: the LAYERED_EM grid table failed\n");
         return 0;
     }
@@ -561,7 +567,7 @@ static int paper_tables(const bench_opts *o) {
 static const char *const bench_value_options[] = {"--report", "--only", "--out", "--repeats", "--threads", "--depth", NULL};
 static const cli_choice only_tables[] = {{"c3rc", 0},        {"sbc", 0},         {"path", 0},       {"graphcam", 0},
                                          {"spoc", 0},        {"spoc-sweeps", 0}, {"lem", 0},        {"lem-sweeps", 0},
-                                         {"lem-options", 0}, {"lem-grid", 0},    {NULL, 0}};
+                                         {"lem-options", 0}, {"lem-grid", 0},    {"lem-grid-calib", 0}, {NULL, 0}};
 
 int refl_cli_bench(int argc, char **argv) {
     bench_opts o;
@@ -615,8 +621,10 @@ int refl_cli_bench(int argc, char **argv) {
     }
     if (!o.repeats) o.repeats = o.full ? 5 : 3;
     if (o.report) return refl_bench_report(o.report, o.threads, o.repeats, o.quick) ? 0 : 1;
-    if (o.quick && strcmp(o.only, "lem") && strcmp(o.only, "lem-options") && strcmp(o.only, "lem-grid")) {
-        fprintf(stderr, "reflect bench: --quick goes with --report, --only lem, lem-options or lem-grid\n");
+    if (o.quick && strcmp(o.only, "lem") && strcmp(o.only, "lem-options") && strcmp(o.only, "lem-grid") &&
+        strcmp(o.only, "lem-grid-calib")) {
+        fprintf(stderr, "reflect bench: --quick goes with --report, --only lem, lem-options, lem-grid or "
+                        "lem-grid-calib\n");
         return 2;
     }
     if (mkdir(o.out, 0777) != 0 && errno != EEXIST) {

@@ -91,9 +91,13 @@ int refl_bench_lem(const char *dir, int threads, int quick);
    with a uniform grid as the ray caster (bench/grid_peer.h) beside
    refl_bvh: greedy RAYTRACE through a grid of the scene, LAYERED_EM's
    vertices through a grid of the lens objects alone, per grid resolution
-   (tools/reflect_bench_lem.c); dir/lem_grid.{csv,md}; 0 on failure, or
-   where a grid's hits are not refl_bvh's. */
-int refl_bench_lem_grid(const char *dir, int threads, int quick);
+   (tools/reflect_bench_lem.c): PBRT's resolution, with sweep a sweep around
+   it, and the resolution fitted so that greedy RAYTRACE tests the paper's
+   triangles a ray, with the full ray tree's extra cost;
+   dir/lem_grid.{csv,md} (sweep; else dir/lem_grid_calib.{csv,md}) and
+   dir/lem_grid_calibrated.{csv,md}; 0 on failure, where a grid's hits are
+   not refl_bvh's, or where the fit does not converge. */
+int refl_bench_lem_grid(const char *dir, int threads, int quick, int sweep);
 
 /* LAYERED_EM where paper 001 says it fails (tools/reflect_bench_lem.c):
    off-sample eyes, sample spacing, layers, a column moved up to the lens,

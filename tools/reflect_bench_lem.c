@@ -826,12 +826,22 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
    options: the paper's "ray tracing only through the lens object's
    geometry") and its lens pixels left to the tracer through the scene's
    grid (desc.raytrace.caster). Per grid resolution (PBRT's heuristic,
-   per_side 3, and a sweep around it). Checked first: each grid's hits are
+   per_side 3, and a sweep around it, or PBRT's alone), and at the
+   resolution calibrated on the paper's own ray tracer: the per_side (one
+   rule for both grids) at which greedy RAYTRACE's tests a ray through the
+   scene's grid are the paper's 27.35, LAYERED_EM's side then predicted;
+   with the full ray tree's extra cost. Checked first: each grid's hits are
    refl_bvh's on random rays; the grid's RAYTRACE frame is the BVH's, byte
    for byte; the grid's tessellation has the frame's vertices and rays. */
 
-enum { LG_DENSITIES = 5, LG_DEFAULT = 2 };
-static const float lg_per_side[LG_DENSITIES] = {0.75f, 1.5f, 3.0f, 6.0f, 12.0f};
+enum { LG_SWEEP = 5, LG_DEFAULT = 2, LG_DENSITIES = LG_SWEEP + 1 };
+static const float lg_sweep[LG_SWEEP] = {0.75f, 1.5f, 3.0f, 6.0f, 12.0f};
+/* The paper's ray tracer's cost a ray (section 6: 168,313,768 triangle
+   tests in 6,153,735 rays, greedy paths, uniformly sampled): the calibrated
+   grid's resolution is the one at which greedy RAYTRACE's tests a ray
+   through the scene's grid come within LG_FIT_TOLERANCE of it. */
+#define LG_PAPER_TESTS_PER_RAY (168313768.0 / 6153735.0)
+#define LG_FIT_TOLERANCE 0.01
 
 /* The caster a renderer keeps in its desc: the current grid, or with none
    refl_bvh (counted in the frame's stats as the library's own traces). */
@@ -907,12 +917,125 @@ static const char *lg_within(double ours, double paper) {
     return ours >= paper / 1.5 && ours <= paper * 1.5 ? "within 1.5" : "outside 1.5";
 }
 
-int refl_bench_lem_grid(const char *dir, int threads, int quick) {
+/* The calibrated block: per accelerator (refl_bvh, PBRT's grid, the grid
+   calibrated to the paper's tests a ray) the tests a ray and both
+   reductions beside the paper's with a verdict, and the full ray tree's
+   extra cost; dir/lem_grid_calibrated.{csv,md}, echoed. */
+static int lg_write_calibrated(const char *dir, int w, int h, const refl_grid_fit *fit, const lg_row *bvh,
+                               const lg_row *pbrt, const lg_row *cal, const refl_stats *full_bvh,
+                               const refl_stats *full_cal) {
+    static const double paper_rays[2] = {6.0, 10.8}, paper_tests[2] = {14.2, 25.7};
+    static const double paper_lem_tpr[2] = {11878133.0 / 1023876.0, 6543993.0 / 570481.0};
+    const lg_row *rows[3] = {bvh, pbrt, cal};
+    const refl_stats *full[2] = {full_bvh, full_cal};
+    const long long eye = 9LL * w * h; /* one eye ray a sample, either ray tree */
+    FILE *csv, *md;
+    int k, i;
+    if (!lem_open_pair(dir, "lem_grid_calibrated", &csv, &md)) {
+        if (csv) fclose(csv);
+        if (md) fclose(md);
+        return 0;
+    }
+    fprintf(csv, "caster,per_side,greedy_tests_per_ray,lem_tests_per_ray_t3,lem_tests_per_ray_t5,ray_reduction_t3,"
+                 "ray_reduction_t5,test_reduction_t3,test_reduction_t5,full_tree_rays,full_tree_tests,full_tree_ms\n");
+    fprintf(md, "`hybrid`, %dx%d 3x3 subsampled, depth %d, default layers. The calibrated grid's resolution, per_side "
+                "%.4f (%dx%dx%d cells for the scene, %dx%dx%d for the lenses: the same rule), is fitted so that greedy "
+                "RAYTRACE through the scene's grid tests the paper's %.2f triangles a ray (168,313,768 / 6,153,735; "
+                "%.2f, within %g%%, after %d frames); its LAYERED_EM columns are predictions of that one fit.\n\n",
+            w, h, LEM_DEPTH, fit->per_side, cal->cells[0][0], cal->cells[0][1], cal->cells[0][2], cal->cells[1][0],
+            cal->cells[1][1], cal->cells[1][2], LG_PAPER_TESTS_PER_RAY, fit->cost, 100.0 * LG_FIT_TOLERANCE,
+            fit->evaluations);
+    fprintf(md, "| accelerator | greedy RT tests a ray | LAYERED_EM tests a ray t = 3 | t = 5 | ray reduction t = 3 "
+                "| t = 5 | triangle test reduction t = 3 | t = 5 |\n|---|---|---|---|---|---|---|---|\n");
+    fprintf(md, "| paper | %.2f | %.2f | %.2f | ×%.1f | ×%.1f | ×%.1f | ×%.1f |\n", LG_PAPER_TESTS_PER_RAY,
+            paper_lem_tpr[0], paper_lem_tpr[1], paper_rays[0], paper_rays[1], paper_tests[0], paper_tests[1]);
+    for (k = 0; k < 3; ++k) {
+        const lg_row *r = rows[k];
+        double tpr[2], rr[2], tr[2];
+        for (i = 0; i < 2; ++i) {
+            tpr[i] = lem_ratio((double)r->lem[i].tests, (double)r->lem[i].rays);
+            rr[i] = lem_ratio((double)r->rt_rays, (double)r->lem[i].rays);
+            tr[i] = lem_ratio((double)r->rt_tests, (double)r->lem[i].tests);
+        }
+        fprintf(md, "| %s | %.2f | %.2f (%s) | %.2f (%s) | ×%.2f (%s) | ×%.2f (%s) | ×%.2f (%s) | ×%.2f (%s) |\n",
+                k == 0 ? "refl_bvh" : k == 1 ? "grid, PBRT's resolution (per_side 3)" : "grid, calibrated (per_side fitted)",
+                lem_ratio((double)r->rt_tests, (double)r->rt_rays), tpr[0], lg_within(tpr[0], paper_lem_tpr[0]), tpr[1],
+                lg_within(tpr[1], paper_lem_tpr[1]), rr[0], lg_within(rr[0], paper_rays[0]), rr[1],
+                lg_within(rr[1], paper_rays[1]), tr[0], lg_within(tr[0], paper_tests[0]), tr[1],
+                lg_within(tr[1], paper_tests[1]));
+        fprintf(csv, "%s,%g,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,", k == 0 ? "bvh" : k == 1 ? "grid-pbrt" : "grid-calibrated",
+                k == 0 ? 0.0 : k == 1 ? 3.0 : (double)fit->per_side, lem_ratio((double)r->rt_tests, (double)r->rt_rays),
+                tpr[0], tpr[1], rr[0], rr[1], tr[0], tr[1]);
+        if (k == 1)
+            fprintf(csv, ",,\n");
+        else
+            fprintf(csv, "%lld,%lld,%.1f\n", full[k / 2]->rays, full[k / 2]->triangle_tests, full[k / 2]->ms_total);
+    }
+    fprintf(md, "\nThe full ray tree (RAYTRACE's default, depth %d) against greedy RAYTRACE of the same frame, the "
+                "paper's \"additional factor of 5\" (section 6, the ray tracer's cost; Figure 2: \"5 times more ray "
+                "queries\"; within 1.5 of ×5 or not):\n\n| accelerator | rays | rays past the %lld eye rays | triangle tests | time |\n"
+                "|---|---|---|---|---|\n", LEM_DEPTH, eye);
+    for (k = 0; k < 2; ++k) {
+        const lg_row *r = rows[2 * k];
+        const refl_stats *f = full[k];
+        double xr = lem_ratio((double)f->rays, (double)r->rt_rays), xl = lem_ratio((double)(f->rays - eye), (double)(r->rt_rays - eye));
+        double xt = lem_ratio((double)f->triangle_tests, (double)r->rt_tests), xm = lem_ratio(f->ms_total, r->rt_ms);
+        fprintf(md, "| %s | ×%.2f (%lld against %lld; %s) | ×%.2f (%s) | ×%.2f (%lld against %lld; %s) | ×%.2f (%s) |\n",
+                k ? "grid, calibrated" : "refl_bvh", xr, f->rays, r->rt_rays, lg_within(xr, 5.0), xl, lg_within(xl, 5.0),
+                xt, f->triangle_tests, r->rt_tests, lg_within(xt, 5.0), xm, lg_within(xm, 5.0));
+    }
+    fclose(csv);
+    fclose(md);
+    fputs("\n", stdout);
+    lem_echo(dir, "lem_grid_calibrated");
+    return 1;
+}
+
+/* The calibration's cost: greedy RAYTRACE of the frame through a grid of
+   the whole scene at per_side (PBRT's cap lifted, as the sweep), its
+   triangle tests a ray. */
+typedef struct lg_fit_frame {
+    const refl_scene *s;
+    const refl_view *v;
+    refl_frame *f;
+    int threads;
+} lg_fit_frame;
+
+static double lg_fit_cost(void *user, float per_side) {
+    const lg_fit_frame *ff = (const lg_fit_frame *)user;
+    refl_render_desc d = lem_desc(ff->threads, 9);
+    refl_grid_desc gd;
+    refl_grid *g;
+    long long rays, tests;
+    int ok;
+    memset(&gd, 0, sizeof gd);
+    gd.per_side = per_side;
+    gd.max_side = 1024;
+    g = refl_grid_create(ff->s, &gd);
+    if (!g) return -1.0;
+    d.method = REFL_RAYTRACE;
+    d.raytrace.greedy = 1;
+    d.raytrace.caster = refl_grid_caster(g);
+    ok = refl_render(ff->s, ff->v, &d, ff->f) == REFL_OK;
+    refl_grid_counts(g, &rays, &tests);
+    refl_grid_destroy(g);
+    if (!ok || rays <= 0) return -1.0;
+    printf("calibration: per_side %.4f, greedy RAYTRACE %.2f tests a ray (target %.2f)\n", per_side,
+           (double)tests / (double)rays, LG_PAPER_TESTS_PER_RAY);
+    fflush(stdout);
+    return (double)tests / (double)rays;
+}
+
+int refl_bench_lem_grid(const char *dir, int threads, int quick, int sweep) {
     static const float ts[2] = {3.0f, 5.0f};
     static const double paper_rays[2] = {6.0, 10.8}, paper_tests[2] = {14.2, 25.7};
     const int w = quick ? 160 : 640, h = quick ? 120 : 480, check_rays = quick ? 50000 : 200000;
     refl_scene *s = refl_bench_builtin("hybrid", 0);
     refl_grid *grid[LG_DENSITIES][2];
+    float per_side[LG_DENSITIES];
+    refl_grid_fit fit;
+    lg_fit_frame ff;
+    refl_stats full_bvh, full_fit;
     refl_bvh *bvh = NULL;
     refl_frame *truth = NULL, *f = NULL;
     refl_renderer *rr = NULL;
@@ -922,8 +1045,11 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     refl_view v, fine;
     char first[512];
     FILE *csv = NULL, *md = NULL;
-    int k, i, a, ok = 1;
+    int k, i, a, n = 0, pbrt, fitted = 0, ok = 1;
     double t0;
+    memset(&fit, 0, sizeof fit);
+    memset(&full_bvh, 0, sizeof full_bvh);
+    memset(&full_fit, 0, sizeof full_fit);
     memset(grid, 0, sizeof grid);
     memset(&bvh_row, 0, sizeof bvh_row);
     memset(rows, 0, sizeof rows);
@@ -940,25 +1066,47 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     for (i = 0; i < s->object_count; ++i) lens[i] = s->materials[s->objects[i].material].type != REFL_DIFFUSE;
     printf("hybrid (paper 001 section 6), %dx%d 3x3 subsampled, depth %d, %s threads: triangle tests through "
            "uniform grids beside refl_bvh\n", w, h, LEM_DEPTH, threads ? "given" : "all");
+    /* the resolutions: the sweep (or PBRT's alone), then the calibrated one */
+    if (sweep)
+        for (k = 0; k < LG_SWEEP; ++k) per_side[n++] = lg_sweep[k];
+    else
+        per_side[n++] = lg_sweep[LG_DEFAULT];
+    pbrt = sweep ? LG_DEFAULT : 0;
+    ff.s = s;
+    ff.v = &v;
+    ff.f = f;
+    ff.threads = threads;
+    if (!refl_grid_fit_per_side(lg_fit_cost, &ff, LG_PAPER_TESTS_PER_RAY, LG_FIT_TOLERANCE, lg_sweep[LG_DEFAULT],
+                                4.0f * lg_sweep[LG_DEFAULT], 0, &fit)) {
+        fprintf(stderr, "reflect bench: the grid's resolution did not converge on the paper's %.2f tests a ray "
+                        "(within %g%%): per_side %.4f gave %.2f after %d frames\n", LG_PAPER_TESTS_PER_RAY,
+                100.0 * LG_FIT_TOLERANCE, fit.per_side, fit.cost, fit.evaluations);
+        ok = 0;
+        goto done;
+    }
+    printf("calibrated: per_side %.4f, %.2f tests a ray (the paper's %.2f), %d frames\n", fit.per_side, fit.cost,
+           LG_PAPER_TESTS_PER_RAY, fit.evaluations);
+    fitted = n;
+    per_side[n++] = fit.per_side;
     /* the grids, each checked against refl_bvh first */
-    for (k = 0; k < LG_DENSITIES && ok; ++k)
+    for (k = 0; k < n && ok; ++k)
         for (a = 0; a < 2 && ok; ++a) {
             refl_grid_desc gd;
             long long bad;
             memset(&gd, 0, sizeof gd);
-            gd.per_side = lg_per_side[k];
-            gd.max_side = k == LG_DEFAULT ? 0 : 1024; /* PBRT's cap of 64 a side at its own density, lifted for the sweep */
+            gd.per_side = per_side[k];
+            gd.max_side = k == pbrt ? 0 : 1024; /* PBRT's cap of 64 a side at its own density, lifted for the others */
             gd.objects = a ? lens : NULL;
             grid[k][a] = refl_grid_create(s, &gd);
             if (!grid[k][a]) {
-                fprintf(stderr, "reflect bench: grid %g could not be built\n", lg_per_side[k]);
+                fprintf(stderr, "reflect bench: grid %g could not be built\n", per_side[k]);
                 ok = 0;
                 break;
             }
             refl_grid_shape(grid[k][a], rows[k].cells[a], NULL, &rows[k].refs[a]);
             bad = refl_grid_agreement(grid[k][a], s, bvh, check_rays, 2001u + (unsigned)k, first, sizeof first);
             printf("grid %-5g %s: %dx%dx%d cells, %lld references; %d random rays: %lld differ from refl_bvh\n",
-                   lg_per_side[k], a ? "lenses" : "scene ", rows[k].cells[a][0], rows[k].cells[a][1],
+                   per_side[k], a ? "lenses" : "scene ", rows[k].cells[a][0], rows[k].cells[a][1],
                    rows[k].cells[a][2], rows[k].refs[a], check_rays, bad);
             if (bad) {
                 fprintf(stderr, "reflect bench: the grid's hits are not refl_bvh's: %s\n", first);
@@ -978,7 +1126,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
         bvh_row.rt_same = 1;
         printf("greedy RAYTRACE, refl_bvh: %lld rays, %lld tests (%.1f a ray), %.0f ms\n", bvh_row.rt_rays,
                bvh_row.rt_tests, lem_ratio((double)bvh_row.rt_tests, (double)bvh_row.rt_rays), bvh_row.rt_ms);
-        for (k = 0; k < LG_DENSITIES && ok; ++k) {
+        for (k = 0; k < n && ok; ++k) {
             long long r0 = lg_rays(grid[k][0]), t1 = lg_tests(grid[k][0]);
             d.raytrace.caster = refl_grid_caster(grid[k][0]);
             ok = refl_render(s, &v, &d, f) == REFL_OK;
@@ -987,12 +1135,33 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
             rows[k].rt_ms = f->stats.ms_total;
             rows[k].rt_same = !memcmp(f->rgba, truth->rgba, (size_t)w * h * 4 * sizeof(float));
             printf("greedy RAYTRACE, grid %g: %lld rays (the frame's %lld), %lld tests (%.1f a ray), %.0f ms, %s\n",
-                   lg_per_side[k], rows[k].rt_rays, f->stats.rays, rows[k].rt_tests,
+                   per_side[k], rows[k].rt_rays, f->stats.rays, rows[k].rt_tests,
                    lem_ratio((double)rows[k].rt_tests, (double)rows[k].rt_rays), rows[k].rt_ms,
                    rows[k].rt_same ? "the same bytes" : "OTHER BYTES");
             ok = ok && rows[k].rt_rays == f->stats.rays;
             fflush(stdout);
         }
+        /* the full ray tree's extra cost (the paper's factor of 5), through
+           refl_bvh and through the calibrated grid */
+        d.raytrace.greedy = 0;
+        d.raytrace.caster.intersect = NULL;
+        d.raytrace.caster.occluded = NULL;
+        d.raytrace.caster.user = NULL;
+        ok = ok && refl_render(s, &v, &d, f) == REFL_OK;
+        full_bvh = f->stats;
+        if (ok) {
+            long long r0 = lg_rays(grid[fitted][0]), t1 = lg_tests(grid[fitted][0]);
+            d.raytrace.caster = refl_grid_caster(grid[fitted][0]);
+            ok = refl_render(s, &v, &d, f) == REFL_OK;
+            full_fit = f->stats;
+            full_fit.rays = lg_rays(grid[fitted][0]) - r0;
+            full_fit.triangle_tests = lg_tests(grid[fitted][0]) - t1;
+        }
+        if (ok)
+            printf("full ray tree RAYTRACE: refl_bvh %lld rays, %lld tests, %.0f ms; calibrated grid %lld rays, %lld "
+                   "tests, %.0f ms\n", full_bvh.rays, full_bvh.triangle_tests, full_bvh.ms_total, full_fit.rays,
+               full_fit.triangle_tests, full_fit.ms_total);
+        fflush(stdout);
     }
     /* LAYERED_EM (default layers), per t: one renderer, its maps kept;
        frames with its traced lens pixels through refl_bvh, then each grid */
@@ -1024,7 +1193,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
                    ts[i], e->rays, e->tests, lem_ratio((double)e->tests, (double)e->rays), e->vertex_tests, e->vertices,
                    e->traced_pixels, (refl_bench_now_ms() - t0) / 1000.0);
         }
-        for (k = 0; k < LG_DENSITIES && ok; ++k) {
+        for (k = 0; k < n && ok; ++k) {
             lg_lem *e = &rows[k].lem[i];
             long long r0 = lg_rays(grid[k][0]), t1 = lg_tests(grid[k][0]);
             sw.grid = grid[k][0];
@@ -1044,7 +1213,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
                          f->stats.triangle_tests == f->stats.layered_em.vertex_tests;
             printf("LAYERED_EM t %.0f, grid %g: %lld rays, %lld tests (%.1f a ray): vertices %lld rays %lld tests (%.1f "
                    "a ray), traced pixels %lld rays %lld tests; %lld vertices; the frame's mesh and rays: %s\n",
-                   ts[i], lg_per_side[k], e->rays, e->tests, lem_ratio((double)e->tests, (double)e->rays), e->vertex_rays,
+                   ts[i], per_side[k], e->rays, e->tests, lem_ratio((double)e->tests, (double)e->rays), e->vertex_rays,
                    e->vertex_tests, lem_ratio((double)e->vertex_tests, (double)e->vertex_rays), e->traced_rays,
                    e->traced_tests, e->vertices, e->matches ? "the same" : "DIFFERENT");
             fflush(stdout);
@@ -1054,19 +1223,19 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     }
     if (!ok) goto done;
 
-    if (!lem_open_pair(dir, "lem_grid", &csv, &md)) {
+    if (!lem_open_pair(dir, sweep ? "lem_grid" : "lem_grid_calib", &csv, &md)) {
         ok = 0;
         goto done;
     }
     fprintf(csv, "caster,per_side,scene_cells,lens_cells,t_subpx,width,height,greedy_rays,greedy_tests,greedy_ms,"
                  "greedy_same_bytes,lem_rays,lem_tests,vertex_rays,vertex_tests,traced_rays,traced_tests,vertices,"
                  "same_mesh,ray_reduction,test_reduction\n");
-    for (k = -1; k < LG_DENSITIES; ++k) {
+    for (k = -1; k < n; ++k) {
         const lg_row *r = k < 0 ? &bvh_row : &rows[k];
         for (i = 0; i < 2; ++i) {
             const lg_lem *e = &r->lem[i];
             fprintf(csv, "%s,%g,%dx%dx%d,%dx%dx%d,%.0f,%d,%d,%lld,%lld,%.1f,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%d,%.3f,%.3f\n",
-                    k < 0 ? "bvh" : "grid", k < 0 ? 0.0 : (double)lg_per_side[k], r->cells[0][0], r->cells[0][1],
+                    k < 0 ? "bvh" : k == fitted ? "grid-calibrated" : "grid", k < 0 ? 0.0 : (double)per_side[k], r->cells[0][0], r->cells[0][1],
                     r->cells[0][2], r->cells[1][0], r->cells[1][1], r->cells[1][2], ts[i], w, h, r->rt_rays, r->rt_tests,
                     r->rt_ms, r->rt_same, e->rays, e->tests, k < 0 ? 0 : e->vertex_rays, e->vertex_tests,
                     k < 0 ? 0 : e->traced_rays, e->traced_tests, e->vertices, e->matches,
@@ -1075,7 +1244,7 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     }
     /* the table at PBRT's density beside refl_bvh and the paper */
     {
-        const lg_row *g = &rows[LG_DEFAULT], *b = &bvh_row;
+        const lg_row *g = &rows[pbrt], *b = &bvh_row;
         fprintf(md, "`hybrid`, %dx%d 3x3 subsampled (t in subpixels), depth %d, default layers. refl_bvh: the "
                     "section 6 table's own counts; grid: greedy RAYTRACE through a uniform grid of the whole scene, "
                     "LAYERED_EM's vertices through a grid of the lens objects alone and its traced lens pixels "
@@ -1125,12 +1294,12 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
                 "| per_side | scene cells | lens cells | greedy RT tests a ray | LAYERED_EM vertex tests a ray (t = 3) "
                 "| LAYERED_EM tests a ray (t = 3) | test reduction t = 3 (paper ×14.2) | t = 5 (paper ×25.7) "
                 "| greedy RT ms | checks |\n|---|---|---|---|---|---|---|---|---|---|\n");
-    for (k = 0; k < LG_DENSITIES; ++k) {
+    for (k = 0; k < n; ++k) {
         const lg_row *r = &rows[k];
         double t3 = lem_ratio((double)r->rt_tests, (double)r->lem[0].tests);
         double t5 = lem_ratio((double)r->rt_tests, (double)r->lem[1].tests);
         fprintf(md, "| %g%s | %dx%dx%d | %dx%dx%d | %.1f | %.1f | %.1f | ×%.2f (%s) | ×%.2f (%s) | %.0f | %s |\n",
-                lg_per_side[k], k == LG_DEFAULT ? " (PBRT)" : "", r->cells[0][0], r->cells[0][1], r->cells[0][2],
+                per_side[k], k == pbrt ? " (PBRT)" : k == fitted ? " (calibrated)" : "", r->cells[0][0], r->cells[0][1], r->cells[0][2],
                 r->cells[1][0], r->cells[1][1], r->cells[1][2], lem_ratio((double)r->rt_tests, (double)r->rt_rays),
                 lem_ratio((double)r->lem[0].vertex_tests, (double)r->lem[0].vertex_rays),
                 lem_ratio((double)r->lem[0].tests, (double)r->lem[0].rays), t3, lg_within(t3, paper_tests[0]), t5,
@@ -1147,12 +1316,13 @@ int refl_bench_lem_grid(const char *dir, int threads, int quick) {
     fclose(md);
     md = NULL;
     fputs("\n", stdout);
-    lem_echo(dir, "lem_grid");
+    lem_echo(dir, sweep ? "lem_grid" : "lem_grid_calib");
+    ok = lg_write_calibrated(dir, w, h, &fit, &bvh_row, &rows[pbrt], &rows[fitted], &full_bvh, &full_fit);
 done:
     if (csv) fclose(csv);
     if (md) fclose(md);
     refl_renderer_destroy(rr);
-    for (k = 0; k < LG_DENSITIES; ++k) {
+    for (k = 0; k < n; ++k) {
         refl_grid_destroy(grid[k][0]);
         refl_grid_destroy(grid[k][1]);
     }
