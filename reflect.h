@@ -1548,6 +1548,9 @@ typedef struct refl_raytrace_options {
                                 larger Fresnel coefficient (ties: reflection). 0: the full ray
                                 tree, both children everywhere. Mirrors have one child either
                                 way, so mirror-only scenes render the same bytes */
+    int unpruned;            /* every branch of the ray tree to desc.depth, as paper 001 counts
+                                its full tree's ray queries. 0: a branch whose weight falls
+                                below 1/1024 stops, which cannot move an 8-bit pixel */
 } refl_raytrace_options;
 
 /* ---- paper 001's greedy ray paths through a lens system ----------------------- */
@@ -29861,7 +29864,8 @@ REFL_API refl_result refl_mesh_plane(float size, int divisions, const refl_alloc
    reflection geometry differs. A pixel depends on nothing but its own
    rays, so any thread count gives the same bytes. */
 
-/* A branch whose weight falls below this cannot move an 8-bit pixel. */
+/* A branch whose weight falls below this cannot move an 8-bit pixel;
+   desc.raytrace.unpruned keeps every branch of nonzero weight. */
 #define REFL__RT_MIN_WEIGHT (1.0f / 1024.0f)
 
 typedef struct refl__rt_surface {
@@ -30094,7 +30098,7 @@ static refl_vec3 refl__rt_mirror(const refl__rt_surface *s, refl_vec3 d) {
 static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_vec3 d, int depth, float weight,
                            refl__rt_medium medium, long long *rays, float rgb[3], refl_vec3 *first_point) {
     const refl_material *m = s->material;
-    float cos_i, r, sub[3];
+    float cos_i, r, sub[3], min_weight;
     int c, entering;
     refl_vec3 n = s->ns, ng = s->ng;
     if (m->type == REFL_DIFFUSE) {
@@ -30118,12 +30122,13 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         for (c = 0; c < 3; ++c) rgb[c] *= k;
     }
     if (depth <= 0) return; /* what DIRECT shows: the diffuse share, or black */
+    min_weight = rt->p->desc.raytrace.unpruned ? FLT_MIN : REFL__RT_MIN_WEIGHT;
     if (m->type != REFL_GLASS) {
         refl_vec3 rd = refl__rt_mirror(s, d);
         float t = INFINITY;
         medium.greedy = rt->p->desc.raytrace.greedy; /* glass met past a mirror goes greedy */
         r = refl_material_reflectance(m, cos_i);
-        if (r * weight >= REFL__RT_MIN_WEIGHT || first_point) {
+        if (r * weight >= min_weight || first_point) {
             refl__rt_spawn(rt, s, rd, depth - 1, weight * r, medium, rays, sub, first_point, &t);
             r *= refl_material_fade(m, t); /* paper 003 V-D: by the reflected ray's length */
             for (c = 0; c < 3; ++c) rgb[c] += r * sub[c];
@@ -30147,13 +30152,13 @@ static void refl__rt_shade(const refl__rt *rt, const refl__rt_surface *s, refl_v
         for (c = 0; c < 3; ++c) tint[c] = m->tint[0] + m->tint[1] + m->tint[2] > 0.0f ? m->tint[c] : 1.0f;
         medium.greedy = rt->p->desc.raytrace.greedy; /* both children of this interface go greedy */
         if (!scattered && greedy_reflect &&
-            (f * weight >= REFL__RT_MIN_WEIGHT || (first_point && !point_on_refraction))) {
+            (f * weight >= min_weight || (first_point && !point_on_refraction))) {
             refl__rt_spawn(rt, s, refl_v3_reflect(d, n), depth - 1, weight * f, medium, rays, sub,
                            point_on_refraction ? NULL : first_point, NULL);
             for (c = 0; c < 3; ++c) rgb[c] += f * sub[c];
         }
         if (refracts && greedy_refract &&
-            ((1.0f - f) * weight >= REFL__RT_MIN_WEIGHT || (first_point && point_on_refraction))) {
+            ((1.0f - f) * weight >= min_weight || (first_point && point_on_refraction))) {
             /* entering: tinted once, then absorbed along the inside */
             through = medium;
             through.attenuation = entering ? REFL__MAX(m->attenuation, 0.0f) : 0.0f;

@@ -184,6 +184,7 @@ ok "--error-px at the bound the help gives" "$bin" render --builtin default --me
 exits2 "--size past int" "expected WxH" "$bin" render --builtin default --size 4294967297x2
 ok "--sbc-paper renders" "$bin" render --builtin default --method sbc --sbc-paper --size 32x24 --out "$tmp/sp.png"
 ok "--greedy renders" "$bin" render --builtin glass --method raytrace --greedy --size 32x24 --out "$tmp/gr.png"
+ok "--unpruned renders" "$bin" render --builtin glass --method raytrace --unpruned --depth 8 --size 32x24 --out "$tmp/un.png"
 ok "layered-em renders" "$bin" render --builtin glass --method layered-em --size 32x24 --out "$tmp/le.png"
 ok "layered-em --prebuild renders from every sample's map" bash -c \
     "'$bin' render --builtin glass --method layered-em --lem-samples 4 --prebuild --stats --size 32x24 --out '$tmp/lp.png' | grep -q 'maps         0 inferred, 4 kept, 8 held'"

@@ -88,6 +88,8 @@ static const char *const usage_render =
     "                     and those whose point the ray map's samples contradict\n"
     "  --greedy           RAYTRACE: paper 001's two greedy ray paths through glass\n"
     "                     instead of the full ray tree\n"
+    "  --unpruned         RAYTRACE: every branch of the ray tree to --depth (default:\n"
+    "                     a branch under 1/1024 of the pixel's weight stops)\n"
     "  --lem-samples N    LAYERED_EM: viewpoint samples on the circle around each lens,\n"
     "                     1..3600 (default 45)\n"
     "  --lem-layers N     LAYERED_EM: environment layers per lens, 1..4 (default 1)\n"
@@ -198,7 +200,7 @@ typedef struct options {
     int width, height, threads, tess, stats, depth, shadows, envmap_size, no_culling, soft_samples;
     int light_volumes, caustic_samples, max_renderings, spp;
     float translucency;
-    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, prebuild, lem_samples, lem_layers;
+    int leaf_points, max_splat, ray_factor, trace_fallback, sbc_paper, greedy, unpruned, prebuild, lem_samples, lem_layers;
     float lem_edge;
     int lem_shell;                /* --lem-shell */
     int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
@@ -275,7 +277,7 @@ static const char *const value_options[] = {
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
-                                           "--greedy", "--prebuild", NULL};
+                                           "--greedy", "--unpruned", "--prebuild", NULL};
 
 static int listed(const char *const *names, const char *a) {
     for (; *names; ++names)
@@ -503,6 +505,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--greedy")) {
             o->greedy = 1;
+        } else if (!strcmp(a, "--unpruned")) {
+            o->unpruned = 1;
             continue;
         } else if (!strcmp(a, "--prebuild")) {
             o->prebuild = 1;
@@ -829,6 +833,7 @@ static int cmd_render(const options *o) {
         d.graphcam.camera = maze_cam;
     }
     d.raytrace.greedy = o->greedy;
+    d.raytrace.unpruned = o->unpruned;
     d.layered_em.samples = o->lem_samples;
     d.layered_em.layers = o->lem_layers;
     d.layered_em.edge_px = o->lem_edge;

@@ -1546,6 +1546,9 @@ typedef struct refl_raytrace_options {
                                 larger Fresnel coefficient (ties: reflection). 0: the full ray
                                 tree, both children everywhere. Mirrors have one child either
                                 way, so mirror-only scenes render the same bytes */
+    int unpruned;            /* every branch of the ray tree to desc.depth, as paper 001 counts
+                                its full tree's ray queries. 0: a branch whose weight falls
+                                below 1/1024 stops, which cannot move an 8-bit pixel */
 } refl_raytrace_options;
 
 /* ---- paper 001's greedy ray paths through a lens system ----------------------- */

@@ -429,6 +429,37 @@ Test(refl_raytrace, same_bytes_for_every_thread_count) {
     }
 }
 
+/* The pruned tree stops a branch under 1/1024 of its pixel's weight, which
+   cannot move an 8-bit pixel: every branch kept (raytrace.unpruned, as
+   paper 001 counts its full tree) casts more rays, and the frame moves by at
+   most one level anywhere. */
+Test(refl_raytrace, pruned_branches_move_no_pixel_by_more_than_one_level) {
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("glass", &v, 64, 48);
+    refl_render_desc d;
+    refl_frame *pruned, *all;
+    size_t i, n = (size_t)v.width * (size_t)v.height;
+    int moved = 0;
+    memset(&d, 0, sizeof d);
+    d.method = REFL_RAYTRACE;
+    d.depth = 10;
+    pruned = tu_refl_render(s, &v, &d);
+    d.raytrace.unpruned = 1;
+    all = tu_refl_render(s, &v, &d);
+    cr_assert_gt(all->stats.rays, pruned->stats.rays + pruned->stats.rays / 2, "%lld against %lld rays",
+                 all->stats.rays, pruned->stats.rays);
+    for (i = 0; i < 4 * n; ++i) {
+        int a = tu_unorm8(pruned->rgba[i]), b = tu_unorm8(all->rgba[i]);
+        cr_assert_leq(abs(a - b), 1, "channel %zu: %d against %d", i, a, b);
+        moved += a != b;
+    }
+    cr_log_info("unpruned: %lld rays against %lld, %d channels moved by one level", all->stats.rays,
+                pruned->stats.rays, moved);
+    refl_frame_destroy(pruned);
+    refl_frame_destroy(all);
+    refl_scene_destroy(s);
+}
+
 /* A caller's ray caster (here the BVH again, behind the interface) gives
    the same bytes; one without an occlusion query still casts shadows. */
 static int cast_intersect(void *user, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *hit) {
