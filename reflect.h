@@ -14405,16 +14405,6 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
         if (!cov) return REFL_ERROR_OUT_OF_MEMORY;
         for (e = 0; e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
     }
-    if (!how->viewpoint) /* from the lens's centre towards every texel's point on the shell */
-        for (face = 0; face < 6 && r == REFL_OK; ++face)
-            for (y = 0; y < n && r == REFL_OK; ++y)
-                for (x = 0; x < n && r == REFL_OK; ++x) {
-                    refl_vec3 p;
-                    if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
-                    r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov, how->distance ? &near : NULL,
-                                             lay->centre, refl_v3_normalize(refl_v3_sub(p, lay->centre)), sys, rays,
-                                             added);
-                }
     for (s = 0; how->viewpoint && s < how->per && r == REFL_OK; ++s) {
         /* from the sample's views, the lens left out: each pixel's ray
            from its point nearest the lens's centre on */
@@ -14432,6 +14422,28 @@ static refl_result refl__lem_direct_rows(const refl_scene *scene, const refl_ray
                                          refl_v3_add(o, refl_v3_scale(d, t)), d, sys, rays, added);
             }
     }
+    if (how->viewpoint && r == REFL_OK) {
+        /* the viewpoint's rays reach only what lies past the lens from the
+           views: the texels its reflected exit rays alone look up (the sky
+           above a mirror cup's rim) would be solved to 0, or to what CGLS
+           carries over from a neighbour's faint row, and drawn black; the
+           centre's rows below, weighed by the coverage, hold what the
+           lens images and the viewpoint's rows leave unheld */
+        if (!cov) cov = (float *)refl__calloc(a, (size_t)sys->texels, sizeof(float));
+        if (!cov) r = REFL_ERROR_OUT_OF_MEMORY;
+        else memset(cov, 0, (size_t)sys->texels * sizeof(float));
+        for (e = 0; r == REFL_OK && e < sys->entries; ++e) cov[sys->col[e]] += sys->w[e];
+    }
+    /* from the lens's centre towards every texel's point on the shell */
+    for (face = 0; face < 6 && r == REFL_OK; ++face)
+        for (y = 0; y < n && r == REFL_OK; ++y)
+            for (x = 0; x < n && r == REFL_OK; ++x) {
+                refl_vec3 p;
+                if (!refl__lem_shell_point(shell, refl__lem_texel_direction(face, x, y, n), &p)) continue;
+                r = refl__lem_direct_row(scene, caster, lay, shell, layer, cov,
+                                         how->distance && !how->viewpoint ? &near : NULL, lay->centre,
+                                         refl_v3_normalize(refl_v3_sub(p, lay->centre)), sys, rays, added);
+            }
     refl__free(a, cov);
     refl_kdtree_destroy(near.tree);
     return r;
