@@ -20,7 +20,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-grid] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-share|lem-grid] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -51,7 +51,8 @@ static const char *const usage_bench =
     "subsampled, t = 3 and 5, against greedy RAYTRACE; DIR/lem_table.{csv,md}),\n"
     "and with --only lem-sweeps LAYERED_EM's stability sweeps at 160x120\n"
     "(DIR/lem_sweeps.{csv,md,png}), with --only lem-options its options beyond\n"
-    "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-grid\n"
+    "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-share\n"
+    "the lenses' shared outer layer against their own (DIR/lem_share.md), with --only lem-grid\n"
     "the table's rays and triangle tests with a uniform grid as the ray caster\n"
     "beside our BVH, per grid resolution (DIR/lem_grid.{csv,md}).\n"
     "RAYTRACE through Embree is a row in every table.\n"
@@ -64,7 +65,8 @@ static const char *const usage_bench =
     "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
     "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
     "                (lem), its stability sweeps (lem-sweeps), its options\n"
-    "                (lem-options) or its triangle tests through uniform\n"
+    "                (lem-options), its shared outer layer (lem-share) or\n"
+    "                its triangle tests through uniform\n"
     "                grids (lem-grid)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
@@ -548,6 +550,10 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the LAYERED_EM options failed\n");
         return 0;
     }
+    if (!strcmp(o->only, "lem-share") && !refl_bench_lem_share(o->out, o->threads)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM shared layer failed\n");
+        return 0;
+    }
     if (!strcmp(o->only, "lem-sweeps") && !refl_bench_lem_sweeps(o->out, o->threads)) {
         fprintf(stderr, "reflect bench: the LAYERED_EM sweeps failed\n");
         return 0;
@@ -582,9 +588,9 @@ int refl_cli_bench(int argc, char **argv) {
         } else if (!strcmp(a, "--only") && v) {
             if (strcmp(v, "c3rc") && strcmp(v, "sbc") && strcmp(v, "path") && strcmp(v, "graphcam") &&
                 strcmp(v, "spoc") && strcmp(v, "spoc-sweeps") && strcmp(v, "lem") && strcmp(v, "lem-sweeps") &&
-                strcmp(v, "lem-options") && strcmp(v, "lem-grid")) {
+                strcmp(v, "lem-options") && strcmp(v, "lem-share") && strcmp(v, "lem-grid")) {
                 fprintf(stderr, "reflect bench: --only takes c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, "
-                                "lem-sweeps, lem-options or lem-grid, not '%s'\n", v);
+                                "lem-sweeps, lem-options, lem-share or lem-grid, not '%s'\n", v);
                 return 2;
             }
             snprintf(o.only, sizeof o.only, "%s", v);
