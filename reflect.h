@@ -1863,8 +1863,8 @@ typedef struct refl_layered_em_options {
                                 (REFL_LEM_CONTINUE_DEFAULT) */
     int share_outer_layer;   /* paper 001 section 4.3: the lenses of a pass share their outermost
                                 layer, one map per viewpoint sample solved from every lens's rows
-                                at once on one sphere around the lenses' joint bounds, the samples
-                                on one circle around them. Not with lens_layers on (a lens would
+                                at once on one shell around the lenses' joint bounds (fitted as a
+                                lens's outermost is), the samples on one circle around them. Not with lens_layers on (a lens would
                                 lie inside the shell it is a layer of) nor the DISTANCE direct
                                 confidence. 1: on, -1: off, 0: the default
                                 (REFL_LEM_SHARE_DEFAULT); one lens: no effect */
@@ -18999,7 +18999,7 @@ static void refl__lem_direct_how(const refl__pass *p, int i, const refl_view *vi
    size is the largest the lenses ask for, known once every lens is
    recorded; and how the last lens recorded takes its direct images. */
 typedef struct refl__lem_joint {
-    refl_lem_shell shell;        /* the shared sphere; face_size the largest asked so far */
+    refl_lem_shell shell;        /* the shared shell; face_size the largest asked so far */
     float *rows;                 /* 8 per row: the index (3), the target (4), its confidence */
     long long count, cap;
     refl__lem_direct direct;     /* the last lens's (refl__lem_infer sets it) */

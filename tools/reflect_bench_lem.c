@@ -74,6 +74,16 @@ static lem_error lem_measure(const refl_frame *f, const refl_frame *truth) {
     return e;
 }
 
+/* dir/name opened for writing, or NULL (said on stderr). */
+static FILE *lem_open(const char *dir, const char *name) {
+    char path[1024];
+    FILE *f;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    f = fopen(path, "w");
+    if (!f) fprintf(stderr, "reflect bench: cannot write %s\n", path);
+    return f;
+}
+
 static int lem_object(const refl_scene *s, const char *name) {
     int i;
     for (i = 0; i < s->object_count; ++i)
@@ -738,15 +748,9 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
         {"direct material, distance", 0, 0, REFL_LEM_DIRECT_FROM_MATERIAL, REFL_LEM_DIRECT_DISTANCE},
     };
     const int nopts = (int)(sizeof opts / sizeof opts[0]);
-    char path[1024];
-    FILE *md;
+    FILE *md = lem_open(dir, "lem_options.md");
     int sc, sz, k, ok = 1;
-    snprintf(path, sizeof path, "%s/lem_options.md", dir);
-    md = fopen(path, "w");
-    if (!md) {
-        fprintf(stderr, "reflect bench: cannot write %s\n", path);
-        return 0;
-    }
+    if (!md) return 0;
     fprintf(md, "| scene | size | setting | PSNR lenses (dB) | PSNR where defaults trace (dB) | traced px | direct rows "
                 "| frame ms | of it, maps ms |\n|---|---|---|---|---|---|---|---|---|\n");
     printf("%-7s %-8s %-28s %7s %7s %6s %7s %8s %8s\n", "scene", "size", "setting", "lenses", "traced", "px", "direct",
@@ -840,15 +844,9 @@ int refl_bench_lem_share(const char *dir, int threads) {
     static const int layers[3] = {1, 2, 3};
     static const int shells[2] = {REFL_LEM_SHELL_AUTO, REFL_LEM_SHELL_SPHERE};
     const int w = 160, h = 120;
-    char path[1024];
-    FILE *md;
+    FILE *md = lem_open(dir, "lem_share.md");
     int sc, ly, sh, share, ok = 1;
-    snprintf(path, sizeof path, "%s/lem_share.md", dir);
-    md = fopen(path, "w");
-    if (!md) {
-        fprintf(stderr, "reflect bench: cannot write %s\n", path);
-        return 0;
-    }
+    if (!md) return 0;
     fprintf(md, "| scene | layers | shell | shared | map bytes | maps | PSNR lenses (dB) | per lens (dB) | maps ms |\n"
                 "|---|---|---|---|---|---|---|---|---|\n");
     printf("%-7s %6s %-6s %6s %10s %4s %7s  %s\n", "scene", "layers", "shell", "shared", "map bytes", "maps", "lenses",

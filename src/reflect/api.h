@@ -1861,8 +1861,8 @@ typedef struct refl_layered_em_options {
                                 (REFL_LEM_CONTINUE_DEFAULT) */
     int share_outer_layer;   /* paper 001 section 4.3: the lenses of a pass share their outermost
                                 layer, one map per viewpoint sample solved from every lens's rows
-                                at once on one sphere around the lenses' joint bounds, the samples
-                                on one circle around them. Not with lens_layers on (a lens would
+                                at once on one shell around the lenses' joint bounds (fitted as a
+                                lens's outermost is), the samples on one circle around them. Not with lens_layers on (a lens would
                                 lie inside the shell it is a layer of) nor the DISTANCE direct
                                 confidence. 1: on, -1: off, 0: the default
                                 (REFL_LEM_SHARE_DEFAULT); one lens: no effect */

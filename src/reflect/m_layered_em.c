@@ -560,7 +560,7 @@ static void refl__lem_direct_how(const refl__pass *p, int i, const refl_view *vi
    size is the largest the lenses ask for, known once every lens is
    recorded; and how the last lens recorded takes its direct images. */
 typedef struct refl__lem_joint {
-    refl_lem_shell shell;        /* the shared sphere; face_size the largest asked so far */
+    refl_lem_shell shell;        /* the shared shell; face_size the largest asked so far */
     float *rows;                 /* 8 per row: the index (3), the target (4), its confidence */
     long long count, cap;
     refl__lem_direct direct;     /* the last lens's (refl__lem_infer sets it) */

@@ -20,33 +20,16 @@
 
 static const float DEG = 3.14159265f / 180.0f;
 
-enum { TEX_W = 64, TEX_H = 32 };
-
-/* Colour rings and stripes on a diagonal ramp: every texel different. */
-static int add_rings(refl_scene *s, float *tex) {
-    int x, y;
-    for (y = 0; y < TEX_H; ++y)
-        for (x = 0; x < TEX_W; ++x) {
-            float *p = tex + 4 * (y * TEX_W + x), r = sqrtf((float)((x - 20) * (x - 20) + (y - 12) * (y - 12)));
-            p[0] = 0.5f + 0.4f * sinf(2.0f * r);
-            p[1] = 0.15f + 0.7f * (float)(x + y) / (TEX_W + TEX_H);
-            p[2] = 0.5f + 0.4f * cosf(2.0f * (float)x);
-            p[3] = 1.0f;
-        }
-    return refl_scene_add_texture(s, TEX_W, TEX_H, tex);
-}
-
 /* A ringed sphere of radius 6 (object 0) around a glass sphere (object
    1) at x = -1.3 and a mirror sphere (object 2) at x = 1.3, radius 1
    each. Ambient light alone. */
 static refl_scene *two_lens_scene(void) {
-    static float tex[TEX_W * TEX_H * 4];
     refl_scene *s = NULL;
     refl_mesh *shell = NULL, *lens[2] = {NULL, NULL};
     refl_material paper = refl_material_diffuse(1, 1, 1), glass = refl_material_glass(1.5f);
     refl_material mirror = refl_material_mirror(0.9f);
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
-    paper.texture = add_rings(s, tex);
+    paper.texture = tu_refl_add_rings(s);
     cr_assert_gt(paper.texture, 0);
     cr_assert_eq(refl_mesh_sphere(6.0f, 96, 48, NULL, &shell), REFL_OK);
     cr_assert_eq(refl_mesh_sphere(1.0f, 48, 24, NULL, &lens[0]), REFL_OK);
@@ -236,5 +219,31 @@ Test(refl_gl_frame, layered_em_shared_layer_matches_cpu, .timeout = 120) {
     free(rgb);
     refl_frame_destroy(gl);
     refl_frame_destroy(cpu);
+    refl_scene_destroy(s);
+}
+
+/* A renderer keeps the shared sample (every lens's map and the shared
+   one): its second frame infers nothing and is the first's bytes, and
+   the frame is the same for any thread count. */
+Test(lem_share, kept_and_any_threads_same_bytes) {
+    refl_scene *s = two_lens_scene();
+    refl_view v = eye_between_samples(48, 36);
+    refl_render_desc d = lem_desc(1);
+    refl_renderer *rr = NULL;
+    refl_frame *f[3];
+    int k;
+    cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
+    for (k = 0; k < 2; ++k) {
+        cr_assert_eq(refl_frame_create(48, 36, NULL, &f[k]), REFL_OK);
+        cr_assert_eq(refl_renderer_render(rr, &v, f[k]), REFL_OK);
+    }
+    cr_assert_eq(f[0]->stats.layered_em.maps_inferred, 6);
+    cr_assert_eq(f[1]->stats.layered_em.maps_inferred, 0);
+    cr_assert_eq(tu_refl_digest(f[0]), tu_refl_digest(f[1]));
+    d.threads = 3;
+    f[2] = tu_refl_render(s, &v, &d);
+    cr_assert_eq(tu_refl_digest(f[0]), tu_refl_digest(f[2]));
+    for (k = 0; k < 3; ++k) refl_frame_destroy(f[k]);
+    refl_renderer_destroy(rr);
     refl_scene_destroy(s);
 }
