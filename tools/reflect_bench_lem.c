@@ -141,6 +141,18 @@ static refl_render_desc lem_desc(int threads, int spp) {
     return d;
 }
 
+/* The scene's camera at w x h into *v, and greedy RAYTRACE of it (the
+   truth) into truth; 0 on failure. */
+static int lem_camera_truth(const refl_scene *s, int w, int h, int threads, refl_view *v, refl_frame *truth) {
+    refl_render_desc d = lem_desc(threads, 1);
+    *v = s->camera;
+    v->width = w;
+    v->height = h;
+    d.method = REFL_RAYTRACE;
+    d.raytrace.greedy = 1;
+    return refl_render(s, v, &d, truth) == REFL_OK;
+}
+
 /* ---- section 6's table ------------------------------------------------------------------ */
 
 typedef struct lem_col {
@@ -767,13 +779,8 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
             ok = s && mask && refl_frame_create(w, h, NULL, &truth) == REFL_OK &&
                  refl_frame_create(w, h, NULL, &full) == REFL_OK && refl_frame_create(w, h, NULL, &f) == REFL_OK;
             if (ok) {
-                v = s->camera;
-                v.width = w;
-                v.height = h;
+                ok = lem_camera_truth(s, w, h, threads, &v, truth);
                 d.method = REFL_RAYTRACE;
-                d.raytrace.greedy = 1;
-                ok = refl_render(s, &v, &d, truth) == REFL_OK;
-                d.raytrace.greedy = 0;
                 ok = ok && refl_render(s, &v, &d, full) == REFL_OK;
             }
             for (k = 0; k < nopts && ok; ++k) {
@@ -854,17 +861,10 @@ int refl_bench_lem_share(const char *dir, int threads) {
     for (sc = 0; sc < 2 && ok; ++sc) {
         refl_scene *s = refl_bench_builtin(scenes[sc], 0);
         refl_frame *truth = NULL, *f = NULL;
-        refl_render_desc d = lem_desc(threads, 1);
+        refl_render_desc d;
         refl_view v;
-        ok = s && refl_frame_create(w, h, NULL, &truth) == REFL_OK && refl_frame_create(w, h, NULL, &f) == REFL_OK;
-        if (ok) {
-            v = s->camera;
-            v.width = w;
-            v.height = h;
-            d.method = REFL_RAYTRACE;
-            d.raytrace.greedy = 1;
-            ok = refl_render(s, &v, &d, truth) == REFL_OK;
-        }
+        ok = s && refl_frame_create(w, h, NULL, &truth) == REFL_OK && refl_frame_create(w, h, NULL, &f) == REFL_OK &&
+             lem_camera_truth(s, w, h, threads, &v, truth);
         for (ly = 0; ly < 3 && ok; ++ly)
             for (sh = 0; sh < 2 && ok; ++sh)
                 for (share = 0; share < 2 && ok; ++share) {
