@@ -201,6 +201,9 @@ ok "--lem-lens-layers 0 renders" "$bin" render --builtin hybrid --method layered
 refuses "--lem-lens-layers out of range" "lem-lens-layers" "$bin" render --builtin glass --lem-lens-layers 2 --out "$tmp/x.png"
 ok "--lem-continue 0 renders" "$bin" render --builtin hybrid --method layered-em --lem-continue 0 --size 32x24 --out "$tmp/lc.png"
 refuses "--lem-continue out of range" "lem-continue" "$bin" render --builtin glass --lem-continue 2 --out "$tmp/x.png"
+ok "--lem-share 1 renders" "$bin" render --builtin hybrid --method layered-em --lem-share 1 --size 32x24 --out "$tmp/lsh.png"
+refuses "--lem-share out of range" "lem-share" "$bin" render --builtin glass --lem-share 2 --out "$tmp/x.png"
+refuses "--lem-share with --lem-lens-layers 1" "share_outer_layer" "$bin" render --builtin hybrid --method layered-em --lem-share 1 --lem-lens-layers 1 --out "$tmp/x.png"
 ok "--lem-frame fitted renders" "$bin" render --builtin glass --method layered-em --lem-shell cylinder --lem-frame fitted --size 32x24 --out "$tmp/lf.png"
 refuses "--lem-frame of no frame" "lem-frame" "$bin" render --builtin glass --lem-frame tilted --out "$tmp/x.png"
 exits2 "--mirror of no object" "no object or material" "$bin" render --builtin default --mirror nothing

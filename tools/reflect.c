@@ -113,6 +113,9 @@ static const char *const usage_render =
     "  --lem-continue 0|1  LAYERED_EM: a sample's eye ray meeting something before\n"
     "                     the lens continued through it, so hidden parts of the lens\n"
     "                     give records too, off or on (default on)\n"
+    "  --lem-share 0|1    LAYERED_EM: the lenses share their outermost layer, one\n"
+    "                     map per sample solved from every lens's rows, off or on\n"
+    "                     (default off)\n"
     "  --lem-edge PX      LAYERED_EM: the tessellation's t, edges split until they\n"
     "                     project under PX pixels, 0.05..1000 (default 1)\n"
     "  --prebuild         LAYERED_EM: infer every viewpoint sample's map first (with\n"
@@ -206,6 +209,7 @@ typedef struct options {
     int lem_direct;               /* --lem-direct: -1 off, 1 on, 0 unset */
     int lem_lens_layers;          /* --lem-lens-layers: -1 traced, 1 layers, 0 unset */
     int lem_continue;             /* --lem-continue: -1 off, 1 on, 0 unset */
+    int lem_share;                /* --lem-share: -1 off, 1 on, 0 unset */
     int lem_direct_from, lem_direct_conf; /* --lem-direct-from, --lem-direct-conf: 0 unset */
     int lem_frame;                /* --lem-frame */
     int frames;                   /* --frames */
@@ -273,7 +277,7 @@ static const char *const value_options[] = {
     "--threads", "--out", "--depth", "--spp", "--soft-shadows", "--caustics", "--translucency", "--light-radius",
     "--fresnel", "--fade", "--max-renderings", "--envmap-size", "--density", "--leaf-points", "--camera-split",
     "--error-px", "--ray-factor", "--max-splat", "--exposure", "--tonemap", "--mirror", "--glass", "--camera", "--time-limit",
-    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-frame", "--lem-direct", "--lem-lens-layers", "--lem-continue", "--lem-direct-from", "--lem-direct-conf", "--frames",
+    "--graphcam-size", "--graphcam-alg", "--graphcam-step", "--spoc-size", "--spoc-layers", "--spoc-glass", "--spoc-strength", "--spoc-step", "--lem-samples", "--lem-layers", "--lem-edge", "--lem-shell", "--lem-frame", "--lem-direct", "--lem-lens-layers", "--lem-continue", "--lem-share", "--lem-direct-from", "--lem-direct-conf", "--frames",
     "--error-budget", "--auto-models", NULL};
 static const char *const flag_options[] = {"--help", "-h", "--stats", "--shadows", "--no-culling",
                                            "--light-volumes", "--trace-fallback", "--gl", "--sbc-paper",
@@ -420,6 +424,8 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             if (!parse_on_off(v, &o->lem_lens_layers)) return fail("--lem-lens-layers: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-continue")) {
             if (!parse_on_off(v, &o->lem_continue)) return fail("--lem-continue: expected 0 or 1, got %s", v);
+        } else if (!strcmp(a, "--lem-share")) {
+            if (!parse_on_off(v, &o->lem_share)) return fail("--lem-share: expected 0 or 1, got %s", v);
         } else if (!strcmp(a, "--lem-frame")) {
             if (!parse_choice("reflect", a, v, lem_frames, &o->lem_frame)) return 2;
         } else if (!strcmp(a, "--lem-shell")) {
@@ -841,6 +847,7 @@ static int cmd_render(const options *o) {
     d.layered_em.direct_images = o->lem_direct;
     d.layered_em.lens_layers = o->lem_lens_layers;
     d.layered_em.continue_incoming = o->lem_continue;
+    d.layered_em.share_outer_layer = o->lem_share;
     d.layered_em.direct_from = o->lem_direct_from;
     d.layered_em.direct_confidence = o->lem_direct_conf;
     d.layered_em.shell_frame = o->lem_frame;

@@ -21,7 +21,7 @@
 #include <unistd.h>
 
 static const char *const usage_bench =
-    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-grid|lem-grid-calib] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
+    "usage: reflect bench [--full] [--only c3rc|sbc|path|graphcam|spoc|spoc-sweeps|lem|lem-sweeps|lem-options|lem-share|lem-grid|lem-grid-calib] [--out DIR] [--repeats N] [--threads N] [--depth N]\n"
     "       reflect bench --report DIR [--quick] [--repeats N] [--threads N]\n"
     "\n"
     "Renders every method on the built-in scenes over their parameter settings\n"
@@ -52,7 +52,8 @@ static const char *const usage_bench =
     "subsampled, t = 3 and 5, against greedy RAYTRACE; DIR/lem_table.{csv,md}),\n"
     "and with --only lem-sweeps LAYERED_EM's stability sweeps at 160x120\n"
     "(DIR/lem_sweeps.{csv,md,png}), with --only lem-options its options beyond\n"
-    "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-grid\n"
+    "the defaults on hybrid and glass (DIR/lem_options.md), with --only lem-share\n"
+    "the lenses' shared outer layer against their own (DIR/lem_share.md), with --only lem-grid\n"
     "the table's rays and triangle tests with a uniform grid as the ray caster\n"
     "beside our BVH, per grid resolution, and with the grid's resolution\n"
     "fitted to the paper's triangle tests a ray (DIR/lem_grid.{csv,md},\n"
@@ -69,8 +70,9 @@ static const char *const usage_bench =
     "                the teapots' SPOC tables (spoc) or SPOC's stability\n"
     "                sweeps (spoc-sweeps), or LAYERED_EM's section 6 table\n"
     "                (lem), its stability sweeps (lem-sweeps), its options\n"
-    "                (lem-options) or its triangle tests through uniform\n"
-    "                grids (lem-grid; lem-grid-calib: without the sweep)\n"
+    "                (lem-options), its shared outer layer (lem-share) or\n"
+    "                its triangle tests through uniform grids (lem-grid;\n"
+    "                lem-grid-calib: without the sweep)\n"
     "  --out DIR     where to write (default out/bench)\n"
     "  --repeats N   runs per setting (median kept)\n"
     "  --threads N   worker threads (default: one per CPU)\n"
@@ -555,6 +557,10 @@ static int paper_tables(const bench_opts *o) {
         fprintf(stderr, "reflect bench: the LAYERED_EM options failed\n");
         return 0;
     }
+    if (!strcmp(o->only, "lem-share") && !refl_bench_lem_share(o->out, o->threads)) {
+        fprintf(stderr, "reflect bench: the LAYERED_EM shared layer failed\n");
+        return 0;
+    }
     if (!strcmp(o->only, "lem-sweeps") && !refl_bench_lem_sweeps(o->out, o->threads)) {
         fprintf(stderr, "reflect bench: the LAYERED_EM sweeps failed\n");
         return 0;
@@ -565,9 +571,11 @@ static int paper_tables(const bench_opts *o) {
 /* The options that take a value, and the paper tables --only runs (by
    name: paper_tables compares it). */
 static const char *const bench_value_options[] = {"--report", "--only", "--out", "--repeats", "--threads", "--depth", NULL};
-static const cli_choice only_tables[] = {{"c3rc", 0},        {"sbc", 0},         {"path", 0},       {"graphcam", 0},
-                                         {"spoc", 0},        {"spoc-sweeps", 0}, {"lem", 0},        {"lem-sweeps", 0},
-                                         {"lem-options", 0}, {"lem-grid", 0},    {"lem-grid-calib", 0}, {NULL, 0}};
+static const cli_choice only_tables[] = {
+    {"c3rc", 0}, {"sbc", 0}, {"path", 0}, {"graphcam", 0},
+    {"spoc", 0}, {"spoc-sweeps", 0}, {"lem", 0}, {"lem-sweeps", 0},
+    {"lem-options", 0}, {"lem-share", 0}, {"lem-grid", 0}, {"lem-grid-calib", 0},
+    {NULL, 0}};
 
 int refl_cli_bench(int argc, char **argv) {
     bench_opts o;

@@ -113,6 +113,13 @@ int refl_bench_lem_sweeps(const char *dir, int threads);
    trace; dir/lem_options.md; 0 on failure or a non-finite pixel. */
 int refl_bench_lem_options(const char *dir, int threads, int quick);
 
+/* LAYERED_EM's shared outer layer (share_outer_layer) against each lens's
+   own, on `hybrid` and `glass` at 160x120 over layer counts and shells:
+   the frame's map bytes and the error against greedy RAYTRACE over the
+   lens pixels, all and per lens; dir/lem_share.md; 0 on failure or a
+   non-finite pixel. */
+int refl_bench_lem_share(const char *dir, int threads);
+
 /* A monotonic clock in ms, and the median of v[0..n) (sorts v). */
 double refl_bench_now_ms(void);
 double refl_bench_median(double *v, int n);

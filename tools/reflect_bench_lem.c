@@ -74,6 +74,16 @@ static lem_error lem_measure(const refl_frame *f, const refl_frame *truth) {
     return e;
 }
 
+/* dir/name opened for writing, or NULL (said on stderr). */
+static FILE *lem_open(const char *dir, const char *name) {
+    char path[1024];
+    FILE *f;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    f = fopen(path, "w");
+    if (!f) fprintf(stderr, "reflect bench: cannot write %s\n", path);
+    return f;
+}
+
 static int lem_object(const refl_scene *s, const char *name) {
     int i;
     for (i = 0; i < s->object_count; ++i)
@@ -129,6 +139,18 @@ static refl_render_desc lem_desc(int threads, int spp) {
     d.depth = LEM_DEPTH;
     d.spp = spp;
     return d;
+}
+
+/* The scene's camera at w x h into *v, and greedy RAYTRACE of it (the
+   truth) into truth; 0 on failure. */
+static int lem_camera_truth(const refl_scene *s, int w, int h, int threads, refl_view *v, refl_frame *truth) {
+    refl_render_desc d = lem_desc(threads, 1);
+    *v = s->camera;
+    v->width = w;
+    v->height = h;
+    d.method = REFL_RAYTRACE;
+    d.raytrace.greedy = 1;
+    return refl_render(s, v, &d, truth) == REFL_OK;
 }
 
 /* ---- section 6's table ------------------------------------------------------------------ */
@@ -738,15 +760,9 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
         {"direct material, distance", 0, 0, REFL_LEM_DIRECT_FROM_MATERIAL, REFL_LEM_DIRECT_DISTANCE},
     };
     const int nopts = (int)(sizeof opts / sizeof opts[0]);
-    char path[1024];
-    FILE *md;
+    FILE *md = lem_open(dir, "lem_options.md");
     int sc, sz, k, ok = 1;
-    snprintf(path, sizeof path, "%s/lem_options.md", dir);
-    md = fopen(path, "w");
-    if (!md) {
-        fprintf(stderr, "reflect bench: cannot write %s\n", path);
-        return 0;
-    }
+    if (!md) return 0;
     fprintf(md, "| scene | size | setting | PSNR lenses (dB) | PSNR where defaults trace (dB) | traced px | direct rows "
                 "| frame ms | of it, maps ms |\n|---|---|---|---|---|---|---|---|---|\n");
     printf("%-7s %-8s %-28s %7s %7s %6s %7s %8s %8s\n", "scene", "size", "setting", "lenses", "traced", "px", "direct",
@@ -763,13 +779,8 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
             ok = s && mask && refl_frame_create(w, h, NULL, &truth) == REFL_OK &&
                  refl_frame_create(w, h, NULL, &full) == REFL_OK && refl_frame_create(w, h, NULL, &f) == REFL_OK;
             if (ok) {
-                v = s->camera;
-                v.width = w;
-                v.height = h;
+                ok = lem_camera_truth(s, w, h, threads, &v, truth);
                 d.method = REFL_RAYTRACE;
-                d.raytrace.greedy = 1;
-                ok = refl_render(s, &v, &d, truth) == REFL_OK;
-                d.raytrace.greedy = 0;
                 ok = ok && refl_render(s, &v, &d, full) == REFL_OK;
             }
             for (k = 0; k < nopts && ok; ++k) {
@@ -812,6 +823,78 @@ int refl_bench_lem_options(const char *dir, int threads, int quick) {
             refl_frame_destroy(f);
             refl_scene_destroy(s);
         }
+    fclose(md);
+    return ok;
+}
+
+/* ---- the lenses' shared outer layer (section 4.3) ---------------------------------------------- */
+
+/* PSNR of f against truth over lens object `object`'s pixels (truth's
+   stencil object + 1); every lens where object < 0. */
+static double lem_lens_psnr(const refl_frame *f, const refl_frame *truth, int object) {
+    double se = 0.0;
+    long long i, n = (long long)f->width * f->height, px = 0;
+    int c;
+    for (i = 0; i < n; ++i) {
+        if (!truth->stencil[i] || (object >= 0 && truth->stencil[i] != object + 1)) continue;
+        ++px;
+        for (c = 0; c < 3; ++c) {
+            double d = (double)lem_clamp01(f->rgba[4 * i + c]) - (double)lem_clamp01(truth->rgba[4 * i + c]);
+            se += d * d;
+        }
+    }
+    return px && se > 0.0 ? 10.0 * log10(3.0 * (double)px / se) : 99.0;
+}
+
+int refl_bench_lem_share(const char *dir, int threads) {
+    static const char *const scenes[2] = {"hybrid", "glass"};
+    static const int layers[3] = {1, 2, 3};
+    static const int shells[2] = {REFL_LEM_SHELL_AUTO, REFL_LEM_SHELL_SPHERE};
+    const int w = 160, h = 120;
+    FILE *md = lem_open(dir, "lem_share.md");
+    int sc, ly, sh, share, ok = 1;
+    if (!md) return 0;
+    fprintf(md, "| scene | layers | shell | shared | map bytes | maps | PSNR lenses (dB) | per lens (dB) | maps ms |\n"
+                "|---|---|---|---|---|---|---|---|---|\n");
+    printf("%-7s %6s %-6s %6s %10s %4s %7s  %s\n", "scene", "layers", "shell", "shared", "map bytes", "maps", "lenses",
+           "per lens");
+    for (sc = 0; sc < 2 && ok; ++sc) {
+        refl_scene *s = refl_bench_builtin(scenes[sc], 0);
+        refl_frame *truth = NULL, *f = NULL;
+        refl_render_desc d;
+        refl_view v;
+        ok = s && refl_frame_create(w, h, NULL, &truth) == REFL_OK && refl_frame_create(w, h, NULL, &f) == REFL_OK &&
+             lem_camera_truth(s, w, h, threads, &v, truth);
+        for (ly = 0; ly < 3 && ok; ++ly)
+            for (sh = 0; sh < 2 && ok; ++sh)
+                for (share = 0; share < 2 && ok; ++share) {
+                    char per[256] = "";
+                    size_t used = 0;
+                    int i;
+                    d = lem_desc(threads, 1);
+                    d.method = REFL_LAYERED_EM;
+                    d.layered_em.layers = layers[ly];
+                    d.layered_em.shell = shells[sh];
+                    d.layered_em.share_outer_layer = share ? 1 : -1;
+                    ok = refl_render(s, &v, &d, f) == REFL_OK && lem_measure(f, truth).nonfinite == 0;
+                    for (i = 0; ok && i < s->object_count; ++i)
+                        if (s->materials[s->objects[i].material].type == REFL_GLASS ||
+                            s->materials[s->objects[i].material].type == REFL_MIRROR)
+                            used += (size_t)snprintf(per + used, sizeof per - used, "%s%s %.2f", used ? ", " : "",
+                                                     s->objects[i].name, lem_lens_psnr(f, truth, i));
+                    if (!ok) break;
+                    printf("%-7s %6d %-6s %6s %10lld %4d %7.2f  %s\n", scenes[sc], layers[ly], sh ? "sphere" : "auto",
+                           share ? "yes" : "no", f->stats.model_bytes, f->stats.layered_em.maps_held,
+                           lem_lens_psnr(f, truth, -1), per);
+                    fprintf(md, "| %s | %d | %s | %s | %lld | %d | %.2f | %s | %.0f |\n", scenes[sc], layers[ly],
+                            sh ? "sphere" : "auto", share ? "yes" : "no", f->stats.model_bytes,
+                            f->stats.layered_em.maps_held, lem_lens_psnr(f, truth, -1), per, f->stats.ms_build);
+                    fflush(stdout);
+                }
+        refl_frame_destroy(truth);
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
     fclose(md);
     return ok;
 }

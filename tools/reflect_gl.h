@@ -125,6 +125,10 @@ int rgl_validate_graphcam_impostor(rgl_context *g, long long rays, rgl_validatio
    st->mirrors counts the lenses, st->traced the pixels traced. */
 int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame,
                           float *rgb, rgl_frame_stats *st, char *err, size_t err_size);
+/* The same with a LAYERED_EM desc (NULL: rgl_lem_desc's). */
+int rgl_render_layered_em_desc(rgl_context *g, const refl_scene *scene, const refl_view *view,
+                               const refl_render_desc *desc, refl_frame *frame, float *rgb, rgl_frame_stats *st,
+                               char *err, size_t err_size);
 /* The desc of the GL path's LAYERED_EM frame (its defaults: depth 6): the
    CPU frame it compares with. */
 void rgl_lem_desc(refl_render_desc *d);

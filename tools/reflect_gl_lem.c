@@ -216,6 +216,12 @@ static int rgl__lem_trace(const refl_scene *scene, const refl_view *view, const 
 
 int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_view *view, refl_frame *frame,
                           float *rgb, rgl_frame_stats *st, char *err, size_t n) {
+    return rgl_render_layered_em_desc(g, scene, view, NULL, frame, rgb, st, err, n);
+}
+
+int rgl_render_layered_em_desc(rgl_context *g, const refl_scene *scene, const refl_view *view,
+                               const refl_render_desc *desc, refl_frame *frame, float *rgb, rgl_frame_stats *st,
+                               char *err, size_t n) {
     static const char *const vs_parts[3] = {rgl__lem_vs_head, NULL, rgl__lem_vs_main};
     static const char *const fs_parts[3] = {rgl__lem_fs_head, NULL, rgl__lem_fs_main};
     const char *vs[3], *fs[3];
@@ -237,8 +243,11 @@ int rgl_render_layered_em(rgl_context *g, const refl_scene *scene, const refl_vi
         snprintf(err, n, "bad frame size");
         return -1;
     }
-    /* the CPU: the maps and the eye's tessellation */
-    rgl_lem_desc(&d);
+    /* the CPU: the maps and the eye's tessellation (a shared outer layer
+       needs nothing here: each lens's plan names the shared map's texels
+       and shell as its own outermost layer's) */
+    if (desc) d = *desc;
+    else rgl_lem_desc(&d);
     if (refl_renderer_create(scene, &d, &rr) != REFL_OK || refl_frame_create(w, h, NULL, &stats) != REFL_OK ||
         refl_renderer_lem_lenses(rr, view, stats, &lenses, &count) != REFL_OK) {
         snprintf(err, n, "LAYERED_EM's lenses failed");

@@ -1862,6 +1862,13 @@ typedef struct refl_layered_em_options {
                                 continued through it to the lens, so the lens's hidden parts
                                 give records too. 1: on, -1: off, 0: the default
                                 (REFL_LEM_CONTINUE_DEFAULT) */
+    int share_outer_layer;   /* paper 001 section 4.3: the lenses of a pass share their outermost
+                                layer, one map per viewpoint sample solved from every lens's rows
+                                at once on one shell around the lenses' joint bounds (fitted as a
+                                lens's outermost is), the samples on one circle around them. Not with lens_layers on (a lens would
+                                lie inside the shell it is a layer of) nor the DISTANCE direct
+                                confidence. 1: on, -1: off, 0: the default
+                                (REFL_LEM_SHARE_DEFAULT); one lens: no effect */
 } refl_layered_em_options;
 typedef enum refl_lem_direct_from {
     REFL_LEM_DIRECT_FROM_CENTRE = 1,    /* rays from the lens's centre towards every texel */
@@ -1883,6 +1890,8 @@ enum { REFL_LEM_LENS_LAYERS_DEFAULT = -1 }; /* traced: it measures better (docs/
 enum { REFL_LEM_CONTINUE_DEFAULT = 1 }; /* on, as in the paper: what the samples do not see of the lens
                                            gains several dB; from views near the samples frames move by
                                            -0.6 to +0.5 dB (docs/methods/layered_em.md, "Continued eye rays") */
+enum { REFL_LEM_SHARE_DEFAULT = -1 }; /* off: each lens its own layers (docs/methods/layered_em.md,
+                                         "One outer layer for every lens") */
 
 typedef struct refl_envmap_options {
     int size;                /* cube face size in pixels, at most 2048 (48 bytes a texel of

@@ -74,6 +74,17 @@ static const char *refl__options_layered_em(refl_render_desc *d) {
         return "layered_em.direct_confidence: 0 (default), COVERAGE or DISTANCE";
     if (o->keep_stale_maps < 0 || o->keep_stale_maps > 1) return "layered_em.keep_stale_maps: 0 or 1";
     if (o->kept_mib < 0 || o->kept_mib > (1 << 20)) return "layered_em.kept_mib: 0 (512) to 1048576";
+    if (o->share_outer_layer < -1 || o->share_outer_layer > 1)
+        return "layered_em.share_outer_layer: -1 (off), 0 or 1 (on)";
+    if (o->share_outer_layer > 0 || (o->share_outer_layer == 0 && REFL_LEM_SHARE_DEFAULT > 0)) {
+        /* a lens that is a layer of another lies inside the shared shell, not on it */
+        if (o->lens_layers > 0 || (o->lens_layers == 0 && REFL_LEM_LENS_LAYERS_DEFAULT > 0))
+            return "layered_em.share_outer_layer: not with lens_layers on";
+        /* its hits are each lens's and gone by the time the shared layer is solved */
+        if ((o->direct_confidence ? o->direct_confidence : REFL_LEM_DIRECT_CONFIDENCE_DEFAULT) ==
+            REFL_LEM_DIRECT_DISTANCE)
+            return "layered_em.share_outer_layer: not with direct_confidence DISTANCE";
+    }
     return NULL;
 }
 
@@ -89,6 +100,16 @@ static int refl__lem_own(const refl__pass *p, int i) {
 static int refl__lem_continued(const refl__pass *p) {
     int on = p->desc.layered_em.continue_incoming;
     return on > 0 || (on == 0 && REFL_LEM_CONTINUE_DEFAULT > 0);
+}
+
+/* Whether the pass's lenses share their outermost layer
+   (refl_layered_em_options.share_outer_layer): asked, and two lenses or
+   more to share it. */
+static int refl__lem_share(const refl__pass *p) {
+    int on = p->desc.layered_em.share_outer_layer, i, lenses = 0;
+    if (!(on > 0 || (on == 0 && REFL_LEM_SHARE_DEFAULT > 0))) return 0;
+    for (i = 0; i < p->scene->object_count && lenses < 2; ++i) lenses += refl__pass_draws(p, i);
+    return lenses > 1;
 }
 
 /* The casters of lens i's vertex paths (refl__lem_own). */
@@ -387,13 +408,32 @@ static void refl__lem_bounds(const refl_scene *scene, int i, refl_vec3 *centre, 
     *radius = 0.5f * refl_v3_length(refl_v3_sub(whi, wlo));
 }
 
+/* The box of every lens object pass p draws (refl__lem_bounds of each):
+   its centre and half diagonal, and the box (may be NULL). */
+static void refl__lem_joint_bounds(const refl__pass *p, refl_vec3 *centre, float *radius, refl_vec3 *joint_box) {
+    refl_vec3 lo = refl_v3(FLT_MAX, FLT_MAX, FLT_MAX), hi = refl_v3(-FLT_MAX, -FLT_MAX, -FLT_MAX), c, box[2];
+    float r;
+    int i;
+    for (i = 0; i < p->scene->object_count; ++i) {
+        if (!refl__pass_draws(p, i)) continue;
+        refl__lem_bounds(p->scene, i, &c, &r, box);
+        lo = refl_v3(REFL__MIN(lo.x, box[0].x), REFL__MIN(lo.y, box[0].y), REFL__MIN(lo.z, box[0].z));
+        hi = refl_v3(REFL__MAX(hi.x, box[1].x), REFL__MAX(hi.y, box[1].y), REFL__MAX(hi.z, box[1].z));
+    }
+    *centre = refl_v3_scale(refl_v3_add(lo, hi), 0.5f);
+    *radius = 0.5f * refl_v3_length(refl_v3_sub(hi, lo));
+    if (joint_box) joint_box[0] = lo, joint_box[1] = hi;
+}
+
 /* ---- the maps a renderer keeps ---------------------------------------------------- */
 
 /* One viewpoint sample's inferred maps (one per layer) and what shaped
    them: the lens object, the sample's view, the options and the bounces
    (the layers' shells come from the lens's ring). They depend on nothing
    else (the scene's version aside, which drops them all), so a frame that
-   needs them again takes them as they are. */
+   needs them again takes them as they are. With a shared outer layer
+   (refl__lem_share) a lens's outermost texels are NULL: they are those of
+   the sample's shared map, object -1, one layer. */
 typedef struct refl__lem_map {
     int object, depth;
     refl_view view;
@@ -410,6 +450,9 @@ typedef struct refl__lem_ring {
     float rho, height;
     refl__lem_layering lay;
     signed char *object_layer;   /* lay's, owned */
+    int joint;                   /* the circle is around every lens (refl__lem_share) */
+    int joint_fitted;            /* joint_shell set: the shared layer's (refl__lem_joint_shell) */
+    refl_lem_shell joint_shell;
 } refl__lem_ring;
 
 struct refl__lem_maps {
@@ -444,7 +487,8 @@ static void refl__lem_maps_free(const refl_allocator *al, struct refl__lem_maps 
 static long long refl__lem_map_bytes(const refl__lem_map *m) {
     long long b = 0;
     int l;
-    for (l = 0; l < m->layers; ++l) b += 96LL * m->shell[l].face_size * m->shell[l].face_size;
+    for (l = 0; l < m->layers; ++l)
+        if (m->texels[l]) b += 96LL * m->shell[l].face_size * m->shell[l].face_size;
     return b;
 }
 
@@ -511,13 +555,45 @@ static void refl__lem_direct_how(const refl__pass *p, int i, const refl_view *vi
     out->stride = 1;
 }
 
+/* A shared outer layer's rows as the lenses' records give them
+   (refl__lem_infer): kept as shell indices, since the shared map's face
+   size is the largest the lenses ask for, known once every lens is
+   recorded; and how the last lens recorded takes its direct images. */
+typedef struct refl__lem_joint {
+    refl_lem_shell shell;        /* the shared shell; face_size the largest asked so far */
+    float *rows;                 /* 8 per row: the index (3), the target (4), its confidence */
+    long long count, cap;
+    refl__lem_direct direct;     /* the last lens's (refl__lem_infer sets it) */
+    int direct_on;
+} refl__lem_joint;
+
+static refl_result refl__lem_joint_row(const refl_allocator *al, refl__lem_joint *jr, const float *index,
+                                       const float *target) {
+    float *row;
+    if (jr->count == jr->cap) {
+        long long cap = REFL__MAX(2 * jr->cap, 4096);
+        float *grown = (float *)refl__calloc(al, 8 * (size_t)cap, sizeof(float));
+        if (!grown) return REFL_ERROR_OUT_OF_MEMORY;
+        if (jr->count) memcpy(grown, jr->rows, 8 * (size_t)jr->count * sizeof(float));
+        refl__free(al, jr->rows);
+        jr->rows = grown;
+        jr->cap = cap;
+    }
+    row = jr->rows + 8 * (size_t)jr->count++;
+    memcpy(row, index, 3 * sizeof(float));
+    memcpy(row + 3, target, 5 * sizeof(float));
+    return REFL_OK;
+}
+
 /* Infers object i's maps for the sample whose views are views[0 .. per)
    (the sample's own first) on the layers' shells: the records and
    tessellation of each view, then per layer rows from the runtime's own
    lookups at those views (both terms), solved by CGLS. out->texels are
-   allocated. */
+   allocated. With jr (a shared outer layer), the outermost layer is
+   looked up on jr's shell and its rows go to jr, unsolved (its texels
+   NULL). */
 static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views, int per,
-                                   const refl__lem_layering *lay, refl__lem_map *out) {
+                                   const refl__lem_layering *lay, refl__lem_joint *jr, refl__lem_map *out) {
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_layered_em_options *o = &p->desc.layered_em;
@@ -590,11 +666,12 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                             : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
     out->layers = dr.layers = L;
     for (l = 0; l < L; ++l) {
-        dr.shell[l] = lay->shell[l];
+        dr.shell[l] = jr && l == L - 1 ? jr->shell : lay->shell[l];
         dr.shell[l].face_size = face;
         out->shell[l] = dr.shell[l];
-        if (r == REFL_OK) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
+        if (r == REFL_OK && !(jr && l == L - 1)) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
     }
+    if (jr) jr->shell.face_size = REFL__MAX(jr->shell.face_size, face), jr->direct_on = direct_on;
     /* rows from the runtime's own lookups at the views, per layer */
     depth = r == REFL_OK ? (float *)refl__calloc(al, np, sizeof(float)) : NULL;
     for (term = 0; term < 2 && r == REFL_OK; ++term) {
@@ -621,7 +698,8 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
                         !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
-                    r = refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
+                    r = jr && l == L - 1 ? refl__lem_joint_row(al, jr, ix, rec)
+                                         : refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
                 }
         }
     /* where the lens images leave texels unheld, the direct images */
@@ -637,7 +715,8 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         area = (long long)(rc[2] - rc[0]) * (rc[3] - rc[1]);
         direct.stride = REFL__MAX(direct.stride, (int)ceil(sqrt((double)area / (6.0 * face * face))));
     }
-    for (l = 0; l < L && r == REFL_OK && direct_on; ++l) {
+    if (jr) jr->direct = direct;
+    for (l = 0; l < L - (jr != NULL) && r == REFL_OK && direct_on; ++l) {
         int added = 0;
         float *pts = NULL;
         long long n = 0;
@@ -660,7 +739,7 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
-    for (l = 0; l < L && r == REFL_OK; ++l) {
+    for (l = 0; l < L - (jr != NULL) && r == REFL_OK; ++l) {
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) r = refl_lem_solve(sys[l], &sd, out->texels[l], NULL);
@@ -692,7 +771,7 @@ static refl_result refl__lem_map_of(refl__pass *p, const refl__gp_casters *caste
     m.depth = p->desc.depth;
     m.view = views[0];
     m.options = p->desc.layered_em;
-    r = refl__lem_infer(p, casters, i, views, per, lay, &m);
+    r = refl__lem_infer(p, casters, i, views, per, lay, NULL, &m);
     if (r == REFL_OK && (*at = refl__push(al, (void **)&maps->maps, &maps->count, sizeof m, &m)) < 0) {
         refl__lem_map_free(al, &m);
         r = REFL_ERROR_OUT_OF_MEMORY;
@@ -720,7 +799,7 @@ typedef struct refl__lem_circle {
     int ring;                    /* in the store's rings, -1: none (no memory) */
 } refl__lem_circle;
 
-static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, float lens_radius,
+static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, float lens_radius, int joint,
                                struct refl__lem_maps *rings, refl__lem_circle *out) {
     const refl_view *v = p->view;
     float dx = v->eye.x - c.x, dz = v->eye.z - c.z, rho = sqrtf(dx * dx + dz * dz);
@@ -740,7 +819,7 @@ static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, flo
           refl__isfinite(out->height)))
         return 0;
     for (k = 0; k < rings->ring_count; ++k)
-        if (rings->rings[k].object == object) {
+        if (rings->rings[k].object == object && rings->rings[k].joint == joint) {
             out->rho = rings->rings[k].rho;
             out->height = rings->rings[k].height;
             out->ring = k;
@@ -748,6 +827,7 @@ static int refl__lem_circle_of(const refl__pass *p, int object, refl_vec3 c, flo
         }
     memset(&ring, 0, sizeof ring);
     ring.object = object;
+    ring.joint = joint;
     ring.rho = out->rho;
     ring.height = out->height;
     out->ring = refl__push(&p->scene->allocator, (void **)&rings->rings, &rings->ring_count, sizeof ring, &ring);
@@ -770,6 +850,21 @@ static void refl__lem_sample_views(const refl__pass *p, const refl__lem_circle *
 
 /* Views of the circle the layers are clustered over. */
 enum { REFL__LEM_CLUSTER_VIEWS = 16 };
+
+/* View k of the n the layers are clustered over (refl__lem_cluster): the
+   sample k samples / n of circle cc (NULL: the pass's eye), a quarter of
+   its size, 16 to 64 pixels wide (the clustering needs distances, not
+   detail). */
+static refl_view refl__lem_cluster_view(const refl__pass *p, const refl__lem_circle *cc, int k, int n) {
+    refl_view v[3];
+    int w;
+    if (cc) refl__lem_sample_views(p, cc, (int)((long long)k * cc->samples / n), v);
+    else v[0] = *p->view;
+    w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
+    v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
+    v[0].width = w;
+    return v[0];
+}
 
 /* Section 4.2's layers of lens object i (centre c, half diagonal
    lens_radius) over its viewpoint samples at once: the hits of the views
@@ -798,13 +893,8 @@ static refl_result refl__lem_cluster(refl__pass *p, const refl_ray_caster *caste
     memset(&h, 0, sizeof h);
     h.al = al;
     for (k = 0; k < n && r == REFL_OK; ++k) {
-        refl_view v[3];
-        int w;
-        if (cc) refl__lem_sample_views(p, cc, (int)((long long)k * cc->samples / n), v);
-        else v[0] = *p->view;
-        w = REFL__MIN(v[0].width, REFL__CLAMP(v[0].width / 4, 16, 64));
-        v[0].height = REFL__MAX(1, (int)((long long)v[0].height * w / v[0].width));
-        v[0].width = w;
+        refl_view v[1];
+        v[0] = refl__lem_cluster_view(p, cc, k, n);
         if (!refl__lem_gather_hits(scene, caster, &v[0], i, p->desc.depth, refl__lem_own(p, i),
                                    refl__lem_continued(p) ? box : NULL, c, &h, &p->frame->stats.rays))
             r = REFL_ERROR_OUT_OF_MEMORY;
@@ -875,8 +965,15 @@ static refl_result refl__lem_store(refl__pass *p, struct refl__lem_maps *own, st
 static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i, refl_vec3 centre, float lens_radius,
                              struct refl__lem_maps *maps, refl__lem_circle *cc, refl__lem_layering *lay,
                              refl__lem_ring *spare, refl_result *r) {
-    int on = refl__lem_circle_of(p, i, centre, lens_radius, maps, cc);
-    refl__lem_ring *ring = on && cc->ring >= 0 ? &maps->rings[cc->ring] : spare;
+    refl_vec3 around = centre;
+    float around_radius = lens_radius;
+    int joint = refl__lem_share(p), on;
+    refl__lem_ring *ring;
+    /* a shared outer layer: one circle around every lens, so that a
+       sample is the same views for each */
+    if (joint) refl__lem_joint_bounds(p, &around, &around_radius, NULL);
+    on = refl__lem_circle_of(p, i, around, around_radius, joint, maps, cc);
+    ring = on && cc->ring >= 0 ? &maps->rings[cc->ring] : spare;
     *r = REFL_OK;
     /* a ring clustered with the other lenses' hits in or out (lens_layers)
        does not serve the other way */
@@ -888,16 +985,232 @@ static int refl__lem_ring_of(refl__pass *p, const refl_ray_caster *caster, int i
     return on;
 }
 
+/* ---- a shared outer layer (section 4.3) ------------------------------------------------ */
+
+/* The shared outer layer's shell, fitted as a lens's outermost is
+   (refl__lem_fit_layers: the kind and frame asked, AUTO choosing by the
+   conflicts) to the hits in each lens's outermost layer (lays[k] of
+   objs[k]) seen from the clustering's views of their shared circle cc
+   (NULL: the eye's), distances from the centre of the lenses' joint box:
+   a sphere at their mean (a ray's front-most hit in the layer counted),
+   at 10 half diagonals of the box where that lies within them; a box or
+   cylinder holds the joint box. */
+static refl_result refl__lem_joint_shell(refl__pass *p, const refl_ray_caster *caster, const int *objs,
+                                         const refl__lem_layering *lays, int n, const refl__lem_circle *cc,
+                                         refl_lem_shell *out) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int nv = cc ? REFL__MIN(cc->samples, REFL__LEM_CLUSTER_VIEWS) : 1, j, k, v, counted = -1, kept = 0;
+    int *end = (int *)refl__calloc(al, (size_t)n, sizeof(int)), *layer_of = NULL;
+    refl__lem_hits h;
+    refl__lem_layering jl;
+    refl_vec3 box[2];
+    float joint_radius;
+    double sum = 0.0;
+    refl_result r = end ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+    memset(&h, 0, sizeof h);
+    memset(&jl, 0, sizeof jl);
+    h.al = al;
+    refl__lem_joint_bounds(p, &jl.centre, &joint_radius, box);
+    for (j = 0; j < n && r == REFL_OK; ++j) {
+        for (v = 0; v < nv && r == REFL_OK; ++v) {
+            refl_view view = refl__lem_cluster_view(p, cc, v, nv);
+            if (!refl__lem_gather_hits(scene, caster, &view, objs[j], p->desc.depth, lays[j].own,
+                                       lays[j].continued ? lays[j].box : NULL, jl.centre, &h, &p->frame->stats.rays))
+                r = REFL_ERROR_OUT_OF_MEMORY;
+        }
+        end[j] = h.count;
+    }
+    layer_of = r == REFL_OK && h.count ? (int *)refl__calloc(al, (size_t)h.count, sizeof(int)) : NULL;
+    if (r == REFL_OK && h.count && !layer_of) r = REFL_ERROR_OUT_OF_MEMORY;
+    for (j = k = 0; k < h.count && r == REFL_OK; ++k) {
+        refl__lem_hit hit;
+        while (k >= end[j]) ++j;
+        /* the hit's layer at its own lens: the layers are each lens's */
+        memset(&hit, 0, sizeof hit);
+        hit.object = h.object[k];
+        hit.distance = refl_v3_length(refl_v3_sub(refl_v3(h.pos[3 * k], h.pos[3 * k + 1], h.pos[3 * k + 2]),
+                                                  lays[j].centre));
+        layer_of[k] = refl__lem_hit_layer(&lays[j], &hit) == lays[j].layers - 1 ? 0 : -1;
+        if (layer_of[k] < 0 || h.ray[k] == counted) continue;
+        counted = h.ray[k];
+        sum += h.distance[k];
+        ++kept;
+    }
+    jl.layers = 1;
+    jl.radius[0] = kept ? (float)(sum / kept) : 0.0f;
+    if (!(jl.radius[0] > joint_radius)) jl.radius[0] = 10.0f * REFL__MAX(joint_radius, 1e-4f);
+    if (r == REFL_OK && !refl__lem_fit_layers(&jl, &h, layer_of, p->desc.layered_em.shell,
+                                              p->desc.layered_em.shell_frame, box[0], box[1], joint_radius))
+        r = REFL_ERROR_OUT_OF_MEMORY;
+    *out = jl.shell[0];
+    refl__free(al, layer_of);
+    refl__free(al, end);
+    refl__lem_hits_free(&h);
+    return r;
+}
+
+/* The shared layer's map from jr's rows (every lens's) and each lens's
+   direct images (directs[k] with layering lays[k], their outermost
+   layer), solved as one system: out is the shared map (one layer). */
+static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *casters, const refl__lem_joint *jr,
+                                         const refl__lem_layering *lays, const refl__lem_direct *directs, int n,
+                                         refl__lem_map *out) {
+    const refl_allocator *al = &p->scene->allocator;
+    refl_stats *st = &p->frame->stats;
+    int texels = 6 * jr->shell.face_size * jr->shell.face_size, k;
+    long long row;
+    refl_lem_system *sys = NULL;
+    refl_lem_solve_desc sd;
+    refl_result r = refl_lem_system_create(texels, al, &sys);
+    out->layers = 1;
+    out->shell[0] = jr->shell;
+    for (row = 0; row < jr->count && r == REFL_OK; ++row) {
+        const float *q = jr->rows + 8 * (size_t)row;
+        uint32_t tex[4];
+        float wt[4];
+        if (refl_lem_shell_texels(&jr->shell, refl_v3(q[0], q[1], q[2]), tex, wt))
+            r = refl_lem_system_add_row(sys, tex, wt, 4, q + 3, q[7]);
+    }
+    /* after every lens's rows: the coverage the direct images fill around */
+    for (k = 0; k < n && r == REFL_OK && jr->direct_on; ++k) {
+        int added = 0;
+        r = refl__lem_direct_rows(p->scene, casters->scene, &lays[k], &jr->shell, lays[k].layers - 1, &directs[k], sys,
+                                  &st->rays, &added);
+        st->layered_em.direct_rows += added;
+    }
+    memset(&sd, 0, sizeof sd);
+    sd.iterations = p->desc.layered_em.iterations;
+    out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
+    if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
+    if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels[0], NULL);
+    refl_lem_system_destroy(sys);
+    return r;
+}
+
+/* Puts map m into the store, in place of the one of its key there (a
+   sample inferred again because a part of it was dropped). */
+static refl_result refl__lem_put(refl__pass *p, struct refl__lem_maps *maps, refl__lem_map *m) {
+    const refl_allocator *al = &p->scene->allocator;
+    int at = refl__lem_find(maps, p, m->object, &m->view);
+    if (at >= 0) {
+        refl__lem_map_free(al, &maps->maps[at]);
+        maps->maps[at] = *m;
+        return REFL_OK;
+    }
+    if (refl__push(al, (void **)&maps->maps, &maps->count, sizeof *m, m) >= 0) return REFL_OK;
+    refl__lem_map_free(al, m);
+    return REFL_ERROR_OUT_OF_MEMORY;
+}
+
+/* The sample of views[0 .. per) for every lens pass p draws, their
+   outermost layer shared: kept when the store has every lens's map and
+   the shared one, else all inferred. The shared shell
+   (refl__lem_joint_shell) is fitted once for the lenses' rings and kept
+   with them. *at: lens i's map, *joint_at: the shared one. */
+static refl_result refl__lem_joint_map_of(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views,
+                                          int per, struct refl__lem_maps *maps, int *at, int *joint_at) {
+    const refl_scene *scene = p->scene;
+    const refl_allocator *al = &scene->allocator;
+    int n = 0, k, j, all;
+    int *objs = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int));
+    refl__lem_layering *lays = (refl__lem_layering *)refl__calloc(al, (size_t)scene->object_count, sizeof *lays);
+    refl__lem_ring *spares = (refl__lem_ring *)refl__calloc(al, (size_t)scene->object_count, sizeof *spares);
+    refl__lem_direct *directs = (refl__lem_direct *)refl__calloc(al, (size_t)scene->object_count, sizeof *directs);
+    refl__lem_map *ms = (refl__lem_map *)refl__calloc(al, (size_t)scene->object_count + 1, sizeof *ms);
+    int *ring = (int *)refl__calloc(al, (size_t)scene->object_count, sizeof(int)), on = 0, fitted = 0;
+    refl__lem_joint jr;
+    refl__lem_circle cc;
+    refl_result r = objs && lays && spares && directs && ms && ring ? REFL_OK : REFL_ERROR_OUT_OF_MEMORY;
+    double t0 = refl__now_ms();
+    memset(&jr, 0, sizeof jr);
+    for (j = 0; j < scene->object_count; ++j)
+        if (refl__pass_draws(p, j) && objs) objs[n++] = j;
+    *joint_at = refl__lem_find(maps, p, -1, &views[0]);
+    for (k = 0, all = *joint_at >= 0; k < n && all; ++k) all = refl__lem_find(maps, p, objs[k], &views[0]) >= 0;
+    if (r == REFL_OK && all) {
+        *at = refl__lem_find(maps, p, i, &views[0]);
+        p->frame->stats.layered_em.maps_kept++;
+        n = 0; /* nothing to free but the arrays */
+    }
+    /* every lens's layers, its ring clustered where this is its first
+       sample, and the shared shell, fitted at the first */
+    for (k = 0; k < n && r == REFL_OK && !all; ++k) {
+        refl_vec3 centre, box[2];
+        float lens_radius;
+        refl__lem_bounds(scene, objs[k], &centre, &lens_radius, box);
+        on = refl__lem_ring_of(p, casters->scene, objs[k], centre, lens_radius, maps, &cc, &lays[k], &spares[k], &r);
+        ring[k] = on && cc.ring >= 0 && maps->rings[cc.ring].lay.layers ? cc.ring : -1;
+        if (ring[k] >= 0 && maps->rings[ring[k]].joint_fitted) jr.shell = maps->rings[ring[k]].joint_shell, fitted = 1;
+    }
+    if (r == REFL_OK && !all && !fitted)
+        r = refl__lem_joint_shell(p, casters->scene, objs, lays, n, on ? &cc : NULL, &jr.shell);
+    for (k = 0; k < n && r == REFL_OK && !all && !fitted; ++k)
+        if (ring[k] >= 0) maps->rings[ring[k]].joint_shell = jr.shell, maps->rings[ring[k]].joint_fitted = 1;
+    jr.shell.face_size = 0;
+    for (k = 0; k < n && r == REFL_OK && !all; ++k) {
+        ms[k].object = objs[k];
+        ms[k].depth = p->desc.depth;
+        ms[k].view = views[0];
+        ms[k].options = p->desc.layered_em;
+        r = refl__lem_infer(p, casters, objs[k], views, per, &lays[k], &jr, &ms[k]);
+        directs[k] = jr.direct;
+    }
+    if (r == REFL_OK && !all) {
+        ms[n].object = -1;
+        ms[n].depth = p->desc.depth;
+        ms[n].view = views[0];
+        ms[n].options = p->desc.layered_em;
+        r = refl__lem_joint_solve(p, casters, &jr, lays, directs, n, &ms[n]);
+    }
+    for (k = 0; k < n && r == REFL_OK && !all; ++k) ms[k].shell[ms[k].layers - 1] = jr.shell;
+    for (k = 0; k <= n && !all && ms; ++k) {
+        if (r == REFL_OK) r = refl__lem_put(p, maps, &ms[k]);
+        else refl__lem_map_free(al, &ms[k]);
+    }
+    if (r == REFL_OK && !all) {
+        p->frame->stats.layered_em.maps_inferred += n + 1;
+        p->frame->stats.ms_build += refl__now_ms() - t0;
+        *at = refl__lem_find(maps, p, i, &views[0]);
+        *joint_at = refl__lem_find(maps, p, -1, &views[0]);
+    }
+    for (k = 0; k < n && spares; ++k) refl__free(al, spares[k].object_layer);
+    refl__free(al, jr.rows);
+    refl__free(al, objs);
+    refl__free(al, lays);
+    refl__free(al, spares);
+    refl__free(al, directs);
+    refl__free(al, ms);
+    refl__free(al, ring);
+    return r;
+}
+
+/* The map of lens i for the sample of views[0 .. per) (refl__lem_map_of),
+   and with a shared outer layer the shared map (else -1). */
+static refl_result refl__lem_sample_maps(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views,
+                                         int per, const refl__lem_layering *lay, struct refl__lem_maps *maps, int *at,
+                                         int *joint_at) {
+    *joint_at = -1;
+    if (refl__lem_share(p)) return refl__lem_joint_map_of(p, casters, i, views, per, maps, at, joint_at);
+    return refl__lem_map_of(p, casters, i, views, per, lay, maps, at);
+}
+
+/* Layer l's texels of map m: its own, else (shared) the shared map's. */
+static const float *refl__lem_layer_texels(const struct refl__lem_maps *maps, const refl__lem_map *m, int joint_at,
+                                           int l) {
+    return m->texels[l] || joint_at < 0 ? m->texels[l] : maps->maps[joint_at].texels[0];
+}
+
 /* ---- the points the maps show (frame->points) ------------------------------------------ */
 
 /* frame->points at the lens pixels the maps drew (seen 1; the traced ones
    get the tracer's): per pixel the point refl__lem_point_fragment gives
    for the term of the larger F G, from map m (the blend's heavier
-   sample), so the reflection error measures where the model puts what
+   sample; its layers' texels[], refl__lem_layer_texels), so the reflection error measures where the model puts what
    it shows. color and depth: scratch buffers of the frame's size. */
-static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, const refl__lem_map *m, int terms,
-                                    const refl_vec3 box[2], uint8_t ref, const uint8_t *seen, float *color,
-                                    float *depth) {
+static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, const refl__lem_map *m,
+                                    const float *const *texels, int terms, const refl_vec3 box[2], uint8_t ref,
+                                    const uint8_t *seen, float *color, float *depth) {
     refl_frame *f = p->frame;
     const refl_allocator *al = &p->scene->allocator;
     size_t np = (size_t)f->width * (size_t)f->height, px;
@@ -907,7 +1220,7 @@ static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, cons
     int term, l;
     memset(&dr, 0, sizeof dr);
     dr.layers = m->layers;
-    for (l = 0; l < m->layers; ++l) dr.shell[l] = m->shell[l], dr.map[l] = m->texels[l];
+    for (l = 0; l < m->layers; ++l) dr.shell[l] = m->shell[l], dr.map[l] = texels[l];
     dr.weight = 1.0f;
     dr.record_layer = -1;
     dr.points = 1;
@@ -932,6 +1245,7 @@ static refl_result refl__lem_points(refl__pass *p, const refl_lens_tess *t, cons
    tessellation (frame_tess, allocated with the scene's allocator). */
 typedef struct refl__lem_plan {
     int n, at[2], terms;
+    int joint_at[2];         /* the shared outer layer's map of each sample, -1: none */
     float weight[2];
     refl_vec3 box[2];
     refl_lens_tess frame_tess;
@@ -958,6 +1272,7 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *cast
     memset(&spare, 0, sizeof spare);
     pl->n = 1;
     pl->at[0] = pl->at[1] = -1;
+    pl->joint_at[0] = pl->joint_at[1] = -1;
     pl->weight[0] = 1.0f;
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
@@ -967,7 +1282,7 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *cast
     if (!refl__lem_ring_of(p, casters->scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r)) {
         /* on the axis: the eye's own view, one map */
         views[0] = *p->view;
-        if (r == REFL_OK) r = refl__lem_map_of(p, casters, i, views, 1, &lay, maps, &pl->at[0]);
+        if (r == REFL_OK) r = refl__lem_sample_maps(p, casters, i, views, 1, &lay, maps, &pl->at[0], &pl->joint_at[0]);
     } else {
         double fk = cc.phi / cc.step;
         int k0 = (int)floor(fk);
@@ -976,7 +1291,7 @@ static refl_result refl__lem_plan_of(refl__pass *p, const refl__gp_casters *cast
         pl->n = pl->weight[1] > 0.0f ? 2 : 1;
         for (s = 0; s < pl->n && r == REFL_OK; ++s) {
             refl__lem_sample_views(p, &cc, k0 + s, views);
-            r = refl__lem_map_of(p, casters, i, views, cc.per, &lay, maps, &pl->at[s]);
+            r = refl__lem_sample_maps(p, casters, i, views, cc.per, &lay, maps, &pl->at[s], &pl->joint_at[s]);
         }
     }
     refl__free(&scene->allocator, spare.object_layer);
@@ -1029,7 +1344,7 @@ static refl_result refl__lem_object(refl__pass *p, const refl__gp_casters *caste
             dr.layers = m->layers;
             for (k = 0; k < m->layers; ++k) {
                 dr.shell[k] = m->shell[k];
-                dr.map[k] = m->texels[k];
+                dr.map[k] = refl__lem_layer_texels(maps, m, pl.joint_at[s], k);
             }
             dr.weight = pl.weight[s];
             dr.term = term;
@@ -1054,9 +1369,13 @@ static refl_result refl__lem_object(refl__pass *p, const refl__gp_casters *caste
         for (k = 0; k < 3; ++k) f->rgba[4 * px + (size_t)k] += sum[4 * px + (size_t)k];
     }
     f->stats.layered_em.ms_draw += refl__now_ms() - t1;
-    if (r == REFL_OK)
-        r = refl__lem_points(p, &pl.frame_tess, &maps->maps[pl.at[pl.n > 1 && pl.weight[1] > pl.weight[0]]], pl.terms,
-                             pl.box, ref, seen, color, depth);
+    if (r == REFL_OK) {
+        int heavier = pl.n > 1 && pl.weight[1] > pl.weight[0];
+        const refl__lem_map *m = &maps->maps[pl.at[heavier]];
+        const float *texels[REFL_LEM_MAX_LAYERS];
+        for (k = 0; k < m->layers; ++k) texels[k] = refl__lem_layer_texels(maps, m, pl.joint_at[heavier], k);
+        r = refl__lem_points(p, &pl.frame_tess, m, texels, pl.terms, pl.box, ref, seen, color, depth);
+    }
     f->stats.ms_reflect += refl__now_ms() - t0;
     refl__free(al, pl.frame_tess.vertices);
     refl__free(al, pl.frame_tess.indices);
@@ -1227,7 +1546,7 @@ static refl_result refl__lem_lenses(refl__pass *p, refl_lem_lens **out, int *cou
             ln->layers = m->layers;
             for (l = 0; l < m->layers; ++l) {
                 ln->shell[s][l] = m->shell[l];
-                ln->texels[s][l] = m->texels[l];
+                ln->texels[s][l] = refl__lem_layer_texels(maps, m, pl.joint_at[s], l);
             }
         }
     }
@@ -1257,7 +1576,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
     refl__gp_casters casters;
     struct refl__lem_maps *maps = NULL, none;
     refl_view views[3];
-    int i, k, at, lenses = 0, done = 0;
+    int i, k, at, joint_at, lenses = 0, done = 0;
     long long share, last;
     refl_result r = refl__lem_casters(p, cast, &casters, owned);
     memset(&none, 0, sizeof none);
@@ -1278,7 +1597,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
         on = refl__lem_ring_of(p, casters.scene, i, centre, lens_radius, maps, &cc, &lay, &spare, &r);
         if (!on && r == REFL_OK) {
             views[0] = *p->view;
-            r = refl__lem_map_of(p, &casters, i, views, 1, &lay, maps, &at);
+            r = refl__lem_sample_maps(p, &casters, i, views, 1, &lay, maps, &at, &joint_at);
         }
         /* nearest the eye first (k0, k0 + 1, k0 - 1, ...), while the maps
            held and one more like the last stay within this lens's share of
@@ -1288,7 +1607,7 @@ static refl_result refl__prebuild_layered_em(refl__pass *p) {
             long long held = refl__lem_maps_bytes(maps);
             if (k > 0 && held + last > share * (done + 1)) break;
             refl__lem_sample_views(p, &cc, (j % cc.samples + cc.samples) % cc.samples, views);
-            r = refl__lem_map_of(p, &casters, i, views, cc.per, &lay, maps, &at);
+            r = refl__lem_sample_maps(p, &casters, i, views, cc.per, &lay, maps, &at, &joint_at);
             if (r == REFL_OK) last = refl__lem_map_bytes(&maps->maps[at]);
             if (r == REFL_OK && refl__progress(p, ((float)done + (float)(k + 1) / (float)cc.samples) / (float)lenses))
                 r = REFL_ERROR_CANCELLED;

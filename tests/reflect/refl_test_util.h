@@ -190,4 +190,22 @@ static inline void tu_refl_traced_free(tu_refl_traced *t) {
     refl_scene_destroy(t->scene);
 }
 
+/* A 64 x 32 texture of colour rings and stripes on a diagonal ramp,
+   added to s (its id): every texel different, so a map that puts it in
+   the wrong place shows. */
+static inline int tu_refl_add_rings(refl_scene *s) {
+    enum { W = 64, H = 32 };
+    float tex[W * H * 4];
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            float *p = tex + 4 * (y * W + x), r = sqrtf((float)((x - 20) * (x - 20) + (y - 12) * (y - 12)));
+            p[0] = 0.5f + 0.4f * sinf(2.0f * r);
+            p[1] = 0.15f + 0.7f * (float)(x + y) / (W + H);
+            p[2] = 0.5f + 0.4f * cosf(2.0f * (float)x);
+            p[3] = 1.0f;
+        }
+    return refl_scene_add_texture(s, W, H, tex);
+}
+
 #endif

@@ -17,23 +17,6 @@
 
 static const float DEG = 3.14159265f / 180.0f;
 
-enum { TEX_W = 64, TEX_H = 32 };
-
-/* Colour rings and stripes on a diagonal ramp: every texel different, so
-   a map that puts it in the wrong place shows. */
-static int add_rings(refl_scene *s, float *tex) {
-    int x, y;
-    for (y = 0; y < TEX_H; ++y)
-        for (x = 0; x < TEX_W; ++x) {
-            float *p = tex + 4 * (y * TEX_W + x), r = sqrtf((float)((x - 20) * (x - 20) + (y - 12) * (y - 12)));
-            p[0] = 0.5f + 0.4f * sinf(2.0f * r);
-            p[1] = 0.15f + 0.7f * (float)(x + y) / (TEX_W + TEX_H);
-            p[2] = 0.5f + 0.4f * cosf(2.0f * (float)x);
-            p[3] = 1.0f;
-        }
-    return refl_scene_add_texture(s, TEX_W, TEX_H, tex);
-}
-
 /* A glass sphere of radius 1 (object 2) at the origin, inside a ringed
    sphere of radius 6 (object 0), behind a grey wall (object 1) 3 wide,
    from y = -1.2 to 0.17, between z = 2.8 and 3: from eyes at height 0.4
@@ -46,13 +29,12 @@ static int add_rings(refl_scene *s, float *tex) {
    around the lens alone the direct images would fill what the samples
    missed exactly). Ambient light alone. */
 static refl_scene *walled_lens_scene(void) {
-    static float tex[TEX_W * TEX_H * 4];
     refl_scene *s = NULL;
     refl_mesh *shell = NULL, *lens = NULL, *wall = NULL, *panel = NULL;
     refl_material paper = refl_material_diffuse(1, 1, 1), grey = refl_material_diffuse(0.45f, 0.5f, 0.55f);
     refl_material glass = refl_material_glass(1.5f);
     cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
-    paper.texture = add_rings(s, tex);
+    paper.texture = tu_refl_add_rings(s);
     cr_assert_gt(paper.texture, 0);
     cr_assert_eq(refl_mesh_sphere(6.0f, 96, 48, NULL, &shell), REFL_OK);
     cr_assert_eq(refl_mesh_box(refl_v3(3.0f, 1.37f, 0.2f), NULL, &wall), REFL_OK);
