@@ -236,7 +236,7 @@ one_line "--lem-shell= of an unknown name" "^reflect: --lem-shell: expected auto
 one_line "path: an unknown path lists the paths" "^reflect path: --path: expected orbit, dolly, pan, focus or rim, got spiral$" \
     timeout 20 "$bin" path --path spiral --frames 2 --size 8x8 --out "$tmp/p3"
 one_line "bench: --only of no table" \
-    "^reflect bench: --only: expected c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, lem-sweeps, lem-options, lem-grid or lem-grid-calib, got nope$" \
+    "^reflect bench: --only: expected c3rc, sbc, path, graphcam, spoc, spoc-sweeps, lem, lem-sweeps, lem-options, lem-share, lem-grid or lem-grid-calib, got nope$" \
     timeout 20 "$bin" bench --only nope --out "$tmp/b3"
 exits2 "an empty --out" "out: expected a file name" "$bin" render --builtin default --out=
 mkdir "$tmp/hostile" && mkfifo "$tmp/hostile/fifo" && mkdir "$tmp/hostile/dir" &&

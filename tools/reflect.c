@@ -511,6 +511,7 @@ static int parse(int argc, char **argv, int is_render, options *o) {
             continue;
         } else if (!strcmp(a, "--greedy")) {
             o->greedy = 1;
+            continue;
         } else if (!strcmp(a, "--unpruned")) {
             o->unpruned = 1;
             continue;
