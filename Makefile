@@ -49,6 +49,13 @@ ASAN_CFLAGS = -std=c99 -O1 -g -Wall -Wextra -Werror -pthread \
 ASAN_ENV = ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp \
            UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 CRITERION_FLAGS = --jobs 2
+# The sanitized run leaves out LAYERED_EM's whole-frame accuracy tests
+# (shell kinds and frames fitted to rooms, a mirror's three layers, the inner
+# partial shell, the split casters' bytes): the plain and portable runs keep
+# them with their bounds, and the same code (shells of every kind, fitted
+# frames, layers, casters) runs sanitized in the smaller LAYERED_EM tests.
+# Sanitized, they would take about a third of the run's time limit.
+ASAN_SKIP = layered_em/oriented_shells_fit_turned_rooms|layered_em/a_teapot_seen_in_a_mirror_stays_whole_on_three_layers|layered_em/a_box_shell_fits_a_box_room_better_than_a_sphere|layered_em/an_inner_partial_shell_needs_two_layers|layered_em/split_tracing_keeps_the_whole_scenes_images
 # Builds started by `make`, `make test`, `bench`, `demo` and `fuzz` use every
 # core (JOBS) unless the caller chose with -j.
 JOBS ?= $(shell nproc 2>/dev/null || echo 1)
@@ -462,7 +469,7 @@ test: deps
 	  timeout -k 10 $(TEST_TIMEOUT) $(PORTABLE_TEST_BIN) $(CRITERION_FLAGS)
 	diff -r build/tests/digest build/portable/digest || \
 	  { echo "the plain C (RAST_NO_SIMD) build renders other bytes than the SSE2 one" >&2; exit 1; }
-	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) 2>&1 \
+	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) --filter '!($(ASAN_SKIP))' 2>&1 \
 	  | tee build/asan/rast_tests.log
 	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \
 	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
