@@ -62,6 +62,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 PARALLEL = $(if $(filter -j% j%,$(MAKEFLAGS)),,-j$(JOBS))
 # Seconds per test run (plain, then sanitized), so `make test` stays bounded.
 TEST_TIMEOUT = 450
+ASAN_TEST_TIMEOUT = 900
 
 # ---- modules, in amalgamation order (edit here when adding a module) ----
 
@@ -469,7 +470,7 @@ test: deps
 	  timeout -k 10 $(TEST_TIMEOUT) $(PORTABLE_TEST_BIN) $(CRITERION_FLAGS)
 	diff -r build/tests/digest build/portable/digest || \
 	  { echo "the plain C (RAST_NO_SIMD) build renders other bytes than the SSE2 one" >&2; exit 1; }
-	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) --filter '!($(ASAN_SKIP))' 2>&1 \
+	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(ASAN_TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) --filter '!($(ASAN_SKIP))' 2>&1 \
 	  | tee build/asan/rast_tests.log
 	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \
 	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
