@@ -19,13 +19,27 @@ static inline refl_frame *tu_refl_render(const refl_scene *s, const refl_view *v
     return f;
 }
 
-/* A render desc of method m on `threads` threads, one bounce. */
-static inline refl_render_desc tu_refl_one_bounce(refl_method m, int threads) {
+/* A render desc of method m on `threads` threads, every option its default. */
+static inline refl_render_desc tu_refl_desc(refl_method m, int threads) {
     refl_render_desc d;
     memset(&d, 0, sizeof d);
     d.method = m;
     d.threads = threads;
+    return d;
+}
+
+/* A render desc of method m on `threads` threads, one bounce. */
+static inline refl_render_desc tu_refl_one_bounce(refl_method m, int threads) {
+    refl_render_desc d = tu_refl_desc(m, threads);
     d.depth = 1;
+    return d;
+}
+
+/* Greedy RAYTRACE on `threads` threads: paper 001's two-term paths, the
+   truth LAYERED_EM's maps approximate. */
+static inline refl_render_desc tu_refl_greedy_raytrace(int threads) {
+    refl_render_desc d = tu_refl_desc(REFL_RAYTRACE, threads);
+    d.raytrace.greedy = 1;
     return d;
 }
 

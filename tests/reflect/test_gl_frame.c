@@ -171,40 +171,13 @@ Test(refl_gl_frame, c3rc_hybrid_gaps_traced, .timeout = 240) {
    a pixel differently here and there), and the same pixels go to the
    tracer. */
 Test(refl_gl_frame, layered_em_matches_cpu, .timeout = 120) {
-    refl_view v;
-    refl_scene *s = tu_refl_builtin("hybrid", &v, 80, 60);
-    refl_render_desc d;
-    refl_frame *cpu, *gl = NULL;
-    rgl_frame_stats st;
-    rgl_context *g = tu_gl_context("test_gl_frame");
-    float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
-    char err[1024];
-    long long lens_pixels = 0, i, cpu_traced;
-    double psnr;
-    int r;
-    rgl_lem_desc(&d);
-    cpu = tu_refl_render(s, &v, &d);
-    cr_assert_not_null(rgb);
-    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
-    LSAN_OFF();
-    r = rgl_render_layered_em(g, s, &v, gl, rgb, &st, err, sizeof err);
-    rgl_destroy(g);
-    LSAN_ON();
-    cr_assert_eq(r, 0, "%s", err);
-    cr_assert_eq(st.mirrors, 2, "hybrid's two lenses, got %d", st.mirrors);
-    for (i = 0; i < (long long)v.width * v.height; ++i) lens_pixels += gl->stencil[i] != 0;
-    psnr = rgl_mirror_psnr(cpu, gl, rgb);
-    cpu_traced = cpu->stats.layered_em.traced_pixels;
-    cr_log_info("LAYERED_EM GL vs CPU: %lld lens pixels, PSNR %.1f dB; traced GL %lld, CPU %lld", lens_pixels, psnr,
-                st.traced, cpu_traced);
-    cr_assert_gt(lens_pixels, 300);
-    cr_assert_gt(psnr, 38.0);
-    cr_assert(llabs(st.traced - cpu_traced) <= 2 + cpu_traced / 10, "traced: GL %lld, CPU %lld", st.traced,
-              cpu_traced);
-    free(rgb);
-    refl_frame_destroy(gl);
-    refl_frame_destroy(cpu);
-    refl_scene_destroy(s);
+    tu_gl_lem_vs_cpu m = tu_gl_layered_em_vs_cpu("test_gl_frame", NULL);
+    cr_log_info("LAYERED_EM GL vs CPU: %lld lens pixels, PSNR %.1f dB; traced GL %lld, CPU %lld", m.lens_pixels,
+                m.psnr, m.gl.traced, m.cpu_traced);
+    cr_assert_gt(m.lens_pixels, 300);
+    cr_assert_gt(m.psnr, 38.0);
+    cr_assert(llabs(m.gl.traced - m.cpu_traced) <= 2 + m.cpu_traced / 10, "traced: GL %lld, CPU %lld", m.gl.traced,
+              m.cpu_traced);
 }
 
 /* The glass C3RC, SBC, SPOC and GRAPHCAM through GL do not draw comes from

@@ -175,11 +175,7 @@ static refl_scene *exact_shell_scene(void) {
 
 /* Greedy RAYTRACE of v. */
 static refl_frame *greedy_truth(const refl_scene *s, const refl_view *v) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
+    refl_render_desc d = tu_refl_greedy_raytrace(2);
     return tu_refl_render(s, v, &d);
 }
 
@@ -278,10 +274,7 @@ Test(lem_infer, exact_shell_one_layer_matches_greedy_raytrace) {
 /* ---- the method ------------------------------------------------------------------ */
 
 static refl_frame *render_lem(const refl_scene *s, const refl_view *v, int threads) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = threads;
+    refl_render_desc d = tu_refl_desc(REFL_LAYERED_EM, threads);
     return tu_refl_render(s, v, &d);
 }
 
@@ -354,10 +347,7 @@ Test(layered_em, options_validated) {
 /* ---- maps kept by a renderer -------------------------------------------------------- */
 
 static refl_render_desc lem_desc(int samples) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = 2;
+    refl_render_desc d = tu_refl_desc(REFL_LAYERED_EM, 2);
     d.layered_em.samples = samples;
     return d;
 }
@@ -475,9 +465,7 @@ Test(layered_em, a_path_leaving_through_another_lens_is_traced) {
     v = tr.scene->camera;
     v.width = 120;
     v.height = 90;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
+    d = tu_refl_desc(REFL_RAYTRACE, 2);
     truth = tu_refl_render(tr.scene, &v, &d);
     d = lem_desc(0);
     d.layered_em.single_view = 1;
@@ -1156,9 +1144,7 @@ Test(layered_em, shows_the_glass_scene_nearer_its_true_places_than_envmap) {
     truth = greedy_truth(s, &v);
     d = lem_desc(0);
     lem = tu_refl_render(s, &v, &d);
-    memset(&d, 0, sizeof d);
-    d.method = REFL_ENVMAP;
-    d.threads = 2;
+    d = tu_refl_desc(REFL_ENVMAP, 2);
     envmap = tu_refl_render(s, &v, &d);
     cr_assert_eq(refl_measure_reflection_error(lem, truth, NULL, &lem_err), REFL_OK);
     cr_assert_eq(refl_measure_reflection_error(envmap, truth, NULL, &env_err), REFL_OK);

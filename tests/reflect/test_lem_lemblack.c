@@ -5,7 +5,6 @@
    see no such exit ray. Such a texel must still be solved (from the
    centre's direct image), not left at 0 and drawn black. */
 #include <criterion/criterion.h>
-#include <string.h>
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
@@ -13,10 +12,7 @@
    options (RAYTRACE greedy, LAYERED_EM's direct images from the
    viewpoint). */
 static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = 2;
+    refl_render_desc d = tu_refl_desc(m, 2);
     d.raytrace.greedy = 1;
     d.layered_em.direct_from = REFL_LEM_DIRECT_FROM_VIEWPOINT;
     return tu_refl_render(s, v, &d);

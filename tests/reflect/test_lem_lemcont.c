@@ -106,12 +106,9 @@ static double masked_psnr(const refl_frame *f, refl_frame *truth, const signed c
    circle and the maps of the samples either side) was at `first`. */
 static refl_frame *lem_from_circle(const refl_scene *s, const refl_view *first, const refl_view *near, int on,
                                    int threads, long long *continued) {
-    refl_render_desc d;
+    refl_render_desc d = tu_refl_desc(REFL_LAYERED_EM, threads);
     refl_renderer *rr = NULL;
     refl_frame *f = NULL;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = threads;
     d.layered_em.continue_incoming = on ? 1 : -1;
     cr_assert_eq(refl_renderer_create(s, &d, &rr), REFL_OK);
     cr_assert_eq(refl_frame_create(first->width, first->height, NULL, &f), REFL_OK);
@@ -134,16 +131,12 @@ Test(lem_continue, hidden_parts_of_the_lens_are_solved_for) {
     tu_refl_traced tr = tu_refl_traced_scene(walled_lens_scene());
     refl_scene *s = tr.scene;
     refl_view first = eye_at(4.0f, 4.0f, W, H), near = eye_at(4.0f, 2.6f, W, H);
-    refl_render_desc gd;
+    refl_render_desc gd = tu_refl_greedy_raytrace(2);
     refl_frame *truth, *lem[2];
     signed char *mask = (signed char *)malloc((size_t)W * H);
     double hid[2], rest[2];
     long long nh, nr, continued[2];
     int on, hidden;
-    memset(&gd, 0, sizeof gd);
-    gd.method = REFL_RAYTRACE;
-    gd.threads = 2;
-    gd.raytrace.greedy = 1;
     truth = tu_refl_render(s, &near, &gd);
     hidden = hidden_at_samples(s, &tr.caster, &near, truth, 0.0f, 8.0f, 4.0f, mask);
     cr_assert_gt(hidden, 1000, "%d lens pixels of the near view hidden at both samples", hidden);

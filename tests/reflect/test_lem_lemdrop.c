@@ -4,7 +4,6 @@
    the teapot on average. Each layer's sphere keeps its own hits' mean
    distance whatever its place in that order. */
 #include <criterion/criterion.h>
-#include <string.h>
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
@@ -13,17 +12,11 @@
 static double hybrid_sphere_psnr(int layers) {
     refl_view v;
     refl_scene *s = tu_refl_builtin("hybrid", &v, 96, 72);
-    refl_render_desc d;
+    refl_render_desc d = tu_refl_greedy_raytrace(2);
     refl_frame *truth, *lem;
     refl_image_error img;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    d.raytrace.greedy = 1;
     truth = tu_refl_render(s, &v, &d);
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = 2;
+    d = tu_refl_desc(REFL_LAYERED_EM, 2);
     d.layered_em.layers = layers;
     d.layered_em.shell = REFL_LEM_SHELL_SPHERE;
     lem = tu_refl_render(s, &v, &d);

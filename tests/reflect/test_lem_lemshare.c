@@ -50,10 +50,7 @@ static refl_view eye_between_samples(int w, int h) {
 }
 
 static refl_render_desc lem_desc(int share) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = REFL_LAYERED_EM;
-    d.threads = 2;
+    refl_render_desc d = tu_refl_desc(REFL_LAYERED_EM, 2);
     d.layered_em.share_outer_layer = share;
     return d;
 }
@@ -79,14 +76,10 @@ Test(lem_share, one_map_for_both_lenses_fewer_bytes_nearer_the_truth) {
     enum { W = 96, H = 72 };
     refl_scene *s = two_lens_scene();
     refl_view v = eye_between_samples(W, H);
-    refl_render_desc gd, d;
+    refl_render_desc gd = tu_refl_greedy_raytrace(2), d;
     refl_frame *truth, *f[2];
     double all[2], glass[2], mirror[2];
     int share;
-    memset(&gd, 0, sizeof gd);
-    gd.method = REFL_RAYTRACE;
-    gd.threads = 2;
-    gd.raytrace.greedy = 1;
     truth = tu_refl_render(s, &v, &gd);
     for (share = 0; share < 2; ++share) {
         d = lem_desc(share ? 1 : -1);
@@ -190,36 +183,15 @@ Test(lem_share, invalid_combinations_are_refused) {
    refl_gl_frame::layered_em_matches_cpu with the defaults: `hybrid`'s
    teapot and cup, two layers (the shared one the outer). */
 Test(refl_gl_frame, layered_em_shared_layer_matches_cpu, .timeout = 120) {
-    refl_view v;
-    refl_scene *s = tu_refl_builtin("hybrid", &v, 80, 60);
     refl_render_desc d;
-    refl_frame *cpu, *gl = NULL;
-    rgl_frame_stats st;
-    rgl_context *g = tu_gl_context("test_lem_lemshare");
-    float *rgb = malloc((size_t)v.width * v.height * 3 * sizeof(float));
-    char err[1024];
-    double psnr;
-    int r;
+    tu_gl_lem_vs_cpu m;
     rgl_lem_desc(&d);
     d.layered_em.share_outer_layer = 1;
     d.layered_em.layers = 2;
-    cpu = tu_refl_render(s, &v, &d);
-    cr_assert_not_null(rgb);
-    cr_assert_eq(refl_frame_create(v.width, v.height, NULL, &gl), REFL_OK);
-    LSAN_OFF();
-    r = rgl_render_layered_em_desc(g, s, &v, &d, gl, rgb, &st, err, sizeof err);
-    rgl_destroy(g);
-    LSAN_ON();
-    cr_assert_eq(r, 0, "%s", err);
-    cr_assert_eq(st.mirrors, 2);
-    psnr = rgl_mirror_psnr(cpu, gl, rgb);
-    cr_log_info("LAYERED_EM shared, GL vs CPU: PSNR %.1f dB; traced GL %lld, CPU %lld", psnr, st.traced,
-                cpu->stats.layered_em.traced_pixels);
-    cr_assert_gt(psnr, 38.0);
-    free(rgb);
-    refl_frame_destroy(gl);
-    refl_frame_destroy(cpu);
-    refl_scene_destroy(s);
+    m = tu_gl_layered_em_vs_cpu("test_lem_lemshare", &d);
+    cr_log_info("LAYERED_EM shared, GL vs CPU: PSNR %.1f dB; traced GL %lld, CPU %lld", m.psnr, m.gl.traced,
+                m.cpu_traced);
+    cr_assert_gt(m.psnr, 38.0);
 }
 
 /* A renderer keeps the shared sample (every lens's map and the shared

@@ -5,15 +5,11 @@
    negative colour and was drawn black where greedy RAYTRACE is bright.
    Radiance is never negative: neither may the maps' colours be. */
 #include <criterion/criterion.h>
-#include <string.h>
 #include "../../reflect.h"
 #include "refl_test_util.h"
 
 static refl_frame *render(const refl_scene *s, const refl_view *v, refl_method m) {
-    refl_render_desc d;
-    memset(&d, 0, sizeof d);
-    d.method = m;
-    d.threads = 2;
+    refl_render_desc d = tu_refl_desc(m, 2);
     d.raytrace.greedy = 1; /* RAYTRACE's option; LAYERED_EM keeps its defaults */
     return tu_refl_render(s, v, &d);
 }

@@ -51,12 +51,9 @@ Test(layered_em, two_layers_show_the_ball_at_a_concave_mirrors_focus) {
     refl_frame *truth, *lem;
     refl_image_error img;
     refl_reflection_error err;
-    d = tu_refl_one_bounce(REFL_RAYTRACE, 2);
-    d.depth = 0; /* the default bounces, as the LAYERED_EM frame */
-    d.raytrace.greedy = 1;
+    d = tu_refl_greedy_raytrace(2); /* the default bounces, as the LAYERED_EM frame */
     truth = tu_refl_render(s, &v, &d);
-    d = tu_refl_one_bounce(REFL_LAYERED_EM, 2);
-    d.depth = 0;
+    d = tu_refl_desc(REFL_LAYERED_EM, 2);
     d.layered_em.layers = 2;
     lem = tu_refl_render(s, &v, &d);
     cr_assert_eq(refl_measure_image_error(lem, truth, 1, 0.0f, &img), REFL_OK);
