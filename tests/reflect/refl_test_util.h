@@ -1,5 +1,6 @@
 /* Helpers shared by the reflect.h tests: a frame rendered or the test
-   fails, scene objects in one call, a counting allocator. Include after
+   fails, scene objects in one call, a counting allocator and the runs
+   that fail each allocation in turn. Include after
    <criterion/criterion.h> and "../reflect.h". */
 #ifndef REFL_TEST_UTIL_H
 #define REFL_TEST_UTIL_H
@@ -134,6 +135,75 @@ static inline refl_allocator tu_refl_counting(tu_alloc_counter *c) {
     a.free = tu_count_free;
     a.user = c;
     return a;
+}
+
+/* Renders v with d into f once (OK), then again failing each allocation
+   that render made, one per run: each run OUT_OF_MEMORY and leaking
+   nothing (c counts the scene's allocator). Returns how many allocations
+   the render makes. */
+static inline long tu_refl_fail_each_render_allocation(const refl_scene *s, const refl_view *v,
+                                                       const refl_render_desc *d, refl_frame *f, tu_alloc_counter *c) {
+    long base = c->attempts, needed, k;
+    cr_assert_eq(refl_render(s, v, d, f), REFL_OK);
+    needed = c->attempts - base;
+    for (k = 1; k <= needed; ++k) {
+        long live = c->allocs - c->frees;
+        c->fail_at = c->attempts + k;
+        cr_assert_eq(refl_render(s, v, d, f), REFL_ERROR_OUT_OF_MEMORY, "failing allocation %ld of %ld", k, needed);
+        cr_assert_eq(c->allocs - c->frees, live, "allocation %ld failed: leaked", k);
+    }
+    c->fail_at = 0;
+    return needed;
+}
+
+/* What tu_refl_default_allocation_failures saw. */
+typedef struct tu_refl_failed_runs {
+    long runs;         /* runs made: one per allocation failed, the last reaching none (or max_runs) */
+    int scene_failed;  /* a run's scene build failed */
+    int render_failed; /* a run's render failed */
+} tu_refl_failed_runs;
+
+/* Every allocation of building `default` (teapot_tess 2) and rendering it
+   at 32 x 24 with d may fail, each in turn from the first (up to
+   max_runs): each run OUT_OF_MEMORY (no scene) or a success, and nothing
+   leaked. */
+static inline tu_refl_failed_runs tu_refl_default_allocation_failures(const refl_render_desc *d, long max_runs) {
+    tu_refl_failed_runs out;
+    long k;
+    memset(&out, 0, sizeof out);
+    for (k = 1; k < max_runs; ++k) {
+        tu_alloc_counter c;
+        refl_builtin_desc bd;
+        refl_scene *s = NULL;
+        refl_result r;
+        memset(&c, 0, sizeof c);
+        c.fail_at = k;
+        memset(&bd, 0, sizeof bd);
+        bd.teapot_tess = 2;
+        bd.allocator = tu_refl_counting(&c);
+        r = refl_scene_builtin("default", &bd, &s);
+        if (r == REFL_OK) {
+            refl_frame *f = NULL;
+            refl_view v = s->camera;
+            v.width = 32;
+            v.height = 24;
+            if (refl_frame_create(32, 24, &bd.allocator, &f) == REFL_OK) {
+                r = refl_render(s, &v, d, f);
+                cr_assert(r == REFL_OK || r == REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
+                if (r != REFL_OK) out.render_failed = 1;
+                refl_frame_destroy(f);
+            }
+            refl_scene_destroy(s);
+        } else {
+            cr_assert_null(s);
+            cr_assert_eq(r, REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
+            out.scene_failed = 1;
+        }
+        cr_assert_eq(c.allocs, c.frees, "k=%ld: %ld allocations, %ld frees", k, c.allocs, c.frees);
+        if (!c.failed) break; /* ran to the end without reaching allocation k */
+    }
+    out.runs = k;
+    return out;
 }
 
 /* Every colour byte opaque on reflectors; points NaN in all three or none,

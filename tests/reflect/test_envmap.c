@@ -583,41 +583,9 @@ Test(refl_envmap, reflectors_sharing_stencil_255) {
 /* Every allocation of a scene and an ENVMAP frame may fail: each run
    returns an error or succeeds, and nothing leaks. */
 Test(refl_envmap, allocation_failure_leaks_nothing) {
-    long k;
-    int saw_render_failure = 0;
-    for (k = 1; k < 5000; ++k) {
-        tu_alloc_counter c;
-        refl_builtin_desc bd;
-        refl_scene *s = NULL;
-        refl_result r;
-        memset(&c, 0, sizeof c);
-        c.fail_at = k;
-        memset(&bd, 0, sizeof bd);
-        bd.teapot_tess = 2;
-        bd.allocator = tu_refl_counting(&c);
-        r = refl_scene_builtin("default", &bd, &s);
-        if (r == REFL_OK) {
-            refl_frame *f = NULL;
-            refl_view v = s->camera;
-            v.width = 32;
-            v.height = 24;
-            if (refl_frame_create(32, 24, &bd.allocator, &f) == REFL_OK) {
-                refl_render_desc d;
-                memset(&d, 0, sizeof d);
-                d.method = REFL_ENVMAP;
-                d.threads = 2;
-                d.envmap.size = 8;
-                r = refl_render(s, &v, &d, f);
-                cr_assert(r == REFL_OK || r == REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
-                if (r != REFL_OK) saw_render_failure = 1;
-                refl_frame_destroy(f);
-            }
-            refl_scene_destroy(s);
-        } else {
-            cr_assert_eq(r, REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
-        }
-        cr_assert_eq(c.allocs, c.frees, "k=%ld: %ld allocations, %ld frees", k, c.allocs, c.frees);
-        if (!c.failed) break; /* ran to the end without reaching allocation k */
-    }
-    cr_assert(saw_render_failure && k > 10, "only %ld allocations seen", k);
+    refl_render_desc d = tu_refl_desc(REFL_ENVMAP, 2);
+    tu_refl_failed_runs runs;
+    d.envmap.size = 8;
+    runs = tu_refl_default_allocation_failures(&d, 5000);
+    cr_assert(runs.render_failed && runs.runs > 10, "only %ld allocations seen", runs.runs);
 }

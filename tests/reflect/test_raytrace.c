@@ -529,33 +529,18 @@ Test(refl_raytrace, allocation_failure_at_every_allocation_leaks_nothing) {
     refl_scene *s;
     refl_view v;
     refl_frame *f;
-    refl_render_desc d;
-    long base_attempts, needed, k;
+    refl_render_desc d = tu_refl_desc(REFL_RAYTRACE, 2);
+    long needed;
     memset(&c, 0, sizeof c);
     memset(&bd, 0, sizeof bd);
-    bd.allocator.alloc = tu_count_alloc;
-    bd.allocator.free = tu_count_free;
-    bd.allocator.user = &c;
+    bd.allocator = tu_refl_counting(&c);
     bd.teapot_tess = 4;
     cr_assert_eq(refl_scene_builtin("glass", &bd, &s), REFL_OK);
     v = s->camera;
     v.width = 24; v.height = 16;
     cr_assert_eq(refl_frame_create(24, 16, NULL, &f), REFL_OK);
-    memset(&d, 0, sizeof d);
-    d.method = REFL_RAYTRACE;
-    d.threads = 2;
-    base_attempts = c.attempts;
-    cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
-    needed = c.attempts - base_attempts;
-    cr_assert(needed >= 3);
-    for (k = 1; k <= needed; ++k) {
-        long live = c.allocs - c.frees;
-        c.fail_at = c.attempts + k;
-        cr_assert_eq(refl_render(s, &v, &d, f), REFL_ERROR_OUT_OF_MEMORY, "failing allocation %ld of %ld", k,
-                     needed);
-        cr_assert_eq(c.allocs - c.frees, live, "allocation %ld failed: leaked", k);
-    }
-    c.fail_at = 0;
+    needed = tu_refl_fail_each_render_allocation(s, &v, &d, f, &c);
+    cr_assert(needed >= 3, "%ld allocations", needed);
     cr_assert_eq(refl_render(s, &v, &d, f), REFL_OK);
     refl_frame_destroy(f);
     refl_scene_destroy(s);

@@ -127,41 +127,9 @@ Test(refl_scene, ownership_and_bad_input) {
 /* Every allocation of building and rendering a scene may fail: each run
    returns an error or succeeds, and nothing leaks. */
 Test(refl_scene, allocation_failure_leaks_nothing) {
-    long k;
-    int saw_failure = 0;
-    for (k = 1; k < 2000; ++k) {
-        tu_alloc_counter c;
-        refl_builtin_desc bd;
-        refl_scene *s = NULL;
-        refl_result r;
-        memset(&c, 0, sizeof c);
-        c.fail_at = k;
-        memset(&bd, 0, sizeof bd);
-        bd.teapot_tess = 2;
-        bd.allocator = tu_refl_counting(&c);
-        r = refl_scene_builtin("default", &bd, &s);
-        if (r == REFL_OK) {
-            refl_frame *f = NULL;
-            refl_view v = s->camera;
-            v.width = 32;
-            v.height = 24;
-            if (refl_frame_create(32, 24, &bd.allocator, &f) == REFL_OK) {
-                refl_render_desc d;
-                memset(&d, 0, sizeof d);
-                d.threads = 2;
-                r = refl_render(s, &v, &d, f);
-                refl_frame_destroy(f);
-            }
-            refl_scene_destroy(s);
-        } else {
-            cr_assert_null(s);
-            cr_assert_eq(r, REFL_ERROR_OUT_OF_MEMORY, "k=%ld: %s", k, refl_result_string(r));
-            saw_failure = 1;
-        }
-        cr_assert_eq(c.allocs, c.frees, "k=%ld: %ld allocations, %ld frees", k, c.allocs, c.frees);
-        if (!c.failed) break; /* ran to the end without reaching allocation k */
-    }
-    cr_assert(saw_failure && k > 10, "only %ld allocations seen", k);
+    refl_render_desc d = tu_refl_desc(REFL_METHOD_DEFAULT, 2);
+    tu_refl_failed_runs runs = tu_refl_default_allocation_failures(&d, 2000);
+    cr_assert(runs.scene_failed && runs.runs > 10, "only %ld allocations seen", runs.runs);
 }
 
 /* DIRECT: diffuse objects shaded, mirrors transparent black with their id
