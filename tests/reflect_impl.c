@@ -86,3 +86,13 @@ int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl
 }
 
 long long refl__testing_bvh_tests_counted(void) { return refl__bvh_tests_counted(); }
+
+refl_lem_shell refl__testing_lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi) {
+    static const refl_vec3 world[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    float *scratch = (float *)malloc(sizeof(float) * (size_t)(n > 0 ? n : 1));
+    refl_lem_shell sh;
+    memset(&sh, 0, sizeof sh);
+    if (scratch) sh = refl__lem_fit_cylinder(pos, n, c, lo, hi, world, scratch);
+    free(scratch);
+    return sh;
+}

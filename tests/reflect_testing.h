@@ -59,6 +59,10 @@ int refl__testing_bvh_intersect_path(const refl_bvh *bvh, refl_vec3 origin, refl
 /* refl__bvh_tests_counted: the triangle tests of every trace so far, summed
    (a frame's stats.triangle_tests is its difference across the frame). */
 long long refl__testing_bvh_tests_counted(void);
+/* LAYERED_EM's cylinder shell (refl__lem_fit_cylinder) on the world axes,
+   around the vertical through c, fitted to hits pos[3 n] about a lens
+   whose box is (lo, hi); kind 0 when out of memory. */
+refl_lem_shell refl__testing_lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi);
 
 #ifndef REFL_IMPLEMENTATION
 /* The internals under their own names, as the tests call them. The mode

@@ -251,18 +251,45 @@ static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, r
     return sh;
 }
 
+static int refl__lem_cmp_float(const void *a, const void *b); /* ascending (the clustering's, below) */
+
+/* The share of a cylinder's cap hits that its cap holds: the radius is
+   where nine in ten of them lie (the floor a lens stands on spreads to the
+   horizon; its farthest hits would make a cap too wide for its texels,
+   their mean a cap that leaves most of the floor to the side). */
+#define REFL__LEM_CAP_SHARE 0.9
+
+/* The share of a layer's hits a cylinder's caps hold beyond the lens's
+   box: the highest and lowest hundredth are left out, so that three
+   hits of columns beside a small lens do not stretch its cylinder up the
+   columns (the floor seen past the cap then gets a sliver of the side). */
+#define REFL__LEM_CAP_HOLD 0.99
+
+/* The share of a layer's hits off a cylinder's caps from which they set
+   its radius (their mean distance from the axis, section 4.2's shell at
+   the layer's mean distance: the walls of a room, the columns around a
+   teapot on a floor); under it the caps do (REFL__LEM_CAP_SHARE). */
+#define REFL__LEM_SIDE_SHARE 0.05
+
 /* A cylinder around the line through the lens's centre c along axis[1]
-   (axis[0] and axis[2] span its cross-section): its caps at the hits'
-   (and the lens's) lowest and highest along the axis, its radius the mean
-   distance of the hits off the caps from the axis (at least the lens's).
-   On the world axes: around the vertical. */
+   (axis[0] and axis[2] span its cross-section). Its caps hold the lens's
+   box, padded, and the hits (REFL__LEM_CAP_HOLD of them); where the hits'
+   lowest (highest) lies within that padding, a plane the lens stands on
+   (`hybrid`'s floor, 0.005 under the teapot), the cap lies on it, so that
+   those hits count as on it.
+   Its radius is the mean of what each hit says: one off the caps its
+   distance from the axis, one on a cap the radius holding
+   REFL__LEM_CAP_SHARE of the cap hits (at least the lens's), so a few
+   hits of a column beside a lens on a floor do not set it. scratch holds
+   n floats. On the world axes: around the vertical. */
 static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi,
-                                             const refl_vec3 axis[3]) {
+                                             const refl_vec3 axis[3], float *scratch) {
     refl_lem_shell sh;
     refl_vec3 up = axis[1], q = refl_v3_sub(hi, lo);
-    float y0 = FLT_MAX, y1 = -FLT_MAX, pad = 0.01f * refl_v3_length(q) + 1e-6f, rmin = 0.0f;
-    double acc = 0.0, all = 0.0, u[3] = {up.x, up.y, up.z};
-    int k, i, side = 0;
+    float y0 = FLT_MAX, y1 = -FLT_MAX, h0 = FLT_MAX, h1 = -FLT_MAX, pad = 0.01f * refl_v3_length(q) + 1e-6f;
+    float rmin = 0.0f, keep = 1e-3f * pad; /* the caps' clearance of the lens's box */
+    double acc = 0.0, u[3] = {up.x, up.y, up.z};
+    int k, i, side = 0, capped = 0;
     memset(&sh, 0, sizeof sh);
     for (k = 0; k < 8; ++k) {
         refl_vec3 corner = refl_v3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
@@ -272,25 +299,37 @@ static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 
         r = refl_v3_sub(diag, refl_v3_scale(up, refl_v3_dot(diag, up))); /* the lens's diagonal across the axis */
         rmin = REFL__MAX(rmin, refl_v3_dot(r, r));
     }
-    y0 -= pad, y1 += pad;
-    for (k = 0; k < n; ++k) {
-        float y = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
-        y0 = REFL__MIN(y0, y), y1 = REFL__MAX(y1, y);
+    for (k = 0; k < n; ++k) scratch[k] = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
+    if (n) {
+        qsort(scratch, (size_t)n, sizeof(float), refl__lem_cmp_float);
+        h0 = scratch[(int)((1.0 - REFL__LEM_CAP_HOLD) * (n - 1))];
+        h1 = scratch[(int)(REFL__LEM_CAP_HOLD * (n - 1))];
     }
+    /* the padded box, out to the hits; a cap on the hits' plane where that
+       lies within the padding */
+    y0 = h0 >= y0 - pad && h0 < y0 + keep ? REFL__MIN(h0, y0 - keep) : REFL__MIN(y0 - pad, h0);
+    y1 = h1 <= y1 + pad && h1 > y1 - keep ? REFL__MAX(h1, y1 + keep) : REFL__MAX(y1 + pad, h1);
     for (k = 0; k < n; ++k) {
         double d[3] = {pos[3 * k] - c.x, pos[3 * k + 1] - c.y, pos[3 * k + 2] - c.z}, h, rho = 0.0;
         float y = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
         h = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
         for (i = 0; i < 3; ++i) rho += (d[i] - h * u[i]) * (d[i] - h * u[i]);
         rho = sqrt(rho);
-        all += rho;
-        if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0)) acc += rho, ++side;
+        if (y > y0 + 0.02f * (y1 - y0) && y < y1 - 0.02f * (y1 - y0))
+            acc += rho, ++side;
+        else
+            scratch[capped++] = (float)rho;
+    }
+    if (side < REFL__LEM_SIDE_SHARE * n && capped) { /* the caps hold most of the layer: they set the radius */
+        qsort(scratch, (size_t)capped, sizeof(float), refl__lem_cmp_float);
+        acc = scratch[REFL__MIN((int)(REFL__LEM_CAP_SHARE * capped), capped - 1)];
+        side = 1;
     }
     rmin = pad + 0.5f * sqrtf(rmin);
     sh.kind = REFL_LEM_SHELL_CYLINDER;
     sh.center = refl_v3_add(refl_v3_sub(c, refl_v3_scale(up, refl_v3_dot(c, up))), refl_v3_scale(up, 0.5f * (y0 + y1)));
     for (i = 0; i < 3; ++i) sh.axis[i] = axis[i];
-    sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : n ? all / n : 0.0), rmin);
+    sh.extent[0] = sh.extent[2] = REFL__MAX((float)(side ? acc / side : 0.0), rmin);
     sh.extent[1] = 0.5f * (y1 - y0);
     return sh;
 }
@@ -309,12 +348,14 @@ static void refl__lem_turn(const double f[3][3], int i, double radians, double o
 }
 
 /* What a frame search fits: a box or cylinder (kind) to hits pos[3 n]
-   (a subsample of the layer's), around the lens (c, lo, hi). */
+   (a subsample of the layer's), around the lens (c, lo, hi); scratch
+   for the cylinder's fit, as many floats as the layer's hits. */
 typedef struct refl__lem_frame_fit {
     int kind;
     const float *pos;
     int n;
     refl_vec3 c, lo, hi;
+    float *scratch;
 } refl__lem_frame_fit;
 
 static refl_lem_shell refl__lem_fit_in_frame(const refl__lem_frame_fit *x, const float *pos, int n,
@@ -323,7 +364,7 @@ static refl_lem_shell refl__lem_fit_in_frame(const refl__lem_frame_fit *x, const
     int i;
     for (i = 0; i < 3; ++i) axis[i] = refl_v3_normalize(refl_v3((float)f[i][0], (float)f[i][1], (float)f[i][2]));
     return x->kind == REFL_LEM_SHELL_BOX ? refl__lem_fit_box(pos, n, x->lo, x->hi, axis)
-                                         : refl__lem_fit_cylinder(pos, n, x->c, x->lo, x->hi, axis);
+                                         : refl__lem_fit_cylinder(pos, n, x->c, x->lo, x->hi, axis, x->scratch);
 }
 
 static double refl__lem_frame_error(const refl__lem_frame_fit *x, const double f[3][3]) {
@@ -404,9 +445,9 @@ static int refl__lem_frame_is_world(int kind, const double f[3][3]) {
 /* The box or cylinder (kind) of the hits on its fitted frame
    (refl__lem_search_frame over a subsample) in *out: 1; 0 where that
    frame is the world's or its shell lies not clearly nearer the hits
-   (REFL__LEM_FRAME_NEARER); -1 when out of memory. */
+   (REFL__LEM_FRAME_NEARER); -1 when out of memory. scratch: n floats. */
 static int refl__lem_fit_oriented(int kind, const float *pos, int n, refl_vec3 c, refl_vec3 lo, refl_vec3 hi,
-                                  const refl_allocator *al, refl_lem_shell *out) {
+                                  const refl_allocator *al, float *scratch, refl_lem_shell *out) {
     refl__lem_frame_fit x;
     int m = REFL__MIN(n, REFL__LEM_FRAME_HITS), k;
     float *sub = m ? (float *)refl__calloc(al, 3 * (size_t)m, sizeof(float)) : NULL;
@@ -415,7 +456,7 @@ static int refl__lem_fit_oriented(int kind, const float *pos, int n, refl_vec3 c
     if (!m) return 0;
     if (!sub) return -1;
     for (k = 0; k < m; ++k) memcpy(sub + 3 * (size_t)k, pos + 3 * ((long long)k * n / m), 3 * sizeof(float));
-    x.kind = kind, x.pos = sub, x.n = m, x.c = c, x.lo = lo, x.hi = hi;
+    x.kind = kind, x.pos = sub, x.n = m, x.c = c, x.lo = lo, x.hi = hi, x.scratch = scratch;
     refl__lem_search_frame(&x, f);
     nearer = refl__lem_frame_error(&x, f) < REFL__LEM_FRAME_NEARER * refl__lem_frame_error(&x, refl__lem_world_frame);
     refl__free(al, sub);
@@ -586,6 +627,8 @@ static int refl__lem_fit_shell(int kind, int frame, int inner, const float *pos,
     refl_lem_shell cand[6];
     double err[6], least = DBL_MAX, best_near = DBL_MAX;
     int k, m = 0, best = -1, shape, twin[6] = {-1, -1, -1, -1, -1, -1}; /* a fitted one's world-axis twin */
+    float *scratch = (float *)refl__calloc(al, (size_t)REFL__MAX(n, 1), sizeof(float)); /* the cylinder's */
+    if (!scratch) return 0;
     memset(cand, 0, sizeof cand);
     if (n == 0) kind = REFL_LEM_SHELL_SPHERE; /* nothing met: the environment, on the sphere */
     /* candidates in order of preference on a tie: quad, box, cylinder
@@ -599,16 +642,21 @@ static int refl__lem_fit_shell(int kind, int frame, int inner, const float *pos,
         refl_lem_shell oriented;
         int fitted;
         if (kind != REFL_LEM_SHELL_AUTO && kind != REFL_LEM_SHELL_QUAD && kind != shape) continue;
-        fitted = frame == REFL_LEM_FRAME_WORLD ? 0 : refl__lem_fit_oriented(shape, pos, n, c, lo, hi, al, &oriented);
-        if (fitted < 0) return 0;
+        fitted = frame == REFL_LEM_FRAME_WORLD ? 0
+                                               : refl__lem_fit_oriented(shape, pos, n, c, lo, hi, al, scratch, &oriented);
+        if (fitted < 0) {
+            refl__free(al, scratch);
+            return 0;
+        }
         if (!fitted || frame != REFL_LEM_FRAME_FITTED)
             cand[m++] = shape == REFL_LEM_SHELL_BOX ? refl__lem_fit_box(pos, n, lo, hi, world)
-                                                    : refl__lem_fit_cylinder(pos, n, c, lo, hi, world);
+                                                    : refl__lem_fit_cylinder(pos, n, c, lo, hi, world, scratch);
         if (fitted) {
             if (frame != REFL_LEM_FRAME_FITTED) twin[m] = m - 1;
             cand[m++] = oriented;
         }
     }
+    refl__free(al, scratch);
     if (kind == REFL_LEM_SHELL_AUTO || kind == REFL_LEM_SHELL_QUAD || kind == REFL_LEM_SHELL_SPHERE) {
         memset(&cand[m], 0, sizeof cand[m]);
         cand[m].kind = REFL_LEM_SHELL_SPHERE;
