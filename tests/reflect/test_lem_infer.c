@@ -1264,7 +1264,7 @@ Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
     static const struct {
         const char *scene;
         uint64_t digest;
-    } cases[] = {{"mirror-room", 0x62daa0316eae2640ull}, {"hybrid", 0xd97ea04b9d5d9c10ull}};
+    } cases[] = {{"mirror-room", 0x10012ff96ec2872bull}, {"hybrid", 0x1a8713960a44dcdfull}};
     uint64_t digest[2];
     int k;
     for (k = 0; k < 2; ++k) {
