@@ -1751,6 +1751,8 @@ typedef struct refl_lem_solve_desc {
     int iterations;          /* at most; 0: 200 */
     float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
                                 start, in every channel; 0: 1e-6 */
+    int nonnegative;         /* 1: every texel's channels kept at 0 or above (the least
+                                squares over x >= 0); 0: unconstrained */
 } refl_lem_solve_desc;
 
 typedef struct refl_lem_solve_stats {
@@ -1761,6 +1763,8 @@ typedef struct refl_lem_solve_stats {
 
 /* Least squares by conjugate gradients on the normal equations (CGLS),
    the four channels at once, from x = 0: texels no row reaches stay 0.
+   With desc->nonnegative, CGLS over the texels the bound leaves free,
+   restarted where a step meets it (the iterations' cap counts them all).
    Sequential sums in double: the same x on every run. x: 4 floats per
    texel. stats may be NULL. */
 REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,
@@ -13140,7 +13144,8 @@ REFL_API long long refl_kdtree_query(const refl_kdtree *tree, refl_kdtree_box_fn
    where the pixel's subsamples' exit rays meet the scene, weighed by the
    paper's confidence, which distrusts pixels whose exit rays diverge.
    C A x = C b is solved by conjugate gradients on the normal equations,
-   sequentially in double, so the texels are the same on every run. */
+   over x >= 0 where asked (radiance is never negative), sequentially in
+   double, so the texels are the same on every run. */
 
 /* ---- shells: where an exit ray leaves one, and its texels -------------------------- */
 
@@ -13993,6 +13998,71 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
         for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
 }
 
+/* CGLS over x >= 0 (projected CGLS with restarts), the four channels at
+   once: conjugate gradients over each channel's free texels, those not
+   held at 0 by a gradient pushing them below it. A step that takes a free
+   texel below 0 is clamped there and the channel restarts from its
+   gradient with its free set found again; a channel converged on its free
+   texels restarts where a held texel's gradient now points above 0, and
+   is done where none does. From x = 0; r, g, p, q and held are the
+   solver's work vectors. Returns the iterations run. */
+static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, double *r, double *g, double *p,
+                                       double *q, unsigned char *held, int max_it, double tol) {
+    const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
+    double gamma[4] = {0, 0, 0, 0}, gamma0[4] = {0, 0, 0, 0}, qq[4];
+    int restart[4] = {1, 1, 1, 1}, done[4], first = 1, it, c;
+    size_t k;
+    for (it = 0; it < max_it; ++it) {
+        double gn[4] = {0, 0, 0, 0}, beta[4], alpha[4];
+        int all_done = 1;
+        if (restart[0] | restart[1] | restart[2] | restart[3]) { /* r = b - A x on the clamped x */
+            for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
+            refl__lem_mul(s, xd, q, qq);
+            for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
+        }
+        refl__lem_mul_t(s, r, g);
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                if (restart[c]) held[e] = xd[e] <= 0.0 && g[e] <= 0.0;
+                if (!held[e]) gn[c] += g[e] * g[e];
+            }
+        for (c = 0; c < 4; ++c) {
+            if (first) gamma0[c] = gn[c];
+            beta[c] = restart[c] || !(gamma[c] > 0.0) ? 0.0 : gn[c] / gamma[c];
+            gamma[c] = gn[c];
+            restart[c] = 0;
+        }
+        first = 0;
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                p[e] = held[e] ? 0.0 : g[e] + beta[c] * p[e];
+            }
+        for (c = 0; c < 4; ++c) {
+            done[c] = !(gamma[c] > tol * tol * gamma0[c]);
+            for (k = 0; done[c] && k < nt && !restart[c]; ++k) /* a held texel pulled back above 0 */
+                restart[c] = held[4 * k + (size_t)c] && g[4 * k + (size_t)c] > 0.0;
+            done[c] &= !restart[c];
+            all_done &= done[c];
+        }
+        if (all_done) break;
+        if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
+        refl__lem_mul(s, p, q, qq);
+        for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                xd[e] += alpha[c] * p[e];
+                restart[c] |= xd[e] < 0.0;
+            }
+        for (k = 0; k < nr; ++k)
+            for (c = 0; c < 4; ++c) r[4 * k + (size_t)c] -= alpha[c] * q[4 * k + (size_t)c];
+    }
+    for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
+    return it;
+}
+
 REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_solve_desc *desc, float *x,
                                     refl_lem_solve_stats *stats) {
     const refl_allocator *a;
@@ -14017,6 +14087,16 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     refl__lem_norm2(r, (size_t)s->rows, rr);
     if (stats)
         for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
+    if (desc && desc->nonnegative) {
+        unsigned char *held = (unsigned char *)refl__calloc(a, 4 * nt, 1);
+        if (!held) {
+            refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+            return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        it = refl__lem_solve_nonnegative(s, xd, r, g, p, q, held, max_it, tol);
+        refl__free(a, held);
+        goto solved;
+    }
     refl__lem_mul_t(s, r, g);
     memcpy(p, g, sizeof(double) * 4 * nt);
     refl__lem_norm2(g, nt, gamma);
@@ -14051,6 +14131,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
                 for (c = 0; c < 4; ++c) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta[c] * p[4 * k + (size_t)c];
         }
     }
+solved:
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
     if (stats) {
         stats->iterations = it;
@@ -19077,20 +19158,6 @@ static refl_result refl__lem_joint_row(const refl_allocator *al, refl__lem_joint
     return REFL_OK;
 }
 
-/* Radiance is never negative, but CGLS's unconstrained least squares is:
-   a texel that rows across a sharp edge hold by small bilinear weights
-   swings below 0 to fit its neighbours (ringing), and a pixel whose
-   lookup lands on it is drawn black. The opaque (outermost) layer's
-   solved colours are clamped at 0 (alpha, clamped where it is used, is
-   left); an inner layer's premultiplied colours are not: their negatives
-   offset what the layers behind them add, and clamping them measured
-   worse (docs/methods/layered_em.md, "Shells and direct images"). */
-static void refl__lem_nonnegative(float *texels, int count) {
-    int t, c;
-    for (t = 0; t < count; ++t)
-        for (c = 0; c < 3; ++c) texels[4 * (size_t)t + (size_t)c] = REFL__MAX(texels[4 * (size_t)t + (size_t)c], 0.0f);
-}
-
 /* Infers object i's maps for the sample whose views are views[0 .. per)
    (the sample's own first) on the layers' shells: the records and
    tessellation of each view, then per layer rows from the runtime's own
@@ -19245,11 +19312,16 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
+    /* Radiance and coverage are never negative, but unconstrained least
+       squares is: where rows that share texels disagree (one shell point
+       seen as a black and a white checker), it swings texels below 0 and
+       their neighbours past every target (ringing), and a lookup there is
+       drawn dark. Every layer is solved over x >= 0. */
+    sd.nonnegative = 1;
     for (l = 0; l < L - (jr != NULL) && r == REFL_OK; ++l) {
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) r = refl_lem_solve(sys[l], &sd, out->texels[l], NULL);
-        if (r == REFL_OK && l == L - 1) refl__lem_nonnegative(out->texels[l], 6 * face * face);
     }
     for (k = 0; k < L; ++k) refl_lem_system_destroy(sys[k]);
     refl__free(al, index[0]);
@@ -19588,10 +19660,10 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = p->desc.layered_em.iterations;
+    sd.nonnegative = 1; /* as refl__lem_infer's layers */
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels[0], NULL);
-    if (r == REFL_OK) refl__lem_nonnegative(out->texels[0], texels);
     refl_lem_system_destroy(sys);
     return r;
 }

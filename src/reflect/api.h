@@ -1749,6 +1749,8 @@ typedef struct refl_lem_solve_desc {
     int iterations;          /* at most; 0: 200 */
     float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
                                 start, in every channel; 0: 1e-6 */
+    int nonnegative;         /* 1: every texel's channels kept at 0 or above (the least
+                                squares over x >= 0); 0: unconstrained */
 } refl_lem_solve_desc;
 
 typedef struct refl_lem_solve_stats {
@@ -1759,6 +1761,8 @@ typedef struct refl_lem_solve_stats {
 
 /* Least squares by conjugate gradients on the normal equations (CGLS),
    the four channels at once, from x = 0: texels no row reaches stay 0.
+   With desc->nonnegative, CGLS over the texels the bound leaves free,
+   restarted where a step meets it (the iterations' cap counts them all).
    Sequential sums in double: the same x on every run. x: 4 floats per
    texel. stats may be NULL. */
 REFL_API refl_result refl_lem_solve(const refl_lem_system *system, const refl_lem_solve_desc *desc, float *x,

@@ -9,7 +9,8 @@
    where the pixel's subsamples' exit rays meet the scene, weighed by the
    paper's confidence, which distrusts pixels whose exit rays diverge.
    C A x = C b is solved by conjugate gradients on the normal equations,
-   sequentially in double, so the texels are the same on every run. */
+   over x >= 0 where asked (radiance is never negative), sequentially in
+   double, so the texels are the same on every run. */
 #include "internal.h"
 
 /* ---- shells: where an exit ray leaves one, and its texels -------------------------- */
@@ -863,6 +864,71 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
         for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
 }
 
+/* CGLS over x >= 0 (projected CGLS with restarts), the four channels at
+   once: conjugate gradients over each channel's free texels, those not
+   held at 0 by a gradient pushing them below it. A step that takes a free
+   texel below 0 is clamped there and the channel restarts from its
+   gradient with its free set found again; a channel converged on its free
+   texels restarts where a held texel's gradient now points above 0, and
+   is done where none does. From x = 0; r, g, p, q and held are the
+   solver's work vectors. Returns the iterations run. */
+static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, double *r, double *g, double *p,
+                                       double *q, unsigned char *held, int max_it, double tol) {
+    const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
+    double gamma[4] = {0, 0, 0, 0}, gamma0[4] = {0, 0, 0, 0}, qq[4];
+    int restart[4] = {1, 1, 1, 1}, done[4], first = 1, it, c;
+    size_t k;
+    for (it = 0; it < max_it; ++it) {
+        double gn[4] = {0, 0, 0, 0}, beta[4], alpha[4];
+        int all_done = 1;
+        if (restart[0] | restart[1] | restart[2] | restart[3]) { /* r = b - A x on the clamped x */
+            for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
+            refl__lem_mul(s, xd, q, qq);
+            for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
+        }
+        refl__lem_mul_t(s, r, g);
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                if (restart[c]) held[e] = xd[e] <= 0.0 && g[e] <= 0.0;
+                if (!held[e]) gn[c] += g[e] * g[e];
+            }
+        for (c = 0; c < 4; ++c) {
+            if (first) gamma0[c] = gn[c];
+            beta[c] = restart[c] || !(gamma[c] > 0.0) ? 0.0 : gn[c] / gamma[c];
+            gamma[c] = gn[c];
+            restart[c] = 0;
+        }
+        first = 0;
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                p[e] = held[e] ? 0.0 : g[e] + beta[c] * p[e];
+            }
+        for (c = 0; c < 4; ++c) {
+            done[c] = !(gamma[c] > tol * tol * gamma0[c]);
+            for (k = 0; done[c] && k < nt && !restart[c]; ++k) /* a held texel pulled back above 0 */
+                restart[c] = held[4 * k + (size_t)c] && g[4 * k + (size_t)c] > 0.0;
+            done[c] &= !restart[c];
+            all_done &= done[c];
+        }
+        if (all_done) break;
+        if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
+        refl__lem_mul(s, p, q, qq);
+        for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
+        for (k = 0; k < nt; ++k)
+            for (c = 0; c < 4; ++c) {
+                size_t e = 4 * k + (size_t)c;
+                xd[e] += alpha[c] * p[e];
+                restart[c] |= xd[e] < 0.0;
+            }
+        for (k = 0; k < nr; ++k)
+            for (c = 0; c < 4; ++c) r[4 * k + (size_t)c] -= alpha[c] * q[4 * k + (size_t)c];
+    }
+    for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
+    return it;
+}
+
 REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_solve_desc *desc, float *x,
                                     refl_lem_solve_stats *stats) {
     const refl_allocator *a;
@@ -887,6 +953,16 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     refl__lem_norm2(r, (size_t)s->rows, rr);
     if (stats)
         for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
+    if (desc && desc->nonnegative) {
+        unsigned char *held = (unsigned char *)refl__calloc(a, 4 * nt, 1);
+        if (!held) {
+            refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+            return REFL_ERROR_OUT_OF_MEMORY;
+        }
+        it = refl__lem_solve_nonnegative(s, xd, r, g, p, q, held, max_it, tol);
+        refl__free(a, held);
+        goto solved;
+    }
     refl__lem_mul_t(s, r, g);
     memcpy(p, g, sizeof(double) * 4 * nt);
     refl__lem_norm2(g, nt, gamma);
@@ -921,6 +997,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
                 for (c = 0; c < 4; ++c) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta[c] * p[4 * k + (size_t)c];
         }
     }
+solved:
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
     if (stats) {
         stats->iterations = it;

@@ -585,20 +585,6 @@ static refl_result refl__lem_joint_row(const refl_allocator *al, refl__lem_joint
     return REFL_OK;
 }
 
-/* Radiance is never negative, but CGLS's unconstrained least squares is:
-   a texel that rows across a sharp edge hold by small bilinear weights
-   swings below 0 to fit its neighbours (ringing), and a pixel whose
-   lookup lands on it is drawn black. The opaque (outermost) layer's
-   solved colours are clamped at 0 (alpha, clamped where it is used, is
-   left); an inner layer's premultiplied colours are not: their negatives
-   offset what the layers behind them add, and clamping them measured
-   worse (docs/methods/layered_em.md, "Shells and direct images"). */
-static void refl__lem_nonnegative(float *texels, int count) {
-    int t, c;
-    for (t = 0; t < count; ++t)
-        for (c = 0; c < 3; ++c) texels[4 * (size_t)t + (size_t)c] = REFL__MAX(texels[4 * (size_t)t + (size_t)c], 0.0f);
-}
-
 /* Infers object i's maps for the sample whose views are views[0 .. per)
    (the sample's own first) on the layers' shells: the records and
    tessellation of each view, then per layer rows from the runtime's own
@@ -753,11 +739,16 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = o->iterations;
+    /* Radiance and coverage are never negative, but unconstrained least
+       squares is: where rows that share texels disagree (one shell point
+       seen as a black and a white checker), it swings texels below 0 and
+       their neighbours past every target (ringing), and a lookup there is
+       drawn dark. Every layer is solved over x >= 0. */
+    sd.nonnegative = 1;
     for (l = 0; l < L - (jr != NULL) && r == REFL_OK; ++l) {
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) r = refl_lem_solve(sys[l], &sd, out->texels[l], NULL);
-        if (r == REFL_OK && l == L - 1) refl__lem_nonnegative(out->texels[l], 6 * face * face);
     }
     for (k = 0; k < L; ++k) refl_lem_system_destroy(sys[k]);
     refl__free(al, index[0]);
@@ -1096,10 +1087,10 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     }
     memset(&sd, 0, sizeof sd);
     sd.iterations = p->desc.layered_em.iterations;
+    sd.nonnegative = 1; /* as refl__lem_infer's layers */
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels[0], NULL);
-    if (r == REFL_OK) refl__lem_nonnegative(out->texels[0], texels);
     refl_lem_system_destroy(sys);
     return r;
 }

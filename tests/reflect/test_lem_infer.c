@@ -1250,7 +1250,7 @@ Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
     static const struct {
         const char *scene;
         uint64_t digest;
-    } cases[] = {{"mirror-room", 0x47ca1949ebdb1266ull}, {"hybrid", 0xd0c5b747534c6d12ull}};
+    } cases[] = {{"mirror-room", 0x10012ff96ec2872bull}, {"hybrid", 0x1a8713960a44dcdfull}};
     uint64_t digest[2];
     int k;
     for (k = 0; k < 2; ++k) {
