@@ -19,16 +19,19 @@
 # Each implementation is compiled once per configuration and linked wherever
 # it is needed: tests/rast_impl.c and tests/reflect_impl.c, plain in
 # build/tests/ (the test binary, the benchmarks, the `reflect` command),
-# sanitized in build/asan/tests/ (the sanitized test binary), and rast.h in
-# plain C without threads in build/portable/ (the rasteriser's tests again).
+# sanitized in build/asan/tests/ (the sanitized test binary, which links
+# them with the plain test objects: the sanitizers are there for the
+# library's memory errors, and the tests' own code is compiled once), and
+# rast.h in plain C without threads in build/portable/ (the rasteriser's
+# tests again).
 # Besides these, only the C and C++ compile checks compile the
 # implementations (at -O0: they are never run), and each example in
 # examples/, a self-contained program that defines the IMPLEMENTATION macros
 # as a user's would.
 #
 # Build outputs mirror the source tree: tests/reflect/test_bvh.c compiles to
-# build/tests/reflect/test_bvh.o, and to build/asan/tests/reflect/test_bvh.o
-# sanitized.
+# build/tests/reflect/test_bvh.o, tools/reflect_gl.c sanitized to
+# build/asan/tools/reflect_gl.o.
 
 SHELL := /bin/bash
 
@@ -153,7 +156,7 @@ PORTABLE_IMPL_OBJ = build/portable/rast_impl.o
 TEST_BIN       = build/tests/rast_tests
 ASAN_TEST_BIN  = build/asan/rast_tests
 TEST_OBJS      = $(TEST_SRCS:%.c=build/%.o) $(IMPL_OBJS)
-ASAN_TEST_OBJS = $(TEST_SRCS:%.c=build/asan/%.o) $(ASAN_IMPL_OBJS)
+ASAN_TEST_OBJS = $(TEST_SRCS:%.c=build/%.o) $(ASAN_IMPL_OBJS)
 # The rasteriser's own tests (tests/rast/) again against an implementation
 # in plain C without threads (RAST_NO_SIMD, RAST_NO_THREADS): the scalar
 # paths that SSE2 machines never take must give the same answers.
