@@ -28,16 +28,15 @@
 
 #include "../rast.h"
 
-/* TU_SANITIZED: defined in the AddressSanitizer build. That run looks for
-   memory errors; the plain and portable runs check the same bytes, so a
-   test whose size only adds time under the sanitizers may do less there. */
-#if defined(__SANITIZE_ADDRESS__)
-#define TU_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define TU_SANITIZED 1
-#endif
-#endif
+/* tu_sanitized(): whether this binary runs under AddressSanitizer. The
+   sanitized test binary links these same test objects with sanitized
+   implementations, so the answer is whether the sanitizer's runtime is
+   linked (its __asan_init, a weak reference that stays null elsewhere).
+   That run looks for memory errors; the plain and portable runs check the
+   same bytes, so a test whose size only adds time under the sanitizers may
+   do less there. */
+extern void __asan_init(void) __attribute__((weak));
+static inline int tu_sanitized(void) { return __asan_init != NULL; }
 
 /* ---- failure accumulation ------------------------------------------------ */
 

@@ -367,13 +367,8 @@ Test(refl_bvh, deterministic) {
 
 /* Random rays per scene, and the primary grid's divisor: fewer under the
    sanitizers, whose run has a time bound (make test). */
-#ifdef TU_SANITIZED
-#define BVH_RANDOM_RAYS 2000
-#define BVH_GRID_DIV 2
-#else
-#define BVH_RANDOM_RAYS 20000
-#define BVH_GRID_DIV 1
-#endif
+#define BVH_RANDOM_RAYS (tu_sanitized() ? 2000 : 20000)
+#define BVH_GRID_DIV (tu_sanitized() ? 2 : 1)
 
 /* One ray through the four traversals (tests/reflect_testing.h): the wide
    tree with SIMD box tests (AVX2 where the CPU has it), lane by lane, the

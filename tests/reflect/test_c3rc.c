@@ -79,10 +79,6 @@ Test(refl_c3rc, default_scene_within_a_pixel) {
     refl_reflection_error ce;
     c3_result r;
     int teapot_tris = s->meshes[s->objects[1].mesh]->triangle_count;
-#ifdef TU_SANITIZED
-    refl_scene_destroy(s);
-    cr_skip_test("the 640x480 accuracy test runs in the plain build");
-#endif
     cr_assert(teapot_tris >= 3500 && teapot_tris <= 4500, "teapot of %d triangles", teapot_tris);
     v.width = 640;
     v.height = 480;
@@ -117,10 +113,6 @@ Test(refl_c3rc, default_density_within_a_pixel_on_average) {
     refl_scene *s = builtin("default", 8);
     refl_view v = s->camera;
     c3_result r;
-#ifdef TU_SANITIZED
-    refl_scene_destroy(s);
-    cr_skip_test("the 640x480 accuracy test runs in the plain build");
-#endif
     v.width = 640;
     v.height = 480;
     r = measure(s, &v, 0.0f);
@@ -248,10 +240,6 @@ Test(refl_c3rc, concave_focus_at_640x480) {
     refl_scene *s = builtin("concave", 0);
     refl_view v = s->camera;
     c3_result r;
-#ifdef TU_SANITIZED
-    refl_scene_destroy(s);
-    cr_skip_test("the 640x480 accuracy test runs in the plain build");
-#endif
     v.width = 640;
     v.height = 480;
     r = measure(s, &v, 0.0f);

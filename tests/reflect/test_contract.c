@@ -36,12 +36,9 @@ Test(refl_contract, every_method_renders_or_is_unsupported) {
    opaque. */
 Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .timeout = 240) {
     static const char *const scenes[] = {"default", "glass", "mirror-room"};
-#ifdef TU_SANITIZED
-    static const int threads[] = {1, 7}; /* the plain runs compare 2 and 3 too */
-#else
-    static const int threads[] = {1, 2, 3, 7};
-#endif
-    enum { THREAD_COUNTS = (int)(sizeof threads / sizeof threads[0]) };
+    static const int plain_threads[] = {1, 2, 3, 7}, sanitized_threads[] = {1, 7}; /* the plain runs compare 2 and 3 too */
+    const int *threads = tu_sanitized() ? sanitized_threads : plain_threads;
+    const int thread_counts = tu_sanitized() ? 2 : 4;
     int m, k, t;
     for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
         if (!renders((refl_method)m)) continue;
@@ -49,7 +46,7 @@ Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .
             refl_view v;
             refl_scene *s = tu_refl_builtin(scenes[k], &v, 48, 36);
             uint64_t first = 0;
-            for (t = 0; t < THREAD_COUNTS; ++t) {
+            for (t = 0; t < thread_counts; ++t) {
                 refl_render_desc d = tu_refl_one_bounce((refl_method)m, threads[t]);
                 refl_frame *f;
                 int i;
@@ -80,11 +77,7 @@ Test(refl_contract, same_bytes_for_every_thread_count_and_a_well_formed_frame, .
    succeeds, and nothing leaks. The scene is built once, on the same
    counting allocator, which the methods allocate from. */
 Test(refl_contract, allocation_failure_at_every_allocation, .timeout = 600) {
-#ifdef TU_SANITIZED
-    const long stride = 2; /* every other allocation: the plain runs fail each one, counting leaks */
-#else
-    const long stride = 1;
-#endif
+    const long stride = tu_sanitized() ? 5 : 1; /* every fifth allocation: the plain runs fail each one, counting leaks */
     int m;
     for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
         tu_alloc_counter c;

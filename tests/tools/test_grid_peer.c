@@ -19,11 +19,7 @@
 #include "../test_util.h"
 
 /* per grid: the bench checks 200000 more before it measures */
-#ifdef TU_SANITIZED
-#define GRID_RAYS 5000
-#else
-#define GRID_RAYS 25000
-#endif
+#define GRID_RAYS (tu_sanitized() ? 5000 : 25000)
 
 static refl_scene *grid_hybrid(void) {
     refl_scene *s = NULL;
