@@ -4324,7 +4324,9 @@ static void refl__draw_background(float *color, const float *depth, int width, i
    Benthin and Wald 2013, so rays never slip through shared edges. The
    closest hit is the least (t, object, triangle), whatever order the
    boxes are visited in, so the binary and the wide tree, scalar or SIMD,
-   name the same hit. */
+   name the same hit; and boxes are culled with an allowance for the
+   triangle test's rounding (refl__bvh_ray_slack), so that a bound tmax
+   keeps, grazing hits aside, every hit the triangle test finds before it. */
 
 #if (defined(__SSE2__) || defined(_M_X64)) && !defined(RAST_NO_SIMD)
 #include <emmintrin.h>
@@ -4405,6 +4407,7 @@ struct refl_bvh {
     int block_count;
     int *object_tris;             /* per object of the scene built from: its triangle count (refit) */
     int object_count;
+    float lo[3], hi[3];           /* the root's box: a ray's slack comes from it (refl__bvh_ray_slack) */
 };
 
 /* ---- build ------------------------------------------------------------------ */
@@ -4903,6 +4906,17 @@ static void refl__bvh_collapse(refl_bvh *bvh) {
             }
         }
     }
+}
+
+/* The root's box, the union of its children's, into bvh->lo, hi. */
+static void refl__bvh_root_box(refl_bvh *bvh) {
+    int lane, k;
+    for (k = 0; k < 3; ++k) { bvh->lo[k] = INFINITY; bvh->hi[k] = -INFINITY; }
+    for (lane = 0; bvh->wide_count > 0 && lane < REFL__BVH_W; ++lane)
+        for (k = 0; k < 3; ++k) {
+            bvh->lo[k] = REFL__MIN(bvh->lo[k], bvh->wide[0].box[k][lane]);
+            bvh->hi[k] = REFL__MAX(bvh->hi[k], bvh->wide[0].box[3 + k][lane]);
+        }
 }
 
 /* An array of count * size bytes, not zeroed (the build fills what it
@@ -5549,6 +5563,7 @@ static refl_result refl__bvh_build_ex(const refl_scene *scene, const refl_alloca
     bvh->tris = NULL;
 
     refl__bvh_collapse(bvh);
+    refl__bvh_root_box(bvh);
     if (!keep_binary) {
         refl__free(a, bvh->nodes);
         bvh->nodes = NULL;
@@ -5682,6 +5697,7 @@ REFL_API refl_result refl_bvh_refit(refl_bvh *bvh, const refl_scene *scene) {
             }
         }
     }
+    refl__bvh_root_box(bvh);
     /* the binary tree (tests only) no longer matches: dropped */
     refl__free(&bvh->allocator, bvh->nodes);
     bvh->nodes = NULL;
@@ -5709,6 +5725,7 @@ typedef struct refl__bvh_ray {
     int near_lo[3];               /* 1: the ray enters a slab through its lo plane */
     int kx, ky, kz;               /* Woop's ray-space axes: kz the dominant one */
     float sx, sy, sz;             /* shear and scale to ray space */
+    float slack;                  /* refl__bvh_ray_slack */
 } refl__bvh_ray;
 
 static int refl__bvh_ray_setup(refl__bvh_ray *r, refl_vec3 o, refl_vec3 d) {
@@ -5747,7 +5764,40 @@ static int refl__bvh_ray_setup(refl__bvh_ray *r, refl_vec3 o, refl_vec3 d) {
     r->sz = 1.0f / r->dir[r->kz];
 #endif
     for (k = 0; k < 3; ++k) r->near_lo[k] = !(r->inv[k] < 0);
+    r->slack = 0.0f;
     return 1;
+}
+
+/* How far beyond the bound a box is still entered, in units of t: the
+   watertight test computes t from the corners' coordinates relative to
+   the origin, so it rounds with the farthest corner's distance, not with
+   t, where a box's entry rounds by a few ulps of t: a ray starting 1e-5
+   from a wall whose far corner is 25 away gets a t some percent short of
+   the wall's box entry, and a bound just past that t culled the box.
+   Boxes are culled against tmax + slack (and the best t so far plus
+   slack), the triangles tested against tmax itself. The slack is 2^-16 of
+   the ray's reach, the largest |t| at which it can be inside the root box
+   (the box's farthest coordinate from the origin over the direction's
+   largest component; no point of the box is farther along that axis):
+   16 times the least power of two that lost no hit of 100,000 random rays
+   and rays leaving the surfaces of each builtin scene (2^-21 lost some on
+   hybrid; tests/reflect/test_bvh.c), and 128 ulps or more of any t within
+   reach, so it covers the boxes' and triangles' rounding relative to t
+   as well. A hit at a grazing angle can round further than any slack of
+   the ray's alone covers. tmin gets none: a ray leaving a surface with
+   tmin just past it would then enter every box that touches its origin
+   (a fifth to a third more triangle tests a ray on the builtin scenes'
+   camera rays and rays leaving their hits), so a hit the triangle test
+   puts just past tmin, in a box whose exit rounds before tmin, can be
+   missed. */
+static void refl__bvh_ray_slack(const refl_bvh *bvh, refl__bvh_ray *r) {
+    float far = 0.0f;
+    int k;
+    for (k = 0; k < 3; ++k) {
+        far = REFL__MAX(far, fabsf(bvh->lo[k] - r->org[k]));
+        far = REFL__MAX(far, fabsf(bvh->hi[k] - r->org[k]));
+    }
+    r->slack = far * fabsf(r->sz) * 1.52587890625e-05f; /* 2^-16 */
 }
 
 /* Entry distance of the ray into the node's box within [tmin, tmax], or
@@ -5996,12 +6046,11 @@ static void refl__bvh_count_tests(long long n) { (void)n; }
 static long long refl__bvh_tests_counted(void) { return 0; }
 #endif
 
-/* The bound boxes are culled against once a hit at tmax is known: a hair
-   beyond it, more than the rounding of a box's entry distance and of a
-   triangle's t together, so a box holding a triangle that ties with (or
-   by rounding just beats) the best is still entered, whichever tree and
-   order the boxes come in. */
-static float refl__bvh_cull_bound(float tmax) { return tmax + fabsf(tmax) * 2e-6f; }
+/* The bound boxes are culled against, the caller's tmax or the best hit's
+   t: the ray's slack beyond it (refl__bvh_ray_slack), so a box
+   holding a triangle whose t ties with, or by rounding beats, the bound is
+   still entered, whichever tree and order the boxes come in. */
+static float refl__bvh_cull_bound(const refl__bvh_ray *r, float tmax) { return tmax + r->slack; }
 
 /* Tests a leaf's `count` triangles from block `first` (scalar: lane by
    lane) and keeps each hit that comes before the best so far in (t,
@@ -6056,13 +6105,13 @@ static int refl__bvh_trace_binary(const refl_bvh *bvh, const refl__bvh_ray *r, c
     int stack[REFL__BVH_STACK];
     float stack_t[REFL__BVH_STACK]; /* entry distances, to skip boxes behind a closer hit */
     int sp = 0, node = 0;
-    float tentry, tcull = tmax;
+    float tentry, tcull = refl__bvh_cull_bound(r, tmax);
     if (!refl__bvh_slab(r, &bvh->nodes[0], tmin, tcull, &tentry)) return 0;
     for (;;) {
         const refl__bvh_node *n = &bvh->nodes[node];
         if (n->count > 0) {
             if (refl__bvh_leaf(bvh, r, w, n->index, n->count, tmin, &tmax, any_hit, 1, best)) return 1;
-            if (best->found) tcull = refl__bvh_cull_bound(tmax);
+            if (best->found) tcull = refl__bvh_cull_bound(r, tmax);
         } else {
             float t0, t1;
             int c0 = n->index, c1 = n->index + 1;
@@ -6199,7 +6248,7 @@ static int refl__bvhw_trace_body(const refl_bvh *bvh, const refl__bvh_ray *r, co
     refl__bvhw_entry stack[REFL__BVHW_STACK];
     int sp = 0;
     int32_t child = 0, count = 0;
-    float tcull = tmax;           /* the caller's bound, then refl__bvh_cull_bound of the best hit's */
+    float tcull = refl__bvh_cull_bound(r, tmax); /* of the caller's bound, then of the best hit's */
 #ifdef REFL__BVH_SSE2
     const __m128 tmin4 = _mm_set1_ps(tmin);
     __m128 tcull4 = _mm_set1_ps(tcull);
@@ -6267,7 +6316,7 @@ static int refl__bvhw_trace_body(const refl_bvh *bvh, const refl__bvh_ray *r, co
         if (refl__bvh_leaf(bvh, r, w, child, count, tmin, &tmax, any_hit, boxes == REFL__BVH_BOXES_SCALAR, best))
             return 1;
         if (best->found) {
-            tcull = refl__bvh_cull_bound(tmax);
+            tcull = refl__bvh_cull_bound(r, tmax);
 #ifdef REFL__BVH_SSE2
             tcull4 = _mm_set1_ps(tcull);
 #endif
@@ -6314,6 +6363,7 @@ static int refl__bvh_trace(const refl_bvh *bvh, refl_vec3 origin, refl_vec3 dir,
     if (!bvh || bvh->wide_count == 0) return 0;
     if (!(tmin < tmax) || tmin != tmin) return 0;
     if (!refl__bvh_ray_setup(&r, origin, dir)) return 0;
+    refl__bvh_ray_slack(bvh, &r);
     refl__bvhw_ray_setup(&w, &r);
     memset(&best, 0, sizeof best);
     if (path == REFL__BVH_BINARY) {
@@ -6375,11 +6425,11 @@ static unsigned refl__bvhp_trace_body(const refl_bvh *bvh, const refl__bvh_ray *
                                       const float *tmin, float *tmax, unsigned active, int any_hit, int boxes,
                                       refl__bvh_best *best) {
     refl__bvhp_entry stack[REFL__BVHW_STACK];
-    float tcull[4];
+    float tcull[4];               /* each ray's, as in refl__bvhw_trace_body */
     unsigned rays = active, found = 0;
     int sp = 0, k;
     int32_t child = 0, count = 0;
-    for (k = 0; k < 4; ++k) tcull[k] = tmax[k];
+    for (k = 0; k < 4; ++k) tcull[k] = active >> k & 1 ? refl__bvh_cull_bound(&r[k], tmax[k]) : 0.0f;
     for (;;) {
         while (count == 0) {
             const refl__bvhw_node *n = &bvh->wide[child];
@@ -6438,7 +6488,7 @@ static unsigned refl__bvhp_trace_body(const refl_bvh *bvh, const refl__bvh_ray *
                 active &= ~(1u << k); /* any_hit: answered */
                 continue;
             }
-            if (best[k].found) tcull[k] = refl__bvh_cull_bound(tmax[k]);
+            if (best[k].found) tcull[k] = refl__bvh_cull_bound(&r[k], tmax[k]);
         }
         if (!active) break;
     pop:
@@ -6491,6 +6541,7 @@ static unsigned refl__bvh_trace4(const refl_bvh *bvh, const refl_vec3 origin[4],
         memset(&best[k], 0, sizeof best[k]);
         if (!(tmin[k] < tmax[k]) || tmin[k] != tmin[k]) continue;
         if (!refl__bvh_ray_setup(&r[k], origin[k], dir[k])) continue;
+        refl__bvh_ray_slack(bvh, &r[k]);
         refl__bvhw_ray_setup(&w[k], &r[k]);
         active |= 1u << k;
     }

@@ -430,10 +430,8 @@ long long refl_grid_agreement(refl_grid *g, const refl_scene *s, const refl_bvh 
         hb = grid_bvh_first(g, bvh, o, d, FLT_MAX, &b);
         tmax = grid_uniform(&state, 0.0f, 1.2f) * (hb ? b.t : 10.0f);
         oa = refl_grid_occluded(g, o, d, 0.0f, tmax);
-        /* whether refl_bvh's first hit lies before tmax, not its own query
-           bounded by tmax: that one culls boxes by their entry distance,
-           which rounds on the scale of the origin's coordinates, so a hit a
-           few 1e-5 from the origin just under tmax can be culled */
+        /* whether refl_bvh's first hit on the grid's objects lies before
+           tmax (refl_bvh_occluded would take the other objects too) */
         ob = hb && b.t < tmax;
         k = ha == hb && oa == ob &&
             (!ha || (a.object == b.object && a.triangle == b.triangle && a.t == b.t && a.u == b.u && a.v == b.v));

@@ -2,8 +2,9 @@
    meshes (rays through vertices and edges included), occlusion against
    intersection, the default scene, determinism, the wide tree against the
    binary one and its SIMD box tests against the scalar ones (every
-   built-in scene and the shared assets), bad input and allocation failure
-   at every allocation. */
+   built-in scene and the shared assets), bad input, allocation failure
+   at every allocation, and queries bounded by tmax against the triangle
+   test on every triangle (rays starting next to a surface). */
 #define _POSIX_C_SOURCE 200809L
 #include <criterion/criterion.h>
 #include <math.h>
@@ -917,6 +918,148 @@ Test(refl_bvh, counts_one_test_per_ray_and_real_triangle) {
         before = refl__testing_bvh_tests_counted();
         cr_assert(!refl_bvh_intersect(bvh, refl_v3(5, 5, 1), refl_v3(0, 0, -1), 0, INFINITY, &h));
         cr_assert_eq(refl__testing_bvh_tests_counted() - before, 0, "%d triangles: a miss tests nothing", n);
+        refl_bvh_destroy(bvh);
+        refl_scene_destroy(s);
+    }
+}
+
+/* ---- bounds against the triangle test ----------------------------------------- */
+
+/* The hit refl_ray_triangle reports within [tmin, tmax] on each of the
+   scene's triangles, the least (t, object, triangle): what every query
+   bounded by them must return, whatever boxes hold the triangles. */
+static int every_triangle(const refl_scene *s, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *best) {
+    int i, t, j, found = 0;
+    for (i = 0; i < s->object_count; ++i) {
+        const refl_mesh *m = s->meshes[s->objects[i].mesh];
+        for (t = 0; t < m->triangle_count; ++t) {
+            float tri[9];
+            refl_hit h;
+            for (j = 0; j < 3; ++j) {
+                const float *p = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + j];
+                refl_vec3 w = refl_mat4_point(s->objects[i].transform, refl_v3(p[0], p[1], p[2]));
+                tri[3 * j] = w.x; tri[3 * j + 1] = w.y; tri[3 * j + 2] = w.z;
+            }
+            /* refl_ray_triangle takes t == tmax, the queries do not */
+            if (!refl_ray_triangle(o, d, tri, tmin, tmax, &h) || !(h.t < tmax)) continue;
+            if (found && !(h.t < best->t)) continue; /* a tie goes to the earlier object, triangle */
+            h.object = i;
+            h.triangle = t;
+            *best = h;
+            found = 1;
+        }
+    }
+    return found;
+}
+
+/* Every traversal, single rays (same_hit_every_way) and packets of four,
+   finds what every_triangle finds within [tmin, tmax]. */
+static void bounded_as_every_triangle(const refl_scene *s, const refl_bvh *bvh, refl_vec3 o, refl_vec3 d, float tmin,
+                                      float tmax, const char *what, long long i) {
+    static const int paths4[] = {0, 1, 3};
+    refl_hit want, got, four[4];
+    refl_vec3 o4[4] = {o, o, o, o}, d4[4] = {d, d, d, d};
+    float tmin4[4] = {tmin, tmin, tmin, tmin}, tmax4[4] = {tmax, tmax, tmax, tmax};
+    int found = every_triangle(s, o, d, tmin, tmax, &want), p;
+    cr_assert_eq(same_hit_every_way(bvh, o, d, tmin, tmax, what, i, &got), found,
+                 "%s %lld in (%.9g, %.9g): the tree %s, the triangle test %s (object %d triangle %d t %.9g)", what, i,
+                 tmin, tmax, found ? "misses" : "hits", found ? "hits" : "misses", found ? want.object : got.object,
+                 found ? want.triangle : got.triangle, found ? want.t : got.t);
+    cr_assert(!found || (got.object == want.object && got.triangle == want.triangle && got.t == want.t),
+              "%s %lld: the tree names object %d triangle %d t %.9g, the triangle test object %d triangle %d t %.9g",
+              what, i, got.object, got.triangle, got.t, want.object, want.triangle, want.t);
+    for (p = 0; p < 3; ++p) {
+        cr_assert_eq(refl__testing_bvh_trace4_path(bvh, o4, d4, tmin4, tmax4, 0, paths4[p], four), found ? 0xfu : 0u,
+                     "%s %lld: packet path %d", what, i, paths4[p]);
+        cr_assert(!found || four[3].t == want.t);
+        cr_assert_eq(refl__testing_bvh_trace4_path(bvh, o4, d4, tmin4, tmax4, 1, paths4[p], NULL), found ? 0xfu : 0u,
+                     "%s %lld: occluded packet path %d", what, i, paths4[p]);
+    }
+}
+
+/* A ray starting 1e-5 from a wall whose far corner is 25 away: the
+   watertight test's t rounds on the scale of the corners' distance from
+   the origin (it says 1.611e-5 where the plane is at 1.714e-5), the box's
+   entry on the scale of t (1.663e-5, the wall being a float's step off
+   its axis). A bound between the two, 0.7% past the reported hit, must
+   keep it, as the unbounded query and the triangle test have it: boxes
+   are culled with the ray's slack beyond the bound. The same ray on the
+   builtin hybrid scene, where the uniform grid's agreement found it. */
+Test(refl_bvh, a_bound_keeps_a_hit_whose_t_rounds_below_its_box) {
+    const float wall[9] = {0x1.e4cccep+3f, 0x1.4p+2f, 0x1.ep+3f, 0x1.e4cccep+3f, 0.0f, 0x1.ep+3f,
+                           0x1.e4ccccp+3f, 0.0f, -0x1.ep+3f};
+    const refl_vec3 o = refl_v3(0x1.e4ccd8p+3f, 0x1.ba37ecp+1f, 0x1.4d8f14p+3f),
+                    d = refl_v3(-0x1.25897p-2f, 0x1.2beeep-2f, -0x1.9f1ad8p-2f);
+    const float bound = 0x1.104b08p-16f;
+    refl_scene *s = NULL;
+    refl_bvh *bvh = NULL;
+    refl_mesh_desc md;
+    refl_mesh *m = NULL;
+    refl_hit h;
+    int i;
+    cr_assert(refl_ray_triangle(o, d, wall, 0.0f, INFINITY, &h));
+    cr_assert(h.t < bound && h.t > 0.99f * bound, "the wall at t %.9g", h.t);
+    cr_assert_eq(refl_scene_create(NULL, &s), REFL_OK);
+    memset(&md, 0, sizeof md);
+    md.positions = wall;
+    md.vertex_count = 3;
+    cr_assert_eq(refl_mesh_create(&md, &m), REFL_OK);
+    add_object(s, m, refl_mat4_identity());
+    cr_assert_eq(refl__testing_bvh_build_binary_too(s, &bvh), REFL_OK);
+    bounded_as_every_triangle(s, bvh, o, d, 0.0f, INFINITY, "wall", 0);
+    bounded_as_every_triangle(s, bvh, o, d, 0.0f, bound, "wall", 1);
+    bounded_as_every_triangle(s, bvh, o, d, 0.0f, nextafterf(h.t, INFINITY), "wall", 2);
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+
+    cr_assert_eq(refl_scene_builtin("hybrid", NULL, &s), REFL_OK);
+    cr_assert_eq(refl__testing_bvh_build_binary_too(s, &bvh), REFL_OK);
+    cr_assert(refl_bvh_intersect(bvh, o, d, 0.0f, INFINITY, &h));
+    for (i = 0; i < 2; ++i)
+        bounded_as_every_triangle(s, bvh, o, d, 0.0f, i == 0 ? bound : nextafterf(h.t, INFINITY), "hybrid", i);
+    refl_bvh_destroy(bvh);
+    refl_scene_destroy(s);
+}
+
+/* Rays leaving the surfaces of two builtin scenes (the origin a random
+   point of a random triangle, moved 1e-7 to 1e-2 off it either way; a
+   random direction, or one grazing the triangle), bounded by their hit
+   (just past it, 1% past it), each against every triangle. A bound tmin
+   gets no slack (refl__bvh_ray_slack in src/reflect/bvh.c): not tested. */
+Test(refl_bvh, bounded_queries_find_what_the_triangle_test_finds) {
+    static const char *const scenes[] = {"hybrid", "maze"};
+    int si;
+    for (si = 0; si < 2; ++si) {
+        refl_scene *s = NULL;
+        refl_bvh *bvh = NULL;
+        refl_rng r = refl_rng_seed(2006u + (uint64_t)si);
+        long long i;
+        cr_assert_eq(refl_scene_builtin(scenes[si], NULL, &s), REFL_OK);
+        cr_assert_eq(refl__testing_bvh_build_binary_too(s, &bvh), REFL_OK);
+        for (i = 0; i < 150; ++i) {
+            const refl_object *ob = &s->objects[refl_rng_u32(&r) % (uint32_t)s->object_count];
+            const refl_mesh *m = s->meshes[ob->mesh];
+            uint32_t t = refl_rng_u32(&r) % (uint32_t)m->triangle_count;
+            float a = rnd(&r, 0, 1), b = rnd(&r, 0, 1 - a), off = powf(10.0f, rnd(&r, -7, -2));
+            refl_vec3 v[3], n, o, d;
+            refl_hit h;
+            int j;
+            for (j = 0; j < 3; ++j) {
+                const float *p = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + j];
+                v[j] = refl_mat4_point(ob->transform, refl_v3(p[0], p[1], p[2]));
+            }
+            n = refl_v3_normalize(refl_v3_cross(refl_v3_sub(v[1], v[0]), refl_v3_sub(v[2], v[0])));
+            o = refl_v3_add(refl_v3_add(refl_v3_scale(v[0], 1 - a - b), refl_v3_scale(v[1], a)),
+                            refl_v3_scale(v[2], b));
+            o = refl_v3_add(o, refl_v3_scale(n, refl_rng_u32(&r) % 2 ? off : -off));
+            d = rnd_dir(&r);
+            if (i % 2) d = refl_v3_add(refl_v3_sub(d, refl_v3_scale(n, refl_v3_dot(d, n))),
+                                       refl_v3_scale(n, rnd(&r, -0.1f, 0.1f)));
+            bounded_as_every_triangle(s, bvh, o, d, 0.0f, INFINITY, scenes[si], i);
+            if (!refl_bvh_intersect(bvh, o, d, 0.0f, INFINITY, &h)) continue;
+            bounded_as_every_triangle(s, bvh, o, d, 0.0f, nextafterf(h.t, INFINITY), scenes[si], i);
+            bounded_as_every_triangle(s, bvh, o, d, 0.0f, 1.01f * h.t, scenes[si], i);
+        }
         refl_bvh_destroy(bvh);
         refl_scene_destroy(s);
     }

@@ -115,10 +115,9 @@ Test(lem_lemcalib, fit_meets_the_papers_tests_a_ray_on_hybrid) {
 }
 
 /* The agreement's any-hit reference is refl_bvh's first hit before the
-   bound: ray 18317 of seed 2006 starts 1e-5 from a wall, and refl_bvh's
-   query bounded just past that hit culls the wall's box by its entry
-   distance, where the unbounded query, the grid and the triangle test
-   agree on the hit. */
+   bound: ray 18317 of seed 2006 starts 1e-5 from a wall, its hit 0.7%
+   short of the bound and its t some percent short of the wall's box
+   entry (tests/reflect/test_bvh.c, a_bound_keeps_a_hit_whose_t_rounds_below_its_box). */
 Test(lem_lemcalib, agreement_any_hit_is_the_first_hit_before_the_bound) {
     refl_scene *s = NULL;
     refl_bvh *bvh = NULL;
