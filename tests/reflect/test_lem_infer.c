@@ -1250,7 +1250,7 @@ Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
     static const struct {
         const char *scene;
         uint64_t digest;
-    } cases[] = {{"mirror-room", 0x10012ff96ec2872bull}, {"hybrid", 0x1a8713960a44dcdfull}};
+    } cases[] = {{"mirror-room", 0x75fc1acf6888f47cull}, {"hybrid", 0xaa26b4ca43c7776bull}};
     uint64_t digest[2];
     int k;
     for (k = 0; k < 2; ++k) {
