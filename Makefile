@@ -19,19 +19,16 @@
 # Each implementation is compiled once per configuration and linked wherever
 # it is needed: tests/rast_impl.c and tests/reflect_impl.c, plain in
 # build/tests/ (the test binary, the benchmarks, the `reflect` command),
-# sanitized in build/asan/tests/ (the sanitized test binary, which links
-# them with the plain test objects: the sanitizers are there for the
-# library's memory errors, and the tests' own code is compiled once), and
-# rast.h in plain C without threads in build/portable/ (the rasteriser's
-# tests again).
+# sanitized in build/asan/tests/ (the sanitized test binary), and rast.h in
+# plain C without threads in build/portable/ (the rasteriser's tests again).
 # Besides these, only the C and C++ compile checks compile the
 # implementations (at -O0: they are never run), and each example in
 # examples/, a self-contained program that defines the IMPLEMENTATION macros
 # as a user's would.
 #
 # Build outputs mirror the source tree: tests/reflect/test_bvh.c compiles to
-# build/tests/reflect/test_bvh.o, tools/reflect_gl.c sanitized to
-# build/asan/tools/reflect_gl.o.
+# build/tests/reflect/test_bvh.o, and to build/asan/tests/reflect/test_bvh.o
+# sanitized.
 
 SHELL := /bin/bash
 
@@ -152,7 +149,7 @@ PORTABLE_IMPL_OBJ = build/portable/rast_impl.o
 TEST_BIN       = build/tests/rast_tests
 ASAN_TEST_BIN  = build/asan/rast_tests
 TEST_OBJS      = $(TEST_SRCS:%.c=build/%.o) $(IMPL_OBJS)
-ASAN_TEST_OBJS = $(TEST_SRCS:%.c=build/%.o) $(ASAN_IMPL_OBJS)
+ASAN_TEST_OBJS = $(TEST_SRCS:%.c=build/asan/%.o) $(ASAN_IMPL_OBJS)
 # The rasteriser's own tests (tests/rast/) again against an implementation
 # in plain C without threads (RAST_NO_SIMD, RAST_NO_THREADS): the scalar
 # paths that SSE2 machines never take must give the same answers.
@@ -465,23 +462,36 @@ $(ASAN_TEST_BIN): $(ASAN_GL_OBJS)
 # The sanitized run also fails on reports that do not fail a test by
 # themselves: leaks are found when a test's process exits, after Criterion
 # has counted the test as passed. Third-party leaks: tests/lsan.supp.
+#
+# The five runs go two at a time (make -j2 -O: each run's output is printed
+# whole when it ends): the CLI's checks and the fuzzer are one process
+# each, so beside them another run keeps the second core busy.
 test: deps
 	@$(MAKE) --no-print-directory check-headers
 	@$(MAKE) --no-print-directory $(PARALLEL) compile-check $(TEST_BIN) $(PORTABLE_TEST_BIN) $(ASAN_TEST_BIN) $(REFLECT_BIN) $(REFLECT_GL_BIN)
+	@$(MAKE) --no-print-directory -j2 -O test-cli fuzz-short test-report test-plain test-sanitized
+
+.PHONY: test-cli test-report test-plain test-sanitized
+test-cli:
 	bash tests/cli_test.sh $(REFLECT_BIN)
+
+test-report:
 	bash tests/report_test.sh $(REFLECT_BIN)
+
+test-plain:
 	@rm -rf build/tests/digest build/portable/digest; mkdir -p build/tests/digest build/portable/digest
 	RAST_TEST_DIGEST_DIR=build/tests/digest timeout -k 10 $(TEST_TIMEOUT) $(TEST_BIN) $(CRITERION_FLAGS)
 	RAST_TEST_NO_THREADS=1 RAST_TEST_DIGEST_DIR=build/portable/digest \
 	  timeout -k 10 $(TEST_TIMEOUT) $(PORTABLE_TEST_BIN) $(CRITERION_FLAGS)
 	diff -r build/tests/digest build/portable/digest || \
 	  { echo "the plain C (RAST_NO_SIMD) build renders other bytes than the SSE2 one" >&2; exit 1; }
+
+test-sanitized:
 	set -o pipefail; $(ASAN_ENV) timeout -k 10 $(ASAN_TEST_TIMEOUT) $(ASAN_TEST_BIN) $(CRITERION_FLAGS) --filter '!($(ASAN_SKIP))' 2>&1 \
 	  | tee build/asan/rast_tests.log
 	@if grep -qE 'ERROR: (Address|Leak)Sanitizer|runtime error:' build/asan/rast_tests.log; then \
 	  echo "sanitizer reports in the sanitized test run (see above, or build/asan/rast_tests.log)" >&2; \
 	  exit 1; fi
-	@$(MAKE) --no-print-directory fuzz-short
 
 # The rasteriser against llvmpipe, refl_bvh against Embree, then every
 # method against the ray-traced reference (`reflect bench`: CSV and charts

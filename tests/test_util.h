@@ -28,11 +28,9 @@
 
 #include "../rast.h"
 
-/* tu_sanitized(): whether this binary runs under AddressSanitizer. The
-   sanitized test binary links these same test objects with sanitized
-   implementations, so the answer is whether the sanitizer's runtime is
-   linked (its __asan_init, a weak reference that stays null elsewhere).
-   That run looks for memory errors; the plain and portable runs check the
+/* tu_sanitized(): whether this binary runs under AddressSanitizer, that is
+   whether the sanitizer's runtime is linked (its __asan_init, a weak
+   reference that stays null elsewhere). That run looks for memory errors; the plain and portable runs check the
    same bytes, so a test whose size only adds time under the sanitizers may
    do less there. */
 extern void __asan_init(void) __attribute__((weak));
