@@ -85,6 +85,17 @@ static refl_scene *random_scene(uint64_t seed, int objects, int per) {
     return s;
 }
 
+/* Triangle t of object i in world space: 3 corners, x y z each. */
+static void world_triangle(const refl_scene *s, int i, int t, float tri[9]) {
+    const refl_mesh *m = s->meshes[s->objects[i].mesh];
+    int j;
+    for (j = 0; j < 3; ++j) {
+        const float *p = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + j];
+        refl_vec3 w = refl_mat4_point(s->objects[i].transform, refl_v3(p[0], p[1], p[2]));
+        tri[3 * j] = w.x, tri[3 * j + 1] = w.y, tri[3 * j + 2] = w.z;
+    }
+}
+
 /* Reference: every triangle, Moeller-Trumbore in double. *margin gets the
    smallest barycentric of the closest hit, to excuse rays that graze an
    edge (where float and double may rightly disagree). */
@@ -96,12 +107,10 @@ static int brute_force(const refl_scene *s, refl_vec3 o, refl_vec3 d, float tmin
         const refl_mesh *m = s->meshes[s->objects[i].mesh];
         for (t = 0; t < m->triangle_count; ++t) {
             double v[3][3], e1[3], e2[3], p[3], q[3], tv[3], det, u, w, tt;
+            float tri[9];
             int j;
-            for (j = 0; j < 3; ++j) {
-                const float *src = m->positions + 3 * m->indices[3 * t + j];
-                refl_vec3 wv = refl_mat4_point(s->objects[i].transform, refl_v3(src[0], src[1], src[2]));
-                v[j][0] = wv.x; v[j][1] = wv.y; v[j][2] = wv.z;
-            }
+            world_triangle(s, i, t, tri);
+            for (j = 0; j < 9; ++j) v[j / 3][j % 3] = tri[j];
             for (j = 0; j < 3; ++j) {
                 e1[j] = v[1][j] - v[0][j];
                 e2[j] = v[2][j] - v[0][j];
@@ -929,17 +938,13 @@ Test(refl_bvh, counts_one_test_per_ray_and_real_triangle) {
    scene's triangles, the least (t, object, triangle): what every query
    bounded by them must return, whatever boxes hold the triangles. */
 static int every_triangle(const refl_scene *s, refl_vec3 o, refl_vec3 d, float tmin, float tmax, refl_hit *best) {
-    int i, t, j, found = 0;
+    int i, t, found = 0;
     for (i = 0; i < s->object_count; ++i) {
         const refl_mesh *m = s->meshes[s->objects[i].mesh];
         for (t = 0; t < m->triangle_count; ++t) {
             float tri[9];
             refl_hit h;
-            for (j = 0; j < 3; ++j) {
-                const float *p = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + j];
-                refl_vec3 w = refl_mat4_point(s->objects[i].transform, refl_v3(p[0], p[1], p[2]));
-                tri[3 * j] = w.x; tri[3 * j + 1] = w.y; tri[3 * j + 2] = w.z;
-            }
+            world_triangle(s, i, t, tri);
             /* refl_ray_triangle takes t == tmax, the queries do not */
             if (!refl_ray_triangle(o, d, tri, tmin, tmax, &h) || !(h.t < tmax)) continue;
             if (found && !(h.t < best->t)) continue; /* a tie goes to the earlier object, triangle */
