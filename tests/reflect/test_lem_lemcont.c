@@ -151,7 +151,7 @@ Test(lem_continue, hidden_parts_of_the_lens_are_solved_for) {
     cr_assert_eq(continued[0], 0);
     cr_assert_gt(continued[1], 0);
     /* hidden at the samples: 19.1 dB off (the direct images' panel, seen
-       from the sphere's centre), 25.0 on; the rest 31.5 off, 31.1 on: the
+       from the sphere's centre), 25.1 on; the rest 31.5 off, 31.2 on: the
        continued records of the panel meet the other pixels' records of it
        on the one shell from other points of the lens (the top rim's
        reflections), and least squares shares the texels between them */
