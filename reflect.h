@@ -22361,11 +22361,12 @@ REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out
 
 /* ---- rays and boxes ---------------------------------------------------- */
 
-/* Slabs: per axis d moves along, the t where the ray crosses the box's
+/* Slabs: per axis dir moves along, the t where the ray crosses the box's
    two planes; the ray is in the box from the latest entry to the earliest
-   exit. An axis d does not move along only checks o. The far plane's t is
-   computed as (plane - o) / d whichever side it is on, so a caller that
-   wants only where a ray from inside leaves gets exactly that quotient. */
+   exit. An axis dir does not move along only checks origin. The far
+   plane's t is computed as (plane - origin) / dir whichever side it is on,
+   so a caller that wants only where a ray from inside leaves gets exactly
+   that quotient. */
 REFL_API int refl_ray_box(refl_vec3 origin, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
     float oo[3] = {origin.x, origin.y, origin.z}, dd[3] = {dir.x, dir.y, dir.z};
     float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
