@@ -111,6 +111,15 @@ REFL_API refl_vec3 refl_v3_reflect(refl_vec3 d, refl_vec3 n);
 /* Refracts unit d through unit n (facing against d) with eta = n1 / n2;
    returns 0 on total internal reflection (then *out is unchanged). */
 REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out);
+/* The ray origin + t dir (finite) against the box [lo, hi], faces
+   included: 1 when it meets the box at some t >= 0, from *t_in to *t_out;
+   an origin inside gives *t_in = 0 and *t_out where the ray leaves. A dir
+   parallel to a slab (a zero component) meets the box only with the
+   origin within that slab. On a miss too, *t_out is where the ray leaves
+   the slabs of the axes dir moves along (negative for a box behind;
+   INFINITY when dir is zero) and *t_in the latest entry, at least 0.
+   Either pointer may be NULL. */
+REFL_API int refl_ray_box(refl_vec3 origin, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out);
 
 REFL_API refl_mat4 refl_mat4_identity(void);
 REFL_API refl_mat4 refl_mat4_mul(refl_mat4 a, refl_mat4 b);         /* a * b */
@@ -2437,11 +2446,6 @@ static inline int refl__all_finite(const float *v, size_t n) {
     return 1;
 }
 static inline int refl__v3_finite(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
-/* The ray o + t d against the box [lo, hi] (math.c): 1 when it meets the
-   box at some t >= 0, from *t_in to *t_out. *t_out is where it leaves the
-   slabs of the axes d moves along (INFINITY when d is 0) whether or not
-   it meets the box: from inside, where it leaves the box. */
-static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out);
 /* The rules refl_scene_add_material and _add_light enforce (scene.c), also
    checked per frame since the scene's arrays are the caller's to edit:
    the rule a value breaks, or NULL. */
@@ -7030,7 +7034,9 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
 
 /* ---- section 5.2: box against view volume ------------------------------------ */
 
-/* Does the segment A + l D, l in [0, lmax], meet box [lo, hi]? (slabs) */
+/* Does the segment A + l D, l in [0, lmax], meet box [lo, hi]? (slabs; in
+   double, on the wall's double rulings, which refl_ray_box's floats would
+   round) */
 static int refl__c3rc_segment_box(const double *A, const double *D, double lmax, const double *lo, const double *hi) {
     double l0 = 0.0, l1 = lmax, a, b, inv;
     int k;
@@ -7911,8 +7917,8 @@ REFL_API refl_result refl_graphcam_maze(refl_graphcam *cam, int width, int heigh
 
 /* Where a ray from inside box [lo, hi] along d leaves it. */
 static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t_in, t_out;
-    refl__ray_box_span(o, d, lo, hi, &t_in, &t_out);
+    float t_out;
+    refl_ray_box(o, d, lo, hi, NULL, &t_out);
     return REFL__MAX(t_out, 0.0f);
 }
 
@@ -14318,14 +14324,14 @@ static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *
                                refl_greedy_paths_result *out, long long *rays) {
     refl_hit hit;
     refl__gp_hit h;
-    float tmin = 0.0f, tbox = -1.0f, tin;
+    float tmin = 0.0f, tbox = -1.0f;
     int tries;
     for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
         ++*rays;
         if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
         if (hit.object == object) break;
         if (!continue_box) return 0;
-        if (!tries && !refl__ray_box_span(o, d, continue_box[0], continue_box[1], &tin, &tbox)) tbox = -1.0f;
+        if (!tries && !refl_ray_box(o, d, continue_box[0], continue_box[1], NULL, &tbox)) tbox = -1.0f;
         if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
         tmin = hit.t;
     }
@@ -22355,13 +22361,15 @@ REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out
 
 /* ---- rays and boxes ---------------------------------------------------- */
 
-/* Slabs: per axis d moves along, the t where the ray crosses the box's
+/* Slabs: per axis dir moves along, the t where the ray crosses the box's
    two planes; the ray is in the box from the latest entry to the earliest
-   exit. An axis d does not move along only checks o. The far plane's t is
-   computed as (plane - o) / d whichever side it is on, so a caller that
-   wants only where a ray from inside leaves gets exactly that quotient. */
-static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
-    float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+   exit. An axis dir does not move along only checks origin. The far
+   plane's t is computed as (plane - origin) / dir whichever side it is on,
+   so a caller that wants only where a ray from inside leaves gets exactly
+   that quotient. */
+REFL_API int refl_ray_box(refl_vec3 origin, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
+    float oo[3] = {origin.x, origin.y, origin.z}, dd[3] = {dir.x, dir.y, dir.z};
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
     float t0 = 0.0f, t1 = INFINITY;
     int k, inside = 1;
     for (k = 0; k < 3; ++k) {
@@ -22375,8 +22383,8 @@ static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 
         t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
         t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
     }
-    *t_in = t0;
-    *t_out = t1;
+    if (t_in) *t_in = t0;
+    if (t_out) *t_out = t1;
     return inside && t0 <= t1;
 }
 

@@ -253,17 +253,6 @@ static refl_vec3 rgl__reflect(refl_vec3 d, refl_vec3 nrm) {
     return refl_v3_sub(d, refl_v3_scale(nrm, 2.0f * refl_v3_dot(d, nrm)));
 }
 
-/* Where a ray from inside the box along d leaves it. */
-static float rgl__box_exit(refl_vec3 o, refl_vec3 d) {
-    float t = 1e30f, oc[3] = {o.x, o.y, o.z}, dc[3] = {d.x, d.y, d.z};
-    int k;
-    for (k = 0; k < 3; ++k) {
-        if (dc[k] > 0.0f) t = fminf(t, (RGL_BOX - oc[k]) / dc[k]);
-        if (dc[k] < 0.0f) t = fminf(t, (-RGL_BOX - oc[k]) / dc[k]);
-    }
-    return t;
-}
-
 /* The desired view of the SBC fixtures. */
 typedef struct rgl_view {
     refl_vec3 eye, fwd, right, up;
@@ -297,11 +286,12 @@ static refl_vec3 rgl__view_dir(const rgl_view *v, double px, double py) {
    `inside`: the bowl) over the view's pixels; *valid marks hits. */
 static void rgl__sphere_map(const rgl_view *v, refl_vec3 centre, float radius, int inside, refl_sbc_ray *rays,
                             uint8_t *valid) {
+    refl_vec3 box_lo = refl_v3(-RGL_BOX, -RGL_BOX, -RGL_BOX), box_hi = refl_v3(RGL_BOX, RGL_BOX, RGL_BOX);
     int x, y;
     for (y = 0; y < v->height; ++y) {
         for (x = 0; x < v->width; ++x) {
             refl_vec3 d = rgl__view_dir(v, x + 0.5, y + 0.5), o = refl_v3_sub(v->eye, centre), p, nrm, r;
-            float b = refl_v3_dot(o, d), c = refl_v3_dot(o, o) - radius * radius, disc = b * b - c, t;
+            float b = refl_v3_dot(o, d), c = refl_v3_dot(o, o) - radius * radius, disc = b * b - c, t, t_exit;
             int i = y * v->width + x;
             valid[i] = 0;
             memset(&rays[i], 0, sizeof rays[i]);
@@ -316,7 +306,8 @@ static void rgl__sphere_map(const rgl_view *v, refl_vec3 centre, float radius, i
             r = refl_v3_normalize(rgl__reflect(d, nrm));
             rays[i].tail = p;
             rays[i].first = p;
-            rays[i].head = refl_v3_add(p, refl_v3_scale(r, rgl__box_exit(p, r)));
+            refl_ray_box(p, r, box_lo, box_hi, NULL, &t_exit); /* where the reflected ray leaves the box */
+            rays[i].head = refl_v3_add(p, refl_v3_scale(r, t_exit));
             valid[i] = 1;
         }
     }

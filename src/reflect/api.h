@@ -109,6 +109,15 @@ REFL_API refl_vec3 refl_v3_reflect(refl_vec3 d, refl_vec3 n);
 /* Refracts unit d through unit n (facing against d) with eta = n1 / n2;
    returns 0 on total internal reflection (then *out is unchanged). */
 REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out);
+/* The ray origin + t dir (finite) against the box [lo, hi], faces
+   included: 1 when it meets the box at some t >= 0, from *t_in to *t_out;
+   an origin inside gives *t_in = 0 and *t_out where the ray leaves. A dir
+   parallel to a slab (a zero component) meets the box only with the
+   origin within that slab. On a miss too, *t_out is where the ray leaves
+   the slabs of the axes dir moves along (negative for a box behind;
+   INFINITY when dir is zero) and *t_in the latest entry, at least 0.
+   Either pointer may be NULL. */
+REFL_API int refl_ray_box(refl_vec3 origin, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out);
 
 REFL_API refl_mat4 refl_mat4_identity(void);
 REFL_API refl_mat4 refl_mat4_mul(refl_mat4 a, refl_mat4 b);         /* a * b */

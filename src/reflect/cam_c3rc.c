@@ -429,7 +429,9 @@ REFL_API int refl_c3rc_multiple_intervals(const refl_c3rc *cam, float tmax, floa
 
 /* ---- section 5.2: box against view volume ------------------------------------ */
 
-/* Does the segment A + l D, l in [0, lmax], meet box [lo, hi]? (slabs) */
+/* Does the segment A + l D, l in [0, lmax], meet box [lo, hi]? (slabs; in
+   double, on the wall's double rulings, which refl_ray_box's floats would
+   round) */
 static int refl__c3rc_segment_box(const double *A, const double *D, double lmax, const double *lo, const double *hi) {
     double l0 = 0.0, l1 = lmax, a, b, inv;
     int k;

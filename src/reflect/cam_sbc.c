@@ -44,8 +44,8 @@
 
 /* Where a ray from inside box [lo, hi] along d leaves it. */
 static float refl__sbc_box_exit(refl_vec3 lo, refl_vec3 hi, refl_vec3 o, refl_vec3 d) {
-    float t_in, t_out;
-    refl__ray_box_span(o, d, lo, hi, &t_in, &t_out);
+    float t_out;
+    refl_ray_box(o, d, lo, hi, NULL, &t_out);
     return REFL__MAX(t_out, 0.0f);
 }
 

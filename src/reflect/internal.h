@@ -75,11 +75,6 @@ static inline int refl__all_finite(const float *v, size_t n) {
     return 1;
 }
 static inline int refl__v3_finite(refl_vec3 v) { return refl__isfinite(v.x) && refl__isfinite(v.y) && refl__isfinite(v.z); }
-/* The ray o + t d against the box [lo, hi] (math.c): 1 when it meets the
-   box at some t >= 0, from *t_in to *t_out. *t_out is where it leaves the
-   slabs of the axes d moves along (INFINITY when d is 0) whether or not
-   it meets the box: from inside, where it leaves the box. */
-static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out);
 /* The rules refl_scene_add_material and _add_light enforce (scene.c), also
    checked per frame since the scene's arrays are the caller's to edit:
    the rule a value breaks, or NULL. */

@@ -1133,14 +1133,14 @@ static int refl__lem_eye_paths(const refl_scene *scene, const refl__gp_casters *
                                refl_greedy_paths_result *out, long long *rays) {
     refl_hit hit;
     refl__gp_hit h;
-    float tmin = 0.0f, tbox = -1.0f, tin;
+    float tmin = 0.0f, tbox = -1.0f;
     int tries;
     for (tries = 0; tries < REFL__LEM_MAX_CONTINUED; ++tries) {
         ++*rays;
         if (!paths->scene->intersect(paths->scene->user, o, d, tmin, FLT_MAX, &hit)) return 0;
         if (hit.object == object) break;
         if (!continue_box) return 0;
-        if (!tries && !refl__ray_box_span(o, d, continue_box[0], continue_box[1], &tin, &tbox)) tbox = -1.0f;
+        if (!tries && !refl_ray_box(o, d, continue_box[0], continue_box[1], NULL, &tbox)) tbox = -1.0f;
         if (!(hit.t <= tbox * (1.0f + 1e-4f) + 1e-6f)) return 0; /* past the lens's box: no lens behind */
         tmin = hit.t;
     }

@@ -69,13 +69,15 @@ REFL_API int refl_v3_refract(refl_vec3 d, refl_vec3 n, float eta, refl_vec3 *out
 
 /* ---- rays and boxes ---------------------------------------------------- */
 
-/* Slabs: per axis d moves along, the t where the ray crosses the box's
+/* Slabs: per axis dir moves along, the t where the ray crosses the box's
    two planes; the ray is in the box from the latest entry to the earliest
-   exit. An axis d does not move along only checks o. The far plane's t is
-   computed as (plane - o) / d whichever side it is on, so a caller that
-   wants only where a ray from inside leaves gets exactly that quotient. */
-static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
-    float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
+   exit. An axis dir does not move along only checks origin. The far
+   plane's t is computed as (plane - origin) / dir whichever side it is on,
+   so a caller that wants only where a ray from inside leaves gets exactly
+   that quotient. */
+REFL_API int refl_ray_box(refl_vec3 origin, refl_vec3 dir, refl_vec3 lo, refl_vec3 hi, float *t_in, float *t_out) {
+    float oo[3] = {origin.x, origin.y, origin.z}, dd[3] = {dir.x, dir.y, dir.z};
+    float a[3] = {lo.x, lo.y, lo.z}, b[3] = {hi.x, hi.y, hi.z};
     float t0 = 0.0f, t1 = INFINITY;
     int k, inside = 1;
     for (k = 0; k < 3; ++k) {
@@ -89,8 +91,8 @@ static int refl__ray_box_span(refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 
         t0 = REFL__MAX(t0, REFL__MIN(ta, tb));
         t1 = REFL__MIN(t1, REFL__MAX(ta, tb));
     }
-    *t_in = t0;
-    *t_out = t1;
+    if (t_in) *t_in = t0;
+    if (t_out) *t_out = t1;
     return inside && t0 <= t1;
 }
 

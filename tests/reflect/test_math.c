@@ -1,7 +1,8 @@
-/* reflect.h math: vectors, GL matrices, quaternions, the robust quadratic
-   and cubic solvers, least squares and the random numbers. Expected values
-   are worked out by hand (or, for the near-degenerate roots, to 25 digits
-   with mpmath from the exact double coefficients; quoted in comments). */
+/* reflect.h math: vectors, a ray against a box, GL matrices, quaternions,
+   the robust quadratic and cubic solvers, least squares and the random
+   numbers. Expected values are worked out by hand (or, for the
+   near-degenerate roots, to 25 digits with mpmath from the exact double
+   coefficients; quoted in comments). */
 #include <criterion/criterion.h>
 
 #include <float.h>
@@ -477,6 +478,54 @@ Test(refl_math, vectors) {
                      0);
         cr_assert(out.x == 7 && out.y == 7 && out.z == 7);
     }
+}
+
+/* ---- rays and boxes ------------------------------------------------------------- */
+
+/* refl_ray_box(o, d, [lo, hi]) gives hit with span [t_in, t_out], exactly
+   (every answer below is a quotient of small binary fractions, or one the
+   test computes with the same single division). */
+static void ray_box_is(const char *what, refl_vec3 o, refl_vec3 d, refl_vec3 lo, refl_vec3 hi, int hit, float t_in,
+                       float t_out) {
+    float got_in = -7.0f, got_out = -7.0f;
+    int got = refl_ray_box(o, d, lo, hi, &got_in, &got_out);
+    cr_assert(got == hit && got_in == t_in && got_out == t_out, "%s: %d [%.9g, %.9g], want %d [%.9g, %.9g]", what,
+              got, got_in, got_out, hit, t_in, t_out);
+}
+
+Test(refl_math, ray_box_known_answers) {
+    refl_vec3 lo = refl_v3(-1, -1, -1), hi = refl_v3(1, 1, 1), big = refl_v3(2, 4, 8), zero = refl_v3(0, 0, 0);
+    float t_out = -7.0f;
+    /* axis-aligned, either way along the axis; a longer d shortens t */
+    ray_box_is("+x", refl_v3(-5, 0, 0), refl_v3(1, 0, 0), lo, hi, 1, 4, 6);
+    ray_box_is("-x", refl_v3(5, 0, 0), refl_v3(-1, 0, 0), lo, hi, 1, 4, 6);
+    ray_box_is("+x, |d| 2", refl_v3(-5, 0, 0), refl_v3(2, 0, 0), lo, hi, 1, 2, 3);
+    ray_box_is("-z, box [0, (2,4,8)]", refl_v3(1, 1, 10), refl_v3(0, 0, -1), zero, big, 1, 2, 10);
+    /* oblique: enters through x = -1 at t 1, leaves through y = 1 at t 2 */
+    ray_box_is("oblique", refl_v3(-2, 0, 0), refl_v3(1, 0.5f, 0), lo, hi, 1, 1, 2);
+    ray_box_is("diagonal", refl_v3(-3, -3, -3), refl_v3(1, 1, 1), lo, hi, 1, 2, 4);
+    /* oblique miss: it leaves the y slab (t 0.5) before it enters the x slab (t 2) */
+    ray_box_is("oblique miss", refl_v3(-3, 0.5f, 0), refl_v3(1, 1, 0), lo, hi, 0, 2, 0.5f);
+    /* parallel to the y and z slabs: inside them, on a face (faces count),
+       outside; the span is the x slab's either way */
+    ray_box_is("parallel inside", refl_v3(-5, 0.5f, -0.5f), refl_v3(1, 0, 0), lo, hi, 1, 4, 6);
+    ray_box_is("parallel on a face", refl_v3(-5, 1, 0), refl_v3(1, 0, 0), lo, hi, 1, 4, 6);
+    ray_box_is("parallel outside", refl_v3(-5, 2, 0), refl_v3(1, 0, 0), lo, hi, 0, 4, 6);
+    ray_box_is("parallel, -0", refl_v3(-5, 0, 0), refl_v3(1, -0.0f, 0), lo, hi, 1, 4, 6);
+    /* origin inside: from t 0 to where it leaves */
+    ray_box_is("inside", refl_v3(0.5f, 0, 0), refl_v3(1, 0, 0), lo, hi, 1, 0, 0.5f);
+    ray_box_is("inside, oblique", zero, refl_v3(0.6f, 0.8f, 0), lo, hi, 1, 0, 1.0f / 0.8f);
+    ray_box_is("on the far face", refl_v3(1, 0, 0), refl_v3(1, 0, 0), lo, hi, 1, 0, 0);
+    /* box behind: no hit, and t_out < 0 is where the ray left it */
+    ray_box_is("behind", refl_v3(5, 0, 0), refl_v3(1, 0, 0), lo, hi, 0, 0, -4);
+    ray_box_is("behind, oblique", refl_v3(3, 3, 0), refl_v3(1, 1, 0), lo, hi, 0, 0, -2);
+    /* d zero: only the origin counts */
+    ray_box_is("d zero, inside", zero, zero, lo, hi, 1, 0, INFINITY);
+    ray_box_is("d zero, outside", refl_v3(0, 0, 3), zero, lo, hi, 0, 0, INFINITY);
+    /* either output may be NULL */
+    cr_assert_eq(refl_ray_box(refl_v3(0.5f, 0, 0), refl_v3(1, 0, 0), lo, hi, NULL, &t_out), 1);
+    cr_assert_eq(t_out, 0.5f);
+    cr_assert_eq(refl_ray_box(refl_v3(5, 0, 0), refl_v3(1, 0, 0), lo, hi, NULL, NULL), 0);
 }
 
 /* ---- matrices -------------------------------------------------------------------- */
