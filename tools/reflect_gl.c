@@ -249,10 +249,6 @@ static refl_vec3 rgl__box_point(rgl_rng *r) {
                    (float)rgl__range(r, -RGL_BOX, RGL_BOX));
 }
 
-static refl_vec3 rgl__reflect(refl_vec3 d, refl_vec3 nrm) {
-    return refl_v3_sub(d, refl_v3_scale(nrm, 2.0f * refl_v3_dot(d, nrm)));
-}
-
 /* The desired view of the SBC fixtures. */
 typedef struct rgl_view {
     refl_vec3 eye, fwd, right, up;
@@ -303,7 +299,7 @@ static void rgl__sphere_map(const rgl_view *v, refl_vec3 centre, float radius, i
             /* the bowl: only its back half (facing the eye) */
             if (inside && p.z > 0.0f) continue;
             p = refl_v3_add(p, centre);
-            r = refl_v3_normalize(rgl__reflect(d, nrm));
+            r = refl_v3_normalize(refl_v3_reflect(d, nrm));
             rays[i].tail = p;
             rays[i].first = p;
             refl_ray_box(p, r, box_lo, box_hi, NULL, &t_exit); /* where the reflected ray leaves the box */
@@ -503,7 +499,7 @@ static int rgl__fixture(int which, rgl_fixture *f, char *note, size_t note_n, ch
                     int c;
                     tri[0] = q[0]; tri[1] = k ? q[3] : q[1]; tri[2] = k ? q[2] : q[3];
                     if (refl_v3_length(refl_v3_cross(refl_v3_sub(tri[1], tri[0]), refl_v3_sub(tri[2], tri[0]))) < 1e-4f) continue;
-                    for (c = 0; c < 3; ++c) dir[c] = rgl__reflect(refl_v3_normalize(refl_v3_sub(tri[c], v.eye)), tri[c]);
+                    for (c = 0; c < 3; ++c) dir[c] = refl_v3_reflect(refl_v3_normalize(refl_v3_sub(tri[c], v.eye)), tri[c]);
                     if (refl_v3_dot(refl_v3_sub(v.eye, tri[0]), tri[0]) <= 0.0f) continue; /* faces away */
                     if (refl_c3rc_init(&f->cams[f->cam_count], tri, dir) == REFL_OK) f->cam_count++;
                 }
