@@ -864,19 +864,22 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
         for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
 }
 
-/* CGLS over x >= 0 (projected CGLS with restarts), the four channels at
-   once: conjugate gradients over each channel's free texels, those not
-   held at 0 by a gradient pushing them below it. A step that takes a free
-   texel below 0 is clamped there and the channel restarts from its
-   gradient with its free set found again; a channel converged on its free
-   texels restarts where a held texel's gradient now points above 0, and
-   is done where none does. From x = 0; r, g, p, q and held are the
-   solver's work vectors. Returns the iterations run. */
-static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, double *r, double *g, double *p,
-                                       double *q, unsigned char *held, int max_it, double tol) {
+/* CGLS, the four channels at once, from x = 0 with r = b. With held, over
+   x >= 0 (projected CGLS with restarts): conjugate gradients over each
+   channel's free texels, those not held at 0 by a gradient pushing them
+   below it. A step that takes a free texel below 0 is clamped there and
+   the channel restarts from its gradient with its free set found again;
+   a channel converged on its free texels restarts where a held texel's
+   gradient now points above 0, and is done where none does. Without held
+   (NULL) nothing is ever held, clamped or restarted: plain CGLS, whose
+   first beta is 0 as gamma starts at 0. r, g, p (0 on entry), q and held
+   are the solver's work vectors. Returns the iterations run. */
+static int refl__lem_cgls(const refl_lem_system *s, double *xd, double *r, double *g, double *p, double *q,
+                          unsigned char *held, int max_it, double tol) {
     const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
+    const int bounded = held != NULL;
     double gamma[4] = {0, 0, 0, 0}, gamma0[4] = {0, 0, 0, 0}, qq[4];
-    int restart[4] = {1, 1, 1, 1}, done[4], first = 1, it, c;
+    int restart[4] = {bounded, bounded, bounded, bounded}, done[4], first = 1, it, c;
     size_t k;
     for (it = 0; it < max_it; ++it) {
         double gn[4] = {0, 0, 0, 0}, beta[4], alpha[4];
@@ -891,7 +894,7 @@ static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, dou
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
                 if (restart[c]) held[e] = xd[e] <= 0.0 && g[e] <= 0.0;
-                if (!held[e]) gn[c] += g[e] * g[e];
+                if (!bounded || !held[e]) gn[c] += g[e] * g[e];
             }
         for (c = 0; c < 4; ++c) {
             if (first) gamma0[c] = gn[c];
@@ -903,14 +906,15 @@ static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, dou
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
-                p[e] = held[e] ? 0.0 : g[e] + beta[c] * p[e];
+                p[e] = bounded && held[e] ? 0.0 : g[e] + beta[c] * p[e];
             }
-        for (c = 0; c < 4; ++c) {
+        for (c = 0; c < 4; ++c) { /* a channel done stands still (alpha 0) while others go on */
             done[c] = !(gamma[c] > tol * tol * gamma0[c]);
-            for (k = 0; done[c] && k < nt && !restart[c]; ++k) /* a held texel pulled back above 0 */
+            for (k = 0; bounded && done[c] && k < nt && !restart[c]; ++k) /* a held texel pulled back above 0 */
                 restart[c] = held[4 * k + (size_t)c] && g[4 * k + (size_t)c] > 0.0;
             done[c] &= !restart[c];
-            all_done &= done[c];
+            /* plain CGLS goes on past a NaN gamma (from weights past float's range) */
+            all_done &= bounded ? done[c] : gamma[c] <= tol * tol * gamma0[c];
         }
         if (all_done) break;
         if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
@@ -920,12 +924,12 @@ static int refl__lem_solve_nonnegative(const refl_lem_system *s, double *xd, dou
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
                 xd[e] += alpha[c] * p[e];
-                restart[c] |= xd[e] < 0.0;
+                restart[c] |= bounded && xd[e] < 0.0;
             }
         for (k = 0; k < nr; ++k)
             for (c = 0; c < 4; ++c) r[4 * k + (size_t)c] -= alpha[c] * q[4 * k + (size_t)c];
     }
-    for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
+    for (k = 0; bounded && k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
     return it;
 }
 
@@ -933,9 +937,11 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
                                     refl_lem_solve_stats *stats) {
     const refl_allocator *a;
     size_t nt, nr;
-    double *xd, *r, *g, *p, *q, gamma[4], gamma0[4], qq[4], rr[4];
+    double *xd, *r, *g, *p, *q, rr[4];
+    unsigned char *held = NULL;
     int it, max_it = desc && desc->iterations > 0 ? desc->iterations : 200, c, i;
     double tol = desc && desc->tolerance > 0.0f ? desc->tolerance : 1e-6;
+    refl_result res = REFL_ERROR_OUT_OF_MEMORY;
     if (!s || !x) return REFL_ERROR_INVALID_ARGUMENT;
     a = &s->allocator;
     nt = (size_t)s->texels;
@@ -945,67 +951,24 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     p = (double *)refl__calloc(a, 4 * nt, sizeof(double));
     r = (double *)refl__calloc(a, 4 * nr, sizeof(double));
     q = (double *)refl__calloc(a, 4 * nr, sizeof(double));
-    if (!xd || !g || !p || !r || !q) {
-        refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
-        return REFL_ERROR_OUT_OF_MEMORY;
-    }
+    if (!xd || !g || !p || !r || !q) goto out;
     for (i = 0; i < 4 * s->rows; ++i) r[i] = s->b[i]; /* r = b - A 0 */
     refl__lem_norm2(r, (size_t)s->rows, rr);
     if (stats)
         for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
-    if (desc && desc->nonnegative) {
-        unsigned char *held = (unsigned char *)refl__calloc(a, 4 * nt, 1);
-        if (!held) {
-            refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
-            return REFL_ERROR_OUT_OF_MEMORY;
-        }
-        it = refl__lem_solve_nonnegative(s, xd, r, g, p, q, held, max_it, tol);
-        refl__free(a, held);
-        goto solved;
-    }
-    refl__lem_mul_t(s, r, g);
-    memcpy(p, g, sizeof(double) * 4 * nt);
-    refl__lem_norm2(g, nt, gamma);
-    memcpy(gamma0, gamma, sizeof gamma);
-    for (it = 0; it < max_it; ++it) {
-        int done = 1;
-        for (c = 0; c < 4; ++c) done &= gamma[c] <= tol * tol * gamma0[c];
-        if (done) break;
-        refl__lem_mul(s, p, q, qq);
-        {
-            /* the four channels' updates in one pass over each vector (each
-               element's arithmetic as channel by channel) */
-            double alpha[4];
-            size_t k;
-            for (c = 0; c < 4; ++c) /* a channel already solved (or empty) stands still */
-                alpha[c] = qq[c] > 0.0 && gamma[c] > tol * tol * gamma0[c] ? gamma[c] / qq[c] : 0.0;
-            for (k = 0; k < nt; ++k)
-                for (c = 0; c < 4; ++c) xd[4 * k + (size_t)c] += alpha[c] * p[4 * k + (size_t)c];
-            for (k = 0; k < (size_t)s->rows; ++k)
-                for (c = 0; c < 4; ++c) r[4 * k + (size_t)c] -= alpha[c] * q[4 * k + (size_t)c];
-        }
-        refl__lem_mul_t(s, r, g);
-        {
-            double gn[4], beta[4];
-            size_t k;
-            refl__lem_norm2(g, nt, gn);
-            for (c = 0; c < 4; ++c) {
-                beta[c] = gamma[c] > 0.0 ? gn[c] / gamma[c] : 0.0;
-                gamma[c] = gn[c];
-            }
-            for (k = 0; k < nt; ++k)
-                for (c = 0; c < 4; ++c) p[4 * k + (size_t)c] = g[4 * k + (size_t)c] + beta[c] * p[4 * k + (size_t)c];
-        }
-    }
-solved:
+    if (desc && desc->nonnegative && !(held = (unsigned char *)refl__calloc(a, 4 * nt, 1))) goto out;
+    it = refl__lem_cgls(s, xd, r, g, p, q, held, max_it, tol);
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
     if (stats) {
         stats->iterations = it;
         refl__lem_norm2(r, (size_t)s->rows, rr);
         for (c = 0; c < 4; ++c) stats->residual[c] = sqrt(rr[c]);
     }
+    res = REFL_OK;
+out:
+    refl__free(a, held);
     refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
-    return REFL_OK;
+    return res;
 }
 
 /* ---- records of a viewpoint sample --------------------------------------------- */

@@ -585,63 +585,67 @@ static refl_result refl__lem_joint_row(const refl_allocator *al, refl__lem_joint
     return REFL_OK;
 }
 
-/* Infers object i's maps for the sample whose views are views[0 .. per)
-   (the sample's own first) on the layers' shells: the records and
-   tessellation of each view, then per layer rows from the runtime's own
-   lookups at those views (both terms), solved by CGLS. out->texels are
-   allocated. With jr (a shared outer layer), the outermost layer is
-   looked up on jr's shell and its rows go to jr, unsolved (its texels
-   NULL). */
-static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views, int per,
-                                   const refl__lem_layering *lay, refl__lem_joint *jr, refl__lem_map *out) {
+/* Whether layer l of `layers` is the one the pass's lenses share (jr):
+   the outermost, looked up on jr's shell, its rows gathered into jr for
+   refl__lem_joint_solve instead of solved with the lens's own layers. */
+static int refl__lem_shared_layer(const refl__lem_joint *jr, int l, int layers) { return jr && l == layers - 1; }
+
+/* One sample's inference (refl__lem_infer), as its stages hand it on. */
+typedef struct refl__lem_inference {
+    refl__pass *p;
+    const refl__gp_casters *casters;
+    int object;
+    const refl_view *views;      /* the sample's, views[0 .. per) */
+    int per, w, h;
+    const refl__lem_layering *lay;
+    refl__lem_joint *jr;         /* NULL: no shared layer */
+    refl_vec3 box[2];            /* the lens's bounds */
+    refl__lem_sample_view sv[3];
+    refl__lem_draw dr;           /* the layers' shells as the lookups draw them */
+    int face;
+    refl_lem_system *sys[REFL_LEM_MAX_LAYERS]; /* NULL at the shared layer */
+    refl__lem_direct direct;
+    int direct_on;
+} refl__lem_inference;
+
+/* The records and tessellation of each view, the records in rows on the
+   pass's threads. */
+static refl_result refl__lem_record_views(refl__lem_inference *x) {
+    refl__pass *p = x->p;
     const refl_scene *scene = p->scene;
     const refl_allocator *al = &scene->allocator;
     const refl_layered_em_options *o = &p->desc.layered_em;
     refl_stats *st = &p->frame->stats;
-    int w = views[0].width, h = views[0].height, s, y, term, face, l, L = lay->layers, k;
+    refl__lem_sample_view *sv = x->sv;
+    int w = x->w, h = x->h, L = x->lay->layers, s, y;
     size_t np = (size_t)w * (size_t)h, px, nrec = 10 * (size_t)L;
-    refl__lem_sample_view sv[3];
     refl_lens_tess_desc td;
-    refl__lem_draw dr;
-    refl_lem_system *sys[REFL_LEM_MAX_LAYERS];
-    refl_lem_solve_desc sd;
-    refl_vec3 box[2], centre;
-    float lens_radius, *depth = NULL, *index[2] = {NULL, NULL};
-    refl__lem_direct direct;
-    int direct_on = o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT > 0);
     refl_result r = REFL_OK;
-    refl__lem_direct_how(p, i, views, per, &direct);
-    direct.distance &= direct_on;
-    memset(sv, 0, sizeof sv);
-    memset(sys, 0, sizeof sys);
     memset(&td, 0, sizeof td);
-    memset(&dr, 0, sizeof dr);
     td.edge_px = o->edge_px;
     td.angle_degrees = o->angle_degrees;
     td.max_interfaces = p->desc.depth;
-    refl__lem_bounds(scene, i, &centre, &lens_radius, box);
-    refl__lem_draw_box(&dr, box);
-    /* the records and tessellation of each view, in rows on the pass's threads */
-    for (s = 0; s < per && r == REFL_OK; ++s) {
+    for (s = 0; s < x->per && r == REFL_OK; ++s) {
         refl__lem_records rec;
         refl_mat4 vm, pm;
-        refl_view_matrices(&views[s], scene, &vm, &pm);
+        refl_view_matrices(&x->views[s], scene, &vm, &pm);
         sv[s].vp = refl_mat4_mul(pm, vm);
         memset(&rec, 0, sizeof rec);
         rec.scene = scene;
-        rec.caster = casters->scene;
-        refl__view_rays_init(&rec.rays, &views[s], scene);
-        rec.object = i;
+        rec.caster = x->casters->scene;
+        refl__view_rays_init(&rec.rays, &x->views[s], scene);
+        rec.object = x->object;
         rec.ss = o->supersample > 0 ? o->supersample : 1;
         rec.theta_c = o->theta_c_degrees;
         rec.max_interfaces = p->desc.depth;
-        rec.lay = lay;
-        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rec.rect);
+        rec.lay = x->lay;
+        refl__lem_screen_rect(sv[s].vp, x->box[0], x->box[1], w, h, rec.rect);
         sv[s].rec = rec.rec = (float *)refl__calloc(al, nrec * np, sizeof(float));
-        if (direct.distance) sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
+        if (x->direct.distance)
+            sv[s].points = rec.points = (float *)refl__calloc(al, 6 * (size_t)L * np, sizeof(float));
         rec.row_rays = (long long *)refl__calloc(al, (size_t)h, sizeof(long long));
         rec.row_continued = (int *)refl__calloc(al, (size_t)h, sizeof(int));
-        if (!rec.rec || !rec.row_rays || !rec.row_continued || (direct.distance && !rec.points))
+        if (!rec.rec || !rec.row_rays || !rec.row_continued || (x->direct.distance && !rec.points))
             r = REFL_ERROR_OUT_OF_MEMORY;
         if (r == REFL_OK) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
@@ -656,34 +660,58 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
         refl__free(al, rec.row_rays);
         refl__free(al, rec.row_continued);
         if (r == REFL_OK) {
-            refl__gp_casters vc = refl__lem_vertex_casters(p, casters, i);
+            refl__gp_casters vc = refl__lem_vertex_casters(p, x->casters, x->object);
             sv[s].tess.allocator = *al;
-            r = refl__lens_tessellate(scene, &vc, i, &views[s], &td, p->rc, &sv[s].tess);
+            r = refl__lens_tessellate(scene, &vc, x->object, &x->views[s], &td, p->rc, &sv[s].tess);
             st->rays += sv[s].tess.rays;
         }
     }
-    face = o->face_size > 0 ? o->face_size
-                            : REFL__CLAMP((int)floor(0.5 * sqrt((double)sv[0].lens_pixels) + 0.5), 8, 256);
-    out->layers = dr.layers = L;
+    return r;
+}
+
+/* The layers' shells (out's and the lookups'), at the face size the first
+   view's lens pixels ask for, and a system for each layer solved here;
+   the shared shell's face size is the largest any lens asks for. */
+static refl_result refl__lem_layer_systems(refl__lem_inference *x, refl__lem_map *out) {
+    const refl_layered_em_options *o = &x->p->desc.layered_em;
+    int l, L = x->lay->layers;
+    refl_result r = REFL_OK;
+    x->face = o->face_size > 0 ? o->face_size
+                               : REFL__CLAMP((int)floor(0.5 * sqrt((double)x->sv[0].lens_pixels) + 0.5), 8, 256);
+    out->layers = x->dr.layers = L;
     for (l = 0; l < L; ++l) {
-        dr.shell[l] = jr && l == L - 1 ? jr->shell : lay->shell[l];
-        dr.shell[l].face_size = face;
-        out->shell[l] = dr.shell[l];
-        if (r == REFL_OK && !(jr && l == L - 1)) r = refl_lem_system_create(6 * face * face, al, &sys[l]);
+        int shared = refl__lem_shared_layer(x->jr, l, L);
+        x->dr.shell[l] = shared ? x->jr->shell : x->lay->shell[l];
+        x->dr.shell[l].face_size = x->face;
+        out->shell[l] = x->dr.shell[l];
+        if (r == REFL_OK && !shared)
+            r = refl_lem_system_create(6 * x->face * x->face, &x->p->scene->allocator, &x->sys[l]);
     }
-    if (jr) jr->shell.face_size = REFL__MAX(jr->shell.face_size, face), jr->direct_on = direct_on;
-    /* rows from the runtime's own lookups at the views, per layer */
-    depth = r == REFL_OK ? (float *)refl__calloc(al, np, sizeof(float)) : NULL;
+    if (x->jr) x->jr->shell.face_size = REFL__MAX(x->jr->shell.face_size, x->face), x->jr->direct_on = x->direct_on;
+    return r;
+}
+
+/* Rows from the runtime's own lookups at the views: per view and layer
+   both terms drawn, each pixel a row where its records have the term. */
+static refl_result refl__lem_lookup_rows(refl__lem_inference *x) {
+    const refl_allocator *al = &x->p->scene->allocator;
+    refl__lem_draw *dr = &x->dr;
+    const refl__lem_sample_view *sv = x->sv;
+    int w = x->w, h = x->h, L = x->lay->layers, s, l, term;
+    size_t np = (size_t)w * (size_t)h, px, nrec = 10 * (size_t)L;
+    float *depth = (float *)refl__calloc(al, np, sizeof(float)), *index[2] = {NULL, NULL};
+    refl_result r = REFL_OK;
     for (term = 0; term < 2 && r == REFL_OK; ++term) {
         index[term] = (float *)refl__calloc(al, 4 * np, sizeof(float));
         if (!index[term] || !depth) r = REFL_ERROR_OUT_OF_MEMORY;
     }
-    for (s = 0; s < per && r == REFL_OK; ++s)
+    for (s = 0; s < x->per && r == REFL_OK; ++s)
         for (l = 0; l < L && r == REFL_OK; ++l) {
+            int shared = refl__lem_shared_layer(x->jr, l, L);
             for (term = 0; term < 2 && r == REFL_OK; ++term) {
-                dr.term = term;
-                dr.record_layer = l;
-                r = refl__lem_raster(p->rc, &sv[s].tess, sv[s].vp, &dr, index[term], depth, NULL, 0, w, h, al);
+                dr->term = term;
+                dr->record_layer = l;
+                r = refl__lem_raster(x->p->rc, &sv[s].tess, sv[s].vp, dr, index[term], depth, NULL, 0, w, h, al);
             }
             for (px = 0; px < np && r == REFL_OK; ++px)
                 for (term = 0; term < 2 && r == REFL_OK; ++term) {
@@ -696,65 +724,131 @@ static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *caster
                        the lens surface its record is of: the tessellation leaves a
                        hidden triangle whole but traces its vertices (section 5) */
                     if (rec[4] < 0.0f || !(ix[3] >= 0.999f) ||
-                        !refl_lem_shell_texels(&dr.shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
+                        !refl_lem_shell_texels(&dr->shell[l], refl_v3(ix[0], ix[1], ix[2]), tex, wt))
                         continue;
-                    r = jr && l == L - 1 ? refl__lem_joint_row(al, jr, ix, rec)
-                                         : refl_lem_system_add_row(sys[l], tex, wt, 4, rec, rec[4]);
+                    r = shared ? refl__lem_joint_row(al, x->jr, ix, rec)
+                               : refl_lem_system_add_row(x->sys[l], tex, wt, 4, rec, rec[4]);
                 }
         }
-    /* where the lens images leave texels unheld, the direct images */
-    for (s = 0; s < per && direct.viewpoint; ++s) {
-        int *rc = direct.rect[s], cx, cy;
+    refl__free(al, index[0]);
+    refl__free(al, index[1]);
+    refl__free(al, depth);
+    return r;
+}
+
+/* Where the lens images leave texels unheld, the direct images: from the
+   viewpoint, each view's rectangle and the stride (x->direct, jr's copy
+   for the shared layer, whose rows refl__lem_joint_solve adds), then the
+   rows of each layer solved here. */
+static refl_result refl__lem_direct_images(refl__lem_inference *x) {
+    refl__pass *p = x->p;
+    const refl_allocator *al = &p->scene->allocator;
+    refl_stats *st = &p->frame->stats;
+    refl__lem_direct *direct = &x->direct;
+    int w = x->w, h = x->h, L = x->lay->layers, per = x->per, s, l, term;
+    size_t np = (size_t)w * (size_t)h, px;
+    refl_result r = REFL_OK;
+    for (s = 0; s < per && direct->viewpoint; ++s) {
+        int *rc = direct->rect[s], cx, cy;
         long long area;
-        refl__lem_screen_rect(sv[s].vp, box[0], box[1], w, h, rc);
+        refl__lem_screen_rect(x->sv[s].vp, x->box[0], x->box[1], w, h, rc);
         /* twice the lens's rectangle: what its exit rays see past its outline */
         cx = (rc[0] + rc[2]) / 2, cy = (rc[1] + rc[3]) / 2;
         rc[0] = REFL__MAX(2 * rc[0] - cx, 0), rc[2] = REFL__MIN(2 * rc[2] - cx, w);
         rc[1] = REFL__MAX(2 * rc[1] - cy, 0), rc[3] = REFL__MIN(2 * rc[3] - cy, h);
         /* at most about a ray per texel from each view */
         area = (long long)(rc[2] - rc[0]) * (rc[3] - rc[1]);
-        direct.stride = REFL__MAX(direct.stride, (int)ceil(sqrt((double)area / (6.0 * face * face))));
+        direct->stride = REFL__MAX(direct->stride, (int)ceil(sqrt((double)area / (6.0 * x->face * x->face))));
     }
-    if (jr) jr->direct = direct;
-    for (l = 0; l < L - (jr != NULL) && r == REFL_OK && direct_on; ++l) {
+    if (x->jr) x->jr->direct = *direct;
+    for (l = 0; l < L && r == REFL_OK && x->direct_on; ++l) {
         int added = 0;
         float *pts = NULL;
         long long n = 0;
-        if (direct.distance) { /* the lens images' hits in the layer, both terms */
+        if (refl__lem_shared_layer(x->jr, l, L)) continue;
+        if (direct->distance) { /* the lens images' hits in the layer, both terms */
             pts = (float *)refl__calloc(al, 6 * (size_t)per * np + 1, sizeof(float));
             if (!pts) r = REFL_ERROR_OUT_OF_MEMORY;
             for (s = 0; s < per && pts; ++s)
                 for (px = 0; px < np; ++px)
                     for (term = 0; term < 2; ++term) {
-                        const float *q = sv[s].points + 6 * (size_t)L * px + 3 * (size_t)(term * L + l);
+                        const float *q = x->sv[s].points + 6 * (size_t)L * px + 3 * (size_t)(term * L + l);
                         if (!isnan(q[0])) memcpy(pts + 3 * n++, q, 3 * sizeof(float));
                     }
         }
-        direct.points = pts;
-        direct.count = n;
+        direct->points = pts;
+        direct->count = n;
         if (r == REFL_OK)
-            r = refl__lem_direct_rows(scene, casters->scene, lay, &dr.shell[l], l, &direct, sys[l], &st->rays, &added);
+            r = refl__lem_direct_rows(p->scene, x->casters->scene, x->lay, &x->dr.shell[l], l, direct, x->sys[l],
+                                      &st->rays, &added);
         st->layered_em.direct_rows += added;
         refl__free(al, pts);
+        direct->points = NULL;
     }
+    return r;
+}
+
+/* The texels of each layer solved here (out's, allocated). */
+static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map *out) {
+    const refl_allocator *al = &x->p->scene->allocator;
+    int l, L = x->lay->layers;
+    refl_lem_solve_desc sd;
+    refl_result r = REFL_OK;
     memset(&sd, 0, sizeof sd);
-    sd.iterations = o->iterations;
+    sd.iterations = x->p->desc.layered_em.iterations;
     /* Radiance and coverage are never negative, but unconstrained least
        squares is: where rows that share texels disagree (one shell point
        seen as a black and a white checker), it swings texels below 0 and
        their neighbours past every target (ringing), and a lookup there is
        drawn dark. Every layer is solved over x >= 0. */
     sd.nonnegative = 1;
-    for (l = 0; l < L - (jr != NULL) && r == REFL_OK; ++l) {
-        out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * face * face), sizeof(float));
+    for (l = 0; l < L && r == REFL_OK; ++l) {
+        if (refl__lem_shared_layer(x->jr, l, L)) continue;
+        out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl_lem_solve(sys[l], &sd, out->texels[l], NULL);
+        if (r == REFL_OK) r = refl_lem_solve(x->sys[l], &sd, out->texels[l], NULL);
     }
-    for (k = 0; k < L; ++k) refl_lem_system_destroy(sys[k]);
-    refl__free(al, index[0]);
-    refl__free(al, index[1]);
-    refl__free(al, depth);
-    for (s = 0; s < 3; ++s) refl__lem_sample_free(al, &sv[s]);
+    return r;
+}
+
+/* Infers object i's maps for the sample whose views are views[0 .. per)
+   (the sample's own first) on the layers' shells: the records and
+   tessellation of each view, then per layer rows from the runtime's own
+   lookups at those views (both terms) and the direct images', solved by
+   CGLS. out->texels are allocated. With jr (a shared outer layer), the
+   outermost layer is looked up on jr's shell and its rows go to jr,
+   unsolved (its texels NULL). */
+static refl_result refl__lem_infer(refl__pass *p, const refl__gp_casters *casters, int i, const refl_view *views, int per,
+                                   const refl__lem_layering *lay, refl__lem_joint *jr, refl__lem_map *out) {
+    const refl_allocator *al = &p->scene->allocator;
+    const refl_layered_em_options *o = &p->desc.layered_em;
+    refl__lem_inference x;
+    refl_vec3 centre;
+    float lens_radius;
+    int s, l;
+    refl_result r;
+    memset(&x, 0, sizeof x);
+    x.p = p;
+    x.casters = casters;
+    x.object = i;
+    x.views = views;
+    x.per = per;
+    x.w = views[0].width;
+    x.h = views[0].height;
+    x.lay = lay;
+    x.jr = jr;
+    x.direct_on = o->direct_images > 0 || (o->direct_images == 0 && REFL_LEM_DIRECT_DEFAULT > 0);
+    refl__lem_direct_how(p, i, views, per, &x.direct);
+    x.direct.distance &= x.direct_on;
+    refl__lem_bounds(p->scene, i, &centre, &lens_radius, x.box);
+    refl__lem_draw_box(&x.dr, x.box);
+    r = refl__lem_record_views(&x);
+    if (r == REFL_OK) r = refl__lem_layer_systems(&x, out);
+    if (r == REFL_OK) r = refl__lem_lookup_rows(&x);
+    if (r == REFL_OK) r = refl__lem_direct_images(&x);
+    if (r == REFL_OK) r = refl__lem_solve_layers(&x, out);
+    for (l = 0; l < lay->layers; ++l) refl_lem_system_destroy(x.sys[l]);
+    for (s = 0; s < 3; ++s) refl__lem_sample_free(al, &x.sv[s]);
     if (r != REFL_OK) refl__lem_map_free(al, out);
     return r;
 }
