@@ -1402,7 +1402,7 @@ typedef struct refl_layered_em_frame_stats {
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */
     long long continued_pixels; /* sample pixels of the maps inferred whose eye ray met something
-                                   else first and was continued to the lens
+                                   else first and was continued to the lens, giving records
                                    (layered_em.continue_incoming) */
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
@@ -18931,11 +18931,13 @@ static void refl__lem_records_row(void *arg, int y) {
                       ? refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
                                                 r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])
                       : 0;
-        r->row_continued[y] += met == 2;
         if (!met) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
             for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
         }
+        /* counted as the lens pixels are (refl__lem_record_views), so that
+           the continued ones aside never leave fewer than none */
+        r->row_continued[y] += met == 2 && (out[4] >= 0.0f || out[5 * r->lay->layers + 4] >= 0.0f);
     }
 }
 

@@ -1400,7 +1400,7 @@ typedef struct refl_layered_em_frame_stats {
                                 vertex's path left through another lens beyond the shells */
     long long direct_rows;   /* rows the direct images added to the maps inferred */
     long long continued_pixels; /* sample pixels of the maps inferred whose eye ray met something
-                                   else first and was continued to the lens
+                                   else first and was continued to the lens, giving records
                                    (layered_em.continue_incoming) */
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out

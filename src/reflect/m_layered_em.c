@@ -338,11 +338,13 @@ static void refl__lem_records_row(void *arg, int y) {
                       ? refl__lem_pixel_records(r->scene, r->caster, &r->rays, x, y, r->object, r->ss, r->theta_c,
                                                 r->max_interfaces, r->lay, out, pts, &centre, &r->row_rays[y])
                       : 0;
-        r->row_continued[y] += met == 2;
         if (!met) {
             for (k = 4; k < n; k += 5) out[k] = -1.0f;
             for (k = 0; pts && k < 6 * r->lay->layers; ++k) pts[k] = NAN;
         }
+        /* counted as the lens pixels are (refl__lem_record_views), so that
+           the continued ones aside never leave fewer than none */
+        r->row_continued[y] += met == 2 && (out[4] >= 0.0f || out[5 * r->lay->layers + 4] >= 0.0f);
     }
 }
 
