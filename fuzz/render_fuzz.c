@@ -34,7 +34,13 @@ static uint8_t take_u8(bytes *b) {
     return v;
 }
 
-static int take_i16(bytes *b) { return (int16_t)(take_u8(b) | take_u8(b) << 8); }
+/* Little-endian, the bytes taken one statement at a time: the operands of
+   one expression are evaluated in an order each compiler picks, and an
+   input must decode the same in every build. */
+static int take_i16(bytes *b) {
+    int lo = take_u8(b), hi = take_u8(b);
+    return (int16_t)(lo | hi << 8);
+}
 
 /* A count the API accepts up to `valid` and that costs in proportion to
    it: valid but large values are cut to `cheap`, so that a run stays
@@ -50,9 +56,10 @@ static float take_float(bytes *b, float usual) {
     if (how < 160) return usual;
     if (how < 224) return usual + ((float)take_i16(b) / 4096.0f);
     {
-        uint32_t u = (uint32_t)take_u8(b) | (uint32_t)take_u8(b) << 8 | (uint32_t)take_u8(b) << 16 |
-                     (uint32_t)take_u8(b) << 24;
+        uint32_t u = 0;
         float f;
+        int k;
+        for (k = 0; k < 4; ++k) u |= (uint32_t)take_u8(b) << (8 * k);
         memcpy(&f, &u, sizeof f);
         return f;
     }
@@ -128,6 +135,64 @@ static void take_desc(bytes *b, refl_render_desc *d) {
         d->sbc.mode = take_u8(b) % 3;
         d->sbc.memory_mb = take_i16(b);
     }
+    /* The groups below come after the ones above, so that the kept inputs
+       (fuzz/render_seeds/) still decode to the descs they were found with. */
+    if (take_u8(b) & 1) {
+        d->raytrace.greedy = take_u8(b) & 1;
+        d->raytrace.unpruned = take_u8(b) & 1;
+    }
+    if (take_u8(b) & 1) {
+        refl_layered_em_options *o = &d->layered_em;
+        o->samples = take_count(b, 8, 3600);
+        o->face_size = take_count(b, 16, 1024);
+        o->supersample = take_count(b, 2, 8);
+        o->edge_px = take_float(b, 0);
+        o->angle_degrees = take_float(b, 0);
+        o->theta_c_degrees = take_float(b, 0);
+        o->iterations = take_count(b, 20, 100000);
+        o->single_view = (int8_t)take_u8(b);
+        o->layers = (int8_t)take_u8(b);
+        o->keep_stale_maps = (int8_t)take_u8(b);
+        o->shell = (int8_t)take_u8(b);
+        o->shell_frame = (int8_t)take_u8(b);
+        o->direct_images = (int8_t)take_u8(b);
+        o->lens_layers = (int8_t)take_u8(b);
+        o->direct_from = (int8_t)take_u8(b);
+        o->direct_confidence = (int8_t)take_u8(b);
+        o->kept_mib = take_i16(b);
+        o->continue_incoming = (int8_t)take_u8(b);
+        o->share_outer_layer = (int8_t)take_u8(b);
+    }
+    if (take_u8(b) & 1) {
+        d->spoc.size = take_count(b, 32, 4096);
+        d->spoc.strength = take_float(b, 0);
+        d->spoc.step_scale = take_float(b, 0);
+        d->spoc.max_edge_px = take_float(b, 0);
+        d->spoc.layers = (int8_t)take_u8(b);
+        d->spoc.glass = (int8_t)take_u8(b);
+    }
+    if (take_u8(b) & 1) {
+        d->graphcam.size = take_count(b, 32, 8192);
+        d->graphcam.algorithm = (int8_t)take_u8(b);
+        d->graphcam.step = take_float(b, 0);
+    }
+    if (take_u8(b) & 1) d->automatic.error_budget_px = take_float(b, 0);
+}
+
+/* Valid but costly frames cut to small ones, as take_count cuts counts:
+   LAYERED_EM's first frame (and AUTO's, which may pick it) infers its maps
+   from several traced views of each lens at the frame's size and samples,
+   and fits its shells to the hits seen from every viewpoint sample (45 by
+   default); the unpruned ray tree doubles with each bounce. */
+static void cut_costly_frames(refl_view *v, refl_render_desc *d) {
+    if (d->method == REFL_LAYERED_EM || d->method == REFL_AUTO) {
+        if (d->layered_em.samples == 0) d->layered_em.samples = 8;
+        if (v->width > 12) v->width = 12;
+        if (v->height > 12) v->height = 12;
+        if (d->spp > 4) d->spp = 4;
+        if (d->depth > 4) d->depth = 4;
+    }
+    if (d->raytrace.unpruned && d->depth > 6) d->depth = 6;
 }
 
 /* What a successful render promises: every pixel finite and opaque. */
@@ -167,6 +232,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         v.zfar = take_float(&b, v.zfar);
     }
     take_desc(&b, &d);
+    cut_costly_frames(&v, &d);
     if (refl_frame_create(v.width, v.height, NULL, &f) == REFL_OK) {
         r = refl_render(s, &v, &d, f);
         if (r == REFL_OK) check_frame(f);
