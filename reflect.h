@@ -1461,8 +1461,9 @@ typedef struct refl_stats {
 typedef struct refl_frame {
     int width, height;
     float *rgba;             /* linear RGBA, 4 floats per pixel, rows top first: colour as
-                                rendered, unclamped (an HDR sky brighter than 1 stays so);
-                                alpha 1 once a render returned */
+                                rendered, unclamped (an HDR sky brighter than 1 stays so) but
+                                for radiance past float's range, FLT_MAX; alpha 1 once a
+                                render returned */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
     float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel
@@ -14364,6 +14365,11 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         }
     for (term = 0; term < 2; ++term) {
         float conf = n[term] ? refl_lem_confidence(dirs[term], n[term], theta_c) : -1.0f;
+        /* radiance past float's range (a caller's huge light or emission)
+           gives the term no record: least squares needs finite targets */
+        for (l = 0; l < L && n[term]; ++l)
+            for (k = 0; k < 3; ++k)
+                if (!refl__isfinite(sum[term][l][k])) conf = -1.0f;
         for (l = 0; l < L; ++l) {
             float *t = out + 5 * (term * L + l);
             t[0] = t[1] = t[2] = t[3] = 0.0f;
@@ -14534,6 +14540,7 @@ static refl_result refl__lem_direct_row(const refl_scene *scene, const refl_ray_
         f = near->tree ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
         conf = f * f;
     }
+    if (!refl__all_finite(target, 3)) return REFL_OK; /* radiance past float's range: as a record's, no row */
     r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
     if (r == REFL_OK && conf > 0.0f) ++*added;
     return r;
@@ -25022,6 +25029,16 @@ REFL_API void refl_renderer_lem_lenses_free(refl_renderer *rr, refl_lem_lens *le
     refl__free(&rr->scene->allocator, lenses);
 }
 
+/* Radiance past float's range (finite but huge lights, emission or sky
+   whose products overflow) as the largest float, so that a frame's
+   colours stay finite; a NaN is left for the tests to find. */
+static void refl__frame_clamp_overflow(refl_frame *frame) {
+    size_t i, n = 4 * (size_t)frame->width * (size_t)frame->height;
+    for (i = 0; i < n; ++i)
+        if (frame->rgba[i] > FLT_MAX) frame->rgba[i] = FLT_MAX;
+        else if (frame->rgba[i] < -FLT_MAX) frame->rgba[i] = -FLT_MAX;
+}
+
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     refl_view fine_view;
     refl_result r;
@@ -25030,7 +25047,10 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
     if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
     side = refl__spp_side(rr->desc.spp);
-    if (side == 1) return refl__render_samples(rr, view, frame);
+    if (side == 1) {
+        if ((r = refl__render_samples(rr, view, frame)) == REFL_OK) refl__frame_clamp_overflow(frame);
+        return r;
+    }
     t0 = refl__now_ms();
     if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
@@ -25039,6 +25059,7 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
         return r;
     }
     refl__resolve_spp(rr->fine, frame, side);
+    refl__frame_clamp_overflow(frame);
     frame->stats = rr->fine->stats;
     frame->stats.ms_total = refl__now_ms() - t0;
     return REFL_OK;

@@ -1459,8 +1459,9 @@ typedef struct refl_stats {
 typedef struct refl_frame {
     int width, height;
     float *rgba;             /* linear RGBA, 4 floats per pixel, rows top first: colour as
-                                rendered, unclamped (an HDR sky brighter than 1 stays so);
-                                alpha 1 once a render returned */
+                                rendered, unclamped (an HDR sky brighter than 1 stays so) but
+                                for radiance past float's range, FLT_MAX; alpha 1 once a
+                                render returned */
     float *depth;            /* window depth in [0, 1] */
     uint8_t *stencil;        /* 0: no reflector; k: object k - 1 (objects >= 255 share 255) */
     float *points;           /* 3 per pixel: on reflector pixels, the scene point the pixel

@@ -1173,6 +1173,11 @@ static int refl__lem_pixel_records(const refl_scene *scene, const refl_ray_caste
         }
     for (term = 0; term < 2; ++term) {
         float conf = n[term] ? refl_lem_confidence(dirs[term], n[term], theta_c) : -1.0f;
+        /* radiance past float's range (a caller's huge light or emission)
+           gives the term no record: least squares needs finite targets */
+        for (l = 0; l < L && n[term]; ++l)
+            for (k = 0; k < 3; ++k)
+                if (!refl__isfinite(sum[term][l][k])) conf = -1.0f;
         for (l = 0; l < L; ++l) {
             float *t = out + 5 * (term * L + l);
             t[0] = t[1] = t[2] = t[3] = 0.0f;
@@ -1343,6 +1348,7 @@ static refl_result refl__lem_direct_row(const refl_scene *scene, const refl_ray_
         f = near->tree ? refl__lem_near_distance(near, &at.x) / near->cell : 1.0f;
         conf = f * f;
     }
+    if (!refl__all_finite(target, 3)) return REFL_OK; /* radiance past float's range: as a record's, no row */
     r = refl_lem_system_add_row(sys, tex, w, 4, target, conf);
     if (r == REFL_OK && conf > 0.0f) ++*added;
     return r;

@@ -740,6 +740,16 @@ REFL_API void refl_renderer_lem_lenses_free(refl_renderer *rr, refl_lem_lens *le
     refl__free(&rr->scene->allocator, lenses);
 }
 
+/* Radiance past float's range (finite but huge lights, emission or sky
+   whose products overflow) as the largest float, so that a frame's
+   colours stay finite; a NaN is left for the tests to find. */
+static void refl__frame_clamp_overflow(refl_frame *frame) {
+    size_t i, n = 4 * (size_t)frame->width * (size_t)frame->height;
+    for (i = 0; i < n; ++i)
+        if (frame->rgba[i] > FLT_MAX) frame->rgba[i] = FLT_MAX;
+        else if (frame->rgba[i] < -FLT_MAX) frame->rgba[i] = -FLT_MAX;
+}
+
 REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *view, refl_frame *frame) {
     refl_view fine_view;
     refl_result r;
@@ -748,7 +758,10 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
     if (!rr || !view || !frame) return REFL_ERROR_INVALID_ARGUMENT;
     if ((r = refl__check_frame(rr->scene, view, frame)) != REFL_OK) return r;
     side = refl__spp_side(rr->desc.spp);
-    if (side == 1) return refl__render_samples(rr, view, frame);
+    if (side == 1) {
+        if ((r = refl__render_samples(rr, view, frame)) == REFL_OK) refl__frame_clamp_overflow(frame);
+        return r;
+    }
     t0 = refl__now_ms();
     if ((r = refl__fine_frame(rr, view, side, frame, &fine_view)) != REFL_OK) return r;
     if ((r = refl__render_samples(rr, &fine_view, rr->fine)) != REFL_OK) {
@@ -757,6 +770,7 @@ REFL_API refl_result refl_renderer_render(refl_renderer *rr, const refl_view *vi
         return r;
     }
     refl__resolve_spp(rr->fine, frame, side);
+    refl__frame_clamp_overflow(frame);
     frame->stats = rr->fine->stats;
     frame->stats.ms_total = refl__now_ms() - t0;
     return REFL_OK;

@@ -4,6 +4,7 @@
    error, or a finished opaque frame without NaN, in bounded memory. Small
    frames and few samples: these run in the sanitized binary too. */
 #include <criterion/criterion.h>
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -235,4 +236,37 @@ Test(hostile, a_shell_too_large_to_number_is_refused) {
     sh.face_size = 16384;
     cr_assert_eq(refl_lem_shell_texels(&sh, refl_v3(0, 0, -1), texel, weight), 1);
     cr_assert_lt(texel[3], 6u * 16384u * 16384u);
+}
+
+/* A sky of colour 1e30 at intensity 1e30: each number finite, their
+   product past float's range. Every method returns a finished frame, the
+   overflow drawn as FLT_MAX; LAYERED_EM's maps take no row from it (least
+   squares needs finite targets). Fails on a frame holding inf, or on
+   LAYERED_EM's INVALID_ARGUMENT from a row with an infinite target. */
+Test(hostile, radiance_past_float_s_range_draws_the_largest_float, .timeout = 60) {
+    int m, overflowed = 0;
+    for (m = REFL_DIRECT; m < REFL_METHOD_COUNT; ++m) {
+        refl_view v;
+        refl_scene *s = tu_refl_builtin("default", &v, 16, 12);
+        refl_render_desc d = tu_refl_one_bounce((refl_method)m, 2);
+        refl_frame *f = NULL;
+        refl_result r;
+        size_t i;
+        s->environment.color[2] = 1e30f;
+        s->environment.intensity = 1e30f;
+        if (m == REFL_LAYERED_EM) d.layered_em.samples = 8, d.spp = 4;
+        cr_assert_eq(refl_frame_create(16, 12, NULL, &f), REFL_OK);
+        r = refl_render(s, &v, &d, f);
+        if (r == REFL_ERROR_UNSUPPORTED) {
+            refl_frame_destroy(f);
+            refl_scene_destroy(s);
+            continue;
+        }
+        cr_assert_eq(r, REFL_OK, "%s: %s (%s)", refl_method_name((refl_method)m), refl_result_string(r), f->message);
+        assert_finished(f, refl_method_name((refl_method)m));
+        for (i = 0; i < 16 * 12; ++i) overflowed += f->rgba[4 * i + 2] == FLT_MAX;
+        refl_frame_destroy(f);
+        refl_scene_destroy(s);
+    }
+    cr_assert_gt(overflowed, 0, "no pixel shows the sky past float's range");
 }
