@@ -327,6 +327,10 @@ typedef struct refl__lem_records {
     int *row_continued;          /* per row, the pixels whose eye ray was continued to the lens */
 } refl__lem_records;
 
+/* Whether a pixel's records (10 floats a layer, refl__lem_pixel_records)
+   hold a term of the innermost layer: a lens pixel. */
+static int refl__lem_has_record(const float *rec, int layers) { return rec[4] >= 0.0f || rec[5 * layers + 4] >= 0.0f; }
+
 static void refl__lem_records_row(void *arg, int y) {
     refl__lem_records *r = (refl__lem_records *)arg;
     int x, w = r->rays.width, n = 10 * r->lay->layers, k;
@@ -344,7 +348,7 @@ static void refl__lem_records_row(void *arg, int y) {
         }
         /* counted as the lens pixels are (refl__lem_record_views), so that
            the continued ones aside never leave fewer than none */
-        r->row_continued[y] += met == 2 && (out[4] >= 0.0f || out[5 * r->lay->layers + 4] >= 0.0f);
+        r->row_continued[y] += met == 2 && refl__lem_has_record(out, r->lay->layers);
     }
 }
 
@@ -653,7 +657,7 @@ static refl_result refl__lem_record_views(refl__lem_inference *x) {
             rast_run_jobs(p->rc, h, refl__lem_records_row, &rec);
             for (y = 0; y < h; ++y) st->rays += rec.row_rays[y];
             for (px = 0; px < np; ++px)
-                sv[s].lens_pixels += rec.rec[nrec * px + 4] >= 0.0f || rec.rec[nrec * px + 5 * (size_t)L + 4] >= 0.0f;
+                sv[s].lens_pixels += refl__lem_has_record(rec.rec + nrec * px, L);
             /* the face size follows the lens pixels the view sees: the
                continued ones aside, so continuing leaves it as it was */
             for (y = 0; y < h; ++y) sv[s].lens_pixels -= rec.row_continued[y];
