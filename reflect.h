@@ -1759,8 +1759,9 @@ REFL_API int refl_lem_system_rows(const refl_lem_system *system);
 
 typedef struct refl_lem_solve_desc {
     int iterations;          /* at most; 0: 200 */
-    float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
-                                start, in every channel; 0: 1e-6 */
+    float tolerance;         /* stop when |S A^T C^2 (b - A x)| (S: the column scaling
+                                below) falls below this times its start, in every
+                                channel; 0: 1e-6 */
     int nonnegative;         /* 1: every texel's channels kept at 0 or above (the least
                                 squares over x >= 0); 0: unconstrained */
 } refl_lem_solve_desc;
@@ -1773,6 +1774,9 @@ typedef struct refl_lem_solve_stats {
 
 /* Least squares by conjugate gradients on the normal equations (CGLS),
    the four channels at once, from x = 0: texels no row reaches stay 0.
+   Each texel's column of C A is scaled to unit length (Jacobi
+   preconditioning), so the iterations needed do not grow with how
+   unevenly the pixels cover the texels.
    With desc->nonnegative, CGLS over the texels the bound leaves free,
    restarted where a step meets it (the iterations' cap counts them all).
    Sequential sums in double: the same x on every run. x: 4 floats per
@@ -14024,28 +14028,47 @@ REFL_API refl_result refl_lem_system_add_row(refl_lem_system *s, const uint32_t 
     return REFL_OK;
 }
 
-/* q = A p (rows x 4), and qq its squared norm per channel (summed in row
-   order, as refl__lem_norm2 sums: one pass over q instead of two) */
-static void refl__lem_mul(const refl_lem_system *s, const double *p, double *q, double qq[4]) {
+/* The solve's column scaling (Jacobi preconditioning of the normal
+   equations): each texel's 1 / |its column of A|, 0 for a texel no row
+   reaches. A texel seen by many pixels has a column hundreds of times
+   longer than one at a grazing edge seen by a few, and plain CGLS over
+   such columns needs iterations that grow with the face size; over
+   unit columns it does not. Sums in row order. */
+static void refl__lem_column_scale(const refl_lem_system *s, double *scale) {
+    long long e;
+    int k;
+    memset(scale, 0, sizeof(double) * (size_t)s->texels);
+    for (e = 0; e < s->entries; ++e) scale[s->col[e]] += (double)s->w[e] * (double)s->w[e];
+    for (k = 0; k < s->texels; ++k) scale[k] = scale[k] > 0.0 ? 1.0 / sqrt(scale[k]) : 0.0;
+}
+
+/* q = A S p (rows x 4) with S the column scaling, and qq its squared norm
+   per channel (summed in row order, as refl__lem_norm2 sums: one pass
+   over q instead of two) */
+static void refl__lem_mul(const refl_lem_system *s, const double *scale, const double *p, double *q, double qq[4]) {
     int r, c;
     long long e;
     for (c = 0; c < 4; ++c) qq[c] = 0.0;
     for (r = 0; r < s->rows; ++r) {
         double acc[4] = {0, 0, 0, 0};
-        for (e = s->row_start[r]; e < s->row_start[r + 1]; ++e)
-            for (c = 0; c < 4; ++c) acc[c] += (double)s->w[e] * p[4 * (size_t)s->col[e] + (size_t)c];
+        for (e = s->row_start[r]; e < s->row_start[r + 1]; ++e) {
+            double w = (double)s->w[e] * scale[s->col[e]];
+            for (c = 0; c < 4; ++c) acc[c] += w * p[4 * (size_t)s->col[e] + (size_t)c];
+        }
         for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c], qq[c] += acc[c] * acc[c];
     }
 }
 
-/* g = A^T r (texels x 4), in row order */
-static void refl__lem_mul_t(const refl_lem_system *s, const double *r, double *g) {
+/* g = S A^T r (texels x 4), in row order */
+static void refl__lem_mul_t(const refl_lem_system *s, const double *scale, const double *r, double *g) {
     int row, c;
     long long e;
     memset(g, 0, sizeof(double) * 4 * (size_t)s->texels);
     for (row = 0; row < s->rows; ++row)
-        for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e)
-            for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += (double)s->w[e] * r[4 * (size_t)row + (size_t)c];
+        for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e) {
+            double w = (double)s->w[e] * scale[s->col[e]];
+            for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += w * r[4 * (size_t)row + (size_t)c];
+        }
 }
 
 static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
@@ -14056,7 +14079,9 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
         for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
 }
 
-/* CGLS, the four channels at once, from x = 0 with r = b. With held, over
+/* CGLS over the scaled texels y = x / scale (the operator A S), the four
+   channels at once, from y = 0 with r = b; y >= 0 exactly where x >= 0.
+   With held, over
    x >= 0 (projected CGLS with restarts): conjugate gradients over each
    channel's free texels, those not held at 0 by a gradient pushing them
    below it. A step that takes a free texel below 0 is clamped there and
@@ -14066,8 +14091,8 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
    (NULL) nothing is ever held, clamped or restarted: plain CGLS, whose
    first beta is 0 as gamma starts at 0. r, g, p (0 on entry), q and held
    are the solver's work vectors. Returns the iterations run. */
-static int refl__lem_cgls(const refl_lem_system *s, double *xd, double *r, double *g, double *p, double *q,
-                          unsigned char *held, int max_it, double tol) {
+static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double *xd, double *r, double *g, double *p,
+                          double *q, unsigned char *held, int max_it, double tol) {
     const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
     const int bounded = held != NULL;
     double gamma[4] = {0, 0, 0, 0}, gamma0[4] = {0, 0, 0, 0}, qq[4];
@@ -14078,10 +14103,10 @@ static int refl__lem_cgls(const refl_lem_system *s, double *xd, double *r, doubl
         int all_done = 1;
         if (restart[0] | restart[1] | restart[2] | restart[3]) { /* r = b - A x on the clamped x */
             for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
-            refl__lem_mul(s, xd, q, qq);
+            refl__lem_mul(s, scale, xd, q, qq);
             for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
         }
-        refl__lem_mul_t(s, r, g);
+        refl__lem_mul_t(s, scale, r, g);
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
@@ -14110,7 +14135,7 @@ static int refl__lem_cgls(const refl_lem_system *s, double *xd, double *r, doubl
         }
         if (all_done) break;
         if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
-        refl__lem_mul(s, p, q, qq);
+        refl__lem_mul(s, scale, p, q, qq);
         for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
@@ -14129,7 +14154,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
                                     refl_lem_solve_stats *stats) {
     const refl_allocator *a;
     size_t nt, nr;
-    double *xd, *r, *g, *p, *q, rr[4];
+    double *xd, *r, *g, *p, *q, *scale, rr[4];
     unsigned char *held = NULL;
     int it, max_it = desc && desc->iterations > 0 ? desc->iterations : 200, c, i;
     double tol = desc && desc->tolerance > 0.0f ? desc->tolerance : 1e-6;
@@ -14143,14 +14168,16 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     p = (double *)refl__calloc(a, 4 * nt, sizeof(double));
     r = (double *)refl__calloc(a, 4 * nr, sizeof(double));
     q = (double *)refl__calloc(a, 4 * nr, sizeof(double));
-    if (!xd || !g || !p || !r || !q) goto out;
+    scale = (double *)refl__calloc(a, nt, sizeof(double));
+    if (!xd || !g || !p || !r || !q || !scale) goto out;
+    refl__lem_column_scale(s, scale);
     for (i = 0; i < 4 * s->rows; ++i) r[i] = s->b[i]; /* r = b - A 0 */
     refl__lem_norm2(r, (size_t)s->rows, rr);
     if (stats)
         for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
     if (desc && desc->nonnegative && !(held = (unsigned char *)refl__calloc(a, 4 * nt, 1))) goto out;
-    it = refl__lem_cgls(s, xd, r, g, p, q, held, max_it, tol);
-    for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)xd[i];
+    it = refl__lem_cgls(s, scale, xd, r, g, p, q, held, max_it, tol);
+    for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)(xd[i] * scale[i / 4]);
     if (stats) {
         stats->iterations = it;
         refl__lem_norm2(r, (size_t)s->rows, rr);
@@ -14159,7 +14186,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     res = REFL_OK;
 out:
     refl__free(a, held);
-    refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q);
+    refl__free(a, xd), refl__free(a, g), refl__free(a, p), refl__free(a, r), refl__free(a, q), refl__free(a, scale);
     return res;
 }
 

@@ -1757,8 +1757,9 @@ REFL_API int refl_lem_system_rows(const refl_lem_system *system);
 
 typedef struct refl_lem_solve_desc {
     int iterations;          /* at most; 0: 200 */
-    float tolerance;         /* stop when |A^T C^2 (b - A x)| falls below this times its
-                                start, in every channel; 0: 1e-6 */
+    float tolerance;         /* stop when |S A^T C^2 (b - A x)| (S: the column scaling
+                                below) falls below this times its start, in every
+                                channel; 0: 1e-6 */
     int nonnegative;         /* 1: every texel's channels kept at 0 or above (the least
                                 squares over x >= 0); 0: unconstrained */
 } refl_lem_solve_desc;
@@ -1771,6 +1772,9 @@ typedef struct refl_lem_solve_stats {
 
 /* Least squares by conjugate gradients on the normal equations (CGLS),
    the four channels at once, from x = 0: texels no row reaches stay 0.
+   Each texel's column of C A is scaled to unit length (Jacobi
+   preconditioning), so the iterations needed do not grow with how
+   unevenly the pixels cover the texels.
    With desc->nonnegative, CGLS over the texels the bound leaves free,
    restarted where a step meets it (the iterations' cap counts them all).
    Sequential sums in double: the same x on every run. x: 4 floats per

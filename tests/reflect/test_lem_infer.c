@@ -113,6 +113,38 @@ Test(lem_infer, least_squares_recovers_known_texture) {
     free(x2);
 }
 
+Test(lem_infer, least_squares_converges_where_texels_are_unevenly_seen) {
+    /* a strip of texels looked up bilinearly, the pixels' confidence
+       falling a thousandfold along it (a shell seen head-on at one end and
+       at grazing angles at the other): the texels' columns differ by 10^3
+       in length, which plain CGLS needs hundreds of iterations for; with
+       every column scaled to unit length the solve converges in few */
+    const int texels = 256, rows = 4 * 256;
+    refl_lem_system *sys = NULL;
+    refl_lem_solve_stats st;
+    refl_lem_solve_desc d;
+    refl_rng rng = refl_rng_seed(11);
+    float truth[4 * 256], x[4 * 256];
+    double worst = 0.0;
+    int i, c;
+    for (i = 0; i < 4 * texels; ++i) truth[i] = refl_rng_float(&rng);
+    cr_assert_eq(refl_lem_system_create(texels, NULL, &sys), REFL_OK);
+    for (i = 0; i < rows; ++i) {
+        float u = (float)(texels - 1) * ((float)i + 0.5f) / (float)rows, f = u - floorf(u), b[4];
+        uint32_t tex[2] = {(uint32_t)u, (uint32_t)u + 1u};
+        float w[2] = {1.0f - f, f}, confidence = powf(10.0f, -3.0f * u / (float)(texels - 1));
+        for (c = 0; c < 4; ++c) b[c] = w[0] * truth[4 * tex[0] + (uint32_t)c] + w[1] * truth[4 * tex[1] + (uint32_t)c];
+        cr_assert_eq(refl_lem_system_add_row(sys, tex, w, 2, b, confidence), REFL_OK);
+    }
+    memset(&d, 0, sizeof d);
+    d.iterations = 60;
+    cr_assert_eq(refl_lem_solve(sys, &d, x, &st), REFL_OK);
+    for (i = 0; i < 4 * texels; ++i) worst = fmax(worst, fabs((double)x[i] - truth[i]));
+    cr_assert_lt(worst, 1e-3, "largest texel error %g after %d iterations", worst, st.iterations);
+    cr_assert_lt(st.iterations, 60, "not converged in %d iterations", st.iterations);
+    refl_lem_system_destroy(sys);
+}
+
 Test(lem_infer, confidence_weighs_rows) {
     /* one texel told 1 with confidence 1 and 0 with confidence 0.5:
        least squares of (x - 1)^2 + 0.25 x^2 gives 0.8; confidence 0 adds nothing */
@@ -1250,7 +1282,7 @@ Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
     static const struct {
         const char *scene;
         uint64_t digest;
-    } cases[] = {{"mirror-room", 0x75fc1acf6888f47cull}, {"hybrid", 0xaa26b4ca43c7776bull}};
+    } cases[] = {{"mirror-room", 0xbea1b4c014f81810ull}, {"hybrid", 0xbbc1ff253147745cull}};
     uint64_t digest[2];
     int k;
     for (k = 0; k < 2; ++k) {
