@@ -252,7 +252,40 @@ static refl_lem_shell refl__lem_fit_box(const float *pos, int n, refl_vec3 lo, r
     return sh;
 }
 
-static int refl__lem_cmp_float(const void *a, const void *b); /* ascending (the clustering's, below) */
+/* Ascending with NaN last: a total order, so the selection below ends
+   on any input. */
+static int refl__lem_less(float a, float b) { return a < b || (a == a && b != b); }
+
+/* Reorders v[0 .. n) so that v[k] is what an ascending sort would put
+   there, those before it no greater and those after no less (a
+   quickselect, three-way so that runs of equal values, a floor's hits
+   at one height, cost no more than others): the fits take quantiles in
+   linear time, for every frame the frame search tries. Returns v[k]. */
+static float refl__lem_select(float *v, int n, int k) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        float a = v[lo], b = v[lo + (hi - lo) / 2], c = v[hi], pivot, t;
+        int lt = lo, i = lo, gt = hi;
+        /* the median of three */
+        pivot = refl__lem_less(a, b) ? (refl__lem_less(b, c) ? b : refl__lem_less(a, c) ? c : a)
+                                     : (refl__lem_less(a, c) ? a : refl__lem_less(b, c) ? c : b);
+        while (i <= gt) { /* v[lo, lt) < pivot, v[lt, i) equal, v(gt, hi] > pivot */
+            if (refl__lem_less(v[i], pivot))
+                t = v[i], v[i++] = v[lt], v[lt++] = t;
+            else if (refl__lem_less(pivot, v[i]))
+                t = v[i], v[i] = v[gt], v[gt--] = t;
+            else
+                ++i;
+        }
+        if (k < lt)
+            hi = lt - 1;
+        else if (k > gt)
+            lo = gt + 1;
+        else
+            break;
+    }
+    return v[k];
+}
 
 /* The share of a cylinder's cap hits that its cap holds: the radius is
    where nine in ten of them lie (the floor a lens stands on spreads to the
@@ -302,9 +335,9 @@ static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 
     }
     for (k = 0; k < n; ++k) scratch[k] = refl_v3_dot(refl_v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]), up);
     if (n) {
-        qsort(scratch, (size_t)n, sizeof(float), refl__lem_cmp_float);
-        h0 = scratch[(int)((1.0 - REFL__LEM_CAP_HOLD) * (n - 1))];
-        h1 = scratch[(int)(REFL__LEM_CAP_HOLD * (n - 1))];
+        int k0 = (int)((1.0 - REFL__LEM_CAP_HOLD) * (n - 1)), k1 = (int)(REFL__LEM_CAP_HOLD * (n - 1));
+        h0 = refl__lem_select(scratch, n, k0);
+        h1 = refl__lem_select(scratch + k0, n - k0, k1 - k0); /* past k0 nothing is less */
     }
     /* the padded box, out to the hits; a cap on the hits' plane where that
        lies within the padding */
@@ -322,8 +355,7 @@ static refl_lem_shell refl__lem_fit_cylinder(const float *pos, int n, refl_vec3 
             scratch[capped++] = (float)rho;
     }
     if (side < REFL__LEM_SIDE_SHARE * n && capped) { /* the caps hold most of the layer: they set the radius */
-        qsort(scratch, (size_t)capped, sizeof(float), refl__lem_cmp_float);
-        acc = scratch[REFL__MIN((int)(REFL__LEM_CAP_SHARE * capped), capped - 1)];
+        acc = refl__lem_select(scratch, capped, REFL__MIN((int)(REFL__LEM_CAP_SHARE * capped), capped - 1));
         side = 1;
     }
     rmin = pad + 0.5f * sqrtf(rmin);
