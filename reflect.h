@@ -1407,6 +1407,10 @@ typedef struct refl_layered_em_frame_stats {
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
                                 there, the next layer shows */
+    int solves;              /* least-squares solves of the maps inferred (a layer of a map each) */
+    int solves_capped;       /* of them, those stopped by layered_em.iterations before the
+                                tolerance: maps short of the least squares */
+    int solve_iterations;    /* the most iterations one solve ran */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1768,6 +1772,7 @@ typedef struct refl_lem_solve_desc {
 
 typedef struct refl_lem_solve_stats {
     int iterations;
+    int converged;           /* 1: stopped at the tolerance; 0: at the iterations' cap */
     double residual[4];      /* |C (A x - b)| per channel at the end */
     double initial[4];       /* and at x = 0 */
 } refl_lem_solve_stats;
@@ -14212,6 +14217,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)(xd[i] * scale[i / 4]);
     if (stats) {
         stats->iterations = it;
+        stats->converged = it < max_it;
         refl__lem_norm2(r, (size_t)s->rows, rr);
         for (c = 0; c < 4; ++c) stats->residual[c] = sqrt(rr[c]);
     }
@@ -19453,6 +19459,19 @@ static refl_result refl__lem_direct_images(refl__lem_inference *x) {
     return r;
 }
 
+/* Solves one layer's system into texels, counting the solve in the frame's stats. */
+static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, const refl_lem_solve_desc *sd,
+                                           float *texels) {
+    refl_layered_em_frame_stats *st = &p->frame->stats.layered_em;
+    refl_lem_solve_stats ss;
+    refl_result r = refl_lem_solve(sys, sd, texels, &ss);
+    if (r != REFL_OK) return r;
+    st->solves += 1;
+    st->solves_capped += !ss.converged;
+    st->solve_iterations = REFL__MAX(st->solve_iterations, ss.iterations);
+    return r;
+}
+
 /* The texels of each layer solved here (out's, allocated). */
 static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map *out) {
     const refl_allocator *al = &x->p->scene->allocator;
@@ -19471,7 +19490,7 @@ static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map 
         if (refl__lem_shared_layer(x->jr, l, L)) continue;
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl_lem_solve(x->sys[l], &sd, out->texels[l], NULL);
+        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], &sd, out->texels[l]);
     }
     return r;
 }
@@ -19849,7 +19868,7 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     sd.nonnegative = 1; /* as refl__lem_infer's layers */
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels[0], NULL);
+    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, &sd, out->texels[0]);
     refl_lem_system_destroy(sys);
     return r;
 }

@@ -979,6 +979,9 @@ static int cmd_render(const options *o) {
                 printf("continued    %lld (sample pixels whose eye ray reached the lens through what hid it)\n",
                        l->continued_pixels);
             if (l->quad_misses) printf("quad misses  %lld (vertex terms past a quad layer)\n", l->quad_misses);
+            if (l->solves)
+                printf("solves       %d (at most %d iterations; %d stopped at the cap short of the tolerance)\n",
+                       l->solves, l->solve_iterations, l->solves_capped);
         }
         printf("model bytes  %lld\nreflectors   %d\n", st->model_bytes, st->reflectors);
         print_auto_choices(s, &st->automatic);

@@ -1405,6 +1405,10 @@ typedef struct refl_layered_em_frame_stats {
     long long quad_misses;   /* vertex terms whose exit ray missed a quad layer (travelling
                                 away from it or past its rectangle): that layer is left out
                                 there, the next layer shows */
+    int solves;              /* least-squares solves of the maps inferred (a layer of a map each) */
+    int solves_capped;       /* of them, those stopped by layered_em.iterations before the
+                                tolerance: maps short of the least squares */
+    int solve_iterations;    /* the most iterations one solve ran */
 } refl_layered_em_frame_stats;
 /* AUTO's choice for one reflector, and why. */
 typedef struct refl_auto_choice {
@@ -1766,6 +1770,7 @@ typedef struct refl_lem_solve_desc {
 
 typedef struct refl_lem_solve_stats {
     int iterations;
+    int converged;           /* 1: stopped at the tolerance; 0: at the iterations' cap */
     double residual[4];      /* |C (A x - b)| per channel at the end */
     double initial[4];       /* and at x = 0 */
 } refl_lem_solve_stats;

@@ -1016,6 +1016,7 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)(xd[i] * scale[i / 4]);
     if (stats) {
         stats->iterations = it;
+        stats->converged = it < max_it;
         refl__lem_norm2(r, (size_t)s->rows, rr);
         for (c = 0; c < 4; ++c) stats->residual[c] = sqrt(rr[c]);
     }

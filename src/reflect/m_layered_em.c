@@ -794,6 +794,19 @@ static refl_result refl__lem_direct_images(refl__lem_inference *x) {
     return r;
 }
 
+/* Solves one layer's system into texels, counting the solve in the frame's stats. */
+static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, const refl_lem_solve_desc *sd,
+                                           float *texels) {
+    refl_layered_em_frame_stats *st = &p->frame->stats.layered_em;
+    refl_lem_solve_stats ss;
+    refl_result r = refl_lem_solve(sys, sd, texels, &ss);
+    if (r != REFL_OK) return r;
+    st->solves += 1;
+    st->solves_capped += !ss.converged;
+    st->solve_iterations = REFL__MAX(st->solve_iterations, ss.iterations);
+    return r;
+}
+
 /* The texels of each layer solved here (out's, allocated). */
 static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map *out) {
     const refl_allocator *al = &x->p->scene->allocator;
@@ -812,7 +825,7 @@ static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map 
         if (refl__lem_shared_layer(x->jr, l, L)) continue;
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl_lem_solve(x->sys[l], &sd, out->texels[l], NULL);
+        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], &sd, out->texels[l]);
     }
     return r;
 }
@@ -1190,7 +1203,7 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     sd.nonnegative = 1; /* as refl__lem_infer's layers */
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl_lem_solve(sys, &sd, out->texels[0], NULL);
+    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, &sd, out->texels[0]);
     refl_lem_system_destroy(sys);
     return r;
 }

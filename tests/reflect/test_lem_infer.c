@@ -1273,6 +1273,28 @@ Test(layered_em, vertex_paths_test_the_lens_triangles_alone, .timeout = 120) {
     refl_scene_destroy(clouded);
 }
 
+Test(layered_em, default_iterations_reach_the_least_squares) {
+    /* hybrid's maps at the default iterations: every solve stops at the
+       tolerance, none at the cap (whose maps would be short of the least
+       squares); the frame's stats say which stopped where */
+    refl_view v;
+    refl_scene *s = tu_refl_builtin("hybrid", &v, 64, 48);
+    refl_render_desc d = tu_refl_desc(REFL_LAYERED_EM, 2);
+    refl_frame *f = tu_refl_render(s, &v, &d);
+    const refl_layered_em_frame_stats *st = &f->stats.layered_em;
+    cr_assert_geq(st->solves, 2, "a map of each lens");
+    cr_assert_eq(st->solves_capped, 0, "%d of %d solves stopped at the cap (%d iterations)", st->solves_capped,
+                 st->solves, st->solve_iterations);
+    cr_assert(st->solve_iterations > 0 && st->solve_iterations < 200);
+    refl_frame_destroy(f);
+    d.layered_em.iterations = 3;
+    f = tu_refl_render(s, &v, &d);
+    cr_assert_eq(f->stats.layered_em.solves_capped, f->stats.layered_em.solves);
+    cr_assert_eq(f->stats.layered_em.solve_iterations, 3);
+    refl_frame_destroy(f);
+    refl_scene_destroy(s);
+}
+
 Test(layered_em, split_tracing_keeps_the_whole_scenes_images, .timeout = 120) {
     /* the vertex paths through the lenses' BVH, the rest asked for
        occluders between lens surfaces, find what tracing them through the
