@@ -183,8 +183,11 @@ static void take_desc(bytes *b, refl_render_desc *d) {
    LAYERED_EM's first frame (and AUTO's, which may pick it) infers its maps
    from several traced views of each lens at the frame's size and samples,
    and fits its shells to the hits seen from every viewpoint sample (45 by
-   default); the unpruned ray tree doubles with each bounce. */
+   default); the unpruned ray tree doubles with each bounce; SPOC's
+   impostors are 512 pixels a side by default (take_count cuts only a size
+   the bytes give). */
 static void cut_costly_frames(refl_view *v, refl_render_desc *d) {
+    if (d->spoc.size == 0) d->spoc.size = 32;
     if (d->method == REFL_LAYERED_EM || d->method == REFL_AUTO) {
         if (d->layered_em.samples == 0) d->layered_em.samples = 8;
         if (v->width > 12) v->width = 12;
