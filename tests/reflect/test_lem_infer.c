@@ -1123,7 +1123,7 @@ Test(layered_em, direct_images_from_the_viewpoint_and_by_distance) {
        by coverage): they see what lies behind the glass, where its
        refracted exit rays look, and none of what the reflected ones look
        at beside it, which the samples never saw either; the centre's
-       rows fill those texels (without them 22.9 dB, without direct
+       rows fill those texels (without them 16.1 dB, without direct
        images 12.8 dB) */
     refl_scene *s = exact_shell_scene();
     refl_view v = orbit_view_sized(45.0f, 96, 72);
