@@ -1766,6 +1766,11 @@ typedef struct refl_lem_solve_desc {
                                 channel; 0: 1e-6 */
     int nonnegative;         /* 1: every texel's channels kept at 0 or above (the least
                                 squares over x >= 0); 0: unconstrained */
+    float damping;           /* lambda, finite and >= 0: minimises |C (A x - b)|^2 +
+                                lambda^2 |x|^2, so that a texel only faint rows reach
+                                (squared weights summing to well under lambda^2) is drawn
+                                towards 0 instead of set to whatever fits those rows;
+                                0: none */
 } refl_lem_solve_desc;
 
 typedef struct refl_lem_solve_stats {
@@ -1777,9 +1782,10 @@ typedef struct refl_lem_solve_stats {
 
 /* Least squares by conjugate gradients on the normal equations (CGLS),
    the four channels at once, from x = 0: texels no row reaches stay 0.
-   Each texel's column of C A is scaled to unit length (Jacobi
-   preconditioning), so the iterations needed do not grow with how
-   unevenly the pixels cover the texels.
+   Each texel's column of C A (with damping, of C A stacked on lambda I)
+   is scaled to unit length (Jacobi preconditioning), so the iterations
+   needed do not grow with how unevenly the pixels cover the texels.
+   A damping that is negative or not finite: INVALID_ARGUMENT.
    With desc->nonnegative, CGLS over the texels the bound leaves free,
    restarted where a step meets it (the iterations' cap counts them all).
    Sequential sums in double: the same x on every run. x: 4 floats per

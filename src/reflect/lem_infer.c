@@ -865,17 +865,17 @@ REFL_API refl_result refl_lem_system_add_row(refl_lem_system *s, const uint32_t 
 }
 
 /* The solve's column scaling (Jacobi preconditioning of the normal
-   equations): each texel's 1 / |its column of A|, 0 for a texel no row
-   reaches. A texel seen by many pixels has a column hundreds of times
-   longer than one at a grazing edge seen by a few, and plain CGLS over
-   such columns needs iterations that grow with the face size; over
-   unit columns it does not. Sums in row order. */
-static void refl__lem_column_scale(const refl_lem_system *s, double *scale) {
+   equations): each texel's 1 / |its column of A stacked on lambda I|, 0
+   for a texel no row reaches. A texel seen by many pixels has a column
+   hundreds of times longer than one at a grazing edge seen by a few, and
+   plain CGLS over such columns needs iterations that grow with the face
+   size; over unit columns it does not. Sums in row order. */
+static void refl__lem_column_scale(const refl_lem_system *s, double lambda2, double *scale) {
     long long e;
     int k;
     memset(scale, 0, sizeof(double) * (size_t)s->texels);
     for (e = 0; e < s->entries; ++e) scale[s->col[e]] += (double)s->w[e] * (double)s->w[e];
-    for (k = 0; k < s->texels; ++k) scale[k] = scale[k] > 0.0 ? 1.0 / sqrt(scale[k]) : 0.0;
+    for (k = 0; k < s->texels; ++k) scale[k] = scale[k] > 0.0 ? 1.0 / sqrt(scale[k] + lambda2) : 0.0;
 }
 
 /* q = A S p (rows x 4) with S the column scaling, and qq its squared norm
@@ -915,8 +915,10 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
         for (c = 0; c < 4; ++c) out[c] += v[4 * i + (size_t)c] * v[4 * i + (size_t)c];
 }
 
-/* CGLS over the scaled texels y = x / scale (the operator A S), the four
-   channels at once, from y = 0 with r = b; y >= 0 exactly where x >= 0.
+/* CGLS over the scaled texels y = x / scale (the operator A S, stacked on
+   lambda S with target 0 where damped: that part's residual -lambda S y
+   is kept implicit in y), the four channels at once, from y = 0 with
+   r = b; y >= 0 exactly where x >= 0.
    With held, over
    x >= 0 (projected CGLS with restarts): conjugate gradients over each
    channel's free texels, those not held at 0 by a gradient pushing them
@@ -927,8 +929,8 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
    (NULL) nothing is ever held, clamped or restarted: plain CGLS, whose
    first beta is 0 as gamma starts at 0. r, g, p (0 on entry), q and held
    are the solver's work vectors. Returns the iterations run. */
-static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double *xd, double *r, double *g, double *p,
-                          double *q, unsigned char *held, int max_it, double tol) {
+static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double lambda2, double *xd, double *r, double *g,
+                          double *p, double *q, unsigned char *held, int max_it, double tol) {
     const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
     const int bounded = held != NULL;
     double gamma[4] = {0, 0, 0, 0}, gamma0[4] = {0, 0, 0, 0}, qq[4];
@@ -943,6 +945,7 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
             for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
         }
         refl__lem_mul_t(s, scale, r, g);
+        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) g[k] -= lambda2 * scale[k / 4] * scale[k / 4] * xd[k];
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
@@ -972,6 +975,7 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
         if (all_done) break;
         if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
         refl__lem_mul(s, scale, p, q, qq);
+        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) qq[k % 4] += lambda2 * (scale[k / 4] * p[k]) * (scale[k / 4] * p[k]);
         for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
@@ -994,8 +998,9 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     unsigned char *held = NULL;
     int it, max_it = desc && desc->iterations > 0 ? desc->iterations : 200, c, i;
     double tol = desc && desc->tolerance > 0.0f ? desc->tolerance : 1e-6;
+    double lambda2 = desc ? (double)desc->damping * (double)desc->damping : 0.0;
     refl_result res = REFL_ERROR_OUT_OF_MEMORY;
-    if (!s || !x) return REFL_ERROR_INVALID_ARGUMENT;
+    if (!s || !x || (desc && !(desc->damping >= 0.0f && desc->damping <= FLT_MAX))) return REFL_ERROR_INVALID_ARGUMENT;
     a = &s->allocator;
     nt = (size_t)s->texels;
     nr = (size_t)REFL__MAX(s->rows, 1);
@@ -1006,13 +1011,13 @@ REFL_API refl_result refl_lem_solve(const refl_lem_system *s, const refl_lem_sol
     q = (double *)refl__calloc(a, 4 * nr, sizeof(double));
     scale = (double *)refl__calloc(a, nt, sizeof(double));
     if (!xd || !g || !p || !r || !q || !scale) goto out;
-    refl__lem_column_scale(s, scale);
+    refl__lem_column_scale(s, lambda2, scale);
     for (i = 0; i < 4 * s->rows; ++i) r[i] = s->b[i]; /* r = b - A 0 */
     refl__lem_norm2(r, (size_t)s->rows, rr);
     if (stats)
         for (c = 0; c < 4; ++c) stats->initial[c] = sqrt(rr[c]);
     if (desc && desc->nonnegative && !(held = (unsigned char *)refl__calloc(a, 4 * nt, 1))) goto out;
-    it = refl__lem_cgls(s, scale, xd, r, g, p, q, held, max_it, tol);
+    it = refl__lem_cgls(s, scale, lambda2, xd, r, g, p, q, held, max_it, tol);
     for (i = 0; i < 4 * s->texels; ++i) x[i] = (float)(xd[i] * scale[i / 4]);
     if (stats) {
         stats->iterations = it;

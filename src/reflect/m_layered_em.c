@@ -794,6 +794,16 @@ static refl_result refl__lem_direct_images(refl__lem_inference *x) {
     return r;
 }
 
+/* The maps' damping (refl_lem_solve_desc.damping). A row's weights are
+   bilinear (summing to 1) times a confidence of at most 1, so a texel one
+   pixel sees fully has a column of length near 1; one that only a few
+   faint rows reach (the grazing edge of a face, a texel beside what the
+   samples saw, with the direct images off) is barely determined, and the
+   least squares solved to its tolerance sets it to whatever fits those
+   rows: bright and off-colour specks. 0.05 leaves a texel with squared
+   weights summing to 1 within 0.25% of its undamped value. */
+#define REFL__LEM_DAMPING 0.05f
+
 /* Solves one layer's system into texels, counting the solve in the frame's stats. */
 static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, const refl_lem_solve_desc *sd,
                                            float *texels) {
@@ -821,6 +831,7 @@ static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map 
        their neighbours past every target (ringing), and a lookup there is
        drawn dark. Every layer is solved over x >= 0. */
     sd.nonnegative = 1;
+    sd.damping = REFL__LEM_DAMPING;
     for (l = 0; l < L && r == REFL_OK; ++l) {
         if (refl__lem_shared_layer(x->jr, l, L)) continue;
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
@@ -1201,6 +1212,7 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     memset(&sd, 0, sizeof sd);
     sd.iterations = p->desc.layered_em.iterations;
     sd.nonnegative = 1; /* as refl__lem_infer's layers */
+    sd.damping = REFL__LEM_DAMPING;
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
     if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, &sd, out->texels[0]);
