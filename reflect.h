@@ -14125,17 +14125,16 @@ static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
 /* CGLS over the scaled texels y = x / scale (the operator A S, stacked on
    lambda S with target 0 where damped: that part's residual -lambda S y
    is kept implicit in y), the four channels at once, from y = 0 with
-   r = b; y >= 0 exactly where x >= 0.
-   With held, over
-   x >= 0 (projected CGLS with restarts): conjugate gradients over each
-   channel's free texels, those not held at 0 by a gradient pushing them
-   below it. A step that takes a free texel below 0 is clamped there and
-   the channel restarts from its gradient with its free set found again;
-   a channel converged on its free texels restarts where a held texel's
-   gradient now points above 0, and is done where none does. Without held
-   (NULL) nothing is ever held, clamped or restarted: plain CGLS, whose
-   first beta is 0 as gamma starts at 0. r, g, p (0 on entry), q and held
-   are the solver's work vectors. Returns the iterations run. */
+   r = b; y >= 0 exactly where x >= 0. With held, over x >= 0 (projected
+   CGLS with restarts): conjugate gradients over each channel's free
+   texels, those not held at 0 by a gradient pushing them below it. A
+   step that takes a free texel below 0 is clamped there and the channel
+   restarts from its gradient with its free set found again; a channel
+   converged on its free texels restarts where a held texel's gradient
+   now points above 0, and is done where none does. Without held (NULL)
+   nothing is ever held, clamped or restarted: plain CGLS, whose first
+   beta is 0 as gamma starts at 0. r, g, p (0 on entry), q and held are
+   the solver's work vectors. Returns the iterations run. */
 static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double lambda2, double *xd, double *r, double *g,
                           double *p, double *q, unsigned char *held, int max_it, double tol) {
     const size_t nt = (size_t)s->texels, nr = (size_t)s->rows;
