@@ -14085,12 +14085,15 @@ static void refl__lem_column_scale(const refl_lem_system *s, double lambda2, dou
     for (k = 0; k < s->texels; ++k) scale[k] = scale[k] > 0.0 ? 1.0 / sqrt(scale[k] + lambda2) : 0.0;
 }
 
-/* q = A S p (rows x 4) with S the column scaling, and qq its squared norm
-   per channel (summed in row order, as refl__lem_norm2 sums: one pass
-   over q instead of two) */
-static void refl__lem_mul(const refl_lem_system *s, const double *scale, const double *p, double *q, double qq[4]) {
+/* q = A S p (rows x 4) with S the column scaling, and qq the squared
+   norm per channel of the stacked operator's product: |q|^2 (summed in
+   row order, as refl__lem_norm2 sums: one pass over q instead of two)
+   plus lambda^2 |S p|^2 */
+static void refl__lem_mul(const refl_lem_system *s, const double *scale, double lambda2, const double *p, double *q,
+                          double qq[4]) {
     int r, c;
     long long e;
+    size_t k;
     for (c = 0; c < 4; ++c) qq[c] = 0.0;
     for (r = 0; r < s->rows; ++r) {
         double acc[4] = {0, 0, 0, 0};
@@ -14100,18 +14103,24 @@ static void refl__lem_mul(const refl_lem_system *s, const double *scale, const d
         }
         for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c], qq[c] += acc[c] * acc[c];
     }
+    for (k = 0; lambda2 > 0.0 && k < 4 * (size_t)s->texels; ++k) qq[k % 4] += lambda2 * (scale[k / 4] * p[k]) * (scale[k / 4] * p[k]);
 }
 
-/* g = S A^T r (texels x 4), in row order */
-static void refl__lem_mul_t(const refl_lem_system *s, const double *scale, const double *r, double *g) {
+/* g = S A^T r - lambda^2 S^2 y (texels x 4), the stacked operator's
+   transpose times its residual (the damping's, -lambda S y, implicit), in
+   row order */
+static void refl__lem_mul_t(const refl_lem_system *s, const double *scale, double lambda2, const double *y,
+                            const double *r, double *g) {
     int row, c;
     long long e;
+    size_t k;
     memset(g, 0, sizeof(double) * 4 * (size_t)s->texels);
     for (row = 0; row < s->rows; ++row)
         for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e) {
             double w = (double)s->w[e] * scale[s->col[e]];
             for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += w * r[4 * (size_t)row + (size_t)c];
         }
+    for (k = 0; lambda2 > 0.0 && k < 4 * (size_t)s->texels; ++k) g[k] -= lambda2 * scale[k / 4] * scale[k / 4] * y[k];
 }
 
 static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
@@ -14147,11 +14156,10 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
         int all_done = 1;
         if (restart[0] | restart[1] | restart[2] | restart[3]) { /* r = b - A x on the clamped x */
             for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
-            refl__lem_mul(s, scale, xd, q, qq);
+            refl__lem_mul(s, scale, lambda2, xd, q, qq);
             for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
         }
-        refl__lem_mul_t(s, scale, r, g);
-        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) g[k] -= lambda2 * scale[k / 4] * scale[k / 4] * xd[k];
+        refl__lem_mul_t(s, scale, lambda2, xd, r, g);
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
@@ -14180,8 +14188,7 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
         }
         if (all_done) break;
         if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
-        refl__lem_mul(s, scale, p, q, qq);
-        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) qq[k % 4] += lambda2 * (scale[k / 4] * p[k]) * (scale[k / 4] * p[k]);
+        refl__lem_mul(s, scale, lambda2, p, q, qq);
         for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
@@ -19479,12 +19486,23 @@ static refl_result refl__lem_direct_images(refl__lem_inference *x) {
    weights summing to 1 within 0.25% of its undamped value. */
 #define REFL__LEM_DAMPING 0.05f
 
-/* Solves one layer's system into texels, counting the solve in the frame's stats. */
-static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, const refl_lem_solve_desc *sd,
-                                           float *texels) {
+/* Solves one layer's system into texels as every map is solved, counting
+   the solve in the frame's stats. Radiance and coverage are never
+   negative, but unconstrained least squares is: where rows that share
+   texels disagree (one shell point seen as a black and a white checker),
+   it swings texels below 0 and their neighbours past every target
+   (ringing), and a lookup there is drawn dark. Every layer is solved
+   over x >= 0, damped. */
+static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, float *texels) {
     refl_layered_em_frame_stats *st = &p->frame->stats.layered_em;
+    refl_lem_solve_desc sd;
     refl_lem_solve_stats ss;
-    refl_result r = refl_lem_solve(sys, sd, texels, &ss);
+    refl_result r;
+    memset(&sd, 0, sizeof sd);
+    sd.iterations = p->desc.layered_em.iterations;
+    sd.nonnegative = 1;
+    sd.damping = REFL__LEM_DAMPING;
+    r = refl_lem_solve(sys, &sd, texels, &ss);
     if (r != REFL_OK) return r;
     st->solves += 1;
     st->solves_capped += !ss.converged;
@@ -19496,22 +19514,12 @@ static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system 
 static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map *out) {
     const refl_allocator *al = &x->p->scene->allocator;
     int l, L = x->lay->layers;
-    refl_lem_solve_desc sd;
     refl_result r = REFL_OK;
-    memset(&sd, 0, sizeof sd);
-    sd.iterations = x->p->desc.layered_em.iterations;
-    /* Radiance and coverage are never negative, but unconstrained least
-       squares is: where rows that share texels disagree (one shell point
-       seen as a black and a white checker), it swings texels below 0 and
-       their neighbours past every target (ringing), and a lookup there is
-       drawn dark. Every layer is solved over x >= 0. */
-    sd.nonnegative = 1;
-    sd.damping = REFL__LEM_DAMPING;
     for (l = 0; l < L && r == REFL_OK; ++l) {
         if (refl__lem_shared_layer(x->jr, l, L)) continue;
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], &sd, out->texels[l]);
+        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], out->texels[l]);
     }
     return r;
 }
@@ -19866,7 +19874,6 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     int texels = 6 * jr->shell.face_size * jr->shell.face_size, k;
     long long row;
     refl_lem_system *sys = NULL;
-    refl_lem_solve_desc sd;
     refl_result r = refl_lem_system_create(texels, al, &sys);
     out->layers = 1;
     out->shell[0] = jr->shell;
@@ -19884,13 +19891,9 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
                                   &st->rays, &added);
         st->layered_em.direct_rows += added;
     }
-    memset(&sd, 0, sizeof sd);
-    sd.iterations = p->desc.layered_em.iterations;
-    sd.nonnegative = 1; /* as refl__lem_infer's layers */
-    sd.damping = REFL__LEM_DAMPING;
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, &sd, out->texels[0]);
+    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, out->texels[0]);
     refl_lem_system_destroy(sys);
     return r;
 }

@@ -878,12 +878,15 @@ static void refl__lem_column_scale(const refl_lem_system *s, double lambda2, dou
     for (k = 0; k < s->texels; ++k) scale[k] = scale[k] > 0.0 ? 1.0 / sqrt(scale[k] + lambda2) : 0.0;
 }
 
-/* q = A S p (rows x 4) with S the column scaling, and qq its squared norm
-   per channel (summed in row order, as refl__lem_norm2 sums: one pass
-   over q instead of two) */
-static void refl__lem_mul(const refl_lem_system *s, const double *scale, const double *p, double *q, double qq[4]) {
+/* q = A S p (rows x 4) with S the column scaling, and qq the squared
+   norm per channel of the stacked operator's product: |q|^2 (summed in
+   row order, as refl__lem_norm2 sums: one pass over q instead of two)
+   plus lambda^2 |S p|^2 */
+static void refl__lem_mul(const refl_lem_system *s, const double *scale, double lambda2, const double *p, double *q,
+                          double qq[4]) {
     int r, c;
     long long e;
+    size_t k;
     for (c = 0; c < 4; ++c) qq[c] = 0.0;
     for (r = 0; r < s->rows; ++r) {
         double acc[4] = {0, 0, 0, 0};
@@ -893,18 +896,24 @@ static void refl__lem_mul(const refl_lem_system *s, const double *scale, const d
         }
         for (c = 0; c < 4; ++c) q[4 * (size_t)r + (size_t)c] = acc[c], qq[c] += acc[c] * acc[c];
     }
+    for (k = 0; lambda2 > 0.0 && k < 4 * (size_t)s->texels; ++k) qq[k % 4] += lambda2 * (scale[k / 4] * p[k]) * (scale[k / 4] * p[k]);
 }
 
-/* g = S A^T r (texels x 4), in row order */
-static void refl__lem_mul_t(const refl_lem_system *s, const double *scale, const double *r, double *g) {
+/* g = S A^T r - lambda^2 S^2 y (texels x 4), the stacked operator's
+   transpose times its residual (the damping's, -lambda S y, implicit), in
+   row order */
+static void refl__lem_mul_t(const refl_lem_system *s, const double *scale, double lambda2, const double *y,
+                            const double *r, double *g) {
     int row, c;
     long long e;
+    size_t k;
     memset(g, 0, sizeof(double) * 4 * (size_t)s->texels);
     for (row = 0; row < s->rows; ++row)
         for (e = s->row_start[row]; e < s->row_start[row + 1]; ++e) {
             double w = (double)s->w[e] * scale[s->col[e]];
             for (c = 0; c < 4; ++c) g[4 * (size_t)s->col[e] + (size_t)c] += w * r[4 * (size_t)row + (size_t)c];
         }
+    for (k = 0; lambda2 > 0.0 && k < 4 * (size_t)s->texels; ++k) g[k] -= lambda2 * scale[k / 4] * scale[k / 4] * y[k];
 }
 
 static void refl__lem_norm2(const double *v, size_t n, double out[4]) {
@@ -940,11 +949,10 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
         int all_done = 1;
         if (restart[0] | restart[1] | restart[2] | restart[3]) { /* r = b - A x on the clamped x */
             for (k = 0; k < 4 * nt; ++k) xd[k] = REFL__MAX(xd[k], 0.0);
-            refl__lem_mul(s, scale, xd, q, qq);
+            refl__lem_mul(s, scale, lambda2, xd, q, qq);
             for (k = 0; k < 4 * nr; ++k) r[k] = (double)s->b[k] - q[k];
         }
-        refl__lem_mul_t(s, scale, r, g);
-        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) g[k] -= lambda2 * scale[k / 4] * scale[k / 4] * xd[k];
+        refl__lem_mul_t(s, scale, lambda2, xd, r, g);
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {
                 size_t e = 4 * k + (size_t)c;
@@ -973,8 +981,7 @@ static int refl__lem_cgls(const refl_lem_system *s, const double *scale, double 
         }
         if (all_done) break;
         if (restart[0] | restart[1] | restart[2] | restart[3]) continue;
-        refl__lem_mul(s, scale, p, q, qq);
-        for (k = 0; lambda2 > 0.0 && k < 4 * nt; ++k) qq[k % 4] += lambda2 * (scale[k / 4] * p[k]) * (scale[k / 4] * p[k]);
+        refl__lem_mul(s, scale, lambda2, p, q, qq);
         for (c = 0; c < 4; ++c) alpha[c] = qq[c] > 0.0 && !done[c] ? gamma[c] / qq[c] : 0.0;
         for (k = 0; k < nt; ++k)
             for (c = 0; c < 4; ++c) {

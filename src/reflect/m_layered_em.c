@@ -804,12 +804,23 @@ static refl_result refl__lem_direct_images(refl__lem_inference *x) {
    weights summing to 1 within 0.25% of its undamped value. */
 #define REFL__LEM_DAMPING 0.05f
 
-/* Solves one layer's system into texels, counting the solve in the frame's stats. */
-static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, const refl_lem_solve_desc *sd,
-                                           float *texels) {
+/* Solves one layer's system into texels as every map is solved, counting
+   the solve in the frame's stats. Radiance and coverage are never
+   negative, but unconstrained least squares is: where rows that share
+   texels disagree (one shell point seen as a black and a white checker),
+   it swings texels below 0 and their neighbours past every target
+   (ringing), and a lookup there is drawn dark. Every layer is solved
+   over x >= 0, damped. */
+static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system *sys, float *texels) {
     refl_layered_em_frame_stats *st = &p->frame->stats.layered_em;
+    refl_lem_solve_desc sd;
     refl_lem_solve_stats ss;
-    refl_result r = refl_lem_solve(sys, sd, texels, &ss);
+    refl_result r;
+    memset(&sd, 0, sizeof sd);
+    sd.iterations = p->desc.layered_em.iterations;
+    sd.nonnegative = 1;
+    sd.damping = REFL__LEM_DAMPING;
+    r = refl_lem_solve(sys, &sd, texels, &ss);
     if (r != REFL_OK) return r;
     st->solves += 1;
     st->solves_capped += !ss.converged;
@@ -821,22 +832,12 @@ static refl_result refl__lem_solve_counted(refl__pass *p, const refl_lem_system 
 static refl_result refl__lem_solve_layers(refl__lem_inference *x, refl__lem_map *out) {
     const refl_allocator *al = &x->p->scene->allocator;
     int l, L = x->lay->layers;
-    refl_lem_solve_desc sd;
     refl_result r = REFL_OK;
-    memset(&sd, 0, sizeof sd);
-    sd.iterations = x->p->desc.layered_em.iterations;
-    /* Radiance and coverage are never negative, but unconstrained least
-       squares is: where rows that share texels disagree (one shell point
-       seen as a black and a white checker), it swings texels below 0 and
-       their neighbours past every target (ringing), and a lookup there is
-       drawn dark. Every layer is solved over x >= 0. */
-    sd.nonnegative = 1;
-    sd.damping = REFL__LEM_DAMPING;
     for (l = 0; l < L && r == REFL_OK; ++l) {
         if (refl__lem_shared_layer(x->jr, l, L)) continue;
         out->texels[l] = (float *)refl__calloc(al, 4 * (size_t)(6 * x->face * x->face), sizeof(float));
         if (!out->texels[l]) r = REFL_ERROR_OUT_OF_MEMORY;
-        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], &sd, out->texels[l]);
+        if (r == REFL_OK) r = refl__lem_solve_counted(x->p, x->sys[l], out->texels[l]);
     }
     return r;
 }
@@ -1191,7 +1192,6 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
     int texels = 6 * jr->shell.face_size * jr->shell.face_size, k;
     long long row;
     refl_lem_system *sys = NULL;
-    refl_lem_solve_desc sd;
     refl_result r = refl_lem_system_create(texels, al, &sys);
     out->layers = 1;
     out->shell[0] = jr->shell;
@@ -1209,13 +1209,9 @@ static refl_result refl__lem_joint_solve(refl__pass *p, const refl__gp_casters *
                                   &st->rays, &added);
         st->layered_em.direct_rows += added;
     }
-    memset(&sd, 0, sizeof sd);
-    sd.iterations = p->desc.layered_em.iterations;
-    sd.nonnegative = 1; /* as refl__lem_infer's layers */
-    sd.damping = REFL__LEM_DAMPING;
     out->texels[0] = r == REFL_OK ? (float *)refl__calloc(al, 4 * (size_t)texels, sizeof(float)) : NULL;
     if (r == REFL_OK && !out->texels[0]) r = REFL_ERROR_OUT_OF_MEMORY;
-    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, &sd, out->texels[0]);
+    if (r == REFL_OK) r = refl__lem_solve_counted(p, sys, out->texels[0]);
     refl_lem_system_destroy(sys);
     return r;
 }
